@@ -1,0 +1,75 @@
+//! Smooth dielectric interfaces: unpolarised Fresnel reflectance and Snell
+//! refraction (Born & Wolf, Principles of Optics, §1.5; pbrt-v4 §9.3).
+//!
+//! Directions are unit vectors; the interface normal is ±z. Indices are real
+//! (the slab boundary of SPEC §3 is a smooth or rough dielectric).
+//!
+//! ```
+//! // Normal incidence from air onto n = 1.5: ((n − 1)/(n + 1))² = 0.04.
+//! let f = lucent_render::fresnel::reflectance(1.0, 1.5);
+//! assert!((f - 0.04).abs() < 1e-15);
+//! ```
+
+/// Unpolarised Fresnel reflectance for light arriving with cosine `cos_i`
+/// (0 < cos_i ≤ 1, measured from the normal on the incident side) at an
+/// interface with relative index `eta` = n_transmitted / n_incident. Returns
+/// 1 under total internal reflection.
+#[inline]
+pub fn reflectance(cos_i: f64, eta: f64) -> f64 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin_t2 = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin_t2 >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin_t2).sqrt();
+    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    0.5 * (rs * rs + rp * rp)
+}
+
+/// Refracts unit direction `d` through a horizontal interface (normal ±z)
+/// with relative index `eta` = n_transmitted / n_incident. The z component
+/// keeps its sign. `None` under total internal reflection.
+#[inline]
+pub fn refract(d: [f64; 3], eta: f64) -> Option<[f64; 3]> {
+    let cos_i = d[2].abs();
+    let sin_t2 = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin_t2 >= 1.0 {
+        return None;
+    }
+    let cos_t = (1.0 - sin_t2).sqrt();
+    Some([d[0] / eta, d[1] / eta, cos_t.copysign(d[2])])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reciprocity_and_limits() {
+        // Reflectance is the same from both sides for paired angles.
+        let n = 1.589;
+        for k in 1..90 {
+            let cos_i = (k as f64).to_radians().cos();
+            let d = [(1.0 - cos_i * cos_i).sqrt(), 0.0, -cos_i];
+            let t = refract(d, n).unwrap();
+            let back = reflectance(t[2].abs(), 1.0 / n);
+            assert!((reflectance(cos_i, n) - back).abs() < 1e-12, "{k}°");
+            // Snell: n_i sin θ_i = n_t sin θ_t.
+            assert!((d[0] - n * t[0]).abs() < 1e-12);
+            assert!(((t[0] * t[0] + t[1] * t[1] + t[2] * t[2]) - 1.0).abs() < 1e-12);
+        }
+        assert_eq!(reflectance(0.0, 1.5), 1.0);
+        // Critical angle from inside n = 1.5: sin θ_c = 1/1.5.
+        let cos_c = (1.0f64 - 1.0 / 2.25).sqrt();
+        assert_eq!(reflectance(cos_c - 1e-9, 1.0 / 1.5), 1.0);
+        assert!(reflectance(cos_c + 1e-6, 1.0 / 1.5) < 1.0);
+        assert!(refract([0.9, 0.0, (1.0f64 - 0.81).sqrt()], 1.0 / 1.5).is_none());
+        // Brewster angle: p-polarised reflectance vanishes, so F = rs²/2.
+        let tb = 1.5f64.atan();
+        let f = reflectance(tb.cos(), 1.5);
+        let tt = (tb.sin() / 1.5).asin();
+        let rs = (tb - tt).sin() / (tb + tt).sin();
+        assert!((f - 0.5 * rs * rs).abs() < 1e-12);
+    }
+}

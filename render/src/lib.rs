@@ -1,0 +1,8 @@
+//! Light transport for lucent: phase functions, Fresnel interfaces, the
+//! slab BSSRDF simulator and (to come) the 3D path tracer (SPEC §3, §4).
+//! No OpenCV; inputs are plain numbers converted by the root crate.
+
+pub mod fresnel;
+pub mod phase;
+pub mod rng;
+pub mod slab;

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Installs the Debian packages lucent needs to build and test, only those
+# that are missing. Safe to run repeatedly.
+set -euo pipefail
+
+packages=(
+  pkg-config
+  clang            # the opencv crate generates its bindings with libclang
+  libclang-dev
+  libopencv-dev    # OpenCV 4.6 (calib/ links calib3d, imgproc, imgcodecs)
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if ((${#missing[@]})); then
+  echo "Installing missing Debian packages: ${missing[*]}"
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+if ! command -v cargo >/dev/null 2>&1; then
+  echo "error: cargo (Rust toolchain) not found; install Rust from https://rustup.rs or Debian's cargo package" >&2
+  exit 1
+fi

@@ -1,0 +1,423 @@
+//! The `lucent` command line: argument parsing and orchestration only; the
+//! work is done by the library modules.
+
+
+use crate::optics::bulk::{self, OpticalSpectrum};
+use crate::optics::mie::{Coefficients, Efficiencies};
+use crate::optics::output;
+use crate::optics::recipe::{Overrides, Recipe};
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use lucent_colour::WavelengthGrid;
+use num_complex::Complex64;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Debug, Parser)]
+#[command(name = "lucent", version, about = "Digital twins of translucent objects")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Spectral optical properties of recipes (Lorenz–Mie): μs, μa, μt, g, n_bulk, phase tables, plots.
+    Optics(OpticsArgs),
+    /// Lorenz–Mie efficiencies of one sphere, printed as JSON.
+    Mie(MieArgs),
+    /// Benchmarks (see README, performance section).
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Debug, Args)]
+pub struct OpticsArgs {
+    /// Recipe files (TOML) or folders of recipes.
+    #[arg(required = true)]
+    pub recipes: Vec<PathBuf>,
+    /// Wavelength grid START:END:STEP in nm.
+    #[arg(long, default_value = "380:780:10", conflicts_with = "wavelength")]
+    pub wavelengths: String,
+    /// A single wavelength in nm.
+    #[arg(long)]
+    pub wavelength: Option<f64>,
+    /// Output folder (default: lucent-out/optics; with --json and no --out, nothing is written).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print the properties as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Entries of the tabulated phase function (uniform in θ; 0 disables).
+    #[arg(long, default_value_t = 4096)]
+    pub phase_entries: usize,
+    /// Weight percentage for particle types whose recipe leaves it unknown.
+    #[arg(long)]
+    pub weight_percent: Option<f64>,
+    /// In a folder, skip recipes that fail validation (reported on stderr) instead of stopping.
+    #[arg(long)]
+    pub skip_invalid: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct MieArgs {
+    /// Size parameter x = 2π r n_host / λ (real host).
+    #[arg(long, requires = "relative_index", conflicts_with_all = ["radius_um", "wavelength_nm", "host_index", "particle_index"])]
+    pub size_parameter: Option<f64>,
+    /// Relative index m = n_particle/n_host as N or N+Ki (K ≥ 0 absorbs).
+    #[arg(long, allow_hyphen_values = true)]
+    pub relative_index: Option<String>,
+    /// Sphere radius in µm.
+    #[arg(long, requires_all = ["wavelength_nm", "particle_index"])]
+    pub radius_um: Option<f64>,
+    /// Vacuum wavelength in nm.
+    #[arg(long)]
+    pub wavelength_nm: Option<f64>,
+    /// Host index N or N+Ki (default 1).
+    #[arg(long, allow_hyphen_values = true)]
+    pub host_index: Option<String>,
+    /// Particle index N or N+Ki.
+    #[arg(long, allow_hyphen_values = true)]
+    pub particle_index: Option<String>,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Mie efficiencies over the cases of a reference CSV (m_re,m_im,x,… columns).
+    Mie {
+        #[arg(long, default_value = "fixtures/reference/mie_miepython.csv")]
+        cases: PathBuf,
+        #[arg(long, default_value_t = 20)]
+        repeats: usize,
+    },
+    /// The full optical-property table with phase tables for every recipe in a folder.
+    Optics {
+        #[arg(long, default_value = "fixtures/samples")]
+        samples: PathBuf,
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// Weight percentage for recipes that leave it unknown (IOL1068-15).
+        #[arg(long, default_value_t = 1.0)]
+        weight_percent: f64,
+    },
+}
+
+/// Runs the parsed command.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Optics(a) => optics(a),
+        Command::Mie(a) => mie(a),
+        Command::Bench(b) => bench(b),
+    }
+}
+
+/// Parses "START:END:STEP" (nm).
+pub fn parse_grid(text: &str) -> Result<WavelengthGrid> {
+    let parts: Vec<&str> = text.split(':').collect();
+    let [a, b, c] = parts.as_slice() else {
+        bail!("--wavelengths {text:?}: expected START:END:STEP in nm, e.g. 380:780:10");
+    };
+    let num = |s: &str| s.trim().parse::<f64>().map_err(|_| anyhow!("--wavelengths {text:?}: {s:?} is not a number"));
+    Ok(WavelengthGrid::new(num(a)?, num(b)?, num(c)?)?)
+}
+
+/// Parses a refractive index "1.5", "1.5+0.01i" or "1.5+1e-3j".
+pub fn parse_index(flag: &str, text: &str) -> Result<Complex64> {
+    let t = text.trim().replace(' ', "");
+    let bad = || anyhow!("{flag} {text:?}: expected N or N+Ki, e.g. 1.5 or 1.5+0.01i");
+    let value = if let Some(body) = t.strip_suffix(['i', 'j']) {
+        // Split at the last sign that is not part of an exponent.
+        let bytes = body.as_bytes();
+        let split = (1..bytes.len())
+            .rev()
+            .find(|&k| (bytes[k] == b'+' || bytes[k] == b'-') && !matches!(bytes[k - 1], b'e' | b'E'))
+            .ok_or_else(bad)?;
+        let re: f64 = body[..split].parse().map_err(|_| bad())?;
+        let im: f64 = body[split..].parse().map_err(|_| bad())?;
+        Complex64::new(re, im)
+    } else {
+        Complex64::new(t.parse().map_err(|_| bad())?, 0.0)
+    };
+    if !(value.re.is_finite() && value.im.is_finite()) || value.re <= 0.0 {
+        bail!("{flag} {text:?}: the real part must be a positive finite number");
+    }
+    if value.im < 0.0 {
+        bail!(
+            "{flag} {text:?}: the imaginary part must be ≥ 0 (lucent writes an absorbing index as n+κi; miepython's n−ki means the same as n+ki here)"
+        );
+    }
+    Ok(value)
+}
+
+fn collect_recipe_paths(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut paths = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let mut found: Vec<PathBuf> = std::fs::read_dir(input)
+                .with_context(|| format!("{}: cannot list folder", input.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+                .collect();
+            if found.is_empty() {
+                bail!("{}: no recipe files (*.toml) in this folder", input.display());
+            }
+            found.sort();
+            paths.extend(found);
+        } else if input.exists() {
+            paths.push(input.clone());
+        } else {
+            bail!("{}: no such recipe file or folder", input.display());
+        }
+    }
+    Ok(paths)
+}
+
+/// Loads recipes; with `skip_invalid`, invalid ones are reported and left out.
+fn load_recipes(paths: &[PathBuf], overrides: Overrides, skip_invalid: bool) -> Result<Vec<Recipe>> {
+    let mut recipes = Vec::new();
+    let mut failures = Vec::new();
+    for p in paths {
+        match Recipe::load(p, overrides) {
+            Ok(r) => recipes.push(r),
+            Err(e) => failures.push(e.to_string()),
+        }
+    }
+    if !failures.is_empty() {
+        if skip_invalid && !recipes.is_empty() {
+            for f in &failures {
+                eprintln!("warning: skipped {f}");
+            }
+        } else if failures.len() == 1 {
+            bail!("{}", failures[0]);
+        } else {
+            bail!("{} recipes are invalid:\n  {}", failures.len(), failures.join("\n  "));
+        }
+    }
+    Ok(recipes)
+}
+
+fn optics(a: OpticsArgs) -> Result<()> {
+    let grid = match a.wavelength {
+        Some(w) => WavelengthGrid::from_list(vec![w]).context("--wavelength")?,
+        None => parse_grid(&a.wavelengths)?,
+    };
+    if a.phase_entries == 1 {
+        bail!("--phase-entries must be 0 (no table) or at least 2");
+    }
+    let paths = collect_recipe_paths(&a.recipes)?;
+    let recipes = load_recipes(&paths, Overrides { weight_percent: a.weight_percent }, a.skip_invalid)?;
+    let options = bulk::Options { phase_entries: a.phase_entries, ..Default::default() };
+    let start = Instant::now();
+    let spectra: Vec<OpticalSpectrum> = recipes
+        .par_iter()
+        .map(|r| bulk::compute(r, &grid, &options).map_err(anyhow::Error::from))
+        .collect::<Result<_>>()?;
+    let elapsed = start.elapsed().as_secs_f64();
+    for s in &spectra {
+        for w in &s.warnings {
+            eprintln!("warning: {}: {w}", s.sample);
+        }
+    }
+    if a.json && a.out.is_none() {
+        let text = if let [single] = spectra.as_slice() {
+            serde_json::to_string_pretty(single)?
+        } else {
+            serde_json::to_string_pretty(&spectra)?
+        };
+        println!("{text}");
+        return Ok(());
+    }
+    let out = a.out.unwrap_or_else(|| PathBuf::from("lucent-out/optics"));
+    let written = output::write_all(&out, &spectra)?;
+    if a.json {
+        let text = serde_json::to_string_pretty(&spectra)?;
+        println!("{text}");
+    } else {
+        print_table(&spectra);
+        println!(
+            "\n{} sample(s) × {} wavelength(s) in {:.2} s; {} files written to {}/ (full table: {})",
+            spectra.len(),
+            grid.len(),
+            elapsed,
+            written.len(),
+            out.display(),
+            out.join("optical_properties.csv").display()
+        );
+    }
+    Ok(())
+}
+
+/// Prints a readable table: every wavelength for one sample, or 450/550/650 nm for several.
+fn print_table(spectra: &[OpticalSpectrum]) {
+    println!(
+        "{:<14} {:>8} {:>13} {:>13} {:>13} {:>9} {:>9}",
+        "sample", "λ [nm]", "μs [1/m]", "μa [1/m]", "μt [1/m]", "g", "n_bulk"
+    );
+    for s in spectra {
+        let rows: Vec<usize> = if spectra.len() == 1 {
+            (0..s.wavelength_nm.len()).collect()
+        } else {
+            let picks: Vec<usize> =
+                (0..s.wavelength_nm.len()).filter(|&i| [450.0, 550.0, 650.0].contains(&s.wavelength_nm[i])).collect();
+            if picks.is_empty() {
+                (0..s.wavelength_nm.len()).collect()
+            } else {
+                picks
+            }
+        };
+        for i in rows {
+            println!(
+                "{:<14} {:>8} {:>13.5e} {:>13.5e} {:>13.5e} {:>9.5} {:>9.5}",
+                s.sample, s.wavelength_nm[i], s.mu_s_per_m[i], s.mu_a_per_m[i], s.mu_t_per_m[i], s.g[i], s.n_bulk[i]
+            );
+        }
+    }
+}
+
+/// Efficiencies of one sphere, for either form of the `mie` arguments.
+pub fn mie_efficiencies(a: &MieArgs) -> Result<Efficiencies> {
+    if let Some(x) = a.size_parameter {
+        let m_text = a.relative_index.as_deref().ok_or_else(|| anyhow!("--size-parameter needs --relative-index"))?;
+        let m = parse_index("--relative-index", m_text)?;
+        if !(x.is_finite() && x > 0.0) {
+            bail!("--size-parameter {x}: must be a positive finite number");
+        }
+        let c = Coefficients::compute(m, Complex64::new(x, 0.0))?;
+        return Ok(c.efficiencies(x));
+    }
+    let (Some(r_um), Some(w_nm), Some(np_text)) = (a.radius_um, a.wavelength_nm, a.particle_index.as_deref()) else {
+        bail!("give either --size-parameter X --relative-index M, or --radius-um R --wavelength-nm L --particle-index N [--host-index N]");
+    };
+    if !(r_um.is_finite() && r_um > 0.0) {
+        bail!("--radius-um {r_um}: must be a positive finite number");
+    }
+    if !(w_nm.is_finite() && w_nm > 0.0) {
+        bail!("--wavelength-nm {w_nm}: must be a positive finite number");
+    }
+    let np = parse_index("--particle-index", np_text)?;
+    let nh = match a.host_index.as_deref() {
+        Some(t) => parse_index("--host-index", t)?,
+        None => Complex64::new(1.0, 0.0),
+    };
+    let lambda = w_nm * 1e-9;
+    let r = r_um * 1e-6;
+    let x = nh * (2.0 * std::f64::consts::PI * r / lambda);
+    let c = Coefficients::compute(np / nh, x)?;
+    if nh.im == 0.0 {
+        return Ok(c.efficiencies(x.re));
+    }
+    // Absorbing host: apparent efficiencies from the Frisvad cross sections.
+    let geometric = std::f64::consts::PI * r * r;
+    let cs = c.cross_sections(lambda, nh);
+    let q = c.efficiencies(x.norm());
+    let qback = q.qback * x.norm_sqr() * lambda * lambda / (4.0 * std::f64::consts::PI * nh.norm_sqr()) / geometric;
+    let (qext, qsca) = (cs.extinction_m2 / geometric, cs.scattering_m2 / geometric);
+    Ok(Efficiencies { qext, qsca, qabs: qext - qsca, qback, g: cs.g })
+}
+
+fn mie(a: MieArgs) -> Result<()> {
+    let q = mie_efficiencies(&a)?;
+    println!("{}", serde_json::to_string_pretty(&q)?);
+    Ok(())
+}
+
+/// Reads (m, x) cases from a reference CSV with columns m_re, m_im, x.
+pub fn read_mie_cases(path: &Path) -> Result<Vec<(Complex64, f64)>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read cases", path.display()))?;
+    let mut lines = text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty());
+    let header: Vec<&str> = lines.next().ok_or_else(|| anyhow!("{}: empty file", path.display()))?.split(',').collect();
+    let col = |name: &str| {
+        header.iter().position(|h| h.trim() == name).ok_or_else(|| anyhow!("{}: no column {name:?}", path.display()))
+    };
+    let (im_re, im_im, ix) = (col("m_re")?, col("m_im")?, col("x")?);
+    let mut cases = Vec::new();
+    for (k, line) in lines.enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let num = |i: usize| -> Result<f64> {
+            f.get(i)
+                .and_then(|s| s.trim().parse().ok())
+                .ok_or_else(|| anyhow!("{}: data row {}: bad number in column {}", path.display(), k + 1, i + 1))
+        };
+        cases.push((Complex64::new(num(im_re)?, num(im_im)?), num(ix)?));
+    }
+    Ok(cases)
+}
+
+fn bench(b: BenchCommand) -> Result<()> {
+    match b {
+        BenchCommand::Mie { cases, repeats } => {
+            let cases = read_mie_cases(&cases)?;
+            let mut c = Coefficients::new();
+            let mut checksum = 0.0;
+            let start = Instant::now();
+            for _ in 0..repeats.max(1) {
+                for &(m, x) in &cases {
+                    c.recompute(m, Complex64::new(x, 0.0))?;
+                    checksum += c.efficiencies(x).qsca;
+                }
+            }
+            let s = start.elapsed().as_secs_f64();
+            let n = (cases.len() * repeats.max(1)) as f64;
+            let json = serde_json::json!({
+                "benchmark": "mie efficiencies (qext, qsca, qback, g), one core",
+                "cases": cases.len(),
+                "repeats": repeats.max(1),
+                "seconds_per_sphere": s / n,
+                "spheres_per_second": n / s,
+                "checksum": checksum,
+            });
+            println!("{}", serde_json::to_string_pretty(&json)?);
+        }
+        BenchCommand::Optics { samples, repeats, weight_percent } => {
+            let paths = collect_recipe_paths(&[samples])?;
+            let recipes = load_recipes(&paths, Overrides { weight_percent: Some(weight_percent) }, false)?;
+            let grid = WavelengthGrid::visible();
+            let options = bulk::Options::default();
+            let mut times = Vec::new();
+            for _ in 0..repeats.max(1) {
+                let start = Instant::now();
+                let spectra: Vec<OpticalSpectrum> =
+                    recipes.par_iter().map(|r| bulk::compute(r, &grid, &options)).collect::<Result<_, _>>()?;
+                times.push(start.elapsed().as_secs_f64());
+                std::hint::black_box(spectra);
+            }
+            times.sort_by(f64::total_cmp);
+            let json = serde_json::json!({
+                "benchmark": "full optical-property table with 4096-entry phase tables",
+                "recipes": recipes.len(),
+                "wavelengths": grid.len(),
+                "threads": rayon::current_num_threads(),
+                "median_seconds": times[times.len() / 2],
+                "min_seconds": times[0],
+            });
+            println!("{}", serde_json::to_string_pretty(&json)?);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn index_parsing() {
+        assert_eq!(parse_index("f", "1.5").unwrap(), Complex64::new(1.5, 0.0));
+        assert_eq!(parse_index("f", "1.5+0.01i").unwrap(), Complex64::new(1.5, 0.01));
+        assert_eq!(parse_index("f", "1.5+1e-3j").unwrap(), Complex64::new(1.5, 1e-3));
+        assert_eq!(parse_index("f", "1.5e0+1E-3i").unwrap(), Complex64::new(1.5, 1e-3));
+        assert!(parse_index("f", "1.5-0.01i").unwrap_err().to_string().contains("≥ 0"));
+        assert!(parse_index("f", "abc").is_err());
+        assert!(parse_index("f", "-1.5").is_err());
+        assert!(parse_index("f", "nan").is_err());
+    }
+
+    #[test]
+    fn grid_parsing() {
+        assert_eq!(parse_grid("380:780:10").unwrap().len(), 41);
+        assert!(parse_grid("380:780").is_err());
+        assert!(parse_grid("380:x:10").is_err());
+        assert!(parse_grid("780:380:10").is_err());
+    }
+}

@@ -1,0 +1,234 @@
+//! Linear images on disk: OpenEXR (32-bit float, read 16/32-bit), Radiance
+//! `.hdr`, 16/8-bit PNG and TIFF (values scaled to [0, 1], no transfer
+//! function removed), and 8-bit sRGB PNG for looking at. Every write is
+//! atomic (temporary file, then rename); every read checks what it got: a
+//! truncated or corrupt file is an error naming it, never a padded image.
+//!
+//! ```
+//! use lucent::imageio::{RgbImage, write_exr, read_rgb};
+//! let dir = std::env::temp_dir().join("lucent-doc-imageio");
+//! let img = RgbImage::new(4, 2, vec![0.25; 24]).unwrap();
+//! write_exr(&dir.join("a.exr"), &img).unwrap();
+//! assert_eq!(read_rgb(&dir.join("a.exr")).unwrap(), img);
+//! ```
+
+use crate::io::{write_atomic, WriteError};
+use std::path::{Path, PathBuf};
+
+/// An image that could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageIoError {
+    #[error("{path}: cannot read image: {reason}")]
+    Read { path: PathBuf, reason: String },
+    #[error("{path}: unsupported image format (expected .exr, .hdr, .png, .tif or .tiff)")]
+    Format { path: PathBuf },
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error("{path}: cannot encode image: {reason}")]
+    Encode { path: PathBuf, reason: String },
+    #[error("image data has {got} values, expected {expected} for {width} × {height} × {channels}")]
+    Size { got: usize, expected: usize, width: usize, height: usize, channels: usize },
+}
+
+/// A linear RGB image, interleaved, row-major, top row first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbImage {
+    pub width: usize,
+    pub height: usize,
+    pub data: Vec<f32>,
+}
+
+impl RgbImage {
+    /// An image of `width` × `height` RGB pixels from interleaved data.
+    pub fn new(width: usize, height: usize, data: Vec<f32>) -> Result<Self, ImageIoError> {
+        let expected = width * height * 3;
+        if data.len() != expected || width == 0 || height == 0 {
+            return Err(ImageIoError::Size { got: data.len(), expected, width, height, channels: 3 });
+        }
+        Ok(Self { width, height, data })
+    }
+
+    /// The RGB value at column `x`, row `y`.
+    pub fn pixel(&self, x: usize, y: usize) -> [f32; 3] {
+        let i = 3 * (y * self.width + x);
+        [self.data[i], self.data[i + 1], self.data[i + 2]]
+    }
+}
+
+fn extension(path: &Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+}
+
+/// Reads a linear RGB image; the format follows the file extension.
+pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
+    let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
+    if !path.exists() {
+        return Err(read_err("no such file".into()));
+    }
+    match extension(path).as_str() {
+        "exr" => read_exr(path),
+        "hdr" | "png" | "tif" | "tiff" => {
+            let img = image::ImageReader::open(path)
+                .map_err(|e| read_err(e.to_string()))?
+                .with_guessed_format()
+                .map_err(|e| read_err(e.to_string()))?
+                .decode()
+                .map_err(|e| read_err(e.to_string()))?;
+            let rgb = img.into_rgb32f();
+            let (w, h) = rgb.dimensions();
+            let out = RgbImage::new(w as usize, h as usize, rgb.into_raw()).map_err(|e| read_err(e.to_string()))?;
+            if out.data.iter().any(|v| !v.is_finite()) {
+                return Err(read_err("contains NaN or infinite values".into()));
+            }
+            Ok(out)
+        }
+        _ => Err(ImageIoError::Format { path: path.to_path_buf() }),
+    }
+}
+
+fn read_exr(path: &Path) -> Result<RgbImage, ImageIoError> {
+    use exr::prelude::*;
+    let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |res, _| (res.width(), res.height(), vec![0f32; res.width() * res.height() * 3]),
+            |(w, _, px): &mut (usize, usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let i = 3 * (pos.y() * *w + pos.x());
+                px[i] = r;
+                px[i + 1] = g;
+                px[i + 2] = b;
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .pedantic()
+        .from_file(path)
+        .map_err(|e| read_err(e.to_string()))?;
+    let (w, h, data) = image.layer_data.channel_data.pixels;
+    let out = RgbImage::new(w, h, data).map_err(|e| read_err(e.to_string()))?;
+    if out.data.iter().any(|v| !v.is_finite()) {
+        return Err(read_err("contains NaN or infinite values".into()));
+    }
+    Ok(out)
+}
+
+/// Writes named float channels (each `width × height`, row-major) as one
+/// 32-bit float EXR layer, atomically. Channel names like `R`, `G`, `B`,
+/// `std_error.Y`.
+pub fn write_exr_channels(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: &[(&str, &[f32])],
+) -> Result<(), ImageIoError> {
+    use exr::prelude::*;
+    for (_, c) in channels {
+        if c.len() != width * height {
+            return Err(ImageIoError::Size { got: c.len(), expected: width * height, width, height, channels: 1 });
+        }
+    }
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
+        channels.iter().map(|(name, c)| AnyChannel::new(*name, FlatSamples::F32(c.to_vec()))).collect();
+    let layer = Layer::new((width, height), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
+    let image = Image::from_layer(layer);
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image
+        .write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| ImageIoError::Encode { path: path.to_path_buf(), reason: e.to_string() })?;
+    Ok(write_atomic(path, &bytes.into_inner())?)
+}
+
+/// Writes a linear RGB image as a 32-bit float EXR, atomically.
+pub fn write_exr(path: &Path, img: &RgbImage) -> Result<(), ImageIoError> {
+    let plane = |c: usize| img.data.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
+    let (r, g, b) = (plane(0), plane(1), plane(2));
+    write_exr_channels(path, img.width, img.height, &[("R", &r), ("G", &g), ("B", &b)])
+}
+
+/// The sRGB transfer function (IEC 61966-2-1) of a linear value in [0, 1].
+pub fn srgb_encode(linear: f32) -> f32 {
+    let v = linear.clamp(0.0, 1.0);
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Writes a linear RGB image as an 8-bit sRGB PNG for display (values
+/// clipped to [0, 1]), atomically.
+pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), ImageIoError> {
+    let bytes: Vec<u8> = img.data.iter().map(|v| (srgb_encode(*v) * 255.0 + 0.5) as u8).collect();
+    let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes).ok_or(ImageIoError::Size {
+        got: img.data.len(),
+        expected: img.width * img.height * 3,
+        width: img.width,
+        height: img.height,
+        channels: 3,
+    })?;
+    let mut out = std::io::Cursor::new(Vec::new());
+    buf.write_to(&mut out, image::ImageFormat::Png)
+        .map_err(|e| ImageIoError::Encode { path: path.to_path_buf(), reason: e.to_string() })?;
+    Ok(write_atomic(path, &out.into_inner())?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(w: usize, h: usize) -> RgbImage {
+        RgbImage::new(w, h, (0..w * h * 3).map(|i| i as f32 * 0.37 - 3.0).collect()).unwrap()
+    }
+
+    #[test]
+    fn exr_round_trip_is_exact() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = ramp(7, 5);
+        let p = dir.path().join("x.exr");
+        write_exr(&p, &img).unwrap();
+        assert_eq!(read_rgb(&p).unwrap(), img);
+    }
+
+    #[test]
+    fn truncated_exr_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = ramp(64, 64);
+        let p = dir.path().join("x.exr");
+        write_exr(&p, &img).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        let cut = dir.path().join("cut.exr");
+        std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+        let e = read_rgb(&cut).unwrap_err().to_string();
+        assert!(e.contains("cut.exr"), "{e}");
+    }
+
+    #[test]
+    fn nan_and_unknown_formats_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut img = ramp(3, 3);
+        img.data[4] = f32::NAN;
+        let p = dir.path().join("nan.exr");
+        write_exr(&p, &img).unwrap();
+        assert!(read_rgb(&p).unwrap_err().to_string().contains("NaN"));
+        assert!(matches!(read_rgb(&dir.path().join("x.bmp")), Err(ImageIoError::Read { .. })));
+        std::fs::write(dir.path().join("x.bmp"), b"BM").unwrap();
+        assert!(matches!(read_rgb(&dir.path().join("x.bmp")), Err(ImageIoError::Format { .. })));
+        assert!(RgbImage::new(2, 2, vec![0.0; 11]).is_err());
+    }
+
+    #[test]
+    fn png_is_srgb_encoded() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = RgbImage::new(2, 1, vec![0.0, 0.5, 1.0, 0.2140411, 2.0, -1.0]).unwrap();
+        let p = dir.path().join("x.png");
+        write_png(&p, &img).unwrap();
+        let back = read_rgb(&p).unwrap();
+        let expect = [0.0, 188.0, 255.0, 128.0, 255.0, 0.0];
+        for (b, e) in back.data.iter().zip(expect) {
+            assert!((b * 255.0 - e).abs() <= 1.0, "{b} vs {e}");
+        }
+    }
+}

@@ -1,0 +1,11 @@
+//! lucent: digital twins of translucent objects.
+//!
+//! The library behind the `lucent` command. Data flow is one way (SPEC):
+//! recipe → optical properties ([`optics`]) → slab simulator or renderer
+//! (`lucent-render`) → images → comparison.
+
+pub mod cli;
+pub mod imageio;
+pub mod io;
+pub mod optics;
+pub mod plot;

@@ -1,0 +1,145 @@
+//! Files of the optics stage: the property table (CSV and JSON, one row per
+//! sample and wavelength), the phase tables (CSV, per steradian) and plots.
+//!
+//! Layout of an output folder for one recipe:
+//!
+//! | file | content |
+//! |---|---|
+//! | `optical_properties.csv` | sample, wavelength_nm, mu_s_per_m, mu_a_per_m, mu_t_per_m, g, n_bulk |
+//! | `optical_properties.json` | the same as arrays over wavelength |
+//! | `phase_function.csv` | theta_deg, cos_theta, then p [1/sr] per wavelength |
+//! | `optical_properties.png` | μ_s, μ_a, g against wavelength |
+//! | `phase_<λ>nm.png` | polar plot, Lorenz–Mie against Henyey–Greenstein, near 550 nm |
+//!
+//! For several recipes the table files hold all samples (the JSON is an
+//! array) and each sample gets a subfolder with its phase table and plots.
+
+use super::bulk::OpticalSpectrum;
+use crate::io::{write_atomic, write_json, WriteError};
+use crate::plot::{self, PlotError};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// An output that could not be produced.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error("{path}: {source}")]
+    Plot { path: PathBuf, source: PlotError },
+}
+
+/// Header of the property table.
+pub const CSV_HEADER: &str = "sample,wavelength_nm,mu_s_per_m,mu_a_per_m,mu_t_per_m,g,n_bulk";
+
+/// The property table of all `spectra` as CSV text.
+pub fn table_csv(spectra: &[&OpticalSpectrum]) -> String {
+    let mut out = String::from(CSV_HEADER);
+    out.push('\n');
+    for s in spectra {
+        for i in 0..s.wavelength_nm.len() {
+            let _ = writeln!(
+                out,
+                "{},{},{:.10e},{:.10e},{:.10e},{:.10},{:.10}",
+                csv_field(&s.sample),
+                s.wavelength_nm[i],
+                s.mu_s_per_m[i],
+                s.mu_a_per_m[i],
+                s.mu_t_per_m[i],
+                s.g[i],
+                s.n_bulk[i]
+            );
+        }
+    }
+    out
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// The phase tables of `spectrum` as CSV text (None without tables).
+pub fn phase_csv(spectrum: &OpticalSpectrum) -> Option<String> {
+    let n = spectrum.phase.first().map(Vec::len).filter(|&n| n >= 2)?;
+    let mut out = String::from("theta_deg,cos_theta");
+    for w in &spectrum.wavelength_nm {
+        let _ = write!(out, ",p_{w}nm_per_sr");
+    }
+    out.push('\n');
+    for i in 0..n {
+        let theta = std::f64::consts::PI * i as f64 / (n - 1) as f64;
+        let _ = write!(out, "{:.8},{:.12}", theta.to_degrees(), theta.cos());
+        for table in &spectrum.phase {
+            let _ = write!(out, ",{:.9e}", table[i]);
+        }
+        out.push('\n');
+    }
+    Some(out)
+}
+
+/// Index of the grid wavelength closest to `target_nm`.
+pub fn closest_wavelength(spectrum: &OpticalSpectrum, target_nm: f64) -> Option<usize> {
+    (0..spectrum.wavelength_nm.len())
+        .min_by(|&a, &b| (spectrum.wavelength_nm[a] - target_nm).abs().total_cmp(&(spectrum.wavelength_nm[b] - target_nm).abs()))
+}
+
+fn png(path: &Path, bytes: Result<Vec<u8>, PlotError>) -> Result<(), OutputError> {
+    let bytes = bytes.map_err(|source| OutputError::Plot { path: path.to_path_buf(), source })?;
+    Ok(write_atomic(path, &bytes)?)
+}
+
+/// Writes the phase table and the plots of one sample into `dir`; returns
+/// the files written.
+pub fn write_sample_files(dir: &Path, spectrum: &OpticalSpectrum) -> Result<Vec<PathBuf>, OutputError> {
+    let mut written = Vec::new();
+    if let Some(csv) = phase_csv(spectrum) {
+        let p = dir.join("phase_function.csv");
+        write_atomic(&p, csv.as_bytes())?;
+        written.push(p);
+        if let Some(i) = closest_wavelength(spectrum, 550.0) {
+            let w = spectrum.wavelength_nm[i];
+            let p = dir.join(format!("phase_{w}nm.png"));
+            let title = format!("{}: phase function at {w} nm (log radial axis)", spectrum.sample);
+            png(&p, plot::phase_polar_png(&title, &spectrum.phase[i], spectrum.g[i]))?;
+            written.push(p);
+        }
+    }
+    let p = dir.join("optical_properties.png");
+    png(&p, plot::spectra_png(&[spectrum]))?;
+    written.push(p);
+    Ok(written)
+}
+
+/// Writes the full output of the optics stage for `spectra` into `dir`.
+pub fn write_all(dir: &Path, spectra: &[OpticalSpectrum]) -> Result<Vec<PathBuf>, OutputError> {
+    let refs: Vec<&OpticalSpectrum> = spectra.iter().collect();
+    let mut written = Vec::new();
+    let csv = dir.join("optical_properties.csv");
+    write_atomic(&csv, table_csv(&refs).as_bytes())?;
+    written.push(csv);
+    let json = dir.join("optical_properties.json");
+    if let [single] = spectra {
+        write_json(&json, single)?;
+        written.push(json);
+        written.extend(write_sample_files(dir, single)?);
+    } else {
+        write_json(&json, &spectra)?;
+        written.push(json);
+        let p = dir.join("optical_properties.png");
+        png(&p, plot::spectra_png(&refs))?;
+        written.push(p);
+        for s in spectra {
+            written.extend(write_sample_files(&dir.join(sanitise(&s.sample)), s)?);
+        }
+    }
+    Ok(written)
+}
+
+/// A sample name made safe as a folder name.
+fn sanitise(name: &str) -> String {
+    name.chars().map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect()
+}

@@ -1,0 +1,528 @@
+//! Sample recipes: the material description of SPEC §1 as a TOML file.
+//!
+//! A recipe names a host medium and one or more particle inclusions, each
+//! with a refractive-index source (a refractiveindex.info YAML file, or an
+//! embedded one as `builtin:NAME`), a density in g/mL, for particles a
+//! weight percentage and a size, plus the slab thickness and outer size and
+//! an optional measured surface roughness. Loading is two-stage (raw TOML
+//! with unknown keys rejected, then a validated [`Recipe`]); every error
+//! names the file and the key.
+//!
+//! ```toml
+//! name = "IOL1068-09"
+//! thickness_mm = 6.35
+//! size_mm = [149.1, 104.5]
+//! absorption = "mie"                    # or "volume-weighted"
+//!
+//! [host]
+//! name = "polycarbonate"
+//! index = "builtin:PC_Zhang2020"        # or a path relative to this file
+//! density_g_per_ml = 1.2
+//! extrapolate = "clamp"                 # none (default) | clamp | linear
+//! real_part = { wavelength_nm = 550, n = 1.5889, mode = "shift" }
+//!
+//! [[particles]]
+//! name = "PDMS"
+//! index = "builtin:PDMS_Zhang2020_20-1"
+//! density_g_per_ml = 0.965
+//! weight_percent = 0.65
+//! size = { kind = "diameter", diameter_um = 2.2 }
+//! # size = { kind = "range", min_um = 8, max_um = 10, distribution = "uniform" }   # or "midpoint"
+//! # size = { kind = "log-normal", median_diameter_um = 2.2, sigma = 0.1 }
+//!
+//! [surface]
+//! model = "trowbridge-reitz"            # or "beckmann"
+//! alpha = 0.00836
+//! scale = 1.095
+//! ```
+//!
+//! Volume fraction of a particle type (SPEC §1): φ = (w/ρ_p) / (100/ρ_h).
+
+use super::index::{Extrapolation, IndexError, IndexSpectrum, RealPartCorrection};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// A recipe that cannot be used; the message names the file and key.
+#[derive(Debug, thiserror::Error)]
+pub enum RecipeError {
+    #[error("{path}: cannot read recipe: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("{path}: {key}: {message}")]
+    Invalid { path: PathBuf, key: String, message: String },
+    #[error("{path}: {key}: {source}")]
+    Index { path: PathBuf, key: String, source: IndexError },
+}
+
+/// How the bulk absorption coefficient is computed (SPEC §1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum AbsorptionModel {
+    /// μ_a = μ_t − μ_s from the Lorenz–Mie cross sections plus host absorption.
+    #[default]
+    Mie,
+    /// Host 4πκ_h/λ and each particle's 4πκ_p/λ, weighted by volume fraction.
+    VolumeWeighted,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRecipe {
+    name: Option<String>,
+    description: Option<String>,
+    thickness_mm: f64,
+    size_mm: Option<Vec<f64>>,
+    #[serde(default)]
+    absorption: AbsorptionModel,
+    host: RawHost,
+    particles: Vec<RawParticle>,
+    surface: Option<RawSurface>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawHost {
+    name: String,
+    index: String,
+    density_g_per_ml: f64,
+    #[serde(default = "no_extrapolation")]
+    extrapolate: Extrapolation,
+    real_part: Option<RawRealPart>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRealPart {
+    wavelength_nm: f64,
+    n: f64,
+    #[serde(default = "shift")]
+    mode: RealPartCorrection,
+}
+
+fn shift() -> RealPartCorrection {
+    RealPartCorrection::Shift
+}
+
+fn no_extrapolation() -> Extrapolation {
+    Extrapolation::None
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawParticle {
+    name: String,
+    index: String,
+    density_g_per_ml: f64,
+    weight_percent: Option<f64>,
+    size: RawSize,
+    #[serde(default = "no_extrapolation")]
+    extrapolate: Extrapolation,
+    real_part: Option<RawRealPart>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+enum RawSize {
+    Diameter { diameter_um: f64 },
+    Range { min_um: f64, max_um: f64, distribution: RangeDistribution },
+    LogNormal { median_diameter_um: f64, sigma: f64 },
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+enum RangeDistribution {
+    /// The midpoint diameter as a single size (how the lab computed its tables).
+    Midpoint,
+    /// Number density uniform in radius over the range.
+    Uniform,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSurface {
+    model: RoughnessModel,
+    alpha: f64,
+    #[serde(default = "one")]
+    scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Microfacet distribution of a measured surface (SPEC §2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RoughnessModel {
+    TrowbridgeReitz,
+    Beckmann,
+}
+
+/// Measured surface roughness of the sample.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Surface {
+    pub model: RoughnessModel,
+    pub alpha: f64,
+    pub scale: f64,
+}
+
+/// Particle size distribution, radii in metres.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum SizeDistribution {
+    /// All particles have one radius.
+    Mono { radius_m: f64 },
+    /// Number density uniform in radius over [min, max].
+    Uniform { min_radius_m: f64, max_radius_m: f64 },
+    /// Log-normal number distribution in radius: ln r ~ N(ln median, σ²).
+    LogNormal { median_radius_m: f64, sigma: f64 },
+}
+
+/// A medium with its refractive-index spectrum.
+#[derive(Debug, Clone)]
+pub struct Medium {
+    pub name: String,
+    /// Where the index came from, as written in the recipe.
+    pub index_source: String,
+    pub index: IndexSpectrum,
+    pub extrapolation: Extrapolation,
+    pub density_kg_per_m3: f64,
+}
+
+/// One particle type of a recipe.
+#[derive(Debug, Clone)]
+pub struct Particle {
+    pub medium: Medium,
+    pub weight_percent: f64,
+    pub size: SizeDistribution,
+    /// Volume fraction φ = (w/ρ_p)/(100/ρ_h).
+    pub volume_fraction: f64,
+}
+
+/// A validated recipe.
+#[derive(Debug, Clone)]
+pub struct Recipe {
+    pub name: String,
+    pub description: Option<String>,
+    pub path: PathBuf,
+    pub thickness_m: f64,
+    pub size_m: Option<[f64; 2]>,
+    pub absorption: AbsorptionModel,
+    pub host: Medium,
+    pub particles: Vec<Particle>,
+    pub surface: Option<Surface>,
+}
+
+/// Values the user supplies on the command line where a recipe leaves
+/// them open.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Overrides {
+    /// Weight percentage for particle types whose recipe gives none.
+    pub weight_percent: Option<f64>,
+}
+
+impl Recipe {
+    /// Loads and validates a recipe file.
+    pub fn load(path: &Path, overrides: Overrides) -> Result<Self, RecipeError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| RecipeError::Read { path: path.to_path_buf(), source })?;
+        Self::parse(&text, path, overrides)
+    }
+
+    /// Parses recipe text; `path` names it in errors and anchors relative
+    /// index-file paths.
+    pub fn parse(text: &str, path: &Path, overrides: Overrides) -> Result<Self, RecipeError> {
+        let raw: RawRecipe = toml::from_str(text).map_err(|e| RecipeError::Parse {
+            path: path.to_path_buf(),
+            message: one_line(&e.to_string()),
+        })?;
+        Validator { path }.recipe(raw, overrides)
+    }
+
+    /// Total volume fraction of all particle types.
+    pub fn particle_volume_fraction(&self) -> f64 {
+        self.particles.iter().map(|p| p.volume_fraction).sum()
+    }
+}
+
+/// toml's messages span several lines (source excerpt with a caret); keep
+/// the location and the message.
+fn one_line(message: &str) -> String {
+    let lines: Vec<&str> = message.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+    let location = lines.first().copied().unwrap_or("");
+    let last = lines.last().copied().unwrap_or("");
+    if lines.len() > 1 {
+        format!("{location}: {last}").replace("TOML parse error at ", "")
+    } else {
+        location.to_string()
+    }
+}
+
+struct Validator<'a> {
+    path: &'a Path,
+}
+
+impl Validator<'_> {
+    fn invalid<T>(&self, key: &str, message: impl Into<String>) -> Result<T, RecipeError> {
+        Err(RecipeError::Invalid { path: self.path.to_path_buf(), key: key.to_string(), message: message.into() })
+    }
+
+    fn positive(&self, key: &str, value: f64, unit: &str) -> Result<f64, RecipeError> {
+        if value.is_finite() && value > 0.0 {
+            Ok(value)
+        } else {
+            self.invalid(key, format!("must be a positive number of {unit}, got {value}"))
+        }
+    }
+
+    fn recipe(&self, raw: RawRecipe, overrides: Overrides) -> Result<Recipe, RecipeError> {
+        let name = match raw.name {
+            Some(n) if !n.trim().is_empty() => n,
+            Some(_) => return self.invalid("name", "must not be empty"),
+            None => self.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+        };
+        let thickness_m = self.positive("thickness_mm", raw.thickness_mm, "millimetres")? * 1e-3;
+        let size_m = match raw.size_mm {
+            None => None,
+            Some(v) if v.len() == 2 => Some([
+                self.positive("size_mm[0]", v[0], "millimetres")? * 1e-3,
+                self.positive("size_mm[1]", v[1], "millimetres")? * 1e-3,
+            ]),
+            Some(v) => return self.invalid("size_mm", format!("must be [width, height], got {} values", v.len())),
+        };
+        let host_density = self.positive("host.density_g_per_ml", raw.host.density_g_per_ml, "g/mL")?;
+        let host = self.medium(
+            "host",
+            &raw.host.name,
+            &raw.host.index,
+            host_density,
+            raw.host.extrapolate,
+            raw.host.real_part.as_ref(),
+        )?;
+        if raw.particles.is_empty() {
+            return self.invalid("particles", "at least one [[particles]] entry is required");
+        }
+        let mut particles = Vec::with_capacity(raw.particles.len());
+        for (i, p) in raw.particles.iter().enumerate() {
+            let key = format!("particles[{i}]");
+            let density =
+                self.positive(&format!("{key}.density_g_per_ml"), p.density_g_per_ml, "g/mL")?;
+            let medium =
+                self.medium(&key, &p.name, &p.index, density, p.extrapolate, p.real_part.as_ref())?;
+            let wkey = format!("{key}.weight_percent");
+            let w = match p.weight_percent.or(overrides.weight_percent) {
+                Some(w) => w,
+                None => {
+                    return self.invalid(
+                        &wkey,
+                        format!(
+                            "the weight percentage of {} is not given (unknown); set it in the recipe or pass --weight-percent",
+                            p.name
+                        ),
+                    )
+                }
+            };
+            if !(w.is_finite() && w > 0.0 && w < 100.0) {
+                return self.invalid(&wkey, format!("must lie in (0, 100), got {w}"));
+            }
+            let size = self.size(&format!("{key}.size"), &p.size)?;
+            let volume_fraction = (w / density) / (100.0 / host_density);
+            particles.push(Particle { medium, weight_percent: w, size, volume_fraction });
+        }
+        let total: f64 = particles.iter().map(|p| p.volume_fraction).sum();
+        if total >= 1.0 {
+            return self.invalid("particles", format!("the particles' volume fractions add up to {total:.3} ≥ 1"));
+        }
+        let surface = match raw.surface {
+            None => None,
+            Some(s) => Some(Surface {
+                model: s.model,
+                alpha: self.positive("surface.alpha", s.alpha, "(dimensionless roughness)")?,
+                scale: self.positive("surface.scale", s.scale, "(dimensionless scale)")?,
+            }),
+        };
+        Ok(Recipe {
+            name,
+            description: raw.description,
+            path: self.path.to_path_buf(),
+            thickness_m,
+            size_m,
+            absorption: raw.absorption,
+            host,
+            particles,
+            surface,
+        })
+    }
+
+    fn medium(
+        &self,
+        key: &str,
+        name: &str,
+        index: &str,
+        density_g_per_ml: f64,
+        extrapolation: Extrapolation,
+        real_part: Option<&RawRealPart>,
+    ) -> Result<Medium, RecipeError> {
+        let index_key = format!("{key}.index");
+        let index_error = |source| RecipeError::Index { path: self.path.to_path_buf(), key: index_key.clone(), source };
+        let mut spectrum = if let Some(builtin) = index.strip_prefix("builtin:") {
+            IndexSpectrum::builtin(builtin).map_err(index_error)?
+        } else {
+            let file = Path::new(index);
+            let resolved = if file.is_absolute() {
+                file.to_path_buf()
+            } else {
+                self.path.parent().unwrap_or(Path::new(".")).join(file)
+            };
+            IndexSpectrum::load(&resolved).map_err(index_error)?
+        };
+        if let Some(rp) = real_part {
+            let rkey = format!("{key}.real_part");
+            self.positive(&format!("{rkey}.wavelength_nm"), rp.wavelength_nm, "nanometres")?;
+            self.positive(&format!("{rkey}.n"), rp.n, "(refractive index)")?;
+            spectrum = spectrum.with_real_part_at(rp.wavelength_nm, rp.n, rp.mode).map_err(|source| {
+                RecipeError::Index { path: self.path.to_path_buf(), key: rkey.clone(), source }
+            })?;
+        }
+        Ok(Medium {
+            name: name.to_string(),
+            index_source: index.to_string(),
+            index: spectrum,
+            extrapolation,
+            density_kg_per_m3: density_g_per_ml * 1000.0,
+        })
+    }
+
+    fn size(&self, key: &str, raw: &RawSize) -> Result<SizeDistribution, RecipeError> {
+        Ok(match *raw {
+            RawSize::Diameter { diameter_um } => SizeDistribution::Mono {
+                radius_m: self.positive(&format!("{key}.diameter_um"), diameter_um, "micrometres")? * 0.5e-6,
+            },
+            RawSize::Range { min_um, max_um, distribution } => {
+                let lo = self.positive(&format!("{key}.min_um"), min_um, "micrometres")?;
+                let hi = self.positive(&format!("{key}.max_um"), max_um, "micrometres")?;
+                if hi <= lo {
+                    return self.invalid(key, format!("empty diameter range [{lo}, {hi}] µm: max_um must exceed min_um"));
+                }
+                match distribution {
+                    RangeDistribution::Midpoint => SizeDistribution::Mono { radius_m: 0.25e-6 * (lo + hi) },
+                    RangeDistribution::Uniform => {
+                        SizeDistribution::Uniform { min_radius_m: lo * 0.5e-6, max_radius_m: hi * 0.5e-6 }
+                    }
+                }
+            }
+            RawSize::LogNormal { median_diameter_um, sigma } => {
+                let d = self.positive(&format!("{key}.median_diameter_um"), median_diameter_um, "micrometres")?;
+                let s = self.positive(&format!("{key}.sigma"), sigma, "(geometric standard deviation of ln d)")?;
+                if s > 2.0 {
+                    return self.invalid(&format!("{key}.sigma"), format!("{s} is implausibly wide (must be ≤ 2)"));
+                }
+                SizeDistribution::LogNormal { median_radius_m: d * 0.5e-6, sigma: s }
+            }
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+name = "test"
+thickness_mm = 6.35
+[host]
+name = "polycarbonate"
+index = "builtin:PC_Zhang2020"
+density_g_per_ml = 1.2
+extrapolate = "clamp"
+real_part = { wavelength_nm = 550, n = 1.5889 }
+[[particles]]
+name = "PDMS"
+index = "builtin:PDMS_Zhang2020_20-1"
+density_g_per_ml = 0.965
+weight_percent = 0.65
+size = { kind = "diameter", diameter_um = 2.2 }
+"#;
+
+    fn parse(text: &str) -> Result<Recipe, RecipeError> {
+        Recipe::parse(text, Path::new("sample.toml"), Overrides::default())
+    }
+
+    fn error(text: &str) -> String {
+        parse(text).expect_err("recipe should be rejected").to_string()
+    }
+
+    #[test]
+    fn good_recipe_loads() {
+        let r = parse(GOOD).unwrap();
+        assert_eq!(r.name, "test");
+        assert!((r.thickness_m - 6.35e-3).abs() < 1e-15);
+        let p = &r.particles[0];
+        assert_eq!(p.size, SizeDistribution::Mono { radius_m: 1.1e-6 });
+        assert!((p.volume_fraction - (0.65 / 0.965) / (100.0 / 1.2)).abs() < 1e-15);
+        let n550 = r.host.index.at(550.0, Extrapolation::None).unwrap().index.re;
+        assert!((n550 - 1.5889).abs() < 1e-12);
+    }
+
+    #[test]
+    fn unknown_key_is_named() {
+        let e = error(&GOOD.replace("thickness_mm", "thicknes_mm"));
+        assert!(e.contains("sample.toml") && e.contains("thicknes_mm"), "{e}");
+        let e = error(&GOOD.replace("weight_percent = 0.65", "weight_percent = 0.65\ncolour = 1"));
+        assert!(e.contains("colour"), "{e}");
+        let e = error(&GOOD.replace("diameter_um = 2.2", "diameter_um = 2.2, radius = 1"));
+        assert!(e.contains("radius"), "{e}");
+    }
+
+    #[test]
+    fn bad_values_are_named() {
+        let cases = [
+            ("density_g_per_ml = 0.965", "density_g_per_ml = -0.965", "particles[0].density_g_per_ml"),
+            ("density_g_per_ml = 1.2", "density_g_per_ml = 0", "host.density_g_per_ml"),
+            ("weight_percent = 0.65", "weight_percent = 100", "particles[0].weight_percent"),
+            ("weight_percent = 0.65", "weight_percent = 0", "particles[0].weight_percent"),
+            ("weight_percent = 0.65", "weight_percent = nan", "particles[0].weight_percent"),
+            ("thickness_mm = 6.35", "thickness_mm = -1", "thickness_mm"),
+            (
+                "{ kind = \"diameter\", diameter_um = 2.2 }",
+                "{ kind = \"range\", min_um = 10, max_um = 8, distribution = \"uniform\" }",
+                "particles[0].size",
+            ),
+            ("builtin:PDMS_Zhang2020_20-1", "builtin:PDMS_nope", "particles[0].index"),
+            ("builtin:PDMS_Zhang2020_20-1", "no/such/file.yml", "particles[0].index"),
+        ];
+        for (from, to, key) in cases {
+            let text = GOOD.replace(from, to);
+            assert_ne!(text, GOOD, "replacement {from} did not apply");
+            let e = error(&text);
+            assert!(e.contains("sample.toml") && e.contains(key), "{to}: {e}");
+            assert!(!e.contains('\n'), "one-line error expected: {e}");
+        }
+    }
+
+    #[test]
+    fn missing_weight_percent_needs_override() {
+        let text = GOOD.replace("weight_percent = 0.65\n", "");
+        let e = error(&text);
+        assert!(e.contains("weight_percent") && e.contains("unknown"), "{e}");
+        let r = Recipe::parse(&text, Path::new("x.toml"), Overrides { weight_percent: Some(1.0) }).unwrap();
+        assert_eq!(r.particles[0].weight_percent, 1.0);
+    }
+
+    #[test]
+    fn size_kinds() {
+        let r = parse(&GOOD.replace(
+            "{ kind = \"diameter\", diameter_um = 2.2 }",
+            "{ kind = \"range\", min_um = 8, max_um = 10, distribution = \"midpoint\" }",
+        ))
+        .unwrap();
+        assert_eq!(r.particles[0].size, SizeDistribution::Mono { radius_m: 4.5e-6 });
+        let r = parse(&GOOD.replace(
+            "{ kind = \"diameter\", diameter_um = 2.2 }",
+            "{ kind = \"log-normal\", median_diameter_um = 2.0, sigma = 0.2 }",
+        ))
+        .unwrap();
+        assert_eq!(r.particles[0].size, SizeDistribution::LogNormal { median_radius_m: 1e-6, sigma: 0.2 });
+    }
+}

@@ -1,0 +1,377 @@
+//! Plots people look at instead of reading tables: spectra of the optical
+//! properties, a polar plot of the phase function, and the per-patch ΔE of a
+//! colour calibration. PNG bytes are rendered
+//! in memory (plotters bitmap backend, embedded DejaVu Sans font) so the
+//! caller writes them atomically.
+
+use crate::optics::bulk::OpticalSpectrum;
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+use std::f64::consts::PI;
+use std::sync::Once;
+
+const FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+static FONT_ONCE: Once = Once::new();
+
+/// A plot that could not be drawn.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot draw plot: {0}")]
+pub struct PlotError(String);
+
+fn perr<E: std::fmt::Display>(e: E) -> PlotError {
+    PlotError(e.to_string())
+}
+
+fn register_font() {
+    FONT_ONCE.call_once(|| {
+        // The font is compiled in; failure would be a build defect.
+        plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
+            .unwrap_or_else(|_| panic!("embedded DejaVuSans.ttf is a valid font"));
+    });
+}
+
+/// Renders with `draw` onto a white `width` × `height` canvas and returns
+/// PNG bytes.
+fn render_png(
+    width: u32,
+    height: u32,
+    draw: impl FnOnce(&DrawingArea<BitMapBackend, plotters::coord::Shift>) -> Result<(), PlotError>,
+) -> Result<Vec<u8>, PlotError> {
+    register_font();
+    let mut buf = vec![255u8; (width * height * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(perr)?;
+        draw(&root)?;
+        root.present().map_err(perr)?;
+    }
+    let img = image::RgbImage::from_raw(width, height, buf).ok_or_else(|| PlotError("buffer size".into()))?;
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png).map_err(perr)?;
+    Ok(out.into_inner())
+}
+
+fn palette(i: usize) -> RGBColor {
+    const C: [RGBColor; 12] = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(127, 127, 127),
+        RGBColor(188, 189, 34),
+        RGBColor(23, 190, 207),
+        RGBColor(0, 0, 128),
+        RGBColor(128, 0, 0),
+    ];
+    C[i % C.len()]
+}
+
+/// μ_s, μ_a (log scale) and g against wavelength, one line per spectrum.
+pub fn spectra_png(spectra: &[&OpticalSpectrum]) -> Result<Vec<u8>, PlotError> {
+    render_png(1000, 1150, |root| {
+        let panels = root.split_evenly((3, 1));
+        type Get = fn(&OpticalSpectrum) -> &Vec<f64>;
+        let rows: [(&str, Get, bool); 3] = [
+            ("scattering coefficient μs [1/m]", |s| &s.mu_s_per_m, true),
+            ("absorption coefficient μa [1/m]", |s| &s.mu_a_per_m, true),
+            ("asymmetry parameter g", |s| &s.g, false),
+        ];
+        let (wmin, wmax) = spectra
+            .iter()
+            .flat_map(|s| s.wavelength_nm.iter().copied())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), w| (a.min(w), b.max(w)));
+        let (wmin, wmax) = if wmax > wmin { (wmin, wmax) } else { (wmin - 5.0, wmin + 5.0) };
+        for (panel, (label, get, log)) in panels.iter().zip(rows) {
+            let values: Vec<f64> = spectra.iter().flat_map(|s| get(s).iter().copied()).filter(|v| v.is_finite()).collect();
+            let positive: Vec<f64> = values.iter().copied().filter(|v| *v > 0.0).collect();
+            let mut builder = ChartBuilder::on(panel);
+            builder.margin(12).x_label_area_size(40).y_label_area_size(80).caption(label, ("sans-serif", 20));
+            if log && !positive.is_empty() {
+                let lo = positive.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
+                let hi = positive.iter().copied().fold(0.0, f64::max) * 1.5;
+                let mut chart = builder.build_cartesian_2d(wmin..wmax, (lo..hi).log_scale()).map_err(perr)?;
+                chart.configure_mesh().x_desc("wavelength [nm]").y_label_formatter(&|v| format!("{v:.1e}")).draw().map_err(perr)?;
+                for (i, s) in spectra.iter().enumerate() {
+                    let pts = s.wavelength_nm.iter().zip(get(s)).filter(|(_, v)| **v > 0.0).map(|(w, v)| (*w, *v));
+                    chart
+                        .draw_series(LineSeries::new(pts, palette(i).stroke_width(2)))
+                        .map_err(perr)?
+                        .label(s.sample.clone())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], palette(i).stroke_width(2)));
+                }
+                if spectra.len() > 1 {
+                    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(perr)?;
+                }
+            } else {
+                let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                let (lo, hi) = if hi > lo { (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo)) } else { (lo - 0.01, lo + 0.01) };
+                let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
+                let mut chart = builder.build_cartesian_2d(wmin..wmax, lo..hi).map_err(perr)?;
+                chart.configure_mesh().x_desc("wavelength [nm]").y_label_formatter(&|v| format!("{v:.4}")).draw().map_err(perr)?;
+                for (i, s) in spectra.iter().enumerate() {
+                    let pts = s.wavelength_nm.iter().zip(get(s)).map(|(w, v)| (*w, *v));
+                    chart.draw_series(LineSeries::new(pts, palette(i).stroke_width(2))).map_err(perr)?;
+                }
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Henyey–Greenstein phase function per steradian.
+fn henyey_greenstein(g: f64, mu: f64) -> f64 {
+    (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5))
+}
+
+/// Polar plot of a tabulated phase function (values per steradian at θ
+/// uniform over [0, π]) against Henyey–Greenstein with the same g; the
+/// radius is log₁₀ of the phase function.
+pub fn phase_polar_png(title: &str, theta_samples: &[f64], g: f64) -> Result<Vec<u8>, PlotError> {
+    let n = theta_samples.len();
+    if n < 2 {
+        return Err(PlotError("phase table has fewer than 2 entries".into()));
+    }
+    let theta = |i: usize| PI * i as f64 / (n - 1) as f64;
+    let hg: Vec<f64> = (0..n).map(|i| henyey_greenstein(g, theta(i).cos())).collect();
+    let all = theta_samples.iter().chain(&hg).copied().filter(|v| *v > 0.0 && v.is_finite());
+    let (pmin, pmax) = all.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+    if !(pmin.is_finite() && pmax > 0.0) {
+        return Err(PlotError("phase function has no positive values".into()));
+    }
+    let dec_lo = pmin.log10().floor();
+    let dec_hi = pmax.log10().ceil().max(dec_lo + 1.0);
+    let span = dec_hi - dec_lo;
+    let radius = |p: f64| ((p.max(10f64.powf(dec_lo))).log10() - dec_lo) / span;
+    render_png(900, 900, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .margin(20)
+            .caption(title, ("sans-serif", 22))
+            .build_cartesian_2d(-1.15f64..1.15f64, -1.15f64..1.15f64)
+            .map_err(perr)?;
+        // Decade circles with labels, and angle spokes every 30°.
+        for d in 0..=(span as i32) {
+            let r = d as f64 / span;
+            let circle = (0..=360).map(|k| {
+                let a = k as f64 * PI / 180.0;
+                (r * a.cos(), r * a.sin())
+            });
+            chart.draw_series(LineSeries::new(circle, RGBColor(200, 200, 200))).map_err(perr)?;
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    format!("1e{} /sr", dec_lo as i32 + d),
+                    (r * 0.70, r * 0.72 + 0.01),
+                    ("sans-serif", 13).into_font().color(&RGBColor(90, 90, 90)),
+                )))
+                .map_err(perr)?;
+        }
+        for k in 0..12 {
+            let a = k as f64 * PI / 6.0;
+            chart.draw_series(LineSeries::new([(0.0, 0.0), (a.cos(), a.sin())], RGBColor(220, 220, 220))).map_err(perr)?;
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    format!("{}°", (k * 30) % 360),
+                    (1.07 * a.cos() - 0.03, 1.07 * a.sin() + 0.02),
+                    ("sans-serif", 14).into_font(),
+                )))
+                .map_err(perr)?;
+        }
+        let curve = |values: &[f64]| -> Vec<(f64, f64)> {
+            // θ from 0 to π on the upper half, mirrored on the lower half.
+            let upper = (0..n).map(|i| (theta(i), values[i]));
+            let lower = (0..n).rev().map(|i| (-theta(i), values[i]));
+            upper.chain(lower).map(|(t, p)| (radius(p) * t.cos(), radius(p) * t.sin())).collect()
+        };
+        let blue = RGBColor(31, 119, 180);
+        let red = RGBColor(214, 39, 40);
+        chart
+            .draw_series(LineSeries::new(curve(theta_samples), blue.stroke_width(2)))
+            .map_err(perr)?
+            .label("Lorenz–Mie")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
+        chart
+            .draw_series(LineSeries::new(curve(&hg), red.stroke_width(2)))
+            .map_err(perr)?
+            .label(format!("Henyey–Greenstein, g = {g:.4}"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], red.stroke_width(2)));
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerLeft)
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()
+            .map_err(perr)?;
+        Ok(())
+    })
+}
+
+/// Per-patch colour differences of a colour calibration: one bar per patch
+/// for ΔE00 (filled with the patch's reference colour, 8-bit sRGB), a black
+/// tick for ΔE*ab, and the mean ΔE00 as a dashed line.
+pub fn delta_e_bars_png(
+    title: &str,
+    labels: &[String],
+    de2000: &[f64],
+    de76: &[f64],
+    colours: &[[u8; 3]],
+) -> Result<Vec<u8>, PlotError> {
+    let n = labels.len();
+    if n == 0 || de2000.len() != n || de76.len() != n || colours.len() != n {
+        return Err(PlotError("ΔE plot needs one label, ΔE00, ΔE76 and colour per patch".into()));
+    }
+    if de2000.iter().chain(de76).any(|v| !v.is_finite()) {
+        return Err(PlotError("ΔE values must be finite".into()));
+    }
+    let top = de2000.iter().chain(de76).copied().fold(1.0f64, f64::max) * 1.12;
+    let mean = de2000.iter().sum::<f64>() / n as f64;
+    render_png(1200, 620, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .margin(16)
+            .x_label_area_size(150)
+            .y_label_area_size(60)
+            .caption(title, ("sans-serif", 22))
+            .build_cartesian_2d(0f64..n as f64, 0f64..top)
+            .map_err(perr)?;
+        chart.configure_mesh().disable_x_mesh().x_labels(0).y_desc("colour difference").draw().map_err(perr)?;
+        // Patch labels below the bars, rotated, placed in pixels.
+        let font = ("sans-serif", 13).into_font().transform(FontTransform::Rotate90);
+        for (i, label) in labels.iter().enumerate() {
+            let (px, py) = chart.backend_coord(&(i as f64 + 0.5, 0.0));
+            root.draw(&Text::new(label.clone(), (px + 7, py + 8), font.clone())).map_err(perr)?;
+        }
+        chart
+            .draw_series((0..n).map(|i| {
+                let [r, g, b] = colours[i];
+                Rectangle::new([(i as f64 + 0.15, 0.0), (i as f64 + 0.85, de2000[i])], RGBColor(r, g, b).filled())
+            }))
+            .map_err(perr)?
+            .label("ΔE00 (CIEDE2000), bar in the patch's reference colour")
+            .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], RGBColor(150, 150, 150).filled()));
+        chart
+            .draw_series((0..n).map(|i| Rectangle::new([(i as f64 + 0.15, 0.0), (i as f64 + 0.85, de2000[i])], BLACK)))
+            .map_err(perr)?;
+        chart
+            .draw_series((0..n).map(|i| {
+                PathElement::new(vec![(i as f64 + 0.05, de76[i]), (i as f64 + 0.95, de76[i])], BLACK.stroke_width(3))
+            }))
+            .map_err(perr)?
+            .label("ΔE*ab (CIE 1976)")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.stroke_width(3)));
+        let dashes = (0..(2 * n)).step_by(2).map(|k| {
+            PathElement::new(vec![(k as f64 * 0.5, mean), (k as f64 * 0.5 + 0.5, mean)], RGBColor(214, 39, 40).stroke_width(2))
+        });
+        chart
+            .draw_series(dashes)
+            .map_err(perr)?
+            .label(format!("mean ΔE00 = {mean:.2}"))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RGBColor(214, 39, 40).stroke_width(2)));
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .draw()
+            .map_err(perr)?;
+        Ok(())
+    })
+}
+
+/// Reprojection residuals of a camera calibration: left, every corner's
+/// residual (detected − reprojected, pixels) as a dot coloured by view with
+/// the overall RMS as a circle; right, the RMS of each view as a bar.
+pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<Vec<u8>, PlotError> {
+    if views.is_empty() || views.iter().any(|(_, r)| r.is_empty()) {
+        return Err(PlotError("residual plot needs at least one view with residuals".into()));
+    }
+    if !rms_px.is_finite() || views.iter().flat_map(|(_, r)| r).any(|p| !(p[0].is_finite() && p[1].is_finite())) {
+        return Err(PlotError("residuals must be finite".into()));
+    }
+    let reach = views.iter().flat_map(|(_, r)| r).map(|p| p[0].abs().max(p[1].abs())).fold(rms_px, f64::max) * 1.1;
+    let per_view: Vec<f64> =
+        views.iter().map(|(_, r)| (r.iter().map(|p| p[0] * p[0] + p[1] * p[1]).sum::<f64>() / r.len() as f64).sqrt()).collect();
+    let top = per_view.iter().copied().fold(rms_px, f64::max) * 1.15;
+    render_png(1400, 700, |root| {
+        let (left, right) = root.split_horizontally(700);
+        let mut chart = ChartBuilder::on(&left)
+            .margin(16)
+            .x_label_area_size(45)
+            .y_label_area_size(65)
+            .caption(format!("reprojection residuals (RMS {rms_px:.3} px)"), ("sans-serif", 22))
+            .build_cartesian_2d(-reach..reach, -reach..reach)
+            .map_err(perr)?;
+        chart
+            .configure_mesh()
+            .x_desc("Δu [px] (detected − reprojected)")
+            .y_desc("Δv [px]")
+            .x_label_formatter(&|v| format!("{v:.2}"))
+            .y_label_formatter(&|v| format!("{v:.2}"))
+            .draw()
+            .map_err(perr)?;
+        for (i, (_, r)) in views.iter().enumerate() {
+            chart.draw_series(r.iter().map(|p| Circle::new((p[0], p[1]), 3, palette(i).filled()))).map_err(perr)?;
+        }
+        let ring = (0..=96).map(|k| {
+            let a = 2.0 * PI * k as f64 / 96.0;
+            (rms_px * a.cos(), rms_px * a.sin())
+        });
+        chart.draw_series(LineSeries::new(ring, BLACK.stroke_width(2))).map_err(perr)?;
+        let n = views.len();
+        let mut bars = ChartBuilder::on(&right)
+            .margin(16)
+            .x_label_area_size(120)
+            .y_label_area_size(65)
+            .caption("RMS per view [px]", ("sans-serif", 22))
+            .build_cartesian_2d(0f64..n as f64, 0f64..top)
+            .map_err(perr)?;
+        bars.configure_mesh().disable_x_mesh().x_labels(0).y_label_formatter(&|v| format!("{v:.2}")).draw().map_err(perr)?;
+        bars.draw_series((0..n).map(|i| Rectangle::new([(i as f64 + 0.15, 0.0), (i as f64 + 0.85, per_view[i])], palette(i).filled())))
+            .map_err(perr)?;
+        bars.draw_series(std::iter::once(PathElement::new(vec![(0.0, rms_px), (n as f64, rms_px)], BLACK.stroke_width(2))))
+            .map_err(perr)?;
+        let font = ("sans-serif", 13).into_font().transform(FontTransform::Rotate90);
+        for (i, (name, _)) in views.iter().enumerate() {
+            let (px, py) = bars.backend_coord(&(i as f64 + 0.5, 0.0));
+            right.draw(&Text::new(name.clone(), (px + 7, py + 8), font.clone())).map_err(perr)?;
+        }
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn residuals_plot_is_a_png_and_checks_its_input() {
+        let views = vec![("a.jpg".to_string(), vec![[0.1, -0.2], [0.0, 0.05]]), ("b.jpg".to_string(), vec![[-0.3, 0.1]])];
+        let png = residuals_png(&views, 0.2).unwrap();
+        let img = image::load_from_memory(&png).unwrap();
+        assert_eq!((img.width(), img.height()), (1400, 700));
+        assert!(residuals_png(&[], 0.1).is_err());
+        assert!(residuals_png(&[("x".into(), vec![[f64::NAN, 0.0]])], 0.1).is_err());
+    }
+
+    #[test]
+    fn polar_plot_is_a_png() {
+        let g = 0.8;
+        let table: Vec<f64> = (0..512).map(|i| henyey_greenstein(0.9, (PI * i as f64 / 511.0).cos())).collect();
+        let png = phase_polar_png("test", &table, g).unwrap();
+        let img = image::load_from_memory(&png).unwrap();
+        assert_eq!((img.width(), img.height()), (900, 900));
+        assert!(phase_polar_png("x", &[1.0], g).is_err());
+    }
+
+    #[test]
+    fn delta_e_bars_is_a_png_and_checks_its_input() {
+        let labels: Vec<String> = (1..=3).map(|i| format!("{i} patch")).collect();
+        let png = delta_e_bars_png("t", &labels, &[1.0, 2.0, 0.5], &[1.5, 3.0, 0.7], &[[200, 10, 10]; 3]).unwrap();
+        assert_eq!(image::load_from_memory(&png).unwrap().width(), 1200);
+        assert!(delta_e_bars_png("t", &labels, &[1.0], &[1.0], &[[0; 3]]).is_err());
+        assert!(delta_e_bars_png("t", &labels, &[f64::NAN, 1.0, 1.0], &[1.0; 3], &[[0; 3]; 3]).is_err());
+    }
+}
