@@ -10,7 +10,16 @@ echo "   (IOL1068-15 has no known weight percentage and is reported, not compute
 "$bin" optics fixtures/samples --out "$out/optics" --skip-invalid
 
 echo
+echo "== 2. BSSRDF slices at 550 nm, the three lab configurations (θi/θo = 45/0, 0/45, 45/15; φi 0°, φo 180°)"
+for s in IOL1068-09 IOL1068-12; do
+  echo "-- $s"
+  "$bin" bssrdf --recipe "fixtures/samples/$s.toml" --wavelength 550 --configs 45/0,0/45,45/15 \
+    --crop --rel-error 0.02 --quiet --out "$out/bssrdf/$s"
+done
+
+echo
 echo "Results are in $out/:"
 echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
 echo "  $out/optics/IOL1068-NN/               phase tables and polar plots per sample"
+echo "  $out/bssrdf/IOL1068-NN/tiX_toY/      bssrdf.exr/.png, profile.csv/.png, summary.json; sweep.csv per sample"

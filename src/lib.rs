@@ -4,6 +4,7 @@
 //! recipe → optical properties ([`optics`]) → slab simulator or renderer
 //! (`lucent-render`) → images → comparison.
 
+pub mod bssrdf;
 pub mod cli;
 pub mod imageio;
 pub mod io;

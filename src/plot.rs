@@ -18,7 +18,7 @@ static FONT_ONCE: Once = Once::new();
 #[error("cannot draw plot: {0}")]
 pub struct PlotError(String);
 
-fn perr<E: std::fmt::Display>(e: E) -> PlotError {
+pub(crate) fn perr<E: std::fmt::Display>(e: E) -> PlotError {
     PlotError(e.to_string())
 }
 
@@ -32,7 +32,7 @@ fn register_font() {
 
 /// Renders with `draw` onto a white `width` × `height` canvas and returns
 /// PNG bytes.
-fn render_png(
+pub(crate) fn render_png(
     width: u32,
     height: u32,
     draw: impl FnOnce(&DrawingArea<BitMapBackend, plotters::coord::Shift>) -> Result<(), PlotError>,
@@ -51,7 +51,7 @@ fn render_png(
     Ok(out.into_inner())
 }
 
-fn palette(i: usize) -> RGBColor {
+pub(crate) fn palette(i: usize) -> RGBColor {
     const C: [RGBColor; 12] = [
         RGBColor(31, 119, 180),
         RGBColor(255, 127, 14),
@@ -336,7 +336,7 @@ pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<V
         let font = ("sans-serif", 13).into_font().transform(FontTransform::Rotate90);
         for (i, (name, _)) in views.iter().enumerate() {
             let (px, py) = bars.backend_coord(&(i as f64 + 0.5, 0.0));
-            right.draw(&Text::new(name.clone(), (px + 7, py + 8), font.clone())).map_err(perr)?;
+            root.draw(&Text::new(name.clone(), (px + 7, py + 8), font.clone())).map_err(perr)?;
         }
         Ok(())
     })

@@ -628,6 +628,7 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
     let npix = setup.sensor.pixels * setup.sensor.pixels;
     let mut sum_b = vec![0.0; npix];
     let mut sq_b = vec![0.0; npix];
+    let mut raw = vec![0.0; npix];
     let (mut path_sum, mut path_sq, mut events, mut refl, mut trans) = (0.0, 0.0, 0u64, 0.0, 0.0);
     let mut batches = 0u64;
     let start = Instant::now();
@@ -663,10 +664,11 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
             .collect();
         for (count, b) in results {
             let scale = 1.0 / count as f64;
-            for ((s, q), v) in sum_b.iter_mut().zip(sq_b.iter_mut()).zip(&b.image) {
+            for (((s, q), r), v) in sum_b.iter_mut().zip(sq_b.iter_mut()).zip(raw.iter_mut()).zip(&b.image) {
                 let m = v * scale;
                 *s += m;
                 *q += m * m;
+                *r += v;
             }
             path_sum += b.path_sum;
             path_sq += b.path_sq;
@@ -690,7 +692,7 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
     let nb = batches as f64;
     // Per-pixel value: the mean over paths; error from the batch means
     // (batches are equal-sized except possibly the last).
-    let values: Vec<f64> = sum_b.iter().map(|s| s * batch_paths as f64 / paths as f64).collect();
+    let values: Vec<f64> = raw.iter().map(|r| r / paths as f64).collect();
     let std_error: Vec<f64> = sum_b
         .iter()
         .zip(&sq_b)

@@ -188,12 +188,16 @@ fn white_furnace_everything_that_enters_leaves() {
 #[test]
 fn deterministic_for_a_seed_whatever_the_thread_count() {
     let s = setup(3000.0, 50.0, 0.8, 1.5, 2e-3, 16, 0.2e-3, lab_45_0());
-    let opts = RunOptions { stop: Stop::paths(20_000), seed: 42, batch_paths: 100, estimator: Estimator::Connection };
+    // 20 050 paths: the last batch is partial.
+    let opts = RunOptions { stop: Stop::paths(20_050), seed: 42, batch_paths: 100, estimator: Estimator::Connection };
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| simulate(&s, &opts, |_| {}).unwrap());
     let two = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap().install(|| simulate(&s, &opts, |_| {}).unwrap());
     assert_eq!(one.values, two.values);
     assert_eq!(one.sum, two.sum);
-    assert_eq!(one.paths, 20_000);
+    assert_eq!(one.paths, 20_050);
+    // The pixels add up to the slice sum.
+    let total: f64 = one.values.iter().sum();
+    assert!((total / one.sum - 1.0).abs() < 1e-9, "{total} vs {}", one.sum);
     let other = simulate(&s, &RunOptions { seed: 43, ..opts }, |_| {}).unwrap();
     assert_ne!(one.sum, other.sum);
 }

@@ -1,6 +1,7 @@
 //! The `lucent` command line: argument parsing and orchestration only; the
 //! work is done by the library modules.
 
+pub mod bssrdf;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::mie::{Coefficients, Efficiencies};
@@ -27,6 +28,8 @@ pub enum Command {
     Optics(OpticsArgs),
     /// Lorenz–Mie efficiencies of one sphere, printed as JSON.
     Mie(MieArgs),
+    /// BSSRDF slices of a slab (light tracing with explicit connection), and their comparison with measurements.
+    Bssrdf(bssrdf::BssrdfArgs),
     /// Benchmarks (see README, performance section).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -101,6 +104,12 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 1.0)]
         weight_percent: f64,
     },
+    /// The slab simulator on a PDMS-like medium: events/s on one core, and wall time to 1 % on all cores.
+    Bssrdf {
+        /// Target relative standard error of the slice sum.
+        #[arg(long, default_value_t = 0.01)]
+        rel_error: f64,
+    },
 }
 
 /// Runs the parsed command.
@@ -108,6 +117,7 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Optics(a) => optics(a),
         Command::Mie(a) => mie(a),
+        Command::Bssrdf(a) => bssrdf::run(a),
         Command::Bench(b) => bench(b),
     }
 }
@@ -369,6 +379,7 @@ fn bench(b: BenchCommand) -> Result<()> {
             });
             println!("{}", serde_json::to_string_pretty(&json)?);
         }
+        BenchCommand::Bssrdf { rel_error } => bench_bssrdf(rel_error)?,
         BenchCommand::Optics { samples, repeats, weight_percent } => {
             let paths = collect_recipe_paths(&[samples])?;
             let recipes = load_recipes(&paths, Overrides { weight_percent: Some(weight_percent) }, false)?;
@@ -394,6 +405,43 @@ fn bench(b: BenchCommand) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&json)?);
         }
     }
+    Ok(())
+}
+
+/// PDMS-like slab of the issue: μs = 1.47e4 /m, μa = 9.6 /m, g = 0.974,
+/// n = 1.589, 6.35 mm, 45°/0°, 259 × 259 pixels of 0.1029 mm.
+fn bench_bssrdf(rel_error: f64) -> Result<()> {
+    use lucent_render::phase::Phase;
+    use lucent_render::slab::*;
+    let medium = Medium::new(1.47e4, 9.6, Phase::henyey_greenstein(0.974)?, 1.589)?;
+    let setup = Setup::new(
+        Slab::new(6.35e-3, medium)?,
+        Beam::gaussian(200e-6)?,
+        Sensor::new(259, 0.1029e-3)?,
+        Directions::from_degrees(45.0, 0.0, 0.0, 180.0)?,
+    );
+    let one_core = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let single = one_core.install(|| {
+        simulate(&setup, &RunOptions { stop: Stop::paths(40_000), seed: 7, ..RunOptions::default() }, |_| {})
+    })?;
+    let all = simulate(
+        &setup,
+        &RunOptions { stop: Stop { rel_error: Some(rel_error), ..Stop::default() }, seed: 8, ..RunOptions::default() },
+        |_| {},
+    )?;
+    let json = serde_json::json!({
+        "benchmark": "slab BSSRDF, PDMS-like medium, 45°/0°, 259 × 259, explicit connection",
+        "events_per_s_one_core": single.events_per_s(),
+        "events_per_path": single.events as f64 / single.paths as f64,
+        "threads": rayon::current_num_threads(),
+        "target_rel_error": rel_error,
+        "reached_rel_error": all.sum_std_error / all.sum,
+        "paths": all.paths,
+        "events_per_s_all_cores": all.events_per_s(),
+        "wall_s_to_target": all.wall_s,
+        "sum_per_m2_sr": all.sum,
+    });
+    println!("{}", serde_json::to_string_pretty(&json)?);
     Ok(())
 }
 

@@ -1,0 +1,593 @@
+//! The BSSRDF stage (SPEC §3): builds a slab simulation from a recipe (or
+//! explicit coefficients), writes the slice and its plots, and compares a
+//! simulated slice with a measured one.
+//!
+//! Files of a run (`lucent bssrdf … --out DIR`):
+//!
+//! | file | content |
+//! |---|---|
+//! | `bssrdf.exr` | channel `Y`: f_ssr [1/(m² sr)] per pixel, `std_error`: its standard error |
+//! | `bssrdf.png` | log₁₀(f/f_max) in false colour, colour bar, scale in mm |
+//! | `profile.csv` | x_mm, f_per_m2_sr, std_error, beam (relative) along the plane of incidence |
+//! | `profile.png` | the same, log scale, beam on a second axis |
+//! | `summary.json` | configuration, optical properties used, sum, errors, paths, events, speed |
+//!
+//! Comparison (`lucent bssrdf compare`): the mean squared relative error
+//! MSRE = mean over the mask of ((f_sim − f_meas)/f_meas)², where the mask
+//! holds the measured pixels above `threshold` × max(f_meas) (default 0.01,
+//! so near-zero, noise-dominated pixels do not dominate the mean); the sums
+//! of both slices over all pixels and their ratio; the two profiles; a
+//! side-by-side panel on a shared scale and a relative-difference map.
+
+use crate::io::{write_atomic, write_json, WriteError};
+use crate::imageio::{self, ImageIoError};
+use crate::plot::{perr, render_png, PlotError};
+use lucent_render::slab::{Beam, Directions, Slice};
+use plotters::prelude::*;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// A slice file that cannot be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum SliceIoError {
+    #[error(transparent)]
+    Image(#[from] ImageIoError),
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error("{path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+    #[error("{path}: {source}")]
+    Plot { path: PathBuf, source: PlotError },
+}
+
+/// A square grid of values with its pixel size (a slice, measured or
+/// simulated), row-major from the top row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid {
+    pub size: usize,
+    pub pixel_m: f64,
+    pub values: Vec<f64>,
+}
+
+impl Grid {
+    /// Middle row (the plane of incidence for φ = 0°/180°).
+    pub fn middle_row(&self) -> &[f64] {
+        let r = self.size / 2;
+        &self.values[r * self.size..(r + 1) * self.size]
+    }
+
+    /// x [mm] of each column centre.
+    pub fn x_mm(&self) -> Vec<f64> {
+        (0..self.size).map(|c| (c as f64 + 0.5 - 0.5 * self.size as f64) * self.pixel_m * 1e3).collect()
+    }
+
+    pub fn sum(&self) -> f64 {
+        self.values.iter().sum()
+    }
+}
+
+fn invalid(path: &Path, message: impl Into<String>) -> SliceIoError {
+    SliceIoError::Invalid { path: path.to_path_buf(), message: message.into() }
+}
+
+/// Reads a square grid of finite values from EXR (channel `Y`, else `R`,
+/// else the first), float TIFF or CSV (rows of numbers separated by commas
+/// or whitespace; `#` comments). The pixel size comes from `pixel_mm` or,
+/// failing that, from a sidecar JSON (`FILE.json` or `summary.json` in the
+/// same folder) with `pixel_mm`.
+pub fn read_grid(path: &Path, pixel_mm: Option<f64>) -> Result<Grid, SliceIoError> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let (w, h, values) = match ext.as_str() {
+        "csv" | "txt" => read_csv_grid(path)?,
+        "exr" => read_exr_scalar(path)?,
+        "tif" | "tiff" => {
+            let img = image::ImageReader::open(path)
+                .map_err(|e| invalid(path, e.to_string()))?
+                .decode()
+                .map_err(|e| invalid(path, e.to_string()))?;
+            let (w, h) = (img.width() as usize, img.height() as usize);
+            let v: Vec<f64> = img.into_rgb32f().pixels().map(|p| p.0[0] as f64).collect();
+            (w, h, v)
+        }
+        _ => return Err(invalid(path, "unsupported slice format (expected .exr, .tif/.tiff or .csv)")),
+    };
+    if w != h {
+        return Err(invalid(path, format!("the grid is {w} × {h}; slices must be square")));
+    }
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(invalid(path, format!("pixel (column {}, row {}) is not a finite number", i % w, i / w)));
+    }
+    let pixel_mm = match pixel_mm {
+        Some(p) => p,
+        None => sidecar_pixel_mm(path)?.ok_or_else(|| {
+            invalid(path, "pixel size unknown: pass it (--measured-pixel-mm) or put {\"pixel_mm\": …} in FILE.json")
+        })?,
+    };
+    if !(pixel_mm.is_finite() && pixel_mm > 0.0) {
+        return Err(invalid(path, format!("pixel size {pixel_mm} mm must be positive")));
+    }
+    Ok(Grid { size: w, pixel_m: pixel_mm * 1e-3, values })
+}
+
+fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
+    let mut candidates = vec![PathBuf::from(format!("{}.json", path.display()))];
+    if let Some(dir) = path.parent() {
+        candidates.push(dir.join("summary.json"));
+    }
+    for c in candidates {
+        if let Ok(text) = std::fs::read_to_string(&c) {
+            let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| invalid(&c, e.to_string()))?;
+            let p = v.get("pixel_mm").or_else(|| v.pointer("/config/pixel_mm")).and_then(|p| p.as_f64());
+            if let Some(p) = p {
+                return Ok(Some(p));
+            }
+        }
+    }
+    Ok(None)
+}
+
+fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> {
+    let text = std::fs::read_to_string(path).map_err(|e| invalid(path, e.to_string()))?;
+    let mut rows: Vec<Vec<f64>> = Vec::new();
+    for (k, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let row: Result<Vec<f64>, _> =
+            line.split(|c: char| c == ',' || c.is_whitespace()).filter(|s| !s.is_empty()).map(str::parse::<f64>).collect();
+        let row = row.map_err(|e| invalid(path, format!("line {}: {e}", k + 1)))?;
+        if let Some(first) = rows.first() {
+            if row.len() != first.len() {
+                return Err(invalid(path, format!("line {} has {} values, the first row {}", k + 1, row.len(), first.len())));
+            }
+        }
+        rows.push(row);
+    }
+    if rows.is_empty() {
+        return Err(invalid(path, "no data rows"));
+    }
+    let (w, h) = (rows[0].len(), rows.len());
+    Ok((w, h, rows.into_iter().flatten().collect()))
+}
+
+fn read_exr_scalar(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .pedantic()
+        .from_file(path)
+        .map_err(|e| invalid(path, format!("cannot read EXR: {e}")))?;
+    let size = image.layer_data.size;
+    let channels = &image.layer_data.channel_data.list;
+    let pick = ["Y", "R"]
+        .iter()
+        .find_map(|n| channels.iter().find(|c| c.name.to_string() == *n))
+        .or(channels.first())
+        .ok_or_else(|| invalid(path, "EXR has no channels"))?;
+    let values: Vec<f64> = pick.sample_data.values_as_f32().map(f64::from).collect();
+    Ok((size.width(), size.height(), values))
+}
+
+/// Configuration and results of a run, as written to `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub config: RunConfig,
+    pub optical_properties: OpticalUsed,
+    /// Σ over output pixels of f_ssr [1/(m² sr)].
+    pub sum: f64,
+    pub sum_std_error: f64,
+    pub relative_std_error: f64,
+    pub paths: u64,
+    pub events: u64,
+    pub events_per_s: f64,
+    pub wall_s: f64,
+    pub specular_reflectance: f64,
+    pub diffuse_reflectance: f64,
+    pub transmittance: f64,
+    pub pixel_mm: f64,
+}
+
+/// The configuration part of a summary.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunConfig {
+    pub recipe: Option<String>,
+    pub wavelength_nm: Option<f64>,
+    pub theta_i_deg: f64,
+    pub phi_i_deg: f64,
+    pub theta_o_deg: f64,
+    pub phi_o_deg: f64,
+    pub phase: String,
+    pub beam: String,
+    pub pixels: usize,
+    pub pixel_mm: f64,
+    pub crop_of: Option<usize>,
+    pub seed: u64,
+    pub thickness_mm: f64,
+}
+
+/// The optical properties a run used.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct OpticalUsed {
+    pub mu_s_per_m: f64,
+    pub mu_a_per_m: f64,
+    pub g: f64,
+    pub n: f64,
+}
+
+/// Relative beam irradiance along the middle row of the sensor (for the
+/// profile plot).
+pub fn beam_profile(beam: &Beam, dirs: &Directions, x_mm: &[f64]) -> Vec<f64> {
+    match beam {
+        Beam::Gaussian { fwhm_m } => {
+            let sigma_mm = fwhm_m * 1e3 / (2.0 * (2.0 * 2f64.ln()).sqrt());
+            let cos_i = dirs.theta_i_deg.to_radians().cos();
+            let cos_phi = dirs.phi_i_deg.to_radians().cos();
+            // Along x, the footprint is stretched by 1/cos θ_i in proportion
+            // to how much of x lies in the plane of incidence.
+            let stretch = 1.0 + (1.0 / cos_i - 1.0) * cos_phi.abs();
+            x_mm.iter().map(|x| (-(x / stretch).powi(2) / (2.0 * sigma_mm * sigma_mm)).exp()).collect()
+        }
+        Beam::Map(map) => {
+            let row = map.height / 2;
+            let maxv = map.values.iter().copied().fold(0.0, f64::max);
+            x_mm
+                .iter()
+                .map(|x| {
+                    let c = (x * 1e-3 / map.pixel_m + 0.5 * map.width as f64).floor();
+                    if c >= 0.0 && (c as usize) < map.width {
+                        map.values[row * map.width + c as usize] / maxv
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        }
+    }
+}
+
+/// Writes the files of one run into `dir`; returns their paths.
+pub fn write_run(dir: &Path, slice: &Slice, summary: &Summary, beam: &[f64]) -> Result<Vec<PathBuf>, SliceIoError> {
+    let n = slice.pixels;
+    let mut written = Vec::new();
+    let exr = dir.join("bssrdf.exr");
+    let f32v = |v: &[f64]| v.iter().map(|x| *x as f32).collect::<Vec<f32>>();
+    imageio::write_exr_channels(&exr, n, n, &[("Y", &f32v(&slice.values)), ("std_error", &f32v(&slice.std_error))])?;
+    written.push(exr);
+    let grid = Grid { size: n, pixel_m: slice.pixel_m, values: slice.values.clone() };
+    let png = dir.join("bssrdf.png");
+    let title = format!(
+        "f_ssr, θi {}° φi {}° → θo {}° φo {}°",
+        summary.config.theta_i_deg, summary.config.phi_i_deg, summary.config.theta_o_deg, summary.config.phi_o_deg
+    );
+    let bytes = heatmap_png(&[(&title, &grid)], None).map_err(|source| SliceIoError::Plot { path: png.clone(), source })?;
+    write_atomic(&png, &bytes)?;
+    written.push(png);
+
+    let x = grid.x_mm();
+    let row = n / 2;
+    let mut csv = String::from("x_mm,f_per_m2_sr,std_error_per_m2_sr,beam_relative\n");
+    for c in 0..n {
+        csv.push_str(&format!(
+            "{:.6},{:.8e},{:.8e},{:.6e}\n",
+            x[c],
+            slice.values[row * n + c],
+            slice.std_error[row * n + c],
+            beam.get(c).copied().unwrap_or(0.0)
+        ));
+    }
+    let p = dir.join("profile.csv");
+    write_atomic(&p, csv.as_bytes())?;
+    written.push(p);
+    let p = dir.join("profile.png");
+    let err: Vec<f64> = (0..n).map(|c| slice.std_error[row * n + c]).collect();
+    let bytes = profile_png(&x, &[("simulated", grid.middle_row(), Some(&err[..]))], Some(beam))
+        .map_err(|source| SliceIoError::Plot { path: p.clone(), source })?;
+    write_atomic(&p, &bytes)?;
+    written.push(p);
+    let p = dir.join("summary.json");
+    write_json(&p, summary)?;
+    written.push(p);
+    Ok(written)
+}
+
+/// Viridis, sampled at 9 stops and interpolated linearly.
+fn viridis(t: f64) -> RGBColor {
+    const S: [(u8, u8, u8); 9] = [
+        (68, 1, 84),
+        (71, 44, 122),
+        (59, 81, 139),
+        (44, 113, 142),
+        (33, 144, 141),
+        (39, 173, 129),
+        (92, 200, 99),
+        (170, 220, 50),
+        (253, 231, 37),
+    ];
+    let t = t.clamp(0.0, 1.0) * 8.0;
+    let i = (t.floor() as usize).min(7);
+    let f = t - i as f64;
+    let lerp = |a: u8, b: u8| (a as f64 + (b as f64 - a as f64) * f).round() as u8;
+    RGBColor(lerp(S[i].0, S[i + 1].0), lerp(S[i].1, S[i + 1].1), lerp(S[i].2, S[i + 1].2))
+}
+
+/// Log-scale false-colour panels side by side on one shared scale
+/// (log₁₀(f/f_max) from −`decades` to 0), with a colour bar and axes in mm.
+/// With `diverging`, the last panel is a relative-difference map in
+/// [−1, 1] instead (blue negative, red positive).
+pub fn heatmap_png(panels: &[(&str, &Grid)], diverging: Option<(&str, &Grid)>) -> Result<Vec<u8>, PlotError> {
+    let decades = 4.0;
+    let fmax = panels.iter().flat_map(|(_, g)| g.values.iter().copied()).fold(0.0, f64::max);
+    let count = panels.len() + usize::from(diverging.is_some());
+    let (pw, ph) = (620u32, 600u32);
+    render_png(pw * count as u32, ph + 80, |root| {
+        let (top, bar) = root.split_vertically(ph);
+        let areas = top.split_evenly((1, count));
+        let draw = |area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+                    title: &str,
+                    g: &Grid,
+                    colour: &dyn Fn(f64) -> RGBColor|
+         -> Result<(), PlotError> {
+            let half = 0.5 * g.size as f64 * g.pixel_m * 1e3;
+            let mut chart = ChartBuilder::on(area)
+                .margin(10)
+                .caption(title, ("sans-serif", 18))
+                .x_label_area_size(35)
+                .y_label_area_size(45)
+                .build_cartesian_2d(-half..half, -half..half)
+                .map_err(perr)?;
+            chart.configure_mesh().disable_mesh().x_desc("x [mm]").y_desc("y [mm]").draw().map_err(perr)?;
+            let p = g.pixel_m * 1e3;
+            chart
+                .draw_series(g.values.iter().enumerate().map(|(i, v)| {
+                    let (c, r) = ((i % g.size) as f64, (i / g.size) as f64);
+                    let x0 = -half + c * p;
+                    let y0 = half - r * p;
+                    Rectangle::new([(x0, y0), (x0 + p, y0 - p)], colour(*v).filled())
+                }))
+                .map_err(perr)?;
+            Ok(())
+        };
+        let log_colour = |v: f64| {
+            if v <= 0.0 || fmax <= 0.0 {
+                viridis(0.0)
+            } else {
+                viridis(((v / fmax).log10() + decades) / decades)
+            }
+        };
+        for (area, (title, g)) in areas.iter().zip(panels) {
+            draw(area, title, g, &log_colour)?;
+        }
+        let diverge = |v: f64| {
+            let t = v.clamp(-1.0, 1.0);
+            if t < 0.0 {
+                let a = 1.0 + t;
+                RGBColor((255.0 * a) as u8, (255.0 * a) as u8, 255)
+            } else {
+                let a = 1.0 - t;
+                RGBColor(255, (255.0 * a) as u8, (255.0 * a) as u8)
+            }
+        };
+        if let Some((title, g)) = diverging {
+            draw(&areas[count - 1], title, g, &diverge)?;
+        }
+        // Colour bars.
+        let bars = bar.split_evenly((1, count));
+        let bar_chart = |area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+                         lo: f64,
+                         hi: f64,
+                         label: &str,
+                         colour: &dyn Fn(f64) -> RGBColor|
+         -> Result<(), PlotError> {
+            let mut chart = ChartBuilder::on(area)
+                .margin_left(55)
+                .margin_right(20)
+                .x_label_area_size(45)
+                .build_cartesian_2d(lo..hi, 0.0..1.0)
+                .map_err(perr)?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .disable_y_axis()
+                .x_desc(label)
+                .x_labels(9)
+                .label_style(("sans-serif", 14))
+                .axis_desc_style(("sans-serif", 15))
+                .draw()
+                .map_err(perr)?;
+            let steps = 200;
+            chart
+                .draw_series((0..steps).map(|k| {
+                    let a = lo + (hi - lo) * k as f64 / steps as f64;
+                    let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
+                    Rectangle::new([(a, 0.0), (b, 1.0)], colour(0.5 * (a + b)).filled())
+                }))
+                .map_err(perr)?;
+            Ok(())
+        };
+        let fmax_label = format!("log10(f / f_max), f_max = {fmax:.3e} 1/(m² sr)");
+        for b in bars.iter().take(panels.len()) {
+            bar_chart(b, -decades, 0.0, &fmax_label, &|v| viridis((v + decades) / decades))?;
+        }
+        if diverging.is_some() {
+            bar_chart(&bars[count - 1], -1.0, 1.0, "(simulated − measured) / measured", &diverge)?;
+        }
+        Ok(())
+    })
+}
+
+/// Profiles along x (log scale) with optional error bars, and the beam
+/// profile on a secondary axis.
+pub fn profile_png(x_mm: &[f64], curves: &[(&str, &[f64], Option<&[f64]>)], beam: Option<&[f64]>) -> Result<Vec<u8>, PlotError> {
+    let positive: Vec<f64> = curves.iter().flat_map(|(_, v, _)| v.iter().copied()).filter(|v| *v > 0.0).collect();
+    let hi = positive.iter().copied().fold(0.0, f64::max) * 2.0;
+    let lo = (hi * 1e-5).max(positive.iter().copied().fold(f64::INFINITY, f64::min) / 2.0);
+    if !(hi > 0.0 && lo.is_finite()) {
+        return Err(perr("profile has no positive values"));
+    }
+    let (x0, x1) = (x_mm.first().copied().unwrap_or(-1.0), x_mm.last().copied().unwrap_or(1.0));
+    render_png(1000, 600, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .margin(15)
+            .caption("profile along the plane of incidence", ("sans-serif", 20))
+            .x_label_area_size(40)
+            .y_label_area_size(80)
+            .right_y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, (lo..hi).log_scale())
+            .map_err(perr)?
+            .set_secondary_coord(x0..x1, 0.0..1.05);
+        chart
+            .configure_mesh()
+            .x_desc("x [mm]")
+            .y_desc("f_ssr [1/(m² sr)]")
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()
+            .map_err(perr)?;
+        for (k, (name, values, err)) in curves.iter().enumerate() {
+            let colour = crate::plot::palette(k);
+            let pts: Vec<(f64, f64)> = x_mm.iter().zip(values.iter()).filter(|(_, v)| **v > 0.0).map(|(x, v)| (*x, *v)).collect();
+            chart
+                .draw_series(LineSeries::new(pts, colour.stroke_width(2)))
+                .map_err(perr)?
+                .label(*name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+            if let Some(e) = err {
+                chart
+                    .draw_series(x_mm.iter().zip(values.iter()).zip(e.iter()).filter(|((_, v), s)| **v - **s > 0.0).map(
+                        |((x, v), s)| PathElement::new(vec![(*x, v - s), (*x, v + s)], colour.mix(0.5)),
+                    ))
+                    .map_err(perr)?;
+            }
+        }
+        if let Some(b) = beam {
+            chart.configure_secondary_axes().y_desc("beam (relative)").draw().map_err(perr)?;
+            let grey = RGBColor(120, 120, 120);
+            chart
+                .draw_secondary_series(LineSeries::new(x_mm.iter().zip(b).map(|(x, v)| (*x, *v)), grey.stroke_width(1)))
+                .map_err(perr)?
+                .label("beam")
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey));
+        }
+        chart.configure_series_labels().background_style(WHITE.mix(0.9)).border_style(BLACK).draw().map_err(perr)?;
+        Ok(())
+    })
+}
+
+/// Metrics of a simulated slice against a measured one.
+#[derive(Debug, Clone, Serialize)]
+pub struct Comparison {
+    /// Mean over the mask of ((sim − meas)/meas)².
+    pub mean_squared_relative_error: f64,
+    /// Measured pixels above threshold × max(measured) form the mask.
+    pub threshold: f64,
+    pub mask_pixels: usize,
+    pub measured_sum: f64,
+    pub simulated_sum: f64,
+    /// simulated_sum / measured_sum.
+    pub sum_ratio: f64,
+    pub pixels: usize,
+    pub pixel_mm: f64,
+}
+
+/// Compares two grids of the same size and pixel pitch (a mismatch is an
+/// error, never a silent resample).
+pub fn compare(measured: &Grid, simulated: &Grid, threshold: f64) -> Result<(Comparison, Grid), String> {
+    if measured.size != simulated.size {
+        return Err(format!("size mismatch: measured {0} × {0}, simulated {1} × {1}", measured.size, simulated.size));
+    }
+    if (measured.pixel_m / simulated.pixel_m - 1.0).abs() > 1e-6 {
+        return Err(format!(
+            "pixel size mismatch: measured {} mm, simulated {} mm",
+            measured.pixel_m * 1e3,
+            simulated.pixel_m * 1e3
+        ));
+    }
+    if !(threshold.is_finite() && (0.0..1.0).contains(&threshold)) {
+        return Err(format!("threshold {threshold} must lie in [0, 1)"));
+    }
+    let mmax = measured.values.iter().copied().fold(0.0, f64::max);
+    if mmax <= 0.0 {
+        return Err("the measured slice has no positive values".into());
+    }
+    let cut = threshold * mmax;
+    let mut acc = 0.0;
+    let mut count = 0usize;
+    let rel: Vec<f64> = measured
+        .values
+        .iter()
+        .zip(&simulated.values)
+        .map(|(m, s)| {
+            if *m > cut && *m > 0.0 {
+                let r = (s - m) / m;
+                acc += r * r;
+                count += 1;
+                r
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let (ms, ss) = (measured.sum(), simulated.sum());
+    Ok((
+        Comparison {
+            mean_squared_relative_error: if count > 0 { acc / count as f64 } else { f64::NAN },
+            threshold,
+            mask_pixels: count,
+            measured_sum: ms,
+            simulated_sum: ss,
+            sum_ratio: ss / ms,
+            pixels: measured.size,
+            pixel_mm: measured.pixel_m * 1e3,
+        },
+        Grid { size: measured.size, pixel_m: measured.pixel_m, values: rel },
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(values: Vec<f64>) -> Grid {
+        let size = (values.len() as f64).sqrt() as usize;
+        Grid { size, pixel_m: 1e-4, values }
+    }
+
+    #[test]
+    fn comparison_metrics() {
+        let m = grid(vec![1.0, 2.0, 0.001, 4.0]);
+        let s = grid(vec![1.1, 2.0, 5.0, 2.0]);
+        let (c, rel) = compare(&m, &s, 0.01).unwrap();
+        assert_eq!(c.mask_pixels, 3);
+        let expected = (0.1f64.powi(2) + 0.0 + 0.5f64.powi(2)) / 3.0;
+        assert!((c.mean_squared_relative_error - expected).abs() < 1e-12);
+        assert!((c.sum_ratio - 10.1 / 7.001).abs() < 1e-12);
+        assert_eq!(rel.values[2], 0.0);
+        assert!(compare(&m, &grid(vec![1.0; 9]), 0.01).unwrap_err().contains("size"));
+        let mut other = s.clone();
+        other.pixel_m = 2e-4;
+        assert!(compare(&m, &other, 0.01).unwrap_err().contains("pixel size"));
+    }
+
+    #[test]
+    fn csv_grids_are_checked() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.csv");
+        std::fs::write(&p, "# measured\n1, 2\n3 4\n").unwrap();
+        let g = read_grid(&p, Some(0.1)).unwrap();
+        assert_eq!(g.values, vec![1.0, 2.0, 3.0, 4.0]);
+        std::fs::write(&p, "1,2,3\n4,5,6\n").unwrap();
+        assert!(read_grid(&p, Some(0.1)).unwrap_err().to_string().contains("square"));
+        std::fs::write(&p, "1,nan\n3,4\n").unwrap();
+        assert!(read_grid(&p, Some(0.1)).unwrap_err().to_string().contains("finite"));
+        std::fs::write(&p, "1,2\n3\n").unwrap();
+        assert!(read_grid(&p, Some(0.1)).is_err());
+        std::fs::write(&p, "1,2\n3,4\n").unwrap();
+        assert!(read_grid(&p, None).unwrap_err().to_string().contains("pixel size"));
+        std::fs::write(dir.path().join("m.csv.json"), r#"{"pixel_mm": 0.1029}"#).unwrap();
+        assert!((read_grid(&p, None).unwrap().pixel_m - 0.1029e-3).abs() < 1e-15);
+    }
+}

@@ -1,0 +1,345 @@
+//! `lucent bssrdf`: slab BSSRDF slices (SPEC §3) and their comparison with
+//! measured slices.
+
+use crate::bssrdf::{self, OpticalUsed, RunConfig, Summary};
+use crate::optics::bulk;
+use crate::optics::recipe::{Overrides, Recipe};
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use lucent_render::phase::{Phase, PhaseTable};
+use lucent_render::slab::{self, Beam, BeamMap, Directions, Estimator, Medium, RunOptions, Sensor, Setup, Slab, Stop};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct BssrdfArgs {
+    #[command(subcommand)]
+    pub command: Option<BssrdfCommand>,
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BssrdfCommand {
+    /// Score a simulated slice against a measured one.
+    Compare(CompareArgs),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PhaseChoice {
+    /// The recipe's tabulated Lorenz–Mie phase function.
+    Mie,
+    /// Henyey–Greenstein with the same g.
+    Hg,
+}
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Recipe (TOML); optical properties by Lorenz–Mie at --wavelength.
+    #[arg(long, conflicts_with_all = ["mu_s", "mu_a"])]
+    pub recipe: Option<PathBuf>,
+    /// Weight percentage for a recipe that leaves it unknown.
+    #[arg(long)]
+    pub weight_percent: Option<f64>,
+    /// Wavelength in nm (with --recipe).
+    #[arg(long, default_value_t = 550.0)]
+    pub wavelength: f64,
+    /// Scattering coefficient [1/m] (instead of a recipe).
+    #[arg(long, requires_all = ["mu_a", "g", "n"])]
+    pub mu_s: Option<f64>,
+    /// Absorption coefficient [1/m].
+    #[arg(long)]
+    pub mu_a: Option<f64>,
+    /// Asymmetry parameter (Henyey–Greenstein) without a recipe.
+    #[arg(long, allow_hyphen_values = true)]
+    pub g: Option<f64>,
+    /// Refractive index of the slab without a recipe.
+    #[arg(long)]
+    pub n: Option<f64>,
+    /// Slab thickness in mm (default: the recipe's, else 6.35).
+    #[arg(long, allow_hyphen_values = true)]
+    pub thickness_mm: Option<f64>,
+    #[arg(long, default_value_t = 45.0, allow_hyphen_values = true)]
+    pub theta_i: f64,
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub phi_i: f64,
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub theta_o: f64,
+    #[arg(long, default_value_t = 180.0, allow_hyphen_values = true)]
+    pub phi_o: f64,
+    /// Several θi/θo configurations at once, e.g. 45/0,0/45,45/15 (φi, φo as given).
+    #[arg(long)]
+    pub configs: Option<String>,
+    /// Phase function (default: mie with a recipe, hg otherwise).
+    #[arg(long, value_enum)]
+    pub phase: Option<PhaseChoice>,
+    /// Gaussian beam FWHM in µm.
+    #[arg(long, default_value_t = 200.0, conflicts_with = "beam_map")]
+    pub beam_fwhm_um: f64,
+    /// Measured map of incident irradiance on the surface (EXR, float TIFF or CSV grid).
+    #[arg(long)]
+    pub beam_map: Option<PathBuf>,
+    /// Pixel size of the beam map in mm (else from its sidecar JSON).
+    #[arg(long)]
+    pub beam_map_pixel_mm: Option<f64>,
+    /// Pixels per side of the camera.
+    #[arg(long, default_value_t = 259)]
+    pub pixels: usize,
+    /// Pixel size on the surface in mm.
+    #[arg(long, default_value_t = 0.1029)]
+    pub pixel_mm: f64,
+    /// Keep only the central N × N pixels (117 when given without a value).
+    #[arg(long, num_args = 0..=1, default_missing_value = "117")]
+    pub crop: Option<usize>,
+    /// Stop at this relative standard error of the slice sum.
+    #[arg(long)]
+    pub rel_error: Option<f64>,
+    /// Stop after this many light paths.
+    #[arg(long)]
+    pub paths: Option<u64>,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    pub time_s: Option<f64>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output folder.
+    #[arg(long, default_value = "lucent-out/bssrdf")]
+    pub out: PathBuf,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// Measured slice (EXR, 32-bit TIFF or CSV grid).
+    #[arg(long)]
+    pub measured: PathBuf,
+    /// Pixel size of the measured slice in mm (else from FILE.json).
+    #[arg(long)]
+    pub measured_pixel_mm: Option<f64>,
+    /// Simulated slice: a run folder or its bssrdf.exr.
+    #[arg(long)]
+    pub simulated: PathBuf,
+    /// Mask: measured pixels above this fraction of the measured maximum.
+    #[arg(long, default_value_t = 0.01)]
+    pub threshold: f64,
+    #[arg(long, default_value = "lucent-out/bssrdf-compare")]
+    pub out: PathBuf,
+}
+
+pub fn run(a: BssrdfArgs) -> Result<()> {
+    match a.command {
+        Some(BssrdfCommand::Compare(c)) => compare(c),
+        None => simulate(a.run),
+    }
+}
+
+/// The medium, thickness and description of what was used.
+struct MediumChoice {
+    medium: Medium,
+    thickness_m: f64,
+    used: OpticalUsed,
+    phase_name: String,
+}
+
+fn medium(a: &RunArgs) -> Result<MediumChoice> {
+    let explicit_thickness = match a.thickness_mm {
+        Some(t) if !(t.is_finite() && t > 0.0) => bail!("--thickness-mm {t}: the slab thickness must be a positive number of millimetres"),
+        t => t.map(|t| t * 1e-3),
+    };
+    if let Some(path) = &a.recipe {
+        let recipe = Recipe::load(path, Overrides { weight_percent: a.weight_percent })?;
+        let options = bulk::Options::default();
+        let s = bulk::at_wavelength(&recipe, a.wavelength, &options)?;
+        for w in &s.warnings {
+            eprintln!("warning: {}: {w} (at {} nm)", recipe.name, a.wavelength);
+        }
+        let choice = a.phase.unwrap_or(PhaseChoice::Mie);
+        let (phase, name) = match choice {
+            PhaseChoice::Mie => (Phase::Tabulated(PhaseTable::from_theta_samples(&s.phase)?), "mie (4096-entry table)".to_string()),
+            PhaseChoice::Hg => (Phase::henyey_greenstein(s.g)?, format!("hg (g = {:.5})", s.g)),
+        };
+        let medium = Medium::new(s.mu_s_per_m, s.mu_a_per_m, phase, s.n_bulk.max(1.0))?;
+        Ok(MediumChoice {
+            medium,
+            thickness_m: explicit_thickness.unwrap_or(recipe.thickness_m),
+            used: OpticalUsed { mu_s_per_m: s.mu_s_per_m, mu_a_per_m: s.mu_a_per_m, g: s.g, n: s.n_bulk },
+            phase_name: name,
+        })
+    } else {
+        let (Some(mu_s), Some(mu_a), Some(g), Some(n)) = (a.mu_s, a.mu_a, a.g, a.n) else {
+            bail!("give --recipe R.toml, or all of --mu-s --mu-a --g --n (and optionally --thickness-mm)");
+        };
+        if a.phase == Some(PhaseChoice::Mie) {
+            bail!("--phase mie needs --recipe (a tabulated Lorenz–Mie phase function)");
+        }
+        let medium = Medium::new(mu_s, mu_a, Phase::henyey_greenstein(g)?, n)?;
+        Ok(MediumChoice {
+            medium,
+            thickness_m: explicit_thickness.unwrap_or(6.35e-3),
+            used: OpticalUsed { mu_s_per_m: mu_s, mu_a_per_m: mu_a, g, n },
+            phase_name: format!("hg (g = {g})"),
+        })
+    }
+}
+
+fn beam(a: &RunArgs) -> Result<(Beam, String)> {
+    match &a.beam_map {
+        Some(path) => {
+            let grid = bssrdf::read_grid(path, a.beam_map_pixel_mm).with_context(|| "--beam-map")?;
+            let map = BeamMap::new(grid.size, grid.size, grid.pixel_m, grid.values)
+                .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+            Ok((Beam::Map(map), format!("map {}", path.display())))
+        }
+        None => Ok((Beam::gaussian(a.beam_fwhm_um * 1e-6)?, format!("gaussian, FWHM {} µm", a.beam_fwhm_um))),
+    }
+}
+
+fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
+    text.split(',')
+        .map(|c| {
+            let (i, o) = c.split_once('/').ok_or_else(|| anyhow!("--configs {c:?}: expected THETA_I/THETA_O, e.g. 45/0"))?;
+            let num = |s: &str| s.trim().parse::<f64>().map_err(|_| anyhow!("--configs {c:?}: {s:?} is not a number"));
+            Ok((num(i)?, num(o)?))
+        })
+        .collect()
+}
+
+fn simulate(a: RunArgs) -> Result<()> {
+    let m = medium(&a)?;
+    let (beam, beam_name) = beam(&a)?;
+    let out_pixels = match a.crop {
+        Some(c) if c == 0 || c > a.pixels => bail!("--crop {c}: must lie in 1 … --pixels ({})", a.pixels),
+        Some(c) => c,
+        None => a.pixels,
+    };
+    // Only the crop is simulated: the pixels outside it would be discarded.
+    let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
+    let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error };
+    let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), ..stop } } else { stop };
+    let slab = Slab::new(m.thickness_m, m.medium.clone())?;
+    let configs = match &a.configs {
+        Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
+        None => vec![(a.theta_i, a.phi_i, a.theta_o, a.phi_o)],
+    };
+    let mut table = String::from("folder,theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,sum_per_m2_sr,sum_std_error,paths,wall_s\n");
+    for (ti, pi, to, po) in &configs {
+        let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
+        let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
+        let dir = if configs.len() > 1 { a.out.join(format!("ti{ti}_to{to}")) } else { a.out.clone() };
+        let options = RunOptions { stop, seed: a.seed, estimator: Estimator::Connection, ..RunOptions::default() };
+        let bar = progress_bar(a.quiet, &stop);
+        bar.set_prefix(format!("θi {ti}° → θo {to}°"));
+        let slice = slab::simulate(&setup, &options, |p| {
+            bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
+            bar.set_message(format!(
+                "{:.2} M events/s, rel. error {:.2} %",
+                p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
+                100.0 * p.rel_error
+            ));
+        })?;
+        bar.finish_and_clear();
+        let summary = Summary {
+            config: RunConfig {
+                recipe: a.recipe.as_ref().map(|p| p.display().to_string()),
+                wavelength_nm: a.recipe.as_ref().map(|_| a.wavelength),
+                theta_i_deg: *ti,
+                phi_i_deg: *pi,
+                theta_o_deg: *to,
+                phi_o_deg: *po,
+                phase: m.phase_name.clone(),
+                beam: beam_name.clone(),
+                pixels: out_pixels,
+                pixel_mm: a.pixel_mm,
+                crop_of: a.crop.map(|_| a.pixels),
+                seed: a.seed,
+                thickness_mm: m.thickness_m * 1e3,
+            },
+            optical_properties: m.used,
+            sum: slice.sum,
+            sum_std_error: slice.sum_std_error,
+            relative_std_error: slice.sum_std_error / slice.sum,
+            paths: slice.paths,
+            events: slice.events,
+            events_per_s: slice.events_per_s(),
+            wall_s: slice.wall_s,
+            specular_reflectance: slice.specular_reflectance,
+            diffuse_reflectance: slice.diffuse_reflectance,
+            transmittance: slice.transmittance,
+            pixel_mm: a.pixel_mm,
+        };
+        let grid_x: Vec<f64> =
+            (0..out_pixels).map(|c| (c as f64 + 0.5 - 0.5 * out_pixels as f64) * a.pixel_mm).collect();
+        let beam_row = bssrdf::beam_profile(&beam, &dirs, &grid_x);
+        bssrdf::write_run(&dir, &slice, &summary, &beam_row)?;
+        println!(
+            "θi {ti}° φi {pi}° → θo {to}° φo {po}°: sum = {:.5e} ± {:.2e} 1/(m² sr) ({:.2} %), {} paths, {:.1} M events/s, {:.1} s → {}",
+            slice.sum,
+            slice.sum_std_error,
+            100.0 * summary.relative_std_error,
+            slice.paths,
+            summary.events_per_s / 1e6,
+            slice.wall_s,
+            dir.display()
+        );
+        table.push_str(&format!(
+            "{},{ti},{pi},{to},{po},{:.8e},{:.3e},{},{:.3}\n",
+            dir.display(),
+            slice.sum,
+            slice.sum_std_error,
+            slice.paths,
+            slice.wall_s
+        ));
+    }
+    if configs.len() > 1 {
+        let p = a.out.join("sweep.csv");
+        crate::io::write_atomic(&p, table.as_bytes())?;
+        println!("combined table: {}", p.display());
+    }
+    Ok(())
+}
+
+fn progress_bar(quiet: bool, stop: &Stop) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = match stop.paths {
+        Some(n) => ProgressBar::new(n),
+        None => ProgressBar::new_spinner(),
+    };
+    let style = ProgressStyle::with_template("{prefix} {spinner} [{elapsed_precise}] {pos} paths {msg}")
+        .unwrap_or_else(|_| ProgressStyle::default_spinner());
+    bar.set_style(style);
+    bar
+}
+
+fn simulated_path(p: &Path) -> PathBuf {
+    if p.is_dir() {
+        p.join("bssrdf.exr")
+    } else {
+        p.to_path_buf()
+    }
+}
+
+fn compare(a: CompareArgs) -> Result<()> {
+    let measured = bssrdf::read_grid(&a.measured, a.measured_pixel_mm)?;
+    let sim_path = simulated_path(&a.simulated);
+    let simulated = bssrdf::read_grid(&sim_path, None)?;
+    let (c, rel) = bssrdf::compare(&measured, &simulated, a.threshold)
+        .map_err(|e| anyhow!("{} vs {}: {e}", a.measured.display(), sim_path.display()))?;
+    let out = &a.out;
+    crate::io::write_json(&out.join("comparison.json"), &c)?;
+    let x = measured.x_mm();
+    let png = bssrdf::profile_png(&x, &[("measured", measured.middle_row(), None), ("simulated", simulated.middle_row(), None)], None)?;
+    crate::io::write_atomic(&out.join("profiles.png"), &png)?;
+    let panel = bssrdf::heatmap_png(
+        &[("measured", &measured), ("simulated", &simulated)],
+        Some(("relative difference (masked)", &rel)),
+    )?;
+    crate::io::write_atomic(&out.join("panel.png"), &panel)?;
+    println!("{}", serde_json::to_string_pretty(&c)?);
+    println!("written: {}/{{comparison.json, profiles.png, panel.png}}", out.display());
+    Ok(())
+}

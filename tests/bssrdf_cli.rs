@@ -1,0 +1,170 @@
+//! `lucent bssrdf` end to end: a run's files and summary fields, the sweep
+//! table, comparison against a measured slice, and clear errors for bad
+//! input (negative thickness, θ ≥ 90°, NaN in a map, non-square grids,
+//! size mismatches).
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn lucent(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run lucent")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+const THIN: [&str; 8] = ["--mu-s", "3000", "--mu-a", "30", "--g", "0.8", "--n", "1.5"];
+
+fn run_thin(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["bssrdf", "--quiet", "--thickness-mm", "2", "--pixels", "41", "--pixel-mm", "0.1"];
+    args.extend_from_slice(&THIN);
+    if !extra.contains(&"--paths") {
+        args.extend_from_slice(&["--paths", "20000"]);
+    }
+    args.extend_from_slice(&["--out", out.to_str().unwrap()]);
+    args.extend_from_slice(extra);
+    lucent(&args)
+}
+
+#[test]
+fn run_writes_slice_profile_and_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let o = run_thin(&out, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    for k in ["sum", "sum_std_error", "paths", "events", "events_per_s", "wall_s"] {
+        assert!(s[k].is_number(), "summary lacks {k}: {s}");
+    }
+    assert_eq!(s["paths"].as_u64(), Some(20000));
+    let sum = s["sum"].as_f64().unwrap();
+    // The EXR holds the per-pixel values whose sum is `sum`.
+    let exr = exr::prelude::read_all_flat_layers_from_file(out.join("bssrdf.exr")).unwrap();
+    let ch = &exr.layer_data[0].channel_data.list;
+    let y = ch.iter().find(|c| c.name.to_string() == "Y").expect("Y channel");
+    assert!(ch.iter().any(|c| c.name.to_string() == "std_error"));
+    let total: f64 = y.sample_data.values_as_f32().map(f64::from).sum();
+    assert!((total / sum - 1.0).abs() < 1e-5, "{total} vs {sum}");
+    let profile = std::fs::read_to_string(out.join("profile.csv")).unwrap();
+    assert_eq!(profile.lines().count(), 42);
+    assert!(profile.starts_with("x_mm,f_per_m2_sr,std_error_per_m2_sr,beam_relative"));
+    for png in ["bssrdf.png", "profile.png"] {
+        assert!(std::fs::read(out.join(png)).unwrap().starts_with(b"\x89PNG"), "{png}");
+    }
+    // Same seed, same result.
+    let again = dir.path().join("again");
+    assert!(run_thin(&again, &[]).status.success());
+    let s2: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(again.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s2["sum"], s["sum"]);
+}
+
+#[test]
+fn sweep_writes_one_folder_per_configuration_and_a_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sweep");
+    let o = run_thin(&out, &["--configs", "45/0,0/45,45/15", "--paths", "3000"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    assert_eq!(table.lines().count(), 4, "{table}");
+    for f in ["ti45_to0", "ti0_to45", "ti45_to15"] {
+        assert!(out.join(f).join("summary.json").exists(), "{f}");
+    }
+}
+
+#[test]
+fn compare_scores_against_a_measured_slice() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    assert!(run_thin(&out, &[]).status.success());
+    // A "measurement": the simulated slice scaled by 1.1, as a CSV grid.
+    let exr = exr::prelude::read_all_flat_layers_from_file(out.join("bssrdf.exr")).unwrap();
+    let y: Vec<f32> = exr.layer_data[0]
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name.to_string() == "Y")
+        .unwrap()
+        .sample_data
+        .values_as_f32()
+        .collect();
+    let mut csv = String::new();
+    for r in 0..41 {
+        let row: Vec<String> = (0..41).map(|c| format!("{}", 1.1 * y[r * 41 + c] as f64)).collect();
+        csv.push_str(&row.join(","));
+        csv.push('\n');
+    }
+    let measured = dir.path().join("measured.csv");
+    std::fs::write(&measured, &csv).unwrap();
+    let cmp = dir.path().join("cmp");
+    let o = lucent(&[
+        "bssrdf", "compare", "--measured", measured.to_str().unwrap(), "--measured-pixel-mm", "0.1",
+        "--simulated", out.to_str().unwrap(), "--out", cmp.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(cmp.join("comparison.json")).unwrap()).unwrap();
+    assert!((c["sum_ratio"].as_f64().unwrap() - 1.0 / 1.1).abs() < 1e-5, "{c}");
+    let expected = (1.0f64 / 1.1 - 1.0).powi(2);
+    assert!((c["mean_squared_relative_error"].as_f64().unwrap() - expected).abs() < 1e-5, "{c}");
+    for png in ["profiles.png", "panel.png"] {
+        assert!(cmp.join(png).exists(), "{png}");
+    }
+    // Wrong pixel size, non-square grid, NaN: clear errors naming the file.
+    let o = lucent(&["bssrdf", "compare", "--measured", measured.to_str().unwrap(), "--measured-pixel-mm", "0.2", "--simulated", out.to_str().unwrap()]);
+    assert!(!o.status.success() && stderr(&o).contains("pixel size"), "{}", stderr(&o));
+    let bad = dir.path().join("nonsquare.csv");
+    std::fs::write(&bad, "1,2,3\n4,5,6\n").unwrap();
+    let o = lucent(&["bssrdf", "compare", "--measured", bad.to_str().unwrap(), "--measured-pixel-mm", "0.1", "--simulated", out.to_str().unwrap()]);
+    assert!(!o.status.success() && stderr(&o).contains("nonsquare.csv") && stderr(&o).contains("square"), "{}", stderr(&o));
+    let nan = dir.path().join("nan.csv");
+    std::fs::write(&nan, "1,nan\n3,4\n").unwrap();
+    let o = lucent(&["bssrdf", "compare", "--measured", nan.to_str().unwrap(), "--measured-pixel-mm", "0.1", "--simulated", out.to_str().unwrap()]);
+    assert!(!o.status.success() && stderr(&o).contains("nan.csv") && stderr(&o).contains("finite"), "{}", stderr(&o));
+}
+
+#[test]
+fn bad_input_gives_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x");
+    let cases: [(&[&str], &str); 5] = [
+        (&["--thickness-mm", "-1"], "thickness"),
+        (&["--theta-i", "90"], "theta_i"),
+        (&["--theta-o", "120"], "theta_o"),
+        (&["--crop", "500"], "crop"),
+        (&["--rel-error", "2"], "rel_error"),
+    ];
+    for (extra, key) in cases {
+        let o = run_thin(&out, extra);
+        assert!(!o.status.success(), "{extra:?} accepted");
+        assert!(stderr(&o).contains(key), "{extra:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"));
+    }
+    let map = dir.path().join("beam.csv");
+    std::fs::write(&map, "0,1\nnan,0\n").unwrap();
+    let o = run_thin(&out, &["--beam-map", map.to_str().unwrap(), "--beam-map-pixel-mm", "0.01"]);
+    assert!(!o.status.success() && stderr(&o).contains("beam.csv") && stderr(&o).contains("finite"), "{}", stderr(&o));
+    let o = lucent(&["bssrdf", "--quiet", "--paths", "10", "--out", out.to_str().unwrap()]);
+    assert!(!o.status.success() && stderr(&o).contains("--recipe"), "{}", stderr(&o));
+}
+
+#[test]
+fn recipe_runs_use_the_lorenz_mie_properties() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r");
+    let o = lucent(&[
+        "bssrdf", "--quiet", "--recipe", "fixtures/samples/IOL1068-09.toml", "--wavelength", "550", "--paths", "2000",
+        "--pixels", "21", "--pixel-mm", "0.5", "--out", out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let op = &s["optical_properties"];
+    // The PDMS-09 sample: μs ≈ 1.47e4 /m, g ≈ 0.974, n ≈ 1.589 at 550 nm.
+    assert!((op["mu_s_per_m"].as_f64().unwrap() / 1.47e4 - 1.0).abs() < 0.02, "{op}");
+    assert!((op["g"].as_f64().unwrap() - 0.974).abs() < 0.002, "{op}");
+    assert!((op["n"].as_f64().unwrap() - 1.589).abs() < 0.001, "{op}");
+    assert_eq!(s["config"]["thickness_mm"].as_f64(), Some(6.35));
+}
