@@ -1,9 +1,103 @@
 //! Colour science for lucent: spectra, colour-matching functions, colour
-//! spaces and ColorChecker calibration (SPEC §4, §5).
+//! spaces, chromatic adaptation, colour differences, spectral → RGB band
+//! averages and ColorChecker calibration of cameras (SPEC §4, §5). Pure Rust,
+//! `f64`, no OpenCV.
 //!
-//! This crate starts with the wavelength grid type that every spectral stage
-//! shares; the colour-matching data and conversions land with the colour
-//! issue.
+//! | module | computes |
+//! |---|---|
+//! | [`data`] | embedded tables: CIE 1931 and CIE 2012 2° XYZ CMFs, CIE 1931 RGB CMFs, illuminants D50/D65/A/E, ColorChecker Classic references |
+//! | [`spectrum`] | reflectance spectrum → XYZ (Y of the perfect white = 1) |
+//! | [`spaces`] | XYZ ↔ xyY ↔ CIELAB, linear CIE RGB and sRGB ↔ XYZ, the sRGB transfer function |
+//! | [`adaptation`] | Bradford, von Kries and CAT02 chromatic adaptation |
+//! | [`difference`] | ΔE*ab (CIE 1976) and ΔE00 (CIEDE2000, Sharma et al. 2005) |
+//! | [`bands`] | spectral values (μs, μa, g, …) → three band values R, G, B |
+//! | [`ccm`] | colour-correction matrices camera RGB → XYZ (D50): Cheung 2004, Finlayson 2015, Finlayson 1996 |
+//! | [`chart`] | ColorChecker patch sampling from an image given the chart's four corners |
+//!
+//! Conventions: wavelengths in nm; XYZ relative with Y = 1 for the perfect
+//! white (multiply by 100 for the CIE 15 convention); every table and formula
+//! names its source where it is defined, and the values are tested against
+//! colour-science (`tools/reference/colour_reference.py`).
+//!
+//! ```
+//! use lucent_colour::{data::Illuminant, spaces, difference};
+//! // The ICC D50 white is L* = 100, a* = b* = 0.
+//! let lab = spaces::xyz_to_lab([0.9642, 1.0, 0.8249], lucent_colour::data::ICC_D50_XYZ);
+//! assert!((lab[0] - 100.0).abs() < 1e-12 && lab[1].abs() < 1e-12);
+//! // Sharma et al. (2005), pair 1: ΔE00 = 2.0425.
+//! let de = difference::delta_e_2000([50.0, 2.6772, -79.7751], [50.0, 0.0, -82.7485]);
+//! assert!((de - 2.0425).abs() < 5e-5);
+//! # let _ = Illuminant::D65;
+//! ```
+
+pub mod adaptation;
+pub mod bands;
+pub mod ccm;
+pub mod chart;
+pub mod data;
+pub mod difference;
+pub mod spaces;
+pub mod spectrum;
+
+pub use bands::{band_averages, band_weights, BandWeights};
+pub use ccm::{CcmMethod, ColourCorrection, FitReport};
+pub use chart::{sample_patches, ImageRef, PatchSample, SampleOptions};
+pub use data::{Illuminant, Observer};
+
+/// A 3 × 3 matrix, row-major: `y = M x` is `y[i] = Σ_j M[i][j] x[j]`.
+pub type Mat3 = [[f64; 3]; 3];
+
+/// Everything that can go wrong in this crate; each message names the input
+/// at fault.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum ColourError {
+    #[error(transparent)]
+    Grid(#[from] GridError),
+    #[error("{what}: {index_desc} is not a finite number ({value})")]
+    NonFinite { what: String, index_desc: String, value: f64 },
+    #[error("{what}: expected {expected} values, got {got}")]
+    Length { what: String, expected: usize, got: usize },
+    #[error("{what}: {reason}")]
+    Invalid { what: String, reason: String },
+    #[error("unknown {kind} {name:?}; valid names: {valid}")]
+    UnknownName { kind: &'static str, name: String, valid: String },
+    #[error("{what} is singular or rank-deficient ({reason})")]
+    Singular { what: String, reason: String },
+    #[error("corner {corner} ({x}, {y}) is outside the {width} × {height} image; corners are pixel coordinates, x to the right and y down, origin at the top-left edge of the image")]
+    CornerOutside { corner: usize, x: f64, y: f64, width: usize, height: usize },
+    #[error("{}", clipped_message(.patches, *.level))]
+    ClippedPatches { patches: Vec<ClippedPatch>, level: f64 },
+}
+
+/// A chart patch refused because too many of its pixels are clipped.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClippedPatch {
+    /// 1-based patch number in chart order.
+    pub patch: usize,
+    pub name: &'static str,
+    /// Fraction of the sampled pixels with a channel at or above the clip level.
+    pub fraction: f64,
+}
+
+fn clipped_message(patches: &[ClippedPatch], level: f64) -> String {
+    let list: Vec<String> =
+        patches.iter().map(|p| format!("{} ({}) {:.0} %", p.patch, p.name, 100.0 * p.fraction)).collect();
+    format!(
+        "clipped patch{} (pixels with a channel ≥ {level}): {}; the photo is overexposed there: expose for the white patch, or give the true clip level if the image is not normalised to 1",
+        if patches.len() == 1 { "" } else { "es" },
+        list.join(", ")
+    )
+}
+
+/// Checks that every value is finite; the error names `what` and the index.
+pub(crate) fn check_finite(what: &str, values: &[f64]) -> Result<(), ColourError> {
+    match values.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => {
+            Err(ColourError::NonFinite { what: what.to_string(), index_desc: format!("value {i}"), value: values[i] })
+        }
+    }
+}
 
 /// An inclusive, evenly spaced wavelength grid in nanometres.
 ///
@@ -18,7 +112,7 @@ pub struct WavelengthGrid {
 }
 
 /// A wavelength grid that cannot be built.
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum GridError {
     #[error("wavelength grid {start_nm}:{end_nm}:{step_nm} is invalid: {reason}")]
     Invalid { start_nm: f64, end_nm: f64, step_nm: f64, reason: &'static str },

@@ -24,10 +24,11 @@
 //! * Series length N by Wiscombe's criterion on |x| (x + 4x^{1/3} + 1 up to 8,
 //!   x + 4.05x^{1/3} + 2 up to 4200, x + 4x^{1/3} + 2 beyond), at least 3,
 //!   plus two guard terms (see [`wiscombe_terms`]).
-//! * D_n(y) = ψ'_n(y)/ψ_n(y) by downward recurrence from D_N(y), which is
-//!   computed by Lentz's (1976) continued fraction; downward recurrence is
-//!   stable for every complex y, and the exact start matters when |y| > N
-//!   (a crude start is not damped there).
+//! * D_n(y) = ψ'_n(y)/ψ_n(y) by downward recurrence, started with Lentz's
+//!   (1976) continued fraction at max(N, |y| + 4|y|^{1/3} + 16), above the
+//!   turning point where it converges in a few terms; downward recurrence
+//!   is stable for every complex y, and the exact start matters when
+//!   |y| > N (a crude start is not damped below the turning point).
 //! * ψ_n and ξ_n by upward recurrence up to N (Wiscombe 1979 shows this is
 //!   accurate up to the Wiscombe length), so no Bessel function is evaluated.
 //! * Checked against miepython 3.3 on 320 random cases (x from 0.01 to 1000,
@@ -119,6 +120,20 @@ pub fn wiscombe_terms(x: f64) -> usize {
 /// Terms added to Wiscombe's length (see [`wiscombe_terms`]).
 pub const GUARD_TERMS: usize = 2;
 
+/// a / b with one real division (num-complex's `Div` divides twice).
+#[inline(always)]
+fn cdiv(a: Complex64, b: Complex64) -> Complex64 {
+    let r = 1.0 / (b.re * b.re + b.im * b.im);
+    Complex64::new((a.re * b.re + a.im * b.im) * r, (a.im * b.re - a.re * b.im) * r)
+}
+
+/// 1 / b with one real division.
+#[inline(always)]
+fn cinv(b: Complex64) -> Complex64 {
+    let r = 1.0 / (b.re * b.re + b.im * b.im);
+    Complex64::new(b.re * r, -b.im * r)
+}
+
 /// D_n(z) = ψ'_n(z)/ψ_n(z) by Lentz's (1976) continued fraction for the
 /// Bessel ratio J_{ν−1}(z)/J_ν(z), ν = n + ½:
 /// D_n = −n/z + a₁ + 1/(a₂ + 1/(a₃ + …)), a_k = (−1)^{k+1} 2(ν + k − 1)/z,
@@ -189,46 +204,78 @@ impl Coefficients {
         let nstop = wiscombe_terms(xabs);
         let y = m * x;
 
-        // D_n(y), n = 0 … nstop: start from the continued fraction at nstop,
-        // then recur downward, D_{n−1} = n/y − 1/(D_n + n/y).
+        // D_n(y), n = 0 … nstop: start from the continued fraction above the
+        // turning point |y| (where it converges in a few terms), then recur
+        // downward, D_{n−1} = n/y − 1/(D_n + n/y); store from nstop down.
+        let ya = y.norm();
+        let n_start = nstop.max((ya + 4.0 * ya.cbrt() + 16.0).ceil() as usize);
         self.d.clear();
         self.d.resize(nstop + 1, Complex64::new(0.0, 0.0));
-        self.d[nstop] = log_derivative_lentz(y, nstop);
         let inv_y = y.inv();
+        let mut d = log_derivative_lentz(y, n_start);
+        for n in (nstop + 1..=n_start).rev() {
+            let ny = inv_y * n as f64;
+            d = ny - cinv(d + ny);
+        }
+        self.d[nstop] = d;
         for n in (1..=nstop).rev() {
             let ny = inv_y * n as f64;
-            self.d[n - 1] = ny - (self.d[n] + ny).inv();
+            self.d[n - 1] = ny - cinv(self.d[n] + ny);
         }
 
         self.a.clear();
         self.b.clear();
         self.a.reserve(nstop);
         self.b.reserve(nstop);
-        let inv_x = x.inv();
-        let (sx, cx) = (x.sin(), x.cos());
-        // ψ_{−1} = cos x, ψ_0 = sin x; ξ = ψ − iχ with χ_{−1} = −sin x, χ_0 = cos x.
-        let i = Complex64::new(0.0, 1.0);
-        let mut psi_prev = cx;
-        let mut psi = sx;
-        let mut xi_prev = cx + i * sx;
-        let mut xi = sx - i * cx;
         let inv_m = m.inv();
-        for n in 1..=nstop {
-            let nf = n as f64;
-            let f = (2.0 * nf - 1.0) * inv_x;
-            let psi_n = f * psi - psi_prev;
-            let xi_n = f * xi - xi_prev;
-            psi_prev = psi;
-            psi = psi_n;
-            xi_prev = xi;
-            xi = xi_n;
-            let nx = inv_x * nf;
-            let da = self.d[n] * inv_m + nx;
-            let db = self.d[n] * m + nx;
-            let an = (da * psi - psi_prev) / (da * xi - xi_prev);
-            let bn = (db * psi - psi_prev) / (db * xi - xi_prev);
-            self.a.push(an);
-            self.b.push(bn);
+        if x.im == 0.0 {
+            // Real host: ψ and χ are real (ξ = ψ − iχ), half the work.
+            let xr = x.re;
+            let inv_x = 1.0 / xr;
+            let (sx, cx) = xr.sin_cos();
+            let (mut psi_prev, mut psi) = (cx, sx);
+            let (mut chi_prev, mut chi) = (-sx, cx);
+            for n in 1..=nstop {
+                let nf = n as f64;
+                let f = (2.0 * nf - 1.0) * inv_x;
+                let psi_n = f * psi - psi_prev;
+                let chi_n = f * chi - chi_prev;
+                psi_prev = psi;
+                psi = psi_n;
+                chi_prev = chi;
+                chi = chi_n;
+                let xi = Complex64::new(psi, -chi);
+                let xi_prev = Complex64::new(psi_prev, -chi_prev);
+                let nx = inv_x * nf;
+                let da = self.d[n] * inv_m + nx;
+                let db = self.d[n] * m + nx;
+                self.a.push(cdiv(da * psi - psi_prev, da * xi - xi_prev));
+                self.b.push(cdiv(db * psi - psi_prev, db * xi - xi_prev));
+            }
+        } else {
+            let inv_x = x.inv();
+            let (sx, cx) = (x.sin(), x.cos());
+            // ψ_{−1} = cos x, ψ_0 = sin x; ξ = ψ − iχ with χ_{−1} = −sin x, χ_0 = cos x.
+            let i = Complex64::new(0.0, 1.0);
+            let mut psi_prev = cx;
+            let mut psi = sx;
+            let mut xi_prev = cx + i * sx;
+            let mut xi = sx - i * cx;
+            for n in 1..=nstop {
+                let nf = n as f64;
+                let f = (2.0 * nf - 1.0) * inv_x;
+                let psi_n = f * psi - psi_prev;
+                let xi_n = f * xi - xi_prev;
+                psi_prev = psi;
+                psi = psi_n;
+                xi_prev = xi;
+                xi = xi_n;
+                let nx = inv_x * nf;
+                let da = self.d[n] * inv_m + nx;
+                let db = self.d[n] * m + nx;
+                self.a.push(cdiv(da * psi - psi_prev, da * xi - xi_prev));
+                self.b.push(cdiv(db * psi - psi_prev, db * xi - xi_prev));
+            }
         }
         let finite = |c: &Complex64| c.re.is_finite() && c.im.is_finite();
         if !self.a.iter().chain(self.b.iter()).all(finite) {
@@ -297,20 +344,30 @@ impl Coefficients {
     /// Efficiencies in a non-absorbing host, for the real size parameter
     /// `x` the coefficients were computed with.
     pub fn efficiencies(&self, x: f64) -> Efficiencies {
+        // One pass: Σ(2n+1)(|a|²+|b|²), Σ(2n+1)(a+b), Σ(2n+1)(−1)^n(a−b) and
+        // the asymmetry numerator.
+        let (mut sca, mut ext, mut back, mut asym) = (0.0, Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0), 0.0);
+        let n_terms = self.a.len();
+        let mut sign = -1.0;
+        for k in 0..n_terms {
+            let n = (k + 1) as f64;
+            let (a, b) = (self.a[k], self.b[k]);
+            let w = 2.0 * n + 1.0;
+            sca += w * (a.norm_sqr() + b.norm_sqr());
+            ext += (a + b) * w;
+            back += (a - b) * (w * sign);
+            sign = -sign;
+            if k + 1 < n_terms {
+                let (a1, b1) = (self.a[k + 1], self.b[k + 1]);
+                asym += n * (n + 2.0) / (n + 1.0) * (a.re * a1.re + a.im * a1.im + b.re * b1.re + b.im * b1.im);
+            }
+            asym += w / (n * (n + 1.0)) * (a.re * b.re + a.im * b.im);
+        }
         let x2 = x * x;
-        let qsca = 2.0 / x2 * self.scattering_sum();
-        let qext = 2.0 / x2 * self.extinction_sum().re;
-        let back: Complex64 = self
-            .a
-            .iter()
-            .zip(&self.b)
-            .enumerate()
-            .map(|(k, (a, b))| {
-                let sign = if k % 2 == 0 { -1.0 } else { 1.0 }; // (−1)^n, n = k+1
-                (a - b) * ((2 * k + 3) as f64 * sign)
-            })
-            .sum();
-        Efficiencies { qext, qsca, qabs: qext - qsca, qback: back.norm_sqr() / x2, g: self.asymmetry() }
+        let qsca = 2.0 / x2 * sca;
+        let qext = 2.0 / x2 * ext.re;
+        let g = if sca > 0.0 { 2.0 * asym / sca } else { 0.0 };
+        Efficiencies { qext, qsca, qabs: qext - qsca, qback: back.norm_sqr() / x2, g }
     }
 
     /// Scattering and extinction cross sections [m²] and g for host index

@@ -1,0 +1,546 @@
+//! `lucent colour …`: ColorChecker calibration of a camera, applying the
+//! fitted matrix to linear images, and the RGB band values of spectral
+//! optical properties. Orchestration only; the colour science is in
+//! `lucent-colour`.
+
+use crate::imageio::{self, RgbImage};
+use crate::optics::bulk::{self, OpticalSpectrum};
+use crate::optics::recipe::{Overrides, Recipe};
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, Subcommand};
+use lucent_colour::adaptation::Cat;
+use lucent_colour::bands::{band_weights, BandWeights, BANDS};
+use lucent_colour::ccm::{fit_colorchecker, CcmMethod, ColourCorrection, PatchResult};
+use lucent_colour::chart::{neutral_ramp_warning, sample_patches, ImageRef, PatchSample, SampleOptions};
+use lucent_colour::data::ICC_D50_XYZ;
+use lucent_colour::spaces::{mat3_vec, srgb_decode, RgbSpace};
+use lucent_colour::{Mat3, WavelengthGrid};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Subcommand)]
+pub enum ColourCommand {
+    /// Fit a colour-correction matrix camera RGB → XYZ (D50) from a photo of a ColorChecker Classic 24.
+    Calibrate(CalibrateArgs),
+    /// Apply a fitted ccm.json to a linear image (photo or equirectangular HDR): camera RGB → CIE RGB, XYZ or linear sRGB.
+    Apply(ApplyArgs),
+    /// RGB band values of μs, μa and g of a recipe or an optical_properties.json, and the weights used.
+    Bands(BandsArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    /// Linear image of the chart (.exr, .hdr, .png, .tif; PNG/TIFF values are divided by their maximum).
+    #[arg(long)]
+    pub image: PathBuf,
+    /// Outer corners of the 4 × 6 patch grid in pixels (x right, y down, image edge at 0):
+    /// x1,y1,…,x4,y4 for the dark-skin, bluish-green, black and white corners (clockwise in the image).
+    #[arg(long)]
+    pub corners: String,
+    /// Name of the camera, stored in ccm.json (default: the image's file name).
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Fitting method: "Cheung 2004" (3 × 3 least squares), "Finlayson 2015" (root-polynomial,
+    /// exposure invariant) or "Finlayson 1997" (white-point preserving).
+    #[arg(long, default_value = "Cheung 2004")]
+    pub method: String,
+    /// Output folder for ccm.json, chart.png, delta_e.png and patches.png.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The image is sRGB-encoded (an 8-bit photo as cameras and JPEGs deliver it): remove the
+    /// sRGB transfer function before sampling. Not for RAW-derived linear images.
+    #[arg(long)]
+    pub decode_srgb: bool,
+    /// A pixel with a channel ≥ this value (in the image as stored) is clipped; a patch with more
+    /// than 1 % clipped pixels is refused. "none" disables the check.
+    #[arg(long, default_value = "0.99")]
+    pub clip_level: String,
+    /// Gap between patches as a fraction of the patch side.
+    #[arg(long, default_value_t = 0.14)]
+    pub gap_ratio: f64,
+    /// Side of the sampled square as a fraction of the patch side.
+    #[arg(long, default_value_t = 0.5)]
+    pub inner_fraction: f64,
+}
+
+#[derive(Debug, Args)]
+pub struct ApplyArgs {
+    /// ccm.json written by `lucent colour calibrate`.
+    #[arg(long)]
+    pub ccm: PathBuf,
+    /// Input image in the calibrated camera's RGB (.exr, .hdr, .png, .tif).
+    pub input: PathBuf,
+    /// Output image (.exr, 32-bit float, linear).
+    pub output: PathBuf,
+    /// Target space: cie-rgb (CIE 1931 RGB, white E), xyz (CIE XYZ, D50-adapted as fitted) or srgb (linear, D65).
+    #[arg(long, default_value = "cie-rgb")]
+    pub to: String,
+    /// Chromatic adaptation from the fitted D50 to the target's white (cie-rgb: E, srgb: D65):
+    /// bradford, cat02, von-kries or none.
+    #[arg(long, default_value = "bradford")]
+    pub adaptation: String,
+}
+
+#[derive(Debug, Args)]
+pub struct BandsArgs {
+    /// A recipe (.toml) or an optical_properties.json written by `lucent optics`.
+    pub input: PathBuf,
+    /// Wavelength grid START:END:STEP in nm (recipes only).
+    #[arg(long, default_value = "380:780:10")]
+    pub wavelengths: String,
+    /// Weight percentage for particle types whose recipe leaves it unknown.
+    #[arg(long)]
+    pub weight_percent: Option<f64>,
+    /// Print JSON (band values and weights) instead of tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs a `lucent colour` subcommand.
+pub fn run(cmd: ColourCommand) -> Result<()> {
+    match cmd {
+        ColourCommand::Calibrate(a) => calibrate(a),
+        ColourCommand::Apply(a) => apply(a),
+        ColourCommand::Bands(a) => bands(a),
+    }
+}
+
+/// Parses "x1,y1,x2,y2,x3,y3,x4,y4".
+pub fn parse_corners(text: &str) -> Result<[[f64; 2]; 4]> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|s| s.trim().parse::<f64>().map_err(|_| anyhow!("--corners {text:?}: {s:?} is not a number")))
+        .collect::<Result<_>>()?;
+    if values.len() != 8 {
+        bail!("--corners {text:?}: expected 8 numbers x1,y1,x2,y2,x3,y3,x4,y4, got {}", values.len());
+    }
+    if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+        bail!("--corners {text:?}: {v} is not a finite number");
+    }
+    Ok([[values[0], values[1]], [values[2], values[3]], [values[4], values[5]], [values[6], values[7]]])
+}
+
+fn parse_clip_level(text: &str) -> Result<Option<f64>> {
+    if text.trim().eq_ignore_ascii_case("none") {
+        return Ok(None);
+    }
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(Some(v)),
+        _ => bail!("--clip-level {text:?}: expected a positive number or \"none\""),
+    }
+}
+
+fn parse_adaptation(text: &str) -> Result<Option<Cat>> {
+    if text.trim().eq_ignore_ascii_case("none") {
+        return Ok(None);
+    }
+    Ok(Some(text.parse::<Cat>().with_context(|| format!("--adaptation {text:?} (or \"none\")"))?))
+}
+
+/// How the image values were encoded before calibration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum InputEncoding {
+    /// Linear values used as read.
+    Linear,
+    /// sRGB-encoded values, linearised with the inverse sRGB transfer function.
+    Srgb,
+}
+
+/// One patch in ccm.json.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CcmPatch {
+    /// Patch number, name, camera RGB, fitted and reference XYZ and L*a*b*, ΔE00, ΔE*ab.
+    #[serde(flatten)]
+    pub fit: PatchResult,
+    /// Standard deviation of the sampled pixels per channel (after the trim).
+    pub camera_rgb_std_dev: [f64; 3],
+    /// Pixels sampled.
+    pub pixels: usize,
+}
+
+/// The content of ccm.json.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CcmFile {
+    pub camera: String,
+    pub image: String,
+    /// TL, TR, BR, BL outer corners of the patch grid, pixels.
+    pub corners: [[f64; 2]; 4],
+    pub method: CcmMethod,
+    pub method_description: String,
+    /// Terms t(RGB) the matrix columns multiply.
+    pub terms: Vec<String>,
+    /// XYZ = matrix · t(camera RGB): 3 rows (X, Y, Z).
+    pub matrix: Vec<Vec<f64>>,
+    pub maps: String,
+    pub input_encoding: InputEncoding,
+    pub reference_set: String,
+    pub illuminant: String,
+    pub white_xyz: [f64; 3],
+    pub observer: String,
+    pub sampling: SampleOptions,
+    pub de2000_mean: f64,
+    pub de2000_max: f64,
+    pub de76_mean: f64,
+    pub de76_max: f64,
+    pub patches: Vec<CcmPatch>,
+}
+
+fn decode_in_place(img: &mut RgbImage) {
+    for v in &mut img.data {
+        *v = srgb_decode(f64::from(*v)) as f32;
+    }
+}
+
+fn calibrate(a: CalibrateArgs) -> Result<()> {
+    let method: CcmMethod = a.method.parse().context("--method")?;
+    let corners = parse_corners(&a.corners)?;
+    let clip = parse_clip_level(&a.clip_level)?;
+    let mut img = imageio::read_rgb(&a.image)?;
+    let encoding = if a.decode_srgb { InputEncoding::Srgb } else { InputEncoding::Linear };
+    // The clip level refers to the stored values; sRGB decoding is monotonic.
+    let clip_linear = match encoding {
+        InputEncoding::Srgb => clip.map(srgb_decode),
+        InputEncoding::Linear => clip,
+    };
+    if encoding == InputEncoding::Srgb {
+        decode_in_place(&mut img);
+    }
+    let options = SampleOptions {
+        gap_ratio: a.gap_ratio,
+        inner_fraction: a.inner_fraction,
+        clip_level: clip_linear,
+        ..SampleOptions::default()
+    };
+    let view = ImageRef::new(img.width, img.height, &img.data)?;
+    let samples = sample_patches(&view, corners, &options)
+        .with_context(|| format!("{}: cannot sample the ColorChecker", a.image.display()))?;
+    if let Some(w) = neutral_ramp_warning(&samples) {
+        eprintln!("warning: {}: {w}", a.image.display());
+    }
+    let camera_rgb: Vec<[f64; 3]> = samples.iter().map(|s| s.mean).collect();
+    let (ccm, report) = fit_colorchecker(method, &camera_rgb)?;
+
+    let camera = a.camera.clone().unwrap_or_else(|| {
+        a.image.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "camera".into())
+    });
+    let file = CcmFile {
+        camera,
+        image: a.image.display().to_string(),
+        corners,
+        method,
+        method_description: method.description().to_string(),
+        terms: method.term_names().iter().map(|s| s.to_string()).collect(),
+        matrix: ccm.matrix().to_vec(),
+        maps: "linear camera RGB → CIE XYZ (CIE 1931 2°) as under D50, Y of the perfect white = 1".into(),
+        input_encoding: encoding,
+        reference_set:
+            "X-Rite ColorChecker Classic 24, post-November-2014 reference L*a*b* (X-Rite 2016, via colour-science)"
+                .into(),
+        illuminant: "D50 (ICC PCS white)".into(),
+        white_xyz: ICC_D50_XYZ,
+        observer: "CIE 1931 2°".into(),
+        sampling: options.clone(),
+        de2000_mean: report.de2000_mean,
+        de2000_max: report.de2000_max,
+        de76_mean: report.de76_mean,
+        de76_max: report.de76_max,
+        patches: report
+            .patches
+            .iter()
+            .zip(&samples)
+            .map(|(p, s)| CcmPatch { fit: p.clone(), camera_rgb_std_dev: s.std_dev, pixels: s.pixels })
+            .collect(),
+    };
+
+    let out = &a.out;
+    crate::io::write_json(&out.join("ccm.json"), &file)?;
+    imageio::write_png(&out.join("chart.png"), &chart_comparison(&ccm, &file)?)?;
+    let labels: Vec<String> = file.patches.iter().map(|p| format!("{} {}", p.fit.patch, p.fit.name)).collect();
+    let de2000: Vec<f64> = file.patches.iter().map(|p| p.fit.de2000).collect();
+    let de76: Vec<f64> = file.patches.iter().map(|p| p.fit.de76).collect();
+    let to_srgb8 = srgb_display_matrix()?;
+    let colours: Vec<[u8; 3]> = file.patches.iter().map(|p| srgb8(mat3_vec(&to_srgb8, p.fit.reference_xyz))).collect();
+    let title = format!("{} — {} — ΔE00 mean {:.2}, max {:.2}", file.camera, method, file.de2000_mean, file.de2000_max);
+    let png = crate::plot::delta_e_bars_png(&title, &labels, &de2000, &de76, &colours)?;
+    crate::io::write_atomic(&out.join("delta_e.png"), &png)?;
+    imageio::write_png(&out.join("patches.png"), &sampling_overlay(&img, &samples))?;
+
+    print_delta_e_table(&file);
+    println!(
+        "\n{} ({}) fitted to {}; written to {}/: ccm.json, chart.png (each patch: corrected photo | reference), delta_e.png, patches.png (sampled areas)",
+        method,
+        method.description(),
+        a.image.display(),
+        out.display()
+    );
+    Ok(())
+}
+
+fn print_delta_e_table(file: &CcmFile) {
+    println!("{:>5}  {:<22} {:>8} {:>8}", "patch", "name", "ΔE00", "ΔE*ab");
+    for CcmPatch { fit: p, .. } in &file.patches {
+        println!("{:>5}  {:<22} {:>8.2} {:>8.2}", p.patch, p.name, p.de2000, p.de76);
+    }
+    println!("{:>5}  {:<22} {:>8.2} {:>8.2}", "", "mean", file.de2000_mean, file.de76_mean);
+    println!("{:>5}  {:<22} {:>8.2} {:>8.2}", "", "max", file.de2000_max, file.de76_max);
+}
+
+/// XYZ (D50) → linear sRGB (D65, Bradford), for pictures people look at.
+fn srgb_display_matrix() -> Result<Mat3> {
+    Ok(RgbSpace::Srgb.from_xyz_adapted_matrix(ICC_D50_XYZ, Some(Cat::Bradford))?)
+}
+
+fn srgb8(linear: [f64; 3]) -> [u8; 3] {
+    linear.map(|v| (imageio::srgb_encode(v as f32) * 255.0 + 0.5) as u8)
+}
+
+/// chart.png: the 4 × 6 chart, each patch split into the corrected photo
+/// (left half) and the reference (right half), in sRGB for display.
+fn chart_comparison(ccm: &ColourCorrection, file: &CcmFile) -> Result<RgbImage> {
+    const SIDE: usize = 96;
+    const GAP: usize = 12;
+    let (w, h) = (6 * SIDE + 7 * GAP, 4 * SIDE + 5 * GAP);
+    let to_srgb = srgb_display_matrix()?;
+    let mut data = vec![0.02f32; w * h * 3];
+    for (k, p) in file.patches.iter().enumerate() {
+        let (row, col) = (k / 6, k % 6);
+        let (x0, y0) = (GAP + col * (SIDE + GAP), GAP + row * (SIDE + GAP));
+        let photo = mat3_vec(&to_srgb, ccm.apply(p.fit.camera_rgb));
+        let reference = mat3_vec(&to_srgb, p.fit.reference_xyz);
+        for y in y0..y0 + SIDE {
+            for x in x0..x0 + SIDE {
+                let c = if x < x0 + SIDE / 2 { photo } else { reference };
+                let i = 3 * (y * w + x);
+                for ch in 0..3 {
+                    data[i + ch] = c[ch] as f32;
+                }
+            }
+        }
+    }
+    Ok(RgbImage::new(w, h, data)?)
+}
+
+/// patches.png: the (linear) chart image scaled so the white patch is at
+/// 0.9, with the sampled squares outlined in magenta.
+fn sampling_overlay(img: &RgbImage, samples: &[PatchSample]) -> RgbImage {
+    let white = samples.get(18).map(|s| s.mean.iter().copied().fold(0.0, f64::max)).unwrap_or(1.0);
+    let scale = if white > 0.0 { (0.9 / white) as f32 } else { 1.0 };
+    let mut out = img.clone();
+    out.data.iter_mut().for_each(|v| *v *= scale);
+    let mut plot = |x: f64, y: f64| {
+        if x >= 0.0 && y >= 0.0 && (x as usize) < out.width && (y as usize) < out.height {
+            let i = 3 * (y as usize * out.width + x as usize);
+            out.data[i..i + 3].copy_from_slice(&[1.0, 0.0, 1.0]);
+        }
+    };
+    for s in samples {
+        for k in 0..4 {
+            let (p, q) = (s.outline[k], s.outline[(k + 1) % 4]);
+            let steps = ((q[0] - p[0]).abs().max((q[1] - p[1]).abs()).ceil() as usize).max(1);
+            for t in 0..=steps {
+                let f = t as f64 / steps as f64;
+                plot(p[0] + f * (q[0] - p[0]), p[1] + f * (q[1] - p[1]));
+            }
+        }
+    }
+    out
+}
+
+fn read_ccm(path: &Path) -> Result<(CcmFile, ColourCorrection)> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let file: CcmFile = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a ccm.json written by `lucent colour calibrate`", path.display()))?;
+    let ccm = ColourCorrection::new(file.method, file.matrix.clone()).with_context(|| format!("{}", path.display()))?;
+    Ok((file, ccm))
+}
+
+fn apply(a: ApplyArgs) -> Result<()> {
+    let (file, ccm) = read_ccm(&a.ccm)?;
+    let cat = parse_adaptation(&a.adaptation)?;
+    let target: Mat3 = match lucent_colour::data::canonical_name(&a.to).as_str() {
+        "xyz" => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        _ => {
+            let space: RgbSpace = a.to.parse().with_context(|| format!("--to {:?} (or xyz)", a.to))?;
+            space.from_xyz_adapted_matrix(file.white_xyz, cat)?
+        }
+    };
+    let ext = a.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if ext != "exr" {
+        bail!("{}: the output must be an .exr file (linear 32-bit float)", a.output.display());
+    }
+    let mut img = imageio::read_rgb(&a.input)?;
+    if file.input_encoding == InputEncoding::Srgb {
+        decode_in_place(&mut img);
+    }
+    for px in img.data.chunks_exact_mut(3) {
+        let xyz = ccm.apply([f64::from(px[0]), f64::from(px[1]), f64::from(px[2])]);
+        let out = mat3_vec(&target, xyz);
+        for k in 0..3 {
+            px[k] = out[k] as f32;
+        }
+    }
+    imageio::write_exr(&a.output, &img)?;
+    println!(
+        "{} → {}: {} × {} pixels, camera {:?} ({}) → {}{}",
+        a.input.display(),
+        a.output.display(),
+        img.width,
+        img.height,
+        file.camera,
+        file.method,
+        a.to,
+        match (lucent_colour::data::canonical_name(&a.to).as_str(), cat) {
+            ("xyz", _) => " (D50-adapted XYZ as fitted)".to_string(),
+            (_, Some(c)) => format!(" ({} adaptation from D50)", c.name()),
+            (_, None) => " (no chromatic adaptation)".to_string(),
+        }
+    );
+    Ok(())
+}
+
+/// (sample, grid, μs, μa, g) of one sample.
+type NamedSpectra = (String, WavelengthGrid, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// Band values of one sample.
+#[derive(Debug, Serialize)]
+struct SampleBands {
+    sample: String,
+    mu_s_per_m: [f64; 3],
+    mu_a_per_m: [f64; 3],
+    g: [f64; 3],
+}
+
+#[derive(Debug, Deserialize)]
+struct SpectrumJson {
+    #[serde(default)]
+    sample: Option<String>,
+    wavelength_nm: Vec<f64>,
+    mu_s_per_m: Vec<f64>,
+    mu_a_per_m: Vec<f64>,
+    g: Vec<f64>,
+}
+
+fn spectra_from_json(path: &Path) -> Result<Vec<SpectrumJson>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
+    let items = match value {
+        serde_json::Value::Array(items) => items,
+        single => vec![single],
+    };
+    if items.is_empty() {
+        bail!("{}: no spectra in this file", path.display());
+    }
+    items
+        .into_iter()
+        .enumerate()
+        .map(|(i, v)| {
+            serde_json::from_value(v).with_context(|| {
+                format!(
+                    "{}: entry {}: expected an object with arrays wavelength_nm, mu_s_per_m, mu_a_per_m, g (as `lucent optics` writes)",
+                    path.display(),
+                    i + 1
+                )
+            })
+        })
+        .collect()
+}
+
+fn bands(a: BandsArgs) -> Result<()> {
+    let ext = a.input.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let spectra: Vec<NamedSpectra> = match ext.as_str() {
+        "toml" => {
+            let grid = super::parse_grid(&a.wavelengths)?;
+            let recipe = Recipe::load(&a.input, Overrides { weight_percent: a.weight_percent })?;
+            let options = bulk::Options { phase_entries: 0, ..Default::default() };
+            let s: OpticalSpectrum = bulk::compute(&recipe, &grid, &options)?;
+            for w in &s.warnings {
+                eprintln!("warning: {}: {w}", s.sample);
+            }
+            vec![(s.sample, grid, s.mu_s_per_m, s.mu_a_per_m, s.g)]
+        }
+        "json" => spectra_from_json(&a.input)?
+            .into_iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let name = s.sample.clone().unwrap_or_else(|| format!("entry {}", i + 1));
+                let n = s.wavelength_nm.len();
+                for (field, len) in
+                    [("mu_s_per_m", s.mu_s_per_m.len()), ("mu_a_per_m", s.mu_a_per_m.len()), ("g", s.g.len())]
+                {
+                    if len != n {
+                        bail!("{}: {name}: {field} has {len} values but wavelength_nm has {n}", a.input.display());
+                    }
+                }
+                let grid = WavelengthGrid::from_list(s.wavelength_nm)
+                    .with_context(|| format!("{}: {name}: wavelength_nm", a.input.display()))?;
+                Ok((name, grid, s.mu_s_per_m, s.mu_a_per_m, s.g))
+            })
+            .collect::<Result<_>>()?,
+        _ => bail!("{}: expected a recipe (.toml) or an optical_properties.json", a.input.display()),
+    };
+
+    let mut results = Vec::new();
+    let mut weights: Vec<BandWeights> = Vec::new();
+    for (name, grid, mu_s, mu_a, g) in &spectra {
+        let w = band_weights(grid).with_context(|| format!("{}: {name}", a.input.display()))?;
+        let avg =
+            |what: &str, v: &[f64]| w.average(v).with_context(|| format!("{}: {name}: {what}", a.input.display()));
+        results.push(SampleBands {
+            sample: name.clone(),
+            mu_s_per_m: avg("mu_s_per_m", mu_s)?,
+            mu_a_per_m: avg("mu_a_per_m", mu_a)?,
+            g: avg("g", g)?,
+        });
+        if !weights.iter().any(|x| x.wavelength_nm == w.wavelength_nm) {
+            weights.push(w);
+        }
+    }
+
+    if a.json {
+        let json = serde_json::json!({
+            "weight_set": lucent_colour::bands::BAND_WEIGHT_SET,
+            "bands": BANDS,
+            "samples": results,
+            "weights": weights,
+        });
+        println!("{}", serde_json::to_string_pretty(&json)?);
+        return Ok(());
+    }
+    println!("{:<14} {:<5} {:>13} {:>13} {:>9}", "sample", "band", "μs [1/m]", "μa [1/m]", "g");
+    for r in &results {
+        for (b, band) in BANDS.iter().enumerate() {
+            println!(
+                "{:<14} {:<5} {:>13.5e} {:>13.5e} {:>9.5}",
+                r.sample, band, r.mu_s_per_m[b], r.mu_a_per_m[b], r.g[b]
+            );
+        }
+    }
+    println!("\nweights: {}", lucent_colour::bands::BAND_WEIGHT_SET);
+    for w in &weights {
+        println!("{:>8} {:>9} {:>9} {:>9}", "λ [nm]", "w_R", "w_G", "w_B");
+        for (i, nm) in w.wavelength_nm.iter().enumerate() {
+            println!("{:>8} {:>9.5} {:>9.5} {:>9.5}", nm, w.weights[0][i], w.weights[1][i], w.weights[2][i]);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn corner_and_option_parsing() {
+        assert_eq!(parse_corners("1,2,3,4,5,6,7,8").unwrap()[2], [5.0, 6.0]);
+        assert!(parse_corners("1,2,3").unwrap_err().to_string().contains("expected 8 numbers"));
+        assert!(parse_corners("1,2,3,4,5,6,7,x").unwrap_err().to_string().contains("\"x\""));
+        assert!(parse_corners("1,2,3,4,5,6,7,nan").is_err());
+        assert_eq!(parse_clip_level("none").unwrap(), None);
+        assert_eq!(parse_clip_level("0.95").unwrap(), Some(0.95));
+        assert!(parse_clip_level("-1").is_err());
+        assert_eq!(parse_adaptation("CAT02").unwrap(), Some(Cat::Cat02));
+        assert!(parse_adaptation("cat16").is_err());
+    }
+}
