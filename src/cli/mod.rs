@@ -2,6 +2,7 @@
 //! work is done by the library modules.
 
 pub mod bssrdf;
+pub mod camera;
 pub mod colour;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
@@ -37,6 +38,18 @@ pub enum Command {
     /// Colour: ColorChecker calibration of cameras, applying it to images, RGB bands of spectra.
     #[command(subcommand)]
     Colour(colour::ColourCommand),
+    /// RAW photos → linear camera RGB (EXR) with metadata.
+    #[command(subcommand)]
+    Raw(camera::RawCommand),
+    /// Camera calibration from chessboard photos (intrinsics, distortion, poses, RMS, plots).
+    Calibrate(camera::CalibrateArgs),
+    /// Undistort a photo with a calibrated camera (bilinear resampling).
+    Undistort(camera::UndistortArgs),
+    /// Board pose in one photo (PnP) and the sample's pose, as a renderer-ready scene JSON.
+    Pose(camera::PoseArgs),
+    /// Equirectangular HDR environments: check, colour-convert, summarise.
+    #[command(subcommand)]
+    Env(camera::EnvCommand),
 }
 
 #[derive(Debug, Args)]
@@ -124,6 +137,11 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Bssrdf(a) => bssrdf::run(a),
         Command::Bench(b) => bench(b),
         Command::Colour(c) => colour::run(c),
+        Command::Raw(c) => camera::run_raw(c),
+        Command::Calibrate(a) => camera::calibrate(a),
+        Command::Undistort(a) => camera::undistort(a),
+        Command::Pose(a) => camera::pose(a),
+        Command::Env(c) => camera::run_env(c),
     }
 }
 

@@ -1,0 +1,582 @@
+//! The camera model of a calibration: a pinhole with OpenCV's lens
+//! distortion, projection of 3-D points, the inverse (pixel → ray), and
+//! undistortion of linear RGB photos.
+//!
+//! Model (OpenCV's, Brown–Conrady with the rational extension): a point
+//! (X, Y, Z) in the camera frame (x right, y down, z forward, metres) goes to
+//! normalised coordinates x = X/Z, y = Y/Z, r² = x² + y², then
+//!
+//! ```text
+//! radial = (1 + k1 r² + k2 r⁴ + k3 r⁶) / (1 + k4 r² + k5 r⁴ + k6 r⁶)
+//! x_d = x·radial + 2 p1 x y + p2 (r² + 2x²)
+//! y_d = y·radial + p1 (r² + 2y²) + 2 p2 x y
+//! u = fx x_d + cx,   v = fy y_d + cy        (pixels)
+//! ```
+//!
+//! with pixel centres at integer coordinates (the centre of the top-left
+//! pixel is (0, 0)). `pinhole-k3` estimates k1, k2, p1, p2, k3 (k4–k6 = 0);
+//! `rational` all eight. The inverse is solved by Newton's method
+//! (analytic Jacobian) to 1e-12. This projection is tested against OpenCV's
+//! `projectPoints` and the undistortion map against `initUndistortRectifyMap`
+//! (`calib/tests/calibration.rs`).
+//!
+//! Undistortion resamples a photo to the pinhole image of the same camera:
+//! output pixel → ray with the new intrinsics → distorted source position →
+//! bilinear interpolation (pixels outside the photo are 0). The new
+//! intrinsics are the old ones, or ([`NewCamera::KeepAll`]) a focal length
+//! and principal point chosen so that every source pixel lands inside the
+//! output (the whole photo is kept; corners of the output may be black).
+//!
+//! ```
+//! use lucent_calib::camera::{CameraModel, Distortion, DistortionModel, Intrinsics};
+//! let cam = CameraModel {
+//!     model: DistortionModel::PinholeK3,
+//!     image_width: 640, image_height: 480,
+//!     intrinsics: Intrinsics { fx: 500.0, fy: 500.0, cx: 320.0, cy: 240.0 },
+//!     distortion: Distortion { k1: -0.2, ..Default::default() },
+//! };
+//! // x = 0.2, y = 0: r² = 0.04, radial = 1 − 0.2·0.04 = 0.992, u = 320 + 500·0.1984.
+//! let [u, v] = cam.project([0.2, 0.0, 1.0]).unwrap();
+//! assert!((u - 419.2).abs() < 1e-9 && (v - 240.0).abs() < 1e-12);
+//! let ray = cam.pixel_to_ray(u, v).unwrap();
+//! assert!((ray[0] / ray[2] - 0.2).abs() < 1e-12);
+//! ```
+
+use crate::RgbBuffer;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Which distortion coefficients a calibration estimates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DistortionModel {
+    /// k1, k2, p1, p2, k3.
+    PinholeK3,
+    /// k1–k6, p1, p2 (OpenCV's `CALIB_RATIONAL_MODEL`), for wide lenses.
+    Rational,
+}
+
+impl DistortionModel {
+    /// `"pinhole-k3"` or `"rational"`.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        match name.to_ascii_lowercase().as_str() {
+            "pinhole-k3" | "k3" | "brown-conrady" => Ok(Self::PinholeK3),
+            "rational" => Ok(Self::Rational),
+            _ => Err(format!("unknown camera model {name:?}; valid: pinhole-k3, rational")),
+        }
+    }
+}
+
+/// Pinhole intrinsics in pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Intrinsics {
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+}
+
+impl Intrinsics {
+    /// The 3 × 3 camera matrix K, row-major.
+    pub fn matrix(&self) -> [[f64; 3]; 3] {
+        [[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]]
+    }
+}
+
+/// OpenCV distortion coefficients (dimensionless).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Distortion {
+    pub k1: f64,
+    pub k2: f64,
+    pub p1: f64,
+    pub p2: f64,
+    pub k3: f64,
+    #[serde(default)]
+    pub k4: f64,
+    #[serde(default)]
+    pub k5: f64,
+    #[serde(default)]
+    pub k6: f64,
+}
+
+impl Distortion {
+    /// In OpenCV's order: k1, k2, p1, p2, k3[, k4, k5, k6].
+    pub fn to_opencv(&self, model: DistortionModel) -> Vec<f64> {
+        let mut v = vec![self.k1, self.k2, self.p1, self.p2, self.k3];
+        if model == DistortionModel::Rational {
+            v.extend([self.k4, self.k5, self.k6]);
+        }
+        v
+    }
+
+    /// From OpenCV's order (4, 5, 8 or more values; missing ones are 0).
+    pub fn from_opencv(v: &[f64]) -> Self {
+        let g = |i: usize| v.get(i).copied().unwrap_or(0.0);
+        Self { k1: g(0), k2: g(1), p1: g(2), p2: g(3), k3: g(4), k4: g(5), k5: g(6), k6: g(7) }
+    }
+
+    /// Normalised undistorted (x, y) → distorted (x_d, y_d).
+    #[inline]
+    pub fn apply(&self, x: f64, y: f64) -> [f64; 2] {
+        let r2 = x * x + y * y;
+        let a = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        let b = 1.0 + r2 * (self.k4 + r2 * (self.k5 + r2 * self.k6));
+        let radial = a / b;
+        [
+            x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
+            y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
+        ]
+    }
+
+    /// Distorted → undistorted normalised coordinates by Newton's method;
+    /// `None` where it does not converge (outside the lens's invertible
+    /// field).
+    pub fn invert(&self, xd: f64, yd: f64) -> Option<[f64; 2]> {
+        let (mut x, mut y) = (xd, yd);
+        for _ in 0..50 {
+            let [fx, fy] = self.apply(x, y);
+            let (ex, ey) = (fx - xd, fy - yd);
+            if ex.abs() < 1e-13 && ey.abs() < 1e-13 {
+                return Some([x, y]);
+            }
+            let r2 = x * x + y * y;
+            let a = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+            let b = 1.0 + r2 * (self.k4 + r2 * (self.k5 + r2 * self.k6));
+            let da = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2);
+            let db = self.k4 + r2 * (2.0 * self.k5 + 3.0 * self.k6 * r2);
+            let radial = a / b;
+            let dr = (da * b - a * db) / (b * b);
+            let j11 = radial + 2.0 * x * x * dr + 2.0 * self.p1 * y + 6.0 * self.p2 * x;
+            let j12 = 2.0 * x * y * dr + 2.0 * self.p1 * x + 2.0 * self.p2 * y;
+            let j21 = j12;
+            let j22 = radial + 2.0 * y * y * dr + 6.0 * self.p1 * y + 2.0 * self.p2 * x;
+            let det = j11 * j22 - j12 * j21;
+            if !det.is_finite() || det.abs() < 1e-12 {
+                return None;
+            }
+            x -= (j22 * ex - j12 * ey) / det;
+            y -= (j11 * ey - j21 * ex) / det;
+            if !(x.is_finite() && y.is_finite()) {
+                return None;
+            }
+        }
+        let [fx, fy] = self.apply(x, y);
+        ((fx - xd).abs() < 1e-9 && (fy - yd).abs() < 1e-9).then_some([x, y])
+    }
+}
+
+/// A calibrated camera.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CameraModel {
+    pub model: DistortionModel,
+    pub image_width: usize,
+    pub image_height: usize,
+    pub intrinsics: Intrinsics,
+    pub distortion: Distortion,
+}
+
+impl CameraModel {
+    /// Pixel of a point in the camera frame (OpenCV axes); `None` behind the camera.
+    pub fn project(&self, p: [f64; 3]) -> Option<[f64; 2]> {
+        if p[2].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        let [xd, yd] = self.distortion.apply(p[0] / p[2], p[1] / p[2]);
+        let k = &self.intrinsics;
+        Some([k.fx * xd + k.cx, k.fy * yd + k.cy])
+    }
+
+    /// Ray (x, y, 1) in the camera frame through pixel (u, v).
+    pub fn pixel_to_ray(&self, u: f64, v: f64) -> Option<[f64; 3]> {
+        let k = &self.intrinsics;
+        let [x, y] = self.distortion.invert((u - k.cx) / k.fx, (v - k.cy) / k.fy)?;
+        Some([x, y, 1.0])
+    }
+
+    /// Intrinsics of a distortion-free camera of the same image size that
+    /// sees every pixel of this one (the undistorted border, sampled every
+    /// pixel, fits inside the image with the pixel centres at the edges).
+    pub fn keep_all_intrinsics(&self) -> Intrinsics {
+        let (w, h) = (self.image_width as f64, self.image_height as f64);
+        let (mut xmin, mut xmax, mut ymin, mut ymax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        let mut visit = |u: f64, v: f64| {
+            if let Some([x, y, _]) = self.pixel_to_ray(u, v) {
+                xmin = xmin.min(x);
+                xmax = xmax.max(x);
+                ymin = ymin.min(y);
+                ymax = ymax.max(y);
+            }
+        };
+        for i in 0..self.image_width {
+            visit(i as f64, 0.0);
+            visit(i as f64, h - 1.0);
+        }
+        for j in 0..self.image_height {
+            visit(0.0, j as f64);
+            visit(w - 1.0, j as f64);
+        }
+        if !(xmax > xmin && ymax > ymin) {
+            return self.intrinsics;
+        }
+        // One focal-length scale for both axes keeps the pixel aspect.
+        let s = ((w - 1.0) / (xmax - xmin) / self.intrinsics.fx).min((h - 1.0) / (ymax - ymin) / self.intrinsics.fy);
+        let (fx, fy) = (self.intrinsics.fx * s, self.intrinsics.fy * s);
+        let cx = (w - 1.0) / 2.0 - fx * (xmin + xmax) / 2.0;
+        let cy = (h - 1.0) / 2.0 - fy * (ymin + ymax) / 2.0;
+        Intrinsics { fx, fy, cx, cy }
+    }
+}
+
+/// Intrinsics of an undistorted image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NewCamera {
+    /// The calibrated ones (the centre keeps its scale; borders are cropped).
+    Same,
+    /// Every source pixel kept ([`CameraModel::keep_all_intrinsics`]).
+    KeepAll,
+    /// Given ones.
+    Given(Intrinsics),
+}
+
+/// For every output pixel (row-major), the source position (u, v) in the
+/// distorted photo, for an output of the camera's image size with
+/// intrinsics `new_k`.
+pub fn undistort_map(cam: &CameraModel, new_k: &Intrinsics) -> Vec<[f64; 2]> {
+    let (w, h) = (cam.image_width, cam.image_height);
+    let k = cam.intrinsics;
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (u, v) = ((i % w) as f64, (i / w) as f64);
+            let [xd, yd] = cam.distortion.apply((u - new_k.cx) / new_k.fx, (v - new_k.cy) / new_k.fy);
+            [k.fx * xd + k.cx, k.fy * yd + k.cy]
+        })
+        .collect()
+}
+
+/// Bilinear sample at (u, v), pixel centres at integers; pixels outside the
+/// image count as 0 (OpenCV's `BORDER_CONSTANT`).
+#[inline]
+pub fn sample_bilinear(img: &RgbBuffer, u: f64, v: f64) -> [f32; 3] {
+    if !(u > -1.0 && v > -1.0 && u < img.width as f64 && v < img.height as f64) {
+        return [0.0; 3];
+    }
+    let (x0, y0) = (u.floor(), v.floor());
+    let (fx, fy) = ((u - x0) as f32, (v - y0) as f32);
+    let (x0, y0) = (x0 as isize, y0 as isize);
+    let mut out = [0.0f32; 3];
+    for (dy, wy) in [(0isize, 1.0 - fy), (1, fy)] {
+        for (dx, wx) in [(0isize, 1.0 - fx), (1, fx)] {
+            let (x, y) = (x0 + dx, y0 + dy);
+            if x < 0 || y < 0 || x >= img.width as isize || y >= img.height as isize || wx * wy == 0.0 {
+                continue;
+            }
+            let p = img.pixel(x as usize, y as usize);
+            for c in 0..3 {
+                out[c] += wx * wy * p[c];
+            }
+        }
+    }
+    out
+}
+
+/// Undistorts a linear RGB photo taken by `cam` (its size must be the
+/// calibration's). Returns the image and the intrinsics it has.
+pub fn undistort(img: &RgbBuffer, cam: &CameraModel, new_camera: NewCamera) -> Result<(RgbBuffer, Intrinsics), String> {
+    if (img.width, img.height) != (cam.image_width, cam.image_height) {
+        return Err(format!(
+            "image is {} × {} pixels but the camera was calibrated at {} × {}",
+            img.width, img.height, cam.image_width, cam.image_height
+        ));
+    }
+    let new_k = match new_camera {
+        NewCamera::Same => cam.intrinsics,
+        NewCamera::KeepAll => cam.keep_all_intrinsics(),
+        NewCamera::Given(k) => k,
+    };
+    let map = undistort_map(cam, &new_k);
+    let data: Vec<f32> = map.par_iter().flat_map_iter(|&[u, v]| sample_bilinear(img, u, v)).collect();
+    Ok((RgbBuffer { width: img.width, height: img.height, data }, new_k))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera() -> CameraModel {
+        CameraModel {
+            model: DistortionModel::PinholeK3,
+            image_width: 64,
+            image_height: 48,
+            intrinsics: Intrinsics { fx: 60.0, fy: 61.0, cx: 31.2, cy: 24.3 },
+            distortion: Distortion { k1: -0.28, k2: 0.09, p1: 0.001, p2: -0.0015, k3: -0.01, ..Default::default() },
+        }
+    }
+
+    #[test]
+    fn inverse_distortion_round_trips() {
+        let mut d = camera().distortion;
+        for (x, y) in [(0.0, 0.0), (0.3, -0.2), (-0.55, 0.4), (0.7, 0.5)] {
+            let [xd, yd] = d.apply(x, y);
+            let [xu, yu] = d.invert(xd, yd).unwrap();
+            assert!((xu - x).abs() < 1e-11 && (yu - y).abs() < 1e-11, "({x},{y}) → ({xu},{yu})");
+        }
+        d = Distortion { k1: 0.1, k2: -0.02, k4: 0.3, k5: 0.01, k6: 0.002, p1: 0.0005, ..Default::default() };
+        let [xd, yd] = d.apply(-0.8, 0.6);
+        let [xu, yu] = d.invert(xd, yd).unwrap();
+        assert!((xu + 0.8).abs() < 1e-11 && (yu - 0.6).abs() < 1e-11);
+    }
+
+    #[test]
+    fn keep_all_intrinsics_keep_every_source_pixel() {
+        let cam = camera();
+        let k = cam.keep_all_intrinsics();
+        assert!(k.fx < cam.intrinsics.fx, "barrel distortion: the kept image zooms out");
+        // Every source border pixel maps inside the output (with rounding slack).
+        for (u, v) in [(0.0, 0.0), (63.0, 0.0), (0.0, 47.0), (63.0, 47.0), (31.0, 0.0), (0.0, 24.0)] {
+            let [x, y, _] = cam.pixel_to_ray(u, v).unwrap();
+            let (uo, vo) = (k.fx * x + k.cx, k.fy * y + k.cy);
+            assert!((-1e-6..=63.0 + 1e-6).contains(&uo) && (-1e-6..=47.0 + 1e-6).contains(&vo), "({u},{v}) → ({uo},{vo})");
+        }
+    }
+
+    #[test]
+    fn undistorting_an_image_rendered_through_the_lens_gives_the_pinhole_image() {
+        // A smooth scene seen by the pinhole camera: f(x, y) of normalised coordinates.
+        let cam = camera();
+        let scene = |x: f64, y: f64| (0.5 + 0.3 * (4.0 * x).sin() * (3.0 * y).cos()) as f32;
+        let k = cam.intrinsics;
+        // Photo through the lens: each pixel sees the scene at its undistorted ray.
+        let mut photo = RgbBuffer::zeros(64, 48);
+        for v in 0..48 {
+            for u in 0..64 {
+                let [x, y, _] = cam.pixel_to_ray(u as f64, v as f64).unwrap();
+                let s = scene(x, y);
+                photo.data[3 * (v * 64 + u)..3 * (v * 64 + u) + 3].copy_from_slice(&[s, 0.5 * s, 0.25]);
+            }
+        }
+        let (out, nk) = undistort(&photo, &cam, NewCamera::Same).unwrap();
+        assert_eq!(nk, k);
+        let mut worst = 0.0f32;
+        for v in 8..40 {
+            for u in 8..56 {
+                let s = scene((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy);
+                let p = out.pixel(u, v);
+                worst = worst.max((p[0] - s).abs()).max((p[1] - 0.5 * s).abs()).max((p[2] - 0.25).abs());
+            }
+        }
+        assert!(worst < 5e-3, "bilinear resampling error {worst}");
+        let wrong = RgbBuffer::zeros(10, 10);
+        assert!(undistort(&wrong, &cam, NewCamera::Same).unwrap_err().contains("64 × 48"));
+    }
+
+    #[test]
+    fn bilinear_sampling_at_and_between_pixels() {
+        let img = RgbBuffer::new(2, 2, vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 3.0, 3.0, 3.0]).unwrap();
+        assert_eq!(sample_bilinear(&img, 1.0, 1.0), [3.0; 3]);
+        assert_eq!(sample_bilinear(&img, 0.5, 0.5), [1.5; 3]);
+        assert_eq!(sample_bilinear(&img, -0.5, 1.0), [1.0; 3], "half way to the zero border");
+        assert_eq!(sample_bilinear(&img, 1.5, 0.0), [0.5; 3]);
+        assert_eq!(sample_bilinear(&img, 5.0, 0.0), [0.0; 3]);
+        assert_eq!(sample_bilinear(&img, f64::NAN, 0.0), [0.0; 3]);
+    }
+
+    #[test]
+    fn model_names() {
+        assert_eq!(DistortionModel::from_name("rational").unwrap(), DistortionModel::Rational);
+        assert!(DistortionModel::from_name("fisheye").unwrap_err().contains("pinhole-k3, rational"));
+        let d = Distortion::from_opencv(&[1.0, 2.0, 3.0, 4.0]);
+        assert_eq!(d.to_opencv(DistortionModel::PinholeK3), [1.0, 2.0, 3.0, 4.0, 0.0]);
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Calibration from photos: detection over many images, Zhang calibration,
+// residuals and the report written as camera.json.
+
+/// One photo for [`calibrate_photos`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Photo {
+    /// Name used in reports (usually the file name).
+    pub name: String,
+    pub image: crate::GrayImage,
+}
+
+/// A view used in the calibration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationView {
+    pub image: String,
+    /// "sector-based" or "classic".
+    pub detector: String,
+    pub rms_px: f64,
+    /// OpenCV pose of the board: rotation vector (radians), translation (metres).
+    pub rvec: [f64; 3],
+    pub tvec_m: [f64; 3],
+    /// Detected corners (OpenCV's order, i fastest), pixels.
+    pub corners_px: Vec<[f64; 2]>,
+    /// Detected minus reprojected, pixels.
+    pub residuals_px: Vec<[f64; 2]>,
+}
+
+/// A photo in which the board was not found.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NotFound {
+    pub image: String,
+    pub reason: String,
+}
+
+/// What `lucent calibrate` writes as camera.json.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Calibration {
+    pub camera: CameraModel,
+    /// Overall RMS reprojection error, pixels (OpenCV's).
+    pub rms_px: f64,
+    pub board: crate::scene::BoardSpec,
+    pub views: Vec<CalibrationView>,
+    pub not_found: Vec<NotFound>,
+    pub method: String,
+    pub opencv_version: String,
+}
+
+/// Fewest views accepted for a calibration.
+pub const MIN_VIEWS: usize = 3;
+
+/// Detects the board in every photo, calibrates, and reports per view.
+/// Photos must share one size. Errors (naming the photos) when fewer than
+/// [`MIN_VIEWS`] photos show the board.
+pub fn calibrate_photos(
+    photos: &[Photo],
+    board: &crate::scene::BoardSpec,
+    model: DistortionModel,
+    detector: crate::cv::Detector,
+) -> Result<Calibration, crate::cv::CalibError> {
+    use crate::cv::{self, CalibError};
+    let first = photos.first().ok_or_else(|| CalibError::Input("no photos given".into()))?;
+    let size = (first.image.width, first.image.height);
+    let odd: Vec<String> = photos
+        .iter()
+        .filter(|p| (p.image.width, p.image.height) != size)
+        .map(|p| format!("{} ({} × {})", p.name, p.image.width, p.image.height))
+        .collect();
+    if !odd.is_empty() {
+        return Err(CalibError::Input(format!(
+            "photos differ in size: {} is {} × {}, but {}",
+            first.name,
+            size.0,
+            size.1,
+            odd.join(", ")
+        )));
+    }
+    let detections: Vec<Result<Option<cv::Corners>, CalibError>> =
+        photos.par_iter().map(|p| cv::find_corners(&p.image, board, detector)).collect();
+    let mut found = Vec::new();
+    let mut not_found = Vec::new();
+    for (p, d) in photos.iter().zip(detections) {
+        match d? {
+            Some(c) => found.push((p, c)),
+            None => not_found.push(NotFound { image: p.name.clone(), reason: no_board_reason(&p.image, board) }),
+        }
+    }
+    if found.len() < MIN_VIEWS {
+        let list = not_found.iter().map(|n| format!("  {}: {}", n.image, n.reason)).collect::<Vec<_>>().join("\n");
+        let hint = match photos.iter().find(|p| found.iter().all(|(f, _)| f.name != p.name)) {
+            Some(p) => match cv::suggest_board(&p.image, board)? {
+                Some((c, r)) => format!("\n{} does show a board of {c}x{r} inner corners: is --board {c}x{r} meant?", p.name),
+                None => String::new(),
+            },
+            None => String::new(),
+        };
+        let head = if found.is_empty() {
+            format!("no photo shows a chessboard of {}x{} inner corners", board.cols, board.rows)
+        } else {
+            format!(
+                "only {} photo(s) show the {}x{} board ({}); calibration needs at least {MIN_VIEWS} views at different angles",
+                found.len(),
+                board.cols,
+                board.rows,
+                found.iter().map(|(p, _)| p.name.as_str()).collect::<Vec<_>>().join(", ")
+            )
+        };
+        return Err(CalibError::Input(format!(
+            "{head}:\n{list}{hint}\n(--board counts inner corners: a board of 10 × 7 squares has 9x6)"
+        )));
+    }
+    let corners: Vec<Vec<[f64; 2]>> = found.iter().map(|(_, c)| c.points.clone()).collect();
+    let solved = cv::calibrate(&corners, board, size, model)?;
+    let object = board.corners();
+    let views = found
+        .iter()
+        .zip(&solved.poses)
+        .map(|((p, c), pose)| {
+            let residuals: Vec<[f64; 2]> = c
+                .points
+                .iter()
+                .zip(&object)
+                .map(|(d, o)| {
+                    let q = solved.camera.project(pose.to_camera(*o)).unwrap_or([f64::NAN; 2]);
+                    [d[0] - q[0], d[1] - q[1]]
+                })
+                .collect();
+            let ss: f64 = residuals.iter().map(|r| r[0] * r[0] + r[1] * r[1]).sum();
+            CalibrationView {
+                image: p.name.clone(),
+                detector: c.detector.into(),
+                rms_px: (ss / residuals.len() as f64).sqrt(),
+                rvec: pose.rvec(),
+                tvec_m: pose.translation_m,
+                corners_px: c.points.clone(),
+                residuals_px: residuals,
+            }
+        })
+        .collect();
+    let method = format!(
+        "OpenCV calibrateCamera ({}), corners by {}",
+        match model {
+            DistortionModel::PinholeK3 => "k1 k2 p1 p2 k3",
+            DistortionModel::Rational => "rational model k1..k6 p1 p2",
+        },
+        match detector {
+            crate::cv::Detector::Auto => "findChessboardCornersSB (ACCURACY), else findChessboardCorners + cornerSubPix",
+            crate::cv::Detector::SectorBased => "findChessboardCornersSB (ACCURACY)",
+            crate::cv::Detector::Classic => "findChessboardCorners + cornerSubPix",
+        }
+    );
+    Ok(Calibration {
+        camera: solved.camera,
+        rms_px: solved.rms_px,
+        board: *board,
+        views,
+        not_found,
+        method,
+        opencv_version: crate::cv::version(),
+    })
+}
+
+/// Why a board may not have been found, for the report.
+fn no_board_reason(img: &crate::GrayImage, board: &crate::scene::BoardSpec) -> String {
+    let mut hist = [0usize; 256];
+    for &v in &img.data {
+        hist[v as usize] += 1;
+    }
+    let n = img.data.len().max(1);
+    let quantile = |q: f64| {
+        let target = (q * n as f64) as usize;
+        let mut acc = 0;
+        for (v, &c) in hist.iter().enumerate() {
+            acc += c;
+            if acc > target {
+                return v;
+            }
+        }
+        255
+    };
+    let (lo, hi) = (quantile(0.05), quantile(0.95));
+    let mut reason = format!(
+        "no chessboard of {}x{} inner corners found (sector-based and classic detectors)",
+        board.cols, board.rows
+    );
+    if hi - lo < 40 {
+        reason.push_str(&format!("; low contrast (5th–95th percentile grey {lo}–{hi})"));
+    }
+    reason
+}

@@ -1,0 +1,711 @@
+//! RAW photographs (DNG, CR2, NEF, ARW, … — whatever `rawloader` 0.37
+//! decodes) to linear camera RGB, with the metadata a lab needs.
+//!
+//! Steps, in order ([`read_raw`] does 1–4, [`develop`] 5–7):
+//! 1. Decode the sensor values with `rawloader`. Before that, a TIFF-based
+//!    file whose declared image data runs past its end is refused as
+//!    truncated ([`tiff_data_end`]; `rawloader` would make the missing part
+//!    up), and after it a buffer whose length is not width × height ×
+//!    samples is refused, never padded.
+//! 2. Black level **per CFA position** (2 × 2): for non-DNG files with
+//!    optically masked pixels, the integer mean (rounded down) of the masked
+//!    pixels of that position — LibRaw's rule, so the levels agree with
+//!    rawpy; for DNG, the file's `BlackLevel` values in CFA-position order
+//!    (`BlackLevelDeltaH/V` are not applied); otherwise `rawloader`'s
+//!    per-colour levels.
+//! 3. Scale: `v' = (v − black) / (white − black)` in f32, so 1.0 is the white
+//!    (saturation) level and 0.0 the black level. Nothing is clipped: noise
+//!    below black stays negative, so means of dark patches are unbiased. The
+//!    white level is `rawloader`'s (its camera database or the DNG tag) unless
+//!    [`read_raw`] is given one (LibRaw uses 4095 for the EOS 30D where
+//!    rawloader's database says 4071).
+//! 4. Crop to the active area (the sensor without its masked borders).
+//! 5. White balance only on request ([`WhiteBalance::Camera`]: the camera's
+//!    as-shot multipliers normalised to green = 1); no tone curve ever.
+//! 6. Demosaic ([`crate::demosaic`], Malvar–He–Cutler by default).
+//! 7. Orientation from the file (EXIF values 1–8), applied last.
+//!
+//! The result is camera RGB (the sensor's own primaries), not sRGB; the
+//! camera's XYZ → camera matrix goes into the metadata for the colour stage.
+//! Checked against LibRaw through rawpy on a real Canon EOS 30D file
+//! (`calib/tests/raw_real.rs`) and with a DNG written from a known mosaic
+//! (`calib/tests/raw_dng.rs`).
+//!
+//! ```
+//! use lucent_calib::raw::{orient, Orientation};
+//! use lucent_calib::RgbBuffer;
+//! // 2 × 1 image, pixels 0 and 1; EXIF 6 means "rotate 90° clockwise to view".
+//! let img = RgbBuffer::new(2, 1, vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0]).unwrap();
+//! let up = orient(&img, Orientation::from_exif(6));
+//! assert_eq!((up.width, up.height), (1, 2));
+//! assert_eq!(up.pixel(0, 1), [1.0, 1.0, 1.0]);
+//! ```
+
+use crate::demosaic::{self, Bayer, Demosaic, DemosaicError, Mosaic};
+use crate::RgbBuffer;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// What went wrong with a RAW file; every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum RawError {
+    #[error("{}: cannot read: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{}: cannot decode as a RAW photo: {reason}", path.display())]
+    Decode { path: PathBuf, reason: String },
+    #[error("{}: decoded {got} sensor values where {width} × {height} × {samples} were expected (truncated or corrupt file)", path.display())]
+    Size { path: PathBuf, width: usize, height: usize, samples: usize, got: usize },
+    #[error("{}: unsupported RAW layout: {reason}", path.display())]
+    Unsupported { path: PathBuf, reason: String },
+    #[error("{}: the file records no camera white balance (use --white-balance none)", path.display())]
+    NoCameraWhiteBalance { path: PathBuf },
+    #[error("{}: {source}", path.display())]
+    Demosaic { path: PathBuf, source: DemosaicError },
+}
+
+/// White balance applied before demosaicing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WhiteBalance {
+    /// None: linear camera RGB as the sensor saw it.
+    #[default]
+    None,
+    /// The camera's as-shot multipliers, green = 1.
+    Camera,
+}
+
+impl WhiteBalance {
+    /// `"none"` or `"camera"`.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        match name.to_ascii_lowercase().as_str() {
+            "none" => Ok(Self::None),
+            "camera" | "as-shot" => Ok(Self::Camera),
+            _ => Err(format!("unknown white balance {name:?}; valid: none, camera")),
+        }
+    }
+}
+
+/// Options of [`develop`] and [`decode_raw`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RawOptions {
+    pub demosaic: Demosaic,
+    pub white_balance: WhiteBalance,
+    /// Overrides the white (saturation) level, in raw digital numbers.
+    pub white_level: Option<f32>,
+}
+
+impl Default for RawOptions {
+    fn default() -> Self {
+        Self { demosaic: Demosaic::MalvarHeCutler2004, white_balance: WhiteBalance::None, white_level: None }
+    }
+}
+
+/// Image orientation as in EXIF/TIFF tag 0x0112 (1 = as stored).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Orientation(pub u16);
+
+impl Orientation {
+    /// From the EXIF value; anything outside 1–8 means "as stored".
+    pub fn from_exif(v: u16) -> Self {
+        Self(if (1..=8).contains(&v) { v } else { 1 })
+    }
+
+    /// A readable name of the transformation that shows the image upright.
+    pub fn describe(self) -> &'static str {
+        match self.0 {
+            2 => "mirror horizontally",
+            3 => "rotate 180°",
+            4 => "mirror vertically",
+            5 => "transpose (mirror horizontally, rotate 90° counter-clockwise)",
+            6 => "rotate 90° clockwise",
+            7 => "transverse (mirror horizontally, rotate 90° clockwise)",
+            8 => "rotate 90° counter-clockwise",
+            _ => "none",
+        }
+    }
+}
+
+/// The active area within the sensor, in sensor pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ActiveArea {
+    pub top: usize,
+    pub left: usize,
+    pub width: usize,
+    pub height: usize,
+}
+
+/// Everything known about a decoded RAW file; written as the sidecar JSON.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RawMetadata {
+    /// File name of the source.
+    pub source: String,
+    pub make: String,
+    pub model: String,
+    pub exposure_time_s: Option<f64>,
+    pub f_number: Option<f64>,
+    pub iso: Option<u32>,
+    pub focal_length_mm: Option<f64>,
+    pub datetime_original: Option<String>,
+    pub lens: Option<String>,
+    /// `true` for a DNG.
+    pub dng: bool,
+    pub sensor_width: usize,
+    pub sensor_height: usize,
+    pub active_area: ActiveArea,
+    /// Samples per pixel: 1 for a CFA mosaic, 3 for linear (demosaiced) DNG.
+    pub samples_per_pixel: usize,
+    /// CFA pattern of the active area before orientation, e.g. "RGGB" (empty for 3 samples).
+    pub cfa_pattern: String,
+    /// Black level per CFA position of the active area, row-major
+    /// [(0,0), (0,1), (1,0), (1,1)], raw digital numbers (per channel R, G, B, - for 3 samples).
+    pub black_levels: [f32; 4],
+    /// Where the black levels come from.
+    pub black_level_source: String,
+    /// White level per CFA position (or channel), raw digital numbers; 1.0 in the output.
+    pub white_levels: [f32; 4],
+    /// XYZ → camera RGB, rows R, G, B, as the file or rawloader's camera table
+    /// gives it (Adobe DNG `ColorMatrix` convention; for built-in tables and
+    /// `ColorMatrix2`, the D65 calibration).
+    pub xyz_to_camera: [[f64; 3]; 3],
+    /// The camera's as-shot white-balance multipliers, green = 1, if recorded.
+    pub camera_wb_multipliers: Option<[f64; 3]>,
+    /// Multipliers applied to the output (None: no white balance).
+    pub white_balance_applied: Option<[f64; 3]>,
+    /// Orientation recorded in the file (EXIF value) and applied to the output.
+    pub orientation: Orientation,
+    pub orientation_applied: String,
+    /// Demosaicing method of the output ("none" before [`develop`]).
+    pub demosaic: String,
+    /// Output width and height after crop and orientation.
+    pub output_width: usize,
+    pub output_height: usize,
+    /// What the numbers mean.
+    pub units: String,
+    /// Metadata that could not be read (e.g. no EXIF), for the user to know.
+    pub warnings: Vec<String>,
+}
+
+/// Black/white-scaled sensor data of the active area, before white balance,
+/// demosaicing and orientation.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RawData {
+    /// A Bayer mosaic (one sample per pixel).
+    Bayer(Mosaic),
+    /// Three samples per pixel (linear DNG).
+    Rgb(RgbBuffer),
+}
+
+/// A decoded RAW file ([`read_raw`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawFrame {
+    pub data: RawData,
+    pub meta: RawMetadata,
+    path: PathBuf,
+}
+
+/// EXIF fields read with `kamadak-exif` (TIFF-based raw files carry EXIF in
+/// their own TIFF structure).
+#[derive(Default)]
+struct ExifInfo {
+    exposure_time_s: Option<f64>,
+    f_number: Option<f64>,
+    iso: Option<u32>,
+    focal_length_mm: Option<f64>,
+    datetime_original: Option<String>,
+    lens: Option<String>,
+    orientation: Option<u16>,
+    dng: bool,
+}
+
+fn read_exif(bytes: &[u8]) -> Result<ExifInfo, String> {
+    use exif::{Context, In, Tag, Value};
+    let e = exif::Reader::new().read_from_container(&mut std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?;
+    let rational = |t: Tag| {
+        e.get_field(t, In::PRIMARY).and_then(|f| match &f.value {
+            Value::Rational(v) => v.first().map(|r| r.to_f64()).filter(|x| x.is_finite()),
+            _ => None,
+        })
+    };
+    let text = |t: Tag| {
+        e.get_field(t, In::PRIMARY).and_then(|f| match &f.value {
+            Value::Ascii(v) => v
+                .first()
+                .map(|s| String::from_utf8_lossy(s).trim_end_matches('\0').trim().to_string())
+                .filter(|s| !s.is_empty()),
+            _ => None,
+        })
+    };
+    let uint = |t: Tag| e.get_field(t, In::PRIMARY).and_then(|f| f.value.get_uint(0));
+    Ok(ExifInfo {
+        exposure_time_s: rational(Tag::ExposureTime),
+        f_number: rational(Tag::FNumber),
+        iso: uint(Tag::PhotographicSensitivity),
+        focal_length_mm: rational(Tag::FocalLength),
+        datetime_original: text(Tag::DateTimeOriginal),
+        lens: text(Tag::LensModel),
+        orientation: uint(Tag::Orientation).and_then(|v| u16::try_from(v).ok()),
+        dng: e.get_field(Tag(Context::Tiff, 50706), In::PRIMARY).is_some(),
+    })
+}
+
+/// Per-CFA-position (sensor parity) integer means, rounded down, of the
+/// masked pixels in `areas` (rawloader tuples top, right, bottom, left).
+fn masked_black(data: &[u16], width: usize, height: usize, areas: &[(u64, u64, u64, u64)]) -> Option<[u64; 4]> {
+    let mut sum = [0u64; 4];
+    let mut count = [0u64; 4];
+    for &(top, right, bottom, left) in areas {
+        let (top, right, bottom, left) = (top as usize, right as usize, bottom as usize, left as usize);
+        if top >= bottom || left >= right || bottom > height || right > width {
+            return None;
+        }
+        for y in top..bottom {
+            for x in left..right {
+                let k = 2 * (y & 1) + (x & 1);
+                sum[k] += u64::from(data[y * width + x]);
+                count[k] += 1;
+            }
+        }
+    }
+    if count.contains(&0) {
+        return None;
+    }
+    Some([sum[0] / count[0], sum[1] / count[1], sum[2] / count[2], sum[3] / count[3]])
+}
+
+/// End (in bytes) of the image data that a TIFF-based raw file (DNG, CR2,
+/// NEF, ARW, PEF, …) declares: the largest offset + length over the strips,
+/// tiles and JPEG streams of every IFD reachable from the header (chain and
+/// SubIFDs). `Ok(None)` for files that are not plain little/big-endian
+/// TIFF; an error when an IFD lies outside the file. Used to refuse
+/// truncated files, which `rawloader` would decode with the missing data
+/// made up.
+pub fn tiff_data_end(bytes: &[u8]) -> Result<Option<u64>, String> {
+    let le = match bytes.get(..4) {
+        Some([b'I', b'I', 42, 0]) => true,
+        Some([b'M', b'M', 0, 42]) => false,
+        _ => return Ok(None),
+    };
+    match tiff_walk(bytes, le) {
+        Some(end) => Ok(Some(end)),
+        None => Err(format!("its TIFF directory structure runs past the end of the file ({} bytes)", bytes.len())),
+    }
+}
+
+fn tiff_walk(bytes: &[u8], le: bool) -> Option<u64> {
+    let u16_at = |o: usize| -> Option<u64> {
+        let b = bytes.get(o..o + 2)?;
+        Some(u64::from(if le { u16::from_le_bytes([b[0], b[1]]) } else { u16::from_be_bytes([b[0], b[1]]) }))
+    };
+    let u32_at = |o: usize| -> Option<u64> {
+        let b = bytes.get(o..o + 4)?;
+        let a = [b[0], b[1], b[2], b[3]];
+        Some(u64::from(if le { u32::from_le_bytes(a) } else { u32::from_be_bytes(a) }))
+    };
+    // Values of a SHORT/LONG/IFD entry at `entry`.
+    let values = |entry: usize| -> Option<Vec<u64>> {
+        let (typ, count) = (u16_at(entry + 2)?, u32_at(entry + 4)? as usize);
+        let size = match typ {
+            3 => 2,
+            4 | 13 => 4,
+            _ => return Some(Vec::new()),
+        };
+        if count > 1 << 20 {
+            return None;
+        }
+        let base = if count * size <= 4 { entry + 8 } else { u32_at(entry + 8)? as usize };
+        (0..count).map(|k| if size == 2 { u16_at(base + 2 * k) } else { u32_at(base + 4 * k) }).collect()
+    };
+    let mut end = 0u64;
+    let mut queue = vec![u32_at(4)? as usize];
+    let mut seen = std::collections::HashSet::new();
+    while let Some(ifd) = queue.pop() {
+        if ifd == 0 || !seen.insert(ifd) || seen.len() > 64 {
+            continue;
+        }
+        let n = u16_at(ifd)? as usize;
+        let mut tags = std::collections::HashMap::new();
+        for k in 0..n {
+            let entry = ifd + 2 + 12 * k;
+            tags.insert(u16_at(entry)? as u16, entry);
+        }
+        for (offsets, lengths) in [(273u16, 279u16), (324, 325), (513, 514)] {
+            if let (Some(&o), Some(&l)) = (tags.get(&offsets), tags.get(&lengths)) {
+                let (o, l) = (values(o)?, values(l)?);
+                for (a, b) in o.iter().zip(&l) {
+                    end = end.max(a + b);
+                }
+            }
+        }
+        if let Some(&sub) = tags.get(&330) {
+            queue.extend(values(sub)?.into_iter().map(|v| v as usize));
+        }
+        if let Some(next) = u32_at(ifd + 2 + 12 * n) {
+            queue.push(next as usize);
+        }
+    }
+    Some(end)
+}
+
+/// `rawloader` turns its internal panics on malformed files into errors, but
+/// the default panic hook still prints them; this hook (installed once,
+/// delegating everything else to the previous hook) keeps those quiet.
+fn quiet_rawloader_panics() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if info.location().is_some_and(|l| l.file().contains("rawloader")) {
+                return;
+            }
+            previous(info);
+        }));
+    });
+}
+
+/// Decodes `path`: steps 1–4 of the module docs (black/white scaling and
+/// crop; no white balance, demosaicing or orientation). `white_level`
+/// overrides the file's white level (raw digital numbers).
+pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawError> {
+    let p = || path.to_path_buf();
+    let bytes = std::fs::read(path).map_err(|source| RawError::Io { path: p(), source })?;
+    if bytes.is_empty() {
+        return Err(RawError::Decode { path: p(), reason: "the file is empty".into() });
+    }
+    match tiff_data_end(&bytes) {
+        Ok(Some(end)) if end > bytes.len() as u64 => {
+            return Err(RawError::Decode {
+                path: p(),
+                reason: format!("truncated: its image data ends at byte {end} but the file has {} bytes", bytes.len()),
+            });
+        }
+        Err(why) => return Err(RawError::Decode { path: p(), reason: format!("truncated or corrupt: {why}") }),
+        _ => {}
+    }
+    quiet_rawloader_panics();
+    let img = rawloader::decode(&mut std::io::Cursor::new(&bytes)).map_err(|e| {
+        let msg = e.to_string();
+        let msg = msg.strip_prefix("RawLoaderError: ").unwrap_or(&msg).trim_matches('"').to_string();
+        let msg = if msg.starts_with("Caught a panic") {
+            "the decoder failed on malformed data (corrupt or truncated file)".to_string()
+        } else {
+            msg
+        };
+        RawError::Decode { path: p(), reason: msg }
+    })?;
+    let mut warnings = Vec::new();
+    let exif = read_exif(&bytes).unwrap_or_else(|e| {
+        warnings.push(format!("no EXIF metadata ({e}): exposure, ISO and lens unknown"));
+        ExifInfo::default()
+    });
+
+    let (w, h, cpp) = (img.width, img.height, img.cpp);
+    let got = match &img.data {
+        rawloader::RawImageData::Integer(v) => v.len(),
+        rawloader::RawImageData::Float(v) => v.len(),
+    };
+    if w == 0 || h == 0 || w.checked_mul(h).and_then(|n| n.checked_mul(cpp)) != Some(got) {
+        return Err(RawError::Size { path: p(), width: w, height: h, samples: cpp, got });
+    }
+    let [top, right, bottom, left] = img.crops;
+    if left + right >= w || top + bottom >= h {
+        return Err(RawError::Unsupported {
+            path: p(),
+            reason: format!("crop {:?} leaves no active area in {w} × {h}", img.crops),
+        });
+    }
+    let area = ActiveArea { top, left, width: w - left - right, height: h - top - bottom };
+
+    // DNG gives the CFA pattern and black levels from the active area's
+    // origin; other formats (and rawloader's tables) from the sensor's. This
+    // permutation maps between the two orders of the 2 × 2 positions (it is
+    // its own inverse).
+    let swap = |k: usize| 2 * (((k / 2) + top) & 1) + (((k % 2) + left) & 1);
+
+    // Colour (rawloader index 0 R, 1 G, 2 B) per sensor parity, for a Bayer CFA.
+    let pattern = match cpp {
+        1 => {
+            if !img.cfa.is_valid() {
+                return Err(RawError::Unsupported { path: p(), reason: "monochrome sensor (no CFA)".into() });
+            }
+            let named = Bayer::from_name(&img.cfa.name).map_err(|_| RawError::Unsupported {
+                path: p(),
+                reason: format!("CFA pattern {:?} is not a 2 × 2 RGB Bayer pattern (X-Trans and four-colour sensors are not supported)", img.cfa.name),
+            })?;
+            Some(if exif.dng { named.shifted(top, left) } else { named })
+        }
+        3 => None,
+        n => return Err(RawError::Unsupported { path: p(), reason: format!("{n} samples per pixel") }),
+    };
+
+    // Black and white levels per sensor parity (k = 2·(y&1) + (x&1)) or per channel.
+    let colour_of = |k: usize| pattern.map_or(k.min(2), |b| b.colour_at(k / 2, k % 2));
+    let masked = match (&img.data, exif.dng, pattern.is_some()) {
+        (rawloader::RawImageData::Integer(v), false, true) if !img.blackareas.is_empty() => {
+            masked_black(v, w, h, &img.blackareas)
+        }
+        _ => None,
+    };
+    let (black, black_source): ([f32; 4], String) = if let Some(m) = masked {
+        (m.map(|b| b as f32), "integer mean of the masked sensor pixels per CFA position (LibRaw's rule)".into())
+    } else if exif.dng && pattern.is_some() {
+        (std::array::from_fn(|k| f32::from(img.blacklevels[swap(k)])), "DNG BlackLevel tag, CFA-position order".into())
+    } else {
+        (std::array::from_fn(|k| f32::from(img.blacklevels[colour_of(k)])), "rawloader per-colour black level".into())
+    };
+    let white: [f32; 4] = match white_level {
+        Some(v) => [v; 4],
+        None => std::array::from_fn(|k| f32::from(img.whitelevels[colour_of(k)])),
+    };
+    for k in 0..4 {
+        if white[k].partial_cmp(&black[k]) != Some(std::cmp::Ordering::Greater) {
+            return Err(RawError::Decode {
+                path: p(),
+                reason: format!(
+                    "implausible levels: white {} is not above black {} ({black_source}); the file is probably corrupt",
+                    white[k], black[k]
+                ),
+            });
+        }
+    }
+
+    // Scale and crop in one pass. For cpp = 3, index k is the channel.
+    let sample = |i: usize| -> f32 {
+        match &img.data {
+            rawloader::RawImageData::Integer(v) => f32::from(v[i]),
+            rawloader::RawImageData::Float(v) => v[i],
+        }
+    };
+    let mut out = Vec::with_capacity(area.width * area.height * cpp);
+    for y in area.top..area.top + area.height {
+        for x in area.left..area.left + area.width {
+            for c in 0..cpp {
+                let k = if cpp == 1 { 2 * (y & 1) + (x & 1) } else { c };
+                out.push((sample((y * w + x) * cpp + c) - black[k]) / (white[k] - black[k]));
+            }
+        }
+    }
+
+    // Levels from sensor parity to active-area CFA position.
+    let to_active = |v: [f32; 4]| -> [f32; 4] { if cpp == 1 { std::array::from_fn(|k| v[swap(k)]) } else { v } };
+    let wb = img.wb_coeffs;
+    let camera_wb = (wb[..3].iter().all(|v| v.is_finite() && *v > 0.0))
+        .then(|| [f64::from(wb[0] / wb[1]), 1.0, f64::from(wb[2] / wb[1])]);
+    let orientation = match img.orientation {
+        rawloader::Orientation::Unknown => Orientation::from_exif(exif.orientation.unwrap_or(1)),
+        o => Orientation::from_exif(o.to_u16()),
+    };
+    // rawloader keeps its camera table's matrices as integers ×10000 (dcraw's
+    // adobe_coeff convention) and DNG matrices as they are.
+    let matrix_scale = if exif.dng { 1.0 } else { 1e-4 };
+    let xyz_to_camera = std::array::from_fn(|r| std::array::from_fn(|c| f64::from(img.xyz_to_cam[r][c]) * matrix_scale));
+    let cropped_pattern = pattern.map(|b| b.shifted(area.top, area.left));
+    let meta = RawMetadata {
+        source: path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+        make: img.clean_make.clone(),
+        model: img.clean_model.clone(),
+        exposure_time_s: exif.exposure_time_s,
+        f_number: exif.f_number,
+        iso: exif.iso,
+        focal_length_mm: exif.focal_length_mm,
+        datetime_original: exif.datetime_original,
+        lens: exif.lens,
+        dng: exif.dng,
+        sensor_width: w,
+        sensor_height: h,
+        active_area: area,
+        samples_per_pixel: cpp,
+        cfa_pattern: cropped_pattern.map(|b| b.name()).unwrap_or_default(),
+        black_levels: to_active(black),
+        black_level_source: black_source,
+        white_levels: to_active(white),
+        xyz_to_camera,
+        camera_wb_multipliers: camera_wb,
+        white_balance_applied: None,
+        orientation,
+        orientation_applied: "none".into(),
+        demosaic: "none".into(),
+        output_width: area.width,
+        output_height: area.height,
+        units: "linear camera RGB; 0 = black level, 1 = white (saturation) level; not clipped; no tone curve".into(),
+        warnings,
+    };
+    let data = match cropped_pattern {
+        Some(b) => RawData::Bayer(Mosaic { width: area.width, height: area.height, pattern: b, data: out }),
+        None => RawData::Rgb(RgbBuffer { width: area.width, height: area.height, data: out }),
+    };
+    Ok(RawFrame { data, meta, path: path.to_path_buf() })
+}
+
+/// Steps 5–7: white balance (if asked), demosaicing, orientation. Returns the
+/// image and its metadata (updated with what was applied).
+pub fn develop(frame: &RawFrame, opts: &RawOptions) -> Result<(RgbBuffer, RawMetadata), RawError> {
+    let mut meta = frame.meta.clone();
+    let gains = match opts.white_balance {
+        WhiteBalance::None => None,
+        WhiteBalance::Camera => {
+            Some(meta.camera_wb_multipliers.ok_or_else(|| RawError::NoCameraWhiteBalance { path: frame.path.clone() })?)
+        }
+    };
+    meta.white_balance_applied = gains;
+    let rgb = match &frame.data {
+        RawData::Bayer(m) => {
+            let balanced;
+            let m = match gains {
+                Some(g) => {
+                    let mut b = m.clone();
+                    for (i, v) in b.data.iter_mut().enumerate() {
+                        *v *= g[m.pattern.colour_at(i / m.width, i % m.width)] as f32;
+                    }
+                    balanced = b;
+                    &balanced
+                }
+                None => m,
+            };
+            meta.demosaic = opts.demosaic.name().into();
+            demosaic::demosaic(m, opts.demosaic).map_err(|source| RawError::Demosaic { path: frame.path.clone(), source })?
+        }
+        RawData::Rgb(img) => {
+            let mut img = img.clone();
+            if let Some(g) = gains {
+                for px in img.data.chunks_exact_mut(3) {
+                    for c in 0..3 {
+                        px[c] *= g[c] as f32;
+                    }
+                }
+            }
+            meta.demosaic = "none (linear DNG)".into();
+            img
+        }
+    };
+    let rgb = orient(&rgb, meta.orientation);
+    meta.orientation_applied = meta.orientation.describe().into();
+    meta.output_width = rgb.width;
+    meta.output_height = rgb.height;
+    Ok((rgb, meta))
+}
+
+/// [`read_raw`] then [`develop`].
+pub fn decode_raw(path: &Path, opts: &RawOptions) -> Result<(RgbBuffer, RawMetadata), RawError> {
+    let frame = read_raw(path, opts.white_level)?;
+    develop(&frame, opts)
+}
+
+/// The image as it should be viewed, given its EXIF orientation.
+pub fn orient(img: &RgbBuffer, o: Orientation) -> RgbBuffer {
+    let (w, h) = (img.width, img.height);
+    let swap = matches!(o.0, 5..=8);
+    let (ow, oh) = if swap { (h, w) } else { (w, h) };
+    let mut data = vec![0.0f32; img.data.len()];
+    for yo in 0..oh {
+        for xo in 0..ow {
+            // Source pixel for output pixel (xo, yo).
+            let (xs, ys) = match o.0 {
+                2 => (w - 1 - xo, yo),
+                3 => (w - 1 - xo, h - 1 - yo),
+                4 => (xo, h - 1 - yo),
+                5 => (yo, xo),
+                6 => (yo, h - 1 - xo),
+                7 => (w - 1 - yo, h - 1 - xo),
+                8 => (w - 1 - yo, xo),
+                _ => (xo, yo),
+            };
+            let (s, d) = (3 * (ys * w + xs), 3 * (yo * ow + xo));
+            data[d..d + 3].copy_from_slice(&img.data[s..s + 3]);
+        }
+    }
+    RgbBuffer { width: ow, height: oh, data }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn numbered(w: usize, h: usize) -> RgbBuffer {
+        RgbBuffer::new(w, h, (0..w * h).flat_map(|i| [i as f32; 3]).collect()).unwrap()
+    }
+
+    fn ids(img: &RgbBuffer) -> Vec<u32> {
+        img.data.chunks(3).map(|p| p[0] as u32).collect()
+    }
+
+    #[test]
+    fn orientations_follow_exif() {
+        // Stored 3 × 2:   0 1 2
+        //                 3 4 5
+        let img = numbered(3, 2);
+        let o = |v| orient(&img, Orientation::from_exif(v));
+        assert_eq!(ids(&o(1)), [0, 1, 2, 3, 4, 5]);
+        assert_eq!(ids(&o(2)), [2, 1, 0, 5, 4, 3]);
+        assert_eq!(ids(&o(3)), [5, 4, 3, 2, 1, 0]);
+        assert_eq!(ids(&o(4)), [3, 4, 5, 0, 1, 2]);
+        // 90° clockwise: the left column (0, 3), read bottom-up, becomes the top row.
+        assert_eq!(ids(&o(6)), [3, 0, 4, 1, 5, 2]);
+        assert_eq!(ids(&o(8)), [2, 5, 1, 4, 0, 3]);
+        assert_eq!(ids(&o(5)), [0, 3, 1, 4, 2, 5]);
+        assert_eq!(ids(&o(7)), [5, 2, 4, 1, 3, 0]);
+        assert_eq!((o(6).width, o(6).height), (2, 3));
+        // 6 then 8 is the identity; 0 and 9 mean "as stored".
+        assert_eq!(orient(&o(6), Orientation(8)), img);
+        assert_eq!(o(0), img);
+        assert_eq!(o(9), img);
+    }
+
+    #[test]
+    fn masked_black_is_the_floored_mean_per_position() {
+        // 4 × 2 sensor, masked columns 0..2 (rawloader tuple: top, right, bottom, left).
+        let data = [10, 20, 0, 0, 31, 40, 0, 0];
+        assert_eq!(masked_black(&data, 4, 2, &[(0, 2, 2, 0)]), Some([10, 20, 31, 40]));
+        let data = [10, 20, 11, 23, 30, 40, 0, 0];
+        assert_eq!(masked_black(&data, 4, 2, &[(0, 4, 1, 0)]), None, "no odd rows masked");
+        assert_eq!(masked_black(&data, 4, 2, &[(0, 4, 2, 0)]), Some([10, 21, 15, 20]));
+        assert_eq!(masked_black(&data, 4, 2, &[(0, 9, 2, 0)]), None, "area outside the sensor");
+    }
+
+    #[test]
+    fn missing_empty_and_garbage_files_are_errors_naming_them() {
+        let dir = std::env::temp_dir().join(format!("lucent-raw-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let missing = dir.join("nope.cr2");
+        let e = read_raw(&missing, None).unwrap_err();
+        assert!(matches!(e, RawError::Io { .. }) && e.to_string().contains("nope.cr2"), "{e}");
+        let empty = dir.join("empty.dng");
+        std::fs::write(&empty, b"").unwrap();
+        let e = read_raw(&empty, None).unwrap_err();
+        assert!(e.to_string().contains("empty.dng") && e.to_string().contains("empty"), "{e}");
+        let junk = dir.join("junk.nef");
+        std::fs::write(&junk, b"this is not a raw file at all, just some text bytes").unwrap();
+        let e = read_raw(&junk, None).unwrap_err();
+        assert!(matches!(e, RawError::Decode { .. }) && e.to_string().contains("junk.nef"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn tiff_data_end_reads_strips_and_sub_ifds() {
+        // Little-endian TIFF: IFD0 at 8 with StripOffsets = 100, StripByteCounts = 50
+        // and a SubIFD at 60 with TileOffsets = 200, TileByteCounts = 1000.
+        let mut b = vec![0u8; 300];
+        b[..8].copy_from_slice(&[b'I', b'I', 42, 0, 8, 0, 0, 0]);
+        let entry = |b: &mut Vec<u8>, at: usize, tag: u16, typ: u16, value: u32| {
+            b[at..at + 2].copy_from_slice(&tag.to_le_bytes());
+            b[at + 2..at + 4].copy_from_slice(&typ.to_le_bytes());
+            b[at + 4..at + 8].copy_from_slice(&1u32.to_le_bytes());
+            b[at + 8..at + 12].copy_from_slice(&value.to_le_bytes());
+        };
+        b[8..10].copy_from_slice(&3u16.to_le_bytes());
+        entry(&mut b, 10, 273, 4, 100);
+        entry(&mut b, 22, 279, 3, 50);
+        entry(&mut b, 34, 330, 13, 60);
+        b[60..62].copy_from_slice(&2u16.to_le_bytes());
+        entry(&mut b, 62, 324, 4, 200);
+        entry(&mut b, 74, 325, 4, 1000);
+        assert_eq!(tiff_data_end(&b), Ok(Some(1200)));
+        assert_eq!(tiff_data_end(b"not a tiff"), Ok(None));
+        assert!(tiff_data_end(&b[..12]).unwrap_err().contains("past the end"), "IFD cut off");
+    }
+
+    #[test]
+    fn white_balance_names() {
+        assert_eq!(WhiteBalance::from_name("Camera").unwrap(), WhiteBalance::Camera);
+        assert!(WhiteBalance::from_name("auto").unwrap_err().contains("none, camera"));
+    }
+}

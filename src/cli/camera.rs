@@ -1,0 +1,644 @@
+//! `lucent raw …`, `lucent calibrate`, `lucent undistort`, `lucent pose` and
+//! `lucent env …`: the photo side of the twin (SPEC §5). Orchestration and
+//! file handling only; the work is done by `lucent-calib`.
+
+use crate::imageio::{self, RgbImage};
+use crate::io::{write_atomic, write_json};
+use crate::plot;
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, Subcommand};
+use lucent_calib::camera::{self, Calibration, DistortionModel, NewCamera, Photo};
+use lucent_calib::cv::{self, Detector};
+use lucent_calib::demosaic::Demosaic;
+use lucent_calib::env;
+use lucent_calib::raw::{self, RawOptions, WhiteBalance};
+use lucent_calib::scene::{self, BoardSpec, SampleSpec};
+use lucent_calib::{GrayImage, RgbBuffer};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Subcommand)]
+pub enum RawCommand {
+    /// RAW photo (DNG, CR2, NEF, ARW, …) → linear camera RGB as 32-bit float EXR, with a sidecar JSON
+    /// of metadata (make, model, exposure, ISO, black/white levels, colour matrix).
+    Decode(RawDecodeArgs),
+    /// Print the metadata of a RAW photo as JSON (no demosaicing, nothing written).
+    Info {
+        /// The RAW file.
+        input: PathBuf,
+    },
+}
+
+#[derive(Debug, Args)]
+pub struct RawDecodeArgs {
+    /// The RAW file.
+    pub input: PathBuf,
+    /// Output image (.exr); the metadata goes to the same path with .json.
+    pub output: PathBuf,
+    /// Demosaicing: malvar (Malvar–He–Cutler 2004) or bilinear.
+    #[arg(long, default_value = "malvar")]
+    pub demosaic: String,
+    /// White balance: none (camera RGB as recorded) or camera (as-shot multipliers, green = 1).
+    #[arg(long, default_value = "none")]
+    pub white_balance: String,
+    /// Override the white (saturation) level in raw digital numbers.
+    #[arg(long)]
+    pub white_level: Option<f32>,
+    /// Also write an 8-bit sRGB PNG preview here (values clipped to [0, 1]).
+    #[arg(long)]
+    pub preview: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    /// Photos of the chessboard: a folder, a file, or a pattern such as 'DIR/*.jpg' or
+    /// 'DIR/*.{jpg,png,exr}' (quote it). JPEG/PNG/TIFF, EXR/HDR and RAW files are read.
+    #[arg(long, required = true, num_args = 1..)]
+    pub images: Vec<String>,
+    /// Inner corners COLSxROWS, e.g. 9x6 for a board of 10 × 7 squares.
+    #[arg(long)]
+    pub board: String,
+    /// Side of one square in millimetres.
+    #[arg(long)]
+    pub square_mm: f64,
+    /// Distortion model: pinhole-k3 (k1 k2 p1 p2 k3) or rational (k1..k6 p1 p2).
+    #[arg(long, default_value = "pinhole-k3")]
+    pub model: String,
+    /// Corner detector: auto (sector-based, else classic + cornerSubPix), sector-based or classic.
+    #[arg(long, default_value = "auto")]
+    pub detector: String,
+    /// Output camera JSON; the residual plot and per-view images go beside it
+    /// (NAME_residuals.png, NAME_views/).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct UndistortArgs {
+    /// camera.json written by `lucent calibrate`.
+    #[arg(long)]
+    pub camera: PathBuf,
+    /// Input photo of the calibration's size: .exr/.hdr (linear), RAW (decoded, linear),
+    /// .png/.tif/.jpg (values as stored).
+    pub input: PathBuf,
+    /// Output: .exr (32-bit float) or .png (8-bit; linear input is sRGB-encoded for viewing).
+    pub output: PathBuf,
+    /// Choose new intrinsics that keep every pixel of the photo (default: keep the calibrated ones,
+    /// cropping the borders). The intrinsics used are printed and written to OUTPUT.json.
+    #[arg(long)]
+    pub keep_all: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct PoseArgs {
+    /// camera.json written by `lucent calibrate`.
+    #[arg(long)]
+    pub camera: PathBuf,
+    /// Photo of the board and sample (distorted, as taken; the calibration's size).
+    #[arg(long)]
+    pub image: PathBuf,
+    /// Inner corners COLSxROWS.
+    #[arg(long)]
+    pub board: String,
+    /// Side of one square in millimetres.
+    #[arg(long)]
+    pub square_mm: f64,
+    /// Board inner corner I,J under the sample's top-left corner (indices as drawn in the view image).
+    #[arg(long, requires = "sample_size_mm")]
+    pub sample_corner: Option<String>,
+    /// Sample width (along i), height (along j) and thickness in mm, e.g. 149.1,104.5,6.35.
+    #[arg(long, requires = "sample_corner")]
+    pub sample_size_mm: Option<String>,
+    /// The photo will be undistorted with --keep-all (use those intrinsics in the scene).
+    #[arg(long)]
+    pub keep_all: bool,
+    /// Output scene JSON (renderer convention: see the "convention" field); a view image with the
+    /// corners, axes and sample outline goes beside it as NAME_view.png.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum EnvCommand {
+    /// Equirectangular HDR (.exr, .hdr) → checked (2:1, finite), optionally colour-converted, 32-bit EXR.
+    Convert(EnvConvertArgs),
+    /// Size and radiance statistics of an equirectangular HDR map, as JSON.
+    Info {
+        /// The map (.exr or .hdr).
+        input: PathBuf,
+    },
+}
+
+#[derive(Debug, Args)]
+pub struct EnvConvertArgs {
+    /// Input map (.exr or .hdr), equirectangular, 2:1.
+    pub input: PathBuf,
+    /// Output map (.exr, 32-bit float).
+    pub output: PathBuf,
+    /// 3 × 3 matrix applied to every pixel (out = M·rgb): nine numbers row-major ("a,b,c;d,e,f;g,h,i"),
+    /// or a JSON file with a 3 × 3 array or a "matrix" key. (For a ColorChecker ccm.json with
+    /// chromatic adaptation use `lucent colour apply`.)
+    #[arg(long)]
+    pub matrix: Option<String>,
+}
+
+fn to_buffer(img: RgbImage) -> RgbBuffer {
+    RgbBuffer { width: img.width, height: img.height, data: img.data }
+}
+
+fn to_image(buf: RgbBuffer) -> RgbImage {
+    RgbImage { width: buf.width, height: buf.height, data: buf.data }
+}
+
+fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    path.with_file_name(format!("{stem}{suffix}"))
+}
+
+fn file_name(path: &Path) -> String {
+    path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string())
+}
+
+const RAW_EXTENSIONS: [&str; 13] = ["dng", "cr2", "nef", "nrw", "arw", "srf", "sr2", "orf", "rw2", "raf", "pef", "srw", "erf"];
+const IMAGE_EXTENSIONS: [&str; 8] = ["jpg", "jpeg", "png", "tif", "tiff", "bmp", "exr", "hdr"];
+
+fn extension(path: &Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+}
+
+// ---------------------------------------------------------------- raw
+
+pub fn run_raw(cmd: RawCommand) -> Result<()> {
+    match cmd {
+        RawCommand::Decode(a) => raw_decode(a),
+        RawCommand::Info { input } => {
+            let frame = raw::read_raw(&input, None)?;
+            println!("{}", serde_json::to_string_pretty(&frame.meta)?);
+            Ok(())
+        }
+    }
+}
+
+fn raw_decode(a: RawDecodeArgs) -> Result<()> {
+    if extension(&a.output) != "exr" {
+        bail!("{}: the output must be an .exr file (32-bit float linear RGB)", a.output.display());
+    }
+    let opts = RawOptions {
+        demosaic: Demosaic::from_name(&a.demosaic).context("--demosaic")?,
+        white_balance: WhiteBalance::from_name(&a.white_balance).map_err(|e| anyhow!("--white-balance: {e}"))?,
+        white_level: a.white_level,
+    };
+    if let Some(w) = a.white_level {
+        if !(w.is_finite() && w > 0.0) {
+            bail!("--white-level {w}: must be a positive number of raw digital numbers");
+        }
+    }
+    let (img, meta) = raw::decode_raw(&a.input, &opts)?;
+    let img = to_image(img);
+    imageio::write_exr(&a.output, &img)?;
+    let sidecar = a.output.with_extension("json");
+    write_json(&sidecar, &meta)?;
+    if let Some(p) = &a.preview {
+        imageio::write_png(p, &img)?;
+    }
+    for w in &meta.warnings {
+        eprintln!("warning: {}: {w}", a.input.display());
+    }
+    let exposure = match (meta.exposure_time_s, meta.iso, meta.f_number) {
+        (Some(t), iso, f) => format!(
+            ", {} s{}{}",
+            if t < 1.0 { format!("1/{:.0}", 1.0 / t) } else { format!("{t}") },
+            f.map(|f| format!(" f/{f}")).unwrap_or_default(),
+            iso.map(|i| format!(" ISO {i}")).unwrap_or_default()
+        ),
+        _ => String::new(),
+    };
+    println!(
+        "{} {}{exposure}: {} × {} camera RGB ({} demosaic, white balance {}, orientation {}) → {} and {}",
+        meta.make,
+        meta.model,
+        img.width,
+        img.height,
+        meta.demosaic,
+        meta.white_balance_applied.map_or("none".to_string(), |g| format!("{:.3}/{:.3}/{:.3}", g[0], g[1], g[2])),
+        meta.orientation_applied,
+        a.output.display(),
+        sidecar.display()
+    );
+    Ok(())
+}
+
+// ---------------------------------------------------------------- calibrate
+
+/// Expands `{a,b}` alternatives (one level, possibly several groups).
+fn expand_braces(pattern: &str) -> Vec<String> {
+    if let (Some(open), Some(close)) = (pattern.find('{'), pattern.find('}')) {
+        if open < close {
+            let (head, body, tail) = (&pattern[..open], &pattern[open + 1..close], &pattern[close + 1..]);
+            return body.split(',').flat_map(|alt| expand_braces(&format!("{head}{alt}{tail}"))).collect();
+        }
+    }
+    vec![pattern.to_string()]
+}
+
+/// `*` and `?` wildcard match of a whole file name (case-sensitive).
+fn wildcard(pattern: &[char], name: &[char]) -> bool {
+    match (pattern.first(), name.first()) {
+        (None, None) => true,
+        (Some('*'), _) => wildcard(&pattern[1..], name) || (!name.is_empty() && wildcard(pattern, &name[1..])),
+        (Some('?'), Some(_)) => wildcard(&pattern[1..], &name[1..]),
+        (Some(p), Some(n)) if p == n => wildcard(&pattern[1..], &name[1..]),
+        _ => false,
+    }
+}
+
+/// Files named by a folder, a file, or a wildcard pattern in the file-name
+/// part (`DIR/*.jpg`, `DIR/left??.{jpg,png}`), sorted.
+pub fn expand_images(spec: &str) -> Result<Vec<PathBuf>> {
+    let path = Path::new(spec);
+    if path.is_dir() {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(path)
+            .with_context(|| format!("{spec}: cannot list folder"))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                let e = extension(p);
+                IMAGE_EXTENSIONS.contains(&e.as_str()) || RAW_EXTENSIONS.contains(&e.as_str())
+            })
+            .collect();
+        files.sort();
+        if files.is_empty() {
+            bail!("{spec}: no images in this folder (looked for {}, and RAW files)", IMAGE_EXTENSIONS.join(", "));
+        }
+        return Ok(files);
+    }
+    if !spec.contains(['*', '?', '{']) {
+        if path.is_file() {
+            return Ok(vec![path.to_path_buf()]);
+        }
+        bail!("{spec}: no such file or folder");
+    }
+    let mut files = Vec::new();
+    for alt in expand_braces(spec) {
+        let p = Path::new(&alt);
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if dir.to_string_lossy().contains(['*', '?']) {
+            bail!("{spec}: wildcards are only supported in the file name, not in folders");
+        }
+        let pat: Vec<char> = p.file_name().map(|n| n.to_string_lossy().chars().collect()).unwrap_or_default();
+        let entries = std::fs::read_dir(dir).with_context(|| format!("{}: cannot list folder (from --images {spec})", dir.display()))?;
+        for e in entries.filter_map(|e| e.ok()) {
+            let name: Vec<char> = e.file_name().to_string_lossy().chars().collect();
+            if e.path().is_file() && wildcard(&pat, &name) {
+                files.push(e.path());
+            }
+        }
+    }
+    files.sort();
+    files.dedup();
+    if files.is_empty() {
+        bail!("--images {spec}: no files match");
+    }
+    Ok(files)
+}
+
+/// Loads any supported photo as 8-bit grey for corner detection.
+fn load_gray(path: &Path) -> Result<GrayImage> {
+    let e = extension(path);
+    if RAW_EXTENSIONS.contains(&e.as_str()) {
+        let opts = RawOptions { demosaic: Demosaic::Bilinear, ..Default::default() };
+        let (img, _) = raw::decode_raw(path, &opts)?;
+        return Ok(GrayImage::from_linear_rgb(&img));
+    }
+    if e == "exr" || e == "hdr" {
+        let img = imageio::read_rgb(path)?;
+        return Ok(GrayImage::from_linear_rgb(&to_buffer(img)));
+    }
+    Ok(cv::read_gray(path)?)
+}
+
+fn parse_detector(name: &str) -> Result<Detector> {
+    match name.to_ascii_lowercase().as_str() {
+        "auto" => Ok(Detector::Auto),
+        "sector-based" | "sb" => Ok(Detector::SectorBased),
+        "classic" => Ok(Detector::Classic),
+        _ => bail!("--detector {name:?}: valid are auto, sector-based, classic"),
+    }
+}
+
+pub fn calibrate(a: CalibrateArgs) -> Result<()> {
+    let board = BoardSpec::parse(&a.board, a.square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))?;
+    let model = DistortionModel::from_name(&a.model).map_err(|e| anyhow!("--model: {e}"))?;
+    let detector = parse_detector(&a.detector)?;
+    let mut files = Vec::new();
+    for spec in &a.images {
+        files.extend(expand_images(spec)?);
+    }
+    files.sort();
+    files.dedup();
+    let mut photos = Vec::new();
+    let mut unreadable = Vec::new();
+    for f in &files {
+        match load_gray(f) {
+            Ok(image) => photos.push(Photo { name: file_name(f), image }),
+            Err(e) => unreadable.push(format!("{e:#}")),
+        }
+    }
+    if !unreadable.is_empty() {
+        bail!("{} of {} image(s) cannot be read:\n  {}", unreadable.len(), files.len(), unreadable.join("\n  "));
+    }
+    let cal = camera::calibrate_photos(&photos, &board, model, detector)?;
+    write_json(&a.out, &cal)?;
+
+    let views: Vec<(String, Vec<[f64; 2]>)> = cal.views.iter().map(|v| (v.image.clone(), v.residuals_px.clone())).collect();
+    let plot_path = sibling(&a.out, "_residuals.png");
+    write_atomic(&plot_path, &plot::residuals_png(&views, cal.rms_px)?)?;
+    let view_dir = sibling(&a.out, "_views");
+    for v in &cal.views {
+        let photo = photos.iter().find(|p| p.name == v.image).ok_or_else(|| anyhow!("internal: view {} has no photo", v.image))?;
+        let reprojected: Vec<[f64; 2]> = v.corners_px.iter().zip(&v.residuals_px).map(|(c, r)| [c[0] - r[0], c[1] - r[1]]).collect();
+        let label = format!("{}  RMS {:.3} px  ({})", v.image, v.rms_px, v.detector);
+        let png = cv::draw_view_png(&photo.image, &board, &v.corners_px, &reprojected, &[], &label)?;
+        let stem = Path::new(&v.image).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        write_atomic(&view_dir.join(format!("{stem}.png")), &png)?;
+    }
+    print_calibration(&cal);
+    println!(
+        "written: {} (camera), {} (residuals), {}/ (detected ● and reprojected × corners per view)",
+        a.out.display(),
+        plot_path.display(),
+        view_dir.display()
+    );
+    Ok(())
+}
+
+fn print_calibration(cal: &Calibration) {
+    let k = &cal.camera.intrinsics;
+    let d = &cal.camera.distortion;
+    println!(
+        "camera {} × {} px, model {}: fx {:.3}  fy {:.3}  cx {:.3}  cy {:.3} px",
+        cal.camera.image_width,
+        cal.camera.image_height,
+        match cal.camera.model {
+            DistortionModel::PinholeK3 => "pinhole-k3",
+            DistortionModel::Rational => "rational",
+        },
+        k.fx,
+        k.fy,
+        k.cx,
+        k.cy
+    );
+    print!("distortion k1 {:.5}  k2 {:.5}  p1 {:.6}  p2 {:.6}  k3 {:.5}", d.k1, d.k2, d.p1, d.p2, d.k3);
+    if cal.camera.model == DistortionModel::Rational {
+        print!("  k4 {:.5}  k5 {:.5}  k6 {:.5}", d.k4, d.k5, d.k6);
+    }
+    println!();
+    println!("RMS reprojection error {:.4} px over {} views", cal.rms_px, cal.views.len());
+    for v in &cal.views {
+        println!("  {:<24} {:>7.4} px  ({})", v.image, v.rms_px, v.detector);
+    }
+    for n in &cal.not_found {
+        println!("  {:<24} not used: {}", n.image, n.reason);
+    }
+}
+
+fn read_camera(path: &Path) -> Result<Calibration> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read camera file", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: not a camera.json written by `lucent calibrate`", path.display()))
+}
+
+// ---------------------------------------------------------------- undistort
+
+/// Any supported photo as RGB; `true` if the values are linear (EXR, HDR,
+/// RAW), `false` if they are as an 8/16-bit file stores them (usually
+/// sRGB-encoded), scaled to [0, 1].
+fn load_rgb(path: &Path) -> Result<(RgbBuffer, bool)> {
+    let e = extension(path);
+    if RAW_EXTENSIONS.contains(&e.as_str()) {
+        return Ok((raw::decode_raw(path, &RawOptions::default())?.0, true));
+    }
+    match e.as_str() {
+        "exr" | "hdr" => Ok((to_buffer(imageio::read_rgb(path)?), true)),
+        "png" | "tif" | "tiff" => Ok((to_buffer(imageio::read_rgb(path)?), false)),
+        _ => Ok((cv::read_rgb8(path)?, false)),
+    }
+}
+
+/// Writes values that are already display-encoded as an 8-bit PNG, unchanged.
+fn write_png_as_stored(path: &Path, img: &RgbBuffer) -> Result<()> {
+    let bytes: Vec<u8> = img.data.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect();
+    let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes)
+        .ok_or_else(|| anyhow!("{}: image buffer size", path.display()))?;
+    let mut out = std::io::Cursor::new(Vec::new());
+    buf.write_to(&mut out, image::ImageFormat::Png).with_context(|| format!("{}: cannot encode PNG", path.display()))?;
+    Ok(write_atomic(path, &out.into_inner())?)
+}
+
+pub fn undistort(a: UndistortArgs) -> Result<()> {
+    let cal = read_camera(&a.camera)?;
+    let out_ext = extension(&a.output);
+    if out_ext != "exr" && out_ext != "png" {
+        bail!("{}: the output must be .exr (float) or .png (8-bit view)", a.output.display());
+    }
+    let (img, linear) = load_rgb(&a.input)?;
+    let mode = if a.keep_all { NewCamera::KeepAll } else { NewCamera::Same };
+    let (out, k) = camera::undistort(&img, &cal.camera, mode).map_err(|e| anyhow!("{}: {e}", a.input.display()))?;
+    // Values pass through unchanged: linear input stays linear; an 8-bit
+    // photo's encoded values are resampled as they are.
+    let (width, height) = (out.width, out.height);
+    if out_ext == "exr" {
+        imageio::write_exr(&a.output, &to_image(out))?;
+    } else if linear {
+        imageio::write_png(&a.output, &to_image(out))?;
+    } else {
+        write_png_as_stored(&a.output, &out)?;
+    }
+    let info = serde_json::json!({
+        "source": file_name(&a.input),
+        "camera": file_name(&a.camera),
+        "keep_all": a.keep_all,
+        "intrinsics": k,
+        "resampling": "bilinear; pixels outside the photo are 0",
+        "values": if linear { "linear, as read" } else { "as stored in the 8/16-bit input (not linearised), scaled to [0, 1]" },
+    });
+    let sidecar = a.output.with_extension("json");
+    write_json(&sidecar, &info)?;
+    println!(
+        "undistorted {} × {} → {} (pinhole fx {:.3} fy {:.3} cx {:.3} cy {:.3}; written to {})",
+        width,
+        height,
+        a.output.display(),
+        k.fx,
+        k.fy,
+        k.cx,
+        k.cy,
+        sidecar.display()
+    );
+    Ok(())
+}
+
+// ---------------------------------------------------------------- pose
+
+fn parse_numbers<const N: usize>(flag: &str, text: &str) -> Result<[f64; N]> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))?;
+    <[f64; N]>::try_from(v).map_err(|_| anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))
+}
+
+pub fn pose(a: PoseArgs) -> Result<()> {
+    let cal = read_camera(&a.camera)?;
+    let board = BoardSpec::parse(&a.board, a.square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))?;
+    let sample = match (&a.sample_corner, &a.sample_size_mm) {
+        (Some(c), Some(s)) => {
+            let [i, j] = parse_numbers::<2>("--sample-corner", c)?;
+            if i < 0.0 || j < 0.0 || i.fract() != 0.0 || j.fract() != 0.0 || i >= board.cols as f64 || j >= board.rows as f64 {
+                bail!("--sample-corner {c}: must be inner-corner indices I,J with 0 ≤ I < {} and 0 ≤ J < {}", board.cols, board.rows);
+            }
+            let size = parse_numbers::<3>("--sample-size-mm", s)?;
+            if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                bail!("--sample-size-mm {s}: width, height and thickness must be positive");
+            }
+            Some(SampleSpec { corner: [i as usize, j as usize], size_m: size.map(|v| v / 1000.0) })
+        }
+        _ => None,
+    };
+    let gray = load_gray(&a.image)?;
+    if (gray.width, gray.height) != (cal.camera.image_width, cal.camera.image_height) {
+        bail!(
+            "{}: {} × {} pixels, but {} was calibrated at {} × {}",
+            a.image.display(),
+            gray.width,
+            gray.height,
+            a.camera.display(),
+            cal.camera.image_width,
+            cal.camera.image_height
+        );
+    }
+    let corners = cv::find_corners(&gray, &board, Detector::Auto)?
+        .ok_or_else(|| anyhow!("{}: no chessboard of {}x{} inner corners found", a.image.display(), board.cols, board.rows))?;
+    let pose = cv::solve_pnp(&corners.points, &board, &cal.camera)?;
+    let reprojected: Vec<[f64; 2]> =
+        board.corners().iter().map(|p| cal.camera.project(pose.to_camera(*p)).unwrap_or([f64::NAN; 2])).collect();
+    let ss: f64 = corners.points.iter().zip(&reprojected).map(|(d, r)| (d[0] - r[0]).powi(2) + (d[1] - r[1]).powi(2)).sum();
+    let rms = (ss / corners.points.len() as f64).sqrt();
+    let k = if a.keep_all { cal.camera.keep_all_intrinsics() } else { cal.camera.intrinsics };
+    let scene = scene::describe_scene(&k, (gray.width, gray.height), &pose, &board, sample.as_ref(), rms);
+    write_json(&a.out, &scene)?;
+    // The sample's box drawn through the calibrated (distorting) camera.
+    let mut segments = Vec::new();
+    if let Some(sp) = &scene.sample {
+        let frame = scene::opencv_to_renderer(&pose);
+        let px: Vec<[f64; 2]> = sp
+            .box_corners_world_m
+            .iter()
+            .map(|w| {
+                // world_from_board is diagonal ±1, its own inverse.
+                let b = frame.board_to_world(*w);
+                cal.camera.project(pose.to_camera(b)).unwrap_or([f64::NAN; 2])
+            })
+            .collect();
+        for k in 0..4 {
+            segments.push((px[k], px[(k + 1) % 4]));
+            segments.push((px[4 + k], px[4 + (k + 1) % 4]));
+            segments.push((px[k], px[4 + k]));
+        }
+    }
+    let label = format!("{}  PnP RMS {:.3} px", file_name(&a.image), rms);
+    let png = cv::draw_view_png(&gray, &board, &corners.points, &reprojected, &segments, &label)?;
+    let view = sibling(&a.out, "_view.png");
+    write_atomic(&view, &png)?;
+    let c = scene.camera_position_m;
+    println!(
+        "board pose: camera at ({:.4}, {:.4}, {:.4}) m in the board's world (z up), {:.3} m from corner (0,0); PnP RMS {:.3} px",
+        c[0],
+        c[1],
+        c[2],
+        (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt(),
+        rms
+    );
+    if let Some(s) = &scene.sample {
+        let o = s.object_to_world;
+        println!("sample centre (bottom face) at ({:.4}, {:.4}, {:.4}) m", o[0][3], o[1][3], o[2][3]);
+    }
+    println!("written: {} (scene), {} (corners and axes)", a.out.display(), view.display());
+    Ok(())
+}
+
+// ---------------------------------------------------------------- env
+
+pub fn run_env(cmd: EnvCommand) -> Result<()> {
+    match cmd {
+        EnvCommand::Convert(a) => env_convert(a),
+        EnvCommand::Info { input } => {
+            let img = read_env(&input)?;
+            println!("{}", serde_json::to_string_pretty(&env::summarize(&img))?);
+            Ok(())
+        }
+    }
+}
+
+fn read_env(path: &Path) -> Result<RgbBuffer> {
+    let e = extension(path);
+    if e != "exr" && e != "hdr" {
+        bail!("{}: an HDR environment must be .exr or .hdr", path.display());
+    }
+    let img = to_buffer(imageio::read_rgb(path)?);
+    env::check_equirectangular(img.width, img.height).with_context(|| format!("{}", path.display()))?;
+    env::check_finite(&img).with_context(|| format!("{}", path.display()))?;
+    Ok(img)
+}
+
+fn env_convert(a: EnvConvertArgs) -> Result<()> {
+    if extension(&a.output) != "exr" {
+        bail!("{}: the output must be an .exr file", a.output.display());
+    }
+    let matrix = match &a.matrix {
+        None => None,
+        Some(m) => {
+            let p = Path::new(m);
+            let text = if p.is_file() {
+                std::fs::read_to_string(p).with_context(|| format!("{m}: cannot read matrix file"))?
+            } else {
+                m.clone()
+            };
+            Some(env::parse_matrix(&text).with_context(|| format!("--matrix {m}"))?)
+        }
+    };
+    let mut img = read_env(&a.input)?;
+    if let Some(m) = &matrix {
+        env::apply_matrix(&mut img, m);
+    }
+    let summary = env::summarize(&img);
+    imageio::write_exr(&a.output, &to_image(img))?;
+    println!(
+        "{} × {} equirectangular{} → {}; mean radiance over the sphere R {:.4} G {:.4} B {:.4}, max {:.1}{}",
+        summary.width,
+        summary.height,
+        if matrix.is_some() { ", colour matrix applied" } else { "" },
+        a.output.display(),
+        summary.mean_over_sphere[0],
+        summary.mean_over_sphere[1],
+        summary.mean_over_sphere[2],
+        summary.max.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+        if summary.negative_values > 0 { format!(", {} negative values (outside the target gamut)", summary.negative_values) } else { String::new() }
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn braces_and_wildcards() {
+        assert_eq!(expand_braces("d/*.{jpg,png}"), ["d/*.jpg", "d/*.png"]);
+        assert_eq!(expand_braces("a{1,2}b{x,y}"), ["a1bx", "a1by", "a2bx", "a2by"]);
+        let m = |p: &str, n: &str| wildcard(&p.chars().collect::<Vec<_>>(), &n.chars().collect::<Vec<_>>());
+        assert!(m("*.jpg", "left01.jpg"));
+        assert!(m("left??.jpg", "left01.jpg"));
+        assert!(!m("left?.jpg", "left01.jpg"));
+        assert!(!m("*.jpg", "left01.png"));
+        assert!(m("*", ""));
+    }
+}
