@@ -18,7 +18,11 @@ for s in IOL1068-09 IOL1068-12; do
 done
 
 echo
-echo "== Cameras: calibration from OpenCV's chessboard photos (9x6 inner corners), undistortion, board pose, HDR environment"
+echo "== 3. Colour: ColorChecker calibration of a real chart photo (Argyll's colorchecker.jpg), ΔE2000 table"
+"$bin" colour calibrate --image fixtures/colour/colorchecker.png --corners 5,6.5,196,6,195.5,133.5,3.5,133 --out "$out/colour"
+
+echo
+echo "== 4. Cameras: calibration from OpenCV's chessboard photos (9x6 inner corners), undistortion, board pose, HDR environment"
 "$bin" calibrate --images 'fixtures/camera/chessboard/*.jpg' --board 9x6 --square-mm 25 --out "$out/camera/camera.json"
 "$bin" undistort --camera "$out/camera/camera.json" fixtures/camera/chessboard/left12.jpg "$out/camera/left12_undistorted.png"
 "$bin" pose --camera "$out/camera/camera.json" --image fixtures/camera/chessboard/left12.jpg --board 9x6 --square-mm 25 \
@@ -33,6 +37,7 @@ echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
 echo "  $out/optics/IOL1068-NN/               phase tables and polar plots per sample"
 echo "  $out/bssrdf/IOL1068-NN/tiX_toY/      bssrdf.exr/.png, profile.csv/.png, summary.json; sweep.csv per sample"
+echo "  $out/colour/ccm.json, chart.png, delta_e.png   colour-correction matrix, corrected chart, ΔE bars"
 echo "  $out/camera/camera.json              intrinsics, distortion, per-view poses and RMS; camera_residuals.png, camera_views/"
 echo "  $out/camera/scene.json               board and sample pose in the renderer's convention; left12_undistorted.png"
 echo "  $out/camera/IMG_5952.exr/.json       a real CR2 as linear camera RGB with its metadata (if rawtran-doc is installed)"

@@ -3,20 +3,13 @@
 //! input (negative thickness, θ ≥ 90°, NaN in a map, non-square grids,
 //! size mismatches).
 
+mod common;
+use common::{lucent, stderr};
+
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn lucent(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run lucent")
-}
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 const THIN: [&str; 8] = ["--mu-s", "3000", "--mu-a", "30", "--g", "0.8", "--n", "1.5"];
 

@@ -3,27 +3,16 @@
 //! `pose`, `raw decode` on a real Canon CR2, `env convert`, and the errors
 //! for missing boards, wrong board sizes and unreadable files.
 
+mod common;
+use common::{lucent, stderr, stdout};
+
 use lucent::imageio::{read_rgb, write_exr, write_png, RgbImage};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-fn lucent(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run lucent")
-}
 
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 fn json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))).unwrap()

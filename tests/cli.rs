@@ -1,24 +1,13 @@
 //! The `lucent` command line end to end: output files and field names,
 //! folder mode, and one-line errors for bad input.
 
+mod common;
+use common::{lucent, stderr, stdout};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn lucent(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run lucent")
-}
 
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 fn sample(nn: &str) -> String {
     format!("fixtures/samples/IOL1068-{nn}.toml")

@@ -1,18 +1,14 @@
 //! `lucent colour calibrate | apply | bands` end to end: output files, agreement with colour-science on a synthetic chart, the real chart photo in fixtures/colour/, and one-line errors for clipped patches, corners outside the image, bad method names and bad inputs.
 
+mod common;
+use common::{lucent, stderr, stdout};
+
 use lucent::imageio::{read_rgb, write_exr, RgbImage};
 use lucent_colour::chart::{draw_chart, Homography, SampleOptions};
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn lucent(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run lucent")
-}
 
 /// `lucent colour calibrate --image IMAGE --corners CORNERS --out OUT EXTRA…`
 fn calibrate(image: &str, corners: &str, out: &Path, extra: &[&str]) -> Output {
@@ -22,13 +18,7 @@ fn calibrate(image: &str, corners: &str, out: &Path, extra: &[&str]) -> Output {
     lucent(&args)
 }
 
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 fn reference() -> Value {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/reference/colour_reference.json");

@@ -550,6 +550,11 @@ impl<'a> Kernel<'a> {
         let phase = &self.setup.slab.medium.phase;
         let sensor = &self.setup.sensor;
         let depth = -p[2];
+        // Below 40 optical depths the direct term is < e^{-40} ≈ 4e-18 of
+        // an event at the surface: skip it (and its phase evaluation).
+        if !self.image_terms && self.mu_t * depth * self.inv_cos_t > 40.0 {
+            return 0.0;
+        }
         let cos_up = dir[0] * self.w21[0] + dir[1] * self.w21[1] + dir[2] * self.w21[2];
         let p_up = phase.eval(cos_up);
         // Straight up: path length |z|/cos θ_t.

@@ -139,7 +139,7 @@ fn cinv(b: Complex64) -> Complex64 {
 /// D_n = −n/z + a₁ + 1/(a₂ + 1/(a₃ + …)), a_k = (−1)^{k+1} 2(ν + k − 1)/z,
 /// evaluated with the modified Lentz algorithm to 1e-15.
 pub fn log_derivative_lentz(z: Complex64, n: usize) -> Complex64 {
-    const TINY: f64 = 1e-300;
+    const TINY: f64 = 1e-150;
     let nu = n as f64 + 0.5;
     let inv_z = z.inv();
     let a = |k: usize| -> Complex64 {
@@ -147,7 +147,7 @@ pub fn log_derivative_lentz(z: Complex64, n: usize) -> Complex64 {
         inv_z * (sign * (nu + k as f64 - 1.0))
     };
     let mut f = a(1);
-    if f.norm() < TINY {
+    if f.norm_sqr() < TINY * TINY {
         f = Complex64::new(TINY, 0.0);
     }
     let mut c = f;
@@ -155,17 +155,17 @@ pub fn log_derivative_lentz(z: Complex64, n: usize) -> Complex64 {
     for k in 2..100_000 {
         let b = a(k);
         d = b + d;
-        if d.norm() < TINY {
+        if d.norm_sqr() < TINY * TINY {
             d = Complex64::new(TINY, 0.0);
         }
-        c = b + c.inv();
-        if c.norm() < TINY {
+        c = b + cinv(c);
+        if c.norm_sqr() < TINY * TINY {
             c = Complex64::new(TINY, 0.0);
         }
-        d = d.inv();
+        d = cinv(d);
         let delta = c * d;
         f *= delta;
-        if (delta - 1.0).norm() < 1e-15 {
+        if (delta - 1.0).norm_sqr() < 1e-30 {
             break;
         }
     }
@@ -189,11 +189,11 @@ impl Coefficients {
     /// Recompute in place for a new sphere (no allocation when the buffers
     /// are already large enough).
     pub fn recompute(&mut self, m: Complex64, x: Complex64) -> Result<(), MieError> {
-        let xabs = x.norm();
+        let xabs = x.norm_sqr().sqrt();
         if !(x.re.is_finite() && x.im.is_finite()) || xabs == 0.0 || x.re <= 0.0 {
             return Err(MieError::SizeParameter(x));
         }
-        if !(m.re.is_finite() && m.im.is_finite()) || m.norm() == 0.0 {
+        if !(m.re.is_finite() && m.im.is_finite()) || m.norm_sqr() == 0.0 {
             return Err(MieError::RelativeIndex(m));
         }
         if xabs > 1e5 {
@@ -207,20 +207,22 @@ impl Coefficients {
         // D_n(y), n = 0 … nstop: start from the continued fraction above the
         // turning point |y| (where it converges in a few terms), then recur
         // downward, D_{n−1} = n/y − 1/(D_n + n/y); store from nstop down.
-        let ya = y.norm();
+        let ya = y.norm_sqr().sqrt();
         let n_start = nstop.max((ya + 4.0 * ya.cbrt() + 16.0).ceil() as usize);
-        self.d.clear();
-        self.d.resize(nstop + 1, Complex64::new(0.0, 0.0));
         let inv_y = y.inv();
         let mut d = log_derivative_lentz(y, n_start);
         for n in (nstop + 1..=n_start).rev() {
             let ny = inv_y * n as f64;
             d = ny - cinv(d + ny);
         }
-        self.d[nstop] = d;
+        // Stored in descending order (no zero-filling): self.d[k] = D_{nstop−k}.
+        self.d.clear();
+        self.d.reserve(nstop + 1);
+        self.d.push(d);
         for n in (1..=nstop).rev() {
             let ny = inv_y * n as f64;
-            self.d[n - 1] = ny - cinv(self.d[n] + ny);
+            d = ny - cinv(d + ny);
+            self.d.push(d);
         }
 
         self.a.clear();
@@ -247,8 +249,9 @@ impl Coefficients {
                 let xi = Complex64::new(psi, -chi);
                 let xi_prev = Complex64::new(psi_prev, -chi_prev);
                 let nx = inv_x * nf;
-                let da = self.d[n] * inv_m + nx;
-                let db = self.d[n] * m + nx;
+                let dn = self.d[nstop - n];
+                let da = dn * inv_m + nx;
+                let db = dn * m + nx;
                 self.a.push(cdiv(da * psi - psi_prev, da * xi - xi_prev));
                 self.b.push(cdiv(db * psi - psi_prev, db * xi - xi_prev));
             }
@@ -271,8 +274,9 @@ impl Coefficients {
                 xi_prev = xi;
                 xi = xi_n;
                 let nx = inv_x * nf;
-                let da = self.d[n] * inv_m + nx;
-                let db = self.d[n] * m + nx;
+                let dn = self.d[nstop - n];
+                let da = dn * inv_m + nx;
+                let db = dn * m + nx;
                 self.a.push(cdiv(da * psi - psi_prev, da * xi - xi_prev));
                 self.b.push(cdiv(db * psi - psi_prev, db * xi - xi_prev));
             }
