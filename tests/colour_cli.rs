@@ -304,3 +304,52 @@ fn bands_of_optical_properties_json_and_of_a_recipe() {
     let o = lucent(&["colour", "bands", "README.md"]);
     assert!(stderr(&o).contains("expected a recipe"), "{}", stderr(&o));
 }
+
+/// `lucent colour calibrate --image IMAGE --out OUT` without --corners: the chart is detected.
+fn calibrate_detected(image: &str, out: &Path) -> Output {
+    lucent(&["colour", "calibrate", "--image", image, "--out", out.to_str().expect("UTF-8 path")])
+}
+
+fn ccm_json(dir: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("ccm.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn calibrate_without_corners_detects_the_real_chart() {
+    let dir = tempfile::tempdir().unwrap();
+    let (auto, given) = (dir.path().join("auto"), dir.path().join("given"));
+    let o = calibrate_detected(PHOTO, &auto);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("chart found by OpenCV mcc: --corners "), "{}", stdout(&o));
+    let o = calibrate(PHOTO, PHOTO_CORNERS, &given, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, g) = (ccm_json(&auto), ccm_json(&given));
+    assert_eq!(a["corners_detected"], true);
+    assert_eq!(g["corners_detected"], false);
+    for k in 0..4 {
+        let (p, q) = (&a["corners"][k], &g["corners"][k]);
+        let d = (p[0].as_f64().unwrap() - q[0].as_f64().unwrap()).hypot(p[1].as_f64().unwrap() - q[1].as_f64().unwrap());
+        assert!(d < 3.0, "corner {}: {p} detected vs {q} given", k + 1);
+    }
+    let (da, dg) = (a["de2000_mean"].as_f64().unwrap(), g["de2000_mean"].as_f64().unwrap());
+    assert!((da - dg).abs() < 0.5, "mean ΔE00 {da} detected vs {dg} given");
+    // Patches in reference order: every patch's own ΔE stays close to the given-corner one.
+    for k in 0..24 {
+        assert_eq!(a["patches"][k]["name"], g["patches"][k]["name"]);
+        let (x, y) = (a["patches"][k]["de2000"].as_f64().unwrap(), g["patches"][k]["de2000"].as_f64().unwrap());
+        assert!((x - y).abs() < 1.5, "patch {}: ΔE00 {x} detected vs {y} given", k + 1);
+    }
+}
+
+#[test]
+fn calibrate_without_corners_on_an_image_without_a_chart_asks_for_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let grey = dir.path().join("grey.exr");
+    write_exr(&grey, &RgbImage::new(160, 120, vec![0.18; 160 * 120 * 3]).unwrap()).unwrap();
+    let o = calibrate_detected(grey.to_str().unwrap(), &dir.path().join("out"));
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("grey.exr") && e.contains("no ColorChecker Classic 24 found") && e.contains("--corners"), "{e}");
+    assert_eq!(e.trim().lines().count(), 1, "{e}");
+    assert!(!dir.path().join("out/ccm.json").exists());
+}

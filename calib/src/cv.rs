@@ -1,7 +1,9 @@
 //! Everything that calls OpenCV (4.6 on Debian, through the `opencv` crate),
 //! and the only module that does: chessboard corners, Zhang calibration,
-//! PnP, and drawing. Every function takes and returns plain Rust values;
-//! `Mat`, `Vector` and OpenCV errors stop here.
+//! PnP, drawing, and ColorChecker detection with the contrib module `mcc`
+//! ([`detect_mcc24`], used by the root crate's `chart_detect`). Every function
+//! takes and returns plain Rust values; `Mat`, `Vector` and OpenCV errors
+//! stop here.
 //!
 //! Corner detection ([`Detector::Auto`], the default): OpenCV's sector-based
 //! detector (`findChessboardCornersSB`, Duda & Frese 2018, flag
@@ -32,6 +34,7 @@ use crate::scene::{BoardSpec, Pose};
 use crate::GrayImage;
 use opencv::core::{self, Mat, Point, Point2f, Point3f, Scalar, Size, TermCriteria, Vector};
 use opencv::prelude::*;
+use opencv::mcc::{MCC_CCheckerDetector, MCC_CCheckerDetectorTrait, MCC_CCheckerTrait, MCC_DetectorParameters, MCC_TYPECHART};
 use opencv::{calib3d, imgcodecs, imgproc};
 use std::path::{Path, PathBuf};
 
@@ -44,6 +47,9 @@ pub enum CalibError {
     OpenCv { context: &'static str, message: String },
     #[error("{0}")]
     Input(String),
+    /// No ColorChecker found (the root crate's `chart_detect::detect_colorchecker`).
+    #[error("no ColorChecker Classic 24 found: {0}")]
+    ChartNotFound(String),
 }
 
 fn cv_err(context: &'static str) -> impl Fn(opencv::Error) -> CalibError {
@@ -492,6 +498,43 @@ pub fn draw_view_png(
     let mut buf = Vector::<u8>::new();
     imgcodecs::imencode(".png", &bgr, &mut buf, &Vector::new()).map_err(cv_err("imencode PNG"))?;
     Ok(buf.to_vec())
+}
+
+/// A ColorChecker Classic 24 found by OpenCV's `mcc` detector (contrib
+/// module, Debian's `libopencv-contrib-dev`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MccChart {
+    /// The four corners of mcc's chart box, pixels, in the order of its model
+    /// box (0, 0), (16.75, 0), (16.75, 11.25), (0, 11.25): the patch grid
+    /// plus a margin of 0.25 (a tenth of a patch side) on every side.
+    pub corners: [[f64; 2]; 4],
+    /// mcc's cost of the fit (lower is better).
+    pub cost: f64,
+}
+
+/// Runs `CCheckerDetector::process` (chart type `MCC24`, one chart, no
+/// neural net, default parameters) on an 8-bit RGB image (`width × height`
+/// interleaved R, G, B bytes); `Ok(None)` when it finds no chart.
+pub fn detect_mcc24(width: usize, height: usize, rgb8: &[u8]) -> Result<Option<MccChart>, CalibError> {
+    if width.checked_mul(height).and_then(|n| n.checked_mul(3)) != Some(rgb8.len()) || width == 0 || height == 0 {
+        return Err(CalibError::Input(format!("RGB buffer of {} bytes for {width} × {height}", rgb8.len())));
+    }
+    let pixels: Vec<core::Vec3b> = rgb8.chunks_exact(3).map(|p| core::Vec3b::from([p[2], p[1], p[0]])).collect();
+    let bgr = Mat::new_rows_cols_with_data(height as i32, width as i32, &pixels).and_then(|m| m.try_clone()).map_err(cv_err("image"))?;
+    let mut detector = MCC_CCheckerDetector::create().map_err(cv_err("mcc CCheckerDetector::create"))?;
+    let params = MCC_DetectorParameters::create().map_err(cv_err("mcc DetectorParameters::create"))?;
+    let found = detector.process(&bgr, MCC_TYPECHART::MCC24, 1, false, &params).map_err(cv_err("mcc CCheckerDetector::process"))?;
+    if !found {
+        return Ok(None);
+    }
+    let mut checker = detector.get_best_color_checker().map_err(cv_err("mcc getBestColorChecker"))?;
+    let b = checker.get_box().map_err(cv_err("mcc CChecker::getBox"))?;
+    if b.len() != 4 {
+        return Ok(None);
+    }
+    let cost = f64::from(checker.get_cost().map_err(cv_err("mcc CChecker::getCost"))?);
+    let p = |k: usize| b.get(k).map(|q| [f64::from(q.x), f64::from(q.y)]).map_err(cv_err("mcc box"));
+    Ok(Some(MccChart { corners: [p(0)?, p(1)?, p(2)?, p(3)?], cost }))
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 //! | [`demosaic`] | Bayer demosaicing: Malvar–He–Cutler (2004), bilinear | as the mosaic |
 //! | [`camera`] | pinhole + Brown–Conrady / rational distortion, projection, undistortion | pixels, metres |
 //! | [`scene`] | board and sample poses, the OpenCV → renderer convention (the only place) | metres |
-//! | [`cv`] | OpenCV: chessboard corners, Zhang calibration, PnP, drawing | pixels |
+//! | [`cv`] | OpenCV: chessboard corners, Zhang calibration, PnP, drawing, `mcc` chart detection | pixels |
 //! | [`env`](mod@env) | equirectangular HDR checks and colour matrices | linear RGB |
 //!
 //! ```

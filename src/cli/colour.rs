@@ -35,8 +35,9 @@ pub struct CalibrateArgs {
     pub image: PathBuf,
     /// Outer corners of the 4 × 6 patch grid in pixels (x right, y down, image edge at 0):
     /// x1,y1,…,x4,y4 for the dark-skin, bluish-green, black and white corners (clockwise in the image).
+    /// Without it the chart is found automatically (OpenCV's mcc detector).
     #[arg(long)]
-    pub corners: String,
+    pub corners: Option<String>,
     /// Name of the camera, stored in ccm.json (default: the image's file name).
     #[arg(long)]
     pub camera: Option<String>,
@@ -166,6 +167,9 @@ pub struct CcmFile {
     pub image: String,
     /// TL, TR, BR, BL outer corners of the patch grid, pixels.
     pub corners: [[f64; 2]; 4],
+    /// The corners were found by OpenCV's mcc detector, not given with --corners.
+    #[serde(default)]
+    pub corners_detected: bool,
     pub method: CcmMethod,
     pub method_description: String,
     /// Terms t(RGB) the matrix columns multiply.
@@ -194,7 +198,7 @@ fn decode_in_place(img: &mut RgbImage) {
 
 fn calibrate(a: CalibrateArgs) -> Result<()> {
     let method: CcmMethod = a.method.parse().context("--method")?;
-    let corners = parse_corners(&a.corners)?;
+    let given_corners = a.corners.as_deref().map(parse_corners).transpose()?;
     let clip = parse_clip_level(&a.clip_level)?;
     let mut img = imageio::read_rgb(&a.image)?;
     let encoding = if a.decode_srgb { InputEncoding::Srgb } else { InputEncoding::Linear };
@@ -212,6 +216,10 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
         clip_level: clip_linear,
         ..SampleOptions::default()
     };
+    let corners = match given_corners {
+        Some(c) => c,
+        None => detect_corners(&img, &options, &a.image)?,
+    };
     let view = ImageRef::new(img.width, img.height, &img.data)?;
     let samples = sample_patches(&view, corners, &options)
         .with_context(|| format!("{}: cannot sample the ColorChecker", a.image.display()))?;
@@ -228,6 +236,7 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
         camera,
         image: a.image.display().to_string(),
         corners,
+        corners_detected: given_corners.is_none(),
         method,
         method_description: method.description().to_string(),
         terms: method.term_names().iter().map(|s| s.to_string()).collect(),
@@ -275,6 +284,26 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
         out.display()
     );
     Ok(())
+}
+
+/// The chart's patch-grid corners found by OpenCV's mcc detector, or an
+/// error that says so and asks for --corners.
+fn detect_corners(img: &RgbImage, options: &SampleOptions, path: &Path) -> Result<[[f64; 2]; 4]> {
+    let buffer = lucent_calib::RgbBuffer::new(img.width, img.height, img.data.clone())?;
+    match crate::chart_detect::detect_colorchecker(&buffer, options) {
+        Ok(d) => {
+            let list = d.corners.iter().flatten().map(|v| format!("{v:.1}")).collect::<Vec<_>>().join(",");
+            println!(
+                "chart found by OpenCV mcc: --corners {list} (patches in reference order: mean ΔE00 {:.2} after a 3 × 3 fit, {:.2} turned round)",
+                d.mean_de2000, d.other_orientation_de2000
+            );
+            Ok(d.corners)
+        }
+        Err(e) => bail!(
+            "{}: {e}; give the chart's corners with --corners x1,y1,x2,y2,x3,y3,x4,y4 (outer corners of the patch grid: dark skin, bluish green, black, white)",
+            path.display()
+        ),
+    }
 }
 
 fn print_delta_e_table(file: &CcmFile) {
