@@ -192,7 +192,13 @@ def main(argv=None) -> int:
         print("(the miepython timings above are still valid; use --no-lucent to skip this step)")
         return 1
     t_l = float(lucent["seconds_per_sphere"])
-    print(f"  lucent           : {t_l:.3e} s/sphere")
+    print(f"  lucent           : {t_l:.3e} s/sphere (one core)")
+    t_all = lucent.get("seconds_per_sphere_all_cores")
+    if isinstance(t_all, (int, float)) and t_all > 0 and "error" not in results["numba"]:
+        print(
+            f"  lucent all cores : {t_all:.3e} s/sphere ({lucent.get('threads')} threads); "
+            f"throughput ratio miepython_numba / lucent = {results['numba']['seconds_per_sphere'] / t_all:.2f}"
+        )
     for backend, label in (("numba", "miepython_numba / lucent"), ("nojit", "miepython_nojit / lucent")):
         res = results[backend]
         if "error" in res:
