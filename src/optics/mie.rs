@@ -134,6 +134,21 @@ fn cinv(b: Complex64) -> Complex64 {
     Complex64::new(b.re * r, -b.im * r)
 }
 
+/// (a_n, b_n) from D_n(y), m, n/x and [ψ_{n−1}, ψ_n], [ξ_{n−1}, ξ_n] of x.
+#[inline(always)]
+fn coefficient_pair(
+    dn: Complex64,
+    m: Complex64,
+    inv_m: Complex64,
+    nx: Complex64,
+    psi: [Complex64; 2],
+    xi: [Complex64; 2],
+) -> (Complex64, Complex64) {
+    let da = dn * inv_m + nx;
+    let db = dn * m + nx;
+    (cdiv(da * psi[1] - psi[0], da * xi[1] - xi[0]), cdiv(db * psi[1] - psi[0], db * xi[1] - xi[0]))
+}
+
 /// D_n(z) = ψ'_n(z)/ψ_n(z) by Lentz's (1976) continued fraction for the
 /// Bessel ratio J_{ν−1}(z)/J_ν(z), ν = n + ½:
 /// D_n = −n/z + a₁ + 1/(a₂ + 1/(a₃ + …)), a_k = (−1)^{k+1} 2(ν + k − 1)/z,
@@ -248,12 +263,11 @@ impl Coefficients {
                 chi = chi_n;
                 let xi = Complex64::new(psi, -chi);
                 let xi_prev = Complex64::new(psi_prev, -chi_prev);
-                let nx = inv_x * nf;
-                let dn = self.d[nstop - n];
-                let da = dn * inv_m + nx;
-                let db = dn * m + nx;
-                self.a.push(cdiv(da * psi - psi_prev, da * xi - xi_prev));
-                self.b.push(cdiv(db * psi - psi_prev, db * xi - xi_prev));
+                let psis = [Complex64::new(psi_prev, 0.0), Complex64::new(psi, 0.0)];
+                let nx = Complex64::new(inv_x * nf, 0.0);
+                let (an, bn) = coefficient_pair(self.d[nstop - n], m, inv_m, nx, psis, [xi_prev, xi]);
+                self.a.push(an);
+                self.b.push(bn);
             }
         } else {
             let inv_x = x.inv();
@@ -273,12 +287,9 @@ impl Coefficients {
                 psi = psi_n;
                 xi_prev = xi;
                 xi = xi_n;
-                let nx = inv_x * nf;
-                let dn = self.d[nstop - n];
-                let da = dn * inv_m + nx;
-                let db = dn * m + nx;
-                self.a.push(cdiv(da * psi - psi_prev, da * xi - xi_prev));
-                self.b.push(cdiv(db * psi - psi_prev, db * xi - xi_prev));
+                let (an, bn) = coefficient_pair(self.d[nstop - n], m, inv_m, inv_x * nf, [psi_prev, psi], [xi_prev, xi]);
+                self.a.push(an);
+                self.b.push(bn);
             }
         }
         let finite = |c: &Complex64| c.re.is_finite() && c.im.is_finite();
