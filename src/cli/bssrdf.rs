@@ -92,7 +92,8 @@ pub struct RunArgs {
     /// Keep only the central N × N pixels (117 when given without a value).
     #[arg(long, num_args = 0..=1, default_missing_value = "117")]
     pub crop: Option<usize>,
-    /// Stop at this relative standard error of the slice sum.
+    /// Stop at this relative standard error of the slice sum (default without
+    /// any stop rule: 0.01, capped at 600 s).
     #[arg(long)]
     pub rel_error: Option<f64>,
     /// Stop after this many light paths.
@@ -218,7 +219,9 @@ fn simulate(a: RunArgs) -> Result<()> {
     // Only the crop is simulated: the pixels outside it would be discarded.
     let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
     let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error };
-    let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), ..stop } } else { stop };
+    // Without a stop rule: 1 % on the slice sum, but at most 10 minutes per
+    // configuration (strongly forward-peaked media converge slowly).
+    let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
     let slab = Slab::new(m.thickness_m, m.medium.clone())?;
     let configs = match &a.configs {
         Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
@@ -241,6 +244,16 @@ fn simulate(a: RunArgs) -> Result<()> {
             ));
         })?;
         bar.finish_and_clear();
+        if let Some(target) = stop.rel_error {
+            let reached = slice.sum_std_error / slice.sum;
+            if reached > target {
+                eprintln!(
+                    "warning: θi {ti}° → θo {to}°: stopped at {:.2} % relative error, before the target {:.2} % (time or path budget)",
+                    100.0 * reached,
+                    100.0 * target
+                );
+            }
+        }
         let summary = Summary {
             config: RunConfig {
                 recipe: a.recipe.as_ref().map(|p| p.display().to_string()),
