@@ -87,6 +87,26 @@ pub struct CrossSections {
     pub g: f64,
 }
 
+/// Σ(2n+1)(|a|²+|b|²), Σ(2n+1)(a+b), Σ(2n+1)(−1)^n(a−b) and the numerator
+/// of g (Bohren & Huffman eqs. 4.61, 4.62, 4.74 at 0° and 180°).
+#[derive(Debug, Clone, Copy, Default)]
+struct SeriesSums {
+    scattering: f64,
+    extinction: Complex64,
+    backscatter: Complex64,
+    asymmetry: f64,
+}
+
+impl SeriesSums {
+    fn g(&self) -> f64 {
+        if self.scattering > 0.0 {
+            2.0 * self.asymmetry / self.scattering
+        } else {
+            0.0
+        }
+    }
+}
+
 /// Lorenz–Mie coefficients a_n, b_n (n = 1 …) of one sphere, with reusable
 /// buffers: [`Coefficients::recompute`] allocates nothing once the buffers
 /// have grown to the largest series length used.
@@ -314,86 +334,64 @@ impl Coefficients {
         self.a.len()
     }
 
-    /// Σ (2n+1)(|a_n|² + |b_n|²).
-    pub fn scattering_sum(&self) -> f64 {
-        self.a
-            .iter()
-            .zip(&self.b)
-            .enumerate()
-            .map(|(k, (a, b))| (2 * k + 3) as f64 * (a.norm_sqr() + b.norm_sqr()))
-            .sum()
-    }
-
-    /// Σ (2n+1)(a_n + b_n) = 2 S₁(0°) = 2 S₂(0°).
-    pub fn extinction_sum(&self) -> Complex64 {
-        self.a
-            .iter()
-            .zip(&self.b)
-            .enumerate()
-            .map(|(k, (a, b))| (a + b) * (2 * k + 3) as f64)
-            .sum()
-    }
-
-    /// Asymmetry parameter g (mean cosine of the scattering angle), from the
-    /// coefficients (Bohren & Huffman eq. 4.62).
-    pub fn asymmetry(&self) -> f64 {
-        let n_terms = self.a.len();
-        let mut num = 0.0;
-        for k in 0..n_terms {
-            let n = (k + 1) as f64;
-            let (a, b) = (self.a[k], self.b[k]);
-            if k + 1 < n_terms {
-                let (a1, b1) = (self.a[k + 1], self.b[k + 1]);
-                num += n * (n + 2.0) / (n + 1.0) * (a * a1.conj() + b * b1.conj()).re;
-            }
-            num += (2.0 * n + 1.0) / (n * (n + 1.0)) * (a * b.conj()).re;
-        }
-        let s = self.scattering_sum();
-        if s > 0.0 {
-            2.0 * num / s
-        } else {
-            0.0
-        }
-    }
-
-    /// Efficiencies in a non-absorbing host, for the real size parameter
-    /// `x` the coefficients were computed with.
-    pub fn efficiencies(&self, x: f64) -> Efficiencies {
-        // One pass: Σ(2n+1)(|a|²+|b|²), Σ(2n+1)(a+b), Σ(2n+1)(−1)^n(a−b) and
-        // the asymmetry numerator.
-        let (mut sca, mut ext, mut back, mut asym) = (0.0, Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0), 0.0);
+    /// The series sums of one sphere, in one pass over the coefficients.
+    fn sums(&self) -> SeriesSums {
+        let mut t = SeriesSums::default();
         let n_terms = self.a.len();
         let mut sign = -1.0;
         for k in 0..n_terms {
             let n = (k + 1) as f64;
             let (a, b) = (self.a[k], self.b[k]);
             let w = 2.0 * n + 1.0;
-            sca += w * (a.norm_sqr() + b.norm_sqr());
-            ext += (a + b) * w;
-            back += (a - b) * (w * sign);
+            t.scattering += w * (a.norm_sqr() + b.norm_sqr());
+            t.extinction += (a + b) * w;
+            t.backscatter += (a - b) * (w * sign);
             sign = -sign;
             if k + 1 < n_terms {
                 let (a1, b1) = (self.a[k + 1], self.b[k + 1]);
-                asym += n * (n + 2.0) / (n + 1.0) * (a.re * a1.re + a.im * a1.im + b.re * b1.re + b.im * b1.im);
+                t.asymmetry += n * (n + 2.0) / (n + 1.0) * (a.re * a1.re + a.im * a1.im + b.re * b1.re + b.im * b1.im);
             }
-            asym += w / (n * (n + 1.0)) * (a.re * b.re + a.im * b.im);
+            t.asymmetry += w / (n * (n + 1.0)) * (a.re * b.re + a.im * b.im);
         }
+        t
+    }
+
+    /// Σ (2n+1)(|a_n|² + |b_n|²).
+    pub fn scattering_sum(&self) -> f64 {
+        self.sums().scattering
+    }
+
+    /// Σ (2n+1)(a_n + b_n) = 2 S₁(0°) = 2 S₂(0°).
+    pub fn extinction_sum(&self) -> Complex64 {
+        self.sums().extinction
+    }
+
+    /// Asymmetry parameter g (mean cosine of the scattering angle), from the
+    /// coefficients (Bohren & Huffman eq. 4.62).
+    pub fn asymmetry(&self) -> f64 {
+        self.sums().g()
+    }
+
+    /// Efficiencies in a non-absorbing host, for the real size parameter
+    /// `x` the coefficients were computed with.
+    pub fn efficiencies(&self, x: f64) -> Efficiencies {
+        let t = self.sums();
         let x2 = x * x;
-        let qsca = 2.0 / x2 * sca;
-        let qext = 2.0 / x2 * ext.re;
-        let g = if sca > 0.0 { 2.0 * asym / sca } else { 0.0 };
-        Efficiencies { qext, qsca, qabs: qext - qsca, qback: back.norm_sqr() / x2, g }
+        let qsca = 2.0 / x2 * t.scattering;
+        let qext = 2.0 / x2 * t.extinction.re;
+        Efficiencies { qext, qsca, qabs: qext - qsca, qback: t.backscatter.norm_sqr() / x2, g: t.g() }
     }
 
     /// Scattering and extinction cross sections [m²] and g for host index
     /// `n_host` at vacuum wavelength `wavelength_m` (Frisvad et al. 2007).
     pub fn cross_sections(&self, wavelength_m: f64, n_host: Complex64) -> CrossSections {
+        let t = self.sums();
         let l2 = wavelength_m * wavelength_m / (2.0 * PI);
         let nh2 = n_host * n_host;
         CrossSections {
-            scattering_m2: l2 / n_host.norm_sqr() * self.scattering_sum(),
-            extinction_m2: l2 * (self.extinction_sum() / nh2).re,
-            g: self.asymmetry(),
+            scattering_m2: l2 / n_host.norm_sqr() * t.scattering,
+            extinction_m2: l2 * (t.extinction / nh2).re,
+            g: t.g(),
         }
     }
 
