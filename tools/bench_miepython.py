@@ -17,9 +17,10 @@ the ratios use the best.
 
 Then (unless ``--no-lucent``) it runs, from the repository root,
 
-    cargo run --release --quiet -- bench mie --cases fixtures/reference/mie_miepython.csv
+    cargo run --release --quiet -- bench mie --cases fixtures/reference/mie_miepython.csv --repeats N
 
-which must print one JSON object on stdout with at least ``seconds_per_sphere``,
+(the same number of repeats, the best of them reported) which must print one
+JSON object on stdout with at least ``seconds_per_sphere``,
 and prints miepython_numba / lucent and miepython_nojit / lucent (how many times
 faster lucent is).  If that command fails or prints no such JSON, the miepython
 numbers are still printed, a message explains what went wrong, and the exit
@@ -135,8 +136,8 @@ def run_backend(backend: str, cases_path: Path, repeats: int) -> dict:
     return res
 
 
-def run_lucent(cases_path: Path):
-    cmd = ["cargo", "run", "--release", "--quiet", "--", "bench", "mie", "--cases", str(cases_path)]
+def run_lucent(cases_path: Path, repeats: int):
+    cmd = ["cargo", "run", "--release", "--quiet", "--", "bench", "mie", "--cases", str(cases_path), "--repeats", str(repeats)]
     print(f"running: {' '.join(cmd)}", flush=True)
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO_ROOT)
@@ -154,7 +155,7 @@ def run_lucent(cases_path: Path):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cases", type=Path, default=DEFAULT_CASES, help="case CSV, relative to the repo root (default: %(default)s)")
-    ap.add_argument("--repeats", type=int, default=5, help="timed repetitions per backend (default: %(default)s)")
+    ap.add_argument("--repeats", type=int, default=20, help="timed repetitions per backend and for lucent (default: %(default)s)")
     ap.add_argument("--no-lucent", action="store_true", help="only time miepython")
     ap.add_argument("--worker", choices=("numba", "nojit"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -186,7 +187,7 @@ def main(argv=None) -> int:
     if args.no_lucent:
         return 0 if all("error" not in r for r in results.values()) else 1
 
-    lucent, err = run_lucent(args.cases)
+    lucent, err = run_lucent(args.cases, args.repeats)
     if lucent is None:
         print(f"lucent benchmark unavailable: {err}")
         print("(the miepython timings above are still valid; use --no-lucent to skip this step)")
