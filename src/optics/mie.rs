@@ -519,8 +519,10 @@ where
 #[derive(Debug)]
 struct PairSums {
     scattering: F2,
-    extinction: C2,
-    backscatter: C2,
+    /// Σ (2n+1) a_n and Σ (2n+1) b_n over even n, and over odd n: their sum
+    /// is the extinction sum, their difference the backscatter sum.
+    even: C2,
+    odd: C2,
     /// Σ n(n+2)/(n+1) Re(a_n a_{n+1}*), the same for b.
     neighbours: F2,
     /// Σ (2n+1)/(n(n+1)) Re(a_n b_n*).
@@ -532,27 +534,58 @@ struct PairSums {
 }
 
 impl PairSums {
-    fn new(nstop: usize) -> Self {
+    /// The sums of a_n, b_n (lanes of `ab`, n = 1 … N), from n = N down,
+    /// two orders (even, then odd) per iteration. A pass of its own: fused
+    /// into the coefficient loop, the accumulators pushed that loop's
+    /// registers onto the stack.
+    fn over(ab: &[C2]) -> SeriesSums {
         let zero = C2::splat(Complex64::new(0.0, 0.0));
-        Self {
+        let n = ab.len();
+        let mut s = PairSums {
             scattering: F2::default(),
-            extinction: zero,
-            backscatter: zero,
+            even: zero,
+            odd: zero,
             neighbours: F2::default(),
             cross: 0.0,
             next: zero,
-            inv_n1: 1.0 / (nstop as f64 + 1.0),
+            inv_n1: 1.0 / (n as f64 + 1.0),
+        };
+        let mut nf = n as f64;
+        let paired = if n % 2 == 1 {
+            s.add::<true>(nf, ab[n - 1]);
+            nf -= 1.0;
+            &ab[..n - 1]
+        } else {
+            ab
+        };
+        for pair in paired.rchunks_exact(2) {
+            s.add::<false>(nf, pair[1]);
+            s.add::<true>(nf - 1.0, pair[0]);
+            nf -= 2.0;
+        }
+        let (e, o) = (s.even, s.odd);
+        SeriesSums {
+            scattering: s.scattering.sum(),
+            extinction: Complex64::new((e.re + o.re).sum(), (e.im + o.im).sum()),
+            // Σ (2n+1)(−1)^n (a_n − b_n): lane 0 minus lane 1 of even − odd.
+            backscatter: Complex64::new(
+                (e.re.0[0] - o.re.0[0]) - (e.re.0[1] - o.re.0[1]),
+                (e.im.0[0] - o.im.0[0]) - (e.im.0[1] - o.im.0[1]),
+            ),
+            asymmetry: s.neighbours.sum() + s.cross,
         }
     }
 
+    /// Adds order n = `nf` (odd when `ODD`).
     #[inline(always)]
-    fn add(&mut self, n: usize, z: C2) {
-        let nf = n as f64;
+    fn add<const ODD: bool>(&mut self, nf: f64, z: C2) {
         let w = 2.0 * nf + 1.0;
         self.scattering = self.scattering + (z.re * z.re + z.im * z.im) * w;
-        self.extinction = self.extinction.add(z.scale(w));
-        // (−1)^n (a_n − b_n): lane 1 is subtracted in `finish`.
-        self.backscatter = self.backscatter.add(z.scale(if n % 2 == 1 { -w } else { w }));
+        if ODD {
+            self.odd = self.odd.add(z.scale(w));
+        } else {
+            self.even = self.even.add(z.scale(w));
+        }
         // Weights n(n+2)/(n+1) = (n+1) − 1/(n+1) and (2n+1)/(n(n+1)) =
         // 1/n + 1/(n+1): one division per term, 1/(n+1) carried over.
         let inv_n = 1.0 / nf;
@@ -561,27 +594,6 @@ impl PairSums {
         self.neighbours = self.neighbours + (z.re * self.next.re + z.im * self.next.im) * (nf + 1.0 - inv_n1);
         self.cross += (inv_n + inv_n1) * (z.re.0[0] * z.re.0[1] + z.im.0[0] * z.im.0[1]);
         self.next = z;
-    }
-
-    /// The sums of a_n, b_n (lanes of `ab`, n = 1 … N), from n = N down. A
-    /// pass of its own: fused into the coefficient loop, the accumulators
-    /// pushed that loop's registers onto the stack.
-    fn over(ab: &[C2]) -> SeriesSums {
-        let mut sums = PairSums::new(ab.len());
-        for (k, z) in ab.iter().enumerate().rev() {
-            sums.add(k + 1, *z);
-        }
-        sums.finish()
-    }
-
-    fn finish(self) -> SeriesSums {
-        let (e, k) = (self.extinction, self.backscatter);
-        SeriesSums {
-            scattering: self.scattering.sum(),
-            extinction: Complex64::new(e.re.sum(), e.im.sum()),
-            backscatter: Complex64::new(k.re.0[0] - k.re.0[1], k.im.0[0] - k.im.0[1]),
-            asymmetry: self.neighbours.sum() + self.cross,
-        }
     }
 }
 
