@@ -240,8 +240,10 @@ impl Sensor {
     #[inline]
     fn index(&self, x: f64, y: f64) -> Option<usize> {
         let half = 0.5 * self.pixels as f64;
-        let c = x / self.pixel_m + half;
-        let r = half - y / self.pixel_m;
+        // 1/pixel_m is loop-invariant in the simulator's loops (hoisted).
+        let inv = 1.0 / self.pixel_m;
+        let c = x * inv + half;
+        let r = half - y * inv;
         if c >= 0.0 && r >= 0.0 && c < self.pixels as f64 && r < self.pixels as f64 {
             Some(r as usize * self.pixels + c as usize)
         } else {
@@ -492,14 +494,12 @@ impl<'a> Kernel<'a> {
         let mut events = 0u64;
         loop {
             let s = -(1.0 - rng.next_f64()).ln() / self.mu_t;
-            let t_boundary = if dir[2] < 0.0 {
-                (p[2] + self.d) / -dir[2]
-            } else if dir[2] > 0.0 {
-                -p[2] / dir[2]
-            } else {
-                f64::INFINITY
-            };
-            if s >= t_boundary {
+            // The boundary ahead is hit when s ≥ gap/|d_z|, tested as
+            // s·|d_z| ≥ gap: the division is needed only on a hit (rare).
+            let dz = dir[2];
+            let gap = if dz < 0.0 { p[2] + self.d } else { -p[2] };
+            if dz != 0.0 && s * dz.abs() >= gap {
+                let t_boundary = gap / dz.abs();
                 p = [p[0] + t_boundary * dir[0], p[1] + t_boundary * dir[1], if dir[2] > 0.0 { 0.0 } else { -self.d }];
                 let f = fresnel::reflectance(dir[2].abs(), 1.0 / self.n);
                 if rng.next_f64() < f {
