@@ -294,7 +294,9 @@ fn hg_sample_cos_theta(g: f64, u: f64) -> f64 {
         hg_sample_small_g(g, u)
     } else {
         let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
-        (1.0 + g * g - s * s) / (2.0 * g)
+        // × 0.5/g rather than ÷ 2g: the factor is loop-invariant in the
+        // simulators and hoisted, a division per sample is not.
+        (1.0 + g * g - s * s) * (0.5 / g)
     };
     mu.clamp(-1.0, 1.0)
 }

@@ -390,6 +390,8 @@ struct Batch {
 struct Kernel<'a> {
     setup: &'a Setup,
     mu_t: f64,
+    /// 1/μ_t, the mean free path [m].
+    inv_mu_t: f64,
     albedo: f64,
     n: f64,
     d: f64,
@@ -446,6 +448,7 @@ impl<'a> Kernel<'a> {
         Ok(Self {
             setup,
             mu_t: m.mu_t_per_m(),
+            inv_mu_t: 1.0 / m.mu_t_per_m(),
             albedo: m.albedo(),
             n,
             d: setup.slab.thickness_m,
@@ -493,7 +496,7 @@ impl<'a> Kernel<'a> {
         let mut total = 0.0;
         let mut events = 0u64;
         loop {
-            let s = -(1.0 - rng.next_f64()).ln() / self.mu_t;
+            let s = -(1.0 - rng.next_f64()).ln() * self.inv_mu_t;
             // The boundary ahead is hit when s ≥ gap/|d_z|, tested as
             // s·|d_z| ≥ gap: the division is needed only on a hit (rare).
             let dz = dir[2];
@@ -528,7 +531,8 @@ impl<'a> Kernel<'a> {
             if let Estimator::Connection = self.estimator {
                 total += self.connect(p, dir, w, image);
             }
-            dir = phase.sample_direction(dir, rng.next_f64(), rng.next_f64());
+            let (u1, u2) = rng.next_f64_pair();
+            dir = phase.sample_direction(dir, u1, u2);
             if w < 0.1 {
                 let survive = w / 0.1;
                 if rng.next_f64() >= survive {
