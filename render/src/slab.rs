@@ -23,7 +23,9 @@
 //! 1 − F, and at every scattering event keep the weight factor μ_s/μ_t
 //! (absorption as weight) before sampling the phase function. Russian
 //! roulette below weight 0.1 survives with probability w/0.1 and resets the
-//! weight to 0.1, which keeps the estimator unbiased.
+//! weight to 0.1, which keeps the estimator unbiased. Connections (below)
+//! from deeper than 8 optical depths along ω₂₁ are Russian-rouletted too:
+//! made with probability e^{−(τ−8)} and weighted by its inverse.
 //!
 //! **Explicit connection.** For a smooth top surface the in-medium direction
 //! that refracts into ω_o is fixed: ω₂₁ with sin θ_t = sin θ_o / n and the
@@ -411,6 +413,10 @@ struct Kernel<'a> {
     fresnel_t: f64,
     /// Whether paths via internal reflections can matter (μ_t d / cos θ_t < 40).
     image_terms: bool,
+    /// Optical depth below which connections are Russian-rouletted, and
+    /// e^{−depth}.
+    roulette_depth: f64,
+    roulette_transmittance: f64,
     omega_o: [f64; 3],
     cone_cos: f64,
     cone_norm: f64,
@@ -463,6 +469,8 @@ impl<'a> Kernel<'a> {
             inv_cos_t: 1.0 / cos_t,
             fresnel_t: 1.0 - t_out,
             image_terms: m.mu_t_per_m() * setup.slab.thickness_m / cos_t < 40.0,
+            roulette_depth: ROULETTE_DEPTH,
+            roulette_transmittance: (-ROULETTE_DEPTH).exp(),
             omega_o,
             cone_cos,
             cone_norm,
@@ -529,7 +537,7 @@ impl<'a> Kernel<'a> {
             events += 1;
             w *= self.albedo;
             if let Estimator::Connection = self.estimator {
-                total += self.connect(p, dir, w, image);
+                total += self.connect(p, dir, w, image, rng);
             }
             let (u1, u2) = rng.next_f64_pair();
             dir = phase.sample_direction(dir, u1, u2);
@@ -550,22 +558,43 @@ impl<'a> Kernel<'a> {
     /// boundaries (Fresnel factor F per reflection), until their weight is
     /// below 1e-9 of the first term's.
     #[inline]
-    fn connect(&self, p: [f64; 3], dir: [f64; 3], w: f64, image: &mut [f64]) -> f64 {
+    fn connect(&self, p: [f64; 3], dir: [f64; 3], w: f64, image: &mut [f64], rng: &mut Rng) -> f64 {
         let phase = &self.setup.slab.medium.phase;
         let sensor = &self.setup.sensor;
         let depth = -p[2];
-        // Below 40 optical depths the direct term is < e^{-40} ≈ 4e-18 of
-        // an event at the surface: skip it (and its phase evaluation).
-        if !self.image_terms && self.mu_t * depth * self.inv_cos_t > 40.0 {
-            return 0.0;
-        }
         let cos_up = dir[0] * self.w21[0] + dir[1] * self.w21[1] + dir[2] * self.w21[2];
+        if !self.image_terms {
+            // Thick slab: only the straight-up term, path length |z|/cos θ_t.
+            let l = depth * self.inv_cos_t;
+            let tau = self.mu_t * l;
+            // Below 40 optical depths the term is < e^{-40} ≈ 4e-18 of an
+            // event at the surface: skipped.
+            if tau > 40.0 {
+                return 0.0;
+            }
+            let Some(i) = sensor.index(p[0] + l * self.w21[0], p[1] + l * self.w21[1]) else {
+                return 0.0;
+            };
+            // Russian roulette below τ_r = ROULETTE_DEPTH: the connection is made
+            // with probability q = e^{−(τ − τ_r)} and then weighted 1/q, so
+            // its transmittance becomes e^{−τ}/q = e^{−τ_r}. Unbiased; it
+            // spares most deep events the phase evaluation and splat, and
+            // the surviving terms are no larger than one at depth τ_r.
+            let transmittance = if tau > self.roulette_depth {
+                if rng.next_f64() >= (self.roulette_depth - tau).exp() {
+                    return 0.0;
+                }
+                self.roulette_transmittance
+            } else {
+                (-tau).exp()
+            };
+            let v = w * phase.eval(cos_up) * transmittance * self.splat;
+            image[i] += v;
+            return v;
+        }
         let p_up = phase.eval(cos_up);
         // Straight up: path length |z|/cos θ_t.
         let mut total = self.splat_at(p, depth * self.inv_cos_t, w * p_up, image, sensor);
-        if !self.image_terms {
-            return total;
-        }
         let cos_down = cos_up - 2.0 * dir[2] * self.w21[2];
         let p_down = phase.eval(cos_down);
         let mut factor = self.fresnel_t;
@@ -616,6 +645,11 @@ impl<'a> Kernel<'a> {
         b
     }
 }
+
+/// Optical depth (along ω₂₁) below which connections are Russian-rouletted
+/// (see `Kernel::connect`): a surviving term weighs e^{−8} ≈ 3.4e-4 of an
+/// unattenuated one, so the added variance is negligible.
+const ROULETTE_DEPTH: f64 = 8.0;
 
 /// Batches per round (fixed, so results do not depend on the thread count).
 const ROUND_BATCHES: u64 = 32;
@@ -727,4 +761,47 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
         diffuse_reflectance: refl / n,
         transmittance: trans / n,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Mean and standard error of the per-path totals of `paths` paths.
+    fn slice_sum(kernel: &Kernel, seed: u64, paths: u64) -> (f64, f64) {
+        let b = kernel.batch(seed, 0, paths);
+        let n = paths as f64;
+        let mean = b.path_sum / n;
+        (mean, ((b.path_sq / n - mean * mean) / (n - 1.0)).sqrt())
+    }
+
+    #[test]
+    fn connection_roulette_is_unbiased() {
+        // Thick, forward-scattering slab (μ_t d ≈ 60): most events lie
+        // deeper than the roulette depth. Same seed, so the paths are the
+        // same until a roulette draw shifts a path's random stream.
+        let medium = Medium::new(1.0e4, 20.0, Phase::henyey_greenstein(0.9).expect("valid g"), 1.5).expect("valid medium");
+        let setup = Setup::new(
+            Slab::new(6.0e-3, medium).expect("valid slab"),
+            Beam::gaussian(200e-6).expect("valid beam"),
+            Sensor::new(65, 0.2e-3).expect("valid sensor"),
+            Directions::from_degrees(45.0, 0.0, 0.0, 180.0).expect("valid directions"),
+        );
+        let mut kernel = Kernel::new(&setup, Estimator::Connection).expect("valid kernel");
+        assert!(!kernel.image_terms);
+        let (default, se_default) = slice_sum(&kernel, 3, 20_000);
+        kernel.roulette_depth = f64::INFINITY;
+        let (without, se_without) = slice_sum(&kernel, 4, 20_000);
+        // Roulette from one optical depth on: most of the slice goes through
+        // it, so a wrong weight would show.
+        kernel.roulette_depth = 1.0;
+        kernel.roulette_transmittance = (-1.0f64).exp();
+        let (shallow, se_shallow) = slice_sum(&kernel, 5, 20_000);
+        for (name, with, se_with) in [("default", default, se_default), ("τ_r = 1", shallow, se_shallow)] {
+            let z = (with - without) / (se_with * se_with + se_without * se_without).sqrt();
+            assert!(z.abs() < 4.0, "{name}: with roulette {with} ± {se_with}, without {without} ± {se_without} (z = {z})");
+        }
+        let se_with = se_default;
+        assert!(se_with < 1.2 * se_without, "standard error {se_with} vs {se_without}");
+    }
 }
