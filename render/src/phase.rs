@@ -177,15 +177,44 @@ impl Phase {
     /// rounding) whose solid-angle density is `eval(result · incident)`.
     #[inline]
     pub fn sample_direction(&self, incident: [f64; 3], u1: f64, u2: f64) -> [f64; 3] {
+        self.sample_angles(u1, u2).turn(incident)
+    }
+
+    /// The scattering angles of [`sample_direction`](Self::sample_direction)
+    /// alone: they depend on the random numbers only, so a simulator can draw
+    /// them before it knows the incident direction (their latency then
+    /// overlaps other work).
+    #[inline]
+    pub fn sample_angles(&self, u1: f64, u2: f64) -> ScatteringAngles {
         let cos_theta = self.sample_cos_theta(u1);
         let sin_theta = ((1.0 - cos_theta) * (1.0 + cos_theta)).max(0.0).sqrt();
         let (sin_phi, cos_phi) = sin_cos_turns(u2);
+        ScatteringAngles { cos_theta, sin_theta, cos_phi, sin_phi }
+    }
+}
+
+/// Polar angle θ from the incident direction and azimuth φ about it, as
+/// cosines and sines.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScatteringAngles {
+    pub cos_theta: f64,
+    pub sin_theta: f64,
+    pub cos_phi: f64,
+    pub sin_phi: f64,
+}
+
+impl ScatteringAngles {
+    /// The direction at these angles from the unit vector `incident`, φ
+    /// measured in the frame of [`orthonormal_basis`]`(incident)`.
+    #[inline]
+    pub fn turn(&self, incident: [f64; 3]) -> [f64; 3] {
         let (t, b) = orthonormal_basis(incident);
-        let (x, y) = (sin_theta * cos_phi, sin_theta * sin_phi);
+        let (x, y) = (self.sin_theta * self.cos_phi, self.sin_theta * self.sin_phi);
+        let c = self.cos_theta;
         [
-            x * t[0] + y * b[0] + cos_theta * incident[0],
-            x * t[1] + y * b[1] + cos_theta * incident[1],
-            x * t[2] + y * b[2] + cos_theta * incident[2],
+            x * t[0] + y * b[0] + c * incident[0],
+            x * t[1] + y * b[1] + c * incident[1],
+            x * t[2] + y * b[2] + c * incident[2],
         ]
     }
 }

@@ -505,6 +505,11 @@ impl<'a> Kernel<'a> {
         let mut events = 0u64;
         loop {
             let s = -(1.0 - rng.next_f64()).ln() * self.inv_mu_t;
+            // The angles of this event's scattering, drawn first: they need
+            // only random numbers, and their latency overlaps the flight and
+            // the connection. (On a boundary hit they are discarded.)
+            let (u1, u2) = rng.next_f64_pair();
+            let angles = phase.sample_angles(u1, u2);
             // The boundary ahead is hit when s ≥ gap/|d_z|, tested as
             // s·|d_z| ≥ gap: the division is needed only on a hit (rare).
             let dz = dir[2];
@@ -539,8 +544,7 @@ impl<'a> Kernel<'a> {
             if let Estimator::Connection = self.estimator {
                 total += self.connect(p, dir, w, image, rng);
             }
-            let (u1, u2) = rng.next_f64_pair();
-            dir = phase.sample_direction(dir, u1, u2);
+            dir = angles.turn(dir);
             if w < 0.1 {
                 let survive = w / 0.1;
                 if rng.next_f64() >= survive {
