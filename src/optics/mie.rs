@@ -168,7 +168,6 @@ trait Scalar:
     + std::ops::Sub<Output = Self>
     + std::ops::Mul<Output = Self>
     + std::ops::Mul<f64, Output = Self>
-    + std::ops::Div<Output = Self>
 {
     /// Whether [`DownwardOrders`] pairs the steps of its serial chain where
     /// work is done on every order (measured: faster for real, slower for
