@@ -782,8 +782,8 @@ mod tests {
     #[test]
     fn connection_roulette_is_unbiased() {
         // Thick, forward-scattering slab (μ_t d ≈ 60): most events lie
-        // deeper than the roulette depth. Same seed, so the paths are the
-        // same until a roulette draw shifts a path's random stream.
+        // deeper than the roulette depth. Each run has its own seed, so the
+        // three estimates are independent.
         let medium = Medium::new(1.0e4, 20.0, Phase::henyey_greenstein(0.9).expect("valid g"), 1.5).expect("valid medium");
         let setup = Setup::new(
             Slab::new(6.0e-3, medium).expect("valid slab"),

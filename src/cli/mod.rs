@@ -422,7 +422,7 @@ fn bench(b: BenchCommand) -> Result<()> {
                 "benchmark": "mie efficiencies (qext, qsca, qback, g)",
                 "cases": cases.len(),
                 "repeats": repeats,
-                "statistic": "best of the repeats, each 8 passes over the cases",
+                "statistic": format!("best of the repeats, each {PASSES} passes over the cases"),
                 "seconds_per_sphere": one / n,
                 "spheres_per_second": n / one,
                 "threads": rayon::current_num_threads(),

@@ -129,8 +129,6 @@ pub struct Coefficients {
     /// [ψ_n, ξ_n] of a complex size parameter, n = 0 … N.
     riccati: Vec<[Complex64; 2]>,
     sums: SeriesSums,
-    x: Complex64,
-    m: Complex64,
 }
 
 /// Series length for size parameter magnitude `x`: Wiscombe's (1979)
@@ -362,10 +360,16 @@ fn riccati_complex(x: Complex64, nstop: usize, out: &mut Vec<[Complex64; 2]>) {
 /// pair is rescaled when it leaves [1e−100, 1e100].
 #[inline(always)]
 fn downward_step<T: Scalar>(p: &mut T, q: &mut T, ny: T) {
-    let q1 = *p + ny * *q;
-    *p = ny * q1 - *q;
-    *q = q1;
+    (*p, *q) = step_pair(*p, *q, ny);
     rescale(p, q);
+}
+
+/// The projective step of [`downward_step`] without the rescaling:
+/// (p, q) ↦ ((n/y) q′ − q, q′) with q′ = p + (n/y) q.
+#[inline(always)]
+fn step_pair<T: Scalar>(p: T, q: T, ny: T) -> (T, T) {
+    let q1 = p + ny * q;
+    (ny * q1 - q, q1)
 }
 
 /// Two downward steps at once, D_n → D_{n−2}, with `a` = n/y and
@@ -439,9 +443,7 @@ impl<T: Scalar> Iterator for DownwardOrders<T> {
         let out = (self.p, self.q);
         if T::PAIRED_STEPS && self.n >= 2 {
             let a = self.inv_y * self.n as f64;
-            let q1 = self.p + a * self.q;
-            let p1 = a * q1 - self.q;
-            self.pending = Some((p1, q1));
+            self.pending = Some(step_pair(self.p, self.q, a));
             downward_two(&mut self.p, &mut self.q, a, self.inv_y * (self.n - 1) as f64);
             self.n -= 2;
         } else {
@@ -458,7 +460,7 @@ fn reset(ab: &mut Vec<C2>, nstop: usize) {
     ab.resize(nstop, C2::splat(Complex64::new(0.0, 0.0)));
 }
 
-/// a_n, b_n for n = 1 … N into `a`, `b`, and their series sums, for a real
+/// a_n, b_n for n = 1 … N into `ab` (lanes 0 and 1), and their series sums, for a real
 /// m and a real x (D_n(y) real): D_n(y) by downward recurrence from
 /// D_{n_start} = `d_start`, ψ_n, χ_n of x from `riccati` (orders 0 … N).
 ///
@@ -668,8 +670,6 @@ impl Coefficients {
         if xabs > 1e5 {
             return Err(MieError::TooLarge(xabs));
         }
-        self.x = x;
-        self.m = m;
         let nstop = wiscombe_terms(xabs);
         let y = m * x;
         // D_n(y) starts from the continued fraction at or just above the
