@@ -5,4 +5,6 @@
 pub mod fresnel;
 pub mod phase;
 pub mod rng;
+#[cfg(target_arch = "x86_64")]
+mod simd;
 pub mod slab;

@@ -1,0 +1,228 @@
+//! The connection estimator four paths at a time (AVX2 + FMA, see
+//! [`crate::simd`]).
+//!
+//! Each lane runs the random walk of `Kernel::trace` for one path: the same
+//! random numbers from the path's own stream in the same order, the same
+//! decisions and, apart from ln, exp, sin and cos (a few ulp), the same
+//! arithmetic. So a batch gives the scalar kernel's result to rounding
+//! (tested in `slab::tests`). What runs in vector instructions is the work of
+//! every scattering event: the free path, the scattering angles and the new
+//! direction, and the connection's geometry, pixel, phase function and
+//! transmittance. What stays per lane is the random numbers, boundary hits
+//! (rare), the splat into the image and the roulettes. A lane whose path
+//! ends takes the batch's next path, so all four stay busy until the batch
+//! runs out.
+
+use super::{survives_roulette, Batch, Crossing, Kernel};
+use crate::phase::lanes::{Angles, Hg};
+use crate::phase::Phase;
+use crate::rng::Rng;
+use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4, M4};
+
+/// The lanes' paths: position, direction and weight in vector layout, the
+/// rest per lane.
+struct Paths {
+    p: [Lanes; 3],
+    dir: [Lanes; 3],
+    w: Lanes,
+    /// Σ of the path's splats, per lane.
+    total: [f64; 4],
+    rng: [Rng; 4],
+    /// Bit l set while lane l carries a path.
+    live: u32,
+    /// The next path of the batch, and the end of the batch.
+    next: u64,
+    end: u64,
+    seed: u64,
+}
+
+/// The set bits of `bits`, lowest first.
+fn lanes_of(mut bits: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (bits != 0).then(|| {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            l
+        })
+    })
+}
+
+impl Kernel<'_> {
+    /// Starts the batch's next path in lane `l`, or retires the lane when
+    /// the batch is done.
+    fn start_lane(&self, paths: &mut Paths, l: usize) {
+        if paths.next >= paths.end {
+            paths.live &= !(1 << l);
+            return;
+        }
+        let mut rng = Rng::new(paths.seed, paths.next);
+        paths.next += 1;
+        let (x0, y0) = self.entry_point(&mut rng);
+        for (k, v) in [x0, y0, 0.0].into_iter().enumerate() {
+            paths.p[k].0[l] = v;
+            paths.dir[k].0[l] = self.entry_dir[k];
+        }
+        paths.w.0[l] = self.entry_weight;
+        paths.total[l] = 0.0;
+        paths.rng[l] = rng;
+        paths.live |= 1 << l;
+    }
+
+    /// Ends lane `l`'s path (its tallies into `b`) and starts the next.
+    fn end_lane(&self, paths: &mut Paths, b: &mut Batch, l: usize, reflected: f64, transmitted: f64) {
+        let t = paths.total[l];
+        b.path_sum += t;
+        b.path_sq += t * t;
+        b.reflected += reflected;
+        b.transmitted += transmitted;
+        self.start_lane(paths, l);
+    }
+
+    /// `Kernel::batch` for the connection estimator, four paths at a time.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) fn batch_lanes(&self, seed: u64, first_path: u64, count: u64) -> Batch {
+        let sensor = &self.setup.sensor;
+        let phase = &self.setup.slab.medium.phase;
+        let hg = match phase {
+            Phase::HenyeyGreenstein { g } => Hg::new(*g),
+            Phase::Tabulated(_) => None,
+        };
+        let npix = sensor.pixels;
+        let mut b = Batch { image: vec![0.0; npix * npix], path_sum: 0.0, path_sq: 0.0, events: 0, reflected: 0.0, transmitted: 0.0 };
+        let mut paths = Paths {
+            p: [Lanes::default(); 3],
+            dir: [Lanes::default(); 3],
+            w: Lanes::default(),
+            total: [0.0; 4],
+            rng: std::array::from_fn(|_| Rng::new(seed, first_path)),
+            live: 0,
+            next: first_path,
+            end: first_path + count,
+            seed,
+        };
+        for l in 0..4 {
+            self.start_lane(&mut paths, l);
+        }
+        let (zero, one) = (F4::splat(0.0), F4::splat(1.0));
+        let w21 = self.w21.map(F4::splat);
+        let half = 0.5 * npix as f64;
+        let inv_pixel = 1.0 / sensor.pixel_m;
+        while paths.live != 0 {
+            let live = paths.live;
+            // Random numbers: the free path's, then the angles' (as `trace`),
+            // drawn in every lane (an idle lane's generator is discarded when
+            // the lane takes a new path) and made uniform in the vector unit.
+            let raw_s: [u64; 4] = std::array::from_fn(|l| paths.rng[l].next_u64());
+            let raw_angles: [u64; 4] = std::array::from_fn(|l| paths.rng[l].next_u64());
+            let s = -(one - unit_f64(raw_s)).ln() * F4::splat(self.inv_mu_t);
+            let (u1, u2) = unit_pair(raw_angles);
+            let angles = match &hg {
+                Some(hg) => hg.sample_angles(u1, u2),
+                None => {
+                    let (u1, u2) = (u1.lanes(), u2.lanes());
+                    let mut a = [Lanes([1.0; 4]), Lanes([0.0; 4]), Lanes([1.0; 4]), Lanes([0.0; 4])];
+                    for l in lanes_of(live) {
+                        let s = phase.sample_angles(u1.0[l], u2.0[l]);
+                        (a[0].0[l], a[1].0[l], a[2].0[l], a[3].0[l]) = (s.cos_theta, s.sin_theta, s.cos_phi, s.sin_phi);
+                    }
+                    let [cos_theta, sin_theta, cos_phi, sin_phi] = a.map(|x| F4::load(&x));
+                    Angles { cos_theta, sin_theta, cos_phi, sin_phi }
+                }
+            };
+
+            // Boundary hits, per lane (as `trace`).
+            let pz = F4::load(&paths.p[2]);
+            let dz = F4::load(&paths.dir[2]);
+            let gap = dz.lt(zero).select(pz + F4::splat(self.d), -pz);
+            let hit = (dz.ne(zero) & (s * dz.abs()).ge(gap)).bits() & live;
+            if hit != 0 {
+                let gap = gap.lanes();
+                for l in lanes_of(hit) {
+                    let mut p = paths.p.map(|c| c.0[l]);
+                    let mut dir = paths.dir.map(|c| c.0[l]);
+                    let crossing = self.cross(&mut p, &mut dir, gap.0[l], &mut paths.rng[l]);
+                    for k in 0..3 {
+                        paths.p[k].0[l] = p[k];
+                        paths.dir[k].0[l] = dir[k];
+                    }
+                    let w = paths.w.0[l];
+                    match crossing {
+                        Crossing::Reflected => {}
+                        Crossing::LeftTop => self.end_lane(&mut paths, &mut b, l, w, 0.0),
+                        Crossing::LeftBottom => self.end_lane(&mut paths, &mut b, l, 0.0, w),
+                    }
+                }
+            }
+            // The scattering event, in the lanes without a hit.
+            let ev = live & !hit;
+            if ev == 0 {
+                continue;
+            }
+            let on = M4::from_bits(ev);
+            let dir = paths.dir.each_ref().map(F4::load);
+            let mut p = paths.p.each_ref().map(F4::load);
+            for k in 0..3 {
+                p[k] = on.select(p[k] + s * dir[k], p[k]);
+                p[k].store(&mut paths.p[k]);
+            }
+            let w = F4::load(&paths.w);
+            let w = on.select(w * F4::splat(self.albedo), w);
+            w.store(&mut paths.w);
+            b.events += u64::from(ev.count_ones());
+
+            if self.image_terms {
+                // Thin slab: the image terms' loop, per lane.
+                for l in lanes_of(ev) {
+                    let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
+                    paths.total[l] += self.connect(pl, dl, paths.w.0[l], &mut b.image, &mut paths.rng[l]);
+                }
+            } else {
+                // Thick slab: `connect`'s straight-up term.
+                let l = -p[2] * F4::splat(self.inv_cos_t);
+                let tau = F4::splat(self.mu_t) * l;
+                let c = (p[0] + l * w21[0]) * F4::splat(inv_pixel) + F4::splat(half);
+                let r = F4::splat(half) - (p[1] + l * w21[1]) * F4::splat(inv_pixel);
+                let n = F4::splat(npix as f64);
+                let inside = tau.le(F4::splat(40.0)) & c.ge(zero) & r.ge(zero) & c.lt(n) & r.lt(n);
+                let made = inside.bits() & ev;
+                if made != 0 {
+                    let depth = F4::splat(self.roulette_depth);
+                    let e = tau.gt(depth).select(depth - tau, -tau).exp().lanes();
+                    let cos_up = dir[0] * w21[0] + dir[1] * w21[1] + dir[2] * w21[2];
+                    let wp = match &hg {
+                        Some(hg) => (w * hg.eval(cos_up)).lanes(),
+                        None => {
+                            let (w, cos_up) = (w.lanes(), cos_up.lanes());
+                            let mut wp = Lanes::default();
+                            for l in lanes_of(made) {
+                                wp.0[l] = w.0[l] * phase.eval(cos_up.0[l]);
+                            }
+                            wp
+                        }
+                    };
+                    let tau = tau.lanes();
+                    let pixel = to_i32(r.floor() * n + c.floor());
+                    for l in lanes_of(made) {
+                        let t = self.connection_transmittance(tau.0[l], e.0[l], &mut paths.rng[l]);
+                        if t != 0.0 {
+                            let v = wp.0[l] * t * self.splat;
+                            b.image[pixel[l] as usize] += v;
+                            paths.total[l] += v;
+                        }
+                    }
+                }
+            }
+
+            let turned = angles.turn(dir);
+            for k in 0..3 {
+                on.select(turned[k], dir[k]).store(&mut paths.dir[k]);
+            }
+            for l in lanes_of(w.lt(F4::splat(0.1)).bits() & ev) {
+                if !survives_roulette(&mut paths.w.0[l], &mut paths.rng[l]) {
+                    self.end_lane(&mut paths, &mut b, l, 0.0, 0.0);
+                }
+            }
+        }
+        b
+    }
+}
