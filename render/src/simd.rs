@@ -191,16 +191,6 @@ impl M4 {
         unsafe { _mm256_movemask_pd(self.0) as u32 }
     }
 
-    /// The mask of the set bits of `bits` (lane i ↔ bit i).
-    #[inline(always)]
-    pub fn from_bits(bits: u32) -> M4 {
-        unsafe {
-            let b = _mm256_set1_epi64x(bits as i64);
-            let sel = _mm256_set_epi64x(8, 4, 2, 1);
-            M4(_mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(b, sel), sel)))
-        }
-    }
-
     /// `a` where true, `b` where false.
     #[inline(always)]
     pub fn select(self, a: F4, b: F4) -> F4 {
@@ -402,9 +392,6 @@ mod tests {
         }
         #[target_feature(enable = "avx2,fma")]
         fn check() {
-            for bits in 0..16 {
-                assert_eq!(M4::from_bits(bits).bits(), bits);
-            }
             let a = F4::load(&Lanes([1.0, -2.0, 3.0, -0.0]));
             let b = F4::splat(0.5);
             assert_eq!(a.lt(b).bits(), 0b1010);

@@ -388,6 +388,15 @@ struct Batch {
     transmitted: f64,
 }
 
+impl Batch {
+    /// Empty tallies with `image` (a buffer to reuse) zeroed for `pixels`².
+    fn new(mut image: Vec<f64>, pixels: usize) -> Self {
+        image.clear();
+        image.resize(pixels * pixels, 0.0);
+        Batch { image, path_sum: 0.0, path_sq: 0.0, events: 0, reflected: 0.0, transmitted: 0.0 }
+    }
+}
+
 /// Precomputed constants of a run.
 struct Kernel<'a> {
     setup: &'a Setup,
@@ -666,19 +675,19 @@ impl<'a> Kernel<'a> {
     /// at a time in vector lanes where the CPU allows and the estimator is
     /// the connection ([`lanes`]), otherwise one at a time. The two agree to
     /// rounding.
-    fn batch(&self, seed: u64, first_path: u64, paths: u64) -> Batch {
+    /// `image` is a buffer to reuse (its contents are discarded).
+    fn batch(&self, seed: u64, first_path: u64, paths: u64, image: Vec<f64>) -> Batch {
         #[cfg(target_arch = "x86_64")]
         if self.lanes {
             // SAFETY: `lanes` is set only when the CPU has AVX2 and FMA.
-            return unsafe { self.batch_lanes(seed, first_path, paths) };
+            return unsafe { self.batch_lanes(seed, first_path, paths, image) };
         }
-        self.batch_scalar(seed, first_path, paths)
+        self.batch_scalar(seed, first_path, paths, image)
     }
 
     /// [`batch`](Self::batch) one path at a time.
-    fn batch_scalar(&self, seed: u64, first_path: u64, paths: u64) -> Batch {
-        let n = self.setup.sensor.pixels;
-        let mut b = Batch { image: vec![0.0; n * n], path_sum: 0.0, path_sq: 0.0, events: 0, reflected: 0.0, transmitted: 0.0 };
+    fn batch_scalar(&self, seed: u64, first_path: u64, paths: u64, image: Vec<f64>) -> Batch {
+        let mut b = Batch::new(image, self.setup.sensor.pixels);
         for k in 0..paths {
             let mut rng = Rng::new(seed, first_path + k);
             let (t, e, r, tr) = self.trace(&mut rng, &mut b.image);
@@ -741,6 +750,7 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
     let mut raw = vec![0.0; npix];
     let (mut path_sum, mut path_sq, mut events, mut refl, mut trans) = (0.0, 0.0, 0u64, 0.0, 0.0);
     let mut batches = 0u64;
+    let mut pool: Vec<Vec<f64>> = Vec::new();
     let start = Instant::now();
     let rel_err = |paths: u64, s: f64, sq: f64| {
         let n = paths as f64;
@@ -761,30 +771,46 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
         if round == 0 {
             break;
         }
-        let results: Vec<(u64, Batch)> = (batches..batches + round)
+        // Batch images are reused from round to round (no allocation and no
+        // page faults), and merged in parallel over pixel chunks, each pixel
+        // taking the batches in order (so the sums do not depend on the
+        // thread count).
+        let buffers: Vec<Vec<f64>> = (0..round).map(|_| pool.pop().unwrap_or_default()).collect();
+        let results: Vec<(u64, Batch)> = buffers
             .into_par_iter()
-            .map(|b| {
-                let first = b * batch_paths;
+            .enumerate()
+            .map(|(k, image)| {
+                let first = (batches + k as u64) * batch_paths;
                 let count = match stop.paths {
                     Some(max) => batch_paths.min(max - first),
                     None => batch_paths,
                 };
-                (count, kernel.batch(options.seed, first, count))
+                (count, kernel.batch(options.seed, first, count, image))
             })
             .collect();
-        for (count, b) in results {
-            let scale = 1.0 / count as f64;
-            for (((s, q), r), v) in sum_b.iter_mut().zip(sq_b.iter_mut()).zip(raw.iter_mut()).zip(&b.image) {
-                let m = v * scale;
-                *s += m;
-                *q += m * m;
-                *r += v;
-            }
+        const CHUNK: usize = 4096;
+        sum_b.par_chunks_mut(CHUNK).zip(sq_b.par_chunks_mut(CHUNK)).zip(raw.par_chunks_mut(CHUNK)).enumerate().for_each(
+            |(c, ((sum_b, sq_b), raw))| {
+                let at = c * CHUNK;
+                for (count, b) in &results {
+                    let scale = 1.0 / *count as f64;
+                    let image = &b.image[at..at + sum_b.len()];
+                    for (((s, q), r), v) in sum_b.iter_mut().zip(sq_b.iter_mut()).zip(raw.iter_mut()).zip(image) {
+                        let m = v * scale;
+                        *s += m;
+                        *q += m * m;
+                        *r += v;
+                    }
+                }
+            },
+        );
+        for (_, b) in results {
             path_sum += b.path_sum;
             path_sq += b.path_sq;
             events += b.events;
             refl += b.reflected;
             trans += b.transmitted;
+            pool.push(b.image);
         }
         batches += round;
         let paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
@@ -836,7 +862,7 @@ mod tests {
 
     /// Mean and standard error of the per-path totals of `paths` paths.
     fn slice_sum(kernel: &Kernel, seed: u64, paths: u64) -> (f64, f64) {
-        let b = kernel.batch(seed, 0, paths);
+        let b = kernel.batch(seed, 0, paths, Vec::new());
         let n = paths as f64;
         let mean = b.path_sum / n;
         (mean, ((b.path_sq / n - mean * mean) / (n - 1.0)).sqrt())
@@ -908,9 +934,9 @@ mod tests {
             let kernel = Kernel::new(&setup, Estimator::Connection).expect("valid kernel");
             assert!(kernel.lanes, "{name}");
             let paths = 3001; // not a multiple of four: lanes retire at the end
-            let scalar = kernel.batch_scalar(9, 100, paths);
+            let scalar = kernel.batch_scalar(9, 100, paths, Vec::new());
             // SAFETY: AVX2 and FMA are present (checked above).
-            let lanes = unsafe { kernel.batch_lanes(9, 100, paths) };
+            let lanes = unsafe { kernel.batch_lanes(9, 100, paths, Vec::new()) };
             assert_eq!(lanes.events, scalar.events, "{name}: events");
             let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-9 * scale;
             assert!(scalar.path_sum > 0.0, "{name}: empty slice");

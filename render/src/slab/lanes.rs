@@ -17,7 +17,7 @@ use super::{survives_roulette, Batch, Crossing, Kernel};
 use crate::phase::lanes::{Angles, Hg};
 use crate::phase::Phase;
 use crate::rng::Rng;
-use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4, M4};
+use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4};
 
 /// The lanes' paths: position, direction and weight in vector layout, the
 /// rest per lane.
@@ -80,7 +80,7 @@ impl Kernel<'_> {
 
     /// `Kernel::batch` for the connection estimator, four paths at a time.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) fn batch_lanes(&self, seed: u64, first_path: u64, count: u64) -> Batch {
+    pub(super) fn batch_lanes(&self, seed: u64, first_path: u64, count: u64, image: Vec<f64>) -> Batch {
         let sensor = &self.setup.sensor;
         let phase = &self.setup.slab.medium.phase;
         let hg = match phase {
@@ -88,7 +88,7 @@ impl Kernel<'_> {
             Phase::Tabulated(_) => None,
         };
         let npix = sensor.pixels;
-        let mut b = Batch { image: vec![0.0; npix * npix], path_sum: 0.0, path_sq: 0.0, events: 0, reflected: 0.0, transmitted: 0.0 };
+        let mut b = Batch::new(image, npix);
         let mut paths = Paths {
             p: [Lanes::default(); 3],
             dir: [Lanes::default(); 3],
@@ -130,43 +130,25 @@ impl Kernel<'_> {
                 }
             };
 
-            // Boundary hits, per lane (as `trace`).
+            // Which lanes reach a boundary before scattering (as `trace`).
             let pz = F4::load(&paths.p[2]);
             let dz = F4::load(&paths.dir[2]);
             let gap = dz.lt(zero).select(pz + F4::splat(self.d), -pz);
             let hit = (dz.ne(zero) & (s * dz.abs()).ge(gap)).bits() & live;
-            if hit != 0 {
-                let gap = gap.lanes();
-                for l in lanes_of(hit) {
-                    let mut p = paths.p.map(|c| c.0[l]);
-                    let mut dir = paths.dir.map(|c| c.0[l]);
-                    let crossing = self.cross(&mut p, &mut dir, gap.0[l], &mut paths.rng[l]);
-                    for k in 0..3 {
-                        paths.p[k].0[l] = p[k];
-                        paths.dir[k].0[l] = dir[k];
-                    }
-                    let w = paths.w.0[l];
-                    match crossing {
-                        Crossing::Reflected => {}
-                        Crossing::LeftTop => self.end_lane(&mut paths, &mut b, l, w, 0.0),
-                        Crossing::LeftBottom => self.end_lane(&mut paths, &mut b, l, 0.0, w),
-                    }
-                }
-            }
-            // The scattering event, in the lanes without a hit.
+            // The scattering event runs in all four lanes, stored without
+            // masks (a masked store is slow and spoils store forwarding); a
+            // lane with a hit gets its state back below and crosses the
+            // boundary instead, and idle lanes' values are never used. The
+            // splats and roulettes are per lane, in the lanes of `ev` only.
+            let before_hit = (hit != 0).then_some((paths.p, paths.dir, paths.w));
             let ev = live & !hit;
-            if ev == 0 {
-                continue;
-            }
-            let on = M4::from_bits(ev);
             let dir = paths.dir.each_ref().map(F4::load);
             let mut p = paths.p.each_ref().map(F4::load);
             for k in 0..3 {
-                p[k] = on.select(p[k] + s * dir[k], p[k]);
+                p[k] = p[k] + s * dir[k];
                 p[k].store(&mut paths.p[k]);
             }
-            let w = F4::load(&paths.w);
-            let w = on.select(w * F4::splat(self.albedo), w);
+            let w = F4::load(&paths.w) * F4::splat(self.albedo);
             w.store(&mut paths.w);
             b.events += u64::from(ev.count_ones());
 
@@ -215,11 +197,32 @@ impl Kernel<'_> {
 
             let turned = angles.turn(dir);
             for k in 0..3 {
-                on.select(turned[k], dir[k]).store(&mut paths.dir[k]);
+                turned[k].store(&mut paths.dir[k]);
             }
             for l in lanes_of(w.lt(F4::splat(0.1)).bits() & ev) {
                 if !survives_roulette(&mut paths.w.0[l], &mut paths.rng[l]) {
                     self.end_lane(&mut paths, &mut b, l, 0.0, 0.0);
+                }
+            }
+            // Boundary hits, per lane (as `trace`), from the state before
+            // the event.
+            if let Some((p_before, dir_before, w_before)) = before_hit {
+                let gap = gap.lanes();
+                for l in lanes_of(hit) {
+                    let mut p = p_before.map(|c| c.0[l]);
+                    let mut dir = dir_before.map(|c| c.0[l]);
+                    let crossing = self.cross(&mut p, &mut dir, gap.0[l], &mut paths.rng[l]);
+                    for k in 0..3 {
+                        paths.p[k].0[l] = p[k];
+                        paths.dir[k].0[l] = dir[k];
+                    }
+                    let w = w_before.0[l];
+                    paths.w.0[l] = w;
+                    match crossing {
+                        Crossing::Reflected => {}
+                        Crossing::LeftTop => self.end_lane(&mut paths, &mut b, l, w, 0.0),
+                        Crossing::LeftBottom => self.end_lane(&mut paths, &mut b, l, 0.0, w),
+                    }
                 }
             }
         }
