@@ -185,6 +185,9 @@ pub struct Summary {
     pub paths: u64,
     pub events: u64,
     pub events_per_s: f64,
+    /// The simulator's kernel ("avx2-fma lanes" or "scalar"; they agree to
+    /// rounding).
+    pub kernel: &'static str,
     pub wall_s: f64,
     pub specular_reflectance: f64,
     pub diffuse_reflectance: f64,

@@ -370,6 +370,9 @@ pub struct Slice {
     pub diffuse_reflectance: f64,
     /// Fraction of Φ_i leaving through the bottom.
     pub transmittance: f64,
+    /// Which kernel traced the paths: "avx2-fma lanes" (four paths per
+    /// vector, see the `lanes` module) or "scalar". They agree to rounding.
+    pub kernel: &'static str,
 }
 
 impl Slice {
@@ -685,6 +688,15 @@ impl<'a> Kernel<'a> {
         self.batch_scalar(seed, first_path, paths, image)
     }
 
+    /// The name of the kernel [`batch`](Self::batch) uses (see [`Slice::kernel`]).
+    fn name(&self) -> &'static str {
+        #[cfg(target_arch = "x86_64")]
+        if self.lanes {
+            return "avx2-fma lanes";
+        }
+        "scalar"
+    }
+
     /// [`batch`](Self::batch) one path at a time.
     fn batch_scalar(&self, seed: u64, first_path: u64, paths: u64, image: Vec<f64>) -> Batch {
         let mut b = Batch::new(image, self.setup.sensor.pixels);
@@ -853,6 +865,7 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
         specular_reflectance: 1.0 - kernel.entry_weight,
         diffuse_reflectance: refl / n,
         transmittance: trans / n,
+        kernel: kernel.name(),
     })
 }
 

@@ -277,6 +277,7 @@ fn simulate(a: RunArgs) -> Result<()> {
             paths: slice.paths,
             events: slice.events,
             events_per_s: slice.events_per_s(),
+            kernel: slice.kernel,
             wall_s: slice.wall_s,
             specular_reflectance: slice.specular_reflectance,
             diffuse_reflectance: slice.diffuse_reflectance,

@@ -493,6 +493,7 @@ fn bench_bssrdf(rel_error: f64) -> Result<()> {
     )?;
     let json = serde_json::json!({
         "benchmark": "slab BSSRDF, PDMS-like medium, 45°/0°, 259 × 259, explicit connection",
+        "kernel": single.kernel,
         "events_per_s_one_core": single.events_per_s(),
         "one_core_statistic": "best of 5 runs of 20 000 paths",
         "events_per_path": single.events as f64 / single.paths as f64,
