@@ -72,6 +72,16 @@
 //! the slice sum comes from the per-path totals; per-pixel errors from batch
 //! means.
 //!
+//! # Speed
+//!
+//! On a CPU with AVX2 and FMA the connection estimator traces four paths at
+//! a time, one per vector lane (module `lanes`, reported as
+//! [`Slice::kernel`]): the flight, the scattering angles, the turn and the
+//! connection's geometry, phase function and transmittance of four events
+//! are one set of vector instructions. Each lane draws the same random
+//! numbers for its path as the scalar kernel, so both give the same slice to
+//! rounding (tested), whichever the CPU.
+//!
 //! ```
 //! use lucent_render::slab::*;
 //! use lucent_render::phase::Phase;

@@ -196,8 +196,8 @@ impl Kernel<'_> {
             }
 
             let turned = angles.turn(dir);
-            for k in 0..3 {
-                turned[k].store(&mut paths.dir[k]);
+            for (t, d) in turned.iter().zip(paths.dir.iter_mut()) {
+                t.store(d);
             }
             for l in lanes_of(w.lt(F4::splat(0.1)).bits() & ev) {
                 if !survives_roulette(&mut paths.w.0[l], &mut paths.rng[l]) {
