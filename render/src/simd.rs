@@ -26,6 +26,16 @@ pub fn available() -> bool {
     is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
 }
 
+/// For tests of lane code: whether it cannot run here (then says so).
+#[cfg(test)]
+pub(crate) fn lanes_unavailable() -> bool {
+    let missing = !available();
+    if missing {
+        eprintln!("no AVX2/FMA on this CPU: the lane kernel is not used, nothing to check");
+    }
+    missing
+}
+
 /// Four f64 lanes.
 #[derive(Clone, Copy, Debug)]
 #[repr(transparent)]
@@ -318,8 +328,7 @@ mod tests {
 
     #[test]
     fn ln_within_two_ulp() {
-        if !available() {
-            eprintln!("no AVX2/FMA on this CPU: the lane kernel is not used, nothing to check");
+        if lanes_unavailable() {
             return;
         }
         // The simulator's inputs, 1 − u ∈ (0, 1], including the ends and
@@ -338,8 +347,7 @@ mod tests {
 
     #[test]
     fn exp_within_two_ulp() {
-        if !available() {
-            eprintln!("no AVX2/FMA on this CPU: the lane kernel is not used, nothing to check");
+        if lanes_unavailable() {
             return;
         }
         let mut xs: Vec<f64> = uniforms(400_000).into_iter().map(|u| -700.0 * u * u).collect();
@@ -354,8 +362,7 @@ mod tests {
 
     #[test]
     fn uniforms_as_the_generator_makes_them() {
-        if !available() {
-            eprintln!("no AVX2/FMA on this CPU: the lane kernel is not used, nothing to check");
+        if lanes_unavailable() {
             return;
         }
         #[target_feature(enable = "avx2,fma")]
@@ -387,8 +394,7 @@ mod tests {
 
     #[test]
     fn masks_and_selects() {
-        if !available() {
-            eprintln!("no AVX2/FMA on this CPU: the lane kernel is not used, nothing to check");
+        if lanes_unavailable() {
             return;
         }
         #[target_feature(enable = "avx2,fma")]

@@ -930,8 +930,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn lanes_trace_the_scalar_paths() {
-        if !crate::simd::available() {
-            eprintln!("no AVX2/FMA on this CPU: the lane kernel is not used, nothing to compare");
+        if crate::simd::lanes_unavailable() {
             return;
         }
         let table = Phase::Tabulated(
