@@ -232,8 +232,9 @@ pub fn sin_cos_turns(u: f64) -> (f64, f64) {
     let k = (t as usize).min(TURN_TABLE_LEN - 1);
     let d = (t - k as f64) * (std::f64::consts::TAU / TURN_TABLE_LEN as f64);
     let d2 = d * d;
-    let sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0));
-    let cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0));
+    // The constant divisions as products (as the lane form does).
+    let sd = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0)));
+    let cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
     let [sk, ck] = TURN_TABLE[k];
     (sk * cd + ck * sd, ck * cd - sk * sd)
 }
@@ -619,11 +620,7 @@ pub(crate) mod lanes {
         /// `Phase::sample_angles` in lanes.
         #[inline(always)]
         pub(crate) fn sample_angles(&self, u1: F4, u2: F4) -> Angles {
-            let cos_theta = self.sample_cos_theta(u1);
-            let one = F4::splat(1.0);
-            let sin_theta = ((one - cos_theta) * (one + cos_theta)).max(F4::splat(0.0)).sqrt();
-            let (sin_phi, cos_phi) = sin_cos_turns(u2);
-            Angles { cos_theta, sin_theta, cos_phi, sin_phi }
+            Angles::new(self.sample_cos_theta(u1), u2)
         }
     }
 
@@ -656,6 +653,16 @@ pub(crate) mod lanes {
     }
 
     impl Angles {
+        /// The rest of `Phase::sample_angles` in lanes, from cos θ (however
+        /// sampled) and the azimuth's uniform `u2`.
+        #[inline(always)]
+        pub(crate) fn new(cos_theta: F4, u2: F4) -> Angles {
+            let one = F4::splat(1.0);
+            let sin_theta = ((one - cos_theta) * (one + cos_theta)).max(F4::splat(0.0)).sqrt();
+            let (sin_phi, cos_phi) = sin_cos_turns(u2);
+            Angles { cos_theta, sin_theta, cos_phi, sin_phi }
+        }
+
         /// `ScatteringAngles::turn` in lanes (frame of `orthonormal_basis`).
         #[inline(always)]
         pub(crate) fn turn(&self, n: [F4; 3]) -> [F4; 3] {

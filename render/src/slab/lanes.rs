@@ -119,14 +119,13 @@ impl Kernel<'_> {
             let angles = match &hg {
                 Some(hg) => hg.sample_angles(u1, u2),
                 None => {
-                    let (u1, u2) = (u1.lanes(), u2.lanes());
-                    let mut a = [Lanes([1.0; 4]), Lanes([0.0; 4]), Lanes([1.0; 4]), Lanes([0.0; 4])];
+                    // cos θ per lane (a table), the rest in vector form.
+                    let u1 = u1.lanes();
+                    let mut cos_theta = Lanes([1.0; 4]);
                     for l in lanes_of(live) {
-                        let s = phase.sample_angles(u1.0[l], u2.0[l]);
-                        (a[0].0[l], a[1].0[l], a[2].0[l], a[3].0[l]) = (s.cos_theta, s.sin_theta, s.cos_phi, s.sin_phi);
+                        cos_theta.0[l] = phase.sample_cos_theta(u1.0[l]);
                     }
-                    let [cos_theta, sin_theta, cos_phi, sin_phi] = a.map(|x| F4::load(&x));
-                    Angles { cos_theta, sin_theta, cos_phi, sin_phi }
+                    Angles::new(F4::load(&cos_theta), u2)
                 }
             };
 
