@@ -489,11 +489,9 @@ impl PhaseTable {
         &self.mu
     }
 
-    /// p(cos θ) per steradian: linear interpolation in μ between the two
-    /// nodes around θ = acos μ. μ is clamped to [−1, 1]; NaN gives NaN.
+    /// The bin i with μ_{i+1} ≤ μ ≤ μ_i, for μ ∈ [−1, 1] (NaN: bin 0).
     #[inline]
-    pub fn eval(&self, cos_theta: f64) -> f64 {
-        let mu = cos_theta.clamp(-1.0, 1.0);
+    fn bin_of_cos(&self, mu: f64) -> usize {
         let last_bin = self.mu.len() - 2;
         // O(1) guess from θ (NaN → 0 by the saturating cast) ...
         let mut i = ((acos_guess(mu) * self.inv_dtheta) as usize).min(last_bin);
@@ -505,6 +503,27 @@ impl PhaseTable {
         while i < last_bin && mu < self.mu[i + 1] {
             i += 1;
         }
+        i
+    }
+
+    /// The bin i with cdf[i+1] ≤ u < cdf[i], for u ∈ [0, 1): it has positive
+    /// probability. (cdf is non-increasing with cdf[0] = 1 > u ≥ 0 =
+    /// cdf[N−1], so the first k with cdf[k] ≤ u lies in 1..=N−1; i = k − 1.)
+    #[inline]
+    fn bin_of_cdf(&self, u: f64) -> usize {
+        // The guide table narrows the search to the bins that u's cell can
+        // reach; the result is the same as a search over all of cdf.
+        let j = (u * GUIDE_CELLS as f64) as usize;
+        let (lo, hi) = (self.guide[j + 1] as usize, self.guide[j] as usize);
+        lo + self.cdf[lo..=hi].partition_point(|&c| c > u) - 1
+    }
+
+    /// p(cos θ) per steradian: linear interpolation in μ between the two
+    /// nodes around θ = acos μ. μ is clamped to [−1, 1]; NaN gives NaN.
+    #[inline]
+    pub fn eval(&self, cos_theta: f64) -> f64 {
+        let mu = cos_theta.clamp(-1.0, 1.0);
+        let i = self.bin_of_cos(mu);
         let (hi, lo) = (self.mu[i], self.mu[i + 1]);
         let width = hi - lo;
         let s = if width > 0.0 { (mu - lo) / width } else { 0.5 };
@@ -520,15 +539,7 @@ impl PhaseTable {
             return f64::NAN;
         }
         let u = u.clamp(0.0, ONE_MINUS_EPSILON);
-        // cdf is non-increasing with cdf[0] = 1 > u ≥ 0 = cdf[N−1], so the
-        // first k with cdf[k] ≤ u lies in 1..=N−1 and bin i = k − 1 has
-        // cdf[i+1] ≤ u < cdf[i]: it has positive probability.
-        // The guide table narrows the search to the bins that u's cell can
-        // reach; the result is the same as a search over all of cdf.
-        let j = (u * GUIDE_CELLS as f64) as usize;
-        let (lo, hi) = (self.guide[j + 1] as usize, self.guide[j] as usize);
-        let k = lo + self.cdf[lo..=hi].partition_point(|&c| c > u);
-        let i = k - 1;
+        let i = self.bin_of_cdf(u);
         let (c_lo, c_hi) = (self.cdf[i + 1], self.cdf[i]);
         let up = ((u - c_lo) / (c_hi - c_lo)).clamp(0.0, 1.0);
         // Within the bin the density is a + (b − a)s, s = (μ − μ_{i+1})/Δμ.
@@ -558,7 +569,7 @@ impl PhaseTable {
 /// scalar functions above; results agree to a few ulp (tested below).
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod lanes {
-    use super::{HG_SMALL_G, INV_4PI, TURN_TABLE, TURN_TABLE_LEN};
+    use super::{PhaseTable, HG_SMALL_G, INV_4PI, ONE_MINUS_EPSILON, TURN_TABLE, TURN_TABLE_LEN};
     use crate::simd::{gather, to_i32, F4};
 
     /// Henyey–Greenstein with g fixed, its loop-invariant factors hoisted.
@@ -621,6 +632,43 @@ pub(crate) mod lanes {
         #[inline(always)]
         pub(crate) fn sample_angles(&self, u1: F4, u2: F4) -> Angles {
             Angles::new(self.sample_cos_theta(u1), u2)
+        }
+    }
+
+    /// `PhaseTable::sample_cos_theta` and `eval` in lanes: the bins are
+    /// found per lane, the arithmetic (the same as the scalar forms') runs
+    /// on gathered node data.
+    impl PhaseTable {
+        /// `sample_cos_theta` for u ∈ [0, 1) in every lane.
+        #[inline(always)]
+        pub(crate) fn sample_cos_theta_lanes(&self, u: F4) -> F4 {
+            let (zero, one) = (F4::splat(0.0), F4::splat(1.0));
+            let u = u.max(zero).min(F4::splat(ONE_MINUS_EPSILON));
+            let ul = u.lanes();
+            let i: [i32; 4] = std::array::from_fn(|l| self.bin_of_cdf(ul.0[l]) as i32);
+            let next = i.map(|i| i + 1);
+            let (c_lo, c_hi) = (gather(&self.cdf, next), gather(&self.cdf, i));
+            let up = ((u - c_lo) / (c_hi - c_lo)).max(zero).min(one);
+            let (a, b) = (gather(&self.values, next), gather(&self.values, i));
+            let denom = a + (a * a * (one - up) + b * b * up).sqrt();
+            let s = denom.gt(zero).select((up * (a + b) / denom).min(one), zero);
+            let (lo, hi) = (gather(&self.mu, next), gather(&self.mu, i));
+            (lo + s * (hi - lo)).min(hi)
+        }
+
+        /// `eval` in lanes.
+        #[inline(always)]
+        pub(crate) fn eval_lanes(&self, cos_theta: F4) -> F4 {
+            let one = F4::splat(1.0);
+            let mu = cos_theta.max(-one).min(one);
+            let ml = mu.lanes();
+            let i: [i32; 4] = std::array::from_fn(|l| self.bin_of_cos(ml.0[l]) as i32);
+            let next = i.map(|i| i + 1);
+            let (hi, lo) = (gather(&self.mu, i), gather(&self.mu, next));
+            let width = hi - lo;
+            let zero = F4::splat(0.0);
+            let s = width.gt(zero).select((mu - lo) / width, F4::splat(0.5));
+            (one - s) * gather(&self.values, next) + s * gather(&self.values, i)
         }
     }
 
@@ -1318,5 +1366,43 @@ mod tests {
             let mu = -1.0 + k as f64 / 10_000.0;
             assert!((acos_guess(mu) - mu.acos()).abs() < 3e-8, "acos_guess({mu})");
         }
+    }
+
+    /// The lane forms of table sampling and evaluation, and of HG, give the
+    /// scalar results: bit for bit for the table (same bins, same
+    /// operations), to a few ulp for HG (products for constant divisions).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn lane_forms_match_the_scalar_ones() {
+        use crate::simd::{Lanes, F4};
+        if crate::simd::lanes_unavailable() {
+            return;
+        }
+        #[target_feature(enable = "avx2,fma")]
+        fn check() {
+            let values: Vec<f64> = (0..4096).map(|k| (-(k as f64) / 30.0).exp() + 1e-3).collect();
+            let t = PhaseTable::from_theta_samples(&values).expect("valid table");
+            let hg = lanes::Hg::new(0.9).expect("|g| ≥ 1e-3");
+            let mut rng = crate::rng::Rng::new(8, 8);
+            for _ in 0..50_000 {
+                let u = Lanes(std::array::from_fn(|_| rng.next_f64()));
+                let mu = Lanes(std::array::from_fn(|_| 2.0 * rng.next_f64() - 1.0));
+                let sampled = t.sample_cos_theta_lanes(F4::load(&u)).lanes();
+                let evaluated = t.eval_lanes(F4::load(&mu)).lanes();
+                let (hg_sampled, hg_evaluated) = (hg.sample_cos_theta(F4::load(&u)).lanes(), hg.eval(F4::load(&mu)).lanes());
+                let (sin, cos) = lanes::sin_cos_turns(F4::load(&u));
+                let (sin, cos) = (sin.lanes(), cos.lanes());
+                for l in 0..4 {
+                    assert_eq!(sampled.0[l].to_bits(), t.sample_cos_theta(u.0[l]).to_bits());
+                    assert_eq!(evaluated.0[l].to_bits(), t.eval(mu.0[l]).to_bits());
+                    assert!((hg_sampled.0[l] - hg_sample_cos_theta(0.9, u.0[l])).abs() < 1e-15);
+                    let p = hg_eval(0.9, mu.0[l]);
+                    assert!((hg_evaluated.0[l] - p).abs() < 1e-14 * p);
+                    let (s, c) = sin_cos_turns(u.0[l]);
+                    assert!((sin.0[l] - s).abs() < 1e-16 && (cos.0[l] - c).abs() < 1e-16);
+                }
+            }
+        }
+        unsafe { check() }
     }
 }

@@ -119,13 +119,15 @@ impl Kernel<'_> {
             let angles = match &hg {
                 Some(hg) => hg.sample_angles(u1, u2),
                 None => {
-                    // cos θ per lane (a table), the rest in vector form.
-                    let u1 = u1.lanes();
-                    let mut cos_theta = Lanes([1.0; 4]);
-                    for l in lanes_of(live) {
-                        cos_theta.0[l] = phase.sample_cos_theta(u1.0[l]);
-                    }
-                    Angles::new(F4::load(&cos_theta), u2)
+                    // A table (bins per lane), or HG with |g| < 10⁻³.
+                    let cos_theta = match phase {
+                        Phase::Tabulated(t) => t.sample_cos_theta_lanes(u1),
+                        Phase::HenyeyGreenstein { .. } => {
+                            let u1 = u1.lanes();
+                            F4::load(&Lanes(u1.0.map(|u| phase.sample_cos_theta(u))))
+                        }
+                    };
+                    Angles::new(cos_theta, u2)
                 }
             };
 
@@ -170,17 +172,15 @@ impl Kernel<'_> {
                     let depth = F4::splat(self.roulette_depth);
                     let e = tau.gt(depth).select(depth - tau, -tau).exp().lanes();
                     let cos_up = dir[0] * w21[0] + dir[1] * w21[1] + dir[2] * w21[2];
-                    let wp = match &hg {
-                        Some(hg) => (w * hg.eval(cos_up)).lanes(),
-                        None => {
-                            let (w, cos_up) = (w.lanes(), cos_up.lanes());
-                            let mut wp = Lanes::default();
-                            for l in lanes_of(made) {
-                                wp.0[l] = w.0[l] * phase.eval(cos_up.0[l]);
-                            }
-                            wp
+                    let p = match (&hg, phase) {
+                        (Some(hg), _) => hg.eval(cos_up),
+                        (None, Phase::Tabulated(t)) => t.eval_lanes(cos_up),
+                        (None, Phase::HenyeyGreenstein { .. }) => {
+                            let cos_up = cos_up.lanes();
+                            F4::load(&Lanes(cos_up.0.map(|c| phase.eval(c))))
                         }
                     };
+                    let wp = (w * p).lanes();
                     let tau = tau.lanes();
                     let pixel = to_i32(r.floor() * n + c.floor());
                     for l in lanes_of(made) {
