@@ -172,7 +172,7 @@ impl Kernel<'_> {
                     let depth = F4::splat(self.roulette_depth);
                     let e = tau.gt(depth).select(depth - tau, -tau).exp().lanes();
                     let cos_up = dir[0] * w21[0] + dir[1] * w21[1] + dir[2] * w21[2];
-                    let p = match (&hg, phase) {
+                    let phase_value = match (&hg, phase) {
                         (Some(hg), _) => hg.eval(cos_up),
                         (None, Phase::Tabulated(t)) => t.eval_lanes(cos_up),
                         (None, Phase::HenyeyGreenstein { .. }) => {
@@ -180,7 +180,7 @@ impl Kernel<'_> {
                             F4::load(&Lanes(cos_up.0.map(|c| phase.eval(c))))
                         }
                     };
-                    let wp = (w * p).lanes();
+                    let wp = (w * phase_value).lanes();
                     let tau = tau.lanes();
                     let pixel = to_i32(r.floor() * n + c.floor());
                     for l in lanes_of(made) {
