@@ -563,14 +563,54 @@ impl PhaseTable {
     }
 }
 
-/// Lane forms of Henyey–Greenstein sampling and evaluation, the azimuth and
-/// the turn, four directions at a time for the slab simulator's lane kernel
-/// (AVX2 + FMA, see [`crate::simd`]). Same formulas and constants as the
-/// scalar functions above; results agree to a few ulp (tested below).
+/// Lane forms of phase-function sampling and evaluation (HG, tables), the
+/// azimuth and the turn, four directions at a time for the slab simulator's
+/// lane kernel (AVX2 + FMA, see [`crate::simd`]). Same formulas and
+/// constants as the scalar functions above; results agree bit for bit
+/// (tables) or to a few ulp (tested below).
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod lanes {
-    use super::{PhaseTable, HG_SMALL_G, INV_4PI, ONE_MINUS_EPSILON, TURN_TABLE, TURN_TABLE_LEN};
-    use crate::simd::{gather, to_i32, F4};
+    use super::{Phase, PhaseTable, HG_SMALL_G, INV_4PI, ONE_MINUS_EPSILON, TURN_TABLE, TURN_TABLE_LEN};
+    use crate::simd::{gather, to_i32, Lanes, F4};
+
+    /// A [`Phase`] prepared for lanes: HG with its factors hoisted, a table,
+    /// or (HG with |g| < 10⁻³) the scalar forms per lane.
+    #[derive(Debug, Clone, Copy)]
+    pub(crate) enum PhaseLanes<'a> {
+        Hg(Hg),
+        Table(&'a PhaseTable),
+        PerLane(&'a Phase),
+    }
+
+    impl<'a> PhaseLanes<'a> {
+        pub(crate) fn new(phase: &'a Phase) -> Self {
+            match phase {
+                Phase::HenyeyGreenstein { g } => Hg::new(*g).map_or(PhaseLanes::PerLane(phase), PhaseLanes::Hg),
+                Phase::Tabulated(t) => PhaseLanes::Table(t),
+            }
+        }
+
+        /// `Phase::sample_angles` in lanes.
+        #[inline(always)]
+        pub(crate) fn sample_angles(&self, u1: F4, u2: F4) -> Angles {
+            let cos_theta = match self {
+                PhaseLanes::Hg(hg) => hg.sample_cos_theta(u1),
+                PhaseLanes::Table(t) => t.sample_cos_theta_lanes(u1),
+                PhaseLanes::PerLane(phase) => F4::load(&Lanes(u1.lanes().0.map(|u| phase.sample_cos_theta(u)))),
+            };
+            Angles::new(cos_theta, u2)
+        }
+
+        /// `Phase::eval` in lanes.
+        #[inline(always)]
+        pub(crate) fn eval(&self, cos_theta: F4) -> F4 {
+            match self {
+                PhaseLanes::Hg(hg) => hg.eval(cos_theta),
+                PhaseLanes::Table(t) => t.eval_lanes(cos_theta),
+                PhaseLanes::PerLane(phase) => F4::load(&Lanes(cos_theta.lanes().0.map(|c| phase.eval(c)))),
+            }
+        }
+    }
 
     /// Henyey–Greenstein with g fixed, its loop-invariant factors hoisted.
     #[derive(Debug, Clone, Copy)]
@@ -626,12 +666,6 @@ pub(crate) mod lanes {
             let mu = cos_theta.max(-one).min(one);
             let d = F4::splat(self.a) + F4::splat(self.b) * (one + F4::splat(self.s) * mu);
             F4::splat(self.num) / (d * d.sqrt())
-        }
-
-        /// `Phase::sample_angles` in lanes.
-        #[inline(always)]
-        pub(crate) fn sample_angles(&self, u1: F4, u2: F4) -> Angles {
-            Angles::new(self.sample_cos_theta(u1), u2)
         }
     }
 

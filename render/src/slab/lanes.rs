@@ -14,8 +14,7 @@
 //! runs out.
 
 use super::{survives_roulette, Batch, Crossing, Kernel};
-use crate::phase::lanes::{Angles, Hg};
-use crate::phase::Phase;
+use crate::phase::lanes::PhaseLanes;
 use crate::rng::Rng;
 use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4};
 
@@ -82,11 +81,7 @@ impl Kernel<'_> {
     #[target_feature(enable = "avx2,fma")]
     pub(super) fn batch_lanes(&self, seed: u64, first_path: u64, count: u64, image: Vec<f64>) -> Batch {
         let sensor = &self.setup.sensor;
-        let phase = &self.setup.slab.medium.phase;
-        let hg = match phase {
-            Phase::HenyeyGreenstein { g } => Hg::new(*g),
-            Phase::Tabulated(_) => None,
-        };
+        let phase = PhaseLanes::new(&self.setup.slab.medium.phase);
         let npix = sensor.pixels;
         let mut b = Batch::new(image, npix);
         let mut paths = Paths {
@@ -116,20 +111,7 @@ impl Kernel<'_> {
             let raw_angles: [u64; 4] = std::array::from_fn(|l| paths.rng[l].next_u64());
             let s = -(one - unit_f64(raw_s)).ln() * F4::splat(self.inv_mu_t);
             let (u1, u2) = unit_pair(raw_angles);
-            let angles = match &hg {
-                Some(hg) => hg.sample_angles(u1, u2),
-                None => {
-                    // A table (bins per lane), or HG with |g| < 10⁻³.
-                    let cos_theta = match phase {
-                        Phase::Tabulated(t) => t.sample_cos_theta_lanes(u1),
-                        Phase::HenyeyGreenstein { .. } => {
-                            let u1 = u1.lanes();
-                            F4::load(&Lanes(u1.0.map(|u| phase.sample_cos_theta(u))))
-                        }
-                    };
-                    Angles::new(cos_theta, u2)
-                }
-            };
+            let angles = phase.sample_angles(u1, u2);
 
             // Which lanes reach a boundary before scattering (as `trace`).
             let pz = F4::load(&paths.p[2]);
@@ -172,14 +154,7 @@ impl Kernel<'_> {
                     let depth = F4::splat(self.roulette_depth);
                     let e = tau.gt(depth).select(depth - tau, -tau).exp().lanes();
                     let cos_up = dir[0] * w21[0] + dir[1] * w21[1] + dir[2] * w21[2];
-                    let phase_value = match (&hg, phase) {
-                        (Some(hg), _) => hg.eval(cos_up),
-                        (None, Phase::Tabulated(t)) => t.eval_lanes(cos_up),
-                        (None, Phase::HenyeyGreenstein { .. }) => {
-                            let cos_up = cos_up.lanes();
-                            F4::load(&Lanes(cos_up.0.map(|c| phase.eval(c))))
-                        }
-                    };
+                    let phase_value = phase.eval(cos_up);
                     let wp = (w * phase_value).lanes();
                     let tau = tau.lanes();
                     let pixel = to_i32(r.floor() * n + c.floor());
