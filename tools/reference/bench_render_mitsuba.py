@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""Time Mitsuba 3 on the reference scene of ``mitsuba_render.py`` and measure its error.
+
+Renders the plaque scene (``--scene plaque_dense``, same camera, integrator
+and parameters as the committed reference) at each ``--spp`` with
+``--threads`` Dr.Jit threads and prints one JSON object: wall and CPU seconds
+(``time.process_time()`` of the process, i.e. all worker threads),
+samples per CPU-second (= pixels x spp / CPU seconds), and the RMSE against
+the committed mean EXR over all pixels and channels.  ``rmse_expected`` is
+what an unbiased renderer with this many samples should get:
+``sqrt(mean(var_of_mean * K * S) / spp + mean(var_of_mean))`` from the
+committed variance EXR (K passes of S spp; the second term is the
+reference's own noise).
+
+Each timed render is preceded by an untimed one at the same spp with another
+seed, so the Dr.Jit kernel is compiled (or loaded from its cache) before the
+clock starts; ``warmup_wall_seconds`` shows what that cost.
+
+    pip install mitsuba==3.9.1 drjit==1.5.0 numpy==2.4.6     # + apt-get install libllvm19
+    nice python3 tools/reference/bench_render_mitsuba.py --spp 16 64 256 --threads 2 \\
+        --out fixtures/reference/render/mitsuba_bench.json
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mitsuba_render as ref  # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--spp", type=int, nargs="+", default=[64])
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=1_000_000, help="seed of the timed render (the reference used 0..)")
+    ap.add_argument("--variant", default="llvm_ad_rgb")
+    ap.add_argument("--integrator", choices=["volpathmis", "volpath"], default=None,
+                    help="default: the one recorded in the reference JSON")
+    ap.add_argument("--reference", default=os.path.join(ref.OUT_DIR, "plaque_dense"),
+                    help="path prefix of the reference _mean.exr, _var.exr and .json")
+    ap.add_argument("--no-warmup", action="store_true")
+    ap.add_argument("--out", help="also write the JSON here")
+    ap.add_argument("--allow-other-version", action="store_true")
+    args = ap.parse_args()
+
+    mi, dr = ref.setup(args.variant, args.threads, args.allow_other_version)
+    import numpy as np
+
+    with open(args.reference + ".json") as f:
+        info = json.load(f)
+    mean = np.array(mi.Bitmap(args.reference + "_mean.exr"), dtype=np.float64)
+    var_of_mean = np.array(mi.Bitmap(args.reference + "_var.exr"), dtype=np.float64)
+    per_sample_var = var_of_mean * info["total_spp"]  # K * S * var_of_mean
+    integrator = args.integrator or info["integrator"]["type"]
+
+    scene = mi.load_dict(ref.scene_dict(mi, args.spp[0], integrator))
+    H, W = ref.SCENE["camera"]["height"], ref.SCENE["camera"]["width"]
+    runs = []
+    for spp in args.spp:
+        warm = None
+        if not args.no_warmup:
+            w = time.perf_counter()
+            dr.eval(mi.render(scene, seed=args.seed + 500_000, spp=spp))
+            dr.sync_thread()
+            warm = time.perf_counter() - w
+        w, c = time.perf_counter(), time.process_time()
+        img = mi.render(scene, seed=args.seed, spp=spp)
+        img = np.array(img, dtype=np.float64)  # forces evaluation
+        wall, cpu = time.perf_counter() - w, time.process_time() - c
+        rmse = float(np.sqrt(np.mean((img - mean) ** 2)))
+        expected = float(np.sqrt(np.mean(per_sample_var) / spp + np.mean(var_of_mean)))
+        runs.append({
+            "spp": spp,
+            "wall_seconds": round(wall, 3),
+            "cpu_seconds": round(cpu, 3),
+            "samples_per_cpu_second": round(W * H * spp / cpu, 1),
+            "samples_per_wall_second": round(W * H * spp / wall, 1),
+            "rmse_vs_reference": rmse,
+            "rmse_expected": expected,
+            "rmse_per_channel": [float(v) for v in np.sqrt(np.mean((img - mean) ** 2, axis=(0, 1)))],
+            "warmup_wall_seconds": None if warm is None else round(warm, 3),
+            "load_average_1min": round(os.getloadavg()[0], 2),
+        })
+        print(json.dumps(runs[-1]), file=sys.stderr, flush=True)
+    out = {
+        "scene": info["scene"],
+        "reference": os.path.relpath(args.reference, ref.REPO) if args.reference.startswith(ref.REPO) else args.reference,
+        "reference_total_spp": info["total_spp"],
+        "mitsuba": mi.__version__,
+        "drjit": dr.__version__,
+        "variant": args.variant,
+        "integrator": integrator,
+        "threads": int(dr.thread_count()),
+        "pixels": W * H,
+        "cpu": _cpu_name(),
+        "note": "wall/cpu seconds of one mi.render call after an untimed warm-up at the same spp; shared 2-core machine, run under nice",
+        "runs": runs,
+    }
+    text = json.dumps(out, indent=1)
+    print(text)
+    if args.out:
+        with open(args.out, "w") as f:
+            f.write(text + "\n")
+
+
+def _cpu_name():
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return None
+
+
+if __name__ == "__main__":
+    main()
