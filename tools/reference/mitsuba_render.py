@@ -260,7 +260,7 @@ def make_env_map():
                 t = (v - 0.5) / 0.5
                 base = np.array([0.30, 0.22, 0.15]) * (1.0 - 0.6 * t)
             img[y, x] = base
-    img[4:6, 6:8] = [400.0, 380.0, 340.0]  # sun: theta in [45, 67.5) deg, u in [0.1875, 0.25)
+    img[4:6, 6:8] = [40.0, 38.0, 34.0]  # sun: theta in [45, 67.5) deg, u in [0.1875, 0.25)
     return img
 
 
@@ -294,7 +294,7 @@ def envmap_emitter_dict(mi, env_path):
     return {
         "type": "sphere",
         "to_world": T().scale([ENV_RADIUS, -ENV_RADIUS, ENV_RADIUS]),
-        "flip_normals": True,  # emit towards the centre
+        "flip_normals": False,  # the mirror (det < 0) already turns the normals inwards (checked)
         "bsdf": {"type": "diffuse", "reflectance": rgb([0.0, 0.0, 0.0])},
         "emitter": {
             "type": "area",
@@ -635,7 +635,7 @@ def main():
             "width": ENV_W,
             "height": ENV_H,
             "convention": ENV_CONVENTION,
-            "content": "sky gradient above the horizon, dark ground below, 2x2 sun of radiance (400, 380, 340) at pixels x 6-7, y 4-5",
+            "content": "sky gradient above the horizon, dark ground below, 2x2 sun of radiance (40, 38, 34) at pixels x 6-7, y 4-5",
             "mitsuba_realisation": f"bitmap texture (filter_type nearest, raw) on an inward-facing sphere area emitter of radius {ENV_RADIUS:g} m, to_world = scale({ENV_RADIUS:g}, {-ENV_RADIUS:g}, {ENV_RADIUS:g})",
         }
         verification["envmap"] = verify_envmap(mi, env_path, env_img)
