@@ -1,0 +1,507 @@
+//! Ray–triangle queries over the object's mesh: a compressed 8-wide BVH
+//! (`obvhs`' CWBVH, Ylitie, Karras, Laine, "Efficient incoherent ray
+//! traversal on GPUs through compressed wide BVHs", HPG 2017) over f32
+//! bounding boxes, and a **watertight** ray–triangle test in f64 (Woop,
+//! Benthin, Wald, "Watertight ray/triangle intersection", JCGT 2(1), 2013).
+//!
+//! # Units and precision
+//!
+//! Positions are metres (any unit works; nothing here assumes a scale).
+//! Vertices are kept in f64 and the hit distance `t` is computed in f64 from
+//! them; the BVH only prunes, with boxes built in f32 and **inflated** by
+//! 10⁻⁶ of the scene's extent (plus one f32 ulp of the coordinates), so the
+//! rounding of vertices and ray origins to f32 can never make a node miss a
+//! triangle that the f64 test would hit. The watertight test shears the ray
+//! to +z and decides inside/outside by the signs of three edge functions, so
+//! a ray through an edge or vertex shared by two triangles hits at least one
+//! of them (no cracks for the medium to leak through).
+//!
+//! # Known quirks of obvhs 0.4.0
+//!
+//! * Its compressed-BVH traversal misses hits when a ray direction
+//!   component is exactly −0.0 (the octant code treats it as negative while
+//!   the slab test treats it as positive). [`Accel`] maps −0.0 to +0.0 in the
+//!   f32 ray it hands to the traversal; `tests::negative_zero_direction` is
+//!   the regression test.
+//! * Its node test clamps the entry distance to at least 10⁻⁴ *scene units*
+//!   (`EPSILON` in `cwbvh/node.rs`), so in metres every boundary closer than
+//!   0.1 mm would be missed — most of them inside a dense medium, whose mean
+//!   free path is ~70 µm. The BVH therefore works in units of extent/10
+//!   (positions scaled by 10/extent, which also keeps its debug validator's
+//!   absolute tolerances meaningful), and the f32 ray it traverses starts
+//!   δ = 3·10⁻⁴ units *behind* the true origin: every node in front of the
+//!   true origin is then entered at a distance ≥ δ > 10⁻⁴ and never
+//!   clamped away, while the f64 triangle test measures from the true
+//!   origin. `tests::hits_closer_than_obvhs_epsilon` is the regression test.
+//!
+//! ```
+//! use glam::DVec3;
+//! use lucent_render::accel::Accel;
+//! // One triangle in the plane z = 0; a ray from z = 1 straight down hits it at t = 1.
+//! let tri = [[DVec3::new(-1.0, -1.0, 0.0), DVec3::new(1.0, -1.0, 0.0), DVec3::new(0.0, 1.0, 0.0)]];
+//! let accel = Accel::new(&tri);
+//! let hit = accel.intersect(DVec3::new(0.0, 0.0, 1.0), DVec3::new(0.0, 0.0, -1.0), f64::INFINITY).unwrap();
+//! assert_eq!(hit.t, 1.0);
+//! assert_eq!(hit.normal, DVec3::Z); // counter-clockwise seen from +z
+//! ```
+
+use glam::{DVec3, Vec3A};
+use obvhs::{
+    aabb::Aabb,
+    cwbvh::{builder::build_cwbvh, CwBvh},
+    ray::{Ray, RayHit},
+    Boundable, BvhBuildParams,
+};
+use std::time::Duration;
+
+/// A hit on the mesh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Distance along the (unit or not) direction, in units of the direction's length.
+    pub t: f64,
+    /// Index of the triangle in the order given to [`Accel::new`].
+    pub triangle: u32,
+    /// Unit geometric normal, by the right-hand rule over (v0, v1, v2).
+    pub normal: DVec3,
+}
+
+/// The triangles and their BVH.
+#[derive(Debug, Clone)]
+pub struct Accel {
+    bvh: CwBvh,
+    /// Triangles in BVH leaf order (index = position in `primitive_indices`).
+    tris: Vec<[DVec3; 3]>,
+    /// Original index of each triangle in `tris`.
+    original: Vec<u32>,
+    bounds_min: DVec3,
+    bounds_max: DVec3,
+    /// BVH units per metre (10/extent), see the module doc.
+    scale: f64,
+}
+
+/// The f32 box of one triangle, inflated by `pad` on every side.
+struct PaddedTriangle {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Boundable for PaddedTriangle {
+    fn aabb(&self) -> Aabb {
+        Aabb {
+            min: self.min,
+            max: self.max,
+        }
+    }
+}
+
+fn to_f32_down(v: DVec3) -> Vec3A {
+    Vec3A::new(down(v.x), down(v.y), down(v.z))
+}
+fn to_f32_up(v: DVec3) -> Vec3A {
+    Vec3A::new(up(v.x), up(v.y), up(v.z))
+}
+fn down(x: f64) -> f32 {
+    let f = x as f32;
+    if f as f64 > x {
+        f.next_down()
+    } else {
+        f
+    }
+}
+fn up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x {
+        f.next_up()
+    } else {
+        f
+    }
+}
+
+impl Accel {
+    /// Builds the BVH over `triangles` (vertices in f64). An empty list gives
+    /// an accelerator that never hits.
+    pub fn new(triangles: &[[DVec3; 3]]) -> Self {
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for t in triangles {
+            for v in t {
+                lo = lo.min(*v);
+                hi = hi.max(*v);
+            }
+        }
+        if triangles.is_empty() {
+            return Self {
+                bvh: CwBvh::default(),
+                tris: Vec::new(),
+                original: Vec::new(),
+                bounds_min: DVec3::ZERO,
+                bounds_max: DVec3::ZERO,
+                scale: 1.0,
+            };
+        }
+        let extent = (hi - lo)
+            .max_element()
+            .max(lo.abs().max(hi.abs()).max_element());
+        let extent = extent.max(f64::MIN_POSITIVE);
+        let scale = 10.0 / extent;
+        let pad = 1e-6 * extent;
+        let boxes: Vec<PaddedTriangle> = triangles
+            .iter()
+            .map(|t| {
+                let (mn, mx) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+                PaddedTriangle {
+                    min: to_f32_down((mn - pad) * scale),
+                    max: to_f32_up((mx + pad) * scale),
+                }
+            })
+            .collect();
+        let bvh = build_cwbvh(
+            &boxes,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let original = bvh.primitive_indices.clone();
+        let tris = original.iter().map(|&i| triangles[i as usize]).collect();
+        Self {
+            bvh,
+            tris,
+            original,
+            bounds_min: lo,
+            bounds_max: hi,
+            scale,
+        }
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// True when there are no triangles.
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    /// Bounding box of all vertices (min, max).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        (self.bounds_min, self.bounds_max)
+    }
+
+    /// The closest hit with 0 < t < `t_max` along `origin + t·dir`, if any.
+    pub fn intersect(&self, origin: DVec3, dir: DVec3, t_max: f64) -> Option<Hit> {
+        if self.tris.is_empty() {
+            return None;
+        }
+        let ray = self.bvh_ray(origin, dir, t_max);
+        let scale = self.scale;
+        let pre = Shear::new(dir);
+        let mut best_t = t_max;
+        let mut best = u32::MAX;
+        let mut hit = RayHit::none();
+        self.bvh.ray_traverse(ray, &mut hit, |_, id| {
+            match pre.intersect(origin, &self.tris[id]) {
+                Some(t) if t < best_t => {
+                    best_t = t;
+                    best = id as u32;
+                    // Slightly beyond t, so f32 rounding never prunes a node
+                    // holding an equally close hit.
+                    ((t * scale + BEHIND) as f32) * (1.0 + 1e-6)
+                }
+                _ => f32::INFINITY,
+            }
+        });
+        if best == u32::MAX {
+            return None;
+        }
+        let [a, b, c] = self.tris[best as usize];
+        Some(Hit {
+            t: best_t,
+            triangle: self.original[best as usize],
+            normal: (b - a).cross(c - a).normalize(),
+        })
+    }
+
+    /// True when some triangle lies at 0 < t < `t_max` along the ray.
+    pub fn occluded(&self, origin: DVec3, dir: DVec3, t_max: f64) -> bool {
+        if self.tris.is_empty() {
+            return false;
+        }
+        let ray = self.bvh_ray(origin, dir, t_max);
+        let pre = Shear::new(dir);
+        !self
+            .bvh
+            .ray_traverse_miss(ray, |_, id| match pre.intersect(origin, &self.tris[id]) {
+                Some(t) if t < t_max => 0.0,
+                _ => f32::INFINITY,
+            })
+    }
+}
+
+/// How far behind the true origin the BVH's ray starts, in BVH units (see
+/// the module doc: 3 × obvhs' 10⁻⁴ entry clamp).
+const BEHIND: f64 = 3e-4;
+
+impl Accel {
+    /// The f32 ray for the BVH: in BVH units, starting [`BEHIND`] behind the
+    /// origin, −0.0 direction components made +0.0 (see the module doc),
+    /// the range widened for rounding.
+    #[inline]
+    fn bvh_ray(&self, origin: DVec3, dir: DVec3, t_max: f64) -> Ray {
+        let d = Vec3A::new(dir.x as f32 + 0.0, dir.y as f32 + 0.0, dir.z as f32 + 0.0);
+        let o = origin * self.scale - BEHIND * dir;
+        let tmax = if t_max.is_finite() {
+            ((t_max * self.scale + BEHIND) as f32) * (1.0 + 1e-5)
+        } else {
+            f32::INFINITY
+        };
+        Ray::new(o.as_vec3a(), d, 0.0, tmax)
+    }
+}
+
+/// Per-ray constants of the watertight test: the axis permutation that makes
+/// the direction's largest component z, and the shear to +z.
+struct Shear {
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f64,
+    sy: f64,
+    sz: f64,
+}
+
+impl Shear {
+    #[inline]
+    fn new(d: DVec3) -> Self {
+        let a = d.abs();
+        let kz = if a.x > a.y {
+            if a.x > a.z {
+                0
+            } else {
+                2
+            }
+        } else if a.y > a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        Self {
+            kx,
+            ky,
+            kz,
+            sx: d[kx] / d[kz],
+            sy: d[ky] / d[kz],
+            sz: 1.0 / d[kz],
+        }
+    }
+
+    /// t > 0 of the hit with triangle `v`, or None.
+    #[inline]
+    fn intersect(&self, o: DVec3, v: &[DVec3; 3]) -> Option<f64> {
+        let (a, b, c) = (v[0] - o, v[1] - o, v[2] - o);
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let ax = a[kx] - self.sx * a[kz];
+        let ay = a[ky] - self.sy * a[kz];
+        let bx = b[kx] - self.sx * b[kz];
+        let by = b[ky] - self.sy * b[kz];
+        let cx = c[kx] - self.sx * c[kz];
+        let cy = c[ky] - self.sy * c[kz];
+        let u = cx * by - cy * bx;
+        let w_v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        if (u < 0.0 || w_v < 0.0 || w < 0.0) && (u > 0.0 || w_v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + w_v + w;
+        if det == 0.0 {
+            return None;
+        }
+        let t_scaled = u * self.sz * a[kz] + w_v * self.sz * b[kz] + w * self.sz * c[kz];
+        let t = t_scaled / det;
+        (t > 0.0 && t.is_finite()).then_some(t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+
+    /// Closed unit-ish box as 12 outward triangles.
+    fn cube(lo: DVec3, hi: DVec3) -> Vec<[DVec3; 3]> {
+        let c = |i: usize| {
+            DVec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        };
+        // Faces as quads (counter-clockwise seen from outside).
+        let quads = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        quads
+            .iter()
+            .flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]])
+            .collect()
+    }
+
+    #[test]
+    fn negative_zero_direction() {
+        // A large floor made of two triangles and a ray straight down whose
+        // y component is −0.0: obvhs 0.4.0's CWBVH misses it without the fix.
+        let mut tris = cube(DVec3::new(-1.0, -1.0, -1.0), DVec3::new(1.0, 1.0, 0.0));
+        tris.extend(cube(DVec3::new(3.0, 3.0, 3.0), DVec3::new(4.0, 4.0, 4.0)));
+        let accel = Accel::new(&tris);
+        for d in [
+            DVec3::new(0.0, -0.0, -1.0),
+            DVec3::new(-0.0, -0.0, -1.0),
+            DVec3::new(-0.0, 0.0, -1.0),
+        ] {
+            let hit = accel.intersect(DVec3::new(0.25, 0.3, 1.0), d, f64::INFINITY);
+            assert_eq!(hit.map(|h| h.t), Some(1.0), "direction {d:?}");
+        }
+    }
+
+    #[test]
+    fn inside_box_every_ray_exits_once_and_matches_slab_test() {
+        // From random interior points, every direction meets the closed box
+        // exactly at the analytic exit distance, and the normal points along
+        // the ray (leaving). Watertight: no ray escapes through an edge.
+        let (lo, hi) = (
+            DVec3::new(-0.03, -0.02, 0.001),
+            DVec3::new(0.03, 0.02, 0.00735),
+        );
+        let accel = Accel::new(&cube(lo, hi));
+        let mut rng = Rng::new(3, 0);
+        for i in 0..200_000 {
+            let u = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+            let mut o = lo + (hi - lo) * u;
+            if i % 4 == 0 {
+                // Exactly on an edge-parallel line through the centre, to aim at edges.
+                o = (lo + hi) * 0.5;
+            }
+            let z = 2.0 * rng.next_f64() - 1.0;
+            let phi = std::f64::consts::TAU * rng.next_f64();
+            let s = (1.0 - z * z).sqrt();
+            let mut d = DVec3::new(s * phi.cos(), s * phi.sin(), z);
+            if i % 4 == 0 {
+                // Directions straight at a box corner or edge midpoint.
+                let corner = DVec3::new(
+                    if i & 8 == 0 { lo.x } else { hi.x },
+                    if i & 16 == 0 { lo.y } else { hi.y },
+                    if i & 32 == 0 { lo.z } else { hi.z },
+                );
+                d = (corner - o).normalize();
+            }
+            let t_exit = {
+                let inv = d.recip();
+                let t1 = (lo - o) * inv;
+                let t2 = (hi - o) * inv;
+                t1.max(t2).min_element()
+            };
+            let hit = accel
+                .intersect(o, d, f64::INFINITY)
+                .unwrap_or_else(|| panic!("ray {i} escaped: o {o:?} d {d:?}"));
+            assert!(
+                (hit.t - t_exit).abs() <= 1e-12 * (1.0 + t_exit),
+                "ray {i}: {} vs {t_exit}",
+                hit.t
+            );
+            assert!(hit.normal.dot(d) >= 0.0);
+            assert!(accel.occluded(o, d, f64::INFINITY));
+            assert!(!accel.occluded(o, d, hit.t * (1.0 - 1e-9)));
+        }
+    }
+
+    #[test]
+    fn hits_closer_than_obvhs_epsilon() {
+        // A ray 50 µm from a face of a plaque-sized box (in metres): obvhs'
+        // node test alone would skip this hit (t < 10⁻⁴ scene units).
+        let (lo, hi) = (
+            DVec3::new(-0.03, -0.02, 0.001),
+            DVec3::new(0.03, 0.02, 0.00735),
+        );
+        let accel = Accel::new(&cube(lo, hi));
+        let o = DVec3::new(
+            -0.02994981919359711,
+            -0.017209603535356176,
+            0.0019624176120455234,
+        );
+        let d = DVec3::new(-0.6184902651986802, 0.77137204025358, 0.14984981604758674);
+        let hit = accel
+            .intersect(o, d, f64::INFINITY)
+            .expect("hit 81 µm away");
+        assert!((hit.t - 8.113435122017591e-5).abs() < 1e-15);
+        for gap in [1e-9, 1e-7, 1e-5] {
+            let o = DVec3::new(lo.x + gap, 0.0, 0.004);
+            assert!(
+                (accel.intersect(o, -DVec3::X, 1.0).unwrap().t - gap).abs() < 1e-15,
+                "gap {gap}"
+            );
+        }
+    }
+
+    #[test]
+    fn misses_and_t_max() {
+        let accel = Accel::new(&cube(DVec3::ZERO, DVec3::ONE));
+        assert!(accel
+            .intersect(
+                DVec3::new(2.0, 2.0, 2.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                f64::INFINITY
+            )
+            .is_none());
+        let o = DVec3::new(0.5, 0.5, -1.0);
+        assert_eq!(
+            accel.intersect(o, DVec3::Z, f64::INFINITY).map(|h| h.t),
+            Some(1.0)
+        );
+        assert!(accel.intersect(o, DVec3::Z, 0.999).is_none());
+        assert_eq!(
+            accel.intersect(o, DVec3::Z, f64::INFINITY).unwrap().normal,
+            -DVec3::Z
+        );
+        assert!(Accel::new(&[]).intersect(o, DVec3::Z, 1e9).is_none());
+    }
+
+    #[test]
+    fn many_triangles_agree_with_brute_force() {
+        // A random triangle soup: BVH closest hits equal a linear scan.
+        let mut rng = Rng::new(9, 1);
+        let mut r = || rng.next_f64();
+        let tris: Vec<[DVec3; 3]> = (0..3000)
+            .map(|_| {
+                let c = DVec3::new(r(), r(), r()) * 2.0 - 1.0;
+                let e = |r: &mut dyn FnMut() -> f64| DVec3::new(r(), r(), r()) * 0.1 - 0.05;
+                [c + e(&mut r), c + e(&mut r), c + e(&mut r)]
+            })
+            .collect();
+        let accel = Accel::new(&tris);
+        let mut rng = Rng::new(9, 2);
+        let mut hits = 0;
+        for _ in 0..3000 {
+            let o = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 3.0 - 1.5;
+            let d = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0)
+                .normalize();
+            let pre = Shear::new(d);
+            let brute = tris
+                .iter()
+                .enumerate()
+                .filter_map(|(i, t)| pre.intersect(o, t).map(|t| (t, i)))
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            let got = accel.intersect(o, d, f64::INFINITY);
+            assert_eq!(got.map(|h| (h.t, h.triangle as usize)), brute);
+            hits += usize::from(brute.is_some());
+        }
+        assert!(hits > 300, "too few hits to test anything: {hits}");
+    }
+}
