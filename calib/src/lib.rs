@@ -1,7 +1,7 @@
 //! Camera side of lucent (SPEC §5): RAW files to linear camera RGB,
 //! checkerboard calibration, board and sample poses, undistortion, and the
 //! equirectangular HDR environment. The only crate that links OpenCV, and
-//! only [`cv`] touches it: everything else here, and everything this crate
+//! only [`cv`] and [`ecc`] touch it: everything else here, and everything this crate
 //! returns, is plain Rust (buffers, `[f64; N]` arrays, its own structs).
 //!
 //! | module | computes | units |
@@ -12,6 +12,7 @@
 //! | [`scene`] | board and sample poses, the OpenCV → renderer convention (the only place) | metres |
 //! | [`cv`] | OpenCV: chessboard corners, Zhang calibration, PnP, drawing, `mcc` chart detection | pixels |
 //! | [`env`](mod@env) | equirectangular HDR checks and colour matrices | linear RGB |
+//! | [`ecc`] | OpenCV `findTransformECC` alignment (photo ↔ render), coarse to fine | pixels |
 //!
 //! ```
 //! // A linear RGB buffer, row-major, interleaved.
@@ -22,6 +23,7 @@
 pub mod camera;
 pub mod cv;
 pub mod demosaic;
+pub mod ecc;
 pub mod env;
 pub mod raw;
 pub mod scene;
