@@ -189,7 +189,7 @@ def scene_dict(mi, spp, integrator="volpathmis", env="constant", env_path=None, 
             "fov": cam["fov_y_degrees"],
             "fov_axis": "y",
             "near_clip": 0.001,
-            "far_clip": 100.0,
+            "far_clip": 10 * ENV_RADIUS,  # beyond the environment sphere of plaque_envmap
             "to_world": T().look_at(origin=cam["origin"], target=cam["target"], up=cam["up"]),
             "sampler": {"type": "independent", "sample_count": spp},
             "film": {
@@ -283,24 +283,33 @@ def envmap_emitter_dict(mi, env_path):
     instead a ``bitmap`` texture with ``filter_type = nearest`` on a large
     inward-facing ``sphere`` area emitter of radius ENV_RADIUS centred at the
     origin.  Mitsuba's sphere has uv = (phi / 2 pi, theta / pi) in its local
-    frame (phi = atan2(y, x) in [0, 2 pi), theta from local +z), so the
-    to_world scale (R, -R, R) -- a flip of y -- gives phi_local = atan2(-y, x)
-    = 2 pi u, which is our u.  The bitmap texture's v runs from row 0 down
-    (checked in verify_envmap).  The direction error against a map at
-    infinity is at most |p| / R for a point p in the scene (1.5e-5 rad for
-    |p| = 0.15 m), which moves pixel boundaries by 1e-4 of a pixel.
+    frame (phi = atan2(y, x) in [0, 2 pi), theta from +z), and the bitmap
+    texture's row 0 is at v = 0, so v is our v, and u_sphere = 1 - u: the
+    texture is our map with its COLUMNS REVERSED (column c of the texture is
+    column W - 1 - c of the map).  verify_envmap checks the result against
+    our convention in 4000 directions.
+
+    Not a mirrored sphere (to_world scale (R, -R, R)) instead: Mitsuba's
+    area-emitter sampling on it returns points at -inf about once in 5000
+    samples.  The direction error against a map at infinity is at most
+    |p| / R for a point p in the scene (1.5e-5 rad for |p| = 0.15 m), which
+    moves pixel boundaries by 1e-4 of a pixel.
     """
+    import numpy as np
+
     T = mi.ScalarTransform4f
+    ours = np.array(mi.Bitmap(env_path), dtype=np.float32)
+    texture = mi.Bitmap(np.ascontiguousarray(ours[:, ::-1]), pixel_format=mi.Bitmap.PixelFormat.RGB)
     return {
         "type": "sphere",
-        "to_world": T().scale([ENV_RADIUS, -ENV_RADIUS, ENV_RADIUS]),
-        "flip_normals": False,  # the mirror (det < 0) already turns the normals inwards (checked)
+        "to_world": T().scale(ENV_RADIUS),
+        "flip_normals": True,  # emit towards the centre
         "bsdf": {"type": "diffuse", "reflectance": rgb([0.0, 0.0, 0.0])},
         "emitter": {
             "type": "area",
             "radiance": {
                 "type": "bitmap",
-                "filename": env_path,
+                "bitmap": texture,
                 "filter_type": "nearest",
                 "wrap_mode": "clamp",
                 "raw": True,
@@ -518,6 +527,37 @@ def verify_image_orientation(mean):
     return result
 
 
+def verify_background(mean, env_img=None):
+    """Pixels that see only the environment (their centre and four corners miss the board, and
+    for a map all five look up the same map pixel) must equal that radiance (no noise there)."""
+    import numpy as np
+
+    cam = SCENE["camera"]
+    b = SCENE["board"]
+    W, H = cam["width"], cam["height"]
+    worst, n = 0.0, 0
+    for py in range(H):
+        for px in range(W):
+            looks = set()
+            for fx, fy in [(0.5, 0.5), (0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]:
+                o, d = pixel_ray(px + fx, py + fy)
+                if d[2] < 0:
+                    t = -o[2] / d[2]
+                    x, y = o[0] + t * d[0], o[1] + t * d[1]
+                    if b["x_range"][0] - 0.01 < x < b["x_range"][1] + 0.01 and b["y_range"][0] - 0.01 < y < b["y_range"][1] + 0.01:
+                        looks.add("board")
+                        break
+                looks.add(env_direction_to_pixel(d) if env_img is not None else "env")
+            if len(looks) != 1 or "board" in looks:
+                continue
+            want = np.array(SCENE["environment"]["radiance"]) if env_img is None else env_img[looks.pop()[::-1]]
+            worst = max(worst, float(np.max(np.abs(mean[py, px] - want) / want)))
+            n += 1
+    if n == 0 or worst > 1e-5:
+        sys.exit(f"background check failed: {n} pixels, worst relative error {worst}")
+    return {"pixels_seeing_one_environment_value": n, "max_relative_error": worst}
+
+
 def verify_envmap(mi, env_path, env_img):
     """Evaluate the Mitsuba environment in many directions and compare with our convention."""
     import numpy as np
@@ -571,6 +611,15 @@ def verify_envmap(mi, env_path, env_img):
             "from_point_0.1_-0.1_0.05_directions_with_another_pixel": off_centre_mismatch}
 
 
+NON_FINITE = (
+    "volpathmis multiplies the emitter's sample weight (0) by its pdf (inf) when an emitter sample lands exactly on "
+    "a pole of the sphere emitter (a 2D sample coordinate of exactly 0, probability 2^-23 per light sample), so such "
+    "a path is NaN and spoils its pixel in that mi.render call. Those pixel-chunks are left out: the pixel's pass "
+    "value is the mean of its finite chunks. The event has measure zero; leaving out a chunk that had one (under "
+    "1e-4 of them) changes the expectation by far less than the standard error. The constant environment never does this."
+)
+
+
 # ---------------------------------------------------------------- outputs
 
 
@@ -606,7 +655,8 @@ def main():
     ap.add_argument("--scene", choices=["plaque_dense", "plaque_envmap"], default="plaque_dense")
     ap.add_argument("--passes", type=int, default=64)
     ap.add_argument("--spp", type=int, default=512, help="samples per pixel of each pass")
-    ap.add_argument("--chunk-spp", type=int, default=1024, help="largest single mi.render call (memory)")
+    ap.add_argument("--chunk-spp", type=int, default=None,
+                    help="spp of one mi.render call; default 1024 (plaque_dense), 64 (plaque_envmap)")
     ap.add_argument("--seed0", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--variant", default="llvm_ad_rgb")
@@ -636,7 +686,7 @@ def main():
             "height": ENV_H,
             "convention": ENV_CONVENTION,
             "content": "sky gradient above the horizon, dark ground below, 2x2 sun of radiance (40, 38, 34) at pixels x 6-7, y 4-5",
-            "mitsuba_realisation": f"bitmap texture (filter_type nearest, raw) on an inward-facing sphere area emitter of radius {ENV_RADIUS:g} m, to_world = scale({ENV_RADIUS:g}, {-ENV_RADIUS:g}, {ENV_RADIUS:g})",
+            "mitsuba_realisation": f"the map with its columns reversed as a bitmap texture (filter_type nearest, raw) on an inward-facing (flip_normals) sphere area emitter of radius {ENV_RADIUS:g} m centred at the origin, to_world = scale({ENV_RADIUS:g}); sphere uv = (atan2(y, x) / 2pi, theta / pi), so texture u = 1 - u",
         }
         verification["envmap"] = verify_envmap(mi, env_path, env_img)
         print("envmap:", verification["envmap"], flush=True)
@@ -647,6 +697,8 @@ def main():
     verification["board_top_view"] = verify_board_top_view(mi)
     print("checks:", json.dumps(verification), flush=True)
 
+    if args.chunk_spp is None:
+        args.chunk_spp = 1024 if name == "plaque_dense" else 64
     chunks = []
     left = args.spp
     while left > 0:
@@ -658,15 +710,25 @@ def main():
     pass_times = []
     seed = args.seed0
     seeds = []
+    dropped = []
     load_before = os.getloadavg()
     wall0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(args.passes):
         w, c = time.perf_counter(), time.process_time()
-        img = np.zeros((H, W, 3))
+        acc = np.zeros((H, W, 3))
+        weight = np.zeros((H, W, 1))
         for s in chunks:
-            img += np.array(mi.render(scene, seed=seed, spp=s), dtype=np.float64) * (s / args.spp)
+            part = np.array(mi.render(scene, seed=seed, spp=s), dtype=np.float64)
+            # A pixel whose chunk is not finite is left out of that chunk (see NON_FINITE).
+            ok = np.all(np.isfinite(part), axis=2, keepdims=True)
+            dropped.append(int(np.sum(~ok)))
+            acc += np.where(ok, part, 0.0) * s
+            weight += ok * s
             seeds.append(seed)
             seed += 1
+        if np.any(weight < 0.5 * args.spp):
+            sys.exit(f"pass {k}: more than half of a pixel's samples were in non-finite chunks")
+        img = acc / weight
         sums += img
         sumsq += img * img
         pass_times.append({"pass": k, "wall_seconds": round(time.perf_counter() - w, 3),
@@ -685,6 +747,8 @@ def main():
     if env == "constant":
         verification["image_orientation"] = verify_image_orientation(mean)
         print("orientation:", verification["image_orientation"], flush=True)
+    verification["background"] = verify_background(mean, None if env == "constant" else env_img)
+    print("background:", verification["background"], flush=True)
 
     write_exr(mi, os.path.join(args.out_dir, f"{name}_mean.exr"), mean)
     write_exr(mi, os.path.join(args.out_dir, f"{name}_var.exr"), var_of_mean)
@@ -717,6 +781,8 @@ def main():
         "samples_per_cpu_second": round(pixels * total_spp / cpu, 1),
         "load_average_before_after": [round(load_before[0], 2), round(load_after[0], 2)],
         "timing_note": "run under nice on a shared 2-core machine; the first pass includes JIT compilation; cpu_seconds is time.process_time() of the whole process (all Dr.Jit worker threads)",
+        "non_finite_pixel_chunks": {"chunk_spp": args.chunk_spp, "chunks": len(dropped) * H * W,
+                                    "dropped": int(sum(dropped)), "note": NON_FINITE},
         "per_pass": pass_times,
         "image_mean_rgb": [float(v) for v in mean.mean(axis=(0, 1))],
         "mean_var_of_mean_rgb": [float(v) for v in var_of_mean.mean(axis=(0, 1))],
