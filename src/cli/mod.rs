@@ -6,7 +6,7 @@ pub mod camera;
 pub mod colour;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
-use crate::optics::mie::{Coefficients, Efficiencies};
+use crate::optics::mie::{self, Coefficients, Efficiencies};
 use crate::optics::output;
 use crate::optics::recipe::{Overrides, Recipe};
 use anyhow::{anyhow, bail, Context, Result};
@@ -268,6 +268,7 @@ fn optics(a: OpticsArgs) -> Result<()> {
         println!("{text}");
     } else {
         print_table(&spectra);
+        print_models_and_corrections(&spectra);
         println!(
             "\n{} sample(s) × {} wavelength(s) in {:.2} s; {} files written to {}/ (full table: {})",
             spectra.len(),
@@ -308,6 +309,31 @@ fn print_table(spectra: &[OpticalSpectrum]) {
     }
 }
 
+/// Prints, under the table, the absorption model and the corrections of the
+/// index data, each line once with the samples it applies to.
+fn print_models_and_corrections(spectra: &[OpticalSpectrum]) {
+    let mut lines: Vec<(String, Vec<&str>)> = Vec::new();
+    for s in spectra {
+        let model = format!("absorption {}: {}", s.absorption.name(), s.absorption.formula());
+        for text in std::iter::once(model).chain(s.corrections.iter().cloned()) {
+            match lines.iter_mut().find(|(t, _)| *t == text) {
+                Some((_, samples)) => samples.push(&s.sample),
+                None => lines.push((text, vec![&s.sample])),
+            }
+        }
+    }
+    println!();
+    for (text, samples) in lines {
+        if spectra.len() > 1 && samples.len() == spectra.len() {
+            println!("{text} [all samples]");
+        } else if spectra.len() > 1 {
+            println!("{text} [{}]", samples.join(", "));
+        } else {
+            println!("{text}");
+        }
+    }
+}
+
 /// Efficiencies of one sphere, for either form of the `mie` arguments.
 pub fn mie_efficiencies(a: &MieArgs) -> Result<Efficiencies> {
     if let Some(x) = a.size_parameter {
@@ -317,7 +343,10 @@ pub fn mie_efficiencies(a: &MieArgs) -> Result<Efficiencies> {
             bail!("--size-parameter {x}: must be a positive finite number");
         }
         let c = Coefficients::compute(m, Complex64::new(x, 0.0))?;
-        return Ok(c.efficiencies(x));
+        // qabs as the power absorbed inside: exactly 0 for a real m, never
+        // negative by rounding (qext − qsca up to rounding otherwise).
+        let qabs = mie::absorption_efficiency(m, Complex64::new(x, 0.0))?;
+        return Ok(Efficiencies { qabs, ..c.efficiencies(x) });
     }
     let (Some(r_um), Some(w_nm), Some(np_text)) = (a.radius_um, a.wavelength_nm, a.particle_index.as_deref()) else {
         bail!("give either --size-parameter X --relative-index M, or --radius-um R --wavelength-nm L --particle-index N [--host-index N]");
@@ -333,24 +362,20 @@ pub fn mie_efficiencies(a: &MieArgs) -> Result<Efficiencies> {
         Some(t) => parse_index("--host-index", t)?,
         None => Complex64::new(1.0, 0.0),
     };
-    let lambda = w_nm * 1e-9;
-    let r = r_um * 1e-6;
-    let x = nh * (2.0 * std::f64::consts::PI * r / lambda);
-    let c = Coefficients::compute(np / nh, x)?;
-    if nh.im == 0.0 {
-        return Ok(c.efficiencies(x.re));
-    }
-    // Absorbing host: apparent efficiencies from the Frisvad cross sections.
-    let geometric = std::f64::consts::PI * r * r;
-    let cs = c.cross_sections(lambda, nh);
-    let q = c.efficiencies(x.norm());
-    let qback = q.qback * x.norm_sqr() * lambda * lambda / (4.0 * std::f64::consts::PI * nh.norm_sqr()) / geometric;
-    let (qext, qsca) = (cs.extinction_m2 / geometric, cs.scattering_m2 / geometric);
-    Ok(Efficiencies { qext, qsca, qabs: qext - qsca, qback, g: cs.g })
+    // Absorbing host: Frisvad et al.'s qext, qsca (with F(α)) and the power
+    // absorbed inside the sphere as qabs (see mie::efficiencies_in_host).
+    Ok(mie::efficiencies_in_host(np, nh, w_nm * 1e-9, r_um * 1e-6)?)
 }
 
 fn mie(a: MieArgs) -> Result<()> {
     let q = mie_efficiencies(&a)?;
+    if let Some(nh) = a.host_index.as_deref().map(|t| parse_index("--host-index", t)).transpose()? {
+        if nh.im > 0.0 {
+            eprintln!(
+                "note: absorbing host: qext and qsca are the apparent (far-field) efficiencies of Frisvad et al. 2007, qsca with the attenuation factor F(α); qabs is the power absorbed inside the sphere, so qext − qsca ≠ qabs (qext − qsca also counts the host absorption the sphere displaces)"
+            );
+        }
+    }
     println!("{}", serde_json::to_string_pretty(&q)?);
     Ok(())
 }

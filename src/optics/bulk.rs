@@ -6,17 +6,27 @@
 //!
 //! For each particle type with volume fraction φ and size distribution N(r)
 //! normalised so that (4π/3)∫ r³ N(r) dr = φ, with the cross sections of
-//! [`super::mie::Coefficients::cross_sections`] (Frisvad et al. 2007):
+//! [`super::mie::Coefficients::cross_sections`] (Frisvad et al. 2007, C_s
+//! including the attenuation factor F(α), α = 4π r κ_h/λ, of an absorbing
+//! host):
 //!
 //! * μ_s = Σ_types ∫ C_s(r) N(r) dr;
-//! * absorption `mie`: μ_t = Σ ∫ C_t N dr + (1 − Σφ) 4πκ_h/λ and
-//!   μ_a = μ_t − μ_s; absorption `volume-weighted`: μ_a = (1 − Σφ) 4πκ_h/λ +
-//!   Σ φ 4πκ_p/λ and μ_t = μ_s + μ_a. A negative `mie` μ_a (possible only when
-//!   non-absorbing particles displace an absorbing host) is set to 0 with a
+//! * absorption, by the recipe's [`AbsorptionModel`] (κ after the recipe's
+//!   overrides of the imaginary part):
+//!
+//!   | model | μ_a |
+//!   |---|---|
+//!   | `mie` | Σ ∫ C_t N dr + (1 − Σφ) 4πκ_h/λ − μ_s |
+//!   | `volume-weighted` | (1 − Σφ) 4πκ_h/λ + Σ φ_i 4πκ_i/λ |
+//!   | `volume-weighted-full-host` (the lab's formula) | 4πκ_h/λ + Σ φ_i 4πκ_i/λ |
+//!
+//!   and μ_t = μ_s + μ_a. A negative `mie` μ_a (possible only when
+//!   non-absorbing particles displace an absorbing host: C_t already counts
+//!   the displaced host absorption, see [`super::mie`]) is set to 0 with a
 //!   warning, so μ_a is never negative;
 //! * g = Σ ∫ g(r) C_s N dr / μ_s (μ_s-weighted mean);
-//! * phase function p(θ) = λ²/(8π²|n_h|² μ_s) Σ ∫ N (|S₁|² + |S₂|²) dr, which
-//!   is the μ_s-weighted mean of the per-sphere p = (|S₁|²+|S₂|²) /
+//! * phase function p(θ) = λ²/(8π²|n_h|² μ_s) Σ ∫ N F(α(r)) (|S₁|² + |S₂|²) dr,
+//!   which is the μ_s-weighted mean of the per-sphere p = (|S₁|²+|S₂|²) /
 //!   (4π Σ(2n+1)(|a_n|²+|b_n|²)); tabulated at N angles uniform in θ from 0
 //!   to π (default 4096), per steradian; divided by its own integral (linear
 //!   in cos θ between nodes, the form the renderer samples) so that it
@@ -104,6 +114,11 @@ pub struct Sample {
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct OpticalSpectrum {
     pub sample: String,
+    /// The absorption model μ_a was computed with (its recipe name).
+    #[serde(serialize_with = "model_name")]
+    pub absorption: AbsorptionModel,
+    /// The recipe's corrections of the index data ([`Recipe::corrections`]).
+    pub corrections: Vec<String>,
     pub wavelength_nm: Vec<f64>,
     pub mu_s_per_m: Vec<f64>,
     pub mu_a_per_m: Vec<f64>,
@@ -120,19 +135,22 @@ pub struct OpticalSpectrum {
     pub warnings: Vec<String>,
 }
 
+fn model_name<S: serde::Serializer>(model: &AbsorptionModel, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(model.name())
+}
+
 /// Computes the bulk properties of `recipe` on `grid`, wavelengths in
 /// parallel.
 pub fn compute(recipe: &Recipe, grid: &WavelengthGrid, options: &Options) -> Result<OpticalSpectrum, OpticsError> {
-    let samples: Vec<Sample> = grid
-        .wavelengths_nm()
-        .par_iter()
-        .map(|&w| at_wavelength(recipe, w, options))
-        .collect::<Result<_, _>>()?;
+    let samples: Vec<Sample> =
+        grid.wavelengths_nm().par_iter().map(|&w| at_wavelength(recipe, w, options)).collect::<Result<_, _>>()?;
     let mut warnings: Vec<String> = Vec::new();
     summarise_warnings(&samples, &mut warnings);
     let col = |f: fn(&Sample) -> f64| samples.iter().map(f).collect::<Vec<f64>>();
     Ok(OpticalSpectrum {
         sample: recipe.name.clone(),
+        absorption: recipe.absorption,
+        corrections: recipe.corrections(),
         wavelength_nm: col(|s| s.wavelength_nm),
         mu_s_per_m: col(|s| s.mu_s_per_m),
         mu_a_per_m: col(|s| s.mu_a_per_m),
@@ -188,9 +206,7 @@ fn size_nodes(size: SizeDistribution, phi: f64, panels: usize, out: &mut Vec<Nod
     match size {
         SizeDistribution::Mono { radius_m } => out.push(Node { radius_m, number_per_m3: 1.0 }),
         SizeDistribution::Uniform { min_radius_m, max_radius_m } => {
-            gauss_legendre(min_radius_m, max_radius_m, panels, |r, w| {
-                out.push(Node { radius_m: r, number_per_m3: w })
-            });
+            gauss_legendre(min_radius_m, max_radius_m, panels, |r, w| out.push(Node { radius_m: r, number_per_m3: w }));
         }
         SizeDistribution::LogNormal { median_radius_m, sigma } => {
             let mu = median_radius_m.ln();
@@ -225,6 +241,7 @@ struct Sums {
     mu_t: f64,
     g_mu_s: f64,
     forward: Complex64,
+    alpha_max: f64,
 }
 
 struct Context<'a> {
@@ -235,12 +252,13 @@ struct Context<'a> {
 
 impl Context<'_> {
     fn index(&mut self, medium: &Medium, role: &str) -> Result<Complex64, OpticsError> {
-        let sample = medium.index.at(self.wavelength_nm, medium.extrapolation).map_err(|source| OpticsError::Index {
-            recipe: self.recipe.name.clone(),
-            medium: format!("{role} {}", medium.name),
-            wavelength_nm: self.wavelength_nm,
-            source,
-        })?;
+        let sample =
+            medium.index.at(self.wavelength_nm, medium.extrapolation).map_err(|source| OpticsError::Index {
+                recipe: self.recipe.name.clone(),
+                medium: format!("{role} {}", medium.name),
+                wavelength_nm: self.wavelength_nm,
+                source,
+            })?;
         if sample.extrapolated {
             let (lo, hi) = medium.index.range_nm();
             let how = match medium.extrapolation {
@@ -266,15 +284,16 @@ pub fn at_wavelength(recipe: &Recipe, wavelength_nm: f64, options: &Options) -> 
     let lambda = wavelength_nm * 1e-9;
     let k0 = 2.0 * PI / lambda;
     let n_host = ctx.index(&recipe.host, "host")?;
-    let mus: Vec<f64> = (0..options.phase_entries)
-        .map(|i| (PI * i as f64 / (options.phase_entries - 1) as f64).cos())
-        .collect();
+    let mus: Vec<f64> =
+        (0..options.phase_entries).map(|i| (PI * i as f64 / (options.phase_entries - 1) as f64).cos()).collect();
     let mut phase = vec![0.0; options.phase_entries];
     let mut coeffs = Coefficients::new();
     let mut nodes = Vec::new();
     let mut total = Sums::default();
     let mut phi_total = 0.0;
     let mut volume_weighted_absorption = 0.0;
+    // The largest α = 4π r κ_h/λ met, for the warning below.
+    let mut alpha_max: f64 = 0.0;
 
     for particle in &recipe.particles {
         let role = "particle";
@@ -294,14 +313,17 @@ pub fn at_wavelength(recipe: &Recipe, wavelength_nm: f64, options: &Options) -> 
             for node in nodes {
                 let x = n_host * (k0 * node.radius_m);
                 coeffs.recompute(n_particle / n_host, x).map_err(mie_err)?;
-                let cs = coeffs.cross_sections(lambda, n_host);
+                let cs = coeffs.cross_sections(lambda, n_host, node.radius_m);
                 let n = node.number_per_m3;
                 s.mu_s += n * cs.scattering_m2;
                 s.mu_t += n * cs.extinction_m2;
                 s.g_mu_s += n * cs.scattering_m2 * cs.g;
                 s.forward += coeffs.extinction_sum() * (0.5 * n);
+                s.alpha_max = s.alpha_max.max(4.0 * PI * node.radius_m * n_host.im / lambda);
                 if let Some(p) = phase.as_deref_mut() {
-                    let w = n * lambda * lambda / (8.0 * PI * PI * n_host.norm_sqr());
+                    // F(α) weights each size as its C_s does, so that the
+                    // table stays the μ_s-weighted mean.
+                    let w = n * cs.attenuation * lambda * lambda / (8.0 * PI * PI * n_host.norm_sqr());
                     coeffs.accumulate_intensity(&mus, w, p);
                 }
             }
@@ -343,13 +365,22 @@ pub fn at_wavelength(recipe: &Recipe, wavelength_nm: f64, options: &Options) -> 
         total.mu_t += sums.mu_t;
         total.g_mu_s += sums.g_mu_s;
         total.forward += sums.forward / (n_host * n_host);
+        alpha_max = alpha_max.max(sums.alpha_max);
     }
 
-    let host_absorption = (1.0 - phi_total) * 4.0 * PI * n_host.im / lambda;
+    if alpha_max >= 1.0 {
+        ctx.warnings.push(
+            "the host absorbs strongly over one particle (α = 4πrκh/λ ≥ 1): Frisvad et al.'s far-field cross sections are unreliable there"
+                .to_string(),
+        );
+    }
+    let host_absorption_full = 4.0 * PI * n_host.im / lambda;
+    let host_absorption = (1.0 - phi_total) * host_absorption_full;
     let mu_s = total.mu_s;
     let mut mu_a = match recipe.absorption {
         AbsorptionModel::Mie => total.mu_t + host_absorption - mu_s,
         AbsorptionModel::VolumeWeighted => host_absorption + volume_weighted_absorption,
+        AbsorptionModel::VolumeWeightedFullHost => host_absorption_full + volume_weighted_absorption,
     };
     if mu_a < 0.0 {
         ctx.warnings.push(format!("Lorenz–Mie absorption came out negative ({mu_a:.3e} /m) and was set to 0"));

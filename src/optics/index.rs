@@ -105,6 +105,14 @@
 //! how the default recipes apply the manufacturer's value for the
 //! polycarbonate host, n(550 nm) = 1.5889, to Zhang et al.'s table (SPEC §1).
 //!
+//! # Overrides of the imaginary part
+//!
+//! [`IndexSpectrum::with_imaginary_part`] keeps n(λ) and replaces κ(λ) by a
+//! constant ([`ImaginaryPartCorrection::Replace`]; the κ data are then not
+//! used, and their range no longer limits [`IndexSpectrum::range_nm`]) or
+//! scales it ([`ImaginaryPartCorrection::Scale`]). The default PVP recipes
+//! use κ = 0, as the lab did (SPEC §1).
+//!
 //! # Built-in data
 //!
 //! Every file in `data/refractiveindex/` is compiled in and available by its
@@ -165,6 +173,17 @@ pub enum RealPartCorrection {
     Shift,
     /// n(λ) becomes the given constant at every wavelength.
     Replace,
+}
+
+/// How [`IndexSpectrum::with_imaginary_part`] overrides κ(λ).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "mode", rename_all = "lowercase")]
+pub enum ImaginaryPartCorrection {
+    /// κ(λ) becomes this constant (≥ 0) at every wavelength; the κ data are
+    /// not used (nor needed: no extrapolation of κ is reported).
+    Replace { kappa: f64 },
+    /// κ(λ) is multiplied by this factor (≥ 0).
+    Scale { factor: f64 },
 }
 
 /// The complex refractive index at one wavelength.
@@ -229,6 +248,10 @@ pub enum IndexError {
     /// finite and positive.
     #[error("{file}: cannot set the real part to n = {n} at {wavelength_nm} nm (n must be finite and positive)")]
     InvalidCorrection { file: String, wavelength_nm: f64, n: f64 },
+    /// [`IndexSpectrum::with_imaginary_part`] with a value that is not
+    /// finite and ≥ 0.
+    #[error("{file}: cannot override the imaginary part with {what} = {value} (must be finite and ≥ 0)")]
+    InvalidImaginaryCorrection { file: String, what: String, value: f64 },
     /// [`IndexSpectrum::builtin`] with a name that is not built in.
     #[error("unknown built-in refractive-index data '{name}'; valid names: {valid}")]
     UnknownBuiltin { name: String, valid: String },
@@ -276,6 +299,8 @@ pub struct IndexSpectrum {
     n: RealPart,
     /// `None`: κ = 0 at every wavelength.
     k: Option<Table>,
+    /// Override of κ(λ), see [`IndexSpectrum::with_imaginary_part`].
+    k_correction: Option<ImaginaryPartCorrection>,
 }
 
 impl IndexSpectrum {
@@ -313,7 +338,8 @@ impl IndexSpectrum {
     /// extrapolation; empty (min > max) if they do not overlap.
     pub fn range_nm(&self) -> (f64, f64) {
         let (mut lo, mut hi) = self.n.range_um();
-        if let Some(k) = &self.k {
+        let k_used = !matches!(self.k_correction, Some(ImaginaryPartCorrection::Replace { .. }));
+        if let Some(k) = self.k.as_ref().filter(|_| k_used) {
             let (klo, khi) = k.range_um();
             lo = lo.max(klo);
             hi = hi.min(khi);
@@ -326,6 +352,7 @@ impl IndexSpectrum {
         let x = self.wavelength_um(wavelength_nm)?;
         let (n, n_extrapolated) = self.n_at(x, wavelength_nm, extrapolation)?;
         let (kappa, k_extrapolated) = match &self.k {
+            _ if matches!(self.k_correction, Some(ImaginaryPartCorrection::Replace { .. })) => (0.0, false),
             None => (0.0, false),
             Some(table) => {
                 let (value, extrapolated) = match position(x, table.range_um()) {
@@ -346,7 +373,32 @@ impl IndexSpectrum {
                 (value, extrapolated)
             }
         };
+        let kappa = match self.k_correction {
+            None => kappa,
+            Some(ImaginaryPartCorrection::Replace { kappa }) => kappa,
+            Some(ImaginaryPartCorrection::Scale { factor }) => kappa * factor,
+        };
         Ok(IndexSample { index: Complex64::new(n, kappa), extrapolated: n_extrapolated || k_extrapolated })
+    }
+
+    /// Override κ(λ): [`ImaginaryPartCorrection::Replace`] makes it a
+    /// constant, [`ImaginaryPartCorrection::Scale`] multiplies it; n(λ) is
+    /// kept. A later call replaces an earlier one. This is how a recipe
+    /// scatters a particle as non-absorbing (κ = 0) although its data absorb.
+    pub fn with_imaginary_part(mut self, correction: ImaginaryPartCorrection) -> Result<Self, IndexError> {
+        let (what, value) = match correction {
+            ImaginaryPartCorrection::Replace { kappa } => ("kappa", kappa),
+            ImaginaryPartCorrection::Scale { factor } => ("factor", factor),
+        };
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(IndexError::InvalidImaginaryCorrection {
+                file: self.source.clone(),
+                what: what.to_string(),
+                value,
+            });
+        }
+        self.k_correction = Some(correction);
+        Ok(self)
     }
 
     /// Keep κ(λ) and impose n = `n` at `wavelength_nm`: [`RealPartCorrection::Shift`]
@@ -721,7 +773,12 @@ fn parse_spectrum(text: &str, file: &str) -> Result<IndexSpectrum, IndexError> {
         }
     }
     let n = n.ok_or_else(|| IndexError::NoRealPart { file: file.to_string() })?;
-    Ok(IndexSpectrum { source: file.to_string(), n: RealPart { source: n, correction: Correction::None }, k })
+    Ok(IndexSpectrum {
+        source: file.to_string(),
+        n: RealPart { source: n, correction: Correction::None },
+        k,
+        k_correction: None,
+    })
 }
 
 fn scalar_text(v: &Value) -> Option<String> {
@@ -1323,6 +1380,44 @@ mod tests {
         // Shift needs n at a wavelength where n is valid.
         let e = pc.with_real_part_at(380.0, 1.6, RealPartCorrection::Shift).unwrap_err();
         assert!(matches!(e, IndexError::OutOfRange { .. }) && e.to_string().contains("400–19942 nm"), "{e}");
+    }
+
+    #[test]
+    fn imaginary_part_overrides() {
+        let pvp = IndexSpectrum::builtin("PVP_Konig2014").unwrap();
+        let raw = pvp.at(550.0, Extrapolation::None).unwrap().index;
+        assert!((raw.im - 0.00227814062415041).abs() < 1e-15, "{raw}"); // the table row at 0.55 µm
+        let clear = pvp.clone().with_imaginary_part(ImaginaryPartCorrection::Replace { kappa: 0.0 }).unwrap();
+        let scaled = pvp.clone().with_imaginary_part(ImaginaryPartCorrection::Scale { factor: 0.5 }).unwrap();
+        for w in [400.0, 550.0, 700.0] {
+            let (r, c, h) = (
+                pvp.at(w, Extrapolation::None).unwrap().index,
+                clear.at(w, Extrapolation::None).unwrap().index,
+                scaled.at(w, Extrapolation::None).unwrap().index,
+            );
+            assert_eq!((c.re, c.im), (r.re, 0.0), "{w}: n kept, κ replaced");
+            assert_eq!((h.re, h.im), (r.re, 0.5 * r.im), "{w}: n kept, κ halved");
+        }
+        // Replaced κ no longer needs the κ table: PC's κ starts at 400 nm like
+        // its n, so use a file whose κ range is narrower than its n range.
+        let narrow = "DATA:\n  - type: tabulated n\n    data: |\n        0.3 1.5\n        1.0 1.5\n  - type: tabulated k\n    data: |\n        0.5 1e-3\n        0.6 1e-3\n";
+        let s = IndexSpectrum::parse(narrow, "narrow").unwrap();
+        assert_eq!(s.range_nm(), (500.0, 600.0));
+        assert!(s.at(400.0, Extrapolation::None).is_err());
+        let s = s.with_imaginary_part(ImaginaryPartCorrection::Replace { kappa: 2e-4 }).unwrap();
+        assert_eq!(s.range_nm(), (300.0, 1000.0));
+        let sample = s.at(400.0, Extrapolation::None).unwrap();
+        assert_eq!(sample.index, Complex64::new(1.5, 2e-4));
+        assert!(!sample.extrapolated);
+        for bad in [-1e-3, f64::NAN, f64::INFINITY] {
+            for c in [ImaginaryPartCorrection::Replace { kappa: bad }, ImaginaryPartCorrection::Scale { factor: bad }] {
+                let e = pvp.clone().with_imaginary_part(c).unwrap_err();
+                assert!(
+                    matches!(e, IndexError::InvalidImaginaryCorrection { .. }) && e.to_string().contains("PVP"),
+                    "{e}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -15,9 +15,40 @@
 //! * efficiencies for a real host ([`Coefficients::efficiencies`]), the
 //!   amplitudes S₁, S₂ ([`Coefficients::amplitudes`]), the asymmetry g, and the
 //!   cross sections for an absorbing host in the formulation of Frisvad,
-//!   Christensen & Jensen 2007 ([`Coefficients::cross_sections`]):
-//!   C_s = λ²/(2π|n_h|²) Σ(2n+1)(|a_n|²+|b_n|²),
-//!   C_t = λ²/(2π) Σ(2n+1) Re((a_n+b_n)/n_h²).
+//!   Christensen & Jensen 2007 ([`Coefficients::cross_sections`], SPEC §1):
+//!   C_s = λ²/(2π|n_h|²) Σ(2n+1)(|a_n|²+|b_n|²) · F(α),
+//!   C_t = λ²/(2π) Σ(2n+1) Re((a_n+b_n)/n_h²),
+//!   F(α) = e^{−α} α² / (2(1 + (α − 1) e^{α})), α = 4π r Im(n_h)/λ
+//!   ([`attenuation`]; F = 1 for α < 1e-6). F accounts for the attenuation
+//!   of the far-field scattering over the sphere; without it C_s exceeds C_t
+//!   once the host absorbs noticeably. g (and qback) come from the
+//!   unattenuated sums. For a real host F = 1 and C_s, C_t are the usual
+//!   cross sections;
+//! * the power absorbed inside the sphere ([`absorption_inside`]), which is
+//!   what [`efficiencies_in_host`] (and `lucent mie`) report as qabs in an
+//!   absorbing host. There C_t − C_s is not the sphere's absorption: C_t is
+//!   the apparent (far-field) extinction, which also counts the host
+//!   absorption the sphere displaces — in the Rayleigh limit
+//!   C_t = (8π² r³/λ) Im(n_h (m²−1)/(m²+2)), which tends to −(4πκ_h/λ)·(4/3)πr³
+//!   as m → 1, so a small clear sphere has C_t < 0 (Bohren & Gilra 1979).
+//!   For α ≳ 1 (a host that absorbs strongly over one sphere) the far-field
+//!   quantities lose their meaning (C_t grows like e^{α}); [`super::bulk`]
+//!   warns there.
+//!
+//! # Small spheres
+//!
+//! The upward recurrence for ψ_n(x) loses relative precision as the growing
+//! solution χ_n contaminates it (ψ_1 = sin x/x − cos x cancels to x²/3): at
+//! x = 1e-6 the old code had g = 3e-3 instead of 1e-13. Below |x| = 1
+//! ([`SERIES_BELOW`]) ψ_n comes from its power series instead (full
+//! precision for every order; χ_n, the growing solution, still recurs
+//! upward), so x → 0 is exact down to [`MIN_SIZE_PARAMETER`] = 1e-20:
+//! checked against miepython from x = 1e-8 to 3 for real and absorbing m
+//! (qext, qsca to 1e-9 relative, g to 1e-12 absolute; `tests/mie_reference.rs`),
+//! and both sides of x = 1 agree to rounding. The b_n numerator still
+//! cancels (its leading terms are O(x) and b_1 = O(x⁵)), but its error is
+//! O(ε|a_1|), which changes g by O(ε) and, for a real m, qext not at all
+//! (Re b_n = |b_n|² there).
 //!
 //! # Numerics
 //!
@@ -65,6 +96,10 @@ pub enum MieError {
     RelativeIndex(Complex64),
     #[error("size parameter |x| = {0} exceeds the supported maximum of 1e5")]
     TooLarge(f64),
+    #[error("size parameter |x| = {0:e} is below the supported minimum of 1e-20")]
+    TooSmall(f64),
+    #[error("radius {radius_m} m and vacuum wavelength {wavelength_m} m must be positive and finite")]
+    Geometry { radius_m: f64, wavelength_m: f64 },
     #[error(
         "the Mie series overflowed for m = {m}, x = {x} (host absorption too strong for this size: |Im x| = {imx})"
     )]
@@ -83,12 +118,81 @@ pub struct Efficiencies {
 }
 
 /// Cross sections in m² and the asymmetry parameter of one sphere in a
-/// (possibly absorbing) host, per Frisvad et al. 2007.
+/// (possibly absorbing) host, per Frisvad et al. 2007 (see the module doc).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CrossSections {
+    /// C_s, including the attenuation factor F(α).
     pub scattering_m2: f64,
+    /// C_t (the apparent, far-field extinction; negative for a small clear
+    /// sphere in an absorbing host).
     pub extinction_m2: f64,
+    /// g from the unattenuated sums.
     pub g: f64,
+    /// F(α) of [`attenuation`] (1 for a non-absorbing host).
+    pub attenuation: f64,
+}
+
+/// The attenuation factor of the far-field scattering of a sphere in an
+/// absorbing host (Frisvad, Christensen & Jensen 2007; SPEC §1):
+/// F(α) = e^{−α} α² / (2(1 + (α − 1) e^{α})), α = 4π r Im(n_h)/λ, and
+/// F = 1 for α < 1e-6 as SPEC §1 states (at α = 1e-6 the exact F is
+/// 1 − 1.7e-6, so that cut-off is a step of 1.7e-6).
+///
+/// Evaluated without cancellation: for α < 1 as e^{−α} / (2 Σ_j α^j (j+1)/(j+2)!)
+/// (the series of (1 + (α − 1)e^α)/α²), for α ≥ 1 as
+/// α² e^{−2α} / (2(α − 1 + e^{−α})), which does not overflow. F falls
+/// monotonically from 1 (F ≈ 1 − 5α/3 for small α). Non-finite or negative
+/// α gives NaN.
+///
+/// ```
+/// use lucent::optics::mie::attenuation;
+/// assert_eq!(attenuation(0.0), 1.0);
+/// // F(1) = e^{−1}/(2 (1 + 0)) = 1/(2e).
+/// assert!((attenuation(1.0) - 0.5 / std::f64::consts::E).abs() < 1e-15);
+/// // A 1 µm sphere at 550 nm in a host with κ = 1e-2: α = 0.228, F = 0.682.
+/// let alpha = 4.0 * std::f64::consts::PI * 1e-6 * 1e-2 / 550e-9;
+/// assert!((attenuation(alpha) - 0.68234).abs() < 1e-5);
+/// ```
+pub fn attenuation(alpha: f64) -> f64 {
+    if !(alpha.is_finite() && alpha >= 0.0) {
+        return f64::NAN;
+    }
+    if alpha < 1e-6 {
+        return 1.0;
+    }
+    if alpha < 1.0 {
+        // Σ_{j≥0} α^j (j+1)/(j+2)!: 24 terms reach 1e-17 relative at α = 1.
+        let mut sum = 0.0;
+        let mut power = 1.0;
+        let mut factorial = 2.0;
+        for j in 0..24 {
+            sum += power * (j + 1) as f64 / factorial;
+            power *= alpha;
+            factorial *= (j + 3) as f64;
+        }
+        (-alpha).exp() / (2.0 * sum)
+    } else {
+        let e = (-alpha).exp();
+        alpha * alpha * e * e / (2.0 * (alpha - 1.0 + e))
+    }
+}
+
+/// Checks (m, x) for [`Coefficients::recompute`]; returns |x|.
+fn check_arguments(m: Complex64, x: Complex64) -> Result<f64, MieError> {
+    let xabs = x.norm_sqr().sqrt();
+    if !(x.re.is_finite() && x.im.is_finite()) || xabs == 0.0 || x.re <= 0.0 {
+        return Err(MieError::SizeParameter(x));
+    }
+    if !(m.re.is_finite() && m.im.is_finite()) || m.norm_sqr() == 0.0 {
+        return Err(MieError::RelativeIndex(m));
+    }
+    if xabs > 1e5 {
+        return Err(MieError::TooLarge(xabs));
+    }
+    if xabs < MIN_SIZE_PARAMETER {
+        return Err(MieError::TooSmall(xabs));
+    }
+    Ok(xabs)
 }
 
 /// Σ(2n+1)(|a|²+|b|²), Σ(2n+1)(a+b), Σ(2n+1)(−1)^n(a−b) and the numerator
@@ -103,9 +207,16 @@ struct SeriesSums {
 
 impl SeriesSums {
     fn finite(&self) -> bool {
-        [self.scattering, self.extinction.re, self.extinction.im, self.backscatter.re, self.backscatter.im, self.asymmetry]
-            .iter()
-            .all(|v| v.is_finite())
+        [
+            self.scattering,
+            self.extinction.re,
+            self.extinction.im,
+            self.backscatter.re,
+            self.backscatter.im,
+            self.asymmetry,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
     }
 
     fn g(&self) -> f64 {
@@ -314,9 +425,57 @@ impl Riccati for [Complex64; 2] {
     }
 }
 
-/// ψ_n, χ_n of a real x for n = 0 … `nstop` by upward recurrence
-/// (accurate up to Wiscombe's length, Wiscombe 1979).
+/// Below this |x|, ψ_n(x) comes from its power series ([`psi_series`])
+/// instead of the upward recurrence (see the module doc, "Small spheres").
+pub const SERIES_BELOW: f64 = 1.0;
+
+/// Smallest |x| accepted: below it χ_n(x)² (n ≤ 5) would approach the
+/// overflow threshold. (x = 1e-20 is a sphere of radius 1e-21 λ.)
+pub const MIN_SIZE_PARAMETER: f64 = 1e-20;
+
+/// ψ_n(x) = x j_n(x) for n = 0 … `nstop` from the power series
+/// ψ_n(x) = x^{n+1}/(2n+1)!! Σ_k (−x²/2)^k / (k! (2n+3)(2n+5)…(2n+2k+1)),
+/// summed until a term falls below 1e-17 of the sum; for |x| < 1 that is at
+/// most ~10 terms, and the sum lies in (0.8, 1.2), so every ψ_n has full
+/// relative precision (the upward recurrence loses it as the growing χ_n
+/// contaminates the decaying ψ_n, catastrophically for x ≲ 1e-4).
+fn psi_series<T: Scalar>(x: T, nstop: usize, mut out: impl FnMut(usize, T)) {
+    let x2 = x * x;
+    let mut lead = x;
+    for n in 0..=nstop {
+        if n > 0 {
+            lead = lead * x * (1.0 / (2 * n + 1) as f64);
+        }
+        let mut term = T::one();
+        let mut sum = T::one();
+        for k in 1..40 {
+            term = term * x2 * (-0.5 / (k * (2 * n + 2 * k + 1)) as f64);
+            sum = sum + term;
+            if term.l1() < 1e-17 * sum.l1() {
+                break;
+            }
+        }
+        out(n, lead * sum);
+    }
+}
+
+/// ψ_n, χ_n of a real x for n = 0 … `nstop`: upward recurrence (accurate up
+/// to Wiscombe's length, Wiscombe 1979) for x ≥ [`SERIES_BELOW`]; below, ψ_n
+/// from [`psi_series`] and χ_n (the growing solution) still upward.
 fn riccati_real(x: f64, nstop: usize, out: &mut Vec<[f64; 2]>) {
+    if x < SERIES_BELOW {
+        let (sx, cx) = x.sin_cos();
+        let (mut chi_prev, mut chi) = (-sx, cx);
+        out.clear();
+        out.reserve(nstop + 1);
+        psi_series(x, nstop, |n, psi| {
+            if n > 0 {
+                (chi_prev, chi) = (chi, (2.0 * n as f64 - 1.0) / x * chi - chi_prev);
+            }
+            out.push([psi, chi]);
+        });
+        return;
+    }
     let inv_x = 1.0 / x;
     let (sx, cx) = x.sin_cos();
     // ψ_{−1} = cos x, ψ_0 = sin x; χ_{−1} = −sin x, χ_0 = cos x.
@@ -333,11 +492,25 @@ fn riccati_real(x: f64, nstop: usize, out: &mut Vec<[f64; 2]>) {
     }
 }
 
-/// ψ_n, ξ_n of a complex x for n = 0 … `nstop` by upward recurrence.
+/// ψ_n, ξ_n of a complex x for n = 0 … `nstop`: upward recurrence for
+/// |x| ≥ [`SERIES_BELOW`]; below, ψ_n from [`psi_series`], χ_n upward and
+/// ξ_n = ψ_n − iχ_n (so that ξ_n carries the accurate ψ_n).
 fn riccati_complex(x: Complex64, nstop: usize, out: &mut Vec<[Complex64; 2]>) {
     let inv_x = x.inv();
     let (sx, cx) = (x.sin(), x.cos());
     let i = Complex64::new(0.0, 1.0);
+    if x.norm() < SERIES_BELOW {
+        let (mut chi_prev, mut chi) = (-sx, cx);
+        out.clear();
+        out.reserve(nstop + 1);
+        psi_series(x, nstop, |n, psi| {
+            if n > 0 {
+                (chi_prev, chi) = (chi, inv_x * (2.0 * n as f64 - 1.0) * chi - chi_prev);
+            }
+            out.push([psi, psi - i * chi]);
+        });
+        return;
+    }
     // ψ_{−1} = cos x, ψ_0 = sin x; ξ_{−1} = cos x + i sin x, ξ_0 = sin x − i cos x.
     let (mut psi_prev, mut psi) = (cx, sx);
     let (mut xi_prev, mut xi) = (cx + i * sx, sx - i * cx);
@@ -469,7 +642,15 @@ fn reset(ab: &mut Vec<C2>, nstop: usize) {
 /// c are real and a_n = ν/(ν − ic). Each a_n, b_n is formed in the step that
 /// produces D_n, so that work fills the latency of the serial recurrence,
 /// and the sums run from n = N down.
-fn coefficients_real(y: f64, d_start: f64, n_start: usize, m: f64, x: f64, riccati: &[[f64; 2]], ab: &mut Vec<C2>) -> SeriesSums {
+fn coefficients_real(
+    y: f64,
+    d_start: f64,
+    n_start: usize,
+    m: f64,
+    x: f64,
+    riccati: &[[f64; 2]],
+    ab: &mut Vec<C2>,
+) -> SeriesSums {
     let nstop = riccati.len() - 1;
     let (inv_y, inv_x) = (1.0 / y, 1.0 / x);
     reset(ab, nstop);
@@ -598,6 +779,139 @@ impl PairSums {
     }
 }
 
+/// Power absorbed inside a sphere, as a cross section [m²]: sphere radius
+/// `radius_m`, particle index `n_particle`, host index `n_host` (either may
+/// absorb), vacuum wavelength `wavelength_m`; relative to the intensity of
+/// the incident wave at the sphere's centre, I₀ = ½ Re(n_h) c ε₀ |E₀|².
+/// It is [`absorption_efficiency`] times πr², with y = k₀ r n_p formed
+/// directly (exactly real for a real n_p: then the result is exactly 0).
+pub fn absorption_inside(
+    n_particle: Complex64,
+    n_host: Complex64,
+    wavelength_m: f64,
+    radius_m: f64,
+) -> Result<f64, MieError> {
+    let k0r = check_geometry(wavelength_m, radius_m)?;
+    if n_particle.im == 0.0 {
+        check_arguments(n_particle / n_host, n_host * k0r)?;
+        return Ok(0.0);
+    }
+    let q = absorption_core(n_particle / n_host, n_host * k0r, n_particle * k0r)?;
+    Ok(q * PI * radius_m * radius_m)
+}
+
+/// The efficiency of the power absorbed inside a sphere of relative index
+/// `m` = n_p/n_h and size parameter `x` = k₀ r n_h (over I₀ πr², I₀ the
+/// incident intensity at the centre).
+///
+/// From the internal field E₁ = Σ E_n (c_n M_o1n − i d_n N_e1n) (Bohren &
+/// Huffman eq. 4.40) and the inward Poynting flux through the surface:
+/// Q_abs = (2/Re x) Re[(i/y) Σ (2n+1)(|d_n|² ψ'_n(y) ψ_n(y)* − |c_n|² ψ_n(y) ψ'_n(y)*)],
+/// y = m x, with c_n ψ_n(y) = i m / (ξ'_n(x) − m ξ_n(x) D_n(y)) and
+/// d_n ψ_n(y) = i m / (m ξ'_n(x) − ξ_n(x) D_n(y)) (Wronskian ψξ' − ξψ' = i),
+/// so only the stable ξ_n(x) (upward) and D_n(y) (downward) are needed. It
+/// equals ½ω Im(ε_p) ∫|E₁|² dV / I₀ (checked against that volume integral
+/// in `tools/reference/mie_absorbing_host.py`), so it is ≥ 0; for a real m
+/// and x it is exactly 0. In a real host it equals qext − qsca (energy
+/// conservation; tested) but keeps its relative precision for a weakly
+/// absorbing sphere, where the difference cancels. In an absorbing host it
+/// is not qext − qsca (see the module doc).
+pub fn absorption_efficiency(m: Complex64, x: Complex64) -> Result<f64, MieError> {
+    check_arguments(m, x)?;
+    if m.im == 0.0 && x.im == 0.0 {
+        return Ok(0.0);
+    }
+    absorption_core(m, x, m * x)
+}
+
+fn absorption_core(m: Complex64, x: Complex64, y: Complex64) -> Result<f64, MieError> {
+    let nstop = wiscombe_terms(check_arguments(m, x)?);
+    // ξ_n(x), n = 0 … N, upward (the growing solution: stable).
+    let i = Complex64::new(0.0, 1.0);
+    let inv_x = x.inv();
+    let (sx, cx) = (x.sin(), x.cos());
+    let mut xi = Vec::with_capacity(nstop + 1);
+    let (mut prev, mut cur) = (cx + i * sx, sx - i * cx);
+    xi.push(cur);
+    for n in 1..=nstop {
+        (prev, cur) = (cur, inv_x * (2.0 * n as f64 - 1.0) * cur - prev);
+        xi.push(cur);
+    }
+    let n_start = nstop.max(y.norm().ceil() as usize + 2);
+    let orders = DownwardOrders::new(y.inv(), lentz(y, n_start), n_start, nstop);
+    let mut sum = Complex64::new(0.0, 0.0);
+    for (n, (p, q)) in (1..=nstop).rev().zip(orders) {
+        let d = p / q;
+        let xi_n = xi[n];
+        let dxi = xi[n - 1] - inv_x * (n as f64) * xi_n;
+        let te = (dxi - m * xi_n * d).norm_sqr();
+        let tm = (m * dxi - xi_n * d).norm_sqr();
+        sum += (d / tm - d.conj() / te) * (2.0 * n as f64 + 1.0);
+    }
+    let q = 2.0 / x.re * (i / y * sum * m.norm_sqr()).re;
+    if !q.is_finite() {
+        return Err(MieError::Overflow { m, x, imx: x.im.abs() });
+    }
+    Ok(q + 0.0)
+}
+
+/// k₀ r = 2π r/λ after checking r and λ.
+fn check_geometry(wavelength_m: f64, radius_m: f64) -> Result<f64, MieError> {
+    if !(wavelength_m.is_finite() && wavelength_m > 0.0 && radius_m.is_finite() && radius_m > 0.0) {
+        return Err(MieError::Geometry { radius_m, wavelength_m });
+    }
+    Ok(2.0 * PI * radius_m / wavelength_m)
+}
+
+/// Efficiencies (cross sections over πr²) of one sphere of radius
+/// `radius_m` and index `n_particle` in a host of index `n_host` at vacuum
+/// wavelength `wavelength_m`.
+///
+/// * Real host: the usual Lorenz–Mie efficiencies ([`Coefficients::efficiencies`]),
+///   with qabs from [`absorption_efficiency`] (= qext − qsca, but exactly 0
+///   for a clear sphere and never negative by rounding).
+/// * Absorbing host: qext and qsca from [`Coefficients::cross_sections`]
+///   (Frisvad et al. 2007, qsca with F(α)); qabs from [`absorption_inside`],
+///   the power absorbed inside the sphere, so qabs ≥ 0 and qabs = 0 for a
+///   non-absorbing sphere. Here qext − qsca ≠ qabs: the apparent extinction
+///   also counts the host absorption the sphere displaces (for a small clear
+///   sphere qext itself is negative, −(4/3)α in the limit m → 1). qback and g
+///   come from the unattenuated sums, qback = |Σ(2n+1)(−1)ⁿ(a_n − b_n)|²/|x|².
+///
+/// ```
+/// use lucent::optics::mie::efficiencies_in_host;
+/// use num_complex::Complex64;
+/// // A clear 1 µm sphere in a host with κ = 1e-2 at 550 nm.
+/// let q = efficiencies_in_host(Complex64::new(1.2, 0.0), Complex64::new(1.5, 1e-2), 550e-9, 1e-6).unwrap();
+/// assert!(q.qsca < q.qext && q.qabs == 0.0);
+/// assert!((q.qsca - 1.19736).abs() < 1e-5);
+/// ```
+pub fn efficiencies_in_host(
+    n_particle: Complex64,
+    n_host: Complex64,
+    wavelength_m: f64,
+    radius_m: f64,
+) -> Result<Efficiencies, MieError> {
+    let k0r = check_geometry(wavelength_m, radius_m)?;
+    let x = n_host * k0r;
+    let c = Coefficients::compute(n_particle / n_host, x)?;
+    let geometric = PI * radius_m * radius_m;
+    if n_host.im == 0.0 {
+        let qabs = absorption_inside(n_particle, n_host, wavelength_m, radius_m)? / geometric;
+        return Ok(Efficiencies { qabs, ..c.efficiencies(x.re) });
+    }
+    let cs = c.cross_sections(wavelength_m, n_host, radius_m);
+    let qabs = absorption_inside(n_particle, n_host, wavelength_m, radius_m)? / geometric;
+    let t = c.sums();
+    Ok(Efficiencies {
+        qext: cs.extinction_m2 / geometric,
+        qsca: cs.scattering_m2 / geometric,
+        qabs,
+        qback: t.backscatter.norm_sqr() / x.norm_sqr(),
+        g: cs.g,
+    })
+}
+
 /// D_n(z) = ψ'_n(z)/ψ_n(z) by Lentz's (1976) continued fraction for the
 /// Bessel ratio J_{ν−1}(z)/J_ν(z), ν = n + ½:
 /// D_n = −n/z + a₁ + 1/(a₂ + 1/(a₃ + …)), a_k = (−1)^{k+1} 2(ν + k − 1)/z,
@@ -660,16 +974,7 @@ impl Coefficients {
     /// Recompute in place for a new sphere (no allocation when the buffers
     /// are already large enough).
     pub fn recompute(&mut self, m: Complex64, x: Complex64) -> Result<(), MieError> {
-        let xabs = x.norm_sqr().sqrt();
-        if !(x.re.is_finite() && x.im.is_finite()) || xabs == 0.0 || x.re <= 0.0 {
-            return Err(MieError::SizeParameter(x));
-        }
-        if !(m.re.is_finite() && m.im.is_finite()) || m.norm_sqr() == 0.0 {
-            return Err(MieError::RelativeIndex(m));
-        }
-        if xabs > 1e5 {
-            return Err(MieError::TooLarge(xabs));
-        }
+        let xabs = check_arguments(m, x)?;
         let nstop = wiscombe_terms(xabs);
         let y = m * x;
         // D_n(y) starts from the continued fraction at or just above the
@@ -751,16 +1056,21 @@ impl Coefficients {
         Efficiencies { qext, qsca, qabs: qext - qsca, qback: t.backscatter.norm_sqr() / x2, g: t.g() }
     }
 
-    /// Scattering and extinction cross sections [m²] and g for host index
-    /// `n_host` at vacuum wavelength `wavelength_m` (Frisvad et al. 2007).
-    pub fn cross_sections(&self, wavelength_m: f64, n_host: Complex64) -> CrossSections {
+    /// Scattering and extinction cross sections [m²] and g of a sphere of
+    /// radius `radius_m` in a host of index `n_host` at vacuum wavelength
+    /// `wavelength_m` (Frisvad et al. 2007; the coefficients must have been
+    /// computed for these): C_s with the attenuation factor F(α), g from the
+    /// unattenuated sums.
+    pub fn cross_sections(&self, wavelength_m: f64, n_host: Complex64, radius_m: f64) -> CrossSections {
         let t = self.sums();
         let l2 = wavelength_m * wavelength_m / (2.0 * PI);
         let nh2 = n_host * n_host;
+        let f = if n_host.im > 0.0 { attenuation(4.0 * PI * radius_m * n_host.im / wavelength_m) } else { 1.0 };
         CrossSections {
-            scattering_m2: l2 / n_host.norm_sqr() * t.scattering,
+            scattering_m2: l2 / n_host.norm_sqr() * t.scattering * f,
             extinction_m2: l2 * (t.extinction / nh2).re,
             g: t.g(),
+            attenuation: f,
         }
     }
 
@@ -848,12 +1158,12 @@ mod tests {
         let reference = {
             let nh = c(1.5889, 0.0);
             let x = 2.0 * PI * r * nh / lam;
-            Coefficients::compute(np / nh, x).unwrap().cross_sections(lam, nh)
+            Coefficients::compute(np / nh, x).unwrap().cross_sections(lam, nh, r)
         };
         for &kh in &[1e-6, 1e-8, 1e-10] {
             let nh = c(1.5889, kh);
             let x = 2.0 * PI * r * nh / lam;
-            let cs = Coefficients::compute(np / nh, x).unwrap().cross_sections(lam, nh);
+            let cs = Coefficients::compute(np / nh, x).unwrap().cross_sections(lam, nh, r);
             let tol = kh * 1e4;
             assert!((cs.scattering_m2 / reference.scattering_m2 - 1.0).abs() < tol);
             assert!((cs.extinction_m2 / reference.extinction_m2 - 1.0).abs() < tol);
@@ -862,8 +1172,122 @@ mod tests {
         // |x| = 2000 with an absorbing host: no NaN.
         let nh = c(1.5, 1e-3);
         let k = Coefficients::compute(c(1.2, 0.0) / nh, c(2000.0, 2000.0 * 1e-3 / 1.5)).unwrap();
-        let cs = k.cross_sections(lam, nh);
+        let cs = k.cross_sections(lam, nh, 2000.0 * lam / (2.0 * PI * 1.5));
         assert!(cs.scattering_m2.is_finite() && cs.extinction_m2.is_finite() && cs.g.is_finite());
+    }
+
+    #[test]
+    fn attenuation_factor_limits_and_branches() {
+        // Closed form where its cancellation is mild (α ≥ 0.3: 1 + (α−1)e^α ≥ 0.05).
+        let closed = |a: f64| (-a).exp() * a * a / (2.0 * (1.0 + (a - 1.0) * a.exp()));
+        for a in [0.3, 0.5, 0.9, 0.999, 1.0, 1.001, 2.0, 10.0, 50.0] {
+            assert!((attenuation(a) / closed(a) - 1.0).abs() < 1e-13, "α = {a}: {} vs {}", attenuation(a), closed(a));
+        }
+        // Series below α = 1, the overflow-free form above: they meet.
+        let (below, above) = (attenuation(1.0 - 1e-12), attenuation(1.0 + 1e-12));
+        assert!((below - above).abs() < 1e-12);
+        // Small α: F = 1 − 5α/3 + 49α²/36 − …; F = 1 below 1e-6 (SPEC §1).
+        for a in [1e-6, 1e-5, 1e-3] {
+            let taylor = 1.0 - 5.0 * a / 3.0 + 49.0 / 36.0 * a * a - 391.0 / 540.0 * a * a * a;
+            assert!((attenuation(a) - taylor).abs() < a.powi(4) + 2e-16, "α = {a}");
+        }
+        assert_eq!(attenuation(9.9e-7), 1.0);
+        assert_eq!(attenuation(0.0), 1.0);
+        // Decreasing, positive, no overflow; nonsense input is NaN.
+        let mut last = 1.0;
+        for k in 0..400 {
+            let a = 1e-6 * 1.1f64.powi(k);
+            let f = attenuation(a);
+            assert!(f <= last && f >= 0.0, "α = {a}");
+            last = f;
+        }
+        assert_eq!(attenuation(800.0), 0.0);
+        assert!(attenuation(-1.0).is_nan() && attenuation(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn psi_series_agrees_with_closed_forms() {
+        // ψ_0 = sin x, ψ_1 = sin x/x − cos x, ψ_2 = (3/x² − 1) sin x − 3 cos x/x,
+        // at x where these closed forms lose little to cancellation.
+        for x in [0.5f64, 0.8, 0.999] {
+            let mut psi = Vec::new();
+            psi_series(x, 2, |_, p| psi.push(p));
+            let (s, c) = x.sin_cos();
+            let exact = [s, s / x - c, (3.0 / (x * x) - 1.0) * s - 3.0 * c / x];
+            let tolerance = [1e-15, 1e-14, 1e-12];
+            for n in 0..3 {
+                assert!((psi[n] / exact[n] - 1.0).abs() < tolerance[n], "x = {x}, n = {n}: {} vs {}", psi[n], exact[n]);
+            }
+        }
+        // Complex argument: ψ_1(z) against its closed form at |z| = 0.9.
+        let z = Complex64::from_polar(0.9, 0.4);
+        let mut psi = Vec::new();
+        psi_series(z, 1, |_, p| psi.push(p));
+        let exact = z.sin() / z - z.cos();
+        assert!((psi[1] - exact).norm() < 1e-14 * exact.norm());
+    }
+
+    #[test]
+    fn tiny_spheres_are_rayleigh_scatterers_down_to_the_minimum() {
+        for x in [1e-20, 1e-12, 1e-8] {
+            for m in [c(1.5, 0.0), c(0.9, 0.1)] {
+                let k = Coefficients::compute(m, c(x, 0.0)).unwrap();
+                let q = k.efficiencies(x);
+                let l = (m * m - 1.0) / (m * m + 2.0);
+                let rayleigh_sca = 8.0 / 3.0 * x.powi(4) * l.norm_sqr();
+                assert!((q.qsca / rayleigh_sca - 1.0).abs() < 1e-12, "x={x} m={m}: {} vs {rayleigh_sca}", q.qsca);
+                if m.im > 0.0 {
+                    // Absorption dominates: qext → 4x Im((m²−1)/(m²+2)).
+                    assert!((q.qext / (4.0 * x * l.im) - 1.0).abs() < 1e-12, "x={x} m={m}");
+                }
+                assert!(q.g.abs() < 1e-12 && q.g.is_finite());
+            }
+        }
+        assert!(matches!(Coefficients::compute(c(1.5, 0.0), c(1e-21, 0.0)), Err(MieError::TooSmall(_))));
+    }
+
+    #[test]
+    fn small_clear_sphere_in_an_absorbing_host_has_negative_apparent_extinction() {
+        // Rayleigh limit of C_t = λ²/(2π) Re Σ(2n+1)(a_n+b_n)/n_h²:
+        // C_t = (8π² r³/λ) Im(n_h (m²−1)/(m²+2)), which tends to the host
+        // absorption of the sphere's volume with a minus sign as m → 1.
+        let (lam, r) = (500e-9, 1e-11);
+        let nh = c(1.5, 1e-3);
+        for np in [c(1.5, 0.0), c(1.3, 0.0), c(1.5, 1e-4)] {
+            let m = np / nh;
+            let x = nh * (2.0 * PI * r / lam);
+            let cs = Coefficients::compute(m, x).unwrap().cross_sections(lam, nh, r);
+            let l = (m * m - 1.0) / (m * m + 2.0);
+            let rayleigh = 8.0 * PI * PI * r.powi(3) / lam * (nh * l).im;
+            assert!((cs.extinction_m2 / rayleigh - 1.0).abs() < 1e-6, "np={np}: {} vs {rayleigh}", cs.extinction_m2);
+        }
+        let m = c(1.5, 0.0) / nh;
+        let x = nh * (2.0 * PI * r / lam);
+        let cs = Coefficients::compute(m, x).unwrap().cross_sections(lam, nh, r);
+        let displaced = 4.0 * PI * nh.im / lam * (4.0 / 3.0 * PI * r.powi(3));
+        assert!(
+            cs.extinction_m2 < 0.0 && (cs.extinction_m2 / -displaced - 1.0).abs() < 5e-3,
+            "{} vs {}",
+            cs.extinction_m2,
+            -displaced
+        );
+        // ...while the power absorbed inside the clear sphere is zero.
+        assert_eq!(absorption_inside(c(1.5, 0.0), nh, lam, r).unwrap(), 0.0);
+    }
+
+    #[test]
+    fn absorption_inside_is_extinction_minus_scattering_in_a_real_host() {
+        for (m, x) in [(c(1.5, 0.1), 3.0), (c(2.5, 1.0), 40.0), (c(1.33, 1e-6), 0.7), (c(0.9, 0.05), 150.0)] {
+            let q = Coefficients::compute(m, c(x, 0.0)).unwrap().efficiencies(x);
+            let inside = absorption_efficiency(m, c(x, 0.0)).unwrap();
+            assert!((inside - q.qabs).abs() < 1e-12 * q.qext, "m={m} x={x}: {inside} vs {}", q.qabs);
+        }
+        assert_eq!(absorption_efficiency(c(1.5, 0.0), c(3.0, 0.0)).unwrap(), 0.0);
+        // A very weakly absorbing sphere: qext − qsca has cancelled away,
+        // the internal form keeps Q_abs ∝ κ.
+        let a = absorption_efficiency(c(1.5, 1e-12), c(3.0, 0.0)).unwrap();
+        let b = absorption_efficiency(c(1.5, 2e-12), c(3.0, 0.0)).unwrap();
+        assert!(a > 0.0 && (b / a - 2.0).abs() < 1e-6, "{a} {b}");
     }
 
     #[test]

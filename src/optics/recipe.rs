@@ -12,7 +12,7 @@
 //! name = "IOL1068-09"
 //! thickness_mm = 6.35
 //! size_mm = [149.1, 104.5]
-//! absorption = "mie"                    # or "volume-weighted"
+//! absorption = "volume-weighted-full-host"   # or "mie" (default), "volume-weighted"
 //!
 //! [host]
 //! name = "polycarbonate"
@@ -27,6 +27,7 @@
 //! density_g_per_ml = 0.965
 //! weight_percent = 0.65
 //! size = { kind = "diameter", diameter_um = 2.2 }
+//! # imaginary_part = { mode = "replace", kappa = 0 }    # or { mode = "scale", factor = 0.5 }
 //! # size = { kind = "range", min_um = 8, max_um = 10, distribution = "uniform" }   # or "midpoint"
 //! # size = { kind = "log-normal", median_diameter_um = 2.2, sigma = 0.1 }
 //!
@@ -37,8 +38,19 @@
 //! ```
 //!
 //! Volume fraction of a particle type (SPEC §1): φ = (w/ρ_p) / (100/ρ_h).
+//!
+//! Corrections of the index data, for the host or any particle:
+//! `real_part` imposes n at one wavelength (shift, or replace by a constant;
+//! κ kept), `imaginary_part` replaces κ by a constant or scales it (n kept).
+//! Both are listed by [`Recipe::corrections`] and reported with the
+//! optical properties.
+//!
+//! Absorption models (`absorption`, see [`AbsorptionModel`]): `mie`
+//! (the default when the key is absent), `volume-weighted`, and
+//! `volume-weighted-full-host`, the lab's formula, which the shipped
+//! recipes use.
 
-use super::index::{Extrapolation, IndexError, IndexSpectrum, RealPartCorrection};
+use super::index::{Extrapolation, ImaginaryPartCorrection, IndexError, IndexSpectrum, RealPartCorrection};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -55,15 +67,41 @@ pub enum RecipeError {
     Index { path: PathBuf, key: String, source: IndexError },
 }
 
-/// How the bulk absorption coefficient is computed (SPEC §1).
+/// How the bulk absorption coefficient is computed (SPEC §1; formulas in
+/// [`super::bulk`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum AbsorptionModel {
-    /// μ_a = μ_t − μ_s from the Lorenz–Mie cross sections plus host absorption.
+    /// `mie`: μ_a = μ_t − μ_s from the Lorenz–Mie cross sections plus the
+    /// host's 4πκ_h/λ over the volume it occupies, (1 − Σφ).
     #[default]
     Mie,
-    /// Host 4πκ_h/λ and each particle's 4πκ_p/λ, weighted by volume fraction.
+    /// `volume-weighted`: (1 − Σφ) 4πκ_h/λ + Σ φ_i 4πκ_i/λ.
     VolumeWeighted,
+    /// `volume-weighted-full-host`: 4πκ_h/λ + Σ φ_i 4πκ_i/λ, the host term
+    /// not scaled by 1 − Σφ. The lab's formula: its published coefficients
+    /// follow it exactly.
+    VolumeWeightedFullHost,
+}
+
+impl AbsorptionModel {
+    /// The name a recipe uses for this model.
+    pub fn name(self) -> &'static str {
+        match self {
+            AbsorptionModel::Mie => "mie",
+            AbsorptionModel::VolumeWeighted => "volume-weighted",
+            AbsorptionModel::VolumeWeightedFullHost => "volume-weighted-full-host",
+        }
+    }
+
+    /// What the model computes, in one line.
+    pub fn formula(self) -> &'static str {
+        match self {
+            AbsorptionModel::Mie => "μa = μt − μs (Lorenz–Mie) + (1 − Σφ)·4πκh/λ",
+            AbsorptionModel::VolumeWeighted => "μa = (1 − Σφ)·4πκh/λ + Σ φi·4πκi/λ",
+            AbsorptionModel::VolumeWeightedFullHost => "μa = 4πκh/λ + Σ φi·4πκi/λ (the lab's formula)",
+        }
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -89,6 +127,16 @@ struct RawHost {
     #[serde(default = "no_extrapolation")]
     extrapolate: Extrapolation,
     real_part: Option<RawRealPart>,
+    imaginary_part: Option<RawImaginaryPart>,
+}
+
+/// `imaginary_part = { mode = "replace", kappa = 0 }` or
+/// `{ mode = "scale", factor = 0.5 }`.
+#[derive(Debug, Deserialize)]
+#[serde(tag = "mode", rename_all = "kebab-case", deny_unknown_fields)]
+enum RawImaginaryPart {
+    Replace { kappa: f64 },
+    Scale { factor: f64 },
 }
 
 #[derive(Debug, Deserialize)]
@@ -119,6 +167,7 @@ struct RawParticle {
     #[serde(default = "no_extrapolation")]
     extrapolate: Extrapolation,
     real_part: Option<RawRealPart>,
+    imaginary_part: Option<RawImaginaryPart>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -188,6 +237,9 @@ pub struct Medium {
     pub index: IndexSpectrum,
     pub extrapolation: Extrapolation,
     pub density_kg_per_m3: f64,
+    /// The recipe's corrections of the index data, one readable line each
+    /// (e.g. "n shifted to 1.5889 at 550 nm, κ kept"); empty if none.
+    pub corrections: Vec<String>,
 }
 
 /// One particle type of a recipe.
@@ -225,24 +277,33 @@ pub struct Overrides {
 impl Recipe {
     /// Loads and validates a recipe file.
     pub fn load(path: &Path, overrides: Overrides) -> Result<Self, RecipeError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| RecipeError::Read { path: path.to_path_buf(), source })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|source| RecipeError::Read { path: path.to_path_buf(), source })?;
         Self::parse(&text, path, overrides)
     }
 
     /// Parses recipe text; `path` names it in errors and anchors relative
     /// index-file paths.
     pub fn parse(text: &str, path: &Path, overrides: Overrides) -> Result<Self, RecipeError> {
-        let raw: RawRecipe = toml::from_str(text).map_err(|e| RecipeError::Parse {
-            path: path.to_path_buf(),
-            message: one_line(&e.to_string()),
-        })?;
+        let raw: RawRecipe = toml::from_str(text)
+            .map_err(|e| RecipeError::Parse { path: path.to_path_buf(), message: one_line(&e.to_string()) })?;
         Validator { path }.recipe(raw, overrides)
     }
 
     /// Total volume fraction of all particle types.
     pub fn particle_volume_fraction(&self) -> f64 {
         self.particles.iter().map(|p| p.volume_fraction).sum()
+    }
+
+    /// Every correction of the index data, as "host NAME: …" and
+    /// "particle NAME: …" lines, in recipe order.
+    pub fn corrections(&self) -> Vec<String> {
+        let host = self.host.corrections.iter().map(|c| format!("host {}: {c}", self.host.name));
+        let particles = self
+            .particles
+            .iter()
+            .flat_map(|p| p.medium.corrections.iter().map(move |c| format!("particle {}: {c}", p.medium.name)));
+        host.chain(particles).collect()
     }
 }
 
@@ -298,7 +359,7 @@ impl Validator<'_> {
             &raw.host.index,
             host_density,
             raw.host.extrapolate,
-            raw.host.real_part.as_ref(),
+            (raw.host.real_part.as_ref(), raw.host.imaginary_part.as_ref()),
         )?;
         if raw.particles.is_empty() {
             return self.invalid("particles", "at least one [[particles]] entry is required");
@@ -306,10 +367,15 @@ impl Validator<'_> {
         let mut particles = Vec::with_capacity(raw.particles.len());
         for (i, p) in raw.particles.iter().enumerate() {
             let key = format!("particles[{i}]");
-            let density =
-                self.positive(&format!("{key}.density_g_per_ml"), p.density_g_per_ml, "g/mL")?;
-            let medium =
-                self.medium(&key, &p.name, &p.index, density, p.extrapolate, p.real_part.as_ref())?;
+            let density = self.positive(&format!("{key}.density_g_per_ml"), p.density_g_per_ml, "g/mL")?;
+            let medium = self.medium(
+                &key,
+                &p.name,
+                &p.index,
+                density,
+                p.extrapolate,
+                (p.real_part.as_ref(), p.imaginary_part.as_ref()),
+            )?;
             let wkey = format!("{key}.weight_percent");
             let w = match p.weight_percent.or(overrides.weight_percent) {
                 Some(w) => w,
@@ -362,7 +428,7 @@ impl Validator<'_> {
         index: &str,
         density_g_per_ml: f64,
         extrapolation: Extrapolation,
-        real_part: Option<&RawRealPart>,
+        (real_part, imaginary_part): (Option<&RawRealPart>, Option<&RawImaginaryPart>),
     ) -> Result<Medium, RecipeError> {
         let index_key = format!("{key}.index");
         let index_error = |source| RecipeError::Index { path: self.path.to_path_buf(), key: index_key.clone(), source };
@@ -377,13 +443,37 @@ impl Validator<'_> {
             };
             IndexSpectrum::load(&resolved).map_err(index_error)?
         };
+        let mut corrections = Vec::new();
         if let Some(rp) = real_part {
             let rkey = format!("{key}.real_part");
             self.positive(&format!("{rkey}.wavelength_nm"), rp.wavelength_nm, "nanometres")?;
             self.positive(&format!("{rkey}.n"), rp.n, "(refractive index)")?;
-            spectrum = spectrum.with_real_part_at(rp.wavelength_nm, rp.n, rp.mode).map_err(|source| {
-                RecipeError::Index { path: self.path.to_path_buf(), key: rkey.clone(), source }
+            spectrum = spectrum
+                .with_real_part_at(rp.wavelength_nm, rp.n, rp.mode)
+                .map_err(|source| RecipeError::Index { path: self.path.to_path_buf(), key: rkey.clone(), source })?;
+            corrections.push(match rp.mode {
+                RealPartCorrection::Shift => {
+                    format!("n shifted to {} at {} nm (dispersion and κ kept)", rp.n, rp.wavelength_nm)
+                }
+                RealPartCorrection::Replace => format!("n replaced by the constant {} (κ kept)", rp.n),
+            });
+        }
+        if let Some(ip) = imaginary_part {
+            let ikey = format!("{key}.imaginary_part");
+            let (correction, text, field) = match *ip {
+                RawImaginaryPart::Replace { kappa } => {
+                    (ImaginaryPartCorrection::Replace { kappa }, format!("κ replaced by {kappa} (n kept)"), "kappa")
+                }
+                RawImaginaryPart::Scale { factor } => {
+                    (ImaginaryPartCorrection::Scale { factor }, format!("κ scaled by {factor} (n kept)"), "factor")
+                }
+            };
+            spectrum = spectrum.with_imaginary_part(correction).map_err(|source| RecipeError::Index {
+                path: self.path.to_path_buf(),
+                key: format!("{ikey}.{field}"),
+                source,
             })?;
+            corrections.push(text);
         }
         Ok(Medium {
             name: name.to_string(),
@@ -391,6 +481,7 @@ impl Validator<'_> {
             index: spectrum,
             extrapolation,
             density_kg_per_m3: density_g_per_ml * 1000.0,
+            corrections,
         })
     }
 
@@ -403,7 +494,8 @@ impl Validator<'_> {
                 let lo = self.positive(&format!("{key}.min_um"), min_um, "micrometres")?;
                 let hi = self.positive(&format!("{key}.max_um"), max_um, "micrometres")?;
                 if hi <= lo {
-                    return self.invalid(key, format!("empty diameter range [{lo}, {hi}] µm: max_um must exceed min_um"));
+                    return self
+                        .invalid(key, format!("empty diameter range [{lo}, {hi}] µm: max_um must exceed min_um"));
                 }
                 match distribution {
                     RangeDistribution::Midpoint => SizeDistribution::Mono { radius_m: 0.25e-6 * (lo + hi) },
@@ -508,6 +600,47 @@ size = { kind = "diameter", diameter_um = 2.2 }
         assert!(e.contains("weight_percent") && e.contains("unknown"), "{e}");
         let r = Recipe::parse(&text, Path::new("x.toml"), Overrides { weight_percent: Some(1.0) }).unwrap();
         assert_eq!(r.particles[0].weight_percent, 1.0);
+    }
+
+    #[test]
+    fn absorption_models_and_overrides_parse() {
+        for (name, model) in [
+            ("mie", AbsorptionModel::Mie),
+            ("volume-weighted", AbsorptionModel::VolumeWeighted),
+            ("volume-weighted-full-host", AbsorptionModel::VolumeWeightedFullHost),
+        ] {
+            let r = parse(&format!("absorption = \"{name}\"\n{GOOD}")).unwrap();
+            assert_eq!(r.absorption, model);
+            assert_eq!(model.name(), name);
+        }
+        assert_eq!(parse(GOOD).unwrap().absorption, AbsorptionModel::Mie, "default when absent");
+        let e = error(&format!("absorption = \"lab\"\n{GOOD}"));
+        assert!(e.contains("volume-weighted-full-host"), "the valid names are listed: {e}");
+
+        let with = |line: &str| GOOD.replace("size = { kind", &format!("{line}\nsize = {{ kind"));
+        let r = parse(&with(r#"imaginary_part = { mode = "replace", kappa = 0 }"#)).unwrap();
+        assert_eq!(r.particles[0].medium.index.at(550.0, Extrapolation::None).unwrap().index.im, 0.0);
+        assert_eq!(
+            r.corrections(),
+            [
+                "host polycarbonate: n shifted to 1.5889 at 550 nm (dispersion and κ kept)",
+                "particle PDMS: κ replaced by 0 (n kept)"
+            ]
+        );
+        let r = parse(&with(r#"imaginary_part = { mode = "scale", factor = 2 }"#)).unwrap();
+        assert_eq!(r.particles[0].medium.corrections, ["κ scaled by 2 (n kept)"]);
+        for (line, key) in [
+            (r#"imaginary_part = { mode = "replace", kappa = -1 }"#, "particles[0].imaginary_part.kappa"),
+            (r#"imaginary_part = { mode = "scale", factor = nan }"#, "particles[0].imaginary_part.factor"),
+        ] {
+            let e = error(&with(line));
+            assert!(e.contains(key) && e.contains("sample.toml"), "{e}");
+        }
+        for line in [r#"imaginary_part = { mode = "replace", factor = 0 }"#, r#"imaginary_part = { mode = "double" }"#]
+        {
+            let e = error(&with(line));
+            assert!(e.contains("sample.toml"), "{e}");
+        }
     }
 
     #[test]
