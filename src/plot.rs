@@ -69,57 +69,122 @@ pub(crate) fn palette(i: usize) -> RGBColor {
     C[i % C.len()]
 }
 
-/// μ_s, μ_a (log scale) and g against wavelength, one line per spectrum.
+/// A tick label with up to three significant digits and no trailing zeros:
+/// plain from 0.01 to below 10⁴ ("400", "0.95", "2500"), else scientific
+/// ("1e4", "2.5e5", "1.5e-3"); never "400.0".
+pub(crate) fn short_number(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if (1e-2..1e4).contains(&a) {
+        let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+        let s = format!("{v:.decimals$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        let s = format!("{v:.2e}");
+        let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
+        let mantissa =
+            if mantissa.contains('.') { mantissa.trim_end_matches('0').trim_end_matches('.') } else { mantissa };
+        format!("{mantissa}e{exponent}")
+    }
+}
+
+/// μ_s, μ_a (both on a logarithmic axis, said in the panel titles) and g
+/// against wavelength, one line per spectrum. Each panel has its legend in
+/// a column to its right, outside the plotting area; a figure of one
+/// sample is titled with its name.
 pub fn spectra_png(spectra: &[&OpticalSpectrum]) -> Result<Vec<u8>, PlotError> {
-    render_png(1000, 1150, |root| {
+    let longest = spectra.iter().map(|s| s.sample.chars().count()).max().unwrap_or(0) as u32;
+    let legend_width = (60 + 9 * longest).clamp(150, 320);
+    render_png(1000 + legend_width, 1200, |root| {
+        let title = match spectra {
+            [one] => format!("{}: optical properties ({} absorption model)", one.sample, one.absorption.name()),
+            _ => format!("optical properties of {} samples", spectra.len()),
+        };
+        let root = root.titled(&title, ("sans-serif", 24)).map_err(perr)?;
         let panels = root.split_evenly((3, 1));
         type Get = fn(&OpticalSpectrum) -> &Vec<f64>;
         let rows: [(&str, Get, bool); 3] = [
-            ("scattering coefficient μs [1/m]", |s| &s.mu_s_per_m, true),
-            ("absorption coefficient μa [1/m]", |s| &s.mu_a_per_m, true),
-            ("asymmetry parameter g", |s| &s.g, false),
+            ("scattering coefficient μs [1/m], logarithmic axis", |s| &s.mu_s_per_m, true),
+            ("absorption coefficient μa [1/m], logarithmic axis", |s| &s.mu_a_per_m, true),
+            ("asymmetry parameter g, linear axis", |s| &s.g, false),
         ];
         let (wmin, wmax) = spectra
             .iter()
             .flat_map(|s| s.wavelength_nm.iter().copied())
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), w| (a.min(w), b.max(w)));
         let (wmin, wmax) = if wmax > wmin { (wmin, wmax) } else { (wmin - 5.0, wmin + 5.0) };
-        for (panel, (label, get, log)) in panels.iter().zip(rows) {
-            let values: Vec<f64> = spectra.iter().flat_map(|s| get(s).iter().copied()).filter(|v| v.is_finite()).collect();
+        for (row, (label, get, log)) in panels.iter().zip(rows) {
+            let (panel, legend) = row.split_horizontally(1000);
+            let values: Vec<f64> =
+                spectra.iter().flat_map(|s| get(s).iter().copied()).filter(|v| v.is_finite()).collect();
             let positive: Vec<f64> = values.iter().copied().filter(|v| *v > 0.0).collect();
-            let mut builder = ChartBuilder::on(panel);
+            let mut builder = ChartBuilder::on(&panel);
             builder.margin(12).x_label_area_size(40).y_label_area_size(80).caption(label, ("sans-serif", 20));
+            let x_fmt = |v: &f64| short_number(*v);
+            let y_fmt = |v: &f64| short_number(*v);
+            let style = |i: usize| palette(i).stroke_width(2);
             if log && !positive.is_empty() {
                 let lo = positive.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
                 let hi = positive.iter().copied().fold(0.0, f64::max) * 1.5;
                 let mut chart = builder.build_cartesian_2d(wmin..wmax, (lo..hi).log_scale()).map_err(perr)?;
-                chart.configure_mesh().x_desc("wavelength [nm]").y_label_formatter(&|v| format!("{v:.1e}")).draw().map_err(perr)?;
+                chart
+                    .configure_mesh()
+                    .x_desc("wavelength [nm]")
+                    .x_label_formatter(&x_fmt)
+                    .y_label_formatter(&y_fmt)
+                    .draw()
+                    .map_err(perr)?;
                 for (i, s) in spectra.iter().enumerate() {
                     let pts = s.wavelength_nm.iter().zip(get(s)).filter(|(_, v)| **v > 0.0).map(|(w, v)| (*w, *v));
-                    chart
-                        .draw_series(LineSeries::new(pts, palette(i).stroke_width(2)))
-                        .map_err(perr)?
-                        .label(s.sample.clone())
-                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], palette(i).stroke_width(2)));
-                }
-                if spectra.len() > 1 {
-                    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(perr)?;
+                    chart.draw_series(LineSeries::new(pts, style(i))).map_err(perr)?;
                 }
             } else {
                 let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
                 let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                let (lo, hi) = if hi > lo { (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo)) } else { (lo - 0.01, lo + 0.01) };
+                let (lo, hi) =
+                    if hi > lo { (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo)) } else { (lo - 0.01, lo + 0.01) };
                 let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
                 let mut chart = builder.build_cartesian_2d(wmin..wmax, lo..hi).map_err(perr)?;
-                chart.configure_mesh().x_desc("wavelength [nm]").y_label_formatter(&|v| format!("{v:.4}")).draw().map_err(perr)?;
+                chart
+                    .configure_mesh()
+                    .x_desc("wavelength [nm]")
+                    .x_label_formatter(&x_fmt)
+                    .y_label_formatter(&y_fmt)
+                    .draw()
+                    .map_err(perr)?;
                 for (i, s) in spectra.iter().enumerate() {
                     let pts = s.wavelength_nm.iter().zip(get(s)).map(|(w, v)| (*w, *v));
-                    chart.draw_series(LineSeries::new(pts, palette(i).stroke_width(2))).map_err(perr)?;
+                    chart.draw_series(LineSeries::new(pts, style(i))).map_err(perr)?;
                 }
             }
+            draw_legend(&legend, spectra.iter().map(|s| s.sample.as_str()))?;
         }
         Ok(())
     })
+}
+
+/// A legend (coloured line and name, one row each, colours by
+/// [`palette`]) at the top of `area`, below the height of a panel caption.
+fn draw_legend<'a>(
+    area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    names: impl Iterator<Item = &'a str>,
+) -> Result<(), PlotError> {
+    let font = ("sans-serif", 15).into_font();
+    let names: Vec<&str> = names.collect();
+    let (_, height) = area.dim_in_pixel();
+    let row = ((height as i32 - 50) / names.len().max(1) as i32).clamp(10, 22);
+    for (i, name) in names.iter().enumerate() {
+        let y = 44 + row * i as i32;
+        area.draw(&PathElement::new(vec![(4, y), (30, y)], palette(i).stroke_width(3))).map_err(perr)?;
+        area.draw(&Text::new(name.to_string(), (36, y - 8), font.clone())).map_err(perr)?;
+    }
+    Ok(())
 }
 
 /// Henyey–Greenstein phase function per steradian.
@@ -170,7 +235,9 @@ pub fn phase_polar_png(title: &str, theta_samples: &[f64], g: f64) -> Result<Vec
         }
         for k in 0..12 {
             let a = k as f64 * PI / 6.0;
-            chart.draw_series(LineSeries::new([(0.0, 0.0), (a.cos(), a.sin())], RGBColor(220, 220, 220))).map_err(perr)?;
+            chart
+                .draw_series(LineSeries::new([(0.0, 0.0), (a.cos(), a.sin())], RGBColor(220, 220, 220)))
+                .map_err(perr)?;
             chart
                 .draw_series(std::iter::once(Text::new(
                     format!("{}°", (k * 30) % 360),
@@ -262,7 +329,10 @@ pub fn delta_e_bars_png(
             .label("ΔE*ab (CIE 1976)")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.stroke_width(3)));
         let dashes = (0..(2 * n)).step_by(2).map(|k| {
-            PathElement::new(vec![(k as f64 * 0.5, mean), (k as f64 * 0.5 + 0.5, mean)], RGBColor(214, 39, 40).stroke_width(2))
+            PathElement::new(
+                vec![(k as f64 * 0.5, mean), (k as f64 * 0.5 + 0.5, mean)],
+                RGBColor(214, 39, 40).stroke_width(2),
+            )
         });
         chart
             .draw_series(dashes)
@@ -292,8 +362,10 @@ pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<V
         return Err(PlotError("residuals must be finite".into()));
     }
     let reach = views.iter().flat_map(|(_, r)| r).map(|p| p[0].abs().max(p[1].abs())).fold(rms_px, f64::max) * 1.1;
-    let per_view: Vec<f64> =
-        views.iter().map(|(_, r)| (r.iter().map(|p| p[0] * p[0] + p[1] * p[1]).sum::<f64>() / r.len() as f64).sqrt()).collect();
+    let per_view: Vec<f64> = views
+        .iter()
+        .map(|(_, r)| (r.iter().map(|p| p[0] * p[0] + p[1] * p[1]).sum::<f64>() / r.len() as f64).sqrt())
+        .collect();
     let top = per_view.iter().copied().fold(rms_px, f64::max) * 1.15;
     render_png(1400, 700, |root| {
         let (left, right) = root.split_horizontally(700);
@@ -328,11 +400,22 @@ pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<V
             .caption("RMS per view [px]", ("sans-serif", 22))
             .build_cartesian_2d(0f64..n as f64, 0f64..top)
             .map_err(perr)?;
-        bars.configure_mesh().disable_x_mesh().x_labels(0).y_label_formatter(&|v| format!("{v:.2}")).draw().map_err(perr)?;
-        bars.draw_series((0..n).map(|i| Rectangle::new([(i as f64 + 0.15, 0.0), (i as f64 + 0.85, per_view[i])], palette(i).filled())))
+        bars.configure_mesh()
+            .disable_x_mesh()
+            .x_labels(0)
+            .y_label_formatter(&|v| format!("{v:.2}"))
+            .draw()
             .map_err(perr)?;
-        bars.draw_series(std::iter::once(PathElement::new(vec![(0.0, rms_px), (n as f64, rms_px)], BLACK.stroke_width(2))))
-            .map_err(perr)?;
+        bars.draw_series(
+            (0..n)
+                .map(|i| Rectangle::new([(i as f64 + 0.15, 0.0), (i as f64 + 0.85, per_view[i])], palette(i).filled())),
+        )
+        .map_err(perr)?;
+        bars.draw_series(std::iter::once(PathElement::new(
+            vec![(0.0, rms_px), (n as f64, rms_px)],
+            BLACK.stroke_width(2),
+        )))
+        .map_err(perr)?;
         let font = ("sans-serif", 13).into_font().transform(FontTransform::Rotate90);
         for (i, (name, _)) in views.iter().enumerate() {
             let (px, py) = bars.backend_coord(&(i as f64 + 0.5, 0.0));
@@ -348,12 +431,35 @@ mod tests {
 
     #[test]
     fn residuals_plot_is_a_png_and_checks_its_input() {
-        let views = vec![("a.jpg".to_string(), vec![[0.1, -0.2], [0.0, 0.05]]), ("b.jpg".to_string(), vec![[-0.3, 0.1]])];
+        let views =
+            vec![("a.jpg".to_string(), vec![[0.1, -0.2], [0.0, 0.05]]), ("b.jpg".to_string(), vec![[-0.3, 0.1]])];
         let png = residuals_png(&views, 0.2).unwrap();
         let img = image::load_from_memory(&png).unwrap();
         assert_eq!((img.width(), img.height()), (1400, 700));
         assert!(residuals_png(&[], 0.1).is_err());
         assert!(residuals_png(&[("x".into(), vec![[f64::NAN, 0.0]])], 0.1).is_err());
+    }
+
+    #[test]
+    fn tick_labels_are_short() {
+        let cases = [
+            (400.0, "400"),
+            (450.0, "450"),
+            (2500.0, "2500"),
+            (0.95, "0.95"),
+            (0.9512, "0.951"),
+            (1.0, "1"),
+            (30000.0, "3e4"),
+            (10000.0, "1e4"),
+            (9990.0, "9990"),
+            (2e5, "2e5"),
+            (1.5e-3, "1.5e-3"),
+            (2000.0000000000002, "2000"),
+            (-0.25, "-0.25"),
+        ];
+        for (v, want) in cases {
+            assert_eq!(short_number(v), want, "{v}");
+        }
     }
 
     #[test]
