@@ -7,6 +7,7 @@
 pub mod bssrdf;
 pub mod chart_detect;
 pub mod cli;
+pub mod compare;
 pub mod imageio;
 pub mod io;
 pub mod optics;

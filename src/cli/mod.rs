@@ -4,6 +4,7 @@
 pub mod bssrdf;
 pub mod camera;
 pub mod colour;
+pub mod compare;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::mie::{self, Coefficients, Efficiencies};
@@ -50,6 +51,8 @@ pub enum Command {
     /// Equirectangular HDR environments: check, colour-convert, summarise.
     #[command(subcommand)]
     Env(camera::EnvCommand),
+    /// Photo vs render: RMSE, SSIM, triplet.png (photo | render | difference), difference.exr; optional ECC alignment.
+    Compare(compare::CompareArgs),
 }
 
 #[derive(Debug, Args)]
@@ -142,6 +145,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Undistort(a) => camera::undistort(a),
         Command::Pose(a) => camera::pose(a),
         Command::Env(c) => camera::run_env(c),
+        Command::Compare(a) => compare::run(a),
     }
 }
 

@@ -1,0 +1,122 @@
+//! `lucent compare`: a photo and its twin's render → metrics.json,
+//! triplet.png and difference.exr (SPEC §6). Argument handling and
+//! printing only; the work is done by [`crate::compare`].
+
+use crate::compare::{self, Luminance, MaskSpec, Metrics, Request};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use lucent_calib::ecc::Motion;
+use std::path::PathBuf;
+
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("masking").args(["mask", "mask_object", "mask_board"])))]
+pub struct CompareArgs {
+    /// The photo: linear RGB (.exr, .hdr; .png/.tif are taken as stored), undistorted.
+    #[arg(long)]
+    pub photo: PathBuf,
+    /// The render of the twin, same size and channels as the photo.
+    #[arg(long)]
+    pub render: PathBuf,
+    /// Mask image of the photo's size: nonzero = pixel included.
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
+    /// Compare only the sample: its box projected from this scene JSON (`lucent pose`).
+    #[arg(long, value_name = "SCENE_JSON")]
+    pub mask_object: Option<PathBuf>,
+    /// Compare only the board (printed squares minus the sample), from this scene JSON.
+    #[arg(long, value_name = "SCENE_JSON")]
+    pub mask_board: Option<PathBuf>,
+    /// Scene JSON whose board region ECC aligns on (implied by --mask-object/--mask-board).
+    #[arg(long, value_name = "SCENE_JSON")]
+    pub scene: Option<PathBuf>,
+    /// SSIM data range L (C1 = (0.01 L)², C2 = (0.03 L)²), in the images' units.
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub data_range: f64,
+    /// Luminance weights for SSIM Y, the difference picture and ECC: cie-rgb (0.1769, 0.8124,
+    /// 0.0107) or rec709 (0.2126, 0.7152, 0.0722).
+    #[arg(long, default_value = "cie-rgb")]
+    pub luminance: String,
+    /// Display exposure k for triplet.png (shown = sRGB(k × linear)); default: 1 / the 99th
+    /// percentile of the photo's max(R, G, B).
+    #[arg(long, allow_hyphen_values = true)]
+    pub exposure: Option<f64>,
+    /// Also align the render to the photo and report the metrics after it: ecc (OpenCV findTransformECC).
+    #[arg(long, value_name = "METHOD")]
+    pub refine: Option<String>,
+    /// Motion model of the refinement: translation, euclidean, affine or homography.
+    #[arg(long, default_value = "translation", requires = "refine")]
+    pub refine_motion: String,
+    /// Output folder (created; existing metrics.json, triplet.png, difference.exr in it are replaced).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+fn line(m: &Metrics) -> String {
+    format!(
+        "RMSE {:.4e} (R {:.3e}, G {:.3e}, B {:.3e}), SSIM Y {:.4} (R {:.4}, G {:.4}, B {:.4}), MAE {:.3e}, relative error {:.2} %, {} pixels",
+        m.rmse,
+        m.rmse_channels.r,
+        m.rmse_channels.g,
+        m.rmse_channels.b,
+        m.ssim.y,
+        m.ssim.r,
+        m.ssim.g,
+        m.ssim.b,
+        m.mean_abs_error,
+        100.0 * m.relative_error,
+        m.pixels
+    )
+}
+
+pub fn run(a: CompareArgs) -> Result<()> {
+    let refine = match a.refine.as_deref().map(str::trim) {
+        None => None,
+        Some(m) if m.eq_ignore_ascii_case("ecc") => {
+            Some(Motion::from_name(&a.refine_motion).context("--refine-motion")?)
+        }
+        Some(other) => bail!("--refine {other:?}: the only method is ecc"),
+    };
+    let mask = match (a.mask, a.mask_object, a.mask_board) {
+        (Some(p), _, _) => MaskSpec::Image(p),
+        (_, Some(p), _) => MaskSpec::Object(p),
+        (_, _, Some(p)) => MaskSpec::Board(p),
+        _ => MaskSpec::None,
+    };
+    let req = Request {
+        photo: a.photo,
+        render: a.render,
+        mask,
+        scene: a.scene,
+        data_range: a.data_range,
+        luminance: Luminance::from_name(&a.luminance).context("--luminance")?,
+        exposure: a.exposure,
+        refine,
+    };
+    let outcome = compare::compare_files(&req)?;
+    for n in &outcome.notes {
+        eprintln!("note: {n}");
+    }
+    let written = compare::write_outputs(&a.out, &outcome)
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    let r = &outcome.report;
+    println!("as calibrated: {}", line(&r.as_calibrated));
+    if let Some(f) = &r.refined {
+        println!(
+            "after ECC ({}, dx {:+.3} px, dy {:+.3} px, correlation {:.4}): {}",
+            f.motion,
+            f.shift_px[0],
+            f.shift_px[1],
+            f.correlation,
+            line(&f.metrics)
+        );
+    }
+    println!(
+        "written: {}",
+        written
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}

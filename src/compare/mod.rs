@@ -1,0 +1,1019 @@
+//! Photo ↔ render comparison (SPEC §6): error metrics, SSIM, the triplet
+//! picture and the difference image, optionally after aligning the render
+//! to the photo with OpenCV's ECC (`lucent compare`).
+//!
+//! Metrics, over the included pixels (all, or a mask's), values in the
+//! images' own linear units, difference = render − photo:
+//!
+//! | name | definition |
+//! |---|---|
+//! | `rmse` | √(mean over pixels and channels of (r − p)²); per channel: over pixels |
+//! | `mean_abs_error` | mean \|r − p\| (total and per channel) |
+//! | `relative_error` | Σ\|r − p\| / Σ\|p\| over pixels and channels (robust to dark pixels) |
+//! | `ssim.R/G/B` | SSIM of each channel ([`ssim`]: Wang et al. 2004, Gaussian σ = 1.5, 11 taps, K1 = 0.01, K2 = 0.03, stated data range; = scikit-image) |
+//! | `ssim.mean_rgb` | mean of the three (what skimage returns with `channel_axis=-1`) |
+//! | `ssim.Y` | SSIM of the luminance Y = w·(R, G, B) ([`Luminance`]) |
+//!
+//! With a mask, the errors are over the mask pixels and each SSIM is the
+//! mean of its SSIM map over the mask pixels at least 5 px from the image
+//! border (skimage's crop; the windows themselves see all pixels, masked or
+//! not). Luminance weights default to the Y row of the CIE 1931 RGB → XYZ
+//! matrix (0.1769, 0.8124, 0.0107), the space photos, environment and
+//! renders share (SPEC §4); Rec. 709 / linear sRGB (0.2126, 0.7152, 0.0722)
+//! on request.
+//!
+//! Refinement ([`Request::refine`]): `lucent_calib::ecc::find_transform_ecc`
+//! on the luminance, photo as template and render as input, over the board
+//! (printed squares minus the sample) projected from the scene JSON, or the
+//! whole image without a scene; the render is then resampled (bilinear) at
+//! `W·(x, y, 1)` for every photo pixel, pixels whose source falls outside the
+//! render are excluded, and the metrics are computed again.
+//!
+//! ```
+//! use lucent::compare::{metrics, Luminance, Settings};
+//! use lucent::compare::ssim::SsimParams;
+//! use lucent::imageio::RgbImage;
+//! let (w, h) = (24, 16);
+//! let photo = RgbImage::new(w, h, (0..w * h * 3).map(|i| 0.3 + 0.2 * ((i % 7) as f32 / 7.0)).collect()).unwrap();
+//! let render = RgbImage::new(w, h, photo.data.iter().map(|v| v + 0.1).collect()).unwrap();
+//! let settings = Settings { ssim: SsimParams::new(1.0).unwrap(), luminance: Luminance::CieRgb };
+//! let m = metrics(&photo, &render, None, &settings).unwrap();
+//! assert!((m.rmse - 0.1).abs() < 1e-6 && (m.mean_abs_error - 0.1).abs() < 1e-6);
+//! assert!(m.ssim.y < 1.0 && m.ssim.y > 0.9);
+//! ```
+
+pub mod input;
+pub mod mask;
+pub mod ssim;
+pub mod triplet;
+
+use crate::imageio::{write_exr_channels, ImageIoError, RgbImage};
+use crate::io::{write_atomic, write_json, WriteError};
+use crate::plot::PlotError;
+use lucent_calib::ecc::{self, EccOptions, Motion};
+use mask::Mask;
+use rayon::prelude::*;
+use serde::Serialize;
+use ssim::{Channel, SsimParams, Weighted};
+use std::path::{Path, PathBuf};
+
+/// A comparison that could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum CompareError {
+    /// A file that cannot be read (missing, unreadable, wrong format).
+    #[error("{role} {}: cannot read: {reason}", path.display())]
+    Read {
+        role: &'static str,
+        path: PathBuf,
+        reason: String,
+    },
+    /// NaN or ±inf in an input image.
+    #[error("{role} {}: {count} non-finite value(s); the first is {value} at pixel ({x}, {y}) (column, row from the top left), channel {channel}", path.display())]
+    NonFinite {
+        role: &'static str,
+        path: PathBuf,
+        x: usize,
+        y: usize,
+        channel: String,
+        value: &'static str,
+        count: usize,
+    },
+    /// Images, masks or scenes of different sizes.
+    #[error("{0}")]
+    Size(String),
+    /// Different colour channels (e.g. grey vs RGB).
+    #[error("{0}")]
+    Channels(String),
+    /// A bad option or a mask that leaves nothing.
+    #[error("{0}")]
+    Parameter(String),
+    #[error("ECC refinement failed: {0}")]
+    Ecc(#[from] lucent_calib::cv::CalibError),
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    #[error(transparent)]
+    Image(#[from] ImageIoError),
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// Luminance weights for `ssim.Y`, the difference picture and ECC.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Luminance {
+    /// Y row of CIE 1931 RGB → XYZ: 0.1769, 0.8124, 0.0107.
+    CieRgb,
+    /// Y row of linear sRGB / Rec. 709 → XYZ: 0.2126, 0.7152, 0.0722.
+    Rec709,
+}
+
+impl Luminance {
+    /// Valid names for [`Luminance::from_name`].
+    pub const NAMES: [&'static str; 2] = ["cie-rgb", "rec709"];
+
+    pub fn from_name(name: &str) -> Result<Self, CompareError> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "cie-rgb" | "cie" => Ok(Self::CieRgb),
+            "rec709" | "srgb" => Ok(Self::Rec709),
+            other => Err(CompareError::Parameter(format!(
+                "luminance {other:?}: expected one of {}",
+                Self::NAMES.join(", ")
+            ))),
+        }
+    }
+
+    /// (w_R, w_G, w_B), summing to 1.
+    pub fn weights(self) -> [f64; 3] {
+        use lucent_colour::spaces::RgbSpace;
+        match self {
+            Self::CieRgb => RgbSpace::CieRgb.to_xyz_matrix()[1],
+            Self::Rec709 => RgbSpace::Srgb.to_xyz_matrix()[1],
+        }
+    }
+
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::CieRgb => "Y row of the CIE 1931 RGB -> XYZ matrix",
+            Self::Rec709 => "Y row of the linear sRGB / Rec. 709 -> XYZ matrix",
+        }
+    }
+}
+
+/// How the metrics are computed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    pub ssim: SsimParams,
+    pub luminance: Luminance,
+}
+
+/// Three values, one per channel.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Rgb {
+    #[serde(rename = "R")]
+    pub r: f64,
+    #[serde(rename = "G")]
+    pub g: f64,
+    #[serde(rename = "B")]
+    pub b: f64,
+}
+
+impl Rgb {
+    fn from(v: [f64; 3]) -> Self {
+        Self {
+            r: v[0],
+            g: v[1],
+            b: v[2],
+        }
+    }
+}
+
+/// SSIM per channel, their mean, and of the luminance.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SsimSet {
+    #[serde(rename = "R")]
+    pub r: f64,
+    #[serde(rename = "G")]
+    pub g: f64,
+    #[serde(rename = "B")]
+    pub b: f64,
+    pub mean_rgb: f64,
+    #[serde(rename = "Y")]
+    pub y: f64,
+    /// SSIM-map pixels averaged (included and ≥ 5 px from the border).
+    pub pixels: usize,
+}
+
+/// The numbers of one photo/render pair (see the module docs).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Metrics {
+    /// Pixels included in the error metrics.
+    pub pixels: usize,
+    pub rmse: f64,
+    pub rmse_channels: Rgb,
+    pub mean_abs_error: f64,
+    pub mean_abs_error_channels: Rgb,
+    pub relative_error: f64,
+    pub mean_photo: Rgb,
+    pub mean_render: Rgb,
+    pub ssim: SsimSet,
+}
+
+/// Errors if the images differ in size.
+pub fn check_same_size(photo: &RgbImage, render: &RgbImage) -> Result<(), CompareError> {
+    if (photo.width, photo.height) != (render.width, render.height) {
+        return Err(CompareError::Size(format!(
+            "the photo is {} × {} pixels but the render is {} × {}",
+            photo.width, photo.height, render.width, render.height
+        )));
+    }
+    Ok(())
+}
+
+#[derive(Clone, Copy, Default)]
+struct Sums {
+    n: usize,
+    sq: [f64; 3],
+    abs: [f64; 3],
+    abs_photo: f64,
+    photo: [f64; 3],
+    render: [f64; 3],
+}
+
+/// [`metrics`] and the luminance SSIM map (`width × height`).
+pub fn metrics_and_ssim_map(
+    photo: &RgbImage,
+    render: &RgbImage,
+    mask: Option<&Mask>,
+    settings: &Settings,
+) -> Result<(Metrics, Vec<f32>), CompareError> {
+    check_same_size(photo, render)?;
+    let w = photo.width;
+    if let Some(m) = mask {
+        if (m.width, m.height) != (photo.width, photo.height) {
+            return Err(CompareError::Size(format!(
+                "the mask is {} × {}, the images are {} × {}",
+                m.width, m.height, photo.width, photo.height
+            )));
+        }
+    }
+    // Per-row sums, added in row order (deterministic for any thread count).
+    let rows: Vec<Sums> = (0..photo.height)
+        .into_par_iter()
+        .map(|y| {
+            let mut s = Sums::default();
+            for x in 0..w {
+                if mask.is_some_and(|m| !m.get(x, y)) {
+                    continue;
+                }
+                let (p, r) = (photo.pixel(x, y), render.pixel(x, y));
+                s.n += 1;
+                for c in 0..3 {
+                    let (pc, rc) = (f64::from(p[c]), f64::from(r[c]));
+                    let d = rc - pc;
+                    s.sq[c] += d * d;
+                    s.abs[c] += d.abs();
+                    s.abs_photo += pc.abs();
+                    s.photo[c] += pc;
+                    s.render[c] += rc;
+                }
+            }
+            s
+        })
+        .collect();
+    let mut t = Sums::default();
+    for s in rows {
+        t.n += s.n;
+        t.abs_photo += s.abs_photo;
+        for c in 0..3 {
+            t.sq[c] += s.sq[c];
+            t.abs[c] += s.abs[c];
+            t.photo[c] += s.photo[c];
+            t.render[c] += s.render[c];
+        }
+    }
+    if t.n == 0 {
+        return Err(CompareError::Parameter("the mask includes no pixel".into()));
+    }
+    let n = t.n as f64;
+    let p = &settings.ssim;
+    let per: Vec<ssim::Ssim> = (0..3)
+        .map(|c| ssim::ssim(&Channel(photo, c), &Channel(render, c), p, mask))
+        .collect::<Result<_, _>>()?;
+    let lw = settings.luminance.weights();
+    let (sy, map) = ssim::ssim_with_map(&Weighted(photo, lw), &Weighted(render, lw), p, mask)?;
+    let metrics = Metrics {
+        pixels: t.n,
+        rmse: ((t.sq[0] + t.sq[1] + t.sq[2]) / (3.0 * n)).sqrt(),
+        rmse_channels: Rgb::from(t.sq.map(|v| (v / n).sqrt())),
+        mean_abs_error: (t.abs[0] + t.abs[1] + t.abs[2]) / (3.0 * n),
+        mean_abs_error_channels: Rgb::from(t.abs.map(|v| v / n)),
+        relative_error: (t.abs[0] + t.abs[1] + t.abs[2]) / t.abs_photo,
+        mean_photo: Rgb::from(t.photo.map(|v| v / n)),
+        mean_render: Rgb::from(t.render.map(|v| v / n)),
+        ssim: SsimSet {
+            r: per[0].mean,
+            g: per[1].mean,
+            b: per[2].mean,
+            mean_rgb: (per[0].mean + per[1].mean + per[2].mean) / 3.0,
+            y: sy.mean,
+            pixels: sy.pixels,
+        },
+    };
+    Ok((metrics, map))
+}
+
+/// Error metrics and SSIM of `render` against `photo` (same size) over
+/// `mask` (None: all pixels).
+pub fn metrics(
+    photo: &RgbImage,
+    render: &RgbImage,
+    mask: Option<&Mask>,
+    settings: &Settings,
+) -> Result<Metrics, CompareError> {
+    metrics_and_ssim_map(photo, render, mask, settings).map(|(m, _)| m)
+}
+
+/// Luminance plane `w·(R, G, B)` as f32.
+pub fn luminance_plane(img: &RgbImage, weights: [f64; 3]) -> Vec<f32> {
+    img.data
+        .chunks_exact(3)
+        .map(|p| {
+            (weights[0] * f64::from(p[0])
+                + weights[1] * f64::from(p[1])
+                + weights[2] * f64::from(p[2])) as f32
+        })
+        .collect()
+}
+
+/// Resamples `img` at `W·(x, y, 1)` for every pixel (x, y) (bilinear;
+/// pixel centres at integers). Returns the image and the pixels whose
+/// source lies inside `img` (others take the nearest edge value).
+pub fn warp_bilinear(img: &RgbImage, warp: &[[f64; 3]; 3]) -> (RgbImage, Mask) {
+    let (w, h) = (img.width, img.height);
+    let mut data = vec![0f32; w * h * 3];
+    let mut valid = vec![false; w * h];
+    data.par_chunks_mut(3 * w)
+        .zip(valid.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (row, ok))| {
+            for x in 0..w {
+                let (xf, yf) = (x as f64, y as f64);
+                let d = warp[2][0] * xf + warp[2][1] * yf + warp[2][2];
+                let sx = (warp[0][0] * xf + warp[0][1] * yf + warp[0][2]) / d;
+                let sy = (warp[1][0] * xf + warp[1][1] * yf + warp[1][2]) / d;
+                let tol = 1e-9;
+                ok[x] = sx >= -tol
+                    && sy >= -tol
+                    && sx <= (w - 1) as f64 + tol
+                    && sy <= (h - 1) as f64 + tol;
+                let cx = if sx.is_finite() {
+                    sx.clamp(0.0, (w - 1) as f64)
+                } else {
+                    0.0
+                };
+                let cy = if sy.is_finite() {
+                    sy.clamp(0.0, (h - 1) as f64)
+                } else {
+                    0.0
+                };
+                let (x0, y0) = (cx.floor() as usize, cy.floor() as usize);
+                let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+                let (fx, fy) = (cx - x0 as f64, cy - y0 as f64);
+                let (a, b, c, e) = (
+                    img.pixel(x0, y0),
+                    img.pixel(x1, y0),
+                    img.pixel(x0, y1),
+                    img.pixel(x1, y1),
+                );
+                for k in 0..3 {
+                    let top = (1.0 - fx) * f64::from(a[k]) + fx * f64::from(b[k]);
+                    let bottom = (1.0 - fx) * f64::from(c[k]) + fx * f64::from(e[k]);
+                    row[3 * x + k] = ((1.0 - fy) * top + fy * bottom) as f32;
+                }
+            }
+        });
+    (
+        RgbImage {
+            width: w,
+            height: h,
+            data,
+        },
+        Mask {
+            width: w,
+            height: h,
+            include: valid,
+        },
+    )
+}
+
+/// The value below which a fraction `q` of `values` lie (nearest rank on
+/// the sorted values, index round(q·(n − 1))); None if empty.
+pub fn percentile(mut values: Vec<f32>, q: f64) -> Option<f32> {
+    if values.is_empty() {
+        return None;
+    }
+    let k = ((values.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
+    let (_, v, _) = values.select_nth_unstable_by(k, f32::total_cmp);
+    Some(*v)
+}
+
+fn included<'a>(img: &'a RgbImage, mask: Option<&'a Mask>) -> impl Iterator<Item = &'a [f32]> + 'a {
+    img.data
+        .chunks_exact(3)
+        .enumerate()
+        .filter(move |(i, _)| mask.is_none_or(|m| m.include[*i]))
+        .map(|(_, p)| p)
+}
+
+/// Automatic display exposure: 1 / (99th percentile of the photo's
+/// max(R, G, B) over included pixels); 1 if that is not positive. Returns
+/// (exposure, percentile).
+pub fn auto_exposure(photo: &RgbImage, mask: Option<&Mask>) -> (f64, f64) {
+    let values: Vec<f32> = included(photo, mask)
+        .map(|p| p[0].max(p[1]).max(p[2]))
+        .collect();
+    let p99 = f64::from(percentile(values, 0.99).unwrap_or(0.0));
+    (if p99 > 0.0 { 1.0 / p99 } else { 1.0 }, p99)
+}
+
+/// Fraction of included pixels with some channel above 1 after × `exposure`
+/// (they clip in the picture).
+pub fn clipped_fraction(img: &RgbImage, mask: Option<&Mask>, exposure: f64) -> f64 {
+    let (mut n, mut clipped) = (0usize, 0usize);
+    for p in included(img, mask) {
+        n += 1;
+        if p.iter().any(|&v| f64::from(v) * exposure > 1.0) {
+            clipped += 1;
+        }
+    }
+    clipped as f64 / n.max(1) as f64
+}
+
+/// Where the comparison's mask comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MaskSpec {
+    None,
+    /// A mask image: nonzero = included.
+    Image(PathBuf),
+    /// The sample's silhouette from a scene JSON.
+    Object(PathBuf),
+    /// The board minus the sample from a scene JSON.
+    Board(PathBuf),
+}
+
+/// Everything `lucent compare` is asked to do.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Request {
+    pub photo: PathBuf,
+    pub render: PathBuf,
+    pub mask: MaskSpec,
+    /// Scene for the ECC region when the mask is not from a scene.
+    pub scene: Option<PathBuf>,
+    pub data_range: f64,
+    pub luminance: Luminance,
+    /// Display exposure; None = [`auto_exposure`].
+    pub exposure: Option<f64>,
+    /// ECC refinement with this motion model.
+    pub refine: Option<Motion>,
+}
+
+/// `mask` in metrics.json.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MaskReport {
+    /// "none", "image", "object" or "board".
+    pub source: &'static str,
+    pub path: Option<String>,
+    pub included_pixels: usize,
+    pub included_fraction: f64,
+}
+
+/// How the numbers are defined, in metrics.json.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Definitions {
+    pub difference: &'static str,
+    pub ssim: &'static str,
+    pub ssim_parameters: SsimParams,
+    pub ssim_window_taps: usize,
+    pub ssim_border_px: usize,
+    pub ssim_with_mask: &'static str,
+    pub luminance: &'static str,
+    pub luminance_weights: [f64; 3],
+    pub relative_error: &'static str,
+}
+
+/// `refined` in metrics.json.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Refinement {
+    pub method: &'static str,
+    pub motion: &'static str,
+    /// Photo pixel → render pixel, homogeneous, row-major.
+    pub warp: [[f64; 3]; 3],
+    pub warp_convention: &'static str,
+    /// Displacement W·c − c of the image centre c, pixels (= (dx, dy) for a translation).
+    pub shift_px: [f64; 2],
+    pub correlation: f64,
+    pub pyramid_levels: usize,
+    pub region: String,
+    pub region_pixels: usize,
+    /// Included pixels dropped because their source lies outside the render.
+    pub outside_render_pixels: usize,
+    pub metrics: Metrics,
+}
+
+/// `display` in metrics.json: how triplet.png shows the images.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DisplayReport {
+    pub exposure: f64,
+    pub exposure_source: String,
+    pub transfer: &'static str,
+    pub difference: &'static str,
+    pub difference_colour_map: &'static str,
+    /// The colour bar spans ± this (linear units).
+    pub difference_range: f64,
+    pub difference_range_source: &'static str,
+    pub clipped_fraction_photo: f64,
+    pub clipped_fraction_render: f64,
+    pub clipped_fraction_difference: f64,
+    pub masked_pixels: &'static str,
+}
+
+/// metrics.json.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    pub lucent_version: &'static str,
+    pub photo: String,
+    pub render: String,
+    pub width: usize,
+    pub height: usize,
+    pub channels: Vec<String>,
+    pub mask: MaskReport,
+    pub definitions: Definitions,
+    pub as_calibrated: Metrics,
+    pub refined: Option<Refinement>,
+    pub display: DisplayReport,
+    pub files: Vec<String>,
+}
+
+/// The result of [`compare_files`], ready to be written by [`write_outputs`].
+pub struct Outcome {
+    pub report: Report,
+    pub triplet_png: Vec<u8>,
+    pub width: usize,
+    pub height: usize,
+    /// Channels of difference.exr.
+    pub difference: Vec<(String, Vec<f32>)>,
+    /// Things the user should know (clipping, ECC region), for stderr.
+    pub notes: Vec<String>,
+}
+
+/// Output file names inside the folder.
+pub const FILES: [&str; 3] = ["metrics.json", "triplet.png", "difference.exr"];
+
+/// Reads, checks and compares the images of `req`; nothing is written.
+pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
+    let settings = Settings {
+        ssim: SsimParams::new(req.data_range)?,
+        luminance: req.luminance,
+    };
+    if let Some(k) = req.exposure {
+        if !(k.is_finite() && k > 0.0) {
+            return Err(CompareError::Parameter(format!(
+                "exposure {k}: must be a positive finite number"
+            )));
+        }
+    }
+    let photo = input::read_image(&req.photo, "photo")?;
+    let render = input::read_image(&req.render, "render")?;
+    if photo.channels.len() != render.channels.len() {
+        return Err(CompareError::Channels(format!(
+            "the photo has {} colour channel(s) ({}) but the render has {} ({})",
+            photo.channels.len(),
+            photo.channels.join(", "),
+            render.channels.len(),
+            render.channels.join(", ")
+        )));
+    }
+    check_same_size(&photo.image, &render.image)?;
+    let (w, h) = (photo.image.width, photo.image.height);
+    let (photo_img, render_img) = (&photo.image, &render.image);
+
+    // Mask and scene.
+    let mut scene = None;
+    let (mask, source, mask_path) = match &req.mask {
+        MaskSpec::None => (None, "none", None),
+        MaskSpec::Image(p) => (Some(Mask::from_image(p, w, h)?), "image", Some(p)),
+        MaskSpec::Object(p) => {
+            let s = mask::read_scene(p)?;
+            let m = mask::object_mask(&s, w, h)?;
+            scene = Some((s, p.clone()));
+            (Some(m), "object", Some(p))
+        }
+        MaskSpec::Board(p) => {
+            let s = mask::read_scene(p)?;
+            let m = mask::board_mask(&s, w, h)?;
+            scene = Some((s, p.clone()));
+            (Some(m), "board", Some(p))
+        }
+    };
+    if scene.is_none() {
+        if let Some(p) = &req.scene {
+            scene = Some((mask::read_scene(p)?, p.clone()));
+        }
+    }
+    if let Some(m) = &mask {
+        if m.count() == 0 {
+            return Err(CompareError::Parameter(format!(
+                "the {source} mask{} includes no pixel",
+                mask_path
+                    .map(|p| format!(" from {}", p.display()))
+                    .unwrap_or_default()
+            )));
+        }
+    }
+    let mut notes = Vec::new();
+
+    let (calibrated, ssim_map) =
+        metrics_and_ssim_map(photo_img, render_img, mask.as_ref(), &settings)?;
+
+    // ECC refinement.
+    let mut refined_parts = None;
+    if let Some(motion) = req.refine {
+        let (region, region_text) = match &scene {
+            Some((s, p)) => (
+                Some(mask::board_mask(s, w, h)?),
+                format!("board minus sample, from {}", p.display()),
+            ),
+            None => {
+                notes.push("ECC ran on the whole image (no scene JSON given: pass --scene to align on the board only)".into());
+                (None, "whole image".to_string())
+            }
+        };
+        let lw = settings.luminance.weights();
+        let (t, i) = (
+            luminance_plane(photo_img, lw),
+            luminance_plane(render_img, lw),
+        );
+        let region_u8 = region.as_ref().map(Mask::to_u8);
+        let found =
+            ecc::find_transform_ecc(&t, &i, w, h, region_u8.as_deref(), &EccOptions::new(motion))?;
+        let (warped, valid) = warp_bilinear(render_img, &found.warp);
+        let base = mask.clone().unwrap_or_else(|| Mask::all(w, h));
+        let refined_mask = base.and(&valid)?;
+        let outside = base.count() - refined_mask.count();
+        let (m, _) = metrics_and_ssim_map(photo_img, &warped, Some(&refined_mask), &settings)?;
+        let c = [(w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0];
+        let wp = found.warp;
+        let d = wp[2][0] * c[0] + wp[2][1] * c[1] + wp[2][2];
+        let shift = [
+            (wp[0][0] * c[0] + wp[0][1] * c[1] + wp[0][2]) / d - c[0],
+            (wp[1][0] * c[0] + wp[1][1] * c[1] + wp[1][2]) / d - c[1],
+        ];
+        let refinement = Refinement {
+            method:
+                "OpenCV findTransformECC (Evangelidis & Psarakis 2008) on luminance, coarse to fine",
+            motion: motion.name(),
+            warp: wp,
+            warp_convention: "render(W (x, y, 1)) ~ photo(x, y); pixel centres at integers",
+            shift_px: shift,
+            correlation: found.correlation,
+            pyramid_levels: found.levels,
+            region: region_text,
+            region_pixels: region.as_ref().map_or(w * h, Mask::count),
+            outside_render_pixels: outside,
+            metrics: m,
+        };
+        refined_parts = Some((refinement, warped, refined_mask));
+    }
+
+    // Display.
+    let (exposure, exposure_source) = match req.exposure {
+        Some(k) => (k, "--exposure".to_string()),
+        None => {
+            let (k, p99) = auto_exposure(photo_img, mask.as_ref());
+            (k, format!("auto: 1 / (99th percentile of the photo's max(R, G, B) over included pixels = {p99:.6e})"))
+        }
+    };
+    let lw = settings.luminance.weights();
+    let dy: Vec<f32> = photo_img
+        .data
+        .chunks_exact(3)
+        .zip(render_img.data.chunks_exact(3))
+        .map(|(p, r)| {
+            (0..3)
+                .map(|c| lw[c] * (f64::from(r[c]) - f64::from(p[c])))
+                .sum::<f64>() as f32
+        })
+        .collect();
+    let abs_included: Vec<f32> = dy
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| mask.as_ref().is_none_or(|m| m.include[*i]))
+        .map(|(_, v)| v.abs())
+        .collect();
+    let n_included = abs_included.len();
+    let p99 = f64::from(percentile(abs_included.clone(), 0.99).unwrap_or(0.0));
+    let diff_range = if p99 > 0.0 {
+        p99
+    } else {
+        0.01 * req.data_range
+    };
+    let clipped_diff = abs_included
+        .iter()
+        .filter(|v| f64::from(**v) > diff_range)
+        .count() as f64
+        / n_included.max(1) as f64;
+    let clip_photo = clipped_fraction(photo_img, mask.as_ref(), exposure);
+    let clip_render = clipped_fraction(render_img, mask.as_ref(), exposure);
+    if clip_photo > 0.0 || clip_render > 0.0 {
+        notes.push(format!(
+            "clipping in triplet.png at exposure ×{exposure:.4}: {:.2} % of the photo's and {:.2} % of the render's included pixels exceed 1 (the metrics use the unclipped values)",
+            100.0 * clip_photo,
+            100.0 * clip_render
+        ));
+    }
+
+    // Picture.
+    let fmt = |m: &Metrics| {
+        format!(
+            "RMSE {:.4e} (R {:.3e}, G {:.3e}, B {:.3e})   SSIM Y {:.4} (R {:.4}, G {:.4}, B {:.4})   rel. error {:.2} %",
+            m.rmse,
+            m.rmse_channels.r,
+            m.rmse_channels.g,
+            m.rmse_channels.b,
+            m.ssim.y,
+            m.ssim.r,
+            m.ssim.g,
+            m.ssim.b,
+            100.0 * m.relative_error
+        )
+    };
+    let name = |p: &Path| {
+        p.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| p.display().to_string())
+    };
+    let mut header = vec![
+        format!("photo {}  |  render {}  |  {w} × {h} px", name(&req.photo), name(&req.render)),
+        format!(
+            "mask: {}   data range {}   luminance: {} ({:.4}, {:.4}, {:.4})",
+            match (&mask, source) {
+                (Some(m), s) => format!("{s} ({:.1} % of the pixels)", 100.0 * m.fraction()),
+                (None, _) => "none".into(),
+            },
+            req.data_range,
+            settings.luminance.describe(),
+            lw[0],
+            lw[1],
+            lw[2]
+        ),
+        format!(
+            "display: exposure ×{exposure:.4} ({}), sRGB; clipped: photo {:.2} %, render {:.2} %; difference beyond the bar: {:.2} %",
+            if req.exposure.is_some() { "--exposure" } else { "auto, photo p99" },
+            100.0 * clip_photo,
+            100.0 * clip_render,
+            100.0 * clipped_diff
+        ),
+    ];
+    if let Some((r, _, _)) = &refined_parts {
+        header.push(format!(
+            "ECC ({}): shift dx = {:+.3} px, dy = {:+.3} px, correlation {:.4}, region: {}",
+            r.motion,
+            r.shift_px[0],
+            r.shift_px[1],
+            r.correlation,
+            r.region.split(", from").next().unwrap_or_default()
+        ));
+    }
+    let mut rows = vec![triplet::Row {
+        title: "as calibrated".into(),
+        photo: photo_img,
+        render: render_img,
+        mask: mask.as_ref(),
+        caption: fmt(&calibrated),
+    }];
+    if let Some((r, warped, m)) = &refined_parts {
+        rows.push(triplet::Row {
+            title: format!(
+                "after ECC refinement ({}: dx = {:+.3} px, dy = {:+.3} px)",
+                r.motion, r.shift_px[0], r.shift_px[1]
+            ),
+            photo: photo_img,
+            render: warped,
+            mask: Some(m),
+            caption: fmt(&r.metrics),
+        });
+    }
+    let style = triplet::Style {
+        exposure,
+        luminance: lw,
+        diff_range,
+        header,
+    };
+    let triplet_png = triplet::triplet_png(&rows, &style)?;
+
+    // difference.exr channels.
+    let plane = |img: &RgbImage, other: &RgbImage, c: usize| -> Vec<f32> {
+        img.data
+            .iter()
+            .skip(c)
+            .step_by(3)
+            .zip(other.data.iter().skip(c).step_by(3))
+            .map(|(r, p)| r - p)
+            .collect()
+    };
+    let mut difference = vec![
+        ("R".to_string(), plane(render_img, photo_img, 0)),
+        ("G".to_string(), plane(render_img, photo_img, 1)),
+        ("B".to_string(), plane(render_img, photo_img, 2)),
+        ("Y".to_string(), dy),
+        ("ssim.Y".to_string(), ssim_map),
+    ];
+    if let Some(m) = &mask {
+        difference.push((
+            "mask".to_string(),
+            m.include.iter().map(|&v| f32::from(u8::from(v))).collect(),
+        ));
+    }
+    if let Some((_, warped, m)) = &refined_parts {
+        for (c, n) in ["R", "G", "B"].iter().enumerate() {
+            difference.push((format!("refined.{n}"), plane(warped, photo_img, c)));
+        }
+        difference.push((
+            "refined.mask".to_string(),
+            m.include.iter().map(|&v| f32::from(u8::from(v))).collect(),
+        ));
+    }
+
+    let report = Report {
+        lucent_version: env!("CARGO_PKG_VERSION"),
+        photo: req.photo.display().to_string(),
+        render: req.render.display().to_string(),
+        width: w,
+        height: h,
+        channels: photo.channels.clone(),
+        mask: MaskReport {
+            source,
+            path: mask_path.map(|p| p.display().to_string()),
+            included_pixels: mask.as_ref().map_or(w * h, Mask::count),
+            included_fraction: mask.as_ref().map_or(1.0, Mask::fraction),
+        },
+        definitions: Definitions {
+            difference: "render - photo, linear, the images' own units",
+            ssim: "Wang, Bovik, Sheikh & Simoncelli 2004 (IEEE TIP 13(4)); = skimage.metrics.structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=L) per channel",
+            ssim_parameters: settings.ssim,
+            ssim_window_taps: settings.ssim.window(),
+            ssim_border_px: settings.ssim.border(),
+            ssim_with_mask: "mean of the SSIM map over included pixels at least ssim_border_px from the image border",
+            luminance: settings.luminance.describe(),
+            luminance_weights: lw,
+            relative_error: "sum |render - photo| / sum |photo| over included pixels and channels",
+        },
+        as_calibrated: calibrated,
+        refined: refined_parts.as_ref().map(|(r, _, _)| r.clone()),
+        display: DisplayReport {
+            exposure,
+            exposure_source,
+            transfer: "sRGB (IEC 61966-2-1) of exposure x linear value, clipped to [0, 1]",
+            difference: "luminance Y(render) - Y(photo), linear units (not scaled by the exposure)",
+            difference_colour_map: "ColorBrewer RdBu: blue = render darker, white = 0, red = render brighter",
+            difference_range: diff_range,
+            difference_range_source: "99th percentile of |dY| over included pixels (1 % of the data range if zero)",
+            clipped_fraction_photo: clip_photo,
+            clipped_fraction_render: clip_render,
+            clipped_fraction_difference: clipped_diff,
+            masked_pixels: "greyed (photo, render), hatched light grey (difference)",
+        },
+        files: FILES.iter().map(|s| s.to_string()).collect(),
+    };
+    Ok(Outcome {
+        report,
+        triplet_png,
+        width: w,
+        height: h,
+        difference,
+        notes,
+    })
+}
+
+fn io_err(path: &Path) -> impl Fn(std::io::Error) -> CompareError + '_ {
+    move |source| CompareError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Writes metrics.json, triplet.png and difference.exr into `out`: all
+/// into a temporary sibling folder first, then moved into place (the folder
+/// itself is renamed if it did not exist), so a failure leaves no partial
+/// result. Returns the written paths.
+pub fn write_outputs(out: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>, CompareError> {
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(io_err(parent))?;
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "compare".into());
+    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(io_err(&tmp))?;
+    }
+    let result = (|| -> Result<(), CompareError> {
+        std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
+        write_json(&tmp.join(FILES[0]), &outcome.report)?;
+        write_atomic(&tmp.join(FILES[1]), &outcome.triplet_png)?;
+        let channels: Vec<(&str, &[f32])> = outcome
+            .difference
+            .iter()
+            .map(|(n, v)| (n.as_str(), v.as_slice()))
+            .collect();
+        write_exr_channels(
+            &tmp.join(FILES[2]),
+            outcome.width,
+            outcome.height,
+            &channels,
+        )?;
+        if out.is_dir() {
+            for f in FILES {
+                std::fs::rename(tmp.join(f), out.join(f)).map_err(io_err(&out.join(f)))?;
+            }
+            std::fs::remove_dir(&tmp).map_err(io_err(&tmp))?;
+        } else if out.exists() {
+            return Err(CompareError::Io {
+                path: out.to_path_buf(),
+                source: std::io::Error::other("exists and is not a folder"),
+            });
+        } else {
+            std::fs::rename(&tmp, out).map_err(io_err(out))?;
+        }
+        Ok(())
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result?;
+    Ok(FILES.iter().map(|f| out.join(f)).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn img(w: usize, h: usize, f: impl Fn(usize, usize, usize) -> f32) -> RgbImage {
+        RgbImage::new(
+            w,
+            h,
+            (0..w * h * 3)
+                .map(|i| f((i / 3) % w, (i / 3) / w, i % 3))
+                .collect(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn warp_by_a_translation_moves_content_and_marks_the_edge() {
+        let a = img(20, 10, |x, y, c| (x + 10 * y + c) as f32);
+        let (b, valid) = warp_bilinear(&a, &[[1.0, 0.0, 2.5], [0.0, 1.0, -1.0], [0.0, 0.0, 1.0]]);
+        // b(x, y) = a(x + 2.5, y − 1) = x + 2.5 + 10(y − 1) + c.
+        assert!((b.pixel(3, 4)[1] - (3.0 + 2.5 + 30.0 + 1.0)).abs() < 1e-5);
+        assert!(!valid.get(0, 0) && !valid.get(17, 5) && valid.get(16, 5) && valid.get(0, 1));
+    }
+
+    #[test]
+    fn percentile_and_exposure() {
+        assert_eq!(
+            percentile((0..101).map(|v| v as f32).collect(), 0.99),
+            Some(99.0)
+        );
+        assert_eq!(percentile(vec![], 0.5), None);
+        let a = img(10, 10, |x, _, _| if x == 0 { 4.0 } else { 0.5 });
+        let (k, p) = auto_exposure(&a, None);
+        assert_eq!((k, p), (0.25, 4.0));
+        assert!((clipped_fraction(&a, None, 1.0) - 0.1).abs() < 1e-12);
+        let m = Mask {
+            width: 10,
+            height: 10,
+            include: (0..100).map(|i| i % 10 != 0).collect(),
+        };
+        assert_eq!(auto_exposure(&a, Some(&m)).0, 2.0);
+    }
+
+    #[test]
+    fn metrics_reject_empty_masks_and_size_mismatch() {
+        let s = Settings {
+            ssim: SsimParams::new(1.0).unwrap(),
+            luminance: Luminance::CieRgb,
+        };
+        let a = img(16, 16, |x, y, _| (x * y) as f32 / 256.0);
+        let b = img(16, 15, |_, _, _| 0.0);
+        assert!(metrics(&a, &b, None, &s)
+            .unwrap_err()
+            .to_string()
+            .contains("16 × 16 pixels but the render is 16 × 15"));
+        let none = Mask {
+            width: 16,
+            height: 16,
+            include: vec![false; 256],
+        };
+        assert!(metrics(&a, &a, Some(&none), &s)
+            .unwrap_err()
+            .to_string()
+            .contains("no pixel"));
+        let m = metrics(&a, &a, None, &s).unwrap();
+        assert_eq!(
+            (m.rmse, m.mean_abs_error, m.relative_error),
+            (0.0, 0.0, 0.0)
+        );
+        assert!((Luminance::CieRgb.weights().iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        assert!(Luminance::from_name("xyz")
+            .unwrap_err()
+            .to_string()
+            .contains("cie-rgb, rec709"));
+    }
+}

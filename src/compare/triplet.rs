@@ -1,0 +1,410 @@
+//! The triplet picture: photo | render | signed difference, one row per
+//! alignment (as calibrated; after ECC refinement), as an 8-bit PNG.
+//!
+//! * Photo and render share one exposure `k`: the shown value is
+//!   `sRGB(k × linear)` per channel, clipped to [0, 1] (IEC 61966-2-1
+//!   transfer function); pixels with any `k × value > 1` clip, and their
+//!   fraction is stated in the header and in metrics.json.
+//! * The difference is the luminance `Y(render) − Y(photo)` (linear, the
+//!   images' own units, not scaled by `k`) in a diverging map — ColorBrewer
+//!   RdBu (Brewer 2002), blue where the render is darker, white at 0, red
+//!   where it is brighter — over a symmetric range ±`diff_range`, with a
+//!   colour bar under the difference column. Values beyond it saturate.
+//! * Excluded (masked) pixels are greyed in the photo and render
+//!   (desaturated, pulled half-way to mid-grey, so the context stays
+//!   visible) and hatched light grey in the difference.
+//! * Panels are at most [`PANEL_MAX`] px wide (box average in linear light
+//!   over `f × f` pixels; the difference averages included pixels only, and
+//!   a panel pixel counts as masked when fewer than half of its pixels are
+//!   included) and at least [`PANEL_MIN`] px wide (pixels repeated).
+//!
+//! ```
+//! use lucent::compare::triplet::{triplet_png, Row, Style};
+//! use lucent::imageio::RgbImage;
+//! let photo = RgbImage::new(16, 12, vec![0.2; 16 * 12 * 3]).unwrap();
+//! let render = RgbImage::new(16, 12, vec![0.25; 16 * 12 * 3]).unwrap();
+//! let row = Row { title: "as calibrated".into(), photo: &photo, render: &render, mask: None, caption: "RMSE 0.05".into() };
+//! let style = Style { exposure: 2.0, luminance: [0.1769, 0.8124, 0.0107], diff_range: 0.1, header: vec!["test".into()] };
+//! let png = triplet_png(&[row], &style).unwrap();
+//! assert_eq!(&png[1..4], b"PNG");
+//! ```
+
+use super::mask::Mask;
+use crate::imageio::{srgb_encode, RgbImage};
+use crate::plot::{perr, render_png, PlotError};
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+/// Widest panel in pixels (larger images are box-averaged down).
+pub const PANEL_MAX: usize = 720;
+/// Narrowest panel in pixels (smaller images are enlarged by repetition).
+pub const PANEL_MIN: usize = 320;
+
+const MARGIN: i32 = 16;
+const GAP: i32 = 12;
+const LINE: i32 = 22;
+
+/// One row of the picture.
+pub struct Row<'a> {
+    /// Above the row, e.g. "as calibrated".
+    pub title: String,
+    pub photo: &'a RgbImage,
+    pub render: &'a RgbImage,
+    /// Included pixels (None: all).
+    pub mask: Option<&'a Mask>,
+    /// Below the row, e.g. the metrics.
+    pub caption: String,
+}
+
+/// What is shared by all rows.
+pub struct Style {
+    /// Display exposure k (shown value = sRGB(k × linear)).
+    pub exposure: f64,
+    /// Luminance weights for the difference.
+    pub luminance: [f64; 3],
+    /// The colour bar spans ±diff_range (linear units).
+    pub diff_range: f64,
+    /// Text lines at the top.
+    pub header: Vec<String>,
+}
+
+/// ColorBrewer RdBu (11 classes), from blue (−1) through white to red (+1).
+pub fn diverging(t: f64) -> RGBColor {
+    const S: [(u8, u8, u8); 11] = [
+        (5, 48, 97),
+        (33, 102, 172),
+        (67, 147, 195),
+        (146, 197, 222),
+        (209, 229, 240),
+        (247, 247, 247),
+        (253, 219, 199),
+        (244, 165, 130),
+        (214, 96, 77),
+        (178, 24, 43),
+        (103, 0, 31),
+    ];
+    let u = if t.is_nan() {
+        5.0
+    } else {
+        (t.clamp(-1.0, 1.0) + 1.0) * 0.5 * 10.0
+    };
+    let i = (u.floor() as usize).min(9);
+    let f = u - i as f64;
+    let lerp = |a: u8, b: u8| (f64::from(a) + (f64::from(b) - f64::from(a)) * f).round() as u8;
+    RGBColor(
+        lerp(S[i].0, S[i + 1].0),
+        lerp(S[i].1, S[i + 1].1),
+        lerp(S[i].2, S[i + 1].2),
+    )
+}
+
+/// How source pixels map to panel pixels.
+#[derive(Debug, Clone, Copy)]
+struct Scale {
+    /// Source pixels per panel pixel (box), ≥ 1.
+    down: usize,
+    /// Panel pixels per source pixel (repeat), ≥ 1.
+    up: usize,
+    pw: usize,
+    ph: usize,
+}
+
+fn scale_for(w: usize, h: usize) -> Scale {
+    let side = w.max(h);
+    if side > PANEL_MAX {
+        let down = side.div_ceil(PANEL_MAX);
+        Scale {
+            down,
+            up: 1,
+            pw: w.div_ceil(down),
+            ph: h.div_ceil(down),
+        }
+    } else if w < PANEL_MIN {
+        let up = PANEL_MIN.div_ceil(w).min((PANEL_MAX / side).max(1));
+        Scale {
+            down: 1,
+            up,
+            pw: w * up,
+            ph: h * up,
+        }
+    } else {
+        Scale {
+            down: 1,
+            up: 1,
+            pw: w,
+            ph: h,
+        }
+    }
+}
+
+/// Box-averaged panel data: RGB of photo and render, ΔY over included
+/// pixels, and whether the panel pixel counts as masked.
+struct Panels {
+    photo: Vec<[f64; 3]>,
+    render: Vec<[f64; 3]>,
+    diff: Vec<f64>,
+    masked: Vec<bool>,
+    /// Source-resolution width and height (panel = this × up).
+    w: usize,
+    h: usize,
+}
+
+fn reduce(row: &Row, s: Scale, luma: [f64; 3]) -> Panels {
+    let (w, h) = (row.photo.width, row.photo.height);
+    let (bw, bh) = (w.div_ceil(s.down), h.div_ceil(s.down));
+    let mut out = Panels {
+        photo: vec![[0.0; 3]; bw * bh],
+        render: vec![[0.0; 3]; bw * bh],
+        diff: vec![0.0; bw * bh],
+        masked: vec![false; bw * bh],
+        w: bw,
+        h: bh,
+    };
+    for by in 0..bh {
+        for bx in 0..bw {
+            let (mut p, mut r, mut d) = ([0.0f64; 3], [0.0f64; 3], 0.0);
+            let (mut n, mut inc) = (0usize, 0usize);
+            for y in by * s.down..((by + 1) * s.down).min(h) {
+                for x in bx * s.down..((bx + 1) * s.down).min(w) {
+                    let (a, b) = (row.photo.pixel(x, y), row.render.pixel(x, y));
+                    for c in 0..3 {
+                        p[c] += f64::from(a[c]);
+                        r[c] += f64::from(b[c]);
+                    }
+                    n += 1;
+                    if row.mask.is_none_or(|m| m.get(x, y)) {
+                        inc += 1;
+                        d += (0..3)
+                            .map(|c| luma[c] * (f64::from(b[c]) - f64::from(a[c])))
+                            .sum::<f64>();
+                    }
+                }
+            }
+            let k = by * bw + bx;
+            out.photo[k] = p.map(|v| v / n as f64);
+            out.render[k] = r.map(|v| v / n as f64);
+            out.diff[k] = if inc > 0 { d / inc as f64 } else { 0.0 };
+            out.masked[k] = 2 * inc < n;
+        }
+    }
+    out
+}
+
+fn hatch(x: usize, y: usize) -> bool {
+    (x + y) % 10 < 2
+}
+
+/// Photo/render pixel: sRGB of k × value; excluded pixels greyed
+/// (desaturated, pulled half-way to mid-grey) so the context stays visible.
+fn shown(rgb: [f64; 3], k: f64, masked: bool) -> RGBColor {
+    let c = rgb.map(|v| f64::from(srgb_encode((k * v) as f32)) * 255.0);
+    if masked {
+        let g = (c[0] + c[1] + c[2]) / 3.0;
+        let m = |v: f64| (0.5 * (0.25 * v + 0.75 * g) + 0.5 * 160.0).round() as u8;
+        return RGBColor(m(c[0]), m(c[1]), m(c[2]));
+    }
+    RGBColor(c[0].round() as u8, c[1].round() as u8, c[2].round() as u8)
+}
+
+fn tick_label(v: f64, range: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    if (0.01..1000.0).contains(&range) {
+        let digits = (2 - range.log10().floor() as i32).max(0) as usize;
+        format!("{v:+.digits$}")
+    } else {
+        format!("{v:+.2e}")
+    }
+}
+
+/// Draws the picture and returns PNG bytes. All rows must have images of
+/// one size.
+pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
+    let first = rows.first().ok_or_else(|| perr("no rows to draw"))?;
+    let (w, h) = (first.photo.width, first.photo.height);
+    for r in rows {
+        let sizes = [
+            (r.photo.width, r.photo.height),
+            (r.render.width, r.render.height),
+        ];
+        if sizes.iter().any(|&s| s != (w, h))
+            || r.mask.is_some_and(|m| (m.width, m.height) != (w, h))
+        {
+            return Err(perr("triplet rows of different image sizes"));
+        }
+    }
+    let s = scale_for(w, h);
+    let (pw, ph) = (s.pw as i32, s.ph as i32);
+    let header_h = LINE * style.header.len() as i32 + 8;
+    let row_h = LINE + LINE + ph + LINE + 8;
+    let bar_h = 16 + 24 + LINE;
+    let width = 2 * MARGIN + 3 * pw + 2 * GAP;
+    let height = MARGIN + header_h + rows.len() as i32 * row_h + bar_h + MARGIN;
+    let reduced: Vec<Panels> = rows.iter().map(|r| reduce(r, s, style.luminance)).collect();
+    render_png(width as u32, height as u32, |root| {
+        let text = |t: &str, x: i32, y: i32, size: i32, pos: Pos| {
+            let st = TextStyle::from(("sans-serif", size).into_font())
+                .color(&BLACK)
+                .pos(pos);
+            root.draw(&Text::new(t.to_string(), (x, y), st))
+                .map_err(perr)
+        };
+        let left = Pos::new(HPos::Left, VPos::Top);
+        let centre = Pos::new(HPos::Center, VPos::Top);
+        let mut y0 = MARGIN;
+        for line in &style.header {
+            text(line, MARGIN, y0, 15, left)?;
+            y0 += LINE;
+        }
+        y0 += 8;
+        let range = if style.diff_range > 0.0 && style.diff_range.is_finite() {
+            style.diff_range
+        } else {
+            1.0
+        };
+        let columns = ["photo", "render", "render − photo (luminance)"];
+        for (row, p) in rows.iter().zip(&reduced) {
+            text(&row.title, MARGIN, y0, 17, left)?;
+            y0 += LINE;
+            for (c, name) in columns.iter().enumerate() {
+                text(
+                    name,
+                    MARGIN + c as i32 * (pw + GAP) + pw / 2,
+                    y0,
+                    15,
+                    centre,
+                )?;
+            }
+            y0 += LINE;
+            for py in 0..s.ph {
+                for px in 0..s.pw {
+                    let k = (py / s.up).min(p.h - 1) * p.w + (px / s.up).min(p.w - 1);
+                    let m = p.masked[k];
+                    let colours = [
+                        shown(p.photo[k], style.exposure, m),
+                        shown(p.render[k], style.exposure, m),
+                        if m {
+                            if hatch(px, py) {
+                                RGBColor(150, 150, 150)
+                            } else {
+                                RGBColor(215, 215, 215)
+                            }
+                        } else {
+                            diverging(p.diff[k] / range)
+                        },
+                    ];
+                    for (c, colour) in colours.iter().enumerate() {
+                        root.draw_pixel(
+                            (MARGIN + c as i32 * (pw + GAP) + px as i32, y0 + py as i32),
+                            colour,
+                        )
+                        .map_err(perr)?;
+                    }
+                }
+            }
+            y0 += ph + 4;
+            text(&row.caption, MARGIN, y0, 15, left)?;
+            y0 += LINE + 4;
+        }
+        // Colour bar under the difference column.
+        let bx = MARGIN + 2 * (pw + GAP);
+        for i in 0..pw {
+            let t = 2.0 * (f64::from(i) + 0.5) / f64::from(pw) - 1.0;
+            root.draw(&Rectangle::new(
+                [(bx + i, y0), (bx + i + 1, y0 + 16)],
+                diverging(t).filled(),
+            ))
+            .map_err(perr)?;
+        }
+        root.draw(&Rectangle::new(
+            [(bx, y0), (bx + pw, y0 + 16)],
+            BLACK.stroke_width(1),
+        ))
+        .map_err(perr)?;
+        for k in 0..5 {
+            let x = bx + ((pw - 1) * k) / 4;
+            root.draw(&PathElement::new(
+                vec![(x, y0 + 16), (x, y0 + 21)],
+                BLACK.stroke_width(1),
+            ))
+            .map_err(perr)?;
+            let v = range * (f64::from(k) / 2.0 - 1.0);
+            // End labels inside the bar's extent.
+            let hpos = match k {
+                0 => HPos::Left,
+                4 => HPos::Right,
+                _ => HPos::Center,
+            };
+            text(
+                &tick_label(v, range),
+                x,
+                y0 + 22,
+                13,
+                Pos::new(hpos, VPos::Top),
+            )?;
+        }
+        text(
+            "Y(render) − Y(photo), linear units",
+            bx + pw / 2,
+            y0 + 40,
+            13,
+            centre,
+        )?;
+        // Legend for excluded pixels, under the photo column.
+        if rows.iter().any(|r| r.mask.is_some()) {
+            for i in 0..28 {
+                for j in 0..16 {
+                    let hatched = if hatch(i, j) {
+                        RGBColor(150, 150, 150)
+                    } else {
+                        RGBColor(215, 215, 215)
+                    };
+                    root.draw_pixel((MARGIN + i as i32, y0 + j as i32), &hatched)
+                        .map_err(perr)?;
+                    let greyed = shown([0.05, 0.4, 0.1], 1.0, true);
+                    root.draw_pixel((MARGIN + 36 + i as i32, y0 + j as i32), &greyed)
+                        .map_err(perr)?;
+                }
+            }
+            let note = "excluded by the mask: hatched (difference), greyed (photo, render)";
+            text(note, MARGIN + 72, y0, 14, left)?;
+        }
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn diverging_map_is_white_at_zero_and_saturates() {
+        assert_eq!(diverging(0.0), RGBColor(247, 247, 247));
+        assert_eq!(diverging(-1.0), RGBColor(5, 48, 97));
+        assert_eq!(diverging(7.0), RGBColor(103, 0, 31));
+        assert_eq!(diverging(f64::NAN), RGBColor(247, 247, 247));
+    }
+
+    #[test]
+    fn panel_scales() {
+        let s = scale_for(4000, 3000);
+        assert_eq!((s.down, s.pw, s.ph), (6, 667, 500));
+        let s = scale_for(64, 48);
+        assert_eq!((s.up, s.pw, s.ph), (5, 320, 240));
+        let s = scale_for(500, 400);
+        assert_eq!((s.down, s.up, s.pw), (1, 1, 500));
+        // A tall narrow image stays within PANEL_MAX.
+        let s = scale_for(20, 700);
+        assert_eq!(s.up, 1);
+    }
+
+    #[test]
+    fn tick_labels() {
+        assert_eq!(tick_label(0.0, 0.05), "0");
+        assert_eq!(tick_label(-0.05, 0.05), "-0.0500");
+        assert_eq!(tick_label(0.025, 0.05), "+0.0250");
+        assert_eq!(tick_label(2.5, 5.0), "+2.50");
+        assert_eq!(tick_label(1e-4, 1e-4), "+1.00e-4");
+    }
+}
