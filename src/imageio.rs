@@ -141,6 +141,30 @@ pub fn write_exr_channels(
     Ok(write_atomic(path, &bytes.into_inner())?)
 }
 
+/// Reads the named float channels (e.g. `variance.R`, `spp`) of an EXR's
+/// first layer: (width, height, one row-major plane per name). A missing
+/// channel is an error naming the file and listing the channels present.
+pub fn read_exr_channels(path: &Path, names: &[&str]) -> Result<(usize, usize, Vec<Vec<f32>>), ImageIoError> {
+    use exr::prelude::*;
+    let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
+    let image = read_all_flat_layers_from_file(path).map_err(|e| read_err(e.to_string()))?;
+    let layer = image.layer_data.first().ok_or_else(|| read_err("no layer".into()))?;
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let mut out = Vec::with_capacity(names.len());
+    for name in names {
+        let ch = layer.channel_data.list.iter().find(|c| c.name.to_string() == *name).ok_or_else(|| {
+            let present: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
+            read_err(format!("no channel {name:?} (channels: {})", present.join(", ")))
+        })?;
+        let plane: Vec<f32> = ch.sample_data.values_as_f32().collect();
+        if plane.len() != w * h {
+            return Err(read_err(format!("channel {name:?} has {} samples, expected {}", plane.len(), w * h)));
+        }
+        out.push(plane);
+    }
+    Ok((w, h, out))
+}
+
 /// Writes a linear RGB image as a 32-bit float EXR, atomically.
 pub fn write_exr(path: &Path, img: &RgbImage) -> Result<(), ImageIoError> {
     let plane = |c: usize| img.data.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();

@@ -12,3 +12,4 @@ pub mod imageio;
 pub mod io;
 pub mod optics;
 pub mod plot;
+pub mod scene;

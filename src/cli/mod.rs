@@ -4,6 +4,7 @@
 pub mod bssrdf;
 pub mod camera;
 pub mod colour;
+pub mod render;
 pub mod compare;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
@@ -33,6 +34,8 @@ pub enum Command {
     Mie(MieArgs),
     /// BSSRDF slices of a slab (light tracing with explicit connection), and their comparison with measurements.
     Bssrdf(bssrdf::BssrdfArgs),
+    /// Render the digital twin (object on the checkerboard under the HDR environment) from a scene file.
+    Render(render::RenderArgs),
     /// Benchmarks (see README, performance section).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -124,6 +127,16 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 1.0)]
         weight_percent: f64,
     },
+    /// The renderer on the Mitsuba reference scene: samples per CPU-second, RMSE against the reference, speed ratio to Mitsuba.
+    Render {
+        #[arg(long, default_value = "fixtures/render/plaque_dense.toml")]
+        scene: PathBuf,
+        #[arg(long, default_value = "fixtures/reference/render")]
+        reference: PathBuf,
+        /// Sample counts per pixel to run, comma-separated.
+        #[arg(long, default_value = "16,64,256,1024")]
+        spp: String,
+    },
     /// The slab simulator on a PDMS-like medium: events/s on one core, and wall time to 1 % on all cores.
     Bssrdf {
         /// Target relative standard error of the slice sum.
@@ -138,6 +151,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Optics(a) => optics(a),
         Command::Mie(a) => mie(a),
         Command::Bssrdf(a) => bssrdf::run(a),
+        Command::Render(a) => render::run(a),
         Command::Bench(b) => bench(b),
         Command::Colour(c) => colour::run(c),
         Command::Raw(c) => camera::run_raw(c),
@@ -462,6 +476,10 @@ fn bench(b: BenchCommand) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&json)?);
         }
         BenchCommand::Bssrdf { rel_error } => bench_bssrdf(rel_error)?,
+        BenchCommand::Render { scene, reference, spp } => {
+            let spps: Vec<u32> = spp.split(',').map(|s| s.trim().parse::<u32>().with_context(|| format!("--spp {spp:?}: {s:?} is not a count"))).collect::<Result<_>>()?;
+            render::bench(&scene, &reference, &spps)?
+        }
         BenchCommand::Optics { samples, repeats, weight_percent } => {
             let paths = collect_recipe_paths(&[samples])?;
             let recipes = load_recipes(&paths, Overrides { weight_percent: Some(weight_percent) }, false)?;

@@ -1,0 +1,442 @@
+//! `lucent render SCENE.toml`: the digital twin rendered from the calibrated
+//! camera (SPEC §4). Orchestration only: the scene file is validated by
+//! [`crate::scene`], light transport is `lucent_render::tracer`.
+//!
+//! Outputs in `--out` (default `lucent-out/render`):
+//! * `render.exr` — linear CIE RGB (`R`, `G`, `B`), the variance of each
+//!   pixel's mean (`variance.R`, …) and the sample count (`spp`);
+//! * `render.png` — sRGB preview (`--exposure` in stops);
+//! * `render.json` — the scene as resolved, settings, seed, timings, counters.
+
+use crate::imageio::{self, RgbImage};
+use crate::scene::{self, SceneSummary};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use lucent_render::tracer::{self, Image, Settings, Stats};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Scene file (TOML; format in the README and `src/scene/mod.rs`).
+    pub scene: PathBuf,
+    /// Output folder for render.exr, render.png and render.json.
+    #[arg(long, default_value = "lucent-out/render")]
+    pub out: PathBuf,
+    /// Samples per pixel (overrides [render] spp).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Wall-time budget in seconds: stop after the pass that exceeds it (overrides [render] time_s).
+    #[arg(long)]
+    pub time_s: Option<f64>,
+    /// Seed of the random streams (overrides [render] seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Image size WIDTHxHEIGHT instead of the camera's (the intrinsics are scaled to match).
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Exposure of the PNG preview in stops (the EXR is never scaled).
+    #[arg(long, default_value_t = 0.0)]
+    pub exposure: f64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// What render.json holds.
+#[derive(Debug, Serialize)]
+pub struct RenderReport {
+    pub lucent_version: &'static str,
+    pub scene: SceneSummary,
+    pub spp: u32,
+    pub spp_requested: u32,
+    pub time_budget_s: Option<f64>,
+    pub seed: u64,
+    pub threads: usize,
+    pub roulette_threshold: Option<f64>,
+    pub wall_s: f64,
+    pub samples: u64,
+    pub samples_per_s: f64,
+    pub scattering_events: u64,
+    pub surface_hits: u64,
+    pub leaked_paths: u64,
+    pub truncated_paths: u64,
+    pub mean_rgb: [f64; 3],
+    pub median_relative_std_error: f64,
+    pub exposure_stops_png: f64,
+    pub files: Vec<String>,
+}
+
+fn parse_size(text: &str) -> Result<(usize, usize)> {
+    let (w, h) = text
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--size {text:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
+    let (w, h): (usize, usize) = (
+        w.trim()
+            .parse()
+            .with_context(|| format!("--size {text:?}: bad width"))?,
+        h.trim()
+            .parse()
+            .with_context(|| format!("--size {text:?}: bad height"))?,
+    );
+    if w == 0 || h == 0 {
+        bail!("--size {text:?}: width and height must be at least 1");
+    }
+    Ok((w, h))
+}
+
+/// Runs `lucent render`.
+pub fn run(a: RenderArgs) -> Result<()> {
+    if let Some(t) = a.time_s {
+        if !(t > 0.0 && t.is_finite()) {
+            bail!("--time-s {t}: must be a positive number of seconds");
+        }
+    }
+    if a.spp == Some(0) {
+        bail!("--spp 0: at least one sample per pixel");
+    }
+    if !a.exposure.is_finite() {
+        bail!("--exposure must be finite");
+    }
+    let mut loaded = scene::load(&a.scene)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    if let Some(size) = &a.size {
+        let (w, h) = parse_size(size)?;
+        let cam = &mut loaded.scene.camera;
+        let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
+        let [fx, fy, cx, cy] = cam.intrinsics;
+        // Pixel centres at integers: the image edge is at −½, so scale about it.
+        cam.intrinsics = [
+            fx * sx,
+            fy * sy,
+            (cx + 0.5) * sx - 0.5,
+            (cy + 0.5) * sy - 0.5,
+        ];
+        cam.width = w;
+        cam.height = h;
+        loaded.summary.image_width = w;
+        loaded.summary.image_height = h;
+        loaded.summary.intrinsics = cam.intrinsics;
+    }
+    let mut settings = loaded.settings.clone();
+    if let Some(s) = a.spp {
+        settings.spp = s;
+    }
+    if a.time_s.is_some() {
+        settings.time_budget_s = a.time_s;
+    }
+    if let Some(s) = a.seed {
+        settings.seed = s;
+    }
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("{}: cannot create output folder", a.out.display()))?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .context("cannot start worker threads")?;
+    let threads = pool.current_num_threads();
+    let (w, h) = (loaded.scene.camera.width, loaded.scene.camera.height);
+    if !a.quiet {
+        eprintln!(
+            "rendering {} at {w}×{h}, {} spp{}, {threads} threads",
+            a.scene.display(),
+            settings.spp,
+            settings
+                .time_budget_s
+                .map(|t| format!(" (at most {t} s)"))
+                .unwrap_or_default()
+        );
+    }
+    let bar = if a.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(u64::from(settings.spp))
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} spp  {msg}  ETA {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let (image, stats) = pool.install(|| {
+        tracer::render(&loaded.scene, &settings, &mut |p| {
+            bar.set_position(u64::from(p.spp_done));
+            bar.set_message(format!(
+                "{:.3} M samples/s, {:.1} M events/s",
+                p.stats.samples as f64 / p.elapsed_s / 1e6,
+                p.stats.events as f64 / p.elapsed_s / 1e6
+            ));
+        })
+    });
+    bar.finish_and_clear();
+    let files = write_outputs(&a.out, &image, &stats, a.exposure)?;
+    let report = report(
+        &loaded.summary,
+        &settings,
+        &image,
+        &stats,
+        threads,
+        a.exposure,
+        &files,
+    );
+    crate::io::write_json(&a.out.join("render.json"), &report)
+        .with_context(|| format!("{}: cannot write render.json", a.out.display()))?;
+    if stats.leaked_paths > 0 {
+        eprintln!("warning: {} paths found no boundary while inside the object (a hole in the mesh); their light is lost", stats.leaked_paths);
+    }
+    if stats.truncated_paths > 0 {
+        eprintln!(
+            "warning: {} paths were ended after {} scattering events (biased low there)",
+            stats.truncated_paths, settings.max_events_per_path
+        );
+    }
+    println!(
+        "{} spp in {:.1} s ({:.3} M samples/s, {:.1} M scattering events/s); median relative standard error {:.1} %",
+        report.spp,
+        report.wall_s,
+        report.samples_per_s / 1e6,
+        stats.events as f64 / stats.wall_s.max(1e-9) / 1e6,
+        100.0 * report.median_relative_std_error
+    );
+    println!(
+        "wrote {}/render.exr, render.png, render.json",
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// The median over pixels with a positive mean of sqrt(var of mean)/mean (luminance-free: mean over channels).
+pub fn median_relative_std_error(image: &Image) -> f64 {
+    let mut r: Vec<f64> = image
+        .mean
+        .iter()
+        .zip(&image.variance_of_mean)
+        .filter_map(|(m, v)| {
+            let mm = (m[0] + m[1] + m[2]) / 3.0;
+            let vv = (v[0] + v[1] + v[2]) / 9.0;
+            (mm > 0.0 && vv.is_finite()).then(|| vv.sqrt() / mm)
+        })
+        .collect();
+    if r.is_empty() {
+        return f64::NAN;
+    }
+    r.sort_by(f64::total_cmp);
+    r[r.len() / 2]
+}
+
+/// Writes render.exr and render.png; returns their names.
+pub fn write_outputs(
+    out: &Path,
+    image: &Image,
+    _stats: &Stats,
+    exposure_stops: f64,
+) -> Result<Vec<String>> {
+    let (w, h) = (image.width, image.height);
+    let plane = |f: &dyn Fn(usize) -> f64| (0..w * h).map(|i| f(i) as f32).collect::<Vec<f32>>();
+    let (r, g, b) = (
+        plane(&|i| image.mean[i][0]),
+        plane(&|i| image.mean[i][1]),
+        plane(&|i| image.mean[i][2]),
+    );
+    let (vr, vg, vb) = (
+        plane(&|i| image.variance_of_mean[i][0]),
+        plane(&|i| image.variance_of_mean[i][1]),
+        plane(&|i| image.variance_of_mean[i][2]),
+    );
+    let spp = plane(&|i| f64::from(image.samples[i]));
+    imageio::write_exr_channels(
+        &out.join("render.exr"),
+        w,
+        h,
+        &[
+            ("R", &r),
+            ("G", &g),
+            ("B", &b),
+            ("variance.R", &vr),
+            ("variance.G", &vg),
+            ("variance.B", &vb),
+            ("spp", &spp),
+        ],
+    )
+    .with_context(|| format!("{}: cannot write render.exr", out.display()))?;
+    let k = 2f64.powf(exposure_stops);
+    let data: Vec<f32> = image
+        .mean
+        .iter()
+        .flat_map(|m| m.map(|v| (v * k) as f32))
+        .collect();
+    imageio::write_png(&out.join("render.png"), &RgbImage::new(w, h, data)?)
+        .with_context(|| format!("{}: cannot write render.png", out.display()))?;
+    Ok(vec![
+        "render.exr".into(),
+        "render.png".into(),
+        "render.json".into(),
+    ])
+}
+
+fn report(
+    summary: &SceneSummary,
+    settings: &Settings,
+    image: &Image,
+    stats: &Stats,
+    threads: usize,
+    exposure: f64,
+    files: &[String],
+) -> RenderReport {
+    let n = image.mean.len().max(1) as f64;
+    let mean_rgb = std::array::from_fn(|c| image.mean.iter().map(|m| m[c]).sum::<f64>() / n);
+    RenderReport {
+        lucent_version: env!("CARGO_PKG_VERSION"),
+        scene: summary.clone(),
+        spp: image.samples.first().copied().unwrap_or(0),
+        spp_requested: settings.spp,
+        time_budget_s: settings.time_budget_s,
+        seed: settings.seed,
+        threads,
+        roulette_threshold: settings.roulette_threshold,
+        wall_s: stats.wall_s,
+        samples: stats.samples,
+        samples_per_s: stats.samples as f64 / stats.wall_s.max(1e-9),
+        scattering_events: stats.events,
+        surface_hits: stats.surface_hits,
+        leaked_paths: stats.leaked_paths,
+        truncated_paths: stats.truncated_paths,
+        mean_rgb,
+        median_relative_std_error: median_relative_std_error(image),
+        exposure_stops_png: exposure,
+        files: files.to_vec(),
+    }
+}
+
+/// CPU seconds used by this process so far (user + system, all threads).
+#[cfg(unix)]
+fn process_cpu_s() -> f64 {
+    // SAFETY: getrusage only writes into the struct we pass.
+    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } != 0 {
+        return f64::NAN;
+    }
+    let tv = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    tv(u.ru_utime) + tv(u.ru_stime)
+}
+
+#[cfg(not(unix))]
+fn process_cpu_s() -> f64 {
+    f64::NAN
+}
+
+/// One row of `lucent bench render`.
+#[derive(Debug, Serialize)]
+pub struct BenchRow {
+    pub spp: u32,
+    pub wall_s: f64,
+    pub cpu_s: f64,
+    pub samples_per_cpu_s: f64,
+    pub events_per_cpu_s: f64,
+    /// RMSE against the Mitsuba reference mean over all pixels and channels.
+    pub rmse_vs_reference: f64,
+    /// The same with the reference's own noise removed: sqrt(RMSE² − mean reference variance).
+    pub rmse_corrected: f64,
+}
+
+/// `lucent bench render`: the Mitsuba reference scene at increasing sample
+/// counts on all cores; samples per CPU-second and RMSE against the
+/// reference, and the CPU time lucent needs to reach the RMSE Mitsuba
+/// reached in its own side-by-side runs (`fixtures/reference/render/mitsuba_bench.json`,
+/// from `tools/reference/bench_render_mitsuba.py`).
+pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()> {
+    let loaded = scene::load(scene_path)?;
+    let (w, h, mean) = imageio::read_exr_channels(
+        &reference_dir.join("plaque_dense_mean.exr"),
+        &["R", "G", "B"],
+    )?;
+    let (_, _, var) = imageio::read_exr_channels(
+        &reference_dir.join("plaque_dense_var.exr"),
+        &["R", "G", "B"],
+    )?;
+    if (w, h) != (loaded.scene.camera.width, loaded.scene.camera.height) {
+        bail!(
+            "{}: reference is {w}×{h}, the scene renders {}×{}",
+            reference_dir.display(),
+            loaded.scene.camera.width,
+            loaded.scene.camera.height
+        );
+    }
+    let n = (w * h * 3) as f64;
+    let ref_var: f64 = var.iter().flatten().map(|v| f64::from(*v)).sum::<f64>() / n;
+    let mut rows = Vec::new();
+    for &spp in spps {
+        let settings = Settings {
+            spp,
+            seed: 77 + u64::from(spp),
+            ..loaded.settings.clone()
+        };
+        let cpu0 = process_cpu_s();
+        let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
+        let cpu = process_cpu_s() - cpu0;
+        let mut se = 0.0;
+        for p in 0..w * h {
+            for c in 0..3 {
+                se += (img.mean[p][c] - f64::from(mean[c][p])).powi(2);
+            }
+        }
+        let mse = se / n;
+        let row = BenchRow {
+            spp,
+            wall_s: stats.wall_s,
+            cpu_s: cpu,
+            samples_per_cpu_s: stats.samples as f64 / cpu,
+            events_per_cpu_s: stats.events as f64 / cpu,
+            rmse_vs_reference: mse.sqrt(),
+            rmse_corrected: (mse - ref_var).max(0.0).sqrt(),
+        };
+        eprintln!(
+            "lucent {:>5} spp: {:>7.2} s wall, {:>7.2} CPU-s, {:.3} M samples/CPU-s, {:.1} M events/CPU-s, RMSE {:.5} (corrected {:.5})",
+            row.spp, row.wall_s, row.cpu_s, row.samples_per_cpu_s / 1e6, row.events_per_cpu_s / 1e6, row.rmse_vs_reference, row.rmse_corrected
+        );
+        rows.push(row);
+    }
+    // Mitsuba's side-by-side figures, if present.
+    let mitsuba: Option<serde_json::Value> =
+        std::fs::read_to_string(reference_dir.join("mitsuba_bench.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok());
+    let mut ratios = Vec::new();
+    if let (Some(m), Some(best)) = (&mitsuba, rows.last()) {
+        for r in m
+            .get("runs")
+            .and_then(|r| r.as_array())
+            .into_iter()
+            .flatten()
+        {
+            let (Some(m_cpu), Some(m_rmse)) = (
+                r.get("cpu_s").and_then(|v| v.as_f64()),
+                r.get("rmse").and_then(|v| v.as_f64()),
+            ) else {
+                continue;
+            };
+            // Both errors include the reference's noise; compare the corrected ones, RMSE² ∝ 1/time.
+            let m_corr = (m_rmse * m_rmse - ref_var).max(1e-300).sqrt();
+            let lucent_cpu = best.cpu_s * (best.rmse_corrected / m_corr).powi(2);
+            let ratio = m_cpu / lucent_cpu;
+            eprintln!("Mitsuba {:>5} spp: {m_cpu:.1} CPU-s for RMSE {m_rmse:.5} (corrected {m_corr:.5}); lucent reaches it in {lucent_cpu:.2} CPU-s: {ratio:.1}× faster", r.get("spp").and_then(|v| v.as_u64()).unwrap_or(0));
+            ratios.push(serde_json::json!({"mitsuba": r, "mitsuba_rmse_corrected": m_corr, "lucent_cpu_s_to_equal_rmse": lucent_cpu, "speed_ratio": ratio}));
+        }
+    } else {
+        eprintln!(
+            "no {}: run tools/reference/bench_render_mitsuba.py for the side-by-side figures",
+            reference_dir.join("mitsuba_bench.json").display()
+        );
+    }
+    println!(
+        "{}",
+        serde_json::to_string_pretty(
+            &serde_json::json!({"scene": scene_path.display().to_string(), "threads": rayon::current_num_threads(), "reference_mean_variance": ref_var, "lucent": rows, "versus_mitsuba": ratios})
+        )?
+    );
+    Ok(())
+}

@@ -1,0 +1,1247 @@
+//! Scene files for `lucent render` (SPEC §4): a TOML file naming the
+//! object, its material, the checkerboard, the environment and the camera,
+//! validated in two stages like recipes — the file as typed ([`SceneFile`],
+//! unknown keys rejected, each error naming the file and key), then the
+//! renderer's [`lucent_render::tracer::Scene`] built by [`load`].
+//!
+//! Units: metres unless a key says otherwise (`_mm`, `_deg`); world
+//! right-handed, **z up**, as written by `lucent pose` (see
+//! `lucent_calib::scene`). Relative paths are relative to the scene file.
+//!
+//! ```toml
+//! [camera]                      # either scene_json (from `lucent pose`) or explicit
+//! scene_json = "scene.json"     # intrinsics, pose and image size of the photo
+//! distortion = "none"           # or "calibrated" (needs camera_json): render the raw photo's geometry
+//! # camera_json = "camera.json"
+//! # width = 640, height = 480, position_m = [0, -0.3, 0.35], look_at_m = [0, 0, 0], up = [0, 0, 1], vertical_fov_deg = 40
+//!
+//! [object]                      # without `mesh`: the plaque box of the recipe's size_mm/thickness_mm (or `size_mm`)
+//! # mesh = "part.ply"           # PLY, OBJ or STL; unit_scale_m = 0.001 for a mesh in mm
+//! placement = "scene"           # the sample placement in scene_json; or board_corner = [i, j]; or transform = 4×4
+//! lift_m = 1e-6                 # air gap under an object placed on the board (default 1 µm)
+//!
+//! [material]
+//! recipe = "../samples/IOL1068-09.toml"   # Lorenz–Mie → R, G, B bands
+//! phase = "mie"                 # "mie" (band-averaged tabulated function) or "hg" (the band's g)
+//! # or explicit bands: sigma_s_per_m = [..3], sigma_a_per_m = [..3], g = [..3], n = [..3]
+//!
+//! [board]                       # geometry from scene_json, or origin_m/u/v/columns/rows/square_mm
+//! even = [0.04, 0.04, 0.04]     # squares whose (column + row) is even (the outer corner square)
+//! odd = [0.80, 0.80, 0.80]      # or even_spectrum / odd_spectrum = "r.csv", or texture = "board.png"
+//!
+//! [environment]
+//! map = "studio.exr"            # equirectangular, linear CIE RGB; or constant = [r, g, b]
+//! projection = "finite-sphere"  # or "infinite"
+//! radius_m = 0.60               # centred at the top of the sample unless centre_m is given
+//! yaw_deg = 0
+//! scale = 1.0
+//!
+//! [render]
+//! spp = 64
+//! seed = 1
+//! ```
+//!
+//! **Bands.** Spectral quantities (μ_s, μ_a, g, n_bulk, reflectance spectra)
+//! become R, G, B with `lucent_colour::bands` (CIE 1931 RGB colour-matching
+//! functions, Wright & Guild, negative lobes clipped, each band normalised):
+//! the same weights as `lucent colour bands`. The tabulated phase function
+//! of a band is the mixture of the wavelengths' Lorenz–Mie functions
+//! weighted by w_b(λ) μ_s(λ) (the band's scattered light), renormalised.
+//!
+//! **Placement on the board.** "The sample's top-left corner on board
+//! corner (i, j)" (`board_corner`) or `placement = "scene"` uses
+//! `lucent_calib::scene::place_sample`: the object's frame has its origin at
+//! the centre of the bottom face. The object is lifted by `lift_m` (default
+//! 1 µm) so its bottom face and the board are not coplanar: light leaving
+//! the bottom face crosses a 1 µm air gap to the board, as under a plaque
+//! lying on paper.
+
+pub mod mesh;
+
+use crate::optics::bulk::{self, OpticalSpectrum};
+use crate::optics::recipe::{Overrides, Recipe};
+use glam::DVec3;
+use lucent_calib::scene::{BoardSpec, SceneDescription};
+use lucent_colour::bands::{band_weights, BandWeights};
+use lucent_colour::WavelengthGrid;
+use lucent_render::accel::Accel;
+use lucent_render::camera::Camera;
+use lucent_render::env::{Environment, Projection};
+use lucent_render::phase::{Phase, PhaseTable};
+use lucent_render::tracer::{Board, BoardReflectance, Boundary, Medium, Object, Scene, Settings};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// What went wrong with a scene file; every variant names the file.
+#[derive(Debug, Error)]
+pub enum SceneFileError {
+    #[error("{path}: cannot read scene file: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Toml { path: PathBuf, message: String },
+    #[error("{path}: [{section}] {key}: {reason}")]
+    Key {
+        path: PathBuf,
+        section: &'static str,
+        key: &'static str,
+        reason: String,
+    },
+    #[error("{path}: [{section}]: {reason}")]
+    Section {
+        path: PathBuf,
+        section: &'static str,
+        reason: String,
+    },
+    #[error("{path}: [object] mesh: {source}")]
+    Mesh {
+        path: PathBuf,
+        source: mesh::MeshError,
+    },
+    #[error("{path}: [material] recipe: {source}")]
+    Recipe {
+        path: PathBuf,
+        source: crate::optics::recipe::RecipeError,
+    },
+    #[error("{path}: [material]: {source}")]
+    Optics {
+        path: PathBuf,
+        source: crate::optics::bulk::OpticsError,
+    },
+    #[error("{path}: [environment] map: {source}")]
+    Image {
+        path: PathBuf,
+        source: crate::imageio::ImageIoError,
+    },
+    #[error("{path}: {source}")]
+    Scene {
+        path: PathBuf,
+        source: lucent_render::tracer::SceneError,
+    },
+}
+
+// ------------------------------------------------------------ raw file
+
+/// The scene file as typed.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub camera: CameraSection,
+    #[serde(default)]
+    pub object: Option<ObjectSection>,
+    #[serde(default)]
+    pub material: Option<MaterialSection>,
+    #[serde(default)]
+    pub board: Option<BoardSection>,
+    pub environment: EnvironmentSection,
+    #[serde(default)]
+    pub render: RenderSection,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSection {
+    pub scene_json: Option<PathBuf>,
+    pub camera_json: Option<PathBuf>,
+    pub distortion: Option<String>,
+    pub width: Option<usize>,
+    pub height: Option<usize>,
+    pub position_m: Option<[f64; 3]>,
+    pub look_at_m: Option<[f64; 3]>,
+    pub up: Option<[f64; 3]>,
+    pub vertical_fov_deg: Option<f64>,
+    pub intrinsics: Option<[f64; 4]>,
+    pub camera_to_world: Option<[[f64; 4]; 4]>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSection {
+    pub mesh: Option<PathBuf>,
+    pub unit_scale_m: Option<f64>,
+    pub size_mm: Option<[f64; 3]>,
+    pub placement: Option<String>,
+    pub board_corner: Option<[usize; 2]>,
+    pub transform: Option<[[f64; 4]; 4]>,
+    pub lift_m: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSection {
+    pub recipe: Option<PathBuf>,
+    pub weight_percent: Option<f64>,
+    pub phase: Option<String>,
+    pub wavelengths: Option<String>,
+    pub sigma_s_per_m: Option<[f64; 3]>,
+    pub sigma_a_per_m: Option<[f64; 3]>,
+    pub g: Option<[f64; 3]>,
+    pub n: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoardSection {
+    pub origin_m: Option<[f64; 3]>,
+    pub u: Option<[f64; 3]>,
+    pub v: Option<[f64; 3]>,
+    pub square_mm: Option<f64>,
+    pub columns: Option<usize>,
+    pub rows: Option<usize>,
+    pub even: Option<[f64; 3]>,
+    pub odd: Option<[f64; 3]>,
+    pub even_spectrum: Option<PathBuf>,
+    pub odd_spectrum: Option<PathBuf>,
+    pub texture: Option<PathBuf>,
+    pub margin_mm: Option<f64>,
+    pub margin: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentSection {
+    pub map: Option<PathBuf>,
+    pub constant: Option<[f64; 3]>,
+    pub projection: Option<String>,
+    pub radius_m: Option<f64>,
+    pub centre_m: Option<[f64; 3]>,
+    pub yaw_deg: Option<f64>,
+    pub scale: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSection {
+    pub spp: Option<u32>,
+    pub time_s: Option<f64>,
+    pub seed: Option<u64>,
+    pub spp_per_pass: Option<u32>,
+}
+
+// ------------------------------------------------------------ validated
+
+/// A loaded scene with what a report needs to say about it.
+#[derive(Debug, Clone)]
+pub struct LoadedScene {
+    pub scene: Scene,
+    pub settings: Settings,
+    /// What was used, for render.json.
+    pub summary: SceneSummary,
+    /// Warnings (open mesh, clipped reflectance …) to print.
+    pub warnings: Vec<String>,
+}
+
+/// The resolved inputs, written into render.json.
+#[derive(Debug, Clone, Serialize)]
+pub struct SceneSummary {
+    pub scene_file: String,
+    pub object: Option<String>,
+    pub triangles: usize,
+    pub mesh_report: Option<mesh::MeshReport>,
+    pub object_bounds_m: Option<[[f64; 3]; 2]>,
+    pub material: Option<MaterialSummary>,
+    pub board: Option<String>,
+    pub environment: String,
+    pub projection: String,
+    pub environment_centre_m: Option<[f64; 3]>,
+    pub environment_radius_m: Option<f64>,
+    pub camera: String,
+    pub image_width: usize,
+    pub image_height: usize,
+    pub intrinsics: [f64; 4],
+    pub distortion: Option<[f64; 5]>,
+    pub band_weight_set: &'static str,
+}
+
+/// The medium's band values.
+#[derive(Debug, Clone, Serialize)]
+pub struct MaterialSummary {
+    pub source: String,
+    pub phase: String,
+    pub mu_s_per_m: [f64; 3],
+    pub mu_a_per_m: [f64; 3],
+    pub g: [f64; 3],
+    pub n: [f64; 3],
+}
+
+struct Ctx<'a> {
+    path: &'a Path,
+    dir: PathBuf,
+}
+
+impl Ctx<'_> {
+    fn key(
+        &self,
+        section: &'static str,
+        key: &'static str,
+        reason: impl Into<String>,
+    ) -> SceneFileError {
+        SceneFileError::Key {
+            path: self.path.to_path_buf(),
+            section,
+            key,
+            reason: reason.into(),
+        }
+    }
+    fn section(&self, section: &'static str, reason: impl Into<String>) -> SceneFileError {
+        SceneFileError::Section {
+            path: self.path.to_path_buf(),
+            section,
+            reason: reason.into(),
+        }
+    }
+    fn resolve(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.dir.join(p)
+        }
+    }
+}
+
+/// Parses a scene file's text (stage one: syntax, unknown keys).
+pub fn parse(text: &str, path: &Path) -> Result<SceneFile, SceneFileError> {
+    toml::from_str(text).map_err(|e| SceneFileError::Toml {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Loads and validates a scene file (both stages) into a renderable scene.
+pub fn load(path: &Path) -> Result<LoadedScene, SceneFileError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneFileError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let file = parse(&text, path)?;
+    build(&file, path)
+}
+
+fn finite3(
+    ctx: &Ctx,
+    section: &'static str,
+    key: &'static str,
+    v: [f64; 3],
+) -> Result<DVec3, SceneFileError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(DVec3::from_array(v))
+    } else {
+        Err(ctx.key(section, key, format!("values must be finite, got {v:?}")))
+    }
+}
+
+fn read_scene_json(ctx: &Ctx, p: &Path) -> Result<SceneDescription, SceneFileError> {
+    let full = ctx.resolve(p);
+    let text = std::fs::read_to_string(&full)
+        .map_err(|e| ctx.key("camera", "scene_json", format!("{}: {e}", full.display())))?;
+    serde_json::from_str(&text).map_err(|e| {
+        ctx.key(
+            "camera",
+            "scene_json",
+            format!(
+                "{}: not a scene.json written by `lucent pose`: {e}",
+                full.display()
+            ),
+        )
+    })
+}
+
+/// Stage two: the validated scene.
+pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileError> {
+    let ctx = Ctx {
+        path,
+        dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+    };
+    let mut warnings = Vec::new();
+    let scene_json = match &file.camera.scene_json {
+        Some(p) => Some(read_scene_json(&ctx, p)?),
+        None => None,
+    };
+
+    // --- camera
+    let (camera, camera_desc) = build_camera(&ctx, &file.camera, scene_json.as_ref())?;
+
+    // --- material and object
+    let material = match &file.material {
+        Some(m) => Some(build_material(&ctx, m)?),
+        None => None,
+    };
+    let (object, object_desc, mesh_report, bounds, top_centre) = match (&file.object, material) {
+        (Some(o), Some((medium, eta, summary, size_from_recipe))) => {
+            let (triangles, desc, report) = build_object_triangles(
+                &ctx,
+                o,
+                size_from_recipe,
+                scene_json.as_ref(),
+                file.board.as_ref(),
+                &mut warnings,
+            )?;
+            let accel = Accel::new(&triangles);
+            let (lo, hi) = accel.bounds();
+            let object =
+                Object::new(accel, Boundary::Smooth { eta }, medium).map_err(|source| {
+                    SceneFileError::Scene {
+                        path: path.to_path_buf(),
+                        source,
+                    }
+                })?;
+            let top = DVec3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z);
+            (
+                Some((object, summary)),
+                Some(desc),
+                report,
+                Some([lo.to_array(), hi.to_array()]),
+                Some(top),
+            )
+        }
+        (Some(_), None) => {
+            return Err(ctx.section(
+                "material",
+                "an [object] needs a [material] (recipe or explicit bands)",
+            ))
+        }
+        (None, Some(_)) => {
+            return Err(ctx.section("object", "a [material] is given but no [object] to fill"))
+        }
+        (None, None) => (None, None, None, None, None),
+    };
+
+    // --- board
+    let board = match &file.board {
+        Some(b) => Some(build_board(&ctx, b, scene_json.as_ref())?),
+        None => None,
+    };
+
+    // --- environment
+    let (environment, env_desc, projection_desc, centre, radius) =
+        build_environment(&ctx, &file.environment, top_centre)?;
+
+    // --- render settings
+    let r = &file.render;
+    let mut settings = Settings::default();
+    if let Some(spp) = r.spp {
+        if spp == 0 {
+            return Err(ctx.key("render", "spp", "must be at least 1"));
+        }
+        settings.spp = spp;
+    }
+    if let Some(t) = r.time_s {
+        if !(t > 0.0 && t.is_finite()) {
+            return Err(ctx.key(
+                "render",
+                "time_s",
+                format!("must be a positive number of seconds, got {t}"),
+            ));
+        }
+        settings.time_budget_s = Some(t);
+    }
+    if let Some(s) = r.seed {
+        settings.seed = s;
+    }
+    if let Some(p) = r.spp_per_pass {
+        settings.spp_per_pass = p.max(1);
+    }
+
+    let (object, material_summary) = match object {
+        Some((o, s)) => (Some(o), Some(s)),
+        None => (None, None),
+    };
+    let triangles = object.as_ref().map_or(0, |o| o.accel.len());
+    let (intr, dist) = (
+        camera.intrinsics,
+        camera.distortion.map(|d| [d.k1, d.k2, d.p1, d.p2, d.k3]),
+    );
+    let (w, h) = (camera.width, camera.height);
+    let scene = Scene::new(
+        object,
+        board.as_ref().map(|b| b.0.clone()),
+        environment,
+        camera,
+    )
+    .map_err(|source| SceneFileError::Scene {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if let Some(rep) = &mesh_report {
+        warnings.extend(rep.warnings.iter().cloned());
+    }
+    Ok(LoadedScene {
+        scene,
+        settings,
+        summary: SceneSummary {
+            scene_file: path.display().to_string(),
+            object: object_desc,
+            triangles,
+            mesh_report,
+            object_bounds_m: bounds,
+            material: material_summary,
+            board: board.map(|b| b.1),
+            environment: env_desc,
+            projection: projection_desc,
+            environment_centre_m: centre,
+            environment_radius_m: radius,
+            camera: camera_desc,
+            image_width: w,
+            image_height: h,
+            intrinsics: intr,
+            distortion: dist,
+            band_weight_set: lucent_colour::bands::BAND_WEIGHT_SET,
+        },
+        warnings,
+    })
+}
+
+fn build_camera(
+    ctx: &Ctx,
+    c: &CameraSection,
+    scene_json: Option<&SceneDescription>,
+) -> Result<(Camera, String), SceneFileError> {
+    let distortion = match c.distortion.as_deref() {
+        None | Some("none") => None,
+        Some("calibrated") => {
+            let Some(p) = &c.camera_json else {
+                return Err(ctx.key(
+                    "camera",
+                    "distortion",
+                    "\"calibrated\" needs camera_json (the camera.json of `lucent calibrate`)",
+                ));
+            };
+            let full = ctx.resolve(p);
+            let text = std::fs::read_to_string(&full).map_err(|e| {
+                ctx.key("camera", "camera_json", format!("{}: {e}", full.display()))
+            })?;
+            let cal: lucent_calib::camera::Calibration =
+                serde_json::from_str(&text).map_err(|e| {
+                    ctx.key(
+                        "camera",
+                        "camera_json",
+                        format!(
+                            "{}: not a camera.json written by `lucent calibrate`: {e}",
+                            full.display()
+                        ),
+                    )
+                })?;
+            let d = cal.camera.distortion;
+            if d.k4 != 0.0 || d.k5 != 0.0 || d.k6 != 0.0 {
+                return Err(ctx.key("camera", "distortion", "the rational model's k4–k6 are not supported by the renderer; calibrate with pinhole-k3 or render undistorted (distortion = \"none\")"));
+            }
+            Some([d.k1, d.k2, d.p1, d.p2, d.k3])
+        }
+        Some(other) => {
+            return Err(ctx.key(
+                "camera",
+                "distortion",
+                format!("expected \"none\" or \"calibrated\", got {other:?}"),
+            ))
+        }
+    };
+    let cam_err = |e: lucent_render::camera::CameraError| ctx.section("camera", e.to_string());
+    if let Some(s) = scene_json {
+        if c.position_m.is_some()
+            || c.look_at_m.is_some()
+            || c.intrinsics.is_some()
+            || c.camera_to_world.is_some()
+        {
+            return Err(ctx.section("camera", "give either scene_json or an explicit camera (position_m/look_at_m or intrinsics/camera_to_world), not both"));
+        }
+        let k = &s.intrinsics;
+        let (w, h) = (
+            c.width.unwrap_or(s.image_width),
+            c.height.unwrap_or(s.image_height),
+        );
+        let cam = Camera::new(
+            w,
+            h,
+            [k.fx, k.fy, k.cx, k.cy],
+            s.camera_to_world,
+            distortion,
+        )
+        .map_err(cam_err)?;
+        return Ok((cam, format!("scene.json pose, {w}×{h}, fx {:.2} px", k.fx)));
+    }
+    let (Some(w), Some(h)) = (c.width, c.height) else {
+        return Err(ctx.section("camera", "give scene_json, or width and height with position_m/look_at_m/vertical_fov_deg or intrinsics/camera_to_world"));
+    };
+    match (c.intrinsics, c.camera_to_world, c.position_m, c.look_at_m) {
+        (Some(k), Some(m), None, None) => Ok((Camera::new(w, h, k, m, distortion).map_err(cam_err)?, "explicit intrinsics and pose".into())),
+        (None, None, Some(p), Some(t)) => {
+            let fov = c.vertical_fov_deg.ok_or_else(|| ctx.key("camera", "vertical_fov_deg", "required with position_m/look_at_m"))?;
+            let up = c.up.unwrap_or([0.0, 0.0, 1.0]);
+            let cam = Camera::look_at(w, h, finite3(ctx, "camera", "position_m", p)?, finite3(ctx, "camera", "look_at_m", t)?, finite3(ctx, "camera", "up", up)?, fov).map_err(cam_err)?;
+            let cam = match distortion {
+                Some(_) => return Err(ctx.key("camera", "distortion", "\"calibrated\" needs the calibrated intrinsics (scene_json or intrinsics)")),
+                None => cam,
+            };
+            Ok((cam, format!("look-at from {p:?} to {t:?}, vertical FOV {fov}°")))
+        }
+        _ => Err(ctx.section("camera", "give either intrinsics + camera_to_world or position_m + look_at_m (+ vertical_fov_deg)")),
+    }
+}
+
+type MaterialParts = (Medium, [f64; 3], MaterialSummary, Option<[f64; 3]>);
+
+fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, SceneFileError> {
+    let phase_kind = m
+        .phase
+        .as_deref()
+        .unwrap_or(if m.recipe.is_some() { "mie" } else { "hg" });
+    if !matches!(phase_kind, "mie" | "hg") {
+        return Err(ctx.key(
+            "material",
+            "phase",
+            format!("expected \"mie\" or \"hg\", got {phase_kind:?}"),
+        ));
+    }
+    let explicit = m.sigma_s_per_m.is_some() || m.sigma_a_per_m.is_some() || m.g.is_some();
+    match (&m.recipe, explicit) {
+        (Some(_), true) => Err(ctx.section(
+            "material",
+            "give either recipe or explicit sigma_s_per_m/sigma_a_per_m/g, not both",
+        )),
+        (None, false) => Err(ctx.section(
+            "material",
+            "give a recipe or explicit sigma_s_per_m, sigma_a_per_m, g and n",
+        )),
+        (None, true) => {
+            let need = |v: Option<[f64; 3]>, key: &'static str| {
+                v.ok_or_else(|| ctx.key("material", key, "required with explicit bands"))
+            };
+            let (s, a, g, n) = (
+                need(m.sigma_s_per_m, "sigma_s_per_m")?,
+                need(m.sigma_a_per_m, "sigma_a_per_m")?,
+                need(m.g, "g")?,
+                need(m.n, "n")?,
+            );
+            if phase_kind == "mie" {
+                return Err(ctx.key(
+                    "material",
+                    "phase",
+                    "\"mie\" needs a recipe; explicit bands use \"hg\"",
+                ));
+            }
+            let phase = hg_phases(ctx, g)?;
+            let summary = MaterialSummary {
+                source: "explicit bands".into(),
+                phase: "Henyey–Greenstein".into(),
+                mu_s_per_m: s,
+                mu_a_per_m: a,
+                g,
+                n,
+            };
+            Ok((
+                Medium {
+                    sigma_s: s,
+                    sigma_a: a,
+                    phase,
+                },
+                n,
+                summary,
+                None,
+            ))
+        }
+        (Some(recipe_path), false) => {
+            let full = ctx.resolve(recipe_path);
+            let recipe = Recipe::load(
+                &full,
+                Overrides {
+                    weight_percent: m.weight_percent,
+                },
+            )
+            .map_err(|source| SceneFileError::Recipe {
+                path: ctx.path.to_path_buf(),
+                source,
+            })?;
+            let grid_text = m.wavelengths.as_deref().unwrap_or("380:780:10");
+            let grid = parse_grid(grid_text).map_err(|e| ctx.key("material", "wavelengths", e))?;
+            let options = bulk::Options {
+                phase_entries: if phase_kind == "mie" { 4096 } else { 0 },
+                ..Default::default()
+            };
+            let spectrum = bulk::compute(&recipe, &grid, &options).map_err(|source| {
+                SceneFileError::Optics {
+                    path: ctx.path.to_path_buf(),
+                    source,
+                }
+            })?;
+            let weights = band_weights(&grid)
+                .map_err(|e| ctx.key("material", "wavelengths", e.to_string()))?;
+            let (medium, summary) =
+                medium_from_spectrum(ctx, &spectrum, &weights, phase_kind == "mie", &full)?;
+            let size = recipe_size_m(&recipe);
+            let eta = summary.n;
+            Ok((medium, eta, summary, size))
+        }
+    }
+}
+
+fn parse_grid(text: &str) -> Result<WavelengthGrid, String> {
+    let parts: Vec<&str> = text.split(':').collect();
+    let nums: Result<Vec<f64>, _> = parts.iter().map(|p| p.trim().parse::<f64>()).collect();
+    match (parts.len(), nums) {
+        (3, Ok(v)) => WavelengthGrid::new(v[0], v[1], v[2]).map_err(|e| e.to_string()),
+        _ => Err(format!("expected START:END:STEP in nm, got {text:?}")),
+    }
+}
+
+fn recipe_size_m(recipe: &Recipe) -> Option<[f64; 3]> {
+    let [w, h] = recipe.size_m?;
+    Some([w, h, recipe.thickness_m])
+}
+
+fn hg_phases(ctx: &Ctx, g: [f64; 3]) -> Result<[Phase; 3], SceneFileError> {
+    let one = |b: usize| {
+        Phase::henyey_greenstein(g[b]).map_err(|e| ctx.key("material", "g", e.to_string()))
+    };
+    Ok([one(0)?, one(1)?, one(2)?])
+}
+
+/// Band values of a computed spectrum; with `mie`, the band phase tables.
+fn medium_from_spectrum(
+    ctx: &Ctx,
+    s: &OpticalSpectrum,
+    w: &BandWeights,
+    mie: bool,
+    source: &Path,
+) -> Result<(Medium, MaterialSummary), SceneFileError> {
+    let avg = |v: &[f64], what: &str| {
+        w.average(v)
+            .map_err(|e| ctx.section("material", format!("{what}: {e}")))
+    };
+    let (mu_s, mu_a, g, n) = (
+        avg(&s.mu_s_per_m, "μs")?,
+        avg(&s.mu_a_per_m, "μa")?,
+        avg(&s.g, "g")?,
+        avg(&s.n_bulk, "n_bulk")?,
+    );
+    let phase = if mie {
+        let tables = &s.phase;
+        let entries = tables.first().map_or(0, Vec::len);
+        let mut out: Vec<Phase> = Vec::with_capacity(3);
+        for b in 0..3 {
+            let mut mix = vec![0.0; entries];
+            for (i, table) in tables.iter().enumerate() {
+                let weight = w.weights[b][i] * s.mu_s_per_m[i];
+                for (m, p) in mix.iter_mut().zip(table) {
+                    *m += weight * p;
+                }
+            }
+            let table = PhaseTable::from_theta_samples(&mix)
+                .map_err(|e| ctx.section("material", format!("band {b} phase table: {e}")))?;
+            out.push(Phase::Tabulated(table));
+        }
+        let [a, b, c]: [Phase; 3] = out
+            .try_into()
+            .map_err(|_| ctx.section("material", "phase tables"))?;
+        [a, b, c]
+    } else {
+        hg_phases(ctx, g)?
+    };
+    let summary = MaterialSummary {
+        source: format!("{} ({})", source.display(), s.sample),
+        phase: if mie {
+            "Lorenz–Mie, band mixture of 4096-entry tables".into()
+        } else {
+            "Henyey–Greenstein with the band's g".into()
+        },
+        mu_s_per_m: mu_s,
+        mu_a_per_m: mu_a,
+        g,
+        n,
+    };
+    Ok((
+        Medium {
+            sigma_s: mu_s,
+            sigma_a: mu_a,
+            phase,
+        },
+        summary,
+    ))
+}
+
+type ObjectParts = (Vec<[DVec3; 3]>, String, Option<mesh::MeshReport>);
+
+fn build_object_triangles(
+    ctx: &Ctx,
+    o: &ObjectSection,
+    size_from_recipe: Option<[f64; 3]>,
+    scene_json: Option<&SceneDescription>,
+    board: Option<&BoardSection>,
+    warnings: &mut Vec<String>,
+) -> Result<ObjectParts, SceneFileError> {
+    let (mesh_obj, desc, report) = match &o.mesh {
+        Some(p) => {
+            let scale = o.unit_scale_m.unwrap_or(1.0);
+            if !(scale > 0.0 && scale.is_finite()) {
+                return Err(ctx.key(
+                    "object",
+                    "unit_scale_m",
+                    format!("must be finite and > 0, got {scale}"),
+                ));
+            }
+            let full = ctx.resolve(p);
+            let (m, report) = mesh::load(&full, scale).map_err(|source| SceneFileError::Mesh {
+                path: ctx.path.to_path_buf(),
+                source,
+            })?;
+            (m, format!("mesh {}", full.display()), Some(report))
+        }
+        None => {
+            let size = match (o.size_mm, size_from_recipe) {
+                (Some(s), _) => s.map(|v| v * 1e-3),
+                (None, Some(s)) => s,
+                (None, None) => return Err(ctx.section("object", "no mesh, no size_mm and the recipe gives no size_mm/thickness_mm: the plaque box needs a size")),
+            };
+            if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(ctx.key(
+                    "object",
+                    "size_mm",
+                    format!("box sides must be finite and > 0, got {size:?} m"),
+                ));
+            }
+            (
+                mesh::plaque_box(size[0], size[1], size[2]),
+                format!(
+                    "plaque box {:.2} × {:.2} × {:.2} mm",
+                    size[0] * 1e3,
+                    size[1] * 1e3,
+                    size[2] * 1e3
+                ),
+                None,
+            )
+        }
+    };
+    let lift = o.lift_m.unwrap_or(1e-6);
+    if !(lift >= 0.0 && lift.is_finite()) {
+        return Err(ctx.key(
+            "object",
+            "lift_m",
+            format!("must be finite and ≥ 0, got {lift}"),
+        ));
+    }
+    let chosen = [
+        o.transform.is_some(),
+        o.placement.is_some(),
+        o.board_corner.is_some(),
+    ]
+    .iter()
+    .filter(|x| **x)
+    .count();
+    if chosen > 1 {
+        return Err(ctx.section(
+            "object",
+            "give only one of transform, placement and board_corner",
+        ));
+    }
+    let lifted = |mut m: [[f64; 4]; 4]| {
+        m[2][3] += lift;
+        m
+    };
+    let transform: [[f64; 4]; 4] = if let Some(t) = o.transform {
+        if t.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(ctx.key("object", "transform", "values must be finite"));
+        }
+        t
+    } else if let Some(p) = &o.placement {
+        if p != "scene" {
+            return Err(ctx.key(
+                "object",
+                "placement",
+                format!("expected \"scene\" (the sample placement in scene_json), got {p:?}"),
+            ));
+        }
+        let Some(s) = scene_json.and_then(|s| s.sample.as_ref()) else {
+            return Err(ctx.key("object", "placement", "\"scene\" needs [camera] scene_json with a sample (run `lucent pose` with --sample-corner and --sample-size-mm)"));
+        };
+        lifted(s.object_to_world)
+    } else if let Some([i, j]) = o.board_corner {
+        let Some(s) = scene_json else {
+            let _ = board;
+            return Err(ctx.key(
+                "object",
+                "board_corner",
+                "needs [camera] scene_json (the board's pose from `lucent pose`)",
+            ));
+        };
+        let (cols, rows) = (s.board.cols, s.board.rows);
+        if i >= cols || j >= rows {
+            return Err(ctx.key(
+                "object",
+                "board_corner",
+                format!("corner ({i}, {j}) is outside the board's {cols} × {rows} inner corners"),
+            ));
+        }
+        let size_m: [f64; 3] = std::array::from_fn(|k| {
+            let (lo, hi) = mesh_obj
+                .positions_m
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(p[k]), hi.max(p[k]))
+                });
+            hi - lo
+        });
+        let frame = lucent_calib::scene::RendererFrame {
+            camera_to_world: s.camera_to_world,
+            world_from_board: s.world_from_board,
+        };
+        let placement = lucent_calib::scene::place_sample(
+            &s.board,
+            &lucent_calib::scene::SampleSpec {
+                corner: [i, j],
+                size_m,
+            },
+            &frame,
+        );
+        lifted(placement.object_to_world)
+    } else {
+        lifted([
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ])
+    };
+    let world = mesh_obj.transformed(&transform);
+    if report.as_ref().is_some_and(|r| !r.closed) {
+        warnings.push(format!("{}: the mesh is not closed; paths inside the medium may leak through its holes (counted in render.json)", ctx.path.display()));
+    }
+    let tris = world
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| DVec3::from_array(world.positions_m[i as usize])))
+        .collect();
+    Ok((tris, desc, report))
+}
+
+type BoardParts = (Board, String);
+
+fn read_spectrum_csv(ctx: &Ctx, key: &'static str, p: &Path) -> Result<[f64; 3], SceneFileError> {
+    let full = ctx.resolve(p);
+    let text = std::fs::read_to_string(&full)
+        .map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
+    let (mut wl, mut r) = (Vec::new(), Vec::new());
+    for (k, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        match (
+            f.len(),
+            f.first().and_then(|x| x.parse::<f64>().ok()),
+            f.get(1).and_then(|x| x.parse::<f64>().ok()),
+        ) {
+            (2, Some(a), Some(b)) if a.is_finite() && b.is_finite() => {
+                wl.push(a);
+                r.push(b);
+            }
+            _ if wl.is_empty() && k == 0 => continue, // header
+            _ => {
+                return Err(ctx.key(
+                    "board",
+                    key,
+                    format!(
+                        "{}: line {}: expected wavelength_nm,reflectance",
+                        full.display(),
+                        k + 1
+                    ),
+                ))
+            }
+        }
+    }
+    if r.iter().any(|v| !(0.0..=1.0).contains(v)) {
+        return Err(ctx.key(
+            "board",
+            key,
+            format!("{}: reflectance values must lie in [0, 1]", full.display()),
+        ));
+    }
+    let grid = WavelengthGrid::from_list(wl)
+        .map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
+    let w = band_weights(&grid)
+        .map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
+    w.average(&r)
+        .map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))
+}
+
+fn build_board(
+    ctx: &Ctx,
+    b: &BoardSection,
+    scene_json: Option<&SceneDescription>,
+) -> Result<BoardParts, SceneFileError> {
+    let explicit_geometry = b.origin_m.is_some()
+        || b.u.is_some()
+        || b.v.is_some()
+        || b.columns.is_some()
+        || b.rows.is_some();
+    let (origin, u, v, square_m, columns, rows, desc) = if explicit_geometry || scene_json.is_none()
+    {
+        let need_usize = |x: Option<usize>, key: &'static str| {
+            x.ok_or_else(|| {
+                ctx.key(
+                    "board",
+                    key,
+                    "required (no scene_json to take the board from)",
+                )
+            })
+        };
+        let square_mm = b.square_mm.unwrap_or(20.0);
+        let origin = finite3(
+            ctx,
+            "board",
+            "origin_m",
+            b.origin_m.ok_or_else(|| {
+                ctx.key(
+                    "board",
+                    "origin_m",
+                    "required (no scene_json to take the board from)",
+                )
+            })?,
+        )?;
+        let u = finite3(ctx, "board", "u", b.u.unwrap_or([1.0, 0.0, 0.0]))?.normalize();
+        let v = finite3(ctx, "board", "v", b.v.unwrap_or([0.0, 1.0, 0.0]))?.normalize();
+        let (c, r) = (
+            need_usize(b.columns, "columns")?,
+            need_usize(b.rows, "rows")?,
+        );
+        (
+            origin,
+            u,
+            v,
+            square_mm * 1e-3,
+            c,
+            r,
+            format!(
+                "{c} × {r} squares of {square_mm} mm at {:?}",
+                origin.to_array()
+            ),
+        )
+    } else {
+        let s = scene_json.expect("checked above");
+        let spec: &BoardSpec = &s.board;
+        if b.square_mm
+            .is_some_and(|mm| (mm * 1e-3 - spec.square_m).abs() > 1e-9)
+        {
+            return Err(ctx.key(
+                "board",
+                "square_mm",
+                format!(
+                    "differs from scene_json's square of {} mm",
+                    spec.square_m * 1e3
+                ),
+            ));
+        }
+        let wfb = s.world_from_board;
+        let mul = |p: [f64; 3]| {
+            DVec3::new(
+                wfb[0][0] * p[0] + wfb[0][1] * p[1] + wfb[0][2] * p[2],
+                wfb[1][0] * p[0] + wfb[1][1] * p[1] + wfb[1][2] * p[2],
+                wfb[2][0] * p[0] + wfb[2][1] * p[1] + wfb[2][2] * p[2],
+            )
+        };
+        let sq = spec.square_m;
+        // Inner corners (0..cols, 0..rows): the squares run one square beyond them on every side.
+        (
+            mul([-sq, -sq, 0.0]),
+            mul([1.0, 0.0, 0.0]),
+            mul([0.0, 1.0, 0.0]),
+            sq,
+            spec.cols + 1,
+            spec.rows + 1,
+            format!(
+                "{} × {} squares of {} mm from scene.json",
+                spec.cols + 1,
+                spec.rows + 1,
+                sq * 1e3
+            ),
+        )
+    };
+    if !(square_m > 0.0 && square_m.is_finite()) {
+        return Err(ctx.key("board", "square_mm", "must be finite and > 0"));
+    }
+    let reflectance = if let Some(t) = &b.texture {
+        if b.even.is_some()
+            || b.odd.is_some()
+            || b.even_spectrum.is_some()
+            || b.odd_spectrum.is_some()
+        {
+            return Err(ctx.section(
+                "board",
+                "give either texture or even/odd reflectances, not both",
+            ));
+        }
+        let full = ctx.resolve(t);
+        let img = crate::imageio::read_rgb(&full)
+            .map_err(|e| ctx.key("board", "texture", e.to_string()))?;
+        let rgb: Vec<[f64; 3]> = img
+            .data
+            .chunks(3)
+            .map(|c| [f64::from(c[0]), f64::from(c[1]), f64::from(c[2])])
+            .collect();
+        if rgb.iter().flatten().any(|v| !(0.0..=1.0).contains(v)) {
+            return Err(ctx.key(
+                "board",
+                "texture",
+                format!("{}: reflectances must lie in [0, 1]", full.display()),
+            ));
+        }
+        BoardReflectance::Texture {
+            width: img.width,
+            height: img.height,
+            rgb,
+        }
+    } else {
+        let pick = |rgb: Option<[f64; 3]>,
+                    spec: &Option<PathBuf>,
+                    key_rgb: &'static str,
+                    key_spec: &'static str,
+                    default: [f64; 3]|
+         -> Result<[f64; 3], SceneFileError> {
+            match (rgb, spec) {
+                (Some(_), Some(_)) => Err(ctx.section(
+                    "board",
+                    format!("give either {key_rgb} or {key_spec}, not both"),
+                )),
+                (Some(v), None) => {
+                    if v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) {
+                        Ok(v)
+                    } else {
+                        Err(ctx.key(
+                            "board",
+                            key_rgb,
+                            format!("reflectances must lie in [0, 1], got {v:?}"),
+                        ))
+                    }
+                }
+                (None, Some(p)) => read_spectrum_csv(ctx, key_spec, p),
+                (None, None) => Ok(default),
+            }
+        };
+        let even = pick(b.even, &b.even_spectrum, "even", "even_spectrum", [0.04; 3])?;
+        let odd = pick(b.odd, &b.odd_spectrum, "odd", "odd_spectrum", [0.80; 3])?;
+        BoardReflectance::Checker { even, odd }
+    };
+    let margin_m = b.margin_mm.unwrap_or(0.0) * 1e-3;
+    let margin = b.margin.unwrap_or([0.80; 3]);
+    let board = Board {
+        origin,
+        u,
+        v,
+        square_m,
+        columns,
+        rows,
+        margin_m,
+        margin,
+        reflectance,
+    };
+    Ok((board, desc))
+}
+
+type EnvParts = (Environment, String, String, Option<[f64; 3]>, Option<f64>);
+
+fn build_environment(
+    ctx: &Ctx,
+    e: &EnvironmentSection,
+    top_centre: Option<DVec3>,
+) -> Result<EnvParts, SceneFileError> {
+    let projection_name = e.projection.as_deref().unwrap_or("finite-sphere");
+    let (projection, centre, radius) = match projection_name {
+        "infinite" => {
+            if e.radius_m.is_some() || e.centre_m.is_some() {
+                return Err(ctx.section(
+                    "environment",
+                    "radius_m and centre_m belong to projection = \"finite-sphere\"",
+                ));
+            }
+            (Projection::Infinite, None, None)
+        }
+        "finite-sphere" => {
+            let radius = e.radius_m.unwrap_or(0.60);
+            if !(radius > 0.0 && radius.is_finite()) {
+                return Err(ctx.key(
+                    "environment",
+                    "radius_m",
+                    format!("must be finite and > 0, got {radius}"),
+                ));
+            }
+            let centre = match e.centre_m {
+                Some(c) => finite3(ctx, "environment", "centre_m", c)?,
+                None => top_centre.unwrap_or(DVec3::ZERO),
+            };
+            (
+                Projection::FiniteSphere {
+                    centre,
+                    radius_m: radius,
+                },
+                Some(centre.to_array()),
+                Some(radius),
+            )
+        }
+        other => {
+            return Err(ctx.key(
+                "environment",
+                "projection",
+                format!("expected \"finite-sphere\" or \"infinite\", got {other:?}"),
+            ))
+        }
+    };
+    let yaw = e.yaw_deg.unwrap_or(0.0);
+    let scale = e.scale.unwrap_or(1.0);
+    if !yaw.is_finite() {
+        return Err(ctx.key("environment", "yaw_deg", "must be finite"));
+    }
+    if !(scale >= 0.0 && scale.is_finite()) {
+        return Err(ctx.key(
+            "environment",
+            "scale",
+            format!("must be finite and ≥ 0, got {scale}"),
+        ));
+    }
+    let (env, desc) = match (&e.map, e.constant) {
+        (Some(_), Some(_)) => {
+            return Err(ctx.section("environment", "give either map or constant, not both"))
+        }
+        (None, None) => {
+            return Err(ctx.section(
+                "environment",
+                "give map (an equirectangular EXR/HDR) or constant = [r, g, b]",
+            ))
+        }
+        (None, Some(c)) => {
+            if c.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err(ctx.key(
+                    "environment",
+                    "constant",
+                    format!("radiance must be finite and ≥ 0, got {c:?}"),
+                ));
+            }
+            (
+                Environment::constant(c.map(|v| v * scale), projection),
+                format!("constant {c:?} × {scale}"),
+            )
+        }
+        (Some(p), None) => {
+            let full = ctx.resolve(p);
+            let img = crate::imageio::read_rgb(&full).map_err(|source| SceneFileError::Image {
+                path: ctx.path.to_path_buf(),
+                source,
+            })?;
+            let env = Environment::new(img.width, img.height, img.data, yaw, scale, projection)
+                .map_err(|err| {
+                    ctx.key("environment", "map", format!("{}: {err}", full.display()))
+                })?;
+            (
+                env,
+                format!(
+                    "{} ({}×{}), yaw {yaw}°, scale {scale}",
+                    full.display(),
+                    img.width,
+                    img.height
+                ),
+            )
+        }
+    };
+    Ok((env, desc, projection_name.to_string(), centre, radius))
+}

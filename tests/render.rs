@@ -1,0 +1,301 @@
+//! `lucent render` and its scene files: the reference scene against Mitsuba 3
+//! (per-pixel z-test, Šidák-corrected), every bad scene in `tests/bad/render/`
+//! refused with a message naming the file and the problem, and the CLI's
+//! outputs (EXR channels, PNG, JSON) end to end.
+
+use lucent::imageio::{read_exr_channels, read_rgb, write_exr_channels};
+use lucent::scene;
+use lucent_render::tracer::{render, Settings};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Per-test threshold of a two-sided z-test over `m` tests at family-wise
+/// level `alpha` (Šidák), by bisection on the normal tail (erfc).
+fn sidak_z(m: usize, alpha: f64) -> f64 {
+    let per_test = 1.0 - (1.0 - alpha).powf(1.0 / m as f64);
+    let tail = |z: f64| libm_erfc(z / std::f64::consts::SQRT_2);
+    let (mut lo, mut hi) = (0.0, 20.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if tail(mid) > per_test {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// erfc by its continued fraction / series (Numerical Recipes' erfcc, 1.2e-7 relative).
+fn libm_erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let r = t
+        * (-z * z - 1.265_512_23
+            + t * (1.000_023_68
+                + t * (0.374_091_96
+                    + t * (0.096_784_18
+                        + t * (-0.186_288_06
+                            + t * (0.278_868_07
+                                + t * (-1.135_203_98
+                                    + t * (1.488_515_87
+                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
+            .exp();
+    if x >= 0.0 {
+        r
+    } else {
+        2.0 - r
+    }
+}
+
+#[test]
+fn sidak_threshold_is_right() {
+    // One test at α = 0.05: the familiar 1.95996.
+    assert!((sidak_z(1, 0.05) - 1.959_964).abs() < 1e-4);
+    // 9216 tests at 1e-3: per-test 1.085e-7 → z ≈ 5.31.
+    let z = sidak_z(9216, 1e-3);
+    assert!((5.2..5.45).contains(&z), "{z}");
+}
+
+#[test]
+fn reference_scene_agrees_with_mitsuba() {
+    let dir = root().join("fixtures/reference/render");
+    let (w, h, mean) = read_exr_channels(&dir.join("plaque_dense_mean.exr"), &["R", "G", "B"])
+        .expect("Mitsuba reference mean (tools/reference/mitsuba_render.py)");
+    let (_, _, var) = read_exr_channels(&dir.join("plaque_dense_var.exr"), &["R", "G", "B"])
+        .expect("Mitsuba reference variance");
+    let loaded = scene::load(&root().join("fixtures/render/plaque_dense.toml")).unwrap();
+    assert_eq!(
+        (loaded.scene.camera.width, loaded.scene.camera.height),
+        (w, h)
+    );
+    let settings = Settings {
+        spp: 1024,
+        seed: 2024,
+        ..loaded.settings.clone()
+    };
+    let (img, stats) = render(&loaded.scene, &settings, &mut |_| {});
+    assert_eq!(stats.leaked_paths + stats.truncated_paths, 0);
+    let m = w * h * 3;
+    let zmax = sidak_z(m, 1e-3);
+    let mut z_img = vec![0f32; m];
+    let mut worst = (0.0f64, 0usize);
+    let (mut sum_ours, mut sum_ref) = (0.0, 0.0);
+    for p in 0..w * h {
+        for c in 0..3 {
+            let r = f64::from(mean[c][p]);
+            let rv = f64::from(var[c][p]);
+            let (a, av) = (img.mean[p][c], img.variance_of_mean[p][c]);
+            sum_ours += a;
+            sum_ref += r;
+            // Pixels that see only the sky have no variance in either renderer;
+            // there the two agree to f32 rounding of the sky's radiance.
+            let z = (a - r) / (av + rv + (1e-6 * r).powi(2)).sqrt().max(1e-12);
+            z_img[c * w * h + p] = z as f32;
+            if z.abs() > worst.0 {
+                worst = (z.abs(), p);
+            }
+        }
+    }
+    let failed = worst.0 > zmax;
+    if failed {
+        let out = root().join("target/test-output/render_reference");
+        std::fs::create_dir_all(&out).unwrap();
+        let plane = |c: usize| img.mean.iter().map(|v| v[c] as f32).collect::<Vec<f32>>();
+        let (r, g, b) = (plane(0), plane(1), plane(2));
+        write_exr_channels(
+            &out.join("actual.exr"),
+            w,
+            h,
+            &[("R", &r), ("G", &g), ("B", &b)],
+        )
+        .unwrap();
+        write_exr_channels(
+            &out.join("reference.exr"),
+            w,
+            h,
+            &[("R", &mean[0]), ("G", &mean[1]), ("B", &mean[2])],
+        )
+        .unwrap();
+        let n = w * h;
+        write_exr_channels(
+            &out.join("z.exr"),
+            w,
+            h,
+            &[
+                ("R", &z_img[..n]),
+                ("G", &z_img[n..2 * n]),
+                ("B", &z_img[2 * n..]),
+            ],
+        )
+        .unwrap();
+    }
+    assert!(
+        !failed,
+        "pixel {} (x {}, y {}) differs from Mitsuba by |z| = {:.2} > {zmax:.2} over {m} tests; images in target/test-output/render_reference/",
+        worst.1,
+        worst.1 % w,
+        worst.1 / w,
+        worst.0
+    );
+    // And the image as a whole, a sharper test of a small overall bias.
+    let rel = (sum_ours - sum_ref) / sum_ref;
+    assert!(
+        rel.abs() < 5e-3,
+        "image sum differs from Mitsuba's by {:.3} %",
+        100.0 * rel
+    );
+}
+
+#[test]
+fn bad_scene_files_are_refused_with_reasons() {
+    let dir = root().join("tests/bad/render");
+    let cases: &[(&str, &[&str])] = &[
+        ("unknown_key.toml", &["unknown_key.toml", "focal_lenght_mm"]),
+        (
+            "missing_mesh.toml",
+            &["missing_mesh.toml", "does_not_exist.ply"],
+        ),
+        ("nan_vertex_mesh.toml", &["nan_vertex.obj"]),
+        ("negative_sigma.toml", &["negative_sigma.toml", "band 1"]),
+        ("bad_g.toml", &["bad_g.toml", "[material] g"]),
+        (
+            "missing_env_map.toml",
+            &["missing_env_map.toml", "nowhere.exr"],
+        ),
+        (
+            "env_both.toml",
+            &["env_both.toml", "either map or constant"],
+        ),
+        (
+            "bad_projection.toml",
+            &["[environment] projection", "\"cube\""],
+        ),
+        ("zero_radius.toml", &["[environment] radius_m"]),
+        ("board_reflectance.toml", &["[board] even", "[0, 1]"]),
+        (
+            "object_without_material.toml",
+            &["[material]", "needs a [material]"],
+        ),
+        ("camera_both.toml", &["[camera]", "either intrinsics"]),
+        ("no_camera_size.toml", &["[camera]", "width and height"]),
+        (
+            "placement_without_scene.toml",
+            &["[object] board_corner", "scene_json"],
+        ),
+        ("not_toml.toml", &["not_toml.toml"]),
+    ];
+    let listed: Vec<&str> = cases.iter().map(|c| c.0).collect();
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().to_string();
+        if name.ends_with(".toml") {
+            assert!(
+                listed.contains(&name.as_str()),
+                "{name} in tests/bad/render has no expectation here"
+            );
+        }
+    }
+    for (file, needles) in cases {
+        let err = match scene::load(&dir.join(file)) {
+            Ok(_) => panic!("{file}: accepted"),
+            Err(e) => e.to_string(),
+        };
+        for n in *needles {
+            assert!(
+                err.contains(n),
+                "{file}: error {err:?} does not mention {n:?}"
+            );
+        }
+    }
+}
+
+fn lucent(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(args)
+        .output()
+        .expect("run lucent")
+}
+
+#[test]
+fn cli_writes_exr_png_json() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("r");
+    let scene = root().join("fixtures/render/plaque_dense.toml");
+    let o = lucent(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--spp",
+        "8",
+        "--size",
+        "32x24",
+        "--seed",
+        "3",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (w, h, ch) = read_exr_channels(
+        &out.join("render.exr"),
+        &[
+            "R",
+            "G",
+            "B",
+            "variance.R",
+            "variance.G",
+            "variance.B",
+            "spp",
+        ],
+    )
+    .unwrap();
+    assert_eq!((w, h), (32, 24));
+    assert!(ch[6].iter().all(|&s| s == 8.0));
+    assert!(ch[3].iter().all(|v| v.is_finite() && *v >= 0.0));
+    let png = read_rgb(&out.join("render.png")).unwrap();
+    assert_eq!((png.width, png.height), (32, 24));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    assert_eq!(json["spp"], 8);
+    assert_eq!(json["seed"], 3);
+    assert_eq!(json["scene"]["image_width"], 32);
+    assert!(json["samples_per_s"].as_f64().unwrap() > 0.0);
+    // Same seed, same image, whatever the thread count.
+    let out2 = tmp.path().join("r2");
+    let o = lucent(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--spp",
+        "8",
+        "--size",
+        "32x24",
+        "--seed",
+        "3",
+        "--quiet",
+        "--threads",
+        "1",
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    assert_eq!(
+        read_exr_channels(&out2.join("render.exr"), &["R", "G", "B"]).unwrap(),
+        read_exr_channels(&out.join("render.exr"), &["R", "G", "B"]).unwrap()
+    );
+    // A bad scene: non-zero exit, message names the file, nothing written.
+    let bad = root().join("tests/bad/render/negative_sigma.toml");
+    let out3 = tmp.path().join("r3");
+    let o = lucent(&[
+        "render",
+        bad.to_str().unwrap(),
+        "--out",
+        out3.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("negative_sigma.toml"));
+    assert!(!out3.exists());
+    let _ = Path::new("");
+}
