@@ -163,9 +163,10 @@ fn small_spheres_match_miepython_down_to_x_1e8() {
 #[test]
 fn small_sphere_results_are_continuous_across_the_series_switch() {
     // Just below SERIES_BELOW the power series gives ψ_n, just above the
-    // upward recurrence: the efficiencies must change only as the function
-    // does (relative slope of qsca ≈ 4/x, so a step of 1e-10 in x changes
-    // it by ~4e-10).
+    // upward recurrence: the efficiencies must change only as the functions
+    // do (relative slope of qsca ≈ 4/x, so the step of 2e-10 in x changes it
+    // by ~8e-10; measured largest change 7.1e-10).
+    let mut worst: f64 = 0.0;
     for m in [Complex64::new(1.5, 0.0), Complex64::new(0.9, 0.1), Complex64::new(2.5, 1.0)] {
         for host_im in [0.0, 1e-3] {
             let at = |x: f64| {
@@ -180,10 +181,12 @@ fn small_sphere_results_are_continuous_across_the_series_switch() {
             for (name, a, b) in
                 [("qext", below.qext, above.qext), ("qsca", below.qsca, above.qsca), ("g", below.g, above.g)]
             {
-                assert!(rel(a, b) < 1e-8, "{name} m={m} host_im={host_im}: {a:e} below, {b:e} above");
+                assert!(rel(a, b) < 2e-9, "{name} m={m} host_im={host_im}: {a:e} below, {b:e} above");
+                worst = worst.max(rel(a, b));
             }
         }
     }
+    println!("largest relative change across |x| = {SERIES_BELOW} ± 1e-10: {worst:.1e}");
 }
 
 #[test]
@@ -196,7 +199,7 @@ fn absorbing_host_matches_the_bessel_reference() {
     let span = |v: &[f64]| v.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
     assert_eq!(span(&kh), (1e-6, 5e-2), "κh range");
     assert_eq!(span(&radii), (0.05, 6.0), "radius range");
-    assert!(kp.iter().any(|&k| k == 0.0) && kp.iter().any(|&k| k > 0.0), "absorbing and clear particles");
+    assert!(kp.contains(&0.0) && kp.iter().any(|&k| k > 0.0), "absorbing and clear particles");
 
     let mut worst = (0.0f64, String::new());
     let mut worst_g = (0.0f64, String::new());

@@ -66,9 +66,12 @@ use std::f64::consts::PI;
 #[derive(Debug, thiserror::Error)]
 pub enum OpticsError {
     #[error("{recipe}: {medium} index at {wavelength_nm} nm: {source}")]
-    Index { recipe: String, medium: String, wavelength_nm: f64, source: IndexError },
+    /// The sources are boxed (here and in `Mie`): an [`IndexError`] is
+    /// large, and this error travels through every `Result` of the
+    /// computation and into callers' error types.
+    Index { recipe: String, medium: String, wavelength_nm: f64, source: Box<IndexError> },
     #[error("{recipe}: {medium} at {wavelength_nm} nm: {source}")]
-    Mie { recipe: String, medium: String, wavelength_nm: f64, source: MieError },
+    Mie { recipe: String, medium: String, wavelength_nm: f64, source: Box<MieError> },
     #[error("{recipe}: size integral for {medium} at {wavelength_nm} nm did not converge to {tolerance} (last change {change:e})")]
     NotConverged { recipe: String, medium: String, wavelength_nm: f64, tolerance: f64, change: f64 },
     #[error("phase table needs at least 2 entries, got {0}")]
@@ -191,10 +194,10 @@ struct Node {
 const GL8: [(f64, f64); 8] = [
     (-0.960_289_856_497_536_3, 0.101_228_536_290_376_3),
     (-0.796_666_477_413_626_7, 0.222_381_034_453_374_5),
-    (-0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
-    (-0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
-    (0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
-    (0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
+    (-0.525_532_409_916_329, 0.313_706_645_877_887_3),
+    (-0.183_434_642_495_649_8, 0.362_683_783_378_362),
+    (0.183_434_642_495_649_8, 0.362_683_783_378_362),
+    (0.525_532_409_916_329, 0.313_706_645_877_887_3),
     (0.796_666_477_413_626_7, 0.222_381_034_453_374_5),
     (0.960_289_856_497_536_3, 0.101_228_536_290_376_3),
 ];
@@ -257,7 +260,7 @@ impl Context<'_> {
                 recipe: self.recipe.name.clone(),
                 medium: format!("{role} {}", medium.name),
                 wavelength_nm: self.wavelength_nm,
-                source,
+                source: Box::new(source),
             })?;
         if sample.extrapolated {
             let (lo, hi) = medium.index.range_nm();
@@ -305,7 +308,7 @@ pub fn at_wavelength(recipe: &Recipe, wavelength_nm: f64, options: &Options) -> 
             recipe: recipe.name.clone(),
             medium: particle.medium.name.clone(),
             wavelength_nm,
-            source,
+            source: Box::new(source),
         };
         let integrate = |nodes: &[Node], coeffs: &mut Coefficients, phase: Option<&mut [f64]>| {
             let mut s = Sums::default();

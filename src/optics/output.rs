@@ -6,7 +6,7 @@
 //! | file | content |
 //! |---|---|
 //! | `optical_properties.csv` | sample, wavelength_nm, mu_s_per_m, mu_a_per_m, mu_t_per_m, g, n_bulk |
-//! | `optical_properties.json` | the same as arrays over wavelength |
+//! | `optical_properties.json` | the same as arrays over wavelength, with the sample's `absorption` model and the `corrections` of its index data |
 //! | `phase_function.csv` | theta_deg, cos_theta, then p [1/sr] per wavelength |
 //! | `optical_properties.png` | μ_s, μ_a, g against wavelength |
 //! | `phase_<λ>nm.png` | polar plot, Lorenz–Mie against Henyey–Greenstein, near 550 nm |
@@ -83,8 +83,9 @@ pub fn phase_csv(spectrum: &OpticalSpectrum) -> Option<String> {
 
 /// Index of the grid wavelength closest to `target_nm`.
 pub fn closest_wavelength(spectrum: &OpticalSpectrum, target_nm: f64) -> Option<usize> {
-    (0..spectrum.wavelength_nm.len())
-        .min_by(|&a, &b| (spectrum.wavelength_nm[a] - target_nm).abs().total_cmp(&(spectrum.wavelength_nm[b] - target_nm).abs()))
+    (0..spectrum.wavelength_nm.len()).min_by(|&a, &b| {
+        (spectrum.wavelength_nm[a] - target_nm).abs().total_cmp(&(spectrum.wavelength_nm[b] - target_nm).abs())
+    })
 }
 
 fn png(path: &Path, bytes: Result<Vec<u8>, PlotError>) -> Result<(), OutputError> {

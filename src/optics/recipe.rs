@@ -64,7 +64,9 @@ pub enum RecipeError {
     #[error("{path}: {key}: {message}")]
     Invalid { path: PathBuf, key: String, message: String },
     #[error("{path}: {key}: {source}")]
-    Index { path: PathBuf, key: String, source: IndexError },
+    /// Boxed: an [`IndexError`] is large and this error travels through
+    /// every `Result` of the recipe loader.
+    Index { path: PathBuf, key: String, source: Box<IndexError> },
 }
 
 /// How the bulk absorption coefficient is computed (SPEC §1; formulas in
@@ -431,7 +433,11 @@ impl Validator<'_> {
         (real_part, imaginary_part): (Option<&RawRealPart>, Option<&RawImaginaryPart>),
     ) -> Result<Medium, RecipeError> {
         let index_key = format!("{key}.index");
-        let index_error = |source| RecipeError::Index { path: self.path.to_path_buf(), key: index_key.clone(), source };
+        let index_error = |source| RecipeError::Index {
+            path: self.path.to_path_buf(),
+            key: index_key.clone(),
+            source: Box::new(source),
+        };
         let mut spectrum = if let Some(builtin) = index.strip_prefix("builtin:") {
             IndexSpectrum::builtin(builtin).map_err(index_error)?
         } else {
@@ -448,9 +454,9 @@ impl Validator<'_> {
             let rkey = format!("{key}.real_part");
             self.positive(&format!("{rkey}.wavelength_nm"), rp.wavelength_nm, "nanometres")?;
             self.positive(&format!("{rkey}.n"), rp.n, "(refractive index)")?;
-            spectrum = spectrum
-                .with_real_part_at(rp.wavelength_nm, rp.n, rp.mode)
-                .map_err(|source| RecipeError::Index { path: self.path.to_path_buf(), key: rkey.clone(), source })?;
+            spectrum = spectrum.with_real_part_at(rp.wavelength_nm, rp.n, rp.mode).map_err(|source| {
+                RecipeError::Index { path: self.path.to_path_buf(), key: rkey.clone(), source: Box::new(source) }
+            })?;
             corrections.push(match rp.mode {
                 RealPartCorrection::Shift => {
                     format!("n shifted to {} at {} nm (dispersion and κ kept)", rp.n, rp.wavelength_nm)
@@ -471,7 +477,7 @@ impl Validator<'_> {
             spectrum = spectrum.with_imaginary_part(correction).map_err(|source| RecipeError::Index {
                 path: self.path.to_path_buf(),
                 key: format!("{ikey}.{field}"),
-                source,
+                source: Box::new(source),
             })?;
             corrections.push(text);
         }
