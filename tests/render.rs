@@ -63,47 +63,80 @@ fn sidak_threshold_is_right() {
 
 #[test]
 fn reference_scene_agrees_with_mitsuba() {
+    agrees_with_mitsuba("plaque_dense", 1024, 5e-3, 1);
+}
+
+#[test]
+fn envmap_scene_agrees_with_mitsuba() {
+    // Sun in a 2 × 2-pixel patch of a 32 × 16 map: on the board NEE finds it,
+    // but inside the plaque only paths that happen to leave towards the sun
+    // do (no connection through a smooth dielectric), so single plaque
+    // pixels are heavy-tailed at test budgets and their sample variance is
+    // not yet reliable. The z-test therefore runs on 4 × 4-pixel blocks
+    // (sums of 16 means and of their variances).
+    agrees_with_mitsuba("plaque_envmap", 1024, 1e-2, 4);
+}
+
+/// Renders fixtures/render/NAME.toml and z-tests it pixel by pixel against
+/// fixtures/reference/render/NAME_{mean,var}.exr; the image sums must agree
+/// within `sum_tolerance` (relative). `block` > 1 tests block × block sums.
+fn agrees_with_mitsuba(name: &str, spp: u32, sum_tolerance: f64, block: usize) {
     let dir = root().join("fixtures/reference/render");
-    let (w, h, mean) = read_exr_channels(&dir.join("plaque_dense_mean.exr"), &["R", "G", "B"])
+    let (w, h, mean) = read_exr_channels(&dir.join(format!("{name}_mean.exr")), &["R", "G", "B"])
         .expect("Mitsuba reference mean (tools/reference/mitsuba_render.py)");
-    let (_, _, var) = read_exr_channels(&dir.join("plaque_dense_var.exr"), &["R", "G", "B"])
+    let (_, _, var) = read_exr_channels(&dir.join(format!("{name}_var.exr")), &["R", "G", "B"])
         .expect("Mitsuba reference variance");
-    let loaded = scene::load(&root().join("fixtures/render/plaque_dense.toml")).unwrap();
+    let loaded = scene::load(&root().join(format!("fixtures/render/{name}.toml"))).unwrap();
     assert_eq!(
         (loaded.scene.camera.width, loaded.scene.camera.height),
         (w, h)
     );
     let settings = Settings {
-        spp: 1024,
+        spp,
         seed: 2024,
         ..loaded.settings.clone()
     };
     let (img, stats) = render(&loaded.scene, &settings, &mut |_| {});
     assert_eq!(stats.leaked_paths + stats.truncated_paths, 0);
-    let m = w * h * 3;
+    let (bw, bh) = (w / block, h / block);
+    let m = bw * bh * 3;
     let zmax = sidak_z(m, 1e-3);
-    let mut z_img = vec![0f32; m];
+    let mut z_img = vec![0f32; w * h * 3];
     let mut worst = (0.0f64, 0usize);
     let (mut sum_ours, mut sum_ref) = (0.0, 0.0);
-    for p in 0..w * h {
-        for c in 0..3 {
-            let r = f64::from(mean[c][p]);
-            let rv = f64::from(var[c][p]);
-            let (a, av) = (img.mean[p][c], img.variance_of_mean[p][c]);
-            sum_ours += a;
-            sum_ref += r;
-            // Pixels that see only the sky have no variance in either renderer;
-            // there the two agree to f32 rounding of the sky's radiance.
-            let z = (a - r) / (av + rv + (1e-6 * r).powi(2)).sqrt().max(1e-12);
-            z_img[c * w * h + p] = z as f32;
-            if z.abs() > worst.0 {
-                worst = (z.abs(), p);
+    for by in 0..bh {
+        for bx in 0..bw {
+            for c in 0..3 {
+                let (mut a, mut av, mut r, mut rv) = (0.0, 0.0, 0.0, 0.0);
+                for y in by * block..(by + 1) * block {
+                    for x in bx * block..(bx + 1) * block {
+                        let p = y * w + x;
+                        r += f64::from(mean[c][p]);
+                        rv += f64::from(var[c][p]);
+                        a += img.mean[p][c];
+                        av += img.variance_of_mean[p][c];
+                    }
+                }
+                sum_ours += a;
+                sum_ref += r;
+                // Pixels that see only the sky have no variance in either renderer;
+                // there the two agree to f32 rounding of the sky's radiance.
+                let z = (a - r) / (av + rv + (1e-6 * r).powi(2)).sqrt().max(1e-12);
+                let p = by * block * w + bx * block;
+                for y in by * block..(by + 1) * block {
+                    for x in bx * block..(bx + 1) * block {
+                        z_img[c * w * h + y * w + x] = z as f32;
+                    }
+                }
+                if z.abs() > worst.0 {
+                    worst = (z.abs(), p);
+                }
             }
         }
     }
     let failed = worst.0 > zmax;
     if failed {
-        let out = root().join("target/test-output/render_reference");
+        let out = root().join("target/test-output").join(name);
         std::fs::create_dir_all(&out).unwrap();
         let plane = |c: usize| img.mean.iter().map(|v| v[c] as f32).collect::<Vec<f32>>();
         let (r, g, b) = (plane(0), plane(1), plane(2));
@@ -136,7 +169,7 @@ fn reference_scene_agrees_with_mitsuba() {
     }
     assert!(
         !failed,
-        "pixel {} (x {}, y {}) differs from Mitsuba by |z| = {:.2} > {zmax:.2} over {m} tests; images in target/test-output/render_reference/",
+        "pixel {} (x {}, y {}) differs from Mitsuba by |z| = {:.2} > {zmax:.2} over {m} tests; images in target/test-output/{name}/",
         worst.1,
         worst.1 % w,
         worst.1 / w,
@@ -145,7 +178,7 @@ fn reference_scene_agrees_with_mitsuba() {
     // And the image as a whole, a sharper test of a small overall bias.
     let rel = (sum_ours - sum_ref) / sum_ref;
     assert!(
-        rel.abs() < 5e-3,
+        rel.abs() < sum_tolerance,
         "image sum differs from Mitsuba's by {:.3} %",
         100.0 * rel
     );
