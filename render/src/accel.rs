@@ -77,6 +77,37 @@ pub struct Accel {
     bounds_max: DVec3,
     /// BVH units per metre (10/extent), see the module doc.
     scale: f64,
+    /// For a convex mesh with at most [`MAX_CONVEX_PLANES`] distinct face
+    /// planes: the outward unit normals n and offsets c (n·x = c on the face).
+    planes: Option<Vec<(DVec3, f64)>>,
+}
+
+/// Convex meshes with more distinct face planes than this are traced with
+/// the BVH only.
+pub const MAX_CONVEX_PLANES: usize = 64;
+
+/// The distinct face planes of a closed convex mesh with outward winding,
+/// or None if the mesh is not convex (some vertex outside a face plane by
+/// more than 10⁻⁹ of the extent) or has too many planes.
+fn convex_planes(triangles: &[[DVec3; 3]], extent: f64) -> Option<Vec<(DVec3, f64)>> {
+    let tol = 1e-9 * extent;
+    let mut planes: Vec<(DVec3, f64)> = Vec::new();
+    for t in triangles {
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        if n.length() == 0.0 {
+            continue;
+        }
+        let n = n.normalize();
+        let c = n.dot(t[0]);
+        if !planes.iter().any(|(m, d)| (*m - n).length() < 1e-9 && (d - c).abs() < tol) {
+            planes.push((n, c));
+            if planes.len() > MAX_CONVEX_PLANES {
+                return None;
+            }
+        }
+    }
+    let convex = triangles.iter().flatten().all(|v| planes.iter().all(|(n, c)| n.dot(*v) - c <= tol));
+    (convex && planes.len() >= 4).then_some(planes)
 }
 
 /// The f32 box of one triangle, inflated by `pad` on every side.
@@ -136,6 +167,7 @@ impl Accel {
                 bounds_min: DVec3::ZERO,
                 bounds_max: DVec3::ZERO,
                 scale: 1.0,
+                planes: None,
             };
         }
         let extent = (hi - lo)
@@ -161,14 +193,8 @@ impl Accel {
         );
         let original = bvh.primitive_indices.clone();
         let tris = original.iter().map(|&i| triangles[i as usize]).collect();
-        Self {
-            bvh,
-            tris,
-            original,
-            bounds_min: lo,
-            bounds_max: hi,
-            scale,
-        }
+        let planes = convex_planes(triangles, extent);
+        Self { bvh, tris, original, bounds_min: lo, bounds_max: hi, scale, planes }
     }
 
     /// Number of triangles.
@@ -218,6 +244,33 @@ impl Accel {
             triangle: self.original[best as usize],
             normal: (b - a).cross(c - a).normalize(),
         })
+    }
+
+    /// True when the mesh is convex and [`exit`](Self::exit) uses its face planes.
+    pub fn is_convex(&self) -> bool {
+        self.planes.is_some()
+    }
+
+    /// The boundary hit of a ray that starts **inside** the closed mesh. For
+    /// a convex mesh this is the nearest face plane the ray leaves through,
+    /// t = min over planes with n·d > 0 of (c − n·o)/(n·d), exact in f64 and
+    /// an order of magnitude cheaper than the BVH for a plaque box (the
+    /// renderer calls it at every scattering event); otherwise the BVH hit.
+    /// `triangle` is `u32::MAX` for a plane hit.
+    #[inline]
+    pub fn exit(&self, origin: DVec3, dir: DVec3) -> Option<Hit> {
+        let Some(planes) = &self.planes else { return self.intersect(origin, dir, f64::INFINITY) };
+        let mut best = (f64::INFINITY, DVec3::ZERO);
+        for (n, c) in planes {
+            let nd = n.dot(dir);
+            if nd > 0.0 {
+                let t = ((c - n.dot(origin)) / nd).max(0.0);
+                if t < best.0 {
+                    best = (t, *n);
+                }
+            }
+        }
+        (best.0 < f64::INFINITY).then_some(Hit { t: best.0, triangle: u32::MAX, normal: best.1 })
     }
 
     /// True when some triangle lies at 0 < t < `t_max` along the ray.
@@ -448,6 +501,25 @@ mod tests {
                 "gap {gap}"
             );
         }
+    }
+
+    #[test]
+    fn convex_exit_equals_bvh_exit() {
+        let (lo, hi) = (DVec3::new(-0.03, -0.02, 0.001), DVec3::new(0.03, 0.02, 0.00735));
+        let accel = Accel::new(&cube(lo, hi));
+        assert!(accel.is_convex());
+        let mut rng = Rng::new(4, 0);
+        for _ in 0..100_000 {
+            let o = lo + (hi - lo) * DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+            let d = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0).normalize();
+            let (a, b) = (accel.exit(o, d).unwrap(), accel.intersect(o, d, f64::INFINITY).unwrap());
+            assert!((a.t - b.t).abs() <= 1e-12 * (1.0 + b.t), "{} vs {}", a.t, b.t);
+            assert!((a.normal - b.normal).length() < 1e-12);
+        }
+        // Not convex: an L-shaped pair of boxes sharing a face.
+        let mut l = cube(DVec3::ZERO, DVec3::new(2.0, 1.0, 1.0));
+        l.extend(cube(DVec3::new(0.0, 1.0, 0.0), DVec3::new(1.0, 2.0, 1.0)));
+        assert!(!Accel::new(&l).is_convex());
     }
 
     #[test]

@@ -548,7 +548,7 @@ fn trace(
             let (Some(obj), Some(b)) = (&scene.object, band) else {
                 break;
             };
-            let Some(hit) = obj.accel.intersect(o, d, f64::INFINITY) else {
+            let Some(hit) = obj.accel.exit(o, d) else {
                 st.leaked_paths += 1;
                 break;
             };

@@ -414,8 +414,8 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
             .flatten()
         {
             let (Some(m_cpu), Some(m_rmse)) = (
-                r.get("cpu_s").and_then(|v| v.as_f64()),
-                r.get("rmse").and_then(|v| v.as_f64()),
+                r.get("cpu_seconds").and_then(|v| v.as_f64()),
+                r.get("rmse_vs_reference").and_then(|v| v.as_f64()),
             ) else {
                 continue;
             };
