@@ -284,14 +284,9 @@ mod tests {
             36.0,
         )
         .unwrap();
-        let mut m = [[0.0; 4]; 4];
         let (p, r) = (cam.position, cam.rotation);
-        for i in 0..3 {
-            for k in 0..3 {
-                m[i][k] = r.col(k)[i];
-            }
-            m[i][3] = p[i];
-        }
+        let mut m: [[f64; 4]; 4] =
+            std::array::from_fn(|i| if i < 3 { [r.col(0)[i], r.col(1)[i], r.col(2)[i], p[i]] } else { [0.0; 4] });
         m[3][3] = 1.0;
         let cam = Camera::new(
             64,
