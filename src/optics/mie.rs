@@ -39,17 +39,18 @@
 //!
 //! The upward recurrence for ψ_n(x) loses relative precision as the growing
 //! solution χ_n contaminates it (ψ_1 = sin x/x − cos x cancels to x²/3): at
-//! x = 1e-6 the old code had g = 3e-3 instead of 1e-13. Below |x| = 1
+//! x = 1e-6, m = 0.9 the recurrence alone gives g = 3e-3 instead of 1.6e-13,
+//! and at x = 1e-8 a qsca 72 times too large. Below |x| = 1
 //! ([`SERIES_BELOW`]) ψ_n comes from its power series instead (full
 //! precision for every order; χ_n, the growing solution, still recurs
 //! upward), so x → 0 is exact down to [`MIN_SIZE_PARAMETER`] = 1e-20:
 //! checked against miepython (audited with 50-digit mpmath) from x = 1e-8
 //! to 3 for real and absorbing m, qext and qsca to 2.3e-13 relative and g to
 //! 3.5e-15 absolute (`tests/mie_reference.rs`); across x = 1 ± 1e-10 the
-//! efficiencies change by at most 7e-10, as their slope predicts. The b_n numerator still
-//! cancels (its leading terms are O(x) and b_1 = O(x⁵)), but its error is
-//! O(ε|a_1|), which changes g by O(ε) and, for a real m, qext not at all
-//! (Re b_n = |b_n|² there).
+//! efficiencies change by at most 7e-10, as their slope predicts. The b_n
+//! numerator still cancels (its leading terms are O(x) and b_1 = O(x⁵)), but
+//! its error is O(ε|a_1|), which changes g by O(ε) and, for a real m, qext
+//! not at all (Re b_n = |b_n|² there).
 //!
 //! # Numerics
 //!
@@ -66,7 +67,8 @@
 //! * a_n and b_n are computed side by side in two SIMD lanes, and the
 //!   series sums in a pass of their own (see `PairSums`).
 //! * ψ_n and ξ_n by upward recurrence up to N (Wiscombe 1979 shows this is
-//!   accurate up to the Wiscombe length), so no Bessel function is evaluated.
+//!   accurate up to the Wiscombe length) for |x| ≥ 1, ψ_n by its series
+//!   below (see "Small spheres"), so no Bessel function is evaluated.
 //! * Checked against miepython 3.3 on 320 random cases (x from 0.01 to 1000,
 //!   real and complex m) to 1e-6 relative, and against Wiscombe's published
 //!   MIEV0 test values (`tests/mie_reference.rs`). Stable without NaN or
