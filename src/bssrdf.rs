@@ -274,10 +274,10 @@ pub fn write_run(dir: &Path, slice: &Slice, summary: &Summary, beam: &[f64]) -> 
     let x = grid.x_mm();
     let row = n / 2;
     let mut csv = String::from("x_mm,f_per_m2_sr,std_error_per_m2_sr,beam_relative\n");
-    for c in 0..n {
+    for (c, xc) in x.iter().enumerate().take(n) {
         csv.push_str(&format!(
             "{:.6},{:.8e},{:.8e},{:.6e}\n",
-            x[c],
+            xc,
             slice.values[row * n + c],
             slice.std_error[row * n + c],
             beam.get(c).copied().unwrap_or(0.0)
@@ -423,9 +423,12 @@ pub fn heatmap_png(panels: &[(&str, &Grid)], diverging: Option<(&str, &Grid)>) -
     })
 }
 
+/// One profile: its label, values and optional standard errors.
+pub type ProfileCurve<'a> = (&'a str, &'a [f64], Option<&'a [f64]>);
+
 /// Profiles along x (log scale) with optional error bars, and the beam
 /// profile on a secondary axis.
-pub fn profile_png(x_mm: &[f64], curves: &[(&str, &[f64], Option<&[f64]>)], beam: Option<&[f64]>) -> Result<Vec<u8>, PlotError> {
+pub fn profile_png(x_mm: &[f64], curves: &[ProfileCurve], beam: Option<&[f64]>) -> Result<Vec<u8>, PlotError> {
     let positive: Vec<f64> = curves.iter().flat_map(|(_, v, _)| v.iter().copied()).filter(|v| *v > 0.0).collect();
     let hi = positive.iter().copied().fold(0.0, f64::max) * 2.0;
     let lo = (hi * 1e-5).max(positive.iter().copied().fold(f64::INFINITY, f64::min) / 2.0);

@@ -379,9 +379,9 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
         let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
         let cpu = process_cpu_s() - cpu0;
         let mut se = 0.0;
-        for p in 0..w * h {
-            for c in 0..3 {
-                se += (img.mean[p][c] - f64::from(mean[c][p])).powi(2);
+        for (p, m) in img.mean.iter().enumerate() {
+            for (c, v) in m.iter().enumerate() {
+                se += (v - f64::from(mean[c][p])).powi(2);
             }
         }
         let mse = se / n;

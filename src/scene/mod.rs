@@ -1019,7 +1019,9 @@ fn build_board(
             ),
         )
     } else {
-        let s = scene_json.expect("checked above");
+        let Some(s) = scene_json else {
+            return Err(ctx.section("board", "no board geometry: give origin_m, columns and rows, or [camera] scene_json"));
+        };
         let spec: &BoardSpec = &s.board;
         if b.square_mm
             .is_some_and(|mm| (mm * 1e-3 - spec.square_m).abs() > 1e-9)
