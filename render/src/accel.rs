@@ -213,7 +213,13 @@ impl Accel {
     }
 
     /// The closest hit with 0 < t < `t_max` along `origin + t·dir`, if any.
+    /// A convex mesh is intersected as the intersection of its face planes'
+    /// half-spaces (entry = the last plane entered, exit = the first left),
+    /// exact in f64 and without the BVH.
     pub fn intersect(&self, origin: DVec3, dir: DVec3, t_max: f64) -> Option<Hit> {
+        if let Some(planes) = &self.planes {
+            return convex_hit(planes, origin, dir, t_max);
+        }
         if self.tris.is_empty() {
             return None;
         }
@@ -275,6 +281,9 @@ impl Accel {
 
     /// True when some triangle lies at 0 < t < `t_max` along the ray.
     pub fn occluded(&self, origin: DVec3, dir: DVec3, t_max: f64) -> bool {
+        if let Some(planes) = &self.planes {
+            return convex_hit(planes, origin, dir, t_max).is_some();
+        }
         if self.tris.is_empty() {
             return false;
         }
@@ -287,6 +296,36 @@ impl Accel {
                 _ => f32::INFINITY,
             })
     }
+}
+
+/// The first boundary crossing of a ray with a convex polytope given by its
+/// outward face planes n·x ≤ c, at 0 < t < t_max.
+#[inline]
+fn convex_hit(planes: &[(DVec3, f64)], o: DVec3, d: DVec3, t_max: f64) -> Option<Hit> {
+    let (mut t_in, mut n_in) = (f64::NEG_INFINITY, DVec3::ZERO);
+    let (mut t_out, mut n_out) = (f64::INFINITY, DVec3::ZERO);
+    for (n, c) in planes {
+        let nd = n.dot(d);
+        let gap = c - n.dot(o);
+        if nd < 0.0 {
+            let t = gap / nd;
+            if t > t_in {
+                (t_in, n_in) = (t, *n);
+            }
+        } else if nd > 0.0 {
+            let t = gap / nd;
+            if t < t_out {
+                (t_out, n_out) = (t, *n);
+            }
+        } else if gap < 0.0 {
+            return None; // parallel to a face and outside it
+        }
+    }
+    if t_in > t_out {
+        return None;
+    }
+    let (t, normal) = if t_in > 0.0 { (t_in, n_in) } else { (t_out, n_out) };
+    (t > 0.0 && t < t_max).then_some(Hit { t, triangle: u32::MAX, normal })
 }
 
 /// How far behind the true origin the BVH's ray starts, in BVH units (see
@@ -515,6 +554,20 @@ mod tests {
             let (a, b) = (accel.exit(o, d).unwrap(), accel.intersect(o, d, f64::INFINITY).unwrap());
             assert!((a.t - b.t).abs() <= 1e-12 * (1.0 + b.t), "{} vs {}", a.t, b.t);
             assert!((a.normal - b.normal).length() < 1e-12);
+        }
+        // From outside: the plane intersection equals a brute-force triangle scan.
+        let tris = cube(lo, hi);
+        for _ in 0..100_000 {
+            let o = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 0.2 - 0.1;
+            let d = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0).normalize();
+            let pre = Shear::new(d);
+            let brute = tris.iter().filter_map(|t| pre.intersect(o, t)).min_by(f64::total_cmp);
+            let got = accel.intersect(o, d, f64::INFINITY).map(|h| h.t);
+            match (got, brute) {
+                (Some(a), Some(b)) => assert!((a - b).abs() <= 1e-12 * (1.0 + b), "{a} vs {b}"),
+                (a, b) => assert_eq!(a, b, "o {o:?} d {d:?}"),
+            }
+            assert_eq!(accel.occluded(o, d, 0.05), brute.is_some_and(|t| t < 0.05));
         }
         // Not convex: an L-shaped pair of boxes sharing a face.
         let mut l = cube(DVec3::ZERO, DVec3::new(2.0, 1.0, 1.0));
