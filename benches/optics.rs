@@ -46,12 +46,7 @@ fn all_samples(c: &mut Criterion) {
     let mut group = c.benchmark_group("optics");
     group.sample_size(10);
     group.bench_function("all_samples_41_wavelengths", |b| {
-        b.iter(|| {
-            recipes
-                .par_iter()
-                .map(|r| bulk::compute(r, &grid, &options).expect("computes"))
-                .collect::<Vec<_>>()
-        })
+        b.iter(|| recipes.par_iter().map(|r| bulk::compute(r, &grid, &options).expect("computes")).collect::<Vec<_>>())
     });
     group.finish();
 }

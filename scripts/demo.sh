@@ -32,6 +32,10 @@ if [ -f /usr/share/doc/rawtran/IMG_5952.CR2 ]; then
   "$bin" raw decode /usr/share/doc/rawtran/IMG_5952.CR2 "$out/camera/IMG_5952.exr" --preview "$out/camera/IMG_5952.png"
 fi
 echo
+echo "== 5. The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerboard under the studio HDR on the finite sphere"
+"$bin" render fixtures/render/demo.toml --spp 64 --time-s 150 --out "$out/render"
+
+echo
 echo "Results are in $out/:"
 echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
@@ -40,4 +44,5 @@ echo "  $out/bssrdf/IOL1068-NN/tiX_toY/      bssrdf.exr/.png, profile.csv/.png, 
 echo "  $out/colour/ccm.json, chart.png, delta_e.png   colour-correction matrix, corrected chart, ΔE bars"
 echo "  $out/camera/camera.json              intrinsics, distortion, per-view poses and RMS; camera_residuals.png, camera_views/"
 echo "  $out/camera/scene.json               board and sample pose in the renderer's convention; left12_undistorted.png"
+echo "  $out/render/render.exr, render.png   the rendered twin (linear CIE RGB with per-pixel variance; sRGB preview), render.json"
 echo "  $out/camera/IMG_5952.exr/.json       a real CR2 as linear camera RGB with its metadata (if rawtran-doc is installed)"

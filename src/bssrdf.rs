@@ -19,8 +19,8 @@
 //! of both slices over all pixels and their ratio; the two profiles; a
 //! side-by-side panel on a shared scale and a relative-difference map.
 
-use crate::io::{write_atomic, write_json, WriteError};
 use crate::imageio::{self, ImageIoError};
+use crate::io::{write_atomic, write_json, WriteError};
 use crate::plot::{perr, render_png, PlotError};
 use lucent_render::slab::{Beam, Directions, Slice};
 use plotters::prelude::*;
@@ -134,12 +134,18 @@ fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> 
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let row: Result<Vec<f64>, _> =
-            line.split(|c: char| c == ',' || c.is_whitespace()).filter(|s| !s.is_empty()).map(str::parse::<f64>).collect();
+        let row: Result<Vec<f64>, _> = line
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|s| !s.is_empty())
+            .map(str::parse::<f64>)
+            .collect();
         let row = row.map_err(|e| invalid(path, format!("line {}: {e}", k + 1)))?;
         if let Some(first) = rows.first() {
             if row.len() != first.len() {
-                return Err(invalid(path, format!("line {} has {} values, the first row {}", k + 1, row.len(), first.len())));
+                return Err(invalid(
+                    path,
+                    format!("line {} has {} values, the first row {}", k + 1, row.len(), first.len()),
+                ));
             }
         }
         rows.push(row);
@@ -238,8 +244,7 @@ pub fn beam_profile(beam: &Beam, dirs: &Directions, x_mm: &[f64]) -> Vec<f64> {
         Beam::Map(map) => {
             let row = map.height / 2;
             let maxv = map.values.iter().copied().fold(0.0, f64::max);
-            x_mm
-                .iter()
+            x_mm.iter()
                 .map(|x| {
                     let c = (x * 1e-3 / map.pixel_m + 0.5 * map.width as f64).floor();
                     if c >= 0.0 && (c as usize) < map.width {
@@ -267,7 +272,8 @@ pub fn write_run(dir: &Path, slice: &Slice, summary: &Summary, beam: &[f64]) -> 
         "f_ssr, θi {}° φi {}° → θo {}° φo {}°",
         summary.config.theta_i_deg, summary.config.phi_i_deg, summary.config.theta_o_deg, summary.config.phi_o_deg
     );
-    let bytes = heatmap_png(&[(&title, &grid)], None).map_err(|source| SliceIoError::Plot { path: png.clone(), source })?;
+    let bytes =
+        heatmap_png(&[(&title, &grid)], None).map_err(|source| SliceIoError::Plot { path: png.clone(), source })?;
     write_atomic(&png, &bytes)?;
     written.push(png);
 
@@ -455,7 +461,8 @@ pub fn profile_png(x_mm: &[f64], curves: &[ProfileCurve], beam: Option<&[f64]>) 
             .map_err(perr)?;
         for (k, (name, values, err)) in curves.iter().enumerate() {
             let colour = crate::plot::palette(k);
-            let pts: Vec<(f64, f64)> = x_mm.iter().zip(values.iter()).filter(|(_, v)| **v > 0.0).map(|(x, v)| (*x, *v)).collect();
+            let pts: Vec<(f64, f64)> =
+                x_mm.iter().zip(values.iter()).filter(|(_, v)| **v > 0.0).map(|(x, v)| (*x, *v)).collect();
             chart
                 .draw_series(LineSeries::new(pts, colour.stroke_width(2)))
                 .map_err(perr)?
@@ -463,9 +470,13 @@ pub fn profile_png(x_mm: &[f64], curves: &[ProfileCurve], beam: Option<&[f64]>) 
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
             if let Some(e) = err {
                 chart
-                    .draw_series(x_mm.iter().zip(values.iter()).zip(e.iter()).filter(|((_, v), s)| **v - **s > 0.0).map(
-                        |((x, v), s)| PathElement::new(vec![(*x, v - s), (*x, v + s)], colour.mix(0.5)),
-                    ))
+                    .draw_series(
+                        x_mm.iter()
+                            .zip(values.iter())
+                            .zip(e.iter())
+                            .filter(|((_, v), s)| **v - **s > 0.0)
+                            .map(|((x, v), s)| PathElement::new(vec![(*x, v - s), (*x, v + s)], colour.mix(0.5))),
+                    )
                     .map_err(perr)?;
             }
         }

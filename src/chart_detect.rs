@@ -88,7 +88,9 @@ pub fn detect_colorchecker(image: &RgbBuffer, options: &SampleOptions) -> Result
             continue;
         };
         match orient(image, &found, options, label)? {
-            Some(d) if d.mean_de2000 <= MAX_MEAN_DE2000 && best.as_ref().is_none_or(|b| d.mean_de2000 < b.mean_de2000) => {
+            Some(d)
+                if d.mean_de2000 <= MAX_MEAN_DE2000 && best.as_ref().is_none_or(|b| d.mean_de2000 < b.mean_de2000) =>
+            {
                 best = Some(d);
             }
             Some(d) if d.mean_de2000 <= MAX_MEAN_DE2000 => {}
@@ -138,8 +140,9 @@ fn model_to_image(found: &MccChart) -> Result<impl Fn(f64, f64) -> [f64; 2], Cal
     let (corners, mirrored) = match Homography::from_corners(b) {
         Ok(h) => (h, false),
         Err(_) => (
-            Homography::from_corners([b[1], b[0], b[3], b[2]])
-                .map_err(|e| CalibError::ChartNotFound(format!("OpenCV's mcc detector returned a degenerate box ({e})")))?,
+            Homography::from_corners([b[1], b[0], b[3], b[2]]).map_err(|e| {
+                CalibError::ChartNotFound(format!("OpenCV's mcc detector returned a degenerate box ({e})"))
+            })?,
             true,
         ),
     };

@@ -131,7 +131,8 @@ pub fn write_exr_channels(
     }
     let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
         channels.iter().map(|(name, c)| AnyChannel::new(*name, FlatSamples::F32(c.to_vec()))).collect();
-    let layer = Layer::new((width, height), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
+    let layer =
+        Layer::new((width, height), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
     let image = Image::from_layer(layer);
     let mut bytes = std::io::Cursor::new(Vec::new());
     image

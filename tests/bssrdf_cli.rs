@@ -9,8 +9,6 @@ use common::{lucent, stderr};
 use std::path::Path;
 use std::process::Output;
 
-
-
 const THIN: [&str; 8] = ["--mu-s", "3000", "--mu-a", "30", "--g", "0.8", "--n", "1.5"];
 
 fn run_thin(out: &Path, extra: &[&str]) -> Output {
@@ -30,7 +28,8 @@ fn run_writes_slice_profile_and_summary() {
     let out = dir.path().join("run");
     let o = run_thin(&out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     for k in ["sum", "sum_std_error", "paths", "events", "events_per_s", "wall_s"] {
         assert!(s[k].is_number(), "summary lacks {k}: {s}");
     }
@@ -52,7 +51,8 @@ fn run_writes_slice_profile_and_summary() {
     // Same seed, same result.
     let again = dir.path().join("again");
     assert!(run_thin(&again, &[]).status.success());
-    let s2: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(again.join("summary.json")).unwrap()).unwrap();
+    let s2: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(again.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s2["sum"], s["sum"]);
 }
 
@@ -95,11 +95,20 @@ fn compare_scores_against_a_measured_slice() {
     std::fs::write(&measured, &csv).unwrap();
     let cmp = dir.path().join("cmp");
     let o = lucent(&[
-        "bssrdf", "compare", "--measured", measured.to_str().unwrap(), "--measured-pixel-mm", "0.1",
-        "--simulated", out.to_str().unwrap(), "--out", cmp.to_str().unwrap(),
+        "bssrdf",
+        "compare",
+        "--measured",
+        measured.to_str().unwrap(),
+        "--measured-pixel-mm",
+        "0.1",
+        "--simulated",
+        out.to_str().unwrap(),
+        "--out",
+        cmp.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(cmp.join("comparison.json")).unwrap()).unwrap();
+    let c: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cmp.join("comparison.json")).unwrap()).unwrap();
     assert!((c["sum_ratio"].as_f64().unwrap() - 1.0 / 1.1).abs() < 1e-5, "{c}");
     let expected = (1.0f64 / 1.1 - 1.0).powi(2);
     assert!((c["mean_squared_relative_error"].as_f64().unwrap() - expected).abs() < 1e-5, "{c}");
@@ -107,15 +116,46 @@ fn compare_scores_against_a_measured_slice() {
         assert!(cmp.join(png).exists(), "{png}");
     }
     // Wrong pixel size, non-square grid, NaN: clear errors naming the file.
-    let o = lucent(&["bssrdf", "compare", "--measured", measured.to_str().unwrap(), "--measured-pixel-mm", "0.2", "--simulated", out.to_str().unwrap()]);
+    let o = lucent(&[
+        "bssrdf",
+        "compare",
+        "--measured",
+        measured.to_str().unwrap(),
+        "--measured-pixel-mm",
+        "0.2",
+        "--simulated",
+        out.to_str().unwrap(),
+    ]);
     assert!(!o.status.success() && stderr(&o).contains("pixel size"), "{}", stderr(&o));
     let bad = dir.path().join("nonsquare.csv");
     std::fs::write(&bad, "1,2,3\n4,5,6\n").unwrap();
-    let o = lucent(&["bssrdf", "compare", "--measured", bad.to_str().unwrap(), "--measured-pixel-mm", "0.1", "--simulated", out.to_str().unwrap()]);
-    assert!(!o.status.success() && stderr(&o).contains("nonsquare.csv") && stderr(&o).contains("square"), "{}", stderr(&o));
+    let o = lucent(&[
+        "bssrdf",
+        "compare",
+        "--measured",
+        bad.to_str().unwrap(),
+        "--measured-pixel-mm",
+        "0.1",
+        "--simulated",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("nonsquare.csv") && stderr(&o).contains("square"),
+        "{}",
+        stderr(&o)
+    );
     let nan = dir.path().join("nan.csv");
     std::fs::write(&nan, "1,nan\n3,4\n").unwrap();
-    let o = lucent(&["bssrdf", "compare", "--measured", nan.to_str().unwrap(), "--measured-pixel-mm", "0.1", "--simulated", out.to_str().unwrap()]);
+    let o = lucent(&[
+        "bssrdf",
+        "compare",
+        "--measured",
+        nan.to_str().unwrap(),
+        "--measured-pixel-mm",
+        "0.1",
+        "--simulated",
+        out.to_str().unwrap(),
+    ]);
     assert!(!o.status.success() && stderr(&o).contains("nan.csv") && stderr(&o).contains("finite"), "{}", stderr(&o));
 }
 
@@ -149,11 +189,24 @@ fn recipe_runs_use_the_lorenz_mie_properties() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("r");
     let o = lucent(&[
-        "bssrdf", "--quiet", "--recipe", "fixtures/samples/IOL1068-09.toml", "--wavelength", "550", "--paths", "2000",
-        "--pixels", "21", "--pixel-mm", "0.5", "--out", out.to_str().unwrap(),
+        "bssrdf",
+        "--quiet",
+        "--recipe",
+        "fixtures/samples/IOL1068-09.toml",
+        "--wavelength",
+        "550",
+        "--paths",
+        "2000",
+        "--pixels",
+        "21",
+        "--pixel-mm",
+        "0.5",
+        "--out",
+        out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let op = &s["optical_properties"];
     // The PDMS-09 sample: μs ≈ 1.47e4 /m, g ≈ 0.974, n ≈ 1.589 at 550 nm.
     assert!((op["mu_s_per_m"].as_f64().unwrap() / 1.47e4 - 1.0).abs() < 0.02, "{op}");

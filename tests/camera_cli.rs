@@ -11,9 +11,6 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-
-
-
 fn json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))).unwrap()
 }
@@ -76,10 +73,23 @@ fn calibrate_matches_the_python_reference_and_writes_plots() {
 fn calibrate_errors_name_the_files() {
     let dir = tempfile::tempdir().unwrap();
     // Wrong board size: every photo listed, the right size suggested.
-    let o = lucent(&["calibrate", "--images", "fixtures/camera/chessboard", "--board", "10x6", "--square-mm", "25", "--out", s(&dir.path().join("c.json"))]);
+    let o = lucent(&[
+        "calibrate",
+        "--images",
+        "fixtures/camera/chessboard",
+        "--board",
+        "10x6",
+        "--square-mm",
+        "25",
+        "--out",
+        s(&dir.path().join("c.json")),
+    ]);
     assert!(!o.status.success());
     let e = stderr(&o);
-    assert!(e.contains("no photo shows a chessboard of 10x6") && e.contains("left01.jpg") && e.contains("left14.jpg"), "{e}");
+    assert!(
+        e.contains("no photo shows a chessboard of 10x6") && e.contains("left01.jpg") && e.contains("left14.jpg"),
+        "{e}"
+    );
     assert!(e.contains("--board 9x6"), "{e}");
 
     // A folder of photos without a board.
@@ -87,7 +97,17 @@ fn calibrate_errors_name_the_files() {
     for n in ["a.png", "b.png", "c.png"] {
         write_png(&blank.join(n), &RgbImage::new(64, 48, vec![0.5; 64 * 48 * 3]).unwrap()).unwrap();
     }
-    let o = lucent(&["calibrate", "--images", s(&blank), "--board", "9x6", "--square-mm", "25", "--out", s(&dir.path().join("c.json"))]);
+    let o = lucent(&[
+        "calibrate",
+        "--images",
+        s(&blank),
+        "--board",
+        "9x6",
+        "--square-mm",
+        "25",
+        "--out",
+        s(&dir.path().join("c.json")),
+    ]);
     assert!(!o.status.success());
     let e = stderr(&o);
     assert!(e.contains("a.png") && e.contains("b.png") && e.contains("c.png") && e.contains("no photo shows"), "{e}");
@@ -99,17 +119,59 @@ fn calibrate_errors_name_the_files() {
         std::fs::copy(Path::new("fixtures/camera/chessboard").join(n), mixed.join(n)).unwrap();
     }
     std::fs::write(mixed.join("broken.jpg"), b"\xff\xd8\xff not really a jpeg").unwrap();
-    let o = lucent(&["calibrate", "--images", &format!("{}/*.jpg", s(&mixed)), "--board", "9x6", "--square-mm", "25", "--out", s(&dir.path().join("c.json"))]);
+    let o = lucent(&[
+        "calibrate",
+        "--images",
+        &format!("{}/*.jpg", s(&mixed)),
+        "--board",
+        "9x6",
+        "--square-mm",
+        "25",
+        "--out",
+        s(&dir.path().join("c.json")),
+    ]);
     assert!(!o.status.success());
     let e = stderr(&o);
     assert!(e.contains("broken.jpg") && e.contains("cannot be read"), "{e}");
 
     // Nothing matches; bad arguments.
-    let o = lucent(&["calibrate", "--images", "fixtures/camera/chessboard/*.nope", "--board", "9x6", "--square-mm", "25", "--out", "x.json"]);
+    let o = lucent(&[
+        "calibrate",
+        "--images",
+        "fixtures/camera/chessboard/*.nope",
+        "--board",
+        "9x6",
+        "--square-mm",
+        "25",
+        "--out",
+        "x.json",
+    ]);
     assert!(stderr(&o).contains("no files match"), "{}", stderr(&o));
-    let o = lucent(&["calibrate", "--images", "fixtures/camera/chessboard", "--board", "9by6", "--square-mm", "25", "--out", "x.json"]);
+    let o = lucent(&[
+        "calibrate",
+        "--images",
+        "fixtures/camera/chessboard",
+        "--board",
+        "9by6",
+        "--square-mm",
+        "25",
+        "--out",
+        "x.json",
+    ]);
     assert!(stderr(&o).contains("COLSxROWS"), "{}", stderr(&o));
-    let o = lucent(&["calibrate", "--images", "fixtures/camera/chessboard", "--board", "9x6", "--square-mm", "25", "--model", "fisheye", "--out", "x.json"]);
+    let o = lucent(&[
+        "calibrate",
+        "--images",
+        "fixtures/camera/chessboard",
+        "--board",
+        "9x6",
+        "--square-mm",
+        "25",
+        "--model",
+        "fisheye",
+        "--out",
+        "x.json",
+    ]);
     assert!(stderr(&o).contains("pinhole-k3, rational"), "{}", stderr(&o));
 }
 
@@ -125,7 +187,14 @@ fn undistort_and_pose_use_the_camera() {
     let side = json(&dir.path().join("u.json"));
     let cal = json(camera);
     assert_eq!(side["intrinsics"], cal["camera"]["intrinsics"]);
-    let o = lucent(&["undistort", "--keep-all", "--camera", s(camera), "fixtures/camera/chessboard/left12.jpg", s(&dir.path().join("all.png"))]);
+    let o = lucent(&[
+        "undistort",
+        "--keep-all",
+        "--camera",
+        s(camera),
+        "fixtures/camera/chessboard/left12.jpg",
+        s(&dir.path().join("all.png")),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let fx_all = json(&dir.path().join("all.json"))["intrinsics"]["fx"].as_f64().unwrap();
     assert!(fx_all < cal["camera"]["intrinsics"]["fx"].as_f64().unwrap(), "keep-all zooms out for barrel distortion");
@@ -137,8 +206,21 @@ fn undistort_and_pose_use_the_camera() {
 
     let scene = dir.path().join("scene.json");
     let o = lucent(&[
-        "pose", "--camera", s(camera), "--image", "fixtures/camera/chessboard/left12.jpg", "--board", "9x6", "--square-mm", "25",
-        "--sample-corner", "2,1", "--sample-size-mm", "100,50,6.35", "--out", s(&scene),
+        "pose",
+        "--camera",
+        s(camera),
+        "--image",
+        "fixtures/camera/chessboard/left12.jpg",
+        "--board",
+        "9x6",
+        "--square-mm",
+        "25",
+        "--sample-corner",
+        "2,1",
+        "--sample-size-mm",
+        "100,50,6.35",
+        "--out",
+        s(&scene),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let sc = json(&scene);
@@ -152,7 +234,9 @@ fn undistort_and_pose_use_the_camera() {
         assert!((norm - 1.0).abs() < 1e-9);
     }
     let corner0 = &sc["sample"]["box_corners_world_m"][0];
-    assert!((corner0[0].as_f64().unwrap() - 0.05).abs() < 1e-12 && (corner0[1].as_f64().unwrap() + 0.025).abs() < 1e-12);
+    assert!(
+        (corner0[0].as_f64().unwrap() - 0.05).abs() < 1e-12 && (corner0[1].as_f64().unwrap() + 0.025).abs() < 1e-12
+    );
     assert!(dir.path().join("scene_view.png").is_file());
 }
 

@@ -6,9 +6,6 @@ use common::{lucent, stderr, stdout};
 
 use std::path::{Path, PathBuf};
 
-
-
-
 fn sample(nn: &str) -> String {
     format!("fixtures/samples/IOL1068-{nn}.toml")
 }
@@ -88,7 +85,15 @@ fn folder_mode_reports_the_unknown_weight_percent() {
     let e = stderr(&o);
     assert!(e.contains("IOL1068-15.toml") && e.contains("weight_percent"), "{e}");
 
-    let o = lucent(&["optics", "fixtures/samples", "--phase-entries", "64", "--skip-invalid", "--out", out.to_str().unwrap()]);
+    let o = lucent(&[
+        "optics",
+        "fixtures/samples",
+        "--phase-entries",
+        "64",
+        "--skip-invalid",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("skipped") && stderr(&o).contains("IOL1068-15"));
     let csv = std::fs::read_to_string(out.join("optical_properties.csv")).unwrap();

@@ -9,7 +9,6 @@ use serde_json::Value;
 use std::path::Path;
 use std::process::Output;
 
-
 /// `lucent colour calibrate --image IMAGE --corners CORNERS --out OUT EXTRA…`
 fn calibrate(image: &str, corners: &str, out: &Path, extra: &[&str]) -> Output {
     let out = out.to_str().expect("UTF-8 path");
@@ -17,8 +16,6 @@ fn calibrate(image: &str, corners: &str, out: &Path, extra: &[&str]) -> Output {
     args.extend_from_slice(extra);
     lucent(&args)
 }
-
-
 
 fn reference() -> Value {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/reference/colour_reference.json");
@@ -328,7 +325,8 @@ fn calibrate_without_corners_detects_the_real_chart() {
     assert_eq!(g["corners_detected"], false);
     for k in 0..4 {
         let (p, q) = (&a["corners"][k], &g["corners"][k]);
-        let d = (p[0].as_f64().unwrap() - q[0].as_f64().unwrap()).hypot(p[1].as_f64().unwrap() - q[1].as_f64().unwrap());
+        let d =
+            (p[0].as_f64().unwrap() - q[0].as_f64().unwrap()).hypot(p[1].as_f64().unwrap() - q[1].as_f64().unwrap());
         assert!(d < 3.0, "corner {}: {p} detected vs {q} given", k + 1);
     }
     let (da, dg) = (a["de2000_mean"].as_f64().unwrap(), g["de2000_mean"].as_f64().unwrap());

@@ -8,9 +8,7 @@ use common::{lucent, stderr, stdout};
 
 use lucent::compare::mask::Mask;
 use lucent::compare::ssim::{ssim, Gray, SsimParams};
-use lucent::compare::{
-    self, input::read_image, metrics, Luminance, MaskSpec, Metrics, Request, Settings,
-};
+use lucent::compare::{self, input::read_image, metrics, Luminance, MaskSpec, Metrics, Request, Settings};
 use lucent::imageio::{write_exr, RgbImage};
 use lucent_calib::camera::Intrinsics;
 use lucent_calib::ecc::Motion;
@@ -25,10 +23,7 @@ fn root() -> PathBuf {
 }
 
 fn json(path: &Path) -> Value {
-    serde_json::from_str(
-        &std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
-    )
-    .unwrap()
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))).unwrap()
 }
 
 fn s(p: &Path) -> &str {
@@ -40,19 +35,11 @@ fn s(p: &Path) -> &str {
 /// The numbers of one reference case as lucent computes them.
 fn lucent_metrics(case: &Value) -> Metrics {
     let dir = root().join(REF);
-    let photo = read_image(&dir.join(case["photo"].as_str().unwrap()), "photo")
-        .unwrap()
-        .image;
-    let render = read_image(&dir.join(case["render"].as_str().unwrap()), "render")
-        .unwrap()
-        .image;
-    let mask = case["mask"]
-        .as_str()
-        .map(|m| Mask::from_image(&dir.join(m), photo.width, photo.height).unwrap());
-    let settings = Settings {
-        ssim: SsimParams::new(case["data_range"].as_f64().unwrap()).unwrap(),
-        luminance: Luminance::CieRgb,
-    };
+    let photo = read_image(&dir.join(case["photo"].as_str().unwrap()), "photo").unwrap().image;
+    let render = read_image(&dir.join(case["render"].as_str().unwrap()), "render").unwrap().image;
+    let mask = case["mask"].as_str().map(|m| Mask::from_image(&dir.join(m), photo.width, photo.height).unwrap());
+    let settings =
+        Settings { ssim: SsimParams::new(case["data_range"].as_f64().unwrap()).unwrap(), luminance: Luminance::CieRgb };
     metrics(&photo, &render, mask.as_ref(), &settings).unwrap()
 }
 
@@ -82,14 +69,9 @@ fn ssim_and_rmse_agree_with_scikit_image_and_numpy() {
             ("relative_error", m.relative_error, &case["relative_error"]),
         ];
         for (what, got, want) in pairs {
-            let want = want
-                .as_f64()
-                .unwrap_or_else(|| panic!("{name}: {what} missing"));
+            let want = want.as_f64().unwrap_or_else(|| panic!("{name}: {what} missing"));
             let d = (got - want).abs();
-            assert!(
-                d <= 1e-6,
-                "{name} {what}: lucent {got} vs reference {want} (|Δ| = {d:.2e})"
-            );
+            assert!(d <= 1e-6, "{name} {what}: lucent {got} vs reference {want} (|Δ| = {d:.2e})");
             if d > worst.0 {
                 worst = (d, format!("{name} {what}"));
             }
@@ -99,10 +81,7 @@ fn ssim_and_rmse_agree_with_scikit_image_and_numpy() {
             assert_eq!(m.ssim.pixels as u64, n, "{name}");
         }
     }
-    println!(
-        "largest deviation from scikit-image/numpy: {:.3e} ({})",
-        worst.0, worst.1
-    );
+    println!("largest deviation from scikit-image/numpy: {:.3e} ({})", worst.0, worst.1);
 }
 
 // ------------------------------------------------------------ properties
@@ -125,12 +104,8 @@ impl Rng {
 
 /// A random image: smooth part, noise, sometimes constant or HDR.
 fn random_image(rng: &mut Rng, w: usize, h: usize) -> RgbImage {
-    let (fx, fy, noise, scale) = (
-        rng.next() * 0.5,
-        rng.next() * 0.5,
-        rng.next() * 0.2,
-        if rng.next() < 0.2 { 8.0 } else { 1.0 },
-    );
+    let (fx, fy, noise, scale) =
+        (rng.next() * 0.5, rng.next() * 0.5, rng.next() * 0.2, if rng.next() < 0.2 { 8.0 } else { 1.0 });
     let constant = rng.next() < 0.1;
     let data = (0..w * h * 3)
         .map(|i| {
@@ -138,8 +113,7 @@ fn random_image(rng: &mut Rng, w: usize, h: usize) -> RgbImage {
             let v = if constant {
                 0.3
             } else {
-                0.5 + 0.3 * (fx * x + (i % 3) as f64).sin() * (fy * y).cos()
-                    + noise * (rng.next() - 0.5)
+                0.5 + 0.3 * (fx * x + (i % 3) as f64).sin() * (fy * y).cos() + noise * (rng.next() - 0.5)
             };
             (scale * v) as f32
         })
@@ -159,17 +133,11 @@ fn ssim_of_an_image_with_itself_is_one_and_ssim_and_rmse_are_symmetric() {
             height: h,
             include: (0..w * h).map(|_| rng.next() < 0.6).collect(),
         });
-        if mask
-            .as_ref()
-            .is_some_and(|m| (5..h - 5).all(|yy| (5..w - 5).all(|xx| !m.get(xx, yy))))
-        {
+        if mask.as_ref().is_some_and(|m| (5..h - 5).all(|yy| (5..w - 5).all(|xx| !m.get(xx, yy)))) {
             continue;
         }
         let range = [1.0, 0.5, 8.0][rng.below(3)];
-        let settings = Settings {
-            ssim: SsimParams::new(range).unwrap(),
-            luminance: Luminance::CieRgb,
-        };
+        let settings = Settings { ssim: SsimParams::new(range).unwrap(), luminance: Luminance::CieRgb };
         let xx = metrics(&x, &x, mask.as_ref(), &settings).unwrap();
         for v in [xx.ssim.r, xx.ssim.g, xx.ssim.b, xx.ssim.y, xx.ssim.mean_rgb] {
             assert!((v - 1.0).abs() < 1e-12, "case {case}: SSIM(x, x) = {v}");
@@ -177,20 +145,9 @@ fn ssim_of_an_image_with_itself_is_one_and_ssim_and_rmse_are_symmetric() {
         assert_eq!((xx.rmse, xx.mean_abs_error), (0.0, 0.0), "case {case}");
         let xy = metrics(&x, &y, mask.as_ref(), &settings).unwrap();
         let yx = metrics(&y, &x, mask.as_ref(), &settings).unwrap();
-        for (a, b) in [
-            (xy.ssim.r, yx.ssim.r),
-            (xy.ssim.g, yx.ssim.g),
-            (xy.ssim.b, yx.ssim.b),
-            (xy.ssim.y, yx.ssim.y),
-        ] {
-            assert!(
-                (a - b).abs() <= 1e-15,
-                "case {case}: SSIM(x, y) = {a}, SSIM(y, x) = {b}"
-            );
-            assert!(
-                (-1.0 - 1e-12..=1.0 + 1e-12).contains(&a),
-                "case {case}: {a}"
-            );
+        for (a, b) in [(xy.ssim.r, yx.ssim.r), (xy.ssim.g, yx.ssim.g), (xy.ssim.b, yx.ssim.b), (xy.ssim.y, yx.ssim.y)] {
+            assert!((a - b).abs() <= 1e-15, "case {case}: SSIM(x, y) = {a}, SSIM(y, x) = {b}");
+            assert!((-1.0 - 1e-12..=1.0 + 1e-12).contains(&a), "case {case}: {a}");
         }
         assert_eq!(xy.rmse, yx.rmse, "case {case}");
         assert_eq!(xy.rmse_channels, yx.rmse_channels, "case {case}");
@@ -198,13 +155,7 @@ fn ssim_of_an_image_with_itself_is_one_and_ssim_and_rmse_are_symmetric() {
         // Single-channel form agrees with the RGB one.
         let gx: Vec<f64> = x.data.iter().step_by(3).map(|v| f64::from(*v)).collect();
         let gy: Vec<f64> = y.data.iter().step_by(3).map(|v| f64::from(*v)).collect();
-        let g = ssim(
-            &Gray::new(w, h, &gx),
-            &Gray::new(w, h, &gy),
-            &settings.ssim,
-            mask.as_ref(),
-        )
-        .unwrap();
+        let g = ssim(&Gray::new(w, h, &gx), &Gray::new(w, h, &gy), &settings.ssim, mask.as_ref()).unwrap();
         assert_eq!(g.mean, xy.ssim.r, "case {case}");
     }
 }
@@ -212,18 +163,9 @@ fn ssim_of_an_image_with_itself_is_one_and_ssim_and_rmse_are_symmetric() {
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
     let mut rng = Rng(7);
-    let (x, y) = (
-        random_image(&mut rng, 301, 260),
-        random_image(&mut rng, 301, 260),
-    );
-    let settings = Settings {
-        ssim: SsimParams::new(1.0).unwrap(),
-        luminance: Luminance::Rec709,
-    };
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let (x, y) = (random_image(&mut rng, 301, 260), random_image(&mut rng, 301, 260));
+    let settings = Settings { ssim: SsimParams::new(1.0).unwrap(), luminance: Luminance::Rec709 };
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     let a = one.install(|| metrics(&x, &y, None, &settings).unwrap());
     let b = metrics(&x, &y, None, &settings).unwrap();
     assert_eq!(a, b);
@@ -234,10 +176,8 @@ fn results_do_not_depend_on_the_thread_count() {
 /// A smooth texture with detail in both directions.
 fn texture(x: f64, y: f64, c: usize) -> f32 {
     let blob = (-((x - 150.0).powi(2) + (y - 110.0).powi(2)) / 2000.0).exp();
-    (0.35
-        + 0.18 * (0.21 * x + c as f64).sin() * (0.17 * y).cos()
-        + 0.12 * (0.05 * (x - 1.7 * y)).sin()
-        + 0.25 * blob) as f32
+    (0.35 + 0.18 * (0.21 * x + c as f64).sin() * (0.17 * y).cos() + 0.12 * (0.05 * (x - 1.7 * y)).sin() + 0.25 * blob)
+        as f32
 }
 
 /// Photo, render shifted by (dx, dy) (render(x + dx, y + dy) = photo(x, y)),
@@ -245,22 +185,10 @@ fn texture(x: f64, y: f64, c: usize) -> f32 {
 fn shifted_pair(dir: &Path, dx: f64, dy: f64) -> (PathBuf, PathBuf, PathBuf) {
     let (w, h) = (320, 240);
     // Camera 0.5 m above the board, looking straight down, fx = 400 px.
-    let k = Intrinsics {
-        fx: 400.0,
-        fy: 400.0,
-        cx: 159.5,
-        cy: 119.5,
-    };
-    let board = BoardSpec {
-        cols: 9,
-        rows: 6,
-        square_m: 0.02,
-    };
+    let k = Intrinsics { fx: 400.0, fy: 400.0, cx: 159.5, cy: 119.5 };
+    let board = BoardSpec { cols: 9, rows: 6, square_m: 0.02 };
     let pose = Pose::from_rvec_tvec([0.0; 3], [-0.08, -0.05, 0.5]);
-    let sample = SampleSpec {
-        corner: [2, 1],
-        size_m: [0.06, 0.04, 0.003],
-    };
+    let sample = SampleSpec { corner: [2, 1], size_m: [0.06, 0.04, 0.003] };
     let scene = describe_scene(&k, (w, h), &pose, &board, Some(&sample), 0.1);
     let object = compare::mask::object_mask(&scene, w, h).unwrap();
     let make = |sx: f64, sy: f64, brighter: bool| {
@@ -271,11 +199,8 @@ fn shifted_pair(dir: &Path, dx: f64, dy: f64) -> (PathBuf, PathBuf, PathBuf) {
                 let v = texture(x, y, c);
                 // The sample moves with the rest of the render.
                 let (ox, oy) = (x.round(), y.round());
-                let inside = ox >= 0.0
-                    && oy >= 0.0
-                    && ox < w as f64
-                    && oy < h as f64
-                    && object.get(ox as usize, oy as usize);
+                let inside =
+                    ox >= 0.0 && oy >= 0.0 && ox < w as f64 && oy < h as f64 && object.get(ox as usize, oy as usize);
                 if brighter && inside {
                     1.15 * v
                 } else {
@@ -285,11 +210,7 @@ fn shifted_pair(dir: &Path, dx: f64, dy: f64) -> (PathBuf, PathBuf, PathBuf) {
             .collect();
         RgbImage::new(w, h, data).unwrap()
     };
-    let (photo, render, scene_path) = (
-        dir.join("photo.exr"),
-        dir.join("render.exr"),
-        dir.join("scene.json"),
-    );
+    let (photo, render, scene_path) = (dir.join("photo.exr"), dir.join("render.exr"), dir.join("scene.json"));
     write_exr(&photo, &make(0.0, 0.0, false)).unwrap();
     write_exr(&render, &make(dx, dy, true)).unwrap();
     std::fs::write(&scene_path, serde_json::to_string_pretty(&scene).unwrap()).unwrap();
@@ -313,10 +234,7 @@ fn ecc_recovers_a_known_shift_on_the_board_and_the_metrics_improve() {
     let out = compare::compare_files(&req).unwrap();
     let r = out.report.refined.as_ref().unwrap();
     let (ex, ey) = (r.shift_px[0] - 2.5, r.shift_px[1] + 1.25);
-    println!(
-        "ECC shift {:?} (error {ex:+.4}, {ey:+.4} px), correlation {}",
-        r.shift_px, r.correlation
-    );
+    println!("ECC shift {:?} (error {ex:+.4}, {ey:+.4} px), correlation {}", r.shift_px, r.correlation);
     assert!(ex.abs() < 0.05 && ey.abs() < 0.05, "found {:?}", r.shift_px);
     assert!(r.region.starts_with("board minus sample"), "{}", r.region);
     assert!(
@@ -331,17 +249,9 @@ fn ecc_recovers_a_known_shift_on_the_board_and_the_metrics_improve() {
     // (Edge pixels of the sample blend with the board in the resampling.)
     assert!((ratio - 1.15).abs() < 0.015, "{ratio}");
     // Homography from the same start also finds it.
-    let out = compare::compare_files(&Request {
-        refine: Some(Motion::Homography),
-        ..req
-    })
-    .unwrap();
+    let out = compare::compare_files(&Request { refine: Some(Motion::Homography), ..req }).unwrap();
     let r = out.report.refined.unwrap();
-    assert!(
-        (r.shift_px[0] - 2.5).abs() < 0.05 && (r.shift_px[1] + 1.25).abs() < 0.05,
-        "{:?}",
-        r.shift_px
-    );
+    assert!((r.shift_px[0] - 2.5).abs() < 0.05 && (r.shift_px[1] + 1.25).abs() < 0.05, "{:?}", r.shift_px);
 }
 
 // ------------------------------------------------------------ CLI
@@ -366,19 +276,10 @@ fn cli_writes_metrics_triplet_and_difference() {
     assert!(stdout(&o).contains("as calibrated: RMSE"), "{}", stdout(&o));
     let m = json(&out.join("metrics.json"));
     let reference = json(&root().join(REF).join("reference.json"));
-    let case = reference["cases"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|c| c["name"] == "shifted_masked")
-        .unwrap()
-        .clone();
+    let case = reference["cases"].as_array().unwrap().iter().find(|c| c["name"] == "shifted_masked").unwrap().clone();
     let cal = &m["as_calibrated"];
     for k in ["R", "G", "B", "Y"] {
-        let (a, b) = (
-            cal["ssim"][k].as_f64().unwrap(),
-            case["ssim"][k].as_f64().unwrap(),
-        );
+        let (a, b) = (cal["ssim"][k].as_f64().unwrap(), case["ssim"][k].as_f64().unwrap());
         assert!((a - b).abs() < 1e-6, "SSIM {k}: {a} vs {b}");
     }
     assert!((cal["rmse"].as_f64().unwrap() - case["rmse"].as_f64().unwrap()).abs() < 1e-6);
@@ -389,54 +290,24 @@ fn cli_writes_metrics_triplet_and_difference() {
     assert!(m["refined"].is_null());
     let exposure = m["display"]["exposure"].as_f64().unwrap();
     assert!(exposure > 0.5 && exposure < 2.0, "{exposure}");
-    assert!(m["display"]["exposure_source"]
-        .as_str()
-        .unwrap()
-        .starts_with("auto"));
+    assert!(m["display"]["exposure_source"].as_str().unwrap().starts_with("auto"));
     // The clipping that the auto exposure implies is reported (and announced on stderr).
     let clipped = m["display"]["clipped_fraction_photo"].as_f64().unwrap();
     assert!(clipped > 0.0 && clipped <= 0.011, "{clipped}");
-    assert!(
-        stderr(&o).contains("clipping in triplet.png"),
-        "{}",
-        stderr(&o)
-    );
+    assert!(stderr(&o).contains("clipping in triplet.png"), "{}", stderr(&o));
     // difference.exr holds render − photo.
-    let d = lucent::compare::input::read_image(&out.join("difference.exr"), "difference")
-        .unwrap()
-        .image;
-    let (p, r) = (
-        read_image(&base, "p").unwrap().image,
-        read_image(&root().join(REF).join("shifted.exr"), "r")
-            .unwrap()
-            .image,
-    );
+    let d = lucent::compare::input::read_image(&out.join("difference.exr"), "difference").unwrap().image;
+    let (p, r) =
+        (read_image(&base, "p").unwrap().image, read_image(&root().join(REF).join("shifted.exr"), "r").unwrap().image);
     assert_eq!(d.data[100], r.data[100] - p.data[100]);
     let png = image::open(out.join("triplet.png")).unwrap();
-    assert!(
-        png.width() >= 3 * 320 && png.height() > 240,
-        "{} × {}",
-        png.width(),
-        png.height()
-    );
+    assert!(png.width() >= 3 * 320 && png.height() > 240, "{} × {}", png.width(), png.height());
     // No temporary folder left beside the output.
-    let names: Vec<String> = std::fs::read_dir(dir.path())
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
+    let names: Vec<String> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(names, ["cmp"]);
     // A second run into the same folder replaces the files.
-    let o = lucent(&[
-        "compare",
-        "--photo",
-        s(&base),
-        "--render",
-        s(&base),
-        "--exposure",
-        "0.5",
-        "--out",
-        s(&out),
-    ]);
+    let o = lucent(&["compare", "--photo", s(&base), "--render", s(&base), "--exposure", "0.5", "--out", s(&out)]);
     assert!(o.status.success(), "{}", stderr(&o));
     let m = json(&out.join("metrics.json"));
     assert_eq!(m["as_calibrated"]["rmse"], 0.0);
@@ -468,15 +339,11 @@ fn cli_refines_with_ecc_and_keeps_a_triplet_to_look_at() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = stdout(&o);
-    assert!(
-        text.contains("as calibrated: RMSE") && text.contains("after ECC (translation, dx +2.4"),
-        "{text}"
-    );
+    assert!(text.contains("as calibrated: RMSE") && text.contains("after ECC (translation, dx +2.4"), "{text}");
     let m = json(&out.join("metrics.json"));
     let shift = &m["refined"]["shift_px"];
     assert!(
-        (shift[0].as_f64().unwrap() - 2.5).abs() < 0.05
-            && (shift[1].as_f64().unwrap() + 1.25).abs() < 0.05,
+        (shift[0].as_f64().unwrap() - 2.5).abs() < 0.05 && (shift[1].as_f64().unwrap() + 1.25).abs() < 0.05,
         "{shift}"
     );
     assert_eq!(m["refined"]["motion"], "translation");
@@ -505,11 +372,7 @@ fn must_fail(extra: &[&str], want: &[&str]) {
         assert!(err.contains(w), "{args:?}: {w:?} not in:\n{err}");
     }
     assert!(!err.contains("panicked"), "{err}");
-    assert_eq!(
-        std::fs::read_dir(dir.path()).unwrap().count(),
-        0,
-        "{args:?} left files behind"
-    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "{args:?} left files behind");
 }
 
 #[test]
@@ -518,46 +381,19 @@ fn bad_inputs_are_rejected_with_which_and_where() {
     let bad = "tests/bad/compare";
     let cases: Vec<(Vec<String>, Vec<&str>)> = vec![
         (
-            vec![
-                "--photo".into(),
-                base.clone(),
-                "--render".into(),
-                format!("{bad}/nan.exr"),
-            ],
+            vec!["--photo".into(), base.clone(), "--render".into(), format!("{bad}/nan.exr")],
             vec!["render", "nan.exr", "NaN", "(17, 9)", "channel G"],
         ),
         (
-            vec![
-                "--photo".into(),
-                format!("{bad}/inf.exr"),
-                "--render".into(),
-                base.clone(),
-            ],
-            vec![
-                "photo",
-                "inf.exr",
-                "2 non-finite",
-                "-inf",
-                "(3, 40)",
-                "channel B",
-            ],
+            vec!["--photo".into(), format!("{bad}/inf.exr"), "--render".into(), base.clone()],
+            vec!["photo", "inf.exr", "2 non-finite", "-inf", "(3, 40)", "channel B"],
         ),
         (
-            vec![
-                "--photo".into(),
-                base.clone(),
-                "--render".into(),
-                format!("{bad}/size_63x48.exr"),
-            ],
+            vec!["--photo".into(), base.clone(), "--render".into(), format!("{bad}/size_63x48.exr")],
             vec!["64 × 48", "63 × 48"],
         ),
         (
-            vec![
-                "--photo".into(),
-                base.clone(),
-                "--render".into(),
-                format!("{bad}/grey_y.exr"),
-            ],
+            vec!["--photo".into(), base.clone(), "--render".into(), format!("{bad}/grey_y.exr")],
             vec!["3 colour channel(s) (R, G, B)", "1 (Y)"],
         ),
         (
@@ -583,72 +419,28 @@ fn bad_inputs_are_rejected_with_which_and_where() {
             vec!["mask_empty.png", "no pixel"],
         ),
         (
-            vec![
-                "--photo".into(),
-                format!("{bad}/truncated.exr"),
-                "--render".into(),
-                base.clone(),
-            ],
+            vec!["--photo".into(), format!("{bad}/truncated.exr"), "--render".into(), base.clone()],
             vec!["photo", "truncated.exr", "cannot read"],
         ),
         (
-            vec![
-                "--photo".into(),
-                base.clone(),
-                "--render".into(),
-                format!("{bad}/not_an_image.png"),
-            ],
+            vec!["--photo".into(), base.clone(), "--render".into(), format!("{bad}/not_an_image.png")],
             vec!["render", "not_an_image.png"],
         ),
         (
-            vec![
-                "--photo".into(),
-                format!("{bad}/missing.exr"),
-                "--render".into(),
-                base.clone(),
-            ],
+            vec!["--photo".into(), format!("{bad}/missing.exr"), "--render".into(), base.clone()],
             vec!["photo", "missing.exr", "no such file"],
         ),
+        (vec!["--photo".into(), base.clone(), "--render".into(), bad.into()], vec!["render", "is a folder"]),
         (
-            vec![
-                "--photo".into(),
-                base.clone(),
-                "--render".into(),
-                bad.into(),
-            ],
-            vec!["render", "is a folder"],
-        ),
-        (
-            vec![
-                "--photo".into(),
-                base.clone(),
-                "--render".into(),
-                base.clone(),
-                "--data-range".into(),
-                "0".into(),
-            ],
+            vec!["--photo".into(), base.clone(), "--render".into(), base.clone(), "--data-range".into(), "0".into()],
             vec!["data range 0"],
         ),
         (
-            vec![
-                "--photo".into(),
-                base.clone(),
-                "--render".into(),
-                base.clone(),
-                "--exposure".into(),
-                "-1".into(),
-            ],
+            vec!["--photo".into(), base.clone(), "--render".into(), base.clone(), "--exposure".into(), "-1".into()],
             vec!["exposure -1"],
         ),
         (
-            vec![
-                "--photo".into(),
-                base.clone(),
-                "--render".into(),
-                base.clone(),
-                "--refine".into(),
-                "sift".into(),
-            ],
+            vec!["--photo".into(), base.clone(), "--render".into(), base.clone(), "--refine".into(), "sift".into()],
             vec!["--refine", "ecc"],
         ),
         (
@@ -662,20 +454,10 @@ fn bad_inputs_are_rejected_with_which_and_where() {
                 "--refine-motion".into(),
                 "shear".into(),
             ],
-            vec![
-                "--refine-motion",
-                "translation, euclidean, affine, homography",
-            ],
+            vec!["--refine-motion", "translation, euclidean, affine, homography"],
         ),
         (
-            vec![
-                "--photo".into(),
-                base.clone(),
-                "--render".into(),
-                base.clone(),
-                "--luminance".into(),
-                "xyz".into(),
-            ],
+            vec!["--photo".into(), base.clone(), "--render".into(), base.clone(), "--luminance".into(), "xyz".into()],
             vec!["cie-rgb, rec709"],
         ),
         (
@@ -703,41 +485,22 @@ fn bad_scenes_are_rejected() {
     let dir = tempfile::tempdir().unwrap();
     let base = format!("{REF}/base.exr");
     // A valid scene for 640 × 480 images, used on 64 × 48 ones.
-    let k = Intrinsics {
-        fx: 500.0,
-        fy: 500.0,
-        cx: 320.0,
-        cy: 240.0,
-    };
+    let k = Intrinsics { fx: 500.0, fy: 500.0, cx: 320.0, cy: 240.0 };
     let scene = describe_scene(
         &k,
         (640, 480),
         &Pose::from_rvec_tvec([0.0; 3], [-0.08, -0.05, 0.5]),
-        &BoardSpec {
-            cols: 9,
-            rows: 6,
-            square_m: 0.02,
-        },
+        &BoardSpec { cols: 9, rows: 6, square_m: 0.02 },
         None,
         0.1,
     );
     let p = dir.path().join("scene.json");
     std::fs::write(&p, serde_json::to_string(&scene).unwrap()).unwrap();
-    must_fail(
-        &["--photo", &base, "--render", &base, "--mask-board", s(&p)],
-        &["640 × 480", "64 × 48"],
-    );
+    must_fail(&["--photo", &base, "--render", &base, "--mask-board", s(&p)], &["640 × 480", "64 × 48"]);
     let junk = dir.path().join("junk.json");
     std::fs::write(&junk, "{\"units\": 3}").unwrap();
     must_fail(
-        &[
-            "--photo",
-            &base,
-            "--render",
-            &base,
-            "--mask-object",
-            s(&junk),
-        ],
+        &["--photo", &base, "--render", &base, "--mask-object", s(&junk)],
         &["scene", "junk.json", "lucent pose"],
     );
 }
@@ -752,19 +515,8 @@ fn speed_on_a_12_megapixel_pair() {
     let (w, h) = (4000, 3000);
     let mut rng = Rng(12);
     let x = random_image(&mut rng, w, h);
-    let y = RgbImage::new(
-        w,
-        h,
-        x.data
-            .iter()
-            .map(|v| 0.9 * v + 0.02 * (rng.next() as f32 - 0.5))
-            .collect(),
-    )
-    .unwrap();
-    let settings = Settings {
-        ssim: SsimParams::new(1.0).unwrap(),
-        luminance: Luminance::CieRgb,
-    };
+    let y = RgbImage::new(w, h, x.data.iter().map(|v| 0.9 * v + 0.02 * (rng.next() as f32 - 0.5)).collect()).unwrap();
+    let settings = Settings { ssim: SsimParams::new(1.0).unwrap(), luminance: Luminance::CieRgb };
     let mut best = f64::INFINITY;
     for _ in 0..3 {
         let t = std::time::Instant::now();

@@ -17,20 +17,12 @@ fn polygons(m: &Mesh) -> Vec<Vec<u32>> {
 
 fn ply_header(format: &str, scalar: &str, v: usize, f: usize, extra: bool) -> String {
     let mut h = format!("ply\nformat {format} 1.0\ncomment written by tests/mesh.rs\n");
-    write!(
-        h,
-        "element vertex {v}\nproperty {scalar} x\nproperty {scalar} y\n"
-    )
-    .unwrap();
+    write!(h, "element vertex {v}\nproperty {scalar} x\nproperty {scalar} y\n").unwrap();
     writeln!(h, "property {scalar} z").unwrap();
     if extra {
         h += "property uchar red\n";
     }
-    write!(
-        h,
-        "element face {f}\nproperty list uchar int vertex_indices\n"
-    )
-    .unwrap();
+    write!(h, "element face {f}\nproperty list uchar int vertex_indices\n").unwrap();
     if extra {
         h += "property float quality\nelement edge 1\nproperty int vertex1\nproperty int vertex2\n";
     }
@@ -55,11 +47,7 @@ fn write_ply_ascii(path: &Path, positions: &[[f64; 3]], faces: &[Vec<u32>]) {
 /// Binary PLY with doubles, an extra vertex property, an extra face property
 /// and an extra element, so the reader has to skip what it does not use.
 fn write_ply_binary(path: &Path, positions: &[[f64; 3]], faces: &[Vec<u32>], big: bool) {
-    let format = if big {
-        "binary_big_endian"
-    } else {
-        "binary_little_endian"
-    };
+    let format = if big { "binary_big_endian" } else { "binary_little_endian" };
     let mut b = ply_header(format, "double", positions.len(), faces.len(), true).into_bytes();
     let f64b = |x: f64| {
         if big {
@@ -122,12 +110,7 @@ fn write_stl_ascii(path: &Path, m: &Mesh, first_line: &str) {
         s += "  facet normal 0 0 0\n    outer loop\n";
         for &i in t {
             let p = m.positions_m[i as usize];
-            writeln!(
-                s,
-                "      vertex {} {} {}",
-                p[0] as f32, p[1] as f32, p[2] as f32
-            )
-            .unwrap();
+            writeln!(s, "      vertex {} {} {}", p[0] as f32, p[1] as f32, p[2] as f32).unwrap();
         }
         s += "    endloop\n  endfacet\n";
     }
@@ -166,8 +149,7 @@ fn volume(m: &Mesh) -> f64 {
         .iter()
         .map(|&[a, b, c]| {
             let (a, b, c) = (p(a), p(b), p(c));
-            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-                + a[2] * (b[0] * c[1] - b[1] * c[0])
+            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])
         })
         .sum::<f64>()
         / 6.0
@@ -204,20 +186,11 @@ fn exact_box() -> Mesh {
 /// The box's six faces as quads, counter-clockwise seen from outside; their
 /// fans (a, b, c), (a, c, d) are the triangles of `plaque_box`.
 fn box_quads() -> Vec<Vec<u32>> {
-    vec![
-        vec![0, 3, 2, 1],
-        vec![4, 5, 6, 7],
-        vec![0, 1, 5, 4],
-        vec![2, 3, 7, 6],
-        vec![3, 0, 4, 7],
-        vec![1, 2, 6, 5],
-    ]
+    vec![vec![0, 3, 2, 1], vec![4, 5, 6, 7], vec![0, 1, 5, 4], vec![2, 3, 7, 6], vec![3, 0, 4, 7], vec![1, 2, 6, 5]]
 }
 
 fn bad(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/bad/mesh")
-        .join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/bad/mesh").join(name)
 }
 
 fn load_err(name: &str) -> (MeshError, String) {
@@ -248,20 +221,9 @@ fn plaque_box_is_closed_with_outward_normals() {
     // Every triangle's normal points away from the centre of the box.
     for tri in &m.triangles {
         let [a, b, c] = tri.map(|i| m.positions_m[i as usize]);
-        let (e1, e2) = (
-            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-        );
-        let n = [
-            e1[1] * e2[2] - e1[2] * e2[1],
-            e1[2] * e2[0] - e1[0] * e2[2],
-            e1[0] * e2[1] - e1[1] * e2[0],
-        ];
-        let centroid = [
-            (a[0] + b[0] + c[0]) / 3.0,
-            (a[1] + b[1] + c[1]) / 3.0,
-            (a[2] + b[2] + c[2]) / 3.0 - t / 2.0,
-        ];
+        let (e1, e2) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+        let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+        let centroid = [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0, (a[2] + b[2] + c[2]) / 3.0 - t / 2.0];
         assert!(n.iter().zip(&centroid).map(|(n, c)| n * c).sum::<f64>() > 0.0);
     }
 }
@@ -335,9 +297,7 @@ fn ply_binary_round_trips_both_byte_orders_with_quads() {
     let dir = tempfile::tempdir().unwrap();
     let m = exact_box();
     for big in [false, true] {
-        let path = dir
-            .path()
-            .join(if big { "box_be.PLY" } else { "box_le.ply" });
+        let path = dir.path().join(if big { "box_be.PLY" } else { "box_le.ply" });
         write_ply_binary(&path, &m.positions_m, &box_quads(), big);
         let (back, r) = load(&path, 1.0).unwrap();
         assert_eq!(back.positions_m, m.positions_m);
@@ -384,10 +344,7 @@ fn stl_binary_round_trip_welds_corners() {
     let dir = tempfile::tempdir().unwrap();
     let m = exact_box();
     // Some exporters start the binary header with "solid": still binary.
-    for (k, header) in [&b"binary box"[..], &b"solid box (binary)"[..]]
-        .iter()
-        .enumerate()
-    {
+    for (k, header) in [&b"binary box"[..], &b"solid box (binary)"[..]].iter().enumerate() {
         let path = dir.path().join(format!("box{k}.stl"));
         write_stl_binary(&path, &f32_positions(&m), &m.triangles, header);
         let (back, r) = load(&path, 1.0).unwrap();
@@ -430,12 +387,7 @@ fn unit_scale_converts_millimetres() {
 fn transformed_translates_and_rotates() {
     let m = plaque_box(0.060, 0.040, 0.00635);
     // A quarter turn about z, then a shift: (x, y, z) -> (-y + 1, x + 2, z + 3).
-    let quarter = [
-        [0.0, -1.0, 0.0, 1.0],
-        [1.0, 0.0, 0.0, 2.0],
-        [0.0, 0.0, 1.0, 3.0],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
+    let quarter = [[0.0, -1.0, 0.0, 1.0], [1.0, 0.0, 0.0, 2.0], [0.0, 0.0, 1.0, 3.0], [0.0, 0.0, 0.0, 1.0]];
     let t = m.transformed(&quarter);
     assert_eq!(t.triangles, m.triangles);
     for (p, q) in m.positions_m.iter().zip(&t.positions_m) {
@@ -448,12 +400,8 @@ fn transformed_translates_and_rotates() {
     let (s, c) = 30f64.to_radians().sin_cos();
     let k = 1.0 / 3f64.sqrt();
     let (a, b) = ((1.0 - c) / 3.0, s * k);
-    let rot = [
-        [c + a, a - b, a + b, -0.5],
-        [a + b, c + a, a - b, 0.25],
-        [a - b, a + b, c + a, 0.0],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
+    let rot =
+        [[c + a, a - b, a + b, -0.5], [a + b, c + a, a - b, 0.25], [a - b, a + b, c + a, 0.0], [0.0, 0.0, 0.0, 1.0]];
     let t = m.transformed(&rot);
     let v = m.signed_volume_m3();
     assert!((t.signed_volume_m3() - v).abs() < 1e-12 * v);
@@ -498,10 +446,7 @@ fn degenerate_triangles_are_removed_on_load() {
     assert_eq!(back.triangles.len(), 12);
     assert_same_box(&back, &path);
     assert!(r.closed);
-    assert!(r
-        .warnings
-        .iter()
-        .any(|w| w.contains("2 degenerate triangles")));
+    assert!(r.warnings.iter().any(|w| w.contains("2 degenerate triangles")));
 }
 
 // ------------------------------------------------------------ bad input
@@ -513,35 +458,18 @@ fn bad_files_give_specific_errors() {
     assert!(s.contains("ends early") && s.contains("'vertex'"), "{s}");
 
     let (e, s) = load_err("face_index_out_of_range.ply");
-    assert!(
-        matches!(
-            e,
-            MeshError::IndexOutOfRange {
-                face: 2,
-                index: 7,
-                vertices: 4,
-                ..
-            }
-        ),
-        "{s}"
-    );
+    assert!(matches!(e, MeshError::IndexOutOfRange { face: 2, index: 7, vertices: 4, .. }), "{s}");
     assert!(s.contains("face 2") && s.contains("vertex index 7"), "{s}");
 
     let (e, s) = load_err("negative_index.ply");
-    assert!(
-        matches!(e, MeshError::IndexOutOfRange { index: -1, .. }),
-        "{s}"
-    );
+    assert!(matches!(e, MeshError::IndexOutOfRange { index: -1, .. }), "{s}");
 
     let (e, s) = load_err("nan_vertex.obj");
     assert!(matches!(e, MeshError::NonFinite { vertex: 1, .. }), "{s}");
     assert!(s.contains("vertex 1") && s.contains("non-finite"), "{s}");
 
     let (e, s) = load_err("empty.stl");
-    assert!(
-        matches!(e, MeshError::Empty { .. }) && s.contains("empty"),
-        "{s}"
-    );
+    assert!(matches!(e, MeshError::Empty { .. }) && s.contains("empty"), "{s}");
 
     let (e, s) = load_err("unknown_format.xyz");
     assert!(matches!(e, MeshError::UnknownFormat { .. }), "{s}");
@@ -552,10 +480,7 @@ fn bad_files_give_specific_errors() {
     assert!(s.contains("magic number"), "{s}");
 
     let (_, s) = load_err("truncated_binary.stl");
-    assert!(
-        s.contains("ends early") && s.contains("12 triangles"),
-        "{s}"
-    );
+    assert!(s.contains("ends early") && s.contains("12 triangles"), "{s}");
 
     let (_, s) = load_err("bad_number.stl");
     assert!(s.contains("ASCII STL"), "{s}");
@@ -750,10 +675,7 @@ fn load_big(n: u32) {
         let start = Instant::now();
         let (m, r) = load(&path, 1.0).unwrap();
         let seconds = start.elapsed().as_secs_f64();
-        println!(
-            "{f} triangles, {}: load (parse + check) {seconds:.3} s",
-            path.extension().unwrap().to_string_lossy()
-        );
+        println!("{f} triangles, {}: load (parse + check) {seconds:.3} s", path.extension().unwrap().to_string_lossy());
         assert_eq!((r.vertices, r.triangles, m.triangles.len()), (v, f, f));
         assert!(r.closed, "{r:?}");
         assert_eq!((r.boundary_edges, r.non_manifold_edges), (0, 0));

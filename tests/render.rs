@@ -42,8 +42,7 @@ fn libm_erfc(x: f64) -> f64 {
                         + t * (-0.186_288_06
                             + t * (0.278_868_07
                                 + t * (-1.135_203_98
-                                    + t * (1.488_515_87
-                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
+                                    + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
             .exp();
     if x >= 0.0 {
         r
@@ -84,18 +83,11 @@ fn agrees_with_mitsuba(name: &str, spp: u32, sum_tolerance: f64, block: usize) {
     let dir = root().join("fixtures/reference/render");
     let (w, h, mean) = read_exr_channels(&dir.join(format!("{name}_mean.exr")), &["R", "G", "B"])
         .expect("Mitsuba reference mean (tools/reference/mitsuba_render.py)");
-    let (_, _, var) = read_exr_channels(&dir.join(format!("{name}_var.exr")), &["R", "G", "B"])
-        .expect("Mitsuba reference variance");
+    let (_, _, var) =
+        read_exr_channels(&dir.join(format!("{name}_var.exr")), &["R", "G", "B"]).expect("Mitsuba reference variance");
     let loaded = scene::load(&root().join(format!("fixtures/render/{name}.toml"))).unwrap();
-    assert_eq!(
-        (loaded.scene.camera.width, loaded.scene.camera.height),
-        (w, h)
-    );
-    let settings = Settings {
-        spp,
-        seed: 2024,
-        ..loaded.settings.clone()
-    };
+    assert_eq!((loaded.scene.camera.width, loaded.scene.camera.height), (w, h));
+    let settings = Settings { spp, seed: 2024, ..loaded.settings.clone() };
     let (img, stats) = render(&loaded.scene, &settings, &mut |_| {});
     assert_eq!(stats.leaked_paths + stats.truncated_paths, 0);
     let (bw, bh) = (w / block, h / block);
@@ -140,30 +132,15 @@ fn agrees_with_mitsuba(name: &str, spp: u32, sum_tolerance: f64, block: usize) {
         std::fs::create_dir_all(&out).unwrap();
         let plane = |c: usize| img.mean.iter().map(|v| v[c] as f32).collect::<Vec<f32>>();
         let (r, g, b) = (plane(0), plane(1), plane(2));
-        write_exr_channels(
-            &out.join("actual.exr"),
-            w,
-            h,
-            &[("R", &r), ("G", &g), ("B", &b)],
-        )
-        .unwrap();
-        write_exr_channels(
-            &out.join("reference.exr"),
-            w,
-            h,
-            &[("R", &mean[0]), ("G", &mean[1]), ("B", &mean[2])],
-        )
-        .unwrap();
+        write_exr_channels(&out.join("actual.exr"), w, h, &[("R", &r), ("G", &g), ("B", &b)]).unwrap();
+        write_exr_channels(&out.join("reference.exr"), w, h, &[("R", &mean[0]), ("G", &mean[1]), ("B", &mean[2])])
+            .unwrap();
         let n = w * h;
         write_exr_channels(
             &out.join("z.exr"),
             w,
             h,
-            &[
-                ("R", &z_img[..n]),
-                ("G", &z_img[n..2 * n]),
-                ("B", &z_img[2 * n..]),
-            ],
+            &[("R", &z_img[..n]), ("G", &z_img[n..2 * n]), ("B", &z_img[2 * n..])],
         )
         .unwrap();
     }
@@ -177,11 +154,7 @@ fn agrees_with_mitsuba(name: &str, spp: u32, sum_tolerance: f64, block: usize) {
     );
     // And the image as a whole, a sharper test of a small overall bias.
     let rel = (sum_ours - sum_ref) / sum_ref;
-    assert!(
-        rel.abs() < sum_tolerance,
-        "image sum differs from Mitsuba's by {:.3} %",
-        100.0 * rel
-    );
+    assert!(rel.abs() < sum_tolerance, "image sum differs from Mitsuba's by {:.3} %", 100.0 * rel);
 }
 
 #[test]
@@ -189,47 +162,26 @@ fn bad_scene_files_are_refused_with_reasons() {
     let dir = root().join("tests/bad/render");
     let cases: &[(&str, &[&str])] = &[
         ("unknown_key.toml", &["unknown_key.toml", "focal_lenght_mm"]),
-        (
-            "missing_mesh.toml",
-            &["missing_mesh.toml", "does_not_exist.ply"],
-        ),
+        ("missing_mesh.toml", &["missing_mesh.toml", "does_not_exist.ply"]),
         ("nan_vertex_mesh.toml", &["nan_vertex.obj"]),
         ("negative_sigma.toml", &["negative_sigma.toml", "band 1"]),
         ("bad_g.toml", &["bad_g.toml", "[material] g"]),
-        (
-            "missing_env_map.toml",
-            &["missing_env_map.toml", "nowhere.exr"],
-        ),
-        (
-            "env_both.toml",
-            &["env_both.toml", "either map or constant"],
-        ),
-        (
-            "bad_projection.toml",
-            &["[environment] projection", "\"cube\""],
-        ),
+        ("missing_env_map.toml", &["missing_env_map.toml", "nowhere.exr"]),
+        ("env_both.toml", &["env_both.toml", "either map or constant"]),
+        ("bad_projection.toml", &["[environment] projection", "\"cube\""]),
         ("zero_radius.toml", &["[environment] radius_m"]),
         ("board_reflectance.toml", &["[board] even", "[0, 1]"]),
-        (
-            "object_without_material.toml",
-            &["[material]", "needs a [material]"],
-        ),
+        ("object_without_material.toml", &["[material]", "needs a [material]"]),
         ("camera_both.toml", &["[camera]", "either intrinsics"]),
         ("no_camera_size.toml", &["[camera]", "width and height"]),
-        (
-            "placement_without_scene.toml",
-            &["[object] board_corner", "scene_json"],
-        ),
+        ("placement_without_scene.toml", &["[object] board_corner", "scene_json"]),
         ("not_toml.toml", &["not_toml.toml"]),
     ];
     let listed: Vec<&str> = cases.iter().map(|c| c.0).collect();
     for entry in std::fs::read_dir(&dir).unwrap() {
         let name = entry.unwrap().file_name().to_string_lossy().to_string();
         if name.ends_with(".toml") {
-            assert!(
-                listed.contains(&name.as_str()),
-                "{name} in tests/bad/render has no expectation here"
-            );
+            assert!(listed.contains(&name.as_str()), "{name} in tests/bad/render has no expectation here");
         }
     }
     for (file, needles) in cases {
@@ -238,19 +190,13 @@ fn bad_scene_files_are_refused_with_reasons() {
             Err(e) => e.to_string(),
         };
         for n in *needles {
-            assert!(
-                err.contains(n),
-                "{file}: error {err:?} does not mention {n:?}"
-            );
+            assert!(err.contains(n), "{file}: error {err:?} does not mention {n:?}");
         }
     }
 }
 
 fn lucent(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(args)
-        .output()
-        .expect("run lucent")
+    Command::new(env!("CARGO_BIN_EXE_lucent")).args(args).output().expect("run lucent")
 }
 
 #[test]
@@ -272,19 +218,9 @@ fn cli_writes_exr_png_json() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (w, h, ch) = read_exr_channels(
-        &out.join("render.exr"),
-        &[
-            "R",
-            "G",
-            "B",
-            "variance.R",
-            "variance.G",
-            "variance.B",
-            "spp",
-        ],
-    )
-    .unwrap();
+    let (w, h, ch) =
+        read_exr_channels(&out.join("render.exr"), &["R", "G", "B", "variance.R", "variance.G", "variance.B", "spp"])
+            .unwrap();
     assert_eq!((w, h), (32, 24));
     assert!(ch[6].iter().all(|&s| s == 8.0));
     assert!(ch[3].iter().all(|v| v.is_finite() && *v >= 0.0));
@@ -321,12 +257,7 @@ fn cli_writes_exr_png_json() {
     // A bad scene: non-zero exit, message names the file, nothing written.
     let bad = root().join("tests/bad/render/negative_sigma.toml");
     let out3 = tmp.path().join("r3");
-    let o = lucent(&[
-        "render",
-        bad.to_str().unwrap(),
-        "--out",
-        out3.to_str().unwrap(),
-    ]);
+    let o = lucent(&["render", bad.to_str().unwrap(), "--out", out3.to_str().unwrap()]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("negative_sigma.toml"));
     assert!(!out3.exists());

@@ -198,7 +198,8 @@ impl CameraModel {
     /// pixel, fits inside the image with the pixel centres at the edges).
     pub fn keep_all_intrinsics(&self) -> Intrinsics {
         let (w, h) = (self.image_width as f64, self.image_height as f64);
-        let (mut xmin, mut xmax, mut ymin, mut ymax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        let (mut xmin, mut xmax, mut ymin, mut ymax) =
+            (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
         let mut visit = |u: f64, v: f64| {
             if let Some([x, y, _]) = self.pixel_to_ray(u, v) {
                 xmin = xmin.min(x);
@@ -336,7 +337,10 @@ mod tests {
         for (u, v) in [(0.0, 0.0), (63.0, 0.0), (0.0, 47.0), (63.0, 47.0), (31.0, 0.0), (0.0, 24.0)] {
             let [x, y, _] = cam.pixel_to_ray(u, v).unwrap();
             let (uo, vo) = (k.fx * x + k.cx, k.fy * y + k.cy);
-            assert!((-1e-6..=63.0 + 1e-6).contains(&uo) && (-1e-6..=47.0 + 1e-6).contains(&vo), "({u},{v}) → ({uo},{vo})");
+            assert!(
+                (-1e-6..=63.0 + 1e-6).contains(&uo) && (-1e-6..=47.0 + 1e-6).contains(&vo),
+                "({u},{v}) → ({uo},{vo})"
+            );
         }
     }
 
@@ -481,7 +485,9 @@ pub fn calibrate_photos(
         let list = not_found.iter().map(|n| format!("  {}: {}", n.image, n.reason)).collect::<Vec<_>>().join("\n");
         let hint = match photos.iter().find(|p| found.iter().all(|(f, _)| f.name != p.name)) {
             Some(p) => match cv::suggest_board(&p.image, board)? {
-                Some((c, r)) => format!("\n{} does show a board of {c}x{r} inner corners: is --board {c}x{r} meant?", p.name),
+                Some((c, r)) => {
+                    format!("\n{} does show a board of {c}x{r} inner corners: is --board {c}x{r} meant?", p.name)
+                }
                 None => String::new(),
             },
             None => String::new(),
@@ -536,7 +542,8 @@ pub fn calibrate_photos(
             DistortionModel::Rational => "rational model k1..k6 p1 p2",
         },
         match detector {
-            crate::cv::Detector::Auto => "findChessboardCornersSB (ACCURACY), else findChessboardCorners + cornerSubPix",
+            crate::cv::Detector::Auto =>
+                "findChessboardCornersSB (ACCURACY), else findChessboardCorners + cornerSubPix",
             crate::cv::Detector::SectorBased => "findChessboardCornersSB (ACCURACY)",
             crate::cv::Detector::Classic => "findChessboardCorners + cornerSubPix",
         }

@@ -33,8 +33,10 @@ use crate::camera::{CameraModel, Distortion, DistortionModel, Intrinsics};
 use crate::scene::{BoardSpec, Pose};
 use crate::GrayImage;
 use opencv::core::{self, Mat, Point, Point2f, Point3f, Scalar, Size, TermCriteria, Vector};
+use opencv::mcc::{
+    MCC_CCheckerDetector, MCC_CCheckerDetectorTrait, MCC_CCheckerTrait, MCC_DetectorParameters, MCC_TYPECHART,
+};
 use opencv::prelude::*;
-use opencv::mcc::{MCC_CCheckerDetector, MCC_CCheckerDetectorTrait, MCC_CCheckerTrait, MCC_DetectorParameters, MCC_TYPECHART};
 use opencv::{calib3d, imgcodecs, imgproc};
 use std::path::{Path, PathBuf};
 
@@ -123,7 +125,12 @@ pub fn read_rgb8(path: &Path) -> Result<crate::RgbBuffer, CalibError> {
 
 fn gray_mat(img: &GrayImage) -> Result<Mat, CalibError> {
     if img.data.len() != img.width * img.height {
-        return Err(CalibError::Input(format!("grey image buffer of {} bytes for {} × {}", img.data.len(), img.width, img.height)));
+        return Err(CalibError::Input(format!(
+            "grey image buffer of {} bytes for {} × {}",
+            img.data.len(),
+            img.width,
+            img.height
+        )));
     }
     let m = Mat::new_rows_cols_with_data(img.height as i32, img.width as i32, &img.data).map_err(cv_err("image"))?;
     m.try_clone().map_err(cv_err("image"))
@@ -163,7 +170,11 @@ pub fn looks_like_chessboard(img: &GrayImage, board: &BoardSpec, corners: &[[f64
     let at = |i: usize, j: usize| corners[j * cols + i];
     let step = |i: usize, j: usize, di: bool| {
         let (a, b) = if di {
-            if i + 1 < cols { (at(i, j), at(i + 1, j)) } else { (at(i - 1, j), at(i, j)) }
+            if i + 1 < cols {
+                (at(i, j), at(i + 1, j))
+            } else {
+                (at(i - 1, j), at(i, j))
+            }
         } else if j + 1 < rows {
             (at(i, j), at(i, j + 1))
         } else {
@@ -176,12 +187,15 @@ pub fn looks_like_chessboard(img: &GrayImage, board: &BoardSpec, corners: &[[f64
     for j in 0..rows {
         for i in 0..cols {
             let (c, u, v) = (at(i, j), step(i, j, true), step(i, j, false));
-            let q = |a: f64, b: f64| grey_at(img, c[0] + 0.35 * (a * u[0] + b * v[0]), c[1] + 0.35 * (a * u[1] + b * v[1]));
-            let (Some(pp), Some(mm), Some(pm), Some(mp)) = (q(1.0, 1.0), q(-1.0, -1.0), q(1.0, -1.0), q(-1.0, 1.0)) else {
+            let q =
+                |a: f64, b: f64| grey_at(img, c[0] + 0.35 * (a * u[0] + b * v[0]), c[1] + 0.35 * (a * u[1] + b * v[1]));
+            let (Some(pp), Some(mm), Some(pm), Some(mp)) = (q(1.0, 1.0), q(-1.0, -1.0), q(1.0, -1.0), q(-1.0, 1.0))
+            else {
                 continue;
             };
             let contrast = ((pp + mm) - (pm + mp)) / 2.0;
-            if contrast.abs() > 15.0 && (pp - mm).abs() < 0.5 * contrast.abs() && (pm - mp).abs() < 0.5 * contrast.abs() {
+            if contrast.abs() > 15.0 && (pp - mm).abs() < 0.5 * contrast.abs() && (pm - mp).abs() < 0.5 * contrast.abs()
+            {
                 let parity = if (i + j) % 2 == 0 { 1.0 } else { -1.0 };
                 ok[j * cols + i] = Some(contrast.signum() * parity > 0.0);
             }
@@ -224,14 +238,18 @@ pub fn find_corners(img: &GrayImage, board: &BoardSpec, detector: Detector) -> R
     let mut small = Mat::default();
     let size = Size::new(img.width.div_ceil(f) as i32, img.height.div_ceil(f) as i32);
     imgproc::resize(&full, &mut small, size, 0.0, 0.0, imgproc::INTER_AREA).map_err(cv_err("resize"))?;
-    let small = GrayImage::new(small.cols() as usize, small.rows() as usize, bytes_of(&small)?).map_err(|e| CalibError::Input(e.to_string()))?;
+    let small = GrayImage::new(small.cols() as usize, small.rows() as usize, bytes_of(&small)?)
+        .map_err(|e| CalibError::Input(e.to_string()))?;
     let Some(found) = detect(&small, board, detector)? else {
         return Ok(None);
     };
     // Pixel centres: small (x, y) covers full f·x … f·x + f − 1.
     let (sx, sy) = (img.width as f64 / small.width as f64, img.height as f64 / small.height as f64);
-    let mut c: Vector<Point2f> =
-        found.points.iter().map(|p| Point2f::new(((p[0] + 0.5) * sx - 0.5) as f32, ((p[1] + 0.5) * sy - 0.5) as f32)).collect();
+    let mut c: Vector<Point2f> = found
+        .points
+        .iter()
+        .map(|p| Point2f::new(((p[0] + 0.5) * sx - 0.5) as f32, ((p[1] + 0.5) * sy - 0.5) as f32))
+        .collect();
     let mut spacing: Vec<f64> = (0..board.rows)
         .flat_map(|j| (0..board.cols - 1).map(move |i| (i, j)))
         .filter_map(|(i, j)| {
@@ -241,13 +259,19 @@ pub fn find_corners(img: &GrayImage, board: &BoardSpec, detector: Detector) -> R
         .collect();
     spacing.sort_by(f64::total_cmp);
     let half = (0.25 * spacing.get(spacing.len() / 2).copied().unwrap_or(20.0)).clamp(3.0, 30.0) as i32;
-    let criteria = TermCriteria { typ: core::TermCriteria_EPS + core::TermCriteria_COUNT, max_count: 40, epsilon: 0.01 };
-    imgproc::corner_sub_pix(&full, &mut c, Size::new(half, half), Size::new(-1, -1), criteria).map_err(cv_err("cornerSubPix"))?;
+    let criteria =
+        TermCriteria { typ: core::TermCriteria_EPS + core::TermCriteria_COUNT, max_count: 40, epsilon: 0.01 };
+    imgproc::corner_sub_pix(&full, &mut c, Size::new(half, half), Size::new(-1, -1), criteria)
+        .map_err(cv_err("cornerSubPix"))?;
     let points = to_points(&c);
     if !looks_like_chessboard(img, board, &points) {
         return Ok(None);
     }
-    let detector = if found.detector == "classic" { "classic (downscaled, refined)" } else { "sector-based (downscaled, refined)" };
+    let detector = if found.detector == "classic" {
+        "classic (downscaled, refined)"
+    } else {
+        "sector-based (downscaled, refined)"
+    };
     Ok(Some(Corners { points, detector }))
 }
 
@@ -268,12 +292,15 @@ fn detect(img: &GrayImage, board: &BoardSpec, detector: Detector) -> Result<Opti
     }
     let mut c = Vector::<Point2f>::new();
     let flags = calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE;
-    let ok = calib3d::find_chessboard_corners(&m, pattern(board), &mut c, flags).map_err(cv_err("findChessboardCorners"))?;
+    let ok =
+        calib3d::find_chessboard_corners(&m, pattern(board), &mut c, flags).map_err(cv_err("findChessboardCorners"))?;
     if !ok || c.len() != n {
         return Ok(None);
     }
-    let criteria = TermCriteria { typ: core::TermCriteria_EPS + core::TermCriteria_COUNT, max_count: 30, epsilon: 0.001 };
-    imgproc::corner_sub_pix(&m, &mut c, Size::new(11, 11), Size::new(-1, -1), criteria).map_err(cv_err("cornerSubPix"))?;
+    let criteria =
+        TermCriteria { typ: core::TermCriteria_EPS + core::TermCriteria_COUNT, max_count: 30, epsilon: 0.001 };
+    imgproc::corner_sub_pix(&m, &mut c, Size::new(11, 11), Size::new(-1, -1), criteria)
+        .map_err(cv_err("cornerSubPix"))?;
     let points = to_points(&c);
     if !looks_like_chessboard(img, board, &points) {
         return Ok(None);
@@ -290,7 +317,9 @@ pub fn suggest_board(img: &GrayImage, board: &BoardSpec) -> Result<Option<(usize
     let m = gray_mat(img)?;
     let (c, r) = (board.cols as i64, board.rows as i64);
     let mut candidates = vec![];
-    for (dc, dr) in [(-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (1, 1), (-1, 1), (1, -1), (-2, 0), (0, -2), (2, 0), (0, 2)] {
+    for (dc, dr) in
+        [(-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (1, 1), (-1, 1), (1, -1), (-2, 0), (0, -2), (2, 0), (0, 2)]
+    {
         let (a, b) = (c + dc, r + dr);
         if a >= 3 && b >= 3 {
             candidates.push((a as usize, b as usize));
@@ -300,8 +329,11 @@ pub fn suggest_board(img: &GrayImage, board: &BoardSpec) -> Result<Option<(usize
     candidates.sort_by_key(|&(a, b)| std::cmp::Reverse(a * b));
     for (a, b) in candidates {
         let mut out = Vector::<Point2f>::new();
-        let flags = calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE | calib3d::CALIB_CB_FAST_CHECK;
-        if calib3d::find_chessboard_corners(&m, Size::new(a as i32, b as i32), &mut out, flags).map_err(cv_err("findChessboardCorners"))? {
+        let flags =
+            calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE | calib3d::CALIB_CB_FAST_CHECK;
+        if calib3d::find_chessboard_corners(&m, Size::new(a as i32, b as i32), &mut out, flags)
+            .map_err(cv_err("findChessboardCorners"))?
+        {
             return Ok(Some((a, b)));
         }
     }
@@ -369,7 +401,8 @@ pub fn calibrate(
         DistortionModel::PinholeK3 => 0,
         DistortionModel::Rational => calib3d::CALIB_RATIONAL_MODEL,
     };
-    let criteria = TermCriteria { typ: core::TermCriteria_COUNT + core::TermCriteria_EPS, max_count: 30, epsilon: f64::EPSILON };
+    let criteria =
+        TermCriteria { typ: core::TermCriteria_COUNT + core::TermCriteria_EPS, max_count: 30, epsilon: f64::EPSILON };
     let size = Size::new(image_size.0 as i32, image_size.1 as i32);
     let rms = calib3d::calibrate_camera(&obj, &img, size, &mut k, &mut d, &mut rvecs, &mut tvecs, flags, criteria)
         .map_err(cv_err("calibrateCamera"))?;
@@ -421,8 +454,17 @@ pub fn project_points(points: &[[f64; 3]], pose: &Pose, cam: &CameraModel) -> Re
     let tvec = Mat::from_slice(&pose.translation_m).and_then(|m| m.try_clone()).map_err(cv_err("tvec"))?;
     let mut out = Vector::<core::Point2d>::new();
     let mut jac = Mat::default();
-    calib3d::project_points(&obj, &rvec, &tvec, &camera_mat(&cam.intrinsics)?, &dist_mat(cam)?, &mut out, &mut jac, 0.0)
-        .map_err(cv_err("projectPoints"))?;
+    calib3d::project_points(
+        &obj,
+        &rvec,
+        &tvec,
+        &camera_mat(&cam.intrinsics)?,
+        &dist_mat(cam)?,
+        &mut out,
+        &mut jac,
+        0.0,
+    )
+    .map_err(cv_err("projectPoints"))?;
     Ok(out.iter().map(|p| [p.x, p.y]).collect())
 }
 
@@ -434,8 +476,17 @@ pub fn undistort_map(cam: &CameraModel, new_k: &Intrinsics) -> Result<Vec<[f32; 
     let mut m2 = Mat::default();
     let eye = Mat::eye(3, 3, core::CV_64F).and_then(|e| e.to_mat()).map_err(cv_err("identity"))?;
     let size = Size::new(cam.image_width as i32, cam.image_height as i32);
-    calib3d::init_undistort_rectify_map(&camera_mat(&cam.intrinsics)?, &dist_mat(cam)?, &eye, &camera_mat(new_k)?, size, core::CV_32FC1, &mut m1, &mut m2)
-        .map_err(cv_err("initUndistortRectifyMap"))?;
+    calib3d::init_undistort_rectify_map(
+        &camera_mat(&cam.intrinsics)?,
+        &dist_mat(cam)?,
+        &eye,
+        &camera_mat(new_k)?,
+        size,
+        core::CV_32FC1,
+        &mut m1,
+        &mut m2,
+    )
+    .map_err(cv_err("initUndistortRectifyMap"))?;
     let (u, v) = (m1.data_typed::<f32>().map_err(cv_err("map"))?, m2.data_typed::<f32>().map_err(cv_err("map"))?);
     Ok(u.iter().zip(v).map(|(a, b)| [*a, *b]).collect())
 }
@@ -458,7 +509,8 @@ pub fn draw_view_png(
     let scale = (img.width.max(img.height) as f64 / 640.0).max(1.0);
     let thick = scale.round().max(1.0) as i32;
     if detected.len() == board.cols * board.rows {
-        calib3d::draw_chessboard_corners(&mut bgr, pattern(board), &image_points(detected), true).map_err(cv_err("drawChessboardCorners"))?;
+        calib3d::draw_chessboard_corners(&mut bgr, pattern(board), &image_points(detected), true)
+            .map_err(cv_err("drawChessboardCorners"))?;
     }
     let pt = |p: [f64; 2]| Point::new(p[0].round() as i32, p[1].round() as i32);
     let red = Scalar::new(0.0, 0.0, 255.0, 0.0);
@@ -466,8 +518,16 @@ pub fn draw_view_png(
     for &p in reprojected {
         let c = pt(p);
         for (a, b) in [((-arm, -arm), (arm, arm)), ((-arm, arm), (arm, -arm))] {
-            imgproc::line(&mut bgr, Point::new(c.x + a.0, c.y + a.1), Point::new(c.x + b.0, c.y + b.1), red, thick, imgproc::LINE_AA, 0)
-                .map_err(cv_err("line"))?;
+            imgproc::line(
+                &mut bgr,
+                Point::new(c.x + a.0, c.y + a.1),
+                Point::new(c.x + b.0, c.y + b.1),
+                red,
+                thick,
+                imgproc::LINE_AA,
+                0,
+            )
+            .map_err(cv_err("line"))?;
         }
     }
     let cyan = Scalar::new(255.0, 255.0, 0.0, 0.0);
@@ -478,22 +538,32 @@ pub fn draw_view_png(
     }
     let font = imgproc::FONT_HERSHEY_SIMPLEX;
     let text = |m: &mut Mat, s: &str, at: Point, colour: Scalar| {
-        imgproc::put_text(m, s, at, font, 0.5 * scale, colour, thick, imgproc::LINE_AA, false).map_err(cv_err("putText"))
+        imgproc::put_text(m, s, at, font, 0.5 * scale, colour, thick, imgproc::LINE_AA, false)
+            .map_err(cv_err("putText"))
     };
     if detected.len() == board.cols * board.rows {
         let (o, i1, j1) = (detected[0], detected[1], detected[board.cols]);
         let yellow = Scalar::new(0.0, 255.0, 255.0, 0.0);
         for (end, name) in [(i1, "i"), (j1, "j")] {
             let tip = [o[0] + 2.0 * (end[0] - o[0]), o[1] + 2.0 * (end[1] - o[1])];
-            imgproc::arrowed_line(&mut bgr, pt(o), pt(tip), yellow, thick + 1, imgproc::LINE_AA, 0, 0.2).map_err(cv_err("arrowedLine"))?;
-            let label_at = [tip[0] + 0.35 * (tip[0] - o[0]) - 5.0 * scale, tip[1] + 0.35 * (tip[1] - o[1]) + 5.0 * scale];
+            imgproc::arrowed_line(&mut bgr, pt(o), pt(tip), yellow, thick + 1, imgproc::LINE_AA, 0, 0.2)
+                .map_err(cv_err("arrowedLine"))?;
+            let label_at =
+                [tip[0] + 0.35 * (tip[0] - o[0]) - 5.0 * scale, tip[1] + 0.35 * (tip[1] - o[1]) + 5.0 * scale];
             text(&mut bgr, name, pt(label_at), yellow)?;
         }
         text(&mut bgr, "(0,0)", pt([o[0] + 6.0, o[1] - 6.0]), yellow)?;
     }
     let (h_text, margin) = ((18.0 * scale) as i32, (6.0 * scale) as i32);
-    imgproc::rectangle(&mut bgr, core::Rect::new(0, 0, img.width as i32, h_text + 2 * margin), Scalar::new(0.0, 0.0, 0.0, 0.0), -1, imgproc::LINE_8, 0)
-        .map_err(cv_err("rectangle"))?;
+    imgproc::rectangle(
+        &mut bgr,
+        core::Rect::new(0, 0, img.width as i32, h_text + 2 * margin),
+        Scalar::new(0.0, 0.0, 0.0, 0.0),
+        -1,
+        imgproc::LINE_8,
+        0,
+    )
+    .map_err(cv_err("rectangle"))?;
     text(&mut bgr, label, Point::new(margin, h_text + margin / 2), Scalar::new(255.0, 255.0, 255.0, 0.0))?;
     let mut buf = Vector::<u8>::new();
     imgcodecs::imencode(".png", &bgr, &mut buf, &Vector::new()).map_err(cv_err("imencode PNG"))?;
@@ -520,10 +590,14 @@ pub fn detect_mcc24(width: usize, height: usize, rgb8: &[u8]) -> Result<Option<M
         return Err(CalibError::Input(format!("RGB buffer of {} bytes for {width} × {height}", rgb8.len())));
     }
     let pixels: Vec<core::Vec3b> = rgb8.chunks_exact(3).map(|p| core::Vec3b::from([p[2], p[1], p[0]])).collect();
-    let bgr = Mat::new_rows_cols_with_data(height as i32, width as i32, &pixels).and_then(|m| m.try_clone()).map_err(cv_err("image"))?;
+    let bgr = Mat::new_rows_cols_with_data(height as i32, width as i32, &pixels)
+        .and_then(|m| m.try_clone())
+        .map_err(cv_err("image"))?;
     let mut detector = MCC_CCheckerDetector::create().map_err(cv_err("mcc CCheckerDetector::create"))?;
     let params = MCC_DetectorParameters::create().map_err(cv_err("mcc DetectorParameters::create"))?;
-    let found = detector.process(&bgr, MCC_TYPECHART::MCC24, 1, false, &params).map_err(cv_err("mcc CCheckerDetector::process"))?;
+    let found = detector
+        .process(&bgr, MCC_TYPECHART::MCC24, 1, false, &params)
+        .map_err(cv_err("mcc CCheckerDetector::process"))?;
     if !found {
         return Ok(None);
     }

@@ -67,10 +67,7 @@ impl Motion {
             "euclidean" => Ok(Self::Euclidean),
             "affine" => Ok(Self::Affine),
             "homography" => Ok(Self::Homography),
-            other => Err(CalibError::Input(format!(
-                "motion {other:?}: expected one of {}",
-                Self::NAMES.join(", ")
-            ))),
+            other => Err(CalibError::Input(format!("motion {other:?}: expected one of {}", Self::NAMES.join(", ")))),
         }
     }
 
@@ -108,12 +105,7 @@ pub struct EccOptions {
 impl EccOptions {
     /// 200 iterations, ε = 1e-7, Gaussian 5 × 5.
     pub fn new(motion: Motion) -> Self {
-        Self {
-            motion,
-            max_iterations: 200,
-            epsilon: 1e-7,
-            gauss_filter_size: 5,
-        }
+        Self { motion, max_iterations: 200, epsilon: 1e-7, gauss_filter_size: 5 }
     }
 }
 
@@ -131,31 +123,22 @@ pub struct EccResult {
 }
 
 fn cv_err(context: &'static str) -> impl Fn(opencv::Error) -> CalibError {
-    move |e| CalibError::OpenCv {
-        context,
-        message: e.message,
-    }
+    move |e| CalibError::OpenCv { context, message: e.message }
 }
 
 fn f32_mat(data: &[f32], width: usize, height: usize) -> Result<Mat, CalibError> {
-    let m = Mat::new_rows_cols_with_data(height as i32, width as i32, data)
-        .map_err(cv_err("ECC image"))?;
+    let m = Mat::new_rows_cols_with_data(height as i32, width as i32, data).map_err(cv_err("ECC image"))?;
     m.try_clone().map_err(cv_err("ECC image"))
 }
 
 fn u8_mat(data: &[u8], width: usize, height: usize) -> Result<Mat, CalibError> {
-    let m = Mat::new_rows_cols_with_data(height as i32, width as i32, data)
-        .map_err(cv_err("ECC mask"))?;
+    let m = Mat::new_rows_cols_with_data(height as i32, width as i32, data).map_err(cv_err("ECC mask"))?;
     m.try_clone().map_err(cv_err("ECC mask"))
 }
 
 /// Warp of level `l` → warp of the level below (pixel i ↦ 2i).
 fn upscale(w: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    [
-        [w[0][0], w[0][1], 2.0 * w[0][2]],
-        [w[1][0], w[1][1], 2.0 * w[1][2]],
-        [w[2][0] / 2.0, w[2][1] / 2.0, w[2][2]],
-    ]
+    [[w[0][0], w[0][1], 2.0 * w[0][2]], [w[1][0], w[1][1], 2.0 * w[1][2]], [w[2][0] / 2.0, w[2][1] / 2.0, w[2][2]]]
 }
 
 /// Finds the warp from `template` to `input` (both `width × height`,
@@ -171,9 +154,7 @@ pub fn find_transform_ecc(
     mask: Option<&[u8]>,
     options: &EccOptions,
 ) -> Result<EccResult, CalibError> {
-    let n = width
-        .checked_mul(height)
-        .ok_or_else(|| CalibError::Input("image size overflows".into()))?;
+    let n = width.checked_mul(height).ok_or_else(|| CalibError::Input("image size overflows".into()))?;
     if template.len() != n || input.len() != n || mask.is_some_and(|m| m.len() != n) {
         return Err(CalibError::Input(format!(
             "ECC buffers of {}, {} and {:?} values for {width} × {height}",
@@ -183,22 +164,16 @@ pub fn find_transform_ecc(
         )));
     }
     if width < 16 || height < 16 {
-        return Err(CalibError::Input(format!(
-            "ECC needs at least 16 × 16 pixels, got {width} × {height}"
-        )));
+        return Err(CalibError::Input(format!("ECC needs at least 16 × 16 pixels, got {width} × {height}")));
     }
     if let Some(m) = mask {
         let used = m.iter().filter(|&&v| v != 0).count();
         if used < 64 {
-            return Err(CalibError::Input(format!(
-                "the ECC region has {used} pixels; at least 64 are needed"
-            )));
+            return Err(CalibError::Input(format!("the ECC region has {used} pixels; at least 64 are needed")));
         }
     }
     if template.iter().chain(input).any(|v| !v.is_finite()) {
-        return Err(CalibError::Input(
-            "ECC images contain NaN or infinite values".into(),
-        ));
+        return Err(CalibError::Input("ECC images contain NaN or infinite values".into()));
     }
     // Pyramid, finest first.
     let mut levels = vec![(
@@ -207,9 +182,7 @@ pub fn find_transform_ecc(
         mask.map(|m| u8_mat(m, width, height)).transpose()?,
     )];
     loop {
-        let (t, i, m) = levels
-            .last()
-            .ok_or_else(|| CalibError::Input("empty pyramid".into()))?;
+        let (t, i, m) = levels.last().ok_or_else(|| CalibError::Input("empty pyramid".into()))?;
         let (w, h) = (t.cols() as usize, t.rows() as usize);
         if w.max(h) <= PYRAMID_MAX_SIDE || w.min(h) < 64 {
             break;
@@ -221,8 +194,7 @@ pub fn find_transform_ecc(
         let m2 = match m {
             Some(m) => {
                 let mut out = Mat::default();
-                imgproc::resize(m, &mut out, size, 0.0, 0.0, imgproc::INTER_NEAREST)
-                    .map_err(cv_err("resize mask"))?;
+                imgproc::resize(m, &mut out, size, 0.0, 0.0, imgproc::INTER_NEAREST).map_err(cv_err("resize mask"))?;
                 Some(out)
             }
             None => None,
@@ -261,33 +233,18 @@ pub fn find_transform_ecc(
         )
         .map_err(cv_err("findTransformECC"))?;
         let v: Vec<f32> = if w.is_continuous() {
-            w.data_typed::<f32>()
-                .map_err(cv_err("warp matrix"))?
-                .to_vec()
+            w.data_typed::<f32>().map_err(cv_err("warp matrix"))?.to_vec()
         } else {
-            w.try_clone()
-                .map_err(cv_err("warp matrix"))?
-                .data_typed::<f32>()
-                .map_err(cv_err("warp matrix"))?
-                .to_vec()
+            w.try_clone().map_err(cv_err("warp matrix"))?.data_typed::<f32>().map_err(cv_err("warp matrix"))?.to_vec()
         };
         let v: Vec<f64> = v.into_iter().map(f64::from).collect();
         warp = match v.len() {
             6 => [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [0.0, 0.0, 1.0]],
             9 => [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]],
-            len => {
-                return Err(CalibError::Input(format!(
-                    "findTransformECC returned a warp of {len} values"
-                )))
-            }
+            len => return Err(CalibError::Input(format!("findTransformECC returned a warp of {len} values"))),
         };
     }
-    Ok(EccResult {
-        motion: options.motion,
-        warp,
-        correlation,
-        levels: count,
-    })
+    Ok(EccResult { motion: options.motion, warp, correlation, levels: count })
 }
 
 #[cfg(test)]
@@ -297,15 +254,12 @@ mod tests {
     fn pattern(x: f64, y: f64) -> f32 {
         // Smooth blobs and stripes: informative in both directions.
         let blob = (-((x - 60.0).powi(2) + (y - 45.0).powi(2)) / 300.0).exp();
-        (0.4 + 0.25 * (0.19 * x).sin() * (0.13 * y + 0.4).cos()
-            + 0.3 * blob
-            + 0.1 * (0.07 * (x - 2.0 * y)).sin()) as f32
+        (0.4 + 0.25 * (0.19 * x).sin() * (0.13 * y + 0.4).cos() + 0.3 * blob + 0.1 * (0.07 * (x - 2.0 * y)).sin())
+            as f32
     }
 
     fn shifted(w: usize, h: usize, dx: f64, dy: f64, gain: f32) -> Vec<f32> {
-        (0..w * h)
-            .map(|i| gain * pattern((i % w) as f64 - dx, (i / w) as f64 - dy) + 0.05)
-            .collect()
+        (0..w * h).map(|i| gain * pattern((i % w) as f64 - dx, (i / w) as f64 - dy) + 0.05).collect()
     }
 
     #[test]
@@ -313,20 +267,8 @@ mod tests {
         let (w, h) = (160, 120);
         let template = shifted(w, h, 0.0, 0.0, 1.0);
         let input = shifted(w, h, 2.5, -1.25, 0.7);
-        let r = find_transform_ecc(
-            &template,
-            &input,
-            w,
-            h,
-            None,
-            &EccOptions::new(Motion::Translation),
-        )
-        .unwrap();
-        assert!(
-            (r.warp[0][2] - 2.5).abs() < 0.05 && (r.warp[1][2] + 1.25).abs() < 0.05,
-            "{:?}",
-            r.warp
-        );
+        let r = find_transform_ecc(&template, &input, w, h, None, &EccOptions::new(Motion::Translation)).unwrap();
+        assert!((r.warp[0][2] - 2.5).abs() < 0.05 && (r.warp[1][2] + 1.25).abs() < 0.05, "{:?}", r.warp);
         assert_eq!(r.warp[0][0], 1.0);
         assert!(r.correlation > 0.99);
     }
@@ -335,31 +277,15 @@ mod tests {
     fn pyramid_finds_a_large_shift_and_the_mask_is_respected() {
         let (w, h) = (1200, 700);
         let big = |x: f64, y: f64| pattern(x / 6.0, y / 6.0);
-        let template: Vec<f32> = (0..w * h)
-            .map(|i| big((i % w) as f64, (i / w) as f64))
-            .collect();
-        let input: Vec<f32> = (0..w * h)
-            .map(|i| big((i % w) as f64 - 14.0, (i / w) as f64 - 9.5))
-            .collect();
+        let template: Vec<f32> = (0..w * h).map(|i| big((i % w) as f64, (i / w) as f64)).collect();
+        let input: Vec<f32> = (0..w * h).map(|i| big((i % w) as f64 - 14.0, (i / w) as f64 - 9.5)).collect();
         // Mask out nothing useful: only a central rectangle is used.
-        let mask: Vec<u8> = (0..w * h)
-            .map(|i| u8::from((200..1000).contains(&(i % w)) && (100..600).contains(&(i / w))))
-            .collect();
-        let r = find_transform_ecc(
-            &template,
-            &input,
-            w,
-            h,
-            Some(&mask),
-            &EccOptions::new(Motion::Translation),
-        )
-        .unwrap();
+        let mask: Vec<u8> =
+            (0..w * h).map(|i| u8::from((200..1000).contains(&(i % w)) && (100..600).contains(&(i / w)))).collect();
+        let r =
+            find_transform_ecc(&template, &input, w, h, Some(&mask), &EccOptions::new(Motion::Translation)).unwrap();
         assert!(r.levels >= 2);
-        assert!(
-            (r.warp[0][2] - 14.0).abs() < 0.05 && (r.warp[1][2] - 9.5).abs() < 0.05,
-            "{:?}",
-            r.warp
-        );
+        assert!((r.warp[0][2] - 14.0).abs() < 0.05 && (r.warp[1][2] - 9.5).abs() < 0.05, "{:?}", r.warp);
     }
 
     #[test]
@@ -368,63 +294,26 @@ mod tests {
         let template = shifted(w, h, 0.0, 0.0, 1.0);
         let input = shifted(w, h, -1.0, 0.5, 1.0);
         for motion in [Motion::Affine, Motion::Homography, Motion::Euclidean] {
-            let r = find_transform_ecc(&template, &input, w, h, None, &EccOptions::new(motion))
-                .unwrap();
-            assert!(
-                (r.warp[0][2] + 1.0).abs() < 0.1 && (r.warp[1][2] - 0.5).abs() < 0.1,
-                "{motion:?} {:?}",
-                r.warp
-            );
+            let r = find_transform_ecc(&template, &input, w, h, None, &EccOptions::new(motion)).unwrap();
+            assert!((r.warp[0][2] + 1.0).abs() < 0.1 && (r.warp[1][2] - 0.5).abs() < 0.1, "{motion:?} {:?}", r.warp);
             assert!((r.warp[0][0] - 1.0).abs() < 0.01 && (r.warp[2][2] - 1.0).abs() < 1e-6);
         }
     }
 
     #[test]
     fn bad_input_is_an_error() {
-        let e = find_transform_ecc(
-            &[0.0; 10],
-            &[0.0; 10],
-            5,
-            2,
-            None,
-            &EccOptions::new(Motion::Translation),
-        )
-        .unwrap_err();
+        let e =
+            find_transform_ecc(&[0.0; 10], &[0.0; 10], 5, 2, None, &EccOptions::new(Motion::Translation)).unwrap_err();
         assert!(e.to_string().contains("16 × 16"), "{e}");
-        assert!(find_transform_ecc(
-            &[0.0; 10],
-            &[0.0; 9],
-            5,
-            2,
-            None,
-            &EccOptions::new(Motion::Translation)
-        )
-        .is_err());
+        assert!(find_transform_ecc(&[0.0; 10], &[0.0; 9], 5, 2, None, &EccOptions::new(Motion::Translation)).is_err());
         let mut t = vec![0.5f32; 400];
         t[3] = f32::NAN;
-        assert!(find_transform_ecc(
-            &t,
-            &[0.5; 400],
-            20,
-            20,
-            None,
-            &EccOptions::new(Motion::Affine)
-        )
-        .is_err());
+        assert!(find_transform_ecc(&t, &[0.5; 400], 20, 20, None, &EccOptions::new(Motion::Affine)).is_err());
         // Flat images: OpenCV reports non-convergence as an error, not a panic.
-        assert!(find_transform_ecc(
-            &[0.5; 400],
-            &[0.5; 400],
-            20,
-            20,
-            None,
-            &EccOptions::new(Motion::Translation)
-        )
-        .is_err());
-        assert!(Motion::from_name("shear")
-            .unwrap_err()
-            .to_string()
-            .contains("translation, euclidean"));
+        assert!(
+            find_transform_ecc(&[0.5; 400], &[0.5; 400], 20, 20, None, &EccOptions::new(Motion::Translation)).is_err()
+        );
+        assert!(Motion::from_name("shear").unwrap_err().to_string().contains("translation, euclidean"));
         assert_eq!(Motion::from_name("Homography").unwrap(), Motion::Homography);
     }
 }

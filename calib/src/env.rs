@@ -64,7 +64,11 @@ pub fn apply_matrix(img: &mut RgbBuffer, m: &[[f64; 3]; 3]) {
 /// a `"matrix"` key holding one, or nine numbers separated by commas,
 /// semicolons or spaces (row-major).
 pub fn parse_matrix(text: &str) -> Result<[[f64; 3]; 3], EnvError> {
-    let bad = |why: &str| EnvError::Matrix(format!("{why}; give 9 numbers row-major, a JSON [[..],[..],[..]] or {{\"matrix\": [[..],..]}}"));
+    let bad = |why: &str| {
+        EnvError::Matrix(format!(
+            "{why}; give 9 numbers row-major, a JSON [[..],[..],[..]] or {{\"matrix\": [[..],..]}}"
+        ))
+    };
     // Numbers in order of appearance; a JSON object's other keys must not hold numbers.
     let t = text.trim();
     let body = if t.starts_with('{') {
@@ -149,7 +153,10 @@ mod tests {
         let want = [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [7.0, 8.0, 9.5]];
         assert_eq!(parse_matrix("1,2,3; 4,5,6; 7,8,9.5").unwrap(), want);
         assert_eq!(parse_matrix("[[1,2,3],[4,5,6],[7,8,9.5]]").unwrap(), want);
-        assert_eq!(parse_matrix("{\"note\": \"x\", \"matrix\": [[1,2,3],[4,5,6],[7,8,9.5]], \"n\": 24}").unwrap(), want);
+        assert_eq!(
+            parse_matrix("{\"note\": \"x\", \"matrix\": [[1,2,3],[4,5,6],[7,8,9.5]], \"n\": 24}").unwrap(),
+            want
+        );
         assert!(parse_matrix("1,2,3").unwrap_err().to_string().contains("found 3 numbers"));
         assert!(parse_matrix("1,2,x,4,5,6,7,8,9").is_err());
         assert!(parse_matrix("{\"m\": [1]}").is_err());

@@ -92,11 +92,8 @@ impl GrayImage {
     /// 99.5th percentile maps to 255 (so dark linear photos still show the
     /// board).
     pub fn from_linear_rgb(img: &RgbBuffer) -> Self {
-        let mut luma: Vec<f32> = img
-            .data
-            .chunks_exact(3)
-            .map(|p| (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]).max(0.0))
-            .collect();
+        let mut luma: Vec<f32> =
+            img.data.chunks_exact(3).map(|p| (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]).max(0.0)).collect();
         let mut sorted: Vec<f32> = luma.iter().copied().filter(|v| v.is_finite()).collect();
         sorted.sort_by(f32::total_cmp);
         let index = (sorted.len().saturating_sub(1) as f64 * 0.995).round() as usize;

@@ -486,7 +486,13 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
     }
 
     // Levels from sensor parity to active-area CFA position.
-    let to_active = |v: [f32; 4]| -> [f32; 4] { if cpp == 1 { std::array::from_fn(|k| v[swap(k)]) } else { v } };
+    let to_active = |v: [f32; 4]| -> [f32; 4] {
+        if cpp == 1 {
+            std::array::from_fn(|k| v[swap(k)])
+        } else {
+            v
+        }
+    };
     let wb = img.wb_coeffs;
     let camera_wb = (wb[..3].iter().all(|v| v.is_finite() && *v > 0.0))
         .then(|| [f64::from(wb[0] / wb[1]), 1.0, f64::from(wb[2] / wb[1])]);
@@ -497,7 +503,8 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
     // rawloader keeps its camera table's matrices as integers ×10000 (dcraw's
     // adobe_coeff convention) and DNG matrices as they are.
     let matrix_scale = if exif.dng { 1.0 } else { 1e-4 };
-    let xyz_to_camera = std::array::from_fn(|r| std::array::from_fn(|c| f64::from(img.xyz_to_cam[r][c]) * matrix_scale));
+    let xyz_to_camera =
+        std::array::from_fn(|r| std::array::from_fn(|c| f64::from(img.xyz_to_cam[r][c]) * matrix_scale));
     let cropped_pattern = pattern.map(|b| b.shifted(area.top, area.left));
     let meta = RawMetadata {
         source: path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
@@ -542,9 +549,9 @@ pub fn develop(frame: &RawFrame, opts: &RawOptions) -> Result<(RgbBuffer, RawMet
     let mut meta = frame.meta.clone();
     let gains = match opts.white_balance {
         WhiteBalance::None => None,
-        WhiteBalance::Camera => {
-            Some(meta.camera_wb_multipliers.ok_or_else(|| RawError::NoCameraWhiteBalance { path: frame.path.clone() })?)
-        }
+        WhiteBalance::Camera => Some(
+            meta.camera_wb_multipliers.ok_or_else(|| RawError::NoCameraWhiteBalance { path: frame.path.clone() })?,
+        ),
     };
     meta.white_balance_applied = gains;
     let rgb = match &frame.data {
@@ -562,7 +569,8 @@ pub fn develop(frame: &RawFrame, opts: &RawOptions) -> Result<(RgbBuffer, RawMet
                 None => m,
             };
             meta.demosaic = opts.demosaic.name().into();
-            demosaic::demosaic(m, opts.demosaic).map_err(|source| RawError::Demosaic { path: frame.path.clone(), source })?
+            demosaic::demosaic(m, opts.demosaic)
+                .map_err(|source| RawError::Demosaic { path: frame.path.clone(), source })?
         }
         RawData::Rgb(img) => {
             let mut img = img.clone();

@@ -266,7 +266,12 @@ pub fn place_sample(board: &BoardSpec, sample: &SampleSpec, frame: &RendererFram
             corners.push(at(dx, dy, dz));
         }
     }
-    SamplePlacement { corner_ij: sample.corner, size_m: sample.size_m, object_to_world: m, box_corners_world_m: corners }
+    SamplePlacement {
+        corner_ij: sample.corner,
+        size_m: sample.size_m,
+        object_to_world: m,
+        box_corners_world_m: corners,
+    }
 }
 
 /// The scene JSON: camera, board and sample in the renderer's convention.
@@ -331,7 +336,13 @@ mod tests {
 
     #[test]
     fn rodrigues_round_trips_including_near_pi() {
-        for r in [[0.1, -0.2, 0.3], [0.0, 0.0, 0.0], [2.0, 1.0, -0.5], [0.0, std::f64::consts::PI - 1e-9, 0.0], [1e-8, 0.0, 0.0]] {
+        for r in [
+            [0.1, -0.2, 0.3],
+            [0.0, 0.0, 0.0],
+            [2.0, 1.0, -0.5],
+            [0.0, std::f64::consts::PI - 1e-9, 0.0],
+            [1e-8, 0.0, 0.0],
+        ] {
             let back = rotation_vector(&rodrigues(r));
             for k in 0..3 {
                 assert!((back[k] - r[k]).abs() < 1e-7, "{r:?} → {back:?}");
@@ -363,7 +374,8 @@ mod tests {
             }
             // camera_to_world is a rotation (orthonormal, det +1) and a translation.
             let r: Mat3 = std::array::from_fn(|a| std::array::from_fn(|b| frame.camera_to_world[a][b]));
-            let det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+            let det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+                - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
                 + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
             assert!((det - 1.0).abs() < 1e-12);
         }
@@ -382,7 +394,14 @@ mod tests {
         assert!((c2[0] - 0.1891).abs() < 1e-12 && (c2[1] + 0.1245).abs() < 1e-12);
         assert!((s.box_corners_world_m[4][2] - 0.00635).abs() < 1e-15);
         assert!((s.object_to_world[0][3] - (0.04 + 0.1491 / 2.0)).abs() < 1e-12);
-        let scene = describe_scene(&Intrinsics { fx: 800.0, fy: 800.0, cx: 320.0, cy: 240.0 }, (640, 480), &pose, &board, None, 0.1);
+        let scene = describe_scene(
+            &Intrinsics { fx: 800.0, fy: 800.0, cx: 320.0, cy: 240.0 },
+            (640, 480),
+            &pose,
+            &board,
+            None,
+            0.1,
+        );
         assert!((scene.vertical_fov_deg - 2.0 * (0.3f64).atan().to_degrees()).abs() < 1e-12);
     }
 

@@ -7,7 +7,9 @@ use lucent_calib::camera::{
     calibrate_photos, undistort, undistort_map, CameraModel, Distortion, DistortionModel, Intrinsics, NewCamera, Photo,
 };
 use lucent_calib::cv::{self, Detector};
-use lucent_calib::scene::{describe_scene, opencv_to_renderer, project_renderer, rodrigues, BoardSpec, Pose, SampleSpec};
+use lucent_calib::scene::{
+    describe_scene, opencv_to_renderer, project_renderer, rodrigues, BoardSpec, Pose, SampleSpec,
+};
 use lucent_calib::{GrayImage, RgbBuffer};
 use rayon::prelude::*;
 use serde_json::Value;
@@ -92,7 +94,11 @@ fn render_board(cam: &CameraModel, rays: &[[f64; 2]], pose: &Pose) -> GrayImage 
                 acc += if lambda <= 0.0 {
                     0.5
                 } else if (-1..=BOARD.cols as i64 - 1).contains(&i) && (-1..=BOARD.rows as i64 - 1).contains(&j) {
-                    if (i + j).rem_euclid(2) == 0 { 0.08 } else { 0.92 }
+                    if (i + j).rem_euclid(2) == 0 {
+                        0.08
+                    } else {
+                        0.92
+                    }
                 } else if (-2..=BOARD.cols as i64).contains(&i) && (-2..=BOARD.rows as i64).contains(&j) {
                     0.92
                 } else {
@@ -109,14 +115,22 @@ fn render_board(cam: &CameraModel, rays: &[[f64; 2]], pose: &Pose) -> GrayImage 
 fn exact_corners_recover_the_camera_exactly() {
     // Our projection and OpenCV's calibration model must be the same model.
     let cam = truth();
-    let views: Vec<Vec<[f64; 2]>> =
-        poses().iter().map(|p| BOARD.corners().iter().map(|&c| cam.project(p.to_camera(c)).unwrap()).collect()).collect();
+    let views: Vec<Vec<[f64; 2]>> = poses()
+        .iter()
+        .map(|p| BOARD.corners().iter().map(|&c| cam.project(p.to_camera(c)).unwrap()).collect())
+        .collect();
     let solved = cv::calibrate(&views, &BOARD, (800, 600), DistortionModel::PinholeK3).unwrap();
     let (k, t) = (solved.camera.intrinsics, cam.intrinsics);
     println!("exact corners: rms {:.2e} px, fx {} fy {} cx {} cy {}", solved.rms_px, k.fx, k.fy, k.cx, k.cy);
     // Corners pass through f32 inside OpenCV (≈ 3e-5 px at 800 px).
     assert!(solved.rms_px < 1e-4, "rms {}", solved.rms_px);
-    assert!((k.fx - t.fx).abs() < 1e-3 && (k.fy - t.fy).abs() < 1e-3 && (k.cx - t.cx).abs() < 1e-3 && (k.cy - t.cy).abs() < 1e-3, "{k:?}");
+    assert!(
+        (k.fx - t.fx).abs() < 1e-3
+            && (k.fy - t.fy).abs() < 1e-3
+            && (k.cx - t.cx).abs() < 1e-3
+            && (k.cy - t.cy).abs() < 1e-3,
+        "{k:?}"
+    );
     assert!((solved.camera.distortion.k1 - cam.distortion.k1).abs() < 1e-4, "{:?}", solved.camera.distortion);
     for (got, want) in solved.poses.iter().zip(poses()) {
         for i in 0..3 {
@@ -129,8 +143,11 @@ fn exact_corners_recover_the_camera_exactly() {
 fn rendered_boards_recover_the_camera_within_tolerance() {
     let cam = truth();
     let rays = subpixel_rays(&cam);
-    let photos: Vec<Photo> =
-        poses().iter().enumerate().map(|(i, p)| Photo { name: format!("view{i:02}"), image: render_board(&cam, &rays, p) }).collect();
+    let photos: Vec<Photo> = poses()
+        .iter()
+        .enumerate()
+        .map(|(i, p)| Photo { name: format!("view{i:02}"), image: render_board(&cam, &rays, p) })
+        .collect();
     let cal = calibrate_photos(&photos, &BOARD, DistortionModel::PinholeK3, Detector::Auto).unwrap();
     let (k, t) = (cal.camera.intrinsics, cam.intrinsics);
     let d = cal.camera.distortion;
@@ -156,8 +173,12 @@ fn rendered_boards_recover_the_camera_within_tolerance() {
         let q = cal.camera.project(ray).unwrap();
         (q[0] - u).hypot(q[1] - v)
     };
-    let inside = cal.views.iter().flat_map(|v| v.corners_px.iter()).map(|c| disagreement(c[0], c[1])).fold(0.0, f64::max);
-    let corners = [(0.0, 0.0), (799.0, 0.0), (0.0, 599.0), (799.0, 599.0)].iter().map(|&(u, v)| disagreement(u, v)).fold(0.0, f64::max);
+    let inside =
+        cal.views.iter().flat_map(|v| v.corners_px.iter()).map(|c| disagreement(c[0], c[1])).fold(0.0, f64::max);
+    let corners = [(0.0, 0.0), (799.0, 0.0), (0.0, 599.0), (799.0, 599.0)]
+        .iter()
+        .map(|&(u, v)| disagreement(u, v))
+        .fold(0.0, f64::max);
     println!("model disagreement: {inside:.3} px over the corners seen, {corners:.3} px at the image corners");
     assert!(inside < 0.3 && corners < 0.5, "{inside} px, {corners} px");
     // Per-view RMS from our projection agrees with OpenCV's overall RMS.
@@ -187,30 +208,56 @@ fn rendered_boards_recover_the_camera_within_tolerance() {
     assert!((d_pnp - d_true).abs() < 1e-3, "camera–board distance {d_pnp} m vs true {d_true} m");
 
     // The view image with corners drawn is a PNG.
-    let png = cv::draw_view_png(&photos[5].image, &BOARD, &view.corners_px, &view.corners_px, &[([10.0, 10.0], [50.0, 40.0])], "view05").unwrap();
+    let png = cv::draw_view_png(
+        &photos[5].image,
+        &BOARD,
+        &view.corners_px,
+        &view.corners_px,
+        &[([10.0, 10.0], [50.0, 40.0])],
+        "view05",
+    )
+    .unwrap();
     assert_eq!(&png[1..4], b"PNG");
 }
 
 #[test]
 fn opencv_sample_photos_match_the_python_reference() {
     let dir = fixtures().join("camera/chessboard");
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "jpg")).collect();
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "jpg"))
+        .collect();
     files.sort();
     let photos: Vec<Photo> = files
         .iter()
-        .map(|f| Photo { name: f.file_name().unwrap().to_string_lossy().into_owned(), image: cv::read_gray(f).unwrap() })
+        .map(|f| Photo {
+            name: f.file_name().unwrap().to_string_lossy().into_owned(),
+            image: cv::read_gray(f).unwrap(),
+        })
         .collect();
     assert_eq!(photos.len(), 13);
     let board = BoardSpec { cols: 9, rows: 6, square_m: 1.0 };
     let cal = calibrate_photos(&photos, &board, DistortionModel::PinholeK3, Detector::Auto).unwrap();
-    let reference: Value =
-        serde_json::from_str(&std::fs::read_to_string(fixtures().join("reference/opencv_left_calibration.json")).unwrap()).unwrap();
+    let reference: Value = serde_json::from_str(
+        &std::fs::read_to_string(fixtures().join("reference/opencv_left_calibration.json")).unwrap(),
+    )
+    .unwrap();
     let r = &reference["auto"];
     let k = cal.camera.intrinsics;
     let f = |key: &str| r[key].as_f64().unwrap();
     println!(
         "lucent: rms {:.4} fx {:.3} fy {:.3} cx {:.3} cy {:.3} | python: rms {:.4} fx {:.3} fy {:.3} cx {:.3} cy {:.3}",
-        cal.rms_px, k.fx, k.fy, k.cx, k.cy, f("rms_px"), f("fx"), f("fy"), f("cx"), f("cy")
+        cal.rms_px,
+        k.fx,
+        k.fy,
+        k.cx,
+        k.cy,
+        f("rms_px"),
+        f("fx"),
+        f("fy"),
+        f("cx"),
+        f("cy")
     );
     for v in &cal.views {
         println!("  {} {} {:.3} px", v.image, v.detector, v.rms_px);
@@ -231,7 +278,8 @@ fn our_projection_and_undistortion_map_agree_with_opencv() {
     for model in [DistortionModel::PinholeK3, DistortionModel::Rational] {
         cam.model = model;
         if model == DistortionModel::Rational {
-            cam.distortion = Distortion { k1: 0.3, k2: -0.05, p1: 0.001, p2: 0.0004, k3: 0.01, k4: 0.6, k5: -0.02, k6: 0.005 };
+            cam.distortion =
+                Distortion { k1: 0.3, k2: -0.05, p1: 0.001, p2: 0.0004, k3: 0.01, k4: 0.6, k5: -0.02, k6: 0.005 };
         }
         let theirs = cv::project_points(&pts, &pose, &cam).unwrap();
         for (p, t) in pts.iter().zip(&theirs) {
@@ -241,7 +289,11 @@ fn our_projection_and_undistortion_map_agree_with_opencv() {
         for new_k in [cam.intrinsics, cam.keep_all_intrinsics()] {
             let theirs = cv::undistort_map(&cam, &new_k).unwrap();
             let mine = undistort_map(&cam, &new_k);
-            let worst = mine.iter().zip(&theirs).map(|(a, b)| (a[0] - f64::from(b[0])).abs().max((a[1] - f64::from(b[1])).abs())).fold(0.0, f64::max);
+            let worst = mine
+                .iter()
+                .zip(&theirs)
+                .map(|(a, b)| (a[0] - f64::from(b[0])).abs().max((a[1] - f64::from(b[1])).abs()))
+                .fold(0.0, f64::max);
             // OpenCV stores the map in f32: ≈ 6e-5 px at 1000 px.
             assert!(worst < 2e-4, "{model:?}: map differs by {worst} px");
         }
@@ -277,7 +329,14 @@ fn scene_convention_is_checked_against_opencv_projection() {
     let mut cam = truth();
     cam.distortion = Distortion::default();
     let pose = poses()[3];
-    let scene = describe_scene(&cam.intrinsics, (800, 600), &pose, &BOARD, Some(&SampleSpec { corner: [2, 1], size_m: [0.1, 0.06, 0.006] }), 0.1);
+    let scene = describe_scene(
+        &cam.intrinsics,
+        (800, 600),
+        &pose,
+        &BOARD,
+        Some(&SampleSpec { corner: [2, 1], size_m: [0.1, 0.06, 0.006] }),
+        0.1,
+    );
     let sample = scene.sample.as_ref().unwrap();
     let frame = opencv_to_renderer(&pose);
     assert_eq!(frame.camera_to_world, scene.camera_to_world);
@@ -307,7 +366,11 @@ fn large_photos_are_detected_downscaled_and_refined_at_full_size() {
         let (xb, yb): (f64, f64) = ((0..3).map(|m| r[m][0] * q[m]).sum(), (0..3).map(|m| r[m][1] * q[m]).sum());
         let (i, j) = ((xb / s).floor() as i64, (yb / s).floor() as i64);
         if (-1..BOARD.cols as i64).contains(&i) && (-1..BOARD.rows as i64).contains(&j) {
-            if (i + j).rem_euclid(2) == 0 { 0.08 } else { 0.92 }
+            if (i + j).rem_euclid(2) == 0 {
+                0.08
+            } else {
+                0.92
+            }
         } else if (-2..=BOARD.cols as i64).contains(&i) && (-2..=BOARD.rows as i64).contains(&j) {
             0.92
         } else {
@@ -318,14 +381,23 @@ fn large_photos_are_detected_downscaled_and_refined_at_full_size() {
         .into_par_iter()
         .map(|p| {
             let (u, v) = ((p % w) as f64, (p / w) as f64);
-            let sum: f64 = [(-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25)].iter().map(|(du, dv)| shade(u + du, v + dv)).sum();
+            let sum: f64 = [(-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25)]
+                .iter()
+                .map(|(du, dv)| shade(u + du, v + dv))
+                .sum();
             (sum / 4.0 * 255.0).round() as u8
         })
         .collect();
     let img = GrayImage::new(w, h, data).unwrap();
     let found = cv::find_corners(&img, &BOARD, Detector::Auto).unwrap().unwrap();
     assert_eq!(found.detector, "sector-based (downscaled, refined)");
-    let cam = CameraModel { model: DistortionModel::PinholeK3, image_width: w, image_height: h, intrinsics: k, distortion: Distortion::default() };
+    let cam = CameraModel {
+        model: DistortionModel::PinholeK3,
+        image_width: w,
+        image_height: h,
+        intrinsics: k,
+        distortion: Distortion::default(),
+    };
     let truth: Vec<[f64; 2]> = BOARD.corners().iter().map(|c| cam.project(pose.to_camera(*c)).unwrap()).collect();
     // The detector may number the corners from the other end of the board.
     let err = |order: &mut dyn Iterator<Item = usize>| {
@@ -370,13 +442,21 @@ fn no_board_wrong_size_and_mixed_sizes_are_clear_errors() {
     // (A smaller size than the board's would be found inside it, as a sub-board.)
     let wrong = BoardSpec { cols: 10, rows: 6, square_m: 0.025 };
     let e = calibrate_photos(&photos, &wrong, DistortionModel::PinholeK3, Detector::Auto).unwrap_err().to_string();
-    assert!(e.contains("no photo shows a chessboard of 10x6") && e.contains("left01.jpg") && e.contains("left03.jpg"), "{e}");
+    assert!(
+        e.contains("no photo shows a chessboard of 10x6") && e.contains("left01.jpg") && e.contains("left03.jpg"),
+        "{e}"
+    );
     assert!(e.contains("--board 9x6"), "suggests the right size: {e}");
 
     let blank = |n: &str| Photo { name: n.into(), image: GrayImage::new(640, 480, vec![200; 640 * 480]).unwrap() };
-    let e = calibrate_photos(&[blank("a.png"), blank("b.png"), blank("c.png")], &BOARD, DistortionModel::PinholeK3, Detector::Auto)
-        .unwrap_err()
-        .to_string();
+    let e = calibrate_photos(
+        &[blank("a.png"), blank("b.png"), blank("c.png")],
+        &BOARD,
+        DistortionModel::PinholeK3,
+        Detector::Auto,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("a.png") && e.contains("low contrast"), "{e}");
 
     let mut two = vec![load("left01.jpg"), load("left02.jpg"), blank("c.png")];

@@ -50,7 +50,8 @@ fn write_dng(path: &Path, d: &Dng) {
         e.write_tag(Tag::Unknown(50713), &[2u16, 2][..]).unwrap(); // BlackLevelRepeatDim
         e.write_tag(Tag::Unknown(50714), &BLACK[..]).unwrap(); // BlackLevel
         e.write_tag(Tag::Unknown(50717), WHITE).unwrap(); // WhiteLevel
-        let cm: Vec<SRational> = XYZ_TO_CAM.iter().map(|v| SRational { n: (v * 10000.0).round() as i32, d: 10000 }).collect();
+        let cm: Vec<SRational> =
+            XYZ_TO_CAM.iter().map(|v| SRational { n: (v * 10000.0).round() as i32, d: 10000 }).collect();
         e.write_tag(Tag::Unknown(50721), &cm[..]).unwrap(); // ColorMatrix1
         e.write_tag(Tag::Unknown(50778), 21u16).unwrap(); // CalibrationIlluminant1 = D65
         let an: Vec<Rational> = NEUTRAL.iter().map(|v| Rational { n: (v * 1000.0) as u32, d: 1000 }).collect();
@@ -79,7 +80,10 @@ fn known_mosaic_round_trips_exactly() {
         assert_eq!(m.black_levels, BLACK.map(f32::from), "BlackLevel per active-area CFA position");
         assert_eq!(m.white_levels, [f32::from(WHITE); 4]);
         let [top, left, bottom, right] = ACTIVE.map(|v| v as usize);
-        assert_eq!((m.active_area.top, m.active_area.left, m.active_area.width, m.active_area.height), (top, left, right - left, bottom - top));
+        assert_eq!(
+            (m.active_area.top, m.active_area.left, m.active_area.width, m.active_area.height),
+            (top, left, right - left, bottom - top)
+        );
         for r in 0..3 {
             for c in 0..3 {
                 assert!((m.xyz_to_camera[r][c] - XYZ_TO_CAM[3 * r + c]).abs() < 1e-6, "matrix [{r}][{c}]");

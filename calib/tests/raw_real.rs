@@ -81,7 +81,11 @@ fn mosaic_is_identical_to_librarys_after_black_and_white_scaling() {
     for v in &m.data {
         crc.update(&v.to_le_bytes());
     }
-    assert_eq!(u64::from(crc.finalize()), mos["crc32_scaled_f32le"].as_u64().unwrap(), "CRC-32 of the whole scaled mosaic");
+    assert_eq!(
+        u64::from(crc.finalize()),
+        mos["crc32_scaled_f32le"].as_u64().unwrap(),
+        "CRC-32 of the whole scaled mosaic"
+    );
     let at = |row: usize, col: usize| m.data[row * m.width + col];
     for t in mos["tiles"].as_array().unwrap() {
         let (r0, c0) = (t["row"].as_u64().unwrap() as usize, t["col"].as_u64().unwrap() as usize);
@@ -174,7 +178,8 @@ fn bilinear_matches_librarys_linear_and_malvar_is_close_to_ahd() {
     let means = r["demosaic"]["linear"]["channel_means"].as_array().unwrap();
     let scale = num(&r["demosaic"]["linear"]["scale_dn_per_unit"]);
     for (c, theirs) in means.iter().enumerate() {
-        let mine: f64 = bil.data.iter().skip(c).step_by(3).map(|&v| f64::from(v)).sum::<f64>() / (bil.width * bil.height) as f64;
+        let mine: f64 =
+            bil.data.iter().skip(c).step_by(3).map(|&v| f64::from(v)).sum::<f64>() / (bil.width * bil.height) as f64;
         let theirs = num(theirs) * scale;
         assert!((mine - theirs).abs() < 0.05 + 1e-4 * theirs, "channel {c} mean {mine} vs {theirs} DN");
     }
@@ -191,12 +196,20 @@ fn bilinear_matches_librarys_linear_and_malvar_is_close_to_ahd() {
     assert!(rel < 0.06, "MHC vs AHD mean relative difference {rel}");
 
     // The full pipeline (develop) gives the same as demosaicing the scaled mosaic.
-    let (img, meta) = develop(&frame, &RawOptions { demosaic: Demosaic::Bilinear, white_balance: WhiteBalance::None, white_level: Some(white) }).unwrap();
+    let (img, meta) = develop(
+        &frame,
+        &RawOptions { demosaic: Demosaic::Bilinear, white_balance: WhiteBalance::None, white_level: Some(white) },
+    )
+    .unwrap();
     assert_eq!(meta.orientation.0, 1);
     assert_eq!((img.width, img.height), (3522, 2348));
     let (max, _, _) = compare(&img, &r["demosaic"]["linear"], 0);
     // Per-channel normalisation differs from LibRaw's by 1 DN in 3968 for G.
-    let (max_dn, _, _) = compare(&lucent_calib::RgbBuffer { data: img.data.iter().map(|v| v * (white - 127.5)).collect(), ..img.clone() }, &r["demosaic"]["linear"], 0);
+    let (max_dn, _, _) = compare(
+        &lucent_calib::RgbBuffer { data: img.data.iter().map(|v| v * (white - 127.5)).collect(), ..img.clone() },
+        &r["demosaic"]["linear"],
+        0,
+    );
     assert!(max_dn < 0.6, "develop() vs LibRaw LINEAR: {max_dn} DN (unscaled {max})");
 }
 
@@ -206,7 +219,11 @@ fn camera_white_balance_multiplies_red_and_blue() {
     let frame = read_raw(&path, None).unwrap();
     let wb = frame.meta.camera_wb_multipliers.unwrap();
     let plain = develop(&frame, &RawOptions { demosaic: Demosaic::Bilinear, ..Default::default() }).unwrap().0;
-    let (bal, meta) = develop(&frame, &RawOptions { demosaic: Demosaic::Bilinear, white_balance: WhiteBalance::Camera, white_level: None }).unwrap();
+    let (bal, meta) = develop(
+        &frame,
+        &RawOptions { demosaic: Demosaic::Bilinear, white_balance: WhiteBalance::Camera, white_level: None },
+    )
+    .unwrap();
     assert_eq!(meta.white_balance_applied, Some(wb));
     for (x, y) in [(100, 100), (1761, 1174), (3000, 2000)] {
         let (p, b) = (plain.pixel(x, y), bal.pixel(x, y));

@@ -118,10 +118,7 @@ struct PaddedTriangle {
 
 impl Boundable for PaddedTriangle {
     fn aabb(&self) -> Aabb {
-        Aabb {
-            min: self.min,
-            max: self.max,
-        }
+        Aabb { min: self.min, max: self.max }
     }
 }
 
@@ -170,9 +167,7 @@ impl Accel {
                 planes: None,
             };
         }
-        let extent = (hi - lo)
-            .max_element()
-            .max(lo.abs().max(hi.abs()).max_element());
+        let extent = (hi - lo).max_element().max(lo.abs().max(hi.abs()).max_element());
         let extent = extent.max(f64::MIN_POSITIVE);
         let scale = 10.0 / extent;
         let pad = 1e-6 * extent;
@@ -180,17 +175,10 @@ impl Accel {
             .iter()
             .map(|t| {
                 let (mn, mx) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-                PaddedTriangle {
-                    min: to_f32_down((mn - pad) * scale),
-                    max: to_f32_up((mx + pad) * scale),
-                }
+                PaddedTriangle { min: to_f32_down((mn - pad) * scale), max: to_f32_up((mx + pad) * scale) }
             })
             .collect();
-        let bvh = build_cwbvh(
-            &boxes,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
-        );
+        let bvh = build_cwbvh(&boxes, BvhBuildParams::medium_build(), &mut Duration::default());
         let original = bvh.primitive_indices.clone();
         let tris = original.iter().map(|&i| triangles[i as usize]).collect();
         let planes = convex_planes(triangles, extent);
@@ -245,11 +233,7 @@ impl Accel {
             return None;
         }
         let [a, b, c] = self.tris[best as usize];
-        Some(Hit {
-            t: best_t,
-            triangle: self.original[best as usize],
-            normal: (b - a).cross(c - a).normalize(),
-        })
+        Some(Hit { t: best_t, triangle: self.original[best as usize], normal: (b - a).cross(c - a).normalize() })
     }
 
     /// True when the mesh is convex and [`exit`](Self::exit) uses its face planes.
@@ -289,12 +273,10 @@ impl Accel {
         }
         let ray = self.bvh_ray(origin, dir, t_max);
         let pre = Shear::new(dir);
-        !self
-            .bvh
-            .ray_traverse_miss(ray, |_, id| match pre.intersect(origin, &self.tris[id]) {
-                Some(t) if t < t_max => 0.0,
-                _ => f32::INFINITY,
-            })
+        !self.bvh.ray_traverse_miss(ray, |_, id| match pre.intersect(origin, &self.tris[id]) {
+            Some(t) if t < t_max => 0.0,
+            _ => f32::INFINITY,
+        })
     }
 }
 
@@ -340,11 +322,8 @@ impl Accel {
     fn bvh_ray(&self, origin: DVec3, dir: DVec3, t_max: f64) -> Ray {
         let d = Vec3A::new(dir.x as f32 + 0.0, dir.y as f32 + 0.0, dir.z as f32 + 0.0);
         let o = origin * self.scale - BEHIND * dir;
-        let tmax = if t_max.is_finite() {
-            ((t_max * self.scale + BEHIND) as f32) * (1.0 + 1e-5)
-        } else {
-            f32::INFINITY
-        };
+        let tmax =
+            if t_max.is_finite() { ((t_max * self.scale + BEHIND) as f32) * (1.0 + 1e-5) } else { f32::INFINITY };
         Ray::new(o.as_vec3a(), d, 0.0, tmax)
     }
 }
@@ -380,14 +359,7 @@ impl Shear {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        Self {
-            kx,
-            ky,
-            kz,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
-            sz: 1.0 / d[kz],
-        }
+        Self { kx, ky, kz, sx: d[kx] / d[kz], sy: d[ky] / d[kz], sz: 1.0 / d[kz] }
     }
 
     /// t > 0 of the hit with triangle `v`, or None.
@@ -432,18 +404,8 @@ mod tests {
             )
         };
         // Faces as quads (counter-clockwise seen from outside).
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        quads
-            .iter()
-            .flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]])
-            .collect()
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        quads.iter().flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]]).collect()
     }
 
     #[test]
@@ -453,11 +415,7 @@ mod tests {
         let mut tris = cube(DVec3::new(-1.0, -1.0, -1.0), DVec3::new(1.0, 1.0, 0.0));
         tris.extend(cube(DVec3::new(3.0, 3.0, 3.0), DVec3::new(4.0, 4.0, 4.0)));
         let accel = Accel::new(&tris);
-        for d in [
-            DVec3::new(0.0, -0.0, -1.0),
-            DVec3::new(-0.0, -0.0, -1.0),
-            DVec3::new(-0.0, 0.0, -1.0),
-        ] {
+        for d in [DVec3::new(0.0, -0.0, -1.0), DVec3::new(-0.0, -0.0, -1.0), DVec3::new(-0.0, 0.0, -1.0)] {
             let hit = accel.intersect(DVec3::new(0.25, 0.3, 1.0), d, f64::INFINITY);
             assert_eq!(hit.map(|h| h.t), Some(1.0), "direction {d:?}");
         }
@@ -468,10 +426,7 @@ mod tests {
         // From random interior points, every direction meets the closed box
         // exactly at the analytic exit distance, and the normal points along
         // the ray (leaving). Watertight: no ray escapes through an edge.
-        let (lo, hi) = (
-            DVec3::new(-0.03, -0.02, 0.001),
-            DVec3::new(0.03, 0.02, 0.00735),
-        );
+        let (lo, hi) = (DVec3::new(-0.03, -0.02, 0.001), DVec3::new(0.03, 0.02, 0.00735));
         let accel = Accel::new(&cube(lo, hi));
         let mut rng = Rng::new(3, 0);
         for i in 0..200_000 {
@@ -500,14 +455,9 @@ mod tests {
                 let t2 = (hi - o) * inv;
                 t1.max(t2).min_element()
             };
-            let hit = accel
-                .intersect(o, d, f64::INFINITY)
-                .unwrap_or_else(|| panic!("ray {i} escaped: o {o:?} d {d:?}"));
-            assert!(
-                (hit.t - t_exit).abs() <= 1e-12 * (1.0 + t_exit),
-                "ray {i}: {} vs {t_exit}",
-                hit.t
-            );
+            let hit =
+                accel.intersect(o, d, f64::INFINITY).unwrap_or_else(|| panic!("ray {i} escaped: o {o:?} d {d:?}"));
+            assert!((hit.t - t_exit).abs() <= 1e-12 * (1.0 + t_exit), "ray {i}: {} vs {t_exit}", hit.t);
             assert!(hit.normal.dot(d) >= 0.0);
             assert!(accel.occluded(o, d, f64::INFINITY));
             assert!(!accel.occluded(o, d, hit.t * (1.0 - 1e-9)));
@@ -518,27 +468,15 @@ mod tests {
     fn hits_closer_than_obvhs_epsilon() {
         // A ray 50 µm from a face of a plaque-sized box (in metres): obvhs'
         // node test alone would skip this hit (t < 10⁻⁴ scene units).
-        let (lo, hi) = (
-            DVec3::new(-0.03, -0.02, 0.001),
-            DVec3::new(0.03, 0.02, 0.00735),
-        );
+        let (lo, hi) = (DVec3::new(-0.03, -0.02, 0.001), DVec3::new(0.03, 0.02, 0.00735));
         let accel = Accel::new(&cube(lo, hi));
-        let o = DVec3::new(
-            -0.02994981919359711,
-            -0.017209603535356176,
-            0.0019624176120455234,
-        );
+        let o = DVec3::new(-0.02994981919359711, -0.017209603535356176, 0.0019624176120455234);
         let d = DVec3::new(-0.6184902651986802, 0.77137204025358, 0.14984981604758674);
-        let hit = accel
-            .intersect(o, d, f64::INFINITY)
-            .expect("hit 81 µm away");
+        let hit = accel.intersect(o, d, f64::INFINITY).expect("hit 81 µm away");
         assert!((hit.t - 8.113435122017591e-5).abs() < 1e-15);
         for gap in [1e-9, 1e-7, 1e-5] {
             let o = DVec3::new(lo.x + gap, 0.0, 0.004);
-            assert!(
-                (accel.intersect(o, -DVec3::X, 1.0).unwrap().t - gap).abs() < 1e-15,
-                "gap {gap}"
-            );
+            assert!((accel.intersect(o, -DVec3::X, 1.0).unwrap().t - gap).abs() < 1e-15, "gap {gap}");
         }
     }
 
@@ -578,23 +516,11 @@ mod tests {
     #[test]
     fn misses_and_t_max() {
         let accel = Accel::new(&cube(DVec3::ZERO, DVec3::ONE));
-        assert!(accel
-            .intersect(
-                DVec3::new(2.0, 2.0, 2.0),
-                DVec3::new(1.0, 0.0, 0.0),
-                f64::INFINITY
-            )
-            .is_none());
+        assert!(accel.intersect(DVec3::new(2.0, 2.0, 2.0), DVec3::new(1.0, 0.0, 0.0), f64::INFINITY).is_none());
         let o = DVec3::new(0.5, 0.5, -1.0);
-        assert_eq!(
-            accel.intersect(o, DVec3::Z, f64::INFINITY).map(|h| h.t),
-            Some(1.0)
-        );
+        assert_eq!(accel.intersect(o, DVec3::Z, f64::INFINITY).map(|h| h.t), Some(1.0));
         assert!(accel.intersect(o, DVec3::Z, 0.999).is_none());
-        assert_eq!(
-            accel.intersect(o, DVec3::Z, f64::INFINITY).unwrap().normal,
-            -DVec3::Z
-        );
+        assert_eq!(accel.intersect(o, DVec3::Z, f64::INFINITY).unwrap().normal, -DVec3::Z);
         assert!(Accel::new(&[]).intersect(o, DVec3::Z, 1e9).is_none());
     }
 
@@ -615,8 +541,7 @@ mod tests {
         let mut hits = 0;
         for _ in 0..3000 {
             let o = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 3.0 - 1.5;
-            let d = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0)
-                .normalize();
+            let d = (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0).normalize();
             let pre = Shear::new(d);
             let brute = tris
                 .iter()

@@ -44,7 +44,9 @@ pub enum CameraError {
     EmptyImage { width: usize, height: usize },
     #[error("intrinsics must be finite with fx, fy > 0, got fx {fx}, fy {fy}, cx {cx}, cy {cy}")]
     BadIntrinsics { fx: f64, fy: f64, cx: f64, cy: f64 },
-    #[error("camera_to_world must be finite with an orthonormal rotation part (columns of length 1, determinant +1); {why}")]
+    #[error(
+        "camera_to_world must be finite with an orthonormal rotation part (columns of length 1, determinant +1); {why}"
+    )]
     BadPose { why: String },
     #[error("distortion coefficients must be finite, got {0:?}")]
     BadDistortion([f64; 5]),
@@ -121,20 +123,12 @@ impl Camera {
             return Err(CameraError::EmptyImage { width, height });
         }
         let [fx, fy, cx, cy] = intrinsics;
-        if !(fx > 0.0
-            && fy > 0.0
-            && fx.is_finite()
-            && fy.is_finite()
-            && cx.is_finite()
-            && cy.is_finite())
-        {
+        if !(fx > 0.0 && fy > 0.0 && fx.is_finite() && fy.is_finite() && cx.is_finite() && cy.is_finite()) {
             return Err(CameraError::BadIntrinsics { fx, fy, cx, cy });
         }
         let m = camera_to_world;
         if m.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(CameraError::BadPose {
-                why: "a value is not finite".into(),
-            });
+            return Err(CameraError::BadPose { why: "a value is not finite".into() });
         }
         let rotation = DMat3::from_cols(
             DVec3::new(m[0][0], m[1][0], m[2][0]),
@@ -148,27 +142,15 @@ impl Camera {
             .fold(0.0, f64::max);
         if ortho > 1e-6 || (rotation.determinant() - 1.0).abs() > 1e-6 {
             return Err(CameraError::BadPose {
-                why: format!(
-                    "RᵀR − I is {ortho:.2e} off, det R = {:.6}",
-                    rotation.determinant()
-                ),
+                why: format!("RᵀR − I is {ortho:.2e} off, det R = {:.6}", rotation.determinant()),
             });
         }
         let distortion = match distortion {
-            Some(d) if d.iter().any(|v| !v.is_finite()) => {
-                return Err(CameraError::BadDistortion(d))
-            }
+            Some(d) if d.iter().any(|v| !v.is_finite()) => return Err(CameraError::BadDistortion(d)),
             Some([k1, k2, p1, p2, k3]) => Some(Distortion { k1, k2, p1, p2, k3 }),
             None => None,
         };
-        Ok(Self {
-            width,
-            height,
-            intrinsics,
-            distortion,
-            position: DVec3::new(m[0][3], m[1][3], m[2][3]),
-            rotation,
-        })
+        Ok(Self { width, height, intrinsics, distortion, position: DVec3::new(m[0][3], m[1][3], m[2][3]), rotation })
     }
 
     /// A camera at `position` looking at `target` with `up` roughly up,
@@ -191,12 +173,7 @@ impl Camera {
             });
         }
         if !(vfov_deg > 0.0 && vfov_deg < 180.0) {
-            return Err(CameraError::BadIntrinsics {
-                fx: f64::NAN,
-                fy: f64::NAN,
-                cx: f64::NAN,
-                cy: f64::NAN,
-            });
+            return Err(CameraError::BadIntrinsics { fx: f64::NAN, fy: f64::NAN, cx: f64::NAN, cy: f64::NAN });
         }
         let f = 0.5 * height as f64 / (0.5 * vfov_deg.to_radians()).tan();
         let m = [
@@ -205,13 +182,7 @@ impl Camera {
             [right.z, true_up.z, back.z, position.z],
             [0.0, 0.0, 0.0, 1.0],
         ];
-        Self::new(
-            width,
-            height,
-            [f, f, 0.5 * width as f64 - 0.5, 0.5 * height as f64 - 0.5],
-            m,
-            None,
-        )
+        Self::new(width, height, [f, f, 0.5 * width as f64 - 0.5, 0.5 * height as f64 - 0.5], m, None)
     }
 
     /// Camera centre in the world, metres.
@@ -256,56 +227,28 @@ mod tests {
 
     #[test]
     fn undistort_inverts_distort() {
-        let d = Distortion {
-            k1: -0.28,
-            k2: 0.07,
-            p1: 1e-3,
-            p2: -2e-4,
-            k3: 0.01,
-        };
+        let d = Distortion { k1: -0.28, k2: 0.07, p1: 1e-3, p2: -2e-4, k3: 0.01 };
         for &(x, y) in &[(0.0, 0.0), (0.3, -0.2), (-0.5, 0.4), (0.1, 0.6)] {
             let (xd, yd) = d.distort(x, y);
             let (xu, yu) = d.undistort(xd, yd);
-            assert!(
-                (xu - x).abs() < 1e-12 && (yu - y).abs() < 1e-12,
-                "({x}, {y}) → ({xu}, {yu})"
-            );
+            assert!((xu - x).abs() < 1e-12 && (yu - y).abs() < 1e-12, "({x}, {y}) → ({xu}, {yu})");
         }
     }
 
     #[test]
     fn ray_projects_back_to_its_pixel_point() {
-        let cam = Camera::look_at(
-            64,
-            48,
-            DVec3::new(0.0, -0.14, 0.16),
-            DVec3::new(0.0, 0.0, 0.004),
-            DVec3::Z,
-            36.0,
-        )
-        .unwrap();
+        let cam =
+            Camera::look_at(64, 48, DVec3::new(0.0, -0.14, 0.16), DVec3::new(0.0, 0.0, 0.004), DVec3::Z, 36.0).unwrap();
         let (p, r) = (cam.position, cam.rotation);
         let mut m: [[f64; 4]; 4] =
             std::array::from_fn(|i| if i < 3 { [r.col(0)[i], r.col(1)[i], r.col(2)[i], p[i]] } else { [0.0; 4] });
         m[3][3] = 1.0;
-        let cam = Camera::new(
-            64,
-            48,
-            cam.intrinsics,
-            m,
-            Some([-0.2, 0.05, 1e-3, 5e-4, 0.0]),
-        )
-        .unwrap();
-        for &(i, j, u) in &[
-            (0, 0, [0.0, 0.0]),
-            (63, 47, [0.999, 0.5]),
-            (20, 30, [0.25, 0.75]),
-        ] {
+        let cam = Camera::new(64, 48, cam.intrinsics, m, Some([-0.2, 0.05, 1e-3, 5e-4, 0.0])).unwrap();
+        for &(i, j, u) in &[(0, 0, [0.0, 0.0]), (63, 47, [0.999, 0.5]), (20, 30, [0.25, 0.75])] {
             let (o, d) = cam.ray(i, j, u);
             let px = cam.project(o + 0.3 * d).unwrap();
             assert!(
-                (px[0] - (i as f64 - 0.5 + u[0])).abs() < 1e-9
-                    && (px[1] - (j as f64 - 0.5 + u[1])).abs() < 1e-9,
+                (px[0] - (i as f64 - 0.5 + u[0])).abs() < 1e-9 && (px[1] - (j as f64 - 0.5 + u[1])).abs() < 1e-9,
                 "{px:?}"
             );
         }
@@ -317,34 +260,14 @@ mod tests {
 
     #[test]
     fn bad_cameras() {
-        let id = [
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-        ];
-        assert!(matches!(
-            Camera::new(0, 4, [1.0, 1.0, 0.0, 0.0], id, None),
-            Err(CameraError::EmptyImage { .. })
-        ));
-        assert!(matches!(
-            Camera::new(4, 4, [-1.0, 1.0, 0.0, 0.0], id, None),
-            Err(CameraError::BadIntrinsics { .. })
-        ));
+        let id = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+        assert!(matches!(Camera::new(0, 4, [1.0, 1.0, 0.0, 0.0], id, None), Err(CameraError::EmptyImage { .. })));
+        assert!(matches!(Camera::new(4, 4, [-1.0, 1.0, 0.0, 0.0], id, None), Err(CameraError::BadIntrinsics { .. })));
         let mut skew = id;
         skew[0][1] = 0.5;
+        assert!(matches!(Camera::new(4, 4, [1.0, 1.0, 0.0, 0.0], skew, None), Err(CameraError::BadPose { .. })));
         assert!(matches!(
-            Camera::new(4, 4, [1.0, 1.0, 0.0, 0.0], skew, None),
-            Err(CameraError::BadPose { .. })
-        ));
-        assert!(matches!(
-            Camera::new(
-                4,
-                4,
-                [1.0, 1.0, 0.0, 0.0],
-                id,
-                Some([f64::NAN, 0.0, 0.0, 0.0, 0.0])
-            ),
+            Camera::new(4, 4, [1.0, 1.0, 0.0, 0.0], id, Some([f64::NAN, 0.0, 0.0, 0.0, 0.0])),
             Err(CameraError::BadDistortion(_))
         ));
         assert!(Camera::look_at(4, 4, DVec3::Z, DVec3::Z, DVec3::Z, 40.0).is_err());

@@ -125,36 +125,22 @@ const CHANNELS: [char; 3] = ['R', 'G', 'B'];
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum EnvError {
     /// Width or height is 0.
-    #[error(
-        "environment map is {width}×{height} pixels: width and height must both be at least 1"
-    )]
+    #[error("environment map is {width}×{height} pixels: width and height must both be at least 1")]
     EmptyMap { width: usize, height: usize },
     /// 3·W·H overflows `usize`.
     #[error("environment map {width}×{height} is too large (3·W·H overflows)")]
     TooLarge { width: usize, height: usize },
     /// The data do not hold exactly 3·W·H values.
     #[error("environment map {width}×{height} needs 3·W·H = {expected} RGB values, got {got}")]
-    DataLength {
-        width: usize,
-        height: usize,
-        expected: usize,
-        got: usize,
-    },
+    DataLength { width: usize, height: usize, expected: usize, got: usize },
     /// A pixel value is NaN, infinite or negative.
     #[error("environment map pixel (x = {x}, y = {y}) channel {channel} is {value}: radiance must be finite and ≥ 0")]
-    BadPixel {
-        x: usize,
-        y: usize,
-        channel: char,
-        value: f32,
-    },
+    BadPixel { x: usize, y: usize, channel: char, value: f32 },
     /// The radiance scale is NaN, infinite or negative.
     #[error("environment radiance scale {0} must be finite and ≥ 0")]
     BadScale(f64),
     /// scale × the largest pixel value is not finite.
-    #[error(
-        "environment radiance overflows: scale {scale} × largest pixel value {max} is not finite"
-    )]
+    #[error("environment radiance overflows: scale {scale} × largest pixel value {max} is not finite")]
     Overflow { scale: f64, max: f32 },
     /// The yaw is NaN or infinite.
     #[error("environment yaw {0}° must be finite")]
@@ -242,28 +228,16 @@ impl Environment {
         if width == 0 || height == 0 {
             return Err(EnvError::EmptyMap { width, height });
         }
-        let expected = width
-            .checked_mul(height)
-            .and_then(|n| n.checked_mul(3))
-            .ok_or(EnvError::TooLarge { width, height })?;
+        let expected =
+            width.checked_mul(height).and_then(|n| n.checked_mul(3)).ok_or(EnvError::TooLarge { width, height })?;
         if rgb.len() != expected {
-            return Err(EnvError::DataLength {
-                width,
-                height,
-                expected,
-                got: rgb.len(),
-            });
+            return Err(EnvError::DataLength { width, height, expected, got: rgb.len() });
         }
         let mut max = 0.0_f32;
         for (i, &value) in rgb.iter().enumerate() {
             if !(value.is_finite() && value >= 0.0) {
                 let pixel = i / 3;
-                return Err(EnvError::BadPixel {
-                    x: pixel % width,
-                    y: pixel / width,
-                    channel: CHANNELS[i % 3],
-                    value,
-                });
+                return Err(EnvError::BadPixel { x: pixel % width, y: pixel / width, channel: CHANNELS[i % 3], value });
             }
             max = max.max(value);
         }
@@ -297,15 +271,9 @@ impl Environment {
                 4.0 * PI / width as f64 * theta_mid.sin() * half_row
             })
             .collect();
-        let pixel = |i: usize| -> [f64; 3] {
-            [
-                f64::from(rgb[3 * i]),
-                f64::from(rgb[3 * i + 1]),
-                f64::from(rgb[3 * i + 2]),
-            ]
-        };
-        let luminance =
-            |c: [f64; 3]| LUMINANCE[0] * c[0] + LUMINANCE[1] * c[1] + LUMINANCE[2] * c[2];
+        let pixel =
+            |i: usize| -> [f64; 3] { [f64::from(rgb[3 * i]), f64::from(rgb[3 * i + 1]), f64::from(rgb[3 * i + 2])] };
+        let luminance = |c: [f64; 3]| LUMINANCE[0] * c[0] + LUMINANCE[1] * c[1] + LUMINANCE[2] * c[2];
 
         // Mean radiance and mean weight (weights are scale-free; a zero scale
         // makes the whole map dark and the sampler empty).
@@ -370,8 +338,7 @@ impl Environment {
     /// that is not known to be valid.
     pub fn constant(rgb: [f64; 3], projection: Projection) -> Self {
         let data = rgb.iter().map(|&c| c as f32).collect();
-        Self::new(1, 1, data, 0.0, 1.0, projection)
-            .unwrap_or_else(|e| panic!("Environment::constant: {e}"))
+        Self::new(1, 1, data, 0.0, 1.0, projection).unwrap_or_else(|e| panic!("Environment::constant: {e}"))
     }
 
     /// Map width W in pixels.
@@ -401,12 +368,7 @@ impl Environment {
 
     /// The stored (unscaled) value of pixel (x, y). Panics if out of range.
     pub fn pixel(&self, x: usize, y: usize) -> [f32; 3] {
-        assert!(
-            x < self.width && y < self.height,
-            "pixel ({x}, {y}) outside {}×{}",
-            self.width,
-            self.height
-        );
+        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) outside {}×{}", self.width, self.height);
         let i = 3 * (y * self.width + x);
         [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
     }
@@ -463,8 +425,7 @@ impl Environment {
         let (y, fy) = pick(&self.row_cdf, u[1]);
         let row = &self.col_cdf[y * (w + 1)..(y + 1) * (w + 1)];
         let (x, fx) = pick(row, u[0]);
-        let prob =
-            (self.row_cdf[y + 1] - self.row_cdf[y]) / total * ((row[x + 1] - row[x]) / row[w]);
+        let prob = (self.row_cdf[y + 1] - self.row_cdf[y]) / total * ((row[x + 1] - row[x]) / row[w]);
 
         let v = (y as f64 + fy) / self.height as f64;
         let um = (x as f64 + fx) / w as f64;
@@ -477,11 +438,7 @@ impl Environment {
         let pdf_c = prob * self.pdf_norm / sin_t;
         let radiance = self.pixel_radiance(y * w + x);
         match self.projection {
-            Projection::Infinite => Some(EnvSample {
-                dir: d,
-                radiance,
-                pdf: pdf_c,
-            }),
+            Projection::Infinite => Some(EnvSample { dir: d, radiance, pdf: pdf_c }),
             Projection::FiniteSphere { centre, .. } => {
                 let o = (p - centre) * self.inv_radius;
                 let s = d - o;
@@ -490,11 +447,7 @@ impl Environment {
                     return None;
                 }
                 let len = s.length();
-                Some(EnvSample {
-                    dir: s / len,
-                    radiance,
-                    pdf: pdf_c * len * len * len / ds,
-                })
+                Some(EnvSample { dir: s / len, radiance, pdf: pdf_c * len * len * len / ds })
             }
         }
     }
@@ -542,8 +495,8 @@ impl Environment {
         if !positive(row[w]) {
             return 0.0;
         }
-        let prob = (self.row_cdf[y + 1] - self.row_cdf[y]) / self.row_cdf[self.height]
-            * ((row[x + 1] - row[x]) / row[w]);
+        let prob =
+            (self.row_cdf[y + 1] - self.row_cdf[y]) / self.row_cdf[self.height] * ((row[x + 1] - row[x]) / row[w]);
         prob * self.pdf_norm / sin_t
     }
 
@@ -566,31 +519,19 @@ impl Environment {
     #[inline]
     fn pixel_radiance(&self, i: usize) -> [f64; 3] {
         let c = &self.rgb[3 * i..3 * i + 3];
-        [
-            self.scale * f64::from(c[0]),
-            self.scale * f64::from(c[1]),
-            self.scale * f64::from(c[2]),
-        ]
+        [self.scale * f64::from(c[0]), self.scale * f64::from(c[1]), self.scale * f64::from(c[2])]
     }
 
     /// R_z(yaw) · m.
     #[inline]
     fn map_to_world(&self, m: DVec3) -> DVec3 {
-        DVec3::new(
-            self.cos_yaw * m.x - self.sin_yaw * m.y,
-            self.sin_yaw * m.x + self.cos_yaw * m.y,
-            m.z,
-        )
+        DVec3::new(self.cos_yaw * m.x - self.sin_yaw * m.y, self.sin_yaw * m.x + self.cos_yaw * m.y, m.z)
     }
 
     /// R_z(−yaw) · d.
     #[inline]
     fn world_to_map(&self, d: DVec3) -> DVec3 {
-        DVec3::new(
-            self.cos_yaw * d.x + self.sin_yaw * d.y,
-            -self.sin_yaw * d.x + self.cos_yaw * d.y,
-            d.z,
-        )
+        DVec3::new(self.cos_yaw * d.x + self.sin_yaw * d.y, -self.sin_yaw * d.x + self.cos_yaw * d.y, d.z)
     }
 }
 
@@ -636,11 +577,7 @@ fn exit_point(o: DVec3, w: DVec3) -> (DVec3, f64, bool) {
     let (t, hit) = if disc >= 0.0 {
         let sq = disc.sqrt();
         // Larger root of t² + 2bt + (|o|² − 1) = 0, i.e. −b + √disc.
-        let t = if b <= 0.0 {
-            sq - b
-        } else {
-            (1.0 - o.length_squared()) / (b + sq)
-        };
+        let t = if b <= 0.0 { sq - b } else { (1.0 - o.length_squared()) / (b + sq) };
         (t.max(0.0), true)
     } else {
         ((-b).max(0.0), false)
@@ -670,10 +607,7 @@ mod tests {
     use super::*;
 
     fn sphere() -> Projection {
-        Projection::FiniteSphere {
-            centre: DVec3::new(0.1, -0.2, 0.3),
-            radius_m: 0.6,
-        }
+        Projection::FiniteSphere { centre: DVec3::new(0.1, -0.2, 0.3), radius_m: 0.6 }
     }
 
     #[test]
@@ -696,12 +630,7 @@ mod tests {
     #[test]
     fn exit_point_from_inside_is_on_the_sphere_and_ahead() {
         let o = DVec3::new(0.3, -0.4, 0.5);
-        for w in [
-            DVec3::X,
-            -DVec3::X,
-            DVec3::Z,
-            DVec3::new(1.0, 2.0, -2.0) / 3.0,
-        ] {
+        for w in [DVec3::X, -DVec3::X, DVec3::Z, DVec3::new(1.0, 2.0, -2.0) / 3.0] {
             let (d, t, hit) = exit_point(o, w);
             assert!(hit && t > 0.0);
             assert!((d.length() - 1.0).abs() < 1e-15, "{d}");
@@ -725,10 +654,7 @@ mod tests {
             vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
             0.0,
             1.0,
-            Projection::FiniteSphere {
-                centre: DVec3::ZERO,
-                radius_m: 1.0,
-            },
+            Projection::FiniteSphere { centre: DVec3::ZERO, radius_m: 1.0 },
         )
         .unwrap();
         // u ∈ [0, ½) is φ ∈ (−π, 0]: y ≤ 0.
@@ -784,28 +710,14 @@ mod tests {
     #[test]
     fn mean_radiance_weights_rows_by_solid_angle() {
         // 1×2 map: upper hemisphere 1, lower 3 → mean 2.
-        let env = Environment::new(
-            1,
-            2,
-            vec![1.0, 1.0, 1.0, 3.0, 3.0, 3.0],
-            0.0,
-            2.0,
-            Projection::Infinite,
-        )
-        .unwrap();
+        let env = Environment::new(1, 2, vec![1.0, 1.0, 1.0, 3.0, 3.0, 3.0], 0.0, 2.0, Projection::Infinite).unwrap();
         for c in env.mean_radiance() {
             assert!((c - 4.0).abs() < 1e-15, "{c}");
         }
         // 1×3 map: bands of 60°; the middle one has solid angle 2π.
-        let env = Environment::new(
-            1,
-            3,
-            vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0],
-            0.0,
-            1.0,
-            Projection::Infinite,
-        )
-        .unwrap();
+        let env =
+            Environment::new(1, 3, vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0], 0.0, 1.0, Projection::Infinite)
+                .unwrap();
         assert!((env.mean_radiance()[0] - 0.5).abs() < 1e-15);
     }
 
@@ -813,10 +725,7 @@ mod tests {
     fn debug_is_short() {
         let env = Environment::new(64, 32, vec![1.0; 3 * 64 * 32], 10.0, 1.0, sphere()).unwrap();
         let s = format!("{env:?}");
-        assert!(
-            s.len() < 300 && s.contains("64") && s.contains("FiniteSphere"),
-            "{s}"
-        );
+        assert!(s.len() < 300 && s.contains("64") && s.contains("FiniteSphere"), "{s}");
     }
 
     #[test]

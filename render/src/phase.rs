@@ -296,10 +296,7 @@ pub fn orthonormal_basis(n: [f64; 3]) -> ([f64; 3], [f64; 3]) {
     let sign = 1.0_f64.copysign(n[2]);
     let a = -1.0 / (sign + n[2]);
     let b = n[0] * n[1] * a;
-    (
-        [1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]],
-        [b, sign + n[1] * n[1] * a, -n[1]],
-    )
+    ([1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]], [b, sign + n[1] * n[1] * a, -n[1]])
 }
 
 /// Henyey–Greenstein p(μ), sr⁻¹. The denominator 1 + g² − 2gμ is formed as
@@ -352,7 +349,9 @@ const GUIDE_CELLS: usize = 4096;
 #[inline]
 fn acos_guess(mu: f64) -> f64 {
     let x = mu.abs();
-    let p = ((((((-0.001_262_491_1 * x + 0.006_670_090_1) * x - 0.017_088_125_6) * x + 0.030_891_881) * x - 0.050_174_304_6) * x
+    let p = ((((((-0.001_262_491_1 * x + 0.006_670_090_1) * x - 0.017_088_125_6) * x + 0.030_891_881) * x
+        - 0.050_174_304_6)
+        * x
         + 0.088_978_987_4)
         * x
         - 0.214_598_801_6)
@@ -459,14 +458,7 @@ impl PhaseTable {
                 u32::try_from(cdf.partition_point(|&c| c > u)).expect("tables longer than 2³² nodes are not made")
             })
             .collect();
-        Ok(Self {
-            mu,
-            values,
-            cdf,
-            guide,
-            inv_dtheta: last / PI,
-            mean_cosine: 2.0 * PI * m,
-        })
+        Ok(Self { mu, values, cdf, guide, inv_dtheta: last / PI, mean_cosine: 2.0 * PI * m })
     }
 
     /// Number of nodes N.
@@ -546,11 +538,7 @@ impl PhaseTable {
         // Its CDF a·s + (b − a)s²/2 = u′(a + b)/2 has the stable root below.
         let (a, b) = (self.values[i + 1], self.values[i]);
         let denom = a + (a * a * (1.0 - up) + b * b * up).sqrt();
-        let s = if denom > 0.0 {
-            (up * (a + b) / denom).min(1.0)
-        } else {
-            0.0
-        };
+        let s = if denom > 0.0 { (up * (a + b) / denom).min(1.0) } else { 0.0 };
         let (lo, hi) = (self.mu[i + 1], self.mu[i]);
         (lo + s * (hi - lo)).min(hi)
     }
@@ -635,7 +623,8 @@ pub(crate) mod lanes {
             if g.abs() < HG_SMALL_G {
                 return None;
             }
-            let (a, b, s) = if g >= 0.0 { ((1.0 - g) * (1.0 - g), 2.0 * g, -1.0) } else { ((1.0 + g) * (1.0 + g), -2.0 * g, 1.0) };
+            let (a, b, s) =
+                if g >= 0.0 { ((1.0 - g) * (1.0 - g), 2.0 * g, -1.0) } else { ((1.0 + g) * (1.0 + g), -2.0 * g, 1.0) };
             Some(Self {
                 one_minus_g2: 1.0 - g * g,
                 one_minus_g: 1.0 - g,
@@ -755,11 +744,7 @@ pub(crate) mod lanes {
             let bb = [b, sign + n[1] * n[1] * a, -n[1]];
             let (x, y) = (self.sin_theta * self.cos_phi, self.sin_theta * self.sin_phi);
             let c = self.cos_theta;
-            [
-                x * t[0] + y * bb[0] + c * n[0],
-                x * t[1] + y * bb[1] + c * n[1],
-                x * t[2] + y * bb[2] + c * n[2],
-            ]
+            [x * t[0] + y * bb[0] + c * n[0], x * t[1] + y * bb[1] + c * n[1], x * t[2] + y * bb[2] + c * n[2]]
         }
     }
 }
@@ -790,9 +775,7 @@ mod tests {
     }
 
     fn hg_values(g: f64, n: usize) -> Vec<f64> {
-        (0..n)
-            .map(|i| hg_eval(g, (i as f64 * PI / (n - 1) as f64).cos()))
-            .collect()
+        (0..n).map(|i| hg_eval(g, (i as f64 * PI / (n - 1) as f64).cos())).collect()
     }
 
     /// A Mie-like table: a Gaussian forward lobe of 0.5° width 10⁵ times the
@@ -803,9 +786,7 @@ mod tests {
         (0..n)
             .map(|i| {
                 let th = i as f64 * PI / (n - 1) as f64;
-                1e5 * (-0.5 * (th / sigma).powi(2)).exp()
-                    + 1.0
-                    + 3.0 * (-0.5 * ((PI - th) / 0.3).powi(2)).exp()
+                1e5 * (-0.5 * (th / sigma).powi(2)).exp() + 1.0 + 3.0 * (-0.5 * ((PI - th) / 0.3).powi(2)).exp()
             })
             .collect()
     }
@@ -817,18 +798,11 @@ mod tests {
     /// expected counts by Simpson quadrature of `pdf` over each bin (not
     /// renormalised), bins with expected count < 5 pooled. Returns the
     /// p-value.
-    fn chi2_pvalue(
-        sample: impl Fn(f64) -> f64,
-        pdf: impl Fn(f64) -> f64,
-        n: usize,
-        seed: u64,
-    ) -> f64 {
+    fn chi2_pvalue(sample: impl Fn(f64) -> f64, pdf: impl Fn(f64) -> f64, n: usize, seed: u64) -> f64 {
         const K: usize = 256;
         const MIN_EXPECTED: f64 = 5.0;
         // θ edges 0 … π; bin j (in ascending μ) is θ ∈ [θ_{K−j−1}, θ_{K−j}].
-        let theta: Vec<f64> = (0..=K)
-            .map(|k| 0.5 * PI * (1.0 - (PI * k as f64 / K as f64).cos()))
-            .collect();
+        let theta: Vec<f64> = (0..=K).map(|k| 0.5 * PI * (1.0 - (PI * k as f64 / K as f64).cos())).collect();
         let mut mu_edges: Vec<f64> = theta.iter().rev().map(|t| t.cos()).collect();
         mu_edges[0] = -1.0;
         mu_edges[K] = 1.0;
@@ -838,15 +812,11 @@ mod tests {
         for _ in 0..n {
             let mu = sample(rng.next_f64());
             assert!((-1.0..=1.0).contains(&mu), "sample out of range: {mu}");
-            let j = mu_edges
-                .partition_point(|&e| e <= mu)
-                .saturating_sub(1)
-                .min(K - 1);
+            let j = mu_edges.partition_point(|&e| e <= mu).saturating_sub(1).min(K - 1);
             observed[j] += 1.0;
         }
-        let expected: Vec<f64> = (0..K)
-            .map(|j| n as f64 * sphere_integral(&pdf, theta[K - j - 1], theta[K - j], 256))
-            .collect();
+        let expected: Vec<f64> =
+            (0..K).map(|j| n as f64 * sphere_integral(&pdf, theta[K - j - 1], theta[K - j], 256)).collect();
 
         // Pool the low-expectation bins (smallest first), as pbrt does.
         let mut order: Vec<usize> = (0..K).collect();
@@ -858,8 +828,7 @@ mod tests {
                 if observed[j] > 0.0 {
                     return 0.0; // a sample where the pdf says none can be
                 }
-            } else if expected[j] < MIN_EXPECTED || (pooled_exp > 0.0 && pooled_exp < MIN_EXPECTED)
-            {
+            } else if expected[j] < MIN_EXPECTED || (pooled_exp > 0.0 && pooled_exp < MIN_EXPECTED) {
                 pooled_obs += observed[j];
                 pooled_exp += expected[j];
                 pooled_cells += 1;
@@ -887,11 +856,7 @@ mod tests {
     }
 
     fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
     }
 
     fn normalize(v: [f64; 3]) -> [f64; 3] {
@@ -919,9 +884,7 @@ mod tests {
             let text = (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5));
             assert!((p.eval(mu) / text - 1.0).abs() < 1e-13, "g={g}");
         }
-        assert!(
-            (Phase::HenyeyGreenstein { g: 0.5 }.eval(1.0) - 0.477_464_829_275_686).abs() < 1e-12
-        );
+        assert!((Phase::HenyeyGreenstein { g: 0.5 }.eval(1.0) - 0.477_464_829_275_686).abs() < 1e-12);
     }
 
     #[test]
@@ -939,13 +902,7 @@ mod tests {
     #[test]
     fn hg_constructor_rejects_bad_g() {
         for g in [1.0, -1.0, 1.5, f64::NAN, f64::INFINITY] {
-            assert!(
-                matches!(
-                    Phase::henyey_greenstein(g),
-                    Err(PhaseError::InvalidAsymmetry { .. })
-                ),
-                "g={g}"
-            );
+            assert!(matches!(Phase::henyey_greenstein(g), Err(PhaseError::InvalidAsymmetry { .. })), "g={g}");
         }
         assert!(Phase::henyey_greenstein(-0.999).is_ok());
     }
@@ -954,26 +911,16 @@ mod tests {
     fn hg_sampling_inverts_the_analytic_cdf() {
         // F(μ) = (1 − g²)/(2g) · (1/√(1 + g² − 2gμ) − 1/(1 + g)), F(−1) = 0, F(1) = 1.
         for g in [-0.9, -0.3, 0.002, 0.5, 0.97] {
-            let cdf = |mu: f64| {
-                (1.0 - g * g) / (2.0 * g)
-                    * (1.0 / (1.0 + g * g - 2.0 * g * mu).sqrt() - 1.0 / (1.0 + g))
-            };
+            let cdf =
+                |mu: f64| (1.0 - g * g) / (2.0 * g) * (1.0 / (1.0 + g * g - 2.0 * g * mu).sqrt() - 1.0 / (1.0 + g));
             for k in 0..=100 {
                 let u = k as f64 / 100.0;
                 let mu = hg_sample_cos_theta(g, u);
                 assert!((cdf(mu) - u).abs() < 1e-10, "g={g} u={u}: F(μ)={}", cdf(mu));
             }
-            assert!(
-                (hg_sample_cos_theta(g, 0.0) + 1.0).abs() < 1e-13,
-                "g={g}: {}",
-                hg_sample_cos_theta(g, 0.0)
-            );
+            assert!((hg_sample_cos_theta(g, 0.0) + 1.0).abs() < 1e-13, "g={g}: {}", hg_sample_cos_theta(g, 0.0));
             // The standard inversion loses ~ε/|g| to cancellation.
-            assert!(
-                (hg_sample_cos_theta(g, 1.0) - 1.0).abs() < 1e-13,
-                "g={g}: {}",
-                hg_sample_cos_theta(g, 1.0)
-            );
+            assert!((hg_sample_cos_theta(g, 1.0) - 1.0).abs() < 1e-13, "g={g}: {}", hg_sample_cos_theta(g, 1.0));
         }
         // g > 0 scatters forward: more than half the draws have μ > 0.
         assert!(hg_sample_cos_theta(0.5, 0.5) > 0.0);
@@ -988,10 +935,7 @@ mod tests {
                 let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
                 let standard = (1.0 + g * g - s * s) / (2.0 * g);
                 let small = hg_sample_small_g(g, u);
-                assert!(
-                    (standard - small).abs() < 1e-11,
-                    "g={g} u={u}: {standard} vs {small}"
-                );
+                assert!((standard - small).abs() < 1e-11, "g={g} u={u}: {standard} vs {small}");
             }
         }
         for k in 0..=16 {
@@ -1004,12 +948,7 @@ mod tests {
     fn chi2_hg_sampling() {
         for (seed, g) in HG_GS.into_iter().chain([4e-4, -0.6]).enumerate() {
             let p = Phase::HenyeyGreenstein { g };
-            let pval = chi2_pvalue(
-                |u| p.sample_cos_theta(u),
-                |mu| p.eval(mu),
-                N_CHI2,
-                seed as u64,
-            );
+            let pval = chi2_pvalue(|u| p.sample_cos_theta(u), |mu| p.eval(mu), N_CHI2, seed as u64);
             assert!(pval > ALPHA, "HG g={g}: χ² p-value {pval:e}");
         }
     }
@@ -1019,24 +958,13 @@ mod tests {
         // Power check: samples of HG g = 0.5 tested against the pdf of g = 0.55.
         let sample = Phase::HenyeyGreenstein { g: 0.5 };
         let wrong = Phase::HenyeyGreenstein { g: 0.55 };
-        let pval = chi2_pvalue(
-            |u| sample.sample_cos_theta(u),
-            |mu| wrong.eval(mu),
-            N_CHI2,
-            11,
-        );
-        assert!(
-            pval < ALPHA,
-            "χ² failed to reject a wrong pdf: p = {pval:e}"
-        );
+        let pval = chi2_pvalue(|u| sample.sample_cos_theta(u), |mu| wrong.eval(mu), N_CHI2, 11);
+        assert!(pval < ALPHA, "χ² failed to reject a wrong pdf: p = {pval:e}");
         // ... and a table sampler against a 1 % narrower forward lobe.
         let t = PhaseTable::from_theta_samples(&hg_values(0.97, 4096)).unwrap();
         let wrong = Phase::HenyeyGreenstein { g: 0.9703 };
         let pval = chi2_pvalue(|u| t.sample_cos_theta(u), |mu| wrong.eval(mu), N_CHI2, 12);
-        assert!(
-            pval < ALPHA,
-            "χ² failed to reject a wrong pdf: p = {pval:e}"
-        );
+        assert!(pval < ALPHA, "χ² failed to reject a wrong pdf: p = {pval:e}");
     }
 
     // ------------------------------------------------------------- the table
@@ -1054,22 +982,12 @@ mod tests {
         let norm = sphere_integral(|mu| t.eval(mu), 0.0, PI, 8 * (n - 1));
         assert!((norm - 1.0).abs() < 1e-10, "∫p dω = {norm}");
         let mean = sphere_integral(|mu| mu * t.eval(mu), 0.0, PI, 8 * (n - 1));
-        assert!(
-            (mean - t.mean_cosine()).abs() < 1e-10,
-            "{mean} vs {}",
-            t.mean_cosine()
-        );
-        assert!(
-            (t.mean_cosine() - 0.9).abs() < 1e-4,
-            "g = {}",
-            t.mean_cosine()
-        );
+        assert!((mean - t.mean_cosine()).abs() < 1e-10, "{mean} vs {}", t.mean_cosine());
+        assert!((t.mean_cosine() - 0.9).abs() < 1e-4, "g = {}", t.mean_cosine());
 
         // Exact trapezoid in μ of the stored nodes.
         let (mu, p) = (t.node_cos_theta(), t.theta_samples());
-        let trap: f64 = (0..n - 1)
-            .map(|i| (mu[i] - mu[i + 1]) * 0.5 * (p[i] + p[i + 1]))
-            .sum();
+        let trap: f64 = (0..n - 1).map(|i| (mu[i] - mu[i + 1]) * 0.5 * (p[i] + p[i + 1])).sum();
         assert!((2.0 * PI * trap - 1.0).abs() < 1e-13);
 
         // Node values are the input up to one factor; eval reproduces them.
@@ -1077,12 +995,7 @@ mod tests {
         for i in 0..n {
             assert!((p[i] / raw[i] / scale - 1.0).abs() < 1e-13, "node {i}");
             let c = (i as f64 * PI / (n - 1) as f64).cos();
-            assert!(
-                (t.eval(c) / p[i] - 1.0).abs() < 1e-12,
-                "eval at node {i}: {} vs {}",
-                t.eval(c),
-                p[i]
-            );
+            assert!((t.eval(c) / p[i] - 1.0).abs() < 1e-12, "eval at node {i}: {} vs {}", t.eval(c), p[i]);
             assert_eq!(t.eval(mu[i]), p[i], "eval at stored node {i}");
         }
         // ... and are close to HG itself (normalisation error of the trapezoid).
@@ -1117,10 +1030,7 @@ mod tests {
                 let c = -1.0 + k as f64 / 20.0;
                 assert!((t.eval(c) * 4.0 * PI - 1.0).abs() < 1e-13, "n={n} μ={c}");
                 let u = k as f64 / 40.0;
-                assert!(
-                    (t.sample_cos_theta(u) - (2.0 * u - 1.0)).abs() < 1e-12,
-                    "n={n} u={u}"
-                );
+                assert!((t.sample_cos_theta(u) - (2.0 * u - 1.0)).abs() < 1e-12, "n={n} u={u}");
             }
             assert!(t.mean_cosine().abs() < 1e-15, "n={n}: {}", t.mean_cosine());
         }
@@ -1128,20 +1038,13 @@ mod tests {
 
     #[test]
     fn table_sampling_is_monotone_and_covers_the_range() {
-        for raw in [
-            hg_values(0.97, 4096),
-            two_lobe_values(4096),
-            vec![0.0, 2.0, 0.0, 0.0, 1.0, 3.0, 0.0],
-        ] {
+        for raw in [hg_values(0.97, 4096), two_lobe_values(4096), vec![0.0, 2.0, 0.0, 0.0, 1.0, 3.0, 0.0]] {
             let t = PhaseTable::from_theta_samples(&raw).unwrap();
             let mut prev = -1.0;
             for k in 0..=100_000 {
                 let u = k as f64 / 100_000.0;
                 let mu = t.sample_cos_theta(u);
-                assert!(
-                    mu >= prev && (-1.0..=1.0).contains(&mu),
-                    "u={u}: {mu} after {prev}"
-                );
+                assert!(mu >= prev && (-1.0..=1.0).contains(&mu), "u={u}: {mu} after {prev}");
                 prev = mu;
             }
             assert!(t.sample_cos_theta(-1.0) >= -1.0);
@@ -1164,12 +1067,7 @@ mod tests {
         ];
         for (seed, (name, raw)) in cases.into_iter().enumerate() {
             let t = PhaseTable::from_theta_samples(&raw).unwrap();
-            let pval = chi2_pvalue(
-                |u| t.sample_cos_theta(u),
-                |mu| t.eval(mu),
-                N_CHI2,
-                100 + seed as u64,
-            );
+            let pval = chi2_pvalue(|u| t.sample_cos_theta(u), |mu| t.eval(mu), N_CHI2, 100 + seed as u64);
             assert!(pval > ALPHA, "{name}: χ² p-value {pval:e}");
         }
     }
@@ -1189,11 +1087,7 @@ mod tests {
         // bin) never straddles a kink, so it agrees with the exact values.
         let mean = sphere_integral(|mu| mu * t.eval(mu), 0.0, PI, 16 * 4095);
         let norm = sphere_integral(|mu| t.eval(mu), 0.0, PI, 16 * 4095);
-        assert!(
-            (mean - t.mean_cosine()).abs() < 1e-10,
-            "{mean} vs {}",
-            t.mean_cosine()
-        );
+        assert!((mean - t.mean_cosine()).abs() < 1e-10, "{mean} vs {}", t.mean_cosine());
         assert!((norm - 1.0).abs() < 1e-10, "∫p dω = {norm}");
     }
 
@@ -1203,25 +1097,10 @@ mod tests {
         let e = |v: &[f64]| PhaseTable::from_theta_samples(v).unwrap_err();
         assert_eq!(e(&[]), TooFewSamples { got: 0 });
         assert_eq!(e(&[1.0]), TooFewSamples { got: 1 });
-        assert!(matches!(
-            e(&[1.0, f64::NAN, 1.0]),
-            NotFinite { index: 1, .. }
-        ));
-        assert!(matches!(
-            e(&[1.0, 1.0, f64::INFINITY]),
-            NotFinite { index: 2, .. }
-        ));
-        assert!(matches!(
-            e(&[f64::NEG_INFINITY, 1.0]),
-            NotFinite { index: 0, .. }
-        ));
-        assert_eq!(
-            e(&[1.0, -1e-9, 1.0]),
-            Negative {
-                index: 1,
-                value: -1e-9
-            }
-        );
+        assert!(matches!(e(&[1.0, f64::NAN, 1.0]), NotFinite { index: 1, .. }));
+        assert!(matches!(e(&[1.0, 1.0, f64::INFINITY]), NotFinite { index: 2, .. }));
+        assert!(matches!(e(&[f64::NEG_INFINITY, 1.0]), NotFinite { index: 0, .. }));
+        assert_eq!(e(&[1.0, -1e-9, 1.0]), Negative { index: 1, value: -1e-9 });
         assert_eq!(e(&[0.0, 0.0]), AllZero);
         assert_eq!(e(&[0.0, -0.0, 0.0]), AllZero);
         assert_eq!(e(&vec![0.0; 4096]), AllZero);
@@ -1254,13 +1133,7 @@ mod tests {
         }
         for n in normals {
             let (t, b) = orthonormal_basis(n);
-            for (x, y, want) in [
-                (t, t, 1.0),
-                (b, b, 1.0),
-                (t, b, 0.0),
-                (t, n, 0.0),
-                (b, n, 0.0),
-            ] {
+            for (x, y, want) in [(t, t, 1.0), (b, b, 1.0), (t, b, 0.0), (t, n, 0.0), (b, n, 0.0)] {
                 assert!((dot(x, y) - want).abs() < 1e-12, "n={n:?}");
             }
             let c = cross(t, b);
@@ -1334,17 +1207,11 @@ mod tests {
             let nf = n as f64;
             let mean = sum / nf;
             let se = ((sum2 / nf - mean * mean) / nf).sqrt();
-            assert!(
-                (mean - g).abs() < 5.0 * se,
-                "⟨d·incident⟩ = {mean}, g = {g}, se = {se}"
-            );
+            assert!((mean - g).abs() < 5.0 * se, "⟨d·incident⟩ = {mean}, g = {g}, se = {se}");
             // Azimuth uniform: the mean vector is g · incident (each
             // component's sd ≤ 1/√n).
             for k in 0..3 {
-                assert!(
-                    (vsum[k] / nf - g * inc[k]).abs() < 5.0 / nf.sqrt(),
-                    "component {k}"
-                );
+                assert!((vsum[k] / nf - g * inc[k]).abs() < 5.0 / nf.sqrt(), "component {k}");
             }
         }
     }
@@ -1357,7 +1224,8 @@ mod tests {
     fn shortcuts_find_the_same_bins() {
         let nearly = |u: f64| u.clamp(0.0, ONE_MINUS_EPSILON);
         let peaked: Vec<f64> = (0..4096).map(|k| (-(k as f64) / 30.0).exp()).collect();
-        let holes: Vec<f64> = (0..500).map(|k| if (100..300).contains(&k) { 1.0 + (k as f64 * 0.1).sin() } else { 0.0 }).collect();
+        let holes: Vec<f64> =
+            (0..500).map(|k| if (100..300).contains(&k) { 1.0 + (k as f64 * 0.1).sin() } else { 0.0 }).collect();
         for values in [peaked, holes, vec![1.0, 3.0]] {
             let t = PhaseTable::from_theta_samples(&values).expect("valid table");
             let reference_sample = |u: f64| {
@@ -1387,11 +1255,20 @@ mod tests {
             };
             let mut rng = crate::rng::Rng::new(21, values.len() as u64);
             let cells = (0..=GUIDE_CELLS).map(|j| j as f64 / GUIDE_CELLS as f64);
-            let us: Vec<f64> = (0..200_000).map(|_| rng.next_f64()).chain(cells.clone()).chain(cells.map(|u| u - 1e-17)).chain(t.cdf.iter().copied()).collect();
+            let us: Vec<f64> = (0..200_000)
+                .map(|_| rng.next_f64())
+                .chain(cells.clone())
+                .chain(cells.map(|u| u - 1e-17))
+                .chain(t.cdf.iter().copied())
+                .collect();
             for u in us {
                 assert_eq!(t.sample_cos_theta(u).to_bits(), reference_sample(u).to_bits(), "u = {u}");
             }
-            let mus: Vec<f64> = (0..200_000).map(|_| 2.0 * rng.next_f64() - 1.0).chain(t.mu.iter().copied()).chain([1.0, -1.0, 0.0, -0.0, 0.999_999_999]).collect();
+            let mus: Vec<f64> = (0..200_000)
+                .map(|_| 2.0 * rng.next_f64() - 1.0)
+                .chain(t.mu.iter().copied())
+                .chain([1.0, -1.0, 0.0, -0.0, 0.999_999_999])
+                .collect();
             for mu in mus {
                 assert_eq!(t.eval(mu).to_bits(), reference_eval(mu).to_bits(), "μ = {mu}");
             }
@@ -1423,7 +1300,8 @@ mod tests {
                 let mu = Lanes(std::array::from_fn(|_| 2.0 * rng.next_f64() - 1.0));
                 let sampled = t.sample_cos_theta_lanes(F4::load(&u)).lanes();
                 let evaluated = t.eval_lanes(F4::load(&mu)).lanes();
-                let (hg_sampled, hg_evaluated) = (hg.sample_cos_theta(F4::load(&u)).lanes(), hg.eval(F4::load(&mu)).lanes());
+                let (hg_sampled, hg_evaluated) =
+                    (hg.sample_cos_theta(F4::load(&u)).lanes(), hg.eval(F4::load(&mu)).lanes());
                 let (sin, cos) = lanes::sin_cos_turns(F4::load(&u));
                 let (sin, cos) = (sin.lanes(), cos.lanes());
                 for l in 0..4 {

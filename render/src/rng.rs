@@ -78,9 +78,7 @@ impl Rng {
     pub fn new(seed: u64, stream: u64) -> Self {
         let state = (u128::from(mix(seed, 1)) << 64) | u128::from(mix(stream, 2));
         let selector = (u128::from(mix(seed, 3)) << 64) | u128::from(mix(stream, 4));
-        Self {
-            inner: Pcg64Dxsm::new(state, selector),
-        }
+        Self { inner: Pcg64Dxsm::new(state, selector) }
     }
 
     /// Uniform on `[0, 1)`, in steps of 2⁻⁵³ (the top 53 bits of one 64-bit
@@ -185,16 +183,7 @@ mod tests {
             let mut r = Rng::new(seed, stream);
             (0..64).map(|_| r.next_u64()).collect()
         };
-        let pairs = [
-            (0, 0),
-            (0, 1),
-            (1, 0),
-            (1, 1),
-            (0, 2),
-            (2, 0),
-            (u64::MAX, 0),
-            (0, u64::MAX),
-        ];
+        let pairs = [(0, 0), (0, 1), (1, 0), (1, 1), (0, 2), (2, 0), (u64::MAX, 0), (0, u64::MAX)];
         let seqs: Vec<Vec<u64>> = pairs.iter().map(|&(s, t)| first(s, t)).collect();
         for i in 0..seqs.len() {
             for j in (i + 1)..seqs.len() {
@@ -245,10 +234,7 @@ mod tests {
         }
         let mean = sum / n as f64;
         // Uniform: mean 1/2, sd 1/sqrt(12 n); allow 5 sigma.
-        assert!(
-            (mean - 0.5).abs() < 5.0 / (12.0 * n as f64).sqrt(),
-            "mean {mean}"
-        );
+        assert!((mean - 0.5).abs() < 5.0 / (12.0 * n as f64).sqrt(), "mean {mean}");
         assert!(lo < 1e-5 && hi > 1.0 - 1e-5, "range [{lo}, {hi}]");
         for _ in 0..100_000 {
             let x = r.next_f32();
@@ -274,12 +260,7 @@ mod tests {
         let serial: Vec<Vec<u64>> = (0..16).map(gen).collect();
         let handles: Vec<_> = (0..4u64)
             .map(|t| {
-                std::thread::spawn(move || {
-                    (0..16)
-                        .filter(|s| s % 4 == t)
-                        .map(|s| (s, gen(s)))
-                        .collect::<Vec<_>>()
-                })
+                std::thread::spawn(move || (0..16).filter(|s| s % 4 == t).map(|s| (s, gen(s))).collect::<Vec<_>>())
             })
             .collect();
         for h in handles {
@@ -298,9 +279,5 @@ mod tests {
         assert_eq!(got, KNOWN_ANSWER);
     }
 
-    const KNOWN_ANSWER: [u64; 3] = [
-        11580484839666122119,
-        11978924969568863972,
-        10814601748614113642,
-    ];
+    const KNOWN_ANSWER: [u64; 3] = [11580484839666122119, 11978924969568863972, 10814601748614113642];
 }

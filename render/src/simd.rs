@@ -150,7 +150,8 @@ impl F4 {
             // biased k with m = x/2^k in [√½, √2); non-negative for x > 0.
             let j = _mm256_add_epi64(bits, _mm256_set1_epi64x(0x3FF0_0000_0000_0000 - 0x3FE6_A09E_667F_3BCD));
             let k_biased = _mm256_srli_epi64::<52>(j);
-            let m_bits = _mm256_sub_epi64(bits, _mm256_slli_epi64::<52>(_mm256_sub_epi64(k_biased, _mm256_set1_epi64x(1023))));
+            let m_bits =
+                _mm256_sub_epi64(bits, _mm256_slli_epi64::<52>(_mm256_sub_epi64(k_biased, _mm256_set1_epi64x(1023))));
             let m = F4(_mm256_castsi256_pd(m_bits));
             // k as f64: or the integer into the mantissa of 2^52.
             let k = small_u64_to_f64(k_biased) - F4::splat(1023.0);
@@ -334,7 +335,15 @@ mod tests {
         // The simulator's inputs, 1 − u ∈ (0, 1], including the ends and
         // the reduction's break points; then a wide range of magnitudes.
         let mut xs: Vec<f64> = uniforms(400_000).into_iter().map(|u| 1.0 - u).collect();
-        xs.extend([1.0, 2f64.powi(-53), 0.5, std::f64::consts::FRAC_1_SQRT_2, std::f64::consts::FRAC_1_SQRT_2.next_up(), 1.0 - 1e-16, 0.9999]);
+        xs.extend([
+            1.0,
+            2f64.powi(-53),
+            0.5,
+            std::f64::consts::FRAC_1_SQRT_2,
+            std::f64::consts::FRAC_1_SQRT_2.next_up(),
+            1.0 - 1e-16,
+            0.9999,
+        ]);
         xs.extend(uniforms(100_000).into_iter().map(|u| 10f64.powf(600.0 * u - 300.0)));
         xs.truncate(xs.len() / 4 * 4);
         // SAFETY: AVX2 and FMA are present (checked above).
@@ -368,7 +377,9 @@ mod tests {
         #[target_feature(enable = "avx2,fma")]
         fn check() {
             let mut rngs: Vec<crate::rng::Rng> = (0..4).map(|k| crate::rng::Rng::new(5, k)).collect();
-            let mut extremes = [[0u64, u64::MAX, 1 << 11, (1 << 11) - 1], [u64::MAX - (1 << 11), 1 << 63, 0xFFFF_FFFF, 1 << 32]].into_iter();
+            let mut extremes =
+                [[0u64, u64::MAX, 1 << 11, (1 << 11) - 1], [u64::MAX - (1 << 11), 1 << 63, 0xFFFF_FFFF, 1 << 32]]
+                    .into_iter();
             for round in 0..20_000 {
                 let raw: [u64; 4] = match extremes.next() {
                     Some(r) => r,
@@ -378,7 +389,10 @@ mod tests {
                 let (hi, lo) = (hi.lanes(), lo.lanes());
                 for (l, raw) in raw.iter().enumerate() {
                     assert_eq!(single.0[l], (raw >> 11) as f64 / 9_007_199_254_740_992.0, "raw {raw:#x}");
-                    assert_eq!((hi.0[l], lo.0[l]), ((raw >> 32) as f64 / 4_294_967_296.0, (raw & 0xFFFF_FFFF) as f64 / 4_294_967_296.0));
+                    assert_eq!(
+                        (hi.0[l], lo.0[l]),
+                        ((raw >> 32) as f64 / 4_294_967_296.0, (raw & 0xFFFF_FFFF) as f64 / 4_294_967_296.0)
+                    );
                 }
                 if round >= 2 {
                     // The generator's own conversions of the same outputs.

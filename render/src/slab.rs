@@ -285,7 +285,12 @@ impl Directions {
 
     /// The configuration with ω_i and ω_o exchanged.
     pub fn swapped(&self) -> Self {
-        Self { theta_i_deg: self.theta_o_deg, phi_i_deg: self.phi_o_deg, theta_o_deg: self.theta_i_deg, phi_o_deg: self.phi_i_deg }
+        Self {
+            theta_i_deg: self.theta_o_deg,
+            phi_i_deg: self.phi_o_deg,
+            theta_o_deg: self.theta_i_deg,
+            phi_o_deg: self.phi_i_deg,
+        }
     }
 }
 
@@ -811,8 +816,12 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
             })
             .collect();
         const CHUNK: usize = 4096;
-        sum_b.par_chunks_mut(CHUNK).zip(sq_b.par_chunks_mut(CHUNK)).zip(raw.par_chunks_mut(CHUNK)).enumerate().for_each(
-            |(c, ((sum_b, sq_b), raw))| {
+        sum_b
+            .par_chunks_mut(CHUNK)
+            .zip(sq_b.par_chunks_mut(CHUNK))
+            .zip(raw.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(c, ((sum_b, sq_b), raw))| {
                 let at = c * CHUNK;
                 for (count, b) in &results {
                     let scale = 1.0 / *count as f64;
@@ -824,8 +833,7 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
                         *r += v;
                     }
                 }
-            },
-        );
+            });
         for (_, b) in results {
             path_sum += b.path_sum;
             path_sq += b.path_sq;
@@ -896,7 +904,8 @@ mod tests {
         // Thick, forward-scattering slab (μ_t d ≈ 60): most events lie
         // deeper than the roulette depth. Each run has its own seed, so the
         // three estimates are independent.
-        let medium = Medium::new(1.0e4, 20.0, Phase::henyey_greenstein(0.9).expect("valid g"), 1.5).expect("valid medium");
+        let medium =
+            Medium::new(1.0e4, 20.0, Phase::henyey_greenstein(0.9).expect("valid g"), 1.5).expect("valid medium");
         let setup = Setup::new(
             Slab::new(6.0e-3, medium).expect("valid slab"),
             Beam::gaussian(200e-6).expect("valid beam"),
@@ -915,7 +924,10 @@ mod tests {
         let (shallow, se_shallow) = slice_sum(&kernel, 5, 20_000);
         for (name, with, se_with) in [("default", default, se_default), ("τ_r = 1", shallow, se_shallow)] {
             let z = (with - without) / (se_with * se_with + se_without * se_without).sqrt();
-            assert!(z.abs() < 4.0, "{name}: with roulette {with} ± {se_with}, without {without} ± {se_without} (z = {z})");
+            assert!(
+                z.abs() < 4.0,
+                "{name}: with roulette {with} ± {se_with}, without {without} ± {se_without} (z = {z})"
+            );
         }
         let se_with = se_default;
         assert!(se_with < 1.2 * se_without, "standard error {se_with} vs {se_without}");
@@ -934,8 +946,10 @@ mod tests {
             return;
         }
         let table = Phase::Tabulated(
-            crate::phase::PhaseTable::from_theta_samples(&(0..400).map(|k| (-(k as f64) / 40.0).exp() + 0.05).collect::<Vec<_>>())
-                .expect("valid table"),
+            crate::phase::PhaseTable::from_theta_samples(
+                &(0..400).map(|k| (-(k as f64) / 40.0).exp() + 0.05).collect::<Vec<_>>(),
+            )
+            .expect("valid table"),
         );
         let hg = |g| Phase::henyey_greenstein(g).expect("valid g");
         let map = Beam::Map(BeamMap::new(3, 2, 0.1e-3, vec![0.0, 1.0, 2.0, 4.0, 0.5, 0.0]).expect("valid map"));
@@ -962,9 +976,19 @@ mod tests {
             assert_eq!(lanes.events, scalar.events, "{name}: events");
             let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-9 * scale;
             assert!(scalar.path_sum > 0.0, "{name}: empty slice");
-            assert!(close(lanes.path_sum, scalar.path_sum, scalar.path_sum), "{name}: {} vs {}", lanes.path_sum, scalar.path_sum);
+            assert!(
+                close(lanes.path_sum, scalar.path_sum, scalar.path_sum),
+                "{name}: {} vs {}",
+                lanes.path_sum,
+                scalar.path_sum
+            );
             assert!(close(lanes.path_sq, scalar.path_sq, scalar.path_sq), "{name}: squares");
-            assert!(close(lanes.reflected, scalar.reflected, paths as f64), "{name}: {} vs {}", lanes.reflected, scalar.reflected);
+            assert!(
+                close(lanes.reflected, scalar.reflected, paths as f64),
+                "{name}: {} vs {}",
+                lanes.reflected,
+                scalar.reflected
+            );
             assert!(close(lanes.transmitted, scalar.transmitted, paths as f64), "{name}: transmitted");
             let peak = scalar.image.iter().fold(0.0f64, |m, v| m.max(*v));
             for (k, (a, b)) in lanes.image.iter().zip(&scalar.image).enumerate() {

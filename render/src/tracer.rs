@@ -93,11 +93,7 @@ use thiserror::Error;
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum SceneError {
     #[error("medium band {band}: μ_s = {sigma_s} and μ_a = {sigma_a} /m must be finite and ≥ 0 with μ_s + μ_a > 0")]
-    BadCoefficients {
-        band: usize,
-        sigma_s: f64,
-        sigma_a: f64,
-    },
+    BadCoefficients { band: usize, sigma_s: f64, sigma_a: f64 },
     #[error("boundary band {band}: the relative index n = {eta} must be finite and > 0")]
     BadIndex { band: usize, eta: f64 },
     #[error("board: {0}")]
@@ -149,22 +145,14 @@ impl Object {
         for b in 0..3 {
             let (s, a) = (medium.sigma_s[b], medium.sigma_a[b]);
             if !(s.is_finite() && a.is_finite() && s >= 0.0 && a >= 0.0 && s + a > 0.0) {
-                return Err(SceneError::BadCoefficients {
-                    band: b,
-                    sigma_s: s,
-                    sigma_a: a,
-                });
+                return Err(SceneError::BadCoefficients { band: b, sigma_s: s, sigma_a: a });
             }
             let eta = boundary.eta(b);
             if !(eta.is_finite() && eta > 0.0) {
                 return Err(SceneError::BadIndex { band: b, eta });
             }
         }
-        Ok(Self {
-            accel,
-            boundary,
-            medium,
-        })
+        Ok(Self { accel, boundary, medium })
     }
 }
 
@@ -175,11 +163,7 @@ pub enum BoardReflectance {
     Checker { even: [f64; 3], odd: [f64; 3] },
     /// An RGB image (row-major, row 0 at the board's v = 0 edge) stretched
     /// over the squares' area; nearest pixel.
-    Texture {
-        width: usize,
-        height: usize,
-        rgb: Vec<[f64; 3]>,
-    },
+    Texture { width: usize, height: usize, rgb: Vec<[f64; 3]> },
 }
 
 /// A rectangular checkerboard: corner `origin`, unit edge directions `u`
@@ -225,9 +209,7 @@ impl Board {
             }
         };
         if !ok || !rho_ok(&self.margin) {
-            return bad(
-                "reflectances must lie in [0, 1] (a texture must have width × height pixels)",
-            );
+            return bad("reflectances must lie in [0, 1] (a texture must have width × height pixels)");
         }
         Ok(())
     }
@@ -250,10 +232,7 @@ impl Board {
         }
         let p = o + t * d - self.origin;
         let (x, y) = (p.dot(self.u), p.dot(self.v));
-        let (w, h) = (
-            self.columns as f64 * self.square_m,
-            self.rows as f64 * self.square_m,
-        );
+        let (w, h) = (self.columns as f64 * self.square_m, self.rows as f64 * self.square_m);
         let m = self.margin_m;
         if x < -m || y < -m || x > w + m || y > h + m {
             return None;
@@ -305,24 +284,13 @@ impl Scene {
         let mut extent = camera.position().abs().max_element();
         if let Some(o) = &object {
             let (lo, hi) = o.accel.bounds();
-            extent = extent
-                .max(lo.abs().max_element())
-                .max(hi.abs().max_element());
+            extent = extent.max(lo.abs().max_element()).max(hi.abs().max_element());
         }
         if let Some(b) = &board {
-            extent = extent.max(
-                b.origin.abs().max_element()
-                    + (b.columns.max(b.rows) as f64) * b.square_m
-                    + b.margin_m,
-            );
+            extent =
+                extent.max(b.origin.abs().max_element() + (b.columns.max(b.rows) as f64) * b.square_m + b.margin_m);
         }
-        Ok(Self {
-            object,
-            board,
-            environment,
-            camera,
-            epsilon_m: 1e-7 * extent.max(1e-3),
-        })
+        Ok(Self { object, board, environment, camera, epsilon_m: 1e-7 * extent.max(1e-3) })
     }
 }
 
@@ -405,11 +373,7 @@ pub struct Progress {
 /// Renders `scene` progressively; `on_pass` is called after every pass.
 /// Stops at `settings.spp` samples per pixel, after the pass that exceeds the
 /// time budget, or when `cancel` (if given) is set.
-pub fn render(
-    scene: &Scene,
-    settings: &Settings,
-    on_pass: &mut dyn FnMut(&Progress),
-) -> (Image, Stats) {
+pub fn render(scene: &Scene, settings: &Settings, on_pass: &mut dyn FnMut(&Progress)) -> (Image, Stats) {
     render_cancellable(scene, settings, on_pass, None)
 }
 
@@ -462,15 +426,8 @@ pub fn render_cancellable(
         done = k1;
         let elapsed = start.elapsed().as_secs_f64();
         stats.wall_s = elapsed;
-        on_pass(&Progress {
-            spp_done: done,
-            spp_target: settings.spp,
-            elapsed_s: elapsed,
-            stats,
-        });
-        if settings.time_budget_s.is_some_and(|b| elapsed >= b)
-            || cancel.is_some_and(|c| c.load(Ordering::Relaxed))
-        {
+        on_pass(&Progress { spp_done: done, spp_target: settings.spp, elapsed_s: elapsed, stats });
+        if settings.time_budget_s.is_some_and(|b| elapsed >= b) || cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
             break;
         }
     }
@@ -490,16 +447,7 @@ pub fn render_cancellable(
         })
         .collect();
     stats.wall_s = start.elapsed().as_secs_f64();
-    (
-        Image {
-            width: w,
-            height: h,
-            mean,
-            variance_of_mean,
-            samples: vec![done; n],
-        },
-        stats,
-    )
+    (Image { width: w, height: h, mean, variance_of_mean, samples: vec![done; n] }, stats)
 }
 
 /// Power heuristic weight of a strategy with pdf `a` against one with pdf `b`.
@@ -526,14 +474,7 @@ fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> (DVec3, f64) {
 }
 
 /// One camera path: the radiance estimate it carries back, per band.
-fn trace(
-    scene: &Scene,
-    settings: &Settings,
-    mut o: DVec3,
-    mut d: DVec3,
-    rng: &mut Rng,
-    st: &mut Stats,
-) -> [f64; 3] {
+fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &mut Rng, st: &mut Stats) -> [f64; 3] {
     let eps = scene.epsilon_m;
     let mut beta = [1.0f64; 3];
     let mut radiance = [0.0f64; 3];
@@ -572,11 +513,7 @@ fn trace(
             // Leaving: the normal facing along the ray.
             st.surface_hits += 1;
             let p = o + hit.t * d;
-            let n_out = if hit.normal.dot(d) >= 0.0 {
-                hit.normal
-            } else {
-                -hit.normal
-            };
+            let n_out = if hit.normal.dot(d) >= 0.0 { hit.normal } else { -hit.normal };
             let eta = obj.boundary.eta(b);
             let cos_i = d.dot(n_out);
             let f = fresnel::reflectance(cos_i, 1.0 / eta);
@@ -593,10 +530,7 @@ fn trace(
         }
 
         // Outside: the closest of object and board, else the sky.
-        let obj_hit = scene
-            .object
-            .as_ref()
-            .and_then(|obj| obj.accel.intersect(o, d, f64::INFINITY));
+        let obj_hit = scene.object.as_ref().and_then(|obj| obj.accel.intersect(o, d, f64::INFINITY));
         let board_hit = scene.board.as_ref().and_then(|bd| bd.intersect(o, d));
         let t_obj = obj_hit.map_or(f64::INFINITY, |h| h.t);
         match board_hit {
@@ -608,21 +542,17 @@ fn trace(
                 let n = if n.dot(d) < 0.0 { n } else { -n };
                 let origin = p + eps * n;
                 // Next-event estimation of the environment.
-                if let Some(sample) = scene
-                    .environment
-                    .sample(origin, [rng.next_f64(), rng.next_f64()])
-                {
+                if let Some(sample) = scene.environment.sample(origin, [rng.next_f64(), rng.next_f64()]) {
                     let cos = sample.dir.dot(n);
                     if cos > 0.0 && sample.pdf > 0.0 {
-                        let blocked = scene.object.as_ref().is_some_and(|obj| {
-                            obj.accel.occluded(origin, sample.dir, f64::INFINITY)
-                        });
+                        let blocked = scene
+                            .object
+                            .as_ref()
+                            .is_some_and(|obj| obj.accel.occluded(origin, sample.dir, f64::INFINITY));
                         if !blocked {
                             let w = power_heuristic(sample.pdf, cos * FRAC_1_PI);
                             for c in 0..3 {
-                                radiance[c] +=
-                                    beta[c] * rho[c] * FRAC_1_PI * cos * sample.radiance[c] * w
-                                        / sample.pdf;
+                                radiance[c] += beta[c] * rho[c] * FRAC_1_PI * cos * sample.radiance[c] * w / sample.pdf;
                             }
                         }
                     }
@@ -663,11 +593,7 @@ fn trace(
                     b
                 });
                 let p = o + hit.t * d;
-                let n_in = if hit.normal.dot(d) < 0.0 {
-                    hit.normal
-                } else {
-                    -hit.normal
-                };
+                let n_in = if hit.normal.dot(d) < 0.0 { hit.normal } else { -hit.normal };
                 let eta = obj.boundary.eta(b);
                 let f = fresnel::reflectance(-d.dot(n_in), eta);
                 if rng.next_f64() < f {

@@ -16,10 +16,7 @@ const CENTRE: DVec3 = DVec3::new(0.1, -0.2, 0.3);
 const R: f64 = 0.6;
 
 fn sphere() -> Projection {
-    Projection::FiniteSphere {
-        centre: CENTRE,
-        radius_m: R,
-    }
+    Projection::FiniteSphere { centre: CENTRE, radius_m: R }
 }
 
 // ------------------------------------------------------------ conventions
@@ -46,11 +43,7 @@ fn map_uv(m: DVec3) -> (f64, f64) {
 
 /// World direction with polar angle θ and azimuth φ (from +x towards +y).
 fn spherical(theta: f64, phi: f64) -> DVec3 {
-    DVec3::new(
-        theta.sin() * phi.cos(),
-        theta.sin() * phi.sin(),
-        theta.cos(),
-    )
+    DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
 }
 
 fn scaled(scale: f64, c: [f32; 3]) -> [f64; 3] {
@@ -66,11 +59,7 @@ fn test_map() -> (usize, usize, Vec<f32>) {
     let mut rgb = Vec::with_capacity(3 * w * h);
     for y in 0..h {
         for x in 0..w {
-            let mut c = [
-                0.2 + 0.8 * x as f32 / 31.0,
-                0.3 + 0.7 * y as f32 / 15.0,
-                0.5,
-            ];
+            let mut c = [0.2 + 0.8 * x as f32 / 31.0, 0.3 + 0.7 * y as f32 / 15.0, 0.5];
             if y == 6 && (x == 5 || x == 6) {
                 c = [40.0 + x as f32, 30.0, 20.0];
             }
@@ -112,15 +101,7 @@ fn random_unit(rng: &mut Rng) -> DVec3 {
 /// 2^−depth of a cell instead of being smeared by a fixed grid. The error left
 /// is O(2^−depth · cell) along the pixel edges.
 #[allow(clippy::too_many_arguments)]
-fn integrate(
-    f: &dyn Fn(f64, f64) -> f64,
-    ta: f64,
-    tb: f64,
-    pa: f64,
-    pb: f64,
-    n: usize,
-    depth: u32,
-) -> f64 {
+fn integrate(f: &dyn Fn(f64, f64) -> f64, ta: f64, tb: f64, pa: f64, pb: f64, n: usize, depth: u32) -> f64 {
     fn cell(f: &dyn Fn(f64, f64) -> f64, ta: f64, tb: f64, pa: f64, pb: f64, depth: u32) -> f64 {
         let ts = [ta, 0.5 * (ta + tb), tb];
         let ps = [pa, 0.5 * (pa + pb), pb];
@@ -179,14 +160,7 @@ fn integrate_sphere(f: &dyn Fn(DVec3) -> f64, n: usize, depth: u32) -> f64 {
 /// times the integral of that smooth factor over the pixel (composite Simpson,
 /// 16 × 16 intervals): exact up to the smooth-integrand error (~1e-10), with
 /// the pixel layout and the yaw taken from the documented conventions.
-fn radiance_integral_via_map(
-    w: usize,
-    h: usize,
-    rgb: &[f32],
-    yaw: f64,
-    scale: f64,
-    p: DVec3,
-) -> [f64; 3] {
+fn radiance_integral_via_map(w: usize, h: usize, rgb: &[f32], yaw: f64, scale: f64, p: DVec3) -> [f64; 3] {
     const M: usize = 16;
     let o = (p - CENTRE) / R;
     let simpson = |k: usize| {
@@ -235,19 +209,12 @@ fn centre_sees_every_pixel_exactly() {
                     let dir = rot_z(yaw, map_dir(u, v));
                     let i = 3 * (y * w + x);
                     let want = scaled(2.5, [rgb[i], rgb[i + 1], rgb[i + 2]]);
-                    assert_eq!(
-                        env.radiance(CENTRE, dir),
-                        want,
-                        "yaw {yaw} pixel ({x}, {y})"
-                    );
+                    assert_eq!(env.radiance(CENTRE, dir), want, "yaw {yaw} pixel ({x}, {y})");
                     assert_eq!(env.pixel(x, y), [rgb[i], rgb[i + 1], rgb[i + 2]]);
                     // The module's own coordinate helpers agree with the doc.
                     assert!((env.world_direction(u, v) - dir).length() < 1e-14);
                     let [mu, mv] = env.map_coordinates(dir);
-                    assert!(
-                        (mu - u).abs() < 1e-14 && (mv - v).abs() < 1e-14,
-                        "{mu} {mv} vs {u} {v}"
-                    );
+                    assert!((mu - u).abs() < 1e-14 && (mv - v).abs() < 1e-14, "{mu} {mv} vs {u} {v}");
                 }
             }
         }
@@ -267,23 +234,13 @@ fn yaw_turns_the_map_counter_clockwise() {
     let seen = |phi: f64| env.radiance(DVec3::ZERO, spherical(theta, phi));
     assert_eq!(seen(phi_map + 37f64.to_radians()), [1.0, 2.0, 3.0]);
     assert_eq!(seen(phi_map), [0.0; 3], "yaw ignored");
-    assert_eq!(
-        seen(phi_map - 37f64.to_radians()),
-        [0.0; 3],
-        "yaw turned clockwise"
-    );
-    assert_eq!(
-        seen(-phi_map + 37f64.to_radians()),
-        [0.0; 3],
-        "map mirrored"
-    );
+    assert_eq!(seen(phi_map - 37f64.to_radians()), [0.0; 3], "yaw turned clockwise");
+    assert_eq!(seen(-phi_map + 37f64.to_radians()), [0.0; 3], "map mirrored");
     // Sampling finds the same pixel: every sample is along the rotated centre
     // direction to within the pixel's extent.
     let mut rng = Rng::new(5, 0);
     for _ in 0..1000 {
-        let s = env
-            .sample(DVec3::ZERO, [rng.next_f64(), rng.next_f64()])
-            .unwrap();
+        let s = env.sample(DVec3::ZERO, [rng.next_f64(), rng.next_f64()]).unwrap();
         let phi = s.dir.y.atan2(s.dir.x);
         let dphi = (phi - phi_map - 37f64.to_radians() + PI).rem_euclid(TAU) - PI;
         assert!(dphi.abs() <= PI / w as f64 + 1e-12, "{dphi}");
@@ -366,11 +323,7 @@ fn sideways_displacement_matches_an_independent_quadratic() {
             continue;
         }
         let i = 3 * (fy as usize * w + fx as usize);
-        assert_eq!(
-            env.radiance(p, dir),
-            scaled(scale, [rgb[i], rgb[i + 1], rgb[i + 2]]),
-            "ω {dir}"
-        );
+        assert_eq!(env.radiance(p, dir), scaled(scale, [rgb[i], rgb[i + 1], rgb[i + 2]]), "ω {dir}");
         checked += 1;
     }
     assert!(checked > 19_900);
@@ -380,10 +333,7 @@ fn sideways_displacement_matches_an_independent_quadratic() {
     // (y = 8) with yaw 0.
     let env = test_env(0.0, 1.0, sphere());
     let i = 3 * (8 * w + 26);
-    assert_eq!(
-        env.radiance(CENTRE + DVec3::X * (R / 2.0), DVec3::Y),
-        scaled(1.0, [rgb[i], rgb[i + 1], rgb[i + 2]])
-    );
+    assert_eq!(env.radiance(CENTRE + DVec3::X * (R / 2.0), DVec3::Y), scaled(1.0, [rgb[i], rgb[i + 1], rgb[i + 2]]));
 }
 
 // ------------------------------------------------------------ 4. χ² and norm
@@ -398,9 +348,7 @@ fn chi2_pvalue(env: &Environment, p: DVec3, n: usize, seed: u64) -> f64 {
     let mut observed = vec![0.0_f64; NMU * NPHI];
     let mut rng = Rng::new(seed, 0);
     for _ in 0..n {
-        let s = env
-            .sample(p, [rng.next_f64(), rng.next_f64()])
-            .expect("a sample inside the sphere");
+        let s = env.sample(p, [rng.next_f64(), rng.next_f64()]).expect("a sample inside the sphere");
         assert!((s.dir.length() - 1.0).abs() < 1e-12 && s.pdf > 0.0 && s.pdf.is_finite());
         let mu = s.dir.z.clamp(-1.0, 1.0);
         let phi = s.dir.y.atan2(s.dir.x).rem_euclid(TAU);
@@ -415,19 +363,12 @@ fn chi2_pvalue(env: &Environment, p: DVec3, n: usize, seed: u64) -> f64 {
         let mu_hi = -1.0 + 2.0 * (i + 1) as f64 / NMU as f64;
         let (ta, tb) = (mu_hi.acos(), mu_lo.acos());
         for j in 0..NPHI {
-            let (pa, pb) = (
-                TAU * j as f64 / NPHI as f64,
-                TAU * (j + 1) as f64 / NPHI as f64,
-            );
+            let (pa, pb) = (TAU * j as f64 / NPHI as f64, TAU * (j + 1) as f64 / NPHI as f64);
             expected[i * NPHI + j] = n as f64 * integrate(&f, ta, tb, pa, pb, 3, 5);
         }
     }
     let total: f64 = expected.iter().sum();
-    assert!(
-        (total / n as f64 - 1.0).abs() < 1e-3,
-        "∫pdf = {}",
-        total / n as f64
-    );
+    assert!((total / n as f64 - 1.0).abs() < 1e-3, "∫pdf = {}", total / n as f64);
 
     let (mut chi2, mut bins) = (0.0, 0usize);
     let (mut pool_o, mut pool_e) = (0.0, 0.0);
@@ -502,27 +443,16 @@ fn a_forgotten_jacobian_is_caught() {
     let got = inside as f64 / n as f64;
     let se = (got * (1.0 - got) / n as f64).sqrt();
     assert!((got - want_right).abs() < 4.0 * se, "{got} vs {want_right}");
-    assert!(
-        (got - want_wrong).abs() > 20.0 * se,
-        "{got} vs {want_wrong}"
-    );
+    assert!((got - want_wrong).abs() > 20.0 * se, "{got} vs {want_wrong}");
 }
 
 #[test]
 fn pdf_integrates_to_one() {
     for (name, env, p) in [
         ("off-centre", test_env(25.0, 1.3, sphere()), off_centre()),
-        (
-            "near the wall",
-            test_env(-10.0, 1.0, sphere()),
-            CENTRE + DVec3::new(-0.55, 0.2, -0.1) * R,
-        ),
+        ("near the wall", test_env(-10.0, 1.0, sphere()), CENTRE + DVec3::new(-0.55, 0.2, -0.1) * R),
         ("centre", test_env(25.0, 1.3, sphere()), CENTRE),
-        (
-            "infinite",
-            test_env(25.0, 1.3, Projection::Infinite),
-            off_centre(),
-        ),
+        ("infinite", test_env(25.0, 1.3, Projection::Infinite), off_centre()),
     ] {
         let total = integrate_sphere(&|d| env.pdf(p, d), 8, 6);
         assert!((total - 1.0).abs() < 1e-3, "{name}: ∫pdf dω = {total}");
@@ -536,14 +466,8 @@ fn sample_agrees_with_radiance_and_pdf() {
     for (env, p) in [
         (test_env(25.0, 1.3, sphere()), off_centre()),
         (test_env(25.0, 1.3, sphere()), CENTRE),
-        (
-            test_env(0.0, 1.0, sphere()),
-            CENTRE + DVec3::new(0.0, 0.0, 0.999 * R),
-        ),
-        (
-            test_env(-140.0, 2.0, Projection::Infinite),
-            DVec3::new(7.0, 8.0, 9.0),
-        ),
+        (test_env(0.0, 1.0, sphere()), CENTRE + DVec3::new(0.0, 0.0, 0.999 * R)),
+        (test_env(-140.0, 2.0, Projection::Infinite), DVec3::new(7.0, 8.0, 9.0)),
     ] {
         let mut rng = Rng::new(21, 0);
         for _ in 0..50_000 {
@@ -552,11 +476,7 @@ fn sample_agrees_with_radiance_and_pdf() {
             assert!((s.dir.length() - 1.0).abs() < 1e-12);
             assert_eq!(s.radiance, env.radiance(p, s.dir), "u {u:?}");
             let pdf = env.pdf(p, s.dir);
-            assert!(
-                (pdf - s.pdf).abs() <= 1e-9 * s.pdf,
-                "u {u:?}: {pdf} vs {}",
-                s.pdf
-            );
+            assert!((pdf - s.pdf).abs() <= 1e-9 * s.pdf, "u {u:?}: {pdf} vs {}", s.pdf);
         }
     }
 }
@@ -588,18 +508,9 @@ fn estimator_of_the_radiance_integral_is_unbiased() {
     for k in 0..3 {
         let mean = sum[k] / n as f64;
         let se = ((sum2[k] / n as f64 - mean * mean) / (n - 1) as f64).sqrt();
-        assert!(
-            (mean - want[k]).abs() < 4.0 * se,
-            "channel {k}: {mean} ± {se} vs {}",
-            want[k]
-        );
+        assert!((mean - want[k]).abs() < 4.0 * se, "channel {k}: {mean} ± {se} vs {}", want[k]);
         // The test can tell: the centre sees a different integral.
-        assert!(
-            (at_centre[k] - want[k]).abs() > 10.0 * se,
-            "channel {k}: {} vs {}",
-            at_centre[k],
-            want[k]
-        );
+        assert!((at_centre[k] - want[k]).abs() > 10.0 * se, "channel {k}: {} vs {}", at_centre[k], want[k]);
         // From the centre the integral is 4π × the mean radiance.
         let mean_rad = env.mean_radiance()[k];
         assert!(
@@ -611,11 +522,7 @@ fn estimator_of_the_radiance_integral_is_unbiased() {
     // And the same through the module's lookup, integrated at p in p's own
     // frame (adaptive quadrature; agreement to its accuracy).
     let direct = integrate_sphere(&|d| env.radiance(p, d)[1], 8, 7);
-    assert!(
-        (direct / want[1] - 1.0).abs() < 1e-3,
-        "{direct} vs {}",
-        want[1]
-    );
+    assert!((direct / want[1] - 1.0).abs() < 1e-3, "{direct} vs {}", want[1]);
 }
 
 #[test]
@@ -645,19 +552,11 @@ fn constant_environment_is_uniform() {
 #[test]
 fn bad_input_is_rejected_with_a_reason() {
     let ok = || vec![0.5_f32; 3 * 4 * 2];
-    let err =
-        |w, h, rgb, yaw, scale, proj| Environment::new(w, h, rgb, yaw, scale, proj).unwrap_err();
+    let err = |w, h, rgb, yaw, scale, proj| Environment::new(w, h, rgb, yaw, scale, proj).unwrap_err();
     let msg = |e: EnvError| e.to_string();
 
     let e = err(4, 2, vec![0.5; 23], 0.0, 1.0, Projection::Infinite);
-    assert!(matches!(
-        e,
-        EnvError::DataLength {
-            expected: 24,
-            got: 23,
-            ..
-        }
-    ));
+    assert!(matches!(e, EnvError::DataLength { expected: 24, got: 23, .. }));
     assert!(msg(e).contains("24 RGB values, got 23"));
 
     let e = err(0, 2, vec![], 0.0, 1.0, Projection::Infinite);
@@ -666,18 +565,12 @@ fn bad_input_is_rejected_with_a_reason() {
     let mut nan = ok();
     nan[3 * (4 + 2) + 1] = f32::NAN; // pixel (2, 1), G
     let e = msg(err(4, 2, nan, 0.0, 1.0, Projection::Infinite));
-    assert!(
-        e.contains("(x = 2, y = 1)") && e.contains("channel G") && e.contains("NaN"),
-        "{e}"
-    );
+    assert!(e.contains("(x = 2, y = 1)") && e.contains("channel G") && e.contains("NaN"), "{e}");
 
     let mut neg = ok();
     neg[3 * 3 + 2] = -0.5; // pixel (3, 0), B
     let e = msg(err(4, 2, neg, 0.0, 1.0, Projection::Infinite));
-    assert!(
-        e.contains("(x = 3, y = 0)") && e.contains("channel B") && e.contains("-0.5"),
-        "{e}"
-    );
+    assert!(e.contains("(x = 3, y = 0)") && e.contains("channel B") && e.contains("-0.5"), "{e}");
 
     let mut inf = ok();
     inf[0] = f32::INFINITY;
@@ -691,28 +584,16 @@ fn bad_input_is_rejected_with_a_reason() {
     assert!(msg(err(4, 2, big, 0.0, 1e300, Projection::Infinite)).contains("overflows"));
     assert!(msg(err(4, 2, ok(), f64::INFINITY, 1.0, Projection::Infinite)).contains("yaw"));
 
-    let zero_r = Projection::FiniteSphere {
-        centre: CENTRE,
-        radius_m: 0.0,
-    };
+    let zero_r = Projection::FiniteSphere { centre: CENTRE, radius_m: 0.0 };
     let e = msg(err(4, 2, ok(), 0.0, 1.0, zero_r));
     assert!(e.contains("radius 0 m"), "{e}");
-    let nan_r = Projection::FiniteSphere {
-        centre: CENTRE,
-        radius_m: f64::NAN,
-    };
+    let nan_r = Projection::FiniteSphere { centre: CENTRE, radius_m: f64::NAN };
     assert!(msg(err(4, 2, ok(), 0.0, 1.0, nan_r)).contains("radius NaN"));
-    let bad_c = Projection::FiniteSphere {
-        centre: DVec3::new(0.0, f64::NAN, 0.0),
-        radius_m: 0.6,
-    };
+    let bad_c = Projection::FiniteSphere { centre: DVec3::new(0.0, f64::NAN, 0.0), radius_m: 0.6 };
     assert!(msg(err(4, 2, ok(), 0.0, 1.0, bad_c)).contains("centre"));
 
     // Overflowing sizes are an error, not a panic.
-    assert!(matches!(
-        err(usize::MAX, 2, vec![], 0.0, 1.0, Projection::Infinite),
-        EnvError::TooLarge { .. }
-    ));
+    assert!(matches!(err(usize::MAX, 2, vec![], 0.0, 1.0, Projection::Infinite), EnvError::TooLarge { .. }));
     // An all-zero map is valid.
     assert!(Environment::new(4, 2, vec![0.0; 24], 0.0, 1.0, Projection::Infinite).is_ok());
 }

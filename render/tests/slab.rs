@@ -31,7 +31,11 @@ fn lab_45_0() -> Directions {
 fn agree(name: &str, a: f64, sa: f64, b: f64, sb: f64, k: f64, bias: f64) {
     let s = (sa * sa + sb * sb).sqrt();
     let diff = (a - b).abs();
-    assert!(diff <= k * s + bias * b.abs(), "{name}: {a:.6e} ± {sa:.2e} vs {b:.6e} ± {sb:.2e} (diff {diff:.2e} = {:.1}σ)", diff / s);
+    assert!(
+        diff <= k * s + bias * b.abs(),
+        "{name}: {a:.6e} ± {sa:.2e} vs {b:.6e} ± {sb:.2e} (diff {diff:.2e} = {:.1}σ)",
+        diff / s
+    );
 }
 
 #[test]
@@ -84,13 +88,30 @@ fn iad_slabs() -> Vec<IadSlab> {
     let mut lines = text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty());
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |k: &str| header.iter().position(|h| h.trim() == k).unwrap_or_else(|| panic!("column {k}"));
-    let (ci, ca, ct, cg, cn, cr, cu, cs) =
-        (col("name"), col("albedo"), col("optical_thickness"), col("g"), col("n_slab"), col("ur1"), col("ut1"), col("specular_r"));
+    let (ci, ca, ct, cg, cn, cr, cu, cs) = (
+        col("name"),
+        col("albedo"),
+        col("optical_thickness"),
+        col("g"),
+        col("n_slab"),
+        col("ur1"),
+        col("ut1"),
+        col("specular_r"),
+    );
     lines
         .map(|l| {
             let f: Vec<&str> = l.split(',').collect();
             let x = |i: usize| f[i].trim().parse::<f64>().unwrap();
-            IadSlab { name: f[ci].to_string(), albedo: x(ca), tau: x(ct), g: x(cg), n: x(cn), ur1: x(cr), ut1: x(cu), specular: x(cs) }
+            IadSlab {
+                name: f[ci].to_string(),
+                albedo: x(ca),
+                tau: x(ct),
+                g: x(cg),
+                n: x(cn),
+                ur1: x(cr),
+                ut1: x(cu),
+                specular: x(cs),
+            }
         })
         .collect()
 }
@@ -114,7 +135,13 @@ fn total_reflectance_and_transmittance_match_adding_doubling() {
         let r = sl.diffuse_reflectance + sl.specular_reflectance;
         assert!((sl.specular_reflectance - s.specular).abs() < 1e-9, "{}", s.name);
         assert!((r - s.ur1).abs() < 0.01 * s.ur1.max(0.02), "{}: R = {r:.5} vs UR1 {:.5}", s.name, s.ur1);
-        assert!((sl.transmittance - s.ut1).abs() < 0.01 * s.ut1.max(0.02), "{}: T = {:.5} vs UT1 {:.5}", s.name, sl.transmittance, s.ut1);
+        assert!(
+            (sl.transmittance - s.ut1).abs() < 0.01 * s.ut1.max(0.02),
+            "{}: T = {:.5} vs UT1 {:.5}",
+            s.name,
+            sl.transmittance,
+            s.ut1
+        );
     }
 }
 
@@ -193,8 +220,16 @@ fn deterministic_for_a_seed_whatever_the_thread_count() {
     let s = setup(3000.0, 50.0, 0.8, 1.5, 2e-3, 16, 0.2e-3, lab_45_0());
     // 20 050 paths: the last batch is partial.
     let opts = RunOptions { stop: Stop::paths(20_050), seed: 42, batch_paths: 100, estimator: Estimator::Connection };
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| simulate(&s, &opts, |_| {}).unwrap());
-    let two = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap().install(|| simulate(&s, &opts, |_| {}).unwrap());
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| simulate(&s, &opts, |_| {}).unwrap());
+    let two = rayon::ThreadPoolBuilder::new()
+        .num_threads(3)
+        .build()
+        .unwrap()
+        .install(|| simulate(&s, &opts, |_| {}).unwrap());
     assert_eq!(one.values, two.values);
     assert_eq!(one.sum, two.sum);
     assert_eq!(one.paths, 20_050);

@@ -147,7 +147,9 @@ struct MediumChoice {
 
 fn medium(a: &RunArgs) -> Result<MediumChoice> {
     let explicit_thickness = match a.thickness_mm {
-        Some(t) if !(t.is_finite() && t > 0.0) => bail!("--thickness-mm {t}: the slab thickness must be a positive number of millimetres"),
+        Some(t) if !(t.is_finite() && t > 0.0) => {
+            bail!("--thickness-mm {t}: the slab thickness must be a positive number of millimetres")
+        }
         t => t.map(|t| t * 1e-3),
     };
     if let Some(path) = &a.recipe {
@@ -159,7 +161,9 @@ fn medium(a: &RunArgs) -> Result<MediumChoice> {
         }
         let choice = a.phase.unwrap_or(PhaseChoice::Mie);
         let (phase, name) = match choice {
-            PhaseChoice::Mie => (Phase::Tabulated(PhaseTable::from_theta_samples(&s.phase)?), "mie (4096-entry table)".to_string()),
+            PhaseChoice::Mie => {
+                (Phase::Tabulated(PhaseTable::from_theta_samples(&s.phase)?), "mie (4096-entry table)".to_string())
+            }
             PhaseChoice::Hg => (Phase::henyey_greenstein(s.g)?, format!("hg (g = {:.5})", s.g)),
         };
         let medium = Medium::new(s.mu_s_per_m, s.mu_a_per_m, phase, s.n_bulk.max(1.0))?;
@@ -201,7 +205,8 @@ fn beam(a: &RunArgs) -> Result<(Beam, String)> {
 fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
     text.split(',')
         .map(|c| {
-            let (i, o) = c.split_once('/').ok_or_else(|| anyhow!("--configs {c:?}: expected THETA_I/THETA_O, e.g. 45/0"))?;
+            let (i, o) =
+                c.split_once('/').ok_or_else(|| anyhow!("--configs {c:?}: expected THETA_I/THETA_O, e.g. 45/0"))?;
             let num = |s: &str| s.trim().parse::<f64>().map_err(|_| anyhow!("--configs {c:?}: {s:?} is not a number"));
             Ok((num(i)?, num(o)?))
         })
@@ -227,7 +232,8 @@ fn simulate(a: RunArgs) -> Result<()> {
         Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
         None => vec![(a.theta_i, a.phi_i, a.theta_o, a.phi_o)],
     };
-    let mut table = String::from("folder,theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,sum_per_m2_sr,sum_std_error,paths,wall_s\n");
+    let mut table =
+        String::from("folder,theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,sum_per_m2_sr,sum_std_error,paths,wall_s\n");
     for (ti, pi, to, po) in &configs {
         let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
         let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
@@ -346,7 +352,11 @@ fn compare(a: CompareArgs) -> Result<()> {
     let out = &a.out;
     crate::io::write_json(&out.join("comparison.json"), &c)?;
     let x = measured.x_mm();
-    let png = bssrdf::profile_png(&x, &[("measured", measured.middle_row(), None), ("simulated", simulated.middle_row(), None)], None)?;
+    let png = bssrdf::profile_png(
+        &x,
+        &[("measured", measured.middle_row(), None), ("simulated", simulated.middle_row(), None)],
+        None,
+    )?;
     crate::io::write_atomic(&out.join("profiles.png"), &png)?;
     let panel = bssrdf::heatmap_png(
         &[("measured", &measured), ("simulated", &simulated)],

@@ -158,7 +158,8 @@ fn file_name(path: &Path) -> String {
     path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string())
 }
 
-const RAW_EXTENSIONS: [&str; 13] = ["dng", "cr2", "nef", "nrw", "arw", "srf", "sr2", "orf", "rw2", "raf", "pef", "srw", "erf"];
+const RAW_EXTENSIONS: [&str; 13] =
+    ["dng", "cr2", "nef", "nrw", "arw", "srf", "sr2", "orf", "rw2", "raf", "pef", "srw", "erf"];
 const IMAGE_EXTENSIONS: [&str; 8] = ["jpg", "jpeg", "png", "tif", "tiff", "bmp", "exr", "hdr"];
 
 fn extension(path: &Path) -> String {
@@ -284,7 +285,8 @@ pub fn expand_images(spec: &str) -> Result<Vec<PathBuf>> {
             bail!("{spec}: wildcards are only supported in the file name, not in folders");
         }
         let pat: Vec<char> = p.file_name().map(|n| n.to_string_lossy().chars().collect()).unwrap_or_default();
-        let entries = std::fs::read_dir(dir).with_context(|| format!("{}: cannot list folder (from --images {spec})", dir.display()))?;
+        let entries = std::fs::read_dir(dir)
+            .with_context(|| format!("{}: cannot list folder (from --images {spec})", dir.display()))?;
         for e in entries.filter_map(|e| e.ok()) {
             let name: Vec<char> = e.file_name().to_string_lossy().chars().collect();
             if e.path().is_file() && wildcard(&pat, &name) {
@@ -348,13 +350,18 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
     let cal = camera::calibrate_photos(&photos, &board, model, detector)?;
     write_json(&a.out, &cal)?;
 
-    let views: Vec<(String, Vec<[f64; 2]>)> = cal.views.iter().map(|v| (v.image.clone(), v.residuals_px.clone())).collect();
+    let views: Vec<(String, Vec<[f64; 2]>)> =
+        cal.views.iter().map(|v| (v.image.clone(), v.residuals_px.clone())).collect();
     let plot_path = sibling(&a.out, "_residuals.png");
     write_atomic(&plot_path, &plot::residuals_png(&views, cal.rms_px)?)?;
     let view_dir = sibling(&a.out, "_views");
     for v in &cal.views {
-        let photo = photos.iter().find(|p| p.name == v.image).ok_or_else(|| anyhow!("internal: view {} has no photo", v.image))?;
-        let reprojected: Vec<[f64; 2]> = v.corners_px.iter().zip(&v.residuals_px).map(|(c, r)| [c[0] - r[0], c[1] - r[1]]).collect();
+        let photo = photos
+            .iter()
+            .find(|p| p.name == v.image)
+            .ok_or_else(|| anyhow!("internal: view {} has no photo", v.image))?;
+        let reprojected: Vec<[f64; 2]> =
+            v.corners_px.iter().zip(&v.residuals_px).map(|(c, r)| [c[0] - r[0], c[1] - r[1]]).collect();
         let label = format!("{}  RMS {:.3} px  ({})", v.image, v.rms_px, v.detector);
         let png = cv::draw_view_png(&photo.image, &board, &v.corners_px, &reprojected, &[], &label)?;
         let stem = Path::new(&v.image).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
@@ -402,7 +409,8 @@ fn print_calibration(cal: &Calibration) {
 
 fn read_camera(path: &Path) -> Result<Calibration> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read camera file", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("{}: not a camera.json written by `lucent calibrate`", path.display()))
+    serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a camera.json written by `lucent calibrate`", path.display()))
 }
 
 // ---------------------------------------------------------------- undistort
@@ -428,7 +436,8 @@ fn write_png_as_stored(path: &Path, img: &RgbBuffer) -> Result<()> {
     let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes)
         .ok_or_else(|| anyhow!("{}: image buffer size", path.display()))?;
     let mut out = std::io::Cursor::new(Vec::new());
-    buf.write_to(&mut out, image::ImageFormat::Png).with_context(|| format!("{}: cannot encode PNG", path.display()))?;
+    buf.write_to(&mut out, image::ImageFormat::Png)
+        .with_context(|| format!("{}: cannot encode PNG", path.display()))?;
     Ok(write_atomic(path, &out.into_inner())?)
 }
 
@@ -492,8 +501,18 @@ pub fn pose(a: PoseArgs) -> Result<()> {
     let sample = match (&a.sample_corner, &a.sample_size_mm) {
         (Some(c), Some(s)) => {
             let [i, j] = parse_numbers::<2>("--sample-corner", c)?;
-            if i < 0.0 || j < 0.0 || i.fract() != 0.0 || j.fract() != 0.0 || i >= board.cols as f64 || j >= board.rows as f64 {
-                bail!("--sample-corner {c}: must be inner-corner indices I,J with 0 ≤ I < {} and 0 ≤ J < {}", board.cols, board.rows);
+            if i < 0.0
+                || j < 0.0
+                || i.fract() != 0.0
+                || j.fract() != 0.0
+                || i >= board.cols as f64
+                || j >= board.rows as f64
+            {
+                bail!(
+                    "--sample-corner {c}: must be inner-corner indices I,J with 0 ≤ I < {} and 0 ≤ J < {}",
+                    board.cols,
+                    board.rows
+                );
             }
             let size = parse_numbers::<3>("--sample-size-mm", s)?;
             if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
@@ -515,12 +534,14 @@ pub fn pose(a: PoseArgs) -> Result<()> {
             cal.camera.image_height
         );
     }
-    let corners = cv::find_corners(&gray, &board, Detector::Auto)?
-        .ok_or_else(|| anyhow!("{}: no chessboard of {}x{} inner corners found", a.image.display(), board.cols, board.rows))?;
+    let corners = cv::find_corners(&gray, &board, Detector::Auto)?.ok_or_else(|| {
+        anyhow!("{}: no chessboard of {}x{} inner corners found", a.image.display(), board.cols, board.rows)
+    })?;
     let pose = cv::solve_pnp(&corners.points, &board, &cal.camera)?;
     let reprojected: Vec<[f64; 2]> =
         board.corners().iter().map(|p| cal.camera.project(pose.to_camera(*p)).unwrap_or([f64::NAN; 2])).collect();
-    let ss: f64 = corners.points.iter().zip(&reprojected).map(|(d, r)| (d[0] - r[0]).powi(2) + (d[1] - r[1]).powi(2)).sum();
+    let ss: f64 =
+        corners.points.iter().zip(&reprojected).map(|(d, r)| (d[0] - r[0]).powi(2) + (d[1] - r[1]).powi(2)).sum();
     let rms = (ss / corners.points.len() as f64).sqrt();
     let k = if a.keep_all { cal.camera.keep_all_intrinsics() } else { cal.camera.intrinsics };
     let scene = scene::describe_scene(&k, (gray.width, gray.height), &pose, &board, sample.as_ref(), rms);
@@ -621,7 +642,11 @@ fn env_convert(a: EnvConvertArgs) -> Result<()> {
         summary.mean_over_sphere[1],
         summary.mean_over_sphere[2],
         summary.max.iter().copied().fold(f32::NEG_INFINITY, f32::max),
-        if summary.negative_values > 0 { format!(", {} negative values (outside the target gamut)", summary.negative_values) } else { String::new() }
+        if summary.negative_values > 0 {
+            format!(", {} negative values (outside the target gamut)", summary.negative_values)
+        } else {
+            String::new()
+        }
     );
     Ok(())
 }

@@ -96,8 +96,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
     for n in &outcome.notes {
         eprintln!("note: {n}");
     }
-    let written = compare::write_outputs(&a.out, &outcome)
-        .with_context(|| format!("writing {}", a.out.display()))?;
+    let written = compare::write_outputs(&a.out, &outcome).with_context(|| format!("writing {}", a.out.display()))?;
     let r = &outcome.report;
     println!("as calibrated: {}", line(&r.as_calibrated));
     if let Some(f) = &r.refined {
@@ -110,13 +109,6 @@ pub fn run(a: CompareArgs) -> Result<()> {
             line(&f.metrics)
         );
     }
-    println!(
-        "written: {}",
-        written
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    println!("written: {}", written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
     Ok(())
 }

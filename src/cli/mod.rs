@@ -4,8 +4,8 @@
 pub mod bssrdf;
 pub mod camera;
 pub mod colour;
-pub mod render;
 pub mod compare;
+pub mod render;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::mie::{self, Coefficients, Efficiencies};
@@ -477,7 +477,10 @@ fn bench(b: BenchCommand) -> Result<()> {
         }
         BenchCommand::Bssrdf { rel_error } => bench_bssrdf(rel_error)?,
         BenchCommand::Render { scene, reference, spp } => {
-            let spps: Vec<u32> = spp.split(',').map(|s| s.trim().parse::<u32>().with_context(|| format!("--spp {spp:?}: {s:?} is not a count"))).collect::<Result<_>>()?;
+            let spps: Vec<u32> = spp
+                .split(',')
+                .map(|s| s.trim().parse::<u32>().with_context(|| format!("--spp {spp:?}: {s:?} is not a count")))
+                .collect::<Result<_>>()?;
             render::bench(&scene, &reference, &spps)?
         }
         BenchCommand::Optics { samples, repeats, weight_percent } => {

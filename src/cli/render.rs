@@ -72,16 +72,11 @@ pub struct RenderReport {
 }
 
 fn parse_size(text: &str) -> Result<(usize, usize)> {
-    let (w, h) = text
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--size {text:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
+    let (w, h) =
+        text.split_once(['x', 'X']).with_context(|| format!("--size {text:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
     let (w, h): (usize, usize) = (
-        w.trim()
-            .parse()
-            .with_context(|| format!("--size {text:?}: bad width"))?,
-        h.trim()
-            .parse()
-            .with_context(|| format!("--size {text:?}: bad height"))?,
+        w.trim().parse().with_context(|| format!("--size {text:?}: bad width"))?,
+        h.trim().parse().with_context(|| format!("--size {text:?}: bad height"))?,
     );
     if w == 0 || h == 0 {
         bail!("--size {text:?}: width and height must be at least 1");
@@ -112,12 +107,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
         let [fx, fy, cx, cy] = cam.intrinsics;
         // Pixel centres at integers: the image edge is at −½, so scale about it.
-        cam.intrinsics = [
-            fx * sx,
-            fy * sy,
-            (cx + 0.5) * sx - 0.5,
-            (cy + 0.5) * sy - 0.5,
-        ];
+        cam.intrinsics = [fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5];
         cam.width = w;
         cam.height = h;
         loaded.summary.image_width = w;
@@ -134,8 +124,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(s) = a.seed {
         settings.seed = s;
     }
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("{}: cannot create output folder", a.out.display()))?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create output folder", a.out.display()))?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
         .build()
@@ -147,17 +136,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
             "rendering {} at {w}×{h}, {} spp{}, {threads} threads",
             a.scene.display(),
             settings.spp,
-            settings
-                .time_budget_s
-                .map(|t| format!(" (at most {t} s)"))
-                .unwrap_or_default()
+            settings.time_budget_s.map(|t| format!(" (at most {t} s)")).unwrap_or_default()
         );
     }
-    let bar = if a.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(u64::from(settings.spp))
-    };
+    let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(u64::from(settings.spp)) };
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} spp  {msg}  ETA {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -174,19 +156,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
     });
     bar.finish_and_clear();
     let files = write_outputs(&a.out, &image, &stats, a.exposure)?;
-    let report = report(
-        &loaded.summary,
-        &settings,
-        &image,
-        &stats,
-        threads,
-        a.exposure,
-        &files,
-    );
+    let report = report(&loaded.summary, &settings, &image, &stats, threads, a.exposure, &files);
     crate::io::write_json(&a.out.join("render.json"), &report)
         .with_context(|| format!("{}: cannot write render.json", a.out.display()))?;
     if stats.leaked_paths > 0 {
-        eprintln!("warning: {} paths found no boundary while inside the object (a hole in the mesh); their light is lost", stats.leaked_paths);
+        eprintln!(
+            "warning: {} paths found no boundary while inside the object (a hole in the mesh); their light is lost",
+            stats.leaked_paths
+        );
     }
     if stats.truncated_paths > 0 {
         eprintln!(
@@ -202,10 +179,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         stats.events as f64 / stats.wall_s.max(1e-9) / 1e6,
         100.0 * report.median_relative_std_error
     );
-    println!(
-        "wrote {}/render.exr, render.png, render.json",
-        a.out.display()
-    );
+    println!("wrote {}/render.exr, render.png, render.json", a.out.display());
     Ok(())
 }
 
@@ -229,19 +203,10 @@ pub fn median_relative_std_error(image: &Image) -> f64 {
 }
 
 /// Writes render.exr and render.png; returns their names.
-pub fn write_outputs(
-    out: &Path,
-    image: &Image,
-    _stats: &Stats,
-    exposure_stops: f64,
-) -> Result<Vec<String>> {
+pub fn write_outputs(out: &Path, image: &Image, _stats: &Stats, exposure_stops: f64) -> Result<Vec<String>> {
     let (w, h) = (image.width, image.height);
     let plane = |f: &dyn Fn(usize) -> f64| (0..w * h).map(|i| f(i) as f32).collect::<Vec<f32>>();
-    let (r, g, b) = (
-        plane(&|i| image.mean[i][0]),
-        plane(&|i| image.mean[i][1]),
-        plane(&|i| image.mean[i][2]),
-    );
+    let (r, g, b) = (plane(&|i| image.mean[i][0]), plane(&|i| image.mean[i][1]), plane(&|i| image.mean[i][2]));
     let (vr, vg, vb) = (
         plane(&|i| image.variance_of_mean[i][0]),
         plane(&|i| image.variance_of_mean[i][1]),
@@ -264,18 +229,10 @@ pub fn write_outputs(
     )
     .with_context(|| format!("{}: cannot write render.exr", out.display()))?;
     let k = 2f64.powf(exposure_stops);
-    let data: Vec<f32> = image
-        .mean
-        .iter()
-        .flat_map(|m| m.map(|v| (v * k) as f32))
-        .collect();
+    let data: Vec<f32> = image.mean.iter().flat_map(|m| m.map(|v| (v * k) as f32)).collect();
     imageio::write_png(&out.join("render.png"), &RgbImage::new(w, h, data)?)
         .with_context(|| format!("{}: cannot write render.png", out.display()))?;
-    Ok(vec![
-        "render.exr".into(),
-        "render.png".into(),
-        "render.json".into(),
-    ])
+    Ok(vec!["render.exr".into(), "render.png".into(), "render.json".into()])
 }
 
 fn report(
@@ -350,14 +307,8 @@ pub struct BenchRow {
 /// from `tools/reference/bench_render_mitsuba.py`).
 pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()> {
     let loaded = scene::load(scene_path)?;
-    let (w, h, mean) = imageio::read_exr_channels(
-        &reference_dir.join("plaque_dense_mean.exr"),
-        &["R", "G", "B"],
-    )?;
-    let (_, _, var) = imageio::read_exr_channels(
-        &reference_dir.join("plaque_dense_var.exr"),
-        &["R", "G", "B"],
-    )?;
+    let (w, h, mean) = imageio::read_exr_channels(&reference_dir.join("plaque_dense_mean.exr"), &["R", "G", "B"])?;
+    let (_, _, var) = imageio::read_exr_channels(&reference_dir.join("plaque_dense_var.exr"), &["R", "G", "B"])?;
     if (w, h) != (loaded.scene.camera.width, loaded.scene.camera.height) {
         bail!(
             "{}: reference is {w}×{h}, the scene renders {}×{}",
@@ -370,11 +321,7 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
     let ref_var: f64 = var.iter().flatten().map(|v| f64::from(*v)).sum::<f64>() / n;
     let mut rows = Vec::new();
     for &spp in spps {
-        let settings = Settings {
-            spp,
-            seed: 77 + u64::from(spp),
-            ..loaded.settings.clone()
-        };
+        let settings = Settings { spp, seed: 77 + u64::from(spp), ..loaded.settings.clone() };
         let cpu0 = process_cpu_s();
         let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
         let cpu = process_cpu_s() - cpu0;
@@ -401,22 +348,15 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
         rows.push(row);
     }
     // Mitsuba's side-by-side figures, if present.
-    let mitsuba: Option<serde_json::Value> =
-        std::fs::read_to_string(reference_dir.join("mitsuba_bench.json"))
-            .ok()
-            .and_then(|t| serde_json::from_str(&t).ok());
+    let mitsuba: Option<serde_json::Value> = std::fs::read_to_string(reference_dir.join("mitsuba_bench.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok());
     let mut ratios = Vec::new();
     if let (Some(m), Some(best)) = (&mitsuba, rows.last()) {
-        for r in m
-            .get("runs")
-            .and_then(|r| r.as_array())
-            .into_iter()
-            .flatten()
-        {
-            let (Some(m_cpu), Some(m_rmse)) = (
-                r.get("cpu_seconds").and_then(|v| v.as_f64()),
-                r.get("rmse_vs_reference").and_then(|v| v.as_f64()),
-            ) else {
+        for r in m.get("runs").and_then(|r| r.as_array()).into_iter().flatten() {
+            let (Some(m_cpu), Some(m_rmse)) =
+                (r.get("cpu_seconds").and_then(|v| v.as_f64()), r.get("rmse_vs_reference").and_then(|v| v.as_f64()))
+            else {
                 continue;
             };
             // Both errors include the reference's noise; compare the corrected ones, RMSE² ∝ 1/time.

@@ -36,18 +36,12 @@ pub struct Loaded {
 }
 
 fn extension(path: &Path) -> String {
-    path.extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default()
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
 }
 
 /// Reads `path` as the `role` image ("photo", "render"); errors name both.
 pub fn read_image(path: &Path, role: &'static str) -> Result<Loaded, CompareError> {
-    let err = |reason: String| CompareError::Read {
-        role,
-        path: path.to_path_buf(),
-        reason,
-    };
+    let err = |reason: String| CompareError::Read { role, path: path.to_path_buf(), reason };
     if !path.exists() {
         return Err(err("no such file".into()));
     }
@@ -57,11 +51,7 @@ pub fn read_image(path: &Path, role: &'static str) -> Result<Loaded, CompareErro
     let loaded = match extension(path).as_str() {
         "exr" => read_exr(path).map_err(err)?,
         "png" | "tif" | "tiff" | "hdr" => read_other(path).map_err(err)?,
-        other => {
-            return Err(err(format!(
-                "unsupported format {other:?} (expected .exr, .hdr, .png, .tif or .tiff)"
-            )))
-        }
+        other => return Err(err(format!("unsupported format {other:?} (expected .exr, .hdr, .png, .tif or .tiff)"))),
     };
     check_finite(&loaded, path, role)?;
     Ok(loaded)
@@ -88,31 +78,18 @@ fn read_exr(path: &Path) -> Result<Loaded, String> {
             n == want || n.rsplit_once('.').is_some_and(|(_, last)| last == want)
         })
     };
-    let planes: Vec<(&str, &AnyChannel<FlatSamples>)> =
-        match (find("R"), find("G"), find("B"), find("Y")) {
-            (Some(r), Some(g), Some(b), _) => vec![("R", r), ("G", g), ("B", b)],
-            (None, None, None, Some(y)) => vec![("Y", y)],
-            _ => {
-                return Err(format!(
-                    "no R, G, B (or single Y) channels; the file has {}",
-                    names.join(", ")
-                ))
-            }
-        };
+    let planes: Vec<(&str, &AnyChannel<FlatSamples>)> = match (find("R"), find("G"), find("B"), find("Y")) {
+        (Some(r), Some(g), Some(b), _) => vec![("R", r), ("G", g), ("B", b)],
+        (None, None, None, Some(y)) => vec![("Y", y)],
+        _ => return Err(format!("no R, G, B (or single Y) channels; the file has {}", names.join(", "))),
+    };
     let mut data = vec![0f32; w * h * 3];
     for (k, (name, ch)) in planes.iter().enumerate() {
         let values: Vec<f32> = ch.sample_data.values_as_f32().collect();
         if values.len() != w * h {
-            return Err(format!(
-                "channel {name} has {} samples for {w} × {h} pixels (subsampled?)",
-                values.len()
-            ));
+            return Err(format!("channel {name} has {} samples for {w} × {h} pixels (subsampled?)", values.len()));
         }
-        let targets: &[usize] = if planes.len() == 1 {
-            &[0, 1, 2]
-        } else {
-            std::slice::from_ref(&k)
-        };
+        let targets: &[usize] = if planes.len() == 1 { &[0, 1, 2] } else { std::slice::from_ref(&k) };
         for &t in targets {
             for (px, v) in data.chunks_exact_mut(3).zip(&values) {
                 px[t] = *v;
@@ -120,10 +97,7 @@ fn read_exr(path: &Path) -> Result<Loaded, String> {
         }
     }
     let image = RgbImage::new(w, h, data).map_err(|e| e.to_string())?;
-    Ok(Loaded {
-        image,
-        channels: planes.iter().map(|(n, _)| n.to_string()).collect(),
-    })
+    Ok(Loaded { image, channels: planes.iter().map(|(n, _)| n.to_string()).collect() })
 }
 
 fn read_other(path: &Path) -> Result<Loaded, String> {
@@ -137,11 +111,7 @@ fn read_other(path: &Path) -> Result<Loaded, String> {
     let rgb = img.into_rgb32f();
     let (w, h) = rgb.dimensions();
     let image = RgbImage::new(w as usize, h as usize, rgb.into_raw()).map_err(|e| e.to_string())?;
-    let channels = if grey {
-        vec!["L".to_string()]
-    } else {
-        ["R", "G", "B"].map(String::from).to_vec()
-    };
+    let channels = if grey { vec!["L".to_string()] } else { ["R", "G", "B"].map(String::from).to_vec() };
     Ok(Loaded { image, channels })
 }
 
@@ -152,11 +122,8 @@ fn check_finite(loaded: &Loaded, path: &Path, role: &'static str) -> Result<(), 
     };
     let count = data.iter().filter(|v| !v.is_finite()).count();
     let pixel = first / 3;
-    let channel = if loaded.channels.len() == 1 {
-        loaded.channels[0].clone()
-    } else {
-        ["R", "G", "B"][first % 3].to_string()
-    };
+    let channel =
+        if loaded.channels.len() == 1 { loaded.channels[0].clone() } else { ["R", "G", "B"][first % 3].to_string() };
     let v = data[first];
     let value = if v.is_nan() {
         "NaN"
@@ -166,11 +133,7 @@ fn check_finite(loaded: &Loaded, path: &Path, role: &'static str) -> Result<(), 
         "-inf"
     };
     // A grey image repeats each value three times.
-    let count = if loaded.channels.len() == 1 {
-        count / 3
-    } else {
-        count
-    };
+    let count = if loaded.channels.len() == 1 { count / 3 } else { count };
     Err(CompareError::NonFinite {
         role,
         path: path.to_path_buf(),

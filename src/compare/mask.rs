@@ -41,11 +41,7 @@ pub struct Mask {
 impl Mask {
     /// Every pixel included.
     pub fn all(width: usize, height: usize) -> Self {
-        Self {
-            width,
-            height,
-            include: vec![true; width * height],
-        }
+        Self { width, height, include: vec![true; width * height] }
     }
 
     /// Whether pixel (x, y) is included.
@@ -71,17 +67,8 @@ impl Mask {
                 self.width, self.height, other.width, other.height
             )));
         }
-        let include = self
-            .include
-            .iter()
-            .zip(&other.include)
-            .map(|(a, b)| *a && *b)
-            .collect();
-        Ok(Mask {
-            width: self.width,
-            height: self.height,
-            include,
-        })
+        let include = self.include.iter().zip(&other.include).map(|(a, b)| *a && *b).collect();
+        Ok(Mask { width: self.width, height: self.height, include })
     }
 
     /// 1 for included, 0 for excluded (for OpenCV masks and EXR channels).
@@ -92,11 +79,7 @@ impl Mask {
     /// Reads a mask image (PNG, TIFF; any bit depth) that must be
     /// `width × height`; nonzero colour = included.
     pub fn from_image(path: &Path, width: usize, height: usize) -> Result<Mask, CompareError> {
-        let err = |reason: String| CompareError::Read {
-            role: "mask",
-            path: path.to_path_buf(),
-            reason,
-        };
+        let err = |reason: String| CompareError::Read { role: "mask", path: path.to_path_buf(), reason };
         if !path.is_file() {
             return Err(err("no such file".into()));
         }
@@ -115,11 +98,7 @@ impl Mask {
         }
         let rgb = img.into_rgb16();
         let include = rgb.pixels().map(|p| p.0.iter().any(|&v| v != 0)).collect();
-        Ok(Mask {
-            width,
-            height,
-            include,
-        })
+        Ok(Mask { width, height, include })
     }
 }
 
@@ -149,11 +128,7 @@ pub fn polygon_mask(polygon: &[[f64; 2]], width: usize, height: usize) -> Mask {
             }
         }
     }
-    Mask {
-        width,
-        height,
-        include,
-    }
+    Mask { width, height, include }
 }
 
 /// Convex hull (Andrew's monotone chain), counter-clockwise in a y-up frame.
@@ -164,21 +139,14 @@ fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
     if p.len() < 3 {
         return p;
     }
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
-        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-    };
+    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
     let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
     for pass in 0..2 {
         let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
+        let iter: Box<dyn Iterator<Item = &[f64; 2]>> =
+            if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
         for &q in iter {
-            while hull.len() >= start + 2
-                && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
-            {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
                 hull.pop();
             }
             hull.push(q);
@@ -190,24 +158,15 @@ fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
 
 /// Reads a scene JSON written by `lucent pose`.
 pub fn read_scene(path: &Path) -> Result<SceneDescription, CompareError> {
-    let err = |reason: String| CompareError::Read {
-        role: "scene",
-        path: path.to_path_buf(),
-        reason,
-    };
+    let err = |reason: String| CompareError::Read { role: "scene", path: path.to_path_buf(), reason };
     let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
-    serde_json::from_str(&text)
-        .map_err(|e| err(format!("not a scene JSON from `lucent pose`: {e}")))
+    serde_json::from_str(&text).map_err(|e| err(format!("not a scene JSON from `lucent pose`: {e}")))
 }
 
 fn project(scene: &SceneDescription, p: [f64; 3], what: &str) -> Result<[f64; 2], CompareError> {
     project_renderer(&scene.intrinsics, &scene.camera_to_world, p)
         .filter(|q| q[0].is_finite() && q[1].is_finite())
-        .ok_or_else(|| {
-            CompareError::Parameter(format!(
-                "the scene's {what} at {p:?} m is behind the camera"
-            ))
-        })
+        .ok_or_else(|| CompareError::Parameter(format!("the scene's {what} at {p:?} m is behind the camera")))
 }
 
 fn check_size(scene: &SceneDescription, width: usize, height: usize) -> Result<(), CompareError> {
@@ -224,8 +183,7 @@ fn check_size(scene: &SceneDescription, width: usize, height: usize) -> Result<(
 pub fn object_outline(scene: &SceneDescription) -> Result<Vec<[f64; 2]>, CompareError> {
     let sample = scene.sample.as_ref().ok_or_else(|| {
         CompareError::Parameter(
-            "the scene has no sample (run `lucent pose` with --sample-corner and --sample-size-mm)"
-                .into(),
+            "the scene has no sample (run `lucent pose` with --sample-corner and --sample-size-mm)".into(),
         )
     })?;
     let pts = sample
@@ -244,33 +202,21 @@ pub fn board_outline(scene: &SceneDescription) -> Result<Vec<[f64; 2]>, CompareE
     [[-s, -s], [c * s, -s], [c * s, r * s], [-s, r * s]]
         .iter()
         .map(|&[x, y]| {
-            let world = [
-                m[0][0] * x + m[0][1] * y,
-                m[1][0] * x + m[1][1] * y,
-                m[2][0] * x + m[2][1] * y,
-            ];
+            let world = [m[0][0] * x + m[0][1] * y, m[1][0] * x + m[1][1] * y, m[2][0] * x + m[2][1] * y];
             project(scene, world, "board corner")
         })
         .collect()
 }
 
 /// The sample's pixels.
-pub fn object_mask(
-    scene: &SceneDescription,
-    width: usize,
-    height: usize,
-) -> Result<Mask, CompareError> {
+pub fn object_mask(scene: &SceneDescription, width: usize, height: usize) -> Result<Mask, CompareError> {
     check_size(scene, width, height)?;
     Ok(polygon_mask(&object_outline(scene)?, width, height))
 }
 
 /// The board's pixels not covered by the sample (all the board's if the
 /// scene has no sample).
-pub fn board_mask(
-    scene: &SceneDescription,
-    width: usize,
-    height: usize,
-) -> Result<Mask, CompareError> {
+pub fn board_mask(scene: &SceneDescription, width: usize, height: usize) -> Result<Mask, CompareError> {
     check_size(scene, width, height)?;
     let mut board = polygon_mask(&board_outline(scene)?, width, height);
     if scene.sample.is_some() {
@@ -299,44 +245,24 @@ mod tests {
 
     #[test]
     fn hull_of_a_box_drops_inner_points() {
-        let h = convex_hull(&[
-            [0.0, 0.0],
-            [2.0, 0.0],
-            [2.0, 2.0],
-            [0.0, 2.0],
-            [1.0, 1.0],
-            [1.0, 0.5],
-        ]);
+        let h = convex_hull(&[[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0], [1.0, 1.0], [1.0, 0.5]]);
         assert_eq!(h.len(), 4);
     }
 
     #[test]
     fn board_and_object_masks_from_a_scene() {
         // Camera 0.5 m above the board, looking straight down (fx = 1000 px).
-        let board = BoardSpec {
-            cols: 9,
-            rows: 6,
-            square_m: 0.02,
-        };
+        let board = BoardSpec { cols: 9, rows: 6, square_m: 0.02 };
         let pose = Pose::from_rvec_tvec([0.0; 3], [-0.08, -0.05, 0.5]);
         // Centres at x.5 put every edge half-way between pixel centres.
-        let k = Intrinsics {
-            fx: 1000.0,
-            fy: 1000.0,
-            cx: 320.5,
-            cy: 240.5,
-        };
-        let sample = SampleSpec {
-            corner: [2, 1],
-            size_m: [0.06, 0.04, 0.0],
-        };
+        let k = Intrinsics { fx: 1000.0, fy: 1000.0, cx: 320.5, cy: 240.5 };
+        let sample = SampleSpec { corner: [2, 1], size_m: [0.06, 0.04, 0.0] };
         let scene = describe_scene(&k, (640, 480), &pose, &board, Some(&sample), 0.1);
         // Board: x from −0.02 to 0.18 m → pixels 320.5 + 2000·(x − 0.08) = 120.5 … 520.5.
         let outline = board_outline(&scene).unwrap();
         let xs: Vec<f64> = outline.iter().map(|p| p[0]).collect();
         assert!(
-            xs.iter().any(|x| (x - 120.5).abs() < 1e-9)
-                && xs.iter().any(|x| (x - 520.5).abs() < 1e-9),
+            xs.iter().any(|x| (x - 120.5).abs() < 1e-9) && xs.iter().any(|x| (x - 520.5).abs() < 1e-9),
             "{outline:?}"
         );
         let object = object_mask(&scene, 640, 480).unwrap();
@@ -348,10 +274,7 @@ mod tests {
         let e = object_mask(&scene, 64, 48).unwrap_err().to_string();
         assert!(e.contains("640 × 480"), "{e}");
         let bare = describe_scene(&k, (640, 480), &pose, &board, None, 0.1);
-        assert!(object_mask(&bare, 640, 480)
-            .unwrap_err()
-            .to_string()
-            .contains("no sample"));
+        assert!(object_mask(&bare, 640, 480).unwrap_err().to_string().contains("no sample"));
         assert_eq!(board_mask(&bare, 640, 480).unwrap().count(), 400 * 280);
     }
 }

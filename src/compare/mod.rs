@@ -62,11 +62,7 @@ use std::path::{Path, PathBuf};
 pub enum CompareError {
     /// A file that cannot be read (missing, unreadable, wrong format).
     #[error("{role} {}: cannot read: {reason}", path.display())]
-    Read {
-        role: &'static str,
-        path: PathBuf,
-        reason: String,
-    },
+    Read { role: &'static str, path: PathBuf, reason: String },
     /// NaN or ±inf in an input image.
     #[error("{role} {}: {count} non-finite value(s); the first is {value} at pixel ({x}, {y}) (column, row from the top left), channel {channel}", path.display())]
     NonFinite {
@@ -96,10 +92,7 @@ pub enum CompareError {
     #[error(transparent)]
     Write(#[from] WriteError),
     #[error("{}: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Io { path: PathBuf, source: std::io::Error },
 }
 
 /// Luminance weights for `ssim.Y`, the difference picture and ECC.
@@ -119,10 +112,9 @@ impl Luminance {
         match name.trim().to_ascii_lowercase().as_str() {
             "cie-rgb" | "cie" => Ok(Self::CieRgb),
             "rec709" | "srgb" => Ok(Self::Rec709),
-            other => Err(CompareError::Parameter(format!(
-                "luminance {other:?}: expected one of {}",
-                Self::NAMES.join(", ")
-            ))),
+            other => {
+                Err(CompareError::Parameter(format!("luminance {other:?}: expected one of {}", Self::NAMES.join(", "))))
+            }
         }
     }
 
@@ -163,11 +155,7 @@ pub struct Rgb {
 
 impl Rgb {
     fn from(v: [f64; 3]) -> Self {
-        Self {
-            r: v[0],
-            g: v[1],
-            b: v[2],
-        }
+        Self { r: v[0], g: v[1], b: v[2] }
     }
 }
 
@@ -280,9 +268,8 @@ pub fn metrics_and_ssim_map(
     }
     let n = t.n as f64;
     let p = &settings.ssim;
-    let per: Vec<ssim::Ssim> = (0..3)
-        .map(|c| ssim::ssim(&Channel(photo, c), &Channel(render, c), p, mask))
-        .collect::<Result<_, _>>()?;
+    let per: Vec<ssim::Ssim> =
+        (0..3).map(|c| ssim::ssim(&Channel(photo, c), &Channel(render, c), p, mask)).collect::<Result<_, _>>()?;
     let lw = settings.luminance.weights();
     let (sy, map) = ssim::ssim_with_map(&Weighted(photo, lw), &Weighted(render, lw), p, mask)?;
     let metrics = Metrics {
@@ -321,11 +308,7 @@ pub fn metrics(
 pub fn luminance_plane(img: &RgbImage, weights: [f64; 3]) -> Vec<f32> {
     img.data
         .chunks_exact(3)
-        .map(|p| {
-            (weights[0] * f64::from(p[0])
-                + weights[1] * f64::from(p[1])
-                + weights[2] * f64::from(p[2])) as f32
-        })
+        .map(|p| (weights[0] * f64::from(p[0]) + weights[1] * f64::from(p[1]) + weights[2] * f64::from(p[2])) as f32)
         .collect()
 }
 
@@ -336,58 +319,28 @@ pub fn warp_bilinear(img: &RgbImage, warp: &[[f64; 3]; 3]) -> (RgbImage, Mask) {
     let (w, h) = (img.width, img.height);
     let mut data = vec![0f32; w * h * 3];
     let mut valid = vec![false; w * h];
-    data.par_chunks_mut(3 * w)
-        .zip(valid.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, (row, ok))| {
-            for x in 0..w {
-                let (xf, yf) = (x as f64, y as f64);
-                let d = warp[2][0] * xf + warp[2][1] * yf + warp[2][2];
-                let sx = (warp[0][0] * xf + warp[0][1] * yf + warp[0][2]) / d;
-                let sy = (warp[1][0] * xf + warp[1][1] * yf + warp[1][2]) / d;
-                let tol = 1e-9;
-                ok[x] = sx >= -tol
-                    && sy >= -tol
-                    && sx <= (w - 1) as f64 + tol
-                    && sy <= (h - 1) as f64 + tol;
-                let cx = if sx.is_finite() {
-                    sx.clamp(0.0, (w - 1) as f64)
-                } else {
-                    0.0
-                };
-                let cy = if sy.is_finite() {
-                    sy.clamp(0.0, (h - 1) as f64)
-                } else {
-                    0.0
-                };
-                let (x0, y0) = (cx.floor() as usize, cy.floor() as usize);
-                let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-                let (fx, fy) = (cx - x0 as f64, cy - y0 as f64);
-                let (a, b, c, e) = (
-                    img.pixel(x0, y0),
-                    img.pixel(x1, y0),
-                    img.pixel(x0, y1),
-                    img.pixel(x1, y1),
-                );
-                for k in 0..3 {
-                    let top = (1.0 - fx) * f64::from(a[k]) + fx * f64::from(b[k]);
-                    let bottom = (1.0 - fx) * f64::from(c[k]) + fx * f64::from(e[k]);
-                    row[3 * x + k] = ((1.0 - fy) * top + fy * bottom) as f32;
-                }
+    data.par_chunks_mut(3 * w).zip(valid.par_chunks_mut(w)).enumerate().for_each(|(y, (row, ok))| {
+        for x in 0..w {
+            let (xf, yf) = (x as f64, y as f64);
+            let d = warp[2][0] * xf + warp[2][1] * yf + warp[2][2];
+            let sx = (warp[0][0] * xf + warp[0][1] * yf + warp[0][2]) / d;
+            let sy = (warp[1][0] * xf + warp[1][1] * yf + warp[1][2]) / d;
+            let tol = 1e-9;
+            ok[x] = sx >= -tol && sy >= -tol && sx <= (w - 1) as f64 + tol && sy <= (h - 1) as f64 + tol;
+            let cx = if sx.is_finite() { sx.clamp(0.0, (w - 1) as f64) } else { 0.0 };
+            let cy = if sy.is_finite() { sy.clamp(0.0, (h - 1) as f64) } else { 0.0 };
+            let (x0, y0) = (cx.floor() as usize, cy.floor() as usize);
+            let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+            let (fx, fy) = (cx - x0 as f64, cy - y0 as f64);
+            let (a, b, c, e) = (img.pixel(x0, y0), img.pixel(x1, y0), img.pixel(x0, y1), img.pixel(x1, y1));
+            for k in 0..3 {
+                let top = (1.0 - fx) * f64::from(a[k]) + fx * f64::from(b[k]);
+                let bottom = (1.0 - fx) * f64::from(c[k]) + fx * f64::from(e[k]);
+                row[3 * x + k] = ((1.0 - fy) * top + fy * bottom) as f32;
             }
-        });
-    (
-        RgbImage {
-            width: w,
-            height: h,
-            data,
-        },
-        Mask {
-            width: w,
-            height: h,
-            include: valid,
-        },
-    )
+        }
+    });
+    (RgbImage { width: w, height: h, data }, Mask { width: w, height: h, include: valid })
 }
 
 /// The value below which a fraction `q` of `values` lie (nearest rank on
@@ -402,20 +355,14 @@ pub fn percentile(mut values: Vec<f32>, q: f64) -> Option<f32> {
 }
 
 fn included<'a>(img: &'a RgbImage, mask: Option<&'a Mask>) -> impl Iterator<Item = &'a [f32]> + 'a {
-    img.data
-        .chunks_exact(3)
-        .enumerate()
-        .filter(move |(i, _)| mask.is_none_or(|m| m.include[*i]))
-        .map(|(_, p)| p)
+    img.data.chunks_exact(3).enumerate().filter(move |(i, _)| mask.is_none_or(|m| m.include[*i])).map(|(_, p)| p)
 }
 
 /// Automatic display exposure: 1 / (99th percentile of the photo's
 /// max(R, G, B) over included pixels); 1 if that is not positive. Returns
 /// (exposure, percentile).
 pub fn auto_exposure(photo: &RgbImage, mask: Option<&Mask>) -> (f64, f64) {
-    let values: Vec<f32> = included(photo, mask)
-        .map(|p| p[0].max(p[1]).max(p[2]))
-        .collect();
+    let values: Vec<f32> = included(photo, mask).map(|p| p[0].max(p[1]).max(p[2])).collect();
     let p99 = f64::from(percentile(values, 0.99).unwrap_or(0.0));
     (if p99 > 0.0 { 1.0 / p99 } else { 1.0 }, p99)
 }
@@ -555,15 +502,10 @@ pub const FILES: [&str; 3] = ["metrics.json", "triplet.png", "difference.exr"];
 
 /// Reads, checks and compares the images of `req`; nothing is written.
 pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
-    let settings = Settings {
-        ssim: SsimParams::new(req.data_range)?,
-        luminance: req.luminance,
-    };
+    let settings = Settings { ssim: SsimParams::new(req.data_range)?, luminance: req.luminance };
     if let Some(k) = req.exposure {
         if !(k.is_finite() && k > 0.0) {
-            return Err(CompareError::Parameter(format!(
-                "exposure {k}: must be a positive finite number"
-            )));
+            return Err(CompareError::Parameter(format!("exposure {k}: must be a positive finite number")));
         }
     }
     let photo = input::read_image(&req.photo, "photo")?;
@@ -608,38 +550,30 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         if m.count() == 0 {
             return Err(CompareError::Parameter(format!(
                 "the {source} mask{} includes no pixel",
-                mask_path
-                    .map(|p| format!(" from {}", p.display()))
-                    .unwrap_or_default()
+                mask_path.map(|p| format!(" from {}", p.display())).unwrap_or_default()
             )));
         }
     }
     let mut notes = Vec::new();
 
-    let (calibrated, ssim_map) =
-        metrics_and_ssim_map(photo_img, render_img, mask.as_ref(), &settings)?;
+    let (calibrated, ssim_map) = metrics_and_ssim_map(photo_img, render_img, mask.as_ref(), &settings)?;
 
     // ECC refinement.
     let mut refined_parts = None;
     if let Some(motion) = req.refine {
         let (region, region_text) = match &scene {
-            Some((s, p)) => (
-                Some(mask::board_mask(s, w, h)?),
-                format!("board minus sample, from {}", p.display()),
-            ),
+            Some((s, p)) => (Some(mask::board_mask(s, w, h)?), format!("board minus sample, from {}", p.display())),
             None => {
-                notes.push("ECC ran on the whole image (no scene JSON given: pass --scene to align on the board only)".into());
+                notes.push(
+                    "ECC ran on the whole image (no scene JSON given: pass --scene to align on the board only)".into(),
+                );
                 (None, "whole image".to_string())
             }
         };
         let lw = settings.luminance.weights();
-        let (t, i) = (
-            luminance_plane(photo_img, lw),
-            luminance_plane(render_img, lw),
-        );
+        let (t, i) = (luminance_plane(photo_img, lw), luminance_plane(render_img, lw));
         let region_u8 = region.as_ref().map(Mask::to_u8);
-        let found =
-            ecc::find_transform_ecc(&t, &i, w, h, region_u8.as_deref(), &EccOptions::new(motion))?;
+        let found = ecc::find_transform_ecc(&t, &i, w, h, region_u8.as_deref(), &EccOptions::new(motion))?;
         let (warped, valid) = warp_bilinear(render_img, &found.warp);
         let base = mask.clone().unwrap_or_else(|| Mask::all(w, h));
         let refined_mask = base.and(&valid)?;
@@ -653,8 +587,7 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             (wp[1][0] * c[0] + wp[1][1] * c[1] + wp[1][2]) / d - c[1],
         ];
         let refinement = Refinement {
-            method:
-                "OpenCV findTransformECC (Evangelidis & Psarakis 2008) on luminance, coarse to fine",
+            method: "OpenCV findTransformECC (Evangelidis & Psarakis 2008) on luminance, coarse to fine",
             motion: motion.name(),
             warp: wp,
             warp_convention: "render(W (x, y, 1)) ~ photo(x, y); pixel centres at integers",
@@ -682,11 +615,7 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         .data
         .chunks_exact(3)
         .zip(render_img.data.chunks_exact(3))
-        .map(|(p, r)| {
-            (0..3)
-                .map(|c| lw[c] * (f64::from(r[c]) - f64::from(p[c])))
-                .sum::<f64>() as f32
-        })
+        .map(|(p, r)| (0..3).map(|c| lw[c] * (f64::from(r[c]) - f64::from(p[c]))).sum::<f64>() as f32)
         .collect();
     let abs_included: Vec<f32> = dy
         .iter()
@@ -696,16 +625,9 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         .collect();
     let n_included = abs_included.len();
     let p99 = f64::from(percentile(abs_included.clone(), 0.99).unwrap_or(0.0));
-    let diff_range = if p99 > 0.0 {
-        p99
-    } else {
-        0.01 * req.data_range
-    };
-    let clipped_diff = abs_included
-        .iter()
-        .filter(|v| f64::from(**v) > diff_range)
-        .count() as f64
-        / n_included.max(1) as f64;
+    let diff_range = if p99 > 0.0 { p99 } else { 0.01 * req.data_range };
+    let clipped_diff =
+        abs_included.iter().filter(|v| f64::from(**v) > diff_range).count() as f64 / n_included.max(1) as f64;
     let clip_photo = clipped_fraction(photo_img, mask.as_ref(), exposure);
     let clip_render = clipped_fraction(render_img, mask.as_ref(), exposure);
     if clip_photo > 0.0 || clip_render > 0.0 {
@@ -731,11 +653,8 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             100.0 * m.relative_error
         )
     };
-    let name = |p: &Path| {
-        p.file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| p.display().to_string())
-    };
+    let name =
+        |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| p.display().to_string());
     let mut header = vec![
         format!("photo {}  |  render {}  |  {w} × {h} px", name(&req.photo), name(&req.render)),
         format!(
@@ -787,23 +706,12 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             caption: fmt(&r.metrics),
         });
     }
-    let style = triplet::Style {
-        exposure,
-        luminance: lw,
-        diff_range,
-        header,
-    };
+    let style = triplet::Style { exposure, luminance: lw, diff_range, header };
     let triplet_png = triplet::triplet_png(&rows, &style)?;
 
     // difference.exr channels.
     let plane = |img: &RgbImage, other: &RgbImage, c: usize| -> Vec<f32> {
-        img.data
-            .iter()
-            .skip(c)
-            .step_by(3)
-            .zip(other.data.iter().skip(c).step_by(3))
-            .map(|(r, p)| r - p)
-            .collect()
+        img.data.iter().skip(c).step_by(3).zip(other.data.iter().skip(c).step_by(3)).map(|(r, p)| r - p).collect()
     };
     let mut difference = vec![
         ("R".to_string(), plane(render_img, photo_img, 0)),
@@ -813,19 +721,13 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         ("ssim.Y".to_string(), ssim_map),
     ];
     if let Some(m) = &mask {
-        difference.push((
-            "mask".to_string(),
-            m.include.iter().map(|&v| f32::from(u8::from(v))).collect(),
-        ));
+        difference.push(("mask".to_string(), m.include.iter().map(|&v| f32::from(u8::from(v))).collect()));
     }
     if let Some((_, warped, m)) = &refined_parts {
         for (c, n) in ["R", "G", "B"].iter().enumerate() {
             difference.push((format!("refined.{n}"), plane(warped, photo_img, c)));
         }
-        difference.push((
-            "refined.mask".to_string(),
-            m.include.iter().map(|&v| f32::from(u8::from(v))).collect(),
-        ));
+        difference.push(("refined.mask".to_string(), m.include.iter().map(|&v| f32::from(u8::from(v))).collect()));
     }
 
     let report = Report {
@@ -869,21 +771,11 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         },
         files: FILES.iter().map(|s| s.to_string()).collect(),
     };
-    Ok(Outcome {
-        report,
-        triplet_png,
-        width: w,
-        height: h,
-        difference,
-        notes,
-    })
+    Ok(Outcome { report, triplet_png, width: w, height: h, difference, notes })
 }
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> CompareError + '_ {
-    move |source| CompareError::Io {
-        path: path.to_path_buf(),
-        source,
-    }
+    move |source| CompareError::Io { path: path.to_path_buf(), source }
 }
 
 /// Writes metrics.json, triplet.png and difference.exr into `out`: all
@@ -891,15 +783,9 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> CompareError + '_ {
 /// itself is renamed if it did not exist), so a failure leaves no partial
 /// result. Returns the written paths.
 pub fn write_outputs(out: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>, CompareError> {
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     std::fs::create_dir_all(parent).map_err(io_err(parent))?;
-    let name = out
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "compare".into());
+    let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "compare".into());
     let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(io_err(&tmp))?;
@@ -908,17 +794,9 @@ pub fn write_outputs(out: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>, Comp
         std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
         write_json(&tmp.join(FILES[0]), &outcome.report)?;
         write_atomic(&tmp.join(FILES[1]), &outcome.triplet_png)?;
-        let channels: Vec<(&str, &[f32])> = outcome
-            .difference
-            .iter()
-            .map(|(n, v)| (n.as_str(), v.as_slice()))
-            .collect();
-        write_exr_channels(
-            &tmp.join(FILES[2]),
-            outcome.width,
-            outcome.height,
-            &channels,
-        )?;
+        let channels: Vec<(&str, &[f32])> =
+            outcome.difference.iter().map(|(n, v)| (n.as_str(), v.as_slice())).collect();
+        write_exr_channels(&tmp.join(FILES[2]), outcome.width, outcome.height, &channels)?;
         if out.is_dir() {
             for f in FILES {
                 std::fs::rename(tmp.join(f), out.join(f)).map_err(io_err(&out.join(f)))?;
@@ -946,14 +824,7 @@ mod tests {
     use super::*;
 
     fn img(w: usize, h: usize, f: impl Fn(usize, usize, usize) -> f32) -> RgbImage {
-        RgbImage::new(
-            w,
-            h,
-            (0..w * h * 3)
-                .map(|i| f((i / 3) % w, (i / 3) / w, i % 3))
-                .collect(),
-        )
-        .unwrap()
+        RgbImage::new(w, h, (0..w * h * 3).map(|i| f((i / 3) % w, (i / 3) / w, i % 3)).collect()).unwrap()
     }
 
     #[test]
@@ -967,53 +838,30 @@ mod tests {
 
     #[test]
     fn percentile_and_exposure() {
-        assert_eq!(
-            percentile((0..101).map(|v| v as f32).collect(), 0.99),
-            Some(99.0)
-        );
+        assert_eq!(percentile((0..101).map(|v| v as f32).collect(), 0.99), Some(99.0));
         assert_eq!(percentile(vec![], 0.5), None);
         let a = img(10, 10, |x, _, _| if x == 0 { 4.0 } else { 0.5 });
         let (k, p) = auto_exposure(&a, None);
         assert_eq!((k, p), (0.25, 4.0));
         assert!((clipped_fraction(&a, None, 1.0) - 0.1).abs() < 1e-12);
-        let m = Mask {
-            width: 10,
-            height: 10,
-            include: (0..100).map(|i| i % 10 != 0).collect(),
-        };
+        let m = Mask { width: 10, height: 10, include: (0..100).map(|i| i % 10 != 0).collect() };
         assert_eq!(auto_exposure(&a, Some(&m)).0, 2.0);
     }
 
     #[test]
     fn metrics_reject_empty_masks_and_size_mismatch() {
-        let s = Settings {
-            ssim: SsimParams::new(1.0).unwrap(),
-            luminance: Luminance::CieRgb,
-        };
+        let s = Settings { ssim: SsimParams::new(1.0).unwrap(), luminance: Luminance::CieRgb };
         let a = img(16, 16, |x, y, _| (x * y) as f32 / 256.0);
         let b = img(16, 15, |_, _, _| 0.0);
         assert!(metrics(&a, &b, None, &s)
             .unwrap_err()
             .to_string()
             .contains("16 × 16 pixels but the render is 16 × 15"));
-        let none = Mask {
-            width: 16,
-            height: 16,
-            include: vec![false; 256],
-        };
-        assert!(metrics(&a, &a, Some(&none), &s)
-            .unwrap_err()
-            .to_string()
-            .contains("no pixel"));
+        let none = Mask { width: 16, height: 16, include: vec![false; 256] };
+        assert!(metrics(&a, &a, Some(&none), &s).unwrap_err().to_string().contains("no pixel"));
         let m = metrics(&a, &a, None, &s).unwrap();
-        assert_eq!(
-            (m.rmse, m.mean_abs_error, m.relative_error),
-            (0.0, 0.0, 0.0)
-        );
+        assert_eq!((m.rmse, m.mean_abs_error, m.relative_error), (0.0, 0.0, 0.0));
         assert!((Luminance::CieRgb.weights().iter().sum::<f64>() - 1.0).abs() < 1e-12);
-        assert!(Luminance::from_name("xyz")
-            .unwrap_err()
-            .to_string()
-            .contains("cie-rgb, rec709"));
+        assert!(Luminance::from_name("xyz").unwrap_err().to_string().contains("cie-rgb, rec709"));
     }
 }

@@ -83,19 +83,11 @@ pub fn diverging(t: f64) -> RGBColor {
         (178, 24, 43),
         (103, 0, 31),
     ];
-    let u = if t.is_nan() {
-        5.0
-    } else {
-        (t.clamp(-1.0, 1.0) + 1.0) * 0.5 * 10.0
-    };
+    let u = if t.is_nan() { 5.0 } else { (t.clamp(-1.0, 1.0) + 1.0) * 0.5 * 10.0 };
     let i = (u.floor() as usize).min(9);
     let f = u - i as f64;
     let lerp = |a: u8, b: u8| (f64::from(a) + (f64::from(b) - f64::from(a)) * f).round() as u8;
-    RGBColor(
-        lerp(S[i].0, S[i + 1].0),
-        lerp(S[i].1, S[i + 1].1),
-        lerp(S[i].2, S[i + 1].2),
-    )
+    RGBColor(lerp(S[i].0, S[i + 1].0), lerp(S[i].1, S[i + 1].1), lerp(S[i].2, S[i + 1].2))
 }
 
 /// How source pixels map to panel pixels.
@@ -113,27 +105,12 @@ fn scale_for(w: usize, h: usize) -> Scale {
     let side = w.max(h);
     if side > PANEL_MAX {
         let down = side.div_ceil(PANEL_MAX);
-        Scale {
-            down,
-            up: 1,
-            pw: w.div_ceil(down),
-            ph: h.div_ceil(down),
-        }
+        Scale { down, up: 1, pw: w.div_ceil(down), ph: h.div_ceil(down) }
     } else if w < PANEL_MIN {
         let up = PANEL_MIN.div_ceil(w).min((PANEL_MAX / side).max(1));
-        Scale {
-            down: 1,
-            up,
-            pw: w * up,
-            ph: h * up,
-        }
+        Scale { down: 1, up, pw: w * up, ph: h * up }
     } else {
-        Scale {
-            down: 1,
-            up: 1,
-            pw: w,
-            ph: h,
-        }
+        Scale { down: 1, up: 1, pw: w, ph: h }
     }
 }
 
@@ -174,9 +151,7 @@ fn reduce(row: &Row, s: Scale, luma: [f64; 3]) -> Panels {
                     n += 1;
                     if row.mask.is_none_or(|m| m.get(x, y)) {
                         inc += 1;
-                        d += (0..3)
-                            .map(|c| luma[c] * (f64::from(b[c]) - f64::from(a[c])))
-                            .sum::<f64>();
+                        d += (0..3).map(|c| luma[c] * (f64::from(b[c]) - f64::from(a[c]))).sum::<f64>();
                     }
                 }
             }
@@ -224,13 +199,8 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
     let first = rows.first().ok_or_else(|| perr("no rows to draw"))?;
     let (w, h) = (first.photo.width, first.photo.height);
     for r in rows {
-        let sizes = [
-            (r.photo.width, r.photo.height),
-            (r.render.width, r.render.height),
-        ];
-        if sizes.iter().any(|&s| s != (w, h))
-            || r.mask.is_some_and(|m| (m.width, m.height) != (w, h))
-        {
+        let sizes = [(r.photo.width, r.photo.height), (r.render.width, r.render.height)];
+        if sizes.iter().any(|&s| s != (w, h)) || r.mask.is_some_and(|m| (m.width, m.height) != (w, h)) {
             return Err(perr("triplet rows of different image sizes"));
         }
     }
@@ -244,11 +214,8 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
     let reduced: Vec<Panels> = rows.iter().map(|r| reduce(r, s, style.luminance)).collect();
     render_png(width as u32, height as u32, |root| {
         let text = |t: &str, x: i32, y: i32, size: i32, pos: Pos| {
-            let st = TextStyle::from(("sans-serif", size).into_font())
-                .color(&BLACK)
-                .pos(pos);
-            root.draw(&Text::new(t.to_string(), (x, y), st))
-                .map_err(perr)
+            let st = TextStyle::from(("sans-serif", size).into_font()).color(&BLACK).pos(pos);
+            root.draw(&Text::new(t.to_string(), (x, y), st)).map_err(perr)
         };
         let left = Pos::new(HPos::Left, VPos::Top);
         let centre = Pos::new(HPos::Center, VPos::Top);
@@ -258,23 +225,13 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
             y0 += LINE;
         }
         y0 += 8;
-        let range = if style.diff_range > 0.0 && style.diff_range.is_finite() {
-            style.diff_range
-        } else {
-            1.0
-        };
+        let range = if style.diff_range > 0.0 && style.diff_range.is_finite() { style.diff_range } else { 1.0 };
         let columns = ["photo", "render", "render − photo (luminance)"];
         for (row, p) in rows.iter().zip(&reduced) {
             text(&row.title, MARGIN, y0, 17, left)?;
             y0 += LINE;
             for (c, name) in columns.iter().enumerate() {
-                text(
-                    name,
-                    MARGIN + c as i32 * (pw + GAP) + pw / 2,
-                    y0,
-                    15,
-                    centre,
-                )?;
+                text(name, MARGIN + c as i32 * (pw + GAP) + pw / 2, y0, 15, centre)?;
             }
             y0 += LINE;
             for py in 0..s.ph {
@@ -295,11 +252,8 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
                         },
                     ];
                     for (c, colour) in colours.iter().enumerate() {
-                        root.draw_pixel(
-                            (MARGIN + c as i32 * (pw + GAP) + px as i32, y0 + py as i32),
-                            colour,
-                        )
-                        .map_err(perr)?;
+                        root.draw_pixel((MARGIN + c as i32 * (pw + GAP) + px as i32, y0 + py as i32), colour)
+                            .map_err(perr)?;
                     }
                 }
             }
@@ -311,24 +265,12 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
         let bx = MARGIN + 2 * (pw + GAP);
         for i in 0..pw {
             let t = 2.0 * (f64::from(i) + 0.5) / f64::from(pw) - 1.0;
-            root.draw(&Rectangle::new(
-                [(bx + i, y0), (bx + i + 1, y0 + 16)],
-                diverging(t).filled(),
-            ))
-            .map_err(perr)?;
+            root.draw(&Rectangle::new([(bx + i, y0), (bx + i + 1, y0 + 16)], diverging(t).filled())).map_err(perr)?;
         }
-        root.draw(&Rectangle::new(
-            [(bx, y0), (bx + pw, y0 + 16)],
-            BLACK.stroke_width(1),
-        ))
-        .map_err(perr)?;
+        root.draw(&Rectangle::new([(bx, y0), (bx + pw, y0 + 16)], BLACK.stroke_width(1))).map_err(perr)?;
         for k in 0..5 {
             let x = bx + ((pw - 1) * k) / 4;
-            root.draw(&PathElement::new(
-                vec![(x, y0 + 16), (x, y0 + 21)],
-                BLACK.stroke_width(1),
-            ))
-            .map_err(perr)?;
+            root.draw(&PathElement::new(vec![(x, y0 + 16), (x, y0 + 21)], BLACK.stroke_width(1))).map_err(perr)?;
             let v = range * (f64::from(k) / 2.0 - 1.0);
             // End labels inside the bar's extent.
             let hpos = match k {
@@ -336,35 +278,17 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
                 4 => HPos::Right,
                 _ => HPos::Center,
             };
-            text(
-                &tick_label(v, range),
-                x,
-                y0 + 22,
-                13,
-                Pos::new(hpos, VPos::Top),
-            )?;
+            text(&tick_label(v, range), x, y0 + 22, 13, Pos::new(hpos, VPos::Top))?;
         }
-        text(
-            "Y(render) − Y(photo), linear units",
-            bx + pw / 2,
-            y0 + 40,
-            13,
-            centre,
-        )?;
+        text("Y(render) − Y(photo), linear units", bx + pw / 2, y0 + 40, 13, centre)?;
         // Legend for excluded pixels, under the photo column.
         if rows.iter().any(|r| r.mask.is_some()) {
             for i in 0..28 {
                 for j in 0..16 {
-                    let hatched = if hatch(i, j) {
-                        RGBColor(150, 150, 150)
-                    } else {
-                        RGBColor(215, 215, 215)
-                    };
-                    root.draw_pixel((MARGIN + i as i32, y0 + j as i32), &hatched)
-                        .map_err(perr)?;
+                    let hatched = if hatch(i, j) { RGBColor(150, 150, 150) } else { RGBColor(215, 215, 215) };
+                    root.draw_pixel((MARGIN + i as i32, y0 + j as i32), &hatched).map_err(perr)?;
                     let greyed = shown([0.05, 0.4, 0.1], 1.0, true);
-                    root.draw_pixel((MARGIN + 36 + i as i32, y0 + j as i32), &greyed)
-                        .map_err(perr)?;
+                    root.draw_pixel((MARGIN + 36 + i as i32, y0 + j as i32), &greyed).map_err(perr)?;
                 }
             }
             let note = "excluded by the mask: hatched (difference), greyed (photo, render)";

@@ -135,50 +135,28 @@ pub enum MeshError {
     Empty { path: String },
     /// The file does not follow its format.
     #[error("mesh file {path}: not a valid {format} file: {message}")]
-    Parse {
-        path: String,
-        format: &'static str,
-        message: String,
-    },
+    Parse { path: String, format: &'static str, message: String },
     /// A vertex has a NaN or infinite coordinate.
     #[error(
         "mesh file {path}: vertex {vertex} (0-based) has a non-finite coordinate \
          (NaN or infinite): {position:?}"
     )]
-    NonFinite {
-        path: String,
-        vertex: usize,
-        position: [f64; 3],
-    },
+    NonFinite { path: String, vertex: usize, position: [f64; 3] },
     /// A face refers to a vertex that does not exist.
     #[error(
         "mesh file {path}: face {face} (0-based) refers to vertex index {index}, out of range \
          for the {vertices} vertices"
     )]
-    IndexOutOfRange {
-        path: String,
-        face: usize,
-        index: i64,
-        vertices: usize,
-    },
+    IndexOutOfRange { path: String, face: usize, index: i64, vertices: usize },
     /// No triangle is left after removing degenerate ones.
     #[error(
         "mesh file {path}: no triangles (faces read: {faces}; degenerate triangles removed: \
          {degenerate})"
     )]
-    NoTriangles {
-        path: String,
-        faces: usize,
-        degenerate: usize,
-    },
+    NoTriangles { path: String, faces: usize, degenerate: usize },
     /// More vertices than 32-bit indices can address.
     #[error("mesh file {path}: {count} {what} exceed the limit of {limit} (32-bit indices)")]
-    TooLarge {
-        path: String,
-        what: &'static str,
-        count: u64,
-        limit: u64,
-    },
+    TooLarge { path: String, what: &'static str, count: u64, limit: u64 },
     /// `unit_scale_m` is not a finite positive number.
     #[error("mesh file {path}: unit scale {unit_scale_m} m per file unit must be finite and > 0")]
     InvalidScale { path: String, unit_scale_m: f64 },
@@ -202,21 +180,14 @@ impl Format {
     }
 
     fn of(path: &Path, name: &str) -> Result<Format, MeshError> {
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
+        let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
         match ext.as_str() {
             "ply" => Ok(Format::Ply),
             "obj" => Ok(Format::Obj),
             "stl" => Ok(Format::Stl),
             _ => Err(MeshError::UnknownFormat {
                 path: name.to_string(),
-                extension: if ext.is_empty() {
-                    "(none)".to_string()
-                } else {
-                    format!(".{ext}")
-                },
+                extension: if ext.is_empty() { "(none)".to_string() } else { format!(".{ext}") },
             }),
         }
     }
@@ -237,16 +208,10 @@ struct Parsed {
 pub fn load(path: &Path, unit_scale_m: f64) -> Result<(Mesh, MeshReport), MeshError> {
     let name = path.display().to_string();
     if !(unit_scale_m.is_finite() && unit_scale_m > 0.0) {
-        return Err(MeshError::InvalidScale {
-            path: name,
-            unit_scale_m,
-        });
+        return Err(MeshError::InvalidScale { path: name, unit_scale_m });
     }
     let format = Format::of(path, &name)?;
-    let io = |source| MeshError::Io {
-        path: name.clone(),
-        source,
-    };
+    let io = |source| MeshError::Io { path: name.clone(), source };
     let file = File::open(path).map_err(io)?;
     let len = file.metadata().map_err(io)?.len();
     if len == 0 {
@@ -257,11 +222,7 @@ pub fn load(path: &Path, unit_scale_m: f64) -> Result<(Mesh, MeshReport), MeshEr
         Format::Obj => read_obj(file, &name),
         Format::Stl => read_stl(file, len, &name),
     })?;
-    let Parsed {
-        mut mesh,
-        faces,
-        warnings: read_warnings,
-    } = parsed;
+    let Parsed { mut mesh, faces, warnings: read_warnings } = parsed;
     if unit_scale_m != 1.0 {
         for p in &mut mesh.positions_m {
             *p = p.map(|c| c * unit_scale_m);
@@ -269,11 +230,7 @@ pub fn load(path: &Path, unit_scale_m: f64) -> Result<(Mesh, MeshReport), MeshEr
     }
     let (mut report, degenerate) = mesh.analyse(&name)?;
     if report.triangles == 0 {
-        return Err(MeshError::NoTriangles {
-            path: name,
-            faces,
-            degenerate: report.degenerate_removed,
-        });
+        return Err(MeshError::NoTriangles { path: name, faces, degenerate: report.degenerate_removed });
     }
     if !degenerate.is_empty() {
         let mut next = degenerate.iter().copied().peekable();
@@ -332,8 +289,7 @@ impl Mesh {
     /// normals stay outward.
     pub fn transformed(&self, object_to_world: &[[f64; 4]; 4]) -> Mesh {
         let m = object_to_world;
-        let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
         let affine = m[3] == [0.0, 0.0, 0.0, 1.0];
         let positions_m = self
@@ -355,10 +311,7 @@ impl Mesh {
         } else {
             self.triangles.clone()
         };
-        Mesh {
-            positions_m,
-            triangles,
-        }
+        Mesh { positions_m, triangles }
     }
 
     /// Signed volume enclosed by the triangles (m³), by the divergence
@@ -406,16 +359,8 @@ impl Mesh {
                 limit: u32::MAX as u64,
             });
         }
-        if let Some(i) = self
-            .positions_m
-            .iter()
-            .position(|p| !p.iter().all(|c| c.is_finite()))
-        {
-            return Err(MeshError::NonFinite {
-                path: path.to_string(),
-                vertex: i,
-                position: self.positions_m[i],
-            });
+        if let Some(i) = self.positions_m.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(MeshError::NonFinite { path: path.to_string(), vertex: i, position: self.positions_m[i] });
         }
         for (face, t) in self.triangles.iter().enumerate() {
             if let Some(&index) = t.iter().find(|&&i| i as usize >= n) {
@@ -456,11 +401,7 @@ impl Mesh {
             let (e1, e2) = (sub(b, a), sub(c, a));
             let area2 = norm2(cross(e1, e2));
             let eps = 4.0 * f64::EPSILON;
-            if w[0] == w[1]
-                || w[1] == w[2]
-                || w[0] == w[2]
-                || area2 <= eps * eps * norm2(e1) * norm2(e2)
-            {
+            if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] || area2 <= eps * eps * norm2(e1) * norm2(e2) {
                 degenerate.push(k);
                 continue;
             }
@@ -505,10 +446,8 @@ impl Mesh {
 
         let mut warnings = Vec::new();
         if !degenerate.is_empty() {
-            warnings.push(format!(
-                "{} degenerate triangles (zero area or a repeated vertex) removed",
-                degenerate.len()
-            ));
+            warnings
+                .push(format!("{} degenerate triangles (zero area or a repeated vertex) removed", degenerate.len()));
         }
         if boundary > 0 {
             warnings.push(format!(
@@ -517,9 +456,7 @@ impl Mesh {
             ));
         }
         if non_manifold > 0 {
-            warnings.push(format!(
-                "{non_manifold} non-manifold edges (used by more than two triangles)"
-            ));
+            warnings.push(format!("{non_manifold} non-manifold edges (used by more than two triangles)"));
         }
         if flipped > 0 {
             warnings.push(format!(
@@ -562,11 +499,7 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 fn norm2(a: [f64; 3]) -> f64 {
@@ -584,11 +517,7 @@ thread_local! {
 /// The first call chains a panic hook that prints nothing for panics on a
 /// thread inside a reader (the message goes into the error instead) and
 /// hands every other panic to the previous hook.
-fn guarded(
-    name: &str,
-    format: Format,
-    read: impl FnOnce() -> Result<Parsed, MeshError>,
-) -> Result<Parsed, MeshError> {
+fn guarded(name: &str, format: Format, read: impl FnOnce() -> Result<Parsed, MeshError>) -> Result<Parsed, MeshError> {
     static QUIET_HOOK: std::sync::Once = std::sync::Once::new();
     QUIET_HOOK.call_once(|| {
         let previous = std::panic::take_hook();
@@ -616,20 +545,11 @@ fn guarded(
 }
 
 fn parse_error(name: &str, format: Format, message: impl Into<String>) -> MeshError {
-    MeshError::Parse {
-        path: name.to_string(),
-        format: format.name(),
-        message: message.into(),
-    }
+    MeshError::Parse { path: name.to_string(), format: format.name(), message: message.into() }
 }
 
 fn too_many_vertices(name: &str, count: u64) -> MeshError {
-    MeshError::TooLarge {
-        path: name.to_string(),
-        what: "vertices",
-        count,
-        limit: u32::MAX as u64,
-    }
+    MeshError::TooLarge { path: name.to_string(), what: "vertices", count, limit: u32::MAX as u64 }
 }
 
 // ---------------------------------------------------------------- PLY
@@ -741,17 +661,13 @@ fn is_integer(t: &ply_rs_bw::ply::ScalarType) -> bool {
 /// Checks the header declares what the reader needs.
 fn ply_layout(header: &Header, name: &str) -> Result<(), MeshError> {
     let bad = |m: String| parse_error(name, Format::Ply, m);
-    let vertex = header
-        .elements
-        .get("vertex")
-        .ok_or_else(|| bad("the header declares no 'vertex' element".to_string()))?;
+    let vertex =
+        header.elements.get("vertex").ok_or_else(|| bad("the header declares no 'vertex' element".to_string()))?;
     for axis in ["x", "y", "z"] {
         match vertex.properties.get(axis).map(|p| &p.data_type) {
             Some(PropertyType::Scalar(_)) => {}
             Some(PropertyType::List(..)) => {
-                return Err(bad(format!(
-                    "vertex property '{axis}' is a list, expected a number"
-                )))
+                return Err(bad(format!("vertex property '{axis}' is a list, expected a number")))
             }
             None => return Err(bad(format!("the vertex element has no property '{axis}'"))),
         }
@@ -764,38 +680,23 @@ fn ply_layout(header: &Header, name: &str) -> Result<(), MeshError> {
             .properties
             .values()
             .find(|p| is_face_list(&p.name))
-            .ok_or_else(|| {
-                bad("the face element has no 'vertex_indices' (or 'vertex_index') list".into())
-            })?;
+            .ok_or_else(|| bad("the face element has no 'vertex_indices' (or 'vertex_index') list".into()))?;
         match &list.data_type {
             PropertyType::List(_, item) if is_integer(item) => {}
-            t => {
-                return Err(bad(format!(
-                    "face property '{}' has type {t:?}, expected a list of integers",
-                    list.name
-                )))
-            }
+            t => return Err(bad(format!("face property '{}' has type {t:?}, expected a list of integers", list.name))),
         }
     }
     Ok(())
 }
 
-fn ply_payload_error(
-    name: &str,
-    element: &ElementDef,
-    e: ply_rs_bw::parser::ParseError,
-) -> MeshError {
+fn ply_payload_error(name: &str, element: &ElementDef, e: ply_rs_bw::parser::ParseError) -> MeshError {
     let truncated = e.kind() == std::io::ErrorKind::UnexpectedEof;
     parse_error(
         name,
         Format::Ply,
         format!(
             "{}reading element '{}' ({} declared): {}",
-            if truncated {
-                "the file ends early (truncated?) while "
-            } else {
-                ""
-            },
+            if truncated { "the file ends early (truncated?) while " } else { "" },
             element.name,
             element.count,
             ply_message(&e)
@@ -824,13 +725,7 @@ fn read_ply(file: File, name: &str) -> Result<Parsed, MeshError> {
     let mut reader = PlyReader::new(BufReader::with_capacity(1 << 16, file));
     let header = PlyParser::<PlySkip>::new()
         .read_header(&mut reader)
-        .map_err(|e| {
-            parse_error(
-                name,
-                Format::Ply,
-                format!("bad header: {}", ply_message(&e)),
-            )
-        })?;
+        .map_err(|e| parse_error(name, Format::Ply, format!("bad header: {}", ply_message(&e))))?;
     ply_layout(&header, name)?;
 
     let mut vertices = Vec::new();
@@ -845,14 +740,11 @@ fn read_ply(file: File, name: &str) -> Result<Parsed, MeshError> {
                     .map_err(err)?
             }
             "face" => {
-                faces = PlyParser::<PlyFace>::new()
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(err)?
+                faces =
+                    PlyParser::<PlyFace>::new().read_payload_for_element(&mut reader, element, &header).map_err(err)?
             }
             _ => {
-                PlyParser::<PlySkip>::new()
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(err)?;
+                PlyParser::<PlySkip>::new().read_payload_for_element(&mut reader, element, &header).map_err(err)?;
                 skipped.push(format!("'{key}'"));
             }
         }
@@ -864,12 +756,7 @@ fn read_ply(file: File, name: &str) -> Result<Parsed, MeshError> {
     for (f, face) in faces.iter().enumerate() {
         let idx = &face.0;
         if let Some(&bad) = idx.iter().find(|&&i| i < 0 || i >= n as i64) {
-            return Err(MeshError::IndexOutOfRange {
-                path: name.to_string(),
-                face: f,
-                index: bad,
-                vertices: n,
-            });
+            return Err(MeshError::IndexOutOfRange { path: name.to_string(), face: f, index: bad, vertices: n });
         }
         if idx.len() < 3 {
             short += 1;
@@ -885,16 +772,10 @@ fn read_ply(file: File, name: &str) -> Result<Parsed, MeshError> {
         warnings.push(format!("{short} faces with fewer than 3 vertices skipped"));
     }
     if !skipped.is_empty() {
-        warnings.push(format!(
-            "PLY elements not used for the mesh: {}",
-            skipped.join(", ")
-        ));
+        warnings.push(format!("PLY elements not used for the mesh: {}", skipped.join(", ")));
     }
     Ok(Parsed {
-        mesh: Mesh {
-            positions_m: vertices.into_iter().map(|v| v.0).collect(),
-            triangles,
-        },
+        mesh: Mesh { positions_m: vertices.into_iter().map(|v| v.0).collect(), triangles },
         faces: faces.len(),
         warnings,
     })
@@ -905,16 +786,11 @@ fn read_ply(file: File, name: &str) -> Result<Parsed, MeshError> {
 fn read_obj(file: File, name: &str) -> Result<Parsed, MeshError> {
     // Positions keep their own index (single_index: false); points and
     // lines are dropped; polygons become triangle fans.
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        ..tobj::OFFLINE_RENDERING_LOAD_OPTIONS
-    };
+    let options = tobj::LoadOptions { triangulate: true, ..tobj::OFFLINE_RENDERING_LOAD_OPTIONS };
     let mut reader = BufReader::with_capacity(1 << 16, file);
     // Materials are not needed: never open the .mtl files the OBJ names.
-    let (models, _materials) = tobj::load_obj_buf(&mut reader, &options, |_| {
-        Err(tobj::LoadError::OpenFileFailed)
-    })
-    .map_err(|e| parse_error(name, Format::Obj, e.to_string()))?;
+    let (models, _materials) = tobj::load_obj_buf(&mut reader, &options, |_| Err(tobj::LoadError::OpenFileFailed))
+        .map_err(|e| parse_error(name, Format::Obj, e.to_string()))?;
 
     let mut mesh = Mesh::default();
     for model in &models {
@@ -924,35 +800,19 @@ fn read_obj(file: File, name: &str) -> Result<Parsed, MeshError> {
         if count > u32::MAX as u64 {
             return Err(too_many_vertices(name, count));
         }
-        mesh.positions_m
-            .extend(m.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
-        mesh.triangles.extend(
-            m.indices
-                .chunks_exact(3)
-                .map(|t| [t[0], t[1], t[2]].map(|i| (offset + u64::from(i)) as u32)),
-        );
+        mesh.positions_m.extend(m.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+        mesh.triangles
+            .extend(m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]].map(|i| (offset + u64::from(i)) as u32)));
     }
     // tobj keeps only the vertices faces use, renumbered; name a bad one by
     // its place among the file's `v` lines instead.
-    if mesh
-        .positions_m
-        .iter()
-        .any(|p| !p.iter().all(|c| c.is_finite()))
-    {
+    if mesh.positions_m.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
         if let Some((vertex, position)) = first_non_finite_obj_vertex(reader) {
-            return Err(MeshError::NonFinite {
-                path: name.to_string(),
-                vertex,
-                position,
-            });
+            return Err(MeshError::NonFinite { path: name.to_string(), vertex, position });
         }
     }
     let faces = mesh.triangles.len();
-    Ok(Parsed {
-        mesh,
-        faces,
-        warnings: Vec::new(),
-    })
+    Ok(Parsed { mesh, faces, warnings: Vec::new() })
 }
 
 /// The first `v` line of an OBJ with a non-finite coordinate: (0-based
@@ -984,21 +844,13 @@ fn first_non_finite_obj_vertex(reader: BufReader<File>) -> Option<(usize, [f64; 
 fn read_stl(file: File, len: u64, name: &str) -> Result<Parsed, MeshError> {
     let bad = |m: String| parse_error(name, Format::Stl, m);
     let mut data = Vec::with_capacity(len as usize);
-    std::io::Read::read_to_end(&mut BufReader::new(file), &mut data).map_err(|source| {
-        MeshError::Io {
-            path: name.to_string(),
-            source,
-        }
-    })?;
+    std::io::Read::read_to_end(&mut BufReader::new(file), &mut data)
+        .map_err(|source| MeshError::Io { path: name.to_string(), source })?;
     let len = data.len() as u64;
-    let announced = (data.len() >= 84)
-        .then(|| u32::from_le_bytes([data[80], data[81], data[82], data[83]]) as u64);
+    let announced = (data.len() >= 84).then(|| u32::from_le_bytes([data[80], data[81], data[82], data[83]]) as u64);
     let binary_size = announced.map(|n| 84 + 50 * n);
     let ascii = {
-        let start = data
-            .iter()
-            .position(|b| !b.is_ascii_whitespace())
-            .unwrap_or(0);
+        let start = data.iter().position(|b| !b.is_ascii_whitespace()).unwrap_or(0);
         data[start..].starts_with(b"solid")
     };
     let mut warnings = Vec::new();
@@ -1043,19 +895,15 @@ fn read_stl(file: File, len: u64, name: &str) -> Result<Parsed, MeshError> {
     }
     let kind = if binary { "binary" } else { "ASCII" };
     let mut cursor = Cursor::new(data);
-    let triangles =
-        stl_io::create_stl_reader(&mut cursor).map_err(|e| bad(format!("{kind} STL: {e}")))?;
+    let triangles = stl_io::create_stl_reader(&mut cursor).map_err(|e| bad(format!("{kind} STL: {e}")))?;
 
     let mut mesh = Mesh::default();
     let mut index: FxHashMap<[u32; 3], u32> = FxHashMap::default();
     let mut faces = 0usize;
     for (k, t) in triangles.enumerate() {
         let t = t.map_err(|e| {
-            let early = if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                "the file ends early (truncated?) "
-            } else {
-                ""
-            };
+            let early =
+                if e.kind() == std::io::ErrorKind::UnexpectedEof { "the file ends early (truncated?) " } else { "" };
             bad(format!("{early}{kind} STL, at triangle {k}: {e}"))
         })?;
         faces += 1;
@@ -1076,11 +924,7 @@ fn read_stl(file: File, len: u64, name: &str) -> Result<Parsed, MeshError> {
         }
         mesh.triangles.push(tri);
     }
-    Ok(Parsed {
-        mesh,
-        faces,
-        warnings,
-    })
+    Ok(Parsed { mesh, faces, warnings })
 }
 
 #[cfg(test)]
@@ -1132,13 +976,7 @@ mod tests {
         m.triangles[0] = [0, 1, 2];
         let r = m.check("box").unwrap();
         assert!(r.closed);
-        assert!(
-            r.warnings
-                .iter()
-                .any(|w| w.contains("inconsistent orientation: 3 edges")),
-            "{:?}",
-            r.warnings
-        );
+        assert!(r.warnings.iter().any(|w| w.contains("inconsistent orientation: 3 edges")), "{:?}", r.warnings);
     }
 
     #[test]
@@ -1149,10 +987,7 @@ mod tests {
             triangles: m.triangles.iter().map(|&[a, b, c]| [a, c, b]).collect(),
         };
         let r = inv.check("box").unwrap();
-        assert!(r
-            .warnings
-            .iter()
-            .any(|w| w.contains("negative signed volume")));
+        assert!(r.warnings.iter().any(|w| w.contains("negative signed volume")));
     }
 
     #[test]
@@ -1177,10 +1012,7 @@ mod tests {
         m.triangles[5][2] = 8;
         let e = m.check("plaque").unwrap_err().to_string();
         assert!(e.contains("face 5") && e.contains("index 8"), "{e}");
-        let m = Mesh {
-            positions_m: vec![[0.0; 3]; 3],
-            triangles: vec![[0, 1, 2]],
-        };
+        let m = Mesh { positions_m: vec![[0.0; 3]; 3], triangles: vec![[0, 1, 2]] };
         let e = m.check("flat").unwrap_err().to_string();
         assert!(e.contains("no triangles") && e.contains("degenerate triangles removed: 1"));
     }
@@ -1188,12 +1020,7 @@ mod tests {
     #[test]
     fn reflection_keeps_normals_outward() {
         let m = plaque_box(0.06, 0.04, 0.01);
-        let mirror = [
-            [-1.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-        ];
+        let mirror = [[-1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
         let r = m.transformed(&mirror);
         assert!((r.signed_volume_m3() - m.signed_volume_m3()).abs() < 1e-18);
         // Projective last row: dividing by w = 2 halves every coordinate.

@@ -77,50 +77,23 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum SceneFileError {
     #[error("{path}: cannot read scene file: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Read { path: PathBuf, source: std::io::Error },
     #[error("{path}: {message}")]
     Toml { path: PathBuf, message: String },
     #[error("{path}: [{section}] {key}: {reason}")]
-    Key {
-        path: PathBuf,
-        section: &'static str,
-        key: &'static str,
-        reason: String,
-    },
+    Key { path: PathBuf, section: &'static str, key: &'static str, reason: String },
     #[error("{path}: [{section}]: {reason}")]
-    Section {
-        path: PathBuf,
-        section: &'static str,
-        reason: String,
-    },
+    Section { path: PathBuf, section: &'static str, reason: String },
     #[error("{path}: [object] mesh: {source}")]
-    Mesh {
-        path: PathBuf,
-        source: mesh::MeshError,
-    },
+    Mesh { path: PathBuf, source: mesh::MeshError },
     #[error("{path}: [material] recipe: {source}")]
-    Recipe {
-        path: PathBuf,
-        source: crate::optics::recipe::RecipeError,
-    },
+    Recipe { path: PathBuf, source: crate::optics::recipe::RecipeError },
     #[error("{path}: [material]: {source}")]
-    Optics {
-        path: PathBuf,
-        source: crate::optics::bulk::OpticsError,
-    },
+    Optics { path: PathBuf, source: crate::optics::bulk::OpticsError },
     #[error("{path}: [environment] map: {source}")]
-    Image {
-        path: PathBuf,
-        source: crate::imageio::ImageIoError,
-    },
+    Image { path: PathBuf, source: crate::imageio::ImageIoError },
     #[error("{path}: {source}")]
-    Scene {
-        path: PathBuf,
-        source: lucent_render::tracer::SceneError,
-    },
+    Scene { path: PathBuf, source: lucent_render::tracer::SceneError },
 }
 
 // ------------------------------------------------------------ raw file
@@ -273,25 +246,11 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn key(
-        &self,
-        section: &'static str,
-        key: &'static str,
-        reason: impl Into<String>,
-    ) -> SceneFileError {
-        SceneFileError::Key {
-            path: self.path.to_path_buf(),
-            section,
-            key,
-            reason: reason.into(),
-        }
+    fn key(&self, section: &'static str, key: &'static str, reason: impl Into<String>) -> SceneFileError {
+        SceneFileError::Key { path: self.path.to_path_buf(), section, key, reason: reason.into() }
     }
     fn section(&self, section: &'static str, reason: impl Into<String>) -> SceneFileError {
-        SceneFileError::Section {
-            path: self.path.to_path_buf(),
-            section,
-            reason: reason.into(),
-        }
+        SceneFileError::Section { path: self.path.to_path_buf(), section, reason: reason.into() }
     }
     fn resolve(&self, p: &Path) -> PathBuf {
         if p.is_absolute() {
@@ -304,28 +263,18 @@ impl Ctx<'_> {
 
 /// Parses a scene file's text (stage one: syntax, unknown keys).
 pub fn parse(text: &str, path: &Path) -> Result<SceneFile, SceneFileError> {
-    toml::from_str(text).map_err(|e| SceneFileError::Toml {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })
+    toml::from_str(text).map_err(|e| SceneFileError::Toml { path: path.to_path_buf(), message: e.to_string() })
 }
 
 /// Loads and validates a scene file (both stages) into a renderable scene.
 pub fn load(path: &Path) -> Result<LoadedScene, SceneFileError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneFileError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text =
+        std::fs::read_to_string(path).map_err(|source| SceneFileError::Read { path: path.to_path_buf(), source })?;
     let file = parse(&text, path)?;
     build(&file, path)
 }
 
-fn finite3(
-    ctx: &Ctx,
-    section: &'static str,
-    key: &'static str,
-    v: [f64; 3],
-) -> Result<DVec3, SceneFileError> {
+fn finite3(ctx: &Ctx, section: &'static str, key: &'static str, v: [f64; 3]) -> Result<DVec3, SceneFileError> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(DVec3::from_array(v))
     } else {
@@ -338,23 +287,13 @@ fn read_scene_json(ctx: &Ctx, p: &Path) -> Result<SceneDescription, SceneFileErr
     let text = std::fs::read_to_string(&full)
         .map_err(|e| ctx.key("camera", "scene_json", format!("{}: {e}", full.display())))?;
     serde_json::from_str(&text).map_err(|e| {
-        ctx.key(
-            "camera",
-            "scene_json",
-            format!(
-                "{}: not a scene.json written by `lucent pose`: {e}",
-                full.display()
-            ),
-        )
+        ctx.key("camera", "scene_json", format!("{}: not a scene.json written by `lucent pose`: {e}", full.display()))
     })
 }
 
 /// Stage two: the validated scene.
 pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileError> {
-    let ctx = Ctx {
-        path,
-        dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
-    };
+    let ctx = Ctx { path, dir: path.parent().map(Path::to_path_buf).unwrap_or_default() };
     let mut warnings = Vec::new();
     let scene_json = match &file.camera.scene_json {
         Some(p) => Some(read_scene_json(&ctx, p)?),
@@ -381,31 +320,15 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
             )?;
             let accel = Accel::new(&triangles);
             let (lo, hi) = accel.bounds();
-            let object =
-                Object::new(accel, Boundary::Smooth { eta }, medium).map_err(|source| {
-                    SceneFileError::Scene {
-                        path: path.to_path_buf(),
-                        source,
-                    }
-                })?;
+            let object = Object::new(accel, Boundary::Smooth { eta }, medium)
+                .map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
             let top = DVec3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z);
-            (
-                Some((object, summary)),
-                Some(desc),
-                report,
-                Some([lo.to_array(), hi.to_array()]),
-                Some(top),
-            )
+            (Some((object, summary)), Some(desc), report, Some([lo.to_array(), hi.to_array()]), Some(top))
         }
         (Some(_), None) => {
-            return Err(ctx.section(
-                "material",
-                "an [object] needs a [material] (recipe or explicit bands)",
-            ))
+            return Err(ctx.section("material", "an [object] needs a [material] (recipe or explicit bands)"))
         }
-        (None, Some(_)) => {
-            return Err(ctx.section("object", "a [material] is given but no [object] to fill"))
-        }
+        (None, Some(_)) => return Err(ctx.section("object", "a [material] is given but no [object] to fill")),
         (None, None) => (None, None, None, None, None),
     };
 
@@ -417,7 +340,7 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
 
     // --- environment
     let (environment, env_desc, projection_desc, centre, radius) =
-        build_environment(&ctx, &file.environment, top_centre)?;
+        build_environment(&ctx, &file.environment, top_centre, &mut warnings)?;
 
     // --- render settings
     let r = &file.render;
@@ -430,11 +353,7 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     }
     if let Some(t) = r.time_s {
         if !(t > 0.0 && t.is_finite()) {
-            return Err(ctx.key(
-                "render",
-                "time_s",
-                format!("must be a positive number of seconds, got {t}"),
-            ));
+            return Err(ctx.key("render", "time_s", format!("must be a positive number of seconds, got {t}")));
         }
         settings.time_budget_s = Some(t);
     }
@@ -450,21 +369,10 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
         None => (None, None),
     };
     let triangles = object.as_ref().map_or(0, |o| o.accel.len());
-    let (intr, dist) = (
-        camera.intrinsics,
-        camera.distortion.map(|d| [d.k1, d.k2, d.p1, d.p2, d.k3]),
-    );
+    let (intr, dist) = (camera.intrinsics, camera.distortion.map(|d| [d.k1, d.k2, d.p1, d.p2, d.k3]));
     let (w, h) = (camera.width, camera.height);
-    let scene = Scene::new(
-        object,
-        board.as_ref().map(|b| b.0.clone()),
-        environment,
-        camera,
-    )
-    .map_err(|source| SceneFileError::Scene {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let scene = Scene::new(object, board.as_ref().map(|b| b.0.clone()), environment, camera)
+        .map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
     if let Some(rep) = &mesh_report {
         warnings.extend(rep.warnings.iter().cloned());
     }
@@ -510,20 +418,15 @@ fn build_camera(
                 ));
             };
             let full = ctx.resolve(p);
-            let text = std::fs::read_to_string(&full).map_err(|e| {
-                ctx.key("camera", "camera_json", format!("{}: {e}", full.display()))
+            let text = std::fs::read_to_string(&full)
+                .map_err(|e| ctx.key("camera", "camera_json", format!("{}: {e}", full.display())))?;
+            let cal: lucent_calib::camera::Calibration = serde_json::from_str(&text).map_err(|e| {
+                ctx.key(
+                    "camera",
+                    "camera_json",
+                    format!("{}: not a camera.json written by `lucent calibrate`: {e}", full.display()),
+                )
             })?;
-            let cal: lucent_calib::camera::Calibration =
-                serde_json::from_str(&text).map_err(|e| {
-                    ctx.key(
-                        "camera",
-                        "camera_json",
-                        format!(
-                            "{}: not a camera.json written by `lucent calibrate`: {e}",
-                            full.display()
-                        ),
-                    )
-                })?;
             let d = cal.camera.distortion;
             if d.k4 != 0.0 || d.k5 != 0.0 || d.k6 != 0.0 {
                 return Err(ctx.key("camera", "distortion", "the rational model's k4–k6 are not supported by the renderer; calibrate with pinhole-k3 or render undistorted (distortion = \"none\")"));
@@ -531,80 +434,74 @@ fn build_camera(
             Some([d.k1, d.k2, d.p1, d.p2, d.k3])
         }
         Some(other) => {
-            return Err(ctx.key(
-                "camera",
-                "distortion",
-                format!("expected \"none\" or \"calibrated\", got {other:?}"),
-            ))
+            return Err(ctx.key("camera", "distortion", format!("expected \"none\" or \"calibrated\", got {other:?}")))
         }
     };
     let cam_err = |e: lucent_render::camera::CameraError| ctx.section("camera", e.to_string());
     if let Some(s) = scene_json {
-        if c.position_m.is_some()
-            || c.look_at_m.is_some()
-            || c.intrinsics.is_some()
-            || c.camera_to_world.is_some()
-        {
+        if c.position_m.is_some() || c.look_at_m.is_some() || c.intrinsics.is_some() || c.camera_to_world.is_some() {
             return Err(ctx.section("camera", "give either scene_json or an explicit camera (position_m/look_at_m or intrinsics/camera_to_world), not both"));
         }
         let k = &s.intrinsics;
-        let (w, h) = (
-            c.width.unwrap_or(s.image_width),
-            c.height.unwrap_or(s.image_height),
-        );
-        let cam = Camera::new(
-            w,
-            h,
-            [k.fx, k.fy, k.cx, k.cy],
-            s.camera_to_world,
-            distortion,
-        )
-        .map_err(cam_err)?;
+        let (w, h) = (c.width.unwrap_or(s.image_width), c.height.unwrap_or(s.image_height));
+        let cam = Camera::new(w, h, [k.fx, k.fy, k.cx, k.cy], s.camera_to_world, distortion).map_err(cam_err)?;
         return Ok((cam, format!("scene.json pose, {w}×{h}, fx {:.2} px", k.fx)));
     }
     let (Some(w), Some(h)) = (c.width, c.height) else {
         return Err(ctx.section("camera", "give scene_json, or width and height with position_m/look_at_m/vertical_fov_deg or intrinsics/camera_to_world"));
     };
     match (c.intrinsics, c.camera_to_world, c.position_m, c.look_at_m) {
-        (Some(k), Some(m), None, None) => Ok((Camera::new(w, h, k, m, distortion).map_err(cam_err)?, "explicit intrinsics and pose".into())),
+        (Some(k), Some(m), None, None) => {
+            Ok((Camera::new(w, h, k, m, distortion).map_err(cam_err)?, "explicit intrinsics and pose".into()))
+        }
         (None, None, Some(p), Some(t)) => {
-            let fov = c.vertical_fov_deg.ok_or_else(|| ctx.key("camera", "vertical_fov_deg", "required with position_m/look_at_m"))?;
+            let fov = c
+                .vertical_fov_deg
+                .ok_or_else(|| ctx.key("camera", "vertical_fov_deg", "required with position_m/look_at_m"))?;
             let up = c.up.unwrap_or([0.0, 0.0, 1.0]);
-            let cam = Camera::look_at(w, h, finite3(ctx, "camera", "position_m", p)?, finite3(ctx, "camera", "look_at_m", t)?, finite3(ctx, "camera", "up", up)?, fov).map_err(cam_err)?;
+            let cam = Camera::look_at(
+                w,
+                h,
+                finite3(ctx, "camera", "position_m", p)?,
+                finite3(ctx, "camera", "look_at_m", t)?,
+                finite3(ctx, "camera", "up", up)?,
+                fov,
+            )
+            .map_err(cam_err)?;
             let cam = match distortion {
-                Some(_) => return Err(ctx.key("camera", "distortion", "\"calibrated\" needs the calibrated intrinsics (scene_json or intrinsics)")),
+                Some(_) => {
+                    return Err(ctx.key(
+                        "camera",
+                        "distortion",
+                        "\"calibrated\" needs the calibrated intrinsics (scene_json or intrinsics)",
+                    ))
+                }
                 None => cam,
             };
             Ok((cam, format!("look-at from {p:?} to {t:?}, vertical FOV {fov}°")))
         }
-        _ => Err(ctx.section("camera", "give either intrinsics + camera_to_world or position_m + look_at_m (+ vertical_fov_deg)")),
+        _ => Err(ctx.section(
+            "camera",
+            "give either intrinsics + camera_to_world or position_m + look_at_m (+ vertical_fov_deg)",
+        )),
     }
 }
 
 type MaterialParts = (Medium, [f64; 3], MaterialSummary, Option<[f64; 3]>);
 
 fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, SceneFileError> {
-    let phase_kind = m
-        .phase
-        .as_deref()
-        .unwrap_or(if m.recipe.is_some() { "mie" } else { "hg" });
+    let phase_kind = m.phase.as_deref().unwrap_or(if m.recipe.is_some() { "mie" } else { "hg" });
     if !matches!(phase_kind, "mie" | "hg") {
-        return Err(ctx.key(
-            "material",
-            "phase",
-            format!("expected \"mie\" or \"hg\", got {phase_kind:?}"),
-        ));
+        return Err(ctx.key("material", "phase", format!("expected \"mie\" or \"hg\", got {phase_kind:?}")));
     }
     let explicit = m.sigma_s_per_m.is_some() || m.sigma_a_per_m.is_some() || m.g.is_some();
     match (&m.recipe, explicit) {
-        (Some(_), true) => Err(ctx.section(
-            "material",
-            "give either recipe or explicit sigma_s_per_m/sigma_a_per_m/g, not both",
-        )),
-        (None, false) => Err(ctx.section(
-            "material",
-            "give a recipe or explicit sigma_s_per_m, sigma_a_per_m, g and n",
-        )),
+        (Some(_), true) => {
+            Err(ctx.section("material", "give either recipe or explicit sigma_s_per_m/sigma_a_per_m/g, not both"))
+        }
+        (None, false) => {
+            Err(ctx.section("material", "give a recipe or explicit sigma_s_per_m, sigma_a_per_m, g and n"))
+        }
         (None, true) => {
             let need = |v: Option<[f64; 3]>, key: &'static str| {
                 v.ok_or_else(|| ctx.key("material", key, "required with explicit bands"))
@@ -616,11 +513,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, Scene
                 need(m.n, "n")?,
             );
             if phase_kind == "mie" {
-                return Err(ctx.key(
-                    "material",
-                    "phase",
-                    "\"mie\" needs a recipe; explicit bands use \"hg\"",
-                ));
+                return Err(ctx.key("material", "phase", "\"mie\" needs a recipe; explicit bands use \"hg\""));
             }
             let phase = hg_phases(ctx, g)?;
             let summary = MaterialSummary {
@@ -631,45 +524,20 @@ fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, Scene
                 g,
                 n,
             };
-            Ok((
-                Medium {
-                    sigma_s: s,
-                    sigma_a: a,
-                    phase,
-                },
-                n,
-                summary,
-                None,
-            ))
+            Ok((Medium { sigma_s: s, sigma_a: a, phase }, n, summary, None))
         }
         (Some(recipe_path), false) => {
             let full = ctx.resolve(recipe_path);
-            let recipe = Recipe::load(
-                &full,
-                Overrides {
-                    weight_percent: m.weight_percent,
-                },
-            )
-            .map_err(|source| SceneFileError::Recipe {
-                path: ctx.path.to_path_buf(),
-                source,
-            })?;
+            let recipe = Recipe::load(&full, Overrides { weight_percent: m.weight_percent })
+                .map_err(|source| SceneFileError::Recipe { path: ctx.path.to_path_buf(), source })?;
             let grid_text = m.wavelengths.as_deref().unwrap_or("380:780:10");
             let grid = parse_grid(grid_text).map_err(|e| ctx.key("material", "wavelengths", e))?;
-            let options = bulk::Options {
-                phase_entries: if phase_kind == "mie" { 4096 } else { 0 },
-                ..Default::default()
-            };
-            let spectrum = bulk::compute(&recipe, &grid, &options).map_err(|source| {
-                SceneFileError::Optics {
-                    path: ctx.path.to_path_buf(),
-                    source,
-                }
-            })?;
-            let weights = band_weights(&grid)
-                .map_err(|e| ctx.key("material", "wavelengths", e.to_string()))?;
-            let (medium, summary) =
-                medium_from_spectrum(ctx, &spectrum, &weights, phase_kind == "mie", &full)?;
+            let options =
+                bulk::Options { phase_entries: if phase_kind == "mie" { 4096 } else { 0 }, ..Default::default() };
+            let spectrum = bulk::compute(&recipe, &grid, &options)
+                .map_err(|source| SceneFileError::Optics { path: ctx.path.to_path_buf(), source })?;
+            let weights = band_weights(&grid).map_err(|e| ctx.key("material", "wavelengths", e.to_string()))?;
+            let (medium, summary) = medium_from_spectrum(ctx, &spectrum, &weights, phase_kind == "mie", &full)?;
             let size = recipe_size_m(&recipe);
             let eta = summary.n;
             Ok((medium, eta, summary, size))
@@ -692,9 +560,7 @@ fn recipe_size_m(recipe: &Recipe) -> Option<[f64; 3]> {
 }
 
 fn hg_phases(ctx: &Ctx, g: [f64; 3]) -> Result<[Phase; 3], SceneFileError> {
-    let one = |b: usize| {
-        Phase::henyey_greenstein(g[b]).map_err(|e| ctx.key("material", "g", e.to_string()))
-    };
+    let one = |b: usize| Phase::henyey_greenstein(g[b]).map_err(|e| ctx.key("material", "g", e.to_string()));
     Ok([one(0)?, one(1)?, one(2)?])
 }
 
@@ -706,16 +572,9 @@ fn medium_from_spectrum(
     mie: bool,
     source: &Path,
 ) -> Result<(Medium, MaterialSummary), SceneFileError> {
-    let avg = |v: &[f64], what: &str| {
-        w.average(v)
-            .map_err(|e| ctx.section("material", format!("{what}: {e}")))
-    };
-    let (mu_s, mu_a, g, n) = (
-        avg(&s.mu_s_per_m, "μs")?,
-        avg(&s.mu_a_per_m, "μa")?,
-        avg(&s.g, "g")?,
-        avg(&s.n_bulk, "n_bulk")?,
-    );
+    let avg = |v: &[f64], what: &str| w.average(v).map_err(|e| ctx.section("material", format!("{what}: {e}")));
+    let (mu_s, mu_a, g, n) =
+        (avg(&s.mu_s_per_m, "μs")?, avg(&s.mu_a_per_m, "μa")?, avg(&s.g, "g")?, avg(&s.n_bulk, "n_bulk")?);
     let phase = if mie {
         let tables = &s.phase;
         let entries = tables.first().map_or(0, Vec::len);
@@ -732,9 +591,7 @@ fn medium_from_spectrum(
                 .map_err(|e| ctx.section("material", format!("band {b} phase table: {e}")))?;
             out.push(Phase::Tabulated(table));
         }
-        let [a, b, c]: [Phase; 3] = out
-            .try_into()
-            .map_err(|_| ctx.section("material", "phase tables"))?;
+        let [a, b, c]: [Phase; 3] = out.try_into().map_err(|_| ctx.section("material", "phase tables"))?;
         [a, b, c]
     } else {
         hg_phases(ctx, g)?
@@ -751,14 +608,7 @@ fn medium_from_spectrum(
         g,
         n,
     };
-    Ok((
-        Medium {
-            sigma_s: mu_s,
-            sigma_a: mu_a,
-            phase,
-        },
-        summary,
-    ))
+    Ok((Medium { sigma_s: mu_s, sigma_a: mu_a, phase }, summary))
 }
 
 type ObjectParts = (Vec<[DVec3; 3]>, String, Option<mesh::MeshReport>);
@@ -775,65 +625,41 @@ fn build_object_triangles(
         Some(p) => {
             let scale = o.unit_scale_m.unwrap_or(1.0);
             if !(scale > 0.0 && scale.is_finite()) {
-                return Err(ctx.key(
-                    "object",
-                    "unit_scale_m",
-                    format!("must be finite and > 0, got {scale}"),
-                ));
+                return Err(ctx.key("object", "unit_scale_m", format!("must be finite and > 0, got {scale}")));
             }
             let full = ctx.resolve(p);
-            let (m, report) = mesh::load(&full, scale).map_err(|source| SceneFileError::Mesh {
-                path: ctx.path.to_path_buf(),
-                source,
-            })?;
+            let (m, report) = mesh::load(&full, scale)
+                .map_err(|source| SceneFileError::Mesh { path: ctx.path.to_path_buf(), source })?;
             (m, format!("mesh {}", full.display()), Some(report))
         }
         None => {
-            let size = match (o.size_mm, size_from_recipe) {
-                (Some(s), _) => s.map(|v| v * 1e-3),
-                (None, Some(s)) => s,
-                (None, None) => return Err(ctx.section("object", "no mesh, no size_mm and the recipe gives no size_mm/thickness_mm: the plaque box needs a size")),
-            };
+            let size =
+                match (o.size_mm, size_from_recipe) {
+                    (Some(s), _) => s.map(|v| v * 1e-3),
+                    (None, Some(s)) => s,
+                    (None, None) => return Err(ctx.section(
+                        "object",
+                        "no mesh, no size_mm and the recipe gives no size_mm/thickness_mm: the plaque box needs a size",
+                    )),
+                };
             if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
-                return Err(ctx.key(
-                    "object",
-                    "size_mm",
-                    format!("box sides must be finite and > 0, got {size:?} m"),
-                ));
+                return Err(ctx.key("object", "size_mm", format!("box sides must be finite and > 0, got {size:?} m")));
             }
             (
                 mesh::plaque_box(size[0], size[1], size[2]),
-                format!(
-                    "plaque box {:.2} × {:.2} × {:.2} mm",
-                    size[0] * 1e3,
-                    size[1] * 1e3,
-                    size[2] * 1e3
-                ),
+                format!("plaque box {:.2} × {:.2} × {:.2} mm", size[0] * 1e3, size[1] * 1e3, size[2] * 1e3),
                 None,
             )
         }
     };
     let lift = o.lift_m.unwrap_or(1e-6);
     if !(lift >= 0.0 && lift.is_finite()) {
-        return Err(ctx.key(
-            "object",
-            "lift_m",
-            format!("must be finite and ≥ 0, got {lift}"),
-        ));
+        return Err(ctx.key("object", "lift_m", format!("must be finite and ≥ 0, got {lift}")));
     }
-    let chosen = [
-        o.transform.is_some(),
-        o.placement.is_some(),
-        o.board_corner.is_some(),
-    ]
-    .iter()
-    .filter(|x| **x)
-    .count();
+    let chosen =
+        [o.transform.is_some(), o.placement.is_some(), o.board_corner.is_some()].iter().filter(|x| **x).count();
     if chosen > 1 {
-        return Err(ctx.section(
-            "object",
-            "give only one of transform, placement and board_corner",
-        ));
+        return Err(ctx.section("object", "give only one of transform, placement and board_corner"));
     }
     let lifted = |mut m: [[f64; 4]; 4]| {
         m[2][3] += lift;
@@ -877,9 +703,7 @@ fn build_object_triangles(
             let (lo, hi) = mesh_obj
                 .positions_m
                 .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-                    (lo.min(p[k]), hi.max(p[k]))
-                });
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[k]), hi.max(p[k])));
             hi - lo
         });
         let frame = lucent_calib::scene::RendererFrame {
@@ -888,30 +712,21 @@ fn build_object_triangles(
         };
         let placement = lucent_calib::scene::place_sample(
             &s.board,
-            &lucent_calib::scene::SampleSpec {
-                corner: [i, j],
-                size_m,
-            },
+            &lucent_calib::scene::SampleSpec { corner: [i, j], size_m },
             &frame,
         );
         lifted(placement.object_to_world)
     } else {
-        lifted([
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-        ])
+        lifted([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
     };
     let world = mesh_obj.transformed(&transform);
     if report.as_ref().is_some_and(|r| !r.closed) {
-        warnings.push(format!("{}: the mesh is not closed; paths inside the medium may leak through its holes (counted in render.json)", ctx.path.display()));
+        warnings.push(format!(
+            "{}: the mesh is not closed; paths inside the medium may leak through its holes (counted in render.json)",
+            ctx.path.display()
+        ));
     }
-    let tris = world
-        .triangles
-        .iter()
-        .map(|t| t.map(|i| DVec3::from_array(world.positions_m[i as usize])))
-        .collect();
+    let tris = world.triangles.iter().map(|t| t.map(|i| DVec3::from_array(world.positions_m[i as usize]))).collect();
     Ok((tris, desc, report))
 }
 
@@ -919,8 +734,7 @@ type BoardParts = (Board, String);
 
 fn read_spectrum_csv(ctx: &Ctx, key: &'static str, p: &Path) -> Result<[f64; 3], SceneFileError> {
     let full = ctx.resolve(p);
-    let text = std::fs::read_to_string(&full)
-        .map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
+    let text = std::fs::read_to_string(&full).map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
     let (mut wl, mut r) = (Vec::new(), Vec::new());
     for (k, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -928,11 +742,7 @@ fn read_spectrum_csv(ctx: &Ctx, key: &'static str, p: &Path) -> Result<[f64; 3],
             continue;
         }
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        match (
-            f.len(),
-            f.first().and_then(|x| x.parse::<f64>().ok()),
-            f.get(1).and_then(|x| x.parse::<f64>().ok()),
-        ) {
+        match (f.len(), f.first().and_then(|x| x.parse::<f64>().ok()), f.get(1).and_then(|x| x.parse::<f64>().ok())) {
             (2, Some(a), Some(b)) if a.is_finite() && b.is_finite() => {
                 wl.push(a);
                 r.push(b);
@@ -942,28 +752,17 @@ fn read_spectrum_csv(ctx: &Ctx, key: &'static str, p: &Path) -> Result<[f64; 3],
                 return Err(ctx.key(
                     "board",
                     key,
-                    format!(
-                        "{}: line {}: expected wavelength_nm,reflectance",
-                        full.display(),
-                        k + 1
-                    ),
+                    format!("{}: line {}: expected wavelength_nm,reflectance", full.display(), k + 1),
                 ))
             }
         }
     }
     if r.iter().any(|v| !(0.0..=1.0).contains(v)) {
-        return Err(ctx.key(
-            "board",
-            key,
-            format!("{}: reflectance values must lie in [0, 1]", full.display()),
-        ));
+        return Err(ctx.key("board", key, format!("{}: reflectance values must lie in [0, 1]", full.display())));
     }
-    let grid = WavelengthGrid::from_list(wl)
-        .map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
-    let w = band_weights(&grid)
-        .map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
-    w.average(&r)
-        .map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))
+    let grid = WavelengthGrid::from_list(wl).map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
+    let w = band_weights(&grid).map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
+    w.average(&r).map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))
 }
 
 fn build_board(
@@ -971,41 +770,23 @@ fn build_board(
     b: &BoardSection,
     scene_json: Option<&SceneDescription>,
 ) -> Result<BoardParts, SceneFileError> {
-    let explicit_geometry = b.origin_m.is_some()
-        || b.u.is_some()
-        || b.v.is_some()
-        || b.columns.is_some()
-        || b.rows.is_some();
-    let (origin, u, v, square_m, columns, rows, desc) = if explicit_geometry || scene_json.is_none()
-    {
+    let explicit_geometry =
+        b.origin_m.is_some() || b.u.is_some() || b.v.is_some() || b.columns.is_some() || b.rows.is_some();
+    let (origin, u, v, square_m, columns, rows, desc) = if explicit_geometry || scene_json.is_none() {
         let need_usize = |x: Option<usize>, key: &'static str| {
-            x.ok_or_else(|| {
-                ctx.key(
-                    "board",
-                    key,
-                    "required (no scene_json to take the board from)",
-                )
-            })
+            x.ok_or_else(|| ctx.key("board", key, "required (no scene_json to take the board from)"))
         };
         let square_mm = b.square_mm.unwrap_or(20.0);
         let origin = finite3(
             ctx,
             "board",
             "origin_m",
-            b.origin_m.ok_or_else(|| {
-                ctx.key(
-                    "board",
-                    "origin_m",
-                    "required (no scene_json to take the board from)",
-                )
-            })?,
+            b.origin_m
+                .ok_or_else(|| ctx.key("board", "origin_m", "required (no scene_json to take the board from)"))?,
         )?;
         let u = finite3(ctx, "board", "u", b.u.unwrap_or([1.0, 0.0, 0.0]))?.normalize();
         let v = finite3(ctx, "board", "v", b.v.unwrap_or([0.0, 1.0, 0.0]))?.normalize();
-        let (c, r) = (
-            need_usize(b.columns, "columns")?,
-            need_usize(b.rows, "rows")?,
-        );
+        let (c, r) = (need_usize(b.columns, "columns")?, need_usize(b.rows, "rows")?);
         (
             origin,
             u,
@@ -1013,26 +794,20 @@ fn build_board(
             square_mm * 1e-3,
             c,
             r,
-            format!(
-                "{c} × {r} squares of {square_mm} mm at {:?}",
-                origin.to_array()
-            ),
+            format!("{c} × {r} squares of {square_mm} mm at {:?}", origin.to_array()),
         )
     } else {
         let Some(s) = scene_json else {
-            return Err(ctx.section("board", "no board geometry: give origin_m, columns and rows, or [camera] scene_json"));
+            return Err(
+                ctx.section("board", "no board geometry: give origin_m, columns and rows, or [camera] scene_json")
+            );
         };
         let spec: &BoardSpec = &s.board;
-        if b.square_mm
-            .is_some_and(|mm| (mm * 1e-3 - spec.square_m).abs() > 1e-9)
-        {
+        if b.square_mm.is_some_and(|mm| (mm * 1e-3 - spec.square_m).abs() > 1e-9) {
             return Err(ctx.key(
                 "board",
                 "square_mm",
-                format!(
-                    "differs from scene_json's square of {} mm",
-                    spec.square_m * 1e3
-                ),
+                format!("differs from scene_json's square of {} mm", spec.square_m * 1e3),
             ));
         }
         let wfb = s.world_from_board;
@@ -1052,48 +827,24 @@ fn build_board(
             sq,
             spec.cols + 1,
             spec.rows + 1,
-            format!(
-                "{} × {} squares of {} mm from scene.json",
-                spec.cols + 1,
-                spec.rows + 1,
-                sq * 1e3
-            ),
+            format!("{} × {} squares of {} mm from scene.json", spec.cols + 1, spec.rows + 1, sq * 1e3),
         )
     };
     if !(square_m > 0.0 && square_m.is_finite()) {
         return Err(ctx.key("board", "square_mm", "must be finite and > 0"));
     }
     let reflectance = if let Some(t) = &b.texture {
-        if b.even.is_some()
-            || b.odd.is_some()
-            || b.even_spectrum.is_some()
-            || b.odd_spectrum.is_some()
-        {
-            return Err(ctx.section(
-                "board",
-                "give either texture or even/odd reflectances, not both",
-            ));
+        if b.even.is_some() || b.odd.is_some() || b.even_spectrum.is_some() || b.odd_spectrum.is_some() {
+            return Err(ctx.section("board", "give either texture or even/odd reflectances, not both"));
         }
         let full = ctx.resolve(t);
-        let img = crate::imageio::read_rgb(&full)
-            .map_err(|e| ctx.key("board", "texture", e.to_string()))?;
-        let rgb: Vec<[f64; 3]> = img
-            .data
-            .chunks(3)
-            .map(|c| [f64::from(c[0]), f64::from(c[1]), f64::from(c[2])])
-            .collect();
+        let img = crate::imageio::read_rgb(&full).map_err(|e| ctx.key("board", "texture", e.to_string()))?;
+        let rgb: Vec<[f64; 3]> =
+            img.data.chunks(3).map(|c| [f64::from(c[0]), f64::from(c[1]), f64::from(c[2])]).collect();
         if rgb.iter().flatten().any(|v| !(0.0..=1.0).contains(v)) {
-            return Err(ctx.key(
-                "board",
-                "texture",
-                format!("{}: reflectances must lie in [0, 1]", full.display()),
-            ));
+            return Err(ctx.key("board", "texture", format!("{}: reflectances must lie in [0, 1]", full.display())));
         }
-        BoardReflectance::Texture {
-            width: img.width,
-            height: img.height,
-            rgb,
-        }
+        BoardReflectance::Texture { width: img.width, height: img.height, rgb }
     } else {
         let pick = |rgb: Option<[f64; 3]>,
                     spec: &Option<PathBuf>,
@@ -1102,19 +853,14 @@ fn build_board(
                     default: [f64; 3]|
          -> Result<[f64; 3], SceneFileError> {
             match (rgb, spec) {
-                (Some(_), Some(_)) => Err(ctx.section(
-                    "board",
-                    format!("give either {key_rgb} or {key_spec}, not both"),
-                )),
+                (Some(_), Some(_)) => {
+                    Err(ctx.section("board", format!("give either {key_rgb} or {key_spec}, not both")))
+                }
                 (Some(v), None) => {
                     if v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) {
                         Ok(v)
                     } else {
-                        Err(ctx.key(
-                            "board",
-                            key_rgb,
-                            format!("reflectances must lie in [0, 1], got {v:?}"),
-                        ))
+                        Err(ctx.key("board", key_rgb, format!("reflectances must lie in [0, 1], got {v:?}")))
                     }
                 }
                 (None, Some(p)) => read_spectrum_csv(ctx, key_spec, p),
@@ -1127,17 +873,7 @@ fn build_board(
     };
     let margin_m = b.margin_mm.unwrap_or(0.0) * 1e-3;
     let margin = b.margin.unwrap_or([0.80; 3]);
-    let board = Board {
-        origin,
-        u,
-        v,
-        square_m,
-        columns,
-        rows,
-        margin_m,
-        margin,
-        reflectance,
-    };
+    let board = Board { origin, u, v, square_m, columns, rows, margin_m, margin, reflectance };
     Ok((board, desc))
 }
 
@@ -1147,39 +883,28 @@ fn build_environment(
     ctx: &Ctx,
     e: &EnvironmentSection,
     top_centre: Option<DVec3>,
+    warnings: &mut Vec<String>,
 ) -> Result<EnvParts, SceneFileError> {
     let projection_name = e.projection.as_deref().unwrap_or("finite-sphere");
     let (projection, centre, radius) = match projection_name {
         "infinite" => {
             if e.radius_m.is_some() || e.centre_m.is_some() {
-                return Err(ctx.section(
-                    "environment",
-                    "radius_m and centre_m belong to projection = \"finite-sphere\"",
-                ));
+                return Err(
+                    ctx.section("environment", "radius_m and centre_m belong to projection = \"finite-sphere\"")
+                );
             }
             (Projection::Infinite, None, None)
         }
         "finite-sphere" => {
             let radius = e.radius_m.unwrap_or(0.60);
             if !(radius > 0.0 && radius.is_finite()) {
-                return Err(ctx.key(
-                    "environment",
-                    "radius_m",
-                    format!("must be finite and > 0, got {radius}"),
-                ));
+                return Err(ctx.key("environment", "radius_m", format!("must be finite and > 0, got {radius}")));
             }
             let centre = match e.centre_m {
                 Some(c) => finite3(ctx, "environment", "centre_m", c)?,
                 None => top_centre.unwrap_or(DVec3::ZERO),
             };
-            (
-                Projection::FiniteSphere {
-                    centre,
-                    radius_m: radius,
-                },
-                Some(centre.to_array()),
-                Some(radius),
-            )
+            (Projection::FiniteSphere { centre, radius_m: radius }, Some(centre.to_array()), Some(radius))
         }
         other => {
             return Err(ctx.key(
@@ -1195,54 +920,39 @@ fn build_environment(
         return Err(ctx.key("environment", "yaw_deg", "must be finite"));
     }
     if !(scale >= 0.0 && scale.is_finite()) {
-        return Err(ctx.key(
-            "environment",
-            "scale",
-            format!("must be finite and ≥ 0, got {scale}"),
-        ));
+        return Err(ctx.key("environment", "scale", format!("must be finite and ≥ 0, got {scale}")));
     }
     let (env, desc) = match (&e.map, e.constant) {
-        (Some(_), Some(_)) => {
-            return Err(ctx.section("environment", "give either map or constant, not both"))
-        }
+        (Some(_), Some(_)) => return Err(ctx.section("environment", "give either map or constant, not both")),
         (None, None) => {
-            return Err(ctx.section(
-                "environment",
-                "give map (an equirectangular EXR/HDR) or constant = [r, g, b]",
-            ))
+            return Err(ctx.section("environment", "give map (an equirectangular EXR/HDR) or constant = [r, g, b]"))
         }
         (None, Some(c)) => {
             if c.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-                return Err(ctx.key(
-                    "environment",
-                    "constant",
-                    format!("radiance must be finite and ≥ 0, got {c:?}"),
-                ));
+                return Err(ctx.key("environment", "constant", format!("radiance must be finite and ≥ 0, got {c:?}")));
             }
-            (
-                Environment::constant(c.map(|v| v * scale), projection),
-                format!("constant {c:?} × {scale}"),
-            )
+            (Environment::constant(c.map(|v| v * scale), projection), format!("constant {c:?} × {scale}"))
         }
         (Some(p), None) => {
             let full = ctx.resolve(p);
-            let img = crate::imageio::read_rgb(&full).map_err(|source| SceneFileError::Image {
-                path: ctx.path.to_path_buf(),
-                source,
-            })?;
-            let env = Environment::new(img.width, img.height, img.data, yaw, scale, projection)
-                .map_err(|err| {
-                    ctx.key("environment", "map", format!("{}: {err}", full.display()))
-                })?;
-            (
-                env,
-                format!(
-                    "{} ({}×{}), yaw {yaw}°, scale {scale}",
-                    full.display(),
-                    img.width,
-                    img.height
-                ),
-            )
+            let img = crate::imageio::read_rgb(&full)
+                .map_err(|source| SceneFileError::Image { path: ctx.path.to_path_buf(), source })?;
+            // Lossy EXR compression (DWAB, as in Blender's maps) leaves tiny
+            // negative values; they are set to 0 and reported, never kept.
+            let mut data = img.data;
+            let negative = data.iter().filter(|v| **v < 0.0).count();
+            if negative > 0 {
+                let min = data.iter().copied().fold(0.0f32, f32::min);
+                let max = data.iter().copied().fold(0.0f32, f32::max);
+                warnings.push(format!(
+                    "{}: {negative} negative values (down to {min:e}, map maximum {max:e}) set to 0",
+                    full.display()
+                ));
+                data.iter_mut().for_each(|v| *v = v.max(0.0));
+            }
+            let env = Environment::new(img.width, img.height, data, yaw, scale, projection)
+                .map_err(|err| ctx.key("environment", "map", format!("{}: {err}", full.display())))?;
+            (env, format!("{} ({}×{}), yaw {yaw}°, scale {scale}", full.display(), img.width, img.height))
         }
     };
     Ok((env, desc, projection_name.to_string(), centre, radius))
