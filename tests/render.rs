@@ -263,3 +263,24 @@ fn cli_writes_exr_png_json() {
     assert!(!out3.exists());
     let _ = Path::new("");
 }
+
+#[test]
+fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
+    // The scene `make demo` renders: IOL1068-09 from its recipe, studio.exr on the finite sphere.
+    let loaded = scene::load(&root().join("fixtures/render/demo.toml")).unwrap();
+    let s = &loaded.summary;
+    let m = s.material.as_ref().expect("material");
+    // PDMS in polycarbonate: μs ~ 1.5e4 /m, g ~ 0.97, n ~ 1.59 in every band.
+    for b in 0..3 {
+        assert!((5e3..5e4).contains(&m.mu_s_per_m[b]), "μs {:?}", m.mu_s_per_m);
+        assert!((0.9..1.0).contains(&m.g[b]), "g {:?}", m.g);
+        assert!((1.55..1.65).contains(&m.n[b]), "n {:?}", m.n);
+    }
+    assert_eq!(s.triangles, 12);
+    // The sphere is centred at the top of the plaque (6.35 mm + the 1 µm lift).
+    let c = s.environment_centre_m.unwrap();
+    assert!((c[2] - (6.35e-3 + 1e-6)).abs() < 1e-12, "{c:?}");
+    assert_eq!(s.environment_radius_m, Some(0.6));
+    // studio.exr's three lossy-compression negatives are reported, not hidden.
+    assert!(loaded.warnings.iter().any(|w| w.contains("negative values")), "{:?}", loaded.warnings);
+}
