@@ -6,7 +6,7 @@
 use lucent::imageio::{read_exr_channels, read_rgb, write_exr_channels};
 use lucent::scene;
 use lucent_render::tracer::{render, Settings};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 fn root() -> PathBuf {
@@ -261,7 +261,6 @@ fn cli_writes_exr_png_json() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("negative_sigma.toml"));
     assert!(!out3.exists());
-    let _ = Path::new("");
 }
 
 #[test]

@@ -155,7 +155,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         })
     });
     bar.finish_and_clear();
-    let files = write_outputs(&a.out, &image, &stats, a.exposure)?;
+    let files = write_outputs(&a.out, &image, a.exposure)?;
     let report = report(&loaded.summary, &settings, &image, &stats, threads, a.exposure, &files);
     crate::io::write_json(&a.out.join("render.json"), &report)
         .with_context(|| format!("{}: cannot write render.json", a.out.display()))?;
@@ -203,7 +203,7 @@ pub fn median_relative_std_error(image: &Image) -> f64 {
 }
 
 /// Writes render.exr and render.png; returns their names.
-pub fn write_outputs(out: &Path, image: &Image, _stats: &Stats, exposure_stops: f64) -> Result<Vec<String>> {
+pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<Vec<String>> {
     let (w, h) = (image.width, image.height);
     let plane = |f: &dyn Fn(usize) -> f64| (0..w * h).map(|i| f(i) as f32).collect::<Vec<f32>>();
     let (r, g, b) = (plane(&|i| image.mean[i][0]), plane(&|i| image.mean[i][1]), plane(&|i| image.mean[i][2]));

@@ -310,14 +310,8 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     };
     let (object, object_desc, mesh_report, bounds, top_centre) = match (&file.object, material) {
         (Some(o), Some((medium, eta, summary, size_from_recipe))) => {
-            let (triangles, desc, report) = build_object_triangles(
-                &ctx,
-                o,
-                size_from_recipe,
-                scene_json.as_ref(),
-                file.board.as_ref(),
-                &mut warnings,
-            )?;
+            let (triangles, desc, report) =
+                build_object_triangles(&ctx, o, size_from_recipe, scene_json.as_ref(), &mut warnings)?;
             let accel = Accel::new(&triangles);
             let (lo, hi) = accel.bounds();
             let object = Object::new(accel, Boundary::Smooth { eta }, medium)
@@ -618,7 +612,6 @@ fn build_object_triangles(
     o: &ObjectSection,
     size_from_recipe: Option<[f64; 3]>,
     scene_json: Option<&SceneDescription>,
-    board: Option<&BoardSection>,
     warnings: &mut Vec<String>,
 ) -> Result<ObjectParts, SceneFileError> {
     let (mesh_obj, desc, report) = match &o.mesh {
@@ -684,7 +677,6 @@ fn build_object_triangles(
         lifted(s.object_to_world)
     } else if let Some([i, j]) = o.board_corner {
         let Some(s) = scene_json else {
-            let _ = board;
             return Err(ctx.key(
                 "object",
                 "board_corner",
