@@ -241,6 +241,13 @@ impl Accel {
         self.planes.is_some()
     }
 
+    /// The outward unit normals n and offsets c (n·x = c) of the face planes
+    /// of a convex mesh; `None` when the mesh is not convex (or has more than
+    /// [`MAX_CONVEX_PLANES`] planes).
+    pub fn convex_planes(&self) -> Option<&[(DVec3, f64)]> {
+        self.planes.as_deref()
+    }
+
     /// The boundary hit of a ray that starts **inside** the closed mesh. For
     /// a convex mesh this is the nearest face plane the ray leaves through,
     /// t = min over planes with n·d > 0 of (c − n·o)/(n·d), exact in f64 and

@@ -134,6 +134,24 @@ pub struct Object {
     pub accel: Accel,
     pub boundary: Boundary,
     pub medium: Medium,
+    /// Per-band constants derived once by [`Object::new`].
+    bands: BandConstants,
+}
+
+/// What the estimator needs to know about the bands, derived once.
+#[derive(Debug, Clone, Copy)]
+struct BandConstants {
+    /// μ_t = μ_s + μ_a per band, 1/m.
+    sigma_t: [f64; 3],
+    /// The smallest μ_t, 1/m.
+    sigma_t_min: f64,
+    /// All bands share μ_t: the free-flight ratios are 1.
+    same_sigma_t: bool,
+    /// All bands share the phase function: the phase ratios are 1.
+    same_phase: bool,
+    /// All bands share the boundary's index, so one path can carry all
+    /// three bands (spectral MIS); otherwise a path keeps one band.
+    achromatic: bool,
 }
 
 impl Object {
@@ -152,7 +170,15 @@ impl Object {
                 return Err(SceneError::BadIndex { band: b, eta });
             }
         }
-        Ok(Self { accel, boundary, medium })
+        let sigma_t: [f64; 3] = std::array::from_fn(|b| medium.sigma_s[b] + medium.sigma_a[b]);
+        let bands = BandConstants {
+            sigma_t,
+            sigma_t_min: sigma_t[0].min(sigma_t[1]).min(sigma_t[2]),
+            same_sigma_t: sigma_t[1] == sigma_t[0] && sigma_t[2] == sigma_t[0],
+            same_phase: medium.phase[1] == medium.phase[0] && medium.phase[2] == medium.phase[0],
+            achromatic: boundary.eta(1) == boundary.eta(0) && boundary.eta(2) == boundary.eta(0),
+        };
+        Ok(Self { accel, boundary, medium, bands })
     }
 }
 
@@ -309,6 +335,16 @@ pub struct Settings {
     /// Safety stop: a path with more scattering events is ended and counted
     /// in [`Stats::truncated_paths`] (reported, never silent).
     pub max_events_per_path: u64,
+    /// Carry all three bands along one path inside the medium, combined by
+    /// multiple importance sampling over the band that drives the sampling
+    /// (see the module documentation). `false` gives SPEC §4's plain
+    /// estimator (one band per path, weight 3). Applies only when the
+    /// boundary's index is the same in all bands.
+    pub spectral_mis: bool,
+    /// Next-event estimation of the environment from scattering events
+    /// inside a convex object, through its flat faces (see the module
+    /// documentation). `false`: light leaves the medium only by chance.
+    pub medium_nee: bool,
 }
 
 impl Default for Settings {
@@ -320,6 +356,8 @@ impl Default for Settings {
             seed: 1,
             roulette_threshold: Some(0.25),
             max_events_per_path: 10_000_000,
+            spectral_mis: true,
+            medium_nee: true,
         }
     }
 }
@@ -473,57 +511,181 @@ fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> (DVec3, f64) {
     ((r * c) * t + (r * s) * b + z * n, z * FRAC_1_PI)
 }
 
+/// Throughput of a path in the three bands, as the spectral-MIS pair
+/// (β, r): β_c = f_c / p̂ and r_k = p_k / p̂ for one common scale p̂, where
+/// f_c is the path's measurement contribution in band c and p_k the density
+/// with which the path would have been sampled had band k driven the
+/// sampling. The estimate in band c is β_c / mean_k r_k (balance heuristic
+/// over the three bands, each chosen with probability 1/3). Before the path
+/// meets the object all r_k are equal; a path that keeps one band b (SPEC
+/// §4's estimator) has r = 3·e_b and β = 3·β_b·e_b, the same formula.
+#[derive(Debug, Clone, Copy)]
+struct Throughput {
+    beta: [f64; 3],
+    r: [f64; 3],
+}
+
+impl Throughput {
+    #[inline]
+    fn mean_r(&self) -> f64 {
+        (self.r[0] + self.r[1] + self.r[2]) / 3.0
+    }
+
+    /// The estimate's weight in band c: β_c / mean r.
+    #[inline]
+    fn effective(&self) -> [f64; 3] {
+        let m = self.mean_r();
+        if m > 0.0 {
+            self.beta.map(|b| b / m)
+        } else {
+            [0.0; 3]
+        }
+    }
+
+    /// Multiplies band c's contribution by `f[c]` and its density by `p[c]`
+    /// relative to the driving band `h` (whose p[h] is the density used).
+    #[inline]
+    fn scale(&mut self, f: [f64; 3], p: [f64; 3], h: usize) {
+        let ph = p[h];
+        for c in 0..3 {
+            self.beta[c] *= f[c] / ph;
+            self.r[c] *= p[c] / ph;
+        }
+    }
+
+    /// Rescales (β, r) so that mean r = 1 (the estimate is unchanged).
+    #[inline]
+    fn normalise(&mut self) {
+        let m = self.mean_r();
+        if m > 0.0 && m.is_finite() {
+            for c in 0..3 {
+                self.beta[c] /= m;
+                self.r[c] /= m;
+            }
+        }
+    }
+}
+
+/// Makes a next-event connection from a scattering point inside a convex
+/// object possible: the refraction through a flat face is a delta, so the
+/// environment direction ω_o outside is sampled and refracted backwards.
+/// Carries what the path needs to weight its own escape against the
+/// connection (multiple importance sampling).
+#[derive(Debug, Clone, Copy)]
+struct MediumVertex {
+    x: DVec3,
+    /// mean r at x (1 after normalisation).
+    mean_r: f64,
+    /// Probability that the connection was attempted at x.
+    p_attempt: f64,
+}
+
+/// Only when the connection's transmittance bound exp(−μ_t d) times this
+/// falls below 1 is the connection attempted with less than certainty
+/// (d the distance to the nearest face plane): full connections within
+/// ≈ 4 mean free paths of a face.
+const NEE_ATTEMPT_GAIN: f64 = 54.6; // e⁴
+
 /// One camera path: the radiance estimate it carries back, per band.
 fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &mut Rng, st: &mut Stats) -> [f64; 3] {
     let eps = scene.epsilon_m;
-    let mut beta = [1.0f64; 3];
+    let mut tp = Throughput { beta: [1.0; 3], r: [1.0; 3] };
     let mut radiance = [0.0f64; 3];
-    let mut band: Option<usize> = None;
+    let mut hero: Option<usize> = None;
     let mut inside = false;
     // pdf of the last diffuse bounce's direction (for MIS when the ray escapes straight to the sky).
     let mut last_diffuse_pdf: Option<f64> = None;
+    // The last scattering point, while the path since then can still be
+    // one that a medium connection makes (one flight, one refraction out),
+    // and the driving band's density of that stretch in outside solid angle.
+    let mut vertex: Option<MediumVertex> = None;
+    let mut stretch_pdf = 1.0f64;
+    let mut stretch_mu = 1.0f64;
     let mut events = 0u64;
+    let planes = match &scene.object {
+        Some(obj) if settings.medium_nee => obj.accel.convex_planes(),
+        _ => None,
+    };
     loop {
         if inside {
-            // In the medium: `band` is set, the object exists.
-            let (Some(obj), Some(b)) = (&scene.object, band) else {
+            // In the medium: `hero` is set, the object exists.
+            let (Some(obj), Some(h)) = (&scene.object, hero) else {
                 break;
             };
             let Some(hit) = obj.accel.exit(o, d) else {
                 st.leaked_paths += 1;
                 break;
             };
-            let sigma_t = obj.medium.sigma_s[b] + obj.medium.sigma_a[b];
+            let bc = &obj.bands;
+            let sigma_t = bc.sigma_t[h];
             let s = -(1.0 - rng.next_f64()).ln() / sigma_t;
             if s < hit.t {
+                // Scattering at x: density μ_t,h e^{−μ_t,h s}, contribution μ_s,c e^{−μ_t,c s}.
                 o += s * d;
-                beta[b] *= obj.medium.sigma_s[b] / sigma_t;
-                let (u1, u2) = rng.next_f64_pair();
-                d = DVec3::from_array(obj.medium.phase[b].sample_direction(d.to_array(), u1, u2));
+                if bc.same_sigma_t {
+                    for c in 0..3 {
+                        tp.beta[c] *= obj.medium.sigma_s[c] / sigma_t;
+                    }
+                } else {
+                    let decay: [f64; 3] = std::array::from_fn(|c| (-(bc.sigma_t[c] - sigma_t) * s).exp());
+                    tp.scale(
+                        std::array::from_fn(|c| obj.medium.sigma_s[c] * decay[c]),
+                        std::array::from_fn(|c| bc.sigma_t[c] * decay[c]),
+                        h,
+                    );
+                }
+                tp.normalise();
                 events += 1;
+                if let Some(planes) = planes {
+                    let p_attempt = attempt_probability(planes, o, bc.sigma_t_min);
+                    if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
+                        connect_through_faces(scene, obj, planes, h, &tp, o, d, p_attempt, rng, &mut radiance);
+                    }
+                    vertex = Some(MediumVertex { x: o, mean_r: tp.mean_r(), p_attempt });
+                }
+                let d_in = d;
+                let (u1, u2) = rng.next_f64_pair();
+                d = DVec3::from_array(obj.medium.phase[h].sample_direction(d.to_array(), u1, u2));
+                stretch_mu = d_in.dot(d);
+                if !bc.same_phase {
+                    let p: [f64; 3] = std::array::from_fn(|c| obj.medium.phase[c].eval(stretch_mu));
+                    tp.scale(p, p, h);
+                }
                 if events >= settings.max_events_per_path {
                     st.truncated_paths += 1;
                     break;
                 }
-                if !roulette(&mut beta, settings, rng) {
+                if !roulette(&mut tp, settings, rng) {
                     break;
                 }
                 continue;
             }
-            // Leaving: the normal facing along the ray.
+            // The flight reaches the boundary: probability e^{−μ_t,h t}.
+            if !bc.same_sigma_t {
+                let decay: [f64; 3] = std::array::from_fn(|c| (-(bc.sigma_t[c] - sigma_t) * hit.t).exp());
+                tp.scale(decay, decay, h);
+            }
             st.surface_hits += 1;
             let p = o + hit.t * d;
             let n_out = if hit.normal.dot(d) >= 0.0 { hit.normal } else { -hit.normal };
-            let eta = obj.boundary.eta(b);
+            let eta = obj.boundary.eta(h);
             let cos_i = d.dot(n_out);
             let f = fresnel::reflectance(cos_i, 1.0 / eta);
             if rng.next_f64() < f {
                 d -= 2.0 * d.dot(n_out) * n_out;
                 o = p - eps * n_out;
+                vertex = None;
             } else {
                 d = refract(d, n_out, 1.0 / eta);
                 o = p + eps * n_out;
                 inside = false;
+                if vertex.is_some() {
+                    // Phase sampling, the flight, refraction; in outside
+                    // solid angle: dω_i/dω_o = cos θ_o / (n² cos θ_i).
+                    stretch_pdf =
+                        obj.medium.phase[h].eval(stretch_mu) * (-sigma_t * hit.t).exp() * (1.0 - f) * d.dot(n_out)
+                            / (eta * eta * cos_i);
+                }
             }
             last_diffuse_pdf = None;
             continue;
@@ -536,6 +698,7 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
         match board_hit {
             Some((t_board, rho)) if t_board < t_obj => {
                 st.surface_hits += 1;
+                vertex = None;
                 let board = scene.board.as_ref().expect("board hit without a board");
                 let p = o + t_board * d;
                 let n = board.normal();
@@ -551,6 +714,7 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                             .is_some_and(|obj| obj.accel.occluded(origin, sample.dir, f64::INFINITY));
                         if !blocked {
                             let w = power_heuristic(sample.pdf, cos * FRAC_1_PI);
+                            let beta = tp.effective();
                             for c in 0..3 {
                                 radiance[c] += beta[c] * rho[c] * FRAC_1_PI * cos * sample.radiance[c] * w / sample.pdf;
                             }
@@ -560,12 +724,12 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                 let (u1, u2) = rng.next_f64_pair();
                 let (nd, pdf) = cosine_direction(n, u1, u2);
                 for c in 0..3 {
-                    beta[c] *= rho[c];
+                    tp.beta[c] *= rho[c];
                 }
                 d = nd;
                 o = origin;
                 last_diffuse_pdf = Some(pdf);
-                if !roulette(&mut beta, settings, rng) {
+                if !roulette(&mut tp, settings, rng) {
                     break;
                 }
             }
@@ -573,28 +737,47 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                 let Some(hit) = obj_hit else {
                     // Escaped to the environment.
                     let l = scene.environment.radiance(o, d);
-                    let w = match last_diffuse_pdf {
-                        Some(pdf_bsdf) => power_heuristic(pdf_bsdf, scene.environment.pdf(o, d)),
-                        None => 1.0,
-                    };
-                    for c in 0..3 {
-                        radiance[c] += beta[c] * l[c] * w;
+                    let beta = tp.effective();
+                    if let Some(v) = vertex {
+                        // Weighed against the medium connection from v.x (balance heuristic).
+                        let p_conn = v.p_attempt * scene.environment.pdf(v.x, d);
+                        let denom = p_conn * v.mean_r + stretch_pdf * tp.mean_r();
+                        if denom > 0.0 {
+                            for c in 0..3 {
+                                radiance[c] += tp.beta[c] * stretch_pdf * l[c] / denom;
+                            }
+                        }
+                    } else {
+                        let w = match last_diffuse_pdf {
+                            Some(pdf_bsdf) => power_heuristic(pdf_bsdf, scene.environment.pdf(o, d)),
+                            None => 1.0,
+                        };
+                        for c in 0..3 {
+                            radiance[c] += beta[c] * l[c] * w;
+                        }
                     }
                     break;
                 };
                 // The object's boundary from outside.
                 st.surface_hits += 1;
+                vertex = None;
                 let obj = scene.object.as_ref().expect("object hit without an object");
-                let b = *band.get_or_insert_with(|| {
+                let h = *hero.get_or_insert_with(|| {
                     let b = ((rng.next_f64() * 3.0) as usize).min(2);
-                    let keep = 3.0 * beta[b];
-                    beta = [0.0; 3];
-                    beta[b] = keep;
+                    if !(settings.spectral_mis && obj.bands.achromatic) {
+                        // One band per path (SPEC §4): weight 3 in band b.
+                        let keep = 3.0 * tp.beta[b];
+                        tp.beta = [0.0; 3];
+                        tp.beta[b] = keep;
+                        let m = tp.mean_r();
+                        tp.r = [0.0; 3];
+                        tp.r[b] = 3.0 * m;
+                    }
                     b
                 });
                 let p = o + hit.t * d;
                 let n_in = if hit.normal.dot(d) < 0.0 { hit.normal } else { -hit.normal };
-                let eta = obj.boundary.eta(b);
+                let eta = obj.boundary.eta(h);
                 let f = fresnel::reflectance(-d.dot(n_in), eta);
                 if rng.next_f64() < f {
                     d -= 2.0 * d.dot(n_in) * n_in;
@@ -612,13 +795,94 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
     radiance
 }
 
-/// Russian roulette on the throughput; false = the path ends.
+/// Probability of attempting the medium connection from x: 1 within a few
+/// mean free paths of a face, then falling as the bound exp(−μ_t,min d) on
+/// the transmittance to the nearest face plane (d ≥ 0 its distance).
 #[inline]
-fn roulette(beta: &mut [f64; 3], settings: &Settings, rng: &mut Rng) -> bool {
+fn attempt_probability(planes: &[(DVec3, f64)], x: DVec3, sigma_t_min: f64) -> f64 {
+    let d = planes.iter().map(|(n, c)| (c - n.dot(x)).max(0.0)).fold(f64::INFINITY, f64::min);
+    (NEE_ATTEMPT_GAIN * (-sigma_t_min * d).exp()).min(1.0)
+}
+
+/// The medium connection from scattering point `x` (the path arrived along
+/// `d_in`): one direction ω_o drawn from the environment's sampler at x;
+/// for every face whose outward normal n has n·ω_o > 0, the inside direction
+/// ω_i that refracts into ω_o (Snell), if the ray x + tω_i leaves through that
+/// face; the contribution per band c is
+///
+///   β_c p_c(ω_in·ω_i) e^{−μ_t,c t} (1 − F) (cos θ_o / (n² cos θ_i)) L_c(q, ω_o) / D,
+///
+/// D = p_att p_env(x, ω_o) mean r + mean_k r_k u_k, u_k = p_k e^{−μ_t,k t} (1 − F) cos θ_o / (n² cos θ_i)
+/// the density of the same path by phase sampling in band k (balance
+/// heuristic over bands and the two strategies). Shadowed by the board.
+#[allow(clippy::too_many_arguments)]
+fn connect_through_faces(
+    scene: &Scene,
+    obj: &Object,
+    planes: &[(DVec3, f64)],
+    h: usize,
+    tp: &Throughput,
+    x: DVec3,
+    d_in: DVec3,
+    p_attempt: f64,
+    rng: &mut Rng,
+    radiance: &mut [f64; 3],
+) {
+    let Some(es) = scene.environment.sample(x, [rng.next_f64(), rng.next_f64()]) else {
+        return;
+    };
+    if !(es.pdf > 0.0) {
+        return;
+    }
+    let wo = es.dir;
+    let eta = obj.boundary.eta(h);
+    let bc = &obj.bands;
+    let mean_r = tp.mean_r();
+    for (n, _) in planes {
+        let cos_o = n.dot(wo);
+        if cos_o <= 0.0 {
+            continue;
+        }
+        let sin2_i = (1.0 - cos_o * cos_o) / (eta * eta);
+        let cos_i = (1.0 - sin2_i).max(0.0).sqrt();
+        let wi = ((wo - cos_o * *n) / eta + cos_i * *n).normalize();
+        let Some(hit) = obj.accel.exit(x, wi) else { continue };
+        if hit.normal != *n || cos_i <= 0.0 {
+            continue; // the ray leaves through another face first
+        }
+        let q = x + hit.t * wi + scene.epsilon_m * *n;
+        if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
+            continue;
+        }
+        let transmit = (1.0 - fresnel::reflectance(cos_i, 1.0 / eta)) * cos_o / (eta * eta * cos_i);
+        let mu = d_in.dot(wi);
+        let ph_h = obj.medium.phase[h].eval(mu);
+        let mut u = [0.0f64; 3];
+        for k in 0..3 {
+            if tp.r[k] > 0.0 || tp.beta[k] > 0.0 {
+                let ph = if bc.same_phase || k == h { ph_h } else { obj.medium.phase[k].eval(mu) };
+                u[k] = ph * (-bc.sigma_t[k] * hit.t).exp() * transmit;
+            }
+        }
+        let denom = p_attempt * es.pdf * mean_r + (tp.r[0] * u[0] + tp.r[1] * u[1] + tp.r[2] * u[2]) / 3.0;
+        if !(denom > 0.0) {
+            continue;
+        }
+        let l = scene.environment.radiance(q, wo);
+        for c in 0..3 {
+            radiance[c] += tp.beta[c] * u[c] * l[c] / denom;
+        }
+    }
+}
+
+/// Russian roulette on the estimate's weight β / mean r; false = the path ends.
+#[inline]
+fn roulette(tp: &mut Throughput, settings: &Settings, rng: &mut Rng) -> bool {
     let Some(threshold) = settings.roulette_threshold else {
         return true;
     };
-    let m = beta[0].max(beta[1]).max(beta[2]);
+    let e = tp.effective();
+    let m = e[0].max(e[1]).max(e[2]);
     if m >= threshold {
         return true;
     }
@@ -626,7 +890,7 @@ fn roulette(beta: &mut [f64; 3], settings: &Settings, rng: &mut Rng) -> bool {
     if rng.next_f64() >= q {
         return false;
     }
-    for x in beta.iter_mut() {
+    for x in tp.beta.iter_mut() {
         *x /= q;
     }
     true
