@@ -6,6 +6,7 @@ pub mod accel;
 pub mod camera;
 pub mod env;
 pub mod fresnel;
+pub mod microfacet;
 pub mod phase;
 pub mod rng;
 #[cfg(target_arch = "x86_64")]
