@@ -80,22 +80,31 @@
 //!
 //! # Measured normals
 //!
-//! [`MeasuredNormals`] takes the microfacet normals fitted from a height map
-//! (one per pixel of equal projected area, so they are samples of D(m)(m·n))
-//! and defines D by a kernel density estimate on the sphere:
-//! D(m)(m·n) = (1/N) Σ_k K(‖m − m_k‖), K(d) = 3/(π h²) (1 − d²/h²)² for chord
-//! distance d < h, a kernel that integrates to exactly 1 over the sphere
-//! (dω = π d(d²)). Its support radius h comes from the data by Silverman's
-//! rule in the tangent plane (h = √8 σ N^(−1/6), σ the per-axis spread) unless
-//! given. The density is summed over the neighbours a `kiddo` k-d tree returns
-//! within h. Sampling picks a normal uniformly and draws from its kernel
-//! exactly, so the sampled m has density D(m)(m·n) — the classical Walter 2007
-//! sampling, not visible normals — and the BSDF pdf uses that density. The
-//! Smith term uses the projected area A(ω) = ∫ (ω·m)⁺ D(m) dω_m, estimated
-//! once by 32768 quasi-fixed draws from the same kernel estimate and
-//! tabulated over (θ, φ) (anisotropy kept): G1 = |cos θ| / A. Kernel mass
-//! below the horizon (m.z ≤ 0, negligible unless the surface is very rough)
-//! is dropped, so ∫ D (m·n) dω may fall short of 1 by that mass.
+//! [`MeasuredNormals`] takes the microfacet normals fitted from a height map.
+//! One normal per pixel of equal projected area makes their slopes
+//! s = −(m_x, m_y)/m_z samples of the slope density P22(s), and
+//! D(m) = P22(s(m)) / cos⁴θ_m (Walter 2007 §5; Heitz 2014 eq. 6). P22 is a
+//! kernel density estimate in the slope plane:
+//! P22(s) = (1/N) Σ_k K(‖s − s_k‖), K(r) = 3/(π h²) (1 − r²/h²)² for r < h
+//! (a biweight-type kernel with ∫ K d²s = 1 exactly), so ∫ D (m·n) dω = 1
+//! exactly and D, like the analytic models, vanishes towards the horizon
+//! (a kernel on the sphere would leave D ∝ 1/m_z there and make the Smith
+//! projected area diverge). The support radius h (slope units) comes from the
+//! data unless given: Silverman's rule h = √8 σ N^(−1/6), σ a robust per-axis
+//! slope spread (1.4826 × median absolute deviation), since the kernel has
+//! variance h²/8 per axis. The density sums the kernel over the neighbours a
+//! `kiddo` k-d tree returns within h of s.
+//!
+//! Sampling picks a normal uniformly and draws a slope from its kernel
+//! exactly, so the sampled m has the solid-angle density D(m)(m·n) =
+//! P22/cos³θ_m — the classical sampling of Walter 2007, not visible normals —
+//! and the BSDF pdf uses that density (back-facing draws are rejected). The
+//! Smith term uses the projected area A(ω) = ∫ (ω·m)⁺ D(m) dω_m
+//! = cos θ − sin θ E[min(s_φ, cot θ)], s_φ the slope along ω's azimuth; the
+//! expectation over each kernel is evaluated in closed form (the kernel's
+//! marginal along a line is ∝ (1 − t²)^{5/2}), summed over all normals (over
+//! 16384 of them, evenly strided, for larger sets), tabulated on 65 θ × 64 φ
+//! nodes (anisotropy kept) and interpolated bilinearly: G1 = |cos θ| / A.
 //!
 //! ```
 //! use glam::DVec3;
@@ -111,7 +120,6 @@
 //! ```
 
 use crate::fresnel;
-use crate::rng::Rng;
 use glam::DVec3;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use kiddo::SquaredEuclidean;
@@ -145,8 +153,8 @@ pub enum MicrofacetError {
     /// A normal that is not finite, not of unit length or not facing +z.
     #[error("measured normal #{index} = {normal:?} is invalid: {reason}")]
     Normal { index: usize, normal: [f64; 3], reason: &'static str },
-    /// Kernel bandwidth not finite or outside (0, 1].
-    #[error("kernel bandwidth h = {0} (chord length) is invalid (need 0 < h <= 1)")]
+    /// Kernel bandwidth not finite or outside (0, [`MAX_BANDWIDTH`]].
+    #[error("kernel bandwidth h = {0} (slope units) is invalid (need 0 < h <= {MAX_BANDWIDTH})")]
     Bandwidth(f64),
 }
 
@@ -290,20 +298,31 @@ const SLOPE_BOUND: f64 = 9.0;
 /// on (−∞, cot θ]; y is Gaussian with variance 1/2 (Heitz & d'Eon 2014 §4).
 fn beckmann_visible_slopes(cos_t: f64, sin_t: f64, u: [f64; 2]) -> (f64, f64) {
     let hi = if sin_t > 0.0 { (cos_t / sin_t).min(SLOPE_BOUND) } else { SLOPE_BOUND };
-    let x = solve_slope_cdf(cos_t, sin_t, u[0], hi);
-    let y = solve_slope_cdf(1.0, 0.0, u[1], SLOPE_BOUND);
+    // Starting point: W. Jakob's fitted approximation of the inverse CDF in
+    // b = erf(x) (Mitsuba, microfacet.h), then Newton to machine precision.
+    let theta = sin_t.atan2(cos_t);
+    let fit = 1.0 + theta * (-0.876 + theta * (0.4265 - 0.0594 * theta));
+    let c = libm::erf(hi);
+    let b0 = c - (1.0 + c) * (1.0 - u[0]).powf(fit);
+    let x = solve_slope_cdf(cos_t, sin_t, u[0], hi, erfinv_approx(b0));
+    let y = solve_slope_cdf(1.0, 0.0, u[1], SLOPE_BOUND, erfinv_approx(2.0 * u[1] - 1.0));
     (x, y)
 }
 
 /// The x in [−9, hi] with F(x) = u F(hi), F(x) = c erfc(−x) + s e^{−x²}/√π
-/// (increasing for x ≤ c/s), by Newton steps kept inside a shrinking bracket.
-fn solve_slope_cdf(c: f64, s: f64, u: f64, hi: f64) -> f64 {
+/// (increasing for x ≤ c/s), by Newton steps from `x0` kept inside a
+/// shrinking bracket (bisection when a step would leave it).
+fn solve_slope_cdf(c: f64, s: f64, u: f64, hi: f64, x0: f64) -> f64 {
     let cdf = |x: f64| c * libm::erfc(-x) + s * (-x * x).exp() * FRAC_1_SQRT_PI;
     let target = u * cdf(hi);
     let (mut lo, mut hi) = (-SLOPE_BOUND, hi);
-    let mut x = 0.0f64.clamp(lo, hi);
+    let mut x = if x0.is_finite() { x0.clamp(lo, hi) } else { 0.0f64.clamp(lo, hi) };
+    let (lo0, hi0) = (lo, hi);
     for _ in 0..200 {
         let fx = cdf(x) - target;
+        if fx == 0.0 {
+            return x;
+        }
         if fx > 0.0 {
             hi = x;
         } else {
@@ -311,8 +330,12 @@ fn solve_slope_cdf(c: f64, s: f64, u: f64, hi: f64) -> f64 {
         }
         let dfx = FRAC_2_SQRT_PI * (-x * x).exp() * (c - s * x);
         let newton = x - fx / dfx;
+        if dfx > 0.0 && (newton - x).abs() <= 1e-14 * (1.0 + x.abs()) {
+            // Converged; the last step brings x to rounding level.
+            return newton.clamp(lo0, hi0);
+        }
         let next = if dfx > 0.0 && newton > lo && newton < hi { newton } else { 0.5 * (lo + hi) };
-        if (next - x).abs() <= 1e-15 * (1.0 + x.abs()) || hi - lo <= 1e-15 * (1.0 + x.abs()) {
+        if hi - lo <= 1e-15 * (1.0 + x.abs()) {
             return next;
         }
         x = next;
@@ -320,47 +343,81 @@ fn solve_slope_cdf(c: f64, s: f64, u: f64, hi: f64) -> f64 {
     x
 }
 
-/// Number of kernel draws used to tabulate the projected area of a measured
+/// erf⁻¹ to about 10⁻⁷ relative (M. Giles, "Approximating the erfinv
+/// function", GPU Computing Gems 2011, single-precision branch); a starting
+/// point only. ±∞ at ±1.
+fn erfinv_approx(x: f64) -> f64 {
+    let w = -((1.0 - x) * (1.0 + x)).ln();
+    let p = if w < 5.0 {
+        let w = w - 2.5;
+        [
+            3.43273939e-07,
+            -3.5233877e-06,
+            -4.39150654e-06,
+            0.00021858087,
+            -0.00125372503,
+            -0.00417768164,
+            0.246640727,
+            1.50140941,
+        ]
+        .iter()
+        .fold(2.81022636e-08, |p, &k| k + p * w)
+    } else {
+        let w = w.sqrt() - 3.0;
+        [
+            0.000100950558,
+            0.00134934322,
+            -0.00367342844,
+            0.00573950773,
+            -0.0076224613,
+            0.00943887047,
+            1.00167406,
+            2.83297682,
+        ]
+        .iter()
+        .fold(-0.000200214257, |p, &k| k + p * w)
+    };
+    p * x
+}
+
+/// Normals used (at most) to tabulate the projected area of a measured
 /// surface.
-const AREA_DRAWS: usize = 32768;
+const AREA_NORMALS: usize = 16384;
 /// Table nodes in θ ∈ [0, π/2] (inclusive) and φ ∈ [0, 2π) (periodic).
-const AREA_NTHETA: usize = 33;
-const AREA_NPHI: usize = 32;
+const AREA_NTHETA: usize = 65;
+const AREA_NPHI: usize = 64;
+/// Largest kernel radius accepted, in slope units (tan 84°).
+pub const MAX_BANDWIDTH: f64 = 10.0;
 
 /// A microfacet normal distribution defined by a measured set of normals
-/// (kernel density estimate; see the module docs for the definition, the
-/// sampling and the Smith term).
+/// (kernel density estimate of the slopes; see the module docs for the
+/// definition, the sampling and the Smith term).
 ///
 /// Cost: a density query sums the kernel over the neighbours within h,
 /// about N^(2/3) of them with the default bandwidth (10⁴ for 10⁶ normals);
 /// subsample large sets if the BSDF is evaluated per path vertex.
 pub struct MeasuredNormals {
-    normals: Vec<DVec3>,
-    tree: ImmutableKdTree<f64, u32, 3, 32>,
+    /// Slopes s_k = −(m_x, m_y)/m_z.
+    slopes: Vec<[f64; 2]>,
+    tree: ImmutableKdTree<f64, u32, 2, 32>,
     h: f64,
     /// 3 / (π h² N).
     kernel_norm: f64,
-    /// Fraction of the kernel mass with m.z > 0.
-    upper_mass: f64,
-    /// B(θ_j, φ_k) with A(ω) = cos θ · upper_mass + sin θ · B(θ, φ).
+    /// B(θ_j, φ_k) = −E[min(s_φ, cot θ_j)], A(ω) = cos θ + sin θ · B(θ, φ).
     area_b: Vec<f64>,
 }
 
 impl std::fmt::Debug for MeasuredNormals {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("MeasuredNormals")
-            .field("count", &self.normals.len())
-            .field("bandwidth", &self.h)
-            .field("upper_mass", &self.upper_mass)
-            .finish()
+        f.debug_struct("MeasuredNormals").field("count", &self.slopes.len()).field("bandwidth", &self.h).finish()
     }
 }
 
 impl MeasuredNormals {
     /// Builds the estimate from unit normals facing +z (|‖m‖ − 1| ≤ 10⁻⁶,
-    /// renormalised; m.z > 0). `bandwidth` is the kernel's support radius h
-    /// as a chord length (≈ angle in radians for small h); `None` chooses it
-    /// from the data (Silverman's rule, module docs), clamped to [10⁻⁴, 1].
+    /// m.z > 0). `bandwidth` is the kernel's support radius h in slope units
+    /// (0 < h ≤ [`MAX_BANDWIDTH`]); `None` chooses it from the data
+    /// (module docs), clamped to [10⁻⁶, 1].
     pub fn new(normals: &[[f64; 3]], bandwidth: Option<f64>) -> Result<Self, MicrofacetError> {
         if normals.is_empty() {
             return Err(MicrofacetError::NoNormals);
@@ -368,7 +425,7 @@ impl MeasuredNormals {
         if normals.len() >= u32::MAX as usize {
             return Err(MicrofacetError::TooManyNormals(normals.len()));
         }
-        let mut unit = Vec::with_capacity(normals.len());
+        let mut slopes = Vec::with_capacity(normals.len());
         for (index, n) in normals.iter().enumerate() {
             let v = DVec3::from_array(*n);
             let bad = |reason| MicrofacetError::Normal { index, normal: *n, reason };
@@ -381,47 +438,42 @@ impl MeasuredNormals {
             if v.z <= 0.0 {
                 return Err(bad("does not face +z"));
             }
-            unit.push(v.normalize());
+            slopes.push([-v.x / v.z, -v.y / v.z]);
         }
         let h = match bandwidth {
-            Some(h) if h.is_finite() && h > 0.0 && h <= 1.0 => h,
+            Some(h) if h.is_finite() && h > 0.0 && h <= MAX_BANDWIDTH => h,
             Some(h) => return Err(MicrofacetError::Bandwidth(h)),
-            None => silverman_bandwidth(&unit),
+            None => silverman_bandwidth(&slopes),
         };
-        let points: Vec<[f64; 3]> = unit.iter().map(|v| v.to_array()).collect();
-        let tree = ImmutableKdTree::new_from_slice(&points);
-        let mut out = MeasuredNormals {
-            kernel_norm: 3.0 / (PI * h * h * unit.len() as f64),
-            normals: unit,
-            tree,
-            h,
-            upper_mass: 1.0,
-            area_b: Vec::new(),
-        };
+        let tree = ImmutableKdTree::new_from_slice(&slopes);
+        let kernel_norm = 3.0 / (PI * h * h * slopes.len() as f64);
+        let mut out = MeasuredNormals { kernel_norm, slopes, tree, h, area_b: Vec::new() };
         out.tabulate_projected_area();
         Ok(out)
     }
 
     /// Number of normals.
     pub fn len(&self) -> usize {
-        self.normals.len()
+        self.slopes.len()
     }
 
     /// Always false (an empty set is rejected by [`MeasuredNormals::new`]).
     pub fn is_empty(&self) -> bool {
-        self.normals.is_empty()
+        self.slopes.is_empty()
     }
 
-    /// The kernel's support radius h (chord length).
+    /// The kernel's support radius h (slope units).
     pub fn bandwidth(&self) -> f64 {
         self.h
     }
 
-    /// The estimated density of normals per projected area, D(m)(m·n), in
-    /// 1/sr (over the whole sphere; the kernel integrates to 1).
-    pub fn projected_density(&self, m: DVec3) -> f64 {
+    /// The estimated slope density P22(s) (per unit slope area).
+    pub fn slope_density(&self, s: [f64; 2]) -> f64 {
+        if !(s[0].is_finite() && s[1].is_finite()) {
+            return 0.0;
+        }
         let h2 = self.h * self.h;
-        let near = self.tree.within_unsorted::<SquaredEuclidean>(&m.to_array(), h2);
+        let near = self.tree.within_unsorted::<SquaredEuclidean>(&s, h2);
         let sum: f64 = near
             .iter()
             .map(|nb| {
@@ -436,23 +488,36 @@ impl MeasuredNormals {
         self.kernel_norm * sum
     }
 
-    /// D(m) in 1/sr (0 for m.z ≤ 0).
+    /// D(m) = P22(s(m)) / cos⁴θ_m in 1/sr (0 for m.z ≤ 0).
     pub fn d(&self, m: DVec3) -> f64 {
         if m.z <= 0.0 {
             return 0.0;
         }
-        self.projected_density(m) / m.z
+        let c2 = m.z * m.z;
+        self.slope_density([-m.x / m.z, -m.y / m.z]) / (c2 * c2)
     }
 
-    /// Draws m with density [`MeasuredNormals::projected_density`] (may lie
-    /// below the horizon; callers reject m.z ≤ 0). u[0] picks the normal,
-    /// its fractional remainder and u[1] place the draw in the kernel.
+    /// Solid-angle density of [`MeasuredNormals::sample_projected`]:
+    /// D(m)(m·n) = P22 / cos³θ_m.
+    pub fn pdf_projected(&self, m: DVec3) -> f64 {
+        if m.z <= 0.0 {
+            return 0.0;
+        }
+        self.slope_density([-m.x / m.z, -m.y / m.z]) / (m.z * m.z * m.z)
+    }
+
+    /// Draws m (m.z > 0) with density D(m)(m·n). u[0] picks the normal, its
+    /// fractional remainder and u[1] place the slope in the kernel.
     pub fn sample_projected(&self, u: [f64; 2]) -> DVec3 {
-        let n = self.normals.len();
+        let n = self.slopes.len();
         let scaled = u[0] * n as f64;
         let k = (scaled as usize).min(n - 1);
         let v = (scaled - k as f64).clamp(0.0, 1.0);
-        sample_kernel(self.normals[k], self.h, [v, u[1]])
+        // Radius² = h²(1 − (1 − v)^{1/3}) inverts the kernel's radial CDF.
+        let r = self.h * (1.0 - (1.0 - v).cbrt()).max(0.0).sqrt();
+        let (sp, cp) = (2.0 * PI * u[1]).sin_cos();
+        let s = [self.slopes[k][0] + r * cp, self.slopes[k][1] + r * sp];
+        DVec3::new(-s[0], -s[1], 1.0).normalize()
     }
 
     /// Projected area of the microsurface seen from ω (either side):
@@ -473,7 +538,7 @@ impl MeasuredNormals {
         let b = |j: usize, k: usize| self.area_b[j * AREA_NPHI + k];
         let bj0 = b(j0, k0) * (1.0 - tk) + b(j0, k1) * tk;
         let bj1 = b(j0 + 1, k0) * (1.0 - tk) + b(j0 + 1, k1) * tk;
-        cos_t * self.upper_mass + sin_t * (bj0 * (1.0 - tj) + bj1 * tj)
+        cos_t + sin_t * (bj0 * (1.0 - tj) + bj1 * tj)
     }
 
     /// Smith G1(ω, m) = |cos θ| / A(ω) (0 for a back-facing microfacet).
@@ -489,58 +554,74 @@ impl MeasuredNormals {
         }
     }
 
-    /// Tabulates B(θ, φ) = E[max(−s_φ, −cot θ) · 1(m.z > 0)] over kernel
-    /// draws, s_φ = cos φ s_x + sin φ s_y the slope of m ∝ (−s_x, −s_y, 1)
-    /// along φ, so that (ω·m)⁺/m.z = sin θ (cot θ − s_φ)⁺.
+    /// Tabulates B(θ, φ) = −E[min(s_φ, cot θ)] over P22, each kernel's
+    /// expectation in closed form ([`kernel_min_mean`]).
     fn tabulate_projected_area(&mut self) {
-        let mut rng = Rng::new(0x6d69_6372_6f66_6163, 0);
-        let mut slopes = Vec::with_capacity(AREA_DRAWS);
-        for _ in 0..AREA_DRAWS {
-            let m = self.sample_projected([rng.next_f64(), rng.next_f64()]);
-            if m.z > 0.0 {
-                slopes.push((-m.x / m.z, -m.y / m.z));
-            }
-        }
-        let inv = 1.0 / AREA_DRAWS as f64;
-        self.upper_mass = slopes.len() as f64 * inv;
+        let n = self.slopes.len();
+        let stride = n.div_ceil(AREA_NORMALS).max(1);
+        let used: Vec<[f64; 2]> = self.slopes.iter().step_by(stride).copied().collect();
+        let inv = 1.0 / used.len() as f64;
         self.area_b = vec![0.0; AREA_NTHETA * AREA_NPHI];
-        for j in 0..AREA_NTHETA {
-            let theta = 0.5 * PI * j as f64 / (AREA_NTHETA - 1) as f64;
-            let cot = if j == 0 {
-                f64::INFINITY
-            } else if j == AREA_NTHETA - 1 {
-                0.0
-            } else {
-                1.0 / theta.tan()
-            };
-            for k in 0..AREA_NPHI {
-                let phi = 2.0 * PI * k as f64 / AREA_NPHI as f64;
-                let (sp, cp) = phi.sin_cos();
-                let sum: f64 = slopes.iter().map(|&(sx, sy)| (-(cp * sx + sp * sy)).max(-cot)).sum();
-                self.area_b[j * AREA_NPHI + k] = sum * inv;
+        for k in 0..AREA_NPHI {
+            let phi = 2.0 * PI * k as f64 / AREA_NPHI as f64;
+            let (sp, cp) = phi.sin_cos();
+            let proj: Vec<f64> = used.iter().map(|s| cp * s[0] + sp * s[1]).collect();
+            for j in 0..AREA_NTHETA {
+                let b = if j == 0 {
+                    // cot θ = ∞: min(s_φ, ∞) = s_φ, and each kernel's mean is its centre.
+                    -proj.iter().sum::<f64>() * inv
+                } else {
+                    let theta = 0.5 * PI * j as f64 / (AREA_NTHETA - 1) as f64;
+                    let cot = if j == AREA_NTHETA - 1 { 0.0 } else { 1.0 / theta.tan() };
+                    -proj.iter().map(|&mu| kernel_min_mean(mu, self.h, cot)).sum::<f64>() * inv
+                };
+                self.area_b[j * AREA_NPHI + k] = b;
             }
         }
     }
 }
 
-/// Silverman's rule for the 2-D tangent-plane spread, converted to the
-/// support radius of the biweight-type kernel (variance h²/8 per axis).
-fn silverman_bandwidth(normals: &[DVec3]) -> f64 {
-    let n = normals.len() as f64;
-    let mean = normals.iter().copied().sum::<DVec3>().normalize_or(DVec3::Z);
-    let var = normals.iter().map(|m| (*m - mean).length_squared()).sum::<f64>() / (2.0 * n);
-    (8.0f64.sqrt() * var.sqrt() * n.powf(-1.0 / 6.0)).clamp(1e-4, 1.0)
+/// E[min(x, c)] for x = μ + h t, t distributed as the one-axis marginal of
+/// the kernel, q(t) = 16/(5π) (1 − t²)^{5/2} on [−1, 1]:
+/// μ + h (∫_{−1}^{τ} t q dt + τ (1 − Q(τ))), τ = (c − μ)/h, with
+/// ∫_{−1}^{τ} t q dt = −16/(35π) (1 − τ²)^{7/2} and
+/// Q(τ) = 16/(5π) (F(asin τ) + 5π/32), F(u) = 5u/16 + 15 sin 2u/64 + 3 sin 4u/64 + sin 6u/192.
+fn kernel_min_mean(mu: f64, h: f64, c: f64) -> f64 {
+    let tau = (c - mu) / h;
+    if tau >= 1.0 {
+        return mu;
+    }
+    if tau <= -1.0 {
+        return c;
+    }
+    let u = tau.asin();
+    let f = 5.0 * u / 16.0 + 15.0 * (2.0 * u).sin() / 64.0 + 3.0 * (4.0 * u).sin() / 64.0 + (6.0 * u).sin() / 192.0;
+    let q = 16.0 / (5.0 * PI) * (f + 5.0 * PI / 32.0);
+    let first = -16.0 / (35.0 * PI) * (1.0 - tau * tau).powf(3.5);
+    mu + h * (first + tau * (1.0 - q))
 }
 
-/// A direction with density K(‖m − c‖) = 3/(π h²)(1 − d²/h²)² around the
-/// unit vector c: d² = h²(1 − (1 − u₀)^{1/3}) by inversion, azimuth 2π u₁.
-fn sample_kernel(c: DVec3, h: f64, u: [f64; 2]) -> DVec3 {
-    let s = h * h * (1.0 - (1.0 - u[0]).cbrt());
-    let cos_g = 1.0 - 0.5 * s;
-    let sin_g = (s * (1.0 - 0.25 * s)).max(0.0).sqrt();
-    let (sp, cp) = (2.0 * PI * u[1]).sin_cos();
-    let (t, b) = c.any_orthonormal_pair();
-    (sin_g * cp * t + sin_g * sp * b + cos_g * c).normalize()
+/// Silverman's rule for 2-D slopes with a robust spread (1.4826 × median
+/// absolute deviation, pooled over both axes), converted to the support
+/// radius of the kernel (variance h²/8 per axis).
+fn silverman_bandwidth(slopes: &[[f64; 2]]) -> f64 {
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(|a, b| a.total_cmp(b));
+        let n = v.len();
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
+    };
+    let mut dev = Vec::with_capacity(2 * slopes.len());
+    for axis in 0..2 {
+        let mut c: Vec<f64> = slopes.iter().map(|s| s[axis]).collect();
+        let med = median(&mut c);
+        dev.extend(slopes.iter().map(|s| (s[axis] - med).abs()));
+    }
+    let sigma = 1.4826 * median(&mut dev);
+    (8.0f64.sqrt() * sigma * (slopes.len() as f64).powf(-1.0 / 6.0)).clamp(1e-6, 1.0)
 }
 
 /// The microsurface of a rough boundary: an analytic distribution or a
@@ -582,7 +663,7 @@ impl Microsurface {
     pub fn sample_normal(&self, wo: DVec3, u: [f64; 2]) -> Option<DVec3> {
         match self {
             Microsurface::Analytic(d) => d.sample_visible(wo, u),
-            Microsurface::Measured(s) => Some(s.sample_projected(u)).filter(|m| m.z > 0.0),
+            Microsurface::Measured(s) => Some(s.sample_projected(u)).filter(|m| m.z > 0.0 && m.is_finite()),
         }
     }
 
@@ -590,13 +671,7 @@ impl Microsurface {
     pub fn pdf_normal(&self, wo: DVec3, m: DVec3) -> f64 {
         match self {
             Microsurface::Analytic(d) => d.pdf_visible(wo, m),
-            Microsurface::Measured(s) => {
-                if m.z > 0.0 {
-                    s.projected_density(m)
-                } else {
-                    0.0
-                }
-            }
+            Microsurface::Measured(s) => s.pdf_projected(m),
         }
     }
 }
@@ -806,7 +881,7 @@ mod tests {
             let hi = if s > 0.0 { (c / s).min(SLOPE_BOUND) } else { SLOPE_BOUND };
             let cdf = |x: f64| c * libm::erfc(-x) + s * (-x * x).exp() * FRAC_1_SQRT_PI;
             for &u in &[1e-9, 0.01, 0.3, 0.5, 0.77, 0.999, 1.0 - 1e-12] {
-                let x = solve_slope_cdf(c, s, u, hi);
+                let x = solve_slope_cdf(c, s, u, hi, 0.0);
                 assert!(x <= hi && x >= -SLOPE_BOUND);
                 assert!((cdf(x) / cdf(hi) - u).abs() < 1e-13, "c {c} u {u} x {x}");
             }
@@ -814,13 +889,28 @@ mod tests {
     }
 
     #[test]
-    fn kernel_draws_stay_within_support() {
-        let c = DVec3::new(0.3, -0.2, 1.0).normalize();
-        let h = 0.05;
-        for i in 0..1000 {
-            let m = sample_kernel(c, h, [(i as f64 + 0.5) / 1000.0, (i as f64 * 0.618).fract()]);
-            assert!((m.length() - 1.0).abs() < 1e-12);
-            assert!((m - c).length() <= h * (1.0 + 1e-12));
+    fn erfinv_approx_inverts_erf() {
+        for x in [-0.999999, -0.9, -0.3, 0.0, 0.1, 0.5, 0.99, 0.999999] {
+            let y = erfinv_approx(x);
+            assert!((libm::erf(y) - x).abs() < 1e-6, "{x}: {y}");
+        }
+    }
+
+    #[test]
+    fn kernel_min_mean_matches_quadrature() {
+        // E[min(μ + h t, c)] by brute-force quadrature of the marginal.
+        let (mu, h) = (0.1, 0.3);
+        for c in [-0.5, -0.1, 0.0, 0.05, 0.2, 0.39, 0.5] {
+            let n = 200_000;
+            let (mut s, mut z) = (0.0, 0.0);
+            for i in 0..n {
+                let t = -1.0 + 2.0 * (i as f64 + 0.5) / n as f64;
+                let q = (1.0 - t * t).powf(2.5);
+                s += q * (mu + h * t).min(c);
+                z += q;
+            }
+            let exact = kernel_min_mean(mu, h, c);
+            assert!((exact - s / z).abs() < 1e-9, "c {c}: {exact} vs {}", s / z);
         }
     }
 }
