@@ -196,6 +196,8 @@ pub struct Environment {
     pdf_norm: f64,
     /// Mean radiance over the sphere seen from the centre (scaled).
     mean: [f64; 3],
+    /// Every pixel has the same radiance.
+    uniform: bool,
 }
 
 impl fmt::Debug for Environment {
@@ -311,6 +313,7 @@ impl Environment {
         }
 
         let (sin_yaw, cos_yaw) = yaw_deg.to_radians().sin_cos();
+        let uniform = rgb.chunks_exact(3).all(|p| p == &rgb[..3]);
         Ok(Self {
             width,
             height,
@@ -325,6 +328,7 @@ impl Environment {
             row_cdf,
             pdf_norm: (width * height) as f64 / (2.0 * PI * PI),
             mean,
+            uniform,
         })
     }
 
@@ -339,6 +343,13 @@ impl Environment {
     pub fn constant(rgb: [f64; 3], projection: Projection) -> Self {
         let data = rgb.iter().map(|&c| c as f32).collect();
         Self::new(1, 1, data, 0.0, 1.0, projection).unwrap_or_else(|e| panic!("Environment::constant: {e}"))
+    }
+
+    /// True when every pixel has the same radiance: then sampling the map
+    /// cannot beat sampling a BSDF or phase function, and a renderer may
+    /// skip connections to it where they are costly.
+    pub fn is_uniform(&self) -> bool {
+        self.uniform
     }
 
     /// Map width W in pixels.
