@@ -24,6 +24,8 @@
 //! recipe = "../samples/IOL1068-09.toml"   # Lorenz–Mie → R, G, B bands
 //! phase = "mie"                 # "mie" (band-averaged tabulated function) or "hg" (the band's g)
 //! # or explicit bands: sigma_s_per_m = [..3], sigma_a_per_m = [..3], g = [..3], n = [..3]
+//! dispersion = true             # false: one index (the bands' mean) for all bands, so a path
+//!                               # carries R, G and B together (spectral MIS: less noise)
 //!
 //! [board]                       # geometry from scene_json, or origin_m/u/v/columns/rows/square_mm
 //! even = [0.04, 0.04, 0.04]     # squares whose (column + row) is even (the outer corner square)
@@ -39,6 +41,8 @@
 //! [render]
 //! spp = 64
 //! seed = 1
+//! # time_s = 120, spp_per_pass = 4
+//! # spectral_mis = true, medium_connections = true   (false, false: SPEC §4's plain estimator)
 //! ```
 //!
 //! **Bands.** Spectral quantities (μ_s, μ_a, g, n_bulk, reflectance spectra)
@@ -153,6 +157,7 @@ pub struct MaterialSection {
     pub sigma_a_per_m: Option<[f64; 3]>,
     pub g: Option<[f64; 3]>,
     pub n: Option<[f64; 3]>,
+    pub dispersion: Option<bool>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
@@ -192,6 +197,8 @@ pub struct RenderSection {
     pub time_s: Option<f64>,
     pub seed: Option<u64>,
     pub spp_per_pass: Option<u32>,
+    pub spectral_mis: Option<bool>,
+    pub medium_connections: Option<bool>,
 }
 
 // ------------------------------------------------------------ validated
@@ -237,7 +244,10 @@ pub struct MaterialSummary {
     pub mu_s_per_m: [f64; 3],
     pub mu_a_per_m: [f64; 3],
     pub g: [f64; 3],
+    /// The boundary's index per band as rendered.
     pub n: [f64; 3],
+    /// False when `dispersion = false` replaced the bands' indices by their mean.
+    pub dispersion: bool,
 }
 
 struct Ctx<'a> {
@@ -305,7 +315,17 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
 
     // --- material and object
     let material = match &file.material {
-        Some(m) => Some(build_material(&ctx, m)?),
+        Some(m) => {
+            let (medium, mut eta, mut summary, size) = build_material(&ctx, m)?;
+            if m.dispersion == Some(false) {
+                // One index for all bands (their mean), so that a path can
+                // carry all three bands (spectral MIS in the renderer).
+                eta = [(eta[0] + eta[1] + eta[2]) / 3.0; 3];
+                summary.n = eta;
+                summary.dispersion = false;
+            }
+            Some((medium, eta, summary, size))
+        }
         None => None,
     };
     let (object, object_desc, mesh_report, bounds, top_centre) = match (&file.object, material) {
@@ -356,6 +376,12 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     }
     if let Some(p) = r.spp_per_pass {
         settings.spp_per_pass = p.max(1);
+    }
+    if let Some(b) = r.spectral_mis {
+        settings.spectral_mis = b;
+    }
+    if let Some(b) = r.medium_connections {
+        settings.medium_nee = b;
     }
 
     let (object, material_summary) = match object {
@@ -517,6 +543,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, Scene
                 mu_a_per_m: a,
                 g,
                 n,
+                dispersion: true,
             };
             Ok((Medium { sigma_s: s, sigma_a: a, phase }, n, summary, None))
         }
@@ -601,6 +628,7 @@ fn medium_from_spectrum(
         mu_a_per_m: mu_a,
         g,
         n,
+        dispersion: true,
     };
     Ok((Medium { sigma_s: mu_s, sigma_a: mu_a, phase }, summary))
 }
