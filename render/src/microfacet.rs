@@ -63,6 +63,18 @@
 //! loses, and [`RoughDielectric::pdf`] integrates to the probability of
 //! success. `weight` = f |cos θ_i| / pdf.
 //!
+//! # Energy and validation
+//!
+//! Single scattering conserves energy only approximately. Measured
+//! directional albedos (R + T, importance transport): within 1 % of one for
+//! Beckmann α ≤ 0.2 and GGX α ≤ 0.1 from the rarer side up to 60°, and from
+//! the denser side below the critical angle for Beckmann α ≤ 0.2 and GGX
+//! α ≤ 0.05. GGX's long tail loses more: 0.959 at α = 0.2 from the denser
+//! side at normal incidence, 0.973 from air at 60°; 0.60 at α = 0.7, 80°.
+//! Mitsuba 3's `roughdielectric` gives the same albedos, and the same BSDF
+//! values and pdfs to 7e-4 (its single precision), see
+//! `tools/reference/microfacet_mitsuba.py` and `render/tests/microfacet.rs`.
+//!
 //! # Smooth limit and delta lobes
 //!
 //! For α < [`SMOOTH_ALPHA`] (= 10⁻⁴, including α = 0) and for η = 1 the
@@ -506,8 +518,8 @@ impl MeasuredNormals {
         self.slope_density([-m.x / m.z, -m.y / m.z]) / (m.z * m.z * m.z)
     }
 
-    /// Draws m (m.z > 0) with density D(m)(m·n). u[0] picks the normal, its
-    /// fractional remainder and u[1] place the slope in the kernel.
+    /// Draws m (m.z > 0) with density D(m)(m·n). `u[0]` picks the normal, its
+    /// fractional remainder and `u[1]` place the slope in the kernel.
     pub fn sample_projected(&self, u: [f64; 2]) -> DVec3 {
         let n = self.slopes.len();
         let scaled = u[0] * n as f64;
@@ -816,8 +828,8 @@ impl RoughDielectric {
         }
     }
 
-    /// Samples ω_i for light leaving along ω_o; `u` uniform in [0, 1)³ (u[0]
-    /// chooses the lobe, u[1], u[2] the microfacet). `None` when the sampled
+    /// Samples ω_i for light leaving along ω_o; `u` uniform in [0, 1)³ (`u[0]`
+    /// chooses the lobe, `u[1]`, `u[2]` the microfacet). `None` when the sampled
     /// direction is lost (see the module docs) or `wo` is grazing.
     pub fn sample(&self, wo: DVec3, u: [f64; 3], mode: Transport) -> Option<Sample> {
         if wo.z == 0.0 || !wo.is_finite() {
