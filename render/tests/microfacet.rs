@@ -483,10 +483,10 @@ fn distributions_are_normalised_and_satisfy_the_smith_identity() {
             assert!((norm - 1.0).abs() < 1e-6, "{d:?}: ∫ D cos = {norm}");
             for t in [0.0, 30.0, 60.0, 85.0] {
                 let w = dir(t, 20.0);
-                let lhs = hemisphere_integral(alpha, 96, 64, &|m| d.g1(w, m) * w.dot(m).max(0.0) * d.d(m));
+                let lhs = hemisphere_integral(alpha, 64, 32, &|m| d.g1(w, m) * w.dot(m).max(0.0) * d.d(m));
                 assert!((lhs - w.z).abs() < 2e-4 * w.z + 1e-7, "{d:?} θ {t}: {lhs} vs {}", w.z);
                 // Visible normals integrate to 1.
-                let vis = hemisphere_integral(alpha, 96, 64, &|m| d.pdf_visible(w, m));
+                let vis = hemisphere_integral(alpha, 64, 32, &|m| d.pdf_visible(w, m));
                 assert!((vis - 1.0).abs() < 2e-4, "{d:?} θ {t}: ∫ D_ω = {vis}");
             }
         }
