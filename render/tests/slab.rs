@@ -2,8 +2,11 @@
 //! connection against brute-force binning, total reflectance and
 //! transmittance against adding–doubling (iadpython, committed reference),
 //! reciprocity, the white furnace, determinism across thread counts, and bad
-//! input. Fixed seeds; tolerances are multiples of the reported standard
-//! errors.
+//! input; the ring connection against the fixed-direction one pixel by
+//! pixel, its furnace, the reported standard errors against the spread over
+//! seeds, the fold, and χ² tests of the direction and beam samplers. Fixed
+//! seeds; tolerances are multiples of the reported standard errors, which
+//! are themselves tested.
 
 use lucent_render::phase::Phase;
 use lucent_render::slab::*;
@@ -19,7 +22,7 @@ fn setup(mu_s: f64, mu_a: f64, g: f64, n: f64, d_m: f64, pixels: usize, pixel_m:
 }
 
 fn run(s: &Setup, paths: u64, seed: u64, estimator: Estimator) -> Slice {
-    let opts = RunOptions { stop: Stop::paths(paths), seed, batch_paths: 256, estimator };
+    let opts = RunOptions { stop: Stop::paths(paths), seed, batch_paths: 256, estimator, fold: false };
     simulate(s, &opts, |_| {}).unwrap()
 }
 
@@ -219,7 +222,13 @@ fn white_furnace_everything_that_enters_leaves() {
 fn deterministic_for_a_seed_whatever_the_thread_count() {
     let s = setup(3000.0, 50.0, 0.8, 1.5, 2e-3, 16, 0.2e-3, lab_45_0());
     // 20 050 paths: the last batch is partial.
-    let opts = RunOptions { stop: Stop::paths(20_050), seed: 42, batch_paths: 100, estimator: Estimator::Connection };
+    let opts = RunOptions {
+        stop: Stop::paths(20_050),
+        seed: 42,
+        batch_paths: 100,
+        estimator: Estimator::Connection,
+        fold: false,
+    };
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
@@ -288,4 +297,297 @@ fn beam_map_and_gaussian_give_the_same_integrated_slice() {
     let a = run(&g, 40_000, 1, Estimator::Connection);
     let b = run(&m, 40_000, 2, Estimator::Connection);
     agree("beam map vs gaussian", a.sum, a.sum_std_error, b.sum, b.sum_std_error, 3.0, 0.002);
+}
+
+/// χ² upper-tail p-value of `chi2` with `dof` degrees of freedom.
+fn chi2_upper(chi2: f64, dof: usize) -> f64 {
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    1.0 - ChiSquared::new(dof as f64).unwrap().cdf(chi2)
+}
+
+/// χ² p-value of binned counts against expected counts (bins with
+/// expected < 5 pooled with the next).
+fn chi2_counts(observed: &[f64], expected: &[f64]) -> f64 {
+    let (mut chi2, mut dof, mut o, mut e) = (0.0, 0usize, 0.0, 0.0);
+    for (a, b) in observed.iter().zip(expected) {
+        o += a;
+        e += b;
+        if e >= 5.0 {
+            chi2 += (o - e) * (o - e) / e;
+            dof += 1;
+            (o, e) = (0.0, 0.0);
+        }
+    }
+    if e > 0.0 {
+        chi2 += (o - e) * (o - e) / e;
+        dof += 1;
+    }
+    chi2_upper(chi2, dof - 1)
+}
+
+/// A thick, moderately forward-scattering slab where the ring applies
+/// (μ_t d = 45).
+fn thick_setup(dirs: Directions, pixels: usize, pixel_m: f64) -> Setup {
+    setup(3000.0, 30.0, 0.8, 1.5, 15e-3, pixels, pixel_m, dirs)
+}
+
+/// Σ z² over the pixels where both slices are resolved (relative error
+/// below 25 %), and their count.
+fn pixel_chi2(a: &Slice, b: &Slice) -> (f64, usize) {
+    let (mut chi2, mut k) = (0.0, 0);
+    for i in 0..a.values.len() {
+        let (va, vb, sa, sb) = (a.values[i], b.values[i], a.std_error[i], b.std_error[i]);
+        if va > 0.0 && vb > 0.0 && sa < 0.25 * va && sb < 0.25 * vb {
+            chi2 += (va - vb).powi(2) / (sa * sa + sb * sb);
+            k += 1;
+        }
+    }
+    (chi2, k)
+}
+
+#[test]
+fn ring_agrees_with_the_fixed_direction_connection_pixel_by_pixel() {
+    // From the camera's side (45°/0°, reciprocal) and from the light's
+    // (0°/45°): every resolved pixel, χ² of the differences over their
+    // combined errors, and the sums.
+    for (theta_i, theta_o) in [(45.0, 0.0), (0.0, 45.0)] {
+        let dirs = Directions::from_degrees(theta_i, 0.0, theta_o, 180.0).unwrap();
+        let s = thick_setup(dirs, 12, 0.5e-3);
+        assert_eq!(Estimator::best_for(&s), Estimator::Ring);
+        let conn = run(&s, 60_000, 31, Estimator::Connection);
+        let ring = run(&s, 12_000, 32, Estimator::Ring);
+        assert_eq!(ring.reciprocal, theta_o == 0.0);
+        let (chi2, k) = pixel_chi2(&ring, &conn);
+        assert!(k >= 60, "{theta_i}/{theta_o}: only {k} resolved pixels");
+        let p = chi2_upper(chi2, k);
+        assert!(p > 1e-3, "{theta_i}/{theta_o}: χ² = {chi2:.1} over {k} pixels (p = {p:.2e})");
+        agree("ring vs connection sum", ring.sum, ring.sum_std_error, conn.sum, conn.sum_std_error, 3.5, 0.0);
+    }
+}
+
+#[test]
+fn ring_agrees_with_brute_force_binning() {
+    // Exits binned within 8° of ω_o = the normal (45°/0°); the cone
+    // average differs from the exact direction by well under 1 % here.
+    let dirs = lab_45_0();
+    let s = thick_setup(dirs, 8, 1.0e-3);
+    let ring = run(&s, 10_000, 41, Estimator::Ring);
+    let brute = run(&s, 600_000, 42, Estimator::BruteForce { cone_deg: 8.0 });
+    agree("ring vs brute force sum", ring.sum, ring.sum_std_error, brute.sum, brute.sum_std_error, 3.0, 0.01);
+}
+
+#[test]
+fn reported_standard_errors_match_the_spread_over_seeds() {
+    // 30 independent runs; (n − 1) s² / mean(SE²) ~ χ²(n − 1) for the sum
+    // and for single pixels, for the fixed-direction connection (thin slab,
+    // image terms) and the ring (thick slab), folded.
+    let seeds = 30u64;
+    let cases = [
+        (setup(2000.0, 200.0, 0.5, 1.4, 1e-3, 12, 0.25e-3, lab_45_0()), Estimator::Connection, 8_000u64),
+        (thick_setup(lab_45_0(), 12, 0.5e-3), Estimator::Ring, 1_500),
+    ];
+    for (s, estimator, paths) in cases {
+        let runs: Vec<Slice> = (0..seeds)
+            .map(|k| {
+                let opts =
+                    RunOptions { stop: Stop::paths(paths), seed: 500 + k, batch_paths: 64, estimator, fold: true };
+                simulate(&s, &opts, |_| {}).unwrap()
+            })
+            .collect();
+        assert!(runs[0].folded);
+        let n = s.sensor.pixels;
+        let centre = (n / 2) * n + n / 2;
+        let figures: Vec<(&str, Box<dyn Fn(&Slice) -> (f64, f64)>)> = vec![
+            ("sum", Box::new(|sl: &Slice| (sl.sum, sl.sum_std_error))),
+            ("centre pixel", Box::new(move |sl: &Slice| (sl.values[centre], sl.std_error[centre]))),
+            ("pixel 2 left", Box::new(move |sl: &Slice| (sl.values[centre - 2], sl.std_error[centre - 2]))),
+            ("pixel 3 up", Box::new(move |sl: &Slice| (sl.values[centre - 3 * n], sl.std_error[centre - 3 * n]))),
+        ];
+        for (name, f) in figures {
+            let xs: Vec<(f64, f64)> = runs.iter().map(|r| f(r)).collect();
+            let m = xs.iter().map(|x| x.0).sum::<f64>() / seeds as f64;
+            let s2 = xs.iter().map(|x| (x.0 - m).powi(2)).sum::<f64>() / (seeds - 1) as f64;
+            let se2 = xs.iter().map(|x| x.1 * x.1).sum::<f64>() / seeds as f64;
+            let stat = (seeds - 1) as f64 * s2 / se2;
+            let p_upper = chi2_upper(stat, (seeds - 1) as usize);
+            assert!(
+                p_upper > 5e-4 && p_upper < 1.0 - 5e-4,
+                "{:?} {name}: spread² {s2:.3e} vs mean reported SE² {se2:.3e} (ratio {:.2}, χ² p = {p_upper:.2e})",
+                estimator,
+                s2 / se2
+            );
+        }
+    }
+}
+
+#[test]
+fn ring_white_furnace_slice_integrates_to_one_minus_transmittance() {
+    // μ_a = 0, normal incidence (the ring launched from the light): the
+    // slice integrated over exit area and directions (8-point Gauss–Legendre
+    // in μ_o = cos θ_o, the azimuth by symmetry) must be everything that
+    // entered, 1 − F(0°), less what the random walk let through the bottom
+    // (its own tally, an estimator that shares nothing with the
+    // connection). The unscattered beam's bounce is e^{−2τ} = e^{−120}.
+    #[allow(clippy::excessive_precision)]
+    const GL: [(f64, f64); 8] = [
+        (-0.960_289_856_497_536_3, 0.101_228_536_290_376_3),
+        (-0.796_666_477_413_626_7, 0.222_381_034_453_374_5),
+        (-0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
+        (-0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
+        (0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
+        (0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
+        (0.796_666_477_413_626_7, 0.222_381_034_453_374_5),
+        (0.960_289_856_497_536_3, 0.101_228_536_290_376_3),
+    ];
+    let (pixels, pixel_m) = (48, 0.25e-3);
+    let (mut rd, mut var, mut t, mut count) = (0.0, 0.0, 0.0, 0.0);
+    let mut f0 = 0.0;
+    for (k, (x, w)) in GL.iter().enumerate() {
+        let mu = 0.5 * (x + 1.0);
+        let dirs = Directions::from_degrees(0.0, 0.0, mu.acos().to_degrees(), 0.0).unwrap();
+        let s = setup(60_000.0, 0.0, 0.9, 1.4, 1e-3, pixels, pixel_m, dirs);
+        let sl = run(&s, 6_000, 200 + k as u64, Estimator::Ring);
+        let c = 2.0 * std::f64::consts::PI * 0.5 * w * mu * pixel_m * pixel_m;
+        rd += c * sl.sum;
+        var += (c * sl.sum_std_error).powi(2);
+        t += sl.transmittance * sl.paths as f64;
+        count += sl.paths as f64;
+        f0 = sl.specular_reflectance;
+    }
+    let t = t / count;
+    // With μ_a = 0 a path leaves with weight 1 (after the entry factor) or
+    // 0.1 after roulette: the Bernoulli bound on the error is close.
+    let t_se = (t * (1.0 - t) / count).sqrt();
+    let expected = 1.0 - f0 - t;
+    let se = (var + t_se * t_se).sqrt();
+    assert!(
+        (rd - expected).abs() < 0.01 * expected + 3.0 * se,
+        "∫ slice = {rd:.5} ± {:.5} vs 1 − F − T = {expected:.5} ± {t_se:.5}",
+        var.sqrt()
+    );
+    assert!(se < 0.01 * expected, "too noisy to test ({se:.5})");
+}
+
+#[test]
+fn fold_gives_a_symmetric_slice_that_agrees_with_the_unfolded_one() {
+    let s = thick_setup(lab_45_0(), 12, 0.5e-3);
+    assert!(s.mirror_symmetric());
+    let opts =
+        RunOptions { stop: Stop::paths(6_000), seed: 3, batch_paths: 64, estimator: Estimator::Ring, fold: true };
+    let folded = simulate(&s, &opts, |_| {}).unwrap();
+    let plain = simulate(&s, &RunOptions { fold: false, seed: 4, ..opts }, |_| {}).unwrap();
+    assert!(folded.folded && !plain.folded);
+    let n = s.sensor.pixels;
+    for r in 0..n {
+        for c in 0..n {
+            assert_eq!(folded.values[r * n + c], folded.values[(n - 1 - r) * n + c]);
+        }
+    }
+    let (chi2, k) = pixel_chi2(&folded, &plain);
+    let p = chi2_upper(chi2, k);
+    assert!(k > 30 && p > 1e-3, "χ² = {chi2:.1} over {k} pixels (p = {p:.2e})");
+    // Not symmetric: light arriving from φ_i = 30°, or an asymmetric map.
+    let mut tilted = s.clone();
+    tilted.directions = Directions::from_degrees(45.0, 30.0, 0.0, 180.0).unwrap();
+    assert!(!tilted.mirror_symmetric());
+    let mut mapped = s.clone();
+    mapped.beam = Beam::Map(BeamMap::new(2, 2, 1e-4, vec![1.0, 1.0, 0.0, 1.0]).unwrap());
+    assert!(!mapped.mirror_symmetric());
+    mapped.beam = Beam::Map(BeamMap::new(2, 2, 1e-4, vec![1.0, 0.5, 1.0, 0.5]).unwrap());
+    assert!(mapped.mirror_symmetric());
+}
+
+#[test]
+fn direction_sampling_matches_the_phase_function_in_two_dimensions() {
+    // Directions from a fixed, oblique incident direction binned on the
+    // sphere in global (cos θ, φ), 16 × 16 bins, against p(ω·ω_in)
+    // integrated over each bin (8 × 8 midpoint rule): tests the polar
+    // sampling, the azimuth and the frame together.
+    let inc = {
+        let v = [0.3f64, -0.5, 0.81];
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        [v[0] / l, v[1] / l, v[2] / l]
+    };
+    let table = Phase::Tabulated(
+        lucent_render::phase::PhaseTable::from_theta_samples(
+            &(0..300).map(|k| (-(k as f64) / 30.0).exp() + 0.02).collect::<Vec<_>>(),
+        )
+        .unwrap(),
+    );
+    for (name, phase) in [("HG 0.6", hg(0.6)), ("HG -0.3", hg(-0.3)), ("table", table)] {
+        let (nc, np, n) = (16usize, 16usize, 200_000usize);
+        let mut observed = vec![0.0; nc * np];
+        let mut rng = lucent_render::rng::Rng::new(77, 1);
+        for _ in 0..n {
+            let d = phase.sample_direction(inc, rng.next_f64(), rng.next_f64());
+            let ic = (((d[2] + 1.0) * 0.5 * nc as f64) as usize).min(nc - 1);
+            let phi = d[1].atan2(d[0]).rem_euclid(std::f64::consts::TAU);
+            let ip = ((phi / std::f64::consts::TAU * np as f64) as usize).min(np - 1);
+            observed[ic * np + ip] += 1.0;
+        }
+        let sub = 8;
+        let expected: Vec<f64> = (0..nc * np)
+            .map(|b| {
+                let (ic, ip) = (b / np, b % np);
+                let (dc, dp) = (2.0 / nc as f64, std::f64::consts::TAU / np as f64);
+                let mut acc = 0.0;
+                for a in 0..sub {
+                    for q in 0..sub {
+                        let c = -1.0 + (ic as f64 + (a as f64 + 0.5) / sub as f64) * dc;
+                        let phi = (ip as f64 + (q as f64 + 0.5) / sub as f64) * dp;
+                        let s = (1.0 - c * c).sqrt();
+                        let cos = s * phi.cos() * inc[0] + s * phi.sin() * inc[1] + c * inc[2];
+                        acc += phase.eval(cos);
+                    }
+                }
+                acc * dc * dp / (sub * sub) as f64 * n as f64
+            })
+            .collect();
+        let p = chi2_counts(&observed, &expected);
+        assert!(p > 1e-3, "{name}: χ² p = {p:.2e}");
+    }
+}
+
+#[test]
+fn beam_footprints_are_sampled_with_their_irradiance() {
+    // 2-D χ² of the sampled entry points against the footprint's own
+    // irradiance, for a Gaussian arriving obliquely off the axes (θ = φ =
+    // 45°: the footprint is an ellipse turned by 45°) and for a map.
+    let map = Beam::Map(BeamMap::new(3, 2, 0.1e-3, vec![0.0, 1.0, 2.0, 4.0, 0.5, 0.0]).unwrap());
+    let cases = [(Beam::gaussian(200e-6).unwrap(), 45.0, 45.0, 0.4e-3), (map, 30.0, 0.0, 0.15e-3)];
+    for (beam, theta, phi, half) in cases {
+        let fp = beam.footprint(theta, phi);
+        let (nb, n) = (24usize, 200_000usize);
+        let w = 2.0 * half / nb as f64;
+        let mut observed = vec![0.0; nb * nb + 1];
+        let mut rng = lucent_render::rng::Rng::new(9, 2);
+        for _ in 0..n {
+            let (x, y) = fp.sample(&mut rng);
+            let (c, r) = ((x + half) / w, (y + half) / w);
+            if c >= 0.0 && r >= 0.0 && c < nb as f64 && r < nb as f64 {
+                observed[r as usize * nb + c as usize] += 1.0;
+            } else {
+                observed[nb * nb] += 1.0;
+            }
+        }
+        let sub = 6;
+        let mut expected: Vec<f64> = (0..nb * nb)
+            .map(|b| {
+                let (r, c) = (b / nb, b % nb);
+                let mut acc = 0.0;
+                for a in 0..sub {
+                    for q in 0..sub {
+                        let x = -half + (c as f64 + (q as f64 + 0.5) / sub as f64) * w;
+                        let y = -half + (r as f64 + (a as f64 + 0.5) / sub as f64) * w;
+                        acc += fp.irradiance(x, y);
+                    }
+                }
+                acc * w * w / (sub * sub) as f64 * n as f64
+            })
+            .collect();
+        let inside: f64 = expected.iter().sum();
+        expected.push((n as f64 - inside).max(0.0));
+        let p = chi2_counts(&observed, &expected);
+        assert!(p > 1e-3, "θ {theta}° φ {phi}°: χ² p = {p:.2e}");
+    }
 }

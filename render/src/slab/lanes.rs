@@ -56,7 +56,7 @@ impl Kernel<'_> {
         }
         let mut rng = Rng::new(paths.seed, paths.next);
         paths.next += 1;
-        let (x0, y0) = self.entry_point(&mut rng);
+        let (x0, y0) = if self.ring.is_some() { (0.0, 0.0) } else { self.entry_point(&mut rng) };
         for (k, v) in [x0, y0, 0.0].into_iter().enumerate() {
             paths.p[k].0[l] = v;
             paths.dir[k].0[l] = self.entry_dir[k];
@@ -135,7 +135,15 @@ impl Kernel<'_> {
             w.store(&mut paths.w);
             b.events += u64::from(ev.count_ones());
 
-            if self.image_terms {
+            if let Some(ring) = &self.ring {
+                // The ring connection, per lane, where it can contribute
+                // (τ ≤ 40 along the exit direction).
+                let tau = -p[2] * F4::splat(self.inv_cos_t * self.mu_t);
+                for l in lanes_of(tau.le(F4::splat(40.0 + 1e-9)).bits() & ev) {
+                    let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
+                    paths.total[l] += self.connect_ring(ring, pl, dl, paths.w.0[l], &mut b.image, &mut paths.rng[l]);
+                }
+            } else if self.image_terms {
                 // Thin slab: the image terms' loop, per lane.
                 for l in lanes_of(ev) {
                     let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
