@@ -8,6 +8,7 @@ pub mod bssrdf;
 pub mod chart_detect;
 pub mod cli;
 pub mod compare;
+pub mod envfit;
 pub mod imageio;
 pub mod io;
 pub mod optics;

@@ -126,6 +126,8 @@ pub enum EnvCommand {
         /// The map (.exr or .hdr).
         input: PathBuf,
     },
+    /// Fit the environment's radiance scale so the rendered empty board matches its photo (least squares).
+    FitScale(super::env_fit::FitScaleArgs),
 }
 
 #[derive(Debug, Args)]
@@ -596,6 +598,7 @@ pub fn run_env(cmd: EnvCommand) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&env::summarize(&img))?);
             Ok(())
         }
+        EnvCommand::FitScale(a) => super::env_fit::run(a),
     }
 }
 

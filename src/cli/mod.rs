@@ -5,6 +5,7 @@ pub mod bssrdf;
 pub mod camera;
 pub mod colour;
 pub mod compare;
+pub mod env_fit;
 pub mod render;
 
 use crate::optics::bulk::{self, OpticalSpectrum};

@@ -71,7 +71,7 @@ pub struct RenderReport {
     pub files: Vec<String>,
 }
 
-fn parse_size(text: &str) -> Result<(usize, usize)> {
+pub fn parse_size(text: &str) -> Result<(usize, usize)> {
     let (w, h) =
         text.split_once(['x', 'X']).with_context(|| format!("--size {text:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
     let (w, h): (usize, usize) = (

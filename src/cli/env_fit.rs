@@ -1,0 +1,193 @@
+//! `lucent env fit-scale`: the environment's radiance scale from the
+//! photographed empty board (SPEC §4). Renders the scene without its object
+//! (the empty board), fits k by least squares over the board pixels
+//! ([`crate::envfit`]) and writes, in `--out`:
+//! * `env_scale.json` — the fit (k, k per channel, residuals, pixels), the
+//!   scale before and after, render settings;
+//! * `scene.toml` — a copy of the scene with `[environment] scale` = old · k
+//!   (with `--per-channel` and a `constant` environment: the constant scaled
+//!   per channel), its paths made absolute so it loads from anywhere;
+//! * `board_render.exr` — the empty-board render at the fitted scale.
+
+use crate::envfit::{self, ScaleFit};
+use crate::imageio::{self, RgbImage};
+use crate::scene;
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use lucent_render::tracer;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Args)]
+pub struct FitScaleArgs {
+    /// Scene file of the twin (its object and material are left out: the empty board is rendered).
+    pub scene: PathBuf,
+    /// The photographed empty board (linear EXR, the scene camera's image size).
+    #[arg(long)]
+    pub photo: PathBuf,
+    /// Restrict the fit to the nonzero pixels of this mask image (intersected with the board).
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
+    /// Scale each channel on its own (written to the scene when the environment is a constant).
+    #[arg(long)]
+    pub per_channel: bool,
+    /// Samples per pixel of the empty-board render (overrides [render] spp).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Seed of the render's random streams (overrides [render] seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Image size WIDTHxHEIGHT instead of the camera's (the intrinsics are scaled to match, as in `lucent render`).
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Output folder.
+    #[arg(long, default_value = "lucent-out/env-scale")]
+    pub out: PathBuf,
+}
+
+/// What env_scale.json holds.
+#[derive(Debug, Serialize)]
+pub struct FitReport {
+    pub lucent_version: &'static str,
+    pub scene: String,
+    pub photo: String,
+    pub mask: Option<String>,
+    pub per_channel: bool,
+    pub spp: u32,
+    pub seed: u64,
+    pub render_wall_s: f64,
+    pub previous_scale: f64,
+    pub new_scale: f64,
+    /// Set when --per-channel wrote a constant environment per channel.
+    pub new_constant: Option<[f64; 3]>,
+    pub fit: ScaleFit,
+    pub method: &'static str,
+}
+
+/// Runs `lucent env fit-scale`.
+pub fn run(a: FitScaleArgs) -> Result<()> {
+    if a.spp == Some(0) {
+        bail!("--spp 0: at least one sample per pixel");
+    }
+    let text =
+        std::fs::read_to_string(&a.scene).with_context(|| format!("{}: cannot read scene file", a.scene.display()))?;
+    let file = scene::parse(&text, &a.scene)?;
+    let empty = envfit::empty_board(&file).with_context(|| a.scene.display().to_string())?;
+    let mut loaded = scene::build(&empty, &a.scene)?;
+    if let Some(size) = &a.size {
+        let (w, h) = super::render::parse_size(size)?;
+        let cam = &mut loaded.scene.camera;
+        let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
+        let [fx, fy, cx, cy] = cam.intrinsics;
+        cam.intrinsics = [fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5];
+        cam.width = w;
+        cam.height = h;
+    }
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    let board = loaded.scene.board.as_ref().context("the scene has no board")?;
+    let cam = &loaded.scene.camera;
+    let (w, h) = (cam.width, cam.height);
+    let photo_img = imageio::read_rgb(&a.photo).with_context(|| "--photo: the empty-board photo".to_string())?;
+    let photo = envfit::photo_pixels(&photo_img.data, photo_img.width, photo_img.height, w, h)
+        .with_context(|| format!("{}", a.photo.display()))?;
+    let mut mask = envfit::board_mask(cam, board);
+    if let Some(m) = &a.mask {
+        let extra = crate::compare::mask::Mask::from_image(m, w, h)?;
+        mask.iter_mut().zip(&extra.include).for_each(|(a, b)| *a &= *b);
+    }
+    let mut settings = loaded.settings.clone();
+    if let Some(s) = a.spp {
+        settings.spp = s;
+    }
+    if let Some(s) = a.seed {
+        settings.seed = s;
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .context("cannot start worker threads")?;
+    let (image, stats) = pool.install(|| tracer::render(&loaded.scene, &settings, &mut |_| {}));
+    let fit = envfit::fit_scale(&image.mean, &image.variance_of_mean, &photo, &mask)
+        .with_context(|| format!("{} against {}", a.scene.display(), a.photo.display()))?;
+
+    let previous = file.environment.scale.unwrap_or(1.0);
+    let mut copy = envfit::with_paths_from(&file, &envfit::scene_dir(&a.scene));
+    let mut new_constant = None;
+    let k_img: [f64; 3];
+    match (a.per_channel, file.environment.constant) {
+        (true, Some(c)) => {
+            let k = fit.scale_per_channel;
+            let nc = [c[0] * k[0], c[1] * k[1], c[2] * k[2]];
+            copy.environment.constant = Some(nc);
+            new_constant = Some(nc);
+            k_img = k;
+        }
+        (true, None) => {
+            eprintln!(
+                "note: the scene's environment is a map with one scale; scene.toml gets the scalar k = {:.6}, the per-channel scales {:?} are in env_scale.json",
+                fit.scale, fit.scale_per_channel
+            );
+            copy.environment.scale = Some(previous * fit.scale);
+            k_img = [fit.scale; 3];
+        }
+        (false, _) => {
+            copy.environment.scale = Some(previous * fit.scale);
+            k_img = [fit.scale; 3];
+        }
+    }
+    let new_scale = copy.environment.scale.unwrap_or(1.0);
+    let scene_text = toml::to_string_pretty(&copy).context("cannot serialise the scaled scene")?;
+    let header = format!(
+        "# {} with the environment scale fitted to the empty board {} by `lucent env fit-scale` (k = {:.6}).\n",
+        a.scene.display(),
+        a.photo.display(),
+        fit.scale
+    );
+    let data: Vec<f32> = image.mean.iter().flat_map(|m| [0, 1, 2].map(|c| (m[c] * k_img[c]) as f32)).collect();
+    let scaled = RgbImage::new(w, h, data)?;
+    let report = FitReport {
+        lucent_version: env!("CARGO_PKG_VERSION"),
+        scene: a.scene.display().to_string(),
+        photo: a.photo.display().to_string(),
+        mask: a.mask.as_ref().map(|m| m.display().to_string()),
+        per_channel: a.per_channel,
+        spp: image.samples.first().copied().unwrap_or(0),
+        seed: settings.seed,
+        render_wall_s: stats.wall_s,
+        previous_scale: previous,
+        new_scale,
+        new_constant,
+        fit,
+        method: "k = Σ R·P / Σ (R² − V) over the board pixels (V: variance of the render's pixel mean)",
+    };
+    write(&a.out, &report, &header, &scene_text, &scaled)?;
+    let f = &report.fit;
+    println!(
+        "environment scale k = {:.5} (per channel {:.5} {:.5} {:.5}) over {} board pixels; residual RMS {:.4e} ({:.2} % of the photo, render noise {:.4e}); scale {} → {}",
+        f.scale,
+        f.scale_per_channel[0],
+        f.scale_per_channel[1],
+        f.scale_per_channel[2],
+        f.pixels,
+        f.residual_rms,
+        100.0 * f.relative_residual,
+        f.render_noise_rms,
+        previous,
+        new_scale
+    );
+    println!("wrote {}/env_scale.json, scene.toml, board_render.exr", a.out.display());
+    Ok(())
+}
+
+fn write(out: &Path, report: &FitReport, header: &str, scene_text: &str, img: &RgbImage) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
+    imageio::write_exr(&out.join("board_render.exr"), img)?;
+    crate::io::write_atomic(&out.join("scene.toml"), format!("{header}{scene_text}").as_bytes())?;
+    crate::io::write_json(&out.join("env_scale.json"), report)?;
+    Ok(())
+}
