@@ -148,7 +148,7 @@ pub const MAX_ALPHA: f64 = 4.0;
 const FRAC_1_SQRT_PI: f64 = 0.5 * FRAC_2_SQRT_PI;
 
 /// Invalid BSDF parameters or measured normal sets.
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum MicrofacetError {
     /// Roughness not finite, negative or above [`MAX_ALPHA`].
     #[error("microfacet roughness alpha = {0} is invalid (need a finite value in [0, {MAX_ALPHA}])")]

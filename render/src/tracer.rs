@@ -12,9 +12,11 @@
 //! # Scene
 //!
 //! * One **object**: a closed triangle mesh ([`Accel`]) whose boundary is a
-//!   [`Boundary`] (smooth dielectric now: unpolarised Fresnel and Snell,
-//!   [`crate::fresnel`]; the rough and measured-normal microfacet boundaries
-//!   of SPEC §2 join this enum) around a homogeneous [`Medium`]: scattering
+//!   [`Boundary`] (smooth dielectric: unpolarised Fresnel and Snell,
+//!   [`crate::fresnel`]; or rough: the microfacet BSDF of Walter et al. 2007
+//!   with an analytic or measured-normal microsurface, SPEC §2,
+//!   [`crate::microfacet`], sampled with its exact pdf and weight
+//!   f|cos|/pdf, radiance transport) around a homogeneous [`Medium`]: scattering
 //!   and absorption coefficients μ_s, μ_a [1/m], a phase function and the
 //!   index n per band.
 //! * A **checkerboard** ([`Board`]): a finite plane, Lambertian (two-sided),
@@ -61,7 +63,8 @@
 //! probability exp(−μ_t d), d the distance to the nearest face plane, a
 //! bound on its transmittance (the probability is part of its density in
 //! the weights). Connections are skipped under a uniform environment, where
-//! they cannot help ([`Settings::medium_nee`]).
+//! they cannot help, and through a rough boundary, which this connection
+//! does not model ([`Settings::medium_nee`]).
 //!
 //! **Russian roulette** acts on the path throughput only, never on the
 //! depth: when max β < 1/4 the path survives with probability 4·max β and
@@ -106,6 +109,7 @@ use crate::accel::Accel;
 use crate::camera::Camera;
 use crate::env::Environment;
 use crate::fresnel;
+use crate::microfacet::{MicrofacetError, Microsurface, RoughDielectric, Transport};
 use crate::phase::Phase;
 use crate::rng::Rng;
 use glam::DVec3;
@@ -126,19 +130,25 @@ pub enum SceneError {
     BadBoard(String),
     #[error("the object has no triangles")]
     EmptyObject,
+    #[error("rough boundary: {0}")]
+    BadSurface(#[from] MicrofacetError),
 }
 
 /// The object's boundary: the closed set of interface models.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub enum Boundary {
     /// A smooth dielectric with index `eta` per band inside (air, n = 1, outside).
     Smooth { eta: [f64; 3] },
+    /// A rough dielectric (Walter et al. 2007, [`crate::microfacet`]) with
+    /// index `eta` per band inside and the microsurface of SPEC §2 (an
+    /// analytic distribution with α, or measured normals).
+    Rough { eta: [f64; 3], surface: Microsurface },
 }
 
 impl Boundary {
     fn eta(&self, band: usize) -> f64 {
         match self {
-            Boundary::Smooth { eta } => eta[band],
+            Boundary::Smooth { eta } | Boundary::Rough { eta, .. } => eta[band],
         }
     }
 }
@@ -162,6 +172,9 @@ pub struct Object {
     pub medium: Medium,
     /// Per-band constants derived once by [`Object::new`].
     bands: BandConstants,
+    /// For a rough boundary, its BSDF per band in the frame whose +z is the
+    /// outward normal (air above, the medium below).
+    rough: Option<Box<[RoughDielectric; 3]>>,
 }
 
 /// What the estimator needs to know about the bands, derived once.
@@ -204,7 +217,14 @@ impl Object {
             same_phase: medium.phase[1] == medium.phase[0] && medium.phase[2] == medium.phase[0],
             achromatic: boundary.eta(1) == boundary.eta(0) && boundary.eta(2) == boundary.eta(0),
         };
-        Ok(Self { accel, boundary, medium, bands })
+        let rough = match &boundary {
+            Boundary::Smooth { .. } => None,
+            Boundary::Rough { eta, surface } => {
+                let [a, b, c] = eta.map(|e| RoughDielectric::new(e, surface.clone()));
+                Some(Box::new([a?, b?, c?]))
+            }
+        };
+        Ok(Self { accel, boundary, medium, bands, rough })
     }
 }
 
@@ -626,7 +646,9 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
     let mut safe = 0.0f64;
     let convex = scene.object.as_ref().and_then(|obj| obj.accel.convex_planes());
     let planes = match &scene.object {
-        Some(obj) if settings.medium_nee && !scene.environment.is_uniform() => obj.accel.convex_planes(),
+        Some(obj) if settings.medium_nee && obj.rough.is_none() && !scene.environment.is_uniform() => {
+            obj.accel.convex_planes()
+        }
         _ => None,
     };
     loop {
@@ -699,6 +721,25 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
             st.surface_hits += 1;
             let p = o + hit.t * d;
             let n_out = if hit.normal.dot(d) >= 0.0 { hit.normal } else { -hit.normal };
+            if let Some(rough) = &obj.rough {
+                let Some((nd, weight, crosses)) = rough_scatter(&rough[h], n_out, d, rng) else { break };
+                for b in tp.beta.iter_mut() {
+                    *b *= weight;
+                }
+                d = nd;
+                if crosses {
+                    o = p + eps * n_out;
+                    inside = false;
+                } else {
+                    o = p - eps * n_out;
+                    safe = 0.0;
+                }
+                last_diffuse_pdf = None;
+                if !roulette(&mut tp, settings, rng) {
+                    break;
+                }
+                continue;
+            }
             let eta = obj.boundary.eta(h);
             let cos_i = d.dot(n_out);
             let f = fresnel::reflectance(cos_i, 1.0 / eta);
@@ -809,6 +850,25 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                 });
                 let p = o + hit.t * d;
                 let n_in = if hit.normal.dot(d) < 0.0 { hit.normal } else { -hit.normal };
+                if let Some(rough) = &obj.rough {
+                    let Some((nd, weight, crosses)) = rough_scatter(&rough[h], n_in, d, rng) else { break };
+                    for b in tp.beta.iter_mut() {
+                        *b *= weight;
+                    }
+                    d = nd;
+                    if crosses {
+                        o = p - eps * n_in;
+                        inside = true;
+                        safe = 0.0;
+                    } else {
+                        o = p + eps * n_in;
+                    }
+                    last_diffuse_pdf = None;
+                    if !roulette(&mut tp, settings, rng) {
+                        break;
+                    }
+                    continue;
+                }
                 let eta = obj.boundary.eta(h);
                 let f = fresnel::reflectance(-d.dot(n_in), eta);
                 if rng.next_f64() < f {
@@ -923,6 +983,21 @@ fn connect_through_faces(
             radiance[c] += tp.beta[c] * u[c] * l[c] / denom;
         }
     }
+}
+
+/// Samples the rough boundary `bsdf` (frame: +z = the outward normal
+/// `n_out`) for a ray arriving along `d`: the new direction, the throughput
+/// weight f|cos θ_i|/pdf (radiance transport) and whether it crosses the
+/// boundary. `None` when the sample is lost (the microfacet model's energy
+/// loss).
+#[inline]
+fn rough_scatter(bsdf: &RoughDielectric, n_out: DVec3, d: DVec3, rng: &mut Rng) -> Option<(DVec3, f64, bool)> {
+    let (t, b) = crate::phase::orthonormal_basis(n_out.to_array());
+    let (t, b) = (DVec3::from_array(t), DVec3::from_array(b));
+    let wo = DVec3::new(-d.dot(t), -d.dot(b), -d.dot(n_out));
+    let s = bsdf.sample(wo, [rng.next_f64(), rng.next_f64(), rng.next_f64()], Transport::Radiance)?;
+    let wi = s.wi.x * t + s.wi.y * b + s.wi.z * n_out;
+    Some((wi.normalize(), s.weight, s.is_transmission))
 }
 
 /// Russian roulette on the estimate's weight β / mean r; false = the path ends.

@@ -395,3 +395,70 @@ fn spectral_mis_and_medium_connections_agree_with_the_plain_estimator() {
     let (b, _) = render(&scene, &Settings { seed: 42, ..base }, &mut |_| {});
     z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "dispersive boundary, NEE vs plain");
 }
+
+fn rough_plaque(alpha: f64, eta: f64, sigma_a: f64) -> Object {
+    use lucent_render::microfacet::{Distribution, Microsurface};
+    let tris = cube(DVec3::new(-0.01, -0.01, 0.001), DVec3::new(0.01, 0.01, 0.006));
+    let phase = Phase::henyey_greenstein(0.7).unwrap();
+    Object::new(
+        Accel::new(&tris),
+        Boundary::Rough { eta: [eta; 3], surface: Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha }) },
+        Medium { sigma_s: [600.0, 900.0, 1200.0], sigma_a: [sigma_a; 3], phase: [phase.clone(), phase.clone(), phase] },
+    )
+    .unwrap()
+}
+
+#[test]
+fn rough_boundary_furnace_and_smooth_limit() {
+    // μa = 0 under a constant sky: a rough object is invisible too, up to
+    // the single-scattering model's energy loss (< 0.1 % at α = 0.05).
+    let env = || Environment::constant(SKY, Projection::Infinite);
+    let scene = Scene::new(Some(rough_plaque(0.05, 1.5, 0.0)), None, env(), camera(16, 12)).unwrap();
+    let (img, stats) = render(&scene, &Settings { spp: 256, seed: 11, ..Settings::default() }, &mut |_| {});
+    assert!(stats.events > 20_000, "the medium was hardly entered: {} events", stats.events);
+    z_test(&img, &|_| Some((SKY, SKY.map(|v| (2e-4 * v).powi(2)))), "rough furnace α = 0.05");
+    // With absorption and a board, a nearly smooth rough boundary (α = 10⁻³)
+    // renders the smooth boundary's image.
+    let tmap = || {
+        Environment::new(
+            32,
+            16,
+            test_map(),
+            0.0,
+            1.0,
+            Projection::FiniteSphere { centre: DVec3::new(0.0, 0.0, 0.006), radius_m: 0.6 },
+        )
+        .unwrap()
+    };
+    let bd = || Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2]));
+    let smooth = plaque([600.0, 900.0, 1200.0], [20.0; 3], 0.7, 1.5);
+    let a = render(
+        &Scene::new(Some(smooth), bd(), tmap(), camera(12, 9)).unwrap(),
+        &Settings { spp: 512, seed: 12, ..Settings::default() },
+        &mut |_| {},
+    )
+    .0;
+    let rough = rough_plaque(1e-3, 1.5, 20.0);
+    let b = render(
+        &Scene::new(Some(rough), bd(), tmap(), camera(12, 9)).unwrap(),
+        &Settings { spp: 512, seed: 13, ..Settings::default() },
+        &mut |_| {},
+    )
+    .0;
+    z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "rough α = 1e-3 vs smooth");
+    // …and a clearly rough one does not (the test can tell them apart).
+    let rougher = rough_plaque(0.5, 1.5, 20.0);
+    let c = render(
+        &Scene::new(Some(rougher), bd(), tmap(), camera(12, 9)).unwrap(),
+        &Settings { spp: 512, seed: 14, ..Settings::default() },
+        &mut |_| {},
+    )
+    .0;
+    let worst = (0..c.mean.len())
+        .flat_map(|p| (0..3).map(move |ch| (p, ch)))
+        .map(|(p, ch)| {
+            (c.mean[p][ch] - a.mean[p][ch]).abs() / (c.variance_of_mean[p][ch] + a.variance_of_mean[p][ch]).sqrt()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst > 8.0, "α = 0.5 should differ visibly from smooth: max |z| {worst:.1}");
+}
