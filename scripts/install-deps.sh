@@ -10,6 +10,7 @@ packages=(
   libopencv-dev    # OpenCV 4.6 (calib/ links calib3d, imgproc, imgcodecs)
   libopencv-contrib-dev  # OpenCV's contrib modules: mcc (ColorChecker detection) and the dnn it needs
   rawtran-doc      # a real Canon EOS 30D CR2 (GPL-3+) for the RAW decoder tests, read from /usr/share/doc/rawtran/
+  chromium         # headless browser: tests/pipeline.rs opens the run report (report/index.html) and screenshots it
 )
 
 missing=()

@@ -12,5 +12,6 @@ pub mod envfit;
 pub mod imageio;
 pub mod io;
 pub mod optics;
+pub mod pipeline;
 pub mod plot;
 pub mod scene;

@@ -7,6 +7,7 @@ pub mod colour;
 pub mod compare;
 pub mod env_fit;
 pub mod render;
+pub mod run;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::mie::{self, Coefficients, Efficiencies};
@@ -57,6 +58,8 @@ pub enum Command {
     Env(camera::EnvCommand),
     /// Photo vs render: RMSE, SSIM, triplet.png (photo | render | difference), difference.exr; optional ECC alignment.
     Compare(compare::CompareArgs),
+    /// The whole digitisation from one project file: stages in order, unchanged ones skipped, report/index.html.
+    Run(run::RunArgs),
 }
 
 #[derive(Debug, Args)]
@@ -161,6 +164,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Pose(a) => camera::pose(a),
         Command::Env(c) => camera::run_env(c),
         Command::Compare(a) => compare::run(a),
+        Command::Run(a) => run::run(a),
     }
 }
 

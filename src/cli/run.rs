@@ -1,0 +1,105 @@
+//! `lucent run PROJECT.toml`: the stages of [`crate::pipeline`] in order,
+//! each stage's `lucent` commands run as child processes of this binary with
+//! their output in `STAGE/log.txt`; one status line per stage with its time.
+
+use crate::pipeline::{self, project::Project, Options, Stage, Status};
+use anyhow::{anyhow, Context, Result};
+use clap::Args;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Project file (TOML; format in `src/pipeline/project.rs` and the README).
+    pub project: PathBuf,
+    /// Output folder (default: the project's [project] out, else lucent-out/NAME).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Rerun this stage even if its inputs are unchanged (repeatable; "all" for every stage).
+    #[arg(long, value_name = "STAGE")]
+    pub force: Vec<String>,
+    /// Stop after this stage.
+    #[arg(long, value_name = "STAGE")]
+    pub until: Option<String>,
+}
+
+/// The last `n` lines of a log file.
+fn tail(log: &Path, n: usize) -> String {
+    let text = std::fs::read_to_string(log).unwrap_or_default();
+    let lines: Vec<&str> = text.lines().collect();
+    lines[lines.len().saturating_sub(n)..].join("\n    ")
+}
+
+/// Runs `lucent ARGS` with stdout and stderr appended to `log`.
+fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<(), String> {
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(log)
+        .map_err(|e| format!("{}: cannot open log: {e}", log.display()))?;
+    let _ = writeln!(f, "$ lucent {}", args.join(" "));
+    let err = f.try_clone().map_err(|e| e.to_string())?;
+    let status = Command::new(exe)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::from(f))
+        .stderr(Stdio::from(err))
+        .status()
+        .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!(
+            "`lucent {}` exited with {status}; the end of {}:\n    {}",
+            args.join(" "),
+            log.display(),
+            tail(log, 12)
+        ))
+    }
+}
+
+/// Runs `lucent run`.
+pub fn run(a: RunArgs) -> Result<()> {
+    let project = Project::load(&a.project)?;
+    let mut force = Vec::new();
+    for f in &a.force {
+        if f == "all" {
+            force.extend(Stage::ALL);
+        } else {
+            force.push(Stage::from_name(f).map_err(|e| anyhow!("--force: {e}"))?);
+        }
+    }
+    let until = a.until.as_deref().map(Stage::from_name).transpose().map_err(|e| anyhow!("--until: {e}"))?;
+    let out = a.out.clone().or(project.out.clone()).unwrap_or_else(|| PathBuf::from("lucent-out").join(&project.name));
+    let exe = std::env::current_exe().context("cannot find the lucent binary to run the stages")?;
+    println!("lucent run {} → {}", a.project.display(), out.display());
+    let total = std::time::Instant::now();
+    let n = Stage::ALL.len();
+    let mut exec = |args: &[String], log: &Path| run_lucent(&exe, args, log);
+    let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {
+        let k = Stage::ALL.iter().position(|s| *s == stage).unwrap_or(0) + 1;
+        let what = match st {
+            Status::Ran { wall_s, tasks } => {
+                format!("ran {tasks} task{} in {wall_s:.1} s", if *tasks == 1 { "" } else { "s" })
+            }
+            Status::UpToDate => "up to date (inputs and parameters unchanged)".into(),
+            Status::Skipped { reason } => format!("skipped: {reason}"),
+        };
+        let notes = if notes.is_empty() { String::new() } else { format!(" [{}]", notes.join("; ")) };
+        println!("[{k}/{n}] {:<10} {what}{notes}", stage.name());
+    };
+    let result = pipeline::run(&project, &out, &Options { force, until }, &mut exec, &mut status_line);
+    match result {
+        Ok(_) => {
+            println!("done in {:.1} s", total.elapsed().as_secs_f64());
+            let index = out.join("report/index.html");
+            if index.is_file() {
+                println!("report: {}", index.display());
+                println!("metrics: {}", out.join("report/metrics.json").display());
+            }
+            Ok(())
+        }
+        Err(e) => Err(e.into()),
+    }
+}

@@ -1,0 +1,827 @@
+//! `lucent run PROJECT.toml`: the whole digitisation from one project file
+//! (issue 13). The stages are a closed set ([`Stage`]) run in dependency
+//! order, each into its own folder under the output folder:
+//!
+//! | stage | does | needs |
+//! |---|---|---|
+//! | `optics` | `lucent optics` on every sample's recipe | `[[sample]]` |
+//! | `bssrdf` | `lucent bssrdf` slices per sample, `bssrdf compare` with measured slices | `[bssrdf]` |
+//! | `calibrate` | `lucent calibrate` (Zhang) | `[calibration]` |
+//! | `colour` | `lucent colour calibrate` per camera | `[[colour]]` |
+//! | `pose` | `lucent pose` on the sample photo | `[pose]` and the `calibrate` output |
+//! | `env-scale` | `lucent env fit-scale` per sample | `[render]`, a sample's `empty_board` |
+//! | `render` | `lucent render` per sample (the scene template with the sample's recipe, and the fitted scale) | `[render]` |
+//! | `compare` | `lucent compare` photo vs render per sample | a sample's `photo`, its render |
+//! | `report` | `report/index.html` and `report/metrics.json` ([`report`]) | any stage's output |
+//!
+//! A stage's work is a list of [`Task`]s — `lucent` command lines, with files
+//! to write first — planned just before it runs ([`plan`]), so a stage reads
+//! what the stages before it wrote. Its **key** is the SHA-256 of: the stage
+//! name, the lucent version, the tasks (arguments and file contents), the
+//! content of every input file, and the output hash of the stages it
+//! depends on. A stage whose key equals the one in its folder's
+//! `manifest.json`, and whose outputs still hash to what the manifest says,
+//! is skipped; `--force STAGE` reruns it. A stage runs into its final folder
+//! after the previous result is moved aside; if it fails the partial output
+//! is moved to `STAGE.failed/` (with `log.txt`), the previous result is put
+//! back, and the run stops: earlier results stay intact.
+//!
+//! ```
+//! use lucent::pipeline::Stage;
+//! assert_eq!(Stage::from_name("env-scale").unwrap(), Stage::EnvScale);
+//! assert!(Stage::from_name("rendr").unwrap_err().contains("render"));
+//! assert_eq!(Stage::ALL.last(), Some(&Stage::Report));
+//! ```
+
+pub mod project;
+pub mod report;
+
+use crate::envfit;
+use project::Project;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use thiserror::Error;
+
+/// The stages, in the order they run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stage {
+    Optics,
+    Bssrdf,
+    Calibrate,
+    Colour,
+    Pose,
+    EnvScale,
+    Render,
+    Compare,
+    Report,
+}
+
+impl Stage {
+    pub const ALL: [Stage; 9] = [
+        Stage::Optics,
+        Stage::Bssrdf,
+        Stage::Calibrate,
+        Stage::Colour,
+        Stage::Pose,
+        Stage::EnvScale,
+        Stage::Render,
+        Stage::Compare,
+        Stage::Report,
+    ];
+
+    /// The stage's name (also its folder).
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Optics => "optics",
+            Stage::Bssrdf => "bssrdf",
+            Stage::Calibrate => "calibrate",
+            Stage::Colour => "colour",
+            Stage::Pose => "pose",
+            Stage::EnvScale => "env-scale",
+            Stage::Render => "render",
+            Stage::Compare => "compare",
+            Stage::Report => "report",
+        }
+    }
+
+    /// The stage of a name; a bad name lists the valid ones.
+    pub fn from_name(name: &str) -> Result<Stage, String> {
+        Stage::ALL.into_iter().find(|s| s.name() == name).ok_or_else(|| {
+            format!(
+                "no stage {name:?}; the stages are {}",
+                Stage::ALL.iter().map(|s| s.name()).collect::<Vec<_>>().join(", ")
+            )
+        })
+    }
+
+    /// The stages whose outputs this one reads.
+    pub fn depends_on(self) -> &'static [Stage] {
+        match self {
+            Stage::Optics | Stage::Bssrdf | Stage::Calibrate | Stage::Colour | Stage::EnvScale => &[],
+            Stage::Pose => &[Stage::Calibrate],
+            Stage::Render => &[Stage::EnvScale],
+            Stage::Compare => &[Stage::Render],
+            Stage::Report => &[
+                Stage::Optics,
+                Stage::Bssrdf,
+                Stage::Calibrate,
+                Stage::Colour,
+                Stage::Pose,
+                Stage::EnvScale,
+                Stage::Render,
+                Stage::Compare,
+            ],
+        }
+    }
+}
+
+impl std::fmt::Display for Stage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One unit of a stage's work.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum Task {
+    /// Write these files (path relative to the stage folder, contents), then
+    /// run `lucent ARGS` (`{out}` in an argument stands for the stage folder).
+    Lucent { label: String, files: Vec<(String, String)>, args: Vec<String> },
+    /// Write the report (in process).
+    Report,
+}
+
+/// What a stage will do.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    pub tasks: Vec<Task>,
+    /// Files whose content goes into the key.
+    pub inputs: Vec<PathBuf>,
+    /// Notes for the status line (e.g. samples left out and why).
+    pub notes: Vec<String>,
+}
+
+/// Why the pipeline stopped.
+#[derive(Debug, Error)]
+pub enum PipelineError {
+    #[error("stage {stage}: {message}")]
+    Stage { stage: Stage, message: String },
+    #[error(
+        "stage {stage} failed: {message}\n  partial output and log kept in {kept}; earlier stages' results are intact"
+    )]
+    Failed { stage: Stage, message: String, kept: PathBuf },
+    #[error("{path}: {reason}")]
+    Io { path: PathBuf, reason: String },
+}
+
+/// One input file as hashed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InputHash {
+    pub path: String,
+    pub bytes: u64,
+    pub sha256: String,
+}
+
+/// `STAGE/manifest.json`: what a stage ran on and what it produced.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub stage: Stage,
+    pub key: String,
+    pub lucent_version: String,
+    pub seed: u64,
+    pub inputs: Vec<InputHash>,
+    pub commands: Vec<Vec<String>>,
+    pub notes: Vec<String>,
+    pub started_unix_s: u64,
+    pub wall_s: f64,
+    /// SHA-256 over the stage folder's files (names and contents, manifest and log excluded).
+    pub outputs_sha256: String,
+    pub outputs: Vec<String>,
+}
+
+/// How a stage ended in this run.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Status {
+    Ran { wall_s: f64, tasks: usize },
+    UpToDate,
+    Skipped { reason: String },
+}
+
+/// Options of a run.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// Stages to rerun even when up to date.
+    pub force: Vec<Stage>,
+    /// Run only up to (and including) this stage.
+    pub until: Option<Stage>,
+}
+
+/// Hex SHA-256 of bytes.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    let d = Sha256::digest(bytes);
+    d.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Hash of one file, streamed.
+pub fn hash_file(path: &Path) -> Result<InputHash, PipelineError> {
+    use std::io::Read;
+    let err =
+        |e: std::io::Error| PipelineError::Io { path: path.to_path_buf(), reason: format!("cannot read input: {e}") };
+    let mut f = std::fs::File::open(path).map_err(err)?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 16];
+    let mut n = 0u64;
+    loop {
+        let k = f.read(&mut buf).map_err(err)?;
+        if k == 0 {
+            break;
+        }
+        n += k as u64;
+        h.update(&buf[..k]);
+    }
+    Ok(InputHash {
+        path: path.display().to_string(),
+        bytes: n,
+        sha256: h.finalize().iter().map(|b| format!("{b:02x}")).collect(),
+    })
+}
+
+/// Files under `dir`, relative paths sorted, excluding the manifest and log.
+pub fn output_files(dir: &Path) -> Vec<String> {
+    fn walk(base: &Path, dir: &Path, out: &mut Vec<String>) {
+        let Ok(rd) = std::fs::read_dir(dir) else { return };
+        for e in rd.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                walk(base, &p, out);
+            } else if let Ok(rel) = p.strip_prefix(base) {
+                let r = rel.to_string_lossy().replace('\\', "/");
+                if r != "manifest.json" && r != "log.txt" && !r.starts_with('.') {
+                    out.push(r);
+                }
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(dir, dir, &mut out);
+    out.sort();
+    out
+}
+
+/// SHA-256 over the names and contents of a stage folder's outputs.
+pub fn outputs_hash(dir: &Path) -> Result<String, PipelineError> {
+    let mut h = Sha256::new();
+    for f in output_files(dir) {
+        h.update(f.as_bytes());
+        h.update([0]);
+        h.update(hash_file(&dir.join(&f))?.sha256.as_bytes());
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+fn read_manifest(dir: &Path) -> Option<Manifest> {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).ok()?).ok()
+}
+
+/// Matches a file-name pattern with `*` and `?` wildcards and `{a,b}` alternatives.
+fn wildcard_match(pattern: &str, name: &str) -> bool {
+    if let (Some(open), Some(close)) = (pattern.find('{'), pattern.find('}')) {
+        if open < close {
+            return pattern[open + 1..close]
+                .split(',')
+                .any(|alt| wildcard_match(&format!("{}{alt}{}", &pattern[..open], &pattern[close + 1..]), name));
+        }
+    }
+    fn m(p: &[char], n: &[char]) -> bool {
+        match p.first() {
+            None => n.is_empty(),
+            Some('*') => (0..=n.len()).any(|k| m(&p[1..], &n[k..])),
+            Some('?') => !n.is_empty() && m(&p[1..], &n[1..]),
+            Some(c) => n.first() == Some(c) && m(&p[1..], &n[1..]),
+        }
+    }
+    m(&pattern.chars().collect::<Vec<_>>(), &name.chars().collect::<Vec<_>>())
+}
+
+/// The files a `dir/pattern` glob names (wildcards in the file name only), sorted.
+pub fn glob_files(spec: &str) -> Vec<PathBuf> {
+    let p = Path::new(spec);
+    let (dir, pat) = match (p.parent(), p.file_name()) {
+        (Some(d), Some(f)) => (d.to_path_buf(), f.to_string_lossy().into_owned()),
+        _ => return vec![],
+    };
+    if !pat.contains(['*', '?', '{']) {
+        return if p.is_file() { vec![p.to_path_buf()] } else { vec![] };
+    }
+    let mut out: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .map(|rd| {
+            rd.flatten()
+                .map(|e| e.path())
+                .filter(|f| f.is_file() && f.file_name().is_some_and(|n| wildcard_match(&pat, &n.to_string_lossy())))
+                .collect()
+        })
+        .unwrap_or_default();
+    out.sort();
+    out
+}
+
+fn s(p: &Path) -> String {
+    p.display().to_string()
+}
+
+/// The slice folder `lucent bssrdf` writes for a configuration.
+pub fn bssrdf_run_dir(sample_dir: &str, configs: &[(f64, f64)], c: (f64, f64)) -> String {
+    if configs.len() > 1 {
+        format!("{sample_dir}/ti{}_to{}", c.0, c.1)
+    } else {
+        sample_dir.to_string()
+    }
+}
+
+/// The scene file a sample renders: the project's template with the
+/// sample's recipe, paths made absolute; from env-scale's scene when that
+/// stage fitted one for the sample.
+fn sample_scene(
+    project: &Project,
+    out: &Path,
+    sample: &project::SampleSection,
+    use_fitted: bool,
+) -> Result<String, PipelineError> {
+    let Some(r) = &project.file.render else {
+        return Err(PipelineError::Stage { stage: Stage::Render, message: "no [render]".into() });
+    };
+    let fitted = out.join(Stage::EnvScale.name()).join(&sample.name).join("scene.toml");
+    let source = if use_fitted && fitted.is_file() { fitted } else { r.scene.clone() };
+    let io = |e: String| PipelineError::Io { path: source.clone(), reason: e };
+    let text = std::fs::read_to_string(&source).map_err(|e| io(e.to_string()))?;
+    let file = crate::scene::parse(&text, &source).map_err(|e| io(e.to_string()))?;
+    let mut file = envfit::with_paths_from(&file, &envfit::scene_dir(&source));
+    match &mut file.material {
+        Some(m) => {
+            m.recipe = Some(sample.recipe.clone());
+            m.weight_percent = sample.weight_percent;
+            m.sigma_s_per_m = None;
+            m.sigma_a_per_m = None;
+            m.g = None;
+            m.n = None;
+        }
+        None => {
+            return Err(io("the [render] scene has no [material]: the samples' recipes need one to replace".into()))
+        }
+    }
+    let body = toml::to_string_pretty(&file).map_err(|e| io(e.to_string()))?;
+    Ok(format!("# {} with the recipe of sample {} (written by `lucent run`)\n{body}", source.display(), sample.name))
+}
+
+fn scene_inputs(path: &Path) -> Vec<PathBuf> {
+    let mut v = vec![path.to_path_buf()];
+    if let Ok(text) = std::fs::read_to_string(path) {
+        if let Ok(f) = crate::scene::parse(&text, path) {
+            let f = envfit::with_paths_from(&f, &envfit::scene_dir(path));
+            v.extend(f.environment.map);
+            v.extend(f.camera.scene_json);
+            v.extend(f.camera.camera_json);
+            if let Some(o) = f.object {
+                v.extend(o.mesh);
+            }
+            if let Some(b) = f.board {
+                v.extend(b.texture);
+                v.extend(b.even_spectrum);
+                v.extend(b.odd_spectrum);
+            }
+        }
+    }
+    v.retain(|p| p.is_file());
+    v
+}
+
+/// What `stage` will do for `project` with outputs under `out`; an inner
+/// `Err` with the reason when the project gives it nothing to do.
+pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, String>, PipelineError> {
+    let f = &project.file;
+    let seed = project.seed.to_string();
+    let mut inputs: Vec<PathBuf> = Vec::new();
+    let mut notes = Vec::new();
+    let mut tasks = Vec::new();
+    let lucent = |label: String, args: Vec<String>| Task::Lucent { label, files: vec![], args };
+    match stage {
+        Stage::Optics => {
+            if f.sample.is_empty() {
+                return Ok(Err("no [[sample]] in the project".into()));
+            }
+            let mut args = vec!["optics".to_string()];
+            for smp in &f.sample {
+                args.push(s(&smp.recipe));
+                inputs.push(smp.recipe.clone());
+            }
+            let wl = f.optics.as_ref().and_then(|o| o.wavelengths.clone()).unwrap_or_else(|| "380:780:10".into());
+            args.extend(["--wavelengths".into(), wl, "--out".into(), "{out}".into()]);
+            let wps: Vec<f64> = f.sample.iter().filter_map(|s| s.weight_percent).collect();
+            if let Some(w) = wps.first() {
+                args.extend(["--weight-percent".into(), w.to_string()]);
+            }
+            tasks.push(lucent(format!("{} recipes", f.sample.len()), args));
+        }
+        Stage::Bssrdf => {
+            let Some(b) = &f.bssrdf else { return Ok(Err("no [bssrdf] in the project".into())) };
+            if f.sample.is_empty() {
+                return Ok(Err("no [[sample]] in the project".into()));
+            }
+            let configs = &project.bssrdf_configs;
+            let cfg_text = configs.iter().map(|(a, b)| format!("{a}/{b}")).collect::<Vec<_>>().join(",");
+            for smp in &f.sample {
+                inputs.push(smp.recipe.clone());
+                let mut args = vec![
+                    "bssrdf".into(),
+                    "--recipe".into(),
+                    s(&smp.recipe),
+                    "--wavelength".into(),
+                    b.wavelength_nm.unwrap_or(550.0).to_string(),
+                    "--configs".into(),
+                    cfg_text.clone(),
+                    "--pixels".into(),
+                    b.pixels.unwrap_or(259).to_string(),
+                    "--pixel-mm".into(),
+                    b.pixel_mm.unwrap_or(0.1029).to_string(),
+                    "--seed".into(),
+                    seed.clone(),
+                    "--quiet".into(),
+                    "--out".into(),
+                    format!("{{out}}/{}", smp.name),
+                ];
+                if let Some(w) = smp.weight_percent {
+                    args.extend(["--weight-percent".into(), w.to_string()]);
+                }
+                if let Some(c) = b.crop {
+                    args.push(format!("--crop={c}"));
+                }
+                if let Some(p) = b.paths {
+                    args.extend(["--paths".into(), p.to_string()]);
+                }
+                if let Some(r) = b.rel_error {
+                    args.extend(["--rel-error".into(), r.to_string()]);
+                }
+                if let Some(t) = b.time_s {
+                    args.extend(["--time-s".into(), t.to_string()]);
+                }
+                if let Some(p) = &b.phase {
+                    args.extend(["--phase".into(), p.clone()]);
+                }
+                tasks.push(lucent(format!("{} slices", smp.name), args));
+                for m in &smp.measured {
+                    inputs.push(m.file.clone());
+                    let c = project::parse_configs(&m.config).unwrap_or_default();
+                    let Some(&c) = c.first() else { continue };
+                    let run = bssrdf_run_dir(&format!("{{out}}/{}", smp.name), configs, c);
+                    let mut args = vec![
+                        "bssrdf".into(),
+                        "compare".into(),
+                        "--measured".into(),
+                        s(&m.file),
+                        "--simulated".into(),
+                        run,
+                        "--out".into(),
+                        format!("{{out}}/{}/compare_ti{}_to{}", smp.name, c.0, c.1),
+                    ];
+                    if let Some(px) = m.pixel_mm {
+                        args.extend(["--measured-pixel-mm".into(), px.to_string()]);
+                    }
+                    if let Some(t) = b.threshold {
+                        args.extend(["--threshold".into(), t.to_string()]);
+                    }
+                    tasks.push(lucent(format!("{} vs measured {}", smp.name, m.config), args));
+                }
+            }
+        }
+        Stage::Calibrate => {
+            let Some(c) = &f.calibration else { return Ok(Err("no [calibration] in the project".into())) };
+            let files = glob_files(&c.images);
+            if files.is_empty() {
+                return Err(PipelineError::Stage {
+                    stage,
+                    message: format!("[calibration] images {:?}: no file matches", c.images),
+                });
+            }
+            inputs.extend(files);
+            let mut args = vec![
+                "calibrate".into(),
+                "--images".into(),
+                c.images.clone(),
+                "--board".into(),
+                c.board.clone(),
+                "--square-mm".into(),
+                c.square_mm.to_string(),
+                "--out".into(),
+                "{out}/camera.json".into(),
+            ];
+            if let Some(m) = &c.model {
+                args.extend(["--model".into(), m.clone()]);
+            }
+            tasks.push(lucent(format!("{} photos", inputs.len()), args));
+        }
+        Stage::Colour => {
+            if f.colour.is_empty() {
+                return Ok(Err("no [[colour]] in the project".into()));
+            }
+            for c in &f.colour {
+                inputs.push(c.image.clone());
+                let mut args = vec![
+                    "colour".into(),
+                    "calibrate".into(),
+                    "--image".into(),
+                    s(&c.image),
+                    "--camera".into(),
+                    c.camera.clone(),
+                    "--out".into(),
+                    format!("{{out}}/{}", c.camera),
+                ];
+                if let Some(k) = &c.corners {
+                    args.extend(["--corners".into(), k.clone()]);
+                }
+                if let Some(m) = &c.method {
+                    args.extend(["--method".into(), m.clone()]);
+                }
+                if c.decode_srgb == Some(true) {
+                    args.push("--decode-srgb".into());
+                }
+                tasks.push(lucent(c.camera.clone(), args));
+            }
+        }
+        Stage::Pose => {
+            let Some(p) = &f.pose else { return Ok(Err("no [pose] in the project".into())) };
+            let camera = out.join(Stage::Calibrate.name()).join("camera.json");
+            if !camera.is_file() {
+                return Ok(Err("needs the calibrate stage's camera.json (no [calibration] or it has not run)".into()));
+            }
+            inputs.push(p.image.clone());
+            let board = p.board.clone().or_else(|| f.calibration.as_ref().map(|c| c.board.clone())).unwrap_or_default();
+            let sq = p.square_mm.or(f.calibration.as_ref().map(|c| c.square_mm)).unwrap_or(20.0);
+            let mut args = vec![
+                "pose".into(),
+                "--camera".into(),
+                s(&camera),
+                "--image".into(),
+                s(&p.image),
+                "--board".into(),
+                board,
+                "--square-mm".into(),
+                sq.to_string(),
+                "--out".into(),
+                "{out}/scene.json".into(),
+            ];
+            if let (Some(c), Some(z)) = (&p.sample_corner, &p.sample_size_mm) {
+                args.extend(["--sample-corner".into(), c.clone(), "--sample-size-mm".into(), z.clone()]);
+            }
+            tasks.push(lucent("board pose".into(), args));
+        }
+        Stage::EnvScale | Stage::Render => {
+            let Some(r) = &f.render else { return Ok(Err("no [render] in the project".into())) };
+            for smp in &f.sample {
+                if stage == Stage::EnvScale && smp.empty_board.is_none() {
+                    notes.push(format!("{}: no empty_board photo", smp.name));
+                    continue;
+                }
+                let scene_text = sample_scene(project, out, smp, stage == Stage::Render)?;
+                inputs.extend(scene_inputs(&r.scene));
+                inputs.push(smp.recipe.clone());
+                let scene_rel = format!("{}/input_scene.toml", smp.name);
+                let mut args: Vec<String> = match stage {
+                    Stage::EnvScale => {
+                        let photo = smp.empty_board.clone().unwrap_or_default();
+                        inputs.push(photo.clone());
+                        let mut a = vec![
+                            "env".into(),
+                            "fit-scale".into(),
+                            format!("{{out}}/{scene_rel}"),
+                            "--photo".into(),
+                            s(&photo),
+                            "--spp".into(),
+                            r.env_spp.or(r.spp).unwrap_or(16).to_string(),
+                        ];
+                        if r.per_channel_scale == Some(true) {
+                            a.push("--per-channel".into());
+                        }
+                        a
+                    }
+                    _ => {
+                        let mut a = vec![
+                            "render".into(),
+                            format!("{{out}}/{scene_rel}"),
+                            "--spp".into(),
+                            r.spp.unwrap_or(16).to_string(),
+                            "--quiet".into(),
+                        ];
+                        if let Some(t) = r.time_s {
+                            a.extend(["--time-s".into(), t.to_string()]);
+                        }
+                        a
+                    }
+                };
+                if let Some(z) = &r.size {
+                    args.extend(["--size".into(), z.clone()]);
+                }
+                args.extend(["--seed".into(), seed.clone(), "--out".into(), format!("{{out}}/{}", smp.name)]);
+                tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], args });
+            }
+            if tasks.is_empty() {
+                return Ok(Err(if f.sample.is_empty() {
+                    "no [[sample]] in the project".into()
+                } else {
+                    "no sample has an empty_board photo".into()
+                }));
+            }
+        }
+        Stage::Compare => {
+            for smp in &f.sample {
+                let render = out.join(Stage::Render.name()).join(&smp.name).join("render.exr");
+                let Some(photo) = &smp.photo else {
+                    notes.push(format!("{}: no photo", smp.name));
+                    continue;
+                };
+                if !render.is_file() {
+                    notes.push(format!("{}: no render", smp.name));
+                    continue;
+                }
+                inputs.push(photo.clone());
+                let mut args = vec![
+                    "compare".into(),
+                    "--photo".into(),
+                    s(photo),
+                    "--render".into(),
+                    s(&render),
+                    "--out".into(),
+                    format!("{{out}}/{}", smp.name),
+                ];
+                if let Some(d) = f.compare.as_ref().and_then(|c| c.data_range) {
+                    args.extend(["--data-range".into(), d.to_string()]);
+                }
+                tasks.push(lucent(smp.name.clone(), args));
+            }
+            if tasks.is_empty() {
+                return Ok(Err("no sample has both a photo and a render".into()));
+            }
+        }
+        Stage::Report => {
+            inputs.push(project.path.clone());
+            tasks.push(Task::Report);
+        }
+    }
+    Ok(Ok(Plan { tasks, inputs, notes }))
+}
+
+/// The key of a planned stage (see the module doc).
+fn stage_key(
+    stage: Stage,
+    project: &Project,
+    plan: &Plan,
+    inputs: &[InputHash],
+    upstream: &[(Stage, String)],
+) -> Result<String, PipelineError> {
+    let body = serde_json::json!({
+        "stage": stage,
+        "lucent_version": env!("CARGO_PKG_VERSION"),
+        "seed": project.seed,
+        "tasks": plan.tasks,
+        "inputs": inputs,
+        "upstream": upstream,
+    });
+    Ok(sha256_hex(body.to_string().as_bytes()))
+}
+
+/// Runs one `lucent` command line: `args` with `{out}` replaced, output
+/// appended to `log`; an error message on failure.
+pub type Executor<'a> = dyn FnMut(&[String], &Path) -> Result<(), String> + 'a;
+
+/// Runs the project's stages in order. `exec` runs a lucent command line;
+/// `on_status` hears about every stage (for the status lines).
+pub fn run(
+    project: &Project,
+    out: &Path,
+    options: &Options,
+    exec: &mut Executor,
+    on_status: &mut dyn FnMut(Stage, &Status, &[String]),
+) -> Result<Vec<(Stage, Status)>, PipelineError> {
+    let io = |path: &Path, e: std::io::Error| PipelineError::Io { path: path.to_path_buf(), reason: e.to_string() };
+    std::fs::create_dir_all(out).map_err(|e| io(out, e))?;
+    let mut done: Vec<(Stage, Status)> = Vec::new();
+    for stage in Stage::ALL {
+        if options
+            .until
+            .is_some_and(|u| Stage::ALL.iter().position(|s| *s == stage) > Stage::ALL.iter().position(|s| *s == u))
+        {
+            break;
+        }
+        let dir = out.join(stage.name());
+        let plan = match plan(stage, project, out)? {
+            Ok(p) => p,
+            Err(reason) => {
+                let st = Status::Skipped { reason };
+                on_status(stage, &st, &[]);
+                done.push((stage, st));
+                continue;
+            }
+        };
+        let mut inputs = Vec::new();
+        for p in &plan.inputs {
+            inputs.push(hash_file(p)?);
+        }
+        let mut upstream = Vec::new();
+        for d in stage.depends_on() {
+            let ddir = out.join(d.name());
+            if ddir.is_dir() {
+                upstream.push((*d, outputs_hash(&ddir)?));
+            }
+        }
+        let key = stage_key(stage, project, &plan, &inputs, &upstream)?;
+        let previous = read_manifest(&dir);
+        let fresh = previous
+            .as_ref()
+            .is_some_and(|m| m.key == key && outputs_hash(&dir).map(|h| h == m.outputs_sha256).unwrap_or(false));
+        if fresh && !options.force.contains(&stage) {
+            on_status(stage, &Status::UpToDate, &plan.notes);
+            done.push((stage, Status::UpToDate));
+            continue;
+        }
+        // Move the previous result aside; run into the final folder.
+        let aside = out.join(format!(".{}.previous", stage.name()));
+        let failed = out.join(format!("{}.failed", stage.name()));
+        if aside.exists() {
+            std::fs::remove_dir_all(&aside).map_err(|e| io(&aside, e))?;
+        }
+        if dir.exists() {
+            std::fs::rename(&dir, &aside).map_err(|e| io(&dir, e))?;
+        }
+        std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
+        let log = dir.join("log.txt");
+        let start = Instant::now();
+        let started_unix_s =
+            std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
+        let mut commands = Vec::new();
+        let mut result: Result<(), String> = Ok(());
+        for task in &plan.tasks {
+            let r = match task {
+                Task::Lucent { label, files, args } => {
+                    let mut r = Ok(());
+                    for (name, text) in files {
+                        if let Err(e) = crate::io::write_atomic(&dir.join(name), text.as_bytes()) {
+                            r = Err(e.to_string());
+                        }
+                    }
+                    let args: Vec<String> = args.iter().map(|a| a.replace("{out}", &s(&dir))).collect();
+                    commands.push(args.clone());
+                    r.and_then(|_| exec(&args, &log)).map_err(|e| format!("{label}: {e}"))
+                }
+                Task::Report => {
+                    commands.push(vec!["(report, in process)".into()]);
+                    report::write(project, out, &dir, &done).map_err(|e| e.to_string())
+                }
+            };
+            if r.is_err() {
+                result = r;
+                break;
+            }
+        }
+        let wall_s = start.elapsed().as_secs_f64();
+        if let Err(message) = result {
+            if failed.exists() {
+                let _ = std::fs::remove_dir_all(&failed);
+            }
+            let _ = std::fs::rename(&dir, &failed);
+            if aside.exists() {
+                let _ = std::fs::rename(&aside, &dir);
+            }
+            return Err(PipelineError::Failed { stage, message, kept: failed });
+        }
+        let manifest = Manifest {
+            stage,
+            key,
+            lucent_version: env!("CARGO_PKG_VERSION").into(),
+            seed: project.seed,
+            inputs,
+            commands,
+            notes: plan.notes.clone(),
+            started_unix_s,
+            wall_s,
+            outputs_sha256: outputs_hash(&dir)?,
+            outputs: output_files(&dir),
+        };
+        crate::io::write_json(&dir.join("manifest.json"), &manifest)
+            .map_err(|e| PipelineError::Io { path: dir.clone(), reason: e.to_string() })?;
+        if aside.exists() {
+            let _ = std::fs::remove_dir_all(&aside);
+        }
+        if failed.exists() {
+            let _ = std::fs::remove_dir_all(&failed);
+        }
+        let st = Status::Ran { wall_s, tasks: plan.tasks.len() };
+        on_status(stage, &st, &plan.notes);
+        done.push((stage, st));
+    }
+    Ok(done)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wildcards() {
+        assert!(wildcard_match("left*.jpg", "left01.jpg"));
+        assert!(wildcard_match("*.{jpg,png}", "a.png"));
+        assert!(!wildcard_match("*.{jpg,png}", "a.exr"));
+        assert!(wildcard_match("l?ft.jpg", "left.jpg"));
+    }
+
+    #[test]
+    fn stage_names_round_trip_and_dependencies_come_first() {
+        for (k, s) in Stage::ALL.iter().enumerate() {
+            assert_eq!(Stage::from_name(s.name()).unwrap(), *s);
+            for d in s.depends_on() {
+                assert!(Stage::ALL.iter().position(|x| x == d).unwrap() < k, "{s} depends on the later {d}");
+            }
+        }
+    }
+}

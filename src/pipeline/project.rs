@@ -1,0 +1,329 @@
+//! Project files for `lucent run`: one TOML file naming a digitisation's
+//! inputs, validated in two stages — the file as typed ([`ProjectFile`],
+//! unknown keys rejected), then [`Project`] with every path resolved
+//! relative to the project file and checked to exist.
+//!
+//! ```toml
+//! [project]
+//! name = "demo"                  # default: the file's stem
+//! seed = 1                       # every stochastic stage's seed
+//! # out = "out"                  # output folder, relative to this file (default lucent-out/NAME; --out wins)
+//!
+//! [optics]                       # stage optics: every sample's recipe
+//! wavelengths = "380:780:10"
+//!
+//! [bssrdf]                       # stage bssrdf: slab slices per sample (and comparison with measurements)
+//! wavelength_nm = 550.0
+//! configs = "45/0"               # θi/θo pairs, φi = 0°, φo = 180°
+//! pixels = 259                   # camera pixels per side
+//! pixel_mm = 0.1029
+//! # crop = 117
+//! paths = 200000                 # stop rule: paths, rel_error and/or time_s
+//!
+//! [calibration]                  # stage calibrate: Zhang's method
+//! images = "photos/board_*.jpg"  # wildcards in the file name
+//! board = "9x6"                  # inner corners
+//! square_mm = 25.0
+//!
+//! [[colour]]                     # stage colour: one ColorChecker per camera
+//! camera = "phone"
+//! image = "chart.exr"
+//! # corners = "x1,y1,x2,y2,x3,y3,x4,y4"   # else found by OpenCV's mcc
+//!
+//! [pose]                         # stage pose: the board's pose in the sample photo (needs calibrate)
+//! image = "photos/sample.jpg"
+//! sample_corner = "2,1"
+//! sample_size_mm = "100,60,6.35"
+//!
+//! [render]                       # stages env-scale, render: the scene template (a scene file)
+//! scene = "scene.toml"           # its [material] recipe is replaced by each sample's
+//! spp = 16
+//! # size = "320x240"
+//!
+//! [compare]
+//! data_range = 1.0
+//!
+//! [[sample]]
+//! name = "IOL1068-09"
+//! recipe = "samples/IOL1068-09.toml"
+//! # photo = "photo.exr"              # stage compare: the photograph (render's size, linear)
+//! # empty_board = "empty.exr"        # stage env-scale: the board photographed without the sample
+//! # [[sample.measured]]              # stage bssrdf: measured slices to score
+//! # config = "45/0"
+//! # file = "slice.exr"
+//! ```
+
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// A project file that cannot be used; every variant names the file.
+#[derive(Debug, Error)]
+pub enum ProjectError {
+    #[error("{path}: cannot read project file: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {message}")]
+    Toml { path: PathBuf, message: String },
+    #[error("{path}: {key}: {reason}")]
+    Key { path: PathBuf, key: String, reason: String },
+}
+
+/// The project file as typed.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectFile {
+    #[serde(default)]
+    pub project: ProjectSection,
+    pub optics: Option<OpticsSection>,
+    pub bssrdf: Option<BssrdfSection>,
+    pub calibration: Option<CalibrationSection>,
+    #[serde(default)]
+    pub colour: Vec<ColourSection>,
+    pub pose: Option<PoseSection>,
+    pub render: Option<RenderSection>,
+    pub compare: Option<CompareSection>,
+    #[serde(default)]
+    pub sample: Vec<SampleSection>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectSection {
+    pub name: Option<String>,
+    pub seed: Option<u64>,
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct OpticsSection {
+    pub wavelengths: Option<String>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BssrdfSection {
+    pub wavelength_nm: Option<f64>,
+    pub configs: Option<String>,
+    pub pixels: Option<usize>,
+    pub pixel_mm: Option<f64>,
+    pub crop: Option<usize>,
+    pub paths: Option<u64>,
+    pub rel_error: Option<f64>,
+    pub time_s: Option<f64>,
+    pub phase: Option<String>,
+    pub threshold: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationSection {
+    pub images: String,
+    pub board: String,
+    pub square_mm: f64,
+    pub model: Option<String>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ColourSection {
+    pub camera: String,
+    pub image: PathBuf,
+    pub corners: Option<String>,
+    pub method: Option<String>,
+    pub decode_srgb: Option<bool>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PoseSection {
+    pub image: PathBuf,
+    pub board: Option<String>,
+    pub square_mm: Option<f64>,
+    pub sample_corner: Option<String>,
+    pub sample_size_mm: Option<String>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSection {
+    pub scene: PathBuf,
+    pub spp: Option<u32>,
+    pub size: Option<String>,
+    pub time_s: Option<f64>,
+    pub env_spp: Option<u32>,
+    pub per_channel_scale: Option<bool>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CompareSection {
+    pub data_range: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SampleSection {
+    pub name: String,
+    pub recipe: PathBuf,
+    pub weight_percent: Option<f64>,
+    pub photo: Option<PathBuf>,
+    pub empty_board: Option<PathBuf>,
+    #[serde(default)]
+    pub measured: Vec<MeasuredSection>,
+}
+
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MeasuredSection {
+    pub config: String,
+    pub file: PathBuf,
+    pub pixel_mm: Option<f64>,
+}
+
+/// A validated project: paths absolute (or relative to the current folder
+/// when the project file's path was), names unique, numbers in range.
+#[derive(Debug, Clone)]
+pub struct Project {
+    pub path: PathBuf,
+    pub name: String,
+    pub seed: u64,
+    /// The output folder the file asks for (None: the caller's default).
+    pub out: Option<PathBuf>,
+    pub file: ProjectFile,
+    /// θi/θo pairs of [bssrdf] configs.
+    pub bssrdf_configs: Vec<(f64, f64)>,
+}
+
+/// Parses "45/0,0/45" into (θi, θo) pairs in degrees.
+pub fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>, String> {
+    let mut out = Vec::new();
+    for part in text.split(',') {
+        let (a, b) = part.split_once('/').ok_or_else(|| format!("{part:?}: expected θi/θo in degrees, e.g. 45/0"))?;
+        let num = |s: &str| s.trim().parse::<f64>().map_err(|_| format!("{s:?} is not a number"));
+        let (ti, to) = (num(a)?, num(b)?);
+        if !(0.0..90.0).contains(&ti) || !(0.0..90.0).contains(&to) {
+            return Err(format!("{part:?}: angles must lie in [0°, 90°)"));
+        }
+        out.push((ti, to));
+    }
+    Ok(out)
+}
+
+impl Project {
+    /// Reads and validates a project file.
+    pub fn load(path: &Path) -> Result<Project, ProjectError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|source| ProjectError::Read { path: path.to_path_buf(), source })?;
+        let file: ProjectFile = toml::from_str(&text)
+            .map_err(|e| ProjectError::Toml { path: path.to_path_buf(), message: e.to_string() })?;
+        Self::build(file, path)
+    }
+
+    /// Stage two: resolves and checks every path and number.
+    pub fn build(mut file: ProjectFile, path: &Path) -> Result<Project, ProjectError> {
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let dir =
+            std::path::absolute(if dir.as_os_str().is_empty() { Path::new(".") } else { &dir }).unwrap_or(dir.clone());
+        let key = |k: &str, reason: String| ProjectError::Key { path: path.to_path_buf(), key: k.to_string(), reason };
+        let resolve = |p: &Path| if p.is_absolute() { p.to_path_buf() } else { dir.join(p) };
+        let existing = |k: &str, p: &mut PathBuf| -> Result<(), ProjectError> {
+            *p = resolve(p);
+            if p.exists() {
+                Ok(())
+            } else {
+                Err(key(k, format!("{}: no such file", p.display())))
+            }
+        };
+        let name = match &file.project.name {
+            Some(n) => n.clone(),
+            None => path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "project".into()),
+        };
+        if name.is_empty() || name.contains(['/', '\\']) {
+            return Err(key("[project] name", format!("{name:?}: must be non-empty, without slashes")));
+        }
+        let out = file.project.out.as_ref().map(|p| resolve(p));
+        let mut seen = std::collections::HashSet::new();
+        for (k, s) in file.sample.iter_mut().enumerate() {
+            let at = format!("[[sample]] #{} ({})", k + 1, s.name);
+            if s.name.is_empty()
+                || s.name.starts_with('.')
+                || !s.name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+            {
+                return Err(key(&format!("{at} name"), "use letters, digits, '-', '_' and '.' (a folder name)".into()));
+            }
+            if !seen.insert(s.name.clone()) {
+                return Err(key(&format!("{at} name"), "two samples have this name".into()));
+            }
+            existing(&format!("{at} recipe"), &mut s.recipe)?;
+            if let Some(p) = &mut s.photo {
+                existing(&format!("{at} photo"), p)?;
+            }
+            if let Some(p) = &mut s.empty_board {
+                existing(&format!("{at} empty_board"), p)?;
+            }
+            for m in &mut s.measured {
+                existing(&format!("{at} measured file"), &mut m.file)?;
+                let c = parse_configs(&m.config).map_err(|e| key(&format!("{at} measured config"), e))?;
+                if c.len() != 1 {
+                    return Err(key(&format!("{at} measured config"), "one θi/θo pair per measured slice".into()));
+                }
+            }
+        }
+        let mut bssrdf_configs = Vec::new();
+        if let Some(b) = &file.bssrdf {
+            bssrdf_configs =
+                parse_configs(b.configs.as_deref().unwrap_or("45/0")).map_err(|e| key("[bssrdf] configs", e))?;
+            if b.paths.is_none() && b.rel_error.is_none() && b.time_s.is_none() {
+                return Err(key("[bssrdf]", "give a stop rule: paths, rel_error or time_s".into()));
+            }
+            for s in &file.sample {
+                for m in &s.measured {
+                    let c = parse_configs(&m.config).map_err(|e| key("[[sample.measured]] config", e))?[0];
+                    if !bssrdf_configs.contains(&c) {
+                        return Err(key(
+                            &format!("[[sample]] {} measured config", s.name),
+                            format!("{:?} is not among [bssrdf] configs", m.config),
+                        ));
+                    }
+                }
+            }
+        }
+        if let Some(c) = &mut file.calibration {
+            let p = resolve(Path::new(&c.images));
+            c.images = p.to_string_lossy().into_owned();
+            if !(c.square_mm > 0.0 && c.square_mm.is_finite()) {
+                return Err(key("[calibration] square_mm", format!("must be finite and > 0, got {}", c.square_mm)));
+            }
+        }
+        let mut cameras = std::collections::HashSet::new();
+        for c in &mut file.colour {
+            if !cameras.insert(c.camera.clone())
+                || c.camera.is_empty()
+                || !c.camera.chars().all(|ch| ch.is_ascii_alphanumeric() || "-_.".contains(ch))
+            {
+                return Err(key("[[colour]] camera", format!("{:?}: names must be unique folder names", c.camera)));
+            }
+            existing(&format!("[[colour]] {} image", c.camera), &mut c.image)?;
+        }
+        if let Some(p) = &mut file.pose {
+            existing("[pose] image", &mut p.image)?;
+            if p.board.is_none() && file.calibration.is_none() {
+                return Err(key("[pose] board", "required without [calibration]".into()));
+            }
+        }
+        if let Some(r) = &mut file.render {
+            existing("[render] scene", &mut r.scene)?;
+            if r.spp == Some(0) || r.env_spp == Some(0) {
+                return Err(key("[render] spp", "must be at least 1".into()));
+            }
+        }
+        if let Some(c) = &file.compare {
+            if c.data_range.is_some_and(|d| !(d > 0.0 && d.is_finite())) {
+                return Err(key("[compare] data_range", "must be finite and > 0".into()));
+            }
+        }
+        let seed = file.project.seed.unwrap_or(1);
+        Ok(Project { path: path.to_path_buf(), name, seed, out, file, bssrdf_configs })
+    }
+}

@@ -1,0 +1,483 @@
+//! The run's report: `report/index.html`, one self-contained page (inline
+//! style, no script, no network; its images copied into `report/img/` and
+//! referenced relatively), and `report/metrics.json` with every number the
+//! stages wrote. Both are built from the stage folders as they are on disk
+//! (a stage that did not run this time contributes its earlier result, with
+//! its manifest).
+//!
+//! Per sample: the optical-property table (μs, μa, μt in 1/m, g, n_bulk at
+//! every 50 nm of the grid) with the spectra and phase-function plots; the
+//! BSSRDF slices (sum ± standard error in 1/(m² sr)) and, where measured,
+//! the mean squared relative error and the sums measured vs simulated with
+//! their panels; the photo | render | difference triplet with RMSE and SSIM;
+//! the environment scale. Then the calibration summary (intrinsics,
+//! distortion, RMS reprojection error), the ΔE2000 table of every colour
+//! calibration, and the manifest (inputs with SHA-256, commands, versions,
+//! seed, wall times).
+
+use super::project::Project;
+use super::{Manifest, Stage, Status};
+use serde_json::{json, Value};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// The report could not be written.
+#[derive(Debug, Error)]
+pub enum ReportError {
+    #[error("{path}: {reason}")]
+    Io { path: PathBuf, reason: String },
+}
+
+/// HTML-escapes text.
+pub fn esc(t: &str) -> String {
+    t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+fn read_json(p: &Path) -> Option<Value> {
+    serde_json::from_str(&std::fs::read_to_string(p).ok()?).ok()
+}
+
+/// Drops arrays of more than `max` numbers (phase tables, corner lists)
+/// so metrics.json stays readable; everything else is kept.
+fn trim(v: &Value, max: usize) -> Value {
+    match v {
+        Value::Array(a) if a.len() > max && a.iter().all(|x| x.is_number()) => {
+            json!(format!("({} numbers, see the stage folder)", a.len()))
+        }
+        Value::Array(a) => Value::Array(a.iter().map(|x| trim(x, max)).collect()),
+        Value::Object(o) => Value::Object(o.iter().map(|(k, x)| (k.clone(), trim(x, max))).collect()),
+        x => x.clone(),
+    }
+}
+
+fn num(v: &Value, fmt: fn(f64) -> String) -> String {
+    v.as_f64().map(fmt).unwrap_or_else(|| "—".into())
+}
+
+fn e4(x: f64) -> String {
+    format!("{x:.4e}")
+}
+fn f3(x: f64) -> String {
+    format!("{x:.3}")
+}
+fn f4(x: f64) -> String {
+    format!("{x:.4}")
+}
+
+struct Page {
+    html: String,
+    img_dir: PathBuf,
+    copied: usize,
+}
+
+impl Page {
+    /// Copies `src` into img/ and returns an <img> tag, or a note when absent.
+    fn img(&mut self, src: &Path, alt: &str) -> Result<String, ReportError> {
+        if !src.is_file() {
+            return Ok(String::new());
+        }
+        self.copied += 1;
+        let ext = src.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_else(|| "png".into());
+        let name = format!("{:03}-{}.{ext}", self.copied, slug(alt));
+        let dst = self.img_dir.join(&name);
+        std::fs::create_dir_all(&self.img_dir)
+            .and_then(|_| std::fs::copy(src, &dst))
+            .map_err(|e| ReportError::Io { path: dst.clone(), reason: e.to_string() })?;
+        Ok(format!(
+            "<figure><img src=\"img/{name}\" alt=\"{}\"><figcaption>{}</figcaption></figure>",
+            esc(alt),
+            esc(alt)
+        ))
+    }
+}
+
+fn slug(t: &str) -> String {
+    let s: String = t.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
+    s.split('-').filter(|p| !p.is_empty()).collect::<Vec<_>>().join("-").chars().take(48).collect()
+}
+
+fn table(head: &[&str], rows: &[Vec<String>]) -> String {
+    let mut t = String::from("<table><thead><tr>");
+    for h in head {
+        let _ = write!(t, "<th>{}</th>", esc(h));
+    }
+    t.push_str("</tr></thead><tbody>");
+    for r in rows {
+        t.push_str("<tr>");
+        for c in r {
+            let _ = write!(t, "<td>{}</td>", esc(c));
+        }
+        t.push_str("</tr>");
+    }
+    t.push_str("</tbody></table>");
+    t
+}
+
+/// The optics JSON as a list of spectra (one sample writes an object).
+fn spectra(out: &Path) -> Vec<Value> {
+    match read_json(&out.join("optics/optical_properties.json")) {
+        Some(Value::Array(a)) => a,
+        Some(v @ Value::Object(_)) => vec![v],
+        _ => vec![],
+    }
+}
+
+/// Writes index.html and metrics.json into `dir` (the report stage's folder).
+pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]) -> Result<(), ReportError> {
+    let mut page = Page { html: String::new(), img_dir: dir.join("img"), copied: 0 };
+    let mut metrics = serde_json::Map::new();
+    let manifests: Vec<(Stage, Manifest)> = Stage::ALL
+        .iter()
+        .filter_map(|s| {
+            let m: Manifest =
+                serde_json::from_str(&std::fs::read_to_string(out.join(s.name()).join("manifest.json")).ok()?).ok()?;
+            Some((*s, m))
+        })
+        .collect();
+    metrics.insert("project".into(), json!(project.name));
+    metrics.insert("project_file".into(), json!(project.path.display().to_string()));
+    metrics.insert("lucent_version".into(), json!(env!("CARGO_PKG_VERSION")));
+    metrics.insert("seed".into(), json!(project.seed));
+
+    let h = &mut String::new();
+    let _ = write!(
+        h,
+        "<h1>{}</h1><p class=\"meta\">lucent {} · project file <code>{}</code> · seed {}</p>",
+        esc(&project.name),
+        env!("CARGO_PKG_VERSION"),
+        esc(&project.path.display().to_string()),
+        project.seed
+    );
+    // ---- stage status
+    let mut rows = Vec::new();
+    let mut stage_json = serde_json::Map::new();
+    for s in Stage::ALL.iter().filter(|s| **s != Stage::Report) {
+        let status = done.iter().find(|(d, _)| d == s).map(|(_, st)| st.clone());
+        let m = manifests.iter().find(|(d, _)| d == s).map(|(_, m)| m);
+        let text = match &status {
+            Some(Status::Ran { .. }) => "ran".to_string(),
+            Some(Status::UpToDate) => "up to date (inputs unchanged)".to_string(),
+            Some(Status::Skipped { reason }) => format!("skipped: {reason}"),
+            None => "not run".to_string(),
+        };
+        let wall = m.map(|m| format!("{:.2} s", m.wall_s)).unwrap_or_else(|| "—".into());
+        rows.push(vec![s.name().to_string(), text.clone(), wall]);
+        stage_json.insert(s.name().into(), json!({"status": text, "wall_s": m.map(|m| m.wall_s)}));
+    }
+    metrics.insert("stages".into(), Value::Object(stage_json));
+    let _ = write!(
+        h,
+        "<h2>Stages</h2>{}",
+        table(&["stage", "in the run that made this report", "wall time (last run)"], &rows)
+    );
+    page.html.push_str(h);
+
+    // ---- per sample
+    let all_spectra = spectra(out);
+    let mut samples_json = serde_json::Map::new();
+    for smp in &project.file.sample {
+        let mut sj = serde_json::Map::new();
+        let mut h = format!("<section><h2>Sample {}</h2>", esc(&smp.name));
+        // Optics: match by recipe name (the "sample" field is the recipe's sample name).
+        let recipe_name = crate::optics::recipe::Recipe::load(
+            &smp.recipe,
+            crate::optics::recipe::Overrides { weight_percent: smp.weight_percent },
+        )
+        .map(|r| r.name)
+        .unwrap_or_else(|_| smp.name.clone());
+        if let Some(sp) = all_spectra.iter().find(|s| s["sample"].as_str() == Some(recipe_name.as_str())) {
+            h.push_str("<h3>Optical properties (Lorenz–Mie)</h3>");
+            let wl: Vec<f64> = sp["wavelength_nm"]
+                .as_array()
+                .map(|a| a.iter().filter_map(Value::as_f64).collect())
+                .unwrap_or_default();
+            let mut rows = Vec::new();
+            for (i, w) in wl.iter().enumerate() {
+                if wl.len() > 12 && (w.round() as i64) % 50 != 0 {
+                    continue;
+                }
+                let at = |k: &str| sp[k][i].clone();
+                rows.push(vec![
+                    format!("{w}"),
+                    num(&at("mu_s_per_m"), e4),
+                    num(&at("mu_a_per_m"), e4),
+                    num(&at("mu_t_per_m"), e4),
+                    num(&at("g"), f4),
+                    num(&at("n_bulk"), f4),
+                ]);
+            }
+            h.push_str(&table(&["λ [nm]", "μs [1/m]", "μa [1/m]", "μt [1/m]", "g", "n_bulk"], &rows));
+            if let Some(a) = sp["absorption"].as_str().or(sp["absorption"]["name"].as_str()) {
+                let _ = write!(h, "<p class=\"note\">absorption model: {}</p>", esc(a));
+            }
+            let single = all_spectra.len() == 1;
+            let odir = if single { out.join("optics") } else { out.join("optics").join(sanitise(&recipe_name)) };
+            h.push_str("<div class=\"row\">");
+            h.push_str(
+                &page
+                    .img(&odir.join("optical_properties.png"), &format!("{} μs, μa, g against wavelength", smp.name))?,
+            );
+            if let Ok(rd) = std::fs::read_dir(&odir) {
+                let mut phase: Vec<PathBuf> = rd
+                    .flatten()
+                    .map(|e| e.path())
+                    .filter(|p| {
+                        p.file_name().is_some_and(|n| {
+                            n.to_string_lossy().starts_with("phase_") && n.to_string_lossy().ends_with(".png")
+                        })
+                    })
+                    .collect();
+                phase.sort();
+                for p in phase {
+                    h.push_str(&page.img(&p, &format!("{} phase function (Lorenz–Mie vs HG)", smp.name))?);
+                }
+            }
+            h.push_str("</div>");
+            sj.insert("optics".into(), trim(sp, 64));
+        }
+        // BSSRDF
+        let bdir = out.join("bssrdf").join(&smp.name);
+        if bdir.is_dir() {
+            h.push_str("<h3>BSSRDF slices (slab simulator)</h3>");
+            let mut rows = Vec::new();
+            let mut bj = Vec::new();
+            let mut imgs = String::new();
+            for &c in &project.bssrdf_configs {
+                let run = PathBuf::from(super::bssrdf_run_dir(&bdir.display().to_string(), &project.bssrdf_configs, c));
+                let summary = read_json(&run.join("summary.json"));
+                let cmp = read_json(&bdir.join(format!("compare_ti{}_to{}", c.0, c.1)).join("comparison.json"));
+                if let Some(sm) = &summary {
+                    rows.push(vec![
+                        format!("{}° / {}°", c.0, c.1),
+                        format!("{} ± {}", num(&sm["sum"], e4), num(&sm["sum_std_error"], e4)),
+                        cmp.as_ref().map(|x| num(&x["measured_sum"], e4)).unwrap_or_else(|| "not measured".into()),
+                        cmp.as_ref().map(|x| num(&x["sum_ratio"], f4)).unwrap_or_else(|| "—".into()),
+                        cmp.as_ref().map(|x| num(&x["mean_squared_relative_error"], f4)).unwrap_or_else(|| "—".into()),
+                        sm["paths"].to_string(),
+                    ]);
+                }
+                imgs.push_str(
+                    &page.img(&run.join("bssrdf.png"), &format!("{} slice θi {}° θo {}°", smp.name, c.0, c.1))?,
+                );
+                imgs.push_str(
+                    &page.img(&run.join("profile.png"), &format!("{} profile θi {}° θo {}°", smp.name, c.0, c.1))?,
+                );
+                let cdir = bdir.join(format!("compare_ti{}_to{}", c.0, c.1));
+                imgs.push_str(&page.img(
+                    &cdir.join("panel.png"),
+                    &format!("{} measured vs simulated θi {}° θo {}°", smp.name, c.0, c.1),
+                )?);
+                imgs.push_str(&page.img(
+                    &cdir.join("profiles.png"),
+                    &format!("{} measured vs simulated profiles θi {}° θo {}°", smp.name, c.0, c.1),
+                )?);
+                bj.push(json!({"theta_i_deg": c.0, "theta_o_deg": c.1, "summary": summary, "comparison": cmp}));
+            }
+            h.push_str(&table(
+                &["θi / θo", "simulated sum [1/(m² sr)]", "measured sum", "sim/meas", "MSRE", "paths"],
+                &rows,
+            ));
+            let _ = write!(h, "<div class=\"row\">{imgs}</div>");
+            sj.insert("bssrdf".into(), trim(&json!(bj), 64));
+        }
+        // Environment scale
+        if let Some(e) = read_json(&out.join("env-scale").join(&smp.name).join("env_scale.json")) {
+            let _ = write!(
+                h,
+                "<h3>Environment scale</h3><p>k = {} (per channel {}, {}, {}) over {} board pixels; residual RMS {} ({} % of the photo; render noise {}).</p>",
+                num(&e["fit"]["scale"], f4),
+                num(&e["fit"]["scale_per_channel"][0], f4),
+                num(&e["fit"]["scale_per_channel"][1], f4),
+                num(&e["fit"]["scale_per_channel"][2], f4),
+                e["fit"]["pixels"],
+                num(&e["fit"]["residual_rms"], e4),
+                num(&e["fit"]["relative_residual"], |x| format!("{:.2}", 100.0 * x)),
+                num(&e["fit"]["render_noise_rms"], e4),
+            );
+            sj.insert("env_scale".into(), e);
+        }
+        // Render and comparison
+        let rdir = out.join("render").join(&smp.name);
+        if let Some(r) = read_json(&rdir.join("render.json")) {
+            let _ = write!(
+                h,
+                "<h3>Render</h3><p>{} spp, {} × {} px, seed {}, {} s; median relative standard error {} %.</p>",
+                r["spp"],
+                r["scene"]["image_width"],
+                r["scene"]["image_height"],
+                r["seed"],
+                num(&r["wall_s"], |x| format!("{x:.1}")),
+                num(&r["median_relative_std_error"], |x| format!("{:.1}", 100.0 * x)),
+            );
+            sj.insert("render".into(), trim(&r, 64));
+        }
+        let cdir = out.join("compare").join(&smp.name);
+        if let Some(m) = read_json(&cdir.join("metrics.json")) {
+            h.push_str("<h3>Photo | render | difference</h3>");
+            let metr = &m["as_calibrated"];
+            let row = |label: &str, x: &Value| {
+                vec![
+                    label.to_string(),
+                    num(&x["rmse"], e4),
+                    num(&x["rmse_channels"]["R"], e4),
+                    num(&x["rmse_channels"]["G"], e4),
+                    num(&x["rmse_channels"]["B"], e4),
+                    num(&x["ssim"]["Y"], f4),
+                    num(&x["ssim"]["mean_rgb"], f4),
+                ]
+            };
+            let mut rows = vec![row("as calibrated", metr)];
+            if m["refined"].is_object() {
+                rows.push(row("after ECC refinement", &m["refined"]["metrics"]));
+            }
+            h.push_str(&table(&["", "RMSE", "RMSE R", "RMSE G", "RMSE B", "SSIM (Y)", "SSIM (mean RGB)"], &rows));
+            h.push_str(&page.img(&cdir.join("triplet.png"), &format!("{} photo | render | difference", smp.name))?);
+            sj.insert("compare".into(), trim(&m, 64));
+        } else if rdir.is_dir() {
+            h.push_str(&page.img(&rdir.join("render.png"), &format!("{} render", smp.name))?);
+        }
+        h.push_str("</section>");
+        page.html.push_str(&h);
+        samples_json.insert(smp.name.clone(), Value::Object(sj));
+    }
+    metrics.insert("samples".into(), Value::Object(samples_json));
+
+    // ---- calibration
+    let mut h = String::from("<section><h2>Calibration</h2>");
+    let mut any = false;
+    if let Some(c) = read_json(&out.join("calibrate/camera.json")) {
+        any = true;
+        let k = &c["camera"]["intrinsics"];
+        let d = &c["camera"]["distortion"];
+        h.push_str("<h3>Camera (Zhang)</h3>");
+        h.push_str(&table(
+            &["fx [px]", "fy [px]", "cx [px]", "cy [px]", "k1", "k2", "p1", "p2", "k3", "RMS [px]", "views"],
+            &[vec![
+                num(&k["fx"], f3),
+                num(&k["fy"], f3),
+                num(&k["cx"], f3),
+                num(&k["cy"], f3),
+                num(&d["k1"], f4),
+                num(&d["k2"], f4),
+                num(&d["p1"], e4),
+                num(&d["p2"], e4),
+                num(&d["k3"], f4),
+                num(&c["rms_px"], f4),
+                c["views"].as_array().map_or(0, Vec::len).to_string(),
+            ]],
+        ));
+        h.push_str(&page.img(&out.join("calibrate/camera_residuals.png"), "reprojection residuals per view")?);
+        let mut cj = trim(&c, 16);
+        if let Some(views) = c["views"].as_array() {
+            cj["views"] =
+                json!(views.iter().map(|v| json!({"image": v["image"], "rms_px": v["rms_px"]})).collect::<Vec<_>>());
+        }
+        metrics.insert("calibration".into(), cj);
+    }
+    let mut colour_json = serde_json::Map::new();
+    for c in &project.file.colour {
+        let cdir = out.join("colour").join(&c.camera);
+        let Some(ccm) = read_json(&cdir.join("ccm.json")) else { continue };
+        any = true;
+        let _ = write!(
+            h,
+            "<h3>Colour: {}</h3><p>{} · ΔE2000 mean {} max {}</p>",
+            esc(&c.camera),
+            esc(ccm["method"].as_str().unwrap_or("")),
+            num(&ccm["de2000_mean"], f3),
+            num(&ccm["de2000_max"], f3)
+        );
+        let rows: Vec<Vec<String>> = ccm["patches"]
+            .as_array()
+            .map(|ps| {
+                ps.iter()
+                    .map(|p| {
+                        vec![
+                            p["patch"].to_string(),
+                            p["name"].as_str().unwrap_or("").to_string(),
+                            num(&p["de2000"], f3),
+                            num(&p["de76"], f3),
+                        ]
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        h.push_str(&table(&["patch", "name", "ΔE2000", "ΔE76"], &rows));
+        h.push_str("<div class=\"row\">");
+        h.push_str(
+            &page.img(&cdir.join("chart.png"), &format!("{} chart: measured | corrected | reference", c.camera))?,
+        );
+        h.push_str(&page.img(&cdir.join("delta_e.png"), &format!("{} ΔE per patch", c.camera))?);
+        h.push_str("</div>");
+        colour_json.insert(c.camera.clone(), trim(&ccm, 16));
+    }
+    metrics.insert("colour".into(), Value::Object(colour_json));
+    if let Some(p) = read_json(&out.join("pose/scene.json")) {
+        any = true;
+        h.push_str("<h3>Board pose</h3>");
+        h.push_str(&page.img(&out.join("pose/scene_view.png"), "board pose and sample outline")?);
+        metrics.insert("pose".into(), trim(&p, 16));
+    }
+    if !any {
+        h.push_str("<p class=\"note\">No calibration in this project.</p>");
+    }
+    h.push_str("</section>");
+    page.html.push_str(&h);
+
+    // ---- manifest
+    let mut h = String::from("<section><h2>Manifest</h2>");
+    let mut mj = serde_json::Map::new();
+    for (s, m) in &manifests {
+        let _ = write!(
+            h,
+            "<h3>{}</h3><p class=\"meta\">key <code>{}</code> · lucent {} · seed {} · {:.2} s · outputs <code>{}</code></p>",
+            s.name(),
+            &m.key[..16.min(m.key.len())],
+            esc(&m.lucent_version),
+            m.seed,
+            m.wall_s,
+            &m.outputs_sha256[..16.min(m.outputs_sha256.len())]
+        );
+        let rows: Vec<Vec<String>> = m
+            .inputs
+            .iter()
+            .map(|i| vec![i.path.clone(), i.bytes.to_string(), i.sha256[..16.min(i.sha256.len())].to_string()])
+            .collect();
+        if !rows.is_empty() {
+            h.push_str(&table(&["input", "bytes", "SHA-256 (first 16)"], &rows));
+        }
+        h.push_str("<details><summary>commands</summary><pre>");
+        for c in &m.commands {
+            let _ = writeln!(h, "lucent {}", esc(&c.join(" ")));
+        }
+        h.push_str("</pre></details>");
+        mj.insert(s.name().into(), serde_json::to_value(m).unwrap_or(Value::Null));
+    }
+    h.push_str("</section>");
+    page.html.push_str(&h);
+    metrics.insert("manifests".into(), Value::Object(mj));
+
+    let html = format!(
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{} — lucent report</title>\n<style>{STYLE}</style></head>\n<body>{}</body></html>\n",
+        esc(&project.name),
+        page.html
+    );
+    let io = |p: &Path, e: String| ReportError::Io { path: p.to_path_buf(), reason: e };
+    crate::io::write_json(&dir.join("metrics.json"), &Value::Object(metrics)).map_err(|e| io(dir, e.to_string()))?;
+    crate::io::write_atomic(&dir.join("index.html"), html.as_bytes()).map_err(|e| io(dir, e.to_string()))?;
+    Ok(())
+}
+
+fn sanitise(name: &str) -> String {
+    name.chars().map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect()
+}
+
+const STYLE: &str =
+    "body{font:15px/1.45 system-ui,sans-serif;margin:2em auto;max-width:1200px;padding:0 1em;color:#222}\
+h1{margin-bottom:.2em}h2{border-bottom:2px solid #ccc;padding-bottom:.2em;margin-top:2em}\
+table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #ccc;padding:.25em .6em;text-align:right}\
+th{background:#f2f2f2}td:first-child,th:first-child{text-align:left}\
+figure{display:inline-block;margin:.4em;vertical-align:top}figure img{max-width:100%;border:1px solid #ddd}\
+.row figure{max-width:48%}figcaption{font-size:85%;color:#555}.meta,.note{color:#666;font-size:90%}\
+pre{background:#f7f7f7;padding:.6em;overflow-x:auto;font-size:80%}code{font-size:90%}";

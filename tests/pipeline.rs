@@ -1,0 +1,325 @@
+//! `lucent run`: a tiny project over the shipped fixtures (one sample, a
+//! synthetic photo and empty board rendered with a known environment scale,
+//! three chessboard photos, the ColorChecker photo, a 33 × 33 BSSRDF slice
+//! scored against a "measured" slice): every stage runs, a second run skips
+//! them all, a changed input reruns only what depends on it, `--force`
+//! reruns, a failing stage stops the run and leaves earlier results; the
+//! report opens in headless Chromium without console messages, every image
+//! it references exists, and its screenshot is kept in
+//! target/test-output/report.png. Bad project files are refused.
+
+use lucent::imageio::{read_exr_channels, write_exr, RgbImage};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn lucent(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_lucent")).args(args).output().expect("run lucent")
+}
+
+fn ok(o: &std::process::Output) -> String {
+    assert!(
+        o.status.success(),
+        "stdout:\n{}\nstderr:\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The stage's word in the status lines of a run ("ran", "up", "skipped").
+fn status_of(stdout: &str, stage: &str) -> String {
+    stdout
+        .lines()
+        .find(|l| l.split_whitespace().nth(1) == Some(stage))
+        .and_then(|l| l.split_whitespace().nth(2))
+        .unwrap_or("missing")
+        .to_string()
+}
+
+const SIZE: &str = "48x36";
+
+/// Writes the fixtures' demo scene (the twin) at a small size into `dir`,
+/// renders from it a "photo" (64 spp, scale 1.6) and an "empty board" photo,
+/// so env-scale should find 1.6.
+fn synthetic_inputs(dir: &Path) {
+    let demo = root().join("fixtures/render/demo.toml");
+    let text = std::fs::read_to_string(&demo).unwrap();
+    let fixtures = root().join("fixtures");
+    let text = text
+        .replace("\"../samples/", &format!("\"{}/samples/", fixtures.display()))
+        .replace("\"../env/", &format!("\"{}/env/", fixtures.display()));
+    std::fs::write(dir.join("scene.toml"), &text).unwrap();
+    let truth = text.replace("scale = 1.0", "scale = 1.6");
+    assert_ne!(truth, text);
+    std::fs::write(dir.join("truth.toml"), &truth).unwrap();
+    let empty: String = {
+        let mut t = truth.clone();
+        let start = t.find("[object]").unwrap();
+        let end = t.find("[board]").unwrap();
+        t.replace_range(start..end, "");
+        t
+    };
+    std::fs::write(dir.join("truth_empty.toml"), &empty).unwrap();
+    for (scene, out) in [("truth.toml", "photo"), ("truth_empty.toml", "empty")] {
+        ok(&lucent(&[
+            "render",
+            dir.join(scene).to_str().unwrap(),
+            "--size",
+            SIZE,
+            "--spp",
+            "64",
+            "--seed",
+            "99",
+            "--quiet",
+            "--out",
+            dir.join(out).to_str().unwrap(),
+        ]));
+    }
+}
+
+fn project_text(dir: &Path, measured: &str) -> String {
+    let f = root().join("fixtures");
+    format!(
+        r#"[project]
+name = "tiny"
+seed = 7
+
+[optics]
+wavelengths = "400:700:20"
+
+[bssrdf]
+wavelength_nm = 550
+configs = "45/0"
+pixels = 33
+pixel_mm = 0.2
+paths = 3000
+phase = "hg"
+
+[calibration]
+images = "{f}/camera/chessboard/left0{{1,2,3,4}}.jpg"
+board = "9x6"
+square_mm = 25
+
+[[colour]]
+camera = "phone"
+image = "{f}/colour/colorchecker.png"
+corners = "5,6.5,196,6,195.5,133.5,3.5,133"
+
+[pose]
+image = "{f}/camera/chessboard/left12.jpg"
+sample_corner = "2,1"
+sample_size_mm = "100,60,6.35"
+
+[render]
+scene = "{d}/scene.toml"
+spp = 8
+env_spp = 16
+size = "{SIZE}"
+
+[[sample]]
+name = "IOL1068-09"
+recipe = "{f}/samples/IOL1068-09.toml"
+photo = "{d}/photo/render.exr"
+empty_board = "{d}/empty/render.exr"
+
+[[sample.measured]]
+config = "45/0"
+file = "{measured}"
+pixel_mm = 0.2
+"#,
+        f = f.display(),
+        d = dir.display()
+    )
+}
+
+/// Headless Chromium on a page: (stderr console lines, DOM, screenshot written).
+fn chromium(page: &Path, screenshot: &Path) -> (Vec<String>, String) {
+    let bin = ["chromium", "chromium-browser"]
+        .into_iter()
+        .find(|b| Command::new("sh").args(["-c", &format!("command -v {b}")]).output().is_ok_and(|o| o.status.success()))
+        .expect("headless Chromium is required for the report test: install Debian's `chromium` (make deps / scripts/install-deps.sh)");
+    let url = format!("file://{}", page.display());
+    let common =
+        ["--headless", "--disable-gpu", "--no-sandbox", "--enable-logging=stderr", "--v=0", "--hide-scrollbars"];
+    let shot = Command::new(bin)
+        .args(common)
+        .arg(format!("--screenshot={}", screenshot.display()))
+        .arg("--window-size=1280,2400")
+        .arg(&url)
+        .output()
+        .expect("run chromium");
+    assert!(shot.status.success(), "chromium failed: {}", String::from_utf8_lossy(&shot.stderr));
+    let dom = Command::new(bin).args(common).arg("--dump-dom").arg(&url).output().expect("run chromium");
+    assert!(dom.status.success(), "chromium failed: {}", String::from_utf8_lossy(&dom.stderr));
+    let console: Vec<String> = [shot.stderr, dom.stderr.clone()]
+        .iter()
+        .flat_map(|e| String::from_utf8_lossy(e).lines().map(str::to_string).collect::<Vec<_>>())
+        .filter(|l| l.contains("CONSOLE"))
+        .collect();
+    (console, String::from_utf8_lossy(&dom.stdout).into_owned())
+}
+
+fn img_sources(dom: &str) -> Vec<String> {
+    dom.match_indices("<img ")
+        .filter_map(|(i, _)| {
+            let rest = &dom[i..];
+            let end = rest.find('>')?;
+            let tag = &rest[..end];
+            let s = tag.find("src=\"")? + 5;
+            let e = tag[s..].find('"')?;
+            Some(tag[s..s + e].to_string())
+        })
+        .collect()
+}
+
+#[test]
+fn chromium_check_catches_console_errors() {
+    // The detector itself: a page that logs an error must be caught.
+    let tmp = tempfile::tempdir().unwrap();
+    let page = tmp.path().join("bad.html");
+    std::fs::write(&page, "<!DOCTYPE html><html><body><img src=\"img/nothing.png\"><script>console.error('bad-page')</script></body></html>").unwrap();
+    let (console, dom) = chromium(&page, &tmp.path().join("bad.png"));
+    assert!(console.iter().any(|l| l.contains("bad-page")), "{console:?}");
+    assert_eq!(img_sources(&dom), ["img/nothing.png"]);
+}
+
+#[test]
+fn project_runs_skips_reruns_fails_and_reports() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    synthetic_inputs(d);
+    // A "measured" slice: a simulated one of the same slab with another seed.
+    let m = d.join("measured");
+    ok(&lucent(&[
+        "bssrdf",
+        "--recipe",
+        root().join("fixtures/samples/IOL1068-09.toml").to_str().unwrap(),
+        "--pixels",
+        "33",
+        "--pixel-mm",
+        "0.2",
+        "--paths",
+        "3000",
+        "--phase",
+        "hg",
+        "--seed",
+        "3",
+        "--quiet",
+        "--out",
+        m.to_str().unwrap(),
+    ]));
+    let measured = m.join("bssrdf.exr");
+    let project = d.join("tiny.toml");
+    std::fs::write(&project, project_text(d, &measured.display().to_string())).unwrap();
+    let out = d.join("out");
+    let run = |extra: &[&str]| {
+        let mut a = vec!["run", project.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        a.extend_from_slice(extra);
+        lucent(&a)
+    };
+
+    // 1. Everything runs.
+    let first = ok(&run(&[]));
+    for s in ["optics", "bssrdf", "calibrate", "colour", "pose", "env-scale", "render", "compare", "report"] {
+        assert_eq!(status_of(&first, s), "ran", "{s}:\n{first}");
+        let man: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join(s).join("manifest.json")).unwrap()).unwrap();
+        assert_eq!(man["seed"], 7);
+        assert!(man["wall_s"].as_f64().unwrap() >= 0.0);
+    }
+    assert!(first.contains("report: "), "{first}");
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report/metrics.json")).unwrap()).unwrap();
+    let smp = &metrics["samples"]["IOL1068-09"];
+    // The synthetic truth: env-scale finds the photo's 1.6 (noisy renders at 16 and 64 spp).
+    let k = smp["env_scale"]["fit"]["scale"].as_f64().unwrap();
+    assert!((k - 1.6).abs() < 0.1, "k = {k}");
+    // The render with the fitted scale matches the photo: SSIM high, RMSE small against the photo's level.
+    let ssim = smp["compare"]["as_calibrated"]["ssim"]["Y"].as_f64().unwrap();
+    assert!(ssim > 0.3 && ssim <= 1.0, "SSIM {ssim}");
+    assert!(smp["compare"]["as_calibrated"]["rmse"].as_f64().unwrap() > 0.0);
+    assert!(smp["optics"]["mu_s_per_m"][0].as_f64().unwrap() > 1e3);
+    assert!(smp["bssrdf"][0]["comparison"]["mean_squared_relative_error"].as_f64().unwrap() >= 0.0);
+    assert!(metrics["calibration"]["rms_px"].as_f64().unwrap() < 1.0);
+    assert!(metrics["colour"]["phone"]["de2000_mean"].as_f64().unwrap() > 0.0);
+    assert!(metrics["manifests"]["render"]["inputs"].as_array().unwrap().len() >= 3);
+    let (w, h, _) = read_exr_channels(&out.join("render/IOL1068-09/render.exr"), &["R"]).unwrap();
+    assert_eq!((w, h), (48, 36));
+
+    // 2. Nothing changed: every stage is skipped.
+    let second = ok(&run(&[]));
+    for s in ["optics", "bssrdf", "calibrate", "colour", "pose", "env-scale", "render", "compare", "report"] {
+        assert_eq!(status_of(&second, s), "up", "{s}:\n{second}");
+    }
+
+    // 3. A changed photo reruns compare and the report only; --force reruns a stage.
+    let photo = d.join("photo/render.exr");
+    let (pw, ph, ch) = read_exr_channels(&photo, &["R", "G", "B"]).unwrap();
+    let data: Vec<f32> = (0..pw * ph).flat_map(|i| [ch[0][i] * 1.01, ch[1][i], ch[2][i]]).collect();
+    write_exr(&photo, &RgbImage::new(pw, ph, data).unwrap()).unwrap();
+    let third = ok(&run(&["--force", "colour"]));
+    for (s, want) in [("optics", "up"), ("colour", "ran"), ("render", "up"), ("compare", "ran"), ("report", "ran")] {
+        assert_eq!(status_of(&third, s), want, "{s}:\n{third}");
+    }
+
+    // 4. A failing stage stops the run with its name and log; earlier results stay.
+    std::fs::write(&measured, b"not an EXR").unwrap();
+    let o = run(&[]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("stage bssrdf failed") && err.contains("bssrdf.failed"), "{err}");
+    assert!(out.join("bssrdf.failed/log.txt").is_file());
+    assert!(out.join("bssrdf/manifest.json").is_file(), "the previous bssrdf result is put back");
+    assert!(out.join("optics/manifest.json").is_file());
+    assert_eq!(status_of(&String::from_utf8_lossy(&o.stdout), "calibrate"), "missing", "the run stopped");
+
+    // 5. The report in a browser: no console messages, every image there.
+    let index = out.join("report/index.html");
+    let shots = root().join("target/test-output");
+    std::fs::create_dir_all(&shots).unwrap();
+    let (console, dom) = chromium(&index, &shots.join("report.png"));
+    assert!(console.is_empty(), "console messages: {console:?}");
+    let imgs = img_sources(&dom);
+    assert!(imgs.len() >= 8, "{imgs:?}");
+    for src in &imgs {
+        assert!(!src.contains("://"), "{src}: the report must not load from the network");
+        assert!(out.join("report").join(src).is_file(), "{src} missing");
+    }
+    assert!(dom.contains("Photo | render | difference") && dom.contains("Manifest"));
+    assert!(shots.join("report.png").metadata().unwrap().len() > 10_000);
+}
+
+#[test]
+fn bad_projects_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cases: [(&str, &[&str]); 5] = [
+        ("[project]\nname = \"x\"\ncolour_space = 1\n", &["unknown field"]),
+        ("[[sample]]\nname = \"a\"\nrecipe = \"nope.toml\"\n", &["recipe", "nope.toml", "no such file"]),
+        ("[[sample]]\nname = \"a b\"\nrecipe = \"x.toml\"\n", &["name", "folder name"]),
+        ("[bssrdf]\nconfigs = \"45-0\"\npaths = 10\n", &["configs", "45-0"]),
+        ("[bssrdf]\nconfigs = \"45/0\"\n", &["stop rule"]),
+    ];
+    std::fs::write(tmp.path().join("x.toml"), "").unwrap();
+    for (k, (text, needles)) in cases.iter().enumerate() {
+        let p = tmp.path().join(format!("p{k}.toml"));
+        std::fs::write(&p, text).unwrap();
+        let out = tmp.path().join(format!("out{k}"));
+        let o = lucent(&["run", p.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "case {k} succeeded");
+        assert!(err.contains(&format!("p{k}.toml")), "case {k}: {err}");
+        for n in *needles {
+            assert!(err.contains(n), "case {k}: {err:?} lacks {n:?}");
+        }
+        assert!(!out.exists(), "case {k} wrote output");
+    }
+    let p = tmp.path().join("ok.toml");
+    std::fs::write(&p, "[project]\nname = \"empty\"\n").unwrap();
+    let o = lucent(&["run", p.to_str().unwrap(), "--force", "rendr", "--out", tmp.path().join("o").to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("render"), "the valid names are listed");
+}
