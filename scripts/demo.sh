@@ -36,6 +36,14 @@ echo "== 5. The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerb
 "$bin" render fixtures/render/demo.toml --spp 64 --time-s 150 --out "$out/render"
 
 echo
+echo "== 6. The whole digitisation from one project file (lucent run fixtures/demo/project.toml): a synthetic photo and"
+echo "   empty board of IOL1068-09 rendered with the environment scaled by 1.6 (the truth), then every stage"
+"$bin" render fixtures/demo/truth.toml --size 160x120 --spp 256 --seed 1001 --quiet --out "$out/truth/photo"
+"$bin" render fixtures/demo/truth_empty.toml --size 160x120 --spp 256 --seed 1002 --quiet --out "$out/truth/empty"
+"$bin" run fixtures/demo/project.toml --out "$out/run"
+echo "   truth: environment scale 1.6; recovered: $(grep -m1 '"new_scale"' "$out/run/env-scale/IOL1068-09/env_scale.json" | tr -d ' ,')"
+
+echo
 echo "Results are in $out/:"
 echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
@@ -46,3 +54,4 @@ echo "  $out/camera/camera.json              intrinsics, distortion, per-view po
 echo "  $out/camera/scene.json               board and sample pose in the renderer's convention; left12_undistorted.png"
 echo "  $out/render/render.exr, render.png   the rendered twin (linear CIE RGB with per-pixel variance; sRGB preview), render.json"
 echo "  $out/camera/IMG_5952.exr/.json       a real CR2 as linear camera RGB with its metadata (if rawtran-doc is installed)"
+echo "  $out/run/report/index.html          the run's report (optics, BSSRDF, env scale, triplet with RMSE/SSIM, calibration, manifest); metrics.json"

@@ -61,8 +61,13 @@ fn synthetic_inputs(dir: &Path) {
         let start = t.find("[object]").unwrap();
         let end = t.find("[board]").unwrap();
         t.replace_range(start..end, "");
-        t
+        // The sphere centred where the twin's scene centres it (the plaque's top).
+        t.replace(
+            "projection = \"finite-sphere\"\n",
+            "projection = \"finite-sphere\"\ncentre_m = [0.0, 0.0, 0.006351]\n",
+        )
     };
+    assert!(empty.contains("centre_m") && !empty.contains("[material]"));
     std::fs::write(dir.join("truth_empty.toml"), &empty).unwrap();
     for (scene, out) in [("truth.toml", "photo"), ("truth_empty.toml", "empty")] {
         ok(&lucent(&[

@@ -75,7 +75,13 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
     let text =
         std::fs::read_to_string(&a.scene).with_context(|| format!("{}: cannot read scene file", a.scene.display()))?;
     let file = scene::parse(&text, &a.scene)?;
-    let empty = envfit::empty_board(&file).with_context(|| a.scene.display().to_string())?;
+    let mut empty = envfit::empty_board(&file).with_context(|| a.scene.display().to_string())?;
+    // The finite sphere stays centred where the full scene puts it (the top
+    // of the sample by default), so the board is lit as in the twin's render.
+    if file.object.is_some() && empty.environment.centre_m.is_none() {
+        let full = scene::build(&file, &a.scene)?;
+        empty.environment.centre_m = full.summary.environment_centre_m;
+    }
     let mut loaded = scene::build(&empty, &a.scene)?;
     if let Some(size) = &a.size {
         let (w, h) = super::render::parse_size(size)?;
