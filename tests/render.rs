@@ -176,6 +176,8 @@ fn bad_scene_files_are_refused_with_reasons() {
         ("no_camera_size.toml", &["[camera]", "width and height"]),
         ("placement_without_scene.toml", &["[object] board_corner", "scene_json"]),
         ("not_toml.toml", &["not_toml.toml"]),
+        ("bad_roughness_model.toml", &["bad_roughness_model.toml", "[material] roughness", "\"lambert\""]),
+        ("bad_roughness_alpha.toml", &["[material] roughness", "-0.01"]),
     ];
     let listed: Vec<&str> = cases.iter().map(|c| c.0).collect();
     for entry in std::fs::read_dir(&dir).unwrap() {
@@ -282,4 +284,29 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
     assert_eq!(s.environment_radius_m, Some(0.6));
     // studio.exr's three lossy-compression negatives are reported, not hidden.
     assert!(loaded.warnings.iter().any(|w| w.contains("negative values")), "{:?}", loaded.warnings);
+}
+
+#[test]
+fn roughness_from_the_recipe_or_the_scene_file() {
+    // IOL1068-08's recipe has a measured [surface] (TR α = 0.00836): the
+    // boundary is rough unless the scene says otherwise.
+    let dir = std::env::temp_dir().join(format!("lucent-rough-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let recipe = root().join("fixtures/samples/IOL1068-08.toml");
+    let scene_text = |roughness: &str| {
+        format!(
+            "[camera]\nwidth = 8\nheight = 6\nposition_m = [0.0, -0.1, 0.1]\nlook_at_m = [0.0, 0.0, 0.0]\nvertical_fov_deg = 30.0\n\n\
+             [object]\n\n[material]\nrecipe = {recipe:?}\nphase = \"hg\"\nwavelengths = \"400:700:50\"\n{roughness}\n\n\
+             [environment]\nconstant = [1.0, 1.0, 1.0]\n"
+        )
+    };
+    let boundary = |roughness: &str| {
+        let path = dir.join("scene.toml");
+        std::fs::write(&path, scene_text(roughness)).unwrap();
+        scene::load(&path).unwrap().summary.material.unwrap().boundary
+    };
+    assert_eq!(boundary(""), "rough: Trowbridge–Reitz α = 0.00836 (the recipe's [surface])");
+    assert_eq!(boundary("roughness = \"smooth\""), "smooth");
+    assert_eq!(boundary("roughness = \"beckmann:0.02\""), "rough: Beckmann α = 0.02 (the scene file)");
+    std::fs::remove_dir_all(&dir).ok();
 }

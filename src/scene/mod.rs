@@ -24,6 +24,7 @@
 //! recipe = "../samples/IOL1068-09.toml"   # Lorenz–Mie → R, G, B bands
 //! phase = "mie"                 # "mie" (band-averaged tabulated function) or "hg" (the band's g)
 //! # or explicit bands: sigma_s_per_m = [..3], sigma_a_per_m = [..3], g = [..3], n = [..3]
+//! roughness = "recipe"          # the recipe's [surface] if any (else smooth); "smooth"; "ggx:0.0084"; "beckmann:0.005"
 //! dispersion = true             # false: one index (the bands' mean) for all bands, so a path
 //!                               # carries R, G and B together (spectral MIS: less noise)
 //!
@@ -63,7 +64,7 @@
 pub mod mesh;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
-use crate::optics::recipe::{Overrides, Recipe};
+use crate::optics::recipe::{self, Overrides, Recipe};
 use glam::DVec3;
 use lucent_calib::scene::{BoardSpec, SceneDescription};
 use lucent_colour::bands::{band_weights, BandWeights};
@@ -71,6 +72,7 @@ use lucent_colour::WavelengthGrid;
 use lucent_render::accel::Accel;
 use lucent_render::camera::Camera;
 use lucent_render::env::{Environment, Projection};
+use lucent_render::microfacet::{Distribution, Microsurface};
 use lucent_render::phase::{Phase, PhaseTable};
 use lucent_render::tracer::{Board, BoardReflectance, Boundary, Medium, Object, Scene, Settings};
 use serde::{Deserialize, Serialize};
@@ -158,6 +160,7 @@ pub struct MaterialSection {
     pub g: Option<[f64; 3]>,
     pub n: Option<[f64; 3]>,
     pub dispersion: Option<bool>,
+    pub roughness: Option<String>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
@@ -248,6 +251,8 @@ pub struct MaterialSummary {
     pub n: [f64; 3],
     /// False when `dispersion = false` replaced the bands' indices by their mean.
     pub dispersion: bool,
+    /// The boundary: "smooth" or the microfacet distribution with its α.
+    pub boundary: String,
 }
 
 struct Ctx<'a> {
@@ -316,7 +321,11 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     // --- material and object
     let material = match &file.material {
         Some(m) => {
-            let (medium, mut eta, mut summary, size) = build_material(&ctx, m)?;
+            let (medium, mut eta, mut summary, size, surface) = build_material(&ctx, m)?;
+            let rough = build_roughness(&ctx, m, surface)?;
+            if let Some((_, desc)) = &rough {
+                summary.boundary.clone_from(desc);
+            }
             if m.dispersion == Some(false) {
                 // One index for all bands (their mean), so that a path can
                 // carry all three bands (spectral MIS in the renderer).
@@ -324,17 +333,21 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
                 summary.n = eta;
                 summary.dispersion = false;
             }
-            Some((medium, eta, summary, size))
+            Some((medium, eta, summary, size, rough))
         }
         None => None,
     };
     let (object, object_desc, mesh_report, bounds, top_centre) = match (&file.object, material) {
-        (Some(o), Some((medium, eta, summary, size_from_recipe))) => {
+        (Some(o), Some((medium, eta, summary, size_from_recipe, rough))) => {
             let (triangles, desc, report) =
                 build_object_triangles(&ctx, o, size_from_recipe, scene_json.as_ref(), &mut warnings)?;
             let accel = Accel::new(&triangles);
             let (lo, hi) = accel.bounds();
-            let object = Object::new(accel, Boundary::Smooth { eta }, medium)
+            let boundary = match rough {
+                Some((surface, _)) => Boundary::Rough { eta, surface },
+                None => Boundary::Smooth { eta },
+            };
+            let object = Object::new(accel, boundary, medium)
                 .map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
             let top = DVec3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z);
             (Some((object, summary)), Some(desc), report, Some([lo.to_array(), hi.to_array()]), Some(top))
@@ -507,7 +520,61 @@ fn build_camera(
     }
 }
 
-type MaterialParts = (Medium, [f64; 3], MaterialSummary, Option<[f64; 3]>);
+type MaterialParts = (Medium, [f64; 3], MaterialSummary, Option<[f64; 3]>, Option<recipe::Surface>);
+
+/// The boundary of `[material] roughness`: "recipe" (default: the recipe's
+/// `[surface]` if it has one, else smooth), "smooth", or
+/// "trowbridge-reitz:α" / "ggx:α" / "beckmann:α".
+fn build_roughness(
+    ctx: &Ctx,
+    m: &MaterialSection,
+    from_recipe: Option<recipe::Surface>,
+) -> Result<Option<(Microsurface, String)>, SceneFileError> {
+    let analytic = |model: recipe::RoughnessModel, alpha: f64, origin: &str| {
+        let (d, name) = match model {
+            recipe::RoughnessModel::TrowbridgeReitz => (Distribution::TrowbridgeReitz { alpha }, "Trowbridge–Reitz"),
+            recipe::RoughnessModel::Beckmann => (Distribution::Beckmann { alpha }, "Beckmann"),
+        };
+        d.validate().map_err(|e| ctx.key("material", "roughness", e.to_string()))?;
+        Ok(Some((Microsurface::Analytic(d), format!("rough: {name} α = {alpha} ({origin})"))))
+    };
+    let text = m.roughness.as_deref().unwrap_or("recipe").trim();
+    match text {
+        "recipe" => match from_recipe {
+            Some(sf) => analytic(sf.model, sf.alpha, "the recipe's [surface]"),
+            None => Ok(None),
+        },
+        "smooth" => Ok(None),
+        _ => {
+            let Some((model, alpha)) = text.split_once(':') else {
+                return Err(ctx.key(
+                    "material",
+                    "roughness",
+                    format!("expected \"recipe\", \"smooth\" or MODEL:ALPHA (trowbridge-reitz, ggx, beckmann), got {text:?}"),
+                ));
+            };
+            let model = match model.trim() {
+                "trowbridge-reitz" | "ggx" | "tr" => recipe::RoughnessModel::TrowbridgeReitz,
+                "beckmann" => recipe::RoughnessModel::Beckmann,
+                other => {
+                    return Err(ctx.key(
+                        "material",
+                        "roughness",
+                        format!("unknown model {other:?}: trowbridge-reitz (ggx) or beckmann"),
+                    ))
+                }
+            };
+            let alpha: f64 = alpha
+                .trim()
+                .parse()
+                .map_err(|_| ctx.key("material", "roughness", format!("α {alpha:?} is not a number")))?;
+            if !(alpha.is_finite() && alpha >= 0.0) {
+                return Err(ctx.key("material", "roughness", format!("α must be finite and ≥ 0, got {alpha}")));
+            }
+            analytic(model, alpha, "the scene file")
+        }
+    }
+}
 
 fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, SceneFileError> {
     let phase_kind = m.phase.as_deref().unwrap_or(if m.recipe.is_some() { "mie" } else { "hg" });
@@ -544,8 +611,9 @@ fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, Scene
                 g,
                 n,
                 dispersion: true,
+                boundary: "smooth".into(),
             };
-            Ok((Medium { sigma_s: s, sigma_a: a, phase }, n, summary, None))
+            Ok((Medium { sigma_s: s, sigma_a: a, phase }, n, summary, None, None))
         }
         (Some(recipe_path), false) => {
             let full = ctx.resolve(recipe_path);
@@ -561,7 +629,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, Scene
             let (medium, summary) = medium_from_spectrum(ctx, &spectrum, &weights, phase_kind == "mie", &full)?;
             let size = recipe_size_m(&recipe);
             let eta = summary.n;
-            Ok((medium, eta, summary, size))
+            Ok((medium, eta, summary, size, recipe.surface))
         }
     }
 }
@@ -629,6 +697,7 @@ fn medium_from_spectrum(
         g,
         n,
         dispersion: true,
+        boundary: "smooth".into(),
     };
     Ok((Medium { sigma_s: mu_s, sigma_a: mu_a, phase }, summary))
 }
