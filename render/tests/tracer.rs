@@ -217,20 +217,18 @@ fn finite_sphere_board_radiance_matches_quadrature() {
     assert_ne!(l_inf, l_fin, "test point too close to the centre to tell the projections apart");
 }
 
+/// `test_map` on the finite sphere of radius 0.6 m about the plaque's top.
+fn test_sphere() -> Environment {
+    let centre = DVec3::new(0.0, 0.0, 0.006);
+    Environment::new(32, 16, test_map(), 0.0, 1.0, Projection::FiniteSphere { centre, radius_m: 0.6 }).unwrap()
+}
+
 #[test]
 fn roulette_is_unbiased() {
     // An absorbing plaque on the board: aggressive roulette against none.
     let obj = || plaque([800.0, 1000.0, 1200.0], [40.0, 20.0, 10.0], 0.8, 1.5);
-    let env = Environment::new(
-        32,
-        16,
-        test_map(),
-        0.0,
-        1.0,
-        Projection::FiniteSphere { centre: DVec3::new(0.0, 0.0, 0.006), radius_m: 0.6 },
-    )
-    .unwrap();
-    let scene = Scene::new(Some(obj()), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), env, camera(12, 9)).unwrap();
+    let scene =
+        Scene::new(Some(obj()), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), test_sphere(), camera(12, 9)).unwrap();
     let base = Settings { spp: 512, ..Settings::default() };
     let (a, sa) = render(&scene, &Settings { seed: 21, roulette_threshold: None, ..base.clone() }, &mut |_| {});
     let (b, sb) = render(&scene, &Settings { seed: 22, roulette_threshold: Some(0.9), ..base }, &mut |_| {});
@@ -419,28 +417,17 @@ fn rough_boundary_furnace_and_smooth_limit() {
     z_test(&img, &|_| Some((SKY, SKY.map(|v| (2e-4 * v).powi(2)))), "rough furnace α = 0.05");
     // With absorption and a board, a nearly smooth rough boundary (α = 10⁻³)
     // renders the smooth boundary's image.
-    let tmap = || {
-        Environment::new(
-            32,
-            16,
-            test_map(),
-            0.0,
-            1.0,
-            Projection::FiniteSphere { centre: DVec3::new(0.0, 0.0, 0.006), radius_m: 0.6 },
-        )
-        .unwrap()
-    };
     let bd = || Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2]));
     let smooth = plaque([600.0, 900.0, 1200.0], [20.0; 3], 0.7, 1.5);
     let a = render(
-        &Scene::new(Some(smooth), bd(), tmap(), camera(12, 9)).unwrap(),
+        &Scene::new(Some(smooth), bd(), test_sphere(), camera(12, 9)).unwrap(),
         &Settings { spp: 512, seed: 12, ..Settings::default() },
         &mut |_| {},
     )
     .0;
     let rough = rough_plaque(1e-3, 1.5, 20.0);
     let b = render(
-        &Scene::new(Some(rough), bd(), tmap(), camera(12, 9)).unwrap(),
+        &Scene::new(Some(rough), bd(), test_sphere(), camera(12, 9)).unwrap(),
         &Settings { spp: 512, seed: 13, ..Settings::default() },
         &mut |_| {},
     )
@@ -449,7 +436,7 @@ fn rough_boundary_furnace_and_smooth_limit() {
     // …and a clearly rough one does not (the test can tell them apart).
     let rougher = rough_plaque(0.5, 1.5, 20.0);
     let c = render(
-        &Scene::new(Some(rougher), bd(), tmap(), camera(12, 9)).unwrap(),
+        &Scene::new(Some(rougher), bd(), test_sphere(), camera(12, 9)).unwrap(),
         &Settings { spp: 512, seed: 14, ..Settings::default() },
         &mut |_| {},
     )
