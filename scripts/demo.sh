@@ -38,8 +38,8 @@ echo "== 5. The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerb
 echo
 echo "== 6. The whole digitisation from one project file (lucent run fixtures/demo/project.toml): a synthetic photo and"
 echo "   empty board of IOL1068-09 rendered with the environment scaled by 1.6 (the truth), then every stage"
-"$bin" render fixtures/demo/truth.toml --size 160x120 --spp 256 --seed 1001 --quiet --out "$out/truth/photo"
-"$bin" render fixtures/demo/truth_empty.toml --size 160x120 --spp 256 --seed 1002 --quiet --out "$out/truth/empty"
+"$bin" render fixtures/demo/truth.toml --size 160x120 --spp 128 --seed 1001 --quiet --out "$out/truth/photo"
+"$bin" render fixtures/demo/truth_empty.toml --size 160x120 --spp 128 --seed 1002 --quiet --out "$out/truth/empty"
 "$bin" run fixtures/demo/project.toml --out "$out/run"
 echo "   truth: environment scale 1.6; recovered: $(grep -m1 '"new_scale"' "$out/run/env-scale/IOL1068-09/env_scale.json" | tr -d ' ,')"
 
