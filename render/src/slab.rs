@@ -57,6 +57,53 @@
 //! slice is several percent low; in a thick slab (μ_t d / cos θ_t ≥ 40) they
 //! are skipped.
 //!
+//! **Ring connection** ([`Estimator::Ring`], the default where it applies).
+//! The fixed-direction connection converges in its sum but not pixel by
+//! pixel: its value at an event is p(ω_s·ω₂₁), and for a forward-peaked
+//! medium only the rare photons already travelling within the phase
+//! function's lobe around ω₂₁ (a few degrees) contribute. With the
+//! Lorenz–Mie table of IOL1068-09 at 550 nm, 4π∫p² dω = 105 (p(0°) =
+//! 21 /sr, half the scattering within 5°): replacing p by 1/(4π) in the
+//! connection (a biased diagnostic) cut the per-pixel error 0.5–3 mm from
+//! the beam from 60 % to 19 % at 10⁵ paths. (A detector cone of ≤ 1°
+//! averages p over 0.63° in the medium and leaves 4π∫p̄² at 105; 933 → 868
+//! for the PVP of IOL1068-13 — so the cone and its MIS with phase-sampled
+//! exits were measured not to pay and are not implemented.)
+//! The ring uses the one symmetry left: when light enters at normal
+//! incidence the slab is symmetric about the normal through the entry
+//! point, so the response at exit azimuth φ equals the response at the
+//! wanted azimuth φ_t with the exit point rotated by φ_t − φ about the entry
+//! point. Every direction on the ring of the exit polar angle θ_t is
+//! therefore a valid connection direction; the photon's lobe meets a ring
+//! far more often than a point. Per event the ring connection draws exit
+//! azimuths from a table shaped like p along the ring (see `Ring`), splats
+//! w p e^{−μ_t ℓ} T/(n² A_o cos θ_t) / (2π pdf_φ) — the same factors as
+//! the fixed direction, ℓ = |z|/cos θ_t being the same for every azimuth —
+//! at the rotated exit point, and averages [`RING_SPLATS`] such azimuths
+//! (stratified). The beam is not rotation-symmetric, so photons start at
+//! the origin and the beam's footprint is laid on by convolution: the splat
+//! goes to the pixel of b + Δ with b drawn from the footprint (E over b of
+//! the pixel indicator is the footprint integrated over the pixel, which is
+//! exactly the convolution the slice is). Normal incidence is needed on the
+//! launch side only: for θ_o = 0 (the lab's 45°/0°) the photons are
+//! launched from the camera's side by reciprocity, f(x_i, ω_i; x_o, ω_o) =
+//! f(x_o, ω_o; x_i, ω_i), the connection aims at ω_i, and the splat goes to
+//! b − Δ (h(Δ) = f(0, ω_o; Δ, ω_i), so the slice at x is E_b h(b − x)). It
+//! needs a thick slab (no image terms, μ_t d / cos θ_t ≥ 40) and one of
+//! θ_i, θ_o equal to 0; [`Estimator::best_for`] falls back to the fixed
+//! direction otherwise. Tested pixel by pixel against the fixed-direction
+//! connection, against brute force, and in a white furnace.
+//!
+//! **Fold** ([`RunOptions::fold`]). With both azimuths 0° or 180° and a
+//! mirror-symmetric beam the slice is symmetric about the plane of
+//! incidence; each batch's image is averaged with its mirror image before
+//! the batch statistics, so the reported errors include the correlation of
+//! the two halves.
+//!
+//! **Per-pixel errors** ([`PixelErrors`]): the median and 90th percentile of
+//! σ_i/f_i over the pixels above 1 % of the maximum, after every round and
+//! as a stop rule ([`Stop::pixel_rel_error`]).
+//!
 //! **Brute force** ([`Estimator::BruteForce`], for testing): photons that
 //! leave through the top within a cone of half-angle δ around ω_o add
 //! w / (A_o cos θ_e Ω_δ) to the pixel of their exit point, Ω_δ = 2π(1 − cos δ).
@@ -1124,13 +1171,15 @@ fn survives_roulette(w: &mut f64, rng: &mut Rng) -> bool {
 /// unattenuated one, so the added variance is negligible.
 const ROULETTE_DEPTH: f64 = 8.0;
 
-/// Splats per ring connection (see `Kernel::connect_ring`): exit azimuths
-/// stratified in the sampler's CDF, each with its own footprint point. On
-/// IOL1068-09 (45°/0°, 100 000 paths) the median relative error of the
-/// pixels 0.5–3 mm from the beam fell from 38 % (1 splat) to 22 % (4) and
-/// 13 % (16, independent azimuths), at 1.4× and 5× the time; 8 stratified
-/// splats is the measured optimum of error² × time.
-const RING_SPLATS: usize = 16;
+/// Azimuths per ring connection (see the module doc): stratified in the
+/// sampler's CDF, sharing one footprint point. Measured on IOL1068-09
+/// (45°/0°, 10⁵ paths), median relative error of the pixels 0.5–3 mm from
+/// the beam: 38 % with 1 azimuth, 22 % with 4, 13 % with 16, 11 % with 32;
+/// 16 costs about 4× the CPU time of the fixed-direction connection per
+/// path (1 azimuth: 1.6×) and gave the smallest error² × time; one footprint
+/// point per connection instead of one per azimuth cost 25 % less time for
+/// 3 % more error.
+pub const RING_SPLATS: usize = 16;
 
 /// Batches per round (fixed, so results do not depend on the thread count).
 const ROUND_BATCHES: u64 = 32;
