@@ -310,3 +310,37 @@ fn roughness_from_the_recipe_or_the_scene_file() {
     assert_eq!(boundary("roughness = \"beckmann:0.02\""), "rough: Beckmann α = 0.02 (the scene file)");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn ctrl_c_writes_a_labelled_partial_render() {
+    // SIGINT during a long render: the finished passes are written as a
+    // valid image, render.json says "interrupted", and the exit is non-zero.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("r");
+    let scene = root().join("fixtures/render/plaque_dense.toml");
+    let child = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["render", scene.to_str().unwrap(), "--spp", "1000000", "--size", "32x24", "--quiet"])
+        .arg("--out")
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the scene is loaded and a few passes are done.
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    let pid = i32::try_from(child.id()).unwrap();
+    // SAFETY: sends SIGINT to our own child process.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    let o = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "an interrupted render must not exit 0");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    assert_eq!(json["interrupted"], true);
+    let spp = json["spp"].as_u64().unwrap();
+    assert!(spp > 0 && spp < 1_000_000, "spp {spp}");
+    let (_, _, ch) = read_exr_channels(&out.join("render.exr"), &["R", "spp"]).unwrap();
+    assert!(ch[1].iter().all(|&s| s == spp as f32));
+    assert!(ch[0].iter().all(|v| v.is_finite()));
+}

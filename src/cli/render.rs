@@ -16,6 +16,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lucent_render::tracer::{self, Image, Settings, Stats};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
@@ -69,6 +70,9 @@ pub struct RenderReport {
     pub median_relative_std_error: f64,
     pub exposure_stops_png: f64,
     pub files: Vec<String>,
+    /// True when Ctrl-C stopped the render early: the files hold the
+    /// passes finished by then (a valid image with fewer samples).
+    pub interrupted: bool,
 }
 
 pub fn parse_size(text: &str) -> Result<(usize, usize)> {
@@ -144,19 +148,28 @@ pub fn run(a: RenderArgs) -> Result<()> {
         ProgressStyle::with_template("{bar:40} {pos}/{len} spp  {msg}  ETA {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    let interrupt = Interrupt::install();
     let (image, stats) = pool.install(|| {
-        tracer::render(&loaded.scene, &settings, &mut |p| {
-            bar.set_position(u64::from(p.spp_done));
-            bar.set_message(format!(
-                "{:.3} M samples/s, {:.1} M events/s",
-                p.stats.samples as f64 / p.elapsed_s / 1e6,
-                p.stats.events as f64 / p.elapsed_s / 1e6
-            ));
-        })
+        tracer::render_cancellable(
+            &loaded.scene,
+            &settings,
+            &mut |p| {
+                bar.set_position(u64::from(p.spp_done));
+                bar.set_message(format!(
+                    "{:.3} M samples/s, {:.1} M events/s",
+                    p.stats.samples as f64 / p.elapsed_s / 1e6,
+                    p.stats.events as f64 / p.elapsed_s / 1e6
+                ));
+            },
+            Some(interrupt.flag()),
+        )
     });
+    let interrupted = interrupt.requested();
+    drop(interrupt);
     bar.finish_and_clear();
     let files = write_outputs(&a.out, &image, a.exposure)?;
-    let report = report(&loaded.summary, &settings, &image, &stats, threads, a.exposure, &files);
+    let mut report = report(&loaded.summary, &settings, &image, &stats, threads, a.exposure, &files);
+    report.interrupted = interrupted;
     crate::io::write_json(&a.out.join("render.json"), &report)
         .with_context(|| format!("{}: cannot write render.json", a.out.display()))?;
     if stats.leaked_paths > 0 {
@@ -180,7 +193,64 @@ pub fn run(a: RenderArgs) -> Result<()> {
         100.0 * report.median_relative_std_error
     );
     println!("wrote {}/render.exr, render.png, render.json", a.out.display());
+    if interrupted {
+        bail!(
+            "interrupted: {}/render.* hold the {} spp finished before Ctrl-C (render.json says \"interrupted\": true)",
+            a.out.display(),
+            report.spp
+        );
+    }
     Ok(())
+}
+
+/// Ctrl-C (SIGINT) while rendering: the first one asks the render to stop
+/// after the pass under way, so the finished passes are written as a
+/// valid, labelled partial result; a second one ends the process at once
+/// (exit status 130). The previous disposition is restored on drop.
+struct Interrupt {
+    #[cfg(unix)]
+    previous: libc::sighandler_t,
+}
+
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+#[cfg(unix)]
+extern "C" fn on_sigint(_: libc::c_int) {
+    // Only async-signal-safe work here: an atomic swap and _exit.
+    if INTERRUPTED.swap(true, Ordering::SeqCst) {
+        unsafe { libc::_exit(130) };
+    }
+}
+
+impl Interrupt {
+    fn install() -> Self {
+        INTERRUPTED.store(false, Ordering::SeqCst);
+        #[cfg(unix)]
+        {
+            let handler = on_sigint as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            // SAFETY: installs a handler that only touches an atomic and calls _exit.
+            let previous = unsafe { libc::signal(libc::SIGINT, handler) };
+            Self { previous }
+        }
+        #[cfg(not(unix))]
+        Self {}
+    }
+    fn flag(&self) -> &'static AtomicBool {
+        &INTERRUPTED
+    }
+    fn requested(&self) -> bool {
+        INTERRUPTED.load(Ordering::SeqCst)
+    }
+}
+
+impl Drop for Interrupt {
+    fn drop(&mut self) {
+        #[cfg(unix)]
+        // SAFETY: restores the disposition found by `install`.
+        unsafe {
+            libc::signal(libc::SIGINT, self.previous);
+        }
+    }
 }
 
 /// The median over pixels with a positive mean of sqrt(var of mean)/mean (luminance-free: mean over channels).
@@ -266,6 +336,7 @@ fn report(
         median_relative_std_error: median_relative_std_error(image),
         exposure_stops_png: exposure,
         files: files.to_vec(),
+        interrupted: false,
     }
 }
 
