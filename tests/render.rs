@@ -318,22 +318,29 @@ fn ctrl_c_writes_a_labelled_partial_render() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("r");
     let scene = root().join("fixtures/render/plaque_dense.toml");
-    let child = Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(["render", scene.to_str().unwrap(), "--spp", "1000000", "--size", "32x24", "--quiet"])
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["render", scene.to_str().unwrap(), "--spp", "1000000", "--size", "32x24"])
         .arg("--out")
         .arg(&out)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    // Wait until the scene is loaded and a few passes are done.
-    std::thread::sleep(std::time::Duration::from_secs(3));
+    // Wait for the "rendering …" line (the scene is loaded, the handler is
+    // being installed), then let a few passes finish.
+    use std::io::{BufRead, Read};
+    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut stderr = String::new();
+    while !stderr.contains("rendering") {
+        assert!(err.read_line(&mut stderr).unwrap() > 0, "lucent render ended early: {stderr}");
+    }
+    std::thread::sleep(std::time::Duration::from_millis(1500));
     let pid = i32::try_from(child.id()).unwrap();
     // SAFETY: sends SIGINT to our own child process.
     assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
-    let o = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "an interrupted render must not exit 0");
+    err.read_to_string(&mut stderr).unwrap();
+    let status = child.wait().unwrap();
+    assert!(!status.success(), "an interrupted render must not exit 0");
     assert!(stderr.contains("interrupted"), "{stderr}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
