@@ -24,6 +24,9 @@
 //! the residuals come from [`crate::camera::CameraModel::project`], which the
 //! tests check against `projectPoints`.
 //!
+//! Camera response of 8-bit exposure brackets ([`recover_response`]):
+//! `photo::CalibrateDebevec` / `CalibrateRobertson` (see [`crate::hdr`]).
+//!
 //! ```
 //! // OpenCV is linked and reports its version.
 //! assert!(lucent_calib::cv::version().starts_with("4."));
@@ -609,6 +612,75 @@ pub fn detect_mcc24(width: usize, height: usize, rgb8: &[u8]) -> Result<Option<M
     let cost = f64::from(checker.get_cost().map_err(cv_err("mcc CChecker::getCost"))?);
     let p = |k: usize| b.get(k).map(|q| [f64::from(q.x), f64::from(q.y)]).map_err(cv_err("mcc box"));
     Ok(Some(MccChart { corners: [p(0)?, p(1)?, p(2)?, p(3)?], cost }))
+}
+
+/// Recovers the inverse camera response of 8-bit brackets (OpenCV `photo`:
+/// `CalibrateDebevec` with 70 grid samples and λ = 10, or
+/// `CalibrateRobertson` with 30 iterations and threshold 0.01), returned per
+/// channel R, G, B as 256 relative exposures. The brackets must have been
+/// checked ([`crate::hdr::check_8bit`]).
+pub fn recover_response(
+    brackets: &[crate::hdr::Rgb8Buffer],
+    exposures: &[f64],
+    method: crate::hdr::ResponseMethod,
+) -> Result<crate::hdr::Response, crate::hdr::HdrError> {
+    use crate::hdr::{HdrError, ResponseMethod};
+    use opencv::photo;
+    fn err(what: &'static str) -> impl Fn(opencv::Error) -> crate::hdr::HdrError {
+        move |e| crate::hdr::HdrError::Response(format!("OpenCV {what}: {}", e.message))
+    }
+    let mut images: Vector<Mat> = Vector::new();
+    for b in brackets {
+        if b.data.len() != b.width * b.height * 3 {
+            return Err(HdrError::Response(format!(
+                "RGB buffer of {} bytes for {} × {}",
+                b.data.len(),
+                b.width,
+                b.height
+            )));
+        }
+        // Channel order is carried through unchanged (R, G, B in, R, G, B out).
+        let pixels: Vec<core::Vec3b> = b.data.chunks_exact(3).map(|p| core::Vec3b::from([p[0], p[1], p[2]])).collect();
+        let m = Mat::new_rows_cols_with_data(b.height as i32, b.width as i32, &pixels)
+            .and_then(|m| m.try_clone())
+            .map_err(err("image"))?;
+        images.push(m);
+    }
+    let times: Vec<f32> = exposures.iter().map(|&t| t as f32).collect();
+    let times = Mat::from_slice(&times).and_then(|m| m.try_clone()).map_err(err("times"))?;
+    let mut dst = Mat::default();
+    match method {
+        ResponseMethod::Debevec => {
+            let mut c = photo::create_calibrate_debevec(70, 10.0, false).map_err(err("createCalibrateDebevec"))?;
+            c.process(&images, &mut dst, &times).map_err(err("CalibrateDebevec::process"))?;
+        }
+        ResponseMethod::Robertson => {
+            let mut c = photo::create_calibrate_robertson(30, 0.01).map_err(err("createCalibrateRobertson"))?;
+            c.process(&images, &mut dst, &times).map_err(err("CalibrateRobertson::process"))?;
+        }
+    }
+    if dst.rows() != 256 || dst.cols() != 1 || dst.typ() != core::CV_32FC3 {
+        return Err(HdrError::Response(format!(
+            "unexpected response of {} × {} (type {})",
+            dst.rows(),
+            dst.cols(),
+            dst.typ()
+        )));
+    }
+    let mut curve = [vec![0f32; 256], vec![0f32; 256], vec![0f32; 256]];
+    for z in 0..256 {
+        let v = dst.at_2d::<core::Vec3f>(z as i32, 0).map_err(err("read response"))?;
+        for c in 0..3 {
+            curve[c][z] = v[c];
+        }
+    }
+    if curve.iter().flatten().any(|v| !(v.is_finite() && *v > 0.0)) {
+        return Err(HdrError::Response(
+            "the recovered response has non-positive or non-finite values (too few brackets, or brackets without overlap)"
+                .into(),
+        ));
+    }
+    Ok(crate::hdr::Response { method, curve })
 }
 
 #[cfg(test)]

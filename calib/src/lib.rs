@@ -10,8 +10,9 @@
 //! | [`demosaic`] | Bayer demosaicing: Malvar–He–Cutler (2004), bilinear | as the mosaic |
 //! | [`camera`] | pinhole + Brown–Conrady / rational distortion, projection, undistortion | pixels, metres |
 //! | [`scene`] | board and sample poses, the OpenCV → renderer convention (the only place) | metres |
-//! | [`cv`] | OpenCV: chessboard corners, Zhang calibration, PnP, drawing, `mcc` chart detection | pixels |
-//! | [`env`](mod@env) | equirectangular HDR checks and colour matrices | linear RGB |
+//! | [`cv`] | OpenCV: chessboard corners, Zhang calibration, PnP, drawing, `mcc` chart detection, camera response | pixels |
+//! | [`env`](mod@env) | equirectangular HDR checks, colour matrices, perspective views | linear RGB |
+//! | [`hdr`] | HDR merge of exposure brackets (linear; 8-bit via the recovered response) | relative radiance |
 //! | [`ecc`] | OpenCV `findTransformECC` alignment (photo ↔ render), coarse to fine | pixels |
 //!
 //! ```
@@ -25,6 +26,7 @@ pub mod cv;
 pub mod demosaic;
 pub mod ecc;
 pub mod env;
+pub mod hdr;
 pub mod raw;
 pub mod scene;
 
