@@ -202,6 +202,27 @@ pub enum Boundary {
     Smooth,
 }
 
+impl Boundary {
+    /// Fraction of the light reaching the boundary at cos θ = `cos_i` from a
+    /// medium of index n_1 that is reflected, `eta` = n_2/n_1 the index
+    /// ratio across it (unpolarised Fresnel for the smooth dielectric; 1
+    /// beyond the critical angle).
+    #[inline]
+    pub fn reflectance(&self, cos_i: f64, eta: f64) -> f64 {
+        match self {
+            Boundary::Smooth => fresnel::reflectance(cos_i, eta),
+        }
+    }
+
+    /// The reflect/transmit choice of a photon: reflected when `u` ∈ [0, 1)
+    /// falls below [`reflectance`](Self::reflectance), so with exactly that
+    /// probability (χ²-tested in `slab::tests`).
+    #[inline]
+    pub fn reflects(&self, cos_i: f64, eta: f64, u: f64) -> bool {
+        u < self.reflectance(cos_i, eta)
+    }
+}
+
 /// The slab: thickness, medium, top boundary.
 #[derive(Debug, Clone)]
 pub struct Slab {
@@ -715,13 +736,14 @@ impl<'a> Kernel<'a> {
         let (launch, exit) = if reciprocal { (omega_o, omega_i) } else { (omega_i, omega_o) };
         let incoming = [-launch[0], -launch[1], -launch[2]];
         let entry_dir = fresnel::refract(incoming, n).expect("air → denser medium always refracts");
-        let entry_weight = 1.0 - fresnel::reflectance(launch[2], n);
+        let top = setup.slab.top;
+        let entry_weight = 1.0 - top.reflectance(launch[2], n);
         let exit_up = [-exit[0], -exit[1], -exit[2]];
         // ω₂₁: refract the exit direction back into the medium and reverse (upward).
         let down = fresnel::refract(exit_up, n).expect("air → denser medium always refracts");
         let w21 = [-down[0], -down[1], -down[2]];
         let cos_t = w21[2];
-        let t_out = 1.0 - fresnel::reflectance(cos_t, 1.0 / n);
+        let t_out = 1.0 - top.reflectance(cos_t, 1.0 / n);
         let area = setup.sensor.pixel_m * setup.sensor.pixel_m;
         let (cone_cos, cone_norm) = match estimator {
             Estimator::BruteForce { cone_deg } => {
@@ -758,7 +780,7 @@ impl<'a> Kernel<'a> {
             cone_cos,
             cone_norm,
             ring,
-            specular: fresnel::reflectance(omega_i[2], n),
+            specular: top.reflectance(omega_i[2], n),
             #[cfg(target_arch = "x86_64")]
             lanes: matches!(estimator, Estimator::Connection | Estimator::Ring) && crate::simd::available(),
         })
@@ -836,8 +858,9 @@ impl<'a> Kernel<'a> {
     fn cross(&self, p: &mut [f64; 3], dir: &mut [f64; 3], gap: f64, rng: &mut Rng) -> Crossing {
         let t_boundary = gap / dir[2].abs();
         *p = [p[0] + t_boundary * dir[0], p[1] + t_boundary * dir[1], if dir[2] > 0.0 { 0.0 } else { -self.d }];
-        let f = fresnel::reflectance(dir[2].abs(), 1.0 / self.n);
-        if rng.next_f64() < f {
+        // The top surface is the slab's boundary; the bottom one is smooth.
+        let boundary = if dir[2] > 0.0 { self.setup.slab.top } else { Boundary::Smooth };
+        if boundary.reflects(dir[2].abs(), 1.0 / self.n, rng.next_f64()) {
             dir[2] = -dir[2];
             Crossing::Reflected
         } else if dir[2] > 0.0 {
