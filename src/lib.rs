@@ -15,3 +15,4 @@ pub mod optics;
 pub mod pipeline;
 pub mod plot;
 pub mod scene;
+pub mod surface;

@@ -7,6 +7,7 @@ pub mod colour;
 pub mod compare;
 pub mod env_fit;
 pub mod render;
+pub mod surface;
 pub mod run;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
@@ -38,6 +39,9 @@ pub enum Command {
     Bssrdf(bssrdf::BssrdfArgs),
     /// Render the digital twin (object on the checkerboard under the HDR environment) from a scene file.
     Render(render::RenderArgs),
+    /// Surface topography: height map (X3P, CSV, TIFF, EXR) → microfacet normals, fitted Trowbridge–Reitz/Beckmann α.
+    #[command(subcommand)]
+    Surface(surface::SurfaceCommand),
     /// Benchmarks (see README, performance section).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -156,6 +160,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Mie(a) => mie(a),
         Command::Bssrdf(a) => bssrdf::run(a),
         Command::Render(a) => render::run(a),
+        Command::Surface(c) => surface::run(c),
         Command::Bench(b) => bench(b),
         Command::Colour(c) => colour::run(c),
         Command::Raw(c) => camera::run_raw(c),

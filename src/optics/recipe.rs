@@ -35,6 +35,8 @@
 //! model = "trowbridge-reitz"            # or "beckmann"
 //! alpha = 0.00836
 //! scale = 1.095
+//! # or: fit = "surface/fit.json"         # `lucent surface fit` output: its better model
+//! #     (model = "beckmann" next to fit picks that model's fit instead)
 //! ```
 //!
 //! Volume fraction of a particle type (SPEC §1): φ = (w/ρ_p) / (100/ρ_h).
@@ -192,14 +194,12 @@ enum RangeDistribution {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawSurface {
-    model: RoughnessModel,
-    alpha: f64,
-    #[serde(default = "one")]
-    scale: f64,
-}
-
-fn one() -> f64 {
-    1.0
+    model: Option<RoughnessModel>,
+    alpha: Option<f64>,
+    scale: Option<f64>,
+    /// A `fit.json` of `lucent surface fit` (relative to the recipe): its
+    /// better model, or `model`'s fit when given.
+    fit: Option<String>,
 }
 
 /// Microfacet distribution of a measured surface (SPEC §2).
@@ -404,11 +404,26 @@ impl Validator<'_> {
         }
         let surface = match raw.surface {
             None => None,
-            Some(s) => Some(Surface {
-                model: s.model,
-                alpha: self.positive("surface.alpha", s.alpha, "(dimensionless roughness)")?,
-                scale: self.positive("surface.scale", s.scale, "(dimensionless scale)")?,
-            }),
+            Some(RawSurface { fit: Some(file), alpha, scale, model }) => {
+                if alpha.is_some() || scale.is_some() {
+                    return self.invalid("surface", "give either fit = \"fit.json\" or alpha (and scale), not both");
+                }
+                let p = self.path.parent().unwrap_or(Path::new(".")).join(&file);
+                let (model, alpha, scale) = crate::surface::load_fit_choice(&p, model)
+                    .or_else(|e| self.invalid("surface.fit", e.to_string()))?;
+                Some(Surface { model, alpha, scale })
+            }
+            Some(RawSurface { fit: None, alpha, scale, model }) => {
+                let Some(model) = model else {
+                    return self.invalid("surface.model", "missing (trowbridge-reitz or beckmann), or give fit = \"fit.json\"");
+                };
+                let Some(alpha) = alpha else { return self.invalid("surface.alpha", "missing") };
+                Some(Surface {
+                    model,
+                    alpha: self.positive("surface.alpha", alpha, "(dimensionless roughness)")?,
+                    scale: self.positive("surface.scale", scale.unwrap_or(1.0), "(dimensionless scale)")?,
+                })
+            }
         };
         Ok(Recipe {
             name,

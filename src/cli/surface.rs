@@ -1,0 +1,231 @@
+//! `lucent surface`: height maps → microfacet normal distribution (SPEC §2).
+//! Argument handling and printing only; the work is done by
+//! [`crate::surface`].
+
+use crate::optics::recipe::RoughnessModel;
+use crate::surface::synth::{synthesize, SynthSpec};
+use crate::surface::x3p::{write_x3p, PointType, WriteOptions};
+use crate::surface::{fit_surface, read_height_map, write_fit_outputs, FitOptions, LengthUnit, ReadOptions};
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Debug, Subcommand)]
+pub enum SurfaceCommand {
+    /// Fit Trowbridge–Reitz and Beckmann distributions to a height map: fit.json, heightmap.png, distribution.png, normals.exr.
+    Fit(FitArgs),
+    /// Write a synthetic Gaussian random surface with known slope statistics as X3P.
+    Synth(SynthArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Height map: .x3p (ISO 25178-72), .csv/.txt/.asc/.dat grid, 32-bit float .tif/.tiff or .exr.
+    pub heightmap: PathBuf,
+    /// Point spacing in µm (required for TIFF/EXR and header-less text; overrides the file's).
+    #[arg(long, allow_hyphen_values = true)]
+    pub pitch_um: Option<f64>,
+    /// Row spacing in µm, if it differs from --pitch-um.
+    #[arg(long, requires = "pitch_um", allow_hyphen_values = true)]
+    pub pitch_y_um: Option<f64>,
+    /// Unit of the stored heights: m, mm, um, nm (required for TIFF/EXR and text grids without one).
+    #[arg(long)]
+    pub height_unit: Option<String>,
+    /// Side k of the k × k window of the per-pixel plane fits (odd).
+    #[arg(long, default_value_t = 15)]
+    pub window: usize,
+    /// σ of the Gaussian weights of the plane fits, in pixels.
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub sigma_px: f64,
+    /// Minimum fraction of the window's weight on valid points for a pixel to get a normal.
+    #[arg(long, default_value_t = 0.9, allow_hyphen_values = true)]
+    pub min_weight: f64,
+    /// Keep the global tilt (do not subtract the least-squares plane first).
+    #[arg(long)]
+    pub keep_tilt: bool,
+    /// Fit a tilt of the distribution's axis as a third parameter.
+    #[arg(long)]
+    pub fit_tilt: bool,
+    /// Output folder (created; fit.json, heightmap.png, distribution.png, normals.exr in it are replaced).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct SynthArgs {
+    /// Distribution the slopes follow: tr (Trowbridge–Reitz/GGX) or beckmann.
+    #[arg(long)]
+    pub model: String,
+    /// Roughness α of the slope distribution.
+    #[arg(long, allow_hyphen_values = true)]
+    pub alpha: f64,
+    /// Grid size NX or NXxNY.
+    #[arg(long, default_value = "256")]
+    pub size: String,
+    /// Point spacing in µm.
+    #[arg(long, default_value_t = 0.871, allow_hyphen_values = true)]
+    pub pitch_um: f64,
+    /// Correlation length of the heights in pixels.
+    #[arg(long, default_value_t = 8.0, allow_hyphen_values = true)]
+    pub correlation_px: f64,
+    /// Correlation length of the local amplitude (tr only) in pixels; default 8 × --correlation-px.
+    #[arg(long, allow_hyphen_values = true)]
+    pub amplitude_correlation_px: Option<f64>,
+    /// Random seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Tilt of an added plane in degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub tilt_deg: f64,
+    /// Azimuth of the added plane's normal in degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub tilt_azimuth_deg: f64,
+    /// Fraction of points marked invalid at random.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub invalid_fraction: f64,
+    /// X3P point type: I (int16), L (int32), F (float32), D (float64).
+    #[arg(long, default_value = "D")]
+    pub point_type: String,
+    /// Output .x3p file.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+pub fn run(c: SurfaceCommand) -> Result<()> {
+    match c {
+        SurfaceCommand::Fit(a) => fit(a),
+        SurfaceCommand::Synth(a) => synth(a),
+    }
+}
+
+fn parse_model(text: &str) -> Result<RoughnessModel> {
+    match text.trim().to_ascii_lowercase().as_str() {
+        "tr" | "ggx" | "trowbridge-reitz" => Ok(RoughnessModel::TrowbridgeReitz),
+        "beckmann" => Ok(RoughnessModel::Beckmann),
+        other => bail!("--model {other:?}: expected tr (Trowbridge–Reitz) or beckmann"),
+    }
+}
+
+fn model_name(m: RoughnessModel) -> &'static str {
+    match m {
+        RoughnessModel::TrowbridgeReitz => "Trowbridge–Reitz",
+        RoughnessModel::Beckmann => "Beckmann",
+    }
+}
+
+fn fit(a: FitArgs) -> Result<()> {
+    for (flag, v) in [("--pitch-um", a.pitch_um), ("--pitch-y-um", a.pitch_y_um)] {
+        if let Some(v) = v {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("{flag} {v}: must be a positive finite number of µm");
+            }
+        }
+    }
+    let height_unit = match a.height_unit.as_deref() {
+        Some(t) => Some(t.parse::<LengthUnit>().map_err(anyhow::Error::msg).context("--height-unit")?),
+        None => None,
+    };
+    let read =
+        ReadOptions { pitch_x_m: a.pitch_um.map(|p| p * 1e-6), pitch_y_m: a.pitch_y_um.map(|p| p * 1e-6), height_unit };
+    let options = FitOptions {
+        window_px: a.window,
+        sigma_px: a.sigma_px,
+        min_weight_fraction: a.min_weight,
+        remove_tilt: !a.keep_tilt,
+        fit_tilt: a.fit_tilt,
+    };
+    options.validate()?;
+    let map = read_height_map(&a.heightmap, &read)?;
+    for n in &map.notes {
+        eprintln!("note: {n}");
+    }
+    let fit = fit_surface(&map, &options).with_context(|| format!("{}: fitting", a.heightmap.display()))?;
+    let written = write_fit_outputs(&a.out, &fit)?;
+    let r = &fit.report;
+    println!(
+        "{}: {} × {} points at {:.4} × {:.4} µm, {} valid; global plane tilt {:.4}° (normal azimuth {:.1}°){}",
+        a.heightmap.display(),
+        r.input.nx,
+        r.input.ny,
+        r.input.pitch_x_m * 1e6,
+        r.input.pitch_y_m * 1e6,
+        r.input.valid_points,
+        r.global_plane.tilt_deg,
+        r.global_plane.normal_azimuth_deg,
+        if r.global_plane.removed { ", removed" } else { ", kept" }
+    );
+    println!(
+        "S_q {:.4} µm, S_dq {:.5} (plane-fit normals {:.5}); {} normals ({} × {} window, σ {} px); anisotropy {:.3}",
+        r.roughness.sq_m * 1e6,
+        r.roughness.sdq,
+        r.roughness.sdq_plane_fit,
+        r.distribution.normals,
+        r.options.window_px,
+        r.options.window_px,
+        r.options.sigma_px,
+        r.distribution.anisotropy.ratio
+    );
+    println!("bins: {}", r.distribution.bin_rule);
+    for m in [RoughnessModel::TrowbridgeReitz, RoughnessModel::Beckmann] {
+        let f = r.fits.get(m);
+        let tilt = if f.tilt_fitted { format!(", tilt {:.4}°", f.tilt_deg) } else { String::new() };
+        println!(
+            "{:<17} α = {:.5}, scale {:.4}{tilt}, MSE {:.4e} /sr², NRMSE {:.4}{}",
+            model_name(m),
+            f.alpha,
+            f.scale,
+            f.mse_per_sr2,
+            f.nrmse,
+            if m == r.better_model { "  ← better" } else { "" }
+        );
+    }
+    println!(
+        "{:.2} s; wrote {}",
+        r.seconds,
+        written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+    );
+    Ok(())
+}
+
+fn synth(a: SynthArgs) -> Result<()> {
+    let model = parse_model(&a.model)?;
+    let (nx, ny) = match a.size.split_once(['x', 'X']) {
+        Some((x, y)) => (x.trim().parse::<usize>(), y.trim().parse::<usize>()),
+        None => (a.size.trim().parse::<usize>(), a.size.trim().parse::<usize>()),
+    };
+    let (Ok(nx), Ok(ny)) = (nx, ny) else { bail!("--size {:?}: expected N or NXxNY, e.g. 256 or 512x256", a.size) };
+    if !(a.pitch_um.is_finite() && a.pitch_um > 0.0) {
+        bail!("--pitch-um {}: must be a positive finite number", a.pitch_um);
+    }
+    let point_type: PointType = a.point_type.parse().map_err(anyhow::Error::msg).context("--point-type")?;
+    let spec = SynthSpec {
+        nx,
+        ny,
+        pitch_m: a.pitch_um * 1e-6,
+        alpha: a.alpha,
+        model,
+        correlation_px: a.correlation_px,
+        amplitude_correlation_px: a.amplitude_correlation_px.unwrap_or(8.0 * a.correlation_px),
+        seed: a.seed,
+        tilt_rad: a.tilt_deg.to_radians(),
+        tilt_azimuth_rad: a.tilt_azimuth_deg.to_radians(),
+        invalid_fraction: a.invalid_fraction,
+    };
+    let s = synthesize(&spec)?;
+    let comment = format!(
+        "lucent surface synth --model {} --alpha {} --size {}x{} --pitch-um {} --correlation-px {} --seed {} --tilt-deg {} --tilt-azimuth-deg {} --invalid-fraction {} --point-type {:?}",
+        a.model, a.alpha, nx, ny, a.pitch_um, a.correlation_px, a.seed, a.tilt_deg, a.tilt_azimuth_deg, a.invalid_fraction, point_type
+    );
+    write_x3p(&a.out, &s.map, &WriteOptions { point_type, comment: Some(comment), ..WriteOptions::default() })?;
+    println!(
+        "{}: {} × {} {}-like surface, α {}, {} valid points, point type {:?}",
+        a.out.display(),
+        nx,
+        ny,
+        model_name(model),
+        a.alpha,
+        s.map.valid_count(),
+        point_type
+    );
+    Ok(())
+}

@@ -1,0 +1,481 @@
+//! Surface topography → microfacet normal distribution (SPEC §2).
+//!
+//! From a profilometer height map to a fitted Trowbridge–Reitz or Beckmann
+//! distribution of microfacet normals:
+//!
+//! 1. **Reading** ([`read_height_map`]): ISO 25178-72 X3P ([`x3p`]: zip with
+//!    `main.xml`, binary point data of any of the four point types I, L, F,
+//!    D or an XML `DataList`, validity bit masks, MD5 checksums), text/CSV
+//!    grids with the pitch in a header or from the command line, and 32-bit
+//!    float TIFF and single-channel EXR with the pitch from the command line
+//!    ([`grid`]). Heights and pitches are in metres from here on. Invalid
+//!    points (NaN, ±inf, masked in an X3P validity file, empty fields) are
+//!    excluded from everything; they are never read as zero.
+//! 2. **Levelling** ([`normals::fit_plane`]): one least-squares plane
+//!    z = z̄ + s_x (x − x̄) + s_y (y − ȳ) over all valid points is removed; its
+//!    tilt atan(√(s_x² + s_y²)) and the azimuth of its normal are reported.
+//! 3. **Normals** ([`normals::plane_fit_normals`]): at every pixel a
+//!    Gaussian-weighted least-squares plane over a k × k window (default
+//!    15 × 15, σ = 1 px) gives the microfacet normal
+//!    m = (−∂h/∂x, −∂h/∂y, 1)/‖·‖. Roughness parameters S_q and S_dq
+//!    (ISO 25178-2) are computed on the levelled map ([`normals::roughness`]).
+//! 4. **Distribution** ([`distribution::measure`]): a histogram of θ_m
+//!    normalised so that ∫ D(m)(m·n) dω_m = 1 (each pixel stands for the same
+//!    projected area, so the histogram of pixel normals estimates D(m)(m·n)),
+//!    bin width by the Freedman–Diaconis rule on θ_m, and a 2-D (θ, φ)
+//!    histogram with a slope-anisotropy measure.
+//! 5. **Fits** ([`fit::fit_model`]): least squares of the binned D against
+//!    s · D_α (Trowbridge–Reitz or Beckmann, scale s, optionally a tilt τ of
+//!    the distribution's axis); α, s, τ, MSE and the better model.
+//!
+//! Coordinates: column i ↦ x = i·Δx, row j ↦ y = j·Δy for every format (the
+//! X3P storage order, x fastest), z up, right-handed. Images written for
+//! people (`heightmap.png`, `normals.exr`) show y increasing upwards, so
+//! they are the surface seen from above.
+//!
+//! ```
+//! use lucent::surface::{fit_surface, FitOptions};
+//! use lucent::surface::synth::{synthesize, SynthSpec};
+//! use lucent::optics::recipe::RoughnessModel;
+//! // A Beckmann-like Gaussian random surface with α = 0.05, 256 × 256 at 0.871 µm.
+//! let spec = SynthSpec { nx: 256, ny: 256, alpha: 0.05, model: RoughnessModel::Beckmann, ..SynthSpec::default() };
+//! let map = synthesize(&spec).unwrap().map;
+//! let fit = fit_surface(&map, &FitOptions::default()).unwrap();
+//! assert_eq!(fit.report.better_model, RoughnessModel::Beckmann);
+//! assert!((fit.report.fits.beckmann.alpha / 0.05 - 1.0).abs() < 0.05);
+//! ```
+
+pub mod distribution;
+pub mod fit;
+pub mod grid;
+pub mod normals;
+pub mod plot;
+pub mod synth;
+pub mod x3p;
+
+use crate::imageio::ImageIoError;
+use crate::io::WriteError;
+use crate::optics::recipe::RoughnessModel;
+use crate::plot::PlotError;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+pub use grid::{read_height_map, LengthUnit, ReadOptions};
+
+/// A height map that cannot be read, or parameters that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SurfaceError {
+    #[error("{path}: cannot read: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: not a readable X3P archive (truncated, damaged or not a zip file): {reason}")]
+    Archive { path: PathBuf, reason: String },
+    #[error("{path}: {member}: {reason}")]
+    Member { path: PathBuf, member: String, reason: String },
+    #[error("{path}: main.xml: {reason}")]
+    Xml { path: PathBuf, reason: String },
+    #[error("{path}: {member}: MD5 checksum {actual} does not match {expected} stated in {stated_in} (damaged file)")]
+    Checksum { path: PathBuf, member: String, expected: String, actual: String, stated_in: String },
+    #[error("{path}: {member} holds {got} points, but {stated_in} says {expected}")]
+    PointCount { path: PathBuf, member: String, got: usize, expected: usize, stated_in: String },
+    #[error("{origin}: {what} {} m: the pitch must be a positive finite number", show_metres(*value))]
+    Pitch { origin: String, what: String, value: f64 },
+    #[error("{origin}: no valid height point (all {points} points are NaN, infinite or masked invalid)")]
+    AllInvalid { origin: String, points: usize },
+    #[error("{path}: line {line}: {reason}")]
+    Text { path: PathBuf, line: usize, reason: String },
+    #[error("{path}: {reason}")]
+    Format { path: PathBuf, reason: String },
+    #[error("{name} {value}: {reason}")]
+    Parameter { name: String, value: String, reason: String },
+    #[error("{origin}: {reason}")]
+    Data { origin: String, reason: String },
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error(transparent)]
+    Image(#[from] ImageIoError),
+    #[error("{path}: {source}")]
+    Plot { path: PathBuf, source: PlotError },
+}
+
+/// A length in metres for a message: "0", "-5e-7", "8.71e-7".
+fn show_metres(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+impl SurfaceError {
+    pub(crate) fn parameter(name: &str, value: impl std::fmt::Display, reason: impl Into<String>) -> Self {
+        SurfaceError::Parameter { name: name.into(), value: value.to_string(), reason: reason.into() }
+    }
+}
+
+/// A height map on a regular grid: heights in metres, NaN where there is no
+/// valid point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeightMap {
+    /// Points along x (columns).
+    pub nx: usize,
+    /// Points along y (rows).
+    pub ny: usize,
+    /// Spacing of the columns in metres.
+    pub pitch_x_m: f64,
+    /// Spacing of the rows in metres.
+    pub pitch_y_m: f64,
+    /// Row-major heights in metres (row j is y = j·Δy), NaN = invalid.
+    pub heights_m: Vec<f64>,
+    /// Where the map came from (a file name, or "synthetic"), for messages.
+    pub origin: String,
+    /// Things worth saying about the reading (a pitch overridden, a layer
+    /// skipped, …), reported in `fit.json`.
+    pub notes: Vec<String>,
+}
+
+impl HeightMap {
+    /// A map of `nx` × `ny` heights (metres, row-major, NaN or ±inf =
+    /// invalid, stored as NaN). Errors: a size mismatch, a zero, negative or
+    /// non-finite pitch, or no valid point.
+    ///
+    /// ```
+    /// use lucent::surface::HeightMap;
+    /// let m = HeightMap::new(2, 2, 1e-6, 1e-6, vec![0.0, 1e-9, f64::NAN, 2e-9], "doc").unwrap();
+    /// assert_eq!(m.valid_count(), 3);
+    /// assert!(HeightMap::new(2, 2, 0.0, 1e-6, vec![0.0; 4], "doc").is_err());
+    /// ```
+    pub fn new(
+        nx: usize,
+        ny: usize,
+        pitch_x_m: f64,
+        pitch_y_m: f64,
+        mut heights_m: Vec<f64>,
+        origin: impl Into<String>,
+    ) -> Result<Self, SurfaceError> {
+        let origin = origin.into();
+        for (what, value) in [("x pitch", pitch_x_m), ("y pitch", pitch_y_m)] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(SurfaceError::Pitch { origin, what: what.into(), value });
+            }
+        }
+        if nx == 0 || ny == 0 || heights_m.len() != nx * ny {
+            return Err(SurfaceError::Data {
+                origin,
+                reason: format!("{} heights for a {nx} × {ny} grid", heights_m.len()),
+            });
+        }
+        for h in heights_m.iter_mut() {
+            if !h.is_finite() {
+                *h = f64::NAN;
+            }
+        }
+        let map = HeightMap { nx, ny, pitch_x_m, pitch_y_m, heights_m, origin, notes: Vec::new() };
+        if map.valid_count() == 0 {
+            return Err(SurfaceError::AllInvalid { origin: map.origin, points: nx * ny });
+        }
+        Ok(map)
+    }
+
+    /// Number of valid (finite) heights.
+    pub fn valid_count(&self) -> usize {
+        self.heights_m.iter().filter(|h| h.is_finite()).count()
+    }
+
+    /// The height at column `i`, row `j` (NaN if invalid).
+    pub fn at(&self, i: usize, j: usize) -> f64 {
+        self.heights_m[j * self.nx + i]
+    }
+}
+
+/// Parameters of [`fit_surface`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FitOptions {
+    /// Side k of the k × k window of the per-pixel plane fits (odd, ≥ 3).
+    pub window_px: usize,
+    /// σ of the Gaussian weights of the plane fits, in pixels.
+    pub sigma_px: f64,
+    /// A pixel gets a normal only if it is valid and the valid points of its
+    /// window carry at least this fraction of the full window's weight
+    /// (pixels next to the map edge or to invalid points are left out).
+    pub min_weight_fraction: f64,
+    /// Remove the global least-squares plane first (SPEC §2).
+    pub remove_tilt: bool,
+    /// Fit a tilt τ of the distribution's axis as a third parameter.
+    pub fit_tilt: bool,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions { window_px: 15, sigma_px: 1.0, min_weight_fraction: 0.9, remove_tilt: true, fit_tilt: false }
+    }
+}
+
+impl FitOptions {
+    /// Checks the parameters; the error names the offending one.
+    pub fn validate(&self) -> Result<(), SurfaceError> {
+        if self.window_px < 3 || self.window_px % 2 == 0 || self.window_px > 201 {
+            return Err(SurfaceError::parameter(
+                "window",
+                self.window_px,
+                "must be an odd number of pixels from 3 to 201",
+            ));
+        }
+        if !(self.sigma_px.is_finite() && self.sigma_px > 0.0) {
+            return Err(SurfaceError::parameter(
+                "sigma-px",
+                self.sigma_px,
+                "must be a positive finite number of pixels",
+            ));
+        }
+        if !(self.min_weight_fraction > 0.0 && self.min_weight_fraction <= 1.0) {
+            return Err(SurfaceError::parameter("min-weight", self.min_weight_fraction, "must lie in (0, 1]"));
+        }
+        Ok(())
+    }
+}
+
+/// What was read.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct InputSummary {
+    pub origin: String,
+    pub nx: usize,
+    pub ny: usize,
+    pub pitch_x_m: f64,
+    pub pitch_y_m: f64,
+    pub valid_points: usize,
+    pub invalid_points: usize,
+    pub notes: Vec<String>,
+}
+
+/// The global plane (least squares over all valid points).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct TiltReport {
+    /// ∂z/∂x and ∂z/∂y of the plane (dimensionless).
+    pub slope_x: f64,
+    pub slope_y: f64,
+    /// Angle between the plane's normal and z, degrees.
+    pub tilt_deg: f64,
+    /// Azimuth of the plane's normal (its horizontal part), degrees from +x towards +y.
+    pub normal_azimuth_deg: f64,
+    /// Whether the plane was subtracted before the normals were computed.
+    pub removed: bool,
+}
+
+/// The two fits and which one is better.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Fits {
+    #[serde(rename = "trowbridge-reitz")]
+    pub trowbridge_reitz: fit::ModelFit,
+    pub beckmann: fit::ModelFit,
+}
+
+impl Fits {
+    /// The fit of one model.
+    pub fn get(&self, model: RoughnessModel) -> &fit::ModelFit {
+        match model {
+            RoughnessModel::TrowbridgeReitz => &self.trowbridge_reitz,
+            RoughnessModel::Beckmann => &self.beckmann,
+        }
+    }
+}
+
+/// Everything `fit.json` holds.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FitReport {
+    /// "lucent.surface.fit/1".
+    pub schema: String,
+    pub input: InputSummary,
+    pub options: FitOptions,
+    pub global_plane: TiltReport,
+    pub roughness: normals::Roughness,
+    pub distribution: distribution::Distribution,
+    pub fits: Fits,
+    /// The model with the lower MSE.
+    pub better_model: RoughnessModel,
+    /// Wall time of levelling, normals, histogram and fits, seconds.
+    pub seconds: f64,
+}
+
+/// The result of [`fit_surface`]: the report, the levelled map and the normals.
+#[derive(Debug, Clone)]
+pub struct SurfaceFit {
+    pub report: FitReport,
+    pub levelled: HeightMap,
+    pub normals: normals::NormalField,
+}
+
+/// Schema name written into `fit.json`.
+pub const FIT_SCHEMA: &str = "lucent.surface.fit/1";
+
+/// The whole pipeline of this module on one height map: levelling, normals,
+/// S_q/S_dq, distribution and both fits.
+pub fn fit_surface(map: &HeightMap, options: &FitOptions) -> Result<SurfaceFit, SurfaceError> {
+    options.validate()?;
+    let start = std::time::Instant::now();
+    let plane = normals::fit_plane(map)?;
+    let levelled = if options.remove_tilt { normals::remove_plane(map, &plane) } else { map.clone() };
+    let roughness = normals::roughness(&levelled);
+    let field = normals::plane_fit_normals(&levelled, options)?;
+    let mut roughness = roughness;
+    roughness.sdq_plane_fit = field.rms_slope();
+    let dist = distribution::measure(&field, &map.origin)?;
+    let tr = fit::fit_model(&dist, RoughnessModel::TrowbridgeReitz, options.fit_tilt)?;
+    let beckmann = fit::fit_model(&dist, RoughnessModel::Beckmann, options.fit_tilt)?;
+    let better_model =
+        if tr.mse_per_sr2 <= beckmann.mse_per_sr2 { RoughnessModel::TrowbridgeReitz } else { RoughnessModel::Beckmann };
+    let valid = map.valid_count();
+    let report = FitReport {
+        schema: FIT_SCHEMA.into(),
+        input: InputSummary {
+            origin: map.origin.clone(),
+            nx: map.nx,
+            ny: map.ny,
+            pitch_x_m: map.pitch_x_m,
+            pitch_y_m: map.pitch_y_m,
+            valid_points: valid,
+            invalid_points: map.nx * map.ny - valid,
+            notes: map.notes.clone(),
+        },
+        options: *options,
+        global_plane: TiltReport {
+            slope_x: plane.slope_x,
+            slope_y: plane.slope_y,
+            tilt_deg: plane.tilt_rad().to_degrees(),
+            normal_azimuth_deg: plane.normal_azimuth_rad().to_degrees(),
+            removed: options.remove_tilt,
+        },
+        roughness,
+        distribution: dist,
+        fits: Fits { trowbridge_reitz: tr, beckmann },
+        better_model,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok(SurfaceFit { report, levelled, normals: field })
+}
+
+/// The part of a `fit.json` a recipe needs.
+#[derive(Debug, Deserialize)]
+struct FitFileHead {
+    schema: String,
+    better_model: RoughnessModel,
+    fits: FitFileFits,
+}
+
+#[derive(Debug, Deserialize)]
+struct FitFileFits {
+    #[serde(rename = "trowbridge-reitz")]
+    trowbridge_reitz: FitFileModel,
+    beckmann: FitFileModel,
+}
+
+#[derive(Debug, Deserialize)]
+struct FitFileModel {
+    alpha: f64,
+    scale: f64,
+}
+
+/// Reads a `fit.json` written by `lucent surface fit` and returns
+/// (model, α, scale) of `model`, or of the better model when `None`.
+pub fn load_fit_choice(path: &Path, model: Option<RoughnessModel>) -> Result<(RoughnessModel, f64, f64), SurfaceError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SurfaceError::Io { path: path.into(), source })?;
+    let head: FitFileHead = serde_json::from_str(&text).map_err(|e| SurfaceError::Format {
+        path: path.into(),
+        reason: format!("not a fit.json of `lucent surface fit`: {e}"),
+    })?;
+    if head.schema != FIT_SCHEMA {
+        return Err(SurfaceError::Format {
+            path: path.into(),
+            reason: format!("schema {:?}, expected {FIT_SCHEMA:?}", head.schema),
+        });
+    }
+    let model = model.unwrap_or(head.better_model);
+    let m = match model {
+        RoughnessModel::TrowbridgeReitz => &head.fits.trowbridge_reitz,
+        RoughnessModel::Beckmann => &head.fits.beckmann,
+    };
+    if !(m.alpha.is_finite() && m.alpha > 0.0 && m.scale.is_finite() && m.scale > 0.0) {
+        return Err(SurfaceError::Format {
+            path: path.into(),
+            reason: format!("fit of {model:?} has α = {}, scale = {}: not positive", m.alpha, m.scale),
+        });
+    }
+    Ok((model, m.alpha, m.scale))
+}
+
+/// Files [`write_fit_outputs`] writes into the output folder.
+pub const OUTPUT_FILES: [&str; 4] = ["fit.json", "heightmap.png", "distribution.png", "normals.exr"];
+
+/// Writes `fit.json`, `heightmap.png`, `distribution.png` and `normals.exr`
+/// into `out`, all or nothing: the files are written into a temporary
+/// sibling folder and moved into place only when all four exist.
+///
+/// `normals.exr`: 32-bit float, R, G, B = the unit normal's x, y, z, A = 1
+/// where the pixel has a normal and 0 (with R = G = B = 0) where it has
+/// none; the top row is the largest y, as in `heightmap.png`.
+pub fn write_fit_outputs(out: &Path, fit: &SurfaceFit) -> Result<Vec<PathBuf>, SurfaceError> {
+    use crate::io::{write_atomic, write_json};
+    let io_err = |p: &Path| {
+        let p = p.to_path_buf();
+        move |source| SurfaceError::Io { path: p, source }
+    };
+    let title = format!(
+        "levelled height map, {} × {} at {:.4} × {:.4} µm",
+        fit.levelled.nx,
+        fit.levelled.ny,
+        fit.levelled.pitch_x_m * 1e6,
+        fit.levelled.pitch_y_m * 1e6
+    );
+    let heightmap = plot::heightmap_png(&fit.levelled, &title)
+        .map_err(|source| SurfaceError::Plot { path: out.join(OUTPUT_FILES[1]), source })?;
+    let distribution = plot::distribution_png(&fit.report)
+        .map_err(|source| SurfaceError::Plot { path: out.join(OUTPUT_FILES[2]), source })?;
+    let (nx, ny) = (fit.normals.nx, fit.normals.ny);
+    let mut planes = vec![vec![0f32; nx * ny]; 4];
+    for j in 0..ny {
+        for i in 0..nx {
+            if let Some(n) = fit.normals.normal(i, j) {
+                let k = (ny - 1 - j) * nx + i;
+                planes[0][k] = n[0] as f32;
+                planes[1][k] = n[1] as f32;
+                planes[2][k] = n[2] as f32;
+                planes[3][k] = 1.0;
+            }
+        }
+    }
+    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(io_err(parent))?;
+    if out.exists() && !out.is_dir() {
+        return Err(SurfaceError::Io { path: out.into(), source: std::io::Error::other("exists and is not a folder") });
+    }
+    let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "surface".into());
+    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(io_err(&tmp))?;
+    }
+    let result = (|| -> Result<(), SurfaceError> {
+        std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
+        write_json(&tmp.join(OUTPUT_FILES[0]), &fit.report)?;
+        write_atomic(&tmp.join(OUTPUT_FILES[1]), &heightmap)?;
+        write_atomic(&tmp.join(OUTPUT_FILES[2]), &distribution)?;
+        crate::imageio::write_exr_channels(
+            &tmp.join(OUTPUT_FILES[3]),
+            nx,
+            ny,
+            &[("R", &planes[0]), ("G", &planes[1]), ("B", &planes[2]), ("A", &planes[3])],
+        )?;
+        if out.is_dir() {
+            for f in OUTPUT_FILES {
+                std::fs::rename(tmp.join(f), out.join(f)).map_err(io_err(&out.join(f)))?;
+            }
+            std::fs::remove_dir(&tmp).map_err(io_err(&tmp))?;
+        } else {
+            std::fs::rename(&tmp, out).map_err(io_err(out))?;
+        }
+        Ok(())
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result?;
+    Ok(OUTPUT_FILES.iter().map(|f| out.join(f)).collect())
+}
