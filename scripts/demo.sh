@@ -18,6 +18,10 @@ for s in IOL1068-09 IOL1068-16; do
 done
 
 echo
+echo "== 2b. Surface topography: the shipped height map (X3P) → microfacet normals, Trowbridge–Reitz and Beckmann fits"
+"$bin" surface fit fixtures/surface/tr_0p0084.x3p --out "$out/surface"
+
+echo
 echo "== 3. Colour: ColorChecker calibration of a real chart photo (Argyll's colorchecker.jpg), ΔE2000 table"
 "$bin" colour calibrate --image fixtures/colour/colorchecker.png --corners 5,6.5,196,6,195.5,133.5,3.5,133 --out "$out/colour"
 
