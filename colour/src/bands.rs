@@ -55,6 +55,35 @@ pub struct BandWeights {
     pub set: &'static str,
     pub wavelength_nm: Vec<f64>,
     pub weights: [Vec<f64>; 3],
+    /// Fraction of each band's colour-matching mass (360–830 nm) that lies
+    /// inside the grid's span (its first and last wavelengths widened by
+    /// their quadrature half-cells); 1 for a single-wavelength grid, which
+    /// stands for itself. Below [`MIN_BAND_COVERAGE`] the grid is refused;
+    /// callers should warn below 0.99.
+    pub coverage: [f64; 3],
+}
+
+/// The smallest fraction of a band's colour-matching mass a grid must span
+/// (see [`BandWeights::coverage`]): a grid that misses more would silently
+/// renormalise the band to what little it covers.
+pub const MIN_BAND_COVERAGE: f64 = 0.9;
+
+/// Fraction of each band's positive CMF mass between `lo` and `hi` nm
+/// (1 nm midpoint sums over 360–830 nm).
+fn band_coverage(lo: f64, hi: f64) -> [f64; 3] {
+    let (mut inside, mut total) = ([0.0f64; 3], [0.0f64; 3]);
+    for i in 0..470 {
+        let nm = 360.5 + i as f64;
+        let c = crate::data::cie1931_rgb_cmf(nm);
+        for b in 0..3 {
+            let v = c[b].max(0.0);
+            total[b] += v;
+            if (lo..=hi).contains(&nm) {
+                inside[b] += v;
+            }
+        }
+    }
+    std::array::from_fn(|b| if total[b] > 0.0 { inside[b] / total[b] } else { 0.0 })
 }
 
 /// The band weights on `grid`; an error if a band has no positive weight
@@ -67,7 +96,23 @@ pub fn band_weights(grid: &WavelengthGrid) -> Result<BandWeights, ColourError> {
             set: BAND_WEIGHT_SET,
             wavelength_nm: wl.to_vec(),
             weights: [vec![1.0], vec![1.0], vec![1.0]],
+            coverage: [1.0; 3],
         });
+    }
+    let (lo, hi) = (wl[0] - 0.5 * widths[0], wl[wl.len() - 1] + 0.5 * widths[widths.len() - 1]);
+    let coverage = band_coverage(lo, hi);
+    for (b, &f) in coverage.iter().enumerate() {
+        if f < MIN_BAND_COVERAGE {
+            return Err(ColourError::Invalid {
+                what: format!("wavelength grid {lo}…{hi} nm"),
+                reason: format!(
+                    "it spans only {:.1} % of band {}'s colour-matching mass ({BAND_WEIGHT_SET}); at least {:.0} % is needed (e.g. 380:780:10)",
+                    100.0 * f,
+                    BANDS[b],
+                    100.0 * MIN_BAND_COVERAGE
+                ),
+            });
+        }
     }
     let mut weights: [Vec<f64>; 3] = Default::default();
     for (&nm, &dw) in wl.iter().zip(&widths) {
@@ -89,7 +134,7 @@ pub fn band_weights(grid: &WavelengthGrid) -> Result<BandWeights, ColourError> {
         }
         w.iter_mut().for_each(|v| *v /= sum);
     }
-    Ok(BandWeights { set: BAND_WEIGHT_SET, wavelength_nm: wl.to_vec(), weights })
+    Ok(BandWeights { set: BAND_WEIGHT_SET, wavelength_nm: wl.to_vec(), weights, coverage })
 }
 
 impl BandWeights {
@@ -128,6 +173,20 @@ pub fn band_averages(grid: &WavelengthGrid, values: &[f64]) -> Result<[f64; 3], 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_grid_missing_a_band_is_refused_and_partial_coverage_reported() {
+        let grid = |a, b, s| WavelengthGrid::new(a, b, s).unwrap();
+        // 500–600 nm leaves half of R (and most of B) out: refused, naming the band.
+        let e = band_weights(&grid(500.0, 600.0, 10.0)).unwrap_err().to_string();
+        assert!(e.contains("band R") && e.contains("48.4 %"), "{e}");
+        // The full grid covers everything; 400–700 nm most but not all.
+        let full = band_weights(&grid(380.0, 780.0, 10.0)).unwrap();
+        assert!(full.coverage.iter().all(|f| *f > 0.999), "{:?}", full.coverage);
+        let part = band_weights(&grid(400.0, 700.0, 10.0)).unwrap();
+        assert!(part.coverage.iter().all(|f| (0.9..=1.0).contains(f)), "{:?}", part.coverage);
+        assert!(part.coverage[0] < 0.999 && part.coverage[2] < 0.999, "{:?}", part.coverage);
+    }
 
     #[test]
     fn weights_are_non_negative_and_normalised() {

@@ -983,6 +983,15 @@ impl Coefficients {
     pub fn recompute(&mut self, m: Complex64, x: Complex64) -> Result<(), MieError> {
         let xabs = check_arguments(m, x)?;
         let nstop = wiscombe_terms(xabs);
+        if m == Complex64::new(1.0, 0.0) {
+            // An index-matched, non-absorbing sphere does not scatter: every
+            // a_n, b_n is exactly 0 (the recurrences would leave ~1e-16
+            // rounding whose g is meaningless), so q_sca = 0 and g = 0.
+            self.ab.clear();
+            self.ab.resize(nstop, C2::splat(Complex64::new(0.0, 0.0)));
+            self.sums = SeriesSums::default();
+            return Ok(());
+        }
         let y = m * x;
         // D_n(y) starts from the continued fraction at or just above the
         // turning point |y| and recurs downward. (The fraction converges at
@@ -1118,6 +1127,18 @@ mod tests {
 
     fn c(re: f64, im: f64) -> Complex64 {
         Complex64::new(re, im)
+    }
+
+    #[test]
+    fn index_matched_sphere_does_not_scatter() {
+        // m = 1: no scattering and g = 0 (not the g of rounding noise); just
+        // off m = 1 the Rayleigh–Gans limit takes over with a real g.
+        for x in [0.1, 5.0, 300.0] {
+            let q = Coefficients::compute(c(1.0, 0.0), c(x, 0.0)).unwrap().efficiencies(x);
+            assert_eq!((q.qext, q.qsca, q.qabs, q.qback, q.g), (0.0, 0.0, 0.0, 0.0, 0.0), "x = {x}");
+        }
+        let q = Coefficients::compute(c(1.001, 0.0), c(5.0, 0.0)).unwrap().efficiencies(5.0);
+        assert!(q.qsca > 0.0 && q.g > 0.5, "{q:?}");
     }
 
     #[test]

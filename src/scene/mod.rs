@@ -321,7 +321,7 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     // --- material and object
     let material = match &file.material {
         Some(m) => {
-            let (medium, mut eta, mut summary, size, surface) = build_material(&ctx, m)?;
+            let (medium, mut eta, mut summary, size, surface) = build_material(&ctx, m, &mut warnings)?;
             let rough = build_roughness(&ctx, m, surface)?;
             if let Some((_, desc)) = &rough {
                 summary.boundary.clone_from(desc);
@@ -576,7 +576,7 @@ fn build_roughness(
     }
 }
 
-fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, SceneFileError> {
+fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) -> Result<MaterialParts, SceneFileError> {
     let phase_kind = m.phase.as_deref().unwrap_or(if m.recipe.is_some() { "mie" } else { "hg" });
     if !matches!(phase_kind, "mie" | "hg") {
         return Err(ctx.key("material", "phase", format!("expected \"mie\" or \"hg\", got {phase_kind:?}")));
@@ -626,6 +626,16 @@ fn build_material(ctx: &Ctx, m: &MaterialSection) -> Result<MaterialParts, Scene
             let spectrum = bulk::compute(&recipe, &grid, &options)
                 .map_err(|source| SceneFileError::Optics { path: ctx.path.to_path_buf(), source })?;
             let weights = band_weights(&grid).map_err(|e| ctx.key("material", "wavelengths", e.to_string()))?;
+            for (b, f) in weights.coverage.iter().enumerate() {
+                if *f < 0.99 {
+                    warnings.push(format!(
+                        "{}: [material] wavelengths {grid_text:?} span {:.1} % of band {}'s colour-matching mass",
+                        ctx.path.display(),
+                        100.0 * f,
+                        ["R", "G", "B"][b]
+                    ));
+                }
+            }
             let (medium, summary) = medium_from_spectrum(ctx, &spectrum, &weights, phase_kind == "mie", &full)?;
             let size = recipe_size_m(&recipe);
             let eta = summary.n;
