@@ -127,7 +127,7 @@ pub fn measure(field: &NormalField, origin: &str) -> Result<Distribution, Surfac
     let q75 = quantile(&mut scratch, 0.75);
     let median = quantile(&mut scratch, 0.5);
     let theta_90 = quantile(&mut scratch, 0.9);
-    if !(theta_max > 0.0) {
+    if theta_max.is_nan() || theta_max <= 0.0 {
         return Err(SurfaceError::Data {
             origin: origin.into(),
             reason: "the surface is flat: 99.9 % of the normals are exactly vertical".into(),

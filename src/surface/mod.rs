@@ -213,7 +213,7 @@ impl Default for FitOptions {
 impl FitOptions {
     /// Checks the parameters; the error names the offending one.
     pub fn validate(&self) -> Result<(), SurfaceError> {
-        if self.window_px < 3 || self.window_px % 2 == 0 || self.window_px > 201 {
+        if self.window_px < 3 || self.window_px.is_multiple_of(2) || self.window_px > 201 {
             return Err(SurfaceError::parameter(
                 "window",
                 self.window_px,

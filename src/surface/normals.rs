@@ -326,7 +326,7 @@ pub fn plane_fit_normals(map: &HeightMap, options: &FitOptions) -> Result<Normal
             let [s00, s10, s20, s01, s11, s02, t0, tx, ty] = s;
             // Symmetric system [[s00 s10 s01] [s10 s20 s11] [s01 s11 s02]] (a b c)ᵀ = (t0 tx ty)ᵀ, by Cramer.
             let det = s00 * (s20 * s02 - s11 * s11) - s10 * (s10 * s02 - s11 * s01) + s01 * (s10 * s11 - s20 * s01);
-            if !(det > 1e-9 * s00 * s20 * s02) {
+            if det.is_nan() || det <= 1e-9 * s00 * s20 * s02 {
                 continue;
             }
             let db = s00 * (tx * s02 - s11 * ty) - t0 * (s10 * s02 - s11 * s01) + s01 * (s10 * ty - tx * s01);

@@ -142,7 +142,7 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
     let d = &report.distribution;
     let centres = d.centres_rad();
     let ymax = d.d_per_sr.iter().copied().fold(0.0, f64::max);
-    if !(ymax > 0.0) {
+    if ymax.is_nan() || ymax <= 0.0 {
         return Err(perr("distribution has no positive value"));
     }
     let ymin_data = d.d_per_sr.iter().copied().filter(|v| *v > 0.0).fold(f64::INFINITY, f64::min);

@@ -116,6 +116,7 @@ fn kernels(l: f64) -> (isize, Vec<f64>, Vec<f64>) {
     (r, g, dg)
 }
 
+#[allow(clippy::too_many_arguments)] // the grid, its padding and the two kernels
 /// Convolves padded noise (w × h) with separable kernels kx (along x) and ky
 /// (along y) and returns the central nx × ny block.
 fn convolve(noise: &[f64], w: usize, pad: usize, nx: usize, ny: usize, r: isize, kx: &[f64], ky: &[f64]) -> Vec<f64> {
@@ -168,7 +169,7 @@ pub fn synthesize(spec: &SynthSpec) -> Result<Synthetic, SurfaceError> {
     if !(spec.amplitude_correlation_px.is_finite() && (1.0..=2000.0).contains(&spec.amplitude_correlation_px)) {
         return bad("amplitude-correlation-px", spec.amplitude_correlation_px, "must lie in [1, 2000] pixels");
     }
-    if !(spec.tilt_rad.is_finite() && spec.tilt_rad.abs() < 1.5) || !spec.tilt_azimuth_rad.is_finite() {
+    if !spec.tilt_rad.is_finite() || spec.tilt_rad.abs() >= 1.5 || !spec.tilt_azimuth_rad.is_finite() {
         return bad("tilt", spec.tilt_rad, "must be a finite angle below 85°");
     }
     if !(0.0..1.0).contains(&spec.invalid_fraction) {

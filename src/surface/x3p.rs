@@ -16,9 +16,9 @@
 //! - Lateral axes CX, CY: incremental, pitch = `Increment` in metres (must be
 //!   positive and finite).
 //! - Heights CZ: absolute, point type I (int16), L (int32), F (float32) or
-//!   D (float64), little-endian; height = stored value × `Increment` (default
-//!   1) in metres, as in Amd 1:2020 (`Offset` places the view coordinate system
-//!   and is not added).
+//!   D (float64), little-endian; height = stored value × `Increment`
+//!   (default 1) in metres, as in Amd 1:2020 (`Offset` places the view
+//!   coordinate system and is not added).
 //! - Invalid points: NaN in F/D, a 0 bit in the validity file for any type,
 //!   an empty `Datum`. They become NaN in the [`HeightMap`].
 //! - Checks: zip integrity (a truncated archive or a damaged member is an
