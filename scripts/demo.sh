@@ -10,11 +10,11 @@ echo "   (IOL1068-15 has no known weight percentage and is reported, not compute
 "$bin" optics fixtures/samples --out "$out/optics" --skip-invalid
 
 echo
-echo "== 2. BSSRDF slices at 550 nm, the three lab configurations (θi/θo = 45/0, 0/45, 45/15; φi 0°, φo 180°)"
+echo "== 2. BSSRDF slices at 550 nm, the three lab configurations (θi/θo = 45/0, 0/45, 45/15; φi 0°, φo 180°), to 5 % median per-pixel error or 45 s"
 for s in IOL1068-09 IOL1068-16; do
   echo "-- $s"
   "$bin" bssrdf --recipe "fixtures/samples/$s.toml" --wavelength 550 --configs 45/0,0/45,45/15 \
-    --crop --rel-error 0.02 --time-s 30 --quiet --out "$out/bssrdf/$s"
+    --crop --pixel-rel-error 0.05 --time-s 45 --quiet --out "$out/bssrdf/$s"
 done
 
 echo

@@ -10,7 +10,7 @@
 //! | `bssrdf.png` | log₁₀(f/f_max) in false colour, colour bar, scale in mm |
 //! | `profile.csv` | x_mm, f_per_m2_sr, std_error, beam (relative) along the plane of incidence |
 //! | `profile.png` | the same, log scale, beam on a second axis |
-//! | `summary.json` | configuration, optical properties used, sum, errors, paths, events, speed |
+//! | `summary.json` | configuration, optical properties used, sum, errors (of the sum; per pixel: median and 90th percentile of the relative standard error over the pixels above 1 % of the maximum), paths, events, speed |
 //!
 //! Comparison (`lucent bssrdf compare`): the mean squared relative error
 //! MSRE = mean over the mask of ((f_sim − f_meas)/f_meas)², where the mask
@@ -188,12 +188,29 @@ pub struct Summary {
     pub sum: f64,
     pub sum_std_error: f64,
     pub relative_std_error: f64,
+    /// Median per-pixel relative standard error over the pixels above 1 % of
+    /// the maximum (the figure that says whether the image has converged).
+    pub pixel_rel_error_median: f64,
+    /// Its 90th percentile.
+    pub pixel_rel_error_p90: f64,
+    /// Pixels in that 1 % mask.
+    pub pixel_mask_pixels: usize,
     pub paths: u64,
     pub events: u64,
     pub events_per_s: f64,
     /// The simulator's kernel ("avx2-fma lanes" or "scalar"; they agree to
     /// rounding).
     pub kernel: &'static str,
+    /// The estimator: the ring connection (azimuthal symmetry) where it
+    /// applies, else the connection along the fixed exit direction.
+    pub estimator: &'static str,
+    /// Whether the slice was folded about the plane of incidence (exact when
+    /// both azimuths are 0°/180° and the beam is mirror-symmetric).
+    pub folded: bool,
+    /// Whether the photons were launched from the camera's side (ring with
+    /// θo = 0, by reciprocity); `diffuse_reflectance` and `transmittance`
+    /// then describe light arriving along ωo.
+    pub reciprocal: bool,
     pub wall_s: f64,
     pub specular_reflectance: f64,
     pub diffuse_reflectance: f64,
@@ -229,32 +246,16 @@ pub struct OpticalUsed {
 }
 
 /// Relative beam irradiance along the middle row of the sensor (for the
-/// profile plot).
+/// profile plot): the footprint the simulator samples
+/// ([`Beam::footprint`]) evaluated at (x, 0), over its maximum on that row.
 pub fn beam_profile(beam: &Beam, dirs: &Directions, x_mm: &[f64]) -> Vec<f64> {
-    match beam {
-        Beam::Gaussian { fwhm_m } => {
-            let sigma_mm = fwhm_m * 1e3 / (2.0 * (2.0 * 2f64.ln()).sqrt());
-            let cos_i = dirs.theta_i_deg.to_radians().cos();
-            let cos_phi = dirs.phi_i_deg.to_radians().cos();
-            // Along x, the footprint is stretched by 1/cos θ_i in proportion
-            // to how much of x lies in the plane of incidence.
-            let stretch = 1.0 + (1.0 / cos_i - 1.0) * cos_phi.abs();
-            x_mm.iter().map(|x| (-(x / stretch).powi(2) / (2.0 * sigma_mm * sigma_mm)).exp()).collect()
-        }
-        Beam::Map(map) => {
-            let row = map.height / 2;
-            let maxv = map.values.iter().copied().fold(0.0, f64::max);
-            x_mm.iter()
-                .map(|x| {
-                    let c = (x * 1e-3 / map.pixel_m + 0.5 * map.width as f64).floor();
-                    if c >= 0.0 && (c as usize) < map.width {
-                        map.values[row * map.width + c as usize] / maxv
-                    } else {
-                        0.0
-                    }
-                })
-                .collect()
-        }
+    let footprint = beam.footprint(dirs.theta_i_deg, dirs.phi_i_deg);
+    let values: Vec<f64> = x_mm.iter().map(|x| footprint.irradiance(x * 1e-3, 0.0)).collect();
+    let max = values.iter().copied().fold(0.0, f64::max);
+    if max > 0.0 {
+        values.iter().map(|v| v / max).collect()
+    } else {
+        values
     }
 }
 
@@ -571,6 +572,27 @@ mod tests {
     fn grid(values: Vec<f64>) -> Grid {
         let size = (values.len() as f64).sqrt() as usize;
         Grid { size, pixel_m: 1e-4, values }
+    }
+
+    #[test]
+    fn beam_profile_uses_the_footprint_geometry() {
+        // θ = φ = 45°: along x the footprint's variance is σ²(cos²φ/cos²θ +
+        // sin²φ) = 1.5 σ², a stretch of √1.5 ≈ 1.22 of σ along y = 0 … but
+        // the row y = 0 cuts the tilted ellipse: its width along x is set by
+        // the inverse covariance, 1/(C⁻¹)ₓₓ = σ²/(cos²φ cos²θ + sin²φ)
+        // = σ²/0.75, a stretch of 1/√0.75 ≈ 1.1547.
+        let beam = Beam::gaussian(200e-6).unwrap();
+        let dirs = Directions::from_degrees(45.0, 45.0, 0.0, 180.0).unwrap();
+        let sigma_mm = lucent_render::slab::fwhm_to_sigma(0.2);
+        let x = [0.0, sigma_mm];
+        let b = beam_profile(&beam, &dirs, &x);
+        let stretch = (-0.5 / b[1].ln()).sqrt();
+        assert!((stretch - 1.0 / 0.75f64.sqrt()).abs() < 1e-9, "stretch {stretch}");
+        // In the plane of incidence (φ = 0) the stretch is 1/cos θ.
+        let dirs = Directions::from_degrees(45.0, 0.0, 0.0, 180.0).unwrap();
+        let b = beam_profile(&beam, &dirs, &x);
+        let stretch = (-0.5 / b[1].ln()).sqrt();
+        assert!((stretch - 2f64.sqrt()).abs() < 1e-9, "stretch {stretch}");
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! `lucent bssrdf` end to end: a run's files and summary fields, the sweep
 //! table, comparison against a measured slice, and clear errors for bad
 //! input (negative thickness, θ ≥ 90°, NaN in a map, non-square grids,
-//! size mismatches).
+//! size mismatches, a ring where it does not apply), the per-pixel stop
+//! rule and the ring estimator's summary.
 
 mod common;
 use common::{lucent, stderr};
@@ -30,9 +31,22 @@ fn run_writes_slice_profile_and_summary() {
     assert!(o.status.success(), "{}", stderr(&o));
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
-    for k in ["sum", "sum_std_error", "paths", "events", "events_per_s", "wall_s"] {
+    for k in [
+        "sum",
+        "sum_std_error",
+        "pixel_rel_error_median",
+        "pixel_rel_error_p90",
+        "paths",
+        "events",
+        "events_per_s",
+        "wall_s",
+    ] {
         assert!(s[k].is_number(), "summary lacks {k}: {s}");
     }
+    // A 2 mm slab (μt d = 6) has image terms: the fixed-direction
+    // connection, folded (φi = 0°, φo = 180°, Gaussian beam).
+    assert_eq!(s["estimator"], "connection (fixed direction)");
+    assert_eq!(s["folded"], true);
     assert_eq!(s["paths"].as_u64(), Some(20000));
     let sum = s["sum"].as_f64().unwrap();
     // The EXR holds the per-pixel values whose sum is `sum`.
@@ -163,12 +177,15 @@ fn compare_scores_against_a_measured_slice() {
 fn bad_input_gives_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("x");
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["--thickness-mm", "-1"], "thickness"),
         (&["--theta-i", "90"], "theta_i"),
         (&["--theta-o", "120"], "theta_o"),
         (&["--crop", "500"], "crop"),
         (&["--rel-error", "2"], "rel_error"),
+        (&["--pixel-rel-error", "0"], "pixel_rel_error"),
+        // The ring needs θi or θo = 0 (and a thick slab).
+        (&["--estimator", "ring", "--theta-i", "45", "--theta-o", "15"], "ring connection needs"),
     ];
     for (extra, key) in cases {
         let o = run_thin(&out, extra);
@@ -213,4 +230,44 @@ fn recipe_runs_use_the_lorenz_mie_properties() {
     assert!((op["g"].as_f64().unwrap() - 0.974).abs() < 0.002, "{op}");
     assert!((op["n"].as_f64().unwrap() - 1.589).abs() < 0.001, "{op}");
     assert_eq!(s["config"]["thickness_mm"].as_f64(), Some(6.35));
+}
+
+#[test]
+fn ring_runs_stop_on_the_per_pixel_error() {
+    // A thick slab (μt d = 45) at 45°/0°: the ring, launched from the
+    // camera's side, until the median per-pixel error reaches 20 %.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ring");
+    let o = lucent(&[
+        "bssrdf",
+        "--quiet",
+        "--mu-s",
+        "3000",
+        "--mu-a",
+        "30",
+        "--g",
+        "0.8",
+        "--n",
+        "1.5",
+        "--thickness-mm",
+        "15",
+        "--pixels",
+        "16",
+        "--pixel-mm",
+        "0.5",
+        "--pixel-rel-error",
+        "0.2",
+        "--time-s",
+        "60",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["estimator"], "ring connection (azimuthal symmetry)");
+    assert_eq!(s["reciprocal"], true);
+    let median = s["pixel_rel_error_median"].as_f64().unwrap();
+    assert!(median <= 0.2 && s["wall_s"].as_f64().unwrap() < 60.0, "{s}");
+    assert!(s["pixel_rel_error_p90"].as_f64().unwrap() >= median);
 }

@@ -27,6 +27,16 @@ pub enum BssrdfCommand {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EstimatorChoice {
+    /// The ring connection where it applies (θi = 0 or θo = 0, thick slab), else the fixed-direction one.
+    Auto,
+    /// The ring connection (azimuthal symmetry; an error where it does not apply).
+    Ring,
+    /// The explicit connection along the one fixed exit direction (the previous estimator).
+    Connection,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum PhaseChoice {
     /// The recipe's tabulated Lorenz–Mie phase function.
     Mie,
@@ -96,6 +106,10 @@ pub struct RunArgs {
     /// any stop rule: 0.01, capped at 600 s).
     #[arg(long)]
     pub rel_error: Option<f64>,
+    /// Stop when the median per-pixel relative standard error over the pixels
+    /// above 1 % of the maximum reaches this (e.g. 0.05).
+    #[arg(long)]
+    pub pixel_rel_error: Option<f64>,
     /// Stop after this many light paths.
     #[arg(long)]
     pub paths: Option<u64>,
@@ -104,6 +118,13 @@ pub struct RunArgs {
     pub time_s: Option<f64>,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Estimator of the slice.
+    #[arg(long, value_enum, default_value_t = EstimatorChoice::Auto)]
+    pub estimator: EstimatorChoice,
+    /// Do not fold the slice about the plane of incidence (the fold is exact,
+    /// and applied, when φi and φo are 0° or 180° and the beam is mirror-symmetric).
+    #[arg(long)]
+    pub no_fold: bool,
     /// Output folder.
     #[arg(long, default_value = "lucent-out/bssrdf")]
     pub out: PathBuf,
@@ -223,7 +244,7 @@ fn simulate(a: RunArgs) -> Result<()> {
     };
     // Only the crop is simulated: the pixels outside it would be discarded.
     let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
-    let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error };
+    let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error, pixel_rel_error: a.pixel_rel_error };
     // Without a stop rule: 1 % on the slice sum, but at most 10 minutes per
     // configuration (strongly forward-peaked media converge slowly).
     let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
@@ -238,15 +259,22 @@ fn simulate(a: RunArgs) -> Result<()> {
         let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
         let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
         let dir = if configs.len() > 1 { a.out.join(format!("ti{ti}_to{to}")) } else { a.out.clone() };
-        let options = RunOptions { stop, seed: a.seed, estimator: Estimator::Connection, ..RunOptions::default() };
+        let estimator = match a.estimator {
+            EstimatorChoice::Auto => Estimator::best_for(&setup),
+            EstimatorChoice::Ring => Estimator::Ring,
+            EstimatorChoice::Connection => Estimator::Connection,
+        };
+        let options = RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() };
         let bar = progress_bar(a.quiet, &stop);
         bar.set_prefix(format!("θi {ti}° → θo {to}°"));
         let slice = slab::simulate(&setup, &options, |p| {
             bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
             bar.set_message(format!(
-                "{:.2} M events/s, rel. error {:.2} %",
+                "{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
                 p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
-                100.0 * p.rel_error
+                100.0 * p.rel_error,
+                100.0 * p.pixels.median,
+                100.0 * p.pixels.p90
             ));
         })?;
         bar.finish_and_clear();
@@ -260,6 +288,7 @@ fn simulate(a: RunArgs) -> Result<()> {
                 );
             }
         }
+        let pixel_errors = slice.pixel_errors();
         let summary = Summary {
             config: RunConfig {
                 recipe: a.recipe.as_ref().map(|p| p.display().to_string()),
@@ -280,10 +309,16 @@ fn simulate(a: RunArgs) -> Result<()> {
             sum: slice.sum,
             sum_std_error: slice.sum_std_error,
             relative_std_error: slice.sum_std_error / slice.sum,
+            pixel_rel_error_median: pixel_errors.median,
+            pixel_rel_error_p90: pixel_errors.p90,
+            pixel_mask_pixels: pixel_errors.pixels,
             paths: slice.paths,
             events: slice.events,
             events_per_s: slice.events_per_s(),
             kernel: slice.kernel,
+            estimator: slice.estimator.name(),
+            folded: slice.folded,
+            reciprocal: slice.reciprocal,
             wall_s: slice.wall_s,
             specular_reflectance: slice.specular_reflectance,
             diffuse_reflectance: slice.diffuse_reflectance,
@@ -295,10 +330,12 @@ fn simulate(a: RunArgs) -> Result<()> {
         let beam_row = bssrdf::beam_profile(&beam, &dirs, &grid_x);
         bssrdf::write_run(&dir, &slice, &summary, &beam_row)?;
         println!(
-            "θi {ti}° φi {pi}° → θo {to}° φo {po}°: sum = {:.5e} ± {:.2e} 1/(m² sr) ({:.2} %), {} paths, {:.1} M events/s, {:.1} s → {}",
+            "θi {ti}° φi {pi}° → θo {to}° φo {po}°: sum = {:.5e} ± {:.2e} 1/(m² sr) ({:.2} %), per pixel {:.1} % median, {:.1} % p90, {} paths, {:.1} M events/s, {:.1} s → {}",
             slice.sum,
             slice.sum_std_error,
             100.0 * summary.relative_std_error,
+            100.0 * pixel_errors.median,
+            100.0 * pixel_errors.p90,
             slice.paths,
             summary.events_per_s / 1e6,
             slice.wall_s,
@@ -365,5 +402,140 @@ fn compare(a: CompareArgs) -> Result<()> {
     crate::io::write_atomic(&out.join("panel.png"), &panel)?;
     println!("{}", serde_json::to_string_pretty(&c)?);
     println!("written: {}/{{comparison.json, profiles.png, panel.png}}", out.display());
+    Ok(())
+}
+
+/// `lucent bench bssrdf`: the simulator's speed on a PDMS-like medium
+/// (events/s on one core, wall time to `rel_error` on the slice sum), and
+/// the per-pixel figure of the issue side by side for the previous
+/// estimator (fixed-direction connection, not folded) and the current one
+/// (ring connection where it applies, folded): IOL1068-09 and IOL1068-13
+/// from their recipes (tabulated Lorenz–Mie phase, 550 nm), 45°/0°, the
+/// central 117 of 259 pixels of 0.1029 mm, `time_s` each.
+pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
+    use lucent_render::slab::{simulate, Slice};
+    if !(time_s.is_finite() && time_s > 0.0) {
+        bail!("--time-s {time_s}: must be a positive number of seconds");
+    }
+    let pdms_like = Medium::new(1.47e4, 9.6, Phase::henyey_greenstein(0.974)?, 1.589)?;
+    let setup = Setup::new(
+        Slab::new(6.35e-3, pdms_like)?,
+        Beam::gaussian(200e-6)?,
+        Sensor::new(259, 0.1029e-3)?,
+        Directions::from_degrees(45.0, 0.0, 0.0, 180.0)?,
+    );
+    // One core: the best of five runs of 20 000 paths (the machine's speed
+    // drifts by tens of percent from one second to the next).
+    let one_core = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let mut single: Option<Slice> = None;
+    for seed in 7..12 {
+        let run = one_core.install(|| {
+            simulate(&setup, &RunOptions { stop: Stop::paths(20_000), seed, ..RunOptions::default() }, |_| {})
+        })?;
+        if single.as_ref().is_none_or(|s| run.events_per_s() > s.events_per_s()) {
+            single = Some(run);
+        }
+    }
+    let single = single.expect("five runs were made");
+    let all = simulate(
+        &setup,
+        &RunOptions { stop: Stop { rel_error: Some(rel_error), ..Stop::default() }, seed: 8, ..RunOptions::default() },
+        |_| {},
+    )?;
+    let mut per_pixel = Vec::new();
+    for sample in ["IOL1068-09", "IOL1068-13"] {
+        let recipe = PathBuf::from(format!("fixtures/samples/{sample}.toml"));
+        let args = RunArgs {
+            recipe: Some(recipe.clone()),
+            weight_percent: None,
+            wavelength: 550.0,
+            mu_s: None,
+            mu_a: None,
+            g: None,
+            n: None,
+            thickness_mm: None,
+            theta_i: 45.0,
+            phi_i: 0.0,
+            theta_o: 0.0,
+            phi_o: 180.0,
+            configs: None,
+            phase: None,
+            beam_fwhm_um: 200.0,
+            beam_map: None,
+            beam_map_pixel_mm: None,
+            pixels: 259,
+            pixel_mm: 0.1029,
+            crop: Some(117),
+            rel_error: None,
+            pixel_rel_error: None,
+            paths: None,
+            time_s: Some(time_s),
+            seed: 1,
+            estimator: EstimatorChoice::Auto,
+            no_fold: false,
+            out: PathBuf::new(),
+            quiet: true,
+        };
+        let m =
+            medium(&args).with_context(|| format!("{} (run the bench from the repository root)", recipe.display()))?;
+        let setup = Setup::new(
+            Slab::new(m.thickness_m, m.medium.clone())?,
+            Beam::gaussian(200e-6)?,
+            Sensor::new(117, 0.1029e-3)?,
+            Directions::from_degrees(45.0, 0.0, 0.0, 180.0)?,
+        );
+        let mut row = serde_json::Map::new();
+        row.insert("sample".into(), sample.into());
+        row.insert("g".into(), m.used.g.into());
+        for (name, estimator, fold) in
+            [("previous", Estimator::Connection, false), ("current", Estimator::best_for(&setup), true)]
+        {
+            let options = RunOptions {
+                stop: Stop { time_s: Some(time_s), ..Stop::default() },
+                seed: 1,
+                estimator,
+                fold,
+                ..RunOptions::default()
+            };
+            let s = simulate(&setup, &options, |_| {})?;
+            let e = s.pixel_errors();
+            row.insert(
+                name.into(),
+                serde_json::json!({
+                    "estimator": s.estimator.name(),
+                    "folded": s.folded,
+                    "paths": s.paths,
+                    "wall_s": s.wall_s,
+                    "sum_per_m2_sr": s.sum,
+                    "sum_rel_error": s.sum_std_error / s.sum,
+                    "pixel_rel_error_median": e.median,
+                    "pixel_rel_error_p90": e.p90,
+                    "mask_pixels": e.pixels,
+                    // median² × time: the time to a given median error, up to a constant
+                    "median_sq_times_wall_s": e.median * e.median * s.wall_s,
+                }),
+            );
+        }
+        per_pixel.push(serde_json::Value::Object(row));
+    }
+    let json = serde_json::json!({
+        "benchmark": "slab BSSRDF: speed (PDMS-like HG medium, 259 × 259, fixed-direction connection) and per-pixel convergence (recipes, 45°/0°, 117 of 259 px)",
+        "kernel": single.kernel,
+        "events_per_s_one_core": single.events_per_s(),
+        "one_core_statistic": "best of 5 runs of 20 000 paths",
+        "events_per_path": single.events as f64 / single.paths as f64,
+        "threads": rayon::current_num_threads(),
+        "target_rel_error": rel_error,
+        "reached_rel_error": all.sum_std_error / all.sum,
+        "paths": all.paths,
+        "events_per_s_all_cores": all.events_per_s(),
+        "events_per_s_per_core_all_cores": all.events_per_s() / rayon::current_num_threads() as f64,
+        "wall_s_to_target": all.wall_s,
+        "sum_per_m2_sr": all.sum,
+        "per_pixel_time_s": time_s,
+        "per_pixel_mask": "pixels above 1 % of the slice's maximum",
+        "per_pixel": per_pixel,
+    });
+    println!("{}", serde_json::to_string_pretty(&json)?);
     Ok(())
 }

@@ -145,11 +145,14 @@ pub enum BenchCommand {
         #[arg(long, default_value = "16,64,256,1024")]
         spp: String,
     },
-    /// The slab simulator on a PDMS-like medium: events/s on one core, and wall time to 1 % on all cores.
+    /// The slab simulator: events/s and wall time to 1 % (PDMS-like medium), and the per-pixel error of the previous and current estimators side by side.
     Bssrdf {
         /// Target relative standard error of the slice sum.
         #[arg(long, default_value_t = 0.01)]
         rel_error: f64,
+        /// Seconds per run of the per-pixel comparison (previous vs current estimator, IOL1068-09 and -13).
+        #[arg(long, default_value_t = 60.0)]
+        time_s: f64,
     },
 }
 
@@ -485,7 +488,7 @@ fn bench(b: BenchCommand) -> Result<()> {
             });
             println!("{}", serde_json::to_string_pretty(&json)?);
         }
-        BenchCommand::Bssrdf { rel_error } => bench_bssrdf(rel_error)?,
+        BenchCommand::Bssrdf { rel_error, time_s } => bssrdf::bench(rel_error, time_s)?,
         BenchCommand::Render { scene, reference, spp } => {
             let spps: Vec<u32> = spp
                 .split(',')
@@ -518,55 +521,6 @@ fn bench(b: BenchCommand) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&json)?);
         }
     }
-    Ok(())
-}
-
-/// PDMS-like slab of the issue: μs = 1.47e4 /m, μa = 9.6 /m, g = 0.974,
-/// n = 1.589, 6.35 mm, 45°/0°, 259 × 259 pixels of 0.1029 mm.
-fn bench_bssrdf(rel_error: f64) -> Result<()> {
-    use lucent_render::phase::Phase;
-    use lucent_render::slab::*;
-    let medium = Medium::new(1.47e4, 9.6, Phase::henyey_greenstein(0.974)?, 1.589)?;
-    let setup = Setup::new(
-        Slab::new(6.35e-3, medium)?,
-        Beam::gaussian(200e-6)?,
-        Sensor::new(259, 0.1029e-3)?,
-        Directions::from_degrees(45.0, 0.0, 0.0, 180.0)?,
-    );
-    // One core: the best of five runs of 20 000 paths (the machine's speed
-    // drifts by tens of percent from one second to the next).
-    let one_core = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    let mut single: Option<lucent_render::slab::Slice> = None;
-    for seed in 7..12 {
-        let run = one_core.install(|| {
-            simulate(&setup, &RunOptions { stop: Stop::paths(20_000), seed, ..RunOptions::default() }, |_| {})
-        })?;
-        if single.as_ref().is_none_or(|s| run.events_per_s() > s.events_per_s()) {
-            single = Some(run);
-        }
-    }
-    let single = single.expect("five runs were made");
-    let all = simulate(
-        &setup,
-        &RunOptions { stop: Stop { rel_error: Some(rel_error), ..Stop::default() }, seed: 8, ..RunOptions::default() },
-        |_| {},
-    )?;
-    let json = serde_json::json!({
-        "benchmark": "slab BSSRDF, PDMS-like medium, 45°/0°, 259 × 259, explicit connection",
-        "kernel": single.kernel,
-        "events_per_s_one_core": single.events_per_s(),
-        "one_core_statistic": "best of 5 runs of 20 000 paths",
-        "events_per_path": single.events as f64 / single.paths as f64,
-        "threads": rayon::current_num_threads(),
-        "target_rel_error": rel_error,
-        "reached_rel_error": all.sum_std_error / all.sum,
-        "paths": all.paths,
-        "events_per_s_all_cores": all.events_per_s(),
-        "events_per_s_per_core_all_cores": all.events_per_s() / rayon::current_num_threads() as f64,
-        "wall_s_to_target": all.wall_s,
-        "sum_per_m2_sr": all.sum,
-    });
-    println!("{}", serde_json::to_string_pretty(&json)?);
     Ok(())
 }
 
