@@ -1,6 +1,6 @@
 //! `lucent run`: a tiny project over the shipped fixtures (one sample, a
 //! synthetic photo and empty board rendered with a known environment scale,
-//! three chessboard photos, the ColorChecker photo, a 33 × 33 BSSRDF slice
+//! four chessboard photos and the pose photo (the truth's camera), the ColorChecker photo, a 33 × 33 BSSRDF slice
 //! scored against a "measured" slice): every stage runs, a second run skips
 //! them all, a changed input reruns only what depends on it, `--force`
 //! reruns, a failing stage stops the run and leaves earlier results; the
@@ -42,9 +42,14 @@ fn status_of(stdout: &str, stage: &str) -> String {
 
 const SIZE: &str = "48x36";
 
-/// Writes the fixtures' demo scene (the twin) at a small size into `dir`,
-/// renders from it a "photo" (64 spp, scale 1.6) and an "empty board" photo,
-/// so env-scale should find 1.6.
+/// Writes the fixtures' demo scene (the twin's template) at a small size into
+/// `dir`, and renders the truth in the frame the run's pose stage will find:
+/// `lucent calibrate` and `lucent pose` on the project's photos (as the run
+/// will), then a "photo" (64 spp, environment scale 1.6) with the camera,
+/// board and sample placement of that scene.json and the calibrated
+/// distortion, and an "empty board" photo with the sphere centred where the
+/// photo's is. The run must take its camera from its pose stage (the
+/// template's own camera looks elsewhere), and env-scale should find 1.6.
 fn synthetic_inputs(dir: &Path) {
     let demo = root().join("fixtures/render/demo.toml");
     let text = std::fs::read_to_string(&demo).unwrap();
@@ -53,23 +58,52 @@ fn synthetic_inputs(dir: &Path) {
         .replace("\"../samples/", &format!("\"{}/samples/", fixtures.display()))
         .replace("\"../env/", &format!("\"{}/env/", fixtures.display()));
     std::fs::write(dir.join("scene.toml"), &text).unwrap();
-    let truth = text.replace("scale = 1.0", "scale = 1.6");
-    assert_ne!(truth, text);
-    std::fs::write(dir.join("truth.toml"), &truth).unwrap();
-    let empty: String = {
-        let mut t = truth.clone();
-        let start = t.find("[object]").unwrap();
-        let end = t.find("[board]").unwrap();
-        t.replace_range(start..end, "");
-        // The sphere centred where the twin's scene centres it (the plaque's top).
-        t.replace(
-            "projection = \"finite-sphere\"\n",
-            "projection = \"finite-sphere\"\ncentre_m = [0.0, 0.0, 0.006351]\n",
-        )
+    let cal = dir.join("cal");
+    let (camera_json, scene_json) = (cal.join("camera.json"), cal.join("scene.json"));
+    let chess = fixtures.join("camera/chessboard");
+    let images = format!("{}/left0{{1,2,3,4}}.jpg", chess.display());
+    ok(&lucent(&[
+        "calibrate",
+        "--images",
+        &images,
+        "--board",
+        "9x6",
+        "--square-mm",
+        "25",
+        "--out",
+        camera_json.to_str().unwrap(),
+    ]));
+    ok(&lucent(&[
+        "pose",
+        "--camera",
+        camera_json.to_str().unwrap(),
+        "--image",
+        chess.join("left12.jpg").to_str().unwrap(),
+        "--board",
+        "9x6",
+        "--square-mm",
+        "25",
+        "--sample-corner",
+        "2,1",
+        "--sample-size-mm",
+        "100,60,6.35",
+        "--out",
+        scene_json.to_str().unwrap(),
+    ]));
+    let mut truth = lucent::scene::parse(&text, &demo).unwrap();
+    truth.camera = lucent::scene::CameraSection {
+        scene_json: Some(scene_json.clone()),
+        camera_json: Some(camera_json.clone()),
+        distortion: Some("calibrated".into()),
+        ..Default::default()
     };
-    assert!(empty.contains("centre_m") && !empty.contains("[material]"));
-    std::fs::write(dir.join("truth_empty.toml"), &empty).unwrap();
-    for (scene, out) in [("truth.toml", "photo"), ("truth_empty.toml", "empty")] {
+    let b = truth.board.as_mut().unwrap();
+    (b.origin_m, b.u, b.v, b.columns, b.rows, b.square_mm) = (None, None, None, None, None, None);
+    let o = truth.object.as_mut().unwrap();
+    (o.transform, o.placement) = (None, Some("scene".into()));
+    truth.environment.scale = Some(1.6);
+    std::fs::write(dir.join("truth.toml"), toml::to_string_pretty(&truth).unwrap()).unwrap();
+    let render = |scene: &str, out: &str| {
         ok(&lucent(&[
             "render",
             dir.join(scene).to_str().unwrap(),
@@ -82,8 +116,20 @@ fn synthetic_inputs(dir: &Path) {
             "--quiet",
             "--out",
             dir.join(out).to_str().unwrap(),
-        ]));
-    }
+        ]))
+    };
+    render("truth.toml", "photo");
+    let info: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("photo/render.json")).unwrap()).unwrap();
+    let centre: Vec<f64> =
+        info["scene"]["environment_centre_m"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    // The sphere on the sample's top, in the pose's frame (not the template's origin).
+    assert!(centre[2] > 0.006 && (centre[0].abs() + centre[1].abs()) > 0.01, "{centre:?}");
+    let mut empty = truth.clone();
+    (empty.object, empty.material) = (None, None);
+    empty.environment.centre_m = Some([centre[0], centre[1], centre[2]]);
+    std::fs::write(dir.join("truth_empty.toml"), toml::to_string_pretty(&empty).unwrap()).unwrap();
+    render("truth_empty.toml", "empty");
 }
 
 fn project_text(dir: &Path, measured: &str) -> String {
@@ -252,6 +298,12 @@ fn project_runs_skips_reruns_fails_and_reports() {
     assert!(metrics["calibration"]["rms_px"].as_f64().unwrap() < 1.0);
     assert!(metrics["colour"]["phone"]["de2000_mean"].as_f64().unwrap() > 0.0);
     assert!(metrics["manifests"]["render"]["inputs"].as_array().unwrap().len() >= 3);
+    // The run's render took the pose stage's camera, board and placement, not the template's.
+    let scene = std::fs::read_to_string(out.join("render/IOL1068-09/input_scene.toml")).unwrap();
+    let pose_json = out.join("pose/scene.json");
+    assert!(scene.contains(&format!("scene_json = {:?}", pose_json.display().to_string())), "{scene}");
+    assert!(scene.contains("distortion = \"calibrated\"") && scene.contains("placement = \"scene\""), "{scene}");
+    assert!(!scene.contains("position_m") && !scene.contains("origin_m"), "{scene}");
     let (w, h, _) = read_exr_channels(&out.join("render/IOL1068-09/render.exr"), &["R"]).unwrap();
     assert_eq!((w, h), (48, 36));
 
@@ -301,7 +353,8 @@ fn project_runs_skips_reruns_fails_and_reports() {
 #[test]
 fn bad_projects_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
-    let cases: [(&str, &[&str]); 5] = [
+    let cases: [(&str, &[&str]); 6] = [
+        ("[render]\nscene = \"x.toml\"\ncamera = \"pose\"\n", &["[render] camera", "[pose]"]),
         ("[project]\nname = \"x\"\ncolour_space = 1\n", &["unknown field"]),
         ("[[sample]]\nname = \"a\"\nrecipe = \"nope.toml\"\n", &["recipe", "nope.toml", "no such file"]),
         ("[[sample]]\nname = \"a b\"\nrecipe = \"x.toml\"\n", &["name", "folder name"]),

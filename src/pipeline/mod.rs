@@ -11,6 +11,17 @@
 //! | `pose` | `lucent pose` on the sample photo | `[pose]` and the `calibrate` output |
 //! | `env-scale` | `lucent env fit-scale` per sample | `[render]`, a sample's `empty_board` |
 //! | `render` | `lucent render` per sample (the scene template with the sample's recipe, and the fitted scale) | `[render]` |
+//!
+//! **The camera of env-scale and render.** With a `[pose]` (and unless
+//! `[render] camera = "template"`), the scene template's camera, board
+//! geometry and object placement are replaced by the pose stage's
+//! `scene.json` ([`pose_frame`]): `[camera] scene_json` with
+//! `distortion = "calibrated"` and the calibrate stage's `camera.json` (the
+//! photo is rendered in its raw, distorted geometry), the board's squares from
+//! `scene.json` (the template keeps its reflectances and margin), and the
+//! object at `placement = "scene"` when the pose placed a sample (the finite
+//! sphere then centred on its top). Without a `[pose]` the template is used
+//! as it is.
 //! | `compare` | `lucent compare` photo vs render per sample | a sample's `photo`, its render |
 //! | `report` | `report/index.html` and `report/metrics.json` ([`report`]) | any stage's output |
 //!
@@ -100,9 +111,10 @@ impl Stage {
     /// The stages whose outputs this one reads.
     pub fn depends_on(self) -> &'static [Stage] {
         match self {
-            Stage::Optics | Stage::Bssrdf | Stage::Calibrate | Stage::Colour | Stage::EnvScale => &[],
+            Stage::Optics | Stage::Bssrdf | Stage::Calibrate | Stage::Colour => &[],
             Stage::Pose => &[Stage::Calibrate],
-            Stage::Render => &[Stage::EnvScale],
+            Stage::EnvScale => &[Stage::Pose],
+            Stage::Render => &[Stage::EnvScale, Stage::Pose],
             Stage::Compare => &[Stage::Render],
             Stage::Report => &[
                 Stage::Optics,
@@ -352,8 +364,63 @@ fn sample_scene(
             return Err(io("the [render] scene has no [material]: the samples' recipes need one to replace".into()))
         }
     }
+    let frame = pose_frame(project, out)?;
+    if let Some((scene_json, camera_json, has_sample)) = &frame {
+        file.camera = crate::scene::CameraSection {
+            scene_json: Some(scene_json.clone()),
+            camera_json: Some(camera_json.clone()),
+            distortion: Some("calibrated".into()),
+            ..Default::default()
+        };
+        if let Some(b) = &mut file.board {
+            (b.origin_m, b.u, b.v, b.columns, b.rows, b.square_mm) = (None, None, None, None, None, None);
+        }
+        if *has_sample {
+            if let Some(o) = &mut file.object {
+                (o.placement, o.transform, o.board_corner) = (Some("scene".into()), None, None);
+            }
+            file.environment.centre_m = None;
+        }
+    }
     let body = toml::to_string_pretty(&file).map_err(|e| io(e.to_string()))?;
-    Ok(format!("# {} with the recipe of sample {} (written by `lucent run`)\n{body}", source.display(), sample.name))
+    let camera = if frame.is_some() { ", camera, board and placement from the pose stage" } else { "" };
+    Ok(format!(
+        "# {} with the recipe of sample {}{camera} (written by `lucent run`)\n{body}",
+        source.display(),
+        sample.name
+    ))
+}
+
+/// The pose stage's frame for env-scale and render (see the module doc):
+/// `(scene.json, camera.json, whether the pose placed a sample)`, or `None`
+/// when the project has no `[pose]` or `[render] camera = "template"`. An
+/// error when the pose stage's or calibrate stage's output is missing.
+pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, PathBuf, bool)>, PipelineError> {
+    let f = &project.file;
+    let template = f.render.as_ref().and_then(|r| r.camera.as_deref()) == Some("template");
+    if f.pose.is_none() || template {
+        return Ok(None);
+    }
+    let scene_json = out.join(Stage::Pose.name()).join("scene.json");
+    let camera_json = out.join(Stage::Calibrate.name()).join("camera.json");
+    for p in [&scene_json, &camera_json] {
+        if !p.is_file() {
+            return Err(PipelineError::Stage {
+                stage: Stage::Render,
+                message: format!(
+                    "the render's camera comes from the pose stage ([pose] is given) but {} is missing; run the \
+                     calibrate and pose stages, or set [render] camera = \"template\" to keep the scene's camera",
+                    p.display()
+                ),
+            });
+        }
+    }
+    let text = std::fs::read_to_string(&scene_json)
+        .map_err(|e| PipelineError::Io { path: scene_json.clone(), reason: e.to_string() })?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| PipelineError::Io { path: scene_json.clone(), reason: format!("not JSON: {e}") })?;
+    let has_sample = v.get("sample").is_some_and(|s| !s.is_null());
+    Ok(Some((scene_json, camera_json, has_sample)))
 }
 
 fn scene_inputs(path: &Path) -> Vec<PathBuf> {
@@ -646,6 +713,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
         }
         Stage::Report => {
             inputs.push(project.path.clone());
+            inputs.extend(f.calibration.as_ref().and_then(|c| c.truth.clone()));
             tasks.push(Task::Report);
         }
     }

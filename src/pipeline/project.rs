@@ -24,6 +24,7 @@
 //! images = "photos/board_*.jpg"  # wildcards in the file name
 //! board = "9x6"                  # inner corners
 //! square_mm = 25.0
+//! # truth = "camera.json"        # a known camera (calibrate's format): the report tabulates recovered − truth
 //!
 //! [[colour]]                     # stage colour: one ColorChecker per camera
 //! camera = "phone"
@@ -39,6 +40,7 @@
 //! scene = "scene.toml"           # its [material] recipe is replaced by each sample's
 //! spp = 16
 //! # size = "320x240"
+//! # camera = "template"           # keep the template's camera; default with a [pose]: the pose stage's
 //!
 //! [compare]
 //! data_range = 1.0
@@ -122,6 +124,8 @@ pub struct CalibrationSection {
     pub board: String,
     pub square_mm: f64,
     pub model: Option<String>,
+    /// The known camera of synthetic views (a `lucent calibrate` camera.json).
+    pub truth: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -153,6 +157,8 @@ pub struct RenderSection {
     pub time_s: Option<f64>,
     pub env_spp: Option<u32>,
     pub per_channel_scale: Option<bool>,
+    /// "pose" (the default with a `[pose]`) or "template".
+    pub camera: Option<String>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -295,6 +301,17 @@ impl Project {
             if !(c.square_mm > 0.0 && c.square_mm.is_finite()) {
                 return Err(key("[calibration] square_mm", format!("must be finite and > 0, got {}", c.square_mm)));
             }
+            if let Some(t) = &mut c.truth {
+                existing("[calibration] truth", t)?;
+                let text = std::fs::read_to_string(&*t)
+                    .map_err(|e| key("[calibration] truth", format!("{}: {e}", t.display())))?;
+                if serde_json::from_str::<lucent_calib::camera::Calibration>(&text).is_err() {
+                    return Err(key(
+                        "[calibration] truth",
+                        format!("{}: not a camera.json in `lucent calibrate`'s format", t.display()),
+                    ));
+                }
+            }
         }
         let mut cameras = std::collections::HashSet::new();
         for c in &mut file.colour {
@@ -316,6 +333,14 @@ impl Project {
             existing("[render] scene", &mut r.scene)?;
             if r.spp == Some(0) || r.env_spp == Some(0) {
                 return Err(key("[render] spp", "must be at least 1".into()));
+            }
+            if let Some(c) = &r.camera {
+                if c != "pose" && c != "template" {
+                    return Err(key("[render] camera", format!("expected \"pose\" or \"template\", got {c:?}")));
+                }
+                if c == "pose" && file.pose.is_none() {
+                    return Err(key("[render] camera", "\"pose\" needs a [pose] section".into()));
+                }
             }
         }
         if let Some(c) = &file.compare {

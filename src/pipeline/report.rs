@@ -367,8 +367,40 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 c["views"].as_array().map_or(0, Vec::len).to_string(),
             ]],
         ));
+        let truth = project.file.calibration.as_ref().and_then(|c| c.truth.as_ref()).and_then(|p| read_json(p));
+        let mut truth_json = None;
+        if let Some(t) = &truth {
+            // Synthetic views from a known camera: truth, recovered and their difference.
+            const KEYS: [(&str, &str); 9] = [
+                ("intrinsics", "fx"),
+                ("intrinsics", "fy"),
+                ("intrinsics", "cx"),
+                ("intrinsics", "cy"),
+                ("distortion", "k1"),
+                ("distortion", "k2"),
+                ("distortion", "p1"),
+                ("distortion", "p2"),
+                ("distortion", "k3"),
+            ];
+            let get = |v: &Value, (g, k): (&str, &str)| v["camera"][g][k].as_f64();
+            let mut rows = Vec::new();
+            let mut tj = serde_json::Map::new();
+            for key in KEYS {
+                let (tv, rv) = (get(t, key), get(&c, key));
+                let fmt = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.5}"));
+                let diff = tv.zip(rv).map(|(a, b)| b - a);
+                rows.push(vec![key.1.to_string(), fmt(tv), fmt(rv), fmt(diff)]);
+                tj.insert(key.1.into(), json!({"truth": tv, "recovered": rv, "error": diff}));
+            }
+            h.push_str("<h3>Recovered vs known camera (synthetic views)</h3>");
+            h.push_str(&table(&["parameter", "truth", "recovered", "recovered − truth"], &rows));
+            truth_json = Some(Value::Object(tj));
+        }
         h.push_str(&page.img(&out.join("calibrate/camera_residuals.png"), "reprojection residuals per view")?);
         let mut cj = trim(&c, 16);
+        if let Some(t) = truth_json {
+            cj["truth_vs_recovered"] = t;
+        }
         if let Some(views) = c["views"].as_array() {
             cj["views"] =
                 json!(views.iter().map(|v| json!({"image": v["image"], "rms_px": v["rms_px"]})).collect::<Vec<_>>());
