@@ -15,7 +15,16 @@
 //!
 //! with pixel centres at integer coordinates (the centre of the top-left
 //! pixel is (0, 0)). `pinhole-k3` estimates k1, k2, p1, p2, k3 (k4–k6 = 0);
-//! `rational` all eight. The inverse is solved by Newton's method
+//! `rational` all eight.
+//!
+//! `fisheye` is Kannala–Brandt (Kannala & Brandt, PAMI 2006; OpenCV's
+//! `cv::fisheye`): r = √(x² + y²), θ = atan r (the angle off the axis),
+//! θ_d = θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸), (x_d, y_d) = (θ_d / r)(x, y),
+//! then the same u, v; k1–k4 are stored in the fields `k1`–`k4` (p1 = p2 = 0).
+//! Its inverse solves θ_d(θ) = r_d by Newton's method; pixels more than 90°
+//! off axis have no pinhole ray (`None`).
+//!
+//! The Brown–Conrady inverse is solved by Newton's method
 //! (analytic Jacobian) to 1e-12. This projection is tested against OpenCV's
 //! `projectPoints` and the undistortion map against `initUndistortRectifyMap`
 //! (`calib/tests/calibration.rs`).
@@ -54,6 +63,8 @@ pub enum DistortionModel {
     PinholeK3,
     /// k1–k6, p1, p2 (OpenCV's `CALIB_RATIONAL_MODEL`), for wide lenses.
     Rational,
+    /// Kannala–Brandt k1–k4 on the angle off the axis (OpenCV's `fisheye`), for fisheye lenses.
+    Fisheye,
 }
 
 impl DistortionModel {
@@ -62,7 +73,8 @@ impl DistortionModel {
         match name.to_ascii_lowercase().as_str() {
             "pinhole-k3" | "k3" | "brown-conrady" => Ok(Self::PinholeK3),
             "rational" => Ok(Self::Rational),
-            _ => Err(format!("unknown camera model {name:?}; valid: pinhole-k3, rational")),
+            "fisheye" | "kannala-brandt" => Ok(Self::Fisheye),
+            _ => Err(format!("unknown camera model {name:?}; valid: pinhole-k3, rational, fisheye")),
         }
     }
 }
@@ -100,8 +112,11 @@ pub struct Distortion {
 }
 
 impl Distortion {
-    /// In OpenCV's order: k1, k2, p1, p2, k3[, k4, k5, k6].
+    /// In OpenCV's order: k1, k2, p1, p2, k3[, k4, k5, k6]; for `Fisheye`, k1, k2, k3, k4.
     pub fn to_opencv(&self, model: DistortionModel) -> Vec<f64> {
+        if model == DistortionModel::Fisheye {
+            return vec![self.k1, self.k2, self.k3, self.k4];
+        }
         let mut v = vec![self.k1, self.k2, self.p1, self.p2, self.k3];
         if model == DistortionModel::Rational {
             v.extend([self.k4, self.k5, self.k6]);
@@ -113,6 +128,60 @@ impl Distortion {
     pub fn from_opencv(v: &[f64]) -> Self {
         let g = |i: usize| v.get(i).copied().unwrap_or(0.0);
         Self { k1: g(0), k2: g(1), p1: g(2), p2: g(3), k3: g(4), k4: g(5), k5: g(6), k6: g(7) }
+    }
+
+    /// From OpenCV's fisheye order k1, k2, k3, k4 (missing ones are 0).
+    pub fn from_opencv_fisheye(v: &[f64]) -> Self {
+        let g = |i: usize| v.get(i).copied().unwrap_or(0.0);
+        Self { k1: g(0), k2: g(1), k3: g(2), k4: g(3), ..Default::default() }
+    }
+
+    /// Kannala–Brandt: normalised undistorted (x, y) → distorted (module doc).
+    #[inline]
+    pub fn apply_fisheye(&self, x: f64, y: f64) -> [f64; 2] {
+        let r = (x * x + y * y).sqrt();
+        if r < 1e-15 {
+            return [x, y]; // θ_d / r → 1 on the axis
+        }
+        let t = r.atan();
+        let t2 = t * t;
+        let s = t * (1.0 + t2 * (self.k1 + t2 * (self.k2 + t2 * (self.k3 + t2 * self.k4)))) / r;
+        [x * s, y * s]
+    }
+
+    /// Kannala–Brandt inverse: θ from θ_d by Newton's method, then
+    /// r = tan θ; `None` where θ would reach 90° or the polynomial does not
+    /// invert.
+    pub fn invert_fisheye(&self, xd: f64, yd: f64) -> Option<[f64; 2]> {
+        let rd = (xd * xd + yd * yd).sqrt();
+        if rd < 1e-15 {
+            return Some([xd, yd]);
+        }
+        let poly = |t: f64| {
+            let t2 = t * t;
+            t * (1.0 + t2 * (self.k1 + t2 * (self.k2 + t2 * (self.k3 + t2 * self.k4))))
+        };
+        let mut t = rd.min(1.5);
+        for _ in 0..60 {
+            let t2 = t * t;
+            let df = 1.0 + t2 * (3.0 * self.k1 + t2 * (5.0 * self.k2 + t2 * (7.0 * self.k3 + t2 * 9.0 * self.k4)));
+            if !(df.is_finite() && df > 1e-9) {
+                return None;
+            }
+            let step = (poly(t) - rd) / df;
+            t -= step;
+            if !t.is_finite() {
+                return None;
+            }
+            if step.abs() < 1e-15 {
+                break;
+            }
+        }
+        if !(t >= 0.0 && t < std::f64::consts::FRAC_PI_2 - 1e-9) || (poly(t) - rd).abs() > 1e-10 {
+            return None;
+        }
+        let s = t.tan() / rd;
+        Some([xd * s, yd * s])
     }
 
     /// Normalised undistorted (x, y) → distorted (x_d, y_d).
@@ -176,12 +245,29 @@ pub struct CameraModel {
 }
 
 impl CameraModel {
+    /// Normalised undistorted → distorted coordinates for this camera's model.
+    #[inline]
+    pub fn distort(&self, x: f64, y: f64) -> [f64; 2] {
+        match self.model {
+            DistortionModel::Fisheye => self.distortion.apply_fisheye(x, y),
+            DistortionModel::PinholeK3 | DistortionModel::Rational => self.distortion.apply(x, y),
+        }
+    }
+
+    /// Distorted → undistorted normalised coordinates for this camera's model.
+    pub fn undistort_normalised(&self, xd: f64, yd: f64) -> Option<[f64; 2]> {
+        match self.model {
+            DistortionModel::Fisheye => self.distortion.invert_fisheye(xd, yd),
+            DistortionModel::PinholeK3 | DistortionModel::Rational => self.distortion.invert(xd, yd),
+        }
+    }
+
     /// Pixel of a point in the camera frame (OpenCV axes); `None` behind the camera.
     pub fn project(&self, p: [f64; 3]) -> Option<[f64; 2]> {
         if p[2].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
-        let [xd, yd] = self.distortion.apply(p[0] / p[2], p[1] / p[2]);
+        let [xd, yd] = self.distort(p[0] / p[2], p[1] / p[2]);
         let k = &self.intrinsics;
         Some([k.fx * xd + k.cx, k.fy * yd + k.cy])
     }
@@ -189,7 +275,7 @@ impl CameraModel {
     /// Ray (x, y, 1) in the camera frame through pixel (u, v).
     pub fn pixel_to_ray(&self, u: f64, v: f64) -> Option<[f64; 3]> {
         let k = &self.intrinsics;
-        let [x, y] = self.distortion.invert((u - k.cx) / k.fx, (v - k.cy) / k.fy)?;
+        let [x, y] = self.undistort_normalised((u - k.cx) / k.fx, (v - k.cy) / k.fy)?;
         Some([x, y, 1.0])
     }
 
@@ -249,7 +335,7 @@ pub fn undistort_map(cam: &CameraModel, new_k: &Intrinsics) -> Vec<[f64; 2]> {
         .into_par_iter()
         .map(|i| {
             let (u, v) = ((i % w) as f64, (i / w) as f64);
-            let [xd, yd] = cam.distortion.apply((u - new_k.cx) / new_k.fx, (v - new_k.cy) / new_k.fy);
+            let [xd, yd] = cam.distort((u - new_k.cx) / new_k.fx, (v - new_k.cy) / new_k.fy);
             [k.fx * xd + k.cx, k.fy * yd + k.cy]
         })
         .collect()
@@ -388,7 +474,10 @@ mod tests {
     #[test]
     fn model_names() {
         assert_eq!(DistortionModel::from_name("rational").unwrap(), DistortionModel::Rational);
-        assert!(DistortionModel::from_name("fisheye").unwrap_err().contains("pinhole-k3, rational"));
+        assert!(DistortionModel::from_name("fish").unwrap_err().contains("pinhole-k3, rational, fisheye"));
+        assert_eq!(DistortionModel::from_name("Fisheye").unwrap(), DistortionModel::Fisheye);
+        let f = Distortion::from_opencv_fisheye(&[0.1, 0.2, 0.3, 0.4]);
+        assert_eq!(f.to_opencv(DistortionModel::Fisheye), [0.1, 0.2, 0.3, 0.4]);
         let d = Distortion::from_opencv(&[1.0, 2.0, 3.0, 4.0]);
         assert_eq!(d.to_opencv(DistortionModel::PinholeK3), [1.0, 2.0, 3.0, 4.0, 0.0]);
     }
@@ -540,6 +629,7 @@ pub fn calibrate_photos(
         match model {
             DistortionModel::PinholeK3 => "k1 k2 p1 p2 k3",
             DistortionModel::Rational => "rational model k1..k6 p1 p2",
+            DistortionModel::Fisheye => "fisheye::calibrate, Kannala–Brandt k1..k4",
         },
         match detector {
             crate::cv::Detector::Auto =>

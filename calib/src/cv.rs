@@ -19,7 +19,11 @@
 //!
 //! Calibration: `calibrateCamera` (Zhang 2000 initialisation, then
 //! Levenberg–Marquardt over intrinsics, distortion and all poses), flags 0
-//! for `pinhole-k3` and `CALIB_RATIONAL_MODEL` for `rational`. The overall
+//! for `pinhole-k3` and `CALIB_RATIONAL_MODEL` for `rational`; for `fisheye`,
+//! `fisheye::calibrate` (Kannala–Brandt k1–k4, flags
+//! `CALIB_RECOMPUTE_EXTRINSIC | CALIB_FIX_SKEW`, 100 iterations). PnP with a
+//! fisheye camera runs on the corners undistorted by our own inverse
+//! ([`crate::camera::CameraModel::pixel_to_ray`]) with K = I. The overall
 //! RMS is OpenCV's, sqrt(Σ‖residual‖² / number of corners); per-view RMS and
 //! the residuals come from [`crate::camera::CameraModel::project`], which the
 //! tests check against `projectPoints`.
@@ -403,6 +407,7 @@ pub fn calibrate(
     let flags = match model {
         DistortionModel::PinholeK3 => 0,
         DistortionModel::Rational => calib3d::CALIB_RATIONAL_MODEL,
+        DistortionModel::Fisheye => return calibrate_fisheye(&obj, &img, image_size),
     };
     let criteria =
         TermCriteria { typ: core::TermCriteria_COUNT + core::TermCriteria_EPS, max_count: 30, epsilon: f64::EPSILON };
@@ -427,6 +432,55 @@ pub fn calibrate(
     Ok(Solved { camera, rms_px: rms, poses })
 }
 
+/// `fisheye::calibrate` (Kannala–Brandt), see the module doc.
+fn calibrate_fisheye(
+    obj: &Vector<Vector<Point3f>>,
+    img: &Vector<Vector<Point2f>>,
+    image_size: (usize, usize),
+) -> Result<Solved, CalibError> {
+    let mut k = Mat::default();
+    let mut d = Mat::default();
+    // N × 1 three-channel matrices (OpenCV writes the fisheye poses as one Mat each).
+    let mut rvecs = Mat::default();
+    let mut tvecs = Mat::default();
+    let flags = calib3d::Fisheye_CALIB_RECOMPUTE_EXTRINSIC | calib3d::Fisheye_CALIB_FIX_SKEW;
+    let criteria =
+        TermCriteria { typ: core::TermCriteria_COUNT + core::TermCriteria_EPS, max_count: 100, epsilon: f64::EPSILON };
+    let size = Size::new(image_size.0 as i32, image_size.1 as i32);
+    let rms = calib3d::calibrate(obj, img, size, &mut k, &mut d, &mut rvecs, &mut tvecs, flags, criteria)
+        .map_err(cv_err("fisheye::calibrate"))?;
+    let kv = mat_values(&k, "fisheye camera matrix")?;
+    if kv.len() != 9 {
+        return Err(CalibError::Input(format!("fisheye::calibrate returned a camera matrix of {} values", kv.len())));
+    }
+    let camera = CameraModel {
+        model: DistortionModel::Fisheye,
+        image_width: image_size.0,
+        image_height: image_size.1,
+        intrinsics: Intrinsics { fx: kv[0], fy: kv[4], cx: kv[2], cy: kv[5] },
+        distortion: Distortion::from_opencv_fisheye(&mat_values(&d, "fisheye distortion")?),
+    };
+    let single = |m: &Mat, what: &'static str| -> Result<Vec<f64>, CalibError> {
+        let flat = m.reshape(1, 0).map_err(cv_err(what))?.try_clone().map_err(cv_err(what))?;
+        mat_values(&flat, what)
+    };
+    let (r, t) = (single(&rvecs, "fisheye rvecs")?, single(&tvecs, "fisheye tvecs")?);
+    if r.len() != 3 * obj.len() || t.len() != 3 * obj.len() {
+        return Err(CalibError::Input(format!(
+            "fisheye::calibrate returned {} rotation and {} translation values for {} views",
+            r.len(),
+            t.len(),
+            obj.len()
+        )));
+    }
+    let poses = r
+        .chunks_exact(3)
+        .zip(t.chunks_exact(3))
+        .map(|(r, t)| Pose::from_rvec_tvec([r[0], r[1], r[2]], [t[0], t[1], t[2]]))
+        .collect();
+    Ok(Solved { camera, rms_px: rms, poses })
+}
+
 /// Board pose in one photo from its corners and a calibrated camera
 /// (`solvePnP`, iterative Levenberg–Marquardt from an IPPE start).
 pub fn solve_pnp(corners: &[[f64; 2]], board: &BoardSpec, cam: &CameraModel) -> Result<Pose, CalibError> {
@@ -435,8 +489,23 @@ pub fn solve_pnp(corners: &[[f64; 2]], board: &BoardSpec, cam: &CameraModel) -> 
         return Err(CalibError::Input(format!("{} corners for a board of {n}", corners.len())));
     }
     let obj = object_points(board);
-    let img = image_points(corners);
-    let (k, d) = (camera_mat(&cam.intrinsics)?, dist_mat(cam)?);
+    let (img, k, d) = if cam.model == DistortionModel::Fisheye {
+        let mut norm = Vec::with_capacity(n);
+        for (i, c) in corners.iter().enumerate() {
+            let r = cam.pixel_to_ray(c[0], c[1]).ok_or_else(|| {
+                CalibError::Input(format!(
+                    "corner {i} at ({:.1}, {:.1}) px is 90° or more off the fisheye's axis: no pinhole ray for PnP",
+                    c[0], c[1]
+                ))
+            })?;
+            norm.push([r[0], r[1]]);
+        }
+        let identity = Intrinsics { fx: 1.0, fy: 1.0, cx: 0.0, cy: 0.0 };
+        let no_distortion = Mat::from_slice(&[0.0f64; 4]).and_then(|m| m.try_clone()).map_err(cv_err("distortion"))?;
+        (image_points(&norm), camera_mat(&identity)?, no_distortion)
+    } else {
+        (image_points(corners), camera_mat(&cam.intrinsics)?, dist_mat(cam)?)
+    };
     let mut r = Mat::default();
     let mut t = Mat::default();
     let ok = calib3d::solve_pnp(&obj, &img, &k, &d, &mut r, &mut t, false, calib3d::SOLVEPNP_IPPE)
@@ -457,6 +526,20 @@ pub fn project_points(points: &[[f64; 3]], pose: &Pose, cam: &CameraModel) -> Re
     let tvec = Mat::from_slice(&pose.translation_m).and_then(|m| m.try_clone()).map_err(cv_err("tvec"))?;
     let mut out = Vector::<core::Point2d>::new();
     let mut jac = Mat::default();
+    if cam.model == DistortionModel::Fisheye {
+        calib3d::fisheye_project_points_vec(
+            &obj,
+            &mut out,
+            &rvec,
+            &tvec,
+            &camera_mat(&cam.intrinsics)?,
+            &dist_mat(cam)?,
+            0.0,
+            &mut jac,
+        )
+        .map_err(cv_err("fisheye::projectPoints"))?;
+        return Ok(out.iter().map(|p| [p.x, p.y]).collect());
+    }
     calib3d::project_points(
         &obj,
         &rvec,
@@ -479,6 +562,21 @@ pub fn undistort_map(cam: &CameraModel, new_k: &Intrinsics) -> Result<Vec<[f32; 
     let mut m2 = Mat::default();
     let eye = Mat::eye(3, 3, core::CV_64F).and_then(|e| e.to_mat()).map_err(cv_err("identity"))?;
     let size = Size::new(cam.image_width as i32, cam.image_height as i32);
+    if cam.model == DistortionModel::Fisheye {
+        calib3d::fisheye_init_undistort_rectify_map(
+            &camera_mat(&cam.intrinsics)?,
+            &dist_mat(cam)?,
+            &eye,
+            &camera_mat(new_k)?,
+            size,
+            core::CV_32FC1,
+            &mut m1,
+            &mut m2,
+        )
+        .map_err(cv_err("fisheye::initUndistortRectifyMap"))?;
+        let (u, v) = (m1.data_typed::<f32>().map_err(cv_err("map"))?, m2.data_typed::<f32>().map_err(cv_err("map"))?);
+        return Ok(u.iter().zip(v).map(|(a, b)| [*a, *b]).collect());
+    }
     calib3d::init_undistort_rectify_map(
         &camera_mat(&cam.intrinsics)?,
         &dist_mat(cam)?,

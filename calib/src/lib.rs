@@ -8,7 +8,7 @@
 //! |---|---|---|
 //! | [`raw`] | RAW → black/white-scaled mosaic → linear camera RGB, metadata | 1.0 = the white level |
 //! | [`demosaic`] | Bayer demosaicing: Malvar–He–Cutler (2004), bilinear | as the mosaic |
-//! | [`camera`] | pinhole + Brown–Conrady / rational distortion, projection, undistortion | pixels, metres |
+//! | [`camera`] | pinhole + Brown–Conrady / rational distortion, Kannala–Brandt fisheye, projection, undistortion | pixels, metres |
 //! | [`scene`] | board and sample poses, the OpenCV → renderer convention (the only place) | metres |
 //! | [`cv`] | OpenCV: chessboard corners, Zhang calibration, PnP, drawing, `mcc` chart detection, camera response | pixels |
 //! | [`env`](mod@env) | equirectangular HDR checks, colour matrices, perspective views | linear RGB |

@@ -1,5 +1,5 @@
 //! `lucent raw …`, `lucent calibrate`, `lucent undistort`, `lucent pose` and
-//! `lucent env …`: the photo side of the twin (SPEC §5). Orchestration and
+//! `lucent env …` (`merge` and `view` in env_hdr.rs): the photo side of the twin (SPEC §5). Orchestration and
 //! file handling only; the work is done by `lucent-calib`.
 
 use crate::imageio::{self, RgbImage};
@@ -15,6 +15,9 @@ use lucent_calib::raw::{self, RawOptions, WhiteBalance};
 use lucent_calib::scene::{self, BoardSpec, SampleSpec};
 use lucent_calib::{GrayImage, RgbBuffer};
 use std::path::{Path, PathBuf};
+
+#[path = "env_hdr.rs"]
+mod env_hdr;
 
 #[derive(Debug, Subcommand)]
 pub enum RawCommand {
@@ -60,7 +63,8 @@ pub struct CalibrateArgs {
     /// Side of one square in millimetres.
     #[arg(long)]
     pub square_mm: f64,
-    /// Distortion model: pinhole-k3 (k1 k2 p1 p2 k3) or rational (k1..k6 p1 p2).
+    /// Distortion model: pinhole-k3 (k1 k2 p1 p2 k3), rational (k1..k6 p1 p2) or fisheye
+    /// (Kannala–Brandt k1..k4, OpenCV's fisheye module; one lens of a 360° rig at a time).
     #[arg(long, default_value = "pinhole-k3")]
     pub model: String,
     /// Corner detector: auto (sector-based, else classic + cornerSubPix), sector-based or classic.
@@ -128,6 +132,11 @@ pub enum EnvCommand {
     },
     /// Fit the environment's radiance scale so the rendered empty board matches its photo (least squares).
     FitScale(super::env_fit::FitScaleArgs),
+    /// HDR from exposure brackets (RAW/linear: weighted mean of value/exposure; 8-bit: camera response
+    /// recovered by Debevec–Malik or Robertson), with the dynamic range and saturated pixels as JSON.
+    Merge(env_hdr::EnvMergeArgs),
+    /// A perspective view cut from an equirectangular map (bilinear), e.g. to find a chart in a panorama.
+    View(env_hdr::EnvViewArgs),
 }
 
 #[derive(Debug, Args)]
@@ -389,13 +398,18 @@ fn print_calibration(cal: &Calibration) {
         match cal.camera.model {
             DistortionModel::PinholeK3 => "pinhole-k3",
             DistortionModel::Rational => "rational",
+            DistortionModel::Fisheye => "fisheye",
         },
         k.fx,
         k.fy,
         k.cx,
         k.cy
     );
-    print!("distortion k1 {:.5}  k2 {:.5}  p1 {:.6}  p2 {:.6}  k3 {:.5}", d.k1, d.k2, d.p1, d.p2, d.k3);
+    if cal.camera.model == DistortionModel::Fisheye {
+        print!("distortion (Kannala–Brandt) k1 {:.5}  k2 {:.5}  k3 {:.5}  k4 {:.5}", d.k1, d.k2, d.k3, d.k4);
+    } else {
+        print!("distortion k1 {:.5}  k2 {:.5}  p1 {:.6}  p2 {:.6}  k3 {:.5}", d.k1, d.k2, d.p1, d.p2, d.k3);
+    }
     if cal.camera.model == DistortionModel::Rational {
         print!("  k4 {:.5}  k5 {:.5}  k6 {:.5}", d.k4, d.k5, d.k6);
     }
@@ -599,6 +613,8 @@ pub fn run_env(cmd: EnvCommand) -> Result<()> {
             Ok(())
         }
         EnvCommand::FitScale(a) => super::env_fit::run(a),
+        EnvCommand::Merge(a) => env_hdr::merge(a),
+        EnvCommand::View(a) => env_hdr::view(a),
     }
 }
 
