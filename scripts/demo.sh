@@ -40,12 +40,20 @@ echo "== 5. The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerb
 "$bin" render fixtures/render/demo.toml --spp 64 --time-s 150 --out "$out/render"
 
 echo
-echo "== 6. The whole digitisation from one project file (lucent run fixtures/demo/project.toml): a synthetic photo and"
-echo "   empty board of IOL1068-09 rendered with the environment scaled by 1.6 (the truth), then every stage"
+echo "== 6. The whole digitisation from one project file (lucent run fixtures/demo/project.toml). The synthetic truth:"
+echo "   six board views by a known camera (fixtures/demo/truth_camera.json), and a photo and empty board of IOL1068-09"
+echo "   by that camera from view 1 with the environment scaled by 1.6; then every stage"
+mkdir -p "$out/truth/views"
+for k in 1 2 3 4 5 6; do
+  "$bin" render "fixtures/demo/views/view$k.toml" --quiet --out "$out/truth/view$k"
+  cp "$out/truth/view$k/render.png" "$out/truth/views/view$k.png"
+done
 "$bin" render fixtures/demo/truth.toml --size 160x120 --spp 128 --seed 1001 --quiet --out "$out/truth/photo"
 "$bin" render fixtures/demo/truth_empty.toml --size 160x120 --spp 128 --seed 1002 --quiet --out "$out/truth/empty"
 "$bin" run fixtures/demo/project.toml --out "$out/run"
 echo "   truth: environment scale 1.6; recovered: $(grep -m1 '"new_scale"' "$out/run/env-scale/IOL1068-09/env_scale.json" | tr -d ' ,')"
+echo "   truth camera: fx 530 fy 530 cx 330.5 cy 236.5 k1 -0.25 k2 0.10; recovered:" \
+  $(grep -m7 -E '"(fx|fy|cx|cy|k1|k2|k3)"' "$out/run/calibrate/camera.json" | tr -d ' ,"') "(table in the report)"
 
 echo
 echo "Results are in $out/:"
