@@ -177,7 +177,7 @@ impl Distortion {
                 break;
             }
         }
-        if !(t >= 0.0 && t < std::f64::consts::FRAC_PI_2 - 1e-9) || (poly(t) - rd).abs() > 1e-10 {
+        if !(0.0..std::f64::consts::FRAC_PI_2 - 1e-9).contains(&t) || (poly(t) - rd).abs() > 1e-10 {
             return None;
         }
         let s = t.tan() / rd;

@@ -768,8 +768,8 @@ pub fn recover_response(
     let mut curve = [vec![0f32; 256], vec![0f32; 256], vec![0f32; 256]];
     for z in 0..256 {
         let v = dst.at_2d::<core::Vec3f>(z as i32, 0).map_err(err("read response"))?;
-        for c in 0..3 {
-            curve[c][z] = v[c];
+        for (channel, value) in curve.iter_mut().zip(v.iter()) {
+            channel[z] = *value;
         }
     }
     if curve.iter().flatten().any(|v| !(v.is_finite() && *v > 0.0)) {

@@ -346,8 +346,8 @@ mod view_tests {
                 let theta = std::f64::consts::PI * (y as f64 + 0.5) / h as f64;
                 let phi = -std::f64::consts::TAU * (x as f64 + 0.5) / w as f64;
                 let d = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
-                for k in 0..3 {
-                    m.data[3 * (y * w + x) + k] = d[k] as f32;
+                for (o, v) in m.data[3 * (y * w + x)..3 * (y * w + x) + 3].iter_mut().zip(d) {
+                    *o = v as f32;
                 }
             }
         }

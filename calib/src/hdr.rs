@@ -258,7 +258,7 @@ fn merge_core(
     let mut floor_all = 0;
     let mut sat_per = vec![0usize; n];
     let (mut lum_min, mut lum_max) = (f64::INFINITY, 0.0f64);
-    for p in 0..width * height {
+    for (p, sat_p) in sat_all.iter_mut().enumerate() {
         let mut acc = [0.0f64; 3];
         let mut wsum = 0.0;
         let (mut all_sat, mut all_floor) = (true, true);
@@ -268,8 +268,8 @@ fn merge_core(
             all_sat &= s.saturated;
             all_floor &= s.below_floor;
             if s.weight > 0.0 {
-                for c in 0..3 {
-                    acc[c] += s.weight * if log_domain { (s.value[c].max(1e-30) / t).ln() } else { s.value[c] / t };
+                for (a, v) in acc.iter_mut().zip(s.value) {
+                    *a += s.weight * if log_domain { (v.max(1e-30) / t).ln() } else { v / t };
                 }
                 wsum += s.weight;
             }
@@ -286,7 +286,7 @@ fn merge_core(
             let i = if all_sat || !all_floor { shortest } else { longest };
             sample(i, p).value.map(|v| v / exposures[i])
         };
-        sat_all[p] = all_sat;
+        *sat_p = all_sat;
         floor_all += usize::from(all_floor && !all_sat);
         if wsum > 0.0 {
             let y = 0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2];
@@ -295,8 +295,8 @@ fn merge_core(
                 lum_max = lum_max.max(y);
             }
         }
-        for c in 0..3 {
-            out.data[3 * p + c] = e[c] as f32;
+        for (o, v) in out.data[3 * p..3 * p + 3].iter_mut().zip(e) {
+            *o = v as f32;
         }
     }
     let dr = if lum_max > 0.0 && lum_min.is_finite() { (lum_max / lum_min).log2() } else { 0.0 };
@@ -507,7 +507,7 @@ mod tests {
         let e = merge_linear(&[a.clone(), b], &[1.0, 2.0], &w).unwrap_err();
         assert_eq!(e, HdrError::SizeMismatch { index: 1, width: 4, height: 3, width0: 4, height0: 2 });
         assert!(e.to_string().contains("4 × 3") && e.to_string().contains("same size"));
-        assert_eq!(merge_linear(&[a.clone()], &[1.0], &w).unwrap_err(), HdrError::TooFewBrackets(1));
+        assert_eq!(merge_linear(std::slice::from_ref(&a), &[1.0], &w).unwrap_err(), HdrError::TooFewBrackets(1));
         assert!(matches!(merge_linear(&[a.clone(), a.clone()], &[1.0], &w), Err(HdrError::ExposureCount { .. })));
         assert!(matches!(merge_linear(&[a.clone(), a.clone()], &[1.0, -1.0], &w), Err(HdrError::BadExposure { .. })));
         assert!(matches!(merge_linear(&[a.clone(), a.clone()], &[1.0, 1.0], &w), Err(HdrError::SameExposure { .. })));
