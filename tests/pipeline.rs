@@ -353,7 +353,11 @@ fn project_runs_skips_reruns_fails_and_reports() {
 #[test]
 fn bad_projects_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
-    let cases: [(&str, &[&str]); 6] = [
+    let cases: [(&str, &[&str]); 7] = [
+        (
+            "[calibration]\nimages = \"b*.png\"\nboard = \"9x6\"\nsquare_mm = 25\ntruth = \"x.toml\"\n",
+            &["[calibration] truth", "x.toml", "camera.json"],
+        ),
         ("[render]\nscene = \"x.toml\"\ncamera = \"pose\"\n", &["[render] camera", "[pose]"]),
         ("[project]\nname = \"x\"\ncolour_space = 1\n", &["unknown field"]),
         ("[[sample]]\nname = \"a\"\nrecipe = \"nope.toml\"\n", &["recipe", "nope.toml", "no such file"]),
