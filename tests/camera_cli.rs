@@ -168,11 +168,11 @@ fn calibrate_errors_name_the_files() {
         "--square-mm",
         "25",
         "--model",
-        "fisheye",
+        "polynomial",
         "--out",
         "x.json",
     ]);
-    assert!(stderr(&o).contains("pinhole-k3, rational"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("pinhole-k3, rational, fisheye"), "{}", stderr(&o));
 }
 
 #[test]

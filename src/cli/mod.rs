@@ -7,8 +7,8 @@ pub mod colour;
 pub mod compare;
 pub mod env_fit;
 pub mod render;
-pub mod surface;
 pub mod run;
+pub mod surface;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::mie::{self, Coefficients, Efficiencies};

@@ -415,7 +415,10 @@ impl Validator<'_> {
             }
             Some(RawSurface { fit: None, alpha, scale, model }) => {
                 let Some(model) = model else {
-                    return self.invalid("surface.model", "missing (trowbridge-reitz or beckmann), or give fit = \"fit.json\"");
+                    return self.invalid(
+                        "surface.model",
+                        "missing (trowbridge-reitz or beckmann), or give fit = \"fit.json\"",
+                    );
                 };
                 let Some(alpha) = alpha else { return self.invalid("surface.alpha", "missing") };
                 Some(Surface {
