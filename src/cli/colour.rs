@@ -557,6 +557,21 @@ fn bands(a: BandsArgs) -> Result<()> {
     Ok(())
 }
 
+/// Warns when a grid spans less than 99 % of a band's colour-matching mass
+/// (below 90 % `band_weights` refuses it).
+pub fn warn_partial_coverage(what: &str, w: &BandWeights) {
+    for (b, f) in w.coverage.iter().enumerate() {
+        if *f < 0.99 {
+            eprintln!(
+                "warning: {what}: the wavelength grid spans {:.1} % of band {}'s colour-matching mass; \
+                 the band average leaves the rest out (use e.g. 380:780:10)",
+                100.0 * f,
+                BANDS[b]
+            );
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -572,20 +587,5 @@ mod tests {
         assert!(parse_clip_level("-1").is_err());
         assert_eq!(parse_adaptation("CAT02").unwrap(), Some(Cat::Cat02));
         assert!(parse_adaptation("cat16").is_err());
-    }
-}
-
-/// Warns when a grid spans less than 99 % of a band's colour-matching mass
-/// (below 90 % `band_weights` refuses it).
-pub fn warn_partial_coverage(what: &str, w: &BandWeights) {
-    for (b, f) in w.coverage.iter().enumerate() {
-        if *f < 0.99 {
-            eprintln!(
-                "warning: {what}: the wavelength grid spans {:.1} % of band {}'s colour-matching mass; \
-                 the band average leaves the rest out (use e.g. 380:780:10)",
-                100.0 * f,
-                BANDS[b]
-            );
-        }
     }
 }
