@@ -722,19 +722,10 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
             let p = o + hit.t * d;
             let n_out = if hit.normal.dot(d) >= 0.0 { hit.normal } else { -hit.normal };
             if let Some(rough) = &obj.rough {
-                let Some((nd, weight, crosses)) = rough_scatter(&rough[h], n_out, d, rng) else { break };
-                for b in tp.beta.iter_mut() {
-                    *b *= weight;
-                }
-                d = nd;
-                if crosses {
-                    o = p + eps * n_out;
-                    inside = false;
-                } else {
-                    o = p - eps * n_out;
-                    safe = 0.0;
-                }
-                last_diffuse_pdf = None;
+                let Some((nd, no, now_inside)) = rough_scatter(&rough[h], n_out, p, d, eps, &mut tp, rng) else {
+                    break;
+                };
+                (d, o, inside, safe, last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
                 if !roulette(&mut tp, settings, rng) {
                     break;
                 }
@@ -851,19 +842,10 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                 let p = o + hit.t * d;
                 let n_in = if hit.normal.dot(d) < 0.0 { hit.normal } else { -hit.normal };
                 if let Some(rough) = &obj.rough {
-                    let Some((nd, weight, crosses)) = rough_scatter(&rough[h], n_in, d, rng) else { break };
-                    for b in tp.beta.iter_mut() {
-                        *b *= weight;
-                    }
-                    d = nd;
-                    if crosses {
-                        o = p - eps * n_in;
-                        inside = true;
-                        safe = 0.0;
-                    } else {
-                        o = p + eps * n_in;
-                    }
-                    last_diffuse_pdf = None;
+                    let Some((nd, no, now_inside)) = rough_scatter(&rough[h], n_in, p, d, eps, &mut tp, rng) else {
+                        break;
+                    };
+                    (d, o, inside, safe, last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
                     if !roulette(&mut tp, settings, rng) {
                         break;
                     }
@@ -986,18 +968,31 @@ fn connect_through_faces(
 }
 
 /// Samples the rough boundary `bsdf` (frame: +z = the outward normal
-/// `n_out`) for a ray arriving along `d`: the new direction, the throughput
-/// weight f|cos θ_i|/pdf (radiance transport) and whether it crosses the
-/// boundary. `None` when the sample is lost (the microfacet model's energy
-/// loss).
+/// `n_out` at the hit point `p`) for a ray arriving along `d`, multiplies the
+/// throughput by the weight f|cos θ_i|/pdf (radiance transport), and returns
+/// the new direction, the new origin (offset by `eps` to the side it leaves
+/// into) and whether that side is the inside. `None` when the sample is
+/// lost (the microfacet model's energy loss).
 #[inline]
-fn rough_scatter(bsdf: &RoughDielectric, n_out: DVec3, d: DVec3, rng: &mut Rng) -> Option<(DVec3, f64, bool)> {
+fn rough_scatter(
+    bsdf: &RoughDielectric,
+    n_out: DVec3,
+    p: DVec3,
+    d: DVec3,
+    eps: f64,
+    tp: &mut Throughput,
+    rng: &mut Rng,
+) -> Option<(DVec3, DVec3, bool)> {
     let (t, b) = crate::phase::orthonormal_basis(n_out.to_array());
     let (t, b) = (DVec3::from_array(t), DVec3::from_array(b));
     let wo = DVec3::new(-d.dot(t), -d.dot(b), -d.dot(n_out));
     let s = bsdf.sample(wo, [rng.next_f64(), rng.next_f64(), rng.next_f64()], Transport::Radiance)?;
-    let wi = s.wi.x * t + s.wi.y * b + s.wi.z * n_out;
-    Some((wi.normalize(), s.weight, s.is_transmission))
+    for beta in tp.beta.iter_mut() {
+        *beta *= s.weight;
+    }
+    let wi = (s.wi.x * t + s.wi.y * b + s.wi.z * n_out).normalize();
+    let inside = s.wi.z < 0.0;
+    Some((wi, if inside { p - eps * n_out } else { p + eps * n_out }, inside))
 }
 
 /// Russian roulette on the estimate's weight β / mean r; false = the path ends.
