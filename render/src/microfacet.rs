@@ -686,6 +686,32 @@ impl Microsurface {
             Microsurface::Measured(s) => s.pdf_projected(m),
         }
     }
+
+    /// Draws a normal as [`Microsurface::sample_normal`] and returns it with
+    /// the factor G1(ω_o, m) |ω_o·m| D(m) / (|cos θ_o| p(m)), p the density it
+    /// was drawn with: then a BSDF sample through m has the weight
+    /// f |cos θ_i| / pdf = factor · G1(ω_i, m) (times the Fresnel lobe's
+    /// factor when the lobe is not chosen by F). The factor is 1 for
+    /// visible-normal sampling and G1(ω_o, m) |ω_o·m| / (|cos θ_o| m_z) for a
+    /// measured set (p = D(m) m_z), so no density is evaluated (the measured
+    /// set's kernel sum is the costly part). `None` as `sample_normal`, for a
+    /// grazing `wo` and for a normal facing away from `wo` (factor 0).
+    pub fn sample_normal_weighted(&self, wo: DVec3, u: [f64; 2]) -> Option<(DVec3, f64)> {
+        if wo.z == 0.0 || !wo.is_finite() {
+            return None;
+        }
+        match self {
+            Microsurface::Analytic(d) => d.sample_visible(wo, u).map(|m| (m, 1.0)),
+            Microsurface::Measured(s) => {
+                let m = s.sample_projected(u);
+                let g = s.g1(wo, m);
+                if !(m.z > 0.0 && m.is_finite()) || g == 0.0 {
+                    return None;
+                }
+                Some((m, g * wo.dot(m).abs() / (wo.z.abs() * m.z)))
+            }
+        }
+    }
 }
 
 /// Which quantity a path carries (pbrt-v4's TransportMode).
@@ -872,7 +898,7 @@ impl RoughDielectric {
 /// Refracts the direction `wo` (pointing away from the surface on its side)
 /// through a microfacet with normal m, relative index `eta` = n_other/n_wo;
 /// `None` under total internal reflection.
-fn refract_about(wo: DVec3, m: DVec3, eta: f64) -> Option<DVec3> {
+pub fn refract_about(wo: DVec3, m: DVec3, eta: f64) -> Option<DVec3> {
     let (n, cos_i) = if wo.dot(m) >= 0.0 { (m, wo.dot(m)) } else { (-m, -wo.dot(m)) };
     let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
     if sin2_t >= 1.0 {

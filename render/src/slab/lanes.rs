@@ -50,18 +50,23 @@ impl Kernel<'_> {
     /// Starts the batch's next path in lane `l`, or retires the lane when
     /// the batch is done.
     fn start_lane(&self, paths: &mut Paths, l: usize) {
-        if paths.next >= paths.end {
-            paths.live &= !(1 << l);
-            return;
+        // A path lost at a rough entry adds nothing: the lane takes the next.
+        let (rng, (p, dir, w)) = loop {
+            if paths.next >= paths.end {
+                paths.live &= !(1 << l);
+                return;
+            }
+            let mut rng = Rng::new(paths.seed, paths.next);
+            paths.next += 1;
+            if let Some(start) = self.launch(&mut rng) {
+                break (rng, start);
+            }
+        };
+        for k in 0..3 {
+            paths.p[k].0[l] = p[k];
+            paths.dir[k].0[l] = dir[k];
         }
-        let mut rng = Rng::new(paths.seed, paths.next);
-        paths.next += 1;
-        let (x0, y0) = if self.ring.is_some() { (0.0, 0.0) } else { self.entry_point(&mut rng) };
-        for (k, v) in [x0, y0, 0.0].into_iter().enumerate() {
-            paths.p[k].0[l] = v;
-            paths.dir[k].0[l] = self.entry_dir[k];
-        }
-        paths.w.0[l] = self.entry_weight;
+        paths.w.0[l] = w;
         paths.total[l] = 0.0;
         paths.rng[l] = rng;
         paths.live |= 1 << l;
@@ -143,8 +148,9 @@ impl Kernel<'_> {
                     let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
                     paths.total[l] += self.connect_ring(ring, pl, dl, paths.w.0[l], &mut b.image, &mut paths.rng[l]);
                 }
-            } else if self.image_terms {
-                // Thin slab: the image terms' loop, per lane.
+            } else if self.image_terms || self.rough {
+                // Thin slab (the image terms' loop) or a rough top (sampled
+                // exit directions), per lane.
                 for l in lanes_of(ev) {
                     let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
                     paths.total[l] += self.connect(pl, dl, paths.w.0[l], &mut b.image, &mut paths.rng[l]);
@@ -193,16 +199,17 @@ impl Kernel<'_> {
                 for l in lanes_of(hit) {
                     let mut p = p_before.map(|c| c.0[l]);
                     let mut dir = dir_before.map(|c| c.0[l]);
-                    let crossing = self.cross(&mut p, &mut dir, gap.0[l], &mut paths.rng[l]);
+                    let mut w = w_before.0[l];
+                    let crossing = self.cross(&mut p, &mut dir, &mut w, gap.0[l], &mut paths.rng[l]);
                     for k in 0..3 {
                         paths.p[k].0[l] = p[k];
                         paths.dir[k].0[l] = dir[k];
                     }
-                    let w = w_before.0[l];
                     paths.w.0[l] = w;
                     match crossing {
                         Crossing::Reflected => {}
-                        Crossing::LeftTop => self.end_lane(&mut paths, &mut b, l, w, 0.0),
+                        Crossing::Lost => self.end_lane(&mut paths, &mut b, l, 0.0, 0.0),
+                        Crossing::LeftTop(_) => self.end_lane(&mut paths, &mut b, l, w, 0.0),
                         Crossing::LeftBottom => self.end_lane(&mut paths, &mut b, l, 0.0, w),
                     }
                 }
