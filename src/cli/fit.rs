@@ -1,0 +1,374 @@
+//! `lucent fit`: recipe parameters fitted to measured BSSRDF slices
+//! ([`crate::fit`]), and `lucent bench fit`.
+
+use crate::bssrdf::{self, Grid};
+use crate::fit::{self, report, Budget, FitResult, FreeParameter, Measurement, Objective, Problem};
+use crate::optics::recipe::{Overrides, Recipe};
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, ValueEnum};
+use lucent_render::slab::{self, Beam, BeamMap, Directions, Estimator, RunOptions, Sensor, Setup, Slab, Stop};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ObjectiveChoice {
+    /// Relative error of the slice sums, squared, mean over configurations.
+    Sum,
+    /// Mean squared relative error over the measured pixels above the threshold.
+    Msre,
+}
+
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Recipe (TOML) with the start values.
+    #[arg(long)]
+    pub recipe: PathBuf,
+    /// Weight percentage for a recipe that leaves it unknown (the start value).
+    #[arg(long)]
+    pub weight_percent: Option<f64>,
+    /// Measured slices FILE[:THETA_I/THETA_O] or FILE:THETA_I/PHI_I/THETA_O/PHI_O (degrees; φi 0°, φo 180° by default;
+    /// without angles, from the file's sidecar FILE.json or summary.json "config").
+    #[arg(long, required = true, num_args = 1..)]
+    pub measured: Vec<String>,
+    /// Pixel size of the measured slices in mm (else from their sidecar JSON).
+    #[arg(long)]
+    pub measured_pixel_mm: Option<f64>,
+    /// Free parameters, comma-separated: weight_percent, diameter_um, real_part_n (NAME@K for particle type K).
+    #[arg(long, required = true)]
+    pub free: String,
+    #[arg(long, value_enum, default_value_t = ObjectiveChoice::Sum)]
+    pub objective: ObjectiveChoice,
+    /// Wavelength of the measurements in nm.
+    #[arg(long, default_value_t = 550.0)]
+    pub wavelength: f64,
+    /// Gaussian beam FWHM in µm.
+    #[arg(long, default_value_t = 200.0, conflicts_with = "beam_map")]
+    pub beam_fwhm_um: f64,
+    /// Measured map of incident irradiance on the surface (EXR, float TIFF or CSV grid).
+    #[arg(long)]
+    pub beam_map: Option<PathBuf>,
+    /// Pixel size of the beam map in mm (else from its sidecar JSON).
+    #[arg(long)]
+    pub beam_map_pixel_mm: Option<f64>,
+    /// Relative uncertainty of each measured slice (a scale error; the lab states 5 %).
+    #[arg(long, default_value_t = 0.05)]
+    pub measured_rel_sd: f64,
+    /// Mask of the msre objective: measured pixels above this fraction of the maximum.
+    #[arg(long, default_value_t = 0.01)]
+    pub threshold: f64,
+    /// Target relative error of each simulated slice sum at the final points (sets the path count by a pilot run).
+    #[arg(long, default_value_t = 0.005)]
+    pub rel_error: f64,
+    /// Light paths per configuration and evaluation instead of the pilot run.
+    #[arg(long)]
+    pub paths: Option<u64>,
+    /// Time cap of the pilot run per configuration, seconds.
+    #[arg(long, default_value_t = 60.0)]
+    pub pilot_time_s: f64,
+    /// Search bounds LO:HI per free parameter, comma-separated (default start/10 … start·10; n: ÷/× 1.2).
+    #[arg(long)]
+    pub bounds: Option<String>,
+    /// Slab thickness in mm (default: the recipe's).
+    #[arg(long)]
+    pub thickness_mm: Option<f64>,
+    /// Seed of the common random numbers.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    #[arg(long, default_value = "lucent-out/fit")]
+    pub out: PathBuf,
+    /// No progress lines.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Splits "FILE:A/B" or "FILE:A/B/C/D" into the file and (θi, φi, θo, φo).
+pub fn parse_measured(spec: &str) -> Result<(PathBuf, Option<(f64, f64, f64, f64)>)> {
+    if let Some((file, angles)) = spec.rsplit_once(':') {
+        if angles.contains('/') {
+            let nums: Vec<f64> = angles
+                .split('/')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| anyhow!("--measured {spec:?}: {angles:?} is not THETA_I/THETA_O or THETA_I/PHI_I/THETA_O/PHI_O"))?;
+            let a = match nums.as_slice() {
+                [ti, to] => (*ti, 0.0, *to, 180.0),
+                [ti, pi, to, po] => (*ti, *pi, *to, *po),
+                _ => bail!("--measured {spec:?}: give 2 angles (θi/θo) or 4 (θi/φi/θo/φo)"),
+            };
+            return Ok((PathBuf::from(file), Some(a)));
+        }
+    }
+    Ok((PathBuf::from(spec), None))
+}
+
+/// The configuration from a sidecar (`FILE.json`, or `summary.json` beside
+/// it, as `lucent bssrdf` writes): `config.theta_i_deg` etc.
+fn sidecar_angles(path: &Path) -> Result<Option<(f64, f64, f64, f64)>> {
+    let mut candidates = vec![PathBuf::from(format!("{}.json", path.display()))];
+    if let Some(dir) = path.parent() {
+        candidates.push(dir.join("summary.json"));
+    }
+    for c in candidates {
+        let Ok(text) = std::fs::read_to_string(&c) else { continue };
+        let v: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", c.display()))?;
+        let get = |k: &str| v.get(k).or_else(|| v.pointer(&format!("/config/{k}"))).and_then(|x| x.as_f64());
+        if let (Some(ti), Some(to)) = (get("theta_i_deg"), get("theta_o_deg")) {
+            return Ok(Some((ti, get("phi_i_deg").unwrap_or(0.0), to, get("phi_o_deg").unwrap_or(180.0))));
+        }
+    }
+    Ok(None)
+}
+
+fn parse_bounds(text: &str, n: usize) -> Result<Vec<Option<(f64, f64)>>> {
+    let parts: Vec<&str> = text.split(',').collect();
+    if parts.len() != n {
+        bail!("--bounds {text:?}: {} entries for {n} free parameter(s)", parts.len());
+    }
+    parts
+        .iter()
+        .map(|p| {
+            let (a, b) = p.split_once(':').ok_or_else(|| anyhow!("--bounds {text:?}: expected LO:HI, got {p:?}"))?;
+            let num = |s: &str| s.trim().parse::<f64>().map_err(|_| anyhow!("--bounds {text:?}: {s:?} is not a number"));
+            Ok(Some((num(a)?, num(b)?)))
+        })
+        .collect()
+}
+
+fn build_problem(a: &FitArgs) -> Result<Problem> {
+    let recipe = Recipe::load(&a.recipe, Overrides { weight_percent: a.weight_percent })?;
+    let free: Vec<FreeParameter> =
+        a.free.split(',').map(|t| FreeParameter::parse(t, &recipe)).collect::<Result<_, _>>()?;
+    if let Some(p) = a.measured_pixel_mm {
+        if !(p.is_finite() && p > 0.0) {
+            bail!("--measured-pixel-mm {p}: must be a positive number of millimetres");
+        }
+    }
+    let mut measurements = Vec::new();
+    for spec in &a.measured {
+        let (path, angles) = parse_measured(spec)?;
+        if !path.is_file() {
+            bail!("--measured {}: no such file", path.display());
+        }
+        let angles = match angles {
+            Some(x) => x,
+            None => sidecar_angles(&path)?.ok_or_else(|| {
+                anyhow!(
+                    "--measured {}: configuration unknown; write it as {}:45/0 (θi/θo in degrees) or give a FILE.json with theta_i_deg, theta_o_deg",
+                    path.display(),
+                    path.display()
+                )
+            })?,
+        };
+        measurements.push(Measurement::load(&path, a.measured_pixel_mm, angles)?);
+    }
+    let beam = match &a.beam_map {
+        Some(path) => {
+            let grid = bssrdf::read_grid(path, a.beam_map_pixel_mm).context("--beam-map")?;
+            Beam::Map(
+                BeamMap::new(grid.size, grid.size, grid.pixel_m, grid.values)
+                    .map_err(|e| anyhow!("{}: {e}", path.display()))?,
+            )
+        }
+        None => Beam::gaussian(a.beam_fwhm_um * 1e-6).map_err(|e| anyhow!("--beam-fwhm-um {}: {e}", a.beam_fwhm_um))?,
+    };
+    let thickness_m = match a.thickness_mm {
+        Some(t) if !(t.is_finite() && t > 0.0) => bail!("--thickness-mm {t}: must be a positive number of millimetres"),
+        Some(t) => t * 1e-3,
+        None => recipe.thickness_m,
+    };
+    let bounds = match &a.bounds {
+        Some(t) => parse_bounds(t, free.len())?,
+        None => vec![None; free.len()],
+    };
+    let mut problem = Problem::new(recipe, a.wavelength, free, measurements)?;
+    problem.beam = beam;
+    problem.objective = match a.objective {
+        ObjectiveChoice::Sum => Objective::Sum,
+        ObjectiveChoice::Msre => Objective::Msre,
+    };
+    problem.threshold = a.threshold;
+    problem.measured_rel_sd = a.measured_rel_sd;
+    problem.seed = a.seed;
+    problem.budget =
+        Budget { rel_error: a.rel_error, pilot_time_s: a.pilot_time_s, paths: a.paths, ..Budget::default() };
+    problem.bounds = bounds;
+    problem.thickness_m = thickness_m;
+    problem.validate()?;
+    Ok(problem)
+}
+
+/// Writes fit.json, objective.png and (identifiable fits) the fitted recipe.
+pub fn write_outputs(out: &Path, problem: &Problem, result: &FitResult) -> Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    let p = out.join("fit.json");
+    crate::io::write_json(&p, result)?;
+    written.push(p);
+    let p = out.join("objective.png");
+    crate::io::write_atomic(&p, &report::objective_png(result)?)?;
+    written.push(p);
+    let original = std::fs::read_to_string(&problem.recipe.path)
+        .with_context(|| format!("{}: cannot read the recipe again", problem.recipe.path.display()))?;
+    let dir = problem.recipe.path.parent().unwrap_or(Path::new("."));
+    if let Some(text) = report::fitted_recipe_text(&original, dir, result) {
+        let stem = problem.recipe.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or("recipe".into());
+        let p = out.join(format!("{stem}_fitted.toml"));
+        // The fitted recipe must load as it is written.
+        Recipe::parse(&text, &p, Overrides::default()).with_context(|| "the fitted recipe does not validate")?;
+        crate::io::write_atomic(&p, text.as_bytes())?;
+        written.push(p);
+    }
+    Ok(written)
+}
+
+pub fn run(a: FitArgs) -> Result<()> {
+    let problem = build_problem(&a)?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("--out {}: cannot create the folder", a.out.display()))?;
+    let quiet = a.quiet;
+    let result = fit::fit(&problem, |e| {
+        if !quiet {
+            eprintln!("{e}");
+        }
+    })?;
+    let written = write_outputs(&a.out, &problem, &result)?;
+    print_result(&result);
+    println!("written: {}", written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
+    if !result.identifiable {
+        bail!("{}", result.reason.clone().unwrap_or_else(|| "the fit is not identifiable".into()));
+    }
+    Ok(())
+}
+
+fn print_result(r: &FitResult) {
+    for p in &r.parameters {
+        match (p.value, p.std_error, p.interval_95) {
+            (Some(v), Some(se), Some([lo, hi])) => println!(
+                "{}: {:.5} → {v:.5} ± {se:.5} (95 %: {lo:.5} … {hi:.5}; SE from the measurement uncertainty {:.5}{})",
+                p.name,
+                p.start,
+                p.std_error_measurement.unwrap_or(f64::NAN),
+                p.std_error_bootstrap_configurations
+                    .map(|s| format!(", bootstrap over configurations {s:.5}"))
+                    .unwrap_or_default()
+            ),
+            _ => println!("{}: not identifiable", p.name),
+        }
+    }
+    println!(
+        "objective ({}): {:.4e} → {}; {} evaluations, {:.2e} paths, {:.1} s",
+        r.objective.name(),
+        r.objective_start,
+        r.objective_end.map(|v| format!("{v:.4e}")).unwrap_or("—".into()),
+        r.evaluations,
+        r.paths_total as f64,
+        r.wall_s
+    );
+}
+
+/// Synthetic "measured" slices of `recipe` (at its weight percentage): a
+/// simulation with `paths` paths and seed `seed` (not the fit's), times a
+/// per-slice scale error 1 + σ z and per-pixel noise 1 + σ z_p (σ =
+/// `noise`), as the lab's 5 % uncertainty. Returns one grid per angle set.
+pub fn synthetic_measurements(
+    recipe: &Recipe,
+    wavelength_nm: f64,
+    configs: &[(f64, f64, f64, f64)],
+    pixels: usize,
+    pixel_mm: f64,
+    paths: u64,
+    seed: u64,
+    noise: f64,
+) -> Result<Vec<Grid>> {
+    use crate::optics::bulk;
+    use lucent_render::phase::{Phase, PhaseTable};
+    let s = bulk::at_wavelength(recipe, wavelength_nm, &bulk::Options::default())?;
+    let medium = slab::Medium::new(
+        s.mu_s_per_m,
+        s.mu_a_per_m,
+        Phase::Tabulated(PhaseTable::from_theta_samples(&s.phase)?),
+        s.n_bulk.max(1.0),
+    )?;
+    let mut rng = lucent_render::rng::Rng::new(seed ^ 0x0a15e, 7);
+    let mut normal = || {
+        let u1 = rng.next_f64().max(1e-300);
+        let u2 = rng.next_f64();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    };
+    let mut out = Vec::new();
+    for &(ti, pi, to, po) in configs {
+        let setup = Setup::new(
+            Slab::new(recipe.thickness_m, medium.clone())?,
+            Beam::gaussian(200e-6)?,
+            Sensor::new(pixels, pixel_mm * 1e-3)?,
+            Directions::from_degrees(ti, pi, to, po)?,
+        );
+        let options =
+            RunOptions { stop: Stop::paths(paths), seed, estimator: Estimator::best_for(&setup), fold: true, ..RunOptions::default() };
+        let slice = slab::simulate(&setup, &options, |_| {})?;
+        let scale = 1.0 + noise * normal();
+        let values = slice.values.iter().map(|v| (v * scale * (1.0 + noise * normal())).max(0.0)).collect();
+        out.push(Grid { size: pixels, pixel_m: pixel_mm * 1e-3, values });
+    }
+    Ok(out)
+}
+
+/// `lucent bench fit`: a one-parameter weight-percentage fit of IOL1068-09
+/// (PDMS) over three configurations (45/0, 0/45, 45/15; the lab's sensor,
+/// 117 pixels of 0.1029 mm) to synthetic measurements made at 0.425 wt-%
+/// with 5 % noise, starting from the recipe's 0.65. Reports the wall time
+/// of the fit (the measurements' simulation is not timed) and the result.
+pub fn bench(rel_error: f64, out: Option<PathBuf>) -> Result<()> {
+    let path = PathBuf::from("fixtures/samples/IOL1068-09.toml");
+    let recipe = Recipe::load(&path, Overrides::default()).context("run the bench from the repository root")?;
+    let truth = recipe.with_weight_percent(0, 0.425)?;
+    let configs = [(45.0, 0.0, 0.0, 180.0), (0.0, 0.0, 45.0, 180.0), (45.0, 0.0, 15.0, 180.0)];
+    eprintln!("simulating the synthetic measurements (0.425 wt-%, 5 % noise; not timed) …");
+    let grids = synthetic_measurements(&truth, 550.0, &configs, 117, 0.1029, 400_000, 77, 0.05)?;
+    let measurements = grids
+        .into_iter()
+        .zip(configs)
+        .map(|(g, c)| Measurement::new(Path::new(&format!("synthetic {}/{}", c.0, c.2)), g, c))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut problem = Problem::new(recipe, 550.0, vec![FreeParameter::weight_percent(0)], measurements)?;
+    problem.budget.rel_error = rel_error;
+    let result = fit::fit(&problem, |e| eprintln!("{e}"))?;
+    if let Some(dir) = out {
+        write_outputs(&dir, &problem, &result)?;
+    }
+    let p = &result.parameters[0];
+    let json = serde_json::json!({
+        "benchmark": "lucent fit: weight_percent of IOL1068-09 (PDMS) over 3 configurations (45/0, 0/45, 45/15), 117 × 117 px of 0.1029 mm, 550 nm, sum objective",
+        "truth": 0.425,
+        "start": p.start,
+        "value": p.value,
+        "std_error": p.std_error,
+        "interval_95": p.interval_95,
+        "identifiable": result.identifiable,
+        "evaluations": result.evaluations,
+        "paths_total": result.paths_total,
+        "paths_per_evaluation": result.configurations.iter().map(|c| c.paths_per_evaluation).collect::<Vec<_>>(),
+        "target_rel_error": rel_error,
+        "threads": rayon::current_num_threads(),
+        "wall_s": result.wall_s,
+        "target_wall_s": 300.0,
+    });
+    println!("{}", serde_json::to_string_pretty(&json)?);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn measured_specs() {
+        let (p, a) = parse_measured("m.exr:45/0").unwrap();
+        assert_eq!((p, a), (PathBuf::from("m.exr"), Some((45.0, 0.0, 0.0, 180.0))));
+        let (_, a) = parse_measured("dir:x/m.exr:45/10/0/190").unwrap();
+        assert_eq!(a, Some((45.0, 10.0, 0.0, 190.0)));
+        assert_eq!(parse_measured("m.exr").unwrap().1, None);
+        assert!(parse_measured("m.exr:45/x").is_err());
+        assert!(parse_measured("m.exr:45/0/1").is_err());
+        assert!(parse_bounds("0.1:1", 2).is_err());
+        assert_eq!(parse_bounds("0.1:1", 1).unwrap(), vec![Some((0.1, 1.0))]);
+    }
+}

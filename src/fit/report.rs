@@ -1,0 +1,282 @@
+//! Outputs of a fit: the fitted recipe (the original TOML text with the
+//! fitted values written in, comments kept) and the plot of the objective
+//! against each parameter.
+//!
+//! ```
+//! use lucent::fit::report::set_particle_key;
+//! let text = "name = \"x\"\n[[particles]]\nname = \"A\"\nweight_percent = 0.65   # as made\n";
+//! let out = set_particle_key(text, 0, "weight_percent", "0.4251").unwrap();
+//! assert!(out.contains("weight_percent = 0.4251   # as made"));
+//! ```
+
+use super::{FitResult, ParameterKind};
+use crate::plot::{perr, render_png, PlotError};
+use plotters::prelude::*;
+use std::path::Path;
+
+/// Sets `key = value` in the `particle`-th `[[particles]]` table of recipe
+/// text (replacing the existing line, keeping its trailing comment, or
+/// inserting the line after the table header). `None` when the recipe has
+/// fewer particle tables.
+pub fn set_particle_key(text: &str, particle: usize, key: &str, value: &str) -> Option<String> {
+    let lines: Vec<&str> = text.lines().collect();
+    let headers: Vec<usize> = lines.iter().enumerate().filter(|(_, l)| l.trim() == "[[particles]]").map(|(i, _)| i).collect();
+    let start = *headers.get(particle)?;
+    let end = lines
+        .iter()
+        .enumerate()
+        .skip(start + 1)
+        .find(|(_, l)| l.trim_start().starts_with('['))
+        .map(|(i, _)| i)
+        .unwrap_or(lines.len());
+    let mut out: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    let found = (start + 1..end).find(|&i| {
+        let t = lines[i].trim_start();
+        t.strip_prefix(key).is_some_and(|rest| rest.trim_start().starts_with('='))
+    });
+    match found {
+        Some(i) => {
+            let line = lines[i];
+            let comment = line.find('#').map(|c| &line[c..]).unwrap_or("");
+            let indent = &line[..line.len() - line.trim_start().len()];
+            let pad = if comment.is_empty() { String::new() } else { "   ".into() };
+            out[i] = format!("{indent}{key} = {value}{pad}{comment}");
+        }
+        None => out.insert(start + 1, format!("{key} = {value}")),
+    }
+    let mut s = out.join("\n");
+    if text.ends_with('\n') {
+        s.push('\n');
+    }
+    Some(s)
+}
+
+/// Makes relative `index = "…"` and `fit = "…"` paths of recipe text
+/// absolute (relative to `recipe_dir`), so the text can live elsewhere.
+pub fn absolutise_paths(text: &str, recipe_dir: &Path) -> String {
+    let mut out = Vec::new();
+    for line in text.lines() {
+        let t = line.trim_start();
+        let mut replaced = None;
+        for key in ["index", "fit"] {
+            if let Some(rest) = t.strip_prefix(key) {
+                let rest = rest.trim_start();
+                if let Some(rest) = rest.strip_prefix('=') {
+                    let rest = rest.trim_start();
+                    if let Some(body) = rest.strip_prefix('"') {
+                        if let Some(end) = body.find('"') {
+                            let value = &body[..end];
+                            if !value.starts_with("builtin:") && !Path::new(value).is_absolute() {
+                                let abs = recipe_dir.join(value);
+                                let abs = abs.canonicalize().unwrap_or(abs);
+                                replaced = Some(format!(
+                                    "{}{key} = \"{}\"{}",
+                                    &line[..line.len() - t.len()],
+                                    abs.display(),
+                                    &body[end + 1..]
+                                ));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        out.push(replaced.unwrap_or_else(|| line.to_string()));
+    }
+    let mut s = out.join("\n");
+    if text.ends_with('\n') {
+        s.push('\n');
+    }
+    s
+}
+
+/// The recipe text with the fitted values written in (identifiable fits
+/// only), headed by a comment naming the fit.
+pub fn fitted_recipe_text(original: &str, recipe_dir: &Path, result: &FitResult) -> Option<String> {
+    if !result.identifiable {
+        return None;
+    }
+    let mut text = absolutise_paths(original, recipe_dir);
+    let mut notes = Vec::new();
+    for (p, free) in result.parameters.iter().zip(result_free(result)) {
+        let value = p.value?;
+        let se = p.std_error.unwrap_or(f64::NAN);
+        notes.push(format!("# {} {} → {value:.6} ± {se:.2e}", p.name, p.start));
+        let (kind, particle) = free;
+        text = match kind {
+            ParameterKind::WeightPercent => set_particle_key(&text, particle, "weight_percent", &format!("{value:.6}"))?,
+            ParameterKind::DiameterUm => set_particle_key(
+                &text,
+                particle,
+                "size",
+                &format!("{{ kind = \"diameter\", diameter_um = {value:.6} }}"),
+            )?,
+            ParameterKind::RealPartN => set_particle_key(
+                &text,
+                particle,
+                "real_part",
+                &format!("{{ wavelength_nm = {}, n = {value:.6}, mode = \"shift\" }}", result.wavelength_nm),
+            )?,
+        };
+    }
+    Some(format!(
+        "# Fitted by `lucent fit` ({} objective, {} configuration(s), {} nm): see fit.json.\n{}\n{text}",
+        result.objective.name(),
+        result.configurations.len(),
+        result.wavelength_nm,
+        notes.join("\n")
+    ))
+}
+
+/// (kind, particle) of each fitted parameter, parsed back from its name.
+fn result_free(result: &FitResult) -> Vec<(ParameterKind, usize)> {
+    result
+        .parameters
+        .iter()
+        .map(|p| {
+            let (name, k) = p.name.split_once('@').unwrap_or((&p.name, "1"));
+            let kind = ParameterKind::ALL.into_iter().find(|x| x.name() == name).unwrap_or(ParameterKind::WeightPercent);
+            (kind, k.parse::<usize>().unwrap_or(1).saturating_sub(1))
+        })
+        .collect()
+}
+
+/// Objective against each parameter: every evaluation (search points open,
+/// final points filled), the fitted parabola, the fitted value and its 95 %
+/// interval; the start value dashed. One panel per parameter.
+pub fn objective_png(result: &FitResult) -> Result<Vec<u8>, PlotError> {
+    let n = result.parameters.len();
+    let (pw, ph) = (900u32, 560u32);
+    render_png(pw, ph * n as u32, |root| {
+        let areas = root.split_evenly((n, 1));
+        for (i, (area, p)) in areas.iter().zip(&result.parameters).enumerate() {
+            let pts: Vec<(f64, f64, &str)> = result
+                .history
+                .iter()
+                .filter(|e| e.objective.is_finite())
+                .map(|e| (e.values[i], e.objective, e.stage))
+                .collect();
+            let mut x0 = pts.iter().map(|p| p.0).fold(f64::INFINITY, f64::min).min(p.start);
+            let mut x1 = pts.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max).max(p.start);
+            if let Some([a, b]) = p.interval_95 {
+                x0 = x0.min(a);
+                x1 = x1.max(b);
+            }
+            let pad = 0.05 * (x1 - x0).max(1e-9);
+            let (x0, x1) = (x0 - pad, x1 + pad);
+            let y1 = pts.iter().map(|p| p.1).fold(0.0, f64::max) * 1.08;
+            let y1 = if y1 > 0.0 { y1 } else { 1.0 };
+            let caption = match (p.value, p.std_error) {
+                (Some(v), Some(s)) => format!(
+                    "{} objective vs {}: {:.4} → {v:.4} ± {s:.4} (95 %: {:.4} … {:.4})",
+                    result.objective.name(),
+                    p.name,
+                    p.start,
+                    p.interval_95.map(|i| i[0]).unwrap_or(f64::NAN),
+                    p.interval_95.map(|i| i[1]).unwrap_or(f64::NAN)
+                ),
+                _ => format!("{} objective vs {}: not identifiable", result.objective.name(), p.name),
+            };
+            let mut chart = ChartBuilder::on(area)
+                .margin(15)
+                .caption(caption, ("sans-serif", 18))
+                .x_label_area_size(40)
+                .y_label_area_size(80)
+                .build_cartesian_2d(x0..x1, 0.0..y1)
+                .map_err(perr)?;
+            chart
+                .configure_mesh()
+                .x_desc(p.name.as_str())
+                .y_desc(format!("objective ({})", result.objective.name()))
+                .y_label_formatter(&|v| format!("{v:.1e}"))
+                .draw()
+                .map_err(perr)?;
+            if let Some([a, b]) = p.interval_95 {
+                chart
+                    .draw_series(std::iter::once(Rectangle::new([(a, 0.0), (b, y1)], RGBColor(31, 119, 180).mix(0.12).filled())))
+                    .map_err(perr)?
+                    .label("95 % interval")
+                    .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], RGBColor(31, 119, 180).mix(0.2).filled()));
+            }
+            if let (Some(q), 1) = (result.quadratic_ln, n) {
+                let fin: Vec<f64> = pts.iter().filter(|p| p.2 == "final").map(|p| p.0).collect();
+                let (a, b) = (
+                    fin.iter().copied().fold(f64::INFINITY, f64::min),
+                    fin.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+                );
+                if a < b {
+                    let (a, b) = (a - 0.5 * (b - a), b + 0.5 * (b - a));
+                    let curve: Vec<(f64, f64)> = (0..=100)
+                        .map(|k| a + (b - a) * k as f64 / 100.0)
+                        .map(|x| (x, q.at(x.ln())))
+                        .filter(|(_, y)| (0.0..=y1).contains(y))
+                        .collect();
+                    chart
+                        .draw_series(LineSeries::new(curve, RGBColor(214, 39, 40).stroke_width(2)))
+                        .map_err(perr)?
+                        .label("parabola (in ln p) through the final points")
+                        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(214, 39, 40).stroke_width(2)));
+                }
+            }
+            let grey = RGBColor(110, 110, 110);
+            chart
+                .draw_series(
+                    pts.iter().filter(|p| p.2 != "final").map(|p| Circle::new((p.0, p.1), 4, grey.stroke_width(1))),
+                )
+                .map_err(perr)?
+                .label("search (¼ of the paths)")
+                .legend(move |(x, y)| Circle::new((x + 10, y), 4, grey.stroke_width(1)));
+            let blue = RGBColor(31, 119, 180);
+            chart
+                .draw_series(pts.iter().filter(|p| p.2 == "final").map(|p| Circle::new((p.0, p.1), 4, blue.filled())))
+                .map_err(perr)?
+                .label("final (full paths)")
+                .legend(move |(x, y)| Circle::new((x + 10, y), 4, blue.filled()));
+            chart
+                .draw_series(std::iter::once(PathElement::new(vec![(p.start, 0.0), (p.start, y1)], BLACK.mix(0.6))))
+                .map_err(perr)?
+                .label(format!("start {:.4}", p.start))
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.6)));
+            if let Some(v) = p.value {
+                chart
+                    .draw_series(std::iter::once(PathElement::new(vec![(v, 0.0), (v, y1)], blue.stroke_width(2))))
+                    .map_err(perr)?
+                    .label(format!("fitted {v:.4}"))
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.9))
+                .border_style(BLACK)
+                .draw()
+                .map_err(perr)?;
+        }
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn particle_keys_are_set_in_the_right_table() {
+        let text = "a = 1\n[[particles]]\nname = \"A\"\nweight_percent = 1\n[[particles]]\nname = \"B\"\n[surface]\nalpha = 1\n";
+        let out = set_particle_key(text, 1, "weight_percent", "2.5").unwrap();
+        assert_eq!(out, "a = 1\n[[particles]]\nname = \"A\"\nweight_percent = 1\n[[particles]]\nweight_percent = 2.5\nname = \"B\"\n[surface]\nalpha = 1\n");
+        let out = set_particle_key(text, 0, "weight_percent", "0.5").unwrap();
+        assert!(out.contains("name = \"A\"\nweight_percent = 0.5\n"), "{out}");
+        assert!(set_particle_key(text, 2, "weight_percent", "1").is_none());
+        // A key that merely starts with the name is not the key.
+        let t = "[[particles]]\nweight_percent_note = 3\n";
+        assert_eq!(set_particle_key(t, 0, "weight_percent", "1").unwrap(), "[[particles]]\nweight_percent = 1\nweight_percent_note = 3\n");
+    }
+
+    #[test]
+    fn relative_index_paths_become_absolute() {
+        let t = "index = \"builtin:PC\"\n  index = \"data/x.yml\"  # c\nfit = \"/abs/fit.json\"\n";
+        let out = absolutise_paths(t, Path::new("/r"));
+        assert_eq!(out, "index = \"builtin:PC\"\n  index = \"/r/data/x.yml\"  # c\nfit = \"/abs/fit.json\"\n");
+    }
+}
