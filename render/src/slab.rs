@@ -334,6 +334,19 @@ impl Boundary {
         u < self.reflectance(cos_i, eta)
     }
 
+    /// The BSDF f(ω_o = `wo`, ω_i = `wi`) in 1/sr without the cosine
+    /// ([`crate::microfacet::RoughDielectric::eval`]; `eta` = n_below/n_above
+    /// of the boundary); 0 for the smooth boundary, whose lobes are deltas.
+    pub fn eval(&self, wo: [f64; 3], wi: [f64; 3], eta: f64, mode: Transport) -> f64 {
+        match self {
+            Boundary::Smooth => 0.0,
+            Boundary::Rough(surface) => match crate::microfacet::RoughDielectric::new(eta, surface.clone()) {
+                Ok(bsdf) => bsdf.eval(DVec3::from_array(wo), DVec3::from_array(wi), mode),
+                Err(_) => 0.0,
+            },
+        }
+    }
+
     /// How many uniform numbers [`sample`](Self::sample) uses with
     /// [`Lobe::Fresnel`]: 1 for the smooth boundary, 3 for a rough one.
     pub fn numbers(&self) -> usize {
@@ -1028,6 +1041,9 @@ impl<'a> Kernel<'a> {
             let dz = dir[2];
             let gap = if dz < 0.0 { p[2] + self.d } else { -p[2] };
             if dz != 0.0 && s * dz.abs() >= gap {
+                if self.rough && events == 0 && dz > 0.0 && self.estimator == Estimator::Connection {
+                    total += self.connect_unscattered(p, dir, gap, w, image);
+                }
                 match self.cross(&mut p, &mut dir, &mut w, gap, rng) {
                     Crossing::Reflected => continue,
                     Crossing::Lost => return (total, events, 0.0, 0.0),
@@ -1261,6 +1277,24 @@ impl<'a> Kernel<'a> {
             up = r.wi.map(|c| -c);
         }
         total
+    }
+
+    /// The connection of a photon that reaches a rough top from below
+    /// without having scattered (module doc, "Rough top"): at the hit point
+    /// x (`gap` above `p` along `dir`) it adds
+    /// w f_t(ω_o, −dir) / A_o, the outgoing radiance of a flux w arriving
+    /// at x, averaged over the pixel (f_t in radiance transport). These
+    /// paths have no scattering event to connect from; with a smooth top
+    /// they leave in one specular direction only.
+    fn connect_unscattered(&self, p: [f64; 3], dir: [f64; 3], gap: f64, w: f64, image: &mut [f64]) -> f64 {
+        let t = gap / dir[2];
+        let Some(i) = self.setup.sensor.index(p[0] + t * dir[0], p[1] + t * dir[1]) else {
+            return 0.0;
+        };
+        let f = self.setup.slab.top.eval(self.omega_o, [-dir[0], -dir[1], -dir[2]], self.n, Transport::Radiance);
+        let v = w * f / self.area;
+        image[i] += v;
+        v
     }
 
     /// The ring connection of a scattering event at `p` (photon launched at

@@ -29,6 +29,8 @@ struct Paths {
     rng: [Rng; 4],
     /// Bit l set while lane l carries a path.
     live: u32,
+    /// Bit l set while lane l's path has not scattered yet.
+    unscattered: u32,
     /// The next path of the batch, and the end of the batch.
     next: u64,
     end: u64,
@@ -70,6 +72,7 @@ impl Kernel<'_> {
         paths.total[l] = 0.0;
         paths.rng[l] = rng;
         paths.live |= 1 << l;
+        paths.unscattered |= 1 << l;
     }
 
     /// Ends lane `l`'s path (its tallies into `b`) and starts the next.
@@ -96,6 +99,7 @@ impl Kernel<'_> {
             total: [0.0; 4],
             rng: std::array::from_fn(|_| Rng::new(seed, first_path)),
             live: 0,
+            unscattered: 0,
             next: first_path,
             end: first_path + count,
             seed,
@@ -139,6 +143,7 @@ impl Kernel<'_> {
             let w = F4::load(&paths.w) * F4::splat(self.albedo);
             w.store(&mut paths.w);
             b.events += u64::from(ev.count_ones());
+            paths.unscattered &= !ev;
 
             if let Some(ring) = &self.ring {
                 // The ring connection, per lane, where it can contribute
@@ -200,6 +205,9 @@ impl Kernel<'_> {
                     let mut p = p_before.map(|c| c.0[l]);
                     let mut dir = dir_before.map(|c| c.0[l]);
                     let mut w = w_before.0[l];
+                    if self.rough && dir[2] > 0.0 && paths.unscattered & (1 << l) != 0 {
+                        paths.total[l] += self.connect_unscattered(p, dir, gap.0[l], w, &mut b.image);
+                    }
                     let crossing = self.cross(&mut p, &mut dir, &mut w, gap.0[l], &mut paths.rng[l]);
                     for k in 0..3 {
                         paths.p[k].0[l] = p[k];
