@@ -33,7 +33,9 @@
 //! assert_eq!(lucent_calib::env::direction_to_uv(cam.direction(1.5, 1.5)), (0.0, 0.5));
 //! ```
 
+use crate::camera::{CameraModel, DistortionModel};
 use crate::RgbBuffer;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// What is wrong with an environment map.
@@ -47,6 +49,8 @@ pub enum EnvError {
     Matrix(String),
     #[error("view: {0}")]
     View(String),
+    #[error("orientation: {0}")]
+    Orientation(String),
 }
 
 /// Checks the 2:1 aspect ratio of an equirectangular map.
@@ -405,4 +409,283 @@ mod view_tests {
             assert!(matches!(perspective_view(&map, &spec), Err(EnvError::View(_))), "{spec:?}");
         }
     }
+}
+
+// ---------------------------------------------------------------- orientation
+
+/// The convention every orientation file states: how its yaw turns a map.
+pub const ORIENTATION_CONVENTION: &str =
+    "world direction = R_z(yaw_deg) · map direction (the renderer's [environment] yaw_deg: counter-clockwise seen from above, z up); world x = the board's i axis, z up";
+
+/// The map turned about +z (the zenith) by `yaw_deg`: the returned map seen
+/// with yaw 0 is `map` seen with yaw `yaw_deg`, i.e. its pixel at world
+/// direction d holds `map` at R_z(−yaw)·d. In u this is a shift,
+/// out(u) = map(u + yaw/360) (φ = −2πu), interpolated linearly along each
+/// row (exact when yaw is a multiple of 360°/W).
+pub fn rotate_yaw(map: &RgbBuffer, yaw_deg: f64) -> Result<RgbBuffer, EnvError> {
+    check_equirectangular(map.width, map.height)?;
+    if !yaw_deg.is_finite() {
+        return Err(EnvError::View(format!("yaw {yaw_deg}° must be finite")));
+    }
+    let w = map.width;
+    let shift = (yaw_deg / 360.0).rem_euclid(1.0) * w as f64;
+    let whole = shift.floor();
+    let f = shift - whole;
+    let whole = whole as usize;
+    let mut out = RgbBuffer::zeros(w, map.height);
+    for y in 0..map.height {
+        for x in 0..w {
+            let (a, b) = (map.pixel((x + whole) % w, y), map.pixel((x + whole + 1) % w, y));
+            let o = 3 * (y * w + x);
+            for c in 0..3 {
+                out.data[o + c] = ((1.0 - f) * f64::from(a[c]) + f * f64::from(b[c])) as f32;
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Which way round the detected corners were numbered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CornerOrder {
+    /// The detector's order already had the dark outer square at corner (0, 0).
+    AsDetected,
+    /// Reversed (the board turned 180°) to put the dark outer square at corner (0, 0).
+    Reversed,
+    /// The board's four outer squares do not single out one corner (both
+    /// counts even, or the squares' contrast unclear): the detector's order is kept.
+    Ambiguous,
+}
+
+/// Puts the corners in the renderer's board convention: the outer corner
+/// square beyond inner corner (0, 0) is the dark one (the scene's `even`
+/// squares, (column + row) even). Only boards with one odd and one even
+/// inner-corner count single out a corner under the 180° turn that
+/// OpenCV's detectors leave open; others are left as detected
+/// ([`CornerOrder::Ambiguous`]). `corners` are row-major (`cols` per row),
+/// pixel centres at integers.
+pub fn canonical_corner_order(
+    img: &crate::GrayImage,
+    cols: usize,
+    rows: usize,
+    corners: &[[f64; 2]],
+) -> (Vec<[f64; 2]>, CornerOrder) {
+    let keep = (corners.to_vec(), CornerOrder::Ambiguous);
+    if corners.len() != cols * rows || cols < 2 || rows < 2 || (cols + rows).is_multiple_of(2) {
+        return keep;
+    }
+    let at = |i: usize, j: usize| corners[j * cols + i];
+    // Centre of the outer square beyond inner corner (i, j), away from the grid by half a square each way.
+    let outer = |i: usize, j: usize, di: usize, dj: usize| {
+        let c = at(i, j);
+        let (a, b) = (at(di, j), at(i, dj));
+        let g = |k: usize| c[k] - 0.5 * ((a[k] - c[k]) + (b[k] - c[k]));
+        grey_bilinear(img, g(0), g(1))
+    };
+    let first = outer(0, 0, 1, 1);
+    let last = outer(cols - 1, rows - 1, cols - 2, rows - 2);
+    match (first, last) {
+        (Some(a), Some(b)) if (a - b).abs() > 20.0 => {
+            if a < b {
+                (corners.to_vec(), CornerOrder::AsDetected)
+            } else {
+                (corners.iter().rev().copied().collect(), CornerOrder::Reversed)
+            }
+        }
+        _ => keep,
+    }
+}
+
+fn grey_bilinear(img: &crate::GrayImage, x: f64, y: f64) -> Option<f64> {
+    if !(x >= 0.0 && y >= 0.0 && x <= (img.width as f64 - 1.0) && y <= (img.height as f64 - 1.0)) {
+        return None;
+    }
+    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    let (x1, y1) = ((x0 + 1).min(img.width - 1), (y0 + 1).min(img.height - 1));
+    let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+    let g = |x: usize, y: usize| f64::from(img.data[y * img.width + x]);
+    Some((1.0 - fy) * ((1.0 - fx) * g(x0, y0) + fx * g(x1, y0)) + fy * ((1.0 - fx) * g(x0, y1) + fx * g(x1, y1)))
+}
+
+/// The board as seen in a view cut from the map, in the map frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BoardInMap {
+    /// The yaw that turns the map so the board's i axis is world +x
+    /// (−azimuth of that axis in the map, degrees, in (−180°, 180°]).
+    pub yaw_deg: f64,
+    /// The board's i axis (unit, map frame).
+    pub i_axis_map: [f64; 3],
+    /// The board's normal towards the camera's side (unit, map frame; +z for a level board seen from above).
+    pub normal_map: [f64; 3],
+    /// Angle between that normal and the map's zenith, degrees: how far the
+    /// board (or the 360° camera) is from level. The yaw alone cannot undo it.
+    pub tilt_deg: f64,
+    /// Direction of board corner (0, 0) from the map's centre (unit, map frame).
+    pub corner00_direction_map: [f64; 3],
+    /// Distance from the map's centre (the 360° camera) to corner (0, 0) in metres (the given square size's scale).
+    pub corner00_distance_m: f64,
+}
+
+/// The pinhole camera of a view in OpenCV's pixel convention (pixel centres
+/// at integers), for corner detection and PnP: fx = fy = f, cx = W/2 − ½,
+/// cy = H/2 − ½.
+pub fn view_intrinsics(cam: &ViewCamera) -> crate::camera::Intrinsics {
+    crate::camera::Intrinsics { fx: cam.f_px, fy: cam.f_px, cx: cam.cx_px - 0.5, cy: cam.cy_px - 0.5 }
+}
+
+/// From a board pose found in a view (OpenCV: x_cam = R·x_board + t, camera
+/// x right, y down, z forward) to the board's axes in the map frame and the
+/// yaw that aligns the map with the board's world (x along i, z up).
+pub fn board_in_map(cam: &ViewCamera, rotation: &[[f64; 3]; 3], translation_m: [f64; 3]) -> BoardInMap {
+    // OpenCV camera axes in the map frame: x = right, y = −up, z = forward.
+    let to_map = |v: [f64; 3]| -> [f64; 3] {
+        std::array::from_fn(|k| v[0] * cam.right[k] - v[1] * cam.up[k] + v[2] * cam.forward[k])
+    };
+    let col = |c: usize| [rotation[0][c], rotation[1][c], rotation[2][c]];
+    let i_axis = to_map(col(0));
+    // The board's z points into the board (away from the camera): the normal towards the camera is −z.
+    let normal = to_map(col(2)).map(|v| -v);
+    let tilt = normal[2].clamp(-1.0, 1.0).acos().to_degrees();
+    let azimuth = i_axis[1].atan2(i_axis[0]).to_degrees();
+    let mut yaw = -azimuth;
+    if yaw <= -180.0 {
+        yaw += 360.0;
+    }
+    let c = to_map(translation_m);
+    let dist = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+    BoardInMap {
+        yaw_deg: yaw,
+        i_axis_map: i_axis,
+        normal_map: normal,
+        tilt_deg: tilt,
+        corner00_direction_map: c.map(|v| v / dist.max(1e-300)),
+        corner00_distance_m: dist,
+    }
+}
+
+/// The orientation file `lucent env orient` writes beside its output
+/// (NAME.json) and a scene's `[environment] orientation` reads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Orientation {
+    /// [`ORIENTATION_CONVENTION`].
+    pub convention: String,
+    /// File name of the map as it came from the camera.
+    pub source: String,
+    /// The yaw that aligns `source` with the board's world.
+    pub source_yaw_deg: f64,
+    /// File name of the turned map (`source` rotated by `source_yaw_deg`).
+    pub output: String,
+    /// The yaw to render `output` with: 0 (the turn is in its pixels).
+    pub output_yaw_deg: f64,
+    /// "given" (--yaw) or "board" (found in a view).
+    pub method: String,
+    /// The view the board was found in, its detection and the board's axes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub board: Option<BoardFound>,
+}
+
+/// How the board was found for an orientation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BoardFound {
+    /// The perspective view cut from the source map.
+    pub view: ViewSpec,
+    /// Inner corners COLSxROWS and square side.
+    pub board: String,
+    pub square_mm: f64,
+    /// Corner detector that found it.
+    pub detector: String,
+    pub corner_order: CornerOrder,
+    /// RMS distance between the detected corners and the PnP pose's projection, pixels of the view.
+    pub pnp_rms_px: f64,
+    /// The board's axes in the source map's frame.
+    pub in_map: BoardInMap,
+}
+
+impl Orientation {
+    /// The yaw for a scene whose map file is named `map_file_name`: the
+    /// output's (0) or the source's; another file is an error (the
+    /// orientation belongs to a different map).
+    pub fn yaw_for_map(&self, map_file_name: &str) -> Result<f64, EnvError> {
+        if map_file_name == self.output {
+            Ok(self.output_yaw_deg)
+        } else if map_file_name == self.source {
+            Ok(self.source_yaw_deg)
+        } else {
+            Err(EnvError::Orientation(format!(
+                "it is for {} (yaw {}°) or its turned copy {} (yaw {}°), not for {map_file_name}",
+                self.source, self.source_yaw_deg, self.output, self.output_yaw_deg
+            )))
+        }
+    }
+}
+
+// ---------------------------------------------------------------- a lens to equirectangular
+
+/// Pixel (OpenCV convention, centres at integers) of a ray in the camera
+/// frame (x right, y down, z forward). Fisheye: by the angle off the axis,
+/// θ = atan2(√(x² + y²), z), so rays 90° or more off the axis (lenses wider
+/// than 180°) project too; the pinhole models need z > 0. `None` where the
+/// ray has no image (behind a pinhole, or the Kannala–Brandt polynomial no
+/// longer increasing, past the lens's field).
+pub fn project_ray(cam: &CameraModel, r: [f64; 3]) -> Option<[f64; 2]> {
+    let k = &cam.intrinsics;
+    match cam.model {
+        DistortionModel::Fisheye => {
+            let rho = r[0].hypot(r[1]);
+            let t = rho.atan2(r[2]);
+            let d = &cam.distortion;
+            let t2 = t * t;
+            // dθ_d/dθ > 0: past its maximum the polynomial folds back over the image.
+            let slope = 1.0 + t2 * (3.0 * d.k1 + t2 * (5.0 * d.k2 + t2 * (7.0 * d.k3 + t2 * 9.0 * d.k4)));
+            if slope <= 0.0 {
+                return None;
+            }
+            let td = t * (1.0 + t2 * (d.k1 + t2 * (d.k2 + t2 * (d.k3 + t2 * d.k4))));
+            let (x, y) = if rho < 1e-15 { (0.0, 0.0) } else { (td * r[0] / rho, td * r[1] / rho) };
+            Some([k.fx * x + k.cx, k.fy * y + k.cy])
+        }
+        DistortionModel::PinholeK3 | DistortionModel::Rational => cam.project(r),
+    }
+}
+
+/// The camera ray (OpenCV frame) seen at map direction `d` of a lens's
+/// equirectangular view: the lens axis at the map's centre (u = ½, v = ½,
+/// map direction −x), up = −y of the camera = +z of the map, the camera's
+/// right = map +y. So r = (d_y, −d_z, −d_x) (the view of [`ViewSpec`] with
+/// yaw 180°, pitch 0).
+pub fn lens_ray_of_map_direction(d: [f64; 3]) -> [f64; 3] {
+    [d[1], -d[2], -d[0]]
+}
+
+/// A photo of `cam` resampled to a `width` × `width/2` equirectangular map
+/// of the whole sphere around the camera ([`lens_ray_of_map_direction`];
+/// the renderer's map convention): each map pixel's centre direction is
+/// projected into the photo ([`project_ray`]) and sampled bilinearly
+/// (pixels outside the photo or the lens's field are 0). Values pass
+/// through unchanged. For one lens of a 360° rig at a time; the rig's
+/// stitching is not done here.
+pub fn lens_to_equirect(img: &RgbBuffer, cam: &CameraModel, width: usize) -> Result<RgbBuffer, EnvError> {
+    if (img.width, img.height) != (cam.image_width, cam.image_height) {
+        return Err(EnvError::View(format!(
+            "image is {} × {} pixels but the camera was calibrated at {} × {}",
+            img.width, img.height, cam.image_width, cam.image_height
+        )));
+    }
+    if width < 2 || !width.is_multiple_of(2) || width > 32768 {
+        return Err(EnvError::View(format!("map width {width} must be even, 2 to 32768 pixels")));
+    }
+    let h = width / 2;
+    let mut out = RgbBuffer::zeros(width, h);
+    out.data.par_chunks_mut(3 * width).enumerate().for_each(|(y, row)| {
+        let theta = std::f64::consts::PI * (y as f64 + 0.5) / h as f64;
+        for x in 0..width {
+            let phi = -std::f64::consts::TAU * (x as f64 + 0.5) / width as f64;
+            let d = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
+            if let Some([u, v]) = project_ray(cam, lens_ray_of_map_direction(d)) {
+                row[3 * x..3 * x + 3].copy_from_slice(&crate::camera::sample_bilinear(img, u, v));
+            }
+        }
+    });
+    Ok(out)
 }

@@ -90,6 +90,18 @@ pub struct UndistortArgs {
     /// cropping the borders). The intrinsics used are printed and written to OUTPUT.json.
     #[arg(long)]
     pub keep_all: bool,
+    /// Output geometry: pinhole (the photo's size, a distortion-free camera) or equirect (a 2:1
+    /// latitude–longitude map of the sphere around the lens, its axis at the map's centre; for
+    /// fisheye lenses, also beyond 90° off axis).
+    #[arg(long, default_value = "pinhole")]
+    pub to: String,
+    /// Pinhole output: horizontal field of view in degrees (sets fx = fy = (width/2)/tan(fov/2),
+    /// principal point at the centre); overrides --keep-all.
+    #[arg(long)]
+    pub fov: Option<f64>,
+    /// Equirect output: map width in pixels (even; height = width/2). Default: twice the photo's height.
+    #[arg(long)]
+    pub width: Option<usize>,
 }
 
 #[derive(Debug, Args)]
@@ -137,6 +149,9 @@ pub enum EnvCommand {
     Merge(env_hdr::EnvMergeArgs),
     /// A perspective view cut from an equirectangular map (bilinear), e.g. to find a chart in a panorama.
     View(env_hdr::EnvViewArgs),
+    /// Turn the map so its axes match the board's world (x along the board's i axis, z up), from a given
+    /// yaw or the board found in a view of the map; the orientation goes beside it as JSON.
+    Orient(env_hdr::EnvOrientArgs),
 }
 
 #[derive(Debug, Args)]
@@ -463,8 +478,35 @@ pub fn undistort(a: UndistortArgs) -> Result<()> {
     if out_ext != "exr" && out_ext != "png" {
         bail!("{}: the output must be .exr (float) or .png (8-bit view)", a.output.display());
     }
+    let equirect = match a.to.as_str() {
+        "pinhole" => false,
+        "equirect" | "equirectangular" => true,
+        other => bail!("--to {other}: expected pinhole or equirect"),
+    };
+    if equirect && a.fov.is_some() {
+        bail!("--fov belongs to --to pinhole (an equirectangular map always covers the whole sphere)");
+    }
+    if !equirect && a.width.is_some() {
+        bail!("--width belongs to --to equirect (a pinhole output has the photo's size)");
+    }
+    if let Some(f) = a.fov {
+        if !(f > 0.0 && f < 180.0) {
+            bail!("--fov {f}: a pinhole field of view must be within (0°, 180°)");
+        }
+    }
     let (img, linear) = load_rgb(&a.input)?;
-    let mode = if a.keep_all { NewCamera::KeepAll } else { NewCamera::Same };
+    if equirect {
+        return undistort_equirect(&a, &cal, &img, linear);
+    }
+    let mode = match a.fov {
+        Some(f) => {
+            let fx = 0.5 * cal.camera.image_width as f64 / (0.5 * f.to_radians()).tan();
+            let (cx, cy) = ((cal.camera.image_width as f64 - 1.0) / 2.0, (cal.camera.image_height as f64 - 1.0) / 2.0);
+            NewCamera::Given(camera::Intrinsics { fx, fy: fx, cx, cy })
+        }
+        None if a.keep_all => NewCamera::KeepAll,
+        None => NewCamera::Same,
+    };
     let (out, k) = camera::undistort(&img, &cal.camera, mode).map_err(|e| anyhow!("{}: {e}", a.input.display()))?;
     // Values pass through unchanged: linear input stays linear; an 8-bit
     // photo's encoded values are resampled as they are.
@@ -495,6 +537,44 @@ pub fn undistort(a: UndistortArgs) -> Result<()> {
         k.fy,
         k.cx,
         k.cy,
+        sidecar.display()
+    );
+    Ok(())
+}
+
+/// `lucent undistort --to equirect`: the lens's view as a 2:1 map (`lucent_calib::env::lens_to_equirect`).
+fn undistort_equirect(a: &UndistortArgs, cal: &Calibration, img: &RgbBuffer, linear: bool) -> Result<()> {
+    let width = a.width.unwrap_or(2 * cal.camera.image_height);
+    let out = env::lens_to_equirect(img, &cal.camera, width).map_err(|e| anyhow!("{}: {e}", a.input.display()))?;
+    let (w, h) = (out.width, out.height);
+    if extension(&a.output) == "exr" {
+        imageio::write_exr(&a.output, &to_image(out))?;
+    } else if linear {
+        imageio::write_png(&a.output, &to_image(out))?;
+    } else {
+        write_png_as_stored(&a.output, &out)?;
+    }
+    let info = serde_json::json!({
+        "source": file_name(&a.input),
+        "camera": file_name(&a.camera),
+        "to": "equirect",
+        "width": w,
+        "height": h,
+        "convention": "renderer's map convention (u = 0 along +x, z up); the lens axis at the map's centre (map −x), the camera's up at +z, its right at +y",
+        "resampling": "bilinear; directions outside the photo or the lens's field are 0",
+        "values": if linear { "linear, as read" } else { "as stored in the 8/16-bit input (not linearised), scaled to [0, 1]" },
+    });
+    let sidecar = a.output.with_extension("json");
+    write_json(&sidecar, &info)?;
+    println!(
+        "{} ({} model) → {w} × {h} equirectangular map {} (lens axis at the centre); written to {}",
+        a.input.display(),
+        match cal.camera.model {
+            DistortionModel::Fisheye => "fisheye",
+            DistortionModel::PinholeK3 => "pinhole-k3",
+            DistortionModel::Rational => "rational",
+        },
+        a.output.display(),
         sidecar.display()
     );
     Ok(())
@@ -615,6 +695,7 @@ pub fn run_env(cmd: EnvCommand) -> Result<()> {
         EnvCommand::FitScale(a) => super::env_fit::run(a),
         EnvCommand::Merge(a) => env_hdr::merge(a),
         EnvCommand::View(a) => env_hdr::view(a),
+        EnvCommand::Orient(a) => env_hdr::orient(a),
     }
 }
 

@@ -1,15 +1,20 @@
-//! `lucent env merge` (HDR from exposure brackets) and `lucent env view`
-//! (a perspective view cut from an equirectangular map): file handling
-//! only; the merge is `lucent_calib::hdr`, the view `lucent_calib::env`.
+//! `lucent env merge` (HDR from exposure brackets), `lucent env view`
+//! (a perspective view cut from an equirectangular map) and `lucent env
+//! orient` (the map turned to the board's world, from a given yaw or the
+//! board found in a view): file handling only; the merge is
+//! `lucent_calib::hdr`, the view and orientation `lucent_calib::env`.
 
 use super::{file_name, sibling, to_buffer, to_image, RAW_EXTENSIONS};
 use crate::imageio::{self, RgbImage};
 use crate::io::write_json;
 use anyhow::{bail, Context, Result};
-use clap::Args;
-use lucent_calib::env::{self, ViewSpec};
+use clap::{ArgGroup, Args};
+use lucent_calib::camera::{CameraModel, Distortion, DistortionModel};
+use lucent_calib::cv::Detector;
+use lucent_calib::env::{self, BoardFound, Orientation, ViewSpec};
 use lucent_calib::hdr::{self, CodeWeights, LinearWeights, Merged, ResponseMethod, Rgb8Buffer};
 use lucent_calib::raw::{self, RawOptions};
+use lucent_calib::scene::BoardSpec;
 use lucent_calib::{cv, RgbBuffer};
 use std::path::{Path, PathBuf};
 
@@ -65,6 +70,40 @@ pub struct EnvViewArgs {
     pub size: String,
     /// Output view: .exr (linear, 32-bit float) or .png (8-bit sRGB for looking at); the camera
     /// (focal length in pixels, axes in the map frame) goes to NAME.json.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+#[command(group(ArgGroup::new("how").required(true).args(["yaw", "board_view"])))]
+pub struct EnvOrientArgs {
+    /// Equirectangular map (.exr or .hdr, 2:1) as the 360° camera made it.
+    pub input: PathBuf,
+    /// The turn, degrees counter-clockwise seen from above, if known: world = R_z(yaw) · map (the
+    /// renderer's [environment] yaw_deg).
+    #[arg(long, allow_hyphen_values = true)]
+    pub yaw: Option<f64>,
+    /// Find the board instead: the view of the map that shows it, YAW,PITCH,FOV in degrees as for
+    /// `lucent env view` (e.g. "0,-90,100" looks straight down). Needs --board and --square-mm.
+    #[arg(long, requires_all = ["board", "square_mm"], allow_hyphen_values = true)]
+    pub board_view: Option<String>,
+    /// Inner corners COLSxROWS of the board (its i axis becomes the world's +x; corner (0, 0) is the one
+    /// beyond the dark outer corner square when COLS + ROWS is odd).
+    #[arg(long)]
+    pub board: Option<String>,
+    /// Side of one square in millimetres.
+    #[arg(long)]
+    pub square_mm: Option<f64>,
+    /// Size of the board view, WIDTHxHEIGHT pixels.
+    #[arg(long, default_value = "1600x1200")]
+    pub view_size: String,
+    /// Refuse a board whose normal is further than this from the map's zenith (degrees): a yaw cannot
+    /// level a tilted map.
+    #[arg(long, default_value_t = 10.0)]
+    pub max_tilt_deg: f64,
+    /// Output map (.exr), turned so world = map (render it with yaw 0); the orientation goes to
+    /// NAME.json (a scene's [environment] orientation = "NAME.json" takes its yaw from it) and, with
+    /// --board-view, the view with the corners to NAME_board.png.
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -307,6 +346,150 @@ pub fn view(a: EnvViewArgs) -> Result<()> {
         a.input.display(),
         a.out.display(),
         json_path.display()
+    );
+    Ok(())
+}
+
+pub fn orient(a: EnvOrientArgs) -> Result<()> {
+    if extension(&a.out) != "exr" {
+        bail!("{}: the output must be an .exr file (32-bit float)", a.out.display());
+    }
+    if let Some(y) = a.yaw {
+        if !y.is_finite() {
+            bail!("--yaw {y}: must be a finite number of degrees");
+        }
+    }
+    if !(a.max_tilt_deg.is_finite() && a.max_tilt_deg > 0.0) {
+        bail!("--max-tilt-deg {}: must be a positive number of degrees", a.max_tilt_deg);
+    }
+    // Parameters are checked before the map is read.
+    let board_setup = match &a.board_view {
+        None => None,
+        Some(text) => {
+            let v: Vec<f64> =
+                text.split(',').map(|s| s.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
+                    anyhow::anyhow!("--board-view {text:?}: expected YAW,PITCH,FOV in degrees, e.g. 0,-90,100")
+                })?;
+            let [yaw, pitch, fov] = <[f64; 3]>::try_from(v).map_err(|_| {
+                anyhow::anyhow!("--board-view {text:?}: expected YAW,PITCH,FOV in degrees, e.g. 0,-90,100")
+            })?;
+            let (width, height) = parse_size(&a.view_size).context("--view-size")?;
+            let spec = ViewSpec { yaw_deg: yaw, pitch_deg: pitch, fov_deg: fov, width, height };
+            spec.camera().context("--board-view")?;
+            let square_mm = a.square_mm.unwrap_or(f64::NAN);
+            let board = BoardSpec::parse(a.board.as_deref().unwrap_or(""), square_mm)
+                .map_err(|e| anyhow::anyhow!("--board/--square-mm: {e}"))?;
+            Some((spec, board, square_mm))
+        }
+    };
+    let map = super::read_env(&a.input)?;
+    let (yaw, found, png) = match board_setup {
+        None => (a.yaw.unwrap_or(0.0), None, None),
+        Some((spec, board, square_mm)) => {
+            let (view, cam) = env::perspective_view(&map, &spec)?;
+            let gray = lucent_calib::GrayImage::from_linear_rgb(&view);
+            let corners = cv::find_corners(&gray, &board, Detector::Auto)?.ok_or_else(|| {
+                anyhow::anyhow!(
+                    "{}: no chessboard of {}x{} inner corners in the view --board-view {} (yaw {}°, pitch {}°, fov {}°); \
+                     cut it with `lucent env view` to look, and aim the view at the board",
+                    a.input.display(),
+                    board.cols,
+                    board.rows,
+                    a.board_view.as_deref().unwrap_or(""),
+                    spec.yaw_deg,
+                    spec.pitch_deg,
+                    spec.fov_deg
+                )
+            })?;
+            let (points, order) = env::canonical_corner_order(&gray, board.cols, board.rows, &corners.points);
+            let pinhole = CameraModel {
+                model: DistortionModel::PinholeK3,
+                image_width: spec.width,
+                image_height: spec.height,
+                intrinsics: env::view_intrinsics(&cam),
+                distortion: Distortion::default(),
+            };
+            let pose = cv::solve_pnp(&points, &board, &pinhole)?;
+            let reprojected: Vec<[f64; 2]> =
+                board.corners().iter().map(|p| pinhole.project(pose.to_camera(*p)).unwrap_or([f64::NAN; 2])).collect();
+            let ss: f64 =
+                points.iter().zip(&reprojected).map(|(d, r)| (d[0] - r[0]).powi(2) + (d[1] - r[1]).powi(2)).sum();
+            let rms = (ss / points.len() as f64).sqrt();
+            let in_map = env::board_in_map(&cam, &pose.rotation, pose.translation_m);
+            if in_map.tilt_deg.is_nan() || in_map.tilt_deg > a.max_tilt_deg {
+                bail!(
+                    "{}: the board's normal is {:.1}° from the map's zenith (more than --max-tilt-deg {}): either the \
+                     board is not the level one the scene stands on or the 360° camera was not level; a yaw cannot \
+                     align them",
+                    a.input.display(),
+                    in_map.tilt_deg,
+                    a.max_tilt_deg
+                );
+            }
+            if order == env::CornerOrder::Ambiguous {
+                eprintln!(
+                    "warning: a {}x{} board looks the same turned 180°: its corner (0, 0), and so the yaw, may be off \
+                     by 180° (use a board with one odd and one even count, e.g. 9x6)",
+                    board.cols, board.rows
+                );
+            }
+            let label = format!("board in view: PnP RMS {rms:.3} px, yaw {:.2} deg", in_map.yaw_deg);
+            let png = cv::draw_view_png(&gray, &board, &points, &reprojected, &[], &label)?;
+            let yaw = in_map.yaw_deg;
+            let found = BoardFound {
+                view: spec,
+                board: format!("{}x{}", board.cols, board.rows),
+                square_mm,
+                detector: corners.detector.to_string(),
+                corner_order: order,
+                pnp_rms_px: rms,
+                in_map,
+            };
+            (yaw, Some(found), Some(png))
+        }
+    };
+    let turned = env::rotate_yaw(&map, yaw)?;
+    let orientation = Orientation {
+        convention: env::ORIENTATION_CONVENTION.into(),
+        source: file_name(&a.input),
+        source_yaw_deg: yaw,
+        output: file_name(&a.out),
+        output_yaw_deg: 0.0,
+        method: if found.is_some() { "board" } else { "given" }.into(),
+        board: found,
+    };
+    let json_path = sibling(&a.out, ".json");
+    let png_path = sibling(&a.out, "_board.png");
+    if let Some(png) = &png {
+        crate::io::write_atomic(&png_path, png)?;
+    }
+    write_json(&json_path, &orientation)?;
+    imageio::write_exr(&a.out, &to_image(turned))?;
+    match &orientation.board {
+        Some(b) => println!(
+            "board {} found in the view (yaw {}°, pitch {}°, fov {}°; {} detector, PnP RMS {:.3} px, corner order {:?}): \
+             its i axis points {:.2}° from the map's +x, tilt {:.2}° from level, corner (0, 0) {:.3} m away; yaw {:.3}°",
+            b.board,
+            b.view.yaw_deg,
+            b.view.pitch_deg,
+            b.view.fov_deg,
+            b.detector,
+            b.pnp_rms_px,
+            b.corner_order,
+            -yaw,
+            b.in_map.tilt_deg,
+            b.in_map.corner00_distance_m,
+            yaw
+        ),
+        None => println!("given yaw {yaw}°"),
+    }
+    println!(
+        "{} turned by {yaw:.3}° → {} (render with yaw 0; or render {} with yaw_deg = {yaw:.3}); orientation {}{}",
+        a.input.display(),
+        a.out.display(),
+        file_name(&a.input),
+        json_path.display(),
+        if png.is_some() { format!(", board view {}", png_path.display()) } else { String::new() }
     );
     Ok(())
 }

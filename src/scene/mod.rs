@@ -36,7 +36,7 @@
 //! map = "studio.exr"            # equirectangular, linear CIE RGB; or constant = [r, g, b]
 //! projection = "finite-sphere"  # or "infinite"
 //! radius_m = 0.60               # centred at the top of the sample unless centre_m is given
-//! yaw_deg = 0
+//! yaw_deg = 0                   # or orientation = "env_oriented.json" (`lucent env orient`)
 //! scale = 1.0
 //!
 //! [render]
@@ -190,6 +190,8 @@ pub struct EnvironmentSection {
     pub radius_m: Option<f64>,
     pub centre_m: Option<[f64; 3]>,
     pub yaw_deg: Option<f64>,
+    /// An orientation file of `lucent env orient` (instead of yaw_deg): the yaw for this map from it.
+    pub orientation: Option<PathBuf>,
     pub scale: Option<f64>,
 }
 
@@ -978,6 +980,16 @@ fn build_board(
 
 type EnvParts = (Environment, String, String, Option<[f64; 3]>, Option<f64>);
 
+/// The yaw an orientation file (`lucent env orient`) gives the map `map`.
+fn orientation_yaw(path: &std::path::Path, map: &std::path::Path) -> Result<f64, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: cannot read as an orientation file of `lucent env orient`: {e}", path.display()))?;
+    let o: lucent_calib::env::Orientation = serde_json::from_str(&text)
+        .map_err(|e| format!("{}: not an orientation file of `lucent env orient`: {e}", path.display()))?;
+    let name = map.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    o.yaw_for_map(&name).map_err(|e| format!("{}: {e}", path.display()))
+}
+
 fn build_environment(
     ctx: &Ctx,
     e: &EnvironmentSection,
@@ -1013,7 +1025,14 @@ fn build_environment(
             ))
         }
     };
-    let yaw = e.yaw_deg.unwrap_or(0.0);
+    let yaw = match (&e.orientation, e.yaw_deg, &e.map) {
+        (None, y, _) => y.unwrap_or(0.0),
+        (Some(_), Some(_), _) => return Err(ctx.section("environment", "give either yaw_deg or orientation, not both")),
+        (Some(_), None, None) => return Err(ctx.section("environment", "orientation needs a map")),
+        (Some(o), None, Some(map)) => {
+            orientation_yaw(&ctx.resolve(o), map).map_err(|m| ctx.key("environment", "orientation", m))?
+        }
+    };
     let scale = e.scale.unwrap_or(1.0);
     if !yaw.is_finite() {
         return Err(ctx.key("environment", "yaw_deg", "must be finite"));
