@@ -20,10 +20,13 @@ use std::path::{Path, PathBuf};
 pub enum ImageIoError {
     #[error("{path}: cannot read image: {reason}")]
     Read { path: PathBuf, reason: String },
-    #[error("{path}: unsupported image format (expected .exr, .hdr, .png, .tif or .tiff)")]
+    #[error("{path}: unsupported image format (expected .exr, .hdr, .png, .tif, .tiff or a camera RAW such as .dng, .cr2, .nef)")]
     Format { path: PathBuf },
     #[error(transparent)]
     Write(#[from] WriteError),
+    /// A camera RAW file that could not be decoded (the message names the file).
+    #[error(transparent)]
+    Raw(#[from] lucent_calib::raw::RawError),
     #[error("{path}: cannot encode image: {reason}")]
     Encode { path: PathBuf, reason: String },
     #[error("image data has {got} values, expected {expected} for {width} × {height} × {channels}")]
@@ -82,9 +85,18 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
             }
             Ok(out)
         }
+        e if RAW_EXTENSIONS.contains(&e) => {
+            // Linear camera RGB relative to the white level (no white balance,
+            // Malvar–He–Cutler demosaicing, orientation applied), as `lucent raw decode`.
+            let (rgb, _) = lucent_calib::raw::decode_raw(path, &lucent_calib::raw::RawOptions::default())?;
+            RgbImage::new(rgb.width, rgb.height, rgb.data).map_err(|e| read_err(e.to_string()))
+        }
         _ => Err(ImageIoError::Format { path: path.to_path_buf() }),
     }
 }
+
+/// File extensions read as camera RAW (decoded by `lucent_calib::raw`).
+pub const RAW_EXTENSIONS: [&str; 12] = ["dng", "cr2", "nef", "nrw", "arw", "raf", "orf", "rw2", "pef", "srw", "3fr", "erf"];
 
 fn read_exr(path: &Path) -> Result<RgbImage, ImageIoError> {
     use exr::prelude::*;

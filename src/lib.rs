@@ -16,3 +16,4 @@ pub mod pipeline;
 pub mod plot;
 pub mod scene;
 pub mod surface;
+pub mod synth;

@@ -9,6 +9,7 @@ pub mod env_fit;
 pub mod render;
 pub mod run;
 pub mod surface;
+pub mod synth;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::mie::{self, Coefficients, Efficiencies};
@@ -64,6 +65,9 @@ pub enum Command {
     Compare(compare::CompareArgs),
     /// The whole digitisation from one project file: stages in order, unchanged ones skipped, report/index.html.
     Run(run::RunArgs),
+    /// Synthetic inputs with a known truth: a ColorChecker chart, RAW (DNG) captures through a known camera.
+    #[command(subcommand)]
+    Synth(synth::SynthCommand),
 }
 
 #[derive(Debug, Args)]
@@ -173,6 +177,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Env(c) => camera::run_env(c),
         Command::Compare(a) => compare::run(a),
         Command::Run(a) => run::run(a),
+        Command::Synth(c) => synth::run(c),
     }
 }
 

@@ -8,6 +8,7 @@
 //! | `bssrdf` | `lucent bssrdf` slices per sample, `bssrdf compare` with measured slices | `[bssrdf]` |
 //! | `calibrate` | `lucent calibrate` (Zhang) | `[calibration]` |
 //! | `colour` | `lucent colour calibrate` per camera | `[[colour]]` |
+//! | `develop` | `lucent colour apply`: a sample's photo and empty board (RAW or EXR in its camera's RGB) → CIE RGB | a sample's `camera` |
 //! | `pose` | `lucent pose` on the sample photo | `[pose]` and the `calibrate` output |
 //! | `env-scale` | `lucent env fit-scale` per sample | `[render]`, a sample's `empty_board` |
 //! | `render` | `lucent render` per sample (the scene template with the sample's recipe, and the fitted scale) | `[render]` |
@@ -63,6 +64,7 @@ pub enum Stage {
     Bssrdf,
     Calibrate,
     Colour,
+    Develop,
     Pose,
     EnvScale,
     Render,
@@ -71,11 +73,12 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 9] = [
+    pub const ALL: [Stage; 10] = [
         Stage::Optics,
         Stage::Bssrdf,
         Stage::Calibrate,
         Stage::Colour,
+        Stage::Develop,
         Stage::Pose,
         Stage::EnvScale,
         Stage::Render,
@@ -90,6 +93,7 @@ impl Stage {
             Stage::Bssrdf => "bssrdf",
             Stage::Calibrate => "calibrate",
             Stage::Colour => "colour",
+            Stage::Develop => "develop",
             Stage::Pose => "pose",
             Stage::EnvScale => "env-scale",
             Stage::Render => "render",
@@ -112,15 +116,17 @@ impl Stage {
     pub fn depends_on(self) -> &'static [Stage] {
         match self {
             Stage::Optics | Stage::Bssrdf | Stage::Calibrate | Stage::Colour => &[],
+            Stage::Develop => &[Stage::Colour],
             Stage::Pose => &[Stage::Calibrate],
-            Stage::EnvScale => &[Stage::Pose],
+            Stage::EnvScale => &[Stage::Pose, Stage::Develop],
             Stage::Render => &[Stage::EnvScale, Stage::Pose],
-            Stage::Compare => &[Stage::Render],
+            Stage::Compare => &[Stage::Render, Stage::Develop],
             Stage::Report => &[
                 Stage::Optics,
                 Stage::Bssrdf,
                 Stage::Calibrate,
                 Stage::Colour,
+                Stage::Develop,
                 Stage::Pose,
                 Stage::EnvScale,
                 Stage::Render,
@@ -445,6 +451,36 @@ fn scene_inputs(path: &Path) -> Vec<PathBuf> {
     v
 }
 
+/// The photo `which` ("photo" or "empty_board") of a sample as the stages
+/// after develop read it: the develop stage's CIE RGB EXR when the sample
+/// names a camera, else the file as given.
+fn developed(
+    out: &Path,
+    smp: &project::SampleSection,
+    which: &str,
+    given: Option<&Path>,
+) -> Result<PathBuf, PipelineError> {
+    let given = given.map(Path::to_path_buf).unwrap_or_default();
+    if smp.camera.is_none() {
+        return Ok(given);
+    }
+    let p = out.join(Stage::Develop.name()).join(&smp.name).join(format!("{which}.exr"));
+    if p.is_file() {
+        Ok(p)
+    } else {
+        Err(PipelineError::Stage {
+            stage: Stage::Develop,
+            message: format!(
+                "{}: {} is in camera {:?}'s RGB but the develop stage has not written {}",
+                smp.name,
+                given.display(),
+                smp.camera.as_deref().unwrap_or_default(),
+                p.display()
+            ),
+        })
+    }
+}
+
 /// What `stage` will do for `project` with outputs under `out`; an inner
 /// `Err` with the reason when the project gives it nothing to do.
 pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, String>, PipelineError> {
@@ -597,6 +633,36 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 tasks.push(lucent(c.camera.clone(), args));
             }
         }
+        Stage::Develop => {
+            for smp in &f.sample {
+                let Some(cam) = &smp.camera else { continue };
+                let ccm = out.join(Stage::Colour.name()).join(cam).join("ccm.json");
+                if !ccm.is_file() {
+                    return Err(PipelineError::Stage {
+                        stage,
+                        message: format!("{}: camera {cam:?} has no ccm.json from the colour stage", smp.name),
+                    });
+                }
+                for (what, photo) in [("photo", &smp.photo), ("empty_board", &smp.empty_board)] {
+                    let Some(photo) = photo else { continue };
+                    inputs.push(photo.clone());
+                    let args = vec![
+                        "colour".into(),
+                        "apply".into(),
+                        "--ccm".into(),
+                        s(&ccm),
+                        s(photo),
+                        format!("{{out}}/{}/{what}.exr", smp.name),
+                        "--to".into(),
+                        "cie-rgb".into(),
+                    ];
+                    tasks.push(lucent(format!("{} {what}", smp.name), args));
+                }
+            }
+            if tasks.is_empty() {
+                return Ok(Err("no sample names a camera whose RGB its photos are in".into()));
+            }
+        }
         Stage::Pose => {
             let Some(p) = &f.pose else { return Ok(Err("no [pose] in the project".into())) };
             let camera = out.join(Stage::Calibrate.name()).join("camera.json");
@@ -637,7 +703,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 let scene_rel = format!("{}/input_scene.toml", smp.name);
                 let mut args: Vec<String> = match stage {
                     Stage::EnvScale => {
-                        let photo = smp.empty_board.clone().unwrap_or_default();
+                        let photo = developed(out, smp, "empty_board", smp.empty_board.as_deref())?;
                         inputs.push(photo.clone());
                         let mut a = vec![
                             "env".into(),
@@ -688,6 +754,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     notes.push(format!("{}: no photo", smp.name));
                     continue;
                 };
+                let photo = &developed(out, smp, "photo", Some(photo))?;
                 if !render.is_file() {
                     notes.push(format!("{}: no render", smp.name));
                     continue;

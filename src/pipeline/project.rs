@@ -30,6 +30,7 @@
 //! camera = "phone"
 //! image = "chart.exr"
 //! # corners = "x1,y1,x2,y2,x3,y3,x4,y4"   # else found by OpenCV's mcc
+//! # truth = "truth_colour.json"  # a known camera response (`lucent synth`): the report tabulates recovered vs truth
 //!
 //! [pose]                         # stage pose: the board's pose in the sample photo (needs calibrate)
 //! image = "photos/sample.jpg"
@@ -49,6 +50,8 @@
 //! name = "IOL1068-09"
 //! recipe = "samples/IOL1068-09.toml"
 //! # photo = "photo.exr"              # stage compare: the photograph (render's size, linear)
+//! # camera = "phone"                 # photo and empty_board are that [[colour]] camera's RGB (RAW or EXR):
+//!                                    # stage develop turns them into CIE RGB with its ccm.json
 //! # empty_board = "empty.exr"        # stage env-scale: the board photographed without the sample
 //! # [[sample.measured]]              # stage bssrdf: measured slices to score
 //! # config = "45/0"
@@ -136,6 +139,8 @@ pub struct ColourSection {
     pub corners: Option<String>,
     pub method: Option<String>,
     pub decode_srgb: Option<bool>,
+    /// A `truth_colour.json` ([`crate::synth::ColourTruth`]): the camera's known response.
+    pub truth: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -175,6 +180,8 @@ pub struct SampleSection {
     pub weight_percent: Option<f64>,
     pub photo: Option<PathBuf>,
     pub empty_board: Option<PathBuf>,
+    /// The `[[colour]]` camera whose RGB `photo` and `empty_board` are in (developed by stage develop).
+    pub camera: Option<String>,
     #[serde(default)]
     pub measured: Vec<MeasuredSection>,
 }
@@ -322,6 +329,24 @@ impl Project {
                 return Err(key("[[colour]] camera", format!("{:?}: names must be unique folder names", c.camera)));
             }
             existing(&format!("[[colour]] {} image", c.camera), &mut c.image)?;
+            if let Some(t) = &mut c.truth {
+                let k = format!("[[colour]] {} truth", c.camera);
+                existing(&k, t)?;
+                crate::synth::ColourTruth::load(t).map_err(|e| key(&k, e.to_string()))?;
+            }
+        }
+        for s in &file.sample {
+            if let Some(c) = &s.camera {
+                if !cameras.contains(c) {
+                    return Err(key(
+                        &format!("[[sample]] {} camera", s.name),
+                        format!("{c:?} is not a [[colour]] camera (its ccm.json develops the photos)"),
+                    ));
+                }
+                if s.photo.is_none() && s.empty_board.is_none() {
+                    return Err(key(&format!("[[sample]] {} camera", s.name), "there is no photo to develop".into()));
+                }
+            }
         }
         if let Some(p) = &mut file.pose {
             existing("[pose] image", &mut p.image)?;
