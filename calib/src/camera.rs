@@ -234,14 +234,184 @@ impl Distortion {
     }
 }
 
-/// A calibrated camera.
+/// A calibrated camera. Reading one from JSON validates it
+/// ([`CameraModel::validate`]): a camera file with a non-positive focal
+/// length or a distortion that folds the image is refused on load.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "CameraModelFields")]
 pub struct CameraModel {
     pub model: DistortionModel,
     pub image_width: usize,
     pub image_height: usize,
     pub intrinsics: Intrinsics,
     pub distortion: Distortion,
+}
+
+/// The fields of a [`CameraModel`] as stored, before validation.
+#[derive(Deserialize)]
+struct CameraModelFields {
+    model: DistortionModel,
+    image_width: usize,
+    image_height: usize,
+    intrinsics: Intrinsics,
+    distortion: Distortion,
+}
+
+impl TryFrom<CameraModelFields> for CameraModel {
+    type Error = CameraError;
+    fn try_from(f: CameraModelFields) -> Result<Self, CameraError> {
+        let cam = CameraModel {
+            model: f.model,
+            image_width: f.image_width,
+            image_height: f.image_height,
+            intrinsics: f.intrinsics,
+            distortion: f.distortion,
+        };
+        cam.validate()?;
+        Ok(cam)
+    }
+}
+
+/// Largest image side accepted, pixels (a typo guard, 4× a 100 MP sensor side).
+pub const MAX_IMAGE_SIDE: usize = 50_000;
+
+/// Range of the radial scale r_d / r (distorted over undistorted radius)
+/// accepted inside the image for the Brown–Conrady models. Real lenses stay
+/// well inside [0.5, 2] over their image; beyond [0.1, 10] the coefficients
+/// are a typo (k1 = 1e6 squeezes the whole image into a degree).
+pub const RADIAL_SCALE_RANGE: (f64, f64) = (0.1, 10.0);
+
+/// Why a camera model cannot be used (see [`CameraModel::validate`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CameraError {
+    #[error("image size {width} × {height} pixels: each side must be 2 to {MAX_IMAGE_SIDE} pixels")]
+    ImageSize { width: usize, height: usize },
+    #[error("focal length {name} = {value} px: must be a positive finite number")]
+    FocalLength { name: &'static str, value: f64 },
+    #[error(
+        "principal point ({cx}, {cy}) px is far outside the {width} × {height} image (allowed: within half an image size of its edges)"
+    )]
+    PrincipalPoint { cx: f64, cy: f64, width: usize, height: usize },
+    #[error("distortion coefficient {name} = {value} is not a finite number")]
+    Coefficient { name: &'static str, value: f64 },
+    #[error(
+        "the distortion does not map the image one-to-one: the distorted radius stops growing at {radius:.4} (normalised) before reaching the image corner at {corner:.4}; the coefficients are not a lens"
+    )]
+    NotMonotonic { radius: f64, corner: f64 },
+    #[error(
+        "the distortion scales radii by {scale:.3} inside the image (at normalised radius {radius:.4}); accepted is {}–{}: the coefficients are not a lens",
+        RADIAL_SCALE_RANGE.0,
+        RADIAL_SCALE_RANGE.1
+    )]
+    RadialScale { scale: f64, radius: f64 },
+    #[error("pixel ({u}, {v}) of the image has no ray: the distortion cannot be inverted there")]
+    NoRay { u: f64, v: f64 },
+}
+
+impl CameraModel {
+    /// Checks that the model can describe a real camera: image sides of 2 to
+    /// [`MAX_IMAGE_SIDE`] pixels; fx, fy positive and finite; the principal
+    /// point inside the image grown by half its size on every side; finite
+    /// coefficients; a radial map r → r_d that increases from the centre to
+    /// the farthest image corner (so every pixel has one ray) with r_d / r
+    /// within [`RADIAL_SCALE_RANGE`] there (Brown–Conrady; for the fisheye
+    /// model θ → θ_d increasing up to the corner or 180°); and a ray for
+    /// every pixel of a 9 × 9 grid over the image (corners included).
+    pub fn validate(&self) -> Result<(), CameraError> {
+        let (w, h) = (self.image_width, self.image_height);
+        if !((2..=MAX_IMAGE_SIDE).contains(&w) && (2..=MAX_IMAGE_SIDE).contains(&h)) {
+            return Err(CameraError::ImageSize { width: w, height: h });
+        }
+        let k = &self.intrinsics;
+        for (name, value) in [("fx", k.fx), ("fy", k.fy)] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(CameraError::FocalLength { name, value });
+            }
+        }
+        let (wf, hf) = (w as f64, h as f64);
+        let inside = |c: f64, side: f64| c.is_finite() && c >= -0.5 * side && c <= 1.5 * side;
+        if !(inside(k.cx, wf) && inside(k.cy, hf)) {
+            return Err(CameraError::PrincipalPoint { cx: k.cx, cy: k.cy, width: w, height: h });
+        }
+        let d = &self.distortion;
+        for (name, value) in [
+            ("k1", d.k1),
+            ("k2", d.k2),
+            ("p1", d.p1),
+            ("p2", d.p2),
+            ("k3", d.k3),
+            ("k4", d.k4),
+            ("k5", d.k5),
+            ("k6", d.k6),
+        ] {
+            if !value.is_finite() {
+                return Err(CameraError::Coefficient { name, value });
+            }
+        }
+        // Distorted normalised radius of the farthest image corner.
+        let corner = [(0.0, 0.0), (wf - 1.0, 0.0), (0.0, hf - 1.0), (wf - 1.0, hf - 1.0)]
+            .iter()
+            .map(|&(u, v)| ((u - k.cx) / k.fx).hypot((v - k.cy) / k.fy))
+            .fold(0.0, f64::max);
+        self.check_radial_map(corner)?;
+        for j in 0..9 {
+            for i in 0..9 {
+                let (u, v) = (i as f64 / 8.0 * (wf - 1.0), j as f64 / 8.0 * (hf - 1.0));
+                let ray = self.pixel_to_ray(u, v);
+                if self.model != DistortionModel::Fisheye && !ray.is_some_and(|r| r.iter().all(|c| c.is_finite())) {
+                    return Err(CameraError::NoRay { u, v });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The radial part of [`CameraModel::validate`]: walks outwards from the
+    /// axis until the distorted radius reaches `corner`.
+    fn check_radial_map(&self, corner: f64) -> Result<(), CameraError> {
+        let d = &self.distortion;
+        if self.model == DistortionModel::Fisheye {
+            // θ_d(θ) increasing on [0, min(θ at the corner, π)].
+            let steps = 20_000;
+            let mut prev = 0.0;
+            for s in 1..=steps {
+                let t = std::f64::consts::PI * s as f64 / steps as f64;
+                let t2 = t * t;
+                let td = t * (1.0 + t2 * (d.k1 + t2 * (d.k2 + t2 * (d.k3 + t2 * d.k4))));
+                if !(td.is_finite() && td > prev) {
+                    return Err(CameraError::NotMonotonic { radius: prev, corner });
+                }
+                if td >= corner {
+                    break;
+                }
+                prev = td;
+            }
+            return Ok(());
+        }
+        // r_d(r) = r · radial(r²): steps of corner/2000 up to 100 × corner.
+        let radial = |r: f64| {
+            let r2 = r * r;
+            (1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3))) / (1.0 + r2 * (d.k4 + r2 * (d.k5 + r2 * d.k6)))
+        };
+        let step = corner / 2000.0;
+        let mut prev = 0.0;
+        for s in 1..=200_000 {
+            let r = step * s as f64;
+            let scale = radial(r);
+            let rd = r * scale;
+            if !(rd.is_finite() && rd > prev) {
+                return Err(CameraError::NotMonotonic { radius: prev, corner });
+            }
+            if !(RADIAL_SCALE_RANGE.0..=RADIAL_SCALE_RANGE.1).contains(&scale) {
+                return Err(CameraError::RadialScale { scale, radius: r });
+            }
+            if rd >= corner {
+                return Ok(());
+            }
+            prev = rd;
+        }
+        Err(CameraError::NotMonotonic { radius: prev, corner })
+    }
 }
 
 impl CameraModel {
@@ -469,6 +639,74 @@ mod tests {
         assert_eq!(sample_bilinear(&img, 1.5, 0.0), [0.5; 3]);
         assert_eq!(sample_bilinear(&img, 5.0, 0.0), [0.0; 3]);
         assert_eq!(sample_bilinear(&img, f64::NAN, 0.0), [0.0; 3]);
+    }
+
+    #[test]
+    fn validation_refuses_cameras_that_are_not_lenses() {
+        let good = camera();
+        assert_eq!(good.validate(), Ok(()));
+        let with = |f: &dyn Fn(&mut CameraModel)| {
+            let mut c = camera();
+            f(&mut c);
+            c.validate().unwrap_err()
+        };
+        assert!(matches!(with(&|c| c.intrinsics.fx = 0.0), CameraError::FocalLength { name: "fx", .. }));
+        assert!(matches!(with(&|c| c.intrinsics.fy = -60.0), CameraError::FocalLength { name: "fy", .. }));
+        assert!(matches!(with(&|c| c.intrinsics.fx = f64::NAN), CameraError::FocalLength { .. }));
+        assert!(matches!(with(&|c| c.intrinsics.cx = 200.0), CameraError::PrincipalPoint { .. }));
+        assert!(matches!(with(&|c| c.intrinsics.cy = -30.0), CameraError::PrincipalPoint { .. }));
+        assert!(matches!(with(&|c| c.image_width = 0), CameraError::ImageSize { .. }));
+        assert!(matches!(with(&|c| c.distortion.p2 = f64::INFINITY), CameraError::Coefficient { name: "p2", .. }));
+        // k1 = 1e6: r_d = r (1 + 1e6 r²) is monotonic but squeezes the image 80-fold.
+        assert!(matches!(with(&|c| c.distortion.k1 = 1e6), CameraError::RadialScale { .. }));
+        // k1 = −1: r_d = r − r³ peaks at r = 1/√3 (r_d = 0.385) before the corner (0.53).
+        let e = with(&|c| c.distortion = Distortion { k1: -1.0, ..Default::default() });
+        assert!(matches!(e, CameraError::NotMonotonic { .. }), "{e}");
+        // Fisheye: θ_d = θ (1 − 0.5 θ²) turns back at θ = 0.816 (θ_d = 0.54) before the corner.
+        let e = with(&|c| {
+            c.model = DistortionModel::Fisheye;
+            c.intrinsics.fx = 30.0;
+            c.intrinsics.fy = 30.0;
+            c.distortion = Distortion { k1: -0.5, ..Default::default() }
+        });
+        assert!(matches!(e, CameraError::NotMonotonic { .. }), "{e}");
+    }
+
+    #[test]
+    fn opencv_calibrations_of_the_shipped_photos_validate() {
+        // Real lenses must pass: OpenCV's calibrations of fixtures/camera/chessboard
+        // (tools/reference/opencv_calibration.py) and the demo's synthetic camera.
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let text = std::fs::read_to_string(root.join("fixtures/reference/opencv_left_calibration.json")).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        for key in ["auto", "classic_only"] {
+            let c = &v[key];
+            let f = |k: &str| c[k].as_f64().unwrap();
+            let d: Vec<f64> =
+                c["distortion_k1_k2_p1_p2_k3"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+            let cam = CameraModel {
+                model: DistortionModel::PinholeK3,
+                image_width: 640,
+                image_height: 480,
+                intrinsics: Intrinsics { fx: f("fx"), fy: f("fy"), cx: f("cx"), cy: f("cy") },
+                distortion: Distortion::from_opencv(&d),
+            };
+            assert_eq!(cam.validate(), Ok(()), "{key}");
+        }
+        let text = std::fs::read_to_string(root.join("fixtures/demo/truth_camera.json")).unwrap();
+        let cal: Calibration = serde_json::from_str(&text).unwrap();
+        assert_eq!(cal.camera.validate(), Ok(()));
+    }
+
+    #[test]
+    fn reading_json_validates() {
+        let text = serde_json::to_string(&camera()).unwrap();
+        let back: CameraModel = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, camera());
+        let bad = text.replace("\"fx\":60.0", "\"fx\":-60.0");
+        assert_ne!(bad, text);
+        let e = serde_json::from_str::<CameraModel>(&bad).unwrap_err().to_string();
+        assert!(e.contains("focal length fx = -60"), "{e}");
     }
 
     #[test]

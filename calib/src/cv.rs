@@ -95,11 +95,36 @@ fn imread(path: &Path, flags: i32) -> Result<Mat, CalibError> {
     if !path.is_file() {
         return Err(err("no such file".into()));
     }
-    let m = imgcodecs::imread(path, flags).map_err(|e| err(e.message))?;
+    // OpenCV decodes a cut-off JPEG or PNG with a warning and grey rows; refuse it.
+    let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
+    if let Some(problem) = truncation(&bytes) {
+        return Err(err(problem.into()));
+    }
+    let m = imgcodecs::imdecode(&core::Vector::<u8>::from_slice(&bytes), flags).map_err(|e| err(e.message))?;
     if m.empty() {
         return Err(err("not an image format OpenCV can decode, or a corrupt file".into()));
     }
     Ok(m)
+}
+
+/// Why a JPEG or PNG file is cut short, if it is: a JPEG without the
+/// end-of-image marker (FF D9) after its last scan (FF DA), a PNG without its
+/// IEND chunk at the end. Other formats are left to the decoder.
+fn truncation(bytes: &[u8]) -> Option<&'static str> {
+    if bytes.starts_with(&[0xFF, 0xD8]) {
+        let Some(last_scan) = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]) else {
+            return Some("truncated JPEG (no image data)");
+        };
+        if !bytes[last_scan..].windows(2).any(|w| w == [0xFF, 0xD9]) {
+            return Some("truncated JPEG (no end-of-image marker after the last scan)");
+        }
+    } else if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        let tail = &bytes[bytes.len().saturating_sub(16)..];
+        if !tail.windows(4).any(|w| w == b"IEND") {
+            return Some("truncated PNG (no IEND chunk at the end)");
+        }
+    }
+    None
 }
 
 /// The pixel bytes of an 8-bit Mat, row-major without padding.
