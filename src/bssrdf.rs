@@ -10,7 +10,7 @@
 //! | `bssrdf.png` | log₁₀(f/f_max) in false colour, colour bar, scale in mm |
 //! | `profile.csv` | x_mm, f_per_m2_sr, std_error, beam (relative) along the plane of incidence |
 //! | `profile.png` | the same, log scale, beam on a second axis |
-//! | `summary.json` | configuration, optical properties used, sum, errors (of the sum; per pixel: median and 90th percentile of the relative standard error over the pixels above 1 % of the maximum), paths, events, speed |
+//! | `summary.json` | configuration (including the top boundary, `config.roughness`), optical properties used, sum, errors (of the sum; per pixel: median and 90th percentile of the relative standard error over the pixels above 1 % of the maximum), paths, events, speed |
 //!
 //! Comparison (`lucent bssrdf compare`): the mean squared relative error
 //! MSRE = mean over the mask of ((f_sim − f_meas)/f_meas)², where the mask
@@ -22,7 +22,7 @@
 use crate::imageio::{self, ImageIoError};
 use crate::io::{write_atomic, write_json, WriteError};
 use crate::plot::{perr, render_png, PlotError};
-use lucent_render::slab::{Beam, Directions, Slice};
+use lucent_render::slab::{Beam, Boundary, Directions, Slice};
 use plotters::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -77,18 +77,14 @@ fn invalid(path: &Path, message: impl Into<String>) -> SliceIoError {
 /// same folder) with `pixel_mm`.
 pub fn read_grid(path: &Path, pixel_mm: Option<f64>) -> Result<Grid, SliceIoError> {
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if !path.is_file() {
+        return Err(invalid(path, if path.exists() { "not a file" } else { "no such file" }));
+    }
     let (w, h, values) = match ext.as_str() {
         "csv" | "txt" => read_csv_grid(path)?,
         "exr" => read_exr_scalar(path)?,
-        "tif" | "tiff" => {
-            let img = image::ImageReader::open(path)
-                .map_err(|e| invalid(path, e.to_string()))?
-                .decode()
-                .map_err(|e| invalid(path, e.to_string()))?;
-            let (w, h) = (img.width() as usize, img.height() as usize);
-            let v: Vec<f64> = img.into_rgb32f().pixels().map(|p| p.0[0] as f64).collect();
-            (w, h, v)
-        }
+        // Float samples only: integer counts have no physical scale.
+        "tif" | "tiff" => imageio::read_float_tiff(path)?,
         _ => return Err(invalid(path, "unsupported slice format (expected .exr, .tif/.tiff or .csv)")),
     };
     if w != h {
@@ -100,7 +96,7 @@ pub fn read_grid(path: &Path, pixel_mm: Option<f64>) -> Result<Grid, SliceIoErro
     let pixel_mm = match pixel_mm {
         Some(p) => p,
         None => sidecar_pixel_mm(path)?.ok_or_else(|| {
-            invalid(path, "pixel size unknown: pass it (--measured-pixel-mm) or put {\"pixel_mm\": …} in FILE.json")
+            invalid(path, "pixel size unknown: pass it (--measured-pixel-mm for --measured, --beam-map-pixel-mm for --beam-map) or put {\"pixel_mm\": …} in FILE.json")
         })?,
     };
     if !(pixel_mm.is_finite() && pixel_mm > 0.0) {
@@ -179,6 +175,131 @@ fn read_exr_scalar(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError
     Ok((size.width(), size.height(), values))
 }
 
+/// A `--roughness` value that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum RoughnessError {
+    #[error(
+        "--roughness {text:?}: {reason} (expected smooth, tr:ALPHA, ggx:ALPHA, beckmann:ALPHA or measured:FIT.json)"
+    )]
+    Syntax { text: String, reason: String },
+    #[error("--roughness {text:?}: {source}")]
+    Surface { text: String, source: crate::surface::SurfaceError },
+    #[error("--roughness {text:?}: {path}: {reason}")]
+    Normals { text: String, path: PathBuf, reason: String },
+}
+
+/// The top boundary of `--roughness TEXT` (or, without it, of the recipe's
+/// `[surface]`, else smooth) and a description for the summary:
+///
+/// * `smooth`;
+/// * `tr:ALPHA` (also `ggx:`, `trowbridge-reitz:`) or `beckmann:ALPHA`:
+///   the analytic distribution with roughness α (0 ≤ α ≤ 4; below 10⁻⁴ the
+///   boundary is smooth);
+/// * `measured:FIT.json`: the measured normal set of a `lucent surface fit`
+///   run — `normals.exr` beside its `fit.json` (the fit's schema is
+///   checked) — as a kernel density estimate of the slopes
+///   ([`lucent_render::microfacet::MeasuredNormals`], bandwidth from the
+///   data); a `normals.exr` may be named directly too.
+///
+/// The recipe's `[surface]` gives its model and α; its fitted scale factor
+/// is not used (the distributions are normalised).
+pub fn roughness(
+    text: Option<&str>,
+    recipe_surface: Option<&crate::optics::recipe::Surface>,
+) -> Result<(Boundary, String), RoughnessError> {
+    use crate::optics::recipe::RoughnessModel;
+    use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
+    let analytic = |d: Distribution, origin: &str, text: &str| -> Result<(Boundary, String), RoughnessError> {
+        let boundary = Boundary::rough(Microsurface::Analytic(d)).map_err(|_| RoughnessError::Syntax {
+            text: text.into(),
+            reason: format!("α = {} must be a number in [0, 4]", d.alpha()),
+        })?;
+        let name = format!("{} ({origin})", boundary.describe());
+        Ok((boundary, name))
+    };
+    let Some(text) = text else {
+        return match recipe_surface {
+            Some(s) => {
+                let d = match s.model {
+                    RoughnessModel::TrowbridgeReitz => Distribution::TrowbridgeReitz { alpha: s.alpha },
+                    RoughnessModel::Beckmann => Distribution::Beckmann { alpha: s.alpha },
+                };
+                analytic(d, "the recipe's [surface]", "recipe")
+            }
+            None => Ok((Boundary::Smooth, "smooth".into())),
+        };
+    };
+    let syntax = |reason: &str| RoughnessError::Syntax { text: text.into(), reason: reason.into() };
+    let t = text.trim();
+    if t == "smooth" {
+        return Ok((Boundary::Smooth, "smooth (--roughness)".into()));
+    }
+    let Some((kind, value)) = t.split_once(':') else {
+        return Err(syntax("no MODEL:VALUE"));
+    };
+    let alpha = || -> Result<f64, RoughnessError> {
+        let a: f64 = value.trim().parse().map_err(|_| syntax(&format!("{value:?} is not a number")))?;
+        if !(a.is_finite() && (0.0..=4.0).contains(&a)) {
+            return Err(syntax(&format!("α = {a} must be a number in [0, 4]")));
+        }
+        Ok(a)
+    };
+    match kind.trim().to_ascii_lowercase().as_str() {
+        "tr" | "ggx" | "trowbridge-reitz" => {
+            analytic(Distribution::TrowbridgeReitz { alpha: alpha()? }, "--roughness", text)
+        }
+        "beckmann" => analytic(Distribution::Beckmann { alpha: alpha()? }, "--roughness", text),
+        "measured" => {
+            let path = PathBuf::from(value.trim());
+            let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+            let normals_path = if is_exr {
+                path.clone()
+            } else {
+                crate::surface::load_fit_choice(&path, None)
+                    .map_err(|source| RoughnessError::Surface { text: text.into(), source })?;
+                path.parent().unwrap_or(Path::new(".")).join("normals.exr")
+            };
+            let normals = read_normals(&normals_path).map_err(|reason| RoughnessError::Normals {
+                text: text.into(),
+                path: normals_path.clone(),
+                reason,
+            })?;
+            let set = MeasuredNormals::new(&normals, None).map_err(|e| RoughnessError::Normals {
+                text: text.into(),
+                path: normals_path.clone(),
+                reason: e.to_string(),
+            })?;
+            let boundary = Boundary::Rough(Microsurface::Measured(std::sync::Arc::new(set)));
+            let name = format!("{} from {}", boundary.describe(), normals_path.display());
+            Ok((boundary, name))
+        }
+        other => Err(syntax(&format!("unknown model {other:?}"))),
+    }
+}
+
+/// The unit normals of a `normals.exr` of `lucent surface fit` (R, G, B =
+/// x, y, z, A = 1 where the pixel has a normal), renormalised from 32-bit
+/// floats; pixels with A = 0 are skipped.
+fn read_normals(path: &Path) -> Result<Vec<[f64; 3]>, String> {
+    let (w, h, planes) = crate::imageio::read_exr_channels(path, &["R", "G", "B", "A"]).map_err(|e| e.to_string())?;
+    let mut out = Vec::with_capacity(w * h);
+    for k in 0..w * h {
+        if planes[3][k] == 0.0 {
+            continue;
+        }
+        let v = [planes[0][k] as f64, planes[1][k] as f64, planes[2][k] as f64];
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        if !(l.is_finite() && (l - 1.0).abs() < 1e-3 && v[2] > 0.0) {
+            return Err(format!("pixel ({}, {}) = {v:?} is not a unit normal facing +z", k % w, k / w));
+        }
+        out.push([v[0] / l, v[1] / l, v[2] / l]);
+    }
+    if out.is_empty() {
+        return Err("no pixel holds a normal (alpha is 0 everywhere)".into());
+    }
+    Ok(out)
+}
+
 /// Configuration and results of a run, as written to `summary.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
@@ -234,6 +355,9 @@ pub struct RunConfig {
     pub crop_of: Option<usize>,
     pub seed: u64,
     pub thickness_mm: f64,
+    /// The top boundary: "smooth" or the rough surface used and where it
+    /// came from (`--roughness`, the recipe's `[surface]`).
+    pub roughness: String,
 }
 
 /// The optical properties a run used.

@@ -271,3 +271,60 @@ fn ring_runs_stop_on_the_per_pixel_error() {
     assert!(median <= 0.2 && s["wall_s"].as_f64().unwrap() < 60.0, "{s}");
     assert!(s["pixel_rel_error_p90"].as_f64().unwrap() >= median);
 }
+
+/// The bad `--roughness` values of tests/bad/bssrdf/README.md: a clear
+/// error naming the value and the problem, non-zero exit, nothing written.
+#[test]
+fn bad_roughness_gives_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("rough");
+    let cases = [
+        ("tr:abc", "\"abc\" is not a number"),
+        ("beckmann:-1", "α = -1"),
+        ("tr:nan", "[0, 4]"),
+        ("glossy:0.1", "unknown model \"glossy\""),
+        ("0.01", "MODEL:VALUE"),
+        ("measured:tests/bad/bssrdf/wrong_schema_fit.json", "schema"),
+        ("measured:tests/bad/bssrdf/missing/fit.json", "cannot read"),
+    ];
+    for (value, key) in cases {
+        let o = run_thin(&out, &["--roughness", value, "--paths", "100"]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{value} accepted");
+        assert!(e.contains(key) && e.contains("--roughness"), "{value}: {e}");
+        assert!(!e.contains("panicked"), "{value}: {e}");
+        assert!(!out.exists(), "{value}: output written");
+    }
+}
+
+/// A rough-top run: the boundary in summary.json (from --roughness, from a
+/// measured normal set of `lucent surface fit`), the fixed-direction
+/// connection, and a slice close to the smooth one for the lab's α.
+#[test]
+fn rough_runs_record_their_boundary() {
+    let dir = tempfile::tempdir().unwrap();
+    let surface = dir.path().join("surface");
+    let o = lucent(&["surface", "fit", "fixtures/surface/tr_0p0084.x3p", "--out", surface.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let fit = surface.join("fit.json");
+    let summary = |name: &str, roughness: &str| -> serde_json::Value {
+        let out = dir.path().join(name);
+        let o = run_thin(&out, &["--roughness", roughness]);
+        assert!(o.status.success(), "{roughness}: {}", stderr(&o));
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap()
+    };
+    let smooth = summary("smooth", "smooth");
+    let tr = summary("tr", "tr:0.0084");
+    let measured = summary("measured", &format!("measured:{}", fit.display()));
+    assert_eq!(smooth["config"]["roughness"], "smooth (--roughness)");
+    assert!(tr["config"]["roughness"].as_str().unwrap().contains("Trowbridge–Reitz α = 0.0084"), "{tr}");
+    let m = measured["config"]["roughness"].as_str().unwrap();
+    assert!(m.contains("measured normals") && m.contains("normals.exr"), "{m}");
+    for s in [&tr, &measured] {
+        assert_eq!(s["estimator"], "connection (fixed direction)");
+        // α ≈ 0.008 barely changes a diffuse slice: within 4σ + 3 % of smooth.
+        let (a, sa) = (s["sum"].as_f64().unwrap(), s["sum_std_error"].as_f64().unwrap());
+        let (b, sb) = (smooth["sum"].as_f64().unwrap(), smooth["sum_std_error"].as_f64().unwrap());
+        assert!((a - b).abs() < 4.0 * (sa * sa + sb * sb).sqrt() + 0.03 * b, "{a} ± {sa} vs {b} ± {sb}");
+    }
+}

@@ -121,6 +121,11 @@ pub struct RunArgs {
     /// Estimator of the slice.
     #[arg(long, value_enum, default_value_t = EstimatorChoice::Auto)]
     pub estimator: EstimatorChoice,
+    /// Top boundary: smooth, tr:ALPHA (ggx:ALPHA), beckmann:ALPHA, or
+    /// measured:FIT.json (the normals.exr beside a `lucent surface fit`
+    /// fit.json). Default: the recipe's [surface], else smooth.
+    #[arg(long)]
+    pub roughness: Option<String>,
     /// Do not fold the slice about the plane of incidence (the fold is exact,
     /// and applied, when φi and φo are 0° or 180° and the beam is mirror-symmetric).
     #[arg(long)]
@@ -160,6 +165,8 @@ pub fn run(a: BssrdfArgs) -> Result<()> {
 
 /// The medium, thickness and description of what was used.
 struct MediumChoice {
+    /// The recipe's measured surface, if any.
+    surface: Option<crate::optics::recipe::Surface>,
     medium: Medium,
     thickness_m: f64,
     used: OpticalUsed,
@@ -189,6 +196,7 @@ fn medium(a: &RunArgs) -> Result<MediumChoice> {
         };
         let medium = Medium::new(s.mu_s_per_m, s.mu_a_per_m, phase, s.n_bulk.max(1.0))?;
         Ok(MediumChoice {
+            surface: recipe.surface,
             medium,
             thickness_m: explicit_thickness.unwrap_or(recipe.thickness_m),
             used: OpticalUsed { mu_s_per_m: s.mu_s_per_m, mu_a_per_m: s.mu_a_per_m, g: s.g, n: s.n_bulk },
@@ -203,6 +211,7 @@ fn medium(a: &RunArgs) -> Result<MediumChoice> {
         }
         let medium = Medium::new(mu_s, mu_a, Phase::henyey_greenstein(g)?, n)?;
         Ok(MediumChoice {
+            surface: None,
             medium,
             thickness_m: explicit_thickness.unwrap_or(6.35e-3),
             used: OpticalUsed { mu_s_per_m: mu_s, mu_a_per_m: mu_a, g, n },
@@ -245,20 +254,42 @@ fn simulate(a: RunArgs) -> Result<()> {
     // Only the crop is simulated: the pixels outside it would be discarded.
     let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
     let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error, pixel_rel_error: a.pixel_rel_error };
+    // Bad stop rules and beams are refused before any work (issue 17).
+    let positive = |flag: &str, v: Option<f64>| match v {
+        Some(x) if !(x.is_finite() && x > 0.0) => Err(anyhow!("{flag} {x}: must be a positive number")),
+        _ => Ok(()),
+    };
+    positive("--time-s", a.time_s)?;
+    positive("--rel-error", a.rel_error)?;
+    positive("--pixel-rel-error", a.pixel_rel_error)?;
+    if a.paths == Some(0) {
+        bail!("--paths 0: at least one light path is needed");
+    }
+    let field_mm = out_pixels as f64 * a.pixel_mm;
+    if a.beam_map.is_none() && a.beam_fwhm_um * 1e-3 > field_mm {
+        bail!("--beam-fwhm-um {}: the beam is wider than the slice ({out_pixels} pixels × {} mm = {field_mm} mm); widen the slice (--pixels, --pixel-mm) or narrow the beam", a.beam_fwhm_um, a.pixel_mm);
+    }
     // Without a stop rule: 1 % on the slice sum, but at most 10 minutes per
     // configuration (strongly forward-peaked media converge slowly).
     let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
-    let slab = Slab::new(m.thickness_m, m.medium.clone())?;
+    let (top, roughness) = bssrdf::roughness(a.roughness.as_deref(), m.surface.as_ref())?;
+    let slab = Slab::new(m.thickness_m, m.medium.clone())?.with_top(top);
     let configs = match &a.configs {
         Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
         None => vec![(a.theta_i, a.phi_i, a.theta_o, a.phi_o)],
     };
+    for (ti, pi, to, po) in &configs {
+        Directions::from_degrees(*ti, *pi, *to, *po).with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
+    }
+    // Written into a staging folder, moved into --out when every configuration is done.
+    let stage = crate::io::StagedDir::new(&a.out)?;
     let mut table =
         String::from("folder,theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,sum_per_m2_sr,sum_std_error,paths,wall_s\n");
     for (ti, pi, to, po) in &configs {
         let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
         let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
-        let dir = if configs.len() > 1 { a.out.join(format!("ti{ti}_to{to}")) } else { a.out.clone() };
+        let sub = if configs.len() > 1 { format!("ti{ti}_to{to}") } else { String::new() };
+        let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
         let estimator = match a.estimator {
             EstimatorChoice::Auto => Estimator::best_for(&setup),
             EstimatorChoice::Ring => Estimator::Ring,
@@ -304,6 +335,7 @@ fn simulate(a: RunArgs) -> Result<()> {
                 crop_of: a.crop.map(|_| a.pixels),
                 seed: a.seed,
                 thickness_mm: m.thickness_m * 1e3,
+                roughness: roughness.clone(),
             },
             optical_properties: m.used,
             sum: slice.sum,
@@ -339,11 +371,11 @@ fn simulate(a: RunArgs) -> Result<()> {
             slice.paths,
             summary.events_per_s / 1e6,
             slice.wall_s,
-            dir.display()
+            shown.display()
         );
         table.push_str(&format!(
             "{},{ti},{pi},{to},{po},{:.8e},{:.3e},{},{:.3}\n",
-            dir.display(),
+            shown.display(),
             slice.sum,
             slice.sum_std_error,
             slice.paths,
@@ -351,10 +383,11 @@ fn simulate(a: RunArgs) -> Result<()> {
         ));
     }
     if configs.len() > 1 {
-        let p = a.out.join("sweep.csv");
-        crate::io::write_atomic(&p, table.as_bytes())?;
-        println!("combined table: {}", p.display());
+        crate::io::write_atomic(&stage.path().join("sweep.csv"), table.as_bytes())?;
+        println!("combined table: {}", a.out.join("sweep.csv").display());
     }
+    let owned = ["bssrdf.exr", "bssrdf.png", "profile.csv", "profile.png", "summary.json", "sweep.csv"];
+    stage.commit(|n| owned.contains(&n) || (n.starts_with("ti") && n.contains("_to")))?;
     Ok(())
 }
 
@@ -472,6 +505,7 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
             time_s: Some(time_s),
             seed: 1,
             estimator: EstimatorChoice::Auto,
+            roughness: None,
             no_fold: false,
             out: PathBuf::new(),
             quiet: true,
