@@ -2,7 +2,18 @@
 //! decodes) to linear camera RGB, with the metadata a lab needs.
 //!
 //! Steps, in order ([`read_raw`] does 1–4, [`develop`] 5–7):
-//! 1. Decode the sensor values with `rawloader`. Before that, a TIFF-based
+//! 1. Decode the sensor values: **uncompressed DNGs** (Bayer or phones'
+//!    three-channel `LinearRaw`, PhotometricInterpretation 34892; 8- or
+//!    16-bit; strips or tiles; either byte order; `Linearization` table)
+//!    with this module's own reader (`dng`, added because `rawloader` 0.37
+//!    refuses uncompressed tiles, reads strips as one contiguous block and
+//!    16-bit samples as little-endian, and keeps one black/white level for
+//!    the three channels of a linear DNG: `calib/tests/raw_dng_phone.rs`
+//!    shows each); everything else (CR2, NEF, …, LJPEG-compressed DNGs)
+//!    with `rawloader`, a linear DNG's per-channel levels then re-read from
+//!    its tags. DNG opcode lists (`OpcodeList1–3`: phones' gain maps, lens
+//!    warps) and `DefaultCrop` are not applied; the metadata's warnings say
+//!    so. Before decoding, a TIFF-based
 //!    file whose declared image data runs past its end is refused as
 //!    truncated ([`tiff_data_end`]; `rawloader` would make the missing part
 //!    up), and after it a buffer whose length is not width × height ×
@@ -28,8 +39,9 @@
 //! The result is camera RGB (the sensor's own primaries), not sRGB; the
 //! camera's XYZ → camera matrix goes into the metadata for the colour stage.
 //! Checked against LibRaw through rawpy on a real Canon EOS 30D file
-//! (`calib/tests/raw_real.rs`) and with a DNG written from a known mosaic
-//! (`calib/tests/raw_dng.rs`).
+//! (`calib/tests/raw_real.rs`), with a DNG written from a known mosaic
+//! (`calib/tests/raw_dng.rs`) and with phone-style DNGs written byte by
+//! byte (`calib/tests/raw_dng_phone.rs`: linear tiled, big-endian strips).
 //!
 //! ```
 //! use lucent_calib::raw::{orient, Orientation};
@@ -382,7 +394,12 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
         _ => {}
     }
     quiet_rawloader_panics();
-    let img = rawloader::decode(&mut std::io::Cursor::new(&bytes)).map_err(|e| {
+    let own = dng::decode_uncompressed(&bytes).map_err(|reason| RawError::Decode { path: p(), reason })?;
+    let decoded = match own {
+        Some(img) => Ok(img),
+        None => rawloader::decode(&mut std::io::Cursor::new(&bytes)),
+    };
+    let mut img = decoded.map_err(|e| {
         let msg = e.to_string();
         let msg = msg.strip_prefix("RawLoaderError: ").unwrap_or(&msg).trim_matches('"').to_string();
         let msg = if msg.starts_with("Caught a panic") {
@@ -392,7 +409,12 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
         };
         RawError::Decode { path: p(), reason: msg }
     })?;
-    let mut warnings = Vec::new();
+    if img.cpp == 3 {
+        if let Some((black, white)) = dng::levels(&bytes) {
+            (img.blacklevels, img.whitelevels) = (black, white);
+        }
+    }
+    let mut warnings = dng::notes(&bytes);
     let exif = read_exif(&bytes).unwrap_or_else(|e| {
         warnings.push(format!("no EXIF metadata ({e}): exposure, ISO and lens unknown"));
         ExifInfo::default()
@@ -715,5 +737,330 @@ mod tests {
     fn white_balance_names() {
         assert_eq!(WhiteBalance::from_name("Camera").unwrap(), WhiteBalance::Camera);
         assert!(WhiteBalance::from_name("auto").unwrap_err().contains("none, camera"));
+    }
+}
+
+/// Uncompressed DNG raw data read here rather than by `rawloader` 0.37,
+/// which reads only the first strip of an uncompressed DNG as if all strips
+/// were contiguous, cannot read uncompressed tiles (phones' linear DNGs are
+/// tiled), reads 16-bit samples as little-endian whatever the file's byte
+/// order, and keeps one black and white level for all three channels of a
+/// `LinearRaw` file. For LJPEG-compressed DNGs (compression 7) `rawloader`
+/// decodes the data and [`dng::levels`] corrects the per-channel levels.
+/// Opcode lists (`OpcodeList1–3`: gain maps, lens warps, bad-pixel fixes
+/// written by phones) are not applied; [`dng::notes`] reports them.
+mod dng {
+    use std::collections::HashMap;
+
+    /// One IFD entry: type, count, and where its values start.
+    #[derive(Clone, Copy)]
+    struct Entry {
+        typ: u16,
+        count: usize,
+        at: usize,
+    }
+
+    struct Tiff<'a> {
+        b: &'a [u8],
+        le: bool,
+    }
+
+    impl Tiff<'_> {
+        fn u16(&self, o: usize) -> Option<u16> {
+            let s = self.b.get(o..o + 2)?;
+            Some(if self.le { u16::from_le_bytes([s[0], s[1]]) } else { u16::from_be_bytes([s[0], s[1]]) })
+        }
+        fn u32(&self, o: usize) -> Option<u32> {
+            let s = self.b.get(o..o + 4)?;
+            let a = [s[0], s[1], s[2], s[3]];
+            Some(if self.le { u32::from_le_bytes(a) } else { u32::from_be_bytes(a) })
+        }
+        fn ifd(&self, at: usize) -> Option<HashMap<u16, Entry>> {
+            let n = usize::from(self.u16(at)?);
+            let mut tags = HashMap::new();
+            for k in 0..n {
+                let e = at + 2 + 12 * k;
+                let (tag, typ, count) = (self.u16(e)?, self.u16(e + 2)?, self.u32(e + 4)? as usize);
+                let size = match typ {
+                    1 | 2 | 6 | 7 => 1,
+                    3 | 8 => 2,
+                    4 | 9 | 11 | 13 => 4,
+                    5 | 10 | 12 => 8,
+                    _ => continue,
+                };
+                let bytes = size * count;
+                let at = if bytes <= 4 { e + 8 } else { self.u32(e + 8)? as usize };
+                if count > 1 << 24 || at.checked_add(bytes)? > self.b.len() {
+                    return None;
+                }
+                tags.insert(tag, Entry { typ, count, at });
+            }
+            Some(tags)
+        }
+        fn next_ifd(&self, at: usize) -> Option<usize> {
+            let n = usize::from(self.u16(at)?);
+            Some(self.u32(at + 2 + 12 * n)? as usize)
+        }
+        /// Values as f64 (numbers only).
+        fn values(&self, e: Entry) -> Vec<f64> {
+            (0..e.count)
+                .filter_map(|k| {
+                    Some(match e.typ {
+                        1 | 7 => f64::from(*self.b.get(e.at + k)?),
+                        6 => f64::from(*self.b.get(e.at + k)? as i8),
+                        3 => f64::from(self.u16(e.at + 2 * k)?),
+                        8 => f64::from(self.u16(e.at + 2 * k)? as i16),
+                        4 | 13 => f64::from(self.u32(e.at + 4 * k)?),
+                        9 => f64::from(self.u32(e.at + 4 * k)? as i32),
+                        5 => f64::from(self.u32(e.at + 8 * k)?) / f64::from(self.u32(e.at + 8 * k + 4)?),
+                        10 => f64::from(self.u32(e.at + 8 * k)? as i32) / f64::from(self.u32(e.at + 8 * k + 4)? as i32),
+                        11 => f64::from(f32::from_bits(self.u32(e.at + 4 * k)?)),
+                        _ => return None,
+                    })
+                })
+                .collect()
+        }
+        fn text(&self, e: Entry) -> String {
+            let s = &self.b[e.at..e.at + e.count];
+            String::from_utf8_lossy(s).trim_end_matches('\0').trim().to_string()
+        }
+    }
+
+    /// IFD0's tags and the raw image's IFD (NewSubfileType 0 with CFA or
+    /// LinearRaw photometric interpretation, in IFD0, its chain or SubIFDs).
+    struct Parsed<'a> {
+        t: Tiff<'a>,
+        ifd0: HashMap<u16, Entry>,
+        raw: HashMap<u16, Entry>,
+    }
+
+    fn parse(bytes: &[u8]) -> Option<Parsed<'_>> {
+        let le = match bytes.get(..4)? {
+            [b'I', b'I', 42, 0] => true,
+            [b'M', b'M', 0, 42] => false,
+            _ => return None,
+        };
+        let t = Tiff { b: bytes, le };
+        let first = t.u32(4)? as usize;
+        let ifd0 = t.ifd(first)?;
+        ifd0.get(&50706)?; // DNGVersion: a DNG
+        let mut queue = vec![first];
+        let mut seen = std::collections::HashSet::new();
+        while let Some(at) = queue.pop() {
+            if at == 0 || !seen.insert(at) || seen.len() > 64 {
+                continue;
+            }
+            let tags = t.ifd(at)?;
+            let first_value = |tag: u16| tags.get(&tag).and_then(|e| t.values(*e).first().copied());
+            let photometric = first_value(262).unwrap_or(0.0) as u32;
+            if first_value(254).unwrap_or(0.0) as u32 == 0 && (photometric == 32803 || photometric == 34892) {
+                return Some(Parsed { ifd0, raw: tags, t });
+            }
+            if let Some(e) = tags.get(&330) {
+                queue.extend(t.values(*e).into_iter().map(|v| v as usize));
+            }
+            if let Some(next) = t.next_ifd(at) {
+                queue.push(next);
+            }
+        }
+        None
+    }
+
+    /// The raw IFD's levels for three samples per pixel: per-channel black
+    /// and white ([r, g, b, b]), if the file is a linear DNG.
+    pub(super) fn levels(bytes: &[u8]) -> Option<([u16; 4], [u16; 4])> {
+        let p = parse(bytes)?;
+        let get = |tag: u16| p.raw.get(&tag).map(|e| p.t.values(*e)).unwrap_or_default();
+        if get(277).first().copied().unwrap_or(1.0) as usize != 3 {
+            return None;
+        }
+        Some(per_sample(&get(50714), &get(50717), 3))
+    }
+
+    fn per_sample(black: &[f64], white: &[f64], cpp: usize) -> ([u16; 4], [u16; 4]) {
+        let pick = |v: &[f64], k: usize, default: f64| {
+            let x = if v.len() >= cpp && cpp > 1 { v[k.min(cpp - 1)] } else { v.first().copied().unwrap_or(default) };
+            x.round().clamp(0.0, 65535.0) as u16
+        };
+        let black = if cpp == 1 && black.len() >= 4 {
+            std::array::from_fn(|k| black[k].round().clamp(0.0, 65535.0) as u16)
+        } else {
+            std::array::from_fn(|k| pick(black, k, 0.0))
+        };
+        (black, std::array::from_fn(|k| pick(white, k, 65535.0)))
+    }
+
+    /// What is in the file but not applied, for the metadata's warnings.
+    pub(super) fn notes(bytes: &[u8]) -> Vec<String> {
+        let Some(p) = parse(bytes) else { return Vec::new() };
+        let mut out = Vec::new();
+        for (tag, name) in [(51008u16, "OpcodeList1"), (51009, "OpcodeList2"), (51022, "OpcodeList3")] {
+            if let Some(e) = p.raw.get(&tag).or_else(|| p.ifd0.get(&tag)) {
+                out.push(format!(
+                    "{name} ({} bytes) ignored: its corrections (gain maps / lens shading, lens warp, bad pixels) are not applied",
+                    e.count
+                ));
+            }
+        }
+        if p.raw.contains_key(&50719) || p.raw.contains_key(&50720) {
+            out.push("DefaultCrop ignored: the output is the whole active area".into());
+        }
+        out
+    }
+
+    /// The raw image of an uncompressed DNG (strips or tiles, 8 or 16 bits,
+    /// either byte order, CFA or LinearRaw); `Ok(None)` for other files
+    /// (not a DNG, or compressed: `rawloader`'s).
+    pub(super) fn decode_uncompressed(bytes: &[u8]) -> Result<Option<rawloader::RawImage>, String> {
+        let Some(p) = parse(bytes) else { return Ok(None) };
+        let (t, raw) = (&p.t, &p.raw);
+        let get = |tag: u16| raw.get(&tag).map(|e| t.values(*e)).unwrap_or_default();
+        let one = |tag: u16| get(tag).first().copied();
+        if one(259).unwrap_or(1.0) as u32 != 1 {
+            return Ok(None);
+        }
+        let need = |tag: u16, name: &str| one(tag).ok_or_else(|| format!("DNG raw image without {name}"));
+        let (w, h) = (need(256, "ImageWidth")? as usize, need(257, "ImageLength")? as usize);
+        let cpp = one(277).unwrap_or(1.0) as usize;
+        let bps = one(258).unwrap_or(1.0) as usize;
+        let linear = one(262) == Some(34892.0);
+        if !(cpp == 1 && !linear || cpp == 3 && linear) {
+            return Err(format!(
+                "DNG raw image with {cpp} samples per pixel and photometric interpretation {} (expected 1 for CFA, 3 for LinearRaw)",
+                one(262).unwrap_or(0.0)
+            ));
+        }
+        if one(284).unwrap_or(1.0) as u32 != 1 {
+            return Err("DNG raw image with planar (not interleaved) samples".into());
+        }
+        if bps != 8 && bps != 16 {
+            return Err(format!("uncompressed DNG with {bps} bits per sample (8 and 16 are read)"));
+        }
+        if w == 0 || h == 0 || w > 1 << 16 || h > 1 << 16 {
+            return Err(format!("DNG raw image size {w} × {h}"));
+        }
+        let table = get(50712); // Linearization
+        let bytes_per = bps / 8;
+        let sample = |o: usize| -> Option<u16> {
+            let v = if bytes_per == 2 { t.u16(o)? } else { u16::from(*t.b.get(o)?) };
+            Some(if table.is_empty() {
+                v
+            } else {
+                table[usize::from(v).min(table.len() - 1)].clamp(0.0, 65535.0) as u16
+            })
+        };
+        let mut data = vec![0u16; w * h * cpp];
+        let short = || "image data runs past the end of the file (truncated)".to_string();
+        // (offset, x0, y0, block width, block height, stored row length in pixels)
+        let mut blocks = Vec::new();
+        if let (Some(offs), Some(tw), Some(tl)) = (raw.get(&324), one(322), one(323)) {
+            let (tw, tl) = (tw as usize, tl as usize);
+            if tw == 0 || tl == 0 {
+                return Err("DNG tile size 0".into());
+            }
+            let (across, down) = (w.div_ceil(tw), h.div_ceil(tl));
+            let offs = t.values(*offs);
+            if offs.len() != across * down {
+                return Err(format!("DNG with {} tile offsets for {across} × {down} tiles", offs.len()));
+            }
+            for (k, o) in offs.iter().enumerate() {
+                let (x0, y0) = ((k % across) * tw, (k / across) * tl);
+                blocks.push((*o as usize, x0, y0, tw.min(w - x0), tl.min(h - y0), tw));
+            }
+        } else if let Some(offs) = raw.get(&273) {
+            let rows = one(278).map_or(h, |r| (r as usize).clamp(1, h));
+            let offs = t.values(*offs);
+            if offs.len() != h.div_ceil(rows) {
+                return Err(format!("DNG with {} strip offsets for {} strips", offs.len(), h.div_ceil(rows)));
+            }
+            for (k, o) in offs.iter().enumerate() {
+                blocks.push((*o as usize, 0, k * rows, w, rows.min(h - k * rows), w));
+            }
+        } else {
+            return Err("DNG raw image without strip or tile offsets".into());
+        }
+        for (o, x0, y0, bw, bh, stride) in blocks {
+            for y in 0..bh {
+                for x in 0..bw {
+                    for c in 0..cpp {
+                        let at = o + ((y * stride + x) * cpp + c) * bytes_per;
+                        data[((y0 + y) * w + x0 + x) * cpp + c] = sample(at).ok_or_else(short)?;
+                    }
+                }
+            }
+        }
+        let text0 = |tag: u16| p.ifd0.get(&tag).map(|e| t.text(*e)).unwrap_or_default();
+        let vals0 = |tag: u16| p.ifd0.get(&tag).map(|e| t.values(*e)).unwrap_or_default();
+        let (make, model) = (text0(271), text0(272));
+        let neutral = vals0(50728);
+        let wb_coeffs = if neutral.len() >= 3 && neutral[..3].iter().all(|v| *v > 0.0) {
+            [(1.0 / neutral[0]) as f32, (1.0 / neutral[1]) as f32, (1.0 / neutral[2]) as f32, f32::NAN]
+        } else {
+            [f32::NAN; 4]
+        };
+        // As rawloader: ColorMatrix2 if present, else ColorMatrix1, else sRGB's XYZ matrix.
+        let cm = if vals0(50722).len() >= 9 { vals0(50722) } else { vals0(50721) };
+        let mut xyz_to_cam = [[0.0f32; 3]; 4];
+        if cm.len() >= 9 {
+            for k in 0..9 {
+                xyz_to_cam[k / 3][k % 3] = cm[k] as f32;
+            }
+        } else {
+            xyz_to_cam[..3].copy_from_slice(&[
+                [0.412453, 0.357580, 0.180423],
+                [0.212671, 0.715160, 0.072169],
+                [0.019334, 0.119193, 0.950227],
+            ]);
+        }
+        let cfa = if linear {
+            rawloader::CFA::new("")
+        } else {
+            let dim = get(33421);
+            let pat = get(33422);
+            if dim.len() != 2 || dim[0] != 2.0 || dim[1] != 2.0 || pat.len() != 4 {
+                return Err(format!("DNG CFA pattern {pat:?} of repeat {dim:?} (a 2 × 2 Bayer pattern is read)"));
+            }
+            let name: String = pat
+                .iter()
+                .map(|c| match *c as u8 {
+                    0 => Ok('R'),
+                    1 => Ok('G'),
+                    2 => Ok('B'),
+                    other => Err(format!("DNG CFA colour {other} (R, G, B = 0, 1, 2 are read)")),
+                })
+                .collect::<Result<_, _>>()?;
+            rawloader::CFA::new(&name)
+        };
+        let (black, white) = per_sample(&get(50714), &get(50717), cpp);
+        let area = get(50829);
+        let crops = if area.len() == 4 {
+            let [top, left, bottom, right] = [area[0], area[1], area[2], area[3]].map(|v| v as usize);
+            if !(top < bottom && left < right && bottom <= h && right <= w) {
+                return Err(format!("DNG ActiveArea {area:?} outside the {w} × {h} image"));
+            }
+            [top, w - right, h - bottom, left]
+        } else {
+            [0; 4]
+        };
+        let orientation =
+            vals0(274).first().map_or(rawloader::Orientation::Unknown, |v| rawloader::Orientation::from_u16(*v as u16));
+        Ok(Some(rawloader::RawImage {
+            make: make.clone(),
+            model: model.clone(),
+            clean_make: make,
+            clean_model: model,
+            width: w,
+            height: h,
+            cpp,
+            wb_coeffs,
+            whitelevels: white,
+            blacklevels: black,
+            xyz_to_cam,
+            cfa,
+            crops,
+            blackareas: Vec::new(),
+            orientation,
+            data: rawloader::RawImageData::Integer(data),
+        }))
     }
 }
