@@ -13,7 +13,7 @@
 //! ends takes the batch's next path, so all four stay busy until the batch
 //! runs out.
 
-use super::{survives_roulette, Batch, Crossing, Kernel};
+use super::{survives_roulette, Batch, Crossing, Exit, Kernel};
 use crate::phase::lanes::PhaseLanes;
 use crate::rng::Rng;
 use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4};
@@ -31,6 +31,8 @@ struct Paths {
     live: u32,
     /// Bit l set while lane l's path has not scattered yet.
     unscattered: u32,
+    /// Each lane's exit direction (rough top).
+    exit: [Exit; 4],
     /// The next path of the batch, and the end of the batch.
     next: u64,
     end: u64,
@@ -53,7 +55,7 @@ impl Kernel<'_> {
     /// the batch is done.
     fn start_lane(&self, paths: &mut Paths, l: usize) {
         // A path lost at a rough entry adds nothing: the lane takes the next.
-        let (rng, (p, dir, w)) = loop {
+        let (rng, (p, dir, w, exit)) = loop {
             if paths.next >= paths.end {
                 paths.live &= !(1 << l);
                 return;
@@ -69,6 +71,7 @@ impl Kernel<'_> {
             paths.dir[k].0[l] = dir[k];
         }
         paths.w.0[l] = w;
+        paths.exit[l] = exit;
         paths.total[l] = 0.0;
         paths.rng[l] = rng;
         paths.live |= 1 << l;
@@ -100,6 +103,7 @@ impl Kernel<'_> {
             rng: std::array::from_fn(|_| Rng::new(seed, first_path)),
             live: 0,
             unscattered: 0,
+            exit: [Exit { up: [0.0, 0.0, 1.0], weight: 0.0 }; 4],
             next: first_path,
             end: first_path + count,
             seed,
@@ -158,7 +162,8 @@ impl Kernel<'_> {
                 // exit directions), per lane.
                 for l in lanes_of(ev) {
                     let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
-                    paths.total[l] += self.connect(pl, dl, paths.w.0[l], &mut b.image, &mut paths.rng[l]);
+                    let (w, exit) = (paths.w.0[l], paths.exit[l]);
+                    paths.total[l] += self.connect(pl, dl, w, exit, &mut b.image, &mut paths.rng[l]);
                 }
             } else {
                 // Thick slab: `connect`'s straight-up term.
