@@ -9,6 +9,7 @@ pub mod chart_detect;
 pub mod cli;
 pub mod compare;
 pub mod envfit;
+pub mod fit;
 pub mod imageio;
 pub mod io;
 pub mod optics;

@@ -1,12 +1,12 @@
 //! `lucent fit`: recipe parameters fitted to measured BSSRDF slices
 //! ([`crate::fit`]), and `lucent bench fit`.
 
-use crate::bssrdf::{self, Grid};
+use crate::bssrdf;
 use crate::fit::{self, report, Budget, FitResult, FreeParameter, Measurement, Objective, Problem};
 use crate::optics::recipe::{Overrides, Recipe};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
-use lucent_render::slab::{self, Beam, BeamMap, Directions, Estimator, RunOptions, Sensor, Setup, Slab, Stop};
+use lucent_render::slab::{Beam, BeamMap};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -80,15 +80,17 @@ pub struct FitArgs {
     pub quiet: bool,
 }
 
-/// Splits "FILE:A/B" or "FILE:A/B/C/D" into the file and (θi, φi, θo, φo).
-pub fn parse_measured(spec: &str) -> Result<(PathBuf, Option<(f64, f64, f64, f64)>)> {
+/// (θi, φi, θo, φo) in degrees.
+pub type Angles = (f64, f64, f64, f64);
+
+/// Splits "FILE:A/B" or "FILE:A/B/C/D" into the file and its angles.
+pub fn parse_measured(spec: &str) -> Result<(PathBuf, Option<Angles>)> {
     if let Some((file, angles)) = spec.rsplit_once(':') {
         if angles.contains('/') {
-            let nums: Vec<f64> = angles
-                .split('/')
-                .map(|s| s.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .map_err(|_| anyhow!("--measured {spec:?}: {angles:?} is not THETA_I/THETA_O or THETA_I/PHI_I/THETA_O/PHI_O"))?;
+            let nums: Vec<f64> =
+                angles.split('/').map(|s| s.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
+                    anyhow!("--measured {spec:?}: {angles:?} is not THETA_I/THETA_O or THETA_I/PHI_I/THETA_O/PHI_O")
+                })?;
             let a = match nums.as_slice() {
                 [ti, to] => (*ti, 0.0, *to, 180.0),
                 [ti, pi, to, po] => (*ti, *pi, *to, *po),
@@ -102,7 +104,7 @@ pub fn parse_measured(spec: &str) -> Result<(PathBuf, Option<(f64, f64, f64, f64
 
 /// The configuration from a sidecar (`FILE.json`, or `summary.json` beside
 /// it, as `lucent bssrdf` writes): `config.theta_i_deg` etc.
-fn sidecar_angles(path: &Path) -> Result<Option<(f64, f64, f64, f64)>> {
+fn sidecar_angles(path: &Path) -> Result<Option<Angles>> {
     let mut candidates = vec![PathBuf::from(format!("{}.json", path.display()))];
     if let Some(dir) = path.parent() {
         candidates.push(dir.join("summary.json"));
@@ -128,7 +130,8 @@ fn parse_bounds(text: &str, n: usize) -> Result<Vec<Option<(f64, f64)>>> {
         .iter()
         .map(|p| {
             let (a, b) = p.split_once(':').ok_or_else(|| anyhow!("--bounds {text:?}: expected LO:HI, got {p:?}"))?;
-            let num = |s: &str| s.trim().parse::<f64>().map_err(|_| anyhow!("--bounds {text:?}: {s:?} is not a number"));
+            let num =
+                |s: &str| s.trim().parse::<f64>().map_err(|_| anyhow!("--bounds {text:?}: {s:?} is not a number"));
             Ok(Some((num(a)?, num(b)?)))
         })
         .collect()
@@ -264,53 +267,6 @@ fn print_result(r: &FitResult) {
     );
 }
 
-/// Synthetic "measured" slices of `recipe` (at its weight percentage): a
-/// simulation with `paths` paths and seed `seed` (not the fit's), times a
-/// per-slice scale error 1 + σ z and per-pixel noise 1 + σ z_p (σ =
-/// `noise`), as the lab's 5 % uncertainty. Returns one grid per angle set.
-pub fn synthetic_measurements(
-    recipe: &Recipe,
-    wavelength_nm: f64,
-    configs: &[(f64, f64, f64, f64)],
-    pixels: usize,
-    pixel_mm: f64,
-    paths: u64,
-    seed: u64,
-    noise: f64,
-) -> Result<Vec<Grid>> {
-    use crate::optics::bulk;
-    use lucent_render::phase::{Phase, PhaseTable};
-    let s = bulk::at_wavelength(recipe, wavelength_nm, &bulk::Options::default())?;
-    let medium = slab::Medium::new(
-        s.mu_s_per_m,
-        s.mu_a_per_m,
-        Phase::Tabulated(PhaseTable::from_theta_samples(&s.phase)?),
-        s.n_bulk.max(1.0),
-    )?;
-    let mut rng = lucent_render::rng::Rng::new(seed ^ 0x0a15e, 7);
-    let mut normal = || {
-        let u1 = rng.next_f64().max(1e-300);
-        let u2 = rng.next_f64();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    };
-    let mut out = Vec::new();
-    for &(ti, pi, to, po) in configs {
-        let setup = Setup::new(
-            Slab::new(recipe.thickness_m, medium.clone())?,
-            Beam::gaussian(200e-6)?,
-            Sensor::new(pixels, pixel_mm * 1e-3)?,
-            Directions::from_degrees(ti, pi, to, po)?,
-        );
-        let options =
-            RunOptions { stop: Stop::paths(paths), seed, estimator: Estimator::best_for(&setup), fold: true, ..RunOptions::default() };
-        let slice = slab::simulate(&setup, &options, |_| {})?;
-        let scale = 1.0 + noise * normal();
-        let values = slice.values.iter().map(|v| (v * scale * (1.0 + noise * normal())).max(0.0)).collect();
-        out.push(Grid { size: pixels, pixel_m: pixel_mm * 1e-3, values });
-    }
-    Ok(out)
-}
-
 /// `lucent bench fit`: a one-parameter weight-percentage fit of IOL1068-09
 /// (PDMS) over three configurations (45/0, 0/45, 45/15; the lab's sensor,
 /// 117 pixels of 0.1029 mm) to synthetic measurements made at 0.425 wt-%
@@ -322,7 +278,7 @@ pub fn bench(rel_error: f64, out: Option<PathBuf>) -> Result<()> {
     let truth = recipe.with_weight_percent(0, 0.425)?;
     let configs = [(45.0, 0.0, 0.0, 180.0), (0.0, 0.0, 45.0, 180.0), (45.0, 0.0, 15.0, 180.0)];
     eprintln!("simulating the synthetic measurements (0.425 wt-%, 5 % noise; not timed) …");
-    let grids = synthetic_measurements(&truth, 550.0, &configs, 117, 0.1029, 400_000, 77, 0.05)?;
+    let grids = fit::synthetic_slices(&truth, 550.0, &configs, (117, 0.1029), 400_000, 77, 0.05)?;
     let measurements = grids
         .into_iter()
         .zip(configs)

@@ -6,6 +6,7 @@ pub mod camera;
 pub mod colour;
 pub mod compare;
 pub mod env_fit;
+pub mod fit;
 pub mod render;
 pub mod run;
 pub mod surface;
@@ -63,6 +64,8 @@ pub enum Command {
     Env(camera::EnvCommand),
     /// Photo vs render: RMSE, SSIM, triplet.png (photo | render | difference), difference.exr; optional ECC alignment.
     Compare(compare::CompareArgs),
+    /// Fit recipe parameters (weight-%, diameter, particle index) to measured BSSRDF slices; fit.json, fitted recipe, plot.
+    Fit(fit::FitArgs),
     /// The whole digitisation from one project file: stages in order, unchanged ones skipped, report/index.html.
     Run(run::RunArgs),
     /// Synthetic inputs with a known truth: a ColorChecker chart, RAW (DNG) captures through a known camera.
@@ -149,6 +152,15 @@ pub enum BenchCommand {
         #[arg(long, default_value = "16,64,256,1024")]
         spp: String,
     },
+    /// A one-parameter weight-% fit of IOL1068-09 over three configurations (synthetic measurements at 0.425 wt-%); wall time.
+    Fit {
+        /// Target relative error of each slice sum at the final points.
+        #[arg(long, default_value_t = 0.005)]
+        rel_error: f64,
+        /// Also write fit.json, objective.png and the fitted recipe here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// The slab simulator: events/s and wall time to 1 % (PDMS-like medium), and the per-pixel error of the previous and current estimators side by side.
     Bssrdf {
         /// Target relative standard error of the slice sum.
@@ -177,6 +189,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Env(c) => camera::run_env(c),
         Command::Compare(a) => compare::run(a),
         Command::Run(a) => run::run(a),
+        Command::Fit(a) => fit::run(a),
         Command::Synth(c) => synth::run(c),
     }
 }
@@ -494,6 +507,7 @@ fn bench(b: BenchCommand) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&json)?);
         }
         BenchCommand::Bssrdf { rel_error, time_s } => bssrdf::bench(rel_error, time_s)?,
+        BenchCommand::Fit { rel_error, out } => fit::bench(rel_error, out)?,
         BenchCommand::Render { scene, reference, spp } => {
             let spps: Vec<u32> = spp
                 .split(',')

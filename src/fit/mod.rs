@@ -94,7 +94,9 @@ use crate::optics::bulk::{self, OpticsError};
 use crate::optics::recipe::{MediumRef, Recipe, RecipeError};
 use lucent_render::phase::{Phase, PhaseError, PhaseTable};
 use lucent_render::rng::Rng;
-use lucent_render::slab::{self, Beam, Directions, Estimator, Medium, RunOptions, Sensor, Setup, Slab, SlabError, Stop};
+use lucent_render::slab::{
+    self, Beam, Directions, Estimator, Medium, RunOptions, Sensor, Setup, Slab, SlabError, Stop,
+};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -271,7 +273,7 @@ impl Measurement {
     pub fn new(path: &Path, grid: Grid, (ti, pi, to, po): (f64, f64, f64, f64)) -> Result<Self, FitError> {
         let directions = Directions::from_degrees(ti, pi, to, po)
             .map_err(|e| FitError::Invalid(format!("{}: configuration {ti}/{to}: {e}", path.display())))?;
-        if !(grid.sum() > 0.0) {
+        if grid.sum().is_nan() || grid.sum() <= 0.0 {
             return Err(FitError::Invalid(format!(
                 "{}: the measured slice has no positive sum ({})",
                 path.display(),
@@ -366,7 +368,7 @@ impl Problem {
             seed: 1,
             budget: Budget::default(),
             thickness_m,
-            x_tol: 0.03,
+            x_tol: 0.05,
         };
         p.validate()?;
         Ok(p)
@@ -516,7 +518,13 @@ impl OpticsModel {
                     r = a.apply(&r, *v, problem.wavelength_nm)?;
                 }
                 let s = bulk::at_wavelength(&r, problem.wavelength_nm, &bulk::Options::default())?;
-                Ok(Optics { mu_s_per_m: s.mu_s_per_m, mu_a_per_m: s.mu_a_per_m, g: s.g, n_bulk: s.n_bulk, phase: s.phase })
+                Ok(Optics {
+                    mu_s_per_m: s.mu_s_per_m,
+                    mu_a_per_m: s.mu_a_per_m,
+                    g: s.g,
+                    n_bulk: s.n_bulk,
+                    phase: s.phase,
+                })
             }
         }
     }
@@ -609,8 +617,9 @@ pub struct FitResult {
     pub wall_s: f64,
     pub seed: u64,
     pub optics: &'static str,
-    /// The final parabola in x = ln p (one parameter).
-    pub quadratic_ln: Option<search::Quadratic>,
+    /// The local model of the objective through the final points, as
+    /// [parameter value, J] pairs (one parameter; for the plot).
+    pub model_curve: Vec<[f64; 2]>,
     pub configurations: Vec<ConfigResult>,
     pub history: Vec<Evaluation>,
 }
@@ -824,7 +833,7 @@ pub fn fit(problem: &Problem, mut progress: impl FnMut(&Event)) -> Result<FitRes
             bounds: [b.0, b.1],
         })
         .collect();
-    let mut quadratic = None;
+    let mut model_curve = Vec::new();
     let mut objective_end = None;
     let mut end_values: Option<Vec<f64>> = None;
 
@@ -855,7 +864,7 @@ pub fn fit(problem: &Problem, mut progress: impl FnMut(&Event)) -> Result<FitRes
                     - chi2(v.iter().copied().fold(f64::INFINITY, f64::min))
             };
             let mut flat = None;
-            if span(&[f0, fp, fm]) < 0.01 {
+            if span(&[f0, fp, fm]) < 0.1 {
                 let all = [f0, fp, fm, f(lo)?, f(hi)?];
                 if span(&all) < 1.0 {
                     flat = Some(span(&all));
@@ -881,7 +890,7 @@ pub fn fit(problem: &Problem, mut progress: impl FnMut(&Event)) -> Result<FitRes
                     r.at_bound.unwrap_or(f64::NAN).exp()
                 ));
             }
-            Ok(r) => match final_parabola(problem, &mut ev, &full, r.best_x, (lo, hi), &mut progress)? {
+            Ok(r) => match final_model(problem, &mut ev, &full, r.best_x, (lo, hi), &mut progress)? {
                 Ok(fin) => {
                     let p = &mut params[0];
                     let se = fin.se_meas.max(fin.se_boot.unwrap_or(0.0));
@@ -891,8 +900,8 @@ pub fn fit(problem: &Problem, mut progress: impl FnMut(&Event)) -> Result<FitRes
                     p.std_error_measurement = Some(v * fin.se_meas);
                     p.std_error_bootstrap_configurations = fin.se_boot.map(|s| v * s);
                     p.interval_95 = Some([(fin.x - 1.96 * se).exp(), (fin.x + 1.96 * se).exp()]);
-                    quadratic = Some(fin.q);
-                    objective_end = Some(fin.q.at(fin.x));
+                    model_curve = fin.curve;
+                    objective_end = Some(fin.j_end);
                     end_values = Some(vec![v]);
                     if 1.96 * se > 0.5 * (hi - lo) {
                         identifiable = false;
@@ -1010,7 +1019,7 @@ pub fn fit(problem: &Problem, mut progress: impl FnMut(&Event)) -> Result<FitRes
         wall_s: start.elapsed().as_secs_f64(),
         seed: problem.seed,
         optics,
-        quadratic_ln: quadratic,
+        model_curve,
         configurations,
         history: ev.history,
     })
@@ -1018,14 +1027,89 @@ pub fn fit(problem: &Problem, mut progress: impl FnMut(&Event)) -> Result<FitRes
 
 struct Final {
     x: f64,
-    q: search::Quadratic,
+    /// The model objective J(ln p) near the minimum, for the plot.
+    curve: Vec<[f64; 2]>,
+    j_end: f64,
     se_meas: f64,
     se_boot: Option<f64>,
 }
 
-/// Five points around `x_best` at the full budget, the parabola, and the
-/// bootstrap errors. `Err(reason)` when the parabola is not convex.
-fn final_parabola(
+/// The local model of the objective through the final points, at
+/// perturbed data: `scale[j][c]` multiplies measured slice c at point j.
+fn local_model_min(
+    problem: &Problem,
+    xs: &[f64],
+    sims: &[Vec<&[f64]>],
+    scale: &[Vec<f64>],
+    configs: &[usize],
+    (lo, hi): (f64, f64),
+) -> Option<f64> {
+    let k = problem.measurements.len();
+    match problem.objective {
+        Objective::Sum => {
+            // ln Σs_c(x) is smooth and nearly linear over the final span:
+            // a least-squares line per configuration, then the minimum of
+            // the model objective (robust to the points' independent noise).
+            let lines: Vec<(f64, f64)> = (0..k)
+                .map(|c| {
+                    let ys: Vec<f64> = sims
+                        .iter()
+                        .zip(scale)
+                        .map(|(s, sc)| (s[c].iter().sum::<f64>() / sc[c]).max(1e-300).ln())
+                        .collect();
+                    line_fit(xs, &ys)
+                })
+                .collect();
+            let j = |x: f64| -> f64 {
+                configs
+                    .iter()
+                    .map(|&c| {
+                        let r = (lines[c].0 + lines[c].1 * x).exp() / problem.measurements[c].grid.sum() - 1.0;
+                        r * r
+                    })
+                    .sum::<f64>()
+                    / configs.len() as f64
+            };
+            let mut f = |x: f64| -> Result<f64, std::convert::Infallible> { Ok(j(x)) };
+            let centre = xs[xs.len() / 2];
+            let r = search::golden_bracket_search(&mut f, centre, 0.05, (lo, hi), 1e-7).ok()?;
+            if r.at_bound.is_some() {
+                return None;
+            }
+            Some(r.best_x)
+        }
+        Objective::Msre => {
+            let f: Vec<f64> = sims
+                .iter()
+                .zip(scale)
+                .map(|(s, sc)| {
+                    configs
+                        .iter()
+                        .map(|&c| msre(&problem.measurements[c].grid.values, s[c], problem.threshold, sc[c]))
+                        .sum::<f64>()
+                        / configs.len() as f64
+                })
+                .collect();
+            search::quadratic_fit(xs, &f).filter(|q| q.c2 > 0.0).map(|q| q.vertex())
+        }
+    }
+}
+
+/// Least-squares line y = a + b x.
+fn line_fit(xs: &[f64], ys: &[f64]) -> (f64, f64) {
+    let n = xs.len() as f64;
+    let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
+    let sxy: f64 = xs.iter().zip(ys).map(|(x, y)| (x - mx) * (y - my)).sum();
+    let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
+    let b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    (my - b * mx, b)
+}
+
+/// Five points around `x_best` at the full budget, the local model of the
+/// objective through them (lines in ln Σs for `sum`, a parabola for
+/// `msre`), and the bootstrap errors. `Err(reason)` when the model has no
+/// minimum (flat within the noise).
+fn final_model(
     problem: &Problem,
     ev: &mut Evaluator,
     full: &[Stop],
@@ -1035,7 +1119,8 @@ fn final_parabola(
 ) -> Result<Result<Final, String>, FitError> {
     let k = problem.measurements.len();
     let mut centre = x_best;
-    let delta = problem.x_tol.max(0.02);
+    let delta = problem.x_tol.max(0.05);
+    let all: Vec<usize> = (0..k).collect();
     for attempt in 0..2 {
         let xs: Vec<f64> = (-2..=2).map(|j| (centre + j as f64 * delta).clamp(lo, hi)).collect();
         let mut evals = Vec::new();
@@ -1044,62 +1129,99 @@ fn final_parabola(
             progress(&format!("final {:.5}: objective {:.4e}", x.exp(), e.objective));
             evals.push(e);
         }
-        let fs: Vec<f64> = evals.iter().map(|e| e.objective).collect();
-        let Some(q) = search::quadratic_fit(&xs, &fs) else {
-            return Ok(Err("the final points are degenerate".into()));
-        };
-        if q.c2 <= 0.0 {
-            return Ok(Err(format!(
-                "the objective is not convex around {:.5} (curvature {:.3e} in ln p): flat within the Monte Carlo noise",
-                centre.exp(),
-                q.c2
-            )));
-        }
-        let x = q.vertex();
-        if (x - centre).abs() > 2.0 * delta && attempt == 0 {
-            centre = x.clamp(lo, hi);
-            continue;
-        }
-        // Parametric bootstrap: measurement scale and Monte Carlo errors.
         let sims: Vec<Vec<&[f64]>> = evals
             .iter()
             .map(|e| e.slices.as_ref().map(|s| s.iter().map(|v| v.as_slice()).collect()).unwrap_or_default())
             .collect();
-        let sd: Vec<f64> =
-            (0..k).map(|c| (problem.measured_rel_sd.powi(2) + evals[2].sum_rel_error[c].powi(2)).sqrt()).collect();
-        let all: Vec<usize> = (0..k).collect();
-        let mut rng = Rng::new(problem.seed ^ 0x5eed_f17, 0);
-        let vertex_for = |scale: &[f64], configs: &[usize]| -> f64 {
-            let f: Vec<f64> = sims.iter().map(|s| objective_of(problem, s, scale, configs)).collect();
-            search::quadratic_fit(&xs, &f).filter(|q| q.c2 > 0.0).map(|q| q.vertex()).unwrap_or(f64::NAN)
+        if problem.objective == Objective::Sum {
+            // Do the sums change significantly over the final span? t² of
+            // the slopes of ln Σs against x (error from the residuals or the
+            // Monte Carlo errors, whichever is larger).
+            let mx = xs.iter().sum::<f64>() / xs.len() as f64;
+            let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
+            let mut t2 = 0.0;
+            for c in 0..k {
+                let ys: Vec<f64> = sims.iter().map(|s| s[c].iter().sum::<f64>().max(1e-300).ln()).collect();
+                let (a, b) = line_fit(&xs, &ys);
+                let res: f64 =
+                    xs.iter().zip(&ys).map(|(x, y)| (y - a - b * x).powi(2)).sum::<f64>() / (xs.len() as f64 - 2.0);
+                let mc: f64 = evals.iter().map(|e| e.sum_rel_error[c].powi(2)).sum::<f64>() / evals.len() as f64;
+                t2 += b * b * sxx / res.max(mc).max(1e-300);
+            }
+            if t2 < 9.0 {
+                return Ok(Err(format!(
+                    "the slice sums do not change significantly over {:.5} … {:.5} (slope / standard error = {:.2})",
+                    xs[0].exp(),
+                    xs[xs.len() - 1].exp(),
+                    t2.sqrt()
+                )));
+            }
+        }
+        let ones = vec![vec![1.0; k]; xs.len()];
+        let Some(x) = local_model_min(problem, &xs, &sims, &ones, &all, (lo, hi)) else {
+            return Ok(Err(format!(
+                "the objective has no minimum near {:.5} (flat within the Monte Carlo noise, or falling towards a bound)",
+                centre.exp()
+            )));
         };
+        if (x - centre).abs() > 2.0 * delta && attempt == 0 {
+            centre = x.clamp(lo, hi);
+            continue;
+        }
+        // Parametric bootstrap: the measurement's scale error (common to
+        // the points) and the Monte Carlo error of each point (independent).
+        let mut rng = Rng::new(problem.seed ^ 0x05ee_df17, 0);
         const DRAWS: usize = 400;
         let mut vs = Vec::with_capacity(DRAWS);
         for _ in 0..DRAWS {
-            let scale: Vec<f64> = sd.iter().map(|s| 1.0 + s * normal(&mut rng)).collect();
-            vs.push(vertex_for(&scale, &all));
+            let common: Vec<f64> = (0..k).map(|_| 1.0 + problem.measured_rel_sd * normal(&mut rng)).collect();
+            let scale: Vec<Vec<f64>> = evals
+                .iter()
+                .map(|e| (0..k).map(|c| common[c] / (1.0 + e.sum_rel_error[c] * normal(&mut rng))).collect())
+                .collect();
+            vs.push(local_model_min(problem, &xs, &sims, &scale, &all, (lo, hi)).unwrap_or(f64::NAN));
         }
         let failed = vs.iter().filter(|v| !v.is_finite()).count();
         if failed > DRAWS / 20 {
             return Ok(Err(format!(
-                "{failed} of {DRAWS} bootstrap draws of the measurement uncertainty gave a non-convex objective: flat within the data's uncertainty"
+                "in {failed} of {DRAWS} bootstrap draws of the data's uncertainty the objective had no minimum within the search range"
             )));
         }
         let se_meas = std_dev(vs.iter().copied().filter(|v| v.is_finite()));
         let se_boot = if k >= 3 {
-            let ones = vec![1.0; k];
             let vb: Vec<f64> = (0..DRAWS)
                 .map(|_| {
                     let configs: Vec<usize> =
                         (0..k).map(|_| ((rng.next_f64() * k as f64) as usize).min(k - 1)).collect();
-                    vertex_for(&ones, &configs)
+                    local_model_min(problem, &xs, &sims, &ones, &configs, (lo, hi)).unwrap_or(f64::NAN)
                 })
                 .collect();
             Some(std_dev(vb.into_iter().filter(|v| v.is_finite())))
         } else {
             None
         };
-        return Ok(Ok(Final { x, q, se_meas, se_boot }));
+        // The model curve for the plot, and J at the minimum.
+        let model_j = |t: f64| -> f64 {
+            match problem.objective {
+                Objective::Sum => {
+                    let mut acc = 0.0;
+                    for c in 0..k {
+                        let ys: Vec<f64> = sims.iter().map(|s| s[c].iter().sum::<f64>().max(1e-300).ln()).collect();
+                        let (a, b) = line_fit(&xs, &ys);
+                        let r = (a + b * t).exp() / problem.measurements[c].grid.sum() - 1.0;
+                        acc += r * r;
+                    }
+                    acc / k as f64
+                }
+                Objective::Msre => {
+                    let f: Vec<f64> = evals.iter().map(|e| e.objective).collect();
+                    search::quadratic_fit(&xs, &f).map(|q| q.at(t)).unwrap_or(f64::NAN)
+                }
+            }
+        };
+        let (a, b) = (xs[0].min(x) - delta, xs[xs.len() - 1].max(x) + delta);
+        let curve = (0..=60).map(|i| a + (b - a) * i as f64 / 60.0).map(|t| [t.exp(), model_j(t)]).collect();
+        return Ok(Ok(Final { x, curve, j_end: model_j(x), se_meas, se_boot }));
     }
     Ok(Err("the minimum moved by more than the final points' span twice".into()))
 }
@@ -1141,18 +1263,13 @@ fn local_errors(hist: &[search::Point], best: &[f64], problem: &Problem) -> Opti
         }
     }
     let c = solve(ata, atb)?;
+    // The quadratic coefficients in the order of `row`: (i, j), i ≤ j.
+    let pairs: Vec<(usize, usize)> = (0..n).flat_map(|i| (i..n).map(move |j| (i, j))).collect();
     let mut h = vec![vec![0.0; n]; n];
-    let mut idx = 1 + n;
-    for i in 0..n {
-        for j in i..n {
-            if i == j {
-                h[i][i] = 2.0 * c[idx];
-            } else {
-                h[i][j] = c[idx];
-                h[j][i] = c[idx];
-            }
-            idx += 1;
-        }
+    for (&(i, j), &cij) in pairs.iter().zip(&c[1 + n..]) {
+        let v = if i == j { 2.0 * cij } else { cij };
+        h[i][j] = v;
+        h[j][i] = v;
     }
     if !positive_definite(&h) {
         return None;
@@ -1215,6 +1332,52 @@ fn positive_definite(h: &[Vec<f64>]) -> bool {
         }
     }
     true
+}
+
+/// Synthetic "measured" slices of `recipe` (at its own values) for fits
+/// with a known truth: a simulation of `paths` light paths with seed `seed`
+/// (use one the fit does not) for each (θ_i, φ_i, θ_o, φ_o) on a sensor of
+/// `(pixels, pixel_mm)`, 200 µm Gaussian beam, times a per-slice scale
+/// error 1 + σz and per-pixel noise 1 + σz_p with σ = `noise` (the lab's
+/// 5 % uncertainty: 0.05).
+pub fn synthetic_slices(
+    recipe: &Recipe,
+    wavelength_nm: f64,
+    configs: &[(f64, f64, f64, f64)],
+    (pixels, pixel_mm): (usize, f64),
+    paths: u64,
+    seed: u64,
+    noise: f64,
+) -> Result<Vec<Grid>, FitError> {
+    let s = bulk::at_wavelength(recipe, wavelength_nm, &bulk::Options::default())?;
+    let medium = Medium::new(
+        s.mu_s_per_m,
+        s.mu_a_per_m,
+        Phase::Tabulated(PhaseTable::from_theta_samples(&s.phase)?),
+        s.n_bulk.max(1.0),
+    )?;
+    let mut rng = Rng::new(seed ^ 0x0a15e, 7);
+    let mut out = Vec::new();
+    for &(ti, pi, to, po) in configs {
+        let setup = Setup::new(
+            Slab::new(recipe.thickness_m, medium.clone())?,
+            Beam::gaussian(200e-6)?,
+            Sensor::new(pixels, pixel_mm * 1e-3)?,
+            Directions::from_degrees(ti, pi, to, po)?,
+        );
+        let options = RunOptions {
+            stop: Stop::paths(paths),
+            seed,
+            estimator: Estimator::best_for(&setup),
+            fold: true,
+            ..RunOptions::default()
+        };
+        let slice = slab::simulate(&setup, &options, |_| {})?;
+        let scale = 1.0 + noise * normal(&mut rng);
+        let values = slice.values.iter().map(|v| (v * scale * (1.0 + noise * normal(&mut rng))).max(0.0)).collect();
+        out.push(Grid { size: pixels, pixel_m: pixel_mm * 1e-3, values });
+    }
+    Ok(out)
 }
 
 /// A standard normal variate (Box–Muller).

@@ -20,7 +20,8 @@ use std::path::Path;
 /// fewer particle tables.
 pub fn set_particle_key(text: &str, particle: usize, key: &str, value: &str) -> Option<String> {
     let lines: Vec<&str> = text.lines().collect();
-    let headers: Vec<usize> = lines.iter().enumerate().filter(|(_, l)| l.trim() == "[[particles]]").map(|(i, _)| i).collect();
+    let headers: Vec<usize> =
+        lines.iter().enumerate().filter(|(_, l)| l.trim() == "[[particles]]").map(|(i, _)| i).collect();
     let start = *headers.get(particle)?;
     let end = lines
         .iter()
@@ -104,7 +105,9 @@ pub fn fitted_recipe_text(original: &str, recipe_dir: &Path, result: &FitResult)
         notes.push(format!("# {} {} → {value:.6} ± {se:.2e}", p.name, p.start));
         let (kind, particle) = free;
         text = match kind {
-            ParameterKind::WeightPercent => set_particle_key(&text, particle, "weight_percent", &format!("{value:.6}"))?,
+            ParameterKind::WeightPercent => {
+                set_particle_key(&text, particle, "weight_percent", &format!("{value:.6}"))?
+            }
             ParameterKind::DiameterUm => set_particle_key(
                 &text,
                 particle,
@@ -135,7 +138,8 @@ fn result_free(result: &FitResult) -> Vec<(ParameterKind, usize)> {
         .iter()
         .map(|p| {
             let (name, k) = p.name.split_once('@').unwrap_or((&p.name, "1"));
-            let kind = ParameterKind::ALL.into_iter().find(|x| x.name() == name).unwrap_or(ParameterKind::WeightPercent);
+            let kind =
+                ParameterKind::ALL.into_iter().find(|x| x.name() == name).unwrap_or(ParameterKind::WeightPercent);
             (kind, k.parse::<usize>().unwrap_or(1).saturating_sub(1))
         })
         .collect()
@@ -193,30 +197,30 @@ pub fn objective_png(result: &FitResult) -> Result<Vec<u8>, PlotError> {
                 .map_err(perr)?;
             if let Some([a, b]) = p.interval_95 {
                 chart
-                    .draw_series(std::iter::once(Rectangle::new([(a, 0.0), (b, y1)], RGBColor(31, 119, 180).mix(0.12).filled())))
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(a, 0.0), (b, y1)],
+                        RGBColor(31, 119, 180).mix(0.12).filled(),
+                    )))
                     .map_err(perr)?
                     .label("95 % interval")
-                    .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], RGBColor(31, 119, 180).mix(0.2).filled()));
+                    .legend(|(x, y)| {
+                        Rectangle::new([(x, y - 5), (x + 20, y + 5)], RGBColor(31, 119, 180).mix(0.2).filled())
+                    });
             }
-            if let (Some(q), 1) = (result.quadratic_ln, n) {
-                let fin: Vec<f64> = pts.iter().filter(|p| p.2 == "final").map(|p| p.0).collect();
-                let (a, b) = (
-                    fin.iter().copied().fold(f64::INFINITY, f64::min),
-                    fin.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-                );
-                if a < b {
-                    let (a, b) = (a - 0.5 * (b - a), b + 0.5 * (b - a));
-                    let curve: Vec<(f64, f64)> = (0..=100)
-                        .map(|k| a + (b - a) * k as f64 / 100.0)
-                        .map(|x| (x, q.at(x.ln())))
-                        .filter(|(_, y)| (0.0..=y1).contains(y))
-                        .collect();
-                    chart
-                        .draw_series(LineSeries::new(curve, RGBColor(214, 39, 40).stroke_width(2)))
-                        .map_err(perr)?
-                        .label("parabola (in ln p) through the final points")
-                        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(214, 39, 40).stroke_width(2)));
-                }
+            if n == 1 && !result.model_curve.is_empty() {
+                let curve: Vec<(f64, f64)> = result
+                    .model_curve
+                    .iter()
+                    .map(|p| (p[0], p[1]))
+                    .filter(|(x, y)| (0.0..=y1).contains(y) && (x0..=x1).contains(x))
+                    .collect();
+                chart
+                    .draw_series(LineSeries::new(curve, RGBColor(214, 39, 40).stroke_width(2)))
+                    .map_err(perr)?
+                    .label("local model through the final points")
+                    .legend(|(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(214, 39, 40).stroke_width(2))
+                    });
             }
             let grey = RGBColor(110, 110, 110);
             chart
@@ -270,7 +274,10 @@ mod tests {
         assert!(set_particle_key(text, 2, "weight_percent", "1").is_none());
         // A key that merely starts with the name is not the key.
         let t = "[[particles]]\nweight_percent_note = 3\n";
-        assert_eq!(set_particle_key(t, 0, "weight_percent", "1").unwrap(), "[[particles]]\nweight_percent = 1\nweight_percent_note = 3\n");
+        assert_eq!(
+            set_particle_key(t, 0, "weight_percent", "1").unwrap(),
+            "[[particles]]\nweight_percent = 1\nweight_percent_note = 3\n"
+        );
     }
 
     #[test]

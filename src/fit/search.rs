@@ -190,7 +190,7 @@ fn solve3(m: [[f64; 3]; 3], v: [f64; 3]) -> Option<[f64; 3]> {
     };
     let d = det(m);
     let diag = m[0][0] * m[1][1] * m[2][2];
-    if !(d.abs() > 1e-12 * diag.abs()) {
+    if d.is_nan() || d.abs() <= 1e-12 * diag.abs() {
         return None;
     }
     let mut out = [0.0; 3];
@@ -241,9 +241,8 @@ pub fn nelder_mead<E>(
         let spread = simplex[n].1 - simplex[0].1;
         let size = (0..n)
             .map(|i| {
-                let (mn, mx) = simplex
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0[i]), b.max(p.0[i])));
+                let (mn, mx) =
+                    simplex.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0[i]), b.max(p.0[i])));
                 (mx - mn) / steps[i].abs()
             })
             .fold(0.0, f64::max);
@@ -317,8 +316,7 @@ mod tests {
 
     #[test]
     fn nelder_mead_on_a_narrow_valley() {
-        let mut f =
-            |x: &[f64]| -> Result<f64, Infallible> { Ok((x[0] - 1.0).powi(2) + 10.0 * (x[1] - x[0]).powi(2)) };
+        let mut f = |x: &[f64]| -> Result<f64, Infallible> { Ok((x[0] - 1.0).powi(2) + 10.0 * (x[1] - x[0]).powi(2)) };
         let (x, v, _) = nelder_mead(&mut f, &[-1.0, 2.0], &[0.5, 0.5], 1e-12, 1e-6, 2000).unwrap();
         assert!((x[0] - 1.0).abs() < 1e-3 && (x[1] - 1.0).abs() < 1e-3 && v < 1e-6, "{x:?} {v}");
     }

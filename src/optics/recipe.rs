@@ -309,6 +309,141 @@ impl Recipe {
     }
 }
 
+/// Which medium of a recipe a parameter refers to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case", tag = "medium", content = "index")]
+pub enum MediumRef {
+    Host,
+    /// `particles[i]`, 0-based.
+    Particle(usize),
+}
+
+impl Recipe {
+    fn particle_mut(&mut self, i: usize) -> Result<&mut Particle, RecipeError> {
+        let count = self.particles.len();
+        let path = self.path.clone();
+        self.particles.get_mut(i).ok_or(RecipeError::Invalid {
+            path,
+            key: format!("particles[{i}]"),
+            message: format!("the recipe has {count} particle type(s)"),
+        })
+    }
+
+    fn invalid<T>(&self, key: String, message: String) -> Result<T, RecipeError> {
+        Err(RecipeError::Invalid { path: self.path.clone(), key, message })
+    }
+
+    /// The recipe with particle `i`'s weight percentage set to `w` (its
+    /// volume fraction follows; the total must stay below 1).
+    pub fn with_weight_percent(&self, i: usize, w: f64) -> Result<Recipe, RecipeError> {
+        let mut r = self.clone();
+        let host_density = r.host.density_kg_per_m3;
+        let p = r.particle_mut(i)?;
+        if !(w.is_finite() && w > 0.0 && w < 100.0) {
+            return self.invalid(format!("particles[{i}].weight_percent"), format!("must lie in (0, 100), got {w}"));
+        }
+        p.weight_percent = w;
+        p.volume_fraction = (w / p.medium.density_kg_per_m3) / (100.0 / host_density);
+        let total = r.particle_volume_fraction();
+        if total >= 1.0 {
+            return self.invalid("particles".into(), format!("the particles' volume fractions add up to {total:.3} ≥ 1"));
+        }
+        Ok(r)
+    }
+
+    /// Particle `i`'s nominal diameter in µm: the single diameter, the
+    /// midpoint of a uniform range, or the median of a log-normal.
+    pub fn diameter_um(&self, i: usize) -> Option<f64> {
+        self.particles.get(i).map(|p| match p.size {
+            SizeDistribution::Mono { radius_m } => 2e6 * radius_m,
+            SizeDistribution::Uniform { min_radius_m, max_radius_m } => 1e6 * (min_radius_m + max_radius_m),
+            SizeDistribution::LogNormal { median_radius_m, .. } => 2e6 * median_radius_m,
+        })
+    }
+
+    /// The recipe with particle `i`'s nominal diameter ([`Recipe::diameter_um`])
+    /// set to `d` µm: a uniform range is scaled about zero (its relative
+    /// width kept), a log-normal keeps its σ.
+    pub fn with_diameter_um(&self, i: usize, d: f64) -> Result<Recipe, RecipeError> {
+        if !(d.is_finite() && d > 0.0) {
+            return self.invalid(format!("particles[{i}].size"), format!("diameter {d} µm must be positive"));
+        }
+        let old = self.diameter_um(i);
+        let mut r = self.clone();
+        let p = r.particle_mut(i)?;
+        let scale = d / old.unwrap_or(d);
+        p.size = match p.size {
+            SizeDistribution::Mono { .. } => SizeDistribution::Mono { radius_m: 0.5e-6 * d },
+            SizeDistribution::Uniform { min_radius_m, max_radius_m } => {
+                SizeDistribution::Uniform { min_radius_m: min_radius_m * scale, max_radius_m: max_radius_m * scale }
+            }
+            SizeDistribution::LogNormal { sigma, .. } => SizeDistribution::LogNormal { median_radius_m: 0.5e-6 * d, sigma },
+        };
+        Ok(r)
+    }
+
+    fn medium_mut(&mut self, m: MediumRef) -> Result<&mut Medium, RecipeError> {
+        match m {
+            MediumRef::Host => Ok(&mut self.host),
+            MediumRef::Particle(i) => Ok(&mut self.particle_mut(i)?.medium),
+        }
+    }
+
+    fn medium_key(m: MediumRef) -> String {
+        match m {
+            MediumRef::Host => "host".into(),
+            MediumRef::Particle(i) => format!("particles[{i}]"),
+        }
+    }
+
+    /// The medium `m` refers to, if it exists.
+    pub fn medium(&self, m: MediumRef) -> Option<&Medium> {
+        match m {
+            MediumRef::Host => Some(&self.host),
+            MediumRef::Particle(i) => self.particles.get(i).map(|p| &p.medium),
+        }
+    }
+
+    /// The recipe with medium `m`'s real index shifted so that n = `n` at
+    /// `wavelength_nm` (dispersion and κ kept; replaces an earlier shift of
+    /// that medium, keeps a constant real part constant).
+    pub fn with_real_part(&self, m: MediumRef, wavelength_nm: f64, n: f64) -> Result<Recipe, RecipeError> {
+        let mut r = self.clone();
+        let path = r.path.clone();
+        let medium = r.medium_mut(m)?;
+        let key = format!("{}.real_part", Self::medium_key(m));
+        medium.index = medium
+            .index
+            .clone()
+            .with_real_part_at(wavelength_nm, n, RealPartCorrection::Shift)
+            .map_err(|source| RecipeError::Index { path, key, source: Box::new(source) })?;
+        Ok(r)
+    }
+
+    /// The recipe with medium `m`'s κ(λ) replaced by the constant `kappa`.
+    pub fn with_kappa(&self, m: MediumRef, kappa: f64) -> Result<Recipe, RecipeError> {
+        self.with_imaginary(m, ImaginaryPartCorrection::Replace { kappa })
+    }
+
+    /// The recipe with medium `m`'s κ(λ) = `factor` × the data's κ(λ).
+    pub fn with_kappa_factor(&self, m: MediumRef, factor: f64) -> Result<Recipe, RecipeError> {
+        self.with_imaginary(m, ImaginaryPartCorrection::Scale { factor })
+    }
+
+    fn with_imaginary(&self, m: MediumRef, c: ImaginaryPartCorrection) -> Result<Recipe, RecipeError> {
+        let mut r = self.clone();
+        let path = r.path.clone();
+        let medium = r.medium_mut(m)?;
+        let key = format!("{}.imaginary_part", Self::medium_key(m));
+        medium.index = medium
+            .index
+            .clone()
+            .with_imaginary_part(c)
+            .map_err(|source| RecipeError::Index { path, key, source: Box::new(source) })?;
+        Ok(r)
+    }
+}
+
 /// toml's messages span several lines (source excerpt with a caret); keep
 /// the location and the message.
 fn one_line(message: &str) -> String {
