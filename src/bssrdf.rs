@@ -163,7 +163,7 @@ fn read_exr_scalar(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError
         .all_attributes()
         .pedantic()
         .from_file(path)
-        .map_err(|e| invalid(path, format!("cannot read EXR: {e}")))?;
+        .map_err(|e| invalid(path, format!("cannot read EXR: {}", imageio::exr_reason(&e))))?;
     let size = image.layer_data.size;
     let channels = &image.layer_data.channel_data.list;
     let pick = ["Y", "R"]
@@ -183,7 +183,7 @@ pub enum RoughnessError {
     )]
     Syntax { text: String, reason: String },
     #[error("--roughness {text:?}: {source}")]
-    Surface { text: String, source: crate::surface::SurfaceError },
+    Surface { text: String, source: Box<crate::surface::SurfaceError> },
     #[error("--roughness {text:?}: {path}: {reason}")]
     Normals { text: String, path: PathBuf, reason: String },
 }
@@ -256,7 +256,7 @@ pub fn roughness(
                 path.clone()
             } else {
                 crate::surface::load_fit_choice(&path, None)
-                    .map_err(|source| RoughnessError::Surface { text: text.into(), source })?;
+                    .map_err(|e| RoughnessError::Surface { text: text.into(), source: Box::new(e) })?;
                 path.parent().unwrap_or(Path::new(".")).join("normals.exr")
             };
             let normals = read_normals(&normals_path).map_err(|reason| RoughnessError::Normals {
@@ -283,11 +283,12 @@ pub fn roughness(
 fn read_normals(path: &Path) -> Result<Vec<[f64; 3]>, String> {
     let (w, h, planes) = crate::imageio::read_exr_channels(path, &["R", "G", "B", "A"]).map_err(|e| e.to_string())?;
     let mut out = Vec::with_capacity(w * h);
-    for k in 0..w * h {
-        if planes[3][k] == 0.0 {
+    let pixels = planes[0].iter().zip(&planes[1]).zip(&planes[2]).zip(&planes[3]);
+    for (k, (((x, y), z), a)) in pixels.enumerate() {
+        if *a == 0.0 {
             continue;
         }
-        let v = [planes[0][k] as f64, planes[1][k] as f64, planes[2][k] as f64];
+        let v = [*x as f64, *y as f64, *z as f64];
         let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         if !(l.is_finite() && (l - 1.0).abs() < 1e-3 && v[2] > 0.0) {
             return Err(format!("pixel ({}, {}) = {v:?} is not a unit normal facing +z", k % w, k / w));
