@@ -56,6 +56,28 @@ echo "   truth camera: fx 530 fy 530 cx 330.5 cy 236.5 k1 -0.25 k2 0.10; recover
   $(grep -m7 -E '"(fx|fy|cx|cy|k1|k2|k3)"' "$out/run/calibrate/camera.json" | tr -d ' ,"') "(table in the report)"
 
 echo
+echo "== 7. 360° camera: a synthetic panorama (studio.exr at 2048 × 1024 with a ColorChecker and the level 9x6 board pasted in)"
+echo "   seen by a 360° camera with a known colour matrix, shot as five 8-bit brackets through the sRGB curve; merged back"
+echo "   (camera response recovered), oriented from the board, the chart view cut out and its colour calibrated"
+e="$out/env360"
+mkdir -p "$e"
+"$bin" synth chart --size 480x320 --out "$e/chart_xyz.exr" >/dev/null
+"$bin" env paste fixtures/env/studio.exr --image "$e/chart_xyz.exr" --yaw 150 --pitch -20 --fov 40 --width 2048 --out "$e/with_chart.exr"
+"$bin" env paste "$e/with_chart.exr" --chessboard 9x6 --yaw 27 --pitch -90 --fov 70 --out "$e/truth_xyz.exr"
+# The 360° camera's RGB: a known XYZ → camera matrix (the truth the colour stage recovers, up to a scale).
+"$bin" env convert "$e/truth_xyz.exr" "$e/truth_camera.exr" --matrix "1.6,-0.3,-0.2;-0.6,1.5,0.1;0.05,-0.2,1.1"
+"$bin" env brackets "$e/truth_camera.exr" --exposures 1/128,1/32,1/8,1/2,2 --out-dir "$e/brackets"
+"$bin" env merge "$e"/brackets/bracket_{1,2,3,4,5}.png --exposures 1/128,1/32,1/8,1/2,2 --out "$e/env.exr"
+"$bin" env orient "$e/env.exr" --board-view 0,-90,100 --board 9x6 --square-mm 30 --out "$e/env_oriented.exr"
+echo "   truth: the board's i axis at azimuth −63° in the map (pasted at yaw 27°), so the orienting yaw is 63°"
+"$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.exr"
+"$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.png" >/dev/null
+"$bin" colour calibrate --image "$e/chart_view.exr" --clip-level none --out "$e/colour" | grep -E "found|mean"
+echo "   truth: camera → XYZ = s · inverse(XYZ → camera) = s · [[0.678 0.150 0.110] [0.270 0.718 -0.016] [0.018 0.124 0.901]];"
+echo "   recovered (ccm.json):" $(tr -d ' \n' < "$e/colour/ccm.json" | grep -o '"matrix":\[\[[^]]*\],\[[^]]*\],\[[^]]*\]\]')
+rm -f "$e/with_chart.exr" "$e/truth_xyz.exr"
+
+echo
 echo "Results are in $out/:"
 echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
@@ -67,3 +89,5 @@ echo "  $out/camera/scene.json               board and sample pose in the render
 echo "  $out/render/render.exr, render.png   the rendered twin (linear CIE RGB with per-pixel variance; sRGB preview), render.json"
 echo "  $out/camera/IMG_5952.exr/.json       a real CR2 as linear camera RGB with its metadata (if rawtran-doc is installed)"
 echo "  $out/run/report/index.html          the run's report (optics, BSSRDF, env scale, triplet with RMSE/SSIM, calibration, manifest); metrics.json"
+echo "  $out/env360/env.exr, env.json          the 360° panorama merged from brackets/ (dynamic range, response); env_oriented.exr/.json/_board.png"
+echo "  $out/env360/chart_view.png, colour/      the chart cut out of the panorama and the 360° camera's colour matrix (ccm.json, ΔE)"

@@ -250,3 +250,71 @@ fn bad_orient_inputs_are_refused_clearly() {
     let o = lucent(&["env", "orient", s(&square), "--yaw", "10", "--out", s(&out)]);
     assert!(!o.status.success() && stderr(&o).contains("2:1"), "{}", stderr(&o));
 }
+
+#[test]
+fn paste_and_brackets_make_a_synthetic_panorama_that_orients_and_merges() {
+    let dir = tempfile::tempdir().unwrap();
+    let grey = dir.path().join("grey.exr");
+    write_exr(&grey, &RgbImage { width: 512, height: 256, data: vec![0.3; 512 * 256 * 3] }).unwrap();
+    // A level board seen straight down, its picture's x axis (the board's i axis) along the
+    // view's right, (sin 27°, −cos 27°, 0): azimuth −63°, so the orienting yaw is 63°.
+    let pano = dir.path().join("pano.exr");
+    let o = lucent(&[
+        "env",
+        "paste",
+        s(&grey),
+        "--chessboard",
+        "9x6",
+        "--yaw",
+        "27",
+        "--pitch",
+        "-90",
+        "--fov",
+        "70",
+        "--width",
+        "2048",
+        "--out",
+        s(&pano),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("oriented.exr");
+    let o = lucent(&[
+        "env",
+        "orient",
+        s(&pano),
+        "--board-view",
+        "0,-90,100",
+        "--board",
+        "9x6",
+        "--square-mm",
+        "30",
+        "--view-size",
+        "1000x1000",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let yaw = json(&dir.path().join("oriented.json"))["source_yaw_deg"].as_f64().unwrap();
+    assert!((yaw - 63.0).abs() < 0.05, "yaw {yaw}");
+
+    // Brackets: code = round(255 · sRGB(min(v · t, 1))), written out here (IEC 61966-2-1).
+    let small = dir.path().join("small.exr");
+    let values = [0.001f32, 0.02, 0.2, 0.7, 3.0, 40.0, 0.0, 0.5];
+    let data: Vec<f32> = values.iter().flat_map(|v| [*v, v * 0.5, v * 2.0]).collect();
+    write_exr(&small, &RgbImage { width: 4, height: 2, data: data.clone() }).unwrap();
+    let bdir = dir.path().join("brackets");
+    let o = lucent(&["env", "brackets", s(&small), "--exposures", "1/16,1,16", "--out-dir", s(&bdir)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (k, t) in [1.0f64 / 16.0, 1.0, 16.0].iter().enumerate() {
+        let png = image::open(bdir.join(format!("bracket_{}.png", k + 1))).unwrap().to_rgb8();
+        for (code, v) in png.as_raw().iter().zip(&data) {
+            let x = (f64::from(*v) * t).min(1.0);
+            let enc = if x <= 0.0031308 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
+            assert_eq!(*code, (enc * 255.0).round() as u8, "value {v} exposure {t}");
+        }
+    }
+    let o = lucent(&["env", "brackets", s(&small), "--exposures", "1,-2", "--out-dir", s(&bdir)]);
+    assert!(!o.status.success() && stderr(&o).contains("-2"), "{}", stderr(&o));
+    let o = lucent(&["env", "paste", s(&grey), "--fov", "40", "--out", s(&pano)]);
+    assert!(!o.status.success() && stderr(&o).contains("--image"), "{}", stderr(&o));
+}

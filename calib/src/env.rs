@@ -689,3 +689,69 @@ pub fn lens_to_equirect(img: &RgbBuffer, cam: &CameraModel, width: usize) -> Res
     });
     Ok(out)
 }
+
+// ---------------------------------------------------------------- pasting a flat picture into a map
+
+/// Puts `img` into the map as the view `spec` would see it (the inverse of
+/// [`perspective_view`], for making synthetic panoramas: a chart or a board
+/// "photographed" by the 360° camera): every map pixel whose centre
+/// direction d falls inside the view's frame takes `img`'s bilinear value
+/// at d's image point, x = cx + f (d·right)/(d·forward),
+/// y = cy − f (d·up)/(d·forward) (pixel centres at i + ½, clamped at the
+/// edges); other pixels are left as they are. The view's width and height
+/// are `img`'s. Returns the number of map pixels written.
+pub fn paste_view(map: &mut RgbBuffer, img: &RgbBuffer, spec: &ViewSpec) -> Result<usize, EnvError> {
+    check_equirectangular(map.width, map.height)?;
+    if (img.width, img.height) != (spec.width, spec.height) {
+        return Err(EnvError::View(format!(
+            "picture of {} × {} pixels for a view of {} × {}",
+            img.width, img.height, spec.width, spec.height
+        )));
+    }
+    let cam = spec.camera()?;
+    let (w, h) = (map.width, map.height);
+    let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut written = 0;
+    for y in 0..h {
+        let theta = std::f64::consts::PI * (y as f64 + 0.5) / h as f64;
+        for x in 0..w {
+            let phi = -std::f64::consts::TAU * (x as f64 + 0.5) / w as f64;
+            let d = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
+            let z = dot(&d, &cam.forward);
+            if z <= 1e-9 {
+                continue;
+            }
+            let px = cam.cx_px + cam.f_px * dot(&d, &cam.right) / z;
+            let py = cam.cy_px - cam.f_px * dot(&d, &cam.up) / z;
+            if !(px >= 0.0 && py >= 0.0 && px < img.width as f64 && py < img.height as f64) {
+                continue;
+            }
+            let (sx, sy) = (
+                (px - 0.5).clamp(0.0, (img.width - 1) as f64),
+                (py - 0.5).clamp(0.0, (img.height - 1) as f64),
+            );
+            let p = crate::camera::sample_bilinear(img, sx, sy);
+            map.data[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&p);
+            written += 1;
+        }
+    }
+    Ok(written)
+}
+
+/// A flat chessboard picture for [`paste_view`]: `cols` × `rows` inner
+/// corners, so (cols + 1) × (rows + 1) squares of `square_px` pixels, the
+/// outer corner square at the top left dark ((column + row) even: `dark`,
+/// odd: `light`), a margin of one square in `light`.
+pub fn chessboard_picture(cols: usize, rows: usize, square_px: usize, dark: f32, light: f32) -> RgbBuffer {
+    let (w, h) = ((cols + 3) * square_px, (rows + 3) * square_px);
+    let mut img = RgbBuffer::zeros(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let (c, r) = (x / square_px, y / square_px);
+            let inside = (1..=cols + 1).contains(&c) && (1..=rows + 1).contains(&r);
+            let v = if inside && (c + r).is_multiple_of(2) { dark } else { light };
+            img.data[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&[v; 3]);
+        }
+    }
+    img
+}

@@ -175,3 +175,39 @@ fn orientation_gives_the_yaw_of_its_own_maps_only() {
     let e = o.yaw_for_map("studio.exr").unwrap_err().to_string();
     assert!(e.contains("env.exr") && e.contains("studio.exr"), "{e}");
 }
+
+#[test]
+fn a_pasted_picture_is_seen_again_by_the_same_view() {
+    // A smooth picture pasted into a grey map and cut out again by the same view: the
+    // two bilinear resamplings (map pixels 0.09° apart, picture pixels ≈ 0.07°) leave a small error.
+    let (w, h) = (200, 150);
+    let mut pic = RgbBuffer::zeros(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+            pic.data[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&[u, v, 0.5 + 0.5 * (u * 6.0).sin() * v]);
+        }
+    }
+    let mut map = RgbBuffer::new(4096, 2048, vec![0.25; 4096 * 2048 * 3]).unwrap();
+    let spec = ViewSpec { yaw_deg: 130.0, pitch_deg: -30.0, fov_deg: 14.0, width: w, height: h };
+    let n = env::paste_view(&mut map, &pic, &spec).unwrap();
+    assert!(n > 10_000, "{n} map pixels");
+    let (back, _) = env::perspective_view(&map, &spec).unwrap();
+    let mut worst = 0.0f32;
+    for y in 2..h - 2 {
+        for x in 2..w - 2 {
+            for c in 0..3 {
+                worst = worst.max((back.pixel(x, y)[c] - pic.pixel(x, y)[c]).abs());
+            }
+        }
+    }
+    assert!(worst < 0.01, "worst {worst}");
+    // Outside the view the map is untouched; a picture of the wrong size is refused.
+    assert_eq!(map.pixel(0, 1024), [0.25; 3]);
+    assert!(env::paste_view(&mut map, &RgbBuffer::zeros(3, 3), &spec).is_err());
+    // The board picture: dark outer corner square at the top left, 10 × 7 squares inside a margin.
+    let b = env::chessboard_picture(9, 6, 10, 0.05, 0.8);
+    assert_eq!((b.width, b.height), (120, 90));
+    assert_eq!((b.pixel(15, 15), b.pixel(25, 15), b.pixel(5, 5)), ([0.05; 3], [0.8; 3], [0.8; 3]));
+    assert_eq!(b.pixel(105, 75), [0.8; 3], "the corner square opposite (0, 0) is light for 9 × 6");
+}

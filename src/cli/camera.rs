@@ -152,6 +152,10 @@ pub enum EnvCommand {
     /// Turn the map so its axes match the board's world (x along the board's i axis, z up), from a given
     /// yaw or the board found in a view of the map; the orientation goes beside it as JSON.
     Orient(env_hdr::EnvOrientArgs),
+    /// Put a picture (or a flat chessboard) into a map as a view would see it: synthetic panoramas.
+    Paste(env_hdr::EnvPasteArgs),
+    /// 8-bit exposure brackets of an HDR image through the sRGB curve: synthetic input for `env merge`.
+    Brackets(env_hdr::EnvBracketsArgs),
 }
 
 #[derive(Debug, Args)]
@@ -696,6 +700,8 @@ pub fn run_env(cmd: EnvCommand) -> Result<()> {
         EnvCommand::Merge(a) => env_hdr::merge(a),
         EnvCommand::View(a) => env_hdr::view(a),
         EnvCommand::Orient(a) => env_hdr::orient(a),
+        EnvCommand::Paste(a) => env_hdr::paste(a),
+        EnvCommand::Brackets(a) => env_hdr::brackets(a),
     }
 }
 

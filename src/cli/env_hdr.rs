@@ -108,6 +108,52 @@ pub struct EnvOrientArgs {
     pub out: PathBuf,
 }
 
+#[derive(Debug, Args)]
+#[command(group(ArgGroup::new("what").required(true).args(["image", "chessboard"])))]
+pub struct EnvPasteArgs {
+    /// Equirectangular map (.exr or .hdr, 2:1) to paste into.
+    pub input: PathBuf,
+    /// The picture (.exr linear, or .png/.tif scaled to [0, 1]), pasted as the view --yaw/--pitch/--fov
+    /// of its own size would see it (the inverse of `lucent env view`).
+    #[arg(long)]
+    pub image: Option<PathBuf>,
+    /// Or a flat chessboard of COLSxROWS inner corners (dark outer corner square at corner (0, 0),
+    /// one square of white margin), as a level board seen straight down when --pitch is -90.
+    #[arg(long)]
+    pub chessboard: Option<String>,
+    /// Chessboard: values of the dark and light squares (linear).
+    #[arg(long, default_value = "0.03,0.6")]
+    pub chessboard_values: String,
+    /// Azimuth of the view axis, degrees (as for `lucent env view`).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub yaw: f64,
+    /// Elevation of the view axis, degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub pitch: f64,
+    /// Horizontal field of view the picture spans, degrees.
+    #[arg(long)]
+    pub fov: f64,
+    /// Resample the map to this width first (bilinear; height = width/2), so a small picture keeps its detail.
+    #[arg(long)]
+    pub width: Option<usize>,
+    /// Output map (.exr).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct EnvBracketsArgs {
+    /// HDR map or image (.exr or .hdr) to "photograph".
+    pub input: PathBuf,
+    /// Relative exposures, comma-separated (e.g. "1,4,16,64"); value × exposure is clipped at 1 and
+    /// encoded with the sRGB transfer curve (IEC 61966-2-1), 8 bits per channel.
+    #[arg(long)]
+    pub exposures: String,
+    /// Output folder: bracket_1.png … bracket_N.png (in the order given) and brackets.json.
+    #[arg(long)]
+    pub out_dir: PathBuf,
+}
+
 fn extension(path: &Path) -> String {
     path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
 }
@@ -490,6 +536,119 @@ pub fn orient(a: EnvOrientArgs) -> Result<()> {
         file_name(&a.input),
         json_path.display(),
         if png.is_some() { format!(", board view {}", png_path.display()) } else { String::new() }
+    );
+    Ok(())
+}
+
+/// `lucent env paste`: a picture or a chessboard put into a map as a view sees it (synthetic panoramas).
+pub fn paste(a: EnvPasteArgs) -> Result<()> {
+    if extension(&a.out) != "exr" {
+        bail!("{}: the output must be an .exr file (32-bit float)", a.out.display());
+    }
+    let picture = match (&a.image, &a.chessboard) {
+        (Some(p), _) => to_buffer(imageio::read_rgb(p)?),
+        (None, Some(text)) => {
+            let board = BoardSpec::parse(text, 1.0).map_err(|e| anyhow::anyhow!("--chessboard: {e}"))?;
+            let v: Vec<f32> = text_numbers(&a.chessboard_values)
+                .filter(|v: &Vec<f32>| v.len() == 2 && v.iter().all(|x| x.is_finite() && *x >= 0.0))
+                .ok_or_else(|| anyhow::anyhow!("--chessboard-values {}: give DARK,LIGHT ≥ 0", a.chessboard_values))?;
+            env::chessboard_picture(board.cols, board.rows, 40, v[0], v[1])
+        }
+        (None, None) => bail!("give --image or --chessboard"),
+    };
+    let spec =
+        ViewSpec { yaw_deg: a.yaw, pitch_deg: a.pitch, fov_deg: a.fov, width: picture.width, height: picture.height };
+    spec.camera()?;
+    let mut map = super::read_env(&a.input)?;
+    if let Some(w) = a.width {
+        if w < 2 || !w.is_multiple_of(2) || w > 32768 {
+            bail!("--width {w}: an even number of pixels, 2 to 32768");
+        }
+        let h = w / 2;
+        let mut big = RgbBuffer::zeros(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let p = env::sample_bilinear(&map, (x as f64 + 0.5) / w as f64, (y as f64 + 0.5) / h as f64);
+                big.data[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&p);
+            }
+        }
+        map = big;
+    }
+    let n = env::paste_view(&mut map, &picture, &spec)?;
+    let (w, h) = (map.width, map.height);
+    imageio::write_exr(&a.out, &to_image(map))?;
+    println!(
+        "pasted a {} × {} picture at yaw {}°, pitch {}°, fov {}° into {} ({w} × {h}, {n} map pixels) → {}",
+        spec.width,
+        spec.height,
+        a.yaw,
+        a.pitch,
+        a.fov,
+        a.input.display(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+fn text_numbers(text: &str) -> Option<Vec<f32>> {
+    text.split(',').map(|s| s.trim().parse::<f32>().ok()).collect()
+}
+
+/// sRGB encoding (IEC 61966-2-1) of a linear value in [0, 1].
+fn srgb_encode(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// `lucent env brackets`: 8-bit exposure brackets of an HDR image through the sRGB curve.
+pub fn brackets(a: EnvBracketsArgs) -> Result<()> {
+    let e = extension(&a.input);
+    if e != "exr" && e != "hdr" {
+        bail!("{}: the input must be .exr or .hdr", a.input.display());
+    }
+    let exposures: Vec<f64> = a
+        .exposures
+        .split(',')
+        .map(|p| {
+            parse_exposure(p).ok_or_else(|| {
+                anyhow::anyhow!("--exposures {}: {p:?} is not a positive number or fraction", a.exposures)
+            })
+        })
+        .collect::<Result<_>>()?;
+    let img = imageio::read_rgb(&a.input)?;
+    std::fs::create_dir_all(&a.out_dir).with_context(|| format!("{}: cannot create", a.out_dir.display()))?;
+    let mut names = Vec::new();
+    for (k, t) in exposures.iter().enumerate() {
+        let bytes: Vec<u8> =
+            img.data.iter().map(|v| (srgb_encode((v.max(0.0) * *t as f32).min(1.0)) * 255.0).round() as u8).collect();
+        let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes)
+            .ok_or_else(|| anyhow::anyhow!("{}: image size", a.input.display()))?;
+        let mut out = std::io::Cursor::new(Vec::new());
+        buf.write_to(&mut out, image::ImageFormat::Png).context("encode PNG")?;
+        let name = format!("bracket_{}.png", k + 1);
+        crate::io::write_atomic(&a.out_dir.join(&name), &out.into_inner())?;
+        names.push(name);
+    }
+    write_json(
+        &a.out_dir.join("brackets.json"),
+        &serde_json::json!({
+            "source": file_name(&a.input),
+            "brackets": names,
+            "exposures": exposures,
+            "response": "8-bit sRGB transfer curve (IEC 61966-2-1) of min(value × exposure, 1), rounded",
+        }),
+    )?;
+    println!(
+        "{} brackets of {} (exposures {}) → {}/bracket_1.png … ; merge with: lucent env merge {}/bracket_*.png --exposures {}",
+        exposures.len(),
+        a.input.display(),
+        a.exposures,
+        a.out_dir.display(),
+        a.out_dir.display(),
+        a.exposures
     );
     Ok(())
 }
