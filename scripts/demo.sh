@@ -22,6 +22,15 @@ echo "== 2b. Surface topography: the shipped height map (X3P) → microfacet nor
 "$bin" surface fit fixtures/surface/tr_0p0084.x3p --out "$out/surface"
 
 echo
+echo "== 2d. Inverse fit (lucent fit, issue 16): slices of IOL1068-09 simulated at 0.425 wt-% play the measurement"
+echo "   (45°/0°, 30°/0°); the fit starts from the recipe's 0.65 wt-%, the lab's example"
+"$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength 550 --configs 45/0,30/0 \
+  --crop --paths 100000 --seed 101 --quiet --out "$out/fit/measured"
+"$bin" fit --recipe fixtures/samples/IOL1068-09.toml --free weight_percent --rel-error 0.01 --quiet \
+  --measured "$out/fit/measured/ti45_to0/bssrdf.exr" "$out/fit/measured/ti30_to0/bssrdf.exr" --out "$out/fit"
+echo "   truth: 0.425 wt-% (the weight percentage the lab reached by hand from 0.65)"
+
+echo
 echo "== 3. Colour: ColorChecker calibration of a real chart photo (Argyll's colorchecker.jpg), ΔE2000 table"
 "$bin" colour calibrate --image fixtures/colour/colorchecker.png --corners 5,6.5,196,6,195.5,133.5,3.5,133 --out "$out/colour"
 
@@ -83,6 +92,7 @@ echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
 echo "  $out/optics/IOL1068-NN/               phase tables and polar plots per sample"
 echo "  $out/bssrdf/IOL1068-NN/tiX_toY/      bssrdf.exr/.png, profile.csv/.png, summary.json; sweep.csv per sample"
+echo "  $out/fit/                            fit.json (weight-% ± error), objective.png, IOL1068-09_fitted.toml"
 echo "  $out/colour/ccm.json, chart.png, delta_e.png   colour-correction matrix, corrected chart, ΔE bars"
 echo "  $out/camera/camera.json              intrinsics, distortion, per-view poses and RMS; camera_residuals.png, camera_views/"
 echo "  $out/camera/scene.json               board and sample pose in the renderer's convention; left12_undistorted.png"

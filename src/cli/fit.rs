@@ -278,7 +278,7 @@ pub fn bench(rel_error: f64, out: Option<PathBuf>) -> Result<()> {
     let truth = recipe.with_weight_percent(0, 0.425)?;
     let configs = [(45.0, 0.0, 0.0, 180.0), (0.0, 0.0, 45.0, 180.0), (45.0, 0.0, 15.0, 180.0)];
     eprintln!("simulating the synthetic measurements (0.425 wt-%, 5 % noise; not timed) …");
-    let grids = fit::synthetic_slices(&truth, 550.0, &configs, (117, 0.1029), 400_000, 77, 0.05)?;
+    let grids = fit::synthetic_slices(&truth, 550.0, &configs, (117, 0.1029), 150_000, 77, 0.05)?;
     let measurements = grids
         .into_iter()
         .zip(configs)

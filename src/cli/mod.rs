@@ -155,7 +155,7 @@ pub enum BenchCommand {
     /// A one-parameter weight-% fit of IOL1068-09 over three configurations (synthetic measurements at 0.425 wt-%); wall time.
     Fit {
         /// Target relative error of each slice sum at the final points.
-        #[arg(long, default_value_t = 0.005)]
+        #[arg(long, default_value_t = 0.01)]
         rel_error: f64,
         /// Also write fit.json, objective.png and the fitted recipe here.
         #[arg(long)]
