@@ -22,6 +22,11 @@ echo "== 2b. Surface topography: the shipped height map (X3P) → microfacet nor
 "$bin" surface fit fixtures/surface/tr_0p0084.x3p --out "$out/surface"
 
 echo
+echo "== 2c. The same IOL1068-09 slice (45°/15°) through a rough top: the measured normals of 2b (--roughness measured:fit.json)"
+"$bin" bssrdf --recipe fixtures/samples/IOL1068-09.toml --wavelength 550 --theta-i 45 --theta-o 15 \
+  --roughness "measured:$out/surface/fit.json" --crop --pixel-rel-error 0.05 --time-s 45 --quiet --out "$out/bssrdf/IOL1068-09-rough"
+
+echo
 echo "== 2d. Inverse fit (lucent fit, issue 16): slices of IOL1068-09 simulated at 0.425 wt-% play the measurement"
 echo "   (45°/0°, 30°/0°); the fit starts from the recipe's 0.65 wt-%, the lab's example"
 "$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength 550 --configs 45/0,30/0 \
@@ -92,6 +97,8 @@ echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
 echo "  $out/optics/IOL1068-NN/               phase tables and polar plots per sample"
 echo "  $out/bssrdf/IOL1068-NN/tiX_toY/      bssrdf.exr/.png, profile.csv/.png, summary.json; sweep.csv per sample"
+echo "  $out/surface/                        fit.json, heightmap.png, distribution.png, normals.exr of the shipped height map"
+echo "  $out/bssrdf/IOL1068-09-rough/         the 45°/15° slice through the measured rough surface (summary.json: config.roughness)"
 echo "  $out/fit/                            fit.json (weight-% ± error), objective.png, IOL1068-09_fitted.toml"
 echo "  $out/colour/ccm.json, chart.png, delta_e.png   colour-correction matrix, corrected chart, ΔE bars"
 echo "  $out/camera/camera.json              intrinsics, distortion, per-view poses and RMS; camera_residuals.png, camera_views/"

@@ -161,6 +161,12 @@ pub enum BenchCommand {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Rough top: slab events/s with a smooth vs rough (TR, Beckmann, measured) top, and rough dielectric BSDF sample/eval throughput.
+    Surface {
+        /// Light paths per slab run (best of three runs on one core).
+        #[arg(long, default_value_t = 20_000)]
+        paths: u64,
+    },
     /// The slab simulator: events/s and wall time to 1 % (PDMS-like medium), and the per-pixel error of the previous and current estimators side by side.
     Bssrdf {
         /// Target relative standard error of the slice sum.
@@ -507,6 +513,7 @@ fn bench(b: BenchCommand) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&json)?);
         }
         BenchCommand::Bssrdf { rel_error, time_s } => bssrdf::bench(rel_error, time_s)?,
+        BenchCommand::Surface { paths } => bssrdf::bench_surface(paths)?,
         BenchCommand::Fit { rel_error, out } => fit::bench(rel_error, out)?,
         BenchCommand::Render { scene, reference, spp } => {
             let spps: Vec<u32> = spp
