@@ -85,6 +85,15 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
             }
             Ok(out)
         }
+        "jpg" | "jpeg" => {
+            // 8-bit values as stored, /255 (as PNG); OpenCV's decoder, which
+            // refuses a truncated file instead of filling it with grey.
+            let rgb = lucent_calib::cv::read_rgb8(path).map_err(|e| match e {
+                lucent_calib::cv::CalibError::Image { reason, .. } => read_err(reason),
+                other => read_err(other.to_string()),
+            })?;
+            RgbImage::new(rgb.width, rgb.height, rgb.data).map_err(|e| read_err(e.to_string()))
+        }
         e if RAW_EXTENSIONS.contains(&e) => {
             // Linear camera RGB relative to the white level (no white balance,
             // Malvar–He–Cutler demosaicing, orientation applied), as `lucent raw decode`.
@@ -96,7 +105,21 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
 }
 
 /// File extensions read as camera RAW (decoded by `lucent_calib::raw`).
-pub const RAW_EXTENSIONS: [&str; 12] = ["dng", "cr2", "nef", "nrw", "arw", "raf", "orf", "rw2", "pef", "srw", "3fr", "erf"];
+pub const RAW_EXTENSIONS: [&str; 12] =
+    ["dng", "cr2", "nef", "nrw", "arw", "raf", "orf", "rw2", "pef", "srw", "3fr", "erf"];
+
+/// The exr crate's error in words a user can act on ("invalid: reference to
+/// missing bytes" is what an empty or cut-off file gives).
+pub fn exr_reason(e: &exr::error::Error) -> String {
+    let text = e.to_string();
+    if text.contains("missing bytes")
+        || matches!(e, exr::error::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof)
+    {
+        format!("the EXR file is empty or cut short ({text})")
+    } else {
+        text
+    }
+}
 
 fn read_exr(path: &Path) -> Result<RgbImage, ImageIoError> {
     use exr::prelude::*;
@@ -117,7 +140,7 @@ fn read_exr(path: &Path) -> Result<RgbImage, ImageIoError> {
         .all_attributes()
         .pedantic()
         .from_file(path)
-        .map_err(|e| read_err(e.to_string()))?;
+        .map_err(|e| read_err(exr_reason(&e)))?;
     let (w, h, data) = image.layer_data.channel_data.pixels;
     let out = RgbImage::new(w, h, data).map_err(|e| read_err(e.to_string()))?;
     if out.data.iter().any(|v| !v.is_finite()) {
@@ -160,7 +183,7 @@ pub fn write_exr_channels(
 pub fn read_exr_channels(path: &Path, names: &[&str]) -> Result<(usize, usize, Vec<Vec<f32>>), ImageIoError> {
     use exr::prelude::*;
     let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
-    let image = read_all_flat_layers_from_file(path).map_err(|e| read_err(e.to_string()))?;
+    let image = read_all_flat_layers_from_file(path).map_err(|e| read_err(exr_reason(&e)))?;
     let layer = image.layer_data.first().ok_or_else(|| read_err("no layer".into()))?;
     let (w, h) = (layer.size.width(), layer.size.height());
     let mut out = Vec::with_capacity(names.len());
@@ -210,6 +233,46 @@ pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), ImageIoError> {
     buf.write_to(&mut out, image::ImageFormat::Png)
         .map_err(|e| ImageIoError::Encode { path: path.to_path_buf(), reason: e.to_string() })?;
     Ok(write_atomic(path, &out.into_inner())?)
+}
+
+/// One channel of a floating-point TIFF (32- or 64-bit samples; of several
+/// channels the first) as f64, row-major: a measured slice or map. Integer
+/// TIFFs are refused: 8- or 16-bit counts carry no physical scale, and
+/// scaling them to [0, 1] would silently change the result by the camera's
+/// gain.
+pub fn read_float_tiff(path: &Path) -> Result<(usize, usize, Vec<f64>), ImageIoError> {
+    use tiff::decoder::{Decoder, DecodingResult};
+    let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
+    let file = std::fs::File::open(path).map_err(|e| read_err(e.to_string()))?;
+    let mut dec = Decoder::new(std::io::BufReader::new(file)).map_err(|e| read_err(format!("not a TIFF: {e}")))?;
+    let (w, h) = dec.dimensions().map_err(|e| read_err(e.to_string()))?;
+    let colour = dec.colortype().map_err(|e| read_err(e.to_string()))?;
+    let channels = match colour {
+        tiff::ColorType::Gray(_) => 1,
+        tiff::ColorType::GrayA(_) => 2,
+        tiff::ColorType::RGB(_) => 3,
+        tiff::ColorType::RGBA(_) => 4,
+        other => return Err(read_err(format!("unsupported TIFF colour type {other:?}"))),
+    };
+    let integer = |bits: u32| {
+        read_err(format!(
+            "{bits}-bit integer samples have no physical scale; save the slice as 32-bit float TIFF, EXR or CSV"
+        ))
+    };
+    let values: Vec<f64> = match dec.read_image().map_err(|e| read_err(e.to_string()))? {
+        DecodingResult::F32(v) => v.into_iter().step_by(channels).map(f64::from).collect(),
+        DecodingResult::F64(v) => v.into_iter().step_by(channels).collect(),
+        DecodingResult::F16(v) => v.into_iter().step_by(channels).map(|x| f64::from(f32::from(x))).collect(),
+        DecodingResult::U8(_) | DecodingResult::I8(_) => return Err(integer(8)),
+        DecodingResult::U16(_) | DecodingResult::I16(_) => return Err(integer(16)),
+        DecodingResult::U32(_) | DecodingResult::I32(_) => return Err(integer(32)),
+        _ => return Err(integer(64)),
+    };
+    let (w, h) = (w as usize, h as usize);
+    if values.len() != w * h {
+        return Err(read_err(format!("{} samples for {w} × {h} pixels", values.len())));
+    }
+    Ok((w, h, values))
 }
 
 #[cfg(test)]

@@ -23,11 +23,12 @@ pub struct WriteError {
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     let err = |source| WriteError { path: path.to_path_buf(), source };
     let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(err)?;
+    create_folder(parent).map_err(err)?;
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tmp = parent.join(format!(".{name}.{}.tmp", std::process::id()));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
+        let _registered = interrupt::Registered::new(&tmp);
         f.write_all(bytes)?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)
@@ -36,6 +37,195 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         let _ = std::fs::remove_file(&tmp);
     }
     result.map_err(err)
+}
+
+/// `create_dir_all`, but a file where a folder is needed is said plainly
+/// ("out exists and is not a folder" instead of "File exists (os error 17)").
+pub fn create_folder(dir: &Path) -> std::io::Result<()> {
+    if let Some(file) = dir.ancestors().find(|a| !a.as_os_str().is_empty() && a.exists() && !a.is_dir()) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotADirectory,
+            format!("{} exists and is not a folder", file.display()),
+        ));
+    }
+    std::fs::create_dir_all(dir)
+}
+
+/// An output folder filled in a fresh hidden sibling folder and moved into
+/// place only when complete: a run that fails leaves the output folder as it
+/// was, and a run that succeeds leaves no stale file of an earlier run among
+/// the ones the command owns ([`StagedDir::commit`]). Dropped without
+/// `commit`, the staging folder is removed.
+///
+/// ```
+/// let out = std::env::temp_dir().join(format!("lucent-doc-staged-{}", std::process::id()));
+/// std::fs::create_dir_all(&out).unwrap();
+/// std::fs::write(out.join("old.csv"), "stale").unwrap();
+/// std::fs::write(out.join("notes.txt"), "the user's").unwrap();
+/// let stage = lucent::io::StagedDir::new(&out).unwrap();
+/// lucent::io::write_atomic(&stage.path().join("new.csv"), b"1,2").unwrap();
+/// stage.commit(|name| name.ends_with(".csv")).unwrap();
+/// assert!(out.join("new.csv").exists() && out.join("notes.txt").exists() && !out.join("old.csv").exists());
+/// # std::fs::remove_dir_all(&out).unwrap();
+/// ```
+#[derive(Debug)]
+pub struct StagedDir {
+    target: PathBuf,
+    staging: PathBuf,
+    committed: bool,
+}
+
+impl StagedDir {
+    /// Creates the staging folder beside `target` (which need not exist, but
+    /// must not be a file).
+    pub fn new(target: &Path) -> Result<Self, WriteError> {
+        let err = |source| WriteError { path: target.to_path_buf(), source };
+        create_folder(target).map_err(err)?;
+        let parent = target.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+        let staging = parent.join(format!(".{name}.staging-{}", std::process::id()));
+        if staging.exists() {
+            std::fs::remove_dir_all(&staging).map_err(err)?;
+        }
+        std::fs::create_dir_all(&staging).map_err(err)?;
+        Ok(Self { target: target.to_path_buf(), staging, committed: false })
+    }
+
+    /// Where to write the output.
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    /// Removes from the output folder the entries `owned` claims (by name)
+    /// and those the new output replaces, moves the new output in, and
+    /// removes the staging folder. Other entries (the user's files) stay.
+    pub fn commit(mut self, owned: impl Fn(&str) -> bool) -> Result<(), WriteError> {
+        let err = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| WriteError { path, source }
+        };
+        let new: Vec<std::ffi::OsString> = std::fs::read_dir(&self.staging)
+            .map_err(err(&self.staging))?
+            .map(|e| e.map(|e| e.file_name()))
+            .collect::<Result<_, _>>()
+            .map_err(err(&self.staging))?;
+        for entry in std::fs::read_dir(&self.target).map_err(err(&self.target))? {
+            let entry = entry.map_err(err(&self.target))?;
+            let name = entry.file_name();
+            if owned(&name.to_string_lossy()) || new.contains(&name) {
+                let p = entry.path();
+                let removed = if p.is_dir() { std::fs::remove_dir_all(&p) } else { std::fs::remove_file(&p) };
+                removed.map_err(err(&p))?;
+            }
+        }
+        for name in &new {
+            let to = self.target.join(name);
+            std::fs::rename(self.staging.join(name), &to).map_err(err(&to))?;
+        }
+        self.committed = true;
+        std::fs::remove_dir_all(&self.staging).map_err(err(&self.staging))
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.staging);
+        }
+    }
+}
+
+/// Temporary files of [`write_atomic`] are removed when the process is
+/// interrupted (SIGINT, SIGTERM) while writing them, so that Ctrl-C leaves no
+/// hidden half-written file (an 86 MB `.x.exr.tmp` of `raw decode`).
+/// [`remove_temporaries_on_interrupt`] installs the handler (the binary does
+/// at start): it unlinks the files registered at that moment, then ends the
+/// process with the signal's default action. Up to 32 files being written at
+/// once are tracked; the handler only reads atomics and fixed buffers and
+/// calls `unlink`, `signal` and `raise` (async-signal-safe).
+pub fn remove_temporaries_on_interrupt() {
+    interrupt::install();
+}
+
+mod interrupt {
+    use std::cell::UnsafeCell;
+    use std::path::Path;
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    const SLOTS: usize = 32;
+    const LEN: usize = 4096;
+
+    struct Paths(UnsafeCell<[[u8; LEN]; SLOTS]>);
+    // SAFETY: a slot's bytes are written only by the thread that took it
+    // (TAKEN) and before it is ARMED; the handler reads armed slots only.
+    unsafe impl Sync for Paths {}
+
+    static TAKEN: [AtomicBool; SLOTS] = [const { AtomicBool::new(false) }; SLOTS];
+    static ARMED: [AtomicBool; SLOTS] = [const { AtomicBool::new(false) }; SLOTS];
+    static PATHS: Paths = Paths(UnsafeCell::new([[0; LEN]; SLOTS]));
+
+    /// A temporary file registered for removal on interrupt while alive.
+    pub(super) struct Registered(Option<usize>);
+
+    impl Registered {
+        pub(super) fn new(path: &Path) -> Self {
+            #[cfg(unix)]
+            {
+                use std::os::unix::ffi::OsStrExt;
+                let path = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+                let bytes = path.as_os_str().as_bytes();
+                if bytes.len() >= LEN || bytes.contains(&0) {
+                    return Self(None);
+                }
+                for i in 0..SLOTS {
+                    if TAKEN[i].compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed).is_ok() {
+                        // SAFETY: slot i is ours (TAKEN) and not armed, so nobody reads it.
+                        let slot = unsafe { &mut (*PATHS.0.get())[i] };
+                        slot[..bytes.len()].copy_from_slice(bytes);
+                        slot[bytes.len()] = 0;
+                        ARMED[i].store(true, Ordering::Release);
+                        return Self(Some(i));
+                    }
+                }
+            }
+            let _ = path;
+            Self(None)
+        }
+    }
+
+    impl Drop for Registered {
+        fn drop(&mut self) {
+            if let Some(i) = self.0 {
+                ARMED[i].store(false, Ordering::Release);
+                TAKEN[i].store(false, Ordering::Release);
+            }
+        }
+    }
+
+    #[cfg(unix)]
+    extern "C" fn on_signal(signal: libc::c_int) {
+        for i in 0..SLOTS {
+            if ARMED[i].load(Ordering::Acquire) {
+                // SAFETY: an armed slot holds a NUL-terminated path; unlink is async-signal-safe.
+                unsafe { libc::unlink((*PATHS.0.get())[i].as_ptr().cast()) };
+            }
+        }
+        // SAFETY: restoring the default action and re-raising are async-signal-safe.
+        unsafe {
+            libc::signal(signal, libc::SIG_DFL);
+            libc::raise(signal);
+        }
+    }
+
+    pub(super) fn install() {
+        #[cfg(unix)]
+        // SAFETY: the handler only touches atomics, fixed buffers and async-signal-safe calls.
+        unsafe {
+            let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            libc::signal(libc::SIGINT, handler);
+            libc::signal(libc::SIGTERM, handler);
+        }
+    }
 }
 
 /// Serialises `value` as pretty JSON and writes it atomically.

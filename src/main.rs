@@ -12,12 +12,33 @@ fn main() -> std::process::ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // Ctrl-C while a file is being written removes its temporary file.
+    lucent::io::remove_temporaries_on_interrupt();
     let cli = lucent::cli::Cli::parse();
     match lucent::cli::run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             std::process::ExitCode::FAILURE
         }
     }
+}
+
+/// The error and its causes as one line "a: b: c", leaving out a cause whose
+/// text the line already holds (a message that prints its source and also
+/// returns it from `source()` would otherwise say it twice:
+/// "No such file or directory (os error 2): No such file or directory (os error 2)").
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if text.is_empty() || line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line
 }

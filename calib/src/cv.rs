@@ -341,17 +341,16 @@ fn detect(img: &GrayImage, board: &BoardSpec, detector: Detector) -> Result<Opti
 }
 
 /// For an image where `board` was not found: the largest other inner-corner
-/// count (±1 or ±2 per direction) that the fast classic check does find, as
+/// count (within ±2 per direction) that the fast classic check does find, as
 /// a hint for a mistyped `--board`. (A pattern smaller than the printed
 /// board is found inside it, so a too-small `--board` is not an error: it
 /// calibrates on a sub-board, and corner (0, 0) moves.)
 pub fn suggest_board(img: &GrayImage, board: &BoardSpec) -> Result<Option<(usize, usize)>, CalibError> {
     let m = gray_mat(img)?;
     let (c, r) = (board.cols as i64, board.rows as i64);
+    // Every count within ±2 of each side (7x5 typed for a 9x6 board is +2, +1).
     let mut candidates = vec![];
-    for (dc, dr) in
-        [(-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (1, 1), (-1, 1), (1, -1), (-2, 0), (0, -2), (2, 0), (0, 2)]
-    {
+    for (dc, dr) in (-2..=2i64).flat_map(|dc| (-2..=2i64).map(move |dr| (dc, dr))).filter(|&d| d != (0, 0)) {
         let (a, b) = (c + dc, r + dr);
         if a >= 3 && b >= 3 {
             candidates.push((a as usize, b as usize));

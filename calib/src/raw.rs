@@ -482,10 +482,16 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
         if white[k].partial_cmp(&black[k]) != Some(std::cmp::Ordering::Greater) {
             return Err(RawError::Decode {
                 path: p(),
-                reason: format!(
-                    "implausible levels: white {} is not above black {} ({black_source}); the file is probably corrupt",
-                    white[k], black[k]
-                ),
+                reason: match white_level {
+                    Some(v) => format!(
+                        "the white level {v} given (--white-level) is not above the black level {} ({black_source})",
+                        black[k]
+                    ),
+                    None => format!(
+                        "implausible levels: white {} is not above black {} ({black_source}); the file is probably corrupt",
+                        white[k], black[k]
+                    ),
+                },
             });
         }
     }

@@ -91,6 +91,11 @@
 //!   clamped at ≥ 0; an n that comes out non-positive or non-finite is an
 //!   error.
 //!
+//! Extrapolation reaches at most [`MAX_EXTRAPOLATION`] (25 %) of a range
+//! end's wavelength beyond it, i.e. 0.75 λ_min … 1.25 λ_max: further out
+//! (`--wavelength 1e9`) is an error ([`IndexError::TooFarOutside`]) whatever
+//! the extrapolation, since no clamp or line says anything about it.
+//!
 //! Whenever either part was extrapolated, [`IndexSample::extrapolated`] is
 //! `true` so that the caller can warn. A relative tolerance of 1e-9 on the
 //! range ends absorbs nm↔µm rounding (e.g. 436.8 nm against 0.4368 µm); such
@@ -149,6 +154,10 @@ use std::path::Path;
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use serde_yaml_ng::Value;
+
+/// How far beyond its valid range a part of the data may be extrapolated,
+/// as a fraction of the nearer range end's wavelength (module doc).
+pub const MAX_EXTRAPOLATION: f64 = 0.25;
 
 /// What to do at a wavelength outside the valid range of the data.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
@@ -237,6 +246,14 @@ pub enum IndexError {
         fmt_nm(*wavelength_nm), fmt_nm(*min_nm), fmt_nm(*max_nm)
     )]
     OutOfRange { file: String, part: String, wavelength_nm: f64, min_nm: f64, max_nm: f64 },
+    /// The wavelength is further outside the valid range than any
+    /// extrapolation reaches ([`MAX_EXTRAPOLATION`]).
+    #[error(
+        "{file}: wavelength {} nm is too far outside the valid range {}–{} nm of the {part} data: extrapolation reaches {}–{} nm (25 % of the range ends)",
+        fmt_nm(*wavelength_nm), fmt_nm(*min_nm), fmt_nm(*max_nm),
+        fmt_nm(*min_nm * (1.0 - MAX_EXTRAPOLATION)), fmt_nm(*max_nm * (1.0 + MAX_EXTRAPOLATION))
+    )]
+    TooFarOutside { file: String, part: String, wavelength_nm: f64, min_nm: f64, max_nm: f64 },
     /// The requested wavelength is NaN, infinite or not positive.
     #[error("{file}: requested wavelength {wavelength_nm} nm is not a finite positive number")]
     InvalidWavelength { file: String, wavelength_nm: f64 },
@@ -359,6 +376,9 @@ impl IndexSpectrum {
                     Position::Inside => (table.interpolate(x), false),
                     Position::Below | Position::Above => match extrapolation {
                         Extrapolation::None => return Err(self.out_of_range("κ", wavelength_nm, table.range_um())),
+                        _ if beyond_reach(x, table.range_um()) => {
+                            return Err(self.too_far_outside("κ", wavelength_nm, table.range_um()))
+                        }
                         Extrapolation::Clamp => (table.clamped(x), true),
                         Extrapolation::Linear => (table.interpolate(x).max(0.0), true),
                     },
@@ -454,6 +474,7 @@ impl IndexSpectrum {
             Position::Inside => (Some(x.clamp(range.0, range.1)), false),
             Position::Below | Position::Above => match extrapolation {
                 Extrapolation::None => return Err(self.out_of_range("n", wavelength_nm, range)),
+                _ if beyond_reach(x, range) => return Err(self.too_far_outside("n", wavelength_nm, range)),
                 Extrapolation::Clamp => (Some(x.clamp(range.0, range.1)), true),
                 // A table extends its end segment (interpolate does that
                 // outside the nodes); a formula is evaluated where asked.
@@ -473,6 +494,16 @@ impl IndexSpectrum {
             Ok((n, extrapolated))
         } else {
             Err(IndexError::NonPhysical { file: self.source.clone(), wavelength_nm, detail: format!("n = {n}") })
+        }
+    }
+
+    fn too_far_outside(&self, part: &str, wavelength_nm: f64, (lo, hi): (f64, f64)) -> IndexError {
+        IndexError::TooFarOutside {
+            file: self.source.clone(),
+            part: part.to_string(),
+            wavelength_nm,
+            min_nm: um_to_nm(lo),
+            max_nm: um_to_nm(hi),
         }
     }
 
@@ -680,6 +711,11 @@ fn position(x: f64, (lo, hi): (f64, f64)) -> Position {
     } else {
         Position::Inside
     }
+}
+
+/// `x` µm lies further outside `(lo, hi)` µm than [`MAX_EXTRAPOLATION`] reaches.
+fn beyond_reach(x: f64, (lo, hi): (f64, f64)) -> bool {
+    x < lo * (1.0 - MAX_EXTRAPOLATION) || x > hi * (1.0 + MAX_EXTRAPOLATION)
 }
 
 /// µm → nm, rounded to 1e-6 nm so that ranges print cleanly (0.4368 µm →
@@ -1277,7 +1313,7 @@ mod tests {
             assert_eq!(v.index, Complex64::new(1.63389, 1.12e-5));
             assert!(v.extrapolated);
         }
-        let v = pc.at(30_000.0, Extrapolation::Clamp).unwrap();
+        let v = pc.at(24_000.0, Extrapolation::Clamp).unwrap();
         assert_eq!(v.index, Complex64::new(1.62390, 2.13e-2)); // last row "19.942 1.62390 2.13E-02"
         assert!(v.extrapolated);
         // Inside the range nothing changes and nothing is reported.
@@ -1317,13 +1353,32 @@ mod tests {
         let text = "DATA:\n  - type: tabulated nk\n    data: |\n        0.5 1.5 0.001\n        0.6 1.4 0.0005\n";
         let s = IndexSpectrum::parse(text, "k.yml").unwrap();
         // κ line reaches 0 at 0.7 µm; n = 1.5 - (x - 0.5) (per µm).
-        let v = s.at(800.0, Extrapolation::Linear).unwrap();
+        let v = s.at(740.0, Extrapolation::Linear).unwrap();
         assert_eq!(v.index.im, 0.0);
-        assert!(close(v.index.re, 1.2, 1e-12), "{}", v.index.re);
+        assert!(close(v.index.re, 1.26, 1e-12), "{}", v.index.re);
         assert!(v.extrapolated);
-        // A non-physical n from linear extrapolation is an error.
-        let e = s.at(2100.0, Extrapolation::Linear).unwrap_err();
+        // A non-physical n from linear extrapolation is an error: n = 1.5 − 10 (x − 0.5) < 0 at 0.7 µm.
+        let steep = "DATA:\n  - type: tabulated nk\n    data: |\n        0.5 1.5 0.001\n        0.6 0.5 0.0005\n";
+        let s = IndexSpectrum::parse(steep, "steep.yml").unwrap();
+        let e = s.at(700.0, Extrapolation::Linear).unwrap_err();
         assert!(matches!(e, IndexError::NonPhysical { .. }), "{e}");
+    }
+
+    #[test]
+    fn extrapolation_reaches_a_quarter_of_the_range_end() {
+        // PC_Zhang2020 covers 400–19942 nm: clamping reaches 300–24927.5 nm.
+        let pc = IndexSpectrum::builtin("PC_Zhang2020").unwrap();
+        for mode in [Extrapolation::Clamp, Extrapolation::Linear] {
+            assert!(pc.at(301.0, mode).is_ok());
+            for wl in [299.0, 25_000.0, 1e9] {
+                let e = pc.at(wl, mode).unwrap_err();
+                assert!(matches!(e, IndexError::TooFarOutside { .. }), "{e}");
+                let text = e.to_string();
+                assert!(text.contains("PC_Zhang2020") && text.contains("300–24927.5 nm"), "{text}");
+            }
+        }
+        // Without extrapolation the plain out-of-range error stays.
+        assert!(matches!(pc.at(1e9, Extrapolation::None).unwrap_err(), IndexError::OutOfRange { .. }));
     }
 
     #[test]
