@@ -360,6 +360,13 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
     let board = BoardSpec::parse(&a.board, a.square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))?;
     let model = DistortionModel::from_name(&a.model).map_err(|e| anyhow!("--model: {e}"))?;
     let detector = parse_detector(&a.detector)?;
+    if a.out.is_dir() {
+        bail!(
+            "--out {}: is a folder; give the camera file to write, e.g. {}",
+            a.out.display(),
+            a.out.join("camera.json").display()
+        );
+    }
     let mut files = Vec::new();
     for spec in &a.images {
         files.extend(expand_images(spec)?);
@@ -378,16 +385,19 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
         bail!("{} of {} image(s) cannot be read:\n  {}", unreadable.len(), files.len(), unreadable.join("\n  "));
     }
     let cal = camera::calibrate_photos(&photos, &board, model, detector)?;
-    write_json(&a.out, &cal)?;
 
     let views: Vec<(String, Vec<[f64; 2]>)> =
         cal.views.iter().map(|v| (v.image.clone(), v.residuals_px.clone())).collect();
     let plot_path = sibling(&a.out, "_residuals.png");
-    write_atomic(&plot_path, &plot::residuals_png(&views, cal.rms_px)?)?;
+    // Plots first, camera.json last; the views go to a staging folder that
+    // replaces NAME_views/ whole, so no view of an earlier run stays beside
+    // the new camera.json.
+    let residuals_png = plot::residuals_png(&views, cal.rms_px)?;
     let view_dir = sibling(&a.out, "_views");
     for v in &cal.views {
         let photo = photos
             .iter()
+    let stage = crate::io::StagedDir::new(&view_dir)?;
             .find(|p| p.name == v.image)
             .ok_or_else(|| anyhow!("internal: view {} has no photo", v.image))?;
         let reprojected: Vec<[f64; 2]> =
@@ -395,11 +405,14 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
         let label = format!("{}  RMS {:.3} px  ({})", v.image, v.rms_px, v.detector);
         let png = cv::draw_view_png(&photo.image, &board, &v.corners_px, &reprojected, &[], &label)?;
         let stem = Path::new(&v.image).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        write_atomic(&view_dir.join(format!("{stem}.png")), &png)?;
+        write_atomic(&stage.path().join(format!("{stem}.png")), &png)?;
     }
     print_calibration(&cal);
     println!(
         "written: {} (camera), {} (residuals), {}/ (detected ● and reprojected × corners per view)",
+    write_atomic(&plot_path, &residuals_png)?;
+    stage.commit(|name| name.ends_with(".png"))?;
+    write_json(&a.out, &cal)?;
         a.out.display(),
         plot_path.display(),
         view_dir.display()
@@ -729,6 +742,8 @@ fn env_convert(a: EnvConvertArgs) -> Result<()> {
             } else {
                 m.clone()
             };
+            } else if m.ends_with(".json") || m.contains('/') {
+                bail!("--matrix {m}: no such file (give a JSON file or nine numbers \"a,b,c;d,e,f;g,h,i\")");
             Some(env::parse_matrix(&text).with_context(|| format!("--matrix {m}"))?)
         }
     };

@@ -82,7 +82,7 @@ pub struct OpticsArgs {
     #[arg(long, default_value = "380:780:10", conflicts_with = "wavelength")]
     pub wavelengths: String,
     /// A single wavelength in nm.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub wavelength: Option<f64>,
     /// Output folder (default: lucent-out/optics; with --json and no --out, nothing is written).
     #[arg(long)]
@@ -266,6 +266,18 @@ fn load_recipes(paths: &[PathBuf], overrides: Overrides, skip_invalid: bool) -> 
     let mut recipes = Vec::new();
     let mut failures = Vec::new();
     for p in paths {
+    // The same file given twice (directly, through a folder, or by another
+    // spelling of its path) is computed once.
+    let mut seen = Vec::new();
+    paths.retain(|p| {
+        let key = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        if seen.contains(&key) {
+            eprintln!("warning: {}: recipe given more than once; computed once", p.display());
+            return false;
+        }
+        seen.push(key);
+        true
+    });
         match Recipe::load(p, overrides) {
             Ok(r) => recipes.push(r),
             Err(e) => failures.push(e.to_string()),
@@ -290,11 +302,23 @@ fn optics(a: OpticsArgs) -> Result<()> {
         Some(w) => WavelengthGrid::from_list(vec![w]).context("--wavelength")?,
         None => parse_grid(&a.wavelengths)?,
     };
+    // Two files with one sample name would give rows nobody can tell apart.
+    for (i, r) in recipes.iter().enumerate() {
+        if let Some(first) = recipes[..i].iter().find(|q| q.name == r.name) {
+            bail!(
+                "{} and {} both name the sample {:?}; sample names must differ",
+                first.path.display(),
+                r.path.display(),
+                r.name
+            );
+        }
+    }
     if a.phase_entries == 1 {
         bail!("--phase-entries must be 0 (no table) or at least 2");
     }
     let paths = collect_recipe_paths(&a.recipes)?;
     let recipes = load_recipes(&paths, Overrides { weight_percent: a.weight_percent }, a.skip_invalid)?;
+        Some(w) if !(w.is_finite() && w > 0.0) => bail!("--wavelength {w}: must be a positive number of nanometres"),
     let options = bulk::Options { phase_entries: a.phase_entries, ..Default::default() };
     let start = Instant::now();
     let spectra: Vec<OpticalSpectrum> = recipes
@@ -460,7 +484,7 @@ pub fn read_mie_cases(path: &Path) -> Result<Vec<(Complex64, f64)>> {
 fn bench(b: BenchCommand) -> Result<()> {
     match b {
         BenchCommand::Mie { cases, repeats } => {
-            let cases = read_mie_cases(&cases)?;
+            let cases = read_mie_cases(&repository_file(&cases))?;
             let repeats = repeats.max(1);
             let run = |cases: &[(Complex64, f64)], c: &mut Coefficients| -> Result<f64> {
                 let mut checksum = 0.0;
@@ -469,6 +493,18 @@ fn bench(b: BenchCommand) -> Result<()> {
                     checksum += c.efficiencies(x).qsca;
                 }
                 Ok(checksum)
+/// A default input of `bench` (a path relative to the repository): as given
+/// if it exists, else under the repository this binary was built from, so
+/// that `lucent bench …` works from any folder.
+fn repository_file(p: &Path) -> PathBuf {
+    let in_repo = Path::new(env!("CARGO_MANIFEST_DIR")).join(p);
+    if p.exists() || p.is_absolute() || !in_repo.exists() {
+        p.to_path_buf()
+    } else {
+        in_repo
+    }
+}
+
             };
             // Each repeat is timed on its own and the best is reported, as
             // tools/bench_miepython.py does for miepython (this machine's speed
@@ -520,10 +556,10 @@ fn bench(b: BenchCommand) -> Result<()> {
                 .split(',')
                 .map(|s| s.trim().parse::<u32>().with_context(|| format!("--spp {spp:?}: {s:?} is not a count")))
                 .collect::<Result<_>>()?;
-            render::bench(&scene, &reference, &spps)?
+            render::bench(&repository_file(&scene), &repository_file(&reference), &spps)?
         }
         BenchCommand::Optics { samples, repeats, weight_percent } => {
-            let paths = collect_recipe_paths(&[samples])?;
+            let paths = collect_recipe_paths(&[repository_file(&samples)])?;
             let recipes = load_recipes(&paths, Overrides { weight_percent: Some(weight_percent) }, false)?;
             let grid = WavelengthGrid::visible();
             let options = bulk::Options::default();
