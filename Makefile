@@ -13,6 +13,8 @@ demo: build
 	@bash scripts/demo.sh
 
 test: deps
+	$(CARGO) fmt --all --check
+	$(CARGO) clippy --workspace --all-targets -- -D warnings
 	$(CARGO) test --workspace
 
 bench: deps

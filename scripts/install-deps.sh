@@ -32,3 +32,17 @@ if ! command -v cargo >/dev/null 2>&1; then
   echo "error: cargo (Rust toolchain) not found; install Rust from https://rustup.rs or Debian's cargo package" >&2
   exit 1
 fi
+
+# `make test` also runs `cargo fmt --check` and `cargo clippy`: add the
+# components through rustup where the toolchain lacks them.
+for component in rustfmt clippy; do
+  subcommand=${component/rustfmt/fmt}
+  if ! cargo "$subcommand" --version >/dev/null 2>&1; then
+    if command -v rustup >/dev/null 2>&1; then
+      echo "Adding the Rust component $component"
+      rustup component add "$component"
+    else
+      echo "warning: cargo $subcommand not found and no rustup to add it (Debian: apt-get install ${component/clippy/rust-clippy})" >&2
+    fi
+  fi
+done
