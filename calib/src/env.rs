@@ -13,6 +13,17 @@
 //! map's bilinear interpolation at its centre's direction (wrapping in u,
 //! clamped at the poles' first and last rows).
 //!
+//! Orientation ([`rotate_yaw`], [`board_in_map`], `lucent env orient`): the
+//! map is turned about +z so that world = R_z(yaw) · map puts the board's i
+//! axis on world +x (the board found in a view by OpenCV, its pose from PnP
+//! with the view's pinhole camera, yaw = −azimuth of the i axis; corner
+//! (0, 0) fixed by the dark outer square, [`canonical_corner_order`]); the
+//! [`Orientation`] file gives a scene its yaw. [`lens_to_equirect`] maps a
+//! calibrated lens's photo onto a latitude–longitude map around its axis
+//! (Kannala–Brandt by the angle off the axis, so beyond 90°);
+//! [`paste_view`] is the inverse of [`perspective_view`], for synthetic
+//! panoramas.
+//!
 //! Values are linear relative radiance, unchanged in scale. The matrix acts
 //! on column vectors: `out = M · [r, g, b]ᵀ`; negative results (colours
 //! outside the target gamut) are kept, not clipped.

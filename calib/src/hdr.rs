@@ -174,7 +174,7 @@ pub struct MergeReport {
     pub brackets: usize,
     /// Relative exposure of each bracket, as used.
     pub exposures: Vec<f64>,
-    /// "linear" or "8-bit <method>".
+    /// `"linear"` or `"8-bit <method>"`.
     pub mode: String,
     /// log2(largest / smallest positive merged luminance) over the pixels
     /// measured by at least one bracket, stops.
