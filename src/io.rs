@@ -204,8 +204,8 @@ mod interrupt {
 
     #[cfg(unix)]
     extern "C" fn on_signal(signal: libc::c_int) {
-        for i in 0..SLOTS {
-            if ARMED[i].load(Ordering::Acquire) {
+        for (i, armed) in ARMED.iter().enumerate() {
+            if armed.load(Ordering::Acquire) {
                 // SAFETY: an armed slot holds a NUL-terminated path; unlink is async-signal-safe.
                 unsafe { libc::unlink((*PATHS.0.get())[i].as_ptr().cast()) };
             }
