@@ -311,6 +311,109 @@ pub fn bench(rel_error: f64, out: Option<PathBuf>) -> Result<()> {
     Ok(())
 }
 
+/// `lucent optics --uncertainty N`: per recipe, the propagation of its
+/// uncertain inputs ([`crate::optics::uncertainty`]) written to
+/// `OUT/SAMPLE/uncertainty.{csv,json,png}` and summarised on stdout.
+pub fn optics_uncertainty(
+    recipes: &[Recipe],
+    grid: &lucent_colour::WavelengthGrid,
+    n: usize,
+    seed: u64,
+    out: &Path,
+) -> Result<()> {
+    use crate::optics::uncertainty;
+    let mut results = Vec::new();
+    for r in recipes {
+        results.push(uncertainty::propagate(r, grid, n, seed)?);
+    }
+    for u in &results {
+        let dir = out.join(&u.sample);
+        crate::io::write_atomic(&dir.join("uncertainty.csv"), uncertainty::to_csv(u).as_bytes())?;
+        crate::io::write_json(&dir.join("uncertainty.json"), u)?;
+        crate::io::write_atomic(&dir.join("uncertainty.png"), &bands_png(u)?)?;
+        println!(
+            "{}: {} Latin-hypercube samples of {}",
+            u.sample,
+            u.samples,
+            u.inputs.iter().map(|i| i.key.as_str()).collect::<Vec<_>>().join(", ")
+        );
+        println!(
+            "{:>8} {:>24} {:>24} {:>20} {:>20}",
+            "λ [nm]", "μs [1/m] mean ± sd", "μa [1/m] mean ± sd", "g mean ± sd", "n_bulk mean ± sd"
+        );
+        for (i, w) in u.wavelength_nm.iter().enumerate() {
+            if u.wavelength_nm.len() > 5 && ![450.0, 550.0, 650.0].contains(w) {
+                continue;
+            }
+            println!(
+                "{w:>8} {:>13.5e} ± {:<9.2e} {:>13.5e} ± {:<9.2e} {:>9.5} ± {:<8.1e} {:>9.5} ± {:<8.1e}",
+                u.mu_s_per_m.mean[i],
+                u.mu_s_per_m.sd[i],
+                u.mu_a_per_m.mean[i],
+                u.mu_a_per_m.sd[i],
+                u.g.mean[i],
+                u.g.sd[i],
+                u.n_bulk.mean[i],
+                u.n_bulk.sd[i]
+            );
+        }
+        println!("written: {}/uncertainty.{{csv,json,png}}", dir.display());
+    }
+    Ok(())
+}
+
+/// μs, μa and g against wavelength: mean and the 95 % band.
+fn bands_png(u: &crate::optics::uncertainty::Uncertainty) -> Result<Vec<u8>> {
+    use crate::plot::{perr, render_png};
+    use plotters::prelude::*;
+    let panels = [("μs [1/m]", &u.mu_s_per_m), ("μa [1/m]", &u.mu_a_per_m), ("g", &u.g)];
+    let x = &u.wavelength_nm;
+    let (x0, x1) = (x[0], x[x.len() - 1]);
+    let (x0, x1) = if x1 > x0 { (x0, x1) } else { (x0 - 10.0, x0 + 10.0) };
+    Ok(render_png(1500, 480, |root| {
+        for (area, (label, b)) in root.split_evenly((1, 3)).iter().zip(panels) {
+            let lo = b.p2_5.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = b.p97_5.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let pad = 0.05 * (hi - lo).max(1e-12 * hi.abs().max(1e-300));
+            let mut chart = ChartBuilder::on(area)
+                .margin(12)
+                .caption(
+                    format!("{} — {label}, mean and 95 % band ({} samples)", u.sample, u.samples),
+                    ("sans-serif", 15),
+                )
+                .x_label_area_size(35)
+                .y_label_area_size(75)
+                .build_cartesian_2d(x0..x1, (lo - pad)..(hi + pad))
+                .map_err(perr)?;
+            chart
+                .configure_mesh()
+                .x_desc("wavelength [nm]")
+                .y_desc(label)
+                .y_label_formatter(&|v| format!("{v:.3e}"))
+                .draw()
+                .map_err(perr)?;
+            let blue = RGBColor(31, 119, 180);
+            let mut poly: Vec<(f64, f64)> = x.iter().zip(&b.p97_5).map(|(a, b)| (*a, *b)).collect();
+            poly.extend(x.iter().zip(&b.p2_5).rev().map(|(a, b)| (*a, *b)));
+            if x.len() > 1 {
+                chart.draw_series(std::iter::once(Polygon::new(poly, blue.mix(0.25).filled()))).map_err(perr)?;
+                chart
+                    .draw_series(LineSeries::new(x.iter().zip(&b.mean).map(|(a, b)| (*a, *b)), blue.stroke_width(2)))
+                    .map_err(perr)?;
+            } else {
+                chart
+                    .draw_series(std::iter::once(PathElement::new(
+                        vec![(x[0], b.p2_5[0]), (x[0], b.p97_5[0])],
+                        blue.stroke_width(3),
+                    )))
+                    .map_err(perr)?;
+                chart.draw_series(std::iter::once(Circle::new((x[0], b.mean[0]), 5, blue.filled()))).map_err(perr)?;
+            }
+        }
+        Ok(())
+    })?)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

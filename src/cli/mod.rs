@@ -99,6 +99,13 @@ pub struct OpticsArgs {
     /// In a folder, skip recipes that fail validation (reported on stderr) instead of stopping.
     #[arg(long)]
     pub skip_invalid: bool,
+    /// Propagate the recipe's uncertain inputs ({ value, sd } or { min, max }) with N Latin-hypercube samples:
+    /// mean, sd and 95 % interval of μs, μa, g, n_bulk per wavelength (uncertainty.csv/.json/.png per sample).
+    #[arg(long)]
+    pub uncertainty: Option<usize>,
+    /// Seed of the --uncertainty samples.
+    #[arg(long, default_value_t = 1)]
+    pub uncertainty_seed: u64,
 }
 
 #[derive(Debug, Args)]
@@ -258,14 +265,6 @@ fn collect_recipe_paths(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
             bail!("{}: no such recipe file or folder", input.display());
         }
     }
-    Ok(paths)
-}
-
-/// Loads recipes; with `skip_invalid`, invalid ones are reported and left out.
-fn load_recipes(paths: &[PathBuf], overrides: Overrides, skip_invalid: bool) -> Result<Vec<Recipe>> {
-    let mut recipes = Vec::new();
-    let mut failures = Vec::new();
-    for p in paths {
     // The same file given twice (directly, through a folder, or by another
     // spelling of its path) is computed once.
     let mut seen = Vec::new();
@@ -278,6 +277,14 @@ fn load_recipes(paths: &[PathBuf], overrides: Overrides, skip_invalid: bool) -> 
         seen.push(key);
         true
     });
+    Ok(paths)
+}
+
+/// Loads recipes; with `skip_invalid`, invalid ones are reported and left out.
+fn load_recipes(paths: &[PathBuf], overrides: Overrides, skip_invalid: bool) -> Result<Vec<Recipe>> {
+    let mut recipes = Vec::new();
+    let mut failures = Vec::new();
+    for p in paths {
         match Recipe::load(p, overrides) {
             Ok(r) => recipes.push(r),
             Err(e) => failures.push(e.to_string()),
@@ -294,14 +301,6 @@ fn load_recipes(paths: &[PathBuf], overrides: Overrides, skip_invalid: bool) -> 
             bail!("{} recipes are invalid:\n  {}", failures.len(), failures.join("\n  "));
         }
     }
-    Ok(recipes)
-}
-
-fn optics(a: OpticsArgs) -> Result<()> {
-    let grid = match a.wavelength {
-        Some(w) => WavelengthGrid::from_list(vec![w]).context("--wavelength")?,
-        None => parse_grid(&a.wavelengths)?,
-    };
     // Two files with one sample name would give rows nobody can tell apart.
     for (i, r) in recipes.iter().enumerate() {
         if let Some(first) = recipes[..i].iter().find(|q| q.name == r.name) {
@@ -313,12 +312,24 @@ fn optics(a: OpticsArgs) -> Result<()> {
             );
         }
     }
+    Ok(recipes)
+}
+
+fn optics(a: OpticsArgs) -> Result<()> {
+    let grid = match a.wavelength {
+        Some(w) if !(w.is_finite() && w > 0.0) => bail!("--wavelength {w}: must be a positive number of nanometres"),
+        Some(w) => WavelengthGrid::from_list(vec![w]).context("--wavelength")?,
+        None => parse_grid(&a.wavelengths)?,
+    };
     if a.phase_entries == 1 {
         bail!("--phase-entries must be 0 (no table) or at least 2");
     }
     let paths = collect_recipe_paths(&a.recipes)?;
     let recipes = load_recipes(&paths, Overrides { weight_percent: a.weight_percent }, a.skip_invalid)?;
-        Some(w) if !(w.is_finite() && w > 0.0) => bail!("--wavelength {w}: must be a positive number of nanometres"),
+    if let Some(n) = a.uncertainty {
+        let out = a.out.unwrap_or_else(|| PathBuf::from("lucent-out/optics"));
+        return fit::optics_uncertainty(&recipes, &grid, n, a.uncertainty_seed, &out);
+    }
     let options = bulk::Options { phase_entries: a.phase_entries, ..Default::default() };
     let start = Instant::now();
     let spectra: Vec<OpticalSpectrum> = recipes
@@ -481,18 +492,6 @@ pub fn read_mie_cases(path: &Path) -> Result<Vec<(Complex64, f64)>> {
     Ok(cases)
 }
 
-fn bench(b: BenchCommand) -> Result<()> {
-    match b {
-        BenchCommand::Mie { cases, repeats } => {
-            let cases = read_mie_cases(&repository_file(&cases))?;
-            let repeats = repeats.max(1);
-            let run = |cases: &[(Complex64, f64)], c: &mut Coefficients| -> Result<f64> {
-                let mut checksum = 0.0;
-                for &(m, x) in cases {
-                    c.recompute(m, Complex64::new(x, 0.0))?;
-                    checksum += c.efficiencies(x).qsca;
-                }
-                Ok(checksum)
 /// A default input of `bench` (a path relative to the repository): as given
 /// if it exists, else under the repository this binary was built from, so
 /// that `lucent bench …` works from any folder.
@@ -505,6 +504,18 @@ fn repository_file(p: &Path) -> PathBuf {
     }
 }
 
+fn bench(b: BenchCommand) -> Result<()> {
+    match b {
+        BenchCommand::Mie { cases, repeats } => {
+            let cases = read_mie_cases(&repository_file(&cases))?;
+            let repeats = repeats.max(1);
+            let run = |cases: &[(Complex64, f64)], c: &mut Coefficients| -> Result<f64> {
+                let mut checksum = 0.0;
+                for &(m, x) in cases {
+                    c.recompute(m, Complex64::new(x, 0.0))?;
+                    checksum += c.efficiencies(x).qsca;
+                }
+                Ok(checksum)
             };
             // Each repeat is timed on its own and the best is reported, as
             // tools/bench_miepython.py does for miepython (this machine's speed

@@ -8,3 +8,4 @@ pub mod index;
 pub mod mie;
 pub mod output;
 pub mod recipe;
+pub mod uncertainty;

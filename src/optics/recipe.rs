@@ -147,7 +147,7 @@ enum RawImaginaryPart {
 #[serde(deny_unknown_fields)]
 struct RawRealPart {
     wavelength_nm: f64,
-    n: f64,
+    n: RawValue,
     #[serde(default = "shift")]
     mode: RealPartCorrection,
 }
@@ -160,13 +160,59 @@ fn no_extrapolation() -> Extrapolation {
     Extrapolation::None
 }
 
+/// A number, or a number with its uncertainty:
+/// `{ value = 0.65, sd = 0.02 }` (normal) or `{ min = 2.0, max = 2.4 }`
+/// (uniform; `value` defaults to the midpoint).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(untagged)]
+enum RawValue {
+    Plain(f64),
+    Uncertain(RawUncertain),
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawUncertain {
+    value: Option<f64>,
+    sd: Option<f64>,
+    min: Option<f64>,
+    max: Option<f64>,
+}
+
+/// The distribution of an uncertain recipe input.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum InputDistribution {
+    Normal { sd: f64 },
+    Uniform { min: f64, max: f64 },
+}
+
+/// What an uncertain input sets.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "input", rename_all = "kebab-case")]
+pub enum InputTarget {
+    WeightPercent { particle: usize },
+    DiameterUm { particle: usize },
+    RealPartN { medium: MediumRef, wavelength_nm: f64 },
+}
+
+/// An input the recipe gives with an uncertainty (`lucent optics --uncertainty`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct UncertainInput {
+    /// The recipe key, e.g. `particles[0].weight_percent`.
+    pub key: String,
+    pub target: InputTarget,
+    pub nominal: f64,
+    pub distribution: InputDistribution,
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawParticle {
     name: String,
     index: String,
     density_g_per_ml: f64,
-    weight_percent: Option<f64>,
+    weight_percent: Option<RawValue>,
     size: RawSize,
     #[serde(default = "no_extrapolation")]
     extrapolate: Extrapolation,
@@ -177,7 +223,7 @@ struct RawParticle {
 #[derive(Debug, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 enum RawSize {
-    Diameter { diameter_um: f64 },
+    Diameter { diameter_um: RawValue },
     Range { min_um: f64, max_um: f64, distribution: RangeDistribution },
     LogNormal { median_diameter_um: f64, sigma: f64 },
 }
@@ -266,6 +312,8 @@ pub struct Recipe {
     pub host: Medium,
     pub particles: Vec<Particle>,
     pub surface: Option<Surface>,
+    /// Inputs given with an uncertainty, at their nominal values above.
+    pub uncertain: Vec<UncertainInput>,
 }
 
 /// Values the user supplies on the command line where a recipe leaves
@@ -289,7 +337,7 @@ impl Recipe {
     pub fn parse(text: &str, path: &Path, overrides: Overrides) -> Result<Self, RecipeError> {
         let raw: RawRecipe = toml::from_str(text)
             .map_err(|e| RecipeError::Parse { path: path.to_path_buf(), message: one_line(&e.to_string()) })?;
-        Validator { path }.recipe(raw, overrides)
+        Validator { path, uncertain: Default::default() }.recipe(raw, overrides)
     }
 
     /// Total volume fraction of all particle types.
@@ -346,7 +394,8 @@ impl Recipe {
         p.volume_fraction = (w / p.medium.density_kg_per_m3) / (100.0 / host_density);
         let total = r.particle_volume_fraction();
         if total >= 1.0 {
-            return self.invalid("particles".into(), format!("the particles' volume fractions add up to {total:.3} ≥ 1"));
+            return self
+                .invalid("particles".into(), format!("the particles' volume fractions add up to {total:.3} ≥ 1"));
         }
         Ok(r)
     }
@@ -377,7 +426,9 @@ impl Recipe {
             SizeDistribution::Uniform { min_radius_m, max_radius_m } => {
                 SizeDistribution::Uniform { min_radius_m: min_radius_m * scale, max_radius_m: max_radius_m * scale }
             }
-            SizeDistribution::LogNormal { sigma, .. } => SizeDistribution::LogNormal { median_radius_m: 0.5e-6 * d, sigma },
+            SizeDistribution::LogNormal { sigma, .. } => {
+                SizeDistribution::LogNormal { median_radius_m: 0.5e-6 * d, sigma }
+            }
         };
         Ok(r)
     }
@@ -420,6 +471,15 @@ impl Recipe {
         Ok(r)
     }
 
+    /// The recipe with the uncertain input `target` set to `value`.
+    pub fn with_input(&self, target: InputTarget, value: f64) -> Result<Recipe, RecipeError> {
+        match target {
+            InputTarget::WeightPercent { particle } => self.with_weight_percent(particle, value),
+            InputTarget::DiameterUm { particle } => self.with_diameter_um(particle, value),
+            InputTarget::RealPartN { medium, wavelength_nm } => self.with_real_part(medium, wavelength_nm, value),
+        }
+    }
+
     /// The recipe with medium `m`'s κ(λ) replaced by the constant `kappa`.
     pub fn with_kappa(&self, m: MediumRef, kappa: f64) -> Result<Recipe, RecipeError> {
         self.with_imaginary(m, ImaginaryPartCorrection::Replace { kappa })
@@ -435,11 +495,11 @@ impl Recipe {
         let path = r.path.clone();
         let medium = r.medium_mut(m)?;
         let key = format!("{}.imaginary_part", Self::medium_key(m));
-        medium.index = medium
-            .index
-            .clone()
-            .with_imaginary_part(c)
-            .map_err(|source| RecipeError::Index { path, key, source: Box::new(source) })?;
+        medium.index = medium.index.clone().with_imaginary_part(c).map_err(|source| RecipeError::Index {
+            path,
+            key,
+            source: Box::new(source),
+        })?;
         Ok(r)
     }
 }
@@ -459,9 +519,51 @@ fn one_line(message: &str) -> String {
 
 struct Validator<'a> {
     path: &'a Path,
+    uncertain: std::cell::RefCell<Vec<UncertainInput>>,
 }
 
 impl Validator<'_> {
+    /// The nominal value of `raw`; an uncertain one is recorded.
+    fn value(&self, key: &str, raw: RawValue, target: InputTarget) -> Result<f64, RecipeError> {
+        let u = match raw {
+            RawValue::Plain(v) => return Ok(v),
+            RawValue::Uncertain(u) => u,
+        };
+        let (nominal, distribution) =
+            match u {
+                RawUncertain { value: Some(v), sd: Some(sd), min: None, max: None } => {
+                    if !(sd.is_finite() && sd > 0.0) {
+                        return self.invalid(&format!("{key}.sd"), format!("must be a positive number, got {sd}"));
+                    }
+                    (v, InputDistribution::Normal { sd })
+                }
+                RawUncertain { value, sd: None, min: Some(min), max: Some(max) } => {
+                    if !(min.is_finite() && max.is_finite() && min < max) {
+                        return self.invalid(key, format!("min {min} must be below max {max}"));
+                    }
+                    let v = value.unwrap_or(0.5 * (min + max));
+                    if !(min..=max).contains(&v) {
+                        return self.invalid(&format!("{key}.value"), format!("{v} lies outside [{min}, {max}]"));
+                    }
+                    (v, InputDistribution::Uniform { min, max })
+                }
+                _ => return self.invalid(
+                    key,
+                    "give a number, { value = V, sd = S } (normal) or { min = A, max = B } (uniform, value optional)",
+                ),
+            };
+        self.uncertain.borrow_mut().push(UncertainInput { key: key.to_string(), target, nominal, distribution });
+        Ok(nominal)
+    }
+
+    fn medium_ref(key: &str) -> MediumRef {
+        key.strip_prefix("particles[")
+            .and_then(|r| r.strip_suffix(']'))
+            .and_then(|i| i.parse().ok())
+            .map(MediumRef::Particle)
+            .unwrap_or(MediumRef::Host)
+    }
+
     fn invalid<T>(&self, key: &str, message: impl Into<String>) -> Result<T, RecipeError> {
         Err(RecipeError::Invalid { path: self.path.to_path_buf(), key: key.to_string(), message: message.into() })
     }
@@ -514,7 +616,11 @@ impl Validator<'_> {
                 (p.real_part.as_ref(), p.imaginary_part.as_ref()),
             )?;
             let wkey = format!("{key}.weight_percent");
-            let w = match p.weight_percent.or(overrides.weight_percent) {
+            let raw_w = match p.weight_percent {
+                Some(w) => Some(self.value(&wkey, w, InputTarget::WeightPercent { particle: i })?),
+                None => overrides.weight_percent,
+            };
+            let w = match raw_w {
                 Some(w) => w,
                 None => {
                     return self.invalid(
@@ -529,7 +635,7 @@ impl Validator<'_> {
             if !(w.is_finite() && w > 0.0 && w < 100.0) {
                 return self.invalid(&wkey, format!("must lie in (0, 100), got {w}"));
             }
-            let size = self.size(&format!("{key}.size"), &p.size)?;
+            let size = self.size(&format!("{key}.size"), &p.size, i)?;
             let volume_fraction = (w / density) / (100.0 / host_density);
             particles.push(Particle { medium, weight_percent: w, size, volume_fraction });
         }
@@ -573,6 +679,7 @@ impl Validator<'_> {
             host,
             particles,
             surface,
+            uncertain: self.uncertain.take(),
         })
     }
 
@@ -606,15 +713,17 @@ impl Validator<'_> {
         if let Some(rp) = real_part {
             let rkey = format!("{key}.real_part");
             self.positive(&format!("{rkey}.wavelength_nm"), rp.wavelength_nm, "nanometres")?;
-            self.positive(&format!("{rkey}.n"), rp.n, "(refractive index)")?;
-            spectrum = spectrum.with_real_part_at(rp.wavelength_nm, rp.n, rp.mode).map_err(|source| {
+            let target = InputTarget::RealPartN { medium: Self::medium_ref(key), wavelength_nm: rp.wavelength_nm };
+            let n = self.value(&format!("{rkey}.n"), rp.n, target)?;
+            self.positive(&format!("{rkey}.n"), n, "(refractive index)")?;
+            spectrum = spectrum.with_real_part_at(rp.wavelength_nm, n, rp.mode).map_err(|source| {
                 RecipeError::Index { path: self.path.to_path_buf(), key: rkey.clone(), source: Box::new(source) }
             })?;
             corrections.push(match rp.mode {
                 RealPartCorrection::Shift => {
-                    format!("n shifted to {} at {} nm (dispersion and κ kept)", rp.n, rp.wavelength_nm)
+                    format!("n shifted to {n} at {} nm (dispersion and κ kept)", rp.wavelength_nm)
                 }
-                RealPartCorrection::Replace => format!("n replaced by the constant {} (κ kept)", rp.n),
+                RealPartCorrection::Replace => format!("n replaced by the constant {n} (κ kept)"),
             });
         }
         if let Some(ip) = imaginary_part {
@@ -644,11 +753,13 @@ impl Validator<'_> {
         })
     }
 
-    fn size(&self, key: &str, raw: &RawSize) -> Result<SizeDistribution, RecipeError> {
+    fn size(&self, key: &str, raw: &RawSize, particle: usize) -> Result<SizeDistribution, RecipeError> {
         Ok(match *raw {
-            RawSize::Diameter { diameter_um } => SizeDistribution::Mono {
-                radius_m: self.positive(&format!("{key}.diameter_um"), diameter_um, "micrometres")? * 0.5e-6,
-            },
+            RawSize::Diameter { diameter_um } => {
+                let dkey = format!("{key}.diameter_um");
+                let d = self.value(&dkey, diameter_um, InputTarget::DiameterUm { particle })?;
+                SizeDistribution::Mono { radius_m: self.positive(&dkey, d, "micrometres")? * 0.5e-6 }
+            }
             RawSize::Range { min_um, max_um, distribution } => {
                 let lo = self.positive(&format!("{key}.min_um"), min_um, "micrometres")?;
                 let hi = self.positive(&format!("{key}.max_um"), max_um, "micrometres")?;
