@@ -357,9 +357,6 @@ fn parse_detector(name: &str) -> Result<Detector> {
 }
 
 pub fn calibrate(a: CalibrateArgs) -> Result<()> {
-    let board = BoardSpec::parse(&a.board, a.square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))?;
-    let model = DistortionModel::from_name(&a.model).map_err(|e| anyhow!("--model: {e}"))?;
-    let detector = parse_detector(&a.detector)?;
     if a.out.is_dir() {
         bail!(
             "--out {}: is a folder; give the camera file to write, e.g. {}",
@@ -367,6 +364,9 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
             a.out.join("camera.json").display()
         );
     }
+    let board = BoardSpec::parse(&a.board, a.square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))?;
+    let model = DistortionModel::from_name(&a.model).map_err(|e| anyhow!("--model: {e}"))?;
+    let detector = parse_detector(&a.detector)?;
     let mut files = Vec::new();
     for spec in &a.images {
         files.extend(expand_images(spec)?);
@@ -386,18 +386,18 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
     }
     let cal = camera::calibrate_photos(&photos, &board, model, detector)?;
 
-    let views: Vec<(String, Vec<[f64; 2]>)> =
-        cal.views.iter().map(|v| (v.image.clone(), v.residuals_px.clone())).collect();
-    let plot_path = sibling(&a.out, "_residuals.png");
     // Plots first, camera.json last; the views go to a staging folder that
     // replaces NAME_views/ whole, so no view of an earlier run stays beside
     // the new camera.json.
+    let views: Vec<(String, Vec<[f64; 2]>)> =
+        cal.views.iter().map(|v| (v.image.clone(), v.residuals_px.clone())).collect();
+    let plot_path = sibling(&a.out, "_residuals.png");
     let residuals_png = plot::residuals_png(&views, cal.rms_px)?;
     let view_dir = sibling(&a.out, "_views");
+    let stage = crate::io::StagedDir::new(&view_dir)?;
     for v in &cal.views {
         let photo = photos
             .iter()
-    let stage = crate::io::StagedDir::new(&view_dir)?;
             .find(|p| p.name == v.image)
             .ok_or_else(|| anyhow!("internal: view {} has no photo", v.image))?;
         let reprojected: Vec<[f64; 2]> =
@@ -407,12 +407,12 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
         let stem = Path::new(&v.image).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         write_atomic(&stage.path().join(format!("{stem}.png")), &png)?;
     }
-    print_calibration(&cal);
-    println!(
-        "written: {} (camera), {} (residuals), {}/ (detected ● and reprojected × corners per view)",
     write_atomic(&plot_path, &residuals_png)?;
     stage.commit(|name| name.ends_with(".png"))?;
     write_json(&a.out, &cal)?;
+    print_calibration(&cal);
+    println!(
+        "written: {} (camera), {} (residuals), {}/ (detected ● and reprojected × corners per view)",
         a.out.display(),
         plot_path.display(),
         view_dir.display()
@@ -739,11 +739,11 @@ fn env_convert(a: EnvConvertArgs) -> Result<()> {
             let p = Path::new(m);
             let text = if p.is_file() {
                 std::fs::read_to_string(p).with_context(|| format!("{m}: cannot read matrix file"))?
+            } else if m.ends_with(".json") || m.contains('/') {
+                bail!("--matrix {m}: no such file (give a JSON file or nine numbers \"a,b,c;d,e,f;g,h,i\")");
             } else {
                 m.clone()
             };
-            } else if m.ends_with(".json") || m.contains('/') {
-                bail!("--matrix {m}: no such file (give a JSON file or nine numbers \"a,b,c;d,e,f;g,h,i\")");
             Some(env::parse_matrix(&text).with_context(|| format!("--matrix {m}"))?)
         }
     };
