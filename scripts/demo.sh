@@ -56,7 +56,8 @@ echo "== 5. The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerb
 echo
 echo "== 6. The whole digitisation from one project file (lucent run fixtures/demo/project.toml). The synthetic truth:"
 echo "   six board views by a known camera (fixtures/demo/truth_camera.json), and a photo and empty board of IOL1068-09"
-echo "   by that camera from view 1 with the environment scaled by 1.6; then every stage"
+echo "   by that camera from view 1 with the environment scaled by 1.6, captured as Bayer DNGs by a phone"
+echo "   with a known colour response; then every stage"
 mkdir -p "$out/truth/views"
 for k in 1 2 3 4 5 6; do
   "$bin" render "fixtures/demo/views/view$k.toml" --quiet --out "$out/truth/view$k"
@@ -64,8 +65,15 @@ for k in 1 2 3 4 5 6; do
 done
 "$bin" render fixtures/demo/truth.toml --size 160x120 --spp 128 --seed 1001 --quiet --out "$out/truth/photo"
 "$bin" render fixtures/demo/truth_empty.toml --size 160x120 --spp 128 --seed 1002 --quiet --out "$out/truth/empty"
+echo "   the synthetic phone (fixtures/demo/truth_colour.json) captures a ColorChecker and both photos as Bayer DNGs with noise"
+"$bin" synth chart --out "$out/truth/chart.exr"
+"$bin" synth raw "$out/truth/chart.exr" "$out/truth/chart.dng" --truth fixtures/demo/truth_colour.json --space xyz-d50 --exposure 0.8 --seed 11
+"$bin" synth raw "$out/truth/photo/render.exr" "$out/truth/photo.dng" --truth fixtures/demo/truth_colour.json --exposure 0.8 --seed 12
+"$bin" synth raw "$out/truth/empty/render.exr" "$out/truth/empty.dng" --truth fixtures/demo/truth_colour.json --exposure 0.8 --seed 13
 "$bin" run fixtures/demo/project.toml --out "$out/run"
 echo "   truth: environment scale 1.6; recovered: $(grep -m1 '"new_scale"' "$out/run/env-scale/IOL1068-09/env_scale.json" | tr -d ' ,')"
+echo "   truth colour response (fixtures/demo/truth_colour.json) vs the matrix recovered from the captured chart:" \
+  $(grep -m1 -A5 '"truth_vs_recovered"' "$out/run/report/metrics.json" | tr -d ' ,"{}' | tr '\n' ' ')
 echo "   truth camera: fx 530 fy 530 cx 330.5 cy 236.5 k1 -0.25 k2 0.10; recovered:" \
   $(grep -m7 -E '"(fx|fy|cx|cy|k1|k2|k3)"' "$out/run/calibrate/camera.json" | tr -d ' ,"') "(table in the report)"
 
@@ -97,9 +105,9 @@ echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
 echo "  $out/optics/IOL1068-NN/               phase tables and polar plots per sample"
 echo "  $out/bssrdf/IOL1068-NN/tiX_toY/      bssrdf.exr/.png, profile.csv/.png, summary.json; sweep.csv per sample"
+echo "  $out/fit/                            fit.json (weight-% ± error), objective.png, IOL1068-09_fitted.toml"
 echo "  $out/surface/                        fit.json, heightmap.png, distribution.png, normals.exr of the shipped height map"
 echo "  $out/bssrdf/IOL1068-09-rough/         the 45°/15° slice through the measured rough surface (summary.json: config.roughness)"
-echo "  $out/fit/                            fit.json (weight-% ± error), objective.png, IOL1068-09_fitted.toml"
 echo "  $out/colour/ccm.json, chart.png, delta_e.png   colour-correction matrix, corrected chart, ΔE bars"
 echo "  $out/camera/camera.json              intrinsics, distortion, per-view poses and RMS; camera_residuals.png, camera_views/"
 echo "  $out/camera/scene.json               board and sample pose in the renderer's convention; left12_undistorted.png"

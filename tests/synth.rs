@@ -8,8 +8,8 @@ use lucent::imageio::RgbImage;
 use lucent::synth::{self, dng, ColourTruth, InputSpace, Sensor};
 use lucent_calib::raw::{read_raw, RawData};
 use lucent_colour::adaptation::Cat;
-use lucent_colour::chart::{sample_patches, ImageRef, SampleOptions};
 use lucent_colour::ccm::{fit_colorchecker, CcmMethod};
+use lucent_colour::chart::{sample_patches, ImageRef, SampleOptions};
 use lucent_colour::data::ICC_D50_XYZ;
 use lucent_colour::spaces::{mat3_vec, RgbSpace};
 

@@ -24,6 +24,8 @@ pub enum RawCommand {
     /// RAW photo (DNG, CR2, NEF, ARW, …) → linear camera RGB as 32-bit float EXR, with a sidecar JSON
     /// of metadata (make, model, exposure, ISO, black/white levels, colour matrix).
     Decode(RawDecodeArgs),
+    /// A mask of the pixels a RAW photo records validly (white) and those at or near a clipped photosite (black).
+    Clipped(super::raw_clip::ClippedArgs),
     /// Print the metadata of a RAW photo as JSON (no demosaicing, nothing written).
     Info {
         /// The RAW file.
@@ -142,7 +144,7 @@ pub enum EnvCommand {
         /// The map (.exr or .hdr).
         input: PathBuf,
     },
-    /// Fit the environment's radiance scale so the rendered empty board matches its photo (least squares).
+    /// Fit the environment's radiance scale so the rendered empty board matches its photo (ratio of sums over the board).
     FitScale(super::env_fit::FitScaleArgs),
     /// HDR from exposure brackets (RAW/linear: weighted mean of value/exposure; 8-bit: camera response
     /// recovered by Debevec–Malik or Robertson), with the dynamic range and saturated pixels as JSON.
@@ -201,6 +203,7 @@ fn extension(path: &Path) -> String {
 pub fn run_raw(cmd: RawCommand) -> Result<()> {
     match cmd {
         RawCommand::Decode(a) => raw_decode(a),
+        RawCommand::Clipped(a) => super::raw_clip::run(a),
         RawCommand::Info { input } => {
             let frame = raw::read_raw(&input, None)?;
             println!("{}", serde_json::to_string_pretty(&frame.meta)?);

@@ -1,6 +1,6 @@
 //! `lucent env fit-scale`: the environment's radiance scale from the
 //! photographed empty board (SPEC §4). Renders the scene without its object
-//! (the empty board), fits k by least squares over the board pixels
+//! (the empty board), fits k as the ratio of sums over the board pixels
 //! ([`crate::envfit`]) and writes, in `--out`:
 //! * `env_scale.json` — the fit (k, k per channel, residuals, pixels), the
 //!   scale before and after, render settings;
@@ -169,7 +169,7 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
         new_scale,
         new_constant,
         fit,
-        method: "k = Σ R·P / Σ (R² − V) over the board pixels (V: variance of the render's pixel mean)",
+        method: "k = Σ P / Σ R over the board pixels and channels (ratio of sums; blur- and demosaicing-invariant)",
     };
     write(&a.out, &report, &header, &scene_text, &scaled)?;
     let f = &report.fit;

@@ -6,6 +6,7 @@ pub mod camera;
 pub mod colour;
 pub mod compare;
 pub mod env_fit;
+pub mod raw_clip;
 pub mod fit;
 pub mod render;
 pub mod run;

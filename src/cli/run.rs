@@ -72,6 +72,10 @@ pub fn run(a: RunArgs) -> Result<()> {
     }
     let until = a.until.as_deref().map(Stage::from_name).transpose().map_err(|e| anyhow!("--until: {e}"))?;
     let out = a.out.clone().or(project.out.clone()).unwrap_or_else(|| PathBuf::from("lucent-out").join(&project.name));
+    // Stages write paths into files they hand to later stages (scene files
+    // resolve paths relative to themselves), so the folder must be absolute.
+    let out =
+        std::path::absolute(&out).with_context(|| format!("{}: cannot resolve the output folder", out.display()))?;
     let exe = std::env::current_exe().context("cannot find the lucent binary to run the stages")?;
     println!("lucent run {} → {}", a.project.display(), out.display());
     let total = std::time::Instant::now();

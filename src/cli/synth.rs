@@ -133,8 +133,12 @@ fn raw(a: RawArgs) -> Result<()> {
         cap.clipped,
         100.0 * share
     );
-    if share > 0.001 {
-        eprintln!("warning: {}: {:.2} % of the photosites are clipped; lower --exposure", a.output.display(), 100.0 * share);
+    if share > 0.05 {
+        eprintln!(
+            "warning: {}: {:.2} % of the photosites are clipped; lower --exposure (`lucent raw clipped` masks them)",
+            a.output.display(),
+            100.0 * share
+        );
     }
     Ok(())
 }

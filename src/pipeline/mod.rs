@@ -8,7 +8,7 @@
 //! | `bssrdf` | `lucent bssrdf` slices per sample, `bssrdf compare` with measured slices | `[bssrdf]` |
 //! | `calibrate` | `lucent calibrate` (Zhang) | `[calibration]` |
 //! | `colour` | `lucent colour calibrate` per camera | `[[colour]]` |
-//! | `develop` | `lucent colour apply`: a sample's photo and empty board (RAW or EXR in its camera's RGB) → CIE RGB | a sample's `camera` |
+//! | `develop` | `lucent colour apply`: a sample's photo and empty board (RAW or EXR in its camera's RGB) → CIE RGB; of a RAW also `lucent raw clipped`, the mask env-scale and compare then use | a sample's `camera` |
 //! | `pose` | `lucent pose` on the sample photo | `[pose]` and the `calibrate` output |
 //! | `env-scale` | `lucent env fit-scale` per sample | `[render]`, a sample's `empty_board` |
 //! | `render` | `lucent render` per sample (the scene template with the sample's recipe, and the fitted scale) | `[render]` |
@@ -451,6 +451,32 @@ fn scene_inputs(path: &Path) -> Vec<PathBuf> {
     v
 }
 
+/// A recipe and the files it names (index tables, a surface fit.json): every
+/// string value of the TOML that is the path of an existing file relative to
+/// the recipe's folder (or absolute), so editing an index file reruns the
+/// stages that read it.
+fn recipe_inputs(recipe: &Path) -> Vec<PathBuf> {
+    fn walk(v: &toml::Value, dir: &Path, out: &mut Vec<PathBuf>) {
+        match v {
+            toml::Value::String(t) if (!t.is_empty() && !t.contains(':')) || t.starts_with('/') => {
+                let p = dir.join(t);
+                if p.is_file() && !out.contains(&p) {
+                    out.push(p);
+                }
+            }
+            toml::Value::Array(a) => a.iter().for_each(|x| walk(x, dir, out)),
+            toml::Value::Table(t) => t.values().for_each(|x| walk(x, dir, out)),
+            _ => {}
+        }
+    }
+    let mut v = vec![recipe.to_path_buf()];
+    let dir = recipe.parent().unwrap_or(Path::new("."));
+    if let Some(table) = std::fs::read_to_string(recipe).ok().and_then(|t| toml::from_str::<toml::Table>(&t).ok()) {
+        walk(&toml::Value::Table(table), dir, &mut v);
+    }
+    v
+}
+
 /// The photo `which` ("photo" or "empty_board") of a sample as the stages
 /// after develop read it: the develop stage's CIE RGB EXR when the sample
 /// names a camera, else the file as given.
@@ -481,6 +507,14 @@ fn developed(
     }
 }
 
+/// The develop stage's mask of validly recorded pixels (not at or near a
+/// clipped photosite) of a sample's RAW photo `which`, if it wrote one.
+fn valid_mask(out: &Path, smp: &project::SampleSection, which: &str) -> Option<PathBuf> {
+    smp.camera.as_ref()?;
+    let p = out.join(Stage::Develop.name()).join(&smp.name).join(format!("{which}_valid.png"));
+    p.is_file().then_some(p)
+}
+
 /// What `stage` will do for `project` with outputs under `out`; an inner
 /// `Err` with the reason when the project gives it nothing to do.
 pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, String>, PipelineError> {
@@ -498,7 +532,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
             let mut args = vec!["optics".to_string()];
             for smp in &f.sample {
                 args.push(s(&smp.recipe));
-                inputs.push(smp.recipe.clone());
+                inputs.extend(recipe_inputs(&smp.recipe));
             }
             let wl = f.optics.as_ref().and_then(|o| o.wavelengths.clone()).unwrap_or_else(|| "380:780:10".into());
             args.extend(["--wavelengths".into(), wl, "--out".into(), "{out}".into()]);
@@ -516,7 +550,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
             let configs = &project.bssrdf_configs;
             let cfg_text = configs.iter().map(|(a, b)| format!("{a}/{b}")).collect::<Vec<_>>().join(",");
             for smp in &f.sample {
-                inputs.push(smp.recipe.clone());
+                inputs.extend(recipe_inputs(&smp.recipe));
                 let mut args = vec![
                     "bssrdf".into(),
                     "--recipe".into(),
@@ -657,6 +691,12 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                         "cie-rgb".into(),
                     ];
                     tasks.push(lucent(format!("{} {what}", smp.name), args));
+                    let ext = photo.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+                    if crate::imageio::RAW_EXTENSIONS.contains(&ext.as_str()) {
+                        let mask = format!("{{out}}/{}/{what}_valid.png", smp.name);
+                        let args = vec!["raw".into(), "clipped".into(), s(photo), "--out".into(), mask];
+                        tasks.push(lucent(format!("{} {what} clipping", smp.name), args));
+                    }
                 }
             }
             if tasks.is_empty() {
@@ -699,7 +739,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 }
                 let scene_text = sample_scene(project, out, smp, stage == Stage::Render)?;
                 inputs.extend(scene_inputs(&r.scene));
-                inputs.push(smp.recipe.clone());
+                inputs.extend(recipe_inputs(&smp.recipe));
                 let scene_rel = format!("{}/input_scene.toml", smp.name);
                 let mut args: Vec<String> = match stage {
                     Stage::EnvScale => {
@@ -716,6 +756,9 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                         ];
                         if r.per_channel_scale == Some(true) {
                             a.push("--per-channel".into());
+                        }
+                        if let Some(m) = valid_mask(out, smp, "empty_board") {
+                            a.extend(["--mask".into(), s(&m)]);
                         }
                         a
                     }
@@ -769,6 +812,9 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     "--out".into(),
                     format!("{{out}}/{}", smp.name),
                 ];
+                if let Some(m) = valid_mask(out, smp, "photo") {
+                    args.extend(["--mask".into(), s(&m)]);
+                }
                 if let Some(d) = f.compare.as_ref().and_then(|c| c.data_range) {
                     args.extend(["--data-range".into(), d.to_string()]);
                 }
@@ -941,6 +987,25 @@ pub fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn recipe_inputs_include_the_files_a_recipe_names() {
+        let dir = std::env::temp_dir().join(format!("lucent-recipe-inputs-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("idx")).unwrap();
+        std::fs::write(dir.join("idx/host.yml"), "x").unwrap();
+        std::fs::write(dir.join("fit.json"), "{}").unwrap();
+        let recipe = dir.join("r.toml");
+        std::fs::write(
+            &recipe,
+            "[host]\nindex = \"idx/host.yml\"\n[[particles]]\nindex = \"builtin:TiO2\"\nname = \"fit.json\"\n             [surface]\nfit = \"fit.json\"\nnote = \"missing.yml\"\n",
+        )
+        .unwrap();
+        let got = recipe_inputs(&recipe);
+        assert_eq!(got[0], recipe);
+        assert!(got.contains(&dir.join("idx/host.yml")) && got.contains(&dir.join("fit.json")), "{got:?}");
+        assert_eq!(got.len(), 3, "each file once, builtins and missing files left out: {got:?}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
 
     #[test]
     fn wildcards() {

@@ -65,8 +65,8 @@ pub fn write_cfa_dng(path: &Path, dng: &CfaDng) -> Result<(), DngWriteError> {
             reason: format!("{} values for {} × {} photosites", dng.data.len(), dng.width, dng.height),
         });
     }
-    let entries = dng.xyz_to_camera.iter().flatten().chain(dng.as_shot_neutral.iter());
-    if entries.clone().any(|v| !v.is_finite() || v.abs() > 2000.0) || dng.as_shot_neutral.iter().any(|&v| v <= 0.0) {
+    let mut entries = dng.xyz_to_camera.iter().flatten().chain(dng.as_shot_neutral.iter());
+    if entries.any(|v| !v.is_finite() || v.abs() > 2000.0) || dng.as_shot_neutral.iter().any(|&v| v <= 0.0) {
         return Err(DngWriteError::Invalid {
             what: "colour tags",
             reason: "ColorMatrix1 entries must be finite (|v| ≤ 2000) and AsShotNeutral positive".into(),

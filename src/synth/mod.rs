@@ -152,7 +152,10 @@ impl Sensor {
         if self.white_dn <= self.black_dn {
             return bad(format!("white level {} must exceed the black level {}", self.white_dn, self.black_dn));
         }
-        if !(self.full_well_e > 0.0) || !(self.read_noise_dn >= 0.0 && self.read_noise_dn.is_finite()) {
+        if self.full_well_e.is_nan()
+            || self.full_well_e <= 0.0
+            || !(self.read_noise_dn >= 0.0 && self.read_noise_dn.is_finite())
+        {
             return bad("full well must be > 0 and read noise finite and ≥ 0".into());
         }
         if self.cfa.iter().any(|&c| c > 2) || !(0..3u8).all(|c| self.cfa.contains(&c)) {
