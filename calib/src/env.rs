@@ -737,10 +737,8 @@ pub fn paste_view(map: &mut RgbBuffer, img: &RgbBuffer, spec: &ViewSpec) -> Resu
             if !(px >= 0.0 && py >= 0.0 && px < img.width as f64 && py < img.height as f64) {
                 continue;
             }
-            let (sx, sy) = (
-                (px - 0.5).clamp(0.0, (img.width - 1) as f64),
-                (py - 0.5).clamp(0.0, (img.height - 1) as f64),
-            );
+            let (sx, sy) =
+                ((px - 0.5).clamp(0.0, (img.width - 1) as f64), (py - 0.5).clamp(0.0, (img.height - 1) as f64));
             let p = crate::camera::sample_bilinear(img, sx, sy);
             map.data[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&p);
             written += 1;
