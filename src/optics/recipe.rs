@@ -163,20 +163,22 @@ fn no_extrapolation() -> Extrapolation {
 /// A number, or a number with its uncertainty:
 /// `{ value = 0.65, sd = 0.02 }` (normal) or `{ min = 2.0, max = 2.4 }`
 /// (uniform; `value` defaults to the midpoint).
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(untagged)]
 enum RawValue {
     Plain(f64),
     Uncertain(RawUncertain),
 }
 
-#[derive(Debug, Clone, Copy, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, Deserialize)]
 struct RawUncertain {
     value: Option<f64>,
     sd: Option<f64>,
     min: Option<f64>,
     max: Option<f64>,
+    /// Unknown keys, reported by name (an untagged enum cannot say which).
+    #[serde(flatten)]
+    other: std::collections::BTreeMap<String, toml::Value>,
 }
 
 /// The distribution of an uncertain recipe input.
@@ -529,15 +531,18 @@ impl Validator<'_> {
             RawValue::Plain(v) => return Ok(v),
             RawValue::Uncertain(u) => u,
         };
+        if let Some(k) = u.other.keys().next() {
+            return self.invalid(&format!("{key}.{k}"), "unknown key (valid: value, sd, min, max)");
+        }
         let (nominal, distribution) =
-            match u {
-                RawUncertain { value: Some(v), sd: Some(sd), min: None, max: None } => {
+            match (u.value, u.sd, u.min, u.max) {
+                (Some(v), Some(sd), None, None) => {
                     if !(sd.is_finite() && sd > 0.0) {
                         return self.invalid(&format!("{key}.sd"), format!("must be a positive number, got {sd}"));
                     }
                     (v, InputDistribution::Normal { sd })
                 }
-                RawUncertain { value, sd: None, min: Some(min), max: Some(max) } => {
+                (value, None, Some(min), Some(max)) => {
                     if !(min.is_finite() && max.is_finite() && min < max) {
                         return self.invalid(key, format!("min {min} must be below max {max}"));
                     }
@@ -616,8 +621,8 @@ impl Validator<'_> {
                 (p.real_part.as_ref(), p.imaginary_part.as_ref()),
             )?;
             let wkey = format!("{key}.weight_percent");
-            let raw_w = match p.weight_percent {
-                Some(w) => Some(self.value(&wkey, w, InputTarget::WeightPercent { particle: i })?),
+            let raw_w = match &p.weight_percent {
+                Some(w) => Some(self.value(&wkey, w.clone(), InputTarget::WeightPercent { particle: i })?),
                 None => overrides.weight_percent,
             };
             let w = match raw_w {
@@ -714,7 +719,7 @@ impl Validator<'_> {
             let rkey = format!("{key}.real_part");
             self.positive(&format!("{rkey}.wavelength_nm"), rp.wavelength_nm, "nanometres")?;
             let target = InputTarget::RealPartN { medium: Self::medium_ref(key), wavelength_nm: rp.wavelength_nm };
-            let n = self.value(&format!("{rkey}.n"), rp.n, target)?;
+            let n = self.value(&format!("{rkey}.n"), rp.n.clone(), target)?;
             self.positive(&format!("{rkey}.n"), n, "(refractive index)")?;
             spectrum = spectrum.with_real_part_at(rp.wavelength_nm, n, rp.mode).map_err(|source| {
                 RecipeError::Index { path: self.path.to_path_buf(), key: rkey.clone(), source: Box::new(source) }
@@ -755,9 +760,9 @@ impl Validator<'_> {
 
     fn size(&self, key: &str, raw: &RawSize, particle: usize) -> Result<SizeDistribution, RecipeError> {
         Ok(match *raw {
-            RawSize::Diameter { diameter_um } => {
+            RawSize::Diameter { ref diameter_um } => {
                 let dkey = format!("{key}.diameter_um");
-                let d = self.value(&dkey, diameter_um, InputTarget::DiameterUm { particle })?;
+                let d = self.value(&dkey, diameter_um.clone(), InputTarget::DiameterUm { particle })?;
                 SizeDistribution::Mono { radius_m: self.positive(&dkey, d, "micrometres")? * 0.5e-6 }
             }
             RawSize::Range { min_um, max_um, distribution } => {
@@ -911,6 +916,40 @@ size = { kind = "diameter", diameter_um = 2.2 }
             let e = error(&with(line));
             assert!(e.contains("sample.toml"), "{e}");
         }
+    }
+
+    #[test]
+    fn uncertain_inputs_parse_and_bad_ones_are_named() {
+        let r = parse(
+            &GOOD
+                .replace("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = 0.02 }")
+                .replace("diameter_um = 2.2", "diameter_um = { min = 2.0, max = 2.4 }"),
+        )
+        .unwrap();
+        assert_eq!(r.particles[0].weight_percent, 0.65);
+        assert_eq!(r.particles[0].size, SizeDistribution::Mono { radius_m: 1.1e-6 });
+        assert_eq!(r.uncertain.len(), 2);
+        assert_eq!(r.uncertain[0].key, "particles[0].weight_percent");
+        assert_eq!(r.uncertain[0].distribution, InputDistribution::Normal { sd: 0.02 });
+        assert_eq!(r.uncertain[1].distribution, InputDistribution::Uniform { min: 2.0, max: 2.4 });
+        let r = parse(&GOOD.replace("n = 1.5889", "n = { value = 1.5889, sd = 0.001 }")).unwrap();
+        assert_eq!(r.uncertain[0].target, InputTarget::RealPartN { medium: MediumRef::Host, wavelength_nm: 550.0 });
+        assert!(parse(GOOD).unwrap().uncertain.is_empty());
+        for (from, to, key) in [
+            ("weight_percent = 0.65", "weight_percent = { value = 0.65 }", "particles[0].weight_percent"),
+            ("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = -1 }", "particles[0].weight_percent.sd"),
+            ("diameter_um = 2.2", "diameter_um = { min = 3, max = 2 }", "particles[0].size.diameter_um"),
+            (
+                "diameter_um = 2.2",
+                "diameter_um = { value = 5, min = 2, max = 3 }",
+                "particles[0].size.diameter_um.value",
+            ),
+        ] {
+            let e = error(&GOOD.replace(from, to));
+            assert!(e.contains("sample.toml") && e.contains(key), "{to}: {e}");
+        }
+        let e = error(&GOOD.replace("weight_percent = 0.65", "weight_percent = { value = 0.65, sdd = 1 }"));
+        assert!(e.contains("sample.toml") && e.contains("particles[0].weight_percent.sdd"), "{e}");
     }
 
     #[test]
