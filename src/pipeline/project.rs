@@ -36,6 +36,7 @@
 //! image = "photos/sample.jpg"
 //! sample_corner = "2,1"
 //! sample_size_mm = "100,60,6.35"
+//! # truth = "views/view1.toml"   # a scene whose [camera] camera_to_world is the known pose: the report compares
 //!
 //! [render]                       # stages env-scale, render: the scene template (a scene file)
 //! scene = "scene.toml"           # its [material] recipe is replaced by each sample's
@@ -151,6 +152,8 @@ pub struct PoseSection {
     pub square_mm: Option<f64>,
     pub sample_corner: Option<String>,
     pub sample_size_mm: Option<String>,
+    /// A scene file whose `[camera] camera_to_world` is the known pose (synthetic photos): the report compares.
+    pub truth: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -350,6 +353,9 @@ impl Project {
         }
         if let Some(p) = &mut file.pose {
             existing("[pose] image", &mut p.image)?;
+            if let Some(t) = &mut p.truth {
+                existing("[pose] truth", t)?;
+            }
             if p.board.is_none() && file.calibration.is_none() {
                 return Err(key("[pose] board", "required without [calibration]".into()));
             }

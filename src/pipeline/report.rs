@@ -34,6 +34,21 @@ pub fn esc(t: &str) -> String {
     t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
+/// A 4 × 4 matrix from JSON rows.
+fn matrix4(v: &Value) -> Option<[[f64; 4]; 4]> {
+    serde_json::from_value(v.clone()).ok()
+}
+
+/// Distance between two camera-to-world poses' centres (mm, the matrices in
+/// metres) and the angle of the rotation between them (degrees).
+fn pose_error(truth: &[[f64; 4]; 4], rec: &[[f64; 4]; 4]) -> (f64, f64) {
+    let d: f64 = (0..3).map(|r| (truth[r][3] - rec[r][3]).powi(2)).sum::<f64>().sqrt();
+    // trace(Rtᵀ Rr) = 1 + 2 cos θ
+    let trace: f64 = (0..3).map(|i| (0..3).map(|k| truth[k][i] * rec[k][i]).sum::<f64>()).sum();
+    let angle = ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
+    (1000.0 * d, angle)
+}
+
 fn read_json(p: &Path) -> Option<Value> {
     serde_json::from_str(&std::fs::read_to_string(p).ok()?).ok()
 }
@@ -471,8 +486,30 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     if let Some(p) = read_json(&out.join("pose/scene.json")) {
         any = true;
         h.push_str("<h3>Board pose</h3>");
+        let mut pj = trim(&p, 16);
+        let truth = project.file.pose.as_ref().and_then(|s| s.truth.as_ref());
+        if let (Some(t), Some(rec)) = (truth, matrix4(&p["camera_to_world"])) {
+            let known = std::fs::read_to_string(t)
+                .ok()
+                .and_then(|text| toml::from_str::<toml::Table>(&text).ok())
+                .and_then(|tab| serde_json::to_value(tab).ok())
+                .and_then(|v| matrix4(&v["camera"]["camera_to_world"]));
+            match known {
+                Some(k) => {
+                    let (mm, deg) = pose_error(&k, &rec);
+                    let _ = write!(
+                        h,
+                        "<p>Known camera pose ({}): recovered camera position {mm:.2} mm from the truth, \
+                         orientation {deg:.3}° off.</p>",
+                        esc(&t.display().to_string())
+                    );
+                    pj["truth_vs_recovered"] = json!({"position_error_mm": mm, "rotation_error_deg": deg});
+                }
+                None => h.push_str("<p class=\"note\">[pose] truth has no [camera] camera_to_world.</p>"),
+            }
+        }
         h.push_str(&page.img(&out.join("pose/scene_view.png"), "board pose and sample outline")?);
-        metrics.insert("pose".into(), trim(&p, 16));
+        metrics.insert("pose".into(), pj);
     }
     if !any {
         h.push_str("<p class=\"note\">No calibration in this project.</p>");
@@ -536,3 +573,18 @@ th{background:#f2f2f2}td:first-child,th:first-child{text-align:left}\
 figure{display:inline-block;margin:.4em;vertical-align:top}figure img{max-width:100%;border:1px solid #ddd}\
 .row figure{max-width:48%}figcaption{font-size:85%;color:#555}.meta,.note{color:#666;font-size:90%}\
 pre{background:#f7f7f7;padding:.6em;overflow-x:auto;font-size:80%}code{font-size:90%}";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pose_error_measures_distance_and_angle() {
+        let t = [[1.0, 0.0, 0.0, 0.1], [0.0, 1.0, 0.0, 0.2], [0.0, 0.0, 1.0, 0.3], [0.0, 0.0, 0.0, 1.0]];
+        let (c, s) = (2f64.to_radians().cos(), 2f64.to_radians().sin());
+        let r = [[c, -s, 0.0, 0.103], [s, c, 0.0, 0.196], [0.0, 0.0, 1.0, 0.3], [0.0, 0.0, 0.0, 1.0]];
+        let (mm, deg) = pose_error(&t, &r);
+        assert!((mm - 5.0).abs() < 1e-9 && (deg - 2.0).abs() < 1e-9, "{mm} {deg}");
+        assert_eq!(pose_error(&t, &t), (0.0, 0.0));
+    }
+}
