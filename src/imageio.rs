@@ -58,7 +58,8 @@ impl RgbImage {
     }
 }
 
-fn extension(path: &Path) -> String {
+/// The file extension in lower case ("" without one).
+pub fn extension(path: &Path) -> String {
     path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
 }
 
@@ -105,8 +106,8 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
 }
 
 /// File extensions read as camera RAW (decoded by `lucent_calib::raw`).
-pub const RAW_EXTENSIONS: [&str; 12] =
-    ["dng", "cr2", "nef", "nrw", "arw", "raf", "orf", "rw2", "pef", "srw", "3fr", "erf"];
+pub const RAW_EXTENSIONS: [&str; 14] =
+    ["dng", "cr2", "nef", "nrw", "arw", "srf", "sr2", "orf", "rw2", "raf", "pef", "srw", "erf", "3fr"];
 
 /// The exr crate's error in words a user can act on ("invalid: reference to
 /// missing bytes" is what an empty or cut-off file gives).

@@ -2,7 +2,7 @@
 //! `lucent env …` (`merge` and `view` in env_hdr.rs): the photo side of the twin (SPEC §5). Orchestration and
 //! file handling only; the work is done by `lucent-calib`.
 
-use crate::imageio::{self, RgbImage};
+use crate::imageio::{self, extension, RgbImage, RAW_EXTENSIONS};
 use crate::io::{write_atomic, write_json};
 use crate::plot;
 use anyhow::{anyhow, bail, Context, Result};
@@ -190,13 +190,7 @@ fn file_name(path: &Path) -> String {
     path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string())
 }
 
-const RAW_EXTENSIONS: [&str; 13] =
-    ["dng", "cr2", "nef", "nrw", "arw", "srf", "sr2", "orf", "rw2", "raf", "pef", "srw", "erf"];
 const IMAGE_EXTENSIONS: [&str; 8] = ["jpg", "jpeg", "png", "tif", "tiff", "bmp", "exr", "hdr"];
-
-fn extension(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
-}
 
 // ---------------------------------------------------------------- raw
 

@@ -5,7 +5,7 @@
 //! `lucent_calib::hdr`, the view and orientation `lucent_calib::env`.
 
 use super::{file_name, sibling, to_buffer, to_image, RAW_EXTENSIONS};
-use crate::imageio::{self, RgbImage};
+use crate::imageio::{self, extension, RgbImage};
 use crate::io::write_json;
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args};
@@ -152,10 +152,6 @@ pub struct EnvBracketsArgs {
     /// Output folder: bracket_1.png … bracket_N.png (in the order given) and brackets.json.
     #[arg(long)]
     pub out_dir: PathBuf,
-}
-
-fn extension(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
 }
 
 /// "1/250", "0.004", "2" → seconds (or any relative unit).

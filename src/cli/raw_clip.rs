@@ -34,8 +34,7 @@ pub fn run(a: ClippedArgs) -> Result<()> {
     if !(a.level > 0.0 && a.level <= 1.0) {
         bail!("--level {}: must lie in (0, 1] (a fraction of the white level)", a.level);
     }
-    let ext = a.out.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-    if ext != "png" {
+    if imageio::extension(&a.out) != "png" {
         bail!("{}: the mask must be a .png file", a.out.display());
     }
     let frame = raw::read_raw(&a.input, None)?;

@@ -84,16 +84,14 @@ fn chart(a: ChartArgs) -> Result<()> {
 }
 
 fn check_exr(path: &std::path::Path) -> Result<()> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-    if ext != "exr" {
+    if imageio::extension(path) != "exr" {
         bail!("{}: the output must be an .exr file (linear 32-bit float)", path.display());
     }
     Ok(())
 }
 
 fn raw(a: RawArgs) -> Result<()> {
-    let ext = a.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-    if ext != "dng" {
+    if imageio::extension(&a.output) != "dng" {
         bail!("{}: the output must be a .dng file", a.output.display());
     }
     let space = InputSpace::from_name(&a.space).context("--space")?;

@@ -24,7 +24,7 @@
 //! ```
 
 use super::CompareError;
-use crate::imageio::RgbImage;
+use crate::imageio::{extension, RgbImage};
 use std::path::Path;
 
 /// An image and the colour channels it was read from.
@@ -33,10 +33,6 @@ pub struct Loaded {
     pub image: RgbImage,
     /// `["R", "G", "B"]` or `["Y"]` (EXR), `["R", "G", "B"]` or `["L"]` (others).
     pub channels: Vec<String>,
-}
-
-fn extension(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
 }
 
 /// Reads `path` as the `role` image ("photo", "render"); errors name both.

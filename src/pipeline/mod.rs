@@ -691,8 +691,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                         "cie-rgb".into(),
                     ];
                     tasks.push(lucent(format!("{} {what}", smp.name), args));
-                    let ext = photo.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-                    if crate::imageio::RAW_EXTENSIONS.contains(&ext.as_str()) {
+                    if crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str()) {
                         let mask = format!("{{out}}/{}/{what}_valid.png", smp.name);
                         let args = vec!["raw".into(), "clipped".into(), s(photo), "--out".into(), mask];
                         tasks.push(lucent(format!("{} {what} clipping", smp.name), args));
