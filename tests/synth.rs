@@ -22,18 +22,7 @@ fn truth() -> ColourTruth {
 
 fn write(dir: &std::path::Path, name: &str, cap: &synth::Capture, sensor: &Sensor) -> std::path::PathBuf {
     let path = dir.join(name);
-    let d = dng::CfaDng {
-        width: cap.width,
-        height: cap.height,
-        data: &cap.data,
-        cfa: sensor.cfa,
-        black_dn: sensor.black_dn,
-        white_dn: sensor.white_dn,
-        xyz_to_camera: CAM,
-        as_shot_neutral: synth::as_shot_neutral(&CAM),
-        model: "test",
-    };
-    dng::write_cfa_dng(&path, &d).unwrap();
+    dng::write_cfa_dng(&path, &dng::CfaDng::of_capture(cap, sensor, CAM, "test")).unwrap();
     path
 }
 

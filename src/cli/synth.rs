@@ -108,17 +108,7 @@ fn raw(a: RawArgs) -> Result<()> {
     let to_camera = synth::to_camera_matrix(space, &truth.xyz_d50_to_camera)?;
     let cap = synth::capture_mosaic(&img, &to_camera, a.exposure, &sensor, a.seed)?;
     let model = format!("lucent synthetic {}", truth.camera);
-    let file = dng::CfaDng {
-        width: cap.width,
-        height: cap.height,
-        data: &cap.data,
-        cfa: sensor.cfa,
-        black_dn: sensor.black_dn,
-        white_dn: sensor.white_dn,
-        xyz_to_camera: truth.xyz_d50_to_camera,
-        as_shot_neutral: synth::as_shot_neutral(&truth.xyz_d50_to_camera),
-        model: &model,
-    };
+    let file = dng::CfaDng::of_capture(&cap, &sensor, truth.xyz_d50_to_camera, &model);
     dng::write_cfa_dng(&a.output, &file).with_context(|| format!("{}", a.output.display()))?;
     let share = cap.clipped as f64 / cap.data.len() as f64;
     println!(

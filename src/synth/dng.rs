@@ -42,6 +42,24 @@ pub struct CfaDng<'a> {
     pub model: &'a str,
 }
 
+impl<'a> CfaDng<'a> {
+    /// The DNG of a [`super::Capture`] taken on `sensor` by a camera with this
+    /// XYZ (D50) → camera matrix; AsShotNeutral is the camera's D50 white.
+    pub fn of_capture(cap: &'a super::Capture, sensor: &super::Sensor, xyz_to_camera: Mat3, model: &'a str) -> Self {
+        CfaDng {
+            width: cap.width,
+            height: cap.height,
+            data: &cap.data,
+            cfa: sensor.cfa,
+            black_dn: sensor.black_dn,
+            white_dn: sensor.white_dn,
+            xyz_to_camera,
+            as_shot_neutral: super::as_shot_neutral(&xyz_to_camera),
+            model,
+        }
+    }
+}
+
 /// Why a DNG could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum DngWriteError {
