@@ -4,7 +4,7 @@
 //! size mismatches, a ring where it does not apply), the per-pixel stop
 //! rule and the ring estimator's summary.
 
-mod common;
+use crate::common;
 use common::{lucent, stderr};
 
 use std::path::Path;

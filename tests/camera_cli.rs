@@ -3,7 +3,7 @@
 //! `pose`, `raw decode` on a real Canon CR2, `env convert`, and the errors
 //! for missing boards, wrong board sizes and unreadable files.
 
-mod common;
+use crate::common;
 use common::{lucent, stderr, stdout};
 
 use lucent::imageio::{read_rgb, write_exr, write_png, RgbImage};

@@ -1,7 +1,7 @@
 //! The `lucent` command line end to end: output files and field names,
 //! folder mode, and one-line errors for bad input.
 
-mod common;
+use crate::common;
 use common::{lucent, stderr, stdout};
 
 use std::path::{Path, PathBuf};

@@ -1,6 +1,6 @@
 //! `lucent colour calibrate | apply | bands` end to end: output files, agreement with colour-science on a synthetic chart, the real chart photo in fixtures/colour/, and one-line errors for clipped patches, corners outside the image, bad method names and bad inputs.
 
-mod common;
+use crate::common;
 use common::{lucent, stderr, stdout};
 
 use lucent::imageio::{read_rgb, write_exr, RgbImage};

@@ -3,7 +3,7 @@
 //! ECC recovery of a known shift, the CLI end to end, and the malformed
 //! inputs of tests/bad/compare.
 
-mod common;
+use crate::common;
 use common::{lucent, stderr, stdout};
 
 use lucent::compare::mask::Mask;
@@ -508,7 +508,7 @@ fn bad_scenes_are_rejected() {
 // ------------------------------------------------------------ speed
 
 /// SSIM (R, G, B, Y) and the error metrics of a 12-Mpixel pair; run with
-/// `cargo test --release --test compare -- --ignored --nocapture`.
+/// `cargo test --release --test it compare:: -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn speed_on_a_12_megapixel_pair() {

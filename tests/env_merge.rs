@@ -4,7 +4,7 @@
 //! direction; and the bad inputs of `tests/bad/env/` (differently sized
 //! brackets, unreadable files, missing exposures, bad view parameters).
 
-mod common;
+use crate::common;
 use common::{lucent, stderr, stdout};
 
 use lucent::imageio::{read_rgb, write_exr, RgbImage};

@@ -3,7 +3,7 @@
 //! in a view cut from it and from the given yaw; the orientation file gives
 //! a scene's `[environment]` its yaw; bad inputs are refused clearly.
 
-mod common;
+use crate::common;
 use common::{lucent, stderr, stdout};
 
 use lucent::imageio::{read_rgb, write_exr, RgbImage};

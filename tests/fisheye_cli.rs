@@ -7,7 +7,7 @@
 //! equirectangular map (`--to equirect`), and each output pixel is checked
 //! to show its own direction.
 
-mod common;
+use crate::common;
 use common::{lucent, stderr, stdout};
 
 use lucent::imageio::{read_rgb, write_exr, RgbImage};

@@ -2,7 +2,7 @@
 //! never give a negative qabs, very small spheres are exact, and the folder
 //! of shipped recipes prints the lab-formula table with its corrections.
 
-mod common;
+use crate::common;
 use common::{lucent, stderr, stdout};
 
 fn json(o: &std::process::Output) -> serde_json::Value {

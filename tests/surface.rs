@@ -6,7 +6,7 @@
 //! normalisation of D, the recipe's `[surface] fit = …`, the CLI end to end,
 //! and the malformed inputs of tests/bad/surface.
 
-mod common;
+use crate::common;
 use common::{lucent, stderr, stdout};
 
 use lucent::optics::recipe::{Overrides, Recipe, RoughnessModel};

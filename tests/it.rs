@@ -1,0 +1,59 @@
+//! All integration tests of this crate in one binary: one link instead of one per file, which
+//! keeps `make test` short. Each file stays a module of its own; `every_test_file_is_included`
+//! fails when a new file under tests/ is not listed here (cargo's autotests are off).
+
+mod common;
+
+#[path = "bad_inputs.rs"]
+mod bad_inputs;
+#[path = "bssrdf_cli.rs"]
+mod bssrdf_cli;
+#[path = "camera_cli.rs"]
+mod camera_cli;
+#[path = "chart_detect.rs"]
+mod chart_detect;
+#[path = "cli.rs"]
+mod cli;
+#[path = "colour_cli.rs"]
+mod colour_cli;
+#[path = "compare.rs"]
+mod compare;
+#[path = "env_fit.rs"]
+mod env_fit;
+#[path = "env_merge.rs"]
+mod env_merge;
+#[path = "env_orient.rs"]
+mod env_orient;
+#[path = "fisheye_cli.rs"]
+mod fisheye_cli;
+#[path = "fit.rs"]
+mod fit;
+#[path = "mesh.rs"]
+mod mesh;
+#[path = "mie_reference.rs"]
+mod mie_reference;
+#[path = "optics_bulk.rs"]
+mod optics_bulk;
+#[path = "optics_cli.rs"]
+mod optics_cli;
+#[path = "pipeline.rs"]
+mod pipeline;
+#[path = "render.rs"]
+mod render;
+#[path = "surface.rs"]
+mod surface;
+#[path = "synth.rs"]
+mod synth;
+
+#[test]
+fn every_test_file_is_included() {
+    let here = include_str!("it.rs");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
+    for entry in std::fs::read_dir(&dir).expect("tests/ is readable") {
+        let name = entry.expect("a directory entry").file_name().to_string_lossy().into_owned();
+        if name.ends_with(".rs") && name != "it.rs" {
+            let line = format!("#[path = \"{name}\"]");
+            assert!(here.contains(&line), "tests/{name} is not included in tests/it.rs, so it would never run");
+        }
+    }
+}
