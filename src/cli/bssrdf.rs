@@ -412,7 +412,9 @@ fn compare(a: CompareArgs) -> Result<()> {
     let simulated = bssrdf::read_grid(&sim_path, None)?;
     let (c, rel) = bssrdf::compare(&measured, &simulated, a.threshold)
         .map_err(|e| anyhow!("{} vs {}: {e}", a.measured.display(), sim_path.display()))?;
-    let out = &a.out;
+    // Written into a staging folder and moved into --out only when all three files are made.
+    let stage = crate::io::StagedDir::new(&a.out)?;
+    let out = stage.path();
     crate::io::write_json(&out.join("comparison.json"), &c)?;
     let x = measured.x_mm();
     let png = bssrdf::profile_png(
@@ -426,8 +428,9 @@ fn compare(a: CompareArgs) -> Result<()> {
         Some(("relative difference (masked)", &rel)),
     )?;
     crate::io::write_atomic(&out.join("panel.png"), &panel)?;
+    stage.commit(|n| ["comparison.json", "profiles.png", "panel.png"].contains(&n))?;
     println!("{}", serde_json::to_string_pretty(&c)?);
-    println!("written: {}/{{comparison.json, profiles.png, panel.png}}", out.display());
+    println!("written: {}/{{comparison.json, profiles.png, panel.png}}", a.out.display());
     Ok(())
 }
 
