@@ -338,6 +338,9 @@ pub struct Summary {
     pub diffuse_reflectance: f64,
     pub transmittance: f64,
     pub pixel_mm: f64,
+    /// True when Ctrl-C stopped the run before its stop rule: the slice is the
+    /// estimate from the paths finished until then (valid, with its errors).
+    pub interrupted: bool,
 }
 
 /// The configuration part of a summary.

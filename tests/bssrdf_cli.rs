@@ -328,3 +328,49 @@ fn rough_runs_record_their_boundary() {
         assert!((a - b).abs() < 4.0 * (sa * sa + sb * sb).sqrt() + 0.03 * b, "{a} ± {sa} vs {b} ± {sb}");
     }
 }
+
+#[test]
+fn ctrl_c_keeps_a_labelled_partial_slice() {
+    // SIGINT during a long run: the slice from the finished rounds is written
+    // with "interrupted": true, the later configuration is not run, the exit
+    // is non-zero and no staging folder is left.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let mut args = vec!["bssrdf", "--thickness-mm", "2", "--pixels", "41", "--pixel-mm", "0.1", "--time-s", "120"];
+    args.extend_from_slice(&THIN);
+    args.extend_from_slice(&["--configs", "45/0,0/45", "--out", out.to_str().unwrap()]);
+    let started = std::time::Instant::now();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(&args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::{BufRead, Read};
+    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut text = String::new();
+    while !text.contains("Ctrl-C stops") {
+        assert!(err.read_line(&mut text).unwrap() > 0, "lucent bssrdf ended early: {text}");
+    }
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let pid = i32::try_from(child.id()).unwrap();
+    // SAFETY: sends SIGINT to our own child process.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    err.read_to_string(&mut text).unwrap();
+    let status = child.wait().unwrap();
+    assert!(!status.success(), "an interrupted run must not exit 0");
+    assert!(started.elapsed().as_secs_f64() < 60.0, "the run did not stop at Ctrl-C");
+    assert!(text.contains("interrupted"), "{text}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("ti45_to0/summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["interrupted"], true);
+    assert!(summary["paths"].as_u64().unwrap() > 0 && summary["sum"].as_f64().unwrap() > 0.0);
+    assert!(out.join("ti45_to0/bssrdf.exr").exists());
+    assert!(!out.join("ti0_to45").exists(), "the configuration after Ctrl-C must not run");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("staging"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}

@@ -195,6 +195,7 @@ use crate::rng::Rng;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Invalid simulator input.
@@ -1618,7 +1619,19 @@ const MAX_CHAIN: usize = 64;
 const ROUND_BATCHES: u64 = 32;
 
 /// Simulates the slice of `setup`, calling `progress` after every round.
-pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&Progress)) -> Result<Slice, SlabError> {
+pub fn simulate(setup: &Setup, options: &RunOptions, progress: impl FnMut(&Progress)) -> Result<Slice, SlabError> {
+    simulate_cancellable(setup, options, progress, &AtomicBool::new(false))
+}
+
+/// [`simulate`] that also stops at the end of the round under way when
+/// `cancel` becomes true (a Ctrl-C handler sets it): the slice returned is
+/// then a valid estimate from the paths finished so far, with its errors.
+pub fn simulate_cancellable(
+    setup: &Setup,
+    options: &RunOptions,
+    mut progress: impl FnMut(&Progress),
+    cancel: &AtomicBool,
+) -> Result<Slice, SlabError> {
     let stop = options.stop;
     if stop.paths.is_none() && stop.time_s.is_none() && stop.rel_error.is_none() && stop.pixel_rel_error.is_none() {
         return Err(SlabError::NoStopRule);
@@ -1732,6 +1745,7 @@ pub fn simulate(setup: &Setup, options: &RunOptions, mut progress: impl FnMut(&P
             || stop.time_s.is_some_and(|t| elapsed >= t)
             || stop.rel_error.is_some_and(|t| e <= t && enough)
             || stop.pixel_rel_error.is_some_and(|t| pixels.median <= t && enough)
+            || cancel.load(Ordering::Relaxed)
         {
             break;
         }

@@ -1,6 +1,7 @@
 //! `lucent bssrdf`: slab BSSRDF slices (SPEC §3) and their comparison with
 //! measured slices.
 
+use super::interrupt::Interrupt;
 use crate::bssrdf::{self, OpticalUsed, RunConfig, Summary};
 use crate::optics::bulk;
 use crate::optics::recipe::{Overrides, Recipe};
@@ -278,6 +279,14 @@ fn simulate(a: RunArgs) -> Result<()> {
     let stage = crate::io::StagedDir::new(&a.out)?;
     let mut table =
         String::from("folder,theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,sum_per_m2_sr,sum_std_error,paths,wall_s\n");
+    let interrupt = Interrupt::install();
+    let mut interrupted_at = None;
+    if !a.quiet {
+        eprintln!(
+            "simulating {} configuration(s); Ctrl-C stops after the round under way and keeps the slice so far",
+            configs.len()
+        );
+    }
     for (ti, pi, to, po) in &configs {
         let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
         let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
@@ -291,17 +300,23 @@ fn simulate(a: RunArgs) -> Result<()> {
         let options = RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() };
         let bar = progress_bar(a.quiet, &stop);
         bar.set_prefix(format!("θi {ti}° → θo {to}°"));
-        let slice = slab::simulate(&setup, &options, |p| {
-            bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
-            bar.set_message(format!(
-                "{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
-                p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
-                100.0 * p.rel_error,
-                100.0 * p.pixels.median,
-                100.0 * p.pixels.p90
-            ));
-        })?;
+        let slice = slab::simulate_cancellable(
+            &setup,
+            &options,
+            |p| {
+                bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
+                bar.set_message(format!(
+                    "{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
+                    p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
+                    100.0 * p.rel_error,
+                    100.0 * p.pixels.median,
+                    100.0 * p.pixels.p90
+                ));
+            },
+            interrupt.flag(),
+        )?;
         bar.finish_and_clear();
+        let interrupted = interrupt.requested();
         if let Some(target) = stop.rel_error {
             let reached = slice.sum_std_error / slice.sum;
             if reached > target {
@@ -349,6 +364,7 @@ fn simulate(a: RunArgs) -> Result<()> {
             diffuse_reflectance: slice.diffuse_reflectance,
             transmittance: slice.transmittance,
             pixel_mm: a.pixel_mm,
+            interrupted,
         };
         let grid_x: Vec<f64> =
             (0..out_pixels).map(|c| (c as f64 + 0.5 - 0.5 * out_pixels as f64) * a.pixel_mm).collect();
@@ -374,13 +390,24 @@ fn simulate(a: RunArgs) -> Result<()> {
             slice.paths,
             slice.wall_s
         ));
+        if interrupted {
+            interrupted_at = Some(shown);
+            break;
+        }
     }
+    drop(interrupt);
     if configs.len() > 1 {
         crate::io::write_atomic(&stage.path().join("sweep.csv"), table.as_bytes())?;
         println!("combined table: {}", a.out.join("sweep.csv").display());
     }
     let owned = ["bssrdf.exr", "bssrdf.png", "profile.csv", "profile.png", "summary.json", "sweep.csv"];
     stage.commit(|n| owned.contains(&n) || (n.starts_with("ti") && n.contains("_to")))?;
+    if let Some(at) = interrupted_at {
+        bail!(
+            "interrupted: {} holds the slice from the paths finished before Ctrl-C (summary.json says \"interrupted\": true); the configurations after it were not run",
+            at.display()
+        );
+    }
     Ok(())
 }
 

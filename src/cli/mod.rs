@@ -7,6 +7,7 @@ pub mod colour;
 pub mod compare;
 pub mod env_fit;
 pub mod fit;
+pub mod interrupt;
 pub mod raw_clip;
 pub mod render;
 pub mod run;

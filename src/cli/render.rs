@@ -8,6 +8,7 @@
 //! * `render.png` — sRGB preview (`--exposure` in stops);
 //! * `render.json` — the scene as resolved, settings, seed, timings, counters.
 
+use super::interrupt::Interrupt;
 use crate::imageio::{self, RgbImage};
 use crate::scene::{self, SceneSummary};
 use anyhow::{bail, Context, Result};
@@ -16,7 +17,6 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lucent_render::tracer::{self, Image, Settings, Stats};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
@@ -201,56 +201,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
         );
     }
     Ok(())
-}
-
-/// Ctrl-C (SIGINT) while rendering: the first one asks the render to stop
-/// after the pass under way, so the finished passes are written as a
-/// valid, labelled partial result; a second one ends the process at once
-/// (exit status 130). The previous disposition is restored on drop.
-struct Interrupt {
-    #[cfg(unix)]
-    previous: libc::sighandler_t,
-}
-
-static INTERRUPTED: AtomicBool = AtomicBool::new(false);
-
-#[cfg(unix)]
-extern "C" fn on_sigint(_: libc::c_int) {
-    // Only async-signal-safe work here: an atomic swap and _exit.
-    if INTERRUPTED.swap(true, Ordering::SeqCst) {
-        unsafe { libc::_exit(130) };
-    }
-}
-
-impl Interrupt {
-    fn install() -> Self {
-        INTERRUPTED.store(false, Ordering::SeqCst);
-        #[cfg(unix)]
-        {
-            let handler = on_sigint as extern "C" fn(libc::c_int) as libc::sighandler_t;
-            // SAFETY: installs a handler that only touches an atomic and calls _exit.
-            let previous = unsafe { libc::signal(libc::SIGINT, handler) };
-            Self { previous }
-        }
-        #[cfg(not(unix))]
-        Self {}
-    }
-    fn flag(&self) -> &'static AtomicBool {
-        &INTERRUPTED
-    }
-    fn requested(&self) -> bool {
-        INTERRUPTED.load(Ordering::SeqCst)
-    }
-}
-
-impl Drop for Interrupt {
-    fn drop(&mut self) {
-        #[cfg(unix)]
-        // SAFETY: restores the disposition found by `install`.
-        unsafe {
-            libc::signal(libc::SIGINT, self.previous);
-        }
-    }
 }
 
 /// The median over pixels with a positive mean of sqrt(var of mean)/mean (luminance-free: mean over channels).
