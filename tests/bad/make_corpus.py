@@ -47,6 +47,8 @@ w("slice/empty.exr", b"", "wb")
 w("beam/negative.csv", "0,1\n-1,0\n")
 w("beam/all_zero.csv", "0,0\n0,0\n")
 w("beam/nan.csv", "0,1\nnan,0\n")
+# Uniform 1.5 mm square at the corpus command's 0.01 mm: Gaussian-equivalent FWHM 1.02 mm > the 9-pixel slice (0.93 mm).
+w("beam/wider_than_slice.csv", "".join(",".join(["1"] * 150) + "\n" for _ in range(150)))
 
 # --- camera files (lucent undistort --camera)
 cam = json.load(open("fixtures/demo/truth_camera.json"))
