@@ -50,8 +50,52 @@ if [ -f /usr/share/doc/rawtran/IMG_5952.CR2 ]; then
   "$bin" raw decode /usr/share/doc/rawtran/IMG_5952.CR2 "$out/camera/IMG_5952.exr" --preview "$out/camera/IMG_5952.png"
 fi
 echo
-echo "== 5. The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerboard under the studio HDR on the finite sphere"
-"$bin" render fixtures/render/demo.toml --spp 64 --time-s 150 --out "$out/render"
+echo "== 4b. 360° camera → the environment the render (5) uses: a synthetic panorama (studio.exr at 2048 × 1024, turned to"
+echo "   CIE XYZ (D50), with a ColorChecker and the level 9x6 board pasted in) seen by a 360° camera with a known colour"
+echo "   matrix, shot as five 8-bit brackets through the sRGB curve; merged back (camera response recovered), the chart"
+echo "   view cut out and its colour calibrated, the map converted to CIE RGB with that matrix and oriented from the board"
+e="$out/env360"
+mkdir -p "$e"
+# studio.exr is CIE RGB (white E); as CIE XYZ adapted to D50 (Bradford), the inverse of `colour apply --to cie-rgb`.
+"$bin" env convert fixtures/env/studio.exr "$e/studio_xyz.exr" \
+  --matrix "0.488178,0.305648,0.170374;0.175361,0.824177,0.000462;-0.001259,0.016741,0.809418" >/dev/null
+"$bin" synth chart --size 480x320 --out "$e/chart_xyz.exr" >/dev/null
+"$bin" env paste "$e/studio_xyz.exr" --image "$e/chart_xyz.exr" --yaw 150 --pitch -20 --fov 40 --width 2048 --out "$e/with_chart.exr"
+"$bin" env paste "$e/with_chart.exr" --chessboard 9x6 --yaw 27 --pitch -90 --fov 70 --out "$e/truth_xyz.exr"
+# The 360° camera's RGB: a known XYZ → camera matrix (the truth the colour stage recovers, up to a scale).
+"$bin" env convert "$e/truth_xyz.exr" "$e/truth_camera.exr" --matrix "1.6,-0.3,-0.2;-0.6,1.5,0.1;0.05,-0.2,1.1"
+"$bin" env brackets "$e/truth_camera.exr" --exposures 1/128,1/32,1/8,1/2,2 --out-dir "$e/brackets"
+"$bin" env merge "$e"/brackets/bracket_{1,2,3,4,5}.png --exposures 1/128,1/32,1/8,1/2,2 --out "$e/env.exr"
+"$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.exr"
+"$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.png" >/dev/null
+"$bin" colour calibrate --image "$e/chart_view.exr" --clip-level none --out "$e/colour" | grep -E "found|mean"
+echo "   truth: camera → XYZ = s · inverse(XYZ → camera) = s · [[0.678 0.150 0.110] [0.270 0.718 -0.016] [0.018 0.124 0.901]];"
+echo "   recovered (ccm.json):" $(tr -d ' \n' < "$e/colour/ccm.json" | grep -o '"matrix":\[\[[^]]*\],\[[^]]*\],\[[^]]*\]\]')
+"$bin" colour apply --ccm "$e/colour/ccm.json" "$e/env.exr" "$e/env_cie.exr" --to cie-rgb
+"$bin" env orient "$e/env_cie.exr" --board-view 0,-90,100 --board 9x6 --square-mm 30 --out "$e/env_cie_oriented.exr"
+echo "   truth: numbered from its light outer square, the board's i axis is at azimuth 117° in the map (pasted at yaw 27°),"
+echo "   so the orienting yaw is −117°"
+# The truth in CIE RGB: the pasted panorama through the inverse of the first matrix (XYZ D50 → CIE RGB, as colour apply).
+"$bin" env convert "$e/truth_xyz.exr" "$e/truth_cie.exr" \
+  --matrix "2.357608,-0.864255,-0.495758;-0.501639,1.397237,0.104792;0.014042,-0.030243,1.232517" >/dev/null
+echo "   the map against its truth (the pasted panorama in CIE RGB), mean radiance over the sphere, R G B:"
+echo "     truth   $("$bin" env info "$e/truth_cie.exr" | tr -d ' \n' | grep -o '"mean_over_sphere":\[[^]]*\]' | cut -d: -f2)"
+echo "     env_cie $("$bin" env info "$e/env_cie.exr" | tr -d ' \n' | grep -o '"mean_over_sphere":\[[^]]*\]' | cut -d: -f2)"
+"$bin" env convert "$e/env_cie_oriented.exr" "$e/env_cie_oriented.png" >/dev/null
+# The render's scene: fixtures/render/demo.toml with this map, its yaw from the orientation file (paths from $e).
+{
+  echo "# Written by scripts/demo.sh (4b) from fixtures/render/demo.toml: its map is the 360° camera's env_cie.exr, the yaw"
+  echo "# from env_cie_oriented.json (the board found in the map); paths are relative to this file."
+  sed -e 's#^recipe = "\.\./#recipe = "../../fixtures/#' -e 's#^map = "\.\./env/studio\.exr"#map = "env_cie.exr"#' \
+    -e 's#^yaw_deg = 0\.0#orientation = "env_cie_oriented.json"#' fixtures/render/demo.toml
+} > "$e/scene.toml"
+[ "$(grep -cE '^(recipe = "\.\./\.\./fixtures/|map = "env_cie\.exr"|orientation = )' "$e/scene.toml")" = 3 ] \
+  || { echo "demo.sh: fixtures/render/demo.toml changed; cannot point its copy at the 360° map" >&2; exit 1; }
+rm -f "$e/studio_xyz.exr" "$e/with_chart.exr" "$e/truth_xyz.exr" "$e/truth_cie.exr"
+echo
+echo "== 5. The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerboard under the 360° camera's environment"
+echo "   of 4b (merged, colour-calibrated to CIE RGB, oriented) on the finite sphere: fixtures/render/demo.toml with that map"
+"$bin" render "$out/env360/scene.toml" --spp 64 --time-s 150 --out "$out/render"
 
 echo
 echo "== 6. The whole digitisation from one project file (lucent run fixtures/demo/project.toml). The synthetic truth:"
@@ -78,28 +122,6 @@ echo "   truth camera: fx 530 fy 530 cx 330.5 cy 236.5 k1 -0.25 k2 0.10; recover
   $(grep -m7 -E '"(fx|fy|cx|cy|k1|k2|k3)"' "$out/run/calibrate/camera.json" | tr -d ' ,"') "(table in the report)"
 
 echo
-echo "== 7. 360° camera: a synthetic panorama (studio.exr at 2048 × 1024 with a ColorChecker and the level 9x6 board pasted in)"
-echo "   seen by a 360° camera with a known colour matrix, shot as five 8-bit brackets through the sRGB curve; merged back"
-echo "   (camera response recovered), oriented from the board, the chart view cut out and its colour calibrated"
-e="$out/env360"
-mkdir -p "$e"
-"$bin" synth chart --size 480x320 --out "$e/chart_xyz.exr" >/dev/null
-"$bin" env paste fixtures/env/studio.exr --image "$e/chart_xyz.exr" --yaw 150 --pitch -20 --fov 40 --width 2048 --out "$e/with_chart.exr"
-"$bin" env paste "$e/with_chart.exr" --chessboard 9x6 --yaw 27 --pitch -90 --fov 70 --out "$e/truth_xyz.exr"
-# The 360° camera's RGB: a known XYZ → camera matrix (the truth the colour stage recovers, up to a scale).
-"$bin" env convert "$e/truth_xyz.exr" "$e/truth_camera.exr" --matrix "1.6,-0.3,-0.2;-0.6,1.5,0.1;0.05,-0.2,1.1"
-"$bin" env brackets "$e/truth_camera.exr" --exposures 1/128,1/32,1/8,1/2,2 --out-dir "$e/brackets"
-"$bin" env merge "$e"/brackets/bracket_{1,2,3,4,5}.png --exposures 1/128,1/32,1/8,1/2,2 --out "$e/env.exr"
-"$bin" env orient "$e/env.exr" --board-view 0,-90,100 --board 9x6 --square-mm 30 --out "$e/env_oriented.exr"
-echo "   truth: the board's i axis at azimuth −63° in the map (pasted at yaw 27°), so the orienting yaw is 63°"
-"$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.exr"
-"$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.png" >/dev/null
-"$bin" colour calibrate --image "$e/chart_view.exr" --clip-level none --out "$e/colour" | grep -E "found|mean"
-echo "   truth: camera → XYZ = s · inverse(XYZ → camera) = s · [[0.678 0.150 0.110] [0.270 0.718 -0.016] [0.018 0.124 0.901]];"
-echo "   recovered (ccm.json):" $(tr -d ' \n' < "$e/colour/ccm.json" | grep -o '"matrix":\[\[[^]]*\],\[[^]]*\],\[[^]]*\]\]')
-rm -f "$e/with_chart.exr" "$e/truth_xyz.exr"
-
-echo
 echo "Results are in $out/:"
 echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
@@ -111,8 +133,9 @@ echo "  $out/bssrdf/IOL1068-09-rough/         the 45°/15° slice through the me
 echo "  $out/colour/ccm.json, chart.png, delta_e.png   colour-correction matrix, corrected chart, ΔE bars"
 echo "  $out/camera/camera.json              intrinsics, distortion, per-view poses and RMS; camera_residuals.png, camera_views/"
 echo "  $out/camera/scene.json               board and sample pose in the renderer's convention; left12_undistorted.png"
-echo "  $out/render/render.exr, render.png   the rendered twin (linear CIE RGB with per-pixel variance; sRGB preview), render.json"
+echo "  $out/render/render.exr, render.png   the rendered twin under env360/env_cie.exr (linear CIE RGB with per-pixel variance; sRGB preview), render.json"
 echo "  $out/camera/IMG_5952.exr/.json       a real CR2 as linear camera RGB with its metadata (if rawtran-doc is installed)"
 echo "  $out/run/report/index.html          the run's report (optics, BSSRDF, env scale, triplet with RMSE/SSIM, calibration, manifest); metrics.json"
-echo "  $out/env360/env.exr, env.json          the 360° panorama merged from brackets/ (dynamic range, response); env_oriented.exr/.json/_board.png"
+echo "  $out/env360/env.exr, env.json          the 360° panorama merged from brackets/ (camera RGB; dynamic range, response)"
 echo "  $out/env360/chart_view.png, colour/      the chart cut out of the panorama and the 360° camera's colour matrix (ccm.json, ΔE)"
+echo "  $out/env360/env_cie.exr, env_cie_oriented.exr/.json/.png/_board.png, scene.toml   the map in CIE RGB, its orientation, the render's scene"

@@ -21,8 +21,9 @@ fn json(path: &Path) -> Value {
 /// A 360° camera 0.28 m above a point beside a level 9 × 6 board (30 mm
 /// squares; world x along the board's i axis, y = −j, z up, corner (0, 0)
 /// at the origin), its map turned so world = R_z(yaw) · map. Square (c, r)
-/// spans i ∈ [c − 1, c), j ∈ [r − 1, r); (c + r) even dark; one square of
-/// white margin, grey floor, bright sky. 2 × 2 samples per pixel.
+/// spans i ∈ [c − 1, c), j ∈ [r − 1, r); (c + r) even light (the outer
+/// square at corner (0, 0): `pose`'s and `env orient`'s numbering), odd dark;
+/// one square of white margin, grey floor, bright sky. 2 × 2 samples per pixel.
 fn panorama(w: usize, yaw_deg: f64) -> RgbImage {
     let h = w / 2;
     let cam = [0.10, -0.06, 0.28];
@@ -45,9 +46,9 @@ fn panorama(w: usize, yaw_deg: f64) -> RgbImage {
                     let (c, r) = ((bi.floor() + 1.0) as i64, (bj.floor() + 1.0) as i64);
                     if (0..=9).contains(&c) && (0..=6).contains(&r) {
                         if (c + r) % 2 == 0 {
-                            0.05
-                        } else {
                             0.8
+                        } else {
+                            0.05
                         }
                     } else if (-1..=10).contains(&c) && (-1..=7).contains(&r) {
                         0.8
@@ -149,6 +150,106 @@ fn a_turned_panorama_is_oriented_from_its_board_and_from_a_given_yaw() {
     std::fs::write(dir.path().join("other.json"), "{\"yaw_deg\": 3}").unwrap();
     let e = env_of("pano.exr", "orientation = \"other.json\"").unwrap_err();
     assert!(e.contains("other.json: not an orientation file"), "{e}");
+}
+
+/// One board numbering for `lucent pose` and `lucent env orient`: the
+/// panorama's board is cut out by views whose own yaw turns it to six
+/// directions in the image, and each view goes to both commands. `pose`
+/// (with the view's pinhole camera) must put the camera where the 360°
+/// camera is by construction, (0.10, −0.06, 0.28) m in the board's world —
+/// the opposite numbering would put it 0.34 m away, at (0.14, −0.09, 0.28) —
+/// and the camera's right axis must be the view's right (map frame) turned
+/// by the yaw `env orient` finds, itself the panorama's 37.5°.
+#[test]
+fn pose_and_orient_number_the_board_alike() {
+    let dir = tempfile::tempdir().unwrap();
+    let yaw = 37.5;
+    let pano = dir.path().join("pano.exr");
+    write_exr(&pano, &panorama(2048, yaw)).unwrap();
+    let truth = [0.10, -0.06, 0.28];
+    for view_yaw in [0.0, 60.0, 120.0, 180.0, 240.0, 300.0] {
+        let view = dir.path().join(format!("view{view_yaw}.png"));
+        let o = lucent(&[
+            "env",
+            "view",
+            s(&pano),
+            "--yaw",
+            &view_yaw.to_string(),
+            "--pitch",
+            "-90",
+            "--fov",
+            "100",
+            "--size",
+            "1000x1000",
+            "--out",
+            s(&view),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let vcam = json(&dir.path().join(format!("view{view_yaw}.json")))["camera"].clone();
+        let f = vcam["f_px"].as_f64().unwrap();
+        // The view as a calibrated camera: OpenCV pixel centres at integers, no distortion.
+        let camera = serde_json::json!({
+            "camera": {
+                "model": "pinhole-k3", "image_width": 1000, "image_height": 1000,
+                "intrinsics": { "fx": f, "fy": f, "cx": 499.5, "cy": 499.5 },
+                "distortion": { "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0, "k3": 0.0, "k4": 0.0, "k5": 0.0, "k6": 0.0 }
+            },
+            "rms_px": 0.0, "board": { "cols": 9, "rows": 6, "square_m": 0.03 }, "views": [], "not_found": [],
+            "method": "a view cut from the panorama (test)", "opencv_version": ""
+        });
+        let cam_json = dir.path().join("camera.json");
+        std::fs::write(&cam_json, camera.to_string()).unwrap();
+        let scene = dir.path().join(format!("scene{view_yaw}.json"));
+        let o = lucent(&[
+            "pose",
+            "--camera",
+            s(&cam_json),
+            "--image",
+            s(&view),
+            "--board",
+            "9x6",
+            "--square-mm",
+            "30",
+            "--out",
+            s(&scene),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let sc = json(&scene);
+        let pos: Vec<f64> = (0..3).map(|k| sc["camera_position_m"][k].as_f64().unwrap()).collect();
+        let err = (0..3).map(|k| (pos[k] - truth[k]).powi(2)).sum::<f64>().sqrt();
+        let out = dir.path().join(format!("o{view_yaw}.exr"));
+        let o = lucent(&[
+            "env",
+            "orient",
+            s(&pano),
+            "--board-view",
+            &format!("{view_yaw},-90,100"),
+            "--board",
+            "9x6",
+            "--square-mm",
+            "30",
+            "--view-size",
+            "1000x1000",
+            "--out",
+            s(&out),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let got = json(&dir.path().join(format!("o{view_yaw}.json")))["source_yaw_deg"].as_f64().unwrap();
+        // The camera's right axis (camera_to_world's first column) against R_z(yaw) · the view's right.
+        let right: Vec<f64> = (0..3).map(|k| vcam["right"][k].as_f64().unwrap()).collect();
+        let (sy, cy) = got.to_radians().sin_cos();
+        let turned = [cy * right[0] - sy * right[1], sy * right[0] + cy * right[1], right[2]];
+        let c2w = &sc["camera_to_world"];
+        let dot: f64 = (0..3).map(|k| turned[k] * c2w[k][0].as_f64().unwrap()).sum();
+        let angle = dot.clamp(-1.0, 1.0).acos().to_degrees();
+        eprintln!(
+            "view yaw {view_yaw}°: pose camera at {pos:.4?} m ({:.2} mm off), orient yaw {got:.3}°, axes {angle:.3}° apart",
+            err * 1e3
+        );
+        assert!(err < 3e-3, "view yaw {view_yaw}: pose put the camera at {pos:?}, not {truth:?}");
+        assert!((got - yaw).abs() < 0.1, "view yaw {view_yaw}: orient yaw {got}");
+        assert!(angle < 0.5, "view yaw {view_yaw}: pose and orient frames {angle}° apart");
+    }
 }
 
 #[test]
@@ -256,8 +357,9 @@ fn paste_and_brackets_make_a_synthetic_panorama_that_orients_and_merges() {
     let dir = tempfile::tempdir().unwrap();
     let grey = dir.path().join("grey.exr");
     write_exr(&grey, &RgbImage { width: 512, height: 256, data: vec![0.3; 512 * 256 * 3] }).unwrap();
-    // A level board seen straight down, its picture's x axis (the board's i axis) along the
-    // view's right, (sin 27°, −cos 27°, 0): azimuth −63°, so the orienting yaw is 63°.
+    // A level board seen straight down. Numbered from the light outer square at the picture's
+    // bottom right, its i axis runs along the picture's −x, the view's left (−sin 27°, cos 27°, 0):
+    // azimuth 117°, so the orienting yaw is −117°.
     let pano = dir.path().join("pano.exr");
     let o = lucent(&[
         "env",
@@ -295,7 +397,7 @@ fn paste_and_brackets_make_a_synthetic_panorama_that_orients_and_merges() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let yaw = json(&dir.path().join("oriented.json"))["source_yaw_deg"].as_f64().unwrap();
-    assert!((yaw - 63.0).abs() < 0.05, "yaw {yaw}");
+    assert!((yaw + 117.0).abs() < 0.05, "yaw {yaw}");
 
     // Brackets: code = round(255 · sRGB(min(v · t, 1))), written out here (IEC 61966-2-1).
     let small = dir.path().join("small.exr");

@@ -17,7 +17,8 @@
 //! map is turned about +z so that world = R_z(yaw) · map puts the board's i
 //! axis on world +x (the board found in a view by OpenCV, its pose from PnP
 //! with the view's pinhole camera, yaw = −azimuth of the i axis; corner
-//! (0, 0) fixed by the dark outer square, [`canonical_corner_order`]); the
+//! (0, 0) fixed by the light outer square, [`canonical_corner_order`], the
+//! numbering `lucent pose` uses too); the
 //! [`Orientation`] file gives a scene its yaw. [`lens_to_equirect`] maps a
 //! calibrated lens's photo onto a latitude–longitude map around its axis
 //! (Kannala–Brandt by the angle off the axis, so beyond 90°);
@@ -460,22 +461,25 @@ pub fn rotate_yaw(map: &RgbBuffer, yaw_deg: f64) -> Result<RgbBuffer, EnvError> 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum CornerOrder {
-    /// The detector's order already had the dark outer square at corner (0, 0).
+    /// The detector's order already had the light outer square at corner (0, 0).
     AsDetected,
-    /// Reversed (the board turned 180°) to put the dark outer square at corner (0, 0).
+    /// Reversed (the board turned 180°) to put the light outer square at corner (0, 0).
     Reversed,
     /// The board's four outer squares do not single out one corner (both
     /// counts even, or the squares' contrast unclear): the detector's order is kept.
     Ambiguous,
 }
 
-/// Puts the corners in the renderer's board convention: the outer corner
-/// square beyond inner corner (0, 0) is the dark one (the scene's `even`
-/// squares, (column + row) even). Only boards with one odd and one even
-/// inner-corner count single out a corner under the 180° turn that
-/// OpenCV's detectors leave open; others are left as detected
-/// ([`CornerOrder::Ambiguous`]). `corners` are row-major (`cols` per row),
-/// pixel centres at integers.
+/// Puts the corners in the one board numbering of `lucent pose` and
+/// `lucent env orient` ([`crate::scene`]'s module docs): the outer corner
+/// square diagonally beyond inner corner (0, 0) is the **light** one, as
+/// OpenCV's sector-based detector numbers them (a scene draws that board
+/// with its `even` squares light). Only boards with one odd and one even
+/// inner-corner count single out a corner under the 180° turn; others are
+/// left as detected ([`CornerOrder::Ambiguous`]), as are boards whose two
+/// outer corner squares cannot be compared (outside the image, or less than
+/// 20 grey levels apart). `corners` are row-major (`cols` per row), pixel
+/// centres at integers.
 pub fn canonical_corner_order(
     img: &crate::GrayImage,
     cols: usize,
@@ -498,7 +502,7 @@ pub fn canonical_corner_order(
     let last = outer(cols - 1, rows - 1, cols - 2, rows - 2);
     match (first, last) {
         (Some(a), Some(b)) if (a - b).abs() > 20.0 => {
-            if a < b {
+            if a > b {
                 (corners.to_vec(), CornerOrder::AsDetected)
             } else {
                 (corners.iter().rev().copied().collect(), CornerOrder::Reversed)
@@ -750,7 +754,10 @@ pub fn paste_view(map: &mut RgbBuffer, img: &RgbBuffer, spec: &ViewSpec) -> Resu
 /// A flat chessboard picture for [`paste_view`]: `cols` × `rows` inner
 /// corners, so (cols + 1) × (rows + 1) squares of `square_px` pixels, the
 /// outer corner square at the top left dark ((column + row) even: `dark`,
-/// odd: `light`), a margin of one square in `light`.
+/// odd: `light`), a margin of one square in `light`. For one odd and one
+/// even count, [`canonical_corner_order`] numbers it from the light outer
+/// square at the bottom right: inner corner (0, 0) there, i pointing left,
+/// j up (the board seen from its front).
 pub fn chessboard_picture(cols: usize, rows: usize, square_px: usize, dark: f32, light: f32) -> RgbBuffer {
     let (w, h) = ((cols + 3) * square_px, (rows + 3) * square_px);
     let mut img = RgbBuffer::zeros(w, h);

@@ -9,9 +9,10 @@
 //!    refuses uncompressed tiles, reads strips as one contiguous block and
 //!    16-bit samples as little-endian, and keeps one black/white level for
 //!    the three channels of a linear DNG: `calib/tests/raw_dng_phone.rs`
-//!    shows each); everything else (CR2, NEF, …, LJPEG-compressed DNGs)
-//!    with `rawloader`, a linear DNG's per-channel levels then re-read from
-//!    its tags. DNG opcode lists (`OpcodeList1–3`: phones' gain maps, lens
+//!    shows each); everything else (CR2, NEF, …, lossless-JPEG DNGs,
+//!    compression 7, predictor 1) with `rawloader`, a linear DNG's
+//!    per-channel levels then re-read from its tags; DNGs with other
+//!    compressions (Deflate, lossy JPEG, JPEG XL) are refused by name. DNG opcode lists (`OpcodeList1–3`: phones' gain maps, lens
 //!    warps) and `DefaultCrop` are not applied; the metadata's warnings say
 //!    so. Before decoding, a TIFF-based
 //!    file whose declared image data runs past its end is refused as
@@ -751,8 +752,12 @@ mod tests {
 /// were contiguous, cannot read uncompressed tiles (phones' linear DNGs are
 /// tiled), reads 16-bit samples as little-endian whatever the file's byte
 /// order, and keeps one black and white level for all three channels of a
-/// `LinearRaw` file. For LJPEG-compressed DNGs (compression 7) `rawloader`
-/// decodes the data and [`dng::levels`] corrects the per-channel levels.
+/// `LinearRaw` file. For LJPEG-compressed DNGs (compression 7, as phones'
+/// "pro RAW" modes write them: tiled LinearRaw; T.81 process 14) `rawloader`
+/// decodes the data — predictor 1 only, which is checked here first — and
+/// [`dng::levels`] corrects the per-channel levels
+/// (`calib/tests/raw_dng_phone.rs` encodes such tiles and reads them back).
+/// Other compressions (Deflate, lossy JPEG, JPEG XL) are refused by name.
 /// Opcode lists (`OpcodeList1–3`: gain maps, lens warps, bad-pixel fixes
 /// written by phones) are not applied; [`dng::notes`] reports them.
 mod dng {
@@ -872,6 +877,39 @@ mod dng {
         None
     }
 
+    /// The predictor (T.81 Table H.1) in the start-of-scan header of the
+    /// raw IFD's first lossless-JPEG tile or strip; `None` when it cannot
+    /// be found (`rawloader` then reports what is wrong).
+    fn ljpeg_predictor(p: &Parsed) -> Option<u8> {
+        let first = |tag: u16| p.raw.get(&tag).and_then(|e| p.t.values(*e).first().copied());
+        let at = first(324).or_else(|| first(273))? as usize;
+        let b = p.t.b.get(at..)?;
+        if b.get(..2)? != [0xFF, 0xD8] {
+            return None;
+        }
+        // Marker segments after SOI: FF xx, then a big-endian length that counts itself.
+        let mut k = 2;
+        loop {
+            while *b.get(k)? == 0xFF && *b.get(k + 1)? == 0xFF {
+                k += 1;
+            }
+            if *b.get(k)? != 0xFF {
+                return None;
+            }
+            let marker = *b.get(k + 1)?;
+            let len = usize::from(u16::from_be_bytes([*b.get(k + 2)?, *b.get(k + 3)?]));
+            if marker == 0xDA {
+                // SOS: Ns, Ns × (Cs, Td/Ta), then Ss = the predictor.
+                let ns = usize::from(*b.get(k + 4)?);
+                return b.get(k + 5 + 2 * ns).copied();
+            }
+            if len < 2 {
+                return None;
+            }
+            k += 2 + len;
+        }
+    }
+
     /// The raw IFD's levels for three samples per pixel: per-channel black
     /// and white ([r, g, b, b]), if the file is a linear DNG.
     pub(super) fn levels(bytes: &[u8]) -> Option<([u16; 4], [u16; 4])> {
@@ -922,8 +960,31 @@ mod dng {
         let (t, raw) = (&p.t, &p.raw);
         let get = |tag: u16| raw.get(&tag).map(|e| t.values(*e)).unwrap_or_default();
         let one = |tag: u16| get(tag).first().copied();
-        if one(259).unwrap_or(1.0) as u32 != 1 {
-            return Ok(None);
+        match one(259).unwrap_or(1.0) as u32 {
+            1 => {}
+            7 => {
+                // Lossless JPEG (ITU-T T.81 process 14): `rawloader` decodes it, predictor 1 only.
+                return match ljpeg_predictor(&p) {
+                    Some(1) | None => Ok(None),
+                    Some(k) => Err(format!(
+                        "lossless-JPEG DNG (compression 7) with predictor {k}: only predictor 1 (the sample to \
+                         the left, what phones and Adobe's DNG SDK write) is decoded; convert it with Adobe DNG \
+                         Converter (uncompressed) first"
+                    )),
+                };
+            }
+            c => {
+                let name = match c {
+                    8 | 32946 => "Deflate",
+                    34892 => "lossy JPEG",
+                    52546 => "JPEG XL",
+                    _ => "unknown",
+                };
+                return Err(format!(
+                    "DNG raw image with compression {c} ({name}): lucent reads uncompressed (1) and lossless-JPEG \
+                     (7) DNGs; convert it with Adobe DNG Converter (compatibility DNG 1.4, uncompressed) first"
+                ));
+            }
         }
         let need = |tag: u16, name: &str| one(tag).ok_or_else(|| format!("DNG raw image without {name}"));
         let (w, h) = (need(256, "ImageWidth")? as usize, need(257, "ImageLength")? as usize);

@@ -20,6 +20,16 @@
 //! i + ½ adds ½ to cx and cy. The renderer images the *undistorted* photo,
 //! so only fx, fy, cx, cy are needed.
 //!
+//! Board numbering, one convention for `lucent pose` and `lucent env orient`
+//! ([`find_board_corners`]): inner corner (0, 0) is the one diagonally
+//! beyond the **light** outer corner square — how OpenCV's sector-based
+//! detector numbers a board, made sure of for either detector by
+//! [`crate::env::canonical_corner_order`]. Only a board with one odd and one
+//! even inner-corner count (9 × 6, 13 × 10) fixes it under a 180° turn; for
+//! others the detector's order is kept and the commands warn. A scene draws
+//! that board with its `even` squares (the outer square at corner (0, 0))
+//! light.
+//!
 //! The sample: "its top-left corner lies on board corner (i, j), edges along
 //! the board axes" — it spans i·s … i·s + width along the board's x and
 //! j·s … j·s + height along the board's y, and 0 … thickness up.
@@ -97,6 +107,21 @@ pub fn rotation_vector(m: &Mat3) -> [f64; 3] {
     // Sign from the (small) skew part, if any.
     let sign = if skew.iter().zip(a).map(|(s, v)| s * v).sum::<f64>() < 0.0 { -1.0 } else { 1.0 };
     a.map(|v| v * theta * sign)
+}
+
+/// The board's inner corners in a photo or view, numbered by this module's
+/// convention (module docs): OpenCV's detectors ([`crate::cv::find_corners`],
+/// sector-based first), then [`crate::env::canonical_corner_order`]; with
+/// the order found. `Ok(None)` when no board of that size is found.
+pub fn find_board_corners(
+    img: &crate::GrayImage,
+    board: &BoardSpec,
+) -> Result<Option<(crate::cv::Corners, crate::env::CornerOrder)>, crate::cv::CalibError> {
+    let Some(found) = crate::cv::find_corners(img, board, crate::cv::Detector::Auto)? else {
+        return Ok(None);
+    };
+    let (points, order) = crate::env::canonical_corner_order(img, board.cols, board.rows, &found.points);
+    Ok(Some((crate::cv::Corners { points, detector: found.detector }, order)))
 }
 
 /// OpenCV pose of the board: `x_cam = rotation · x_board + translation_m`.

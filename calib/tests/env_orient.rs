@@ -16,9 +16,10 @@ const BOARD: BoardSpec = BoardSpec { cols: 9, rows: 6, square_m: 0.03 };
 /// The map of a 360° camera at `camera_m` (world: x along the board's i
 /// axis, y = −j, z up, corner (0, 0) at the origin) whose map frame is turned
 /// so that world = R_z(yaw) · map. Square (c, r) of the 10 × 7 board spans
-/// i ∈ [c − 1, c), j ∈ [r − 1, r) squares; (c + r) even is dark (0.05),
-/// odd light (0.8); a white margin (0.8) of one square; grey floor (0.3);
-/// sky 1.0. 3 × 3 samples per pixel.
+/// i ∈ [c − 1, c), j ∈ [r − 1, r) squares; (c + r) even is light (0.8: the
+/// outer square at corner (0, 0) is light, the numbering of `lucent pose`
+/// and `lucent env orient`), odd dark (0.05); a white margin (0.8) of one
+/// square; grey floor (0.3); sky 1.0. 3 × 3 samples per pixel.
 fn panorama(w: usize, yaw_deg: f64, camera_m: [f64; 3]) -> RgbBuffer {
     let h = w / 2;
     let (sy, cy) = yaw_deg.to_radians().sin_cos();
@@ -42,9 +43,9 @@ fn panorama(w: usize, yaw_deg: f64, camera_m: [f64; 3]) -> RgbBuffer {
                     let (c, r) = ((bi.floor() + 1.0) as i64, (bj.floor() + 1.0) as i64);
                     if (0..=BOARD.cols as i64).contains(&c) && (0..=BOARD.rows as i64).contains(&r) {
                         if (c + r) % 2 == 0 {
-                            0.05
-                        } else {
                             0.8
+                        } else {
+                            0.05
                         }
                     } else if (-1..=BOARD.cols as i64 + 1).contains(&c) && (-1..=BOARD.rows as i64 + 1).contains(&r) {
                         0.8
@@ -209,5 +210,5 @@ fn a_pasted_picture_is_seen_again_by_the_same_view() {
     let b = env::chessboard_picture(9, 6, 10, 0.05, 0.8);
     assert_eq!((b.width, b.height), (120, 90));
     assert_eq!((b.pixel(15, 15), b.pixel(25, 15), b.pixel(5, 5)), ([0.05; 3], [0.8; 3], [0.8; 3]));
-    assert_eq!(b.pixel(105, 75), [0.8; 3], "the corner square opposite (0, 0) is light for 9 × 6");
+    assert_eq!(b.pixel(105, 75), [0.8; 3], "the bottom-right outer square (at corner (0, 0) for 9 × 6) is light");
 }

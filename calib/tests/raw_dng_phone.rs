@@ -2,11 +2,12 @@
 //! either byte order, strips in any order or tiles, CFA or LinearRaw,
 //! 16-bit, opcode lists): linear three-channel DNGs as phones' "pro RAW"
 //! modes write them (PhotometricInterpretation 34892, per-channel black and
-//! white levels, 256-pixel-style tiles with partial edge tiles) and Bayer
-//! DNGs in several layouts must decode to exactly the linear camera RGB that
-//! was stored; the opcode lists are reported as ignored. Each variant is
-//! also given to `rawloader` 0.37 directly, to record why `lucent_calib::raw`
-//! reads uncompressed DNGs itself.
+//! white levels, 256-pixel-style tiles with partial edge tiles, uncompressed
+//! or lossless-JPEG tiles — compression 7, encoded here from ITU-T T.81)
+//! and Bayer DNGs in several layouts must decode to exactly the linear
+//! camera RGB that was stored; the opcode lists are reported as ignored.
+//! Each variant is also given to `rawloader` 0.37 directly, to record why
+//! `lucent_calib::raw` reads uncompressed DNGs itself.
 
 use lucent_calib::raw::{decode_raw, read_raw, RawData, RawOptions};
 use std::path::{Path, PathBuf};
@@ -126,6 +127,95 @@ enum Layout {
     StripsReversed(usize),
     /// Tiles of this size (edge tiles padded).
     Tiles(usize, usize),
+    /// Tiles of this size, each a lossless JPEG ([`ljpeg`]; compression 7), as phones' "pro RAW" files.
+    LjpegTiles(usize, usize),
+}
+
+/// Appends bits MSB first, with JPEG's byte stuffing (0x00 after 0xFF).
+struct Bits {
+    out: Vec<u8>,
+    acc: u32,
+    n: u32,
+}
+
+impl Bits {
+    fn put(&mut self, value: u32, count: u32) {
+        for k in (0..count).rev() {
+            self.acc = (self.acc << 1) | ((value >> k) & 1);
+            self.n += 1;
+            if self.n == 8 {
+                let byte = self.acc as u8;
+                self.out.push(byte);
+                if byte == 0xFF {
+                    self.out.push(0);
+                }
+                self.acc = 0;
+                self.n = 0;
+            }
+        }
+    }
+}
+
+/// One lossless JPEG (ITU-T T.81 Annex H, process 14, SOF3) of `tw` × `tl`
+/// pixels of `cpp` interleaved 16-bit components, written here from the
+/// standard (not from `rawloader`, which decodes it): predictor 1 (Table
+/// H.1: the sample to the left; the first sample of a row predicted from
+/// the one above, the very first from 2^15, H.1.2.1), differences modulo
+/// 2^16 coded as category SSSS (bits of |diff|; 16 for 32768, without
+/// extra bits) and SSSS extra bits (diff, or diff − 1 when negative; Table
+/// H.2 and F.1.2.1), one Huffman table in which all 17 categories have
+/// 5-bit codes (canonical, category k ↦ k), the last byte padded with 1s.
+fn ljpeg(samples: &[u16], tw: usize, tl: usize, cpp: usize) -> Vec<u8> {
+    let segment = |out: &mut Vec<u8>, marker: u8, body: &[u8]| {
+        out.extend([0xFF, marker]);
+        out.extend(((body.len() + 2) as u16).to_be_bytes());
+        out.extend(body);
+    };
+    let mut out = vec![0xFF, 0xD8];
+    let mut dht = vec![0x00]; // class 0 (DC/lossless), table 0
+    dht.extend((1..=16).map(|len| if len == 5 { 17u8 } else { 0 }));
+    dht.extend(0u8..17);
+    segment(&mut out, 0xC4, &dht);
+    let mut sof = vec![16u8];
+    sof.extend((tl as u16).to_be_bytes());
+    sof.extend((tw as u16).to_be_bytes());
+    sof.push(cpp as u8);
+    for c in 0..cpp {
+        sof.extend([c as u8 + 1, 0x11, 0]);
+    }
+    segment(&mut out, 0xC3, &sof);
+    let mut sos = vec![cpp as u8];
+    for c in 0..cpp {
+        sos.extend([c as u8 + 1, 0x00]);
+    }
+    sos.extend([1, 0, 0]); // Ss = predictor 1, Se = 0, Ah/Al = 0 (no point transform)
+    segment(&mut out, 0xDA, &sos);
+    let mut bits = Bits { out, acc: 0, n: 0 };
+    let at = |x: usize, y: usize, c: usize| samples[(y * tw + x) * cpp + c];
+    for y in 0..tl {
+        for x in 0..tw {
+            for c in 0..cpp {
+                let pred = match (x, y) {
+                    (0, 0) => 1 << 15,
+                    (0, _) => at(0, y - 1, c),
+                    _ => at(x - 1, y, c),
+                };
+                let diff = i32::from(at(x, y, c).wrapping_sub(pred) as i16); // −32768 ≡ 32768
+                let category = if diff == -32768 { 16 } else { 32 - diff.unsigned_abs().leading_zeros() };
+                bits.put(category, 5);
+                if (1..16).contains(&category) {
+                    let extra = if diff > 0 { diff } else { diff - 1 };
+                    bits.put(extra as u32 & ((1 << category) - 1), category);
+                }
+            }
+        }
+    }
+    if bits.n > 0 {
+        bits.put(0xFF, 8 - bits.n);
+    }
+    let mut out = bits.out;
+    out.extend([0xFF, 0xD9]);
+    out
 }
 
 /// Common DNG tags for IFD0 = the raw image.
@@ -176,7 +266,12 @@ fn blocks(
             let order = (0..strips.len()).rev().collect();
             (strips, order, 273, 279)
         }
-        Layout::Tiles(tw, tl) => {
+        Layout::Tiles(tw, tl) | Layout::LjpegTiles(tw, tl) => {
+            let compressed = matches!(layout, Layout::LjpegTiles(..));
+            if compressed {
+                tags.retain(|t| t.0 != 259);
+                tags.push((259, w.u16s(&[7])));
+            }
             tags.push((322, w.u32s(&[tw as u32])));
             tags.push((323, w.u32s(&[tl as u32])));
             let (across, down) = (W.div_ceil(tw), H.div_ceil(tl));
@@ -198,7 +293,11 @@ fn blocks(
                                 })
                             })
                             .collect();
-                    w.sample_bytes(&v)
+                    if compressed {
+                        ljpeg(&v, tw, tl, cpp)
+                    } else {
+                        w.sample_bytes(&v)
+                    }
                 })
                 .collect();
             let order = (0..tiles.len()).collect();
@@ -237,6 +336,8 @@ fn linear_phone_dngs_decode_to_the_stored_camera_rgb() {
         (true, Layout::Tiles(16, 16), "tiled_le.dng"),
         (false, Layout::Tiles(16, 8), "tiled_be.dng"),
         (true, Layout::StripsReversed(7), "strips_le.dng"),
+        (true, Layout::LjpegTiles(16, 16), "ljpeg_tiled_le.dng"),
+        (false, Layout::LjpegTiles(24, 8), "ljpeg_tiled_be.dng"),
     ] {
         let path = temp(name);
         write_linear(&path, le, &layout);
@@ -350,6 +451,25 @@ fn broken_phone_dngs_are_errors_naming_the_file() {
     std::fs::write(&bad, w.file(tags, &b, &order, ot, ct)).unwrap();
     let e = read_raw(&bad, None).unwrap_err().to_string();
     assert!(e.contains("linear_one_sample.dng") && e.contains("samples per pixel"), "{e}");
+    // A compression other than none (1) and lossless JPEG (7): JPEG XL, as newer phones write.
+    let mut tags = dng_tags(&w, 3, true);
+    let (b, order, ot, ct) = blocks(&w, 3, &Layout::Tiles(16, 16), &mut tags);
+    tags.retain(|t| t.0 != 259);
+    tags.push((259, w.u16s(&[52546])));
+    let bad = temp("jpeg_xl.dng");
+    std::fs::write(&bad, w.file(tags, &b, &order, ot, ct)).unwrap();
+    let e = read_raw(&bad, None).unwrap_err().to_string();
+    assert!(e.contains("jpeg_xl.dng") && e.contains("compression 52546") && e.contains("JPEG XL"), "{e}");
+    // Lossless JPEG with predictor 6, which rawloader does not decode.
+    let mut tags = dng_tags(&w, 3, true);
+    let (mut b, order, ot, ct) = blocks(&w, 3, &Layout::LjpegTiles(16, 16), &mut tags);
+    let sos = b[0].windows(2).position(|m| m == [0xFF, 0xDA]).unwrap();
+    assert_eq!(b[0][sos + 5 + 2 * 3], 1, "SOS: Ns = 3, three component specs, then Ss");
+    b[0][sos + 5 + 2 * 3] = 6;
+    let bad = temp("ljpeg_predictor6.dng");
+    std::fs::write(&bad, w.file(tags, &b, &order, ot, ct)).unwrap();
+    let e = read_raw(&bad, None).unwrap_err().to_string();
+    assert!(e.contains("ljpeg_predictor6.dng") && e.contains("predictor 6"), "{e}");
     // Cut inside the last tile.
     let good = temp("cut_tiles.dng");
     write_linear(&good, true, &Layout::Tiles(16, 16));

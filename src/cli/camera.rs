@@ -114,7 +114,9 @@ pub struct PoseArgs {
     /// Photo of the board and sample (distorted, as taken; the calibration's size).
     #[arg(long)]
     pub image: PathBuf,
-    /// Inner corners COLSxROWS.
+    /// Inner corners COLSxROWS. Corner (0, 0), the world's origin, is the one diagonally beyond the light
+    /// outer corner square (OpenCV's numbering, also `lucent env orient`'s); only a board with one odd and
+    /// one even count (e.g. 9x6) fixes it.
     #[arg(long)]
     pub board: String,
     /// Side of one square in millimetres.
@@ -137,7 +139,7 @@ pub struct PoseArgs {
 
 #[derive(Debug, Subcommand)]
 pub enum EnvCommand {
-    /// Equirectangular HDR (.exr, .hdr) → checked (2:1, finite), optionally colour-converted, 32-bit EXR.
+    /// Equirectangular HDR (.exr, .hdr) → checked (2:1, finite), optionally colour-converted, 32-bit EXR (or a PNG preview).
     Convert(EnvConvertArgs),
     /// Size and radiance statistics of an equirectangular HDR map, as JSON.
     Info {
@@ -164,7 +166,7 @@ pub enum EnvCommand {
 pub struct EnvConvertArgs {
     /// Input map (.exr or .hdr), equirectangular, 2:1.
     pub input: PathBuf,
-    /// Output map (.exr, 32-bit float).
+    /// Output map (.exr, 32-bit float), or .png: an 8-bit sRGB preview for looking at (clipped at 1).
     pub output: PathBuf,
     /// 3 × 3 matrix applied to every pixel (out = M·rgb): nine numbers row-major ("a,b,c;d,e,f;g,h,i"),
     /// or a JSON file with a 3 × 3 array or a "matrix" key. (For a ColorChecker ccm.json with
@@ -596,6 +598,16 @@ fn undistort_equirect(a: &UndistortArgs, cal: &Calibration, img: &RgbBuffer, lin
 
 // ---------------------------------------------------------------- pose
 
+/// The warning of `pose` and `env orient` when corner (0, 0) cannot be told from the opposite one.
+fn ambiguous_board_warning(board: &BoardSpec, what: &str) -> String {
+    format!(
+        "warning: corner (0, 0) of the {}x{} board cannot be told from the opposite corner (a board with two even \
+         or two odd counts looks the same turned 180°, or its outer corner squares are not both visible): {what} \
+         may be off by 180°; use a board with one odd and one even count, e.g. 9x6, seen whole",
+        board.cols, board.rows
+    )
+}
+
 fn parse_numbers<const N: usize>(flag: &str, text: &str) -> Result<[f64; N]> {
     let v: Vec<f64> = text
         .split(',')
@@ -644,9 +656,13 @@ pub fn pose(a: PoseArgs) -> Result<()> {
             cal.camera.image_height
         );
     }
-    let corners = cv::find_corners(&gray, &board, Detector::Auto)?.ok_or_else(|| {
+    // Numbered as `lucent env orient` numbers them (lucent_calib::scene: the light outer square at corner (0, 0)).
+    let (corners, order) = scene::find_board_corners(&gray, &board)?.ok_or_else(|| {
         anyhow!("{}: no chessboard of {}x{} inner corners found", a.image.display(), board.cols, board.rows)
     })?;
+    if order == env::CornerOrder::Ambiguous {
+        eprintln!("{}", ambiguous_board_warning(&board, "the pose"));
+    }
     let pose = cv::solve_pnp(&corners.points, &board, &cal.camera)?;
     let reprojected: Vec<[f64; 2]> =
         board.corners().iter().map(|p| cal.camera.project(pose.to_camera(*p)).unwrap_or([f64::NAN; 2])).collect();
@@ -681,12 +697,15 @@ pub fn pose(a: PoseArgs) -> Result<()> {
     write_atomic(&view, &png)?;
     let c = scene.camera_position_m;
     println!(
-        "board pose: camera at ({:.4}, {:.4}, {:.4}) m in the board's world (z up), {:.3} m from corner (0,0); PnP RMS {:.3} px",
+        "board pose: camera at ({:.4}, {:.4}, {:.4}) m in the board's world (z up), {:.3} m from corner (0,0); PnP RMS {:.3} px; \
+         corner order {:?} ({} detector)",
         c[0],
         c[1],
         c[2],
         (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt(),
-        rms
+        rms,
+        order,
+        corners.detector
     );
     if let Some(s) = &scene.sample {
         let o = s.object_to_world;
@@ -727,8 +746,9 @@ fn read_env(path: &Path) -> Result<RgbBuffer> {
 }
 
 fn env_convert(a: EnvConvertArgs) -> Result<()> {
-    if extension(&a.output) != "exr" {
-        bail!("{}: the output must be an .exr file", a.output.display());
+    let png = extension(&a.output) == "png";
+    if extension(&a.output) != "exr" && !png {
+        bail!("{}: the output must be an .exr file (or a .png preview)", a.output.display());
     }
     let matrix = match &a.matrix {
         None => None,
@@ -749,7 +769,11 @@ fn env_convert(a: EnvConvertArgs) -> Result<()> {
         env::apply_matrix(&mut img, m);
     }
     let summary = env::summarize(&img);
-    imageio::write_exr(&a.output, &to_image(img))?;
+    if png {
+        imageio::write_png(&a.output, &to_image(img))?;
+    } else {
+        imageio::write_exr(&a.output, &to_image(img))?;
+    }
     println!(
         "{} × {} equirectangular{} → {}; mean radiance over the sphere R {:.4} G {:.4} B {:.4}, max {:.1}{}",
         summary.width,

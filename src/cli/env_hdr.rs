@@ -10,7 +10,6 @@ use crate::io::write_json;
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args};
 use lucent_calib::camera::{CameraModel, Distortion, DistortionModel};
-use lucent_calib::cv::Detector;
 use lucent_calib::env::{self, BoardFound, Orientation, ViewSpec};
 use lucent_calib::hdr::{self, CodeWeights, LinearWeights, Merged, ResponseMethod, Rgb8Buffer};
 use lucent_calib::raw::{self, RawOptions};
@@ -87,8 +86,9 @@ pub struct EnvOrientArgs {
     /// `lucent env view` (e.g. "0,-90,100" looks straight down). Needs --board and --square-mm.
     #[arg(long, requires_all = ["board", "square_mm"], allow_hyphen_values = true)]
     pub board_view: Option<String>,
-    /// Inner corners COLSxROWS of the board (its i axis becomes the world's +x; corner (0, 0) is the one
-    /// beyond the dark outer corner square when COLS + ROWS is odd).
+    /// Inner corners COLSxROWS of the board (its i axis becomes the world's +x). Corner (0, 0) is numbered
+    /// as `lucent pose` numbers it: the one diagonally beyond the light outer corner square (OpenCV's
+    /// numbering); only a board with one odd and one even count (e.g. 9x6) fixes it.
     #[arg(long)]
     pub board: Option<String>,
     /// Side of one square in millimetres.
@@ -117,8 +117,9 @@ pub struct EnvPasteArgs {
     /// of its own size would see it (the inverse of `lucent env view`).
     #[arg(long)]
     pub image: Option<PathBuf>,
-    /// Or a flat chessboard of COLSxROWS inner corners (dark outer corner square at corner (0, 0),
-    /// one square of white margin), as a level board seen straight down when --pitch is -90.
+    /// Or a flat chessboard of COLSxROWS inner corners (dark outer square at the picture's top left, one
+    /// square of white margin; for e.g. 9x6 `pose`/`env orient` put corner (0, 0) at the light bottom-right
+    /// outer square, i pointing left, j up), as a level board seen straight down when --pitch is -90.
     #[arg(long)]
     pub chessboard: Option<String>,
     /// Chessboard: values of the dark and light squares (linear).
@@ -430,7 +431,7 @@ pub fn orient(a: EnvOrientArgs) -> Result<()> {
         Some((spec, board, square_mm)) => {
             let (view, cam) = env::perspective_view(&map, &spec)?;
             let gray = lucent_calib::GrayImage::from_linear_rgb(&view);
-            let corners = cv::find_corners(&gray, &board, Detector::Auto)?.ok_or_else(|| {
+            let (corners, order) = lucent_calib::scene::find_board_corners(&gray, &board)?.ok_or_else(|| {
                 anyhow::anyhow!(
                     "{}: no chessboard of {}x{} inner corners in the view --board-view {} (yaw {}°, pitch {}°, fov {}°); \
                      cut it with `lucent env view` to look, and aim the view at the board",
@@ -443,7 +444,7 @@ pub fn orient(a: EnvOrientArgs) -> Result<()> {
                     spec.fov_deg
                 )
             })?;
-            let (points, order) = env::canonical_corner_order(&gray, board.cols, board.rows, &corners.points);
+            let points = corners.points.clone();
             let pinhole = CameraModel {
                 model: DistortionModel::PinholeK3,
                 image_width: spec.width,
@@ -469,11 +470,7 @@ pub fn orient(a: EnvOrientArgs) -> Result<()> {
                 );
             }
             if order == env::CornerOrder::Ambiguous {
-                eprintln!(
-                    "warning: a {}x{} board looks the same turned 180°: its corner (0, 0), and so the yaw, may be off \
-                     by 180° (use a board with one odd and one even count, e.g. 9x6)",
-                    board.cols, board.rows
-                );
+                eprintln!("{}", super::ambiguous_board_warning(&board, "the yaw"));
             }
             let label = format!("board in view: PnP RMS {rms:.3} px, yaw {:.2} deg", in_map.yaw_deg);
             let png = cv::draw_view_png(&gray, &board, &points, &reprojected, &[], &label)?;
