@@ -41,7 +41,7 @@
 //! ```
 //! use lucent::pipeline::Stage;
 //! assert_eq!(Stage::from_name("env-scale").unwrap(), Stage::EnvScale);
-//! assert!(Stage::from_name("rendr").unwrap_err().contains("render"));
+//! assert!(Stage::from_name("rendr").unwrap_err().to_string().contains("render"));
 //! assert_eq!(Stage::ALL.last(), Some(&Stage::Report));
 //! ```
 
@@ -103,13 +103,8 @@ impl Stage {
     }
 
     /// The stage of a name; a bad name lists the valid ones.
-    pub fn from_name(name: &str) -> Result<Stage, String> {
-        Stage::ALL.into_iter().find(|s| s.name() == name).ok_or_else(|| {
-            format!(
-                "no stage {name:?}; the stages are {}",
-                Stage::ALL.iter().map(|s| s.name()).collect::<Vec<_>>().join(", ")
-            )
-        })
+    pub fn from_name(name: &str) -> Result<Stage, UnknownStage> {
+        Stage::ALL.into_iter().find(|s| s.name() == name).ok_or_else(|| UnknownStage { name: name.to_string() })
     }
 
     /// The stages whose outputs this one reads.
@@ -160,6 +155,13 @@ pub struct Plan {
     pub inputs: Vec<PathBuf>,
     /// Notes for the status line (e.g. samples left out and why).
     pub notes: Vec<String>,
+}
+
+/// A stage name that [`Stage::from_name`] does not know.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("no stage {name:?}; the stages are {}", Stage::ALL.iter().map(|s| s.name()).collect::<Vec<_>>().join(", "))]
+pub struct UnknownStage {
+    pub name: String,
 }
 
 /// Why the pipeline stopped.
