@@ -41,6 +41,28 @@ use lucent_calib::cv::{self, CalibError, MccChart};
 use lucent_calib::RgbBuffer;
 use lucent_colour::ccm::{fit_colorchecker, CcmMethod};
 use lucent_colour::chart::{sample_patches, Homography, ImageRef, SampleOptions, COLS, ROWS};
+use lucent_colour::ColourError;
+
+/// Why no ColorChecker was found.
+#[derive(Debug, thiserror::Error)]
+pub enum ChartError {
+    /// OpenCV failed (not: found no chart).
+    #[error(transparent)]
+    Calib(#[from] CalibError),
+    /// The image buffer is not a valid image.
+    #[error(transparent)]
+    Colour(#[from] ColourError),
+    #[error("empty image: {width} × {height} pixels")]
+    EmptyImage { width: usize, height: usize },
+    #[error("no ColorChecker Classic 24 found: OpenCV's mcc detector found no chart in the image")]
+    NotFound,
+    #[error(
+        "no ColorChecker Classic 24 found: OpenCV's mcc detector found a chart-like region, but its patches do not match the ColorChecker references (mean ΔE00 {mean_de2000:.1} after a 3 × 3 fit, more than {MAX_MEAN_DE2000})"
+    )]
+    NoMatch { mean_de2000: f64 },
+    #[error("no ColorChecker Classic 24 found: OpenCV's mcc detector returned a degenerate box ({0})")]
+    DegenerateBox(ColourError),
+}
 
 /// mcc's MCC24 model: box size (x along the six-patch side, y along the four).
 const MODEL_BOX: [f64; 2] = [16.75, 11.25];
@@ -74,11 +96,11 @@ pub struct DetectedChart {
 /// Finds a ColorChecker Classic 24 in a linear RGB image. `options` gives
 /// the gap ratio the corners are placed for and the sample size of the
 /// orientation check (its clip level is ignored here). Errors:
-/// [`CalibError::ChartNotFound`] when mcc finds no chart or what it finds
-/// does not match the references.
-pub fn detect_colorchecker(image: &RgbBuffer, options: &SampleOptions) -> Result<DetectedChart, CalibError> {
+/// [`ChartError::NotFound`] when mcc finds no chart, [`ChartError::NoMatch`]
+/// when what it finds does not match the references.
+pub fn detect_colorchecker(image: &RgbBuffer, options: &SampleOptions) -> Result<DetectedChart, ChartError> {
     if image.width == 0 || image.height == 0 {
-        return Err(CalibError::Input("empty image".into()));
+        return Err(ChartError::EmptyImage { width: image.width, height: image.height });
     }
     let mut best: Option<DetectedChart> = None;
     let mut rejected: Option<f64> = None;
@@ -98,13 +120,9 @@ pub fn detect_colorchecker(image: &RgbBuffer, options: &SampleOptions) -> Result
             None => {}
         }
     }
-    best.ok_or_else(|| {
-        CalibError::ChartNotFound(match rejected {
-            Some(de) => format!(
-                "OpenCV's mcc detector found a chart-like region, but its patches do not match the ColorChecker references (mean ΔE00 {de:.1} after a 3 × 3 fit, more than {MAX_MEAN_DE2000})"
-            ),
-            None => "OpenCV's mcc detector found no chart in the image".into(),
-        })
+    best.ok_or(match rejected {
+        Some(mean_de2000) => ChartError::NoMatch { mean_de2000 },
+        None => ChartError::NotFound,
     })
 }
 
@@ -133,18 +151,13 @@ fn to_8bit(image: &RgbBuffer, encode_srgb: bool) -> Vec<u8> {
 }
 
 /// Maps mcc model coordinates to pixels through the box's homography.
-fn model_to_image(found: &MccChart) -> Result<impl Fn(f64, f64) -> [f64; 2], CalibError> {
+fn model_to_image(found: &MccChart) -> Result<impl Fn(f64, f64) -> [f64; 2], ChartError> {
     let b = found.corners;
     // `Homography::from_corners` wants clockwise corners; a mirrored box is
     // handled by mirroring the model's x as well.
     let (corners, mirrored) = match Homography::from_corners(b) {
         Ok(h) => (h, false),
-        Err(_) => (
-            Homography::from_corners([b[1], b[0], b[3], b[2]]).map_err(|e| {
-                CalibError::ChartNotFound(format!("OpenCV's mcc detector returned a degenerate box ({e})"))
-            })?,
-            true,
-        ),
+        Err(_) => (Homography::from_corners([b[1], b[0], b[3], b[2]]).map_err(ChartError::DegenerateBox)?, true),
     };
     Ok(move |x: f64, y: f64| {
         let u = x / MODEL_BOX[0];
@@ -159,7 +172,7 @@ fn orient(
     found: &MccChart,
     options: &SampleOptions,
     label: &'static str,
-) -> Result<Option<DetectedChart>, CalibError> {
+) -> Result<Option<DetectedChart>, ChartError> {
     let map = model_to_image(found)?;
     let half_side = 0.5 * MODEL_PITCH / (1.0 + options.gap_ratio);
     let lo = MODEL_FIRST_CENTRE - half_side;
@@ -171,7 +184,7 @@ fn orient(
     let clamp = |p: [f64; 2]| [p[0].clamp(0.0, w), p[1].clamp(0.0, h)];
     let [a, b, c, d] = [map(lo, lo), map(hx, lo), map(hx, hy), map(lo, hy)].map(clamp);
     let candidates = [[a, b, c, d], [c, d, a, b], [b, a, d, c], [d, c, b, a]];
-    let view = ImageRef::new(image.width, image.height, &image.data).map_err(|e| CalibError::Input(e.to_string()))?;
+    let view = ImageRef::new(image.width, image.height, &image.data)?;
     let check = SampleOptions { clip_level: None, ..options.clone() };
     let mut scored: Vec<([[f64; 2]; 4], f64)> = Vec::new();
     for corners in candidates {
@@ -189,7 +202,7 @@ fn orient(
     let Some(&(corners, mean_de2000)) = scored.first() else {
         return Ok(None);
     };
-    let hom = Homography::from_corners(corners).map_err(|e| CalibError::Input(e.to_string()))?;
+    let hom = Homography::from_corners(corners)?;
     let patch_centres = (0..ROWS * COLS)
         .map(|k| {
             let [u0, v0, u1, v1] = options.sample_square(k);

@@ -236,9 +236,101 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), Wri
     write_atomic(path, text.as_bytes())
 }
 
+/// A file pattern that cannot be expanded ([`glob_files`]).
+#[derive(Debug, thiserror::Error)]
+pub enum GlobError {
+    #[error("{spec}: wildcards are only supported in the file name, not in folders")]
+    WildcardFolder { spec: String },
+    #[error("{spec}: {source}")]
+    Pattern { spec: String, source: globset::Error },
+    #[error("{}: cannot list folder (from {spec}): {source}", dir.display())]
+    List { spec: String, dir: PathBuf, source: std::io::Error },
+}
+
+/// Whether `spec` holds glob syntax: `*`, `?`, a class `[…]` or alternatives `{a,b}`.
+pub fn is_glob(spec: &str) -> bool {
+    spec.contains(['*', '?', '[', '{'])
+}
+
+/// The files a `DIR/PATTERN` spec names, sorted. The pattern applies to
+/// the file name only, in `globset` syntax: `*`, `?`, classes `[0-9]` and
+/// `[!a]`, alternatives `{jpg,png}`; the folder (`.` when none is given) is
+/// taken literally. A spec that is an existing file, or has no glob syntax,
+/// names at most itself. Folders are never matched.
+///
+/// ```
+/// let dir = std::env::temp_dir().join("lucent-doc-glob");
+/// for n in ["left01.jpg", "left02.jpg", "left10.jpg", "left01.png"] {
+///     lucent::io::write_atomic(&dir.join(n), b"").unwrap();
+/// }
+/// let spec = format!("{}/left0[0-9].{{jpg,png}}", dir.display());
+/// let names: Vec<String> = lucent::io::glob_files(&spec)
+///     .unwrap()
+///     .iter()
+///     .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+///     .collect();
+/// assert_eq!(names, ["left01.jpg", "left01.png", "left02.jpg"]);
+/// ```
+pub fn glob_files(spec: &str) -> Result<Vec<PathBuf>, GlobError> {
+    let path = Path::new(spec);
+    if path.is_file() || !is_glob(spec) {
+        return Ok(if path.is_file() { vec![path.to_path_buf()] } else { vec![] });
+    }
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+    if dir.is_some_and(|d| is_glob(&d.to_string_lossy())) {
+        return Err(GlobError::WildcardFolder { spec: spec.to_string() });
+    }
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let matcher = globset::GlobBuilder::new(&name)
+        .literal_separator(true)
+        .build()
+        .map_err(|source| GlobError::Pattern { spec: spec.to_string(), source })?
+        .compile_matcher();
+    let dir = dir.unwrap_or(Path::new("."));
+    let entries = std::fs::read_dir(dir).map_err(|source| GlobError::List {
+        spec: spec.to_string(),
+        dir: dir.to_path_buf(),
+        source,
+    })?;
+    let mut out: Vec<PathBuf> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.is_file() && p.file_name().is_some_and(|n| matcher.is_match(Path::new(n))))
+        .collect();
+    out.sort();
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn glob_files_match_classes_alternatives_and_wildcards_in_the_name_only() {
+        let dir = tempfile::tempdir().unwrap();
+        for n in ["left01.jpg", "left02.jpg", "left1.jpg", "left10.png", "a[1].jpg"] {
+            write_atomic(&dir.path().join(n), b"").unwrap();
+        }
+        std::fs::create_dir(dir.path().join("left03.jpg")).unwrap();
+        let names = |pattern: &str| -> Vec<String> {
+            glob_files(&format!("{}/{pattern}", dir.path().display()))
+                .unwrap()
+                .iter()
+                .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+                .collect()
+        };
+        assert_eq!(names("left[0-9][0-9].jpg"), ["left01.jpg", "left02.jpg"], "classes; folders are not files");
+        assert_eq!(names("left?.jpg"), ["left1.jpg"]);
+        assert_eq!(names("left*.{jpg,png}"), ["left01.jpg", "left02.jpg", "left1.jpg", "left10.png"]);
+        assert_eq!(names("left[!0]*"), ["left1.jpg", "left10.png"]);
+        assert_eq!(names("a[1].jpg"), ["a[1].jpg"], "an existing file is itself, brackets and all");
+        assert!(names("*.exr").is_empty());
+        assert!(names("nothing.jpg").is_empty());
+        let e = glob_files(&format!("{}/*/x.jpg", dir.path().display())).unwrap_err().to_string();
+        assert!(e.contains("only supported in the file name"), "{e}");
+        let e = glob_files(&format!("{}/left[0-9.jpg", dir.path().display())).unwrap_err().to_string();
+        assert!(e.contains("left[0-9.jpg"), "{e}");
+    }
 
     #[test]
     fn replaces_whole_file_and_leaves_no_temporary() {

@@ -175,6 +175,32 @@ fn calibrate_errors_name_the_files() {
     assert!(stderr(&o).contains("pinhole-k3, rational, fisheye"), "{}", stderr(&o));
 }
 
+/// `--images` takes globset patterns: a character class picks
+/// left01–left03 (the old hand-written matcher knew only `*`, `?` and
+/// `{a,b}`, and took the pattern for a missing file). A wrong board size
+/// makes the run stop after detection, listing every photo it was given.
+#[test]
+fn calibrate_images_accept_character_classes() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = lucent(&[
+        "calibrate",
+        "--images",
+        "fixtures/camera/chessboard/left0[1-3].jpg",
+        "--board",
+        "10x6",
+        "--square-mm",
+        "25",
+        "--out",
+        s(&dir.path().join("c.json")),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("no photo shows a chessboard of 10x6"), "{e}");
+    for (name, listed) in [("left01.jpg", true), ("left02.jpg", true), ("left03.jpg", true), ("left04.jpg", false)] {
+        assert_eq!(e.contains(name), listed, "{name}: {e}");
+    }
+}
+
 #[test]
 fn undistort_and_pose_use_the_camera() {
     let (_, camera, _) = calibrated();

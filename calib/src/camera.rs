@@ -68,13 +68,13 @@ pub enum DistortionModel {
 }
 
 impl DistortionModel {
-    /// `"pinhole-k3"` or `"rational"`.
-    pub fn from_name(name: &str) -> Result<Self, String> {
+    /// `"pinhole-k3"`, `"rational"` or `"fisheye"`.
+    pub fn from_name(name: &str) -> Result<Self, CameraError> {
         match name.to_ascii_lowercase().as_str() {
             "pinhole-k3" | "k3" | "brown-conrady" => Ok(Self::PinholeK3),
             "rational" => Ok(Self::Rational),
             "fisheye" | "kannala-brandt" => Ok(Self::Fisheye),
-            _ => Err(format!("unknown camera model {name:?}; valid: pinhole-k3, rational, fisheye")),
+            _ => Err(CameraError::UnknownModel { name: name.to_string() }),
         }
     }
 }
@@ -284,6 +284,11 @@ pub const RADIAL_SCALE_RANGE: (f64, f64) = (0.1, 10.0);
 /// Why a camera model cannot be used (see [`CameraModel::validate`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CameraError {
+    #[error("unknown camera model {name:?}; valid: pinhole-k3, rational, fisheye")]
+    UnknownModel { name: String },
+    /// A photo whose size is not the one the camera was calibrated at.
+    #[error("image is {width} × {height} pixels but the camera was calibrated at {camera_width} × {camera_height}")]
+    PhotoSize { width: usize, height: usize, camera_width: usize, camera_height: usize },
     #[error("image size {width} × {height} pixels: each side must be 2 to {MAX_IMAGE_SIDE} pixels")]
     ImageSize { width: usize, height: usize },
     #[error("focal length {name} = {value} px: must be a positive finite number")]
@@ -539,12 +544,18 @@ pub fn sample_bilinear(img: &RgbBuffer, u: f64, v: f64) -> [f32; 3] {
 
 /// Undistorts a linear RGB photo taken by `cam` (its size must be the
 /// calibration's). Returns the image and the intrinsics it has.
-pub fn undistort(img: &RgbBuffer, cam: &CameraModel, new_camera: NewCamera) -> Result<(RgbBuffer, Intrinsics), String> {
+pub fn undistort(
+    img: &RgbBuffer,
+    cam: &CameraModel,
+    new_camera: NewCamera,
+) -> Result<(RgbBuffer, Intrinsics), CameraError> {
     if (img.width, img.height) != (cam.image_width, cam.image_height) {
-        return Err(format!(
-            "image is {} × {} pixels but the camera was calibrated at {} × {}",
-            img.width, img.height, cam.image_width, cam.image_height
-        ));
+        return Err(CameraError::PhotoSize {
+            width: img.width,
+            height: img.height,
+            camera_width: cam.image_width,
+            camera_height: cam.image_height,
+        });
     }
     let new_k = match new_camera {
         NewCamera::Same => cam.intrinsics,
@@ -627,7 +638,7 @@ mod tests {
         }
         assert!(worst < 5e-3, "bilinear resampling error {worst}");
         let wrong = RgbBuffer::zeros(10, 10);
-        assert!(undistort(&wrong, &cam, NewCamera::Same).unwrap_err().contains("64 × 48"));
+        assert!(undistort(&wrong, &cam, NewCamera::Same).unwrap_err().to_string().contains("64 × 48"));
     }
 
     #[test]
@@ -712,7 +723,7 @@ mod tests {
     #[test]
     fn model_names() {
         assert_eq!(DistortionModel::from_name("rational").unwrap(), DistortionModel::Rational);
-        assert!(DistortionModel::from_name("fish").unwrap_err().contains("pinhole-k3, rational, fisheye"));
+        assert!(DistortionModel::from_name("fish").unwrap_err().to_string().contains("pinhole-k3, rational, fisheye"));
         assert_eq!(DistortionModel::from_name("Fisheye").unwrap(), DistortionModel::Fisheye);
         let f = Distortion::from_opencv_fisheye(&[0.1, 0.2, 0.3, 0.4]);
         assert_eq!(f.to_opencv(DistortionModel::Fisheye), [0.1, 0.2, 0.3, 0.4]);
@@ -782,7 +793,7 @@ pub fn calibrate_photos(
     detector: crate::cv::Detector,
 ) -> Result<Calibration, crate::cv::CalibError> {
     use crate::cv::{self, CalibError};
-    let first = photos.first().ok_or_else(|| CalibError::Input("no photos given".into()))?;
+    let first = photos.first().ok_or(CalibError::NoPhotos)?;
     let size = (first.image.width, first.image.height);
     let odd: Vec<String> = photos
         .iter()
@@ -790,13 +801,7 @@ pub fn calibrate_photos(
         .map(|p| format!("{} ({} × {})", p.name, p.image.width, p.image.height))
         .collect();
     if !odd.is_empty() {
-        return Err(CalibError::Input(format!(
-            "photos differ in size: {} is {} × {}, but {}",
-            first.name,
-            size.0,
-            size.1,
-            odd.join(", ")
-        )));
+        return Err(CalibError::PhotoSizes { first: first.name.clone(), width: size.0, height: size.1, others: odd });
     }
     let detections: Vec<Result<Option<cv::Corners>, CalibError>> =
         photos.par_iter().map(|p| cv::find_corners(&p.image, board, detector)).collect();
@@ -809,30 +814,16 @@ pub fn calibrate_photos(
         }
     }
     if found.len() < MIN_VIEWS {
-        let list = not_found.iter().map(|n| format!("  {}: {}", n.image, n.reason)).collect::<Vec<_>>().join("\n");
-        let hint = match photos.iter().find(|p| found.iter().all(|(f, _)| f.name != p.name)) {
-            Some(p) => match cv::suggest_board(&p.image, board)? {
-                Some((c, r)) => {
-                    format!("\n{} does show a board of {c}x{r} inner corners: is --board {c}x{r} meant?", p.name)
-                }
-                None => String::new(),
-            },
-            None => String::new(),
+        let suggestion = match photos.iter().find(|p| found.iter().all(|(f, _)| f.name != p.name)) {
+            Some(p) => cv::suggest_board(&p.image, board)?.map(|(c, r)| (p.name.clone(), c, r)),
+            None => None,
         };
-        let head = if found.is_empty() {
-            format!("no photo shows a chessboard of {}x{} inner corners", board.cols, board.rows)
-        } else {
-            format!(
-                "only {} photo(s) show the {}x{} board ({}); calibration needs at least {MIN_VIEWS} views at different angles",
-                found.len(),
-                board.cols,
-                board.rows,
-                found.iter().map(|(p, _)| p.name.as_str()).collect::<Vec<_>>().join(", ")
-            )
-        };
-        return Err(CalibError::Input(format!(
-            "{head}:\n{list}{hint}\n(--board counts inner corners: a board of 10 × 7 squares has 9x6)"
-        )));
+        return Err(CalibError::TooFewViews {
+            board: *board,
+            found: found.iter().map(|(p, _)| p.name.clone()).collect(),
+            not_found,
+            suggestion,
+        });
     }
     let corners: Vec<Vec<[f64; 2]>> = found.iter().map(|(_, c)| c.points.clone()).collect();
     let solved = cv::calibrate(&corners, board, size, model)?;

@@ -54,11 +54,74 @@ pub enum CalibError {
     Image { path: PathBuf, reason: String },
     #[error("OpenCV {context}: {message}")]
     OpenCv { context: &'static str, message: String },
-    #[error("{0}")]
-    Input(String),
-    /// No ColorChecker found (the root crate's `chart_detect::detect_colorchecker`).
-    #[error("no ColorChecker Classic 24 found: {0}")]
-    ChartNotFound(String),
+    /// A pixel buffer whose length does not match its stated size.
+    #[error(transparent)]
+    Buffer(#[from] crate::BufferSizeError),
+    /// OpenCV returned a result of an unexpected size.
+    #[error("OpenCV {context} returned {got} values, expected {expected}")]
+    OpenCvShape { context: &'static str, got: usize, expected: &'static str },
+    /// `fisheye::calibrate` returned poses for a different number of views.
+    #[error(
+        "fisheye::calibrate returned {rotations} rotation and {translations} translation values for {views} views"
+    )]
+    PoseCount { rotations: usize, translations: usize, views: usize },
+    #[error("no views to calibrate from")]
+    NoViews,
+    #[error("view {view} has {got} corners, the board has {board}")]
+    ViewCorners { view: usize, got: usize, board: usize },
+    #[error("{got} corners for a board of {board}")]
+    Corners { got: usize, board: usize },
+    #[error("corner {index} at ({x:.1}, {y:.1}) px is 90° or more off the fisheye's axis: no pinhole ray for PnP")]
+    BeyondFisheyeAxis { index: usize, x: f64, y: f64 },
+    #[error("solvePnP found no pose for these corners")]
+    NoPose,
+    /// [`crate::camera::calibrate_photos`] was given no photos.
+    #[error("no photos given")]
+    NoPhotos,
+    /// The photos of one calibration differ in size.
+    #[error("photos differ in size: {first} is {width} × {height}, but {}", .others.join(", "))]
+    PhotoSizes { first: String, width: usize, height: usize, others: Vec<String> },
+    /// Fewer than [`crate::camera::MIN_VIEWS`] photos show the board.
+    #[error(
+        "{}:\n{}{}\n(--board counts inner corners: a board of 10 × 7 squares has 9x6)",
+        too_few_views_head(.board, .found),
+        .not_found.iter().map(|n| format!("  {}: {}", n.image, n.reason)).collect::<Vec<_>>().join("\n"),
+        .suggestion.as_ref().map_or(String::new(), |(name, c, r)| format!("\n{name} does show a board of {c}x{r} inner corners: is --board {c}x{r} meant?"))
+    )]
+    TooFewViews {
+        board: BoardSpec,
+        /// Names of the photos that show the board.
+        found: Vec<String>,
+        not_found: Vec<crate::camera::NotFound>,
+        /// A photo without the board and the board size it does show.
+        suggestion: Option<(String, usize, usize)>,
+    },
+    /// An ECC motion model name not in [`crate::ecc::Motion::NAMES`].
+    #[error("motion {name:?}: expected one of {}", crate::ecc::Motion::NAMES.join(", "))]
+    UnknownMotion { name: String },
+    #[error("ECC buffers of {template}, {input} and {mask:?} values for {width} × {height}")]
+    EccBuffers { template: usize, input: usize, mask: Option<usize>, width: usize, height: usize },
+    #[error("ECC needs at least 16 × 16 pixels, got {width} × {height}")]
+    EccTooSmall { width: usize, height: usize },
+    #[error("the ECC region has {used} pixels; at least 64 are needed")]
+    EccRegion { used: usize },
+    #[error("ECC images contain NaN or infinite values")]
+    EccNonFinite,
+}
+
+fn too_few_views_head(board: &BoardSpec, found: &[String]) -> String {
+    if found.is_empty() {
+        format!("no photo shows a chessboard of {}x{} inner corners", board.cols, board.rows)
+    } else {
+        format!(
+            "only {} photo(s) show the {}x{} board ({}); calibration needs at least {} views at different angles",
+            found.len(),
+            board.cols,
+            board.rows,
+            found.join(", "),
+            crate::camera::MIN_VIEWS
+        )
+    }
 }
 
 fn cv_err(context: &'static str) -> impl Fn(opencv::Error) -> CalibError {
@@ -142,7 +205,7 @@ fn bytes_of(m: &Mat) -> Result<Vec<u8>, CalibError> {
 /// Reads an image file as 8-bit grey with OpenCV's codecs (JPEG, PNG, TIFF, …).
 pub fn read_gray(path: &Path) -> Result<GrayImage, CalibError> {
     let m = imread(path, imgcodecs::IMREAD_GRAYSCALE)?;
-    GrayImage::new(m.cols() as usize, m.rows() as usize, bytes_of(&m)?).map_err(|e| CalibError::Input(e.to_string()))
+    Ok(GrayImage::new(m.cols() as usize, m.rows() as usize, bytes_of(&m)?)?)
 }
 
 /// Reads an 8-bit image file (JPEG, PNG, TIFF, …) as RGB with values /255,
@@ -152,17 +215,13 @@ pub fn read_rgb8(path: &Path) -> Result<crate::RgbBuffer, CalibError> {
     let mut rgb = Mat::default();
     imgproc::cvt_color(&bgr, &mut rgb, imgproc::COLOR_BGR2RGB, 0).map_err(cv_err("cvtColor"))?;
     let data = bytes_of(&rgb)?.iter().map(|&b| f32::from(b) / 255.0).collect();
-    crate::RgbBuffer::new(rgb.cols() as usize, rgb.rows() as usize, data).map_err(|e| CalibError::Input(e.to_string()))
+    Ok(crate::RgbBuffer::new(rgb.cols() as usize, rgb.rows() as usize, data)?)
 }
 
 fn gray_mat(img: &GrayImage) -> Result<Mat, CalibError> {
     if img.data.len() != img.width * img.height {
-        return Err(CalibError::Input(format!(
-            "grey image buffer of {} bytes for {} × {}",
-            img.data.len(),
-            img.width,
-            img.height
-        )));
+        let (width, height, len) = (img.width, img.height, img.data.len());
+        return Err(crate::BufferSizeError { width, height, channels: 1, len }.into());
     }
     let m = Mat::new_rows_cols_with_data(img.height as i32, img.width as i32, &img.data).map_err(cv_err("image"))?;
     m.try_clone().map_err(cv_err("image"))
@@ -270,8 +329,7 @@ pub fn find_corners(img: &GrayImage, board: &BoardSpec, detector: Detector) -> R
     let mut small = Mat::default();
     let size = Size::new(img.width.div_ceil(f) as i32, img.height.div_ceil(f) as i32);
     imgproc::resize(&full, &mut small, size, 0.0, 0.0, imgproc::INTER_AREA).map_err(cv_err("resize"))?;
-    let small = GrayImage::new(small.cols() as usize, small.rows() as usize, bytes_of(&small)?)
-        .map_err(|e| CalibError::Input(e.to_string()))?;
+    let small = GrayImage::new(small.cols() as usize, small.rows() as usize, bytes_of(&small)?)?;
     let Some(found) = detect(&small, board, detector)? else {
         return Ok(None);
     };
@@ -396,7 +454,7 @@ fn mat_values(m: &Mat, context: &'static str) -> Result<Vec<f64>, CalibError> {
 }
 
 fn vec3(v: &[f64]) -> Result<[f64; 3], CalibError> {
-    <[f64; 3]>::try_from(v).map_err(|_| CalibError::Input(format!("expected 3 values from OpenCV, got {}", v.len())))
+    <[f64; 3]>::try_from(v).map_err(|_| CalibError::OpenCvShape { context: "vector", got: v.len(), expected: "3" })
 }
 
 /// Result of [`calibrate`]: the camera, OpenCV's overall RMS and one pose per view.
@@ -417,10 +475,10 @@ pub fn calibrate(
 ) -> Result<Solved, CalibError> {
     let n = board.cols * board.rows;
     if let Some(bad) = views.iter().position(|v| v.len() != n) {
-        return Err(CalibError::Input(format!("view {bad} has {} corners, the board has {n}", views[bad].len())));
+        return Err(CalibError::ViewCorners { view: bad, got: views[bad].len(), board: n });
     }
     if views.is_empty() {
-        return Err(CalibError::Input("no views to calibrate from".into()));
+        return Err(CalibError::NoViews);
     }
     let obj: Vector<Vector<Point3f>> = views.iter().map(|_| object_points(board)).collect();
     let img: Vector<Vector<Point2f>> = views.iter().map(|v| image_points(v)).collect();
@@ -440,7 +498,7 @@ pub fn calibrate(
         .map_err(cv_err("calibrateCamera"))?;
     let kv = mat_values(&k, "camera matrix")?;
     if kv.len() != 9 {
-        return Err(CalibError::Input(format!("calibrateCamera returned a camera matrix of {} values", kv.len())));
+        return Err(CalibError::OpenCvShape { context: "calibrateCamera camera matrix", got: kv.len(), expected: "9" });
     }
     let camera = CameraModel {
         model,
@@ -475,7 +533,11 @@ fn calibrate_fisheye(
         .map_err(cv_err("fisheye::calibrate"))?;
     let kv = mat_values(&k, "fisheye camera matrix")?;
     if kv.len() != 9 {
-        return Err(CalibError::Input(format!("fisheye::calibrate returned a camera matrix of {} values", kv.len())));
+        return Err(CalibError::OpenCvShape {
+            context: "fisheye::calibrate camera matrix",
+            got: kv.len(),
+            expected: "9",
+        });
     }
     let camera = CameraModel {
         model: DistortionModel::Fisheye,
@@ -490,12 +552,7 @@ fn calibrate_fisheye(
     };
     let (r, t) = (single(&rvecs, "fisheye rvecs")?, single(&tvecs, "fisheye tvecs")?);
     if r.len() != 3 * obj.len() || t.len() != 3 * obj.len() {
-        return Err(CalibError::Input(format!(
-            "fisheye::calibrate returned {} rotation and {} translation values for {} views",
-            r.len(),
-            t.len(),
-            obj.len()
-        )));
+        return Err(CalibError::PoseCount { rotations: r.len(), translations: t.len(), views: obj.len() });
     }
     let poses = r
         .chunks_exact(3)
@@ -510,18 +567,13 @@ fn calibrate_fisheye(
 pub fn solve_pnp(corners: &[[f64; 2]], board: &BoardSpec, cam: &CameraModel) -> Result<Pose, CalibError> {
     let n = board.cols * board.rows;
     if corners.len() != n {
-        return Err(CalibError::Input(format!("{} corners for a board of {n}", corners.len())));
+        return Err(CalibError::Corners { got: corners.len(), board: n });
     }
     let obj = object_points(board);
     let (img, k, d) = if cam.model == DistortionModel::Fisheye {
         let mut norm = Vec::with_capacity(n);
         for (i, c) in corners.iter().enumerate() {
-            let r = cam.pixel_to_ray(c[0], c[1]).ok_or_else(|| {
-                CalibError::Input(format!(
-                    "corner {i} at ({:.1}, {:.1}) px is 90° or more off the fisheye's axis: no pinhole ray for PnP",
-                    c[0], c[1]
-                ))
-            })?;
+            let r = cam.pixel_to_ray(c[0], c[1]).ok_or(CalibError::BeyondFisheyeAxis { index: i, x: c[0], y: c[1] })?;
             norm.push([r[0], r[1]]);
         }
         let identity = Intrinsics { fx: 1.0, fy: 1.0, cx: 0.0, cy: 0.0 };
@@ -535,7 +587,7 @@ pub fn solve_pnp(corners: &[[f64; 2]], board: &BoardSpec, cam: &CameraModel) -> 
     let ok = calib3d::solve_pnp(&obj, &img, &k, &d, &mut r, &mut t, false, calib3d::SOLVEPNP_IPPE)
         .map_err(cv_err("solvePnP (IPPE)"))?;
     if !ok {
-        return Err(CalibError::Input("solvePnP found no pose for these corners".into()));
+        return Err(CalibError::NoPose);
     }
     calib3d::solve_pnp(&obj, &img, &k, &d, &mut r, &mut t, true, calib3d::SOLVEPNP_ITERATIVE)
         .map_err(cv_err("solvePnP (iterative)"))?;
@@ -712,7 +764,7 @@ pub struct MccChart {
 /// interleaved R, G, B bytes); `Ok(None)` when it finds no chart.
 pub fn detect_mcc24(width: usize, height: usize, rgb8: &[u8]) -> Result<Option<MccChart>, CalibError> {
     if width.checked_mul(height).and_then(|n| n.checked_mul(3)) != Some(rgb8.len()) || width == 0 || height == 0 {
-        return Err(CalibError::Input(format!("RGB buffer of {} bytes for {width} × {height}", rgb8.len())));
+        return Err(crate::BufferSizeError { width, height, channels: 3, len: rgb8.len() }.into());
     }
     let pixels: Vec<core::Vec3b> = rgb8.chunks_exact(3).map(|p| core::Vec3b::from([p[2], p[1], p[0]])).collect();
     let bgr = Mat::new_rows_cols_with_data(height as i32, width as i32, &pixels)
@@ -749,17 +801,13 @@ pub fn recover_response(
     use crate::hdr::{HdrError, ResponseMethod};
     use opencv::photo;
     fn err(what: &'static str) -> impl Fn(opencv::Error) -> crate::hdr::HdrError {
-        move |e| crate::hdr::HdrError::Response(format!("OpenCV {what}: {}", e.message))
+        move |e| crate::hdr::HdrError::OpenCv { context: what, message: e.message }
     }
     let mut images: Vector<Mat> = Vector::new();
     for b in brackets {
         if b.data.len() != b.width * b.height * 3 {
-            return Err(HdrError::Response(format!(
-                "RGB buffer of {} bytes for {} × {}",
-                b.data.len(),
-                b.width,
-                b.height
-            )));
+            let (width, height, len) = (b.width, b.height, b.data.len());
+            return Err(crate::BufferSizeError { width, height, channels: 3, len }.into());
         }
         // Channel order is carried through unchanged (R, G, B in, R, G, B out).
         let pixels: Vec<core::Vec3b> = b.data.chunks_exact(3).map(|p| core::Vec3b::from([p[0], p[1], p[2]])).collect();
@@ -782,12 +830,7 @@ pub fn recover_response(
         }
     }
     if dst.rows() != 256 || dst.cols() != 1 || dst.typ() != core::CV_32FC3 {
-        return Err(HdrError::Response(format!(
-            "unexpected response of {} × {} (type {})",
-            dst.rows(),
-            dst.cols(),
-            dst.typ()
-        )));
+        return Err(HdrError::ResponseShape { rows: dst.rows(), cols: dst.cols(), typ: dst.typ() });
     }
     let mut curve = [vec![0f32; 256], vec![0f32; 256], vec![0f32; 256]];
     for z in 0..256 {
@@ -797,10 +840,7 @@ pub fn recover_response(
         }
     }
     if curve.iter().flatten().any(|v| !(v.is_finite() && *v > 0.0)) {
-        return Err(HdrError::Response(
-            "the recovered response has non-positive or non-finite values (too few brackets, or brackets without overlap)"
-                .into(),
-        ));
+        return Err(HdrError::ResponseNotPositive);
     }
     Ok(crate::hdr::Response { method, curve })
 }

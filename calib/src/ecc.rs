@@ -67,7 +67,7 @@ impl Motion {
             "euclidean" => Ok(Self::Euclidean),
             "affine" => Ok(Self::Affine),
             "homography" => Ok(Self::Homography),
-            other => Err(CalibError::Input(format!("motion {other:?}: expected one of {}", Self::NAMES.join(", ")))),
+            other => Err(CalibError::UnknownMotion { name: other.to_string() }),
         }
     }
 
@@ -154,26 +154,27 @@ pub fn find_transform_ecc(
     mask: Option<&[u8]>,
     options: &EccOptions,
 ) -> Result<EccResult, CalibError> {
-    let n = width.checked_mul(height).ok_or_else(|| CalibError::Input("image size overflows".into()))?;
-    if template.len() != n || input.len() != n || mask.is_some_and(|m| m.len() != n) {
-        return Err(CalibError::Input(format!(
-            "ECC buffers of {}, {} and {:?} values for {width} × {height}",
-            template.len(),
-            input.len(),
-            mask.map(<[u8]>::len)
-        )));
+    let n = width.checked_mul(height);
+    if n.is_none_or(|n| template.len() != n || input.len() != n || mask.is_some_and(|m| m.len() != n)) {
+        return Err(CalibError::EccBuffers {
+            template: template.len(),
+            input: input.len(),
+            mask: mask.map(<[u8]>::len),
+            width,
+            height,
+        });
     }
     if width < 16 || height < 16 {
-        return Err(CalibError::Input(format!("ECC needs at least 16 × 16 pixels, got {width} × {height}")));
+        return Err(CalibError::EccTooSmall { width, height });
     }
     if let Some(m) = mask {
         let used = m.iter().filter(|&&v| v != 0).count();
         if used < 64 {
-            return Err(CalibError::Input(format!("the ECC region has {used} pixels; at least 64 are needed")));
+            return Err(CalibError::EccRegion { used });
         }
     }
     if template.iter().chain(input).any(|v| !v.is_finite()) {
-        return Err(CalibError::Input("ECC images contain NaN or infinite values".into()));
+        return Err(CalibError::EccNonFinite);
     }
     // Pyramid, finest first.
     let mut levels = vec![(
@@ -182,7 +183,8 @@ pub fn find_transform_ecc(
         mask.map(|m| u8_mat(m, width, height)).transpose()?,
     )];
     loop {
-        let (t, i, m) = levels.last().ok_or_else(|| CalibError::Input("empty pyramid".into()))?;
+        // `levels` starts with one level and only grows.
+        let (t, i, m) = &levels[levels.len() - 1];
         let (w, h) = (t.cols() as usize, t.rows() as usize);
         if w.max(h) <= PYRAMID_MAX_SIDE || w.min(h) < 64 {
             break;
@@ -241,7 +243,9 @@ pub fn find_transform_ecc(
         warp = match v.len() {
             6 => [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [0.0, 0.0, 1.0]],
             9 => [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]],
-            len => return Err(CalibError::Input(format!("findTransformECC returned a warp of {len} values"))),
+            len => {
+                return Err(CalibError::OpenCvShape { context: "findTransformECC warp", got: len, expected: "6 or 9" })
+            }
         };
     }
     Ok(EccResult { motion: options.motion, warp, correlation, levels: count })

@@ -57,12 +57,33 @@ pub enum EnvError {
     NotEquirectangular { width: usize, height: usize },
     #[error("{count} pixel values are NaN or infinite (first at x = {x}, y = {y})")]
     NonFinite { count: usize, x: usize, y: usize },
-    #[error("colour matrix: {0}")]
-    Matrix(String),
-    #[error("view: {0}")]
-    View(String),
-    #[error("orientation: {0}")]
-    Orientation(String),
+    #[error("colour matrix: {reason}; give 9 numbers row-major, a JSON [[..],[..],[..]] or {{\"matrix\": [[..],..]}}")]
+    MatrixSyntax { reason: &'static str },
+    #[error("colour matrix: {text:?} is not a number; give 9 numbers row-major, a JSON [[..],[..],[..]] or {{\"matrix\": [[..],..]}}")]
+    MatrixNumber { text: String },
+    #[error("colour matrix: found {count} numbers; give 9 numbers row-major, a JSON [[..],[..],[..]] or {{\"matrix\": [[..],..]}}")]
+    MatrixCount { count: usize },
+    #[error("view: yaw {yaw_deg}° must be finite")]
+    Yaw { yaw_deg: f64 },
+    #[error("view: pitch {pitch_deg}° must be within [−90°, 90°]")]
+    Pitch { pitch_deg: f64 },
+    #[error("view: field of view {fov_deg}° must be within (0°, 180°)")]
+    FieldOfView { fov_deg: f64 },
+    #[error("view: size {width} × {height} must be 1 to 16384 pixels each way")]
+    ViewSize { width: usize, height: usize },
+    /// A photo whose size is not the one its camera was calibrated at.
+    #[error(
+        "view: image is {width} × {height} pixels but the camera was calibrated at {camera_width} × {camera_height}"
+    )]
+    PhotoSize { width: usize, height: usize, camera_width: usize, camera_height: usize },
+    #[error("view: map width {width} must be even, 2 to 32768 pixels")]
+    MapWidth { width: usize },
+    /// A picture to paste whose size is not the view's.
+    #[error("view: picture of {width} × {height} pixels for a view of {view_width} × {view_height}")]
+    PictureSize { width: usize, height: usize, view_width: usize, view_height: usize },
+    /// An orientation file used with a map it was not made for.
+    #[error("orientation: it is for {source_map} (yaw {source_yaw_deg}°) or its turned copy {output_map} (yaw {output_yaw_deg}°), not for {map}")]
+    OtherMap { source_map: String, source_yaw_deg: f64, output_map: String, output_yaw_deg: f64, map: String },
 }
 
 /// Checks the 2:1 aspect ratio of an equirectangular map.
@@ -98,11 +119,7 @@ pub fn apply_matrix(img: &mut RgbBuffer, m: &[[f64; 3]; 3]) {
 /// a `"matrix"` key holding one, or nine numbers separated by commas,
 /// semicolons or spaces (row-major).
 pub fn parse_matrix(text: &str) -> Result<[[f64; 3]; 3], EnvError> {
-    let bad = |why: &str| {
-        EnvError::Matrix(format!(
-            "{why}; give 9 numbers row-major, a JSON [[..],[..],[..]] or {{\"matrix\": [[..],..]}}"
-        ))
-    };
+    let bad = |reason| EnvError::MatrixSyntax { reason };
     // Numbers in order of appearance; a JSON object's other keys must not hold numbers.
     let t = text.trim();
     let body = if t.starts_with('{') {
@@ -130,10 +147,10 @@ pub fn parse_matrix(text: &str) -> Result<[[f64; 3]; 3], EnvError> {
     let nums: Vec<f64> = body
         .split(|c: char| c == ',' || c == ';' || c == '[' || c == ']' || c.is_whitespace())
         .filter(|s| !s.is_empty())
-        .map(|s| s.parse::<f64>().map_err(|_| bad(&format!("{s:?} is not a number"))))
+        .map(|s| s.parse::<f64>().map_err(|_| EnvError::MatrixNumber { text: s.to_string() }))
         .collect::<Result<_, _>>()?;
     if nums.len() != 9 {
-        return Err(bad(&format!("found {} numbers", nums.len())));
+        return Err(EnvError::MatrixCount { count: nums.len() });
     }
     if nums.iter().any(|v| !v.is_finite()) {
         return Err(bad("values must be finite"));
@@ -214,18 +231,17 @@ pub struct ViewCamera {
 impl ViewSpec {
     /// Checks the parameters and builds the view's camera.
     pub fn camera(&self) -> Result<ViewCamera, EnvError> {
-        let bad = |m: String| Err(EnvError::View(m));
         if !self.yaw_deg.is_finite() {
-            return bad(format!("yaw {}° must be finite", self.yaw_deg));
+            return Err(EnvError::Yaw { yaw_deg: self.yaw_deg });
         }
         if !(self.pitch_deg.is_finite() && self.pitch_deg.abs() <= 90.0) {
-            return bad(format!("pitch {}° must be within [−90°, 90°]", self.pitch_deg));
+            return Err(EnvError::Pitch { pitch_deg: self.pitch_deg });
         }
         if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
-            return bad(format!("field of view {}° must be within (0°, 180°)", self.fov_deg));
+            return Err(EnvError::FieldOfView { fov_deg: self.fov_deg });
         }
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
-            return bad(format!("size {} × {} must be 1 to 16384 pixels each way", self.width, self.height));
+            return Err(EnvError::ViewSize { width: self.width, height: self.height });
         }
         let (sy, cy) = self.yaw_deg.to_radians().sin_cos();
         let (sp, cp) = self.pitch_deg.to_radians().sin_cos();
@@ -418,7 +434,16 @@ mod view_tests {
             [(f64::NAN, 0.0, 60.0, 9), (0.0, 91.0, 60.0, 9), (0.0, 0.0, 180.0, 9), (0.0, 0.0, 60.0, 0)]
         {
             let spec = ViewSpec { yaw_deg: yaw, pitch_deg: pitch, fov_deg: fov, width: w, height: 9 };
-            assert!(matches!(perspective_view(&map, &spec), Err(EnvError::View(_))), "{spec:?}");
+            assert!(
+                matches!(
+                    perspective_view(&map, &spec),
+                    Err(EnvError::Yaw { .. }
+                        | EnvError::Pitch { .. }
+                        | EnvError::FieldOfView { .. }
+                        | EnvError::ViewSize { .. })
+                ),
+                "{spec:?}"
+            );
         }
     }
 }
@@ -437,7 +462,7 @@ pub const ORIENTATION_CONVENTION: &str =
 pub fn rotate_yaw(map: &RgbBuffer, yaw_deg: f64) -> Result<RgbBuffer, EnvError> {
     check_equirectangular(map.width, map.height)?;
     if !yaw_deg.is_finite() {
-        return Err(EnvError::View(format!("yaw {yaw_deg}° must be finite")));
+        return Err(EnvError::Yaw { yaw_deg });
     }
     let w = map.width;
     let shift = (yaw_deg / 360.0).rem_euclid(1.0) * w as f64;
@@ -627,10 +652,13 @@ impl Orientation {
         } else if map_file_name == self.source {
             Ok(self.source_yaw_deg)
         } else {
-            Err(EnvError::Orientation(format!(
-                "it is for {} (yaw {}°) or its turned copy {} (yaw {}°), not for {map_file_name}",
-                self.source, self.source_yaw_deg, self.output, self.output_yaw_deg
-            )))
+            Err(EnvError::OtherMap {
+                source_map: self.source.clone(),
+                source_yaw_deg: self.source_yaw_deg,
+                output_map: self.output.clone(),
+                output_yaw_deg: self.output_yaw_deg,
+                map: map_file_name.to_string(),
+            })
         }
     }
 }
@@ -682,13 +710,15 @@ pub fn lens_ray_of_map_direction(d: [f64; 3]) -> [f64; 3] {
 /// stitching is not done here.
 pub fn lens_to_equirect(img: &RgbBuffer, cam: &CameraModel, width: usize) -> Result<RgbBuffer, EnvError> {
     if (img.width, img.height) != (cam.image_width, cam.image_height) {
-        return Err(EnvError::View(format!(
-            "image is {} × {} pixels but the camera was calibrated at {} × {}",
-            img.width, img.height, cam.image_width, cam.image_height
-        )));
+        return Err(EnvError::PhotoSize {
+            width: img.width,
+            height: img.height,
+            camera_width: cam.image_width,
+            camera_height: cam.image_height,
+        });
     }
     if width < 2 || !width.is_multiple_of(2) || width > 32768 {
-        return Err(EnvError::View(format!("map width {width} must be even, 2 to 32768 pixels")));
+        return Err(EnvError::MapWidth { width });
     }
     let h = width / 2;
     let mut out = RgbBuffer::zeros(width, h);
@@ -718,10 +748,12 @@ pub fn lens_to_equirect(img: &RgbBuffer, cam: &CameraModel, width: usize) -> Res
 pub fn paste_view(map: &mut RgbBuffer, img: &RgbBuffer, spec: &ViewSpec) -> Result<usize, EnvError> {
     check_equirectangular(map.width, map.height)?;
     if (img.width, img.height) != (spec.width, spec.height) {
-        return Err(EnvError::View(format!(
-            "picture of {} × {} pixels for a view of {} × {}",
-            img.width, img.height, spec.width, spec.height
-        )));
+        return Err(EnvError::PictureSize {
+            width: img.width,
+            height: img.height,
+            view_width: spec.width,
+            view_height: spec.height,
+        });
     }
     let cam = spec.camera()?;
     let (w, h) = (map.width, map.height);

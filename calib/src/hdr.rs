@@ -74,10 +74,24 @@ pub enum HdrError {
     SameExposure { a: usize, b: usize, value: f64 },
     #[error("bracket {index} has a NaN or infinite value at x = {x}, y = {y}")]
     NonFinite { index: usize, x: usize, y: usize },
-    #[error("{0}")]
-    Parameter(String),
+    #[error("response method {name:?}: use debevec or robertson")]
+    UnknownResponseMethod { name: String },
+    #[error("saturation {saturation} and noise floor {noise_floor} must be finite with 0 ≤ 2 × floor < saturation")]
+    LinearWeights { saturation: f32, noise_floor: f32 },
+    #[error("floor code {floor} must be below the saturation code {saturation}")]
+    CodeWeights { floor: u8, saturation: u8 },
+    #[error(
+        "camera response recovery failed: channel {channel}: the inverse response must hold 256 positive finite values"
+    )]
+    BadResponse { channel: usize },
+    #[error("camera response recovery failed: OpenCV {context}: {message}")]
+    OpenCv { context: &'static str, message: String },
     #[error("camera response recovery failed: {0}")]
-    Response(String),
+    Buffer(#[from] crate::BufferSizeError),
+    #[error("camera response recovery failed: unexpected response of {rows} × {cols} (type {typ})")]
+    ResponseShape { rows: i32, cols: i32, typ: i32 },
+    #[error("camera response recovery failed: the recovered response has non-positive or non-finite values (too few brackets, or brackets without overlap)")]
+    ResponseNotPositive,
 }
 
 /// An 8-bit RGB image: `width × height` interleaved R, G, B bytes, row-major.
@@ -145,7 +159,7 @@ impl ResponseMethod {
         match name.to_ascii_lowercase().as_str() {
             "debevec" | "debevec-malik" => Ok(Self::Debevec),
             "robertson" => Ok(Self::Robertson),
-            _ => Err(HdrError::Parameter(format!("response method {name:?}: use debevec or robertson"))),
+            _ => Err(HdrError::UnknownResponseMethod { name: name.to_string() }),
         }
     }
 
@@ -358,10 +372,7 @@ pub fn merge_linear(brackets: &[RgbBuffer], exposures: &[f64], w: &LinearWeights
         && w.noise_floor >= 0.0
         && w.saturation > 2.0 * w.noise_floor)
     {
-        return Err(HdrError::Parameter(format!(
-            "saturation {} and noise floor {} must be finite with 0 ≤ 2 × floor < saturation",
-            w.saturation, w.noise_floor
-        )));
+        return Err(HdrError::LinearWeights { saturation: w.saturation, noise_floor: w.noise_floor });
     }
     for (index, b) in brackets.iter().enumerate() {
         if let Some(k) = b.data.iter().position(|v| !v.is_finite()) {
@@ -402,16 +413,11 @@ pub fn merge_8bit(
 ) -> Result<Merged, HdrError> {
     check_8bit(brackets, exposures)?;
     if w.floor >= w.saturation {
-        return Err(HdrError::Parameter(format!(
-            "floor code {} must be below the saturation code {}",
-            w.floor, w.saturation
-        )));
+        return Err(HdrError::CodeWeights { floor: w.floor, saturation: w.saturation });
     }
     for (c, curve) in response.curve.iter().enumerate() {
         if curve.len() != 256 || curve.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
-            return Err(HdrError::Response(format!(
-                "channel {c}: the inverse response must hold 256 positive finite values"
-            )));
+            return Err(HdrError::BadResponse { channel: c });
         }
     }
     let (width, height) = (brackets[0].width, brackets[0].height);
@@ -518,7 +524,7 @@ mod tests {
             HdrError::NonFinite { index: 1, x: 1, y: 0 }
         );
         let bad = LinearWeights { saturation: 0.001, noise_floor: 0.002 };
-        assert!(matches!(merge_linear(&[a.clone(), a], &[1.0, 2.0], &bad), Err(HdrError::Parameter(_))));
+        assert!(matches!(merge_linear(&[a.clone(), a], &[1.0, 2.0], &bad), Err(HdrError::LinearWeights { .. })));
         assert!(ResponseMethod::from_name("mitsunaga").unwrap_err().to_string().contains("debevec or robertson"));
     }
 

@@ -89,13 +89,27 @@ pub enum WhiteBalance {
 
 impl WhiteBalance {
     /// `"none"` or `"camera"`.
-    pub fn from_name(name: &str) -> Result<Self, String> {
+    pub fn from_name(name: &str) -> Result<Self, UnknownWhiteBalance> {
         match name.to_ascii_lowercase().as_str() {
             "none" => Ok(Self::None),
             "camera" | "as-shot" => Ok(Self::Camera),
-            _ => Err(format!("unknown white balance {name:?}; valid: none, camera")),
+            _ => Err(UnknownWhiteBalance { name: name.to_string() }),
         }
     }
+}
+
+/// A white-balance name that [`WhiteBalance::from_name`] does not know.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("unknown white balance {name:?}; valid: none, camera")]
+pub struct UnknownWhiteBalance {
+    pub name: String,
+}
+
+/// A TIFF directory structure that runs past the end of its file ([`tiff_data_end`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("its TIFF directory structure runs past the end of the file ({file_len} bytes)")]
+pub struct TiffTruncated {
+    pub file_len: usize,
 }
 
 /// Options of [`develop`] and [`decode_raw`].
@@ -230,9 +244,9 @@ struct ExifInfo {
     dng: bool,
 }
 
-fn read_exif(bytes: &[u8]) -> Result<ExifInfo, String> {
+fn read_exif(bytes: &[u8]) -> Result<ExifInfo, exif::Error> {
     use exif::{Context, In, Tag, Value};
-    let e = exif::Reader::new().read_from_container(&mut std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?;
+    let e = exif::Reader::new().read_from_container(&mut std::io::Cursor::new(bytes))?;
     let rational = |t: Tag| {
         e.get_field(t, In::PRIMARY).and_then(|f| match &f.value {
             Value::Rational(v) => v.first().map(|r| r.to_f64()).filter(|x| x.is_finite()),
@@ -292,7 +306,7 @@ fn masked_black(data: &[u16], width: usize, height: usize, areas: &[(u64, u64, u
 /// TIFF; an error when an IFD lies outside the file. Used to refuse
 /// truncated files, which `rawloader` would decode with the missing data
 /// made up.
-pub fn tiff_data_end(bytes: &[u8]) -> Result<Option<u64>, String> {
+pub fn tiff_data_end(bytes: &[u8]) -> Result<Option<u64>, TiffTruncated> {
     let le = match bytes.get(..4) {
         Some([b'I', b'I', 42, 0]) => true,
         Some([b'M', b'M', 0, 42]) => false,
@@ -300,7 +314,7 @@ pub fn tiff_data_end(bytes: &[u8]) -> Result<Option<u64>, String> {
     };
     match tiff_walk(bytes, le) {
         Some(end) => Ok(Some(end)),
-        None => Err(format!("its TIFF directory structure runs past the end of the file ({} bytes)", bytes.len())),
+        None => Err(TiffTruncated { file_len: bytes.len() }),
     }
 }
 
@@ -737,13 +751,13 @@ mod tests {
         entry(&mut b, 74, 325, 4, 1000);
         assert_eq!(tiff_data_end(&b), Ok(Some(1200)));
         assert_eq!(tiff_data_end(b"not a tiff"), Ok(None));
-        assert!(tiff_data_end(&b[..12]).unwrap_err().contains("past the end"), "IFD cut off");
+        assert!(tiff_data_end(&b[..12]).unwrap_err().to_string().contains("past the end"), "IFD cut off");
     }
 
     #[test]
     fn white_balance_names() {
         assert_eq!(WhiteBalance::from_name("Camera").unwrap(), WhiteBalance::Camera);
-        assert!(WhiteBalance::from_name("auto").unwrap_err().contains("none, camera"));
+        assert!(WhiteBalance::from_name("auto").unwrap_err().to_string().contains("none, camera"));
     }
 }
 

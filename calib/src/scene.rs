@@ -164,18 +164,29 @@ pub struct BoardSpec {
     pub square_m: f64,
 }
 
+/// What is wrong with a board given as text ([`BoardSpec::parse`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoardError {
+    #[error("board {text:?}: expected COLSxROWS inner corners, e.g. 9x6 (a board of 10 × 7 squares)")]
+    Syntax { text: String },
+    #[error("board {text:?}: needs at least 3 × 3 inner corners (OpenCV's detectors)")]
+    TooSmall { text: String },
+    #[error("square size {square_mm} mm: must be a positive number")]
+    Square { square_mm: f64 },
+}
+
 impl BoardSpec {
     /// From "COLSxROWS" (inner corners, e.g. "9x6") and the square size in mm.
-    pub fn parse(text: &str, square_mm: f64) -> Result<Self, String> {
-        let bad = || format!("board {text:?}: expected COLSxROWS inner corners, e.g. 9x6 (a board of 10 × 7 squares)");
+    pub fn parse(text: &str, square_mm: f64) -> Result<Self, BoardError> {
+        let bad = || BoardError::Syntax { text: text.to_string() };
         let (a, b) = text.trim().split_once(['x', 'X', '×']).ok_or_else(bad)?;
         let cols: usize = a.trim().parse().map_err(|_| bad())?;
         let rows: usize = b.trim().parse().map_err(|_| bad())?;
         if cols < 3 || rows < 3 {
-            return Err(format!("board {text:?}: needs at least 3 × 3 inner corners (OpenCV's detectors)"));
+            return Err(BoardError::TooSmall { text: text.to_string() });
         }
         if !(square_mm.is_finite() && square_mm > 0.0) {
-            return Err(format!("square size {square_mm} mm: must be a positive number"));
+            return Err(BoardError::Square { square_mm });
         }
         Ok(Self { cols, rows, square_m: square_mm / 1000.0 })
     }
@@ -437,7 +448,7 @@ mod tests {
         assert!((b.square_m - 0.025).abs() < 1e-15);
         assert_eq!(b.corners()[1], [0.025, 0.0, 0.0]);
         assert_eq!(b.corners()[9], [0.0, 0.025, 0.0]);
-        assert!(BoardSpec::parse("9", 25.0).unwrap_err().contains("COLSxROWS"));
+        assert!(BoardSpec::parse("9", 25.0).unwrap_err().to_string().contains("COLSxROWS"));
         assert!(BoardSpec::parse("2x6", 25.0).is_err());
         assert!(BoardSpec::parse("9x6", 0.0).is_err());
         assert!(BoardSpec::parse("9x6", f64::NAN).is_err());

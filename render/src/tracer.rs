@@ -126,8 +126,16 @@ pub enum SceneError {
     BadCoefficients { band: usize, sigma_s: f64, sigma_a: f64 },
     #[error("boundary band {band}: the relative index n = {eta} must be finite and > 0")]
     BadIndex { band: usize, eta: f64 },
-    #[error("board: {0}")]
-    BadBoard(String),
+    #[error("board: square size {square_m} m must be finite and > 0")]
+    BoardSquare { square_m: f64 },
+    #[error("board: the board needs at least one row and one column (got {columns} × {rows})")]
+    BoardEmpty { columns: usize, rows: usize },
+    #[error("board: margin {margin_m} m must be finite and ≥ 0")]
+    BoardMargin { margin_m: f64 },
+    #[error("board: edge directions u and v must be orthonormal")]
+    BoardAxes,
+    #[error("board: reflectances must lie in [0, 1] (a texture must have width × height pixels)")]
+    BoardReflectance,
     #[error("the object has no triangles")]
     EmptyObject,
     #[error("rough boundary: {0}")]
@@ -257,21 +265,20 @@ pub struct Board {
 
 impl Board {
     fn check(&self) -> Result<(), SceneError> {
-        let bad = |s: &str| Err(SceneError::BadBoard(s.to_string()));
         if !(self.square_m > 0.0 && self.square_m.is_finite()) {
-            return bad("square size must be finite and > 0");
+            return Err(SceneError::BoardSquare { square_m: self.square_m });
         }
         if self.columns == 0 || self.rows == 0 {
-            return bad("the board needs at least one row and one column");
+            return Err(SceneError::BoardEmpty { columns: self.columns, rows: self.rows });
         }
         if !(self.margin_m >= 0.0 && self.margin_m.is_finite()) {
-            return bad("margin must be finite and ≥ 0");
+            return Err(SceneError::BoardMargin { margin_m: self.margin_m });
         }
         if (self.u.length() - 1.0).abs() > 1e-9
             || (self.v.length() - 1.0).abs() > 1e-9
             || self.u.dot(self.v).abs() > 1e-9
         {
-            return bad("edge directions u and v must be orthonormal");
+            return Err(SceneError::BoardAxes);
         }
         let rho_ok = |r: &[f64; 3]| r.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x));
         let ok = match &self.reflectance {
@@ -281,7 +288,7 @@ impl Board {
             }
         };
         if !ok || !rho_ok(&self.margin) {
-            return bad("reflectances must lie in [0, 1] (a texture must have width × height pixels)");
+            return Err(SceneError::BoardReflectance);
         }
         Ok(())
     }

@@ -55,8 +55,9 @@ pub struct RawDecodeArgs {
 
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
-    /// Photos of the chessboard: a folder, a file, or a pattern such as 'DIR/*.jpg' or
-    /// 'DIR/*.{jpg,png,exr}' (quote it). JPEG/PNG/TIFF, EXR/HDR and RAW files are read.
+    /// Photos of the chessboard: a folder, a file, or a pattern in the file name such as
+    /// 'DIR/*.jpg', 'DIR/*.{jpg,png,exr}' or 'DIR/left0[1-5].jpg' (quote it). JPEG/PNG/TIFF,
+    /// EXR/HDR and RAW files are read.
     #[arg(long, required = true, num_args = 1..)]
     pub images: Vec<String>,
     /// Inner corners COLSxROWS, e.g. 9x6 for a board of 10 × 7 squares.
@@ -259,30 +260,9 @@ fn raw_decode(a: RawDecodeArgs) -> Result<()> {
 
 // ---------------------------------------------------------------- calibrate
 
-/// Expands `{a,b}` alternatives (one level, possibly several groups).
-fn expand_braces(pattern: &str) -> Vec<String> {
-    if let (Some(open), Some(close)) = (pattern.find('{'), pattern.find('}')) {
-        if open < close {
-            let (head, body, tail) = (&pattern[..open], &pattern[open + 1..close], &pattern[close + 1..]);
-            return body.split(',').flat_map(|alt| expand_braces(&format!("{head}{alt}{tail}"))).collect();
-        }
-    }
-    vec![pattern.to_string()]
-}
-
-/// `*` and `?` wildcard match of a whole file name (case-sensitive).
-fn wildcard(pattern: &[char], name: &[char]) -> bool {
-    match (pattern.first(), name.first()) {
-        (None, None) => true,
-        (Some('*'), _) => wildcard(&pattern[1..], name) || (!name.is_empty() && wildcard(pattern, &name[1..])),
-        (Some('?'), Some(_)) => wildcard(&pattern[1..], &name[1..]),
-        (Some(p), Some(n)) if p == n => wildcard(&pattern[1..], &name[1..]),
-        _ => false,
-    }
-}
-
-/// Files named by a folder, a file, or a wildcard pattern in the file-name
-/// part (`DIR/*.jpg`, `DIR/left??.{jpg,png}`), sorted.
+/// Files named by a folder, a file, or a glob pattern in the file-name
+/// part (`DIR/*.jpg`, `DIR/left??.{jpg,png}`, `DIR/left0[1-5].jpg`; see
+/// [`crate::io::glob_files`]), sorted.
 pub fn expand_images(spec: &str) -> Result<Vec<PathBuf>> {
     let path = Path::new(spec);
     if path.is_dir() {
@@ -300,31 +280,13 @@ pub fn expand_images(spec: &str) -> Result<Vec<PathBuf>> {
         }
         return Ok(files);
     }
-    if !spec.contains(['*', '?', '{']) {
-        if path.is_file() {
-            return Ok(vec![path.to_path_buf()]);
-        }
+    if path.is_file() {
+        return Ok(vec![path.to_path_buf()]);
+    }
+    if !crate::io::is_glob(spec) {
         bail!("{spec}: no such file or folder");
     }
-    let mut files = Vec::new();
-    for alt in expand_braces(spec) {
-        let p = Path::new(&alt);
-        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        if dir.to_string_lossy().contains(['*', '?']) {
-            bail!("{spec}: wildcards are only supported in the file name, not in folders");
-        }
-        let pat: Vec<char> = p.file_name().map(|n| n.to_string_lossy().chars().collect()).unwrap_or_default();
-        let entries = std::fs::read_dir(dir)
-            .with_context(|| format!("{}: cannot list folder (from --images {spec})", dir.display()))?;
-        for e in entries.filter_map(|e| e.ok()) {
-            let name: Vec<char> = e.file_name().to_string_lossy().chars().collect();
-            if e.path().is_file() && wildcard(&pat, &name) {
-                files.push(e.path());
-            }
-        }
-    }
-    files.sort();
-    files.dedup();
+    let files = crate::io::glob_files(spec).context("--images")?;
     if files.is_empty() {
         bail!("--images {spec}: no files match");
     }
@@ -791,21 +753,4 @@ fn env_convert(a: EnvConvertArgs) -> Result<()> {
         }
     );
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn braces_and_wildcards() {
-        assert_eq!(expand_braces("d/*.{jpg,png}"), ["d/*.jpg", "d/*.png"]);
-        assert_eq!(expand_braces("a{1,2}b{x,y}"), ["a1bx", "a1by", "a2bx", "a2by"]);
-        let m = |p: &str, n: &str| wildcard(&p.chars().collect::<Vec<_>>(), &n.chars().collect::<Vec<_>>());
-        assert!(m("*.jpg", "left01.jpg"));
-        assert!(m("left??.jpg", "left01.jpg"));
-        assert!(!m("left?.jpg", "left01.jpg"));
-        assert!(!m("*.jpg", "left01.png"));
-        assert!(m("*", ""));
-    }
 }

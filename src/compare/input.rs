@@ -23,7 +23,7 @@
 //! assert!(e.contains("render") && e.contains("(1, 1)") && e.contains("G"), "{e}");
 //! ```
 
-use super::CompareError;
+use super::{CompareError, ReadProblem};
 use crate::imageio::{extension, RgbImage};
 use std::path::Path;
 
@@ -37,23 +37,23 @@ pub struct Loaded {
 
 /// Reads `path` as the `role` image ("photo", "render"); errors name both.
 pub fn read_image(path: &Path, role: &'static str) -> Result<Loaded, CompareError> {
-    let err = |reason: String| CompareError::Read { role, path: path.to_path_buf(), reason };
+    let err = |reason: ReadProblem| CompareError::Read { role, path: path.to_path_buf(), reason };
     if !path.exists() {
-        return Err(err("no such file".into()));
+        return Err(err(ReadProblem::Missing));
     }
     if path.is_dir() {
-        return Err(err("is a folder, not an image".into()));
+        return Err(err(ReadProblem::Folder));
     }
     let loaded = match extension(path).as_str() {
         "exr" => read_exr(path).map_err(err)?,
         "png" | "tif" | "tiff" | "hdr" => read_other(path).map_err(err)?,
-        other => return Err(err(format!("unsupported format {other:?} (expected .exr, .hdr, .png, .tif or .tiff)"))),
+        other => return Err(err(ReadProblem::Format(other.to_string()))),
     };
     check_finite(&loaded, path, role)?;
     Ok(loaded)
 }
 
-fn read_exr(path: &Path) -> Result<Loaded, String> {
+fn read_exr(path: &Path) -> Result<Loaded, ReadProblem> {
     use exr::prelude::*;
     let image = read()
         .no_deep_data()
@@ -62,8 +62,7 @@ fn read_exr(path: &Path) -> Result<Loaded, String> {
         .first_valid_layer()
         .all_attributes()
         .pedantic()
-        .from_file(path)
-        .map_err(|e| e.to_string())?;
+        .from_file(path)?;
     let layer = &image.layer_data;
     let (w, h) = (layer.size.width(), layer.size.height());
     let list = &layer.channel_data.list;
@@ -77,13 +76,13 @@ fn read_exr(path: &Path) -> Result<Loaded, String> {
     let planes: Vec<(&str, &AnyChannel<FlatSamples>)> = match (find("R"), find("G"), find("B"), find("Y")) {
         (Some(r), Some(g), Some(b), _) => vec![("R", r), ("G", g), ("B", b)],
         (None, None, None, Some(y)) => vec![("Y", y)],
-        _ => return Err(format!("no R, G, B (or single Y) channels; the file has {}", names.join(", "))),
+        _ => return Err(ReadProblem::NoColourChannels(names)),
     };
     let mut data = vec![0f32; w * h * 3];
     for (k, (name, ch)) in planes.iter().enumerate() {
         let values: Vec<f32> = ch.sample_data.values_as_f32().collect();
         if values.len() != w * h {
-            return Err(format!("channel {name} has {} samples for {w} × {h} pixels (subsampled?)", values.len()));
+            return Err(ReadProblem::Subsampled { name, got: values.len(), width: w, height: h });
         }
         let targets: &[usize] = if planes.len() == 1 { &[0, 1, 2] } else { std::slice::from_ref(&k) };
         for &t in targets {
@@ -92,21 +91,16 @@ fn read_exr(path: &Path) -> Result<Loaded, String> {
             }
         }
     }
-    let image = RgbImage::new(w, h, data).map_err(|e| e.to_string())?;
+    let image = RgbImage::new(w, h, data)?;
     Ok(Loaded { image, channels: planes.iter().map(|(n, _)| n.to_string()).collect() })
 }
 
-fn read_other(path: &Path) -> Result<Loaded, String> {
-    let img = image::ImageReader::open(path)
-        .map_err(|e| e.to_string())?
-        .with_guessed_format()
-        .map_err(|e| e.to_string())?
-        .decode()
-        .map_err(|e| e.to_string())?;
+fn read_other(path: &Path) -> Result<Loaded, ReadProblem> {
+    let img = image::ImageReader::open(path)?.with_guessed_format()?.decode()?;
     let grey = !img.color().has_color();
     let rgb = img.into_rgb32f();
     let (w, h) = rgb.dimensions();
-    let image = RgbImage::new(w as usize, h as usize, rgb.into_raw()).map_err(|e| e.to_string())?;
+    let image = RgbImage::new(w as usize, h as usize, rgb.into_raw())?;
     let channels = if grey { vec!["L".to_string()] } else { ["R", "G", "B"].map(String::from).to_vec() };
     Ok(Loaded { image, channels })
 }

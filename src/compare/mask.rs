@@ -26,7 +26,7 @@
 //! assert!(m.get(1, 1) && m.get(4, 3) && !m.get(0, 0) && !m.get(5, 4));
 //! ```
 
-use super::CompareError;
+use super::{CompareError, ReadProblem};
 use lucent_calib::scene::{project_renderer, SceneDescription};
 use std::path::Path;
 
@@ -79,16 +79,16 @@ impl Mask {
     /// Reads a mask image (PNG, TIFF; any bit depth) that must be
     /// `width × height`; nonzero colour = included.
     pub fn from_image(path: &Path, width: usize, height: usize) -> Result<Mask, CompareError> {
-        let err = |reason: String| CompareError::Read { role: "mask", path: path.to_path_buf(), reason };
+        let err = |reason: ReadProblem| CompareError::Read { role: "mask", path: path.to_path_buf(), reason };
         if !path.is_file() {
-            return Err(err("no such file".into()));
+            return Err(err(ReadProblem::Missing));
         }
         let img = image::ImageReader::open(path)
-            .map_err(|e| err(e.to_string()))?
+            .map_err(|e| err(e.into()))?
             .with_guessed_format()
-            .map_err(|e| err(e.to_string()))?
+            .map_err(|e| err(e.into()))?
             .decode()
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| err(e.into()))?;
         let (w, h) = (img.width() as usize, img.height() as usize);
         if (w, h) != (width, height) {
             return Err(CompareError::Size(format!(
@@ -158,9 +158,9 @@ fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
 
 /// Reads a scene JSON written by `lucent pose`.
 pub fn read_scene(path: &Path) -> Result<SceneDescription, CompareError> {
-    let err = |reason: String| CompareError::Read { role: "scene", path: path.to_path_buf(), reason };
-    let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
-    serde_json::from_str(&text).map_err(|e| err(format!("not a scene JSON from `lucent pose`: {e}")))
+    let err = |reason: ReadProblem| CompareError::Read { role: "scene", path: path.to_path_buf(), reason };
+    let text = std::fs::read_to_string(path).map_err(|e| err(e.into()))?;
+    serde_json::from_str(&text).map_err(|e| err(e.into()))
 }
 
 fn project(scene: &SceneDescription, p: [f64; 3], what: &str) -> Result<[f64; 2], CompareError> {

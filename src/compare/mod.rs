@@ -62,7 +62,7 @@ use std::path::{Path, PathBuf};
 pub enum CompareError {
     /// A file that cannot be read (missing, unreadable, wrong format).
     #[error("{role} {}: cannot read: {reason}", path.display())]
-    Read { role: &'static str, path: PathBuf, reason: String },
+    Read { role: &'static str, path: PathBuf, reason: ReadProblem },
     /// NaN or ±inf in an input image.
     #[error("{role} {}: {count} non-finite value(s); the first is {value} at pixel ({x}, {y}) (column, row from the top left), channel {channel}", path.display())]
     NonFinite {
@@ -93,6 +93,31 @@ pub enum CompareError {
     Write(#[from] WriteError),
     #[error("{}: {source}", path.display())]
     Io { path: PathBuf, source: std::io::Error },
+}
+
+/// Why an input file of a comparison cannot be read ([`CompareError::Read`]).
+#[derive(Debug, thiserror::Error)]
+pub enum ReadProblem {
+    #[error("no such file")]
+    Missing,
+    #[error("is a folder, not an image")]
+    Folder,
+    #[error("unsupported format {0:?} (expected .exr, .hdr, .png, .tif or .tiff)")]
+    Format(String),
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    #[error("{0}")]
+    Exr(#[from] exr::error::Error),
+    #[error("{0}")]
+    Decode(#[from] image::ImageError),
+    #[error("{0}")]
+    Buffer(#[from] ImageIoError),
+    #[error("no R, G, B (or single Y) channels; the file has {}", .0.join(", "))]
+    NoColourChannels(Vec<String>),
+    #[error("channel {name} has {got} samples for {width} × {height} pixels (subsampled?)")]
+    Subsampled { name: &'static str, got: usize, width: usize, height: usize },
+    #[error("not a scene JSON from `lucent pose`: {0}")]
+    NotScene(#[from] serde_json::Error),
 }
 
 /// Luminance weights for `ssim.Y`, the difference picture and ECC.

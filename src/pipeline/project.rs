@@ -211,15 +211,26 @@ pub struct Project {
     pub bssrdf_configs: Vec<(f64, f64)>,
 }
 
+/// What is wrong with a list of θi/θo configurations ([`parse_configs`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{part:?}: expected θi/θo in degrees, e.g. 45/0")]
+    Syntax { part: String },
+    #[error("{text:?} is not a number")]
+    Number { text: String },
+    #[error("{part:?}: angles must lie in [0°, 90°)")]
+    Angle { part: String },
+}
+
 /// Parses "45/0,0/45" into (θi, θo) pairs in degrees.
-pub fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>, String> {
+pub fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>, ConfigError> {
     let mut out = Vec::new();
     for part in text.split(',') {
-        let (a, b) = part.split_once('/').ok_or_else(|| format!("{part:?}: expected θi/θo in degrees, e.g. 45/0"))?;
-        let num = |s: &str| s.trim().parse::<f64>().map_err(|_| format!("{s:?} is not a number"));
+        let (a, b) = part.split_once('/').ok_or_else(|| ConfigError::Syntax { part: part.to_string() })?;
+        let num = |s: &str| s.trim().parse::<f64>().map_err(|_| ConfigError::Number { text: s.to_string() });
         let (ti, to) = (num(a)?, num(b)?);
         if !(0.0..90.0).contains(&ti) || !(0.0..90.0).contains(&to) {
-            return Err(format!("{part:?}: angles must lie in [0°, 90°)"));
+            return Err(ConfigError::Angle { part: part.to_string() });
         }
         out.push((ti, to));
     }
@@ -280,7 +291,7 @@ impl Project {
             }
             for m in &mut s.measured {
                 existing(&format!("{at} measured file"), &mut m.file)?;
-                let c = parse_configs(&m.config).map_err(|e| key(&format!("{at} measured config"), e))?;
+                let c = parse_configs(&m.config).map_err(|e| key(&format!("{at} measured config"), e.to_string()))?;
                 if c.len() != 1 {
                     return Err(key(&format!("{at} measured config"), "one θi/θo pair per measured slice".into()));
                 }
@@ -288,14 +299,14 @@ impl Project {
         }
         let mut bssrdf_configs = Vec::new();
         if let Some(b) = &file.bssrdf {
-            bssrdf_configs =
-                parse_configs(b.configs.as_deref().unwrap_or("45/0")).map_err(|e| key("[bssrdf] configs", e))?;
+            bssrdf_configs = parse_configs(b.configs.as_deref().unwrap_or("45/0"))
+                .map_err(|e| key("[bssrdf] configs", e.to_string()))?;
             if b.paths.is_none() && b.rel_error.is_none() && b.time_s.is_none() {
                 return Err(key("[bssrdf]", "give a stop rule: paths, rel_error or time_s".into()));
             }
             for s in &file.sample {
                 for m in &s.measured {
-                    let c = parse_configs(&m.config).map_err(|e| key("[[sample.measured]] config", e))?[0];
+                    let c = parse_configs(&m.config).map_err(|e| key("[[sample.measured]] config", e.to_string()))?[0];
                     if !bssrdf_configs.contains(&c) {
                         return Err(key(
                             &format!("[[sample]] {} measured config", s.name),

@@ -622,7 +622,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
             let recipe = Recipe::load(&full, Overrides { weight_percent: m.weight_percent })
                 .map_err(|source| SceneFileError::Recipe { path: ctx.path.to_path_buf(), source })?;
             let grid_text = m.wavelengths.as_deref().unwrap_or("380:780:10");
-            let grid = parse_grid(grid_text).map_err(|e| ctx.key("material", "wavelengths", e))?;
+            let grid = parse_grid(grid_text).map_err(|e| ctx.key("material", "wavelengths", e.to_string()))?;
             let options =
                 bulk::Options { phase_entries: if phase_kind == "mie" { 4096 } else { 0 }, ..Default::default() };
             let spectrum = bulk::compute(&recipe, &grid, &options)
@@ -646,12 +646,21 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
     }
 }
 
-fn parse_grid(text: &str) -> Result<WavelengthGrid, String> {
+/// What is wrong with a wavelength grid given as text ([`parse_grid`]).
+#[derive(Debug, thiserror::Error)]
+enum GridTextError {
+    #[error("expected START:END:STEP in nm, got {0:?}")]
+    Syntax(String),
+    #[error(transparent)]
+    Grid(#[from] lucent_colour::GridError),
+}
+
+fn parse_grid(text: &str) -> Result<WavelengthGrid, GridTextError> {
     let parts: Vec<&str> = text.split(':').collect();
     let nums: Result<Vec<f64>, _> = parts.iter().map(|p| p.trim().parse::<f64>()).collect();
     match (parts.len(), nums) {
-        (3, Ok(v)) => WavelengthGrid::new(v[0], v[1], v[2]).map_err(|e| e.to_string()),
-        _ => Err(format!("expected START:END:STEP in nm, got {text:?}")),
+        (3, Ok(v)) => Ok(WavelengthGrid::new(v[0], v[1], v[2])?),
+        _ => Err(GridTextError::Syntax(text.to_string())),
     }
 }
 
@@ -980,14 +989,25 @@ fn build_board(
 
 type EnvParts = (Environment, String, String, Option<[f64; 3]>, Option<f64>);
 
+/// An orientation file (`lucent env orient`) that cannot be used.
+#[derive(Debug, thiserror::Error)]
+enum OrientationFileError {
+    #[error("{}: cannot read as an orientation file of `lucent env orient`: {source}", path.display())]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("{}: not an orientation file of `lucent env orient`: {source}", path.display())]
+    Parse { path: PathBuf, source: serde_json::Error },
+    #[error("{}: {source}", path.display())]
+    OtherMap { path: PathBuf, source: lucent_calib::env::EnvError },
+}
+
 /// The yaw an orientation file (`lucent env orient`) gives the map `map`.
-fn orientation_yaw(path: &std::path::Path, map: &std::path::Path) -> Result<f64, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read as an orientation file of `lucent env orient`: {e}", path.display()))?;
-    let o: lucent_calib::env::Orientation = serde_json::from_str(&text)
-        .map_err(|e| format!("{}: not an orientation file of `lucent env orient`: {e}", path.display()))?;
+fn orientation_yaw(path: &std::path::Path, map: &std::path::Path) -> Result<f64, OrientationFileError> {
+    let p = || path.to_path_buf();
+    let text = std::fs::read_to_string(path).map_err(|source| OrientationFileError::Read { path: p(), source })?;
+    let o: lucent_calib::env::Orientation =
+        serde_json::from_str(&text).map_err(|source| OrientationFileError::Parse { path: p(), source })?;
     let name = map.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    o.yaw_for_map(&name).map_err(|e| format!("{}: {e}", path.display()))
+    o.yaw_for_map(&name).map_err(|source| OrientationFileError::OtherMap { path: p(), source })
 }
 
 fn build_environment(
@@ -1030,7 +1050,7 @@ fn build_environment(
         (Some(_), Some(_), _) => return Err(ctx.section("environment", "give either yaw_deg or orientation, not both")),
         (Some(_), None, None) => return Err(ctx.section("environment", "orientation needs a map")),
         (Some(o), None, Some(map)) => {
-            orientation_yaw(&ctx.resolve(o), map).map_err(|m| ctx.key("environment", "orientation", m))?
+            orientation_yaw(&ctx.resolve(o), map).map_err(|m| ctx.key("environment", "orientation", m.to_string()))?
         }
     };
     let scale = e.scale.unwrap_or(1.0);
