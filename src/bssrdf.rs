@@ -456,13 +456,20 @@ fn viridis(t: f64) -> RGBColor {
 /// Log-scale false-colour panels side by side on one shared scale
 /// (log₁₀(f/f_max) from −`decades` to 0), with a colour bar and axes in mm.
 /// With `diverging`, the last panel is a relative-difference map in
-/// [−1, 1] instead (blue negative, red positive).
+/// [−1, 1] instead (blue negative, white 0, red positive), NaN (outside the
+/// mask) in [`MASKED`] grey, values beyond ±1 clipped and marked in the
+/// darker [`OVER`] / [`UNDER`], each keyed under its colour bar.
+/// Colours of the difference map outside its range: masked (NaN), above +1, below −1.
+pub const MASKED: RGBColor = RGBColor(150, 150, 150);
+pub const OVER: RGBColor = RGBColor(110, 0, 0);
+pub const UNDER: RGBColor = RGBColor(0, 0, 110);
+
 pub fn heatmap_png(panels: &[(&str, &Grid)], diverging: Option<(&str, &Grid)>) -> Result<Vec<u8>, PlotError> {
     let decades = 4.0;
     let fmax = panels.iter().flat_map(|(_, g)| g.values.iter().copied()).fold(0.0, f64::max);
     let count = panels.len() + usize::from(diverging.is_some());
     let (pw, ph) = (620u32, 600u32);
-    render_png(pw * count as u32, ph + 80, |root| {
+    render_png(pw * count as u32, ph + 80 + 30 * u32::from(diverging.is_some()), |root| {
         let (top, bar) = root.split_vertically(ph);
         let areas = top.split_evenly((1, count));
         let draw = |area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
@@ -501,7 +508,14 @@ pub fn heatmap_png(panels: &[(&str, &Grid)], diverging: Option<(&str, &Grid)>) -
             draw(area, title, g, &log_colour)?;
         }
         let diverge = |v: f64| {
-            let t = v.clamp(-1.0, 1.0);
+            if v.is_nan() {
+                return MASKED;
+            } else if v > 1.0 {
+                return OVER;
+            } else if v < -1.0 {
+                return UNDER;
+            }
+            let t = v;
             if t < 0.0 {
                 let a = 1.0 + t;
                 RGBColor((255.0 * a) as u8, (255.0 * a) as u8, 255)
@@ -549,10 +563,19 @@ pub fn heatmap_png(panels: &[(&str, &Grid)], diverging: Option<(&str, &Grid)>) -
         };
         let fmax_label = format!("log10(f / f_max), f_max = {fmax:.3e} 1/(m² sr)");
         for b in bars.iter().take(panels.len()) {
-            bar_chart(b, -decades, 0.0, &fmax_label, &|v| viridis((v + decades) / decades))?;
+            bar_chart(&b.split_vertically(80).0, -decades, 0.0, &fmax_label, &|v| viridis((v + decades) / decades))?;
         }
         if diverging.is_some() {
-            bar_chart(&bars[count - 1], -1.0, 1.0, "(simulated − measured) / measured", &diverge)?;
+            let (b, keys) = bars[count - 1].split_vertically(80);
+            bar_chart(&b, -1.0, 1.0, "(simulated − measured) / measured", &diverge)?;
+            let font = ("sans-serif", 14).into_font();
+            for (k, (c, label)) in
+                [(MASKED, "masked"), (UNDER, "< −1 (clipped)"), (OVER, "> +1 (clipped)")].iter().enumerate()
+            {
+                let x = 55 + 170 * k as i32;
+                keys.draw(&Rectangle::new([(x, 6), (x + 22, 22)], c.filled())).map_err(perr)?;
+                keys.draw(&Text::new(*label, (x + 28, 6), font.clone())).map_err(perr)?;
+            }
         }
         Ok(())
     })
@@ -571,8 +594,19 @@ pub fn profile_png(x_mm: &[f64], curves: &[ProfileCurve], beam: Option<&[f64]>) 
         return Err(perr("profile has no positive values"));
     }
     let (x0, x1) = (x_mm.first().copied().unwrap_or(-1.0), x_mm.last().copied().unwrap_or(1.0));
-    render_png(1000, 600, |root| {
-        let mut chart = ChartBuilder::on(root)
+    render_png(1220, 600, |root| {
+        // The legend in a column of its own, so it never covers a curve.
+        let (root, legend) = root.split_horizontally(1000);
+        let mut items: Vec<(String, crate::plot::Mark)> = curves
+            .iter()
+            .enumerate()
+            .map(|(k, c)| (c.0.to_string(), crate::plot::Mark::Line(crate::plot::palette(k), 2)))
+            .collect();
+        if beam.is_some() {
+            items.push(("beam (right axis)".into(), crate::plot::Mark::Line(RGBColor(120, 120, 120), 1)));
+        }
+        crate::plot::legend_column(&legend, 60, &items)?;
+        let mut chart = ChartBuilder::on(&root)
             .margin(15)
             .caption("profile along the plane of incidence", ("sans-serif", 20))
             .x_label_area_size(40)
@@ -618,7 +652,6 @@ pub fn profile_png(x_mm: &[f64], curves: &[ProfileCurve], beam: Option<&[f64]>) 
                 .label("beam")
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey));
         }
-        chart.configure_series_labels().background_style(WHITE.mix(0.9)).border_style(BLACK).draw().map_err(perr)?;
         Ok(())
     })
 }
@@ -640,7 +673,8 @@ pub struct Comparison {
 }
 
 /// Compares two grids of the same size and pixel pitch (a mismatch is an
-/// error, never a silent resample).
+/// error, never a silent resample). The returned grid holds (s − m)/m over
+/// the mask and NaN outside it.
 pub fn compare(measured: &Grid, simulated: &Grid, threshold: f64) -> Result<(Comparison, Grid), String> {
     if measured.size != simulated.size {
         return Err(format!("size mismatch: measured {0} × {0}, simulated {1} × {1}", measured.size, simulated.size));
@@ -673,7 +707,7 @@ pub fn compare(measured: &Grid, simulated: &Grid, threshold: f64) -> Result<(Com
                 count += 1;
                 r
             } else {
-                0.0
+                f64::NAN
             }
         })
         .collect();
@@ -732,7 +766,7 @@ mod tests {
         let expected = (0.1f64.powi(2) + 0.0 + 0.5f64.powi(2)) / 3.0;
         assert!((c.mean_squared_relative_error - expected).abs() < 1e-12);
         assert!((c.sum_ratio - 10.1 / 7.001).abs() < 1e-12);
-        assert_eq!(rel.values[2], 0.0);
+        assert!(rel.values[2].is_nan());
         assert!(compare(&m, &grid(vec![1.0; 9]), 0.01).unwrap_err().contains("size"));
         let mut other = s.clone();
         other.pixel_m = 2e-4;

@@ -6,6 +6,7 @@
 
 use crate::optics::bulk::OpticalSpectrum;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::FontStyle;
 use std::f64::consts::PI;
 use std::sync::Once;
@@ -278,7 +279,8 @@ pub fn phase_polar_png(title: &str, theta_samples: &[f64], g: f64) -> Result<Vec
 
 /// Per-patch colour differences of a colour calibration: one bar per patch
 /// for ΔE00 (filled with the patch's reference colour, 8-bit sRGB), a black
-/// tick for ΔE*ab, and the mean ΔE00 as a dashed line.
+/// tick for ΔE*ab, and the mean ΔE00 as a dashed line; the legend in a
+/// column to the right, off the bars.
 pub fn delta_e_bars_png(
     title: &str,
     labels: &[String],
@@ -295,7 +297,17 @@ pub fn delta_e_bars_png(
     }
     let top = de2000.iter().chain(de76).copied().fold(1.0f64, f64::max) * 1.12;
     let mean = de2000.iter().sum::<f64>() / n as f64;
-    render_png(1200, 620, |root| {
+    render_png(1200 + 290, 620, |root| {
+        let (root, legend) = root.split_horizontally(1200);
+        let root = &root;
+        let red = RGBColor(214, 39, 40);
+        let items = [
+            ("ΔE00 (CIEDE2000): bar in".to_string(), Mark::Box(RGBColor(150, 150, 150))),
+            ("the patch's reference colour".to_string(), Mark::None),
+            ("ΔE*ab (CIE 1976)".to_string(), Mark::Line(BLACK, 3)),
+            (format!("mean ΔE00 = {mean:.2}"), Mark::Line(red, 2)),
+        ];
+        legend_column(&legend, 70, &items)?;
         let mut chart = ChartBuilder::on(root)
             .margin(16)
             .x_label_area_size(150)
@@ -315,9 +327,7 @@ pub fn delta_e_bars_png(
                 let [r, g, b] = colours[i];
                 Rectangle::new([(i as f64 + 0.15, 0.0), (i as f64 + 0.85, de2000[i])], RGBColor(r, g, b).filled())
             }))
-            .map_err(perr)?
-            .label("ΔE00 (CIEDE2000), bar in the patch's reference colour")
-            .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], RGBColor(150, 150, 150).filled()));
+            .map_err(perr)?;
         chart
             .draw_series((0..n).map(|i| Rectangle::new([(i as f64 + 0.15, 0.0), (i as f64 + 0.85, de2000[i])], BLACK)))
             .map_err(perr)?;
@@ -325,35 +335,63 @@ pub fn delta_e_bars_png(
             .draw_series((0..n).map(|i| {
                 PathElement::new(vec![(i as f64 + 0.05, de76[i]), (i as f64 + 0.95, de76[i])], BLACK.stroke_width(3))
             }))
-            .map_err(perr)?
-            .label("ΔE*ab (CIE 1976)")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLACK.stroke_width(3)));
+            .map_err(perr)?;
         let dashes = (0..(2 * n)).step_by(2).map(|k| {
             PathElement::new(
                 vec![(k as f64 * 0.5, mean), (k as f64 * 0.5 + 0.5, mean)],
                 RGBColor(214, 39, 40).stroke_width(2),
             )
         });
-        chart
-            .draw_series(dashes)
-            .map_err(perr)?
-            .label(format!("mean ΔE00 = {mean:.2}"))
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RGBColor(214, 39, 40).stroke_width(2)));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .draw()
-            .map_err(perr)?;
+        chart.draw_series(dashes).map_err(perr)?;
         Ok(())
     })
 }
 
+/// `n` colours no two of which are alike: [`palette`] up to its 12
+/// entries; up to 20, Tableau 20 (its ten strong colours, then the ten
+/// light ones); beyond, `⌈n/2⌉` hues evenly spaced around the HSL circle, each
+/// at a dark (L = 0.32) and a light (L = 0.58) shade.
+pub(crate) fn distinct_colours(n: usize) -> Vec<RGBColor> {
+    if n <= 12 {
+        return (0..n).map(palette).collect();
+    }
+    if n <= 20 {
+        // Tableau 20: the ten strong colours, then their ten light partners.
+        const LIGHT: [RGBColor; 10] = [
+            RGBColor(174, 199, 232),
+            RGBColor(255, 187, 120),
+            RGBColor(152, 223, 138),
+            RGBColor(255, 152, 150),
+            RGBColor(197, 176, 213),
+            RGBColor(196, 156, 148),
+            RGBColor(247, 182, 210),
+            RGBColor(199, 199, 199),
+            RGBColor(219, 219, 141),
+            RGBColor(158, 218, 229),
+        ];
+        return (0..n).map(|i| if i < 10 { palette(i) } else { LIGHT[i - 10] }).collect();
+    }
+    let hues = n.div_ceil(2);
+    (0..n)
+        .map(|i| {
+            let (h, l) = (i / 2, if i % 2 == 0 { 0.32 } else { 0.58 });
+            // Offset the light shades by half a step so neighbours differ in hue too.
+            let hue = (h as f64 + 0.5 * (i % 2) as f64) / hues as f64;
+            let c = HSLColor(hue, 0.85, l).to_rgba();
+            RGBColor(c.0, c.1, c.2)
+        })
+        .collect()
+}
+
+/// Width of the view legend column of [`residuals_png`], pixels.
+const RESIDUAL_LEGEND_W: u32 = 280;
+
 /// Reprojection residuals of a camera calibration: left, every corner's
 /// residual (detected − reprojected, pixels) as a dot coloured by view with
-/// the overall RMS as a circle; right, the RMS of each view as a bar.
+/// the overall RMS as a circle (named in the title and the legend); middle,
+/// the legend (one row per view: its colour, name and RMS); right, the RMS
+/// of each view as a bar.
+/// Each view has its own colour ([`distinct_colours`]).
 pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<Vec<u8>, PlotError> {
     if views.is_empty() || views.iter().any(|(_, r)| r.is_empty()) {
         return Err(PlotError("residual plot needs at least one view with residuals".into()));
@@ -367,13 +405,15 @@ pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<V
         .map(|(_, r)| (r.iter().map(|p| p[0] * p[0] + p[1] * p[1]).sum::<f64>() / r.len() as f64).sqrt())
         .collect();
     let top = per_view.iter().copied().fold(rms_px, f64::max) * 1.15;
-    render_png(1400, 700, |root| {
-        let (left, right) = root.split_horizontally(700);
+    let colours = distinct_colours(views.len());
+    render_png(700 + RESIDUAL_LEGEND_W + 700, 700, |root| {
+        let (left, rest) = root.split_horizontally(700);
+        let (legend, right) = rest.split_horizontally(RESIDUAL_LEGEND_W);
         let mut chart = ChartBuilder::on(&left)
             .margin(16)
             .x_label_area_size(45)
             .y_label_area_size(65)
-            .caption(format!("reprojection residuals (RMS {rms_px:.3} px)"), ("sans-serif", 22))
+            .caption(format!("reprojection residuals; black circle: RMS {rms_px:.3} px"), ("sans-serif", 21))
             .build_cartesian_2d(-reach..reach, -reach..reach)
             .map_err(perr)?;
         chart
@@ -384,14 +424,37 @@ pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<V
             .y_label_formatter(&|v| format!("{v:.2}"))
             .draw()
             .map_err(perr)?;
-        for (i, (_, r)) in views.iter().enumerate() {
-            chart.draw_series(r.iter().map(|p| Circle::new((p[0], p[1]), 3, palette(i).filled()))).map_err(perr)?;
+        for ((_, r), colour) in views.iter().zip(&colours) {
+            chart.draw_series(r.iter().map(|p| Circle::new((p[0], p[1]), 3, colour.filled()))).map_err(perr)?;
         }
         let ring = (0..=96).map(|k| {
             let a = 2.0 * PI * k as f64 / 96.0;
             (rms_px * a.cos(), rms_px * a.sin())
         });
         chart.draw_series(LineSeries::new(ring, BLACK.stroke_width(2))).map_err(perr)?;
+        // Legend: one row per view, in columns when they do not fit.
+        let (lw, lh) = legend.dim_in_pixel();
+        legend.draw(&Text::new("views (RMS per view, px)", (8, 20), ("sans-serif", 17).into_font())).map_err(perr)?;
+        let ring = format!("all views: RMS {rms_px:.3} px");
+        legend.draw(&Circle::new((14, lh as i32 - 40), 6, BLACK.stroke_width(2))).map_err(perr)?;
+        legend.draw(&Text::new(ring, (26, lh as i32 - 48), ("sans-serif", 15).into_font())).map_err(perr)?;
+        let (first, bottom) = (52, lh as i32 - 60);
+        let n = views.len() as i32;
+        let row = ((bottom - first) / n).clamp(14, 24);
+        let per_col = ((bottom - first) / row).max(1);
+        let cols = (n + per_col - 1) / per_col;
+        let col_w = lw as i32 / cols;
+        let size = (row - 6).clamp(11, 15);
+        for (i, ((name, _), colour)) in views.iter().zip(&colours).enumerate() {
+            let (c, r) = (i as i32 / per_col, i as i32 % per_col);
+            let (x, y) = (8 + c * col_w, first + r * row);
+            legend.draw(&Circle::new((x + 6, y), 5, colour.filled())).map_err(perr)?;
+            let text = format!("{name}  {:.3}", per_view[i]);
+            legend
+                .draw(&Text::new(text, (x + 16, y - size / 2 - 1), ("sans-serif", size).into_font()))
+                .map_err(perr)?;
+        }
+
         let n = views.len();
         let mut bars = ChartBuilder::on(&right)
             .margin(16)
@@ -408,7 +471,7 @@ pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<V
             .map_err(perr)?;
         bars.draw_series(
             (0..n)
-                .map(|i| Rectangle::new([(i as f64 + 0.15, 0.0), (i as f64 + 0.85, per_view[i])], palette(i).filled())),
+                .map(|i| Rectangle::new([(i as f64 + 0.15, 0.0), (i as f64 + 0.85, per_view[i])], colours[i].filled())),
         )
         .map_err(perr)?;
         bars.draw_series(std::iter::once(PathElement::new(
@@ -416,10 +479,154 @@ pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<V
             BLACK.stroke_width(2),
         )))
         .map_err(perr)?;
+        let (_, by) = bars.backend_coord(&(0.0, rms_px));
+        let (bx, _) = bars.backend_coord(&(n as f64, rms_px));
+        let all = TextStyle::from(("sans-serif", 14).into_font()).pos(Pos::new(HPos::Right, VPos::Bottom));
+        root.draw(&Text::new(format!("all views {rms_px:.3}"), (bx - 4, by - 3), all)).map_err(perr)?;
         let font = ("sans-serif", 13).into_font().transform(FontTransform::Rotate90);
         for (i, (name, _)) in views.iter().enumerate() {
             let (px, py) = bars.backend_coord(&(i as f64 + 0.5, 0.0));
             root.draw(&Text::new(name.clone(), (px + 7, py + 8), font.clone())).map_err(perr)?;
+        }
+        Ok(())
+    })
+}
+
+/// How a legend row shows its series.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Mark {
+    /// A line of this colour and width.
+    Line(RGBColor, u32),
+    /// A filled box.
+    Box(RGBColor),
+    /// No mark (a continued label).
+    None,
+}
+
+/// A legend in its own area beside a chart (so it never covers data): one
+/// row per item, a mark and its label, from `top` pixels down.
+pub(crate) fn legend_column(
+    area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    top: i32,
+    items: &[(String, Mark)],
+) -> Result<(), PlotError> {
+    let font = ("sans-serif", 15).into_font();
+    for (i, (label, mark)) in items.iter().enumerate() {
+        let y = top + 24 * i as i32;
+        match *mark {
+            Mark::Line(c, w) => area.draw(&PathElement::new(vec![(6, y), (32, y)], c.stroke_width(w))),
+            Mark::Box(c) => area.draw(&Rectangle::new([(8, y - 6), (30, y + 6)], c.filled())),
+            Mark::None => Ok(()),
+        }
+        .map_err(perr)?;
+        area.draw(&Text::new(label.clone(), (40, y - 8), font.clone())).map_err(perr)?;
+    }
+    Ok(())
+}
+
+/// Layout of [`chart_halves_png`], pixels: patch side, gap between
+/// patches, header height and the label band under each patch row.
+pub(crate) const CHART_SIDE: i32 = 120;
+pub(crate) const CHART_GAP: i32 = 16;
+pub(crate) const CHART_HEADER: i32 = 64;
+pub(crate) const CHART_LABELS: i32 = 38;
+
+/// The top-left corner of patch `k` (0-based, 6 per row) in [`chart_halves_png`].
+pub(crate) fn chart_patch_origin(k: usize) -> (i32, i32) {
+    let (row, col) = ((k / 6) as i32, (k % 6) as i32);
+    (CHART_GAP + col * (CHART_SIDE + CHART_GAP), CHART_HEADER + row * (CHART_SIDE + CHART_LABELS))
+}
+
+/// A colour chart (6 patches per row), each patch split in two: the left
+/// half `photo[k]`, the right half `reference[k]` (8-bit sRGB each), with
+/// "photo" and "reference" written under the halves, the patch's label
+/// under that and a header saying what the halves are.
+pub fn chart_halves_png(
+    title: &str,
+    labels: &[String],
+    photo: &[[u8; 3]],
+    reference: &[[u8; 3]],
+) -> Result<Vec<u8>, PlotError> {
+    let n = labels.len();
+    if n == 0 || photo.len() != n || reference.len() != n {
+        return Err(PlotError("chart plot needs one label, photo and reference colour per patch".into()));
+    }
+    let rows = n.div_ceil(6) as i32;
+    let width = 6 * CHART_SIDE + 7 * CHART_GAP;
+    let height = CHART_HEADER + rows * (CHART_SIDE + CHART_LABELS) + CHART_GAP;
+    render_png(width as u32, height as u32, |root| {
+        let text = |t: &str, x: i32, y: i32, size: i32, h: HPos| {
+            let st = TextStyle::from(("sans-serif", size).into_font()).color(&BLACK).pos(Pos::new(h, VPos::Top));
+            root.draw(&Text::new(t.to_string(), (x, y), st)).map_err(perr)
+        };
+        text(title, CHART_GAP, 8, 18, HPos::Left)?;
+        text("each patch: left half = photo (corrected), right half = reference", CHART_GAP, 34, 16, HPos::Left)?;
+        let half = CHART_SIDE / 2;
+        for (k, label) in labels.iter().enumerate() {
+            let (x0, y0) = chart_patch_origin(k);
+            for (dx, [r, g, b]) in [(0, photo[k]), (half, reference[k])] {
+                let rect = [(x0 + dx, y0), (x0 + dx + half, y0 + CHART_SIDE)];
+                root.draw(&Rectangle::new(rect, RGBColor(r, g, b).filled())).map_err(perr)?;
+            }
+            root.draw(&Rectangle::new([(x0, y0), (x0 + CHART_SIDE, y0 + CHART_SIDE)], RGBColor(90, 90, 90)))
+                .map_err(perr)?;
+            root.draw(&PathElement::new(vec![(x0 + half, y0), (x0 + half, y0 + CHART_SIDE)], RGBColor(90, 90, 90)))
+                .map_err(perr)?;
+            text("photo", x0 + half / 2, y0 + CHART_SIDE + 2, 12, HPos::Center)?;
+            text("reference", x0 + half + half / 2, y0 + CHART_SIDE + 2, 12, HPos::Center)?;
+            text(label, x0 + half, y0 + CHART_SIDE + 17, 13, HPos::Center)?;
+        }
+        Ok(())
+    })
+}
+
+/// Magnification of [`patch_overlay_png`] for an image `width` pixels wide:
+/// `(up, down)` with the image enlarged `up` times (pixels repeated) to at
+/// least 900 px, or reduced `down` times (every `down`-th pixel) to at most
+/// 1800 px.
+pub(crate) fn overlay_scale(width: usize) -> (usize, usize) {
+    if width < 900 {
+        (900usize.div_ceil(width.max(1)), 1)
+    } else {
+        (1, width.div_ceil(1800))
+    }
+}
+
+/// The photo of a chart (8-bit sRGB, `width × height`, interleaved R, G, B)
+/// at a legible size ([`overlay_scale`]), each sampled square outlined in
+/// magenta (corners in image pixels) and numbered 1, 2, … at its centre.
+pub fn patch_overlay_png(
+    width: usize,
+    height: usize,
+    srgb8: &[u8],
+    outlines: &[[[f64; 2]; 4]],
+) -> Result<Vec<u8>, PlotError> {
+    if width == 0 || height == 0 || srgb8.len() != width * height * 3 {
+        return Err(PlotError(format!("{} bytes for a {width} × {height} RGB image", srgb8.len())));
+    }
+    let (up, down) = overlay_scale(width);
+    let (ow, oh) = (width * up / down, height * up / down);
+    let to_out = |p: [f64; 2]| ((p[0] * up as f64 / down as f64) as i32, (p[1] * up as f64 / down as f64) as i32);
+    render_png(ow as u32, oh as u32, |root| {
+        for y in 0..oh {
+            for x in 0..ow {
+                let (sx, sy) = ((x * down / up).min(width - 1), (y * down / up).min(height - 1));
+                let i = 3 * (sy * width + sx);
+                root.draw_pixel((x as i32, y as i32), &RGBColor(srgb8[i], srgb8[i + 1], srgb8[i + 2])).map_err(perr)?;
+            }
+        }
+        let magenta = RGBColor(255, 0, 255);
+        let size = ((oh as f64 / 40.0) as i32).clamp(12, 28);
+        for (k, o) in outlines.iter().enumerate() {
+            let mut pts: Vec<(i32, i32)> = o.iter().map(|p| to_out(*p)).collect();
+            pts.push(pts[0]);
+            root.draw(&PathElement::new(pts, magenta.stroke_width(2))).map_err(perr)?;
+            let c = to_out([o.iter().map(|p| p[0]).sum::<f64>() / 4.0, o.iter().map(|p| p[1]).sum::<f64>() / 4.0]);
+            let label = format!("{}", k + 1);
+            let st = TextStyle::from(("sans-serif", size).into_font()).pos(Pos::new(HPos::Center, VPos::Center));
+            // Black text on a white disc reads on every patch colour.
+            root.draw(&Circle::new(c, size * 3 / 4, WHITE.mix(0.8).filled())).map_err(perr)?;
+            root.draw(&Text::new(label, c, st.color(&BLACK))).map_err(perr)?;
         }
         Ok(())
     })
@@ -435,9 +642,91 @@ mod tests {
             vec![("a.jpg".to_string(), vec![[0.1, -0.2], [0.0, 0.05]]), ("b.jpg".to_string(), vec![[-0.3, 0.1]])];
         let png = residuals_png(&views, 0.2).unwrap();
         let img = image::load_from_memory(&png).unwrap();
-        assert_eq!((img.width(), img.height()), (1400, 700));
+        assert_eq!((img.width(), img.height()), (1680, 700));
         assert!(residuals_png(&[], 0.1).is_err());
         assert!(residuals_png(&[("x".into(), vec![[f64::NAN, 0.0]])], 0.1).is_err());
+    }
+
+    /// The legend column holds a dot of every view's colour, and no two views share one.
+    #[test]
+    fn residual_legend_lists_every_view_in_its_own_colour() {
+        let n = 15;
+        let views: Vec<(String, Vec<[f64; 2]>)> =
+            (0..n).map(|i| (format!("view{i:02}.jpg"), vec![[0.01 * i as f64, -0.02], [0.0, 0.03]])).collect();
+        let img = image::load_from_memory(&residuals_png(&views, 0.05).unwrap()).unwrap().to_rgb8();
+        let colours = distinct_colours(n);
+        for (i, c) in colours.iter().enumerate() {
+            let count = (700..700 + RESIDUAL_LEGEND_W)
+                .flat_map(|x| (0..700).map(move |y| (x, y)))
+                .filter(|&(x, y)| img.get_pixel(x, y).0 == [c.0, c.1, c.2])
+                .count();
+            assert!(count >= 40, "view {i}: {count} pixels of its colour in the legend");
+        }
+    }
+
+    #[test]
+    fn distinct_colours_do_not_repeat() {
+        for n in [1, 12, 13, 20, 21, 40, 60] {
+            let c = distinct_colours(n);
+            assert_eq!(c.len(), n);
+            for i in 0..n {
+                for j in 0..i {
+                    let d =
+                        [c[i].0 as f64 - c[j].0 as f64, c[i].1 as f64 - c[j].1 as f64, c[i].2 as f64 - c[j].2 as f64];
+                    let d = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    assert!(d > 24.0, "n = {n}: colours {j} and {i} are {d:.1} apart");
+                }
+            }
+        }
+    }
+
+    /// Left half of each patch is the photo's colour, right half the reference's, and the header has text.
+    #[test]
+    fn chart_halves_are_photo_left_and_reference_right() {
+        let labels: Vec<String> = (1..=24).map(|k| format!("{k} patch")).collect();
+        let photo: Vec<[u8; 3]> = (0..24).map(|k| [10 * k as u8, 50, 200]).collect();
+        let reference: Vec<[u8; 3]> = (0..24).map(|k| [200, 10 * k as u8, 30]).collect();
+        let img = image::load_from_memory(&chart_halves_png("t", &labels, &photo, &reference).unwrap()).unwrap();
+        let img = img.to_rgb8();
+        for k in [0usize, 5, 6, 23] {
+            let (x0, y0) = chart_patch_origin(k);
+            let (l, r) = ((x0 + CHART_SIDE / 4) as u32, (x0 + 3 * CHART_SIDE / 4) as u32);
+            let y = (y0 + CHART_SIDE / 2) as u32;
+            assert_eq!(img.get_pixel(l, y).0, photo[k], "patch {k} left half");
+            assert_eq!(img.get_pixel(r, y).0, reference[k], "patch {k} right half");
+        }
+        let dark = |y0: u32, y1: u32| {
+            (0..img.width())
+                .flat_map(|x| (y0..y1).map(move |y| (x, y)))
+                .filter(|&(x, y)| img.get_pixel(x, y).0[0] < 100)
+                .count()
+        };
+        assert!(dark(30, 60) > 200, "the header says which half is which");
+        let (_, y0) = chart_patch_origin(0);
+        assert!(
+            dark((y0 + CHART_SIDE) as u32 + 1, (y0 + CHART_SIDE + 16) as u32) > 200,
+            "photo/reference under the halves"
+        );
+        assert!(chart_halves_png("t", &labels, &photo[..3], &reference).is_err());
+    }
+
+    /// A 200-pixel-wide chart photo is drawn at least 900 px wide, the pixels kept, the squares outlined.
+    #[test]
+    fn patch_overlay_is_legible() {
+        let (w, h) = (200usize, 140usize);
+        let data: Vec<u8> = (0..w * h).flat_map(|i| [(i % 251) as u8, 40, 90]).collect();
+        let outlines = [[[10.0, 10.0], [30.0, 10.0], [30.0, 30.0], [10.0, 30.0]]];
+        let img = image::load_from_memory(&patch_overlay_png(w, h, &data, &outlines).unwrap()).unwrap().to_rgb8();
+        let (up, down) = overlay_scale(w);
+        assert_eq!((up, down), (5, 1));
+        assert_eq!((img.width(), img.height()), (1000, 700));
+        // Source pixel (150, 100) fills a 5 × 5 block.
+        let want = [((100 * w + 150) % 251) as u8, 40, 90];
+        assert_eq!(img.get_pixel(150 * 5 + 2, 100 * 5 + 2).0, want);
+        let magenta = img.pixels().filter(|p| p.0 == [255, 0, 255]).count();
+        assert!(magenta > 4 * 100, "outline: {magenta} magenta pixels");
+        assert_eq!(overlay_scale(4000), (1, 3));
+        assert!(patch_overlay_png(w, h, &data[..10], &outlines).is_err());
     }
 
     #[test]
@@ -476,7 +765,7 @@ mod tests {
     fn delta_e_bars_is_a_png_and_checks_its_input() {
         let labels: Vec<String> = (1..=3).map(|i| format!("{i} patch")).collect();
         let png = delta_e_bars_png("t", &labels, &[1.0, 2.0, 0.5], &[1.5, 3.0, 0.7], &[[200, 10, 10]; 3]).unwrap();
-        assert_eq!(image::load_from_memory(&png).unwrap().width(), 1200);
+        assert_eq!(image::load_from_memory(&png).unwrap().width(), 1490);
         assert!(delta_e_bars_png("t", &labels, &[1.0], &[1.0], &[[0; 3]]).is_err());
         assert!(delta_e_bars_png("t", &labels, &[f64::NAN, 1.0, 1.0], &[1.0; 3], &[[0; 3]; 3]).is_err());
     }

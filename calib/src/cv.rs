@@ -670,8 +670,9 @@ pub fn undistort_map(cam: &CameraModel, new_k: &Intrinsics) -> Result<Vec<[f32; 
 
 /// A PNG of the photo with the detected corners (OpenCV's coloured pattern),
 /// the reprojected corners (red crosses), the (0, 0) corner and the i, j
-/// axes marked, `segments` (pixel end points, e.g. a sample's outline) in
-/// cyan, and `label` written at the top.
+/// axes marked and labelled ("i (cols)", "j (rows)"), `segments` (pixel end
+/// points, e.g. a sample's outline) in cyan labelled "sample", `label`
+/// written at the top and a key of the marks in a strip under the photo.
 pub fn draw_view_png(
     img: &GrayImage,
     board: &BoardSpec,
@@ -708,9 +709,16 @@ pub fn draw_view_png(
         }
     }
     let cyan = Scalar::new(255.0, 255.0, 0.0, 0.0);
-    for &(a, b) in segments {
-        if a.iter().chain(&b).all(|v| v.is_finite() && v.abs() < 1e6) {
-            imgproc::line(&mut bgr, pt(a), pt(b), cyan, thick, imgproc::LINE_AA, 0).map_err(cv_err("line"))?;
+    let shown = |p: &[f64; 2]| p.iter().all(|v| v.is_finite() && v.abs() < 1e6);
+    let mut outline_top: Option<[f64; 2]> = None;
+    for (a, b) in segments {
+        if shown(a) && shown(b) {
+            imgproc::line(&mut bgr, pt(*a), pt(*b), cyan, thick, imgproc::LINE_AA, 0).map_err(cv_err("line"))?;
+            for p in [a, b] {
+                if outline_top.is_none_or(|t| p[1] < t[1]) {
+                    outline_top = Some(*p);
+                }
+            }
         }
     }
     let font = imgproc::FONT_HERSHEY_SIMPLEX;
@@ -718,18 +726,28 @@ pub fn draw_view_png(
         imgproc::put_text(m, s, at, font, 0.5 * scale, colour, thick, imgproc::LINE_AA, false)
             .map_err(cv_err("putText"))
     };
+    // Labels on the photo: drawn over a black outline, legible on white and black squares.
+    let label_on_photo = |m: &mut Mat, s: &str, at: Point, colour: Scalar| {
+        let black = Scalar::new(0.0, 0.0, 0.0, 0.0);
+        imgproc::put_text(m, s, at, font, 0.5 * scale, black, thick + 3, imgproc::LINE_AA, false)
+            .map_err(cv_err("putText"))?;
+        text(m, s, at, colour)
+    };
+    if let Some(t) = outline_top {
+        label_on_photo(&mut bgr, "sample", pt([t[0] - 20.0 * scale, t[1] - 6.0 * scale]), cyan)?;
+    }
     if detected.len() == board.cols * board.rows {
         let (o, i1, j1) = (detected[0], detected[1], detected[board.cols]);
         let yellow = Scalar::new(0.0, 255.0, 255.0, 0.0);
-        for (end, name) in [(i1, "i"), (j1, "j")] {
+        for (end, name) in [(i1, "i (cols)"), (j1, "j (rows)")] {
             let tip = [o[0] + 2.0 * (end[0] - o[0]), o[1] + 2.0 * (end[1] - o[1])];
             imgproc::arrowed_line(&mut bgr, pt(o), pt(tip), yellow, thick + 1, imgproc::LINE_AA, 0, 0.2)
                 .map_err(cv_err("arrowedLine"))?;
             let label_at =
                 [tip[0] + 0.35 * (tip[0] - o[0]) - 5.0 * scale, tip[1] + 0.35 * (tip[1] - o[1]) + 5.0 * scale];
-            text(&mut bgr, name, pt(label_at), yellow)?;
+            label_on_photo(&mut bgr, name, pt(label_at), yellow)?;
         }
-        text(&mut bgr, "(0,0)", pt([o[0] + 6.0, o[1] - 6.0]), yellow)?;
+        label_on_photo(&mut bgr, "(0,0)", pt([o[0] + 6.0, o[1] - 6.0]), yellow)?;
     }
     let (h_text, margin) = ((18.0 * scale) as i32, (6.0 * scale) as i32);
     imgproc::rectangle(
@@ -742,8 +760,62 @@ pub fn draw_view_png(
     )
     .map_err(cv_err("rectangle"))?;
     text(&mut bgr, label, Point::new(margin, h_text + margin / 2), Scalar::new(255.0, 255.0, 255.0, 0.0))?;
+
+    // The key, in a black strip added under the photo (no mark covered).
+    let strip = h_text + 2 * margin;
+    let mut keyed = Mat::default();
+    core::copy_make_border(&bgr, &mut keyed, 0, strip, 0, 0, core::BORDER_CONSTANT, Scalar::all(0.0))
+        .map_err(cv_err("copyMakeBorder"))?;
+    let y = img.height as i32 + margin + h_text / 2;
+    let mut x = margin;
+    let white = Scalar::new(255.0, 255.0, 255.0, 0.0);
+    let green = Scalar::new(0.0, 200.0, 0.0, 0.0);
+    let yellow = Scalar::new(0.0, 255.0, 255.0, 0.0);
+    let mut keys: Vec<(u8, Scalar, &str)> =
+        vec![(0, green, "detected"), (1, red, "reprojected"), (2, yellow, "i, j: board axes from (0,0)")];
+    if outline_top.is_some() {
+        keys.push((3, cyan, "sample box"));
+    }
+    for (mark, colour, name) in keys {
+        let c = Point::new(x + arm, y);
+        match mark {
+            0 => imgproc::circle(&mut keyed, c, arm, colour, thick, imgproc::LINE_AA, 0).map_err(cv_err("circle"))?,
+            1 => {
+                for (a, b) in [((-arm, -arm), (arm, arm)), ((-arm, arm), (arm, -arm))] {
+                    let (p, q) = (Point::new(c.x + a.0, c.y + a.1), Point::new(c.x + b.0, c.y + b.1));
+                    imgproc::line(&mut keyed, p, q, colour, thick, imgproc::LINE_AA, 0).map_err(cv_err("line"))?;
+                }
+            }
+            2 => imgproc::arrowed_line(
+                &mut keyed,
+                Point::new(x, y),
+                Point::new(x + 3 * arm, y),
+                colour,
+                thick,
+                imgproc::LINE_AA,
+                0,
+                0.4,
+            )
+            .map_err(cv_err("arrowedLine"))?,
+            _ => imgproc::line(
+                &mut keyed,
+                Point::new(x, y),
+                Point::new(x + 3 * arm, y),
+                colour,
+                thick,
+                imgproc::LINE_AA,
+                0,
+            )
+            .map_err(cv_err("line"))?,
+        }
+        x += 3 * arm + margin;
+        text(&mut keyed, name, Point::new(x, y + h_text / 3), white)?;
+        let mut base = 0;
+        let size = imgproc::get_text_size(name, font, 0.5 * scale, thick, &mut base).map_err(cv_err("getTextSize"))?;
+        x += size.width + 3 * margin;
+    }
     let mut buf = Vector::<u8>::new();
-    imgcodecs::imencode(".png", &bgr, &mut buf, &Vector::new()).map_err(cv_err("imencode PNG"))?;
+    imgcodecs::imencode(".png", &keyed, &mut buf, &Vector::new()).map_err(cv_err("imencode PNG"))?;
     Ok(buf.to_vec())
 }
 
@@ -848,6 +920,35 @@ pub fn recover_response(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The view picture gains a key strip under the photo, which shows the
+    /// sample box only when there is one, and the outline is labelled.
+    #[test]
+    fn view_png_keys_its_marks_and_labels_the_sample() {
+        let board = BoardSpec::parse("4x3", 25.0).unwrap();
+        let img = GrayImage::new(320, 240, vec![128; 320 * 240]).unwrap();
+        let corners: Vec<[f64; 2]> =
+            (0..3).flat_map(|r| (0..4).map(move |c| [100.0 + 30.0 * c as f64, 80.0 + 30.0 * r as f64])).collect();
+        let decode = |png: Vec<u8>| imgcodecs::imdecode(&Vector::from_slice(&png), imgcodecs::IMREAD_COLOR).unwrap();
+        let cyan = |m: &Mat, y0: i32, y1: i32| {
+            let mut n = 0;
+            for y in y0..y1 {
+                for x in 0..m.cols() {
+                    let p = m.at_2d::<core::Vec3b>(y, x).unwrap();
+                    n += usize::from(p[0] > 200 && p[1] > 200 && p[2] < 80);
+                }
+            }
+            n
+        };
+        let outline = [([40.0, 220.0], [280.0, 220.0]), ([40.0, 220.0], [40.0, 230.0])];
+        let with = decode(draw_view_png(&img, &board, &corners, &corners, &outline, "v").unwrap());
+        let without = decode(draw_view_png(&img, &board, &corners, &corners, &[], "v").unwrap());
+        assert_eq!((with.rows(), without.rows(), with.cols()), (240 + 30, 240 + 30, 320));
+        assert!(cyan(&with, 240, 270) > 20, "the key shows the sample box");
+        assert_eq!(cyan(&without, 240, 270), 0, "no sample, no sample key");
+        assert!(cyan(&with, 195, 216) > 20, "the outline is labelled above its top");
+        assert_eq!(cyan(&without, 195, 216), 0);
+    }
 
     #[test]
     fn unreadable_images_are_errors_naming_the_file() {

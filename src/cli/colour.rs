@@ -264,7 +264,7 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
 
     let out = &a.out;
     crate::io::write_json(&out.join("ccm.json"), &file)?;
-    imageio::write_png(&out.join("chart.png"), &chart_comparison(&ccm, &file)?)?;
+    crate::io::write_atomic(&out.join("chart.png"), &chart_comparison(&ccm, &file)?)?;
     let labels: Vec<String> = file.patches.iter().map(|p| format!("{} {}", p.fit.patch, p.fit.name)).collect();
     let de2000: Vec<f64> = file.patches.iter().map(|p| p.fit.de2000).collect();
     let de76: Vec<f64> = file.patches.iter().map(|p| p.fit.de76).collect();
@@ -273,7 +273,7 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
     let title = format!("{} — {} — ΔE00 mean {:.2}, max {:.2}", file.camera, method, file.de2000_mean, file.de2000_max);
     let png = crate::plot::delta_e_bars_png(&title, &labels, &de2000, &de76, &colours)?;
     crate::io::write_atomic(&out.join("delta_e.png"), &png)?;
-    imageio::write_png(&out.join("patches.png"), &sampling_overlay(&img, &samples))?;
+    crate::io::write_atomic(&out.join("patches.png"), &sampling_overlay(&img, &samples)?)?;
 
     print_delta_e_table(&file);
     println!(
@@ -325,55 +325,27 @@ fn srgb8(linear: [f64; 3]) -> [u8; 3] {
 }
 
 /// chart.png: the 4 × 6 chart, each patch split into the corrected photo
-/// (left half) and the reference (right half), in sRGB for display.
-fn chart_comparison(ccm: &ColourCorrection, file: &CcmFile) -> Result<RgbImage> {
-    const SIDE: usize = 96;
-    const GAP: usize = 12;
-    let (w, h) = (6 * SIDE + 7 * GAP, 4 * SIDE + 5 * GAP);
+/// (left half) and the reference (right half), in sRGB for display, the
+/// halves named under each patch and in the header.
+fn chart_comparison(ccm: &ColourCorrection, file: &CcmFile) -> Result<Vec<u8>> {
     let to_srgb = srgb_display_matrix()?;
-    let mut data = vec![0.02f32; w * h * 3];
-    for (k, p) in file.patches.iter().enumerate() {
-        let (row, col) = (k / 6, k % 6);
-        let (x0, y0) = (GAP + col * (SIDE + GAP), GAP + row * (SIDE + GAP));
-        let photo = mat3_vec(&to_srgb, ccm.apply(p.fit.camera_rgb));
-        let reference = mat3_vec(&to_srgb, p.fit.reference_xyz);
-        for y in y0..y0 + SIDE {
-            for x in x0..x0 + SIDE {
-                let c = if x < x0 + SIDE / 2 { photo } else { reference };
-                let i = 3 * (y * w + x);
-                for ch in 0..3 {
-                    data[i + ch] = c[ch] as f32;
-                }
-            }
-        }
-    }
-    Ok(RgbImage::new(w, h, data)?)
+    let labels: Vec<String> = file.patches.iter().map(|p| format!("{} {}", p.fit.patch, p.fit.name)).collect();
+    let photo: Vec<[u8; 3]> =
+        file.patches.iter().map(|p| srgb8(mat3_vec(&to_srgb, ccm.apply(p.fit.camera_rgb)))).collect();
+    let reference: Vec<[u8; 3]> = file.patches.iter().map(|p| srgb8(mat3_vec(&to_srgb, p.fit.reference_xyz))).collect();
+    let title = format!("{} — {}: photo corrected by the fitted matrix vs reference", file.camera, file.method);
+    Ok(crate::plot::chart_halves_png(&title, &labels, &photo, &reference)?)
 }
 
 /// patches.png: the (linear) chart image scaled so the white patch is at
-/// 0.9, with the sampled squares outlined in magenta.
-fn sampling_overlay(img: &RgbImage, samples: &[PatchSample]) -> RgbImage {
+/// 0.9, sRGB-encoded, enlarged to a legible size, with the sampled squares
+/// outlined in magenta and numbered.
+fn sampling_overlay(img: &RgbImage, samples: &[PatchSample]) -> Result<Vec<u8>> {
     let white = samples.get(18).map(|s| s.mean.iter().copied().fold(0.0, f64::max)).unwrap_or(1.0);
     let scale = if white > 0.0 { (0.9 / white) as f32 } else { 1.0 };
-    let mut out = img.clone();
-    out.data.iter_mut().for_each(|v| *v *= scale);
-    let mut plot = |x: f64, y: f64| {
-        if x >= 0.0 && y >= 0.0 && (x as usize) < out.width && (y as usize) < out.height {
-            let i = 3 * (y as usize * out.width + x as usize);
-            out.data[i..i + 3].copy_from_slice(&[1.0, 0.0, 1.0]);
-        }
-    };
-    for s in samples {
-        for k in 0..4 {
-            let (p, q) = (s.outline[k], s.outline[(k + 1) % 4]);
-            let steps = ((q[0] - p[0]).abs().max((q[1] - p[1]).abs()).ceil() as usize).max(1);
-            for t in 0..=steps {
-                let f = t as f64 / steps as f64;
-                plot(p[0] + f * (q[0] - p[0]), p[1] + f * (q[1] - p[1]));
-            }
-        }
-    }
-    out
+    let bytes: Vec<u8> = img.data.iter().map(|v| (imageio::srgb_encode(v * scale) * 255.0 + 0.5) as u8).collect();
+    let outlines: Vec<[[f64; 2]; 4]> = samples.iter().map(|s| s.outline).collect();
+    Ok(crate::plot::patch_overlay_png(img.width, img.height, &bytes, &outlines)?)
 }
 
 fn read_ccm(path: &Path) -> Result<(CcmFile, ColourCorrection)> {

@@ -3,8 +3,10 @@
 //!
 //! * Photo and render share one exposure `k`: the shown value is
 //!   `sRGB(k × linear)` per channel, clipped to [0, 1] (IEC 61966-2-1
-//!   transfer function); pixels with any `k × value > 1` clip, and their
-//!   fraction is stated in the header and in metrics.json.
+//!   transfer function); pixels with any `k × value > 1` clip, are marked
+//!   with magenta diagonal stripes ([`CLIP_MARK`]) in the photo and render
+//!   columns, and their fraction is stated in the header and in
+//!   metrics.json.
 //! * The difference is the luminance `Y(render) − Y(photo)` (linear, the
 //!   images' own units, not scaled by `k`) in a diverging map — ColorBrewer
 //!   RdBu (Brewer 2002), blue where the render is darker, white at 0, red
@@ -39,6 +41,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 pub const PANEL_MAX: usize = 720;
 /// Narrowest panel in pixels (smaller images are enlarged by repetition).
 pub const PANEL_MIN: usize = 320;
+
+/// The stripes over clipped photo and render pixels.
+pub const CLIP_MARK: RGBColor = RGBColor(255, 0, 255);
 
 const MARGIN: i32 = 16;
 const GAP: i32 = 12;
@@ -169,6 +174,16 @@ fn hatch(x: usize, y: usize) -> bool {
     (x + y) % 10 < 2
 }
 
+/// Stripes of the clipping mark (the other diagonal from [`hatch`]).
+fn clip_stripe(x: usize, y: usize) -> bool {
+    (x + 1000 - y % 1000) % 8 < 3
+}
+
+/// Whether `k × value` exceeds 1 in any channel (shown clipped).
+fn clipped(rgb: [f64; 3], k: f64) -> bool {
+    rgb.iter().any(|v| k * v > 1.0)
+}
+
 /// Photo/render pixel: sRGB of k × value; excluded pixels greyed
 /// (desaturated, pulled half-way to mid-grey) so the context stays visible.
 fn shown(rgb: [f64; 3], k: f64, masked: bool) -> RGBColor {
@@ -238,9 +253,16 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
                 for px in 0..s.pw {
                     let k = (py / s.up).min(p.h - 1) * p.w + (px / s.up).min(p.w - 1);
                     let m = p.masked[k];
+                    let mark = |rgb: [f64; 3]| {
+                        if clipped(rgb, style.exposure) && clip_stripe(px, py) {
+                            CLIP_MARK
+                        } else {
+                            shown(rgb, style.exposure, m)
+                        }
+                    };
                     let colours = [
-                        shown(p.photo[k], style.exposure, m),
-                        shown(p.render[k], style.exposure, m),
+                        mark(p.photo[k]),
+                        mark(p.render[k]),
                         if m {
                             if hatch(px, py) {
                                 RGBColor(150, 150, 150)
@@ -294,6 +316,25 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
             let note = "excluded by the mask: hatched (difference), greyed (photo, render)";
             text(note, MARGIN + 72, y0, 14, left)?;
         }
+        // Legend for clipped pixels, under the render column, when there are any.
+        let any_clipped = reduced.iter().any(|p| p.photo.iter().chain(&p.render).any(|c| clipped(*c, style.exposure)));
+        if any_clipped {
+            let lx = MARGIN + pw + GAP;
+            let ly = y0 + if rows.iter().any(|r| r.mask.is_some()) { 24 } else { 0 };
+            for i in 0..28 {
+                for j in 0..16 {
+                    let c = if clip_stripe(i, j) { CLIP_MARK } else { RGBColor(255, 255, 255) };
+                    root.draw_pixel((lx + i as i32, ly + j as i32), &c).map_err(perr)?;
+                }
+            }
+            text(
+                &format!("clipped at exposure ×{}", crate::plot::short_number(style.exposure)),
+                lx + 36,
+                ly,
+                14,
+                left,
+            )?;
+        }
         Ok(())
     })
 }
@@ -308,6 +349,36 @@ mod tests {
         assert_eq!(diverging(-1.0), RGBColor(5, 48, 97));
         assert_eq!(diverging(7.0), RGBColor(103, 0, 31));
         assert_eq!(diverging(f64::NAN), RGBColor(247, 247, 247));
+    }
+
+    /// Clipped photo pixels carry the clipping stripes; at an exposure that clips nothing, no stripes.
+    #[test]
+    fn clipped_pixels_are_marked() {
+        let (w, h) = (40, 30);
+        let photo_data: Vec<f32> = (0..w * h).flat_map(|i| if i % w < 20 { [0.8f32; 3] } else { [0.1; 3] }).collect();
+        let photo = RgbImage::new(w, h, photo_data).unwrap();
+        let render = RgbImage::new(w, h, vec![0.2; w * h * 3]).unwrap();
+        let draw = |exposure: f64| {
+            let row = Row { title: "t".into(), photo: &photo, render: &render, mask: None, caption: "c".into() };
+            let style = Style { exposure, luminance: [0.2126, 0.7152, 0.0722], diff_range: 0.1, header: vec![] };
+            image::load_from_memory(&triplet_png(&[row], &style).unwrap()).unwrap().to_rgb8()
+        };
+        let marked = |img: &image::RgbImage, x0: u32, x1: u32| {
+            (x0..x1)
+                .flat_map(|x| (0..img.height()).map(move |y| (x, y)))
+                .filter(|&(x, y)| img.get_pixel(x, y).0 == [255, 0, 255])
+                .count()
+        };
+        let pw = scale_for(w, h).pw as u32;
+        let m = MARGIN as u32;
+        // 0.8 × 2 > 1 on the left half of the photo: about 3/8 of its half-panel pixels are stripes.
+        let img = draw(2.0);
+        let n = marked(&img, m, m + pw);
+        assert!(n as u32 > pw * pw * 3 / 4 / 2 * 3 / 8 / 2, "{n} marked photo pixels");
+        assert_eq!(marked(&img, m + pw / 2 + 4, m + pw), 0, "the unclipped half is not marked");
+        // 0.8 × 1 ≤ 1: nothing clips.
+        let img = draw(1.0);
+        assert_eq!(marked(&img, 0, img.width()), 0);
     }
 
     #[test]
