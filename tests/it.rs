@@ -38,6 +38,8 @@ mod optics_bulk;
 mod optics_cli;
 #[path = "pipeline.rs"]
 mod pipeline;
+#[path = "plots.rs"]
+mod plots;
 #[path = "render.rs"]
 mod render;
 #[path = "surface.rs"]
