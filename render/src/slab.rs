@@ -1030,6 +1030,8 @@ struct Kernel<'a> {
     launch: [f64; 3],
     /// Pixel area A_o [m²].
     area: f64,
+    /// The lobe connection's chain length m ([`Estimator::Lobe`]; 0 otherwise).
+    lobe_vertices: usize,
     /// Whether batches run in the vector lanes of [`lanes`].
     #[cfg(target_arch = "x86_64")]
     lanes: bool,
@@ -1108,6 +1110,7 @@ impl<'a> Kernel<'a> {
             rough,
             launch,
             area,
+            lobe_vertices: if let Estimator::Lobe { vertices } = estimator { vertices } else { 0 },
             #[cfg(target_arch = "x86_64")]
             lanes: matches!(estimator, Estimator::Connection | Estimator::Ring) && crate::simd::available(),
         })
@@ -1202,9 +1205,9 @@ impl<'a> Kernel<'a> {
                 Some(ring) => total += self.connect_ring(ring, p, dir, w, image, rng),
                 None => match self.estimator {
                     Estimator::Connection => total += self.connect(p, dir, w, exit, image, rng),
-                    Estimator::Lobe { vertices } => {
+                    Estimator::Lobe { .. } => {
                         junctions.arrive();
-                        total += self.connect_lobe(p, dir, w, vertices, &junctions, image, rng);
+                        total += self.connect_lobe(p, dir, w, &junctions, image, rng);
                         junctions.scatter(phase.eval(angles.cos_theta));
                     }
                     _ => {}
@@ -1490,7 +1493,7 @@ impl<'a> Kernel<'a> {
 
     /// The lobe connection of a scattering event at `p` (incoming direction
     /// `dir`, weight `w` after albedo; `junctions` the walk's MIS history)
-    /// with `m` camera-side vertices (module doc, "Lobe connection"):
+    /// with m = `lobe_vertices` camera-side vertices (module doc, "Lobe connection"):
     /// strategy 0, the connection along ω₂₁ from `p`, and strategies
     /// j = 1 … m from one chain of directions drawn backwards from ω₂₁ by
     /// the phase function (ω^c_j from p(·ω^c_{j−1}), ω^c_0 = ω₂₁) and
@@ -1505,11 +1508,11 @@ impl<'a> Kernel<'a> {
         p: [f64; 3],
         dir: [f64; 3],
         w: f64,
-        m: usize,
         junctions: &Junctions,
         image: &mut [f64],
         rng: &mut Rng,
     ) -> f64 {
+        let m = self.lobe_vertices;
         let phase = &self.setup.slab.medium.phase;
         let sensor = &self.setup.sensor;
         let w21 = self.w21;

@@ -126,8 +126,8 @@ pub struct RunArgs {
     #[arg(long, value_enum, default_value_t = EstimatorChoice::Auto)]
     pub estimator: EstimatorChoice,
     /// Camera-side vertices of the lobe connection's chains (0 … 32; 0 is the fixed-direction connection).
-    #[arg(long, default_value_t = lucent_render::slab::LOBE_VERTICES)]
-    pub lobe_vertices: usize,
+    #[arg(long, default_value_t = lucent_render::slab::LOBE_VERTICES as u8)]
+    pub lobe_vertices: u8,
     /// Top boundary: smooth, tr:ALPHA (ggx:ALPHA), beckmann:ALPHA, or
     /// measured:FIT.json (the normals.exr beside a `lucent surface fit`
     /// fit.json). Default: the recipe's [surface], else smooth.
@@ -292,11 +292,11 @@ fn simulate(a: RunArgs) -> Result<()> {
         let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
         let estimator = match a.estimator {
             EstimatorChoice::Auto => match Estimator::best_for(&setup) {
-                Estimator::Lobe { .. } => Estimator::Lobe { vertices: a.lobe_vertices },
+                Estimator::Lobe { .. } => Estimator::Lobe { vertices: a.lobe_vertices.into() },
                 e => e,
             },
             EstimatorChoice::Ring => Estimator::Ring,
-            EstimatorChoice::Lobe => Estimator::Lobe { vertices: a.lobe_vertices },
+            EstimatorChoice::Lobe => Estimator::Lobe { vertices: a.lobe_vertices.into() },
             EstimatorChoice::Connection => Estimator::Connection,
         };
         let options = RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() };
@@ -513,7 +513,7 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
             time_s: Some(time_s),
             seed: 1,
             estimator: EstimatorChoice::Auto,
-            lobe_vertices: lucent_render::slab::LOBE_VERTICES,
+            lobe_vertices: lucent_render::slab::LOBE_VERTICES as u8,
             roughness: None,
             no_fold: false,
             out: PathBuf::new(),
