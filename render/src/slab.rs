@@ -1846,7 +1846,10 @@ pub const RING_SPLATS: usize = 16;
 /// m = 1, 2, 4, 8, 16 while the time per path grew 1.9×, 2.3×, 3.9×, 7.0×
 /// and 15× (the lane kernel of the connection against the scalar one):
 /// median² × time 2.4× lower than the connection's at m = 16, 1.8× at 8,
-/// 1.0× at 1.
+/// 1.0× at 1. Longer chains still gain a little (30 s runs: variance ×
+/// paths 2.4 k, 1.1 k, 0.77 k and median² × time 2.7, 2.3, 2.2 s for
+/// m = 16, 24, 32), but a round of 32 batches then takes tens of seconds
+/// on a loaded machine, which a time-limited run overshoots: 16 is kept.
 pub const LOBE_VERTICES: usize = 16;
 
 /// The most camera-side vertices [`Estimator::Lobe`] accepts.
