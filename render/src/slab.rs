@@ -139,8 +139,8 @@
 //! f(x_o, ω_o; x_i, ω_i), the connection aims at ω_i, and the splat goes to
 //! b − Δ (h(Δ) = f(0, ω_o; Δ, ω_i), so the slice at x is E_b h(b − x)). It
 //! needs a thick slab (no image terms, μ_t d / cos θ_t ≥ 40) and one of
-//! θ_i, θ_o equal to 0; [`Estimator::best_for`] falls back to the fixed
-//! direction otherwise. Tested pixel by pixel against the fixed-direction
+//! θ_i, θ_o equal to 0; [`Estimator::best_for`] falls back to the lobe
+//! connection (below) or the fixed direction otherwise. Tested pixel by pixel against the fixed-direction
 //! connection, against brute force, and in a white furnace.
 //!
 //! **Lobe connection** ([`Estimator::Lobe`], the default where the ring
