@@ -4,7 +4,9 @@
 //! reciprocity, the white furnace, determinism across thread counts, and bad
 //! input; the ring connection against the fixed-direction one pixel by
 //! pixel, its furnace, the reported standard errors against the spread over
-//! seeds, the fold, and χ² tests of the direction and beam samplers. Fixed
+//! seeds, the fold, and χ² tests of the direction and beam samplers; the
+//! lobe connection against the fixed-direction one pixel by pixel, brute
+//! force, its furnace and its standard errors. Fixed
 //! seeds; tolerances are multiples of the reported standard errors, which
 //! are themselves tested.
 
@@ -28,6 +30,10 @@ fn run(s: &Setup, paths: u64, seed: u64, estimator: Estimator) -> Slice {
 
 fn lab_45_0() -> Directions {
     Directions::from_degrees(45.0, 0.0, 0.0, 180.0).unwrap()
+}
+
+fn lab_45_15() -> Directions {
+    Directions::from_degrees(45.0, 0.0, 15.0, 180.0).unwrap()
 }
 
 /// Asserts |a − b| ≤ k·σ_combined + bias·|b|.
@@ -380,11 +386,13 @@ fn ring_agrees_with_brute_force_binning() {
 fn reported_standard_errors_match_the_spread_over_seeds() {
     // 30 independent runs; (n − 1) s² / mean(SE²) ~ χ²(n − 1) for the sum
     // and for single pixels, for the fixed-direction connection (thin slab,
-    // image terms) and the ring (thick slab), folded.
+    // image terms), the ring and the two-vertex connection (thick slab),
+    // folded.
     let seeds = 30u64;
     let cases = [
         (setup(2000.0, 200.0, 0.5, 1.4, 1e-3, 12, 0.25e-3, lab_45_0()), Estimator::Connection, 8_000u64),
         (thick_setup(lab_45_0(), 12, 0.5e-3), Estimator::Ring, 1_500),
+        (thick_setup(lab_45_15(), 12, 0.5e-3), Estimator::Lobe { vertices: 3 }, 1_500),
     ];
     for (s, estimator, paths) in cases {
         let runs: Vec<Slice> = (0..seeds)
@@ -429,6 +437,15 @@ fn reported_standard_errors_match_the_spread_over_seeds() {
 
 #[test]
 fn ring_white_furnace_slice_integrates_to_one_minus_transmittance() {
+    white_furnace(Estimator::Ring, 6_000, 200);
+}
+
+#[test]
+fn lobe_white_furnace_slice_integrates_to_one_minus_transmittance() {
+    white_furnace(Estimator::Lobe { vertices: 3 }, 6_000, 300);
+}
+
+fn white_furnace(estimator: Estimator, paths: u64, seed: u64) {
     // μ_a = 0, normal incidence (the ring launched from the light): the
     // slice integrated over exit area and directions (8-point Gauss–Legendre
     // in μ_o = cos θ_o, the azimuth by symmetry) must be everything that
@@ -453,7 +470,7 @@ fn ring_white_furnace_slice_integrates_to_one_minus_transmittance() {
         let mu = 0.5 * (x + 1.0);
         let dirs = Directions::from_degrees(0.0, 0.0, mu.acos().to_degrees(), 0.0).unwrap();
         let s = setup(60_000.0, 0.0, 0.9, 1.4, 1e-3, pixels, pixel_m, dirs);
-        let sl = run(&s, 6_000, 200 + k as u64, Estimator::Ring);
+        let sl = run(&s, paths, seed + k as u64, estimator);
         let c = 2.0 * std::f64::consts::PI * 0.5 * w * mu * pixel_m * pixel_m;
         rd += c * sl.sum;
         var += (c * sl.sum_std_error).powi(2);
@@ -469,10 +486,58 @@ fn ring_white_furnace_slice_integrates_to_one_minus_transmittance() {
     let se = (var + t_se * t_se).sqrt();
     assert!(
         (rd - expected).abs() < 0.01 * expected + 3.0 * se,
-        "∫ slice = {rd:.5} ± {:.5} vs 1 − F − T = {expected:.5} ± {t_se:.5}",
+        "{estimator:?}: ∫ slice = {rd:.5} ± {:.5} vs 1 − F − T = {expected:.5} ± {t_se:.5}",
         var.sqrt()
     );
     assert!(se < 0.01 * expected, "too noisy to test ({se:.5})");
+}
+
+#[test]
+fn lobe_agrees_with_the_fixed_direction_connection_pixel_by_pixel() {
+    // The lab's 45°/15° and an out-of-plane pair (30°/40°, φ_o = 100°), HG
+    // g = 0.8 and g = 0.9: every resolved pixel, χ² of the
+    // differences over their combined errors, and the sums.
+    // Two vertices (m = 1) and chains of four (strategies 0 … 4 and the
+    // walk's history truncated at m − j).
+    for (theta_i, theta_o, phi_o, g, m) in [(45.0, 15.0, 180.0, 0.8, 1), (30.0, 40.0, 100.0, 0.9, 4)] {
+        let dirs = Directions::from_degrees(theta_i, 0.0, theta_o, phi_o).unwrap();
+        let s = setup(3000.0, 30.0, g, 1.5, 15e-3, 12, 0.5e-3, dirs);
+        assert_eq!(Estimator::best_for(&s), Estimator::Lobe { vertices: LOBE_VERTICES });
+        let conn = run(&s, 60_000, 51, Estimator::Connection);
+        let two = run(&s, 20_000 / m as u64, 52, Estimator::Lobe { vertices: m });
+        let (chi2, k) = pixel_chi2(&two, &conn);
+        assert!(k >= 20, "{theta_i}/{theta_o}: only {k} resolved pixels");
+        let p = chi2_upper(chi2, k);
+        assert!(p > 1e-3, "{theta_i}/{theta_o}: χ² = {chi2:.1} over {k} pixels (p = {p:.2e})");
+        agree("lobe vs connection sum", two.sum, two.sum_std_error, conn.sum, conn.sum_std_error, 3.5, 0.0);
+    }
+}
+
+#[test]
+fn lobe_agrees_with_brute_force_binning() {
+    // Exits binned within 8° of ω_o (45°/15°); the cone average differs
+    // from the exact direction by well under 1 % here.
+    let s = thick_setup(lab_45_15(), 8, 1.0e-3);
+    let two = run(&s, 5_000, 61, Estimator::Lobe { vertices: 3 });
+    let brute = run(&s, 600_000, 62, Estimator::BruteForce { cone_deg: 8.0 });
+    agree("lobe vs brute force sum", two.sum, two.sum_std_error, brute.sum, brute.sum_std_error, 3.0, 0.01);
+}
+
+#[test]
+fn lobe_is_refused_where_it_does_not_apply() {
+    // A thin slab (image terms) falls back to the fixed direction.
+    let thin = setup(2000.0, 200.0, 0.5, 1.4, 1e-3, 8, 0.25e-3, lab_45_15());
+    assert_eq!(Estimator::best_for(&thin), Estimator::Connection);
+    let opts = RunOptions {
+        stop: Stop::paths(100),
+        estimator: Estimator::Lobe { vertices: LOBE_VERTICES },
+        ..RunOptions::default()
+    };
+    assert_eq!(simulate(&thin, &opts, |_| {}).unwrap_err(), SlabError::LobeNotApplicable);
+    // Chains longer than MAX_LOBE_VERTICES are refused.
+    let thick = thick_setup(lab_45_15(), 8, 1e-3);
+    let long = RunOptions { estimator: Estimator::Lobe { vertices: MAX_LOBE_VERTICES + 1 }, ..opts };
+    assert!(matches!(simulate(&thick, &long, |_| {}), Err(SlabError::Parameter { name: "lobe_vertices", .. })));
 }
 
 #[test]

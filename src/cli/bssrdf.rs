@@ -29,10 +29,14 @@ pub enum BssrdfCommand {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum EstimatorChoice {
-    /// The ring connection where it applies (θi = 0 or θo = 0, thick slab), else the fixed-direction one.
+    /// The ring connection where it applies (θi = 0 or θo = 0, thick slab), else the lobe connection (thick slab,
+    /// smooth top), else the fixed-direction one.
     Auto,
     /// The ring connection (azimuthal symmetry; an error where it does not apply).
     Ring,
+    /// The lobe connection (MIS with chains drawn through the phase lobe around the exit direction; thick slab,
+    /// smooth top).
+    Lobe,
     /// The explicit connection along the one fixed exit direction (the previous estimator).
     Connection,
 }
@@ -122,6 +126,9 @@ pub struct RunArgs {
     /// Estimator of the slice.
     #[arg(long, value_enum, default_value_t = EstimatorChoice::Auto)]
     pub estimator: EstimatorChoice,
+    /// Camera-side vertices of the lobe connection's chains (0 … 32; 0 is the fixed-direction connection).
+    #[arg(long, default_value_t = lucent_render::slab::LOBE_VERTICES as u8)]
+    pub lobe_vertices: u8,
     /// Top boundary: smooth, tr:ALPHA (ggx:ALPHA), beckmann:ALPHA, or
     /// measured:FIT.json (the normals.exr beside a `lucent surface fit`
     /// fit.json). Default: the recipe's [surface], else smooth.
@@ -316,8 +323,12 @@ fn simulate(a: RunArgs) -> Result<()> {
         let sub = if configs.len() > 1 { format!("ti{ti}_to{to}") } else { String::new() };
         let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
         let estimator = match a.estimator {
-            EstimatorChoice::Auto => Estimator::best_for(&setup),
+            EstimatorChoice::Auto => match Estimator::best_for(&setup) {
+                Estimator::Lobe { .. } => Estimator::Lobe { vertices: a.lobe_vertices.into() },
+                e => e,
+            },
             EstimatorChoice::Ring => Estimator::Ring,
+            EstimatorChoice::Lobe => Estimator::Lobe { vertices: a.lobe_vertices.into() },
             EstimatorChoice::Connection => Estimator::Connection,
         };
         let options = RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() };
@@ -522,7 +533,11 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
         |_| {},
     )?;
     let mut per_pixel = Vec::new();
-    for sample in ["IOL1068-09", "IOL1068-13"] {
+    // (sample, θi, θo, whether the previous estimator was folded: at 45°/15°
+    // the demo already folded the fixed-direction connection).
+    for (sample, theta_i, theta_o, previous_fold) in
+        [("IOL1068-09", 45.0, 0.0, false), ("IOL1068-13", 45.0, 0.0, false), ("IOL1068-09", 45.0, 15.0, true)]
+    {
         let recipe = PathBuf::from(format!("fixtures/samples/{sample}.toml"));
         let args = RunArgs {
             recipe: Some(recipe.clone()),
@@ -533,9 +548,9 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
             g: None,
             n: None,
             thickness_mm: None,
-            theta_i: 45.0,
+            theta_i,
             phi_i: 0.0,
-            theta_o: 0.0,
+            theta_o,
             phi_o: 180.0,
             configs: None,
             phase: None,
@@ -551,6 +566,7 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
             time_s: Some(time_s),
             seed: 1,
             estimator: EstimatorChoice::Auto,
+            lobe_vertices: lucent_render::slab::LOBE_VERTICES as u8,
             roughness: None,
             no_fold: false,
             out: PathBuf::new(),
@@ -562,13 +578,15 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
             Slab::new(m.thickness_m, m.medium.clone())?,
             Beam::gaussian(200e-6)?,
             Sensor::new(117, 0.1029e-3)?,
-            Directions::from_degrees(45.0, 0.0, 0.0, 180.0)?,
+            Directions::from_degrees(theta_i, 0.0, theta_o, 180.0)?,
         );
         let mut row = serde_json::Map::new();
         row.insert("sample".into(), sample.into());
+        row.insert("theta_i_deg".into(), theta_i.into());
+        row.insert("theta_o_deg".into(), theta_o.into());
         row.insert("g".into(), m.used.g.into());
         for (name, estimator, fold) in
-            [("previous", Estimator::Connection, false), ("current", Estimator::best_for(&setup), true)]
+            [("previous", Estimator::Connection, previous_fold), ("current", Estimator::best_for(&setup), true)]
         {
             let options = RunOptions {
                 stop: Stop { time_s: Some(time_s), ..Stop::default() },
@@ -599,7 +617,7 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
         per_pixel.push(serde_json::Value::Object(row));
     }
     let json = serde_json::json!({
-        "benchmark": "slab BSSRDF: speed (PDMS-like HG medium, 259 × 259, fixed-direction connection) and per-pixel convergence (recipes, 45°/0°, 117 of 259 px)",
+        "benchmark": "slab BSSRDF: speed (PDMS-like HG medium, 259 × 259, fixed-direction connection) and per-pixel convergence (recipes, 45°/0° and 45°/15°, 117 of 259 px)",
         "kernel": single.kernel,
         "events_per_s_one_core": single.events_per_s(),
         "one_core_statistic": "best of 5 runs of 20 000 paths",

@@ -181,7 +181,8 @@ pub enum BenchCommand {
         /// Target relative standard error of the slice sum.
         #[arg(long, default_value_t = 0.01)]
         rel_error: f64,
-        /// Seconds per run of the per-pixel comparison (previous vs current estimator, IOL1068-09 and -13).
+        /// Seconds per run of the per-pixel comparison (previous vs current estimator, IOL1068-09 and -13 at 45°/0°,
+        /// IOL1068-09 at 45°/15°).
         #[arg(long, default_value_t = 60.0)]
         time_s: f64,
     },
