@@ -324,7 +324,7 @@ pub struct Summary {
     /// rounding).
     pub kernel: &'static str,
     /// The estimator: the ring connection (azimuthal symmetry) where it
-    /// applies, else the two-vertex connection (thick slab, smooth top),
+    /// applies, else the lobe connection (thick slab, smooth top),
     /// else the connection along the fixed exit direction.
     pub estimator: &'static str,
     /// Whether the slice was folded about the plane of incidence (exact when

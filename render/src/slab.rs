@@ -834,7 +834,7 @@ pub enum Estimator {
 
 impl Estimator {
     /// [`Estimator::Ring`] where it applies (one of θ_i, θ_o is 0 and the
-    /// other is not, thick slab), else [`Estimator::TwoVertex`] where it
+    /// other is not, thick slab), else [`Estimator::Lobe`] where it
     /// applies (thick slab, smooth top), else [`Estimator::Connection`].
     pub fn best_for(setup: &Setup) -> Self {
         if Ring::applies(setup) {

@@ -386,7 +386,7 @@ fn ring_agrees_with_brute_force_binning() {
 fn reported_standard_errors_match_the_spread_over_seeds() {
     // 30 independent runs; (n − 1) s² / mean(SE²) ~ χ²(n − 1) for the sum
     // and for single pixels, for the fixed-direction connection (thin slab,
-    // image terms), the ring and the two-vertex connection (thick slab),
+    // image terms), the ring and the lobe connection (m = 3) (thick slab),
     // folded.
     let seeds = 30u64;
     let cases = [
