@@ -4,10 +4,11 @@
 use lucent::bssrdf::{compare, heatmap_png, Grid, MASKED, OVER};
 use plotters::style::RGBColor;
 
-/// Pixels of colour `c` in the third panel (x 1240..1860) above the colour bars (y < 600).
+/// Pixels of colour `c` inside the map of the third panel (panels 620 px wide; the map between
+/// the axes, clear of captions, tick labels and the colour bars below 600 px).
 fn count_in_difference_panel(img: &image::RgbImage, c: RGBColor) -> usize {
-    (1240..1860)
-        .flat_map(|x| (0..600).map(move |y| (x, y)))
+    (1300..1845)
+        .flat_map(|x| (50..550).map(move |y| (x, y)))
         .filter(|&(x, y)| img.get_pixel(x, y).0 == [c.0, c.1, c.2])
         .count()
 }

@@ -761,13 +761,8 @@ pub fn draw_view_png(
     .map_err(cv_err("rectangle"))?;
     text(&mut bgr, label, Point::new(margin, h_text + margin / 2), Scalar::new(255.0, 255.0, 255.0, 0.0))?;
 
-    // The key, in a black strip added under the photo (no mark covered).
-    let strip = h_text + 2 * margin;
-    let mut keyed = Mat::default();
-    core::copy_make_border(&bgr, &mut keyed, 0, strip, 0, 0, core::BORDER_CONSTANT, Scalar::all(0.0))
-        .map_err(cv_err("copyMakeBorder"))?;
-    let y = img.height as i32 + margin + h_text / 2;
-    let mut x = margin;
+    // The key, in a black strip added under the photo (no mark covered),
+    // wrapped onto as many lines as the photo's width needs.
     let white = Scalar::new(255.0, 255.0, 255.0, 0.0);
     let green = Scalar::new(0.0, 200.0, 0.0, 0.0);
     let yellow = Scalar::new(0.0, 255.0, 255.0, 0.0);
@@ -776,8 +771,27 @@ pub fn draw_view_png(
     if outline_top.is_some() {
         keys.push((3, cyan, "sample box"));
     }
+    let mut placed = Vec::new();
+    let (mut x, mut line) = (margin, 0);
     for (mark, colour, name) in keys {
+        let mut base = 0;
+        let size = imgproc::get_text_size(name, font, 0.5 * scale, thick, &mut base).map_err(cv_err("getTextSize"))?;
+        let width = 3 * arm + margin + size.width;
+        if x > margin && x + width > img.width as i32 - margin {
+            (x, line) = (margin, line + 1);
+        }
+        placed.push((mark, colour, name, x, line));
+        x += width + 3 * margin;
+    }
+    let line_h = h_text + margin;
+    let strip = (line + 1) * line_h + margin;
+    let mut keyed = Mat::default();
+    core::copy_make_border(&bgr, &mut keyed, 0, strip, 0, 0, core::BORDER_CONSTANT, Scalar::all(0.0))
+        .map_err(cv_err("copyMakeBorder"))?;
+    for (mark, colour, name, x, line) in placed {
+        let y = img.height as i32 + margin + h_text / 2 + line * line_h;
         let c = Point::new(x + arm, y);
+        let (from, to) = (Point::new(x, y), Point::new(x + 3 * arm, y));
         match mark {
             0 => imgproc::circle(&mut keyed, c, arm, colour, thick, imgproc::LINE_AA, 0).map_err(cv_err("circle"))?,
             1 => {
@@ -786,33 +800,11 @@ pub fn draw_view_png(
                     imgproc::line(&mut keyed, p, q, colour, thick, imgproc::LINE_AA, 0).map_err(cv_err("line"))?;
                 }
             }
-            2 => imgproc::arrowed_line(
-                &mut keyed,
-                Point::new(x, y),
-                Point::new(x + 3 * arm, y),
-                colour,
-                thick,
-                imgproc::LINE_AA,
-                0,
-                0.4,
-            )
-            .map_err(cv_err("arrowedLine"))?,
-            _ => imgproc::line(
-                &mut keyed,
-                Point::new(x, y),
-                Point::new(x + 3 * arm, y),
-                colour,
-                thick,
-                imgproc::LINE_AA,
-                0,
-            )
-            .map_err(cv_err("line"))?,
+            2 => imgproc::arrowed_line(&mut keyed, from, to, colour, thick, imgproc::LINE_AA, 0, 0.4)
+                .map_err(cv_err("arrowedLine"))?,
+            _ => imgproc::line(&mut keyed, from, to, colour, thick + 1, imgproc::LINE_8, 0).map_err(cv_err("line"))?,
         }
-        x += 3 * arm + margin;
-        text(&mut keyed, name, Point::new(x, y + h_text / 3), white)?;
-        let mut base = 0;
-        let size = imgproc::get_text_size(name, font, 0.5 * scale, thick, &mut base).map_err(cv_err("getTextSize"))?;
-        x += size.width + 3 * margin;
+        text(&mut keyed, name, Point::new(x + 3 * arm + margin, y + h_text / 3), white)?;
     }
     let mut buf = Vector::<u8>::new();
     imgcodecs::imencode(".png", &keyed, &mut buf, &Vector::new()).map_err(cv_err("imencode PNG"))?;
@@ -943,9 +935,11 @@ mod tests {
         let outline = [([40.0, 220.0], [280.0, 220.0]), ([40.0, 220.0], [40.0, 230.0])];
         let with = decode(draw_view_png(&img, &board, &corners, &corners, &outline, "v").unwrap());
         let without = decode(draw_view_png(&img, &board, &corners, &corners, &[], "v").unwrap());
-        assert_eq!((with.rows(), without.rows(), with.cols()), (240 + 30, 240 + 30, 320));
-        assert!(cyan(&with, 240, 270) > 20, "the key shows the sample box");
-        assert_eq!(cyan(&without, 240, 270), 0, "no sample, no sample key");
+        // The key wraps onto more lines (of 24 px, + 6 px margin) on a narrow photo.
+        assert_eq!((with.cols(), without.cols()), (320, 320));
+        assert!(with.rows() >= 240 + 54 && without.rows() >= 240 + 54, "{} {}", with.rows(), without.rows());
+        assert!(cyan(&with, 240, with.rows()) > 12, "the key shows the sample box");
+        assert_eq!(cyan(&without, 240, without.rows()), 0, "no sample, no sample key");
         assert!(cyan(&with, 195, 216) > 20, "the outline is labelled above its top");
         assert_eq!(cyan(&without, 195, 216), 0);
     }
