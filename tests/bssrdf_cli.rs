@@ -340,24 +340,7 @@ fn ctrl_c_keeps_a_labelled_partial_slice() {
     args.extend_from_slice(&THIN);
     args.extend_from_slice(&["--configs", "45/0,0/45", "--out", out.to_str().unwrap()]);
     let started = std::time::Instant::now();
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(&args)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    use std::io::{BufRead, Read};
-    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut text = String::new();
-    while !text.contains("Ctrl-C stops") {
-        assert!(err.read_line(&mut text).unwrap() > 0, "lucent bssrdf ended early: {text}");
-    }
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    let pid = i32::try_from(child.id()).unwrap();
-    // SAFETY: sends SIGINT to our own child process.
-    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
-    err.read_to_string(&mut text).unwrap();
-    let status = child.wait().unwrap();
+    let (status, text) = common::interrupt_after(&args, "Ctrl-C stops");
     assert!(!status.success(), "an interrupted run must not exit 0");
     assert!(started.elapsed().as_secs_f64() < 60.0, "the run did not stop at Ctrl-C");
     assert!(text.contains("interrupted"), "{text}");

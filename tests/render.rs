@@ -318,28 +318,10 @@ fn ctrl_c_writes_a_labelled_partial_render() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("r");
     let scene = root().join("fixtures/render/plaque_dense.toml");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(["render", scene.to_str().unwrap(), "--spp", "1000000", "--size", "32x24"])
-        .arg("--out")
-        .arg(&out)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Wait for the "rendering …" line (the scene is loaded, the handler is
-    // being installed), then let a few passes finish.
-    use std::io::{BufRead, Read};
-    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut stderr = String::new();
-    while !stderr.contains("rendering") {
-        assert!(err.read_line(&mut stderr).unwrap() > 0, "lucent render ended early: {stderr}");
-    }
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    let pid = i32::try_from(child.id()).unwrap();
-    // SAFETY: sends SIGINT to our own child process.
-    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
-    err.read_to_string(&mut stderr).unwrap();
-    let status = child.wait().unwrap();
+    // The "rendering …" line says the scene is loaded and the handler is being installed.
+    let args =
+        ["render", scene.to_str().unwrap(), "--spp", "1000000", "--size", "32x24", "--out", out.to_str().unwrap()];
+    let (status, stderr) = crate::common::interrupt_after(&args, "rendering");
     assert!(!status.success(), "an interrupted render must not exit 0");
     assert!(stderr.contains("interrupted"), "{stderr}");
     let json: serde_json::Value =

@@ -20,3 +20,29 @@ pub fn stdout(o: &Output) -> String {
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
+
+/// Starts `lucent ARGS…` in the repository root, waits until its stderr
+/// shows `ready` (the Ctrl-C handler is in place), lets it work for 1.5 s,
+/// sends it SIGINT and returns its exit status and everything it printed
+/// on stderr.
+pub fn interrupt_after(args: &[&str], ready: &str) -> (std::process::ExitStatus, String) {
+    use std::io::{BufRead, Read};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start lucent");
+    let mut err = std::io::BufReader::new(child.stderr.take().expect("piped stderr"));
+    let mut text = String::new();
+    while !text.contains(ready) {
+        assert!(err.read_line(&mut text).expect("read stderr") > 0, "lucent ended before {ready:?}: {text}");
+    }
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let pid = i32::try_from(child.id()).expect("a pid");
+    // SAFETY: sends SIGINT to our own child process.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    err.read_to_string(&mut text).expect("read stderr");
+    (child.wait().expect("wait for lucent"), text)
+}
