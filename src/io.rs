@@ -301,6 +301,28 @@ pub fn glob_files(spec: &str) -> Result<Vec<PathBuf>, GlobError> {
     Ok(out)
 }
 
+/// CSV text (`csv` crate: RFC 4180 quoting where a field needs it, `\n`
+/// line ends) of a header and rows of fields. The fields come as text so
+/// that each table keeps its own number formats.
+///
+/// ```
+/// let rows = vec![vec!["a,b".to_string(), "1.5e0".to_string()]];
+/// assert_eq!(lucent::io::csv_text(&["name", "value"], rows).unwrap(), "name,value\n\"a,b\",1.5e0\n");
+/// ```
+pub fn csv_text<R, F>(header: &[&str], rows: R) -> Result<String, csv::Error>
+where
+    R: IntoIterator<Item = Vec<F>>,
+    F: AsRef<[u8]>,
+{
+    let mut w = csv::WriterBuilder::new().terminator(csv::Terminator::Any(b'\n')).from_writer(Vec::new());
+    w.write_record(header)?;
+    for row in rows {
+        w.write_record(&row)?;
+    }
+    let bytes = w.into_inner().map_err(|e| csv::Error::from(e.into_error()))?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -328,7 +328,7 @@ pub fn optics_uncertainty(
     }
     for u in &results {
         let dir = out.join(&u.sample);
-        crate::io::write_atomic(&dir.join("uncertainty.csv"), uncertainty::to_csv(u).as_bytes())?;
+        crate::io::write_atomic(&dir.join("uncertainty.csv"), uncertainty::to_csv(u)?.as_bytes())?;
         crate::io::write_json(&dir.join("uncertainty.json"), u)?;
         crate::io::write_atomic(&dir.join("uncertainty.png"), &bands_png(u)?)?;
         println!(

@@ -473,24 +473,33 @@ fn mie(a: MieArgs) -> Result<()> {
     Ok(())
 }
 
-/// Reads (m, x) cases from a reference CSV with columns m_re, m_im, x.
+/// Reads (m, x) cases from a reference CSV with columns m_re, m_im, x
+/// (others ignored; `#` lines are comments).
 pub fn read_mie_cases(path: &Path) -> Result<Vec<(Complex64, f64)>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read cases", path.display()))?;
-    let mut lines = text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty());
-    let header: Vec<&str> = lines.next().ok_or_else(|| anyhow!("{}: empty file", path.display()))?.split(',').collect();
-    let col = |name: &str| {
-        header.iter().position(|h| h.trim() == name).ok_or_else(|| anyhow!("{}: no column {name:?}", path.display()))
-    };
-    let (im_re, im_im, ix) = (col("m_re")?, col("m_im")?, col("x")?);
+    #[derive(serde::Deserialize)]
+    struct Case {
+        m_re: f64,
+        m_im: f64,
+        x: f64,
+    }
+    let mut reader = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .with_context(|| format!("{}: cannot read cases", path.display()))?;
+    let header = reader.headers().with_context(|| format!("{}: cannot read cases", path.display()))?;
+    if header.is_empty() {
+        bail!("{}: empty file", path.display());
+    }
+    for name in ["m_re", "m_im", "x"] {
+        if !header.iter().any(|h| h == name) {
+            bail!("{}: no column {name:?}", path.display());
+        }
+    }
     let mut cases = Vec::new();
-    for (k, line) in lines.enumerate() {
-        let f: Vec<&str> = line.split(',').collect();
-        let num = |i: usize| -> Result<f64> {
-            f.get(i)
-                .and_then(|s| s.trim().parse().ok())
-                .ok_or_else(|| anyhow!("{}: data row {}: bad number in column {}", path.display(), k + 1, i + 1))
-        };
-        cases.push((Complex64::new(num(im_re)?, num(im_im)?), num(ix)?));
+    for (k, row) in reader.deserialize::<Case>().enumerate() {
+        let c = row.with_context(|| format!("{}: data row {}", path.display(), k + 1))?;
+        cases.push((Complex64::new(c.m_re, c.m_im), c.x));
     }
     Ok(cases)
 }

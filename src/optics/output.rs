@@ -15,9 +15,8 @@
 //! array) and each sample gets a subfolder with its phase table and plots.
 
 use super::bulk::OpticalSpectrum;
-use crate::io::{write_atomic, write_json, WriteError};
+use crate::io::{csv_text, write_atomic, write_json, WriteError};
 use crate::plot::{self, PlotError};
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// An output that could not be produced.
@@ -27,58 +26,44 @@ pub enum OutputError {
     Write(#[from] WriteError),
     #[error("{path}: {source}")]
     Plot { path: PathBuf, source: PlotError },
+    #[error("{path}: cannot form the CSV table: {source}")]
+    Csv { path: PathBuf, source: csv::Error },
 }
 
-/// Header of the property table.
-pub const CSV_HEADER: &str = "sample,wavelength_nm,mu_s_per_m,mu_a_per_m,mu_t_per_m,g,n_bulk";
+/// Columns of the property table.
+pub const CSV_HEADER: [&str; 7] = ["sample", "wavelength_nm", "mu_s_per_m", "mu_a_per_m", "mu_t_per_m", "g", "n_bulk"];
 
 /// The property table of all `spectra` as CSV text.
-pub fn table_csv(spectra: &[&OpticalSpectrum]) -> String {
-    let mut out = String::from(CSV_HEADER);
-    out.push('\n');
-    for s in spectra {
-        for i in 0..s.wavelength_nm.len() {
-            let _ = writeln!(
-                out,
-                "{},{},{:.10e},{:.10e},{:.10e},{:.10},{:.10}",
-                csv_field(&s.sample),
-                s.wavelength_nm[i],
-                s.mu_s_per_m[i],
-                s.mu_a_per_m[i],
-                s.mu_t_per_m[i],
-                s.g[i],
-                s.n_bulk[i]
-            );
-        }
-    }
-    out
-}
-
-fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
+pub fn table_csv(spectra: &[&OpticalSpectrum]) -> Result<String, csv::Error> {
+    let rows = spectra.iter().flat_map(|s| {
+        (0..s.wavelength_nm.len()).map(move |i| {
+            vec![
+                s.sample.clone(),
+                s.wavelength_nm[i].to_string(),
+                format!("{:.10e}", s.mu_s_per_m[i]),
+                format!("{:.10e}", s.mu_a_per_m[i]),
+                format!("{:.10e}", s.mu_t_per_m[i]),
+                format!("{:.10}", s.g[i]),
+                format!("{:.10}", s.n_bulk[i]),
+            ]
+        })
+    });
+    csv_text(&CSV_HEADER, rows)
 }
 
 /// The phase tables of `spectrum` as CSV text (None without tables).
-pub fn phase_csv(spectrum: &OpticalSpectrum) -> Option<String> {
+pub fn phase_csv(spectrum: &OpticalSpectrum) -> Option<Result<String, csv::Error>> {
     let n = spectrum.phase.first().map(Vec::len).filter(|&n| n >= 2)?;
-    let mut out = String::from("theta_deg,cos_theta");
-    for w in &spectrum.wavelength_nm {
-        let _ = write!(out, ",p_{w}nm_per_sr");
-    }
-    out.push('\n');
-    for i in 0..n {
+    let mut header = vec!["theta_deg".to_string(), "cos_theta".to_string()];
+    header.extend(spectrum.wavelength_nm.iter().map(|w| format!("p_{w}nm_per_sr")));
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    let rows = (0..n).map(|i| {
         let theta = std::f64::consts::PI * i as f64 / (n - 1) as f64;
-        let _ = write!(out, "{:.8},{:.12}", theta.to_degrees(), theta.cos());
-        for table in &spectrum.phase {
-            let _ = write!(out, ",{:.9e}", table[i]);
-        }
-        out.push('\n');
-    }
-    Some(out)
+        let mut row = vec![format!("{:.8}", theta.to_degrees()), format!("{:.12}", theta.cos())];
+        row.extend(spectrum.phase.iter().map(|table| format!("{:.9e}", table[i])));
+        row
+    });
+    Some(csv_text(&header, rows))
 }
 
 /// Index of the grid wavelength closest to `target_nm`.
@@ -99,6 +84,7 @@ pub fn write_sample_files(dir: &Path, spectrum: &OpticalSpectrum) -> Result<Vec<
     let mut written = Vec::new();
     if let Some(csv) = phase_csv(spectrum) {
         let p = dir.join("phase_function.csv");
+        let csv = csv.map_err(|source| OutputError::Csv { path: p.clone(), source })?;
         write_atomic(&p, csv.as_bytes())?;
         written.push(p);
         if let Some(i) = closest_wavelength(spectrum, 550.0) {
@@ -120,7 +106,8 @@ pub fn write_all(dir: &Path, spectra: &[OpticalSpectrum]) -> Result<Vec<PathBuf>
     let refs: Vec<&OpticalSpectrum> = spectra.iter().collect();
     let mut written = Vec::new();
     let csv = dir.join("optical_properties.csv");
-    write_atomic(&csv, table_csv(&refs).as_bytes())?;
+    let table = table_csv(&refs).map_err(|source| OutputError::Csv { path: csv.clone(), source })?;
+    write_atomic(&csv, table.as_bytes())?;
     written.push(csv);
     let json = dir.join("optical_properties.json");
     if let [single] = spectra {

@@ -204,22 +204,22 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
 }
 
 /// CSV: wavelength and, per property, mean, sd, p2.5, p97.5.
-pub fn to_csv(u: &Uncertainty) -> String {
-    let mut s = String::from("wavelength_nm");
+pub fn to_csv(u: &Uncertainty) -> Result<String, csv::Error> {
+    let mut header = vec!["wavelength_nm".to_string()];
     for p in ["mu_s_per_m", "mu_a_per_m", "g", "n_bulk"] {
         for stat in ["mean", "sd", "p2_5", "p97_5"] {
-            s.push_str(&format!(",{p}_{stat}"));
+            header.push(format!("{p}_{stat}"));
         }
     }
-    s.push('\n');
-    for (i, w) in u.wavelength_nm.iter().enumerate() {
-        s.push_str(&format!("{w}"));
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    let rows = u.wavelength_nm.iter().enumerate().map(|(i, w)| {
+        let mut row = vec![w.to_string()];
         for b in [&u.mu_s_per_m, &u.mu_a_per_m, &u.g, &u.n_bulk] {
-            s.push_str(&format!(",{:.8e},{:.8e},{:.8e},{:.8e}", b.mean[i], b.sd[i], b.p2_5[i], b.p97_5[i]));
+            row.extend([b.mean[i], b.sd[i], b.p2_5[i], b.p97_5[i]].map(|v| format!("{v:.8e}")));
         }
-        s.push('\n');
-    }
-    s
+        row
+    });
+    crate::io::csv_text(&header, rows)
 }
 
 #[cfg(test)]

@@ -844,26 +844,30 @@ type BoardParts = (Board, String);
 
 fn read_spectrum_csv(ctx: &Ctx, key: &'static str, p: &Path) -> Result<[f64; 3], SceneFileError> {
     let full = ctx.resolve(p);
-    let text = std::fs::read_to_string(&full).map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
+    let bad = |e: &dyn std::fmt::Display| ctx.key("board", key, format!("{}: {e}", full.display()));
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_path(&full)
+        .map_err(|e| bad(&e))?;
     let (mut wl, mut r) = (Vec::new(), Vec::new());
-    for (k, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
+    for (k, record) in reader.records().enumerate() {
+        let record = record.map_err(|e| bad(&e))?;
+        if record.iter().all(str::is_empty) {
             continue;
         }
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        match (f.len(), f.first().and_then(|x| x.parse::<f64>().ok()), f.get(1).and_then(|x| x.parse::<f64>().ok())) {
+        let num = |i: usize| record.get(i).and_then(|x| x.parse::<f64>().ok());
+        match (record.len(), num(0), num(1)) {
             (2, Some(a), Some(b)) if a.is_finite() && b.is_finite() => {
                 wl.push(a);
                 r.push(b);
             }
-            _ if wl.is_empty() && k == 0 => continue, // header
+            _ if k == 0 => continue, // header
             _ => {
-                return Err(ctx.key(
-                    "board",
-                    key,
-                    format!("{}: line {}: expected wavelength_nm,reflectance", full.display(), k + 1),
-                ))
+                let line = record.position().map_or(k as u64 + 1, csv::Position::line);
+                return Err(bad(&format!("line {line}: expected wavelength_nm,reflectance")));
             }
         }
     }
@@ -1094,4 +1098,27 @@ fn build_environment(
         }
     };
     Ok((env, desc, projection_name.to_string(), centre, radius))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn board_spectrum_csv_takes_comments_and_a_header_and_names_bad_lines() {
+        let dir = tempfile::tempdir().unwrap();
+        let ctx = Ctx { path: Path::new("scene.toml"), dir: dir.path().to_path_buf() };
+        let p = dir.path().join("r.csv");
+        let mut text = String::from("# a grey card\nwavelength_nm, reflectance\n");
+        for w in (380..=780).step_by(5) {
+            text += &format!("{w}, 0.5\n");
+        }
+        std::fs::write(&p, &text).unwrap();
+        // A constant spectrum is that constant in every band (band weights sum to 1).
+        let rgb = read_spectrum_csv(&ctx, "even_spectrum", &p).unwrap();
+        assert!(rgb.iter().all(|v| (v - 0.5).abs() < 1e-12), "{rgb:?}");
+        std::fs::write(&p, "380,0.5\n385,x\n").unwrap();
+        let e = read_spectrum_csv(&ctx, "even_spectrum", &p).unwrap_err().to_string();
+        assert!(e.contains("r.csv") && e.contains("line 2") && e.contains("wavelength_nm,reflectance"), "{e}");
+    }
 }
