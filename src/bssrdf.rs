@@ -155,6 +155,7 @@ fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> 
 
 fn read_exr_scalar(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> {
     use exr::prelude::*;
+    imageio::check_exr_size(path).map_err(|e| invalid(path, format!("cannot read EXR: {e}")))?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

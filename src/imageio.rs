@@ -122,9 +122,38 @@ pub fn exr_reason(e: &exr::error::Error) -> String {
     }
 }
 
+/// Largest EXR layer read, in pixels: 2²⁷ (a 16384 × 8192 panorama). A
+/// header is checked against it before any pixel buffer is allocated, so a
+/// small damaged or hostile file that claims a huge size (a 5 kB file asking
+/// for 34 GB, found by `fuzz/`) is an error naming it, not an abort.
+pub const MAX_EXR_PIXELS: usize = 1 << 27;
+
+/// Why [`check_exr_size`] refused an EXR (the caller names the file).
+#[derive(Debug, thiserror::Error)]
+pub enum ExrSizeError {
+    #[error("{}", exr_reason(.0))]
+    Header(exr::error::Error),
+    #[error("the header claims a {width} × {height} image, more than the {MAX_EXR_PIXELS} pixels lucent reads (damaged file?)")]
+    TooLarge { width: usize, height: usize },
+}
+
+/// Reads only the headers of an EXR and refuses layers larger than
+/// [`MAX_EXR_PIXELS`].
+pub fn check_exr_size(path: &Path) -> Result<(), ExrSizeError> {
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(ExrSizeError::Header)?;
+    for header in meta.headers.iter() {
+        let (width, height) = (header.layer_size.width(), header.layer_size.height());
+        if width.checked_mul(height).is_none_or(|n| n > MAX_EXR_PIXELS) {
+            return Err(ExrSizeError::TooLarge { width, height });
+        }
+    }
+    Ok(())
+}
+
 fn read_exr(path: &Path) -> Result<RgbImage, ImageIoError> {
     use exr::prelude::*;
     let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
+    check_exr_size(path).map_err(|e| read_err(e.to_string()))?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -184,6 +213,7 @@ pub fn write_exr_channels(
 pub fn read_exr_channels(path: &Path, names: &[&str]) -> Result<(usize, usize, Vec<Vec<f32>>), ImageIoError> {
     use exr::prelude::*;
     let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
+    check_exr_size(path).map_err(|e| read_err(e.to_string()))?;
     let image = read_all_flat_layers_from_file(path).map_err(|e| read_err(exr_reason(&e)))?;
     let layer = image.layer_data.first().ok_or_else(|| read_err("no layer".into()))?;
     let (w, h) = (layer.size.width(), layer.size.height());

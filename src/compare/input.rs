@@ -55,6 +55,7 @@ pub fn read_image(path: &Path, role: &'static str) -> Result<Loaded, CompareErro
 
 fn read_exr(path: &Path) -> Result<Loaded, ReadProblem> {
     use exr::prelude::*;
+    crate::imageio::check_exr_size(path)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

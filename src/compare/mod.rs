@@ -109,6 +109,8 @@ pub enum ReadProblem {
     #[error("{0}")]
     Exr(#[from] exr::error::Error),
     #[error("{0}")]
+    ExrSize(#[from] crate::imageio::ExrSizeError),
+    #[error("{0}")]
     Decode(#[from] image::ImageError),
     #[error("{0}")]
     Buffer(#[from] ImageIoError),

@@ -210,6 +210,7 @@ fn read_tiff(path: &Path) -> Result<(usize, usize, Vec<f64>), SurfaceError> {
 fn read_exr(path: &Path) -> Result<(usize, usize, Vec<f64>), SurfaceError> {
     use exr::prelude::*;
     let err = |reason: String| SurfaceError::Format { path: path.into(), reason: format!("cannot read EXR: {reason}") };
+    crate::imageio::check_exr_size(path).map_err(|e| err(e.to_string()))?;
     let image = read_all_flat_layers_from_file(path).map_err(|e| err(e.to_string()))?;
     let layer = image.layer_data.first().ok_or_else(|| err("no layer".into()))?;
     let (w, h) = (layer.size.width(), layer.size.height());
