@@ -241,7 +241,8 @@ fn beam(a: &RunArgs) -> Result<(Beam, String)> {
 }
 
 /// The larger of the map's Gaussian-equivalent FWHMs along x and y [m]:
-/// 2√(2 ln 2) σ, σ² the irradiance-weighted variance of the pixel centres.
+/// the FWHM of a Gaussian of σ² the irradiance-weighted variance of the
+/// pixel centres (the conversion is `slab::fwhm_to_sigma`'s, inverted).
 fn beam_map_fwhm_m(map: &BeamMap) -> f64 {
     let (mut w, mut sx, mut sy, mut sxx, mut syy) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for (i, v) in map.values.iter().enumerate() {
@@ -253,7 +254,7 @@ fn beam_map_fwhm_m(map: &BeamMap) -> f64 {
         syy += v * y * y;
     }
     let var = |s: f64, ss: f64| (ss / w - (s / w).powi(2)).max(0.0);
-    2.0 * (2.0 * std::f64::consts::LN_2).sqrt() * var(sx, sxx).max(var(sy, syy)).sqrt()
+    var(sx, sxx).max(var(sy, syy)).sqrt() / slab::fwhm_to_sigma(1.0)
 }
 
 fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
