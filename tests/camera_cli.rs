@@ -69,23 +69,29 @@ fn calibrate_matches_the_python_reference_and_writes_plots() {
     assert_eq!(views.len(), 13);
 }
 
-#[test]
-fn calibrate_errors_name_the_files() {
-    let dir = tempfile::tempdir().unwrap();
-    // Wrong board size: every photo listed, the right size suggested.
+/// `lucent calibrate --images IMAGES --board 10x6` (the photos show 9x6):
+/// must fail; returns its stderr.
+fn calibrate_with_wrong_board(images: &str, dir: &Path) -> String {
     let o = lucent(&[
         "calibrate",
         "--images",
-        "fixtures/camera/chessboard",
+        images,
         "--board",
         "10x6",
         "--square-mm",
         "25",
         "--out",
-        s(&dir.path().join("c.json")),
+        s(&dir.join("c.json")),
     ]);
     assert!(!o.status.success());
-    let e = stderr(&o);
+    stderr(&o)
+}
+
+#[test]
+fn calibrate_errors_name_the_files() {
+    let dir = tempfile::tempdir().unwrap();
+    // Wrong board size: every photo listed, the right size suggested.
+    let e = calibrate_with_wrong_board("fixtures/camera/chessboard", dir.path());
     assert!(
         e.contains("no photo shows a chessboard of 10x6") && e.contains("left01.jpg") && e.contains("left14.jpg"),
         "{e}"
@@ -182,19 +188,7 @@ fn calibrate_errors_name_the_files() {
 #[test]
 fn calibrate_images_accept_character_classes() {
     let dir = tempfile::tempdir().unwrap();
-    let o = lucent(&[
-        "calibrate",
-        "--images",
-        "fixtures/camera/chessboard/left0[1-3].jpg",
-        "--board",
-        "10x6",
-        "--square-mm",
-        "25",
-        "--out",
-        s(&dir.path().join("c.json")),
-    ]);
-    assert!(!o.status.success());
-    let e = stderr(&o);
+    let e = calibrate_with_wrong_board("fixtures/camera/chessboard/left0[1-3].jpg", dir.path());
     assert!(e.contains("no photo shows a chessboard of 10x6"), "{e}");
     for (name, listed) in [("left01.jpg", true), ("left02.jpg", true), ("left03.jpg", true), ("left04.jpg", false)] {
         assert_eq!(e.contains(name), listed, "{name}: {e}");
