@@ -68,6 +68,26 @@ fn mean_abs_diff(a: &RgbImage, b: &RgbImage) -> f64 {
     a.data.iter().zip(&b.data).map(|(x, y)| f64::from((x - y).abs())).sum::<f64>() / a.data.len() as f64
 }
 
+/// `lucent env orient PANO --board-view VIEW --board 9x6 --square-mm 30
+/// --view-size SIZE --out OUT`.
+fn orient_from_board(pano: &Path, view: &str, view_size: &str, out: &Path) -> std::process::Output {
+    lucent(&[
+        "env",
+        "orient",
+        s(pano),
+        "--board-view",
+        view,
+        "--board",
+        "9x6",
+        "--square-mm",
+        "30",
+        "--view-size",
+        view_size,
+        "--out",
+        s(out),
+    ])
+}
+
 #[test]
 fn a_turned_panorama_is_oriented_from_its_board_and_from_a_given_yaw() {
     let dir = tempfile::tempdir().unwrap();
@@ -78,21 +98,7 @@ fn a_turned_panorama_is_oriented_from_its_board_and_from_a_given_yaw() {
 
     // From the board, seen straight down.
     let out = dir.path().join("pano_oriented.exr");
-    let o = lucent(&[
-        "env",
-        "orient",
-        s(&pano),
-        "--board-view",
-        "20,-90,100",
-        "--board",
-        "9x6",
-        "--square-mm",
-        "30",
-        "--view-size",
-        "1200x1200",
-        "--out",
-        s(&out),
-    ]);
+    let o = orient_from_board(&pano, "20,-90,100", "1200x1200", &out);
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
     let j = json(&dir.path().join("pano_oriented.json"));
     let got = j["source_yaw_deg"].as_f64().unwrap();
@@ -218,21 +224,7 @@ fn pose_and_orient_number_the_board_alike() {
         let pos: Vec<f64> = (0..3).map(|k| sc["camera_position_m"][k].as_f64().unwrap()).collect();
         let err = (0..3).map(|k| (pos[k] - truth[k]).powi(2)).sum::<f64>().sqrt();
         let out = dir.path().join(format!("o{view_yaw}.exr"));
-        let o = lucent(&[
-            "env",
-            "orient",
-            s(&pano),
-            "--board-view",
-            &format!("{view_yaw},-90,100"),
-            "--board",
-            "9x6",
-            "--square-mm",
-            "30",
-            "--view-size",
-            "1000x1000",
-            "--out",
-            s(&out),
-        ]);
+        let o = orient_from_board(&pano, &format!("{view_yaw},-90,100"), "1000x1000", &out);
         assert!(o.status.success(), "{}", stderr(&o));
         let got = json(&dir.path().join(format!("o{view_yaw}.json")))["source_yaw_deg"].as_f64().unwrap();
         // The camera's right axis (camera_to_world's first column) against R_z(yaw) · the view's right.
@@ -380,21 +372,7 @@ fn paste_and_brackets_make_a_synthetic_panorama_that_orients_and_merges() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = dir.path().join("oriented.exr");
-    let o = lucent(&[
-        "env",
-        "orient",
-        s(&pano),
-        "--board-view",
-        "0,-90,100",
-        "--board",
-        "9x6",
-        "--square-mm",
-        "30",
-        "--view-size",
-        "1000x1000",
-        "--out",
-        s(&out),
-    ]);
+    let o = orient_from_board(&pano, "0,-90,100", "1000x1000", &out);
     assert!(o.status.success(), "{}", stderr(&o));
     let yaw = json(&dir.path().join("oriented.json"))["source_yaw_deg"].as_f64().unwrap();
     assert!((yaw + 117.0).abs() < 0.05, "yaw {yaw}");
