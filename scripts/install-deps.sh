@@ -11,6 +11,7 @@ packages=(
   libopencv-contrib-dev  # OpenCV's contrib modules: mcc (ColorChecker detection) and the dnn it needs
   rawtran-doc      # a real Canon EOS 30D CR2 (GPL-3+) for the RAW decoder tests, read from /usr/share/doc/rawtran/
   chromium         # headless browser: tests/pipeline.rs opens the run report (report/index.html) and screenshots it
+  mold             # fast linker for the test binaries and doctests (scripts/cc-link; plain cc without it)
 )
 
 missing=()

@@ -151,7 +151,7 @@ fn to_8bit(image: &RgbBuffer, encode_srgb: bool) -> Vec<u8> {
 }
 
 /// Maps mcc model coordinates to pixels through the box's homography.
-fn model_to_image(found: &MccChart) -> Result<impl Fn(f64, f64) -> [f64; 2], ChartError> {
+fn model_to_image(found: &MccChart) -> Result<impl Fn(f64, f64) -> [f64; 2] + use<>, ChartError> {
     let b = found.corners;
     // `Homography::from_corners` wants clockwise corners; a mirrored box is
     // handled by mirroring the model's x as well.

@@ -34,7 +34,7 @@ fn errors(got: &RgbImage, truth: &RgbImage, min: f32) -> (f64, f64) {
         .data
         .iter()
         .zip(&truth.data)
-        .filter(|(_, &t)| t > min)
+        .filter(|&(_, &t)| t > min)
         .map(|(&a, &t)| (f64::from(a), f64::from(t)))
         .collect();
     let mut r: Vec<f64> = pairs.iter().map(|(a, t)| t / a).collect();

@@ -339,7 +339,7 @@ fn report(
     sat_per: Vec<usize>,
 ) -> MergeReport {
     let saturated_pixels: Vec<[usize; 2]> =
-        sat_all.iter().enumerate().filter(|(_, &s)| s).take(1000).map(|(p, _)| [p % width, p / width]).collect();
+        sat_all.iter().enumerate().filter(|&(_, &s)| s).take(1000).map(|(p, _)| [p % width, p / width]).collect();
     MergeReport {
         width,
         height,

@@ -47,7 +47,7 @@ fn relative_errors(got: &RgbBuffer, truth: &RgbBuffer, min: f32, rescale: bool) 
         .data
         .iter()
         .zip(&truth.data)
-        .filter(|(_, &t)| t > min)
+        .filter(|&(_, &t)| t > min)
         .map(|(&a, &t)| (f64::from(a), f64::from(t)))
         .collect();
     let k = if rescale {

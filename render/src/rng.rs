@@ -253,14 +253,16 @@ mod tests {
     fn independent_of_thread_count() {
         // Per-stream sequences computed on 1 thread and on 4 threads (streams
         // interleaved) agree bit for bit.
-        let gen = |stream: u64| -> Vec<u64> {
+        let stream_values = |stream: u64| -> Vec<u64> {
             let mut r = Rng::new(2024, stream);
             (0..100).map(|_| r.next_f64().to_bits()).collect()
         };
-        let serial: Vec<Vec<u64>> = (0..16).map(gen).collect();
+        let serial: Vec<Vec<u64>> = (0..16).map(stream_values).collect();
         let handles: Vec<_> = (0..4u64)
             .map(|t| {
-                std::thread::spawn(move || (0..16).filter(|s| s % 4 == t).map(|s| (s, gen(s))).collect::<Vec<_>>())
+                std::thread::spawn(move || {
+                    (0..16).filter(|s| s % 4 == t).map(|s| (s, stream_values(s))).collect::<Vec<_>>()
+                })
             })
             .collect();
         for h in handles {
