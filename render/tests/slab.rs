@@ -277,9 +277,22 @@ fn bad_input_is_rejected() {
     assert!(Directions::from_degrees(f64::NAN, 0.0, 0.0, 0.0).is_err());
     assert!(Sensor::new(0, 1e-4).is_err());
     assert!(Beam::gaussian(0.0).is_err());
-    assert!(BeamMap::new(2, 2, 1e-4, vec![1.0, f64::NAN, 0.0, 0.0]).is_err());
-    assert!(BeamMap::new(2, 2, 1e-4, vec![0.0; 4]).is_err());
-    assert!(BeamMap::new(2, 2, 1e-4, vec![1.0; 3]).is_err());
+    // Bad beam maps: typed errors whose messages name the problem and pixel.
+    let bad_maps = [
+        (
+            vec![1.0, f64::NAN, 0.0, 0.0],
+            SlabError::BeamMapNotFinite { column: 1, row: 0 },
+            "pixel (1, 0) is not a finite",
+        ),
+        (vec![0.0, 1.0, -1.0, 0.0], SlabError::BeamMapNegative { column: 0, row: 1 }, "pixel (0, 1) is negative"),
+        (vec![0.0; 4], SlabError::BeamMapAllZero, "all pixels are zero"),
+        (vec![1.0; 3], SlabError::BeamMapSize { values: 3, width: 2, height: 2 }, "3 values do not fill 2 × 2"),
+    ];
+    for (values, error, message) in bad_maps {
+        let e = BeamMap::new(2, 2, 1e-4, values).unwrap_err();
+        assert!(e.to_string().starts_with("beam map: ") && e.to_string().contains(message), "{e}");
+        assert_eq!(e, error);
+    }
     let s = setup(3000.0, 50.0, 0.8, 1.5, 2e-3, 16, 0.2e-3, lab_45_0());
     let no_stop = RunOptions { stop: Stop::default(), ..RunOptions::default() };
     assert_eq!(simulate(&s, &no_stop, |_| {}).unwrap_err(), SlabError::NoStopRule);

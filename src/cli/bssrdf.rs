@@ -499,10 +499,11 @@ fn compare(a: CompareArgs) -> Result<()> {
 /// `lucent bench bssrdf`: the simulator's speed on a PDMS-like medium
 /// (events/s on one core, wall time to `rel_error` on the slice sum), and
 /// the per-pixel figure of the issue side by side for the previous
-/// estimator (fixed-direction connection, not folded) and the current one
-/// (ring connection where it applies, folded): IOL1068-09 and IOL1068-13
-/// from their recipes (tabulated Lorenz–Mie phase, 550 nm), 45°/0°, the
-/// central 117 of 259 pixels of 0.1029 mm, `time_s` each.
+/// estimator (fixed-direction connection, not folded at 45°/0°) and the
+/// current one (ring connection at 45°/0°, lobe connection at 45°/15°,
+/// folded): IOL1068-09 and IOL1068-13 from their recipes (tabulated
+/// Lorenz–Mie phase, 550 nm), 45°/0° and 45°/15°, the central 117 of 259
+/// pixels of 0.1029 mm, `time_s` each.
 pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
     use lucent_render::slab::{simulate, Slice};
     if !(time_s.is_finite() && time_s > 0.0) {
@@ -536,9 +537,12 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
     let mut per_pixel = Vec::new();
     // (sample, θi, θo, whether the previous estimator was folded: at 45°/15°
     // the demo already folded the fixed-direction connection).
-    for (sample, theta_i, theta_o, previous_fold) in
-        [("IOL1068-09", 45.0, 0.0, false), ("IOL1068-13", 45.0, 0.0, false), ("IOL1068-09", 45.0, 15.0, true)]
-    {
+    for (sample, theta_i, theta_o, previous_fold) in [
+        ("IOL1068-09", 45.0, 0.0, false),
+        ("IOL1068-13", 45.0, 0.0, false),
+        ("IOL1068-09", 45.0, 15.0, true),
+        ("IOL1068-13", 45.0, 15.0, true),
+    ] {
         let recipe = PathBuf::from(format!("fixtures/samples/{sample}.toml"));
         let args = RunArgs {
             recipe: Some(recipe.clone()),

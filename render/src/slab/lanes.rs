@@ -1,4 +1,4 @@
-//! The connection estimator four paths at a time (AVX2 + FMA, see
+//! The connection estimators four paths at a time (AVX2 + FMA, see
 //! [`crate::simd`]).
 //!
 //! Each lane runs the random walk of `Kernel::trace` for one path: the same
@@ -9,11 +9,15 @@
 //! every scattering event: the free path, the scattering angles and the new
 //! direction, and the connection's geometry, pixel, phase function and
 //! transmittance. What stays per lane is the random numbers, boundary hits
-//! (rare), the splat into the image and the roulettes. A lane whose path
+//! (rare), the splat into the image and the roulettes; the ring's and the
+//! lobe's connections (many splats per event, see `Kernel::connect_ring`
+//! and `Kernel::connect_lobe`) run per lane on the vector walk, each lane
+//! with its own MIS history and chain, the chain's links four at a time
+//! (`lobe_links_lanes`). A lane whose path
 //! ends takes the batch's next path, so all four stay busy until the batch
 //! runs out.
 
-use super::{survives_roulette, Batch, Crossing, Exit, Kernel};
+use super::{survives_roulette, Batch, Chain, Crossing, Estimator, Exit, Junctions, Kernel, Links, LobeEvent};
 use crate::phase::lanes::PhaseLanes;
 use crate::rng::Rng;
 use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4};
@@ -33,6 +37,9 @@ struct Paths {
     unscattered: u32,
     /// Each lane's exit direction (rough top).
     exit: [Exit; 4],
+    /// Each lane's MIS history and chain (lobe connection).
+    junctions: [Junctions; 4],
+    chains: Box<[Chain; 4]>,
     /// The next path of the batch, and the end of the batch.
     next: u64,
     end: u64,
@@ -72,6 +79,8 @@ impl Kernel<'_> {
         }
         paths.w.0[l] = w;
         paths.exit[l] = exit;
+        paths.junctions[l] = Junctions::new();
+        paths.chains[l].restart();
         paths.total[l] = 0.0;
         paths.rng[l] = rng;
         paths.live |= 1 << l;
@@ -88,7 +97,7 @@ impl Kernel<'_> {
         self.start_lane(paths, l);
     }
 
-    /// `Kernel::batch` for the connection estimator, four paths at a time.
+    /// `Kernel::batch` for the connection estimators, four paths at a time.
     #[target_feature(enable = "avx2,fma")]
     pub(super) fn batch_lanes(&self, seed: u64, first_path: u64, count: u64, image: Vec<f64>) -> Batch {
         let sensor = &self.setup.sensor;
@@ -104,6 +113,8 @@ impl Kernel<'_> {
             live: 0,
             unscattered: 0,
             exit: [Exit { up: [0.0, 0.0, 1.0], weight: 0.0 }; 4],
+            junctions: [Junctions::new(); 4],
+            chains: Box::new(std::array::from_fn(|_| Chain::new())),
             next: first_path,
             end: first_path + count,
             seed,
@@ -149,7 +160,29 @@ impl Kernel<'_> {
             b.events += u64::from(ev.count_ones());
             paths.unscattered &= !ev;
 
-            if let Some(ring) = &self.ring {
+            if let Estimator::Lobe { .. } = self.estimator {
+                // The lobe connection, per lane (as `trace`): the walk's
+                // history, the connection and the lane's chain.
+                let phase_value = phase.eval(angles.cos_theta).lanes();
+                for l in lanes_of(ev) {
+                    let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
+                    paths.junctions[l].arrive();
+                    let chain = &mut paths.chains[l];
+                    paths.total[l] += match self.lobe_event(
+                        pl,
+                        dl,
+                        paths.w.0[l],
+                        &paths.junctions[l],
+                        chain,
+                        &mut b.image,
+                        &mut paths.rng[l],
+                    ) {
+                        Ok(e) => e.total + self.lobe_links_lanes(&phase, &e, pl, dl, chain, &mut b.image),
+                        Err(total) => total,
+                    };
+                    paths.junctions[l].scatter(phase_value.0[l]);
+                }
+            } else if let Some(ring) = &self.ring {
                 // The ring connection, per lane, where it can contribute
                 // (τ ≤ 40 along the exit direction).
                 let tau = -p[2] * F4::splat(self.inv_cos_t * self.mu_t);
@@ -220,7 +253,7 @@ impl Kernel<'_> {
                     }
                     paths.w.0[l] = w;
                     match crossing {
-                        Crossing::Reflected => {}
+                        Crossing::Reflected => paths.junctions[l].from_scatter = false,
                         Crossing::Lost => self.end_lane(&mut paths, &mut b, l, 0.0, 0.0),
                         Crossing::LeftTop(_) => self.end_lane(&mut paths, &mut b, l, w, 0.0),
                         Crossing::LeftBottom => self.end_lane(&mut paths, &mut b, l, 0.0, w),
@@ -229,5 +262,66 @@ impl Kernel<'_> {
             }
         }
         b
+    }
+}
+
+impl Kernel<'_> {
+    /// `Kernel::lobe_links` four links at a time: the same arithmetic in
+    /// the same order (the phase function in its lane form), the splats in
+    /// link order.
+    #[inline(always)]
+    fn lobe_links_lanes(
+        &self,
+        phase: &PhaseLanes,
+        ev: &LobeEvent,
+        p: [f64; 3],
+        dir: [f64; 3],
+        chain: &Chain,
+        image: &mut [f64],
+    ) -> f64 {
+        let m = self.lobe_vertices;
+        let sensor = &self.setup.sensor;
+        let npix = sensor.pixels as f64;
+        let (zero, half, n) = (F4::splat(0.0), F4::splat(0.5 * npix), F4::splat(npix));
+        let inv_pixel = F4::splat(1.0 / sensor.pixel_m);
+        let depth = -p[2];
+        let (depth4, floor4) = (F4::splat(depth), F4::splat(depth - self.d));
+        let (p0, p1) = (F4::splat(p[0]), F4::splat(p[1]));
+        let w21 = self.w21.map(F4::splat);
+        let d = dir.map(F4::splat);
+        let inv_cos_t = F4::splat(self.inv_cos_t);
+        let tau_u = F4::splat(ev.tau_u);
+        let load = |a: &Links, c: usize| {
+            // SAFETY: `Links` is 32-byte aligned and c is a multiple of 4
+            // below MAX_LOBE_VERTICES, so the four values are an aligned
+            // `Lanes` inside the array.
+            F4::load(unsafe { &*(a.0.as_ptr().add(c) as *const Lanes) })
+        };
+        let mut total = 0.0;
+        for c in (0..m).step_by(4) {
+            let valid = if m - c >= 4 { 0b1111 } else { (1u32 << (m - c)) - 1 };
+            let inside = load(&chain.hi, c).lt(depth4) & load(&chain.lo, c).gt(floor4);
+            let tau = tau_u + load(&chain.s_tau, c);
+            let l = (depth4 - load(&chain.dz, c)) * inv_cos_t;
+            let col = (p0 + load(&chain.x, c) + l * w21[0]) * inv_pixel + half;
+            let row = half - (p1 + load(&chain.y, c) + l * w21[1]) * inv_pixel;
+            let on = col.ge(zero) & row.ge(zero) & col.lt(n) & row.lt(n);
+            let made = (inside & tau.le(F4::splat(40.0)) & on).bits() & valid;
+            if made == 0 {
+                continue;
+            }
+            let cos = d[0] * load(&chain.cx, c) + d[1] * load(&chain.cy, c) + d[2] * load(&chain.cz, c);
+            let prefix = Lanes(std::array::from_fn(|k| ev.prefix[ev.light.min(m.saturating_sub(c + k + 1))]));
+            let s = load(&chain.q, c) + F4::splat(1.0) / phase.eval(cos) + F4::load(&prefix);
+            let attenuation =
+                if ev.direct { load(&chain.albedo, c) * (-tau).exp() } else { F4::splat(ev.e) * load(&chain.atten, c) };
+            let v = (F4::splat(ev.weight) * attenuation / s).lanes();
+            let pixel = to_i32(row.floor() * n + col.floor());
+            for k in lanes_of(made) {
+                image[pixel[k] as usize] += v.0[k];
+                total += v.0[k];
+            }
+        }
+        total
     }
 }
