@@ -302,9 +302,9 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
         if rows.iter().any(|r| r.mask.is_some()) {
             for i in 0..28 {
                 for j in 0..16 {
-                    root.draw_pixel((MARGIN + i as i32, y0 + j as i32), &MASK_MARK).map_err(perr)?;
+                    root.draw_pixel((MARGIN + i, y0 + j), &MASK_MARK).map_err(perr)?;
                     let greyed = shown([0.05, 0.4, 0.1], 1.0, true);
-                    root.draw_pixel((MARGIN + 36 + i as i32, y0 + j as i32), &greyed).map_err(perr)?;
+                    root.draw_pixel((MARGIN + 36 + i, y0 + j), &greyed).map_err(perr)?;
                 }
             }
             let note = "excluded by the mask: grey (difference), greyed (photo, render)";
