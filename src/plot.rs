@@ -4,7 +4,6 @@
 //! in memory (plotters bitmap backend, embedded DejaVu Sans font) so the
 //! caller writes them atomically.
 
-use crate::optics::bulk::OpticalSpectrum;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::FontStyle;
@@ -95,25 +94,43 @@ pub(crate) fn short_number(v: f64) -> String {
     }
 }
 
+/// One sample's optical properties against wavelength, as plain slices (the
+/// optics stage builds it from its `OpticalSpectrum`; this module depends on
+/// no model type).
+#[derive(Debug, Clone, Copy)]
+pub struct SpectrumSeries<'a> {
+    /// Sample name (legend, and title of a one-sample figure).
+    pub name: &'a str,
+    /// Name of the absorption model, said in a one-sample title.
+    pub absorption_model: &'a str,
+    pub wavelength_nm: &'a [f64],
+    /// Scattering coefficient [1/m], one per wavelength.
+    pub mu_s_per_m: &'a [f64],
+    /// Absorption coefficient [1/m], one per wavelength.
+    pub mu_a_per_m: &'a [f64],
+    /// Asymmetry parameter, one per wavelength.
+    pub g: &'a [f64],
+}
+
 /// μ_s, μ_a (both on a logarithmic axis, said in the panel titles) and g
 /// against wavelength, one line per spectrum. Each panel has its legend in
 /// a column to its right, outside the plotting area; a figure of one
 /// sample is titled with its name.
-pub fn spectra_png(spectra: &[&OpticalSpectrum]) -> Result<Vec<u8>, PlotError> {
-    let longest = spectra.iter().map(|s| s.sample.chars().count()).max().unwrap_or(0) as u32;
+pub fn spectra_png(spectra: &[SpectrumSeries]) -> Result<Vec<u8>, PlotError> {
+    let longest = spectra.iter().map(|s| s.name.chars().count()).max().unwrap_or(0) as u32;
     let legend_width = (60 + 9 * longest).clamp(150, 320);
     render_png(1000 + legend_width, 1200, |root| {
         let title = match spectra {
-            [one] => format!("{}: optical properties ({} absorption model)", one.sample, one.absorption.name()),
+            [one] => format!("{}: optical properties ({} absorption model)", one.name, one.absorption_model),
             _ => format!("optical properties of {} samples", spectra.len()),
         };
         let root = root.titled(&title, ("sans-serif", 24)).map_err(perr)?;
         let panels = root.split_evenly((3, 1));
-        type Get = fn(&OpticalSpectrum) -> &Vec<f64>;
+        type Get = for<'s> fn(&SpectrumSeries<'s>) -> &'s [f64];
         let rows: [(&str, Get, bool); 3] = [
-            ("scattering coefficient μs [1/m], logarithmic axis", |s| &s.mu_s_per_m, true),
-            ("absorption coefficient μa [1/m], logarithmic axis", |s| &s.mu_a_per_m, true),
-            ("asymmetry parameter g, linear axis", |s| &s.g, false),
+            ("scattering coefficient μs [1/m], logarithmic axis", |s| s.mu_s_per_m, true),
+            ("absorption coefficient μa [1/m], logarithmic axis", |s| s.mu_a_per_m, true),
+            ("asymmetry parameter g, linear axis", |s| s.g, false),
         ];
         let (wmin, wmax) = spectra
             .iter()
@@ -164,7 +181,7 @@ pub fn spectra_png(spectra: &[&OpticalSpectrum]) -> Result<Vec<u8>, PlotError> {
                     chart.draw_series(LineSeries::new(pts, style(i))).map_err(perr)?;
                 }
             }
-            draw_legend(&legend, spectra.iter().map(|s| s.sample.as_str()))?;
+            draw_legend(&legend, spectra.iter().map(|s| s.name))?;
         }
         Ok(())
     })
@@ -193,9 +210,18 @@ fn henyey_greenstein(g: f64, mu: f64) -> f64 {
     (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5))
 }
 
+/// Width of the legend column of [`phase_polar_png`], pixels.
+pub const POLAR_LEGEND_W: u32 = 300;
+/// Side of the square polar chart of [`phase_polar_png`], pixels.
+pub const POLAR_SIDE: u32 = 900;
+/// Height of the title band above the chart of [`phase_polar_png`], pixels.
+pub const POLAR_TITLE_H: u32 = 40;
+
 /// Polar plot of a tabulated phase function (values per steradian at θ
 /// uniform over [0, π]) against Henyey–Greenstein with the same g; the
-/// radius is log₁₀ of the phase function.
+/// radius is log₁₀ of the phase function. The chart is a
+/// [`POLAR_SIDE`]-pixel square under a title band; the legend is in a column
+/// [`POLAR_LEGEND_W`] px wide to its right, off the curves.
 pub fn phase_polar_png(title: &str, theta_samples: &[f64], g: f64) -> Result<Vec<u8>, PlotError> {
     let n = theta_samples.len();
     if n < 2 {
@@ -212,10 +238,12 @@ pub fn phase_polar_png(title: &str, theta_samples: &[f64], g: f64) -> Result<Vec
     let dec_hi = pmax.log10().ceil().max(dec_lo + 1.0);
     let span = dec_hi - dec_lo;
     let radius = |p: f64| ((p.max(10f64.powf(dec_lo))).log10() - dec_lo) / span;
-    render_png(900, 900, |root| {
-        let mut chart = ChartBuilder::on(root)
+    render_png(POLAR_SIDE + POLAR_LEGEND_W, POLAR_SIDE + POLAR_TITLE_H, |root| {
+        let (top, body) = root.split_vertically(POLAR_TITLE_H);
+        top.titled(title, ("sans-serif", 22)).map_err(perr)?;
+        let (plot_area, legend) = body.split_horizontally(POLAR_SIDE);
+        let mut chart = ChartBuilder::on(&plot_area)
             .margin(20)
-            .caption(title, ("sans-serif", 22))
             .build_cartesian_2d(-1.15f64..1.15f64, -1.15f64..1.15f64)
             .map_err(perr)?;
         // Decade circles with labels, and angle spokes every 30°.
@@ -253,26 +281,20 @@ pub fn phase_polar_png(title: &str, theta_samples: &[f64], g: f64) -> Result<Vec
             let lower = (0..n).rev().map(|i| (-theta(i), values[i]));
             upper.chain(lower).map(|(t, p)| (radius(p) * t.cos(), radius(p) * t.sin())).collect()
         };
-        let blue = RGBColor(31, 119, 180);
-        let red = RGBColor(214, 39, 40);
-        chart
-            .draw_series(LineSeries::new(curve(theta_samples), blue.stroke_width(2)))
-            .map_err(perr)?
-            .label("Lorenz–Mie")
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
-        chart
-            .draw_series(LineSeries::new(curve(&hg), red.stroke_width(2)))
-            .map_err(perr)?
-            .label(format!("Henyey–Greenstein, g = {g:.4}"))
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], red.stroke_width(2)));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerLeft)
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 16))
-            .draw()
-            .map_err(perr)?;
+        let (blue, red) = (palette(0), palette(3));
+        chart.draw_series(LineSeries::new(curve(theta_samples), blue.stroke_width(2))).map_err(perr)?;
+        chart.draw_series(LineSeries::new(curve(&hg), red.stroke_width(2))).map_err(perr)?;
+        let items = [
+            ("Lorenz–Mie".to_string(), Mark::Line(blue, 2)),
+            ("Henyey–Greenstein,".to_string(), Mark::Line(red, 2)),
+            (format!("g = {g:.4}"), Mark::None),
+            (String::new(), Mark::None),
+            ("radius: log₁₀ p [1/sr],".to_string(), Mark::None),
+            ("one grey circle per decade;".to_string(), Mark::None),
+            ("angle: scattering angle θ".to_string(), Mark::None),
+            ("(mirrored below the axis)".to_string(), Mark::None),
+        ];
+        legend_column(&legend, 60, &items)?;
         Ok(())
     })
 }
@@ -499,6 +521,10 @@ pub(crate) enum Mark {
     Line(RGBColor, u32),
     /// A filled box.
     Box(RGBColor),
+    /// A filled dot.
+    Dot(RGBColor),
+    /// An open circle.
+    Ring(RGBColor),
     /// No mark (a continued label).
     None,
 }
@@ -516,6 +542,8 @@ pub(crate) fn legend_column(
         match *mark {
             Mark::Line(c, w) => area.draw(&PathElement::new(vec![(6, y), (32, y)], c.stroke_width(w))),
             Mark::Box(c) => area.draw(&Rectangle::new([(8, y - 6), (30, y + 6)], c.filled())),
+            Mark::Dot(c) => area.draw(&Circle::new((19, y), 4, c.filled())),
+            Mark::Ring(c) => area.draw(&Circle::new((19, y), 4, c.stroke_width(1))),
             Mark::None => Ok(()),
         }
         .map_err(perr)?;
@@ -757,7 +785,7 @@ mod tests {
         let table: Vec<f64> = (0..512).map(|i| henyey_greenstein(0.9, (PI * i as f64 / 511.0).cos())).collect();
         let png = phase_polar_png("test", &table, g).unwrap();
         let img = image::load_from_memory(&png).unwrap();
-        assert_eq!((img.width(), img.height()), (900, 900));
+        assert_eq!((img.width(), img.height()), (POLAR_SIDE + POLAR_LEGEND_W, POLAR_SIDE + POLAR_TITLE_H));
         assert!(phase_polar_png("x", &[1.0], g).is_err());
     }
 

@@ -913,6 +913,36 @@ pub fn recover_response(
 mod tests {
     use super::*;
 
+    /// scene::rodrigues (nalgebra) and scene::rotation_vector agree with OpenCV's cv::Rodrigues, the
+    /// independent reference, in both directions, including small angles and angles near π.
+    #[test]
+    fn rodrigues_matches_opencv() {
+        let cases = [[0.1, -0.2, 0.3], [2.0, 1.0, -0.5], [0.0, std::f64::consts::PI - 1e-3, 0.0], [1e-7, 0.0, 0.0]];
+        for r in cases {
+            let src = Mat::from_slice(&r).unwrap().try_clone().unwrap();
+            let mut dst = Mat::default();
+            calib3d::rodrigues(&src, &mut dst, &mut core::no_array()).unwrap();
+            let want = mat_values(&dst, "test").unwrap();
+            let got = crate::scene::rodrigues(r);
+            for k in 0..9 {
+                assert!(
+                    (got[k / 3][k % 3] - want[k]).abs() < 1e-12,
+                    "{r:?}: [{k}] {} vs {}",
+                    got[k / 3][k % 3],
+                    want[k]
+                );
+            }
+            let m = Mat::from_slice_2d(&got).unwrap();
+            let mut back = Mat::default();
+            calib3d::rodrigues(&m, &mut back, &mut core::no_array()).unwrap();
+            let want = mat_values(&back, "test").unwrap();
+            let ours = crate::scene::rotation_vector(&got);
+            for k in 0..3 {
+                assert!((ours[k] - want[k]).abs() < 1e-6, "{r:?}: vector {ours:?} vs OpenCV {want:?}");
+            }
+        }
+    }
+
     /// The view picture gains a key strip under the photo, which shows the
     /// sample box only when there is one, and the outline is labelled.
     #[test]

@@ -49,64 +49,50 @@
 //! ```
 
 use crate::camera::Intrinsics;
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 pub type Mat3 = [[f64; 3]; 3];
 pub type Mat4 = [[f64; 4]; 4];
 
+fn to_na(a: &Mat3) -> Matrix3<f64> {
+    Matrix3::from_fn(|r, c| a[r][c])
+}
+
+fn from_na(a: &Matrix3<f64>) -> Mat3 {
+    std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)]))
+}
+
 fn mat_mul(a: &Mat3, b: &Mat3) -> Mat3 {
-    std::array::from_fn(|r| std::array::from_fn(|c| (0..3).map(|k| a[r][k] * b[k][c]).sum()))
+    from_na(&(to_na(a) * to_na(b)))
 }
 
 fn mat_vec(a: &Mat3, v: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|r| (0..3).map(|k| a[r][k] * v[k]).sum())
+    (to_na(a) * Vector3::from(v)).into()
 }
 
 fn transpose(a: &Mat3) -> Mat3 {
-    std::array::from_fn(|r| std::array::from_fn(|c| a[c][r]))
+    from_na(&to_na(a).transpose())
 }
 
-/// Rotation matrix of a rotation vector (axis × angle in radians; Rodrigues).
+/// Rotation matrix of a rotation vector (axis × angle in radians; Rodrigues),
+/// by nalgebra's exponential map.
 pub fn rodrigues(r: [f64; 3]) -> Mat3 {
-    let theta = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
-    if theta < 1e-300 {
-        return [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    }
-    let [x, y, z] = r.map(|v| v / theta);
-    let (s, c) = theta.sin_cos();
-    let t = 1.0 - c;
-    [
-        [c + x * x * t, x * y * t - z * s, x * z * t + y * s],
-        [y * x * t + z * s, c + y * y * t, y * z * t - x * s],
-        [z * x * t - y * s, z * y * t + x * s, c + z * z * t],
-    ]
+    from_na(Rotation3::new(Vector3::from(r)).matrix())
 }
 
-/// Rotation vector of a rotation matrix (inverse of [`rodrigues`]).
+/// Rotation vector of a rotation matrix (inverse of [`rodrigues`]): through
+/// nalgebra's unit quaternion (Shepperd's method, stable near π), then
+/// angle = 2 atan2(|v|, w) with w ≥ 0, which keeps small angles exact.
 pub fn rotation_vector(m: &Mat3) -> [f64; 3] {
-    let cos = ((m[0][0] + m[1][1] + m[2][2] - 1.0) / 2.0).clamp(-1.0, 1.0);
-    let theta = cos.acos();
-    let skew = [m[2][1] - m[1][2], m[0][2] - m[2][0], m[1][0] - m[0][1]];
-    if theta < 1e-12 {
-        return skew.map(|v| v / 2.0);
+    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(to_na(m)));
+    let (w, v) = (q.w, q.imag());
+    let (w, v) = if w < 0.0 { (-w, -v) } else { (w, v) };
+    let s = v.norm();
+    if s == 0.0 {
+        return [0.0; 3];
     }
-    if theta < std::f64::consts::PI - 1e-6 {
-        let k = theta / (2.0 * theta.sin());
-        return skew.map(|v| v * k);
-    }
-    // Near π: axis from the diagonal of (R + I)/2 = a aᵀ.
-    let d = [m[0][0], m[1][1], m[2][2]];
-    let i = (0..3).max_by(|&a, &b| d[a].total_cmp(&d[b])).unwrap_or(0);
-    let mut a = [0.0; 3];
-    a[i] = ((d[i] + 1.0) / 2.0).max(0.0).sqrt();
-    for j in 0..3 {
-        if j != i {
-            a[j] = (m[i][j] + m[j][i]) / (4.0 * a[i]);
-        }
-    }
-    // Sign from the (small) skew part, if any.
-    let sign = if skew.iter().zip(a).map(|(s, v)| s * v).sum::<f64>() < 0.0 { -1.0 } else { 1.0 };
-    a.map(|v| v * theta * sign)
+    (v * (2.0 * s.atan2(w) / s)).into()
 }
 
 /// The board's inner corners in a photo or view, numbered by this module's

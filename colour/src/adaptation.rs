@@ -21,7 +21,7 @@
 //! assert!((m[0][0] - 1.0479297925).abs() < 1e-9);
 //! ```
 
-use crate::spaces::{mat3_inverse, mat3_mul, mat3_vec};
+use crate::matrix::{mat3_inverse, mat3_mul, mat3_vec};
 use crate::{ColourError, Mat3};
 use serde::{Deserialize, Serialize};
 
@@ -59,7 +59,7 @@ impl Cat {
 impl std::str::FromStr for Cat {
     type Err = ColourError;
     fn from_str(s: &str) -> Result<Self, ColourError> {
-        match crate::data::canonical_name(s).as_str() {
+        match crate::names::canonical_name(s).as_str() {
             "bradford" => Ok(Cat::Bradford),
             "vonkries" => Ok(Cat::VonKries),
             "cat02" => Ok(Cat::Cat02),

@@ -38,7 +38,7 @@
 //! ```
 
 use crate::data::colorchecker_2014;
-use crate::spaces::{mat3_inverse, mat3_vec};
+use crate::matrix::{mat3_inverse, mat3_vec};
 use crate::{ClippedPatch, ColourError, Mat3};
 use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};

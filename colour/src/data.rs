@@ -124,10 +124,7 @@ fn tables() -> &'static Tables {
     })
 }
 
-/// The form user-typed names are compared in: lower case, ASCII letters and digits only.
-pub fn canonical_name(name: &str) -> String {
-    name.chars().filter(|c| c.is_ascii_alphanumeric()).map(|c| c.to_ascii_lowercase()).collect()
-}
+pub use crate::names::canonical_name;
 
 /// A standard colorimetric observer (XYZ colour-matching functions).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -245,7 +242,7 @@ impl Illuminant {
 
     /// White point XYZ from [`Illuminant::white_xy`] with Y = 1.
     pub fn white_xyz(self) -> [f64; 3] {
-        crate::spaces::xy_to_xyz(self.white_xy())
+        crate::chromaticity::xy_to_xyz(self.white_xy())
     }
 }
 
@@ -288,7 +285,7 @@ pub struct CheckerPatch {
 impl CheckerPatch {
     /// XYZ under ICC D50 (Y_white = 1).
     pub fn xyz(&self) -> [f64; 3] {
-        crate::spaces::xyy_to_xyz(self.xyy)
+        crate::chromaticity::xyy_to_xyz(self.xyy)
     }
 }
 

@@ -8,6 +8,9 @@
 //! | [`data`] | embedded tables: CIE 1931 and CIE 2012 2° XYZ CMFs, CIE 1931 RGB CMFs, illuminants D50/D65/A/E, ColorChecker Classic references |
 //! | [`spectrum`] | reflectance spectrum → XYZ (Y of the perfect white = 1) |
 //! | [`spaces`] | XYZ ↔ xyY ↔ CIELAB, linear CIE RGB and sRGB ↔ XYZ, the sRGB transfer function |
+//! | [`chromaticity`] | XYZ ↔ xyY, XYZ of a chromaticity (leaf module) |
+//! | [`matrix`] | 3 × 3 matrix product, matrix–vector product and inverse over nalgebra (leaf module) |
+//! | [`names`] | the canonical form of names typed by users (leaf module) |
 //! | [`adaptation`] | Bradford, von Kries and CAT02 chromatic adaptation |
 //! | [`difference`] | ΔE*ab (CIE 1976) and ΔE00 (CIEDE2000, Sharma et al. 2005) |
 //! | [`bands`] | spectral values (μs, μa, g, …) → three band values R, G, B |
@@ -34,8 +37,11 @@ pub mod adaptation;
 pub mod bands;
 pub mod ccm;
 pub mod chart;
+pub mod chromaticity;
 pub mod data;
 pub mod difference;
+pub mod matrix;
+pub mod names;
 pub mod spaces;
 pub mod spectrum;
 

@@ -1,5 +1,7 @@
 //! Colour spaces: XYZ ↔ xyY ↔ CIELAB, linear CIE RGB and linear sRGB ↔ XYZ,
-//! the sRGB transfer function, and the 3 × 3 matrix helpers they use.
+//! the sRGB transfer function. The 3 × 3 matrix helpers ([`crate::matrix`])
+//! and the xy/xyY conversions ([`crate::chromaticity`]) live in leaf modules
+//! and are re-exported here.
 //!
 //! * XYZ are relative tristimulus values, Y = 1 for the white.
 //! * CIELAB (CIE 15:2004 §8.2.1) with the exact constants ε = 216/24389 and
@@ -26,6 +28,8 @@
 //! ```
 
 use crate::adaptation::{adaptation_matrix, Cat};
+pub use crate::chromaticity::{xy_to_xyz, xyy_to_xyz, xyz_to_xyy};
+pub use crate::matrix::{mat3_inverse, mat3_mul, mat3_vec};
 use crate::{ColourError, Mat3};
 use serde::{Deserialize, Serialize};
 
@@ -33,72 +37,6 @@ use serde::{Deserialize, Serialize};
 pub const LAB_EPSILON: f64 = 216.0 / 24389.0;
 /// CIELAB κ = (29/3)³.
 pub const LAB_KAPPA: f64 = 24389.0 / 27.0;
-
-/// `M x`.
-pub fn mat3_vec(m: &Mat3, x: [f64; 3]) -> [f64; 3] {
-    [
-        m[0][0] * x[0] + m[0][1] * x[1] + m[0][2] * x[2],
-        m[1][0] * x[0] + m[1][1] * x[1] + m[1][2] * x[2],
-        m[2][0] * x[0] + m[2][1] * x[1] + m[2][2] * x[2],
-    ]
-}
-
-/// `A B`.
-pub fn mat3_mul(a: &Mat3, b: &Mat3) -> Mat3 {
-    let mut c = [[0.0; 3]; 3];
-    for (i, row) in c.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = (0..3).map(|k| a[i][k] * b[k][j]).sum();
-        }
-    }
-    c
-}
-
-/// `M⁻¹` by the adjugate; an error if `M` is singular or not finite.
-pub fn mat3_inverse(m: &Mat3) -> Result<Mat3, ColourError> {
-    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    let scale = m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
-    if !det.is_finite() || scale == 0.0 || det.abs() <= 1e-14 * scale.powi(3) {
-        return Err(ColourError::Singular { what: "3 × 3 matrix".into(), reason: format!("determinant {det:e}") });
-    }
-    let c = |i: usize, j: usize| {
-        let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
-        let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
-        m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0]
-    };
-    let mut inv = [[0.0; 3]; 3];
-    for (i, row) in inv.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = c(j, i) / det;
-        }
-    }
-    Ok(inv)
-}
-
-/// XYZ (Y = 1) of a chromaticity x, y; y = 0 gives NaN.
-pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
-    let [x, y] = xy;
-    [x / y, 1.0, (1.0 - x - y) / y]
-}
-
-/// x, y, Y of XYZ; black (X + Y + Z = 0) gives (0, 0, 0) as in colour-science.
-pub fn xyz_to_xyy(xyz: [f64; 3]) -> [f64; 3] {
-    let s = xyz[0] + xyz[1] + xyz[2];
-    if s == 0.0 {
-        return [0.0, 0.0, 0.0];
-    }
-    [xyz[0] / s, xyz[1] / s, xyz[1]]
-}
-
-/// XYZ of x, y, Y; y = 0 gives (0, 0, 0) as in colour-science.
-pub fn xyy_to_xyz(xyy: [f64; 3]) -> [f64; 3] {
-    let [x, y, big_y] = xyy;
-    if y == 0.0 {
-        return [0.0, 0.0, 0.0];
-    }
-    [x * big_y / y, big_y, (1.0 - x - y) * big_y / y]
-}
 
 fn lab_f(t: f64) -> f64 {
     if t > LAB_EPSILON {
@@ -224,7 +162,7 @@ impl RgbSpace {
 impl std::str::FromStr for RgbSpace {
     type Err = ColourError;
     fn from_str(s: &str) -> Result<Self, ColourError> {
-        match crate::data::canonical_name(s).as_str() {
+        match crate::names::canonical_name(s).as_str() {
             "ciergb" | "cie1931rgb" => Ok(RgbSpace::CieRgb),
             "srgb" | "rec709" | "linearsrgb" => Ok(RgbSpace::Srgb),
             _ => {

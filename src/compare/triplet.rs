@@ -6,7 +6,8 @@
 //!   transfer function); pixels with any `k × value > 1` clip, are marked
 //!   with magenta diagonal stripes ([`CLIP_MARK`]) in the photo and render
 //!   columns, and their fraction is stated in the header and in
-//!   metrics.json.
+//!   metrics.json. Only included pixels are striped: stripes always mean
+//!   "clipped", never "masked".
 //! * The difference is the luminance `Y(render) − Y(photo)` (linear, the
 //!   images' own units, not scaled by `k`) in a diverging map — ColorBrewer
 //!   RdBu (Brewer 2002), blue where the render is darker, white at 0, red
@@ -14,7 +15,9 @@
 //!   colour bar under the difference column. Values beyond it saturate.
 //! * Excluded (masked) pixels are greyed in the photo and render
 //!   (desaturated, pulled half-way to mid-grey, so the context stays
-//!   visible) and hatched light grey in the difference.
+//!   visible, and never striped) and flat grey ([`MASK_MARK`]) in the
+//!   difference, apart from the near-white of zero difference. A key under
+//!   the panels shows both marks.
 //! * Panels are at most [`PANEL_MAX`] px wide (box average in linear light
 //!   over `f × f` pixels; the difference averages included pixels only, and
 //!   a panel pixel counts as masked when fewer than half of its pixels are
@@ -45,8 +48,14 @@ pub const PANEL_MIN: usize = 320;
 /// The stripes over clipped photo and render pixels.
 pub const CLIP_MARK: RGBColor = RGBColor(255, 0, 255);
 
-const MARGIN: i32 = 16;
-const GAP: i32 = 12;
+/// Excluded (masked) pixels in the difference column: a flat mid-grey, which
+/// the diverging map (blue, near-white, red) never produces.
+pub const MASK_MARK: RGBColor = RGBColor(150, 150, 150);
+
+/// Blank border around the picture, pixels.
+pub const MARGIN: i32 = 16;
+/// Gap between the photo, render and difference columns, pixels.
+pub const GAP: i32 = 12;
 const LINE: i32 = 22;
 
 /// One row of the picture.
@@ -170,11 +179,7 @@ fn reduce(row: &Row, s: Scale, luma: [f64; 3]) -> Panels {
     out
 }
 
-fn hatch(x: usize, y: usize) -> bool {
-    (x + y) % 10 < 2
-}
-
-/// Stripes of the clipping mark (the other diagonal from [`hatch`]).
+/// Stripes of the clipping mark.
 fn clip_stripe(x: usize, y: usize) -> bool {
     (x + 1000 - y % 1000) % 8 < 3
 }
@@ -253,26 +258,16 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
                 for px in 0..s.pw {
                     let k = (py / s.up).min(p.h - 1) * p.w + (px / s.up).min(p.w - 1);
                     let m = p.masked[k];
+                    // Stripes mark clipped included pixels only: masked ones are greyed, not striped.
                     let mark = |rgb: [f64; 3]| {
-                        if clipped(rgb, style.exposure) && clip_stripe(px, py) {
+                        if !m && clipped(rgb, style.exposure) && clip_stripe(px, py) {
                             CLIP_MARK
                         } else {
                             shown(rgb, style.exposure, m)
                         }
                     };
-                    let colours = [
-                        mark(p.photo[k]),
-                        mark(p.render[k]),
-                        if m {
-                            if hatch(px, py) {
-                                RGBColor(150, 150, 150)
-                            } else {
-                                RGBColor(215, 215, 215)
-                            }
-                        } else {
-                            diverging(p.diff[k] / range)
-                        },
-                    ];
+                    let colours =
+                        [mark(p.photo[k]), mark(p.render[k]), if m { MASK_MARK } else { diverging(p.diff[k] / range) }];
                     for (c, colour) in colours.iter().enumerate() {
                         root.draw_pixel((MARGIN + c as i32 * (pw + GAP) + px as i32, y0 + py as i32), colour)
                             .map_err(perr)?;
@@ -307,17 +302,21 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
         if rows.iter().any(|r| r.mask.is_some()) {
             for i in 0..28 {
                 for j in 0..16 {
-                    let hatched = if hatch(i, j) { RGBColor(150, 150, 150) } else { RGBColor(215, 215, 215) };
-                    root.draw_pixel((MARGIN + i as i32, y0 + j as i32), &hatched).map_err(perr)?;
+                    root.draw_pixel((MARGIN + i, y0 + j), &MASK_MARK).map_err(perr)?;
                     let greyed = shown([0.05, 0.4, 0.1], 1.0, true);
-                    root.draw_pixel((MARGIN + 36 + i as i32, y0 + j as i32), &greyed).map_err(perr)?;
+                    root.draw_pixel((MARGIN + 36 + i, y0 + j), &greyed).map_err(perr)?;
                 }
             }
-            let note = "excluded by the mask: hatched (difference), greyed (photo, render)";
+            let note = "excluded by the mask: grey (difference), greyed (photo, render)";
             text(note, MARGIN + 72, y0, 14, left)?;
         }
         // Legend for clipped pixels, under the render column, when there are any.
-        let any_clipped = reduced.iter().any(|p| p.photo.iter().chain(&p.render).any(|c| clipped(*c, style.exposure)));
+        let any_clipped = reduced.iter().any(|p| {
+            let included = |k: &usize| !p.masked[*k];
+            (0..p.masked.len())
+                .filter(included)
+                .any(|k| clipped(p.photo[k], style.exposure) || clipped(p.render[k], style.exposure))
+        });
         if any_clipped {
             let lx = MARGIN + pw + GAP;
             let ly = y0 + if rows.iter().any(|r| r.mask.is_some()) { 24 } else { 0 };
@@ -328,7 +327,7 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
                 }
             }
             text(
-                &format!("clipped at exposure ×{}", crate::plot::short_number(style.exposure)),
+                &format!("clipped at exposure ×{} (striped)", crate::plot::short_number(style.exposure)),
                 lx + 36,
                 ly,
                 14,

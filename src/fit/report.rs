@@ -10,7 +10,7 @@
 //! ```
 
 use super::{FitResult, ParameterKind};
-use crate::plot::{perr, render_png, PlotError};
+use crate::plot::{legend_column, palette, perr, render_png, Mark, PlotError};
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -145,15 +145,26 @@ fn result_free(result: &FitResult) -> Vec<(ParameterKind, usize)> {
         .collect()
 }
 
+/// Width of the legend column beside each panel of [`objective_png`], pixels.
+pub const OBJECTIVE_LEGEND_W: u32 = 290;
+/// Width and height of one chart panel of [`objective_png`], pixels.
+pub const OBJECTIVE_PANEL: (u32, u32) = (900, 560);
+
+/// The light blue of the 95 % interval band: palette blue at 12 % over white.
+const INTERVAL_FILL: RGBColor = RGBColor(228, 239, 246);
+
 /// Objective against each parameter: every evaluation (search points open,
 /// final points filled), the fitted parabola, the fitted value and its 95 %
-/// interval; the start value dashed. One panel per parameter.
+/// interval; the start value as a dark grey line. One panel per parameter, each with its
+/// legend in a column [`OBJECTIVE_LEGEND_W`] px wide to its right, off the
+/// data.
 pub fn objective_png(result: &FitResult) -> Result<Vec<u8>, PlotError> {
     let n = result.parameters.len();
-    let (pw, ph) = (900u32, 560u32);
-    render_png(pw, ph * n as u32, |root| {
+    let (pw, ph) = OBJECTIVE_PANEL;
+    render_png(pw + OBJECTIVE_LEGEND_W, ph * n as u32, |root| {
         let areas = root.split_evenly((n, 1));
-        for (i, (area, p)) in areas.iter().zip(&result.parameters).enumerate() {
+        for (i, (row, p)) in areas.iter().zip(&result.parameters).enumerate() {
+            let (area, legend) = row.split_horizontally(pw);
             let pts: Vec<(f64, f64, &str)> = result
                 .history
                 .iter()
@@ -181,7 +192,7 @@ pub fn objective_png(result: &FitResult) -> Result<Vec<u8>, PlotError> {
                 ),
                 _ => format!("{} objective vs {}: not identifiable", result.objective.name(), p.name),
             };
-            let mut chart = ChartBuilder::on(area)
+            let mut chart = ChartBuilder::on(&area)
                 .margin(15)
                 .caption(caption, ("sans-serif", 18))
                 .x_label_area_size(40)
@@ -195,18 +206,14 @@ pub fn objective_png(result: &FitResult) -> Result<Vec<u8>, PlotError> {
                 .y_label_formatter(&|v| format!("{v:.1e}"))
                 .draw()
                 .map_err(perr)?;
+            let mut items: Vec<(String, Mark)> = Vec::new();
             if let Some([a, b]) = p.interval_95 {
                 chart
-                    .draw_series(std::iter::once(Rectangle::new(
-                        [(a, 0.0), (b, y1)],
-                        RGBColor(31, 119, 180).mix(0.12).filled(),
-                    )))
-                    .map_err(perr)?
-                    .label("95 % interval")
-                    .legend(|(x, y)| {
-                        Rectangle::new([(x, y - 5), (x + 20, y + 5)], RGBColor(31, 119, 180).mix(0.2).filled())
-                    });
+                    .draw_series(std::iter::once(Rectangle::new([(a, 0.0), (b, y1)], INTERVAL_FILL.filled())))
+                    .map_err(perr)?;
+                items.push(("95 % interval".into(), Mark::Box(INTERVAL_FILL)));
             }
+            let red = palette(3);
             if n == 1 && !result.model_curve.is_empty() {
                 let curve: Vec<(f64, f64)> = result
                     .model_curve
@@ -214,47 +221,38 @@ pub fn objective_png(result: &FitResult) -> Result<Vec<u8>, PlotError> {
                     .map(|p| (p[0], p[1]))
                     .filter(|(x, y)| (0.0..=y1).contains(y) && (x0..=x1).contains(x))
                     .collect();
-                chart
-                    .draw_series(LineSeries::new(curve, RGBColor(214, 39, 40).stroke_width(2)))
-                    .map_err(perr)?
-                    .label("local model through the final points")
-                    .legend(|(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(214, 39, 40).stroke_width(2))
-                    });
+                chart.draw_series(LineSeries::new(curve, red.stroke_width(2))).map_err(perr)?;
+                items.push(("local model through".into(), Mark::Line(red, 2)));
+                items.push(("the final points".into(), Mark::None));
             }
             let grey = RGBColor(110, 110, 110);
             chart
                 .draw_series(
                     pts.iter().filter(|p| p.2 != "final").map(|p| Circle::new((p.0, p.1), 4, grey.stroke_width(1))),
                 )
-                .map_err(perr)?
-                .label("search (¼ of the paths)")
-                .legend(move |(x, y)| Circle::new((x + 10, y), 4, grey.stroke_width(1)));
-            let blue = RGBColor(31, 119, 180);
+                .map_err(perr)?;
+            items.push(("search (¼ of the paths)".into(), Mark::Ring(grey)));
+            let blue = palette(0);
             chart
                 .draw_series(pts.iter().filter(|p| p.2 == "final").map(|p| Circle::new((p.0, p.1), 4, blue.filled())))
-                .map_err(perr)?
-                .label("final (full paths)")
-                .legend(move |(x, y)| Circle::new((x + 10, y), 4, blue.filled()));
+                .map_err(perr)?;
+            items.push(("final (full paths)".into(), Mark::Dot(blue)));
+            // The start line: dark grey, 2 px, so it stands out from a mesh line at the same x.
+            let start_grey = RGBColor(60, 60, 60);
             chart
-                .draw_series(std::iter::once(PathElement::new(vec![(p.start, 0.0), (p.start, y1)], BLACK.mix(0.6))))
-                .map_err(perr)?
-                .label(format!("start {:.4}", p.start))
-                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.6)));
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(p.start, 0.0), (p.start, y1)],
+                    start_grey.stroke_width(2),
+                )))
+                .map_err(perr)?;
+            items.push((format!("start {:.4}", p.start), Mark::Line(start_grey, 2)));
             if let Some(v) = p.value {
                 chart
                     .draw_series(std::iter::once(PathElement::new(vec![(v, 0.0), (v, y1)], blue.stroke_width(2))))
-                    .map_err(perr)?
-                    .label(format!("fitted {v:.4}"))
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
+                    .map_err(perr)?;
+                items.push((format!("fitted {v:.4}"), Mark::Line(blue, 2)));
             }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.9))
-                .border_style(BLACK)
-                .draw()
-                .map_err(perr)?;
+            legend_column(&legend, 60, &items)?;
         }
         Ok(())
     })

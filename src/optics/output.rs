@@ -73,6 +73,18 @@ pub fn closest_wavelength(spectrum: &OpticalSpectrum, target_nm: f64) -> Option<
     })
 }
 
+/// The plotted view of a spectrum: plain slices for [`plot::spectra_png`].
+fn series(s: &OpticalSpectrum) -> plot::SpectrumSeries<'_> {
+    plot::SpectrumSeries {
+        name: &s.sample,
+        absorption_model: s.absorption.name(),
+        wavelength_nm: &s.wavelength_nm,
+        mu_s_per_m: &s.mu_s_per_m,
+        mu_a_per_m: &s.mu_a_per_m,
+        g: &s.g,
+    }
+}
+
 fn png(path: &Path, bytes: Result<Vec<u8>, PlotError>) -> Result<(), OutputError> {
     let bytes = bytes.map_err(|source| OutputError::Plot { path: path.to_path_buf(), source })?;
     Ok(write_atomic(path, &bytes)?)
@@ -96,7 +108,7 @@ pub fn write_sample_files(dir: &Path, spectrum: &OpticalSpectrum) -> Result<Vec<
         }
     }
     let p = dir.join("optical_properties.png");
-    png(&p, plot::spectra_png(&[spectrum]))?;
+    png(&p, plot::spectra_png(&[series(spectrum)]))?;
     written.push(p);
     Ok(written)
 }
@@ -118,7 +130,8 @@ pub fn write_all(dir: &Path, spectra: &[OpticalSpectrum]) -> Result<Vec<PathBuf>
         write_json(&json, &spectra)?;
         written.push(json);
         let p = dir.join("optical_properties.png");
-        png(&p, plot::spectra_png(&refs))?;
+        let all: Vec<plot::SpectrumSeries> = spectra.iter().map(series).collect();
+        png(&p, plot::spectra_png(&all))?;
         written.push(p);
         for s in spectra {
             written.extend(write_sample_files(&dir.join(sanitise(&s.sample)), s)?);

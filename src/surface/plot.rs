@@ -7,29 +7,16 @@
 use super::fit::d_tilted_phi_average;
 use super::{FitReport, HeightMap};
 use crate::optics::recipe::RoughnessModel;
-use crate::plot::{perr, render_png, short_number, PlotError};
+use crate::plot::{legend_column, perr, render_png, short_number, Mark, PlotError};
 use plotters::element::BitMapElement;
 use plotters::prelude::*;
+use plotters::style::colors::colormaps::ViridisRGB;
 use std::f64::consts::PI;
 
-/// Viridis, 9 stops, linear in between.
+/// Viridis (van der Walt & Smith, matplotlib's default map), plotters'
+/// 8-stop table linear in between; `t` clamped to [0, 1], non-finite → 0.
 fn viridis(t: f64) -> RGBColor {
-    const S: [(u8, u8, u8); 9] = [
-        (68, 1, 84),
-        (71, 44, 122),
-        (59, 81, 139),
-        (44, 113, 142),
-        (33, 144, 141),
-        (39, 173, 129),
-        (92, 200, 99),
-        (170, 220, 50),
-        (253, 231, 37),
-    ];
-    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 } * 8.0;
-    let i = (t.floor() as usize).min(7);
-    let f = t - i as f64;
-    let lerp = |a: u8, b: u8| (a as f64 + (b as f64 - a as f64) * f).round() as u8;
-    RGBColor(lerp(S[i].0, S[i + 1].0), lerp(S[i].1, S[i + 1].1), lerp(S[i].2, S[i + 1].2))
+    ViridisRGB::get_color(if t.is_finite() { t } else { 0.0 })
 }
 
 const INVALID: RGBColor = RGBColor(170, 170, 170);
@@ -135,8 +122,11 @@ pub fn heightmap_png(map: &HeightMap, title: &str) -> Result<Vec<u8>, PlotError>
     })
 }
 
+/// Height of the legend band under the D(θ) chart of [`distribution_png`], pixels.
+pub const DISTRIBUTION_LEGEND_H: u32 = 100;
+
 /// Measured D(θ) (points with Poisson error bars) with both fits on a
-/// logarithmic axis and a legend, and the 2-D (θ, φ) histogram as a polar
+/// logarithmic axis and a legend in a band under the chart (off the data), and the 2-D (θ, φ) histogram as a polar
 /// map (radius θ, angle φ, colour log₁₀ D over three decades).
 pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
     let d = &report.distribution;
@@ -148,8 +138,9 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
     let ymin_data = d.d_per_sr.iter().copied().filter(|v| *v > 0.0).fold(f64::INFINITY, f64::min);
     let (lo, hi) = ((ymin_data / 2.0).max(ymax * 1e-7), ymax * 3.0);
     let tmax_deg = d.theta_max_rad.to_degrees();
-    render_png(1500, 700, |root| {
+    render_png(1500, 700 + DISTRIBUTION_LEGEND_H, |root| {
         let (left, right) = root.split_horizontally(900);
+        let (left, legend) = left.split_vertically(700);
         let mut chart = ChartBuilder::on(&left)
             .margin(15)
             .caption(format!("measured D(θ) of {} normals, least-squares fits", d.normals), ("sans-serif", 20))
@@ -183,11 +174,8 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
                     }),
             )
             .map_err(perr)?;
-        chart
-            .draw_series(pts.iter().map(|p| Circle::new(*p, 2, black.filled())))
-            .map_err(perr)?
-            .label("measured (± Poisson error)")
-            .legend(move |(x, y)| Circle::new((x + 10, y), 3, black.filled()));
+        chart.draw_series(pts.iter().map(|p| Circle::new(*p, 2, black.filled()))).map_err(perr)?;
+        let mut items = vec![("measured (± Poisson error)".to_string(), Mark::Dot(black))];
         let fine: Vec<f64> = (0..=400).map(|k| d.theta_max_rad * k as f64 / 400.0).collect();
         for (k, model) in [RoughnessModel::TrowbridgeReitz, RoughnessModel::Beckmann].into_iter().enumerate() {
             let f = report.fits.get(model);
@@ -203,25 +191,18 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
             };
             let tilt = if f.tilt_fitted { format!(", tilt {:.3}°", f.tilt_deg) } else { String::new() };
             let better = if report.better_model == model { "  ← better" } else { "" };
-            chart
-                .draw_series(LineSeries::new(curve, colour.stroke_width(2)))
-                .map_err(perr)?
-                .label(format!(
-                    "{name}: α = {}, scale {:.4}{tilt}, MSE {:.3e}/sr²{better}",
-                    short_number(f.alpha),
-                    f.scale,
-                    f.mse_per_sr2
-                ))
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+            chart.draw_series(LineSeries::new(curve, colour.stroke_width(2))).map_err(perr)?;
+            let label = format!(
+                "{name}: α = {}, scale {:.4}{tilt}, MSE {:.3e}/sr²{better}",
+                short_number(f.alpha),
+                f.scale,
+                f.mse_per_sr2
+            );
+            items.push((label, Mark::Line(colour, 2)));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .draw()
-            .map_err(perr)?;
+        // The legend band starts at the left edge of the plotting area.
+        let legend = legend.margin(0, 0, 80 + 15 - 6, 0);
+        legend_column(&legend, 16, &items)?;
 
         // Polar 2-D histogram.
         let h2 = &d.histogram_2d;
@@ -305,4 +286,25 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
         .map_err(perr)?;
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The map's ends and middle are matplotlib's viridis (its 256-entry table: 0 → #440154, 0.5 → #21918c,
+    /// 1 → #fde725) to within the interpolation of plotters' 8 stops; out-of-range and NaN inputs are clamped.
+    #[test]
+    fn viridis_matches_matplotlib() {
+        let close = |c: RGBColor, want: (u8, u8, u8), tol: i32| {
+            let d = [c.0 as i32 - want.0 as i32, c.1 as i32 - want.1 as i32, c.2 as i32 - want.2 as i32];
+            assert!(d.iter().all(|v| v.abs() <= tol), "{c:?} vs {want:?}");
+        };
+        close(viridis(0.0), (0x44, 0x01, 0x54), 0);
+        close(viridis(0.5), (0x21, 0x91, 0x8c), 6);
+        close(viridis(1.0), (0xfd, 0xe7, 0x25), 1);
+        close(viridis(-3.0), (0x44, 0x01, 0x54), 0);
+        close(viridis(f64::NAN), (0x44, 0x01, 0x54), 0);
+        close(viridis(7.0), (0xfd, 0xe7, 0x25), 1);
+    }
 }
