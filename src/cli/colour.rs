@@ -3,6 +3,7 @@
 //! optical properties. Orchestration only; the colour science is in
 //! `lucent-colour`.
 
+use super::choices::{AdaptationChoice, CcmMethodChoice, TargetChoice};
 use crate::imageio::{self, RgbImage};
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::recipe::{Overrides, Recipe};
@@ -43,8 +44,8 @@ pub struct CalibrateArgs {
     pub camera: Option<String>,
     /// Fitting method: "Cheung 2004" (3 × 3 least squares), "Finlayson 2015" (root-polynomial,
     /// exposure invariant) or "Finlayson 1997" (white-point preserving).
-    #[arg(long, default_value = "Cheung 2004")]
-    pub method: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "Cheung 2004")]
+    pub method: CcmMethodChoice,
     /// Output folder for ccm.json, chart.png, delta_e.png and patches.png.
     #[arg(long)]
     pub out: PathBuf,
@@ -74,12 +75,12 @@ pub struct ApplyArgs {
     /// Output image (.exr, 32-bit float, linear).
     pub output: PathBuf,
     /// Target space: cie-rgb (CIE 1931 RGB, white E), xyz (CIE XYZ, D50-adapted as fitted) or srgb (linear, D65).
-    #[arg(long, default_value = "cie-rgb")]
-    pub to: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "cie-rgb")]
+    pub to: TargetChoice,
     /// Chromatic adaptation from the fitted D50 to the target's white (cie-rgb: E, srgb: D65):
     /// bradford, cat02, von-kries or none.
-    #[arg(long, default_value = "bradford")]
-    pub adaptation: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "bradford")]
+    pub adaptation: AdaptationChoice,
 }
 
 #[derive(Debug, Args)]
@@ -129,13 +130,6 @@ fn parse_clip_level(text: &str) -> Result<Option<f64>> {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(Some(v)),
         _ => bail!("--clip-level {text:?}: expected a positive number or \"none\""),
     }
-}
-
-fn parse_adaptation(text: &str) -> Result<Option<Cat>> {
-    if text.trim().eq_ignore_ascii_case("none") {
-        return Ok(None);
-    }
-    Ok(Some(text.parse::<Cat>().with_context(|| format!("--adaptation {text:?} (or \"none\")"))?))
 }
 
 /// How the image values were encoded before calibration.
@@ -197,7 +191,7 @@ fn decode_in_place(img: &mut RgbImage) {
 }
 
 fn calibrate(a: CalibrateArgs) -> Result<()> {
-    let method: CcmMethod = a.method.parse().context("--method")?;
+    let method: CcmMethod = a.method.into();
     let given_corners = a.corners.as_deref().map(parse_corners).transpose()?;
     let clip = parse_clip_level(&a.clip_level)?;
     let mut img = imageio::read_rgb(&a.image)?;
@@ -358,13 +352,11 @@ fn read_ccm(path: &Path) -> Result<(CcmFile, ColourCorrection)> {
 
 fn apply(a: ApplyArgs) -> Result<()> {
     let (file, ccm) = read_ccm(&a.ccm)?;
-    let cat = parse_adaptation(&a.adaptation)?;
-    let target: Mat3 = match lucent_colour::data::canonical_name(&a.to).as_str() {
-        "xyz" => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        _ => {
-            let space: RgbSpace = a.to.parse().with_context(|| format!("--to {:?} (or xyz)", a.to))?;
-            space.from_xyz_adapted_matrix(file.white_xyz, cat)?
-        }
+    let cat = a.adaptation.cat();
+    let target: Mat3 = match a.to {
+        TargetChoice::Xyz => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        TargetChoice::CieRgb => RgbSpace::CieRgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
+        TargetChoice::Srgb => RgbSpace::Srgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
     };
     let ext = a.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     if ext != "exr" {
@@ -390,9 +382,9 @@ fn apply(a: ApplyArgs) -> Result<()> {
         img.height,
         file.camera,
         file.method,
-        a.to,
-        match (lucent_colour::data::canonical_name(&a.to).as_str(), cat) {
-            ("xyz", _) => " (D50-adapted XYZ as fitted)".to_string(),
+        super::choices::name(&a.to),
+        match (a.to, cat) {
+            (TargetChoice::Xyz, _) => " (D50-adapted XYZ as fitted)".to_string(),
             (_, Some(c)) => format!(" ({} adaptation from D50)", c.name()),
             (_, None) => " (no chromatic adaptation)".to_string(),
         }
@@ -547,6 +539,7 @@ pub fn warn_partial_coverage(what: &str, w: &BandWeights) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::ValueEnum;
 
     #[test]
     fn corner_and_option_parsing() {
@@ -557,7 +550,11 @@ mod tests {
         assert_eq!(parse_clip_level("none").unwrap(), None);
         assert_eq!(parse_clip_level("0.95").unwrap(), Some(0.95));
         assert!(parse_clip_level("-1").is_err());
-        assert_eq!(parse_adaptation("CAT02").unwrap(), Some(Cat::Cat02));
-        assert!(parse_adaptation("cat16").is_err());
+        // The spellings of --adaptation, through clap as the command line parses them.
+        let parse = |s: &str| AdaptationChoice::from_str(s, true).map(AdaptationChoice::cat);
+        assert_eq!(parse("CAT02").unwrap(), Some(Cat::Cat02));
+        assert_eq!(parse("von Kries").unwrap(), Some(Cat::VonKries));
+        assert_eq!(parse("none").unwrap(), None);
+        assert!(parse("cat16").is_err());
     }
 }

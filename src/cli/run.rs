@@ -2,8 +2,9 @@
 //! each stage's `lucent` commands run as child processes of this binary with
 //! their output in `STAGE/log.txt`; one status line per stage with its time.
 
+use super::choices::{ForceChoice, StageChoice};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
-use anyhow::{anyhow, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -17,11 +18,11 @@ pub struct RunArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Rerun this stage even if its inputs are unchanged (repeatable; "all" for every stage).
-    #[arg(long, value_name = "STAGE")]
-    pub force: Vec<String>,
+    #[arg(long, value_enum, value_name = "STAGE")]
+    pub force: Vec<ForceChoice>,
     /// Stop after this stage.
-    #[arg(long, value_name = "STAGE")]
-    pub until: Option<String>,
+    #[arg(long, value_enum, value_name = "STAGE")]
+    pub until: Option<StageChoice>,
 }
 
 /// The last `n` lines of a log file.
@@ -62,15 +63,8 @@ fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<(), String> {
 /// Runs `lucent run`.
 pub fn run(a: RunArgs) -> Result<()> {
     let project = Project::load(&a.project)?;
-    let mut force = Vec::new();
-    for f in &a.force {
-        if f == "all" {
-            force.extend(Stage::ALL);
-        } else {
-            force.push(Stage::from_name(f).map_err(|e| anyhow!("--force: {e}"))?);
-        }
-    }
-    let until = a.until.as_deref().map(Stage::from_name).transpose().map_err(|e| anyhow!("--until: {e}"))?;
+    let force: Vec<Stage> = a.force.iter().flat_map(|f| f.stages()).collect();
+    let until: Option<Stage> = a.until.map(|u| u.0);
     let out = a.out.clone().or(project.out.clone()).unwrap_or_else(|| PathBuf::from("lucent-out").join(&project.name));
     // Stages write paths into files they hand to later stages (scene files
     // resolve paths relative to themselves), so the folder must be absolute.
