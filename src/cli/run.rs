@@ -4,7 +4,7 @@
 
 use super::choices::{ForceChoice, StageChoice};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
-use anyhow::{Context, Result};
+use anyhow::{anyhow, Context, Result};
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -33,25 +33,25 @@ fn tail(log: &Path, n: usize) -> String {
 }
 
 /// Runs `lucent ARGS` with stdout and stderr appended to `log`.
-fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<(), String> {
+fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<()> {
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(log)
-        .map_err(|e| format!("{}: cannot open log: {e}", log.display()))?;
+        .with_context(|| format!("{}: cannot open log", log.display()))?;
     let _ = writeln!(f, "$ lucent {}", args.join(" "));
-    let err = f.try_clone().map_err(|e| e.to_string())?;
+    let err = f.try_clone().with_context(|| format!("{}: cannot open log", log.display()))?;
     let status = Command::new(exe)
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::from(f))
         .stderr(Stdio::from(err))
         .status()
-        .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
+        .with_context(|| format!("cannot start {}", exe.display()))?;
     if status.success() {
         Ok(())
     } else {
-        Err(format!(
+        Err(anyhow!(
             "`lucent {}` exited with {status}; the end of {}:\n    {}",
             args.join(" "),
             log.display(),
@@ -74,7 +74,8 @@ pub fn run(a: RunArgs) -> Result<()> {
     println!("lucent run {} → {}", a.project.display(), out.display());
     let total = std::time::Instant::now();
     let n = Stage::ALL.len();
-    let mut exec = |args: &[String], log: &Path| run_lucent(&exe, args, log);
+    // The whole chain of causes goes into the stage's error message.
+    let mut exec = |args: &[String], log: &Path| run_lucent(&exe, args, log).map_err(|e| format!("{e:#}").into());
     let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {
         let k = Stage::ALL.iter().position(|s| *s == stage).unwrap_or(0) + 1;
         let what = match st {
