@@ -128,10 +128,10 @@ pub enum FitError {
     NoParticle { particle: usize },
     /// The refractive index of a particle type at the fit wavelength.
     #[error("particle {particle} index: {source}")]
-    Index { particle: String, source: crate::optics::index::IndexError },
+    Index { particle: String, source: Box<crate::optics::index::IndexError> },
     /// A measured slice's configuration that is not a valid direction pair.
     #[error("{}: configuration {theta_i}/{theta_o}: {source}", path.display())]
-    Configuration { path: PathBuf, theta_i: f64, theta_o: f64, source: SlabError },
+    Configuration { path: PathBuf, theta_i: f64, theta_o: f64, source: Box<SlabError> },
     /// A measured slice without light.
     #[error("{}: the measured slice has no positive sum ({sum})", path.display())]
     EmptySlice { path: PathBuf, sum: f64 },
@@ -247,7 +247,7 @@ impl FreeParameter {
                 p.medium
                     .index
                     .at(wavelength_nm, p.medium.extrapolation)
-                    .map_err(|source| FitError::Index { particle: p.medium.name.clone(), source })?
+                    .map_err(|e| FitError::Index { particle: p.medium.name.clone(), source: Box::new(e) })?
                     .index
                     .re
             }
@@ -307,11 +307,11 @@ impl Measurement {
 
     /// A measurement from a grid already in memory; `path` names it.
     pub fn new(path: &Path, grid: Grid, (ti, pi, to, po): (f64, f64, f64, f64)) -> Result<Self, FitError> {
-        let directions = Directions::from_degrees(ti, pi, to, po).map_err(|source| FitError::Configuration {
+        let directions = Directions::from_degrees(ti, pi, to, po).map_err(|e| FitError::Configuration {
             path: path.to_path_buf(),
             theta_i: ti,
             theta_o: to,
-            source,
+            source: Box::new(e),
         })?;
         if grid.sum().is_nan() || grid.sum() <= 0.0 {
             return Err(FitError::EmptySlice { path: path.to_path_buf(), sum: grid.sum() });

@@ -248,6 +248,11 @@ pub fn write_all(dir: &Path, spectra: &[OpticalSpectrum]) -> Result<Vec<PathBuf>
     Ok(written)
 }
 
+/// A sample name made safe as a folder name.
+fn sanitise(name: &str) -> String {
+    name.chars().map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -311,9 +316,4 @@ mod tests {
         let ok = read_optical_properties(&p).unwrap();
         assert_eq!((ok[0].name(0), ok[0].g[0]), ("entry 1".to_string(), 0.5));
     }
-}
-
-/// A sample name made safe as a folder name.
-fn sanitise(name: &str) -> String {
-    name.chars().map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect()
 }
