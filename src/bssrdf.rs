@@ -176,6 +176,19 @@ fn read_exr_scalar(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError
     Ok((size.width(), size.height(), values))
 }
 
+/// Two slices that [`compare`] cannot compare.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ComparisonError {
+    #[error("size mismatch: measured {measured} × {measured}, simulated {simulated} × {simulated} pixels")]
+    Size { measured: usize, simulated: usize },
+    #[error("pixel size mismatch: measured {measured_mm} mm, simulated {simulated_mm} mm")]
+    PixelSize { measured_mm: f64, simulated_mm: f64 },
+    #[error("threshold {0} must lie in [0, 1)")]
+    Threshold(f64),
+    #[error("the measured slice has no positive values")]
+    NoPositiveMeasured,
+}
+
 /// A `--roughness` value that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum RoughnessError {
@@ -677,23 +690,22 @@ pub struct Comparison {
 /// Compares two grids of the same size and pixel pitch (a mismatch is an
 /// error, never a silent resample). The returned grid holds (s − m)/m over
 /// the mask and NaN outside it.
-pub fn compare(measured: &Grid, simulated: &Grid, threshold: f64) -> Result<(Comparison, Grid), String> {
+pub fn compare(measured: &Grid, simulated: &Grid, threshold: f64) -> Result<(Comparison, Grid), ComparisonError> {
     if measured.size != simulated.size {
-        return Err(format!("size mismatch: measured {0} × {0}, simulated {1} × {1}", measured.size, simulated.size));
+        return Err(ComparisonError::Size { measured: measured.size, simulated: simulated.size });
     }
     if (measured.pixel_m / simulated.pixel_m - 1.0).abs() > 1e-6 {
-        return Err(format!(
-            "pixel size mismatch: measured {} mm, simulated {} mm",
-            measured.pixel_m * 1e3,
-            simulated.pixel_m * 1e3
-        ));
+        return Err(ComparisonError::PixelSize {
+            measured_mm: measured.pixel_m * 1e3,
+            simulated_mm: simulated.pixel_m * 1e3,
+        });
     }
     if !(threshold.is_finite() && (0.0..1.0).contains(&threshold)) {
-        return Err(format!("threshold {threshold} must lie in [0, 1)"));
+        return Err(ComparisonError::Threshold(threshold));
     }
     let mmax = measured.values.iter().copied().fold(0.0, f64::max);
     if mmax <= 0.0 {
-        return Err("the measured slice has no positive values".into());
+        return Err(ComparisonError::NoPositiveMeasured);
     }
     let cut = threshold * mmax;
     let mut acc = 0.0;
@@ -769,10 +781,10 @@ mod tests {
         assert!((c.mean_squared_relative_error - expected).abs() < 1e-12);
         assert!((c.sum_ratio - 10.1 / 7.001).abs() < 1e-12);
         assert!(rel.values[2].is_nan());
-        assert!(compare(&m, &grid(vec![1.0; 9]), 0.01).unwrap_err().contains("size"));
+        assert!(compare(&m, &grid(vec![1.0; 9]), 0.01).unwrap_err().to_string().contains("size"));
         let mut other = s.clone();
         other.pixel_m = 2e-4;
-        assert!(compare(&m, &other, 0.01).unwrap_err().contains("pixel size"));
+        assert!(compare(&m, &other, 0.01).unwrap_err().to_string().contains("pixel size"));
     }
 
     #[test]

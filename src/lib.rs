@@ -5,6 +5,7 @@
 //! (`lucent-render`) → images → comparison.
 
 pub mod bssrdf;
+pub mod ccm_file;
 pub mod chart_detect;
 pub mod cli;
 pub mod compare;

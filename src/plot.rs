@@ -15,11 +15,27 @@ static FONT_ONCE: Once = Once::new();
 
 /// A plot that could not be drawn.
 #[derive(Debug, thiserror::Error)]
-#[error("cannot draw plot: {0}")]
-pub struct PlotError(String);
+pub enum PlotError {
+    /// plotters failed while drawing; its error type depends on the backend
+    /// and the drawing call, so its message is kept.
+    #[error("cannot draw plot: {0}")]
+    Draw(String),
+    /// The PNG encoder failed.
+    #[error("cannot encode plot as PNG: {0}")]
+    Encode(#[from] image::ImageError),
+    /// The pixel buffer does not hold `width` × `height` RGB pixels.
+    #[error("cannot draw plot: {len} bytes for a {width} × {height} RGB image")]
+    Buffer { len: usize, width: usize, height: usize },
+    /// Inputs that do not fit together: `plot` needs `need`.
+    #[error("cannot draw {plot}: it needs {need}")]
+    Input { plot: &'static str, need: &'static str },
+    /// NaN or ±inf among the values of `plot`.
+    #[error("cannot draw {plot}: its values must be finite")]
+    NonFinite { plot: &'static str },
+}
 
 pub(crate) fn perr<E: std::fmt::Display>(e: E) -> PlotError {
-    PlotError(e.to_string())
+    PlotError::Draw(e.to_string())
 }
 
 fn register_font() {
@@ -45,9 +61,14 @@ pub(crate) fn render_png(
         draw(&root)?;
         root.present().map_err(perr)?;
     }
-    let img = image::RgbImage::from_raw(width, height, buf).ok_or_else(|| PlotError("buffer size".into()))?;
+    let len = buf.len();
+    let img = image::RgbImage::from_raw(width, height, buf).ok_or(PlotError::Buffer {
+        len,
+        width: width as usize,
+        height: height as usize,
+    })?;
     let mut out = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut out, image::ImageFormat::Png).map_err(perr)?;
+    img.write_to(&mut out, image::ImageFormat::Png)?;
     Ok(out.into_inner())
 }
 
@@ -225,14 +246,14 @@ pub const POLAR_TITLE_H: u32 = 40;
 pub fn phase_polar_png(title: &str, theta_samples: &[f64], g: f64) -> Result<Vec<u8>, PlotError> {
     let n = theta_samples.len();
     if n < 2 {
-        return Err(PlotError("phase table has fewer than 2 entries".into()));
+        return Err(PlotError::Input { plot: "the phase plot", need: "a phase table of at least 2 entries" });
     }
     let theta = |i: usize| PI * i as f64 / (n - 1) as f64;
     let hg: Vec<f64> = (0..n).map(|i| henyey_greenstein(g, theta(i).cos())).collect();
     let all = theta_samples.iter().chain(&hg).copied().filter(|v| *v > 0.0 && v.is_finite());
     let (pmin, pmax) = all.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
     if !(pmin.is_finite() && pmax > 0.0) {
-        return Err(PlotError("phase function has no positive values".into()));
+        return Err(PlotError::Input { plot: "the phase plot", need: "a phase function with positive values" });
     }
     let dec_lo = pmin.log10().floor();
     let dec_hi = pmax.log10().ceil().max(dec_lo + 1.0);
@@ -312,10 +333,10 @@ pub fn delta_e_bars_png(
 ) -> Result<Vec<u8>, PlotError> {
     let n = labels.len();
     if n == 0 || de2000.len() != n || de76.len() != n || colours.len() != n {
-        return Err(PlotError("ΔE plot needs one label, ΔE00, ΔE76 and colour per patch".into()));
+        return Err(PlotError::Input { plot: "the ΔE plot", need: "one label, ΔE00, ΔE76 and colour per patch" });
     }
     if de2000.iter().chain(de76).any(|v| !v.is_finite()) {
-        return Err(PlotError("ΔE values must be finite".into()));
+        return Err(PlotError::NonFinite { plot: "the ΔE plot" });
     }
     let top = de2000.iter().chain(de76).copied().fold(1.0f64, f64::max) * 1.12;
     let mean = de2000.iter().sum::<f64>() / n as f64;
@@ -416,10 +437,10 @@ const RESIDUAL_LEGEND_W: u32 = 280;
 /// Each view has its own colour ([`distinct_colours`]).
 pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<Vec<u8>, PlotError> {
     if views.is_empty() || views.iter().any(|(_, r)| r.is_empty()) {
-        return Err(PlotError("residual plot needs at least one view with residuals".into()));
+        return Err(PlotError::Input { plot: "the residual plot", need: "at least one view with residuals" });
     }
     if !rms_px.is_finite() || views.iter().flat_map(|(_, r)| r).any(|p| !(p[0].is_finite() && p[1].is_finite())) {
-        return Err(PlotError("residuals must be finite".into()));
+        return Err(PlotError::NonFinite { plot: "the residual plot" });
     }
     let reach = views.iter().flat_map(|(_, r)| r).map(|p| p[0].abs().max(p[1].abs())).fold(rms_px, f64::max) * 1.1;
     let per_view: Vec<f64> = views
@@ -577,7 +598,10 @@ pub fn chart_halves_png(
 ) -> Result<Vec<u8>, PlotError> {
     let n = labels.len();
     if n == 0 || photo.len() != n || reference.len() != n {
-        return Err(PlotError("chart plot needs one label, photo and reference colour per patch".into()));
+        return Err(PlotError::Input {
+            plot: "the chart plot",
+            need: "one label, photo and reference colour per patch",
+        });
     }
     let rows = n.div_ceil(6) as i32;
     let width = 6 * CHART_SIDE + 7 * CHART_GAP;
@@ -630,7 +654,7 @@ pub fn patch_overlay_png(
     outlines: &[[[f64; 2]; 4]],
 ) -> Result<Vec<u8>, PlotError> {
     if width == 0 || height == 0 || srgb8.len() != width * height * 3 {
-        return Err(PlotError(format!("{} bytes for a {width} × {height} RGB image", srgb8.len())));
+        return Err(PlotError::Buffer { len: srgb8.len(), width, height });
     }
     let (up, down) = overlay_scale(width);
     let (ow, oh) = (width * up / down, height * up / down);

@@ -357,3 +357,24 @@ fn ctrl_c_keeps_a_labelled_partial_slice() {
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
+
+#[test]
+fn a_second_ctrl_c_aborts_and_removes_the_staging_folder() {
+    // Two SIGINTs: the second ends the run at once (exit status 130) and
+    // takes the staging folder, and the --out folder this run created, with
+    // it; a file already beside them stays.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    std::fs::write(dir.path().join("notes.txt"), "the user's").unwrap();
+    let mut args = vec!["bssrdf", "--thickness-mm", "2", "--pixels", "41", "--pixel-mm", "0.1", "--time-s", "120"];
+    args.extend_from_slice(&THIN);
+    args.extend_from_slice(&["--configs", "45/0,0/45", "--out", out.to_str().unwrap()]);
+    let started = std::time::Instant::now();
+    let (status, text) = common::interrupt_n_after(&args, "Ctrl-C stops", 2);
+    assert_eq!(status.code(), Some(130), "the second Ctrl-C must end the run at once: {text}");
+    assert!(started.elapsed().as_secs_f64() < 60.0, "the run did not stop at Ctrl-C");
+    assert!(text.contains("interrupted twice"), "{text}");
+    let left: Vec<_> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(left, vec!["notes.txt".to_string()], "the staging folder and the new --out must be gone");
+}

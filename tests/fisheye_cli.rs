@@ -296,7 +296,10 @@ fn fisheye_photos_calibrate_back_and_undistort_to_pinhole_and_equirect() {
 
     // Bad combinations.
     for (args, want) in [
-        (vec!["undistort", "--camera", s(&cam), s(&fisheye), s(&equi), "--to", "cube"], "--to cube"),
+        (
+            vec!["undistort", "--camera", s(&cam), s(&fisheye), s(&equi), "--to", "cube"],
+            "[possible values: pinhole, equirect]",
+        ),
         (vec!["undistort", "--camera", s(&cam), s(&fisheye), s(&equi), "--to", "equirect", "--fov", "90"], "--fov"),
         (vec!["undistort", "--camera", s(&cam), s(&fisheye), s(&equi), "--to", "equirect", "--width", "721"], "even"),
         (vec!["undistort", "--camera", s(&cam), s(&fisheye), s(&pinhole), "--fov", "180"], "--fov"),

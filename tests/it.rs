@@ -12,6 +12,8 @@ mod bssrdf_cli;
 mod camera_cli;
 #[path = "chart_detect.rs"]
 mod chart_detect;
+#[path = "choices_cli.rs"]
+mod choices_cli;
 #[path = "cli.rs"]
 mod cli;
 #[path = "colour_cli.rs"]

@@ -2,6 +2,7 @@
 //! `lucent env …` (`merge` and `view` in env_hdr.rs): the photo side of the twin (SPEC §5). Orchestration and
 //! file handling only; the work is done by `lucent-calib`.
 
+use super::choices::{DemosaicChoice, DetectorChoice, DistortionChoice, ProjectionChoice, WhiteBalanceChoice};
 use crate::imageio::{self, extension, RgbImage, RAW_EXTENSIONS};
 use crate::io::{write_atomic, write_json};
 use crate::plot;
@@ -11,7 +12,7 @@ use lucent_calib::camera::{self, Calibration, DistortionModel, NewCamera, Photo}
 use lucent_calib::cv::{self, Detector};
 use lucent_calib::demosaic::Demosaic;
 use lucent_calib::env;
-use lucent_calib::raw::{self, RawOptions, WhiteBalance};
+use lucent_calib::raw::{self, RawOptions};
 use lucent_calib::scene::{self, BoardSpec, SampleSpec};
 use lucent_calib::{GrayImage, RgbBuffer};
 use std::path::{Path, PathBuf};
@@ -40,11 +41,11 @@ pub struct RawDecodeArgs {
     /// Output image (.exr); the metadata goes to the same path with .json.
     pub output: PathBuf,
     /// Demosaicing: malvar (Malvar–He–Cutler 2004) or bilinear.
-    #[arg(long, default_value = "malvar")]
-    pub demosaic: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "malvar")]
+    pub demosaic: DemosaicChoice,
     /// White balance: none (camera RGB as recorded) or camera (as-shot multipliers, green = 1).
-    #[arg(long, default_value = "none")]
-    pub white_balance: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "none")]
+    pub white_balance: WhiteBalanceChoice,
     /// Override the white (saturation) level in raw digital numbers.
     #[arg(long)]
     pub white_level: Option<f32>,
@@ -68,11 +69,11 @@ pub struct CalibrateArgs {
     pub square_mm: f64,
     /// Distortion model: pinhole-k3 (k1 k2 p1 p2 k3), rational (k1..k6 p1 p2) or fisheye
     /// (Kannala–Brandt k1..k4, OpenCV's fisheye module; one lens of a 360° rig at a time).
-    #[arg(long, default_value = "pinhole-k3")]
-    pub model: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "pinhole-k3")]
+    pub model: DistortionChoice,
     /// Corner detector: auto (sector-based, else classic + cornerSubPix), sector-based or classic.
-    #[arg(long, default_value = "auto")]
-    pub detector: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
+    pub detector: DetectorChoice,
     /// Output camera JSON; the residual plot and per-view images go beside it
     /// (NAME_residuals.png, NAME_views/).
     #[arg(long)]
@@ -96,8 +97,8 @@ pub struct UndistortArgs {
     /// Output geometry: pinhole (the photo's size, a distortion-free camera) or equirect (a 2:1
     /// latitude–longitude map of the sphere around the lens, its axis at the map's centre; for
     /// fisheye lenses, also beyond 90° off axis).
-    #[arg(long, default_value = "pinhole")]
-    pub to: String,
+    #[arg(long, value_enum, default_value = "pinhole")]
+    pub to: ProjectionChoice,
     /// Pinhole output: horizontal field of view in degrees (sets fx = fy = (width/2)/tan(fov/2),
     /// principal point at the centre); overrides --keep-all.
     #[arg(long)]
@@ -213,11 +214,8 @@ fn raw_decode(a: RawDecodeArgs) -> Result<()> {
     if extension(&a.output) != "exr" {
         bail!("{}: the output must be an .exr file (32-bit float linear RGB)", a.output.display());
     }
-    let opts = RawOptions {
-        demosaic: Demosaic::from_name(&a.demosaic).context("--demosaic")?,
-        white_balance: WhiteBalance::from_name(&a.white_balance).map_err(|e| anyhow!("--white-balance: {e}"))?,
-        white_level: a.white_level,
-    };
+    let opts =
+        RawOptions { demosaic: a.demosaic.into(), white_balance: a.white_balance.into(), white_level: a.white_level };
     if let Some(w) = a.white_level {
         if !(w.is_finite() && w > 0.0) {
             bail!("--white-level {w}: must be a positive number of raw digital numbers");
@@ -308,15 +306,6 @@ fn load_gray(path: &Path) -> Result<GrayImage> {
     Ok(cv::read_gray(path)?)
 }
 
-fn parse_detector(name: &str) -> Result<Detector> {
-    match name.to_ascii_lowercase().as_str() {
-        "auto" => Ok(Detector::Auto),
-        "sector-based" | "sb" => Ok(Detector::SectorBased),
-        "classic" => Ok(Detector::Classic),
-        _ => bail!("--detector {name:?}: valid are auto, sector-based, classic"),
-    }
-}
-
 pub fn calibrate(a: CalibrateArgs) -> Result<()> {
     if a.out.is_dir() {
         bail!(
@@ -326,8 +315,8 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
         );
     }
     let board = BoardSpec::parse(&a.board, a.square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))?;
-    let model = DistortionModel::from_name(&a.model).map_err(|e| anyhow!("--model: {e}"))?;
-    let detector = parse_detector(&a.detector)?;
+    let model: DistortionModel = a.model.into();
+    let detector: Detector = a.detector.into();
     let mut files = Vec::new();
     for spec in &a.images {
         files.extend(expand_images(spec)?);
@@ -456,11 +445,7 @@ pub fn undistort(a: UndistortArgs) -> Result<()> {
     if out_ext != "exr" && out_ext != "png" {
         bail!("{}: the output must be .exr (float) or .png (8-bit view)", a.output.display());
     }
-    let equirect = match a.to.as_str() {
-        "pinhole" => false,
-        "equirect" | "equirectangular" => true,
-        other => bail!("--to {other}: expected pinhole or equirect"),
-    };
+    let equirect = a.to == ProjectionChoice::Equirect;
     if equirect && a.fov.is_some() {
         bail!("--fov belongs to --to pinhole (an equirectangular map always covers the whole sphere)");
     }

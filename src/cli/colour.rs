@@ -3,6 +3,8 @@
 //! optical properties. Orchestration only; the colour science is in
 //! `lucent-colour`.
 
+use super::choices::{AdaptationChoice, CcmMethodChoice, TargetChoice};
+use crate::ccm_file::{CcmFile, CcmPatch, InputEncoding};
 use crate::imageio::{self, RgbImage};
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::recipe::{Overrides, Recipe};
@@ -10,12 +12,12 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand};
 use lucent_colour::adaptation::Cat;
 use lucent_colour::bands::{band_weights, BandWeights, BANDS};
-use lucent_colour::ccm::{fit_colorchecker, CcmMethod, ColourCorrection, PatchResult};
+use lucent_colour::ccm::{fit_colorchecker, CcmMethod, ColourCorrection};
 use lucent_colour::chart::{neutral_ramp_warning, sample_patches, ImageRef, PatchSample, SampleOptions};
 use lucent_colour::data::ICC_D50_XYZ;
 use lucent_colour::spaces::{mat3_vec, srgb_decode, RgbSpace};
 use lucent_colour::{Mat3, WavelengthGrid};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Subcommand)]
@@ -43,8 +45,8 @@ pub struct CalibrateArgs {
     pub camera: Option<String>,
     /// Fitting method: "Cheung 2004" (3 × 3 least squares), "Finlayson 2015" (root-polynomial,
     /// exposure invariant) or "Finlayson 1997" (white-point preserving).
-    #[arg(long, default_value = "Cheung 2004")]
-    pub method: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "Cheung 2004")]
+    pub method: CcmMethodChoice,
     /// Output folder for ccm.json, chart.png, delta_e.png and patches.png.
     #[arg(long)]
     pub out: PathBuf,
@@ -74,12 +76,12 @@ pub struct ApplyArgs {
     /// Output image (.exr, 32-bit float, linear).
     pub output: PathBuf,
     /// Target space: cie-rgb (CIE 1931 RGB, white E), xyz (CIE XYZ, D50-adapted as fitted) or srgb (linear, D65).
-    #[arg(long, default_value = "cie-rgb")]
-    pub to: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "cie-rgb")]
+    pub to: TargetChoice,
     /// Chromatic adaptation from the fitted D50 to the target's white (cie-rgb: E, srgb: D65):
     /// bradford, cat02, von-kries or none.
-    #[arg(long, default_value = "bradford")]
-    pub adaptation: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "bradford")]
+    pub adaptation: AdaptationChoice,
 }
 
 #[derive(Debug, Args)]
@@ -131,65 +133,6 @@ fn parse_clip_level(text: &str) -> Result<Option<f64>> {
     }
 }
 
-fn parse_adaptation(text: &str) -> Result<Option<Cat>> {
-    if text.trim().eq_ignore_ascii_case("none") {
-        return Ok(None);
-    }
-    Ok(Some(text.parse::<Cat>().with_context(|| format!("--adaptation {text:?} (or \"none\")"))?))
-}
-
-/// How the image values were encoded before calibration.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum InputEncoding {
-    /// Linear values used as read.
-    Linear,
-    /// sRGB-encoded values, linearised with the inverse sRGB transfer function.
-    Srgb,
-}
-
-/// One patch in ccm.json.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct CcmPatch {
-    /// Patch number, name, camera RGB, fitted and reference XYZ and L*a*b*, ΔE00, ΔE*ab.
-    #[serde(flatten)]
-    pub fit: PatchResult,
-    /// Standard deviation of the sampled pixels per channel (after the trim).
-    pub camera_rgb_std_dev: [f64; 3],
-    /// Pixels sampled.
-    pub pixels: usize,
-}
-
-/// The content of ccm.json.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct CcmFile {
-    pub camera: String,
-    pub image: String,
-    /// TL, TR, BR, BL outer corners of the patch grid, pixels.
-    pub corners: [[f64; 2]; 4],
-    /// The corners were found by OpenCV's mcc detector, not given with --corners.
-    #[serde(default)]
-    pub corners_detected: bool,
-    pub method: CcmMethod,
-    pub method_description: String,
-    /// Terms t(RGB) the matrix columns multiply.
-    pub terms: Vec<String>,
-    /// XYZ = matrix · t(camera RGB): 3 rows (X, Y, Z).
-    pub matrix: Vec<Vec<f64>>,
-    pub maps: String,
-    pub input_encoding: InputEncoding,
-    pub reference_set: String,
-    pub illuminant: String,
-    pub white_xyz: [f64; 3],
-    pub observer: String,
-    pub sampling: SampleOptions,
-    pub de2000_mean: f64,
-    pub de2000_max: f64,
-    pub de76_mean: f64,
-    pub de76_max: f64,
-    pub patches: Vec<CcmPatch>,
-}
-
 fn decode_in_place(img: &mut RgbImage) {
     for v in &mut img.data {
         *v = srgb_decode(f64::from(*v)) as f32;
@@ -197,7 +140,7 @@ fn decode_in_place(img: &mut RgbImage) {
 }
 
 fn calibrate(a: CalibrateArgs) -> Result<()> {
-    let method: CcmMethod = a.method.parse().context("--method")?;
+    let method: CcmMethod = a.method.into();
     let given_corners = a.corners.as_deref().map(parse_corners).transpose()?;
     let clip = parse_clip_level(&a.clip_level)?;
     let mut img = imageio::read_rgb(&a.image)?;
@@ -263,7 +206,7 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
     };
 
     let out = &a.out;
-    crate::io::write_json(&out.join("ccm.json"), &file)?;
+    file.write(&out.join("ccm.json"))?;
     crate::io::write_atomic(&out.join("chart.png"), &chart_comparison(&ccm, &file)?)?;
     let labels: Vec<String> = file.patches.iter().map(|p| format!("{} {}", p.fit.patch, p.fit.name)).collect();
     let de2000: Vec<f64> = file.patches.iter().map(|p| p.fit.de2000).collect();
@@ -348,23 +291,13 @@ fn sampling_overlay(img: &RgbImage, samples: &[PatchSample]) -> Result<Vec<u8>> 
     Ok(crate::plot::patch_overlay_png(img.width, img.height, &bytes, &outlines)?)
 }
 
-fn read_ccm(path: &Path) -> Result<(CcmFile, ColourCorrection)> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let file: CcmFile = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a ccm.json written by `lucent colour calibrate`", path.display()))?;
-    let ccm = ColourCorrection::new(file.method, file.matrix.clone()).with_context(|| format!("{}", path.display()))?;
-    Ok((file, ccm))
-}
-
 fn apply(a: ApplyArgs) -> Result<()> {
-    let (file, ccm) = read_ccm(&a.ccm)?;
-    let cat = parse_adaptation(&a.adaptation)?;
-    let target: Mat3 = match lucent_colour::data::canonical_name(&a.to).as_str() {
-        "xyz" => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        _ => {
-            let space: RgbSpace = a.to.parse().with_context(|| format!("--to {:?} (or xyz)", a.to))?;
-            space.from_xyz_adapted_matrix(file.white_xyz, cat)?
-        }
+    let (file, ccm) = CcmFile::read(&a.ccm)?;
+    let cat = a.adaptation.cat();
+    let target: Mat3 = match a.to {
+        TargetChoice::Xyz => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        TargetChoice::CieRgb => RgbSpace::CieRgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
+        TargetChoice::Srgb => RgbSpace::Srgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
     };
     let ext = a.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     if ext != "exr" {
@@ -390,9 +323,9 @@ fn apply(a: ApplyArgs) -> Result<()> {
         img.height,
         file.camera,
         file.method,
-        a.to,
-        match (lucent_colour::data::canonical_name(&a.to).as_str(), cat) {
-            ("xyz", _) => " (D50-adapted XYZ as fitted)".to_string(),
+        super::choices::name(&a.to),
+        match (a.to, cat) {
+            (TargetChoice::Xyz, _) => " (D50-adapted XYZ as fitted)".to_string(),
             (_, Some(c)) => format!(" ({} adaptation from D50)", c.name()),
             (_, None) => " (no chromatic adaptation)".to_string(),
         }
@@ -412,42 +345,6 @@ struct SampleBands {
     g: [f64; 3],
 }
 
-#[derive(Debug, Deserialize)]
-struct SpectrumJson {
-    #[serde(default)]
-    sample: Option<String>,
-    wavelength_nm: Vec<f64>,
-    mu_s_per_m: Vec<f64>,
-    mu_a_per_m: Vec<f64>,
-    g: Vec<f64>,
-}
-
-fn spectra_from_json(path: &Path) -> Result<Vec<SpectrumJson>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let value: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
-    let items = match value {
-        serde_json::Value::Array(items) => items,
-        single => vec![single],
-    };
-    if items.is_empty() {
-        bail!("{}: no spectra in this file", path.display());
-    }
-    items
-        .into_iter()
-        .enumerate()
-        .map(|(i, v)| {
-            serde_json::from_value(v).with_context(|| {
-                format!(
-                    "{}: entry {}: expected an object with arrays wavelength_nm, mu_s_per_m, mu_a_per_m, g (as `lucent optics` writes)",
-                    path.display(),
-                    i + 1
-                )
-            })
-        })
-        .collect()
-}
-
 fn bands(a: BandsArgs) -> Result<()> {
     let ext = a.input.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let spectra: Vec<NamedSpectra> = match ext.as_str() {
@@ -461,19 +358,11 @@ fn bands(a: BandsArgs) -> Result<()> {
             }
             vec![(s.sample, grid, s.mu_s_per_m, s.mu_a_per_m, s.g)]
         }
-        "json" => spectra_from_json(&a.input)?
+        "json" => crate::optics::output::read_optical_properties(&a.input)?
             .into_iter()
             .enumerate()
             .map(|(i, s)| {
-                let name = s.sample.clone().unwrap_or_else(|| format!("entry {}", i + 1));
-                let n = s.wavelength_nm.len();
-                for (field, len) in
-                    [("mu_s_per_m", s.mu_s_per_m.len()), ("mu_a_per_m", s.mu_a_per_m.len()), ("g", s.g.len())]
-                {
-                    if len != n {
-                        bail!("{}: {name}: {field} has {len} values but wavelength_nm has {n}", a.input.display());
-                    }
-                }
+                let name = s.name(i);
                 let grid = WavelengthGrid::from_list(s.wavelength_nm)
                     .with_context(|| format!("{}: {name}: wavelength_nm", a.input.display()))?;
                 Ok((name, grid, s.mu_s_per_m, s.mu_a_per_m, s.g))
@@ -547,6 +436,7 @@ pub fn warn_partial_coverage(what: &str, w: &BandWeights) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::ValueEnum;
 
     #[test]
     fn corner_and_option_parsing() {
@@ -557,7 +447,11 @@ mod tests {
         assert_eq!(parse_clip_level("none").unwrap(), None);
         assert_eq!(parse_clip_level("0.95").unwrap(), Some(0.95));
         assert!(parse_clip_level("-1").is_err());
-        assert_eq!(parse_adaptation("CAT02").unwrap(), Some(Cat::Cat02));
-        assert!(parse_adaptation("cat16").is_err());
+        // The spellings of --adaptation, through clap as the command line parses them.
+        let parse = |s: &str| AdaptationChoice::from_str(s, true).map(AdaptationChoice::cat);
+        assert_eq!(parse("CAT02").unwrap(), Some(Cat::Cat02));
+        assert_eq!(parse("von Kries").unwrap(), Some(Cat::VonKries));
+        assert_eq!(parse("none").unwrap(), None);
+        assert!(parse("cat16").is_err());
     }
 }

@@ -2,8 +2,9 @@
 //! triplet.png and difference.exr (SPEC §6). Argument handling and
 //! printing only; the work is done by [`crate::compare`].
 
-use crate::compare::{self, Luminance, MaskSpec, Metrics, Request};
-use anyhow::{bail, Context, Result};
+use super::choices::{LuminanceChoice, MotionChoice, RefineChoice};
+use crate::compare::{self, MaskSpec, Metrics, Request};
+use anyhow::{Context, Result};
 use clap::Args;
 use lucent_calib::ecc::Motion;
 use std::path::PathBuf;
@@ -34,18 +35,18 @@ pub struct CompareArgs {
     pub data_range: f64,
     /// Luminance weights for SSIM Y, the difference picture and ECC: cie-rgb (0.1769, 0.8124,
     /// 0.0107) or rec709 (0.2126, 0.7152, 0.0722).
-    #[arg(long, default_value = "cie-rgb")]
-    pub luminance: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "cie-rgb")]
+    pub luminance: LuminanceChoice,
     /// Display exposure k for triplet.png (shown = sRGB(k × linear)); default: 1 / the 99th
     /// percentile of the photo's max(R, G, B).
     #[arg(long, allow_hyphen_values = true)]
     pub exposure: Option<f64>,
     /// Also align the render to the photo and report the metrics after it: ecc (OpenCV findTransformECC).
-    #[arg(long, value_name = "METHOD")]
-    pub refine: Option<String>,
+    #[arg(long, value_enum, ignore_case = true, value_name = "METHOD")]
+    pub refine: Option<RefineChoice>,
     /// Motion model of the refinement: translation, euclidean, affine or homography.
-    #[arg(long, default_value = "translation", requires = "refine")]
-    pub refine_motion: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "translation", requires = "refine")]
+    pub refine_motion: MotionChoice,
     /// Output folder (created; existing metrics.json, triplet.png, difference.exr in it are replaced).
     #[arg(long)]
     pub out: PathBuf,
@@ -69,13 +70,7 @@ fn line(m: &Metrics) -> String {
 }
 
 pub fn run(a: CompareArgs) -> Result<()> {
-    let refine = match a.refine.as_deref().map(str::trim) {
-        None => None,
-        Some(m) if m.eq_ignore_ascii_case("ecc") => {
-            Some(Motion::from_name(&a.refine_motion).context("--refine-motion")?)
-        }
-        Some(other) => bail!("--refine {other:?}: the only method is ecc"),
-    };
+    let refine: Option<Motion> = a.refine.map(|RefineChoice::Ecc| a.refine_motion.into());
     let mask = match (a.mask, a.mask_object, a.mask_board) {
         (Some(p), _, _) => MaskSpec::Image(p),
         (_, Some(p), _) => MaskSpec::Object(p),
@@ -88,7 +83,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         mask,
         scene: a.scene,
         data_range: a.data_range,
-        luminance: Luminance::from_name(&a.luminance).context("--luminance")?,
+        luminance: a.luminance.into(),
         exposure: a.exposure,
         refine,
     };

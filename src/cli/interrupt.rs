@@ -1,33 +1,118 @@
 //! Ctrl-C as a request to stop a long run early and keep its result.
+//!
+//! The first Ctrl-C (SIGINT) sets a flag the run polls; the second ends the
+//! process (exit status 130) after removing the staging folders and files
+//! registered with [`remove_on_abort`], so an aborted run leaves nothing
+//! half-made behind. The signal handler itself only updates atomics and
+//! writes one byte to a pipe (both async-signal-safe); a helper thread
+//! blocked on that pipe says on stderr that the run will stop (first
+//! Ctrl-C), or does the removal with ordinary file-system calls and then
+//! calls `_exit(130)` (second). A third Ctrl-C, or a second one when the
+//! helper could not be started, ends the process at once.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 /// Ctrl-C (SIGINT) during a long run (`render`, `bssrdf`): the first one asks
 /// the run to stop after the pass or round under way, so what is finished is
-/// written as a valid, labelled partial result; a second one ends the process at once
-/// (exit status 130). The previous disposition is restored on drop.
+/// written as a valid, labelled partial result; a second one removes the
+/// registered staging paths and ends the process (exit status 130). The
+/// previous disposition is restored on drop.
 pub struct Interrupt {
     #[cfg(unix)]
     previous: libc::sighandler_t,
 }
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+/// SIGINTs received since [`Interrupt::install`].
+static COUNT: AtomicUsize = AtomicUsize::new(0);
+/// Write end of the pipe the cleanup thread waits on; -1 if there is none.
+static ABORT_PIPE: AtomicI32 = AtomicI32::new(-1);
+/// Paths removed on abort, with the id of their [`Registered`] guard.
+static REGISTERED: Mutex<Vec<(usize, PathBuf)>> = Mutex::new(Vec::new());
+static NEXT_ID: AtomicUsize = AtomicUsize::new(0);
 
 #[cfg(unix)]
 extern "C" fn on_sigint(_: libc::c_int) {
-    // Only async-signal-safe work here: an atomic swap and _exit.
-    if INTERRUPTED.swap(true, Ordering::SeqCst) {
+    // Only async-signal-safe work here: atomics, write and _exit.
+    INTERRUPTED.store(true, Ordering::SeqCst);
+    let n = COUNT.fetch_add(1, Ordering::SeqCst) + 1;
+    let fd = ABORT_PIPE.load(Ordering::SeqCst);
+    // SAFETY: write(2) on a pipe we own is async-signal-safe; the byte (the
+    // count) wakes the helper thread.
+    let told = n <= 2 && fd >= 0 && unsafe { libc::write(fd, [n as u8].as_ptr().cast(), 1) } == 1;
+    if n >= 2 && !told {
+        // SAFETY: _exit is async-signal-safe.
         unsafe { libc::_exit(130) };
     }
+}
+
+/// Removes every registered path (a folder with all it holds, or a file).
+/// The run may still be writing into a folder while it is removed, so each
+/// removal is retried until the path is gone (a few times at most).
+fn remove_registered() {
+    let paths: Vec<PathBuf> = match REGISTERED.lock() {
+        Ok(list) => list.iter().map(|(_, p)| p.clone()).collect(),
+        Err(poisoned) => poisoned.into_inner().iter().map(|(_, p)| p.clone()).collect(),
+    };
+    for p in paths {
+        for _ in 0..20 {
+            if std::fs::symlink_metadata(&p).is_err() {
+                break;
+            }
+            let _ = if p.is_dir() { std::fs::remove_dir_all(&p) } else { std::fs::remove_file(&p) };
+        }
+    }
+}
+
+/// Starts (once per process) the thread that cleans up and exits on the
+/// second Ctrl-C.
+#[cfg(unix)]
+fn start_cleanup_thread() {
+    static STARTED: std::sync::Once = std::sync::Once::new();
+    STARTED.call_once(|| {
+        let mut fds = [0 as libc::c_int; 2];
+        // SAFETY: pipe(2) fills the two descriptors of a new pipe.
+        if unsafe { libc::pipe(fds.as_mut_ptr()) } != 0 {
+            return;
+        }
+        let read_fd = fds[0];
+        let spawned = std::thread::Builder::new().name("ctrl-c cleanup".into()).spawn(move || {
+            let mut byte = 0u8;
+            loop {
+                // SAFETY: reads one byte from the pipe's read end, owned by this thread.
+                let n = unsafe { libc::read(read_fd, (&mut byte as *mut u8).cast(), 1) };
+                if n == 0 {
+                    return;
+                }
+                if n == 1 && byte >= 2 {
+                    break;
+                }
+                if n == 1 {
+                    eprintln!("\nCtrl-C: stopping after the round under way (press Ctrl-C again to abort)");
+                }
+            }
+            remove_registered();
+            eprintln!("interrupted twice: stopped at once; the unfinished output was removed");
+            // SAFETY: ends the process without running destructors on other threads' data.
+            unsafe { libc::_exit(130) };
+        });
+        if spawned.is_ok() {
+            ABORT_PIPE.store(fds[1], Ordering::SeqCst);
+        }
+    });
 }
 
 impl Interrupt {
     pub fn install() -> Self {
         INTERRUPTED.store(false, Ordering::SeqCst);
+        COUNT.store(0, Ordering::SeqCst);
         #[cfg(unix)]
         {
+            start_cleanup_thread();
             let handler = on_sigint as extern "C" fn(libc::c_int) as libc::sighandler_t;
-            // SAFETY: installs a handler that only touches an atomic and calls _exit.
+            // SAFETY: installs a handler that only touches atomics, writes to a pipe and calls _exit.
             let previous = unsafe { libc::signal(libc::SIGINT, handler) };
             Self { previous }
         }
@@ -49,5 +134,51 @@ impl Drop for Interrupt {
         unsafe {
             libc::signal(libc::SIGINT, self.previous);
         }
+    }
+}
+
+/// A path removed if the run is aborted (second Ctrl-C) while this guard
+/// lives; dropping the guard unregisters it (the path itself stays).
+#[derive(Debug)]
+pub struct Registered(usize);
+
+/// Registers `path` (a staging folder or temporary file of the run under
+/// way) for removal on abort. Keep the guard for as long as the path is
+/// unfinished output.
+pub fn remove_on_abort(path: &Path) -> Registered {
+    let id = NEXT_ID.fetch_add(1, Ordering::SeqCst);
+    let path = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut list = REGISTERED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    list.push((id, path));
+    Registered(id)
+}
+
+impl Drop for Registered {
+    fn drop(&mut self) {
+        let mut list = REGISTERED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        list.retain(|(id, _)| *id != self.0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn registered_paths_are_removed_and_guards_unregister() {
+        let dir = tempfile::tempdir().unwrap();
+        let stage = dir.path().join(".out.staging-1");
+        std::fs::create_dir_all(stage.join("ti45_to0")).unwrap();
+        std::fs::write(stage.join("ti45_to0/bssrdf.exr"), b"x").unwrap();
+        let kept = dir.path().join("kept.txt");
+        std::fs::write(&kept, b"y").unwrap();
+        let guard = remove_on_abort(&stage);
+        let unregistered = remove_on_abort(&kept);
+        drop(unregistered);
+        remove_registered();
+        assert!(!stage.exists(), "the registered staging folder must be removed");
+        assert!(kept.exists(), "an unregistered path must stay");
+        drop(guard);
+        assert!(REGISTERED.lock().unwrap().iter().all(|(_, p)| !p.starts_with(dir.path())));
     }
 }

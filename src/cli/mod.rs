@@ -3,6 +3,7 @@
 
 pub mod bssrdf;
 pub mod camera;
+pub mod choices;
 pub mod colour;
 pub mod compare;
 pub mod env_fit;

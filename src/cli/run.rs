@@ -2,6 +2,7 @@
 //! each stage's `lucent` commands run as child processes of this binary with
 //! their output in `STAGE/log.txt`; one status line per stage with its time.
 
+use super::choices::{ForceChoice, StageChoice};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
@@ -17,11 +18,11 @@ pub struct RunArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Rerun this stage even if its inputs are unchanged (repeatable; "all" for every stage).
-    #[arg(long, value_name = "STAGE")]
-    pub force: Vec<String>,
+    #[arg(long, value_enum, value_name = "STAGE")]
+    pub force: Vec<ForceChoice>,
     /// Stop after this stage.
-    #[arg(long, value_name = "STAGE")]
-    pub until: Option<String>,
+    #[arg(long, value_enum, value_name = "STAGE")]
+    pub until: Option<StageChoice>,
 }
 
 /// The last `n` lines of a log file.
@@ -32,25 +33,25 @@ fn tail(log: &Path, n: usize) -> String {
 }
 
 /// Runs `lucent ARGS` with stdout and stderr appended to `log`.
-fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<(), String> {
+fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<()> {
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(log)
-        .map_err(|e| format!("{}: cannot open log: {e}", log.display()))?;
+        .with_context(|| format!("{}: cannot open log", log.display()))?;
     let _ = writeln!(f, "$ lucent {}", args.join(" "));
-    let err = f.try_clone().map_err(|e| e.to_string())?;
+    let err = f.try_clone().with_context(|| format!("{}: cannot open log", log.display()))?;
     let status = Command::new(exe)
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::from(f))
         .stderr(Stdio::from(err))
         .status()
-        .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
+        .with_context(|| format!("cannot start {}", exe.display()))?;
     if status.success() {
         Ok(())
     } else {
-        Err(format!(
+        Err(anyhow!(
             "`lucent {}` exited with {status}; the end of {}:\n    {}",
             args.join(" "),
             log.display(),
@@ -62,15 +63,8 @@ fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<(), String> {
 /// Runs `lucent run`.
 pub fn run(a: RunArgs) -> Result<()> {
     let project = Project::load(&a.project)?;
-    let mut force = Vec::new();
-    for f in &a.force {
-        if f == "all" {
-            force.extend(Stage::ALL);
-        } else {
-            force.push(Stage::from_name(f).map_err(|e| anyhow!("--force: {e}"))?);
-        }
-    }
-    let until = a.until.as_deref().map(Stage::from_name).transpose().map_err(|e| anyhow!("--until: {e}"))?;
+    let force: Vec<Stage> = a.force.iter().flat_map(|f| f.stages()).collect();
+    let until: Option<Stage> = a.until.map(|u| u.0);
     let out = a.out.clone().or(project.out.clone()).unwrap_or_else(|| PathBuf::from("lucent-out").join(&project.name));
     // Stages write paths into files they hand to later stages (scene files
     // resolve paths relative to themselves), so the folder must be absolute.
@@ -80,7 +74,8 @@ pub fn run(a: RunArgs) -> Result<()> {
     println!("lucent run {} → {}", a.project.display(), out.display());
     let total = std::time::Instant::now();
     let n = Stage::ALL.len();
-    let mut exec = |args: &[String], log: &Path| run_lucent(&exe, args, log);
+    // The whole chain of causes goes into the stage's error message.
+    let mut exec = |args: &[String], log: &Path| run_lucent(&exe, args, log).map_err(|e| format!("{e:#}").into());
     let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {
         let k = Stage::ALL.iter().position(|s| *s == stage).unwrap_or(0) + 1;
         let what = match st {

@@ -2,6 +2,7 @@
 //! Argument handling and printing only; the work is done by
 //! [`crate::surface`].
 
+use super::choices::{LengthUnitChoice, PointTypeChoice, RoughnessChoice};
 use crate::optics::recipe::RoughnessModel;
 use crate::surface::synth::{synthesize, SynthSpec};
 use crate::surface::x3p::{write_x3p, PointType, WriteOptions};
@@ -29,8 +30,8 @@ pub struct FitArgs {
     #[arg(long, requires = "pitch_um", allow_hyphen_values = true)]
     pub pitch_y_um: Option<f64>,
     /// Unit of the stored heights: m, mm, um, nm (required for TIFF/EXR and text grids without one).
-    #[arg(long)]
-    pub height_unit: Option<String>,
+    #[arg(long, value_enum)]
+    pub height_unit: Option<LengthUnitChoice>,
     /// Side k of the k × k window of the per-pixel plane fits (odd).
     #[arg(long, default_value_t = 15)]
     pub window: usize,
@@ -54,8 +55,8 @@ pub struct FitArgs {
 #[derive(Debug, Args)]
 pub struct SynthArgs {
     /// Distribution the slopes follow: tr (Trowbridge–Reitz/GGX) or beckmann.
-    #[arg(long)]
-    pub model: String,
+    #[arg(long, value_enum, ignore_case = true)]
+    pub model: RoughnessChoice,
     /// Roughness α of the slope distribution.
     #[arg(long, allow_hyphen_values = true)]
     pub alpha: f64,
@@ -84,8 +85,8 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub invalid_fraction: f64,
     /// X3P point type: I (int16), L (int32), F (float32), D (float64).
-    #[arg(long, default_value = "D")]
-    pub point_type: String,
+    #[arg(long, value_enum, ignore_case = true, default_value = "D")]
+    pub point_type: PointTypeChoice,
     /// Output .x3p file.
     #[arg(long)]
     pub out: PathBuf,
@@ -95,14 +96,6 @@ pub fn run(c: SurfaceCommand) -> Result<()> {
     match c {
         SurfaceCommand::Fit(a) => fit(a),
         SurfaceCommand::Synth(a) => synth(a),
-    }
-}
-
-fn parse_model(text: &str) -> Result<RoughnessModel> {
-    match text.trim().to_ascii_lowercase().as_str() {
-        "tr" | "ggx" | "trowbridge-reitz" => Ok(RoughnessModel::TrowbridgeReitz),
-        "beckmann" => Ok(RoughnessModel::Beckmann),
-        other => bail!("--model {other:?}: expected tr (Trowbridge–Reitz) or beckmann"),
     }
 }
 
@@ -121,10 +114,7 @@ fn fit(a: FitArgs) -> Result<()> {
             }
         }
     }
-    let height_unit = match a.height_unit.as_deref() {
-        Some(t) => Some(t.parse::<LengthUnit>().map_err(anyhow::Error::msg).context("--height-unit")?),
-        None => None,
-    };
+    let height_unit: Option<LengthUnit> = a.height_unit.map(Into::into);
     let read =
         ReadOptions { pitch_x_m: a.pitch_um.map(|p| p * 1e-6), pitch_y_m: a.pitch_y_um.map(|p| p * 1e-6), height_unit };
     let options = FitOptions {
@@ -188,7 +178,7 @@ fn fit(a: FitArgs) -> Result<()> {
 }
 
 fn synth(a: SynthArgs) -> Result<()> {
-    let model = parse_model(&a.model)?;
+    let model: RoughnessModel = a.model.into();
     let (nx, ny) = match a.size.split_once(['x', 'X']) {
         Some((x, y)) => (x.trim().parse::<usize>(), y.trim().parse::<usize>()),
         None => (a.size.trim().parse::<usize>(), a.size.trim().parse::<usize>()),
@@ -197,7 +187,7 @@ fn synth(a: SynthArgs) -> Result<()> {
     if !(a.pitch_um.is_finite() && a.pitch_um > 0.0) {
         bail!("--pitch-um {}: must be a positive finite number", a.pitch_um);
     }
-    let point_type: PointType = a.point_type.parse().map_err(anyhow::Error::msg).context("--point-type")?;
+    let point_type: PointType = a.point_type.into();
     let spec = SynthSpec {
         nx,
         ny,
@@ -214,7 +204,7 @@ fn synth(a: SynthArgs) -> Result<()> {
     let s = synthesize(&spec)?;
     let comment = format!(
         "lucent surface synth --model {} --alpha {} --size {}x{} --pitch-um {} --correlation-px {} --seed {} --tilt-deg {} --tilt-azimuth-deg {} --invalid-fraction {} --point-type {:?}",
-        a.model, a.alpha, nx, ny, a.pitch_um, a.correlation_px, a.seed, a.tilt_deg, a.tilt_azimuth_deg, a.invalid_fraction, point_type
+        super::choices::name(&a.model), a.alpha, nx, ny, a.pitch_um, a.correlation_px, a.seed, a.tilt_deg, a.tilt_azimuth_deg, a.invalid_fraction, point_type
     );
     write_x3p(&a.out, &s.map, &WriteOptions { point_type, comment: Some(comment), ..WriteOptions::default() })?;
     println!(

@@ -62,10 +62,12 @@ impl Mask {
     /// Pixels included in both (same size required).
     pub fn and(&self, other: &Mask) -> Result<Mask, CompareError> {
         if (self.width, self.height) != (other.width, other.height) {
-            return Err(CompareError::Size(format!(
-                "masks of {} × {} and {} × {}",
-                self.width, self.height, other.width, other.height
-            )));
+            return Err(CompareError::Size {
+                first: "one mask".into(),
+                first_size: (self.width, self.height),
+                second: "the other".into(),
+                second_size: (other.width, other.height),
+            });
         }
         let include = self.include.iter().zip(&other.include).map(|(a, b)| *a && *b).collect();
         Ok(Mask { width: self.width, height: self.height, include })
@@ -91,10 +93,12 @@ impl Mask {
             .map_err(|e| err(e.into()))?;
         let (w, h) = (img.width() as usize, img.height() as usize);
         if (w, h) != (width, height) {
-            return Err(CompareError::Size(format!(
-                "mask {} is {w} × {h} pixels, the photo and render are {width} × {height}",
-                path.display()
-            )));
+            return Err(CompareError::Size {
+                first: format!("mask {}", path.display()),
+                first_size: (w, h),
+                second: "the photo and render".into(),
+                second_size: (width, height),
+            });
         }
         let rgb = img.into_rgb16();
         let include = rgb.pixels().map(|p| p.0.iter().any(|&v| v != 0)).collect();
@@ -163,29 +167,27 @@ pub fn read_scene(path: &Path) -> Result<SceneDescription, CompareError> {
     serde_json::from_str(&text).map_err(|e| err(e.into()))
 }
 
-fn project(scene: &SceneDescription, p: [f64; 3], what: &str) -> Result<[f64; 2], CompareError> {
+fn project(scene: &SceneDescription, p: [f64; 3], what: &'static str) -> Result<[f64; 2], CompareError> {
     project_renderer(&scene.intrinsics, &scene.camera_to_world, p)
         .filter(|q| q[0].is_finite() && q[1].is_finite())
-        .ok_or_else(|| CompareError::Parameter(format!("the scene's {what} at {p:?} m is behind the camera")))
+        .ok_or(CompareError::BehindCamera { what, point: p })
 }
 
 fn check_size(scene: &SceneDescription, width: usize, height: usize) -> Result<(), CompareError> {
     if (scene.image_width, scene.image_height) != (width, height) {
-        return Err(CompareError::Size(format!(
-            "the scene is for {} × {} images, the photo and render are {width} × {height}",
-            scene.image_width, scene.image_height
-        )));
+        return Err(CompareError::Size {
+            first: "the scene's image".into(),
+            first_size: (scene.image_width, scene.image_height),
+            second: "the photo and render".into(),
+            second_size: (width, height),
+        });
     }
     Ok(())
 }
 
 /// The sample's silhouette in the image (convex polygon, pixels).
 pub fn object_outline(scene: &SceneDescription) -> Result<Vec<[f64; 2]>, CompareError> {
-    let sample = scene.sample.as_ref().ok_or_else(|| {
-        CompareError::Parameter(
-            "the scene has no sample (run `lucent pose` with --sample-corner and --sample-size-mm)".into(),
-        )
-    })?;
+    let sample = scene.sample.as_ref().ok_or(CompareError::NoSample)?;
     let pts = sample
         .box_corners_world_m
         .iter()

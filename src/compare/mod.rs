@@ -74,15 +74,41 @@ pub enum CompareError {
         value: &'static str,
         count: usize,
     },
-    /// Images, masks or scenes of different sizes.
-    #[error("{0}")]
-    Size(String),
+    /// Images, masks or scenes of different sizes (`first` and `second` say
+    /// which, with the file where there is one).
+    #[error(
+        "{first} is {} × {} pixels, {second} {} × {}: they must be the same size",
+        first_size.0, first_size.1, second_size.0, second_size.1
+    )]
+    Size { first: String, first_size: (usize, usize), second: String, second_size: (usize, usize) },
+    /// Images smaller than the SSIM window.
+    #[error("SSIM needs images of at least {window} × {window} pixels (the Gaussian window), got {width} × {height}")]
+    TooSmallForSsim { window: usize, width: usize, height: usize },
     /// Different colour channels (e.g. grey vs RGB).
-    #[error("{0}")]
-    Channels(String),
-    /// A bad option or a mask that leaves nothing.
-    #[error("{0}")]
-    Parameter(String),
+    #[error(
+        "the photo has {} colour channel(s) ({}) but the render has {} ({})",
+        photo.len(), photo.join(", "), render.len(), render.join(", ")
+    )]
+    Channels { photo: Vec<String>, render: Vec<String> },
+    /// An option that must be a positive finite number.
+    #[error("{what} {value}: must be a positive finite number")]
+    NotPositive { what: &'static str, value: f64 },
+    /// A mask that leaves no pixel (`kind`: image, object or board; `path`: its file).
+    #[error("the {}mask{} includes no pixel", kind.map(|k| format!("{k} ")).unwrap_or_default(),
+        path.as_ref().map(|p| format!(" from {}", p.display())).unwrap_or_default())]
+    EmptyMask { kind: Option<&'static str>, path: Option<PathBuf> },
+    /// A mask whose pixels all lie within 5 px of the border.
+    #[error("no pixel for SSIM: the mask leaves none at least 5 px from the image border")]
+    NoSsimPixels,
+    /// A point of the scene the camera cannot see.
+    #[error("the scene's {what} at {point:?} m is behind the camera")]
+    BehindCamera { what: &'static str, point: [f64; 3] },
+    /// An object mask from a scene without a sample.
+    #[error("the scene has no sample (run `lucent pose` with --sample-corner and --sample-size-mm)")]
+    NoSample,
+    /// A luminance name [`Luminance::from_name`] does not know.
+    #[error("luminance {name:?}: expected one of {}", Luminance::NAMES.join(", "))]
+    UnknownLuminance { name: String },
     #[error("ECC refinement failed: {0}")]
     Ecc(#[from] lucent_calib::cv::CalibError),
     #[error(transparent)]
@@ -139,9 +165,7 @@ impl Luminance {
         match name.trim().to_ascii_lowercase().as_str() {
             "cie-rgb" | "cie" => Ok(Self::CieRgb),
             "rec709" | "srgb" => Ok(Self::Rec709),
-            other => {
-                Err(CompareError::Parameter(format!("luminance {other:?}: expected one of {}", Self::NAMES.join(", "))))
-            }
+            _ => Err(CompareError::UnknownLuminance { name: name.to_string() }),
         }
     }
 
@@ -220,10 +244,12 @@ pub struct Metrics {
 /// Errors if the images differ in size.
 pub fn check_same_size(photo: &RgbImage, render: &RgbImage) -> Result<(), CompareError> {
     if (photo.width, photo.height) != (render.width, render.height) {
-        return Err(CompareError::Size(format!(
-            "the photo is {} × {} pixels but the render is {} × {}",
-            photo.width, photo.height, render.width, render.height
-        )));
+        return Err(CompareError::Size {
+            first: "the photo".into(),
+            first_size: (photo.width, photo.height),
+            second: "the render".into(),
+            second_size: (render.width, render.height),
+        });
     }
     Ok(())
 }
@@ -249,10 +275,12 @@ pub fn metrics_and_ssim_map(
     let w = photo.width;
     if let Some(m) = mask {
         if (m.width, m.height) != (photo.width, photo.height) {
-            return Err(CompareError::Size(format!(
-                "the mask is {} × {}, the images are {} × {}",
-                m.width, m.height, photo.width, photo.height
-            )));
+            return Err(CompareError::Size {
+                first: "the mask".into(),
+                first_size: (m.width, m.height),
+                second: "the images".into(),
+                second_size: (photo.width, photo.height),
+            });
         }
     }
     // Per-row sums, added in row order (deterministic for any thread count).
@@ -291,7 +319,7 @@ pub fn metrics_and_ssim_map(
         }
     }
     if t.n == 0 {
-        return Err(CompareError::Parameter("the mask includes no pixel".into()));
+        return Err(CompareError::EmptyMask { kind: None, path: None });
     }
     let n = t.n as f64;
     let p = &settings.ssim;
@@ -532,19 +560,13 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     let settings = Settings { ssim: SsimParams::new(req.data_range)?, luminance: req.luminance };
     if let Some(k) = req.exposure {
         if !(k.is_finite() && k > 0.0) {
-            return Err(CompareError::Parameter(format!("exposure {k}: must be a positive finite number")));
+            return Err(CompareError::NotPositive { what: "exposure", value: k });
         }
     }
     let photo = input::read_image(&req.photo, "photo")?;
     let render = input::read_image(&req.render, "render")?;
     if photo.channels.len() != render.channels.len() {
-        return Err(CompareError::Channels(format!(
-            "the photo has {} colour channel(s) ({}) but the render has {} ({})",
-            photo.channels.len(),
-            photo.channels.join(", "),
-            render.channels.len(),
-            render.channels.join(", ")
-        )));
+        return Err(CompareError::Channels { photo: photo.channels.clone(), render: render.channels.clone() });
     }
     check_same_size(&photo.image, &render.image)?;
     let (w, h) = (photo.image.width, photo.image.height);
@@ -575,10 +597,7 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     }
     if let Some(m) = &mask {
         if m.count() == 0 {
-            return Err(CompareError::Parameter(format!(
-                "the {source} mask{} includes no pixel",
-                mask_path.map(|p| format!(" from {}", p.display())).unwrap_or_default()
-            )));
+            return Err(CompareError::EmptyMask { kind: Some(source), path: mask_path.cloned() });
         }
     }
     let mut notes = Vec::new();
@@ -883,12 +902,29 @@ mod tests {
         assert!(metrics(&a, &b, None, &s)
             .unwrap_err()
             .to_string()
-            .contains("16 × 16 pixels but the render is 16 × 15"));
+            .contains("the photo is 16 × 16 pixels, the render 16 × 15"));
         let none = Mask { width: 16, height: 16, include: vec![false; 256] };
         assert!(metrics(&a, &a, Some(&none), &s).unwrap_err().to_string().contains("no pixel"));
         let m = metrics(&a, &a, None, &s).unwrap();
         assert_eq!((m.rmse, m.mean_abs_error, m.relative_error), (0.0, 0.0, 0.0));
         assert!((Luminance::CieRgb.weights().iter().sum::<f64>() - 1.0).abs() < 1e-12);
         assert!(Luminance::from_name("xyz").unwrap_err().to_string().contains("cie-rgb, rec709"));
+    }
+
+    #[test]
+    fn typed_errors_say_which_file_and_what() {
+        let e = CompareError::Channels { photo: vec!["Y".into()], render: vec!["R".into(), "G".into(), "B".into()] };
+        assert_eq!(e.to_string(), "the photo has 1 colour channel(s) (Y) but the render has 3 (R, G, B)");
+        let e = CompareError::EmptyMask { kind: Some("object"), path: Some(PathBuf::from("pose/scene.json")) };
+        assert_eq!(e.to_string(), "the object mask from pose/scene.json includes no pixel");
+        assert_eq!(CompareError::EmptyMask { kind: None, path: None }.to_string(), "the mask includes no pixel");
+        let e = CompareError::Size {
+            first: "mask m.png".into(),
+            first_size: (4, 3),
+            second: "the photo and render".into(),
+            second_size: (8, 6),
+        };
+        assert_eq!(e.to_string(), "mask m.png is 4 × 3 pixels, the photo and render 8 × 6: they must be the same size");
+        assert!(matches!(Luminance::from_name("xyz"), Err(CompareError::UnknownLuminance { .. })));
     }
 }

@@ -63,7 +63,7 @@ impl SsimParams {
     /// (positive, finite).
     pub fn new(data_range: f64) -> Result<Self, CompareError> {
         if !(data_range.is_finite() && data_range > 0.0) {
-            return Err(CompareError::Parameter(format!("data range {data_range}: must be a positive finite number")));
+            return Err(CompareError::NotPositive { what: "data range", value: data_range });
         }
         Ok(Self { sigma: 1.5, truncate: 3.5, k1: 0.01, k2: 0.03, data_range })
     }
@@ -335,17 +335,25 @@ fn setup<'a, P: Plane, Q: Plane>(
     let (w, h) = x.size();
     if y.size() != (w, h) {
         let (w2, h2) = y.size();
-        return Err(CompareError::Size(format!("SSIM of a {w} × {h} image with a {w2} × {h2} one")));
+        return Err(CompareError::Size {
+            first: "the first SSIM image".into(),
+            first_size: (w, h),
+            second: "the second".into(),
+            second_size: (w2, h2),
+        });
     }
     let win = params.window();
     if w < win || h < win {
-        return Err(CompareError::Size(format!(
-            "SSIM needs images of at least {win} × {win} pixels (the Gaussian window), got {w} × {h}"
-        )));
+        return Err(CompareError::TooSmallForSsim { window: win, width: w, height: h });
     }
     if let Some(m) = mask {
         if (m.width, m.height) != (w, h) {
-            return Err(CompareError::Size(format!("mask is {} × {}, the images are {w} × {h}", m.width, m.height)));
+            return Err(CompareError::Size {
+                first: "the mask".into(),
+                first_size: (m.width, m.height),
+                second: "the images".into(),
+                second_size: (w, h),
+            });
         }
     }
     let radius = params.radius();
@@ -369,9 +377,7 @@ fn finish(parts: Vec<(f64, usize)>) -> Result<Ssim, CompareError> {
         pixels += n;
     }
     if pixels == 0 {
-        return Err(CompareError::Parameter(
-            "no pixel for SSIM: the mask leaves none at least 5 px from the image border".into(),
-        ));
+        return Err(CompareError::NoSsimPixels);
     }
     Ok(Ssim { mean: sum / pixels as f64, pixels })
 }

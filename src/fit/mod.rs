@@ -114,8 +114,56 @@ pub enum FitError {
     Slab(#[from] SlabError),
     #[error("phase table: {0}")]
     Phase(#[from] PhaseError),
-    #[error("{0}")]
-    Invalid(String),
+    /// `--free NAME` that is not a parameter.
+    #[error("unknown free parameter {name:?} (valid: {})", ParameterKind::ALL.map(|k| k.name()).join(", "))]
+    UnknownParameter { name: String },
+    /// `--free NAME` without `@K` for a recipe of several particle types.
+    #[error("{}: the recipe has {count} particle types; say which, e.g. {name}@1 … {name}@{count}", recipe.display())]
+    WhichParticle { recipe: PathBuf, name: String, count: usize },
+    /// `--free NAME@K` with K not a particle type of the recipe.
+    #[error("{text:?}: the particle type must be 1 … {count} (the recipe's [[particles]] in order)")]
+    ParticleNumber { text: String, count: usize },
+    /// A particle type (0-based `particle`) the recipe does not have.
+    #[error("particle type {} does not exist in the recipe", particle + 1)]
+    NoParticle { particle: usize },
+    /// The refractive index of a particle type at the fit wavelength.
+    #[error("particle {particle} index: {source}")]
+    Index { particle: String, source: Box<crate::optics::index::IndexError> },
+    /// A measured slice's configuration that is not a valid direction pair.
+    #[error("{}: configuration {theta_i}/{theta_o}: {source}", path.display())]
+    Configuration { path: PathBuf, theta_i: f64, theta_o: f64, source: Box<SlabError> },
+    /// A measured slice without light.
+    #[error("{}: the measured slice has no positive sum ({sum})", path.display())]
+    EmptySlice { path: PathBuf, sum: f64 },
+    /// A setting outside its range: "`what` `value``unit` must `rule`".
+    #[error("{what} {value}{unit} must {rule}")]
+    Setting { what: &'static str, value: f64, unit: &'static str, rule: &'static str },
+    #[error("no free parameter (--free weight_percent, diameter_um or real_part_n)")]
+    NoFreeParameter,
+    #[error("free parameter {label} given twice")]
+    RepeatedParameter { label: String },
+    #[error("no measured slice (--measured FILE[:THETA_I/THETA_O])")]
+    NoMeasurement,
+    #[error("{bounds} bounds entries for {free} free parameters: one per free parameter")]
+    BoundsCount { bounds: usize, free: usize },
+    #[error("bounds [{lo}, {hi}] of {name} must be positive, increasing and contain the start value {start}")]
+    Bounds { name: &'static str, lo: f64, hi: f64, start: f64 },
+}
+
+/// Why the final model of a one-parameter fit gives no value: the data
+/// cannot pin the parameter down ([`FitResult::reason`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Undetermined {
+    #[error("the slice sums do not change significantly over {lo:.5} … {hi:.5} (slope / standard error = {t:.2})")]
+    FlatSums { lo: f64, hi: f64, t: f64 },
+    #[error(
+        "the objective has no minimum near {near:.5} (flat within the Monte Carlo noise, or falling towards a bound)"
+    )]
+    NoMinimum { near: f64 },
+    #[error("in {failed} of {draws} bootstrap draws of the data's uncertainty the objective had no minimum within the search range")]
+    Bootstrap { failed: usize, draws: usize },
+    #[error("the minimum moved by more than the final points' span twice")]
+    Moved,
 }
 
 /// The kind of a free parameter.
@@ -164,27 +212,17 @@ impl FreeParameter {
             Some((n, k)) => (n.trim(), Some(k.trim())),
             None => (text.trim(), None),
         };
-        let valid = ParameterKind::ALL.map(|k| k.name()).join(", ");
         let kind = ParameterKind::ALL
             .into_iter()
             .find(|k| k.name() == name)
-            .ok_or_else(|| FitError::Invalid(format!("unknown free parameter {name:?} (valid: {valid})")))?;
+            .ok_or_else(|| FitError::UnknownParameter { name: name.to_string() })?;
         let count = recipe.particles.len();
         let particle = match which {
             None if count == 1 => 0,
-            None => {
-                return Err(FitError::Invalid(format!(
-                    "{}: the recipe has {count} particle types; say which, e.g. {name}@1 … {name}@{count}",
-                    recipe.path.display()
-                )))
-            }
+            None => return Err(FitError::WhichParticle { recipe: recipe.path.clone(), name: name.to_string(), count }),
             Some(k) => match k.parse::<usize>() {
                 Ok(k) if (1..=count).contains(&k) => k - 1,
-                _ => {
-                    return Err(FitError::Invalid(format!(
-                        "{text:?}: the particle type must be 1 … {count} (the recipe's [[particles]] in order)"
-                    )))
-                }
+                _ => return Err(FitError::ParticleNumber { text: text.to_string(), count }),
             },
         };
         Ok(Self { kind, particle })
@@ -201,9 +239,7 @@ impl FreeParameter {
 
     /// The parameter's value in `recipe` at `wavelength_nm`.
     pub fn value_in(&self, recipe: &Recipe, wavelength_nm: f64) -> Result<f64, FitError> {
-        let p = recipe.particles.get(self.particle).ok_or_else(|| {
-            FitError::Invalid(format!("particle type {} does not exist in the recipe", self.particle + 1))
-        })?;
+        let p = recipe.particles.get(self.particle).ok_or(FitError::NoParticle { particle: self.particle })?;
         Ok(match self.kind {
             ParameterKind::WeightPercent => p.weight_percent,
             ParameterKind::DiameterUm => recipe.diameter_um(self.particle).unwrap_or(f64::NAN),
@@ -211,7 +247,7 @@ impl FreeParameter {
                 p.medium
                     .index
                     .at(wavelength_nm, p.medium.extrapolation)
-                    .map_err(|e| FitError::Invalid(format!("particle {} index: {e}", p.medium.name)))?
+                    .map_err(|e| FitError::Index { particle: p.medium.name.clone(), source: Box::new(e) })?
                     .index
                     .re
             }
@@ -271,14 +307,14 @@ impl Measurement {
 
     /// A measurement from a grid already in memory; `path` names it.
     pub fn new(path: &Path, grid: Grid, (ti, pi, to, po): (f64, f64, f64, f64)) -> Result<Self, FitError> {
-        let directions = Directions::from_degrees(ti, pi, to, po)
-            .map_err(|e| FitError::Invalid(format!("{}: configuration {ti}/{to}: {e}", path.display())))?;
+        let directions = Directions::from_degrees(ti, pi, to, po).map_err(|e| FitError::Configuration {
+            path: path.to_path_buf(),
+            theta_i: ti,
+            theta_o: to,
+            source: Box::new(e),
+        })?;
         if grid.sum().is_nan() || grid.sum() <= 0.0 {
-            return Err(FitError::Invalid(format!(
-                "{}: the measured slice has no positive sum ({})",
-                path.display(),
-                grid.sum()
-            )));
+            return Err(FitError::EmptySlice { path: path.to_path_buf(), sum: grid.sum() });
         }
         Ok(Self { path: path.to_path_buf(), grid, directions })
     }
@@ -376,58 +412,55 @@ impl Problem {
 
     /// Checks every input before any work is done.
     pub fn validate(&self) -> Result<(), FitError> {
-        let bad = |m: String| Err(FitError::Invalid(m));
+        let setting = |what, value, unit, rule| Err(FitError::Setting { what, value, unit, rule });
         if self.free.is_empty() {
-            return bad("no free parameter (--free weight_percent, diameter_um or real_part_n)".into());
+            return Err(FitError::NoFreeParameter);
         }
         if !(self.wavelength_nm.is_finite() && self.wavelength_nm > 0.0) {
-            return bad(format!("wavelength {} nm must be positive", self.wavelength_nm));
+            return setting("wavelength", self.wavelength_nm, " nm", "be positive");
         }
         for (i, a) in self.free.iter().enumerate() {
             if self.free[..i].contains(a) {
-                return bad(format!("free parameter {} given twice", a.label(self.recipe.particles.len())));
+                return Err(FitError::RepeatedParameter { label: a.label(self.recipe.particles.len()) });
             }
             a.value_in(&self.recipe, self.wavelength_nm)?;
         }
         if self.measurements.is_empty() {
-            return bad("no measured slice (--measured FILE[:THETA_I/THETA_O])".into());
+            return Err(FitError::NoMeasurement);
         }
         if !(self.measured_rel_sd.is_finite() && self.measured_rel_sd > 0.0 && self.measured_rel_sd < 1.0) {
-            return bad(format!("measured relative uncertainty {} must lie in (0, 1)", self.measured_rel_sd));
+            return setting("measured relative uncertainty", self.measured_rel_sd, "", "lie in (0, 1)");
         }
         if !(self.threshold.is_finite() && (0.0..1.0).contains(&self.threshold)) {
-            return bad(format!("threshold {} must lie in [0, 1)", self.threshold));
+            return setting("threshold", self.threshold, "", "lie in [0, 1)");
         }
         let b = &self.budget;
         if !(b.rel_error.is_finite() && b.rel_error > 0.0 && b.rel_error < 0.5) {
-            return bad(format!("target relative error {} must lie in (0, 0.5)", b.rel_error));
+            return setting("target relative error", b.rel_error, "", "lie in (0, 0.5)");
         }
         if !(b.pilot_time_s.is_finite() && b.pilot_time_s > 0.0) {
-            return bad(format!("pilot time {} s must be positive", b.pilot_time_s));
+            return setting("pilot time", b.pilot_time_s, " s", "be positive");
         }
         if b.paths == Some(0) {
-            return bad("paths per evaluation must be positive".into());
+            return setting("paths per evaluation", 0.0, "", "be positive");
         }
         if !(b.explore_fraction > 0.0 && b.explore_fraction <= 1.0) {
-            return bad(format!("explore fraction {} must lie in (0, 1]", b.explore_fraction));
+            return setting("explore fraction", b.explore_fraction, "", "lie in (0, 1]");
         }
         if !(self.thickness_m.is_finite() && self.thickness_m > 0.0) {
-            return bad(format!("thickness {} m must be positive", self.thickness_m));
+            return setting("thickness", self.thickness_m, " m", "be positive");
         }
         if !(self.x_tol.is_finite() && self.x_tol > 0.0) {
-            return bad(format!("x_tol {} must be positive", self.x_tol));
+            return setting("x_tol", self.x_tol, "", "be positive");
         }
         if self.bounds.len() != self.free.len() {
-            return bad("one bounds entry per free parameter".into());
+            return Err(FitError::BoundsCount { bounds: self.bounds.len(), free: self.free.len() });
         }
         for (a, b) in self.free.iter().zip(&self.bounds) {
             let start = a.value_in(&self.recipe, self.wavelength_nm)?;
             if let Some((lo, hi)) = b {
                 if !(lo.is_finite() && hi.is_finite() && *lo > 0.0 && lo < hi && (*lo..=*hi).contains(&start)) {
-                    return bad(format!(
-                        "bounds [{lo}, {hi}] of {} must be positive, increasing and contain the start value {start}",
-                        a.kind.name()
-                    ));
+                    return Err(FitError::Bounds { name: a.kind.name(), lo: *lo, hi: *hi, start });
                 }
             }
         }
@@ -470,11 +503,7 @@ impl WeightScaling {
     /// clamped μ_a to 0 at either (not affine there).
     pub fn new(recipe: &Recipe, particle: usize, wavelength_nm: f64) -> Result<Option<Self>, FitError> {
         let options = bulk::Options::default();
-        let w_a = recipe
-            .particles
-            .get(particle)
-            .ok_or_else(|| FitError::Invalid(format!("particle type {} does not exist", particle + 1)))?
-            .weight_percent;
+        let w_a = recipe.particles.get(particle).ok_or(FitError::NoParticle { particle })?.weight_percent;
         let a = bulk::at_wavelength(recipe, wavelength_nm, &options)?;
         let w_b = if recipe.with_weight_percent(particle, 2.0 * w_a).is_ok() { 2.0 * w_a } else { 0.5 * w_a };
         let b = bulk::at_wavelength(&recipe.with_weight_percent(particle, w_b)?, wavelength_nm, &options)?;
@@ -1116,7 +1145,7 @@ fn final_model(
     x_best: f64,
     (lo, hi): (f64, f64),
     progress: &mut impl FnMut(&Event),
-) -> Result<Result<Final, String>, FitError> {
+) -> Result<Result<Final, Undetermined>, FitError> {
     let k = problem.measurements.len();
     let mut centre = x_best;
     let delta = problem.x_tol.max(0.05);
@@ -1149,20 +1178,12 @@ fn final_model(
                 t2 += b * b * sxx / res.max(mc).max(1e-300);
             }
             if t2 < 9.0 {
-                return Ok(Err(format!(
-                    "the slice sums do not change significantly over {:.5} … {:.5} (slope / standard error = {:.2})",
-                    xs[0].exp(),
-                    xs[xs.len() - 1].exp(),
-                    t2.sqrt()
-                )));
+                return Ok(Err(Undetermined::FlatSums { lo: xs[0].exp(), hi: xs[xs.len() - 1].exp(), t: t2.sqrt() }));
             }
         }
         let ones = vec![vec![1.0; k]; xs.len()];
         let Some(x) = local_model_min(problem, &xs, &sims, &ones, &all, (lo, hi)) else {
-            return Ok(Err(format!(
-                "the objective has no minimum near {:.5} (flat within the Monte Carlo noise, or falling towards a bound)",
-                centre.exp()
-            )));
+            return Ok(Err(Undetermined::NoMinimum { near: centre.exp() }));
         };
         if (x - centre).abs() > 2.0 * delta && attempt == 0 {
             centre = x.clamp(lo, hi);
@@ -1183,9 +1204,7 @@ fn final_model(
         }
         let failed = vs.iter().filter(|v| !v.is_finite()).count();
         if failed > DRAWS / 20 {
-            return Ok(Err(format!(
-                "in {failed} of {DRAWS} bootstrap draws of the data's uncertainty the objective had no minimum within the search range"
-            )));
+            return Ok(Err(Undetermined::Bootstrap { failed, draws: DRAWS }));
         }
         let se_meas = std_dev(vs.iter().copied().filter(|v| v.is_finite()));
         let se_boot = if k >= 3 {
@@ -1223,7 +1242,7 @@ fn final_model(
         let curve = (0..=60).map(|i| a + (b - a) * i as f64 / 60.0).map(|t| [t.exp(), model_j(t)]).collect();
         return Ok(Ok(Final { x, curve, j_end: model_j(x), se_meas, se_boot }));
     }
-    Ok(Err("the minimum moved by more than the final points' span twice".into()))
+    Ok(Err(Undetermined::Moved))
 }
 
 /// Standard errors in ln p from a quadratic surface through the Nelder–Mead
@@ -1457,5 +1476,26 @@ mod tests {
         assert!((n.value_in(&r2, 550.0).unwrap() - v - 0.01).abs() < 1e-12);
         let d = FreeParameter { kind: ParameterKind::DiameterUm, particle: 0 };
         assert!((d.value_in(&d.apply(&r, 3.0, 550.0).unwrap(), 550.0).unwrap() - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn typed_errors_name_the_file_and_the_problem() {
+        let r = pdms();
+        let e = FreeParameter::parse("weight_percent@2", &r).unwrap_err();
+        assert!(matches!(e, FitError::ParticleNumber { count: 1, .. }), "{e:?}");
+        assert!(e.to_string().contains("\"weight_percent@2\": the particle type must be 1 … 1"), "{e}");
+        let path = Path::new("slices/dark.exr");
+        let zero = Grid { size: 3, pixel_m: 1e-4, values: vec![0.0; 9] };
+        let e = Measurement::new(path, zero.clone(), (45.0, 0.0, 0.0, 0.0)).unwrap_err();
+        assert!(matches!(e, FitError::EmptySlice { .. }), "{e:?}");
+        assert_eq!(e.to_string(), "slices/dark.exr: the measured slice has no positive sum (0)");
+        let one = Grid { size: 3, pixel_m: 1e-4, values: vec![1.0; 9] };
+        let e = Measurement::new(path, one, (95.0, 0.0, 0.0, 0.0)).unwrap_err();
+        assert!(matches!(e, FitError::Configuration { theta_i, .. } if theta_i == 95.0), "{e:?}");
+        assert!(e.to_string().starts_with("slices/dark.exr: configuration 95/0: "), "{e}");
+        let s = FitError::Setting { what: "thickness", value: -1.0, unit: " m", rule: "be positive" };
+        assert_eq!(s.to_string(), "thickness -1 m must be positive");
+        let u = Undetermined::Bootstrap { failed: 30, draws: 400 };
+        assert!(u.to_string().starts_with("in 30 of 400 bootstrap draws"), "{u}");
     }
 }

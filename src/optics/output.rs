@@ -13,11 +13,131 @@
 //!
 //! For several recipes the table files hold all samples (the JSON is an
 //! array) and each sample gets a subfolder with its phase table and plots.
+//!
+//! `optical_properties.json` is defined once, by [`OpticalProperties`]:
+//! [`write_all`] writes it and [`read_optical_properties`] reads it back
+//! (`lucent colour bands`). Units: wavelength in nm, μ_s, μ_a, μ_t in 1/m,
+//! g and n_bulk dimensionless.
 
 use super::bulk::OpticalSpectrum;
 use crate::io::{csv_text, write_atomic, write_json, WriteError};
 use crate::plot::{self, PlotError};
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+/// One sample's entry of `optical_properties.json` (the file holds one
+/// object, or an array of them for several samples). The fields and their
+/// order are those [`OpticalSpectrum`] was always serialised with, so files
+/// written before this type existed read back and re-serialise unchanged.
+/// Only the wavelength grid, μ_s, μ_a and g are required on reading (a
+/// hand-made file may leave out the rest).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OpticalProperties {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample: Option<String>,
+    /// The absorption model's recipe name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub absorption: Option<String>,
+    #[serde(default)]
+    pub corrections: Vec<String>,
+    pub wavelength_nm: Vec<f64>,
+    pub mu_s_per_m: Vec<f64>,
+    pub mu_a_per_m: Vec<f64>,
+    #[serde(default)]
+    pub mu_t_per_m: Vec<f64>,
+    pub g: Vec<f64>,
+    #[serde(default)]
+    pub n_bulk: Vec<f64>,
+    #[serde(default)]
+    pub warnings: Vec<String>,
+}
+
+impl From<&OpticalSpectrum> for OpticalProperties {
+    fn from(s: &OpticalSpectrum) -> Self {
+        Self {
+            sample: Some(s.sample.clone()),
+            absorption: Some(s.absorption.name().to_string()),
+            corrections: s.corrections.clone(),
+            wavelength_nm: s.wavelength_nm.clone(),
+            mu_s_per_m: s.mu_s_per_m.clone(),
+            mu_a_per_m: s.mu_a_per_m.clone(),
+            mu_t_per_m: s.mu_t_per_m.clone(),
+            g: s.g.clone(),
+            n_bulk: s.n_bulk.clone(),
+            warnings: s.warnings.clone(),
+        }
+    }
+}
+
+/// An `optical_properties.json` that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum OpticalPropertiesError {
+    #[error("{}: cannot read: {source}", path.display())]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("{}: not valid JSON: {source}", path.display())]
+    Json { path: PathBuf, source: serde_json::Error },
+    #[error("{}: no spectra in this file", path.display())]
+    Empty { path: PathBuf },
+    #[error(
+        "{}: entry {entry}: expected an object with arrays wavelength_nm, mu_s_per_m, mu_a_per_m, g (as `lucent optics` writes): {source}",
+        path.display()
+    )]
+    Entry { path: PathBuf, entry: usize, source: serde_json::Error },
+    #[error("{}: {sample}: {field} has {len} values but wavelength_nm has {expected}", path.display())]
+    Length { path: PathBuf, sample: String, field: &'static str, len: usize, expected: usize },
+}
+
+impl OpticalProperties {
+    /// The sample's name, or `entry K` (1-based) for an unnamed one.
+    pub fn name(&self, entry: usize) -> String {
+        self.sample.clone().unwrap_or_else(|| format!("entry {}", entry + 1))
+    }
+}
+
+/// Reads `optical_properties.json` (one object or an array); every entry's
+/// arrays must have one value per wavelength.
+pub fn read_optical_properties(path: &Path) -> Result<Vec<OpticalProperties>, OpticalPropertiesError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|source| OpticalPropertiesError::Read { path: path.to_path_buf(), source })?;
+    let value: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|source| OpticalPropertiesError::Json { path: path.to_path_buf(), source })?;
+    let items = match value {
+        serde_json::Value::Array(items) => items,
+        single => vec![single],
+    };
+    if items.is_empty() {
+        return Err(OpticalPropertiesError::Empty { path: path.to_path_buf() });
+    }
+    let mut out = Vec::with_capacity(items.len());
+    for (i, v) in items.into_iter().enumerate() {
+        let p: OpticalProperties = serde_json::from_value(v).map_err(|source| OpticalPropertiesError::Entry {
+            path: path.to_path_buf(),
+            entry: i + 1,
+            source,
+        })?;
+        let n = p.wavelength_nm.len();
+        let optional = |v: &Vec<f64>| if v.is_empty() { n } else { v.len() };
+        for (field, len) in [
+            ("mu_s_per_m", p.mu_s_per_m.len()),
+            ("mu_a_per_m", p.mu_a_per_m.len()),
+            ("g", p.g.len()),
+            ("mu_t_per_m", optional(&p.mu_t_per_m)),
+            ("n_bulk", optional(&p.n_bulk)),
+        ] {
+            if len != n {
+                return Err(OpticalPropertiesError::Length {
+                    path: path.to_path_buf(),
+                    sample: p.name(i),
+                    field,
+                    len,
+                    expected: n,
+                });
+            }
+        }
+        out.push(p);
+    }
+    Ok(out)
+}
 
 /// An output that could not be produced.
 #[derive(Debug, thiserror::Error)]
@@ -122,12 +242,13 @@ pub fn write_all(dir: &Path, spectra: &[OpticalSpectrum]) -> Result<Vec<PathBuf>
     write_atomic(&csv, table.as_bytes())?;
     written.push(csv);
     let json = dir.join("optical_properties.json");
-    if let [single] = spectra {
-        write_json(&json, single)?;
+    let file: Vec<OpticalProperties> = spectra.iter().map(OpticalProperties::from).collect();
+    if let ([single], [entry]) = (spectra, file.as_slice()) {
+        write_json(&json, entry)?;
         written.push(json);
         written.extend(write_sample_files(dir, single)?);
     } else {
-        write_json(&json, &spectra)?;
+        write_json(&json, &file)?;
         written.push(json);
         let p = dir.join("optical_properties.png");
         let all: Vec<plot::SpectrumSeries> = spectra.iter().map(series).collect();
@@ -143,4 +264,69 @@ pub fn write_all(dir: &Path, spectra: &[OpticalSpectrum]) -> Result<Vec<PathBuf>
 /// A sample name made safe as a folder name.
 fn sanitise(name: &str) -> String {
     name.chars().map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FIXTURES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/formats");
+
+    /// Files written by `lucent optics` before this type existed (one
+    /// sample: an object; two: an array) read back and write back with the
+    /// same content (compared as parsed JSON: serde_json's float parsing
+    /// without `float_roundtrip` may change a last digit).
+    #[test]
+    fn fixtures_read_and_write_back_unchanged() {
+        for (name, count) in [("optical_properties_one.json", 1), ("optical_properties_two.json", 2)] {
+            let path = Path::new(FIXTURES).join(name);
+            let file = read_optical_properties(&path).unwrap();
+            assert_eq!(file.len(), count, "{name}");
+            assert_eq!(file[0].sample.as_deref(), Some("IOL1068-05"));
+            assert_eq!(file[0].wavelength_nm, vec![450.0, 550.0, 650.0]);
+            let again =
+                if count == 1 { serde_json::to_value(&file[0]).unwrap() } else { serde_json::to_value(&file).unwrap() };
+            let original: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+            assert_eq!(again, original, "{name}");
+        }
+    }
+
+    /// The file type serialises a computed spectrum to exactly the bytes the
+    /// spectrum itself was written as before (field names, order, numbers).
+    #[test]
+    fn the_file_type_writes_what_the_spectrum_wrote() {
+        use crate::optics::recipe::{Overrides, Recipe};
+        let recipe = Recipe::load(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/samples/IOL1068-05.toml"),
+            Overrides::default(),
+        )
+        .unwrap();
+        let grid = lucent_colour::WavelengthGrid::from_list(vec![450.0, 550.0, 650.0]).unwrap();
+        let options = crate::optics::bulk::Options { phase_entries: 0, ..Default::default() };
+        let spectrum = crate::optics::bulk::compute(&recipe, &grid, &options).unwrap();
+        let file = OpticalProperties::from(&spectrum);
+        assert_eq!(serde_json::to_string_pretty(&file).unwrap(), serde_json::to_string_pretty(&spectrum).unwrap());
+    }
+
+    #[test]
+    fn bad_files_are_refused_naming_the_file_and_the_field() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("op.json");
+        std::fs::write(
+            &p,
+            r#"{"sample": "a", "wavelength_nm": [500, 600], "mu_s_per_m": [1], "mu_a_per_m": [1, 2], "g": [0, 0]}"#,
+        )
+        .unwrap();
+        let e = read_optical_properties(&p).unwrap_err().to_string();
+        assert!(e.contains("op.json: a: mu_s_per_m has 1 values but wavelength_nm has 2"), "{e}");
+        std::fs::write(&p, "[]").unwrap();
+        assert!(read_optical_properties(&p).unwrap_err().to_string().ends_with("op.json: no spectra in this file"));
+        std::fs::write(&p, r#"[{"wavelength_nm": [500]}]"#).unwrap();
+        let e = read_optical_properties(&p).unwrap_err().to_string();
+        assert!(e.contains("op.json: entry 1: expected an object") && e.contains("mu_s_per_m"), "{e}");
+        // A minimal hand-made entry: only the four required arrays.
+        std::fs::write(&p, r#"{"wavelength_nm": [500], "mu_s_per_m": [1], "mu_a_per_m": [2], "g": [0.5]}"#).unwrap();
+        let ok = read_optical_properties(&p).unwrap();
+        assert_eq!((ok[0].name(0), ok[0].g[0]), ("entry 1".to_string(), 0.5));
+    }
 }

@@ -34,9 +34,10 @@ use serde::Serialize;
 #[derive(Debug, thiserror::Error)]
 pub enum UncertaintyError {
     #[error(
-        "{0}: the recipe gives no input with an uncertainty (e.g. weight_percent = {{ value = 0.65, sd = 0.02 }})"
+        "{}: the recipe gives no input with an uncertainty (e.g. weight_percent = {{ value = 0.65, sd = 0.02 }})",
+        recipe.display()
     )]
-    NoUncertainInputs(String),
+    NoUncertainInputs { recipe: std::path::PathBuf },
     #[error("--uncertainty {0}: at least 10 samples are needed")]
     TooFewSamples(usize),
     #[error("sample {sample}: {source}")]
@@ -131,7 +132,7 @@ pub fn latin_hypercube(n: usize, dims: usize, seed: u64) -> Vec<Vec<f64>> {
 /// with `n` Latin-hypercube samples.
 pub fn propagate(recipe: &Recipe, grid: &WavelengthGrid, n: usize, seed: u64) -> Result<Uncertainty, UncertaintyError> {
     if recipe.uncertain.is_empty() {
-        return Err(UncertaintyError::NoUncertainInputs(recipe.path.display().to_string()));
+        return Err(UncertaintyError::NoUncertainInputs { recipe: recipe.path.clone() });
     }
     if n < 10 {
         return Err(UncertaintyError::TooFewSamples(n));

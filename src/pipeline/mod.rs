@@ -172,7 +172,7 @@ pub enum PipelineError {
     #[error(
         "stage {stage} failed: {message}\n  partial output and log kept in {kept}; earlier stages' results are intact"
     )]
-    Failed { stage: Stage, message: String, kept: PathBuf },
+    Failed { stage: Stage, message: TaskError, kept: PathBuf },
     #[error("{path}: {reason}")]
     Io { path: PathBuf, reason: String },
 }
@@ -207,7 +207,37 @@ pub struct Manifest {
 pub enum Status {
     Ran { wall_s: f64, tasks: usize },
     UpToDate,
-    Skipped { reason: String },
+    Skipped { reason: Skip },
+}
+
+/// Why a stage is skipped: what the project (or an earlier stage) does not
+/// provide for it.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum Skip {
+    /// A section the stage needs (`[bssrdf]`, `[[sample]]`, …).
+    #[error("no {0} in the project")]
+    Missing(&'static str),
+    #[error("no sample names a camera whose RGB its photos are in")]
+    NoSampleCamera,
+    #[error("needs the calibrate stage's camera.json (no [calibration] or it has not run)")]
+    NoCamera,
+    #[error("no sample has an empty_board photo")]
+    NoEmptyBoard,
+    #[error("no sample has both a photo and a render")]
+    NoPhotoAndRender,
+}
+
+/// Why a task of a stage failed.
+#[derive(Debug, Error)]
+pub enum TaskError {
+    /// A file the task hands to its command could not be written.
+    #[error("{label}: {source}")]
+    Write { label: String, source: crate::io::WriteError },
+    /// The command failed ([`Executor`]'s error).
+    #[error("{label}: {source}")]
+    Command { label: String, source: Box<dyn std::error::Error + Send + Sync> },
+    #[error(transparent)]
+    Report(#[from] report::ReportError),
 }
 
 /// Options of a run.
@@ -477,7 +507,7 @@ fn valid_mask(out: &Path, smp: &project::SampleSection, which: &str) -> Option<P
 
 /// What `stage` will do for `project` with outputs under `out`; an inner
 /// `Err` with the reason when the project gives it nothing to do.
-pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, String>, PipelineError> {
+pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, Skip>, PipelineError> {
     let f = &project.file;
     let seed = project.seed.to_string();
     let mut inputs: Vec<PathBuf> = Vec::new();
@@ -487,7 +517,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
     match stage {
         Stage::Optics => {
             if f.sample.is_empty() {
-                return Ok(Err("no [[sample]] in the project".into()));
+                return Ok(Err(Skip::Missing("[[sample]]")));
             }
             let mut args = vec!["optics".to_string()];
             for smp in &f.sample {
@@ -503,9 +533,9 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
             tasks.push(lucent(format!("{} recipes", f.sample.len()), args));
         }
         Stage::Bssrdf => {
-            let Some(b) = &f.bssrdf else { return Ok(Err("no [bssrdf] in the project".into())) };
+            let Some(b) = &f.bssrdf else { return Ok(Err(Skip::Missing("[bssrdf]"))) };
             if f.sample.is_empty() {
-                return Ok(Err("no [[sample]] in the project".into()));
+                return Ok(Err(Skip::Missing("[[sample]]")));
             }
             let configs = &project.bssrdf_configs;
             let cfg_text = configs.iter().map(|(a, b)| format!("{a}/{b}")).collect::<Vec<_>>().join(",");
@@ -574,7 +604,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
             }
         }
         Stage::Calibrate => {
-            let Some(c) = &f.calibration else { return Ok(Err("no [calibration] in the project".into())) };
+            let Some(c) = &f.calibration else { return Ok(Err(Skip::Missing("[calibration]"))) };
             let files = crate::io::glob_files(&c.images)
                 .map_err(|e| PipelineError::Stage { stage, message: format!("[calibration] images: {e}") })?;
             if files.is_empty() {
@@ -602,7 +632,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
         }
         Stage::Colour => {
             if f.colour.is_empty() {
-                return Ok(Err("no [[colour]] in the project".into()));
+                return Ok(Err(Skip::Missing("[[colour]]")));
             }
             for c in &f.colour {
                 inputs.push(c.image.clone());
@@ -660,14 +690,14 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 }
             }
             if tasks.is_empty() {
-                return Ok(Err("no sample names a camera whose RGB its photos are in".into()));
+                return Ok(Err(Skip::NoSampleCamera));
             }
         }
         Stage::Pose => {
-            let Some(p) = &f.pose else { return Ok(Err("no [pose] in the project".into())) };
+            let Some(p) = &f.pose else { return Ok(Err(Skip::Missing("[pose]"))) };
             let camera = out.join(Stage::Calibrate.name()).join("camera.json");
             if !camera.is_file() {
-                return Ok(Err("needs the calibrate stage's camera.json (no [calibration] or it has not run)".into()));
+                return Ok(Err(Skip::NoCamera));
             }
             inputs.push(p.image.clone());
             let board = p.board.clone().or_else(|| f.calibration.as_ref().map(|c| c.board.clone())).unwrap_or_default();
@@ -691,7 +721,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
             tasks.push(lucent("board pose".into(), args));
         }
         Stage::EnvScale | Stage::Render => {
-            let Some(r) = &f.render else { return Ok(Err("no [render] in the project".into())) };
+            let Some(r) = &f.render else { return Ok(Err(Skip::Missing("[render]"))) };
             for smp in &f.sample {
                 if stage == Stage::EnvScale && smp.empty_board.is_none() {
                     notes.push(format!("{}: no empty_board photo", smp.name));
@@ -743,11 +773,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], args });
             }
             if tasks.is_empty() {
-                return Ok(Err(if f.sample.is_empty() {
-                    "no [[sample]] in the project".into()
-                } else {
-                    "no sample has an empty_board photo".into()
-                }));
+                return Ok(Err(if f.sample.is_empty() { Skip::Missing("[[sample]]") } else { Skip::NoEmptyBoard }));
             }
         }
         Stage::Compare => {
@@ -781,7 +807,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 tasks.push(lucent(smp.name.clone(), args));
             }
             if tasks.is_empty() {
-                return Ok(Err("no sample has both a photo and a render".into()));
+                return Ok(Err(Skip::NoPhotoAndRender));
             }
         }
         Stage::Report => {
@@ -813,8 +839,9 @@ fn stage_key(
 }
 
 /// Runs one `lucent` command line: `args` with `{out}` replaced, output
-/// appended to `log`; an error message on failure.
-pub type Executor<'a> = dyn FnMut(&[String], &Path) -> Result<(), String> + 'a;
+/// appended to `log`; on failure, an error saying what failed (the binary
+/// uses `anyhow`, tests their own types).
+pub type Executor<'a> = dyn FnMut(&[String], &Path) -> Result<(), Box<dyn std::error::Error + Send + Sync>> + 'a;
 
 /// Runs the project's stages in order. `exec` runs a lucent command line;
 /// `on_status` hears about every stage (for the status lines).
@@ -881,23 +908,25 @@ pub fn run(
         let started_unix_s =
             std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
         let mut commands = Vec::new();
-        let mut result: Result<(), String> = Ok(());
+        let mut result: Result<(), TaskError> = Ok(());
         for task in &plan.tasks {
             let r = match task {
                 Task::Lucent { label, files, args } => {
                     let mut r = Ok(());
                     for (name, text) in files {
-                        if let Err(e) = crate::io::write_atomic(&dir.join(name), text.as_bytes()) {
-                            r = Err(e.to_string());
+                        if let Err(source) = crate::io::write_atomic(&dir.join(name), text.as_bytes()) {
+                            r = Err(TaskError::Write { label: label.clone(), source });
                         }
                     }
                     let args: Vec<String> = args.iter().map(|a| a.replace("{out}", &s(&dir))).collect();
                     commands.push(args.clone());
-                    r.and_then(|_| exec(&args, &log)).map_err(|e| format!("{label}: {e}"))
+                    r.and_then(|_| {
+                        exec(&args, &log).map_err(|source| TaskError::Command { label: label.clone(), source })
+                    })
                 }
                 Task::Report => {
                     commands.push(vec!["(report, in process)".into()]);
-                    report::write(project, out, &dir, &done).map_err(|e| e.to_string())
+                    report::write(project, out, &dir, &done).map_err(TaskError::from)
                 }
             };
             if r.is_err() {

@@ -84,8 +84,10 @@ use thiserror::Error;
 pub enum SceneFileError {
     #[error("{path}: cannot read scene file: {source}")]
     Read { path: PathBuf, source: std::io::Error },
-    #[error("{path}: {message}")]
-    Toml { path: PathBuf, message: String },
+    /// Not valid TOML, or a key the format does not have: the parser's
+    /// message, with the 1-based line and column where it points.
+    #[error("{path}:{}{message}", location(*line, *column))]
+    Syntax { path: PathBuf, line: Option<usize>, column: Option<usize>, message: String },
     #[error("{path}: [{section}] {key}: {reason}")]
     Key { path: PathBuf, section: &'static str, key: &'static str, reason: String },
     #[error("{path}: [{section}]: {reason}")]
@@ -280,7 +282,26 @@ impl Ctx<'_> {
 
 /// Parses a scene file's text (stage one: syntax, unknown keys).
 pub fn parse(text: &str, path: &Path) -> Result<SceneFile, SceneFileError> {
-    toml::from_str(text).map_err(|e| SceneFileError::Toml { path: path.to_path_buf(), message: e.to_string() })
+    toml::from_str(text).map_err(|e: toml::de::Error| {
+        let (line, column) = match e.span() {
+            Some(span) => {
+                let before = text.get(..span.start).unwrap_or(text);
+                let line = before.matches('\n').count() + 1;
+                let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+                (Some(line), Some(column))
+            }
+            None => (None, None),
+        };
+        SceneFileError::Syntax { path: path.to_path_buf(), line, column, message: e.message().trim_end().to_string() }
+    })
+}
+
+/// " line L, column C: " for a located syntax error, else " ".
+fn location(line: Option<usize>, column: Option<usize>) -> String {
+    match (line, column) {
+        (Some(l), Some(c)) => format!(" line {l}, column {c}: "),
+        _ => " ".into(),
+    }
 }
 
 /// Loads and validates a scene file (both stages) into a renderable scene.
@@ -1120,5 +1141,16 @@ mod tests {
         std::fs::write(&p, "380,0.5\n385,x\n").unwrap();
         let e = read_spectrum_csv(&ctx, "even_spectrum", &p).unwrap_err().to_string();
         assert!(e.contains("r.csv") && e.contains("line 2") && e.contains("wavelength_nm,reflectance"), "{e}");
+    }
+
+    #[test]
+    fn syntax_errors_give_file_line_and_column() {
+        let text = "[camera]\nwidth = 64\nheight = = 3\n";
+        let e = parse(text, Path::new("scenes/bad.toml")).unwrap_err();
+        let SceneFileError::Syntax { line, column, .. } = &e else { panic!("{e:?}") };
+        assert_eq!((*line, *column), (Some(3), Some(10)), "{e}");
+        assert!(e.to_string().starts_with("scenes/bad.toml: line 3, column 10: "), "{e}");
+        let e = parse("[camera]\nwidht = 64\n", Path::new("s.toml")).unwrap_err();
+        assert!(e.to_string().starts_with("s.toml: line 2, column 1: unknown field `widht`"), "{e}");
     }
 }

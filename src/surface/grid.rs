@@ -57,15 +57,22 @@ impl LengthUnit {
     }
 }
 
+/// A length unit [`LengthUnit`]'s `FromStr` does not know.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{name:?}: expected a length unit m, mm, um (µm) or nm")]
+pub struct UnknownLengthUnit {
+    pub name: String,
+}
+
 impl std::str::FromStr for LengthUnit {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownLengthUnit;
+    fn from_str(s: &str) -> Result<Self, UnknownLengthUnit> {
         match s.trim() {
             "m" => Ok(LengthUnit::M),
             "mm" => Ok(LengthUnit::Mm),
             "um" | "µm" | "μm" | "micron" | "microns" => Ok(LengthUnit::Um),
             "nm" => Ok(LengthUnit::Nm),
-            other => Err(format!("{other:?}: expected a length unit m, mm, um (µm) or nm")),
+            other => Err(UnknownLengthUnit { name: other.to_string() }),
         }
     }
 }
@@ -285,7 +292,11 @@ fn read_text(path: &Path, options: &ReadOptions) -> Result<HeightMap, SurfaceErr
                 Some((stem, m)) if stem == "pitch_y" => pitch_y = Some(num()? * m),
                 _ => match key.as_str() {
                     "height_unit" | "value_units" | "z_unit" => {
-                        unit = Some(value.parse().map_err(|e: String| text_err(line_no, format!("header {key}: {e}")))?)
+                        unit = Some(
+                            value
+                                .parse()
+                                .map_err(|e: UnknownLengthUnit| text_err(line_no, format!("header {key}: {e}")))?,
+                        )
                     }
                     "width" => {
                         width_m = Some(length_with_unit(value).ok_or_else(|| {

@@ -98,11 +98,17 @@ impl PointType {
     }
 }
 
+/// A point type [`PointType`]'s `FromStr` does not know.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{name:?}: expected a point type I (int16), L (int32), F (float32) or D (float64)")]
+pub struct UnknownPointType {
+    pub name: String,
+}
+
 impl std::str::FromStr for PointType {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        PointType::parse(&s.to_ascii_uppercase())
-            .ok_or_else(|| format!("{s:?}: expected a point type I (int16), L (int32), F (float32) or D (float64)"))
+    type Err = UnknownPointType;
+    fn from_str(s: &str) -> Result<Self, UnknownPointType> {
+        PointType::parse(&s.to_ascii_uppercase()).ok_or_else(|| UnknownPointType { name: s.to_string() })
     }
 }
 

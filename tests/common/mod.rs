@@ -26,6 +26,14 @@ pub fn stderr(o: &Output) -> String {
 /// sends it SIGINT and returns its exit status and everything it printed
 /// on stderr.
 pub fn interrupt_after(args: &[&str], ready: &str) -> (std::process::ExitStatus, String) {
+    interrupt_n_after(args, ready, 1)
+}
+
+/// As [`interrupt_after`], with `count` SIGINTs; each one after the first
+/// is sent once stderr shows that the previous one was seen ("Ctrl-C:",
+/// printed by the handler's helper thread), so that none is merged into a
+/// pending one (two: the second Ctrl-C that aborts the run).
+pub fn interrupt_n_after(args: &[&str], ready: &str, count: usize) -> (std::process::ExitStatus, String) {
     use std::io::{BufRead, Read};
     let mut child = Command::new(env!("CARGO_BIN_EXE_lucent"))
         .args(args)
@@ -41,8 +49,18 @@ pub fn interrupt_after(args: &[&str], ready: &str) -> (std::process::ExitStatus,
     }
     std::thread::sleep(std::time::Duration::from_millis(1500));
     let pid = i32::try_from(child.id()).expect("a pid");
-    // SAFETY: sends SIGINT to our own child process.
-    assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    for i in 0..count {
+        if i > 0 {
+            while !text.contains("Ctrl-C:") {
+                assert!(
+                    err.read_line(&mut text).expect("read stderr") > 0,
+                    "lucent ended before Ctrl-C was seen: {text}"
+                );
+            }
+        }
+        // SAFETY: sends SIGINT to our own child process.
+        assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+    }
     err.read_to_string(&mut text).expect("read stderr");
     (child.wait().expect("wait for lucent"), text)
 }
