@@ -136,13 +136,13 @@ fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> 
             .map(str::parse::<f64>)
             .collect();
         let row = row.map_err(|e| invalid(path, format!("line {}: {e}", k + 1)))?;
-        if let Some(first) = rows.first() {
-            if row.len() != first.len() {
-                return Err(invalid(
-                    path,
-                    format!("line {} has {} values, the first row {}", k + 1, row.len(), first.len()),
-                ));
-            }
+        if let Some(first) = rows.first()
+            && row.len() != first.len()
+        {
+            return Err(invalid(
+                path,
+                format!("line {} has {} values, the first row {}", k + 1, row.len(), first.len()),
+            ));
         }
         rows.push(row);
     }

@@ -192,10 +192,10 @@ fn orient(
             continue;
         };
         let rgb: Vec<[f64; 3]> = samples.iter().map(|s| s.mean).collect();
-        if let Ok((_, report)) = fit_colorchecker(CcmMethod::Cheung2004, &rgb) {
-            if report.de2000_mean.is_finite() {
-                scored.push((corners, report.de2000_mean));
-            }
+        if let Ok((_, report)) = fit_colorchecker(CcmMethod::Cheung2004, &rgb)
+            && report.de2000_mean.is_finite()
+        {
+            scored.push((corners, report.de2000_mean));
         }
     }
     scored.sort_by(|x, y| x.1.total_cmp(&y.1));

@@ -196,10 +196,10 @@ pub fn empty_board(file: &SceneFile) -> Result<SceneFile, FitError> {
 }
 
 fn absolute(dir: &Path, p: &mut Option<PathBuf>) {
-    if let Some(q) = p {
-        if q.is_relative() {
-            *q = dir.join(&*q);
-        }
+    if let Some(q) = p
+        && q.is_relative()
+    {
+        *q = dir.join(&*q);
     }
 }
 

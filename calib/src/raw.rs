@@ -424,10 +424,10 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
         };
         RawError::Decode { path: p(), reason: msg }
     })?;
-    if img.cpp == 3 {
-        if let Some((black, white)) = dng::levels(&bytes) {
-            (img.blacklevels, img.whitelevels) = (black, white);
-        }
+    if img.cpp == 3
+        && let Some((black, white)) = dng::levels(&bytes)
+    {
+        (img.blacklevels, img.whitelevels) = (black, white);
     }
     let mut warnings = dng::notes(&bytes);
     let exif = read_exif(&bytes).unwrap_or_else(|e| {

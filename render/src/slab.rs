@@ -1228,12 +1228,12 @@ impl<'a> Kernel<'a> {
                     Crossing::LeftTop(out) => {
                         if let Estimator::BruteForce { .. } = self.estimator {
                             let c = out[0] * self.omega_o[0] + out[1] * self.omega_o[1] + out[2] * self.omega_o[2];
-                            if c >= self.cone_cos {
-                                if let Some(i) = sensor.index(p[0], p[1]) {
-                                    let v = w * self.cone_norm / out[2];
-                                    image[i] += v;
-                                    total += v;
-                                }
+                            if c >= self.cone_cos
+                                && let Some(i) = sensor.index(p[0], p[1])
+                            {
+                                let v = w * self.cone_norm / out[2];
+                                image[i] += v;
+                                total += v;
                             }
                         }
                         return (total, events, w, 0.0);

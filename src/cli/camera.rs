@@ -216,10 +216,10 @@ fn raw_decode(a: RawDecodeArgs) -> Result<()> {
     }
     let opts =
         RawOptions { demosaic: a.demosaic.into(), white_balance: a.white_balance.into(), white_level: a.white_level };
-    if let Some(w) = a.white_level {
-        if !(w.is_finite() && w > 0.0) {
-            bail!("--white-level {w}: must be a positive number of raw digital numbers");
-        }
+    if let Some(w) = a.white_level
+        && !(w.is_finite() && w > 0.0)
+    {
+        bail!("--white-level {w}: must be a positive number of raw digital numbers");
     }
     let (img, meta) = raw::decode_raw(&a.input, &opts)?;
     let img = to_image(img);
@@ -452,10 +452,10 @@ pub fn undistort(a: UndistortArgs) -> Result<()> {
     if !equirect && a.width.is_some() {
         bail!("--width belongs to --to equirect (a pinhole output has the photo's size)");
     }
-    if let Some(f) = a.fov {
-        if !(f > 0.0 && f < 180.0) {
-            bail!("--fov {f}: a pinhole field of view must be within (0°, 180°)");
-        }
+    if let Some(f) = a.fov
+        && !(f > 0.0 && f < 180.0)
+    {
+        bail!("--fov {f}: a pinhole field of view must be within (0°, 180°)");
     }
     let (img, linear) = load_rgb(&a.input)?;
     if equirect {

@@ -398,10 +398,10 @@ pub fn orient(a: EnvOrientArgs) -> Result<()> {
     if extension(&a.out) != "exr" {
         bail!("{}: the output must be an .exr file (32-bit float)", a.out.display());
     }
-    if let Some(y) = a.yaw {
-        if !y.is_finite() {
-            bail!("--yaw {y}: must be a finite number of degrees");
-        }
+    if let Some(y) = a.yaw
+        && !y.is_finite()
+    {
+        bail!("--yaw {y}: must be a finite number of degrees");
     }
     if !(a.max_tilt_deg.is_finite() && a.max_tilt_deg > 0.0) {
         bail!("--max-tilt-deg {}: must be a positive number of degrees", a.max_tilt_deg);

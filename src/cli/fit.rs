@@ -85,19 +85,19 @@ pub type Angles = (f64, f64, f64, f64);
 
 /// Splits "FILE:A/B" or "FILE:A/B/C/D" into the file and its angles.
 pub fn parse_measured(spec: &str) -> Result<(PathBuf, Option<Angles>)> {
-    if let Some((file, angles)) = spec.rsplit_once(':') {
-        if angles.contains('/') {
-            let nums: Vec<f64> =
-                angles.split('/').map(|s| s.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
-                    anyhow!("--measured {spec:?}: {angles:?} is not THETA_I/THETA_O or THETA_I/PHI_I/THETA_O/PHI_O")
-                })?;
-            let a = match nums.as_slice() {
-                [ti, to] => (*ti, 0.0, *to, 180.0),
-                [ti, pi, to, po] => (*ti, *pi, *to, *po),
-                _ => bail!("--measured {spec:?}: give 2 angles (θi/θo) or 4 (θi/φi/θo/φo)"),
-            };
-            return Ok((PathBuf::from(file), Some(a)));
-        }
+    if let Some((file, angles)) = spec.rsplit_once(':')
+        && angles.contains('/')
+    {
+        let nums: Vec<f64> =
+            angles.split('/').map(|s| s.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
+                anyhow!("--measured {spec:?}: {angles:?} is not THETA_I/THETA_O or THETA_I/PHI_I/THETA_O/PHI_O")
+            })?;
+        let a = match nums.as_slice() {
+            [ti, to] => (*ti, 0.0, *to, 180.0),
+            [ti, pi, to, po] => (*ti, *pi, *to, *po),
+            _ => bail!("--measured {spec:?}: give 2 angles (θi/θo) or 4 (θi/φi/θo/φo)"),
+        };
+        return Ok((PathBuf::from(file), Some(a)));
     }
     Ok((PathBuf::from(spec), None))
 }
@@ -141,10 +141,10 @@ fn build_problem(a: &FitArgs) -> Result<Problem> {
     let recipe = Recipe::load(&a.recipe, Overrides { weight_percent: a.weight_percent })?;
     let free: Vec<FreeParameter> =
         a.free.split(',').map(|t| FreeParameter::parse(t, &recipe)).collect::<Result<_, _>>()?;
-    if let Some(p) = a.measured_pixel_mm {
-        if !(p.is_finite() && p > 0.0) {
-            bail!("--measured-pixel-mm {p}: must be a positive number of millimetres");
-        }
+    if let Some(p) = a.measured_pixel_mm
+        && !(p.is_finite() && p > 0.0)
+    {
+        bail!("--measured-pixel-mm {p}: must be a positive number of millimetres");
     }
     let mut measurements = Vec::new();
     for spec in &a.measured {

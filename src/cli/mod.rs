@@ -463,12 +463,12 @@ pub fn mie_efficiencies(a: &MieArgs) -> Result<Efficiencies> {
 
 fn mie(a: MieArgs) -> Result<()> {
     let q = mie_efficiencies(&a)?;
-    if let Some(nh) = a.host_index.as_deref().map(|t| parse_index("--host-index", t)).transpose()? {
-        if nh.im > 0.0 {
-            eprintln!(
+    if let Some(nh) = a.host_index.as_deref().map(|t| parse_index("--host-index", t)).transpose()?
+        && nh.im > 0.0
+    {
+        eprintln!(
                 "note: absorbing host: qext and qsca are the apparent (far-field) efficiencies of Frisvad et al. 2007, qsca with the attenuation factor F(α); qabs is the power absorbed inside the sphere, so qext − qsca ≠ qabs (qext − qsca also counts the host absorption the sphere displaces)"
             );
-        }
     }
     println!("{}", serde_json::to_string_pretty(&q)?);
     Ok(())

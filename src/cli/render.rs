@@ -90,10 +90,10 @@ pub fn parse_size(text: &str) -> Result<(usize, usize)> {
 
 /// Runs `lucent render`.
 pub fn run(a: RenderArgs) -> Result<()> {
-    if let Some(t) = a.time_s {
-        if !(t > 0.0 && t.is_finite()) {
-            bail!("--time-s {t}: must be a positive number of seconds");
-        }
+    if let Some(t) = a.time_s
+        && !(t > 0.0 && t.is_finite())
+    {
+        bail!("--time-s {t}: must be a positive number of seconds");
     }
     if a.spp == Some(0) {
         bail!("--spp 0: at least one sample per pixel");

@@ -108,10 +108,10 @@ fn model_name(m: RoughnessModel) -> &'static str {
 
 fn fit(a: FitArgs) -> Result<()> {
     for (flag, v) in [("--pitch-um", a.pitch_um), ("--pitch-y-um", a.pitch_y_um)] {
-        if let Some(v) = v {
-            if !(v.is_finite() && v > 0.0) {
-                bail!("{flag} {v}: must be a positive finite number of µm");
-            }
+        if let Some(v) = v
+            && !(v.is_finite() && v > 0.0)
+        {
+            bail!("{flag} {v}: must be a positive finite number of µm");
         }
     }
     let height_unit: Option<LengthUnit> = a.height_unit.map(Into::into);

@@ -273,15 +273,15 @@ pub fn metrics_and_ssim_map(
 ) -> Result<(Metrics, Vec<f32>), CompareError> {
     check_same_size(photo, render)?;
     let w = photo.width;
-    if let Some(m) = mask {
-        if (m.width, m.height) != (photo.width, photo.height) {
-            return Err(CompareError::Size {
-                first: "the mask".into(),
-                first_size: (m.width, m.height),
-                second: "the images".into(),
-                second_size: (photo.width, photo.height),
-            });
-        }
+    if let Some(m) = mask
+        && (m.width, m.height) != (photo.width, photo.height)
+    {
+        return Err(CompareError::Size {
+            first: "the mask".into(),
+            first_size: (m.width, m.height),
+            second: "the images".into(),
+            second_size: (photo.width, photo.height),
+        });
     }
     // Per-row sums, added in row order (deterministic for any thread count).
     let rows: Vec<Sums> = (0..photo.height)
@@ -558,10 +558,10 @@ pub const FILES: [&str; 3] = ["metrics.json", "triplet.png", "difference.exr"];
 /// Reads, checks and compares the images of `req`; nothing is written.
 pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     let settings = Settings { ssim: SsimParams::new(req.data_range)?, luminance: req.luminance };
-    if let Some(k) = req.exposure {
-        if !(k.is_finite() && k > 0.0) {
-            return Err(CompareError::NotPositive { what: "exposure", value: k });
-        }
+    if let Some(k) = req.exposure
+        && !(k.is_finite() && k > 0.0)
+    {
+        return Err(CompareError::NotPositive { what: "exposure", value: k });
     }
     let photo = input::read_image(&req.photo, "photo")?;
     let render = input::read_image(&req.render, "render")?;
@@ -590,15 +590,15 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             (Some(m), "board", Some(p))
         }
     };
-    if scene.is_none() {
-        if let Some(p) = &req.scene {
-            scene = Some((mask::read_scene(p)?, p.clone()));
-        }
+    if scene.is_none()
+        && let Some(p) = &req.scene
+    {
+        scene = Some((mask::read_scene(p)?, p.clone()));
     }
-    if let Some(m) = &mask {
-        if m.count() == 0 {
-            return Err(CompareError::EmptyMask { kind: Some(source), path: mask_path.cloned() });
-        }
+    if let Some(m) = &mask
+        && m.count() == 0
+    {
+        return Err(CompareError::EmptyMask { kind: Some(source), path: mask_path.cloned() });
     }
     let mut notes = Vec::new();
 

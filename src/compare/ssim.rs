@@ -346,15 +346,15 @@ fn setup<'a, P: Plane, Q: Plane>(
     if w < win || h < win {
         return Err(CompareError::TooSmallForSsim { window: win, width: w, height: h });
     }
-    if let Some(m) = mask {
-        if (m.width, m.height) != (w, h) {
-            return Err(CompareError::Size {
-                first: "the mask".into(),
-                first_size: (m.width, m.height),
-                second: "the images".into(),
-                second_size: (w, h),
-            });
-        }
+    if let Some(m) = mask
+        && (m.width, m.height) != (w, h)
+    {
+        return Err(CompareError::Size {
+            first: "the mask".into(),
+            first_size: (m.width, m.height),
+            second: "the images".into(),
+            second_size: (w, h),
+        });
     }
     let radius = params.radius();
     let columns = (0..w + 2 * radius).map(|p| reflect(p as isize - radius as isize, w)).collect();

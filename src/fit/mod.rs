@@ -458,10 +458,10 @@ impl Problem {
         }
         for (a, b) in self.free.iter().zip(&self.bounds) {
             let start = a.value_in(&self.recipe, self.wavelength_nm)?;
-            if let Some((lo, hi)) = b {
-                if !(lo.is_finite() && hi.is_finite() && *lo > 0.0 && lo < hi && (*lo..=*hi).contains(&start)) {
-                    return Err(FitError::Bounds { name: a.kind.name(), lo: *lo, hi: *hi, start });
-                }
+            if let Some((lo, hi)) = b
+                && !(lo.is_finite() && hi.is_finite() && *lo > 0.0 && lo < hi && (*lo..=*hi).contains(&start))
+            {
+                return Err(FitError::Bounds { name: a.kind.name(), lo: *lo, hi: *hi, start });
             }
         }
         Ok(())

@@ -64,19 +64,19 @@ pub fn absolutise_paths(text: &str, recipe_dir: &Path) -> String {
                 let rest = rest.trim_start();
                 if let Some(rest) = rest.strip_prefix('=') {
                     let rest = rest.trim_start();
-                    if let Some(body) = rest.strip_prefix('"') {
-                        if let Some(end) = body.find('"') {
-                            let value = &body[..end];
-                            if !value.starts_with("builtin:") && !Path::new(value).is_absolute() {
-                                let abs = recipe_dir.join(value);
-                                let abs = abs.canonicalize().unwrap_or(abs);
-                                replaced = Some(format!(
-                                    "{}{key} = \"{}\"{}",
-                                    &line[..line.len() - t.len()],
-                                    abs.display(),
-                                    &body[end + 1..]
-                                ));
-                            }
+                    if let Some(body) = rest.strip_prefix('"')
+                        && let Some(end) = body.find('"')
+                    {
+                        let value = &body[..end];
+                        if !value.starts_with("builtin:") && !Path::new(value).is_absolute() {
+                            let abs = recipe_dir.join(value);
+                            let abs = abs.canonicalize().unwrap_or(abs);
+                            replaced = Some(format!(
+                                "{}{key} = \"{}\"{}",
+                                &line[..line.len() - t.len()],
+                                abs.display(),
+                                &body[end + 1..]
+                            ));
                         }
                     }
                 }

@@ -421,20 +421,20 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
 
 fn scene_inputs(path: &Path) -> Vec<PathBuf> {
     let mut v = vec![path.to_path_buf()];
-    if let Ok(text) = std::fs::read_to_string(path) {
-        if let Ok(f) = crate::scene::parse(&text, path) {
-            let f = envfit::with_paths_from(&f, &envfit::scene_dir(path));
-            v.extend(f.environment.map);
-            v.extend(f.camera.scene_json);
-            v.extend(f.camera.camera_json);
-            if let Some(o) = f.object {
-                v.extend(o.mesh);
-            }
-            if let Some(b) = f.board {
-                v.extend(b.texture);
-                v.extend(b.even_spectrum);
-                v.extend(b.odd_spectrum);
-            }
+    if let Ok(text) = std::fs::read_to_string(path)
+        && let Ok(f) = crate::scene::parse(&text, path)
+    {
+        let f = envfit::with_paths_from(&f, &envfit::scene_dir(path));
+        v.extend(f.environment.map);
+        v.extend(f.camera.scene_json);
+        v.extend(f.camera.camera_json);
+        if let Some(o) = f.object {
+            v.extend(o.mesh);
+        }
+        if let Some(b) = f.board {
+            v.extend(b.texture);
+            v.extend(b.even_spectrum);
+            v.extend(b.odd_spectrum);
         }
     }
     v.retain(|p| p.is_file());

@@ -385,10 +385,10 @@ impl Project {
                 }
             }
         }
-        if let Some(c) = &file.compare {
-            if c.data_range.is_some_and(|d| !(d > 0.0 && d.is_finite())) {
-                return Err(key("[compare] data_range", "must be finite and > 0".into()));
-            }
+        if let Some(c) = &file.compare
+            && c.data_range.is_some_and(|d| !(d > 0.0 && d.is_finite()))
+        {
+            return Err(key("[compare] data_range", "must be finite and > 0".into()));
         }
         let seed = file.project.seed.unwrap_or(1);
         Ok(Project { path: path.to_path_buf(), name, seed, out, file, bssrdf_configs })

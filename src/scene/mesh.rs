@@ -806,10 +806,10 @@ fn read_obj(file: File, name: &str) -> Result<Parsed, MeshError> {
     }
     // tobj keeps only the vertices faces use, renumbered; name a bad one by
     // its place among the file's `v` lines instead.
-    if mesh.positions_m.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
-        if let Some((vertex, position)) = first_non_finite_obj_vertex(reader) {
-            return Err(MeshError::NonFinite { path: name.to_string(), vertex, position });
-        }
+    if mesh.positions_m.iter().any(|p| !p.iter().all(|c| c.is_finite()))
+        && let Some((vertex, position)) = first_non_finite_obj_vertex(reader)
+    {
+        return Err(MeshError::NonFinite { path: name.to_string(), vertex, position });
     }
     let faces = mesh.triangles.len();
     Ok(Parsed { mesh, faces, warnings: Vec::new() })

@@ -105,10 +105,10 @@ pub fn read_height_map(path: &Path, options: &ReadOptions) -> Result<HeightMap, 
     }
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     for (what, v) in [("x pitch (--pitch-um)", options.pitch_x_m), ("y pitch (--pitch-y-um)", options.pitch_y_m)] {
-        if let Some(value) = v {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(SurfaceError::Pitch { origin: "command line".into(), what: what.into(), value });
-            }
+        if let Some(value) = v
+            && !(value.is_finite() && value > 0.0)
+        {
+            return Err(SurfaceError::Pitch { origin: "command line".into(), what: what.into(), value });
         }
     }
     let mut map = match ext.as_str() {

@@ -215,10 +215,10 @@ pub(super) fn parse_table(
     // "line L (entry)" when the table line is found verbatim in the file
     // right after the `data: |` header, else "entry, table line i".
     let location = |i: usize, line: &str| -> String {
-        if let Some(h) = header {
-            if file_lines.get(h + 1 + i).map(|l| l.trim()) == Some(line.trim()) {
-                return format!("line {} ({entry_name})", h + 2 + i);
-            }
+        if let Some(h) = header
+            && file_lines.get(h + 1 + i).map(|l| l.trim()) == Some(line.trim())
+        {
+            return format!("line {} ({entry_name})", h + 2 + i);
         }
         format!("{entry_name}, table line {}", i + 1)
     };
@@ -261,15 +261,15 @@ pub(super) fn parse_table(
             }
             k.push(v);
         }
-        if let Some(&previous) = wavelength_um.last() {
-            if w <= previous {
-                return Err(IndexError::NonIncreasing {
-                    file: ctx.file.to_string(),
-                    location: location(i, line),
-                    previous_um: previous,
-                    wavelength_um: w,
-                });
-            }
+        if let Some(&previous) = wavelength_um.last()
+            && w <= previous
+        {
+            return Err(IndexError::NonIncreasing {
+                file: ctx.file.to_string(),
+                location: location(i, line),
+                previous_um: previous,
+                wavelength_um: w,
+            });
         }
         wavelength_um.push(w);
     }
