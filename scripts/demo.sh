@@ -10,11 +10,11 @@ echo "   (IOL1068-15 has no known weight percentage and is reported, not compute
 "$bin" optics fixtures/samples --out "$out/optics" --skip-invalid
 
 echo
-echo "== 2. BSSRDF slices at 550 nm, the three lab configurations (θi/θo = 45/0, 0/45, 45/15; φi 0°, φo 180°), to 5 % median per-pixel error or 45 s"
+echo "== 2. BSSRDF slices at 550 nm, the three lab configurations (θi/θo = 45/0, 0/45, 45/15; φi 0°, φo 180°), to 5 % median per-pixel error or 90 s"
 for s in IOL1068-09 IOL1068-16; do
   echo "-- $s"
   "$bin" bssrdf --recipe "fixtures/samples/$s.toml" --wavelength 550 --configs 45/0,0/45,45/15 \
-    --crop --pixel-rel-error 0.05 --time-s 45 --quiet --out "$out/bssrdf/$s"
+    --crop --pixel-rel-error 0.05 --time-s 90 --quiet --out "$out/bssrdf/$s"
 done
 
 echo
@@ -24,7 +24,7 @@ echo "== 2b. Surface topography: the shipped height map (X3P) → microfacet nor
 echo
 echo "== 2c. The same IOL1068-09 slice (45°/15°) through a rough top: the measured normals of 2b (--roughness measured:fit.json)"
 "$bin" bssrdf --recipe fixtures/samples/IOL1068-09.toml --wavelength 550 --theta-i 45 --theta-o 15 \
-  --roughness "measured:$out/surface/fit.json" --crop --pixel-rel-error 0.05 --time-s 45 --quiet --out "$out/bssrdf/IOL1068-09-rough"
+  --roughness "measured:$out/surface/fit.json" --crop --pixel-rel-error 0.05 --time-s 90 --quiet --out "$out/bssrdf/IOL1068-09-rough"
 
 echo
 echo "== 2d. Inverse fit (lucent fit, issue 16): slices of IOL1068-09 simulated at 0.425 wt-% play the measurement"
