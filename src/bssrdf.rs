@@ -21,7 +21,7 @@
 
 use crate::imageio::{self, ImageIoError};
 use crate::io::{write_atomic, write_json, WriteError};
-use crate::plot::{perr, render_png, PlotError};
+use crate::plot::{perr, render_png, viridis, PlotError};
 use lucent_render::slab::{Beam, Boundary, Directions, Slice};
 use plotters::prelude::*;
 use serde::Serialize;
@@ -446,26 +446,6 @@ pub fn write_run(dir: &Path, slice: &Slice, summary: &Summary, beam: &[f64]) -> 
     write_json(&p, summary)?;
     written.push(p);
     Ok(written)
-}
-
-/// Viridis, sampled at 9 stops and interpolated linearly.
-fn viridis(t: f64) -> RGBColor {
-    const S: [(u8, u8, u8); 9] = [
-        (68, 1, 84),
-        (71, 44, 122),
-        (59, 81, 139),
-        (44, 113, 142),
-        (33, 144, 141),
-        (39, 173, 129),
-        (92, 200, 99),
-        (170, 220, 50),
-        (253, 231, 37),
-    ];
-    let t = t.clamp(0.0, 1.0) * 8.0;
-    let i = (t.floor() as usize).min(7);
-    let f = t - i as f64;
-    let lerp = |a: u8, b: u8| (a as f64 + (b as f64 - a as f64) * f).round() as u8;
-    RGBColor(lerp(S[i].0, S[i + 1].0), lerp(S[i].1, S[i + 1].1), lerp(S[i].2, S[i + 1].2))
 }
 
 /// Log-scale false-colour panels side by side on one shared scale

@@ -72,6 +72,14 @@ pub(crate) fn render_png(
     Ok(out.into_inner())
 }
 
+/// Viridis (van der Walt & Smith, matplotlib's default map) for false-colour
+/// images (slices, height maps, distributions): plotters' 8-stop table,
+/// linear in between; `t` clamped to [0, 1], non-finite → 0.
+pub(crate) fn viridis(t: f64) -> RGBColor {
+    use plotters::style::colors::colormaps::ViridisRGB;
+    ViridisRGB::get_color(if t.is_finite() { t } else { 0.0 })
+}
+
 pub(crate) fn palette(i: usize) -> RGBColor {
     const C: [RGBColor; 12] = [
         RGBColor(31, 119, 180),

@@ -7,17 +7,10 @@
 use super::fit::d_tilted_phi_average;
 use super::{FitReport, HeightMap};
 use crate::optics::recipe::RoughnessModel;
-use crate::plot::{legend_column, perr, render_png, short_number, Mark, PlotError};
+use crate::plot::{legend_column, perr, render_png, short_number, viridis, Mark, PlotError};
 use plotters::element::BitMapElement;
 use plotters::prelude::*;
-use plotters::style::colors::colormaps::ViridisRGB;
 use std::f64::consts::PI;
-
-/// Viridis (van der Walt & Smith, matplotlib's default map), plotters'
-/// 8-stop table linear in between; `t` clamped to [0, 1], non-finite → 0.
-fn viridis(t: f64) -> RGBColor {
-    ViridisRGB::get_color(if t.is_finite() { t } else { 0.0 })
-}
 
 const INVALID: RGBColor = RGBColor(170, 170, 170);
 
