@@ -1,8 +1,34 @@
 //! File output that never leaves a half-written result: every file is
 //! written to a temporary sibling and renamed into place.
+//!
+//! Every change this module makes to the file system (a file written, a
+//! folder created, a staging folder committed) holds a shared lock;
+//! [`freeze_output`] takes it exclusively. An abort (the CLI's second
+//! Ctrl-C) freezes the output before it removes the unfinished folders and
+//! then ends the process, so no write can recreate a folder after its
+//! removal, and none is cut in half.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::{RwLock, RwLockReadGuard, RwLockWriteGuard};
+
+/// Shared by the file-system changes of this module, exclusive in [`freeze_output`].
+static OUTPUT_CHANGES: RwLock<()> = RwLock::new(());
+
+fn changing_output() -> RwLockReadGuard<'static, ()> {
+    OUTPUT_CHANGES.read().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Waits until the writes under way have finished and blocks every later
+/// one (file, folder, commit) for as long as the guard lives. For a process
+/// that is about to end: it removes what it must, with the output frozen,
+/// and exits while still holding the guard. Also removes the temporary
+/// files of [`write_atomic`] calls cut short by a panic or signal so far.
+pub fn freeze_output() -> RwLockWriteGuard<'static, ()> {
+    let guard = OUTPUT_CHANGES.write().unwrap_or_else(|poisoned| poisoned.into_inner());
+    interrupt::remove_armed();
+    guard
+}
 
 /// An output file that could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -23,7 +49,8 @@ pub struct WriteError {
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     let err = |source| WriteError { path: path.to_path_buf(), source };
     let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    create_folder(parent).map_err(err)?;
+    let _changing = changing_output();
+    create_folder_unlocked(parent).map_err(err)?;
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tmp = parent.join(format!(".{name}.{}.tmp", std::process::id()));
     let result = (|| {
@@ -42,6 +69,13 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
 /// `create_dir_all`, but a file where a folder is needed is said plainly
 /// ("out exists and is not a folder" instead of "File exists (os error 17)").
 pub fn create_folder(dir: &Path) -> std::io::Result<()> {
+    let _changing = changing_output();
+    create_folder_unlocked(dir)
+}
+
+/// [`create_folder`] for callers already holding the shared lock (a second
+/// shared lock of the same thread could deadlock behind a waiting freeze).
+fn create_folder_unlocked(dir: &Path) -> std::io::Result<()> {
     if let Some(file) = dir.ancestors().find(|a| !a.as_os_str().is_empty() && a.exists() && !a.is_dir()) {
         return Err(std::io::Error::new(
             std::io::ErrorKind::NotADirectory,
@@ -80,7 +114,8 @@ impl StagedDir {
     /// must not be a file).
     pub fn new(target: &Path) -> Result<Self, WriteError> {
         let err = |source| WriteError { path: target.to_path_buf(), source };
-        create_folder(target).map_err(err)?;
+        let _changing = changing_output();
+        create_folder_unlocked(target).map_err(err)?;
         let parent = target.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
         let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
         let staging = parent.join(format!(".{name}.staging-{}", std::process::id()));
@@ -104,6 +139,7 @@ impl StagedDir {
             let path = path.to_path_buf();
             move |source| WriteError { path, source }
         };
+        let _changing = changing_output();
         let new: Vec<std::ffi::OsString> = std::fs::read_dir(&self.staging)
             .map_err(err(&self.staging))?
             .map(|e| e.map(|e| e.file_name()))
@@ -202,14 +238,20 @@ mod interrupt {
         }
     }
 
-    #[cfg(unix)]
-    extern "C" fn on_signal(signal: libc::c_int) {
+    /// Unlinks every armed temporary file (from a signal handler or a thread).
+    pub(super) fn remove_armed() {
+        #[cfg(unix)]
         for (i, armed) in ARMED.iter().enumerate() {
             if armed.load(Ordering::Acquire) {
                 // SAFETY: an armed slot holds a NUL-terminated path; unlink is async-signal-safe.
                 unsafe { libc::unlink((*PATHS.0.get())[i].as_ptr().cast()) };
             }
         }
+    }
+
+    #[cfg(unix)]
+    extern "C" fn on_signal(signal: libc::c_int) {
+        remove_armed();
         // SAFETY: restoring the default action and re-raising are async-signal-safe.
         unsafe {
             libc::signal(signal, libc::SIG_DFL);

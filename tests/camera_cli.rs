@@ -319,3 +319,40 @@ fn env_convert_checks_and_applies_a_matrix() {
     let o = lucent(&["env", "convert", "fixtures/env/studio.exr", s(&out), "--matrix", "1,2,3"]);
     assert!(stderr(&o).contains("found 3 numbers"), "{}", stderr(&o));
 }
+
+#[test]
+fn ctrl_c_while_calibrate_writes_its_views_leaves_nothing_behind() {
+    // Ctrl-C as soon as the staging folder of camera_views/ appears: the run
+    // ends (exit status 130) and takes the staging folder, the views folder
+    // it created and any temporary file with it; a file already there stays.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("notes.txt"), "the user's").unwrap();
+    let out = dir.path().join("camera.json");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["calibrate", "--images", "fixtures/camera/chessboard/*.{jpg,png}", "--board", "9x6"])
+        .args(["--square-mm", "25", "--out", s(&out)])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start lucent");
+    let staging = |d: &Path| {
+        std::fs::read_dir(d).unwrap().flatten().any(|e| e.file_name().to_string_lossy().contains("_views.staging"))
+    };
+    let pid = i32::try_from(child.id()).expect("a pid");
+    loop {
+        if staging(dir.path()) {
+            // SAFETY: sends SIGINT to our own child process.
+            assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+            break;
+        }
+        assert!(child.try_wait().unwrap().is_none(), "calibrate ended before its views were staged");
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let o = child.wait_with_output().expect("wait for lucent");
+    assert_eq!(o.status.code(), Some(130), "Ctrl-C must end calibrate: {}", stderr(&o));
+    assert!(stderr(&o).contains("unfinished output was removed"), "{}", stderr(&o));
+    let left: Vec<_> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(left, vec!["notes.txt".to_string()], "the staging folder and the new views folder must be gone");
+}

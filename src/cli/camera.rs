@@ -344,7 +344,15 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
     let plot_path = sibling(&a.out, "_residuals.png");
     let residuals_png = plot::residuals_png(&views, cal.rms_px)?;
     let view_dir = sibling(&a.out, "_views");
+    // Ctrl-C from here on removes the staging folder (and the views folder,
+    // plot and camera file if this run created them) and ends the run.
+    let _interrupt = super::interrupt::Interrupt::abort_on_first();
+    let created: Vec<_> = [&view_dir, &plot_path, &a.out].into_iter().filter(|p| !p.exists()).collect();
     let stage = crate::io::StagedDir::new(&view_dir)?;
+    let _remove_on_abort: Vec<_> = std::iter::once(stage.path())
+        .chain(created.into_iter().map(|p| p.as_path()))
+        .map(super::interrupt::remove_on_abort)
+        .collect();
     for v in &cal.views {
         let photo = photos
             .iter()

@@ -9,6 +9,12 @@
 //! Ctrl-C), or does the removal with ordinary file-system calls and then
 //! calls `_exit(130)` (second). A third Ctrl-C, or a second one when the
 //! helper could not be started, ends the process at once.
+//!
+//! The removal runs with the output frozen ([`crate::io::freeze_output`]):
+//! a file or commit under way finishes first and no later write can
+//! recreate a removed folder, so nothing of the run is left behind.
+//! Commands without rounds to finish ([`Interrupt::abort_on_first`], e.g.
+//! `calibrate`) clean up and end at the first Ctrl-C.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
@@ -32,6 +38,8 @@ static ABORT_PIPE: AtomicI32 = AtomicI32::new(-1);
 /// Paths removed on abort, with the id of their [`Registered`] guard.
 static REGISTERED: Mutex<Vec<(usize, PathBuf)>> = Mutex::new(Vec::new());
 static NEXT_ID: AtomicUsize = AtomicUsize::new(0);
+/// The Ctrl-C that aborts: 2 for [`Interrupt::install`], 1 for [`Interrupt::abort_on_first`].
+static ABORT_AT: AtomicUsize = AtomicUsize::new(2);
 
 #[cfg(unix)]
 extern "C" fn on_sigint(_: libc::c_int) {
@@ -41,8 +49,9 @@ extern "C" fn on_sigint(_: libc::c_int) {
     let fd = ABORT_PIPE.load(Ordering::SeqCst);
     // SAFETY: write(2) on a pipe we own is async-signal-safe; the byte (the
     // count) wakes the helper thread.
-    let told = n <= 2 && fd >= 0 && unsafe { libc::write(fd, [n as u8].as_ptr().cast(), 1) } == 1;
-    if n >= 2 && !told {
+    let abort_at = ABORT_AT.load(Ordering::SeqCst);
+    let told = n <= abort_at && fd >= 0 && unsafe { libc::write(fd, [n as u8].as_ptr().cast(), 1) } == 1;
+    if n >= abort_at && !told {
         // SAFETY: _exit is async-signal-safe.
         unsafe { libc::_exit(130) };
     }
@@ -86,15 +95,22 @@ fn start_cleanup_thread() {
                 if n == 0 {
                     return;
                 }
-                if n == 1 && byte >= 2 {
+                let abort_at = ABORT_AT.load(Ordering::SeqCst);
+                if n == 1 && usize::from(byte) >= abort_at {
                     break;
                 }
                 if n == 1 {
                     eprintln!("\nCtrl-C: stopping after the round under way (press Ctrl-C again to abort)");
                 }
             }
+            // Held until _exit: no write of the run starts after the removal.
+            let _frozen = crate::io::freeze_output();
             remove_registered();
-            eprintln!("interrupted twice: stopped at once; the unfinished output was removed");
+            if ABORT_AT.load(Ordering::SeqCst) >= 2 {
+                eprintln!("interrupted twice: stopped at once; the unfinished output was removed");
+            } else {
+                eprintln!("\ninterrupted: stopped; the unfinished output was removed");
+            }
             // SAFETY: ends the process without running destructors on other threads' data.
             unsafe { libc::_exit(130) };
         });
@@ -105,7 +121,20 @@ fn start_cleanup_thread() {
 }
 
 impl Interrupt {
+    /// The first Ctrl-C asks the run to stop (see [`Interrupt::requested`]),
+    /// the second aborts.
     pub fn install() -> Self {
+        Self::install_aborting_at(2)
+    }
+
+    /// Ctrl-C aborts at once: removes the registered paths and ends the
+    /// process (exit status 130). For commands with no partial result to keep.
+    pub fn abort_on_first() -> Self {
+        Self::install_aborting_at(1)
+    }
+
+    fn install_aborting_at(abort_at: usize) -> Self {
+        ABORT_AT.store(abort_at, Ordering::SeqCst);
         INTERRUPTED.store(false, Ordering::SeqCst);
         COUNT.store(0, Ordering::SeqCst);
         #[cfg(unix)]
