@@ -481,3 +481,25 @@ fn missing_pose_output_is_a_typed_stage_error() {
     assert_eq!(missing, &out.join("pose/scene.json"));
     assert!(e.to_string().contains("pose/scene.json") && e.to_string().contains("camera = \"template\""), "{e}");
 }
+
+/// Every stage file the report reads, as lucent writes it
+/// (fixtures/formats/), reads into its writer's type and serialises back to
+/// the same JSON: the type holds every field, none is dropped or renamed.
+#[test]
+fn stage_files_round_trip_through_their_writers_types() {
+    use lucent::pipeline::report::read_json;
+    use serde::{de::DeserializeOwned, Serialize};
+    fn round_trip<T: DeserializeOwned + Serialize>(name: &str) {
+        let p = root().join("fixtures/formats").join(name);
+        let typed: T = read_json(&p, "a fixture").unwrap().unwrap_or_else(|| panic!("{name} missing"));
+        let original: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+        assert_eq!(serde_json::to_value(&typed).unwrap(), original, "{name}");
+    }
+    round_trip::<lucent::bssrdf::Summary>("bssrdf_summary.json");
+    round_trip::<lucent::bssrdf::Comparison>("bssrdf_comparison.json");
+    round_trip::<lucent::scene::RenderReport>("render.json");
+    round_trip::<lucent::compare::Report>("compare_metrics.json");
+    round_trip::<lucent::envfit::FitReport>("env_scale.json");
+    // An absent file is "stage not run", not an error.
+    assert!(read_json::<lucent::bssrdf::Summary>(&root().join("fixtures/formats/none.json"), "x").unwrap().is_none());
+}
