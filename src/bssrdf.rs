@@ -24,7 +24,7 @@ use crate::io::{write_atomic, write_json, WriteError};
 use crate::plot::{perr, render_png, viridis, PlotError};
 use lucent_render::slab::{Beam, Boundary, Directions, Slice};
 use plotters::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
 
 /// A slice file that cannot be read or written.
@@ -193,13 +193,42 @@ pub enum ComparisonError {
 #[derive(Debug, thiserror::Error)]
 pub enum RoughnessError {
     #[error(
-        "--roughness {text:?}: {reason} (expected smooth, tr:ALPHA, ggx:ALPHA, beckmann:ALPHA or measured:FIT.json)"
+        "--roughness {text:?}: {problem} (expected smooth, tr:ALPHA, ggx:ALPHA, beckmann:ALPHA or measured:FIT.json)"
     )]
-    Syntax { text: String, reason: String },
+    Syntax { text: String, problem: RoughnessSyntax },
     #[error("--roughness {text:?}: {source}")]
     Surface { text: String, source: Box<crate::surface::SurfaceError> },
-    #[error("--roughness {text:?}: {path}: {reason}")]
-    Normals { text: String, path: PathBuf, reason: String },
+    /// The measured normals (`normals.exr`) cannot be used; the source names the file.
+    #[error("--roughness {text:?}: {source}")]
+    Normals { text: String, source: NormalsError },
+}
+
+/// What is wrong with the text of a `--roughness` value.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RoughnessSyntax {
+    #[error("no MODEL:VALUE")]
+    NoModel,
+    #[error("{0:?} is not a number")]
+    NotANumber(String),
+    #[error("α = {0} must be a number in [0, 4]")]
+    Alpha(f64),
+    #[error("unknown model {0:?}")]
+    UnknownModel(String),
+}
+
+/// A `normals.exr` (of `lucent surface fit`) that cannot be used as a
+/// measured normal set; every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum NormalsError {
+    /// Not readable as an EXR with channels R, G, B, A (the message names the file).
+    #[error(transparent)]
+    Read(#[from] ImageIoError),
+    #[error("{path}: pixel ({column}, {row}) = {value:?} is not a unit normal facing +z")]
+    NotUnit { path: PathBuf, column: usize, row: usize, value: [f64; 3] },
+    #[error("{path}: no pixel holds a normal (alpha is 0 everywhere)")]
+    Empty { path: PathBuf },
+    #[error("{path}: {source}")]
+    Set { path: PathBuf, source: lucent_render::microfacet::MicrofacetError },
 }
 
 /// The top boundary of `--roughness TEXT` (or, without it, of the recipe's
@@ -224,10 +253,8 @@ pub fn roughness(
     use crate::optics::recipe::RoughnessModel;
     use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
     let analytic = |d: Distribution, origin: &str, text: &str| -> Result<(Boundary, String), RoughnessError> {
-        let boundary = Boundary::rough(Microsurface::Analytic(d)).map_err(|_| RoughnessError::Syntax {
-            text: text.into(),
-            reason: format!("α = {} must be a number in [0, 4]", d.alpha()),
-        })?;
+        let boundary = Boundary::rough(Microsurface::Analytic(d))
+            .map_err(|_| RoughnessError::Syntax { text: text.into(), problem: RoughnessSyntax::Alpha(d.alpha()) })?;
         let name = format!("{} ({origin})", boundary.describe());
         Ok((boundary, name))
     };
@@ -243,18 +270,18 @@ pub fn roughness(
             None => Ok((Boundary::Smooth, "smooth".into())),
         };
     };
-    let syntax = |reason: &str| RoughnessError::Syntax { text: text.into(), reason: reason.into() };
+    let syntax = |problem: RoughnessSyntax| RoughnessError::Syntax { text: text.into(), problem };
     let t = text.trim();
     if t == "smooth" {
         return Ok((Boundary::Smooth, "smooth (--roughness)".into()));
     }
     let Some((kind, value)) = t.split_once(':') else {
-        return Err(syntax("no MODEL:VALUE"));
+        return Err(syntax(RoughnessSyntax::NoModel));
     };
     let alpha = || -> Result<f64, RoughnessError> {
-        let a: f64 = value.trim().parse().map_err(|_| syntax(&format!("{value:?} is not a number")))?;
+        let a: f64 = value.trim().parse().map_err(|_| syntax(RoughnessSyntax::NotANumber(value.into())))?;
         if !(a.is_finite() && (0.0..=4.0).contains(&a)) {
-            return Err(syntax(&format!("α = {a} must be a number in [0, 4]")));
+            return Err(syntax(RoughnessSyntax::Alpha(a)));
         }
         Ok(a)
     };
@@ -273,29 +300,23 @@ pub fn roughness(
                     .map_err(|e| RoughnessError::Surface { text: text.into(), source: Box::new(e) })?;
                 path.parent().unwrap_or(Path::new(".")).join("normals.exr")
             };
-            let normals = read_normals(&normals_path).map_err(|reason| RoughnessError::Normals {
-                text: text.into(),
-                path: normals_path.clone(),
-                reason,
-            })?;
-            let set = MeasuredNormals::new(&normals, None).map_err(|e| RoughnessError::Normals {
-                text: text.into(),
-                path: normals_path.clone(),
-                reason: e.to_string(),
-            })?;
+            let normals_err = |source| RoughnessError::Normals { text: text.into(), source };
+            let normals = read_normals(&normals_path).map_err(normals_err)?;
+            let set = MeasuredNormals::new(&normals, None)
+                .map_err(|source| normals_err(NormalsError::Set { path: normals_path.clone(), source }))?;
             let boundary = Boundary::Rough(Microsurface::Measured(std::sync::Arc::new(set)));
             let name = format!("{} from {}", boundary.describe(), normals_path.display());
             Ok((boundary, name))
         }
-        other => Err(syntax(&format!("unknown model {other:?}"))),
+        other => Err(syntax(RoughnessSyntax::UnknownModel(other.into()))),
     }
 }
 
 /// The unit normals of a `normals.exr` of `lucent surface fit` (R, G, B =
 /// x, y, z, A = 1 where the pixel has a normal), renormalised from 32-bit
 /// floats; pixels with A = 0 are skipped.
-fn read_normals(path: &Path) -> Result<Vec<[f64; 3]>, String> {
-    let (w, h, planes) = crate::imageio::read_exr_channels(path, &["R", "G", "B", "A"]).map_err(|e| e.to_string())?;
+fn read_normals(path: &Path) -> Result<Vec<[f64; 3]>, NormalsError> {
+    let (w, h, planes) = crate::imageio::read_exr_channels(path, &["R", "G", "B", "A"])?;
     let mut out = Vec::with_capacity(w * h);
     let pixels = planes[0].iter().zip(&planes[1]).zip(&planes[2]).zip(&planes[3]);
     for (k, (((x, y), z), a)) in pixels.enumerate() {
@@ -305,48 +326,63 @@ fn read_normals(path: &Path) -> Result<Vec<[f64; 3]>, String> {
         let v = [*x as f64, *y as f64, *z as f64];
         let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         if !(l.is_finite() && (l - 1.0).abs() < 1e-3 && v[2] > 0.0) {
-            return Err(format!("pixel ({}, {}) = {v:?} is not a unit normal facing +z", k % w, k / w));
+            return Err(NormalsError::NotUnit { path: path.to_path_buf(), column: k % w, row: k / w, value: v });
         }
         out.push([v[0] / l, v[1] / l, v[2] / l]);
     }
     if out.is_empty() {
-        return Err("no pixel holds a normal (alpha is 0 everywhere)".into());
+        return Err(NormalsError::Empty { path: path.to_path_buf() });
     }
     Ok(out)
 }
 
-/// Configuration and results of a run, as written to `summary.json`.
-#[derive(Debug, Clone, Serialize)]
+/// Configuration and results of a run, as written to `summary.json` and
+/// read back by the report (`lucent run`). Fields added after the first
+/// version default on reading files written before them: the per-pixel
+/// errors to NaN (unknown) and their mask to 0, `kernel` and `estimator` to
+/// "" (unknown), `folded`, `reciprocal` and `interrupted` to false (those
+/// runs had neither). Non-finite numbers are written as `null` and read back
+/// as NaN.
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Summary {
     pub config: RunConfig,
     pub optical_properties: OpticalUsed,
     /// Σ over output pixels of f_ssr [1/(m² sr)].
     pub sum: f64,
     pub sum_std_error: f64,
+    #[serde(deserialize_with = "f64_or_nan")]
     pub relative_std_error: f64,
     /// Median per-pixel relative standard error over the pixels above 1 % of
     /// the maximum (the figure that says whether the image has converged).
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
     pub pixel_rel_error_median: f64,
     /// Its 90th percentile.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
     pub pixel_rel_error_p90: f64,
     /// Pixels in that 1 % mask.
+    #[serde(default)]
     pub pixel_mask_pixels: usize,
     pub paths: u64,
     pub events: u64,
+    #[serde(deserialize_with = "f64_or_nan")]
     pub events_per_s: f64,
     /// The simulator's kernel ("avx2-fma lanes" or "scalar"; they agree to
     /// rounding).
-    pub kernel: &'static str,
+    #[serde(default)]
+    pub kernel: String,
     /// The estimator: the ring connection (azimuthal symmetry) where it
     /// applies, else the lobe connection (thick slab, smooth top),
     /// else the connection along the fixed exit direction.
-    pub estimator: &'static str,
+    #[serde(default)]
+    pub estimator: String,
     /// Whether the slice was folded about the plane of incidence (exact when
     /// both azimuths are 0°/180° and the beam is mirror-symmetric).
+    #[serde(default)]
     pub folded: bool,
     /// Whether the photons were launched from the camera's side (ring with
     /// θo = 0, by reciprocity); `diffuse_reflectance` and `transmittance`
     /// then describe light arriving along ωo.
+    #[serde(default)]
     pub reciprocal: bool,
     pub wall_s: f64,
     pub specular_reflectance: f64,
@@ -355,11 +391,25 @@ pub struct Summary {
     pub pixel_mm: f64,
     /// True when Ctrl-C stopped the run before its stop rule: the slice is the
     /// estimate from the paths finished until then (valid, with its errors).
+    #[serde(default)]
     pub interrupted: bool,
 }
 
+fn nan() -> f64 {
+    f64::NAN
+}
+
+/// A number as serde_json writes it: non-finite values become `null`, read back as NaN.
+pub(crate) fn f64_or_nan<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
+fn smooth() -> String {
+    "smooth".into()
+}
+
 /// The configuration part of a summary.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct RunConfig {
     pub recipe: Option<String>,
     pub wavelength_nm: Option<f64>,
@@ -375,12 +425,14 @@ pub struct RunConfig {
     pub seed: u64,
     pub thickness_mm: f64,
     /// The top boundary: "smooth" or the rough surface used and where it
-    /// came from (`--roughness`, the recipe's `[surface]`).
+    /// came from (`--roughness`, the recipe's `[surface]`); "smooth" in
+    /// files written before rough tops existed.
+    #[serde(default = "smooth")]
     pub roughness: String,
 }
 
 /// The optical properties a run used.
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 pub struct OpticalUsed {
     pub mu_s_per_m: f64,
     pub mu_a_per_m: f64,
@@ -651,10 +703,12 @@ pub fn profile_png(x_mm: &[f64], curves: &[ProfileCurve], beam: Option<&[f64]>) 
     })
 }
 
-/// Metrics of a simulated slice against a measured one.
-#[derive(Debug, Clone, Serialize)]
+/// Metrics of a simulated slice against a measured one, as written to
+/// `comparison.json` (`lucent bssrdf compare`) and read back by the report.
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Comparison {
     /// Mean over the mask of ((sim − meas)/meas)².
+    #[serde(deserialize_with = "f64_or_nan")]
     pub mean_squared_relative_error: f64,
     /// Measured pixels above threshold × max(measured) form the mask.
     pub threshold: f64,
@@ -662,6 +716,7 @@ pub struct Comparison {
     pub measured_sum: f64,
     pub simulated_sum: f64,
     /// simulated_sum / measured_sum.
+    #[serde(deserialize_with = "f64_or_nan")]
     pub sum_ratio: f64,
     pub pixels: usize,
     pub pixel_mm: f64,

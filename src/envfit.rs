@@ -35,7 +35,7 @@
 use crate::scene::SceneFile;
 use lucent_render::camera::Camera;
 use lucent_render::tracer::Board;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
@@ -54,8 +54,29 @@ pub enum FitError {
     NoBoard,
 }
 
+/// `env_scale.json` of `lucent env fit-scale`: the fit and what it was
+/// made from; written by the command and read back by the report of
+/// `lucent run`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitReport {
+    pub lucent_version: String,
+    pub scene: String,
+    pub photo: String,
+    pub mask: Option<String>,
+    pub per_channel: bool,
+    pub spp: u32,
+    pub seed: u64,
+    pub render_wall_s: f64,
+    pub previous_scale: f64,
+    pub new_scale: f64,
+    /// Set when --per-channel wrote a constant environment per channel.
+    pub new_constant: Option<[f64; 3]>,
+    pub fit: ScaleFit,
+    pub method: String,
+}
+
 /// The fitted scale and how well it fits.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ScaleFit {
     /// k over all channels (multiply the environment's radiance by it).
     pub scale: f64,

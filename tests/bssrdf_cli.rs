@@ -378,3 +378,41 @@ fn a_second_ctrl_c_aborts_and_removes_the_staging_folder() {
         std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(left, vec!["notes.txt".to_string()], "the staging folder and the new --out must be gone");
 }
+
+/// `--roughness` errors as variants: the syntax problem, and a measured
+/// normal set that cannot be used, named once with its file.
+#[test]
+fn roughness_errors_are_typed() {
+    use lucent::bssrdf::{roughness, NormalsError, RoughnessError, RoughnessSyntax};
+    let syntax = |text: &str| match roughness(Some(text), None) {
+        Err(RoughnessError::Syntax { problem, .. }) => problem,
+        other => panic!("{text}: {other:?}"),
+    };
+    assert_eq!(syntax("tr:abc"), RoughnessSyntax::NotANumber("abc".into()));
+    assert_eq!(syntax("beckmann:-1"), RoughnessSyntax::Alpha(-1.0));
+    assert_eq!(syntax("glossy:0.1"), RoughnessSyntax::UnknownModel("glossy".into()));
+    assert_eq!(syntax("0.01"), RoughnessSyntax::NoModel);
+
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("normals.exr");
+    let normals = |path: &Path| match roughness(Some(&format!("measured:{}", path.display())), None) {
+        Err(RoughnessError::Normals { source, .. }) => source,
+        other => panic!("{}: {other:?}", path.display()),
+    };
+    // No pixel holds a normal (alpha 0 everywhere).
+    let zero = vec![0.0f32; 4];
+    let up = vec![1.0f32; 4];
+    lucent::imageio::write_exr_channels(&exr, 2, 2, &[("R", &zero), ("G", &zero), ("B", &up), ("A", &zero)]).unwrap();
+    let e = normals(&exr);
+    assert!(matches!(&e, NormalsError::Empty { path } if path == &exr), "{e:?}");
+    // Pixel (1, 0) is not of unit length.
+    let z = vec![1.0f32, 2.0, 1.0, 1.0];
+    lucent::imageio::write_exr_channels(&exr, 2, 2, &[("R", &zero), ("G", &zero), ("B", &z), ("A", &up)]).unwrap();
+    let e = normals(&exr);
+    assert!(matches!(e, NormalsError::NotUnit { column: 1, row: 0, value: [0.0, 0.0, 2.0], .. }), "{e:?}");
+    // A missing file: its name once, in the image reader's message.
+    let missing = dir.path().join("nope.exr");
+    let e = roughness(Some(&format!("measured:{}", missing.display())), None).unwrap_err();
+    assert!(matches!(&e, RoughnessError::Normals { source: NormalsError::Read(_), .. }), "{e:?}");
+    assert_eq!(e.to_string().matches("nope.exr").count(), 2, "the value and the file: {e}");
+}

@@ -385,3 +385,121 @@ fn bad_projects_are_refused() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("render"), "the valid names are listed");
 }
+
+/// A project file that is not TOML: the error gives the line and column
+/// (as scene files do), and a caller can match on them.
+#[test]
+fn project_syntax_errors_give_line_and_column() {
+    use lucent::pipeline::project::{Project, ProjectError};
+    let tmp = tempfile::tempdir().unwrap();
+    let p = tmp.path().join("p.toml");
+    std::fs::write(&p, "[project]\nname = \"x\"\nseed = = 3\n").unwrap();
+    let e = Project::load(&p).unwrap_err();
+    let ProjectError::Toml { path, line, column, .. } = &e else { panic!("{e:?}") };
+    assert_eq!((path, *line, *column), (&p, Some(3), Some(8)), "{e}");
+    let text = e.to_string();
+    assert!(text.starts_with(&format!("{}: line 3, column 8: ", p.display())), "{text}");
+    assert_eq!(text.lines().count(), 1, "one line, no snippet of the file: {text}");
+    std::fs::write(&p, "[project]\nname = \"x\"\n\n[optics]\nwavelenghts = \"380:780:10\"\n").unwrap();
+    let e = Project::load(&p).unwrap_err();
+    assert!(matches!(e, ProjectError::Toml { line: Some(5), column: Some(1), .. }), "{e:?}");
+    assert!(e.to_string().contains("unknown field `wavelenghts`"), "{e}");
+}
+
+/// A project with one sample and a [bssrdf] stage, and its output folder
+/// holding `summary` as the sample's BSSRDF summary.json.
+fn report_with_summary(dir: &Path, summary: &str) -> Result<String, lucent::pipeline::report::ReportError> {
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    let text = format!("[bssrdf]\nconfigs = \"45/0\"\npaths = 10\n\n[[sample]]\nname = \"s\"\nrecipe = {recipe:?}\n");
+    let p = dir.join("p.toml");
+    std::fs::write(&p, text).unwrap();
+    let project = lucent::pipeline::project::Project::load(&p).unwrap();
+    let out = dir.join("out");
+    std::fs::create_dir_all(out.join("bssrdf/s")).unwrap();
+    std::fs::write(out.join("bssrdf/s/summary.json"), summary).unwrap();
+    let report = out.join("report");
+    lucent::pipeline::report::write(&project, &out, &report, &[])?;
+    Ok(std::fs::read_to_string(report.join("index.html")).unwrap())
+}
+
+/// summary.json as `lucent bssrdf` wrote it on 23 Nov 2026 (c3456eb), before
+/// the per-pixel errors, kernel, estimator, folding, reciprocity,
+/// interruption and roughness fields existed.
+const OLD_SUMMARY: &str = r#"{
+  "config": {"recipe": null, "wavelength_nm": null, "theta_i_deg": 45.0, "phi_i_deg": 0.0, "theta_o_deg": 0.0,
+             "phi_o_deg": 180.0, "phase": "hg", "beam": "gaussian", "pixels": 33, "pixel_mm": 0.2, "crop_of": null,
+             "seed": 1, "thickness_mm": 6.35},
+  "optical_properties": {"mu_s_per_m": 30000.0, "mu_a_per_m": 5.0, "g": 0.7, "n": 1.49},
+  "sum": 123.456, "sum_std_error": 1.5, "relative_std_error": 0.012, "paths": 10000, "events": 2000000,
+  "events_per_s": null, "wall_s": 0.5, "specular_reflectance": 0.04, "diffuse_reflectance": 0.5,
+  "transmittance": 0.1, "pixel_mm": 0.2
+}"#;
+
+/// The report reads each stage's file into the type its writer uses: an old
+/// summary.json still loads (its newer fields defaulted, a `null` shown as
+/// "—"); one missing a field fails with an error naming the file and field.
+#[test]
+fn report_reads_summaries_typed_and_names_a_missing_field() {
+    use lucent::pipeline::report::ReportError;
+    let tmp = tempfile::tempdir().unwrap();
+    let html = report_with_summary(tmp.path(), OLD_SUMMARY).unwrap();
+    assert!(html.contains("1.2346e2 ± 1.5000e0") && html.contains("<td>10000</td>"), "{html}");
+    let summary: lucent::bssrdf::Summary = serde_json::from_str(OLD_SUMMARY).unwrap();
+    assert!(summary.events_per_s.is_nan() && summary.pixel_rel_error_median.is_nan());
+    assert_eq!((summary.config.roughness.as_str(), summary.interrupted), ("smooth", false));
+
+    let tmp = tempfile::tempdir().unwrap();
+    let broken = OLD_SUMMARY.replace("\"sum\": 123.456, ", "");
+    let e = report_with_summary(tmp.path(), &broken).unwrap_err();
+    let ReportError::Format { path, source, .. } = &e else { panic!("{e:?}") };
+    assert!(path.ends_with("bssrdf/s/summary.json"), "{}", path.display());
+    assert!(source.is_data(), "{source}");
+    let text = e.to_string();
+    assert!(text.contains("summary.json") && text.contains("missing field `sum`"), "{text}");
+    assert!(!tmp.path().join("out/report/index.html").exists(), "no report from a broken file");
+
+    let tmp = tempfile::tempdir().unwrap();
+    let e =
+        report_with_summary(tmp.path(), &OLD_SUMMARY.replace("\"paths\": 10000", "\"paths\": \"many\"")).unwrap_err();
+    assert!(e.to_string().contains("invalid type: string \"many\", expected u64"), "{e}");
+}
+
+/// Planning errors are typed: a render whose camera comes from the pose
+/// stage names the missing pose output.
+#[test]
+fn missing_pose_output_is_a_typed_stage_error() {
+    use lucent::pipeline::{PipelineError, Stage, StageProblem};
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(tmp.path().join("photo.png"), b"").unwrap();
+    let p = tmp.path().join("p.toml");
+    std::fs::write(&p, "[pose]\nimage = \"photo.png\"\nboard = \"9x6\"\n").unwrap();
+    let project = lucent::pipeline::project::Project::load(&p).unwrap();
+    let out = tmp.path().join("out");
+    let e = lucent::pipeline::pose_frame(&project, &out).unwrap_err();
+    let PipelineError::Stage { stage: Stage::Render, problem } = &e else { panic!("{e:?}") };
+    let StageProblem::PoseOutputMissing { missing } = problem else { panic!("{problem:?}") };
+    assert_eq!(missing, &out.join("pose/scene.json"));
+    assert!(e.to_string().contains("pose/scene.json") && e.to_string().contains("camera = \"template\""), "{e}");
+}
+
+/// Every stage file the report reads, as lucent writes it
+/// (fixtures/formats/), reads into its writer's type and serialises back to
+/// the same JSON: the type holds every field, none is dropped or renamed.
+#[test]
+fn stage_files_round_trip_through_their_writers_types() {
+    use lucent::pipeline::report::read_json;
+    use serde::{de::DeserializeOwned, Serialize};
+    fn round_trip<T: DeserializeOwned + Serialize>(name: &str) {
+        let p = root().join("fixtures/formats").join(name);
+        let typed: T = read_json(&p, "a fixture").unwrap().unwrap_or_else(|| panic!("{name} missing"));
+        let original: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+        assert_eq!(serde_json::to_value(&typed).unwrap(), original, "{name}");
+    }
+    round_trip::<lucent::bssrdf::Summary>("bssrdf_summary.json");
+    round_trip::<lucent::bssrdf::Comparison>("bssrdf_comparison.json");
+    round_trip::<lucent::scene::RenderReport>("render.json");
+    round_trip::<lucent::compare::Report>("compare_metrics.json");
+    round_trip::<lucent::envfit::FitReport>("env_scale.json");
+    // An absent file is "stage not run", not an error.
+    assert!(read_json::<lucent::bssrdf::Summary>(&root().join("fixtures/formats/none.json"), "x").unwrap().is_none());
+}

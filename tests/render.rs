@@ -197,6 +197,55 @@ fn bad_scene_files_are_refused_with_reasons() {
     }
 }
 
+/// The same bad scenes, matched on the error's variant: a caller can tell
+/// what went wrong without parsing the message.
+#[test]
+fn bad_scene_files_say_what_went_wrong_as_a_variant() {
+    use scene::{KeyProblem, SceneFileError, SectionProblem};
+    let dir = root().join("tests/bad/render");
+    let load = |file: &str| scene::load(&dir.join(file)).err().unwrap_or_else(|| panic!("{file}: accepted"));
+    let key = |file: &str| match load(file) {
+        SceneFileError::Key { path, section, key, problem } => {
+            assert!(path.ends_with(file), "{}", path.display());
+            (section, key, *problem)
+        }
+        e => panic!("{file}: {e:?}"),
+    };
+    let section = |file: &str| match load(file) {
+        SceneFileError::Section { section, problem, .. } => (section, *problem),
+        e => panic!("{file}: {e:?}"),
+    };
+    let (s, k, p) = key("zero_radius.toml");
+    assert!(matches!((s, k, p), ("environment", "radius_m", KeyProblem::NotPositive { value: 0.0 })));
+    let (s, k, p) = key("bad_projection.toml");
+    assert!(
+        matches!((s, k, &p), ("environment", "projection", KeyProblem::Choice { got, .. }) if got == "cube"),
+        "{p:?}"
+    );
+    let (s, k, p) = key("bad_roughness_alpha.toml");
+    assert!(matches!((s, k, p), ("material", "roughness", KeyProblem::Alpha(a)) if a == -0.01));
+    let (s, k, p) = key("board_reflectance.toml");
+    assert!(matches!((s, k, p), ("board", "even", KeyProblem::Reflectance { values: [1.2, 0.5, 0.5] })));
+    let (s, p) = section("env_both.toml");
+    assert!(matches!((s, p), ("environment", SectionProblem::Conflict { first: "map", second: "constant" })));
+    let (s, p) = section("object_without_material.toml");
+    assert!(matches!((s, p), ("material", SectionProblem::ObjectNeedsMaterial)));
+    // A missing scene_json: the I/O error is the problem's source, printed once.
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("s.toml");
+    std::fs::write(&path, "[camera]\nscene_json = \"nope.json\"\n[environment]\nconstant = [1, 1, 1]\n").unwrap();
+    let e = scene::load(&path).unwrap_err();
+    let text = e.to_string();
+    let SceneFileError::Key { key: "scene_json", problem, .. } = &e else { panic!("{e:?}") };
+    let KeyProblem::Read { file, source } = problem.as_ref() else { panic!("{problem:?}") };
+    assert_eq!((file.file_name().unwrap(), source.kind()), ("nope.json".as_ref(), std::io::ErrorKind::NotFound));
+    assert!(
+        text.starts_with(&format!("{}: [camera] scene_json: ", path.display())) && text.contains("nope.json"),
+        "{text}"
+    );
+    assert_eq!(text.matches(&source.to_string()).count(), 1, "{text}");
+}
+
 fn lucent(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_lucent")).args(args).output().expect("run lucent")
 }

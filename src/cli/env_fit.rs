@@ -9,13 +9,12 @@
 //!   per channel), its paths made absolute so it loads from anywhere;
 //! * `board_render.exr` — the empty-board render at the fitted scale.
 
-use crate::envfit::{self, ScaleFit};
+use crate::envfit::{self, FitReport};
 use crate::imageio::{self, RgbImage};
 use crate::scene;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use lucent_render::tracer;
-use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Args)]
@@ -46,25 +45,6 @@ pub struct FitScaleArgs {
     /// Output folder.
     #[arg(long, default_value = "lucent-out/env-scale")]
     pub out: PathBuf,
-}
-
-/// What env_scale.json holds.
-#[derive(Debug, Serialize)]
-pub struct FitReport {
-    pub lucent_version: &'static str,
-    pub scene: String,
-    pub photo: String,
-    pub mask: Option<String>,
-    pub per_channel: bool,
-    pub spp: u32,
-    pub seed: u64,
-    pub render_wall_s: f64,
-    pub previous_scale: f64,
-    pub new_scale: f64,
-    /// Set when --per-channel wrote a constant environment per channel.
-    pub new_constant: Option<[f64; 3]>,
-    pub fit: ScaleFit,
-    pub method: &'static str,
 }
 
 /// Runs `lucent env fit-scale`.
@@ -157,7 +137,7 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
     let data: Vec<f32> = image.mean.iter().flat_map(|m| [0, 1, 2].map(|c| (m[c] * k_img[c]) as f32)).collect();
     let scaled = RgbImage::new(w, h, data)?;
     let report = FitReport {
-        lucent_version: env!("CARGO_PKG_VERSION"),
+        lucent_version: env!("CARGO_PKG_VERSION").into(),
         scene: a.scene.display().to_string(),
         photo: a.photo.display().to_string(),
         mask: a.mask.as_ref().map(|m| m.display().to_string()),
@@ -169,7 +149,8 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
         new_scale,
         new_constant,
         fit,
-        method: "k = Σ P / Σ R over the board pixels and channels (ratio of sums; blur- and demosaicing-invariant)",
+        method: "k = Σ P / Σ R over the board pixels and channels (ratio of sums; blur- and demosaicing-invariant)"
+            .into(),
     };
     write(&a.out, &report, &header, &scene_text, &scaled)?;
     let f = &report.fit;

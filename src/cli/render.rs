@@ -10,7 +10,7 @@
 
 use super::interrupt::Interrupt;
 use crate::imageio::{self, RgbImage};
-use crate::scene::{self, SceneSummary};
+use crate::scene::{self, RenderReport, SceneSummary};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -46,33 +46,6 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-}
-
-/// What render.json holds.
-#[derive(Debug, Serialize)]
-pub struct RenderReport {
-    pub lucent_version: &'static str,
-    pub scene: SceneSummary,
-    pub spp: u32,
-    pub spp_requested: u32,
-    pub time_budget_s: Option<f64>,
-    pub seed: u64,
-    pub threads: usize,
-    pub roulette_threshold: Option<f64>,
-    pub wall_s: f64,
-    pub samples: u64,
-    pub samples_per_s: f64,
-    pub scattering_events: u64,
-    pub surface_hits: u64,
-    pub leaked_paths: u64,
-    pub truncated_paths: u64,
-    pub mean_rgb: [f64; 3],
-    pub median_relative_std_error: f64,
-    pub exposure_stops_png: f64,
-    pub files: Vec<String>,
-    /// True when Ctrl-C stopped the render early: the files hold the
-    /// passes finished by then (a valid image with fewer samples).
-    pub interrupted: bool,
 }
 
 pub fn parse_size(text: &str) -> Result<(usize, usize)> {
@@ -267,7 +240,7 @@ fn report(
     let n = image.mean.len().max(1) as f64;
     let mean_rgb = std::array::from_fn(|c| image.mean.iter().map(|m| m[c]).sum::<f64>() / n);
     RenderReport {
-        lucent_version: env!("CARGO_PKG_VERSION"),
+        lucent_version: env!("CARGO_PKG_VERSION").into(),
         scene: summary.clone(),
         spp: image.samples.first().copied().unwrap_or(0),
         spp_requested: settings.spp,

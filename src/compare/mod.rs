@@ -53,7 +53,7 @@ use crate::plot::PlotError;
 use lucent_calib::ecc::{self, EccOptions, Motion};
 use mask::Mask;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use ssim::{Channel, SsimParams, Weighted};
 use std::path::{Path, PathBuf};
 
@@ -194,7 +194,7 @@ pub struct Settings {
 }
 
 /// Three values, one per channel.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Rgb {
     #[serde(rename = "R")]
     pub r: f64,
@@ -211,7 +211,7 @@ impl Rgb {
 }
 
 /// SSIM per channel, their mean, and of the luminance.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SsimSet {
     #[serde(rename = "R")]
     pub r: f64,
@@ -227,7 +227,7 @@ pub struct SsimSet {
 }
 
 /// The numbers of one photo/render pair (see the module docs).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
     /// Pixels included in the error metrics.
     pub pixels: usize,
@@ -464,37 +464,37 @@ pub struct Request {
 }
 
 /// `mask` in metrics.json.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MaskReport {
     /// "none", "image", "object" or "board".
-    pub source: &'static str,
+    pub source: String,
     pub path: Option<String>,
     pub included_pixels: usize,
     pub included_fraction: f64,
 }
 
 /// How the numbers are defined, in metrics.json.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Definitions {
-    pub difference: &'static str,
-    pub ssim: &'static str,
+    pub difference: String,
+    pub ssim: String,
     pub ssim_parameters: SsimParams,
     pub ssim_window_taps: usize,
     pub ssim_border_px: usize,
-    pub ssim_with_mask: &'static str,
-    pub luminance: &'static str,
+    pub ssim_with_mask: String,
+    pub luminance: String,
     pub luminance_weights: [f64; 3],
-    pub relative_error: &'static str,
+    pub relative_error: String,
 }
 
 /// `refined` in metrics.json.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Refinement {
-    pub method: &'static str,
-    pub motion: &'static str,
+    pub method: String,
+    pub motion: String,
     /// Photo pixel → render pixel, homogeneous, row-major.
     pub warp: [[f64; 3]; 3],
-    pub warp_convention: &'static str,
+    pub warp_convention: String,
     /// Displacement W·c − c of the image centre c, pixels (= (dx, dy) for a translation).
     pub shift_px: [f64; 2],
     pub correlation: f64,
@@ -507,26 +507,26 @@ pub struct Refinement {
 }
 
 /// `display` in metrics.json: how triplet.png shows the images.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DisplayReport {
     pub exposure: f64,
     pub exposure_source: String,
-    pub transfer: &'static str,
-    pub difference: &'static str,
-    pub difference_colour_map: &'static str,
+    pub transfer: String,
+    pub difference: String,
+    pub difference_colour_map: String,
     /// The colour bar spans ± this (linear units).
     pub difference_range: f64,
-    pub difference_range_source: &'static str,
+    pub difference_range_source: String,
     pub clipped_fraction_photo: f64,
     pub clipped_fraction_render: f64,
     pub clipped_fraction_difference: f64,
-    pub masked_pixels: &'static str,
+    pub masked_pixels: String,
 }
 
 /// metrics.json.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {
-    pub lucent_version: &'static str,
+    pub lucent_version: String,
     pub photo: String,
     pub render: String,
     pub width: usize,
@@ -633,10 +633,10 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             (wp[1][0] * c[0] + wp[1][1] * c[1] + wp[1][2]) / d - c[1],
         ];
         let refinement = Refinement {
-            method: "OpenCV findTransformECC (Evangelidis & Psarakis 2008) on luminance, coarse to fine",
-            motion: motion.name(),
+            method: "OpenCV findTransformECC (Evangelidis & Psarakis 2008) on luminance, coarse to fine".into(),
+            motion: motion.name().into(),
             warp: wp,
-            warp_convention: "render(W (x, y, 1)) ~ photo(x, y); pixel centres at integers",
+            warp_convention: "render(W (x, y, 1)) ~ photo(x, y); pixel centres at integers".into(),
             shift_px: shift,
             correlation: found.correlation,
             pyramid_levels: found.levels,
@@ -777,43 +777,43 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     }
 
     let report = Report {
-        lucent_version: env!("CARGO_PKG_VERSION"),
+        lucent_version: env!("CARGO_PKG_VERSION").into(),
         photo: req.photo.display().to_string(),
         render: req.render.display().to_string(),
         width: w,
         height: h,
         channels: photo.channels.clone(),
         mask: MaskReport {
-            source,
+            source: source.into(),
             path: mask_path.map(|p| p.display().to_string()),
             included_pixels: mask.as_ref().map_or(w * h, Mask::count),
             included_fraction: mask.as_ref().map_or(1.0, Mask::fraction),
         },
         definitions: Definitions {
-            difference: "render - photo, linear, the images' own units",
-            ssim: "Wang, Bovik, Sheikh & Simoncelli 2004 (IEEE TIP 13(4)); = skimage.metrics.structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=L) per channel",
+            difference: "render - photo, linear, the images' own units".into(),
+            ssim: "Wang, Bovik, Sheikh & Simoncelli 2004 (IEEE TIP 13(4)); = skimage.metrics.structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=L) per channel".into(),
             ssim_parameters: settings.ssim,
             ssim_window_taps: settings.ssim.window(),
             ssim_border_px: settings.ssim.border(),
-            ssim_with_mask: "mean of the SSIM map over included pixels at least ssim_border_px from the image border",
-            luminance: settings.luminance.describe(),
+            ssim_with_mask: "mean of the SSIM map over included pixels at least ssim_border_px from the image border".into(),
+            luminance: settings.luminance.describe().into(),
             luminance_weights: lw,
-            relative_error: "sum |render - photo| / sum |photo| over included pixels and channels",
+            relative_error: "sum |render - photo| / sum |photo| over included pixels and channels".into(),
         },
         as_calibrated: calibrated,
         refined: refined_parts.as_ref().map(|(r, _, _)| r.clone()),
         display: DisplayReport {
             exposure,
             exposure_source,
-            transfer: "sRGB (IEC 61966-2-1) of exposure x linear value, clipped to [0, 1]",
-            difference: "luminance Y(render) - Y(photo), linear units (not scaled by the exposure)",
-            difference_colour_map: "ColorBrewer RdBu: blue = render darker, white = 0, red = render brighter",
+            transfer: "sRGB (IEC 61966-2-1) of exposure x linear value, clipped to [0, 1]".into(),
+            difference: "luminance Y(render) - Y(photo), linear units (not scaled by the exposure)".into(),
+            difference_colour_map: "ColorBrewer RdBu: blue = render darker, white = 0, red = render brighter".into(),
             difference_range: diff_range,
-            difference_range_source: "99th percentile of |dY| over included pixels (1 % of the data range if zero)",
+            difference_range_source: "99th percentile of |dY| over included pixels (1 % of the data range if zero)".into(),
             clipped_fraction_photo: clip_photo,
             clipped_fraction_render: clip_render,
             clipped_fraction_difference: clipped_diff,
-            masked_pixels: "greyed (photo, render), hatched light grey (difference)",
+            masked_pixels: "greyed (photo, render), hatched light grey (difference)".into(),
         },
         files: FILES.iter().map(|s| s.to_string()).collect(),
     };

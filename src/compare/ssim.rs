@@ -46,7 +46,7 @@ use rayon::prelude::*;
 const STRIP: usize = 64;
 
 /// The parameters of SSIM (Wang et al. 2004 defaults but the data range).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SsimParams {
     /// Gaussian window σ in pixels (1.5).
     pub sigma: f64,

@@ -167,14 +167,62 @@ pub struct UnknownStage {
 /// Why the pipeline stopped.
 #[derive(Debug, Error)]
 pub enum PipelineError {
-    #[error("stage {stage}: {message}")]
-    Stage { stage: Stage, message: String },
+    /// A stage cannot be planned: [`StageProblem`] says why.
+    #[error("stage {stage}: {problem}")]
+    Stage {
+        stage: Stage,
+        #[source]
+        problem: StageProblem,
+    },
     #[error(
         "stage {stage} failed: {message}\n  partial output and log kept in {kept}; earlier stages' results are intact"
     )]
     Failed { stage: Stage, message: TaskError, kept: PathBuf },
-    #[error("{path}: {reason}")]
-    Io { path: PathBuf, reason: String },
+    /// A file or folder of the output tree could not be created, moved or removed.
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    /// An input file (hashed for a stage's key) could not be read.
+    #[error("{path}: cannot read input: {source}")]
+    Input { path: PathBuf, source: std::io::Error },
+    /// The `[render]` scene template (or env-scale's fitted scene) is not a
+    /// valid scene file (the message names the file and key).
+    #[error(transparent)]
+    Scene(#[from] crate::scene::SceneFileError),
+    /// The `[render]` scene template has no `[material]` to take the samples' recipes.
+    #[error("{path}: the [render] scene has no [material]: the samples' recipes need one to replace")]
+    SceneWithoutMaterial { path: PathBuf },
+    #[error("{path}: cannot write the sample's scene as TOML: {source}")]
+    SceneToml { path: PathBuf, source: toml::ser::Error },
+    /// The pose stage's `scene.json` cannot be read.
+    #[error("{path}: cannot read: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("{path}: not a scene.json written by `lucent pose`: {source}")]
+    PoseJson { path: PathBuf, source: serde_json::Error },
+    /// A stage's manifest could not be written (the message names the file).
+    #[error(transparent)]
+    Write(#[from] crate::io::WriteError),
+}
+
+/// Why a stage cannot be planned (the `problem` of [`PipelineError::Stage`]).
+#[derive(Debug, Error)]
+pub enum StageProblem {
+    #[error("no [render]")]
+    NoRender,
+    /// The render's camera comes from the pose stage but its output is missing.
+    #[error(
+        "the render's camera comes from the pose stage ([pose] is given) but {missing} is missing; run the \
+         calibrate and pose stages, or set [render] camera = \"template\" to keep the scene's camera"
+    )]
+    PoseOutputMissing { missing: PathBuf },
+    /// A sample's photo is in a camera's RGB but the develop stage has not written its CIE RGB version.
+    #[error("{sample}: {photo} is in camera {camera:?}'s RGB but the develop stage has not written {expected}")]
+    NotDeveloped { sample: String, photo: PathBuf, camera: String, expected: PathBuf },
+    #[error("[calibration] images: {0}")]
+    CalibrationImages(crate::io::GlobError),
+    #[error("[calibration] images {pattern:?}: no file matches")]
+    NoCalibrationImages { pattern: String },
+    #[error("{sample}: camera {camera:?} has no ccm.json from the colour stage")]
+    NoCcm { sample: String, camera: String },
 }
 
 /// One input file as hashed.
@@ -258,8 +306,7 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 /// Hash of one file, streamed.
 pub fn hash_file(path: &Path) -> Result<InputHash, PipelineError> {
     use std::io::Read;
-    let err =
-        |e: std::io::Error| PipelineError::Io { path: path.to_path_buf(), reason: format!("cannot read input: {e}") };
+    let err = |source| PipelineError::Input { path: path.to_path_buf(), source };
     let mut f = std::fs::File::open(path).map_err(err)?;
     let mut h = Sha256::new();
     let mut buf = vec![0u8; 1 << 16];
@@ -339,13 +386,12 @@ fn sample_scene(
     use_fitted: bool,
 ) -> Result<String, PipelineError> {
     let Some(r) = &project.file.render else {
-        return Err(PipelineError::Stage { stage: Stage::Render, message: "no [render]".into() });
+        return Err(PipelineError::Stage { stage: Stage::Render, problem: StageProblem::NoRender });
     };
     let fitted = out.join(Stage::EnvScale.name()).join(&sample.name).join("scene.toml");
     let source = if use_fitted && fitted.is_file() { fitted } else { r.scene.clone() };
-    let io = |e: String| PipelineError::Io { path: source.clone(), reason: e };
-    let text = std::fs::read_to_string(&source).map_err(|e| io(e.to_string()))?;
-    let file = crate::scene::parse(&text, &source).map_err(|e| io(e.to_string()))?;
+    let text = std::fs::read_to_string(&source).map_err(|e| PipelineError::Read { path: source.clone(), source: e })?;
+    let file = crate::scene::parse(&text, &source)?;
     let mut file = envfit::with_paths_from(&file, &envfit::scene_dir(&source));
     match &mut file.material {
         Some(m) => {
@@ -357,7 +403,7 @@ fn sample_scene(
             m.n = None;
         }
         None => {
-            return Err(io("the [render] scene has no [material]: the samples' recipes need one to replace".into()))
+            return Err(PipelineError::SceneWithoutMaterial { path: source });
         }
     }
     let frame = pose_frame(project, out)?;
@@ -378,7 +424,8 @@ fn sample_scene(
             file.environment.centre_m = None;
         }
     }
-    let body = toml::to_string_pretty(&file).map_err(|e| io(e.to_string()))?;
+    let body =
+        toml::to_string_pretty(&file).map_err(|e| PipelineError::SceneToml { path: source.clone(), source: e })?;
     let camera = if frame.is_some() { ", camera, board and placement from the pose stage" } else { "" };
     Ok(format!(
         "# {} with the recipe of sample {}{camera} (written by `lucent run`)\n{body}",
@@ -403,19 +450,15 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
         if !p.is_file() {
             return Err(PipelineError::Stage {
                 stage: Stage::Render,
-                message: format!(
-                    "the render's camera comes from the pose stage ([pose] is given) but {} is missing; run the \
-                     calibrate and pose stages, or set [render] camera = \"template\" to keep the scene's camera",
-                    p.display()
-                ),
+                problem: StageProblem::PoseOutputMissing { missing: p.clone() },
             });
         }
     }
     let text = std::fs::read_to_string(&scene_json)
-        .map_err(|e| PipelineError::Io { path: scene_json.clone(), reason: e.to_string() })?;
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| PipelineError::Io { path: scene_json.clone(), reason: format!("not JSON: {e}") })?;
-    let has_sample = v.get("sample").is_some_and(|s| !s.is_null());
+        .map_err(|source| PipelineError::Read { path: scene_json.clone(), source })?;
+    let pose: lucent_calib::scene::SceneDescription =
+        serde_json::from_str(&text).map_err(|source| PipelineError::PoseJson { path: scene_json.clone(), source })?;
+    let has_sample = pose.sample.is_some();
     Ok(Some((scene_json, camera_json, has_sample)))
 }
 
@@ -486,13 +529,12 @@ fn developed(
     } else {
         Err(PipelineError::Stage {
             stage: Stage::Develop,
-            message: format!(
-                "{}: {} is in camera {:?}'s RGB but the develop stage has not written {}",
-                smp.name,
-                given.display(),
-                smp.camera.as_deref().unwrap_or_default(),
-                p.display()
-            ),
+            problem: StageProblem::NotDeveloped {
+                sample: smp.name.clone(),
+                photo: given,
+                camera: smp.camera.clone().unwrap_or_default(),
+                expected: p,
+            },
         })
     }
 }
@@ -606,11 +648,11 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
         Stage::Calibrate => {
             let Some(c) = &f.calibration else { return Ok(Err(Skip::Missing("[calibration]"))) };
             let files = crate::io::glob_files(&c.images)
-                .map_err(|e| PipelineError::Stage { stage, message: format!("[calibration] images: {e}") })?;
+                .map_err(|e| PipelineError::Stage { stage, problem: StageProblem::CalibrationImages(e) })?;
             if files.is_empty() {
                 return Err(PipelineError::Stage {
                     stage,
-                    message: format!("[calibration] images {:?}: no file matches", c.images),
+                    problem: StageProblem::NoCalibrationImages { pattern: c.images.clone() },
                 });
             }
             inputs.extend(files);
@@ -665,7 +707,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 if !ccm.is_file() {
                     return Err(PipelineError::Stage {
                         stage,
-                        message: format!("{}: camera {cam:?} has no ccm.json from the colour stage", smp.name),
+                        problem: StageProblem::NoCcm { sample: smp.name.clone(), camera: cam.clone() },
                     });
                 }
                 for (what, photo) in [("photo", &smp.photo), ("empty_board", &smp.empty_board)] {
@@ -852,7 +894,7 @@ pub fn run(
     exec: &mut Executor,
     on_status: &mut dyn FnMut(Stage, &Status, &[String]),
 ) -> Result<Vec<(Stage, Status)>, PipelineError> {
-    let io = |path: &Path, e: std::io::Error| PipelineError::Io { path: path.to_path_buf(), reason: e.to_string() };
+    let io = |path: &Path, source| PipelineError::Io { path: path.to_path_buf(), source };
     std::fs::create_dir_all(out).map_err(|e| io(out, e))?;
     let mut done: Vec<(Stage, Status)> = Vec::new();
     for stage in Stage::ALL {
@@ -958,8 +1000,7 @@ pub fn run(
             outputs_sha256: outputs_hash(&dir)?,
             outputs: output_files(&dir),
         };
-        crate::io::write_json(&dir.join("manifest.json"), &manifest)
-            .map_err(|e| PipelineError::Io { path: dir.clone(), reason: e.to_string() })?;
+        crate::io::write_json(&dir.join("manifest.json"), &manifest)?;
         if aside.exists() {
             let _ = std::fs::remove_dir_all(&aside);
         }

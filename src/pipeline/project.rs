@@ -68,8 +68,12 @@ use thiserror::Error;
 pub enum ProjectError {
     #[error("{path}: cannot read project file: {source}")]
     Read { path: PathBuf, source: std::io::Error },
-    #[error("{path}: {message}")]
-    Toml { path: PathBuf, message: String },
+    /// Not valid TOML, or a key the format does not have: the parser's
+    /// message, with the 1-based line and column it points at. The parser's
+    /// error is kept but not returned as the source: its own text repeats the
+    /// location with a snippet of the file.
+    #[error("{path}:{}{}", crate::scene::location(*line, *column), error.message().trim_end())]
+    Toml { path: PathBuf, line: Option<usize>, column: Option<usize>, error: Box<toml::de::Error> },
     #[error("{path}: {key}: {reason}")]
     Key { path: PathBuf, key: String, reason: String },
 }
@@ -242,8 +246,10 @@ impl Project {
     pub fn load(path: &Path) -> Result<Project, ProjectError> {
         let text =
             std::fs::read_to_string(path).map_err(|source| ProjectError::Read { path: path.to_path_buf(), source })?;
-        let file: ProjectFile = toml::from_str(&text)
-            .map_err(|e| ProjectError::Toml { path: path.to_path_buf(), message: e.to_string() })?;
+        let file: ProjectFile = toml::from_str(&text).map_err(|error: toml::de::Error| {
+            let (line, column) = crate::scene::line_column(&text, error.span());
+            ProjectError::Toml { path: path.to_path_buf(), line, column, error: Box::new(error) }
+        })?;
         Self::build(file, path)
     }
 

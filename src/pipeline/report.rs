@@ -14,29 +14,55 @@
 //! distortion, RMS reprojection error), the ΔE2000 table of every colour
 //! calibration, and the manifest (inputs with SHA-256, commands, versions,
 //! seed, wall times).
+//!
+//! Every stage file is read into the type its writer serialises, so each
+//! format is defined once: [`crate::optics::output::OpticalProperties`],
+//! [`crate::bssrdf::Summary`] and [`crate::bssrdf::Comparison`],
+//! [`crate::envfit::FitReport`], [`crate::scene::RenderReport`],
+//! [`crate::compare::Report`], `lucent_calib`'s `Calibration` (camera.json)
+//! and `SceneDescription` (scene.json), [`crate::ccm_file::CcmFile`] and
+//! [`Manifest`]. A file that is absent contributes nothing (its stage has not
+//! run); one that is there but not in its format stops the report with
+//! [`ReportError`] naming the file and the field. Fields added to a format
+//! later default when older files are read (see each type).
 
 use super::project::Project;
 use super::{Manifest, Stage, Status};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
 use serde_json::{json, Value};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
-/// The report could not be written.
+/// The report could not be written, or a stage's file it reads is not in
+/// the format lucent writes (every variant names the file; a format error
+/// names the field, e.g. "missing field `sum` at line 4 column 1").
 #[derive(Debug, Error)]
 pub enum ReportError {
-    #[error("{path}: {reason}")]
-    Io { path: PathBuf, reason: String },
+    #[error("{to}: cannot copy {from}: {source}")]
+    Copy { from: PathBuf, to: PathBuf, source: std::io::Error },
+    #[error(transparent)]
+    Write(#[from] crate::io::WriteError),
+    #[error("{path}: cannot read {what}: {source}")]
+    Read { path: PathBuf, what: &'static str, source: std::io::Error },
+    #[error("{path}: not {what} as lucent writes it: {source}")]
+    Format { path: PathBuf, what: &'static str, source: serde_json::Error },
+    #[error(transparent)]
+    Optics(#[from] crate::optics::output::OpticalPropertiesError),
+    #[error(transparent)]
+    Ccm(#[from] crate::ccm_file::CcmFileError),
+    /// `[[colour]] truth` (the message names the file).
+    #[error(transparent)]
+    ColourTruth(#[from] crate::synth::SynthError),
+    /// `[pose] truth` is not a scene file (the message names the file and key).
+    #[error(transparent)]
+    PoseTruth(Box<crate::scene::SceneFileError>),
 }
 
 /// HTML-escapes text.
 pub fn esc(t: &str) -> String {
     t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
-}
-
-/// A 4 × 4 matrix from JSON rows.
-fn matrix4(v: &Value) -> Option<[[f64; 4]; 4]> {
-    serde_json::from_value(v.clone()).ok()
 }
 
 /// Distance between two camera-to-world poses' centres (mm, the matrices in
@@ -49,8 +75,22 @@ fn pose_error(truth: &[[f64; 4]; 4], rec: &[[f64; 4]; 4]) -> (f64, f64) {
     (1000.0 * d, angle)
 }
 
-fn read_json(p: &Path) -> Option<Value> {
-    serde_json::from_str(&std::fs::read_to_string(p).ok()?).ok()
+/// A stage's JSON file `p` read into the type its writer serialises
+/// (`what` names the file kind in messages): `None` when the file does not
+/// exist (the stage has not run), an error naming the file and the field
+/// when it exists but does not hold that type.
+pub fn read_json<T: DeserializeOwned>(p: &Path, what: &'static str) -> Result<Option<T>, ReportError> {
+    let text = match std::fs::read_to_string(p) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => return Err(ReportError::Read { path: p.to_path_buf(), what, source }),
+    };
+    serde_json::from_str(&text).map(Some).map_err(|source| ReportError::Format { path: p.to_path_buf(), what, source })
+}
+
+/// A typed value as JSON for metrics.json.
+fn to_value<T: Serialize>(v: &T) -> Value {
+    serde_json::to_value(v).unwrap_or(Value::Null)
 }
 
 /// Drops arrays of more than `max` numbers (phase tables, corner lists)
@@ -66,8 +106,14 @@ fn trim(v: &Value, max: usize) -> Value {
     }
 }
 
-fn num(v: &Value, fmt: fn(f64) -> String) -> String {
-    v.as_f64().map(fmt).unwrap_or_else(|| "—".into())
+/// A number of a stage's file for a table cell; non-finite (written as
+/// `null`, read back as NaN) shows as "—".
+fn num(v: f64, fmt: fn(f64) -> String) -> String {
+    if v.is_finite() {
+        fmt(v)
+    } else {
+        "—".into()
+    }
 }
 
 fn e4(x: f64) -> String {
@@ -98,7 +144,7 @@ impl Page {
         let dst = self.img_dir.join(&name);
         std::fs::create_dir_all(&self.img_dir)
             .and_then(|_| std::fs::copy(src, &dst))
-            .map_err(|e| ReportError::Io { path: dst.clone(), reason: e.to_string() })?;
+            .map_err(|source| ReportError::Copy { from: src.to_path_buf(), to: dst.clone(), source })?;
         Ok(format!(
             "<figure><img src=\"img/{name}\" alt=\"{}\"><figcaption>{}</figcaption></figure>",
             esc(alt),
@@ -129,27 +175,26 @@ fn table(head: &[&str], rows: &[Vec<String>]) -> String {
     t
 }
 
-/// The optics JSON as a list of spectra (one sample writes an object).
-fn spectra(out: &Path) -> Vec<Value> {
-    match read_json(&out.join("optics/optical_properties.json")) {
-        Some(Value::Array(a)) => a,
-        Some(v @ Value::Object(_)) => vec![v],
-        _ => vec![],
+/// The optics stage's spectra (one sample writes an object, several an
+/// array), none when the stage has not run.
+fn spectra(out: &Path) -> Result<Vec<crate::optics::output::OpticalProperties>, ReportError> {
+    let p = out.join("optics/optical_properties.json");
+    if !p.exists() {
+        return Ok(vec![]);
     }
+    Ok(crate::optics::output::read_optical_properties(&p)?)
 }
 
 /// Writes index.html and metrics.json into `dir` (the report stage's folder).
 pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]) -> Result<(), ReportError> {
     let mut page = Page { html: String::new(), img_dir: dir.join("img"), copied: 0 };
     let mut metrics = serde_json::Map::new();
-    let manifests: Vec<(Stage, Manifest)> = Stage::ALL
-        .iter()
-        .filter_map(|s| {
-            let m: Manifest =
-                serde_json::from_str(&std::fs::read_to_string(out.join(s.name()).join("manifest.json")).ok()?).ok()?;
-            Some((*s, m))
-        })
-        .collect();
+    let mut manifests: Vec<(Stage, Manifest)> = Vec::new();
+    for s in Stage::ALL {
+        if let Some(m) = read_json(&out.join(s.name()).join("manifest.json"), "a stage manifest")? {
+            manifests.push((s, m));
+        }
+    }
     metrics.insert("project".into(), json!(project.name));
     metrics.insert("project_file".into(), json!(project.path.display().to_string()));
     metrics.insert("lucent_version".into(), json!(env!("CARGO_PKG_VERSION")));
@@ -189,7 +234,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     page.html.push_str(h);
 
     // ---- per sample
-    let all_spectra = spectra(out);
+    let all_spectra = spectra(out)?;
     let mut samples_json = serde_json::Map::new();
     for smp in &project.file.sample {
         let mut sj = serde_json::Map::new();
@@ -201,29 +246,29 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         )
         .map(|r| r.name)
         .unwrap_or_else(|_| smp.name.clone());
-        if let Some(sp) = all_spectra.iter().find(|s| s["sample"].as_str() == Some(recipe_name.as_str())) {
+        if let Some(sp) = all_spectra.iter().find(|s| s.sample.as_deref() == Some(recipe_name.as_str())) {
             h.push_str("<h3>Optical properties (Lorenz–Mie)</h3>");
-            let wl: Vec<f64> = sp["wavelength_nm"]
-                .as_array()
-                .map(|a| a.iter().filter_map(Value::as_f64).collect())
-                .unwrap_or_default();
+            let wl = &sp.wavelength_nm;
             let mut rows = Vec::new();
             for (i, w) in wl.iter().enumerate() {
                 if wl.len() > 12 && (w.round() as i64) % 50 != 0 {
                     continue;
                 }
-                let at = |k: &str| sp[k][i].clone();
+                // μt and n_bulk may be left out of a hand-made file (read_optical_properties
+                // checks every array given has one value per wavelength); μt = μs + μa then.
+                let (mu_s, mu_a) = (sp.mu_s_per_m[i], sp.mu_a_per_m[i]);
+                let mu_t = sp.mu_t_per_m.get(i).copied().unwrap_or(mu_s + mu_a);
                 rows.push(vec![
                     format!("{w}"),
-                    num(&at("mu_s_per_m"), e4),
-                    num(&at("mu_a_per_m"), e4),
-                    num(&at("mu_t_per_m"), e4),
-                    num(&at("g"), f4),
-                    num(&at("n_bulk"), f4),
+                    num(mu_s, e4),
+                    num(mu_a, e4),
+                    num(mu_t, e4),
+                    num(sp.g[i], f4),
+                    sp.n_bulk.get(i).map_or_else(|| "not in the file".into(), |n| num(*n, f4)),
                 ]);
             }
             h.push_str(&table(&["λ [nm]", "μs [1/m]", "μa [1/m]", "μt [1/m]", "g", "n_bulk"], &rows));
-            if let Some(a) = sp["absorption"].as_str().or(sp["absorption"]["name"].as_str()) {
+            if let Some(a) = &sp.absorption {
                 let _ = write!(h, "<p class=\"note\">absorption model: {}</p>", esc(a));
             }
             let single = all_spectra.len() == 1;
@@ -249,7 +294,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 }
             }
             h.push_str("</div>");
-            sj.insert("optics".into(), trim(sp, 64));
+            sj.insert("optics".into(), trim(&to_value(sp), 64));
         }
         // BSSRDF
         let bdir = out.join("bssrdf").join(&smp.name);
@@ -260,16 +305,20 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             let mut imgs = String::new();
             for &c in &project.bssrdf_configs {
                 let run = PathBuf::from(super::bssrdf_run_dir(&bdir.display().to_string(), &project.bssrdf_configs, c));
-                let summary = read_json(&run.join("summary.json"));
-                let cmp = read_json(&bdir.join(format!("compare_ti{}_to{}", c.0, c.1)).join("comparison.json"));
+                let summary: Option<crate::bssrdf::Summary> =
+                    read_json(&run.join("summary.json"), "a BSSRDF summary.json")?;
+                let cmp: Option<crate::bssrdf::Comparison> = read_json(
+                    &bdir.join(format!("compare_ti{}_to{}", c.0, c.1)).join("comparison.json"),
+                    "a BSSRDF comparison.json",
+                )?;
                 if let Some(sm) = &summary {
                     rows.push(vec![
                         format!("{}° / {}°", c.0, c.1),
-                        format!("{} ± {}", num(&sm["sum"], e4), num(&sm["sum_std_error"], e4)),
-                        cmp.as_ref().map(|x| num(&x["measured_sum"], e4)).unwrap_or_else(|| "not measured".into()),
-                        cmp.as_ref().map(|x| num(&x["sum_ratio"], f4)).unwrap_or_else(|| "—".into()),
-                        cmp.as_ref().map(|x| num(&x["mean_squared_relative_error"], f4)).unwrap_or_else(|| "—".into()),
-                        sm["paths"].to_string(),
+                        format!("{} ± {}", num(sm.sum, e4), num(sm.sum_std_error, e4)),
+                        cmp.as_ref().map_or_else(|| "not measured".into(), |x| num(x.measured_sum, e4)),
+                        cmp.as_ref().map_or_else(|| "—".into(), |x| num(x.sum_ratio, f4)),
+                        cmp.as_ref().map_or_else(|| "—".into(), |x| num(x.mean_squared_relative_error, f4)),
+                        format!("{}{}", sm.paths, if sm.interrupted { " (interrupted)" } else { "" }),
                     ]);
                 }
                 imgs.push_str(
@@ -297,58 +346,60 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             sj.insert("bssrdf".into(), trim(&json!(bj), 64));
         }
         // Environment scale
-        if let Some(e) = read_json(&out.join("env-scale").join(&smp.name).join("env_scale.json")) {
+        let env_path = out.join("env-scale").join(&smp.name).join("env_scale.json");
+        if let Some(e) = read_json::<crate::envfit::FitReport>(&env_path, "an env_scale.json")? {
+            let f = &e.fit;
             let _ = write!(
                 h,
                 "<h3>Environment scale</h3><p>k = {} (per channel {}, {}, {}) over {} board pixels; residual RMS {} ({} % of the photo; render noise {}).</p>",
-                num(&e["fit"]["scale"], f4),
-                num(&e["fit"]["scale_per_channel"][0], f4),
-                num(&e["fit"]["scale_per_channel"][1], f4),
-                num(&e["fit"]["scale_per_channel"][2], f4),
-                e["fit"]["pixels"],
-                num(&e["fit"]["residual_rms"], e4),
-                num(&e["fit"]["relative_residual"], |x| format!("{:.2}", 100.0 * x)),
-                num(&e["fit"]["render_noise_rms"], e4),
+                num(f.scale, f4),
+                num(f.scale_per_channel[0], f4),
+                num(f.scale_per_channel[1], f4),
+                num(f.scale_per_channel[2], f4),
+                f.pixels,
+                num(f.residual_rms, e4),
+                num(f.relative_residual, |x| format!("{:.2}", 100.0 * x)),
+                num(f.render_noise_rms, e4),
             );
-            sj.insert("env_scale".into(), e);
+            sj.insert("env_scale".into(), to_value(&e));
         }
         // Render and comparison
         let rdir = out.join("render").join(&smp.name);
-        if let Some(r) = read_json(&rdir.join("render.json")) {
+        if let Some(r) = read_json::<crate::scene::RenderReport>(&rdir.join("render.json"), "a render.json")? {
             let _ = write!(
                 h,
-                "<h3>Render</h3><p>{} spp, {} × {} px, seed {}, {} s; median relative standard error {} %.</p>",
-                r["spp"],
-                r["scene"]["image_width"],
-                r["scene"]["image_height"],
-                r["seed"],
-                num(&r["wall_s"], |x| format!("{x:.1}")),
-                num(&r["median_relative_std_error"], |x| format!("{:.1}", 100.0 * x)),
+                "<h3>Render</h3><p>{} spp{}, {} × {} px, seed {}, {} s; median relative standard error {} %.</p>",
+                r.spp,
+                if r.interrupted { " (interrupted)" } else { "" },
+                r.scene.image_width,
+                r.scene.image_height,
+                r.seed,
+                num(r.wall_s, |x| format!("{x:.1}")),
+                num(r.median_relative_std_error, |x| format!("{:.1}", 100.0 * x)),
             );
-            sj.insert("render".into(), trim(&r, 64));
+            sj.insert("render".into(), trim(&to_value(&r), 64));
         }
         let cdir = out.join("compare").join(&smp.name);
-        if let Some(m) = read_json(&cdir.join("metrics.json")) {
+        if let Some(m) = read_json::<crate::compare::Report>(&cdir.join("metrics.json"), "a compare metrics.json")? {
             h.push_str("<h3>Photo | render | difference</h3>");
-            let metr = &m["as_calibrated"];
-            let row = |label: &str, x: &Value| {
+            let row = |label: &str, x: &crate::compare::Metrics| {
                 vec![
                     label.to_string(),
-                    num(&x["rmse"], e4),
-                    num(&x["rmse_channels"]["R"], e4),
-                    num(&x["rmse_channels"]["G"], e4),
-                    num(&x["rmse_channels"]["B"], e4),
-                    num(&x["ssim"]["Y"], f4),
-                    num(&x["ssim"]["mean_rgb"], f4),
+                    num(x.rmse, e4),
+                    num(x.rmse_channels.r, e4),
+                    num(x.rmse_channels.g, e4),
+                    num(x.rmse_channels.b, e4),
+                    num(x.ssim.y, f4),
+                    num(x.ssim.mean_rgb, f4),
                 ]
             };
-            let mut rows = vec![row("as calibrated", metr)];
-            if m["refined"].is_object() {
-                rows.push(row("after ECC refinement", &m["refined"]["metrics"]));
+            let mut rows = vec![row("as calibrated", &m.as_calibrated)];
+            if let Some(r) = &m.refined {
+                rows.push(row("after ECC refinement", &r.metrics));
             }
             h.push_str(&table(&["", "RMSE", "RMSE R", "RMSE G", "RMSE B", "SSIM (Y)", "SSIM (mean RGB)"], &rows));
             h.push_str(&page.img(&cdir.join("triplet.png"), &format!("{} photo | render | difference", smp.name))?);
-            sj.insert("compare".into(), trim(&m, 64));
+            sj.insert("compare".into(), trim(&to_value(&m), 64));
         } else if rdir.is_dir() {
             h.push_str(&page.img(&rdir.join("render.png"), &format!("{} render", smp.name))?);
         }
@@ -361,117 +412,116 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     // ---- calibration
     let mut h = String::from("<section><h2>Calibration</h2>");
     let mut any = false;
-    if let Some(c) = read_json(&out.join("calibrate/camera.json")) {
+    type Calibration = lucent_calib::camera::Calibration;
+    if let Some(c) = read_json::<Calibration>(&out.join("calibrate/camera.json"), "a camera.json")? {
         any = true;
-        let k = &c["camera"]["intrinsics"];
-        let d = &c["camera"]["distortion"];
+        let (k, d) = (&c.camera.intrinsics, &c.camera.distortion);
         h.push_str("<h3>Camera (Zhang)</h3>");
         h.push_str(&table(
             &["fx [px]", "fy [px]", "cx [px]", "cy [px]", "k1", "k2", "p1", "p2", "k3", "RMS [px]", "views"],
             &[vec![
-                num(&k["fx"], f3),
-                num(&k["fy"], f3),
-                num(&k["cx"], f3),
-                num(&k["cy"], f3),
-                num(&d["k1"], f4),
-                num(&d["k2"], f4),
-                num(&d["p1"], e4),
-                num(&d["p2"], e4),
-                num(&d["k3"], f4),
-                num(&c["rms_px"], f4),
-                c["views"].as_array().map_or(0, Vec::len).to_string(),
+                num(k.fx, f3),
+                num(k.fy, f3),
+                num(k.cx, f3),
+                num(k.cy, f3),
+                num(d.k1, f4),
+                num(d.k2, f4),
+                num(d.p1, e4),
+                num(d.p2, e4),
+                num(d.k3, f4),
+                num(c.rms_px, f4),
+                c.views.len().to_string(),
             ]],
         ));
-        let truth = project.file.calibration.as_ref().and_then(|c| c.truth.as_ref()).and_then(|p| read_json(p));
+        let truth = match project.file.calibration.as_ref().and_then(|c| c.truth.as_ref()) {
+            Some(p) => read_json::<Calibration>(p, "a camera.json ([calibration] truth)")?,
+            None => None,
+        };
         let mut truth_json = None;
         if let Some(t) = &truth {
             // Synthetic views from a known camera: truth, recovered and their difference.
-            const KEYS: [(&str, &str); 9] = [
-                ("intrinsics", "fx"),
-                ("intrinsics", "fy"),
-                ("intrinsics", "cx"),
-                ("intrinsics", "cy"),
-                ("distortion", "k1"),
-                ("distortion", "k2"),
-                ("distortion", "p1"),
-                ("distortion", "p2"),
-                ("distortion", "k3"),
-            ];
-            let get = |v: &Value, (g, k): (&str, &str)| v["camera"][g][k].as_f64();
+            let values = |c: &Calibration| {
+                let (k, d) = (&c.camera.intrinsics, &c.camera.distortion);
+                [
+                    ("fx", k.fx),
+                    ("fy", k.fy),
+                    ("cx", k.cx),
+                    ("cy", k.cy),
+                    ("k1", d.k1),
+                    ("k2", d.k2),
+                    ("p1", d.p1),
+                    ("p2", d.p2),
+                    ("k3", d.k3),
+                ]
+            };
             let mut rows = Vec::new();
             let mut tj = serde_json::Map::new();
-            for key in KEYS {
-                let (tv, rv) = (get(t, key), get(&c, key));
-                let fmt = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{x:.5}"));
-                let diff = tv.zip(rv).map(|(a, b)| b - a);
-                rows.push(vec![key.1.to_string(), fmt(tv), fmt(rv), fmt(diff)]);
-                tj.insert(key.1.into(), json!({"truth": tv, "recovered": rv, "error": diff}));
+            for ((name, tv), (_, rv)) in values(t).into_iter().zip(values(&c)) {
+                let fmt = |x: f64| format!("{x:.5}");
+                rows.push(vec![name.to_string(), fmt(tv), fmt(rv), fmt(rv - tv)]);
+                tj.insert(name.into(), json!({"truth": tv, "recovered": rv, "error": rv - tv}));
             }
             h.push_str("<h3>Recovered vs known camera (synthetic views)</h3>");
             h.push_str(&table(&["parameter", "truth", "recovered", "recovered − truth"], &rows));
             truth_json = Some(Value::Object(tj));
         }
         h.push_str(&page.img(&out.join("calibrate/camera_residuals.png"), "reprojection residuals per view")?);
-        let mut cj = trim(&c, 16);
+        let mut cj = trim(&to_value(&c), 16);
         if let Some(t) = truth_json {
             cj["truth_vs_recovered"] = t;
         }
-        if let Some(views) = c["views"].as_array() {
-            cj["views"] =
-                json!(views.iter().map(|v| json!({"image": v["image"], "rms_px": v["rms_px"]})).collect::<Vec<_>>());
-        }
+        cj["views"] = json!(c.views.iter().map(|v| json!({"image": v.image, "rms_px": v.rms_px})).collect::<Vec<_>>());
         metrics.insert("calibration".into(), cj);
     }
     let mut colour_json = serde_json::Map::new();
     for c in &project.file.colour {
         let cdir = out.join("colour").join(&c.camera);
-        let Some(ccm) = read_json(&cdir.join("ccm.json")) else { continue };
+        let path = cdir.join("ccm.json");
+        if !path.exists() {
+            continue;
+        }
+        let (ccm, _) = crate::ccm_file::CcmFile::read(&path)?;
         any = true;
         let _ = write!(
             h,
             "<h3>Colour: {}</h3><p>{} · ΔE2000 mean {} max {}</p>",
             esc(&c.camera),
-            esc(ccm["method"].as_str().unwrap_or("")),
-            num(&ccm["de2000_mean"], f3),
-            num(&ccm["de2000_max"], f3)
+            esc(&ccm.method.to_string()),
+            num(ccm.de2000_mean, f3),
+            num(ccm.de2000_max, f3)
         );
-        let rows: Vec<Vec<String>> = ccm["patches"]
-            .as_array()
-            .map(|ps| {
-                ps.iter()
-                    .map(|p| {
-                        vec![
-                            p["patch"].to_string(),
-                            p["name"].as_str().unwrap_or("").to_string(),
-                            num(&p["de2000"], f3),
-                            num(&p["de76"], f3),
-                        ]
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
+        let rows: Vec<Vec<String>> = ccm
+            .patches
+            .iter()
+            .map(|p| vec![p.fit.patch.to_string(), p.fit.name.clone(), num(p.fit.de2000, f3), num(p.fit.de76, f3)])
+            .collect();
         h.push_str(&table(&["patch", "name", "ΔE2000", "ΔE76"], &rows));
-        let mut cj = trim(&ccm, 16);
+        let mut cj = trim(&to_value(&ccm), 16);
         if let Some(t) = &c.truth {
-            let recovered: Option<lucent_colour::Mat3> = serde_json::from_value(ccm["matrix"].clone()).ok();
-            match (crate::synth::ColourTruth::load(t), recovered) {
-                (Ok(truth), Some(m)) => {
-                    if let Ok(r) = crate::synth::colour_recovery(&truth, &m) {
-                        let _ = write!(
-                            h,
-                            "<p>Known camera response ({}): the recovered matrix is {:.4} × the truth (the chart's \
-                             1 / exposure) within {:.2} % (largest entry error); truth vs recovered on the 24 \
-                             patches ΔE2000 mean {:.3}, max {:.3}.</p>",
-                            esc(&t.display().to_string()),
-                            r.gain,
-                            100.0 * r.max_rel_matrix_error,
-                            r.de2000_mean,
-                            r.de2000_max
-                        );
-                        cj["truth_vs_recovered"] = json!(r);
-                    }
+            let truth = crate::synth::ColourTruth::load(t)?;
+            let recovered: Option<lucent_colour::Mat3> = match ccm.matrix.as_slice() {
+                [a, b, c] if [a, b, c].iter().all(|r| r.len() == 3) => {
+                    Some([[a[0], a[1], a[2]], [b[0], b[1], b[2]], [c[0], c[1], c[2]]])
                 }
-                _ => h.push_str("<p class=\"note\">The colour truth applies to 3 × 3 matrices only.</p>"),
+                _ => None,
+            };
+            match recovered {
+                Some(m) => {
+                    let r = crate::synth::colour_recovery(&truth, &m)?;
+                    let _ = write!(
+                        h,
+                        "<p>Known camera response ({}): the recovered matrix is {:.4} × the truth (the chart's \
+                         1 / exposure) within {:.2} % (largest entry error); truth vs recovered on the 24 \
+                         patches ΔE2000 mean {:.3}, max {:.3}.</p>",
+                        esc(&t.display().to_string()),
+                        r.gain,
+                        100.0 * r.max_rel_matrix_error,
+                        r.de2000_mean,
+                        r.de2000_max
+                    );
+                    cj["truth_vs_recovered"] = json!(r);
+                }
+                None => h.push_str("<p class=\"note\">The colour truth applies to 3 × 3 matrices only.</p>"),
             }
         }
         h.push_str("<div class=\"row\">");
@@ -483,20 +533,21 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         colour_json.insert(c.camera.clone(), cj);
     }
     metrics.insert("colour".into(), Value::Object(colour_json));
-    if let Some(p) = read_json(&out.join("pose/scene.json")) {
+    type Pose = lucent_calib::scene::SceneDescription;
+    if let Some(p) = read_json::<Pose>(&out.join("pose/scene.json"), "a scene.json of `lucent pose`")? {
         any = true;
         h.push_str("<h3>Board pose</h3>");
-        let mut pj = trim(&p, 16);
-        let truth = project.file.pose.as_ref().and_then(|s| s.truth.as_ref());
-        if let (Some(t), Some(rec)) = (truth, matrix4(&p["camera_to_world"])) {
-            let known = std::fs::read_to_string(t)
-                .ok()
-                .and_then(|text| toml::from_str::<toml::Table>(&text).ok())
-                .and_then(|tab| serde_json::to_value(tab).ok())
-                .and_then(|v| matrix4(&v["camera"]["camera_to_world"]));
-            match known {
+        let mut pj = trim(&to_value(&p), 16);
+        if let Some(t) = project.file.pose.as_ref().and_then(|s| s.truth.as_ref()) {
+            let text = std::fs::read_to_string(t).map_err(|source| ReportError::Read {
+                path: t.clone(),
+                what: "a scene file ([pose] truth)",
+                source,
+            })?;
+            match crate::scene::parse(&text, t).map_err(|e| ReportError::PoseTruth(Box::new(e)))?.camera.camera_to_world
+            {
                 Some(k) => {
-                    let (mm, deg) = pose_error(&k, &rec);
+                    let (mm, deg) = pose_error(&k, &p.camera_to_world);
                     let _ = write!(
                         h,
                         "<p>Known camera pose ({}): recovered camera position {mm:.2} mm from the truth, \
@@ -544,7 +595,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             let _ = writeln!(h, "lucent {}", esc(&c.join(" ")));
         }
         h.push_str("</pre></details>");
-        mj.insert(s.name().into(), serde_json::to_value(m).unwrap_or(Value::Null));
+        mj.insert(s.name().into(), to_value(m));
     }
     h.push_str("</section>");
     page.html.push_str(&h);
@@ -555,9 +606,8 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         esc(&project.name),
         page.html
     );
-    let io = |p: &Path, e: String| ReportError::Io { path: p.to_path_buf(), reason: e };
-    crate::io::write_json(&dir.join("metrics.json"), &Value::Object(metrics)).map_err(|e| io(dir, e.to_string()))?;
-    crate::io::write_atomic(&dir.join("index.html"), html.as_bytes()).map_err(|e| io(dir, e.to_string()))?;
+    crate::io::write_json(&dir.join("metrics.json"), &Value::Object(metrics))?;
+    crate::io::write_atomic(&dir.join("index.html"), html.as_bytes())?;
     Ok(())
 }
 

@@ -73,7 +73,7 @@ use std::path::Path;
 use ply_rs_bw::parser::{Parser as PlyParser, Reader as PlyReader};
 use ply_rs_bw::ply::{ElementDef, Header, PropertyAccess, PropertyAccessResult, PropertyType};
 use rustc_hash::FxHashMap;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// File extensions [`load`] understands (compared without regard to case).
 pub const SUPPORTED_EXTENSIONS: [&str; 3] = ["ply", "obj", "stl"];
@@ -89,7 +89,7 @@ pub struct Mesh {
 }
 
 /// What [`load`] or [`Mesh::check`] found in a mesh.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MeshReport {
     /// The file (or name) the mesh came from.
     pub path: String,

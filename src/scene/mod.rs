@@ -88,10 +88,23 @@ pub enum SceneFileError {
     /// message, with the 1-based line and column where it points.
     #[error("{path}:{}{message}", location(*line, *column))]
     Syntax { path: PathBuf, line: Option<usize>, column: Option<usize>, message: String },
-    #[error("{path}: [{section}] {key}: {reason}")]
-    Key { path: PathBuf, section: &'static str, key: &'static str, reason: String },
-    #[error("{path}: [{section}]: {reason}")]
-    Section { path: PathBuf, section: &'static str, reason: String },
+    /// A key whose value cannot be used: [`KeyProblem`] says why.
+    #[error("{path}: [{section}] {key}: {problem}")]
+    Key {
+        path: PathBuf,
+        section: &'static str,
+        key: &'static str,
+        #[source]
+        problem: Box<KeyProblem>,
+    },
+    /// Keys of a section that do not fit together: [`SectionProblem`] says how.
+    #[error("{path}: [{section}]: {problem}")]
+    Section {
+        path: PathBuf,
+        section: &'static str,
+        #[source]
+        problem: Box<SectionProblem>,
+    },
     #[error("{path}: [object] mesh: {source}")]
     Mesh { path: PathBuf, source: mesh::MeshError },
     #[error("{path}: [material] recipe: {source}")]
@@ -102,6 +115,136 @@ pub enum SceneFileError {
     Image { path: PathBuf, source: crate::imageio::ImageIoError },
     #[error("{path}: {source}")]
     Scene { path: PathBuf, source: lucent_render::tracer::SceneError },
+}
+
+/// Why the value of one key of a scene file cannot be used (the `problem`
+/// of [`SceneFileError::Key`]). Variants that concern a file the key names
+/// carry that file's path (`file`); a cause is kept as the source.
+#[derive(Debug, Error)]
+pub enum KeyProblem {
+    #[error("values must be finite, got {values:?}")]
+    NotFinite { values: Vec<f64> },
+    #[error("must be finite and > 0, got {value}")]
+    NotPositive { value: f64 },
+    #[error("must be finite and ≥ 0, got {value}")]
+    Negative { value: f64 },
+    #[error("must be at least 1")]
+    Zero,
+    #[error("reflectances must lie in [0, 1], got {values:?}")]
+    Reflectance { values: [f64; 3] },
+    #[error("radiance must be finite and ≥ 0, got {values:?}")]
+    Radiance { values: [f64; 3] },
+    #[error("box sides must be finite and > 0, got {sides_m:?} m")]
+    BoxSize { sides_m: [f64; 3] },
+    /// A choice among named values.
+    #[error("expected {expected}, got {got:?}")]
+    Choice { expected: &'static str, got: String },
+    /// A key that is required when another one is given or missing.
+    #[error("required {when}")]
+    Required { when: &'static str },
+    #[error("\"calibrated\" needs camera_json (the camera.json of `lucent calibrate`)")]
+    CalibratedNeedsCameraJson,
+    #[error("\"calibrated\" needs the calibrated intrinsics (scene_json or intrinsics)")]
+    CalibratedNeedsIntrinsics,
+    #[error(
+        "the rational model's k4–k6 are not supported by the renderer; calibrate with pinhole-k3 or render \
+         undistorted (distortion = \"none\")"
+    )]
+    RationalDistortion,
+    #[error("\"mie\" needs a recipe; explicit bands use \"hg\"")]
+    MieNeedsRecipe,
+    #[error(
+        "\"scene\" needs [camera] scene_json with a sample (run `lucent pose` with --sample-corner and \
+         --sample-size-mm)"
+    )]
+    PlacementNeedsSample,
+    #[error("needs [camera] scene_json (the board's pose from `lucent pose`)")]
+    BoardCornerNeedsSceneJson,
+    #[error("corner ({i}, {j}) is outside the board's {columns} × {rows} inner corners")]
+    CornerOutside { i: usize, j: usize, columns: usize, rows: usize },
+    #[error("differs from scene_json's square of {scene_json_mm} mm")]
+    SquareMismatch { scene_json_mm: f64 },
+    #[error("unknown model {0:?}: trowbridge-reitz (ggx) or beckmann")]
+    UnknownRoughnessModel(String),
+    #[error("α {0:?} is not a number")]
+    AlphaNotANumber(String),
+    #[error("α must be finite and ≥ 0, got {0}")]
+    Alpha(f64),
+    #[error(transparent)]
+    Microfacet(lucent_render::microfacet::MicrofacetError),
+    #[error(transparent)]
+    Phase(lucent_render::phase::PhaseError),
+    #[error(transparent)]
+    Wavelengths(GridTextError),
+    #[error(transparent)]
+    Bands(lucent_colour::ColourError),
+    /// A file the key names cannot be read.
+    #[error("{file}: {source}")]
+    Read { file: PathBuf, source: std::io::Error },
+    #[error("{file}: not a scene.json written by `lucent pose`: {source}")]
+    NotSceneJson { file: PathBuf, source: serde_json::Error },
+    #[error("{file}: not a camera.json written by `lucent calibrate`: {source}")]
+    NotCameraJson { file: PathBuf, source: serde_json::Error },
+    #[error("{file}: {source}")]
+    Csv { file: PathBuf, source: csv::Error },
+    #[error("{file}: line {line}: expected wavelength_nm,reflectance")]
+    SpectrumLine { file: PathBuf, line: u64 },
+    #[error("{file}: reflectance values must lie in [0, 1]")]
+    SpectrumRange { file: PathBuf },
+    #[error("{file}: {source}")]
+    SpectrumGrid { file: PathBuf, source: lucent_colour::GridError },
+    #[error("{file}: {source}")]
+    SpectrumBands { file: PathBuf, source: lucent_colour::ColourError },
+    /// An image the key names (the message names the file).
+    #[error(transparent)]
+    Image(crate::imageio::ImageIoError),
+    #[error("{file}: reflectances must lie in [0, 1]")]
+    TextureRange { file: PathBuf },
+    #[error("{file}: {source}")]
+    Environment { file: PathBuf, source: lucent_render::env::EnvError },
+    /// An orientation file of `lucent env orient` (the message names it).
+    #[error(transparent)]
+    Orientation(OrientationFileError),
+}
+
+/// Why the keys of a section do not fit together (the `problem` of
+/// [`SceneFileError::Section`]).
+#[derive(Debug, Error)]
+pub enum SectionProblem {
+    /// Two ways of giving the same thing.
+    #[error("give either {first} or {second}, not both")]
+    Conflict { first: &'static str, second: &'static str },
+    #[error("an [object] needs a [material] (recipe or explicit bands)")]
+    ObjectNeedsMaterial,
+    #[error("a [material] is given but no [object] to fill")]
+    MaterialNeedsObject,
+    #[error(
+        "give scene_json, or width and height with position_m/look_at_m/vertical_fov_deg or \
+         intrinsics/camera_to_world"
+    )]
+    NoCamera,
+    #[error("give either intrinsics + camera_to_world or position_m + look_at_m (+ vertical_fov_deg)")]
+    CameraKeys,
+    #[error(transparent)]
+    Camera(lucent_render::camera::CameraError),
+    #[error("give a recipe or explicit sigma_s_per_m, sigma_a_per_m, g and n")]
+    NoMaterial,
+    #[error("{quantity}: {source}")]
+    BandAverage { quantity: &'static str, source: lucent_colour::ColourError },
+    #[error("band {band} phase table: {source}")]
+    PhaseTable { band: usize, source: lucent_render::phase::PhaseError },
+    #[error("no mesh, no size_mm and the recipe gives no size_mm/thickness_mm: the plaque box needs a size")]
+    NoObjectSize,
+    #[error("give only one of transform, placement and board_corner")]
+    Placement,
+    #[error("no board geometry: give origin_m, columns and rows, or [camera] scene_json")]
+    NoBoardGeometry,
+    #[error("radius_m and centre_m belong to projection = \"finite-sphere\"")]
+    FiniteSphereKeys,
+    #[error("orientation needs a map")]
+    OrientationNeedsMap,
+    #[error("give map (an equirectangular EXR/HDR) or constant = [r, g, b]")]
+    NoEnvironment,
 }
 
 // ------------------------------------------------------------ raw file
@@ -221,8 +364,41 @@ pub struct LoadedScene {
     pub warnings: Vec<String>,
 }
 
+/// `render.json` of `lucent render`: the scene as resolved, settings, seed,
+/// timings and counters; written by the command and read back by the report
+/// of `lucent run`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RenderReport {
+    pub lucent_version: String,
+    pub scene: SceneSummary,
+    pub spp: u32,
+    pub spp_requested: u32,
+    pub time_budget_s: Option<f64>,
+    pub seed: u64,
+    pub threads: usize,
+    pub roulette_threshold: Option<f64>,
+    pub wall_s: f64,
+    pub samples: u64,
+    pub samples_per_s: f64,
+    pub scattering_events: u64,
+    pub surface_hits: u64,
+    pub leaked_paths: u64,
+    pub truncated_paths: u64,
+    pub mean_rgb: [f64; 3],
+    /// NaN (written as `null`) when no pixel has a defined relative error.
+    #[serde(deserialize_with = "crate::bssrdf::f64_or_nan")]
+    pub median_relative_std_error: f64,
+    pub exposure_stops_png: f64,
+    pub files: Vec<String>,
+    /// True when Ctrl-C stopped the render early: the files hold the
+    /// passes finished by then (a valid image with fewer samples). False in
+    /// files written before it existed.
+    #[serde(default)]
+    pub interrupted: bool,
+}
+
 /// The resolved inputs, written into render.json.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct SceneSummary {
     pub scene_file: String,
     pub object: Option<String>,
@@ -240,11 +416,11 @@ pub struct SceneSummary {
     pub image_height: usize,
     pub intrinsics: [f64; 4],
     pub distortion: Option<[f64; 5]>,
-    pub band_weight_set: &'static str,
+    pub band_weight_set: String,
 }
 
 /// The medium's band values.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct MaterialSummary {
     pub source: String,
     pub phase: String,
@@ -253,10 +429,22 @@ pub struct MaterialSummary {
     pub g: [f64; 3],
     /// The boundary's index per band as rendered.
     pub n: [f64; 3],
-    /// False when `dispersion = false` replaced the bands' indices by their mean.
+    /// False when `dispersion = false` replaced the bands' indices by their
+    /// mean (true in files written before the key existed).
+    #[serde(default = "yes")]
     pub dispersion: bool,
-    /// The boundary: "smooth" or the microfacet distribution with its α.
+    /// The boundary: "smooth" or the microfacet distribution with its α
+    /// ("smooth" in files written before rough boundaries existed).
+    #[serde(default = "smooth")]
     pub boundary: String,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn smooth() -> String {
+    "smooth".into()
 }
 
 struct Ctx<'a> {
@@ -265,11 +453,11 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn key(&self, section: &'static str, key: &'static str, reason: impl Into<String>) -> SceneFileError {
-        SceneFileError::Key { path: self.path.to_path_buf(), section, key, reason: reason.into() }
+    fn key(&self, section: &'static str, key: &'static str, problem: KeyProblem) -> SceneFileError {
+        SceneFileError::Key { path: self.path.to_path_buf(), section, key, problem: Box::new(problem) }
     }
-    fn section(&self, section: &'static str, reason: impl Into<String>) -> SceneFileError {
-        SceneFileError::Section { path: self.path.to_path_buf(), section, reason: reason.into() }
+    fn section(&self, section: &'static str, problem: SectionProblem) -> SceneFileError {
+        SceneFileError::Section { path: self.path.to_path_buf(), section, problem: Box::new(problem) }
     }
     fn resolve(&self, p: &Path) -> PathBuf {
         if p.is_absolute() {
@@ -283,21 +471,27 @@ impl Ctx<'_> {
 /// Parses a scene file's text (stage one: syntax, unknown keys).
 pub fn parse(text: &str, path: &Path) -> Result<SceneFile, SceneFileError> {
     toml::from_str(text).map_err(|e: toml::de::Error| {
-        let (line, column) = match e.span() {
-            Some(span) => {
-                let before = text.get(..span.start).unwrap_or(text);
-                let line = before.matches('\n').count() + 1;
-                let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-                (Some(line), Some(column))
-            }
-            None => (None, None),
-        };
+        let (line, column) = line_column(text, e.span());
         SceneFileError::Syntax { path: path.to_path_buf(), line, column, message: e.message().trim_end().to_string() }
     })
 }
 
+/// The 1-based line and column (in characters) where a TOML parser's error
+/// span starts in `text`.
+pub(crate) fn line_column(text: &str, span: Option<std::ops::Range<usize>>) -> (Option<usize>, Option<usize>) {
+    match span {
+        Some(span) => {
+            let before = text.get(..span.start).unwrap_or(text);
+            let line = before.matches('\n').count() + 1;
+            let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+            (Some(line), Some(column))
+        }
+        None => (None, None),
+    }
+}
+
 /// " line L, column C: " for a located syntax error, else " ".
-fn location(line: Option<usize>, column: Option<usize>) -> String {
+pub(crate) fn location(line: Option<usize>, column: Option<usize>) -> String {
     match (line, column) {
         (Some(l), Some(c)) => format!(" line {l}, column {c}: "),
         _ => " ".into(),
@@ -316,17 +510,16 @@ fn finite3(ctx: &Ctx, section: &'static str, key: &'static str, v: [f64; 3]) -> 
     if v.iter().all(|x| x.is_finite()) {
         Ok(DVec3::from_array(v))
     } else {
-        Err(ctx.key(section, key, format!("values must be finite, got {v:?}")))
+        Err(ctx.key(section, key, KeyProblem::NotFinite { values: v.to_vec() }))
     }
 }
 
 fn read_scene_json(ctx: &Ctx, p: &Path) -> Result<SceneDescription, SceneFileError> {
     let full = ctx.resolve(p);
     let text = std::fs::read_to_string(&full)
-        .map_err(|e| ctx.key("camera", "scene_json", format!("{}: {e}", full.display())))?;
-    serde_json::from_str(&text).map_err(|e| {
-        ctx.key("camera", "scene_json", format!("{}: not a scene.json written by `lucent pose`: {e}", full.display()))
-    })
+        .map_err(|source| ctx.key("camera", "scene_json", KeyProblem::Read { file: full.clone(), source }))?;
+    serde_json::from_str(&text)
+        .map_err(|source| ctx.key("camera", "scene_json", KeyProblem::NotSceneJson { file: full.clone(), source }))
 }
 
 /// Stage two: the validated scene.
@@ -375,10 +568,8 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
             let top = DVec3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z);
             (Some((object, summary)), Some(desc), report, Some([lo.to_array(), hi.to_array()]), Some(top))
         }
-        (Some(_), None) => {
-            return Err(ctx.section("material", "an [object] needs a [material] (recipe or explicit bands)"))
-        }
-        (None, Some(_)) => return Err(ctx.section("object", "a [material] is given but no [object] to fill")),
+        (Some(_), None) => return Err(ctx.section("material", SectionProblem::ObjectNeedsMaterial)),
+        (None, Some(_)) => return Err(ctx.section("object", SectionProblem::MaterialNeedsObject)),
         (None, None) => (None, None, None, None, None),
     };
 
@@ -397,13 +588,13 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     let mut settings = Settings::default();
     if let Some(spp) = r.spp {
         if spp == 0 {
-            return Err(ctx.key("render", "spp", "must be at least 1"));
+            return Err(ctx.key("render", "spp", KeyProblem::Zero));
         }
         settings.spp = spp;
     }
     if let Some(t) = r.time_s {
         if !(t > 0.0 && t.is_finite()) {
-            return Err(ctx.key("render", "time_s", format!("must be a positive number of seconds, got {t}")));
+            return Err(ctx.key("render", "time_s", KeyProblem::NotPositive { value: t }));
         }
         settings.time_budget_s = Some(t);
     }
@@ -452,7 +643,7 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
             image_height: h,
             intrinsics: intr,
             distortion: dist,
-            band_weight_set: lucent_colour::bands::BAND_WEIGHT_SET,
+            band_weight_set: lucent_colour::bands::BAND_WEIGHT_SET.into(),
         },
         warnings,
     })
@@ -467,36 +658,38 @@ fn build_camera(
         None | Some("none") => None,
         Some("calibrated") => {
             let Some(p) = &c.camera_json else {
-                return Err(ctx.key(
-                    "camera",
-                    "distortion",
-                    "\"calibrated\" needs camera_json (the camera.json of `lucent calibrate`)",
-                ));
+                return Err(ctx.key("camera", "distortion", KeyProblem::CalibratedNeedsCameraJson));
             };
             let full = ctx.resolve(p);
             let text = std::fs::read_to_string(&full)
-                .map_err(|e| ctx.key("camera", "camera_json", format!("{}: {e}", full.display())))?;
-            let cal: lucent_calib::camera::Calibration = serde_json::from_str(&text).map_err(|e| {
-                ctx.key(
-                    "camera",
-                    "camera_json",
-                    format!("{}: not a camera.json written by `lucent calibrate`: {e}", full.display()),
-                )
+                .map_err(|source| ctx.key("camera", "camera_json", KeyProblem::Read { file: full.clone(), source }))?;
+            let cal: lucent_calib::camera::Calibration = serde_json::from_str(&text).map_err(|source| {
+                ctx.key("camera", "camera_json", KeyProblem::NotCameraJson { file: full.clone(), source })
             })?;
             let d = cal.camera.distortion;
             if d.k4 != 0.0 || d.k5 != 0.0 || d.k6 != 0.0 {
-                return Err(ctx.key("camera", "distortion", "the rational model's k4–k6 are not supported by the renderer; calibrate with pinhole-k3 or render undistorted (distortion = \"none\")"));
+                return Err(ctx.key("camera", "distortion", KeyProblem::RationalDistortion));
             }
             Some([d.k1, d.k2, d.p1, d.p2, d.k3])
         }
         Some(other) => {
-            return Err(ctx.key("camera", "distortion", format!("expected \"none\" or \"calibrated\", got {other:?}")))
+            return Err(ctx.key(
+                "camera",
+                "distortion",
+                KeyProblem::Choice { expected: "\"none\" or \"calibrated\"", got: other.into() },
+            ))
         }
     };
-    let cam_err = |e: lucent_render::camera::CameraError| ctx.section("camera", e.to_string());
+    let cam_err = |e| ctx.section("camera", SectionProblem::Camera(e));
     if let Some(s) = scene_json {
         if c.position_m.is_some() || c.look_at_m.is_some() || c.intrinsics.is_some() || c.camera_to_world.is_some() {
-            return Err(ctx.section("camera", "give either scene_json or an explicit camera (position_m/look_at_m or intrinsics/camera_to_world), not both"));
+            return Err(ctx.section(
+                "camera",
+                SectionProblem::Conflict {
+                    first: "scene_json",
+                    second: "an explicit camera (position_m/look_at_m or intrinsics/camera_to_world)",
+                },
+            ));
         }
         let k = &s.intrinsics;
         let (w, h) = (c.width.unwrap_or(s.image_width), c.height.unwrap_or(s.image_height));
@@ -504,16 +697,16 @@ fn build_camera(
         return Ok((cam, format!("scene.json pose, {w}×{h}, fx {:.2} px", k.fx)));
     }
     let (Some(w), Some(h)) = (c.width, c.height) else {
-        return Err(ctx.section("camera", "give scene_json, or width and height with position_m/look_at_m/vertical_fov_deg or intrinsics/camera_to_world"));
+        return Err(ctx.section("camera", SectionProblem::NoCamera));
     };
     match (c.intrinsics, c.camera_to_world, c.position_m, c.look_at_m) {
         (Some(k), Some(m), None, None) => {
             Ok((Camera::new(w, h, k, m, distortion).map_err(cam_err)?, "explicit intrinsics and pose".into()))
         }
         (None, None, Some(p), Some(t)) => {
-            let fov = c
-                .vertical_fov_deg
-                .ok_or_else(|| ctx.key("camera", "vertical_fov_deg", "required with position_m/look_at_m"))?;
+            let fov = c.vertical_fov_deg.ok_or_else(|| {
+                ctx.key("camera", "vertical_fov_deg", KeyProblem::Required { when: "with position_m/look_at_m" })
+            })?;
             let up = c.up.unwrap_or([0.0, 0.0, 1.0]);
             let cam = Camera::look_at(
                 w,
@@ -525,21 +718,12 @@ fn build_camera(
             )
             .map_err(cam_err)?;
             let cam = match distortion {
-                Some(_) => {
-                    return Err(ctx.key(
-                        "camera",
-                        "distortion",
-                        "\"calibrated\" needs the calibrated intrinsics (scene_json or intrinsics)",
-                    ))
-                }
+                Some(_) => return Err(ctx.key("camera", "distortion", KeyProblem::CalibratedNeedsIntrinsics)),
                 None => cam,
             };
             Ok((cam, format!("look-at from {p:?} to {t:?}, vertical FOV {fov}°")))
         }
-        _ => Err(ctx.section(
-            "camera",
-            "give either intrinsics + camera_to_world or position_m + look_at_m (+ vertical_fov_deg)",
-        )),
+        _ => Err(ctx.section("camera", SectionProblem::CameraKeys)),
     }
 }
 
@@ -558,7 +742,7 @@ fn build_roughness(
             recipe::RoughnessModel::TrowbridgeReitz => (Distribution::TrowbridgeReitz { alpha }, "Trowbridge–Reitz"),
             recipe::RoughnessModel::Beckmann => (Distribution::Beckmann { alpha }, "Beckmann"),
         };
-        d.validate().map_err(|e| ctx.key("material", "roughness", e.to_string()))?;
+        d.validate().map_err(|e| ctx.key("material", "roughness", KeyProblem::Microfacet(e)))?;
         Ok(Some((Microsurface::Analytic(d), format!("rough: {name} α = {alpha} ({origin})"))))
     };
     let text = m.roughness.as_deref().unwrap_or("recipe").trim();
@@ -573,26 +757,23 @@ fn build_roughness(
                 return Err(ctx.key(
                     "material",
                     "roughness",
-                    format!("expected \"recipe\", \"smooth\" or MODEL:ALPHA (trowbridge-reitz, ggx, beckmann), got {text:?}"),
+                    KeyProblem::Choice {
+                        expected: "\"recipe\", \"smooth\" or MODEL:ALPHA (trowbridge-reitz, ggx, beckmann)",
+                        got: text.into(),
+                    },
                 ));
             };
             let model = match model.trim() {
                 "trowbridge-reitz" | "ggx" | "tr" => recipe::RoughnessModel::TrowbridgeReitz,
                 "beckmann" => recipe::RoughnessModel::Beckmann,
-                other => {
-                    return Err(ctx.key(
-                        "material",
-                        "roughness",
-                        format!("unknown model {other:?}: trowbridge-reitz (ggx) or beckmann"),
-                    ))
-                }
+                other => return Err(ctx.key("material", "roughness", KeyProblem::UnknownRoughnessModel(other.into()))),
             };
             let alpha: f64 = alpha
                 .trim()
                 .parse()
-                .map_err(|_| ctx.key("material", "roughness", format!("α {alpha:?} is not a number")))?;
+                .map_err(|_| ctx.key("material", "roughness", KeyProblem::AlphaNotANumber(alpha.into())))?;
             if !(alpha.is_finite() && alpha >= 0.0) {
-                return Err(ctx.key("material", "roughness", format!("α must be finite and ≥ 0, got {alpha}")));
+                return Err(ctx.key("material", "roughness", KeyProblem::Alpha(alpha)));
             }
             analytic(model, alpha, "the scene file")
         }
@@ -602,19 +783,22 @@ fn build_roughness(
 fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) -> Result<MaterialParts, SceneFileError> {
     let phase_kind = m.phase.as_deref().unwrap_or(if m.recipe.is_some() { "mie" } else { "hg" });
     if !matches!(phase_kind, "mie" | "hg") {
-        return Err(ctx.key("material", "phase", format!("expected \"mie\" or \"hg\", got {phase_kind:?}")));
+        return Err(ctx.key(
+            "material",
+            "phase",
+            KeyProblem::Choice { expected: "\"mie\" or \"hg\"", got: phase_kind.into() },
+        ));
     }
     let explicit = m.sigma_s_per_m.is_some() || m.sigma_a_per_m.is_some() || m.g.is_some();
     match (&m.recipe, explicit) {
-        (Some(_), true) => {
-            Err(ctx.section("material", "give either recipe or explicit sigma_s_per_m/sigma_a_per_m/g, not both"))
-        }
-        (None, false) => {
-            Err(ctx.section("material", "give a recipe or explicit sigma_s_per_m, sigma_a_per_m, g and n"))
-        }
+        (Some(_), true) => Err(ctx.section(
+            "material",
+            SectionProblem::Conflict { first: "recipe", second: "explicit sigma_s_per_m/sigma_a_per_m/g" },
+        )),
+        (None, false) => Err(ctx.section("material", SectionProblem::NoMaterial)),
         (None, true) => {
             let need = |v: Option<[f64; 3]>, key: &'static str| {
-                v.ok_or_else(|| ctx.key("material", key, "required with explicit bands"))
+                v.ok_or_else(|| ctx.key("material", key, KeyProblem::Required { when: "with explicit bands" }))
             };
             let (s, a, g, n) = (
                 need(m.sigma_s_per_m, "sigma_s_per_m")?,
@@ -623,7 +807,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
                 need(m.n, "n")?,
             );
             if phase_kind == "mie" {
-                return Err(ctx.key("material", "phase", "\"mie\" needs a recipe; explicit bands use \"hg\""));
+                return Err(ctx.key("material", "phase", KeyProblem::MieNeedsRecipe));
             }
             let phase = hg_phases(ctx, g)?;
             let summary = MaterialSummary {
@@ -643,12 +827,13 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
             let recipe = Recipe::load(&full, Overrides { weight_percent: m.weight_percent })
                 .map_err(|source| SceneFileError::Recipe { path: ctx.path.to_path_buf(), source })?;
             let grid_text = m.wavelengths.as_deref().unwrap_or("380:780:10");
-            let grid = parse_grid(grid_text).map_err(|e| ctx.key("material", "wavelengths", e.to_string()))?;
+            let grid =
+                parse_grid(grid_text).map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Wavelengths(e)))?;
             let options =
                 bulk::Options { phase_entries: if phase_kind == "mie" { 4096 } else { 0 }, ..Default::default() };
             let spectrum = bulk::compute(&recipe, &grid, &options)
                 .map_err(|source| SceneFileError::Optics { path: ctx.path.to_path_buf(), source })?;
-            let weights = band_weights(&grid).map_err(|e| ctx.key("material", "wavelengths", e.to_string()))?;
+            let weights = band_weights(&grid).map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Bands(e)))?;
             for (b, f) in weights.coverage.iter().enumerate() {
                 if *f < 0.99 {
                     warnings.push(format!(
@@ -669,7 +854,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
 
 /// What is wrong with a wavelength grid given as text ([`parse_grid`]).
 #[derive(Debug, thiserror::Error)]
-enum GridTextError {
+pub enum GridTextError {
     #[error("expected START:END:STEP in nm, got {0:?}")]
     Syntax(String),
     #[error(transparent)]
@@ -691,7 +876,7 @@ fn recipe_size_m(recipe: &Recipe) -> Option<[f64; 3]> {
 }
 
 fn hg_phases(ctx: &Ctx, g: [f64; 3]) -> Result<[Phase; 3], SceneFileError> {
-    let one = |b: usize| Phase::henyey_greenstein(g[b]).map_err(|e| ctx.key("material", "g", e.to_string()));
+    let one = |b: usize| Phase::henyey_greenstein(g[b]).map_err(|e| ctx.key("material", "g", KeyProblem::Phase(e)));
     Ok([one(0)?, one(1)?, one(2)?])
 }
 
@@ -703,14 +888,15 @@ fn medium_from_spectrum(
     mie: bool,
     source: &Path,
 ) -> Result<(Medium, MaterialSummary), SceneFileError> {
-    let avg = |v: &[f64], what: &str| w.average(v).map_err(|e| ctx.section("material", format!("{what}: {e}")));
+    let avg = |v: &[f64], quantity: &'static str| {
+        w.average(v).map_err(|source| ctx.section("material", SectionProblem::BandAverage { quantity, source }))
+    };
     let (mu_s, mu_a, g, n) =
         (avg(&s.mu_s_per_m, "μs")?, avg(&s.mu_a_per_m, "μa")?, avg(&s.g, "g")?, avg(&s.n_bulk, "n_bulk")?);
     let phase = if mie {
         let tables = &s.phase;
         let entries = tables.first().map_or(0, Vec::len);
-        let mut out: Vec<Phase> = Vec::with_capacity(3);
-        for b in 0..3 {
+        let band = |b: usize| {
             let mut mix = vec![0.0; entries];
             for (i, table) in tables.iter().enumerate() {
                 let weight = w.weights[b][i] * s.mu_s_per_m[i];
@@ -718,12 +904,11 @@ fn medium_from_spectrum(
                     *m += weight * p;
                 }
             }
-            let table = PhaseTable::from_theta_samples(&mix)
-                .map_err(|e| ctx.section("material", format!("band {b} phase table: {e}")))?;
-            out.push(Phase::Tabulated(table));
-        }
-        let [a, b, c]: [Phase; 3] = out.try_into().map_err(|_| ctx.section("material", "phase tables"))?;
-        [a, b, c]
+            PhaseTable::from_theta_samples(&mix)
+                .map(Phase::Tabulated)
+                .map_err(|source| ctx.section("material", SectionProblem::PhaseTable { band: b, source }))
+        };
+        [band(0)?, band(1)?, band(2)?]
     } else {
         hg_phases(ctx, g)?
     };
@@ -757,7 +942,7 @@ fn build_object_triangles(
         Some(p) => {
             let scale = o.unit_scale_m.unwrap_or(1.0);
             if !(scale > 0.0 && scale.is_finite()) {
-                return Err(ctx.key("object", "unit_scale_m", format!("must be finite and > 0, got {scale}")));
+                return Err(ctx.key("object", "unit_scale_m", KeyProblem::NotPositive { value: scale }));
             }
             let full = ctx.resolve(p);
             let (m, report) = mesh::load(&full, scale)
@@ -765,17 +950,13 @@ fn build_object_triangles(
             (m, format!("mesh {}", full.display()), Some(report))
         }
         None => {
-            let size =
-                match (o.size_mm, size_from_recipe) {
-                    (Some(s), _) => s.map(|v| v * 1e-3),
-                    (None, Some(s)) => s,
-                    (None, None) => return Err(ctx.section(
-                        "object",
-                        "no mesh, no size_mm and the recipe gives no size_mm/thickness_mm: the plaque box needs a size",
-                    )),
-                };
+            let size = match (o.size_mm, size_from_recipe) {
+                (Some(s), _) => s.map(|v| v * 1e-3),
+                (None, Some(s)) => s,
+                (None, None) => return Err(ctx.section("object", SectionProblem::NoObjectSize)),
+            };
             if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
-                return Err(ctx.key("object", "size_mm", format!("box sides must be finite and > 0, got {size:?} m")));
+                return Err(ctx.key("object", "size_mm", KeyProblem::BoxSize { sides_m: size }));
             }
             (
                 mesh::plaque_box(size[0], size[1], size[2]),
@@ -786,12 +967,12 @@ fn build_object_triangles(
     };
     let lift = o.lift_m.unwrap_or(1e-6);
     if !(lift >= 0.0 && lift.is_finite()) {
-        return Err(ctx.key("object", "lift_m", format!("must be finite and ≥ 0, got {lift}")));
+        return Err(ctx.key("object", "lift_m", KeyProblem::Negative { value: lift }));
     }
     let chosen =
         [o.transform.is_some(), o.placement.is_some(), o.board_corner.is_some()].iter().filter(|x| **x).count();
     if chosen > 1 {
-        return Err(ctx.section("object", "give only one of transform, placement and board_corner"));
+        return Err(ctx.section("object", SectionProblem::Placement));
     }
     let lifted = |mut m: [[f64; 4]; 4]| {
         m[2][3] += lift;
@@ -799,7 +980,11 @@ fn build_object_triangles(
     };
     let transform: [[f64; 4]; 4] = if let Some(t) = o.transform {
         if t.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(ctx.key("object", "transform", "values must be finite"));
+            return Err(ctx.key(
+                "object",
+                "transform",
+                KeyProblem::NotFinite { values: t.iter().flatten().copied().collect() },
+            ));
         }
         t
     } else if let Some(p) = &o.placement {
@@ -807,28 +992,20 @@ fn build_object_triangles(
             return Err(ctx.key(
                 "object",
                 "placement",
-                format!("expected \"scene\" (the sample placement in scene_json), got {p:?}"),
+                KeyProblem::Choice { expected: "\"scene\" (the sample placement in scene_json)", got: p.clone() },
             ));
         }
         let Some(s) = scene_json.and_then(|s| s.sample.as_ref()) else {
-            return Err(ctx.key("object", "placement", "\"scene\" needs [camera] scene_json with a sample (run `lucent pose` with --sample-corner and --sample-size-mm)"));
+            return Err(ctx.key("object", "placement", KeyProblem::PlacementNeedsSample));
         };
         lifted(s.object_to_world)
     } else if let Some([i, j]) = o.board_corner {
         let Some(s) = scene_json else {
-            return Err(ctx.key(
-                "object",
-                "board_corner",
-                "needs [camera] scene_json (the board's pose from `lucent pose`)",
-            ));
+            return Err(ctx.key("object", "board_corner", KeyProblem::BoardCornerNeedsSceneJson));
         };
         let (cols, rows) = (s.board.cols, s.board.rows);
         if i >= cols || j >= rows {
-            return Err(ctx.key(
-                "object",
-                "board_corner",
-                format!("corner ({i}, {j}) is outside the board's {cols} × {rows} inner corners"),
-            ));
+            return Err(ctx.key("object", "board_corner", KeyProblem::CornerOutside { i, j, columns: cols, rows }));
         }
         let size_m: [f64; 3] = std::array::from_fn(|k| {
             let (lo, hi) = mesh_obj
@@ -863,19 +1040,24 @@ fn build_object_triangles(
 
 type BoardParts = (Board, String);
 
+/// When the board's geometry keys are required.
+const NO_SCENE_JSON: &str = "(no scene_json to take the board from)";
+
 fn read_spectrum_csv(ctx: &Ctx, key: &'static str, p: &Path) -> Result<[f64; 3], SceneFileError> {
     let full = ctx.resolve(p);
-    let bad = |e: &dyn std::fmt::Display| ctx.key("board", key, format!("{}: {e}", full.display()));
+    let file = || full.clone();
+    let bad = |problem| ctx.key("board", key, problem);
+    let csv_err = |source| bad(KeyProblem::Csv { file: file(), source });
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(false)
         .comment(Some(b'#'))
         .trim(csv::Trim::All)
         .flexible(true)
         .from_path(&full)
-        .map_err(|e| bad(&e))?;
+        .map_err(csv_err)?;
     let (mut wl, mut r) = (Vec::new(), Vec::new());
     for (k, record) in reader.records().enumerate() {
-        let record = record.map_err(|e| bad(&e))?;
+        let record = record.map_err(csv_err)?;
         if record.iter().all(str::is_empty) {
             continue;
         }
@@ -888,16 +1070,18 @@ fn read_spectrum_csv(ctx: &Ctx, key: &'static str, p: &Path) -> Result<[f64; 3],
             _ if k == 0 => continue, // header
             _ => {
                 let line = record.position().map_or(k as u64 + 1, csv::Position::line);
-                return Err(bad(&format!("line {line}: expected wavelength_nm,reflectance")));
+                return Err(bad(KeyProblem::SpectrumLine { file: file(), line }));
             }
         }
     }
     if r.iter().any(|v| !(0.0..=1.0).contains(v)) {
-        return Err(ctx.key("board", key, format!("{}: reflectance values must lie in [0, 1]", full.display())));
+        return Err(bad(KeyProblem::SpectrumRange { file: file() }));
     }
-    let grid = WavelengthGrid::from_list(wl).map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
-    let w = band_weights(&grid).map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))?;
-    w.average(&r).map_err(|e| ctx.key("board", key, format!("{}: {e}", full.display())))
+    let grid =
+        WavelengthGrid::from_list(wl).map_err(|source| bad(KeyProblem::SpectrumGrid { file: file(), source }))?;
+    let bands = |source| bad(KeyProblem::SpectrumBands { file: file(), source });
+    let w = band_weights(&grid).map_err(bands)?;
+    w.average(&r).map_err(bands)
 }
 
 fn build_board(
@@ -909,15 +1093,14 @@ fn build_board(
         b.origin_m.is_some() || b.u.is_some() || b.v.is_some() || b.columns.is_some() || b.rows.is_some();
     let (origin, u, v, square_m, columns, rows, desc) = if explicit_geometry || scene_json.is_none() {
         let need_usize = |x: Option<usize>, key: &'static str| {
-            x.ok_or_else(|| ctx.key("board", key, "required (no scene_json to take the board from)"))
+            x.ok_or_else(|| ctx.key("board", key, KeyProblem::Required { when: NO_SCENE_JSON }))
         };
         let square_mm = b.square_mm.unwrap_or(20.0);
         let origin = finite3(
             ctx,
             "board",
             "origin_m",
-            b.origin_m
-                .ok_or_else(|| ctx.key("board", "origin_m", "required (no scene_json to take the board from)"))?,
+            b.origin_m.ok_or_else(|| ctx.key("board", "origin_m", KeyProblem::Required { when: NO_SCENE_JSON }))?,
         )?;
         let u = finite3(ctx, "board", "u", b.u.unwrap_or([1.0, 0.0, 0.0]))?.normalize();
         let v = finite3(ctx, "board", "v", b.v.unwrap_or([0.0, 1.0, 0.0]))?.normalize();
@@ -933,16 +1116,14 @@ fn build_board(
         )
     } else {
         let Some(s) = scene_json else {
-            return Err(
-                ctx.section("board", "no board geometry: give origin_m, columns and rows, or [camera] scene_json")
-            );
+            return Err(ctx.section("board", SectionProblem::NoBoardGeometry));
         };
         let spec: &BoardSpec = &s.board;
         if b.square_mm.is_some_and(|mm| (mm * 1e-3 - spec.square_m).abs() > 1e-9) {
             return Err(ctx.key(
                 "board",
                 "square_mm",
-                format!("differs from scene_json's square of {} mm", spec.square_m * 1e3),
+                KeyProblem::SquareMismatch { scene_json_mm: spec.square_m * 1e3 },
             ));
         }
         let wfb = s.world_from_board;
@@ -966,18 +1147,20 @@ fn build_board(
         )
     };
     if !(square_m > 0.0 && square_m.is_finite()) {
-        return Err(ctx.key("board", "square_mm", "must be finite and > 0"));
+        return Err(ctx.key("board", "square_mm", KeyProblem::NotPositive { value: square_m * 1e3 }));
     }
     let reflectance = if let Some(t) = &b.texture {
         if b.even.is_some() || b.odd.is_some() || b.even_spectrum.is_some() || b.odd_spectrum.is_some() {
-            return Err(ctx.section("board", "give either texture or even/odd reflectances, not both"));
+            return Err(
+                ctx.section("board", SectionProblem::Conflict { first: "texture", second: "even/odd reflectances" })
+            );
         }
         let full = ctx.resolve(t);
-        let img = crate::imageio::read_rgb(&full).map_err(|e| ctx.key("board", "texture", e.to_string()))?;
+        let img = crate::imageio::read_rgb(&full).map_err(|e| ctx.key("board", "texture", KeyProblem::Image(e)))?;
         let rgb: Vec<[f64; 3]> =
             img.data.chunks(3).map(|c| [f64::from(c[0]), f64::from(c[1]), f64::from(c[2])]).collect();
         if rgb.iter().flatten().any(|v| !(0.0..=1.0).contains(v)) {
-            return Err(ctx.key("board", "texture", format!("{}: reflectances must lie in [0, 1]", full.display())));
+            return Err(ctx.key("board", "texture", KeyProblem::TextureRange { file: full }));
         }
         BoardReflectance::Texture { width: img.width, height: img.height, rgb }
     } else {
@@ -989,13 +1172,13 @@ fn build_board(
          -> Result<[f64; 3], SceneFileError> {
             match (rgb, spec) {
                 (Some(_), Some(_)) => {
-                    Err(ctx.section("board", format!("give either {key_rgb} or {key_spec}, not both")))
+                    Err(ctx.section("board", SectionProblem::Conflict { first: key_rgb, second: key_spec }))
                 }
                 (Some(v), None) => {
                     if v.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) {
                         Ok(v)
                     } else {
-                        Err(ctx.key("board", key_rgb, format!("reflectances must lie in [0, 1], got {v:?}")))
+                        Err(ctx.key("board", key_rgb, KeyProblem::Reflectance { values: v }))
                     }
                 }
                 (None, Some(p)) => read_spectrum_csv(ctx, key_spec, p),
@@ -1016,7 +1199,7 @@ type EnvParts = (Environment, String, String, Option<[f64; 3]>, Option<f64>);
 
 /// An orientation file (`lucent env orient`) that cannot be used.
 #[derive(Debug, thiserror::Error)]
-enum OrientationFileError {
+pub enum OrientationFileError {
     #[error("{}: cannot read as an orientation file of `lucent env orient`: {source}", path.display())]
     Read { path: PathBuf, source: std::io::Error },
     #[error("{}: not an orientation file of `lucent env orient`: {source}", path.display())]
@@ -1045,16 +1228,14 @@ fn build_environment(
     let (projection, centre, radius) = match projection_name {
         "infinite" => {
             if e.radius_m.is_some() || e.centre_m.is_some() {
-                return Err(
-                    ctx.section("environment", "radius_m and centre_m belong to projection = \"finite-sphere\"")
-                );
+                return Err(ctx.section("environment", SectionProblem::FiniteSphereKeys));
             }
             (Projection::Infinite, None, None)
         }
         "finite-sphere" => {
             let radius = e.radius_m.unwrap_or(0.60);
             if !(radius > 0.0 && radius.is_finite()) {
-                return Err(ctx.key("environment", "radius_m", format!("must be finite and > 0, got {radius}")));
+                return Err(ctx.key("environment", "radius_m", KeyProblem::NotPositive { value: radius }));
             }
             let centre = match e.centre_m {
                 Some(c) => finite3(ctx, "environment", "centre_m", c)?,
@@ -1066,33 +1247,34 @@ fn build_environment(
             return Err(ctx.key(
                 "environment",
                 "projection",
-                format!("expected \"finite-sphere\" or \"infinite\", got {other:?}"),
+                KeyProblem::Choice { expected: "\"finite-sphere\" or \"infinite\"", got: other.into() },
             ))
         }
     };
     let yaw = match (&e.orientation, e.yaw_deg, &e.map) {
         (None, y, _) => y.unwrap_or(0.0),
-        (Some(_), Some(_), _) => return Err(ctx.section("environment", "give either yaw_deg or orientation, not both")),
-        (Some(_), None, None) => return Err(ctx.section("environment", "orientation needs a map")),
-        (Some(o), None, Some(map)) => {
-            orientation_yaw(&ctx.resolve(o), map).map_err(|m| ctx.key("environment", "orientation", m.to_string()))?
+        (Some(_), Some(_), _) => {
+            return Err(ctx.section("environment", SectionProblem::Conflict { first: "yaw_deg", second: "orientation" }))
         }
+        (Some(_), None, None) => return Err(ctx.section("environment", SectionProblem::OrientationNeedsMap)),
+        (Some(o), None, Some(map)) => orientation_yaw(&ctx.resolve(o), map)
+            .map_err(|e| ctx.key("environment", "orientation", KeyProblem::Orientation(e)))?,
     };
     let scale = e.scale.unwrap_or(1.0);
     if !yaw.is_finite() {
-        return Err(ctx.key("environment", "yaw_deg", "must be finite"));
+        return Err(ctx.key("environment", "yaw_deg", KeyProblem::NotFinite { values: vec![yaw] }));
     }
     if !(scale >= 0.0 && scale.is_finite()) {
-        return Err(ctx.key("environment", "scale", format!("must be finite and ≥ 0, got {scale}")));
+        return Err(ctx.key("environment", "scale", KeyProblem::Negative { value: scale }));
     }
     let (env, desc) = match (&e.map, e.constant) {
-        (Some(_), Some(_)) => return Err(ctx.section("environment", "give either map or constant, not both")),
-        (None, None) => {
-            return Err(ctx.section("environment", "give map (an equirectangular EXR/HDR) or constant = [r, g, b]"))
+        (Some(_), Some(_)) => {
+            return Err(ctx.section("environment", SectionProblem::Conflict { first: "map", second: "constant" }))
         }
+        (None, None) => return Err(ctx.section("environment", SectionProblem::NoEnvironment)),
         (None, Some(c)) => {
             if c.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
-                return Err(ctx.key("environment", "constant", format!("radiance must be finite and ≥ 0, got {c:?}")));
+                return Err(ctx.key("environment", "constant", KeyProblem::Radiance { values: c }));
             }
             (Environment::constant(c.map(|v| v * scale), projection), format!("constant {c:?} × {scale}"))
         }
@@ -1113,8 +1295,9 @@ fn build_environment(
                 ));
                 data.iter_mut().for_each(|v| *v = v.max(0.0));
             }
-            let env = Environment::new(img.width, img.height, data, yaw, scale, projection)
-                .map_err(|err| ctx.key("environment", "map", format!("{}: {err}", full.display())))?;
+            let env = Environment::new(img.width, img.height, data, yaw, scale, projection).map_err(|source| {
+                ctx.key("environment", "map", KeyProblem::Environment { file: full.clone(), source })
+            })?;
             (env, format!("{} ({}×{}), yaw {yaw}°, scale {scale}", full.display(), img.width, img.height))
         }
     };

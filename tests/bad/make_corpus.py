@@ -31,6 +31,12 @@ index_case("no_data", "REFERENCES: nothing\n")
 index_case("unknown_type", "DATA:\n  - type: tabulated xyz\n    data: |\n        0.4 1.5 0\n        0.8 1.49 0\n")
 index_case("negative_kappa", "DATA:\n  - type: tabulated nk\n    data: |\n        0.4 1.5 -0.1\n        0.8 1.49 0\n")
 
+# --- project files (lucent run)
+w("project/not_toml.toml", '[project]\nname = "x\nseed = 1\n')
+w("project/unknown_key.toml", '[project]\nname = "x"\nsead = 1\n')
+w("project/missing_recipe.toml", '[[sample]]\nname = "a"\nrecipe = "no_such_recipe.toml"\n')
+w("project/bad_configs.toml", '[bssrdf]\nconfigs = "45-0"\npaths = 10\n')
+
 # --- slices (lucent bssrdf compare --measured)
 os.makedirs(B + "slice", exist_ok=True)
 Image.fromarray((np.arange(33 * 33).reshape(33, 33) % 256).astype(np.uint8)).save(B + "slice/integer_8bit.tif")
