@@ -34,10 +34,47 @@ pub enum SliceIoError {
     Image(#[from] ImageIoError),
     #[error(transparent)]
     Write(#[from] WriteError),
-    #[error("{path}: {message}")]
-    Invalid { path: PathBuf, message: String },
+    #[error("{path}: {problem}")]
+    Invalid { path: PathBuf, problem: SliceProblem },
     #[error("{path}: {source}")]
     Plot { path: PathBuf, source: PlotError },
+}
+
+/// What is wrong with a slice file ([`SliceIoError::Invalid`]).
+#[derive(Debug, thiserror::Error)]
+pub enum SliceProblem {
+    #[error("no such file")]
+    Missing,
+    #[error("not a file")]
+    NotAFile,
+    #[error("unsupported slice format (expected .exr, .tif/.tiff or .csv)")]
+    Format,
+    #[error("the grid is {width} × {height}; slices must be square")]
+    NotSquare { width: usize, height: usize },
+    #[error("pixel (column {column}, row {row}) is not a finite number")]
+    NotFinite { column: usize, row: usize },
+    #[error(
+        "pixel size unknown: pass it (--measured-pixel-mm for --measured, --beam-map-pixel-mm for --beam-map) or put {{\"pixel_mm\": …}} in FILE.json"
+    )]
+    PixelSizeUnknown,
+    #[error("pixel size {pixel_mm} mm must be positive")]
+    PixelSize { pixel_mm: f64 },
+    #[error("not a JSON file with a number `pixel_mm` (or `config.pixel_mm`): {0}")]
+    Sidecar(#[source] serde_json::Error),
+    #[error("cannot read: {0}")]
+    Read(#[source] std::io::Error),
+    #[error("line {line}: {source}")]
+    Number { line: usize, source: std::num::ParseFloatError },
+    #[error("line {line} has {values} values, the first row {first}")]
+    RowLength { line: usize, values: usize, first: usize },
+    #[error("no data rows")]
+    Empty,
+    #[error("cannot read EXR: {0}")]
+    ExrSize(#[source] imageio::ExrSizeError),
+    #[error("cannot read EXR: {}", imageio::exr_reason(.0))]
+    Exr(#[source] exr::error::Error),
+    #[error("EXR has no channels")]
+    NoChannels,
 }
 
 /// A square grid of values with its pixel size (a slice, measured or
@@ -66,8 +103,8 @@ impl Grid {
     }
 }
 
-fn invalid(path: &Path, message: impl Into<String>) -> SliceIoError {
-    SliceIoError::Invalid { path: path.to_path_buf(), message: message.into() }
+fn invalid(path: &Path, problem: SliceProblem) -> SliceIoError {
+    SliceIoError::Invalid { path: path.to_path_buf(), problem }
 }
 
 /// Reads a square grid of finite values from EXR (channel `Y`, else `R`,
@@ -78,29 +115,29 @@ fn invalid(path: &Path, message: impl Into<String>) -> SliceIoError {
 pub fn read_grid(path: &Path, pixel_mm: Option<f64>) -> Result<Grid, SliceIoError> {
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     if !path.is_file() {
-        return Err(invalid(path, if path.exists() { "not a file" } else { "no such file" }));
+        return Err(invalid(path, if path.exists() { SliceProblem::NotAFile } else { SliceProblem::Missing }));
     }
     let (w, h, values) = match ext.as_str() {
         "csv" | "txt" => read_csv_grid(path)?,
         "exr" => read_exr_scalar(path)?,
         // Float samples only: integer counts have no physical scale.
         "tif" | "tiff" => imageio::read_float_tiff(path)?,
-        _ => return Err(invalid(path, "unsupported slice format (expected .exr, .tif/.tiff or .csv)")),
+        _ => return Err(invalid(path, SliceProblem::Format)),
     };
     if w != h {
-        return Err(invalid(path, format!("the grid is {w} × {h}; slices must be square")));
+        return Err(invalid(path, SliceProblem::NotSquare { width: w, height: h }));
     }
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-        return Err(invalid(path, format!("pixel (column {}, row {}) is not a finite number", i % w, i / w)));
+        return Err(invalid(path, SliceProblem::NotFinite { column: i % w, row: i / w }));
     }
     let pixel_mm = match pixel_mm {
         Some(p) => p,
         None => sidecar_pixel_mm(path)?.ok_or_else(|| {
-            invalid(path, "pixel size unknown: pass it (--measured-pixel-mm for --measured, --beam-map-pixel-mm for --beam-map) or put {\"pixel_mm\": …} in FILE.json")
+            invalid(path, SliceProblem::PixelSizeUnknown)
         })?,
     };
     if !(pixel_mm.is_finite() && pixel_mm > 0.0) {
-        return Err(invalid(path, format!("pixel size {pixel_mm} mm must be positive")));
+        return Err(invalid(path, SliceProblem::PixelSize { pixel_mm }));
     }
     Ok(Grid { size: w, pixel_m: pixel_mm * 1e-3, values })
 }
@@ -110,11 +147,21 @@ fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
     if let Some(dir) = path.parent() {
         candidates.push(dir.join("summary.json"));
     }
+    // `FILE.json` holds `pixel_mm`; a simulated slice's `summary.json` holds
+    // it in `config` (other fields of either are not read here).
+    #[derive(Deserialize)]
+    struct Sidecar {
+        pixel_mm: Option<f64>,
+        config: Option<SidecarConfig>,
+    }
+    #[derive(Deserialize)]
+    struct SidecarConfig {
+        pixel_mm: Option<f64>,
+    }
     for c in candidates {
         if let Ok(text) = std::fs::read_to_string(&c) {
-            let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| invalid(&c, e.to_string()))?;
-            let p = v.get("pixel_mm").or_else(|| v.pointer("/config/pixel_mm")).and_then(|p| p.as_f64());
-            if let Some(p) = p {
+            let v: Sidecar = serde_json::from_str(&text).map_err(|e| invalid(&c, SliceProblem::Sidecar(e)))?;
+            if let Some(p) = v.pixel_mm.or(v.config.and_then(|c| c.pixel_mm)) {
                 return Ok(Some(p));
             }
         }
@@ -123,7 +170,7 @@ fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
 }
 
 fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> {
-    let text = std::fs::read_to_string(path).map_err(|e| invalid(path, e.to_string()))?;
+    let text = std::fs::read_to_string(path).map_err(|e| invalid(path, SliceProblem::Read(e)))?;
     let mut rows: Vec<Vec<f64>> = Vec::new();
     for (k, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -135,19 +182,16 @@ fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> 
             .filter(|s| !s.is_empty())
             .map(str::parse::<f64>)
             .collect();
-        let row = row.map_err(|e| invalid(path, format!("line {}: {e}", k + 1)))?;
+        let row = row.map_err(|e| invalid(path, SliceProblem::Number { line: k + 1, source: e }))?;
         if let Some(first) = rows.first()
             && row.len() != first.len()
         {
-            return Err(invalid(
-                path,
-                format!("line {} has {} values, the first row {}", k + 1, row.len(), first.len()),
-            ));
+            return Err(invalid(path, SliceProblem::RowLength { line: k + 1, values: row.len(), first: first.len() }));
         }
         rows.push(row);
     }
     if rows.is_empty() {
-        return Err(invalid(path, "no data rows"));
+        return Err(invalid(path, SliceProblem::Empty));
     }
     let (w, h) = (rows[0].len(), rows.len());
     Ok((w, h, rows.into_iter().flatten().collect()))
@@ -155,7 +199,7 @@ fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> 
 
 fn read_exr_scalar(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> {
     use exr::prelude::*;
-    imageio::check_exr_size(path).map_err(|e| invalid(path, format!("cannot read EXR: {e}")))?;
+    imageio::check_exr_size(path).map_err(|e| invalid(path, SliceProblem::ExrSize(e)))?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -164,14 +208,14 @@ fn read_exr_scalar(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError
         .all_attributes()
         .pedantic()
         .from_file(path)
-        .map_err(|e| invalid(path, format!("cannot read EXR: {}", imageio::exr_reason(&e))))?;
+        .map_err(|e| invalid(path, SliceProblem::Exr(e)))?;
     let size = image.layer_data.size;
     let channels = &image.layer_data.channel_data.list;
     let pick = ["Y", "R"]
         .iter()
         .find_map(|n| channels.iter().find(|c| c.name.to_string() == *n))
         .or(channels.first())
-        .ok_or_else(|| invalid(path, "EXR has no channels"))?;
+        .ok_or_else(|| invalid(path, SliceProblem::NoChannels))?;
     let values: Vec<f64> = pick.sample_data.values_as_f32().map(f64::from).collect();
     Ok((size.width(), size.height(), values))
 }
