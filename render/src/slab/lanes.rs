@@ -112,7 +112,7 @@ impl Kernel<'_> {
             rng: std::array::from_fn(|_| Rng::new(seed, first_path)),
             live: 0,
             unscattered: 0,
-            exit: [Exit { up: [0.0, 0.0, 1.0], weight: 0.0 }; 4],
+            exit: [Exit::LOST; 4],
             junctions: [Junctions::new(); 4],
             chains: Box::new(std::array::from_fn(|_| Chain::new())),
             next: first_path,
@@ -172,6 +172,7 @@ impl Kernel<'_> {
                         pl,
                         dl,
                         paths.w.0[l],
+                        &paths.exit[l],
                         &paths.junctions[l],
                         chain,
                         &mut b.image,
@@ -287,9 +288,9 @@ impl Kernel<'_> {
         let depth = -p[2];
         let (depth4, floor4) = (F4::splat(depth), F4::splat(depth - self.d));
         let (p0, p1) = (F4::splat(p[0]), F4::splat(p[1]));
-        let w21 = self.w21.map(F4::splat);
+        let w21 = ev.w21.map(F4::splat);
         let d = dir.map(F4::splat);
-        let inv_cos_t = F4::splat(self.inv_cos_t);
+        let inv_cos_t = F4::splat(ev.inv_cos);
         let tau_u = F4::splat(ev.tau_u);
         let load = |a: &Links, c: usize| {
             // SAFETY: `Links` is 32-byte aligned and c is a multiple of 4
