@@ -101,7 +101,9 @@
 //! reflection lobe at the entry is not part of the slice (reported as
 //! `specular_reflectance`, its directional albedo, as the smooth F).
 //! The ring needs a fixed exit polar angle and is not used with a rough
-//! top. Tested (`render/tests/slab_rough.rs`): α = 10⁻⁴ against the smooth
+//! top; in a thick slab (μ_t d ≥ 40) the lobe connection (below, "Through
+//! a rough top") takes the path's ω′ as its ω₂₁ and is the default.
+//! Tested (`render/tests/slab_rough.rs`): α = 10⁻⁴ against the smooth
 //! slice pixel by pixel, against brute-force exit binning at α = 0.05 and
 //! 0.3 (thick and thin), reciprocity, and the lane kernel against the
 //! scalar one.
@@ -217,11 +219,33 @@
 //! unattenuated one. Splat geometry: the exit point is the chain's end
 //! v_k + Σ_{i ≤ j} t_i ω^c_i moved by ℓ ω₂₁, ℓ its depth / cos θ_t, with
 //! the connection's constant C. Needs a thick slab (μ_t d / cos θ_t ≥ 40:
-//! no image terms, which the chains' straight flights would miss) and a
-//! smooth top; [`Estimator::best_for`] falls back to the fixed direction
-//! otherwise. Tested pixel by pixel against the fixed-direction
-//! connection, against brute force, its standard errors against the spread
-//! over seeds, and in a white furnace.
+//! no image terms, which the chains' straight flights would miss);
+//! [`Estimator::best_for`] falls back to the fixed direction otherwise.
+//! Tested pixel by pixel against the fixed-direction connection, against
+//! brute force, its standard errors against the spread over seeds, and in
+//! a white furnace.
+//!
+//! *Through a rough top.* There the radiance leaving towards ω_o is
+//! L_o(x_o) = E_{ω′}[W(ω′) L_in(x_o, ω′)] over the ω′ a path draws at its
+//! launch from the surface alone ("Rough top" above; W = (1 − F) G1/n²).
+//! Given ω′, ω₂₁ = −ω′ is fixed for the whole path, and L_in(x_o, ω′) is
+//! the smooth case's transport integral with that ω₂₁: the walk's density
+//! is unchanged, each chain is drawn from ω₂₁ and random numbers alone (and
+//! one chain serves one path, so a chain never outlives its ω′), hence every
+//! strategy's density and the balance weights above hold as they stand, with
+//! T/n² replaced by W and cos θ_t by cos θ₂₁ = ω₂₁·z. The path's splats are
+//! then an unbiased estimate of W L_in(x_o, ω′) given ω′, and their
+//! expectation over ω′ is L_o. So per path: ℓ = |z|/cos θ₂₁, the chain's
+//! skip and roulette bound τ_u and its transmittance factors s_j take
+//! μ_t/cos θ₂₁, and C = W/(A_o cos θ₂₁) ([`Exit`]); a lost ω′ (W = 0) adds
+//! nothing. Thick here means μ_t d ≥ 40, which bounds μ_t d/cos θ₂₁ for
+//! every ω′ (the rough connection's own test for image terms). Light that
+//! reaches the rough top from below unscattered keeps its connection at the
+//! top (f_t, "Rough top"). Tested (`render/tests/slab_rough.rs`): pixel by
+//! pixel against the rough fixed-direction connection (α = 0.3 and 0.8,
+//! where W and cos θ₂₁ are far from the smooth T/n² and cos θ_t), against
+//! brute force at α = 0.05 and 0.3, its standard errors against the spread
+//! over 30 seeds, and the lane kernel against the scalar one.
 //!
 //! *Chain reuse* ([`LOBE_REUSE`]). A chain is drawn from ω₂₁ and random
 //! numbers alone, never from the photon, so one chain may serve K
@@ -283,8 +307,9 @@
 //! [`Slice::kernel`]): the flight, the scattering angles, the turn and the
 //! fixed-direction connection's geometry, phase function and transmittance
 //! of four events are one set of vector instructions; the ring's and the
-//! lobe's connections run per lane on that vector walk, the lobe's chain
-//! links four at a time. Each lane draws the same random
+//! lobe's connections run per lane on that vector walk (each lane with its
+//! own path's ω₂₁ and C through a rough top), the lobe's chain links four
+//! at a time. Each lane draws the same random
 //! numbers for its path as the scalar kernel, so both give the same slice to
 //! rounding (tested), whichever the CPU.
 //!
@@ -2534,6 +2559,39 @@ mod tests {
             let mut kernel = Kernel::new(&setup, Estimator::Lobe { vertices: m }).expect("valid kernel");
             kernel.lobe_reuse = reuse;
             assert!(kernel.lanes && kernel.lobe_vertices == m, "{name}");
+            compare_kernels(name, &kernel);
+        }
+        // The lobe connection through a rough top (thick): per-lane ω₂₁ and
+        // C from each path's sampled exit, lost exits; an analytic
+        // distribution at large α (many lost and grazing exits) and a
+        // measured normal set, HG and a table.
+        let rough_lobe_cases = [
+            (
+                "rough lobe, TR 0.8, HG, m 4",
+                Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha: 0.8 }),
+                hg(0.9),
+                4,
+            ),
+            (
+                "rough lobe, measured, table, m 16",
+                Microsurface::Measured(std::sync::Arc::new(
+                    crate::microfacet::MeasuredNormals::new(&measured, None).expect("valid normals"),
+                )),
+                table_phase(),
+                16,
+            ),
+        ];
+        for (name, surface, phase, m) in rough_lobe_cases {
+            let setup = Setup::new(
+                Slab::new(6e-3, Medium::new(1.2e4, 10.0, phase, 1.5).expect("valid medium"))
+                    .expect("valid slab")
+                    .with_top(Boundary::rough(surface).expect("valid α")),
+                Beam::gaussian(200e-6).expect("valid beam"),
+                Sensor::new(63, 0.1e-3).expect("valid sensor"),
+                Directions::from_degrees(45.0, 0.0, 15.0, 180.0).expect("valid directions"),
+            );
+            let kernel = Kernel::new(&setup, Estimator::Lobe { vertices: m }).expect("valid kernel");
+            assert!(kernel.lanes && kernel.rough && kernel.lobe_vertices == m, "{name}");
             compare_kernels(name, &kernel);
         }
     }
