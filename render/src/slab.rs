@@ -1584,7 +1584,9 @@ impl<'a> Kernel<'a> {
     /// every `lobe_reuse` events of the path ([`Chain`]). Every sample is
     /// worth w (μ_s/μ_t)^j e^{−μ_t ℓ} C / S with S the sum of 1/p over the
     /// junctions of the full path that the strategies can produce (the
-    /// balance heuristic). Thick slabs only. Returns the value added.
+    /// balance heuristic). ω₂₁, 1/cos θ₂₁ and C are the path's `exit`
+    /// (fixed for a smooth top, drawn at launch through a rough one; a lost
+    /// exit adds nothing). Thick slabs only. Returns the value added.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn connect_lobe(

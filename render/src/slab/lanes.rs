@@ -12,7 +12,8 @@
 //! (rare), the splat into the image and the roulettes; the ring's and the
 //! lobe's connections (many splats per event, see `Kernel::connect_ring`
 //! and `Kernel::connect_lobe`) run per lane on the vector walk, each lane
-//! with its own MIS history and chain, the chain's links four at a time
+//! with its own MIS history, chain and exit (through a rough top the
+//! path's own ω₂₁, 1/cos θ₂₁ and splat constant), the chain's links four at a time
 //! (`lobe_links_lanes`). A lane whose path
 //! ends takes the batch's next path, so all four stay busy until the batch
 //! runs out.
