@@ -237,7 +237,7 @@
 //! then an unbiased estimate of W L_in(x_o, ω′) given ω′, and their
 //! expectation over ω′ is L_o. So per path: ℓ = |z|/cos θ₂₁, the chain's
 //! skip and roulette bound τ_u and its transmittance factors s_j take
-//! μ_t/cos θ₂₁, and C = W/(A_o cos θ₂₁) ([`Exit`]); a lost ω′ (W = 0) adds
+//! μ_t/cos θ₂₁, and C = W/(A_o cos θ₂₁) (`Exit`); a lost ω′ (W = 0) adds
 //! nothing. Thick here means μ_t d ≥ 40, which bounds μ_t d/cos θ₂₁ for
 //! every ω′ (the rough connection's own test for image terms). Light that
 //! reaches the rough top from below unscattered keeps its connection at the
