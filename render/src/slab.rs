@@ -101,7 +101,9 @@
 //! reflection lobe at the entry is not part of the slice (reported as
 //! `specular_reflectance`, its directional albedo, as the smooth F).
 //! The ring needs a fixed exit polar angle and is not used with a rough
-//! top. Tested (`render/tests/slab_rough.rs`): α = 10⁻⁴ against the smooth
+//! top; in a thick slab (μ_t d ≥ 40) the lobe connection (below, "Through
+//! a rough top") takes the path's ω′ as its ω₂₁ and is the default.
+//! Tested (`render/tests/slab_rough.rs`): α = 10⁻⁴ against the smooth
 //! slice pixel by pixel, against brute-force exit binning at α = 0.05 and
 //! 0.3 (thick and thin), reciprocity, and the lane kernel against the
 //! scalar one.
@@ -217,11 +219,33 @@
 //! unattenuated one. Splat geometry: the exit point is the chain's end
 //! v_k + Σ_{i ≤ j} t_i ω^c_i moved by ℓ ω₂₁, ℓ its depth / cos θ_t, with
 //! the connection's constant C. Needs a thick slab (μ_t d / cos θ_t ≥ 40:
-//! no image terms, which the chains' straight flights would miss) and a
-//! smooth top; [`Estimator::best_for`] falls back to the fixed direction
-//! otherwise. Tested pixel by pixel against the fixed-direction
-//! connection, against brute force, its standard errors against the spread
-//! over seeds, and in a white furnace.
+//! no image terms, which the chains' straight flights would miss);
+//! [`Estimator::best_for`] falls back to the fixed direction otherwise.
+//! Tested pixel by pixel against the fixed-direction connection, against
+//! brute force, its standard errors against the spread over seeds, and in
+//! a white furnace.
+//!
+//! *Through a rough top.* There the radiance leaving towards ω_o is
+//! L_o(x_o) = E_{ω′}[W(ω′) L_in(x_o, ω′)] over the ω′ a path draws at its
+//! launch from the surface alone ("Rough top" above; W = (1 − F) G1/n²).
+//! Given ω′, ω₂₁ = −ω′ is fixed for the whole path, and L_in(x_o, ω′) is
+//! the smooth case's transport integral with that ω₂₁: the walk's density
+//! is unchanged, each chain is drawn from ω₂₁ and random numbers alone (and
+//! one chain serves one path, so a chain never outlives its ω′), hence every
+//! strategy's density and the balance weights above hold as they stand, with
+//! T/n² replaced by W and cos θ_t by cos θ₂₁ = ω₂₁·z. The path's splats are
+//! then an unbiased estimate of W L_in(x_o, ω′) given ω′, and their
+//! expectation over ω′ is L_o. So per path: ℓ = |z|/cos θ₂₁, the chain's
+//! skip and roulette bound τ_u and its transmittance factors s_j take
+//! μ_t/cos θ₂₁, and C = W/(A_o cos θ₂₁) (`Exit`); a lost ω′ (W = 0) adds
+//! nothing. Thick here means μ_t d ≥ 40, which bounds μ_t d/cos θ₂₁ for
+//! every ω′ (the rough connection's own test for image terms). Light that
+//! reaches the rough top from below unscattered keeps its connection at the
+//! top (f_t, "Rough top"). Tested (`render/tests/slab_rough.rs`): pixel by
+//! pixel against the rough fixed-direction connection (α = 0.3 and 0.8,
+//! where W and cos θ₂₁ are far from the smooth T/n² and cos θ_t), against
+//! brute force at α = 0.05 and 0.3, its standard errors against the spread
+//! over 30 seeds, and the lane kernel against the scalar one.
 //!
 //! *Chain reuse* ([`LOBE_REUSE`]). A chain is drawn from ω₂₁ and random
 //! numbers alone, never from the photon, so one chain may serve K
@@ -283,8 +307,9 @@
 //! [`Slice::kernel`]): the flight, the scattering angles, the turn and the
 //! fixed-direction connection's geometry, phase function and transmittance
 //! of four events are one set of vector instructions; the ring's and the
-//! lobe's connections run per lane on that vector walk, the lobe's chain
-//! links four at a time. Each lane draws the same random
+//! lobe's connections run per lane on that vector walk (each lane with its
+//! own path's ω₂₁ and C through a rough top), the lobe's chain links four
+//! at a time. Each lane draws the same random
 //! numbers for its path as the scalar kernel, so both give the same slice to
 //! rounding (tested), whichever the CPU.
 //!
@@ -326,7 +351,7 @@ pub enum SlabError {
     #[error("the ring connection needs exactly one of θ_i, θ_o to be 0°, a slab at least 40 optical depths thick along the exit direction and a smooth top")]
     RingNotApplicable,
     #[error(
-        "the lobe connection needs a slab at least 40 optical depths thick along the exit direction and a smooth top"
+        "the lobe connection needs a slab at least 40 optical depths thick along the exit direction (through a rough top: 40 optical depths thick)"
     )]
     LobeNotApplicable,
 }
@@ -861,8 +886,9 @@ pub enum Estimator {
     /// sampling with chains of `vertices` events drawn backwards from ω₂₁
     /// through the phase function's lobe (see the module doc, "Lobe
     /// connection"; `vertices` = 1 is the two-vertex connection). Any exit
-    /// direction; needs a thick slab (μ_t d / cos θ_t ≥ 40) and a smooth
-    /// top. [`Estimator::best_for`] uses [`LOBE_VERTICES`].
+    /// direction, smooth or rough top; needs a thick slab (μ_t d / cos θ_t
+    /// ≥ 40; through a rough top μ_t d ≥ 40). [`Estimator::best_for`] uses
+    /// [`LOBE_VERTICES`].
     Lobe { vertices: usize },
     /// Escaping photons binned by exit pixel within a cone of half-angle
     /// `cone_deg` around ω_o (a slow, independent check).
@@ -871,8 +897,9 @@ pub enum Estimator {
 
 impl Estimator {
     /// [`Estimator::Ring`] where it applies (one of θ_i, θ_o is 0 and the
-    /// other is not, thick slab), else [`Estimator::Lobe`] where it
-    /// applies (thick slab, smooth top), else [`Estimator::Connection`].
+    /// other is not, thick slab, smooth top), else [`Estimator::Lobe`] where
+    /// it applies (thick slab, smooth or rough top), else
+    /// [`Estimator::Connection`].
     pub fn best_for(setup: &Setup) -> Self {
         if Ring::applies(setup) {
             Estimator::Ring
@@ -1045,6 +1072,8 @@ struct Kernel<'a> {
     /// T(θ_t) / (n² A_o cos θ_t).
     splat: f64,
     inv_cos_t: f64,
+    /// The smooth top's exit (ω₂₁, T/n², 1/cos θ_t, `splat`).
+    smooth_exit: Exit,
     /// Internal Fresnel reflectance F(θ_t) at either boundary.
     fresnel_t: f64,
     /// Whether paths via internal reflections can matter (μ_t d / cos θ_t < 40).
@@ -1136,6 +1165,12 @@ impl<'a> Kernel<'a> {
             w21,
             splat: t_out / (n * n * area * cos_t),
             inv_cos_t: 1.0 / cos_t,
+            smooth_exit: Exit {
+                up: w21,
+                weight: t_out / (n * n),
+                inv_cos: 1.0 / cos_t,
+                splat: t_out / (n * n * area * cos_t),
+            },
             fresnel_t: 1.0 - t_out,
             // Through a rough top the image terms' directions vary, but every
             // one of them crosses the slab at least once (τ ≥ μ_t d).
@@ -1176,7 +1211,7 @@ impl<'a> Kernel<'a> {
         // each splat instead.
         let (x0, y0) = if self.ring.is_some() { (0.0, 0.0) } else { self.entry_point(rng) };
         if !self.rough {
-            return Some(([x0, y0, 0.0], self.entry_dir, self.entry_weight, Exit { up: self.w21, weight: 0.0 }));
+            return Some(([x0, y0, 0.0], self.entry_dir, self.entry_weight, self.smooth_exit));
         }
         let top = &self.setup.slab.top;
         let u = [0.0, rng.next_f64(), rng.next_f64()];
@@ -1185,8 +1220,8 @@ impl<'a> Kernel<'a> {
         // light leaves the slab travelling along `up` = −ω_i.
         let u = [0.0, rng.next_f64(), rng.next_f64()];
         let exit = match top.sample(self.omega_o, self.n, Lobe::Transmit, u, Transport::Radiance) {
-            Some(e) => Exit { up: e.wi.map(|c| -c), weight: e.weight },
-            None => Exit { up: [0.0, 0.0, 1.0], weight: 0.0 },
+            Some(e) => Exit::new(e.wi.map(|c| -c), e.weight, self.area),
+            None => Exit::LOST,
         };
         Some(([x0, y0, 0.0], s.wi, s.weight, exit))
     }
@@ -1216,7 +1251,11 @@ impl<'a> Kernel<'a> {
             let dz = dir[2];
             let gap = if dz < 0.0 { p[2] + self.d } else { -p[2] };
             if dz != 0.0 && s * dz.abs() >= gap {
-                if self.rough && events == 0 && dz > 0.0 && self.estimator == Estimator::Connection {
+                if self.rough
+                    && events == 0
+                    && dz > 0.0
+                    && matches!(self.estimator, Estimator::Connection | Estimator::Lobe { .. })
+                {
                     total += self.connect_unscattered(p, dir, gap, w, image);
                 }
                 match self.cross(&mut p, &mut dir, &mut w, gap, rng) {
@@ -1250,7 +1289,7 @@ impl<'a> Kernel<'a> {
                     Estimator::Connection => total += self.connect(p, dir, w, exit, image, rng),
                     Estimator::Lobe { .. } => {
                         junctions.arrive();
-                        total += self.connect_lobe(p, dir, w, &junctions, chain, image, rng);
+                        total += self.connect_lobe(p, dir, w, &exit, &junctions, chain, image, rng);
                         junctions.scatter(phase.eval(angles.cos_theta));
                     }
                     _ => {}
@@ -1545,7 +1584,9 @@ impl<'a> Kernel<'a> {
     /// every `lobe_reuse` events of the path ([`Chain`]). Every sample is
     /// worth w (μ_s/μ_t)^j e^{−μ_t ℓ} C / S with S the sum of 1/p over the
     /// junctions of the full path that the strategies can produce (the
-    /// balance heuristic). Thick slabs only. Returns the value added.
+    /// balance heuristic). ω₂₁, 1/cos θ₂₁ and C are the path's `exit`
+    /// (fixed for a smooth top, drawn at launch through a rough one; a lost
+    /// exit adds nothing). Thick slabs only. Returns the value added.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn connect_lobe(
@@ -1553,12 +1594,13 @@ impl<'a> Kernel<'a> {
         p: [f64; 3],
         dir: [f64; 3],
         w: f64,
+        exit: &Exit,
         junctions: &Junctions,
         chain: &mut Chain,
         image: &mut [f64],
         rng: &mut Rng,
     ) -> f64 {
-        match self.lobe_event(p, dir, w, junctions, chain, image, rng) {
+        match self.lobe_event(p, dir, w, exit, junctions, chain, image, rng) {
             Ok(ev) => ev.total + self.lobe_links(&ev, p, dir, chain, image),
             Err(total) => total,
         }
@@ -1575,15 +1617,20 @@ impl<'a> Kernel<'a> {
         p: [f64; 3],
         dir: [f64; 3],
         w: f64,
+        exit: &Exit,
         junctions: &Junctions,
         chain: &mut Chain,
         image: &mut [f64],
         rng: &mut Rng,
     ) -> Result<LobeEvent, f64> {
+        // A lost exit sample (rough top, W = 0): no connection of the path.
+        if exit.splat == 0.0 {
+            return Err(0.0);
+        }
         let m = self.lobe_vertices;
         let phase = &self.setup.slab.medium.phase;
         let sensor = &self.setup.sensor;
-        let w21 = self.w21;
+        let (w21, inv_cos) = (exit.up, exit.inv_cos);
         let mut total = 0.0;
         let depth = -p[2];
         chain.tick(self.lobe_reuse);
@@ -1597,7 +1644,7 @@ impl<'a> Kernel<'a> {
             }
         };
         // Strategy 0: the connection from this event.
-        let l = depth * self.inv_cos_t;
+        let l = depth * inv_cos;
         let tau = self.mu_t * l;
         let filled = tau <= 40.0;
         if filled {
@@ -1607,7 +1654,7 @@ impl<'a> Kernel<'a> {
                 let transmittance = self.connection_transmittance(tau, e, rng);
                 if transmittance > 0.0 {
                     let c = dir[0] * w21[0] + dir[1] * w21[1] + dir[2] * w21[2];
-                    let v = w * transmittance * self.splat / (1.0 / phase.eval(c) + prefix[light]);
+                    let v = w * transmittance * exit.splat / (1.0 / phase.eval(c) + prefix[light]);
                     image[i] += v;
                     total += v;
                 }
@@ -1625,7 +1672,7 @@ impl<'a> Kernel<'a> {
         }
         // τ_u = μ_t (|z| − Σ t)/cos θ_t; every exit depth's optical depth is
         // τ_u + s_j, s_j ≥ 0 the chain's own part.
-        let tau_u = self.mu_t * (depth - chain.rise) * self.inv_cos_t;
+        let tau_u = self.mu_t * (depth - chain.rise) * inv_cos;
         if tau_u > 40.0 {
             return Err(total);
         }
@@ -1644,12 +1691,12 @@ impl<'a> Kernel<'a> {
             (-tau_u).exp()
         };
         if !chain.has_directions {
-            chain.draw_directions(m, phase, w21, self.albedo, self.mu_t * self.inv_cos_t, rng);
+            chain.draw_directions(m, phase, w21, self.albedo, self.mu_t * inv_cos, rng);
         }
         if !filled {
             fill(&mut prefix);
         }
-        Ok(LobeEvent { tau_u, direct, e, weight: w * self.splat, prefix, light, total })
+        Ok(LobeEvent { w21, inv_cos, tau_u, direct, e, weight: w * exit.splat, prefix, light, total })
     }
 
     /// The terms of strategies 1 … m of one event from its chain
@@ -1661,7 +1708,7 @@ impl<'a> Kernel<'a> {
         let m = self.lobe_vertices;
         let phase = &self.setup.slab.medium.phase;
         let sensor = &self.setup.sensor;
-        let w21 = self.w21;
+        let w21 = ev.w21;
         let depth = -p[2];
         let floor = depth - self.d;
         let mut total = 0.0;
@@ -1674,7 +1721,7 @@ impl<'a> Kernel<'a> {
             if tau > 40.0 {
                 continue;
             }
-            let l = (depth - chain.dz.0[j]) * self.inv_cos_t;
+            let l = (depth - chain.dz.0[j]) * ev.inv_cos;
             let Some(i) = sensor.index(p[0] + chain.x.0[j] + l * w21[0], p[1] + chain.y.0[j] + l * w21[1]) else {
                 continue;
             };
@@ -1862,13 +1909,32 @@ impl Ring {
     }
 }
 
-/// A path's exit direction through a rough top: the light leaves the slab
-/// travelling along `up`, with the radiance weight (1 − F) G1 / n² of the
-/// sample (0: lost, no connections). Drawn once per path (`Kernel::launch`).
+/// A path's exit direction: the light leaves the slab travelling along
+/// `up` = ω₂₁ with the radiance weight W of the exit, (1 − F) G1 / n² for a
+/// sample through a rough top (0: lost, no connections) and T(θ_t)/n² for
+/// the smooth top's fixed ω₂₁. Drawn once per path through a rough top
+/// (`Kernel::launch`), fixed for the smooth one.
 #[derive(Debug, Clone, Copy)]
 struct Exit {
     up: [f64; 3],
     weight: f64,
+    /// 1/cos θ₂₁ (cos θ₂₁ = `up`'s z component).
+    inv_cos: f64,
+    /// The splat constant C = W/(A_o cos θ₂₁) of the thick-slab
+    /// connections along `up` (0 when the sample is lost).
+    splat: f64,
+}
+
+impl Exit {
+    /// No exit: a rough exit sample that was lost.
+    const LOST: Exit = Exit { up: [0.0, 0.0, 1.0], weight: 0.0, inv_cos: 1.0, splat: 0.0 };
+
+    /// The exit along `up` (z > 0) with radiance weight `weight`, for
+    /// pixels of area `area`.
+    fn new(up: [f64; 3], weight: f64, area: f64) -> Self {
+        let inv_cos = 1.0 / up[2];
+        Exit { up, weight, inv_cos, splat: weight * inv_cos / area }
+    }
 }
 
 /// Where a photon that reached a boundary goes.
@@ -1987,13 +2053,16 @@ struct Links([f64; MAX_LOBE_VERTICES]);
 /// What the links of one event's lobe connection share
 /// (`Kernel::lobe_event`).
 struct LobeEvent {
-    /// τ_u = μ_t (|z| − Σ t)/cos θ_t.
+    /// The path's ω₂₁ and 1/cos θ₂₁ ([`Exit`]).
+    w21: [f64; 3],
+    inv_cos: f64,
+    /// τ_u = μ_t (|z| − Σ t)/cos θ₂₁.
     tau_u: f64,
     /// Whether every term takes its own exponential (τ_u < −600).
     direct: bool,
     /// e^{−τ_u}, or e^{−τ_r} after the roulette (unused when `direct`).
     e: f64,
-    /// w C.
+    /// w C, C the path's splat constant ([`Exit::splat`]).
     weight: f64,
     /// Σ 1/p over the walk's last l junctions, l = 0 … `light`.
     prefix: [f64; MAX_LOBE_VERTICES + 1],
@@ -2137,17 +2206,20 @@ impl Chain {
 /// path.
 pub const LOBE_REUSE: usize = usize::MAX;
 
-/// Whether the lobe connection is exact for `setup`: a smooth top
-/// and a slab at least 40 optical depths thick along the exit direction
-/// (no image terms; the chains do not reflect).
+/// Whether the lobe connection is exact for `setup`: a slab at least 40
+/// optical depths thick along the exit direction (no image terms; the
+/// chains do not reflect). Through a rough top the exit direction ω₂₁ is
+/// drawn per path and μ_t d / cos θ₂₁ ≥ μ_t d, so μ_t d ≥ 40 is asked (the
+/// rough connection's own test for image terms).
 fn lobe_applies(setup: &Setup) -> bool {
-    if setup.slab.top.is_rough() {
-        return false;
-    }
     let m = &setup.slab.medium;
+    let tau_d = m.mu_t_per_m() * setup.slab.thickness_m;
+    if setup.slab.top.is_rough() {
+        return tau_d >= 40.0;
+    }
     let sin_t = setup.directions.theta_o_deg.to_radians().sin() / m.n;
     let cos_t = (1.0 - sin_t * sin_t).sqrt();
-    m.mu_t_per_m() * setup.slab.thickness_m / cos_t >= 40.0
+    tau_d / cos_t >= 40.0
 }
 
 /// Longest chain of internal reflections a rough-top connection follows
@@ -2489,6 +2561,39 @@ mod tests {
             let mut kernel = Kernel::new(&setup, Estimator::Lobe { vertices: m }).expect("valid kernel");
             kernel.lobe_reuse = reuse;
             assert!(kernel.lanes && kernel.lobe_vertices == m, "{name}");
+            compare_kernels(name, &kernel);
+        }
+        // The lobe connection through a rough top (thick): per-lane ω₂₁ and
+        // C from each path's sampled exit, lost exits; an analytic
+        // distribution at large α (many lost and grazing exits) and a
+        // measured normal set, HG and a table.
+        let rough_lobe_cases = [
+            (
+                "rough lobe, TR 0.8, HG, m 4",
+                Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha: 0.8 }),
+                hg(0.9),
+                4,
+            ),
+            (
+                "rough lobe, measured, table, m 16",
+                Microsurface::Measured(std::sync::Arc::new(
+                    crate::microfacet::MeasuredNormals::new(&measured, None).expect("valid normals"),
+                )),
+                table_phase(),
+                16,
+            ),
+        ];
+        for (name, surface, phase, m) in rough_lobe_cases {
+            let setup = Setup::new(
+                Slab::new(6e-3, Medium::new(1.2e4, 10.0, phase, 1.5).expect("valid medium"))
+                    .expect("valid slab")
+                    .with_top(Boundary::rough(surface).expect("valid α")),
+                Beam::gaussian(200e-6).expect("valid beam"),
+                Sensor::new(63, 0.1e-3).expect("valid sensor"),
+                Directions::from_degrees(45.0, 0.0, 15.0, 180.0).expect("valid directions"),
+            );
+            let kernel = Kernel::new(&setup, Estimator::Lobe { vertices: m }).expect("valid kernel");
+            assert!(kernel.lanes && kernel.rough && kernel.lobe_vertices == m, "{name}");
             compare_kernels(name, &kernel);
         }
     }

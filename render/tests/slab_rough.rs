@@ -3,8 +3,12 @@
 //! pixel; the connection (sampled exit directions, chain of image terms)
 //! and the connection of unscattered light against brute-force exit
 //! binning at α = 0.05 and 0.3; reciprocity; the
-//! ring's refusal. Fixed seeds; tolerances are multiples of the reported
-//! standard errors (those are tested in `slab.rs`).
+//! ring's refusal. The lobe connection through a rough top (thick slab):
+//! against the rough fixed-direction connection pixel by pixel (α = 0.3 and
+//! 0.8), against brute force (α = 0.05 and 0.3), and its reported standard
+//! errors against the spread over 30 seeds. Fixed seeds; tolerances are
+//! multiples of the reported standard errors (those are tested here for
+//! the rough lobe and in `slab.rs`).
 
 use lucent_render::microfacet::{Distribution, Microsurface};
 use lucent_render::phase::Phase;
@@ -166,14 +170,130 @@ fn rough_slices_are_reciprocal() {
 }
 
 #[test]
-fn rough_tops_use_the_connection_not_the_ring() {
-    // The ring needs a fixed exit polar angle: refused and not chosen.
+fn rough_tops_use_the_lobe_or_the_connection_not_the_ring() {
+    // The ring needs a fixed exit polar angle: refused and not chosen; a
+    // thick slab takes the lobe connection, a thin one the fixed direction.
     let s = thick(tr(0.05), dirs(45.0, 0.0));
-    assert_eq!(Estimator::best_for(&s), Estimator::Connection);
+    assert_eq!(Estimator::best_for(&s), Estimator::Lobe { vertices: LOBE_VERTICES });
+    let thin_slab = thin(tr(0.05), dirs(45.0, 15.0));
+    assert_eq!(Estimator::best_for(&thin_slab), Estimator::Connection);
+    let lobe =
+        RunOptions { stop: Stop::paths(100), estimator: Estimator::Lobe { vertices: 4 }, ..RunOptions::default() };
+    assert_eq!(simulate(&thin_slab, &lobe, |_| {}).unwrap_err(), SlabError::LobeNotApplicable);
     let opts = RunOptions { stop: Stop::paths(100), estimator: Estimator::Ring, ..RunOptions::default() };
     assert_eq!(simulate(&s, &opts, |_| {}).unwrap_err(), SlabError::RingNotApplicable);
     // Below α = 10⁻⁴ the boundary is the smooth one; a bad α is refused.
     assert!(!tr(5e-5).is_rough());
     assert!(Boundary::rough(Microsurface::Analytic(Distribution::Beckmann { alpha: f64::NAN })).is_err());
     assert!(Boundary::rough(Microsurface::Analytic(Distribution::Beckmann { alpha: -0.1 })).is_err());
+}
+
+/// An out-of-plane pair: 30°/40°, φ_o = 100°.
+fn dirs_out_of_plane() -> Directions {
+    Directions::from_degrees(30.0, 0.0, 40.0, 100.0).unwrap()
+}
+
+#[test]
+fn rough_lobe_agrees_with_the_rough_connection_pixel_by_pixel() {
+    // Thick slab (μ_t d = 45), every resolved pixel (χ² of the differences
+    // over their combined errors) and the sums. At α = 0.8 and θ_o = 60°
+    // the sampled exit directions spread over tens of degrees and W,
+    // cos θ₂₁ are far from the smooth T/n², cos θ_t: a lobe that took
+    // either from the smooth formula fails here (checked by breaking it:
+    // both from the smooth formula, 9σ in the sum and per-pixel p ~ 10⁻¹⁴;
+    // at 45°/15° the sum moved by only 3σ).
+    let cases = [
+        ("TR 0.3, 45/15, m 1", tr(0.3), dirs(45.0, 15.0), 1usize),
+        ("TR 0.8, 45/60, m 4", tr(0.8), dirs(45.0, 60.0), 4),
+        ("Beckmann 0.3, 30/40 φo 100, m 4", beckmann(0.3), dirs_out_of_plane(), 4),
+    ];
+    for (name, top, d, m) in cases {
+        let s = thick(top, d);
+        assert_eq!(Estimator::best_for(&s), Estimator::Lobe { vertices: LOBE_VERTICES }, "{name}");
+        let conn = run(&s, 60_000, 81, Estimator::Connection);
+        let lobe = run(&s, 20_000 / m as u64, 82, Estimator::Lobe { vertices: m });
+        let (p, k) = pixel_p(&lobe, &conn);
+        assert!(k >= 40, "{name}: only {k} resolved pixels");
+        assert!(p > 1e-3, "{name}: per-pixel χ² p = {p:.2e} over {k} pixels");
+        agree(&format!("{name}, sum"), &lobe, &conn, 3.5);
+    }
+}
+
+#[test]
+fn rough_lobe_differs_from_the_smooth_slice_where_the_test_above_has_power() {
+    // The α = 0.8 case of the test above has power against a lobe that
+    // used the smooth exit: the rough slice is far from the smooth one, in
+    // the sum and pixel by pixel.
+    let rough = run(&thick(tr(0.8), dirs(45.0, 60.0)), 5_000, 83, Estimator::Lobe { vertices: 4 });
+    let smooth = run(&thick(Boundary::Smooth, dirs(45.0, 60.0)), 5_000, 84, Estimator::Lobe { vertices: 4 });
+    let s = (rough.sum_std_error.powi(2) + smooth.sum_std_error.powi(2)).sqrt();
+    assert!((rough.sum - smooth.sum).abs() > 10.0 * s, "{:.4e} vs {:.4e} ± {s:.1e}", rough.sum, smooth.sum);
+    let (p, k) = pixel_p(&rough, &smooth);
+    assert!(k >= 40 && p < 1e-6, "rough vs smooth: χ² p = {p:.2e} over {k} pixels");
+}
+
+#[test]
+fn rough_lobe_agrees_with_brute_force_binning() {
+    // Exits binned by pixel within a cone around ω_o (45°/15°, thick slab).
+    let cases = [
+        ("thick, Beckmann 0.05, 45/15", thick(beckmann(0.05), dirs(45.0, 15.0)), 8.0),
+        ("thick, TR 0.3, 45/15", thick(tr(0.3), dirs(45.0, 15.0)), 8.0),
+    ];
+    for (name, s, cone_deg) in cases {
+        let lobe = run(&s, 5_000, 91, Estimator::Lobe { vertices: 3 });
+        let brute = run(&s, 500_000, 92, Estimator::BruteForce { cone_deg });
+        let (el, eb) = (lobe.sum_std_error / lobe.sum, brute.sum_std_error / brute.sum);
+        assert!(el < 0.03 && eb < 0.03, "{name}: too noisy ({el:.3}, {eb:.3})");
+        agree(name, &lobe, &brute, 3.0);
+    }
+}
+
+#[test]
+fn rough_lobe_standard_errors_match_the_spread_over_seeds() {
+    // 30 independent runs of a small rough-top lobe case (TR 0.3, thick,
+    // 45°/15°, m = 3); (n − 1) s² / mean(SE²) ~ χ²(n − 1) for the sum and
+    // for three pixels. An inflated or deflated SE fails both ways.
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    let seeds = 30u64;
+    let s = setup(tr(0.3), 3000.0, 30.0, 0.8, 15e-3, 12, 0.5e-3, dirs(45.0, 15.0));
+    let runs: Vec<Slice> = (0..seeds)
+        .map(|k| {
+            let opts = RunOptions {
+                stop: Stop::paths(1_500),
+                seed: 700 + k,
+                batch_paths: 64,
+                estimator: Estimator::Lobe { vertices: 3 },
+                fold: false,
+            };
+            simulate(&s, &opts, |_| {}).unwrap()
+        })
+        .collect();
+    let n = s.sensor.pixels;
+    let centre = (n / 2) * n + n / 2;
+    let figures = [
+        ("sum", None),
+        ("centre pixel", Some(centre)),
+        ("pixel 2 left", Some(centre - 2)),
+        ("pixel 2 up", Some(centre - 2 * n)),
+    ];
+    for (name, pixel) in figures {
+        let xs: Vec<(f64, f64)> = runs
+            .iter()
+            .map(|r| match pixel {
+                None => (r.sum, r.sum_std_error),
+                Some(i) => (r.values[i], r.std_error[i]),
+            })
+            .collect();
+        let m = xs.iter().map(|x| x.0).sum::<f64>() / seeds as f64;
+        let s2 = xs.iter().map(|x| (x.0 - m).powi(2)).sum::<f64>() / (seeds - 1) as f64;
+        let se2 = xs.iter().map(|x| x.1 * x.1).sum::<f64>() / seeds as f64;
+        assert!(m > 0.0 && se2 > 0.0, "{name}: empty");
+        let stat = (seeds - 1) as f64 * s2 / se2;
+        let p_upper = 1.0 - ChiSquared::new((seeds - 1) as f64).unwrap().cdf(stat);
+        assert!(
+            p_upper > 5e-4 && p_upper < 1.0 - 5e-4,
+            "{name}: spread² {s2:.3e} vs mean reported SE² {se2:.3e} (ratio {:.2}, χ² p = {p_upper:.2e})",
+            s2 / se2
+        );
+    }
 }

@@ -12,7 +12,8 @@
 //! (rare), the splat into the image and the roulettes; the ring's and the
 //! lobe's connections (many splats per event, see `Kernel::connect_ring`
 //! and `Kernel::connect_lobe`) run per lane on the vector walk, each lane
-//! with its own MIS history and chain, the chain's links four at a time
+//! with its own MIS history, chain and exit (through a rough top the
+//! path's own ω₂₁, 1/cos θ₂₁ and splat constant), the chain's links four at a time
 //! (`lobe_links_lanes`). A lane whose path
 //! ends takes the batch's next path, so all four stay busy until the batch
 //! runs out.
@@ -112,7 +113,7 @@ impl Kernel<'_> {
             rng: std::array::from_fn(|_| Rng::new(seed, first_path)),
             live: 0,
             unscattered: 0,
-            exit: [Exit { up: [0.0, 0.0, 1.0], weight: 0.0 }; 4],
+            exit: [Exit::LOST; 4],
             junctions: [Junctions::new(); 4],
             chains: Box::new(std::array::from_fn(|_| Chain::new())),
             next: first_path,
@@ -172,6 +173,7 @@ impl Kernel<'_> {
                         pl,
                         dl,
                         paths.w.0[l],
+                        &paths.exit[l],
                         &paths.junctions[l],
                         chain,
                         &mut b.image,
@@ -287,9 +289,9 @@ impl Kernel<'_> {
         let depth = -p[2];
         let (depth4, floor4) = (F4::splat(depth), F4::splat(depth - self.d));
         let (p0, p1) = (F4::splat(p[0]), F4::splat(p[1]));
-        let w21 = self.w21.map(F4::splat);
+        let w21 = ev.w21.map(F4::splat);
         let d = dir.map(F4::splat);
-        let inv_cos_t = F4::splat(self.inv_cos_t);
+        let inv_cos_t = F4::splat(ev.inv_cos);
         let tau_u = F4::splat(ev.tau_u);
         let load = |a: &Links, c: usize| {
             // SAFETY: `Links` is 32-byte aligned and c is a multiple of 4
