@@ -469,6 +469,18 @@ impl MeasuredNormals {
         self.slopes.len()
     }
 
+    /// Whether the set equals its mirror image about the xz-plane (every
+    /// slope (s_x, s_y) has its partner (s_x, −s_y), counted as often):
+    /// only then is D(m) symmetric about a plane of incidence at φ = 0°/180°.
+    pub fn mirror_symmetric(&self) -> bool {
+        let key = |s: &[f64; 2]| (s[0].to_bits(), s[1].to_bits());
+        let mut a: Vec<_> = self.slopes.iter().map(key).collect();
+        let mut b: Vec<_> = self.slopes.iter().map(|s| key(&[s[0], -s[1]])).collect();
+        a.sort_unstable();
+        b.sort_unstable();
+        a == b
+    }
+
     /// Always false (an empty set is rejected by [`MeasuredNormals::new`]).
     pub fn is_empty(&self) -> bool {
         self.slopes.is_empty()

@@ -275,9 +275,11 @@
 //! so e^{−τ_j} = e^{−τ_u} e^{−s_j} takes one exponential per event (after the
 //! roulette e^{−τ_u}/q = e^{−τ_r}), e^{−s_j} stored with the chain.
 //!
-//! **Fold** ([`RunOptions::fold`]). With both azimuths 0° or 180° and a
-//! mirror-symmetric beam the slice is symmetric about the plane of
-//! incidence; each batch's image is averaged with its mirror image before
+//! **Fold** ([`RunOptions::fold`]). With both azimuths 0° or 180°, a
+//! mirror-symmetric beam and a top surface symmetric about the plane of
+//! incidence (smooth, an isotropic distribution, or a measured normal set
+//! equal to its mirror image — a measured surface generally is not) the
+//! slice is symmetric about the plane of incidence; each batch's image is averaged with its mirror image before
 //! the batch statistics, so the reported errors include the correlation of
 //! the two halves.
 //!
@@ -459,6 +461,16 @@ impl Boundary {
     /// Whether the boundary is rough (sampled microfacets).
     pub fn is_rough(&self) -> bool {
         matches!(self, Boundary::Rough(_))
+    }
+
+    /// Whether the boundary is symmetric about the xz-plane: smooth, an
+    /// (isotropic) analytic distribution, or a measured normal set equal to
+    /// its mirror image ([`crate::microfacet::MeasuredNormals::mirror_symmetric`]).
+    pub fn mirror_symmetric(&self) -> bool {
+        match self {
+            Boundary::Smooth | Boundary::Rough(Microsurface::Analytic(_)) => true,
+            Boundary::Rough(Microsurface::Measured(m)) => m.mirror_symmetric(),
+        }
     }
 
     /// A short description for summaries.
@@ -847,7 +859,10 @@ impl Setup {
     pub fn mirror_symmetric(&self) -> bool {
         let in_plane = |phi_deg: f64| phi_deg.to_radians().sin().abs() < 1e-12;
         let d = &self.directions;
-        in_plane(d.phi_i_deg) && in_plane(d.phi_o_deg) && self.beam.mirror_symmetric(d.phi_i_deg)
+        in_plane(d.phi_i_deg)
+            && in_plane(d.phi_o_deg)
+            && self.beam.mirror_symmetric(d.phi_i_deg)
+            && self.slab.top.mirror_symmetric()
     }
 }
 
@@ -932,7 +947,7 @@ pub struct RunOptions {
     pub estimator: Estimator,
     /// Fold the slice about the plane of incidence (average of pixel (r, c)
     /// and its mirror (N−1−r, c), in every batch) where that is exact: both
-    /// azimuths 0° or 180° and a mirror-symmetric beam ([`Setup::mirror_symmetric`]).
+    /// azimuths 0° or 180°, a mirror-symmetric beam and top surface ([`Setup::mirror_symmetric`]).
     pub fold: bool,
 }
 

@@ -580,6 +580,25 @@ fn fold_gives_a_symmetric_slice_that_agrees_with_the_unfolded_one() {
     assert!(!mapped.mirror_symmetric());
     mapped.beam = Beam::Map(BeamMap::new(2, 2, 1e-4, vec![1.0, 0.5, 1.0, 0.5]).unwrap());
     assert!(mapped.mirror_symmetric());
+    // The top: an isotropic distribution is symmetric; a measured normal set
+    // only if it equals its mirror image (m_y → −m_y).
+    use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
+    let with_top = |m: Microsurface| {
+        let mut t = s.clone();
+        t.slab.top = Boundary::rough(m).unwrap();
+        t
+    };
+    assert!(with_top(Microsurface::Analytic(Distribution::Beckmann { alpha: 0.3 })).mirror_symmetric());
+    let unit = |x: f64, y: f64| {
+        let z = (1.0 - x * x - y * y).sqrt();
+        [x, y, z]
+    };
+    let tilted_normals = [unit(0.1, 0.2), unit(-0.05, 0.1), unit(0.0, 0.0), unit(0.2, 0.15)];
+    let measured = |n: &[[f64; 3]]| Microsurface::Measured(std::sync::Arc::new(MeasuredNormals::new(n, None).unwrap()));
+    assert!(!with_top(measured(&tilted_normals)).mirror_symmetric());
+    let mut both = tilted_normals.to_vec();
+    both.extend(tilted_normals.iter().map(|m| [m[0], -m[1], m[2]]));
+    assert!(with_top(measured(&both)).mirror_symmetric());
 }
 
 #[test]
