@@ -54,8 +54,8 @@
 //! assert_eq!(up.pixel(0, 1), [1.0, 1.0, 1.0]);
 //! ```
 
+use crate::buffer::RgbBuffer;
 use crate::demosaic::{self, Bayer, Demosaic, DemosaicError, Mosaic};
-use crate::RgbBuffer;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
