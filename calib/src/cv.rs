@@ -23,9 +23,9 @@
 //! `fisheye::calibrate` (Kannala–Brandt k1–k4, flags
 //! `CALIB_RECOMPUTE_EXTRINSIC | CALIB_FIX_SKEW`, 100 iterations). PnP with a
 //! fisheye camera runs on the corners undistorted by our own inverse
-//! ([`crate::camera::CameraModel::pixel_to_ray`]) with K = I. The overall
+//! ([`crate::model::CameraModel::pixel_to_ray`]) with K = I. The overall
 //! RMS is OpenCV's, sqrt(Σ‖residual‖² / number of corners); per-view RMS and
-//! the residuals come from [`crate::camera::CameraModel::project`], which the
+//! the residuals come from [`crate::model::CameraModel::project`], which the
 //! tests check against `projectPoints`.
 //!
 //! Camera response of 8-bit exposure brackets ([`recover_response`]):
@@ -36,93 +36,20 @@
 //! assert!(lucent_calib::cv::version().starts_with("4."));
 //! ```
 
-use crate::camera::{CameraModel, Distortion, DistortionModel, Intrinsics};
-use crate::scene::{BoardSpec, Pose};
-use crate::GrayImage;
+use crate::board::BoardSpec;
+use crate::buffer::{BufferSizeError, GrayImage, RgbBuffer};
+use crate::model::{CameraModel, Distortion, DistortionModel, Intrinsics};
+use crate::pose::Pose;
 use opencv::core::{self, Mat, Point, Point2f, Point3f, Scalar, Size, TermCriteria, Vector};
 use opencv::mcc::{
     MCC_CCheckerDetector, MCC_CCheckerDetectorTrait, MCC_CCheckerTrait, MCC_DetectorParameters, MCC_TYPECHART,
 };
 use opencv::prelude::*;
 use opencv::{calib3d, imgcodecs, imgproc};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-/// What went wrong in detection, calibration or drawing.
-#[derive(Debug, thiserror::Error)]
-pub enum CalibError {
-    #[error("{}: cannot read image: {reason}", path.display())]
-    Image { path: PathBuf, reason: String },
-    #[error("OpenCV {context}: {message}")]
-    OpenCv { context: &'static str, message: String },
-    /// A pixel buffer whose length does not match its stated size.
-    #[error(transparent)]
-    Buffer(#[from] crate::BufferSizeError),
-    /// OpenCV returned a result of an unexpected size.
-    #[error("OpenCV {context} returned {got} values, expected {expected}")]
-    OpenCvShape { context: &'static str, got: usize, expected: &'static str },
-    /// `fisheye::calibrate` returned poses for a different number of views.
-    #[error(
-        "fisheye::calibrate returned {rotations} rotation and {translations} translation values for {views} views"
-    )]
-    PoseCount { rotations: usize, translations: usize, views: usize },
-    #[error("no views to calibrate from")]
-    NoViews,
-    #[error("view {view} has {got} corners, the board has {board}")]
-    ViewCorners { view: usize, got: usize, board: usize },
-    #[error("{got} corners for a board of {board}")]
-    Corners { got: usize, board: usize },
-    #[error("corner {index} at ({x:.1}, {y:.1}) px is 90° or more off the fisheye's axis: no pinhole ray for PnP")]
-    BeyondFisheyeAxis { index: usize, x: f64, y: f64 },
-    #[error("solvePnP found no pose for these corners")]
-    NoPose,
-    /// [`crate::camera::calibrate_photos`] was given no photos.
-    #[error("no photos given")]
-    NoPhotos,
-    /// The photos of one calibration differ in size.
-    #[error("photos differ in size: {first} is {width} × {height}, but {}", .others.join(", "))]
-    PhotoSizes { first: String, width: usize, height: usize, others: Vec<String> },
-    /// Fewer than [`crate::camera::MIN_VIEWS`] photos show the board.
-    #[error(
-        "{}:\n{}{}\n(--board counts inner corners: a board of 10 × 7 squares has 9x6)",
-        too_few_views_head(.board, .found),
-        .not_found.iter().map(|n| format!("  {}: {}", n.image, n.reason)).collect::<Vec<_>>().join("\n"),
-        .suggestion.as_ref().map_or(String::new(), |(name, c, r)| format!("\n{name} does show a board of {c}x{r} inner corners: is --board {c}x{r} meant?"))
-    )]
-    TooFewViews {
-        board: BoardSpec,
-        /// Names of the photos that show the board.
-        found: Vec<String>,
-        not_found: Vec<crate::camera::NotFound>,
-        /// A photo without the board and the board size it does show.
-        suggestion: Option<(String, usize, usize)>,
-    },
-    /// An ECC motion model name not in [`crate::ecc::Motion::NAMES`].
-    #[error("motion {name:?}: expected one of {}", crate::ecc::Motion::NAMES.join(", "))]
-    UnknownMotion { name: String },
-    #[error("ECC buffers of {template}, {input} and {mask:?} values for {width} × {height}")]
-    EccBuffers { template: usize, input: usize, mask: Option<usize>, width: usize, height: usize },
-    #[error("ECC needs at least 16 × 16 pixels, got {width} × {height}")]
-    EccTooSmall { width: usize, height: usize },
-    #[error("the ECC region has {used} pixels; at least 64 are needed")]
-    EccRegion { used: usize },
-    #[error("ECC images contain NaN or infinite values")]
-    EccNonFinite,
-}
-
-fn too_few_views_head(board: &BoardSpec, found: &[String]) -> String {
-    if found.is_empty() {
-        format!("no photo shows a chessboard of {}x{} inner corners", board.cols, board.rows)
-    } else {
-        format!(
-            "only {} photo(s) show the {}x{} board ({}); calibration needs at least {} views at different angles",
-            found.len(),
-            board.cols,
-            board.rows,
-            found.join(", "),
-            crate::camera::MIN_VIEWS
-        )
-    }
-}
+// Kept at this path for the root crate and the tests (`lucent_calib::cv::CalibError`).
+pub use crate::error::CalibError;
 
 fn cv_err(context: &'static str) -> impl Fn(opencv::Error) -> CalibError {
     move |e| CalibError::OpenCv { context, message: e.message }
@@ -210,18 +137,18 @@ pub fn read_gray(path: &Path) -> Result<GrayImage, CalibError> {
 
 /// Reads an 8-bit image file (JPEG, PNG, TIFF, …) as RGB with values /255,
 /// as stored (no transfer function removed).
-pub fn read_rgb8(path: &Path) -> Result<crate::RgbBuffer, CalibError> {
+pub fn read_rgb8(path: &Path) -> Result<RgbBuffer, CalibError> {
     let bgr = imread(path, imgcodecs::IMREAD_COLOR)?;
     let mut rgb = Mat::default();
     imgproc::cvt_color(&bgr, &mut rgb, imgproc::COLOR_BGR2RGB, 0).map_err(cv_err("cvtColor"))?;
     let data = bytes_of(&rgb)?.iter().map(|&b| f32::from(b) / 255.0).collect();
-    Ok(crate::RgbBuffer::new(rgb.cols() as usize, rgb.rows() as usize, data)?)
+    Ok(RgbBuffer::new(rgb.cols() as usize, rgb.rows() as usize, data)?)
 }
 
 fn gray_mat(img: &GrayImage) -> Result<Mat, CalibError> {
     if img.data.len() != img.width * img.height {
         let (width, height, len) = (img.width, img.height, img.data.len());
-        return Err(crate::BufferSizeError { width, height, channels: 1, len }.into());
+        return Err(BufferSizeError { width, height, channels: 1, len }.into());
     }
     let m = Mat::new_rows_cols_with_data(img.height as i32, img.width as i32, &img.data).map_err(cv_err("image"))?;
     m.try_clone().map_err(cv_err("image"))
@@ -828,7 +755,7 @@ pub struct MccChart {
 /// interleaved R, G, B bytes); `Ok(None)` when it finds no chart.
 pub fn detect_mcc24(width: usize, height: usize, rgb8: &[u8]) -> Result<Option<MccChart>, CalibError> {
     if width.checked_mul(height).and_then(|n| n.checked_mul(3)) != Some(rgb8.len()) || width == 0 || height == 0 {
-        return Err(crate::BufferSizeError { width, height, channels: 3, len: rgb8.len() }.into());
+        return Err(BufferSizeError { width, height, channels: 3, len: rgb8.len() }.into());
     }
     let pixels: Vec<core::Vec3b> = rgb8.chunks_exact(3).map(|p| core::Vec3b::from([p[2], p[1], p[0]])).collect();
     let bgr = Mat::new_rows_cols_with_data(height as i32, width as i32, &pixels)
@@ -871,7 +798,7 @@ pub fn recover_response(
     for b in brackets {
         if b.data.len() != b.width * b.height * 3 {
             let (width, height, len) = (b.width, b.height, b.data.len());
-            return Err(crate::BufferSizeError { width, height, channels: 3, len }.into());
+            return Err(BufferSizeError { width, height, channels: 3, len }.into());
         }
         // Channel order is carried through unchanged (R, G, B in, R, G, B out).
         let pixels: Vec<core::Vec3b> = b.data.chunks_exact(3).map(|p| core::Vec3b::from([p[0], p[1], p[2]])).collect();
@@ -923,7 +850,7 @@ mod tests {
             let mut dst = Mat::default();
             calib3d::rodrigues(&src, &mut dst, &mut core::no_array()).unwrap();
             let want = mat_values(&dst, "test").unwrap();
-            let got = crate::scene::rodrigues(r);
+            let got = crate::pose::rodrigues(r);
             for k in 0..9 {
                 assert!(
                     (got[k / 3][k % 3] - want[k]).abs() < 1e-12,
@@ -936,7 +863,7 @@ mod tests {
             let mut back = Mat::default();
             calib3d::rodrigues(&m, &mut back, &mut core::no_array()).unwrap();
             let want = mat_values(&back, "test").unwrap();
-            let ours = crate::scene::rotation_vector(&got);
+            let ours = crate::pose::rotation_vector(&got);
             for k in 0..3 {
                 assert!((ours[k] - want[k]).abs() < 1e-6, "{r:?}: vector {ours:?} vs OpenCV {want:?}");
             }

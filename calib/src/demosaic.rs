@@ -29,7 +29,7 @@
 //! assert_eq!(rgb.pixel(3, 2), [7.0, 7.0, 7.0]); // interior: exact on linear images
 //! ```
 
-use crate::{BufferSizeError, RgbBuffer};
+use crate::buffer::{BufferSizeError, RgbBuffer};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 

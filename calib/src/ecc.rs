@@ -35,7 +35,7 @@
 //! assert!(r.correlation > 0.99);
 //! ```
 
-use crate::cv::CalibError;
+use crate::error::CalibError;
 use opencv::core::{self, Mat, Size, TermCriteria};
 use opencv::prelude::*;
 use opencv::{imgproc, video};
@@ -67,7 +67,7 @@ impl Motion {
             "euclidean" => Ok(Self::Euclidean),
             "affine" => Ok(Self::Affine),
             "homography" => Ok(Self::Homography),
-            other => Err(CalibError::UnknownMotion { name: other.to_string() }),
+            other => Err(CalibError::UnknownMotion { name: other.to_string(), expected: &Self::NAMES }),
         }
     }
 

@@ -45,8 +45,8 @@
 //! assert_eq!(lucent_calib::env::direction_to_uv(cam.direction(1.5, 1.5)), (0.0, 0.5));
 //! ```
 
-use crate::camera::{CameraModel, DistortionModel};
-use crate::RgbBuffer;
+use crate::buffer::RgbBuffer;
+use crate::model::{CameraModel, DistortionModel};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -506,7 +506,7 @@ pub enum CornerOrder {
 /// 20 grey levels apart). `corners` are row-major (`cols` per row), pixel
 /// centres at integers.
 pub fn canonical_corner_order(
-    img: &crate::GrayImage,
+    img: &crate::buffer::GrayImage,
     cols: usize,
     rows: usize,
     corners: &[[f64; 2]],
@@ -537,7 +537,7 @@ pub fn canonical_corner_order(
     }
 }
 
-fn grey_bilinear(img: &crate::GrayImage, x: f64, y: f64) -> Option<f64> {
+fn grey_bilinear(img: &crate::buffer::GrayImage, x: f64, y: f64) -> Option<f64> {
     if !(x >= 0.0 && y >= 0.0 && x <= (img.width as f64 - 1.0) && y <= (img.height as f64 - 1.0)) {
         return None;
     }
@@ -570,8 +570,8 @@ pub struct BoardInMap {
 /// The pinhole camera of a view in OpenCV's pixel convention (pixel centres
 /// at integers), for corner detection and PnP: fx = fy = f, cx = W/2 − ½,
 /// cy = H/2 − ½.
-pub fn view_intrinsics(cam: &ViewCamera) -> crate::camera::Intrinsics {
-    crate::camera::Intrinsics { fx: cam.f_px, fy: cam.f_px, cx: cam.cx_px - 0.5, cy: cam.cy_px - 0.5 }
+pub fn view_intrinsics(cam: &ViewCamera) -> crate::model::Intrinsics {
+    crate::model::Intrinsics { fx: cam.f_px, fy: cam.f_px, cx: cam.cx_px - 0.5, cy: cam.cy_px - 0.5 }
 }
 
 /// From a board pose found in a view (OpenCV: x_cam = R·x_board + t, camera
@@ -728,7 +728,7 @@ pub fn lens_to_equirect(img: &RgbBuffer, cam: &CameraModel, width: usize) -> Res
             let phi = -std::f64::consts::TAU * (x as f64 + 0.5) / width as f64;
             let d = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
             if let Some([u, v]) = project_ray(cam, lens_ray_of_map_direction(d)) {
-                row[3 * x..3 * x + 3].copy_from_slice(&crate::camera::sample_bilinear(img, u, v));
+                row[3 * x..3 * x + 3].copy_from_slice(&crate::buffer::sample_bilinear(img, u, v));
             }
         }
     });
@@ -775,7 +775,7 @@ pub fn paste_view(map: &mut RgbBuffer, img: &RgbBuffer, spec: &ViewSpec) -> Resu
             }
             let (sx, sy) =
                 ((px - 0.5).clamp(0.0, (img.width - 1) as f64), (py - 0.5).clamp(0.0, (img.height - 1) as f64));
-            let p = crate::camera::sample_bilinear(img, sx, sy);
+            let p = crate::buffer::sample_bilinear(img, sx, sy);
             map.data[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&p);
             written += 1;
         }

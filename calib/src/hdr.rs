@@ -56,7 +56,7 @@
 //! assert_eq!(m.report.saturated_in_every_bracket, 0);
 //! ```
 
-use crate::RgbBuffer;
+use crate::buffer::RgbBuffer;
 use serde::{Deserialize, Serialize};
 
 /// What is wrong with a set of brackets.
@@ -87,7 +87,7 @@ pub enum HdrError {
     #[error("camera response recovery failed: OpenCV {context}: {message}")]
     OpenCv { context: &'static str, message: String },
     #[error("camera response recovery failed: {0}")]
-    Buffer(#[from] crate::BufferSizeError),
+    Buffer(#[from] crate::buffer::BufferSizeError),
     #[error("camera response recovery failed: unexpected response of {rows} × {cols} (type {typ})")]
     ResponseShape { rows: i32, cols: i32, typ: i32 },
     #[error("camera response recovery failed: the recovered response has non-positive or non-finite values (too few brackets, or brackets without overlap)")]
@@ -104,9 +104,9 @@ pub struct Rgb8Buffer {
 
 impl Rgb8Buffer {
     /// Checks that `data` holds exactly `width × height` RGB triples.
-    pub fn new(width: usize, height: usize, data: Vec<u8>) -> Result<Self, crate::BufferSizeError> {
+    pub fn new(width: usize, height: usize, data: Vec<u8>) -> Result<Self, crate::buffer::BufferSizeError> {
         if width.checked_mul(height).and_then(|n| n.checked_mul(3)) != Some(data.len()) {
-            return Err(crate::BufferSizeError { width, height, channels: 3, len: data.len() });
+            return Err(crate::buffer::BufferSizeError { width, height, channels: 3, len: data.len() });
         }
         Ok(Self { width, height, data })
     }

@@ -6,14 +6,27 @@
 //!
 //! | module | computes | units |
 //! |---|---|---|
+//! | [`buffer`] | the plain image buffers (linear RGB, 8-bit grey), bilinear sampling | as stored |
 //! | [`raw`] | RAW → black/white-scaled mosaic → linear camera RGB, metadata | 1.0 = the white level |
 //! | [`demosaic`] | Bayer demosaicing: Malvar–He–Cutler (2004), bilinear | as the mosaic |
-//! | [`camera`] | pinhole + Brown–Conrady / rational distortion, Kannala–Brandt fisheye, projection, undistortion | pixels, metres |
-//! | [`scene`] | board and sample poses, the OpenCV → renderer convention (the only place) | metres |
+//! | [`model`] | the camera model: pinhole + Brown–Conrady / rational distortion, Kannala–Brandt fisheye, projection, validation | pixels, metres |
+//! | [`board`] | the chessboard: inner corners, square size, corner positions | metres |
+//! | [`pose`] | rigid poses in OpenCV's convention, rotation vectors (Rodrigues) | metres, radians |
+//! | [`camera`] | undistortion of photos; re-exports [`model`] and the [`calibrate`] driver at their old paths | pixels |
+//! | [`scene`] | sample placement, the OpenCV → renderer convention (the only place) | metres |
+//! | [`error`] | [`error::CalibError`], the error of [`cv`], [`ecc`] and [`calibrate`] | — |
 //! | [`cv`] | OpenCV: chessboard corners, Zhang calibration, PnP, drawing, `mcc` chart detection, camera response | pixels |
+//! | [`calibrate`] | the calibration driver: detection over photos, calibration, per-view report (camera.json) | pixels, metres |
 //! | [`env`](mod@env) | equirectangular HDR checks, colour matrices, perspective views | linear RGB |
 //! | [`hdr`] | HDR merge of exposure brackets (linear; 8-bit via the recovered response) | relative radiance |
 //! | [`ecc`] | OpenCV `findTransformECC` alignment (photo ↔ render), coarse to fine | pixels |
+//!
+//! Module graph (`use crate::…`, re-exports included), acyclic but for `cv` ↔ `hdr`
+//! ([`hdr::merge_8bit_recovered`] calls [`cv::recover_response`], which takes and returns `hdr` types):
+//! the leaves [`buffer`], [`model`], [`board`], [`pose`] import nothing from this crate;
+//! [`error`] → board, buffer; [`cv`] → leaves, error, hdr; [`ecc`] → error;
+//! [`env`](mod@env) → model, buffer; [`calibrate`] → leaves, error, cv, env;
+//! [`camera`] → buffer, model, calibrate; [`scene`] → model, board, pose, calibrate.
 //!
 //! ```
 //! // A linear RGB buffer, row-major, interleaved.
@@ -21,99 +34,22 @@
 //! assert_eq!(img.pixel(1, 0), [1.0, 0.5, 0.0]);
 //! ```
 
+pub mod board;
+pub mod buffer;
+pub mod calibrate;
 pub mod camera;
 pub mod cv;
 pub mod demosaic;
 pub mod ecc;
 pub mod env;
+pub mod error;
 pub mod hdr;
+pub mod model;
+pub mod pose;
 pub mod raw;
 pub mod scene;
 
-/// A linear RGB image: `data` holds `width × height` interleaved `[r, g, b]`
-/// triples, row-major, top row first. The same layout as the root crate's
-/// `imageio::RgbImage`, so conversion is a move of the fields.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RgbBuffer {
-    pub width: usize,
-    pub height: usize,
-    pub data: Vec<f32>,
-}
-
-/// A buffer whose length does not match its stated size.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("image buffer of {len} values does not hold {width} × {height} × {channels}")]
-pub struct BufferSizeError {
-    pub width: usize,
-    pub height: usize,
-    pub channels: usize,
-    pub len: usize,
-}
-
-impl RgbBuffer {
-    /// Checks that `data` holds exactly `width × height` RGB triples.
-    pub fn new(width: usize, height: usize, data: Vec<f32>) -> Result<Self, BufferSizeError> {
-        if width.checked_mul(height).and_then(|n| n.checked_mul(3)) != Some(data.len()) {
-            return Err(BufferSizeError { width, height, channels: 3, len: data.len() });
-        }
-        Ok(Self { width, height, data })
-    }
-
-    /// A black image.
-    pub fn zeros(width: usize, height: usize) -> Self {
-        Self { width, height, data: vec![0.0; width * height * 3] }
-    }
-
-    /// The RGB triple at column `x`, row `y` (panics outside the image).
-    pub fn pixel(&self, x: usize, y: usize) -> [f32; 3] {
-        let i = 3 * (y * self.width + x);
-        [self.data[i], self.data[i + 1], self.data[i + 2]]
-    }
-}
-
-/// An 8-bit grey image (row-major, top row first), e.g. a photo for corner
-/// detection.
-#[derive(Debug, Clone, PartialEq)]
-pub struct GrayImage {
-    pub width: usize,
-    pub height: usize,
-    pub data: Vec<u8>,
-}
-
-impl GrayImage {
-    /// Checks that `data` holds exactly `width × height` values.
-    pub fn new(width: usize, height: usize, data: Vec<u8>) -> Result<Self, BufferSizeError> {
-        if width.checked_mul(height) != Some(data.len()) {
-            return Err(BufferSizeError { width, height, channels: 1, len: data.len() });
-        }
-        Ok(Self { width, height, data })
-    }
-
-    /// Grey from linear RGB for display and detection: luma of the
-    /// sRGB-encoded values (Rec. 709 weights), each image scaled so its
-    /// 99.5th percentile maps to 255 (so dark linear photos still show the
-    /// board).
-    pub fn from_linear_rgb(img: &RgbBuffer) -> Self {
-        let mut luma: Vec<f32> =
-            img.data.chunks_exact(3).map(|p| (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]).max(0.0)).collect();
-        let mut sorted: Vec<f32> = luma.iter().copied().filter(|v| v.is_finite()).collect();
-        sorted.sort_by(f32::total_cmp);
-        let index = (sorted.len().saturating_sub(1) as f64 * 0.995).round() as usize;
-        let white = sorted.get(index).copied().unwrap_or(1.0);
-        let white = if white > 0.0 { white } else { 1.0 };
-        for v in &mut luma {
-            *v = (*v / white).clamp(0.0, 1.0);
-        }
-        let data = luma
-            .iter()
-            .map(|&v| {
-                let s = if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
-                (s * 255.0).round().clamp(0.0, 255.0) as u8
-            })
-            .collect();
-        Self { width: img.width, height: img.height, data }
-    }
-}
+pub use buffer::{BufferSizeError, GrayImage, RgbBuffer};
 
 /// Version of the OpenCV library this crate links, e.g. `"4.6.0"`.
 ///
@@ -122,24 +58,4 @@ impl GrayImage {
 /// ```
 pub fn opencv_version() -> String {
     cv::version()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn grey_from_linear_rgb_scales_to_the_bright_end_and_encodes_srgb() {
-        // 199 dark pixels at 0.01 and one at 0.04: white = 0.01 (99.5th percentile),
-        // so the dark ones become 255 and the bright one clips at 255.
-        let mut data = vec![0.01f32; 200 * 3];
-        data[..3].copy_from_slice(&[0.04; 3]);
-        let g = GrayImage::from_linear_rgb(&RgbBuffer::new(200, 1, data).unwrap());
-        assert!(g.data.iter().all(|&v| v == 255));
-        // Linear 0.5 of white → sRGB 0.7354 → 188.
-        let img = RgbBuffer::new(2, 1, vec![0.5, 0.5, 0.5, 1.0, 1.0, 1.0]).unwrap();
-        assert_eq!(GrayImage::from_linear_rgb(&img).data, [188, 255]);
-        assert!(GrayImage::new(2, 2, vec![0; 3]).is_err());
-        assert!(RgbBuffer::new(2, 2, vec![0.0; 11]).is_err());
-    }
 }

@@ -14,7 +14,8 @@
 //!    per-channel levels then re-read from its tags; DNGs with other
 //!    compressions (Deflate, lossy JPEG, JPEG XL) are refused by name. DNG opcode lists (`OpcodeList1–3`: phones' gain maps, lens
 //!    warps) and `DefaultCrop` are not applied; the metadata's warnings say
-//!    so. Before decoding, a TIFF-based
+//!    so. TIFF directories (IFD chain, SubIFDs, tag values) are read with the
+//!    `tiff` crate. Before decoding, a TIFF-based
 //!    file whose declared image data runs past its end is refused as
 //!    truncated ([`tiff_data_end`]; `rawloader` would make the missing part
 //!    up), and after it a buffer whose length is not width × height ×
@@ -54,8 +55,8 @@
 //! assert_eq!(up.pixel(0, 1), [1.0, 1.0, 1.0]);
 //! ```
 
+use crate::buffer::RgbBuffer;
 use crate::demosaic::{self, Bayer, Demosaic, DemosaicError, Mosaic};
-use crate::RgbBuffer;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -105,11 +106,15 @@ pub struct UnknownWhiteBalance {
     pub name: String,
 }
 
-/// A TIFF directory structure that runs past the end of its file ([`tiff_data_end`]).
+/// A TIFF directory structure that cannot be read ([`tiff_data_end`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("its TIFF directory structure runs past the end of the file ({file_len} bytes)")]
-pub struct TiffTruncated {
-    pub file_len: usize,
+pub enum TiffStructureError {
+    /// An IFD or one of the values read (strip, tile and SubIFD lists) lies past the end of the file.
+    #[error("its TIFF directory structure runs past the end of the file ({file_len} bytes)")]
+    Truncated { file_len: usize },
+    /// What the `tiff` crate found wrong otherwise (e.g. a value list over its 1 MiB limit).
+    #[error("its TIFF directory structure cannot be read: {reason}")]
+    Corrupt { reason: String },
 }
 
 /// Options of [`develop`] and [`decode_raw`].
@@ -305,72 +310,265 @@ fn masked_black(data: &[u16], width: usize, height: usize, areas: &[(u64, u64, u
 /// SubIFDs). `Ok(None)` for files that are not plain little/big-endian
 /// TIFF; an error when an IFD lies outside the file. Used to refuse
 /// truncated files, which `rawloader` would decode with the missing data
-/// made up.
-pub fn tiff_data_end(bytes: &[u8]) -> Result<Option<u64>, TiffTruncated> {
-    let le = match bytes.get(..4) {
-        Some([b'I', b'I', 42, 0]) => true,
-        Some([b'M', b'M', 0, 42]) => false,
-        _ => return Ok(None),
-    };
-    match tiff_walk(bytes, le) {
-        Some(end) => Ok(Some(end)),
-        None => Err(TiffTruncated { file_len: bytes.len() }),
-    }
-}
-
-fn tiff_walk(bytes: &[u8], le: bool) -> Option<u64> {
-    let u16_at = |o: usize| -> Option<u64> {
-        let b = bytes.get(o..o + 2)?;
-        Some(u64::from(if le { u16::from_le_bytes([b[0], b[1]]) } else { u16::from_be_bytes([b[0], b[1]]) }))
-    };
-    let u32_at = |o: usize| -> Option<u64> {
-        let b = bytes.get(o..o + 4)?;
-        let a = [b[0], b[1], b[2], b[3]];
-        Some(u64::from(if le { u32::from_le_bytes(a) } else { u32::from_be_bytes(a) }))
-    };
-    // Values of a SHORT/LONG/IFD entry at `entry`.
-    let values = |entry: usize| -> Option<Vec<u64>> {
-        let (typ, count) = (u16_at(entry + 2)?, u32_at(entry + 4)? as usize);
-        let size = match typ {
-            3 => 2,
-            4 | 13 => 4,
-            _ => return Some(Vec::new()),
-        };
-        if count > 1 << 20 {
-            return None;
+/// made up. The directories are read by the `tiff` crate (module `tiff_dir`
+/// below); the byte range is this function's (the crate checks an offset only
+/// when it reads the data there).
+pub fn tiff_data_end(bytes: &[u8]) -> Result<Option<u64>, TiffStructureError> {
+    let error = |e: tiff::TiffError| match e {
+        tiff::TiffError::IoError(ref io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            TiffStructureError::Truncated { file_len: bytes.len() }
         }
-        let base = if count * size <= 4 { entry + 8 } else { u32_at(entry + 8)? as usize };
-        (0..count).map(|k| if size == 2 { u16_at(base + 2 * k) } else { u32_at(base + 4 * k) }).collect()
+        other => TiffStructureError::Corrupt { reason: other.to_string() },
+    };
+    let Some(t) = tiff_dir::TiffFile::open(bytes).map_err(error)? else {
+        return Ok(None);
     };
     let mut end = 0u64;
-    let mut queue = vec![u32_at(4)? as usize];
-    let mut seen = std::collections::HashSet::new();
-    while let Some(ifd) = queue.pop() {
-        if ifd == 0 || !seen.insert(ifd) || seen.len() > 64 {
-            continue;
-        }
-        let n = u16_at(ifd)? as usize;
-        let mut tags = std::collections::HashMap::new();
-        for k in 0..n {
-            let entry = ifd + 2 + 12 * k;
-            tags.insert(u16_at(entry)? as u16, entry);
-        }
+    t.find(|t, dir| {
+        // StripOffsets/StripByteCounts, TileOffsets/TileByteCounts, JPEGInterchangeFormat(Length).
         for (offsets, lengths) in [(273u16, 279u16), (324, 325), (513, 514)] {
-            if let (Some(&o), Some(&l)) = (tags.get(&offsets), tags.get(&lengths)) {
-                let (o, l) = (values(o)?, values(l)?);
+            if tiff_dir::TiffFile::has(dir, offsets) && tiff_dir::TiffFile::has(dir, lengths) {
+                let (o, l) = (t.numbers(dir, offsets)?, t.numbers(dir, lengths)?);
                 for (a, b) in o.iter().zip(&l) {
-                    end = end.max(a + b);
+                    end = end.max((*a as u64).saturating_add(*b as u64));
                 }
             }
         }
-        if let Some(&sub) = tags.get(&330) {
-            queue.extend(values(sub)?.into_iter().map(|v| v as usize));
+        Ok(false)
+    })
+    .map_err(error)?;
+    Ok(Some(end))
+}
+
+/// TIFF structure of raw files through the `tiff` crate (0.11): the IFDs
+/// reachable from the header (the IFD0 chain and SubIFDs) and their tag values.
+///
+/// Hand-written here, and only this: the 8-byte header and a stub directory.
+/// `tiff::decoder::Decoder::new` opens a file only when its first IFD is an
+/// image the crate decodes (ImageWidth, a photometric interpretation it
+/// knows, strips or tiles), so a DNG whose IFD0 is the raw image itself (CFA,
+/// 32803, or LinearRaw, 34892: what Android phones and `calib/tests/raw_dng*.rs`
+/// write) is refused with "unknown interpretation". The decoder therefore
+/// reads the file through [`Stubbed`], whose header points at a 1 × 1 stub IFD
+/// just past the file's end; the file's own IFDs are then read with
+/// `Decoder::read_directory` (0.11's reader of a directory at any offset) and
+/// their values with `Decoder::read_directory_tags`: entry types, byte order,
+/// inline or offset values and reads past the end of the file (an error) are
+/// the crate's. Also left here, as the crate does neither for directories read
+/// this way: which IFDs to visit (cycle and count guard) and, in
+/// [`super::tiff_data_end`], the byte range of the image data.
+mod tiff_dir {
+    use std::cell::RefCell;
+    use std::collections::HashSet;
+    use std::io::{Read, Seek, SeekFrom};
+    use tiff::decoder::{ifd::Value, Decoder};
+    use tiff::tags::{IfdPointer, Tag};
+    use tiff::{Directory, TiffResult};
+
+    /// Most IFDs visited (real raw files have fewer than 10).
+    const MAX_IFDS: usize = 64;
+
+    /// Bytes of the stub IFD: 5 entries of 12 bytes, their count and the next-IFD offset.
+    const STUB_LEN: usize = 2 + 5 * 12 + 4;
+
+    /// The file as `tiff` reads it. While `Decoder::new` reads it, the
+    /// header's first-IFD offset is replaced by that of a stub IFD (a 1 × 1
+    /// grey image) appended after the file's last byte; then the stub is
+    /// removed ([`Stubbed::unstub`]), so that reads past the end of the file
+    /// fail as they would on the file itself.
+    struct Stubbed<'a> {
+        head: [u8; 8],
+        file: &'a [u8],
+        stub: Option<[u8; STUB_LEN]>,
+        pos: u64,
+    }
+
+    impl<'a> Stubbed<'a> {
+        fn new(file: &'a [u8], le: bool) -> Option<Self> {
+            let stub_at = u32::try_from(file.len()).ok().filter(|&n| n <= u32::MAX - STUB_LEN as u32)?;
+            let u16b = |v: u16| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+            let u32b = |v: u32| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+            let mut head = [0u8; 8];
+            head[..4].copy_from_slice(&file[..4]);
+            head[4..].copy_from_slice(&u32b(stub_at));
+            let mut stub = [0u8; STUB_LEN];
+            stub[..2].copy_from_slice(&u16b(5));
+            // ImageWidth = ImageLength = 1, BlackIsZero, one strip of 1 byte at offset 0 (SHORT = 3, LONG = 4).
+            for (k, (tag, typ, value)) in
+                [(256u16, 3u16, 1u32), (257, 3, 1), (262, 3, 1), (273, 4, 0), (279, 4, 1)].into_iter().enumerate()
+            {
+                let e = &mut stub[2 + 12 * k..14 + 12 * k];
+                e[..2].copy_from_slice(&u16b(tag));
+                e[2..4].copy_from_slice(&u16b(typ));
+                e[4..8].copy_from_slice(&u32b(1));
+                if typ == 3 {
+                    e[8..10].copy_from_slice(&u16b(value as u16));
+                } else {
+                    e[8..12].copy_from_slice(&u32b(value));
+                }
+            }
+            Some(Self { head, file, stub: Some(stub), pos: 0 })
         }
-        if let Some(next) = u32_at(ifd + 2 + 12 * n) {
-            queue.push(next as usize);
+
+        /// The file alone from now on.
+        fn unstub(&mut self) {
+            self.stub = None;
+        }
+
+        /// The bytes from `pos` to the end of the part that holds it.
+        fn rest(&self) -> &[u8] {
+            let (p, n) = (self.pos, self.file.len() as u64);
+            match &self.stub {
+                Some(_) if p < 8 => &self.head[p as usize..],
+                _ if p < n => &self.file[p as usize..],
+                Some(stub) if p < n + STUB_LEN as u64 => &stub[(p - n) as usize..],
+                _ => &[],
+            }
         }
     }
-    Some(end)
+
+    impl Read for Stubbed<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let rest = self.rest();
+            let k = rest.len().min(buf.len());
+            buf[..k].copy_from_slice(&rest[..k]);
+            self.pos += k as u64;
+            Ok(k)
+        }
+    }
+
+    impl Seek for Stubbed<'_> {
+        fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+            let end = (self.file.len() + if self.stub.is_some() { STUB_LEN } else { 0 }) as u64;
+            let pos = match to {
+                SeekFrom::Start(p) => Some(p),
+                SeekFrom::End(d) => end.checked_add_signed(d),
+                SeekFrom::Current(d) => self.pos.checked_add_signed(d),
+            };
+            self.pos = pos.ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "seek before 0"))?;
+            Ok(self.pos)
+        }
+    }
+
+    /// A classic (not Big-) TIFF file and its decoder.
+    pub(super) struct TiffFile<'a> {
+        /// The whole file (image data is read from it directly).
+        pub(super) bytes: &'a [u8],
+        /// Little-endian ("II") rather than big-endian ("MM").
+        pub(super) le: bool,
+        first: IfdPointer,
+        decoder: RefCell<Decoder<Stubbed<'a>>>,
+    }
+
+    impl<'a> TiffFile<'a> {
+        /// `Ok(None)` unless `bytes` start with a little- or big-endian TIFF
+        /// header (or are 4 GiB or more, beyond classic TIFF).
+        pub(super) fn open(bytes: &'a [u8]) -> TiffResult<Option<Self>> {
+            let le = match bytes.get(..4) {
+                Some([b'I', b'I', 42, 0]) => true,
+                Some([b'M', b'M', 0, 42]) => false,
+                _ => return Ok(None),
+            };
+            let Some(&[a, b, c, d]) = bytes.get(4..8) else {
+                return Err(std::io::Error::from(std::io::ErrorKind::UnexpectedEof).into());
+            };
+            let first = IfdPointer(u64::from(if le {
+                u32::from_le_bytes([a, b, c, d])
+            } else {
+                u32::from_be_bytes([a, b, c, d])
+            }));
+            let Some(reader) = Stubbed::new(bytes, le) else { return Ok(None) };
+            let mut decoder = Decoder::new(reader)?;
+            decoder.inner().unstub();
+            Ok(Some(Self { bytes, le, first, decoder: RefCell::new(decoder) }))
+        }
+
+        /// IFD0.
+        pub(super) fn first(&self) -> TiffResult<Directory> {
+            self.decoder.borrow_mut().read_directory(self.first)
+        }
+
+        /// The first IFD for which `pick` is true, visiting IFD0, its chain
+        /// and the SubIFDs depth first (of one IFD, the next in its chain
+        /// before its SubIFDs); `Ok(None)` when none is. Errors when an IFD or
+        /// a SubIFD list cannot be read (it lies past the end of the file).
+        pub(super) fn find(
+            &self,
+            mut pick: impl FnMut(&Self, &Directory) -> TiffResult<bool>,
+        ) -> TiffResult<Option<Directory>> {
+            let mut queue = vec![self.first];
+            let mut seen = HashSet::new();
+            while let Some(at) = queue.pop() {
+                if at.0 == 0 || !seen.insert(at.0) || seen.len() > MAX_IFDS {
+                    continue;
+                }
+                let dir = self.decoder.borrow_mut().read_directory(at)?;
+                if pick(self, &dir)? {
+                    return Ok(Some(dir));
+                }
+                queue.extend(self.numbers(&dir, 330)?.into_iter().map(|v| IfdPointer(v as u64)));
+                queue.extend(dir.next());
+            }
+            Ok(None)
+        }
+
+        /// Whether `dir` has `tag`.
+        pub(super) fn has(dir: &Directory, tag: u16) -> bool {
+            dir.contains(Tag::from_u16_exhaustive(tag))
+        }
+
+        /// The number of values of `tag` in `dir` (0 when absent).
+        pub(super) fn count(dir: &Directory, tag: u16) -> u64 {
+            dir.get(Tag::from_u16_exhaustive(tag)).map_or(0, |e| e.count())
+        }
+
+        /// The values of `tag` in `dir` as numbers (rationals divided out;
+        /// text gives none); empty when the tag is absent.
+        pub(super) fn numbers(&self, dir: &Directory, tag: u16) -> TiffResult<Vec<f64>> {
+            fn push(v: Value, out: &mut Vec<f64>) {
+                match v {
+                    Value::List(vs) => vs.into_iter().for_each(|v| push(v, out)),
+                    Value::Byte(x) => out.push(f64::from(x)),
+                    Value::SignedByte(x) => out.push(f64::from(x)),
+                    Value::Short(x) => out.push(f64::from(x)),
+                    Value::SignedShort(x) => out.push(f64::from(x)),
+                    Value::Unsigned(x) | Value::Ifd(x) => out.push(f64::from(x)),
+                    Value::Signed(x) => out.push(f64::from(x)),
+                    Value::UnsignedBig(x) | Value::IfdBig(x) => out.push(x as f64),
+                    Value::SignedBig(x) => out.push(x as f64),
+                    Value::Float(x) => out.push(f64::from(x)),
+                    Value::Double(x) => out.push(x),
+                    Value::Rational(n, d) => out.push(f64::from(n) / f64::from(d)),
+                    Value::SRational(n, d) => out.push(f64::from(n) / f64::from(d)),
+                    _ => {}
+                }
+            }
+            let mut out = Vec::new();
+            let mut decoder = self.decoder.borrow_mut();
+            if let Some(v) = decoder.read_directory_tags(dir).find_tag(Tag::from_u16_exhaustive(tag))? {
+                push(v, &mut out);
+            }
+            Ok(out)
+        }
+
+        /// The bytes of `tag` in `dir` as text (invalid UTF-8 replaced,
+        /// trailing NULs and spaces removed); empty when the tag is absent.
+        pub(super) fn text(&self, dir: &Directory, tag: u16) -> TiffResult<String> {
+            let tag = Tag::from_u16_exhaustive(tag);
+            let Some(e) = dir.get(tag) else { return Ok(String::new()) };
+            // One byte per value for ASCII / BYTE / UNDEFINED; never more than the file holds.
+            let mut buf = vec![0u8; usize::try_from(e.count()).unwrap_or(usize::MAX).min(self.bytes.len())];
+            let n = self.decoder.borrow_mut().read_directory_tags(dir).find_tag_bytes(tag, &mut buf, 0)?.unwrap_or(0);
+            buf.truncate(n);
+            Ok(String::from_utf8_lossy(&buf).trim_end_matches('\0').trim().to_string())
+        }
+
+        /// The 16-bit value at byte `o` of the file, in its byte order (image data).
+        pub(super) fn u16_at(&self, o: usize) -> Option<u16> {
+            let s = self.bytes.get(o..o.checked_add(2)?)?;
+            Some(if self.le { u16::from_le_bytes([s[0], s[1]]) } else { u16::from_be_bytes([s[0], s[1]]) })
+        }
+    }
 }
 
 /// `rawloader` turns its internal panics on malformed files into errors, but
@@ -752,6 +950,34 @@ mod tests {
         assert_eq!(tiff_data_end(&b), Ok(Some(1200)));
         assert_eq!(tiff_data_end(b"not a tiff"), Ok(None));
         assert!(tiff_data_end(&b[..12]).unwrap_err().to_string().contains("past the end"), "IFD cut off");
+        // IFD0 is no image `tiff` decodes (no ImageWidth): read all the same (the stub IFD).
+        // Cut inside the SubIFD's entries, after its list in IFD0 was read.
+        assert_eq!(tiff_data_end(&b[..70]), Err(TiffStructureError::Truncated { file_len: 70 }));
+        // The header alone, and a header without its IFD0 offset.
+        assert_eq!(tiff_data_end(b"II*\0"), Err(TiffStructureError::Truncated { file_len: 4 }));
+        assert_eq!(tiff_data_end(&b[..8]), Err(TiffStructureError::Truncated { file_len: 8 }));
+        // Big-endian: the same structure with every field swapped.
+        let mut m = vec![0u8; 300];
+        m[..8].copy_from_slice(&[b'M', b'M', 0, 42, 0, 0, 0, 8]);
+        let entry_be = |m: &mut Vec<u8>, at: usize, tag: u16, typ: u16, value: u32| {
+            m[at..at + 2].copy_from_slice(&tag.to_be_bytes());
+            m[at + 2..at + 4].copy_from_slice(&typ.to_be_bytes());
+            m[at + 4..at + 8].copy_from_slice(&1u32.to_be_bytes());
+            // A SHORT sits in the first two bytes of the value field.
+            if typ == 3 {
+                m[at + 8..at + 10].copy_from_slice(&(value as u16).to_be_bytes());
+            } else {
+                m[at + 8..at + 12].copy_from_slice(&value.to_be_bytes());
+            }
+        };
+        m[8..10].copy_from_slice(&3u16.to_be_bytes());
+        entry_be(&mut m, 10, 273, 4, 100);
+        entry_be(&mut m, 22, 279, 3, 50);
+        entry_be(&mut m, 34, 330, 13, 60);
+        m[60..62].copy_from_slice(&2u16.to_be_bytes());
+        entry_be(&mut m, 62, 324, 4, 200);
+        entry_be(&mut m, 74, 325, 4, 1000);
+        assert_eq!(tiff_data_end(&m), Ok(Some(1200)));
     }
 
     #[test]
@@ -775,129 +1001,40 @@ mod tests {
 /// Opcode lists (`OpcodeList1–3`: gain maps, lens warps, bad-pixel fixes
 /// written by phones) are not applied; [`dng::notes`] reports them.
 mod dng {
-    use std::collections::HashMap;
-
-    /// One IFD entry: type, count, and where its values start.
-    #[derive(Clone, Copy)]
-    struct Entry {
-        typ: u16,
-        count: usize,
-        at: usize,
-    }
-
-    struct Tiff<'a> {
-        b: &'a [u8],
-        le: bool,
-    }
-
-    impl Tiff<'_> {
-        fn u16(&self, o: usize) -> Option<u16> {
-            let s = self.b.get(o..o + 2)?;
-            Some(if self.le { u16::from_le_bytes([s[0], s[1]]) } else { u16::from_be_bytes([s[0], s[1]]) })
-        }
-        fn u32(&self, o: usize) -> Option<u32> {
-            let s = self.b.get(o..o + 4)?;
-            let a = [s[0], s[1], s[2], s[3]];
-            Some(if self.le { u32::from_le_bytes(a) } else { u32::from_be_bytes(a) })
-        }
-        fn ifd(&self, at: usize) -> Option<HashMap<u16, Entry>> {
-            let n = usize::from(self.u16(at)?);
-            let mut tags = HashMap::new();
-            for k in 0..n {
-                let e = at + 2 + 12 * k;
-                let (tag, typ, count) = (self.u16(e)?, self.u16(e + 2)?, self.u32(e + 4)? as usize);
-                let size = match typ {
-                    1 | 2 | 6 | 7 => 1,
-                    3 | 8 => 2,
-                    4 | 9 | 11 | 13 => 4,
-                    5 | 10 | 12 => 8,
-                    _ => continue,
-                };
-                let bytes = size * count;
-                let at = if bytes <= 4 { e + 8 } else { self.u32(e + 8)? as usize };
-                if count > 1 << 24 || at.checked_add(bytes)? > self.b.len() {
-                    return None;
-                }
-                tags.insert(tag, Entry { typ, count, at });
-            }
-            Some(tags)
-        }
-        fn next_ifd(&self, at: usize) -> Option<usize> {
-            let n = usize::from(self.u16(at)?);
-            Some(self.u32(at + 2 + 12 * n)? as usize)
-        }
-        /// Values as f64 (numbers only).
-        fn values(&self, e: Entry) -> Vec<f64> {
-            (0..e.count)
-                .filter_map(|k| {
-                    Some(match e.typ {
-                        1 | 7 => f64::from(*self.b.get(e.at + k)?),
-                        6 => f64::from(*self.b.get(e.at + k)? as i8),
-                        3 => f64::from(self.u16(e.at + 2 * k)?),
-                        8 => f64::from(self.u16(e.at + 2 * k)? as i16),
-                        4 | 13 => f64::from(self.u32(e.at + 4 * k)?),
-                        9 => f64::from(self.u32(e.at + 4 * k)? as i32),
-                        5 => f64::from(self.u32(e.at + 8 * k)?) / f64::from(self.u32(e.at + 8 * k + 4)?),
-                        10 => f64::from(self.u32(e.at + 8 * k)? as i32) / f64::from(self.u32(e.at + 8 * k + 4)? as i32),
-                        11 => f64::from(f32::from_bits(self.u32(e.at + 4 * k)?)),
-                        _ => return None,
-                    })
-                })
-                .collect()
-        }
-        fn text(&self, e: Entry) -> String {
-            let s = &self.b[e.at..e.at + e.count];
-            String::from_utf8_lossy(s).trim_end_matches('\0').trim().to_string()
-        }
-    }
+    use super::tiff_dir::TiffFile;
+    use tiff::Directory;
 
     /// IFD0's tags and the raw image's IFD (NewSubfileType 0 with CFA or
     /// LinearRaw photometric interpretation, in IFD0, its chain or SubIFDs).
     struct Parsed<'a> {
-        t: Tiff<'a>,
-        ifd0: HashMap<u16, Entry>,
-        raw: HashMap<u16, Entry>,
+        t: TiffFile<'a>,
+        ifd0: Directory,
+        raw: Directory,
     }
 
     fn parse(bytes: &[u8]) -> Option<Parsed<'_>> {
-        let le = match bytes.get(..4)? {
-            [b'I', b'I', 42, 0] => true,
-            [b'M', b'M', 0, 42] => false,
-            _ => return None,
-        };
-        let t = Tiff { b: bytes, le };
-        let first = t.u32(4)? as usize;
-        let ifd0 = t.ifd(first)?;
-        ifd0.get(&50706)?; // DNGVersion: a DNG
-        let mut queue = vec![first];
-        let mut seen = std::collections::HashSet::new();
-        while let Some(at) = queue.pop() {
-            if at == 0 || !seen.insert(at) || seen.len() > 64 {
-                continue;
-            }
-            let tags = t.ifd(at)?;
-            let first_value = |tag: u16| tags.get(&tag).and_then(|e| t.values(*e).first().copied());
-            let photometric = first_value(262).unwrap_or(0.0) as u32;
-            if first_value(254).unwrap_or(0.0) as u32 == 0 && (photometric == 32803 || photometric == 34892) {
-                return Some(Parsed { ifd0, raw: tags, t });
-            }
-            if let Some(e) = tags.get(&330) {
-                queue.extend(t.values(*e).into_iter().map(|v| v as usize));
-            }
-            if let Some(next) = t.next_ifd(at) {
-                queue.push(next);
-            }
+        let t = TiffFile::open(bytes).ok()??;
+        let ifd0 = t.first().ok()?;
+        if !TiffFile::has(&ifd0, 50706) {
+            return None; // no DNGVersion: not a DNG
         }
-        None
+        let raw = t
+            .find(|t, dir| {
+                let first = |tag: u16| t.numbers(dir, tag).map(|v| v.first().copied().unwrap_or(0.0) as u32);
+                let photometric = first(262)?;
+                Ok(first(254)? == 0 && (photometric == 32803 || photometric == 34892))
+            })
+            .ok()??;
+        Some(Parsed { t, ifd0, raw })
     }
 
     /// The predictor (T.81 Table H.1) in the start-of-scan header of the
     /// raw IFD's first lossless-JPEG tile or strip; `None` when it cannot
     /// be found (`rawloader` then reports what is wrong).
     fn ljpeg_predictor(p: &Parsed) -> Option<u8> {
-        let first = |tag: u16| p.raw.get(&tag).and_then(|e| p.t.values(*e).first().copied());
+        let first = |tag: u16| p.t.numbers(&p.raw, tag).ok().and_then(|v| v.first().copied());
         let at = first(324).or_else(|| first(273))? as usize;
-        let b = p.t.b.get(at..)?;
+        let b = p.t.bytes.get(at..)?;
         if b.get(..2)? != [0xFF, 0xD8] {
             return None;
         }
@@ -928,11 +1065,12 @@ mod dng {
     /// and white ([r, g, b, b]), if the file is a linear DNG.
     pub(super) fn levels(bytes: &[u8]) -> Option<([u16; 4], [u16; 4])> {
         let p = parse(bytes)?;
-        let get = |tag: u16| p.raw.get(&tag).map(|e| p.t.values(*e)).unwrap_or_default();
-        if get(277).first().copied().unwrap_or(1.0) as usize != 3 {
+        // An unreadable tag leaves `rawloader`'s levels in place (`None`), never defaults.
+        let get = |tag: u16| p.t.numbers(&p.raw, tag).ok();
+        if get(277)?.first().copied().unwrap_or(1.0) as usize != 3 {
             return None;
         }
-        Some(per_sample(&get(50714), &get(50717), 3))
+        Some(per_sample(&get(50714)?, &get(50717)?, 3))
     }
 
     fn per_sample(black: &[f64], white: &[f64], cpp: usize) -> ([u16; 4], [u16; 4]) {
@@ -953,14 +1091,14 @@ mod dng {
         let Some(p) = parse(bytes) else { return Vec::new() };
         let mut out = Vec::new();
         for (tag, name) in [(51008u16, "OpcodeList1"), (51009, "OpcodeList2"), (51022, "OpcodeList3")] {
-            if let Some(e) = p.raw.get(&tag).or_else(|| p.ifd0.get(&tag)) {
+            let count = TiffFile::count(&p.raw, tag).max(TiffFile::count(&p.ifd0, tag));
+            if count > 0 {
                 out.push(format!(
-                    "{name} ({} bytes) ignored: its corrections (gain maps / lens shading, lens warp, bad pixels) are not applied",
-                    e.count
+                    "{name} ({count} bytes) ignored: its corrections (gain maps / lens shading, lens warp, bad pixels) are not applied"
                 ));
             }
         }
-        if p.raw.contains_key(&50719) || p.raw.contains_key(&50720) {
+        if TiffFile::has(&p.raw, 50719) || TiffFile::has(&p.raw, 50720) {
             out.push("DefaultCrop ignored: the output is the whole active area".into());
         }
         out
@@ -972,9 +1110,10 @@ mod dng {
     pub(super) fn decode_uncompressed(bytes: &[u8]) -> Result<Option<rawloader::RawImage>, String> {
         let Some(p) = parse(bytes) else { return Ok(None) };
         let (t, raw) = (&p.t, &p.raw);
-        let get = |tag: u16| raw.get(&tag).map(|e| t.values(*e)).unwrap_or_default();
-        let one = |tag: u16| get(tag).first().copied();
-        match one(259).unwrap_or(1.0) as u32 {
+        let unreadable = |tag: u16, e: tiff::TiffError| format!("DNG tag {tag} cannot be read: {e}");
+        let get = |tag: u16| t.numbers(raw, tag).map_err(|e| unreadable(tag, e));
+        let one = |tag: u16| get(tag).map(|v| v.first().copied());
+        match one(259)?.unwrap_or(1.0) as u32 {
             1 => {}
             7 => {
                 // Lossless JPEG (ITU-T T.81 process 14): `rawloader` decodes it, predictor 1 only.
@@ -1000,18 +1139,19 @@ mod dng {
                 ));
             }
         }
-        let need = |tag: u16, name: &str| one(tag).ok_or_else(|| format!("DNG raw image without {name}"));
+        let need = |tag: u16, name: &str| one(tag)?.ok_or_else(|| format!("DNG raw image without {name}"));
         let (w, h) = (need(256, "ImageWidth")? as usize, need(257, "ImageLength")? as usize);
-        let cpp = one(277).unwrap_or(1.0) as usize;
-        let bps = one(258).unwrap_or(1.0) as usize;
-        let linear = one(262) == Some(34892.0);
+        let cpp = one(277)?.unwrap_or(1.0) as usize;
+        let bps = one(258)?.unwrap_or(1.0) as usize;
+        let photometric = one(262)?;
+        let linear = photometric == Some(34892.0);
         if !(cpp == 1 && !linear || cpp == 3 && linear) {
             return Err(format!(
                 "DNG raw image with {cpp} samples per pixel and photometric interpretation {} (expected 1 for CFA, 3 for LinearRaw)",
-                one(262).unwrap_or(0.0)
+                photometric.unwrap_or(0.0)
             ));
         }
-        if one(284).unwrap_or(1.0) as u32 != 1 {
+        if one(284)?.unwrap_or(1.0) as u32 != 1 {
             return Err("DNG raw image with planar (not interleaved) samples".into());
         }
         if bps != 8 && bps != 16 {
@@ -1020,10 +1160,10 @@ mod dng {
         if w == 0 || h == 0 || w > 1 << 16 || h > 1 << 16 {
             return Err(format!("DNG raw image size {w} × {h}"));
         }
-        let table = get(50712); // Linearization
+        let table = get(50712)?; // Linearization
         let bytes_per = bps / 8;
         let sample = |o: usize| -> Option<u16> {
-            let v = if bytes_per == 2 { t.u16(o)? } else { u16::from(*t.b.get(o)?) };
+            let v = if bytes_per == 2 { t.u16_at(o)? } else { u16::from(*t.bytes.get(o)?) };
             Some(if table.is_empty() {
                 v
             } else {
@@ -1034,13 +1174,13 @@ mod dng {
         let short = || "image data runs past the end of the file (truncated)".to_string();
         // (offset, x0, y0, block width, block height, stored row length in pixels)
         let mut blocks = Vec::new();
-        if let (Some(offs), Some(tw), Some(tl)) = (raw.get(&324), one(322), one(323)) {
+        if let (true, Some(tw), Some(tl)) = (TiffFile::has(raw, 324), one(322)?, one(323)?) {
             let (tw, tl) = (tw as usize, tl as usize);
             if tw == 0 || tl == 0 {
                 return Err("DNG tile size 0".into());
             }
             let (across, down) = (w.div_ceil(tw), h.div_ceil(tl));
-            let offs = t.values(*offs);
+            let offs = get(324)?;
             if offs.len() != across * down {
                 return Err(format!("DNG with {} tile offsets for {across} × {down} tiles", offs.len()));
             }
@@ -1048,9 +1188,9 @@ mod dng {
                 let (x0, y0) = ((k % across) * tw, (k / across) * tl);
                 blocks.push((*o as usize, x0, y0, tw.min(w - x0), tl.min(h - y0), tw));
             }
-        } else if let Some(offs) = raw.get(&273) {
-            let rows = one(278).map_or(h, |r| (r as usize).clamp(1, h));
-            let offs = t.values(*offs);
+        } else if TiffFile::has(raw, 273) {
+            let rows = one(278)?.map_or(h, |r| (r as usize).clamp(1, h));
+            let offs = get(273)?;
             if offs.len() != h.div_ceil(rows) {
                 return Err(format!("DNG with {} strip offsets for {} strips", offs.len(), h.div_ceil(rows)));
             }
@@ -1070,17 +1210,17 @@ mod dng {
                 }
             }
         }
-        let text0 = |tag: u16| p.ifd0.get(&tag).map(|e| t.text(*e)).unwrap_or_default();
-        let vals0 = |tag: u16| p.ifd0.get(&tag).map(|e| t.values(*e)).unwrap_or_default();
-        let (make, model) = (text0(271), text0(272));
-        let neutral = vals0(50728);
+        let text0 = |tag: u16| t.text(&p.ifd0, tag).map_err(|e| unreadable(tag, e));
+        let vals0 = |tag: u16| t.numbers(&p.ifd0, tag).map_err(|e| unreadable(tag, e));
+        let (make, model) = (text0(271)?, text0(272)?);
+        let neutral = vals0(50728)?;
         let wb_coeffs = if neutral.len() >= 3 && neutral[..3].iter().all(|v| *v > 0.0) {
             [(1.0 / neutral[0]) as f32, (1.0 / neutral[1]) as f32, (1.0 / neutral[2]) as f32, f32::NAN]
         } else {
             [f32::NAN; 4]
         };
         // As rawloader: ColorMatrix2 if present, else ColorMatrix1, else sRGB's XYZ matrix.
-        let cm = if vals0(50722).len() >= 9 { vals0(50722) } else { vals0(50721) };
+        let cm = if vals0(50722)?.len() >= 9 { vals0(50722)? } else { vals0(50721)? };
         let mut xyz_to_cam = [[0.0f32; 3]; 4];
         if cm.len() >= 9 {
             for k in 0..9 {
@@ -1096,8 +1236,8 @@ mod dng {
         let cfa = if linear {
             rawloader::CFA::new("")
         } else {
-            let dim = get(33421);
-            let pat = get(33422);
+            let dim = get(33421)?;
+            let pat = get(33422)?;
             if dim.len() != 2 || dim[0] != 2.0 || dim[1] != 2.0 || pat.len() != 4 {
                 return Err(format!("DNG CFA pattern {pat:?} of repeat {dim:?} (a 2 × 2 Bayer pattern is read)"));
             }
@@ -1112,8 +1252,8 @@ mod dng {
                 .collect::<Result<_, _>>()?;
             rawloader::CFA::new(&name)
         };
-        let (black, white) = per_sample(&get(50714), &get(50717), cpp);
-        let area = get(50829);
+        let (black, white) = per_sample(&get(50714)?, &get(50717)?, cpp);
+        let area = get(50829)?;
         let crops = if area.len() == 4 {
             let [top, left, bottom, right] = [area[0], area[1], area[2], area[3]].map(|v| v as usize);
             if !(top < bottom && left < right && bottom <= h && right <= w) {
@@ -1123,8 +1263,9 @@ mod dng {
         } else {
             [0; 4]
         };
-        let orientation =
-            vals0(274).first().map_or(rawloader::Orientation::Unknown, |v| rawloader::Orientation::from_u16(*v as u16));
+        let orientation = vals0(274)?
+            .first()
+            .map_or(rawloader::Orientation::Unknown, |v| rawloader::Orientation::from_u16(*v as u16));
         Ok(Some(rawloader::RawImage {
             make: make.clone(),
             model: model.clone(),

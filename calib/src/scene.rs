@@ -48,145 +48,15 @@
 //! assert!((px[0] - 520.0).abs() < 1e-9 && (px[1] - 340.0).abs() < 1e-9);
 //! ```
 
-use crate::camera::Intrinsics;
-use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use crate::model::Intrinsics;
+use crate::pose::{mat_mul, mat_vec, transpose};
 use serde::{Deserialize, Serialize};
 
-pub type Mat3 = [[f64; 3]; 3];
-pub type Mat4 = [[f64; 4]; 4];
-
-fn to_na(a: &Mat3) -> Matrix3<f64> {
-    Matrix3::from_fn(|r, c| a[r][c])
-}
-
-fn from_na(a: &Matrix3<f64>) -> Mat3 {
-    std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)]))
-}
-
-fn mat_mul(a: &Mat3, b: &Mat3) -> Mat3 {
-    from_na(&(to_na(a) * to_na(b)))
-}
-
-fn mat_vec(a: &Mat3, v: [f64; 3]) -> [f64; 3] {
-    (to_na(a) * Vector3::from(v)).into()
-}
-
-fn transpose(a: &Mat3) -> Mat3 {
-    from_na(&to_na(a).transpose())
-}
-
-/// Rotation matrix of a rotation vector (axis × angle in radians; Rodrigues),
-/// by nalgebra's exponential map.
-pub fn rodrigues(r: [f64; 3]) -> Mat3 {
-    from_na(Rotation3::new(Vector3::from(r)).matrix())
-}
-
-/// Rotation vector of a rotation matrix (inverse of [`rodrigues`]): through
-/// nalgebra's unit quaternion (Shepperd's method, stable near π), then
-/// angle = 2 atan2(|v|, w) with w ≥ 0, which keeps small angles exact.
-pub fn rotation_vector(m: &Mat3) -> [f64; 3] {
-    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(to_na(m)));
-    let (w, v) = (q.w, q.imag());
-    let (w, v) = if w < 0.0 { (-w, -v) } else { (w, v) };
-    let s = v.norm();
-    if s == 0.0 {
-        return [0.0; 3];
-    }
-    (v * (2.0 * s.atan2(w) / s)).into()
-}
-
-/// The board's inner corners in a photo or view, numbered by this module's
-/// convention (module docs): OpenCV's detectors ([`crate::cv::find_corners`],
-/// sector-based first), then [`crate::env::canonical_corner_order`]; with
-/// the order found. `Ok(None)` when no board of that size is found.
-pub fn find_board_corners(
-    img: &crate::GrayImage,
-    board: &BoardSpec,
-) -> Result<Option<(crate::cv::Corners, crate::env::CornerOrder)>, crate::cv::CalibError> {
-    let Some(found) = crate::cv::find_corners(img, board, crate::cv::Detector::Auto)? else {
-        return Ok(None);
-    };
-    let (points, order) = crate::env::canonical_corner_order(img, board.cols, board.rows, &found.points);
-    Ok(Some((crate::cv::Corners { points, detector: found.detector }, order)))
-}
-
-/// OpenCV pose of the board: `x_cam = rotation · x_board + translation_m`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Pose {
-    pub rotation: Mat3,
-    pub translation_m: [f64; 3],
-}
-
-impl Pose {
-    /// From OpenCV's rvec (radians) and tvec (metres).
-    pub fn from_rvec_tvec(rvec: [f64; 3], tvec: [f64; 3]) -> Self {
-        Self { rotation: rodrigues(rvec), translation_m: tvec }
-    }
-
-    /// OpenCV's rvec.
-    pub fn rvec(&self) -> [f64; 3] {
-        rotation_vector(&self.rotation)
-    }
-
-    /// Board point → camera frame (OpenCV axes).
-    pub fn to_camera(&self, p_board: [f64; 3]) -> [f64; 3] {
-        let r = mat_vec(&self.rotation, p_board);
-        std::array::from_fn(|k| r[k] + self.translation_m[k])
-    }
-
-    /// The camera's centre in board coordinates, −Rᵀ t.
-    pub fn camera_centre_in_board(&self) -> [f64; 3] {
-        mat_vec(&transpose(&self.rotation), self.translation_m).map(|v| -v)
-    }
-}
-
-/// A chessboard: inner corners and square size.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct BoardSpec {
-    /// Inner corners along a row (index i).
-    pub cols: usize,
-    /// Inner corners along a column (index j).
-    pub rows: usize,
-    pub square_m: f64,
-}
-
-/// What is wrong with a board given as text ([`BoardSpec::parse`]).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum BoardError {
-    #[error("board {text:?}: expected COLSxROWS inner corners, e.g. 9x6 (a board of 10 × 7 squares)")]
-    Syntax { text: String },
-    #[error("board {text:?}: needs at least 3 × 3 inner corners (OpenCV's detectors)")]
-    TooSmall { text: String },
-    #[error("square size {square_mm} mm: must be a positive number")]
-    Square { square_mm: f64 },
-}
-
-impl BoardSpec {
-    /// From "COLSxROWS" (inner corners, e.g. "9x6") and the square size in mm.
-    pub fn parse(text: &str, square_mm: f64) -> Result<Self, BoardError> {
-        let bad = || BoardError::Syntax { text: text.to_string() };
-        let (a, b) = text.trim().split_once(['x', 'X', '×']).ok_or_else(bad)?;
-        let cols: usize = a.trim().parse().map_err(|_| bad())?;
-        let rows: usize = b.trim().parse().map_err(|_| bad())?;
-        if cols < 3 || rows < 3 {
-            return Err(BoardError::TooSmall { text: text.to_string() });
-        }
-        if !(square_mm.is_finite() && square_mm > 0.0) {
-            return Err(BoardError::Square { square_mm });
-        }
-        Ok(Self { cols, rows, square_m: square_mm / 1000.0 })
-    }
-
-    /// Corner (i, j) in board coordinates (metres, z = 0).
-    pub fn corner(&self, i: usize, j: usize) -> [f64; 3] {
-        [i as f64 * self.square_m, j as f64 * self.square_m, 0.0]
-    }
-
-    /// All inner corners, i fastest (OpenCV's order).
-    pub fn corners(&self) -> Vec<[f64; 3]> {
-        (0..self.rows).flat_map(|j| (0..self.cols).map(move |i| (i, j))).map(|(i, j)| self.corner(i, j)).collect()
-    }
-}
+// Kept at these paths for the root crate and the tests (`lucent_calib::scene::Pose`, …):
+// boards and poses are leaf modules of their own, the detection is the driver's.
+pub use crate::board::{BoardError, BoardSpec};
+pub use crate::calibrate::find_board_corners;
+pub use crate::pose::{rodrigues, rotation_vector, Mat3, Mat4, Pose};
 
 /// The renderer's view of a board pose ([`opencv_to_renderer`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -357,29 +227,6 @@ mod tests {
     }
 
     #[test]
-    fn rodrigues_round_trips_including_near_pi() {
-        for r in [
-            [0.1, -0.2, 0.3],
-            [0.0, 0.0, 0.0],
-            [2.0, 1.0, -0.5],
-            [0.0, std::f64::consts::PI - 1e-9, 0.0],
-            [1e-8, 0.0, 0.0],
-        ] {
-            let back = rotation_vector(&rodrigues(r));
-            for k in 0..3 {
-                assert!((back[k] - r[k]).abs() < 1e-7, "{r:?} → {back:?}");
-            }
-            let m = rodrigues(r);
-            let mtm = mat_mul(&transpose(&m), &m);
-            for (a, row) in mtm.iter().enumerate() {
-                for (b, v) in row.iter().enumerate() {
-                    assert!((v - if a == b { 1.0 } else { 0.0 }).abs() < 1e-12);
-                }
-            }
-        }
-    }
-
-    #[test]
     fn renderer_camera_sees_what_opencv_sees() {
         let k = Intrinsics { fx: 1510.0, fy: 1490.0, cx: 2010.5, cy: 1480.25 };
         let board = BoardSpec { cols: 9, rows: 6, square_m: 0.02 };
@@ -425,18 +272,5 @@ mod tests {
             0.1,
         );
         assert!((scene.vertical_fov_deg - 2.0 * (0.3f64).atan().to_degrees()).abs() < 1e-12);
-    }
-
-    #[test]
-    fn board_parsing() {
-        let b = BoardSpec::parse("9x6", 25.0).unwrap();
-        assert_eq!((b.cols, b.rows), (9, 6));
-        assert!((b.square_m - 0.025).abs() < 1e-15);
-        assert_eq!(b.corners()[1], [0.025, 0.0, 0.0]);
-        assert_eq!(b.corners()[9], [0.0, 0.025, 0.0]);
-        assert!(BoardSpec::parse("9", 25.0).unwrap_err().to_string().contains("COLSxROWS"));
-        assert!(BoardSpec::parse("2x6", 25.0).is_err());
-        assert!(BoardSpec::parse("9x6", 0.0).is_err());
-        assert!(BoardSpec::parse("9x6", f64::NAN).is_err());
     }
 }

@@ -131,6 +131,28 @@ fn orientation_white_balance_and_demosaic_through_the_pipeline() {
 }
 
 #[test]
+fn a_dng_cut_inside_its_directory_names_the_file_and_the_problem() {
+    let path = temp("dir_whole.dng");
+    write_dng(&path, &Dng { orientation: 1, cfa: [0, 1, 1, 2] });
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(&bytes[..4], b"II*\0", "TiffEncoder writes little-endian");
+    let ifd0 = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as usize;
+    // IFD0 = the raw image (CFA): its entry count and half an entry, the rest missing.
+    for (name, len) in [("dir_cut_ifd0.dng", ifd0 + 8), ("dir_cut_header.dng", 6)] {
+        let cut = temp(name);
+        std::fs::write(&cut, &bytes[..len]).unwrap();
+        let e = read_raw(&cut, None).unwrap_err();
+        assert!(matches!(e, RawError::Decode { .. }), "{e:?}");
+        let e = e.to_string();
+        let problem =
+            format!("truncated or corrupt: its TIFF directory structure runs past the end of the file ({len} bytes)");
+        assert!(e.contains(name) && e.contains(&problem), "{e}");
+        std::fs::remove_file(&cut).ok();
+    }
+    std::fs::remove_file(&path).ok();
+}
+
+#[test]
 fn truncated_and_corrupt_dngs_are_errors_naming_the_file() {
     let path = temp("whole.dng");
     write_dng(&path, &Dng { orientation: 1, cfa: [0, 1, 1, 2] });
