@@ -132,9 +132,7 @@ pub fn read_grid(path: &Path, pixel_mm: Option<f64>) -> Result<Grid, SliceIoErro
     }
     let pixel_mm = match pixel_mm {
         Some(p) => p,
-        None => sidecar_pixel_mm(path)?.ok_or_else(|| {
-            invalid(path, SliceProblem::PixelSizeUnknown)
-        })?,
+        None => sidecar_pixel_mm(path)?.ok_or_else(|| invalid(path, SliceProblem::PixelSizeUnknown))?,
     };
     if !(pixel_mm.is_finite() && pixel_mm > 0.0) {
         return Err(invalid(path, SliceProblem::PixelSize { pixel_mm }));
@@ -415,7 +413,7 @@ pub struct Summary {
     #[serde(default)]
     pub kernel: String,
     /// The estimator: the ring connection (azimuthal symmetry) where it
-    /// applies, else the lobe connection (thick slab, smooth top),
+    /// applies, else the lobe connection (thick slab, smooth or rough top),
     /// else the connection along the fixed exit direction.
     #[serde(default)]
     pub estimator: String,

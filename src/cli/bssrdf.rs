@@ -29,13 +29,13 @@ pub enum BssrdfCommand {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum EstimatorChoice {
-    /// The ring connection where it applies (θi = 0 or θo = 0, thick slab), else the lobe connection (thick slab,
-    /// smooth top), else the fixed-direction one.
+    /// The ring connection where it applies (θi = 0 or θo = 0, thick slab, smooth top), else the lobe connection
+    /// (thick slab, smooth or rough top), else the fixed-direction one.
     Auto,
     /// The ring connection (azimuthal symmetry; an error where it does not apply).
     Ring,
     /// The lobe connection (MIS with chains drawn through the phase lobe around the exit direction; thick slab,
-    /// smooth top).
+    /// smooth or rough top).
     Lobe,
     /// The explicit connection along the one fixed exit direction (the previous estimator).
     Connection,
