@@ -24,7 +24,7 @@ echo "== 2b. Surface topography: the shipped height map (X3P) → microfacet nor
 echo
 echo "== 2c. The same IOL1068-09 slice (45°/15°) through a rough top: the measured normals of 2b (--roughness measured:fit.json)"
 "$bin" bssrdf --recipe fixtures/samples/IOL1068-09.toml --wavelength 550 --theta-i 45 --theta-o 15 \
-  --roughness "measured:$out/surface/fit.json" --crop --pixel-rel-error 0.05 --time-s 90 --quiet --out "$out/bssrdf/IOL1068-09-rough"
+  --roughness "measured:$out/surface/fit.json" --crop --pixel-rel-error 0.05 --time-s 180 --quiet --out "$out/bssrdf/IOL1068-09-rough"
 
 echo
 echo "== 2d. Inverse fit (lucent fit, issue 16): slices of IOL1068-09 simulated at 0.425 wt-% play the measurement"
