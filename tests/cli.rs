@@ -33,6 +33,25 @@ fn mie_prints_efficiencies_as_json() {
     let bad = lucent(&["mie", "--size-parameter", "5", "--relative-index", "1.5-0.1i"]);
     assert!(!bad.status.success());
     assert!(stderr(&bad).contains("imaginary part"), "{}", stderr(&bad));
+
+    // The two forms do not mix: a relative index beside a particle index
+    // was silently ignored (m = 1 then printed the efficiencies of m = 1.5).
+    let mixed = lucent(&[
+        "mie",
+        "--relative-index",
+        "1",
+        "--particle-index",
+        "1.5",
+        "--radius-um",
+        "1",
+        "--wavelength-nm",
+        "550",
+    ]);
+    assert_eq!(mixed.status.code(), Some(2), "{}", stderr(&mixed));
+    assert!(stderr(&mixed).contains("cannot be used with"), "{}", stderr(&mixed));
+    let alone = lucent(&["mie", "--relative-index", "1.2"]);
+    assert_eq!(alone.status.code(), Some(2), "{}", stderr(&alone));
+    assert!(stderr(&alone).contains("--size-parameter"), "{}", stderr(&alone));
 }
 
 #[test]

@@ -116,8 +116,8 @@ pub struct MieArgs {
     /// Size parameter x = 2π r n_host / λ (real host).
     #[arg(long, requires = "relative_index", conflicts_with_all = ["radius_um", "wavelength_nm", "host_index", "particle_index"])]
     pub size_parameter: Option<f64>,
-    /// Relative index m = n_particle/n_host as N or N+Ki (K ≥ 0 absorbs).
-    #[arg(long, allow_hyphen_values = true)]
+    /// Relative index m = n_particle/n_host as N or N+Ki (K ≥ 0 absorbs); with --size-parameter only.
+    #[arg(long, allow_hyphen_values = true, requires = "size_parameter", conflicts_with_all = ["radius_um", "wavelength_nm", "host_index", "particle_index"])]
     pub relative_index: Option<String>,
     /// Sphere radius in µm.
     #[arg(long, requires_all = ["wavelength_nm", "particle_index"])]
