@@ -417,34 +417,40 @@ fn reported_standard_errors_match_the_spread_over_seeds() {
             .collect();
         assert!(runs[0].folded);
         let n = s.sensor.pixels;
-        let centre = (n / 2) * n + n / 2;
-        // The sum (None) and three pixels.
-        let figures = [
-            ("sum", None),
-            ("centre pixel", Some(centre)),
-            ("pixel 2 left", Some(centre - 2)),
-            ("pixel 3 up", Some(centre - 3 * n)),
-        ];
-        for (name, pixel) in figures {
-            let xs: Vec<(f64, f64)> = runs
-                .iter()
-                .map(|r| match pixel {
-                    None => (r.sum, r.sum_std_error),
-                    Some(i) => (r.values[i], r.std_error[i]),
-                })
-                .collect();
-            let m = xs.iter().map(|x| x.0).sum::<f64>() / seeds as f64;
-            let s2 = xs.iter().map(|x| (x.0 - m).powi(2)).sum::<f64>() / (seeds - 1) as f64;
-            let se2 = xs.iter().map(|x| x.1 * x.1).sum::<f64>() / seeds as f64;
-            let stat = (seeds - 1) as f64 * s2 / se2;
-            let p_upper = chi2_upper(stat, (seeds - 1) as usize);
-            assert!(
-                p_upper > 5e-4 && p_upper < 1.0 - 5e-4,
-                "{:?} {name}: spread² {s2:.3e} vs mean reported SE² {se2:.3e} (ratio {:.2}, χ² p = {p_upper:.2e})",
-                estimator,
-                s2 / se2
-            );
-        }
+        errors_match_spread(
+            &format!("{estimator:?}"),
+            &runs,
+            &[n / 2 * n + n / 2, n / 2 * n + n / 2 - 2, (n / 2 - 3) * n + n / 2],
+        );
+    }
+}
+
+/// (k − 1) s² / mean(SE²) ~ χ²(k − 1) over k independent runs, for the sum
+/// and for each of `pixels`: fails when the reported standard errors are
+/// inflated or deflated (both tails at 5 × 10⁻⁴).
+pub(crate) fn errors_match_spread(label: &str, runs: &[Slice], pixels: &[usize]) {
+    let k = runs.len();
+    let figures = std::iter::once(None).chain(pixels.iter().copied().map(Some));
+    for pixel in figures {
+        let xs: Vec<(f64, f64)> = runs
+            .iter()
+            .map(|r| match pixel {
+                None => (r.sum, r.sum_std_error),
+                Some(i) => (r.values[i], r.std_error[i]),
+            })
+            .collect();
+        let m = xs.iter().map(|x| x.0).sum::<f64>() / k as f64;
+        let s2 = xs.iter().map(|x| (x.0 - m).powi(2)).sum::<f64>() / (k - 1) as f64;
+        let se2 = xs.iter().map(|x| x.1 * x.1).sum::<f64>() / k as f64;
+        assert!(m > 0.0 && se2 > 0.0, "{label} {pixel:?}: empty");
+        let stat = (k - 1) as f64 * s2 / se2;
+        let p_upper = chi2_upper(stat, k - 1);
+        assert!(
+            p_upper > 5e-4 && p_upper < 1.0 - 5e-4,
+            "{label} {}: spread² {s2:.3e} vs mean reported SE² {se2:.3e} (ratio {:.2}, χ² p = {p_upper:.2e})",
+            pixel.map_or("sum".to_string(), |i| format!("pixel {i}")),
+            s2 / se2
+        );
     }
 }
 

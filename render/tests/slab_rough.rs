@@ -253,7 +253,6 @@ fn rough_lobe_standard_errors_match_the_spread_over_seeds() {
     // 30 independent runs of a small rough-top lobe case (TR 0.3, thick,
     // 45°/15°, m = 3); (n − 1) s² / mean(SE²) ~ χ²(n − 1) for the sum and
     // for three pixels. An inflated or deflated SE fails both ways.
-    use statrs::distribution::{ChiSquared, ContinuousCDF};
     let seeds = 30u64;
     let s = setup(tr(0.3), 3000.0, 30.0, 0.8, 15e-3, 12, 0.5e-3, dirs(45.0, 15.0));
     let runs: Vec<Slice> = (0..seeds)
@@ -270,30 +269,5 @@ fn rough_lobe_standard_errors_match_the_spread_over_seeds() {
         .collect();
     let n = s.sensor.pixels;
     let centre = (n / 2) * n + n / 2;
-    let figures = [
-        ("sum", None),
-        ("centre pixel", Some(centre)),
-        ("pixel 2 left", Some(centre - 2)),
-        ("pixel 2 up", Some(centre - 2 * n)),
-    ];
-    for (name, pixel) in figures {
-        let xs: Vec<(f64, f64)> = runs
-            .iter()
-            .map(|r| match pixel {
-                None => (r.sum, r.sum_std_error),
-                Some(i) => (r.values[i], r.std_error[i]),
-            })
-            .collect();
-        let m = xs.iter().map(|x| x.0).sum::<f64>() / seeds as f64;
-        let s2 = xs.iter().map(|x| (x.0 - m).powi(2)).sum::<f64>() / (seeds - 1) as f64;
-        let se2 = xs.iter().map(|x| x.1 * x.1).sum::<f64>() / seeds as f64;
-        assert!(m > 0.0 && se2 > 0.0, "{name}: empty");
-        let stat = (seeds - 1) as f64 * s2 / se2;
-        let p_upper = 1.0 - ChiSquared::new((seeds - 1) as f64).unwrap().cdf(stat);
-        assert!(
-            p_upper > 5e-4 && p_upper < 1.0 - 5e-4,
-            "{name}: spread² {s2:.3e} vs mean reported SE² {se2:.3e} (ratio {:.2}, χ² p = {p_upper:.2e})",
-            s2 / se2
-        );
-    }
+    crate::slab::errors_match_spread("rough lobe", &runs, &[centre, centre - 2, centre - 2 * n]);
 }
