@@ -22,12 +22,11 @@ fn changing_output() -> RwLockReadGuard<'static, ()> {
 /// Waits until the writes under way have finished and blocks every later
 /// one (file, folder, commit) for as long as the guard lives. For a process
 /// that is about to end: it removes what it must, with the output frozen,
-/// and exits while still holding the guard. Also removes the temporary
-/// files of [`write_atomic`] calls cut short by a panic or signal so far.
+/// and exits while still holding the guard. (No temporary file of
+/// [`write_atomic`] exists then: each is renamed or removed under the
+/// shared lock.)
 pub fn freeze_output() -> RwLockWriteGuard<'static, ()> {
-    let guard = OUTPUT_CHANGES.write().unwrap_or_else(|poisoned| poisoned.into_inner());
-    interrupt::remove_armed();
-    guard
+    OUTPUT_CHANGES.write().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 /// An output file that could not be written.
@@ -238,20 +237,14 @@ mod interrupt {
         }
     }
 
-    /// Unlinks every armed temporary file (from a signal handler or a thread).
-    pub(super) fn remove_armed() {
-        #[cfg(unix)]
+    #[cfg(unix)]
+    extern "C" fn on_signal(signal: libc::c_int) {
         for (i, armed) in ARMED.iter().enumerate() {
             if armed.load(Ordering::Acquire) {
                 // SAFETY: an armed slot holds a NUL-terminated path; unlink is async-signal-safe.
                 unsafe { libc::unlink((*PATHS.0.get())[i].as_ptr().cast()) };
             }
         }
-    }
-
-    #[cfg(unix)]
-    extern "C" fn on_signal(signal: libc::c_int) {
-        remove_armed();
         // SAFETY: restoring the default action and re-raising are async-signal-safe.
         unsafe {
             libc::signal(signal, libc::SIG_DFL);

@@ -1147,6 +1147,9 @@ impl<'a> Kernel<'a> {
         let cos_t = w21[2];
         let t_out = 1.0 - top.reflectance(cos_t, 1.0 / n);
         let area = setup.sensor.pixel_m * setup.sensor.pixel_m;
+        // The smooth top's one exit; the connections' constants are its.
+        let smooth_exit =
+            Exit { up: w21, weight: t_out / (n * n), inv_cos: 1.0 / cos_t, splat: t_out / (n * n * area * cos_t) };
         let (cone_cos, cone_norm) = match estimator {
             Estimator::BruteForce { cone_deg } => {
                 check("cone_deg", cone_deg, cone_deg > 0.0 && cone_deg < 90.0, "must lie in (0°, 90°)")?;
@@ -1178,14 +1181,9 @@ impl<'a> Kernel<'a> {
             footprint: setup.beam.footprint(dirs.theta_i_deg, dirs.phi_i_deg),
             estimator,
             w21,
-            splat: t_out / (n * n * area * cos_t),
-            inv_cos_t: 1.0 / cos_t,
-            smooth_exit: Exit {
-                up: w21,
-                weight: t_out / (n * n),
-                inv_cos: 1.0 / cos_t,
-                splat: t_out / (n * n * area * cos_t),
-            },
+            splat: smooth_exit.splat,
+            inv_cos_t: smooth_exit.inv_cos,
+            smooth_exit,
             fresnel_t: 1.0 - t_out,
             // Through a rough top the image terms' directions vary, but every
             // one of them crosses the slab at least once (τ ≥ μ_t d).
