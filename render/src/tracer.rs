@@ -183,6 +183,9 @@ pub struct Object {
     /// For a rough boundary, its BSDF per band in the frame whose +z is the
     /// outward normal (air above, the medium below).
     rough: Option<Box<[RoughDielectric; 3]>>,
+    /// The bands' mean index, for refraction directions under
+    /// [`Dispersion::SharedDirections`].
+    eta_mean: f64,
 }
 
 /// What the estimator needs to know about the bands, derived once.
@@ -232,7 +235,8 @@ impl Object {
                 Some(Box::new([a?, b?, c?]))
             }
         };
-        Ok(Self { accel, boundary, medium, bands, rough })
+        let eta_mean = (boundary.eta(0) + boundary.eta(1) + boundary.eta(2)) / 3.0;
+        Ok(Self { accel, boundary, medium, bands, rough, eta_mean })
     }
 }
 
@@ -398,7 +402,57 @@ pub struct Settings {
     /// inside a convex object, through its flat faces (see the module
     /// documentation). `false`: light leaves the medium only by chance.
     pub medium_nee: bool,
+    /// How a smooth boundary whose index differs between bands refracts a
+    /// path that carries all bands (see [`Dispersion`]).
+    pub dispersion: Dispersion,
+    /// Split the path where it meets the object from outside: the
+    /// reflection (weight F per band) and the refraction (1 − F) are both
+    /// followed instead of choosing one with probability F. The reflected
+    /// branch is traced without further splitting.
+    pub split_entry: bool,
+    /// How the samples are spread over the pixels.
+    pub sampling: Sampling,
+    /// Stop after the pass in which the median relative standard error over
+    /// the object's pixels ([`RegionErrors::object`]) reaches this fraction.
+    pub target_rel_error: Option<f64>,
 }
+
+/// Refraction at a smooth boundary whose index n differs between bands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dispersion {
+    /// Exact: a refraction direction belongs to one band, so a path keeps
+    /// one band from its first contact with the object (weight 3, SPEC §4).
+    PerBand,
+    /// Approximate: refraction directions (Snell's law and its solid-angle
+    /// factor cos θ_o/(n² cos θ_i)) from the bands' mean index, while each
+    /// band keeps its own Fresnel factors F_c and 1 − F_c (where the mean
+    /// index reflects totally, F_c = 1 in every band). A path then carries
+    /// all three bands (spectral MIS). Reflection is exact; what is lost is
+    /// the spread of the refracted directions between bands (≈ 0.5° for
+    /// polycarbonate's 1.582–1.608).
+    SharedDirections,
+}
+
+/// How a render spreads its samples over the pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sampling {
+    /// Every pixel gets `spp` samples.
+    Uniform,
+    /// Samples go where the error is: after each pass the per-sample
+    /// relative variance of the object's pixels and of the others (medians
+    /// over each region, [`RegionErrors`]) sets how many more samples a
+    /// pixel whose camera rays hit the object gets per pass than one whose
+    /// rays miss it (at most [`MAX_OBJECT_RATIO`]), so both regions approach
+    /// the same relative error. The object's pixels get `spp` samples, the
+    /// others `spp / ratio` (at least one pass). A pixel's share depends on
+    /// the fraction of its camera rays that hit the object (geometry) and
+    /// on the two region medians, never on its own samples alone.
+    ObjectWeighted,
+}
+
+/// The largest ratio of samples per pass between an object pixel and a
+/// pixel that does not see the object ([`Sampling::ObjectWeighted`]).
+pub const MAX_OBJECT_RATIO: u32 = 256;
 
 impl Default for Settings {
     fn default() -> Self {
@@ -411,6 +465,10 @@ impl Default for Settings {
             max_events_per_path: 10_000_000,
             spectral_mis: true,
             medium_nee: true,
+            dispersion: Dispersion::PerBand,
+            split_entry: false,
+            sampling: Sampling::Uniform,
+            target_rel_error: None,
         }
     }
 }
@@ -424,6 +482,112 @@ pub struct Image {
     pub mean: Vec<[f64; 3]>,
     pub variance_of_mean: Vec<[f64; 3]>,
     pub samples: Vec<u32>,
+    /// Per pixel, how many of its camera rays hit the object first.
+    pub object_samples: Vec<u32>,
+    /// Per pixel, how many of its camera rays hit the board first.
+    pub board_samples: Vec<u32>,
+}
+
+/// The first surface a camera ray meets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FirstHit {
+    Object,
+    Board,
+    Environment,
+}
+
+/// Median and 90th percentile of a per-pixel figure over a set of pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Quantiles {
+    /// Pixels in the region with a positive mean (those the figure is taken over).
+    pub pixels: usize,
+    pub median: f64,
+    pub p90: f64,
+}
+
+impl Quantiles {
+    /// Median and 90th percentile of `values` (NaN for an empty set).
+    pub fn of(mut values: Vec<f64>) -> Self {
+        if values.is_empty() {
+            return Self { pixels: 0, median: f64::NAN, p90: f64::NAN };
+        }
+        values.sort_by(f64::total_cmp);
+        let at = |q: f64| values[((q * values.len() as f64) as usize).min(values.len() - 1)];
+        Self { pixels: values.len(), median: at(0.5), p90: at(0.9) }
+    }
+}
+
+/// The relative standard error of each pixel's mean, summarised per region:
+/// the pixels where at least half the camera rays hit the object first, those
+/// where at least half hit the board first, and all pixels. A pixel's
+/// relative standard error is [`Image::relative_std_error`] (the RMS over
+/// R, G, B), taken over pixels with positive means and finite variances.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RegionErrors {
+    pub object: Quantiles,
+    pub board: Quantiles,
+    pub all: Quantiles,
+}
+
+/// Which region a pixel belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Region {
+    Object,
+    Board,
+    Other,
+}
+
+impl Image {
+    /// The fraction of pixel `p`'s camera rays that hit the object first.
+    pub fn object_fraction(&self, p: usize) -> f64 {
+        f64::from(self.object_samples[p]) / f64::from(self.samples[p].max(1))
+    }
+
+    /// The region of pixel `p` (at least half its camera rays hit the object
+    /// first, else the board first, else neither).
+    pub fn region(&self, p: usize) -> Region {
+        let n = self.samples[p].max(1);
+        if 2 * self.object_samples[p] >= n && self.object_samples[p] > 0 {
+            Region::Object
+        } else if 2 * self.board_samples[p] >= n && self.board_samples[p] > 0 {
+            Region::Board
+        } else {
+            Region::Other
+        }
+    }
+
+    /// The root mean square over R, G, B of the channels' relative standard
+    /// errors √(var of the mean)/mean of pixel `p` (so coloured noise counts
+    /// in full); `None` where a channel's mean is not positive or its
+    /// variance not finite.
+    pub fn relative_std_error(&self, p: usize) -> Option<f64> {
+        let (m, v) = (self.mean[p], self.variance_of_mean[p]);
+        let mut sum = 0.0;
+        for c in 0..3 {
+            if !(m[c] > 0.0 && v[c].is_finite()) {
+                return None;
+            }
+            sum += v[c] / (m[c] * m[c]);
+        }
+        Some((sum / 3.0).sqrt())
+    }
+
+    /// Median and 90th percentile of the relative standard error over the
+    /// object's pixels, the board's and all.
+    pub fn region_errors(&self) -> RegionErrors {
+        let mut by: [Vec<f64>; 3] = Default::default();
+        for p in 0..self.mean.len() {
+            let Some(r) = self.relative_std_error(p) else { continue };
+            match self.region(p) {
+                Region::Object => by[0].push(r),
+                Region::Board => by[1].push(r),
+                Region::Other => {}
+            }
+            by[2].push(r);
+        }
+        let [o, b, a] = by;
+        RegionErrors { object: Quantiles::of(o), board: Quantiles::of(b), all: Quantiles::of(a) }
+    }
 }
 
 /// Counters of a render.
@@ -459,6 +623,8 @@ pub struct Progress {
     pub spp_target: u32,
     pub elapsed_s: f64,
     pub stats: Stats,
+    /// The relative standard errors per region after this pass.
+    pub errors: RegionErrors,
 }
 
 /// Renders `scene` progressively; `on_pass` is called after every pass.
@@ -477,68 +643,210 @@ pub fn render_cancellable(
 ) -> (Image, Stats) {
     let (w, h) = (scene.camera.width, scene.camera.height);
     let n = w * h;
-    let mut sum = vec![[0.0f64; 3]; n];
-    let mut sum_sq = vec![[0.0f64; 3]; n];
+    let mut acc = Accumulator::new(w, h);
     let mut stats = Stats::default();
     let start = Instant::now();
     let per_pass = settings.spp_per_pass.max(1);
-    let mut done = 0u32;
-    while done < settings.spp {
-        let k0 = done;
-        let k1 = (done + per_pass).min(settings.spp);
-        let pass_stats = sum
+    let weighted = settings.sampling == Sampling::ObjectWeighted && scene.object.is_some();
+    // Samples per pass of an object pixel relative to a pixel that misses it.
+    let mut ratio = 1u32;
+    // This pass's samples per object pixel, in units of `per_pass`: it
+    // doubles from pass to pass up to `ratio`, as long as a pass is expected
+    // to end within the time budget and within MAX_PASS_S.
+    let mut step = 1u32;
+    let mut last_elapsed = 0.0;
+    // Samples per pixel so far of a pixel whose rays all hit the object.
+    let mut object_done = 0u32;
+    let mut quota = vec![0u32; n];
+    loop {
+        // This pass's samples per pixel: the object's pixels get `step`
+        // times more, pro rata of the fraction of rays that hit the object;
+        // in all, the object's pixels get `spp`, the others spp / ratio.
+        let object_next = object_done.saturating_add(per_pass.saturating_mul(step)).min(settings.spp);
+        let mut any = false;
+        for (p, q) in quota.iter_mut().enumerate() {
+            let done = acc.samples[p];
+            let target = if !weighted {
+                object_next
+            } else if done == 0 {
+                per_pass.min(settings.spp)
+            } else {
+                // Keep pace with the object's pixels, at 1/ratio for a pixel that misses the object.
+                let share = f64::from(acc.object_samples[p]) / f64::from(done);
+                let t = (f64::from(object_next) * (share + (1.0 - share) / f64::from(ratio))).ceil() as u32;
+                // A pixel that gets samples gets at least a pass's worth.
+                if t > done {
+                    t.max(done + per_pass)
+                } else {
+                    t
+                }
+            };
+            *q = target.min(settings.spp).saturating_sub(done);
+            any |= *q > 0;
+        }
+        if !any {
+            break;
+        }
+        let pass_stats = acc.add_pass(scene, settings, &quota);
+        object_done = object_next;
+        stats.add(&pass_stats);
+        stats.passes += 1;
+        let elapsed = start.elapsed().as_secs_f64();
+        stats.wall_s = elapsed;
+        let image = acc.image();
+        let errors = image.region_errors();
+        if weighted {
+            ratio = object_ratio(&image);
+            let unit_s = (elapsed - last_elapsed) / f64::from(step);
+            let mut next = step.saturating_mul(2).min(ratio);
+            if unit_s > 0.0 {
+                let remaining = settings.time_budget_s.map_or(MAX_PASS_S, |b| (b - elapsed).min(MAX_PASS_S));
+                next = next.min((remaining / unit_s).floor().max(1.0) as u32);
+            }
+            step = next.max(1);
+        }
+        last_elapsed = elapsed;
+        let spp_done = acc.max_samples();
+        on_pass(&Progress { spp_done, spp_target: settings.spp, elapsed_s: elapsed, stats, errors });
+        let target_met =
+            settings.target_rel_error.is_some_and(|e| errors.object.pixels > 0 && errors.object.median <= e);
+        if target_met
+            || settings.time_budget_s.is_some_and(|b| elapsed >= b)
+            || cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+        {
+            break;
+        }
+    }
+    stats.wall_s = start.elapsed().as_secs_f64();
+    (acc.image(), stats)
+}
+
+/// The longest a pass of [`Sampling::ObjectWeighted`] is planned to take,
+/// seconds (progress and cancellation are seen between passes).
+const MAX_PASS_S: f64 = 10.0;
+
+/// The samples-per-pass ratio between the object's pixels and the others
+/// that makes their relative standard errors meet: the ratio of the medians
+/// (over each region) of the per-sample relative variance n·(SE/mean)²,
+/// between 1 and [`MAX_OBJECT_RATIO`].
+fn object_ratio(image: &Image) -> u32 {
+    let mut by: [Vec<f64>; 2] = Default::default();
+    for p in 0..image.mean.len() {
+        let Some(r) = image.relative_std_error(p) else { continue };
+        let v = f64::from(image.samples[p]) * r * r;
+        by[usize::from(image.region(p) != Region::Object)].push(v);
+    }
+    let [o, rest] = by.map(|v| Quantiles::of(v).median);
+    let ratio = if o.is_nan() {
+        1.0
+    } else if rest.is_nan() || rest <= 0.0 {
+        f64::from(MAX_OBJECT_RATIO)
+    } else {
+        o / rest
+    };
+    (ratio.round() as u32).clamp(1, MAX_OBJECT_RATIO)
+}
+
+/// Per-pixel sums of a progressive render.
+struct Accumulator {
+    width: usize,
+    height: usize,
+    sum: Vec<[f64; 3]>,
+    sum_sq: Vec<[f64; 3]>,
+    samples: Vec<u32>,
+    object_samples: Vec<u32>,
+    board_samples: Vec<u32>,
+}
+
+impl Accumulator {
+    fn new(width: usize, height: usize) -> Self {
+        let n = width * height;
+        Self {
+            width,
+            height,
+            sum: vec![[0.0; 3]; n],
+            sum_sq: vec![[0.0; 3]; n],
+            samples: vec![0; n],
+            object_samples: vec![0; n],
+            board_samples: vec![0; n],
+        }
+    }
+
+    fn max_samples(&self) -> u32 {
+        self.samples.iter().copied().max().unwrap_or(0)
+    }
+
+    /// Adds `quota[p]` samples to every pixel p, rows in parallel. Sample k
+    /// of pixel p draws from `Rng::new(seed, k·2³² + p)`.
+    fn add_pass(&mut self, scene: &Scene, settings: &Settings, quota: &[u32]) -> Stats {
+        let w = self.width;
+        self.sum
             .par_chunks_mut(w)
-            .zip(sum_sq.par_chunks_mut(w))
+            .zip(self.sum_sq.par_chunks_mut(w))
+            .zip(self.samples.par_chunks_mut(w))
+            .zip(self.object_samples.par_chunks_mut(w).zip(self.board_samples.par_chunks_mut(w)))
             .enumerate()
-            .map(|(j, (row, row_sq))| {
+            .map(|(j, (((row, row_sq), row_n), (row_obj, row_board)))| {
                 let mut st = Stats::default();
                 for i in 0..w {
                     let pixel = (j * w + i) as u64;
+                    let k0 = row_n[i];
+                    let k1 = k0 + quota[j * w + i];
                     for k in k0..k1 {
                         let mut rng = Rng::new(settings.seed, (u64::from(k) << 32) | pixel);
                         let u = [rng.next_f64(), rng.next_f64()];
                         let (o, d) = scene.camera.ray(i, j, u);
-                        let l = trace(scene, settings, o, d, &mut rng, &mut st);
+                        let (l, first) = trace(scene, settings, o, d, &mut rng, &mut st);
                         for c in 0..3 {
                             row[i][c] += l[c];
                             row_sq[i][c] += l[c] * l[c];
                         }
+                        match first {
+                            FirstHit::Object => row_obj[i] += 1,
+                            FirstHit::Board => row_board[i] += 1,
+                            FirstHit::Environment => {}
+                        }
                     }
+                    st.samples += u64::from(k1 - k0);
+                    row_n[i] = k1;
                 }
-                st.samples = (w as u64) * u64::from(k1 - k0);
                 st
             })
             .reduce(Stats::default, |mut a, b| {
                 a.add(&b);
                 a
-            });
-        stats.add(&pass_stats);
-        stats.passes += 1;
-        done = k1;
-        let elapsed = start.elapsed().as_secs_f64();
-        stats.wall_s = elapsed;
-        on_pass(&Progress { spp_done: done, spp_target: settings.spp, elapsed_s: elapsed, stats });
-        if settings.time_budget_s.is_some_and(|b| elapsed >= b) || cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            break;
+            })
+    }
+
+    /// Mean and variance of the mean per pixel.
+    fn image(&self) -> Image {
+        let mean = self.sum.iter().zip(&self.samples).map(|(s, &k)| s.map(|v| v / f64::from(k.max(1)))).collect();
+        let variance_of_mean = self
+            .sum
+            .iter()
+            .zip(&self.sum_sq)
+            .zip(&self.samples)
+            .map(|((s, q), &k)| {
+                let m = f64::from(k);
+                std::array::from_fn(|c| {
+                    if k > 1 {
+                        ((q[c] - s[c] * s[c] / m) / (m - 1.0)).max(0.0) / m
+                    } else {
+                        f64::INFINITY
+                    }
+                })
+            })
+            .collect();
+        Image {
+            width: self.width,
+            height: self.height,
+            mean,
+            variance_of_mean,
+            samples: self.samples.clone(),
+            object_samples: self.object_samples.clone(),
+            board_samples: self.board_samples.clone(),
         }
     }
-    let m = f64::from(done.max(1));
-    let mean: Vec<[f64; 3]> = sum.iter().map(|s| s.map(|v| v / m)).collect();
-    let variance_of_mean = sum
-        .iter()
-        .zip(&sum_sq)
-        .map(|(s, q)| {
-            std::array::from_fn(|c| {
-                if done > 1 {
-                    ((q[c] - s[c] * s[c] / m) / (m - 1.0)).max(0.0) / m
-                } else {
-                    f64::INFINITY
-                }
-            })
-        })
-        .collect();
-    stats.wall_s = start.elapsed().as_secs_f64();
-    (Image { width: w, height: h, mean, variance_of_mean, samples: vec![done; n] }, stats)
 }
 
 /// Power heuristic weight of a strategy with pdf `a` against one with pdf `b`.
@@ -579,6 +887,19 @@ struct Throughput {
 }
 
 impl Throughput {
+    /// At most one band takes part: every ratio between bands is 1 (or 0/0 for
+    /// the inactive ones, which stay 0), so the per-band scalings can be skipped.
+    #[inline]
+    fn single_band(&self) -> bool {
+        u8::from(self.active(0)) + u8::from(self.active(1)) + u8::from(self.active(2)) <= 1
+    }
+
+    /// Band c still takes part in the estimate (a path that keeps one band has β = r = 0 in the others).
+    #[inline]
+    fn active(&self, c: usize) -> bool {
+        self.beta[c] != 0.0 || self.r[c] != 0.0
+    }
+
     #[inline]
     fn mean_r(&self) -> f64 {
         (self.r[0] + self.r[1] + self.r[2]) / 3.0
@@ -633,12 +954,43 @@ struct MediumVertex {
     p_attempt: f64,
 }
 
-/// One camera path: the radiance estimate it carries back, per band.
-fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &mut Rng, st: &mut Stats) -> [f64; 3] {
+/// One camera path: the radiance estimate it carries back, per band, and
+/// the first surface the camera ray meets.
+fn trace(
+    scene: &Scene,
+    settings: &Settings,
+    o: DVec3,
+    d: DVec3,
+    rng: &mut Rng,
+    st: &mut Stats,
+) -> ([f64; 3], FirstHit) {
+    trace_path(scene, settings, o, d, Throughput { beta: [1.0; 3], r: [1.0; 3] }, None, settings.split_entry, rng, st)
+}
+
+/// A path from `o` along `d` (outside the object) with throughput `tp` and
+/// driving band `hero` (if already chosen); `split`: split at the object's
+/// boundary from outside ([`Settings::split_entry`]).
+#[allow(clippy::too_many_arguments)]
+fn trace_path(
+    scene: &Scene,
+    settings: &Settings,
+    mut o: DVec3,
+    mut d: DVec3,
+    mut tp: Throughput,
+    mut hero: Option<usize>,
+    split: bool,
+    rng: &mut Rng,
+    st: &mut Stats,
+) -> ([f64; 3], FirstHit) {
     let eps = scene.epsilon_m;
-    let mut tp = Throughput { beta: [1.0; 3], r: [1.0; 3] };
     let mut radiance = [0.0f64; 3];
-    let mut hero: Option<usize> = None;
+    // All bands ride on one path whose refractions use the bands' mean index.
+    let shared = scene.object.as_ref().is_some_and(|obj| {
+        settings.spectral_mis
+            && !obj.bands.achromatic
+            && obj.rough.is_none()
+            && settings.dispersion == Dispersion::SharedDirections
+    });
     let mut inside = false;
     // pdf of the last diffuse bounce's direction (for MIS when the ray escapes straight to the sky).
     let mut last_diffuse_pdf: Option<f64> = None;
@@ -649,6 +1001,8 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
     let mut stretch_pdf = 1.0f64;
     let mut stretch_mu = 1.0f64;
     let mut events = 0u64;
+    // Whether the camera ray's first hit is the object (set at the first outside segment).
+    let mut first_hit: Option<FirstHit> = None;
     // Distance from `o` to the nearest face plane while inside a convex object.
     let mut safe = 0.0f64;
     let convex = scene.object.as_ref().and_then(|obj| obj.accel.convex_planes());
@@ -681,12 +1035,16 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
             let Some(hit) = hit.filter(|hit| s >= hit.t) else {
                 // Scattering at x: density μ_t,h e^{−μ_t,h s}, contribution μ_s,c e^{−μ_t,c s}.
                 o += s * d;
-                if bc.same_sigma_t {
+                if bc.same_sigma_t || tp.single_band() {
+                    // (One band: its ratios f/p reduce to μ_s/μ_t.)
                     for c in 0..3 {
                         tp.beta[c] *= obj.medium.sigma_s[c] / sigma_t;
                     }
                 } else {
-                    let decay: [f64; 3] = std::array::from_fn(|c| (-(bc.sigma_t[c] - sigma_t) * s).exp());
+                    let decay: [f64; 3] =
+                        std::array::from_fn(
+                            |c| if tp.active(c) { (-(bc.sigma_t[c] - sigma_t) * s).exp() } else { 0.0 },
+                        );
                     tp.scale(
                         std::array::from_fn(|c| obj.medium.sigma_s[c] * decay[c]),
                         std::array::from_fn(|c| bc.sigma_t[c] * decay[c]),
@@ -699,7 +1057,7 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                 if let Some(planes) = planes {
                     let p_attempt = attempt_probability(safe, bc.sigma_t_min);
                     if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
-                        connect_through_faces(scene, obj, planes, h, &tp, o, d, p_attempt, rng, &mut radiance);
+                        connect_through_faces(scene, obj, planes, h, &tp, o, d, p_attempt, shared, rng, &mut radiance);
                     }
                     vertex = Some(MediumVertex { x: o, mean_r: tp.mean_r(), p_attempt });
                 }
@@ -707,8 +1065,14 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                 let (u1, u2) = rng.next_f64_pair();
                 d = DVec3::from_array(obj.medium.phase[h].sample_direction(d.to_array(), u1, u2));
                 stretch_mu = d_in.dot(d);
-                if !bc.same_phase {
-                    let p: [f64; 3] = std::array::from_fn(|c| obj.medium.phase[c].eval(stretch_mu));
+                if !bc.same_phase && !tp.single_band() {
+                    let p: [f64; 3] = std::array::from_fn(|c| {
+                        if c == h || tp.active(c) {
+                            obj.medium.phase[c].eval(stretch_mu)
+                        } else {
+                            0.0
+                        }
+                    });
                     tp.scale(p, p, h);
                 }
                 if events >= settings.max_events_per_path {
@@ -721,8 +1085,11 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                 continue;
             };
             // The flight reaches the boundary: probability e^{−μ_t,h t}.
-            if !bc.same_sigma_t {
-                let decay: [f64; 3] = std::array::from_fn(|c| (-(bc.sigma_t[c] - sigma_t) * hit.t).exp());
+            if !bc.same_sigma_t && !tp.single_band() {
+                let decay: [f64; 3] =
+                    std::array::from_fn(
+                        |c| if tp.active(c) { (-(bc.sigma_t[c] - sigma_t) * hit.t).exp() } else { 0.0 },
+                    );
                 tp.scale(decay, decay, h);
             }
             st.surface_hits += 1;
@@ -738,15 +1105,24 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                 }
                 continue;
             }
-            let eta = obj.boundary.eta(h);
+            let eta = if shared { obj.eta_mean } else { obj.boundary.eta(h) };
             let cos_i = d.dot(n_out);
             let f = fresnel::reflectance(cos_i, 1.0 / eta);
-            if rng.next_f64() < f {
+            let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
+            if rng.next_f64() < fr[h] {
+                if shared {
+                    tp.scale(fr, fr, h);
+                }
                 d -= 2.0 * d.dot(n_out) * n_out;
                 o = p - eps * n_out;
                 vertex = None;
                 safe = 0.0;
             } else {
+                let f = fr[h];
+                if shared {
+                    let t = fr.map(|x| 1.0 - x);
+                    tp.scale(t, t, h);
+                }
                 d = refract(d, n_out, 1.0 / eta);
                 o = p + eps * n_out;
                 inside = false;
@@ -766,6 +1142,11 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
         let obj_hit = scene.object.as_ref().and_then(|obj| obj.accel.intersect(o, d, f64::INFINITY));
         let board_hit = scene.board.as_ref().and_then(|bd| bd.intersect(o, d));
         let t_obj = obj_hit.map_or(f64::INFINITY, |h| h.t);
+        first_hit.get_or_insert(match board_hit {
+            Some((t_board, _)) if t_board < t_obj => FirstHit::Board,
+            _ if t_obj < f64::INFINITY => FirstHit::Object,
+            _ => FirstHit::Environment,
+        });
         match board_hit {
             Some((t_board, rho)) if t_board < t_obj => {
                 st.surface_hits += 1;
@@ -833,9 +1214,26 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                 st.surface_hits += 1;
                 vertex = None;
                 let obj = scene.object.as_ref().expect("object hit without an object");
+                let p = o + hit.t * d;
+                let n_in = if hit.normal.dot(d) < 0.0 { hit.normal } else { -hit.normal };
+                // Splitting: the reflection, weighted by F_c, as a branch of its own.
+                let entry_f = (split && obj.rough.is_none()).then(|| {
+                    let cos_i = -d.dot(n_in);
+                    let f: [f64; 3] = std::array::from_fn(|c| fresnel::reflectance(cos_i, obj.boundary.eta(c)));
+                    let mut branch = tp;
+                    for (b, fc) in branch.beta.iter_mut().zip(f) {
+                        *b *= fc;
+                    }
+                    let d_refl = d - 2.0 * d.dot(n_in) * n_in;
+                    let (l, _) = trace_path(scene, settings, p + eps * n_in, d_refl, branch, hero, false, rng, st);
+                    for c in 0..3 {
+                        radiance[c] += l[c];
+                    }
+                    f
+                });
                 let h = *hero.get_or_insert_with(|| {
                     let b = ((rng.next_f64() * 3.0) as usize).min(2);
-                    if !(settings.spectral_mis && obj.bands.achromatic) {
+                    if !(settings.spectral_mis && (obj.bands.achromatic || shared)) {
                         // One band per path (SPEC §4): weight 3 in band b.
                         let keep = 3.0 * tp.beta[b];
                         tp.beta = [0.0; 3];
@@ -846,8 +1244,6 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                     }
                     b
                 });
-                let p = o + hit.t * d;
-                let n_in = if hit.normal.dot(d) < 0.0 { hit.normal } else { -hit.normal };
                 if let Some(rough) = &obj.rough {
                     let Some((nd, no, now_inside)) = rough_scatter(&rough[h], n_in, p, d, eps, &mut tp, rng) else {
                         break;
@@ -858,9 +1254,28 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
                     }
                     continue;
                 }
-                let eta = obj.boundary.eta(h);
-                let f = fresnel::reflectance(-d.dot(n_in), eta);
-                if rng.next_f64() < f {
+                let eta = if shared { obj.eta_mean } else { obj.boundary.eta(h) };
+                let refracts = if let Some(f) = entry_f {
+                    // The reflection was traced above; the refraction carries 1 − F_c.
+                    for (b, fc) in tp.beta.iter_mut().zip(f) {
+                        *b *= 1.0 - fc;
+                    }
+                    true
+                } else {
+                    let cos_i = -d.dot(n_in);
+                    let fr = if shared {
+                        band_reflectance(obj, cos_i, 0.0, false)
+                    } else {
+                        [fresnel::reflectance(cos_i, eta); 3]
+                    };
+                    let reflects = rng.next_f64() < fr[h];
+                    if shared {
+                        let w = if reflects { fr } else { fr.map(|x| 1.0 - x) };
+                        tp.scale(w, w, h);
+                    }
+                    !reflects
+                };
+                if !refracts {
                     d -= 2.0 * d.dot(n_in) * n_in;
                     o = p + eps * n_in;
                 } else {
@@ -874,7 +1289,23 @@ fn trace(scene: &Scene, settings: &Settings, mut o: DVec3, mut d: DVec3, rng: &m
         }
     }
     st.events += events;
-    radiance
+    (radiance, first_hit.unwrap_or(FirstHit::Environment))
+}
+
+/// The Fresnel reflectance per band at a smooth boundary under
+/// [`Dispersion::SharedDirections`]: each band's own index at the angle of
+/// incidence `cos_i` > 0; `from_inside`: the path is in the medium (relative
+/// index 1/n_c), and `f_mean`, the mean index's reflectance there, = 1 marks
+/// total internal reflection, which then holds in every band.
+#[inline]
+fn band_reflectance(obj: &Object, cos_i: f64, f_mean: f64, from_inside: bool) -> [f64; 3] {
+    if from_inside && f_mean >= 1.0 {
+        return [1.0; 3];
+    }
+    std::array::from_fn(|c| {
+        let eta = obj.boundary.eta(c);
+        fresnel::reflectance(cos_i, if from_inside { 1.0 / eta } else { eta })
+    })
 }
 
 /// Distance from x to the nearest of the face planes (≥ 0).
@@ -923,6 +1354,7 @@ fn connect_through_faces(
     x: DVec3,
     d_in: DVec3,
     p_attempt: f64,
+    shared: bool,
     rng: &mut Rng,
     radiance: &mut [f64; 3],
 ) {
@@ -933,7 +1365,7 @@ fn connect_through_faces(
         return;
     }
     let wo = es.dir;
-    let eta = obj.boundary.eta(h);
+    let eta = if shared { obj.eta_mean } else { obj.boundary.eta(h) };
     let bc = &obj.bands;
     let mean_r = tp.mean_r();
     for (n, _) in planes {
@@ -952,13 +1384,15 @@ fn connect_through_faces(
         if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
             continue;
         }
-        let transmit = (1.0 - fresnel::reflectance(cos_i, 1.0 / eta)) * cos_o / (eta * eta * cos_i);
+        let f = fresnel::reflectance(cos_i, 1.0 / eta);
+        let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
+        let transmit = fr.map(|x| (1.0 - x) * cos_o / (eta * eta * cos_i));
         let mu = d_in.dot(wi);
         let ph_h = obj.medium.phase[h].eval(mu);
         let u: [f64; 3] = std::array::from_fn(|k| {
             if tp.r[k] > 0.0 || tp.beta[k] > 0.0 {
                 let ph = if bc.same_phase || k == h { ph_h } else { obj.medium.phase[k].eval(mu) };
-                ph * (-bc.sigma_t[k] * hit.t).exp() * transmit
+                ph * (-bc.sigma_t[k] * hit.t).exp() * transmit[k]
             } else {
                 0.0
             }

@@ -161,6 +161,13 @@ pub enum BenchCommand {
         /// Sample counts per pixel to run, comma-separated.
         #[arg(long, default_value = "16,64,256,1024")]
         spp: String,
+        /// Instead of the Mitsuba comparison: render the scene for this many
+        /// seconds with the previous and the current estimator, one after
+        /// the other on all cores, and print the relative standard error per
+        /// region (object, board, all) side by side, with the efficiency
+        /// 1/(median² × time) on the object and the projected time to 5 %.
+        #[arg(long)]
+        time_s: Option<f64>,
     },
     /// A one-parameter weight-% fit of IOL1068-09 over three configurations (synthetic measurements at 0.425 wt-%); wall time.
     Fit {
@@ -575,7 +582,11 @@ fn bench(b: BenchCommand) -> Result<()> {
         BenchCommand::Bssrdf { rel_error, time_s } => bssrdf::bench(rel_error, time_s)?,
         BenchCommand::Surface { paths } => bssrdf::bench_surface(paths)?,
         BenchCommand::Fit { rel_error, out } => fit::bench(rel_error, out)?,
-        BenchCommand::Render { scene, reference, spp } => {
+        BenchCommand::Render { scene, time_s: Some(t), .. } => {
+            render::check_time_s(t)?;
+            render::bench_estimators(&repository_file(&scene), t)?
+        }
+        BenchCommand::Render { scene, reference, spp, time_s: None } => {
             let spps: Vec<u32> = spp
                 .split(',')
                 .map(|s| s.trim().parse::<u32>().with_context(|| format!("--spp {spp:?}: {s:?} is not a count")))

@@ -4,7 +4,8 @@
 //!
 //! Outputs in `--out` (default `lucent-out/render`):
 //! * `render.exr` — linear CIE RGB (`R`, `G`, `B`), the variance of each
-//!   pixel's mean (`variance.R`, …) and the sample count (`spp`);
+//!   pixel's mean (`variance.R`, …), the sample count (`spp`) and the
+//!   fraction of the pixel's camera rays that hit the object first (`object`);
 //! * `render.png` — sRGB preview (`--exposure` in stops);
 //! * `render.json` — the scene as resolved, settings, seed, timings, counters.
 
@@ -40,12 +41,70 @@ pub struct RenderArgs {
     /// Exposure of the PNG preview in stops (the EXR is never scaled).
     #[arg(long, default_value_t = 0.0)]
     pub exposure: f64,
+    /// Stop when the median relative standard error over the object's
+    /// pixels reaches this fraction (e.g. 0.05; overrides [render] target_rel_error).
+    #[arg(long)]
+    pub target_rel_error: Option<f64>,
+    /// How samples are spread over the pixels (overrides [render] sampling):
+    /// object-weighted (the object's pixels get what their error needs) or uniform.
+    #[arg(long, value_enum)]
+    pub sampling: Option<SamplingArg>,
+    /// The estimator: "current" or "previous" (one band per path where the
+    /// bands' indices differ, no splitting at the object, uniform sampling:
+    /// the estimator before the convergence work, for side-by-side runs).
+    #[arg(long, value_enum, default_value_t = EstimatorArg::Current)]
+    pub estimator: EstimatorArg,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// `--estimator`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EstimatorArg {
+    Current,
+    Previous,
+    /// Diagnostics: the previous estimator with splitting at the object.
+    PreviousSplit,
+}
+
+impl EstimatorArg {
+    /// Sets the settings that distinguish the estimators.
+    pub fn apply(self, settings: &mut Settings) {
+        if self != EstimatorArg::Current {
+            settings.sampling = tracer::Sampling::Uniform;
+            settings.dispersion = tracer::Dispersion::PerBand;
+            settings.split_entry = self == EstimatorArg::PreviousSplit;
+        }
+    }
+}
+
+/// `--sampling`.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum SamplingArg {
+    Uniform,
+    ObjectWeighted,
+}
+
+impl From<SamplingArg> for tracer::Sampling {
+    fn from(a: SamplingArg) -> Self {
+        match a {
+            SamplingArg::Uniform => Self::Uniform,
+            SamplingArg::ObjectWeighted => Self::ObjectWeighted,
+        }
+    }
+}
+
+/// Checks a relative-error target: a fraction strictly between 0 and 1
+/// (the range `[render] target_rel_error` has too).
+pub fn check_rel_error(flag: &str, e: f64) -> Result<f64> {
+    if !(e > 0.0 && e < 1.0) {
+        bail!("{flag} {e}: must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %)");
+    }
+    Ok(e)
 }
 
 pub fn parse_size(text: &str) -> Result<(usize, usize)> {
@@ -61,12 +120,18 @@ pub fn parse_size(text: &str) -> Result<(usize, usize)> {
     Ok((w, h))
 }
 
+/// Checks a wall-time budget in seconds.
+pub fn check_time_s(t: f64) -> Result<f64> {
+    if !(t > 0.0 && t.is_finite()) {
+        bail!("--time-s {t}: must be a positive number of seconds");
+    }
+    Ok(t)
+}
+
 /// Runs `lucent render`.
 pub fn run(a: RenderArgs) -> Result<()> {
-    if let Some(t) = a.time_s
-        && !(t > 0.0 && t.is_finite())
-    {
-        bail!("--time-s {t}: must be a positive number of seconds");
+    if let Some(t) = a.time_s {
+        check_time_s(t)?;
     }
     if a.spp == Some(0) {
         bail!("--spp 0: at least one sample per pixel");
@@ -101,6 +166,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(s) = a.seed {
         settings.seed = s;
     }
+    a.estimator.apply(&mut settings);
+    if let Some(e) = a.target_rel_error {
+        settings.target_rel_error = Some(check_rel_error("--target-rel-error", e)?);
+    }
+    if let Some(s) = a.sampling {
+        settings.sampling = s.into();
+    }
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create output folder", a.out.display()))?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
@@ -129,8 +201,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
             &mut |p| {
                 bar.set_position(u64::from(p.spp_done));
                 bar.set_message(format!(
-                    "{:.3} M samples/s, {:.1} M events/s",
-                    p.stats.samples as f64 / p.elapsed_s / 1e6,
+                    "object {:.1} % (p90 {:.1} %), board {:.1} %, {:.1} M events/s",
+                    100.0 * p.errors.object.median,
+                    100.0 * p.errors.object.p90,
+                    100.0 * p.errors.board.median,
                     p.stats.events as f64 / p.elapsed_s / 1e6
                 ));
             },
@@ -157,14 +231,15 @@ pub fn run(a: RenderArgs) -> Result<()> {
             stats.truncated_paths, settings.max_events_per_path
         );
     }
+    let e = image.region_errors();
     println!(
-        "{} spp in {:.1} s ({:.3} M samples/s, {:.1} M scattering events/s); median relative standard error {:.1} %",
+        "{} spp in {:.1} s ({:.3} M samples/s, {:.1} M scattering events/s)",
         report.spp,
         report.wall_s,
         report.samples_per_s / 1e6,
         stats.events as f64 / stats.wall_s.max(1e-9) / 1e6,
-        100.0 * report.median_relative_std_error
     );
+    println!("relative standard error per pixel, median (90th percentile): {}", describe_errors(&e));
     println!("wrote {}/render.exr, render.png, render.json", a.out.display());
     if interrupted {
         bail!(
@@ -174,6 +249,44 @@ pub fn run(a: RenderArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// "object 4.1 % (6.0 %) over 51234 px, board …, all …".
+pub fn describe_errors(e: &tracer::RegionErrors) -> String {
+    let one = |name: &str, q: &tracer::Quantiles| {
+        if q.pixels == 0 {
+            format!("{name}: no pixels")
+        } else {
+            format!("{name} {:.1} % ({:.1} %) over {} px", 100.0 * q.median, 100.0 * q.p90, q.pixels)
+        }
+    };
+    format!("{}; {}; {}", one("object", &e.object), one("board", &e.board), one("all", &e.all))
+}
+
+/// The region figures as written into render.json.
+pub fn errors_report(e: &tracer::RegionErrors) -> scene::RegionErrorsReport {
+    let q = |q: &tracer::Quantiles| scene::QuantilesReport { pixels: q.pixels, median: q.median, p90: q.p90 };
+    scene::RegionErrorsReport {
+        definition:
+            "relative standard error of the pixel's mean, RMS over R, G, B; object: pixels where at least half \
+                     the camera rays hit the object first; board: likewise the board"
+                .into(),
+        object: q(&e.object),
+        board: q(&e.board),
+        all: q(&e.all),
+    }
+}
+
+/// Mean samples per pixel over the object's pixels and over the others.
+pub fn spp_by_region(image: &Image) -> scene::SppByRegion {
+    let (mut s, mut n) = ([0.0f64; 2], [0usize; 2]);
+    for p in 0..image.samples.len() {
+        let k = usize::from(image.region(p) != tracer::Region::Object);
+        s[k] += f64::from(image.samples[p]);
+        n[k] += 1;
+    }
+    let mean = |k: usize| if n[k] > 0 { s[k] / n[k] as f64 } else { 0.0 };
+    scene::SppByRegion { object: mean(0), other: mean(1) }
 }
 
 /// The median over pixels with a positive mean of sqrt(var of mean)/mean (luminance-free: mean over channels).
@@ -206,6 +319,7 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
         plane(&|i| image.variance_of_mean[i][2]),
     );
     let spp = plane(&|i| f64::from(image.samples[i]));
+    let object = plane(&|i| image.object_fraction(i));
     imageio::write_exr_channels(
         &out.join("render.exr"),
         w,
@@ -218,6 +332,7 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
             ("variance.G", &vg),
             ("variance.B", &vb),
             ("spp", &spp),
+            ("object", &object),
         ],
     )
     .with_context(|| format!("{}: cannot write render.exr", out.display()))?;
@@ -242,7 +357,7 @@ fn report(
     RenderReport {
         lucent_version: env!("CARGO_PKG_VERSION").into(),
         scene: summary.clone(),
-        spp: image.samples.first().copied().unwrap_or(0),
+        spp: image.samples.iter().copied().max().unwrap_or(0),
         spp_requested: settings.spp,
         time_budget_s: settings.time_budget_s,
         seed: settings.seed,
@@ -257,6 +372,13 @@ fn report(
         truncated_paths: stats.truncated_paths,
         mean_rgb,
         median_relative_std_error: median_relative_std_error(image),
+        relative_std_error: Some(errors_report(&image.region_errors())),
+        sampling: Some(match settings.sampling {
+            tracer::Sampling::Uniform => scene::SamplingKey::Uniform,
+            tracer::Sampling::ObjectWeighted => scene::SamplingKey::ObjectWeighted,
+        }),
+        spp_by_region: Some(spp_by_region(image)),
+        target_rel_error: settings.target_rel_error,
         exposure_stops_png: exposure,
         files: files.to_vec(),
         interrupted: false,
@@ -371,6 +493,82 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
         serde_json::to_string_pretty(
             &serde_json::json!({"scene": scene_path.display().to_string(), "threads": rayon::current_num_threads(), "reference_mean_variance": ref_var, "lucent": rows, "versus_mitsuba": ratios})
         )?
+    );
+    Ok(())
+}
+
+/// One estimator's row of `lucent bench render --time-s`.
+#[derive(Debug, Serialize)]
+pub struct EstimatorRow {
+    pub estimator: &'static str,
+    pub wall_s: f64,
+    pub cpu_s: f64,
+    pub spp_object: f64,
+    pub spp_other: f64,
+    pub events_per_s: f64,
+    pub object_median: f64,
+    pub object_p90: f64,
+    pub board_median: f64,
+    pub board_p90: f64,
+    pub all_median: f64,
+    /// 1 / (object median² × wall s).
+    pub object_efficiency: f64,
+    /// Wall seconds to an object median of 5 % at this efficiency.
+    pub projected_s_to_5_percent: f64,
+}
+
+/// `lucent bench render --time-s T`: the previous and the current estimator
+/// on one scene, each for `time_s` of wall time on all cores, per region.
+pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
+    let loaded = scene::load(scene_path)?;
+    let mut rows = Vec::new();
+    for (name, est) in [("previous", EstimatorArg::Previous), ("current", EstimatorArg::Current)] {
+        let mut settings = Settings { spp: u32::MAX / 2, time_budget_s: Some(time_s), ..loaded.settings.clone() };
+        est.apply(&mut settings);
+        let cpu0 = process_cpu_s();
+        let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
+        let cpu = process_cpu_s() - cpu0;
+        let e = img.region_errors();
+        let by = spp_by_region(&img);
+        let eff = 1.0 / (e.object.median * e.object.median * stats.wall_s);
+        let row = EstimatorRow {
+            estimator: name,
+            wall_s: stats.wall_s,
+            cpu_s: cpu,
+            spp_object: by.object,
+            spp_other: by.other,
+            events_per_s: stats.events as f64 / stats.wall_s,
+            object_median: e.object.median,
+            object_p90: e.object.p90,
+            board_median: e.board.median,
+            board_p90: e.board.p90,
+            all_median: e.all.median,
+            object_efficiency: eff,
+            projected_s_to_5_percent: 1.0 / (eff * 0.05 * 0.05),
+        };
+        eprintln!(
+            "{name:>8}: {:.1} s wall, {:.1} spp on the object ({:.1} elsewhere), {:.1} M events/s; {}; time to 5 % on the object ≈ {:.0} s",
+            row.wall_s,
+            row.spp_object,
+            row.spp_other,
+            row.events_per_s / 1e6,
+            describe_errors(&e),
+            row.projected_s_to_5_percent
+        );
+        rows.push(row);
+    }
+    let gain = rows[1].object_efficiency / rows[0].object_efficiency;
+    eprintln!("efficiency gain on the object (current / previous): {gain:.2}×");
+    println!(
+        "{}",
+        serde_json::to_string_pretty(&serde_json::json!({
+            "scene": scene_path.display().to_string(),
+            "threads": rayon::current_num_threads(),
+            "time_s_each": time_s,
+            "figure": "relative standard error of the pixel's mean (RMS over R, G, B), median and 90th percentile per region",
+            "estimators": rows,
+            "object_efficiency_gain": gain,
+        }))?
     );
     Ok(())
 }

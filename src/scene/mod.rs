@@ -44,6 +44,8 @@
 //! seed = 1
 //! # time_s = 120, spp_per_pass = 4
 //! # spectral_mis = true, medium_connections = true   (false, false: SPEC §4's plain estimator)
+//! # sampling = "object-weighted"  # or "uniform": every pixel gets spp (the previous estimator)
+//! # target_rel_error = 0.05       # stop when the object's median relative standard error reaches 5 %
 //! ```
 //!
 //! **Bands.** Spectral quantities (μ_s, μ_a, g, n_bulk, reflectance spectra)
@@ -130,6 +132,8 @@ pub enum KeyProblem {
     Negative { value: f64 },
     #[error("must be at least 1")]
     Zero,
+    #[error("must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %), got {value}")]
+    Fraction { value: f64 },
     #[error("reflectances must lie in [0, 1], got {values:?}")]
     Reflectance { values: [f64; 3] },
     #[error("radiance must be finite and ≥ 0, got {values:?}")]
@@ -349,6 +353,28 @@ pub struct RenderSection {
     pub spp_per_pass: Option<u32>,
     pub spectral_mis: Option<bool>,
     pub medium_connections: Option<bool>,
+    /// "object-weighted" (default: the object's pixels get the samples their
+    /// error needs) or "uniform" (every pixel `spp`).
+    pub sampling: Option<SamplingKey>,
+    /// Stop when the median relative standard error over the object's pixels reaches this fraction.
+    pub target_rel_error: Option<f64>,
+}
+
+/// `[render] sampling`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SamplingKey {
+    Uniform,
+    ObjectWeighted,
+}
+
+impl From<SamplingKey> for lucent_render::tracer::Sampling {
+    fn from(k: SamplingKey) -> Self {
+        match k {
+            SamplingKey::Uniform => Self::Uniform,
+            SamplingKey::ObjectWeighted => Self::ObjectWeighted,
+        }
+    }
 }
 
 // ------------------------------------------------------------ validated
@@ -388,6 +414,19 @@ pub struct RenderReport {
     /// NaN (written as `null`) when no pixel has a defined relative error.
     #[serde(deserialize_with = "crate::bssrdf::f64_or_nan")]
     pub median_relative_std_error: f64,
+    /// The relative standard error of the pixels' means per region (the
+    /// object's pixels, the board's, all), median and 90th percentile.
+    /// Absent in files written before it existed.
+    #[serde(default)]
+    pub relative_std_error: Option<RegionErrorsReport>,
+    /// "uniform" or "object-weighted".
+    #[serde(default)]
+    pub sampling: Option<SamplingKey>,
+    /// Samples per pixel per region: the object's pixels, the others (means).
+    #[serde(default)]
+    pub spp_by_region: Option<SppByRegion>,
+    #[serde(default)]
+    pub target_rel_error: Option<f64>,
     pub exposure_stops_png: f64,
     pub files: Vec<String>,
     /// True when Ctrl-C stopped the render early: the files hold the
@@ -395,6 +434,36 @@ pub struct RenderReport {
     /// files written before it existed.
     #[serde(default)]
     pub interrupted: bool,
+}
+
+/// Median and 90th percentile of a per-pixel figure over one region.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct QuantilesReport {
+    /// Pixels the figure is taken over.
+    pub pixels: usize,
+    #[serde(deserialize_with = "crate::bssrdf::f64_or_nan")]
+    pub median: f64,
+    #[serde(deserialize_with = "crate::bssrdf::f64_or_nan")]
+    pub p90: f64,
+}
+
+/// [`lucent_render::tracer::RegionErrors`] as written into render.json.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RegionErrorsReport {
+    /// What the figures are (the relative standard error of the pixel's mean, RMS over R, G, B; the regions).
+    pub definition: String,
+    /// Pixels where at least half the camera rays hit the object first.
+    pub object: QuantilesReport,
+    /// Pixels where at least half the camera rays hit the board first.
+    pub board: QuantilesReport,
+    pub all: QuantilesReport,
+}
+
+/// Mean samples per pixel over the object's pixels and over the others.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SppByRegion {
+    pub object: f64,
+    pub other: f64,
 }
 
 /// The resolved inputs, written into render.json.
@@ -609,6 +678,15 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     }
     if let Some(b) = r.medium_connections {
         settings.medium_nee = b;
+    }
+    if let Some(k) = r.sampling {
+        settings.sampling = k.into();
+    }
+    if let Some(e) = r.target_rel_error {
+        if !(e > 0.0 && e < 1.0) {
+            return Err(ctx.key("render", "target_rel_error", KeyProblem::Fraction { value: e }));
+        }
+        settings.target_rel_error = Some(e);
     }
 
     let (object, material_summary) = match object {
