@@ -178,6 +178,9 @@ fn bad_scene_files_are_refused_with_reasons() {
         ("not_toml.toml", &["not_toml.toml"]),
         ("bad_roughness_model.toml", &["bad_roughness_model.toml", "[material] roughness", "\"lambert\""]),
         ("bad_roughness_alpha.toml", &["[material] roughness", "-0.01"]),
+        ("target_rel_error_above_one.toml", &["[render] target_rel_error", "between 0 and 1", "5"]),
+        ("target_rel_error_zero.toml", &["[render] target_rel_error", "between 0 and 1"]),
+        ("bad_sampling.toml", &["bad_sampling.toml", "adaptive"]),
     ];
     let listed: Vec<&str> = cases.iter().map(|c| c.0).collect();
     for entry in std::fs::read_dir(&dir).unwrap() {
@@ -226,6 +229,8 @@ fn bad_scene_files_say_what_went_wrong_as_a_variant() {
     assert!(matches!((s, k, p), ("material", "roughness", KeyProblem::Alpha(a)) if a == -0.01));
     let (s, k, p) = key("board_reflectance.toml");
     assert!(matches!((s, k, p), ("board", "even", KeyProblem::Reflectance { values: [1.2, 0.5, 0.5] })));
+    let (s, k, p) = key("target_rel_error_above_one.toml");
+    assert!(matches!((s, k, p), ("render", "target_rel_error", KeyProblem::Fraction { value: 5.0 })));
     let (s, p) = section("env_both.toml");
     assert!(matches!((s, p), ("environment", SectionProblem::Conflict { first: "map", second: "constant" })));
     let (s, p) = section("object_without_material.toml");
@@ -269,11 +274,17 @@ fn cli_writes_exr_png_json() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (w, h, ch) =
-        read_exr_channels(&out.join("render.exr"), &["R", "G", "B", "variance.R", "variance.G", "variance.B", "spp"])
-            .unwrap();
+    let (w, h, ch) = read_exr_channels(
+        &out.join("render.exr"),
+        &["R", "G", "B", "variance.R", "variance.G", "variance.B", "spp", "object"],
+    )
+    .unwrap();
     assert_eq!((w, h), (32, 24));
     assert!(ch[6].iter().all(|&s| s == 8.0));
+    // The object layer: fractions, the plaque in the middle, sky or board at the corners.
+    assert!(ch[7].iter().all(|f| (0.0..=1.0).contains(f)));
+    assert_eq!((ch[7][12 * 32 + 16], ch[7][0]), (1.0, 0.0));
+    let object_px = ch[7].iter().filter(|&&f| f >= 0.5).count();
     assert!(ch[3].iter().all(|v| v.is_finite() && *v >= 0.0));
     let png = read_rgb(&out.join("render.png")).unwrap();
     assert_eq!((png.width, png.height), (32, 24));
@@ -283,6 +294,14 @@ fn cli_writes_exr_png_json() {
     assert_eq!(json["seed"], 3);
     assert_eq!(json["scene"]["image_width"], 32);
     assert!(json["samples_per_s"].as_f64().unwrap() > 0.0);
+    // Per-region figures, over the pixels the object layer marks.
+    let e = &json["relative_std_error"];
+    assert_eq!(e["object"]["pixels"].as_u64().unwrap() as usize, object_px);
+    assert!(e["object"]["median"].as_f64().unwrap() > 0.0);
+    assert!(e["object"]["p90"].as_f64().unwrap() >= e["object"]["median"].as_f64().unwrap());
+    assert_eq!(e["all"]["pixels"], 32 * 24);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("object") && stdout.contains("board") && stdout.contains("90th percentile"), "{stdout}");
     // Same seed, same image, whatever the thread count.
     let out2 = tmp.path().join("r2");
     let o = lucent(&[
@@ -312,6 +331,31 @@ fn cli_writes_exr_png_json() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("negative_sigma.toml"));
     assert!(!out3.exists());
+    // A relative-error target outside (0, 1): refused before anything is written.
+    let o = lucent(&["render", scene.to_str().unwrap(), "--target-rel-error", "1.5", "--out", out3.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--target-rel-error 1.5"));
+    assert!(!out3.exists());
+    // A target the render reaches: it stops early, with the object's median at or below it.
+    let o = lucent(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--spp",
+        "100000",
+        "--size",
+        "32x24",
+        "--target-rel-error",
+        "0.3",
+        "--quiet",
+        "--out",
+        out3.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out3.join("render.json")).unwrap()).unwrap();
+    assert!(json["relative_std_error"]["object"]["median"].as_f64().unwrap() <= 0.3, "{json}");
+    assert!(json["spp"].as_u64().unwrap() < 100_000);
+    assert_eq!(json["target_rel_error"], 0.3);
 }
 
 #[test]
