@@ -526,7 +526,8 @@ pub struct EstimatorRow {
 pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     let loaded = scene::load(scene_path)?;
     let mut rows = Vec::new();
-    let configurations: [(&'static str, fn(&mut Settings)); 4] = [
+    type Configure = fn(&mut Settings);
+    let configurations: [(&'static str, Configure); 4] = [
         ("previous", |_| {}),
         ("+ splitting at entry", |s| s.split_entry = true),
         ("+ shared dispersion directions", |s| s.dispersion = tracer::Dispersion::SharedDirections),
