@@ -225,6 +225,7 @@ fn ecc_recovers_a_known_shift_on_the_board_and_the_metrics_improve() {
         photo,
         render,
         mask: MaskSpec::Object(scene),
+        photo_variance: None,
         scene: None,
         data_range: 1.0,
         luminance: Luminance::CieRgb,
@@ -535,4 +536,121 @@ fn speed_on_a_12_megapixel_pair() {
         rayon::current_num_threads(),
         one.mean
     );
+}
+
+/// Two renders of the same twin (seeds 1 and 2) compared on the object's
+/// pixels taken from the render's own `object` layer: the plain RMSE is all
+/// noise, the model RMSE's interval contains 0 and its noise floor explains
+/// the RMSE; a render made brighter by 20 % is told apart from noise.
+#[test]
+fn model_rmse_separates_the_twin_from_its_noise() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = "fixtures/render/plaque_dense.toml";
+    for seed in ["1", "2"] {
+        let out = tmp.path().join(format!("s{seed}"));
+        let o = lucent(&[
+            "render",
+            scene,
+            "--size",
+            "128x96",
+            "--spp",
+            "32",
+            "--seed",
+            seed,
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let (a, b) = (tmp.path().join("s1/render.exr"), tmp.path().join("s2/render.exr"));
+    let compare = |render: &std::path::Path, out: &str| {
+        let out = tmp.path().join(out);
+        let o = lucent(&[
+            "compare",
+            "--photo",
+            a.to_str().unwrap(),
+            "--photo-variance",
+            a.to_str().unwrap(),
+            "--render",
+            render.to_str().unwrap(),
+            "--mask-object",
+            b.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(stdout(&o).contains("model RMSE (noise removed)"), "{}", stdout(&o));
+        let v: Value = serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+        v
+    };
+    let same = compare(&b, "same");
+    assert_eq!(same["mask"]["source"], "object");
+    let n = &same["noise"]["total"];
+    let (rmse, floor) = (n["rmse"].as_f64().unwrap(), n["noise_floor"].as_f64().unwrap());
+    assert!(n["squared_ci95"][0].as_f64().unwrap() <= 0.0 && n["squared_ci95"][1].as_f64().unwrap() >= 0.0, "{n}");
+    assert!((rmse / floor - 1.0).abs() < 0.25, "RMSE {rmse} vs noise floor {floor}");
+    // The object's pixels from the layer: as many as the render counted.
+    let rj: Value = serde_json::from_str(&std::fs::read_to_string(tmp.path().join("s2/render.json")).unwrap()).unwrap();
+    assert_eq!(same["mask"]["included_pixels"], rj["relative_std_error"]["object"]["pixels"]);
+    // A twin 20 % too bright on the object: a model error the interval excludes 0 for.
+    let (w, h, ch) = lucent::imageio::read_exr_channels(
+        &b,
+        &["R", "G", "B", "variance.R", "variance.G", "variance.B", "spp", "object", "board"],
+    )
+    .unwrap();
+    let planes: Vec<(&str, Vec<f32>)> =
+        ["R", "G", "B", "variance.R", "variance.G", "variance.B", "spp", "object", "board"]
+            .iter()
+            .zip(ch)
+            .map(|(name, v)| {
+                let k = match *name {
+                    "R" | "G" | "B" => 1.2,
+                    "variance.R" | "variance.G" | "variance.B" => 1.44,
+                    _ => 1.0,
+                };
+                (*name, v.iter().map(|x| x * k).collect())
+            })
+            .collect();
+    let bright = tmp.path().join("bright.exr");
+    let refs: Vec<(&str, &[f32])> = planes.iter().map(|(n, v)| (*n, v.as_slice())).collect();
+    lucent::imageio::write_exr_channels(&bright, w, h, &refs).unwrap();
+    let off = compare(&bright, "bright");
+    let lo = off["noise"]["total"]["ci95"][0].as_f64().unwrap();
+    assert!(lo > 0.0, "{}", off["noise"]);
+}
+
+#[test]
+fn mask_layers_of_a_wrong_render_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let img = RgbImage::new(16, 12, vec![0.5; 16 * 12 * 3]).unwrap();
+    let p = tmp.path().join("p.exr");
+    write_exr(&p, &img).unwrap();
+    // A plain RGB EXR has no object layer: the error names the file and the layer.
+    let o = lucent(&[
+        "compare",
+        "--photo",
+        p.to_str().unwrap(),
+        "--render",
+        p.to_str().unwrap(),
+        "--mask-object",
+        p.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("p.exr") && e.contains("object"), "{e}");
+    // The plain EXR has no variance either: no model RMSE, said on stderr.
+    let o = lucent(&[
+        "compare",
+        "--photo",
+        p.to_str().unwrap(),
+        "--render",
+        p.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o2").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no model RMSE"), "{}", stderr(&o));
 }

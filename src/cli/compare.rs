@@ -21,12 +21,18 @@ pub struct CompareArgs {
     /// Mask image of the photo's size: nonzero = pixel included.
     #[arg(long)]
     pub mask: Option<PathBuf>,
-    /// Compare only the sample: its box projected from this scene JSON (`lucent pose`).
-    #[arg(long, value_name = "SCENE_JSON")]
+    /// Compare only the sample: its box projected from this scene JSON (`lucent pose`), or the
+    /// pixels a render EXR's `object` layer marks (any mesh; `lucent render` writes it).
+    #[arg(long, value_name = "SCENE_JSON|RENDER_EXR")]
     pub mask_object: Option<PathBuf>,
-    /// Compare only the board (printed squares minus the sample), from this scene JSON.
-    #[arg(long, value_name = "SCENE_JSON")]
+    /// Compare only the board (printed squares minus the sample), from this scene JSON or a
+    /// render EXR's `board` layer.
+    #[arg(long, value_name = "SCENE_JSON|RENDER_EXR")]
     pub mask_board: Option<PathBuf>,
+    /// Per-pixel variance of the photo (EXR: R, G, B or variance.R/G/B), removed with the
+    /// render's own variance from the model RMSE.
+    #[arg(long)]
+    pub photo_variance: Option<PathBuf>,
     /// Scene JSON whose board region ECC aligns on (implied by --mask-object/--mask-board).
     #[arg(long, value_name = "SCENE_JSON")]
     pub scene: Option<PathBuf>,
@@ -86,6 +92,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         luminance: a.luminance.into(),
         exposure: a.exposure,
         refine,
+        photo_variance: a.photo_variance,
     };
     let outcome = compare::compare_files(&req)?;
     for n in &outcome.notes {
@@ -94,6 +101,12 @@ pub fn run(a: CompareArgs) -> Result<()> {
     let written = compare::write_outputs(&a.out, &outcome).with_context(|| format!("writing {}", a.out.display()))?;
     let r = &outcome.report;
     println!("as calibrated: {}", line(&r.as_calibrated));
+    if let Some(n) = &r.noise {
+        println!(
+            "model RMSE (noise removed) {:.4e}, 95 % interval [{:.4e}, {:.4e}], noise floor {:.4e}, over {} pixels",
+            n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor, n.pixels
+        );
+    }
     if let Some(f) = &r.refined {
         println!(
             "after ECC ({}, dx {:+.3} px, dy {:+.3} px, correlation {:.4}): {}",

@@ -5,7 +5,8 @@
 //! Outputs in `--out` (default `lucent-out/render`):
 //! * `render.exr` — linear CIE RGB (`R`, `G`, `B`), the variance of each
 //!   pixel's mean (`variance.R`, …), the sample count (`spp`) and the
-//!   fraction of the pixel's camera rays that hit the object first (`object`);
+//!   fraction of the pixel's camera rays that hit the object first
+//!   (`object`) and the board first (`board`);
 //! * `render.png` — sRGB preview (`--exposure` in stops);
 //! * `render.json` — the scene as resolved, settings, seed, timings, counters.
 
@@ -322,6 +323,7 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
     );
     let spp = plane(&|i| f64::from(image.samples[i]));
     let object = plane(&|i| image.object_fraction(i));
+    let board = plane(&|i| f64::from(image.board_samples[i]) / f64::from(image.samples[i].max(1)));
     imageio::write_exr_channels(
         &out.join("render.exr"),
         w,
@@ -335,6 +337,7 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
             ("variance.B", &vb),
             ("spp", &spp),
             ("object", &object),
+            ("board", &board),
         ],
     )
     .with_context(|| format!("{}: cannot write render.exr", out.display()))?;

@@ -44,6 +44,7 @@
 
 pub mod input;
 pub mod mask;
+pub mod noise;
 pub mod ssim;
 pub mod triplet;
 
@@ -138,6 +139,9 @@ pub enum ReadProblem {
     ExrSize(#[from] crate::imageio::ExrSizeError),
     #[error("{0}")]
     Decode(#[from] image::ImageError),
+    /// Readable, but not what the comparison needs (a missing layer, a value out of range).
+    #[error("{0}")]
+    Invalid(String),
     #[error("{0}")]
     Buffer(#[from] ImageIoError),
     #[error("no R, G, B (or single Y) channels; the file has {}", .0.join(", "))]
@@ -441,9 +445,12 @@ pub enum MaskSpec {
     None,
     /// A mask image: nonzero = included.
     Image(PathBuf),
-    /// The sample's silhouette from a scene JSON.
+    /// The sample's silhouette from a scene JSON, or, from a render EXR
+    /// with an `object` layer (`lucent render`), the pixels where at least
+    /// half the camera rays hit the object first (any mesh).
     Object(PathBuf),
-    /// The board minus the sample from a scene JSON.
+    /// The board minus the sample from a scene JSON, or from a render EXR's
+    /// `board` layer (at least half the camera rays hit the board first).
     Board(PathBuf),
 }
 
@@ -461,6 +468,9 @@ pub struct Request {
     pub exposure: Option<f64>,
     /// ECC refinement with this motion model.
     pub refine: Option<Motion>,
+    /// Per-pixel variance of the photo (an EXR with `R`, `G`, `B` or
+    /// `variance.R/G/B`), for the model RMSE ([`noise`]).
+    pub photo_variance: Option<PathBuf>,
 }
 
 /// `mask` in metrics.json.
@@ -535,6 +545,10 @@ pub struct Report {
     pub mask: MaskReport,
     pub definitions: Definitions,
     pub as_calibrated: Metrics,
+    /// The model RMSE with the expected noise removed, its 95 % interval and
+    /// the noise floor (as calibrated), when the render carries its variance.
+    #[serde(default)]
+    pub noise: Option<noise::NoiseReport>,
     pub refined: Option<Refinement>,
     pub display: DisplayReport,
     pub files: Vec<String>,
@@ -551,6 +565,101 @@ pub struct Outcome {
     /// Things the user should know (clipping, ECC region), for stderr.
     pub notes: Vec<String>,
 }
+
+/// The include mask of a render EXR's `layer` ("object" or "board"): the
+/// pixels whose fraction is at least ½.
+fn mask_from_render_layer(path: &Path, layer: &'static str, w: usize, h: usize) -> Result<Mask, CompareError> {
+    let read = |reason: String| CompareError::Read {
+        role: if layer == "object" { "--mask-object" } else { "--mask-board" },
+        path: path.to_path_buf(),
+        reason: ReadProblem::Invalid(reason),
+    };
+    let (mw, mh, ch) = crate::imageio::read_exr_channels(path, &[layer]).map_err(|e| read(e.to_string()))?;
+    if (mw, mh) != (w, h) {
+        return Err(read(format!("its {layer} layer is {mw} × {mh} pixels, the photo {w} × {h}")));
+    }
+    if let Some(v) = ch[0].iter().find(|v| !(v.is_finite() && (0.0..=1.0).contains(*v))) {
+        return Err(read(format!("its {layer} layer holds {v}, not a fraction in [0, 1]")));
+    }
+    Ok(Mask { width: w, height: h, include: ch[0].iter().map(|&f| f >= 0.5).collect() })
+}
+
+/// The model RMSE when the render carries its variance (`variance.R/G/B`
+/// in an EXR); `None` with a note otherwise.
+fn noise_report(
+    req: &Request,
+    photo: &RgbImage,
+    render: &RgbImage,
+    mask: Option<&Mask>,
+    notes: &mut Vec<String>,
+) -> Result<Option<noise::NoiseReport>, CompareError> {
+    const VAR: [&str; 3] = ["variance.R", "variance.G", "variance.B"];
+    let interleave =
+        |ch: &[Vec<f32>]| -> Vec<f32> { (0..ch[0].len()).flat_map(|i| [ch[0][i], ch[1][i], ch[2][i]]).collect() };
+    let render_var = if crate::imageio::extension(&req.render) == "exr" {
+        crate::imageio::read_exr_channels(&req.render, &VAR).ok()
+    } else {
+        None
+    };
+    let Some((_, _, rv)) = render_var else {
+        notes.push("the render has no variance layers (variance.R/G/B of lucent render's EXR): no model RMSE".into());
+        return Ok(None);
+    };
+    let render_variance = interleave(&rv);
+    let photo_variance = match &req.photo_variance {
+        None => None,
+        Some(p) => {
+            let read = |reason: String| CompareError::Read {
+                role: "photo variance",
+                path: p.clone(),
+                reason: ReadProblem::Invalid(reason),
+            };
+            let got = crate::imageio::read_exr_channels(p, &VAR)
+                .or_else(|_| crate::imageio::read_exr_channels(p, &["R", "G", "B"]))
+                .map_err(|e| read(e.to_string()))?;
+            if (got.0, got.1) != (photo.width, photo.height) {
+                return Err(read(format!(
+                    "{} × {} pixels, the photo {} × {}",
+                    got.0, got.1, photo.width, photo.height
+                )));
+            }
+            Some(interleave(&got.2))
+        }
+    };
+    let input = noise::NoiseInput {
+        width: photo.width,
+        height: photo.height,
+        photo: &photo.data,
+        render: &render.data,
+        render_variance: &render_variance,
+        photo_variance: photo_variance.as_deref(),
+        include: mask.map(|m| m.include.as_slice()),
+    };
+    let mut report = noise::model_rmse(&input, NOISE_BLOCK_PX, NOISE_RESAMPLES, 1).map_err(|e| CompareError::Read {
+        role: "render variance",
+        path: req.render.clone(),
+        reason: ReadProblem::Invalid(e.to_string()),
+    })?;
+    if report.blocks < noise::MIN_BLOCKS {
+        notes.push(format!(
+            "the model RMSE's interval rests on {} blocks of {NOISE_BLOCK_PX} × {NOISE_BLOCK_PX} px (fewer than {}): \
+             too few to trust; compare a larger region or image",
+            report.blocks,
+            noise::MIN_BLOCKS
+        ));
+    }
+    report.render_variance = format!("{}: variance.R/G/B (variance of each pixel's mean)", req.render.display());
+    report.photo_variance = match &req.photo_variance {
+        Some(p) => format!("{}", p.display()),
+        None => "not given (0): the model RMSE still contains the photo's noise".into(),
+    };
+    Ok(Some(report))
+}
+
+/// Block side of the model RMSE's bootstrap, pixels.
+pub const NOISE_BLOCK_PX: usize = 8;
+/// Bootstrap resamples of the model RMSE's interval.
+pub const NOISE_RESAMPLES: usize = 1000;
 
 /// Output file names inside the folder.
 pub const FILES: [&str; 3] = ["metrics.json", "triplet.png", "difference.exr"];
@@ -577,6 +686,12 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     let (mask, source, mask_path) = match &req.mask {
         MaskSpec::None => (None, "none", None),
         MaskSpec::Image(p) => (Some(Mask::from_image(p, w, h)?), "image", Some(p)),
+        MaskSpec::Object(p) if crate::imageio::extension(p) == "exr" => {
+            (Some(mask_from_render_layer(p, "object", w, h)?), "object", Some(p))
+        }
+        MaskSpec::Board(p) if crate::imageio::extension(p) == "exr" => {
+            (Some(mask_from_render_layer(p, "board", w, h)?), "board", Some(p))
+        }
         MaskSpec::Object(p) => {
             let s = mask::read_scene(p)?;
             let m = mask::object_mask(&s, w, h)?;
@@ -600,9 +715,10 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     {
         return Err(CompareError::EmptyMask { kind: Some(source), path: mask_path.cloned() });
     }
-    let mut notes = Vec::new();
+    let mut notes: Vec<String> = Vec::new();
 
     let (calibrated, ssim_map) = metrics_and_ssim_map(photo_img, render_img, mask.as_ref(), &settings)?;
+    let noise = noise_report(req, photo_img, render_img, mask.as_ref(), &mut notes)?;
 
     // ECC refinement.
     let mut refined_parts = None;
@@ -801,6 +917,7 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             relative_error: "sum |render - photo| / sum |photo| over included pixels and channels".into(),
         },
         as_calibrated: calibrated,
+        noise,
         refined: refined_parts.as_ref().map(|(r, _, _)| r.clone()),
         display: DisplayReport {
             exposure,

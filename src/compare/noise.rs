@@ -1,0 +1,362 @@
+//! The twin's error separated from noise: the **model RMSE** of a render R
+//! against a photo P whose pixels carry known variances.
+//!
+//! For independent noise, E[(R − P)²] = (E R − E P)² + var R + var P per
+//! pixel and channel, so
+//!
+//!   d = (R − P)² − var R − var P
+//!
+//! is an unbiased estimate of the squared model error (E R − E P)² there,
+//! and over the included pixels (and channels)
+//!
+//!   model RMSE = √max(0, mean d),   noise floor = √mean(var R + var P),
+//!
+//! the noise floor being what the plain RMSE would read for a perfect twin.
+//! `var R` is the variance of the render's pixel mean (render.exr's
+//! `variance.R/G/B`); `var P` the photo's, when known (else 0: the model
+//! RMSE then still contains the photo's noise).
+//!
+//! **Interval.** Neighbouring pixels are correlated (demosaicing, filters),
+//! so the 95 % interval comes from a moving-block bootstrap over square
+//! blocks of pixels (Künsch 1989): blocks of `block_px` × `block_px` pixels
+//! are drawn with replacement as many times as there are blocks, mean d is
+//! recomputed, and the 2.5 and 97.5 percentiles of √max(0, mean d*) over
+//! the resamples bound the model RMSE. The resampling is seeded: the same
+//! inputs give the same interval.
+//!
+//! ```
+//! use lucent::compare::noise::{model_rmse, NoiseInput};
+//! // A render off by 0.1 everywhere with variance 0.01 per pixel: the plain
+//! // RMSE of the noise-free difference is 0.1, the floor √0.01 = 0.1.
+//! let n = 64 * 64 * 3;
+//! let photo = vec![0.5f32; n];
+//! let render = vec![0.6f32; n];
+//! let var = vec![0.0f32; n];
+//! let r = model_rmse(&NoiseInput { width: 64, height: 64, photo: &photo, render: &render,
+//!     render_variance: &var, photo_variance: None, include: None }, 8, 200, 1).unwrap();
+//! assert!((r.total.model_rmse - 0.1).abs() < 1e-6);
+//! assert!(r.total.ci95[0] <= 0.1 + 1e-6 && r.total.ci95[1] >= 0.1 - 1e-6);
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+/// Fewer blocks than this make the bootstrap interval unreliable (stated as a note).
+pub const MIN_BLOCKS: usize = 30;
+
+/// The model RMSE of one channel (or of all), with its interval and the noise floor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ModelError {
+    /// √max(0, mean((R − P)² − var R − var P)), in the images' units.
+    pub model_rmse: f64,
+    /// 95 % interval of the model RMSE (block bootstrap); [0, 0] when even
+    /// the upper end of the squared error's interval is negative (the data
+    /// show no model error above the noise).
+    pub ci95: [f64; 2],
+    /// mean((R − P)² − var R − var P), signed, and its 95 % interval:
+    /// the squared model error before the clamp at 0.
+    pub squared: f64,
+    pub squared_ci95: [f64; 2],
+    /// √mean(var R + var P): the RMSE a noise-free-in-expectation twin would show.
+    pub noise_floor: f64,
+    /// The plain RMSE over the same pixels, for comparison.
+    pub rmse: f64,
+}
+
+/// `noise` in metrics.json.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NoiseReport {
+    pub definition: String,
+    /// Where var R and var P come from.
+    pub render_variance: String,
+    pub photo_variance: String,
+    pub block_px: usize,
+    /// Blocks holding included pixels (the bootstrap's sample size: with
+    /// fewer than [`MIN_BLOCKS`] the interval is too narrow to trust).
+    pub blocks: usize,
+    pub resamples: usize,
+    pub pixels: usize,
+    pub total: ModelError,
+    pub r: ModelError,
+    pub g: ModelError,
+    pub b: ModelError,
+}
+
+/// The images of [`model_rmse`]: interleaved RGB, row-major, all of
+/// `width × height × 3` values; `include` (if any) of `width × height`.
+pub struct NoiseInput<'a> {
+    pub width: usize,
+    pub height: usize,
+    pub photo: &'a [f32],
+    pub render: &'a [f32],
+    pub render_variance: &'a [f32],
+    pub photo_variance: Option<&'a [f32]>,
+    pub include: Option<&'a [bool]>,
+}
+
+/// Why the model error cannot be computed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NoiseError {
+    #[error("{what} has {got} values, expected {expected} ({width} × {height} × 3)")]
+    Size { what: &'static str, got: usize, expected: usize, width: usize, height: usize },
+    #[error("no pixel is included")]
+    Empty,
+    #[error("{what}: a variance must be finite and ≥ 0 (got {value} at pixel ({x}, {y}))")]
+    BadVariance { what: &'static str, value: f32, x: usize, y: usize },
+    #[error("block size must be at least 1 pixel and resamples at least 20")]
+    Settings,
+}
+
+/// Per block: the number of included pixels and the sums of d per channel
+/// and of (r − p)², var per channel.
+#[derive(Debug, Clone, Copy, Default)]
+struct BlockSums {
+    n: f64,
+    d: [f64; 3],
+    sq: [f64; 3],
+    var: [f64; 3],
+}
+
+/// The model RMSE per channel and over all channels, with 95 % block-bootstrap intervals.
+pub fn model_rmse(input: &NoiseInput, block_px: usize, resamples: usize, seed: u64) -> Result<NoiseReport, NoiseError> {
+    let (w, h) = (input.width, input.height);
+    let expected = w * h * 3;
+    let check = |what: &'static str, len: usize| {
+        if len == expected {
+            Ok(())
+        } else {
+            Err(NoiseError::Size { what, got: len, expected, width: w, height: h })
+        }
+    };
+    check("photo", input.photo.len())?;
+    check("render", input.render.len())?;
+    check("render variance", input.render_variance.len())?;
+    if let Some(v) = input.photo_variance {
+        check("photo variance", v.len())?;
+    }
+    if let Some(m) = input.include
+        && m.len() != w * h
+    {
+        return Err(NoiseError::Size { what: "mask", got: m.len() * 3, expected, width: w, height: h });
+    }
+    if block_px == 0 || resamples < 20 {
+        return Err(NoiseError::Settings);
+    }
+    for (what, v) in [("render variance", Some(input.render_variance)), ("photo variance", input.photo_variance)] {
+        let Some(v) = v else { continue };
+        if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+            return Err(NoiseError::BadVariance { what, value: v[i], x: (i / 3) % w, y: i / 3 / w });
+        }
+    }
+    let (bw, bh) = (w.div_ceil(block_px), h.div_ceil(block_px));
+    let mut blocks = vec![BlockSums::default(); bw * bh];
+    for y in 0..h {
+        for x in 0..w {
+            let p = y * w + x;
+            if input.include.is_some_and(|m| !m[p]) {
+                continue;
+            }
+            let b = &mut blocks[(y / block_px) * bw + x / block_px];
+            b.n += 1.0;
+            for c in 0..3 {
+                let i = 3 * p + c;
+                let diff = f64::from(input.render[i]) - f64::from(input.photo[i]);
+                let var = f64::from(input.render_variance[i]) + input.photo_variance.map_or(0.0, |v| f64::from(v[i]));
+                b.sq[c] += diff * diff;
+                b.var[c] += var;
+                b.d[c] += diff * diff - var;
+            }
+        }
+    }
+    blocks.retain(|b| b.n > 0.0);
+    if blocks.is_empty() {
+        return Err(NoiseError::Empty);
+    }
+    let totals = sum_blocks(blocks.iter());
+    // Bootstrap: mean d per channel and over channels for each resample.
+    let mut rng = lucent_render::rng::Rng::new(seed, 0);
+    // Signed mean d per resample (the square root is monotone, so its
+    // percentiles are the roots of these).
+    let mut draws: [Vec<f64>; 4] = Default::default();
+    for _ in 0..resamples {
+        let picked = (0..blocks.len()).map(|_| &blocks[(rng.next_u64() % blocks.len() as u64) as usize]);
+        let s = sum_blocks(picked);
+        for (draw, d) in draws.iter_mut().zip(s.d) {
+            draw.push(d / s.n);
+        }
+        draws[3].push((s.d[0] + s.d[1] + s.d[2]) / (3.0 * s.n));
+    }
+    let interval = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let at = |q: f64| v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
+        [at(0.025), at(0.975)]
+    };
+    let n = totals.n;
+    let error = |d: f64, var: f64, sq: f64, v: &mut Vec<f64>| {
+        let ci = interval(v);
+        ModelError {
+            model_rmse: root(d / n),
+            ci95: ci.map(root),
+            squared: d / n,
+            squared_ci95: ci,
+            noise_floor: (var / n).sqrt(),
+            rmse: (sq / n).sqrt(),
+        }
+    };
+    let [mut dr, mut dg, mut db, mut dt] = draws;
+    let channel = |c: usize, v: &mut Vec<f64>| error(totals.d[c], totals.var[c], totals.sq[c], v);
+    let total = error(
+        totals.d.iter().sum::<f64>() / 3.0,
+        totals.var.iter().sum::<f64>() / 3.0,
+        totals.sq.iter().sum::<f64>() / 3.0,
+        &mut dt,
+    );
+    Ok(NoiseReport {
+        definition: "model RMSE = sqrt(max(0, mean((R - P)^2 - var R - var P))) over the included pixels; \
+                     noise floor = sqrt(mean(var R + var P)); 95 % interval: moving-block bootstrap over square \
+                     pixel blocks"
+            .into(),
+        render_variance: String::new(),
+        photo_variance: String::new(),
+        block_px,
+        blocks: blocks.len(),
+        resamples,
+        pixels: n as usize,
+        total,
+        r: channel(0, &mut dr),
+        g: channel(1, &mut dg),
+        b: channel(2, &mut db),
+    })
+}
+
+fn sum_blocks<'a>(blocks: impl Iterator<Item = &'a BlockSums>) -> BlockSums {
+    let mut s = BlockSums::default();
+    for b in blocks {
+        s.n += b.n;
+        for c in 0..3 {
+            s.d[c] += b.d[c];
+            s.sq[c] += b.sq[c];
+            s.var[c] += b.var[c];
+        }
+    }
+    s
+}
+
+/// √max(0, x).
+fn root(x: f64) -> f64 {
+    x.max(0.0).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Box–Muller normals from SplitMix64.
+    struct Normal(lucent_render::rng::Rng);
+    impl Normal {
+        fn next(&mut self) -> f64 {
+            let (u1, u2) = self.0.next_f64_pair();
+            (-2.0 * (1.0 - u1).ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        }
+    }
+
+    /// A photo and a render of a smooth scene, the render biased by a
+    /// pattern of RMS `bias` and both noisy with standard deviation `sigma`
+    /// (the render's variance known exactly, the photo's too); returns the
+    /// report and the true model RMSE.
+    fn synthetic(seed: u64, bias: f64, sigma: f64, w: usize, h: usize) -> (NoiseReport, f64) {
+        let mut g = Normal(lucent_render::rng::Rng::new(seed, 1));
+        let n = w * h * 3;
+        let (mut photo, mut render) = (vec![0f32; n], vec![0f32; n]);
+        let mut truth2 = 0.0;
+        for i in 0..n {
+            let (x, y) = ((i / 3) % w, i / 3 / w);
+            let clean = 0.5 + 0.2 * ((x as f64 * 0.3).sin() * (y as f64 * 0.2).cos());
+            // ±bias in a checker of 4-pixel squares: RMS exactly `bias`.
+            let b = if (x / 4 + y / 4) % 2 == 0 { bias } else { -bias };
+            truth2 += b * b;
+            photo[i] = (clean + sigma * g.next()) as f32;
+            render[i] = (clean + b + sigma * g.next()) as f32;
+        }
+        let var = vec![(sigma * sigma) as f32; n];
+        let input = NoiseInput {
+            width: w,
+            height: h,
+            photo: &photo,
+            render: &render,
+            render_variance: &var,
+            photo_variance: Some(&var),
+            include: None,
+        };
+        (model_rmse(&input, 8, 200, seed ^ 0x9e37).unwrap(), (truth2 / n as f64).sqrt())
+    }
+
+    #[test]
+    fn interval_covers_the_truth_at_its_stated_rate() {
+        // 400 independent pairs: the 95 % interval must cover the true model
+        // RMSE 95 % ± 3 % of the time (binomial SD at 400 draws is 1.1 %).
+        let runs = 400;
+        let covered = (0..runs)
+            .filter(|&s| {
+                let (r, truth) = synthetic(1000 + s, 0.02, 0.05, 48, 48);
+                r.total.ci95[0] <= truth && truth <= r.total.ci95[1]
+            })
+            .count();
+        let rate = covered as f64 / runs as f64;
+        assert!((rate - 0.95).abs() <= 0.03, "coverage {rate}");
+    }
+
+    #[test]
+    fn removes_the_noise_where_the_bias_is_a_fifth_of_it() {
+        // Bias 0.01, noise 0.05 per image: the plain RMSE reads ≈ 0.072,
+        // the model RMSE must be within 10 % of 0.01.
+        let (r, truth) = synthetic(7, 0.01, 0.05, 256, 256);
+        assert!(r.total.rmse > 5.0 * truth, "plain RMSE {} vs truth {truth}", r.total.rmse);
+        assert!((r.total.model_rmse - truth).abs() < 0.1 * truth, "model {} vs {truth}", r.total.model_rmse);
+        assert!((r.total.noise_floor - 0.05 * 2f64.sqrt()).abs() < 1e-6);
+        // Per channel a third of the data: within its own interval widened
+        // to ≈ ±4 standard errors.
+        for ch in [r.r, r.g, r.b] {
+            let half = 0.5 * (ch.ci95[1] - ch.ci95[0]);
+            assert!(ch.ci95[0] - half <= truth && truth <= ch.ci95[1] + half, "{ch:?} vs {truth}");
+        }
+    }
+
+    #[test]
+    fn bad_inputs_are_refused() {
+        let v = vec![0f32; 12];
+        let short = vec![0f32; 11];
+        let i = NoiseInput {
+            width: 2,
+            height: 2,
+            photo: &v,
+            render: &v,
+            render_variance: &short,
+            photo_variance: None,
+            include: None,
+        };
+        assert!(matches!(model_rmse(&i, 8, 100, 1), Err(NoiseError::Size { what: "render variance", .. })));
+        let mut neg = v.clone();
+        neg[4] = -1.0;
+        let i = NoiseInput {
+            width: 2,
+            height: 2,
+            photo: &v,
+            render: &v,
+            render_variance: &neg,
+            photo_variance: None,
+            include: None,
+        };
+        assert!(matches!(model_rmse(&i, 8, 100, 1), Err(NoiseError::BadVariance { x: 1, y: 0, .. })));
+        let none = [false; 4];
+        let i = NoiseInput {
+            width: 2,
+            height: 2,
+            photo: &v,
+            render: &v,
+            render_variance: &v,
+            photo_variance: None,
+            include: Some(&none),
+        };
+        assert_eq!(model_rmse(&i, 8, 100, 1), Err(NoiseError::Empty));
+    }
+}
