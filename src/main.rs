@@ -12,6 +12,23 @@ fn main() -> std::process::ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // A full or closed standard output (`lucent … > /dev/full`): `println!`
+    // panics on the failed write; say so as an error and exit 1 instead of
+    // printing a panic. Every other panic keeps the default report.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let message = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if let Some(reason) = message.strip_prefix("failed printing to stdout: ") {
+            eprintln!("error: cannot write to standard output: {reason}");
+            std::process::exit(1);
+        }
+        default_hook(info);
+    }));
     // Ctrl-C while a file is being written removes its temporary file.
     lucent::io::remove_temporaries_on_interrupt();
     let cli = lucent::cli::Cli::parse();

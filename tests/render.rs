@@ -181,6 +181,8 @@ fn bad_scene_files_are_refused_with_reasons() {
         ("target_rel_error_above_one.toml", &["[render] target_rel_error", "between 0 and 1", "5"]),
         ("target_rel_error_zero.toml", &["[render] target_rel_error", "between 0 and 1"]),
         ("bad_sampling.toml", &["bad_sampling.toml", "adaptive"]),
+        ("zero_transform.toml", &["[object] transform", "last row", "determinant 0"]),
+        ("flat_transform.toml", &["[object] transform", "invertible"]),
     ];
     let listed: Vec<&str> = cases.iter().map(|c| c.0).collect();
     for entry in std::fs::read_dir(&dir).unwrap() {
@@ -425,4 +427,40 @@ fn ctrl_c_writes_a_labelled_partial_render() {
     let (_, _, ch) = read_exr_channels(&out.join("render.exr"), &["R", "spp"]).unwrap();
     assert!(ch[1].iter().all(|&s| s == spp as f32));
     assert!(ch[0].iter().all(|v| v.is_finite()));
+}
+
+/// Sizes and counts a machine cannot hold are refused before anything is
+/// written (a 100000 × 100000 render used to abort on a 240 GB allocation,
+/// 100000 threads to hang), and a full standard output is an error, not a
+/// panic.
+#[test]
+fn limits_and_full_output_are_clear_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = root().join("fixtures/render/plaque_dense.toml");
+    let out = tmp.path().join("r");
+    for (args, needle) in [
+        (vec!["--size", "100000x100000"], "at most 32768 pixels a side"),
+        (vec!["--size", "30000x30000"], "50000000 pixels in all"),
+        (vec!["--threads", "100000"], "--threads 100000: at most 1024"),
+    ] {
+        let mut all = vec!["render", scene.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        all.extend(args);
+        let o = lucent(&all);
+        assert!(!o.status.success());
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains(needle) && !e.contains("panicked"), "{e}");
+        assert!(!out.exists());
+    }
+    #[cfg(target_os = "linux")]
+    {
+        let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_lucent"))
+            .args(["mie", "--size-parameter", "1", "--relative-index", "1.5"])
+            .stdout(full)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert!(e.contains("cannot write to standard output") && !e.contains("panicked"), "{e}");
+    }
 }

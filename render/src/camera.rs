@@ -37,11 +37,33 @@
 use glam::{DMat3, DVec3};
 use thiserror::Error;
 
+/// The largest image side a render makes, pixels.
+pub const MAX_IMAGE_SIDE: usize = 32_768;
+/// The most pixels a render makes (≈ 100 bytes per pixel in memory while it
+/// runs: 50 M pixels take ≈ 5 GB).
+pub const MAX_IMAGE_PIXELS: usize = 50_000_000;
+
+/// Checks an image size against [`MAX_IMAGE_SIDE`] and [`MAX_IMAGE_PIXELS`] (and ≥ 1 × 1).
+pub fn check_image_size(width: usize, height: usize) -> Result<(), CameraError> {
+    if width == 0 || height == 0 {
+        return Err(CameraError::EmptyImage { width, height });
+    }
+    if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE || width * height > MAX_IMAGE_PIXELS {
+        return Err(CameraError::TooLarge { width, height });
+    }
+    Ok(())
+}
+
 /// Why a camera could not be built.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum CameraError {
     #[error("image size must be at least 1 × 1 pixel, got {width} × {height}")]
     EmptyImage { width: usize, height: usize },
+    #[error(
+        "image size {width} × {height} is larger than a render can hold: at most {MAX_IMAGE_SIDE} pixels a \
+         side and {MAX_IMAGE_PIXELS} pixels in all"
+    )]
+    TooLarge { width: usize, height: usize },
     #[error("intrinsics must be finite with fx, fy > 0, got fx {fx}, fy {fy}, cx {cx}, cy {cy}")]
     BadIntrinsics { fx: f64, fy: f64, cx: f64, cy: f64 },
     #[error(
@@ -119,9 +141,7 @@ impl Camera {
         camera_to_world: [[f64; 4]; 4],
         distortion: Option<[f64; 5]>,
     ) -> Result<Self, CameraError> {
-        if width == 0 || height == 0 {
-            return Err(CameraError::EmptyImage { width, height });
-        }
+        check_image_size(width, height)?;
         let [fx, fy, cx, cy] = intrinsics;
         if !(fx > 0.0 && fy > 0.0 && fx.is_finite() && fy.is_finite() && cx.is_finite() && cy.is_finite()) {
             return Err(CameraError::BadIntrinsics { fx, fy, cx, cy });

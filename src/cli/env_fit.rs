@@ -49,6 +49,7 @@ pub struct FitScaleArgs {
 
 /// Runs `lucent env fit-scale`.
 pub fn run(a: FitScaleArgs) -> Result<()> {
+    super::render::check_threads(a.threads)?;
     if a.spp == Some(0) {
         bail!("--spp 0: at least one sample per pixel");
     }

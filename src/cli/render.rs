@@ -66,6 +66,9 @@ pub struct RenderArgs {
     pub quiet: bool,
 }
 
+/// The most worker threads `--threads` starts.
+pub const MAX_THREADS: usize = 1024;
+
 /// `--dispersion`.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum DispersionArg {
@@ -117,6 +120,7 @@ pub fn parse_size(text: &str) -> Result<(usize, usize)> {
     if w == 0 || h == 0 {
         bail!("--size {text:?}: width and height must be at least 1");
     }
+    lucent_render::camera::check_image_size(w, h).with_context(|| format!("--size {text:?}"))?;
     Ok((w, h))
 }
 
@@ -128,8 +132,19 @@ pub fn check_time_s(t: f64) -> Result<f64> {
     Ok(t)
 }
 
+/// Checks `--threads` against [`MAX_THREADS`] (rayon would try to start them all).
+pub fn check_threads(threads: Option<usize>) -> Result<()> {
+    if let Some(t) = threads
+        && t > MAX_THREADS
+    {
+        bail!("--threads {t}: at most {MAX_THREADS} (default: one per core)");
+    }
+    Ok(())
+}
+
 /// Runs `lucent render`.
 pub fn run(a: RenderArgs) -> Result<()> {
+    check_threads(a.threads)?;
     if let Some(t) = a.time_s {
         check_time_s(t)?;
     }

@@ -132,6 +132,11 @@ pub enum KeyProblem {
     Negative { value: f64 },
     #[error("must be at least 1")]
     Zero,
+    #[error(
+        "must be an affine map that keeps a solid a solid: last row [0, 0, 0, 1] (got {last_row:?}) and an \
+         invertible 3 × 3 part (determinant {determinant})"
+    )]
+    SingularTransform { determinant: f64, last_row: [f64; 4] },
     #[error("must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %), got {value}")]
     Fraction { value: f64 },
     #[error("reflectances must lie in [0, 1], got {values:?}")]
@@ -1062,6 +1067,20 @@ fn build_object_triangles(
                 "object",
                 "transform",
                 KeyProblem::NotFinite { values: t.iter().flatten().copied().collect() },
+            ));
+        }
+        // An affine map that keeps a solid a solid: last row (0, 0, 0, 1),
+        // an invertible 3 × 3 part (a zero or flattening matrix would
+        // collapse the mesh to a plane, a line or a point).
+        let a = |i: usize, j: usize| t[i][j];
+        let det = a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) - a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0))
+            + a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
+        let scale = (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).map(|(i, j)| a(i, j).abs()).fold(0.0, f64::max);
+        if t[3] != [0.0, 0.0, 0.0, 1.0] || det.abs() <= 1e-9 * scale.powi(3) || scale == 0.0 {
+            return Err(ctx.key(
+                "object",
+                "transform",
+                KeyProblem::SingularTransform { determinant: det, last_row: t[3] },
             ));
         }
         t
