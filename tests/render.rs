@@ -408,8 +408,10 @@ fn roughness_from_the_recipe_or_the_scene_file() {
 
 #[test]
 fn ctrl_c_writes_a_labelled_partial_render() {
-    // SIGINT during a long render: the finished passes are written as a
-    // valid image, render.json says "interrupted", and the exit is non-zero.
+    // SIGINT during a long render: the samples finished by then are written
+    // as a valid image (each pixel with its own count in the spp layer:
+    // the pass under way stops between two samples), render.json says
+    // "interrupted", and the exit is non-zero.
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("r");
     let scene = root().join("fixtures/render/plaque_dense.toml");
@@ -425,7 +427,7 @@ fn ctrl_c_writes_a_labelled_partial_render() {
     let spp = json["spp"].as_u64().unwrap();
     assert!(spp > 0 && spp < 1_000_000, "spp {spp}");
     let (_, _, ch) = read_exr_channels(&out.join("render.exr"), &["R", "spp"]).unwrap();
-    assert!(ch[1].iter().all(|&s| s == spp as f32));
+    assert!(ch[1].iter().all(|&s| s <= spp as f32) && ch[1].contains(&(spp as f32)));
     assert!(ch[0].iter().all(|v| v.is_finite()));
 }
 

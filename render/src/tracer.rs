@@ -687,7 +687,7 @@ pub fn render_cancellable(
         if !any {
             break;
         }
-        let pass_stats = acc.add_pass(scene, settings, &quota);
+        let pass_stats = acc.add_pass(scene, settings, &quota, cancel);
         object_done = object_next;
         stats.add(&pass_stats);
         stats.passes += 1;
@@ -777,8 +777,10 @@ impl Accumulator {
     }
 
     /// Adds `quota[p]` samples to every pixel p, rows in parallel. Sample k
-    /// of pixel p draws from `Rng::new(seed, k·2³² + p)`.
-    fn add_pass(&mut self, scene: &Scene, settings: &Settings, quota: &[u32]) -> Stats {
+    /// of pixel p draws from `Rng::new(seed, k·2³² + p)`. Once `cancel` is
+    /// set, the samples not yet started are left out (each pixel keeps its
+    /// own sample count, so the image stays valid).
+    fn add_pass(&mut self, scene: &Scene, settings: &Settings, quota: &[u32], cancel: Option<&AtomicBool>) -> Stats {
         let w = self.width;
         self.sum
             .par_chunks_mut(w)
@@ -788,11 +790,16 @@ impl Accumulator {
             .enumerate()
             .map(|(j, (((row, row_sq), row_n), (row_obj, row_board)))| {
                 let mut st = Stats::default();
-                for i in 0..w {
+                'pixels: for i in 0..w {
                     let pixel = (j * w + i) as u64;
                     let k0 = row_n[i];
                     let k1 = k0 + quota[j * w + i];
                     for k in k0..k1 {
+                        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                            st.samples += u64::from(k - k0);
+                            row_n[i] = k;
+                            break 'pixels;
+                        }
                         let mut rng = Rng::new(settings.seed, (u64::from(k) << 32) | pixel);
                         let u = [rng.next_f64(), rng.next_f64()];
                         let (o, d) = scene.camera.ray(i, j, u);

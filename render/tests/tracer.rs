@@ -596,3 +596,29 @@ fn splitting_and_shared_dispersion_directions() {
     assert!(z.abs() < 4.0, "shared directions: object mean off by z = {z:.2}");
     assert!(total_variance(&c) < total_variance(&a), "{} vs {}", total_variance(&c), total_variance(&a));
 }
+
+#[test]
+fn cancellation_ends_a_long_pass_within_moments() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    // One pass of a million samples per pixel would take hours; the flag,
+    // set 0.2 s in, ends it between two samples and leaves a valid image.
+    let scene = region_scene([1.45; 3]);
+    let settings = Settings { spp: 1_000_000, spp_per_pass: 1_000_000, ..Settings::default() };
+    let cancel = AtomicBool::new(false);
+    let start = std::time::Instant::now();
+    let (img, _) = std::thread::scope(|s| {
+        s.spawn(|| {
+            std::thread::sleep(std::time::Duration::from_millis(200));
+            cancel.store(true, Ordering::Relaxed);
+        });
+        lucent_render::tracer::render_cancellable(&scene, &settings, &mut |_| {}, Some(&cancel))
+    });
+    let took = start.elapsed().as_secs_f64();
+    assert!(took < 20.0, "cancellation took {took} s");
+    assert!(img.samples.iter().any(|&n| n > 0) && img.samples.iter().all(|&n| n < 1_000_000));
+    for p in 0..img.mean.len() {
+        if img.samples[p] > 1 {
+            assert!(img.mean[p].iter().chain(&img.variance_of_mean[p]).all(|v| v.is_finite()));
+        }
+    }
+}
