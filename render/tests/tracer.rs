@@ -318,6 +318,22 @@ fn coloured_plaque(eta: [f64; 3]) -> Object {
     .unwrap()
 }
 
+/// A sky brighter towards the zenith with a mild lamp patch, coloured, on
+/// the finite sphere of radius 0.3 m about the plaque's top.
+fn lamp_sky() -> Environment {
+    let (w, h) = (32usize, 16usize);
+    let map: Vec<f32> = (0..w * h)
+        .flat_map(|i| {
+            let (x, y) = (i % w, i / w);
+            let base = 0.2 + 0.8 * (1.0 - y as f32 / h as f32);
+            let lamp = if (4..12).contains(&x) && (2..6).contains(&y) { 3.0 } else { 0.0 };
+            [base + lamp, 0.7 * base + 0.5 * lamp, 0.4 * base + 0.2 * x as f32 / w as f32]
+        })
+        .collect();
+    let centre = DVec3::new(0.0, 0.0, 0.004);
+    Environment::new(w, h, map, 40.0, 1.0, Projection::FiniteSphere { centre, radius_m: 0.3 }).unwrap()
+}
+
 /// Sum over pixels and channels of the variance of the mean.
 fn total_variance(img: &Image) -> f64 {
     img.variance_of_mean.iter().flatten().sum()
@@ -334,24 +350,7 @@ fn spectral_mis_and_medium_connections_agree_with_the_plain_estimator() {
     // (A milder patch than `test_map`'s sun: the plain estimator's rare hits
     // of a tiny bright patch make its per-pixel errors too heavy-tailed for
     // a z-test.)
-    let (w, h) = (32usize, 16usize);
-    let map: Vec<f32> = (0..w * h)
-        .flat_map(|i| {
-            let (x, y) = (i % w, i / w);
-            let base = 0.2 + 0.8 * (1.0 - y as f32 / h as f32);
-            let lamp = if (4..12).contains(&x) && (2..6).contains(&y) { 3.0 } else { 0.0 };
-            [base + lamp, 0.7 * base + 0.5 * lamp, 0.4 * base + 0.2 * x as f32 / w as f32]
-        })
-        .collect();
-    let env = Environment::new(
-        w,
-        h,
-        map,
-        40.0,
-        1.0,
-        Projection::FiniteSphere { centre: DVec3::new(0.0, 0.0, 0.004), radius_m: 0.3 },
-    )
-    .unwrap();
+    let env = lamp_sky();
     let scene = Scene::new(
         Some(coloured_plaque([1.45; 3])),
         Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])),
@@ -450,27 +449,10 @@ fn rough_boundary_furnace_and_smooth_limit() {
     assert!(worst > 8.0, "α = 0.5 should differ visibly from smooth: max |z| {worst:.1}");
 }
 
-/// The plaque under a sky with a bright patch, on the board, seen from above.
+/// The plaque under [`lamp_sky`], on the board, seen from above.
 fn region_scene(eta: [f64; 3]) -> Scene {
-    let (w, h) = (32usize, 16usize);
-    let map: Vec<f32> = (0..w * h)
-        .flat_map(|i| {
-            let (x, y) = (i % w, i / w);
-            let base = 0.2 + 0.8 * (1.0 - y as f32 / h as f32);
-            let lamp = if (4..12).contains(&x) && (2..6).contains(&y) { 3.0 } else { 0.0 };
-            [base + lamp, 0.7 * base + 0.5 * lamp, 0.4 * base]
-        })
-        .collect();
-    let env = Environment::new(
-        w,
-        h,
-        map,
-        40.0,
-        1.0,
-        Projection::FiniteSphere { centre: DVec3::new(0.0, 0.0, 0.004), radius_m: 0.3 },
-    )
-    .unwrap();
-    Scene::new(Some(coloured_plaque(eta)), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), env, camera(12, 9)).unwrap()
+    Scene::new(Some(coloured_plaque(eta)), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), lamp_sky(), camera(12, 9))
+        .unwrap()
 }
 
 /// z of the difference between two images' means averaged over the pixels
