@@ -226,6 +226,7 @@ fn ecc_recovers_a_known_shift_on_the_board_and_the_metrics_improve() {
         render,
         mask: MaskSpec::Object(scene),
         photo_variance: None,
+        render_b: None,
         scene: None,
         data_range: 1.0,
         luminance: Luminance::CieRgb,
@@ -546,7 +547,7 @@ fn speed_on_a_12_megapixel_pair() {
 fn model_rmse_separates_the_twin_from_its_noise() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = "fixtures/render/plaque_dense.toml";
-    for seed in ["1", "2"] {
+    for seed in ["1", "2", "3"] {
         let out = tmp.path().join(format!("s{seed}"));
         let o = lucent(&[
             "render",
@@ -618,6 +619,31 @@ fn model_rmse_separates_the_twin_from_its_noise() {
     let off = compare(&bright, "bright");
     let lo = off["noise"]["total"]["ci95"][0].as_f64().unwrap();
     assert!(lo > 0.0, "{}", off["noise"]);
+    // Two twins at once: the right one is found closer; a twin against
+    // itself (another seed) cannot be told apart from the first.
+    let twins = |b_render: &std::path::Path, out: &str| {
+        let out = tmp.path().join(out);
+        let o = lucent(&[
+            "compare",
+            "--photo",
+            a.to_str().unwrap(),
+            "--render",
+            b.to_str().unwrap(),
+            "--render",
+            b_render.to_str().unwrap(),
+            "--mask-object",
+            b.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(stdout(&o).contains("A vs B"), "{}", stdout(&o));
+        let v: Value = serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+        v["twins"]["paired"]["verdict"].as_str().unwrap().to_string()
+    };
+    assert_eq!(twins(&bright, "twins"), "A is closer");
+    let c = tmp.path().join("s3/render.exr");
+    assert_eq!(twins(&c, "same-twin"), "the data cannot tell them apart at this noise");
 }
 
 #[test]

@@ -15,9 +15,10 @@ pub struct CompareArgs {
     /// The photo: linear RGB (.exr, .hdr; .png/.tif are taken as stored), undistorted.
     #[arg(long)]
     pub photo: PathBuf,
-    /// The render of the twin, same size and channels as the photo.
-    #[arg(long)]
-    pub render: PathBuf,
+    /// The render of the twin, same size and channels as the photo; give it twice
+    /// (`--render A.exr --render B.exr`) to ask which of two twins is closer.
+    #[arg(long, required = true, num_args = 1)]
+    pub render: Vec<PathBuf>,
     /// Mask image of the photo's size: nonzero = pixel included.
     #[arg(long)]
     pub mask: Option<PathBuf>,
@@ -83,9 +84,15 @@ pub fn run(a: CompareArgs) -> Result<()> {
         (_, _, Some(p)) => MaskSpec::Board(p),
         _ => MaskSpec::None,
     };
+    if a.render.len() > 2 {
+        anyhow::bail!("--render given {} times: one twin, or two to compare", a.render.len());
+    }
+    let mut renders = a.render.into_iter();
+    let render = renders.next().context("--render is required")?;
     let req = Request {
         photo: a.photo,
-        render: a.render,
+        render,
+        render_b: renders.next(),
         mask,
         scene: a.scene,
         data_range: a.data_range,
@@ -105,6 +112,20 @@ pub fn run(a: CompareArgs) -> Result<()> {
         println!(
             "model RMSE (noise removed) {:.4e}, 95 % interval [{:.4e}, {:.4e}], noise floor {:.4e}, over {} pixels",
             n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor, n.pixels
+        );
+    }
+    if let Some(t) = &r.twins {
+        println!(
+            "twin B ({}): {}; model RMSE {:.4e} [{:.4e}, {:.4e}]",
+            t.render_b,
+            line(&t.metrics_b),
+            t.noise_b.total.model_rmse,
+            t.noise_b.total.ci95[0],
+            t.noise_b.total.ci95[1]
+        );
+        println!(
+            "A vs B: squared-error difference {:.3e} ± {:.1e} (z {:.2}, p {:.3}): {}",
+            t.paired.squared_difference, t.paired.standard_error, t.paired.z, t.paired.p_value, t.paired.verdict
         );
     }
     if let Some(f) = &r.refined {

@@ -471,6 +471,19 @@ pub struct Request {
     /// Per-pixel variance of the photo (an EXR with `R`, `G`, `B` or
     /// `variance.R/G/B`), for the model RMSE ([`noise`]).
     pub photo_variance: Option<PathBuf>,
+    /// A second twin's render: both twins' model RMSE and which is closer.
+    pub render_b: Option<PathBuf>,
+}
+
+/// `twins` in metrics.json: the second render against the first.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TwinsReport {
+    pub render_a: String,
+    pub render_b: String,
+    /// The second twin's metrics and model RMSE over the same pixels.
+    pub metrics_b: Metrics,
+    pub noise_b: noise::NoiseReport,
+    pub paired: noise::PairedReport,
 }
 
 /// `mask` in metrics.json.
@@ -549,6 +562,9 @@ pub struct Report {
     /// the noise floor (as calibrated), when the render carries its variance.
     #[serde(default)]
     pub noise: Option<noise::NoiseReport>,
+    /// With a second render: both twins and which is closer.
+    #[serde(default)]
+    pub twins: Option<TwinsReport>,
     pub refined: Option<Refinement>,
     pub display: DisplayReport,
     pub files: Vec<String>,
@@ -584,10 +600,69 @@ fn mask_from_render_layer(path: &Path, layer: &'static str, w: usize, h: usize) 
     Ok(Mask { width: w, height: h, include: ch[0].iter().map(|&f| f >= 0.5).collect() })
 }
 
-/// The model RMSE when the render carries its variance (`variance.R/G/B`
-/// in an EXR); `None` with a note otherwise.
+/// Reads `variance.R/G/B` of a render EXR, interleaved; `None` if it has none.
+fn render_variance(path: &Path) -> Option<Vec<f32>> {
+    if crate::imageio::extension(path) != "exr" {
+        return None;
+    }
+    let (_, _, ch) = crate::imageio::read_exr_channels(path, &["variance.R", "variance.G", "variance.B"]).ok()?;
+    Some((0..ch[0].len()).flat_map(|i| [ch[0][i], ch[1][i], ch[2][i]]).collect())
+}
+
+/// The second twin `path_b` against the first: its metrics and model RMSE,
+/// and the paired test of which is closer (both renders need their variance).
+fn twins_report(
+    req: &Request,
+    path_b: &Path,
+    photo: &RgbImage,
+    render_a: &RgbImage,
+    mask: Option<&Mask>,
+    settings: &Settings,
+    notes: &mut Vec<String>,
+) -> Result<TwinsReport, CompareError> {
+    let loaded = input::read_image(path_b, "render B")?;
+    check_same_size(photo, &loaded.image)?;
+    let b = &loaded.image;
+    let no_variance = |path: &Path| CompareError::Read {
+        role: "render",
+        path: path.to_path_buf(),
+        reason: ReadProblem::Invalid(
+            "comparing two twins needs each render's variance (variance.R/G/B of lucent render's EXR)".into(),
+        ),
+    };
+    let var_a = render_variance(&req.render).ok_or_else(|| no_variance(&req.render))?;
+    let var_b = render_variance(path_b).ok_or_else(|| no_variance(path_b))?;
+    let (metrics_b, _) = metrics_and_ssim_map(photo, b, mask, settings)?;
+    let noise_b = noise_report(req, path_b, photo, b, mask, notes)?.ok_or_else(|| no_variance(path_b))?;
+    let paired = noise::paired(
+        photo.width,
+        photo.height,
+        &photo.data,
+        (&render_a.data, &var_a),
+        (&b.data, &var_b),
+        mask.map(|m| m.include.as_slice()),
+        NOISE_BLOCK_PX,
+        0.05,
+    )
+    .map_err(|e| CompareError::Read {
+        role: "render B",
+        path: path_b.to_path_buf(),
+        reason: ReadProblem::Invalid(e.to_string()),
+    })?;
+    Ok(TwinsReport {
+        render_a: req.render.display().to_string(),
+        render_b: path_b.display().to_string(),
+        metrics_b,
+        noise_b,
+        paired,
+    })
+}
+
+/// The model RMSE of `render_path` when it carries its variance
+/// (`variance.R/G/B` in an EXR); `None` with a note otherwise.
 fn noise_report(
     req: &Request,
+    render_path: &Path,
     photo: &RgbImage,
     render: &RgbImage,
     mask: Option<&Mask>,
@@ -596,16 +671,13 @@ fn noise_report(
     const VAR: [&str; 3] = ["variance.R", "variance.G", "variance.B"];
     let interleave =
         |ch: &[Vec<f32>]| -> Vec<f32> { (0..ch[0].len()).flat_map(|i| [ch[0][i], ch[1][i], ch[2][i]]).collect() };
-    let render_var = if crate::imageio::extension(&req.render) == "exr" {
-        crate::imageio::read_exr_channels(&req.render, &VAR).ok()
-    } else {
-        None
-    };
-    let Some((_, _, rv)) = render_var else {
-        notes.push("the render has no variance layers (variance.R/G/B of lucent render's EXR): no model RMSE".into());
+    let Some(render_variance) = render_variance(render_path) else {
+        notes.push(format!(
+            "{} has no variance layers (variance.R/G/B of lucent render's EXR): no model RMSE",
+            render_path.display()
+        ));
         return Ok(None);
     };
-    let render_variance = interleave(&rv);
     let photo_variance = match &req.photo_variance {
         None => None,
         Some(p) => {
@@ -637,7 +709,7 @@ fn noise_report(
     };
     let mut report = noise::model_rmse(&input, NOISE_BLOCK_PX, NOISE_RESAMPLES, 1).map_err(|e| CompareError::Read {
         role: "render variance",
-        path: req.render.clone(),
+        path: render_path.to_path_buf(),
         reason: ReadProblem::Invalid(e.to_string()),
     })?;
     if report.blocks < noise::MIN_BLOCKS {
@@ -648,7 +720,7 @@ fn noise_report(
             noise::MIN_BLOCKS
         ));
     }
-    report.render_variance = format!("{}: variance.R/G/B (variance of each pixel's mean)", req.render.display());
+    report.render_variance = format!("{}: variance.R/G/B (variance of each pixel's mean)", render_path.display());
     report.photo_variance = match &req.photo_variance {
         Some(p) => format!("{}", p.display()),
         None => "not given (0): the model RMSE still contains the photo's noise".into(),
@@ -718,7 +790,11 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     let mut notes: Vec<String> = Vec::new();
 
     let (calibrated, ssim_map) = metrics_and_ssim_map(photo_img, render_img, mask.as_ref(), &settings)?;
-    let noise = noise_report(req, photo_img, render_img, mask.as_ref(), &mut notes)?;
+    let noise = noise_report(req, &req.render, photo_img, render_img, mask.as_ref(), &mut notes)?;
+    let twins = match &req.render_b {
+        None => None,
+        Some(pb) => Some(twins_report(req, pb, photo_img, render_img, mask.as_ref(), &settings, &mut notes)?),
+    };
 
     // ECC refinement.
     let mut refined_parts = None;
@@ -918,6 +994,7 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         },
         as_calibrated: calibrated,
         noise,
+        twins,
         refined: refined_parts.as_ref().map(|(r, _, _)| r.clone()),
         display: DisplayReport {
             exposure,
