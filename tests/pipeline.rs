@@ -347,6 +347,8 @@ fn project_runs_skips_reruns_fails_and_reports() {
         assert!(out.join("report").join(src).is_file(), "{src} missing");
     }
     assert!(dom.contains("Photo | render | difference") && dom.contains("Manifest"));
+    // The render's noise per region and the model RMSE beside the plain one.
+    assert!(dom.contains("the object's") && dom.contains("Model RMSE with the render's noise removed"), "{dom}");
     assert!(shots.join("report.png").metadata().unwrap().len() > 10_000);
 }
 

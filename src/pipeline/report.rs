@@ -368,14 +368,33 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         if let Some(r) = read_json::<crate::scene::RenderReport>(&rdir.join("render.json"), "a render.json")? {
             let _ = write!(
                 h,
-                "<h3>Render</h3><p>{} spp{}, {} × {} px, seed {}, {} s; median relative standard error {} %.</p>",
+                "<h3>Render</h3><p>{} spp{}, {} × {} px, seed {}, {} s; {}.</p>",
                 r.spp,
                 if r.interrupted { " (interrupted)" } else { "" },
                 r.scene.image_width,
                 r.scene.image_height,
                 r.seed,
                 num(r.wall_s, |x| format!("{x:.1}")),
-                num(r.median_relative_std_error, |x| format!("{:.1}", 100.0 * x)),
+                match &r.relative_std_error {
+                    Some(e) => {
+                        let pct = |x: f64| num(x, |x| format!("{:.1}", 100.0 * x));
+                        format!(
+                            "relative standard error per pixel, median (90th percentile): the object's {} px {} % ({} %), \
+                             the board's {} px {} % ({} %), all {} %",
+                            e.object.pixels,
+                            pct(e.object.median),
+                            pct(e.object.p90),
+                            e.board.pixels,
+                            pct(e.board.median),
+                            pct(e.board.p90),
+                            pct(e.all.median)
+                        )
+                    }
+                    None => format!(
+                        "median relative standard error over all pixels {} %",
+                        num(r.median_relative_std_error, |x| format!("{:.1}", 100.0 * x))
+                    ),
+                },
             );
             sj.insert("render".into(), trim(&to_value(&r), 64));
         }
@@ -398,6 +417,18 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 rows.push(row("after ECC refinement", &r.metrics));
             }
             h.push_str(&table(&["", "RMSE", "RMSE R", "RMSE G", "RMSE B", "SSIM (Y)", "SSIM (mean RGB)"], &rows));
+            if let Some(n) = &m.noise {
+                let _ = write!(
+                    h,
+                    "<p>Model RMSE with the render's noise removed: {} (95 % interval {} – {}); noise floor {} \
+                     (the RMSE a perfect twin would show at this noise); {}.</p>",
+                    num(n.total.model_rmse, e4),
+                    num(n.total.ci95[0], e4),
+                    num(n.total.ci95[1], e4),
+                    num(n.total.noise_floor, e4),
+                    n.photo_variance
+                );
+            }
             h.push_str(&page.img(&cdir.join("triplet.png"), &format!("{} photo | render | difference", smp.name))?);
             sj.insert("compare".into(), trim(&to_value(&m), 64));
         } else if rdir.is_dir() {
