@@ -86,6 +86,23 @@
 //! when a BSDF-sampled ray escapes directly. A ray that escapes after passing
 //! through the object could not have been found by NEE and has weight 1.
 //!
+//! **Options** (none on by default; each is z-tested against the default
+//! in `tests/tracer.rs`, per pixel and on the object's mean):
+//! [`Settings::split_entry`] follows both the reflection (weight F_c) and
+//! the refraction (1 − F_c) where a path meets the object from outside;
+//! [`Dispersion::SharedDirections`] refracts with the bands' mean index
+//! while keeping each band's Fresnel factors, so a path carries all bands
+//! (approximate: the refracted directions of the bands no longer spread);
+//! [`Sampling::ObjectWeighted`] gives pixels whose camera rays hit the
+//! object more samples per pass, from the two regions' median per-sample
+//! relative variances (a region-level statistic over thousands of pixels).
+//!
+//! **Figures.** Every [`Image`] counts per pixel the camera rays whose first
+//! hit is the object or the board; [`Image::region_errors`] gives the median
+//! and 90th percentile of the per-pixel relative standard error over the
+//! object's pixels, the board's and all, and [`Settings::target_rel_error`]
+//! stops on the object's median.
+//!
 //! **Self-intersection:** a ray leaving a surface starts ε = 10⁻⁷ × (the
 //! scene's extent) off the surface along the geometric normal (20 nm for a
 //! 0.2 m scene), on the side it travels into.
