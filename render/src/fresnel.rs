@@ -10,6 +10,15 @@
 //! assert!((f - 0.04).abs() < 1e-15);
 //! ```
 
+/// The bulk refractive indices a medium may have, relative to the air
+/// around it: the one range the slab simulator and the path tracer accept.
+pub const INDEX_RANGE: std::ops::RangeInclusive<f64> = 1.0..=10.0;
+
+/// True when `n` lies in [`INDEX_RANGE`] (NaN: false).
+pub fn valid_index(n: f64) -> bool {
+    INDEX_RANGE.contains(&n)
+}
+
 /// Unpolarised Fresnel reflectance for light arriving with cosine `cos_i`
 /// (0 < cos_i ≤ 1, measured from the normal on the incident side) at an
 /// interface with relative index `eta` = n_transmitted / n_incident. Returns

@@ -381,7 +381,7 @@ impl Medium {
         check("mu_s_per_m", mu_s_per_m, mu_s_per_m >= 0.0, "must be ≥ 0")?;
         check("mu_a_per_m", mu_a_per_m, mu_a_per_m >= 0.0, "must be ≥ 0")?;
         check("mu_t_per_m", mu_s_per_m + mu_a_per_m, mu_s_per_m + mu_a_per_m > 0.0, "μs + μa must be > 0")?;
-        check("n", n, (1.0..=10.0).contains(&n), "must lie in [1, 10]")?;
+        check("n", n, crate::fresnel::valid_index(n), "must lie in [1, 10] (fresnel::INDEX_RANGE)")?;
         Ok(Self { mu_s_per_m, mu_a_per_m, phase, n })
     }
 

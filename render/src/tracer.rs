@@ -141,7 +141,7 @@ use thiserror::Error;
 pub enum SceneError {
     #[error("medium band {band}: μ_s = {sigma_s} and μ_a = {sigma_a} /m must be finite and ≥ 0 with μ_s + μ_a > 0")]
     BadCoefficients { band: usize, sigma_s: f64, sigma_a: f64 },
-    #[error("boundary band {band}: the relative index n = {eta} must be finite and > 0")]
+    #[error("boundary band {band}: the relative index n = {eta} must lie in [1, 10] (the slab simulator's range)")]
     BadIndex { band: usize, eta: f64 },
     #[error("board: square size {square_m} m must be finite and > 0")]
     BoardSquare { square_m: f64 },
@@ -233,7 +233,7 @@ impl Object {
                 return Err(SceneError::BadCoefficients { band: b, sigma_s: s, sigma_a: a });
             }
             let eta = boundary.eta(b);
-            if !(eta.is_finite() && eta > 0.0) {
+            if !fresnel::valid_index(eta) {
                 return Err(SceneError::BadIndex { band: b, eta });
             }
         }
