@@ -432,6 +432,23 @@ fn ctrl_c_writes_a_labelled_partial_render() {
     assert!(ch[0].iter().all(|v| v.is_finite()));
 }
 
+#[test]
+fn sigterm_stops_a_render_like_ctrl_c() {
+    // `kill` (or a batch system) sends SIGTERM: the finished samples are
+    // written as a labelled partial render, as for Ctrl-C.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("r");
+    let scene = root().join("fixtures/render/plaque_dense.toml");
+    let args =
+        ["render", scene.to_str().unwrap(), "--spp", "1000000", "--size", "32x24", "--out", out.to_str().unwrap()];
+    let (status, stderr) = crate::common::signal_n_after(&args, "rendering", 1, libc::SIGTERM);
+    assert!(!status.success(), "a stopped render must not exit 0: {stderr}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    assert_eq!(json["interrupted"], true);
+    assert!(json["spp"].as_u64().unwrap() < 1_000_000);
+}
+
 /// Sizes and counts a machine cannot hold are refused before anything is
 /// written (a 100000 × 100000 render used to abort on a 240 GB allocation,
 /// 100000 threads to hang), and a full standard output is an error, not a

@@ -1,6 +1,6 @@
 //! Ctrl-C as a request to stop a long run early and keep its result.
 //!
-//! The first Ctrl-C (SIGINT) sets a flag the run polls; the second ends the
+//! SIGTERM counts as Ctrl-C. The first Ctrl-C (SIGINT) sets a flag the run polls; the second ends the
 //! process (exit status 130) after removing the staging folders and files
 //! registered with [`remove_on_abort`], so an aborted run leaves nothing
 //! half-made behind. The signal handler itself only updates atomics and
@@ -28,6 +28,9 @@ use std::sync::Mutex;
 pub struct Interrupt {
     #[cfg(unix)]
     previous: libc::sighandler_t,
+    /// SIGTERM (`kill`, a batch system's stop) is handled like SIGINT.
+    #[cfg(unix)]
+    previous_term: libc::sighandler_t,
 }
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
@@ -143,7 +146,9 @@ impl Interrupt {
             let handler = on_sigint as extern "C" fn(libc::c_int) as libc::sighandler_t;
             // SAFETY: installs a handler that only touches atomics, writes to a pipe and calls _exit.
             let previous = unsafe { libc::signal(libc::SIGINT, handler) };
-            Self { previous }
+            // SAFETY: the same handler for SIGTERM.
+            let previous_term = unsafe { libc::signal(libc::SIGTERM, handler) };
+            Self { previous, previous_term }
         }
         #[cfg(not(unix))]
         Self {}
@@ -162,6 +167,7 @@ impl Drop for Interrupt {
         // SAFETY: restores the disposition found by `install`.
         unsafe {
             libc::signal(libc::SIGINT, self.previous);
+            libc::signal(libc::SIGTERM, self.previous_term);
         }
     }
 }

@@ -34,6 +34,17 @@ pub fn interrupt_after(args: &[&str], ready: &str) -> (std::process::ExitStatus,
 /// printed by the handler's helper thread), so that none is merged into a
 /// pending one (two: the second Ctrl-C that aborts the run).
 pub fn interrupt_n_after(args: &[&str], ready: &str, count: usize) -> (std::process::ExitStatus, String) {
+    signal_n_after(args, ready, count, libc::SIGINT)
+}
+
+/// As [`interrupt_n_after`] with another signal (SIGTERM: what a batch
+/// system or `kill` sends).
+pub fn signal_n_after(
+    args: &[&str],
+    ready: &str,
+    count: usize,
+    signal: libc::c_int,
+) -> (std::process::ExitStatus, String) {
     use std::io::{BufRead, Read};
     let mut child = Command::new(env!("CARGO_BIN_EXE_lucent"))
         .args(args)
@@ -58,8 +69,8 @@ pub fn interrupt_n_after(args: &[&str], ready: &str, count: usize) -> (std::proc
                 );
             }
         }
-        // SAFETY: sends SIGINT to our own child process.
-        assert_eq!(unsafe { libc::kill(pid, libc::SIGINT) }, 0);
+        // SAFETY: sends a signal to our own child process.
+        assert_eq!(unsafe { libc::kill(pid, signal) }, 0);
     }
     err.read_to_string(&mut text).expect("read stderr");
     (child.wait().expect("wait for lucent"), text)
