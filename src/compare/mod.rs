@@ -925,8 +925,15 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             r.region.split(", from").next().unwrap_or_default()
         ));
     }
+    let title = match &noise {
+        Some(n) => format!(
+            "as calibrated; model RMSE with the noise removed {:.3e} (95 %: {:.3e} – {:.3e}), noise floor {:.3e}",
+            n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor
+        ),
+        None => "as calibrated".into(),
+    };
     let mut rows = vec![triplet::Row {
-        title: "as calibrated".into(),
+        title,
         photo: photo_img,
         render: render_img,
         mask: mask.as_ref(),
