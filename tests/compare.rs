@@ -565,26 +565,25 @@ fn model_rmse_separates_the_twin_from_its_noise() {
         assert!(o.status.success(), "{}", stderr(&o));
     }
     let (a, b) = (tmp.path().join("s1/render.exr"), tmp.path().join("s2/render.exr"));
-    let compare = |render: &std::path::Path, out: &str| {
+    // `lucent compare` against photo A (its variance given) on the object
+    // layer of B, with `renders`; the metrics.json it writes.
+    let compare_with = |renders: &[&std::path::Path], with_photo_variance: bool, out: &str| {
         let out = tmp.path().join(out);
-        let o = lucent(&[
-            "compare",
-            "--photo",
-            a.to_str().unwrap(),
-            "--photo-variance",
-            a.to_str().unwrap(),
-            "--render",
-            render.to_str().unwrap(),
-            "--mask-object",
-            b.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+        let mut args = vec!["compare", "--photo", a.to_str().unwrap(), "--mask-object", b.to_str().unwrap()];
+        if with_photo_variance {
+            args.extend(["--photo-variance", a.to_str().unwrap()]);
+        }
+        for r in renders {
+            args.extend(["--render", r.to_str().unwrap()]);
+        }
+        args.extend(["--out", out.to_str().unwrap()]);
+        let o = lucent(&args);
         assert!(o.status.success(), "{}", stderr(&o));
         assert!(stdout(&o).contains("model RMSE (noise removed)"), "{}", stdout(&o));
         let v: Value = serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
-        v
+        (v, stdout(&o))
     };
+    let compare = |render: &std::path::Path, out: &str| compare_with(&[render], true, out).0;
     let same = compare(&b, "same");
     assert_eq!(same["mask"]["source"], "object");
     let n = &same["noise"]["total"];
@@ -622,23 +621,8 @@ fn model_rmse_separates_the_twin_from_its_noise() {
     // Two twins at once: the right one is found closer; a twin against
     // itself (another seed) cannot be told apart from the first.
     let twins = |b_render: &std::path::Path, out: &str| {
-        let out = tmp.path().join(out);
-        let o = lucent(&[
-            "compare",
-            "--photo",
-            a.to_str().unwrap(),
-            "--render",
-            b.to_str().unwrap(),
-            "--render",
-            b_render.to_str().unwrap(),
-            "--mask-object",
-            b.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        assert!(stdout(&o).contains("A vs B"), "{}", stdout(&o));
-        let v: Value = serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+        let (v, text) = compare_with(&[&b, b_render], false, out);
+        assert!(text.contains("A vs B"), "{text}");
         v["twins"]["paired"]["verdict"].as_str().unwrap().to_string()
     };
     assert_eq!(twins(&bright, "twins"), "A is closer");
