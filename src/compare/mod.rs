@@ -600,13 +600,21 @@ fn mask_from_render_layer(path: &Path, layer: &'static str, w: usize, h: usize) 
     Ok(Mask { width: w, height: h, include: ch[0].iter().map(|&f| f >= 0.5).collect() })
 }
 
+/// The variance layers of lucent render's EXR.
+const VARIANCE_CHANNELS: [&str; 3] = ["variance.R", "variance.G", "variance.B"];
+
+/// Three planes as interleaved RGB.
+fn interleave(ch: &[Vec<f32>]) -> Vec<f32> {
+    (0..ch[0].len()).flat_map(|i| [ch[0][i], ch[1][i], ch[2][i]]).collect()
+}
+
 /// Reads `variance.R/G/B` of a render EXR, interleaved; `None` if it has none.
 fn render_variance(path: &Path) -> Option<Vec<f32>> {
     if crate::imageio::extension(path) != "exr" {
         return None;
     }
-    let (_, _, ch) = crate::imageio::read_exr_channels(path, &["variance.R", "variance.G", "variance.B"]).ok()?;
-    Some((0..ch[0].len()).flat_map(|i| [ch[0][i], ch[1][i], ch[2][i]]).collect())
+    let (_, _, ch) = crate::imageio::read_exr_channels(path, &VARIANCE_CHANNELS).ok()?;
+    Some(interleave(&ch))
 }
 
 /// The second twin `path_b` against the first: its metrics and model RMSE,
@@ -615,7 +623,7 @@ fn twins_report(
     req: &Request,
     path_b: &Path,
     photo: &RgbImage,
-    render_a: &RgbImage,
+    (render_a, var_a): (&RgbImage, Option<&[f32]>),
     mask: Option<&Mask>,
     settings: &Settings,
     notes: &mut Vec<String>,
@@ -630,15 +638,15 @@ fn twins_report(
             "comparing two twins needs each render's variance (variance.R/G/B of lucent render's EXR)".into(),
         ),
     };
-    let var_a = render_variance(&req.render).ok_or_else(|| no_variance(&req.render))?;
+    let var_a = var_a.ok_or_else(|| no_variance(&req.render))?;
     let var_b = render_variance(path_b).ok_or_else(|| no_variance(path_b))?;
     let (metrics_b, _) = metrics_and_ssim_map(photo, b, mask, settings)?;
-    let noise_b = noise_report(req, path_b, photo, b, mask, notes)?.ok_or_else(|| no_variance(path_b))?;
+    let noise_b = noise_report(req, path_b, Some(&var_b), photo, b, mask, notes)?.ok_or_else(|| no_variance(path_b))?;
     let paired = noise::paired(
         photo.width,
         photo.height,
         &photo.data,
-        (&render_a.data, &var_a),
+        (&render_a.data, var_a),
         (&b.data, &var_b),
         mask.map(|m| m.include.as_slice()),
         NOISE_BLOCK_PX,
@@ -658,20 +666,20 @@ fn twins_report(
     })
 }
 
-/// The model RMSE of `render_path` when it carries its variance
-/// (`variance.R/G/B` in an EXR); `None` with a note otherwise.
+/// The model RMSE of the render at `render_path` given its variance
+/// (`variance.R/G/B` of its EXR, read by [`render_variance`]); `None` with a
+/// note when it has none.
+#[allow(clippy::too_many_arguments)]
 fn noise_report(
     req: &Request,
     render_path: &Path,
+    render_variance: Option<&[f32]>,
     photo: &RgbImage,
     render: &RgbImage,
     mask: Option<&Mask>,
     notes: &mut Vec<String>,
 ) -> Result<Option<noise::NoiseReport>, CompareError> {
-    const VAR: [&str; 3] = ["variance.R", "variance.G", "variance.B"];
-    let interleave =
-        |ch: &[Vec<f32>]| -> Vec<f32> { (0..ch[0].len()).flat_map(|i| [ch[0][i], ch[1][i], ch[2][i]]).collect() };
-    let Some(render_variance) = render_variance(render_path) else {
+    let Some(render_variance) = render_variance else {
         notes.push(format!(
             "{} has no variance layers (variance.R/G/B of lucent render's EXR): no model RMSE",
             render_path.display()
@@ -686,7 +694,7 @@ fn noise_report(
                 path: p.clone(),
                 reason: ReadProblem::Invalid(reason),
             };
-            let got = crate::imageio::read_exr_channels(p, &VAR)
+            let got = crate::imageio::read_exr_channels(p, &VARIANCE_CHANNELS)
                 .or_else(|_| crate::imageio::read_exr_channels(p, &["R", "G", "B"]))
                 .map_err(|e| read(e.to_string()))?;
             if (got.0, got.1) != (photo.width, photo.height) {
@@ -703,7 +711,7 @@ fn noise_report(
         height: photo.height,
         photo: &photo.data,
         render: &render.data,
-        render_variance: &render_variance,
+        render_variance,
         photo_variance: photo_variance.as_deref(),
         include: mask.map(|m| m.include.as_slice()),
     };
@@ -790,10 +798,20 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     let mut notes: Vec<String> = Vec::new();
 
     let (calibrated, ssim_map) = metrics_and_ssim_map(photo_img, render_img, mask.as_ref(), &settings)?;
-    let noise = noise_report(req, &req.render, photo_img, render_img, mask.as_ref(), &mut notes)?;
+    let render_var = render_variance(&req.render);
+    let noise =
+        noise_report(req, &req.render, render_var.as_deref(), photo_img, render_img, mask.as_ref(), &mut notes)?;
     let twins = match &req.render_b {
         None => None,
-        Some(pb) => Some(twins_report(req, pb, photo_img, render_img, mask.as_ref(), &settings, &mut notes)?),
+        Some(pb) => Some(twins_report(
+            req,
+            pb,
+            photo_img,
+            (render_img, render_var.as_deref()),
+            mask.as_ref(),
+            &settings,
+            &mut notes,
+        )?),
     };
 
     // ECC refinement.
