@@ -503,6 +503,12 @@ pub struct Image {
     pub object_samples: Vec<u32>,
     /// Per pixel, how many of its camera rays hit the board first.
     pub board_samples: Vec<u32>,
+    /// Two independent half renders of the same run: per pixel the mean of
+    /// its samples with even index k (`halves[0]`, ⌈n/2⌉ samples) and with
+    /// odd k (`halves[1]`, ⌊n/2⌋; 0 where a pixel has a single sample). Their
+    /// noise is independent and twice the variance of `mean`, which is what
+    /// an extrapolation of a noisy figure to zero noise needs.
+    pub halves: [Vec<[f64; 3]>; 2],
 }
 
 /// The first surface a camera ray meets.
@@ -770,6 +776,8 @@ struct Accumulator {
     height: usize,
     sum: Vec<[f64; 3]>,
     sum_sq: Vec<[f64; 3]>,
+    /// The sum over the samples with even index k (the first half render).
+    sum_even: Vec<[f64; 3]>,
     samples: Vec<u32>,
     object_samples: Vec<u32>,
     board_samples: Vec<u32>,
@@ -783,6 +791,7 @@ impl Accumulator {
             height,
             sum: vec![[0.0; 3]; n],
             sum_sq: vec![[0.0; 3]; n],
+            sum_even: vec![[0.0; 3]; n],
             samples: vec![0; n],
             object_samples: vec![0; n],
             board_samples: vec![0; n],
@@ -802,10 +811,11 @@ impl Accumulator {
         self.sum
             .par_chunks_mut(w)
             .zip(self.sum_sq.par_chunks_mut(w))
+            .zip(self.sum_even.par_chunks_mut(w))
             .zip(self.samples.par_chunks_mut(w))
             .zip(self.object_samples.par_chunks_mut(w).zip(self.board_samples.par_chunks_mut(w)))
             .enumerate()
-            .map(|(j, (((row, row_sq), row_n), (row_obj, row_board)))| {
+            .map(|(j, ((((row, row_sq), row_even), row_n), (row_obj, row_board)))| {
                 let mut st = Stats::default();
                 'pixels: for i in 0..w {
                     let pixel = (j * w + i) as u64;
@@ -824,6 +834,11 @@ impl Accumulator {
                         for c in 0..3 {
                             row[i][c] += l[c];
                             row_sq[i][c] += l[c] * l[c];
+                        }
+                        if k % 2 == 0 {
+                            for c in 0..3 {
+                                row_even[i][c] += l[c];
+                            }
                         }
                         match first {
                             FirstHit::Object => row_obj[i] += 1,
@@ -861,16 +876,33 @@ impl Accumulator {
                 })
             })
             .collect();
+        let half = |odd: bool| {
+            self.sum
+                .iter()
+                .zip(&self.sum_even)
+                .zip(&self.samples)
+                .map(|((s, e), &k)| {
+                    let (n, part) = if odd { (k / 2, sub(*s, *e)) } else { (k.div_ceil(2), *e) };
+                    part.map(|v| if n > 0 { v / f64::from(n) } else { 0.0 })
+                })
+                .collect()
+        };
+        let halves = [half(false), half(true)];
         Image {
             width: self.width,
             height: self.height,
             mean,
             variance_of_mean,
+            halves,
             samples: self.samples.clone(),
             object_samples: self.object_samples.clone(),
             board_samples: self.board_samples.clone(),
         }
     }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|c| a[c] - b[c])
 }
 
 /// Power heuristic weight of a strategy with pdf `a` against one with pdf `b`.

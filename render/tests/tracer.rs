@@ -604,3 +604,39 @@ fn cancellation_ends_a_long_pass_within_moments() {
         }
     }
 }
+
+/// The two half renders are independent estimates of the same mean: the
+/// samples split between them (n = ⌈n/2⌉ + ⌊n/2⌋ recombines to the mean),
+/// and the spread between them matches the variance the full render
+/// reports: mean over pixels and channels of (a − b)² / (4 var of mean) ≈ 1
+/// for an even sample count (it would be 0 if the halves shared samples).
+#[test]
+fn half_renders_are_independent_halves_of_the_samples() {
+    let scene = region_scene([1.45; 3]);
+    for spp in [31, 32] {
+        let (img, _) = render(&scene, &Settings { spp, seed: 9, ..Settings::default() }, &mut |_| {});
+        let (mut ratio, mut n) = (0.0, 0usize);
+        for p in 0..img.mean.len() {
+            let k = f64::from(img.samples[p]);
+            let (ka, kb) = ((k / 2.0).ceil(), (k / 2.0).floor());
+            for c in 0..3 {
+                let (a, b) = (img.halves[0][p][c], img.halves[1][p][c]);
+                let m = img.mean[p][c];
+                assert!((ka * a + kb * b - k * m).abs() <= 1e-9 * (k * m.abs()).max(1e-300), "pixel {p}: {a} {b} {m}");
+                let v = img.variance_of_mean[p][c];
+                if v > 0.0 && spp % 2 == 0 {
+                    ratio += (a - b).powi(2) / (4.0 * v);
+                    n += 1;
+                }
+            }
+        }
+        if spp % 2 == 0 {
+            // (a − b)²/(4v) has mean ≈ 1 and, for heavy-tailed samples, a
+            // spread of order 1 per term: over ≥ 200 terms the mean is
+            // within 0.25 of 1.
+            assert!(n >= 200, "{n}");
+            let mean = ratio / n as f64;
+            assert!((mean - 1.0).abs() < 0.25, "mean (a − b)²/(4 var) = {mean} over {n} terms");
+        }
+    }
+}

@@ -114,7 +114,19 @@ pub fn run(a: CompareArgs) -> Result<()> {
             n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor, n.pixels
         );
     }
+    let zero = |z: &compare::noise::SsimAtZeroNoise| {
+        format!(
+            "SSIM Y at zero render noise {:.4}, 95 % interval [{:.4}, {:.4}] (as measured {:.4}), over {} pixels",
+            z.at_zero_noise, z.ci95[0], z.ci95[1], z.ssim, z.pixels
+        )
+    };
+    if let Some(z) = &r.ssim_at_zero_noise {
+        println!("{}", zero(z));
+    }
     if let Some(t) = &r.twins {
+        if let Some(z) = &t.ssim_at_zero_noise_b {
+            println!("twin B: {}", zero(z));
+        }
         println!(
             "twin B ({}): {}; model RMSE {:.4e} [{:.4e}, {:.4e}]",
             t.render_b,

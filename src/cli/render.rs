@@ -6,7 +6,10 @@
 //! * `render.exr` — linear CIE RGB (`R`, `G`, `B`), the variance of each
 //!   pixel's mean (`variance.R`, …), the sample count (`spp`) and the
 //!   fraction of the pixel's camera rays that hit the object first
-//!   (`object`) and the board first (`board`);
+//!   (`object`) and the board first (`board`), and the means of two
+//!   independent half renders (`half_a.R`, …: the samples with even index;
+//!   `half_b.R`, …: odd), from which `lucent compare` extrapolates SSIM to
+//!   zero render noise;
 //! * `render.png` — sRGB preview (`--exposure` in stops);
 //! * `render.json` — the scene as resolved, settings, seed, timings, counters.
 
@@ -339,6 +342,8 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
     let spp = plane(&|i| f64::from(image.samples[i]));
     let object = plane(&|i| image.object_fraction(i));
     let board = plane(&|i| f64::from(image.board_samples[i]) / f64::from(image.samples[i].max(1)));
+    let half = |k: usize, c: usize| plane(&|i| image.halves[k][i][c]);
+    let (ar, ag, ab, br, bg, bb) = (half(0, 0), half(0, 1), half(0, 2), half(1, 0), half(1, 1), half(1, 2));
     imageio::write_exr_channels(
         &out.join("render.exr"),
         w,
@@ -353,6 +358,12 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
             ("spp", &spp),
             ("object", &object),
             ("board", &board),
+            ("half_a.R", &ar),
+            ("half_a.G", &ag),
+            ("half_a.B", &ab),
+            ("half_b.R", &br),
+            ("half_b.G", &bg),
+            ("half_b.B", &bb),
         ],
     )
     .with_context(|| format!("{}: cannot write render.exr", out.display()))?;

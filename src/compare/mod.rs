@@ -483,6 +483,9 @@ pub struct TwinsReport {
     /// The second twin's metrics and model RMSE over the same pixels.
     pub metrics_b: Metrics,
     pub noise_b: noise::NoiseReport,
+    /// The second twin's SSIM extrapolated to zero render noise.
+    #[serde(default)]
+    pub ssim_at_zero_noise_b: Option<noise::SsimAtZeroNoise>,
     pub paired: noise::PairedReport,
 }
 
@@ -565,6 +568,10 @@ pub struct Report {
     /// With a second render: both twins and which is closer.
     #[serde(default)]
     pub twins: Option<TwinsReport>,
+    /// SSIM (Y) extrapolated to zero render noise from the render's two
+    /// half renders, when its EXR carries them.
+    #[serde(default)]
+    pub ssim_at_zero_noise: Option<noise::SsimAtZeroNoise>,
     pub refined: Option<Refinement>,
     pub display: DisplayReport,
     pub files: Vec<String>,
@@ -617,6 +624,64 @@ fn render_variance(path: &Path) -> Option<Vec<f32>> {
     Some(interleave(&ch))
 }
 
+/// The half-render layers of lucent render's EXR.
+const HALF_CHANNELS: [[&str; 3]; 2] = [["half_a.R", "half_a.G", "half_a.B"], ["half_b.R", "half_b.G", "half_b.B"]];
+
+/// SSIM (Y) of the photo against the render at `path` without its noise,
+/// from its two half renders ([`noise::ssim_at_zero_noise`]);
+/// `None` with a note when its EXR has no half renders or a pixel has fewer
+/// than two samples. `full_map` is SSIM(photo, render)'s map.
+fn ssim_zero_noise_report(
+    path: &Path,
+    photo: &RgbImage,
+    full_map: &[f32],
+    mask: Option<&Mask>,
+    settings: &Settings,
+    notes: &mut Vec<String>,
+) -> Result<Option<noise::SsimAtZeroNoise>, CompareError> {
+    if crate::imageio::extension(path) != "exr" {
+        return Ok(None);
+    }
+    let (w, h) = (photo.width, photo.height);
+    let read = |names: &[&str]| crate::imageio::read_exr_channels(path, names).ok().filter(|g| (g.0, g.1) == (w, h));
+    let (Some(a), Some(b)) = (read(&HALF_CHANNELS[0]), read(&HALF_CHANNELS[1])) else {
+        notes.push(format!(
+            "{} has no half renders (half_a/half_b of lucent render's EXR): no SSIM at zero render noise",
+            path.display()
+        ));
+        return Ok(None);
+    };
+    let include = ssim::mean_pixels(w, h, &settings.ssim, mask);
+    if let Some(spp) = read(&["spp"])
+        && spp.2[0].iter().zip(&include).any(|(n, &inc)| inc && *n < 2.0)
+    {
+        notes.push(format!(
+            "{}: some pixels have fewer than 2 samples, so a half render is empty there: no SSIM at zero render noise",
+            path.display()
+        ));
+        return Ok(None);
+    }
+    let invalid =
+        |e: String| CompareError::Read { role: "render", path: path.to_path_buf(), reason: ReadProblem::Invalid(e) };
+    let lw = settings.luminance.weights();
+    let y_of = |ch: &[Vec<f32>]| -> Vec<f64> {
+        (0..w * h).map(|i| (0..3).map(|c| lw[c] * f64::from(ch[c][i])).sum()).collect()
+    };
+    let py: Vec<f64> = photo.data.chunks_exact(3).map(|p| (0..3).map(|c| lw[c] * f64::from(p[c])).sum()).collect();
+    let free = ssim::ssim_map_noise_free(&py, &y_of(&a.2), &y_of(&b.2), w, h, &settings.ssim)?;
+    let r = noise::ssim_at_zero_noise(w, h, full_map, &free, &include, NOISE_BLOCK_PX, NOISE_RESAMPLES, 1)
+        .map_err(|e| invalid(e.to_string()))?;
+    if r.correction > 0.05 {
+        notes.push(format!(
+            "{}: the render's noise lowers SSIM by {:.3}; at such noise the SSIM at zero render noise may still \
+             fall short of the converged value by up to ≈ 10–20 % of that (render more samples to trust its interval)",
+            path.display(),
+            r.correction
+        ));
+    }
+    Ok(Some(r))
+}
+
 /// The second twin `path_b` against the first: its metrics and model RMSE,
 /// and the paired test of which is closer (both renders need their variance).
 fn twins_report(
@@ -640,7 +705,8 @@ fn twins_report(
     };
     let var_a = var_a.ok_or_else(|| no_variance(&req.render))?;
     let var_b = render_variance(path_b).ok_or_else(|| no_variance(path_b))?;
-    let (metrics_b, _) = metrics_and_ssim_map(photo, b, mask, settings)?;
+    let (metrics_b, map_b) = metrics_and_ssim_map(photo, b, mask, settings)?;
+    let ssim_at_zero_noise_b = ssim_zero_noise_report(path_b, photo, &map_b, mask, settings, notes)?;
     let noise_b = noise_report(req, path_b, Some(&var_b), photo, b, mask, notes)?.ok_or_else(|| no_variance(path_b))?;
     let paired = noise::paired(
         photo.width,
@@ -662,6 +728,7 @@ fn twins_report(
         render_b: path_b.display().to_string(),
         metrics_b,
         noise_b,
+        ssim_at_zero_noise_b,
         paired,
     })
 }
@@ -801,6 +868,8 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     let render_var = render_variance(&req.render);
     let noise =
         noise_report(req, &req.render, render_var.as_deref(), photo_img, render_img, mask.as_ref(), &mut notes)?;
+    let ssim_at_zero_noise =
+        ssim_zero_noise_report(&req.render, photo_img, &ssim_map, mask.as_ref(), &settings, &mut notes)?;
     let twins = match &req.render_b {
         None => None,
         Some(pb) => Some(twins_report(
@@ -943,13 +1012,19 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             r.region.split(", from").next().unwrap_or_default()
         ));
     }
-    let title = match &noise {
+    let mut title = match &noise {
         Some(n) => format!(
             "as calibrated; model RMSE with the noise removed {:.3e} (95 %: {:.3e} – {:.3e}), noise floor {:.3e}",
             n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor
         ),
         None => "as calibrated".into(),
     };
+    if let Some(z) = &ssim_at_zero_noise {
+        title.push_str(&format!(
+            "; SSIM Y at zero render noise {:.4} ({:.4} – {:.4})",
+            z.at_zero_noise, z.ci95[0], z.ci95[1]
+        ));
+    }
     let mut rows = vec![triplet::Row {
         title,
         photo: photo_img,
@@ -1020,6 +1095,7 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         as_calibrated: calibrated,
         noise,
         twins,
+        ssim_at_zero_noise,
         refined: refined_parts.as_ref().map(|(r, _, _)| r.clone()),
         display: DisplayReport {
             exposure,

@@ -394,6 +394,92 @@ pub fn ssim<P: Plane, Q: Plane>(x: &P, y: &Q, params: &SsimParams, mask: Option<
     finish(parts)
 }
 
+/// The SSIM map of `x` against the noise-free image behind two independent
+/// noisy estimates `a` and `b` of it (two half renders of one run: same
+/// expectation, independent noise), all `width × height` f64 planes. The
+/// window moments that noise biases are replaced by unbiased ones from the
+/// pair: μ_y² by μ_a μ_b and σ_y² by ⟨ab⟩ − μ_a μ_b (for independent noise
+/// E[a b] = E[a] E[b] pixel by pixel), while μ_y and σ_xy come from
+/// y = (a + b)/2 (noise independent of x leaves them unbiased). The
+/// remaining bias is that of a ratio of unbiased estimates, which shrinks
+/// with the window's effective number of pixels (≈ 4πσ² = 28). Same window,
+/// border reflection and constants as [`ssim`]; the map is clamped to
+/// [−1, 1] (a noise-dominated window can drive the debiased variance
+/// below −σ_x² − C2).
+pub fn ssim_map_noise_free(
+    x: &[f64],
+    a: &[f64],
+    b: &[f64],
+    width: usize,
+    height: usize,
+    params: &SsimParams,
+) -> Result<Vec<f64>, CompareError> {
+    let n = width * height;
+    if x.len() != n || a.len() != n || b.len() != n {
+        return Err(CompareError::Size {
+            first: "the photo".into(),
+            first_size: (width, height),
+            second: "the half renders".into(),
+            second_size: (width, a.len().min(b.len()).min(x.len()) / width.max(1)),
+        });
+    }
+    let k = gaussian_kernel(params.sigma, params.radius());
+    let r = params.radius() as isize;
+    // Separable Gaussian filter with scipy's reflection.
+    let filter = |f: &dyn Fn(usize) -> f64| -> Vec<f64> {
+        let src: Vec<f64> = (0..n).map(f).collect();
+        let mut rows = vec![0.0; n];
+        rows.par_chunks_mut(width).enumerate().for_each(|(y, out)| {
+            for (xx, o) in out.iter_mut().enumerate() {
+                *o = k
+                    .iter()
+                    .enumerate()
+                    .map(|(t, c)| c * src[y * width + reflect(xx as isize + t as isize - r, width)])
+                    .sum();
+            }
+        });
+        let mut out = vec![0.0; n];
+        out.par_chunks_mut(width).enumerate().for_each(|(y, o)| {
+            for (t, c) in k.iter().enumerate() {
+                let yy = reflect(y as isize + t as isize - r, height);
+                for (v, s) in o.iter_mut().zip(&rows[yy * width..(yy + 1) * width]) {
+                    *v += c * s;
+                }
+            }
+        });
+        out
+    };
+    let y = |i: usize| 0.5 * (a[i] + b[i]);
+    let (mx, ma, mb) = (filter(&|i| x[i]), filter(&|i| a[i]), filter(&|i| b[i]));
+    let (xx, xy, ab) = (filter(&|i| x[i] * x[i]), filter(&|i| x[i] * y(i)), filter(&|i| a[i] * b[i]));
+    let (c1, c2) = (params.c1(), params.c2());
+    Ok((0..n)
+        .map(|i| {
+            let my = 0.5 * (ma[i] + mb[i]);
+            let my2 = ma[i] * mb[i];
+            let (vx, vy, vxy) = (xx[i] - mx[i] * mx[i], ab[i] - my2, xy[i] - mx[i] * my);
+            let s = (2.0 * mx[i] * my + c1) * (2.0 * vxy + c2) / ((mx[i] * mx[i] + my2 + c1) * (vx + vy + c2));
+            if s.is_finite() {
+                s.clamp(-1.0, 1.0)
+            } else {
+                0.0
+            }
+        })
+        .collect())
+}
+
+/// The pixels [`ssim`]'s mean is taken over: those of `mask` (all if none)
+/// at least [`SsimParams::border`] pixels from every image border.
+pub fn mean_pixels(width: usize, height: usize, params: &SsimParams, mask: Option<&Mask>) -> Vec<bool> {
+    let b = params.border();
+    (0..width * height)
+        .map(|p| {
+            let (x, y) = (p % width, p / width);
+            x >= b && x + b < width && y >= b && y + b < height && mask.is_none_or(|m| m.include[p])
+        })
+        .collect()
+}
+
 /// [`ssim`] and the full SSIM map (`width × height`, row-major, f32; the
 /// border pixels hold values too, but are not in the mean).
 pub fn ssim_with_map<P: Plane, Q: Plane>(
