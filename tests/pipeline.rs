@@ -505,3 +505,126 @@ fn stage_files_round_trip_through_their_writers_types() {
     // An absent file is "stage not run", not an error.
     assert!(read_json::<lucent::bssrdf::Summary>(&root().join("fixtures/formats/none.json"), "x").unwrap().is_none());
 }
+
+/// The paper's loop in one run: slices "measured" at a hidden 0.425 wt-%
+/// (simulated from fixtures/fit's truth recipe), a photo rendered at it;
+/// stage fit recovers the weight percentage from the slices, render makes
+/// both twins, compare scores both and says which is closer, and the report
+/// tabulates truth vs fitted and shows both triplets.
+#[test]
+fn fit_stage_closes_the_loop_slices_fit_rerender_compare() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let f = root().join("fixtures");
+    let truth_recipe = f.join("fit/IOL1068-09_truth_0425.toml");
+    let m = d.join("measured");
+    ok(&lucent(&[
+        "bssrdf",
+        "--recipe",
+        truth_recipe.to_str().unwrap(),
+        "--wavelength",
+        "550",
+        "--configs",
+        "45/0,30/0",
+        "--crop",
+        "--paths",
+        "60000",
+        "--seed",
+        "101",
+        "--quiet",
+        "--out",
+        m.to_str().unwrap(),
+    ]));
+    let text = std::fs::read_to_string(f.join("render/demo.toml"))
+        .unwrap()
+        .replace("\"../samples/", &format!("\"{}/samples/", f.display()))
+        .replace("\"../env/", &format!("\"{}/env/", f.display()));
+    std::fs::write(d.join("scene.toml"), &text).unwrap();
+    let truth_scene = text.replace(
+        &format!("\"{}/samples/IOL1068-09.toml\"", f.display()),
+        &format!("{:?}", truth_recipe.display().to_string()),
+    );
+    assert_ne!(truth_scene, text);
+    std::fs::write(d.join("truth.toml"), &truth_scene).unwrap();
+    let photo = d.join("photo");
+    ok(&lucent(&[
+        "render",
+        d.join("truth.toml").to_str().unwrap(),
+        "--size",
+        "64x48",
+        "--spp",
+        "64",
+        "--seed",
+        "99",
+        "--quiet",
+        "--out",
+        photo.to_str().unwrap(),
+    ]));
+    let project = d.join("loop.toml");
+    std::fs::write(
+        &project,
+        format!(
+            r#"[project]
+name = "loop"
+seed = 7
+
+[render]
+scene = "{d}/scene.toml"
+spp = 32
+size = "64x48"
+
+[fit]
+free = ["weight_percent"]
+paths = 20000
+
+[[sample]]
+name = "IOL1068-09"
+recipe = "{f}/samples/IOL1068-09.toml"
+photo = "{d}/photo/render.exr"
+truth_recipe = "{truth}"
+
+[[sample.measured]]
+config = "45/0"
+file = "{d}/measured/ti45_to0/bssrdf.exr"
+
+[[sample.measured]]
+config = "30/0"
+file = "{d}/measured/ti30_to0/bssrdf.exr"
+"#,
+            d = d.display(),
+            f = f.display(),
+            truth = truth_recipe.display()
+        ),
+    )
+    .unwrap();
+    let out = d.join("out");
+    let text = ok(&lucent(&["run", project.to_str().unwrap(), "--out", out.to_str().unwrap()]));
+    for s in ["fit", "render", "compare", "report"] {
+        assert_eq!(status_of(&text, s), "ran", "{s}:\n{text}");
+    }
+    // The fitted recipe and the fitted twin.
+    assert!(out.join("fit/IOL1068-09/IOL1068-09_fitted.toml").is_file());
+    assert!(out.join("render/IOL1068-09/fitted/render.exr").is_file());
+    let scene = std::fs::read_to_string(out.join("render/IOL1068-09/input_scene_fitted.toml")).unwrap();
+    assert!(scene.contains("IOL1068-09_fitted.toml"), "{scene}");
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report/metrics.json")).unwrap()).unwrap();
+    let smp = &metrics["samples"]["IOL1068-09"];
+    let p = &smp["fit"]["parameters"][0];
+    assert_eq!(p["truth"].as_f64(), Some(0.425), "{p}");
+    let (lo, hi) = (p["interval_95"][0].as_f64().unwrap(), p["interval_95"][1].as_f64().unwrap());
+    assert!(lo <= 0.425 && 0.425 <= hi, "fitted {p}");
+    // Both twins scored; the recipe's (0.65 wt-%) is not found closer than the fitted one.
+    let twins = &smp["compare"]["twins"];
+    assert!(twins["paired"]["verdict"].is_string(), "{twins}");
+    assert_ne!(twins["paired"]["verdict"], "A is closer", "{twins}");
+    assert!(out.join("compare/IOL1068-09/fitted/triplet.png").is_file());
+    let html = std::fs::read_to_string(out.join("report/index.html")).unwrap();
+    assert!(html.contains("Recipe fitted to the measured slices") && html.contains("Which twin is closer"), "report");
+    assert!(html.contains("photo | fitted twin | difference"));
+    // A second run skips every stage.
+    let again = ok(&lucent(&["run", project.to_str().unwrap(), "--out", out.to_str().unwrap()]));
+    for s in ["fit", "render", "compare"] {
+        assert_eq!(status_of(&again, s), "up", "{s}:\n{again}");
+    }
+}

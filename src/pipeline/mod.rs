@@ -6,12 +6,13 @@
 //! |---|---|---|
 //! | `optics` | `lucent optics` on every sample's recipe | `[[sample]]` |
 //! | `bssrdf` | `lucent bssrdf` slices per sample, `bssrdf compare` with measured slices | `[bssrdf]` |
+//! | `fit` | `lucent fit` of each sample's recipe to its measured slices; writes the fitted recipe when the data pin it down | `[fit]`, a sample's `[[sample.measured]]` |
 //! | `calibrate` | `lucent calibrate` (Zhang) | `[calibration]` |
 //! | `colour` | `lucent colour calibrate` per camera | `[[colour]]` |
 //! | `develop` | `lucent colour apply`: a sample's photo and empty board (RAW or EXR in its camera's RGB) → CIE RGB; of a RAW also `lucent raw clipped`, the mask env-scale and compare then use | a sample's `camera` |
 //! | `pose` | `lucent pose` on the sample photo | `[pose]` and the `calibrate` output |
 //! | `env-scale` | `lucent env fit-scale` per sample | `[render]`, a sample's `empty_board` |
-//! | `render` | `lucent render` per sample (the scene template with the sample's recipe, and the fitted scale) | `[render]` |
+//! | `render` | `lucent render` per sample (the scene template with the sample's recipe, and the fitted scale); with a fitted recipe from stage fit, also the fitted twin (`render/NAME/fitted/`) | `[render]` |
 //!
 //! **The camera of env-scale and render.** With a `[pose]` (and unless
 //! `[render] camera = "template"`), the scene template's camera, board
@@ -23,7 +24,7 @@
 //! object at `placement = "scene"` when the pose placed a sample (the finite
 //! sphere then centred on its top). Without a `[pose]` the template is used
 //! as it is.
-//! | `compare` | `lucent compare` photo vs render per sample | a sample's `photo`, its render |
+//! | `compare` | `lucent compare` photo vs render per sample; with a fitted twin, both twins (recipe = A, fitted = B) and which is closer | a sample's `photo`, its render |
 //! | `report` | `report/index.html` and `report/metrics.json` ([`report`]) | any stage's output |
 //!
 //! A stage's work is a list of [`Task`]s — `lucent` command lines, with files
@@ -62,6 +63,7 @@ use thiserror::Error;
 pub enum Stage {
     Optics,
     Bssrdf,
+    Fit,
     Calibrate,
     Colour,
     Develop,
@@ -73,9 +75,10 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 10] = [
+    pub const ALL: [Stage; 11] = [
         Stage::Optics,
         Stage::Bssrdf,
+        Stage::Fit,
         Stage::Calibrate,
         Stage::Colour,
         Stage::Develop,
@@ -91,6 +94,7 @@ impl Stage {
         match self {
             Stage::Optics => "optics",
             Stage::Bssrdf => "bssrdf",
+            Stage::Fit => "fit",
             Stage::Calibrate => "calibrate",
             Stage::Colour => "colour",
             Stage::Develop => "develop",
@@ -110,15 +114,16 @@ impl Stage {
     /// The stages whose outputs this one reads.
     pub fn depends_on(self) -> &'static [Stage] {
         match self {
-            Stage::Optics | Stage::Bssrdf | Stage::Calibrate | Stage::Colour => &[],
+            Stage::Optics | Stage::Bssrdf | Stage::Fit | Stage::Calibrate | Stage::Colour => &[],
             Stage::Develop => &[Stage::Colour],
             Stage::Pose => &[Stage::Calibrate],
             Stage::EnvScale => &[Stage::Pose, Stage::Develop],
-            Stage::Render => &[Stage::EnvScale, Stage::Pose],
+            Stage::Render => &[Stage::EnvScale, Stage::Pose, Stage::Fit],
             Stage::Compare => &[Stage::Render, Stage::Develop],
             Stage::Report => &[
                 Stage::Optics,
                 Stage::Bssrdf,
+                Stage::Fit,
                 Stage::Calibrate,
                 Stage::Colour,
                 Stage::Develop,
@@ -273,6 +278,8 @@ pub enum Skip {
     NoEmptyBoard,
     #[error("no sample has both a photo and a render")]
     NoPhotoAndRender,
+    #[error("no sample has measured slices ([[sample.measured]])")]
+    NoMeasured,
 }
 
 /// Why a task of a stage failed.
@@ -385,6 +392,25 @@ fn sample_scene(
     sample: &project::SampleSection,
     use_fitted: bool,
 ) -> Result<String, PipelineError> {
+    sample_scene_with(project, out, sample, use_fitted, None)
+}
+
+/// The recipe stage fit wrote for `sample` (`fit/NAME/*_fitted.toml`), if any.
+pub fn fitted_recipe(out: &Path, sample: &project::SampleSection) -> Option<PathBuf> {
+    let stem = sample.recipe.file_stem()?.to_string_lossy().into_owned();
+    let p = out.join(Stage::Fit.name()).join(&sample.name).join(format!("{stem}_fitted.toml"));
+    p.is_file().then_some(p)
+}
+
+/// [`sample_scene`] with `recipe` (a fitted recipe, its weight percentage
+/// inside) in place of the sample's.
+fn sample_scene_with(
+    project: &Project,
+    out: &Path,
+    sample: &project::SampleSection,
+    use_fitted: bool,
+    recipe: Option<&Path>,
+) -> Result<String, PipelineError> {
     let Some(r) = &project.file.render else {
         return Err(PipelineError::Stage { stage: Stage::Render, problem: StageProblem::NoRender });
     };
@@ -395,8 +421,8 @@ fn sample_scene(
     let mut file = envfit::with_paths_from(&file, &envfit::scene_dir(&source));
     match &mut file.material {
         Some(m) => {
-            m.recipe = Some(sample.recipe.clone());
-            m.weight_percent = sample.weight_percent;
+            m.recipe = Some(recipe.map_or_else(|| sample.recipe.clone(), Path::to_path_buf));
+            m.weight_percent = if recipe.is_some() { None } else { sample.weight_percent };
             m.sigma_s_per_m = None;
             m.sigma_a_per_m = None;
             m.g = None;
@@ -427,11 +453,11 @@ fn sample_scene(
     let body =
         toml::to_string_pretty(&file).map_err(|e| PipelineError::SceneToml { path: source.clone(), source: e })?;
     let camera = if frame.is_some() { ", camera, board and placement from the pose stage" } else { "" };
-    Ok(format!(
-        "# {} with the recipe of sample {}{camera} (written by `lucent run`)\n{body}",
-        source.display(),
-        sample.name
-    ))
+    let whose = match recipe {
+        Some(r) => format!("the fitted recipe {} of sample {}", r.display(), sample.name),
+        None => format!("the recipe of sample {}", sample.name),
+    };
+    Ok(format!("# {} with {whose}{camera} (written by `lucent run`)\n{body}", source.display()))
 }
 
 /// The pose stage's frame for env-scale and render (see the module doc):
@@ -645,6 +671,56 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 }
             }
         }
+        Stage::Fit => {
+            let Some(fit) = &f.fit else { return Ok(Err(Skip::Missing("[fit]"))) };
+            for smp in f.sample.iter().filter(|s| !s.measured.is_empty()) {
+                inputs.extend(recipe_inputs(&smp.recipe));
+                let mut args = vec!["fit".into(), "--recipe".into(), s(&smp.recipe), "--measured".into()];
+                for m in &smp.measured {
+                    inputs.push(m.file.clone());
+                    args.push(format!("{}:{}", s(&m.file), m.config));
+                }
+                if let Some(Some(px)) = smp.measured.first().map(|m| m.pixel_mm) {
+                    args.extend(["--measured-pixel-mm".into(), px.to_string()]);
+                }
+                if let Some(w) = smp.weight_percent {
+                    args.extend(["--weight-percent".into(), w.to_string()]);
+                }
+                let wavelength = f.bssrdf.as_ref().and_then(|b| b.wavelength_nm).unwrap_or(550.0);
+                args.extend([
+                    "--free".into(),
+                    fit.free.join(","),
+                    "--wavelength".into(),
+                    wavelength.to_string(),
+                    "--seed".into(),
+                    seed.clone(),
+                    "--quiet".into(),
+                ]);
+                if let Some(o) = &fit.objective {
+                    args.extend(["--objective".into(), o.clone()]);
+                }
+                if let Some(r) = fit.rel_error {
+                    args.extend(["--rel-error".into(), r.to_string()]);
+                }
+                if let Some(p) = fit.paths {
+                    args.extend(["--paths".into(), p.to_string()]);
+                }
+                if let Some(r) = fit.measured_rel_sd {
+                    args.extend(["--measured-rel-sd".into(), r.to_string()]);
+                }
+                if let Some(b) = &fit.bounds {
+                    args.push(format!("--bounds={b}"));
+                }
+                if let Some(t) = f.bssrdf.as_ref().and_then(|b| b.threshold) {
+                    args.extend(["--threshold".into(), t.to_string()]);
+                }
+                args.extend(["--out".into(), format!("{{out}}/{}", smp.name)]);
+                tasks.push(lucent(format!("{} fit", smp.name), args));
+            }
+            if tasks.is_empty() {
+                return Ok(Err(Skip::NoMeasured));
+            }
+        }
         Stage::Calibrate => {
             let Some(c) = &f.calibration else { return Ok(Err(Skip::Missing("[calibration]"))) };
             let files = crate::io::glob_files(&c.images)
@@ -812,7 +888,23 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     args.extend(["--size".into(), z.clone()]);
                 }
                 args.extend(["--seed".into(), seed.clone(), "--out".into(), format!("{{out}}/{}", smp.name)]);
+                // The fitted twin: the same render with stage fit's recipe.
+                let fitted = (stage == Stage::Render).then(|| fitted_recipe(out, smp)).flatten();
+                let twin = match fitted {
+                    Some(recipe) => {
+                        let text = sample_scene_with(project, out, smp, true, Some(&recipe))?;
+                        inputs.push(recipe);
+                        let rel = format!("{}/input_scene_fitted.toml", smp.name);
+                        let mut a = args.clone();
+                        a[1] = format!("{{out}}/{rel}");
+                        let n = a.len();
+                        a[n - 1] = format!("{{out}}/{}/fitted", smp.name);
+                        Some(Task::Lucent { label: format!("{} fitted twin", smp.name), files: vec![(rel, text)], args: a })
+                    }
+                    None => None,
+                };
                 tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], args });
+                tasks.extend(twin);
             }
             if tasks.is_empty() {
                 return Ok(Err(if f.sample.is_empty() { Skip::Missing("[[sample]]") } else { Skip::NoEmptyBoard }));
@@ -831,22 +923,32 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     continue;
                 }
                 inputs.push(photo.clone());
-                let mut args = vec![
-                    "compare".into(),
-                    "--photo".into(),
-                    s(photo),
-                    "--render".into(),
-                    s(&render),
-                    "--out".into(),
-                    format!("{{out}}/{}", smp.name),
-                ];
+                let mut args = vec!["compare".into(), "--photo".into(), s(photo), "--render".into(), s(&render)];
+                let fitted = render.with_file_name("fitted").join("render.exr");
+                let fitted = fitted.is_file().then_some(fitted);
+                if let Some(f) = &fitted {
+                    args.extend(["--render".into(), s(f)]);
+                }
+                args.extend(["--out".into(), format!("{{out}}/{}", smp.name)]);
+                // The fitted twin alone too: its own triplet for the report.
+                let fitted_alone = fitted.as_ref().map(|f| {
+                    let mut a = vec!["compare".into(), "--photo".into(), s(photo), "--render".into(), s(f)];
+                    a.extend(["--out".into(), format!("{{out}}/{}/fitted", smp.name)]);
+                    a
+                });
+                let mut extra = Vec::new();
                 if let Some(m) = valid_mask(out, smp, "photo") {
-                    args.extend(["--mask".into(), s(&m)]);
+                    extra.extend(["--mask".into(), s(&m)]);
                 }
                 if let Some(d) = f.compare.as_ref().and_then(|c| c.data_range) {
-                    args.extend(["--data-range".into(), d.to_string()]);
+                    extra.extend(["--data-range".into(), d.to_string()]);
                 }
+                args.extend(extra.iter().cloned());
                 tasks.push(lucent(smp.name.clone(), args));
+                if let Some(mut a) = fitted_alone {
+                    a.extend(extra);
+                    tasks.push(lucent(format!("{} fitted twin", smp.name), a));
+                }
             }
             if tasks.is_empty() {
                 return Ok(Err(Skip::NoPhotoAndRender));

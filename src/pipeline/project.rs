@@ -47,6 +47,13 @@
 //! [compare]
 //! data_range = 1.0
 //!
+//! [fit]                          # stage fit: each sample's recipe fitted to its measured slices
+//! free = ["weight_percent"]      # weight_percent, diameter_um, real_part_n (NAME@K for particle type K)
+//! # objective = "sum"            # or "msre"
+//! # rel_error = 0.01             # target relative error of the simulated sums at the final points
+//! # measured_rel_sd = 0.05       # relative uncertainty of each measured slice
+//! # render and compare then make and score both twins: the recipe's and the fitted one
+//!
 //! [[sample]]
 //! name = "IOL1068-09"
 //! recipe = "samples/IOL1068-09.toml"
@@ -54,7 +61,8 @@
 //! # camera = "phone"                 # photo and empty_board are that [[colour]] camera's RGB (RAW or EXR):
 //!                                    # stage develop turns them into CIE RGB with its ccm.json
 //! # empty_board = "empty.exr"        # stage env-scale: the board photographed without the sample
-//! # [[sample.measured]]              # stage bssrdf: measured slices to score
+//! # truth_recipe = "truth.toml"      # synthetic data: the known recipe, tabulated beside the fit (report only)
+//! # [[sample.measured]]              # stage bssrdf: measured slices to score; stage fit: to fit
 //! # config = "45/0"
 //! # file = "slice.exr"
 //! ```
@@ -92,6 +100,7 @@ pub struct ProjectFile {
     pub pose: Option<PoseSection>,
     pub render: Option<RenderSection>,
     pub compare: Option<CompareSection>,
+    pub fit: Option<FitSection>,
     #[serde(default)]
     pub sample: Vec<SampleSection>,
 }
@@ -179,6 +188,24 @@ pub struct CompareSection {
     pub data_range: Option<f64>,
 }
 
+/// `[fit]`: `lucent fit` on each sample's measured slices (`[[sample.measured]]`).
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FitSection {
+    /// Free parameters: `weight_percent`, `diameter_um`, `real_part_n`, each optionally `@K`.
+    pub free: Vec<String>,
+    /// "sum" (default) or "msre".
+    pub objective: Option<String>,
+    /// Target relative error of each simulated slice sum at the final points.
+    pub rel_error: Option<f64>,
+    /// Light paths per configuration and evaluation instead of the pilot run.
+    pub paths: Option<u64>,
+    /// Relative uncertainty of each measured slice (default 0.05).
+    pub measured_rel_sd: Option<f64>,
+    /// Search bounds "LO:HI,…", one per free parameter.
+    pub bounds: Option<String>,
+}
+
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SampleSection {
@@ -191,6 +218,9 @@ pub struct SampleSection {
     pub camera: Option<String>,
     #[serde(default)]
     pub measured: Vec<MeasuredSection>,
+    /// A recipe with the sample's known values (synthetic data): the report
+    /// tabulates them beside what stage fit recovered. Never read by a stage.
+    pub truth_recipe: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -295,6 +325,11 @@ impl Project {
             if let Some(p) = &mut s.empty_board {
                 existing(&format!("{at} empty_board"), p)?;
             }
+            if let Some(t) = &mut s.truth_recipe {
+                existing(&format!("{at} truth_recipe"), t)?;
+                crate::optics::recipe::Recipe::load(t, crate::optics::recipe::Overrides::default())
+                    .map_err(|e| key(&format!("{at} truth_recipe"), e.to_string()))?;
+            }
             for m in &mut s.measured {
                 existing(&format!("{at} measured file"), &mut m.file)?;
                 let c = parse_configs(&m.config).map_err(|e| key(&format!("{at} measured config"), e.to_string()))?;
@@ -395,6 +430,54 @@ impl Project {
             && c.data_range.is_some_and(|d| !(d > 0.0 && d.is_finite()))
         {
             return Err(key("[compare] data_range", "must be finite and > 0".into()));
+        }
+        if let Some(f) = &file.fit {
+            if f.free.is_empty() {
+                return Err(key("[fit] free", "name at least one parameter, e.g. [\"weight_percent\"]".into()));
+            }
+            for name in &f.free {
+                let base = name.split('@').next().unwrap_or_default();
+                let particle_ok = name.split_once('@').is_none_or(|(_, k)| k.parse::<usize>().is_ok());
+                if !["weight_percent", "diameter_um", "real_part_n"].contains(&base) || !particle_ok {
+                    return Err(key(
+                        "[fit] free",
+                        format!("{name:?}: expected weight_percent, diameter_um or real_part_n (NAME@K for particle type K)"),
+                    ));
+                }
+            }
+            if let Some(o) = &f.objective
+                && o != "sum"
+                && o != "msre"
+            {
+                return Err(key("[fit] objective", format!("expected \"sum\" or \"msre\", got {o:?}")));
+            }
+            if let Some(r) = f.rel_error
+                && !(r > 0.0 && r < 1.0)
+            {
+                return Err(key("[fit] rel_error", format!("must lie in (0, 1), got {r}")));
+            }
+            if f.paths == Some(0) {
+                return Err(key("[fit] paths", "must be at least 1".into()));
+            }
+            if let Some(r) = f.measured_rel_sd
+                && !(r > 0.0 && r <= 1.0)
+            {
+                return Err(key("[fit] measured_rel_sd", format!("must lie in (0, 1], got {r}")));
+            }
+            for smp in &file.sample {
+                let px: Vec<Option<f64>> = smp.measured.iter().map(|m| m.pixel_mm).collect();
+                if px.windows(2).any(|w| w[0] != w[1]) {
+                    return Err(key(
+                        &format!("[[sample]] {} measured pixel_mm", smp.name),
+                        "the fit takes one pixel size for all of a sample's measured slices".into(),
+                    ));
+                }
+                if let Some(Some(p)) = px.first()
+                    && !(*p > 0.0 && p.is_finite())
+                {
+                    return Err(key(&format!("[[sample]] {} measured pixel_mm", smp.name), format!("must be finite and > 0, got {p}")));
+                }
+            }
         }
         let seed = file.project.seed.unwrap_or(1);
         Ok(Project { path: path.to_path_buf(), name, seed, out, file, bssrdf_configs })

@@ -345,6 +345,46 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             let _ = write!(h, "<div class=\"row\">{imgs}</div>");
             sj.insert("bssrdf".into(), trim(&json!(bj), 64));
         }
+        // Fit: the recipe fitted to the measured slices, beside the truth when known.
+        let fdir = out.join("fit").join(&smp.name);
+        if let Some(fj) = read_json::<Value>(&fdir.join("fit.json"), "a fit.json")? {
+            h.push_str("<h3>Recipe fitted to the measured slices (lucent fit)</h3>");
+            let truth = match &smp.truth_recipe {
+                Some(t) => crate::optics::recipe::Recipe::load(t, crate::optics::recipe::Overrides::default()).ok(),
+                None => None,
+            };
+            let mut rows = Vec::new();
+            let mut pj = Vec::new();
+            for p in fj["parameters"].as_array().into_iter().flatten() {
+                let name = p["name"].as_str().unwrap_or_default();
+                let value = p["value"].as_f64();
+                let ci = p["interval_95"].as_array().and_then(|a| Some([a.first()?.as_f64()?, a.get(1)?.as_f64()?]));
+                let particle = name.split_once('@').and_then(|(_, k)| k.parse::<usize>().ok()).unwrap_or(0);
+                let known = truth.as_ref().and_then(|t| match name.split('@').next() {
+                    Some("weight_percent") => t.particles.get(particle).map(|q| q.weight_percent),
+                    _ => None,
+                });
+                let covered = match (known, ci) {
+                    (Some(k), Some([lo, hi])) => if lo <= k && k <= hi { "yes" } else { "no" },
+                    _ => "—",
+                };
+                rows.push(vec![
+                    esc(name),
+                    num(p["start"].as_f64().unwrap_or(f64::NAN), f4),
+                    value.map_or_else(|| "not identifiable".into(), |v| num(v, f4)),
+                    ci.map_or_else(|| "—".into(), |[lo, hi]| format!("{} – {}", num(lo, f4), num(hi, f4))),
+                    known.map_or_else(|| "—".into(), |k| num(k, f4)),
+                    covered.into(),
+                ]);
+                pj.push(json!({"name": name, "start": p["start"], "value": value, "interval_95": ci, "truth": known}));
+            }
+            h.push_str(&table(&["parameter", "start (recipe)", "fitted", "95 % interval", "truth", "truth in interval"], &rows));
+            if fj["identifiable"] == json!(false) {
+                let _ = write!(h, "<p>The data do not pin the parameters down: {}.</p>", esc(fj["reason"].as_str().unwrap_or("")));
+            }
+            h.push_str(&page.img(&fdir.join("objective.png"), &format!("{} fit objective", smp.name))?);
+            sj.insert("fit".into(), json!({"parameters": pj, "identifiable": fj["identifiable"], "evaluations": fj["evaluations"]}));
+        }
         // Environment scale
         let env_path = out.join("env-scale").join(&smp.name).join("env_scale.json");
         if let Some(e) = read_json::<crate::envfit::FitReport>(&env_path, "an env_scale.json")? {
@@ -429,7 +469,48 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     n.photo_variance
                 );
             }
+            if let Some(t) = &m.twins {
+                let zero = |z: &Option<crate::compare::noise::SsimAtZeroNoise>| {
+                    z.as_ref().map_or_else(
+                        || "—".to_string(),
+                        |z| format!("{} ({} – {})", num(z.at_zero_noise, f4), num(z.ci95[0], f4), num(z.ci95[1], f4)),
+                    )
+                };
+                let twin = |label: &str, n: Option<&crate::compare::noise::NoiseReport>, ssim: f64, z: String| {
+                    vec![
+                        label.to_string(),
+                        n.map_or_else(
+                            || "—".into(),
+                            |n| format!("{} ({} – {})", num(n.total.model_rmse, e4), num(n.total.ci95[0], e4), num(n.total.ci95[1], e4)),
+                        ),
+                        num(ssim, f4),
+                        z,
+                    ]
+                };
+                h.push_str("<h3>Which twin is closer: the recipe's (A) or the fitted one (B)</h3>");
+                h.push_str(&table(
+                    &["twin", "model RMSE, noise removed (95 %)", "SSIM (Y)", "SSIM (Y) at zero render noise (95 %)"],
+                    &[
+                        twin("A: recipe", m.noise.as_ref(), m.as_calibrated.ssim.y, zero(&m.ssim_at_zero_noise)),
+                        twin("B: fitted", Some(&t.noise_b), t.metrics_b.ssim.y, zero(&t.ssim_at_zero_noise_b)),
+                    ],
+                ));
+                let _ = write!(
+                    h,
+                    "<p>Paired test over {} pixel blocks: mean squared-error difference A − B {} ± {} (z {}, p {}): <b>{}</b>.</p>",
+                    t.paired.blocks,
+                    num(t.paired.squared_difference, e4),
+                    num(t.paired.standard_error, e4),
+                    num(t.paired.z, |x| format!("{x:.2}")),
+                    num(t.paired.p_value, |x| format!("{x:.2e}")),
+                    esc(&t.paired.verdict.replace('A', "A (recipe)").replace('B', "B (fitted)"))
+                );
+            }
             h.push_str(&page.img(&cdir.join("triplet.png"), &format!("{} photo | render | difference", smp.name))?);
+            h.push_str(&page.img(
+                &cdir.join("fitted").join("triplet.png"),
+                &format!("{} photo | fitted twin | difference", smp.name),
+            )?);
             sj.insert("compare".into(), trim(&to_value(&m), 64));
         } else if rdir.is_dir() {
             h.push_str(&page.img(&rdir.join("render.png"), &format!("{} render", smp.name))?);
