@@ -528,7 +528,7 @@ fn fit_stage_closes_the_loop_slices_fit_rerender_compare() {
         "45/0,30/0",
         "--crop",
         "--paths",
-        "60000",
+        "30000",
         "--seed",
         "101",
         "--quiet",
@@ -575,7 +575,7 @@ size = "64x48"
 
 [fit]
 free = ["weight_percent"]
-paths = 20000
+paths = 8000
 
 [[sample]]
 name = "IOL1068-09"
