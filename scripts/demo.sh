@@ -107,7 +107,10 @@ for k in 1 2 3 4 5 6; do
   "$bin" render "fixtures/demo/views/view$k.toml" --quiet --out "$out/truth/view$k"
   cp "$out/truth/view$k/render.png" "$out/truth/views/view$k.png"
 done
-"$bin" render fixtures/demo/truth.toml --size 160x120 --spp 128 --seed 1001 --quiet --out "$out/truth/photo"
+"$bin" render fixtures/demo/truth.toml --size 160x120 --spp 512 --seed 1001 --quiet --out "$out/truth/photo"
+echo "   IOL1068-09's \"measured\" slices (45°/0°, 30°/0°) simulated at the hidden 0.425 wt-% (Monte Carlo noise ≈ 3 %)"
+"$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength 550 --configs 45/0,30/0 \
+  --crop --paths 100000 --seed 301 --quiet --out "$out/truth/slices"
 "$bin" render fixtures/demo/truth_empty.toml --size 160x120 --spp 128 --seed 1002 --quiet --out "$out/truth/empty"
 echo "   the synthetic phone (fixtures/demo/truth_colour.json) captures a ColorChecker and both photos as Bayer DNGs with noise"
 "$bin" synth chart --out "$out/truth/chart.exr"
@@ -115,6 +118,12 @@ echo "   the synthetic phone (fixtures/demo/truth_colour.json) captures a ColorC
 "$bin" synth raw "$out/truth/photo/render.exr" "$out/truth/photo.dng" --truth fixtures/demo/truth_colour.json --exposure 0.8 --seed 12
 "$bin" synth raw "$out/truth/empty/render.exr" "$out/truth/empty.dng" --truth fixtures/demo/truth_colour.json --exposure 0.8 --seed 13
 "$bin" run fixtures/demo/project.toml --out "$out/run"
+echo "   the loop: truth 0.425 wt-% (hidden from the pipeline); fitted from the slices:" \
+  $(grep -m1 -E '"value"' "$out/run/fit/IOL1068-09/fit.json" | tr -d ' ,"') \
+  "95 %:" $(grep -m1 -A3 '"interval_95"' "$out/run/fit/IOL1068-09/fit.json" | tr -d ' ,"[]\n' | sed 's/interval_95://')
+echo "   which twin is closer to the photo, A (recipe, 0.65 wt-%) or B (fitted):" \
+  $(grep -m1 -E '"verdict"' "$out/run/compare/IOL1068-09/metrics.json" | tr -d ',"' | sed 's/ *verdict: //') \
+  "(p =" $(grep -m1 -E '"p_value"' "$out/run/compare/IOL1068-09/metrics.json" | tr -d ' ,"' | sed 's/p_value://')")"
 echo "   truth: environment scale 1.6; recovered: $(grep -m1 '"new_scale"' "$out/run/env-scale/IOL1068-09/env_scale.json" | tr -d ' ,')"
 echo "   truth colour response (fixtures/demo/truth_colour.json) vs the matrix recovered from the captured chart:" \
   $(grep -m1 -A5 '"truth_vs_recovered"' "$out/run/report/metrics.json" | tr -d ' ,"{}' | tr '\n' ' ')
