@@ -59,7 +59,16 @@
 //! (1 − F) L(q, ω_o) cos θ_o / (n² cos θ_i) / p_env(x, ω_o), the last
 //! factor dω_i/dω_o of the refraction. Phase sampling finds the same light
 //! when its path leaves straight through a face; the two are combined by the
-//! balance heuristic (over bands too). A connection is attempted with
+//! balance heuristic (over bands too). A third strategy, the **phase
+//! connection** ([`Settings::phase_connection`]), draws ω_i from the phase
+//! function instead, follows x + tω_i to the face it leaves through,
+//! refracts into ω_o and takes e^{−μ_t t} and (1 − F) as factors rather than
+//! sampling them: the phase function's forward peak (g ≈ 0.97: most of its
+//! mass within a few degrees), where an environment-sampled ω_o rarely
+//! lands and then carries a huge p(ω_in·ω_i), is sampled by this strategy,
+//! and the path's own escape, which must first fly unscattered to the
+//! face, gives up most of its weight to it. All three share one balance
+//! heuristic (densities in outside solid angle). A connection is attempted with
 //! probability exp(−μ_t d), d the distance to the nearest face plane, a
 //! bound on its transmittance (the probability is part of its density in
 //! the weights). Connections are skipped under a uniform environment, where
@@ -419,6 +428,12 @@ pub struct Settings {
     /// inside a convex object, through its flat faces (see the module
     /// documentation). `false`: light leaves the medium only by chance.
     pub medium_nee: bool,
+    /// With [`Settings::medium_nee`]: also connect along a direction drawn
+    /// from the phase function, the transmittance to the face and the
+    /// Fresnel transmission taken as factors instead of sampled (a third
+    /// strategy in the same balance heuristic; see the module
+    /// documentation). `false`: the two strategies of before.
+    pub phase_connection: bool,
     /// How a smooth boundary whose index differs between bands refracts a
     /// path that carries all bands (see [`Dispersion`]).
     pub dispersion: Dispersion,
@@ -482,6 +497,7 @@ impl Default for Settings {
             max_events_per_path: 10_000_000,
             spectral_mis: true,
             medium_nee: true,
+            phase_connection: true,
             dispersion: Dispersion::PerBand,
             split_entry: false,
             sampling: Sampling::Uniform,
@@ -1006,8 +1022,12 @@ struct MediumVertex {
     x: DVec3,
     /// mean r at x (1 after normalisation).
     mean_r: f64,
+    /// r at x, for the phase connection's density in each band.
+    r: [f64; 3],
     /// Probability that the connection was attempted at x.
     p_attempt: f64,
+    /// Probability that the phase connection was made at x (`p_attempt`, or 0 without it).
+    p_phase: f64,
 }
 
 /// One camera path: the radiance estimate it carries back, per band, and
@@ -1056,6 +1076,8 @@ fn trace_path(
     let mut vertex: Option<MediumVertex> = None;
     let mut stretch_pdf = 1.0f64;
     let mut stretch_mu = 1.0f64;
+    // dω_i/dω_o of the stretch's refraction out.
+    let mut stretch_jacobian = 0.0f64;
     let mut events = 0u64;
     // Whether the camera ray's first hit is the object (set at the first outside segment).
     let mut first_hit: Option<FirstHit> = None;
@@ -1112,10 +1134,15 @@ fn trace_path(
                 safe = convex.map_or(0.0, |planes| distance_to_planes(planes, o));
                 if let Some(planes) = planes {
                     let p_attempt = attempt_probability(safe, bc.sigma_t_min);
+                    let p_phase = if settings.phase_connection { p_attempt } else { 0.0 };
                     if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
-                        connect_through_faces(scene, obj, planes, h, &tp, o, d, p_attempt, shared, rng, &mut radiance);
+                        let c = Connection { h, x: o, d_in: d, p_attempt, p_phase, shared };
+                        connect_through_faces(scene, obj, planes, &tp, &c, rng, &mut radiance);
+                        if settings.phase_connection {
+                            connect_along_phase(scene, obj, &tp, &c, rng, &mut radiance);
+                        }
                     }
-                    vertex = Some(MediumVertex { x: o, mean_r: tp.mean_r(), p_attempt });
+                    vertex = Some(MediumVertex { x: o, mean_r: tp.mean_r(), r: tp.r, p_attempt, p_phase });
                 }
                 let d_in = d;
                 let (u1, u2) = rng.next_f64_pair();
@@ -1185,9 +1212,9 @@ fn trace_path(
                 if vertex.is_some() {
                     // Phase sampling, the flight, refraction; in outside
                     // solid angle: dω_i/dω_o = cos θ_o / (n² cos θ_i).
+                    stretch_jacobian = d.dot(n_out) / (eta * eta * cos_i);
                     stretch_pdf =
-                        obj.medium.phase[h].eval(stretch_mu) * (-sigma_t * hit.t).exp() * (1.0 - f) * d.dot(n_out)
-                            / (eta * eta * cos_i);
+                        obj.medium.phase[h].eval(stretch_mu) * (-sigma_t * hit.t).exp() * (1.0 - f) * stretch_jacobian;
                 }
             }
             last_diffuse_pdf = None;
@@ -1247,9 +1274,15 @@ fn trace_path(
                     let l = scene.environment.radiance(o, d);
                     let beta = tp.effective();
                     if let Some(v) = vertex {
-                        // Weighed against the medium connection from v.x (balance heuristic).
+                        // Weighed against the medium connections from v.x (balance heuristic).
                         let p_conn = v.p_attempt * scene.environment.pdf(v.x, d);
-                        let denom = p_conn * v.mean_r + stretch_pdf * tp.mean_r();
+                        let obj = scene.object.as_ref().expect("a medium vertex without an object");
+                        let p_phase = if v.p_phase > 0.0 {
+                            v.p_phase * stretch_jacobian * band_phase_mean(obj, &v.r, hero.unwrap_or(0), stretch_mu)
+                        } else {
+                            0.0
+                        };
+                        let denom = p_conn * v.mean_r + stretch_pdf * tp.mean_r() + p_phase;
                         if denom > 0.0 {
                             for c in 0..3 {
                                 radiance[c] += tp.beta[c] * stretch_pdf * l[c] / denom;
@@ -1400,20 +1433,16 @@ fn attempt_probability(d: f64, sigma_t_min: f64) -> f64 {
 /// D = p_att p_env(x, ω_o) mean r + mean_k r_k u_k, u_k = p_k e^{−μ_t,k t} (1 − F) cos θ_o / (n² cos θ_i)
 /// the density of the same path by phase sampling in band k (balance
 /// heuristic over bands and the two strategies). Shadowed by the board.
-#[allow(clippy::too_many_arguments)]
 fn connect_through_faces(
     scene: &Scene,
     obj: &Object,
     planes: &[(DVec3, f64)],
-    h: usize,
     tp: &Throughput,
-    x: DVec3,
-    d_in: DVec3,
-    p_attempt: f64,
-    shared: bool,
+    conn: &Connection,
     rng: &mut Rng,
     radiance: &mut [f64; 3],
 ) {
+    let &Connection { h, x, d_in, p_attempt, p_phase, shared } = conn;
     let Some(es) = scene.environment.sample(x, [rng.next_f64(), rng.next_f64()]) else {
         return;
     };
@@ -1453,7 +1482,9 @@ fn connect_through_faces(
                 0.0
             }
         });
-        let denom = p_attempt * es.pdf * mean_r + (tp.r[0] * u[0] + tp.r[1] * u[1] + tp.r[2] * u[2]) / 3.0;
+        let jacobian = cos_o / (eta * eta * cos_i);
+        let phase_term = if p_phase > 0.0 { p_phase * jacobian * band_phase_mean(obj, &tp.r, h, mu) } else { 0.0 };
+        let denom = p_attempt * es.pdf * mean_r + (tp.r[0] * u[0] + tp.r[1] * u[1] + tp.r[2] * u[2]) / 3.0 + phase_term;
         if denom.is_nan() || denom <= 0.0 {
             continue;
         }
@@ -1461,6 +1492,102 @@ fn connect_through_faces(
         for c in 0..3 {
             radiance[c] += tp.beta[c] * u[c] * l[c] / denom;
         }
+    }
+}
+
+/// Where and how a medium connection is made: the driving band `h`, the
+/// scattering point `x`, the direction the path arrived along `d_in`, the
+/// probabilities with which the environment connection (`p_attempt`) and
+/// the phase connection (`p_phase`) are made there, and whether refraction
+/// uses the bands' mean index (`shared`).
+#[derive(Debug, Clone, Copy)]
+struct Connection {
+    h: usize,
+    x: DVec3,
+    d_in: DVec3,
+    p_attempt: f64,
+    p_phase: f64,
+    shared: bool,
+}
+
+/// (1/3) Σ_k r_k p_k(μ): the phase functions' values at μ weighted by the
+/// bands' density ratios (the phase connection's density up to its
+/// Jacobian and probability).
+#[inline]
+fn band_phase_mean(obj: &Object, r: &[f64; 3], h: usize, mu: f64) -> f64 {
+    if obj.bands.same_phase {
+        return obj.medium.phase[h].eval(mu) * (r[0] + r[1] + r[2]) / 3.0;
+    }
+    (0..3).map(|k| if r[k] > 0.0 { r[k] * obj.medium.phase[k].eval(mu) } else { 0.0 }).sum::<f64>() / 3.0
+}
+
+/// The phase connection from scattering point x: a direction ω_i drawn from
+/// the driving band's phase function about `d_in`; the ray x + tω_i leaves
+/// through a face with outward normal n (the first it meets), refracts into
+/// ω_o (no contribution under total internal reflection or when the board
+/// blocks ω_o), and the path gets, per band c,
+///
+///   β_c p_c(ω_in·ω_i) e^{−μ_t,c t} (1 − F_c) J L_c(q, ω_o) / D,
+///
+/// J = cos θ_o / (n² cos θ_i) = dω_i/dω_o, with the same denominator D as
+/// the environment connection ([`connect_through_faces`]) plus this
+/// strategy's own density p_phase · J · (1/3) Σ_k r_k p_k (balance heuristic
+/// over the three strategies and the bands). Unlike the path's own escape,
+/// which reaches the face with probability e^{−μ_t t} and passes it with
+/// probability 1 − F, both factors are taken as weights, and unlike the
+/// environment connection, the phase function's forward peak is sampled,
+/// not met by chance.
+fn connect_along_phase(
+    scene: &Scene,
+    obj: &Object,
+    tp: &Throughput,
+    conn: &Connection,
+    rng: &mut Rng,
+    radiance: &mut [f64; 3],
+) {
+    let &Connection { h, x, d_in, p_attempt, p_phase, shared } = conn;
+    let (u1, u2) = rng.next_f64_pair();
+    let wi = DVec3::from_array(obj.medium.phase[h].sample_direction(d_in.to_array(), u1, u2));
+    let Some(hit) = obj.accel.exit(x, wi) else { return };
+    let n = if hit.normal.dot(wi) >= 0.0 { hit.normal } else { -hit.normal };
+    let eta = if shared { obj.eta_mean } else { obj.boundary.eta(h) };
+    let cos_i = wi.dot(n);
+    let f = fresnel::reflectance(cos_i, 1.0 / eta);
+    if f >= 1.0 || cos_i <= 0.0 {
+        return;
+    }
+    let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
+    let wo = refract(wi, n, 1.0 / eta);
+    let cos_o = wo.dot(n);
+    let q = x + hit.t * wi + scene.epsilon_m * n;
+    if cos_o <= 0.0 || scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
+        return;
+    }
+    let jacobian = cos_o / (eta * eta * cos_i);
+    let mu = d_in.dot(wi);
+    let bc = &obj.bands;
+    let ph_h = obj.medium.phase[h].eval(mu);
+    let ph: [f64; 3] = std::array::from_fn(|k| {
+        if !(tp.r[k] > 0.0 || tp.beta[k] > 0.0) {
+            0.0
+        } else if bc.same_phase || k == h {
+            ph_h
+        } else {
+            obj.medium.phase[k].eval(mu)
+        }
+    });
+    // The path's own escape along ω_i in band k, per unit outside solid angle.
+    let u: [f64; 3] = std::array::from_fn(|k| ph[k] * (-bc.sigma_t[k] * hit.t).exp() * (1.0 - fr[k]) * jacobian);
+    let p_env = p_attempt * scene.environment.pdf(x, wo);
+    let denom = p_env * tp.mean_r()
+        + (tp.r[0] * u[0] + tp.r[1] * u[1] + tp.r[2] * u[2]) / 3.0
+        + p_phase * jacobian * (tp.r[0] * ph[0] + tp.r[1] * ph[1] + tp.r[2] * ph[2]) / 3.0;
+    if denom.is_nan() || denom <= 0.0 {
+        return;
+    }
+    let l = scene.environment.radiance(q, wo);
+    for c in 0..3 {
+        radiance[c] += tp.beta[c] * u[c] * l[c] / denom;
     }
 }
 

@@ -548,19 +548,19 @@ pub struct EstimatorRow {
     pub projected_s_to_5_percent: f64,
 }
 
-/// `lucent bench render --time-s T`: the previous estimator (the defaults:
-/// one band per path where the bands' indices differ, uniform sampling) and
-/// each selectable device on top of it, on one scene, each for `time_s` of
+/// `lucent bench render --time-s T`: the previous estimator (no phase
+/// connection), today's default and each selectable device on top of it, on one scene, each for `time_s` of
 /// wall time on all cores, per region.
 pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     let loaded = scene::load(scene_path)?;
     let mut rows = Vec::new();
     type Configure = fn(&mut Settings);
-    let configurations: [(&'static str, Configure); 4] = [
-        ("previous", |_| {}),
-        ("+ splitting at entry", |s| s.split_entry = true),
-        ("+ shared dispersion directions", |s| s.dispersion = tracer::Dispersion::SharedDirections),
-        ("+ object-weighted sampling", |s| s.sampling = tracer::Sampling::ObjectWeighted),
+    let configurations: [(&'static str, Configure); 5] = [
+        ("previous", |s| s.phase_connection = false),
+        ("default (+ phase connection)", |_| {}),
+        ("default + splitting at entry", |s| s.split_entry = true),
+        ("default + shared dispersion", |s| s.dispersion = tracer::Dispersion::SharedDirections),
+        ("default + object-weighted", |s| s.sampling = tracer::Sampling::ObjectWeighted),
     ];
     for (name, configure) in configurations {
         let mut settings = Settings { spp: u32::MAX / 2, time_budget_s: Some(time_s), ..loaded.settings.clone() };

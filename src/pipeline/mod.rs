@@ -899,7 +899,11 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                         a[1] = format!("{{out}}/{rel}");
                         let n = a.len();
                         a[n - 1] = format!("{{out}}/{}/fitted", smp.name);
-                        Some(Task::Lucent { label: format!("{} fitted twin", smp.name), files: vec![(rel, text)], args: a })
+                        Some(Task::Lucent {
+                            label: format!("{} fitted twin", smp.name),
+                            files: vec![(rel, text)],
+                            args: a,
+                        })
                     }
                     None => None,
                 };

@@ -475,7 +475,10 @@ impl Project {
                 if let Some(Some(p)) = px.first()
                     && !(*p > 0.0 && p.is_finite())
                 {
-                    return Err(key(&format!("[[sample]] {} measured pixel_mm", smp.name), format!("must be finite and > 0, got {p}")));
+                    return Err(key(
+                        &format!("[[sample]] {} measured pixel_mm", smp.name),
+                        format!("must be finite and > 0, got {p}"),
+                    ));
                 }
             }
         }

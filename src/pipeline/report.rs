@@ -365,7 +365,13 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     _ => None,
                 });
                 let covered = match (known, ci) {
-                    (Some(k), Some([lo, hi])) => if lo <= k && k <= hi { "yes" } else { "no" },
+                    (Some(k), Some([lo, hi])) => {
+                        if lo <= k && k <= hi {
+                            "yes"
+                        } else {
+                            "no"
+                        }
+                    }
                     _ => "—",
                 };
                 rows.push(vec![
@@ -378,12 +384,22 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 ]);
                 pj.push(json!({"name": name, "start": p["start"], "value": value, "interval_95": ci, "truth": known}));
             }
-            h.push_str(&table(&["parameter", "start (recipe)", "fitted", "95 % interval", "truth", "truth in interval"], &rows));
+            h.push_str(&table(
+                &["parameter", "start (recipe)", "fitted", "95 % interval", "truth", "truth in interval"],
+                &rows,
+            ));
             if fj["identifiable"] == json!(false) {
-                let _ = write!(h, "<p>The data do not pin the parameters down: {}.</p>", esc(fj["reason"].as_str().unwrap_or("")));
+                let _ = write!(
+                    h,
+                    "<p>The data do not pin the parameters down: {}.</p>",
+                    esc(fj["reason"].as_str().unwrap_or(""))
+                );
             }
             h.push_str(&page.img(&fdir.join("objective.png"), &format!("{} fit objective", smp.name))?);
-            sj.insert("fit".into(), json!({"parameters": pj, "identifiable": fj["identifiable"], "evaluations": fj["evaluations"]}));
+            sj.insert(
+                "fit".into(),
+                json!({"parameters": pj, "identifiable": fj["identifiable"], "evaluations": fj["evaluations"]}),
+            );
         }
         // Environment scale
         let env_path = out.join("env-scale").join(&smp.name).join("env_scale.json");
@@ -481,7 +497,14 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                         label.to_string(),
                         n.map_or_else(
                             || "—".into(),
-                            |n| format!("{} ({} – {})", num(n.total.model_rmse, e4), num(n.total.ci95[0], e4), num(n.total.ci95[1], e4)),
+                            |n| {
+                                format!(
+                                    "{} ({} – {})",
+                                    num(n.total.model_rmse, e4),
+                                    num(n.total.ci95[0], e4),
+                                    num(n.total.ci95[1], e4)
+                                )
+                            },
                         ),
                         num(ssim, f4),
                         z,

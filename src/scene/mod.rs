@@ -44,6 +44,7 @@
 //! seed = 1
 //! # time_s = 120, spp_per_pass = 4
 //! # spectral_mis = true, medium_connections = true   (false, false: SPEC §4's plain estimator)
+//! # phase_connections = true     (with medium_connections: also connect along the phase function's directions)
 //! # sampling = "object-weighted"  # or "uniform": every pixel gets spp (the previous estimator)
 //! # target_rel_error = 0.05       # stop when the object's median relative standard error reaches 5 %
 //! ```
@@ -358,6 +359,7 @@ pub struct RenderSection {
     pub spp_per_pass: Option<u32>,
     pub spectral_mis: Option<bool>,
     pub medium_connections: Option<bool>,
+    pub phase_connections: Option<bool>,
     /// "object-weighted" (default: the object's pixels get the samples their
     /// error needs) or "uniform" (every pixel `spp`).
     pub sampling: Option<SamplingKey>,
@@ -683,6 +685,9 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     }
     if let Some(b) = r.medium_connections {
         settings.medium_nee = b;
+    }
+    if let Some(b) = r.phase_connections {
+        settings.phase_connection = b;
     }
     if let Some(k) = r.sampling {
         settings.sampling = k.into();
