@@ -12,6 +12,7 @@ pub mod interrupt;
 pub mod raw_clip;
 pub mod render;
 pub mod run;
+pub mod shard;
 pub mod surface;
 pub mod synth;
 
@@ -71,6 +72,8 @@ pub enum Command {
     Fit(fit::FitArgs),
     /// The whole digitisation from one project file: stages in order, unchanged ones skipped, report/index.html.
     Run(run::RunArgs),
+    /// Merge the shards of a render or bssrdf run (each made with --shard K/N) into the run's outputs.
+    Merge(shard::MergeArgs),
     /// Synthetic inputs with a known truth: a ColorChecker chart, RAW (DNG) captures through a known camera.
     #[command(subcommand)]
     Synth(synth::SynthCommand),
@@ -215,6 +218,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Run(a) => run::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Synth(c) => synth::run(c),
+        Command::Merge(a) => shard::merge(a),
     }
 }
 
