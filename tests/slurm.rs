@@ -309,14 +309,88 @@ fn slurm_executor_matches_the_local_one_and_resubmits_a_killed_shard() {
         assert_eq!(ml["key"], mr["key"], "{stage}");
         assert_eq!(ml["outputs"], mr["outputs"], "{stage}");
         // The same commands, each with its own output folder.
-        let commands = |m: &serde_json::Value, out: &Path| m["commands"].to_string().replace(out.to_str().unwrap(), "OUT");
+        let commands =
+            |m: &serde_json::Value, out: &Path| m["commands"].to_string().replace(out.to_str().unwrap(), "OUT");
         assert_eq!(commands(&ml, &local), commands(&mr, &remote), "{stage}");
     }
     assert!(!remote.join(".lucent-shards").read_dir().map(|mut d| d.next().is_some()).unwrap_or(false));
     // A local rerun finds them up to date.
     let again = finish(&cluster, lucent(&cluster, &["run", p, "--out", r, "--executor", "local"]), "rerun");
     for stage in ["bssrdf", "render"] {
-        let line = again.lines().find(|l| l.contains(&format!(" {stage} "))).unwrap_or("");
-        assert!(line.contains("up to date"), "{stage}: {again}");
+        assert!(status_of(&again, stage).contains("up to date"), "{stage}: {again}");
     }
+    // --emit: the slices' job array and merge job written, submitted by hand,
+    // then `lucent run` merges their shards instead of tracing again.
+    let (emitted, jobs) = (dir.path().join("emitted"), dir.path().join("jobs"));
+    let (e, j) = (emitted.to_str().unwrap(), jobs.to_str().unwrap());
+    let out = finish(&cluster, lucent(&cluster, &["run", p, "--out", e, "--emit", "slurm", j]), "emit");
+    assert!(status_of(&out, "bssrdf").contains("written as batch jobs"), "{out}");
+    assert!(!emitted.join("bssrdf/manifest.json").exists());
+    let st = cluster.command("bash").arg(jobs.join("submit.sh")).current_dir(root()).status().expect("bash");
+    assert!(st.success());
+    let t = Instant::now();
+    loop {
+        let o = cluster.command("squeue").args(["-h", "-o", "%i"]).output().expect("squeue");
+        if String::from_utf8_lossy(&o.stdout).trim().is_empty() {
+            break;
+        }
+        assert!(t.elapsed() < Duration::from_secs(60), "emitted jobs still queued:\n{}", cluster.logs());
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let out = finish(&cluster, lucent(&cluster, &["run", p, "--out", e, "--until", "bssrdf"]), "run after the jobs");
+    assert!(status_of(&out, "bssrdf").contains("ran"), "{out}");
+    let se = json(&emitted.join("bssrdf/s1/summary.json"));
+    assert_eq!(se["events"], sl["events"]);
+    let b = se["sum"].as_f64().unwrap();
+    assert!((a - b).abs() <= 1e-11 * a.abs(), "{a} vs {b}");
+    assert_eq!(json(&emitted.join("bssrdf/manifest.json"))["key"], json(&local.join("bssrdf/manifest.json"))["key"]);
+}
+
+/// The status line of `stage` in `lucent run`'s output.
+fn status_of(out: &str, stage: &str) -> String {
+    out.lines().find(|l| l.contains(&format!("] {stage} "))).unwrap_or("").to_string()
+}
+
+#[test]
+fn emitted_jobs_are_slurm_arrays_and_kubernetes_indexed_jobs() {
+    let dir = tempfile::tempdir().expect("temp");
+    let proj = project(dir.path(), &dir.path().join("marker"));
+    let p = proj.to_str().unwrap();
+    for kind in ["slurm", "k8s"] {
+        let (out, jobs) = (dir.path().join(format!("out-{kind}")), dir.path().join(format!("jobs-{kind}")));
+        let o = lucent_cli(&["run", p, "--out", out.to_str().unwrap(), "--emit", kind, jobs.to_str().unwrap()]);
+        let text = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(o.status.success(), "{text}{}", String::from_utf8_lossy(&o.stderr));
+        assert!(status_of(&text, "bssrdf").contains("written as batch jobs"), "{text}");
+        assert!(status_of(&text, "optics").contains("ran"), "{text}");
+        assert!(!out.join("bssrdf").exists(), "the stage waits for its jobs");
+        if kind == "slurm" {
+            let array = std::fs::read_to_string(jobs.join("lucent-01-bssrdf.array.sbatch")).expect("array script");
+            assert!(array.contains("#SBATCH --array=0-3\n") && array.contains("#SBATCH --time=10:00\n"), "{array}");
+            assert!(array.contains("--shard \"$SLURM_ARRAY_TASK_ID/4\""), "{array}");
+            let merge = std::fs::read_to_string(jobs.join("lucent-01-bssrdf.merge.sbatch")).expect("merge script");
+            assert!(
+                merge.contains(" merge ") && merge.contains(&format!("--out {}", out.join("bssrdf/s1").display())),
+                "{merge}"
+            );
+            let submit = std::fs::read_to_string(jobs.join("submit.sh")).expect("submit.sh");
+            assert!(submit.contains("--dependency=afterok:"), "{submit}");
+        } else {
+            let job = std::fs::read_to_string(jobs.join("lucent-01-bssrdf.yaml")).expect("manifest");
+            for s in
+                ["kind: Job", "completionMode: Indexed", "completions: 4", "$(JOB_COMPLETION_INDEX)/4", "\"--paths\""]
+            {
+                assert!(job.contains(s), "{s}: {job}");
+            }
+        }
+    }
+    // --emit needs shards.
+    let text = std::fs::read_to_string(&proj).expect("project").replace("shards = 4", "shards = 1");
+    std::fs::write(&proj, text).expect("project");
+    let o = lucent_cli(&["run", p, "--out", dir.path().join("x").to_str().unwrap(), "--emit", "slurm", "jobs"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("shards"));
+}
+
+fn lucent_cli(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_lucent")).args(args).current_dir(root()).output().expect("run lucent")
 }

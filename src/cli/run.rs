@@ -171,7 +171,6 @@ pub fn run(a: RunArgs) -> Result<()> {
         println!("[{k}/{n}] {:<10} {what}{notes}", stage.name());
     };
     let result = pipeline::run(&project, &out, &Options { force, until }, &mut exec, &mut status_line);
-    drop(exec);
     if let Some(e) = &emit
         && emitted > 0
     {

@@ -138,3 +138,116 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         _ => bail!("{}: `lucent {}` is not a command with shards", shards[0].dir.display(), id.command),
     }
 }
+
+/// The large run `lucent bench shard` projects.
+#[derive(Debug, Clone, Copy)]
+pub struct Projection {
+    pub megapixels: f64,
+    pub nodes: u32,
+    pub spp: u32,
+}
+
+/// Runs `lucent ARGS` (this binary) quietly; its wall time in seconds.
+fn timed(exe: &Path, args: &[String]) -> Result<f64> {
+    let start = std::time::Instant::now();
+    let o = std::process::Command::new(exe)
+        .args(args)
+        .output()
+        .with_context(|| format!("cannot start {}", exe.display()))?;
+    if !o.status.success() {
+        bail!("`lucent {}` failed: {}", args.join(" "), String::from_utf8_lossy(&o.stderr).trim());
+    }
+    Ok(start.elapsed().as_secs_f64())
+}
+
+/// `lucent bench shard`: the scene rendered as one process and as
+/// `shards` shard processes run one after the other (each on all cores)
+/// plus their merge, each as a child process of this binary (start-up,
+/// scene loading and output included); the overhead of sharding, and a
+/// projection from the measured rates for a render of `p.megapixels` at
+/// `p.spp` on `p.nodes` nodes like this machine (one shard per node).
+pub fn bench(scene: &Path, size: &str, spp: u32, shards: u32, p: Projection) -> Result<()> {
+    let exe = std::env::current_exe().context("cannot find the lucent binary")?;
+    let (w, h) = super::render::parse_size(size)?;
+    if shards < 2 || shards > spp {
+        bail!("--shards {shards}: must lie in 2 … --spp ({spp})");
+    }
+    let tmp = std::env::temp_dir().join(format!("lucent-bench-shard-{}", std::process::id()));
+    let base = |out: &Path, spp: u32, size: &str| -> Vec<String> {
+        let mut v: Vec<String> = vec!["render".into(), scene.display().to_string(), "--quiet".into()];
+        v.extend(["--size".into(), size.into(), "--spp".into(), spp.to_string(), "--seed".into(), "1".into()]);
+        v.extend(["--out".into(), out.display().to_string()]);
+        v
+    };
+    let result = (|| -> Result<serde_json::Value> {
+        // Fixed cost per process: start-up, scene and environment loading, writing.
+        let fixed_s = timed(&exe, &base(&tmp.join("fixed"), 1, "8x6"))?;
+        let one_s = timed(&exe, &base(&tmp.join("one"), spp, size))?;
+        let mut shard_s = Vec::new();
+        let mut dirs = Vec::new();
+        for k in 0..shards {
+            let d = tmp.join(format!("shard-{k}"));
+            let mut a = base(&d, spp, size);
+            a.extend(["--shard".into(), format!("{k}/{shards}")]);
+            shard_s.push(timed(&exe, &a)?);
+            dirs.push(d.display().to_string());
+        }
+        let mut m = vec!["merge".to_string()];
+        m.extend(dirs);
+        m.extend(["--out".into(), tmp.join("merged").display().to_string()]);
+        let merge_s = timed(&exe, &m)?;
+        let sharded_s: f64 = shard_s.iter().sum::<f64>() + merge_s;
+        let overhead = sharded_s / one_s - 1.0;
+        // Rates: pixel-samples per second of the work itself; merge seconds per pixel and shard.
+        let pixels = (w * h) as f64;
+        let rate = pixels * f64::from(spp) / (one_s - fixed_s).max(1e-9);
+        let merge_per_px_shard = (merge_s - fixed_s).max(0.0) / (pixels * f64::from(shards));
+        let big_px = p.megapixels * 1e6;
+        let per_node_s = fixed_s + big_px * f64::from(p.spp) / f64::from(p.nodes) / rate;
+        let merge_big_s = fixed_s + merge_per_px_shard * big_px * f64::from(p.nodes);
+        let one_node_s = fixed_s + big_px * f64::from(p.spp) / rate;
+        eprintln!(
+            "{w}×{h}, {spp} spp: one process {one_s:.2} s; {shards} shards one after the other {:.2} s + merge {merge_s:.2} s = {sharded_s:.2} s: overhead {:+.1} % ({fixed_s:.2} s per process for start-up and loading)",
+            shard_s.iter().sum::<f64>(),
+            100.0 * overhead
+        );
+        eprintln!(
+            "projection: {:.0} MP at {} spp on {} nodes like this one: {:.0} s per shard + {:.0} s merge = {:.0} s (one node: {:.0} s, {:.1}× faster)",
+            p.megapixels,
+            p.spp,
+            p.nodes,
+            per_node_s,
+            merge_big_s,
+            per_node_s + merge_big_s,
+            one_node_s,
+            one_node_s / (per_node_s + merge_big_s)
+        );
+        Ok(serde_json::json!({
+            "scene": scene.display().to_string(),
+            "size": [w, h],
+            "spp": spp,
+            "threads": rayon::current_num_threads(),
+            "one_process_s": one_s,
+            "shards": shards,
+            "shard_s": shard_s,
+            "merge_s": merge_s,
+            "sharded_total_s": sharded_s,
+            "overhead": overhead,
+            "fixed_per_process_s": fixed_s,
+            "pixel_samples_per_s": rate,
+            "projection": {
+                "megapixels": p.megapixels,
+                "spp": p.spp,
+                "nodes": p.nodes,
+                "per_shard_s": per_node_s,
+                "merge_s": merge_big_s,
+                "total_s": per_node_s + merge_big_s,
+                "one_node_s": one_node_s,
+                "assumes": "one shard per node, each node as fast as this machine, the merge's time per pixel and shard as measured here, file transfer not counted",
+            },
+        }))
+    })();
+    let _ = std::fs::remove_dir_all(&tmp);
+    println!("{}", serde_json::to_string_pretty(&result?)?);
+    Ok(())
+}

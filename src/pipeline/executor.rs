@@ -114,7 +114,7 @@ fn valid_time_limit(t: &str) -> bool {
         return false;
     }
     let parts: Vec<&str> = rest.split(':').collect();
-    parts.iter().all(|p| digits(p)) && if days.is_some() { parts.len() <= 3 } else { parts.len() <= 3 }
+    parts.len() <= 3 && parts.iter().all(|p| digits(p))
 }
 
 /// A value that goes into a script as one word: no whitespace, quotes or shell characters.
