@@ -486,9 +486,22 @@ fn sbatch(script: &Path, extra: &[&str]) -> Result<String, SlurmError> {
 /// Waits until job `id` (all its array tasks) has left the queue; calls
 /// `progress` with squeue's count of pending and running tasks.
 fn wait(id: &str, poll: Duration, progress: &mut dyn FnMut(usize, usize)) -> Result<(), SlurmError> {
+    let mut failures = 0;
     loop {
-        // An unknown (long finished) job makes squeue fail: then it is done too.
-        let Ok(out) = run_tool("squeue", &["-h", "-j", id, "-o", "%T"]) else { return Ok(()) };
+        // An unknown (long finished) job makes squeue fail: then it is done
+        // too; a busy controller can make it fail once, so three in a row.
+        let out = match run_tool("squeue", &["-h", "-j", id, "-o", "%T"]) {
+            Ok(out) => {
+                failures = 0;
+                out
+            }
+            Err(_) if failures >= 2 => return Ok(()),
+            Err(_) => {
+                failures += 1;
+                std::thread::sleep(poll);
+                continue;
+            }
+        };
         let states: Vec<&str> = out.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
         if states.is_empty() {
             return Ok(());
