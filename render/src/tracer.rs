@@ -837,7 +837,7 @@ impl Accumulator {
     /// own sample count, so the image stays valid).
     fn add_pass(&mut self, scene: &Scene, settings: &Settings, quota: &[u32], cancel: Option<&AtomicBool>) -> Stats {
         let w = self.width;
-        let first = self.first_sample;
+        let first_sample = self.first_sample;
         self.sum
             .par_chunks_mut(w)
             .zip(self.sum_sq.par_chunks_mut(w))
@@ -856,7 +856,7 @@ impl Accumulator {
                             row_n[i] = k;
                             break 'pixels;
                         }
-                        let mut rng = Rng::new(settings.seed, (u64::from(first + k) << 32) | pixel);
+                        let mut rng = Rng::new(settings.seed, (u64::from(first_sample + k) << 32) | pixel);
                         let u = [rng.next_f64(), rng.next_f64()];
                         let (o, d) = scene.camera.ray(i, j, u);
                         let (l, first) = trace(scene, settings, o, d, &mut rng, &mut st);
