@@ -17,5 +17,6 @@ pub mod optics;
 pub mod pipeline;
 pub mod plot;
 pub mod scene;
+pub mod shard;
 pub mod surface;
 pub mod synth;

@@ -44,6 +44,10 @@ mod pipeline;
 mod plots;
 #[path = "render.rs"]
 mod render;
+#[path = "shard.rs"]
+mod shard;
+#[path = "slurm.rs"]
+mod slurm;
 #[path = "surface.rs"]
 mod surface;
 #[path = "synth.rs"]

@@ -2271,13 +2271,8 @@ pub fn simulate_cancellable(
     }
     let batch_paths = options.batch_paths.max(1);
     let kernel = Kernel::new(setup, options.estimator)?;
-    let npix = setup.sensor.pixels * setup.sensor.pixels;
-    let side = setup.sensor.pixels;
     let fold = options.fold && setup.mirror_symmetric();
-    let mut sum_b = vec![0.0; npix];
-    let mut sq_b = vec![0.0; npix];
-    let mut raw = vec![0.0; npix];
-    let (mut path_sum, mut path_sq, mut events, mut refl, mut trans) = (0.0, 0.0, 0u64, 0.0, 0.0);
+    let mut sums = SliceSums::empty(&kernel, setup, fold);
     let mut batches = 0u64;
     let mut pool: Vec<Vec<f64>> = Vec::new();
     let start = Instant::now();
@@ -2300,28 +2295,112 @@ pub fn simulate_cancellable(
         if round == 0 {
             break;
         }
-        // Batch images are reused from round to round (no allocation and no
-        // page faults), and merged in parallel over pixel chunks, each pixel
-        // taking the batches in order (so the sums do not depend on the
-        // thread count).
-        let buffers: Vec<Vec<f64>> = (0..round).map(|_| pool.pop().unwrap_or_default()).collect();
-        let results: Vec<(u64, Batch)> = buffers
-            .into_par_iter()
-            .enumerate()
-            .map(|(k, image)| {
-                let first = (batches + k as u64) * batch_paths;
+        let firsts: Vec<(u64, u64)> = (0..round)
+            .map(|k| {
+                let first = (batches + k) * batch_paths;
                 let count = match stop.paths {
                     Some(max) => batch_paths.min(max - first),
                     None => batch_paths,
                 };
-                (count, kernel.batch(options.seed, first, count, image))
+                (first, count)
             })
             .collect();
+        sums.add_round(&kernel, options.seed, &firsts, &mut pool);
+        let (path_sum, path_sq, events) = (sums.path_sum, sums.path_sq, sums.events);
+        batches += round;
+        let paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
+        let elapsed = start.elapsed().as_secs_f64();
+        let e = rel_err(paths, path_sum, path_sq);
+        let (v, se) = pixel_estimates(&sums.raw, &sums.sum_b, &sums.sq_b, paths, batches);
+        let pixels = PixelErrors::of(&v, &se);
+        progress(&Progress { paths, events, elapsed_s: elapsed, rel_error: e, pixels });
+        let enough = batches >= 2 * ROUND_BATCHES;
+        if stop.paths.is_some_and(|m| paths >= m)
+            || stop.time_s.is_some_and(|t| elapsed >= t)
+            || stop.rel_error.is_some_and(|t| e <= t && enough)
+            || stop.pixel_rel_error.is_some_and(|t| pixels.median <= t && enough)
+            || cancel.load(Ordering::Relaxed)
+        {
+            break;
+        }
+    }
+    sums.batches = batches;
+    sums.paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
+    sums.wall_s = start.elapsed().as_secs_f64();
+    Ok(sums.slice())
+}
+
+/// The tallies of a run, or of one shard of it ([`simulate_batches`]):
+/// per pixel the sums over batches of the batch means and of their squares
+/// and the raw sum of the splats, and the sums over paths of the per-path
+/// totals. Shards of one run add up ([`SliceSums::add`]) to the run's
+/// tallies, to rounding (the sums are taken in another order).
+#[derive(Debug, Clone)]
+pub struct SliceSums {
+    pub pixels: usize,
+    pub pixel_m: f64,
+    pub sum_b: Vec<f64>,
+    pub sq_b: Vec<f64>,
+    pub raw: Vec<f64>,
+    pub path_sum: f64,
+    pub path_sq: f64,
+    pub events: u64,
+    pub reflected: f64,
+    pub transmitted: f64,
+    /// Batches and paths traced.
+    pub batches: u64,
+    pub paths: u64,
+    pub wall_s: f64,
+    pub specular_reflectance: f64,
+    pub kernel: &'static str,
+    pub estimator: Estimator,
+    pub folded: bool,
+    pub reciprocal: bool,
+}
+
+impl SliceSums {
+    fn empty(kernel: &Kernel, setup: &Setup, fold: bool) -> Self {
+        let npix = setup.sensor.pixels * setup.sensor.pixels;
+        Self {
+            pixels: setup.sensor.pixels,
+            pixel_m: setup.sensor.pixel_m,
+            sum_b: vec![0.0; npix],
+            sq_b: vec![0.0; npix],
+            raw: vec![0.0; npix],
+            path_sum: 0.0,
+            path_sq: 0.0,
+            events: 0,
+            reflected: 0.0,
+            transmitted: 0.0,
+            batches: 0,
+            paths: 0,
+            wall_s: 0.0,
+            specular_reflectance: kernel.specular,
+            kernel: kernel.name(),
+            estimator: kernel.estimator,
+            folded: fold,
+            reciprocal: kernel.ring.as_ref().is_some_and(|r| r.sign < 0.0),
+        }
+    }
+
+    /// Traces the batches `(first path, paths)` in parallel and adds them
+    /// in their order. Batch images are reused from round to round (no
+    /// allocation and no page faults), and merged in parallel over pixel
+    /// chunks, each pixel taking the batches in order (so the sums do not
+    /// depend on the thread count).
+    fn add_round(&mut self, kernel: &Kernel, seed: u64, batches: &[(u64, u64)], pool: &mut Vec<Vec<f64>>) {
+        let buffers: Vec<Vec<f64>> = batches.iter().map(|_| pool.pop().unwrap_or_default()).collect();
+        let results: Vec<(u64, Batch)> = buffers
+            .into_par_iter()
+            .zip(batches.par_iter())
+            .map(|(image, &(first, count))| (count, kernel.batch(seed, first, count, image)))
+            .collect();
+        let (fold, side) = (self.folded, self.pixels);
         const CHUNK: usize = 4096;
-        sum_b
+        self.sum_b
             .par_chunks_mut(CHUNK)
-            .zip(sq_b.par_chunks_mut(CHUNK))
-            .zip(raw.par_chunks_mut(CHUNK))
+            .zip(self.sq_b.par_chunks_mut(CHUNK))
+            .zip(self.raw.par_chunks_mut(CHUNK))
             .enumerate()
             .for_each(|(c, ((sum_b, sq_b), raw))| {
                 let at = c * CHUNK;
@@ -2350,53 +2429,92 @@ pub fn simulate_cancellable(
                 }
             });
         for (_, b) in results {
-            path_sum += b.path_sum;
-            path_sq += b.path_sq;
-            events += b.events;
-            refl += b.reflected;
-            trans += b.transmitted;
+            self.path_sum += b.path_sum;
+            self.path_sq += b.path_sq;
+            self.events += b.events;
+            self.reflected += b.reflected;
+            self.transmitted += b.transmitted;
             pool.push(b.image);
         }
-        batches += round;
-        let paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
-        let elapsed = start.elapsed().as_secs_f64();
-        let e = rel_err(paths, path_sum, path_sq);
-        let (v, se) = pixel_estimates(&raw, &sum_b, &sq_b, paths, batches);
-        let pixels = PixelErrors::of(&v, &se);
-        progress(&Progress { paths, events, elapsed_s: elapsed, rel_error: e, pixels });
-        let enough = batches >= 2 * ROUND_BATCHES;
-        if stop.paths.is_some_and(|m| paths >= m)
-            || stop.time_s.is_some_and(|t| elapsed >= t)
-            || stop.rel_error.is_some_and(|t| e <= t && enough)
-            || stop.pixel_rel_error.is_some_and(|t| pixels.median <= t && enough)
-            || cancel.load(Ordering::Relaxed)
-        {
-            break;
+    }
+
+    /// Adds another shard's tallies (same setup, same pixels) after these.
+    pub fn add(&mut self, o: &SliceSums) {
+        for (a, b) in [(&mut self.sum_b, &o.sum_b), (&mut self.sq_b, &o.sq_b), (&mut self.raw, &o.raw)] {
+            for (x, y) in a.iter_mut().zip(b.iter()) {
+                *x += y;
+            }
+        }
+        self.path_sum += o.path_sum;
+        self.path_sq += o.path_sq;
+        self.events += o.events;
+        self.reflected += o.reflected;
+        self.transmitted += o.transmitted;
+        self.batches += o.batches;
+        self.paths += o.paths;
+        self.wall_s += o.wall_s;
+    }
+
+    /// The slice these tallies give.
+    pub fn slice(&self) -> Slice {
+        let paths = self.paths.max(1);
+        let (values, std_error) = pixel_estimates(&self.raw, &self.sum_b, &self.sq_b, paths, self.batches);
+        let n = paths as f64;
+        let mean = self.path_sum / n;
+        let sum_std_error = ((self.path_sq / n - mean * mean).max(0.0) / (n - 1.0).max(1.0)).sqrt();
+        Slice {
+            pixels: self.pixels,
+            pixel_m: self.pixel_m,
+            values,
+            std_error,
+            sum: mean,
+            sum_std_error,
+            paths,
+            events: self.events,
+            wall_s: self.wall_s,
+            specular_reflectance: self.specular_reflectance,
+            diffuse_reflectance: self.reflected / n,
+            transmittance: self.transmitted / n,
+            kernel: self.kernel,
+            estimator: self.estimator,
+            folded: self.folded,
+            reciprocal: self.reciprocal,
         }
     }
-    let paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths)).max(1);
-    let (values, std_error) = pixel_estimates(&raw, &sum_b, &sq_b, paths, batches);
-    let n = paths as f64;
-    let mean = path_sum / n;
-    let sum_std_error = ((path_sq / n - mean * mean).max(0.0) / (n - 1.0).max(1.0)).sqrt();
-    Ok(Slice {
-        pixels: setup.sensor.pixels,
-        pixel_m: setup.sensor.pixel_m,
-        values,
-        std_error,
-        sum: mean,
-        sum_std_error,
-        paths,
-        events,
-        wall_s: start.elapsed().as_secs_f64(),
-        specular_reflectance: kernel.specular,
-        diffuse_reflectance: refl / n,
-        transmittance: trans / n,
-        kernel: kernel.name(),
-        estimator: options.estimator,
-        folded: fold,
-        reciprocal: kernel.ring.as_ref().is_some_and(|r| r.sign < 0.0),
-    })
+}
+
+/// Batches `batches` of the run [`simulate`] makes with
+/// `options.stop = Stop::paths(total_paths)` (batch b holds paths
+/// b·batch_paths … up to `total_paths`, each path drawing from its own
+/// stream), as tallies: one shard of that run. The shards of a partition of
+/// its batches add up to its tallies ([`SliceSums::add`], in batch order).
+/// Stops at the end of the round under way when `cancel` becomes true.
+pub fn simulate_batches(
+    setup: &Setup,
+    options: &RunOptions,
+    batches: std::ops::Range<u64>,
+    total_paths: u64,
+    cancel: &AtomicBool,
+) -> Result<SliceSums, SlabError> {
+    let batch_paths = options.batch_paths.max(1);
+    let kernel = Kernel::new(setup, options.estimator)?;
+    let fold = options.fold && setup.mirror_symmetric();
+    let mut sums = SliceSums::empty(&kernel, setup, fold);
+    let mut pool: Vec<Vec<f64>> = Vec::new();
+    let start = Instant::now();
+    let mut b = batches.start;
+    let end = batches.end.min(total_paths.div_ceil(batch_paths));
+    while b < end && !cancel.load(Ordering::Relaxed) {
+        let round: Vec<(u64, u64)> = (b..end.min(b + ROUND_BATCHES))
+            .map(|k| (k * batch_paths, batch_paths.min(total_paths - k * batch_paths)))
+            .collect();
+        sums.add_round(&kernel, options.seed, &round, &mut pool);
+        sums.batches += round.len() as u64;
+        sums.paths += round.iter().map(|r| r.1).sum::<u64>();
+        b += round.len() as u64;
+    }
+    sums.wall_s = start.elapsed().as_secs_f64();
+    Ok(sums)
 }
 
 /// Per-pixel values (mean over `paths` of the raw sums) and standard

@@ -786,25 +786,64 @@ fn object_ratio(image: &Image) -> u32 {
     (ratio.round() as u32).clamp(1, MAX_OBJECT_RATIO)
 }
 
-/// Per-pixel sums of a progressive render.
-struct Accumulator {
-    width: usize,
-    height: usize,
-    sum: Vec<[f64; 3]>,
-    sum_sq: Vec<[f64; 3]>,
-    /// The sum over the samples with even index k (the first half render).
-    sum_even: Vec<[f64; 3]>,
-    samples: Vec<u32>,
-    object_samples: Vec<u32>,
-    board_samples: Vec<u32>,
+/// Samples `samples.start .. samples.end` of every pixel (uniform
+/// sampling, in passes of `settings.spp_per_pass`), as per-pixel sums: one
+/// shard of the render [`render`] makes with `spp = samples.end` (sample k
+/// of pixel p draws from the same stream, so the shards of a partition of
+/// 0..spp together hold exactly that render's samples). `settings.spp`,
+/// the time budget, the error target and the sampling are not used. Stops
+/// early only when `cancel` is set (then the counts say so).
+pub fn render_samples(
+    scene: &Scene,
+    settings: &Settings,
+    samples: std::ops::Range<u32>,
+    cancel: Option<&AtomicBool>,
+) -> (Accumulator, Stats) {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let mut acc = Accumulator::new(w, h);
+    acc.first_sample = samples.start;
+    let count = samples.end.saturating_sub(samples.start);
+    let per_pass = settings.spp_per_pass.max(1);
+    let mut stats = Stats::default();
+    let start = Instant::now();
+    let mut done = 0u32;
+    while done < count && !cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+        let q = per_pass.min(count - done);
+        let pass_stats = acc.add_pass(scene, settings, &vec![q; w * h], cancel);
+        stats.add(&pass_stats);
+        stats.passes += 1;
+        done += q;
+    }
+    stats.wall_s = start.elapsed().as_secs_f64();
+    (acc, stats)
+}
+
+/// Per-pixel sums of a progressive render (or of one shard of it,
+/// [`render_samples`]): Σ L and Σ L² per band over the pixel's samples, in
+/// the samples' order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Accumulator {
+    pub width: usize,
+    pub height: usize,
+    pub sum: Vec<[f64; 3]>,
+    pub sum_sq: Vec<[f64; 3]>,
+    /// The sum over the samples with even index (counted from sample 0 of
+    /// the whole render, not of the shard): the first half render.
+    pub sum_even: Vec<[f64; 3]>,
+    pub samples: Vec<u32>,
+    pub object_samples: Vec<u32>,
+    pub board_samples: Vec<u32>,
+    /// The index of the first sample of every pixel (0 for a whole render).
+    pub first_sample: u32,
 }
 
 impl Accumulator {
-    fn new(width: usize, height: usize) -> Self {
+    pub fn new(width: usize, height: usize) -> Self {
         let n = width * height;
         Self {
             width,
             height,
+            first_sample: 0,
             sum: vec![[0.0; 3]; n],
             sum_sq: vec![[0.0; 3]; n],
             sum_even: vec![[0.0; 3]; n],
@@ -824,6 +863,7 @@ impl Accumulator {
     /// own sample count, so the image stays valid).
     fn add_pass(&mut self, scene: &Scene, settings: &Settings, quota: &[u32], cancel: Option<&AtomicBool>) -> Stats {
         let w = self.width;
+        let first_sample = self.first_sample;
         self.sum
             .par_chunks_mut(w)
             .zip(self.sum_sq.par_chunks_mut(w))
@@ -843,7 +883,7 @@ impl Accumulator {
                             row_n[i] = k;
                             break 'pixels;
                         }
-                        let mut rng = Rng::new(settings.seed, (u64::from(k) << 32) | pixel);
+                        let mut rng = Rng::new(settings.seed, (u64::from(first_sample + k) << 32) | pixel);
                         let u = [rng.next_f64(), rng.next_f64()];
                         let (o, d) = scene.camera.ray(i, j, u);
                         let (l, first) = trace(scene, settings, o, d, &mut rng, &mut st);
@@ -851,7 +891,7 @@ impl Accumulator {
                             row[i][c] += l[c];
                             row_sq[i][c] += l[c] * l[c];
                         }
-                        if k % 2 == 0 {
+                        if (first_sample + k) % 2 == 0 {
                             for c in 0..3 {
                                 row_even[i][c] += l[c];
                             }
@@ -874,7 +914,7 @@ impl Accumulator {
     }
 
     /// Mean and variance of the mean per pixel.
-    fn image(&self) -> Image {
+    pub fn image(&self) -> Image {
         let mean = self.sum.iter().zip(&self.samples).map(|(s, &k)| s.map(|v| v / f64::from(k.max(1)))).collect();
         let variance_of_mean = self
             .sum
@@ -898,7 +938,10 @@ impl Accumulator {
                 .zip(&self.sum_even)
                 .zip(&self.samples)
                 .map(|((s, e), &k)| {
-                    let (n, part) = if odd { (k / 2, sub(*s, *e)) } else { (k.div_ceil(2), *e) };
+                    // Even global indices in first .. first + k.
+                    let f = self.first_sample;
+                    let even = (f + k).div_ceil(2) - f.div_ceil(2);
+                    let (n, part) = if odd { (k - even, sub(*s, *e)) } else { (even, *e) };
                     part.map(|v| if n > 0 { v / f64::from(n) } else { 0.0 })
                 })
                 .collect()

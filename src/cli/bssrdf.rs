@@ -144,6 +144,70 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Trace only the K-th of N disjoint ranges of path batches of this run
+    /// (0 ≤ K < N) into --out as a shard (slice-I.acc per configuration,
+    /// shard.json); `lucent merge` adds the N shards into the run's outputs.
+    /// Needs --paths and no other stop rule.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+}
+
+/// The scalar tallies of a slice shard, in this order.
+const SHARD_SCALARS: [&str; 8] =
+    ["path_sum", "path_sq", "reflected", "transmitted", "events", "batches", "paths", "wall_s"];
+
+/// The accumulator file of configuration `i` in a shard folder.
+fn shard_acc(i: usize) -> String {
+    format!("slice-{i}.acc")
+}
+
+/// A shard's tallies of one configuration as written by [`write_slice_shard`].
+fn read_slice_shard(path: &Path, npix: usize) -> Result<crate::shard::Arrays> {
+    let arrays = crate::shard::read_accumulator(path)?;
+    for name in ["sum_b", "sq_b", "raw"] {
+        crate::shard::array(&arrays, name, npix, path)?;
+    }
+    crate::shard::array(&arrays, "scalars", SHARD_SCALARS.len(), path)?;
+    Ok(arrays)
+}
+
+fn write_slice_shard(path: &Path, t: &slab::SliceSums) -> Result<()> {
+    let scalars = [
+        t.path_sum,
+        t.path_sq,
+        t.reflected,
+        t.transmitted,
+        t.events as f64,
+        t.batches as f64,
+        t.paths as f64,
+        t.wall_s,
+    ];
+    crate::shard::write_accumulator(
+        path,
+        &[("sum_b", &t.sum_b), ("sq_b", &t.sq_b), ("raw", &t.raw), ("scalars", &scalars)],
+    )?;
+    Ok(())
+}
+
+/// `empty` with the tallies of a shard's arrays (read by [`read_slice_shard`]).
+fn slice_sums_of(empty: &slab::SliceSums, arrays: &crate::shard::Arrays) -> slab::SliceSums {
+    let get = |name: &str| arrays.iter().find(|(n, _)| n == name).map(|(_, v)| v.clone()).unwrap_or_default();
+    let sc = get("scalars");
+    let at = |k: usize| sc.get(k).copied().unwrap_or(0.0);
+    slab::SliceSums {
+        sum_b: get("sum_b"),
+        sq_b: get("sq_b"),
+        raw: get("raw"),
+        path_sum: at(0),
+        path_sq: at(1),
+        reflected: at(2),
+        transmitted: at(3),
+        events: at(4) as u64,
+        batches: at(5) as u64,
+        paths: at(6) as u64,
+        wall_s: at(7),
+        ..empty.clone()
+    }
 }
 
 #[derive(Debug, Args)]
@@ -167,7 +231,7 @@ pub struct CompareArgs {
 pub fn run(a: BssrdfArgs) -> Result<()> {
     match a.command {
         Some(BssrdfCommand::Compare(c)) => compare(c),
-        None => simulate(a.run),
+        None => simulate_from(a.run, None),
     }
 }
 
@@ -268,7 +332,9 @@ fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
         .collect()
 }
 
-fn simulate(a: RunArgs) -> Result<()> {
+/// Runs `lucent bssrdf`, or with `merged_from` writes the outputs of the
+/// run whose shards these are (`lucent merge`).
+pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
     let m = medium(&a)?;
     let (beam, beam_name) = beam(&a)?;
     let out_pixels = match a.crop {
@@ -306,6 +372,86 @@ fn simulate(a: RunArgs) -> Result<()> {
     for (ti, pi, to, po) in &configs {
         Directions::from_degrees(*ti, *pi, *to, *po).with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
     }
+    let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
+    let batch_paths = RunOptions::default().batch_paths;
+    let total_batches = a.paths.unwrap_or(0).div_ceil(batch_paths);
+    if shard.is_some() || merged_from.is_some() {
+        if a.paths.is_none() || a.time_s.is_some() || a.rel_error.is_some() || a.pixel_rel_error.is_some() {
+            bail!("--shard: needs a path budget (--paths) and no other stop rule (--time-s, --rel-error and --pixel-rel-error depend on the whole run and cannot be split exactly)");
+        }
+        if let Some((k, n)) = shard
+            && u64::from(n) > total_batches
+        {
+            return Err(crate::shard::ShardError::TooManyShards {
+                k,
+                n,
+                units: total_batches,
+                what: "batches of paths",
+            }
+            .into());
+        }
+    }
+    // A merge reads and checks every shard before it writes anything.
+    let merged_tallies: Option<Vec<Vec<crate::shard::Arrays>>> = match merged_from {
+        Some(shards) => Some(
+            shards
+                .iter()
+                .map(|s| {
+                    let k = s.file.shard;
+                    let expected = crate::shard::range(total_batches, k, s.file.identity.shards);
+                    if s.file.range != [expected.start, expected.end] {
+                        bail!(
+                            "{}: shard {k} holds batches {:?}, the run's shard {k} is {expected:?}",
+                            s.dir.display(),
+                            s.file.range
+                        );
+                    }
+                    (0..configs.len())
+                        .map(|i| read_slice_shard(&s.dir.join(shard_acc(i)), out_pixels * out_pixels))
+                        .collect::<Result<Vec<_>>>()
+                })
+                .collect::<Result<Vec<_>>>()?,
+        ),
+        None => None,
+    };
+    if let Some((k, n)) = shard {
+        let range = crate::shard::range(total_batches, k, n);
+        let identity = super::shard::identity(a.seed, format!("{} paths", a.paths.unwrap_or(0)), n)?;
+        let stage = crate::io::StagedDir::new(&a.out)?;
+        let interrupt = Interrupt::install();
+        let mut wall_s = 0.0;
+        let mut accumulators = Vec::new();
+        for (i, (ti, pi, to, po)) in configs.iter().enumerate() {
+            let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
+            let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
+            let options = run_options(&a, &setup, stop);
+            let t = slab::simulate_batches(&setup, &options, range.clone(), a.paths.unwrap_or(0), interrupt.flag())?;
+            if interrupt.requested() {
+                bail!("interrupted: shard {k}/{n} not written (a shard is merged whole or not at all)");
+            }
+            wall_s += t.wall_s;
+            write_slice_shard(&stage.path().join(shard_acc(i)), &t)?;
+            accumulators.push(shard_acc(i));
+        }
+        drop(interrupt);
+        let file = crate::shard::ShardFile {
+            identity,
+            shard: k,
+            range: [range.start, range.end],
+            accumulators,
+            counters: Default::default(),
+            wall_s,
+        };
+        crate::io::write_json(&stage.path().join(crate::shard::SHARD_JSON), &file)?;
+        stage.commit(|n| n == crate::shard::SHARD_JSON || (n.starts_with("slice-") && n.ends_with(".acc")))?;
+        println!(
+            "shard {k}/{n}: path batches {}..{} of {total_batches} in {wall_s:.1} s → {}",
+            range.start,
+            range.end,
+            a.out.display()
+        );
+        return Ok(());
+    }
     // Written into a staging folder, moved into --out when every configuration is done.
     let out_existed = a.out.exists();
     let stage = crate::io::StagedDir::new(&a.out)?;
@@ -325,38 +471,39 @@ fn simulate(a: RunArgs) -> Result<()> {
             configs.len()
         );
     }
-    for (ti, pi, to, po) in &configs {
+    for (i, (ti, pi, to, po)) in configs.iter().enumerate() {
         let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
         let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
         let sub = if configs.len() > 1 { format!("ti{ti}_to{to}") } else { String::new() };
         let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
-        let estimator = match a.estimator {
-            EstimatorChoice::Auto => match Estimator::best_for(&setup) {
-                Estimator::Lobe { .. } => Estimator::Lobe { vertices: a.lobe_vertices.into() },
-                e => e,
-            },
-            EstimatorChoice::Ring => Estimator::Ring,
-            EstimatorChoice::Lobe => Estimator::Lobe { vertices: a.lobe_vertices.into() },
-            EstimatorChoice::Connection => Estimator::Connection,
-        };
-        let options = RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() };
+        let options = run_options(&a, &setup, stop);
         let bar = progress_bar(a.quiet, &stop);
         bar.set_prefix(format!("θi {ti}° → θo {to}°"));
-        let slice = slab::simulate_cancellable(
-            &setup,
-            &options,
-            |p| {
-                bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
-                bar.set_message(format!(
-                    "{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
-                    p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
-                    100.0 * p.rel_error,
-                    100.0 * p.pixels.median,
-                    100.0 * p.pixels.p90
-                ));
-            },
-            interrupt.flag(),
-        )?;
+        let slice = if let Some(tallies) = &merged_tallies {
+            // The shards' tallies added in shard order to an empty run's (its constants).
+            let mut sums = slab::simulate_batches(&setup, &options, 0..0, a.paths.unwrap_or(0), interrupt.flag())?;
+            for shard in tallies {
+                let t = slice_sums_of(&sums, &shard[i]);
+                sums.add(&t);
+            }
+            sums.slice()
+        } else {
+            slab::simulate_cancellable(
+                &setup,
+                &options,
+                |p| {
+                    bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
+                    bar.set_message(format!(
+                        "{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
+                        p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
+                        100.0 * p.rel_error,
+                        100.0 * p.pixels.median,
+                        100.0 * p.pixels.p90
+                    ));
+                },
+                interrupt.flag(),
+            )?
+        };
         bar.finish_and_clear();
         let interrupted = interrupt.requested();
         if let Some(target) = stop.rel_error {
@@ -451,6 +598,20 @@ fn simulate(a: RunArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The run options of one configuration.
+fn run_options(a: &RunArgs, setup: &Setup, stop: Stop) -> RunOptions {
+    let estimator = match a.estimator {
+        EstimatorChoice::Auto => match Estimator::best_for(setup) {
+            Estimator::Lobe { .. } => Estimator::Lobe { vertices: a.lobe_vertices.into() },
+            e => e,
+        },
+        EstimatorChoice::Ring => Estimator::Ring,
+        EstimatorChoice::Lobe => Estimator::Lobe { vertices: a.lobe_vertices.into() },
+        EstimatorChoice::Connection => Estimator::Connection,
+    };
+    RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() }
 }
 
 fn progress_bar(quiet: bool, stop: &Stop) -> ProgressBar {
@@ -581,6 +742,7 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
             lobe_vertices: lucent_render::slab::LOBE_VERTICES as u8,
             roughness: None,
             no_fold: false,
+            shard: None,
             out: PathBuf::new(),
             quiet: true,
         };

@@ -12,6 +12,7 @@ pub mod interrupt;
 pub mod raw_clip;
 pub mod render;
 pub mod run;
+pub mod shard;
 pub mod surface;
 pub mod synth;
 
@@ -34,6 +35,8 @@ pub struct Cli {
     pub command: Command,
 }
 
+// The arguments are parsed once per process: boxing the largest variant would buy nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Spectral optical properties of recipes (Lorenz–Mie): μs, μa, μt, g, n_bulk, phase tables, plots.
@@ -71,6 +74,8 @@ pub enum Command {
     Fit(fit::FitArgs),
     /// The whole digitisation from one project file: stages in order, unchanged ones skipped, report/index.html.
     Run(run::RunArgs),
+    /// Merge the shards of a render or bssrdf run (each made with --shard K/N) into the run's outputs.
+    Merge(shard::MergeArgs),
     /// Synthetic inputs with a known truth: a ColorChecker chart, RAW (DNG) captures through a known camera.
     #[command(subcommand)]
     Synth(synth::SynthCommand),
@@ -169,6 +174,26 @@ pub enum BenchCommand {
         #[arg(long)]
         time_s: Option<f64>,
     },
+    /// Sharding overhead: a render as one process against N shard processes
+    /// one after the other on this machine plus their merge; and from the
+    /// measured times a projection for a large render on many nodes.
+    Shard {
+        #[arg(long, default_value = "fixtures/render/demo.toml")]
+        scene: PathBuf,
+        #[arg(long, default_value = "320x240")]
+        size: String,
+        #[arg(long, default_value_t = 16)]
+        spp: u32,
+        #[arg(long, default_value_t = 4)]
+        shards: u32,
+        /// The projection: megapixels, nodes (each like this machine) and samples per pixel.
+        #[arg(long, default_value_t = 12.0)]
+        megapixels: f64,
+        #[arg(long, default_value_t = 32)]
+        nodes: u32,
+        #[arg(long, default_value_t = 1024)]
+        projected_spp: u32,
+    },
     /// A one-parameter weight-% fit of IOL1068-09 over three configurations (synthetic measurements at 0.425 wt-%); wall time.
     Fit {
         /// Target relative error of each slice sum at the final points.
@@ -215,6 +240,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Run(a) => run::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Synth(c) => synth::run(c),
+        Command::Merge(a) => shard::merge(a),
     }
 }
 
@@ -582,6 +608,13 @@ fn bench(b: BenchCommand) -> Result<()> {
         BenchCommand::Bssrdf { rel_error, time_s } => bssrdf::bench(rel_error, time_s)?,
         BenchCommand::Surface { paths } => bssrdf::bench_surface(paths)?,
         BenchCommand::Fit { rel_error, out } => fit::bench(rel_error, out)?,
+        BenchCommand::Shard { scene, size, spp, shards, megapixels, nodes, projected_spp } => shard::bench(
+            &repository_file(&scene),
+            &size,
+            spp,
+            shards,
+            shard::Projection { megapixels, nodes, spp: projected_spp },
+        )?,
         BenchCommand::Render { scene, time_s: Some(t), .. } => {
             render::check_time_s(t)?;
             render::bench_estimators(&repository_file(&scene), t)?

@@ -67,6 +67,124 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Render only the K-th of N disjoint ranges of sample indices of this
+    /// run (0 ≤ K < N) into --out as a shard (render.acc, shard.json);
+    /// `lucent merge` adds the N shards into the run's render.exr, png and
+    /// json. Needs a sample budget (--spp or [render] spp; no time budget or
+    /// error target) and uniform sampling.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+}
+
+/// The accumulator file of a render shard.
+pub const SHARD_ACC: &str = "render.acc";
+
+/// Refuses what a shard of a render cannot do exactly.
+fn check_shardable(settings: &Settings) -> Result<()> {
+    if settings.time_budget_s.is_some() {
+        bail!("--shard: a time budget (--time-s or [render] time_s) cannot be split into shards exactly; give a sample budget (--spp) instead");
+    }
+    if settings.target_rel_error.is_some() {
+        bail!("--shard: an error target (--target-rel-error or [render] target_rel_error) depends on the whole image; give a sample budget (--spp) instead");
+    }
+    if settings.sampling != tracer::Sampling::Uniform {
+        bail!("--shard: object-weighted sampling plans every pass from the image so far and cannot be split; use --sampling uniform");
+    }
+    Ok(())
+}
+
+/// The merged sums of a render's shards (added in shard order) and their counters.
+fn merged(shards: &[crate::shard::Shard], settings: &Settings, w: usize, h: usize) -> Result<(Image, Stats)> {
+    let n = w * h;
+    let mut acc = tracer::Accumulator::new(w, h);
+    let mut stats = Stats::default();
+    for s in shards {
+        let k = s.file.shard;
+        let expected = crate::shard::range(u64::from(settings.spp), k, s.file.identity.shards);
+        if s.file.range != [expected.start, expected.end] {
+            bail!(
+                "{}: shard {k} holds samples {:?}, the run's shard {k} is {expected:?}",
+                s.dir.display(),
+                s.file.range
+            );
+        }
+        let path = s.dir.join(SHARD_ACC);
+        let arrays = crate::shard::read_accumulator(&path)?;
+        let get = |name: &str, len: usize| crate::shard::array(&arrays, name, len, &path);
+        let (sum, sq, even) = (get("sum", 3 * n)?, get("sum_sq", 3 * n)?, get("sum_even", 3 * n)?);
+        let (samples, object, board) = (get("samples", n)?, get("object_samples", n)?, get("board_samples", n)?);
+        let count = (expected.end - expected.start) as f64;
+        if let Some(p) = samples.iter().position(|&c| c != count) {
+            bail!("{}: pixel {p} has {} samples, the shard should have {count}", path.display(), samples[p]);
+        }
+        for p in 0..n {
+            for c in 0..3 {
+                acc.sum[p][c] += sum[3 * p + c];
+                acc.sum_sq[p][c] += sq[3 * p + c];
+                acc.sum_even[p][c] += even[3 * p + c];
+            }
+            acc.samples[p] += samples[p] as u32;
+            acc.object_samples[p] += object[p] as u32;
+            acc.board_samples[p] += board[p] as u32;
+        }
+        let c = |name: &str| s.file.counters.get(name).copied().unwrap_or(0);
+        stats.samples += c("samples");
+        stats.events += c("events");
+        stats.surface_hits += c("surface_hits");
+        stats.leaked_paths += c("leaked_paths");
+        stats.truncated_paths += c("truncated_paths");
+        stats.passes += c("passes") as u32;
+        stats.wall_s += s.file.wall_s;
+    }
+    Ok((acc.image(), stats))
+}
+
+/// Writes a render shard's accumulator and shard.json (last: a folder with
+/// a shard.json holds a complete shard).
+fn write_shard(
+    out: &Path,
+    acc: &tracer::Accumulator,
+    stats: &Stats,
+    identity: crate::shard::Identity,
+    k: u32,
+    range: std::ops::Range<u64>,
+) -> Result<()> {
+    let flat = |v: &[[f64; 3]]| v.iter().flatten().copied().collect::<Vec<f64>>();
+    let counts = |v: &[u32]| v.iter().map(|&c| f64::from(c)).collect::<Vec<f64>>();
+    let (sum, sq, even) = (flat(&acc.sum), flat(&acc.sum_sq), flat(&acc.sum_even));
+    let (samples, object, board) = (counts(&acc.samples), counts(&acc.object_samples), counts(&acc.board_samples));
+    crate::shard::write_accumulator(
+        &out.join(SHARD_ACC),
+        &[
+            ("sum", &sum),
+            ("sum_sq", &sq),
+            ("sum_even", &even),
+            ("samples", &samples),
+            ("object_samples", &object),
+            ("board_samples", &board),
+        ],
+    )?;
+    let counters = [
+        ("samples", stats.samples),
+        ("events", stats.events),
+        ("surface_hits", stats.surface_hits),
+        ("leaked_paths", stats.leaked_paths),
+        ("truncated_paths", stats.truncated_paths),
+        ("passes", u64::from(stats.passes)),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect();
+    let file = crate::shard::ShardFile {
+        identity,
+        shard: k,
+        range: [range.start, range.end],
+        accumulators: vec![SHARD_ACC.into()],
+        counters,
+        wall_s: stats.wall_s,
+    };
+    crate::io::write_json(&out.join(crate::shard::SHARD_JSON), &file)?;
+    Ok(())
 }
 
 /// The most worker threads `--threads` starts.
@@ -147,6 +265,12 @@ pub fn check_threads(threads: Option<usize>) -> Result<()> {
 
 /// Runs `lucent render`.
 pub fn run(a: RenderArgs) -> Result<()> {
+    run_from(a, None)
+}
+
+/// Runs `lucent render`, or with `merged` writes the outputs of the run
+/// whose shards these are (`lucent merge`).
+pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
     check_threads(a.threads)?;
     if let Some(t) = a.time_s {
         check_time_s(t)?;
@@ -194,6 +318,26 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(s) = a.sampling {
         settings.sampling = s.into();
     }
+    let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
+    if shard.is_some() || merged_from.is_some() {
+        check_shardable(&settings)?;
+    }
+    if let Some((k, n)) = shard
+        && n > settings.spp
+    {
+        return Err(crate::shard::ShardError::TooManyShards {
+            k,
+            n,
+            units: settings.spp.into(),
+            what: "samples per pixel",
+        }
+        .into());
+    }
+    // A merge reads every shard before it writes anything.
+    let merged_result = match merged_from {
+        Some(shards) => Some(merged(shards, &settings, loaded.scene.camera.width, loaded.scene.camera.height)?),
+        None => None,
+    };
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create output folder", a.out.display()))?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
@@ -214,24 +358,55 @@ pub fn run(a: RenderArgs) -> Result<()> {
         ProgressStyle::with_template("{bar:40} {pos}/{len} spp  {msg}  ETA {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    if let Some((k, n)) = shard {
+        let range = crate::shard::range(u64::from(settings.spp), k, n);
+        let identity = super::shard::identity(settings.seed, format!("{} spp", settings.spp), n)?;
+        let interrupt = Interrupt::install();
+        let (acc, stats) = pool.install(|| {
+            tracer::render_samples(
+                &loaded.scene,
+                &settings,
+                range.start as u32..range.end as u32,
+                Some(interrupt.flag()),
+            )
+        });
+        if interrupt.requested() {
+            bail!("interrupted: shard {k}/{n} not written (a shard is merged whole or not at all)");
+        }
+        drop(interrupt);
+        write_shard(&a.out, &acc, &stats, identity, k, range.clone())?;
+        println!(
+            "shard {k}/{n}: samples {}..{} of every pixel in {:.1} s → {}/{SHARD_ACC}, {}",
+            range.start,
+            range.end,
+            stats.wall_s,
+            a.out.display(),
+            crate::shard::SHARD_JSON
+        );
+        return Ok(());
+    }
     let interrupt = Interrupt::install();
-    let (image, stats) = pool.install(|| {
-        tracer::render_cancellable(
-            &loaded.scene,
-            &settings,
-            &mut |p| {
-                bar.set_position(u64::from(p.spp_done));
-                bar.set_message(format!(
-                    "object {:.1} % (p90 {:.1} %), board {:.1} %, {:.1} M events/s",
-                    100.0 * p.errors.object.median,
-                    100.0 * p.errors.object.p90,
-                    100.0 * p.errors.board.median,
-                    p.stats.events as f64 / p.elapsed_s / 1e6
-                ));
-            },
-            Some(interrupt.flag()),
-        )
-    });
+    let (image, stats) = if let Some(m) = merged_result {
+        m
+    } else {
+        pool.install(|| {
+            tracer::render_cancellable(
+                &loaded.scene,
+                &settings,
+                &mut |p| {
+                    bar.set_position(u64::from(p.spp_done));
+                    bar.set_message(format!(
+                        "object {:.1} % (p90 {:.1} %), board {:.1} %, {:.1} M events/s",
+                        100.0 * p.errors.object.median,
+                        100.0 * p.errors.object.p90,
+                        100.0 * p.errors.board.median,
+                        p.stats.events as f64 / p.elapsed_s / 1e6
+                    ));
+                },
+                Some(interrupt.flag()),
+            )
+        })
+    };
     let interrupted = interrupt.requested();
     drop(interrupt);
     bar.finish_and_clear();

@@ -3,6 +3,7 @@
 //! their output in `STAGE/log.txt`; one status line per stage with its time.
 
 use super::choices::{ForceChoice, StageChoice};
+use crate::pipeline::executor::{self, Kind};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
@@ -23,6 +24,30 @@ pub struct RunArgs {
     /// Stop after this stage.
     #[arg(long, value_enum, value_name = "STAGE")]
     pub until: Option<StageChoice>,
+    /// Where long commands (render, bssrdf slices) run: here, or as Slurm
+    /// job arrays of [executor] shards (overrides [executor] kind).
+    #[arg(long, value_enum)]
+    pub executor: Option<ExecutorChoice>,
+    /// Write the long commands as batch jobs into DIR instead of running
+    /// them (slurm: sbatch scripts and submit.sh; k8s: Indexed Job
+    /// manifests); the stages before them run here. Rerun `lucent run` when
+    /// the jobs have finished: it merges their shards and goes on.
+    #[arg(long, num_args = 2, value_names = ["KIND", "DIR"])]
+    pub emit: Vec<String>,
+}
+
+/// `--executor`.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ExecutorChoice {
+    Local,
+    Slurm,
+}
+
+/// `--emit KIND DIR`.
+#[derive(Debug, Clone)]
+enum Emit {
+    Slurm(PathBuf),
+    K8s(PathBuf),
 }
 
 /// The last `n` lines of a log file.
@@ -75,7 +100,63 @@ pub fn run(a: RunArgs) -> Result<()> {
     let total = std::time::Instant::now();
     let n = Stage::ALL.len();
     // The whole chain of causes goes into the stage's error message.
-    let mut exec = |args: &[String], log: &Path| run_lucent(&exe, args, log).map_err(|e| format!("{e:#}").into());
+    let mut exec_cfg = project.executor.clone();
+    match a.executor {
+        Some(ExecutorChoice::Local) => exec_cfg.kind = Kind::Local,
+        Some(ExecutorChoice::Slurm) => exec_cfg.kind = Kind::Slurm,
+        None => {}
+    }
+    let emit = match a.emit.as_slice() {
+        [] => None,
+        [kind, dir] => {
+            let dir = std::path::absolute(dir).with_context(|| format!("--emit {kind} {dir}: cannot resolve"))?;
+            match kind.as_str() {
+                "slurm" => Some(Emit::Slurm(dir)),
+                "k8s" => Some(Emit::K8s(dir)),
+                other => anyhow::bail!("--emit {other:?}: expected slurm or k8s"),
+            }
+        }
+        _ => anyhow::bail!("--emit needs KIND and DIR, e.g. --emit slurm jobs/"),
+    };
+    if emit.is_some() && exec_cfg.shards < 2 {
+        anyhow::bail!(
+            "--emit: [executor] shards is {}: set it to the number of shards per long command (≥ 2)",
+            exec_cfg.shards
+        );
+    }
+    let cwd = std::env::current_dir().context("cannot read the current folder")?;
+    let mut submit = String::new();
+    let mut emitted = 0usize;
+    let mut exec = |args: &[String], log: &Path| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        // Shards an earlier run's jobs finished are merged, not run again.
+        if let Some(t) = executor::finished_shards(args, &out) {
+            run_lucent(&exe, &t.merge_command(), log).map_err(|e| format!("{e:#}"))?;
+            std::fs::remove_dir_all(&t.dir).map_err(|e| format!("{}: {e}", t.dir.display()))?;
+            return Ok(());
+        }
+        let sharded = executor::shard_plan(args, exec_cfg.shards, &out);
+        match (sharded, &emit) {
+            (Some(t), Some(Emit::Slurm(dir))) => {
+                emitted += 1;
+                let name = format!("lucent-{emitted:02}-{}", t.args[0]);
+                submit.push_str(&executor::emit_slurm(&exec_cfg, &t, &exe, &cwd, dir, &name)?);
+                Err(Box::new(executor::Deferred))
+            }
+            (Some(t), Some(Emit::K8s(dir))) => {
+                emitted += 1;
+                let name = format!("lucent-{emitted:02}-{}", t.args[0]);
+                let path = dir.join(format!("{name}.yaml"));
+                crate::io::write_atomic(&path, executor::k8s_job(&exec_cfg, &t, &cwd, &name).as_bytes())?;
+                Err(Box::new(executor::Deferred))
+            }
+            (Some(t), None) if exec_cfg.kind == Kind::Slurm => {
+                let label = t.args.join(" ");
+                executor::run_on_slurm(&exec_cfg, &t, &exe, log, &mut |line| println!("    {line}"))
+                    .map_err(|e| format!("`lucent {label}` on Slurm: {e}").into())
+            }
+            _ => run_lucent(&exe, args, log).map_err(|e| format!("{e:#}").into()),
+        }
+    };
     let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {
         let k = Stage::ALL.iter().position(|s| *s == stage).unwrap_or(0) + 1;
         let what = match st {
@@ -84,11 +165,32 @@ pub fn run(a: RunArgs) -> Result<()> {
             }
             Status::UpToDate => "up to date (inputs and parameters unchanged)".into(),
             Status::Skipped { reason } => format!("skipped: {reason}"),
+            Status::Deferred { tasks } => format!("{tasks} long task(s) written as batch jobs, not run here"),
         };
         let notes = if notes.is_empty() { String::new() } else { format!(" [{}]", notes.join("; ")) };
         println!("[{k}/{n}] {:<10} {what}{notes}", stage.name());
     };
     let result = pipeline::run(&project, &out, &Options { force, until }, &mut exec, &mut status_line);
+    if let Some(e) = &emit
+        && emitted > 0
+    {
+        match e {
+            Emit::Slurm(dir) => {
+                let path = dir.join("submit.sh");
+                let text = format!("#!/bin/bash\n# Submits the shards of {emitted} long command(s) of `lucent run {}` and their merges.\nset -eu\n{submit}", a.project.display());
+                crate::io::write_atomic(&path, text.as_bytes())?;
+                println!("wrote {emitted} job array(s) and merge job(s); submit them with: bash {}", path.display());
+            }
+            Emit::K8s(dir) => println!(
+                "wrote {emitted} Indexed Job manifest(s) to {}; apply them with kubectl apply -f",
+                dir.display()
+            ),
+        }
+        println!(
+            "when the jobs have finished, run `lucent run {}` again: it merges the shards and goes on",
+            a.project.display()
+        );
+    }
     match result {
         Ok(_) => {
             println!("done in {:.1} s", total.elapsed().as_secs_f64());

@@ -46,6 +46,7 @@
 //! assert_eq!(Stage::ALL.last(), Some(&Stage::Report));
 //! ```
 
+pub mod executor;
 pub mod project;
 pub mod report;
 
@@ -258,9 +259,19 @@ pub struct Manifest {
 /// How a stage ended in this run.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Status {
-    Ran { wall_s: f64, tasks: usize },
+    Ran {
+        wall_s: f64,
+        tasks: usize,
+    },
     UpToDate,
-    Skipped { reason: Skip },
+    Skipped {
+        reason: Skip,
+    },
+    /// Tasks handed to someone else to run ([`executor::Deferred`]): the
+    /// stage and the ones after it wait for a later run.
+    Deferred {
+        tasks: usize,
+    },
 }
 
 /// Why a stage is skipped: what the project (or an earlier stage) does not
@@ -488,7 +499,8 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
     Ok(Some((scene_json, camera_json, has_sample)))
 }
 
-fn scene_inputs(path: &Path) -> Vec<PathBuf> {
+/// A scene file and the files it names (environment map, camera, mesh, board textures and spectra).
+pub fn scene_inputs(path: &Path) -> Vec<PathBuf> {
     let mut v = vec![path.to_path_buf()];
     if let Ok(text) = std::fs::read_to_string(path)
         && let Ok(f) = crate::scene::parse(&text, path)
@@ -514,7 +526,7 @@ fn scene_inputs(path: &Path) -> Vec<PathBuf> {
 /// string value of the TOML that is the path of an existing file relative to
 /// the recipe's folder (or absolute), so editing an index file reruns the
 /// stages that read it.
-fn recipe_inputs(recipe: &Path) -> Vec<PathBuf> {
+pub fn recipe_inputs(recipe: &Path) -> Vec<PathBuf> {
     fn walk(v: &toml::Value, dir: &Path, out: &mut Vec<PathBuf>) {
         match v {
             toml::Value::String(t) if (!t.is_empty() && !t.contains(':')) || t.starts_with('/') => {
@@ -1056,6 +1068,7 @@ pub fn run(
         let started_unix_s =
             std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
         let mut commands = Vec::new();
+        let mut deferred = 0usize;
         let mut result: Result<(), TaskError> = Ok(());
         for task in &plan.tasks {
             let r = match task {
@@ -1068,8 +1081,12 @@ pub fn run(
                     }
                     let args: Vec<String> = args.iter().map(|a| a.replace("{out}", &s(&dir))).collect();
                     commands.push(args.clone());
-                    r.and_then(|_| {
-                        exec(&args, &log).map_err(|source| TaskError::Command { label: label.clone(), source })
+                    r.and_then(|_| match exec(&args, &log) {
+                        Err(e) if e.is::<executor::Deferred>() => {
+                            deferred += 1;
+                            Ok(())
+                        }
+                        other => other.map_err(|source| TaskError::Command { label: label.clone(), source }),
                     })
                 }
                 Task::Report => {
@@ -1092,6 +1109,17 @@ pub fn run(
                 let _ = std::fs::rename(&aside, &dir);
             }
             return Err(PipelineError::Failed { stage, message, kept: failed });
+        }
+        if deferred > 0 {
+            // Nothing of this stage is final: the previous result goes back.
+            let _ = std::fs::remove_dir_all(&dir);
+            if aside.exists() {
+                let _ = std::fs::rename(&aside, &dir);
+            }
+            let st = Status::Deferred { tasks: deferred };
+            on_status(stage, &st, &plan.notes);
+            done.push((stage, st));
+            return Ok(done);
         }
         let manifest = Manifest {
             stage,

@@ -103,6 +103,8 @@ pub struct ProjectFile {
     pub fit: Option<FitSection>,
     #[serde(default)]
     pub sample: Vec<SampleSection>,
+    /// Where long commands run ([`super::executor`]).
+    pub executor: Option<super::executor::ExecutorSection>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
@@ -243,6 +245,8 @@ pub struct Project {
     pub file: ProjectFile,
     /// θi/θo pairs of [bssrdf] configs.
     pub bssrdf_configs: Vec<(f64, f64)>,
+    /// The validated `[executor]` (local, one shard, without one).
+    pub executor: super::executor::Executor,
 }
 
 /// What is wrong with a list of θi/θo configurations ([`parse_configs`]).
@@ -483,6 +487,11 @@ impl Project {
             }
         }
         let seed = file.project.seed.unwrap_or(1);
-        Ok(Project { path: path.to_path_buf(), name, seed, out, file, bssrdf_configs })
+        let executor = match &file.executor {
+            Some(e) => super::executor::Executor::from_section(e)
+                .map_err(|e| key(&format!("[executor] {}", e.key), e.reason))?,
+            None => super::executor::Executor::default(),
+        };
+        Ok(Project { path: path.to_path_buf(), name, seed, out, file, bssrdf_configs, executor })
     }
 }

@@ -219,6 +219,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             Some(Status::Ran { .. }) => "ran".to_string(),
             Some(Status::UpToDate) => "up to date (inputs unchanged)".to_string(),
             Some(Status::Skipped { reason }) => format!("skipped: {reason}"),
+            Some(Status::Deferred { tasks }) => format!("{tasks} task(s) written as batch jobs, not yet run"),
             None => "not run".to_string(),
         };
         let wall = m.map(|m| format!("{:.2} s", m.wall_s)).unwrap_or_else(|| "—".into());

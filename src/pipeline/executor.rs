@@ -1,0 +1,703 @@
+//! Where a stage's long commands run: on this machine, on a Slurm cluster
+//! as job arrays, or written out as batch scripts (Slurm) or manifests
+//! (Kubernetes Indexed Jobs) for someone to submit.
+//!
+//! A **long command** is a `lucent render` with a sample budget and
+//! uniform sampling, or a `lucent bssrdf` slice run with a path budget and
+//! no other stop rule: the commands that `--shard K/N` can split exactly
+//! ([`crate::shard`]). With `[executor] shards = N` (N > 1) such a command
+//! becomes N shards, each writing into `OUT/.lucent-shards/ID/K` (ID from
+//! the command line, outside every stage folder), and `lucent merge`
+//! writes the command's own `--out`. The stage folders, manifests and keys
+//! are those of the local executor: the same commands are recorded, and
+//! the shard folders are removed after the merge. Every other command runs
+//! on this machine.
+//!
+//! ```toml
+//! [executor]
+//! kind = "slurm"          # or "local" (default)
+//! shards = 8              # per long command
+//! partition = "compute"
+//! account = "optics-lab"
+//! time_limit = "02:00:00" # per shard, Slurm's formats (MM, HH:MM:SS, D-HH:MM, …)
+//! cpus_per_task = 16
+//! sbatch = ["--mem=8G"]   # more sbatch options, one per line of the script
+//! setup = ["module load rust"]  # shell lines before lucent runs
+//! retries = 2             # resubmissions of a failed shard
+//! image = "registry.example.org/lucent:0.1"  # container image of --emit k8s
+//! ```
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+use thiserror::Error;
+
+/// `[executor]` as typed.
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ExecutorSection {
+    pub kind: Option<String>,
+    pub shards: Option<u32>,
+    pub partition: Option<String>,
+    pub account: Option<String>,
+    pub time_limit: Option<String>,
+    pub cpus_per_task: Option<u32>,
+    pub sbatch: Option<Vec<String>>,
+    pub setup: Option<Vec<String>>,
+    pub retries: Option<u32>,
+    pub image: Option<String>,
+}
+
+/// Where long commands run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Kind {
+    Local,
+    Slurm,
+}
+
+/// The validated `[executor]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Executor {
+    pub kind: Kind,
+    pub shards: u32,
+    pub partition: Option<String>,
+    pub account: Option<String>,
+    pub time_limit: Option<String>,
+    pub cpus_per_task: Option<u32>,
+    pub sbatch: Vec<String>,
+    pub setup: Vec<String>,
+    pub retries: u32,
+    pub image: String,
+}
+
+impl Default for Executor {
+    fn default() -> Self {
+        Self {
+            kind: Kind::Local,
+            shards: 1,
+            partition: None,
+            account: None,
+            time_limit: None,
+            cpus_per_task: None,
+            sbatch: Vec::new(),
+            setup: Vec::new(),
+            retries: 2,
+            image: "lucent:latest".into(),
+        }
+    }
+}
+
+/// The most shards per command.
+pub const MAX_SHARDS: u32 = 10_000;
+/// The most resubmissions of a failed shard.
+pub const MAX_RETRIES: u32 = 10;
+
+/// A bad `[executor]` key: which and why.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("[executor] {key}: {reason}")]
+pub struct ExecutorKeyError {
+    pub key: &'static str,
+    pub reason: String,
+}
+
+/// A Slurm time limit: minutes, MM:SS, HH:MM:SS, D-HH, D-HH:MM or D-HH:MM:SS.
+fn valid_time_limit(t: &str) -> bool {
+    let digits = |s: &str| !s.is_empty() && s.len() <= 6 && s.bytes().all(|b| b.is_ascii_digit());
+    let (days, rest) = match t.split_once('-') {
+        Some((d, r)) => (Some(d), r),
+        None => (None, t),
+    };
+    if days.is_some_and(|d| !digits(d)) {
+        return false;
+    }
+    let parts: Vec<&str> = rest.split(':').collect();
+    parts.len() <= 3 && parts.iter().all(|p| digits(p))
+}
+
+/// A value that goes into a script as one word: no whitespace, quotes or shell characters.
+fn plain_word(s: &str) -> bool {
+    !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_.,:/@+=".contains(c))
+}
+
+impl Executor {
+    /// Checks `[executor]`.
+    pub fn from_section(s: &ExecutorSection) -> Result<Self, ExecutorKeyError> {
+        let bad = |key: &'static str, reason: String| ExecutorKeyError { key, reason };
+        let mut e = Executor::default();
+        if let Some(k) = &s.kind {
+            e.kind = match k.as_str() {
+                "local" => Kind::Local,
+                "slurm" => Kind::Slurm,
+                other => return Err(bad("kind", format!("{other:?}: expected \"local\" or \"slurm\""))),
+            };
+        }
+        if let Some(n) = s.shards {
+            if !(1..=MAX_SHARDS).contains(&n) {
+                return Err(bad("shards", format!("{n}: must lie in 1 … {MAX_SHARDS}")));
+            }
+            e.shards = n;
+        }
+        for (key, v, slot) in [
+            ("partition", &s.partition, &mut e.partition),
+            ("account", &s.account, &mut e.account),
+            ("image", &s.image, &mut None),
+        ] {
+            if let Some(v) = v {
+                if !plain_word(v) {
+                    return Err(bad(key, format!("{v:?}: one word of letters, digits and -_.,:/@+= expected")));
+                }
+                *slot = Some(v.clone());
+            }
+        }
+        if let Some(i) = &s.image {
+            e.image = i.clone();
+        }
+        if let Some(t) = &s.time_limit {
+            if !valid_time_limit(t) {
+                return Err(bad(
+                    "time_limit",
+                    format!("{t:?}: Slurm's formats are MM, MM:SS, HH:MM:SS, D-HH, D-HH:MM, D-HH:MM:SS"),
+                ));
+            }
+            e.time_limit = Some(t.clone());
+        }
+        if let Some(c) = s.cpus_per_task {
+            if !(1..=1024).contains(&c) {
+                return Err(bad("cpus_per_task", format!("{c}: must lie in 1 … 1024")));
+            }
+            e.cpus_per_task = Some(c);
+        }
+        for line in s.sbatch.iter().flatten() {
+            if !line.starts_with("--") || line.contains(['\n', '\r']) || line.len() > 500 {
+                return Err(bad(
+                    "sbatch",
+                    format!("{line:?}: one sbatch option per entry, starting with --, e.g. \"--mem=8G\""),
+                ));
+            }
+            if ["--array", "--output", "--error", "--dependency", "--parsable"].iter().any(|o| line.starts_with(o)) {
+                return Err(bad("sbatch", format!("{line:?}: lucent sets this option itself")));
+            }
+        }
+        e.sbatch = s.sbatch.clone().unwrap_or_default();
+        for line in s.setup.iter().flatten() {
+            if line.contains(['\n', '\r']) {
+                return Err(bad("setup", format!("{line:?}: one shell line per entry")));
+            }
+        }
+        e.setup = s.setup.clone().unwrap_or_default();
+        if let Some(r) = s.retries {
+            if r > MAX_RETRIES {
+                return Err(bad("retries", format!("{r}: at most {MAX_RETRIES}")));
+            }
+            e.retries = r;
+        }
+        Ok(e)
+    }
+}
+
+/// A long command split into shards.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sharded {
+    /// The command line without `--out`, `--quiet` and `--threads`.
+    pub args: Vec<String>,
+    /// The command's `--out`.
+    pub out: PathBuf,
+    pub shards: u32,
+    /// Where the shard folders go: `K` under it for shard K.
+    pub dir: PathBuf,
+}
+
+impl Sharded {
+    /// The shard folders in order.
+    pub fn shard_dirs(&self) -> Vec<PathBuf> {
+        (0..self.shards).map(|k| self.dir.join(k.to_string())).collect()
+    }
+
+    /// `lucent ARGS --shard K/N --out DIR/K --quiet` with `K` given as a shell word (e.g. "$SLURM_ARRAY_TASK_ID").
+    pub fn shard_command(&self, k: &str) -> Vec<String> {
+        let mut v = self.args.clone();
+        v.extend([
+            "--shard".into(),
+            format!("{k}/{}", self.shards),
+            "--out".into(),
+            format!("{}/{k}", self.dir.display()),
+            "--quiet".into(),
+        ]);
+        v
+    }
+
+    /// `lucent merge DIR/0 … --out OUT`.
+    pub fn merge_command(&self) -> Vec<String> {
+        let mut v = vec!["merge".to_string()];
+        v.extend(self.shard_dirs().iter().map(|d| d.display().to_string()));
+        v.extend(["--out".into(), self.out.display().to_string()]);
+        v
+    }
+
+    /// Whether every shard folder holds a finished shard.
+    pub fn done(&self) -> Vec<bool> {
+        self.shard_dirs().iter().map(|d| d.join(crate::shard::SHARD_JSON).is_file()).collect()
+    }
+}
+
+/// Whether a scene file asks for what a shard cannot do (a time budget, an error target, object-weighted sampling).
+fn scene_shardable(scene: &Path) -> bool {
+    let Ok(text) = std::fs::read_to_string(scene) else { return false };
+    let Ok(f) = crate::scene::parse(&text, scene) else { return false };
+    let r = &f.render;
+    r.time_s.is_none()
+        && r.target_rel_error.is_none()
+        && r.sampling.is_none_or(|s| s == crate::scene::SamplingKey::Uniform)
+}
+
+/// The value of `--flag V` or `--flag=V` in `args`.
+fn flag_value<'a>(args: &'a [String], flag: &str) -> Option<&'a str> {
+    let eq = format!("{flag}=");
+    args.iter().enumerate().find_map(
+        |(i, a)| {
+            if a == flag {
+                args.get(i + 1).map(String::as_str)
+            } else {
+                a.strip_prefix(&eq)
+            }
+        },
+    )
+}
+
+/// `args` as shards when it is a long command (see the module doc) and
+/// `shards` > 1; `run_out` is the run's output folder.
+pub fn shard_plan(args: &[String], shards: u32, run_out: &Path) -> Option<Sharded> {
+    if shards < 2 {
+        return None;
+    }
+    let has = |f: &str| flag_value(args, f).is_some();
+    let long = match args.first().map(String::as_str) {
+        Some("render") => {
+            has("--spp")
+                && !has("--time-s")
+                && !has("--target-rel-error")
+                && flag_value(args, "--sampling").is_none_or(|s| s == "uniform")
+                && args.get(1).is_some_and(|s| scene_shardable(Path::new(s)))
+        }
+        Some("bssrdf") => {
+            args.get(1).is_none_or(|a| a != "compare")
+                && has("--paths")
+                && !has("--time-s")
+                && !has("--rel-error")
+                && !has("--pixel-rel-error")
+        }
+        _ => false,
+    };
+    if !long {
+        return None;
+    }
+    let out = PathBuf::from(flag_value(args, "--out")?);
+    let mut kept = Vec::new();
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        if a == "--out" || a == "--threads" {
+            it.next();
+        } else if !(a.starts_with("--out=") || a.starts_with("--threads=") || a == "--quiet") {
+            kept.push(a.clone());
+        }
+    }
+    let id = Sha256::digest(args.join("\0").as_bytes());
+    let id: String = id.iter().take(8).map(|b| format!("{b:02x}")).collect();
+    Some(Sharded { args: kept, out, shards, dir: run_out.join(".lucent-shards").join(id) })
+}
+
+/// The finished shards of `args` that an earlier run left in `run_out`
+/// (written by the jobs of `--emit`, or by an interrupted Slurm run): all
+/// N shard folders hold a `shard.json`. The command is then merged from
+/// them instead of run again.
+pub fn finished_shards(args: &[String], run_out: &Path) -> Option<Sharded> {
+    let t = shard_plan(args, 2, run_out)?;
+    let text = std::fs::read_to_string(t.dir.join("0").join(crate::shard::SHARD_JSON)).ok()?;
+    let first: crate::shard::ShardFile = serde_json::from_str(&text).ok()?;
+    let t = Sharded { shards: first.identity.shards, ..t };
+    t.done().iter().all(|d| *d).then_some(t)
+}
+
+/// A shell word: the text as is when it is plain, else in single quotes.
+pub fn shell_word(s: &str) -> String {
+    if plain_word(s) {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', "'\\''"))
+    }
+}
+
+fn shell_line(exe: &Path, args: &[String]) -> String {
+    let mut v = vec![shell_word(&exe.display().to_string())];
+    v.extend(args.iter().map(|a| {
+        if a.contains("$SLURM_ARRAY_TASK_ID") || a.contains("$JOB_COMPLETION_INDEX") {
+            format!("\"{a}\"")
+        } else {
+            shell_word(a)
+        }
+    }));
+    v.join(" ")
+}
+
+/// The sbatch script of a job array over the shards of `t` (`indices`
+/// "0-3" or "1,3"), each task `lucent … --shard $SLURM_ARRAY_TASK_ID/N`.
+pub fn array_script(e: &Executor, t: &Sharded, exe: &Path, cwd: &Path, indices: &str, name: &str) -> String {
+    let mut s = String::from("#!/bin/bash\n");
+    s.push_str(&format!("#SBATCH --job-name={}\n", shell_word(name)));
+    s.push_str(&format!("#SBATCH --array={indices}\n"));
+    s.push_str(&format!("#SBATCH --output={}/shard-%a.log\n", t.dir.display()));
+    s.push_str("#SBATCH --open-mode=append\n");
+    s.push_str(&header_lines(e));
+    s.push_str("set -eu\n");
+    s.push_str(&format!("cd {}\n", shell_word(&cwd.display().to_string())));
+    for l in &e.setup {
+        s.push_str(l);
+        s.push('\n');
+    }
+    let mut cmd = t.shard_command("$SLURM_ARRAY_TASK_ID");
+    if e.cpus_per_task.is_some() {
+        cmd.extend(["--threads".into(), "$SLURM_CPUS_PER_TASK".into()]);
+    }
+    s.push_str(&format!(
+        "exec {}\n",
+        shell_line(exe, &cmd).replace("'$SLURM_CPUS_PER_TASK'", "\"$SLURM_CPUS_PER_TASK\"")
+    ));
+    s
+}
+
+fn header_lines(e: &Executor) -> String {
+    let mut s = String::new();
+    if let Some(p) = &e.partition {
+        s.push_str(&format!("#SBATCH --partition={p}\n"));
+    }
+    if let Some(a) = &e.account {
+        s.push_str(&format!("#SBATCH --account={a}\n"));
+    }
+    if let Some(t) = &e.time_limit {
+        s.push_str(&format!("#SBATCH --time={t}\n"));
+    }
+    if let Some(c) = e.cpus_per_task {
+        s.push_str(&format!("#SBATCH --cpus-per-task={c}\n"));
+    }
+    for l in &e.sbatch {
+        s.push_str(&format!("#SBATCH {l}\n"));
+    }
+    s
+}
+
+/// The sbatch script of the merge of `t`'s shards (submitted with `--dependency=afterok:ARRAY`).
+pub fn merge_script(e: &Executor, t: &Sharded, exe: &Path, cwd: &Path, name: &str) -> String {
+    let mut s = String::from("#!/bin/bash\n");
+    s.push_str(&format!("#SBATCH --job-name={}\n", shell_word(&format!("{name}-merge"))));
+    s.push_str(&format!("#SBATCH --output={}/merge.log\n", t.dir.display()));
+    let plain = Executor { cpus_per_task: Some(1), ..e.clone() };
+    s.push_str(&header_lines(&plain));
+    s.push_str("set -eu\n");
+    s.push_str(&format!("cd {}\n", shell_word(&cwd.display().to_string())));
+    for l in &e.setup {
+        s.push_str(l);
+        s.push('\n');
+    }
+    s.push_str(&format!("exec {}\n", shell_line(exe, &t.merge_command())));
+    s
+}
+
+/// A Kubernetes Indexed Job running the shards of `t` (the index from
+/// `JOB_COMPLETION_INDEX`), in YAML; the output folders must be on a
+/// volume shared with the merge (`lucent merge`, printed in a comment).
+pub fn k8s_job(e: &Executor, t: &Sharded, cwd: &Path, name: &str) -> String {
+    let cmd = t.shard_command("$(JOB_COMPLETION_INDEX)");
+    let args: Vec<String> = cmd.iter().map(|a| format!("        - {}", serde_json::Value::String(a.clone()))).collect();
+    let cpus = e
+        .cpus_per_task
+        .map(|c| format!("          resources:\n            requests:\n              cpu: \"{c}\"\n"))
+        .unwrap_or_default();
+    let merge: Vec<String> = t.merge_command().iter().map(|a| shell_word(a)).collect();
+    format!(
+        "# The shards of `lucent {}`; when all {} have completed, merge them with:\n#   lucent {}\n\
+         apiVersion: batch/v1\nkind: Job\nmetadata:\n  name: {name}\nspec:\n  completionMode: Indexed\n  completions: {n}\n  parallelism: {n}\n  backoffLimitPerIndex: {retries}\n  template:\n    spec:\n      restartPolicy: Never\n      containers:\n      - name: shard\n        image: {image}\n        workingDir: {cwd}\n        command: [\"lucent\"]\n        args:\n{args}\n{cpus}",
+        t.args.join(" "),
+        t.shards,
+        merge.join(" "),
+        n = t.shards,
+        retries = e.retries,
+        image = serde_json::Value::String(e.image.clone()),
+        cwd = serde_json::Value::String(cwd.display().to_string()),
+        args = args.join("\n"),
+    )
+}
+
+/// The error an executor returns for a command it wrote out as batch jobs
+/// instead of running (`lucent run --emit`): the pipeline then stops after
+/// the stage, without a manifest ([`super::Status::Deferred`]).
+#[derive(Debug, Clone, Copy, Error)]
+#[error("written as batch jobs, not run")]
+pub struct Deferred;
+
+/// Why a sharded command failed on Slurm.
+#[derive(Debug, Error)]
+pub enum SlurmError {
+    #[error("cannot run {program}: {source} (is Slurm installed and on PATH?)")]
+    Spawn { program: String, source: std::io::Error },
+    #[error("{program} failed ({status}): {stderr}")]
+    Failed { program: String, status: String, stderr: String },
+    #[error("sbatch printed no job id: {0:?}")]
+    NoJobId(String),
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("shard{} {} of `lucent {}` still failed after {retries} resubmission(s); logs in {dir}", if shards.len() > 1 { "s" } else { "" }, shards.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(", "), args.join(" "))]
+    ShardsFailed { shards: Vec<u32>, retries: u32, args: Vec<String>, dir: PathBuf },
+    #[error("the merge job of `lucent {}` failed; its log {log}:\n    {tail}", args.join(" "))]
+    MergeFailed { args: Vec<String>, log: PathBuf, tail: String },
+}
+
+fn run_tool(program: &str, args: &[&str]) -> Result<String, SlurmError> {
+    let o = Command::new(program)
+        .args(args)
+        .output()
+        .map_err(|source| SlurmError::Spawn { program: program.into(), source })?;
+    if !o.status.success() {
+        return Err(SlurmError::Failed {
+            program: format!("{program} {}", args.join(" ")),
+            status: o.status.to_string(),
+            stderr: String::from_utf8_lossy(&o.stderr).trim().to_string(),
+        });
+    }
+    Ok(String::from_utf8_lossy(&o.stdout).into_owned())
+}
+
+/// Submits a script with sbatch; returns the job id.
+fn sbatch(script: &Path, extra: &[&str]) -> Result<String, SlurmError> {
+    let mut args = vec!["--parsable"];
+    args.extend_from_slice(extra);
+    let p = script.display().to_string();
+    args.push(&p);
+    let out = run_tool("sbatch", &args)?;
+    let id = out.trim().split(';').next().unwrap_or("").trim().to_string();
+    if id.is_empty() || !id.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(SlurmError::NoJobId(out));
+    }
+    Ok(id)
+}
+
+/// Waits until job `id` (all its array tasks) has left the queue; calls
+/// `progress` with squeue's count of pending and running tasks.
+fn wait(id: &str, poll: Duration, progress: &mut dyn FnMut(usize, usize)) -> Result<(), SlurmError> {
+    let mut failures = 0;
+    loop {
+        // An unknown (long finished) job makes squeue fail: then it is done
+        // too; a busy controller can make it fail once, so three in a row.
+        let out = match run_tool("squeue", &["-h", "-j", id, "-o", "%T"]) {
+            Ok(out) => {
+                failures = 0;
+                out
+            }
+            Err(_) if failures >= 2 => return Ok(()),
+            Err(_) => {
+                failures += 1;
+                std::thread::sleep(poll);
+                continue;
+            }
+        };
+        let states: Vec<&str> = out.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+        if states.is_empty() {
+            return Ok(());
+        }
+        let pending = states.iter().filter(|s| **s == "PENDING").count();
+        progress(pending, states.len() - pending);
+        std::thread::sleep(poll);
+    }
+}
+
+fn write_script(path: &Path, text: &str) -> Result<(), SlurmError> {
+    crate::io::write_atomic(path, text.as_bytes())
+        .map_err(|e| SlurmError::Io { path: path.to_path_buf(), source: e.source })
+}
+
+/// The last lines of a file.
+fn tail(path: &Path, n: usize) -> String {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let lines: Vec<&str> = text.lines().collect();
+    lines[lines.len().saturating_sub(n)..].join("\n    ")
+}
+
+/// Runs the shards of `t` on Slurm: a job array, resubmitting the shards
+/// that did not finish up to `e.retries` times, then the merge job; the
+/// jobs' logs are appended to `log`, and the shard folders removed.
+/// `report` hears progress lines.
+pub fn run_on_slurm(
+    e: &Executor,
+    t: &Sharded,
+    exe: &Path,
+    log: &Path,
+    report: &mut dyn FnMut(&str),
+) -> Result<(), SlurmError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| SlurmError::Io { path, source }
+    };
+    let cwd = std::env::current_dir().map_err(io(Path::new(".")))?;
+    if t.dir.exists() {
+        std::fs::remove_dir_all(&t.dir).map_err(io(&t.dir))?;
+    }
+    std::fs::create_dir_all(&t.dir).map_err(io(&t.dir))?;
+    let name = format!("lucent-{}", t.args.first().map(String::as_str).unwrap_or("task"));
+    let poll = Duration::from_millis(500);
+    let start = Instant::now();
+    let mut indices = format!("0-{}", t.shards - 1);
+    let mut jobs = Vec::new();
+    for attempt in 0..=e.retries {
+        let script = t.dir.join(format!("array-{attempt}.sbatch"));
+        write_script(&script, &array_script(e, t, exe, &cwd, &indices, &name))?;
+        let id = sbatch(&script, &[])?;
+        report(&format!("submitted job array {id} ({} shard(s): {indices})", indices.split(',').count().max(1)));
+        jobs.push(id.clone());
+        let mut last = (usize::MAX, usize::MAX);
+        wait(&id, poll, &mut |pending, running| {
+            let done = t.done().iter().filter(|d| **d).count();
+            if (pending, running) != last {
+                report(&format!(
+                    "job {id}: {done}/{} shards done, {running} running, {pending} pending ({:.0} s)",
+                    t.shards,
+                    start.elapsed().as_secs_f64()
+                ));
+                last = (pending, running);
+            }
+        })?;
+        let missing: Vec<u32> = t.done().iter().enumerate().filter(|(_, d)| !**d).map(|(k, _)| k as u32).collect();
+        if missing.is_empty() {
+            break;
+        }
+        if attempt == e.retries {
+            append_logs(t, log);
+            return Err(SlurmError::ShardsFailed {
+                shards: missing,
+                retries: e.retries,
+                args: t.args.clone(),
+                dir: t.dir.clone(),
+            });
+        }
+        report(&format!("shard(s) {missing:?} did not finish; resubmitting"));
+        indices = missing.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(",");
+    }
+    let script = t.dir.join("merge.sbatch");
+    write_script(&script, &merge_script(e, t, exe, &cwd, &name))?;
+    let dep = format!("--dependency=afterany:{}", jobs.join(":"));
+    let id = sbatch(&script, &[&dep])?;
+    report(&format!("submitted merge job {id}"));
+    wait(&id, poll, &mut |_, _| {})?;
+    append_logs(t, log);
+    let merged = t.out.is_dir()
+        && std::fs::read_dir(&t.out).map(|mut d| d.next().is_some()).unwrap_or(false)
+        && !tail(&t.dir.join("merge.log"), 50).contains("error:");
+    if !merged {
+        return Err(SlurmError::MergeFailed {
+            args: t.args.clone(),
+            log: t.dir.join("merge.log"),
+            tail: tail(&t.dir.join("merge.log"), 12),
+        });
+    }
+    std::fs::remove_dir_all(&t.dir).map_err(io(&t.dir))?;
+    Ok(())
+}
+
+/// Appends the shards' and the merge's Slurm logs to the stage log.
+fn append_logs(t: &Sharded, log: &Path) {
+    use std::io::Write;
+    let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(log) else { return };
+    let _ = writeln!(f, "$ lucent {} (as {} shards on Slurm)", t.args.join(" "), t.shards);
+    let mut logs: Vec<PathBuf> = std::fs::read_dir(&t.dir)
+        .map(|d| d.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|x| x == "log")).collect())
+        .unwrap_or_default();
+    logs.sort();
+    for p in logs {
+        let _ = writeln!(f, "--- {}", p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default());
+        let _ = f.write_all(&std::fs::read(&p).unwrap_or_default());
+    }
+}
+
+/// Writes the scripts of `t` into `dir` (`NAME.array.sbatch`,
+/// `NAME.merge.sbatch`) and returns the lines of `submit.sh` that submit
+/// them, the merge after the array (`--dependency=afterok`).
+pub fn emit_slurm(
+    e: &Executor,
+    t: &Sharded,
+    exe: &Path,
+    cwd: &Path,
+    dir: &Path,
+    name: &str,
+) -> Result<String, SlurmError> {
+    let array = dir.join(format!("{name}.array.sbatch"));
+    let merge = dir.join(format!("{name}.merge.sbatch"));
+    write_script(&array, &array_script(e, t, exe, cwd, &format!("0-{}", t.shards - 1), name))?;
+    write_script(&merge, &merge_script(e, t, exe, cwd, name))?;
+    let var = name.replace(|c: char| !c.is_ascii_alphanumeric(), "_");
+    Ok(format!(
+        "mkdir -p {dir}\n{var}=$(sbatch --parsable {a})\nsbatch --parsable --dependency=afterok:${{{var}%%;*}} --kill-on-invalid-dep=yes {m}\n",
+        dir = shell_word(&t.dir.display().to_string()),
+        a = shell_word(&array.display().to_string()),
+        m = shell_word(&merge.display().to_string()),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn section(text: &str) -> ExecutorSection {
+        toml::from_str(text).expect("toml")
+    }
+
+    #[test]
+    fn executor_keys_are_checked() {
+        let e = Executor::from_section(&section(
+            "kind = \"slurm\"\nshards = 4\npartition = \"debug\"\ntime_limit = \"1-02:00:00\"\ncpus_per_task = 2\nsbatch = [\"--mem=1G\"]",
+        ))
+        .expect("valid");
+        assert_eq!((e.kind, e.shards, e.cpus_per_task), (Kind::Slurm, 4, Some(2)));
+        for (text, key) in [
+            ("kind = \"pbs\"", "kind"),
+            ("shards = 0", "shards"),
+            ("partition = \"a b\"", "partition"),
+            ("time_limit = \"2h\"", "time_limit"),
+            ("cpus_per_task = 0", "cpus_per_task"),
+            ("sbatch = [\"mem=1G\"]", "sbatch"),
+            ("sbatch = [\"--array=0-3\"]", "sbatch"),
+            ("retries = 99", "retries"),
+        ] {
+            let err = Executor::from_section(&section(text)).unwrap_err();
+            assert_eq!(err.key, key, "{text}: {err}");
+        }
+        for t in ["30", "30:00", "02:00:00", "1-0", "1-02:00", "1-02:00:00"] {
+            assert!(valid_time_limit(t), "{t}");
+        }
+        for t in ["", "1:2:3:4", "a", "1-", "-1"] {
+            assert!(!valid_time_limit(t), "{t}");
+        }
+    }
+
+    #[test]
+    fn long_commands_become_shards_and_scripts() {
+        let args: Vec<String> = ["bssrdf", "--mu-s", "3000", "--paths", "9000", "--quiet", "--out", "/r/bssrdf/s1"]
+            .map(String::from)
+            .to_vec();
+        let t = shard_plan(&args, 4, Path::new("/r")).expect("a long command");
+        assert_eq!(t.out, PathBuf::from("/r/bssrdf/s1"));
+        assert!(t.dir.starts_with("/r/.lucent-shards"));
+        assert_eq!(t.args, ["bssrdf", "--mu-s", "3000", "--paths", "9000"]);
+        assert!(shard_plan(&args, 1, Path::new("/r")).is_none());
+        let timed: Vec<String> = ["bssrdf", "--time-s", "9", "--paths", "9", "--out", "x"].map(String::from).to_vec();
+        assert!(shard_plan(&timed, 4, Path::new("/r")).is_none());
+        let e = Executor { partition: Some("debug".into()), cpus_per_task: Some(2), ..Executor::default() };
+        let s = array_script(&e, &t, Path::new("/usr/bin/lucent"), Path::new("/work"), "0-3", "lucent-bssrdf");
+        assert!(s.contains("#SBATCH --array=0-3\n"), "{s}");
+        assert!(s.contains("#SBATCH --partition=debug\n"), "{s}");
+        assert!(s.contains("--shard \"$SLURM_ARRAY_TASK_ID/4\""), "{s}");
+        assert!(s.contains("--threads \"$SLURM_CPUS_PER_TASK\""), "{s}");
+        let k = k8s_job(&e, &t, Path::new("/work"), "lucent-bssrdf");
+        assert!(k.contains("completionMode: Indexed") && k.contains("$(JOB_COMPLETION_INDEX)/4"), "{k}");
+    }
+}

@@ -1,0 +1,232 @@
+//! `--shard K/N` and `lucent merge` through the CLI: a render and a BSSRDF
+//! slice split into N = 1, 2 and 7 shards and merged equal the unsharded
+//! run (bit-for-bit for N = 1, where the sums are taken in the same order;
+//! else to the rounding bound of `lucent::shard`), and shards of two runs,
+//! a missing or repeated shard and a corrupt accumulator are refused with
+//! the file named and nothing written.
+
+use crate::common::{lucent, stderr};
+use std::path::{Path, PathBuf};
+
+const SCENE: &str = "fixtures/render/demo.toml";
+
+fn render_args(out: &Path, seed: &str, extra: &[&str]) -> Vec<String> {
+    let mut v: Vec<String> = ["render", SCENE, "--quiet", "--size", "12x9", "--spp", "7", "--seed", seed, "--out"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    v.push(out.display().to_string());
+    v.extend(extra.iter().map(|s| s.to_string()));
+    v
+}
+
+fn run(args: &[String]) {
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = lucent(&a);
+    assert!(o.status.success(), "lucent {}: {}", args.join(" "), stderr(&o));
+}
+
+/// Runs N shards of `args_of(out, extra)` and merges them into `out`; returns the shard folders.
+fn shards_and_merge(dir: &Path, n: u32, out: &Path, args_of: &dyn Fn(&Path, &[&str]) -> Vec<String>) -> Vec<PathBuf> {
+    let mut dirs = Vec::new();
+    for k in 0..n {
+        let d = dir.join(format!("shard-{n}-{k}"));
+        let spec = format!("{k}/{n}");
+        run(&args_of(&d, &["--shard", &spec]));
+        assert!(d.join("shard.json").is_file());
+        dirs.push(d);
+    }
+    let mut merge = vec!["merge".to_string()];
+    // In reverse order: the merge sorts them.
+    merge.extend(dirs.iter().rev().map(|d| d.display().to_string()));
+    merge.extend(["--out".to_string(), out.display().to_string()]);
+    run(&merge);
+    dirs
+}
+
+fn channels(path: &Path, names: &[&str]) -> Vec<Vec<f32>> {
+    lucent::imageio::read_exr_channels(path, names).expect("read exr").2
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).expect("read json")).expect("parse json")
+}
+
+/// |a − b| ≤ rel·|a| for every value (f32 outputs of f64 sums that differ by ≲ 10⁻¹⁴: at most one f32 ulp).
+fn assert_close(a: &[Vec<f32>], b: &[Vec<f32>], rel: f32, what: &str) {
+    for (ca, cb) in a.iter().zip(b) {
+        assert_eq!(ca.len(), cb.len());
+        for (i, (x, y)) in ca.iter().zip(cb).enumerate() {
+            assert!((x - y).abs() <= rel * x.abs().max(f32::MIN_POSITIVE), "{what}: value {i}: {x} vs {y}");
+        }
+    }
+}
+
+fn assert_rel(a: f64, b: f64, rel: f64, what: &str) {
+    assert!((a - b).abs() <= rel * a.abs(), "{what}: {a} vs {b}");
+}
+
+#[test]
+fn render_shards_merge_into_the_unsharded_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = dir.path().join("whole");
+    run(&render_args(&whole, "3", &[]));
+    let names = ["R", "G", "B", "variance.R", "variance.G", "variance.B", "spp", "object", "board"];
+    let reference = channels(&whole.join("render.exr"), &names);
+    let ref_json = json(&whole.join("render.json"));
+    for n in [1u32, 2, 7] {
+        let out = dir.path().join(format!("merged-{n}"));
+        shards_and_merge(dir.path(), n, &out, &|o, extra| render_args(o, "3", extra));
+        let merged = channels(&out.join("render.exr"), &names);
+        let m_json = json(&out.join("render.json"));
+        assert_eq!(m_json["spp"], ref_json["spp"]);
+        assert_eq!(m_json["samples"], ref_json["samples"]);
+        assert_eq!(m_json["scattering_events"], ref_json["scattering_events"], "N = {n}: the same paths");
+        for c in 0..3 {
+            let (a, b) = (ref_json["mean_rgb"][c].as_f64().unwrap(), m_json["mean_rgb"][c].as_f64().unwrap());
+            if n == 1 {
+                assert_eq!(a.to_bits(), b.to_bits(), "N = 1: mean_rgb[{c}] bit-for-bit");
+            } else {
+                // 7 samples, 108 pixels: sums of ≤ 7 non-negative terms, bound 2·7·2⁻⁵³ per pixel.
+                assert_rel(a, b, 1e-14, &format!("N = {n}: mean_rgb[{c}]"));
+            }
+        }
+        if n == 1 {
+            for f in ["render.exr", "render.png"] {
+                assert_eq!(std::fs::read(whole.join(f)).unwrap(), std::fs::read(out.join(f)).unwrap(), "N = 1: {f}");
+            }
+        } else {
+            assert_eq!(merged[6], reference[6], "N = {n}: sample counts");
+            assert_close(&reference, &merged, 2.0 * f32::EPSILON, &format!("N = {n}: render.exr"));
+        }
+    }
+    // Another seed is another image: the comparison above can fail.
+    let other = dir.path().join("other");
+    run(&render_args(&other, "4", &[]));
+    assert_ne!(channels(&other.join("render.exr"), &["R"])[0], reference[0]);
+}
+
+#[test]
+fn bad_shard_sets_are_refused_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let shard = |seed: &str, k: u32, n: u32| {
+        let d = dir.path().join(format!("s{seed}-{k}-{n}"));
+        run(&render_args(&d, seed, &["--shard", &format!("{k}/{n}")]));
+        d.display().to_string()
+    };
+    let (a0, a1, a2) = (shard("3", 0, 3), shard("3", 1, 3), shard("3", 2, 3));
+    let b1 = shard("5", 1, 3);
+    let merge = |dirs: &[&str], expect: &[&str]| {
+        let out = dir.path().join("out");
+        let mut args = vec!["merge"];
+        args.extend_from_slice(dirs);
+        let o_s = out.display().to_string();
+        args.extend_from_slice(&["--out", &o_s]);
+        let o = lucent(&args);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{dirs:?} merged");
+        for x in expect {
+            assert!(e.contains(x), "{dirs:?}: {e}");
+        }
+        assert!(!e.contains("panicked"), "{e}");
+        assert!(!out.exists(), "{dirs:?}: wrote {}", out.display());
+    };
+    merge(&[&a0, &b1, &a2], &["another run", "seed", "s5-1-3"]);
+    merge(&[&a0, &a2], &["shard 1 of 3 missing"]);
+    merge(&[&a0, &a1, &a1, &a2], &["both shard 1 of 3"]);
+    merge(&[&a0, dir.path().to_str().unwrap()], &["not a shard folder"]);
+    // A damaged accumulator: one byte changed.
+    let acc = Path::new(&a1).join("render.acc");
+    let mut bytes = std::fs::read(&acc).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x10;
+    std::fs::write(&acc, &bytes).unwrap();
+    merge(&[&a0, &a1, &a2], &["render.acc", "corrupt accumulator", "checksum"]);
+    std::fs::write(&acc, &bytes[..100]).unwrap();
+    merge(&[&a0, &a1, &a2], &["render.acc", "corrupt accumulator"]);
+    // Budgets that cannot be split, and more shards than samples.
+    let out = dir.path().join("x");
+    for (extra, expect) in [
+        (vec!["--time-s", "5", "--shard", "0/2"], "time budget"),
+        (vec!["--target-rel-error", "0.1", "--shard", "0/2"], "error target"),
+        (vec!["--sampling", "object-weighted", "--shard", "0/2"], "object-weighted"),
+        (vec!["--shard", "0/8"], "fewer than the 8 shards"),
+        (vec!["--shard", "3/3"], "K/N"),
+    ] {
+        let args = render_args(&out, "3", &extra);
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = lucent(&a);
+        assert!(!o.status.success() && stderr(&o).contains(expect), "{extra:?}: {}", stderr(&o));
+        assert!(!out.join("shard.json").exists());
+    }
+}
+
+const THIN: [&str; 16] = [
+    "bssrdf",
+    "--quiet",
+    "--thickness-mm",
+    "2",
+    "--pixels",
+    "21",
+    "--pixel-mm",
+    "0.2",
+    "--mu-s",
+    "3000",
+    "--mu-a",
+    "30",
+    "--g",
+    "0.8",
+    "--n",
+    "1.5",
+];
+
+fn slice_args(out: &Path, extra: &[&str]) -> Vec<String> {
+    let mut v: Vec<String> = THIN.iter().map(|s| s.to_string()).collect();
+    v.extend(["--paths", "9000", "--seed", "11", "--configs", "45/0,0/30"].map(String::from));
+    v.extend(["--out".to_string(), out.display().to_string()]);
+    v.extend(extra.iter().map(|s| s.to_string()));
+    v
+}
+
+#[test]
+fn slice_shards_merge_into_the_unsharded_slice() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = dir.path().join("whole");
+    run(&slice_args(&whole, &[]));
+    for n in [1u32, 2, 7] {
+        let out = dir.path().join(format!("merged-{n}"));
+        shards_and_merge(dir.path(), n, &out, &|o, extra| slice_args(o, extra));
+        for sub in ["ti45_to0", "ti0_to30"] {
+            let (w, m) = (whole.join(sub), out.join(sub));
+            let (sw, sm) = (json(&w.join("summary.json")), json(&m.join("summary.json")));
+            assert_eq!(sw["paths"], sm["paths"]);
+            assert_eq!(sw["events"], sm["events"], "N = {n}, {sub}: the same paths");
+            for k in ["sum", "sum_std_error", "diffuse_reflectance", "transmittance"] {
+                let (a, b) = (sw[k].as_f64().unwrap(), sm[k].as_f64().unwrap());
+                if n == 1 {
+                    assert_eq!(a.to_bits(), b.to_bits(), "N = 1, {sub}: {k} bit-for-bit");
+                } else {
+                    // Sums over 9000 paths; the standard error subtracts two such sums (×100 margin).
+                    assert_rel(a, b, if k == "sum_std_error" { 1e-9 } else { 1e-11 }, &format!("N = {n}, {sub}: {k}"));
+                }
+            }
+            let (cw, cm) = (
+                channels(&w.join("bssrdf.exr"), &["Y", "std_error"]),
+                channels(&m.join("bssrdf.exr"), &["Y", "std_error"]),
+            );
+            if n == 1 {
+                assert_eq!(std::fs::read(w.join("bssrdf.exr")).unwrap(), std::fs::read(m.join("bssrdf.exr")).unwrap());
+            } else {
+                assert_close(&cw[..1], &cm[..1], 2.0 * f32::EPSILON, &format!("N = {n}, {sub}: slice"));
+                assert_close(&cw[1..], &cm[1..], 1e-5, &format!("N = {n}, {sub}: std_error"));
+            }
+            for f in ["profile.csv", "profile.png", "bssrdf.png"] {
+                assert!(m.join(f).is_file(), "{f}");
+            }
+        }
+        assert!(out.join("sweep.csv").is_file());
+    }
+    // A slice shard needs a path budget.
+    let o = lucent(&THIN.iter().copied().chain(["--rel-error", "0.1", "--shard", "0/2"]).collect::<Vec<_>>());
+    assert!(!o.status.success() && stderr(&o).contains("--paths"), "{}", stderr(&o));
+}
