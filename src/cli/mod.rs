@@ -198,6 +198,54 @@ pub enum BenchCommand {
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> Result<()> {
+    // The output folder is checked before any work (a folder of the user's
+    // is refused, see `io::check_output_folder`), marked as lucent's when the
+    // command succeeds, and removed again when the command fails and leaves
+    // it empty.
+    let folder = output_folder(&cli.command);
+    let existed = folder.as_deref().is_some_and(|f| std::fs::symlink_metadata(f).is_ok());
+    if let Some(f) = &folder {
+        crate::io::check_output_folder(f)?;
+    }
+    let result = dispatch(cli);
+    if let Some(f) = folder.filter(|f| f.is_dir()) {
+        if result.is_ok() {
+            crate::io::mark_output_folder(&f)?;
+        } else if !existed {
+            let only_mark = std::fs::read_dir(&f)
+                .map(|d| d.flatten().all(|e| e.file_name() == crate::io::OUTPUT_MARK))
+                .unwrap_or(false);
+            if only_mark {
+                let _ = std::fs::remove_file(f.join(crate::io::OUTPUT_MARK));
+                let _ = std::fs::remove_dir(&f);
+            }
+        }
+    }
+    result
+}
+
+/// The output folder (not file) a command writes into, if it has one.
+fn output_folder(command: &Command) -> Option<PathBuf> {
+    Some(match command {
+        Command::Optics(a) if a.json && a.out.is_none() => return None,
+        Command::Optics(a) => a.out.clone().unwrap_or_else(|| PathBuf::from("lucent-out/optics")),
+        Command::Bssrdf(a) => match &a.command {
+            Some(bssrdf::BssrdfCommand::Compare(c)) => c.out.clone(),
+            None => a.run.out.clone(),
+        },
+        Command::Render(a) => a.out.clone(),
+        Command::Surface(surface::SurfaceCommand::Fit(a)) => a.out.clone(),
+        Command::Colour(colour::ColourCommand::Calibrate(a)) => a.out.clone(),
+        Command::Env(camera::EnvCommand::FitScale(a)) => a.out.clone(),
+        Command::Env(camera::EnvCommand::Brackets(a)) => a.out_dir.clone(),
+        Command::Compare(a) => a.out.clone(),
+        Command::Fit(a) => a.out.clone(),
+        Command::Bench(BenchCommand::Fit { out: Some(out), .. }) => out.clone(),
+        _ => return None,
+    })
+}
+
+fn dispatch(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Optics(a) => optics(a),
         Command::Mie(a) => mie(a),

@@ -3,8 +3,9 @@
 //! their output in `STAGE/log.txt`; one status line per stage with its time.
 
 use super::choices::{ForceChoice, StageChoice};
+use super::interrupt::Interrupt;
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -33,7 +34,7 @@ fn tail(log: &Path, n: usize) -> String {
 }
 
 /// Runs `lucent ARGS` with stdout and stderr appended to `log`.
-fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<()> {
+fn run_lucent(exe: &Path, args: &[String], log: &Path, interrupt: &Interrupt) -> Result<()> {
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
@@ -41,13 +42,38 @@ fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<()> {
         .with_context(|| format!("{}: cannot open log", log.display()))?;
     let _ = writeln!(f, "$ lucent {}", args.join(" "));
     let err = f.try_clone().with_context(|| format!("{}: cannot open log", log.display()))?;
-    let status = Command::new(exe)
+    if interrupt.requested() {
+        bail!("interrupted (Ctrl-C or SIGTERM) before `lucent {}`", args.join(" "));
+    }
+    let mut child = Command::new(exe)
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::from(f))
         .stderr(Stdio::from(err))
-        .status()
+        .spawn()
         .with_context(|| format!("cannot start {}", exe.display()))?;
+    // A stop request reaches the command too (a Ctrl-C at the terminal does
+    // by itself; a SIGTERM to this process alone is passed on), and the stage
+    // then fails whatever the command did with it: an interrupted result is
+    // kept as STAGE.failed/, never taken for the stage's output.
+    let mut passed_on = false;
+    let status = loop {
+        if let Some(status) = child.try_wait().with_context(|| format!("waiting for `lucent {}`", args.join(" ")))? {
+            break status;
+        }
+        if interrupt.requested() && !passed_on {
+            passed_on = true;
+            #[cfg(unix)]
+            if let Ok(pid) = libc::pid_t::try_from(child.id()) {
+                // SAFETY: kill(2) on the child we started and have not yet reaped.
+                unsafe { libc::kill(pid, libc::SIGTERM) };
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    if interrupt.requested() {
+        bail!("interrupted (Ctrl-C or SIGTERM) during `lucent {}`", args.join(" "));
+    }
     if status.success() {
         Ok(())
     } else {
@@ -75,7 +101,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     let total = std::time::Instant::now();
     let n = Stage::ALL.len();
     // The whole chain of causes goes into the stage's error message.
-    let mut exec = |args: &[String], log: &Path| run_lucent(&exe, args, log).map_err(|e| format!("{e:#}").into());
+    // Ctrl-C or SIGTERM: the stage under way fails (its output is kept as
+    // STAGE.failed/, the previous result is put back) and no later one starts.
+    let interrupt = Interrupt::install();
+    let mut exec =
+        |args: &[String], log: &Path| run_lucent(&exe, args, log, &interrupt).map_err(|e| format!("{e:#}").into());
     let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {
         let k = Stage::ALL.iter().position(|s| *s == stage).unwrap_or(0) + 1;
         let what = match st {

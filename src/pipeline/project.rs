@@ -241,6 +241,31 @@ pub fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>, ConfigError> {
     Ok(out)
 }
 
+/// Checks that a name from the project file (the project's, a sample's, a
+/// camera's) can become a folder name under the output folder: 1 to 100
+/// letters, digits, '-', '_' and '.', not starting with '.' (so never "."
+/// or "..", a hidden name, a path or a control character).
+///
+/// ```
+/// use lucent::pipeline::project::folder_name;
+/// assert!(folder_name("IOL1068-09").is_ok());
+/// for bad in ["", ".", "..", "a/b", "/", ".hidden", "a\0b", "tab\t"] {
+///     assert!(folder_name(bad).is_err(), "{bad:?}");
+/// }
+/// ```
+pub fn folder_name(name: &str) -> Result<(), &'static str> {
+    if name.is_empty() || name.len() > 100 {
+        return Err("must be 1 to 100 characters (it names a folder)");
+    }
+    if name.starts_with('.') {
+        return Err("must not start with '.' (it names a folder; \".\" and \"..\" would leave the output folder)");
+    }
+    if !name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c)) {
+        return Err("use letters, digits, '-', '_' and '.' only (it names a folder)");
+    }
+    Ok(())
+}
+
 impl Project {
     /// Reads and validates a project file.
     pub fn load(path: &Path) -> Result<Project, ProjectError> {
@@ -272,18 +297,15 @@ impl Project {
             Some(n) => n.clone(),
             None => path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "project".into()),
         };
-        if name.is_empty() || name.contains(['/', '\\']) {
-            return Err(key("[project] name", format!("{name:?}: must be non-empty, without slashes")));
+        if let Err(reason) = folder_name(&name) {
+            return Err(key("[project] name", format!("{name:?}: {reason}")));
         }
         let out = file.project.out.as_ref().map(|p| resolve(p));
         let mut seen = std::collections::HashSet::new();
         for (k, s) in file.sample.iter_mut().enumerate() {
             let at = format!("[[sample]] #{} ({})", k + 1, s.name);
-            if s.name.is_empty()
-                || s.name.starts_with('.')
-                || !s.name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
-            {
-                return Err(key(&format!("{at} name"), "use letters, digits, '-', '_' and '.' (a folder name)".into()));
+            if let Err(reason) = folder_name(&s.name) {
+                return Err(key(&format!("{at} name"), reason.into()));
             }
             if !seen.insert(s.name.clone()) {
                 return Err(key(&format!("{at} name"), "two samples have this name".into()));
@@ -342,11 +364,11 @@ impl Project {
         }
         let mut cameras = std::collections::HashSet::new();
         for c in &mut file.colour {
-            if !cameras.insert(c.camera.clone())
-                || c.camera.is_empty()
-                || !c.camera.chars().all(|ch| ch.is_ascii_alphanumeric() || "-_.".contains(ch))
-            {
-                return Err(key("[[colour]] camera", format!("{:?}: names must be unique folder names", c.camera)));
+            if let Err(reason) = folder_name(&c.camera) {
+                return Err(key("[[colour]] camera", format!("{:?}: {reason}", c.camera)));
+            }
+            if !cameras.insert(c.camera.clone()) {
+                return Err(key("[[colour]] camera", format!("{:?}: two [[colour]] sections name it", c.camera)));
             }
             existing(&format!("[[colour]] {} image", c.camera), &mut c.image)?;
             if let Some(t) = &mut c.truth {
