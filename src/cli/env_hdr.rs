@@ -135,8 +135,9 @@ pub struct EnvPasteArgs {
     /// Horizontal field of view the picture spans, degrees.
     #[arg(long)]
     pub fov: f64,
-    /// Resample the map to this width first (bilinear; height = width/2), so a small picture keeps its detail.
-    #[arg(long)]
+    /// Resample the map to this width first (bilinear; height = width/2, at most 32768), so a small picture keeps
+    /// its detail.
+    #[arg(long, value_parser = crate::cli::count_in::<2, 32_768>)]
     pub width: Option<usize>,
     /// Output map (.exr).
     #[arg(long)]

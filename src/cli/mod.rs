@@ -93,8 +93,8 @@ pub struct OpticsArgs {
     /// Print the properties as JSON on stdout.
     #[arg(long)]
     pub json: bool,
-    /// Entries of the tabulated phase function (uniform in θ; 0 disables).
-    #[arg(long, default_value_t = 4096)]
+    /// Entries of the tabulated phase function (uniform in θ; 0 disables; at most 100000).
+    #[arg(long, default_value_t = 4096, value_parser = count_in::<0, 100_000>)]
     pub phase_entries: usize,
     /// Weight percentage for particle types whose recipe leaves it unknown.
     #[arg(long)]
@@ -103,8 +103,9 @@ pub struct OpticsArgs {
     #[arg(long)]
     pub skip_invalid: bool,
     /// Propagate the recipe's uncertain inputs ({ value, sd } or { min, max }) with N Latin-hypercube samples:
-    /// mean, sd and 95 % interval of μs, μa, g, n_bulk per wavelength (uncertainty.csv/.json/.png per sample).
-    #[arg(long)]
+    /// mean, sd and 95 % interval of μs, μa, g, n_bulk per wavelength (uncertainty.csv/.json/.png per sample;
+    /// 2 … 100000 samples).
+    #[arg(long, value_parser = count_in::<2, 100_000>)]
     pub uncertainty: Option<usize>,
     /// Seed of the --uncertainty samples.
     #[arg(long, default_value_t = 1)]
@@ -263,6 +264,17 @@ fn dispatch(cli: Cli) -> Result<()> {
         Command::Run(a) => run::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Synth(c) => synth::run(c),
+    }
+}
+
+/// A count flag's value, refused outside `LO ..= HI` (every flag that sets a
+/// size or a count states its limit).
+pub fn count_in<const LO: usize, const HI: usize>(text: &str) -> Result<usize, String> {
+    let n: usize = text.trim().parse().map_err(|_| format!("{text:?} is not a whole number"))?;
+    if (LO..=HI).contains(&n) {
+        Ok(n)
+    } else {
+        Err(format!("{n} is outside {LO} … {HI}"))
     }
 }
 

@@ -133,6 +133,11 @@ pub enum KeyProblem {
     #[error("must be at least 1")]
     Zero,
     #[error(
+        "band {band}: σs = {s} /m, σa = {a} /m: each must be ≥ 0 and σs + σa in (0, 1e7] /m \
+         (lucent_render::slab::MU_T_MAX_PER_M, a mean free path of 0.1 µm)"
+    )]
+    Coefficients { band: usize, s: f64, a: f64 },
+    #[error(
         "must be an affine map that keeps a solid a solid: last row [0, 0, 0, 1] (got {last_row:?}) and an \
          invertible 3 × 3 part (determinant {determinant})"
     )]
@@ -612,6 +617,12 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     let material = match &file.material {
         Some(m) => {
             let (medium, mut eta, mut summary, size, surface) = build_material(&ctx, m, &mut warnings)?;
+            for b in 0..3 {
+                let (s, a) = (medium.sigma_s[b], medium.sigma_a[b]);
+                if !lucent_render::slab::valid_coefficients(s, a) {
+                    return Err(ctx.key("material", "sigma_s_per_m", KeyProblem::Coefficients { band: b, s, a }));
+                }
+            }
             let rough = build_roughness(&ctx, m, surface)?;
             if let Some((_, desc)) = &rough {
                 summary.boundary.clone_from(desc);
