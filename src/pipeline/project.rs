@@ -304,6 +304,18 @@ impl Project {
         let mut seen = std::collections::HashSet::new();
         for (k, s) in file.sample.iter_mut().enumerate() {
             let at = format!("[[sample]] #{} ({})", k + 1, s.name);
+            if let Some(w) = s.weight_percent
+                && !(w > 0.0 && w < 100.0)
+            {
+                return Err(key(&format!("{at} weight_percent"), format!("must lie in (0, 100), got {w}")));
+            }
+            for m in &s.measured {
+                if let Some(px) = m.pixel_mm
+                    && !(px > 0.0 && px.is_finite())
+                {
+                    return Err(key(&format!("{at} measured pixel_mm"), format!("must be finite and > 0, got {px}")));
+                }
+            }
             if let Err(reason) = folder_name(&s.name) {
                 return Err(key(&format!("{at} name"), reason.into()));
             }
@@ -329,6 +341,33 @@ impl Project {
         if let Some(b) = &file.bssrdf {
             bssrdf_configs = parse_configs(b.configs.as_deref().unwrap_or("45/0"))
                 .map_err(|e| key("[bssrdf] configs", e.to_string()))?;
+            // The ranges of the flags these keys become (`lucent bssrdf`), so a
+            // bad value is named here and not by the stage's command line.
+            let positive = |k: &str, v: Option<f64>| match v {
+                Some(x) if !(x > 0.0 && x.is_finite()) => Err(key(k, format!("must be finite and > 0, got {x}"))),
+                _ => Ok(()),
+            };
+            positive("[bssrdf] wavelength_nm", b.wavelength_nm)?;
+            positive("[bssrdf] pixel_mm", b.pixel_mm)?;
+            positive("[bssrdf] time_s", b.time_s)?;
+            positive("[bssrdf] rel_error", b.rel_error)?;
+            if let Some(t) = b.threshold
+                && !(0.0..1.0).contains(&t)
+            {
+                return Err(key("[bssrdf] threshold", format!("must lie in [0, 1) (a fraction of the maximum), got {t}")));
+            }
+            let pixels = b.pixels.unwrap_or(259);
+            if !(1..=8192).contains(&pixels) {
+                return Err(key("[bssrdf] pixels", format!("must lie in 1 … 8192, got {pixels}")));
+            }
+            if let Some(c) = b.crop
+                && !(1..=pixels).contains(&c)
+            {
+                return Err(key("[bssrdf] crop", format!("must lie in 1 … pixels ({pixels}), got {c}")));
+            }
+            if b.paths == Some(0) {
+                return Err(key("[bssrdf] paths", "must be at least 1".into()));
+            }
             if b.paths.is_none() && b.rel_error.is_none() && b.time_s.is_none() {
                 return Err(key("[bssrdf]", "give a stop rule: paths, rel_error or time_s".into()));
             }
@@ -403,6 +442,11 @@ impl Project {
             existing("[render] scene", &mut r.scene)?;
             if r.spp == Some(0) || r.env_spp == Some(0) {
                 return Err(key("[render] spp", "must be at least 1".into()));
+            }
+            if let Some(t) = r.time_s
+                && !(t > 0.0 && t.is_finite())
+            {
+                return Err(key("[render] time_s", format!("must be finite and > 0, got {t}")));
             }
             if let Some(c) = &r.camera {
                 if c != "pose" && c != "template" {
