@@ -801,6 +801,14 @@ impl Sensor {
     pub fn new(pixels: usize, pixel_m: f64) -> Result<Self, SlabError> {
         check("pixels", pixels as f64, (1..=8192).contains(&pixels), "must lie in 1 … 8192")?;
         check("pixel_m", pixel_m, pixel_m > 0.0, "must be > 0")?;
+        // A slice wider than a metre is no measurement of a sample (and a
+        // pixel of 1e305 m made the coordinates overflow, and paths loop).
+        check(
+            "pixel_m",
+            pixel_m,
+            pixel_m * pixels as f64 <= 1.0,
+            "the slice (pixels × pixel size) must be at most 1 m wide",
+        )?;
         Ok(Self { pixels, pixel_m })
     }
 

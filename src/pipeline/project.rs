@@ -354,7 +354,10 @@ impl Project {
             if let Some(t) = b.threshold
                 && !(0.0..1.0).contains(&t)
             {
-                return Err(key("[bssrdf] threshold", format!("must lie in [0, 1) (a fraction of the maximum), got {t}")));
+                return Err(key(
+                    "[bssrdf] threshold",
+                    format!("must lie in [0, 1) (a fraction of the maximum), got {t}"),
+                ));
             }
             let pixels = b.pixels.unwrap_or(259);
             if !(1..=8192).contains(&pixels) {

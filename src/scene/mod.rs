@@ -807,7 +807,11 @@ fn build_camera(
                 ctx.key("camera", "vertical_fov_deg", KeyProblem::Required { when: "with position_m/look_at_m" })
             })?;
             if !(fov > 0.0 && fov < 180.0) {
-                return Err(ctx.key("camera", "vertical_fov_deg", KeyProblem::Between { low: 0.0, high: 180.0, value: fov }));
+                return Err(ctx.key(
+                    "camera",
+                    "vertical_fov_deg",
+                    KeyProblem::Between { low: 0.0, high: 180.0, value: fov },
+                ));
             }
             let up = c.up.unwrap_or([0.0, 0.0, 1.0]);
             let cam = Camera::look_at(
