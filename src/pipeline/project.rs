@@ -261,7 +261,7 @@ pub fn folder_name(name: &str) -> Result<(), &'static str> {
         return Err("must not start with '.' (it names a folder; \".\" and \"..\" would leave the output folder)");
     }
     if !name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c)) {
-        return Err("use letters, digits, '-', '_' and '.' only (it names a folder)");
+        return Err("use letters, digits, '-', '_' and '.' only (a folder name)");
     }
     Ok(())
 }
