@@ -55,7 +55,7 @@ pub fn read_image(path: &Path, role: &'static str) -> Result<Loaded, CompareErro
     // meaningful RMSE or SSIM against another (a few small negative values
     // of a colour-corrected photo are kept).
     let sum: f64 = loaded.image.data.iter().map(|&v| f64::from(v)).sum();
-    if !(sum > 0.0) {
+    if sum.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(CompareError::NoLight { role, path: path.to_path_buf(), sum });
     }
     Ok(loaded)

@@ -911,7 +911,7 @@ fn recover_stage_folder(stage: Stage, dir: &Path, aside: &Path, failed: &Path) -
         let what = if path.is_dir() { "a folder lucent run did not write (no manifest.json)" } else { "not a folder" };
         PipelineError::Foreign { path: path.to_path_buf(), what: what.into(), stage }
     };
-    if std::fs::symlink_metadata(dir).is_ok() && !(dir.is_dir() && !dir.is_symlink()) {
+    if std::fs::symlink_metadata(dir).is_ok() && (dir.is_symlink() || !dir.is_dir()) {
         return Err(foreign(dir));
     }
     if dir.is_dir() && !is_stage_folder(dir) && std::fs::read_dir(dir).map_or(true, |mut d| d.next().is_some()) {
