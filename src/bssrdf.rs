@@ -75,6 +75,11 @@ pub enum SliceProblem {
     Exr(#[source] exr::error::Error),
     #[error("EXR has no channels")]
     NoChannels,
+    #[error(
+        "EXR has channels {names:?} but no Y: a slice has one value per pixel (channel Y, or a single channel); \
+         an RGB image is not read as one of its channels"
+    )]
+    Channels { names: Vec<String> },
 }
 
 /// A square grid of values with its pixel size (a slice, measured or
@@ -107,8 +112,8 @@ fn invalid(path: &Path, problem: SliceProblem) -> SliceIoError {
     SliceIoError::Invalid { path: path.to_path_buf(), problem }
 }
 
-/// Reads a square grid of finite values from EXR (channel `Y`, else `R`,
-/// else the first), float TIFF or CSV (rows of numbers separated by commas
+/// Reads a square grid of finite values from EXR (channel `Y`, else the
+/// only channel besides `A` and `std_error`), float TIFF or CSV (rows of numbers separated by commas
 /// or whitespace; `#` comments). The pixel size comes from `pixel_mm` or,
 /// failing that, from a sidecar JSON (`FILE.json` or `summary.json` in the
 /// same folder) with `pixel_mm`.
@@ -209,11 +214,17 @@ fn read_exr_scalar(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError
         .map_err(|e| invalid(path, SliceProblem::Exr(e)))?;
     let size = image.layer_data.size;
     let channels = &image.layer_data.channel_data.list;
-    let pick = ["Y", "R"]
-        .iter()
-        .find_map(|n| channels.iter().find(|c| c.name.to_string() == *n))
-        .or(channels.first())
-        .ok_or_else(|| invalid(path, SliceProblem::NoChannels))?;
+    // A slice has one value per pixel: channel Y, or the only channel
+    // besides an alpha or a standard error. An RGB image is refused rather
+    // than read as its R channel.
+    let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
+    let data: Vec<usize> = (0..names.len()).filter(|&i| !["A", "std_error"].contains(&names[i].as_str())).collect();
+    let pick = match (names.iter().position(|n| n == "Y"), data.as_slice()) {
+        (Some(y), _) => &channels[y],
+        (None, [only]) => &channels[*only],
+        (None, []) => return Err(invalid(path, SliceProblem::NoChannels)),
+        (None, _) => return Err(invalid(path, SliceProblem::Channels { names })),
+    };
     let values: Vec<f64> = pick.sample_data.values_as_f32().map(f64::from).collect();
     Ok((size.width(), size.height(), values))
 }

@@ -50,6 +50,11 @@ pub enum FitError {
     NonFinite { x: usize, y: usize, channel: usize, value: f64 },
     #[error("the render of the board is black ({what}): no light reaches the board, no scale can match it")]
     Black { what: String },
+    #[error(
+        "the photo of the board is black or negative ({what}): a scale must be > 0; give a linear photo of the lit \
+         board"
+    )]
+    DarkPhoto { what: String },
     #[error("the scene has no [board]: the environment scale is fitted over the board's pixels")]
     NoBoard,
 }
@@ -124,11 +129,21 @@ pub fn fit_scale(
     if !positive(total_r) {
         return Err(FitError::Black { what: format!("Σ R = {total_r:e} over {pixels} pixels") });
     }
-    let scale = sp.iter().sum::<f64>() / total_r;
+    // A scale is a positive factor: a photo whose board is black, or
+    // negative on the whole, has none to give (it is not a linear photo of a
+    // lit board).
+    let total_p: f64 = sp.iter().sum();
+    if !positive(total_p) {
+        return Err(FitError::DarkPhoto { what: format!("Σ P = {total_p:e} over {pixels} pixels") });
+    }
+    let scale = total_p / total_r;
     let mut per = [0.0; 3];
     for c in 0..3 {
         if !positive(sr[c]) {
             return Err(FitError::Black { what: format!("channel {c}: Σ R = {:e}", sr[c]) });
+        }
+        if !positive(sp[c]) {
+            return Err(FitError::DarkPhoto { what: format!("channel {c}: Σ P = {:e}", sp[c]) });
         }
         per[c] = sp[c] / sr[c];
     }

@@ -84,6 +84,93 @@ fn create_folder_unlocked(dir: &Path) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)
 }
 
+/// The hidden file that marks a folder as lucent's output folder
+/// ([`claim_output_folder`], [`mark_output_folder`]).
+pub const OUTPUT_MARK: &str = ".lucent-output";
+
+/// An output folder lucent may not write into.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputFolderError {
+    #[error("{path}: the output folder exists and is not a folder")]
+    NotAFolder { path: PathBuf },
+    #[error(
+        "{path}: the output folder already holds files lucent did not write ({example} …); lucent writes only into a \
+         new or empty folder, or one an earlier lucent run wrote — choose another output folder"
+    )]
+    Foreign { path: PathBuf, example: String },
+    #[error("{path}: cannot create the output folder: {source}")]
+    Create { path: PathBuf, source: std::io::Error },
+}
+
+/// Whether lucent may write into `dir` as an output folder (it is not
+/// created): it does not exist, or is an empty folder, or is marked as
+/// lucent's ([`OUTPUT_MARK`] in it or in a folder above it), or holds a
+/// stage folder of `lucent run` (a `manifest.json` one level down, from
+/// before the mark). A folder of the user's with other files in it is
+/// refused, so no output ever replaces or removes a file of theirs.
+///
+/// ```
+/// let dir = std::env::temp_dir().join(format!("lucent-doc-claim-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir).unwrap();
+/// lucent::io::check_output_folder(&dir).unwrap(); // empty
+/// std::fs::write(dir.join("thesis.tex"), "mine").unwrap();
+/// assert!(lucent::io::check_output_folder(&dir).is_err());
+/// lucent::io::mark_output_folder(&dir).unwrap();
+/// lucent::io::check_output_folder(&dir).unwrap();
+/// # std::fs::remove_dir_all(&dir).unwrap();
+/// ```
+pub fn check_output_folder(dir: &Path) -> Result<(), OutputFolderError> {
+    let Ok(meta) = std::fs::metadata(dir) else {
+        return match std::fs::symlink_metadata(dir) {
+            // A dangling link: writing through it would land elsewhere.
+            Ok(_) => Err(OutputFolderError::NotAFolder { path: dir.to_path_buf() }),
+            Err(_) => Ok(()),
+        };
+    };
+    if !meta.is_dir() {
+        return Err(OutputFolderError::NotAFolder { path: dir.to_path_buf() });
+    }
+    if is_marked(dir) {
+        return Ok(());
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else { return Ok(()) };
+    let mut example = None;
+    for e in entries.flatten() {
+        let p = e.path();
+        if p.is_dir() && p.join("manifest.json").is_file() {
+            return Ok(());
+        }
+        example.get_or_insert_with(|| e.file_name().to_string_lossy().into_owned());
+    }
+    match example {
+        None => Ok(()),
+        Some(example) => Err(OutputFolderError::Foreign { path: dir.to_path_buf(), example }),
+    }
+}
+
+/// Whether `dir` or a folder above it holds [`OUTPUT_MARK`].
+fn is_marked(dir: &Path) -> bool {
+    let absolute = std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf());
+    absolute.ancestors().any(|a| a.join(OUTPUT_MARK).is_file())
+}
+
+/// Marks `dir` (which exists) as lucent's output folder, so later runs may
+/// write into it again ([`check_output_folder`]).
+pub fn mark_output_folder(dir: &Path) -> Result<(), WriteError> {
+    if is_marked(dir) {
+        return Ok(());
+    }
+    write_atomic(&dir.join(OUTPUT_MARK), b"written by lucent; lucent may replace its own files in this folder\n")
+}
+
+/// [`check_output_folder`], then creates the folder and marks it: for a
+/// run that keeps its output folder even when it fails (`lucent run`).
+pub fn claim_output_folder(dir: &Path) -> Result<(), OutputFolderError> {
+    check_output_folder(dir)?;
+    create_folder(dir).map_err(|source| OutputFolderError::Create { path: dir.to_path_buf(), source })?;
+    mark_output_folder(dir).map_err(|e| OutputFolderError::Create { path: dir.to_path_buf(), source: e.source })
+}
+
 /// An output folder filled in a fresh hidden sibling folder and moved into
 /// place only when complete: a run that fails leaves the output folder as it
 /// was, and a run that succeeds leaves no stale file of an earlier run among
@@ -95,6 +182,7 @@ fn create_folder_unlocked(dir: &Path) -> std::io::Result<()> {
 /// std::fs::create_dir_all(&out).unwrap();
 /// std::fs::write(out.join("old.csv"), "stale").unwrap();
 /// std::fs::write(out.join("notes.txt"), "the user's").unwrap();
+/// lucent::io::mark_output_folder(&out).unwrap(); // an earlier run's folder
 /// let stage = lucent::io::StagedDir::new(&out).unwrap();
 /// lucent::io::write_atomic(&stage.path().join("new.csv"), b"1,2").unwrap();
 /// stage.commit(|name| name.ends_with(".csv")).unwrap();
@@ -106,23 +194,30 @@ pub struct StagedDir {
     target: PathBuf,
     staging: PathBuf,
     committed: bool,
+    /// The highest folder above the staging folder that `new` created (so a
+    /// run that fails leaves no empty folder behind).
+    created: Option<PathBuf>,
 }
 
 impl StagedDir {
-    /// Creates the staging folder beside `target` (which need not exist, but
-    /// must not be a file).
-    pub fn new(target: &Path) -> Result<Self, WriteError> {
-        let err = |source| WriteError { path: target.to_path_buf(), source };
+    /// Creates the staging folder beside `target`, which must be a folder
+    /// lucent may write into ([`check_output_folder`]); `target` itself is
+    /// made only by [`StagedDir::commit`].
+    pub fn new(target: &Path) -> Result<Self, OutputFolderError> {
+        let err = |source| OutputFolderError::Create { path: target.to_path_buf(), source };
         let _changing = changing_output();
-        create_folder_unlocked(target).map_err(err)?;
+        check_output_folder(target)?;
         let parent = target.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let created = parent.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).last();
+        let created = created.map(Path::to_path_buf);
+        create_folder_unlocked(parent).map_err(err)?;
         let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
         let staging = parent.join(format!(".{name}.staging-{}", std::process::id()));
         if staging.exists() {
             std::fs::remove_dir_all(&staging).map_err(err)?;
         }
         std::fs::create_dir_all(&staging).map_err(err)?;
-        Ok(Self { target: target.to_path_buf(), staging, committed: false })
+        Ok(Self { target: target.to_path_buf(), staging, committed: false, created })
     }
 
     /// Where to write the output.
@@ -139,6 +234,12 @@ impl StagedDir {
             move |source| WriteError { path, source }
         };
         let _changing = changing_output();
+        create_folder_unlocked(&self.target).map_err(err(&self.target))?;
+        if !is_marked(&self.target) {
+            let mark = self.staging.join(OUTPUT_MARK);
+            std::fs::write(&mark, b"written by lucent; lucent may replace its own files in this folder\n")
+                .map_err(err(&mark))?;
+        }
         let new: Vec<std::ffi::OsString> = std::fs::read_dir(&self.staging)
             .map_err(err(&self.staging))?
             .map(|e| e.map(|e| e.file_name()))
@@ -166,6 +267,14 @@ impl Drop for StagedDir {
     fn drop(&mut self) {
         if !self.committed {
             let _ = std::fs::remove_dir_all(&self.staging);
+            // The folders `new` made for the staging folder, if still empty.
+            if let Some(top) = &self.created {
+                for a in self.staging.ancestors().skip(1) {
+                    if std::fs::remove_dir(a).is_err() || a == top.as_path() {
+                        break;
+                    }
+                }
+            }
         }
     }
 }

@@ -104,6 +104,8 @@ fn every_bad_file_is_refused_by_name_without_panic_or_output() {
             for args in commands(reader) {
                 let out = tmp.path().join(format!("out-{runs}"));
                 std::fs::create_dir_all(&out).unwrap();
+                // An output folder of an earlier run (marked as lucent's) with a file of the user's in it.
+                lucent::io::mark_output_folder(&out).unwrap();
                 std::fs::write(out.join("keep.txt"), "a file of the user's").unwrap();
                 let before = snapshot(&out);
                 let args: Vec<String> = args
@@ -217,8 +219,11 @@ fn reused_bssrdf_folder_has_no_stale_output() {
     assert!(out.join("sweep.csv").exists() && out.join("ti45_to0").is_dir());
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
     run(&["--paths", "2000"]);
-    let mut names: Vec<String> =
-        std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != lucent::io::OUTPUT_MARK)
+        .collect();
     names.sort();
     assert_eq!(names, ["bssrdf.exr", "bssrdf.png", "notes.txt", "profile.csv", "profile.png", "summary.json"]);
     // No staging folder left beside it.

@@ -164,13 +164,12 @@ fn fisheye_photos_calibrate_back_and_undistort_to_pinhole_and_equirect() {
         json(&out)
     };
     let fish = calibrate("fisheye");
-    let pin = calibrate("pinhole-k3");
     let views = fish["views"].as_array().unwrap().len();
-    let (rms_fish, rms_pin) = (fish["rms_px"].as_f64().unwrap(), pin["rms_px"].as_f64().unwrap());
+    let rms_fish = fish["rms_px"].as_f64().unwrap();
     let k = &fish["camera"]["intrinsics"];
     let got = ["fx", "fy", "cx", "cy"].map(|n| k[n].as_f64().unwrap());
     eprintln!(
-        "{views} views: fisheye rms {rms_fish:.4} px, f {:.3} {:.3}, c {:.3} {:.3} (truth {F:?} {C:?}); pinhole-k3 rms {rms_pin:.3} px",
+        "{views} views: fisheye rms {rms_fish:.4} px, f {:.3} {:.3}, c {:.3} {:.3} (truth {F:?} {C:?})",
         got[0], got[1], got[2], got[3]
     );
     assert!(views >= 6, "{views} views found");
@@ -182,8 +181,23 @@ fn fisheye_photos_calibrate_back_and_undistort_to_pinhole_and_equirect() {
     for (g, w) in got[2..].iter().zip(C) {
         assert!((g - w).abs() < 1.0, "principal point {got:?}");
     }
-    // The pinhole model cannot bend rays 70° off axis onto the image.
-    assert!(rms_pin > 0.5 && rms_pin > 5.0 * rms_fish, "pinhole-k3 rms {rms_pin} vs fisheye {rms_fish}");
+    // The pinhole model cannot bend rays 70° off axis onto the image: its fit
+    // folds the image, and calibrate refuses to write it (undistort would).
+    let o = lucent(&[
+        "calibrate",
+        "--images",
+        &pattern,
+        "--board",
+        "9x6",
+        "--square-mm",
+        "30",
+        "--model",
+        "pinhole-k3",
+        "--out",
+        s(&dir.path().join("pinhole-k3.json")),
+    ]);
+    assert!(!o.status.success() && stderr(&o).contains("not usable"), "pinhole-k3: {}", stderr(&o));
+    assert!(!dir.path().join("pinhole-k3.json").exists());
 
     // Undistortion of the true lens: a fisheye image whose colour is the ray direction.
     let mut truth = fish.clone();

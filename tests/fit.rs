@@ -112,9 +112,10 @@ fn bad_inputs_are_refused_before_work() {
     };
     let r = recipe.to_str().unwrap();
     let m = format!("{}:45/0", measured.display());
+    let out = dir.path().join("out");
     let base = |extra: &[&str]| {
         let mut v = vec!["--recipe", r, "--measured-pixel-mm", "0.5", "--out"];
-        v.push(dir.path().to_str().unwrap());
+        v.push(out.to_str().unwrap());
         v.extend_from_slice(extra);
         v.iter().map(|s| s.to_string()).collect::<Vec<_>>()
     };

@@ -30,10 +30,14 @@ mod env_orient;
 mod fisheye_cli;
 #[path = "fit.rs"]
 mod fit;
+#[path = "hardening.rs"]
+mod hardening;
 #[path = "mesh.rs"]
 mod mesh;
 #[path = "mie_reference.rs"]
 mod mie_reference;
+#[path = "numeric_flags.rs"]
+mod numeric_flags;
 #[path = "optics_bulk.rs"]
 mod optics_bulk;
 #[path = "optics_cli.rs"]

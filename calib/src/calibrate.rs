@@ -119,6 +119,10 @@ pub fn calibrate_photos(
     }
     let corners: Vec<Vec<[f64; 2]>> = found.iter().map(|(_, c)| c.points.clone()).collect();
     let solved = cv::calibrate(&corners, board, size, model)?;
+    // The camera `undistort`, `pose` and the renderer would refuse is not
+    // written: the same check as theirs (too few or too alike views fit
+    // distortion coefficients that fold the image).
+    solved.camera.validate().map_err(|source| CalibError::Unusable { views: found.len(), source })?;
     let object = board.corners();
     let views = found
         .iter()

@@ -65,6 +65,12 @@ pub enum CalibError {
         /// Fewest views a calibration accepts.
         needed: usize,
     },
+    /// The fitted camera fails [`crate::model::CameraModel::validate`].
+    #[error(
+        "the camera fitted to {views} views is not usable: {source}; photograph the board in more views, tilted \
+         differently and reaching the image corners (or use a model with fewer coefficients)"
+    )]
+    Unusable { views: usize, source: crate::model::CameraError },
     /// An ECC motion model name not in `expected` ([`crate::ecc::Motion::NAMES`]).
     #[error("motion {name:?}: expected one of {}", .expected.join(", "))]
     UnknownMotion { name: String, expected: &'static [&'static str] },

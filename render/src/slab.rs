@@ -358,6 +358,18 @@ pub enum SlabError {
     LobeNotApplicable,
 }
 
+/// The largest extinction coefficient μt = μs + μa [1/m] a medium may have
+/// here and in the path tracer: a mean free path of 0.1 µm, well below the
+/// wavelengths of light, where radiative transfer no longer describes the
+/// medium (and every path would be cut at its event limit).
+pub const MU_T_MAX_PER_M: f64 = 1e7;
+
+/// True when μs, μa ≥ 0 and 0 < μs + μa ≤ [`MU_T_MAX_PER_M`] (NaN: false).
+pub fn valid_coefficients(mu_s_per_m: f64, mu_a_per_m: f64) -> bool {
+    let t = mu_s_per_m + mu_a_per_m;
+    mu_s_per_m >= 0.0 && mu_a_per_m >= 0.0 && t > 0.0 && t <= MU_T_MAX_PER_M
+}
+
 fn check(name: &'static str, value: f64, ok: bool, reason: &'static str) -> Result<f64, SlabError> {
     if ok && value.is_finite() {
         Ok(value)
@@ -381,6 +393,12 @@ impl Medium {
         check("mu_s_per_m", mu_s_per_m, mu_s_per_m >= 0.0, "must be ≥ 0")?;
         check("mu_a_per_m", mu_a_per_m, mu_a_per_m >= 0.0, "must be ≥ 0")?;
         check("mu_t_per_m", mu_s_per_m + mu_a_per_m, mu_s_per_m + mu_a_per_m > 0.0, "μs + μa must be > 0")?;
+        check(
+            "mu_t_per_m",
+            mu_s_per_m + mu_a_per_m,
+            valid_coefficients(mu_s_per_m, mu_a_per_m),
+            "μs + μa must be at most 1e7 /m (slab::MU_T_MAX_PER_M: a mean free path of 0.1 µm)",
+        )?;
         check("n", n, crate::fresnel::valid_index(n), "must lie in [1, 10] (fresnel::INDEX_RANGE)")?;
         Ok(Self { mu_s_per_m, mu_a_per_m, phase, n })
     }
@@ -783,6 +801,14 @@ impl Sensor {
     pub fn new(pixels: usize, pixel_m: f64) -> Result<Self, SlabError> {
         check("pixels", pixels as f64, (1..=8192).contains(&pixels), "must lie in 1 … 8192")?;
         check("pixel_m", pixel_m, pixel_m > 0.0, "must be > 0")?;
+        // A slice wider than a metre is no measurement of a sample (and a
+        // pixel of 1e305 m made the coordinates overflow, and paths loop).
+        check(
+            "pixel_m",
+            pixel_m,
+            pixel_m * pixels as f64 <= 1.0,
+            "the slice (pixels × pixel size) must be at most 1 m wide",
+        )?;
         Ok(Self { pixels, pixel_m })
     }
 

@@ -103,8 +103,8 @@ pub struct UndistortArgs {
     /// principal point at the centre); overrides --keep-all.
     #[arg(long)]
     pub fov: Option<f64>,
-    /// Equirect output: map width in pixels (even; height = width/2). Default: twice the photo's height.
-    #[arg(long)]
+    /// Equirect output: map width in pixels (even, at most 32768; height = width/2). Default: twice the photo's height.
+    #[arg(long, value_parser = super::count_in::<2, 32_768>)]
     pub width: Option<usize>,
 }
 

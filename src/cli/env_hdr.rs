@@ -135,8 +135,9 @@ pub struct EnvPasteArgs {
     /// Horizontal field of view the picture spans, degrees.
     #[arg(long)]
     pub fov: f64,
-    /// Resample the map to this width first (bilinear; height = width/2), so a small picture keeps its detail.
-    #[arg(long)]
+    /// Resample the map to this width first (bilinear; height = width/2, at most 32768), so a small picture keeps
+    /// its detail.
+    #[arg(long, value_parser = crate::cli::count_in::<2, 32_768>)]
     pub width: Option<usize>,
     /// Output map (.exr).
     #[arg(long)]
@@ -250,9 +251,29 @@ pub fn merge(a: EnvMergeArgs) -> Result<()> {
     let mut linear = Vec::new();
     let mut eight = Vec::new();
     let mut meta_exposures = Vec::new();
+    // One file given twice (under two spellings) would weigh one exposure twice.
+    let mut seen: Vec<(PathBuf, &Path)> = Vec::new();
+    for p in &a.brackets {
+        let key = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
+            bail!("bracket {}: the same file as {} (each bracket is one exposure)", p.display(), first.display());
+        }
+        seen.push((key, p));
+    }
     for p in &a.brackets {
         match read_bracket(p).with_context(|| format!("bracket {}", p.display()))? {
             Bracket::Linear(img, t) => {
+                // Linear values are light: a negative one is no exposure of a scene.
+                if let Some(i) = img.data.iter().position(|v| *v < 0.0) {
+                    let px = i / 3;
+                    bail!(
+                        "bracket {}: value {} at pixel ({}, {}) is negative; linear brackets hold light (≥ 0)",
+                        p.display(),
+                        img.data[i],
+                        px % img.width,
+                        px / img.width
+                    );
+                }
                 linear.push((p, img));
                 meta_exposures.push(t);
             }

@@ -147,11 +147,18 @@ fn build_problem(a: &FitArgs) -> Result<Problem> {
         bail!("--measured-pixel-mm {p}: must be a positive number of millimetres");
     }
     let mut measurements = Vec::new();
+    // One slice given twice (under two spellings) would count as two configurations.
+    let mut seen: Vec<(std::path::PathBuf, String)> = Vec::new();
     for spec in &a.measured {
         let (path, angles) = parse_measured(spec)?;
         if !path.is_file() {
             bail!("--measured {}: no such file", path.display());
         }
+        let key = std::fs::canonicalize(&path).unwrap_or_else(|_| path.clone());
+        if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
+            bail!("--measured {spec}: the same file as --measured {first}; give each measured slice once");
+        }
+        seen.push((key, spec.clone()));
         let angles = match angles {
             Some(x) => x,
             None => sidecar_angles(&path)?.ok_or_else(|| {

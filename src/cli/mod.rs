@@ -98,8 +98,8 @@ pub struct OpticsArgs {
     /// Print the properties as JSON on stdout.
     #[arg(long)]
     pub json: bool,
-    /// Entries of the tabulated phase function (uniform in θ; 0 disables).
-    #[arg(long, default_value_t = 4096)]
+    /// Entries of the tabulated phase function (uniform in θ; 0 disables; at most 100000).
+    #[arg(long, default_value_t = 4096, value_parser = count_in::<0, 100_000>)]
     pub phase_entries: usize,
     /// Weight percentage for particle types whose recipe leaves it unknown.
     #[arg(long)]
@@ -108,8 +108,9 @@ pub struct OpticsArgs {
     #[arg(long)]
     pub skip_invalid: bool,
     /// Propagate the recipe's uncertain inputs ({ value, sd } or { min, max }) with N Latin-hypercube samples:
-    /// mean, sd and 95 % interval of μs, μa, g, n_bulk per wavelength (uncertainty.csv/.json/.png per sample).
-    #[arg(long)]
+    /// mean, sd and 95 % interval of μs, μa, g, n_bulk per wavelength (uncertainty.csv/.json/.png per sample;
+    /// 2 … 100000 samples).
+    #[arg(long, value_parser = count_in::<2, 100_000>)]
     pub uncertainty: Option<usize>,
     /// Seed of the --uncertainty samples.
     #[arg(long, default_value_t = 1)]
@@ -223,6 +224,54 @@ pub enum BenchCommand {
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> Result<()> {
+    // The output folder is checked before any work (a folder of the user's
+    // is refused, see `io::check_output_folder`), marked as lucent's when the
+    // command succeeds, and removed again when the command fails and leaves
+    // it empty.
+    let folder = output_folder(&cli.command);
+    let existed = folder.as_deref().is_some_and(|f| std::fs::symlink_metadata(f).is_ok());
+    if let Some(f) = &folder {
+        crate::io::check_output_folder(f)?;
+    }
+    let result = dispatch(cli);
+    if let Some(f) = folder.filter(|f| f.is_dir()) {
+        if result.is_ok() {
+            crate::io::mark_output_folder(&f)?;
+        } else if !existed {
+            let only_mark = std::fs::read_dir(&f)
+                .map(|d| d.flatten().all(|e| e.file_name() == crate::io::OUTPUT_MARK))
+                .unwrap_or(false);
+            if only_mark {
+                let _ = std::fs::remove_file(f.join(crate::io::OUTPUT_MARK));
+                let _ = std::fs::remove_dir(&f);
+            }
+        }
+    }
+    result
+}
+
+/// The output folder (not file) a command writes into, if it has one.
+fn output_folder(command: &Command) -> Option<PathBuf> {
+    Some(match command {
+        Command::Optics(a) if a.json && a.out.is_none() => return None,
+        Command::Optics(a) => a.out.clone().unwrap_or_else(|| PathBuf::from("lucent-out/optics")),
+        Command::Bssrdf(a) => match &a.command {
+            Some(bssrdf::BssrdfCommand::Compare(c)) => c.out.clone(),
+            None => a.run.out.clone(),
+        },
+        Command::Render(a) => a.out.clone(),
+        Command::Surface(surface::SurfaceCommand::Fit(a)) => a.out.clone(),
+        Command::Colour(colour::ColourCommand::Calibrate(a)) => a.out.clone(),
+        Command::Env(camera::EnvCommand::FitScale(a)) => a.out.clone(),
+        Command::Env(camera::EnvCommand::Brackets(a)) => a.out_dir.clone(),
+        Command::Compare(a) => a.out.clone(),
+        Command::Fit(a) => a.out.clone(),
+        Command::Bench(BenchCommand::Fit { out: Some(out), .. }) => out.clone(),
+        _ => return None,
+    })
+}
+
+fn dispatch(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Optics(a) => optics(a),
         Command::Mie(a) => mie(a),
@@ -241,6 +290,17 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Fit(a) => fit::run(a),
         Command::Synth(c) => synth::run(c),
         Command::Merge(a) => shard::merge(a),
+    }
+}
+
+/// A count flag's value, refused outside `LO ..= HI` (every flag that sets a
+/// size or a count states its limit).
+pub fn count_in<const LO: usize, const HI: usize>(text: &str) -> Result<usize, String> {
+    let n: usize = text.trim().parse().map_err(|_| format!("{text:?} is not a whole number"))?;
+    if (LO..=HI).contains(&n) {
+        Ok(n)
+    } else {
+        Err(format!("{n} is outside {LO} … {HI}"))
     }
 }
 

@@ -24,8 +24,8 @@ pub struct ClippedArgs {
     /// Clipped at or above this fraction of the white level.
     #[arg(long, default_value_t = 0.999)]
     pub level: f32,
-    /// Also mark pixels within this many pixels of a clipped photosite (demosaicing spreads it).
-    #[arg(long, default_value_t = 2)]
+    /// Also mark pixels within this many pixels of a clipped photosite (demosaicing spreads it; at most 100).
+    #[arg(long, default_value_t = 2, value_parser = super::count_in::<0, 100>)]
     pub dilate: usize,
 }
 

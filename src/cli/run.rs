@@ -3,9 +3,10 @@
 //! their output in `STAGE/log.txt`; one status line per stage with its time.
 
 use super::choices::{ForceChoice, StageChoice};
+use super::interrupt::Interrupt;
 use crate::pipeline::executor::{self, Kind};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -58,7 +59,7 @@ fn tail(log: &Path, n: usize) -> String {
 }
 
 /// Runs `lucent ARGS` with stdout and stderr appended to `log`.
-fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<()> {
+fn run_lucent(exe: &Path, args: &[String], log: &Path, interrupt: &Interrupt) -> Result<()> {
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
@@ -66,13 +67,38 @@ fn run_lucent(exe: &Path, args: &[String], log: &Path) -> Result<()> {
         .with_context(|| format!("{}: cannot open log", log.display()))?;
     let _ = writeln!(f, "$ lucent {}", args.join(" "));
     let err = f.try_clone().with_context(|| format!("{}: cannot open log", log.display()))?;
-    let status = Command::new(exe)
+    if interrupt.requested() {
+        bail!("interrupted (Ctrl-C or SIGTERM) before `lucent {}`", args.join(" "));
+    }
+    let mut child = Command::new(exe)
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::from(f))
         .stderr(Stdio::from(err))
-        .status()
+        .spawn()
         .with_context(|| format!("cannot start {}", exe.display()))?;
+    // A stop request reaches the command too (a Ctrl-C at the terminal does
+    // by itself; a SIGTERM to this process alone is passed on), and the stage
+    // then fails whatever the command did with it: an interrupted result is
+    // kept as STAGE.failed/, never taken for the stage's output.
+    let mut passed_on = false;
+    let status = loop {
+        if let Some(status) = child.try_wait().with_context(|| format!("waiting for `lucent {}`", args.join(" ")))? {
+            break status;
+        }
+        if interrupt.requested() && !passed_on {
+            passed_on = true;
+            #[cfg(unix)]
+            if let Ok(pid) = libc::pid_t::try_from(child.id()) {
+                // SAFETY: kill(2) on the child we started and have not yet reaped.
+                unsafe { libc::kill(pid, libc::SIGTERM) };
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    if interrupt.requested() {
+        bail!("interrupted (Ctrl-C or SIGTERM) during `lucent {}`", args.join(" "));
+    }
     if status.success() {
         Ok(())
     } else {
@@ -125,12 +151,15 @@ pub fn run(a: RunArgs) -> Result<()> {
         );
     }
     let cwd = std::env::current_dir().context("cannot read the current folder")?;
+    // Ctrl-C or SIGTERM: the stage under way fails (its output is kept as
+    // STAGE.failed/, the previous result is put back) and no later one starts.
+    let interrupt = Interrupt::install();
     let mut submit = String::new();
     let mut emitted = 0usize;
     let mut exec = |args: &[String], log: &Path| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         // Shards an earlier run's jobs finished are merged, not run again.
         if let Some(t) = executor::finished_shards(args, &out) {
-            run_lucent(&exe, &t.merge_command(), log).map_err(|e| format!("{e:#}"))?;
+            run_lucent(&exe, &t.merge_command(), log, &interrupt).map_err(|e| format!("{e:#}"))?;
             std::fs::remove_dir_all(&t.dir).map_err(|e| format!("{}: {e}", t.dir.display()))?;
             return Ok(());
         }
@@ -154,7 +183,7 @@ pub fn run(a: RunArgs) -> Result<()> {
                 executor::run_on_slurm(&exec_cfg, &t, &exe, log, &mut |line| println!("    {line}"))
                     .map_err(|e| format!("`lucent {label}` on Slurm: {e}").into())
             }
-            _ => run_lucent(&exe, args, log).map_err(|e| format!("{e:#}").into()),
+            _ => run_lucent(&exe, args, log, &interrupt).map_err(|e| format!("{e:#}").into()),
         }
     };
     let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {

@@ -32,7 +32,7 @@ pub struct FitArgs {
     /// Unit of the stored heights: m, mm, um, nm (required for TIFF/EXR and text grids without one).
     #[arg(long, value_enum)]
     pub height_unit: Option<LengthUnitChoice>,
-    /// Side k of the k × k window of the per-pixel plane fits (odd).
+    /// Side k of the k × k window of the per-pixel plane fits (odd, 3 … 201).
     #[arg(long, default_value_t = 15)]
     pub window: usize,
     /// σ of the Gaussian weights of the plane fits, in pixels.

@@ -50,6 +50,14 @@ pub fn read_image(path: &Path, role: &'static str) -> Result<Loaded, CompareErro
         other => return Err(err(ReadProblem::Format(other.to_string()))),
     };
     check_finite(&loaded, path, role)?;
+    // A linear image of a lit scene has light in it: a black image, or one
+    // negative on the whole (a sign flipped, a wrong offset), has no
+    // meaningful RMSE or SSIM against another (a few small negative values
+    // of a colour-corrected photo are kept).
+    let sum: f64 = loaded.image.data.iter().map(|&v| f64::from(v)).sum();
+    if sum.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return Err(CompareError::NoLight { role, path: path.to_path_buf(), sum });
+    }
     Ok(loaded)
 }
 

@@ -64,6 +64,9 @@ pub enum CompareError {
     /// A file that cannot be read (missing, unreadable, wrong format).
     #[error("{role} {}: cannot read: {reason}", path.display())]
     Read { role: &'static str, path: PathBuf, reason: ReadProblem },
+    /// A black image, or one whose values sum to ≤ 0.
+    #[error("{role} {}: black or negative on the whole (the values sum to {sum:e}); give a linear image of the lit scene", path.display())]
+    NoLight { role: &'static str, path: PathBuf, sum: f64 },
     /// NaN or ±inf in an input image.
     #[error("{role} {}: {count} non-finite value(s); the first is {value} at pixel ({x}, {y}) (column, row from the top left), channel {channel}", path.display())]
     NonFinite {

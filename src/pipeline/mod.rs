@@ -207,6 +207,15 @@ pub enum PipelineError {
     /// A stage's manifest could not be written (the message names the file).
     #[error(transparent)]
     Write(#[from] crate::io::WriteError),
+    /// The output folder is not one lucent wrote (see [`crate::io::claim_output_folder`]).
+    #[error(transparent)]
+    Output(#[from] crate::io::OutputFolderError),
+    /// Where a stage's folder goes there is a file, or a folder lucent did not write: it is left alone.
+    #[error(
+        "{path}: is {what}, where stage {stage} writes its folder; lucent leaves it alone — move it away or choose \
+         another output folder"
+    )]
+    Foreign { path: PathBuf, what: String, stage: Stage },
 }
 
 /// Why a stage cannot be planned (the `problem` of [`PipelineError::Stage`]).
@@ -998,6 +1007,52 @@ fn stage_key(
     Ok(sha256_hex(body.to_string().as_bytes()))
 }
 
+/// A hidden file in a stage folder while the stage runs: the folder is the
+/// pipeline's own even before its manifest is written.
+const STAGE_MARK: &str = ".lucent-stage";
+
+/// Whether `dir` is a stage folder this pipeline wrote (a manifest, or the
+/// mark of a stage under way).
+fn is_stage_folder(dir: &Path) -> bool {
+    dir.join("manifest.json").is_file() || dir.join(STAGE_MARK).is_file()
+}
+
+/// Before a stage runs: its folder must be the pipeline's own (a file or a
+/// folder of the user's there is refused, never moved aside), and what an
+/// interrupted earlier run left is put in order — a stage folder without
+/// a manifest (cut short) becomes `STAGE.failed/`, and the previous result
+/// that run had moved aside is put back (or, when the stage folder is
+/// complete, removed).
+fn recover_stage_folder(stage: Stage, dir: &Path, aside: &Path, failed: &Path) -> Result<(), PipelineError> {
+    let io = |path: &Path, source| PipelineError::Io { path: path.to_path_buf(), source };
+    let foreign = |path: &Path| {
+        let what = if path.is_dir() { "a folder lucent run did not write (no manifest.json)" } else { "not a folder" };
+        PipelineError::Foreign { path: path.to_path_buf(), what: what.into(), stage }
+    };
+    if std::fs::symlink_metadata(dir).is_ok() && (dir.is_symlink() || !dir.is_dir()) {
+        return Err(foreign(dir));
+    }
+    if dir.is_dir() && !is_stage_folder(dir) && std::fs::read_dir(dir).map_or(true, |mut d| d.next().is_some()) {
+        return Err(foreign(dir));
+    }
+    if dir.is_dir() && !dir.join("manifest.json").is_file() {
+        if failed.exists() {
+            std::fs::remove_dir_all(failed).map_err(|e| io(failed, e))?;
+        }
+        std::fs::rename(dir, failed).map_err(|e| io(dir, e))?;
+    }
+    if aside.is_dir() {
+        if dir.exists() {
+            std::fs::remove_dir_all(aside).map_err(|e| io(aside, e))?;
+        } else {
+            std::fs::rename(aside, dir).map_err(|e| io(aside, e))?;
+        }
+    } else if std::fs::symlink_metadata(aside).is_ok() {
+        return Err(foreign(aside));
+    }
+    Ok(())
+}
+
 /// Runs one `lucent` command line: `args` with `{out}` replaced, output
 /// appended to `log`; on failure, an error saying what failed (the binary
 /// uses `anyhow`, tests their own types).
@@ -1013,7 +1068,7 @@ pub fn run(
     on_status: &mut dyn FnMut(Stage, &Status, &[String]),
 ) -> Result<Vec<(Stage, Status)>, PipelineError> {
     let io = |path: &Path, source| PipelineError::Io { path: path.to_path_buf(), source };
-    std::fs::create_dir_all(out).map_err(|e| io(out, e))?;
+    crate::io::claim_output_folder(out)?;
     let mut done: Vec<(Stage, Status)> = Vec::new();
     for stage in Stage::ALL {
         if options
@@ -1056,13 +1111,12 @@ pub fn run(
         // Move the previous result aside; run into the final folder.
         let aside = out.join(format!(".{}.previous", stage.name()));
         let failed = out.join(format!("{}.failed", stage.name()));
-        if aside.exists() {
-            std::fs::remove_dir_all(&aside).map_err(|e| io(&aside, e))?;
-        }
+        recover_stage_folder(stage, &dir, &aside, &failed)?;
         if dir.exists() {
             std::fs::rename(&dir, &aside).map_err(|e| io(&dir, e))?;
         }
         std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
+        crate::io::write_atomic(&dir.join(STAGE_MARK), stage.name().as_bytes())?;
         let log = dir.join("log.txt");
         let start = Instant::now();
         let started_unix_s =
@@ -1135,6 +1189,7 @@ pub fn run(
             outputs: output_files(&dir),
         };
         crate::io::write_json(&dir.join("manifest.json"), &manifest)?;
+        let _ = std::fs::remove_file(dir.join(STAGE_MARK));
         if aside.exists() {
             let _ = std::fs::remove_dir_all(&aside);
         }

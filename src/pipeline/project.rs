@@ -275,6 +275,31 @@ pub fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>, ConfigError> {
     Ok(out)
 }
 
+/// Checks that a name from the project file (the project's, a sample's, a
+/// camera's) can become a folder name under the output folder: 1 to 100
+/// letters, digits, '-', '_' and '.', not starting with '.' (so never "."
+/// or "..", a hidden name, a path or a control character).
+///
+/// ```
+/// use lucent::pipeline::project::folder_name;
+/// assert!(folder_name("IOL1068-09").is_ok());
+/// for bad in ["", ".", "..", "a/b", "/", ".hidden", "a\0b", "tab\t"] {
+///     assert!(folder_name(bad).is_err(), "{bad:?}");
+/// }
+/// ```
+pub fn folder_name(name: &str) -> Result<(), &'static str> {
+    if name.is_empty() || name.len() > 100 {
+        return Err("must be 1 to 100 characters (it names a folder)");
+    }
+    if name.starts_with('.') {
+        return Err("must not start with '.' (it names a folder; \".\" and \"..\" would leave the output folder)");
+    }
+    if !name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c)) {
+        return Err("use letters, digits, '-', '_' and '.' only (a folder name)");
+    }
+    Ok(())
+}
+
 impl Project {
     /// Reads and validates a project file.
     pub fn load(path: &Path) -> Result<Project, ProjectError> {
@@ -306,18 +331,27 @@ impl Project {
             Some(n) => n.clone(),
             None => path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "project".into()),
         };
-        if name.is_empty() || name.contains(['/', '\\']) {
-            return Err(key("[project] name", format!("{name:?}: must be non-empty, without slashes")));
+        if let Err(reason) = folder_name(&name) {
+            return Err(key("[project] name", format!("{name:?}: {reason}")));
         }
         let out = file.project.out.as_ref().map(|p| resolve(p));
         let mut seen = std::collections::HashSet::new();
         for (k, s) in file.sample.iter_mut().enumerate() {
             let at = format!("[[sample]] #{} ({})", k + 1, s.name);
-            if s.name.is_empty()
-                || s.name.starts_with('.')
-                || !s.name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+            if let Some(w) = s.weight_percent
+                && !(w > 0.0 && w < 100.0)
             {
-                return Err(key(&format!("{at} name"), "use letters, digits, '-', '_' and '.' (a folder name)".into()));
+                return Err(key(&format!("{at} weight_percent"), format!("must lie in (0, 100), got {w}")));
+            }
+            for m in &s.measured {
+                if let Some(px) = m.pixel_mm
+                    && !(px > 0.0 && px.is_finite())
+                {
+                    return Err(key(&format!("{at} measured pixel_mm"), format!("must be finite and > 0, got {px}")));
+                }
+            }
+            if let Err(reason) = folder_name(&s.name) {
+                return Err(key(&format!("{at} name"), reason.into()));
             }
             if !seen.insert(s.name.clone()) {
                 return Err(key(&format!("{at} name"), "two samples have this name".into()));
@@ -346,6 +380,36 @@ impl Project {
         if let Some(b) = &file.bssrdf {
             bssrdf_configs = parse_configs(b.configs.as_deref().unwrap_or("45/0"))
                 .map_err(|e| key("[bssrdf] configs", e.to_string()))?;
+            // The ranges of the flags these keys become (`lucent bssrdf`), so a
+            // bad value is named here and not by the stage's command line.
+            let positive = |k: &str, v: Option<f64>| match v {
+                Some(x) if !(x > 0.0 && x.is_finite()) => Err(key(k, format!("must be finite and > 0, got {x}"))),
+                _ => Ok(()),
+            };
+            positive("[bssrdf] wavelength_nm", b.wavelength_nm)?;
+            positive("[bssrdf] pixel_mm", b.pixel_mm)?;
+            positive("[bssrdf] time_s", b.time_s)?;
+            positive("[bssrdf] rel_error", b.rel_error)?;
+            if let Some(t) = b.threshold
+                && !(0.0..1.0).contains(&t)
+            {
+                return Err(key(
+                    "[bssrdf] threshold",
+                    format!("must lie in [0, 1) (a fraction of the maximum), got {t}"),
+                ));
+            }
+            let pixels = b.pixels.unwrap_or(259);
+            if !(1..=8192).contains(&pixels) {
+                return Err(key("[bssrdf] pixels", format!("must lie in 1 … 8192, got {pixels}")));
+            }
+            if let Some(c) = b.crop
+                && !(1..=pixels).contains(&c)
+            {
+                return Err(key("[bssrdf] crop", format!("must lie in 1 … pixels ({pixels}), got {c}")));
+            }
+            if b.paths == Some(0) {
+                return Err(key("[bssrdf] paths", "must be at least 1".into()));
+            }
             if b.paths.is_none() && b.rel_error.is_none() && b.time_s.is_none() {
                 return Err(key("[bssrdf]", "give a stop rule: paths, rel_error or time_s".into()));
             }
@@ -381,11 +445,11 @@ impl Project {
         }
         let mut cameras = std::collections::HashSet::new();
         for c in &mut file.colour {
-            if !cameras.insert(c.camera.clone())
-                || c.camera.is_empty()
-                || !c.camera.chars().all(|ch| ch.is_ascii_alphanumeric() || "-_.".contains(ch))
-            {
-                return Err(key("[[colour]] camera", format!("{:?}: names must be unique folder names", c.camera)));
+            if let Err(reason) = folder_name(&c.camera) {
+                return Err(key("[[colour]] camera", format!("{:?}: {reason}", c.camera)));
+            }
+            if !cameras.insert(c.camera.clone()) {
+                return Err(key("[[colour]] camera", format!("{:?}: two [[colour]] sections name it", c.camera)));
             }
             existing(&format!("[[colour]] {} image", c.camera), &mut c.image)?;
             if let Some(t) = &mut c.truth {
@@ -420,6 +484,11 @@ impl Project {
             existing("[render] scene", &mut r.scene)?;
             if r.spp == Some(0) || r.env_spp == Some(0) {
                 return Err(key("[render] spp", "must be at least 1".into()));
+            }
+            if let Some(t) = r.time_s
+                && !(t > 0.0 && t.is_finite())
+            {
+                return Err(key("[render] time_s", format!("must be finite and > 0, got {t}")));
             }
             if let Some(c) = &r.camera {
                 if c != "pose" && c != "template" {

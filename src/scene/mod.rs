@@ -133,6 +133,13 @@ pub enum KeyProblem {
     Negative { value: f64 },
     #[error("must be at least 1")]
     Zero,
+    #[error("must lie strictly between {low} and {high}, got {value}")]
+    Between { low: f64, high: f64, value: f64 },
+    #[error(
+        "band {band}: σs = {s} /m, σa = {a} /m: each must be ≥ 0 and σs + σa in (0, 1e7] /m \
+         (lucent_render::slab::MU_T_MAX_PER_M, a mean free path of 0.1 µm)"
+    )]
+    Coefficients { band: usize, s: f64, a: f64 },
     #[error(
         "must be an affine map that keeps a solid a solid: last row [0, 0, 0, 1] (got {last_row:?}) and an \
          invertible 3 × 3 part (determinant {determinant})"
@@ -212,6 +219,9 @@ pub enum KeyProblem {
     TextureRange { file: PathBuf },
     #[error("{file}: {source}")]
     Environment { file: PathBuf, source: lucent_render::env::EnvError },
+    /// Not a 2:1 equirectangular map (the check of every `lucent env` command).
+    #[error("{file}: {source}")]
+    Equirectangular { file: PathBuf, source: lucent_calib::env::EnvError },
     /// An orientation file of `lucent env orient` (the message names it).
     #[error(transparent)]
     Orientation(OrientationFileError),
@@ -614,6 +624,12 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
     let material = match &file.material {
         Some(m) => {
             let (medium, mut eta, mut summary, size, surface) = build_material(&ctx, m, &mut warnings)?;
+            for b in 0..3 {
+                let (s, a) = (medium.sigma_s[b], medium.sigma_a[b]);
+                if !lucent_render::slab::valid_coefficients(s, a) {
+                    return Err(ctx.key("material", "sigma_s_per_m", KeyProblem::Coefficients { band: b, s, a }));
+                }
+            }
             let rough = build_roughness(&ctx, m, surface)?;
             if let Some((_, desc)) = &rough {
                 summary.boundary.clone_from(desc);
@@ -795,6 +811,13 @@ fn build_camera(
             let fov = c.vertical_fov_deg.ok_or_else(|| {
                 ctx.key("camera", "vertical_fov_deg", KeyProblem::Required { when: "with position_m/look_at_m" })
             })?;
+            if !(fov > 0.0 && fov < 180.0) {
+                return Err(ctx.key(
+                    "camera",
+                    "vertical_fov_deg",
+                    KeyProblem::Between { low: 0.0, high: 180.0, value: fov },
+                ));
+            }
             let up = c.up.unwrap_or([0.0, 0.0, 1.0]);
             let cam = Camera::look_at(
                 w,
@@ -1386,6 +1409,9 @@ fn build_environment(
                 .map_err(|source| SceneFileError::Image { path: ctx.path.to_path_buf(), source })?;
             // Lossy EXR compression (DWAB, as in Blender's maps) leaves tiny
             // negative values; they are set to 0 and reported, never kept.
+            lucent_calib::env::check_equirectangular(img.width, img.height).map_err(|source| {
+                ctx.key("environment", "map", KeyProblem::Equirectangular { file: full.clone(), source })
+            })?;
             let mut data = img.data;
             let negative = data.iter().filter(|v| **v < 0.0).count();
             if negative > 0 {

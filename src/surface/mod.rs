@@ -97,6 +97,9 @@ pub enum SurfaceError {
     Plot { path: PathBuf, source: PlotError },
 }
 
+/// The largest height magnitude a height map may hold, in metres.
+pub const MAX_HEIGHT_M: f64 = 1.0;
+
 /// A length in metres for a message: "0", "-5e-7", "8.71e-7".
 fn show_metres(v: f64) -> String {
     if v == 0.0 || !v.is_finite() {
@@ -168,6 +171,20 @@ impl HeightMap {
             if !h.is_finite() {
                 *h = f64::NAN;
             }
+        }
+        // A surface's heights span micrometres to millimetres: one beyond
+        // MAX_HEIGHT_M is a wrong unit or a corrupt value (a 1e300 spike made
+        // S_q infinite), not a height.
+        if let Some(k) = heights_m.iter().position(|h| h.abs() > MAX_HEIGHT_M) {
+            return Err(SurfaceError::Data {
+                origin,
+                reason: format!(
+                    "height {} m at column {}, row {} is beyond ±{MAX_HEIGHT_M} m: not a surface height (wrong unit?)",
+                    show_metres(heights_m[k]),
+                    k % nx,
+                    k / nx
+                ),
+            });
         }
         let map = HeightMap { nx, ny, pitch_x_m, pitch_y_m, heights_m, origin, notes: Vec::new() };
         if map.valid_count() == 0 {

@@ -1,0 +1,343 @@
+//! The hardening corpus (tests/bad/{data-loss,hang,nonsense,misleading,
+//! leftovers,panic}/, see tests/bad/README.md): hostile or mistaken inputs
+//! through the real binary, one test per class. Every case must end with a
+//! clear `error:` naming the problem, without a panic, and leave the user's
+//! files and folders as they were.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn bad(group: &str) -> PathBuf {
+    root().join("tests/bad").join(group)
+}
+
+fn lucent_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lucent")).args(args).current_dir(dir).output().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Every file and folder under `dir` (relative name → bytes; folders empty).
+fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            let rel = p.strip_prefix(dir).unwrap().to_path_buf();
+            if p.is_dir() {
+                out.insert(rel, vec![]);
+                stack.push(p);
+            } else {
+                out.insert(rel, std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// A refusal: non-zero exit, `error:` with every piece of `says`, no panic.
+fn refused(o: &Output, says: &[&str], what: &str) {
+    let e = stderr(o);
+    assert!(!o.status.success(), "{what}: exit 0\n{e}");
+    assert!(e.contains("error:") && !e.contains("panicked"), "{what}: {e}");
+    for s in says {
+        assert!(e.contains(s), "{what}: the message does not say {s:?}: {e}");
+    }
+}
+
+fn write_exr(path: &Path, w: usize, h: usize, value: f32) {
+    let plane = vec![value; w * h];
+    lucent::imageio::write_exr_channels(path, w, h, &[("R", &plane), ("G", &plane), ("B", &plane)]).unwrap();
+}
+
+/// A user's working folder: their own optics/ and report/ folders and a file.
+fn users_folder(dir: &Path) {
+    for sub in ["optics", "report"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+        std::fs::write(dir.join(sub).join("notes.txt"), format!("the user's {sub} notes")).unwrap();
+    }
+    std::fs::write(dir.join("thesis.tex"), "the user's thesis").unwrap();
+}
+
+#[test]
+fn data_loss_names_become_folders_only_after_validation_and_foreign_folders_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let work = tmp.path().join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    users_folder(&work);
+    let before = snapshot(&work);
+    let mut files: Vec<PathBuf> = std::fs::read_dir(bad("data-loss")).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    assert!(files.len() >= 10);
+    for f in &files {
+        // Run from the user's folder without --out: the default output folder would be lucent-out/NAME.
+        let o = lucent_in(&work, &["run", f.to_str().unwrap()]);
+        let key = if f.file_name().unwrap().to_string_lossy().starts_with("camera") { "camera" } else { "name" };
+        refused(&o, &[f.file_name().unwrap().to_str().unwrap(), key], &f.display().to_string());
+        assert_eq!(snapshot(&work), before, "{} changed the working folder", f.display());
+    }
+    // A valid project with --out the user's folder (or its parent): refused, nothing touched.
+    let project = tmp.path().join("p.toml");
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    std::fs::write(&project, format!("[project]\nname = \"p\"\n[[sample]]\nname = \"s\"\nrecipe = {:?}\n", recipe))
+        .unwrap();
+    for out in [work.to_str().unwrap(), "."] {
+        let o = lucent_in(&work, &["run", project.to_str().unwrap(), "--out", out, "--until", "optics"]);
+        refused(&o, &["lucent did not write"], out);
+        assert_eq!(snapshot(&work), before);
+    }
+    // A file (or a foreign folder) where a stage folder goes is refused, not moved aside.
+    let out = tmp.path().join("run");
+    let o = lucent_in(tmp.path(), &["run", project.to_str().unwrap(), "--out", "run", "--until", "optics"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_dir_all(out.join("optics")).unwrap();
+    std::fs::write(out.join("optics"), "a file of the user's").unwrap();
+    let o = lucent_in(tmp.path(), &["run", project.to_str().unwrap(), "--out", "run", "--until", "optics"]);
+    refused(&o, &["optics", "is not a folder", "leaves it alone"], "file as stage folder");
+    assert_eq!(std::fs::read_to_string(out.join("optics")).unwrap(), "a file of the user's");
+    assert!(!out.join(".optics.previous").exists());
+    std::fs::remove_file(out.join("optics")).unwrap();
+    std::fs::create_dir(out.join("optics")).unwrap();
+    std::fs::write(out.join("optics/mine.txt"), "x").unwrap();
+    let o = lucent_in(tmp.path(), &["run", project.to_str().unwrap(), "--out", "run", "--until", "optics"]);
+    refused(&o, &["optics", "did not write"], "foreign stage folder");
+    assert!(out.join("optics/mine.txt").is_file() && !out.join(".optics.previous").exists());
+    // Every command with an output folder refuses the user's folder.
+    let photo = tmp.path().join("photo.exr");
+    write_exr(&photo, 64, 48, 0.5);
+    let w = work.to_str().unwrap();
+    let p = photo.to_str().unwrap();
+    let r = recipe.to_str().unwrap();
+    let plaque = root().join("fixtures/render/plaque_dense.toml");
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["optics", r, "--wavelength", "550", "--out", w],
+        vec!["bssrdf", "--mu-s", "1000", "--mu-a", "1", "--g", "0.8", "--n", "1.5", "--pixels", "9", "--paths", "10"],
+        vec!["render", plaque.to_str().unwrap(), "--spp", "1", "--out", w],
+        vec!["compare", "--photo", p, "--render", p, "--out", w],
+        vec!["env", "fit-scale", plaque.to_str().unwrap(), "--photo", p, "--out", w],
+        vec!["env", "brackets", p, "--exposures", "1,2", "--out-dir", w],
+    ];
+    for mut args in commands {
+        if args[0] == "bssrdf" {
+            args.extend(["--out", w]);
+        }
+        let o = lucent_in(tmp.path(), &args);
+        refused(&o, &["lucent did not write"], &args.join(" "));
+        assert_eq!(snapshot(&work), before, "{args:?}");
+    }
+}
+
+#[test]
+fn hang_sizes_and_counts_have_stated_limits() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path().to_str().unwrap();
+    let scene = bad("hang").join("sigma_s_1e15.toml");
+    let o = lucent_in(tmp.path(), &["render", scene.to_str().unwrap(), "--out", "o"]);
+    refused(&o, &["sigma_s_1e15.toml", "sigma_s_per_m", "1e7"], "σs = 1e15");
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    let r = recipe.to_str().unwrap();
+    for (args, says) in [
+        (vec!["optics", r, "--wavelength", "550", "--phase-entries", "2000000000", "--out", "o"], "0 … 100000"),
+        (vec!["optics", r, "--wavelength", "550", "--uncertainty", "1000000000", "--out", "o"], "2 … 100000"),
+        (vec!["raw", "clipped", "x.dng", "--dilate", "1000000", "--out", "m.png"], "0 … 100"),
+        (vec!["render", scene.to_str().unwrap(), "--threads", "100000", "--out", "o"], "--threads"),
+        (
+            vec!["bssrdf", "--mu-s", "1e15", "--mu-a", "1", "--g", "0.8", "--n", "1.5", "--paths", "10", "--out", "o"],
+            "1e7",
+        ),
+    ] {
+        let o = lucent_in(tmp.path(), &args);
+        refused(&o, &[says], &args.join(" "));
+    }
+    assert_eq!(std::fs::read_dir(t).unwrap().count(), 0, "a refused run wrote into {t}");
+}
+
+#[test]
+fn nonsense_is_refused_by_the_one_validator_of_each_quantity() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let (positive, negative, black) = (d.join("photo.exr"), d.join("negative.exr"), d.join("black.exr"));
+    write_exr(&positive, 64, 48, 0.5);
+    write_exr(&negative, 64, 48, -0.5);
+    write_exr(&black, 64, 48, 0.0);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    // compare: a negative or black photo.
+    for photo in [&negative, &black] {
+        let o = lucent_in(d, &["compare", "--photo", &s(photo), "--render", &s(&positive), "--out", "c"]);
+        refused(&o, &[&s(photo), "black or negative"], "compare");
+    }
+    // env fit-scale: a negative or black photo of the board gives no scale.
+    let plaque = root().join("fixtures/render/plaque_dense.toml");
+    for photo in [&negative, &black] {
+        let o = lucent_in(d, &["env", "fit-scale", &s(&plaque), "--photo", &s(photo), "--spp", "1", "--out", "f"]);
+        refused(&o, &["black or negative", "scale must be > 0"], "fit-scale");
+    }
+    // bssrdf compare: an RGB EXR is not a slice.
+    let sim = d.join("sim");
+    let o = lucent_in(
+        d,
+        &[
+            "bssrdf",
+            "--mu-s",
+            "1000",
+            "--mu-a",
+            "1",
+            "--g",
+            "0.8",
+            "--n",
+            "1.5",
+            "--pixels",
+            "9",
+            "--paths",
+            "100",
+            "--quiet",
+            "--out",
+            &s(&sim),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rgb = d.join("rgb_slice.exr");
+    write_exr(&rgb, 9, 9, 1.0);
+    let o = lucent_in(
+        d,
+        &[
+            "bssrdf",
+            "compare",
+            "--measured",
+            &s(&rgb),
+            "--measured-pixel-mm",
+            "0.1",
+            "--simulated",
+            &s(&sim),
+            "--out",
+            "bc",
+        ],
+    );
+    refused(&o, &["rgb_slice.exr", "no Y"], "RGB slice");
+    // env merge: one file twice; a negative linear bracket.
+    let a = root().join("tests/bad/env/bracket_16x8_a.png");
+    let o = lucent_in(d, &["env", "merge", &s(&a), &s(&a), "--exposures", "1,4", "--out", "m.exr"]);
+    refused(&o, &["bracket_16x8_a.png", "same file"], "merge twice");
+    let neg = d.join("neg_bracket.exr");
+    write_exr(&neg, 16, 8, -1.0);
+    let pos = d.join("pos_bracket.exr");
+    write_exr(&pos, 16, 8, 1.0);
+    let o = lucent_in(d, &["env", "merge", &s(&pos), &s(&neg), "--exposures", "1,4", "--out", "m.exr"]);
+    refused(&o, &["neg_bracket.exr", "negative"], "negative bracket");
+    // fit: one slice given twice.
+    let slice = d.join("slice.csv");
+    std::fs::write(&slice, "1,2,1\n2,4,2\n1,2,1\n").unwrap();
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    let m1 = format!("{}:45/0", s(&slice));
+    let m2 = format!("{}/./slice.csv:45/0", s(d));
+    let o = lucent_in(
+        d,
+        &[
+            "fit",
+            "--recipe",
+            &s(&recipe),
+            "--measured",
+            &m1,
+            &m2,
+            "--measured-pixel-mm",
+            "0.1",
+            "--free",
+            "weight_percent",
+            "--out",
+            "fo",
+        ],
+    );
+    refused(&o, &["same file", "once"], "fit twice");
+    // surface fit: a 1e300 spike is no height.
+    let spike = bad("nonsense").join("spike_1e300.csv");
+    let o = lucent_in(d, &["surface", "fit", &s(&spike), "--pitch-um", "1", "--out", "sf"]);
+    refused(&o, &["spike_1e300.csv", "beyond", "wrong unit"], "surface spike");
+    // A 1 × 1 environment map is not equirectangular.
+    std::fs::copy(bad("nonsense").join("env_map_1x1.toml"), d.join("env_map_1x1.toml")).unwrap();
+    write_exr(&d.join("map_1x1.exr"), 1, 1, 1.0);
+    let o = lucent_in(d, &["render", "env_map_1x1.toml", "--out", "r"]);
+    refused(&o, &["env_map_1x1.toml", "map_1x1.exr", "[environment] map"], "1 × 1 map");
+    for out in ["c", "f", "bc", "m.exr", "fo", "sf", "r"] {
+        assert!(!d.join(out).exists(), "a refused run left {out}");
+    }
+}
+
+#[test]
+fn misleading_values_are_named_where_they_are_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (file, says) in [
+        ("bssrdf_pixel_mm_negative.toml", "[bssrdf] pixel_mm"),
+        ("bssrdf_pixels_zero.toml", "[bssrdf] pixels"),
+        ("bssrdf_time_negative.toml", "[bssrdf] time_s"),
+        ("sample_weight_negative.toml", "weight_percent"),
+    ] {
+        let o = lucent_in(tmp.path(), &["run", bad("misleading").join(file).to_str().unwrap(), "--out", "o"]);
+        refused(&o, &[file, says], file);
+        assert!(!stderr(&o).contains("unexpected argument"), "{}", stderr(&o));
+    }
+    for file in ["fov_zero.toml", "fov_180.toml"] {
+        let o = lucent_in(tmp.path(), &["render", bad("misleading").join(file).to_str().unwrap(), "--out", "o"]);
+        refused(&o, &[file, "vertical_fov_deg", "between 0 and 180"], file);
+        assert!(!stderr(&o).contains("NaN"), "{}", stderr(&o));
+    }
+    assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 0, "a refused run wrote something");
+}
+
+#[cfg(unix)]
+#[test]
+fn leftovers_failing_and_interrupted_runs_leave_nothing_unmarked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    // A failing command leaves no (empty) output folder, nor the folders above it.
+    let o = lucent_in(
+        d,
+        &["bssrdf", "compare", "--measured", "missing.csv", "--simulated", "missing", "--out", "a/b/compare"],
+    );
+    refused(&o, &["missing.csv"], "bssrdf compare");
+    let o = lucent_in(d, &["render", "missing.toml", "--out", "r/out"]);
+    refused(&o, &["missing.toml"], "render");
+    assert_eq!(std::fs::read_dir(d).unwrap().count(), 0, "a failing run left {:?}", snapshot(d).keys());
+    // SIGTERM to `lucent run` during the bssrdf stage: the stage is marked failed.
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    let project = d.join("p.toml");
+    std::fs::write(
+        &project,
+        format!("[project]\nname = \"p\"\n[bssrdf]\npixels = 9\ntime_s = 60\n[[sample]]\nname = \"s\"\nrecipe = {recipe:?}\n"),
+    )
+    .unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o", "--until", "optics"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let child = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["run", "p.toml", "--out", "o"])
+        .current_dir(d)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the bssrdf stage has started.
+    let start = std::time::Instant::now();
+    while !d.join("o/bssrdf/log.txt").exists() && start.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // SAFETY: a signal to the child this test started.
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+    let o = child.wait_with_output().unwrap();
+    refused(&o, &["interrupted", "bssrdf.failed"], "SIGTERM during lucent run");
+    let names: Vec<String> = std::fs::read_dir(d.join("o"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.contains(&"bssrdf.failed".to_string()), "{names:?}");
+    assert!(!names.contains(&"bssrdf".to_string()), "an interrupted stage folder without its failed mark: {names:?}");
+    assert!(names.iter().all(|n| !n.contains("previous") && !n.contains("staging")), "{names:?}");
+    assert!(d.join("o/optics/manifest.json").is_file(), "the earlier stage is intact");
+}
