@@ -891,7 +891,7 @@ impl Accumulator {
                             row[i][c] += l[c];
                             row_sq[i][c] += l[c] * l[c];
                         }
-                        if (first_sample + k) % 2 == 0 {
+                        if (first_sample + k).is_multiple_of(2) {
                             for c in 0..3 {
                                 row_even[i][c] += l[c];
                             }
