@@ -332,9 +332,10 @@ impl From<InputSpaceChoice> for crate::synth::InputSpace {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StageChoice(pub Stage);
 
-const STAGE_CHOICES: [StageChoice; 10] = [
+const STAGE_CHOICES: [StageChoice; 11] = [
     StageChoice(Stage::Optics),
     StageChoice(Stage::Bssrdf),
+    StageChoice(Stage::Fit),
     StageChoice(Stage::Calibrate),
     StageChoice(Stage::Colour),
     StageChoice(Stage::Develop),
@@ -358,10 +359,11 @@ impl ValueEnum for StageChoice {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ForceChoice(pub Option<Stage>);
 
-const FORCE_CHOICES: [ForceChoice; 11] = [
+const FORCE_CHOICES: [ForceChoice; 12] = [
     ForceChoice(None),
     ForceChoice(Some(Stage::Optics)),
     ForceChoice(Some(Stage::Bssrdf)),
+    ForceChoice(Some(Stage::Fit)),
     ForceChoice(Some(Stage::Calibrate)),
     ForceChoice(Some(Stage::Colour)),
     ForceChoice(Some(Stage::Develop)),
