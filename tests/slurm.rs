@@ -363,7 +363,7 @@ fn emitted_jobs_are_slurm_arrays_and_kubernetes_indexed_jobs() {
         assert!(o.status.success(), "{text}{}", String::from_utf8_lossy(&o.stderr));
         assert!(status_of(&text, "bssrdf").contains("written as batch jobs"), "{text}");
         assert!(status_of(&text, "optics").contains("ran"), "{text}");
-        assert!(!out.join("bssrdf").exists(), "the stage waits for its jobs");
+        assert!(!out.join("bssrdf/manifest.json").exists(), "the stage waits for its jobs");
         if kind == "slurm" {
             let array = std::fs::read_to_string(jobs.join("lucent-01-bssrdf.array.sbatch")).expect("array script");
             assert!(array.contains("#SBATCH --array=0-3\n") && array.contains("#SBATCH --time=10:00\n"), "{array}");

@@ -1165,11 +1165,10 @@ pub fn run(
             return Err(PipelineError::Failed { stage, message, kept: failed });
         }
         if deferred > 0 {
-            // Nothing of this stage is final: the previous result goes back.
-            let _ = std::fs::remove_dir_all(&dir);
-            if aside.exists() {
-                let _ = std::fs::rename(&aside, &dir);
-            }
+            // Nothing of this stage is final. The stage folder stays, marked as
+            // the pipeline's (the emitted merge jobs write their outputs into it):
+            // the next run treats it as cut short (STAGE.failed/, the previous
+            // result put back) and merges the finished shards.
             let st = Status::Deferred { tasks: deferred };
             on_status(stage, &st, &plan.notes);
             done.push((stage, st));
