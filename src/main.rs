@@ -2,6 +2,7 @@
 //! once and exits non-zero on failure.
 
 use clap::Parser;
+use lucent::fault::Fault;
 
 fn main() -> std::process::ExitCode {
     // Behave like other Unix tools when the reader goes away (`lucent … | head`):
@@ -32,11 +33,21 @@ fn main() -> std::process::ExitCode {
     // Ctrl-C while a file is being written removes its temporary file.
     lucent::io::remove_temporaries_on_interrupt();
     let cli = lucent::cli::Cli::parse();
-    match lucent::cli::run(cli) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {}", error_chain(&e));
-            std::process::ExitCode::FAILURE
+    // The exit code says who is at fault (`lucent --help` lists them); a
+    // panic is a bug: its report, then the internal class's code.
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| lucent::cli::run(cli))) {
+        Ok(Ok(())) => std::process::ExitCode::SUCCESS,
+        Ok(Err(e)) => {
+            let fault = Fault::of(e.as_ref());
+            match fault {
+                Fault::Input => eprintln!("error: {}", error_chain(&e)),
+                _ => eprintln!("error ({fault}): {}", error_chain(&e)),
+            }
+            std::process::ExitCode::from(fault.exit_code())
+        }
+        Err(_) => {
+            eprintln!("error (internal): lucent panicked (a bug; please report it with the command line)");
+            std::process::ExitCode::from(Fault::Internal.exit_code())
         }
     }
 }

@@ -32,6 +32,8 @@ mod fisheye_cli;
 mod fit;
 #[path = "hardening.rs"]
 mod hardening;
+#[path = "jobs.rs"]
+mod jobs;
 #[path = "mesh.rs"]
 mod mesh;
 #[path = "mie_reference.rs"]

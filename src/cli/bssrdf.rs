@@ -57,8 +57,8 @@ pub struct RunArgs {
     /// Weight percentage for a recipe that leaves it unknown.
     #[arg(long)]
     pub weight_percent: Option<f64>,
-    /// Wavelength in nm (with --recipe).
-    #[arg(long, default_value_t = 550.0)]
+    /// Wavelength in nm (with --recipe; `--wavelength` is the older spelling).
+    #[arg(long = "wavelength-nm", alias = "wavelength", default_value_t = 550.0)]
     pub wavelength: f64,
     /// Scattering coefficient [1/m] (instead of a recipe).
     #[arg(long, requires_all = ["mu_a", "g", "n"])]
@@ -222,7 +222,7 @@ pub struct CompareArgs {
     #[arg(long)]
     pub simulated: PathBuf,
     /// Mask: measured pixels above this fraction of the measured maximum.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = crate::job::DEFAULT_THRESHOLD)]
     pub threshold: f64,
     #[arg(long, default_value = "lucent-out/bssrdf-compare")]
     pub out: PathBuf,

@@ -38,7 +38,7 @@ pub struct CompareArgs {
     #[arg(long, value_name = "SCENE_JSON")]
     pub scene: Option<PathBuf>,
     /// SSIM data range L (C1 = (0.01 L)², C2 = (0.03 L)²), in the images' units.
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = crate::job::DEFAULT_DATA_RANGE, allow_hyphen_values = true)]
     pub data_range: f64,
     /// Luminance weights for SSIM Y, the difference picture and ECC: cie-rgb (0.1769, 0.8124,
     /// 0.0107) or rec709 (0.2126, 0.7152, 0.0722).

@@ -152,8 +152,9 @@ pub struct EnvBracketsArgs {
     /// encoded with the sRGB transfer curve (IEC 61966-2-1), 8 bits per channel.
     #[arg(long)]
     pub exposures: String,
-    /// Output folder: bracket_1.png … bracket_N.png (in the order given) and brackets.json.
-    #[arg(long)]
+    /// Output folder: bracket_1.png … bracket_N.png (in the order given) and brackets.json
+    /// (`--out-dir` and `--output` are older spellings).
+    #[arg(long = "out", alias = "out-dir", alias = "output")]
     pub out_dir: PathBuf,
 }
 

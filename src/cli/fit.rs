@@ -37,8 +37,8 @@ pub struct FitArgs {
     pub free: String,
     #[arg(long, value_enum, default_value_t = ObjectiveChoice::Sum)]
     pub objective: ObjectiveChoice,
-    /// Wavelength of the measurements in nm.
-    #[arg(long, default_value_t = 550.0)]
+    /// Wavelength of the measurements in nm (`--wavelength` is the older spelling).
+    #[arg(long = "wavelength-nm", alias = "wavelength", default_value_t = 550.0)]
     pub wavelength: f64,
     /// Gaussian beam FWHM in µm.
     #[arg(long, default_value_t = 200.0, conflicts_with = "beam_map")]
@@ -50,13 +50,13 @@ pub struct FitArgs {
     #[arg(long)]
     pub beam_map_pixel_mm: Option<f64>,
     /// Relative uncertainty of each measured slice (a scale error; the lab states 5 %).
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = crate::job::DEFAULT_MEASURED_REL_SD)]
     pub measured_rel_sd: f64,
     /// Mask of the msre objective: measured pixels above this fraction of the maximum.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = crate::job::DEFAULT_THRESHOLD)]
     pub threshold: f64,
     /// Target relative error of each simulated slice sum at the final points (sets the path count by a pilot run).
-    #[arg(long, default_value_t = 0.005)]
+    #[arg(long, default_value_t = crate::job::DEFAULT_FIT_REL_ERROR)]
     pub rel_error: f64,
     /// Light paths per configuration and evaluation instead of the pilot run.
     #[arg(long)]

@@ -9,6 +9,7 @@ pub mod compare;
 pub mod env_fit;
 pub mod fit;
 pub mod interrupt;
+pub mod jobs;
 pub mod raw_clip;
 pub mod render;
 pub mod run;
@@ -29,7 +30,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Debug, Parser)]
-#[command(name = "lucent", version, about = "Digital twins of translucent objects")]
+#[command(name = "lucent", version, about = "Digital twins of translucent objects", after_help = crate::fault::EXIT_CODES)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -89,8 +90,8 @@ pub struct OpticsArgs {
     /// Wavelength grid START:END:STEP in nm.
     #[arg(long, default_value = "380:780:10", conflicts_with = "wavelength")]
     pub wavelengths: String,
-    /// A single wavelength in nm.
-    #[arg(long, allow_hyphen_values = true)]
+    /// A single wavelength in nm (`--wavelength` is the older spelling).
+    #[arg(long = "wavelength-nm", alias = "wavelength", allow_hyphen_values = true)]
     pub wavelength: Option<f64>,
     /// Output folder (default: lucent-out/optics; with --json and no --out, nothing is written).
     #[arg(long)]
@@ -233,7 +234,7 @@ pub fn run(cli: Cli) -> Result<()> {
     if let Some(f) = &folder {
         crate::io::check_output_folder(f)?;
     }
-    let result = dispatch(cli);
+    let result = jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli));
     if let Some(f) = folder.filter(|f| f.is_dir()) {
         if result.is_ok() {
             crate::io::mark_output_folder(&f)?;

@@ -4,9 +4,10 @@
 
 use super::choices::{ForceChoice, StageChoice};
 use super::interrupt::Interrupt;
+use crate::fault::{Fault, Faulted};
 use crate::pipeline::executor::{self, Kind};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -99,16 +100,23 @@ fn run_lucent(exe: &Path, args: &[String], log: &Path, interrupt: &Interrupt) ->
     if interrupt.requested() {
         bail!("interrupted (Ctrl-C or SIGTERM) during `lucent {}`", args.join(" "));
     }
-    if status.success() {
-        Ok(())
-    } else {
-        Err(anyhow!(
-            "`lucent {}` exited with {status}; the end of {}:\n    {}",
-            args.join(" "),
-            log.display(),
-            tail(log, 12)
-        ))
+    match status.code().map_or(Some(crate::fault::Fault::Internal), crate::fault::Fault::from_exit_code) {
+        None => Ok(()),
+        Some(fault) => Err(anyhow::Error::from(Faulted {
+            fault,
+            message: format!(
+                "`lucent {}` exited with {status} ({fault}); the end of {}:\n    {}",
+                args.join(" "),
+                log.display(),
+                tail(log, 12)
+            ),
+        })),
     }
+}
+
+/// A command's error for the pipeline: its whole chain as one message, and its class.
+fn classified(e: anyhow::Error) -> Box<dyn std::error::Error + Send + Sync> {
+    Box::new(Faulted { fault: Fault::of(e.as_ref()), message: format!("{e:#}") })
 }
 
 /// Runs `lucent run`.
@@ -159,7 +167,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     let mut exec = |args: &[String], log: &Path| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         // Shards an earlier run's jobs finished are merged, not run again.
         if let Some(t) = executor::finished_shards(args, &out) {
-            run_lucent(&exe, &t.merge_command(), log, &interrupt).map_err(|e| format!("{e:#}"))?;
+            run_lucent(&exe, &t.merge_command(), log, &interrupt).map_err(classified)?;
             std::fs::remove_dir_all(&t.dir).map_err(|e| format!("{}: {e}", t.dir.display()))?;
             return Ok(());
         }
@@ -181,9 +189,9 @@ pub fn run(a: RunArgs) -> Result<()> {
             (Some(t), None) if exec_cfg.kind == Kind::Slurm => {
                 let label = t.args.join(" ");
                 executor::run_on_slurm(&exec_cfg, &t, &exe, log, &mut |line| println!("    {line}"))
-                    .map_err(|e| format!("`lucent {label}` on Slurm: {e}").into())
+                    .map_err(|e| classified(anyhow::Error::from(e).context(format!("`lucent {label}` on Slurm"))))
             }
-            _ => run_lucent(&exe, args, log, &interrupt).map_err(|e| format!("{e:#}").into()),
+            _ => run_lucent(&exe, args, log, &interrupt).map_err(classified),
         }
     };
     let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {

@@ -51,6 +51,10 @@ pub mod project;
 pub mod report;
 
 use crate::envfit;
+use crate::job::{
+    BssrdfCompareJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, Job, OpticsJob, RawClippedJob,
+    RenderJob,
+};
 use project::Project;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -144,13 +148,30 @@ impl std::fmt::Display for Stage {
 }
 
 /// One unit of a stage's work.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Task {
     /// Write these files (path relative to the stage folder, contents), then
-    /// run `lucent ARGS` (`{out}` in an argument stands for the stage folder).
-    Lucent { label: String, files: Vec<(String, String)>, args: Vec<String> },
+    /// run the job as `lucent ARGS` ([`Job::to_args`]; `{out}` in an
+    /// argument stands for the stage folder).
+    Lucent { label: String, files: Vec<(String, String)>, job: Job },
     /// Write the report (in process).
     Report,
+}
+
+/// A task as it goes into the stage key: the job as its command line.
+impl Serialize for Task {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        enum Form<'a> {
+            Lucent { label: &'a str, files: &'a [(String, String)], args: Vec<String> },
+            Report,
+        }
+        match self {
+            Task::Lucent { label, files, job } => Form::Lucent { label, files, args: job.to_args() },
+            Task::Report => Form::Report,
+        }
+        .serialize(serializer)
+    }
 }
 
 /// What a stage will do.
@@ -180,10 +201,12 @@ pub enum PipelineError {
         #[source]
         problem: StageProblem,
     },
+    /// A task failed; `fault` says who is at fault ([`crate::fault`]).
     #[error(
-        "stage {stage} failed: {message}\n  partial output and log kept in {kept}; earlier stages' results are intact"
+        "stage {stage} failed ({fault}): {message}\n  partial output and log kept in {kept}; earlier stages' results \
+         are intact"
     )]
-    Failed { stage: Stage, message: TaskError, kept: PathBuf },
+    Failed { stage: Stage, fault: crate::fault::Fault, message: TaskError, kept: PathBuf },
     /// A file or folder of the output tree could not be created, moved or removed.
     #[error("{path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
@@ -598,28 +621,30 @@ fn valid_mask(out: &Path, smp: &project::SampleSection, which: &str) -> Option<P
 /// `Err` with the reason when the project gives it nothing to do.
 pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, Skip>, PipelineError> {
     let f = &project.file;
-    let seed = project.seed.to_string();
     let mut inputs: Vec<PathBuf> = Vec::new();
     let mut notes = Vec::new();
     let mut tasks = Vec::new();
-    let lucent = |label: String, args: Vec<String>| Task::Lucent { label, files: vec![], args };
+    let lucent = |label: String, job: Job| Task::Lucent { label, files: vec![], job };
+    let under_out = |rel: String| PathBuf::from(format!("{{out}}{rel}"));
     match stage {
         Stage::Optics => {
             if f.sample.is_empty() {
                 return Ok(Err(Skip::Missing("[[sample]]")));
             }
-            let mut args = vec!["optics".to_string()];
             for smp in &f.sample {
-                args.push(s(&smp.recipe));
                 inputs.extend(recipe_inputs(&smp.recipe));
             }
-            let wl = f.optics.as_ref().and_then(|o| o.wavelengths.clone()).unwrap_or_else(|| "380:780:10".into());
-            args.extend(["--wavelengths".into(), wl, "--out".into(), "{out}".into()]);
-            let wps: Vec<f64> = f.sample.iter().filter_map(|s| s.weight_percent).collect();
-            if let Some(w) = wps.first() {
-                args.extend(["--weight-percent".into(), w.to_string()]);
-            }
-            tasks.push(lucent(format!("{} recipes", f.sample.len()), args));
+            let job = OpticsJob {
+                recipes: f.sample.iter().map(|smp| smp.recipe.clone()).collect(),
+                wavelengths: f
+                    .optics
+                    .as_ref()
+                    .and_then(|o| o.wavelengths.clone())
+                    .unwrap_or_else(|| "380:780:10".into()),
+                out: under_out(String::new()),
+                weight_percent: f.sample.iter().find_map(|s| s.weight_percent),
+            };
+            tasks.push(lucent(format!("{} recipes", f.sample.len()), Job::Optics(job)));
         }
         Stage::Bssrdf => {
             let Some(b) = &f.bssrdf else { return Ok(Err(Skip::Missing("[bssrdf]"))) };
@@ -627,68 +652,22 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 return Ok(Err(Skip::Missing("[[sample]]")));
             }
             let configs = &project.bssrdf_configs;
-            let cfg_text = configs.iter().map(|(a, b)| format!("{a}/{b}")).collect::<Vec<_>>().join(",");
             for smp in &f.sample {
                 inputs.extend(recipe_inputs(&smp.recipe));
-                let mut args = vec![
-                    "bssrdf".into(),
-                    "--recipe".into(),
-                    s(&smp.recipe),
-                    "--wavelength".into(),
-                    b.wavelength_nm.unwrap_or(550.0).to_string(),
-                    "--configs".into(),
-                    cfg_text.clone(),
-                    "--pixels".into(),
-                    b.pixels.unwrap_or(259).to_string(),
-                    "--pixel-mm".into(),
-                    b.pixel_mm.unwrap_or(0.1029).to_string(),
-                    "--seed".into(),
-                    seed.clone(),
-                    "--quiet".into(),
-                    "--out".into(),
-                    format!("{{out}}/{}", smp.name),
-                ];
-                if let Some(w) = smp.weight_percent {
-                    args.extend(["--weight-percent".into(), w.to_string()]);
-                }
-                if let Some(c) = b.crop {
-                    args.push(format!("--crop={c}"));
-                }
-                if let Some(p) = b.paths {
-                    args.extend(["--paths".into(), p.to_string()]);
-                }
-                if let Some(r) = b.rel_error {
-                    args.extend(["--rel-error".into(), r.to_string()]);
-                }
-                if let Some(t) = b.time_s {
-                    args.extend(["--time-s".into(), t.to_string()]);
-                }
-                if let Some(p) = &b.phase {
-                    args.extend(["--phase".into(), p.clone()]);
-                }
-                tasks.push(lucent(format!("{} slices", smp.name), args));
+                let job = project::bssrdf_job(b, configs, smp, project.seed);
+                tasks.push(lucent(format!("{} slices", smp.name), Job::Bssrdf(job)));
                 for m in &smp.measured {
                     inputs.push(m.file.clone());
                     let c = project::parse_configs(&m.config).unwrap_or_default();
                     let Some(&c) = c.first() else { continue };
-                    let run = bssrdf_run_dir(&format!("{{out}}/{}", smp.name), configs, c);
-                    let mut args = vec![
-                        "bssrdf".into(),
-                        "compare".into(),
-                        "--measured".into(),
-                        s(&m.file),
-                        "--simulated".into(),
-                        run,
-                        "--out".into(),
-                        format!("{{out}}/{}/compare_ti{}_to{}", smp.name, c.0, c.1),
-                    ];
-                    if let Some(px) = m.pixel_mm {
-                        args.extend(["--measured-pixel-mm".into(), px.to_string()]);
-                    }
-                    if let Some(t) = b.threshold {
-                        args.extend(["--threshold".into(), t.to_string()]);
-                    }
-                    tasks.push(lucent(format!("{} vs measured {}", smp.name, m.config), args));
+                    let job = BssrdfCompareJob {
+                        measured: m.file.clone(),
+                        simulated: PathBuf::from(bssrdf_run_dir(&format!("{{out}}/{}", smp.name), configs, c)),
+                        out: under_out(format!("/{}/compare_ti{}_to{}", smp.name, c.0, c.1)),
+                        measured_pixel_mm: m.pixel_mm,
+                        threshold: b.threshold.unwrap_or(crate::job::DEFAULT_THRESHOLD),
+                    };
+                    tasks.push(lucent(format!("{} vs measured {}", smp.name, m.config), Job::BssrdfCompare(job)));
                 }
             }
         }
@@ -696,47 +675,9 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
             let Some(fit) = &f.fit else { return Ok(Err(Skip::Missing("[fit]"))) };
             for smp in f.sample.iter().filter(|s| !s.measured.is_empty()) {
                 inputs.extend(recipe_inputs(&smp.recipe));
-                let mut args = vec!["fit".into(), "--recipe".into(), s(&smp.recipe), "--measured".into()];
-                for m in &smp.measured {
-                    inputs.push(m.file.clone());
-                    args.push(format!("{}:{}", s(&m.file), m.config));
-                }
-                if let Some(Some(px)) = smp.measured.first().map(|m| m.pixel_mm) {
-                    args.extend(["--measured-pixel-mm".into(), px.to_string()]);
-                }
-                if let Some(w) = smp.weight_percent {
-                    args.extend(["--weight-percent".into(), w.to_string()]);
-                }
-                let wavelength = f.bssrdf.as_ref().and_then(|b| b.wavelength_nm).unwrap_or(550.0);
-                args.extend([
-                    "--free".into(),
-                    fit.free.join(","),
-                    "--wavelength".into(),
-                    wavelength.to_string(),
-                    "--seed".into(),
-                    seed.clone(),
-                    "--quiet".into(),
-                ]);
-                if let Some(o) = &fit.objective {
-                    args.extend(["--objective".into(), o.clone()]);
-                }
-                if let Some(r) = fit.rel_error {
-                    args.extend(["--rel-error".into(), r.to_string()]);
-                }
-                if let Some(p) = fit.paths {
-                    args.extend(["--paths".into(), p.to_string()]);
-                }
-                if let Some(r) = fit.measured_rel_sd {
-                    args.extend(["--measured-rel-sd".into(), r.to_string()]);
-                }
-                if let Some(b) = &fit.bounds {
-                    args.push(format!("--bounds={b}"));
-                }
-                if let Some(t) = f.bssrdf.as_ref().and_then(|b| b.threshold) {
-                    args.extend(["--threshold".into(), t.to_string()]);
-                }
-                args.extend(["--out".into(), format!("{{out}}/{}", smp.name)]);
-                tasks.push(lucent(format!("{} fit", smp.name), args));
+                inputs.extend(smp.measured.iter().map(|m| m.file.clone()));
+                let job = project::fit_job(fit, f.bssrdf.as_ref(), smp, project.seed);
+                tasks.push(lucent(format!("{} fit", smp.name), Job::Fit(job)));
             }
             if tasks.is_empty() {
                 return Ok(Err(Skip::NoMeasured));
@@ -753,21 +694,8 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 });
             }
             inputs.extend(files);
-            let mut args = vec![
-                "calibrate".into(),
-                "--images".into(),
-                c.images.clone(),
-                "--board".into(),
-                c.board.clone(),
-                "--square-mm".into(),
-                c.square_mm.to_string(),
-                "--out".into(),
-                "{out}/camera.json".into(),
-            ];
-            if let Some(m) = &c.model {
-                args.extend(["--model".into(), m.clone()]);
-            }
-            tasks.push(lucent(format!("{} photos", inputs.len()), args));
+            let job = project::calibrate_job(c, under_out("/camera.json".into()));
+            tasks.push(lucent(format!("{} photos", inputs.len()), Job::Calibrate(job)));
         }
         Stage::Colour => {
             if f.colour.is_empty() {
@@ -775,26 +703,15 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
             }
             for c in &f.colour {
                 inputs.push(c.image.clone());
-                let mut args = vec![
-                    "colour".into(),
-                    "calibrate".into(),
-                    "--image".into(),
-                    s(&c.image),
-                    "--camera".into(),
-                    c.camera.clone(),
-                    "--out".into(),
-                    format!("{{out}}/{}", c.camera),
-                ];
-                if let Some(k) = &c.corners {
-                    args.extend(["--corners".into(), k.clone()]);
-                }
-                if let Some(m) = &c.method {
-                    args.extend(["--method".into(), m.clone()]);
-                }
-                if c.decode_srgb == Some(true) {
-                    args.push("--decode-srgb".into());
-                }
-                tasks.push(lucent(c.camera.clone(), args));
+                let job = ColourCalibrateJob {
+                    image: c.image.clone(),
+                    camera: Some(c.camera.clone()),
+                    out: under_out(format!("/{}", c.camera)),
+                    corners: c.corners.clone(),
+                    method: c.method.clone().unwrap_or_else(|| "Cheung 2004".into()),
+                    decode_srgb: c.decode_srgb == Some(true),
+                };
+                tasks.push(lucent(c.camera.clone(), Job::ColourCalibrate(job)));
             }
         }
         Stage::Develop => {
@@ -810,21 +727,17 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 for (what, photo) in [("photo", &smp.photo), ("empty_board", &smp.empty_board)] {
                     let Some(photo) = photo else { continue };
                     inputs.push(photo.clone());
-                    let args = vec![
-                        "colour".into(),
-                        "apply".into(),
-                        "--ccm".into(),
-                        s(&ccm),
-                        s(photo),
-                        format!("{{out}}/{}/{what}.exr", smp.name),
-                        "--to".into(),
-                        "cie-rgb".into(),
-                    ];
-                    tasks.push(lucent(format!("{} {what}", smp.name), args));
+                    let job = ColourApplyJob {
+                        ccm: ccm.clone(),
+                        input: photo.clone(),
+                        output: under_out(format!("/{}/{what}.exr", smp.name)),
+                        to: "cie-rgb".into(),
+                    };
+                    tasks.push(lucent(format!("{} {what}", smp.name), Job::ColourApply(job)));
                     if crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str()) {
-                        let mask = format!("{{out}}/{}/{what}_valid.png", smp.name);
-                        let args = vec!["raw".into(), "clipped".into(), s(photo), "--out".into(), mask];
-                        tasks.push(lucent(format!("{} {what} clipping", smp.name), args));
+                        let mask = under_out(format!("/{}/{what}_valid.png", smp.name));
+                        let job = RawClippedJob { input: photo.clone(), out: mask };
+                        tasks.push(lucent(format!("{} {what} clipping", smp.name), Job::RawClipped(job)));
                     }
                 }
             }
@@ -839,25 +752,8 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 return Ok(Err(Skip::NoCamera));
             }
             inputs.push(p.image.clone());
-            let board = p.board.clone().or_else(|| f.calibration.as_ref().map(|c| c.board.clone())).unwrap_or_default();
-            let sq = p.square_mm.or(f.calibration.as_ref().map(|c| c.square_mm)).unwrap_or(20.0);
-            let mut args = vec![
-                "pose".into(),
-                "--camera".into(),
-                s(&camera),
-                "--image".into(),
-                s(&p.image),
-                "--board".into(),
-                board,
-                "--square-mm".into(),
-                sq.to_string(),
-                "--out".into(),
-                "{out}/scene.json".into(),
-            ];
-            if let (Some(c), Some(z)) = (&p.sample_corner, &p.sample_size_mm) {
-                args.extend(["--sample-corner".into(), c.clone(), "--sample-size-mm".into(), z.clone()]);
-            }
-            tasks.push(lucent("board pose".into(), args));
+            let job = project::pose_job(p, f.calibration.as_ref(), camera, under_out("/scene.json".into()));
+            tasks.push(lucent("board pose".into(), Job::Pose(job)));
         }
         Stage::EnvScale | Stage::Render => {
             let Some(r) = &f.render else { return Ok(Err(Skip::Missing("[render]"))) };
@@ -870,65 +766,52 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 inputs.extend(scene_inputs(&r.scene));
                 inputs.extend(recipe_inputs(&smp.recipe));
                 let scene_rel = format!("{}/input_scene.toml", smp.name);
-                let mut args: Vec<String> = match stage {
-                    Stage::EnvScale => {
-                        let photo = developed(out, smp, "empty_board", smp.empty_board.as_deref())?;
-                        inputs.push(photo.clone());
-                        let mut a = vec![
-                            "env".into(),
-                            "fit-scale".into(),
-                            format!("{{out}}/{scene_rel}"),
-                            "--photo".into(),
-                            s(&photo),
-                            "--spp".into(),
-                            r.env_spp.or(r.spp).unwrap_or(16).to_string(),
-                        ];
-                        if r.per_channel_scale == Some(true) {
-                            a.push("--per-channel".into());
-                        }
-                        if let Some(m) = valid_mask(out, smp, "empty_board") {
-                            a.extend(["--mask".into(), s(&m)]);
-                        }
-                        a
-                    }
-                    _ => {
-                        let mut a = vec![
-                            "render".into(),
-                            format!("{{out}}/{scene_rel}"),
-                            "--spp".into(),
-                            r.spp.unwrap_or(16).to_string(),
-                            "--quiet".into(),
-                        ];
-                        if let Some(t) = r.time_s {
-                            a.extend(["--time-s".into(), t.to_string()]);
-                        }
-                        a
-                    }
-                };
-                if let Some(z) = &r.size {
-                    args.extend(["--size".into(), z.clone()]);
+                let scene = under_out(format!("/{scene_rel}"));
+                let sample_out = under_out(format!("/{}", smp.name));
+                if stage == Stage::EnvScale {
+                    let photo = developed(out, smp, "empty_board", smp.empty_board.as_deref())?;
+                    inputs.push(photo.clone());
+                    let job = EnvScaleJob {
+                        scene,
+                        photo,
+                        spp: Some(r.env_spp.or(r.spp).unwrap_or(16)),
+                        per_channel: r.per_channel_scale == Some(true),
+                        mask: valid_mask(out, smp, "empty_board"),
+                        size: r.size.clone(),
+                        seed: Some(project.seed),
+                        out: sample_out,
+                    };
+                    let job = Job::EnvScale(job);
+                    tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], job });
+                    continue;
                 }
-                args.extend(["--seed".into(), seed.clone(), "--out".into(), format!("{{out}}/{}", smp.name)]);
+                let job = RenderJob {
+                    scene,
+                    spp: Some(r.spp.unwrap_or(16)),
+                    quiet: true,
+                    time_s: r.time_s,
+                    size: r.size.clone(),
+                    seed: Some(project.seed),
+                    out: sample_out,
+                };
                 // The fitted twin: the same render with stage fit's recipe.
-                let fitted = (stage == Stage::Render).then(|| fitted_recipe(out, smp)).flatten();
-                let twin = match fitted {
+                let twin = match fitted_recipe(out, smp) {
                     Some(recipe) => {
                         let text = sample_scene_with(project, out, smp, true, Some(&recipe))?;
                         inputs.push(recipe);
                         let rel = format!("{}/input_scene_fitted.toml", smp.name);
-                        let mut a = args.clone();
-                        a[1] = format!("{{out}}/{rel}");
-                        let n = a.len();
-                        a[n - 1] = format!("{{out}}/{}/fitted", smp.name);
-                        Some(Task::Lucent {
-                            label: format!("{} fitted twin", smp.name),
-                            files: vec![(rel, text)],
-                            args: a,
-                        })
+                        let twin = RenderJob {
+                            scene: under_out(format!("/{rel}")),
+                            out: under_out(format!("/{}/fitted", smp.name)),
+                            ..job.clone()
+                        };
+                        let label = format!("{} fitted twin", smp.name);
+                        Some(Task::Lucent { label, files: vec![(rel, text)], job: Job::Render(twin) })
                     }
                     None => None,
                 };
-                tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], args });
+                let job = Job::Render(job);
+                tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], job });
                 tasks.extend(twin);
             }
             if tasks.is_empty() {
@@ -948,31 +831,24 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     continue;
                 }
                 inputs.push(photo.clone());
-                let mut args = vec!["compare".into(), "--photo".into(), s(photo), "--render".into(), s(&render)];
                 let fitted = render.with_file_name("fitted").join("render.exr");
                 let fitted = fitted.is_file().then_some(fitted);
-                if let Some(f) = &fitted {
-                    args.extend(["--render".into(), s(f)]);
-                }
-                args.extend(["--out".into(), format!("{{out}}/{}", smp.name)]);
+                let job = CompareJob {
+                    photo: photo.clone(),
+                    render: std::iter::once(render.clone()).chain(fitted.clone()).collect(),
+                    out: under_out(format!("/{}", smp.name)),
+                    mask: valid_mask(out, smp, "photo"),
+                    data_range: f.compare.as_ref().and_then(|c| c.data_range).unwrap_or(crate::job::DEFAULT_DATA_RANGE),
+                };
                 // The fitted twin alone too: its own triplet for the report.
-                let fitted_alone = fitted.as_ref().map(|f| {
-                    let mut a = vec!["compare".into(), "--photo".into(), s(photo), "--render".into(), s(f)];
-                    a.extend(["--out".into(), format!("{{out}}/{}/fitted", smp.name)]);
-                    a
+                let fitted_alone = fitted.map(|f| CompareJob {
+                    render: vec![f],
+                    out: under_out(format!("/{}/fitted", smp.name)),
+                    ..job.clone()
                 });
-                let mut extra = Vec::new();
-                if let Some(m) = valid_mask(out, smp, "photo") {
-                    extra.extend(["--mask".into(), s(&m)]);
-                }
-                if let Some(d) = f.compare.as_ref().and_then(|c| c.data_range) {
-                    extra.extend(["--data-range".into(), d.to_string()]);
-                }
-                args.extend(extra.iter().cloned());
-                tasks.push(lucent(smp.name.clone(), args));
-                if let Some(mut a) = fitted_alone {
-                    a.extend(extra);
-                    tasks.push(lucent(format!("{} fitted twin", smp.name), a));
+                tasks.push(lucent(smp.name.clone(), Job::Compare(job)));
+                if let Some(j) = fitted_alone {
+                    tasks.push(lucent(format!("{} fitted twin", smp.name), Job::Compare(j)));
                 }
             }
             if tasks.is_empty() {
@@ -1126,14 +1002,14 @@ pub fn run(
         let mut result: Result<(), TaskError> = Ok(());
         for task in &plan.tasks {
             let r = match task {
-                Task::Lucent { label, files, args } => {
+                Task::Lucent { label, files, job } => {
                     let mut r = Ok(());
                     for (name, text) in files {
                         if let Err(source) = crate::io::write_atomic(&dir.join(name), text.as_bytes()) {
                             r = Err(TaskError::Write { label: label.clone(), source });
                         }
                     }
-                    let args: Vec<String> = args.iter().map(|a| a.replace("{out}", &s(&dir))).collect();
+                    let args: Vec<String> = job.to_args().iter().map(|a| a.replace("{out}", &s(&dir))).collect();
                     commands.push(args.clone());
                     r.and_then(|_| match exec(&args, &log) {
                         Err(e) if e.is::<executor::Deferred>() => {
@@ -1162,7 +1038,8 @@ pub fn run(
             if aside.exists() {
                 let _ = std::fs::rename(&aside, &dir);
             }
-            return Err(PipelineError::Failed { stage, message, kept: failed });
+            let fault = crate::fault::Fault::of(&message);
+            return Err(PipelineError::Failed { stage, fault, message, kept: failed });
         }
         if deferred > 0 {
             // Nothing of this stage is final. The stage folder stays, marked as

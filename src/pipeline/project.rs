@@ -67,6 +67,9 @@
 //! # file = "slice.exr"
 //! ```
 
+use crate::job::{
+    BssrdfCompareJob, BssrdfJob, CalibrateJob, CompareJob, EnvScaleJob, FitJob, JobError, OpticsJob, PoseJob, RenderJob,
+};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -84,6 +87,9 @@ pub enum ProjectError {
     Toml { path: PathBuf, line: Option<usize>, column: Option<usize>, error: Box<toml::de::Error> },
     #[error("{path}: {key}: {reason}")]
     Key { path: PathBuf, key: String, reason: String },
+    /// Several keys with values out of range, each with its reason.
+    #[error("{path}: {} values out of range:{}", problems.len(), problems.iter().map(|(k, r)| format!("\n  {k}: {r}")).collect::<String>())]
+    Keys { path: PathBuf, problems: Vec<(String, String)> },
 }
 
 /// The project file as typed.
@@ -300,6 +306,151 @@ pub fn folder_name(name: &str) -> Result<(), &'static str> {
     Ok(())
 }
 
+/// Sample `smp`'s slice job of `[bssrdf]` (outputs under `{out}/NAME`).
+pub fn bssrdf_job(b: &BssrdfSection, configs: &[(f64, f64)], smp: &SampleSection, seed: u64) -> BssrdfJob {
+    BssrdfJob {
+        recipe: smp.recipe.clone(),
+        wavelength_nm: b.wavelength_nm.unwrap_or(550.0),
+        configs: Some(configs.iter().map(|(a, b)| format!("{a}/{b}")).collect::<Vec<_>>().join(",")),
+        pixels: b.pixels.unwrap_or(259),
+        pixel_mm: b.pixel_mm.unwrap_or(0.1029),
+        seed,
+        quiet: true,
+        out: PathBuf::from(format!("{{out}}/{}", smp.name)),
+        weight_percent: smp.weight_percent,
+        crop: b.crop,
+        paths: b.paths,
+        rel_error: b.rel_error,
+        time_s: b.time_s,
+        phase: b.phase.clone(),
+    }
+}
+
+/// Sample `smp`'s fit job of `[fit]` (the wavelength and threshold of `[bssrdf]`).
+pub fn fit_job(fit: &FitSection, bssrdf: Option<&BssrdfSection>, smp: &SampleSection, seed: u64) -> FitJob {
+    FitJob {
+        recipe: smp.recipe.clone(),
+        measured: smp.measured.iter().map(|m| format!("{}:{}", m.file.display(), m.config)).collect(),
+        measured_pixel_mm: smp.measured.first().and_then(|m| m.pixel_mm),
+        weight_percent: smp.weight_percent,
+        free: fit.free.clone(),
+        wavelength_nm: bssrdf.and_then(|b| b.wavelength_nm).unwrap_or(550.0),
+        seed,
+        quiet: true,
+        objective: fit.objective.clone().unwrap_or_else(|| "sum".into()),
+        rel_error: fit.rel_error.unwrap_or(crate::job::DEFAULT_FIT_REL_ERROR),
+        paths: fit.paths,
+        measured_rel_sd: fit.measured_rel_sd.unwrap_or(crate::job::DEFAULT_MEASURED_REL_SD),
+        bounds: fit.bounds.clone(),
+        threshold: bssrdf.and_then(|b| b.threshold).unwrap_or(crate::job::DEFAULT_THRESHOLD),
+        out: PathBuf::from(format!("{{out}}/{}", smp.name)),
+    }
+}
+
+/// The calibrate job of `[calibration]`.
+pub fn calibrate_job(c: &CalibrationSection, out: PathBuf) -> CalibrateJob {
+    CalibrateJob {
+        images: vec![c.images.clone()],
+        board: c.board.clone(),
+        square_mm: c.square_mm,
+        out,
+        model: c.model.clone().unwrap_or_else(|| "pinhole-k3".into()),
+    }
+}
+
+/// The pose job of `[pose]` (board and square size from `[calibration]` unless given).
+pub fn pose_job(p: &PoseSection, calibration: Option<&CalibrationSection>, camera: PathBuf, out: PathBuf) -> PoseJob {
+    PoseJob {
+        camera,
+        image: p.image.clone(),
+        board: p.board.clone().or_else(|| calibration.map(|c| c.board.clone())).unwrap_or_default(),
+        square_mm: p.square_mm.or(calibration.map(|c| c.square_mm)).unwrap_or(20.0),
+        out,
+        sample: p.sample_corner.clone().zip(p.sample_size_mm.clone()),
+    }
+}
+
+/// The values of the project that become job fields, checked by the jobs
+/// ([`crate::job`]) with the ranges of the commands' flags: every problem,
+/// as (project key, reason).
+fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, String)> {
+    let mut problems = Vec::new();
+    let mut check = |section: &str, prefix: &str, r: Result<(), JobError>| {
+        if let Err(e) = r {
+            let got = if e.value.is_empty() { String::new() } else { format!(", got {}", e.value) };
+            problems.push((format!("{section} {prefix}{}", e.field), format!("{}{got}", e.reason)));
+        }
+    };
+    let nobody = SampleSection::default();
+    if let Some(o) = &file.optics {
+        let job = OpticsJob {
+            recipes: vec![],
+            wavelengths: o.wavelengths.clone().unwrap_or_default(),
+            out: PathBuf::new(),
+            weight_percent: None,
+        };
+        if o.wavelengths.is_some() {
+            check("[optics]", "", job.validate());
+        }
+    }
+    if let Some(b) = &file.bssrdf {
+        check("[bssrdf]", "", bssrdf_job(b, configs, &nobody, 1).validate());
+        let compare = BssrdfCompareJob {
+            measured: PathBuf::new(),
+            simulated: PathBuf::new(),
+            out: PathBuf::new(),
+            measured_pixel_mm: None,
+            threshold: b.threshold.unwrap_or(crate::job::DEFAULT_THRESHOLD),
+        };
+        check("[bssrdf]", "", compare.validate());
+    }
+    if let Some(f) = &file.fit {
+        check("[fit]", "", fit_job(f, None, &nobody, 1).validate());
+    }
+    if let Some(c) = &file.calibration {
+        check("[calibration]", "", calibrate_job(c, PathBuf::new()).validate());
+    }
+    if let Some(p) = &file.pose
+        && p.square_mm.is_some()
+    {
+        check("[pose]", "", pose_job(p, None, PathBuf::new(), PathBuf::new()).validate());
+    }
+    if let Some(r) = &file.render {
+        let job = RenderJob {
+            scene: PathBuf::new(),
+            spp: r.spp,
+            quiet: true,
+            time_s: r.time_s,
+            size: None,
+            seed: None,
+            out: PathBuf::new(),
+        };
+        check("[render]", "", job.validate());
+        let env = EnvScaleJob {
+            scene: PathBuf::new(),
+            photo: PathBuf::new(),
+            spp: r.env_spp,
+            per_channel: false,
+            mask: None,
+            size: None,
+            seed: None,
+            out: PathBuf::new(),
+        };
+        check("[render]", "env_", env.validate());
+    }
+    if let Some(c) = &file.compare {
+        let job = CompareJob {
+            photo: PathBuf::new(),
+            render: vec![],
+            out: PathBuf::new(),
+            mask: None,
+            data_range: c.data_range.unwrap_or(crate::job::DEFAULT_DATA_RANGE),
+        };
+        check("[compare]", "", job.validate());
+    }
+    problems
+}
+
 impl Project {
     /// Reads and validates a project file.
     pub fn load(path: &Path) -> Result<Project, ProjectError> {
@@ -380,36 +531,6 @@ impl Project {
         if let Some(b) = &file.bssrdf {
             bssrdf_configs = parse_configs(b.configs.as_deref().unwrap_or("45/0"))
                 .map_err(|e| key("[bssrdf] configs", e.to_string()))?;
-            // The ranges of the flags these keys become (`lucent bssrdf`), so a
-            // bad value is named here and not by the stage's command line.
-            let positive = |k: &str, v: Option<f64>| match v {
-                Some(x) if !(x > 0.0 && x.is_finite()) => Err(key(k, format!("must be finite and > 0, got {x}"))),
-                _ => Ok(()),
-            };
-            positive("[bssrdf] wavelength_nm", b.wavelength_nm)?;
-            positive("[bssrdf] pixel_mm", b.pixel_mm)?;
-            positive("[bssrdf] time_s", b.time_s)?;
-            positive("[bssrdf] rel_error", b.rel_error)?;
-            if let Some(t) = b.threshold
-                && !(0.0..1.0).contains(&t)
-            {
-                return Err(key(
-                    "[bssrdf] threshold",
-                    format!("must lie in [0, 1) (a fraction of the maximum), got {t}"),
-                ));
-            }
-            let pixels = b.pixels.unwrap_or(259);
-            if !(1..=8192).contains(&pixels) {
-                return Err(key("[bssrdf] pixels", format!("must lie in 1 … 8192, got {pixels}")));
-            }
-            if let Some(c) = b.crop
-                && !(1..=pixels).contains(&c)
-            {
-                return Err(key("[bssrdf] crop", format!("must lie in 1 … pixels ({pixels}), got {c}")));
-            }
-            if b.paths == Some(0) {
-                return Err(key("[bssrdf] paths", "must be at least 1".into()));
-            }
             if b.paths.is_none() && b.rel_error.is_none() && b.time_s.is_none() {
                 return Err(key("[bssrdf]", "give a stop rule: paths, rel_error or time_s".into()));
             }
@@ -425,12 +546,16 @@ impl Project {
                 }
             }
         }
+        // The values that become flags of the stages' commands, checked by
+        // their jobs with the flags' ranges: all named here, before any stage runs.
+        match job_problems(&file, &bssrdf_configs).as_slice() {
+            [] => {}
+            [(k, reason)] => return Err(key(k, reason.clone())),
+            many => return Err(ProjectError::Keys { path: path.to_path_buf(), problems: many.to_vec() }),
+        }
         if let Some(c) = &mut file.calibration {
             let p = resolve(Path::new(&c.images));
             c.images = p.to_string_lossy().into_owned();
-            if !(c.square_mm > 0.0 && c.square_mm.is_finite()) {
-                return Err(key("[calibration] square_mm", format!("must be finite and > 0, got {}", c.square_mm)));
-            }
             if let Some(t) = &mut c.truth {
                 existing("[calibration] truth", t)?;
                 let text = std::fs::read_to_string(&*t)
@@ -482,14 +607,6 @@ impl Project {
         }
         if let Some(r) = &mut file.render {
             existing("[render] scene", &mut r.scene)?;
-            if r.spp == Some(0) || r.env_spp == Some(0) {
-                return Err(key("[render] spp", "must be at least 1".into()));
-            }
-            if let Some(t) = r.time_s
-                && !(t > 0.0 && t.is_finite())
-            {
-                return Err(key("[render] time_s", format!("must be finite and > 0, got {t}")));
-            }
             if let Some(c) = &r.camera {
                 if c != "pose" && c != "template" {
                     return Err(key("[render] camera", format!("expected \"pose\" or \"template\", got {c:?}")));
@@ -498,11 +615,6 @@ impl Project {
                     return Err(key("[render] camera", "\"pose\" needs a [pose] section".into()));
                 }
             }
-        }
-        if let Some(c) = &file.compare
-            && c.data_range.is_some_and(|d| !(d > 0.0 && d.is_finite()))
-        {
-            return Err(key("[compare] data_range", "must be finite and > 0".into()));
         }
         if let Some(f) = &file.fit {
             if f.free.is_empty() {
@@ -517,25 +629,6 @@ impl Project {
                         format!("{name:?}: expected weight_percent, diameter_um or real_part_n (NAME@K for particle type K)"),
                     ));
                 }
-            }
-            if let Some(o) = &f.objective
-                && o != "sum"
-                && o != "msre"
-            {
-                return Err(key("[fit] objective", format!("expected \"sum\" or \"msre\", got {o:?}")));
-            }
-            if let Some(r) = f.rel_error
-                && !(r > 0.0 && r < 1.0)
-            {
-                return Err(key("[fit] rel_error", format!("must lie in (0, 1), got {r}")));
-            }
-            if f.paths == Some(0) {
-                return Err(key("[fit] paths", "must be at least 1".into()));
-            }
-            if let Some(r) = f.measured_rel_sd
-                && !(r > 0.0 && r <= 1.0)
-            {
-                return Err(key("[fit] measured_rel_sd", format!("must lie in (0, 1], got {r}")));
             }
             for smp in &file.sample {
                 let px: Vec<Option<f64>> = smp.measured.iter().map(|m| m.pixel_mm).collect();

@@ -1,0 +1,157 @@
+//! Who is at fault when a command fails, as image-rs sorts its
+//! `ImageError` (a bad parameter or undecodable input, a limit or I/O of
+//! the machine, an unsupported case): the **user input** (a flag, a project
+//! key, a file the user named), the **environment** (a missing tool, a full
+//! or read-only disk, the network, Slurm), or lucent itself (**internal**:
+//! a bug). Each class has its exit code, so a script or a cluster knows
+//! whether to fix the input, retry elsewhere, or report a bug.
+
+use std::error::Error;
+use thiserror::Error;
+
+/// The class of a failure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fault {
+    /// A value, file or key the user gave is wrong.
+    Input,
+    /// The machine or a service it needs failed (missing tool, disk, network, Slurm).
+    Environment,
+    /// A bug in lucent.
+    Internal,
+}
+
+/// The exit codes, as `lucent --help` lists them.
+pub const EXIT_CODES: &str = "Exit codes:
+  0    success
+  1    user input: a flag value, a project key or a file given is wrong (the message names it)
+  2    usage: the command line does not parse (unknown flag, missing argument)
+  3    environment: a missing tool, a full or read-only disk, the network or Slurm failed; the input may be fine
+  4    internal: a bug in lucent (please report it with the command line)
+  130  interrupted (Ctrl-C or SIGTERM)";
+
+impl Fault {
+    /// The process exit code of the class.
+    pub fn exit_code(self) -> u8 {
+        match self {
+            Fault::Input => 1,
+            Fault::Environment => 3,
+            Fault::Internal => 4,
+        }
+    }
+
+    /// The class of a child `lucent`'s exit code (`None` for success, usage
+    /// errors count as input).
+    pub fn from_exit_code(code: i32) -> Option<Fault> {
+        match code {
+            0 => None,
+            3 => Some(Fault::Environment),
+            4 | 101 => Some(Fault::Internal),
+            _ => Some(Fault::Input),
+        }
+    }
+
+    /// How a status line names the class.
+    pub fn name(self) -> &'static str {
+        match self {
+            Fault::Input => "user input",
+            Fault::Environment => "environment",
+            Fault::Internal => "internal",
+        }
+    }
+
+    /// The class of an error: the first cause in its chain that says (a
+    /// [`Faulted`] or [`Internal`], a Slurm failure, an I/O error of the
+    /// machine such as a full disk or a refused permission), else the user
+    /// input.
+    pub fn of(error: &(dyn Error + 'static)) -> Fault {
+        let mut cause: Option<&(dyn Error + 'static)> = Some(error);
+        while let Some(e) = cause {
+            if let Some(f) = e.downcast_ref::<Faulted>() {
+                return f.fault;
+            }
+            if let Some(crate::pipeline::PipelineError::Failed { fault, .. }) = e.downcast_ref() {
+                return *fault;
+            }
+            if e.is::<Internal>() {
+                return Fault::Internal;
+            }
+            if e.is::<crate::pipeline::executor::SlurmError>() {
+                return Fault::Environment;
+            }
+            if let Some(io) = e.downcast_ref::<std::io::Error>()
+                && environment_io(io.kind())
+            {
+                return Fault::Environment;
+            }
+            cause = e.source();
+        }
+        Fault::Input
+    }
+}
+
+impl std::fmt::Display for Fault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// I/O failures of the machine rather than of the path the user named.
+fn environment_io(kind: std::io::ErrorKind) -> bool {
+    use std::io::ErrorKind as K;
+    matches!(
+        kind,
+        K::PermissionDenied
+            | K::StorageFull
+            | K::ReadOnlyFilesystem
+            | K::QuotaExceeded
+            | K::OutOfMemory
+            | K::WriteZero
+            | K::BrokenPipe
+            | K::TimedOut
+            | K::ConnectionRefused
+            | K::ConnectionReset
+            | K::ConnectionAborted
+            | K::NetworkUnreachable
+            | K::HostUnreachable
+            | K::NetworkDown
+            | K::ResourceBusy
+            | K::StaleNetworkFileHandle
+    )
+}
+
+/// A failure whose class is known where it happens (e.g. a child `lucent`
+/// that exited with a class's code).
+#[derive(Debug, Error)]
+#[error("{message}")]
+pub struct Faulted {
+    pub fault: Fault,
+    pub message: String,
+}
+
+/// A state lucent's own logic should never reach: a bug.
+#[derive(Debug, Error)]
+#[error("internal error (a bug in lucent; please report it): {0}")]
+pub struct Internal(pub String);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_class_has_its_code_and_is_found_in_the_chain() {
+        let user = anyhow::anyhow!("--pixel-mm -1: must be finite and > 0");
+        assert_eq!(Fault::of(user.as_ref()), Fault::Input);
+        let disk = anyhow::Error::from(std::io::Error::from(std::io::ErrorKind::StorageFull)).context("out/x.exr");
+        assert_eq!(Fault::of(disk.as_ref()), Fault::Environment);
+        let missing = anyhow::Error::from(std::io::Error::from(std::io::ErrorKind::NotFound)).context("recipe.toml");
+        assert_eq!(Fault::of(missing.as_ref()), Fault::Input);
+        let bug = anyhow::Error::from(Internal("tile index out of range".into())).context("render");
+        assert_eq!(Fault::of(bug.as_ref()), Fault::Internal);
+        let codes: Vec<u8> = [Fault::Input, Fault::Environment, Fault::Internal].map(Fault::exit_code).to_vec();
+        assert_eq!(codes, [1, 3, 4]);
+        for f in [Fault::Input, Fault::Environment, Fault::Internal] {
+            assert_eq!(Fault::from_exit_code(i32::from(f.exit_code())), Some(f));
+            assert!(EXIT_CODES.contains(&format!("  {}    {}", f.exit_code(), f.name())), "{f}");
+        }
+    }
+}

@@ -1,0 +1,556 @@
+//! Jobs: one validated value per command that `lucent run` hands to a
+//! stage, built by the pipeline from the project file and by the command
+//! line from its flags (the pattern of ripgrep's `HiArgs`, which its
+//! low-level argument struct converts into).
+//!
+//! Every job has
+//! * `validate()`: the ranges its flags accept (the same limits the
+//!   commands check), so a project value out of range is refused with the
+//!   project key before any stage runs, never as a child process's
+//!   "unexpected argument";
+//! * `to_args()`: its canonical `lucent` command line (every field with a
+//!   default is written, optional ones only when set). The pipeline records
+//!   and hashes this line, runs it, and writes it into the Slurm and
+//!   Kubernetes scripts it emits; parsing it back gives the same job.
+//!
+//! Paths may hold the placeholder `{out}` (the stage folder), replaced when
+//! the command runs.
+
+use std::path::PathBuf;
+use thiserror::Error;
+
+/// A job field out of range: which field (its snake-case name, the flag
+/// `--field-name`, the project key `field_name`) and why.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error("--{} {value}: {reason}", flag_name(field))]
+pub struct JobError {
+    pub field: &'static str,
+    pub value: String,
+    pub reason: String,
+}
+
+/// `pixel_mm` → `pixel-mm`.
+pub fn flag_name(field: &str) -> String {
+    field.replace('_', "-")
+}
+
+fn bad(field: &'static str, value: impl ToString, reason: impl Into<String>) -> JobError {
+    JobError { field, value: value.to_string(), reason: reason.into() }
+}
+
+/// A finite number > 0.
+pub fn positive(field: &'static str, v: f64) -> Result<(), JobError> {
+    if v > 0.0 && v.is_finite() {
+        Ok(())
+    } else {
+        Err(bad(field, v, "must be finite and > 0"))
+    }
+}
+
+fn positive_opt(field: &'static str, v: Option<f64>) -> Result<(), JobError> {
+    v.map_or(Ok(()), |v| positive(field, v))
+}
+
+/// A weight percentage in (0, 100).
+pub fn weight_percent(v: Option<f64>) -> Result<(), JobError> {
+    match v {
+        Some(w) if !(w > 0.0 && w < 100.0) => Err(bad("weight_percent", w, "must lie in (0, 100)")),
+        _ => Ok(()),
+    }
+}
+
+/// A fraction of a maximum in [0, 1).
+pub fn threshold(v: f64) -> Result<(), JobError> {
+    if (0.0..1.0).contains(&v) {
+        Ok(())
+    } else {
+        Err(bad("threshold", v, "must lie in [0, 1) (a fraction of the maximum)"))
+    }
+}
+
+fn at_least_one<T: PartialEq + From<u8> + ToString>(field: &'static str, v: Option<T>) -> Result<(), JobError> {
+    match v {
+        Some(n) if n == T::from(0) => Err(bad(field, n, "must be at least 1")),
+        _ => Ok(()),
+    }
+}
+
+/// The most pixels per side of a BSSRDF slice.
+pub const MAX_SLICE_PIXELS: usize = 8192;
+
+fn s(p: &std::path::Path) -> String {
+    p.display().to_string()
+}
+
+/// A command line under construction.
+#[derive(Default)]
+struct Line(Vec<String>);
+
+impl Line {
+    fn new(words: &[&str]) -> Self {
+        Line(words.iter().map(|w| w.to_string()).collect())
+    }
+    fn word(&mut self, w: impl ToString) -> &mut Self {
+        self.0.push(w.to_string());
+        self
+    }
+    fn words<T: ToString>(&mut self, ws: impl IntoIterator<Item = T>) -> &mut Self {
+        self.0.extend(ws.into_iter().map(|w| w.to_string()));
+        self
+    }
+    fn flag(&mut self, f: &str, v: impl ToString) -> &mut Self {
+        self.0.extend([f.to_string(), v.to_string()]);
+        self
+    }
+    fn opt<T: ToString>(&mut self, f: &str, v: &Option<T>) -> &mut Self {
+        if let Some(v) = v {
+            self.flag(f, v.to_string());
+        }
+        self
+    }
+    fn switch(&mut self, f: &str, on: bool) -> &mut Self {
+        if on {
+            self.0.push(f.to_string());
+        }
+        self
+    }
+}
+
+/// `lucent optics RECIPE… --wavelengths GRID --out DIR`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OpticsJob {
+    pub recipes: Vec<PathBuf>,
+    /// START:END:STEP in nm.
+    pub wavelengths: String,
+    pub out: PathBuf,
+    pub weight_percent: Option<f64>,
+}
+
+impl OpticsJob {
+    pub fn validate(&self) -> Result<(), JobError> {
+        crate::cli::parse_grid(&self.wavelengths).map_err(|e| bad("wavelengths", &self.wavelengths, e.to_string()))?;
+        weight_percent(self.weight_percent)
+    }
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["optics"]);
+        l.words(self.recipes.iter().map(|r| s(r)));
+        l.flag("--wavelengths", &self.wavelengths)
+            .flag("--out", s(&self.out))
+            .opt("--weight-percent", &self.weight_percent);
+        l.0
+    }
+}
+
+/// `lucent bssrdf --recipe R …`: slab BSSRDF slices of a recipe.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BssrdfJob {
+    pub recipe: PathBuf,
+    pub wavelength_nm: f64,
+    /// θi/θo pairs, e.g. "45/0,0/45" (else the command's single configuration).
+    pub configs: Option<String>,
+    pub pixels: usize,
+    pub pixel_mm: f64,
+    pub seed: u64,
+    pub quiet: bool,
+    pub out: PathBuf,
+    pub weight_percent: Option<f64>,
+    pub crop: Option<usize>,
+    pub paths: Option<u64>,
+    pub rel_error: Option<f64>,
+    pub time_s: Option<f64>,
+    /// "mie" or "hg".
+    pub phase: Option<String>,
+}
+
+impl BssrdfJob {
+    pub fn validate(&self) -> Result<(), JobError> {
+        positive("wavelength_nm", self.wavelength_nm)?;
+        positive("pixel_mm", self.pixel_mm)?;
+        positive_opt("time_s", self.time_s)?;
+        positive_opt("rel_error", self.rel_error)?;
+        weight_percent(self.weight_percent)?;
+        if !(1..=MAX_SLICE_PIXELS).contains(&self.pixels) {
+            return Err(bad("pixels", self.pixels, format!("must lie in 1 … {MAX_SLICE_PIXELS}")));
+        }
+        if let Some(c) = self.crop
+            && !(1..=self.pixels).contains(&c)
+        {
+            return Err(bad("crop", c, format!("must lie in 1 … pixels ({})", self.pixels)));
+        }
+        at_least_one("paths", self.paths)?;
+        if let Some(p) = &self.phase
+            && p != "mie"
+            && p != "hg"
+        {
+            return Err(bad("phase", p, "expected \"mie\" or \"hg\""));
+        }
+        if let Some(c) = &self.configs {
+            crate::pipeline::project::parse_configs(c).map_err(|e| bad("configs", c, e.to_string()))?;
+        }
+        Ok(())
+    }
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["bssrdf"]);
+        l.flag("--recipe", s(&self.recipe))
+            .flag("--wavelength-nm", self.wavelength_nm)
+            .opt("--configs", &self.configs)
+            .flag("--pixels", self.pixels)
+            .flag("--pixel-mm", self.pixel_mm)
+            .flag("--seed", self.seed)
+            .switch("--quiet", self.quiet)
+            .flag("--out", s(&self.out))
+            .opt("--weight-percent", &self.weight_percent);
+        if let Some(c) = self.crop {
+            l.word(format!("--crop={c}"));
+        }
+        l.opt("--paths", &self.paths)
+            .opt("--rel-error", &self.rel_error)
+            .opt("--time-s", &self.time_s)
+            .opt("--phase", &self.phase);
+        l.0
+    }
+}
+
+/// `lucent bssrdf compare`: a simulated slice against a measured one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BssrdfCompareJob {
+    pub measured: PathBuf,
+    pub simulated: PathBuf,
+    pub out: PathBuf,
+    pub measured_pixel_mm: Option<f64>,
+    pub threshold: f64,
+}
+
+/// The default of `--threshold` (bssrdf compare, fit).
+pub const DEFAULT_THRESHOLD: f64 = 0.01;
+
+impl BssrdfCompareJob {
+    pub fn validate(&self) -> Result<(), JobError> {
+        positive_opt("measured_pixel_mm", self.measured_pixel_mm)?;
+        threshold(self.threshold)
+    }
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["bssrdf", "compare"]);
+        l.flag("--measured", s(&self.measured))
+            .flag("--simulated", s(&self.simulated))
+            .flag("--out", s(&self.out))
+            .opt("--measured-pixel-mm", &self.measured_pixel_mm)
+            .flag("--threshold", self.threshold);
+        l.0
+    }
+}
+
+/// `lucent fit`: recipe parameters fitted to measured slices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitJob {
+    pub recipe: PathBuf,
+    /// FILE:θi/θo per measured slice.
+    pub measured: Vec<String>,
+    pub measured_pixel_mm: Option<f64>,
+    pub weight_percent: Option<f64>,
+    pub free: Vec<String>,
+    pub wavelength_nm: f64,
+    pub seed: u64,
+    pub quiet: bool,
+    /// "sum" or "msre".
+    pub objective: String,
+    pub rel_error: f64,
+    pub paths: Option<u64>,
+    pub measured_rel_sd: f64,
+    pub bounds: Option<String>,
+    pub threshold: f64,
+    pub out: PathBuf,
+}
+
+/// Defaults of `lucent fit`'s flags.
+pub const DEFAULT_FIT_REL_ERROR: f64 = 0.005;
+pub const DEFAULT_MEASURED_REL_SD: f64 = 0.05;
+
+impl FitJob {
+    pub fn validate(&self) -> Result<(), JobError> {
+        positive("wavelength_nm", self.wavelength_nm)?;
+        positive_opt("measured_pixel_mm", self.measured_pixel_mm)?;
+        weight_percent(self.weight_percent)?;
+        if self.free.is_empty() {
+            return Err(bad("free", "", "name at least one parameter, e.g. weight_percent"));
+        }
+        if self.objective != "sum" && self.objective != "msre" {
+            return Err(bad("objective", &self.objective, "expected \"sum\" or \"msre\""));
+        }
+        if !(self.rel_error > 0.0 && self.rel_error < 1.0) {
+            return Err(bad("rel_error", self.rel_error, "must lie in (0, 1)"));
+        }
+        at_least_one("paths", self.paths)?;
+        if !(self.measured_rel_sd > 0.0 && self.measured_rel_sd <= 1.0) {
+            return Err(bad("measured_rel_sd", self.measured_rel_sd, "must lie in (0, 1]"));
+        }
+        threshold(self.threshold)
+    }
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["fit"]);
+        l.flag("--recipe", s(&self.recipe)).word("--measured").words(&self.measured);
+        l.opt("--measured-pixel-mm", &self.measured_pixel_mm)
+            .opt("--weight-percent", &self.weight_percent)
+            .flag("--free", self.free.join(","))
+            .flag("--wavelength-nm", self.wavelength_nm)
+            .flag("--seed", self.seed)
+            .switch("--quiet", self.quiet)
+            .flag("--objective", &self.objective)
+            .flag("--rel-error", self.rel_error)
+            .opt("--paths", &self.paths)
+            .flag("--measured-rel-sd", self.measured_rel_sd);
+        if let Some(b) = &self.bounds {
+            l.word(format!("--bounds={b}"));
+        }
+        l.flag("--threshold", self.threshold).flag("--out", s(&self.out));
+        l.0
+    }
+}
+
+/// `lucent calibrate`: camera intrinsics from chessboard photos.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrateJob {
+    /// Files, folders or glob patterns.
+    pub images: Vec<String>,
+    /// COLSxROWS inner corners.
+    pub board: String,
+    pub square_mm: f64,
+    pub out: PathBuf,
+    pub model: String,
+}
+
+impl CalibrateJob {
+    pub fn validate(&self) -> Result<(), JobError> {
+        positive("square_mm", self.square_mm)
+    }
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["calibrate"]);
+        l.word("--images").words(&self.images);
+        l.flag("--board", &self.board)
+            .flag("--square-mm", self.square_mm)
+            .flag("--out", s(&self.out))
+            .flag("--model", &self.model);
+        l.0
+    }
+}
+
+/// `lucent colour calibrate`: a camera's colour correction from a chart photo.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColourCalibrateJob {
+    pub image: PathBuf,
+    pub camera: Option<String>,
+    pub out: PathBuf,
+    pub corners: Option<String>,
+    pub method: String,
+    pub decode_srgb: bool,
+}
+
+impl ColourCalibrateJob {
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["colour", "calibrate"]);
+        l.flag("--image", s(&self.image))
+            .opt("--camera", &self.camera)
+            .flag("--out", s(&self.out))
+            .opt("--corners", &self.corners)
+            .flag("--method", &self.method)
+            .switch("--decode-srgb", self.decode_srgb);
+        l.0
+    }
+}
+
+/// `lucent colour apply`: an image in a camera's RGB → a standard space.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColourApplyJob {
+    pub ccm: PathBuf,
+    pub input: PathBuf,
+    pub output: PathBuf,
+    pub to: String,
+}
+
+impl ColourApplyJob {
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["colour", "apply"]);
+        l.flag("--ccm", s(&self.ccm)).word(s(&self.input)).word(s(&self.output)).flag("--to", &self.to);
+        l.0
+    }
+}
+
+/// `lucent raw clipped`: the mask of validly recorded pixels of a RAW photo.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawClippedJob {
+    pub input: PathBuf,
+    pub out: PathBuf,
+}
+
+impl RawClippedJob {
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["raw", "clipped"]);
+        l.word(s(&self.input)).flag("--out", s(&self.out));
+        l.0
+    }
+}
+
+/// `lucent pose`: the board's (and sample's) pose in one photo.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseJob {
+    pub camera: PathBuf,
+    pub image: PathBuf,
+    pub board: String,
+    pub square_mm: f64,
+    pub out: PathBuf,
+    /// `--sample-corner` and `--sample-size-mm`.
+    pub sample: Option<(String, String)>,
+}
+
+impl PoseJob {
+    pub fn validate(&self) -> Result<(), JobError> {
+        positive("square_mm", self.square_mm)
+    }
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["pose"]);
+        l.flag("--camera", s(&self.camera))
+            .flag("--image", s(&self.image))
+            .flag("--board", &self.board)
+            .flag("--square-mm", self.square_mm)
+            .flag("--out", s(&self.out));
+        if let Some((c, z)) = &self.sample {
+            l.flag("--sample-corner", c).flag("--sample-size-mm", z);
+        }
+        l.0
+    }
+}
+
+/// `lucent env fit-scale`: the environment's scale from an empty-board photo.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvScaleJob {
+    pub scene: PathBuf,
+    pub photo: PathBuf,
+    pub spp: Option<u32>,
+    pub per_channel: bool,
+    pub mask: Option<PathBuf>,
+    pub size: Option<String>,
+    pub seed: Option<u64>,
+    pub out: PathBuf,
+}
+
+impl EnvScaleJob {
+    pub fn validate(&self) -> Result<(), JobError> {
+        at_least_one("spp", self.spp)
+    }
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["env", "fit-scale"]);
+        l.word(s(&self.scene))
+            .flag("--photo", s(&self.photo))
+            .opt("--spp", &self.spp)
+            .switch("--per-channel", self.per_channel);
+        l.opt("--mask", &self.mask.as_deref().map(s))
+            .opt("--size", &self.size)
+            .opt("--seed", &self.seed)
+            .flag("--out", s(&self.out));
+        l.0
+    }
+}
+
+/// `lucent render SCENE`: the digital twin.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderJob {
+    pub scene: PathBuf,
+    pub spp: Option<u32>,
+    pub quiet: bool,
+    pub time_s: Option<f64>,
+    pub size: Option<String>,
+    pub seed: Option<u64>,
+    pub out: PathBuf,
+}
+
+impl RenderJob {
+    pub fn validate(&self) -> Result<(), JobError> {
+        at_least_one("spp", self.spp)?;
+        positive_opt("time_s", self.time_s)
+    }
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["render"]);
+        l.word(s(&self.scene)).opt("--spp", &self.spp).switch("--quiet", self.quiet).opt("--time-s", &self.time_s);
+        l.opt("--size", &self.size).opt("--seed", &self.seed).flag("--out", s(&self.out));
+        l.0
+    }
+}
+
+/// `lucent compare`: photo against one or two renders.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompareJob {
+    pub photo: PathBuf,
+    pub render: Vec<PathBuf>,
+    pub out: PathBuf,
+    pub mask: Option<PathBuf>,
+    pub data_range: f64,
+}
+
+/// The default of `lucent compare --data-range`.
+pub const DEFAULT_DATA_RANGE: f64 = 1.0;
+
+impl CompareJob {
+    pub fn validate(&self) -> Result<(), JobError> {
+        positive("data_range", self.data_range)
+    }
+    pub fn to_args(&self) -> Vec<String> {
+        let mut l = Line::new(&["compare"]);
+        l.flag("--photo", s(&self.photo));
+        l.words(self.render.iter().flat_map(|r| ["--render".to_string(), s(r)]));
+        l.flag("--out", s(&self.out)).opt("--mask", &self.mask.as_deref().map(s)).flag("--data-range", self.data_range);
+        l.0
+    }
+}
+
+/// Any job a pipeline stage runs.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Job {
+    Optics(OpticsJob),
+    Bssrdf(BssrdfJob),
+    BssrdfCompare(BssrdfCompareJob),
+    Fit(FitJob),
+    Calibrate(CalibrateJob),
+    ColourCalibrate(ColourCalibrateJob),
+    ColourApply(ColourApplyJob),
+    RawClipped(RawClippedJob),
+    Pose(PoseJob),
+    EnvScale(EnvScaleJob),
+    Render(RenderJob),
+    Compare(CompareJob),
+}
+
+impl Job {
+    /// Checks every field against the range its flag accepts.
+    pub fn validate(&self) -> Result<(), JobError> {
+        match self {
+            Job::Optics(j) => j.validate(),
+            Job::Bssrdf(j) => j.validate(),
+            Job::BssrdfCompare(j) => j.validate(),
+            Job::Fit(j) => j.validate(),
+            Job::Calibrate(j) => j.validate(),
+            Job::Pose(j) => j.validate(),
+            Job::EnvScale(j) => j.validate(),
+            Job::Render(j) => j.validate(),
+            Job::Compare(j) => j.validate(),
+            Job::ColourCalibrate(_) | Job::ColourApply(_) | Job::RawClipped(_) => Ok(()),
+        }
+    }
+
+    /// The canonical `lucent` command line (without the program name).
+    pub fn to_args(&self) -> Vec<String> {
+        match self {
+            Job::Optics(j) => j.to_args(),
+            Job::Bssrdf(j) => j.to_args(),
+            Job::BssrdfCompare(j) => j.to_args(),
+            Job::Fit(j) => j.to_args(),
+            Job::Calibrate(j) => j.to_args(),
+            Job::ColourCalibrate(j) => j.to_args(),
+            Job::ColourApply(j) => j.to_args(),
+            Job::RawClipped(j) => j.to_args(),
+            Job::Pose(j) => j.to_args(),
+            Job::EnvScale(j) => j.to_args(),
+            Job::Render(j) => j.to_args(),
+            Job::Compare(j) => j.to_args(),
+        }
+    }
+}

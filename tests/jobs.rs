@@ -1,0 +1,241 @@
+//! Jobs (`lucent::job`): each job's command line parses back into the same
+//! job, old flag spellings still parse, project values out of range are
+//! named with their key before any stage runs, and the exit code says who
+//! is at fault.
+
+use lucent::cli::jobs::parse_job;
+use lucent::job::*;
+use std::path::PathBuf;
+use std::process::Command;
+
+fn lucent_in(dir: &std::path::Path, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_lucent")).args(args).current_dir(dir).output().unwrap()
+}
+
+fn p(s: &str) -> PathBuf {
+    PathBuf::from(s)
+}
+
+/// One job of every kind, every optional field set (with the canonical
+/// spelling of each choice).
+fn jobs() -> Vec<Job> {
+    vec![
+        Job::Optics(OpticsJob {
+            recipes: vec![p("a.toml"), p("b.toml")],
+            wavelengths: "400:700:5".into(),
+            out: p("{out}"),
+            weight_percent: Some(0.4),
+        }),
+        Job::Bssrdf(BssrdfJob {
+            recipe: p("r.toml"),
+            wavelength_nm: 632.8,
+            configs: Some("45/0,0/45".into()),
+            pixels: 65,
+            pixel_mm: 0.2,
+            seed: 7,
+            quiet: true,
+            out: p("{out}/s"),
+            weight_percent: Some(1.5),
+            crop: Some(33),
+            paths: Some(9000),
+            rel_error: Some(0.02),
+            time_s: Some(3.5),
+            phase: Some("hg".into()),
+        }),
+        Job::BssrdfCompare(BssrdfCompareJob {
+            measured: p("m.exr"),
+            simulated: p("{out}/s"),
+            out: p("{out}/s/compare"),
+            measured_pixel_mm: Some(0.11),
+            threshold: 0.02,
+        }),
+        Job::Fit(FitJob {
+            recipe: p("r.toml"),
+            measured: vec!["m1.exr:45/0".into(), "m2.exr:0/45".into()],
+            measured_pixel_mm: Some(0.1),
+            weight_percent: Some(0.5),
+            free: vec!["weight_percent".into(), "diameter_um@1".into()],
+            wavelength_nm: 550.0,
+            seed: 3,
+            quiet: true,
+            objective: "msre".into(),
+            rel_error: 0.01,
+            paths: Some(20_000),
+            measured_rel_sd: 0.1,
+            bounds: Some("0.1:2,0.1:1".into()),
+            threshold: 0.05,
+            out: p("{out}/s"),
+        }),
+        Job::Calibrate(CalibrateJob {
+            images: vec!["photos/*.jpg".into()],
+            board: "9x6".into(),
+            square_mm: 25.0,
+            out: p("{out}/camera.json"),
+            model: "fisheye".into(),
+        }),
+        Job::ColourCalibrate(ColourCalibrateJob {
+            image: p("chart.exr"),
+            camera: Some("phone".into()),
+            out: p("{out}/phone"),
+            corners: Some("1,2,3,4,5,6,7,8".into()),
+            method: "Finlayson 2015".into(),
+            decode_srgb: true,
+        }),
+        Job::ColourApply(ColourApplyJob {
+            ccm: p("ccm.json"),
+            input: p("photo.dng"),
+            output: p("{out}/s/photo.exr"),
+            to: "xyz".into(),
+        }),
+        Job::RawClipped(RawClippedJob { input: p("photo.dng"), out: p("{out}/s/photo_valid.png") }),
+        Job::Pose(PoseJob {
+            camera: p("camera.json"),
+            image: p("pose.jpg"),
+            board: "9x6".into(),
+            square_mm: 20.0,
+            out: p("{out}/scene.json"),
+            sample: Some(("2,3".into(), "60x40x6".into())),
+        }),
+        Job::EnvScale(EnvScaleJob {
+            scene: p("{out}/s/input_scene.toml"),
+            photo: p("empty.exr"),
+            spp: Some(32),
+            per_channel: true,
+            mask: Some(p("valid.png")),
+            size: Some("64x48".into()),
+            seed: Some(9),
+            out: p("{out}/s"),
+        }),
+        Job::Render(RenderJob {
+            scene: p("{out}/s/input_scene.toml"),
+            spp: Some(64),
+            quiet: true,
+            time_s: Some(2.5),
+            size: Some("64x48".into()),
+            seed: Some(9),
+            out: p("{out}/s"),
+        }),
+        Job::Compare(CompareJob {
+            photo: p("photo.exr"),
+            render: vec![p("a/render.exr"), p("b/render.exr")],
+            out: p("{out}/s"),
+            mask: Some(p("valid.png")),
+            data_range: 2.0,
+        }),
+    ]
+}
+
+#[test]
+fn every_job_round_trips_through_its_command_line() {
+    let all = jobs();
+    assert_eq!(all.len(), 12, "one job per command a stage runs");
+    for job in all {
+        job.validate().unwrap_or_else(|e| panic!("{job:?}: {e}"));
+        let args = job.to_args();
+        let back = parse_job(&args).unwrap_or_else(|e| panic!("lucent {}: {e}", args.join(" ")));
+        assert_eq!(back, job, "lucent {}", args.join(" "));
+    }
+}
+
+#[test]
+fn jobs_refuse_what_their_flags_refuse() {
+    let Job::Bssrdf(b) = jobs().swap_remove(1) else { unreachable!() };
+    let e = BssrdfJob { pixel_mm: -0.5, ..b.clone() }.validate().unwrap_err();
+    assert_eq!((e.field, e.to_string()), ("pixel_mm", "--pixel-mm -0.5: must be finite and > 0".to_string()));
+    assert_eq!(BssrdfJob { pixels: 0, ..b.clone() }.validate().unwrap_err().field, "pixels");
+    assert_eq!(BssrdfJob { crop: Some(66), ..b.clone() }.validate().unwrap_err().field, "crop");
+    assert_eq!(BssrdfJob { phase: Some("rayleigh".into()), ..b }.validate().unwrap_err().field, "phase");
+    let Job::Optics(o) = jobs().swap_remove(0) else { unreachable!() };
+    assert_eq!(OpticsJob { wavelengths: "780:380:10".into(), ..o }.validate().unwrap_err().field, "wavelengths");
+    // The command line refuses the same value with the same words, before any work.
+    let tmp = tempfile::tempdir().unwrap();
+    let recipe = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/samples/IOL1068-09.toml");
+    let o = lucent_in(
+        tmp.path(),
+        &["bssrdf", "--recipe", recipe.to_str().unwrap(), "--pixel-mm=-0.5", "--paths", "10", "--out", "o"],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("--pixel-mm -0.5: must be finite and > 0"), "{e}");
+    assert!(!tmp.path().join("o").exists(), "a refused command wrote its output folder");
+}
+
+#[test]
+fn old_flag_spellings_still_parse() {
+    use clap::Parser;
+    use lucent::cli::{camera::EnvCommand, Cli, Command};
+    let recipe = ["--recipe", "r.toml", "--out", "o"];
+    for flag in ["--wavelength", "--wavelength-nm"] {
+        let args: Vec<String> = ["bssrdf", flag, "600"].iter().chain(&recipe).map(|s| s.to_string()).collect();
+        let Ok(Job::Bssrdf(j)) = parse_job(&args) else { panic!("{args:?}") };
+        assert_eq!(j.wavelength_nm, 600.0, "{flag}");
+        let args: Vec<String> = ["fit", "--measured", "m.exr:45/0", "--free", "weight_percent", flag, "610"]
+            .iter()
+            .chain(&recipe)
+            .map(|s| s.to_string())
+            .collect();
+        let Ok(Job::Fit(j)) = parse_job(&args) else { panic!("{args:?}") };
+        assert_eq!(j.wavelength_nm, 610.0, "{flag}");
+        let cli = Cli::try_parse_from(["lucent", "optics", "r.toml", flag, "500"]).unwrap();
+        let Command::Optics(a) = cli.command else { panic!() };
+        assert_eq!(a.wavelength, Some(500.0), "{flag}");
+    }
+    for flag in ["--out", "--out-dir", "--output"] {
+        let cli =
+            Cli::try_parse_from(["lucent", "env", "brackets", "in.hdr", "--exposures", "1,4", flag, "b"]).unwrap();
+        let Command::Env(EnvCommand::Brackets(a)) = cli.command else { panic!() };
+        assert_eq!(a.out_dir, PathBuf::from("b"), "{flag}");
+    }
+}
+
+#[test]
+fn nonsense_project_values_are_named_before_any_stage_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let project = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/bad/project/nonsense_values.toml");
+    let o = lucent_in(tmp.path(), &["run", project.to_str().unwrap(), "--out", "o"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    for needle in
+        ["nonsense_values.toml", "[bssrdf] pixel_mm: must be finite and > 0, got -0.5", "[optics] wavelengths"]
+    {
+        assert!(e.contains(needle), "{needle:?} missing from: {e}");
+    }
+    assert!(!e.contains("unexpected argument") && !e.contains("stage"), "{e}");
+    assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 0, "a stage ran or a folder was made");
+}
+
+#[test]
+fn exit_codes_say_who_is_at_fault() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let help = lucent_in(d, &["--help"]);
+    let h = String::from_utf8_lossy(&help.stdout);
+    assert!(h.contains(lucent::fault::EXIT_CODES), "{h}");
+    // User input: a file that is not there.
+    let o = lucent_in(d, &["optics", "missing.toml", "--out", "o"]);
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    // Usage: a flag no command has.
+    let o = lucent_in(d, &["optics", "--no-such-flag"]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    // Environment: Slurm is asked for but sbatch is not on PATH.
+    let recipe = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/samples/IOL1068-09.toml");
+    let project = d.join("p.toml");
+    std::fs::write(
+        &project,
+        format!(
+            "[project]\nname = \"p\"\n[bssrdf]\npixels = 9\npaths = 200\nphase = \"hg\"\n[executor]\nkind = \"slurm\"\nshards = 2\n\
+             [[sample]]\nname = \"s\"\nrecipe = {:?}\n",
+            recipe.display().to_string()
+        ),
+    )
+    .unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["run", project.to_str().unwrap(), "--out", "o", "--until", "bssrdf"])
+        .current_dir(d)
+        .env("PATH", d.join("no-bin"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(3), "{e}");
+    assert!(e.contains("stage bssrdf failed (environment)") && e.contains("sbatch"), "{e}");
+}
