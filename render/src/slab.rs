@@ -57,9 +57,9 @@
 //! slice is several percent low; in a thick slab (μ_t d / cos θ_t ≥ 40) they
 //! are skipped.
 //!
-//! **Rough top** ([`Boundary::Rough`], SPEC §2–§3). The top is then the
+//! **Rough top** ([`Interface::Rough`], SPEC §2–§3). The top is then the
 //! microfacet dielectric of [`crate::microfacet`] (Walter et al. 2007) and
-//! every crossing samples it ([`Boundary::sample`]): the entry direction
+//! every crossing samples it ([`Interface::sample`]): the entry direction
 //! is −ω_i refracted through a microfacet normal drawn from the visible
 //! normals of ω_i (weight (1 − F(ω_i·m)) G1(ω_t, m), the exact f|cos|/pdf
 //! with the transmission lobe forced); a photon reaching the top from
@@ -326,7 +326,8 @@
 //! ```
 
 use crate::fresnel;
-use crate::microfacet::{Distribution, Microsurface, Transport};
+use crate::interface::{Interface, Lobe, Transport};
+pub use crate::medium::{valid_coefficients, Medium, MediumError, MU_T_MAX_PER_M};
 use crate::phase::Phase;
 use crate::rng::Rng;
 use glam::DVec3;
@@ -358,18 +359,6 @@ pub enum SlabError {
     LobeNotApplicable,
 }
 
-/// The largest extinction coefficient μt = μs + μa [1/m] a medium may have
-/// here and in the path tracer: a mean free path of 0.1 µm, well below the
-/// wavelengths of light, where radiative transfer no longer describes the
-/// medium (and every path would be cut at its event limit).
-pub const MU_T_MAX_PER_M: f64 = 1e7;
-
-/// True when μs, μa ≥ 0 and 0 < μs + μa ≤ [`MU_T_MAX_PER_M`] (NaN: false).
-pub fn valid_coefficients(mu_s_per_m: f64, mu_a_per_m: f64) -> bool {
-    let t = mu_s_per_m + mu_a_per_m;
-    mu_s_per_m >= 0.0 && mu_a_per_m >= 0.0 && t > 0.0 && t <= MU_T_MAX_PER_M
-}
-
 fn check(name: &'static str, value: f64, ok: bool, reason: &'static str) -> Result<f64, SlabError> {
     if ok && value.is_finite() {
         Ok(value)
@@ -378,250 +367,29 @@ fn check(name: &'static str, value: f64, ok: bool, reason: &'static str) -> Resu
     }
 }
 
-/// A homogeneous scattering medium.
-#[derive(Debug, Clone)]
-pub struct Medium {
-    pub mu_s_per_m: f64,
-    pub mu_a_per_m: f64,
-    pub phase: Phase,
-    /// Refractive index (bulk, real).
-    pub n: f64,
-}
-
-impl Medium {
-    pub fn new(mu_s_per_m: f64, mu_a_per_m: f64, phase: Phase, n: f64) -> Result<Self, SlabError> {
-        check("mu_s_per_m", mu_s_per_m, mu_s_per_m >= 0.0, "must be ≥ 0")?;
-        check("mu_a_per_m", mu_a_per_m, mu_a_per_m >= 0.0, "must be ≥ 0")?;
-        check("mu_t_per_m", mu_s_per_m + mu_a_per_m, mu_s_per_m + mu_a_per_m > 0.0, "μs + μa must be > 0")?;
-        check(
-            "mu_t_per_m",
-            mu_s_per_m + mu_a_per_m,
-            valid_coefficients(mu_s_per_m, mu_a_per_m),
-            "μs + μa must be at most 1e7 /m (slab::MU_T_MAX_PER_M: a mean free path of 0.1 µm)",
-        )?;
-        check("n", n, crate::fresnel::valid_index(n), "must lie in [1, 10] (fresnel::INDEX_RANGE)")?;
-        Ok(Self { mu_s_per_m, mu_a_per_m, phase, n })
-    }
-
-    pub fn mu_t_per_m(&self) -> f64 {
-        self.mu_s_per_m + self.mu_a_per_m
-    }
-
-    pub fn albedo(&self) -> f64 {
-        self.mu_s_per_m / self.mu_t_per_m()
+impl From<MediumError> for SlabError {
+    fn from(e: MediumError) -> Self {
+        SlabError::Parameter { name: e.name, value: e.value, reason: e.reason }
     }
 }
 
-/// The top interface: the closed set of boundaries (SPEC §2–§3). The
-/// bottom is always [`Boundary::Smooth`].
-///
-/// Directions here are unit vectors in the slab's frame (normal +z). `wo`
-/// points away from the surface on the side where sampling starts, the
-/// returned `wi` away from the surface on the side the light is on (as in
-/// [`crate::microfacet`]): for a photon (importance transport) arriving
-/// along `d`, `wo` = −d and the photon goes on along `wi`; for radiance
-/// leaving along `wo`, `wi` is the direction it comes from (the light
-/// travels along −`wi`). `eta` = n_other/n_wo, the index beyond the surface
-/// over the index on `wo`'s side.
-#[derive(Debug, Clone)]
-pub enum Boundary {
-    /// Smooth dielectric: mirror reflection and Snell refraction with
-    /// unpolarised Fresnel ([`crate::fresnel`]).
-    Smooth,
-    /// Rough dielectric (Walter, Marschner, Li & Torrance 2007; see
-    /// [`crate::microfacet`]): each crossing draws a microfacet normal m
-    /// (visible normals of `wo` for the analytic distributions, D(m)(m·n) for
-    /// a measured set) and reflects or refracts about it, weighted by Smith's
-    /// G1 of the new direction (the exact f|cos θ|/pdf). Light sent to the
-    /// wrong side of the macro-surface is lost (single scattering's energy
-    /// loss, a few 10⁻³ at the lab's α ≈ 0.008). Build it with
-    /// [`Boundary::rough`].
-    Rough(Microsurface),
-}
-
-/// The lobe a boundary sample takes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Lobe {
-    /// Reflection with probability F, else transmission (weight without F).
-    Fresnel,
-    /// Reflection only, weight times F.
-    Reflect,
-    /// Transmission only, weight times 1 − F.
-    Transmit,
-}
-
-/// A direction drawn by [`Boundary::sample`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoundarySample {
-    /// Unit direction away from the surface (see [`Boundary`]).
-    pub wi: [f64; 3],
-    /// f |cos θ_i| / pdf: the factor of the path's weight.
-    pub weight: f64,
-    /// `wi` is on the other side of the surface from `wo`.
-    pub transmitted: bool,
-}
-
-impl Boundary {
-    /// The boundary of a microsurface: [`Boundary::Smooth`] when it is
-    /// smooth (analytic α < [`crate::microfacet::SMOOTH_ALPHA`] = 10⁻⁴),
-    /// else [`Boundary::Rough`]. α is checked.
-    pub fn rough(surface: Microsurface) -> Result<Self, SlabError> {
-        if let Microsurface::Analytic(d) = &surface {
-            d.validate().map_err(|_| SlabError::Parameter {
-                name: "alpha",
-                value: d.alpha(),
-                reason: "must lie in [0, 4]",
-            })?;
-        }
-        Ok(if surface.is_smooth() { Boundary::Smooth } else { Boundary::Rough(surface) })
-    }
-
-    /// Whether the boundary is rough (sampled microfacets).
-    pub fn is_rough(&self) -> bool {
-        matches!(self, Boundary::Rough(_))
-    }
-
-    /// Whether the boundary is symmetric about the xz-plane: smooth, an
-    /// (isotropic) analytic distribution, or a measured normal set equal to
-    /// its mirror image ([`crate::microfacet::MeasuredNormals::mirror_symmetric`]).
-    pub fn mirror_symmetric(&self) -> bool {
-        match self {
-            Boundary::Smooth | Boundary::Rough(Microsurface::Analytic(_)) => true,
-            Boundary::Rough(Microsurface::Measured(m)) => m.mirror_symmetric(),
-        }
-    }
-
-    /// A short description for summaries.
-    pub fn describe(&self) -> String {
-        match self {
-            Boundary::Smooth => "smooth".into(),
-            Boundary::Rough(Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha })) => {
-                format!("rough, Trowbridge–Reitz α = {alpha}")
-            }
-            Boundary::Rough(Microsurface::Analytic(Distribution::Beckmann { alpha })) => {
-                format!("rough, Beckmann α = {alpha}")
-            }
-            Boundary::Rough(Microsurface::Measured(m)) => {
-                format!("rough, {} measured normals (kernel radius {:.3e} in slope)", m.len(), m.bandwidth())
-            }
-        }
-    }
-
-    /// The smooth dielectric's reflectance: the fraction of the light
-    /// reaching the boundary at cos θ = `cos_i` from a medium of index n_1
-    /// that is reflected, `eta` = n_2/n_1 the index ratio across it
-    /// (unpolarised Fresnel; 1 beyond the critical angle). A rough boundary
-    /// reflects by [`Boundary::sample`] instead.
-    #[inline]
-    pub fn reflectance(&self, cos_i: f64, eta: f64) -> f64 {
-        fresnel::reflectance(cos_i, eta)
-    }
-
-    /// The smooth boundary's reflect/transmit choice: reflected when `u` ∈
-    /// [0, 1) falls below [`reflectance`](Self::reflectance), so with
-    /// exactly that probability (χ²-tested in `slab::tests`).
-    #[inline]
-    pub fn reflects(&self, cos_i: f64, eta: f64, u: f64) -> bool {
-        u < self.reflectance(cos_i, eta)
-    }
-
-    /// The BSDF f(ω_o = `wo`, ω_i = `wi`) in 1/sr without the cosine
-    /// ([`crate::microfacet::RoughDielectric::eval`]; `eta` = n_below/n_above
-    /// of the boundary); 0 for the smooth boundary, whose lobes are deltas.
-    pub fn eval(&self, wo: [f64; 3], wi: [f64; 3], eta: f64, mode: Transport) -> f64 {
-        match self {
-            Boundary::Smooth => 0.0,
-            Boundary::Rough(surface) => match crate::microfacet::RoughDielectric::new(eta, surface.clone()) {
-                Ok(bsdf) => bsdf.eval(DVec3::from_array(wo), DVec3::from_array(wi), mode),
-                Err(_) => 0.0,
-            },
-        }
-    }
-
-    /// How many uniform numbers [`sample`](Self::sample) uses with
-    /// [`Lobe::Fresnel`]: 1 for the smooth boundary, 3 for a rough one.
-    pub fn numbers(&self) -> usize {
-        match self {
-            Boundary::Smooth => 1,
-            Boundary::Rough(_) => 3,
-        }
-    }
-
-    /// Samples the boundary for `wo` (see [`Boundary`] for the directions
-    /// and `eta`): `u[0]` chooses the lobe ([`Lobe::Fresnel`]), `u[1]`,
-    /// `u[2]` the microfacet (rough only). Transmitted radiance
-    /// ([`Transport::Radiance`]) carries (n_wo/n_wi)², photons
-    /// ([`Transport::Importance`]) do not. `None` when the light is lost:
-    /// total internal reflection with [`Lobe::Transmit`], a rough sample
-    /// sent to the wrong side, a grazing `wo`.
-    #[inline]
-    pub fn sample(&self, wo: [f64; 3], eta: f64, lobe: Lobe, u: [f64; 3], mode: Transport) -> Option<BoundarySample> {
-        let radiance = |t: f64| if mode == Transport::Radiance { t / (eta * eta) } else { t };
-        match self {
-            Boundary::Smooth => {
-                let f = fresnel::reflectance(wo[2].abs(), eta);
-                let reflect = match lobe {
-                    Lobe::Fresnel => u[0] < f,
-                    Lobe::Reflect => true,
-                    Lobe::Transmit => false,
-                };
-                if reflect {
-                    let weight = if lobe == Lobe::Reflect { f } else { 1.0 };
-                    return Some(BoundarySample { wi: [-wo[0], -wo[1], wo[2]], weight, transmitted: false });
-                }
-                let wi = fresnel::refract([-wo[0], -wo[1], -wo[2]], eta)?;
-                let weight = if lobe == Lobe::Transmit { 1.0 - f } else { 1.0 };
-                Some(BoundarySample { wi, weight: radiance(weight), transmitted: true })
-            }
-            Boundary::Rough(surface) => {
-                let wo = DVec3::from_array(wo);
-                let (m, factor) = surface.sample_normal_weighted(wo, [u[1], u[2]])?;
-                let om = wo.dot(m);
-                if om * wo.z <= 0.0 {
-                    return None;
-                }
-                let f = fresnel::reflectance(om.abs(), eta);
-                let reflect = match lobe {
-                    Lobe::Fresnel => u[0] < f,
-                    Lobe::Reflect => true,
-                    Lobe::Transmit => false,
-                };
-                let (wi, lobe_factor) = if reflect {
-                    (2.0 * om * m - wo, if lobe == Lobe::Reflect { f } else { 1.0 })
-                } else {
-                    (crate::microfacet::refract_about(wo, m, eta)?, if lobe == Lobe::Transmit { 1.0 - f } else { 1.0 })
-                };
-                // The new direction must be on the side the lobe sends it to.
-                if wi.z == 0.0 || (wi.z * wo.z > 0.0) != reflect {
-                    return None;
-                }
-                let weight = factor * surface.g1(wi, m) * lobe_factor;
-                if !(weight > 0.0 && weight.is_finite()) {
-                    return None;
-                }
-                let weight = if reflect { weight } else { radiance(weight) };
-                Some(BoundarySample { wi: wi.to_array(), weight, transmitted: !reflect })
-            }
-        }
-    }
-}
-
-/// The slab: thickness, medium, top boundary.
+/// The slab: thickness, medium, top interface (the bottom one is always
+/// [`Interface::Smooth`]).
 #[derive(Debug, Clone)]
 pub struct Slab {
     pub thickness_m: f64,
     pub medium: Medium,
-    pub top: Boundary,
+    pub top: Interface,
 }
 
 impl Slab {
     pub fn new(thickness_m: f64, medium: Medium) -> Result<Self, SlabError> {
         check("thickness_m", thickness_m, thickness_m > 0.0, "must be > 0")?;
-        Ok(Self { thickness_m, medium, top: Boundary::Smooth })
+        Ok(Self { thickness_m, medium, top: Interface::Smooth })
     }
 
-    /// The slab with `top` as its top boundary.
-    pub fn with_top(self, top: Boundary) -> Self {
+    /// The slab with `top` as its top interface.
+    pub fn with_top(self, top: Interface) -> Self {
         Self { top, ..self }
     }
 }
@@ -1162,16 +930,16 @@ impl<'a> Kernel<'a> {
         }
         let (launch, exit) = if reciprocal { (omega_o, omega_i) } else { (omega_i, omega_o) };
         let incoming = [-launch[0], -launch[1], -launch[2]];
-        let entry_dir = fresnel::refract(incoming, n).expect("air → denser medium always refracts");
+        let entry_dir = refract_z(incoming, n);
         let top = &setup.slab.top;
         let rough = top.is_rough();
-        let entry_weight = 1.0 - top.reflectance(launch[2], n);
+        let entry_weight = 1.0 - fresnel::reflectance(launch[2], n);
         let exit_up = [-exit[0], -exit[1], -exit[2]];
         // ω₂₁: refract the exit direction back into the medium and reverse (upward).
-        let down = fresnel::refract(exit_up, n).expect("air → denser medium always refracts");
+        let down = refract_z(exit_up, n);
         let w21 = [-down[0], -down[1], -down[2]];
         let cos_t = w21[2];
-        let t_out = 1.0 - top.reflectance(cos_t, 1.0 / n);
+        let t_out = 1.0 - fresnel::reflectance(cos_t, 1.0 / n);
         let area = setup.sensor.pixel_m * setup.sensor.pixel_m;
         // The smooth top's one exit; the connections' constants are its.
         let smooth_exit =
@@ -1220,7 +988,7 @@ impl<'a> Kernel<'a> {
             cone_cos,
             cone_norm,
             ring,
-            specular: if rough { rough_specular(top, omega_i, n) } else { top.reflectance(omega_i[2], n) },
+            specular: if rough { rough_specular(top, omega_i, n) } else { fresnel::reflectance(omega_i[2], n) },
             rough,
             launch,
             area,
@@ -1254,15 +1022,15 @@ impl<'a> Kernel<'a> {
         }
         let top = &self.setup.slab.top;
         let u = [0.0, rng.next_f64(), rng.next_f64()];
-        let s = top.sample(self.launch, self.n, Lobe::Transmit, u, Transport::Importance)?;
+        let s = top.sample(DVec3::from_array(self.launch), self.n, Lobe::Transmit, u, Transport::Importance)?;
         // The radiance leaving along ω_o comes from −ω_i of this sample: the
         // light leaves the slab travelling along `up` = −ω_i.
         let u = [0.0, rng.next_f64(), rng.next_f64()];
-        let exit = match top.sample(self.omega_o, self.n, Lobe::Transmit, u, Transport::Radiance) {
-            Some(e) => Exit::new(e.wi.map(|c| -c), e.weight, self.area),
+        let exit = match top.sample(DVec3::from_array(self.omega_o), self.n, Lobe::Transmit, u, Transport::Radiance) {
+            Some(e) => Exit::new((-e.wi).to_array(), e.weight, self.area),
             None => Exit::LOST,
         };
-        Some(([x0, y0, 0.0], s.wi, s.weight, exit))
+        Some(([x0, y0, 0.0], s.wi.to_array(), s.weight, exit))
     }
 
     /// Traces one path, adding to `image`; returns (path total, events,
@@ -1343,7 +1111,7 @@ impl<'a> Kernel<'a> {
 
     /// Moves a photon at `p` travelling along `dir` with weight `w` to the
     /// boundary `gap` ahead (vertically) and samples it there
-    /// ([`Boundary::sample`], the Fresnel choice): reflected (new direction
+    /// ([`Interface::sample`], the Fresnel choice): reflected (new direction
     /// and weight), transmitted out of the top (with the direction in air)
     /// or bottom, or lost at a rough top.
     #[inline]
@@ -1352,21 +1120,22 @@ impl<'a> Kernel<'a> {
         let up = dir[2] > 0.0;
         *p = [p[0] + t_boundary * dir[0], p[1] + t_boundary * dir[1], if up { 0.0 } else { -self.d }];
         // The top surface is the slab's boundary; the bottom one is smooth.
-        let boundary = if up { &self.setup.slab.top } else { &Boundary::Smooth };
+        // n_below/n_above: the medium is below the top and above the bottom.
+        let (boundary, eta) = if up { (&self.setup.slab.top, self.n) } else { (&Interface::Smooth, 1.0 / self.n) };
         let mut u = [rng.next_f64(), 0.0, 0.0];
         if boundary.numbers() == 3 {
             (u[1], u[2]) = rng.next_f64_pair();
         }
-        let wo = [-dir[0], -dir[1], -dir[2]];
-        let Some(s) = boundary.sample(wo, 1.0 / self.n, Lobe::Fresnel, u, Transport::Importance) else {
+        let wo = DVec3::new(-dir[0], -dir[1], -dir[2]);
+        let Some(s) = boundary.sample(wo, eta, Lobe::Fresnel, u, Transport::Importance) else {
             return Crossing::Lost;
         };
         *w *= s.weight;
         if !s.transmitted {
-            *dir = s.wi;
+            *dir = s.wi.to_array();
             Crossing::Reflected
         } else if up {
-            Crossing::LeftTop(s.wi)
+            Crossing::LeftTop(s.wi.to_array())
         } else {
             Crossing::LeftBottom
         }
@@ -1530,12 +1299,14 @@ impl<'a> Kernel<'a> {
             // Before `down`: a reflection at the rough top, sampled backwards
             // (radiance leaving along `down`).
             let (u1, u2) = rng.next_f64_pair();
-            let Some(r) = top.sample(down, 1.0 / self.n, Lobe::Reflect, [0.0, u1, u2], Transport::Radiance) else {
+            let Some(r) =
+                top.sample(DVec3::from_array(down), self.n, Lobe::Reflect, [0.0, u1, u2], Transport::Radiance)
+            else {
                 break;
             };
             (sx, sy, len) = (sx + full * up[0], sy + full * up[1], len + full);
             c *= r.weight;
-            up = r.wi.map(|c| -c);
+            up = (-r.wi).to_array();
         }
         total
     }
@@ -1552,7 +1323,8 @@ impl<'a> Kernel<'a> {
         let Some(i) = self.setup.sensor.index(p[0] + t * dir[0], p[1] + t * dir[1]) else {
             return 0.0;
         };
-        let f = self.setup.slab.top.eval(self.omega_o, [-dir[0], -dir[1], -dir[2]], self.n, Transport::Radiance);
+        let (wo, wi) = (DVec3::from_array(self.omega_o), DVec3::new(-dir[0], -dir[1], -dir[2]));
+        let f = self.setup.slab.top.eval(wo, wi, self.n, Transport::Radiance);
         let v = w * f / self.area;
         image[i] += v;
         v
@@ -1990,18 +1762,24 @@ enum Crossing {
 /// directional albedo of its reflection lobe, not part of the slice): the
 /// mean of the reflection weight F G1 over 64 × 64 stratified visible
 /// normals (deterministic).
-fn rough_specular(top: &Boundary, omega_i: [f64; 3], n: f64) -> f64 {
+fn rough_specular(top: &Interface, omega_i: [f64; 3], n: f64) -> f64 {
     const K: usize = 64;
     let mut sum = 0.0;
     for a in 0..K {
         for b in 0..K {
             let u = [0.0, (a as f64 + 0.5) / K as f64, (b as f64 + 0.5) / K as f64];
-            if let Some(s) = top.sample(omega_i, n, Lobe::Reflect, u, Transport::Importance) {
+            if let Some(s) = top.sample(DVec3::from_array(omega_i), n, Lobe::Reflect, u, Transport::Importance) {
                 sum += s.weight;
             }
         }
     }
     sum / (K * K) as f64
+}
+
+/// Refraction of the direction of travel `d` from air into the medium of
+/// index `n` ≥ 1 through the plane z = 0 (never total internal reflection).
+fn refract_z(d: [f64; 3], n: f64) -> [f64; 3] {
+    fresnel::refract(DVec3::from_array(d), DVec3::Z, n).expect("air → denser medium always refracts").to_array()
 }
 
 /// Russian roulette on a path's weight `w` < 0.1: survives with probability
@@ -2563,6 +2341,7 @@ fn pixel_estimates(raw: &[f64], sum_b: &[f64], sq_b: &[f64], paths: u64, batches
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::microfacet::{Distribution, Microsurface};
 
     /// Mean and standard error of the per-path totals of `paths` paths.
     fn slice_sum(kernel: &Kernel, seed: u64, paths: u64) -> (f64, f64) {
@@ -2664,7 +2443,7 @@ mod tests {
         for (name, surface, d) in rough_cases {
             let medium = Medium::new(4000.0, 10.0, hg(0.7), 1.5).expect("valid medium");
             let setup = Setup::new(
-                Slab::new(d, medium).expect("valid slab").with_top(Boundary::rough(surface).expect("valid α")),
+                Slab::new(d, medium).expect("valid slab").with_top(Interface::new(surface).expect("valid α")),
                 Beam::gaussian(200e-6).expect("valid beam"),
                 Sensor::new(63, 0.1e-3).expect("valid sensor"),
                 Directions::from_degrees(45.0, 0.0, 0.0, 180.0).expect("valid directions"),
@@ -2744,7 +2523,7 @@ mod tests {
             let setup = Setup::new(
                 Slab::new(6e-3, Medium::new(1.2e4, 10.0, phase, 1.5).expect("valid medium"))
                     .expect("valid slab")
-                    .with_top(Boundary::rough(surface).expect("valid α")),
+                    .with_top(Interface::new(surface).expect("valid α")),
                 Beam::gaussian(200e-6).expect("valid beam"),
                 Sensor::new(63, 0.1e-3).expect("valid sensor"),
                 Directions::from_degrees(45.0, 0.0, 15.0, 180.0).expect("valid directions"),
