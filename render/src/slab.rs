@@ -1,5 +1,5 @@
 //! BSSRDF slices of a plane-parallel slab by light tracing with explicit
-//! connection to a fixed observation direction (SPEC §3).
+//! connection to a fixed observation direction (docs/method.md §3).
 //!
 //! # Geometry and units
 //!
@@ -57,7 +57,7 @@
 //! slice is several percent low; in a thick slab (μ_t d / cos θ_t ≥ 40) they
 //! are skipped.
 //!
-//! **Rough top** ([`Interface::Rough`], SPEC §2–§3). The top is then the
+//! **Rough top** ([`Interface::Rough`], docs/method.md §2–§3). The top is then the
 //! microfacet dielectric of [`crate::microfacet`] (Walter et al. 2007) and
 //! every crossing samples it ([`Interface::sample`]): the entry direction
 //! is −ω_i refracted through a microfacet normal drawn from the visible

@@ -1,5 +1,5 @@
 //! The 3D digital twin: unidirectional volumetric path tracing of a
-//! translucent object on a checkerboard under an HDR environment (SPEC §4).
+//! translucent object on a checkerboard under an HDR environment (docs/method.md §5).
 //!
 //! # What is computed
 //!
@@ -14,14 +14,14 @@
 //! * One **object**: a closed triangle mesh ([`Accel`]) whose boundary is an
 //!   [`Interface`] (smooth dielectric: unpolarised Fresnel and Snell,
 //!   [`crate::fresnel`]; or rough: the microfacet BSDF of Walter et al. 2007
-//!   with an analytic or measured-normal microsurface, SPEC §2,
+//!   with an analytic or measured-normal microsurface, docs/method.md §2,
 //!   [`crate::interface`], sampled with its weight f|cos|/pdf, radiance
 //!   transport) around a homogeneous [`Medium`] per band: scattering and
 //!   absorption coefficients μ_s, μ_a [1/m], a phase function and the index n.
 //! * A **checkerboard** ([`Board`]): a finite plane, Lambertian (two-sided),
 //!   reflectance per square from two RGB values or an image texture.
 //! * The **environment** ([`Environment`]): equirectangular radiance at
-//!   infinity or on the finite sphere of SPEC §4.
+//!   infinity or on the finite sphere of docs/method.md §5.
 //!
 //! # Estimator
 //!
@@ -32,7 +32,7 @@
 //! **Bands.** At its first contact with the object a path picks one band h
 //! uniformly (probability 1/3); h drives the sampling from then on (free
 //! flights with density μ_t,h e^{−μ_t,h s}, directions from h's phase
-//! function, h's index at the boundary). SPEC §4's estimator carries 3·β_h
+//! function, h's index at the boundary). The plain estimator of docs/method.md §5 carries 3·β_h
 //! in band h and 0 in the others ([`Settings::spectral_mis`] = false, and
 //! always when the index differs between bands: a refraction direction then
 //! belongs to one band only). When the index is the same in all bands the
@@ -382,7 +382,7 @@ pub struct Settings {
     pub max_events_per_path: u64,
     /// Carry all three bands along one path inside the medium, combined by
     /// multiple importance sampling over the band that drives the sampling
-    /// (see the module documentation). `false` gives SPEC §4's plain
+    /// (see the module documentation). `false` gives docs/method.md §5's plain
     /// estimator (one band per path, weight 3). Applies only when the
     /// boundary's index is the same in all bands.
     pub spectral_mis: bool,
@@ -415,7 +415,7 @@ pub struct Settings {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dispersion {
     /// Exact: a refraction direction belongs to one band, so a path keeps
-    /// one band from its first contact with the object (weight 3, SPEC §4).
+    /// one band from its first contact with the object (weight 3, docs/method.md §5).
     PerBand,
     /// Approximate: refraction directions (Snell's law and its solid-angle
     /// factor cos θ_o/(n² cos θ_i)) from the bands' mean index, while each
@@ -955,8 +955,8 @@ fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> (DVec3, f64) {
 /// with which the path would have been sampled had band k driven the
 /// sampling. The estimate in band c is β_c / mean_k r_k (balance heuristic
 /// over the three bands, each chosen with probability 1/3). Before the path
-/// meets the object all r_k are equal; a path that keeps one band b (SPEC
-/// §4's estimator) has r = 3·e_b and β = 3·β_b·e_b, the same formula.
+/// meets the object all r_k are equal; a path that keeps one band b (docs/method.md
+/// §5's estimator) has r = 3·e_b and β = 3·β_b·e_b, the same formula.
 #[derive(Debug, Clone, Copy)]
 struct Throughput {
     beta: [f64; 3],
@@ -1329,7 +1329,7 @@ fn trace_path(
                 let h = *hero.get_or_insert_with(|| {
                     let b = ((rng.next_f64() * 3.0) as usize).min(2);
                     if !(settings.spectral_mis && (obj.bands.achromatic || shared)) {
-                        // One band per path (SPEC §4): weight 3 in band b.
+                        // One band per path (docs/method.md §5): weight 3 in band b.
                         let keep = 3.0 * tp.beta[b];
                         tp.beta = [0.0; 3];
                         tp.beta[b] = keep;
