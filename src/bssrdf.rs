@@ -22,7 +22,8 @@
 use crate::imageio::{self, ImageIoError};
 use crate::io::{write_atomic, write_json, WriteError};
 use crate::plot::{perr, render_png, viridis, PlotError};
-use lucent_render::slab::{Beam, Boundary, Directions, Slice};
+use lucent_render::interface::Interface;
+use lucent_render::slab::{Beam, Directions, Slice};
 use plotters::prelude::*;
 use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
@@ -302,11 +303,11 @@ pub enum NormalsError {
 pub fn roughness(
     text: Option<&str>,
     recipe_surface: Option<&crate::optics::recipe::Surface>,
-) -> Result<(Boundary, String), RoughnessError> {
+) -> Result<(Interface, String), RoughnessError> {
     use crate::optics::recipe::RoughnessModel;
     use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
-    let analytic = |d: Distribution, origin: &str, text: &str| -> Result<(Boundary, String), RoughnessError> {
-        let boundary = Boundary::rough(Microsurface::Analytic(d))
+    let analytic = |d: Distribution, origin: &str, text: &str| -> Result<(Interface, String), RoughnessError> {
+        let boundary = Interface::new(Microsurface::Analytic(d))
             .map_err(|_| RoughnessError::Syntax { text: text.into(), problem: RoughnessSyntax::Alpha(d.alpha()) })?;
         let name = format!("{} ({origin})", boundary.describe());
         Ok((boundary, name))
@@ -320,13 +321,13 @@ pub fn roughness(
                 };
                 analytic(d, "the recipe's [surface]", "recipe")
             }
-            None => Ok((Boundary::Smooth, "smooth".into())),
+            None => Ok((Interface::Smooth, "smooth".into())),
         };
     };
     let syntax = |problem: RoughnessSyntax| RoughnessError::Syntax { text: text.into(), problem };
     let t = text.trim();
     if t == "smooth" {
-        return Ok((Boundary::Smooth, "smooth (--roughness)".into()));
+        return Ok((Interface::Smooth, "smooth (--roughness)".into()));
     }
     let Some((kind, value)) = t.split_once(':') else {
         return Err(syntax(RoughnessSyntax::NoModel));
@@ -357,7 +358,7 @@ pub fn roughness(
             let normals = read_normals(&normals_path).map_err(normals_err)?;
             let set = MeasuredNormals::new(&normals, None)
                 .map_err(|source| normals_err(NormalsError::Set { path: normals_path.clone(), source }))?;
-            let boundary = Boundary::Rough(Microsurface::Measured(std::sync::Arc::new(set)));
+            let boundary = Interface::Rough(Microsurface::Measured(std::sync::Arc::new(set)));
             let name = format!("{} from {}", boundary.describe(), normals_path.display());
             Ok((boundary, name))
         }

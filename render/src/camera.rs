@@ -1,5 +1,5 @@
 //! The renderer's camera: a pinhole with calibrated intrinsics, optionally
-//! with the calibrated lens distortion (SPEC §4, §5).
+//! with the calibrated lens distortion (docs/method.md §5, §6).
 //!
 //! # Conventions
 //!

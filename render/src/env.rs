@@ -1,11 +1,11 @@
-//! The HDR environment of the 3D renderer (SPEC §4): radiance arriving from
+//! The HDR environment of the 3D renderer (docs/method.md §5): radiance arriving from
 //! outside the scene, looked up in an equirectangular image, and importance
 //! sampling of directions proportionally to it.
 //!
 //! # What is computed
 //!
 //! The map holds **linear RGB radiance** (W·m⁻²·sr⁻¹ up to the calibration
-//! factor `scale`, which SPEC §4 fits so that the rendered checkerboard matches
+//! factor `scale`, which the environment fit (docs/method.md §7) sets so that the rendered checkerboard matches
 //! the photograph) as `width × height` pixels of `f32` triples, row-major,
 //! row 0 at the top. [`Environment::radiance`] returns `scale × pixel` for the
 //! pixel that the ray hits (**nearest pixel, piecewise constant**, no
@@ -33,7 +33,7 @@
 //! * [`Projection::Infinite`]: the map is at infinity; the radiance arriving at
 //!   any p from direction ω is map(ω), independent of p.
 //! * [`Projection::FiniteSphere`]: the map is painted on a sphere of radius R
-//!   about a centre c (SPEC §4: R = 0.60 m about the top of the sample). The
+//!   about a centre c (docs/method.md §5: R = 0.60 m about the top of the sample). The
 //!   ray p + tω, t > 0, leaves the sphere at q = p + tω with t the larger root
 //!   of |p + tω − c|² = R², and the radiance is map(d), d = (q − c)/R. The root
 //!   is computed in the cancellation-free forms of pbrt-v4 §6.2.2 (discriminant

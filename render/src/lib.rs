@@ -1,11 +1,14 @@
-//! Light transport for lucent: phase functions, Fresnel interfaces, the
-//! slab BSSRDF simulator and (to come) the 3D path tracer (SPEC §3, §4).
-//! No OpenCV; inputs are plain numbers converted by the root crate.
+//! Light transport for lucent: phase functions, media, the dielectric
+//! interface (smooth or rough), the slab BSSRDF simulator and the 3D
+//! spectral path tracer. No OpenCV; inputs are plain numbers converted by
+//! the root crate.
 
 pub mod accel;
 pub mod camera;
 pub mod env;
 pub mod fresnel;
+pub mod interface;
+pub mod medium;
 pub mod microfacet;
 pub mod phase;
 pub mod rng;

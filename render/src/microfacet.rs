@@ -1,42 +1,12 @@
-//! Rough dielectric boundary: the single-scattering microfacet BSDF of
-//! Walter, Marschner, Li & Torrance, "Microfacet models for refraction through
-//! rough surfaces" (EGSR 2007), with reflection and transmission, unpolarised
-//! Fresnel ([`crate::fresnel`]), separable Smith masking–shadowing
-//! G = G1(ω_o, m) G1(ω_i, m) (Walter 2007 eq. 23) and visible-normal
-//! importance sampling with exact pdfs (SPEC §2).
+//! Microsurfaces of rough dielectric interfaces: the microfacet normal
+//! distribution D(m) in 1/sr (analytic, or a kernel density estimate of
+//! measured normals), Smith's masking G1 and the sampling of normals, as used
+//! by the interface BSDF of Walter, Marschner, Li & Torrance (EGSR 2007) in
+//! [`crate::interface`].
 //!
-//! # Conventions
+//! # Distributions
 //!
-//! * **Local shading frame**, macroscopic normal n = +z. All directions are
-//!   unit [`DVec3`]s pointing *away* from the surface, as in pbrt-v4: `wo` is
-//!   the direction the transported quantity leaves along (towards the camera
-//!   for radiance), `wi` the other one.
-//! * **Index:** `eta` = n_below / n_above, the index of the z < 0 side over the
-//!   index of the z > 0 side (1.41 for air above a polymer, 1/1.41 for the
-//!   polymer above air). Light may arrive from either side.
-//! * **Units:** [`RoughDielectric::eval`] returns the BSDF f(ω_o, ω_i) in 1/sr
-//!   *without* the cosine; [`RoughDielectric::pdf`] is a density in 1/sr over
-//!   the solid angle of `wi`. Multiply `f` by |cos θ_i| = |wi.z| yourself.
-//! * **Microfacet normals** m always face +z (m.z > 0); seen from below the
-//!   surface shows its other side, −m.
-//! * **Transport mode** ([`Transport`]): with radiance (camera paths) the
-//!   transmitted BSDF carries the factor (n_o/n_i)² of radiance compression
-//!   (Walter 2007 eq. 21; Veach 1997 §5.2); with importance (light paths, the
-//!   slab simulator's photons) it does not, and f_importance(ω_o, ω_i) =
-//!   f_radiance(ω_i, ω_o). Both satisfy the generalised reciprocity
-//!   f_rad(ω_o, ω_i)/n_o² = f_rad(ω_i, ω_o)/n_i².
-//!
-//! # Model
-//!
-//! Half-vectors m_r = ±(ω_i + ω_o)/‖·‖ and m_t = ±(n_i ω_i + n_o ω_o)/‖·‖,
-//! turned to face +z; F = unpolarised Fresnel reflectance at m.
-//!
-//! * f_r = F G D / (4 |cos θ_i| |cos θ_o|)
-//! * f_t = |ω_i·m| |ω_o·m| (1 − F) G D / (|cos θ_i| |cos θ_o| (ω_i·m + ω_o·m / η′)²),
-//!   divided by η′² in radiance mode, η′ = n_i / n_o.
-//!
-//! Pairs with a back-facing microfacet (sign(ω·m) ≠ sign(ω·n) for either
-//! direction) have f = 0. Distributions ([`Distribution`]), α the roughness:
+//! [`Distribution`], α the roughness:
 //!
 //! * Trowbridge–Reitz (GGX): D = α² / (π cos⁴θ_m (α² + tan²θ_m)²),
 //!   Λ(ω) = (√(1 + α² tan²θ) − 1)/2.
@@ -46,49 +16,15 @@
 //! G1(ω, m) = χ⁺((ω·m)(ω·n)) / (1 + Λ(ω)). Both satisfy ∫ D(m)(m·n) dω_m = 1
 //! and ∫ G1(ω, m) (ω·m)⁺ D(m) dω_m = cos θ (tested).
 //!
-//! # Sampling
+//! # Sampling normals
 //!
-//! A microfacet normal is drawn from the distribution of *visible* normals
-//! D_ω(m) = G1(ω_o, m) |ω_o·m| D(m) / |cos θ_o| — Heitz, "Sampling the GGX
-//! distribution of visible normals" (JCGT 2018) for GGX, and Heitz & d'Eon,
-//! "Importance sampling microfacet-based BSDFs using the distribution of
-//! visible normals" (EGSR 2014) with W. Jakob's inversion of the Beckmann slope
-//! CDF (solved here to machine precision by safeguarded Newton iteration) for
-//! Beckmann. Reflection is chosen with probability F(ω_o·m), refraction
-//! otherwise. The pdf of ω_i is then
-//! D_ω(m) F / (4 |ω_o·m|) for reflection and
-//! D_ω(m) (1 − F) |ω_i·m| / (ω_i·m + ω_o·m/η′)² for transmission (Walter 2007
-//! eqs. 14, 17). A sample whose direction ends on the wrong side of the
-//! macro-surface is rejected (`None`): that is the energy single scattering
-//! loses, and [`RoughDielectric::pdf`] integrates to the probability of
-//! success. `weight` = f |cos θ_i| / pdf.
-//!
-//! # Energy and validation
-//!
-//! Single scattering conserves energy only approximately. Measured
-//! directional albedos (R + T, importance transport): within 1 % of one for
-//! Beckmann α ≤ 0.2 and GGX α ≤ 0.1 from the rarer side up to 60°, and from
-//! the denser side below the critical angle for Beckmann α ≤ 0.2 and GGX
-//! α ≤ 0.05. GGX's long tail loses more: 0.959 at α = 0.2 from the denser
-//! side at normal incidence, 0.973 from air at 60°; 0.60 at α = 0.7, 80°.
-//! Mitsuba 3's `roughdielectric` gives the same albedos, and the same BSDF
-//! values and pdfs to 7e-4 (its single precision), see
-//! `tools/reference/microfacet_mitsuba.py` and `render/tests/microfacet.rs`.
-//!
-//! # Smooth limit and delta lobes
-//!
-//! For α < [`SMOOTH_ALPHA`] (= 10⁻⁴, including α = 0) and for η = 1 the
-//! boundary is a **smooth dielectric**: the BSDF is a pair of Dirac deltas
-//! (mirror reflection with weight F, Snell refraction with weight 1 − F), as in
-//! the smooth case of [`crate::fresnel`]. Then [`RoughDielectric::eval`] and
-//! [`RoughDielectric::pdf`] return 0 (a delta has no density and can never be
-//! hit by a direction chosen elsewhere), [`RoughDielectric::is_delta`] is true,
-//! and [`RoughDielectric::sample`] returns the specular direction with
-//! `is_delta = true`, `pdf` = the *discrete* probability of the chosen lobe
-//! (F or 1 − F) and `weight` = 1 for reflection, 1 (importance) or (n_o/n_i)²
-//! (radiance) for refraction. Callers must not combine a delta sample by MIS
-//! with a light sample. Above the threshold the rough formulas stay finite (no
-//! NaN) down to α = 10⁻⁴; the lab's plaques have α ≈ 0.004–0.009 (SPEC §1).
+//! [`Microsurface::sample_normal`] draws a normal from the distribution of
+//! *visible* normals D_ω(m) = G1(ω_o, m) |ω_o·m| D(m) / |cos θ_o| — Heitz,
+//! "Sampling the GGX distribution of visible normals" (JCGT 2018) for GGX, and
+//! Heitz & d'Eon, "Importance sampling microfacet-based BSDFs using the
+//! distribution of visible normals" (EGSR 2014) with W. Jakob's inversion of
+//! the Beckmann slope CDF (solved here to machine precision by safeguarded
+//! Newton iteration) for Beckmann.
 //!
 //! # Measured normals
 //!
@@ -120,18 +56,12 @@
 //!
 //! ```
 //! use glam::DVec3;
-//! use lucent_render::microfacet::{Distribution, Microsurface, RoughDielectric, Transport};
-//! let bsdf = RoughDielectric::new(1.5, Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha: 0.1 })).unwrap();
-//! let wo = DVec3::new(0.0, 0.0, 1.0);
-//! // At normal incidence the mirror direction is m = n: f = F G D / 4 with
-//! // F = 0.04, D(n) = 1/(π α²), G = 1.
-//! let f = bsdf.eval(wo, wo, Transport::Radiance);
-//! assert!((f - 0.04 / (std::f64::consts::PI * 0.01) / 4.0).abs() < 1e-12);
-//! let s = bsdf.sample(wo, [0.5, 0.3, 0.7], Transport::Radiance).unwrap();
-//! assert!((s.pdf - bsdf.pdf(wo, s.wi)).abs() <= 1e-12 * s.pdf);
+//! use lucent_render::microfacet::Distribution;
+//! // D(n) = 1/(π α²) for Trowbridge–Reitz at the macro-normal.
+//! let d = Distribution::TrowbridgeReitz { alpha: 0.1 };
+//! assert!((d.d(DVec3::Z) - 1.0 / (std::f64::consts::PI * 0.01)).abs() < 1e-9);
 //! ```
 
-use crate::fresnel;
 use glam::DVec3;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use kiddo::SquaredEuclidean;
@@ -153,9 +83,6 @@ pub enum MicrofacetError {
     /// Roughness not finite, negative or above [`MAX_ALPHA`].
     #[error("microfacet roughness alpha = {0} is invalid (need a finite value in [0, {MAX_ALPHA}])")]
     Alpha(f64),
-    /// Relative index not finite or not positive.
-    #[error("relative refractive index eta = {0} is invalid (need a finite value > 0)")]
-    Eta(f64),
     /// An empty normal set.
     #[error("the measured normal set is empty")]
     NoNormals,
@@ -724,200 +651,6 @@ impl Microsurface {
             }
         }
     }
-}
-
-/// Which quantity a path carries (pbrt-v4's TransportMode).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Transport {
-    /// Camera paths: transmitted radiance is scaled by (n_o/n_i)².
-    Radiance,
-    /// Light paths (importance / photon power): no η² factor.
-    Importance,
-}
-
-/// A sampled direction of [`RoughDielectric::sample`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Sample {
-    /// The sampled direction (unit, away from the surface).
-    pub wi: DVec3,
-    /// f |cos θ_i| / pdf (the path throughput factor).
-    pub weight: f64,
-    /// Solid-angle density in 1/sr, or for a delta lobe the discrete
-    /// probability of the chosen lobe.
-    pub pdf: f64,
-    /// `wi` is on the other side of the boundary from `wo`.
-    pub is_transmission: bool,
-    /// A specular (Dirac) lobe: smooth boundary, see the module docs.
-    pub is_delta: bool,
-}
-
-/// A rough (or smooth) dielectric boundary between two non-absorbing media.
-#[derive(Clone, Debug)]
-pub struct RoughDielectric {
-    eta: f64,
-    surface: Microsurface,
-}
-
-impl RoughDielectric {
-    /// `eta` = n_below / n_above (> 0, finite); the distribution's α is
-    /// checked too.
-    pub fn new(eta: f64, surface: Microsurface) -> Result<Self, MicrofacetError> {
-        if !(eta.is_finite() && eta > 0.0) {
-            return Err(MicrofacetError::Eta(eta));
-        }
-        if let Microsurface::Analytic(d) = &surface {
-            d.validate()?;
-        }
-        Ok(RoughDielectric { eta, surface })
-    }
-
-    /// The relative index n_below / n_above.
-    pub fn eta(&self) -> f64 {
-        self.eta
-    }
-
-    /// The microsurface.
-    pub fn surface(&self) -> &Microsurface {
-        &self.surface
-    }
-
-    /// True when the BSDF consists of delta lobes only (smooth surface or
-    /// η = 1): [`RoughDielectric::eval`] and [`RoughDielectric::pdf`] are 0.
-    pub fn is_delta(&self) -> bool {
-        self.surface.is_smooth() || self.eta == 1.0
-    }
-
-    /// n_other / n_wo: relative index for light crossing from the side of `wo`.
-    fn eta_from(&self, wo: DVec3) -> f64 {
-        if wo.z > 0.0 {
-            self.eta
-        } else {
-            1.0 / self.eta
-        }
-    }
-
-    /// The generalised half-vector (facing +z), η′ = n_wi/n_wo, and whether
-    /// the pair is a reflection; `None` if degenerate or back-facing.
-    fn half_vector(&self, wo: DVec3, wi: DVec3) -> Option<(DVec3, f64, bool)> {
-        let (co, ci) = (wo.z, wi.z);
-        if co == 0.0 || ci == 0.0 {
-            return None;
-        }
-        let reflect = co * ci > 0.0;
-        let etap = if reflect { 1.0 } else { self.eta_from(wo) };
-        let wm = wi * etap + wo;
-        let len2 = wm.length_squared();
-        if len2 == 0.0 || !len2.is_finite() {
-            return None;
-        }
-        let mut wm = wm / len2.sqrt();
-        if wm.z < 0.0 {
-            wm = -wm;
-        }
-        if wm.z == 0.0 || wm.dot(wi) * ci <= 0.0 || wm.dot(wo) * co <= 0.0 {
-            return None;
-        }
-        Some((wm, etap, reflect))
-    }
-
-    /// The BSDF f(ω_o, ω_i) in 1/sr, without the cosine (0 for a delta BSDF).
-    pub fn eval(&self, wo: DVec3, wi: DVec3, mode: Transport) -> f64 {
-        if self.is_delta() {
-            return 0.0;
-        }
-        let Some((wm, etap, reflect)) = self.half_vector(wo, wi) else {
-            return 0.0;
-        };
-        let (co, ci) = (wo.z.abs(), wi.z.abs());
-        let f = fresnel::reflectance(wo.dot(wm).abs(), self.eta_from(wo));
-        let g = self.surface.g1(wo, wm) * self.surface.g1(wi, wm);
-        let d = self.surface.d(wm);
-        if reflect {
-            d * g * f / (4.0 * ci * co)
-        } else {
-            let (im, om) = (wi.dot(wm), wo.dot(wm));
-            let denom = im + om / etap;
-            let ft = d * g * (1.0 - f) * (im * om).abs() / (ci * co * denom * denom);
-            match mode {
-                Transport::Radiance => ft / (etap * etap),
-                Transport::Importance => ft,
-            }
-        }
-    }
-
-    /// Solid-angle density (1/sr) with which [`RoughDielectric::sample`]
-    /// returns `wi` (0 for a delta BSDF).
-    pub fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
-        if self.is_delta() {
-            return 0.0;
-        }
-        let Some((wm, etap, reflect)) = self.half_vector(wo, wi) else {
-            return 0.0;
-        };
-        let om = wo.dot(wm);
-        let f = fresnel::reflectance(om.abs(), self.eta_from(wo));
-        let pm = self.surface.pdf_normal(wo, wm);
-        if reflect {
-            pm * f / (4.0 * om.abs())
-        } else {
-            let im = wi.dot(wm);
-            let denom = im + om / etap;
-            pm * (1.0 - f) * im.abs() / (denom * denom)
-        }
-    }
-
-    /// Samples ω_i for light leaving along ω_o; `u` uniform in [0, 1)³ (`u[0]`
-    /// chooses the lobe, `u[1]`, `u[2]` the microfacet). `None` when the sampled
-    /// direction is lost (see the module docs) or `wo` is grazing.
-    pub fn sample(&self, wo: DVec3, u: [f64; 3], mode: Transport) -> Option<Sample> {
-        if wo.z == 0.0 || !wo.is_finite() {
-            return None;
-        }
-        let eta_o = self.eta_from(wo);
-        if self.is_delta() {
-            let f = fresnel::reflectance(wo.z.abs(), eta_o);
-            if u[0] < f {
-                let wi = DVec3::new(-wo.x, -wo.y, wo.z);
-                return Some(Sample { wi, weight: 1.0, pdf: f, is_transmission: false, is_delta: true });
-            }
-            let wi = DVec3::from_array(fresnel::refract((-wo).to_array(), eta_o)?);
-            let weight = match mode {
-                Transport::Radiance => 1.0 / (eta_o * eta_o),
-                Transport::Importance => 1.0,
-            };
-            return Some(Sample { wi, weight, pdf: 1.0 - f, is_transmission: true, is_delta: true });
-        }
-        let m = self.surface.sample_normal(wo, [u[1], u[2]])?;
-        let om = wo.dot(m);
-        if om * wo.z <= 0.0 {
-            return None;
-        }
-        let f = fresnel::reflectance(om.abs(), eta_o);
-        let (wi, is_transmission) =
-            if u[0] < f { (2.0 * om * m - wo, false) } else { (refract_about(wo, m, eta_o)?, true) };
-        if (wi.z * wo.z > 0.0) == is_transmission || wi.z == 0.0 {
-            return None;
-        }
-        let pdf = self.pdf(wo, wi);
-        let value = self.eval(wo, wi, mode);
-        if !(pdf > 0.0 && pdf.is_finite() && value.is_finite()) {
-            return None;
-        }
-        Some(Sample { wi, weight: value * wi.z.abs() / pdf, pdf, is_transmission, is_delta: false })
-    }
-}
-
-/// Refracts the direction `wo` (pointing away from the surface on its side)
-/// through a microfacet with normal m, relative index `eta` = n_other/n_wo;
-/// `None` under total internal reflection.
-pub fn refract_about(wo: DVec3, m: DVec3, eta: f64) -> Option<DVec3> {
-    let (n, cos_i) = if wo.dot(m) >= 0.0 { (m, wo.dot(m)) } else { (-m, -wo.dot(m)) };
-    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return None;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    Some((-wo / eta + (cos_i / eta - cos_t) * n).normalize())
 }
 
 #[cfg(test)]

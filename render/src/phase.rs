@@ -1,5 +1,5 @@
 //! Phase functions of the scattering medium: evaluation and importance
-//! sampling (SPEC §1 "Phase function", §3 "scatter by the phase function").
+//! sampling (docs/method.md §1 and §3).
 //!
 //! # What is computed
 //!

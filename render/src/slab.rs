@@ -1,5 +1,5 @@
 //! BSSRDF slices of a plane-parallel slab by light tracing with explicit
-//! connection to a fixed observation direction (SPEC §3).
+//! connection to a fixed observation direction (docs/method.md §3).
 //!
 //! # Geometry and units
 //!
@@ -57,9 +57,9 @@
 //! slice is several percent low; in a thick slab (μ_t d / cos θ_t ≥ 40) they
 //! are skipped.
 //!
-//! **Rough top** ([`Boundary::Rough`], SPEC §2–§3). The top is then the
+//! **Rough top** ([`Interface::Rough`], docs/method.md §2–§3). The top is then the
 //! microfacet dielectric of [`crate::microfacet`] (Walter et al. 2007) and
-//! every crossing samples it ([`Boundary::sample`]): the entry direction
+//! every crossing samples it ([`Interface::sample`]): the entry direction
 //! is −ω_i refracted through a microfacet normal drawn from the visible
 //! normals of ω_i (weight (1 − F(ω_i·m)) G1(ω_t, m), the exact f|cos|/pdf
 //! with the transmission lobe forced); a photon reaching the top from
@@ -108,172 +108,16 @@
 //! 0.3 (thick and thin), reciprocity, and the lane kernel against the
 //! scalar one.
 //!
-//! **Ring connection** ([`Estimator::Ring`], the default where it applies).
-//! The fixed-direction connection converges in its sum but not pixel by
-//! pixel: its value at an event is p(ω_s·ω₂₁), and for a forward-peaked
-//! medium only the rare photons already travelling within the phase
-//! function's lobe around ω₂₁ (a few degrees) contribute. With the
-//! Lorenz–Mie table of IOL1068-09 at 550 nm, 4π∫p² dω = 105 (p(0°) =
-//! 21 /sr, half the scattering within 5°): replacing p by 1/(4π) in the
-//! connection (a biased diagnostic) cut the per-pixel error 0.5–3 mm from
-//! the beam from 60 % to 19 % at 10⁵ paths. (A detector cone of ≤ 1°
-//! averages p over 0.63° in the medium and leaves 4π∫p̄² at 105; 933 → 868
-//! for the PVP of IOL1068-13 — so the cone and its MIS with phase-sampled
-//! exits were measured not to pay and are not implemented.)
-//! The ring uses the one symmetry left: when light enters at normal
-//! incidence the slab is symmetric about the normal through the entry
-//! point, so the response at exit azimuth φ equals the response at the
-//! wanted azimuth φ_t with the exit point rotated by φ_t − φ about the entry
-//! point. Every direction on the ring of the exit polar angle θ_t is
-//! therefore a valid connection direction; the photon's lobe meets a ring
-//! far more often than a point. Per event the ring connection draws exit
-//! azimuths from a table shaped like p along the ring (see `Ring`), splats
-//! w p e^{−μ_t ℓ} T/(n² A_o cos θ_t) / (2π pdf_φ) — the same factors as
-//! the fixed direction, ℓ = |z|/cos θ_t being the same for every azimuth —
-//! at the rotated exit point, and averages [`RING_SPLATS`] such azimuths
-//! (stratified). The beam is not rotation-symmetric, so photons start at
-//! the origin and the beam's footprint is laid on by convolution: the splat
-//! goes to the pixel of b + Δ with b drawn from the footprint (E over b of
-//! the pixel indicator is the footprint integrated over the pixel, which is
-//! exactly the convolution the slice is). Normal incidence is needed on the
-//! launch side only: for θ_o = 0 (the lab's 45°/0°) the photons are
-//! launched from the camera's side by reciprocity, f(x_i, ω_i; x_o, ω_o) =
-//! f(x_o, ω_o; x_i, ω_i), the connection aims at ω_i, and the splat goes to
-//! b − Δ (h(Δ) = f(0, ω_o; Δ, ω_i), so the slice at x is E_b h(b − x)). It
-//! needs a thick slab (no image terms, μ_t d / cos θ_t ≥ 40) and one of
-//! θ_i, θ_o equal to 0; [`Estimator::best_for`] falls back to the lobe
-//! connection (below) or the fixed direction otherwise. Tested pixel by pixel against the fixed-direction
-//! connection, against brute force, and in a white furnace.
+//! **Ring connection** ([`Estimator::Ring`], the default where it
+//! applies: θ_i or θ_o is 0 and the slab is thick). Under normal incidence
+//! on the launch side the slab is symmetric about the normal, so every
+//! direction on the ring of the exit polar angle is a valid connection; the
+//! derivation is with its code, `slab/ring.rs`.
 //!
 //! **Lobe connection** ([`Estimator::Lobe`], the default where the ring
-//! does not apply and the slab is thick). When neither θ_i nor θ_o is 0
-//! (the lab's 45°/15°) there is no symmetry to use. Instead the connection
-//! is combined, by multiple importance sampling over the last few events of
-//! the path, with chains of events drawn *backwards from the camera*
-//! through the phase function's lobe around ω₂₁.
-//!
-//! *Two vertices (m = 1).* Let x_k be a scattering event, ω_k the
-//! photon's direction arriving there, w_k its weight after the factor
-//! μ_s/μ_t. By a straight flight the walk reaches its next event
-//! x′ = x_k + t ω′ with density p_A(ω′) μ_t e^{−μ_t t} per steradian and
-//! metre, p_A = p(ω_k·ω′), if x′ lies inside the slab (else it meets a
-//! boundary first), with weight w_k μ_s/μ_t in expectation over the
-//! roulette at x_k; its connection is worth p_B(ω′) e^{−μ_t ℓ′} C 1{x_o′ ∈
-//! pixel}, p_B = p(ω′·ω₂₁), ℓ′ = |z′|/cos θ_t, x_o′ = x′ + ℓ′ ω₂₁,
-//! C = T/(n² A_o cos θ_t) as above. The expected connection of the next
-//! event, given x_k, is therefore
-//!
-//! I_k = w_k (μ_s/μ_t) ∫_{S²} ∫_{x′ ∈ slab} p_A(ω′) p_B(ω′) μ_t e^{−μ_t t} e^{−μ_t ℓ′} C 1{x_o′ ∈ pixel} dt dω′.
-//!
-//! Strategy A is the walk itself, (ω′, t) from p_A μ_t e^{−μ_t t};
-//! strategy B draws ω′ from p_B — the phase function's sampler with ω₂₁ as
-//! the incident direction, density p(ω′·ω₂₁), whose forward lobe
-//! ω′ ≈ ω₂₁ holds the photons the connection needs — and t from
-//! μ_t e^{−μ_t t}. The distance density is common, so the balance
-//! heuristic (Veach & Guibas 1995) weighs a sample by p_A/(p_A + p_B) or
-//! p_B/(p_A + p_B), and either sample is worth
-//! w_k (μ_s/μ_t) e^{−μ_t ℓ′} C / (1/p_A + 1/p_B) at the pixel of x_o′: at
-//! most min(p_A, p_B) times the rest, where the fixed-direction connection
-//! had p_B alone. In effect the estimator sees the phase function convolved
-//! with itself (for Henyey–Greenstein g exactly HG with g², by the
-//! Funk–Hecke theorem), a lower and wider lobe.
-//!
-//! *m vertices.* The same holds for longer chains. Number the path's
-//! scattering events v_1 … v_n and its directions ω_1 (the refracted beam)
-//! … ω_n, ω_{n+1} = ω₂₁; the path's phase factors are φ_a = p(ω_a·ω_{a+1})
-//! at its junctions a = 1 … n. Strategy j (0 ≤ j ≤ m) lets the walk draw
-//! the directions up to ω_{n−j} and draws ω_n, ω_{n−1}, …, ω_{n−j+1}
-//! backwards from ω₂₁ (each from p(·ω_{a+1}), density φ_a) with
-//! exponential distances; the one factor no strategy samples is φ_{n−j},
-//! the connection at v_{n−j}. Its pdf is Π_a φ_a / φ_{n−j}, so the balance
-//! heuristic weighs strategy j by (1/φ_{n−j}) / S with S = Σ_i 1/φ_{n−i}
-//! over the strategies that can produce the path, and every sample, of
-//! whichever strategy, is worth
-//!
-//! w (μ_s/μ_t)^j e^{−μ_t ℓ} C / S at the pixel where the path leaves,
-//!
-//! w the walk's weight at v_{n−j} and (μ_s/μ_t)^j the drawn events'
-//! albedo: at most the smallest phase value over the path's last m + 1
-//! junctions, the lobe (m + 1)-fold convolved (HG: g^{m+1}). A strategy
-//! can produce the path when the j drawn flights stay inside the slab and
-//! the walk's flights it takes over went straight from event to event:
-//! strategy i is counted for i ≤ min(m, r) with r the number of trailing
-//! straight flights of the path (the first flight, from the entry, and a
-//! flight after a reflection at a boundary are not straight — only the
-//! walk reaches those; weights need to add up to 1 only where the
-//! strategies have density). In the kernel every event v_k of the walk
-//! connects (strategy 0, S over its own last min(m, r_k) + 1 junctions,
-//! the walk keeping 1/φ of its last scattering angles), and uses one
-//! chain (drawn for it or, see "Chain reuse", shared with earlier events
-//! of the path) of m directions and distances from ω₂₁ whose first j links make
-//! strategy j's path v_k → … → exit, j = 1 … m (its S: the chain's j
-//! sampled junctions, the connection p(ω_k·ω^c_j) at v_k, and the walk's
-//! last min(m − j, r_k) junctions). A chain that leaves the slab adds
-//! nothing for that j (the walk meets the boundary there). The chains use
-//! the weight w_k before the roulette at v_k (whose expectation it is).
-//! The depth roulette and the 40-optical-depth cut apply to each exit point
-//! as to the connection; the chain decides its roulette before drawing any
-//! direction, from the lower bound τ_lb = μ_t (|z_k| − Σ t)/cos θ_t of
-//! every one of its exit depths (|ω_z| ≤ 1): kept with probability
-//! q = e^{−(τ_lb − τ_r)} and weighted 1/q, so no term exceeds e^{−τ_r} of an
-//! unattenuated one. Splat geometry: the exit point is the chain's end
-//! v_k + Σ_{i ≤ j} t_i ω^c_i moved by ℓ ω₂₁, ℓ its depth / cos θ_t, with
-//! the connection's constant C. Needs a thick slab (μ_t d / cos θ_t ≥ 40:
-//! no image terms, which the chains' straight flights would miss);
-//! [`Estimator::best_for`] falls back to the fixed direction otherwise.
-//! Tested pixel by pixel against the fixed-direction connection, against
-//! brute force, its standard errors against the spread over seeds, and in
-//! a white furnace.
-//!
-//! *Through a rough top.* There the radiance leaving towards ω_o is
-//! L_o(x_o) = E_{ω′}[W(ω′) L_in(x_o, ω′)] over the ω′ a path draws at its
-//! launch from the surface alone ("Rough top" above; W = (1 − F) G1/n²).
-//! Given ω′, ω₂₁ = −ω′ is fixed for the whole path, and L_in(x_o, ω′) is
-//! the smooth case's transport integral with that ω₂₁: the walk's density
-//! is unchanged, each chain is drawn from ω₂₁ and random numbers alone (and
-//! one chain serves one path, so a chain never outlives its ω′), hence every
-//! strategy's density and the balance weights above hold as they stand, with
-//! T/n² replaced by W and cos θ_t by cos θ₂₁ = ω₂₁·z. The path's splats are
-//! then an unbiased estimate of W L_in(x_o, ω′) given ω′, and their
-//! expectation over ω′ is L_o. So per path: ℓ = |z|/cos θ₂₁, the chain's
-//! skip and roulette bound τ_u and its transmittance factors s_j take
-//! μ_t/cos θ₂₁, and C = W/(A_o cos θ₂₁) (`Exit`); a lost ω′ (W = 0) adds
-//! nothing. Thick here means μ_t d ≥ 40, which bounds μ_t d/cos θ₂₁ for
-//! every ω′ (the rough connection's own test for image terms). Light that
-//! reaches the rough top from below unscattered keeps its connection at the
-//! top (f_t, "Rough top"). Tested (`render/tests/slab_rough.rs`): pixel by
-//! pixel against the rough fixed-direction connection (α = 0.3 and 0.8,
-//! where W and cos θ₂₁ are far from the smooth T/n² and cos θ_t), against
-//! brute force at α = 0.05 and 0.3, its standard errors against the spread
-//! over 30 seeds, and the lane kernel against the scalar one.
-//!
-//! *Chain reuse* ([`LOBE_REUSE`]). A chain is drawn from ω₂₁ and random
-//! numbers alone, never from the photon, so one chain may serve K
-//! consecutive events of a path: the chain is redrawn at the path's events
-//! 1, K + 1, 2K + 1, … (a schedule that looks at the event count only,
-//! never at the chain) and drawn lazily, when the first event of its turn
-//! that needs it arrives (its distances first, its directions once the
-//! roulette has kept it). At event k the chain in use was made from
-//! uniforms that no decision of the walk up to k has seen, and the walk's
-//! later flights, scatterings and roulettes take later numbers of the
-//! stream and never look at the chain (the chain's own roulette takes its
-//! own number and changes only its splats); so given the walk up to k the
-//! chain is distributed exactly as a fresh one, the expected sum of event
-//! k's terms is the I_k above, and the path's total stays unbiased by
-//! linearity. Terms of different events of one path are correlated through
-//! their shared chain, but paths stay independent, so the per-path totals
-//! (the sum's error) and the batch means (the per-pixel errors) are still
-//! i.i.d. and the reported errors stay right (tested against the spread
-//! over seeds). What a chain costs per draw — m logarithms, m phase samples
-//! and values, m turns and the transmittance factors — is then paid once
-//! per K events; per event and link remain the inside test, the pixel, the
-//! phase value at the junction with the event, p(ω_k·ω^c_j), and a
-//! division. The transmittance factors: the exit of link j lies
-//! τ_j = τ_u + s_j optical depths deep, τ_u = μ_t (|z_k| − Σ t)/cos θ_t
-//! the event's part (the roulette's lower bound) and
-//! s_j = μ_t (Σ t − D_{j,z})/cos θ_t ≥ 0 the chain's (D_j = Σ_{i ≤ j} t_i ω^c_i),
-//! so e^{−τ_j} = e^{−τ_u} e^{−s_j} takes one exponential per event (after the
-//! roulette e^{−τ_u}/q = e^{−τ_r}), e^{−s_j} stored with the chain.
+//! does not apply and the slab is thick): the fixed-direction connection
+//! combined by multiple importance sampling with chains drawn backwards
+//! from ω₂₁ through the phase function's lobe; derivation in `slab/lobe.rs`.
 //!
 //! **Fold** ([`RunOptions::fold`]). With both azimuths 0° or 180°, a
 //! mirror-symmetric beam and a top surface symmetric about the plane of
@@ -326,8 +170,8 @@
 //! ```
 
 use crate::fresnel;
-use crate::microfacet::{Distribution, Microsurface, Transport};
-use crate::phase::Phase;
+use crate::interface::{Interface, Lobe, Transport};
+pub use crate::medium::{valid_coefficients, Medium, MediumError, MU_T_MAX_PER_M};
 use crate::rng::Rng;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -358,18 +202,6 @@ pub enum SlabError {
     LobeNotApplicable,
 }
 
-/// The largest extinction coefficient μt = μs + μa [1/m] a medium may have
-/// here and in the path tracer: a mean free path of 0.1 µm, well below the
-/// wavelengths of light, where radiative transfer no longer describes the
-/// medium (and every path would be cut at its event limit).
-pub const MU_T_MAX_PER_M: f64 = 1e7;
-
-/// True when μs, μa ≥ 0 and 0 < μs + μa ≤ [`MU_T_MAX_PER_M`] (NaN: false).
-pub fn valid_coefficients(mu_s_per_m: f64, mu_a_per_m: f64) -> bool {
-    let t = mu_s_per_m + mu_a_per_m;
-    mu_s_per_m >= 0.0 && mu_a_per_m >= 0.0 && t > 0.0 && t <= MU_T_MAX_PER_M
-}
-
 fn check(name: &'static str, value: f64, ok: bool, reason: &'static str) -> Result<f64, SlabError> {
     if ok && value.is_finite() {
         Ok(value)
@@ -378,250 +210,29 @@ fn check(name: &'static str, value: f64, ok: bool, reason: &'static str) -> Resu
     }
 }
 
-/// A homogeneous scattering medium.
-#[derive(Debug, Clone)]
-pub struct Medium {
-    pub mu_s_per_m: f64,
-    pub mu_a_per_m: f64,
-    pub phase: Phase,
-    /// Refractive index (bulk, real).
-    pub n: f64,
-}
-
-impl Medium {
-    pub fn new(mu_s_per_m: f64, mu_a_per_m: f64, phase: Phase, n: f64) -> Result<Self, SlabError> {
-        check("mu_s_per_m", mu_s_per_m, mu_s_per_m >= 0.0, "must be ≥ 0")?;
-        check("mu_a_per_m", mu_a_per_m, mu_a_per_m >= 0.0, "must be ≥ 0")?;
-        check("mu_t_per_m", mu_s_per_m + mu_a_per_m, mu_s_per_m + mu_a_per_m > 0.0, "μs + μa must be > 0")?;
-        check(
-            "mu_t_per_m",
-            mu_s_per_m + mu_a_per_m,
-            valid_coefficients(mu_s_per_m, mu_a_per_m),
-            "μs + μa must be at most 1e7 /m (slab::MU_T_MAX_PER_M: a mean free path of 0.1 µm)",
-        )?;
-        check("n", n, crate::fresnel::valid_index(n), "must lie in [1, 10] (fresnel::INDEX_RANGE)")?;
-        Ok(Self { mu_s_per_m, mu_a_per_m, phase, n })
-    }
-
-    pub fn mu_t_per_m(&self) -> f64 {
-        self.mu_s_per_m + self.mu_a_per_m
-    }
-
-    pub fn albedo(&self) -> f64 {
-        self.mu_s_per_m / self.mu_t_per_m()
+impl From<MediumError> for SlabError {
+    fn from(e: MediumError) -> Self {
+        SlabError::Parameter { name: e.name, value: e.value, reason: e.reason }
     }
 }
 
-/// The top interface: the closed set of boundaries (SPEC §2–§3). The
-/// bottom is always [`Boundary::Smooth`].
-///
-/// Directions here are unit vectors in the slab's frame (normal +z). `wo`
-/// points away from the surface on the side where sampling starts, the
-/// returned `wi` away from the surface on the side the light is on (as in
-/// [`crate::microfacet`]): for a photon (importance transport) arriving
-/// along `d`, `wo` = −d and the photon goes on along `wi`; for radiance
-/// leaving along `wo`, `wi` is the direction it comes from (the light
-/// travels along −`wi`). `eta` = n_other/n_wo, the index beyond the surface
-/// over the index on `wo`'s side.
-#[derive(Debug, Clone)]
-pub enum Boundary {
-    /// Smooth dielectric: mirror reflection and Snell refraction with
-    /// unpolarised Fresnel ([`crate::fresnel`]).
-    Smooth,
-    /// Rough dielectric (Walter, Marschner, Li & Torrance 2007; see
-    /// [`crate::microfacet`]): each crossing draws a microfacet normal m
-    /// (visible normals of `wo` for the analytic distributions, D(m)(m·n) for
-    /// a measured set) and reflects or refracts about it, weighted by Smith's
-    /// G1 of the new direction (the exact f|cos θ|/pdf). Light sent to the
-    /// wrong side of the macro-surface is lost (single scattering's energy
-    /// loss, a few 10⁻³ at the lab's α ≈ 0.008). Build it with
-    /// [`Boundary::rough`].
-    Rough(Microsurface),
-}
-
-/// The lobe a boundary sample takes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Lobe {
-    /// Reflection with probability F, else transmission (weight without F).
-    Fresnel,
-    /// Reflection only, weight times F.
-    Reflect,
-    /// Transmission only, weight times 1 − F.
-    Transmit,
-}
-
-/// A direction drawn by [`Boundary::sample`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoundarySample {
-    /// Unit direction away from the surface (see [`Boundary`]).
-    pub wi: [f64; 3],
-    /// f |cos θ_i| / pdf: the factor of the path's weight.
-    pub weight: f64,
-    /// `wi` is on the other side of the surface from `wo`.
-    pub transmitted: bool,
-}
-
-impl Boundary {
-    /// The boundary of a microsurface: [`Boundary::Smooth`] when it is
-    /// smooth (analytic α < [`crate::microfacet::SMOOTH_ALPHA`] = 10⁻⁴),
-    /// else [`Boundary::Rough`]. α is checked.
-    pub fn rough(surface: Microsurface) -> Result<Self, SlabError> {
-        if let Microsurface::Analytic(d) = &surface {
-            d.validate().map_err(|_| SlabError::Parameter {
-                name: "alpha",
-                value: d.alpha(),
-                reason: "must lie in [0, 4]",
-            })?;
-        }
-        Ok(if surface.is_smooth() { Boundary::Smooth } else { Boundary::Rough(surface) })
-    }
-
-    /// Whether the boundary is rough (sampled microfacets).
-    pub fn is_rough(&self) -> bool {
-        matches!(self, Boundary::Rough(_))
-    }
-
-    /// Whether the boundary is symmetric about the xz-plane: smooth, an
-    /// (isotropic) analytic distribution, or a measured normal set equal to
-    /// its mirror image ([`crate::microfacet::MeasuredNormals::mirror_symmetric`]).
-    pub fn mirror_symmetric(&self) -> bool {
-        match self {
-            Boundary::Smooth | Boundary::Rough(Microsurface::Analytic(_)) => true,
-            Boundary::Rough(Microsurface::Measured(m)) => m.mirror_symmetric(),
-        }
-    }
-
-    /// A short description for summaries.
-    pub fn describe(&self) -> String {
-        match self {
-            Boundary::Smooth => "smooth".into(),
-            Boundary::Rough(Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha })) => {
-                format!("rough, Trowbridge–Reitz α = {alpha}")
-            }
-            Boundary::Rough(Microsurface::Analytic(Distribution::Beckmann { alpha })) => {
-                format!("rough, Beckmann α = {alpha}")
-            }
-            Boundary::Rough(Microsurface::Measured(m)) => {
-                format!("rough, {} measured normals (kernel radius {:.3e} in slope)", m.len(), m.bandwidth())
-            }
-        }
-    }
-
-    /// The smooth dielectric's reflectance: the fraction of the light
-    /// reaching the boundary at cos θ = `cos_i` from a medium of index n_1
-    /// that is reflected, `eta` = n_2/n_1 the index ratio across it
-    /// (unpolarised Fresnel; 1 beyond the critical angle). A rough boundary
-    /// reflects by [`Boundary::sample`] instead.
-    #[inline]
-    pub fn reflectance(&self, cos_i: f64, eta: f64) -> f64 {
-        fresnel::reflectance(cos_i, eta)
-    }
-
-    /// The smooth boundary's reflect/transmit choice: reflected when `u` ∈
-    /// [0, 1) falls below [`reflectance`](Self::reflectance), so with
-    /// exactly that probability (χ²-tested in `slab::tests`).
-    #[inline]
-    pub fn reflects(&self, cos_i: f64, eta: f64, u: f64) -> bool {
-        u < self.reflectance(cos_i, eta)
-    }
-
-    /// The BSDF f(ω_o = `wo`, ω_i = `wi`) in 1/sr without the cosine
-    /// ([`crate::microfacet::RoughDielectric::eval`]; `eta` = n_below/n_above
-    /// of the boundary); 0 for the smooth boundary, whose lobes are deltas.
-    pub fn eval(&self, wo: [f64; 3], wi: [f64; 3], eta: f64, mode: Transport) -> f64 {
-        match self {
-            Boundary::Smooth => 0.0,
-            Boundary::Rough(surface) => match crate::microfacet::RoughDielectric::new(eta, surface.clone()) {
-                Ok(bsdf) => bsdf.eval(DVec3::from_array(wo), DVec3::from_array(wi), mode),
-                Err(_) => 0.0,
-            },
-        }
-    }
-
-    /// How many uniform numbers [`sample`](Self::sample) uses with
-    /// [`Lobe::Fresnel`]: 1 for the smooth boundary, 3 for a rough one.
-    pub fn numbers(&self) -> usize {
-        match self {
-            Boundary::Smooth => 1,
-            Boundary::Rough(_) => 3,
-        }
-    }
-
-    /// Samples the boundary for `wo` (see [`Boundary`] for the directions
-    /// and `eta`): `u[0]` chooses the lobe ([`Lobe::Fresnel`]), `u[1]`,
-    /// `u[2]` the microfacet (rough only). Transmitted radiance
-    /// ([`Transport::Radiance`]) carries (n_wo/n_wi)², photons
-    /// ([`Transport::Importance`]) do not. `None` when the light is lost:
-    /// total internal reflection with [`Lobe::Transmit`], a rough sample
-    /// sent to the wrong side, a grazing `wo`.
-    #[inline]
-    pub fn sample(&self, wo: [f64; 3], eta: f64, lobe: Lobe, u: [f64; 3], mode: Transport) -> Option<BoundarySample> {
-        let radiance = |t: f64| if mode == Transport::Radiance { t / (eta * eta) } else { t };
-        match self {
-            Boundary::Smooth => {
-                let f = fresnel::reflectance(wo[2].abs(), eta);
-                let reflect = match lobe {
-                    Lobe::Fresnel => u[0] < f,
-                    Lobe::Reflect => true,
-                    Lobe::Transmit => false,
-                };
-                if reflect {
-                    let weight = if lobe == Lobe::Reflect { f } else { 1.0 };
-                    return Some(BoundarySample { wi: [-wo[0], -wo[1], wo[2]], weight, transmitted: false });
-                }
-                let wi = fresnel::refract([-wo[0], -wo[1], -wo[2]], eta)?;
-                let weight = if lobe == Lobe::Transmit { 1.0 - f } else { 1.0 };
-                Some(BoundarySample { wi, weight: radiance(weight), transmitted: true })
-            }
-            Boundary::Rough(surface) => {
-                let wo = DVec3::from_array(wo);
-                let (m, factor) = surface.sample_normal_weighted(wo, [u[1], u[2]])?;
-                let om = wo.dot(m);
-                if om * wo.z <= 0.0 {
-                    return None;
-                }
-                let f = fresnel::reflectance(om.abs(), eta);
-                let reflect = match lobe {
-                    Lobe::Fresnel => u[0] < f,
-                    Lobe::Reflect => true,
-                    Lobe::Transmit => false,
-                };
-                let (wi, lobe_factor) = if reflect {
-                    (2.0 * om * m - wo, if lobe == Lobe::Reflect { f } else { 1.0 })
-                } else {
-                    (crate::microfacet::refract_about(wo, m, eta)?, if lobe == Lobe::Transmit { 1.0 - f } else { 1.0 })
-                };
-                // The new direction must be on the side the lobe sends it to.
-                if wi.z == 0.0 || (wi.z * wo.z > 0.0) != reflect {
-                    return None;
-                }
-                let weight = factor * surface.g1(wi, m) * lobe_factor;
-                if !(weight > 0.0 && weight.is_finite()) {
-                    return None;
-                }
-                let weight = if reflect { weight } else { radiance(weight) };
-                Some(BoundarySample { wi: wi.to_array(), weight, transmitted: !reflect })
-            }
-        }
-    }
-}
-
-/// The slab: thickness, medium, top boundary.
+/// The slab: thickness, medium, top interface (the bottom one is always
+/// [`Interface::Smooth`]).
 #[derive(Debug, Clone)]
 pub struct Slab {
     pub thickness_m: f64,
     pub medium: Medium,
-    pub top: Boundary,
+    pub top: Interface,
 }
 
 impl Slab {
     pub fn new(thickness_m: f64, medium: Medium) -> Result<Self, SlabError> {
         check("thickness_m", thickness_m, thickness_m > 0.0, "must be > 0")?;
-        Ok(Self { thickness_m, medium, top: Boundary::Smooth })
+        Ok(Self { thickness_m, medium, top: Interface::Smooth })
     }
 
-    /// The slab with `top` as its top boundary.
-    pub fn with_top(self, top: Boundary) -> Self {
+    /// The slab with `top` as its top interface.
+    pub fn with_top(self, top: Interface) -> Self {
         Self { top, ..self }
     }
 }
@@ -1094,6 +705,32 @@ impl Batch {
     }
 }
 
+/// Each estimator's own state, the payload of its variant.
+enum Strategy {
+    /// [`Estimator::Connection`].
+    Connection,
+    /// [`Estimator::Ring`]: the sampler of exit azimuths.
+    Ring(Ring),
+    /// [`Estimator::Lobe`]: the chain length m and the events of a path
+    /// that share one chain ([`LOBE_REUSE`]).
+    Lobe { vertices: usize, reuse: usize },
+    /// [`Estimator::BruteForce`]: the cone's half-angle, cos δ and
+    /// 1/(A_o Ω_δ).
+    BruteForce { cone_deg: f64, cone_cos: f64, cone_norm: f64 },
+}
+
+impl Strategy {
+    /// The public name of the estimator.
+    fn estimator(&self) -> Estimator {
+        match self {
+            Strategy::Connection => Estimator::Connection,
+            Strategy::Ring(_) => Estimator::Ring,
+            Strategy::Lobe { vertices, .. } => Estimator::Lobe { vertices: *vertices },
+            Strategy::BruteForce { cone_deg, .. } => Estimator::BruteForce { cone_deg: *cone_deg },
+        }
+    }
+}
+
 /// Precomputed constants of a run.
 struct Kernel<'a> {
     setup: &'a Setup,
@@ -1107,7 +744,8 @@ struct Kernel<'a> {
     entry_dir: [f64; 3],
     entry_weight: f64,
     footprint: Footprint<'a>,
-    estimator: Estimator,
+    /// The estimator, with its own state.
+    strategy: Strategy,
     /// ω₂₁, the in-medium direction refracting into ω_o.
     w21: [f64; 3],
     /// T(θ_t) / (n² A_o cos θ_t).
@@ -1124,10 +762,6 @@ struct Kernel<'a> {
     roulette_depth: f64,
     roulette_transmittance: f64,
     omega_o: [f64; 3],
-    cone_cos: f64,
-    cone_norm: f64,
-    /// The ring connection's sampler, with [`Estimator::Ring`].
-    ring: Option<Ring>,
     /// Fresnel reflectance of the top surface at θ_i (the specular part,
     /// whichever side the photons are launched from).
     specular: f64,
@@ -1138,10 +772,6 @@ struct Kernel<'a> {
     launch: [f64; 3],
     /// Pixel area A_o [m²].
     area: f64,
-    /// The lobe connection's chain length m ([`Estimator::Lobe`]; 0 otherwise).
-    lobe_vertices: usize,
-    /// Events of a path that share one lobe chain ([`LOBE_REUSE`]).
-    lobe_reuse: usize,
     /// Whether batches run in the vector lanes of [`lanes`].
     #[cfg(target_arch = "x86_64")]
     lanes: bool,
@@ -1162,39 +792,40 @@ impl<'a> Kernel<'a> {
         }
         let (launch, exit) = if reciprocal { (omega_o, omega_i) } else { (omega_i, omega_o) };
         let incoming = [-launch[0], -launch[1], -launch[2]];
-        let entry_dir = fresnel::refract(incoming, n).expect("air → denser medium always refracts");
+        let entry_dir = refract_z(incoming, n);
         let top = &setup.slab.top;
         let rough = top.is_rough();
-        let entry_weight = 1.0 - top.reflectance(launch[2], n);
+        let entry_weight = 1.0 - fresnel::reflectance(launch[2], n);
         let exit_up = [-exit[0], -exit[1], -exit[2]];
         // ω₂₁: refract the exit direction back into the medium and reverse (upward).
-        let down = fresnel::refract(exit_up, n).expect("air → denser medium always refracts");
+        let down = refract_z(exit_up, n);
         let w21 = [-down[0], -down[1], -down[2]];
         let cos_t = w21[2];
-        let t_out = 1.0 - top.reflectance(cos_t, 1.0 / n);
+        let t_out = 1.0 - fresnel::reflectance(cos_t, 1.0 / n);
         let area = setup.sensor.pixel_m * setup.sensor.pixel_m;
         // The smooth top's one exit; the connections' constants are its.
         let smooth_exit =
             Exit { up: w21, weight: t_out / (n * n), inv_cos: 1.0 / cos_t, splat: t_out / (n * n * area * cos_t) };
-        let (cone_cos, cone_norm) = match estimator {
+        let strategy = match estimator {
+            Estimator::Connection => Strategy::Connection,
             Estimator::BruteForce { cone_deg } => {
                 check("cone_deg", cone_deg, cone_deg > 0.0 && cone_deg < 90.0, "must lie in (0°, 90°)")?;
                 let c = cone_deg.to_radians().cos();
-                (c, 1.0 / (area * 2.0 * PI * (1.0 - c)))
+                Strategy::BruteForce { cone_deg, cone_cos: c, cone_norm: 1.0 / (area * 2.0 * PI * (1.0 - c)) }
             }
-            Estimator::Connection | Estimator::Ring | Estimator::Lobe { .. } => (2.0, 0.0),
+            Estimator::Lobe { vertices } => {
+                check("lobe_vertices", vertices as f64, vertices <= MAX_LOBE_VERTICES, "must lie in 0 … 32")?;
+                if !lobe_applies(setup) {
+                    return Err(SlabError::LobeNotApplicable);
+                }
+                Strategy::Lobe { vertices, reuse: LOBE_REUSE }
+            }
+            Estimator::Ring => {
+                let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+                let target = if sin_t > 0.0 { (w21[0] / sin_t, w21[1] / sin_t) } else { (1.0, 0.0) };
+                Strategy::Ring(Ring::new(&m.phase, cos_t, if reciprocal { -1.0 } else { 1.0 }, target))
+            }
         };
-        if let Estimator::Lobe { vertices } = estimator {
-            check("lobe_vertices", vertices as f64, vertices <= MAX_LOBE_VERTICES, "must lie in 0 … 32")?;
-            if !lobe_applies(setup) {
-                return Err(SlabError::LobeNotApplicable);
-            }
-        }
-        let ring = (estimator == Estimator::Ring).then(|| {
-            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-            let target = if sin_t > 0.0 { (w21[0] / sin_t, w21[1] / sin_t) } else { (1.0, 0.0) };
-            Ring::new(&m.phase, cos_t, if reciprocal { -1.0 } else { 1.0 }, target)
-        });
         Ok(Self {
             setup,
             mu_t: m.mu_t_per_m(),
@@ -1205,7 +836,7 @@ impl<'a> Kernel<'a> {
             entry_dir,
             entry_weight,
             footprint: setup.beam.footprint(dirs.theta_i_deg, dirs.phi_i_deg),
-            estimator,
+            strategy,
             w21,
             splat: smooth_exit.splat,
             inv_cos_t: smooth_exit.inv_cos,
@@ -1217,15 +848,10 @@ impl<'a> Kernel<'a> {
             roulette_depth: ROULETTE_DEPTH,
             roulette_transmittance: (-ROULETTE_DEPTH).exp(),
             omega_o,
-            cone_cos,
-            cone_norm,
-            ring,
-            specular: if rough { rough_specular(top, omega_i, n) } else { top.reflectance(omega_i[2], n) },
+            specular: if rough { rough_specular(top, omega_i, n) } else { fresnel::reflectance(omega_i[2], n) },
             rough,
             launch,
             area,
-            lobe_vertices: if let Estimator::Lobe { vertices } = estimator { vertices } else { 0 },
-            lobe_reuse: LOBE_REUSE,
             #[cfg(target_arch = "x86_64")]
             lanes: matches!(estimator, Estimator::Connection | Estimator::Ring | Estimator::Lobe { .. })
                 && crate::simd::available(),
@@ -1248,21 +874,21 @@ impl<'a> Kernel<'a> {
     fn launch(&self, rng: &mut Rng) -> Option<([f64; 3], [f64; 3], f64, Exit)> {
         // The ring launches at the origin and lays the beam's footprint on
         // each splat instead.
-        let (x0, y0) = if self.ring.is_some() { (0.0, 0.0) } else { self.entry_point(rng) };
+        let (x0, y0) = if let Strategy::Ring(_) = self.strategy { (0.0, 0.0) } else { self.entry_point(rng) };
         if !self.rough {
             return Some(([x0, y0, 0.0], self.entry_dir, self.entry_weight, self.smooth_exit));
         }
         let top = &self.setup.slab.top;
         let u = [0.0, rng.next_f64(), rng.next_f64()];
-        let s = top.sample(self.launch, self.n, Lobe::Transmit, u, Transport::Importance)?;
+        let s = top.sample(DVec3::from_array(self.launch), self.n, Lobe::Transmit, u, Transport::Importance)?;
         // The radiance leaving along ω_o comes from −ω_i of this sample: the
         // light leaves the slab travelling along `up` = −ω_i.
         let u = [0.0, rng.next_f64(), rng.next_f64()];
-        let exit = match top.sample(self.omega_o, self.n, Lobe::Transmit, u, Transport::Radiance) {
-            Some(e) => Exit::new(e.wi.map(|c| -c), e.weight, self.area),
+        let exit = match top.sample(DVec3::from_array(self.omega_o), self.n, Lobe::Transmit, u, Transport::Radiance) {
+            Some(e) => Exit::new((-e.wi).to_array(), e.weight, self.area),
             None => Exit::LOST,
         };
-        Some(([x0, y0, 0.0], s.wi, s.weight, exit))
+        Some(([x0, y0, 0.0], s.wi.to_array(), s.weight, exit))
     }
 
     /// Traces one path, adding to `image`; returns (path total, events,
@@ -1293,7 +919,7 @@ impl<'a> Kernel<'a> {
                 if self.rough
                     && events == 0
                     && dz > 0.0
-                    && matches!(self.estimator, Estimator::Connection | Estimator::Lobe { .. })
+                    && matches!(self.strategy, Strategy::Connection | Strategy::Lobe { .. })
                 {
                     total += self.connect_unscattered(p, dir, gap, w, image);
                 }
@@ -1304,12 +930,12 @@ impl<'a> Kernel<'a> {
                     }
                     Crossing::Lost => return (total, events, 0.0, 0.0),
                     Crossing::LeftTop(out) => {
-                        if let Estimator::BruteForce { .. } = self.estimator {
+                        if let Strategy::BruteForce { cone_cos, cone_norm, .. } = self.strategy {
                             let c = out[0] * self.omega_o[0] + out[1] * self.omega_o[1] + out[2] * self.omega_o[2];
-                            if c >= self.cone_cos
+                            if c >= cone_cos
                                 && let Some(i) = sensor.index(p[0], p[1])
                             {
-                                let v = w * self.cone_norm / out[2];
+                                let v = w * cone_norm / out[2];
                                 image[i] += v;
                                 total += v;
                             }
@@ -1322,17 +948,15 @@ impl<'a> Kernel<'a> {
             p = [p[0] + s * dir[0], p[1] + s * dir[1], p[2] + s * dir[2]];
             events += 1;
             w *= self.albedo;
-            match &self.ring {
-                Some(ring) => total += self.connect_ring(ring, p, dir, w, image, rng),
-                None => match self.estimator {
-                    Estimator::Connection => total += self.connect(p, dir, w, exit, image, rng),
-                    Estimator::Lobe { .. } => {
-                        junctions.arrive();
-                        total += self.connect_lobe(p, dir, w, &exit, &junctions, chain, image, rng);
-                        junctions.scatter(phase.eval(angles.cos_theta));
-                    }
-                    _ => {}
-                },
+            match &self.strategy {
+                Strategy::Ring(ring) => total += self.connect_ring(ring, p, dir, w, image, rng),
+                Strategy::Connection => total += self.connect(p, dir, w, exit, image, rng),
+                Strategy::Lobe { .. } => {
+                    junctions.arrive();
+                    total += self.connect_lobe(p, dir, w, &exit, &junctions, chain, image, rng);
+                    junctions.scatter(phase.eval(angles.cos_theta));
+                }
+                Strategy::BruteForce { .. } => {}
             }
             dir = angles.turn(dir);
             if w < 0.1 && !survives_roulette(&mut w, rng) {
@@ -1343,7 +967,7 @@ impl<'a> Kernel<'a> {
 
     /// Moves a photon at `p` travelling along `dir` with weight `w` to the
     /// boundary `gap` ahead (vertically) and samples it there
-    /// ([`Boundary::sample`], the Fresnel choice): reflected (new direction
+    /// ([`Interface::sample`], the Fresnel choice): reflected (new direction
     /// and weight), transmitted out of the top (with the direction in air)
     /// or bottom, or lost at a rough top.
     #[inline]
@@ -1352,21 +976,22 @@ impl<'a> Kernel<'a> {
         let up = dir[2] > 0.0;
         *p = [p[0] + t_boundary * dir[0], p[1] + t_boundary * dir[1], if up { 0.0 } else { -self.d }];
         // The top surface is the slab's boundary; the bottom one is smooth.
-        let boundary = if up { &self.setup.slab.top } else { &Boundary::Smooth };
+        // n_below/n_above: the medium is below the top and above the bottom.
+        let (boundary, eta) = if up { (&self.setup.slab.top, self.n) } else { (&Interface::Smooth, 1.0 / self.n) };
         let mut u = [rng.next_f64(), 0.0, 0.0];
         if boundary.numbers() == 3 {
             (u[1], u[2]) = rng.next_f64_pair();
         }
-        let wo = [-dir[0], -dir[1], -dir[2]];
-        let Some(s) = boundary.sample(wo, 1.0 / self.n, Lobe::Fresnel, u, Transport::Importance) else {
+        let wo = DVec3::new(-dir[0], -dir[1], -dir[2]);
+        let Some(s) = boundary.sample(wo, eta, Lobe::Fresnel, u, Transport::Importance) else {
             return Crossing::Lost;
         };
         *w *= s.weight;
         if !s.transmitted {
-            *dir = s.wi;
+            *dir = s.wi.to_array();
             Crossing::Reflected
         } else if up {
-            Crossing::LeftTop(s.wi)
+            Crossing::LeftTop(s.wi.to_array())
         } else {
             Crossing::LeftBottom
         }
@@ -1530,12 +1155,14 @@ impl<'a> Kernel<'a> {
             // Before `down`: a reflection at the rough top, sampled backwards
             // (radiance leaving along `down`).
             let (u1, u2) = rng.next_f64_pair();
-            let Some(r) = top.sample(down, 1.0 / self.n, Lobe::Reflect, [0.0, u1, u2], Transport::Radiance) else {
+            let Some(r) =
+                top.sample(DVec3::from_array(down), self.n, Lobe::Reflect, [0.0, u1, u2], Transport::Radiance)
+            else {
                 break;
             };
             (sx, sy, len) = (sx + full * up[0], sy + full * up[1], len + full);
             c *= r.weight;
-            up = r.wi.map(|c| -c);
+            up = (-r.wi).to_array();
         }
         total
     }
@@ -1552,226 +1179,11 @@ impl<'a> Kernel<'a> {
         let Some(i) = self.setup.sensor.index(p[0] + t * dir[0], p[1] + t * dir[1]) else {
             return 0.0;
         };
-        let f = self.setup.slab.top.eval(self.omega_o, [-dir[0], -dir[1], -dir[2]], self.n, Transport::Radiance);
+        let (wo, wi) = (DVec3::from_array(self.omega_o), DVec3::new(-dir[0], -dir[1], -dir[2]));
+        let f = self.setup.slab.top.eval(wo, wi, self.n, Transport::Radiance);
         let v = w * f / self.area;
         image[i] += v;
         v
-    }
-
-    /// The ring connection of a scattering event at `p` (photon launched at
-    /// the origin; incoming direction `dir`, weight `w` after albedo): an
-    /// exit azimuth drawn by the ring's sampler, the splat rotated to the
-    /// wanted azimuth and shifted by a point of the beam's footprint (see
-    /// the module doc). Thick slabs only (no image terms). Returns the value
-    /// added.
-    #[inline]
-    fn connect_ring(&self, ring: &Ring, p: [f64; 3], dir: [f64; 3], w: f64, image: &mut [f64], rng: &mut Rng) -> f64 {
-        let l = -p[2] * self.inv_cos_t;
-        let tau = self.mu_t * l;
-        if tau > 40.0 {
-            return 0.0;
-        }
-        let e = if tau > self.roulette_depth { (self.roulette_depth - tau).exp() } else { (-tau).exp() };
-        let transmittance = self.connection_transmittance(tau, e, rng);
-        if transmittance == 0.0 {
-            return 0.0;
-        }
-        let c_s = dir[2];
-        let h = (dir[0] * dir[0] + dir[1] * dir[1]).sqrt();
-        let (hx, hy) = if h > 1e-300 { (dir[0] / h, dir[1] / h) } else { (1.0, 0.0) };
-        let (tx, ty) = ring.target;
-        let base = w * transmittance * self.splat / (PI * RING_SPLATS as f64);
-        let u0 = rng.next_f64();
-        // One random bit per splat for the sign of ψ.
-        let mut signs = rng.next_u64();
-        let mut total = 0.0;
-        let (bx, by) = self.footprint.sample(rng);
-        for k in 0..RING_SPLATS {
-            // Stratified in the sampler's CDF: u_k = (k + u0)/K.
-            let (psi, density) = ring.sample_psi(c_s, (k as f64 + u0) * (1.0 / RING_SPLATS as f64));
-            let (mut sin_psi, cos_psi) = crate::phase::sin_cos_turns(psi * (0.5 / PI));
-            if signs & 1 == 1 {
-                sin_psi = -sin_psi;
-            }
-            signs >>= 1;
-            // Exit azimuth: the photon's own azimuth turned by ±ψ.
-            let (ex, ey) = (hx * cos_psi - hy * sin_psi, hx * sin_psi + hy * cos_psi);
-            let cos_gamma = c_s * ring.cos_t + h * ring.sin_t * cos_psi;
-            // f/(2π pdf_φ) with pdf_φ = density/2 over the full turn.
-            let v = base * self.setup.slab.medium.phase.eval(cos_gamma) / density;
-            // The exit point, rotated about the launch point from the drawn
-            // azimuth to the wanted one, then moved by a footprint point.
-            let (dx, dy) = (p[0] + l * ring.sin_t * ex, p[1] + l * ring.sin_t * ey);
-            let (c, s) = (tx * ex + ty * ey, ex * ty - ey * tx);
-            let (rx, ry) = (c * dx - s * dy, s * dx + c * dy);
-            if let Some(i) = self.setup.sensor.index(bx + ring.sign * rx, by + ring.sign * ry) {
-                image[i] += v;
-                total += v;
-            }
-        }
-        total
-    }
-
-    /// The lobe connection of a scattering event at `p` (incoming direction
-    /// `dir`, weight `w` after albedo; `junctions` the walk's MIS history)
-    /// with m = `lobe_vertices` camera-side vertices (module doc, "Lobe
-    /// connection"): strategy 0, the connection along ω₂₁ from `p`, and
-    /// strategies j = 1 … m from `chain`, directions drawn backwards from ω₂₁
-    /// by the phase function (ω^c_j from p(·ω^c_{j−1}), ω^c_0 = ω₂₁) and
-    /// distances from μ_t e^{−μ_t t}: the path `p` → p + t_j ω^c_j → … →
-    /// p + Σ_{i ≤ j} t_i ω^c_i, connected along ω₂₁. The chain is redrawn
-    /// every `lobe_reuse` events of the path ([`Chain`]). Every sample is
-    /// worth w (μ_s/μ_t)^j e^{−μ_t ℓ} C / S with S the sum of 1/p over the
-    /// junctions of the full path that the strategies can produce (the
-    /// balance heuristic). ω₂₁, 1/cos θ₂₁ and C are the path's `exit`
-    /// (fixed for a smooth top, drawn at launch through a rough one; a lost
-    /// exit adds nothing). Thick slabs only. Returns the value added.
-    #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn connect_lobe(
-        &self,
-        p: [f64; 3],
-        dir: [f64; 3],
-        w: f64,
-        exit: &Exit,
-        junctions: &Junctions,
-        chain: &mut Chain,
-        image: &mut [f64],
-        rng: &mut Rng,
-    ) -> f64 {
-        match self.lobe_event(p, dir, w, exit, junctions, chain, image, rng) {
-            Ok(ev) => ev.total + self.lobe_links(&ev, p, dir, chain, image),
-            Err(total) => total,
-        }
-    }
-
-    /// [`connect_lobe`](Self::connect_lobe) up to the chain's links:
-    /// strategy 0 (added to `image`), the chain's turn, its distances, the
-    /// skip and the roulette, its directions. `Err(total)` when no link can
-    /// contribute (total: strategy 0's value).
-    #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn lobe_event(
-        &self,
-        p: [f64; 3],
-        dir: [f64; 3],
-        w: f64,
-        exit: &Exit,
-        junctions: &Junctions,
-        chain: &mut Chain,
-        image: &mut [f64],
-        rng: &mut Rng,
-    ) -> Result<LobeEvent, f64> {
-        // A lost exit sample (rough top, W = 0): no connection of the path.
-        if exit.splat == 0.0 {
-            return Err(0.0);
-        }
-        let m = self.lobe_vertices;
-        let phase = &self.setup.slab.medium.phase;
-        let sensor = &self.setup.sensor;
-        let (w21, inv_cos) = (exit.up, exit.inv_cos);
-        let mut total = 0.0;
-        let depth = -p[2];
-        chain.tick(self.lobe_reuse);
-        // Σ 1/p over the walk's last l junctions, l = 0 … min(m, run)
-        // (filled only for an event that can contribute).
-        let light = junctions.run.min(m);
-        let mut prefix = [0.0; MAX_LOBE_VERTICES + 1];
-        let fill = |prefix: &mut [f64; MAX_LOBE_VERTICES + 1]| {
-            for l in 0..light {
-                prefix[l + 1] = prefix[l] + junctions.inv[l];
-            }
-        };
-        // Strategy 0: the connection from this event.
-        let l = depth * inv_cos;
-        let tau = self.mu_t * l;
-        let filled = tau <= 40.0;
-        if filled {
-            fill(&mut prefix);
-            if let Some(i) = sensor.index(p[0] + l * w21[0], p[1] + l * w21[1]) {
-                let e = if tau > self.roulette_depth { (self.roulette_depth - tau).exp() } else { (-tau).exp() };
-                let transmittance = self.connection_transmittance(tau, e, rng);
-                if transmittance > 0.0 {
-                    let c = dir[0] * w21[0] + dir[1] * w21[1] + dir[2] * w21[2];
-                    let v = w * transmittance * exit.splat / (1.0 / phase.eval(c) + prefix[light]);
-                    image[i] += v;
-                    total += v;
-                }
-            }
-        }
-        if m == 0 {
-            return Err(total);
-        }
-        // Strategies 1 … m. The distances first: the chain's end lies at
-        // least |z| − Σ t deep (|ω_z| ≤ 1), a lower bound of its optical
-        // depth along ω₂₁ that decides the skip and the roulette before any
-        // direction is drawn.
-        if !chain.has_distances {
-            chain.draw_distances(m, self.inv_mu_t, rng);
-        }
-        // τ_u = μ_t (|z| − Σ t)/cos θ_t; every exit depth's optical depth is
-        // τ_u + s_j, s_j ≥ 0 the chain's own part.
-        let tau_u = self.mu_t * (depth - chain.rise) * inv_cos;
-        if tau_u > 40.0 {
-            return Err(total);
-        }
-        // e^{−τ_u} (after the roulette: e^{−τ_r}); far above the lower bound
-        // (τ_u < −600, a chain rising far above the event) e^{−τ_u} could
-        // overflow and each term takes its own exponential instead.
-        let direct = tau_u < -600.0;
-        let e = if tau_u > self.roulette_depth {
-            if rng.next_f64() >= (self.roulette_depth - tau_u).exp() {
-                return Err(total);
-            }
-            self.roulette_transmittance
-        } else if direct {
-            0.0
-        } else {
-            (-tau_u).exp()
-        };
-        if !chain.has_directions {
-            chain.draw_directions(m, phase, w21, self.albedo, self.mu_t * inv_cos, rng);
-        }
-        if !filled {
-            fill(&mut prefix);
-        }
-        Ok(LobeEvent { w21, inv_cos, tau_u, direct, e, weight: w * exit.splat, prefix, light, total })
-    }
-
-    /// The terms of strategies 1 … m of one event from its chain
-    /// ([`lobe_event`](Self::lobe_event)), one link at a time; returns the
-    /// value added. (The lane kernel runs the same arithmetic four links at
-    /// a time.)
-    #[inline]
-    fn lobe_links(&self, ev: &LobeEvent, p: [f64; 3], dir: [f64; 3], chain: &Chain, image: &mut [f64]) -> f64 {
-        let m = self.lobe_vertices;
-        let phase = &self.setup.slab.medium.phase;
-        let sensor = &self.setup.sensor;
-        let w21 = ev.w21;
-        let depth = -p[2];
-        let floor = depth - self.d;
-        let mut total = 0.0;
-        for j in 0..m {
-            // Every vertex of strategy j + 1 inside the slab.
-            if !(chain.hi.0[j] < depth && chain.lo.0[j] > floor) {
-                continue;
-            }
-            let tau = ev.tau_u + chain.s_tau.0[j];
-            if tau > 40.0 {
-                continue;
-            }
-            let l = (depth - chain.dz.0[j]) * ev.inv_cos;
-            let Some(i) = sensor.index(p[0] + chain.x.0[j] + l * w21[0], p[1] + chain.y.0[j] + l * w21[1]) else {
-                continue;
-            };
-            let c = dir[0] * chain.cx.0[j] + dir[1] * chain.cy.0[j] + dir[2] * chain.cz.0[j];
-            let s = chain.q.0[j] + 1.0 / phase.eval(c) + ev.prefix[ev.light.min(m - j - 1)];
-            let attenuation = if ev.direct { chain.albedo.0[j] * (-tau).exp() } else { ev.e * chain.atten.0[j] };
-            let v = ev.weight * attenuation / s;
-            image[i] += v;
-            total += v;
-        }
-        total
     }
 
     #[inline]
@@ -1830,123 +1242,13 @@ impl<'a> Kernel<'a> {
 
 #[cfg(target_arch = "x86_64")]
 mod lanes;
+mod lobe;
+mod ring;
 
-/// The ring connection's geometry and its sampler of exit azimuths.
-///
-/// For a photon travelling along ω_s (z component c_s) the connection
-/// directions of polar angle θ_t form a ring; ψ is the azimuth of a ring
-/// direction relative to the photon's own, and the phase function there is
-/// p(c_s cos θ_t + √(1 − c_s²) sin θ_t cos ψ). The sampler is a table over
-/// c_s (256 rows) of piecewise-constant densities in ψ ∈ [0, π] (128 bins),
-/// each bin's value the largest of p at 3 × 3 points of the (c_s, ψ) cell,
-/// floored at 10⁻³ of the row mean so no bin is empty. Any such density
-/// keeps the estimator unbiased (the splat divides by the density actually
-/// used); its closeness to p only sets the variance.
-struct Ring {
-    /// +1: photons launched from the light (θ_i = 0); −1: from the camera
-    /// (θ_o = 0), the splat point reflected through the origin.
-    sign: f64,
-    /// Horizontal unit vector of the wanted exit direction (the ω₂₁ of the
-    /// launch's exit side).
-    target: (f64, f64),
-    cos_t: f64,
-    sin_t: f64,
-    /// Per row, the density per radian of each bin, and the CDF at the bin
-    /// ends (`BINS + 1` values from 0 to 1).
-    density: Vec<f64>,
-    cdf: Vec<f64>,
-}
-
-impl Ring {
-    const ROWS: usize = 256;
-    const BINS: usize = 128;
-
-    /// Whether the ring connection is exact for `setup`: exactly one of
-    /// θ_i, θ_o is 0 (the launch at normal incidence is symmetric about the
-    /// normal; when both are 0 the ring is a point and brings nothing) and
-    /// the slab is thick along the other (no image terms).
-    fn applies(setup: &Setup) -> bool {
-        // A rough top's exit directions have no fixed polar angle.
-        if setup.slab.top.is_rough() {
-            return false;
-        }
-        let d = &setup.directions;
-        let other = if d.theta_i_deg == 0.0 {
-            d.theta_o_deg
-        } else if d.theta_o_deg == 0.0 {
-            d.theta_i_deg
-        } else {
-            return false;
-        };
-        if other == 0.0 {
-            return false;
-        }
-        let m = &setup.slab.medium;
-        let sin_t = other.to_radians().sin() / m.n;
-        let cos_t = (1.0 - sin_t * sin_t).sqrt();
-        m.mu_t_per_m() * setup.slab.thickness_m / cos_t >= 40.0
-    }
-
-    fn new(phase: &Phase, cos_t: f64, sign: f64, target: (f64, f64)) -> Self {
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let (rows, bins) = (Self::ROWS, Self::BINS);
-        let d_psi = PI / bins as f64;
-        let mut density = Vec::with_capacity(rows * bins);
-        let mut cdf = Vec::with_capacity(rows * (bins + 1));
-        for r in 0..rows {
-            let c_lo = -1.0 + 2.0 * r as f64 / rows as f64;
-            let c_hi = -1.0 + 2.0 * (r + 1) as f64 / rows as f64;
-            let row: Vec<f64> = (0..bins)
-                .map(|b| {
-                    let mut best: f64 = 0.0;
-                    for c in [c_lo, 0.5 * (c_lo + c_hi), c_hi] {
-                        let sc = (1.0 - c * c).max(0.0).sqrt();
-                        for k in 0..3 {
-                            let psi = (b as f64 + 0.5 * k as f64) * d_psi;
-                            best = best.max(phase.eval(c * cos_t + sc * sin_t * psi.cos()));
-                        }
-                    }
-                    best
-                })
-                .collect();
-            let floor = 1e-3 * row.iter().sum::<f64>() / bins as f64;
-            let row: Vec<f64> = row.into_iter().map(|v| v.max(floor).max(1e-300)).collect();
-            let total: f64 = row.iter().sum::<f64>() * d_psi;
-            let mut acc = 0.0;
-            cdf.push(0.0);
-            for v in row {
-                density.push(v / total);
-                acc += v / total * d_psi;
-                cdf.push(acc);
-            }
-            *cdf.last_mut().expect("a row has bins") = 1.0;
-        }
-        Self { sign, target, cos_t, sin_t, density, cdf }
-    }
-
-    /// ψ ∈ [0, π] drawn from the row of `c_s` with `u` ∈ [0, 1), and its
-    /// density per radian.
-    #[inline]
-    fn sample_psi(&self, c_s: f64, u: f64) -> (f64, f64) {
-        let (rows, bins) = (Self::ROWS, Self::BINS);
-        let r = (((c_s + 1.0) * 0.5 * rows as f64) as usize).min(rows - 1);
-        let cdf = &self.cdf[r * (bins + 1)..(r + 1) * (bins + 1)];
-        let b = (cdf.partition_point(|c| *c <= u).max(1) - 1).min(bins - 1);
-        let width = cdf[b + 1] - cdf[b];
-        let f = if width > 0.0 { ((u - cdf[b]) / width).clamp(0.0, 1.0) } else { 0.5 };
-        ((b as f64 + f) * PI / bins as f64, self.density[r * bins + b])
-    }
-
-    /// The density of [`sample_psi`](Self::sample_psi) at ψ for `c_s` (for
-    /// tests).
-    #[cfg(test)]
-    fn density_at(&self, c_s: f64, psi: f64) -> f64 {
-        let (rows, bins) = (Self::ROWS, Self::BINS);
-        let r = (((c_s + 1.0) * 0.5 * rows as f64) as usize).min(rows - 1);
-        let b = ((psi / PI * bins as f64) as usize).min(bins - 1);
-        self.density[r * bins + b]
-    }
-}
+use lobe::{Chain, Junctions};
+#[cfg(target_arch = "x86_64")]
+use lobe::{Links, LobeEvent};
+use ring::Ring;
 
 /// A path's exit direction: the light leaves the slab travelling along
 /// `up` = ω₂₁ with the radiance weight W of the exit, (1 − F) G1 / n² for a
@@ -1990,18 +1292,24 @@ enum Crossing {
 /// directional albedo of its reflection lobe, not part of the slice): the
 /// mean of the reflection weight F G1 over 64 × 64 stratified visible
 /// normals (deterministic).
-fn rough_specular(top: &Boundary, omega_i: [f64; 3], n: f64) -> f64 {
+fn rough_specular(top: &Interface, omega_i: [f64; 3], n: f64) -> f64 {
     const K: usize = 64;
     let mut sum = 0.0;
     for a in 0..K {
         for b in 0..K {
             let u = [0.0, (a as f64 + 0.5) / K as f64, (b as f64 + 0.5) / K as f64];
-            if let Some(s) = top.sample(omega_i, n, Lobe::Reflect, u, Transport::Importance) {
+            if let Some(s) = top.sample(DVec3::from_array(omega_i), n, Lobe::Reflect, u, Transport::Importance) {
                 sum += s.weight;
             }
         }
     }
     sum / (K * K) as f64
+}
+
+/// Refraction of the direction of travel `d` from air into the medium of
+/// index `n` ≥ 1 through the plane z = 0 (never total internal reflection).
+fn refract_z(d: [f64; 3], n: f64) -> [f64; 3] {
+    fresnel::refract(DVec3::from_array(d), DVec3::Z, n).expect("air → denser medium always refracts").to_array()
 }
 
 /// Russian roulette on a path's weight `w` < 0.1: survives with probability
@@ -2050,188 +1358,6 @@ pub const LOBE_VERTICES: usize = 16;
 
 /// The most camera-side vertices [`Estimator::Lobe`] accepts.
 pub const MAX_LOBE_VERTICES: usize = 32;
-
-/// The light walk's side of the lobe connection's MIS weights: the
-/// reciprocals 1/p(cos θ_s) of the phase function at its last scattering
-/// angles (newest first) and the number of trailing flights that went
-/// straight from one scattering event to the next (no boundary between).
-#[derive(Debug, Clone, Copy)]
-struct Junctions {
-    inv: [f64; MAX_LOBE_VERTICES],
-    run: usize,
-    /// Whether the current flight started at a scattering event.
-    from_scatter: bool,
-}
-
-impl Junctions {
-    fn new() -> Self {
-        Self { inv: [0.0; MAX_LOBE_VERTICES], run: 0, from_scatter: false }
-    }
-
-    /// The photon reached a scattering event.
-    #[inline]
-    fn arrive(&mut self) {
-        self.run = if self.from_scatter { self.run + 1 } else { 0 };
-    }
-
-    /// The photon scattered with phase function value `p`.
-    #[inline]
-    fn scatter(&mut self, p: f64) {
-        self.inv.copy_within(0..MAX_LOBE_VERTICES - 1, 1);
-        self.inv[0] = 1.0 / p;
-        self.from_scatter = true;
-    }
-}
-
-/// Per-link figures of a [`Chain`], aligned for the lane kernel's
-/// four-link loads.
-#[derive(Debug, Clone, Copy)]
-#[repr(C, align(32))]
-struct Links([f64; MAX_LOBE_VERTICES]);
-
-/// What the links of one event's lobe connection share
-/// (`Kernel::lobe_event`).
-struct LobeEvent {
-    /// The path's ω₂₁ and 1/cos θ₂₁ ([`Exit`]).
-    w21: [f64; 3],
-    inv_cos: f64,
-    /// τ_u = μ_t (|z| − Σ t)/cos θ₂₁.
-    tau_u: f64,
-    /// Whether every term takes its own exponential (τ_u < −600).
-    direct: bool,
-    /// e^{−τ_u}, or e^{−τ_r} after the roulette (unused when `direct`).
-    e: f64,
-    /// w C, C the path's splat constant ([`Exit::splat`]).
-    weight: f64,
-    /// Σ 1/p over the walk's last l junctions, l = 0 … `light`.
-    prefix: [f64; MAX_LOBE_VERTICES + 1],
-    light: usize,
-    /// Strategy 0's value (already in the image).
-    total: f64,
-}
-
-/// One chain of the lobe connection (module doc, "Lobe connection" and
-/// "Chain reuse"): m distances t_j and directions ω^c_j drawn backwards
-/// from ω₂₁, and per link j (strategy j + 1) what its terms need from the
-/// chain alone. Drawn in two steps (the distances decide the roulette) and
-/// only when an event uses it; redrawn on a schedule of the path's events
-/// that does not look at the chain.
-#[derive(Debug, Clone)]
-struct Chain {
-    /// Events of the path left in the current chain's turn.
-    left: usize,
-    has_distances: bool,
-    has_directions: bool,
-    t: [f64; MAX_LOBE_VERTICES],
-    /// Σ t_j.
-    rise: f64,
-    /// ω^c_{j+1}.
-    cx: Links,
-    cy: Links,
-    cz: Links,
-    /// D_{j+1} = Σ_{i ≤ j+1} t_i ω^c_i: its x, y and z.
-    x: Links,
-    y: Links,
-    dz: Links,
-    /// The vertices of strategy j + 1 lie at depths |z| − (D_{j+1} − D_l)_z,
-    /// l = 0 … j: inside the slab iff `hi` < |z| and `lo` > |z| − d.
-    hi: Links,
-    lo: Links,
-    /// μ_t (Σ t − D_{j+1,z}) / cos θ_t ≥ 0: the exit's optical depth less τ_u.
-    s_tau: Links,
-    /// (μ_s/μ_t)^{j+1}, and times e^{−s_tau}.
-    albedo: Links,
-    atten: Links,
-    /// Σ_{i ≤ j+1} 1/p at the chain's sampled junctions.
-    q: Links,
-}
-
-impl Chain {
-    fn new() -> Self {
-        let z = Links([0.0; MAX_LOBE_VERTICES]);
-        Self {
-            left: 0,
-            has_distances: false,
-            has_directions: false,
-            t: [0.0; MAX_LOBE_VERTICES],
-            rise: 0.0,
-            cx: z,
-            cy: z,
-            cz: z,
-            x: z,
-            y: z,
-            dz: z,
-            hi: z,
-            lo: z,
-            s_tau: z,
-            albedo: z,
-            atten: z,
-            q: z,
-        }
-    }
-
-    /// A new path: the next event draws a new chain.
-    #[inline]
-    fn restart(&mut self) {
-        self.left = 0;
-    }
-
-    /// An event of the path: every `reuse` events (the first one included)
-    /// the chain is due to be redrawn (drawn when first used).
-    #[inline]
-    fn tick(&mut self, reuse: usize) {
-        if self.left == 0 {
-            self.has_distances = false;
-            self.has_directions = false;
-            self.left = reuse;
-        }
-        self.left -= 1;
-    }
-
-    /// The m distances from μ_t e^{−μ_t t}, one number each.
-    #[inline]
-    fn draw_distances(&mut self, m: usize, inv_mu_t: f64, rng: &mut Rng) {
-        let mut rise = 0.0;
-        for ti in self.t.iter_mut().take(m) {
-            *ti = -(1.0 - rng.next_f64()).ln() * inv_mu_t;
-            rise += *ti;
-        }
-        self.rise = rise;
-        self.has_distances = true;
-    }
-
-    /// The m directions (two numbers each) and the per-link figures;
-    /// `tau_per_m` = μ_t / cos θ_t.
-    #[inline]
-    fn draw_directions(&mut self, m: usize, phase: &Phase, w21: [f64; 3], albedo: f64, tau_per_m: f64, rng: &mut Rng) {
-        let mut c = w21;
-        let (mut x, mut y, mut dz) = (0.0, 0.0, 0.0);
-        let (mut d_min, mut d_max) = (0.0f64, 0.0f64);
-        let (mut q, mut a) = (0.0, 1.0);
-        for j in 0..m {
-            let (u1, u2) = rng.next_f64_pair();
-            let angles = phase.sample_angles(u1, u2);
-            q += 1.0 / phase.eval(angles.cos_theta);
-            c = angles.turn(c);
-            let t = self.t[j];
-            x += t * c[0];
-            y += t * c[1];
-            dz += t * c[2];
-            a *= albedo;
-            let s_tau = tau_per_m * (self.rise - dz);
-            (self.cx.0[j], self.cy.0[j], self.cz.0[j]) = (c[0], c[1], c[2]);
-            (self.x.0[j], self.y.0[j], self.dz.0[j]) = (x, y, dz);
-            (self.hi.0[j], self.lo.0[j]) = (dz - d_min, dz - d_max);
-            d_min = d_min.min(dz);
-            d_max = d_max.max(dz);
-            self.s_tau.0[j] = s_tau;
-            self.albedo.0[j] = a;
-            self.atten.0[j] = a * (-s_tau).exp();
-            self.q.0[j] = q;
-        }
-        self.has_directions = true;
-    }
-}
 
 /// Events of a path that share one chain of the lobe connection (module
 /// doc, "Chain reuse"); `usize::MAX`: one chain for the whole path.
@@ -2403,9 +1529,9 @@ impl SliceSums {
             wall_s: 0.0,
             specular_reflectance: kernel.specular,
             kernel: kernel.name(),
-            estimator: kernel.estimator,
+            estimator: kernel.strategy.estimator(),
             folded: fold,
-            reciprocal: kernel.ring.as_ref().is_some_and(|r| r.sign < 0.0),
+            reciprocal: matches!(&kernel.strategy, Strategy::Ring(r) if r.sign < 0.0),
         }
     }
 
@@ -2563,6 +1689,8 @@ fn pixel_estimates(raw: &[f64], sum_b: &[f64], sq_b: &[f64], paths: u64, batches
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::microfacet::{Distribution, Microsurface};
+    use crate::phase::Phase;
 
     /// Mean and standard error of the per-path totals of `paths` paths.
     fn slice_sum(kernel: &Kernel, seed: u64, paths: u64) -> (f64, f64) {
@@ -2664,7 +1792,7 @@ mod tests {
         for (name, surface, d) in rough_cases {
             let medium = Medium::new(4000.0, 10.0, hg(0.7), 1.5).expect("valid medium");
             let setup = Setup::new(
-                Slab::new(d, medium).expect("valid slab").with_top(Boundary::rough(surface).expect("valid α")),
+                Slab::new(d, medium).expect("valid slab").with_top(Interface::new(surface).expect("valid α")),
                 Beam::gaussian(200e-6).expect("valid beam"),
                 Sensor::new(63, 0.1e-3).expect("valid sensor"),
                 Directions::from_degrees(45.0, 0.0, 0.0, 180.0).expect("valid directions"),
@@ -2687,7 +1815,7 @@ mod tests {
                 Directions::from_degrees(theta_i, 0.0, theta_o, 180.0).expect("valid directions"),
             );
             let kernel = Kernel::new(&setup, Estimator::Ring).expect("valid kernel");
-            assert!(kernel.lanes && kernel.ring.is_some(), "{name}");
+            assert!(kernel.lanes && matches!(kernel.strategy, Strategy::Ring(_)), "{name}");
             compare_kernels(name, &kernel);
         }
         // The lobe connection (45°/15° and out of plane): HG and a table,
@@ -2716,8 +1844,8 @@ mod tests {
                 Directions::from_degrees(45.0, 0.0, theta_o, phi_o).expect("valid directions"),
             );
             let mut kernel = Kernel::new(&setup, Estimator::Lobe { vertices: m }).expect("valid kernel");
-            kernel.lobe_reuse = reuse;
-            assert!(kernel.lanes && kernel.lobe_vertices == m, "{name}");
+            kernel.strategy = Strategy::Lobe { vertices: m, reuse };
+            assert!(kernel.lanes, "{name}");
             compare_kernels(name, &kernel);
         }
         // The lobe connection through a rough top (thick): per-lane ω₂₁ and
@@ -2744,13 +1872,16 @@ mod tests {
             let setup = Setup::new(
                 Slab::new(6e-3, Medium::new(1.2e4, 10.0, phase, 1.5).expect("valid medium"))
                     .expect("valid slab")
-                    .with_top(Boundary::rough(surface).expect("valid α")),
+                    .with_top(Interface::new(surface).expect("valid α")),
                 Beam::gaussian(200e-6).expect("valid beam"),
                 Sensor::new(63, 0.1e-3).expect("valid sensor"),
                 Directions::from_degrees(45.0, 0.0, 15.0, 180.0).expect("valid directions"),
             );
             let kernel = Kernel::new(&setup, Estimator::Lobe { vertices: m }).expect("valid kernel");
-            assert!(kernel.lanes && kernel.rough && kernel.lobe_vertices == m, "{name}");
+            assert!(
+                kernel.lanes && kernel.rough && kernel.strategy.estimator() == Estimator::Lobe { vertices: m },
+                "{name}"
+            );
             compare_kernels(name, &kernel);
         }
     }

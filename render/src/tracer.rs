@@ -1,5 +1,5 @@
 //! The 3D digital twin: unidirectional volumetric path tracing of a
-//! translucent object on a checkerboard under an HDR environment (SPEC §4).
+//! translucent object on a checkerboard under an HDR environment (docs/method.md §5).
 //!
 //! # What is computed
 //!
@@ -11,18 +11,17 @@
 //!
 //! # Scene
 //!
-//! * One **object**: a closed triangle mesh ([`Accel`]) whose boundary is a
-//!   [`Boundary`] (smooth dielectric: unpolarised Fresnel and Snell,
+//! * One **object**: a closed triangle mesh ([`Accel`]) whose boundary is an
+//!   [`Interface`] (smooth dielectric: unpolarised Fresnel and Snell,
 //!   [`crate::fresnel`]; or rough: the microfacet BSDF of Walter et al. 2007
-//!   with an analytic or measured-normal microsurface, SPEC §2,
-//!   [`crate::microfacet`], sampled with its exact pdf and weight
-//!   f|cos|/pdf, radiance transport) around a homogeneous [`Medium`]: scattering
-//!   and absorption coefficients μ_s, μ_a [1/m], a phase function and the
-//!   index n per band.
+//!   with an analytic or measured-normal microsurface, docs/method.md §2,
+//!   [`crate::interface`], sampled with its weight f|cos|/pdf, radiance
+//!   transport) around a homogeneous [`Medium`] per band: scattering and
+//!   absorption coefficients μ_s, μ_a [1/m], a phase function and the index n.
 //! * A **checkerboard** ([`Board`]): a finite plane, Lambertian (two-sided),
 //!   reflectance per square from two RGB values or an image texture.
 //! * The **environment** ([`Environment`]): equirectangular radiance at
-//!   infinity or on the finite sphere of SPEC §4.
+//!   infinity or on the finite sphere of docs/method.md §5.
 //!
 //! # Estimator
 //!
@@ -33,7 +32,7 @@
 //! **Bands.** At its first contact with the object a path picks one band h
 //! uniformly (probability 1/3); h drives the sampling from then on (free
 //! flights with density μ_t,h e^{−μ_t,h s}, directions from h's phase
-//! function, h's index at the boundary). SPEC §4's estimator carries 3·β_h
+//! function, h's index at the boundary). The plain estimator of docs/method.md §5 carries 3·β_h
 //! in band h and 0 in the others ([`Settings::spectral_mis`] = false, and
 //! always when the index differs between bands: a refraction direction then
 //! belongs to one band only). When the index is the same in all bands the
@@ -135,8 +134,9 @@ use crate::accel::Accel;
 use crate::camera::Camera;
 use crate::env::Environment;
 use crate::fresnel;
-use crate::microfacet::{MicrofacetError, Microsurface, RoughDielectric, Transport};
-use crate::phase::Phase;
+use crate::interface::{Interface, Lobe, Transport};
+use crate::medium::{Medium, MediumError};
+use crate::microfacet::MicrofacetError;
 use crate::rng::Rng;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -148,10 +148,8 @@ use thiserror::Error;
 /// Why a scene could not be built.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum SceneError {
-    #[error("medium band {band}: μ_s = {sigma_s} and μ_a = {sigma_a} /m must be finite and ≥ 0 with μ_s + μ_a > 0")]
-    BadCoefficients { band: usize, sigma_s: f64, sigma_a: f64 },
-    #[error("boundary band {band}: the relative index n = {eta} must lie in [1, 10] (the slab simulator's range)")]
-    BadIndex { band: usize, eta: f64 },
+    #[error("medium band {band}: {source}")]
+    Medium { band: usize, source: MediumError },
     #[error("board: square size {square_m} m must be finite and > 0")]
     BoardSquare { square_m: f64 },
     #[error("board: the board needs at least one row and one column (got {columns} × {rows})")]
@@ -168,47 +166,18 @@ pub enum SceneError {
     BadSurface(#[from] MicrofacetError),
 }
 
-/// The object's boundary: the closed set of interface models.
-#[derive(Debug, Clone)]
-pub enum Boundary {
-    /// A smooth dielectric with index `eta` per band inside (air, n = 1, outside).
-    Smooth { eta: [f64; 3] },
-    /// A rough dielectric (Walter et al. 2007, [`crate::microfacet`]) with
-    /// index `eta` per band inside and the microsurface of SPEC §2 (an
-    /// analytic distribution with α, or measured normals).
-    Rough { eta: [f64; 3], surface: Microsurface },
-}
-
-impl Boundary {
-    fn eta(&self, band: usize) -> f64 {
-        match self {
-            Boundary::Smooth { eta } | Boundary::Rough { eta, .. } => eta[band],
-        }
-    }
-}
-
-/// A homogeneous medium, per band R, G, B.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Medium {
-    /// Scattering coefficient μ_s per band, 1/m.
-    pub sigma_s: [f64; 3],
-    /// Absorption coefficient μ_a per band, 1/m.
-    pub sigma_a: [f64; 3],
-    /// Phase function per band.
-    pub phase: [Phase; 3],
-}
-
-/// The object: a closed mesh, its boundary and its interior medium.
+/// The object: a closed mesh, its interface with the air around it and
+/// its interior medium per band R, G, B (each band's index
+/// [`Medium::n`] is the interface's index ratio in that band).
 #[derive(Debug, Clone)]
 pub struct Object {
     pub accel: Accel,
-    pub boundary: Boundary,
-    pub medium: Medium,
+    /// The boundary, in the frame whose +z is the outward normal (air
+    /// above, the medium below: η = n_c).
+    pub interface: Interface,
+    pub medium: [Medium; 3],
     /// Per-band constants derived once by [`Object::new`].
     bands: BandConstants,
-    /// For a rough boundary, its BSDF per band in the frame whose +z is the
-    /// outward normal (air above, the medium below).
-    rough: Option<Box<[RoughDielectric; 3]>>,
     /// The bands' mean index, for refraction directions under
     /// [`Dispersion::SharedDirections`].
     eta_mean: f64,
@@ -232,37 +201,30 @@ struct BandConstants {
 
 impl Object {
     /// Checks the coefficients and indices.
-    pub fn new(accel: Accel, boundary: Boundary, medium: Medium) -> Result<Self, SceneError> {
+    pub fn new(accel: Accel, interface: Interface, medium: [Medium; 3]) -> Result<Self, SceneError> {
         if accel.is_empty() {
             return Err(SceneError::EmptyObject);
         }
-        for b in 0..3 {
-            let (s, a) = (medium.sigma_s[b], medium.sigma_a[b]);
-            if !(s.is_finite() && a.is_finite() && s >= 0.0 && a >= 0.0 && s + a > 0.0) {
-                return Err(SceneError::BadCoefficients { band: b, sigma_s: s, sigma_a: a });
-            }
-            let eta = boundary.eta(b);
-            if !fresnel::valid_index(eta) {
-                return Err(SceneError::BadIndex { band: b, eta });
-            }
+        for (band, m) in medium.iter().enumerate() {
+            m.validate().map_err(|source| SceneError::Medium { band, source })?;
         }
-        let sigma_t: [f64; 3] = std::array::from_fn(|b| medium.sigma_s[b] + medium.sigma_a[b]);
+        let sigma_t: [f64; 3] = std::array::from_fn(|b| medium[b].mu_t_per_m());
+        let eta: [f64; 3] = std::array::from_fn(|b| medium[b].n);
         let bands = BandConstants {
             sigma_t,
             sigma_t_min: sigma_t[0].min(sigma_t[1]).min(sigma_t[2]),
             same_sigma_t: sigma_t[1] == sigma_t[0] && sigma_t[2] == sigma_t[0],
-            same_phase: medium.phase[1] == medium.phase[0] && medium.phase[2] == medium.phase[0],
-            achromatic: boundary.eta(1) == boundary.eta(0) && boundary.eta(2) == boundary.eta(0),
+            same_phase: medium[1].phase == medium[0].phase && medium[2].phase == medium[0].phase,
+            achromatic: eta[1] == eta[0] && eta[2] == eta[0],
         };
-        let rough = match &boundary {
-            Boundary::Smooth { .. } => None,
-            Boundary::Rough { eta, surface } => {
-                let [a, b, c] = eta.map(|e| RoughDielectric::new(e, surface.clone()));
-                Some(Box::new([a?, b?, c?]))
-            }
-        };
-        let eta_mean = (boundary.eta(0) + boundary.eta(1) + boundary.eta(2)) / 3.0;
-        Ok(Self { accel, boundary, medium, bands, rough, eta_mean })
+        let eta_mean = (eta[0] + eta[1] + eta[2]) / 3.0;
+        Ok(Self { accel, interface, medium, bands, eta_mean })
+    }
+
+    /// The interface's index ratio (the medium's index) in band `band`.
+    #[inline]
+    fn eta(&self, band: usize) -> f64 {
+        self.medium[band].n
     }
 }
 
@@ -420,7 +382,7 @@ pub struct Settings {
     pub max_events_per_path: u64,
     /// Carry all three bands along one path inside the medium, combined by
     /// multiple importance sampling over the band that drives the sampling
-    /// (see the module documentation). `false` gives SPEC §4's plain
+    /// (see the module documentation). `false` gives docs/method.md §5's plain
     /// estimator (one band per path, weight 3). Applies only when the
     /// boundary's index is the same in all bands.
     pub spectral_mis: bool,
@@ -453,7 +415,7 @@ pub struct Settings {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dispersion {
     /// Exact: a refraction direction belongs to one band, so a path keeps
-    /// one band from its first contact with the object (weight 3, SPEC §4).
+    /// one band from its first contact with the object (weight 3, docs/method.md §5).
     PerBand,
     /// Approximate: refraction directions (Snell's law and its solid-angle
     /// factor cos θ_o/(n² cos θ_i)) from the bands' mean index, while each
@@ -993,8 +955,8 @@ fn cosine_direction(n: DVec3, u1: f64, u2: f64) -> (DVec3, f64) {
 /// with which the path would have been sampled had band k driven the
 /// sampling. The estimate in band c is β_c / mean_k r_k (balance heuristic
 /// over the three bands, each chosen with probability 1/3). Before the path
-/// meets the object all r_k are equal; a path that keeps one band b (SPEC
-/// §4's estimator) has r = 3·e_b and β = 3·β_b·e_b, the same formula.
+/// meets the object all r_k are equal; a path that keeps one band b (docs/method.md
+/// §5's estimator) has r = 3·e_b and β = 3·β_b·e_b, the same formula.
 #[derive(Debug, Clone, Copy)]
 struct Throughput {
     beta: [f64; 3],
@@ -1107,7 +1069,7 @@ fn trace_path(
     let shared = scene.object.as_ref().is_some_and(|obj| {
         settings.spectral_mis
             && !obj.bands.achromatic
-            && obj.rough.is_none()
+            && !obj.interface.is_rough()
             && settings.dispersion == Dispersion::SharedDirections
     });
     let mut inside = false;
@@ -1128,7 +1090,7 @@ fn trace_path(
     let mut safe = 0.0f64;
     let convex = scene.object.as_ref().and_then(|obj| obj.accel.convex_planes());
     let planes = match &scene.object {
-        Some(obj) if settings.medium_nee && obj.rough.is_none() && !scene.environment.is_uniform() => {
+        Some(obj) if settings.medium_nee && !obj.interface.is_rough() && !scene.environment.is_uniform() => {
             obj.accel.convex_planes()
         }
         _ => None,
@@ -1159,7 +1121,7 @@ fn trace_path(
                 if bc.same_sigma_t || tp.single_band() {
                     // (One band: its ratios f/p reduce to μ_s/μ_t.)
                     for c in 0..3 {
-                        tp.beta[c] *= obj.medium.sigma_s[c] / sigma_t;
+                        tp.beta[c] *= obj.medium[c].mu_s_per_m / sigma_t;
                     }
                 } else {
                     let decay: [f64; 3] =
@@ -1167,7 +1129,7 @@ fn trace_path(
                             |c| if tp.active(c) { (-(bc.sigma_t[c] - sigma_t) * s).exp() } else { 0.0 },
                         );
                     tp.scale(
-                        std::array::from_fn(|c| obj.medium.sigma_s[c] * decay[c]),
+                        std::array::from_fn(|c| obj.medium[c].mu_s_per_m * decay[c]),
                         std::array::from_fn(|c| bc.sigma_t[c] * decay[c]),
                         h,
                     );
@@ -1189,12 +1151,12 @@ fn trace_path(
                 }
                 let d_in = d;
                 let (u1, u2) = rng.next_f64_pair();
-                d = DVec3::from_array(obj.medium.phase[h].sample_direction(d.to_array(), u1, u2));
+                d = DVec3::from_array(obj.medium[h].phase.sample_direction(d.to_array(), u1, u2));
                 stretch_mu = d_in.dot(d);
                 if !bc.same_phase && !tp.single_band() {
                     let p: [f64; 3] = std::array::from_fn(|c| {
                         if c == h || tp.active(c) {
-                            obj.medium.phase[c].eval(stretch_mu)
+                            obj.medium[c].phase.eval(stretch_mu)
                         } else {
                             0.0
                         }
@@ -1221,8 +1183,8 @@ fn trace_path(
             st.surface_hits += 1;
             let p = o + hit.t * d;
             let n_out = if hit.normal.dot(d) >= 0.0 { hit.normal } else { -hit.normal };
-            if let Some(rough) = &obj.rough {
-                let Some((nd, no, now_inside)) = rough_scatter(&rough[h], n_out, p, d, eps, &mut tp, rng) else {
+            if obj.interface.is_rough() {
+                let Some((nd, no, now_inside)) = rough_scatter(obj, h, n_out, p, d, eps, &mut tp, rng) else {
                     break;
                 };
                 (d, o, inside, safe, last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
@@ -1231,7 +1193,7 @@ fn trace_path(
                 }
                 continue;
             }
-            let eta = if shared { obj.eta_mean } else { obj.boundary.eta(h) };
+            let eta = if shared { obj.eta_mean } else { obj.eta(h) };
             let cos_i = d.dot(n_out);
             let f = fresnel::reflectance(cos_i, 1.0 / eta);
             let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
@@ -1249,7 +1211,7 @@ fn trace_path(
                     let t = fr.map(|x| 1.0 - x);
                     tp.scale(t, t, h);
                 }
-                d = refract(d, n_out, 1.0 / eta);
+                d = refract_or_mirror(d, n_out, 1.0 / eta);
                 o = p + eps * n_out;
                 inside = false;
                 if vertex.is_some() {
@@ -1257,7 +1219,7 @@ fn trace_path(
                     // solid angle: dω_i/dω_o = cos θ_o / (n² cos θ_i).
                     stretch_jacobian = d.dot(n_out) / (eta * eta * cos_i);
                     stretch_pdf =
-                        obj.medium.phase[h].eval(stretch_mu) * (-sigma_t * hit.t).exp() * (1.0 - f) * stretch_jacobian;
+                        obj.medium[h].phase.eval(stretch_mu) * (-sigma_t * hit.t).exp() * (1.0 - f) * stretch_jacobian;
                 }
             }
             last_diffuse_pdf = None;
@@ -1350,9 +1312,9 @@ fn trace_path(
                 let p = o + hit.t * d;
                 let n_in = if hit.normal.dot(d) < 0.0 { hit.normal } else { -hit.normal };
                 // Splitting: the reflection, weighted by F_c, as a branch of its own.
-                let entry_f = (split && obj.rough.is_none()).then(|| {
+                let entry_f = (split && !obj.interface.is_rough()).then(|| {
                     let cos_i = -d.dot(n_in);
-                    let f: [f64; 3] = std::array::from_fn(|c| fresnel::reflectance(cos_i, obj.boundary.eta(c)));
+                    let f: [f64; 3] = std::array::from_fn(|c| fresnel::reflectance(cos_i, obj.eta(c)));
                     let mut branch = tp;
                     for (b, fc) in branch.beta.iter_mut().zip(f) {
                         *b *= fc;
@@ -1367,7 +1329,7 @@ fn trace_path(
                 let h = *hero.get_or_insert_with(|| {
                     let b = ((rng.next_f64() * 3.0) as usize).min(2);
                     if !(settings.spectral_mis && (obj.bands.achromatic || shared)) {
-                        // One band per path (SPEC §4): weight 3 in band b.
+                        // One band per path (docs/method.md §5): weight 3 in band b.
                         let keep = 3.0 * tp.beta[b];
                         tp.beta = [0.0; 3];
                         tp.beta[b] = keep;
@@ -1377,8 +1339,8 @@ fn trace_path(
                     }
                     b
                 });
-                if let Some(rough) = &obj.rough {
-                    let Some((nd, no, now_inside)) = rough_scatter(&rough[h], n_in, p, d, eps, &mut tp, rng) else {
+                if obj.interface.is_rough() {
+                    let Some((nd, no, now_inside)) = rough_scatter(obj, h, n_in, p, d, eps, &mut tp, rng) else {
                         break;
                     };
                     (d, o, inside, safe, last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
@@ -1387,7 +1349,7 @@ fn trace_path(
                     }
                     continue;
                 }
-                let eta = if shared { obj.eta_mean } else { obj.boundary.eta(h) };
+                let eta = if shared { obj.eta_mean } else { obj.eta(h) };
                 let refracts = if let Some(f) = entry_f {
                     // The reflection was traced above; the refraction carries 1 − F_c.
                     for (b, fc) in tp.beta.iter_mut().zip(f) {
@@ -1412,7 +1374,7 @@ fn trace_path(
                     d -= 2.0 * d.dot(n_in) * n_in;
                     o = p + eps * n_in;
                 } else {
-                    d = refract(d, -n_in, eta);
+                    d = refract_or_mirror(d, -n_in, eta);
                     o = p - eps * n_in;
                     inside = true;
                     safe = 0.0;
@@ -1436,7 +1398,7 @@ fn band_reflectance(obj: &Object, cos_i: f64, f_mean: f64, from_inside: bool) ->
         return [1.0; 3];
     }
     std::array::from_fn(|c| {
-        let eta = obj.boundary.eta(c);
+        let eta = obj.eta(c);
         fresnel::reflectance(cos_i, if from_inside { 1.0 / eta } else { eta })
     })
 }
@@ -1494,7 +1456,7 @@ fn connect_through_faces(
         return;
     }
     let wo = es.dir;
-    let eta = if shared { obj.eta_mean } else { obj.boundary.eta(h) };
+    let eta = if shared { obj.eta_mean } else { obj.eta(h) };
     let d_in = conn.d_in;
     for (n, _) in planes {
         let cos_o = n.dot(wo);
@@ -1538,14 +1500,14 @@ struct Connection {
 /// 0 for the others; band `h`'s value serves every band when they share one.
 #[inline]
 fn band_phases(obj: &Object, active: impl Fn(usize) -> bool, h: usize, mu: f64) -> [f64; 3] {
-    let ph_h = obj.medium.phase[h].eval(mu);
+    let ph_h = obj.medium[h].phase.eval(mu);
     std::array::from_fn(|k| {
         if !active(k) {
             0.0
         } else if obj.bands.same_phase || k == h {
             ph_h
         } else {
-            obj.medium.phase[k].eval(mu)
+            obj.medium[k].phase.eval(mu)
         }
     })
 }
@@ -1624,17 +1586,17 @@ fn connect_along_phase(
 ) {
     let &Connection { h, x, d_in, shared, .. } = conn;
     let (u1, u2) = rng.next_f64_pair();
-    let wi = DVec3::from_array(obj.medium.phase[h].sample_direction(d_in.to_array(), u1, u2));
+    let wi = DVec3::from_array(obj.medium[h].phase.sample_direction(d_in.to_array(), u1, u2));
     let Some(hit) = obj.accel.exit(x, wi) else { return };
     let n = if hit.normal.dot(wi) >= 0.0 { hit.normal } else { -hit.normal };
-    let eta = if shared { obj.eta_mean } else { obj.boundary.eta(h) };
+    let eta = if shared { obj.eta_mean } else { obj.eta(h) };
     let cos_i = wi.dot(n);
     let f = fresnel::reflectance(cos_i, 1.0 / eta);
     if f >= 1.0 || cos_i <= 0.0 {
         return;
     }
     let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
-    let wo = refract(wi, n, 1.0 / eta);
+    let wo = refract_or_mirror(wi, n, 1.0 / eta);
     let cos_o = wo.dot(n);
     let q = x + hit.t * wi + scene.epsilon_m * n;
     if cos_o <= 0.0 || scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
@@ -1644,15 +1606,18 @@ fn connect_along_phase(
     add_connection(scene, obj, tp, conn, &exit, scene.environment.pdf(x, wo), radiance);
 }
 
-/// Samples the rough boundary `bsdf` (frame: +z = the outward normal
-/// `n_out` at the hit point `p`) for a ray arriving along `d`, multiplies the
-/// throughput by the weight f|cos θ_i|/pdf (radiance transport), and returns
-/// the new direction, the new origin (offset by `eps` to the side it leaves
-/// into) and whether that side is the inside. `None` when the sample is
-/// lost (the microfacet model's energy loss).
+/// Samples the object's rough interface in band `h` (frame: +z = the
+/// outward normal `n_out` at the hit point `p`, η = n_h) for a ray arriving
+/// along `d`, multiplies the throughput by the weight f|cos θ_i|/pdf
+/// (radiance transport), and returns the new direction, the new origin
+/// (offset by `eps` to the side it leaves into) and whether that side is the
+/// inside. `None` when the sample is lost (the microfacet model's energy
+/// loss).
 #[inline]
+#[allow(clippy::too_many_arguments)]
 fn rough_scatter(
-    bsdf: &RoughDielectric,
+    obj: &Object,
+    h: usize,
     n_out: DVec3,
     p: DVec3,
     d: DVec3,
@@ -1663,7 +1628,8 @@ fn rough_scatter(
     let (t, b) = crate::phase::orthonormal_basis(n_out.to_array());
     let (t, b) = (DVec3::from_array(t), DVec3::from_array(b));
     let wo = DVec3::new(-d.dot(t), -d.dot(b), -d.dot(n_out));
-    let s = bsdf.sample(wo, [rng.next_f64(), rng.next_f64(), rng.next_f64()], Transport::Radiance)?;
+    let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
+    let s = obj.interface.sample(wo, obj.eta(h), Lobe::Fresnel, u, Transport::Radiance)?;
     for beta in tp.beta.iter_mut() {
         *beta *= s.weight;
     }
@@ -1693,33 +1659,11 @@ fn roulette(tp: &mut Throughput, settings: &Settings, rng: &mut Rng) -> bool {
     true
 }
 
-/// Refraction of unit `d` through an interface with unit normal `n` on the
-/// transmitted side (d·n > 0), relative index `eta` = n_t/n_i. The caller
-/// has already chosen refraction, so total internal reflection cannot
-/// occur (F = 1 there); it falls back to the mirror direction defensively.
+/// Refraction of unit `d` through an interface with unit normal `n`,
+/// relative index `eta` = n_t/n_i ([`fresnel::refract`]). The caller has
+/// already chosen refraction, so total internal reflection cannot occur
+/// (F = 1 there); it falls back to the mirror direction defensively.
 #[inline]
-fn refract(d: DVec3, n: DVec3, eta: f64) -> DVec3 {
-    let cos_i = d.dot(n);
-    let sin_t2 = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin_t2 >= 1.0 {
-        return d - 2.0 * cos_i * n;
-    }
-    let cos_t = (1.0 - sin_t2).sqrt();
-    ((d - cos_i * n) / eta + cos_t * n).normalize()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn refraction_obeys_snell() {
-        let n = DVec3::Z;
-        let d = DVec3::new(0.6, 0.0, 0.8);
-        let t = refract(d, n, 1.5);
-        assert!((t.length() - 1.0).abs() < 1e-12);
-        assert!((0.6 - 1.5 * t.x).abs() < 1e-12 && t.z > 0.0);
-        let back = refract(t, n, 1.0 / 1.5);
-        assert!((back - d).length() < 1e-12);
-    }
+fn refract_or_mirror(d: DVec3, n: DVec3, eta: f64) -> DVec3 {
+    fresnel::refract(d, n, eta).unwrap_or_else(|| d - 2.0 * d.dot(n) * n)
 }

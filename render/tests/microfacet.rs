@@ -5,9 +5,8 @@
 
 use glam::DVec3;
 use lucent_render::fresnel;
-use lucent_render::microfacet::{
-    Distribution, MeasuredNormals, MicrofacetError, Microsurface, RoughDielectric, Sample, Transport, SMOOTH_ALPHA,
-};
+use lucent_render::interface::{Interface, Lobe, Sample, Transport};
+use lucent_render::microfacet::{Distribution, MeasuredNormals, MicrofacetError, Microsurface, SMOOTH_ALPHA};
 use lucent_render::rng::Rng;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
@@ -22,8 +21,31 @@ fn tr(alpha: f64) -> Microsurface {
 fn beckmann(alpha: f64) -> Microsurface {
     Microsurface::Analytic(Distribution::Beckmann { alpha })
 }
-fn bsdf(eta: f64, s: Microsurface) -> RoughDielectric {
-    RoughDielectric::new(eta, s).unwrap()
+/// The interface at one index ratio η = n_below/n_above, sampled with the
+/// Fresnel lobe choice: the BSDF the tests examine.
+struct Bsdf {
+    interface: Interface,
+    eta: f64,
+}
+impl Bsdf {
+    fn eta(&self) -> f64 {
+        self.eta
+    }
+    fn is_delta(&self) -> bool {
+        self.interface.is_delta(self.eta)
+    }
+    fn sample(&self, wo: DVec3, u: [f64; 3], mode: Transport) -> Option<Sample> {
+        self.interface.sample(wo, self.eta, Lobe::Fresnel, u, mode)
+    }
+    fn eval(&self, wo: DVec3, wi: DVec3, mode: Transport) -> f64 {
+        self.interface.eval(wo, wi, self.eta, mode)
+    }
+    fn pdf(&self, wo: DVec3, wi: DVec3) -> f64 {
+        self.interface.pdf(wo, wi, self.eta)
+    }
+}
+fn bsdf(eta: f64, s: Microsurface) -> Bsdf {
+    Bsdf { interface: Interface::new(s).unwrap(), eta }
 }
 /// Unit direction at polar angle θ (degrees, from +z) and azimuth φ (degrees).
 fn dir(theta_deg: f64, phi_deg: f64) -> DVec3 {
@@ -99,7 +121,7 @@ struct SphereBins {
     theta_break: Option<f64>,
 }
 impl SphereBins {
-    fn for_lobes(b: &RoughDielectric, wo: DVec3, spread: f64) -> Self {
+    fn for_lobes(b: &Bsdf, wo: DVec3, spread: f64) -> Self {
         let eta_o = if wo.z > 0.0 { b.eta() } else { 1.0 / b.eta() };
         let t_o = wo.z.abs().acos();
         let sin_t = t_o.sin() / eta_o;
@@ -200,7 +222,7 @@ fn chi2(
     for _ in 0..n {
         let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
         if let Some(s) = sample(wo, u) {
-            assert!(s.wi.is_finite() && s.weight.is_finite() && s.pdf > 0.0, "{s:?}");
+            assert!(s.wi.is_finite() && s.weight.is_finite() && s.weight > 0.0, "{s:?}");
             observed[bins.index(wo, s.wi)] += 1;
             ok += 1;
         }
@@ -231,7 +253,7 @@ fn chi2(
 const CHI2_TESTS: f64 = 160.0;
 const SIGNIFICANCE: f64 = 0.01 / CHI2_TESTS;
 
-fn chi2_config(b: &RoughDielectric, wo: DVec3, spread: f64, n: usize, seed: u64, label: &str) {
+fn chi2_config(b: &Bsdf, wo: DVec3, spread: f64, n: usize, seed: u64, label: &str) {
     let bins = SphereBins::for_lobes(b, wo, spread);
     let r = chi2(&bins, wo, n, seed, &|wo, u| b.sample(wo, u, Transport::Radiance), &|wi| b.pdf(wo, wi));
     assert!(r.p_value > SIGNIFICANCE, "{label}: χ² p = {:.3e}", r.p_value);
@@ -290,23 +312,27 @@ fn chi2_rejects_a_mismatched_sampler() {
 #[test]
 fn sample_weight_and_pdf_match_eval_and_pdf() {
     let mut rng = Rng::new(11, 0);
-    for s in [tr(0.05), beckmann(0.3), tr(0.7), beckmann(0.002)] {
+    let measured = MeasuredNormals::new(&normals_from(Distribution::Beckmann { alpha: 0.3 }, 2000, 3), None).unwrap();
+    let measured = Microsurface::Measured(Arc::new(measured));
+    for s in [tr(0.05), beckmann(0.3), tr(0.7), beckmann(0.002), measured] {
         for eta in [ETA, 1.0 / ETA] {
             let b = bsdf(eta, s.clone());
+            assert!(!b.is_delta());
             for mode in [Transport::Radiance, Transport::Importance] {
                 for _ in 0..2000 {
                     let wo = uniform_sphere(&mut rng);
                     let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
                     let Some(x) = b.sample(wo, u, mode) else { continue };
-                    assert!(!x.is_delta);
-                    assert_eq!(x.is_transmission, x.wi.z * wo.z < 0.0);
+                    assert_eq!(x.transmitted, x.wi.z * wo.z < 0.0);
                     assert!((x.wi.length() - 1.0).abs() < 1e-12);
+                    // The sampler's weight (the normal's factor × G1, no
+                    // density evaluated) is f |cos θ_i| / pdf.
                     let pdf = b.pdf(wo, x.wi);
-                    assert!((x.pdf - pdf).abs() <= 1e-12 * pdf, "{} vs {pdf}", x.pdf);
+                    assert!(pdf > 0.0 && pdf.is_finite(), "{pdf}");
                     let w = b.eval(wo, x.wi, mode) * x.wi.z.abs() / pdf;
-                    assert!((x.weight - w).abs() <= 1e-12 * w.max(1e-300), "{} vs {w}", x.weight);
+                    assert!((x.weight - w).abs() <= 1e-9 * w.max(1e-300), "{} vs {w}", x.weight);
                     // For visible-normal sampling the reflection weight is G1(ωi).
-                    if let (false, Microsurface::Analytic(d)) = (x.is_transmission, &s) {
+                    if let (false, Microsurface::Analytic(d)) = (x.transmitted, &s) {
                         let m = (wo + x.wi).normalize();
                         let m = if m.z < 0.0 { -m } else { m };
                         assert!((x.weight - d.g1(x.wi, m)).abs() < 1e-9, "{} vs {}", x.weight, d.g1(x.wi, m));
@@ -366,7 +392,7 @@ struct Albedo {
     refl_se: f64,
 }
 
-fn albedo(b: &RoughDielectric, wo: DVec3, n: usize, seed: u64, mode: Transport) -> Albedo {
+fn albedo(b: &Bsdf, wo: DVec3, n: usize, seed: u64, mode: Transport) -> Albedo {
     let mut rng = Rng::new(seed, 1);
     let (mut s, mut s2, mut r, mut r2) = (0.0, 0.0, 0.0, 0.0);
     for _ in 0..n {
@@ -374,7 +400,7 @@ fn albedo(b: &RoughDielectric, wo: DVec3, n: usize, seed: u64, mode: Transport) 
         if let Some(x) = b.sample(wo, u, mode) {
             s += x.weight;
             s2 += x.weight * x.weight;
-            if !x.is_transmission {
+            if !x.transmitted {
                 r += x.weight;
                 r2 += x.weight * x.weight;
             }
@@ -523,12 +549,13 @@ fn smooth_limit_gives_delta_lobes_with_fresnel_weights() {
                     let f = fresnel::reflectance(wo.z, eta);
                     assert_eq!(b.eval(wo, DVec3::new(-wo.x, -wo.y, wo.z), Transport::Radiance), 0.0);
                     assert_eq!(b.pdf(wo, DVec3::new(-wo.x, -wo.y, wo.z)), 0.0);
+                    // The lobe is reflection exactly when u₀ < F.
                     let r = b.sample(wo, [0.999999 * f, 0.3, 0.3], Transport::Radiance).unwrap();
-                    assert!(r.is_delta && !r.is_transmission && r.weight == 1.0 && r.pdf == f);
+                    assert!(!r.transmitted && r.weight == 1.0);
                     assert!((r.wi - DVec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-15);
                     if f < 1.0 {
                         let s = b.sample(wo, [f + 0.5 * (1.0 - f), 0.3, 0.3], Transport::Radiance).unwrap();
-                        assert!(s.is_delta && s.is_transmission && (s.pdf - (1.0 - f)).abs() < 1e-15);
+                        assert!(s.transmitted);
                         // Snell: sin θ_t = sin θ_o / η; radiance weight 1/η².
                         assert!((s.wi.truncate().length() - wo.truncate().length() / eta).abs() < 1e-12);
                         assert!(s.wi.z < 0.0 && (s.weight - 1.0 / (eta * eta)).abs() < 1e-12);
@@ -545,7 +572,8 @@ fn smooth_limit_gives_delta_lobes_with_fresnel_weights() {
     let b = bsdf(1.0, tr(0.3));
     let wo = dir(30.0, 0.0);
     let s = b.sample(wo, [0.5, 0.5, 0.5], Transport::Radiance).unwrap();
-    assert!(s.is_delta && s.is_transmission && (s.wi + wo).length() < 1e-12 && s.weight == 1.0);
+    assert!(b.is_delta() && s.transmitted && (s.wi + wo).length() < 1e-12 && s.weight == 1.0);
+    assert_eq!(b.eval(wo, -wo, Transport::Radiance), 0.0);
 }
 
 #[test]
@@ -591,7 +619,7 @@ fn nearly_smooth_rough_surface_matches_fresnel() {
                 }
                 let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
                 if let Some(s) = b.sample(wo, u, Transport::Radiance) {
-                    assert!(s.weight.is_finite() && s.pdf.is_finite() && s.wi.is_finite());
+                    assert!(s.weight.is_finite() && s.wi.is_finite() && b.pdf(wo, s.wi).is_finite());
                 }
             }
             assert!(b.sample(DVec3::X, [0.5; 3], Transport::Radiance).is_none());
@@ -708,12 +736,9 @@ fn chi2_measured_normals() {
 
 #[test]
 fn bad_parameters_are_typed_errors() {
-    assert!(matches!(RoughDielectric::new(f64::NAN, tr(0.1)), Err(MicrofacetError::Eta(_))));
-    assert!(matches!(RoughDielectric::new(0.0, tr(0.1)), Err(MicrofacetError::Eta(_))));
-    assert!(matches!(RoughDielectric::new(-1.5, tr(0.1)), Err(MicrofacetError::Eta(_))));
-    assert!(matches!(RoughDielectric::new(1.5, tr(-0.1)), Err(MicrofacetError::Alpha(_))));
-    assert!(matches!(RoughDielectric::new(1.5, beckmann(f64::NAN)), Err(MicrofacetError::Alpha(_))));
-    assert!(matches!(RoughDielectric::new(1.5, beckmann(f64::INFINITY)), Err(MicrofacetError::Alpha(_))));
+    assert!(matches!(Interface::new(tr(-0.1)), Err(MicrofacetError::Alpha(_))));
+    assert!(matches!(Interface::new(beckmann(f64::NAN)), Err(MicrofacetError::Alpha(_))));
+    assert!(matches!(Interface::new(beckmann(f64::INFINITY)), Err(MicrofacetError::Alpha(_))));
     assert!(matches!(MeasuredNormals::new(&[], None), Err(MicrofacetError::NoNormals)));
     let good = [0.0, 0.0, 1.0];
     for (bad, why) in [

@@ -10,6 +10,7 @@
 //! seeds; tolerances are multiples of the reported standard errors, which
 //! are themselves tested.
 
+use lucent_render::interface::Interface;
 use lucent_render::phase::Phase;
 use lucent_render::slab::*;
 
@@ -591,7 +592,7 @@ fn fold_gives_a_symmetric_slice_that_agrees_with_the_unfolded_one() {
     use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
     let with_top = |m: Microsurface| {
         let mut t = s.clone();
-        t.slab.top = Boundary::rough(m).unwrap();
+        t.slab.top = Interface::new(m).unwrap();
         t
     };
     assert!(with_top(Microsurface::Analytic(Distribution::Beckmann { alpha: 0.3 })).mirror_symmetric());

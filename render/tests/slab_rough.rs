@@ -10,22 +10,23 @@
 //! multiples of the reported standard errors (those are tested here for
 //! the rough lobe and in `slab.rs`).
 
+use lucent_render::interface::Interface;
 use lucent_render::microfacet::{Distribution, Microsurface};
 use lucent_render::phase::Phase;
 use lucent_render::slab::*;
 
-fn tr(alpha: f64) -> Boundary {
-    Boundary::rough(Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha })).unwrap()
+fn tr(alpha: f64) -> Interface {
+    Interface::new(Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha })).unwrap()
 }
 
-fn beckmann(alpha: f64) -> Boundary {
-    Boundary::rough(Microsurface::Analytic(Distribution::Beckmann { alpha })).unwrap()
+fn beckmann(alpha: f64) -> Interface {
+    Interface::new(Microsurface::Analytic(Distribution::Beckmann { alpha })).unwrap()
 }
 
 /// A slab of HG medium (n = 1.5) with the given top boundary and a 200 µm beam.
 #[allow(clippy::too_many_arguments)] // one argument per physical input of the slab
 fn setup(
-    top: Boundary,
+    top: Interface,
     mu_s: f64,
     mu_a: f64,
     g: f64,
@@ -40,23 +41,23 @@ fn setup(
 }
 
 /// Thin: μ_t d = 2.2, image terms (the chain through the rough top).
-fn thin(top: Boundary, dirs: Directions) -> Setup {
+fn thin(top: Interface, dirs: Directions) -> Setup {
     setup(top, 2000.0, 200.0, 0.5, 1e-3, 16, 0.4e-3, dirs)
 }
 
 /// Thinner: μ_t d = 1.1; at θ_o = 75° (θ_t near the critical angle) the
 /// image terms are a fifth of the slice.
-fn thinner(top: Boundary, dirs: Directions) -> Setup {
+fn thinner(top: Interface, dirs: Directions) -> Setup {
     setup(top, 1000.0, 100.0, 0.5, 1e-3, 16, 0.4e-3, dirs)
 }
 
 /// Optically thin: μ_t d = 0.3.
-fn optically_thin(top: Boundary, dirs: Directions) -> Setup {
+fn optically_thin(top: Interface, dirs: Directions) -> Setup {
     setup(top, 250.0, 50.0, 0.5, 1e-3, 16, 0.4e-3, dirs)
 }
 
 /// Thick: μ_t d = 45, the straight-up connection only.
-fn thick(top: Boundary, dirs: Directions) -> Setup {
+fn thick(top: Interface, dirs: Directions) -> Setup {
     setup(top, 3000.0, 30.0, 0.8, 15e-3, 12, 0.6e-3, dirs)
 }
 
@@ -100,7 +101,7 @@ fn pixel_p(a: &Slice, b: &Slice) -> (f64, usize) {
     (1.0 - ChiSquared::new(k as f64).unwrap().cdf(chi2), k)
 }
 
-type Make = fn(Boundary, Directions) -> Setup;
+type Make = fn(Interface, Directions) -> Setup;
 
 #[test]
 fn near_smooth_rough_top_gives_the_smooth_slice() {
@@ -113,7 +114,7 @@ fn near_smooth_rough_top_gives_the_smooth_slice() {
         for (ti, to) in [(45.0, 0.0), (30.0, 20.0)] {
             let rough = make(tr(1e-4), dirs(ti, to));
             assert!(rough.slab.top.is_rough());
-            let smooth = make(Boundary::Smooth, dirs(ti, to));
+            let smooth = make(Interface::Smooth, dirs(ti, to));
             let a = run(&rough, paths, 51, Estimator::Connection);
             let b = run(&smooth, paths, 52, Estimator::Connection);
             let (p, k) = pixel_p(&a, &b);
@@ -184,8 +185,8 @@ fn rough_tops_use_the_lobe_or_the_connection_not_the_ring() {
     assert_eq!(simulate(&s, &opts, |_| {}).unwrap_err(), SlabError::RingNotApplicable);
     // Below α = 10⁻⁴ the boundary is the smooth one; a bad α is refused.
     assert!(!tr(5e-5).is_rough());
-    assert!(Boundary::rough(Microsurface::Analytic(Distribution::Beckmann { alpha: f64::NAN })).is_err());
-    assert!(Boundary::rough(Microsurface::Analytic(Distribution::Beckmann { alpha: -0.1 })).is_err());
+    assert!(Interface::new(Microsurface::Analytic(Distribution::Beckmann { alpha: f64::NAN })).is_err());
+    assert!(Interface::new(Microsurface::Analytic(Distribution::Beckmann { alpha: -0.1 })).is_err());
 }
 
 /// An out-of-plane pair: 30°/40°, φ_o = 100°.
@@ -225,7 +226,7 @@ fn rough_lobe_differs_from_the_smooth_slice_where_the_test_above_has_power() {
     // used the smooth exit: the rough slice is far from the smooth one, in
     // the sum and pixel by pixel.
     let rough = run(&thick(tr(0.8), dirs(45.0, 60.0)), 5_000, 83, Estimator::Lobe { vertices: 4 });
-    let smooth = run(&thick(Boundary::Smooth, dirs(45.0, 60.0)), 5_000, 84, Estimator::Lobe { vertices: 4 });
+    let smooth = run(&thick(Interface::Smooth, dirs(45.0, 60.0)), 5_000, 84, Estimator::Lobe { vertices: 4 });
     let s = (rough.sum_std_error.powi(2) + smooth.sum_std_error.powi(2)).sqrt();
     assert!((rough.sum - smooth.sum).abs() > 10.0 * s, "{:.4e} vs {:.4e} ± {s:.1e}", rough.sum, smooth.sum);
     let (p, k) = pixel_p(&rough, &smooth);

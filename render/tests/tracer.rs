@@ -9,8 +9,10 @@ use glam::DVec3;
 use lucent_render::accel::Accel;
 use lucent_render::camera::Camera;
 use lucent_render::env::{Environment, Projection};
+use lucent_render::interface::Interface;
+use lucent_render::medium::Medium;
 use lucent_render::phase::Phase;
-use lucent_render::tracer::{render, Board, BoardReflectance, Boundary, Image, Medium, Object, Scene, Settings};
+use lucent_render::tracer::{render, Board, BoardReflectance, Image, Object, Scene, Settings};
 use statrs::distribution::{ContinuousCDF, Normal};
 
 /// 12 outward triangles of the box [lo, hi].
@@ -26,13 +28,20 @@ fn cube(lo: DVec3, hi: DVec3) -> Vec<[DVec3; 3]> {
     quads.iter().flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]]).collect()
 }
 
+/// The media of three bands: μ_s, μ_a (1/m), phase function and index per band.
+fn bands(mu_s: [f64; 3], mu_a: [f64; 3], phase: [Phase; 3], eta: [f64; 3]) -> [Medium; 3] {
+    let [p0, p1, p2] = phase;
+    let band = |b: usize, phase| Medium::new(mu_s[b], mu_a[b], phase, eta[b]).unwrap();
+    [band(0, p0), band(1, p1), band(2, p2)]
+}
+
 fn plaque(sigma_s: [f64; 3], sigma_a: [f64; 3], g: f64, eta: f64) -> Object {
     let tris = cube(DVec3::new(-0.01, -0.01, 0.001), DVec3::new(0.01, 0.01, 0.006));
     let phase = Phase::henyey_greenstein(g).unwrap();
     Object::new(
         Accel::new(&tris),
-        Boundary::Smooth { eta: [eta; 3] },
-        Medium { sigma_s, sigma_a, phase: [phase.clone(), phase.clone(), phase] },
+        Interface::Smooth,
+        bands(sigma_s, sigma_a, [phase.clone(), phase.clone(), phase], [eta; 3]),
     )
     .unwrap()
 }
@@ -284,12 +293,9 @@ fn wide_slab_under_a_hemispherical_sky_matches_adding_doubling() {
         let mu_t = tau / d;
         let tris = cube(DVec3::new(-0.15, -0.15, -d), DVec3::new(0.15, 0.15, 0.0));
         let phase = Phase::henyey_greenstein(g).unwrap();
-        let medium = Medium {
-            sigma_s: [albedo * mu_t; 3],
-            sigma_a: [(1.0 - albedo) * mu_t; 3],
-            phase: [phase.clone(), phase.clone(), phase],
-        };
-        let obj = Object::new(Accel::new(&tris), Boundary::Smooth { eta: [n; 3] }, medium).unwrap();
+        let phases = [phase.clone(), phase.clone(), phase];
+        let medium = bands([albedo * mu_t; 3], [(1.0 - albedo) * mu_t; 3], phases, [n; 3]);
+        let obj = Object::new(Accel::new(&tris), Interface::Smooth, medium).unwrap();
         let sky = Environment::new(1, 2, vec![1.0, 1.0, 1.0, 0.0, 0.0, 0.0], 0.0, 1.0, Projection::Infinite).unwrap();
         let cam = Camera::look_at(2, 2, DVec3::new(0.0, 0.0, 0.05), DVec3::ZERO, DVec3::Y, 0.01).unwrap();
         let scene = Scene::new(Some(obj), None, sky, cam).unwrap();
@@ -312,8 +318,8 @@ fn coloured_plaque(eta: [f64; 3]) -> Object {
     let hg = |g: f64| Phase::henyey_greenstein(g).unwrap();
     Object::new(
         Accel::new(&tris),
-        Boundary::Smooth { eta },
-        Medium { sigma_s: [300.0, 700.0, 1500.0], sigma_a: [40.0, 10.0, 3.0], phase: [hg(0.3), hg(0.6), hg(0.85)] },
+        Interface::Smooth,
+        bands([300.0, 700.0, 1500.0], [40.0, 10.0, 3.0], [hg(0.3), hg(0.6), hg(0.85)], eta),
     )
     .unwrap()
 }
@@ -413,8 +419,8 @@ fn rough_plaque(alpha: f64, eta: f64, sigma_a: f64) -> Object {
     let phase = Phase::henyey_greenstein(0.7).unwrap();
     Object::new(
         Accel::new(&tris),
-        Boundary::Rough { eta: [eta; 3], surface: Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha }) },
-        Medium { sigma_s: [600.0, 900.0, 1200.0], sigma_a: [sigma_a; 3], phase: [phase.clone(), phase.clone(), phase] },
+        Interface::new(Microsurface::Analytic(Distribution::TrowbridgeReitz { alpha })).unwrap(),
+        bands([600.0, 900.0, 1200.0], [sigma_a; 3], [phase.clone(), phase.clone(), phase], [eta; 3]),
     )
     .unwrap()
 }

@@ -823,8 +823,9 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
 /// per second on one core, from air at 45° and from inside at 20°.
 pub fn bench_surface(paths: u64) -> Result<()> {
     use glam::DVec3;
-    use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface, RoughDielectric, Transport};
-    use lucent_render::slab::{simulate, Boundary, Slice};
+    use lucent_render::interface::{Interface, Lobe, Transport};
+    use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
+    use lucent_render::slab::{simulate, Slice};
     use std::sync::Arc;
     if paths == 0 {
         bail!("--paths must be at least 1");
@@ -848,8 +849,8 @@ pub fn bench_surface(paths: u64) -> Result<()> {
     let mut slab_rows = Vec::new();
     for (name, surface) in &surfaces {
         let top = match surface {
-            Some(s) => Boundary::rough(s.clone())?,
-            None => Boundary::Smooth,
+            Some(s) => Interface::new(s.clone())?,
+            None => Interface::Smooth,
         };
         let setup = Setup::new(
             Slab::new(6.35e-3, medium.clone())?.with_top(top),
@@ -886,7 +887,8 @@ pub fn bench_surface(paths: u64) -> Result<()> {
     let mut bsdf_rows = Vec::new();
     for (name, surface) in surfaces.iter().skip(1) {
         let Some(surface) = surface else { continue };
-        let bsdf = RoughDielectric::new(1.589, surface.clone())?;
+        let bsdf = Interface::new(surface.clone())?;
+        let eta = 1.589;
         for (side, wo) in [
             ("from air, 45°", DVec3::new(0.5f64.sqrt(), 0.0, 0.5f64.sqrt())),
             ("from inside, 20°", DVec3::new(20f64.to_radians().sin(), 0.0, -20f64.to_radians().cos())),
@@ -894,11 +896,14 @@ pub fn bench_surface(paths: u64) -> Result<()> {
             let mut rng = lucent_render::rng::Rng::new(5, 0);
             let u: Vec<[f64; 3]> = (0..calls).map(|_| [rng.next_f64(), rng.next_f64(), rng.next_f64()]).collect();
             let t = std::time::Instant::now();
-            let samples: Vec<DVec3> =
-                u.iter().filter_map(|u| bsdf.sample(wo, *u, Transport::Importance)).map(|s| s.wi).collect();
+            let samples: Vec<DVec3> = u
+                .iter()
+                .filter_map(|u| bsdf.sample(wo, eta, Lobe::Fresnel, *u, Transport::Importance))
+                .map(|s| s.wi)
+                .collect();
             let sample_s = t.elapsed().as_secs_f64();
             let t = std::time::Instant::now();
-            let total: f64 = samples.iter().map(|wi| bsdf.eval(wo, *wi, Transport::Importance)).sum();
+            let total: f64 = samples.iter().map(|wi| bsdf.eval(wo, *wi, eta, Transport::Importance)).sum();
             let eval_s = t.elapsed().as_secs_f64();
             bsdf_rows.push(serde_json::json!({
                 "surface": name,

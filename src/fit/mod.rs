@@ -112,6 +112,8 @@ pub enum FitError {
     Slice(#[from] SliceIoError),
     #[error("slab simulation: {0}")]
     Slab(#[from] SlabError),
+    #[error("medium: {0}")]
+    Medium(#[from] lucent_render::medium::MediumError),
     #[error("phase table: {0}")]
     Phase(#[from] PhaseError),
     /// `--free NAME` that is not a parameter.

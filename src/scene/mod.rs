@@ -75,9 +75,11 @@ use lucent_colour::WavelengthGrid;
 use lucent_render::accel::Accel;
 use lucent_render::camera::Camera;
 use lucent_render::env::{Environment, Projection};
+use lucent_render::interface::Interface;
+use lucent_render::medium::Medium;
 use lucent_render::microfacet::{Distribution, Microsurface};
 use lucent_render::phase::{Phase, PhaseTable};
-use lucent_render::tracer::{Board, BoardReflectance, Boundary, Medium, Object, Scene, Settings};
+use lucent_render::tracer::{Board, BoardReflectance, Object, Scene, Settings};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -625,7 +627,7 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
         Some(m) => {
             let (medium, mut eta, mut summary, size, surface) = build_material(&ctx, m, &mut warnings)?;
             for b in 0..3 {
-                let (s, a) = (medium.sigma_s[b], medium.sigma_a[b]);
+                let (s, a) = (medium.mu_s_per_m[b], medium.mu_a_per_m[b]);
                 if !lucent_render::slab::valid_coefficients(s, a) {
                     return Err(ctx.key("material", "sigma_s_per_m", KeyProblem::Coefficients { band: b, s, a }));
                 }
@@ -651,12 +653,16 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
                 build_object_triangles(&ctx, o, size_from_recipe, scene_json.as_ref(), &mut warnings)?;
             let accel = Accel::new(&triangles);
             let (lo, hi) = accel.bounds();
-            let boundary = match rough {
-                Some((surface, _)) => Boundary::Rough { eta, surface },
-                None => Boundary::Smooth { eta },
+            let scene_error = |source| SceneFileError::Scene { path: path.to_path_buf(), source };
+            let interface = match rough {
+                Some((surface, _)) => Interface::new(surface).map_err(|e| scene_error(e.into()))?,
+                None => Interface::Smooth,
             };
-            let object = Object::new(accel, boundary, medium)
-                .map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
+            let Bands { mu_s_per_m, mu_a_per_m, phase } = medium;
+            let [p0, p1, p2] = phase;
+            let band =
+                |b: usize, phase| Medium { mu_s_per_m: mu_s_per_m[b], mu_a_per_m: mu_a_per_m[b], phase, n: eta[b] };
+            let object = Object::new(accel, interface, [band(0, p0), band(1, p1), band(2, p2)]).map_err(scene_error)?;
             let top = DVec3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z);
             (Some((object, summary)), Some(desc), report, Some([lo.to_array(), hi.to_array()]), Some(top))
         }
@@ -838,7 +844,15 @@ fn build_camera(
     }
 }
 
-type MaterialParts = (Medium, [f64; 3], MaterialSummary, Option<[f64; 3]>, Option<recipe::Surface>);
+/// The medium's coefficients (1/m) and phase functions per band R, G, B,
+/// before the index joins them.
+struct Bands {
+    mu_s_per_m: [f64; 3],
+    mu_a_per_m: [f64; 3],
+    phase: [Phase; 3],
+}
+
+type MaterialParts = (Bands, [f64; 3], MaterialSummary, Option<[f64; 3]>, Option<recipe::Surface>);
 
 /// The boundary of `[material] roughness`: "recipe" (default: the recipe's
 /// `[surface]` if it has one, else smooth), "smooth", or
@@ -931,7 +945,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
                 dispersion: true,
                 boundary: "smooth".into(),
             };
-            Ok((Medium { sigma_s: s, sigma_a: a, phase }, n, summary, None, None))
+            Ok((Bands { mu_s_per_m: s, mu_a_per_m: a, phase }, n, summary, None, None))
         }
         (Some(recipe_path), false) => {
             let full = ctx.resolve(recipe_path);
@@ -998,7 +1012,7 @@ fn medium_from_spectrum(
     w: &BandWeights,
     mie: bool,
     source: &Path,
-) -> Result<(Medium, MaterialSummary), SceneFileError> {
+) -> Result<(Bands, MaterialSummary), SceneFileError> {
     let avg = |v: &[f64], quantity: &'static str| {
         w.average(v).map_err(|source| ctx.section("material", SectionProblem::BandAverage { quantity, source }))
     };
@@ -1037,7 +1051,7 @@ fn medium_from_spectrum(
         dispersion: true,
         boundary: "smooth".into(),
     };
-    Ok((Medium { sigma_s: mu_s, sigma_a: mu_a, phase }, summary))
+    Ok((Bands { mu_s_per_m: mu_s, mu_a_per_m: mu_a, phase }, summary))
 }
 
 type ObjectParts = (Vec<[DVec3; 3]>, String, Option<mesh::MeshReport>);

@@ -18,7 +18,7 @@
 //! ends takes the batch's next path, so all four stay busy until the batch
 //! runs out.
 
-use super::{survives_roulette, Batch, Chain, Crossing, Estimator, Exit, Junctions, Kernel, Links, LobeEvent};
+use super::{survives_roulette, Batch, Chain, Crossing, Exit, Junctions, Kernel, Links, LobeEvent, Strategy};
 use crate::phase::lanes::PhaseLanes;
 use crate::rng::Rng;
 use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4};
@@ -161,7 +161,7 @@ impl Kernel<'_> {
             b.events += u64::from(ev.count_ones());
             paths.unscattered &= !ev;
 
-            if let Estimator::Lobe { .. } = self.estimator {
+            if let Strategy::Lobe { .. } = self.strategy {
                 // The lobe connection, per lane (as `trace`): the walk's
                 // history, the connection and the lane's chain.
                 let phase_value = phase.eval(angles.cos_theta).lanes();
@@ -184,7 +184,7 @@ impl Kernel<'_> {
                     };
                     paths.junctions[l].scatter(phase_value.0[l]);
                 }
-            } else if let Some(ring) = &self.ring {
+            } else if let Strategy::Ring(ring) = &self.strategy {
                 // The ring connection, per lane, where it can contribute
                 // (τ ≤ 40 along the exit direction).
                 let tau = -p[2] * F4::splat(self.inv_cos_t * self.mu_t);
@@ -281,7 +281,7 @@ impl Kernel<'_> {
         chain: &Chain,
         image: &mut [f64],
     ) -> f64 {
-        let m = self.lobe_vertices;
+        let m = self.lobe_params().0;
         let sensor = &self.setup.sensor;
         let npix = sensor.pixels as f64;
         let (zero, half, n) = (F4::splat(0.0), F4::splat(0.5 * npix), F4::splat(npix));
