@@ -491,7 +491,9 @@ pub const DEFAULT_DATA_RANGE: f64 = 1.0;
 
 impl CompareJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        positive("data_range", self.data_range)
+        crate::compare::ssim::SsimParams::new(self.data_range)
+            .map(drop)
+            .map_err(|e| bad("data_range", self.data_range, e.to_string()))
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["compare"]);

@@ -27,10 +27,11 @@
 //! | `compare` | `lucent compare` photo vs render per sample; with a fitted twin, both twins (recipe = A, fitted = B) and which is closer | a sample's `photo`, its render |
 //! | `report` | `report/index.html` and `report/metrics.json` ([`report`]) | any stage's output |
 //!
-//! A stage's work is a list of [`Task`]s — `lucent` command lines, with files
-//! to write first — planned just before it runs ([`plan`]), so a stage reads
-//! what the stages before it wrote. Its **key** is the SHA-256 of: the stage
-//! name, the lucent version, the tasks (arguments and file contents), the
+//! A stage's work is a list of [`Task`]s — validated jobs ([`crate::job`]),
+//! run as their canonical `lucent` command lines, with files to write first —
+//! planned just before it runs ([`plan`]), so a stage reads what the stages
+//! before it wrote. Its **key** is the SHA-256 of: the stage name, the
+//! lucent version, the tasks (command lines and file contents), the
 //! content of every input file, and the output hash of the stages it
 //! depends on. A stage whose key equals the one in its folder's
 //! `manifest.json`, and whose outputs still hash to what the manifest says,
