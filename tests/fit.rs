@@ -219,3 +219,46 @@ fn uncertainty_intervals_cover_95_percent() {
     let coverage = inside as f64 / draws as f64;
     assert!((coverage - 0.95).abs() < 0.035, "coverage {coverage} of [{lo}, {hi}]");
 }
+
+/// A free particle diameter walks the search from an optically thick slab
+/// (the start, 2.2 µm: the pilot picks the ring estimator) into thin ones
+/// (slices measured at 0.15 µm: small spheres hardly scatter). Where the
+/// ring does not apply the search must go on with an estimator that does,
+/// not end with the ring's "needs a thick slab" error.
+#[test]
+fn free_diameter_fit_crosses_into_thin_media() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = pdms_text().replace("weight_percent = 0.65", "weight_percent = 0.425");
+    let recipe_path = write(dir.path(), "r.toml", &text);
+    let thin = write(dir.path(), "thin.toml", &text.replace("diameter_um = 2.2", "diameter_um = 0.15"));
+    let truth = Recipe::load(&thin, Overrides::default()).unwrap();
+    let grids = fit::synthetic_slices(&truth, 550.0, &CONFIGS[..1], SENSOR, 4_000, 79, 0.05).unwrap();
+    let g = &grids[0];
+    let mut csv = String::new();
+    for row in g.values.chunks(g.size) {
+        csv.push_str(&row.iter().map(|v| format!("{v:e}")).collect::<Vec<_>>().join(","));
+        csv.push('\n');
+    }
+    let measured = write(dir.path(), "m45.csv", &csv);
+    let out = dir.path().join("out");
+    let run = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["fit", "--recipe"])
+        .arg(&recipe_path)
+        .arg("--measured")
+        .arg(format!("{}:45/0", measured.display()))
+        .args(["--measured-pixel-mm", "0.5", "--free", "diameter_um", "--bounds", "0.05:3", "--paths", "4000"])
+        .args(["--quiet", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!stderr.contains("thick"), "{stderr}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).unwrap()).unwrap();
+    let history = json["history"].as_array().unwrap();
+    let optical_depth =
+        |h: &serde_json::Value| (h["mu_s_per_m"].as_f64().unwrap() + h["mu_a_per_m"].as_f64().unwrap()) * 6.35e-3;
+    assert!(optical_depth(&history[0]) > 40.0, "the pilot is thick: {}", optical_depth(&history[0]));
+    assert!(history.iter().any(|h| optical_depth(h) < 40.0), "the search never reached a thin slab: {stderr}");
+    assert!(history.len() > 8, "{} evaluations: {stderr}", history.len());
+}

@@ -702,3 +702,40 @@ fn beam_footprints_are_sampled_with_their_irradiance() {
         assert!(p > 1e-3, "θ {theta}° φ {phi}°: χ² p = {p:.2e}");
     }
 }
+
+/// `Estimator::applies` says exactly which setups the kernel accepts: the
+/// ring and the lobe connection are refused for a thin slab (and the ring
+/// for 45°/15° and a rough top), the others run everywhere.
+#[test]
+fn estimator_applies_where_the_kernel_accepts_it() {
+    let rough = Interface::new(lucent_render::microfacet::Microsurface::Analytic(
+        lucent_render::microfacet::Distribution::TrowbridgeReitz { alpha: 0.1 },
+    ))
+    .unwrap();
+    let thick = setup(2.0e4, 5.0, 0.9, 1.5, 4e-3, 9, 0.2e-3, lab_45_0());
+    let cases = [
+        ("thick 45/0", thick.clone()),
+        ("thin 45/0", setup(2.0e3, 5.0, 0.9, 1.5, 1e-3, 9, 0.2e-3, lab_45_0())),
+        ("thick 45/15", setup(2.0e4, 5.0, 0.9, 1.5, 4e-3, 9, 0.2e-3, lab_45_15())),
+        ("thick 45/0, rough top", Setup { slab: thick.slab.clone().with_top(rough), ..thick.clone() }),
+    ];
+    let estimators = [
+        Estimator::Connection,
+        Estimator::Ring,
+        Estimator::Lobe { vertices: 2 },
+        Estimator::BruteForce { cone_deg: 5.0 },
+    ];
+    let mut refused = 0;
+    for (name, s) in &cases {
+        for e in estimators {
+            let options = RunOptions { stop: Stop::paths(8), estimator: e, ..RunOptions::default() };
+            let result = simulate(s, &options, |_| {});
+            let accepted = !matches!(result, Err(SlabError::RingNotApplicable | SlabError::LobeNotApplicable));
+            assert_eq!(e.applies(s), accepted, "{name}, {e:?}: {:?}", result.err());
+            refused += usize::from(!accepted);
+        }
+        assert!(Estimator::best_for(s).applies(s), "{name}");
+    }
+    // thin: ring and lobe; 45/15: ring; rough: ring.
+    assert_eq!(refused, 4);
+}

@@ -755,17 +755,20 @@ impl<'a> Evaluator<'a> {
         for (c, setup) in self.setups.iter_mut().enumerate() {
             setup.slab.medium = medium.clone();
             // The estimator is chosen once (at the pilot) so every
-            // evaluation consumes the random numbers the same way.
+            // evaluation consumes the random numbers the same way — unless
+            // the search moved to a medium it does not apply to (a thin
+            // slab for the ring or lobe connection, e.g. a free diameter):
+            // there the best one that applies is used (same expectation,
+            // other noise).
             if self.estimators.len() <= c {
                 self.estimators.push(Estimator::best_for(setup));
             }
-            let options = RunOptions {
-                stop: stops[c],
-                seed: self.problem.seed,
-                estimator: self.estimators[c],
-                fold: true,
-                ..RunOptions::default()
+            let estimator = match self.estimators[c] {
+                e if e.applies(setup) => e,
+                _ => Estimator::best_for(setup),
             };
+            let options =
+                RunOptions { stop: stops[c], seed: self.problem.seed, estimator, fold: true, ..RunOptions::default() };
             let slice = slab::simulate(setup, &options, |_| {})?;
             if stage == "pilot" {
                 self.paths[c] = slice.paths;
