@@ -6,6 +6,7 @@
 //! [`crate::hdr`] re-exports them.
 
 use serde::{Deserialize, Serialize};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// What is wrong with a set of brackets.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -61,21 +62,9 @@ impl Rgb8Buffer {
 }
 
 /// Camera-response recovery method for 8-bit brackets.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(serialize_all = "lowercase", ascii_case_insensitive)]
+#[derive(Serialize, Deserialize)]
 pub enum ResponseMethod {
     /// Debevec & Malik 1997.
     #[strum(to_string = "debevec", serialize = "debevec-malik")]

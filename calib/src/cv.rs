@@ -48,6 +48,7 @@ use opencv::mcc::{
 use opencv::prelude::*;
 use opencv::{calib3d, imgcodecs, imgproc};
 use std::path::Path;
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 // Kept at this path for the root crate and the tests (`lucent_calib::cv::CalibError`).
 pub use crate::error::CalibError;
@@ -62,18 +63,7 @@ pub fn version() -> String {
 }
 
 /// Corner detector policy.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
 pub enum Detector {
     /// Sector-based first, classic + cornerSubPix where it fails.

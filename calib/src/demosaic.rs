@@ -32,6 +32,7 @@
 use crate::buffer::{BufferSizeError, RgbBuffer};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// What went wrong in demosaicing.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -139,21 +140,9 @@ impl Mosaic {
 }
 
 /// Demosaicing method.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(ascii_case_insensitive)]
+#[derive(Serialize, Deserialize)]
 pub enum Demosaic {
     /// Malvar, He & Cutler (2004), gradient-corrected bilinear.
     #[serde(rename = "malvar")]

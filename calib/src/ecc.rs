@@ -39,23 +39,13 @@ use crate::error::CalibError;
 use opencv::core::{self, Mat, Size, TermCriteria};
 use opencv::prelude::*;
 use opencv::{imgproc, video};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// Longest side of the coarsest pyramid level (see the module docs).
 pub const PYRAMID_MAX_SIDE: usize = 512;
 
 /// The warp's degrees of freedom (OpenCV's `MOTION_*`).
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(serialize_all = "lowercase", ascii_case_insensitive)]
 pub enum Motion {
     /// dx, dy (2 parameters).

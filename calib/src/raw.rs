@@ -59,6 +59,7 @@ use crate::buffer::RgbBuffer;
 use crate::demosaic::{self, Bayer, Demosaic, DemosaicError, Mosaic};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// What went wrong with a RAW file; every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -78,22 +79,9 @@ pub enum RawError {
 }
 
 /// White balance applied before demosaicing.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Default,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[derive(EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(serialize_all = "lowercase", ascii_case_insensitive)]
 pub enum WhiteBalance {
     /// Camera RGB as recorded (linear, as the sensor saw it).

@@ -27,6 +27,7 @@
 //! ```
 
 use std::sync::OnceLock;
+use strum::{EnumIter, EnumMessage, IntoStaticStr, VariantArray, VariantNames};
 
 const CIE1931_XYZ: &str = include_str!("../data/cie1931_2deg_xyz.csv");
 const CIE2012_XYZ: &str = include_str!("../data/cie2012_2deg_xyz.csv");
@@ -127,19 +128,7 @@ pub use crate::names::canonical_name;
 /// A standard colorimetric observer (XYZ colour-matching functions).
 /// Also read as "cie1931", "1931", "2012", "2015" and the like: a leading
 /// "CIE" and a trailing "deg"/"degree" are optional.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    strum::IntoStaticStr,
-    strum::VariantArray,
-    strum::VariantNames,
-    strum::EnumMessage,
-    strum::EnumIter,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, IntoStaticStr, VariantArray, VariantNames, EnumMessage, EnumIter)]
 pub enum Observer {
     /// CIE 1931 2° standard observer (CIE 015:2018).
     #[strum(to_string = "CIE 1931 2°", serialize = "1931 2", serialize = "1931")]
@@ -194,19 +183,7 @@ impl Observer {
 }
 
 /// A CIE illuminant.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    strum::IntoStaticStr,
-    strum::VariantArray,
-    strum::VariantNames,
-    strum::EnumMessage,
-    strum::EnumIter,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, IntoStaticStr, VariantArray, VariantNames, EnumMessage, EnumIter)]
 pub enum Illuminant {
     D50,
     D65,

@@ -31,6 +31,7 @@ use crate::adaptation::{adaptation_matrix, Cat};
 pub use crate::chromaticity::{xy_to_xyz, xyy_to_xyz, xyz_to_xyy};
 pub use crate::matrix::{mat3_inverse, mat3_mul, mat3_vec};
 use crate::{ColourError, Mat3};
+use strum::{EnumIter, EnumMessage, IntoStaticStr, VariantArray, VariantNames};
 
 /// CIELAB ε = (6/29)³.
 pub const LAB_EPSILON: f64 = 216.0 / 24389.0;
@@ -87,19 +88,7 @@ pub fn srgb_decode(v: f64) -> f64 {
 }
 
 /// The linear RGB spaces lucent converts to and from.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Hash,
-    strum::IntoStaticStr,
-    strum::VariantArray,
-    strum::VariantNames,
-    strum::EnumMessage,
-    strum::EnumIter,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, IntoStaticStr, VariantArray, VariantNames, EnumMessage, EnumIter)]
 pub enum RgbSpace {
     /// CIE 1931 RGB: primaries 700 / 546.1 / 435.8 nm, white E. The space
     /// photos, environment maps and material bands share (SPEC §4).

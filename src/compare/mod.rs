@@ -57,6 +57,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use ssim::{Channel, SsimParams, Weighted};
 use std::path::{Path, PathBuf};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// A comparison that could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -156,18 +157,7 @@ pub enum ReadProblem {
 }
 
 /// Luminance weights for `ssim.Y`, the difference picture and ECC.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(ascii_case_insensitive)]
 pub enum Luminance {
     /// Y row of CIE 1931 RGB → XYZ: 0.1769, 0.8124, 0.0107.

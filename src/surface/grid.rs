@@ -35,20 +35,10 @@
 
 use super::{HeightMap, SurfaceError};
 use std::path::Path;
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// A length unit of heights or pitches.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(serialize_all = "lowercase", ascii_case_insensitive)]
 pub enum LengthUnit {
     M,

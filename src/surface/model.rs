@@ -12,25 +12,14 @@ use lucent_render::microfacet::Distribution;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::str::FromStr;
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// Microfacet distribution of a measured surface.
 /// Files spell the models `trowbridge-reitz` and `beckmann`; the command
 /// line and the roughness text also read `tr` (the name listed) and `ggx`.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Deserialize,
-    Serialize,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
 pub enum RoughnessModel {
     /// Trowbridge–Reitz (GGX).

@@ -47,26 +47,15 @@ use crate::io::write_atomic;
 use md5::{Digest, Md5};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// XML namespace of `main.xml`.
 pub const NAMESPACE: &str = "http://www.opengps.eu/2008/ISO5436_2";
 
 /// The storage type of the heights (the `DataType` of the z axis).
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    serde::Serialize,
-    serde::Deserialize,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(ascii_case_insensitive)]
+#[derive(serde::Serialize, serde::Deserialize)]
 pub enum PointType {
     /// 16-bit signed integer, scaled by the increment.
     I,

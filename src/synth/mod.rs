@@ -43,6 +43,7 @@ use lucent_colour::Mat3;
 use lucent_render::rng::Rng;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 use thiserror::Error;
 
 /// What can go wrong making a synthetic capture.
@@ -57,21 +58,9 @@ pub enum SynthError {
 }
 
 /// The colour space of the image a capture starts from.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Serialize,
-    Deserialize,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantNames,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
 #[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
 pub enum InputSpace {
     /// CIE 1931 RGB, white E (the renderer's output).
