@@ -35,6 +35,7 @@
 //! ```
 
 pub mod board;
+pub mod bracket;
 pub mod buffer;
 pub mod calibrate;
 pub mod camera;

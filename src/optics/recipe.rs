@@ -53,6 +53,7 @@
 //! recipes use.
 
 use super::index::{Extrapolation, ImaginaryPartCorrection, IndexError, IndexSpectrum, RealPartCorrection};
+use crate::surface::model::RoughnessModel;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -248,14 +249,6 @@ struct RawSurface {
     /// A `fit.json` of `lucent surface fit` (relative to the recipe): its
     /// better model, or `model`'s fit when given.
     fit: Option<String>,
-}
-
-/// Microfacet distribution of a measured surface (SPEC §2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum RoughnessModel {
-    TrowbridgeReitz,
-    Beckmann,
 }
 
 /// Measured surface roughness of the sample.

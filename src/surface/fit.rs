@@ -26,7 +26,7 @@
 //!
 //! ```
 //! use lucent::surface::fit::d_model;
-//! use lucent::optics::recipe::RoughnessModel;
+//! use lucent::surface::model::RoughnessModel;
 //! // Both models peak at 1/(π α²) at θ = 0.
 //! let a: f64 = 0.1;
 //! for m in [RoughnessModel::TrowbridgeReitz, RoughnessModel::Beckmann] {
@@ -36,7 +36,7 @@
 
 use super::distribution::Distribution;
 use super::SurfaceError;
-use crate::optics::recipe::RoughnessModel;
+use crate::surface::model::RoughnessModel;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 

@@ -36,7 +36,7 @@
 //! ```
 //! use lucent::surface::{fit_surface, FitOptions};
 //! use lucent::surface::synth::{synthesize, SynthSpec};
-//! use lucent::optics::recipe::RoughnessModel;
+//! use lucent::surface::model::RoughnessModel;
 //! // A Beckmann-like Gaussian random surface with α = 0.05, 256 × 256 at 0.871 µm.
 //! let spec = SynthSpec { nx: 256, ny: 256, alpha: 0.05, model: RoughnessModel::Beckmann, ..SynthSpec::default() };
 //! let map = synthesize(&spec).unwrap().map;
@@ -48,6 +48,7 @@
 pub mod distribution;
 pub mod fit;
 pub mod grid;
+pub mod model;
 pub mod normals;
 pub mod plot;
 pub mod synth;
@@ -55,8 +56,8 @@ pub mod x3p;
 
 use crate::imageio::ImageIoError;
 use crate::io::WriteError;
-use crate::optics::recipe::RoughnessModel;
 use crate::plot::PlotError;
+use crate::surface::model::RoughnessModel;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
