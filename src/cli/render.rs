@@ -142,8 +142,11 @@ pub fn check_threads(threads: Option<usize>) -> Result<()> {
     Ok(())
 }
 
-/// Runs `lucent render`.
-pub fn run(a: RenderArgs) -> Result<()> {
+/// The scene of `a` loaded and checked, with the arguments' overrides
+/// applied (image size with the intrinsics scaled to match, spp, time
+/// budget, seed, estimator choices): what `lucent render` renders. The
+/// scene's warnings are in the returned [`scene::LoadedScene`].
+pub fn prepare(a: &RenderArgs) -> Result<(scene::LoadedScene, Settings)> {
     check_threads(a.threads)?;
     if let Some(t) = a.time_s {
         check_time_s(t)?;
@@ -155,9 +158,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
         bail!("--exposure must be finite");
     }
     let mut loaded = scene::load(&a.scene)?;
-    for w in &loaded.warnings {
-        eprintln!("warning: {w}");
-    }
     if let Some(size) = &a.size {
         let (w, h) = parse_size(size)?;
         let cam = &mut loaded.scene.camera;
@@ -190,6 +190,15 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     if let Some(s) = a.sampling {
         settings.sampling = s.into();
+    }
+    Ok((loaded, settings))
+}
+
+/// Runs `lucent render`.
+pub fn run(a: RenderArgs) -> Result<()> {
+    let (loaded, settings) = prepare(&a)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create output folder", a.out.display()))?;
     let pool = rayon::ThreadPoolBuilder::new()
