@@ -268,9 +268,57 @@ fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
         .collect()
 }
 
-fn simulate(a: RunArgs) -> Result<()> {
-    let m = medium(&a)?;
-    let (beam, beam_name) = beam(&a)?;
+/// One configuration of a `lucent bssrdf` run, set up as the command sets it up.
+pub struct PlannedRun {
+    /// θi, φi, θo, φo in degrees.
+    pub angles: (f64, f64, f64, f64),
+    pub dirs: Directions,
+    pub setup: Setup,
+    pub options: RunOptions,
+}
+
+/// Everything `lucent bssrdf` simulates for the arguments, checked before
+/// any work: the medium (the recipe's bulk properties at the wavelength, or
+/// the explicit coefficients), the beam, the sensor (only the crop is
+/// simulated), the stop rule (without one: 1 % on the slice sum, at most
+/// 600 s per configuration), the top boundary, and per configuration the
+/// directions, the estimator and the run options.
+pub struct Plan {
+    medium: MediumChoice,
+    pub beam: Beam,
+    pub beam_name: String,
+    /// Pixels per side of the simulated (cropped) slice.
+    pub out_pixels: usize,
+    pub stop: Stop,
+    /// The top boundary as described in summary.json.
+    pub roughness: String,
+    pub runs: Vec<PlannedRun>,
+}
+
+impl Plan {
+    /// The beam's relative irradiance along the slice's middle row
+    /// (`beam_relative` of profile.csv) for `run`, pixel size `pixel_mm`.
+    pub fn beam_profile(&self, run: &PlannedRun, pixel_mm: f64) -> Vec<f64> {
+        let n = self.out_pixels;
+        let grid_x: Vec<f64> = (0..n).map(|c| (c as f64 + 0.5 - 0.5 * n as f64) * pixel_mm).collect();
+        bssrdf::beam_profile(&self.beam, &run.dirs, &grid_x)
+    }
+
+    /// The medium's μs, μa [1/m], g and n as used.
+    pub fn optical_properties(&self) -> &OpticalUsed {
+        &self.medium.used
+    }
+
+    /// The phase function as described in summary.json.
+    pub fn phase_name(&self) -> &str {
+        &self.medium.phase_name
+    }
+}
+
+/// The [`Plan`] of `lucent bssrdf` for the arguments `a`.
+pub fn plan(a: &RunArgs) -> Result<Plan> {
+    let m = medium(a)?;
+    let (beam, beam_name) = beam(a)?;
     let out_pixels = match a.crop {
         Some(c) if c == 0 || c > a.pixels => bail!("--crop {c}: must lie in 1 … --pixels ({})", a.pixels),
         Some(c) => c,
@@ -303,9 +351,31 @@ fn simulate(a: RunArgs) -> Result<()> {
         Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
         None => vec![(a.theta_i, a.phi_i, a.theta_o, a.phi_o)],
     };
-    for (ti, pi, to, po) in &configs {
-        Directions::from_degrees(*ti, *pi, *to, *po).with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
-    }
+    let runs = configs
+        .into_iter()
+        .map(|(ti, pi, to, po)| {
+            let dirs = Directions::from_degrees(ti, pi, to, po)
+                .with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
+            let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
+            let estimator = match a.estimator {
+                EstimatorChoice::Auto => match Estimator::best_for(&setup) {
+                    Estimator::Lobe { .. } => Estimator::Lobe { vertices: a.lobe_vertices.into() },
+                    e => e,
+                },
+                EstimatorChoice::Ring => Estimator::Ring,
+                EstimatorChoice::Lobe => Estimator::Lobe { vertices: a.lobe_vertices.into() },
+                EstimatorChoice::Connection => Estimator::Connection,
+            };
+            let options = RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() };
+            Ok(PlannedRun { angles: (ti, pi, to, po), dirs, setup, options })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Plan { medium: m, beam, beam_name, out_pixels, stop, roughness, runs })
+}
+
+fn simulate(a: RunArgs) -> Result<()> {
+    let plan = plan(&a)?;
+    let (m, stop, out_pixels) = (&plan.medium, plan.stop, plan.out_pixels);
     // Written into a staging folder, moved into --out when every configuration is done.
     let out_existed = a.out.exists();
     let stage = crate::io::StagedDir::new(&a.out)?;
@@ -322,29 +392,19 @@ fn simulate(a: RunArgs) -> Result<()> {
     if !a.quiet {
         eprintln!(
             "simulating {} configuration(s); Ctrl-C stops after the round under way and keeps the slice so far",
-            configs.len()
+            plan.runs.len()
         );
     }
-    for (ti, pi, to, po) in &configs {
-        let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
-        let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
-        let sub = if configs.len() > 1 { format!("ti{ti}_to{to}") } else { String::new() };
+    for run in &plan.runs {
+        let (ti, pi, to, po) = (&run.angles.0, &run.angles.1, &run.angles.2, &run.angles.3);
+        let (setup, options) = (&run.setup, &run.options);
+        let sub = if plan.runs.len() > 1 { format!("ti{ti}_to{to}") } else { String::new() };
         let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
-        let estimator = match a.estimator {
-            EstimatorChoice::Auto => match Estimator::best_for(&setup) {
-                Estimator::Lobe { .. } => Estimator::Lobe { vertices: a.lobe_vertices.into() },
-                e => e,
-            },
-            EstimatorChoice::Ring => Estimator::Ring,
-            EstimatorChoice::Lobe => Estimator::Lobe { vertices: a.lobe_vertices.into() },
-            EstimatorChoice::Connection => Estimator::Connection,
-        };
-        let options = RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() };
         let bar = progress_bar(a.quiet, &stop);
         bar.set_prefix(format!("θi {ti}° → θo {to}°"));
         let slice = slab::simulate_cancellable(
-            &setup,
-            &options,
+            setup,
+            options,
             |p| {
                 bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
                 bar.set_message(format!(
@@ -379,13 +439,13 @@ fn simulate(a: RunArgs) -> Result<()> {
                 theta_o_deg: *to,
                 phi_o_deg: *po,
                 phase: m.phase_name.clone(),
-                beam: beam_name.clone(),
+                beam: plan.beam_name.clone(),
                 pixels: out_pixels,
                 pixel_mm: a.pixel_mm,
                 crop_of: a.crop.map(|_| a.pixels),
                 seed: a.seed,
                 thickness_mm: m.thickness_m * 1e3,
-                roughness: roughness.clone(),
+                roughness: plan.roughness.clone(),
             },
             optical_properties: m.used,
             sum: slice.sum,
@@ -408,9 +468,7 @@ fn simulate(a: RunArgs) -> Result<()> {
             pixel_mm: a.pixel_mm,
             interrupted,
         };
-        let grid_x: Vec<f64> =
-            (0..out_pixels).map(|c| (c as f64 + 0.5 - 0.5 * out_pixels as f64) * a.pixel_mm).collect();
-        let beam_row = bssrdf::beam_profile(&beam, &dirs, &grid_x);
+        let beam_row = plan.beam_profile(run, a.pixel_mm);
         bssrdf::write_run(&dir, &slice, &summary, &beam_row)?;
         println!(
             "θi {ti}° φi {pi}° → θo {to}° φo {po}°: sum = {:.5e} ± {:.2e} 1/(m² sr) ({:.2} %), per pixel {:.1} % median, {:.1} % p90, {} paths, {:.1} M events/s, {:.1} s → {}",
@@ -438,7 +496,7 @@ fn simulate(a: RunArgs) -> Result<()> {
         }
     }
     drop(interrupt);
-    if configs.len() > 1 {
+    if plan.runs.len() > 1 {
         crate::io::write_atomic(&stage.path().join("sweep.csv"), table.as_bytes())?;
         println!("combined table: {}", a.out.join("sweep.csv").display());
     }
