@@ -93,9 +93,43 @@ def render(
     seed: int | None = None,
     size: str | None = None,
     threads: int | None = None,
-    progress: Callable[[int, int, float, float], object] | None = None,
+    progress: Callable[[float, float, float, float], object] | None = None,
 ) -> dict[str, Any]:
     """Renders a scene file: {"mean", "variance"} (H × W × 3), "spp", "object", "board" (H × W), "seed", …"""
+
+def bssrdf(
+    recipe: _Path | None = None,
+    *,
+    wavelength: float = 550.0,
+    weight_percent: float | None = None,
+    mu_s: float | None = None,
+    mu_a: float | None = None,
+    g: float | None = None,
+    n: float | None = None,
+    thickness_mm: float | None = None,
+    theta_i: float = 45.0,
+    phi_i: float = 0.0,
+    theta_o: float = 0.0,
+    phi_o: float = 180.0,
+    phase: str | None = None,
+    beam_fwhm_um: float = 200.0,
+    beam_map: _Path | None = None,
+    beam_map_pixel_mm: float | None = None,
+    pixels: int = 259,
+    pixel_mm: float = 0.1029,
+    crop: int | None = None,
+    rel_error: float | None = None,
+    pixel_rel_error: float | None = None,
+    paths: int | None = None,
+    time_s: float | None = None,
+    seed: int = 1,
+    estimator: str = "auto",
+    lobe_vertices: int = 16,
+    roughness: str | None = None,
+    no_fold: bool = False,
+    progress: Callable[[float, float, float], object] | None = None,
+) -> dict[str, Any]:
+    """Slab BSSRDF slice as `lucent bssrdf`: {"slice", "std_error"} (N × N, 1/(m² sr)), "sum", "sum_std_error", "profile", …"""
 
 def ccm(
     camera_rgb: npt.ArrayLike,

@@ -12,6 +12,8 @@ packages=(
   rawtran-doc      # a real Canon EOS 30D CR2 (GPL-3+) for the RAW decoder tests, read from /usr/share/doc/rawtran/
   chromium         # headless browser: tests/pipeline.rs opens the run report (report/index.html) and screenshots it
   mold             # fast linker for the test binaries and doctests (scripts/cc-link; plain cc without it)
+  python3          # `make python`: the Python module (python/) and its tests run in a project-local venv
+  python3-venv
 )
 
 missing=()

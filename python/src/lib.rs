@@ -4,11 +4,13 @@
 //! Lorenz–Mie solver (`lucent::optics::mie`), the bulk optical properties of a
 //! recipe (`lucent::optics::bulk`), the photo/render comparison
 //! (`lucent::compare`), the renderer (`lucent_render::tracer`, with the scene
-//! prepared as `lucent render` prepares it) and the colour-correction fits
+//! prepared as `lucent render` prepares it), the slab simulator
+//! (`lucent_render::slab`, planned as `lucent bssrdf` plans it) and the colour-correction fits
 //! (`lucent_colour::ccm`, CIEDE2000 of `lucent_colour::difference`).
 //! Errors are raised as `lucent.LucentError` (a `ValueError`) with the
 //! library's message; long calls release the GIL and stop on Ctrl-C.
 
+use lucent::cli::bssrdf as bssrdf_cli;
 use lucent::cli::render::{self as render_cli, RenderArgs};
 use lucent::compare::{self, MaskSpec, Request};
 use lucent::imageio::RgbImage;
@@ -17,7 +19,7 @@ use lucent::optics::mie::{self, Efficiencies, MieError};
 use lucent::optics::output;
 use lucent::optics::recipe::{Overrides, Recipe};
 use lucent_colour::WavelengthGrid;
-use lucent_render::tracer;
+use lucent_render::{slab, tracer};
 use num_complex::Complex64;
 use numpy::ndarray::{Array, Array2, IxDyn};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
@@ -536,13 +538,58 @@ fn py_compare<'py>(
     Ok(out.into_any())
 }
 
-/// What the render thread last reported, for the progress callback.
-#[derive(Clone, Copy)]
-struct PassReport {
-    spp_done: u32,
-    spp_target: u32,
-    elapsed_s: f64,
-    object_median: f64,
+/// Runs `work` on a worker thread without the GIL while this thread checks
+/// for Ctrl-C (KeyboardInterrupt) and feeds `progress` with the numbers
+/// `work` reports (a tuple of floats). Ctrl-C or an exception raised by the
+/// callback sets the cancel flag `work` polls; the work then stops at its
+/// next check and the exception is raised.
+fn run_interruptible<T: Send>(
+    py: Python<'_>,
+    progress: Option<Py<PyAny>>,
+    work: impl FnOnce(&AtomicBool, &(dyn Fn(Vec<f64>) + Sync)) -> T + Send,
+) -> PyResult<T> {
+    let cancel = AtomicBool::new(false);
+    let latest: Mutex<Option<Vec<f64>>> = Mutex::new(None);
+    let report = |r: Vec<f64>| {
+        if let Ok(mut l) = latest.lock() {
+            *l = Some(r);
+        }
+    };
+    let (result, stop) = py.detach(|| {
+        std::thread::scope(|s| {
+            let worker = s.spawn(|| work(&cancel, &report));
+            let mut stop: Option<PyErr> = None;
+            let poll = |stop: &mut Option<PyErr>| {
+                Python::attach(|py| {
+                    if let Err(e) = py.check_signals() {
+                        stop.get_or_insert(e);
+                    }
+                    let values = latest.lock().ok().and_then(|mut l| l.take());
+                    if let (Some(cb), Some(v), None) = (&progress, values, stop.as_ref()) {
+                        let args = PyTuple::new(py, v);
+                        if let Err(e) = args.and_then(|a| cb.call1(py, a)) {
+                            *stop = Some(e);
+                        }
+                    }
+                });
+                if stop.is_some() {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+            };
+            while !worker.is_finished() {
+                std::thread::sleep(Duration::from_millis(20));
+                poll(&mut stop);
+            }
+            if stop.is_none() {
+                poll(&mut stop);
+            }
+            (worker.join(), stop)
+        })
+    });
+    if let Some(e) = stop {
+        return Err(e);
+    }
+    result.map_err(|_| error("the computation failed (a worker thread panicked)"))
 }
 
 /// Renders the digital twin of a scene file as ``lucent render SCENE`` does
@@ -554,8 +601,8 @@ struct PassReport {
 /// random streams; size: "WIDTHxHEIGHT" instead of the camera's (intrinsics
 /// scaled); threads: worker threads (default all cores). Each overrides the
 /// scene's [render] value.
-/// progress: optional callable, called as ``progress(spp_done, spp_target,
-/// elapsed_s, object_rel_error)`` after each pass (object_rel_error: the
+/// progress: optional callable, called with the floats ``(spp_done,
+/// spp_target, elapsed_s, object_rel_error)`` after passes (object_rel_error: the
 /// median relative standard error over the object's pixels, NaN without
 /// object pixels); an exception it raises stops the render and propagates.
 ///
@@ -595,62 +642,18 @@ fn py_render<'py>(
     };
     let (loaded, settings) = render_cli::prepare(&args).map_err(error_chain)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build().map_err(error)?;
-    let cancel = AtomicBool::new(false);
-    let latest: Mutex<Option<PassReport>> = Mutex::new(None);
-    let (result, stop) = py.detach(|| {
-        std::thread::scope(|s| {
-            let worker = s.spawn(|| {
-                pool.install(|| {
-                    tracer::render_cancellable(
-                        &loaded.scene,
-                        &settings,
-                        &mut |p| {
-                            if let Ok(mut l) = latest.lock() {
-                                *l = Some(PassReport {
-                                    spp_done: p.spp_done,
-                                    spp_target: p.spp_target,
-                                    elapsed_s: p.elapsed_s,
-                                    object_median: p.errors.object.median,
-                                });
-                            }
-                        },
-                        Some(&cancel),
-                    )
-                })
-            });
-            // This thread watches for Ctrl-C and feeds the callback while the
-            // worker renders.
-            let mut stop: Option<PyErr> = None;
-            let poll = |stop: &mut Option<PyErr>| {
-                Python::attach(|py| {
-                    if let Err(e) = py.check_signals() {
-                        stop.get_or_insert(e);
-                    }
-                    let report = latest.lock().ok().and_then(|mut l| l.take());
-                    if let (Some(cb), Some(r), None) = (&progress, report, stop.as_ref()) {
-                        if let Err(e) = cb.call1(py, (r.spp_done, r.spp_target, r.elapsed_s, r.object_median)) {
-                            *stop = Some(e);
-                        }
-                    }
-                });
-                if stop.is_some() {
-                    cancel.store(true, Ordering::Relaxed);
-                }
-            };
-            while !worker.is_finished() {
-                std::thread::sleep(Duration::from_millis(20));
-                poll(&mut stop);
-            }
-            if stop.is_none() {
-                poll(&mut stop);
-            }
-            (worker.join(), stop)
+    let (image, stats) = run_interruptible(py, progress, |cancel, report| {
+        pool.install(|| {
+            tracer::render_cancellable(
+                &loaded.scene,
+                &settings,
+                &mut |p| {
+                    report(vec![f64::from(p.spp_done), f64::from(p.spp_target), p.elapsed_s, p.errors.object.median])
+                },
+                Some(cancel),
+            )
         })
-    });
-    if let Some(e) = stop {
-        return Err(e);
-    }
-    let (image, stats) = result.map_err(|_| error("the render failed (a worker thread panicked)"))?;
+    })?;
     let (w, h) = (image.width, image.height);
     let rgb = |v: &[[f64; 3]]| -> PyResult<Bound<'py, PyAny>> {
         Ok(Array::from_shape_vec(IxDyn(&[h, w, 3]), v.iter().flatten().copied().collect())
@@ -674,6 +677,172 @@ fn py_render<'py>(
     out.set_item("wall_s", stats.wall_s)?;
     out.set_item("samples", stats.samples)?;
     out.set_item("warnings", loaded.warnings.clone())?;
+    Ok(out)
+}
+
+/// Arrays over an n × n slice.
+fn square<'py>(py: Python<'py>, n: usize, v: &[f64]) -> PyResult<Bound<'py, PyAny>> {
+    Ok(Array2::from_shape_vec((n, n), v.to_vec()).map_err(error)?.into_pyarray(py).into_any())
+}
+
+/// A `clap` value name (e.g. "hg", "lobe") as the CLI's choice.
+fn choice<T: clap::ValueEnum>(what: &str, text: &str) -> PyResult<T> {
+    T::from_str(text, true).map_err(|_| {
+        let names: Vec<String> = T::value_variants()
+            .iter()
+            .filter_map(|v| v.to_possible_value())
+            .map(|p| p.get_name().to_string())
+            .collect();
+        error(format!("{what} {text:?}: expected one of {}", names.join(", ")))
+    })
+}
+
+/// Slab BSSRDF slice of one configuration by light tracing with explicit
+/// connection to the camera, as ``lucent bssrdf`` simulates it (same
+/// options under the same names, same defaults, same random streams: for a
+/// given seed and ``paths``, ``slice`` equals the Y of its bssrdf.exr).
+///
+/// The medium: ``recipe`` (path; bulk properties by Lorenz–Mie at
+/// ``wavelength`` [nm], ``weight_percent`` for a recipe that leaves it
+/// unknown, the recipe's thickness and [surface]) or all of ``mu_s``,
+/// ``mu_a`` [1/m], ``g`` and ``n`` (Henyey–Greenstein; ``thickness_mm``
+/// default 6.35). ``phase``: "mie" or "hg".
+/// Geometry: incidence ``theta_i``, ``phi_i`` and view ``theta_o``,
+/// ``phi_o`` [degrees]; a Gaussian beam of ``beam_fwhm_um`` [µm] or a
+/// measured ``beam_map``; a camera of ``pixels`` × ``pixels`` of
+/// ``pixel_mm`` [mm] on the surface (``crop``: only the central N × N).
+/// ``roughness``: "smooth", "tr:ALPHA", "beckmann:ALPHA" or "measured:FIT.json".
+/// Stop rules (the first reached ends the run): ``paths``, ``time_s``,
+/// ``rel_error`` of the slice sum, ``pixel_rel_error`` (median per pixel);
+/// none given: 1 % on the sum, at most 600 s. ``estimator``: "auto",
+/// "ring", "lobe" or "connection"; ``seed``; ``no_fold``.
+/// ``progress``: optional callable, called with the floats ``(paths,
+/// elapsed_s, rel_error)`` as the run goes; an exception it raises stops it.
+///
+/// Returns a dict: ``slice`` and ``std_error`` (N × N, f_ssr in 1/(m² sr)
+/// and its standard error per pixel, rows along y, columns along x),
+/// ``x_mm`` (pixel centres), ``profile`` and ``profile_std_error`` (the
+/// middle row), ``beam_profile`` (relative irradiance along it), ``sum``
+/// and ``sum_std_error`` (1/(m² sr)), ``paths``, ``events``, ``wall_s``,
+/// ``estimator``, ``specular_reflectance``, ``diffuse_reflectance``,
+/// ``transmittance``, ``optical_properties`` (mu_s_per_m, mu_a_per_m, g, n),
+/// ``phase``, ``roughness``. Releases the GIL; Ctrl-C stops it.
+#[pyfunction]
+#[pyo3(name = "bssrdf", signature = (
+    recipe = None, *, wavelength = 550.0, weight_percent = None, mu_s = None, mu_a = None, g = None, n = None,
+    thickness_mm = None, theta_i = 45.0, phi_i = 0.0, theta_o = 0.0, phi_o = 180.0, phase = None,
+    beam_fwhm_um = 200.0, beam_map = None, beam_map_pixel_mm = None, pixels = 259, pixel_mm = 0.1029, crop = None,
+    rel_error = None, pixel_rel_error = None, paths = None, time_s = None, seed = 1, estimator = "auto",
+    lobe_vertices = 16, roughness = None, no_fold = false, progress = None
+))]
+#[allow(clippy::too_many_arguments)]
+fn py_bssrdf<'py>(
+    py: Python<'py>,
+    recipe: Option<PathBuf>,
+    wavelength: f64,
+    weight_percent: Option<f64>,
+    mu_s: Option<f64>,
+    mu_a: Option<f64>,
+    g: Option<f64>,
+    n: Option<f64>,
+    thickness_mm: Option<f64>,
+    theta_i: f64,
+    phi_i: f64,
+    theta_o: f64,
+    phi_o: f64,
+    phase: Option<&str>,
+    beam_fwhm_um: f64,
+    beam_map: Option<PathBuf>,
+    beam_map_pixel_mm: Option<f64>,
+    pixels: usize,
+    pixel_mm: f64,
+    crop: Option<usize>,
+    rel_error: Option<f64>,
+    pixel_rel_error: Option<f64>,
+    paths: Option<u64>,
+    time_s: Option<f64>,
+    seed: u64,
+    estimator: &str,
+    lobe_vertices: u8,
+    roughness: Option<String>,
+    no_fold: bool,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    if recipe.is_some() && (mu_s.is_some() || mu_a.is_some()) {
+        return Err(error("give either recipe or mu_s, mu_a, g, n, not both"));
+    }
+    let args = bssrdf_cli::RunArgs {
+        recipe,
+        weight_percent,
+        wavelength,
+        mu_s,
+        mu_a,
+        g,
+        n,
+        thickness_mm,
+        theta_i,
+        phi_i,
+        theta_o,
+        phi_o,
+        configs: None,
+        phase: phase.map(|p| choice("phase", p)).transpose()?,
+        beam_fwhm_um,
+        beam_map,
+        beam_map_pixel_mm,
+        pixels,
+        pixel_mm,
+        crop,
+        rel_error,
+        pixel_rel_error,
+        paths,
+        time_s,
+        seed,
+        estimator: choice("estimator", estimator)?,
+        lobe_vertices,
+        roughness,
+        no_fold,
+        out: PathBuf::new(),
+        quiet: true,
+    };
+    let plan = bssrdf_cli::plan(&args).map_err(error_chain)?;
+    let run = plan.runs.first().ok_or_else(|| error("no configuration to simulate"))?;
+    let slice = run_interruptible(py, progress, |cancel, report| {
+        slab::simulate_cancellable(
+            &run.setup,
+            &run.options,
+            |p| report(vec![p.paths as f64, p.elapsed_s, p.rel_error]),
+            cancel,
+        )
+    })?
+    .map_err(error)?;
+    let n = slice.pixels;
+    let row = n / 2;
+    let x_mm: Vec<f64> = (0..n).map(|c| (c as f64 + 0.5 - 0.5 * n as f64) * pixel_mm).collect();
+    let out = PyDict::new(py);
+    out.set_item("slice", square(py, n, &slice.values)?)?;
+    out.set_item("std_error", square(py, n, &slice.std_error)?)?;
+    out.set_item("x_mm", PyArray1::from_vec(py, x_mm))?;
+    out.set_item("profile", PyArray1::from_slice(py, &slice.values[row * n..(row + 1) * n]))?;
+    out.set_item("profile_std_error", PyArray1::from_slice(py, &slice.std_error[row * n..(row + 1) * n]))?;
+    out.set_item("beam_profile", PyArray1::from_vec(py, plan.beam_profile(run, pixel_mm)))?;
+    out.set_item("sum", slice.sum)?;
+    out.set_item("sum_std_error", slice.sum_std_error)?;
+    out.set_item("paths", slice.paths)?;
+    out.set_item("events", slice.events)?;
+    out.set_item("wall_s", slice.wall_s)?;
+    out.set_item("estimator", slice.estimator.name())?;
+    out.set_item("specular_reflectance", slice.specular_reflectance)?;
+    out.set_item("diffuse_reflectance", slice.diffuse_reflectance)?;
+    out.set_item("transmittance", slice.transmittance)?;
+    let o = plan.optical_properties();
+    let props = PyDict::new(py);
+    props.set_item("mu_s_per_m", o.mu_s_per_m)?;
+    props.set_item("mu_a_per_m", o.mu_a_per_m)?;
+    props.set_item("g", o.g)?;
+    props.set_item("n", o.n)?;
+    out.set_item("optical_properties", props)?;
+    out.set_item("phase", plan.phase_name())?;
+    out.set_item("roughness", plan.roughness.clone())?;
     Ok(out)
 }
 
@@ -770,7 +939,7 @@ fn py_delta_e_2000<'py>(
 ///
 /// Lorenz–Mie efficiencies (``mie``, ``mie_sphere``), bulk optical
 /// properties of recipes (``optics``), renders of scene files (``render``),
-/// photo/render metrics (``compare``), colour correction (``ccm``,
+/// slab BSSRDF slices (``bssrdf``), photo/render metrics (``compare``), colour correction (``ccm``,
 /// ``delta_e_2000``). The same library code as the ``lucent`` command;
 /// errors raise ``LucentError`` (a ValueError) with its messages.
 #[pymodule(name = "lucent")]
@@ -783,6 +952,7 @@ fn lucent_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(py_optics, m)?)?;
     m.add_function(wrap_pyfunction!(py_compare, m)?)?;
     m.add_function(wrap_pyfunction!(py_render, m)?)?;
+    m.add_function(wrap_pyfunction!(py_bssrdf, m)?)?;
     m.add_function(wrap_pyfunction!(py_ccm, m)?)?;
     m.add_function(wrap_pyfunction!(py_delta_e_2000, m)?)?;
     Ok(())
