@@ -93,6 +93,10 @@ def render(
     seed: int | None = None,
     size: str | None = None,
     threads: int | None = None,
+    target_rel_error: float | None = None,
+    sampling: str | None = None,
+    dispersion: str | None = None,
+    split_entry: bool = False,
     progress: Callable[[float, float, float, float], object] | None = None,
 ) -> dict[str, Any]:
     """Renders a scene file: {"mean", "variance"} (H × W × 3), "spp", "object", "board" (H × W), "seed", …"""

@@ -599,8 +599,12 @@ fn run_interruptible<T: Send>(
 /// scene: path of the scene TOML. spp: samples per pixel; time_s: wall-time
 /// budget [s] (stops after the pass that exceeds it); seed: seed of the
 /// random streams; size: "WIDTHxHEIGHT" instead of the camera's (intrinsics
-/// scaled); threads: worker threads (default all cores). Each overrides the
-/// scene's [render] value.
+/// scaled); threads: worker threads (default all cores); target_rel_error:
+/// stop when the median relative standard error over the object's pixels
+/// reaches this fraction; sampling: "uniform" or "object-weighted";
+/// dispersion: "per-band" or "shared-directions"; split_entry: follow both
+/// reflection and refraction where a path enters the object. Each overrides
+/// the scene's [render] value, as the command's options of the same names.
 /// progress: optional callable, called with the floats ``(spp_done,
 /// spp_target, elapsed_s, object_rel_error)`` after passes (object_rel_error: the
 /// median relative standard error over the object's pixels, NaN without
@@ -613,7 +617,10 @@ fn run_interruptible<T: Send>(
 /// ``wall_s``, ``samples``, ``warnings``. Releases the GIL while rendering;
 /// Ctrl-C (KeyboardInterrupt) stops it after the current pass and raises.
 #[pyfunction]
-#[pyo3(name = "render", signature = (scene, spp = None, time_s = None, seed = None, size = None, threads = None, progress = None))]
+#[pyo3(name = "render", signature = (
+    scene, spp = None, time_s = None, seed = None, size = None, threads = None, target_rel_error = None,
+    sampling = None, dispersion = None, split_entry = false, progress = None
+))]
 #[allow(clippy::too_many_arguments)]
 fn py_render<'py>(
     py: Python<'py>,
@@ -623,6 +630,10 @@ fn py_render<'py>(
     seed: Option<u64>,
     size: Option<String>,
     threads: Option<usize>,
+    target_rel_error: Option<f64>,
+    sampling: Option<&str>,
+    dispersion: Option<&str>,
+    split_entry: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let args = RenderArgs {
@@ -633,10 +644,10 @@ fn py_render<'py>(
         seed,
         size,
         exposure: 0.0,
-        target_rel_error: None,
-        sampling: None,
-        dispersion: None,
-        split_entry: false,
+        target_rel_error,
+        sampling: sampling.map(|t| choice("sampling", t)).transpose()?,
+        dispersion: dispersion.map(|t| choice("dispersion", t)).transpose()?,
+        split_entry,
         threads,
         quiet: true,
     };

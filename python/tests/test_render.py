@@ -32,6 +32,11 @@ def test_render_equals_the_command_exr(lucent_cli, repo, tmp_path):
     np.testing.assert_array_equal(r["spp"].astype(np.float32), exr["spp"])
     np.testing.assert_array_equal(r["object"].astype(np.float32), exr["object"])
     assert r["seed"] == 11 and r["mean"].mean() > 0
+    # The estimator options pass through as the command's.
+    run_cli(lucent_cli, "render", repo / SCENE, "--spp", 4, "--size", "32x24", "--sampling", "object-weighted",
+            "--split-entry", "--out", tmp_path / "b", "--quiet")
+    r = lucent.render(repo / SCENE, spp=4, size="32x24", sampling="object-weighted", split_entry=True)
+    np.testing.assert_array_equal(r["mean"][..., 1].astype(np.float32), read_exr(tmp_path / "b/render.exr")["G"])
 
 
 def test_progress_is_reported_and_can_stop_the_render(repo):
@@ -66,6 +71,8 @@ def test_ctrl_c_interrupts_a_long_render(repo):
         (dict(spp=0), "--spp 0"),
         (dict(size="64by48"), "--size"),
         (dict(time_s=-1.0), "--time-s"),
+        (dict(sampling="everywhere"), "sampling \"everywhere\": expected one of uniform, object-weighted"),
+        (dict(target_rel_error=1.5), "--target-rel-error 1.5"),
     ],
 )
 def test_bad_render_arguments_raise(repo, kwargs, message):
