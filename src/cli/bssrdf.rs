@@ -332,6 +332,111 @@ fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
         .collect()
 }
 
+/// One configuration of a `lucent bssrdf` run, set up as the command sets it up.
+pub struct PlannedRun {
+    /// θi, φi, θo, φo in degrees.
+    pub angles: (f64, f64, f64, f64),
+    pub dirs: Directions,
+    pub setup: Setup,
+    pub options: RunOptions,
+}
+
+/// Everything `lucent bssrdf` simulates for the arguments, checked before
+/// any work: the medium (the recipe's bulk properties at the wavelength, or
+/// the explicit coefficients), the beam, the sensor (only the crop is
+/// simulated), the stop rule (without one: 1 % on the slice sum, at most
+/// 600 s per configuration), the top boundary, and per configuration the
+/// directions, the estimator and the run options.
+pub struct Plan {
+    medium: MediumChoice,
+    pub beam: Beam,
+    pub beam_name: String,
+    /// Pixels per side of the simulated (cropped) slice.
+    pub out_pixels: usize,
+    pub stop: Stop,
+    /// The top boundary as described in summary.json.
+    pub roughness: String,
+    pub runs: Vec<PlannedRun>,
+}
+
+impl Plan {
+    /// The beam's relative irradiance along the slice's middle row
+    /// (`beam_relative` of profile.csv) for `run`, pixel size `pixel_mm`.
+    pub fn beam_profile(&self, run: &PlannedRun, pixel_mm: f64) -> Vec<f64> {
+        let n = self.out_pixels;
+        let grid_x: Vec<f64> = (0..n).map(|c| (c as f64 + 0.5 - 0.5 * n as f64) * pixel_mm).collect();
+        bssrdf::beam_profile(&self.beam, &run.dirs, &grid_x)
+    }
+
+    /// The medium's μs, μa [1/m], g and n as used.
+    pub fn optical_properties(&self) -> &OpticalUsed {
+        &self.medium.used
+    }
+
+    /// The phase function as described in summary.json.
+    pub fn phase_name(&self) -> &str {
+        &self.medium.phase_name
+    }
+}
+
+/// The [`Plan`] of `lucent bssrdf` for the arguments `a`.
+pub fn plan(a: &RunArgs) -> Result<Plan> {
+    let m = medium(a)?;
+    let (beam, beam_name) = beam(a)?;
+    let out_pixels = match a.crop {
+        Some(c) if c == 0 || c > a.pixels => bail!("--crop {c}: must lie in 1 … --pixels ({})", a.pixels),
+        Some(c) => c,
+        None => a.pixels,
+    };
+    // Only the crop is simulated: the pixels outside it would be discarded.
+    let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
+    let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error, pixel_rel_error: a.pixel_rel_error };
+    // A stop rule and a beam that cannot give a slice are refused before any work.
+    if a.paths == Some(0) {
+        bail!("--paths 0: at least one light path is needed");
+    }
+    let field_mm = out_pixels as f64 * a.pixel_mm;
+    if a.beam_map.is_none() && a.beam_fwhm_um * 1e-3 > field_mm {
+        bail!("--beam-fwhm-um {}: the beam is wider than the slice ({out_pixels} pixels × {} mm = {field_mm} mm); widen the slice (--pixels, --pixel-mm) or narrow the beam", a.beam_fwhm_um, a.pixel_mm);
+    }
+    if let (Beam::Map(map), Some(path)) = (&beam, &a.beam_map) {
+        // The same rule for a map, by its second moments (a map may have a wide dark border).
+        let fwhm_mm = beam_map_fwhm_m(map) * 1e3;
+        if fwhm_mm > field_mm {
+            bail!("--beam-map {}: the beam is wider than the slice (Gaussian-equivalent FWHM {fwhm_mm:.3} mm from its second moments; the slice is {out_pixels} pixels × {} mm = {field_mm} mm); widen the slice (--pixels, --pixel-mm) or check --beam-map-pixel-mm", path.display(), a.pixel_mm);
+        }
+    }
+    // Without a stop rule: 1 % on the slice sum, but at most 10 minutes per
+    // configuration (strongly forward-peaked media converge slowly).
+    let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
+    let (top, roughness) = bssrdf::roughness(a.roughness.as_deref(), m.surface.as_ref())?;
+    let slab = Slab::new(m.thickness_m, m.medium.clone())?.with_top(top);
+    let configs = match &a.configs {
+        Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
+        None => vec![(a.theta_i, a.phi_i, a.theta_o, a.phi_o)],
+    };
+    let runs = configs
+        .into_iter()
+        .map(|(ti, pi, to, po)| {
+            let dirs = Directions::from_degrees(ti, pi, to, po)
+                .with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
+            let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
+            let estimator = match a.estimator {
+                EstimatorChoice::Auto => match Estimator::best_for(&setup) {
+                    Estimator::Lobe { .. } => Estimator::Lobe { vertices: a.lobe_vertices.into() },
+                    e => e,
+                },
+                EstimatorChoice::Ring => Estimator::Ring,
+                EstimatorChoice::Lobe => Estimator::Lobe { vertices: a.lobe_vertices.into() },
+                EstimatorChoice::Connection => Estimator::Connection,
+            };
+            let options = RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() };
+            Ok(PlannedRun { angles: (ti, pi, to, po), dirs, setup, options })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Plan { medium: m, beam, beam_name, out_pixels, stop, roughness, runs })
+}
+
 /// Runs `lucent bssrdf`, or with `merged_from` writes the outputs of the
 /// run whose shards these are (`lucent merge`).
 pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
