@@ -211,13 +211,21 @@ impl StagedDir {
         let created = parent.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).last();
         let created = created.map(Path::to_path_buf);
         create_folder_unlocked(parent).map_err(err)?;
-        let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-        let staging = parent.join(format!(".{name}.staging-{}", std::process::id()));
+        let staging = Self::staging_path(target);
         if staging.exists() {
             std::fs::remove_dir_all(&staging).map_err(err)?;
         }
         std::fs::create_dir_all(&staging).map_err(err)?;
         Ok(Self { target: target.to_path_buf(), staging, committed: false, created })
+    }
+
+    /// The staging folder [`StagedDir::new`] makes for `target` (hidden,
+    /// beside it, named with the process id): known before it exists, so a
+    /// Ctrl-C handler can be told to remove it before it is made.
+    pub fn staging_path(target: &Path) -> PathBuf {
+        let parent = target.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+        parent.join(format!(".{name}.staging-{}", std::process::id()))
     }
 
     /// Where to write the output.

@@ -1321,7 +1321,8 @@ fn trace_path(
                         let p_conn = v.p_attempt * scene.environment.pdf(v.x, d);
                         let obj = scene.object.as_ref().expect("a medium vertex without an object");
                         let p_phase = if v.p_phase > 0.0 {
-                            v.p_phase * stretch_jacobian * band_phase_mean(obj, &v.r, hero.unwrap_or(0), stretch_mu)
+                            let ph = band_phases(obj, |k| v.r[k] > 0.0, hero.unwrap_or(0), stretch_mu);
+                            v.p_phase * stretch_jacobian * mean_weighted(&v.r, &ph)
                         } else {
                             0.0
                         };
@@ -1485,7 +1486,7 @@ fn connect_through_faces(
     rng: &mut Rng,
     radiance: &mut [f64; 3],
 ) {
-    let &Connection { h, x, d_in, p_attempt, p_phase, shared } = conn;
+    let &Connection { h, x, shared, .. } = conn;
     let Some(es) = scene.environment.sample(x, [rng.next_f64(), rng.next_f64()]) else {
         return;
     };
@@ -1494,8 +1495,7 @@ fn connect_through_faces(
     }
     let wo = es.dir;
     let eta = if shared { obj.eta_mean } else { obj.boundary.eta(h) };
-    let bc = &obj.bands;
-    let mean_r = tp.mean_r();
+    let d_in = conn.d_in;
     for (n, _) in planes {
         let cos_o = n.dot(wo);
         if cos_o <= 0.0 {
@@ -1514,27 +1514,8 @@ fn connect_through_faces(
         }
         let f = fresnel::reflectance(cos_i, 1.0 / eta);
         let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
-        let transmit = fr.map(|x| (1.0 - x) * cos_o / (eta * eta * cos_i));
-        let mu = d_in.dot(wi);
-        let ph_h = obj.medium.phase[h].eval(mu);
-        let u: [f64; 3] = std::array::from_fn(|k| {
-            if tp.r[k] > 0.0 || tp.beta[k] > 0.0 {
-                let ph = if bc.same_phase || k == h { ph_h } else { obj.medium.phase[k].eval(mu) };
-                ph * (-bc.sigma_t[k] * hit.t).exp() * transmit[k]
-            } else {
-                0.0
-            }
-        });
-        let jacobian = cos_o / (eta * eta * cos_i);
-        let phase_term = if p_phase > 0.0 { p_phase * jacobian * band_phase_mean(obj, &tp.r, h, mu) } else { 0.0 };
-        let denom = p_attempt * es.pdf * mean_r + (tp.r[0] * u[0] + tp.r[1] * u[1] + tp.r[2] * u[2]) / 3.0 + phase_term;
-        if denom.is_nan() || denom <= 0.0 {
-            continue;
-        }
-        let l = scene.environment.radiance(q, wo);
-        for c in 0..3 {
-            radiance[c] += tp.beta[c] * u[c] * l[c] / denom;
-        }
+        let exit = Exit { t: hit.t, mu: d_in.dot(wi), jacobian: cos_o / (eta * eta * cos_i), fr, q, wo };
+        add_connection(scene, obj, tp, conn, &exit, es.pdf, radiance);
     }
 }
 
@@ -1553,15 +1534,68 @@ struct Connection {
     shared: bool,
 }
 
-/// (1/3) Σ_k r_k p_k(μ): the phase functions' values at μ weighted by the
-/// bands' density ratios (the phase connection's density up to its
-/// Jacobian and probability).
+/// The phase functions' values p_k(μ) of the bands taking part (`active`),
+/// 0 for the others; band `h`'s value serves every band when they share one.
 #[inline]
-fn band_phase_mean(obj: &Object, r: &[f64; 3], h: usize, mu: f64) -> f64 {
-    if obj.bands.same_phase {
-        return obj.medium.phase[h].eval(mu) * (r[0] + r[1] + r[2]) / 3.0;
+fn band_phases(obj: &Object, active: impl Fn(usize) -> bool, h: usize, mu: f64) -> [f64; 3] {
+    let ph_h = obj.medium.phase[h].eval(mu);
+    std::array::from_fn(|k| {
+        if !active(k) {
+            0.0
+        } else if obj.bands.same_phase || k == h {
+            ph_h
+        } else {
+            obj.medium.phase[k].eval(mu)
+        }
+    })
+}
+
+/// (1/3) Σ_k r_k v_k.
+#[inline]
+fn mean_weighted(r: &[f64; 3], v: &[f64; 3]) -> f64 {
+    (r[0] * v[0] + r[1] * v[1] + r[2] * v[2]) / 3.0
+}
+
+/// Where a medium connection leaves the object: at distance `t` along ω_i
+/// (μ = ω_in·ω_i), refracted into `wo` at the point `q` on the face, with
+/// `jacobian` = dω_i/dω_o = cos θ_o / (n² cos θ_i) and the Fresnel
+/// reflectance `fr` per band.
+struct Exit {
+    t: f64,
+    mu: f64,
+    jacobian: f64,
+    fr: [f64; 3],
+    q: DVec3,
+    wo: DVec3,
+}
+
+/// Adds a medium connection's contribution per band c,
+/// β_c u_c L_c(q, ω_o) / D, u_k = p_k(μ) e^{−μ_t,k t} (1 − F_k) J the path's
+/// own escape along ω_i in band k per unit outside solid angle, and
+/// D = p_att p_env mean r + mean_k r_k u_k + p_phase J mean_k r_k p_k(μ),
+/// the balance heuristic over the three strategies and the bands
+/// (`pdf_env` = p_env(x, ω_o)).
+fn add_connection(
+    scene: &Scene,
+    obj: &Object,
+    tp: &Throughput,
+    conn: &Connection,
+    exit: &Exit,
+    pdf_env: f64,
+    radiance: &mut [f64; 3],
+) {
+    let ph = band_phases(obj, |k| tp.r[k] > 0.0 || tp.beta[k] > 0.0, conn.h, exit.mu);
+    let u: [f64; 3] =
+        std::array::from_fn(|k| ph[k] * (-obj.bands.sigma_t[k] * exit.t).exp() * (1.0 - exit.fr[k]) * exit.jacobian);
+    let phase = if conn.p_phase > 0.0 { conn.p_phase * exit.jacobian * mean_weighted(&tp.r, &ph) } else { 0.0 };
+    let denom = conn.p_attempt * pdf_env * tp.mean_r() + mean_weighted(&tp.r, &u) + phase;
+    if denom.is_nan() || denom <= 0.0 {
+        return;
     }
-    (0..3).map(|k| if r[k] > 0.0 { r[k] * obj.medium.phase[k].eval(mu) } else { 0.0 }).sum::<f64>() / 3.0
+    let l = scene.environment.radiance(exit.q, exit.wo);
+    for c in 0..3 {
+        radiance[c] += tp.beta[c] * u[c] * l[c] / denom;
+    }
 }
 
 /// The phase connection from scattering point x: a direction ω_i drawn from
@@ -1588,7 +1622,7 @@ fn connect_along_phase(
     rng: &mut Rng,
     radiance: &mut [f64; 3],
 ) {
-    let &Connection { h, x, d_in, p_attempt, p_phase, shared } = conn;
+    let &Connection { h, x, d_in, shared, .. } = conn;
     let (u1, u2) = rng.next_f64_pair();
     let wi = DVec3::from_array(obj.medium.phase[h].sample_direction(d_in.to_array(), u1, u2));
     let Some(hit) = obj.accel.exit(x, wi) else { return };
@@ -1606,32 +1640,8 @@ fn connect_along_phase(
     if cos_o <= 0.0 || scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
         return;
     }
-    let jacobian = cos_o / (eta * eta * cos_i);
-    let mu = d_in.dot(wi);
-    let bc = &obj.bands;
-    let ph_h = obj.medium.phase[h].eval(mu);
-    let ph: [f64; 3] = std::array::from_fn(|k| {
-        if !(tp.r[k] > 0.0 || tp.beta[k] > 0.0) {
-            0.0
-        } else if bc.same_phase || k == h {
-            ph_h
-        } else {
-            obj.medium.phase[k].eval(mu)
-        }
-    });
-    // The path's own escape along ω_i in band k, per unit outside solid angle.
-    let u: [f64; 3] = std::array::from_fn(|k| ph[k] * (-bc.sigma_t[k] * hit.t).exp() * (1.0 - fr[k]) * jacobian);
-    let p_env = p_attempt * scene.environment.pdf(x, wo);
-    let denom = p_env * tp.mean_r()
-        + (tp.r[0] * u[0] + tp.r[1] * u[1] + tp.r[2] * u[2]) / 3.0
-        + p_phase * jacobian * (tp.r[0] * ph[0] + tp.r[1] * ph[1] + tp.r[2] * ph[2]) / 3.0;
-    if denom.is_nan() || denom <= 0.0 {
-        return;
-    }
-    let l = scene.environment.radiance(q, wo);
-    for c in 0..3 {
-        radiance[c] += tp.beta[c] * u[c] * l[c] / denom;
-    }
+    let exit = Exit { t: hit.t, mu: d_in.dot(wi), jacobian: cos_o / (eta * eta * cos_i), fr, q, wo };
+    add_connection(scene, obj, tp, conn, &exit, scene.environment.pdf(x, wo), radiance);
 }
 
 /// Samples the rough boundary `bsdf` (frame: +z = the outward normal

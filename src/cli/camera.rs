@@ -348,11 +348,14 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
     // plot and camera file if this run created them) and ends the run.
     let _interrupt = super::interrupt::Interrupt::abort_on_first();
     let created: Vec<_> = [&view_dir, &plot_path, &a.out].into_iter().filter(|p| !p.exists()).collect();
-    let stage = crate::io::StagedDir::new(&view_dir)?;
-    let _remove_on_abort: Vec<_> = std::iter::once(stage.path())
+    // Registered before the staging folder exists: a Ctrl-C the moment it
+    // appears still removes it.
+    let staging = crate::io::StagedDir::staging_path(&view_dir);
+    let _remove_on_abort: Vec<_> = std::iter::once(staging.as_path())
         .chain(created.into_iter().map(|p| p.as_path()))
         .map(super::interrupt::remove_on_abort)
         .collect();
+    let stage = crate::io::StagedDir::new(&view_dir)?;
     for v in &cal.views {
         let photo = photos
             .iter()
