@@ -135,6 +135,40 @@ def bssrdf(
 ) -> dict[str, Any]:
     """Slab BSSRDF slice as `lucent bssrdf`: {"slice", "std_error"} (N × N, 1/(m² sr)), "sum", "sum_std_error", "profile", …"""
 
+def fit(
+    recipe: _Path,
+    measured: _Path | list[_Path],
+    free: str | list[str],
+    *,
+    objective: str = "sum",
+    wavelength: float = 550.0,
+    weight_percent: float | None = None,
+    measured_pixel_mm: float | None = None,
+    beam_fwhm_um: float = 200.0,
+    beam_map: _Path | None = None,
+    beam_map_pixel_mm: float | None = None,
+    measured_rel_sd: float = 0.05,
+    threshold: float = 0.01,
+    rel_error: float = 0.005,
+    paths: int | None = None,
+    pilot_time_s: float = 60.0,
+    bounds: str | list[tuple[float, float]] | None = None,
+    thickness_mm: float | None = None,
+    seed: int = 1,
+    out: _Path | None = None,
+    progress: Callable[[str], object] | None = None,
+) -> dict[str, Any]:
+    """Recipe parameters fitted to measured slices as `lucent fit`: fit.json's dict ("parameters", "identifiable", …)."""
+
+def calibrate(
+    images: _Path | list[_Path] | list[npt.NDArray[np.uint8]],
+    board: str,
+    square_mm: float,
+    model: str = "pinhole-k3",
+    detector: str = "auto",
+) -> dict[str, Any]:
+    """Chessboard calibration as `lucent calibrate`: camera.json's dict plus "camera_matrix" (3 × 3), "dist_coeffs" (OpenCV order)."""
+
 def ccm(
     camera_rgb: npt.ArrayLike,
     reference_xyz: npt.ArrayLike | None = None,

@@ -5,28 +5,38 @@
 //! recipe (`lucent::optics::bulk`), the photo/render comparison
 //! (`lucent::compare`), the renderer (`lucent_render::tracer`, with the scene
 //! prepared as `lucent render` prepares it), the slab simulator
-//! (`lucent_render::slab`, planned as `lucent bssrdf` plans it) and the colour-correction fits
-//! (`lucent_colour::ccm`, CIEDE2000 of `lucent_colour::difference`).
+//! (`lucent_render::slab`, planned as `lucent bssrdf` plans it), the fit of
+//! recipe parameters to measured slices (`lucent::fit`, the problem built as
+//! `lucent fit` builds it), the chessboard calibration
+//! (`lucent_calib::camera`, photos read as `lucent calibrate` reads them)
+//! and the colour-correction fits (`lucent_colour::ccm`, CIEDE2000 of
+//! `lucent_colour::difference`).
 //! Errors are raised as `lucent.LucentError` (a `ValueError`) with the
 //! library's message; long calls release the GIL and stop on Ctrl-C.
 
 use lucent::cli::bssrdf as bssrdf_cli;
+use lucent::cli::camera as camera_cli;
+use lucent::cli::choices::{DetectorChoice, DistortionChoice};
+use lucent::cli::fit::{self as fit_cli, FitArgs, ObjectiveChoice};
 use lucent::cli::render::{self as render_cli, RenderArgs};
 use lucent::compare::{self, MaskSpec, Request};
+use lucent::fit;
 use lucent::imageio::RgbImage;
 use lucent::optics::bulk::{self, OpticalSpectrum};
 use lucent::optics::mie::{self, Efficiencies, MieError};
 use lucent::optics::output;
 use lucent::optics::recipe::{Overrides, Recipe};
+use lucent_calib::camera::{self as calib_camera, Photo};
+use lucent_calib::GrayImage;
 use lucent_colour::WavelengthGrid;
 use lucent_render::{slab, tracer};
 use num_complex::Complex64;
 use numpy::ndarray::{Array, Array2, IxDyn};
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyString, PyTuple};
+use pyo3::types::{PyDict, PyList, PyString, PyTuple};
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -538,21 +548,33 @@ fn py_compare<'py>(
     Ok(out.into_any())
 }
 
+/// What a long computation reports to the `progress` callable.
+enum Report {
+    /// Progress figures, passed as the callable's arguments; only the
+    /// latest since the last call is passed.
+    Figures(Vec<f64>),
+    /// A line of text (a fit's evaluation), passed as its one argument; every line is passed.
+    Line(String),
+}
+
 /// Runs `work` on a worker thread without the GIL while this thread checks
-/// for Ctrl-C (KeyboardInterrupt) and feeds `progress` with the numbers
-/// `work` reports (a tuple of floats). Ctrl-C or an exception raised by the
-/// callback sets the cancel flag `work` polls; the work then stops at its
-/// next check and the exception is raised.
+/// for Ctrl-C (KeyboardInterrupt) every 20 ms and feeds `progress` with what
+/// `work` reports. Ctrl-C or an exception raised by the callback sets the
+/// cancel flag `work` polls; the work then stops at its next check and the
+/// exception is raised.
 fn run_interruptible<T: Send>(
     py: Python<'_>,
     progress: Option<Py<PyAny>>,
-    work: impl FnOnce(&AtomicBool, &(dyn Fn(Vec<f64>) + Sync)) -> T + Send,
+    work: impl FnOnce(&AtomicBool, &(dyn Fn(Report) + Sync)) -> T + Send,
 ) -> PyResult<T> {
     let cancel = AtomicBool::new(false);
-    let latest: Mutex<Option<Vec<f64>>> = Mutex::new(None);
-    let report = |r: Vec<f64>| {
-        if let Ok(mut l) = latest.lock() {
-            *l = Some(r);
+    let pending: Mutex<Vec<Report>> = Mutex::new(Vec::new());
+    let report = |r: Report| {
+        if let Ok(mut p) = pending.lock() {
+            if matches!(r, Report::Figures(_)) {
+                p.retain(|old| !matches!(old, Report::Figures(_)));
+            }
+            p.push(r);
         }
     };
     let (result, stop) = py.detach(|| {
@@ -564,9 +586,13 @@ fn run_interruptible<T: Send>(
                     if let Err(e) = py.check_signals() {
                         stop.get_or_insert(e);
                     }
-                    let values = latest.lock().ok().and_then(|mut l| l.take());
-                    if let (Some(cb), Some(v), None) = (&progress, values, stop.as_ref()) {
-                        let args = PyTuple::new(py, v);
+                    let reports = pending.lock().map(|mut p| std::mem::take(&mut *p)).unwrap_or_default();
+                    for r in reports {
+                        let (Some(cb), None) = (&progress, stop.as_ref()) else { break };
+                        let args = match r {
+                            Report::Figures(v) => PyTuple::new(py, v),
+                            Report::Line(l) => PyTuple::new(py, [l]),
+                        };
                         if let Err(e) = args.and_then(|a| cb.call1(py, a)) {
                             *stop = Some(e);
                         }
@@ -650,6 +676,7 @@ fn py_render<'py>(
         split_entry,
         threads,
         quiet: true,
+        shard: None,
     };
     let (loaded, settings) = render_cli::prepare(&args).map_err(error_chain)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build().map_err(error)?;
@@ -659,7 +686,12 @@ fn py_render<'py>(
                 &loaded.scene,
                 &settings,
                 &mut |p| {
-                    report(vec![f64::from(p.spp_done), f64::from(p.spp_target), p.elapsed_s, p.errors.object.median])
+                    report(Report::Figures(vec![
+                        f64::from(p.spp_done),
+                        f64::from(p.spp_target),
+                        p.elapsed_s,
+                        p.errors.object.median,
+                    ]))
                 },
                 Some(cancel),
             )
@@ -814,6 +846,7 @@ fn py_bssrdf<'py>(
         no_fold,
         out: PathBuf::new(),
         quiet: true,
+        shard: None,
     };
     let plan = bssrdf_cli::plan(&args).map_err(error_chain)?;
     let run = plan.runs.first().ok_or_else(|| error("no configuration to simulate"))?;
@@ -821,7 +854,7 @@ fn py_bssrdf<'py>(
         slab::simulate_cancellable(
             &run.setup,
             &run.options,
-            |p| report(vec![p.paths as f64, p.elapsed_s, p.rel_error]),
+            |p| report(Report::Figures(vec![p.paths as f64, p.elapsed_s, p.rel_error])),
             cancel,
         )
     })?
@@ -854,6 +887,234 @@ fn py_bssrdf<'py>(
     out.set_item("optical_properties", props)?;
     out.set_item("phase", plan.phase_name())?;
     out.set_item("roughness", plan.roughness.clone())?;
+    Ok(out)
+}
+
+/// One path-like or a list of them, as the command line's strings; `what`
+/// names the argument in errors.
+fn path_list(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<String>> {
+    let one = |o: &Bound<'_, PyAny>| -> PyResult<String> {
+        let p = as_path(o).ok_or_else(|| {
+            error(format!("{what}: expected a path (str or os.PathLike) or a list of them, got {}", type_name(o)))
+        })?;
+        Ok(p.to_string_lossy().into_owned())
+    };
+    if as_path(obj).is_some() {
+        return Ok(vec![one(obj)?]);
+    }
+    obj.try_iter()
+        .map_err(|_| error(format!("{what}: expected a path or a list of paths, got {}", type_name(obj))))?
+        .map(|o| one(&o?))
+        .collect()
+}
+
+/// The Python type name of `obj` (for messages).
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".into())
+}
+
+/// Recipe parameters fitted to measured BSSRDF slices, as ``lucent fit``
+/// fits them (same options under the same names, same defaults, same
+/// common random numbers: for a given seed the result equals its fit.json).
+///
+/// recipe: path of the recipe TOML holding the start values.
+/// measured: measured slices, a path or a list, each "FILE", "FILE:THETA_I/
+///     THETA_O" or "FILE:THETA_I/PHI_I/THETA_O/PHI_O" [degrees] (without
+///     angles: from the file's sidecar FILE.json or summary.json); EXR,
+///     float TIFF or CSV grids of f_ssr [1/(m² sr)].
+/// free: the free parameters, a str "weight_percent,diameter_um" or a list
+///     (``NAME@K`` for particle type K): weight_percent [wt-%],
+///     diameter_um [µm], real_part_n.
+/// objective: "sum" (relative error of the slice sums) or "msre" (mean
+///     squared relative error over the pixels above ``threshold`` of the
+///     measured maximum). wavelength [nm]; measured_pixel_mm [mm]; the beam:
+///     ``beam_fwhm_um`` [µm] or ``beam_map`` (+ ``beam_map_pixel_mm``);
+///     measured_rel_sd: relative uncertainty of each measured slice;
+///     rel_error: target relative error of each simulated sum (sets the path
+///     count by a pilot run capped at ``pilot_time_s`` [s]), or ``paths``
+///     per configuration and evaluation; bounds: "LO:HI,…" or a list of
+///     (lo, hi) per free parameter; thickness_mm [mm]; seed.
+/// out: optional folder for fit.json, objective.png and the fitted recipe
+///     (as the command writes them).
+/// progress: optional callable, called with one line of text per
+///     evaluation; an exception it raises stops the fit.
+///
+/// Returns the dict of fit.json: ``parameters`` (per free parameter:
+/// ``name``, ``start``, ``value``, ``std_error``, ``interval_95``, …),
+/// ``identifiable`` and ``reason``, ``objective_start``, ``objective_end``,
+/// ``evaluations``, ``paths_total``, ``wall_s``, ``configurations``,
+/// ``history``. Unlike the command (which exits non-zero), a fit the data
+/// cannot pin down is returned with ``identifiable`` False and values None.
+/// Releases the GIL; Ctrl-C stops it at the end of the simulation round
+/// under way and raises KeyboardInterrupt.
+#[pyfunction]
+#[pyo3(name = "fit", signature = (
+    recipe, measured, free, *, objective = "sum", wavelength = 550.0, weight_percent = None,
+    measured_pixel_mm = None, beam_fwhm_um = 200.0, beam_map = None, beam_map_pixel_mm = None,
+    measured_rel_sd = 0.05, threshold = 0.01, rel_error = 0.005, paths = None, pilot_time_s = 60.0,
+    bounds = None, thickness_mm = None, seed = 1, out = None, progress = None
+))]
+#[allow(clippy::too_many_arguments)]
+fn py_fit<'py>(
+    py: Python<'py>,
+    recipe: PathBuf,
+    measured: &Bound<'py, PyAny>,
+    free: &Bound<'py, PyAny>,
+    objective: &str,
+    wavelength: f64,
+    weight_percent: Option<f64>,
+    measured_pixel_mm: Option<f64>,
+    beam_fwhm_um: f64,
+    beam_map: Option<PathBuf>,
+    beam_map_pixel_mm: Option<f64>,
+    measured_rel_sd: f64,
+    threshold: f64,
+    rel_error: f64,
+    paths: Option<u64>,
+    pilot_time_s: f64,
+    bounds: Option<&Bound<'py, PyAny>>,
+    thickness_mm: Option<f64>,
+    seed: u64,
+    out: Option<PathBuf>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let free = match free.extract::<String>() {
+        Ok(text) => text,
+        Err(_) => free
+            .extract::<Vec<String>>()
+            .map_err(|_| error(format!("free: expected a str or a list of str, got {}", type_name(free))))?
+            .join(","),
+    };
+    let bounds = match bounds {
+        None => None,
+        Some(b) => Some(match b.extract::<String>() {
+            Ok(text) => text,
+            Err(_) => b
+                .extract::<Vec<(f64, f64)>>()
+                .map_err(|_| {
+                    error(format!("bounds: expected \"LO:HI,…\" or a list of (lo, hi), got {}", type_name(b)))
+                })?
+                .iter()
+                .map(|(lo, hi)| format!("{lo}:{hi}"))
+                .collect::<Vec<_>>()
+                .join(","),
+        }),
+    };
+    let args = FitArgs {
+        recipe,
+        weight_percent,
+        measured: path_list(measured, "measured")?,
+        measured_pixel_mm,
+        free,
+        objective: choice::<ObjectiveChoice>("objective", objective)?,
+        wavelength,
+        beam_fwhm_um,
+        beam_map,
+        beam_map_pixel_mm,
+        measured_rel_sd,
+        threshold,
+        rel_error,
+        paths,
+        pilot_time_s,
+        bounds,
+        thickness_mm,
+        seed,
+        out: out.clone().unwrap_or_default(),
+        quiet: true,
+    };
+    let problem = fit_cli::build_problem(&args).map_err(error_chain)?;
+    let result = run_interruptible(py, progress, |cancel, report| {
+        fit::fit_cancellable(&problem, |line| report(Report::Line(line.clone())), cancel)
+    })?
+    .map_err(error)?;
+    if let Some(dir) = &out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| error(format!("out {}: cannot create the folder: {e}", dir.display())))?;
+        fit_cli::write_outputs(dir, &problem, &result).map_err(error_chain)?;
+    }
+    to_python(py, &result)
+}
+
+/// The photos of `calibrate`: paths as the command reads them, or 2-D
+/// uint8 grey arrays named "image 0", "image 1", ….
+fn calibration_photos(py: Python<'_>, images: &Bound<'_, PyAny>) -> PyResult<Vec<Photo>> {
+    if let Ok(list) = images.cast::<PyList>()
+        && list.iter().all(|o| o.hasattr("__array_interface__").unwrap_or(false))
+        && !list.is_empty()
+    {
+        return list
+            .iter()
+            .enumerate()
+            .map(|(i, o)| {
+                let what = format!("images[{i}]");
+                let a = as_array(py, &o, "uint8", &what)?;
+                let r: PyReadonlyArray2<'_, u8> = a.extract().map_err(|_| {
+                    error(format!(
+                        "{what}: expected a 2-D uint8 grey image (height, width), got shape {:?}",
+                        shape_of(&a)
+                    ))
+                })?;
+                let (h, w) = (r.shape()[0], r.shape()[1]);
+                let image = GrayImage::new(w, h, r.as_array().iter().copied().collect()).map_err(error)?;
+                Ok(Photo { name: format!("image {i}"), image })
+            })
+            .collect();
+    }
+    camera_cli::read_photos(&path_list(images, "images")?).map_err(error_chain)
+}
+
+/// The shape of a numpy array (for messages).
+fn shape_of(a: &Bound<'_, PyAny>) -> Vec<usize> {
+    a.getattr("shape").and_then(|s| s.extract()).unwrap_or_default()
+}
+
+/// Camera calibration from photos of a chessboard, as ``lucent calibrate``
+/// computes it (Zhang 2000 through OpenCV's ``calibrateCamera``, or
+/// Kannala–Brandt through its fisheye module), so that the result can be
+/// set beside ``cv2.calibrateCamera`` on the same corners.
+///
+/// images: a folder, a file or a pattern ('DIR/*.jpg', 'DIR/left0[1-5].jpg'),
+///     or a list of them (JPEG/PNG/TIFF, EXR/HDR and RAW files), or a list
+///     of 2-D uint8 grey arrays (height, width).
+/// board: inner corners "COLSxROWS", e.g. "9x6" for a board of 10 × 7 squares.
+/// square_mm: side of one square [mm] (sets the units of the poses only).
+/// model: "pinhole-k3" (k1 k2 p1 p2 k3), "rational" (k1..k6 p1 p2) or
+///     "fisheye" (Kannala–Brandt k1..k4).
+/// detector: "auto" (sector-based, else classic + cornerSubPix),
+///     "sector-based" or "classic".
+///
+/// Returns the dict of the command's camera.json (``camera`` with
+/// ``intrinsics`` fx, fy, cx, cy [px] and ``distortion``; ``rms_px``, the
+/// overall RMS reprojection error [px]; ``views`` with each view's pose
+/// ``rvec`` [rad], ``tvec_m`` [m], corners and residuals [px];
+/// ``not_found``), plus ``camera_matrix`` (3 × 3) and ``dist_coeffs`` (in
+/// OpenCV's order for the model) as numpy arrays, as cv2 returns them.
+/// Releases the GIL while it works; Ctrl-C raises KeyboardInterrupt when
+/// the calibration under way ends (seconds).
+#[pyfunction]
+#[pyo3(name = "calibrate", signature = (images, board, square_mm, model = "pinhole-k3", detector = "auto"))]
+fn py_calibrate<'py>(
+    py: Python<'py>,
+    images: &Bound<'py, PyAny>,
+    board: &str,
+    square_mm: f64,
+    model: &str,
+    detector: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let model: DistortionChoice = choice("model", model)?;
+    let detector: DetectorChoice = choice("detector", detector)?;
+    let board = camera_cli::board_spec(board, square_mm).map_err(error_chain)?;
+    let photos = calibration_photos(py, images)?;
+    let cal = run_interruptible(py, None, |_, _| {
+        calib_camera::calibrate_photos(&photos, &board, model.into(), detector.into())
+    })?
+    .map_err(error)?;
+    let out = to_python(py, &cal)?;
+    let k = &cal.camera.intrinsics;
+    let matrix =
+        Array2::from_shape_vec((3, 3), vec![k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0]).map_err(error)?;
+    out.set_item("camera_matrix", matrix.into_pyarray(py))?;
+    out.set_item("dist_coeffs", PyArray1::from_vec(py, cal.camera.distortion.to_opencv(cal.camera.model)))?;
     Ok(out)
 }
 
@@ -950,8 +1211,9 @@ fn py_delta_e_2000<'py>(
 ///
 /// Lorenz–Mie efficiencies (``mie``, ``mie_sphere``), bulk optical
 /// properties of recipes (``optics``), renders of scene files (``render``),
-/// slab BSSRDF slices (``bssrdf``), photo/render metrics (``compare``), colour correction (``ccm``,
-/// ``delta_e_2000``). The same library code as the ``lucent`` command;
+/// slab BSSRDF slices (``bssrdf``) and fits to measured ones (``fit``),
+/// photo/render metrics (``compare``), camera calibration (``calibrate``),
+/// colour correction (``ccm``, ``delta_e_2000``). The same library code as the ``lucent`` command;
 /// errors raise ``LucentError`` (a ValueError) with its messages.
 #[pymodule(name = "lucent")]
 fn lucent_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -964,6 +1226,8 @@ fn lucent_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(py_compare, m)?)?;
     m.add_function(wrap_pyfunction!(py_render, m)?)?;
     m.add_function(wrap_pyfunction!(py_bssrdf, m)?)?;
+    m.add_function(wrap_pyfunction!(py_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(py_calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(py_ccm, m)?)?;
     m.add_function(wrap_pyfunction!(py_delta_e_2000, m)?)?;
     Ok(())

@@ -421,16 +421,7 @@ pub fn plan(a: &RunArgs) -> Result<Plan> {
             let dirs = Directions::from_degrees(ti, pi, to, po)
                 .with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
             let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
-            let estimator = match a.estimator {
-                EstimatorChoice::Auto => match Estimator::best_for(&setup) {
-                    Estimator::Lobe { .. } => Estimator::Lobe { vertices: a.lobe_vertices.into() },
-                    e => e,
-                },
-                EstimatorChoice::Ring => Estimator::Ring,
-                EstimatorChoice::Lobe => Estimator::Lobe { vertices: a.lobe_vertices.into() },
-                EstimatorChoice::Connection => Estimator::Connection,
-            };
-            let options = RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() };
+            let options = run_options(a, &setup, stop);
             Ok(PlannedRun { angles: (ti, pi, to, po), dirs, setup, options })
         })
         .collect::<Result<Vec<_>>>()?;
@@ -440,43 +431,9 @@ pub fn plan(a: &RunArgs) -> Result<Plan> {
 /// Runs `lucent bssrdf`, or with `merged_from` writes the outputs of the
 /// run whose shards these are (`lucent merge`).
 pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
-    let m = medium(&a)?;
-    let (beam, beam_name) = beam(&a)?;
-    let out_pixels = match a.crop {
-        Some(c) if c == 0 || c > a.pixels => bail!("--crop {c}: must lie in 1 … --pixels ({})", a.pixels),
-        Some(c) => c,
-        None => a.pixels,
-    };
-    // Only the crop is simulated: the pixels outside it would be discarded.
-    let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
-    let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error, pixel_rel_error: a.pixel_rel_error };
-    // A stop rule and a beam that cannot give a slice are refused before any work.
-    if a.paths == Some(0) {
-        bail!("--paths 0: at least one light path is needed");
-    }
-    let field_mm = out_pixels as f64 * a.pixel_mm;
-    if a.beam_map.is_none() && a.beam_fwhm_um * 1e-3 > field_mm {
-        bail!("--beam-fwhm-um {}: the beam is wider than the slice ({out_pixels} pixels × {} mm = {field_mm} mm); widen the slice (--pixels, --pixel-mm) or narrow the beam", a.beam_fwhm_um, a.pixel_mm);
-    }
-    if let (Beam::Map(map), Some(path)) = (&beam, &a.beam_map) {
-        // The same rule for a map, by its second moments (a map may have a wide dark border).
-        let fwhm_mm = beam_map_fwhm_m(map) * 1e3;
-        if fwhm_mm > field_mm {
-            bail!("--beam-map {}: the beam is wider than the slice (Gaussian-equivalent FWHM {fwhm_mm:.3} mm from its second moments; the slice is {out_pixels} pixels × {} mm = {field_mm} mm); widen the slice (--pixels, --pixel-mm) or check --beam-map-pixel-mm", path.display(), a.pixel_mm);
-        }
-    }
-    // Without a stop rule: 1 % on the slice sum, but at most 10 minutes per
-    // configuration (strongly forward-peaked media converge slowly).
-    let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
-    let (top, roughness) = bssrdf::roughness(a.roughness.as_deref(), m.surface.as_ref())?;
-    let slab = Slab::new(m.thickness_m, m.medium.clone())?.with_top(top);
-    let configs = match &a.configs {
-        Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
-        None => vec![(a.theta_i, a.phi_i, a.theta_o, a.phi_o)],
-    };
-    for (ti, pi, to, po) in &configs {
-        Directions::from_degrees(*ti, *pi, *to, *po).with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
-    }
+    let plan = plan(&a)?;
+    let Plan { medium: m, beam_name, out_pixels, stop, roughness, .. } = &plan;
+    let configs = &plan.runs;
     let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
     let batch_paths = RunOptions::default().batch_paths;
     let total_batches = a.paths.unwrap_or(0).div_ceil(batch_paths);
@@ -526,11 +483,14 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         let interrupt = Interrupt::install();
         let mut wall_s = 0.0;
         let mut accumulators = Vec::new();
-        for (i, (ti, pi, to, po)) in configs.iter().enumerate() {
-            let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
-            let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
-            let options = run_options(&a, &setup, stop);
-            let t = slab::simulate_batches(&setup, &options, range.clone(), a.paths.unwrap_or(0), interrupt.flag())?;
+        for (i, run) in configs.iter().enumerate() {
+            let t = slab::simulate_batches(
+                &run.setup,
+                &run.options,
+                range.clone(),
+                a.paths.unwrap_or(0),
+                interrupt.flag(),
+            )?;
             if interrupt.requested() {
                 bail!("interrupted: shard {k}/{n} not written (a shard is merged whole or not at all)");
             }
@@ -577,17 +537,16 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             configs.len()
         );
     }
-    for (i, (ti, pi, to, po)) in configs.iter().enumerate() {
-        let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
-        let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
+    for (i, run) in configs.iter().enumerate() {
+        let (ti, pi, to, po) = run.angles;
+        let (setup, options) = (&run.setup, &run.options);
         let sub = if configs.len() > 1 { format!("ti{ti}_to{to}") } else { String::new() };
         let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
-        let options = run_options(&a, &setup, stop);
-        let bar = progress_bar(a.quiet, &stop);
+        let bar = progress_bar(a.quiet, stop);
         bar.set_prefix(format!("θi {ti}° → θo {to}°"));
         let slice = if let Some(tallies) = &merged_tallies {
             // The shards' tallies added in shard order to an empty run's (its constants).
-            let mut sums = slab::simulate_batches(&setup, &options, 0..0, a.paths.unwrap_or(0), interrupt.flag())?;
+            let mut sums = slab::simulate_batches(setup, options, 0..0, a.paths.unwrap_or(0), interrupt.flag())?;
             for shard in tallies {
                 let t = slice_sums_of(&sums, &shard[i]);
                 sums.add(&t);
@@ -595,8 +554,8 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             sums.slice()
         } else {
             slab::simulate_cancellable(
-                &setup,
-                &options,
+                setup,
+                options,
                 |p| {
                     bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
                     bar.set_message(format!(
@@ -627,13 +586,13 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             config: RunConfig {
                 recipe: a.recipe.as_ref().map(|p| p.display().to_string()),
                 wavelength_nm: a.recipe.as_ref().map(|_| a.wavelength),
-                theta_i_deg: *ti,
-                phi_i_deg: *pi,
-                theta_o_deg: *to,
-                phi_o_deg: *po,
+                theta_i_deg: ti,
+                phi_i_deg: pi,
+                theta_o_deg: to,
+                phi_o_deg: po,
                 phase: m.phase_name.clone(),
                 beam: beam_name.clone(),
-                pixels: out_pixels,
+                pixels: *out_pixels,
                 pixel_mm: a.pixel_mm,
                 crop_of: a.crop.map(|_| a.pixels),
                 seed: a.seed,
@@ -661,9 +620,7 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             pixel_mm: a.pixel_mm,
             interrupted,
         };
-        let grid_x: Vec<f64> =
-            (0..out_pixels).map(|c| (c as f64 + 0.5 - 0.5 * out_pixels as f64) * a.pixel_mm).collect();
-        let beam_row = bssrdf::beam_profile(&beam, &dirs, &grid_x);
+        let beam_row = plan.beam_profile(run, a.pixel_mm);
         bssrdf::write_run(&dir, &slice, &summary, &beam_row)?;
         println!(
             "θi {ti}° φi {pi}° → θo {to}° φo {po}°: sum = {:.5e} ± {:.2e} 1/(m² sr) ({:.2} %), per pixel {:.1} % median, {:.1} % p90, {} paths, {:.1} M events/s, {:.1} s → {}",
