@@ -306,18 +306,17 @@ fn load_gray(path: &Path) -> Result<GrayImage> {
     Ok(cv::read_gray(path)?)
 }
 
-pub fn calibrate(a: CalibrateArgs) -> Result<()> {
-    if a.out.is_dir() {
-        bail!(
-            "--out {}: is a folder; give the camera file to write, e.g. {}",
-            a.out.display(),
-            a.out.join("camera.json").display()
-        );
-    }
-    let board = BoardSpec::parse(&a.board, a.square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))?;
-    let (model, detector) = (a.model, a.detector);
+/// The chessboard of `--board COLSxROWS` (inner corners) and `--square-mm`.
+pub fn board_spec(board: &str, square_mm: f64) -> Result<BoardSpec> {
+    BoardSpec::parse(board, square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))
+}
+
+/// The photos of `--images` (folders, files or patterns; see
+/// [`expand_images`]), sorted by path without repeats, as 8-bit grey;
+/// one error listing every file that cannot be read.
+pub fn read_photos(images: &[String]) -> Result<Vec<Photo>> {
     let mut files = Vec::new();
-    for spec in &a.images {
+    for spec in images {
         files.extend(expand_images(spec)?);
     }
     files.sort();
@@ -333,7 +332,20 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
     if !unreadable.is_empty() {
         bail!("{} of {} image(s) cannot be read:\n  {}", unreadable.len(), files.len(), unreadable.join("\n  "));
     }
-    let cal = camera::calibrate_photos(&photos, &board, model, detector)?;
+    Ok(photos)
+}
+
+pub fn calibrate(a: CalibrateArgs) -> Result<()> {
+    if a.out.is_dir() {
+        bail!(
+            "--out {}: is a folder; give the camera file to write, e.g. {}",
+            a.out.display(),
+            a.out.join("camera.json").display()
+        );
+    }
+    let board = board_spec(&a.board, a.square_mm)?;
+    let photos = read_photos(&a.images)?;
+    let cal = camera::calibrate_photos(&photos, &board, a.model, a.detector)?;
 
     // Plots first, camera.json last; the views go to a staging folder that
     // replaces NAME_views/ whole, so no view of an earlier run stays beside

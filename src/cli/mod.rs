@@ -513,11 +513,7 @@ pub fn mie_efficiencies(a: &MieArgs) -> Result<Efficiencies> {
         if !(x.is_finite() && x > 0.0) {
             bail!("--size-parameter {x}: must be a positive finite number");
         }
-        let c = Coefficients::compute(m, Complex64::new(x, 0.0))?;
-        // qabs as the power absorbed inside: exactly 0 for a real m, never
-        // negative by rounding (qext − qsca up to rounding otherwise).
-        let qabs = mie::absorption_efficiency(m, Complex64::new(x, 0.0))?;
-        return Ok(Efficiencies { qabs, ..c.efficiencies(x) });
+        return Ok(mie::efficiencies(m, x)?);
     }
     let (Some(r_um), Some(w_nm), Some(np_text)) = (a.radius_um, a.wavelength_nm, a.particle_index.as_deref()) else {
         bail!("give either --size-parameter X --relative-index M, or --radius-um R --wavelength-nm L --particle-index N [--host-index N]");

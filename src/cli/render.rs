@@ -263,14 +263,11 @@ pub fn check_threads(threads: Option<usize>) -> Result<()> {
     Ok(())
 }
 
-/// Runs `lucent render`.
-pub fn run(a: RenderArgs) -> Result<()> {
-    run_from(a, None)
-}
-
-/// Runs `lucent render`, or with `merged` writes the outputs of the run
-/// whose shards these are (`lucent merge`).
-pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
+/// The scene of `a` loaded and checked, with the arguments' overrides
+/// applied (image size with the intrinsics scaled to match, spp, time
+/// budget, seed, estimator choices): what `lucent render` renders. The
+/// scene's warnings are in the returned [`scene::LoadedScene`].
+pub fn prepare(a: &RenderArgs) -> Result<(scene::LoadedScene, Settings)> {
     check_threads(a.threads)?;
     if let Some(t) = a.time_s {
         check_time_s(t)?;
@@ -282,9 +279,6 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         bail!("--exposure must be finite");
     }
     let mut loaded = scene::load(&a.scene)?;
-    for w in &loaded.warnings {
-        eprintln!("warning: {w}");
-    }
     if let Some(size) = &a.size {
         let (w, h) = parse_size(size)?;
         let cam = &mut loaded.scene.camera;
@@ -317,6 +311,21 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     }
     if let Some(s) = a.sampling {
         settings.sampling = s.into();
+    }
+    Ok((loaded, settings))
+}
+
+/// Runs `lucent render`.
+pub fn run(a: RenderArgs) -> Result<()> {
+    run_from(a, None)
+}
+
+/// Runs `lucent render`, or with `merged` writes the outputs of the run
+/// whose shards these are (`lucent merge`).
+pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
+    let (loaded, settings) = prepare(&a)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
     }
     let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
     if shard.is_some() || merged_from.is_some() {

@@ -862,6 +862,25 @@ fn absorption_core(m: Complex64, x: Complex64, y: Complex64) -> Result<f64, MieE
     Ok(q + 0.0)
 }
 
+/// Efficiencies of a sphere of relative index `m` (m_im ≥ 0 absorbs) and
+/// real size parameter `x` = 2π r n_h/λ in a non-absorbing host
+/// ([`Coefficients::efficiencies`]), with qabs from [`absorption_efficiency`]
+/// (exactly 0 for a real m, never negative by rounding). What `lucent mie
+/// --size-parameter X --relative-index M` prints.
+///
+/// ```
+/// use lucent::optics::mie::efficiencies;
+/// use num_complex::Complex64;
+/// let q = efficiencies(Complex64::new(1.5, 0.0), 1.0).unwrap();
+/// assert!(q.qabs == 0.0 && (q.qext - q.qsca).abs() < 1e-14);
+/// ```
+pub fn efficiencies(m: Complex64, x: f64) -> Result<Efficiencies, MieError> {
+    let x = Complex64::new(x, 0.0);
+    let c = Coefficients::compute(m, x)?;
+    let qabs = absorption_efficiency(m, x)?;
+    Ok(Efficiencies { qabs, ..c.efficiencies(x.re) })
+}
+
 /// k₀ r = 2π r/λ after checking r and λ.
 fn check_geometry(wavelength_m: f64, radius_m: f64) -> Result<f64, MieError> {
     if !(wavelength_m.is_finite() && wavelength_m > 0.0 && radius_m.is_finite() && radius_m > 0.0) {
