@@ -161,8 +161,8 @@ pub(crate) fn log_axis_points(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
 pub(crate) fn log_axis(
     lo: f64,
     hi: f64,
-) -> plotters::coord::ranged1d::WithKeyPoints<plotters::coord::ranged1d::LogCoord<f64>> {
-    use plotters::coord::ranged1d::BindKeyPoints;
+) -> plotters::coord::combinators::WithKeyPoints<plotters::coord::combinators::LogCoord<f64>> {
+    use plotters::coord::combinators::BindKeyPoints;
     let (labelled, grid) = log_axis_points(lo, hi);
     (lo..hi).log_scale().with_key_points(labelled).with_light_points(grid)
 }
@@ -845,7 +845,10 @@ mod tests {
         assert!(grid.contains(&3.0) && grid.contains(&400.0) && grid.len() == 5 + 9 * 3 + 2, "{grid:?}");
         // Within one decade (1e4 … 2e4 as a narrow μs range was labelled before): tenths of the decade.
         let (labels, _) = log_axis_points(1.2e4, 1.9e4);
-        assert!(labels.len() >= LOG_AXIS_MIN_LABELS && labels.iter().all(|v| (1.19e4..=1.91e4).contains(v)), "{labels:?}");
+        assert!(
+            labels.len() >= LOG_AXIS_MIN_LABELS && labels.iter().all(|v| (1.19e4..=1.91e4).contains(v)),
+            "{labels:?}"
+        );
         // Nine decades: the decades alone, each labelled.
         let (labels, _) = log_axis_points(1.0, 1e9);
         assert_eq!(labels.len(), 10);

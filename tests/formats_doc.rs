@@ -33,9 +33,9 @@ enum Format {
 /// validated, with its builtin indices). Errors as their message.
 fn parse(format: Format, text: &str) -> Result<(), String> {
     match format {
-        Format::Recipe => Recipe::parse(text, &root().join("probe.toml"), Overrides::default())
-            .map(drop)
-            .map_err(|e| e.to_string()),
+        Format::Recipe => {
+            Recipe::parse(text, &root().join("probe.toml"), Overrides::default()).map(drop).map_err(|e| e.to_string())
+        }
         Format::Scene => lucent::scene::parse(text, Path::new("probe.toml")).map(drop).map_err(|e| e.to_string()),
         Format::Project => toml::from_str::<ProjectFile>(text).map(drop).map_err(|e| e.to_string()),
     }
@@ -56,11 +56,8 @@ fn documented(doc: &str) -> BTreeMap<(Format, String), BTreeSet<String>> {
             };
             table = None;
         } else if let Some(h) = line.strip_prefix("### ") {
-            table = if h.starts_with("Top level") {
-                Some("top".into())
-            } else {
-                h.split('`').nth(1).map(str::to_string)
-            };
+            table =
+                if h.starts_with("Top level") { Some("top".into()) } else { h.split('`').nth(1).map(str::to_string) };
         } else if let (Some(f), Some(t), Some(row)) = (format, &table, line.strip_prefix("| `")) {
             // A row may document several keys: "| `min`, `max` |".
             let cell = row.split(" |").next().unwrap_or("");
@@ -107,11 +104,10 @@ weight_percent = 0.5
 size = { kind = "range", min_um = 0.8, max_um = 1.0, distribution = "uniform"{size_range} }
 imaginary_part = { mode = "replace", kappa = 0{imaginary_replace} }
 [[particles]]
-name = "PMMA"
-index = "builtin:PMMA_Zhang2020_Mitsubishi"
-extrapolate = "clamp"
-density_g_per_ml = 1.18
-weight_percent = 0.5
+name = "TiO2, log-normal"
+index = "builtin:TiO2_Siefke2016"
+density_g_per_ml = 4.23
+weight_percent = 0.01
 size = { kind = "log-normal", median_diameter_um = 1.0, sigma = 0.1{size_log} }
 [surface]
 model = "beckmann"
@@ -220,8 +216,7 @@ const PROBES: &[(Format, &str, &str, &str)] = &[
 
 /// The tags of internally tagged enums: documented keys that serde does not list among a
 /// variant's fields.
-const TAGS: &[(Format, &str, &str)] =
-    &[(Format::Recipe, "size", "kind"), (Format::Recipe, "imaginary_part", "mode")];
+const TAGS: &[(Format, &str, &str)] = &[(Format::Recipe, "size", "kind"), (Format::Recipe, "imaginary_part", "mode")];
 
 /// `template` with the probe at `at` (as `key = 1` on its own line, or `, key = 1` inside an
 /// inline table) and every other placeholder empty.
@@ -339,7 +334,9 @@ fn the_readme_worked_example_files_parse() {
     // fixtures/example/ holds the README's recipe, scene and project; the README shows them.
     let dir = root().join("fixtures/example");
     let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
-    for (file, format) in [("tio2_pmma.toml", Format::Recipe), ("scene.toml", Format::Scene), ("project.toml", Format::Project)] {
+    for (file, format) in
+        [("tio2_pmma.toml", Format::Recipe), ("scene.toml", Format::Scene), ("project.toml", Format::Project)]
+    {
         let text = std::fs::read_to_string(dir.join(file)).unwrap();
         parse(format, &text).unwrap_or_else(|e| panic!("fixtures/example/{file}: {e}"));
         // Every non-comment line of the file is in the README's copy.

@@ -4,7 +4,11 @@
 //! renderer's 380–780 nm (the range and the `extrapolate` key).
 
 use lucent::scene::{self, mesh};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
 use std::process::Command;
 
 /// The 60 × 40 × 6.35 mm plaque as an OBJ whose coordinates are multiplied by `per_metre`.
@@ -67,12 +71,12 @@ fn the_limits_of_a_plausible_size_are_where_the_doc_says() {
 
 #[test]
 fn render_says_the_size_where_it_warns_about_lost_light() {
-    // A 60 m "plaque" under a finite sphere of 0.6 m: paths inside it meet the sphere, not a face.
+    // The README's 30 mm sphere (fixtures/example/part.obj, in mm) read as metres: the camera is
+    // inside a 30 m object and every path is lost; the warning says the size and the key.
     let tmp = tempfile::tempdir().unwrap();
-    write_plaque_obj(&tmp.path().join("plaque_mm.obj"), 1000.0);
+    let mesh = format!("mesh = {:?}", root().join("fixtures/example/part.obj").display().to_string());
     let scene_path = tmp.path().join("scene.toml");
-    let env = "constant = [1.0, 1.0, 1.0]\nprojection = \"finite-sphere\"\nradius_m = 0.6\ncentre_m = [0.0, 0.0, 0.0]";
-    std::fs::write(&scene_path, scene_text("mesh = \"plaque_mm.obj\"", env)).unwrap();
+    std::fs::write(&scene_path, scene_text(&mesh, "constant = [1.0, 1.0, 1.0]")).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_lucent"))
         .args(["render", scene_path.to_str().unwrap(), "--out", tmp.path().join("r").to_str().unwrap()])
         .output()
@@ -80,14 +84,14 @@ fn render_says_the_size_where_it_warns_about_lost_light() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     let lost = err.lines().find(|l| l.contains("their light is lost")).unwrap_or_else(|| panic!("{err}"));
-    assert!(lost.contains("60.0000 × 40.0000") && lost.contains(SIZE_HINT), "{lost}");
+    assert!(lost.contains("30.0000 × 30.0000 × 30.0000 m") && lost.contains(SIZE_HINT), "{lost}");
 }
 
 #[test]
 fn a_recipe_short_of_380_nm_names_the_range_and_the_extrapolate_key() {
     let tmp = tempfile::tempdir().unwrap();
     // PMMA (Zhang 2020) is tabulated from 400 nm: enough for `optics --wavelengths 400:700:10`, not for a render.
-    let recipe = "name = \"tio2-pmma\"\nthickness_mm = 6.0\n[host]\nname = \"PMMA\"\n\
+    let recipe = "name = \"tio2-pmma\"\nthickness_mm = 6.0\nsize_mm = [40.0, 30.0]\n[host]\nname = \"PMMA\"\n\
                   index = \"builtin:PMMA_Zhang2020_Mitsubishi\"\ndensity_g_per_ml = 1.18\n\
                   [[particles]]\nname = \"TiO2\"\nindex = \"builtin:TiO2_Siefke2016\"\ndensity_g_per_ml = 4.23\n\
                   weight_percent = 0.05\nsize = { kind = \"diameter\", diameter_um = 0.25 }\n";

@@ -26,7 +26,7 @@
 //! # or explicit bands: sigma_s_per_m = [..3], sigma_a_per_m = [..3], g = [..3], n = [..3]
 //! roughness = "recipe"          # the recipe's [surface] if any (else smooth); "smooth"; "ggx:0.0084"; "beckmann:0.005"
 //! dispersion = true             # false: one index (the bands' mean) for all bands, so a path
-//!                               # carries R, G and B together (spectral MIS: less noise)
+//!                               # carries R, G and B together (an approximation; docs/method.md#render-dispersion)
 //!
 //! [board]                       # geometry from scene_json, or origin_m/u/v/columns/rows/square_mm
 //! even = [0.04, 0.04, 0.04]     # squares whose (column + row) is even (the outer corner square)
@@ -945,12 +945,11 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
                 parse_grid(grid_text).map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Wavelengths(e)))?;
             let options =
                 bulk::Options { phase_entries: if phase_kind == "mie" { 4096 } else { 0 }, ..Default::default() };
-            let spectrum = bulk::compute(&recipe, &grid, &options)
-                .map_err(|source| SceneFileError::Optics {
-                    path: ctx.path.to_path_buf(),
-                    wavelengths: grid_text.to_string(),
-                    source,
-                })?;
+            let spectrum = bulk::compute(&recipe, &grid, &options).map_err(|source| SceneFileError::Optics {
+                path: ctx.path.to_path_buf(),
+                wavelengths: grid_text.to_string(),
+                source,
+            })?;
             let weights = band_weights(&grid).map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Bands(e)))?;
             for (b, f) in weights.coverage.iter().enumerate() {
                 if *f < 0.99 {
