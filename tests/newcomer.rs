@@ -103,7 +103,7 @@ fn a_recipe_short_of_380_nm_names_the_range_and_the_extrapolate_key() {
     );
     let scene_path = tmp.path().join("scene.toml");
     std::fs::write(&scene_path, &text).unwrap();
-    let e = scene::load(&scene_path).err().expect("a table from 400 nm cannot give 380 nm");
+    let Err(e) = scene::load(&scene_path) else { panic!("a table from 400 nm cannot give 380 nm") };
     let msg = e.to_string();
     for needle in ["380:780:10", "380 nm", "400", "extrapolate = \"clamp\"", "[host]"] {
         assert!(msg.contains(needle), "{msg:?} does not mention {needle:?}");
