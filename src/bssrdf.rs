@@ -1,4 +1,4 @@
-//! The BSSRDF stage (SPEC §3): builds a slab simulation from a recipe (or
+//! The BSSRDF stage (docs/method.md#slab): builds a slab simulation from a recipe (or
 //! explicit coefficients), writes the slice and its plots, and compares a
 //! simulated slice with a measured one.
 //!
@@ -681,14 +681,14 @@ pub fn profile_png(x_mm: &[f64], curves: &[ProfileCurve], beam: Option<&[f64]>) 
             .x_label_area_size(40)
             .y_label_area_size(80)
             .right_y_label_area_size(60)
-            .build_cartesian_2d(x0..x1, (lo..hi).log_scale())
+            .build_cartesian_2d(x0..x1, crate::plot::log_axis(lo, hi))
             .map_err(perr)?
             .set_secondary_coord(x0..x1, 0.0..1.05);
         chart
             .configure_mesh()
             .x_desc("x [mm]")
             .y_desc("f_ssr [1/(m² sr)]")
-            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| crate::plot::short_number(*v))
             .draw()
             .map_err(perr)?;
         for (k, (name, values, err)) in curves.iter().enumerate() {

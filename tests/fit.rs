@@ -1,4 +1,4 @@
-//! `lucent fit` (issue 16) with a known truth: slices simulated at 0.425
+//! `lucent fit` with a known truth: slices simulated at 0.425
 //! wt-% with the lab's 5 % noise are fitted from the recipe's 0.65 and must
 //! give back 0.425 within the reported 95 % interval; a parameter the data
 //! cannot see (the weight of particles too small to scatter) is reported

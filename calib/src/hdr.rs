@@ -1,4 +1,4 @@
-//! HDR radiance maps from exposure brackets (SPEC §5, `lucent env merge`).
+//! HDR radiance maps from exposure brackets (docs/method.md#camera, `lucent env merge`).
 //!
 //! # Linear brackets (RAW decoded, or linear EXR)
 //!

@@ -1,6 +1,6 @@
 //! Colour science for lucent: spectra, colour-matching functions, colour
 //! spaces, chromatic adaptation, colour differences, spectral → RGB band
-//! averages and ColorChecker calibration of cameras (SPEC §4, §5). Pure Rust,
+//! averages and ColorChecker calibration of cameras (docs/method.md#render, #camera). Pure Rust,
 //! `f64`, no OpenCV.
 //!
 //! | module | computes |
@@ -191,7 +191,7 @@ impl WavelengthGrid {
         Ok(Self { wavelengths_nm })
     }
 
-    /// The default visible grid of SPEC §1: 380–780 nm in 10 nm steps.
+    /// The default visible grid: 380–780 nm in 10 nm steps.
     pub fn visible() -> Self {
         Self::new(380.0, 780.0, 10.0).expect("the default grid is valid")
     }

@@ -91,7 +91,7 @@ pub fn srgb_decode(v: f64) -> f64 {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, IntoStaticStr, VariantArray, VariantNames, EnumMessage, EnumIter)]
 pub enum RgbSpace {
     /// CIE 1931 RGB: primaries 700 / 546.1 / 435.8 nm, white E. The space
-    /// photos, environment maps and material bands share (SPEC §4).
+    /// photos, environment maps and material bands share (docs/method.md#render).
     #[strum(to_string = "CIE RGB", serialize = "CIE 1931 RGB")]
     CieRgb,
     /// Linear sRGB / Rec. 709, white D65.

@@ -1,4 +1,4 @@
-//! Tests of the HDR environment (SPEC §4, `lucent_render::env`): the map seen
+//! Tests of the HDR environment (docs/method.md#render, `lucent_render::env`): the map seen
 //! from the centre pixel by pixel, the yaw convention, the finite sphere seen
 //! off-centre against closed forms and an independent quadratic, χ²
 //! goodness-of-fit of `sample` against `pdf`, normalisation of `pdf`,

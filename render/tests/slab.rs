@@ -1,4 +1,4 @@
-//! Statistical tests of the slab BSSRDF simulator (SPEC §3): explicit
+//! Statistical tests of the slab BSSRDF simulator (docs/method.md#slab): explicit
 //! connection against brute-force binning, total reflectance and
 //! transmittance against adding–doubling (iadpython, committed reference),
 //! reciprocity, the white furnace, determinism across thread counts, and bad

@@ -1,4 +1,4 @@
-//! The slab simulator with a rough top (SPEC §3, `slab` module doc "Rough
+//! The slab simulator with a rough top (docs/method.md#slab, `slab` module doc "Rough
 //! top"): the near-smooth limit α = 10⁻⁴ against the smooth slice pixel by
 //! pixel; the connection (sampled exit directions, chain of image terms)
 //! and the connection of unscattered light against brute-force exit

@@ -340,7 +340,7 @@ fn total_variance(img: &Image) -> f64 {
 
 #[test]
 fn spectral_mis_and_medium_connections_agree_with_the_plain_estimator() {
-    // Two independent estimators of the same image: SPEC §4's plain one (one
+    // Two independent estimators of the same image: the plain one-band one (one
     // band per path, light leaves the medium by chance) and the default
     // (all bands per path by spectral MIS, connections to the environment
     // through the faces). A bright patch on the finite sphere makes the

@@ -1,4 +1,4 @@
-//! `lucent bssrdf`: slab BSSRDF slices (SPEC §3) and their comparison with
+//! `lucent bssrdf`: slab BSSRDF slices (docs/method.md#slab) and their comparison with
 //! measured slices.
 
 use super::interrupt::Interrupt;

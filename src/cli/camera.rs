@@ -1,5 +1,5 @@
 //! `lucent raw …`, `lucent calibrate`, `lucent undistort`, `lucent pose` and
-//! `lucent env …` (`merge` and `view` in env_hdr.rs): the photo side of the twin (SPEC §5). Orchestration and
+//! `lucent env …` (`merge` and `view` in env_hdr.rs): the photo side of the twin (docs/method.md#camera). Orchestration and
 //! file handling only; the work is done by `lucent-calib`.
 
 use super::choices::{named, ProjectionChoice};

@@ -1,5 +1,5 @@
 //! `lucent compare`: a photo and its twin's render → metrics.json,
-//! triplet.png and difference.exr (SPEC §6). Argument handling and
+//! triplet.png and difference.exr (docs/method.md#compare). Argument handling and
 //! printing only; the work is done by [`crate::compare`].
 
 use super::choices::{named, RefineChoice};

@@ -1,5 +1,5 @@
 //! `lucent render SCENE.toml`: the digital twin rendered from the calibrated
-//! camera (SPEC §4). Orchestration only: the scene file is validated by
+//! camera (docs/method.md#render). Orchestration only: the scene file is validated by
 //! [`crate::scene`], light transport is `lucent_render::tracer`.
 //!
 //! Outputs in `--out` (default `lucent-out/render`):
@@ -425,9 +425,12 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     crate::io::write_json(&a.out.join("render.json"), &report)
         .with_context(|| format!("{}: cannot write render.json", a.out.display()))?;
     if stats.leaked_paths > 0 {
+        // A hole, or a mesh in the wrong unit (larger than the scene around it): say which is likelier.
+        let size = loaded.summary.object_bounds_m.and_then(|[lo, hi]| scene::mesh::size_warning(lo, hi));
         eprintln!(
-            "warning: {} paths found no boundary while inside the object (a hole in the mesh); their light is lost",
-            stats.leaked_paths
+            "warning: {} paths found no boundary while inside the object (a hole in the mesh{}); their light is lost",
+            stats.leaked_paths,
+            size.map_or(String::new(), |s| format!(", or {s}"))
         );
     }
     if stats.truncated_paths > 0 {

@@ -1,4 +1,4 @@
-//! `lucent surface`: height maps → microfacet normal distribution (SPEC §2).
+//! `lucent surface`: height maps → microfacet normal distribution (docs/method.md#surface).
 //! Argument handling and printing only; the work is done by
 //! [`crate::surface`].
 

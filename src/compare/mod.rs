@@ -1,4 +1,4 @@
-//! Photo ↔ render comparison (SPEC §6): error metrics, SSIM, the triplet
+//! Photo ↔ render comparison (docs/method.md#compare): error metrics, SSIM, the triplet
 //! picture and the difference image, optionally after aligning the render
 //! to the photo with OpenCV's ECC (`lucent compare`).
 //!
@@ -19,7 +19,7 @@
 //! border (skimage's crop; the windows themselves see all pixels, masked or
 //! not). Luminance weights default to the Y row of the CIE 1931 RGB → XYZ
 //! matrix (0.1769, 0.8124, 0.0107), the space photos, environment and
-//! renders share (SPEC §4); Rec. 709 / linear sRGB (0.2126, 0.7152, 0.0722)
+//! renders share (docs/method.md#render); Rec. 709 / linear sRGB (0.2126, 0.7152, 0.0722)
 //! on request.
 //!
 //! Refinement ([`Request::refine`]): `lucent_calib::ecc::find_transform_ecc`

@@ -1,6 +1,6 @@
-//! Inverse fit of recipe parameters to measured BSSRDF slices (issue 16):
+//! Inverse fit of recipe parameters to measured BSSRDF slices (docs/method.md#fit):
 //! the recipe values (weight percentage, particle diameter, particle real
-//! index) whose simulated slices (SPEC §3) best match measured ones over
+//! index) whose simulated slices (docs/method.md#slab) best match measured ones over
 //! several configurations (θ_i, θ_o), with a standard error, or the
 //! statement that the data cannot pin a parameter down.
 //!

@@ -1,4 +1,4 @@
-//! Scene files for `lucent render` (SPEC §4): a TOML file naming the
+//! Scene files for `lucent render` (docs/method.md#render): a TOML file naming the
 //! object, its material, the checkerboard, the environment and the camera,
 //! validated in two stages like recipes — the file as typed ([`SceneFile`],
 //! unknown keys rejected, each error naming the file and key), then the
@@ -27,7 +27,7 @@
 //! # (sigma_s_per_m and sigma_a_per_m, the earlier spellings, are still read)
 //! roughness = "recipe"          # the recipe's [surface] if any (else smooth); "smooth"; "ggx:0.0084"; "beckmann:0.005"
 //! dispersion = true             # false: one index (the bands' mean) for all bands, so a path
-//!                               # carries R, G and B together (spectral MIS: less noise)
+//!                               # carries R, G and B together (an approximation; docs/method.md#render-dispersion)
 //!
 //! [board]                       # geometry from scene_json, or origin_m/u/v/columns/rows/square_mm
 //! even = [0.04, 0.04, 0.04]     # squares whose (column + row) is even (the outer corner square)
@@ -44,7 +44,7 @@
 //! spp = 64
 //! seed = 1
 //! # time_s = 120, spp_per_pass = 4
-//! # spectral_mis = true, medium_connections = true   (false, false: SPEC §4's plain estimator)
+//! # spectral_mis = true, medium_connections = true   (false, false: the plain one-band estimator)
 //! # phase_connections = true     (with medium_connections: also connect along the phase function's directions)
 //! # sampling = "object-weighted"  # or "uniform": every pixel gets spp (the previous estimator)
 //! # target_rel_error = 0.05       # stop when the object's median relative standard error reaches 5 %
@@ -115,8 +115,11 @@ pub enum SceneFileError {
     Mesh { path: PathBuf, source: mesh::MeshError },
     #[error("{path}: [material] recipe: {source}")]
     Recipe { path: PathBuf, source: crate::optics::recipe::RecipeError },
-    #[error("{path}: [material]: {source}")]
-    Optics { path: PathBuf, source: crate::optics::bulk::OpticsError },
+    /// The recipe's optical properties over the scene's wavelength grid
+    /// (`[material] wavelengths`, default 380:780:10: the colour-matching
+    /// functions' range) failed, e.g. an index table that starts at 400 nm.
+    #[error("{path}: [material] recipe over wavelengths {wavelengths} nm: {source}")]
+    Optics { path: PathBuf, wavelengths: String, source: crate::optics::bulk::OpticsError },
     #[error("{path}: [environment] map: {source}")]
     Image { path: PathBuf, source: crate::imageio::ImageIoError },
     #[error("{path}: {source}")]
@@ -975,8 +978,11 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
                 .map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Wavelengths(e)))?;
             let options =
                 bulk::Options { phase_entries: if phase_kind == "mie" { 4096 } else { 0 }, ..Default::default() };
-            let spectrum = bulk::compute(&recipe, &grid, &options)
-                .map_err(|source| SceneFileError::Optics { path: ctx.path.to_path_buf(), source })?;
+            let spectrum = bulk::compute(&recipe, &grid, &options).map_err(|source| SceneFileError::Optics {
+                path: ctx.path.to_path_buf(),
+                wavelengths: grid_text.to_string(),
+                source,
+            })?;
             let weights = band_weights(&grid).map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Bands(e)))?;
             for (b, f) in weights.coverage.iter().enumerate() {
                 if *f < 0.99 {

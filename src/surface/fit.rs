@@ -1,5 +1,5 @@
 //! Least-squares fits of Trowbridge–Reitz and Beckmann distributions to a
-//! measured D(θ) (SPEC §2).
+//! measured D(θ) (docs/method.md#surface).
 //!
 //! Models (normalised so that ∫ D(m)(m·n) dω_m = 1):
 //! - Trowbridge–Reitz (GGX; Trowbridge & Reitz 1975, Walter et al. 2007):

@@ -1,4 +1,4 @@
-//! Surface topography → microfacet normal distribution (SPEC §2).
+//! Surface topography → microfacet normal distribution (docs/method.md#surface).
 //!
 //! From a profilometer height map to a fitted Trowbridge–Reitz or Beckmann
 //! distribution of microfacet normals:
@@ -216,7 +216,7 @@ pub struct FitOptions {
     /// window carry at least this fraction of the full window's weight
     /// (pixels next to the map edge or to invalid points are left out).
     pub min_weight_fraction: f64,
-    /// Remove the global least-squares plane first (SPEC §2).
+    /// Remove the global least-squares plane first (docs/method.md#surface).
     pub remove_tilt: bool,
     /// Fit a tilt τ of the distribution's axis as a third parameter.
     pub fit_tilt: bool,

@@ -139,7 +139,7 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
             .caption(format!("measured D(θ) of {} normals, least-squares fits", d.normals), ("sans-serif", 20))
             .x_label_area_size(60)
             .y_label_area_size(80)
-            .build_cartesian_2d(0.0..tmax_deg, (lo..hi).log_scale())
+            .build_cartesian_2d(0.0..tmax_deg, crate::plot::log_axis(lo, hi))
             .map_err(perr)?;
         chart
             .configure_mesh()
@@ -150,7 +150,7 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
             ))
             .y_desc("D(θ) [1/sr], logarithmic axis")
             .x_label_formatter(&|v| short_number(*v))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| short_number(*v))
             .draw()
             .map_err(perr)?;
         let black = RGBColor(0, 0, 0);

@@ -1,4 +1,4 @@
-//! Synthetic captures with a known truth (issue 13): what a camera with a
+//! Synthetic captures with a known truth (docs/method.md#pipeline): what a camera with a
 //! known colour response and a Bayer sensor would record of a linear image,
 //! written as a DNG that lucent's RAW decoding reads like any other.
 //!
