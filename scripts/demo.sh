@@ -27,7 +27,7 @@ echo "== 2c. The same IOL1068-09 slice (45°/15°) through a rough top: the meas
   --roughness "measured:$out/surface/fit.json" --crop --pixel-rel-error 0.05 --time-s 180 --quiet --out "$out/bssrdf/IOL1068-09-rough"
 
 echo
-echo "== 2d. Inverse fit (lucent fit, issue 16): slices of IOL1068-09 simulated at 0.425 wt-% play the measurement"
+echo "== 2d. Inverse fit (lucent fit): slices of IOL1068-09 simulated at 0.425 wt-% play the measurement"
 echo "   (45°/0°, 30°/0°); the fit starts from the recipe's 0.65 wt-%, the lab's example"
 "$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength 550 --configs 45/0,30/0 \
   --crop --paths 100000 --seed 101 --quiet --out "$out/fit/measured"

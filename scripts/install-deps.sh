@@ -14,6 +14,8 @@ packages=(
   mold             # fast linker for the test binaries and doctests (scripts/cc-link; plain cc without it)
   slurm-wlm        # Slurm (slurmctld, slurmd, sbatch, squeue, sacct): tests/slurm.rs runs a one-node cluster on localhost
   munge            # Slurm's authentication daemon, started by tests/slurm.rs with a generated key
+  python3          # `make python`: the Python module (python/) and its tests run in a project-local venv
+  python3-venv
 )
 
 missing=()

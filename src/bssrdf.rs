@@ -1,4 +1,4 @@
-//! The BSSRDF stage (SPEC §3): builds a slab simulation from a recipe (or
+//! The BSSRDF stage (docs/method.md#slab): builds a slab simulation from a recipe (or
 //! explicit coefficients), writes the slice and its plots, and compares a
 //! simulated slice with a measured one.
 //!
@@ -257,18 +257,7 @@ pub enum RoughnessError {
     Normals { text: String, source: NormalsError },
 }
 
-/// What is wrong with the text of a `--roughness` value.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum RoughnessSyntax {
-    #[error("no MODEL:VALUE")]
-    NoModel,
-    #[error("{0:?} is not a number")]
-    NotANumber(String),
-    #[error("α = {0} must be a number in [0, 4]")]
-    Alpha(f64),
-    #[error("unknown model {0:?}")]
-    UnknownModel(String),
-}
+pub use crate::surface::model::RoughnessSyntax;
 
 /// A `normals.exr` (of `lucent surface fit`) that cannot be used as a
 /// measured normal set; every variant names the file.
@@ -304,7 +293,7 @@ pub fn roughness(
     text: Option<&str>,
     recipe_surface: Option<&crate::optics::recipe::Surface>,
 ) -> Result<(Interface, String), RoughnessError> {
-    use crate::optics::recipe::RoughnessModel;
+    use crate::surface::model::RoughnessSpec;
     use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
     let analytic = |d: Distribution, origin: &str, text: &str| -> Result<(Interface, String), RoughnessError> {
         let boundary = Interface::new(Microsurface::Analytic(d))
@@ -312,40 +301,20 @@ pub fn roughness(
         let name = format!("{} ({origin})", boundary.describe());
         Ok((boundary, name))
     };
+    let from_recipe = || match recipe_surface {
+        Some(s) => analytic(s.model.distribution(s.alpha), "the recipe's [surface]", "recipe"),
+        None => Ok((Interface::Smooth, "smooth".into())),
+    };
     let Some(text) = text else {
-        return match recipe_surface {
-            Some(s) => {
-                let d = match s.model {
-                    RoughnessModel::TrowbridgeReitz => Distribution::TrowbridgeReitz { alpha: s.alpha },
-                    RoughnessModel::Beckmann => Distribution::Beckmann { alpha: s.alpha },
-                };
-                analytic(d, "the recipe's [surface]", "recipe")
-            }
-            None => Ok((Interface::Smooth, "smooth".into())),
-        };
+        return from_recipe();
     };
     let syntax = |problem: RoughnessSyntax| RoughnessError::Syntax { text: text.into(), problem };
-    let t = text.trim();
-    if t == "smooth" {
-        return Ok((Interface::Smooth, "smooth (--roughness)".into()));
-    }
-    let Some((kind, value)) = t.split_once(':') else {
-        return Err(syntax(RoughnessSyntax::NoModel));
-    };
-    let alpha = || -> Result<f64, RoughnessError> {
-        let a: f64 = value.trim().parse().map_err(|_| syntax(RoughnessSyntax::NotANumber(value.into())))?;
-        if !(a.is_finite() && (0.0..=4.0).contains(&a)) {
-            return Err(syntax(RoughnessSyntax::Alpha(a)));
-        }
-        Ok(a)
-    };
-    match kind.trim().to_ascii_lowercase().as_str() {
-        "tr" | "ggx" | "trowbridge-reitz" => {
-            analytic(Distribution::TrowbridgeReitz { alpha: alpha()? }, "--roughness", text)
-        }
-        "beckmann" => analytic(Distribution::Beckmann { alpha: alpha()? }, "--roughness", text),
-        "measured" => {
-            let path = PathBuf::from(value.trim());
+    match text.parse::<RoughnessSpec>().map_err(syntax)? {
+        RoughnessSpec::Recipe => from_recipe(),
+        RoughnessSpec::Smooth => Ok((Interface::Smooth, "smooth (--roughness)".into())),
+        RoughnessSpec::Analytic { alpha, .. } if alpha > 4.0 => Err(syntax(RoughnessSyntax::Alpha(alpha))),
+        RoughnessSpec::Analytic { model, alpha } => analytic(model.distribution(alpha), "--roughness", text),
+        RoughnessSpec::Measured(path) => {
             let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
             let normals_path = if is_exr {
                 path.clone()
@@ -362,7 +331,6 @@ pub fn roughness(
             let name = format!("{} from {}", boundary.describe(), normals_path.display());
             Ok((boundary, name))
         }
-        other => Err(syntax(RoughnessSyntax::UnknownModel(other.into()))),
     }
 }
 
@@ -713,14 +681,14 @@ pub fn profile_png(x_mm: &[f64], curves: &[ProfileCurve], beam: Option<&[f64]>) 
             .x_label_area_size(40)
             .y_label_area_size(80)
             .right_y_label_area_size(60)
-            .build_cartesian_2d(x0..x1, (lo..hi).log_scale())
+            .build_cartesian_2d(x0..x1, crate::plot::log_axis(lo, hi))
             .map_err(perr)?
             .set_secondary_coord(x0..x1, 0.0..1.05);
         chart
             .configure_mesh()
             .x_desc("x [mm]")
             .y_desc("f_ssr [1/(m² sr)]")
-            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| crate::plot::short_number(*v))
             .draw()
             .map_err(perr)?;
         for (k, (name, values, err)) in curves.iter().enumerate() {

@@ -1,4 +1,4 @@
-//! Environment radiance scale from the empty checkerboard (SPEC §4): the HDR
+//! Environment radiance scale from the empty checkerboard (docs/method.md#env-scale): the HDR
 //! environment's radiance is multiplied by a factor k so that the rendered
 //! empty board matches the photographed one.
 //!

@@ -1,6 +1,6 @@
 //! lucent: digital twins of translucent objects.
 //!
-//! The library behind the `lucent` command. Data flow is one way (SPEC):
+//! The library behind the `lucent` command. Data flow is one way (docs/method.md):
 //! recipe → optical properties ([`optics`]) → slab simulator or renderer
 //! (`lucent-render`) → images → comparison.
 

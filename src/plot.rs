@@ -123,6 +123,50 @@ pub(crate) fn short_number(v: f64) -> String {
     }
 }
 
+/// Mantissas of the labelled ticks of a logarithmic axis, coarsest first:
+/// [`log_axis`] takes the first set that labels at least
+/// [`LOG_AXIS_MIN_LABELS`] values in the range.
+const LOG_AXIS_MANTISSAS: [&[f64]; 4] =
+    [&[1.0], &[1.0, 2.0, 5.0], &[1.0, 2.0, 3.0, 5.0], &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]];
+/// Fewest labelled ticks on a logarithmic axis.
+pub(crate) const LOG_AXIS_MIN_LABELS: usize = 5;
+
+/// Tick values of a logarithmic axis over [lo, hi] (0 < lo < hi):
+/// `(labelled, grid)`. Every decade in the range is labelled, and as many
+/// of 2, 3, 5 or all of 2 … 9 times the decade as it takes to have at least
+/// [`LOG_AXIS_MIN_LABELS`] labels (a range under a decade falls back to
+/// mantissa steps of 0.1); the light grid lines are at every 1 … 9 times a
+/// decade, so a value between two labels can be read off. plotters' own
+/// logarithmic key points label only a few decades or multiples (1e4, 2e4).
+pub(crate) fn log_axis_points(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
+    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+        return (Vec::new(), Vec::new());
+    }
+    let (d0, d1) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+    let in_range = |v: &f64| *v >= lo * (1.0 - 1e-12) && *v <= hi * (1.0 + 1e-12);
+    let points = |mantissas: &[f64]| -> Vec<f64> {
+        (d0..=d1).flat_map(|d| mantissas.iter().map(move |m| m * 10f64.powi(d))).filter(in_range).collect()
+    };
+    let tenths: Vec<f64> = (10..100).map(|m| m as f64 / 10.0).collect();
+    let labelled = LOG_AXIS_MANTISSAS
+        .iter()
+        .map(|m| points(m))
+        .find(|p| p.len() >= LOG_AXIS_MIN_LABELS)
+        .unwrap_or_else(|| points(&tenths));
+    let grid = if d1 - d0 <= 8 { points(LOG_AXIS_MANTISSAS[3]) } else { points(&[1.0]) };
+    (labelled, grid)
+}
+
+/// A logarithmic axis over [lo, hi] with the ticks of [`log_axis_points`].
+pub(crate) fn log_axis(
+    lo: f64,
+    hi: f64,
+) -> plotters::coord::combinators::WithKeyPoints<plotters::coord::combinators::LogCoord<f64>> {
+    use plotters::coord::combinators::BindKeyPoints;
+    let (labelled, grid) = log_axis_points(lo, hi);
+    (lo..hi).log_scale().with_key_points(labelled).with_light_points(grid)
+}
+
 /// One sample's optical properties against wavelength, as plain slices (the
 /// optics stage builds it from its `OpticalSpectrum`; this module depends on
 /// no model type).
@@ -179,7 +223,7 @@ pub fn spectra_png(spectra: &[SpectrumSeries]) -> Result<Vec<u8>, PlotError> {
             if log && !positive.is_empty() {
                 let lo = positive.iter().copied().fold(f64::INFINITY, f64::min) / 1.5;
                 let hi = positive.iter().copied().fold(0.0, f64::max) * 1.5;
-                let mut chart = builder.build_cartesian_2d(wmin..wmax, (lo..hi).log_scale()).map_err(perr)?;
+                let mut chart = builder.build_cartesian_2d(wmin..wmax, log_axis(lo, hi)).map_err(perr)?;
                 chart
                     .configure_mesh()
                     .x_desc("wavelength [nm]")
@@ -787,6 +831,28 @@ mod tests {
         assert!(magenta > 4 * 100, "outline: {magenta} magenta pixels");
         assert_eq!(overlay_scale(4000), (1, 3));
         assert!(patch_overlay_png(w, h, &data[..10], &outlines).is_err());
+    }
+
+    #[test]
+    fn log_axes_label_decades_and_enough_values_between() {
+        // μa between 2 and 6 /m, as the spectra plot pads it (÷ 1.5, × 1.5): every integer labelled.
+        let (labels, grid) = log_axis_points(2.0 / 1.5, 6.0 * 1.5);
+        assert_eq!(labels, [2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+        assert_eq!(grid, labels);
+        // Three and a half decades: every decade, and 2 and 5 times it.
+        let (labels, grid) = log_axis_points(0.5, 2000.0);
+        assert_eq!(labels, [0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0]);
+        assert!(grid.contains(&3.0) && grid.contains(&400.0) && grid.len() == 5 + 9 * 3 + 2, "{grid:?}");
+        // Within one decade (1e4 … 2e4 as a narrow μs range was labelled before): tenths of the decade.
+        let (labels, _) = log_axis_points(1.2e4, 1.9e4);
+        assert!(
+            labels.len() >= LOG_AXIS_MIN_LABELS && labels.iter().all(|v| (1.19e4..=1.91e4).contains(v)),
+            "{labels:?}"
+        );
+        // Nine decades: the decades alone, each labelled.
+        let (labels, _) = log_axis_points(1.0, 1e9);
+        assert_eq!(labels.len(), 10);
+        assert_eq!(log_axis_points(0.0, 1.0), (vec![], vec![]));
     }
 
     #[test]

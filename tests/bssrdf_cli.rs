@@ -50,11 +50,8 @@ fn run_writes_slice_profile_and_summary() {
     assert_eq!(s["paths"].as_u64(), Some(20000));
     let sum = s["sum"].as_f64().unwrap();
     // The EXR holds the per-pixel values whose sum is `sum`.
-    let exr = exr::prelude::read_all_flat_layers_from_file(out.join("bssrdf.exr")).unwrap();
-    let ch = &exr.layer_data[0].channel_data.list;
-    let y = ch.iter().find(|c| c.name.to_string() == "Y").expect("Y channel");
-    assert!(ch.iter().any(|c| c.name.to_string() == "std_error"));
-    let total: f64 = y.sample_data.values_as_f32().map(f64::from).sum();
+    let (_, _, planes) = lucent_testkit::exr::read_channels(&out.join("bssrdf.exr"), &["Y", "std_error"]).unwrap();
+    let total: f64 = planes[0].iter().copied().map(f64::from).sum();
     assert!((total / sum - 1.0).abs() < 1e-5, "{total} vs {sum}");
     let profile = std::fs::read_to_string(out.join("profile.csv")).unwrap();
     assert_eq!(profile.lines().count(), 42);
@@ -89,16 +86,8 @@ fn compare_scores_against_a_measured_slice() {
     let out = dir.path().join("run");
     assert!(run_thin(&out, &[]).status.success());
     // A "measurement": the simulated slice scaled by 1.1, as a CSV grid.
-    let exr = exr::prelude::read_all_flat_layers_from_file(out.join("bssrdf.exr")).unwrap();
-    let y: Vec<f32> = exr.layer_data[0]
-        .channel_data
-        .list
-        .iter()
-        .find(|c| c.name.to_string() == "Y")
-        .unwrap()
-        .sample_data
-        .values_as_f32()
-        .collect();
+    let (_, _, mut planes) = lucent_testkit::exr::read_channels(&out.join("bssrdf.exr"), &["Y"]).unwrap();
+    let y = planes.remove(0);
     let mut csv = String::new();
     for r in 0..41 {
         let row: Vec<String> = (0..41).map(|c| format!("{}", 1.1 * y[r * 41 + c] as f64)).collect();

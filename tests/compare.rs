@@ -676,7 +676,7 @@ fn ssim_at_zero_render_noise_from_the_half_renders() {
     let mut rng = Rng(42);
     let mut normal = || {
         let (u1, u2) = (rng.next(), rng.next());
-        (-2.0 * (1.0 - u1).ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        lucent_testkit::normal::box_muller(u1, u2)
     };
     let clean: Vec<f32> = (0..w * h * 3)
         .map(|i| {

@@ -1,4 +1,4 @@
-//! `lucent fit` (issue 16) with a known truth: slices simulated at 0.425
+//! `lucent fit` with a known truth: slices simulated at 0.425
 //! wt-% with the lab's 5 % noise are fitted from the recipe's 0.65 and must
 //! give back 0.425 within the reported 95 % interval; a parameter the data
 //! cannot see (the weight of particles too small to scatter) is reported
@@ -59,6 +59,42 @@ fn weight_percent_recovered_within_its_error() {
     assert_eq!(r.optics, "affine in the weight percentage (two Lorenz–Mie computations)");
 }
 
+/// Simulates the 45°/0° slice of `truth` (4000 paths) as a measured CSV in
+/// `dir`, runs `lucent fit` of `recipe` against it with `free` and `extra`
+/// into `dir/out`, and returns its stderr, whether it succeeded and fit.json.
+fn fit_against_synthetic(
+    dir: &Path,
+    truth: &Path,
+    seed: u64,
+    recipe: &Path,
+    free: &str,
+    extra: &[&str],
+) -> (String, bool, serde_json::Value) {
+    let truth = Recipe::load(truth, Overrides::default()).unwrap();
+    let grids = fit::synthetic_slices(&truth, 550.0, &CONFIGS[..1], SENSOR, 4_000, seed, 0.05).unwrap();
+    let g = &grids[0];
+    let mut csv = String::new();
+    for row in g.values.chunks(g.size) {
+        csv.push_str(&row.iter().map(|v| format!("{v:e}")).collect::<Vec<_>>().join(","));
+        csv.push('\n');
+    }
+    let measured = write(dir, "m45.csv", &csv);
+    let out = dir.join("out");
+    let run = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["fit", "--recipe"])
+        .arg(recipe)
+        .arg("--measured")
+        .arg(format!("{}:45/0", measured.display()))
+        .args(["--measured-pixel-mm", "0.5", "--free", free, "--paths", "4000", "--quiet"])
+        .args(extra)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let json = serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).unwrap()).unwrap();
+    (String::from_utf8_lossy(&run.stderr).into_owned(), run.status.success(), json)
+}
+
 /// A second particle type of 10 nm spheres scatters ~10⁻¹¹ of the PDMS:
 /// its weight percentage leaves every slice unchanged. The CLI must say so,
 /// exit non-zero, and still write fit.json (identifiable = false, no value)
@@ -69,30 +105,11 @@ fn unidentifiable_parameter_is_reported_not_fitted() {
     let text = pdms_text().replace("weight_percent = 0.65", "weight_percent = 0.425")
         + "\n[[particles]]\nname = \"dust\"\nindex = \"builtin:PDMS_Zhang2020_20-1\"\ndensity_g_per_ml = 0.965\nweight_percent = 0.5\nsize = { kind = \"diameter\", diameter_um = 0.01 }\nextrapolate = \"clamp\"\n";
     let recipe_path = write(dir.path(), "dust.toml", &text);
-    let recipe = Recipe::load(&recipe_path, Overrides::default()).unwrap();
-    let grids = fit::synthetic_slices(&recipe, 550.0, &CONFIGS[..1], SENSOR, 4_000, 78, 0.05).unwrap();
-    let g = &grids[0];
-    let mut csv = String::new();
-    for row in g.values.chunks(g.size) {
-        csv.push_str(&row.iter().map(|v| format!("{v:e}")).collect::<Vec<_>>().join(","));
-        csv.push('\n');
-    }
-    let measured = write(dir.path(), "m45.csv", &csv);
-    let out = dir.path().join("out");
-    let run = Command::new(env!("CARGO_BIN_EXE_lucent"))
-        .args(["fit", "--recipe"])
-        .arg(&recipe_path)
-        .arg("--measured")
-        .arg(format!("{}:45/0", measured.display()))
-        .args(["--measured-pixel-mm", "0.5", "--free", "weight_percent@2", "--paths", "4000", "--quiet", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(!run.status.success(), "must fail: {stderr}");
+    let (stderr, success, json) =
+        fit_against_synthetic(dir.path(), &recipe_path, 78, &recipe_path, "weight_percent@2", &[]);
+    assert!(!success, "must fail: {stderr}");
     assert!(stderr.contains("cannot pin down weight_percent@2"), "{stderr}");
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).unwrap()).unwrap();
+    let out = dir.path().join("out");
     assert_eq!(json["identifiable"], false);
     assert!(json["parameters"][0]["value"].is_null());
     assert!(out.join("objective.png").is_file());
@@ -218,4 +235,26 @@ fn uncertainty_intervals_cover_95_percent() {
     }
     let coverage = inside as f64 / draws as f64;
     assert!((coverage - 0.95).abs() < 0.035, "coverage {coverage} of [{lo}, {hi}]");
+}
+
+/// A free particle diameter walks the search from an optically thick slab
+/// (the start, 2.2 µm: the pilot picks the ring estimator) into thin ones
+/// (slices measured at 0.15 µm: small spheres hardly scatter). Where the
+/// ring does not apply the search must go on with an estimator that does,
+/// not end with the ring's "needs a thick slab" error.
+#[test]
+fn free_diameter_fit_crosses_into_thin_media() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = pdms_text().replace("weight_percent = 0.65", "weight_percent = 0.425");
+    let recipe_path = write(dir.path(), "r.toml", &text);
+    let thin = write(dir.path(), "thin.toml", &text.replace("diameter_um = 2.2", "diameter_um = 0.15"));
+    let (stderr, _, json) =
+        fit_against_synthetic(dir.path(), &thin, 79, &recipe_path, "diameter_um", &["--bounds", "0.05:3"]);
+    assert!(!stderr.contains("thick"), "{stderr}");
+    let history = json["history"].as_array().unwrap();
+    let optical_depth =
+        |h: &serde_json::Value| (h["mu_s_per_m"].as_f64().unwrap() + h["mu_a_per_m"].as_f64().unwrap()) * 6.35e-3;
+    assert!(optical_depth(&history[0]) > 40.0, "the pilot is thick: {}", optical_depth(&history[0]));
+    assert!(history.iter().any(|h| optical_depth(h) < 40.0), "the search never reached a thin slab: {stderr}");
+    assert!(history.len() > 8, "{} evaluations: {stderr}", history.len());
 }

@@ -30,6 +30,8 @@ mod env_orient;
 mod fisheye_cli;
 #[path = "fit.rs"]
 mod fit;
+#[path = "formats_doc.rs"]
+mod formats_doc;
 #[path = "hardening.rs"]
 mod hardening;
 #[path = "jobs.rs"]
@@ -38,6 +40,8 @@ mod jobs;
 mod mesh;
 #[path = "mie_reference.rs"]
 mod mie_reference;
+#[path = "newcomer.rs"]
+mod newcomer;
 #[path = "numeric_flags.rs"]
 mod numeric_flags;
 #[path = "optics_bulk.rs"]

@@ -1,4 +1,4 @@
-//! Bulk optical properties of recipes (SPEC §1): physical bounds on the
+//! Bulk optical properties of recipes (docs/method.md#optics): physical bounds on the
 //! shipped samples, phase-table normalisation and mean cosine, size
 //! integration convergence, volume-fraction scaling, the absorbing-host
 //! limits and attenuation, the three absorption formulas, the overrides of
@@ -261,7 +261,7 @@ fn absorbing_host_tends_to_real_host() {
 
 #[test]
 fn full_host_volume_weighted_absorption_is_the_labs_formula() {
-    // SPEC §1: the host's 4πκh/λ NOT scaled by 1 − Σφ, plus Σ φi 4πκi/λ.
+    // docs/method.md#optics: the host's 4πκh/λ NOT scaled by 1 − Σφ, plus Σ φi 4πκi/λ.
     let dir = tempfile::tempdir().unwrap();
     let (kh, kp) = (4e-7, 2e-3);
     let size = r#"{ kind = "diameter", diameter_um = 9.0 }"#;
@@ -416,7 +416,7 @@ fn host_attenuation_changes_the_covestro_samples_only_slightly() {
     // 9 µm PVP spheres). F(α) = 1 − 5α/3 + 49α²/36 − 391α³/540 + O(α⁴)
     // therefore lowers μs by less than 1e-4 at 550 nm (and from 430 nm on),
     // by at most 0.3 % at 380–400 nm, and not at all where α < 1e-6
-    // (F = 1 there, SPEC §1). μa of the lab's formula does not involve F.
+    // (F = 1 there, docs/method.md#optics). μa of the lab's formula does not involve F.
     let grid = WavelengthGrid::visible();
     let opts = Options { phase_entries: 0, ..Default::default() };
     let (mut largest, mut largest_from_430, mut largest_550) = (0.0f64, 0.0f64, 0.0f64);

@@ -1,4 +1,4 @@
-//! `lucent mie` and `lucent optics` on the cases of issue 10: absorbing hosts
+//! `lucent mie` and `lucent optics`: absorbing hosts
 //! never give a negative qabs, very small spheres are exact, and the folder
 //! of shipped recipes prints the lab-formula table with its corrections.
 

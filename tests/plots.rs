@@ -1,4 +1,4 @@
-//! Plots a reader can trust (issue 17): properties of the drawn pixels that a
+//! Plots a reader can trust: properties of the drawn pixels that a
 //! wrong plot would not have.
 
 use lucent::bssrdf::{compare, heatmap_png, Grid, MASKED, OVER};

@@ -13,52 +13,7 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Per-test threshold of a two-sided z-test over `m` tests at family-wise
-/// level `alpha` (Šidák), by bisection on the normal tail (erfc).
-fn sidak_z(m: usize, alpha: f64) -> f64 {
-    let per_test = 1.0 - (1.0 - alpha).powf(1.0 / m as f64);
-    let tail = |z: f64| libm_erfc(z / std::f64::consts::SQRT_2);
-    let (mut lo, mut hi) = (0.0, 20.0);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if tail(mid) > per_test {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
-}
-
-/// erfc by its continued fraction / series (Numerical Recipes' erfcc, 1.2e-7 relative).
-fn libm_erfc(x: f64) -> f64 {
-    let z = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let r = t
-        * (-z * z - 1.265_512_23
-            + t * (1.000_023_68
-                + t * (0.374_091_96
-                    + t * (0.096_784_18
-                        + t * (-0.186_288_06
-                            + t * (0.278_868_07
-                                + t * (-1.135_203_98
-                                    + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
-            .exp();
-    if x >= 0.0 {
-        r
-    } else {
-        2.0 - r
-    }
-}
-
-#[test]
-fn sidak_threshold_is_right() {
-    // One test at α = 0.05: the familiar 1.95996.
-    assert!((sidak_z(1, 0.05) - 1.959_964).abs() < 1e-4);
-    // 9216 tests at 1e-3: per-test 1.085e-7 → z ≈ 5.31.
-    let z = sidak_z(9216, 1e-3);
-    assert!((5.2..5.45).contains(&z), "{z}");
-}
+use lucent_testkit::sidak::z_threshold as sidak_z;
 
 #[test]
 fn reference_scene_agrees_with_mitsuba() {

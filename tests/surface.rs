@@ -9,8 +9,9 @@
 use crate::common;
 use common::{lucent, stderr, stdout};
 
-use lucent::optics::recipe::{Overrides, Recipe, RoughnessModel};
+use lucent::optics::recipe::{Overrides, Recipe};
 use lucent::surface::fit::d_model;
+use lucent::surface::model::RoughnessModel;
 use lucent::surface::normals::{fit_plane, plane_fit_normals, roughness};
 use lucent::surface::synth::{synthesize, SynthSpec};
 use lucent::surface::x3p::{read_x3p, read_x3p_bytes, write_x3p, x3p_bytes, PointType, WriteOptions};

@@ -1,4 +1,4 @@
-//! Synthetic captures (issue 13's known truth): the DNG written by
+//! Synthetic captures (a known truth): the DNG written by
 //! `lucent::synth` decodes to the mosaic it was made from; a chart captured
 //! through a known camera matrix is calibrated back to that matrix (up to the
 //! exposure); a CIE RGB image captured and developed with the truth comes

@@ -1,4 +1,4 @@
-//! The calibration driver (SPEC §5): detects the board in every photo,
+//! The calibration driver (docs/method.md#camera): detects the board in every photo,
 //! calibrates (Zhang 2000 through OpenCV's `calibrateCamera`, or Kannala–Brandt
 //! through `fisheye::calibrate`; see [`crate::cv`]), and reports per view the
 //! pose, the corners and the reprojection residuals in pixels — what

@@ -37,6 +37,7 @@
 //! ```
 
 use crate::board::BoardSpec;
+use crate::bracket::{HdrError, Response, ResponseMethod, Rgb8Buffer};
 use crate::buffer::{BufferSizeError, GrayImage, RgbBuffer};
 use crate::model::{CameraModel, Distortion, DistortionModel, Intrinsics};
 use crate::pose::Pose;
@@ -47,6 +48,7 @@ use opencv::mcc::{
 use opencv::prelude::*;
 use opencv::{calib3d, imgcodecs, imgproc};
 use std::path::Path;
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 // Kept at this path for the root crate and the tests (`lucent_calib::cv::CalibError`).
 pub use crate::error::CalibError;
@@ -61,11 +63,13 @@ pub fn version() -> String {
 }
 
 /// Corner detector policy.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
 pub enum Detector {
     /// Sector-based first, classic + cornerSubPix where it fails.
     Auto,
     /// `findChessboardCornersSB` only.
+    #[strum(to_string = "sector-based", serialize = "sb")]
     SectorBased,
     /// `findChessboardCorners` + `cornerSubPix` only.
     Classic,
@@ -785,14 +789,13 @@ pub fn detect_mcc24(width: usize, height: usize, rgb8: &[u8]) -> Result<Option<M
 /// channel R, G, B as 256 relative exposures. The brackets must have been
 /// checked ([`crate::hdr::check_8bit`]).
 pub fn recover_response(
-    brackets: &[crate::hdr::Rgb8Buffer],
+    brackets: &[Rgb8Buffer],
     exposures: &[f64],
-    method: crate::hdr::ResponseMethod,
-) -> Result<crate::hdr::Response, crate::hdr::HdrError> {
-    use crate::hdr::{HdrError, ResponseMethod};
+    method: ResponseMethod,
+) -> Result<Response, HdrError> {
     use opencv::photo;
-    fn err(what: &'static str) -> impl Fn(opencv::Error) -> crate::hdr::HdrError {
-        move |e| crate::hdr::HdrError::OpenCv { context: what, message: e.message }
+    fn err(what: &'static str) -> impl Fn(opencv::Error) -> HdrError {
+        move |e| HdrError::OpenCv { context: what, message: e.message }
     }
     let mut images: Vector<Mat> = Vector::new();
     for b in brackets {
@@ -833,7 +836,7 @@ pub fn recover_response(
     if curve.iter().flatten().any(|v| !(v.is_finite() && *v > 0.0)) {
         return Err(HdrError::ResponseNotPositive);
     }
-    Ok(crate::hdr::Response { method, curve })
+    Ok(Response { method, curve })
 }
 
 #[cfg(test)]

@@ -32,11 +32,12 @@
 use crate::buffer::{BufferSizeError, RgbBuffer};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// What went wrong in demosaicing.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DemosaicError {
-    #[error("unknown demosaicing method {name:?}; valid: {}", Demosaic::NAMES.join(", "))]
+    #[error("unknown demosaicing method {name:?}; valid: {}", <Demosaic as strum::VariantNames>::VARIANTS.join(", "))]
     UnknownMethod { name: String },
     #[error("CFA pattern {0:?} is not a 2 × 2 Bayer pattern (one R, two G on a diagonal, one B), e.g. RGGB")]
     NotBayer(String),
@@ -139,35 +140,29 @@ impl Mosaic {
 }
 
 /// Demosaicing method.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[strum(ascii_case_insensitive)]
+#[derive(Serialize, Deserialize)]
 pub enum Demosaic {
     /// Malvar, He & Cutler (2004), gradient-corrected bilinear.
     #[serde(rename = "malvar")]
+    #[strum(to_string = "malvar", serialize = "mhc", serialize = "malvar-he-cutler", serialize = "malvar2004")]
     MalvarHeCutler2004,
     /// Mean of the nearest same-colour neighbours.
     #[serde(rename = "bilinear")]
+    #[strum(to_string = "bilinear", serialize = "linear")]
     Bilinear,
 }
 
 impl Demosaic {
-    /// Names accepted by [`Demosaic::from_name`].
-    pub const NAMES: [&'static str; 2] = ["malvar", "bilinear"];
-
-    /// `"malvar"` (also `"mhc"`, `"malvar-he-cutler"`) or `"bilinear"`.
+    /// Any spelling of a method (case ignored).
     pub fn from_name(name: &str) -> Result<Self, DemosaicError> {
-        match name.to_ascii_lowercase().as_str() {
-            "malvar" | "mhc" | "malvar-he-cutler" | "malvar2004" => Ok(Self::MalvarHeCutler2004),
-            "bilinear" | "linear" => Ok(Self::Bilinear),
-            _ => Err(DemosaicError::UnknownMethod { name: name.to_string() }),
-        }
+        name.trim().parse().map_err(|_| DemosaicError::UnknownMethod { name: name.to_string() })
     }
 
     /// The canonical name.
     pub fn name(self) -> &'static str {
-        match self {
-            Self::MalvarHeCutler2004 => "malvar",
-            Self::Bilinear => "bilinear",
-        }
+        self.into()
     }
 }
 

@@ -39,12 +39,14 @@ use crate::error::CalibError;
 use opencv::core::{self, Mat, Size, TermCriteria};
 use opencv::prelude::*;
 use opencv::{imgproc, video};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// Longest side of the coarsest pyramid level (see the module docs).
 pub const PYRAMID_MAX_SIDE: usize = 512;
 
 /// The warp's degrees of freedom (OpenCV's `MOTION_*`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[strum(serialize_all = "lowercase", ascii_case_insensitive)]
 pub enum Motion {
     /// dx, dy (2 parameters).
     Translation,
@@ -57,27 +59,18 @@ pub enum Motion {
 }
 
 impl Motion {
-    /// The valid names, for error messages.
-    pub const NAMES: [&'static str; 4] = ["translation", "euclidean", "affine", "homography"];
-
-    /// From a name in [`Motion::NAMES`].
+    /// Any spelling of a model (case ignored).
     pub fn from_name(name: &str) -> Result<Self, CalibError> {
-        match name.trim().to_ascii_lowercase().as_str() {
-            "translation" => Ok(Self::Translation),
-            "euclidean" => Ok(Self::Euclidean),
-            "affine" => Ok(Self::Affine),
-            "homography" => Ok(Self::Homography),
-            other => Err(CalibError::UnknownMotion { name: other.to_string(), expected: &Self::NAMES }),
-        }
+        let name = name.trim();
+        name.parse().map_err(|_| CalibError::UnknownMotion {
+            name: name.to_ascii_lowercase(),
+            expected: <Self as strum::VariantNames>::VARIANTS,
+        })
     }
 
+    /// The name ("translation", …).
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Translation => "translation",
-            Self::Euclidean => "euclidean",
-            Self::Affine => "affine",
-            Self::Homography => "homography",
-        }
+        self.into()
     }
 
     fn opencv(self) -> i32 {

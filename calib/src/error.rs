@@ -71,7 +71,7 @@ pub enum CalibError {
          differently and reaching the image corners (or use a model with fewer coefficients)"
     )]
     Unusable { views: usize, source: crate::model::CameraError },
-    /// An ECC motion model name not in `expected` ([`crate::ecc::Motion::NAMES`]).
+    /// An ECC motion model name not in `expected` (the names of [`crate::ecc::Motion`]).
     #[error("motion {name:?}: expected one of {}", .expected.join(", "))]
     UnknownMotion { name: String, expected: &'static [&'static str] },
     #[error("ECC buffers of {template}, {input} and {mask:?} values for {width} × {height}")]

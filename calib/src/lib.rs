@@ -1,4 +1,4 @@
-//! Camera side of lucent (SPEC §5): RAW files to linear camera RGB,
+//! Camera side of lucent (docs/method.md#camera): RAW files to linear camera RGB,
 //! checkerboard calibration, board and sample poses, undistortion, and the
 //! equirectangular HDR environment. The only crate that links OpenCV, and
 //! only [`cv`] and [`ecc`] touch it: everything else here, and everything this crate
@@ -35,6 +35,7 @@
 //! ```
 
 pub mod board;
+pub mod bracket;
 pub mod buffer;
 pub mod calibrate;
 pub mod camera;

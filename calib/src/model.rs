@@ -48,28 +48,33 @@
 //! ```
 
 use serde::{Deserialize, Serialize};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// Which distortion coefficients a calibration estimates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
 pub enum DistortionModel {
     /// k1, k2, p1, p2, k3.
+    #[strum(to_string = "pinhole-k3", serialize = "k3", serialize = "brown-conrady")]
     PinholeK3,
     /// k1–k6, p1, p2 (OpenCV's `CALIB_RATIONAL_MODEL`), for wide lenses.
     Rational,
     /// Kannala–Brandt k1–k4 on the angle off the axis (OpenCV's `fisheye`), for fisheye lenses.
+    #[strum(to_string = "fisheye", serialize = "kannala-brandt")]
     Fisheye,
 }
 
 impl DistortionModel {
-    /// `"pinhole-k3"`, `"rational"` or `"fisheye"`.
+    /// Any spelling of a model (case ignored).
     pub fn from_name(name: &str) -> Result<Self, CameraError> {
-        match name.to_ascii_lowercase().as_str() {
-            "pinhole-k3" | "k3" | "brown-conrady" => Ok(Self::PinholeK3),
-            "rational" => Ok(Self::Rational),
-            "fisheye" | "kannala-brandt" => Ok(Self::Fisheye),
-            _ => Err(CameraError::UnknownModel { name: name.to_string() }),
-        }
+        name.trim().parse().map_err(|_| CameraError::UnknownModel { name: name.to_string() })
+    }
+
+    /// The name, as written in camera.json ("pinhole-k3", …).
+    pub fn name(self) -> &'static str {
+        self.into()
     }
 }
 
@@ -278,7 +283,7 @@ pub const RADIAL_SCALE_RANGE: (f64, f64) = (0.1, 10.0);
 /// Why a camera model cannot be used (see [`CameraModel::validate`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CameraError {
-    #[error("unknown camera model {name:?}; valid: pinhole-k3, rational, fisheye")]
+    #[error("unknown camera model {name:?}; valid: {}", <DistortionModel as strum::VariantNames>::VARIANTS.join(", "))]
     UnknownModel { name: String },
     /// A photo whose size is not the one the camera was calibrated at.
     #[error("image is {width} × {height} pixels but the camera was calibrated at {camera_width} × {camera_height}")]

@@ -59,6 +59,7 @@ use crate::buffer::RgbBuffer;
 use crate::demosaic::{self, Bayer, Demosaic, DemosaicError, Mosaic};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// What went wrong with a RAW file; every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -80,28 +81,27 @@ pub enum RawError {
 /// White balance applied before demosaicing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[derive(EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[strum(serialize_all = "lowercase", ascii_case_insensitive)]
 pub enum WhiteBalance {
-    /// None: linear camera RGB as the sensor saw it.
+    /// Camera RGB as recorded (linear, as the sensor saw it).
     #[default]
     None,
-    /// The camera's as-shot multipliers, green = 1.
+    /// The as-shot multipliers, green = 1.
+    #[strum(to_string = "camera", serialize = "as-shot")]
     Camera,
 }
 
 impl WhiteBalance {
-    /// `"none"` or `"camera"`.
+    /// Any spelling of a choice (case ignored).
     pub fn from_name(name: &str) -> Result<Self, UnknownWhiteBalance> {
-        match name.to_ascii_lowercase().as_str() {
-            "none" => Ok(Self::None),
-            "camera" | "as-shot" => Ok(Self::Camera),
-            _ => Err(UnknownWhiteBalance { name: name.to_string() }),
-        }
+        name.trim().parse().map_err(|_| UnknownWhiteBalance { name: name.to_string() })
     }
 }
 
 /// A white-balance name that [`WhiteBalance::from_name`] does not know.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("unknown white balance {name:?}; valid: none, camera")]
+#[error("unknown white balance {name:?}; valid: {}", <WhiteBalance as strum::VariantNames>::VARIANTS.join(", "))]
 pub struct UnknownWhiteBalance {
     pub name: String,
 }

@@ -10,18 +10,8 @@ use std::path::Path;
 /// The studio map, 2 × 2 box-downsampled to 512 × 256 (keeps the test fast),
 /// scaled so its brightest channel is 1.
 fn studio() -> RgbBuffer {
-    use exr::prelude::*;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/env/studio.exr");
-    let img = read_first_rgba_layer_from_file(
-        &path,
-        |res, _| (res.width(), res.height(), vec![0f32; res.width() * res.height() * 3]),
-        |(w, _, px): &mut (usize, usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            let i = 3 * (pos.y() * *w + pos.x());
-            px[i..i + 3].copy_from_slice(&[r, g, b]);
-        },
-    )
-    .expect("fixtures/env/studio.exr");
-    let (w, h, data) = img.layer_data.channel_data.pixels;
+    let (w, h, data) = lucent_testkit::exr::read_rgb(&path).expect("fixtures/env/studio.exr");
     let (w2, h2) = (w / 2, h / 2);
     let mut out = RgbBuffer::zeros(w2, h2);
     for y in 0..h2 {

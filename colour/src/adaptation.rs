@@ -23,27 +23,24 @@
 
 use crate::matrix::{mat3_inverse, mat3_mul, mat3_vec};
 use crate::{ColourError, Mat3};
-use serde::{Deserialize, Serialize};
+use strum::{EnumIter, EnumMessage, IntoStaticStr, VariantArray, VariantNames};
 
 /// A chromatic adaptation transform.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, IntoStaticStr, VariantArray, VariantNames, EnumMessage, EnumIter)]
 pub enum Cat {
     Bradford,
-    #[serde(rename = "von Kries")]
+    #[strum(to_string = "von Kries")]
     VonKries,
-    #[serde(rename = "CAT02")]
+    #[strum(to_string = "CAT02")]
     Cat02,
 }
 
-impl Cat {
-    pub const ALL: [Cat; 3] = [Cat::Bradford, Cat::VonKries, Cat::Cat02];
+crate::names::named!(Cat, "chromatic adaptation transform");
 
+impl Cat {
+    /// The name, as written in files ("Bradford", "von Kries", "CAT02").
     pub fn name(self) -> &'static str {
-        match self {
-            Cat::Bradford => "Bradford",
-            Cat::VonKries => "von Kries",
-            Cat::Cat02 => "CAT02",
-        }
+        self.into()
     }
 
     /// The transform's XYZ → "cone" response matrix A.
@@ -52,22 +49,6 @@ impl Cat {
             Cat::Bradford => [[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367], [0.0389, -0.0685, 1.0296]],
             Cat::VonKries => [[0.40024, 0.7076, -0.08081], [-0.2263, 1.16532, 0.0457], [0.0, 0.0, 0.91822]],
             Cat::Cat02 => [[0.7328, 0.4296, -0.1624], [-0.7036, 1.6975, 0.0061], [0.0030, 0.0136, 0.9834]],
-        }
-    }
-}
-
-impl std::str::FromStr for Cat {
-    type Err = ColourError;
-    fn from_str(s: &str) -> Result<Self, ColourError> {
-        match crate::names::canonical_name(s).as_str() {
-            "bradford" => Ok(Cat::Bradford),
-            "vonkries" => Ok(Cat::VonKries),
-            "cat02" => Ok(Cat::Cat02),
-            _ => Err(ColourError::UnknownName {
-                kind: "chromatic adaptation transform",
-                name: s.to_string(),
-                valid: "Bradford, von Kries, CAT02".into(),
-            }),
         }
     }
 }
@@ -98,7 +79,7 @@ mod tests {
 
     #[test]
     fn identity_for_equal_whites_and_inverse_for_swapped() {
-        for cat in Cat::ALL {
+        for cat in <Cat as strum::IntoEnumIterator>::iter() {
             let w = Illuminant::A.white_xyz();
             let m = adaptation_matrix(w, w, cat).unwrap();
             for i in 0..3 {

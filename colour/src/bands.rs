@@ -1,4 +1,4 @@
-//! Spectral values → three band values R, G, B (SPEC §4): every spectral
+//! Spectral values → three band values R, G, B (docs/method.md#render): every spectral
 //! optical property (μs(λ), μa(λ), g(λ), n(λ), a reflectance …) becomes the
 //! weighted average v_b = Σᵢ w_b(λᵢ) v(λᵢ) with non-negative weights that sum
 //! to 1 in each band, so a constant spectrum keeps its value and the bands

@@ -28,34 +28,34 @@
 //! assert!((back[1] - xyz[3][1]).abs() < 1e-12);
 //! ```
 
-use crate::data::{canonical_name, colorchecker_2014, CHECKER_WHITE, ICC_D50_XYZ};
+use crate::data::{colorchecker_2014, CHECKER_WHITE, ICC_D50_XYZ};
 use crate::difference::{delta_e_2000, delta_e_76};
 use crate::spaces::xyz_to_lab;
 use crate::ColourError;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
+use strum::{EnumIter, EnumMessage, IntoStaticStr, VariantArray, VariantNames};
 
 /// A colour-correction method (see the module table).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, IntoStaticStr, VariantArray, VariantNames, EnumMessage, EnumIter)]
 pub enum CcmMethod {
-    #[serde(rename = "Cheung 2004")]
+    /// 3 × 3 linear least squares.
+    #[strum(to_string = "Cheung 2004")]
     Cheung2004,
-    #[serde(rename = "Finlayson 2015")]
+    /// Root-polynomial (degree 2), exposure invariant, 3 × 6.
+    #[strum(to_string = "Finlayson 2015")]
     Finlayson2015,
-    #[serde(rename = "Finlayson 1997")]
+    /// 3 × 3 white-point preserving least squares.
+    #[strum(to_string = "Finlayson 1997")]
     Finlayson1997,
 }
 
-impl CcmMethod {
-    /// The registry, in the order the error message lists them.
-    pub const ALL: [CcmMethod; 3] = [CcmMethod::Cheung2004, CcmMethod::Finlayson2015, CcmMethod::Finlayson1997];
+crate::names::named!(CcmMethod, "colour-correction method");
 
+impl CcmMethod {
+    /// The name, as written in ccm.json ("Cheung 2004", …).
     pub fn name(self) -> &'static str {
-        match self {
-            CcmMethod::Cheung2004 => "Cheung 2004",
-            CcmMethod::Finlayson2015 => "Finlayson 2015",
-            CcmMethod::Finlayson1997 => "Finlayson 1997",
-        }
+        self.into()
     }
 
     pub fn description(self) -> &'static str {
@@ -86,34 +86,10 @@ impl CcmMethod {
             CcmMethod::Finlayson2015 => [r, g, b, signed_sqrt(r * g), signed_sqrt(g * b), signed_sqrt(r * b)],
         }
     }
-
-    fn valid_names() -> String {
-        Self::ALL.iter().map(|m| format!("\"{}\"", m.name())).collect::<Vec<_>>().join(", ")
-    }
 }
 
 fn signed_sqrt(x: f64) -> f64 {
     x.abs().sqrt().copysign(x)
-}
-
-impl std::fmt::Display for CcmMethod {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for CcmMethod {
-    type Err = ColourError;
-    /// Case, spaces, hyphens and underscores are ignored: "Cheung 2004",
-    /// "cheung2004" and "cheung-2004" are the same method.
-    fn from_str(s: &str) -> Result<Self, ColourError> {
-        let c = canonical_name(s);
-        Self::ALL.into_iter().find(|m| canonical_name(m.name()) == c).ok_or_else(|| ColourError::UnknownName {
-            kind: "colour-correction method",
-            name: s.to_string(),
-            valid: Self::valid_names(),
-        })
-    }
 }
 
 /// A fitted colour correction: XYZ = M · t(RGB).

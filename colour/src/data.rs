@@ -26,9 +26,8 @@
 //! assert_eq!(lucent_colour::data::colorchecker_2014()[0].lab, [37.54, 14.37, 14.92]);
 //! ```
 
-use crate::ColourError;
-use serde::{Deserialize, Serialize};
 use std::sync::OnceLock;
+use strum::{EnumIter, EnumMessage, IntoStaticStr, VariantArray, VariantNames};
 
 const CIE1931_XYZ: &str = include_str!("../data/cie1931_2deg_xyz.csv");
 const CIE2012_XYZ: &str = include_str!("../data/cie2012_2deg_xyz.csv");
@@ -127,25 +126,40 @@ fn tables() -> &'static Tables {
 pub use crate::names::canonical_name;
 
 /// A standard colorimetric observer (XYZ colour-matching functions).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+/// Also read as "cie1931", "1931", "2012", "2015" and the like: a leading
+/// "CIE" and a trailing "deg"/"degree" are optional.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, IntoStaticStr, VariantArray, VariantNames, EnumMessage, EnumIter)]
 pub enum Observer {
     /// CIE 1931 2° standard observer (CIE 015:2018).
-    #[serde(rename = "CIE 1931 2°")]
+    #[strum(to_string = "CIE 1931 2°", serialize = "1931 2", serialize = "1931")]
     Cie1931_2,
     /// CIE 2012 2° XYZ CMFs (CIE 170-2:2015), from the Stockman & Sharpe (2000)
     /// cone fundamentals ("CIE 2015 2 Degree" in colour-science).
-    #[serde(rename = "CIE 2012 2°")]
+    #[strum(
+        to_string = "CIE 2012 2°",
+        serialize = "2012 2",
+        serialize = "2012",
+        serialize = "2015 2",
+        serialize = "2015"
+    )]
     Cie2012_2,
 }
 
-impl Observer {
-    pub const ALL: [Observer; 2] = [Observer::Cie1931_2, Observer::Cie2012_2];
+crate::names::named!(Observer, "observer", observer_core);
 
+/// The canonical form of an observer's name without a leading "cie" and a
+/// trailing "deg" or "degree".
+fn observer_core(s: &str) -> String {
+    let c = canonical_name(s);
+    let c = c.strip_prefix("cie").unwrap_or(&c);
+    let c = c.strip_suffix("degree").or_else(|| c.strip_suffix("deg")).unwrap_or(c);
+    c.to_string()
+}
+
+impl Observer {
+    /// The name, as written in files ("CIE 1931 2°", "CIE 2012 2°").
     pub fn name(self) -> &'static str {
-        match self {
-            Observer::Cie1931_2 => "CIE 1931 2°",
-            Observer::Cie2012_2 => "CIE 2012 2°",
-        }
+        self.into()
     }
 
     fn table(self) -> &'static Table {
@@ -168,27 +182,8 @@ impl Observer {
     }
 }
 
-impl std::str::FromStr for Observer {
-    type Err = ColourError;
-    /// Accepts "CIE 1931 2°", "cie1931", "1931", "CIE 2012 2°", "cie2012", "2012" and the like.
-    fn from_str(s: &str) -> Result<Self, ColourError> {
-        let c = canonical_name(s);
-        let c = c.strip_prefix("cie").unwrap_or(&c);
-        let c = c.strip_suffix("degree").or_else(|| c.strip_suffix("deg")).unwrap_or(c);
-        match c {
-            "1931" | "19312" => Ok(Observer::Cie1931_2),
-            "2012" | "20122" | "2015" | "20152" => Ok(Observer::Cie2012_2),
-            _ => Err(ColourError::UnknownName {
-                kind: "observer",
-                name: s.to_string(),
-                valid: "\"CIE 1931 2°\" (cie1931), \"CIE 2012 2°\" (cie2012)".into(),
-            }),
-        }
-    }
-}
-
 /// A CIE illuminant.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, IntoStaticStr, VariantArray, VariantNames, EnumMessage, EnumIter)]
 pub enum Illuminant {
     D50,
     D65,
@@ -198,16 +193,12 @@ pub enum Illuminant {
     E,
 }
 
-impl Illuminant {
-    pub const ALL: [Illuminant; 4] = [Illuminant::D50, Illuminant::D65, Illuminant::A, Illuminant::E];
+crate::names::named!(Illuminant, "illuminant");
 
+impl Illuminant {
+    /// The name, as written in files ("D50", "D65", "A", "E").
     pub fn name(self) -> &'static str {
-        match self {
-            Illuminant::D50 => "D50",
-            Illuminant::D65 => "D65",
-            Illuminant::A => "A",
-            Illuminant::E => "E",
-        }
+        self.into()
     }
 
     /// Relative spectral power at `nm` (100 at 560 nm); D50, D65 and A are
@@ -243,23 +234,6 @@ impl Illuminant {
     /// White point XYZ from [`Illuminant::white_xy`] with Y = 1.
     pub fn white_xyz(self) -> [f64; 3] {
         crate::chromaticity::xy_to_xyz(self.white_xy())
-    }
-}
-
-impl std::str::FromStr for Illuminant {
-    type Err = ColourError;
-    fn from_str(s: &str) -> Result<Self, ColourError> {
-        match canonical_name(s).as_str() {
-            "d50" => Ok(Illuminant::D50),
-            "d65" => Ok(Illuminant::D65),
-            "a" => Ok(Illuminant::A),
-            "e" => Ok(Illuminant::E),
-            _ => Err(ColourError::UnknownName {
-                kind: "illuminant",
-                name: s.to_string(),
-                valid: "D50, D65, A, E".into(),
-            }),
-        }
     }
 }
 

@@ -1,6 +1,6 @@
 //! Colour science for lucent: spectra, colour-matching functions, colour
 //! spaces, chromatic adaptation, colour differences, spectral → RGB band
-//! averages and ColorChecker calibration of cameras (SPEC §4, §5). Pure Rust,
+//! averages and ColorChecker calibration of cameras (docs/method.md#render, #camera). Pure Rust,
 //! `f64`, no OpenCV.
 //!
 //! | module | computes |
@@ -14,7 +14,7 @@
 //! | [`adaptation`] | Bradford, von Kries and CAT02 chromatic adaptation |
 //! | [`difference`] | ΔE*ab (CIE 1976) and ΔE00 (CIEDE2000, Sharma et al. 2005) |
 //! | [`bands`] | spectral values (μs, μa, g, …) → three band values R, G, B |
-//! | [`ccm`] | colour-correction matrices camera RGB → XYZ (D50): Cheung 2004, Finlayson 2015, Finlayson 1996 |
+//! | [`ccm`] | colour-correction matrices camera RGB → XYZ (D50): Cheung 2004, Finlayson 2015, Finlayson 1997 |
 //! | [`chart`] | ColorChecker patch sampling from an image given the chart's four corners |
 //!
 //! Conventions: wavelengths in nm; XYZ relative with Y = 1 for the perfect
@@ -124,6 +124,37 @@ pub enum GridError {
     Invalid { start_nm: f64, end_nm: f64, step_nm: f64, reason: &'static str },
 }
 
+/// A wavelength grid written as text that cannot be read or built.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum GridTextError {
+    #[error("expected START:END:STEP in nm, e.g. 380:780:10")]
+    Syntax,
+    #[error("{0:?} is not a number")]
+    NotANumber(String),
+    #[error(transparent)]
+    Grid(#[from] GridError),
+}
+
+impl std::str::FromStr for WavelengthGrid {
+    type Err = GridTextError;
+
+    /// "START:END:STEP" in nm (spaces around the numbers ignored), built by
+    /// [`WavelengthGrid::new`].
+    ///
+    /// ```
+    /// let grid: lucent_colour::WavelengthGrid = "400:700:10".parse().unwrap();
+    /// assert_eq!(grid.len(), 31);
+    /// ```
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let parts: Vec<&str> = text.split(':').collect();
+        let [a, b, c] = parts.as_slice() else {
+            return Err(GridTextError::Syntax);
+        };
+        let num = |s: &str| s.trim().parse::<f64>().map_err(|_| GridTextError::NotANumber(s.to_string()));
+        Ok(WavelengthGrid::new(num(a)?, num(b)?, num(c)?)?)
+    }
+}
+
 impl WavelengthGrid {
     /// Grid from `start_nm` to `end_nm` inclusive in steps of `step_nm`.
     pub fn new(start_nm: f64, end_nm: f64, step_nm: f64) -> Result<Self, GridError> {
@@ -160,7 +191,7 @@ impl WavelengthGrid {
         Ok(Self { wavelengths_nm })
     }
 
-    /// The default visible grid of SPEC §1: 380–780 nm in 10 nm steps.
+    /// The default visible grid: 380–780 nm in 10 nm steps.
     pub fn visible() -> Self {
         Self::new(380.0, 780.0, 10.0).expect("the default grid is valid")
     }

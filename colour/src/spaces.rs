@@ -31,7 +31,7 @@ use crate::adaptation::{adaptation_matrix, Cat};
 pub use crate::chromaticity::{xy_to_xyz, xyy_to_xyz, xyz_to_xyy};
 pub use crate::matrix::{mat3_inverse, mat3_mul, mat3_vec};
 use crate::{ColourError, Mat3};
-use serde::{Deserialize, Serialize};
+use strum::{EnumIter, EnumMessage, IntoStaticStr, VariantArray, VariantNames};
 
 /// CIELAB ε = (6/29)³.
 pub const LAB_EPSILON: f64 = 216.0 / 24389.0;
@@ -88,27 +88,27 @@ pub fn srgb_decode(v: f64) -> f64 {
 }
 
 /// The linear RGB spaces lucent converts to and from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, IntoStaticStr, VariantArray, VariantNames, EnumMessage, EnumIter)]
 pub enum RgbSpace {
     /// CIE 1931 RGB: primaries 700 / 546.1 / 435.8 nm, white E. The space
-    /// photos, environment maps and material bands share (SPEC §4).
-    #[serde(rename = "CIE RGB")]
+    /// photos, environment maps and material bands share (docs/method.md#render).
+    #[strum(to_string = "CIE RGB", serialize = "CIE 1931 RGB")]
     CieRgb,
     /// Linear sRGB / Rec. 709, white D65.
-    #[serde(rename = "sRGB")]
+    #[strum(to_string = "sRGB", serialize = "Rec. 709", serialize = "linear sRGB")]
     Srgb,
 }
+
+crate::names::named!(RgbSpace, "RGB space");
 
 const CIE_RGB_TO_XYZ: Mat3 = [[0.49, 0.31, 0.2], [0.1769, 0.8124, 0.0107], [0.0, 0.0099, 0.9901]];
 const SRGB_TO_XYZ: Mat3 = [[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]];
 const XYZ_TO_SRGB: Mat3 = [[3.2406, -1.5372, -0.4986], [-0.9689, 1.8758, 0.0415], [0.0557, -0.204, 1.057]];
 
 impl RgbSpace {
+    /// The name, as written in files ("CIE RGB", "sRGB").
     pub fn name(self) -> &'static str {
-        match self {
-            RgbSpace::CieRgb => "CIE RGB",
-            RgbSpace::Srgb => "sRGB",
-        }
+        self.into()
     }
 
     /// The white of the space: E for CIE RGB, D65 for sRGB.
@@ -159,19 +159,6 @@ impl RgbSpace {
     }
 }
 
-impl std::str::FromStr for RgbSpace {
-    type Err = ColourError;
-    fn from_str(s: &str) -> Result<Self, ColourError> {
-        match crate::names::canonical_name(s).as_str() {
-            "ciergb" | "cie1931rgb" => Ok(RgbSpace::CieRgb),
-            "srgb" | "rec709" | "linearsrgb" => Ok(RgbSpace::Srgb),
-            _ => {
-                Err(ColourError::UnknownName { kind: "RGB space", name: s.to_string(), valid: "cie-rgb, srgb".into() })
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -211,6 +198,6 @@ mod tests {
     fn rgb_space_names() {
         assert_eq!("cie-rgb".parse::<RgbSpace>().unwrap(), RgbSpace::CieRgb);
         assert_eq!("sRGB".parse::<RgbSpace>().unwrap(), RgbSpace::Srgb);
-        assert!("adobe".parse::<RgbSpace>().unwrap_err().to_string().contains("cie-rgb, srgb"));
+        assert!("adobe".parse::<RgbSpace>().unwrap_err().to_string().contains("CIE RGB, sRGB"));
     }
 }

@@ -270,21 +270,7 @@ fn band_weights_match_the_numpy_reference() {
 }
 
 /// splitmix64 → uniform → Box–Muller normal; deterministic.
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (u1, u2) = (self.uniform().max(1e-300), self.uniform());
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
-}
+use lucent_testkit::normal::SplitMix64 as Rng;
 
 /// A random camera: a well-conditioned 3 × 3 RGB ← XYZ matrix.
 fn random_camera(rng: &mut Rng) -> [[f64; 3]; 3] {
@@ -332,7 +318,7 @@ fn finlayson_2015_is_exposure_invariant_and_cheung_is_not_fooled_by_scale() {
     let r = &reference()["ccm"];
     let rgb = rows3(&r["camera_rgb"]);
     let xyz = rows3(&r["reference_xyz"]);
-    for method in CcmMethod::ALL {
+    for method in <CcmMethod as strum::IntoEnumIterator>::iter() {
         let base = fit(method, &rgb, &xyz, CHECKER_WHITE).unwrap();
         for k in [0.25, 3.0] {
             let scaled: Vec<[f64; 3]> = rgb.iter().map(|c| [k * c[0], k * c[1], k * c[2]]).collect();
@@ -375,7 +361,7 @@ fn with_noise_the_fitted_error_stays_within_the_noise_level() {
             .map(|(c, l)| delta_e_2000(spaces::xyz_to_lab(mat3_vec(&truth, *c), ICC_D50_XYZ), *l))
             .sum::<f64>()
             / 24.0;
-        for method in CcmMethod::ALL {
+        for method in <CcmMethod as strum::IntoEnumIterator>::iter() {
             let ccm = fit(method, &noisy, &xyz, CHECKER_WHITE).unwrap();
             let report = ccm.report(&noisy, &xyz, ICC_D50_XYZ, &[]).unwrap();
             assert!(

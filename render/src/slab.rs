@@ -562,6 +562,18 @@ impl Estimator {
         }
     }
 
+    /// Whether the estimator is exact for `setup`: the ring needs θ_i or
+    /// θ_o = 0, a thick slab and a smooth top; the lobe connection a thick
+    /// slab ([`SlabError::RingNotApplicable`], [`SlabError::LobeNotApplicable`]
+    /// otherwise); the others apply to every setup.
+    pub fn applies(&self, setup: &Setup) -> bool {
+        match self {
+            Estimator::Ring => Ring::applies(setup),
+            Estimator::Lobe { .. } => lobe_applies(setup),
+            Estimator::Connection | Estimator::BruteForce { .. } => true,
+        }
+    }
+
     /// A short name for summaries.
     pub fn name(&self) -> &'static str {
         match self {

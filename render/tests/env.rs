@@ -1,4 +1,4 @@
-//! Tests of the HDR environment (SPEC §4, `lucent_render::env`): the map seen
+//! Tests of the HDR environment (docs/method.md#render, `lucent_render::env`): the map seen
 //! from the centre pixel by pixel, the yaw convention, the finite sphere seen
 //! off-centre against closed forms and an independent quadratic, χ²
 //! goodness-of-fit of `sample` against `pdf`, normalisation of `pdf`,
@@ -9,7 +9,6 @@
 use glam::DVec3;
 use lucent_render::env::{EnvError, Environment, Projection};
 use lucent_render::rng::Rng;
-use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::{PI, TAU};
 
 const CENTRE: DVec3 = DVec3::new(0.1, -0.2, 0.3);
@@ -370,26 +369,9 @@ fn chi2_pvalue(env: &Environment, p: DVec3, n: usize, seed: u64) -> f64 {
     let total: f64 = expected.iter().sum();
     assert!((total / n as f64 - 1.0).abs() < 1e-3, "∫pdf = {}", total / n as f64);
 
-    let (mut chi2, mut bins) = (0.0, 0usize);
-    let (mut pool_o, mut pool_e) = (0.0, 0.0);
-    for (&o, &e) in observed.iter().zip(&expected) {
-        if e < 5.0 {
-            pool_o += o;
-            pool_e += e;
-        } else {
-            chi2 += (o - e).powi(2) / e;
-            bins += 1;
-        }
-    }
-    if pool_e > 0.0 {
-        chi2 += (pool_o - pool_e).powi(2) / pool_e;
-        bins += 1;
-    } else {
-        assert_eq!(pool_o, 0.0, "samples where the pdf is 0");
-    }
-    let pvalue = ChiSquared::new((bins - 1) as f64).unwrap().sf(chi2);
-    eprintln!("χ² = {chi2:.1} on {} dof, p = {pvalue:.3}", bins - 1);
-    pvalue
+    let fit = lucent_testkit::chi2::goodness_of_fit(&observed, &expected);
+    eprintln!("χ² = {:.1} on {} dof, p = {:.3}", fit.chi2, fit.dof, fit.p_value);
+    fit.p_value
 }
 
 #[test]

@@ -8,7 +8,6 @@ use lucent_render::fresnel;
 use lucent_render::interface::{Interface, Lobe, Sample, Transport};
 use lucent_render::microfacet::{Distribution, MeasuredNormals, MicrofacetError, Microsurface, SMOOTH_ALPHA};
 use lucent_render::rng::Rng;
-use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::f64::consts::PI;
 use std::sync::Arc;
 
@@ -227,23 +226,9 @@ fn chi2(
             ok += 1;
         }
     }
-    let (mut chsq, mut dof) = (0.0, 0usize);
-    let (mut pool_o, mut pool_e) = (0.0, 0.0);
-    for (o, e) in observed.iter().zip(&expected) {
-        let e = e / mass * ok as f64;
-        if e < 5.0 {
-            pool_o += *o as f64;
-            pool_e += e;
-        } else {
-            chsq += (*o as f64 - e).powi(2) / e;
-            dof += 1;
-        }
-    }
-    if pool_e > 0.0 {
-        chsq += (pool_o - pool_e).powi(2) / pool_e.max(5.0);
-        dof += 1;
-    }
-    let p_value = ChiSquared::new((dof - 1) as f64).unwrap().sf(chsq);
+    let expected: Vec<f64> = expected.iter().map(|e| e / mass * ok as f64).collect();
+    let observed: Vec<f64> = observed.iter().map(|&o| o as f64).collect();
+    let p_value = lucent_testkit::chi2::goodness_of_fit(&observed, &expected).p_value;
     let frac = ok as f64 / n as f64;
     let mass_sigma = (mass * (1.0 - mass) / n as f64).abs().sqrt().max(1.0 / n as f64);
     Chi2 { p_value, mass_abs: (frac - mass).abs(), mass_sigma, mass }

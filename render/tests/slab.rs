@@ -1,4 +1,4 @@
-//! Statistical tests of the slab BSSRDF simulator (SPEC §3): explicit
+//! Statistical tests of the slab BSSRDF simulator (docs/method.md#slab): explicit
 //! connection against brute-force binning, total reflectance and
 //! transmittance against adding–doubling (iadpython, committed reference),
 //! reciprocity, the white furnace, determinism across thread counts, and bad
@@ -319,30 +319,9 @@ fn beam_map_and_gaussian_give_the_same_integrated_slice() {
     agree("beam map vs gaussian", a.sum, a.sum_std_error, b.sum, b.sum_std_error, 3.0, 0.002);
 }
 
-/// χ² upper-tail p-value of `chi2` with `dof` degrees of freedom.
-fn chi2_upper(chi2: f64, dof: usize) -> f64 {
-    use statrs::distribution::{ChiSquared, ContinuousCDF};
-    1.0 - ChiSquared::new(dof as f64).unwrap().cdf(chi2)
-}
-
-/// χ² p-value of binned counts against expected counts (bins with
-/// expected < 5 pooled with the next).
+/// χ² p-value of binned counts against expected counts.
 fn chi2_counts(observed: &[f64], expected: &[f64]) -> f64 {
-    let (mut chi2, mut dof, mut o, mut e) = (0.0, 0usize, 0.0, 0.0);
-    for (a, b) in observed.iter().zip(expected) {
-        o += a;
-        e += b;
-        if e >= 5.0 {
-            chi2 += (o - e) * (o - e) / e;
-            dof += 1;
-            (o, e) = (0.0, 0.0);
-        }
-    }
-    if e > 0.0 {
-        chi2 += (o - e) * (o - e) / e;
-        dof += 1;
-    }
-    chi2_upper(chi2, dof - 1)
+    lucent_testkit::chi2::goodness_of_fit(observed, expected).p_value
 }
 
 /// A thick, moderately forward-scattering slab where the ring applies
@@ -354,15 +333,8 @@ fn thick_setup(dirs: Directions, pixels: usize, pixel_m: f64) -> Setup {
 /// Σ z² over the pixels where both slices are resolved (relative error
 /// below 25 %), and their count.
 fn pixel_chi2(a: &Slice, b: &Slice) -> (f64, usize) {
-    let (mut chi2, mut k) = (0.0, 0);
-    for i in 0..a.values.len() {
-        let (va, vb, sa, sb) = (a.values[i], b.values[i], a.std_error[i], b.std_error[i]);
-        if va > 0.0 && vb > 0.0 && sa < 0.25 * va && sb < 0.25 * vb {
-            chi2 += (va - vb).powi(2) / (sa * sa + sb * sb);
-            k += 1;
-        }
-    }
-    (chi2, k)
+    let c = lucent_testkit::chi2::pixel_differences((&a.values, &a.std_error), (&b.values, &b.std_error), 0.25);
+    (c.chi2, c.dof)
 }
 
 #[test]
@@ -379,7 +351,7 @@ fn ring_agrees_with_the_fixed_direction_connection_pixel_by_pixel() {
         assert_eq!(ring.reciprocal, theta_o == 0.0);
         let (chi2, k) = pixel_chi2(&ring, &conn);
         assert!(k >= 60, "{theta_i}/{theta_o}: only {k} resolved pixels");
-        let p = chi2_upper(chi2, k);
+        let p = lucent_testkit::chi2::upper_tail(chi2, k);
         assert!(p > 1e-3, "{theta_i}/{theta_o}: χ² = {chi2:.1} over {k} pixels (p = {p:.2e})");
         agree("ring vs connection sum", ring.sum, ring.sum_std_error, conn.sum, conn.sum_std_error, 3.5, 0.0);
     }
@@ -430,7 +402,6 @@ fn reported_standard_errors_match_the_spread_over_seeds() {
 /// and for each of `pixels`: fails when the reported standard errors are
 /// inflated or deflated (both tails at 5 × 10⁻⁴).
 pub(crate) fn errors_match_spread(label: &str, runs: &[Slice], pixels: &[usize]) {
-    let k = runs.len();
     let figures = std::iter::once(None).chain(pixels.iter().copied().map(Some));
     for pixel in figures {
         let xs: Vec<(f64, f64)> = runs
@@ -440,18 +411,9 @@ pub(crate) fn errors_match_spread(label: &str, runs: &[Slice], pixels: &[usize])
                 Some(i) => (r.values[i], r.std_error[i]),
             })
             .collect();
-        let m = xs.iter().map(|x| x.0).sum::<f64>() / k as f64;
-        let s2 = xs.iter().map(|x| (x.0 - m).powi(2)).sum::<f64>() / (k - 1) as f64;
-        let se2 = xs.iter().map(|x| x.1 * x.1).sum::<f64>() / k as f64;
-        assert!(m > 0.0 && se2 > 0.0, "{label} {pixel:?}: empty");
-        let stat = (k - 1) as f64 * s2 / se2;
-        let p_upper = chi2_upper(stat, k - 1);
-        assert!(
-            p_upper > 5e-4 && p_upper < 1.0 - 5e-4,
-            "{label} {}: spread² {s2:.3e} vs mean reported SE² {se2:.3e} (ratio {:.2}, χ² p = {p_upper:.2e})",
-            pixel.map_or("sum".to_string(), |i| format!("pixel {i}")),
-            s2 / se2
-        );
+        assert!(xs.iter().map(|x| x.0).sum::<f64>() > 0.0, "{label} {pixel:?}: empty");
+        let what = pixel.map_or("sum".to_string(), |i| format!("pixel {i}"));
+        lucent_testkit::spread::assert_errors_match_spread(&format!("{label} {what}"), &xs, 5e-4);
     }
 }
 
@@ -527,7 +489,7 @@ fn lobe_agrees_with_the_fixed_direction_connection_pixel_by_pixel() {
         let two = run(&s, 20_000 / m as u64, 52, Estimator::Lobe { vertices: m });
         let (chi2, k) = pixel_chi2(&two, &conn);
         assert!(k >= 20, "{theta_i}/{theta_o}: only {k} resolved pixels");
-        let p = chi2_upper(chi2, k);
+        let p = lucent_testkit::chi2::upper_tail(chi2, k);
         assert!(p > 1e-3, "{theta_i}/{theta_o}: χ² = {chi2:.1} over {k} pixels (p = {p:.2e})");
         agree("lobe vs connection sum", two.sum, two.sum_std_error, conn.sum, conn.sum_std_error, 3.5, 0.0);
     }
@@ -576,7 +538,7 @@ fn fold_gives_a_symmetric_slice_that_agrees_with_the_unfolded_one() {
         }
     }
     let (chi2, k) = pixel_chi2(&folded, &plain);
-    let p = chi2_upper(chi2, k);
+    let p = lucent_testkit::chi2::upper_tail(chi2, k);
     assert!(k > 30 && p > 1e-3, "χ² = {chi2:.1} over {k} pixels (p = {p:.2e})");
     // Not symmetric: light arriving from φ_i = 30°, or an asymmetric map.
     let mut tilted = s.clone();
@@ -701,4 +663,41 @@ fn beam_footprints_are_sampled_with_their_irradiance() {
         let p = chi2_counts(&observed, &expected);
         assert!(p > 1e-3, "θ {theta}° φ {phi}°: χ² p = {p:.2e}");
     }
+}
+
+/// `Estimator::applies` says exactly which setups the kernel accepts: the
+/// ring and the lobe connection are refused for a thin slab (and the ring
+/// for 45°/15° and a rough top), the others run everywhere.
+#[test]
+fn estimator_applies_where_the_kernel_accepts_it() {
+    let rough = Interface::new(lucent_render::microfacet::Microsurface::Analytic(
+        lucent_render::microfacet::Distribution::TrowbridgeReitz { alpha: 0.1 },
+    ))
+    .unwrap();
+    let thick = setup(2.0e4, 5.0, 0.9, 1.5, 4e-3, 9, 0.2e-3, lab_45_0());
+    let cases = [
+        ("thick 45/0", thick.clone()),
+        ("thin 45/0", setup(2.0e3, 5.0, 0.9, 1.5, 1e-3, 9, 0.2e-3, lab_45_0())),
+        ("thick 45/15", setup(2.0e4, 5.0, 0.9, 1.5, 4e-3, 9, 0.2e-3, lab_45_15())),
+        ("thick 45/0, rough top", Setup { slab: thick.slab.clone().with_top(rough), ..thick.clone() }),
+    ];
+    let estimators = [
+        Estimator::Connection,
+        Estimator::Ring,
+        Estimator::Lobe { vertices: 2 },
+        Estimator::BruteForce { cone_deg: 5.0 },
+    ];
+    let mut refused = 0;
+    for (name, s) in &cases {
+        for e in estimators {
+            let options = RunOptions { stop: Stop::paths(8), estimator: e, ..RunOptions::default() };
+            let result = simulate(s, &options, |_| {});
+            let accepted = !matches!(result, Err(SlabError::RingNotApplicable | SlabError::LobeNotApplicable));
+            assert_eq!(e.applies(s), accepted, "{name}, {e:?}: {:?}", result.err());
+            refused += usize::from(!accepted);
+        }
+        assert!(Estimator::best_for(s).applies(s), "{name}");
+    }
+    // thin: ring and lobe; 45/15: ring; rough: ring.
+    assert_eq!(refused, 4);
 }

@@ -1,4 +1,4 @@
-//! The slab simulator with a rough top (SPEC §3, `slab` module doc "Rough
+//! The slab simulator with a rough top (docs/method.md#slab, `slab` module doc "Rough
 //! top"): the near-smooth limit α = 10⁻⁴ against the smooth slice pixel by
 //! pixel; the connection (sampled exit directions, chain of image terms)
 //! and the connection of unscattered light against brute-force exit
@@ -89,16 +89,8 @@ fn agree(name: &str, a: &Slice, b: &Slice, k: f64) {
 /// errors, over the pixels resolved in both slices (relative error < 25 %),
 /// and that pixel count.
 fn pixel_p(a: &Slice, b: &Slice) -> (f64, usize) {
-    use statrs::distribution::{ChiSquared, ContinuousCDF};
-    let (mut chi2, mut k) = (0.0, 0);
-    for i in 0..a.values.len() {
-        let (va, vb, sa, sb) = (a.values[i], b.values[i], a.std_error[i], b.std_error[i]);
-        if va > 0.0 && vb > 0.0 && sa < 0.25 * va && sb < 0.25 * vb {
-            chi2 += (va - vb).powi(2) / (sa * sa + sb * sb);
-            k += 1;
-        }
-    }
-    (1.0 - ChiSquared::new(k as f64).unwrap().cdf(chi2), k)
+    let c = lucent_testkit::chi2::pixel_differences((&a.values, &a.std_error), (&b.values, &b.std_error), 0.25);
+    (c.p_value, c.dof)
 }
 
 type Make = fn(Interface, Directions) -> Setup;

@@ -13,7 +13,6 @@ use lucent_render::interface::Interface;
 use lucent_render::medium::Medium;
 use lucent_render::phase::Phase;
 use lucent_render::tracer::{render, Board, BoardReflectance, Image, Object, Scene, Settings};
-use statrs::distribution::{ContinuousCDF, Normal};
 
 /// 12 outward triangles of the box [lo, hi].
 fn cube(lo: DVec3, hi: DVec3) -> Vec<[DVec3; 3]> {
@@ -50,12 +49,6 @@ fn camera(w: usize, h: usize) -> Camera {
     Camera::look_at(w, h, DVec3::new(0.0, -0.05, 0.06), DVec3::new(0.0, 0.0, 0.003), DVec3::Z, 30.0).unwrap()
 }
 
-/// Two-sided per-test threshold for `m` tests at family-wise level `alpha` (Šidák).
-fn sidak_z(m: usize, alpha: f64) -> f64 {
-    let per_test = 1.0 - (1.0 - alpha).powf(1.0 / m as f64);
-    Normal::new(0.0, 1.0).unwrap().inverse_cdf(1.0 - per_test / 2.0)
-}
-
 /// Per-pixel, per-channel z-test of `img` against a known value per pixel
 /// (`expected`) or another image; zero-variance pixels must agree to 1e-12.
 fn z_test(img: &Image, expected: &dyn Fn(usize) -> Option<([f64; 3], [f64; 3])>, what: &str) {
@@ -68,7 +61,7 @@ fn z_test(img: &Image, expected: &dyn Fn(usize) -> Option<([f64; 3], [f64; 3])>,
         }
     }
     assert!(!tests.is_empty(), "{what}: no pixels tested");
-    let zmax = sidak_z(tests.len(), 1e-3);
+    let zmax = lucent_testkit::sidak::z_threshold(tests.len(), 1e-3);
     let mut worst = (0.0, 0, 0);
     for &(p, c, diff, var) in &tests {
         if var == 0.0 {
@@ -347,7 +340,7 @@ fn total_variance(img: &Image) -> f64 {
 
 #[test]
 fn spectral_mis_and_medium_connections_agree_with_the_plain_estimator() {
-    // Two independent estimators of the same image: SPEC §4's plain one (one
+    // Two independent estimators of the same image: the plain one-band one (one
     // band per path, light leaves the medium by chance) and the default
     // (all bands per path by spectral MIS, connections to the environment
     // through the faces). A bright patch on the finite sphere makes the

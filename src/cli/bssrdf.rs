@@ -1,4 +1,4 @@
-//! `lucent bssrdf`: slab BSSRDF slices (SPEC §3) and their comparison with
+//! `lucent bssrdf`: slab BSSRDF slices (docs/method.md#slab) and their comparison with
 //! measured slices.
 
 use super::interrupt::Interrupt;
@@ -332,11 +332,57 @@ fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
         .collect()
 }
 
-/// Runs `lucent bssrdf`, or with `merged_from` writes the outputs of the
-/// run whose shards these are (`lucent merge`).
-pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
-    let m = medium(&a)?;
-    let (beam, beam_name) = beam(&a)?;
+/// One configuration of a `lucent bssrdf` run, set up as the command sets it up.
+pub struct PlannedRun {
+    /// θi, φi, θo, φo in degrees.
+    pub angles: (f64, f64, f64, f64),
+    pub dirs: Directions,
+    pub setup: Setup,
+    pub options: RunOptions,
+}
+
+/// Everything `lucent bssrdf` simulates for the arguments, checked before
+/// any work: the medium (the recipe's bulk properties at the wavelength, or
+/// the explicit coefficients), the beam, the sensor (only the crop is
+/// simulated), the stop rule (without one: 1 % on the slice sum, at most
+/// 600 s per configuration), the top boundary, and per configuration the
+/// directions, the estimator and the run options.
+pub struct Plan {
+    medium: MediumChoice,
+    pub beam: Beam,
+    pub beam_name: String,
+    /// Pixels per side of the simulated (cropped) slice.
+    pub out_pixels: usize,
+    pub stop: Stop,
+    /// The top boundary as described in summary.json.
+    pub roughness: String,
+    pub runs: Vec<PlannedRun>,
+}
+
+impl Plan {
+    /// The beam's relative irradiance along the slice's middle row
+    /// (`beam_relative` of profile.csv) for `run`, pixel size `pixel_mm`.
+    pub fn beam_profile(&self, run: &PlannedRun, pixel_mm: f64) -> Vec<f64> {
+        let n = self.out_pixels;
+        let grid_x: Vec<f64> = (0..n).map(|c| (c as f64 + 0.5 - 0.5 * n as f64) * pixel_mm).collect();
+        bssrdf::beam_profile(&self.beam, &run.dirs, &grid_x)
+    }
+
+    /// The medium's μs, μa [1/m], g and n as used.
+    pub fn optical_properties(&self) -> &OpticalUsed {
+        &self.medium.used
+    }
+
+    /// The phase function as described in summary.json.
+    pub fn phase_name(&self) -> &str {
+        &self.medium.phase_name
+    }
+}
+
+/// The [`Plan`] of `lucent bssrdf` for the arguments `a`.
+pub fn plan(a: &RunArgs) -> Result<Plan> {
+    let m = medium(a)?;
+    let (beam, beam_name) = beam(a)?;
     let out_pixels = match a.crop {
         Some(c) if c == 0 || c > a.pixels => bail!("--crop {c}: must lie in 1 … --pixels ({})", a.pixels),
         Some(c) => c,
@@ -369,9 +415,25 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
         None => vec![(a.theta_i, a.phi_i, a.theta_o, a.phi_o)],
     };
-    for (ti, pi, to, po) in &configs {
-        Directions::from_degrees(*ti, *pi, *to, *po).with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
-    }
+    let runs = configs
+        .into_iter()
+        .map(|(ti, pi, to, po)| {
+            let dirs = Directions::from_degrees(ti, pi, to, po)
+                .with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
+            let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
+            let options = run_options(a, &setup, stop);
+            Ok(PlannedRun { angles: (ti, pi, to, po), dirs, setup, options })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Plan { medium: m, beam, beam_name, out_pixels, stop, roughness, runs })
+}
+
+/// Runs `lucent bssrdf`, or with `merged_from` writes the outputs of the
+/// run whose shards these are (`lucent merge`).
+pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
+    let plan = plan(&a)?;
+    let Plan { medium: m, beam_name, out_pixels, stop, roughness, .. } = &plan;
+    let configs = &plan.runs;
     let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
     let batch_paths = RunOptions::default().batch_paths;
     let total_batches = a.paths.unwrap_or(0).div_ceil(batch_paths);
@@ -421,11 +483,14 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         let interrupt = Interrupt::install();
         let mut wall_s = 0.0;
         let mut accumulators = Vec::new();
-        for (i, (ti, pi, to, po)) in configs.iter().enumerate() {
-            let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
-            let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
-            let options = run_options(&a, &setup, stop);
-            let t = slab::simulate_batches(&setup, &options, range.clone(), a.paths.unwrap_or(0), interrupt.flag())?;
+        for (i, run) in configs.iter().enumerate() {
+            let t = slab::simulate_batches(
+                &run.setup,
+                &run.options,
+                range.clone(),
+                a.paths.unwrap_or(0),
+                interrupt.flag(),
+            )?;
             if interrupt.requested() {
                 bail!("interrupted: shard {k}/{n} not written (a shard is merged whole or not at all)");
             }
@@ -472,17 +537,16 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             configs.len()
         );
     }
-    for (i, (ti, pi, to, po)) in configs.iter().enumerate() {
-        let dirs = Directions::from_degrees(*ti, *pi, *to, *po)?;
-        let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
+    for (i, run) in configs.iter().enumerate() {
+        let (ti, pi, to, po) = run.angles;
+        let (setup, options) = (&run.setup, &run.options);
         let sub = if configs.len() > 1 { format!("ti{ti}_to{to}") } else { String::new() };
         let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
-        let options = run_options(&a, &setup, stop);
-        let bar = progress_bar(a.quiet, &stop);
+        let bar = progress_bar(a.quiet, stop);
         bar.set_prefix(format!("θi {ti}° → θo {to}°"));
         let slice = if let Some(tallies) = &merged_tallies {
             // The shards' tallies added in shard order to an empty run's (its constants).
-            let mut sums = slab::simulate_batches(&setup, &options, 0..0, a.paths.unwrap_or(0), interrupt.flag())?;
+            let mut sums = slab::simulate_batches(setup, options, 0..0, a.paths.unwrap_or(0), interrupt.flag())?;
             for shard in tallies {
                 let t = slice_sums_of(&sums, &shard[i]);
                 sums.add(&t);
@@ -490,8 +554,8 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             sums.slice()
         } else {
             slab::simulate_cancellable(
-                &setup,
-                &options,
+                setup,
+                options,
                 |p| {
                     bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
                     bar.set_message(format!(
@@ -522,13 +586,13 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             config: RunConfig {
                 recipe: a.recipe.as_ref().map(|p| p.display().to_string()),
                 wavelength_nm: a.recipe.as_ref().map(|_| a.wavelength),
-                theta_i_deg: *ti,
-                phi_i_deg: *pi,
-                theta_o_deg: *to,
-                phi_o_deg: *po,
+                theta_i_deg: ti,
+                phi_i_deg: pi,
+                theta_o_deg: to,
+                phi_o_deg: po,
                 phase: m.phase_name.clone(),
                 beam: beam_name.clone(),
-                pixels: out_pixels,
+                pixels: *out_pixels,
                 pixel_mm: a.pixel_mm,
                 crop_of: a.crop.map(|_| a.pixels),
                 seed: a.seed,
@@ -556,9 +620,7 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             pixel_mm: a.pixel_mm,
             interrupted,
         };
-        let grid_x: Vec<f64> =
-            (0..out_pixels).map(|c| (c as f64 + 0.5 - 0.5 * out_pixels as f64) * a.pixel_mm).collect();
-        let beam_row = bssrdf::beam_profile(&beam, &dirs, &grid_x);
+        let beam_row = plan.beam_profile(run, a.pixel_mm);
         bssrdf::write_run(&dir, &slice, &summary, &beam_row)?;
         println!(
             "θi {ti}° φi {pi}° → θo {to}° φo {po}°: sum = {:.5e} ± {:.2e} 1/(m² sr) ({:.2} %), per pixel {:.1} % median, {:.1} % p90, {} paths, {:.1} M events/s, {:.1} s → {}",

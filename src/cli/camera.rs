@@ -1,8 +1,8 @@
 //! `lucent raw …`, `lucent calibrate`, `lucent undistort`, `lucent pose` and
-//! `lucent env …` (`merge` and `view` in env_hdr.rs): the photo side of the twin (SPEC §5). Orchestration and
+//! `lucent env …` (`merge` and `view` in env_hdr.rs): the photo side of the twin (docs/method.md#camera). Orchestration and
 //! file handling only; the work is done by `lucent-calib`.
 
-use super::choices::{DemosaicChoice, DetectorChoice, DistortionChoice, ProjectionChoice, WhiteBalanceChoice};
+use super::choices::{named, ProjectionChoice};
 use crate::imageio::{self, extension, RgbImage, RAW_EXTENSIONS};
 use crate::io::{write_atomic, write_json};
 use crate::plot;
@@ -12,6 +12,7 @@ use lucent_calib::camera::{self, Calibration, DistortionModel, NewCamera, Photo}
 use lucent_calib::cv::{self, Detector};
 use lucent_calib::demosaic::Demosaic;
 use lucent_calib::env;
+use lucent_calib::raw::WhiteBalance;
 use lucent_calib::raw::{self, RawOptions};
 use lucent_calib::scene::{self, BoardSpec, SampleSpec};
 use lucent_calib::{GrayImage, RgbBuffer};
@@ -41,11 +42,11 @@ pub struct RawDecodeArgs {
     /// Output image (.exr); the metadata goes to the same path with .json.
     pub output: PathBuf,
     /// Demosaicing: malvar (Malvar–He–Cutler 2004) or bilinear.
-    #[arg(long, value_enum, ignore_case = true, default_value = "malvar")]
-    pub demosaic: DemosaicChoice,
+    #[arg(long, value_parser = named::<Demosaic>(), default_value = "malvar")]
+    pub demosaic: Demosaic,
     /// White balance: none (camera RGB as recorded) or camera (as-shot multipliers, green = 1).
-    #[arg(long, value_enum, ignore_case = true, default_value = "none")]
-    pub white_balance: WhiteBalanceChoice,
+    #[arg(long, value_parser = named::<WhiteBalance>(), default_value = "none")]
+    pub white_balance: WhiteBalance,
     /// Override the white (saturation) level in raw digital numbers.
     #[arg(long)]
     pub white_level: Option<f32>,
@@ -69,11 +70,11 @@ pub struct CalibrateArgs {
     pub square_mm: f64,
     /// Distortion model: pinhole-k3 (k1 k2 p1 p2 k3), rational (k1..k6 p1 p2) or fisheye
     /// (Kannala–Brandt k1..k4, OpenCV's fisheye module; one lens of a 360° rig at a time).
-    #[arg(long, value_enum, ignore_case = true, default_value = "pinhole-k3")]
-    pub model: DistortionChoice,
+    #[arg(long, value_parser = named::<DistortionModel>(), default_value = "pinhole-k3")]
+    pub model: DistortionModel,
     /// Corner detector: auto (sector-based, else classic + cornerSubPix), sector-based or classic.
-    #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
-    pub detector: DetectorChoice,
+    #[arg(long, value_parser = named::<Detector>(), default_value = "auto")]
+    pub detector: Detector,
     /// Output camera JSON; the residual plot and per-view images go beside it
     /// (NAME_residuals.png, NAME_views/).
     #[arg(long)]
@@ -214,8 +215,7 @@ fn raw_decode(a: RawDecodeArgs) -> Result<()> {
     if extension(&a.output) != "exr" {
         bail!("{}: the output must be an .exr file (32-bit float linear RGB)", a.output.display());
     }
-    let opts =
-        RawOptions { demosaic: a.demosaic.into(), white_balance: a.white_balance.into(), white_level: a.white_level };
+    let opts = RawOptions { demosaic: a.demosaic, white_balance: a.white_balance, white_level: a.white_level };
     if let Some(w) = a.white_level
         && !(w.is_finite() && w > 0.0)
     {
@@ -306,19 +306,17 @@ fn load_gray(path: &Path) -> Result<GrayImage> {
     Ok(cv::read_gray(path)?)
 }
 
-pub fn calibrate(a: CalibrateArgs) -> Result<()> {
-    if a.out.is_dir() {
-        bail!(
-            "--out {}: is a folder; give the camera file to write, e.g. {}",
-            a.out.display(),
-            a.out.join("camera.json").display()
-        );
-    }
-    let board = BoardSpec::parse(&a.board, a.square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))?;
-    let model: DistortionModel = a.model.into();
-    let detector: Detector = a.detector.into();
+/// The chessboard of `--board COLSxROWS` (inner corners) and `--square-mm`.
+pub fn board_spec(board: &str, square_mm: f64) -> Result<BoardSpec> {
+    BoardSpec::parse(board, square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))
+}
+
+/// The photos of `--images` (folders, files or patterns; see
+/// [`expand_images`]), sorted by path without repeats, as 8-bit grey;
+/// one error listing every file that cannot be read.
+pub fn read_photos(images: &[String]) -> Result<Vec<Photo>> {
     let mut files = Vec::new();
-    for spec in &a.images {
+    for spec in images {
         files.extend(expand_images(spec)?);
     }
     files.sort();
@@ -334,7 +332,20 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
     if !unreadable.is_empty() {
         bail!("{} of {} image(s) cannot be read:\n  {}", unreadable.len(), files.len(), unreadable.join("\n  "));
     }
-    let cal = camera::calibrate_photos(&photos, &board, model, detector)?;
+    Ok(photos)
+}
+
+pub fn calibrate(a: CalibrateArgs) -> Result<()> {
+    if a.out.is_dir() {
+        bail!(
+            "--out {}: is a folder; give the camera file to write, e.g. {}",
+            a.out.display(),
+            a.out.join("camera.json").display()
+        );
+    }
+    let board = board_spec(&a.board, a.square_mm)?;
+    let photos = read_photos(&a.images)?;
+    let cal = camera::calibrate_photos(&photos, &board, a.model, a.detector)?;
 
     // Plots first, camera.json last; the views go to a staging folder that
     // replaces NAME_views/ whole, so no view of an earlier run stays beside

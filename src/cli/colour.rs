@@ -3,7 +3,7 @@
 //! optical properties. Orchestration only; the colour science is in
 //! `lucent-colour`.
 
-use super::choices::{AdaptationChoice, CcmMethodChoice, TargetChoice};
+use super::choices::{named, AdaptationChoice, TargetChoice};
 use crate::ccm_file::{CcmFile, CcmPatch, InputEncoding};
 use crate::imageio::{self, RgbImage};
 use crate::optics::bulk::{self, OpticalSpectrum};
@@ -45,8 +45,8 @@ pub struct CalibrateArgs {
     pub camera: Option<String>,
     /// Fitting method: "Cheung 2004" (3 × 3 least squares), "Finlayson 2015" (root-polynomial,
     /// exposure invariant) or "Finlayson 1997" (white-point preserving).
-    #[arg(long, value_enum, ignore_case = true, default_value = "Cheung 2004")]
-    pub method: CcmMethodChoice,
+    #[arg(long, value_parser = named::<CcmMethod>(), default_value = "Cheung 2004")]
+    pub method: CcmMethod,
     /// Output folder for ccm.json, chart.png, delta_e.png and patches.png.
     #[arg(long)]
     pub out: PathBuf,
@@ -140,7 +140,7 @@ fn decode_in_place(img: &mut RgbImage) {
 }
 
 fn calibrate(a: CalibrateArgs) -> Result<()> {
-    let method: CcmMethod = a.method.into();
+    let method = a.method;
     let given_corners = a.corners.as_deref().map(parse_corners).transpose()?;
     let clip = parse_clip_level(&a.clip_level)?;
     let mut img = imageio::read_rgb(&a.image)?;

@@ -1,9 +1,9 @@
 //! `lucent compare`: a photo and its twin's render → metrics.json,
-//! triplet.png and difference.exr (SPEC §6). Argument handling and
+//! triplet.png and difference.exr (docs/method.md#compare). Argument handling and
 //! printing only; the work is done by [`crate::compare`].
 
-use super::choices::{LuminanceChoice, MotionChoice, RefineChoice};
-use crate::compare::{self, MaskSpec, Metrics, Request};
+use super::choices::{named, RefineChoice};
+use crate::compare::{self, Luminance, MaskSpec, Metrics, Request};
 use anyhow::{Context, Result};
 use clap::Args;
 use lucent_calib::ecc::Motion;
@@ -42,8 +42,8 @@ pub struct CompareArgs {
     pub data_range: f64,
     /// Luminance weights for SSIM Y, the difference picture and ECC: cie-rgb (0.1769, 0.8124,
     /// 0.0107) or rec709 (0.2126, 0.7152, 0.0722).
-    #[arg(long, value_enum, ignore_case = true, default_value = "cie-rgb")]
-    pub luminance: LuminanceChoice,
+    #[arg(long, value_parser = named::<Luminance>(), default_value = "cie-rgb")]
+    pub luminance: Luminance,
     /// Display exposure k for triplet.png (shown = sRGB(k × linear)); default: 1 / the 99th
     /// percentile of the photo's max(R, G, B).
     #[arg(long, allow_hyphen_values = true)]
@@ -52,8 +52,8 @@ pub struct CompareArgs {
     #[arg(long, value_enum, ignore_case = true, value_name = "METHOD")]
     pub refine: Option<RefineChoice>,
     /// Motion model of the refinement: translation, euclidean, affine or homography.
-    #[arg(long, value_enum, ignore_case = true, default_value = "translation", requires = "refine")]
-    pub refine_motion: MotionChoice,
+    #[arg(long, value_parser = named::<Motion>(), default_value = "translation", requires = "refine")]
+    pub refine_motion: Motion,
     /// Output folder (created; existing metrics.json, triplet.png, difference.exr in it are replaced).
     #[arg(long)]
     pub out: PathBuf,
@@ -77,7 +77,7 @@ fn line(m: &Metrics) -> String {
 }
 
 pub fn run(a: CompareArgs) -> Result<()> {
-    let refine: Option<Motion> = a.refine.map(|RefineChoice::Ecc| a.refine_motion.into());
+    let refine: Option<Motion> = a.refine.map(|RefineChoice::Ecc| a.refine_motion);
     let mask = match (a.mask, a.mask_object, a.mask_board) {
         (Some(p), _, _) => MaskSpec::Image(p),
         (_, Some(p), _) => MaskSpec::Object(p),
@@ -96,7 +96,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         mask,
         scene: a.scene,
         data_range: a.data_range,
-        luminance: a.luminance.into(),
+        luminance: a.luminance,
         exposure: a.exposure,
         refine,
         photo_variance: a.photo_variance,

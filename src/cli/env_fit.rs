@@ -1,5 +1,5 @@
 //! `lucent env fit-scale`: the environment's radiance scale from the
-//! photographed empty board (SPEC §4). Renders the scene without its object
+//! photographed empty board (docs/method.md#env-scale). Renders the scene without its object
 //! (the empty board), fits k as the ratio of sums over the board pixels
 //! ([`crate::envfit`]) and writes, in `--out`:
 //! * `env_scale.json` — the fit (k, k per channel, residuals, pixels), the

@@ -5,7 +5,7 @@
 //! `lucent_calib::hdr`, the view and orientation `lucent_calib::env`.
 
 use super::{file_name, sibling, to_buffer, to_image, RAW_EXTENSIONS};
-use crate::cli::choices::ResponseChoice;
+use crate::cli::choices::named;
 use crate::imageio::{self, extension, RgbImage};
 use crate::io::write_json;
 use anyhow::{bail, Context, Result};
@@ -35,8 +35,8 @@ pub struct EnvMergeArgs {
     pub out: PathBuf,
     /// Camera-response recovery for 8-bit brackets: debevec (Debevec & Malik 1997) or robertson
     /// (Robertson et al. 2003).
-    #[arg(long, value_enum, ignore_case = true, default_value = "debevec")]
-    pub method: ResponseChoice,
+    #[arg(long, value_parser = named::<ResponseMethod>(), default_value = "debevec")]
+    pub method: ResponseMethod,
     /// Linear brackets: a pixel whose largest channel reaches this is saturated (RAW white = 1).
     #[arg(long, default_value_t = 0.98)]
     pub saturation: f32,
@@ -248,7 +248,7 @@ pub fn merge(a: EnvMergeArgs) -> Result<()> {
     if extension(&a.out) != "exr" {
         bail!("{}: the output must be an .exr file (32-bit float)", a.out.display());
     }
-    let method: ResponseMethod = a.method.into();
+    let method = a.method;
     let mut linear = Vec::new();
     let mut eight = Vec::new();
     let mut meta_exposures = Vec::new();

@@ -137,7 +137,8 @@ fn parse_bounds(text: &str, n: usize) -> Result<Vec<Option<(f64, f64)>>> {
         .collect()
 }
 
-fn build_problem(a: &FitArgs) -> Result<Problem> {
+/// The fit problem of `lucent fit` for the arguments `a`, checked before any work.
+pub fn build_problem(a: &FitArgs) -> Result<Problem> {
     let recipe = Recipe::load(&a.recipe, Overrides { weight_percent: a.weight_percent })?;
     let free: Vec<FreeParameter> =
         a.free.split(',').map(|t| FreeParameter::parse(t, &recipe)).collect::<Result<_, _>>()?;

@@ -305,33 +305,17 @@ pub fn count_in<const LO: usize, const HI: usize>(text: &str) -> Result<usize, S
     }
 }
 
-/// Parses "START:END:STEP" (nm).
+/// Parses "START:END:STEP" (nm) of `--wavelengths`.
 pub fn parse_grid(text: &str) -> Result<WavelengthGrid> {
-    let parts: Vec<&str> = text.split(':').collect();
-    let [a, b, c] = parts.as_slice() else {
-        bail!("--wavelengths {text:?}: expected START:END:STEP in nm, e.g. 380:780:10");
-    };
-    let num = |s: &str| s.trim().parse::<f64>().map_err(|_| anyhow!("--wavelengths {text:?}: {s:?} is not a number"));
-    Ok(WavelengthGrid::new(num(a)?, num(b)?, num(c)?)?)
+    text.parse().with_context(|| format!("--wavelengths {text:?}"))
 }
 
-/// Parses a refractive index "1.5", "1.5+0.01i" or "1.5+1e-3j".
+/// Parses a refractive index "1.5", "1.5+0.01i" or "1.5+1e-3j" (spaces
+/// ignored) with num-complex's `FromStr`.
 pub fn parse_index(flag: &str, text: &str) -> Result<Complex64> {
     let t = text.trim().replace(' ', "");
-    let bad = || anyhow!("{flag} {text:?}: expected N or N+Ki, e.g. 1.5 or 1.5+0.01i");
-    let value = if let Some(body) = t.strip_suffix(['i', 'j']) {
-        // Split at the last sign that is not part of an exponent.
-        let bytes = body.as_bytes();
-        let split = (1..bytes.len())
-            .rev()
-            .find(|&k| (bytes[k] == b'+' || bytes[k] == b'-') && !matches!(bytes[k - 1], b'e' | b'E'))
-            .ok_or_else(bad)?;
-        let re: f64 = body[..split].parse().map_err(|_| bad())?;
-        let im: f64 = body[split..].parse().map_err(|_| bad())?;
-        Complex64::new(re, im)
-    } else {
-        Complex64::new(t.parse().map_err(|_| bad())?, 0.0)
-    };
+    let value: Complex64 =
+        t.parse().map_err(|_| anyhow!("{flag} {text:?}: expected N or N+Ki, e.g. 1.5 or 1.5+0.01i"))?;
     if !(value.re.is_finite() && value.im.is_finite()) || value.re <= 0.0 {
         bail!("{flag} {text:?}: the real part must be a positive finite number");
     }
@@ -530,11 +514,7 @@ pub fn mie_efficiencies(a: &MieArgs) -> Result<Efficiencies> {
         if !(x.is_finite() && x > 0.0) {
             bail!("--size-parameter {x}: must be a positive finite number");
         }
-        let c = Coefficients::compute(m, Complex64::new(x, 0.0))?;
-        // qabs as the power absorbed inside: exactly 0 for a real m, never
-        // negative by rounding (qext − qsca up to rounding otherwise).
-        let qabs = mie::absorption_efficiency(m, Complex64::new(x, 0.0))?;
-        return Ok(Efficiencies { qabs, ..c.efficiencies(x) });
+        return Ok(mie::efficiencies(m, x)?);
     }
     let (Some(r_um), Some(w_nm), Some(np_text)) = (a.radius_um, a.wavelength_nm, a.particle_index.as_deref()) else {
         bail!("give either --size-parameter X --relative-index M, or --radius-um R --wavelength-nm L --particle-index N [--host-index N]");

@@ -1,5 +1,5 @@
 //! `lucent render SCENE.toml`: the digital twin rendered from the calibrated
-//! camera (SPEC §4). Orchestration only: the scene file is validated by
+//! camera (docs/method.md#render). Orchestration only: the scene file is validated by
 //! [`crate::scene`], light transport is `lucent_render::tracer`.
 //!
 //! Outputs in `--out` (default `lucent-out/render`):
@@ -263,14 +263,11 @@ pub fn check_threads(threads: Option<usize>) -> Result<()> {
     Ok(())
 }
 
-/// Runs `lucent render`.
-pub fn run(a: RenderArgs) -> Result<()> {
-    run_from(a, None)
-}
-
-/// Runs `lucent render`, or with `merged` writes the outputs of the run
-/// whose shards these are (`lucent merge`).
-pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
+/// The scene of `a` loaded and checked, with the arguments' overrides
+/// applied (image size with the intrinsics scaled to match, spp, time
+/// budget, seed, estimator choices): what `lucent render` renders. The
+/// scene's warnings are in the returned [`scene::LoadedScene`].
+pub fn prepare(a: &RenderArgs) -> Result<(scene::LoadedScene, Settings)> {
     check_threads(a.threads)?;
     if let Some(t) = a.time_s {
         check_time_s(t)?;
@@ -282,9 +279,6 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         bail!("--exposure must be finite");
     }
     let mut loaded = scene::load(&a.scene)?;
-    for w in &loaded.warnings {
-        eprintln!("warning: {w}");
-    }
     if let Some(size) = &a.size {
         let (w, h) = parse_size(size)?;
         let cam = &mut loaded.scene.camera;
@@ -317,6 +311,21 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     }
     if let Some(s) = a.sampling {
         settings.sampling = s.into();
+    }
+    Ok((loaded, settings))
+}
+
+/// Runs `lucent render`.
+pub fn run(a: RenderArgs) -> Result<()> {
+    run_from(a, None)
+}
+
+/// Runs `lucent render`, or with `merged` writes the outputs of the run
+/// whose shards these are (`lucent merge`).
+pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
+    let (loaded, settings) = prepare(&a)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
     }
     let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
     if shard.is_some() || merged_from.is_some() {
@@ -416,9 +425,12 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     crate::io::write_json(&a.out.join("render.json"), &report)
         .with_context(|| format!("{}: cannot write render.json", a.out.display()))?;
     if stats.leaked_paths > 0 {
+        // A hole, or a mesh in the wrong unit (larger than the scene around it): say which is likelier.
+        let size = loaded.summary.object_bounds_m.and_then(|[lo, hi]| scene::mesh::size_warning(lo, hi));
         eprintln!(
-            "warning: {} paths found no boundary while inside the object (a hole in the mesh); their light is lost",
-            stats.leaked_paths
+            "warning: {} paths found no boundary while inside the object (a hole in the mesh{}); their light is lost",
+            stats.leaked_paths,
+            size.map_or(String::new(), |s| format!(", or {s}"))
         );
     }
     if stats.truncated_paths > 0 {

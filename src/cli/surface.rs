@@ -1,9 +1,9 @@
-//! `lucent surface`: height maps → microfacet normal distribution (SPEC §2).
+//! `lucent surface`: height maps → microfacet normal distribution (docs/method.md#surface).
 //! Argument handling and printing only; the work is done by
 //! [`crate::surface`].
 
-use super::choices::{LengthUnitChoice, PointTypeChoice, RoughnessChoice};
-use crate::optics::recipe::RoughnessModel;
+use super::choices::named;
+use crate::surface::model::RoughnessModel;
 use crate::surface::synth::{synthesize, SynthSpec};
 use crate::surface::x3p::{write_x3p, PointType, WriteOptions};
 use crate::surface::{fit_surface, read_height_map, write_fit_outputs, FitOptions, LengthUnit, ReadOptions};
@@ -30,8 +30,8 @@ pub struct FitArgs {
     #[arg(long, requires = "pitch_um", allow_hyphen_values = true)]
     pub pitch_y_um: Option<f64>,
     /// Unit of the stored heights: m, mm, um, nm (required for TIFF/EXR and text grids without one).
-    #[arg(long, value_enum)]
-    pub height_unit: Option<LengthUnitChoice>,
+    #[arg(long, value_parser = named::<LengthUnit>())]
+    pub height_unit: Option<LengthUnit>,
     /// Side k of the k × k window of the per-pixel plane fits (odd, 3 … 201).
     #[arg(long, default_value_t = 15)]
     pub window: usize,
@@ -55,8 +55,8 @@ pub struct FitArgs {
 #[derive(Debug, Args)]
 pub struct SynthArgs {
     /// Distribution the slopes follow: tr (Trowbridge–Reitz/GGX) or beckmann.
-    #[arg(long, value_enum, ignore_case = true)]
-    pub model: RoughnessChoice,
+    #[arg(long, value_parser = named::<RoughnessModel>())]
+    pub model: RoughnessModel,
     /// Roughness α of the slope distribution.
     #[arg(long, allow_hyphen_values = true)]
     pub alpha: f64,
@@ -85,8 +85,8 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub invalid_fraction: f64,
     /// X3P point type: I (int16), L (int32), F (float32), D (float64).
-    #[arg(long, value_enum, ignore_case = true, default_value = "D")]
-    pub point_type: PointTypeChoice,
+    #[arg(long, value_parser = named::<PointType>(), default_value = "D")]
+    pub point_type: PointType,
     /// Output .x3p file.
     #[arg(long)]
     pub out: PathBuf,
@@ -99,13 +99,6 @@ pub fn run(c: SurfaceCommand) -> Result<()> {
     }
 }
 
-fn model_name(m: RoughnessModel) -> &'static str {
-    match m {
-        RoughnessModel::TrowbridgeReitz => "Trowbridge–Reitz",
-        RoughnessModel::Beckmann => "Beckmann",
-    }
-}
-
 fn fit(a: FitArgs) -> Result<()> {
     for (flag, v) in [("--pitch-um", a.pitch_um), ("--pitch-y-um", a.pitch_y_um)] {
         if let Some(v) = v
@@ -114,7 +107,7 @@ fn fit(a: FitArgs) -> Result<()> {
             bail!("{flag} {v}: must be a positive finite number of µm");
         }
     }
-    let height_unit: Option<LengthUnit> = a.height_unit.map(Into::into);
+    let height_unit = a.height_unit;
     let read =
         ReadOptions { pitch_x_m: a.pitch_um.map(|p| p * 1e-6), pitch_y_m: a.pitch_y_um.map(|p| p * 1e-6), height_unit };
     let options = FitOptions {
@@ -156,12 +149,12 @@ fn fit(a: FitArgs) -> Result<()> {
         r.distribution.anisotropy.ratio
     );
     println!("bins: {}", r.distribution.bin_rule);
-    for m in [RoughnessModel::TrowbridgeReitz, RoughnessModel::Beckmann] {
+    for &m in RoughnessModel::ALL {
         let f = r.fits.get(m);
         let tilt = if f.tilt_fitted { format!(", tilt {:.4}°", f.tilt_deg) } else { String::new() };
         println!(
             "{:<17} α = {:.5}, scale {:.4}{tilt}, MSE {:.4e} /sr², NRMSE {:.4}{}",
-            model_name(m),
+            RoughnessModel::label(m),
             f.alpha,
             f.scale,
             f.mse_per_sr2,
@@ -178,7 +171,7 @@ fn fit(a: FitArgs) -> Result<()> {
 }
 
 fn synth(a: SynthArgs) -> Result<()> {
-    let model: RoughnessModel = a.model.into();
+    let model = a.model;
     let (nx, ny) = match a.size.split_once(['x', 'X']) {
         Some((x, y)) => (x.trim().parse::<usize>(), y.trim().parse::<usize>()),
         None => (a.size.trim().parse::<usize>(), a.size.trim().parse::<usize>()),
@@ -187,7 +180,7 @@ fn synth(a: SynthArgs) -> Result<()> {
     if !(a.pitch_um.is_finite() && a.pitch_um > 0.0) {
         bail!("--pitch-um {}: must be a positive finite number", a.pitch_um);
     }
-    let point_type: PointType = a.point_type.into();
+    let point_type = a.point_type;
     let spec = SynthSpec {
         nx,
         ny,
@@ -204,7 +197,7 @@ fn synth(a: SynthArgs) -> Result<()> {
     let s = synthesize(&spec)?;
     let comment = format!(
         "lucent surface synth --model {} --alpha {} --size {}x{} --pitch-um {} --correlation-px {} --seed {} --tilt-deg {} --tilt-azimuth-deg {} --invalid-fraction {} --point-type {:?}",
-        super::choices::name(&a.model), a.alpha, nx, ny, a.pitch_um, a.correlation_px, a.seed, a.tilt_deg, a.tilt_azimuth_deg, a.invalid_fraction, point_type
+        <&str>::from(a.model), a.alpha, nx, ny, a.pitch_um, a.correlation_px, a.seed, a.tilt_deg, a.tilt_azimuth_deg, a.invalid_fraction, point_type
     );
     write_x3p(&a.out, &s.map, &WriteOptions { point_type, comment: Some(comment), ..WriteOptions::default() })?;
     println!(
@@ -212,7 +205,7 @@ fn synth(a: SynthArgs) -> Result<()> {
         a.out.display(),
         nx,
         ny,
-        model_name(model),
+        RoughnessModel::label(model),
         a.alpha,
         s.map.valid_count(),
         point_type

@@ -3,7 +3,7 @@
 //! through a known camera colour matrix and Bayer sensor. See
 //! [`crate::synth`].
 
-use super::choices::InputSpaceChoice;
+use super::choices::named;
 use crate::imageio::{self, RgbImage};
 use crate::synth::{self, dng, ColourTruth, InputSpace, Sensor};
 use anyhow::{bail, Context, Result};
@@ -41,8 +41,8 @@ pub struct RawArgs {
     #[arg(long)]
     pub truth: PathBuf,
     /// Colour space of the input: cie-rgb (a render) or xyz-d50 (`synth chart`).
-    #[arg(long, value_enum, ignore_case = true, default_value = "cie-rgb")]
-    pub space: InputSpaceChoice,
+    #[arg(long, value_parser = named::<InputSpace>(), default_value = "cie-rgb")]
+    pub space: InputSpace,
     /// Camera RGB × exposure = fraction of the white level.
     #[arg(long, default_value_t = 0.5)]
     pub exposure: f64,
@@ -95,7 +95,7 @@ fn raw(a: RawArgs) -> Result<()> {
     if imageio::extension(&a.output) != "dng" {
         bail!("{}: the output must be a .dng file", a.output.display());
     }
-    let space: InputSpace = a.space.into();
+    let space = a.space;
     let truth = ColourTruth::load(&a.truth)?;
     if !(a.full_well >= 0.0 && a.full_well.is_finite()) {
         bail!("--full-well {}: must be a finite number of electrons ≥ 0 (0 = no shot noise)", a.full_well);

@@ -1,4 +1,4 @@
-//! Photo ↔ render comparison (SPEC §6): error metrics, SSIM, the triplet
+//! Photo ↔ render comparison (docs/method.md#compare): error metrics, SSIM, the triplet
 //! picture and the difference image, optionally after aligning the render
 //! to the photo with OpenCV's ECC (`lucent compare`).
 //!
@@ -19,7 +19,7 @@
 //! border (skimage's crop; the windows themselves see all pixels, masked or
 //! not). Luminance weights default to the Y row of the CIE 1931 RGB → XYZ
 //! matrix (0.1769, 0.8124, 0.0107), the space photos, environment and
-//! renders share (SPEC §4); Rec. 709 / linear sRGB (0.2126, 0.7152, 0.0722)
+//! renders share (docs/method.md#render); Rec. 709 / linear sRGB (0.2126, 0.7152, 0.0722)
 //! on request.
 //!
 //! Refinement ([`Request::refine`]): `lucent_calib::ecc::find_transform_ecc`
@@ -57,6 +57,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use ssim::{Channel, SsimParams, Weighted};
 use std::path::{Path, PathBuf};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// A comparison that could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -111,7 +112,7 @@ pub enum CompareError {
     #[error("the scene has no sample (run `lucent pose` with --sample-corner and --sample-size-mm)")]
     NoSample,
     /// A luminance name [`Luminance::from_name`] does not know.
-    #[error("luminance {name:?}: expected one of {}", Luminance::NAMES.join(", "))]
+    #[error("luminance {name:?}: expected one of {}", <Luminance as strum::VariantNames>::VARIANTS.join(", "))]
     UnknownLuminance { name: String },
     #[error("ECC refinement failed: {0}")]
     Ecc(#[from] lucent_calib::cv::CalibError),
@@ -156,24 +157,21 @@ pub enum ReadProblem {
 }
 
 /// Luminance weights for `ssim.Y`, the difference picture and ECC.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[strum(ascii_case_insensitive)]
 pub enum Luminance {
     /// Y row of CIE 1931 RGB → XYZ: 0.1769, 0.8124, 0.0107.
+    #[strum(to_string = "cie-rgb", serialize = "cie")]
     CieRgb,
     /// Y row of linear sRGB / Rec. 709 → XYZ: 0.2126, 0.7152, 0.0722.
+    #[strum(to_string = "rec709", serialize = "srgb")]
     Rec709,
 }
 
 impl Luminance {
-    /// Valid names for [`Luminance::from_name`].
-    pub const NAMES: [&'static str; 2] = ["cie-rgb", "rec709"];
-
+    /// Any spelling of a choice (case ignored).
     pub fn from_name(name: &str) -> Result<Self, CompareError> {
-        match name.trim().to_ascii_lowercase().as_str() {
-            "cie-rgb" | "cie" => Ok(Self::CieRgb),
-            "rec709" | "srgb" => Ok(Self::Rec709),
-            _ => Err(CompareError::UnknownLuminance { name: name.to_string() }),
-        }
+        name.trim().parse().map_err(|_| CompareError::UnknownLuminance { name: name.to_string() })
     }
 
     /// (w_R, w_G, w_B), summing to 1.

@@ -255,7 +255,7 @@ mod tests {
     impl Normal {
         fn next(&mut self) -> f64 {
             let (u1, u2) = self.0.next_f64_pair();
-            (-2.0 * (1.0 - u1).ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+            lucent_testkit::normal::box_muller(u1, u2)
         }
     }
 
@@ -577,7 +577,7 @@ mod paired_tests {
 
     fn normal(rng: &mut lucent_render::rng::Rng) -> f64 {
         let (u1, u2) = rng.next_f64_pair();
-        (-2.0 * (1.0 - u1).ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        lucent_testkit::normal::box_muller(u1, u2)
     }
 
     /// A photo and two renders with model errors `bias_a`, `bias_b` (a ±
@@ -621,7 +621,7 @@ mod zero_noise_tests {
 
     fn normal(rng: &mut lucent_render::rng::Rng) -> f64 {
         let (u1, u2) = rng.next_f64_pair();
-        (-2.0 * (1.0 - u1).ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        lucent_testkit::normal::box_muller(u1, u2)
     }
 
     /// A photo, a noise-free render with a model error, and two half renders

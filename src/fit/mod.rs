@@ -1,6 +1,6 @@
-//! Inverse fit of recipe parameters to measured BSSRDF slices (issue 16):
+//! Inverse fit of recipe parameters to measured BSSRDF slices (docs/method.md#fit):
 //! the recipe values (weight percentage, particle diameter, particle real
-//! index) whose simulated slices (SPEC §3) best match measured ones over
+//! index) whose simulated slices (docs/method.md#slab) best match measured ones over
 //! several configurations (θ_i, θ_o), with a standard error, or the
 //! statement that the data cannot pin a parameter down.
 //!
@@ -99,6 +99,7 @@ use lucent_render::slab::{
 };
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Why a fit could not be made.
@@ -150,6 +151,9 @@ pub enum FitError {
     BoundsCount { bounds: usize, free: usize },
     #[error("bounds [{lo}, {hi}] of {name} must be positive, increasing and contain the start value {start}")]
     Bounds { name: &'static str, lo: f64, hi: f64, start: f64 },
+    /// [`fit_cancellable`]'s flag was raised (Ctrl-C): no result.
+    #[error("interrupted: the fit stopped after {evaluations} evaluation(s), without a result")]
+    Interrupted { evaluations: usize },
 }
 
 /// Why the final model of a one-parameter fit gives no value: the data
@@ -666,6 +670,9 @@ struct Evaluator<'a> {
     paths: Vec<u64>,
     history: Vec<Evaluation>,
     paths_total: u64,
+    /// Raised to stop: the simulation under way ends at its next round and
+    /// the evaluation fails with [`FitError::Interrupted`].
+    cancel: &'a AtomicBool,
 }
 
 /// Objective of simulated slices `sims` against the measurements of
@@ -705,7 +712,7 @@ fn msre(measured: &[f64], sim: &[f64], threshold: f64, scale: f64) -> f64 {
 }
 
 impl<'a> Evaluator<'a> {
-    fn new(problem: &'a Problem) -> Result<Self, FitError> {
+    fn new(problem: &'a Problem, cancel: &'a AtomicBool) -> Result<Self, FitError> {
         let model = match problem.free.as_slice() {
             [a] if a.kind == ParameterKind::WeightPercent => {
                 match WeightScaling::new(&problem.recipe, a.particle, problem.wavelength_nm)? {
@@ -735,6 +742,7 @@ impl<'a> Evaluator<'a> {
             setups,
             history: Vec::new(),
             paths_total: 0,
+            cancel,
         })
     }
 
@@ -755,18 +763,24 @@ impl<'a> Evaluator<'a> {
         for (c, setup) in self.setups.iter_mut().enumerate() {
             setup.slab.medium = medium.clone();
             // The estimator is chosen once (at the pilot) so every
-            // evaluation consumes the random numbers the same way.
+            // evaluation consumes the random numbers the same way — unless
+            // the search moved to a medium it does not apply to (a thin
+            // slab for the ring or lobe connection, e.g. a free diameter):
+            // there the best one that applies is used (same expectation,
+            // other noise).
             if self.estimators.len() <= c {
                 self.estimators.push(Estimator::best_for(setup));
             }
-            let options = RunOptions {
-                stop: stops[c],
-                seed: self.problem.seed,
-                estimator: self.estimators[c],
-                fold: true,
-                ..RunOptions::default()
+            let estimator = match self.estimators[c] {
+                e if e.applies(setup) => e,
+                _ => Estimator::best_for(setup),
             };
-            let slice = slab::simulate(setup, &options, |_| {})?;
+            let options =
+                RunOptions { stop: stops[c], seed: self.problem.seed, estimator, fold: true, ..RunOptions::default() };
+            let slice = slab::simulate_cancellable(setup, &options, |_| {}, self.cancel)?;
+            if self.cancel.load(Ordering::Relaxed) {
+                return Err(FitError::Interrupted { evaluations: self.history.len() });
+            }
             if stage == "pilot" {
                 self.paths[c] = slice.paths;
             }
@@ -805,11 +819,21 @@ impl<'a> Evaluator<'a> {
 }
 
 /// Runs the fit; `progress` receives one line per evaluation.
-pub fn fit(problem: &Problem, mut progress: impl FnMut(&Event)) -> Result<FitResult, FitError> {
+pub fn fit(problem: &Problem, progress: impl FnMut(&Event)) -> Result<FitResult, FitError> {
+    fit_cancellable(problem, progress, &AtomicBool::new(false))
+}
+
+/// [`fit`] that stops with [`FitError::Interrupted`] soon after `cancel`
+/// becomes true (at the end of the simulation round under way).
+pub fn fit_cancellable(
+    problem: &Problem,
+    mut progress: impl FnMut(&Event),
+    cancel: &AtomicBool,
+) -> Result<FitResult, FitError> {
     problem.validate()?;
     let start = Instant::now();
     let n_particles = problem.recipe.particles.len();
-    let mut ev = Evaluator::new(problem)?;
+    let mut ev = Evaluator::new(problem, cancel)?;
     let starts: Vec<f64> =
         problem.free.iter().map(|a| a.value_in(&problem.recipe, problem.wavelength_nm)).collect::<Result<_, _>>()?;
     let bounds: Vec<(f64, f64)> = problem

@@ -1,6 +1,6 @@
 //! Bulk optical properties of a recipe: μ_s, μ_a, μ_t [1/m], g, the
 //! effective refractive index and a tabulated phase function per wavelength
-//! (SPEC §1).
+//! (docs/method.md#optics).
 //!
 //! # Model
 //!

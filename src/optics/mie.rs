@@ -15,7 +15,7 @@
 //! * efficiencies for a real host ([`Coefficients::efficiencies`]), the
 //!   amplitudes S₁, S₂ ([`Coefficients::amplitudes`]), the asymmetry g, and the
 //!   cross sections for an absorbing host in the formulation of Frisvad,
-//!   Christensen & Jensen 2007 ([`Coefficients::cross_sections`], SPEC §1):
+//!   Christensen & Jensen 2007 ([`Coefficients::cross_sections`], docs/method.md#optics):
 //!   C_s = λ²/(2π|n_h|²) Σ(2n+1)(|a_n|²+|b_n|²) · F(α),
 //!   C_t = λ²/(2π) Σ(2n+1) Re((a_n+b_n)/n_h²),
 //!   F(α) = e^{−α} α² / (2(1 + (α − 1) e^{α})), α = 4π r Im(n_h)/λ
@@ -140,9 +140,9 @@ pub struct CrossSections {
 }
 
 /// The attenuation factor of the far-field scattering of a sphere in an
-/// absorbing host (Frisvad, Christensen & Jensen 2007; SPEC §1):
+/// absorbing host (Frisvad, Christensen & Jensen 2007; docs/method.md#optics):
 /// F(α) = e^{−α} α² / (2(1 + (α − 1) e^{α})), α = 4π r Im(n_h)/λ, and
-/// F = 1 for α < 1e-6 as SPEC §1 states (at α = 1e-6 the exact F is
+/// F = 1 for α < 1e-6 by convention (at α = 1e-6 the exact F is
 /// 1 − 1.7e-6, so that cut-off is a step of 1.7e-6).
 ///
 /// Evaluated without cancellation: for α < 1 as e^{−α} / (2 Σ_j α^j (j+1)/(j+2)!)
@@ -862,6 +862,25 @@ fn absorption_core(m: Complex64, x: Complex64, y: Complex64) -> Result<f64, MieE
     Ok(q + 0.0)
 }
 
+/// Efficiencies of a sphere of relative index `m` (m_im ≥ 0 absorbs) and
+/// real size parameter `x` = 2π r n_h/λ in a non-absorbing host
+/// ([`Coefficients::efficiencies`]), with qabs from [`absorption_efficiency`]
+/// (exactly 0 for a real m, never negative by rounding). What `lucent mie
+/// --size-parameter X --relative-index M` prints.
+///
+/// ```
+/// use lucent::optics::mie::efficiencies;
+/// use num_complex::Complex64;
+/// let q = efficiencies(Complex64::new(1.5, 0.0), 1.0).unwrap();
+/// assert!(q.qabs == 0.0 && (q.qext - q.qsca).abs() < 1e-14);
+/// ```
+pub fn efficiencies(m: Complex64, x: f64) -> Result<Efficiencies, MieError> {
+    let x = Complex64::new(x, 0.0);
+    let c = Coefficients::compute(m, x)?;
+    let qabs = absorption_efficiency(m, x)?;
+    Ok(Efficiencies { qabs, ..c.efficiencies(x.re) })
+}
+
 /// k₀ r = 2π r/λ after checking r and λ.
 fn check_geometry(wavelength_m: f64, radius_m: f64) -> Result<f64, MieError> {
     if !(wavelength_m.is_finite() && wavelength_m > 0.0 && radius_m.is_finite() && radius_m > 0.0) {
@@ -1214,7 +1233,7 @@ mod tests {
         // Series below α = 1, the overflow-free form above: they meet.
         let (below, above) = (attenuation(1.0 - 1e-12), attenuation(1.0 + 1e-12));
         assert!((below - above).abs() < 1e-12);
-        // Small α: F = 1 − 5α/3 + 49α²/36 − …; F = 1 below 1e-6 (SPEC §1).
+        // Small α: F = 1 − 5α/3 + 49α²/36 − …; F = 1 below 1e-6 (docs/method.md#optics).
         for a in [1e-6, 1e-5, 1e-3] {
             let taylor = 1.0 - 5.0 * a / 3.0 + 49.0 / 36.0 * a * a - 391.0 / 540.0 * a * a * a;
             assert!((attenuation(a) - taylor).abs() < a.powi(4) + 2e-16, "α = {a}");

@@ -1,4 +1,4 @@
-//! Spectral optical properties of a turbid material from its recipe (SPEC §1):
+//! Spectral optical properties of a turbid material from its recipe (docs/method.md#optics):
 //! refractive-index data ([`index`]), recipes ([`recipe`]), Lorenz–Mie theory
 //! ([`mie`]), bulk coefficients and phase tables ([`bulk`]) and their files
 //! ([`output`]).

@@ -1,4 +1,4 @@
-//! Sample recipes: the material description of SPEC §1 as a TOML file.
+//! Sample recipes: the material description (docs/method.md#optics) as a TOML file.
 //!
 //! A recipe names a host medium and one or more particle inclusions, each
 //! with a refractive-index source (a refractiveindex.info YAML file, or an
@@ -39,7 +39,7 @@
 //! #     (model = "beckmann" next to fit picks that model's fit instead)
 //! ```
 //!
-//! Volume fraction of a particle type (SPEC §1): φ = (w/ρ_p) / (100/ρ_h).
+//! Volume fraction of a particle type (docs/method.md#optics): φ = (w/ρ_p) / (100/ρ_h).
 //!
 //! Corrections of the index data, for the host or any particle:
 //! `real_part` imposes n at one wavelength (shift, or replace by a constant;
@@ -53,6 +53,7 @@
 //! recipes use.
 
 use super::index::{Extrapolation, ImaginaryPartCorrection, IndexError, IndexSpectrum, RealPartCorrection};
+use crate::surface::model::RoughnessModel;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -71,7 +72,7 @@ pub enum RecipeError {
     Index { path: PathBuf, key: String, source: Box<IndexError> },
 }
 
-/// How the bulk absorption coefficient is computed (SPEC §1; formulas in
+/// How the bulk absorption coefficient is computed (docs/method.md#optics; formulas in
 /// [`super::bulk`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -248,14 +249,6 @@ struct RawSurface {
     /// A `fit.json` of `lucent surface fit` (relative to the recipe): its
     /// better model, or `model`'s fit when given.
     fit: Option<String>,
-}
-
-/// Microfacet distribution of a measured surface (SPEC §2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum RoughnessModel {
-    TrowbridgeReitz,
-    Beckmann,
 }
 
 /// Measured surface roughness of the sample.

@@ -1,5 +1,5 @@
 //! Uncertainty of the bulk optical properties propagated from the recipe's
-//! uncertain inputs (issue 16, `lucent optics --uncertainty N`).
+//! uncertain inputs (`lucent optics --uncertainty N`, docs/method.md#optics-uncertainty).
 //!
 //! A recipe may give weight percentages, diameters and real indices with an
 //! uncertainty (`weight_percent = { value = 0.65, sd = 0.02 }`, normal;

@@ -1,5 +1,5 @@
 //! `lucent run PROJECT.toml`: the whole digitisation from one project file
-//! (issue 13). The stages are a closed set ([`Stage`]) run in dependency
+//! (docs/method.md#pipeline). The stages are a closed set ([`Stage`]) run in dependency
 //! order, each into its own folder under the output folder:
 //!
 //! | stage | does | needs |

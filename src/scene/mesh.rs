@@ -1,4 +1,4 @@
-//! Triangle meshes of the sample for the renderer's scene (SPEC §4).
+//! Triangle meshes of the sample for the renderer's scene (docs/method.md#render).
 //!
 //! [`load`] reads the object's surface from
 //!
@@ -40,6 +40,11 @@
 //!   in [`MeshReport::warnings`], not errors; nothing is re-oriented. A closed
 //!   mesh with negative signed volume (triangles wound clockwise seen from
 //!   outside) is warned about too, as are vertices no triangle uses.
+//! * A mesh whose bounding box is 1 m or more across, or less than 1 mm, is
+//!   warned about with its size ([`size_warning`]): the file's unit is then
+//!   most likely not the one `unit_scale_m` says (a scan in millimetres read
+//!   as metres renders a 30 mm part as 30 m, larger than the environment's
+//!   sphere and the board).
 //!
 //! Each parser runs under `catch_unwind`, so a panic inside a crate on a
 //! malformed file (`tobj` can overflow on wild texture indices) becomes a
@@ -474,6 +479,9 @@ impl Mesh {
         if unused > 0 {
             warnings.push(format!("{unused} vertices are not used by any triangle"));
         }
+        if triangles > 0 {
+            warnings.extend(size_warning(lo, hi));
+        }
         let report = MeshReport {
             path: path.to_string(),
             vertices: n,
@@ -487,6 +495,39 @@ impl Mesh {
             warnings,
         };
         Ok((report, degenerate))
+    }
+}
+
+/// Largest side of a bounding box below which a mesh is taken for a file
+/// in a larger unit than `unit_scale_m` says (m).
+pub const SMALLEST_PLAUSIBLE_SIZE_M: f64 = 1e-3;
+/// Largest side of a bounding box from which a mesh is taken for a file in
+/// a smaller unit than `unit_scale_m` says (m).
+pub const LARGEST_PLAUSIBLE_SIZE_M: f64 = 1.0;
+
+/// The warning for a bounding box (corners in metres, after `unit_scale_m`)
+/// too large or too small for a sample on the board, stating its size and
+/// the `unit_scale_m` that would make it millimetres to centimetres; `None`
+/// when its largest side is in [1 mm, 1 m).
+pub fn size_warning(bbox_min_m: [f64; 3], bbox_max_m: [f64; 3]) -> Option<String> {
+    let side = sub(bbox_max_m, bbox_min_m);
+    let largest = side.iter().copied().fold(0.0, f64::max);
+    let size = format!("{:.4} × {:.4} × {:.4} m", side[0], side[1], side[2]);
+    if largest >= LARGEST_PLAUSIBLE_SIZE_M {
+        Some(format!(
+            "the mesh is {size} across (largest side {largest:.3} m), more than a sample on the board; \
+             if the file is in millimetres, set unit_scale_m = 0.001 under [object] in the scene \
+             (metres per file unit; 0.01 for centimetres)"
+        ))
+    } else if largest < SMALLEST_PLAUSIBLE_SIZE_M {
+        Some(format!(
+            "the mesh is {size} across (largest side {:.3} mm), less than a millimetre; \
+             check unit_scale_m under [object] in the scene (metres per file unit: 1 for metres, \
+             0.001 for millimetres)",
+            largest * 1e3
+        ))
+    } else {
+        None
     }
 }
 

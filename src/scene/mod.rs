@@ -1,4 +1,4 @@
-//! Scene files for `lucent render` (SPEC §4): a TOML file naming the
+//! Scene files for `lucent render` (docs/method.md#render): a TOML file naming the
 //! object, its material, the checkerboard, the environment and the camera,
 //! validated in two stages like recipes — the file as typed ([`SceneFile`],
 //! unknown keys rejected, each error naming the file and key), then the
@@ -23,10 +23,11 @@
 //! [material]
 //! recipe = "../samples/IOL1068-09.toml"   # Lorenz–Mie → R, G, B bands
 //! phase = "mie"                 # "mie" (band-averaged tabulated function) or "hg" (the band's g)
-//! # or explicit bands: sigma_s_per_m = [..3], sigma_a_per_m = [..3], g = [..3], n = [..3]
+//! # or explicit bands: mu_s_per_m = [..3], mu_a_per_m = [..3], g = [..3], n = [..3]
+//! # (sigma_s_per_m and sigma_a_per_m, the earlier spellings, are still read)
 //! roughness = "recipe"          # the recipe's [surface] if any (else smooth); "smooth"; "ggx:0.0084"; "beckmann:0.005"
 //! dispersion = true             # false: one index (the bands' mean) for all bands, so a path
-//!                               # carries R, G and B together (spectral MIS: less noise)
+//!                               # carries R, G and B together (an approximation; docs/method.md#render-dispersion)
 //!
 //! [board]                       # geometry from scene_json, or origin_m/u/v/columns/rows/square_mm
 //! even = [0.04, 0.04, 0.04]     # squares whose (column + row) is even (the outer corner square)
@@ -43,7 +44,7 @@
 //! spp = 64
 //! seed = 1
 //! # time_s = 120, spp_per_pass = 4
-//! # spectral_mis = true, medium_connections = true   (false, false: SPEC §4's plain estimator)
+//! # spectral_mis = true, medium_connections = true   (false, false: the plain one-band estimator)
 //! # phase_connections = true     (with medium_connections: also connect along the phase function's directions)
 //! # sampling = "object-weighted"  # or "uniform": every pixel gets spp (the previous estimator)
 //! # target_rel_error = 0.05       # stop when the object's median relative standard error reaches 5 %
@@ -77,7 +78,7 @@ use lucent_render::camera::Camera;
 use lucent_render::env::{Environment, Projection};
 use lucent_render::interface::Interface;
 use lucent_render::medium::Medium;
-use lucent_render::microfacet::{Distribution, Microsurface};
+use lucent_render::microfacet::Microsurface;
 use lucent_render::phase::{Phase, PhaseTable};
 use lucent_render::tracer::{Board, BoardReflectance, Object, Scene, Settings};
 use serde::{Deserialize, Serialize};
@@ -114,8 +115,11 @@ pub enum SceneFileError {
     Mesh { path: PathBuf, source: mesh::MeshError },
     #[error("{path}: [material] recipe: {source}")]
     Recipe { path: PathBuf, source: crate::optics::recipe::RecipeError },
-    #[error("{path}: [material]: {source}")]
-    Optics { path: PathBuf, source: crate::optics::bulk::OpticsError },
+    /// The recipe's optical properties over the scene's wavelength grid
+    /// (`[material] wavelengths`, default 380:780:10: the colour-matching
+    /// functions' range) failed, e.g. an index table that starts at 400 nm.
+    #[error("{path}: [material] recipe over wavelengths {wavelengths} nm: {source}")]
+    Optics { path: PathBuf, wavelengths: String, source: crate::optics::bulk::OpticsError },
     #[error("{path}: [environment] map: {source}")]
     Image { path: PathBuf, source: crate::imageio::ImageIoError },
     #[error("{path}: {source}")]
@@ -194,7 +198,7 @@ pub enum KeyProblem {
     #[error(transparent)]
     Phase(lucent_render::phase::PhaseError),
     #[error(transparent)]
-    Wavelengths(GridTextError),
+    Wavelengths(lucent_colour::GridTextError),
     #[error(transparent)]
     Bands(lucent_colour::ColourError),
     /// A file the key names cannot be read.
@@ -249,7 +253,7 @@ pub enum SectionProblem {
     CameraKeys,
     #[error(transparent)]
     Camera(lucent_render::camera::CameraError),
-    #[error("give a recipe or explicit sigma_s_per_m, sigma_a_per_m, g and n")]
+    #[error("give a recipe or explicit mu_s_per_m, mu_a_per_m, g and n")]
     NoMaterial,
     #[error("{quantity}: {source}")]
     BandAverage { quantity: &'static str, source: lucent_colour::ColourError },
@@ -322,12 +326,46 @@ pub struct MaterialSection {
     pub weight_percent: Option<f64>,
     pub phase: Option<String>,
     pub wavelengths: Option<String>,
+    /// Scattering coefficient μs per band (R, G, B), 1/m.
+    pub mu_s_per_m: Option<[f64; 3]>,
+    /// Absorption coefficient μa per band (R, G, B), 1/m.
+    pub mu_a_per_m: Option<[f64; 3]>,
+    /// The earlier spelling of `mu_s_per_m`, still read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma_s_per_m: Option<[f64; 3]>,
+    /// The earlier spelling of `mu_a_per_m`, still read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma_a_per_m: Option<[f64; 3]>,
     pub g: Option<[f64; 3]>,
     pub n: Option<[f64; 3]>,
     pub dispersion: Option<bool>,
     pub roughness: Option<String>,
+}
+
+impl MaterialSection {
+    /// μs per band and the key it was given under (`mu_s_per_m` or its
+    /// earlier spelling `sigma_s_per_m`); both at once is a conflict.
+    fn mu_s(&self) -> Result<(Option<[f64; 3]>, &'static str), SectionProblem> {
+        either_spelling((self.mu_s_per_m, "mu_s_per_m"), (self.sigma_s_per_m, "sigma_s_per_m"))
+    }
+
+    /// μa per band and the key it was given under, as [`Self::mu_s`].
+    fn mu_a(&self) -> Result<(Option<[f64; 3]>, &'static str), SectionProblem> {
+        either_spelling((self.mu_a_per_m, "mu_a_per_m"), (self.sigma_a_per_m, "sigma_a_per_m"))
+    }
+}
+
+/// The value of a key that has a current and an earlier spelling, with the
+/// spelling used (the current one when neither is given).
+fn either_spelling(
+    current: (Option<[f64; 3]>, &'static str),
+    earlier: (Option<[f64; 3]>, &'static str),
+) -> Result<(Option<[f64; 3]>, &'static str), SectionProblem> {
+    match (current.0, earlier.0) {
+        (Some(_), Some(_)) => Err(SectionProblem::Conflict { first: current.1, second: earlier.1 }),
+        (None, Some(v)) => Ok((Some(v), earlier.1)),
+        (v, None) => Ok((v, current.1)),
+    }
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
@@ -629,7 +667,8 @@ pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileErro
             for b in 0..3 {
                 let (s, a) = (medium.mu_s_per_m[b], medium.mu_a_per_m[b]);
                 if !lucent_render::slab::valid_coefficients(s, a) {
-                    return Err(ctx.key("material", "sigma_s_per_m", KeyProblem::Coefficients { band: b, s, a }));
+                    let key = m.mu_s().map_or("mu_s_per_m", |(_, key)| key);
+                    return Err(ctx.key("material", key, KeyProblem::Coefficients { band: b, s, a }));
                 }
             }
             let rough = build_roughness(&ctx, m, surface)?;
@@ -862,47 +901,32 @@ fn build_roughness(
     m: &MaterialSection,
     from_recipe: Option<recipe::Surface>,
 ) -> Result<Option<(Microsurface, String)>, SceneFileError> {
-    let analytic = |model: recipe::RoughnessModel, alpha: f64, origin: &str| {
-        let (d, name) = match model {
-            recipe::RoughnessModel::TrowbridgeReitz => (Distribution::TrowbridgeReitz { alpha }, "Trowbridge–Reitz"),
-            recipe::RoughnessModel::Beckmann => (Distribution::Beckmann { alpha }, "Beckmann"),
-        };
+    use crate::surface::model::{RoughnessModel, RoughnessSpec, RoughnessSyntax};
+    let analytic = |model: RoughnessModel, alpha: f64, origin: &str| {
+        let d = model.distribution(alpha);
         d.validate().map_err(|e| ctx.key("material", "roughness", KeyProblem::Microfacet(e)))?;
-        Ok(Some((Microsurface::Analytic(d), format!("rough: {name} α = {alpha} ({origin})"))))
+        Ok(Some((Microsurface::Analytic(d), format!("rough: {} α = {alpha} ({origin})", model.label()))))
     };
-    let text = m.roughness.as_deref().unwrap_or("recipe").trim();
-    match text {
-        "recipe" => match from_recipe {
-            Some(sf) => analytic(sf.model, sf.alpha, "the recipe's [surface]"),
-            None => Ok(None),
-        },
-        "smooth" => Ok(None),
-        _ => {
-            let Some((model, alpha)) = text.split_once(':') else {
-                return Err(ctx.key(
-                    "material",
-                    "roughness",
-                    KeyProblem::Choice {
-                        expected: "\"recipe\", \"smooth\" or MODEL:ALPHA (trowbridge-reitz, ggx, beckmann)",
-                        got: text.into(),
-                    },
-                ));
+    let text = m.roughness.as_deref().unwrap_or("recipe");
+    let problem = match text.parse::<RoughnessSpec>() {
+        Ok(RoughnessSpec::Recipe) => {
+            return match from_recipe {
+                Some(sf) => analytic(sf.model, sf.alpha, "the recipe's [surface]"),
+                None => Ok(None),
             };
-            let model = match model.trim() {
-                "trowbridge-reitz" | "ggx" | "tr" => recipe::RoughnessModel::TrowbridgeReitz,
-                "beckmann" => recipe::RoughnessModel::Beckmann,
-                other => return Err(ctx.key("material", "roughness", KeyProblem::UnknownRoughnessModel(other.into()))),
-            };
-            let alpha: f64 = alpha
-                .trim()
-                .parse()
-                .map_err(|_| ctx.key("material", "roughness", KeyProblem::AlphaNotANumber(alpha.into())))?;
-            if !(alpha.is_finite() && alpha >= 0.0) {
-                return Err(ctx.key("material", "roughness", KeyProblem::Alpha(alpha)));
-            }
-            analytic(model, alpha, "the scene file")
         }
-    }
+        Ok(RoughnessSpec::Smooth) => return Ok(None),
+        Ok(RoughnessSpec::Analytic { model, alpha }) => return analytic(model, alpha, "the scene file"),
+        Ok(RoughnessSpec::Measured(_)) => KeyProblem::UnknownRoughnessModel("measured".into()),
+        Err(RoughnessSyntax::NoModel) => KeyProblem::Choice {
+            expected: "\"recipe\", \"smooth\" or MODEL:ALPHA (trowbridge-reitz, ggx, beckmann)",
+            got: text.trim().into(),
+        },
+        Err(RoughnessSyntax::UnknownModel(m)) => KeyProblem::UnknownRoughnessModel(m),
+        Err(RoughnessSyntax::NotANumber(a)) => KeyProblem::AlphaNotANumber(a),
+        Err(RoughnessSyntax::Alpha(a)) => KeyProblem::Alpha(a),
+    };
+    Err(ctx.key("material", "roughness", problem))
 }
 
 fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) -> Result<MaterialParts, SceneFileError> {
@@ -914,23 +938,20 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
             KeyProblem::Choice { expected: "\"mie\" or \"hg\"", got: phase_kind.into() },
         ));
     }
-    let explicit = m.sigma_s_per_m.is_some() || m.sigma_a_per_m.is_some() || m.g.is_some();
+    let (mu_s, mu_s_key) = m.mu_s().map_err(|p| ctx.section("material", p))?;
+    let (mu_a, mu_a_key) = m.mu_a().map_err(|p| ctx.section("material", p))?;
+    let explicit = mu_s.is_some() || mu_a.is_some() || m.g.is_some();
     match (&m.recipe, explicit) {
         (Some(_), true) => Err(ctx.section(
             "material",
-            SectionProblem::Conflict { first: "recipe", second: "explicit sigma_s_per_m/sigma_a_per_m/g" },
+            SectionProblem::Conflict { first: "recipe", second: "explicit mu_s_per_m/mu_a_per_m/g" },
         )),
         (None, false) => Err(ctx.section("material", SectionProblem::NoMaterial)),
         (None, true) => {
             let need = |v: Option<[f64; 3]>, key: &'static str| {
                 v.ok_or_else(|| ctx.key("material", key, KeyProblem::Required { when: "with explicit bands" }))
             };
-            let (s, a, g, n) = (
-                need(m.sigma_s_per_m, "sigma_s_per_m")?,
-                need(m.sigma_a_per_m, "sigma_a_per_m")?,
-                need(m.g, "g")?,
-                need(m.n, "n")?,
-            );
+            let (s, a, g, n) = (need(mu_s, mu_s_key)?, need(mu_a, mu_a_key)?, need(m.g, "g")?, need(m.n, "n")?);
             if phase_kind == "mie" {
                 return Err(ctx.key("material", "phase", KeyProblem::MieNeedsRecipe));
             }
@@ -952,12 +973,16 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
             let recipe = Recipe::load(&full, Overrides { weight_percent: m.weight_percent })
                 .map_err(|source| SceneFileError::Recipe { path: ctx.path.to_path_buf(), source })?;
             let grid_text = m.wavelengths.as_deref().unwrap_or("380:780:10");
-            let grid =
-                parse_grid(grid_text).map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Wavelengths(e)))?;
+            let grid = grid_text
+                .parse::<WavelengthGrid>()
+                .map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Wavelengths(e)))?;
             let options =
                 bulk::Options { phase_entries: if phase_kind == "mie" { 4096 } else { 0 }, ..Default::default() };
-            let spectrum = bulk::compute(&recipe, &grid, &options)
-                .map_err(|source| SceneFileError::Optics { path: ctx.path.to_path_buf(), source })?;
+            let spectrum = bulk::compute(&recipe, &grid, &options).map_err(|source| SceneFileError::Optics {
+                path: ctx.path.to_path_buf(),
+                wavelengths: grid_text.to_string(),
+                source,
+            })?;
             let weights = band_weights(&grid).map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Bands(e)))?;
             for (b, f) in weights.coverage.iter().enumerate() {
                 if *f < 0.99 {
@@ -974,24 +999,6 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
             let eta = summary.n;
             Ok((medium, eta, summary, size, recipe.surface))
         }
-    }
-}
-
-/// What is wrong with a wavelength grid given as text ([`parse_grid`]).
-#[derive(Debug, thiserror::Error)]
-pub enum GridTextError {
-    #[error("expected START:END:STEP in nm, got {0:?}")]
-    Syntax(String),
-    #[error(transparent)]
-    Grid(#[from] lucent_colour::GridError),
-}
-
-fn parse_grid(text: &str) -> Result<WavelengthGrid, GridTextError> {
-    let parts: Vec<&str> = text.split(':').collect();
-    let nums: Result<Vec<f64>, _> = parts.iter().map(|p| p.trim().parse::<f64>()).collect();
-    match (parts.len(), nums) {
-        (3, Ok(v)) => Ok(WavelengthGrid::new(v[0], v[1], v[2])?),
-        _ => Err(GridTextError::Syntax(text.to_string())),
     }
 }
 
@@ -1477,5 +1484,35 @@ mod tests {
         assert!(e.to_string().starts_with("scenes/bad.toml: line 3, column 10: "), "{e}");
         let e = parse("[camera]\nwidht = 64\n", Path::new("s.toml")).unwrap_err();
         assert!(e.to_string().starts_with("s.toml: line 2, column 1: unknown field `widht`"), "{e}");
+    }
+
+    /// A scene written with the earlier keys `sigma_s_per_m` and
+    /// `sigma_a_per_m` loads to the same material as with `mu_s_per_m` and
+    /// `mu_a_per_m`; both spellings of one key at once are refused.
+    #[test]
+    fn earlier_coefficient_keys_still_load() {
+        let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/render/plaque_dense.toml");
+        let text = std::fs::read_to_string(&fixture).unwrap();
+        assert!(text.contains("\nmu_s_per_m = ") && text.contains("\nmu_a_per_m = "));
+        let dir = tempfile::tempdir().unwrap();
+        let old = dir.path().join("old.toml");
+        std::fs::write(
+            &old,
+            text.replace("\nmu_s_per_m = ", "\nsigma_s_per_m = ").replace("\nmu_a_per_m = ", "\nsigma_a_per_m = "),
+        )
+        .unwrap();
+        let (a, b) = (load(&fixture).unwrap().summary, load(&old).unwrap().summary);
+        assert_eq!(serde_json::to_value(&a.material).unwrap(), serde_json::to_value(&b.material).unwrap());
+        assert_eq!(b.material.map(|m| m.mu_s_per_m), Some([1200.0, 1500.0, 1800.0]));
+        let both = dir.path().join("both.toml");
+        std::fs::write(&both, text.replace("\nmu_s_per_m = ", "\nsigma_s_per_m = [1.0, 1.0, 1.0]\nmu_s_per_m = "))
+            .unwrap();
+        let e = load(&both).unwrap_err();
+        let SceneFileError::Section { section, problem, .. } = &e else { panic!("{e:?}") };
+        assert_eq!(*section, "material");
+        assert!(
+            matches!(**problem, SectionProblem::Conflict { first: "mu_s_per_m", second: "sigma_s_per_m" }),
+            "{e:?}"
+        );
     }
 }

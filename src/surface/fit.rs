@@ -1,5 +1,5 @@
 //! Least-squares fits of Trowbridge–Reitz and Beckmann distributions to a
-//! measured D(θ) (SPEC §2).
+//! measured D(θ) (docs/method.md#surface).
 //!
 //! Models (normalised so that ∫ D(m)(m·n) dω_m = 1):
 //! - Trowbridge–Reitz (GGX; Trowbridge & Reitz 1975, Walter et al. 2007):
@@ -26,7 +26,7 @@
 //!
 //! ```
 //! use lucent::surface::fit::d_model;
-//! use lucent::optics::recipe::RoughnessModel;
+//! use lucent::surface::model::RoughnessModel;
 //! // Both models peak at 1/(π α²) at θ = 0.
 //! let a: f64 = 0.1;
 //! for m in [RoughnessModel::TrowbridgeReitz, RoughnessModel::Beckmann] {
@@ -36,7 +36,7 @@
 
 use super::distribution::Distribution;
 use super::SurfaceError;
-use crate::optics::recipe::RoughnessModel;
+use crate::surface::model::RoughnessModel;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 

@@ -35,12 +35,15 @@
 
 use super::{HeightMap, SurfaceError};
 use std::path::Path;
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// A length unit of heights or pitches.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[strum(serialize_all = "lowercase", ascii_case_insensitive)]
 pub enum LengthUnit {
     M,
     Mm,
+    #[strum(to_string = "um", serialize = "µm", serialize = "μm", serialize = "micron", serialize = "microns")]
     Um,
     Nm,
 }
@@ -57,23 +60,18 @@ impl LengthUnit {
     }
 }
 
-/// A length unit [`LengthUnit`]'s `FromStr` does not know.
+/// A length unit [`LengthUnit::from_name`] does not know.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{name:?}: expected a length unit m, mm, um (µm) or nm")]
+#[error("{name:?}: expected a length unit {}", <LengthUnit as strum::VariantNames>::VARIANTS.join(", "))]
 pub struct UnknownLengthUnit {
     pub name: String,
 }
 
-impl std::str::FromStr for LengthUnit {
-    type Err = UnknownLengthUnit;
-    fn from_str(s: &str) -> Result<Self, UnknownLengthUnit> {
-        match s.trim() {
-            "m" => Ok(LengthUnit::M),
-            "mm" => Ok(LengthUnit::Mm),
-            "um" | "µm" | "μm" | "micron" | "microns" => Ok(LengthUnit::Um),
-            "nm" => Ok(LengthUnit::Nm),
-            other => Err(UnknownLengthUnit { name: other.to_string() }),
-        }
+impl LengthUnit {
+    /// Any spelling of a unit ("um", "µm", "micron" …; case ignored).
+    pub fn from_name(name: &str) -> Result<Self, UnknownLengthUnit> {
+        let name = name.trim();
+        name.parse().map_err(|_| UnknownLengthUnit { name: name.to_string() })
     }
 }
 
@@ -293,9 +291,8 @@ fn read_text(path: &Path, options: &ReadOptions) -> Result<HeightMap, SurfaceErr
                 _ => match key.as_str() {
                     "height_unit" | "value_units" | "z_unit" => {
                         unit = Some(
-                            value
-                                .parse()
-                                .map_err(|e: UnknownLengthUnit| text_err(line_no, format!("header {key}: {e}")))?,
+                            LengthUnit::from_name(value)
+                                .map_err(|e| text_err(line_no, format!("header {key}: {e}")))?,
                         )
                     }
                     "width" => {

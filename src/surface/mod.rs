@@ -1,4 +1,4 @@
-//! Surface topography → microfacet normal distribution (SPEC §2).
+//! Surface topography → microfacet normal distribution (docs/method.md#surface).
 //!
 //! From a profilometer height map to a fitted Trowbridge–Reitz or Beckmann
 //! distribution of microfacet normals:
@@ -36,7 +36,7 @@
 //! ```
 //! use lucent::surface::{fit_surface, FitOptions};
 //! use lucent::surface::synth::{synthesize, SynthSpec};
-//! use lucent::optics::recipe::RoughnessModel;
+//! use lucent::surface::model::RoughnessModel;
 //! // A Beckmann-like Gaussian random surface with α = 0.05, 256 × 256 at 0.871 µm.
 //! let spec = SynthSpec { nx: 256, ny: 256, alpha: 0.05, model: RoughnessModel::Beckmann, ..SynthSpec::default() };
 //! let map = synthesize(&spec).unwrap().map;
@@ -48,6 +48,7 @@
 pub mod distribution;
 pub mod fit;
 pub mod grid;
+pub mod model;
 pub mod normals;
 pub mod plot;
 pub mod synth;
@@ -55,8 +56,8 @@ pub mod x3p;
 
 use crate::imageio::ImageIoError;
 use crate::io::WriteError;
-use crate::optics::recipe::RoughnessModel;
 use crate::plot::PlotError;
+use crate::surface::model::RoughnessModel;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -215,7 +216,7 @@ pub struct FitOptions {
     /// window carry at least this fraction of the full window's weight
     /// (pixels next to the map edge or to invalid points are left out).
     pub min_weight_fraction: f64,
-    /// Remove the global least-squares plane first (SPEC §2).
+    /// Remove the global least-squares plane first (docs/method.md#surface).
     pub remove_tilt: bool,
     /// Fit a tilt τ of the distribution's axis as a third parameter.
     pub fit_tilt: bool,

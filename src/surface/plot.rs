@@ -6,8 +6,8 @@
 
 use super::fit::d_tilted_phi_average;
 use super::{FitReport, HeightMap};
-use crate::optics::recipe::RoughnessModel;
 use crate::plot::{legend_column, perr, render_png, short_number, viridis, Mark, PlotError};
+use crate::surface::model::RoughnessModel;
 use plotters::element::BitMapElement;
 use plotters::prelude::*;
 use std::f64::consts::PI;
@@ -139,7 +139,7 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
             .caption(format!("measured D(θ) of {} normals, least-squares fits", d.normals), ("sans-serif", 20))
             .x_label_area_size(60)
             .y_label_area_size(80)
-            .build_cartesian_2d(0.0..tmax_deg, (lo..hi).log_scale())
+            .build_cartesian_2d(0.0..tmax_deg, crate::plot::log_axis(lo, hi))
             .map_err(perr)?;
         chart
             .configure_mesh()
@@ -150,7 +150,7 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
             ))
             .y_desc("D(θ) [1/sr], logarithmic axis")
             .x_label_formatter(&|v| short_number(*v))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| short_number(*v))
             .draw()
             .map_err(perr)?;
         let black = RGBColor(0, 0, 0);
@@ -170,7 +170,7 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
         chart.draw_series(pts.iter().map(|p| Circle::new(*p, 2, black.filled()))).map_err(perr)?;
         let mut items = vec![("measured (± Poisson error)".to_string(), Mark::Dot(black))];
         let fine: Vec<f64> = (0..=400).map(|k| d.theta_max_rad * k as f64 / 400.0).collect();
-        for (k, model) in [RoughnessModel::TrowbridgeReitz, RoughnessModel::Beckmann].into_iter().enumerate() {
+        for (k, &model) in RoughnessModel::ALL.iter().enumerate() {
             let f = report.fits.get(model);
             let colour = crate::plot::palette(if k == 0 { 3 } else { 0 });
             let curve: Vec<(f64, f64)> = fine
@@ -178,10 +178,7 @@ pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
                 .map(|t| (t.to_degrees(), f.scale * d_tilted_phi_average(model, f.alpha, f.tilt_deg.to_radians(), *t)))
                 .filter(|(_, v)| *v >= lo)
                 .collect();
-            let name = match model {
-                RoughnessModel::TrowbridgeReitz => "Trowbridge–Reitz",
-                RoughnessModel::Beckmann => "Beckmann",
-            };
+            let name = model.label();
             let tilt = if f.tilt_fitted { format!(", tilt {:.3}°", f.tilt_deg) } else { String::new() };
             let better = if report.better_model == model { "  ← better" } else { "" };
             chart.draw_series(LineSeries::new(curve, colour.stroke_width(2))).map_err(perr)?;

@@ -37,7 +37,7 @@
 //! ```
 
 use super::{HeightMap, SurfaceError};
-use crate::optics::recipe::RoughnessModel;
+use crate::surface::model::RoughnessModel;
 use lucent_render::rng::Rng;
 use rayon::prelude::*;
 

@@ -47,12 +47,15 @@ use crate::io::write_atomic;
 use md5::{Digest, Md5};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
 /// XML namespace of `main.xml`.
 pub const NAMESPACE: &str = "http://www.opengps.eu/2008/ISO5436_2";
 
 /// The storage type of the heights (the `DataType` of the z axis).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[strum(ascii_case_insensitive)]
+#[derive(serde::Serialize, serde::Deserialize)]
 pub enum PointType {
     /// 16-bit signed integer, scaled by the increment.
     I,
@@ -75,40 +78,17 @@ impl PointType {
     }
 
     fn letter(self) -> &'static str {
-        match self {
-            PointType::I => "I",
-            PointType::L => "L",
-            PointType::F => "F",
-            PointType::D => "D",
-        }
+        self.into()
     }
 
+    /// The letter as X3P writes it (upper case, exactly).
     fn parse(text: &str) -> Option<Self> {
-        match text.trim() {
-            "I" => Some(PointType::I),
-            "L" => Some(PointType::L),
-            "F" => Some(PointType::F),
-            "D" => Some(PointType::D),
-            _ => None,
-        }
+        let t = text.trim();
+        <Self as strum::VariantArray>::VARIANTS.iter().copied().find(|p| p.letter() == t)
     }
 
     fn is_integer(self) -> bool {
         matches!(self, PointType::I | PointType::L)
-    }
-}
-
-/// A point type [`PointType`]'s `FromStr` does not know.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{name:?}: expected a point type I (int16), L (int32), F (float32) or D (float64)")]
-pub struct UnknownPointType {
-    pub name: String,
-}
-
-impl std::str::FromStr for PointType {
-    type Err = UnknownPointType;
-    fn from_str(s: &str) -> Result<Self, UnknownPointType> {
-        PointType::parse(&s.to_ascii_uppercase()).ok_or_else(|| UnknownPointType { name: s.to_string() })
     }
 }
 

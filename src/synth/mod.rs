@@ -1,4 +1,4 @@
-//! Synthetic captures with a known truth (issue 13): what a camera with a
+//! Synthetic captures with a known truth (docs/method.md#pipeline): what a camera with a
 //! known colour response and a Bayer sensor would record of a linear image,
 //! written as a DNG that lucent's RAW decoding reads like any other.
 //!
@@ -43,6 +43,7 @@ use lucent_colour::Mat3;
 use lucent_render::rng::Rng;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 use thiserror::Error;
 
 /// What can go wrong making a synthetic capture.
@@ -59,24 +60,23 @@ pub enum SynthError {
 /// The colour space of the image a capture starts from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
 pub enum InputSpace {
     /// CIE 1931 RGB, white E (the renderer's output).
     CieRgb,
     /// CIE XYZ as under D50 ([`chart_image`]'s output).
+    #[strum(to_string = "xyz-d50", serialize = "xyz")]
     XyzD50,
 }
 
 impl InputSpace {
-    /// `"cie-rgb"` or `"xyz-d50"`.
+    /// Any spelling of a space (case ignored).
     pub fn from_name(name: &str) -> Result<Self, SynthError> {
-        match name.to_ascii_lowercase().as_str() {
-            "cie-rgb" => Ok(Self::CieRgb),
-            "xyz-d50" | "xyz" => Ok(Self::XyzD50),
-            _ => Err(SynthError::Invalid {
-                what: format!("input space {name:?}"),
-                reason: "valid: cie-rgb, xyz-d50".into(),
-            }),
-        }
+        name.trim().parse().map_err(|_| SynthError::Invalid {
+            what: format!("input space {name:?}"),
+            reason: format!("valid: {}", <Self as strum::VariantNames>::VARIANTS.join(", ")),
+        })
     }
 }
 

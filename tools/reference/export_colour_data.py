@@ -44,7 +44,7 @@ OBSERVER_1931 = "CIE 1931 2 Degree Standard Observer"
 OBSERVER_2012 = "CIE 2015 2 Degree Standard Observer"
 RGB_1931 = "Wright & Guild 1931 2 Degree RGB CMFs"
 CHECKER = "ColorChecker24 - After November 2014"
-CHECKER_SPECTRA = "ColorChecker N Ohta"
+CHECKER_SDS_NAME = "ColorChecker N Ohta"
 
 COMMON = (
     "# exported by tools/reference/export_colour_data.py from colour-science {version} "
@@ -162,7 +162,7 @@ def main() -> None:
         ],
     )
 
-    sds = colour.SDS_COLOURCHECKERS[CHECKER_SPECTRA]
+    sds = colour.SDS_COLOURCHECKERS[CHECKER_SDS_NAME]
     names = list(sds.keys())
     shape = sds[names[0]].shape
     wl = sds[names[0]].wavelengths

@@ -15,7 +15,7 @@ Bohren & Huffman (1983, eq. 4.53) formulas
 
 psi_n(z) = z j_n(z), xi_n(z) = z (j_n(z) + i y_n(z)), x = 2 pi r n_h / lambda (complex),
 m = n_p / n_h, and then the cross sections of Frisvad, Christensen & Jensen (2007)
-as stated in SPEC section 1:
+as stated in docs/method.md#optics-mie:
 
     C_s = lambda^2 / (2 pi |n_h|^2) sum (2n+1)(|a_n|^2 + |b_n|^2) * F(alpha)
     C_t = lambda^2 / (2 pi)         sum (2n+1) Re((a_n + b_n) / n_h^2)
@@ -352,7 +352,7 @@ def main(argv=None) -> int:
         f" checked against miepython {ref.miepython.__version__} for real hosts (worst relative difference {real_worst:.1e})",
         "# a_n, b_n: Bohren-Huffman eq. 4.53 with psi_n = z j_n(z), xi_n = z h1_n(z); x = 2 pi r n_h / lambda, m = n_p / n_h;"
         " indices n + i kappa, kappa >= 0 absorbing",
-        "# Frisvad et al. 2007 (SPEC 1): qsca = lambda^2/(2 pi |n_h|^2) sum (2n+1)(|a|^2+|b|^2) F(alpha) / (pi r^2),"
+        "# Frisvad et al. 2007: qsca = lambda^2/(2 pi |n_h|^2) sum (2n+1)(|a|^2+|b|^2) F(alpha) / (pi r^2),"
         " qext = lambda^2/(2 pi) sum (2n+1) Re((a+b)/n_h^2) / (pi r^2)",
         "# F(alpha) = exp(-alpha) alpha^2 / (2 (1 + (alpha-1) exp(alpha))), alpha = 4 pi r Im(n_h)/lambda, F = 1 for alpha < 1e-6;"
         " g from the unattenuated sums; terms = int(|x|+4.05|x|^(1/3)+2)+int(4|x|^(1/3))+8",

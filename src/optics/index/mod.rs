@@ -108,7 +108,7 @@
 //! ([`RealPartCorrection::Shift`]), or replaces n(λ) by that constant
 //! ([`RealPartCorrection::Replace`]). The valid range does not change. This is
 //! how the default recipes apply the manufacturer's value for the
-//! polycarbonate host, n(550 nm) = 1.5889, to Zhang et al.'s table (SPEC §1).
+//! polycarbonate host, n(550 nm) = 1.5889, to Zhang et al.'s table (docs/method.md#optics).
 //!
 //! # Overrides of the imaginary part
 //!
@@ -116,7 +116,7 @@
 //! constant ([`ImaginaryPartCorrection::Replace`]; the κ data are then not
 //! used, and their range no longer limits [`IndexSpectrum::range_nm`]) or
 //! scales it ([`ImaginaryPartCorrection::Scale`]). The default PVP recipes
-//! use κ = 0, as the lab did (SPEC §1).
+//! use κ = 0, as the lab did (docs/method.md#optics).
 //!
 //! # Built-in data
 //!
@@ -242,7 +242,7 @@ pub enum IndexError {
     /// The wavelength is outside the valid range of the n or κ data and no
     /// extrapolation was asked for.
     #[error(
-        "{file}: wavelength {} nm is outside the valid range {}–{} nm of the {part} data (ask for extrapolation \"clamp\" or \"linear\" to go beyond it)",
+        "{file}: wavelength {} nm is outside the valid range {}–{} nm of the {part} data (to go beyond it, set extrapolate = \"clamp\" or \"linear\" for this medium in the recipe: under [host] or its [[particles]] entry)",
         fmt_nm(*wavelength_nm), fmt_nm(*min_nm), fmt_nm(*max_nm)
     )]
     OutOfRange { file: String, part: String, wavelength_nm: f64, min_nm: f64, max_nm: f64 },

@@ -1,0 +1,41 @@
+"""Shared fixtures of the pytest suite of `import lucent` (run by `make test`)."""
+
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+# miepython's pure-numpy backend: no numba compilation in the tests, and the
+# backend tools/reference/ generates its data with.
+os.environ.setdefault("MIEPYTHON_USE_JIT", "0")
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="session")
+def repo() -> Path:
+    return REPO
+
+
+@pytest.fixture(scope="session")
+def lucent_cli() -> Path:
+    """The `lucent` command of this checkout: $LUCENT_BIN, else the debug build
+    `cargo test --workspace` leaves in target/ (`make test` runs that first),
+    else built here."""
+    if "LUCENT_BIN" in os.environ:
+        exe = Path(os.environ["LUCENT_BIN"])
+    else:
+        target = Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target"))
+        exe = target / "debug" / "lucent"
+        if not exe.exists():
+            subprocess.run(["cargo", "build", "--quiet", "--bin", "lucent"], cwd=REPO, check=True)
+    assert exe.exists(), exe
+    return exe
+
+
+def run_cli(exe: Path, *args, cwd=None) -> subprocess.CompletedProcess:
+    """Runs the lucent command; fails the test with its stderr on a non-zero exit."""
+    p = subprocess.run([str(exe), *map(str, args)], cwd=cwd, capture_output=True, text=True)
+    assert p.returncode == 0, f"lucent {' '.join(map(str, args))} failed:\n{p.stderr}"
+    return p

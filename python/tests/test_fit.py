@@ -1,0 +1,80 @@
+"""lucent.fit against `lucent fit`'s fit.json; a known truth recovered; progress, Ctrl-C, bad input.
+
+The measurement is a slice `lucent.bssrdf` simulates from the recipe with
+0.425 wt-% (fixtures/fit/); the fit starts from the sample recipe's 0.65.
+Small for test time: 21 × 21 pixels of 0.5 mm, a few thousand paths.
+"""
+
+import json
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import lucent
+
+from conftest import run_cli
+
+START = "fixtures/samples/IOL1068-09.toml"
+TRUTH = "fixtures/fit/IOL1068-09_truth_0425.toml"
+
+
+@pytest.fixture(scope="module")
+def measured(repo, tmp_path_factory):
+    """"FILE:45/0" of a 45°/0° slice simulated at the truth, as a CSV grid."""
+    s = lucent.bssrdf(repo / TRUTH, theta_i=45.0, theta_o=0.0, pixels=21, pixel_mm=0.5, paths=20000, seed=77)
+    path = tmp_path_factory.mktemp("fit") / "m45.csv"
+    np.savetxt(path, s["slice"], delimiter=",")
+    return f"{path}:45/0"
+
+
+def test_fit_equals_the_command_and_recovers_the_truth(lucent_cli, repo, measured, tmp_path):
+    run_cli(lucent_cli, "fit", "--recipe", repo / START, "--measured", measured, "--measured-pixel-mm", 0.5,
+            "--free", "weight_percent", "--paths", 5000, "--quiet", "--out", tmp_path)
+    cli = json.loads((tmp_path / "fit.json").read_text())
+    lines = []
+    r = lucent.fit(repo / START, measured, "weight_percent", measured_pixel_mm=0.5, paths=5000,
+                   progress=lines.append)
+    p, q = r["parameters"][0], cli["parameters"][0]
+    for key in ["value", "std_error", "interval_95", "start", "bounds"]:
+        assert p[key] == q[key], (key, p[key], q[key])
+    for key in ["evaluations", "paths_total", "objective_start", "objective_end", "identifiable"]:
+        assert r[key] == cli[key], (key, r[key], cli[key])
+    # The truth lies in the reported 95 % interval; the start does not.
+    lo, hi = p["interval_95"]
+    assert lo <= 0.425 <= hi and hi < 0.65, p
+    # One progress line per evaluation, as the command prints them.
+    assert lines[0].startswith("pilot at") and len(lines) >= r["evaluations"] - 2, lines
+
+
+def test_ctrl_c_interrupts_a_fit(repo, measured):
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            # The pilot alone runs for a minute without the interrupt.
+            lucent.fit(repo / START, measured, "weight_percent", measured_pixel_mm=0.5, rel_error=1e-5)
+    finally:
+        timer.cancel()
+    assert time.monotonic() - start < 15.0
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(free="weight"), "unknown free parameter \"weight\""),
+        (dict(free="weight_percent@3"), "particle type"),
+        (dict(objective="best"), "objective \"best\": expected one of sum, msre"),
+        (dict(measured="no/such.csv:45/0"), "--measured no/such.csv: no such file"),
+        (dict(bounds=[(1.0, 2.0), (1.0, 2.0)]), "2 entries for 1 free parameter"),
+        (dict(measured_pixel_mm=-1.0), "--measured-pixel-mm -1"),
+    ],
+)
+def test_bad_fit_arguments_raise(repo, measured, kwargs, message):
+    args = dict(measured=measured, free="weight_percent", measured_pixel_mm=0.5, paths=1000) | kwargs
+    with pytest.raises(lucent.LucentError, match=message):
+        lucent.fit(repo / START, **args)
