@@ -316,7 +316,7 @@ pub struct CalibrateJob {
     pub board: String,
     pub square_mm: f64,
     pub out: PathBuf,
-    pub model: String,
+    pub model: lucent_calib::model::DistortionModel,
 }
 
 impl CalibrateJob {
@@ -329,7 +329,7 @@ impl CalibrateJob {
         l.flag("--board", &self.board)
             .flag("--square-mm", self.square_mm)
             .flag("--out", s(&self.out))
-            .flag("--model", &self.model);
+            .flag("--model", self.model.name());
         l.0
     }
 }
@@ -341,7 +341,7 @@ pub struct ColourCalibrateJob {
     pub camera: Option<String>,
     pub out: PathBuf,
     pub corners: Option<String>,
-    pub method: String,
+    pub method: lucent_colour::ccm::CcmMethod,
     pub decode_srgb: bool,
 }
 
@@ -352,7 +352,7 @@ impl ColourCalibrateJob {
             .opt("--camera", &self.camera)
             .flag("--out", s(&self.out))
             .opt("--corners", &self.corners)
-            .flag("--method", &self.method)
+            .flag("--method", self.method.name())
             .switch("--decode-srgb", self.decode_srgb);
         l.0
     }

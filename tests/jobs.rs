@@ -71,14 +71,14 @@ fn jobs() -> Vec<Job> {
             board: "9x6".into(),
             square_mm: 25.0,
             out: p("{out}/camera.json"),
-            model: "fisheye".into(),
+            model: lucent_calib::model::DistortionModel::Fisheye,
         }),
         Job::ColourCalibrate(ColourCalibrateJob {
             image: p("chart.exr"),
             camera: Some("phone".into()),
             out: p("{out}/phone"),
             corners: Some("1,2,3,4,5,6,7,8".into()),
-            method: "Finlayson 2015".into(),
+            method: lucent_colour::ccm::CcmMethod::Finlayson2015,
             decode_srgb: true,
         }),
         Job::ColourApply(ColourApplyJob {

@@ -30,7 +30,7 @@ pub fn job_of(command: &Command) -> Option<Job> {
             camera: a.camera.clone(),
             out: a.out.clone(),
             corners: a.corners.clone(),
-            method: name(&a.method),
+            method: a.method,
             decode_srgb: a.decode_srgb,
         }),
         Command::Colour(colour::ColourCommand::Apply(a)) => Job::ColourApply(ColourApplyJob {
@@ -123,7 +123,7 @@ fn calibrate(a: &camera::CalibrateArgs) -> CalibrateJob {
         board: a.board.clone(),
         square_mm: a.square_mm,
         out: a.out.clone(),
-        model: name(&a.model),
+        model: a.model,
     }
 }
 

@@ -709,7 +709,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     camera: Some(c.camera.clone()),
                     out: under_out(format!("/{}", c.camera)),
                     corners: c.corners.clone(),
-                    method: c.method.clone().unwrap_or_else(|| "Cheung 2004".into()),
+                    method: c.method.unwrap_or(lucent_colour::CcmMethod::Cheung2004),
                     decode_srgb: c.decode_srgb == Some(true),
                 };
                 tasks.push(lucent(c.camera.clone(), Job::ColourCalibrate(job)));

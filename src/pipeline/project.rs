@@ -70,6 +70,8 @@
 use crate::job::{
     BssrdfCompareJob, BssrdfJob, CalibrateJob, CompareJob, EnvScaleJob, FitJob, JobError, OpticsJob, PoseJob, RenderJob,
 };
+use lucent_calib::model::DistortionModel;
+use lucent_colour::CcmMethod;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -148,9 +150,18 @@ pub struct CalibrationSection {
     pub images: String,
     pub board: String,
     pub square_mm: f64,
-    pub model: Option<String>,
+    /// Any spelling `lucent calibrate --model` reads.
+    #[serde(default, deserialize_with = "distortion_model")]
+    pub model: Option<DistortionModel>,
     /// The known camera of synthetic views (a `lucent calibrate` camera.json).
     pub truth: Option<PathBuf>,
+}
+
+/// `[calibration] model`, read as `lucent calibrate --model` reads it (its
+/// own serde form knows only the canonical names).
+fn distortion_model<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<DistortionModel>, D::Error> {
+    let name = String::deserialize(d)?;
+    DistortionModel::from_name(&name).map(Some).map_err(serde::de::Error::custom)
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -159,7 +170,8 @@ pub struct ColourSection {
     pub camera: String,
     pub image: PathBuf,
     pub corners: Option<String>,
-    pub method: Option<String>,
+    /// Any spelling `lucent colour calibrate --method` reads.
+    pub method: Option<CcmMethod>,
     pub decode_srgb: Option<bool>,
     /// A `truth_colour.json` ([`crate::synth::ColourTruth`]): the camera's known response.
     pub truth: Option<PathBuf>,
@@ -354,7 +366,7 @@ pub fn calibrate_job(c: &CalibrationSection, out: PathBuf) -> CalibrateJob {
         board: c.board.clone(),
         square_mm: c.square_mm,
         out,
-        model: c.model.clone().unwrap_or_else(|| "pinhole-k3".into()),
+        model: c.model.unwrap_or(DistortionModel::PinholeK3),
     }
 }
 
