@@ -362,6 +362,7 @@ mod tests {
         assert_eq!("d65".parse::<Illuminant>().unwrap(), Illuminant::D65);
         let e = "D75".parse::<Illuminant>().unwrap_err().to_string();
         assert!(e.contains("D50, D65, A, E"), "{e}");
-        assert!("1964".parse::<Observer>().unwrap_err().to_string().contains("cie1931"));
+        let e = "1964".parse::<Observer>().unwrap_err().to_string();
+        assert!(e.contains("\"1964\"") && e.contains("CIE 1931 2°"), "{e}");
     }
 }

@@ -728,6 +728,11 @@ fn square<'py>(py: Python<'py>, n: usize, v: &[f64]) -> PyResult<Bound<'py, PyAn
 }
 
 /// A `clap` value name (e.g. "hg", "lobe") as the CLI's choice.
+/// A library type's name, or an error listing its names.
+fn named<T: std::str::FromStr + strum::VariantNames>(what: &str, text: &str) -> PyResult<T> {
+    text.parse().map_err(|_| error(format!("{what} {text:?}: expected one of {}", T::VARIANTS.join(", "))))
+}
+
 fn choice<T: clap::ValueEnum>(what: &str, text: &str) -> PyResult<T> {
     T::from_str(text, true).map_err(|_| {
         let names: Vec<String> = T::value_variants()
@@ -1100,10 +1105,8 @@ fn py_calibrate<'py>(
     model: &str,
     detector: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let model: lucent_calib::camera::DistortionModel =
-        model.parse().map_err(|e| error(format!("model {model:?}: {e}")))?;
-    let detector: lucent_calib::cv::Detector =
-        detector.parse().map_err(|e| error(format!("detector {detector:?}: {e}")))?;
+    let model: lucent_calib::camera::DistortionModel = named("model", model)?;
+    let detector: lucent_calib::cv::Detector = named("detector", detector)?;
     let board = camera_cli::board_spec(board, square_mm).map_err(error_chain)?;
     let photos = calibration_photos(py, images)?;
     let cal = run_interruptible(py, None, |_, _| calib_camera::calibrate_photos(&photos, &board, model, detector))?
