@@ -13,7 +13,7 @@ echo
 echo "== 2. BSSRDF slices at 550 nm, the three lab configurations (θi/θo = 45/0, 0/45, 45/15; φi 0°, φo 180°), to 5 % median per-pixel error or 90 s"
 for s in IOL1068-09 IOL1068-16; do
   echo "-- $s"
-  "$bin" bssrdf --recipe "fixtures/samples/$s.toml" --wavelength 550 --configs 45/0,0/45,45/15 \
+  "$bin" bssrdf --recipe "fixtures/samples/$s.toml" --wavelength-nm 550 --configs 45/0,0/45,45/15 \
     --crop --pixel-rel-error 0.05 --time-s 90 --quiet --out "$out/bssrdf/$s"
 done
 
@@ -23,13 +23,13 @@ echo "== 2b. Surface topography: the shipped height map (X3P) → microfacet nor
 
 echo
 echo "== 2c. The same IOL1068-09 slice (45°/15°) through a rough top: the measured normals of 2b (--roughness measured:fit.json)"
-"$bin" bssrdf --recipe fixtures/samples/IOL1068-09.toml --wavelength 550 --theta-i 45 --theta-o 15 \
+"$bin" bssrdf --recipe fixtures/samples/IOL1068-09.toml --wavelength-nm 550 --theta-i 45 --theta-o 15 \
   --roughness "measured:$out/surface/fit.json" --crop --pixel-rel-error 0.05 --time-s 180 --quiet --out "$out/bssrdf/IOL1068-09-rough"
 
 echo
 echo "== 2d. Inverse fit (lucent fit): slices of IOL1068-09 simulated at 0.425 wt-% play the measurement"
 echo "   (45°/0°, 30°/0°); the fit starts from the recipe's 0.65 wt-%, the lab's example"
-"$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength 550 --configs 45/0,30/0 \
+"$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength-nm 550 --configs 45/0,30/0 \
   --crop --paths 100000 --seed 101 --quiet --out "$out/fit/measured"
 "$bin" fit --recipe fixtures/samples/IOL1068-09.toml --free weight_percent --rel-error 0.01 --quiet \
   --measured "$out/fit/measured/ti45_to0/bssrdf.exr" "$out/fit/measured/ti30_to0/bssrdf.exr" --out "$out/fit"
@@ -64,7 +64,7 @@ mkdir -p "$e"
 "$bin" env paste "$e/with_chart.exr" --chessboard 9x6 --yaw 27 --pitch -90 --fov 70 --out "$e/truth_xyz.exr"
 # The 360° camera's RGB: a known XYZ → camera matrix (the truth the colour stage recovers, up to a scale).
 "$bin" env convert "$e/truth_xyz.exr" "$e/truth_camera.exr" --matrix "1.6,-0.3,-0.2;-0.6,1.5,0.1;0.05,-0.2,1.1"
-"$bin" env brackets "$e/truth_camera.exr" --exposures 1/128,1/32,1/8,1/2,2 --out-dir "$e/brackets"
+"$bin" env brackets "$e/truth_camera.exr" --exposures 1/128,1/32,1/8,1/2,2 --out "$e/brackets"
 "$bin" env merge "$e"/brackets/bracket_{1,2,3,4,5}.png --exposures 1/128,1/32,1/8,1/2,2 --out "$e/env.exr"
 "$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.exr"
 "$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.png" >/dev/null
@@ -109,7 +109,7 @@ for k in 1 2 3 4 5 6; do
 done
 "$bin" render fixtures/demo/truth.toml --size 160x120 --spp 512 --seed 1001 --quiet --out "$out/truth/photo"
 echo "   IOL1068-09's \"measured\" slices (45°/0°, 30°/0°) simulated at the hidden 0.425 wt-% (Monte Carlo noise ≈ 3 %)"
-"$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength 550 --configs 45/0,30/0 \
+"$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength-nm 550 --configs 45/0,30/0 \
   --crop --paths 100000 --seed 301 --quiet --out "$out/truth/slices"
 "$bin" render fixtures/demo/truth_empty.toml --size 160x120 --spp 128 --seed 1002 --quiet --out "$out/truth/empty"
 echo "   the synthetic phone (fixtures/demo/truth_colour.json) captures a ColorChecker and both photos as Bayer DNGs with noise"

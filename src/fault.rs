@@ -4,7 +4,9 @@
 //! key, a file the user named), the **environment** (a missing tool, a full
 //! or read-only disk, the network, Slurm), or lucent itself (**internal**:
 //! a bug). Each class has its exit code, so a script or a cluster knows
-//! whether to fix the input, retry elsewhere, or report a bug.
+//! whether to fix the input, retry elsewhere, or report a bug. A run
+//! stopped by Ctrl-C or SIGTERM is nobody's fault and has its own code
+//! (130, as shells report a process ended by SIGINT).
 
 use std::error::Error;
 use thiserror::Error;
@@ -18,6 +20,8 @@ pub enum Fault {
     Environment,
     /// A bug in lucent.
     Internal,
+    /// Stopped by Ctrl-C or SIGTERM (what it finished may be kept, labelled).
+    Interrupted,
 }
 
 /// The exit codes, as `lucent --help` lists them.
@@ -36,6 +40,7 @@ impl Fault {
             Fault::Input => 1,
             Fault::Environment => 3,
             Fault::Internal => 4,
+            Fault::Interrupted => 130,
         }
     }
 
@@ -46,6 +51,7 @@ impl Fault {
             0 => None,
             3 => Some(Fault::Environment),
             4 | 101 => Some(Fault::Internal),
+            130 => Some(Fault::Interrupted),
             _ => Some(Fault::Input),
         }
     }
@@ -56,6 +62,7 @@ impl Fault {
             Fault::Input => "user input",
             Fault::Environment => "environment",
             Fault::Internal => "internal",
+            Fault::Interrupted => "interrupted",
         }
     }
 
@@ -74,6 +81,9 @@ impl Fault {
             }
             if e.is::<Internal>() {
                 return Fault::Internal;
+            }
+            if e.is::<Interrupted>() || matches!(e.downcast_ref(), Some(crate::fit::FitError::Interrupted { .. })) {
+                return Fault::Interrupted;
             }
             if e.is::<crate::pipeline::executor::SlurmError>() {
                 return Fault::Environment;
@@ -128,6 +138,11 @@ pub struct Faulted {
     pub message: String,
 }
 
+/// A run stopped by Ctrl-C or SIGTERM: the message says what was kept.
+#[derive(Debug, Error)]
+#[error("interrupted (Ctrl-C or SIGTERM): {0}")]
+pub struct Interrupted(pub String);
+
 /// A state lucent's own logic should never reach: a bug.
 #[derive(Debug, Error)]
 #[error("internal error (a bug in lucent; please report it): {0}")]
@@ -147,11 +162,15 @@ mod tests {
         assert_eq!(Fault::of(missing.as_ref()), Fault::Input);
         let bug = anyhow::Error::from(Internal("tile index out of range".into())).context("render");
         assert_eq!(Fault::of(bug.as_ref()), Fault::Internal);
-        let codes: Vec<u8> = [Fault::Input, Fault::Environment, Fault::Internal].map(Fault::exit_code).to_vec();
-        assert_eq!(codes, [1, 3, 4]);
-        for f in [Fault::Input, Fault::Environment, Fault::Internal] {
+        let stopped = anyhow::Error::from(Interrupted("render.* hold 3 spp".into())).context("render");
+        assert_eq!(Fault::of(stopped.as_ref()), Fault::Interrupted);
+        let fit = anyhow::Error::from(crate::fit::FitError::Interrupted { evaluations: 2 });
+        assert_eq!(Fault::of(fit.as_ref()), Fault::Interrupted);
+        let all = [Fault::Input, Fault::Environment, Fault::Internal, Fault::Interrupted];
+        assert_eq!(all.map(Fault::exit_code), [1, 3, 4, 130]);
+        for f in all {
             assert_eq!(Fault::from_exit_code(i32::from(f.exit_code())), Some(f));
-            assert!(EXIT_CODES.contains(&format!("  {}    {}", f.exit_code(), f.name())), "{f}");
+            assert!(EXIT_CODES.contains(&format!("  {:<5}{}", f.exit_code(), f.name())), "{f}");
         }
     }
 }

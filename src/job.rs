@@ -282,7 +282,11 @@ impl FitJob {
         }
         at_least_one("paths", self.paths)?;
         if !(self.measured_rel_sd > 0.0 && self.measured_rel_sd <= 1.0) {
-            return Err(bad("measured_rel_sd", self.measured_rel_sd, "must lie in (0, 1] (the relative uncertainty of each measured slice)"));
+            return Err(bad(
+                "measured_rel_sd",
+                self.measured_rel_sd,
+                "must lie in (0, 1] (the relative uncertainty of each measured slice)",
+            ));
         }
         threshold(self.threshold)
     }

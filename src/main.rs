@@ -40,7 +40,7 @@ fn main() -> std::process::ExitCode {
         Ok(Err(e)) => {
             let fault = Fault::of(e.as_ref());
             match fault {
-                Fault::Input => eprintln!("error: {}", error_chain(&e)),
+                Fault::Input | Fault::Interrupted => eprintln!("error: {}", error_chain(&e)),
                 _ => eprintln!("error ({fault}): {}", error_chain(&e)),
             }
             std::process::ExitCode::from(fault.exit_code())

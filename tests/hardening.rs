@@ -332,6 +332,7 @@ fn leftovers_failing_and_interrupted_runs_leave_nothing_unmarked() {
     unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
     let o = child.wait_with_output().unwrap();
     refused(&o, &["interrupted", "bssrdf.failed"], "SIGTERM during lucent run");
+    assert_eq!(o.status.code(), Some(130), "a stopped run exits 130 (interrupted): {}", stderr(&o));
     let names: Vec<String> = std::fs::read_dir(d.join("o"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

@@ -239,3 +239,74 @@ fn exit_codes_say_who_is_at_fault() {
     assert_eq!(o.status.code(), Some(3), "{e}");
     assert!(e.contains("stage bssrdf failed (environment)") && e.contains("sbatch"), "{e}");
 }
+
+/// The names a stage's job takes from a closed set (`[calibration] model`,
+/// `[[colour]] method`) are read by the library type's own parser when the
+/// project loads: any spelling the flag takes works, a wrong one is named
+/// with its key, its line and the valid names (exit 1), before any stage.
+#[test]
+fn project_choices_are_the_jobs_types_and_a_wrong_name_is_refused_at_load() {
+    use lucent::pipeline::project::Project;
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("chart.exr"), b"not read at load").unwrap();
+    let text = |model: &str, method: &str| {
+        format!(
+            "[project]\nname = \"p\"\n[calibration]\nimages = \"photos/*.jpg\"\nboard = \"9x6\"\nsquare_mm = 25.0\n\
+             model = \"{model}\"\n[[colour]]\ncamera = \"phone\"\nimage = \"chart.exr\"\nmethod = \"{method}\"\n"
+        )
+    };
+    std::fs::write(d.join("ok.toml"), text("Kannala-Brandt", "finlayson 2015")).unwrap();
+    let p = Project::load(&d.join("ok.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let c = p.file.calibration.as_ref().unwrap();
+    assert_eq!(c.model, Some(lucent_calib::model::DistortionModel::Fisheye));
+    assert_eq!(p.file.colour[0].method, Some(lucent_colour::ccm::CcmMethod::Finlayson2015));
+    let job = lucent::pipeline::project::calibrate_job(c, p.path.clone());
+    assert_eq!(parse_job(&job.to_args()).unwrap(), Job::Calibrate(job), "the job's line parses back");
+    for (file, model, method, says) in [
+        ("model.toml", "fisheye2", "Cheung 2004", ["model", "fisheye2", "pinhole-k3, rational, fisheye"]),
+        ("method.toml", "rational", "Cheung 2005", ["method", "Cheung 2005", "Finlayson 2015"]),
+    ] {
+        std::fs::write(d.join(file), text(model, method)).unwrap();
+        let e = Project::load(&d.join(file)).unwrap_err().to_string();
+        assert!(e.contains(file) && says.iter().all(|s| e.contains(s)), "{e}");
+        let o = lucent_in(d, &["run", file, "--out", "o"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(says[1]) && !err.contains("stage"), "{err}");
+        assert!(!d.join("o").exists(), "a project refused at load made its output folder");
+    }
+}
+
+/// A stage's job that fails validation is refused with the project key,
+/// whichever section it comes from, and the stage command's own flag name
+/// never reaches the user.
+#[test]
+fn every_section_that_becomes_a_job_is_checked_with_its_key() {
+    use lucent::pipeline::project::{Project, ProjectFile};
+    let recipe = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/samples/IOL1068-09.toml");
+    let base =
+        format!("[project]\nname = \"p\"\n[[sample]]\nname = \"s\"\nrecipe = {:?}\n", recipe.display().to_string());
+    for (section, key) in [
+        ("[bssrdf]\npaths = 10\nthreshold = 1.5\n", "[bssrdf] threshold"),
+        ("[bssrdf]\npaths = 0\n", "[bssrdf] paths"),
+        ("[fit]\nfree = [\"weight_percent\"]\nrel_error = 2.0\n", "[fit] rel_error"),
+        ("[fit]\nfree = [\"weight_percent\"]\nobjective = \"best\"\n", "[fit] objective"),
+        ("[compare]\ndata_range = -1.0\n", "[compare] data_range"),
+        ("[calibration]\nimages = \"x/*.jpg\"\nboard = \"9x6\"\nsquare_mm = -2.0\n", "[calibration] square_mm"),
+    ] {
+        let file: ProjectFile =
+            toml::from_str(&format!("{base}{section}")).unwrap_or_else(|e| panic!("{section}: {e}"));
+        let e = Project::build(file, std::path::Path::new("p.toml")).unwrap_err().to_string();
+        assert!(e.starts_with("p.toml: ") && e.contains(key), "{key}: {e}");
+        assert!(!e.contains("--"), "the stage's flag reached the user: {e}");
+    }
+}
+
+#[test]
+fn an_interrupted_child_is_classed_interrupted() {
+    use lucent::fault::Fault;
+    assert_eq!(Fault::from_exit_code(130), Some(Fault::Interrupted));
+    assert_eq!(Fault::Interrupted.exit_code(), 130);
+    assert!(lucent::fault::EXIT_CODES.contains("130  interrupted"));
+}

@@ -17,6 +17,7 @@
 use lucent::cli::bssrdf as bssrdf_cli;
 use lucent::cli::camera as camera_cli;
 use lucent::cli::fit::{self as fit_cli, FitArgs, ObjectiveChoice};
+use lucent::cli::groups::{BeamArgs, TwinRenderArgs};
 use lucent::cli::render::{self as render_cli, RenderArgs};
 use lucent::compare::{self, MaskSpec, Request};
 use lucent::fit;
@@ -664,19 +665,18 @@ fn py_render<'py>(
     let args = RenderArgs {
         scene,
         out: PathBuf::new(),
-        spp,
+        render: TwinRenderArgs { spp, seed, size, threads },
         time_s,
-        seed,
-        size,
         exposure: 0.0,
         target_rel_error,
         sampling: sampling.map(|t| choice("sampling", t)).transpose()?,
         dispersion: dispersion.map(|t| choice("dispersion", t)).transpose()?,
         split_entry,
-        threads,
         quiet: true,
         shard: None,
     };
+    // The job `lucent render` checks (the ranges of its flags), then the scene.
+    lucent::job::RenderJob::from(&args).validate().map_err(error)?;
     let (loaded, settings) = render_cli::prepare(&args).map_err(error_chain)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build().map_err(error)?;
     let (image, stats) = run_interruptible(py, progress, |cancel, report| {
@@ -833,9 +833,7 @@ fn py_bssrdf<'py>(
         phi_o,
         configs: None,
         phase: phase.map(|p| choice("phase", p)).transpose()?,
-        beam_fwhm_um,
-        beam_map,
-        beam_map_pixel_mm,
+        beam: BeamArgs { beam_fwhm_um, beam_map, beam_map_pixel_mm },
         pixels,
         pixel_mm,
         crop,
@@ -852,6 +850,9 @@ fn py_bssrdf<'py>(
         quiet: true,
         shard: None,
     };
+    if let Some(job) = lucent::cli::jobs::bssrdf_run(&args) {
+        job.validate().map_err(error)?;
+    }
     let plan = bssrdf_cli::plan(&args).map_err(error_chain)?;
     let run = plan.runs.first().ok_or_else(|| error("no configuration to simulate"))?;
     let slice = run_interruptible(py, progress, |cancel, report| {
@@ -1012,9 +1013,7 @@ fn py_fit<'py>(
         free,
         objective: choice::<ObjectiveChoice>("objective", objective)?,
         wavelength,
-        beam_fwhm_um,
-        beam_map,
-        beam_map_pixel_mm,
+        beam: BeamArgs { beam_fwhm_um, beam_map, beam_map_pixel_mm },
         measured_rel_sd,
         threshold,
         rel_error,
@@ -1026,6 +1025,7 @@ fn py_fit<'py>(
         out: out.clone().unwrap_or_default(),
         quiet: true,
     };
+    lucent::job::FitJob::from(&args).validate().map_err(error)?;
     let problem = fit_cli::build_problem(&args).map_err(error_chain)?;
     let result = run_interruptible(py, progress, |cancel, report| {
         fit::fit_cancellable(&problem, |line| report(Report::Line(line.clone())), cancel)

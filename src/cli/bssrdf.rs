@@ -3,6 +3,7 @@
 
 use super::interrupt::Interrupt;
 use crate::bssrdf::{self, OpticalUsed, RunConfig, Summary};
+use crate::fault::Interrupted;
 use crate::optics::bulk;
 use crate::optics::recipe::{Overrides, Recipe};
 use anyhow::{anyhow, bail, Context, Result};
@@ -89,15 +90,8 @@ pub struct RunArgs {
     /// Phase function (default: mie with a recipe, hg otherwise).
     #[arg(long, value_enum)]
     pub phase: Option<PhaseChoice>,
-    /// Gaussian beam FWHM in µm.
-    #[arg(long, default_value_t = 200.0, conflicts_with = "beam_map")]
-    pub beam_fwhm_um: f64,
-    /// Measured map of incident irradiance on the surface (EXR, float TIFF or CSV grid).
-    #[arg(long)]
-    pub beam_map: Option<PathBuf>,
-    /// Pixel size of the beam map in mm (else from its sidecar JSON).
-    #[arg(long)]
-    pub beam_map_pixel_mm: Option<f64>,
+    #[command(flatten)]
+    pub beam: super::groups::BeamArgs,
     /// Pixels per side of the camera.
     #[arg(long, default_value_t = 259)]
     pub pixels: usize,
@@ -292,18 +286,6 @@ fn medium(a: &RunArgs) -> Result<MediumChoice> {
     }
 }
 
-fn beam(a: &RunArgs) -> Result<(Beam, String)> {
-    match &a.beam_map {
-        Some(path) => {
-            let grid = bssrdf::read_grid(path, a.beam_map_pixel_mm).with_context(|| "--beam-map")?;
-            let map = BeamMap::new(grid.size, grid.size, grid.pixel_m, grid.values)
-                .map_err(|e| anyhow!("{}: {e}", path.display()))?;
-            Ok((Beam::Map(map), format!("map {}", path.display())))
-        }
-        None => Ok((Beam::gaussian(a.beam_fwhm_um * 1e-6)?, format!("gaussian, FWHM {} µm", a.beam_fwhm_um))),
-    }
-}
-
 /// The larger of the map's Gaussian-equivalent FWHMs along x and y [m]:
 /// the FWHM of a Gaussian of σ² the irradiance-weighted variance of the
 /// pixel centres (the conversion is `slab::fwhm_to_sigma`'s, inverted).
@@ -382,7 +364,7 @@ impl Plan {
 /// The [`Plan`] of `lucent bssrdf` for the arguments `a`.
 pub fn plan(a: &RunArgs) -> Result<Plan> {
     let m = medium(a)?;
-    let (beam, beam_name) = beam(a)?;
+    let (beam, beam_name) = a.beam.beam()?;
     let out_pixels = match a.crop {
         Some(c) if c == 0 || c > a.pixels => bail!("--crop {c}: must lie in 1 … --pixels ({})", a.pixels),
         Some(c) => c,
@@ -396,10 +378,10 @@ pub fn plan(a: &RunArgs) -> Result<Plan> {
         bail!("--paths 0: at least one light path is needed");
     }
     let field_mm = out_pixels as f64 * a.pixel_mm;
-    if a.beam_map.is_none() && a.beam_fwhm_um * 1e-3 > field_mm {
-        bail!("--beam-fwhm-um {}: the beam is wider than the slice ({out_pixels} pixels × {} mm = {field_mm} mm); widen the slice (--pixels, --pixel-mm) or narrow the beam", a.beam_fwhm_um, a.pixel_mm);
+    if a.beam.beam_map.is_none() && a.beam.beam_fwhm_um * 1e-3 > field_mm {
+        bail!("--beam-fwhm-um {}: the beam is wider than the slice ({out_pixels} pixels × {} mm = {field_mm} mm); widen the slice (--pixels, --pixel-mm) or narrow the beam", a.beam.beam_fwhm_um, a.pixel_mm);
     }
-    if let (Beam::Map(map), Some(path)) = (&beam, &a.beam_map) {
+    if let (Beam::Map(map), Some(path)) = (&beam, &a.beam.beam_map) {
         // The same rule for a map, by its second moments (a map may have a wide dark border).
         let fwhm_mm = beam_map_fwhm_m(map) * 1e3;
         if fwhm_mm > field_mm {
@@ -492,7 +474,9 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
                 interrupt.flag(),
             )?;
             if interrupt.requested() {
-                bail!("interrupted: shard {k}/{n} not written (a shard is merged whole or not at all)");
+                return Err(
+                    Interrupted(format!("shard {k}/{n} not written (a shard is merged whole or not at all)")).into()
+                );
             }
             wall_s += t.wall_s;
             write_slice_shard(&stage.path().join(shard_acc(i)), &t)?;
@@ -655,10 +639,11 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
     let owned = ["bssrdf.exr", "bssrdf.png", "profile.csv", "profile.png", "summary.json", "sweep.csv"];
     stage.commit(|n| owned.contains(&n) || (n.starts_with("ti") && n.contains("_to")))?;
     if let Some(at) = interrupted_at {
-        bail!(
-            "interrupted: {} holds the slice from the paths finished before Ctrl-C (summary.json says \"interrupted\": true); the configurations after it were not run",
+        return Err(Interrupted(format!(
+            "{} holds the slice from the paths finished before Ctrl-C (summary.json says \"interrupted\": true); the configurations after it were not run",
             at.display()
-        );
+        ))
+        .into());
     }
     Ok(())
 }
@@ -790,9 +775,7 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
             phi_o: 180.0,
             configs: None,
             phase: None,
-            beam_fwhm_um: 200.0,
-            beam_map: None,
-            beam_map_pixel_mm: None,
+            beam: Default::default(),
             pixels: 259,
             pixel_mm: 0.1029,
             crop: Some(117),

@@ -62,12 +62,8 @@ pub struct CalibrateArgs {
     /// EXR/HDR and RAW files are read.
     #[arg(long, required = true, num_args = 1..)]
     pub images: Vec<String>,
-    /// Inner corners COLSxROWS, e.g. 9x6 for a board of 10 × 7 squares.
-    #[arg(long)]
-    pub board: String,
-    /// Side of one square in millimetres.
-    #[arg(long)]
-    pub square_mm: f64,
+    #[command(flatten)]
+    pub board: super::groups::BoardArgs,
     /// Distortion model: pinhole-k3 (k1 k2 p1 p2 k3), rational (k1..k6 p1 p2) or fisheye
     /// (Kannala–Brandt k1..k4, OpenCV's fisheye module; one lens of a 360° rig at a time).
     #[arg(long, value_parser = named::<DistortionModel>(), default_value = "pinhole-k3")]
@@ -117,14 +113,8 @@ pub struct PoseArgs {
     /// Photo of the board and sample (distorted, as taken; the calibration's size).
     #[arg(long)]
     pub image: PathBuf,
-    /// Inner corners COLSxROWS. Corner (0, 0), the world's origin, is the one diagonally beyond the light
-    /// outer corner square (OpenCV's numbering, also `lucent env orient`'s); only a board with one odd and
-    /// one even count (e.g. 9x6) fixes it.
-    #[arg(long)]
-    pub board: String,
-    /// Side of one square in millimetres.
-    #[arg(long)]
-    pub square_mm: f64,
+    #[command(flatten)]
+    pub board: super::groups::BoardArgs,
     /// Board inner corner I,J under the sample's top-left corner (indices as drawn in the view image).
     #[arg(long, requires = "sample_size_mm")]
     pub sample_corner: Option<String>,
@@ -343,7 +333,7 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
             a.out.join("camera.json").display()
         );
     }
-    let board = board_spec(&a.board, a.square_mm)?;
+    let board = a.board.spec()?;
     let photos = read_photos(&a.images)?;
     let cal = camera::calibrate_photos(&photos, &board, a.model, a.detector)?;
 
@@ -588,7 +578,7 @@ fn parse_numbers<const N: usize>(flag: &str, text: &str) -> Result<[f64; N]> {
 
 pub fn pose(a: PoseArgs) -> Result<()> {
     let cal = read_camera(&a.camera)?;
-    let board = BoardSpec::parse(&a.board, a.square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))?;
+    let board = a.board.spec()?;
     let sample = match (&a.sample_corner, &a.sample_size_mm) {
         (Some(c), Some(s)) => {
             let [i, j] = parse_numbers::<2>("--sample-corner", c)?;

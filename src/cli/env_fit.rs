@@ -12,7 +12,7 @@
 use crate::envfit::{self, FitReport};
 use crate::imageio::{self, RgbImage};
 use crate::scene;
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use lucent_render::tracer;
 use std::path::{Path, PathBuf};
@@ -30,18 +30,9 @@ pub struct FitScaleArgs {
     /// Scale each channel on its own (written to the scene when the environment is a constant).
     #[arg(long)]
     pub per_channel: bool,
-    /// Samples per pixel of the empty-board render (overrides [render] spp).
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Seed of the render's random streams (overrides [render] seed).
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Image size WIDTHxHEIGHT instead of the camera's (the intrinsics are scaled to match, as in `lucent render`).
-    #[arg(long)]
-    pub size: Option<String>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
+    /// The empty-board render, as `lucent render` takes it.
+    #[command(flatten)]
+    pub render: super::groups::TwinRenderArgs,
     /// Output folder.
     #[arg(long, default_value = "lucent-out/env-scale")]
     pub out: PathBuf,
@@ -49,10 +40,7 @@ pub struct FitScaleArgs {
 
 /// Runs `lucent env fit-scale`.
 pub fn run(a: FitScaleArgs) -> Result<()> {
-    super::render::check_threads(a.threads)?;
-    if a.spp == Some(0) {
-        bail!("--spp 0: at least one sample per pixel");
-    }
+    a.render.check()?;
     let text =
         std::fs::read_to_string(&a.scene).with_context(|| format!("{}: cannot read scene file", a.scene.display()))?;
     let file = scene::parse(&text, &a.scene)?;
@@ -64,15 +52,7 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
         empty.environment.centre_m = full.summary.environment_centre_m;
     }
     let mut loaded = scene::build(&empty, &a.scene)?;
-    if let Some(size) = &a.size {
-        let (w, h) = super::render::parse_size(size)?;
-        let cam = &mut loaded.scene.camera;
-        let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
-        let [fx, fy, cx, cy] = cam.intrinsics;
-        cam.intrinsics = [fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5];
-        cam.width = w;
-        cam.height = h;
-    }
+    a.render.resize(&mut loaded)?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }
@@ -88,16 +68,8 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
         mask.iter_mut().zip(&extra.include).for_each(|(a, b)| *a &= *b);
     }
     let mut settings = loaded.settings.clone();
-    if let Some(s) = a.spp {
-        settings.spp = s;
-    }
-    if let Some(s) = a.seed {
-        settings.seed = s;
-    }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads.unwrap_or(0))
-        .build()
-        .context("cannot start worker threads")?;
+    a.render.apply(&mut settings);
+    let pool = a.render.pool()?;
     let (image, stats) = pool.install(|| tracer::render(&loaded.scene, &settings, &mut |_| {}));
     let fit = envfit::fit_scale(&image.mean, &image.variance_of_mean, &photo, &mask)
         .with_context(|| format!("{} against {}", a.scene.display(), a.photo.display()))?;

@@ -1,12 +1,10 @@
 //! `lucent fit`: recipe parameters fitted to measured BSSRDF slices
 //! ([`crate::fit`]), and `lucent bench fit`.
 
-use crate::bssrdf;
 use crate::fit::{self, report, Budget, FitResult, FreeParameter, Measurement, Objective, Problem};
 use crate::optics::recipe::{Overrides, Recipe};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
-use lucent_render::slab::{Beam, BeamMap};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -40,15 +38,8 @@ pub struct FitArgs {
     /// Wavelength of the measurements in nm (`--wavelength` is the older spelling).
     #[arg(long = "wavelength-nm", alias = "wavelength", default_value_t = 550.0)]
     pub wavelength: f64,
-    /// Gaussian beam FWHM in µm.
-    #[arg(long, default_value_t = 200.0, conflicts_with = "beam_map")]
-    pub beam_fwhm_um: f64,
-    /// Measured map of incident irradiance on the surface (EXR, float TIFF or CSV grid).
-    #[arg(long)]
-    pub beam_map: Option<PathBuf>,
-    /// Pixel size of the beam map in mm (else from its sidecar JSON).
-    #[arg(long)]
-    pub beam_map_pixel_mm: Option<f64>,
+    #[command(flatten)]
+    pub beam: super::groups::BeamArgs,
     /// Relative uncertainty of each measured slice (a scale error; the lab states 5 %).
     #[arg(long, default_value_t = crate::job::DEFAULT_MEASURED_REL_SD)]
     pub measured_rel_sd: f64,
@@ -172,16 +163,7 @@ pub fn build_problem(a: &FitArgs) -> Result<Problem> {
         };
         measurements.push(Measurement::load(&path, a.measured_pixel_mm, angles)?);
     }
-    let beam = match &a.beam_map {
-        Some(path) => {
-            let grid = bssrdf::read_grid(path, a.beam_map_pixel_mm).context("--beam-map")?;
-            Beam::Map(
-                BeamMap::new(grid.size, grid.size, grid.pixel_m, grid.values)
-                    .map_err(|e| anyhow!("{}: {e}", path.display()))?,
-            )
-        }
-        None => Beam::gaussian(a.beam_fwhm_um * 1e-6).map_err(|e| anyhow!("--beam-fwhm-um {}: {e}", a.beam_fwhm_um))?,
-    };
+    let (beam, _) = a.beam.beam()?;
     let thickness_m = match a.thickness_mm {
         Some(t) if !(t.is_finite() && t > 0.0) => bail!("--thickness-mm {t}: must be a positive number of millimetres"),
         Some(t) => t * 1e-3,

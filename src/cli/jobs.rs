@@ -1,30 +1,29 @@
-//! Parsed command lines → the library's jobs ([`crate::job`]): the flags a
-//! job models, copied into it; the command then validates the job (the
-//! ranges the pipeline checks too).
+//! Parsed command lines → the library's jobs ([`crate::job`]), as ripgrep
+//! turns its low-level arguments into its validated `HiArgs`: each
+//! command's arguments convert (`From`) into the job the pipeline builds
+//! directly from a project, and [`validate`] checks that job before the
+//! command does any work, with the same ranges and words for a flag as for
+//! the project key. The Python module converts its arguments the same way.
 
+use super::choices::name;
 use super::{bssrdf, camera, colour, compare, env_fit, fit, raw_clip, render, Cli, Command};
 use crate::job::{
     BssrdfCompareJob, BssrdfJob, CalibrateJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, FitJob,
     Job, JobError, OpticsJob, PoseJob, RawClippedJob, RenderJob,
 };
-use clap::{Parser, ValueEnum};
-
-/// The name a choice is spelled with on the command line.
-fn name<T: ValueEnum>(v: &T) -> String {
-    v.to_possible_value().map(|p| p.get_name().to_string()).unwrap_or_default()
-}
+use clap::Parser;
 
 /// The job of a parsed command, when it is one a pipeline stage runs (a
 /// `bssrdf` run needs a `--recipe` to be one).
 pub fn job_of(command: &Command) -> Option<Job> {
     Some(match command {
-        Command::Optics(a) => Job::Optics(optics(a)),
+        Command::Optics(a) => Job::Optics(a.into()),
         Command::Bssrdf(a) => match &a.command {
-            Some(bssrdf::BssrdfCommand::Compare(c)) => Job::BssrdfCompare(bssrdf_compare(c)),
+            Some(bssrdf::BssrdfCommand::Compare(c)) => Job::BssrdfCompare(c.into()),
             None => Job::Bssrdf(bssrdf_run(&a.run)?),
         },
-        Command::Fit(a) => Job::Fit(fit(a)),
-        Command::Calibrate(a) => Job::Calibrate(calibrate(a)),
+        Command::Fit(a) => Job::Fit(a.into()),
+        Command::Calibrate(a) => Job::Calibrate(a.into()),
         Command::Colour(colour::ColourCommand::Calibrate(a)) => Job::ColourCalibrate(ColourCalibrateJob {
             image: a.image.clone(),
             camera: a.camera.clone(),
@@ -39,11 +38,11 @@ pub fn job_of(command: &Command) -> Option<Job> {
             output: a.output.clone(),
             to: name(&a.to),
         }),
-        Command::Raw(camera::RawCommand::Clipped(a)) => Job::RawClipped(raw_clipped(a)),
-        Command::Pose(a) => Job::Pose(pose(a)),
-        Command::Env(camera::EnvCommand::FitScale(a)) => Job::EnvScale(env_scale(a)),
-        Command::Render(a) => Job::Render(render(a)),
-        Command::Compare(a) => Job::Compare(compare(a)),
+        Command::Raw(camera::RawCommand::Clipped(a)) => Job::RawClipped(a.into()),
+        Command::Pose(a) => Job::Pose(a.into()),
+        Command::Env(camera::EnvCommand::FitScale(a)) => Job::EnvScale(a.into()),
+        Command::Render(a) => Job::Render(a.into()),
+        Command::Compare(a) => Job::Compare(a.into()),
         _ => return None,
     })
 }
@@ -59,16 +58,20 @@ pub fn validate(command: &Command) -> Result<(), JobError> {
     job_of(command).map_or(Ok(()), |j| j.validate())
 }
 
-fn optics(a: &super::OpticsArgs) -> OpticsJob {
-    OpticsJob {
-        recipes: a.recipes.clone(),
-        wavelengths: a.wavelengths.clone(),
-        out: a.out.clone().unwrap_or_else(|| "lucent-out/optics".into()),
-        weight_percent: a.weight_percent,
+impl From<&super::OpticsArgs> for OpticsJob {
+    fn from(a: &super::OpticsArgs) -> Self {
+        OpticsJob {
+            recipes: a.recipes.clone(),
+            wavelengths: a.wavelengths.clone(),
+            out: a.out.clone().unwrap_or_else(|| "lucent-out/optics".into()),
+            weight_percent: a.weight_percent,
+        }
     }
 }
 
-fn bssrdf_run(a: &bssrdf::RunArgs) -> Option<BssrdfJob> {
+/// The job of a `bssrdf` run; `None` without `--recipe` (optical
+/// coefficients given directly are no pipeline stage's job).
+pub fn bssrdf_run(a: &bssrdf::RunArgs) -> Option<BssrdfJob> {
     Some(BssrdfJob {
         recipe: a.recipe.clone()?,
         wavelength_nm: a.wavelength,
@@ -87,92 +90,108 @@ fn bssrdf_run(a: &bssrdf::RunArgs) -> Option<BssrdfJob> {
     })
 }
 
-fn bssrdf_compare(c: &bssrdf::CompareArgs) -> BssrdfCompareJob {
-    BssrdfCompareJob {
-        measured: c.measured.clone(),
-        simulated: c.simulated.clone(),
-        out: c.out.clone(),
-        measured_pixel_mm: c.measured_pixel_mm,
-        threshold: c.threshold,
+impl From<&bssrdf::CompareArgs> for BssrdfCompareJob {
+    fn from(c: &bssrdf::CompareArgs) -> Self {
+        BssrdfCompareJob {
+            measured: c.measured.clone(),
+            simulated: c.simulated.clone(),
+            out: c.out.clone(),
+            measured_pixel_mm: c.measured_pixel_mm,
+            threshold: c.threshold,
+        }
     }
 }
 
-fn fit(a: &fit::FitArgs) -> FitJob {
-    FitJob {
-        recipe: a.recipe.clone(),
-        measured: a.measured.clone(),
-        measured_pixel_mm: a.measured_pixel_mm,
-        weight_percent: a.weight_percent,
-        free: a.free.split(',').map(|f| f.trim().to_string()).filter(|f| !f.is_empty()).collect(),
-        wavelength_nm: a.wavelength,
-        seed: a.seed,
-        quiet: a.quiet,
-        objective: name(&a.objective),
-        rel_error: a.rel_error,
-        paths: a.paths,
-        measured_rel_sd: a.measured_rel_sd,
-        bounds: a.bounds.clone(),
-        threshold: a.threshold,
-        out: a.out.clone(),
+impl From<&fit::FitArgs> for FitJob {
+    fn from(a: &fit::FitArgs) -> Self {
+        FitJob {
+            recipe: a.recipe.clone(),
+            measured: a.measured.clone(),
+            measured_pixel_mm: a.measured_pixel_mm,
+            weight_percent: a.weight_percent,
+            free: a.free.split(',').map(|f| f.trim().to_string()).filter(|f| !f.is_empty()).collect(),
+            wavelength_nm: a.wavelength,
+            seed: a.seed,
+            quiet: a.quiet,
+            objective: name(&a.objective),
+            rel_error: a.rel_error,
+            paths: a.paths,
+            measured_rel_sd: a.measured_rel_sd,
+            bounds: a.bounds.clone(),
+            threshold: a.threshold,
+            out: a.out.clone(),
+        }
     }
 }
 
-fn calibrate(a: &camera::CalibrateArgs) -> CalibrateJob {
-    CalibrateJob {
-        images: a.images.clone(),
-        board: a.board.clone(),
-        square_mm: a.square_mm,
-        out: a.out.clone(),
-        model: a.model,
+impl From<&camera::CalibrateArgs> for CalibrateJob {
+    fn from(a: &camera::CalibrateArgs) -> Self {
+        CalibrateJob {
+            images: a.images.clone(),
+            board: a.board.board.clone(),
+            square_mm: a.board.square_mm,
+            out: a.out.clone(),
+            model: a.model,
+        }
     }
 }
 
-fn raw_clipped(a: &raw_clip::ClippedArgs) -> RawClippedJob {
-    RawClippedJob { input: a.input.clone(), out: a.out.clone() }
-}
-
-fn pose(a: &camera::PoseArgs) -> PoseJob {
-    PoseJob {
-        camera: a.camera.clone(),
-        image: a.image.clone(),
-        board: a.board.clone(),
-        square_mm: a.square_mm,
-        out: a.out.clone(),
-        sample: a.sample_corner.clone().zip(a.sample_size_mm.clone()),
+impl From<&raw_clip::ClippedArgs> for RawClippedJob {
+    fn from(a: &raw_clip::ClippedArgs) -> Self {
+        RawClippedJob { input: a.input.clone(), out: a.out.clone() }
     }
 }
 
-fn env_scale(a: &env_fit::FitScaleArgs) -> EnvScaleJob {
-    EnvScaleJob {
-        scene: a.scene.clone(),
-        photo: a.photo.clone(),
-        spp: a.spp,
-        per_channel: a.per_channel,
-        mask: a.mask.clone(),
-        size: a.size.clone(),
-        seed: a.seed,
-        out: a.out.clone(),
+impl From<&camera::PoseArgs> for PoseJob {
+    fn from(a: &camera::PoseArgs) -> Self {
+        PoseJob {
+            camera: a.camera.clone(),
+            image: a.image.clone(),
+            board: a.board.board.clone(),
+            square_mm: a.board.square_mm,
+            out: a.out.clone(),
+            sample: a.sample_corner.clone().zip(a.sample_size_mm.clone()),
+        }
     }
 }
 
-fn render(a: &render::RenderArgs) -> RenderJob {
-    RenderJob {
-        scene: a.scene.clone(),
-        spp: a.spp,
-        quiet: a.quiet,
-        time_s: a.time_s,
-        size: a.size.clone(),
-        seed: a.seed,
-        out: a.out.clone(),
+impl From<&env_fit::FitScaleArgs> for EnvScaleJob {
+    fn from(a: &env_fit::FitScaleArgs) -> Self {
+        EnvScaleJob {
+            scene: a.scene.clone(),
+            photo: a.photo.clone(),
+            spp: a.render.spp,
+            per_channel: a.per_channel,
+            mask: a.mask.clone(),
+            size: a.render.size.clone(),
+            seed: a.render.seed,
+            out: a.out.clone(),
+        }
     }
 }
 
-fn compare(a: &compare::CompareArgs) -> CompareJob {
-    CompareJob {
-        photo: a.photo.clone(),
-        render: a.render.clone(),
-        out: a.out.clone(),
-        mask: a.mask.clone(),
-        data_range: a.data_range,
+impl From<&render::RenderArgs> for RenderJob {
+    fn from(a: &render::RenderArgs) -> Self {
+        RenderJob {
+            scene: a.scene.clone(),
+            spp: a.render.spp,
+            quiet: a.quiet,
+            time_s: a.time_s,
+            size: a.render.size.clone(),
+            seed: a.render.seed,
+            out: a.out.clone(),
+        }
+    }
+}
+
+impl From<&compare::CompareArgs> for CompareJob {
+    fn from(a: &compare::CompareArgs) -> Self {
+        CompareJob {
+            photo: a.photo.clone(),
+            render: a.render.clone(),
+            out: a.out.clone(),
+            mask: a.mask.clone(),
+            data_range: a.data_range,
+        }
     }
 }

@@ -8,6 +8,7 @@ pub mod colour;
 pub mod compare;
 pub mod env_fit;
 pub mod fit;
+pub mod groups;
 pub mod interrupt;
 pub mod jobs;
 pub mod raw_clip;

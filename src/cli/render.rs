@@ -14,6 +14,7 @@
 //! * `render.json` — the scene as resolved, settings, seed, timings, counters.
 
 use super::interrupt::Interrupt;
+use crate::fault::Interrupted;
 use crate::imageio::{self, RgbImage};
 use crate::scene::{self, RenderReport, SceneSummary};
 use anyhow::{bail, Context, Result};
@@ -30,18 +31,11 @@ pub struct RenderArgs {
     /// Output folder for render.exr, render.png and render.json.
     #[arg(long, default_value = "lucent-out/render")]
     pub out: PathBuf,
-    /// Samples per pixel (overrides [render] spp).
-    #[arg(long)]
-    pub spp: Option<u32>,
+    #[command(flatten)]
+    pub render: super::groups::TwinRenderArgs,
     /// Wall-time budget in seconds: stop after the pass that exceeds it (overrides [render] time_s).
     #[arg(long)]
     pub time_s: Option<f64>,
-    /// Seed of the random streams (overrides [render] seed).
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Image size WIDTHxHEIGHT instead of the camera's (the intrinsics are scaled to match).
-    #[arg(long)]
-    pub size: Option<String>,
     /// Exposure of the PNG preview in stops (the EXR is never scaled).
     #[arg(long, default_value_t = 0.0)]
     pub exposure: f64,
@@ -61,9 +55,6 @@ pub struct RenderArgs {
     /// Follow both the reflection and the refraction where a path meets the object from outside.
     #[arg(long)]
     pub split_entry: bool,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -268,39 +259,19 @@ pub fn check_threads(threads: Option<usize>) -> Result<()> {
 /// budget, seed, estimator choices): what `lucent render` renders. The
 /// scene's warnings are in the returned [`scene::LoadedScene`].
 pub fn prepare(a: &RenderArgs) -> Result<(scene::LoadedScene, Settings)> {
-    check_threads(a.threads)?;
+    a.render.check()?;
     if let Some(t) = a.time_s {
         check_time_s(t)?;
-    }
-    if a.spp == Some(0) {
-        bail!("--spp 0: at least one sample per pixel");
     }
     if !a.exposure.is_finite() {
         bail!("--exposure must be finite");
     }
     let mut loaded = scene::load(&a.scene)?;
-    if let Some(size) = &a.size {
-        let (w, h) = parse_size(size)?;
-        let cam = &mut loaded.scene.camera;
-        let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
-        let [fx, fy, cx, cy] = cam.intrinsics;
-        // Pixel centres at integers: the image edge is at −½, so scale about it.
-        cam.intrinsics = [fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5];
-        cam.width = w;
-        cam.height = h;
-        loaded.summary.image_width = w;
-        loaded.summary.image_height = h;
-        loaded.summary.intrinsics = cam.intrinsics;
-    }
+    a.render.resize(&mut loaded)?;
     let mut settings = loaded.settings.clone();
-    if let Some(s) = a.spp {
-        settings.spp = s;
-    }
+    a.render.apply(&mut settings);
     if a.time_s.is_some() {
         settings.time_budget_s = a.time_s;
-    }
-    if let Some(s) = a.seed {
-        settings.seed = s;
     }
     if let Some(d) = a.dispersion {
         settings.dispersion = d.into();
@@ -348,10 +319,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         None => None,
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create output folder", a.out.display()))?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads.unwrap_or(0))
-        .build()
-        .context("cannot start worker threads")?;
+    let pool = a.render.pool()?;
     let threads = pool.current_num_threads();
     let (w, h) = (loaded.scene.camera.width, loaded.scene.camera.height);
     if !a.quiet {
@@ -380,7 +348,9 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
             )
         });
         if interrupt.requested() {
-            bail!("interrupted: shard {k}/{n} not written (a shard is merged whole or not at all)");
+            return Err(
+                Interrupted(format!("shard {k}/{n} not written (a shard is merged whole or not at all)")).into()
+            );
         }
         drop(interrupt);
         write_shard(&a.out, &acc, &stats, identity, k, range.clone())?;
@@ -450,11 +420,12 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     println!("relative standard error per pixel, median (90th percentile): {}", describe_errors(&e));
     println!("wrote {}/render.exr, render.png, render.json", a.out.display());
     if interrupted {
-        bail!(
-            "interrupted: {}/render.* hold the {} spp finished before Ctrl-C (render.json says \"interrupted\": true)",
+        return Err(Interrupted(format!(
+            "{}/render.* hold the {} spp finished before Ctrl-C (render.json says \"interrupted\": true)",
             a.out.display(),
             report.spp
-        );
+        ))
+        .into());
     }
     Ok(())
 }

@@ -4,10 +4,10 @@
 
 use super::choices::{ForceChoice, StageChoice};
 use super::interrupt::Interrupt;
-use crate::fault::{Fault, Faulted};
+use crate::fault::{Fault, Faulted, Interrupted};
 use crate::pipeline::executor::{self, Kind};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -69,7 +69,7 @@ fn run_lucent(exe: &Path, args: &[String], log: &Path, interrupt: &Interrupt) ->
     let _ = writeln!(f, "$ lucent {}", args.join(" "));
     let err = f.try_clone().with_context(|| format!("{}: cannot open log", log.display()))?;
     if interrupt.requested() {
-        bail!("interrupted (Ctrl-C or SIGTERM) before `lucent {}`", args.join(" "));
+        return Err(Interrupted(format!("before `lucent {}`", args.join(" "))).into());
     }
     let mut child = Command::new(exe)
         .args(args)
@@ -98,9 +98,9 @@ fn run_lucent(exe: &Path, args: &[String], log: &Path, interrupt: &Interrupt) ->
         std::thread::sleep(std::time::Duration::from_millis(20));
     };
     if interrupt.requested() {
-        bail!("interrupted (Ctrl-C or SIGTERM) during `lucent {}`", args.join(" "));
+        return Err(Interrupted(format!("during `lucent {}`", args.join(" "))).into());
     }
-    match status.code().map_or(Some(crate::fault::Fault::Internal), crate::fault::Fault::from_exit_code) {
+    match status.code().map_or_else(|| Some(killed_by(&status)), Fault::from_exit_code) {
         None => Ok(()),
         Some(fault) => Err(anyhow::Error::from(Faulted {
             fault,
@@ -111,6 +111,26 @@ fn run_lucent(exe: &Path, args: &[String], log: &Path, interrupt: &Interrupt) ->
                 tail(log, 12)
             ),
         })),
+    }
+}
+
+/// The class of a command ended by a signal: SIGINT or SIGTERM stopped it
+/// (interrupted), SIGKILL is the machine's (the kernel's out-of-memory
+/// killer, a batch system's limit), anything else (SIGSEGV, SIGABRT) a bug.
+fn killed_by(status: &std::process::ExitStatus) -> Fault {
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        match status.signal() {
+            Some(libc::SIGINT | libc::SIGTERM) => Fault::Interrupted,
+            Some(libc::SIGKILL) => Fault::Environment,
+            _ => Fault::Internal,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = status;
+        Fault::Internal
     }
 }
 

@@ -1,0 +1,143 @@
+//! Groups of flags that several commands share, each defined once and
+//! pulled into a command with `#[command(flatten)]` (clap), so the flags are
+//! spelled, documented and checked the same everywhere:
+//!
+//! * [`BeamArgs`]: the incident beam of a slab slice (`bssrdf`, `fit`);
+//! * [`BoardArgs`]: the calibration chessboard (`calibrate`, `pose`);
+//! * [`TwinRenderArgs`]: the overrides of a scene's `[render]` section and
+//!   the image size (`render`, `env fit-scale`).
+
+use crate::bssrdf;
+use crate::scene::LoadedScene;
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Args;
+use lucent_calib::scene::BoardSpec;
+use lucent_render::slab::{Beam, BeamMap};
+use lucent_render::tracer::Settings;
+use std::path::PathBuf;
+
+/// The beam that lights the slab.
+#[derive(Debug, Clone, Args)]
+pub struct BeamArgs {
+    /// Gaussian beam FWHM in µm.
+    #[arg(long, default_value_t = 200.0, conflicts_with = "beam_map")]
+    pub beam_fwhm_um: f64,
+    /// Measured map of incident irradiance on the surface (EXR, float TIFF or CSV grid).
+    #[arg(long)]
+    pub beam_map: Option<PathBuf>,
+    /// Pixel size of the beam map in mm (else from its sidecar JSON).
+    #[arg(long)]
+    pub beam_map_pixel_mm: Option<f64>,
+}
+
+impl Default for BeamArgs {
+    /// The flags' defaults: a Gaussian beam of 200 µm FWHM.
+    fn default() -> Self {
+        BeamArgs { beam_fwhm_um: 200.0, beam_map: None, beam_map_pixel_mm: None }
+    }
+}
+
+impl BeamArgs {
+    /// The beam, and how a report describes it.
+    pub fn beam(&self) -> Result<(Beam, String)> {
+        match &self.beam_map {
+            Some(path) => {
+                let grid = bssrdf::read_grid(path, self.beam_map_pixel_mm).context("--beam-map")?;
+                let map = BeamMap::new(grid.size, grid.size, grid.pixel_m, grid.values)
+                    .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+                Ok((Beam::Map(map), format!("map {}", path.display())))
+            }
+            None => {
+                let fwhm = self.beam_fwhm_um;
+                let beam = Beam::gaussian(fwhm * 1e-6).map_err(|e| anyhow!("--beam-fwhm-um {fwhm}: {e}"))?;
+                Ok((beam, format!("gaussian, FWHM {fwhm} µm")))
+            }
+        }
+    }
+}
+
+/// The chessboard of a calibration or a pose.
+#[derive(Debug, Clone, Args)]
+pub struct BoardArgs {
+    /// Inner corners COLSxROWS, e.g. 9x6 for a board of 10 × 7 squares. Corner (0, 0), the
+    /// world's origin, is the one diagonally beyond the light outer corner square (OpenCV's
+    /// numbering, also `lucent env orient`'s); only a board with one odd and one even count
+    /// (e.g. 9x6) fixes it.
+    #[arg(long)]
+    pub board: String,
+    /// Side of one square in millimetres.
+    #[arg(long)]
+    pub square_mm: f64,
+}
+
+impl BoardArgs {
+    /// The board, or an error naming both flags.
+    pub fn spec(&self) -> Result<BoardSpec> {
+        super::camera::board_spec(&self.board, self.square_mm)
+    }
+}
+
+/// How a scene is rendered: the overrides of its `[render]` section and
+/// the image size.
+#[derive(Debug, Clone, Default, Args)]
+pub struct TwinRenderArgs {
+    /// Samples per pixel (overrides [render] spp).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Seed of the random streams (overrides [render] seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Image size WIDTHxHEIGHT instead of the camera's (the intrinsics are scaled to match).
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+impl TwinRenderArgs {
+    /// The checks that need no scene: thread count and sample count.
+    pub fn check(&self) -> Result<()> {
+        super::render::check_threads(self.threads)?;
+        if self.spp == Some(0) {
+            bail!("--spp 0: at least one sample per pixel");
+        }
+        Ok(())
+    }
+
+    /// `--size`: the camera's image size, its intrinsics scaled to match
+    /// (about the image edge, pixel centres at integers).
+    pub fn resize(&self, loaded: &mut LoadedScene) -> Result<()> {
+        let Some(size) = &self.size else { return Ok(()) };
+        let (w, h) = super::render::parse_size(size)?;
+        let cam = &mut loaded.scene.camera;
+        let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
+        let [fx, fy, cx, cy] = cam.intrinsics;
+        // Pixel centres at integers: the image edge is at −½, so scale about it.
+        cam.intrinsics = [fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5];
+        cam.width = w;
+        cam.height = h;
+        loaded.summary.image_width = w;
+        loaded.summary.image_height = h;
+        loaded.summary.intrinsics = cam.intrinsics;
+        Ok(())
+    }
+
+    /// `--spp` and `--seed` over the scene's settings.
+    pub fn apply(&self, settings: &mut Settings) {
+        if let Some(s) = self.spp {
+            settings.spp = s;
+        }
+        if let Some(s) = self.seed {
+            settings.seed = s;
+        }
+    }
+
+    /// The worker pool of `--threads`.
+    pub fn pool(&self) -> Result<rayon::ThreadPool> {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(self.threads.unwrap_or(0))
+            .build()
+            .context("cannot start worker threads")
+    }
+}
