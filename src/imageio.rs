@@ -188,6 +188,16 @@ pub fn write_exr_channels(
     height: usize,
     channels: &[(&str, &[f32])],
 ) -> Result<(), ImageIoError> {
+    Ok(write_atomic(path, &encode_exr_channels(path, width, height, channels)?)?)
+}
+
+/// The bytes [`write_exr_channels`] writes (`path` only names the file in an error).
+pub fn encode_exr_channels(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: &[(&str, &[f32])],
+) -> Result<Vec<u8>, ImageIoError> {
     use exr::prelude::*;
     for (_, c) in channels {
         if c.len() != width * height {
@@ -204,7 +214,7 @@ pub fn write_exr_channels(
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| ImageIoError::Encode { path: path.to_path_buf(), reason: e.to_string() })?;
-    Ok(write_atomic(path, &bytes.into_inner())?)
+    Ok(bytes.into_inner())
 }
 
 /// Reads the named float channels (e.g. `variance.R`, `spp`) of an EXR's
@@ -234,9 +244,14 @@ pub fn read_exr_channels(path: &Path, names: &[&str]) -> Result<(usize, usize, V
 
 /// Writes a linear RGB image as a 32-bit float EXR, atomically.
 pub fn write_exr(path: &Path, img: &RgbImage) -> Result<(), ImageIoError> {
+    Ok(write_atomic(path, &encode_exr(path, img)?)?)
+}
+
+/// The bytes [`write_exr`] writes (`path` only names the file in an error).
+pub fn encode_exr(path: &Path, img: &RgbImage) -> Result<Vec<u8>, ImageIoError> {
     let plane = |c: usize| img.data.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
     let (r, g, b) = (plane(0), plane(1), plane(2));
-    write_exr_channels(path, img.width, img.height, &[("R", &r), ("G", &g), ("B", &b)])
+    encode_exr_channels(path, img.width, img.height, &[("R", &r), ("G", &g), ("B", &b)])
 }
 
 /// The sRGB transfer function (IEC 61966-2-1) of a linear value in [0, 1].
@@ -252,6 +267,11 @@ pub fn srgb_encode(linear: f32) -> f32 {
 /// Writes a linear RGB image as an 8-bit sRGB PNG for display (values
 /// clipped to [0, 1]), atomically.
 pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), ImageIoError> {
+    Ok(write_atomic(path, &encode_png(path, img)?)?)
+}
+
+/// The bytes [`write_png`] writes (`path` only names the file in an error).
+pub fn encode_png(path: &Path, img: &RgbImage) -> Result<Vec<u8>, ImageIoError> {
     let bytes: Vec<u8> = img.data.iter().map(|v| (srgb_encode(*v) * 255.0 + 0.5) as u8).collect();
     let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes).ok_or(ImageIoError::Size {
         got: img.data.len(),
@@ -263,7 +283,7 @@ pub fn write_png(path: &Path, img: &RgbImage) -> Result<(), ImageIoError> {
     let mut out = std::io::Cursor::new(Vec::new());
     buf.write_to(&mut out, image::ImageFormat::Png)
         .map_err(|e| ImageIoError::Encode { path: path.to_path_buf(), reason: e.to_string() })?;
-    Ok(write_atomic(path, &out.into_inner())?)
+    Ok(out.into_inner())
 }
 
 /// One channel of a floating-point TIFF (32- or 64-bit samples; of several

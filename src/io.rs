@@ -65,6 +65,71 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     result.map_err(err)
 }
 
+/// Writes several files as one output: each to a temporary sibling first,
+/// then all renamed into place, so an error (a full disk, a folder where a
+/// file goes) leaves none of them new or half-written, and Ctrl-C or SIGTERM
+/// during the renames is acted on only after the last one. The files of one
+/// result (an image and its sidecar JSON) are never found apart.
+///
+/// ```
+/// let dir = std::env::temp_dir().join(format!("lucent-doc-files-{}", std::process::id()));
+/// std::fs::create_dir_all(dir.join("b.json")).unwrap(); // a folder where a file goes
+/// let (a, b) = (dir.join("a.exr"), dir.join("b.json"));
+/// assert!(lucent::io::write_files_atomic(&[(&a, b"image"), (&b, b"{}")]).is_err());
+/// assert!(!a.exists(), "nothing of the set is written when one file cannot be");
+/// # std::fs::remove_dir_all(&dir).unwrap();
+/// ```
+pub fn write_files_atomic(files: &[(&Path, &[u8])]) -> Result<(), WriteError> {
+    let _changing = changing_output();
+    let mut temps: Vec<(PathBuf, &Path, interrupt::Registered)> = Vec::new();
+    let remove_temps = |temps: &[(PathBuf, &Path, interrupt::Registered)]| {
+        for (tmp, _, _) in temps {
+            let _ = std::fs::remove_file(tmp);
+        }
+    };
+    for &(path, bytes) in files {
+        let err = |source| WriteError { path: path.to_path_buf(), source };
+        if path.is_dir() {
+            remove_temps(&temps);
+            return Err(err(std::io::Error::new(std::io::ErrorKind::IsADirectory, "a folder is where the file goes")));
+        }
+        let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let tmp = parent.join(format!(".{name}.{}.tmp", std::process::id()));
+        let written = create_folder_unlocked(parent).and_then(|()| {
+            let mut f = std::fs::File::create(&tmp)?;
+            let registered = interrupt::Registered::new(&tmp);
+            f.write_all(bytes)?;
+            f.sync_all()?;
+            Ok(registered)
+        });
+        match written {
+            Ok(registered) => temps.push((tmp, path, registered)),
+            Err(source) => {
+                let _ = std::fs::remove_file(&tmp);
+                remove_temps(&temps);
+                return Err(err(source));
+            }
+        }
+    }
+    // Every file is complete: move them in, a signal waiting until the last.
+    let _deferred = interrupt::defer();
+    let existed: Vec<bool> = temps.iter().map(|(_, p, _)| std::fs::symlink_metadata(p).is_ok()).collect();
+    for (i, (tmp, path, _)) in temps.iter().enumerate() {
+        if let Err(source) = std::fs::rename(tmp, path) {
+            // Undo: the files this call added go, the unmoved temporaries too.
+            for ((_, done, _), &was) in temps[..i].iter().zip(&existed) {
+                if !was {
+                    let _ = std::fs::remove_file(done);
+                }
+            }
+            remove_temps(&temps[i..]);
+            return Err(WriteError { path: path.to_path_buf(), source });
+        }
+    }
+    Ok(())
+}
+
 /// `create_dir_all`, but a file where a folder is needed is said plainly
 /// ("out exists and is not a folder" instead of "File exists (os error 17)").
 pub fn create_folder(dir: &Path) -> std::io::Result<()> {
@@ -302,7 +367,7 @@ pub fn remove_temporaries_on_interrupt() {
 mod interrupt {
     use std::cell::UnsafeCell;
     use std::path::Path;
-    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
 
     const SLOTS: usize = 32;
     const LEN: usize = 4096;
@@ -354,8 +419,48 @@ mod interrupt {
         }
     }
 
+    /// Callers of [`defer`] whose guard is alive, and the signal that came meanwhile.
+    static DEFERRING: AtomicUsize = AtomicUsize::new(0);
+    static PENDING: AtomicI32 = AtomicI32::new(0);
+
+    /// While the guard lives, a SIGINT or SIGTERM is held back (recorded)
+    /// and acted on when the last guard is dropped: a set of files being
+    /// renamed into place is never cut in half.
+    pub(super) struct Deferred(());
+
+    pub(super) fn defer() -> Deferred {
+        DEFERRING.fetch_add(1, Ordering::SeqCst);
+        Deferred(())
+    }
+
+    impl Drop for Deferred {
+        fn drop(&mut self) {
+            if DEFERRING.fetch_sub(1, Ordering::SeqCst) == 1 {
+                let signal = PENDING.swap(0, Ordering::SeqCst);
+                #[cfg(unix)]
+                if signal != 0 {
+                    act(signal);
+                }
+                let _ = signal;
+            }
+        }
+    }
+
     #[cfg(unix)]
     extern "C" fn on_signal(signal: libc::c_int) {
+        // Recorded first, then held back if a set of files is being moved in
+        // (its guard acts on it), else acted on at once.
+        PENDING.store(signal, Ordering::SeqCst);
+        if DEFERRING.load(Ordering::SeqCst) > 0 {
+            return;
+        }
+        act(signal);
+    }
+
+    /// Removes the temporary files being written and ends the process with
+    /// the signal's default action.
+    #[cfg(unix)]
+    fn act(signal: libc::c_int) {
         for (i, armed) in ARMED.iter().enumerate() {
             if armed.load(Ordering::Acquire) {
                 // SAFETY: an armed slot holds a NUL-terminated path; unlink is async-signal-safe.
@@ -382,10 +487,16 @@ mod interrupt {
 
 /// Serialises `value` as pretty JSON and writes it atomically.
 pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), WriteError> {
+    write_atomic(path, &json_bytes(path, value)?)
+}
+
+/// The bytes [`write_json`] writes: pretty JSON and a newline (`path` only
+/// names the file in an error).
+pub fn json_bytes<T: serde::Serialize>(path: &Path, value: &T) -> Result<Vec<u8>, WriteError> {
     let mut text = serde_json::to_string_pretty(value)
         .map_err(|e| WriteError { path: path.to_path_buf(), source: std::io::Error::other(e) })?;
     text.push('\n');
-    write_atomic(path, text.as_bytes())
+    Ok(text.into_bytes())
 }
 
 /// A file pattern that cannot be expanded ([`glob_files`]).

@@ -342,3 +342,78 @@ fn leftovers_failing_and_interrupted_runs_leave_nothing_unmarked() {
     assert!(names.iter().all(|n| !n.contains("previous") && !n.contains("staging")), "{names:?}");
     assert!(d.join("o/optics/manifest.json").is_file(), "the earlier stage is intact");
 }
+
+/// Leftovers: the files of one result (an image and its sidecar JSON, a
+/// pose's scene and view) are written together or not at all. A folder
+/// where the sidecar goes makes `raw decode` and `undistort` fail before
+/// any of their files appears, and no temporary file stays.
+#[test]
+fn leftovers_the_files_of_one_result_are_written_together_or_not_at_all() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    write_exr(&d.join("lin.exr"), 16, 12, 0.3);
+    let truth = root().join("fixtures/demo/truth_colour.json");
+    let o = lucent_in(d, &["synth", "raw", "lin.exr", "cap.dng", "--truth", truth.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::create_dir(d.join("dec.json")).unwrap();
+    let o = lucent_in(d, &["raw", "decode", "cap.dng", "dec.exr", "--preview", "dec.png"]);
+    refused(&o, &["dec.json"], "raw decode with a folder where its metadata goes");
+    assert!(!d.join("dec.exr").exists() && !d.join("dec.png").exists(), "{:?}", snapshot(d).keys());
+    // undistort: a photo of the demo camera's size, a folder where u.json goes.
+    let camera = root().join("fixtures/demo/truth_camera.json");
+    write_exr(&d.join("photo.exr"), 640, 480, 0.2);
+    std::fs::create_dir(d.join("u.json")).unwrap();
+    let o = lucent_in(d, &["undistort", "--camera", camera.to_str().unwrap(), "photo.exr", "u.exr"]);
+    refused(&o, &["u.json"], "undistort with a folder where its sidecar goes");
+    assert!(!d.join("u.exr").exists(), "{:?}", snapshot(d).keys());
+    // The same commands write both files when they can.
+    let o = lucent_in(d, &["raw", "decode", "cap.dng", "ok.exr", "--preview", "ok.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(["ok.exr", "ok.json", "ok.png"].iter().all(|f| d.join(f).is_file()), "{:?}", snapshot(d).keys());
+    let names: Vec<String> = snapshot(d).keys().map(|p| p.display().to_string()).collect();
+    assert!(names.iter().all(|n| !n.contains(".tmp")), "temporary files left: {names:?}");
+}
+
+/// Leftovers: SIGTERM (a batch system's stop) or Ctrl-C during `lucent
+/// fit` stops the fit at the end of the simulation under way: exit 130
+/// (interrupted), nothing written, no output or staging folder left.
+#[test]
+fn leftovers_a_stopped_fit_writes_nothing_and_exits_130() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    // A 21 × 21 measured slice: a bright centre on a weak floor.
+    let rows: Vec<String> = (0..21)
+        .map(|i: i32| {
+            (0..21)
+                .map(|j: i32| format!("{:.6}", 1.0 + 100.0 * (-((i - 10).pow(2) + (j - 10).pow(2)) as f64 / 8.0).exp()))
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect();
+    std::fs::write(d.join("m.csv"), rows.join("\n") + "\n").unwrap();
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    let measured = format!("{}:45/0", d.join("m.csv").display());
+    let out = d.join("fits/f");
+    for signal in [libc::SIGTERM, libc::SIGINT] {
+        let args = [
+            "fit",
+            "--recipe",
+            recipe.to_str().unwrap(),
+            "--measured",
+            &measured,
+            "--measured-pixel-mm",
+            "0.2",
+            "--free",
+            "weight_percent",
+            "--paths",
+            "50000000",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        let (status, text) = crate::common::signal_n_after(&args, "Ctrl-C stops", 1, signal);
+        assert_eq!(status.code(), Some(130), "signal {signal}: {text}");
+        assert!(text.contains("interrupted") && text.contains("nothing was written"), "{text}");
+        assert!(!text.contains("panicked"), "{text}");
+        assert_eq!(std::fs::read_dir(d).unwrap().count(), 1, "signal {signal} left {:?}", snapshot(d).keys());
+    }
+}

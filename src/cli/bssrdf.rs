@@ -461,6 +461,8 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
     if let Some((k, n)) = shard {
         let range = crate::shard::range(total_batches, k, n);
         let identity = super::shard::identity(a.seed, format!("{} paths", a.paths.unwrap_or(0)), n)?;
+        // A second Ctrl-C or SIGTERM ends the process: the staging folder goes with it.
+        let _remove_on_abort = super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out));
         let stage = crate::io::StagedDir::new(&a.out)?;
         let interrupt = Interrupt::install();
         let mut wall_s = 0.0;
@@ -690,7 +692,10 @@ fn compare(a: CompareArgs) -> Result<()> {
     let simulated = bssrdf::read_grid(&sim_path, None)?;
     let (c, rel) = bssrdf::compare(&measured, &simulated, a.threshold)
         .map_err(|e| anyhow!("{} vs {}: {e}", a.measured.display(), sim_path.display()))?;
-    // Written into a staging folder and moved into --out only when all three files are made.
+    // Written into a staging folder and moved into --out only when all three
+    // files are made; Ctrl-C or SIGTERM removes the staging folder and ends.
+    let _interrupt = Interrupt::abort_on_first();
+    let _remove_on_abort = super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out));
     let stage = crate::io::StagedDir::new(&a.out)?;
     let out = stage.path();
     crate::io::write_json(&out.join("comparison.json"), &c)?;

@@ -4,7 +4,7 @@
 
 use super::choices::{named, ProjectionChoice};
 use crate::imageio::{self, extension, RgbImage, RAW_EXTENSIONS};
-use crate::io::{write_atomic, write_json};
+use crate::io::{json_bytes, write_atomic, write_json};
 use crate::plot;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand};
@@ -213,12 +213,16 @@ fn raw_decode(a: RawDecodeArgs) -> Result<()> {
     }
     let (img, meta) = raw::decode_raw(&a.input, &opts)?;
     let img = to_image(img);
-    imageio::write_exr(&a.output, &img)?;
+    // The image, its metadata and the preview are one output: all or none.
     let sidecar = a.output.with_extension("json");
-    write_json(&sidecar, &meta)?;
+    let mut files = vec![
+        (a.output.clone(), imageio::encode_exr(&a.output, &img)?),
+        (sidecar.clone(), json_bytes(&sidecar, &meta)?),
+    ];
     if let Some(p) = &a.preview {
-        imageio::write_png(p, &img)?;
+        files.push((p.clone(), imageio::encode_png(p, &img)?));
     }
+    write_all(&files)?;
     for w in &meta.warnings {
         eprintln!("warning: {}: {w}", a.input.display());
     }
@@ -440,15 +444,33 @@ fn load_rgb(path: &Path) -> Result<(RgbBuffer, bool)> {
     }
 }
 
-/// Writes values that are already display-encoded as an 8-bit PNG, unchanged.
-fn write_png_as_stored(path: &Path, img: &RgbBuffer) -> Result<()> {
+/// An undistorted image as the bytes of `path`'s format: EXR (float), PNG
+/// sRGB-encoded from linear values, or PNG of values already display-encoded.
+fn encode_output(path: &Path, img: RgbBuffer, linear: bool) -> Result<Vec<u8>> {
+    Ok(if extension(path) == "exr" {
+        imageio::encode_exr(path, &to_image(img))?
+    } else if linear {
+        imageio::encode_png(path, &to_image(img))?
+    } else {
+        png_as_stored(path, &img)?
+    })
+}
+
+/// Writes a set of files as one output ([`crate::io::write_files_atomic`]).
+fn write_all(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    let refs: Vec<(&Path, &[u8])> = files.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect();
+    Ok(crate::io::write_files_atomic(&refs)?)
+}
+
+/// Values that are already display-encoded as an 8-bit PNG, unchanged.
+fn png_as_stored(path: &Path, img: &RgbBuffer) -> Result<Vec<u8>> {
     let bytes: Vec<u8> = img.data.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect();
     let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes)
         .ok_or_else(|| anyhow!("{}: image buffer size", path.display()))?;
     let mut out = std::io::Cursor::new(Vec::new());
     buf.write_to(&mut out, image::ImageFormat::Png)
         .with_context(|| format!("{}: cannot encode PNG", path.display()))?;
-    Ok(write_atomic(path, &out.into_inner())?)
+    Ok(out.into_inner())
 }
 
 pub fn undistort(a: UndistortArgs) -> Result<()> {
@@ -486,13 +508,7 @@ pub fn undistort(a: UndistortArgs) -> Result<()> {
     // Values pass through unchanged: linear input stays linear; an 8-bit
     // photo's encoded values are resampled as they are.
     let (width, height) = (out.width, out.height);
-    if out_ext == "exr" {
-        imageio::write_exr(&a.output, &to_image(out))?;
-    } else if linear {
-        imageio::write_png(&a.output, &to_image(out))?;
-    } else {
-        write_png_as_stored(&a.output, &out)?;
-    }
+    let image = encode_output(&a.output, out, linear)?;
     let info = serde_json::json!({
         "source": file_name(&a.input),
         "camera": file_name(&a.camera),
@@ -502,7 +518,7 @@ pub fn undistort(a: UndistortArgs) -> Result<()> {
         "values": if linear { "linear, as read" } else { "as stored in the 8/16-bit input (not linearised), scaled to [0, 1]" },
     });
     let sidecar = a.output.with_extension("json");
-    write_json(&sidecar, &info)?;
+    write_all(&[(a.output.clone(), image), (sidecar.clone(), json_bytes(&sidecar, &info)?)])?;
     println!(
         "undistorted {} × {} → {} (pinhole fx {:.3} fy {:.3} cx {:.3} cy {:.3}; written to {})",
         width,
@@ -522,13 +538,7 @@ fn undistort_equirect(a: &UndistortArgs, cal: &Calibration, img: &RgbBuffer, lin
     let width = a.width.unwrap_or(2 * cal.camera.image_height);
     let out = env::lens_to_equirect(img, &cal.camera, width).map_err(|e| anyhow!("{}: {e}", a.input.display()))?;
     let (w, h) = (out.width, out.height);
-    if extension(&a.output) == "exr" {
-        imageio::write_exr(&a.output, &to_image(out))?;
-    } else if linear {
-        imageio::write_png(&a.output, &to_image(out))?;
-    } else {
-        write_png_as_stored(&a.output, &out)?;
-    }
+    let image = encode_output(&a.output, out, linear)?;
     let info = serde_json::json!({
         "source": file_name(&a.input),
         "camera": file_name(&a.camera),
@@ -540,7 +550,7 @@ fn undistort_equirect(a: &UndistortArgs, cal: &Calibration, img: &RgbBuffer, lin
         "values": if linear { "linear, as read" } else { "as stored in the 8/16-bit input (not linearised), scaled to [0, 1]" },
     });
     let sidecar = a.output.with_extension("json");
-    write_json(&sidecar, &info)?;
+    write_all(&[(a.output.clone(), image), (sidecar.clone(), json_bytes(&sidecar, &info)?)])?;
     println!(
         "{} ({} model) → {w} × {h} equirectangular map {} (lens axis at the centre); written to {}",
         a.input.display(),
@@ -630,7 +640,6 @@ pub fn pose(a: PoseArgs) -> Result<()> {
     let rms = (ss / corners.points.len() as f64).sqrt();
     let k = if a.keep_all { cal.camera.keep_all_intrinsics() } else { cal.camera.intrinsics };
     let scene = scene::describe_scene(&k, (gray.width, gray.height), &pose, &board, sample.as_ref(), rms);
-    write_json(&a.out, &scene)?;
     // The sample's box drawn through the calibrated (distorting) camera.
     let mut segments = Vec::new();
     if let Some(sp) = &scene.sample {
@@ -653,7 +662,8 @@ pub fn pose(a: PoseArgs) -> Result<()> {
     let label = format!("{}  PnP RMS {:.3} px", file_name(&a.image), rms);
     let png = cv::draw_view_png(&gray, &board, &corners.points, &reprojected, &segments, &label)?;
     let view = sibling(&a.out, "_view.png");
-    write_atomic(&view, &png)?;
+    // The scene and its view image are one output: both or neither.
+    write_all(&[(a.out.clone(), json_bytes(&a.out, &scene)?), (view.clone(), png)])?;
     let c = scene.camera_position_m;
     println!(
         "board pose: camera at ({:.4}, {:.4}, {:.4}) m in the board's world (z up), {:.3} m from corner (0,0); PnP RMS {:.3} px; \

@@ -105,7 +105,11 @@ pub fn run(a: CompareArgs) -> Result<()> {
     for n in &outcome.notes {
         eprintln!("note: {n}");
     }
+    // Ctrl-C or SIGTERM while the outputs are written removes their staging folder and ends.
+    let interrupt = super::interrupt::Interrupt::abort_on_first();
+    let staging = super::interrupt::remove_on_abort(&compare::staging_path(&a.out));
     let written = compare::write_outputs(&a.out, &outcome).with_context(|| format!("writing {}", a.out.display()))?;
+    drop((staging, interrupt));
     let r = &outcome.report;
     println!("as calibrated: {}", line(&r.as_calibrated));
     if let Some(n) = &r.noise {

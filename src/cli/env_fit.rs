@@ -145,9 +145,12 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
 }
 
 fn write(out: &Path, report: &FitReport, header: &str, scene_text: &str, img: &RgbImage) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create output folder", out.display()))?;
-    imageio::write_exr(&out.join("board_render.exr"), img)?;
-    crate::io::write_atomic(&out.join("scene.toml"), format!("{header}{scene_text}").as_bytes())?;
-    crate::io::write_json(&out.join("env_scale.json"), report)?;
+    // One output: the scaled scene never appears without its fit and render.
+    let (exr, toml, json) = (out.join("board_render.exr"), out.join("scene.toml"), out.join("env_scale.json"));
+    crate::io::write_files_atomic(&[
+        (&exr, &imageio::encode_exr(&exr, img)?),
+        (&toml, format!("{header}{scene_text}").as_bytes()),
+        (&json, &crate::io::json_bytes(&json, report)?),
+    ])?;
     Ok(())
 }

@@ -7,7 +7,7 @@
 use super::{file_name, sibling, to_buffer, to_image, RAW_EXTENSIONS};
 use crate::cli::choices::named;
 use crate::imageio::{self, extension, RgbImage};
-use crate::io::write_json;
+use crate::io::{json_bytes, write_json};
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args};
 use lucent_calib::camera::{CameraModel, Distortion, DistortionModel};
@@ -346,9 +346,12 @@ pub fn merge(a: EnvMergeArgs) -> Result<()> {
         height: rep.height,
         data: merged.saturated_mask.iter().flat_map(|&s| [if s { 1.0f32 } else { 0.0 }; 3]).collect(),
     };
-    imageio::write_png(&mask_path, &mask)?;
-    write_json(&json_path, &json)?;
-    imageio::write_exr(&a.out, &to_image(merged.image))?;
+    // The map, its JSON and its saturation mask are one output: all or none.
+    crate::io::write_files_atomic(&[
+        (&mask_path, &imageio::encode_png(&mask_path, &mask)?),
+        (&json_path, &json_bytes(&json_path, &json)?),
+        (&a.out, &imageio::encode_exr(&a.out, &to_image(merged.image))?),
+    ])?;
     println!(
         "{} {} brackets ({} × {}) → {}: dynamic range {:.1} stops (the bracket set can capture {:.1}); \
          {} pixels saturated in every bracket{}, {} below the noise floor in every bracket; report {}",
@@ -397,12 +400,9 @@ pub fn view(a: EnvViewArgs) -> Result<()> {
     let (img, cam) = env::perspective_view(&map, &spec)?;
     let img = to_image(img);
     let json_path = sibling(&a.out, ".json");
-    write_json(&json_path, &serde_json::json!({ "source": file_name(&a.input), "camera": cam }))?;
-    if ext == "exr" {
-        imageio::write_exr(&a.out, &img)?;
-    } else {
-        imageio::write_png(&a.out, &img)?;
-    }
+    let json = json_bytes(&json_path, &serde_json::json!({ "source": file_name(&a.input), "camera": cam }))?;
+    let view = if ext == "exr" { imageio::encode_exr(&a.out, &img)? } else { imageio::encode_png(&a.out, &img)? };
+    crate::io::write_files_atomic(&[(&json_path, &json), (&a.out, &view)])?;
     println!(
         "{width} × {height} view (yaw {}°, pitch {}°, horizontal fov {}°, f = {:.2} px) of {} → {}; camera {}",
         a.yaw,
@@ -522,11 +522,13 @@ pub fn orient(a: EnvOrientArgs) -> Result<()> {
     };
     let json_path = sibling(&a.out, ".json");
     let png_path = sibling(&a.out, "_board.png");
+    let json = json_bytes(&json_path, &orientation)?;
+    let map = imageio::encode_exr(&a.out, &to_image(turned))?;
+    let mut files: Vec<(&std::path::Path, &[u8])> = vec![(&json_path, &json), (&a.out, &map)];
     if let Some(png) = &png {
-        crate::io::write_atomic(&png_path, png)?;
+        files.insert(0, (&png_path, png));
     }
-    write_json(&json_path, &orientation)?;
-    imageio::write_exr(&a.out, &to_image(turned))?;
+    crate::io::write_files_atomic(&files)?;
     match &orientation.board {
         Some(b) => println!(
             "board {} found in the view (yaw {}°, pitch {}°, fov {}°; {} detector, PnP RMS {:.3} px, corner order {:?}): \

@@ -213,16 +213,61 @@ pub fn write_outputs(out: &Path, problem: &Problem, result: &FitResult) -> Resul
     Ok(written)
 }
 
+/// The files of `--out` that a fit writes (replaced whole by the next fit).
+fn fit_output(name: &str) -> bool {
+    name == "fit.json" || name == "objective.png" || name.ends_with("_fitted.toml")
+}
+
+/// Runs `lucent fit`. Ctrl-C or SIGTERM stops the fit at the end of the
+/// simulation under way and writes nothing (exit 130; a second one ends it
+/// at once); the outputs are written into a staging folder and moved into
+/// `--out` only when all of them are, so `--out` never holds half a fit.
 pub fn run(a: FitArgs) -> Result<()> {
     let problem = build_problem(&a)?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("--out {}: cannot create the folder", a.out.display()))?;
+    // Registered before the staging folder exists: a second Ctrl-C the
+    // moment it appears still removes it (and --out, if this run made it).
+    let out_existed = a.out.exists();
+    let _remove_on_abort = (
+        super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out)),
+        (!out_existed).then(|| super::interrupt::remove_on_abort(&a.out)),
+    );
+    let stage = crate::io::StagedDir::new(&a.out)?;
+    let interrupt = super::interrupt::Interrupt::install();
     let quiet = a.quiet;
-    let result = fit::fit(&problem, |e| {
-        if !quiet {
-            eprintln!("{e}");
-        }
-    })?;
-    let written = write_outputs(&a.out, &problem, &result)?;
+    if !quiet {
+        eprintln!("fitting; Ctrl-C stops after the simulation under way and writes nothing");
+    }
+    let stopped = |evaluations: usize| {
+        crate::fault::Interrupted(format!(
+            "the fit stopped after {evaluations} evaluation(s), without a result; nothing was written to {}",
+            a.out.display()
+        ))
+    };
+    let result = match fit::fit_cancellable(
+        &problem,
+        |e| {
+            if !quiet {
+                eprintln!("{e}");
+            }
+        },
+        interrupt.flag(),
+    ) {
+        Err(fit::FitError::Interrupted { evaluations }) => return Err(stopped(evaluations).into()),
+        r => r?,
+    };
+    write_outputs(stage.path(), &problem, &result)?;
+    if interrupt.requested() {
+        return Err(stopped(result.evaluations).into());
+    }
+    let mut written: Vec<PathBuf> = std::fs::read_dir(stage.path())
+        .with_context(|| format!("{}: cannot list the staged outputs", stage.path().display()))?
+        .filter_map(|e| e.ok())
+        .map(|e| a.out.join(e.file_name()))
+        .filter(|p| p.file_name().is_some_and(|n| fit_output(&n.to_string_lossy())))
+        .collect();
+    written.sort();
+    stage.commit(fit_output)?;
+    drop(interrupt);
     print_result(&result);
     println!("written: {}", written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
     if !result.identifiable {

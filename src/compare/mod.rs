@@ -1122,6 +1122,14 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> CompareError + '_ {
     move |source| CompareError::Io { path: path.to_path_buf(), source }
 }
 
+/// The temporary sibling folder [`write_outputs`] fills (hidden, named with
+/// the process id): known beforehand, so a Ctrl-C handler can remove it.
+pub fn staging_path(out: &Path) -> PathBuf {
+    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "compare".into());
+    parent.join(format!(".{name}.tmp-{}", std::process::id()))
+}
+
 /// Writes metrics.json, triplet.png and difference.exr into `out`: all
 /// into a temporary sibling folder first, then moved into place (the folder
 /// itself is renamed if it did not exist), so a failure leaves no partial
@@ -1129,8 +1137,7 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> CompareError + '_ {
 pub fn write_outputs(out: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>, CompareError> {
     let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     std::fs::create_dir_all(parent).map_err(io_err(parent))?;
-    let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "compare".into());
-    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
+    let tmp = staging_path(out);
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(io_err(&tmp))?;
     }
