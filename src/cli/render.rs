@@ -497,23 +497,13 @@ pub fn spp_by_region(image: &Image) -> scene::SppByRegion {
     scene::SppByRegion { object: mean(0), other: mean(1) }
 }
 
-/// The median over pixels with a positive mean of sqrt(var of mean)/mean (luminance-free: mean over channels).
+/// The median over all pixels of the relative standard error of the
+/// pixel's mean, RMS over R, G, B ([`Image::relative_std_error`]): the same
+/// figure as `relative_std_error.all.median` in render.json (once a grey
+/// mean of the channels that took their errors as independent, and so
+/// read √3 too low where the bands ride on one path).
 pub fn median_relative_std_error(image: &Image) -> f64 {
-    let mut r: Vec<f64> = image
-        .mean
-        .iter()
-        .zip(&image.variance_of_mean)
-        .filter_map(|(m, v)| {
-            let mm = (m[0] + m[1] + m[2]) / 3.0;
-            let vv = (v[0] + v[1] + v[2]) / 9.0;
-            (mm > 0.0 && vv.is_finite()).then(|| vv.sqrt() / mm)
-        })
-        .collect();
-    if r.is_empty() {
-        return f64::NAN;
-    }
-    r.sort_by(f64::total_cmp);
-    r[r.len() / 2]
+    image.region_errors().all.median
 }
 
 /// Writes render.exr and render.png; returns their names.
