@@ -476,8 +476,10 @@ pub fn errors_report(e: &tracer::RegionErrors) -> scene::RegionErrorsReport {
     let q = |q: &tracer::Quantiles| scene::QuantilesReport { pixels: q.pixels, median: q.median, p90: q.p90 };
     scene::RegionErrorsReport {
         definition:
-            "relative standard error of the pixel's mean, RMS over R, G, B; object: pixels where at least half \
-                     the camera rays hit the object first; board: likewise the board"
+            "relative standard error of the pixel's mean, RMS over R, G, B, over the pixels that are not black \
+                     (a pixel with a channel still without light counts as infinite); object: pixels where at least \
+                     half the camera rays hit the object first; board: likewise the board; null: no pixels, or a \
+                     quantile that is infinite"
                 .into(),
         object: q(&e.object),
         board: q(&e.board),
