@@ -597,6 +597,30 @@ fn object_fraction_and_region_errors() {
 }
 
 #[test]
+fn a_pixel_with_a_channel_still_dark_counts_as_an_infinite_error() {
+    // Three object pixels: black (no relative error defined: left out),
+    // light in R and G but none yet in B (a single-band path estimator
+    // after few samples: +∞, not left out), and a converged one.
+    let img = Image {
+        width: 3,
+        height: 1,
+        mean: vec![[0.0; 3], [0.2, 0.3, 0.0], [0.5, 0.5, 0.5]],
+        variance_of_mean: vec![[0.0; 3], [0.01, 0.01, 0.0], [1e-4, 1e-4, 1e-4]],
+        samples: vec![4; 3],
+        object_samples: vec![4; 3],
+        board_samples: vec![0; 3],
+        halves: [vec![[0.0; 3]; 3], vec![[0.0; 3]; 3]],
+    };
+    assert_eq!(img.relative_std_error(0), None);
+    assert_eq!(img.relative_std_error(1), Some(f64::INFINITY));
+    assert!((img.relative_std_error(2).unwrap() - 0.02).abs() < 1e-15);
+    let e = img.region_errors();
+    assert_eq!(e.object.pixels, 2);
+    // Of {0.02, ∞} the median (upper) is ∞: half the object's pixels are not resolved.
+    assert_eq!(e.object.median, f64::INFINITY);
+}
+
+#[test]
 fn object_weighted_sampling_is_unbiased_and_stops_at_the_target() {
     use lucent_render::tracer::{Region, Sampling};
     let scene = region_scene([1.45; 3]);
