@@ -1,13 +1,15 @@
-//! `--shard K/N` of `lucent render` and `lucent bssrdf`, and `lucent merge
-//! SHARD… --out DIR` (the format and the checks are in [`crate::shard`]).
+//! `--shard K/N` of `lucent render`, `lucent bssrdf` and `lucent optics
+//! --uncertainty N`, and `lucent merge SHARD… --out DIR` (the format and
+//! the checks are in [`crate::shard`]).
 //!
 //! A shard's identity is the command line it was given (without `--shard`,
 //! `--out`, `--threads` and `--quiet`), the folder it ran in, and a SHA-256
 //! of that command line and of every input file it names (a scene or
-//! recipe and the files *they* name). The merge parses the same command
-//! line again in the same folder, checks the input files still hash to the
-//! same value, adds the shards' sums in shard order and writes what the
-//! unsharded command writes.
+//! recipe and the files *they* name; for a folder, the recipes in it). The
+//! merge parses the same command line again in the same folder, checks the
+//! input files still hash to the same value, adds the shards' sums (for an
+//! uncertainty run: puts their draws together) in shard order and writes
+//! what the unsharded command writes.
 
 use crate::shard::{self, Identity};
 use anyhow::{bail, Context, Result};
@@ -56,17 +58,31 @@ pub fn inputs_sha256(args: &[String]) -> Result<String> {
         h.update([0u8]);
         for candidate in [Some(a.as_str()), a.split_once(':').map(|(_, p)| p)].into_iter().flatten() {
             let p = Path::new(candidate);
-            if !p.is_file() {
+            // A folder of recipes (`lucent optics FOLDER`): the recipes in it.
+            let listed: Vec<PathBuf> = if p.is_dir() {
+                let mut v: Vec<PathBuf> = std::fs::read_dir(p)
+                    .with_context(|| format!("{}: cannot list folder", p.display()))?
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|f| f.is_file() && f.extension().is_some_and(|e| e == "toml"))
+                    .collect();
+                v.sort();
+                v
+            } else if p.is_file() {
+                vec![p.to_path_buf()]
+            } else {
                 continue;
-            }
-            let mut named = vec![p.to_path_buf()];
-            if p.extension().is_some_and(|e| e == "toml") {
-                named.extend(crate::pipeline::scene_inputs(p));
-                named.extend(crate::pipeline::recipe_inputs(p));
-            }
-            for f in named {
-                if !files.contains(&f) {
-                    files.push(f);
+            };
+            for p in listed {
+                let p = p.as_path();
+                let mut named = vec![p.to_path_buf()];
+                if p.extension().is_some_and(|e| e == "toml") {
+                    named.extend(crate::pipeline::scene_inputs(p));
+                    named.extend(crate::pipeline::recipe_inputs(p));
+                }
+                for f in named {
+                    if !files.contains(&f) {
+                        files.push(f);
+                    }
                 }
             }
         }
@@ -128,13 +144,17 @@ pub fn merge(a: MergeArgs) -> Result<()> {
     }
     let mut argv = vec!["lucent".to_string()];
     argv.extend(id.args.iter().cloned());
-    argv.extend(["--out".to_string(), out.display().to_string(), "--quiet".to_string()]);
+    argv.extend(["--out".to_string(), out.display().to_string()]);
+    if id.command != "optics" {
+        argv.push("--quiet".to_string());
+    }
     let cli = super::Cli::try_parse_from(&argv).with_context(|| {
         format!("{}: cannot parse its command line", shards[0].dir.join(shard::SHARD_JSON).display())
     })?;
     match cli.command {
         super::Command::Render(r) => super::render::run_from(r, Some(&shards)),
         super::Command::Bssrdf(b) if b.command.is_none() => super::bssrdf::simulate_from(b.run, Some(&shards)),
+        super::Command::Optics(o) if o.uncertainty.is_some() => super::optics_from(o, Some(&shards)),
         _ => bail!("{}: `lucent {}` is not a command with shards", shards[0].dir.display(), id.command),
     }
 }
@@ -179,9 +199,18 @@ pub fn bench(scene: &Path, size: &str, spp: u32, shards: u32, p: Projection) -> 
         v.extend(["--out".into(), out.display().to_string()]);
         v
     };
+    // The median of three runs of a short command (the machine may be shared).
+    let median3 = |args: &[String]| -> Result<f64> {
+        let mut t = [timed(&exe, args)?, timed(&exe, args)?, timed(&exe, args)?];
+        t.sort_by(f64::total_cmp);
+        Ok(t[1])
+    };
     let result = (|| -> Result<serde_json::Value> {
-        // Fixed cost per process: start-up, scene and environment loading, writing.
-        let fixed_s = timed(&exe, &base(&tmp.join("fixed"), 1, "8x6"))?;
+        // Fixed cost per process: start-up (the dynamic loader, 150 shared
+        // libraries through OpenCV), then scene loading (Lorenz–Mie phase
+        // tables, the environment map) and writing.
+        let startup_s = median3(&["--version".to_string()])?;
+        let fixed_s = median3(&base(&tmp.join("fixed"), 1, "8x6"))?;
         let one_s = timed(&exe, &base(&tmp.join("one"), spp, size))?;
         let mut shard_s = Vec::new();
         let mut dirs = Vec::new();
@@ -207,9 +236,11 @@ pub fn bench(scene: &Path, size: &str, spp: u32, shards: u32, p: Projection) -> 
         let merge_big_s = fixed_s + merge_per_px_shard * big_px * f64::from(p.nodes);
         let one_node_s = fixed_s + big_px * f64::from(p.spp) / rate;
         eprintln!(
-            "{w}×{h}, {spp} spp: one process {one_s:.2} s; {shards} shards one after the other {:.2} s + merge {merge_s:.2} s = {sharded_s:.2} s: overhead {:+.1} % ({fixed_s:.2} s per process for start-up and loading)",
+            "{w}×{h}, {spp} spp: one process {one_s:.2} s; {shards} shards one after the other {:.2} s ({:.2} s each) + merge {merge_s:.2} s = {sharded_s:.2} s: overhead {:+.1} % ({fixed_s:.2} s fixed per process: {startup_s:.2} s start-up, {:.2} s loading and writing)",
             shard_s.iter().sum::<f64>(),
-            100.0 * overhead
+            shard_s.iter().sum::<f64>() / f64::from(shards),
+            100.0 * overhead,
+            (fixed_s - startup_s).max(0.0)
         );
         eprintln!(
             "projection: {:.0} MP at {} spp on {} nodes like this one: {:.0} s per shard + {:.0} s merge = {:.0} s (one node: {:.0} s, {:.1}× faster)",
@@ -234,6 +265,7 @@ pub fn bench(scene: &Path, size: &str, spp: u32, shards: u32, p: Projection) -> 
             "sharded_total_s": sharded_s,
             "overhead": overhead,
             "fixed_per_process_s": fixed_s,
+            "startup_s": startup_s,
             "pixel_samples_per_s": rate,
             "projection": {
                 "megapixels": p.megapixels,
