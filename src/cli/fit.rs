@@ -361,7 +361,7 @@ fn merged_draws(
                 path,
                 why: format!(
                     "draw {} has input values {:?}, the run's Latin-hypercube design has {:?}",
-                    range.start + i / dims.max(1),
+                    range.start + i / dims,
                     &got[i / dims * dims..(i / dims + 1) * dims],
                     &design[range.start + i / dims]
                 ),
@@ -436,11 +436,11 @@ pub fn optics_uncertainty(
         };
         crate::io::write_json(&out.join(crate::shard::SHARD_JSON), &file)?;
         println!(
-            "shard {k}/{shards}: draws {}..{} of {n} for {} sample(s) in {wall_s:.1} s → {}/SAMPLE/uncertainty.acc, {}",
+            "shard {k}/{shards}: draws {}..{} of {n} in {wall_s:.1} s → {}/{{{}, {}}}",
             range.start,
             range.end,
-            parts.len(),
             out.display(),
+            file.accumulators.join(", "),
             crate::shard::SHARD_JSON
         );
         return Ok(());

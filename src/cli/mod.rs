@@ -194,6 +194,12 @@ pub enum BenchCommand {
         spp: u32,
         #[arg(long, default_value_t = 4)]
         shards: u32,
+        /// Rounds of one process against the shards, alternating which runs first (1 … 20).
+        #[arg(long, default_value_t = 3)]
+        repeats: u32,
+        /// The lucent binary to measure (default: this one), e.g. an earlier build to compare with.
+        #[arg(long)]
+        lucent: Option<PathBuf>,
         /// The projection: megapixels, nodes (each like this machine) and samples per pixel.
         #[arg(long, default_value_t = 12.0)]
         megapixels: f64,
@@ -662,13 +668,17 @@ fn bench(b: BenchCommand) -> Result<()> {
         BenchCommand::Bssrdf { rel_error, time_s } => bssrdf::bench(rel_error, time_s)?,
         BenchCommand::Surface { paths } => bssrdf::bench_surface(paths)?,
         BenchCommand::Fit { rel_error, out } => fit::bench(rel_error, out)?,
-        BenchCommand::Shard { scene, size, spp, shards, megapixels, nodes, projected_spp } => shard::bench(
-            &repository_file(&scene),
-            &size,
-            spp,
-            shards,
-            shard::Projection { megapixels, nodes, spp: projected_spp },
-        )?,
+        BenchCommand::Shard { scene, size, spp, shards, repeats, lucent, megapixels, nodes, projected_spp } => {
+            shard::bench(
+                &repository_file(&scene),
+                &size,
+                spp,
+                shards,
+                repeats,
+                lucent,
+                shard::Projection { megapixels, nodes, spp: projected_spp },
+            )?
+        }
         BenchCommand::Render { scene, time_s: Some(t), .. } => {
             render::check_time_s(t)?;
             render::bench_estimators(&repository_file(&scene), t)?
