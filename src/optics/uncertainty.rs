@@ -318,6 +318,28 @@ mod tests {
     }
 
     #[test]
+    fn draws_evaluated_in_groups_summarise_bit_for_bit_as_all_at_once() {
+        use super::super::recipe::Overrides;
+        let text = include_str!("../../fixtures/samples/IOL1068-09.toml")
+            .replace("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = 0.02 }");
+        let r = Recipe::parse(&text, std::path::Path::new("u.toml"), Overrides::default()).unwrap();
+        let grid = WavelengthGrid::from_list(vec![450.0, 650.0]).unwrap();
+        let whole = propagate(&r, &grid, 23, 5).unwrap();
+        let design = design(&r, 23, 5).unwrap();
+        let mut all = Draws::empty(0, grid.len());
+        for k in 0..4 {
+            let range = crate::shard::range(23, k, 4);
+            let part = evaluate(&r, &grid, &design, range.start as usize..range.end as usize).unwrap();
+            all.append(&part).unwrap();
+        }
+        // Not contiguous: refused.
+        assert!(all.clone().append(&Draws::empty(3, grid.len())).is_err());
+        let grouped = summarise(&r, &grid, 5, design, &all);
+        let bits = |u: &Uncertainty| serde_json::to_string(u).unwrap();
+        assert_eq!(bits(&whole), bits(&grouped));
+    }
+
+    #[test]
     fn latin_hypercube_has_one_point_per_stratum() {
         let pts = latin_hypercube(50, 3, 7);
         for d in 0..3 {
