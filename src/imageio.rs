@@ -105,6 +105,35 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
     }
 }
 
+/// The width and height of an image [`read_rgb`] reads, from its header
+/// only (EXR, HDR, PNG, TIFF; other formats are decoded).
+pub fn image_size(path: &Path) -> Result<(usize, usize), ImageIoError> {
+    let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
+    match extension(path).as_str() {
+        "exr" => {
+            check_exr_size(path).map_err(|e| read_err(e.to_string()))?;
+            let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| read_err(exr_reason(&e)))?;
+            // The layer read_rgb reads: the first with R, G and B channels.
+            let rgb = |h: &&exr::meta::header::Header| {
+                ["R", "G", "B"].iter().all(|c| h.channels.list.iter().any(|ch| ch.name.eq_case_insensitive(c)))
+            };
+            let h =
+                meta.headers.iter().find(rgb).or(meta.headers.first()).ok_or_else(|| read_err("no layer".into()))?;
+            Ok((h.layer_size.width(), h.layer_size.height()))
+        }
+        "hdr" | "png" | "tif" | "tiff" => {
+            let (w, h) = image::ImageReader::open(path)
+                .map_err(|e| read_err(e.to_string()))?
+                .with_guessed_format()
+                .map_err(|e| read_err(e.to_string()))?
+                .into_dimensions()
+                .map_err(|e| read_err(e.to_string()))?;
+            Ok((w as usize, h as usize))
+        }
+        _ => read_rgb(path).map(|i| (i.width, i.height)),
+    }
+}
+
 /// File extensions read as camera RAW (decoded by `lucent_calib::raw`).
 pub const RAW_EXTENSIONS: [&str; 14] =
     ["dng", "cr2", "nef", "nrw", "arw", "srf", "sr2", "orf", "rw2", "raf", "pef", "srw", "erf", "3fr"];

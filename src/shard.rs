@@ -21,6 +21,13 @@
 //! Stability of Numerical Algorithms*, §4.2), so means differ by at most
 //! 2m·2⁻⁵³ relatively (2.8·10⁻¹⁴ for m = 64 samples); with N = 1 they are
 //! bit-for-bit equal.
+//!
+//! A run of `lucent optics --uncertainty N` is split the same way over its
+//! Latin-hypercube draws 0 … N−1: every shard makes the whole design from
+//! the seed and evaluates its range, and its accumulator holds the draws'
+//! values, not sums (the percentiles need every value). The merge puts them
+//! together in draw order and summarises them with the unsharded code, so
+//! there the merged result is bit-for-bit the unsharded one for every N.
 
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -88,7 +95,7 @@ pub fn range(total: u64, k: u32, n: u32) -> std::ops::Range<u64> {
 /// What makes shards parts of one run.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Identity {
-    /// `render` or `bssrdf`.
+    /// `render`, `bssrdf` or `optics`.
     pub command: String,
     /// The command's arguments without `--shard`, `--out`, `--threads` and `--quiet`.
     pub args: Vec<String>,
@@ -98,7 +105,7 @@ pub struct Identity {
     pub inputs_sha256: String,
     pub lucent_version: String,
     pub seed: u64,
-    /// The run's budget, e.g. "64 spp" or "100000 paths".
+    /// The run's budget, e.g. "64 spp", "100000 paths" or "1000 draws".
     pub budget: String,
     /// N.
     pub shards: u32,
@@ -110,7 +117,7 @@ pub struct ShardFile {
     pub identity: Identity,
     /// K.
     pub shard: u32,
-    /// The sample (render) or batch (bssrdf) indices of this shard.
+    /// The sample (render), batch (bssrdf) or draw (optics) indices of this shard.
     pub range: [u64; 2],
     /// The accumulator files in the folder.
     pub accumulators: Vec<String>,

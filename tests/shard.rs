@@ -1,9 +1,11 @@
 //! `--shard K/N` and `lucent merge` through the CLI: a render and a BSSRDF
 //! slice split into N = 1, 2 and 7 shards and merged equal the unsharded
 //! run (bit-for-bit for N = 1, where the sums are taken in the same order;
-//! else to the rounding bound of `lucent::shard`), and shards of two runs,
-//! a missing or repeated shard and a corrupt accumulator are refused with
-//! the file named and nothing written.
+//! else to the rounding bound of `lucent::shard`), an `optics
+//! --uncertainty` run likewise bit for bit for every N (its draws are put
+//! together, not summed), and shards of two runs, a missing or repeated
+//! shard, a corrupt accumulator and the damaged shard folders of
+//! tests/bad/shard/ are refused with the file named and nothing written.
 
 use crate::common::{lucent, stderr};
 use std::path::{Path, PathBuf};
@@ -79,6 +81,8 @@ fn render_shards_merge_into_the_unsharded_render() {
         shards_and_merge(dir.path(), n, &out, &|o, extra| render_args(o, "3", extra));
         let merged = channels(&out.join("render.exr"), &names);
         let m_json = json(&out.join("render.json"));
+        // The merge reads the environment map's header only: the same description.
+        assert_eq!(m_json["scene"], ref_json["scene"], "N = {n}: render.json's scene");
         assert_eq!(m_json["spp"], ref_json["spp"]);
         assert_eq!(m_json["samples"], ref_json["samples"]);
         assert_eq!(m_json["scattering_events"], ref_json["scattering_events"], "N = {n}: the same paths");
@@ -229,4 +233,167 @@ fn slice_shards_merge_into_the_unsharded_slice() {
     // A slice shard needs a path budget.
     let o = lucent(&THIN.iter().copied().chain(["--rel-error", "0.1", "--shard", "0/2"]).collect::<Vec<_>>());
     assert!(!o.status.success() && stderr(&o).contains("--paths"), "{}", stderr(&o));
+}
+
+/// A folder with two recipes that have uncertain inputs: IOL1068-09 with a
+/// normal weight percentage, IOL1068-05 with a uniform diameter.
+fn uncertain_recipes(dir: &Path) -> PathBuf {
+    let folder = dir.join("recipes");
+    std::fs::create_dir_all(&folder).unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let a = std::fs::read_to_string(root.join("fixtures/samples/IOL1068-09.toml")).unwrap();
+    let a = a.replace("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = 0.02 }");
+    let b = std::fs::read_to_string(root.join("fixtures/samples/IOL1068-05.toml")).unwrap();
+    let b = b.replace("diameter_um = 0.3 }", "diameter_um = { min = 0.25, max = 0.35 } }");
+    std::fs::write(folder.join("a.toml"), a).unwrap();
+    std::fs::write(folder.join("b.toml"), b).unwrap();
+    folder
+}
+
+fn optics_args(recipes: &Path, out: &Path, seed: &str, extra: &[&str]) -> Vec<String> {
+    let mut v: Vec<String> = vec!["optics".into(), recipes.display().to_string()];
+    v.extend(["--wavelengths", "450:650:100", "--uncertainty", "40", "--uncertainty-seed", seed].map(String::from));
+    v.extend(["--out".to_string(), out.display().to_string()]);
+    v.extend(extra.iter().map(|s| s.to_string()));
+    v
+}
+
+const UNCERTAINTY_FILES: [&str; 3] = ["uncertainty.csv", "uncertainty.json", "uncertainty.png"];
+
+/// The draws of an uncertainty run are put together in draw order and
+/// summarised by the unsharded code: every output equal byte for byte, for
+/// any N.
+#[test]
+fn uncertainty_shards_merge_bit_for_bit_into_the_unsharded_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipes = uncertain_recipes(dir.path());
+    let whole = dir.path().join("whole");
+    run(&optics_args(&recipes, &whole, "3", &[]));
+    let samples = ["IOL1068-09", "IOL1068-05"];
+    for n in [1u32, 2, 7] {
+        let out = dir.path().join(format!("merged-{n}"));
+        let dirs = shards_and_merge(dir.path(), n, &out, &|o, extra| optics_args(&recipes, o, "3", extra));
+        for s in samples {
+            assert!(dirs[0].join(s).join("uncertainty.acc").is_file(), "{s}");
+            for f in UNCERTAINTY_FILES {
+                let (a, b) =
+                    (std::fs::read(whole.join(s).join(f)).unwrap(), std::fs::read(out.join(s).join(f)).unwrap());
+                assert!(a == b, "N = {n}: {s}/{f} differs from the unsharded run's");
+            }
+        }
+        let shard = json(&dirs[n as usize - 1].join("shard.json"));
+        assert_eq!(shard["identity"]["command"], "optics");
+        assert_eq!(shard["identity"]["budget"], "40 draws");
+        assert_eq!(shard["identity"]["seed"], 3);
+        assert_eq!(shard["range"][1], 40);
+    }
+    // Both samples' spreads are there, and another seed is another design.
+    let u = json(&whole.join("IOL1068-05/uncertainty.json"));
+    assert!(u["mu_s_per_m"]["sd"][0].as_f64().unwrap() > 0.0);
+    let other = dir.path().join("other");
+    run(&optics_args(&recipes, &other, "4", &[]));
+    assert_ne!(
+        std::fs::read(other.join("IOL1068-09/uncertainty.csv")).unwrap(),
+        std::fs::read(whole.join("IOL1068-09/uncertainty.csv")).unwrap()
+    );
+}
+
+/// Shards of two uncertainty runs, a missing, repeated or damaged shard, a
+/// shard whose draws are not the run's design, a recipe changed since the
+/// shards ran: refused, the file named, nothing written.
+#[test]
+fn bad_uncertainty_shard_sets_are_refused_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipes = uncertain_recipes(dir.path());
+    let shard = |seed: &str, k: u32, n: u32| {
+        let d = dir.path().join(format!("u{seed}-{k}-{n}"));
+        run(&optics_args(&recipes, &d, seed, &["--shard", &format!("{k}/{n}")]));
+        d.display().to_string()
+    };
+    let (a0, a1, a2) = (shard("3", 0, 3), shard("3", 1, 3), shard("3", 2, 3));
+    let b1 = shard("5", 1, 3);
+    let r1 = dir.path().join("render-1-3");
+    run(&render_args(&r1, "3", &["--shard", "1/3"]));
+    let merge = |dirs: &[&str], expect: &[&str]| {
+        let out = dir.path().join("out");
+        let mut args = vec!["merge"];
+        args.extend_from_slice(dirs);
+        let o_s = out.display().to_string();
+        args.extend_from_slice(&["--out", &o_s]);
+        let o = lucent(&args);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{dirs:?} merged");
+        for x in expect {
+            assert!(e.contains(x), "{dirs:?}: expected {x:?} in: {e}");
+        }
+        assert!(!e.contains("panicked"), "{e}");
+        assert!(!out.exists(), "{dirs:?}: wrote {}", out.display());
+    };
+    merge(&[&a0, &b1, &a2], &["another run", "seed", "u5-1-3"]);
+    merge(&[&a0, r1.to_str().unwrap(), &a2], &["another run", "command", "render-1-3"]);
+    merge(&[&a0, &a2], &["shard 1 of 3 missing"]);
+    merge(&[&a0, &a1, &a2, &a1], &["both shard 1 of 3", "u3-1-3"]);
+    // The draws of shard 1 replaced by other values under a valid checksum.
+    let acc = Path::new(&a1).join("IOL1068-05/uncertainty.acc");
+    let original = std::fs::read(&acc).unwrap();
+    let mut arrays = lucent::shard::read_accumulator(&acc).unwrap();
+    arrays.iter_mut().find(|(n, _)| n == "draws").unwrap().1[2] *= 1.01;
+    let refs: Vec<(&str, &[f64])> = arrays.iter().map(|(n, v)| (n.as_str(), v.as_slice())).collect();
+    lucent::shard::write_accumulator(&acc, &refs).unwrap();
+    merge(&[&a0, &a1, &a2], &["IOL1068-05/uncertainty.acc", "Latin-hypercube design", "draw 16"]);
+    // A flipped bit, a truncated file, a missing file.
+    let mut bytes = original.clone();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x04;
+    std::fs::write(&acc, &bytes).unwrap();
+    merge(&[&a0, &a1, &a2], &["IOL1068-05/uncertainty.acc", "corrupt accumulator", "checksum"]);
+    std::fs::write(&acc, &original[..original.len() - 40]).unwrap();
+    merge(&[&a0, &a1, &a2], &["IOL1068-05/uncertainty.acc", "corrupt accumulator"]);
+    std::fs::remove_file(&acc).unwrap();
+    merge(&[&a0, &a1, &a2], &["IOL1068-05/uncertainty.acc", "cannot read"]);
+    std::fs::write(&acc, &original).unwrap();
+    // A recipe edited after the shards ran.
+    let b = recipes.join("b.toml");
+    let text = std::fs::read_to_string(&b).unwrap();
+    std::fs::write(&b, text.replace("max = 0.35", "max = 0.36")).unwrap();
+    merge(&[&a0, &a1, &a2], &["changed since the shards were made", "u3-0-3"]);
+    std::fs::write(&b, &text).unwrap();
+    // Flags: --shard needs --uncertainty; no more shards than draws.
+    let out = dir.path().join("x");
+    for (extra, expect) in [(vec!["--shard", "0/41"], "fewer than the 41 shards"), (vec!["--shard", "2/2"], "K/N")] {
+        let args = optics_args(&recipes, &out, "3", &extra);
+        let o = lucent(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(!o.status.success() && stderr(&o).contains(expect), "{extra:?}: {}", stderr(&o));
+        assert!(!out.join("shard.json").exists());
+    }
+    let r = recipes.display().to_string();
+    let o = lucent(&["optics", &r, "--wavelength", "550", "--shard", "0/2", "--out", out.to_str().unwrap()]);
+    assert!(!o.status.success() && stderr(&o).contains("--uncertainty"), "{}", stderr(&o));
+    // After all that, the three shards still merge.
+    let good = dir.path().join("good");
+    run(&["merge".into(), a0, a1, a2, "--out".into(), good.display().to_string()]);
+    assert!(good.join("IOL1068-05/uncertainty.csv").is_file());
+}
+
+/// tests/bad/shard/: shard folders whose shard.json is damaged or foreign
+/// (see its README): refused, the file named, nothing written.
+#[test]
+fn bad_shard_folders_of_the_corpus_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/bad/shard");
+    let mut cases: Vec<PathBuf> =
+        std::fs::read_dir(&corpus).unwrap().map(|e| e.unwrap().path()).filter(|p| p.is_dir()).collect();
+    cases.sort();
+    assert!(cases.len() >= 4, "corpus missing? {cases:?}");
+    for case in cases {
+        let out = dir.path().join("out");
+        let (c, o_s) = (case.display().to_string(), out.display().to_string());
+        let o = lucent(&["merge", &c, "--out", &o_s]);
+        let e = stderr(&o);
+        let name = case.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(!o.status.success(), "{name}: merged");
+        assert!(e.contains(&format!("shard/{name}")), "{name}: the folder not named: {e}");
+        assert!(!e.contains("panicked"), "{name}: {e}");
+        assert!(!out.exists(), "{name}: wrote {}", out.display());
+    }
 }

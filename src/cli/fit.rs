@@ -346,20 +346,151 @@ pub fn bench(rel_error: f64, out: Option<PathBuf>) -> Result<()> {
     Ok(())
 }
 
+/// The accumulator file of a sample in a shard folder of `lucent optics
+/// --uncertainty N --shard K/N`.
+pub fn uncertainty_acc(sample: &str) -> String {
+    format!("{sample}/uncertainty.acc")
+}
+
+/// The arrays of an uncertainty accumulator: the shard's rows of the design
+/// (`draws`) and the bulk properties of its draws.
+fn uncertainty_arrays() -> [&'static str; 5] {
+    let [a, b, c, d] = crate::optics::uncertainty::Draws::PROPERTIES;
+    ["draws", a, b, c, d]
+}
+
+/// The draws of `recipe` in the shards of a run, checked against the run's
+/// `design` and put together in shard order (every shard read and checked
+/// before anything is written).
+fn merged_draws(
+    recipe: &Recipe,
+    wavelengths: usize,
+    design: &[Vec<f64>],
+    shards: &[crate::shard::Shard],
+) -> Result<crate::optics::uncertainty::Draws> {
+    use crate::optics::uncertainty::Draws;
+    let n = design.len();
+    let dims = recipe.uncertain.len();
+    let mut all = Draws::empty(0, wavelengths);
+    for s in shards {
+        let k = s.file.shard;
+        let expected = crate::shard::range(n as u64, k, s.file.identity.shards);
+        if s.file.range != [expected.start, expected.end] {
+            bail!("{}: shard {k} holds draws {:?}, the run's shard {k} is {expected:?}", s.dir.display(), s.file.range);
+        }
+        let range = expected.start as usize..expected.end as usize;
+        let path = s.dir.join(uncertainty_acc(&recipe.name));
+        let arrays = crate::shard::read_accumulator(&path)?;
+        let rows = design[range.clone()].concat();
+        let got = crate::shard::array(&arrays, "draws", rows.len(), &path)?;
+        if let Some(i) = got.iter().zip(&rows).position(|(a, b)| a.to_bits() != b.to_bits()) {
+            return Err(crate::shard::ShardError::Corrupt {
+                path,
+                why: format!(
+                    "draw {} has input values {:?}, the run's Latin-hypercube design has {:?}",
+                    range.start + i / dims,
+                    &got[i / dims * dims..(i / dims + 1) * dims],
+                    &design[range.start + i / dims]
+                ),
+            }
+            .into());
+        }
+        let mut values: [Vec<f64>; 4] = Default::default();
+        for (v, name) in values.iter_mut().zip(Draws::PROPERTIES) {
+            *v = crate::shard::array(&arrays, name, range.len() * wavelengths, &path)?.to_vec();
+        }
+        all.append(&Draws { range, wavelengths, values }).map_err(|why| anyhow!("{}: {why}", path.display()))?;
+    }
+    if all.range != (0..n) {
+        bail!("the shards hold draws {:?} of the run's 0..{n}", all.range);
+    }
+    Ok(all)
+}
+
 /// `lucent optics --uncertainty N`: per recipe, the propagation of its
 /// uncertain inputs ([`crate::optics::uncertainty`]) written to
 /// `OUT/SAMPLE/uncertainty.{csv,json,png}` and summarised on stdout.
+///
+/// With `shard` = (K, N) only the K-th of N ranges of the draws is
+/// evaluated (the whole design is made from the seed, so every shard has
+/// the same one) and written as `OUT/SAMPLE/uncertainty.acc` (the shard's
+/// rows of the design and the bulk properties of its draws: the 2.5th and
+/// 97.5th percentiles need every value, not only sums) with
+/// `OUT/shard.json`; with `merged_from` the draws are read from the shards
+/// of a run instead of computed, and the outputs are bit for bit those of
+/// the unsharded run (the same values, summarised by the same code in the
+/// same order).
 pub fn optics_uncertainty(
     recipes: &[Recipe],
     grid: &lucent_colour::WavelengthGrid,
     n: usize,
     seed: u64,
     out: &Path,
+    shard: Option<(u32, u32)>,
+    merged_from: Option<&[crate::shard::Shard]>,
 ) -> Result<()> {
     use crate::optics::uncertainty;
+    if let Some((k, shards)) = shard {
+        let start = std::time::Instant::now();
+        if u64::from(shards) > n as u64 {
+            return Err(crate::shard::ShardError::TooManyShards { k, n: shards, units: n as u64, what: "draws" }.into());
+        }
+        let identity = super::shard::identity(seed, format!("{n} draws"), shards)?;
+        let range = crate::shard::range(n as u64, k, shards);
+        let r = range.start as usize..range.end as usize;
+        let mut parts = Vec::new();
+        for recipe in recipes {
+            let design = uncertainty::design(recipe, n, seed)?;
+            let draws = uncertainty::evaluate(recipe, grid, &design, r.clone())?;
+            parts.push((recipe.name.clone(), design[r.clone()].concat(), draws));
+        }
+        let mut accumulators = Vec::new();
+        for (sample, rows, draws) in &parts {
+            let name = uncertainty_acc(sample);
+            let values = std::iter::once(rows.as_slice()).chain(draws.values.iter().map(Vec::as_slice));
+            let arrays: Vec<(&str, &[f64])> = uncertainty_arrays().into_iter().zip(values).collect();
+            crate::shard::write_accumulator(&out.join(&name), &arrays)?;
+            accumulators.push(name);
+        }
+        let wall_s = start.elapsed().as_secs_f64();
+        let file = crate::shard::ShardFile {
+            identity,
+            shard: k,
+            range: [range.start, range.end],
+            accumulators,
+            counters: [("draws".to_string(), range.end - range.start)].into_iter().collect(),
+            wall_s,
+        };
+        crate::io::write_json(&out.join(crate::shard::SHARD_JSON), &file)?;
+        println!(
+            "shard {k}/{shards}: draws {}..{} of {n} in {wall_s:.1} s → {}/{{{}, {}}}",
+            range.start,
+            range.end,
+            out.display(),
+            file.accumulators.join(", "),
+            crate::shard::SHARD_JSON
+        );
+        return Ok(());
+    }
     let mut results = Vec::new();
-    for r in recipes {
-        results.push(uncertainty::propagate(r, grid, n, seed)?);
+    match merged_from {
+        Some(shards) => {
+            // Every shard is read and checked before anything is written.
+            let mut merged = Vec::new();
+            for r in recipes {
+                let design = uncertainty::design(r, n, seed)?;
+                let draws = merged_draws(r, grid.len(), &design, shards)?;
+                merged.push((design, draws));
+            }
+            for (r, (design, draws)) in recipes.iter().zip(merged) {
+                results.push(uncertainty::summarise(r, grid, seed, design, &draws));
+            }
+        }
+        None => {
+            for r in recipes {
+                results.push(uncertainty::propagate(r, grid, n, seed)?);
+            }
+        }
     }
     for u in &results {
         let dir = out.join(&u.sample);

@@ -76,7 +76,7 @@ pub enum Command {
     Fit(fit::FitArgs),
     /// The whole digitisation from one project file: stages in order, unchanged ones skipped, report/index.html.
     Run(run::RunArgs),
-    /// Merge the shards of a render or bssrdf run (each made with --shard K/N) into the run's outputs.
+    /// Merge the shards of a render, bssrdf or optics --uncertainty run (each made with --shard K/N) into the run's outputs.
     Merge(shard::MergeArgs),
     /// Synthetic inputs with a known truth: a ColorChecker chart, RAW (DNG) captures through a known camera.
     #[command(subcommand)]
@@ -117,6 +117,11 @@ pub struct OpticsArgs {
     /// Seed of the --uncertainty samples.
     #[arg(long, default_value_t = 1)]
     pub uncertainty_seed: u64,
+    /// With --uncertainty: evaluate only the K-th of N disjoint ranges of the
+    /// draws (0 ≤ K < N) into --out as a shard (SAMPLE/uncertainty.acc,
+    /// shard.json); `lucent merge` writes the run's uncertainty files.
+    #[arg(long, value_name = "K/N", requires = "uncertainty")]
+    pub shard: Option<String>,
 }
 
 #[derive(Debug, Args)]
@@ -180,16 +185,24 @@ pub enum BenchCommand {
     },
     /// Sharding overhead: a render as one process against N shard processes
     /// one after the other on this machine plus their merge; and from the
-    /// measured times a projection for a large render on many nodes.
+    /// measured times a projection for a large render on many nodes. The
+    /// default is the demo camera's 640 × 480 at 32 spp in 4 shards (≈ 25 s
+    /// each on 2 loaded cores; a cluster's shards run minutes to hours).
     Shard {
         #[arg(long, default_value = "fixtures/render/demo.toml")]
         scene: PathBuf,
-        #[arg(long, default_value = "320x240")]
+        #[arg(long, default_value = "640x480")]
         size: String,
-        #[arg(long, default_value_t = 16)]
+        #[arg(long, default_value_t = 32)]
         spp: u32,
         #[arg(long, default_value_t = 4)]
         shards: u32,
+        /// Rounds of one process against the shards, alternating which runs first (1 … 20).
+        #[arg(long, default_value_t = 3)]
+        repeats: u32,
+        /// The lucent binary to measure (default: this one), e.g. an earlier build to compare with.
+        #[arg(long)]
+        lucent: Option<PathBuf>,
         /// The projection: megapixels, nodes (each like this machine) and samples per pixel.
         #[arg(long, default_value_t = 12.0)]
         megapixels: f64,
@@ -400,6 +413,12 @@ fn load_recipes(paths: &[PathBuf], overrides: Overrides, skip_invalid: bool) -> 
 }
 
 fn optics(a: OpticsArgs) -> Result<()> {
+    optics_from(a, None)
+}
+
+/// `lucent optics`, or with `merged_from` the outputs of the
+/// `--uncertainty` run whose shards these are (`lucent merge`).
+fn optics_from(a: OpticsArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
     let grid = match a.wavelength {
         Some(w) if !(w.is_finite() && w > 0.0) => bail!("--wavelength {w}: must be a positive number of nanometres"),
         Some(w) => WavelengthGrid::from_list(vec![w]).context("--wavelength")?,
@@ -412,7 +431,8 @@ fn optics(a: OpticsArgs) -> Result<()> {
     let recipes = load_recipes(&paths, Overrides { weight_percent: a.weight_percent }, a.skip_invalid)?;
     if let Some(n) = a.uncertainty {
         let out = a.out.unwrap_or_else(|| PathBuf::from("lucent-out/optics"));
-        return fit::optics_uncertainty(&recipes, &grid, n, a.uncertainty_seed, &out);
+        let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
+        return fit::optics_uncertainty(&recipes, &grid, n, a.uncertainty_seed, &out, shard, merged_from);
     }
     let options = bulk::Options { phase_entries: a.phase_entries, ..Default::default() };
     let start = Instant::now();
@@ -651,13 +671,17 @@ fn bench(b: BenchCommand) -> Result<()> {
         BenchCommand::Bssrdf { rel_error, time_s } => bssrdf::bench(rel_error, time_s)?,
         BenchCommand::Surface { paths } => bssrdf::bench_surface(paths)?,
         BenchCommand::Fit { rel_error, out } => fit::bench(rel_error, out)?,
-        BenchCommand::Shard { scene, size, spp, shards, megapixels, nodes, projected_spp } => shard::bench(
-            &repository_file(&scene),
-            &size,
-            spp,
-            shards,
-            shard::Projection { megapixels, nodes, spp: projected_spp },
-        )?,
+        BenchCommand::Shard { scene, size, spp, shards, repeats, lucent, megapixels, nodes, projected_spp } => {
+            shard::bench(
+                &repository_file(&scene),
+                &size,
+                spp,
+                shards,
+                repeats,
+                lucent,
+                shard::Projection { megapixels, nodes, spp: projected_spp },
+            )?
+        }
         BenchCommand::Render { scene, time_s: Some(t), .. } => {
             render::check_time_s(t)?;
             render::bench_estimators(&repository_file(&scene), t)?

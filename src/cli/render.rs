@@ -259,6 +259,12 @@ pub fn check_threads(threads: Option<usize>) -> Result<()> {
 /// budget, seed, estimator choices): what `lucent render` renders. The
 /// scene's warnings are in the returned [`scene::LoadedScene`].
 pub fn prepare(a: &RenderArgs) -> Result<(scene::LoadedScene, Settings)> {
+    prepare_with(a, false)
+}
+
+/// [`prepare`]; for a merge (`for_merge`) without decoding the environment
+/// map ([`scene::load_for_merge`]).
+fn prepare_with(a: &RenderArgs, for_merge: bool) -> Result<(scene::LoadedScene, Settings)> {
     a.render.check()?;
     if let Some(t) = a.time_s {
         check_time_s(t)?;
@@ -266,7 +272,7 @@ pub fn prepare(a: &RenderArgs) -> Result<(scene::LoadedScene, Settings)> {
     if !a.exposure.is_finite() {
         bail!("--exposure must be finite");
     }
-    let mut loaded = scene::load(&a.scene)?;
+    let mut loaded = if for_merge { scene::load_for_merge(&a.scene)? } else { scene::load(&a.scene)? };
     a.render.resize(&mut loaded)?;
     let mut settings = loaded.settings.clone();
     a.render.apply(&mut settings);
@@ -294,7 +300,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
 /// Runs `lucent render`, or with `merged` writes the outputs of the run
 /// whose shards these are (`lucent merge`).
 pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
-    let (loaded, settings) = prepare(&a)?;
+    let (loaded, settings) = prepare_with(&a, merged_from.is_some())?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }

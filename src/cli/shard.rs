@@ -1,13 +1,15 @@
-//! `--shard K/N` of `lucent render` and `lucent bssrdf`, and `lucent merge
-//! SHARD… --out DIR` (the format and the checks are in [`crate::shard`]).
+//! `--shard K/N` of `lucent render`, `lucent bssrdf` and `lucent optics
+//! --uncertainty N`, and `lucent merge SHARD… --out DIR` (the format and
+//! the checks are in [`crate::shard`]).
 //!
 //! A shard's identity is the command line it was given (without `--shard`,
 //! `--out`, `--threads` and `--quiet`), the folder it ran in, and a SHA-256
 //! of that command line and of every input file it names (a scene or
-//! recipe and the files *they* name). The merge parses the same command
-//! line again in the same folder, checks the input files still hash to the
-//! same value, adds the shards' sums in shard order and writes what the
-//! unsharded command writes.
+//! recipe and the files *they* name; for a folder, the recipes in it). The
+//! merge parses the same command line again in the same folder, checks the
+//! input files still hash to the same value, adds the shards' sums (for an
+//! uncertainty run: puts their draws together) in shard order and writes
+//! what the unsharded command writes.
 
 use crate::shard::{self, Identity};
 use anyhow::{bail, Context, Result};
@@ -56,17 +58,31 @@ pub fn inputs_sha256(args: &[String]) -> Result<String> {
         h.update([0u8]);
         for candidate in [Some(a.as_str()), a.split_once(':').map(|(_, p)| p)].into_iter().flatten() {
             let p = Path::new(candidate);
-            if !p.is_file() {
+            // A folder of recipes (`lucent optics FOLDER`): the recipes in it.
+            let listed: Vec<PathBuf> = if p.is_dir() {
+                let mut v: Vec<PathBuf> = std::fs::read_dir(p)
+                    .with_context(|| format!("{}: cannot list folder", p.display()))?
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|f| f.is_file() && f.extension().is_some_and(|e| e == "toml"))
+                    .collect();
+                v.sort();
+                v
+            } else if p.is_file() {
+                vec![p.to_path_buf()]
+            } else {
                 continue;
-            }
-            let mut named = vec![p.to_path_buf()];
-            if p.extension().is_some_and(|e| e == "toml") {
-                named.extend(crate::pipeline::scene_inputs(p));
-                named.extend(crate::pipeline::recipe_inputs(p));
-            }
-            for f in named {
-                if !files.contains(&f) {
-                    files.push(f);
+            };
+            for p in listed {
+                let p = p.as_path();
+                let mut named = vec![p.to_path_buf()];
+                if p.extension().is_some_and(|e| e == "toml") {
+                    named.extend(crate::pipeline::scene_inputs(p));
+                    named.extend(crate::pipeline::recipe_inputs(p));
+                }
+                for f in named {
+                    if !files.contains(&f) {
+                        files.push(f);
+                    }
                 }
             }
         }
@@ -128,13 +144,17 @@ pub fn merge(a: MergeArgs) -> Result<()> {
     }
     let mut argv = vec!["lucent".to_string()];
     argv.extend(id.args.iter().cloned());
-    argv.extend(["--out".to_string(), out.display().to_string(), "--quiet".to_string()]);
+    argv.extend(["--out".to_string(), out.display().to_string()]);
+    if id.command != "optics" {
+        argv.push("--quiet".to_string());
+    }
     let cli = super::Cli::try_parse_from(&argv).with_context(|| {
         format!("{}: cannot parse its command line", shards[0].dir.join(shard::SHARD_JSON).display())
     })?;
     match cli.command {
         super::Command::Render(r) => super::render::run_from(r, Some(&shards)),
         super::Command::Bssrdf(b) if b.command.is_none() => super::bssrdf::simulate_from(b.run, Some(&shards)),
+        super::Command::Optics(o) if o.uncertainty.is_some() => super::optics_from(o, Some(&shards)),
         _ => bail!("{}: `lucent {}` is not a command with shards", shards[0].dir.display(), id.command),
     }
 }
@@ -147,9 +167,42 @@ pub struct Projection {
     pub spp: u32,
 }
 
-/// Runs `lucent ARGS` (this binary) quietly; its wall time in seconds.
-fn timed(exe: &Path, args: &[String]) -> Result<f64> {
-    let start = std::time::Instant::now();
+/// User and system CPU seconds of this process's finished children so far.
+#[cfg(unix)]
+fn children_cpu_s() -> f64 {
+    let mut u = std::mem::MaybeUninit::<libc::rusage>::zeroed();
+    // SAFETY: getrusage fills the rusage it is given and only reads `who`.
+    if unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, u.as_mut_ptr()) } != 0 {
+        return f64::NAN;
+    }
+    // SAFETY: initialised by the successful call above (and zeroed before).
+    let u = unsafe { u.assume_init() };
+    let s = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    s(u.ru_utime) + s(u.ru_stime)
+}
+
+#[cfg(not(unix))]
+fn children_cpu_s() -> f64 {
+    f64::NAN
+}
+
+/// Wall and CPU (user + system) seconds of runs.
+#[derive(Debug, Clone, Copy, Default)]
+struct Time {
+    wall_s: f64,
+    cpu_s: f64,
+}
+
+impl std::ops::Add for Time {
+    type Output = Time;
+    fn add(self, o: Time) -> Time {
+        Time { wall_s: self.wall_s + o.wall_s, cpu_s: self.cpu_s + o.cpu_s }
+    }
+}
+
+/// Runs `lucent ARGS` (this binary) quietly; its wall and CPU time.
+fn timed(exe: &Path, args: &[String]) -> Result<Time> {
+    let (start, cpu) = (std::time::Instant::now(), children_cpu_s());
     let o = std::process::Command::new(exe)
         .args(args)
         .output()
@@ -157,20 +210,44 @@ fn timed(exe: &Path, args: &[String]) -> Result<f64> {
     if !o.status.success() {
         bail!("`lucent {}` failed: {}", args.join(" "), String::from_utf8_lossy(&o.stderr).trim());
     }
-    Ok(start.elapsed().as_secs_f64())
+    Ok(Time { wall_s: start.elapsed().as_secs_f64(), cpu_s: children_cpu_s() - cpu })
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }
 
 /// `lucent bench shard`: the scene rendered as one process and as
 /// `shards` shard processes run one after the other (each on all cores)
 /// plus their merge, each as a child process of this binary (start-up,
-/// scene loading and output included); the overhead of sharding, and a
-/// projection from the measured rates for a render of `p.megapixels` at
-/// `p.spp` on `p.nodes` nodes like this machine (one shard per node).
-pub fn bench(scene: &Path, size: &str, spp: u32, shards: u32, p: Projection) -> Result<()> {
-    let exe = std::env::current_exe().context("cannot find the lucent binary")?;
+/// scene loading and output included), in `repeats` rounds that alternate
+/// which comes first (on a shared machine the load drifts; the overhead is
+/// taken over the sums of all rounds, in wall and in CPU time); the fixed
+/// cost per process and its start-up part; and a projection from the
+/// measured rates for a render of `p.megapixels` at `p.spp` on `p.nodes`
+/// nodes like this machine (one shard per node).
+pub fn bench(
+    scene: &Path,
+    size: &str,
+    spp: u32,
+    shards: u32,
+    repeats: u32,
+    lucent: Option<PathBuf>,
+    p: Projection,
+) -> Result<()> {
+    let exe = match lucent {
+        Some(e) if e.is_file() => e,
+        Some(e) => bail!("--lucent {}: no such binary", e.display()),
+        None => std::env::current_exe().context("cannot find the lucent binary")?,
+    };
     let (w, h) = super::render::parse_size(size)?;
     if shards < 2 || shards > spp {
         bail!("--shards {shards}: must lie in 2 … --spp ({spp})");
+    }
+    if !(1..=20).contains(&repeats) {
+        bail!("--repeats {repeats}: must lie in 1 … 20");
     }
     let tmp = std::env::temp_dir().join(format!("lucent-bench-shard-{}", std::process::id()));
     let base = |out: &Path, spp: u32, size: &str| -> Vec<String> {
@@ -179,25 +256,62 @@ pub fn bench(scene: &Path, size: &str, spp: u32, shards: u32, p: Projection) -> 
         v.extend(["--out".into(), out.display().to_string()]);
         v
     };
+    // The median of three runs of a short command.
+    let median3 = |args: &[String]| -> Result<Time> {
+        let t = [timed(&exe, args)?, timed(&exe, args)?, timed(&exe, args)?];
+        Ok(Time { wall_s: median(&t.map(|t| t.wall_s)), cpu_s: median(&t.map(|t| t.cpu_s)) })
+    };
     let result = (|| -> Result<serde_json::Value> {
-        // Fixed cost per process: start-up, scene and environment loading, writing.
-        let fixed_s = timed(&exe, &base(&tmp.join("fixed"), 1, "8x6"))?;
-        let one_s = timed(&exe, &base(&tmp.join("one"), spp, size))?;
-        let mut shard_s = Vec::new();
-        let mut dirs = Vec::new();
-        for k in 0..shards {
-            let d = tmp.join(format!("shard-{k}"));
-            let mut a = base(&d, spp, size);
-            a.extend(["--shard".into(), format!("{k}/{shards}")]);
-            shard_s.push(timed(&exe, &a)?);
-            dirs.push(d.display().to_string());
+        // Fixed cost per process: start-up (the dynamic loader, 150 shared
+        // libraries through OpenCV), then scene loading (Lorenz–Mie phase
+        // tables, the environment map) and writing.
+        let startup = median3(&["--version".to_string()])?;
+        let fixed = median3(&base(&tmp.join("fixed"), 1, "8x6"))?;
+        let mut one = Vec::new();
+        let mut sharded = Vec::new();
+        let mut shard_t: Vec<Vec<Time>> = Vec::new();
+        let mut merge_t = Vec::new();
+        for round in 0..repeats {
+            let run_one = || timed(&exe, &base(&tmp.join("one"), spp, size));
+            let run_sharded = || -> Result<(Vec<Time>, Time)> {
+                let mut times = Vec::new();
+                let mut dirs = Vec::new();
+                for k in 0..shards {
+                    let d = tmp.join(format!("shard-{k}"));
+                    let mut a = base(&d, spp, size);
+                    a.extend(["--shard".into(), format!("{k}/{shards}")]);
+                    times.push(timed(&exe, &a)?);
+                    dirs.push(d.display().to_string());
+                }
+                let mut m = vec!["merge".to_string()];
+                m.extend(dirs);
+                let merged = tmp.join("merged");
+                let _ = std::fs::remove_dir_all(&merged);
+                m.extend(["--out".into(), merged.display().to_string()]);
+                Ok((times, timed(&exe, &m)?))
+            };
+            let (o, (s, m)) = if round % 2 == 0 {
+                let o = run_one()?;
+                (o, run_sharded()?)
+            } else {
+                let s = run_sharded()?;
+                (run_one()?, s)
+            };
+            one.push(o);
+            sharded.push(s.iter().fold(m, |a, b| a + *b));
+            shard_t.push(s);
+            merge_t.push(m);
         }
-        let mut m = vec!["merge".to_string()];
-        m.extend(dirs);
-        m.extend(["--out".into(), tmp.join("merged").display().to_string()]);
-        let merge_s = timed(&exe, &m)?;
-        let sharded_s: f64 = shard_s.iter().sum::<f64>() + merge_s;
-        let overhead = sharded_s / one_s - 1.0;
+        let total = |v: &[Time]| v.iter().fold(Time::default(), |a, b| a + *b);
+        let (one_sum, sharded_sum) = (total(&one), total(&sharded));
+        let overhead = sharded_sum.wall_s / one_sum.wall_s - 1.0;
+        let overhead_cpu = sharded_sum.cpu_s / one_sum.cpu_s - 1.0;
+        let per_round: Vec<f64> = one.iter().zip(&sharded).map(|(o, s)| s.wall_s / o.wall_s - 1.0).collect();
+        let one_s = median(&one.iter().map(|t| t.wall_s).collect::<Vec<_>>());
+        let merge_s = median(&merge_t.iter().map(|t| t.wall_s).collect::<Vec<_>>());
+        let shard_s: Vec<f64> =
+            (0..shards as usize).map(|k| median(&shard_t.iter().map(|r| r[k].wall_s).collect::<Vec<_>>())).collect();
+        let fixed_s = fixed.wall_s;
         // Rates: pixel-samples per second of the work itself; merge seconds per pixel and shard.
         let pixels = (w * h) as f64;
         let rate = pixels * f64::from(spp) / (one_s - fixed_s).max(1e-9);
@@ -207,9 +321,19 @@ pub fn bench(scene: &Path, size: &str, spp: u32, shards: u32, p: Projection) -> 
         let merge_big_s = fixed_s + merge_per_px_shard * big_px * f64::from(p.nodes);
         let one_node_s = fixed_s + big_px * f64::from(p.spp) / rate;
         eprintln!(
-            "{w}×{h}, {spp} spp: one process {one_s:.2} s; {shards} shards one after the other {:.2} s + merge {merge_s:.2} s = {sharded_s:.2} s: overhead {:+.1} % ({fixed_s:.2} s per process for start-up and loading)",
-            shard_s.iter().sum::<f64>(),
-            100.0 * overhead
+            "{w}×{h}, {spp} spp, {repeats} round(s): one process {:.2} s wall, {:.2} s CPU; {shards} shards one after the other + merge {:.2} s wall, {:.2} s CPU (shards {:.2} s each, merge {merge_s:.2} s, medians): overhead {:+.1} % wall (per round {}), {:+.1} % CPU",
+            one_sum.wall_s / f64::from(repeats),
+            one_sum.cpu_s / f64::from(repeats),
+            sharded_sum.wall_s / f64::from(repeats),
+            sharded_sum.cpu_s / f64::from(repeats),
+            shard_s.iter().sum::<f64>() / f64::from(shards),
+            100.0 * overhead,
+            per_round.iter().map(|o| format!("{:+.1} %", 100.0 * o)).collect::<Vec<_>>().join(", "),
+            100.0 * overhead_cpu,
+        );
+        eprintln!(
+            "fixed cost per process {fixed_s:.2} s wall, {:.3} s CPU: start-up {:.2} s wall, {:.3} s CPU; loading and writing the rest",
+            fixed.cpu_s, startup.wall_s, startup.cpu_s
         );
         eprintln!(
             "projection: {:.0} MP at {} spp on {} nodes like this one: {:.0} s per shard + {:.0} s merge = {:.0} s (one node: {:.0} s, {:.1}× faster)",
@@ -224,16 +348,27 @@ pub fn bench(scene: &Path, size: &str, spp: u32, shards: u32, p: Projection) -> 
         );
         Ok(serde_json::json!({
             "scene": scene.display().to_string(),
+            "lucent": exe.display().to_string(),
             "size": [w, h],
             "spp": spp,
             "threads": rayon::current_num_threads(),
+            "repeats": repeats,
             "one_process_s": one_s,
             "shards": shards,
             "shard_s": shard_s,
             "merge_s": merge_s,
-            "sharded_total_s": sharded_s,
+            "sharded_total_s": sharded_sum.wall_s / f64::from(repeats),
             "overhead": overhead,
+            "overhead_per_round": per_round,
+            "cpu": {
+                "one_process_s": one_sum.cpu_s / f64::from(repeats),
+                "sharded_total_s": sharded_sum.cpu_s / f64::from(repeats),
+                "overhead": overhead_cpu,
+                "fixed_per_process_s": fixed.cpu_s,
+                "startup_s": startup.cpu_s,
+            },
             "fixed_per_process_s": fixed_s,
+            "startup_s": startup.wall_s,
             "pixel_samples_per_s": rate,
             "projection": {
                 "megapixels": p.megapixels,

@@ -128,21 +128,23 @@ pub fn latin_hypercube(n: usize, dims: usize, seed: u64) -> Vec<Vec<f64>> {
     points
 }
 
-/// Propagates the recipe's uncertain inputs to its bulk properties on `grid`
-/// with `n` Latin-hypercube samples.
-pub fn propagate(recipe: &Recipe, grid: &WavelengthGrid, n: usize, seed: u64) -> Result<Uncertainty, UncertaintyError> {
+/// The whole Latin-hypercube design of a run: the input values of draws
+/// 0 … n−1 (rows, in the order of `recipe.uncertain`). It depends only on
+/// the recipe's uncertain inputs, `n` and `seed`, so every shard of a run
+/// makes the same design and evaluates its own rows of it.
+pub fn design(recipe: &Recipe, n: usize, seed: u64) -> Result<Vec<Vec<f64>>, UncertaintyError> {
     if recipe.uncertain.is_empty() {
         return Err(UncertaintyError::NoUncertainInputs { recipe: recipe.path.clone() });
     }
     if n < 10 {
         return Err(UncertaintyError::TooFewSamples(n));
     }
-    let inputs = recipe.uncertain.clone();
-    let draws: Vec<Vec<f64>> = latin_hypercube(n, inputs.len(), seed)
+    let inputs = &recipe.uncertain;
+    Ok(latin_hypercube(n, inputs.len(), seed)
         .into_iter()
         .map(|u| {
             u.iter()
-                .zip(&inputs)
+                .zip(inputs)
                 .map(|(u, input)| match input.distribution {
                     InputDistribution::Normal { sd } => {
                         input.nominal + sd * inverse_normal(u.clamp(1e-12, 1.0 - 1e-12))
@@ -151,12 +153,62 @@ pub fn propagate(recipe: &Recipe, grid: &WavelengthGrid, n: usize, seed: u64) ->
                 })
                 .collect()
         })
-        .collect();
+        .collect())
+}
+
+/// The bulk properties of some draws of a design: for each property
+/// ([`Draws::PROPERTIES`]) the values of draw after draw, `wavelengths`
+/// values per draw (draw-major). Each draw's values depend on its input
+/// values only, so the draws of a run can be evaluated in any grouping
+/// (the shards of `lucent optics --uncertainty N --shard K/N`) and put
+/// together by [`Draws::append`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Draws {
+    /// The draws' indices in the design.
+    pub range: std::ops::Range<usize>,
+    pub wavelengths: usize,
+    /// μs [1/m], μa [1/m], g, n_bulk.
+    pub values: [Vec<f64>; 4],
+}
+
+impl Draws {
+    /// The names of `values`, as in [`Uncertainty`] and its CSV.
+    pub const PROPERTIES: [&str; 4] = ["mu_s_per_m", "mu_a_per_m", "g", "n_bulk"];
+
+    /// No draws, starting at draw `start`.
+    pub fn empty(start: usize, wavelengths: usize) -> Self {
+        Self { range: start..start, wavelengths, values: Default::default() }
+    }
+
+    /// `next` (the draws right after these) appended.
+    pub fn append(&mut self, next: &Draws) -> Result<(), String> {
+        if next.range.start != self.range.end || next.wavelengths != self.wavelengths {
+            return Err(format!(
+                "draws {:?} of {} wavelengths do not continue draws {:?} of {}",
+                next.range, next.wavelengths, self.range, self.wavelengths
+            ));
+        }
+        for (a, b) in self.values.iter_mut().zip(&next.values) {
+            a.extend_from_slice(b);
+        }
+        self.range.end = next.range.end;
+        Ok(())
+    }
+}
+
+/// The bulk properties on `grid` of draws `range` of `design` ([`design`]).
+pub fn evaluate(
+    recipe: &Recipe,
+    grid: &WavelengthGrid,
+    design: &[Vec<f64>],
+    range: std::ops::Range<usize>,
+) -> Result<Draws, UncertaintyError> {
+    let inputs = &recipe.uncertain;
     let options = bulk::Options { phase_entries: 0, ..bulk::Options::default() };
-    let spectra: Vec<bulk::OpticalSpectrum> = draws
+    let spectra: Vec<bulk::OpticalSpectrum> = design[range.clone()]
         .par_iter()
-        .enumerate()
-        .map(|(k, values)| {
+        .zip(range.clone())
+        .map(|(values, k)| {
             let mut r = recipe.clone();
             for (input, v) in inputs.iter().zip(values) {
                 r = r.with_input(input.target, *v).map_err(|source| UncertaintyError::Recipe { sample: k, source })?;
@@ -164,11 +216,32 @@ pub fn propagate(recipe: &Recipe, grid: &WavelengthGrid, n: usize, seed: u64) ->
             bulk::compute(&r, grid, &options).map_err(|source| UncertaintyError::Optics { sample: k, source })
         })
         .collect::<Result<_, _>>()?;
-    let band = |f: &dyn Fn(&bulk::OpticalSpectrum) -> &Vec<f64>| -> Band {
-        let w = grid.len();
+    let column = |f: &dyn Fn(&bulk::OpticalSpectrum) -> &Vec<f64>| -> Vec<f64> {
+        spectra.iter().flat_map(|s| f(s).iter().copied()).collect()
+    };
+    Ok(Draws {
+        range,
+        wavelengths: grid.len(),
+        values: [column(&|s| &s.mu_s_per_m), column(&|s| &s.mu_a_per_m), column(&|s| &s.g), column(&|s| &s.n_bulk)],
+    })
+}
+
+/// The statistics of all draws 0 … n−1 of `design` (evaluated in
+/// `draws`): the same numbers however the draws were grouped.
+pub fn summarise(
+    recipe: &Recipe,
+    grid: &WavelengthGrid,
+    seed: u64,
+    design: Vec<Vec<f64>>,
+    draws: &Draws,
+) -> Uncertainty {
+    let n = design.len();
+    assert_eq!(draws.range, 0..n, "summarise needs every draw of the design");
+    let w = grid.len();
+    let band = |values: &[f64]| -> Band {
         let mut b = Band { mean: vec![0.0; w], sd: vec![0.0; w], p2_5: vec![0.0; w], p97_5: vec![0.0; w] };
         for i in 0..w {
-            let mut v: Vec<f64> = spectra.iter().map(|s| f(s)[i]).collect();
+            let mut v: Vec<f64> = (0..n).map(|d| values[d * w + i]).collect();
             let m = v.iter().sum::<f64>() / n as f64;
             b.mean[i] = m;
             b.sd[i] = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
@@ -178,19 +251,29 @@ pub fn propagate(recipe: &Recipe, grid: &WavelengthGrid, n: usize, seed: u64) ->
         }
         b
     };
-    Ok(Uncertainty {
+    let [mu_s, mu_a, g, n_bulk] = &draws.values;
+    Uncertainty {
         sample: recipe.name.clone(),
         samples: n,
         seed,
         method: "Latin hypercube over the uncertain inputs (normal: inverse CDF; uniform), bulk properties per sample",
-        inputs,
+        inputs: recipe.uncertain.clone(),
         wavelength_nm: grid.wavelengths_nm().to_vec(),
-        mu_s_per_m: band(&|s| &s.mu_s_per_m),
-        mu_a_per_m: band(&|s| &s.mu_a_per_m),
-        g: band(&|s| &s.g),
-        n_bulk: band(&|s| &s.n_bulk),
-        draws,
-    })
+        mu_s_per_m: band(mu_s),
+        mu_a_per_m: band(mu_a),
+        g: band(g),
+        n_bulk: band(n_bulk),
+        draws: design,
+    }
+}
+
+/// Propagates the recipe's uncertain inputs to its bulk properties on `grid`
+/// with `n` Latin-hypercube samples: [`design`], [`evaluate`] of every
+/// draw, [`summarise`].
+pub fn propagate(recipe: &Recipe, grid: &WavelengthGrid, n: usize, seed: u64) -> Result<Uncertainty, UncertaintyError> {
+    let design = design(recipe, n, seed)?;
+    let draws = evaluate(recipe, grid, &design, 0..n)?;
+    Ok(summarise(recipe, grid, seed, design, &draws))
 }
 
 /// Quantile of sorted values, linear between order statistics (type 7).
@@ -232,6 +315,28 @@ mod tests {
         for (p, z) in [(0.5, 0.0), (0.975, 1.959963984540054), (0.01, -2.326347874040841), (0.8413447460685429, 1.0)] {
             assert!((inverse_normal(p) - z).abs() < 1e-8, "{p}: {}", inverse_normal(p));
         }
+    }
+
+    #[test]
+    fn draws_evaluated_in_groups_summarise_bit_for_bit_as_all_at_once() {
+        use super::super::recipe::Overrides;
+        let text = include_str!("../../fixtures/samples/IOL1068-09.toml")
+            .replace("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = 0.02 }");
+        let r = Recipe::parse(&text, std::path::Path::new("u.toml"), Overrides::default()).unwrap();
+        let grid = WavelengthGrid::from_list(vec![450.0, 650.0]).unwrap();
+        let whole = propagate(&r, &grid, 23, 5).unwrap();
+        let design = design(&r, 23, 5).unwrap();
+        let mut all = Draws::empty(0, grid.len());
+        for k in 0..4 {
+            let range = crate::shard::range(23, k, 4);
+            let part = evaluate(&r, &grid, &design, range.start as usize..range.end as usize).unwrap();
+            all.append(&part).unwrap();
+        }
+        // Not contiguous: refused.
+        assert!(all.clone().append(&Draws::empty(3, grid.len())).is_err());
+        let grouped = summarise(&r, &grid, 5, design, &all);
+        let bits = |u: &Uncertainty| serde_json::to_string(u).unwrap();
+        assert_eq!(bits(&whole), bits(&grouped));
     }
 
     #[test]

@@ -578,6 +578,9 @@ fn smooth() -> String {
 struct Ctx<'a> {
     path: &'a Path,
     dir: PathBuf,
+    /// Only what describes the scene ([`load_for_merge`]): the environment
+    /// map's size, not its pixels.
+    summary_only: bool,
 }
 
 impl Ctx<'_> {
@@ -650,9 +653,25 @@ fn read_scene_json(ctx: &Ctx, p: &Path) -> Result<SceneDescription, SceneFileErr
         .map_err(|source| ctx.key("camera", "scene_json", KeyProblem::NotSceneJson { file: full.clone(), source }))
 }
 
+/// [`load`] for `lucent merge`, which writes a render's outputs from its
+/// shards' sums and needs the scene's settings and description, not its
+/// light: the environment map is not decoded (its header gives the size the
+/// description states) and the scene holds a black constant environment
+/// instead. Everything else, and every check, is [`load`]'s.
+pub fn load_for_merge(path: &Path) -> Result<LoadedScene, SceneFileError> {
+    let text =
+        std::fs::read_to_string(path).map_err(|source| SceneFileError::Read { path: path.to_path_buf(), source })?;
+    let file = parse(&text, path)?;
+    build_with(&file, path, true)
+}
+
 /// Stage two: the validated scene.
 pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileError> {
-    let ctx = Ctx { path, dir: path.parent().map(Path::to_path_buf).unwrap_or_default() };
+    build_with(file, path, false)
+}
+
+fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<LoadedScene, SceneFileError> {
+    let ctx = Ctx { path, dir: path.parent().map(Path::to_path_buf).unwrap_or_default(), summary_only };
     let mut warnings = Vec::new();
     let scene_json = match &file.camera.scene_json {
         Some(p) => Some(read_scene_json(&ctx, p)?),
@@ -1426,6 +1445,13 @@ fn build_environment(
             }
             (Environment::constant(c.map(|v| v * scale), projection), format!("constant {c:?} × {scale}"))
         }
+        (Some(p), None) if ctx.summary_only => {
+            let full = ctx.resolve(p);
+            let (width, height) = crate::imageio::image_size(&full)
+                .map_err(|source| SceneFileError::Image { path: ctx.path.to_path_buf(), source })?;
+            let env = Environment::constant([0.0; 3], projection);
+            (env, format!("{} ({width}×{height}), yaw {yaw}°, scale {scale}", full.display()))
+        }
         (Some(p), None) => {
             let full = ctx.resolve(p);
             let img = crate::imageio::read_rgb(&full)
@@ -1462,7 +1488,7 @@ mod tests {
     #[test]
     fn board_spectrum_csv_takes_comments_and_a_header_and_names_bad_lines() {
         let dir = tempfile::tempdir().unwrap();
-        let ctx = Ctx { path: Path::new("scene.toml"), dir: dir.path().to_path_buf() };
+        let ctx = Ctx { path: Path::new("scene.toml"), dir: dir.path().to_path_buf(), summary_only: false };
         let p = dir.path().join("r.csv");
         let mut text = String::from("# a grey card\nwavelength_nm, reflectance\n");
         for w in (380..=780).step_by(5) {
