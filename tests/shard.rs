@@ -120,21 +120,7 @@ fn bad_shard_sets_are_refused_and_nothing_is_written() {
     };
     let (a0, a1, a2) = (shard("3", 0, 3), shard("3", 1, 3), shard("3", 2, 3));
     let b1 = shard("5", 1, 3);
-    let merge = |dirs: &[&str], expect: &[&str]| {
-        let out = dir.path().join("out");
-        let mut args = vec!["merge"];
-        args.extend_from_slice(dirs);
-        let o_s = out.display().to_string();
-        args.extend_from_slice(&["--out", &o_s]);
-        let o = lucent(&args);
-        let e = stderr(&o);
-        assert!(!o.status.success(), "{dirs:?} merged");
-        for x in expect {
-            assert!(e.contains(x), "{dirs:?}: {e}");
-        }
-        assert!(!e.contains("panicked"), "{e}");
-        assert!(!out.exists(), "{dirs:?}: wrote {}", out.display());
-    };
+    let merge = |dirs: &[&str], expect: &[&str]| refused_merge(&dir.path().join("out"), dirs, expect);
     merge(&[&a0, &b1, &a2], &["another run", "seed", "s5-1-3"]);
     merge(&[&a0, &a2], &["shard 1 of 3 missing"]);
     merge(&[&a0, &a1, &a1, &a2], &["both shard 1 of 3"]);
@@ -314,21 +300,7 @@ fn bad_uncertainty_shard_sets_are_refused_and_nothing_is_written() {
     let b1 = shard("5", 1, 3);
     let r1 = dir.path().join("render-1-3");
     run(&render_args(&r1, "3", &["--shard", "1/3"]));
-    let merge = |dirs: &[&str], expect: &[&str]| {
-        let out = dir.path().join("out");
-        let mut args = vec!["merge"];
-        args.extend_from_slice(dirs);
-        let o_s = out.display().to_string();
-        args.extend_from_slice(&["--out", &o_s]);
-        let o = lucent(&args);
-        let e = stderr(&o);
-        assert!(!o.status.success(), "{dirs:?} merged");
-        for x in expect {
-            assert!(e.contains(x), "{dirs:?}: expected {x:?} in: {e}");
-        }
-        assert!(!e.contains("panicked"), "{e}");
-        assert!(!out.exists(), "{dirs:?}: wrote {}", out.display());
-    };
+    let merge = |dirs: &[&str], expect: &[&str]| refused_merge(&dir.path().join("out"), dirs, expect);
     merge(&[&a0, &b1, &a2], &["another run", "seed", "u5-1-3"]);
     merge(&[&a0, r1.to_str().unwrap(), &a2], &["another run", "command", "render-1-3"]);
     merge(&[&a0, &a2], &["shard 1 of 3 missing"]);
@@ -396,4 +368,21 @@ fn bad_shard_folders_of_the_corpus_are_refused() {
         assert!(!e.contains("panicked"), "{name}: {e}");
         assert!(!out.exists(), "{name}: wrote {}", out.display());
     }
+}
+
+/// `lucent merge DIRS --out OUT` fails, its message holds every string of
+/// `expect`, it does not panic and writes nothing.
+fn refused_merge(out: &std::path::Path, dirs: &[&str], expect: &[&str]) {
+    let mut args = vec!["merge"];
+    args.extend_from_slice(dirs);
+    let o_s = out.display().to_string();
+    args.extend_from_slice(&["--out", &o_s]);
+    let o = lucent(&args);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{dirs:?} merged");
+    for x in expect {
+        assert!(e.contains(x), "{dirs:?}: expected {x:?} in: {e}");
+    }
+    assert!(!e.contains("panicked"), "{e}");
+    assert!(!out.exists(), "{dirs:?}: wrote {}", out.display());
 }
