@@ -622,6 +622,14 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     let html = std::fs::read_to_string(out.join("report/index.html")).unwrap();
     assert!(html.contains("Recipe fitted to the measured slices") && html.contains("Which twin is closer"), "report");
     assert!(html.contains("photo | fitted twin | difference"));
+    // Scored over the plaque's pixels as the render's object layer marks them.
+    assert_eq!(smp["compare"]["mask"]["source"], "object", "{}", smp["compare"]["mask"]);
+    // The loop against its truth, stated once: truth, recovered, the verdict and its p.
+    let lp = &smp["loop"];
+    assert_eq!(lp["parameters"][0]["truth"].as_f64(), Some(0.425), "{lp}");
+    assert_eq!(lp["parameters"][0]["recovered"], p["value"], "{lp}");
+    assert_eq!(lp["verdict"], twins["paired"]["verdict"], "{lp}");
+    assert!(html.contains("The loop against its known truth"), "report");
     // A second run skips every stage.
     let again = ok(&lucent(&["run", project.to_str().unwrap(), "--out", out.to_str().unwrap()]));
     for s in ["fit", "render", "compare"] {

@@ -348,6 +348,8 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         }
         // Fit: the recipe fitted to the measured slices, beside the truth when known.
         let fdir = out.join("fit").join(&smp.name);
+        // (parameter, fitted, 95 % interval, truth) of the fit, for the loop's summary below.
+        let mut fitted_vs_truth: Vec<(String, Option<f64>, Option<[f64; 2]>, f64)> = Vec::new();
         if let Some(fj) = read_json::<Value>(&fdir.join("fit.json"), "a fit.json")? {
             h.push_str("<h3>Recipe fitted to the measured slices (lucent fit)</h3>");
             let truth = match &smp.truth_recipe {
@@ -384,6 +386,9 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     covered.into(),
                 ]);
                 pj.push(json!({"name": name, "start": p["start"], "value": value, "interval_95": ci, "truth": known}));
+                if let Some(k) = known {
+                    fitted_vs_truth.push((name.to_string(), value, ci, k));
+                }
             }
             h.push_str(&table(
                 &["parameter", "start (recipe)", "fitted", "95 % interval", "truth", "truth in interval"],
@@ -474,17 +479,50 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 rows.push(row("after ECC refinement", &r.metrics));
             }
             h.push_str(&table(&["", "RMSE", "RMSE R", "RMSE G", "RMSE B", "SSIM (Y)", "SSIM (mean RGB)"], &rows));
+            let _ = write!(
+                h,
+                "<p>Over {} pixels ({}: {}).</p>",
+                m.mask.included_pixels,
+                esc(&m.mask.source),
+                esc(m.mask.path.as_deref().unwrap_or("the whole image"))
+            );
             if let Some(n) = &m.noise {
                 let _ = write!(
                     h,
-                    "<p>Model RMSE with the render's noise removed: {} (95 % interval {} – {}); noise floor {} \
-                     (the RMSE a perfect twin would show at this noise); {}.</p>",
+                    "<p>Model RMSE with the render's and the photo's noise removed: {} (95 % interval {} – {}); noise \
+                     floor {} (the RMSE a perfect twin would show at this noise); photo variance: {}.</p>",
                     num(n.total.model_rmse, e4),
                     num(n.total.ci95[0], e4),
                     num(n.total.ci95[1], e4),
                     num(n.total.noise_floor, e4),
-                    n.photo_variance
+                    esc(&n.photo_variance)
                 );
+                if let Some(pn) = &n.photo_noise {
+                    let model = |m: &lucent_calib::noise::NoiseModel| {
+                        format!(
+                            "a = {} / {} / {}, b = {} / {} / {} (R / G / B)",
+                            num(m.a[0], e4),
+                            num(m.a[1], e4),
+                            num(m.a[2], e4),
+                            num(m.b[0], e4),
+                            num(m.b[1], e4),
+                            num(m.b[2], e4)
+                        )
+                    };
+                    let _ = write!(
+                        h,
+                        "<p>The photo's noise model, variance = a·x + b of a raw value x (1 = white level): {}{}.</p>",
+                        model(&pn.noise_model),
+                        match &pn.estimated_from_image {
+                            Some(e) => format!(
+                                "; estimated from the photo itself, as a check: {} (larger where the photo has \
+                                 texture or noise of its own at the photosite scale)",
+                                model(e)
+                            ),
+                            None => String::new(),
+                        }
+                    );
+                }
             }
             if let Some(t) = &m.twins {
                 let zero = |z: &Option<crate::compare::noise::SsimAtZeroNoise>| {
@@ -529,6 +567,54 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     num(t.paired.p_value, |x| format!("{x:.2e}")),
                     esc(&t.paired.verdict.replace('A', "A (recipe)").replace('B', "B (fitted)"))
                 );
+                // The loop against its known truth (truth_recipe, read by the report only).
+                if let (Some(t_path), false) = (&smp.truth_recipe, fitted_vs_truth.is_empty()) {
+                    let fits: Vec<String> = fitted_vs_truth
+                        .iter()
+                        .map(|(name, v, ci, k)| {
+                            format!(
+                                "{} truth {}, recovered {}{}",
+                                esc(name),
+                                num(*k, f4),
+                                v.map_or_else(|| "—".into(), |v| num(v, f4)),
+                                match ci {
+                                    Some([lo, hi]) => format!(
+                                        " (95 % {} – {}: the truth {} it)",
+                                        num(*lo, f4),
+                                        num(*hi, f4),
+                                        if *lo <= *k && *k <= *hi { "is in" } else { "is outside" }
+                                    ),
+                                    None => String::new(),
+                                }
+                            )
+                        })
+                        .collect();
+                    let named_fitted = t.paired.verdict == "B is closer";
+                    let _ = write!(
+                        h,
+                        "<p><b>The loop against its known truth</b> ({}, which no stage reads): {}; the compare stage \
+                         {} (p = {}; the demo's bar: the fitted twin named closer with p &lt; 0.01, {}).</p>",
+                        esc(&t_path.display().to_string()),
+                        fits.join("; "),
+                        if named_fitted {
+                            "names the fitted twin closer".to_string()
+                        } else {
+                            format!("does not name the fitted twin closer ({})", esc(&t.paired.verdict))
+                        },
+                        num(t.paired.p_value, |x| format!("{x:.2e}")),
+                        if named_fitted && t.paired.p_value < 0.01 { "met" } else { "not met" }
+                    );
+                    sj.insert(
+                        "loop".into(),
+                        json!({
+                            "truth_recipe": t_path,
+                            "parameters": fitted_vs_truth.iter().map(|(n, v, ci, k)| json!({"name": n, "truth": k, "recovered": v, "interval_95": ci})).collect::<Vec<_>>(),
+                            "verdict": t.paired.verdict,
+                            "p_value": t.paired.p_value,
+                            "fitted_named_closer_at_p_below_0_01": named_fitted && t.paired.p_value < 0.01,
+                        }),
+                    );
+                }
             }
             h.push_str(&page.img(&cdir.join("triplet.png"), &format!("{} photo | render | difference", smp.name))?);
             h.push_str(&page.img(
