@@ -12,31 +12,36 @@
 //! ([`NoiseModel::from_noise_profile`]).
 //!
 //! **From the image itself** ([`estimate`]), when the file has no profile:
-//! per CFA position, the photosites of that position form a sub-image z; at
-//! each interior photosite the residual against its four same-colour
-//! neighbours, r = z − ¼(z_left + z_right + z_up + z_down), has mean 0 where
-//! the scene is locally linear and variance (1 + 4/16)·var = 1.25·var; its
-//! signal is the mean of the five values. Photosites near clipping, and those
-//! on edges (a central difference |z_left − z_right| or |z_up − z_down| above
-//! 4 standard deviations of the noise from a first pass), are left out. The
-//! rest are sorted by signal into up to 32 bins of at least 200 photosites,
-//! the variance of each bin is estimated robustly from the median of r²
-//! (var = median(r²) / (1.25 · 0.454936), 0.454936 being the median of χ²
-//! with 1 degree of freedom, so texture in a minority of a bin's photosites
-//! does not inflate it), and a, b come from a weighted least-squares line
-//! through the bins (weights n / var², the median's sampling variance ≈
-//! 5.44 var² / n). Foi et al. 2008 ("Practical Poissonian-Gaussian noise
-//! modeling and fitting for single-image raw-data", IEEE TIP 17(10)) fit
-//! the same model from level sets of smooth regions; this is a simpler
-//! variant of that idea. An image whose signals span too little to separate
-//! the two terms (all bins within 2 % of the white level of each other) gets
-//! b = 0 and a from the mean variance/signal (stated in [`NoiseModel::note`]).
+//! per CFA position, the photosites of that position form a sub-image z. At
+//! each photosite whose 5 × 5 window of z is inside the image and below
+//! clipping, a least-squares plane through the window leaves a residual sum
+//! of squares with 22 degrees of freedom: RSS / 22 estimates the noise
+//! variance where the scene is linear across the window (a ramp costs
+//! nothing), its signal is the window's mean. The windows are sorted by
+//! signal into up to 32 bins of at least 200; each bin's variance is the
+//! median of its windows' estimates divided by 0.970 (the median of
+//! χ²₂₂ / 22), so texture in a minority of windows does not inflate it; a, b
+//! come from a weighted least-squares line through the bins (weights n /
+//! var², var from the previous line — iteratively reweighted —, standard
+//! errors from the bins' scatter about the line). Windows
+//! holding an edge are then left out — those whose estimate exceeds 2.5 ×
+//! the line's variance at their signal (pure noise: a share of ≈ 2·10⁻⁴) —
+//! and the line refitted, three times. Foi et al. 2008 ("Practical
+//! Poissonian-Gaussian noise modeling and fitting for single-image raw-data",
+//! IEEE TIP 17(10)) fit the same model from level sets of smooth regions;
+//! this is a simpler variant of that idea. An image whose signals span too
+//! little to separate the two terms (all bins within 2 % of the white level
+//! of each other) gets b = 0 and a from the mean variance/signal (stated in
+//! [`NoiseModel::note`]).
 //!
 //! Trust: the estimate counts everything that varies from photosite to
-//! photosite as noise — a scene with fine texture at the scale of the CFA
-//! (fabric, print dots) reads noisier than the sensor is. Synthetic mosaics
-//! with a = 2·10⁻⁴, b = 4·10⁻⁶ over smooth gradients and a few edges are
-//! recovered within 8 % (a) and 30 % (b) (`calib/tests/noise.rs`).
+//! photosite within 5 × 5 same-colour windows as noise — a scene with fine
+//! texture at that scale (fabric, print dots, a checkerboard of a few pixels
+//! per square) reads noisier than the sensor is. On synthetic 512 × 384
+//! mosaics (a = 1.5–3·10⁻⁴, b = 4–6·10⁻⁶, gradients and 48-px patches) a is
+//! recovered within 5 % (standard error ≈ 1.5 %) and b, which only the
+//! darkest bins constrain, within 55 % (standard error ≈ 15 %; edges that
+//! survive the screen pull it ≈ 10 % low) (`calib/tests/noise.rs`).
 //!
 //! [`developed_noise`] draws one realisation of this noise (Gaussian, the
 //! model's variance at each photosite's recorded value) through the same
@@ -62,10 +67,6 @@ pub const MIN_PER_BIN: usize = 200;
 pub const MAX_BINS: usize = 32;
 /// Photosites whose neighbourhood reaches this fraction of the white level are left out.
 pub const CLIP_LEVEL: f32 = 0.95;
-/// Median of χ² with one degree of freedom.
-const MEDIAN_CHI2_1: f64 = 0.454_936_423_119_572_8;
-/// var(r) / var for r = z − mean of 4 neighbours.
-const RESIDUAL_GAIN: f64 = 1.25;
 
 /// Where a [`NoiseModel`] comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -180,52 +181,83 @@ fn planes(data: &RawData) -> Vec<(usize, usize, usize, Vec<f32>)> {
     }
 }
 
-/// Per photosite of a plane with a full neighbourhood below the clip level:
-/// (signal, residual², largest central difference).
-fn residuals(w: usize, h: usize, z: &[f32]) -> Vec<(f64, f64, f64)> {
+/// Per photosite of a plane whose 5 × 5 window of same-colour photosites
+/// lies inside the plane and below the clip level: (signal, variance
+/// estimate). The window's least-squares plane (mean and two slopes, the
+/// offsets −2…2 being orthogonal) leaves a residual sum of squares RSS with
+/// 22 degrees of freedom: RSS / 22 estimates the noise variance where the
+/// scene is linear across the window (a ramp costs nothing, an edge a lot).
+fn windows(w: usize, h: usize, z: &[f32]) -> Vec<(f64, f64)> {
     let mut out = Vec::new();
-    for i in 1..h.saturating_sub(1) {
-        for j in 1..w.saturating_sub(1) {
-            let at = |di: isize, dj: isize| f64::from(z[(i as isize + di) as usize * w + (j as isize + dj) as usize]);
-            let (c, l, r, u, d) = (at(0, 0), at(0, -1), at(0, 1), at(-1, 0), at(1, 0));
-            if [c, l, r, u, d].iter().any(|&v| v >= f64::from(CLIP_LEVEL)) {
-                continue;
+    for i in 2..h.saturating_sub(2) {
+        'px: for j in 2..w.saturating_sub(2) {
+            let (mut s, mut sx, mut sy, mut ss) = (0.0, 0.0, 0.0, 0.0);
+            for di in -2isize..=2 {
+                for dj in -2isize..=2 {
+                    let v = z[(i as isize + di) as usize * w + (j as isize + dj) as usize];
+                    if v >= CLIP_LEVEL {
+                        continue 'px;
+                    }
+                    let v = f64::from(v);
+                    s += v;
+                    sx += dj as f64 * v;
+                    sy += di as f64 * v;
+                    ss += v * v;
+                }
             }
-            let res = c - 0.25 * (l + r + u + d);
-            out.push(((c + l + r + u + d) / 5.0, res * res, (l - r).abs().max((u - d).abs())));
+            // Σ offsets² over the window = 5 · (4 + 1 + 0 + 1 + 4) = 50 per axis.
+            let rss = ss - s * s / 25.0 - sx * sx / 50.0 - sy * sy / 50.0;
+            out.push((s / 25.0, rss.max(0.0) / WINDOW_DOF));
         }
     }
     out
 }
 
-/// Robust variance of the noise in sorted-by-signal `px` split into bins:
-/// (mean signal, variance, count) per bin.
-fn bins(px: &mut [(f64, f64, f64)]) -> Vec<(f64, f64, usize)> {
+/// Residual degrees of freedom of a 5 × 5 window's plane fit.
+const WINDOW_DOF: f64 = 22.0;
+/// Median of χ²₂₂ / 22 (Wilson–Hilferty: (1 − 2/(9·22))³).
+const MEDIAN_CHI2_22_RATIO: f64 = 0.970_0;
+/// A window whose variance estimate exceeds this multiple of the model's
+/// holds an edge or texture (χ²₂₂ / 22 exceeds 2.5 with probability ≈ 2·10⁻⁴).
+const EDGE_RATIO: f64 = 2.5;
+
+/// Sorted by signal and split into bins: (mean signal, robust variance, count)
+/// per bin, the variance from the median of the windows' estimates.
+fn bins(px: &mut [(f64, f64)]) -> Vec<(f64, f64, usize)> {
     px.sort_by(|a, b| a.0.total_cmp(&b.0));
     let k = (px.len() / MIN_PER_BIN).clamp(1, MAX_BINS);
     let mut out = Vec::with_capacity(k);
     for b in 0..k {
         let part = &px[b * px.len() / k..(b + 1) * px.len() / k];
-        let mut sq: Vec<f64> = part.iter().map(|p| p.1).collect();
-        let m = sq.len() / 2;
-        let (_, med, _) = sq.select_nth_unstable_by(m, f64::total_cmp);
+        let mut v: Vec<f64> = part.iter().map(|p| p.1).collect();
+        let m = v.len() / 2;
+        let (_, med, _) = v.select_nth_unstable_by(m, f64::total_cmp);
         let signal = part.iter().map(|p| p.0).sum::<f64>() / part.len() as f64;
-        out.push((signal, *med / (RESIDUAL_GAIN * MEDIAN_CHI2_1), part.len()));
+        out.push((signal, *med / MEDIAN_CHI2_22_RATIO, part.len()));
     }
     out
 }
 
-/// Weighted least squares var = a·x + b through `bins` (weights n / var²):
-/// (a, b, se a, se b), or `None` when the signals span too little.
-fn fit_line(bins: &[(f64, f64, usize)]) -> Option<(f64, f64, f64, f64)> {
+/// Weighted least squares var = a·x + b through `bins`, weights n / var²
+/// with var from `prior` (a previous line; else the bins' own, whose noise
+/// would pull the line towards the bins that came out low): (a, b, se a,
+/// se b), the standard errors from the scatter of the bins about the line;
+/// `None` when the signals span too little.
+fn fit_line(bins: &[(f64, f64, usize)], prior: Option<(f64, f64)>) -> Option<(f64, f64, f64, f64)> {
     let (lo, hi) = bins.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), b| (l.min(b.0), h.max(b.0)));
-    if bins.len() < 2 || hi - lo < 0.02 {
+    if bins.len() < 3 || hi - lo < 0.02 {
         return None;
     }
+    let weight = |x: f64, v: f64, n: usize| {
+        let v = match prior {
+            Some((a, b)) if a * x + b > 0.0 => a * x + b,
+            _ => v,
+        };
+        n as f64 / v.max(1e-30).powi(2)
+    };
     let (mut sw, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for &(x, v, n) in bins {
-        // The median-based variance's sampling variance ≈ 5.44 v² / n.
-        let w = n as f64 / (5.44 * v.max(1e-30).powi(2));
+        let w = weight(x, v, n);
         sw += w;
         sx += w * x;
         sy += w * v;
@@ -238,15 +270,17 @@ fn fit_line(bins: &[(f64, f64, usize)]) -> Option<(f64, f64, f64, f64)> {
     }
     let a = (sw * sxy - sx * sy) / det;
     let b = (sxx * sy - sx * sxy) / det;
-    Some((a, b, (sw / det).sqrt(), (sxx / det).sqrt()))
+    let chi2: f64 = bins.iter().map(|&(x, v, n)| weight(x, v, n) * (v - a * x - b).powi(2)).sum();
+    let scale = chi2 / (bins.len() - 2) as f64;
+    Some((a, b, (scale * sw / det).sqrt(), (scale * sxx / det).sqrt()))
 }
 
 /// Estimates the noise model from the photo itself (see the module docs).
 pub fn estimate(data: &RawData) -> Result<NoiseModel, NoiseError> {
-    // Per channel: every plane's photosites.
-    let mut per: [Vec<(f64, f64, f64)>; 3] = Default::default();
+    // Per channel: every plane's windows.
+    let mut per: [Vec<(f64, f64)>; 3] = Default::default();
     for (c, w, h, z) in planes(data) {
-        per[c].extend(residuals(w, h, &z));
+        per[c].extend(windows(w, h, &z));
     }
     let mut a = [0.0; 3];
     let mut b = [0.0; 3];
@@ -255,26 +289,40 @@ pub fn estimate(data: &RawData) -> Result<NoiseModel, NoiseError> {
     let mut all_bins = Vec::new();
     let mut notes = Vec::new();
     for c in 0..3 {
-        let px = &mut per[c];
-        if px.len() < 2 * MIN_PER_BIN {
-            return Err(NoiseError::TooFew { channel: CHANNELS[c], got: px.len(), need: 2 * MIN_PER_BIN });
+        let all = &per[c];
+        let too_few = |got: usize| NoiseError::TooFew { channel: CHANNELS[c], got, need: 2 * MIN_PER_BIN };
+        if all.len() < 2 * MIN_PER_BIN {
+            return Err(too_few(all.len()));
         }
-        // First pass over everything, then without the edges it reveals.
-        let first = bins(px);
-        let (a1, b1) = match fit_line(&first) {
-            Some((a, b, _, _)) => (a, b),
-            None => (first.iter().map(|b| b.1).sum::<f64>() / first.iter().map(|b| b.0).sum::<f64>().max(1e-12), 0.0),
-        };
-        let sd = |x: f64| (a1 * x + b1).max(1e-30).sqrt();
-        // A central difference of pure noise has SD √2·σ: 4 SD of it.
-        let mut kept: Vec<(f64, f64, f64)> =
-            px.iter().copied().filter(|p| p.2 <= 4.0 * std::f64::consts::SQRT_2 * sd(p.0)).collect();
-        if kept.len() < 2 * MIN_PER_BIN {
-            return Err(NoiseError::TooFew { channel: CHANNELS[c], got: kept.len(), need: 2 * MIN_PER_BIN });
+        // Pass 1 over every window (edges inflate it); then, three times, only
+        // the windows whose variance is within EDGE_RATIO of the last model's.
+        let mut kept = all.clone();
+        let mut line: Option<(f64, f64, f64, f64)> = None;
+        let mut fine = Vec::new();
+        for pass in 0..4 {
+            if pass > 0 {
+                let (pa, pb) = match line {
+                    Some((pa, pb, _, _)) => (pa, pb),
+                    None => (
+                        fine.iter().map(|b: &(f64, f64, usize)| b.1).sum::<f64>()
+                            / fine.iter().map(|b| b.0).sum::<f64>().max(1e-12),
+                        0.0,
+                    ),
+                };
+                kept = all.iter().copied().filter(|p| p.1 <= EDGE_RATIO * (pa * p.0 + pb).max(1e-30)).collect();
+                if kept.len() < 2 * MIN_PER_BIN {
+                    return Err(too_few(kept.len()));
+                }
+            }
+            fine = bins(&mut kept);
+            // Weights from the last line; twice on the last pass (reweighted).
+            line = fit_line(&fine, line.map(|l| (l.0, l.1)));
+            if pass == 3 {
+                line = fit_line(&fine, line.map(|l| (l.0, l.1)));
+            }
         }
         used[c] = kept.len();
-        let fine = bins(&mut kept);
-        match fit_line(&fine) {
+        match line {
             Some((fa, fb, ea, eb)) => {
                 (a[c], b[c], sa[c], sb[c]) = (fa, fb, ea, eb);
             }

@@ -43,35 +43,41 @@ fn mosaic(seed: u64, w: usize, h: usize, a: [f64; 3], b: [f64; 3]) -> Mosaic {
 
 #[test]
 fn shot_and_read_noise_are_recovered_from_the_image() {
-    // 8 independent 512 × 384 mosaics: every estimate within 8 % (a) and
-    // 30 % (b) of the truth. The read floor is a small part of the variance
-    // where the signal is above ≈ 0.05, so b is the harder number.
-    let (mut worst_a, mut worst_b) = (0.0f64, 0.0f64);
-    for seed in 0..8 {
+    // 8 independent 512 × 384 mosaics with edges (the patches): a within 5 %
+    // of the truth in every one (its stated standard error is ≈ 1.5 %); b,
+    // the read floor, is a small part of the variance above a signal of
+    // ≈ 0.05 and comes from the darkest bins: each within 55 % (standard
+    // error ≈ 15 %), their mean over the seeds within 20 % (the edges that
+    // survive the screen pull it ≈ 10 % low in G).
+    let mut b_ratio = [0.0f64; 3];
+    let seeds = 8;
+    for seed in 0..seeds {
         let m = estimate(&RawData::Bayer(mosaic(100 + seed, 512, 384, A, B))).unwrap();
         assert_eq!(m.source, NoiseSource::EstimatedFromImage);
         assert!(m.note.is_empty(), "{}", m.note);
         for c in 0..3 {
             let (ea, eb) = ((m.a[c] / A[c] - 1.0).abs(), (m.b[c] / B[c] - 1.0).abs());
-            worst_a = worst_a.max(ea);
-            worst_b = worst_b.max(eb);
-            assert!(ea < 0.08, "seed {seed} channel {c}: a = {:.4e}, truth {:.4e}", m.a[c], A[c]);
-            assert!(eb < 0.30, "seed {seed} channel {c}: b = {:.4e}, truth {:.4e}", m.b[c], B[c]);
-            // The stated standard errors are of the size of the actual error.
+            assert!(ea < 0.05, "seed {seed} channel {c}: a = {:.4e}, truth {:.4e}", m.a[c], A[c]);
+            assert!(eb < 0.55, "seed {seed} channel {c}: b = {:.4e}, truth {:.4e}", m.b[c], B[c]);
+            // The stated standard error is of the size of the actual error.
             let se = m.a_std_error.unwrap()[c];
             assert!((m.a[c] - A[c]).abs() < 5.0 * se, "channel {c}: a {:.4e} ± {se:.1e} vs {:.4e}", m.a[c], A[c]);
+            b_ratio[c] += m.b[c] / B[c] / seeds as f64;
         }
     }
-    eprintln!("largest relative error over 8 seeds × 3 channels: a {worst_a:.3}, b {worst_b:.3}");
+    for (c, r) in b_ratio.iter().enumerate() {
+        assert!((r - 1.0).abs() < 0.2, "channel {c}: mean b / truth {r}");
+    }
 }
 
 #[test]
 fn the_estimate_tells_a_noisier_sensor_apart() {
-    // Twice the shot noise (a × 2) must read as such, not as the truth.
-    let a2 = A.map(|v| 2.0 * v);
+    // 20 % more shot noise must read as such, not as the truth.
+    let a2 = A.map(|v| 1.2 * v);
     let m = estimate(&RawData::Bayer(mosaic(7, 512, 384, a2, B))).unwrap();
     for c in 0..3 {
-        assert!((m.a[c] / a2[c] - 1.0).abs() < 0.08, "channel {c}: a = {:.4e}, truth {:.4e}", m.a[c], a2[c]);
+        assert!((m.a[c] / a2[c] - 1.0).abs() < 0.05, "channel {c}: a = {:.4e}, truth {:.4e}", m.a[c], a2[c]);
+        assert!(m.a[c] / A[c] > 1.1, "channel {c}: a = {:.4e} is not told apart from {:.4e}", m.a[c], A[c]);
     }
 }
 
