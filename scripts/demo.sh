@@ -126,8 +126,8 @@ echo "   the loop: truth $(loop_value truth) wt-% (fixtures/fit/IOL1068-09_truth
   "95 %:" $(grep -m1 -A3 '"interval_95"' "$out/run/fit/IOL1068-09/fit.json" | tr -d ' ,"[]\n' | sed 's/interval_95://')
 echo "   which twin is closer to the photo over the plaque's pixels, A (recipe, 0.65 wt-%) or B (fitted): $(loop_value verdict)" \
   "(p = $(loop_value p_value)); the fitted twin named closer at p < 0.01: $(loop_value fitted_named_closer_at_p_below_0_01)"
-echo "   the photo's noise model (develop/IOL1068-09/photo_variance.json): from" \
-  "$(grep -m1 '"source"' "$out/run/develop/IOL1068-09/photo_variance.json" | sed -E 's/^[^:]*: *//; s/[",]//g')"
+echo "   the photo's noise model (develop/IOL1068-09/photo_variance.noise.json): from" \
+  "$(grep -m1 '"source"' "$out/run/develop/IOL1068-09/photo_variance.noise.json" | sed -E 's/^[^:]*: *//; s/[",]//g')"
 echo "   truth: environment scale 1.6; recovered: $(grep -m1 '"new_scale"' "$out/run/env-scale/IOL1068-09/env_scale.json" | tr -d ' ,')"
 echo "   truth colour response (fixtures/demo/truth_colour.json) vs the matrix recovered from the captured chart:" \
   $(grep -m1 -A5 '"truth_vs_recovered"' "$out/run/report/metrics.json" | tr -d ' ,"{}' | tr '\n' ' ')

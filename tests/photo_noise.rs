@@ -171,7 +171,7 @@ fn colour_apply_writes_the_variance_and_compare_states_the_model() {
     ]);
     assert!(text.contains("from the DNG NoiseProfile"), "{text}");
     let side: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("photo_variance.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("photo_variance.noise.json")).unwrap()).unwrap();
     assert_eq!(side["noise_model"]["source"], "dng-noise-profile");
     assert_eq!(side["realisations"], 16);
     // A render 0.02 too bright everywhere, with a small known variance of its own.

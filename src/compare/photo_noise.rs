@@ -30,7 +30,7 @@ use lucent_calib::raw::{self, RawOptions};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// The sidecar JSON of a photo-variance EXR (`<variance>.json`), which
+/// The sidecar JSON of a photo-variance EXR (`<variance>.noise.json`), which
 /// `lucent compare --photo-variance` copies into metrics.json.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PhotoVarianceFile {
@@ -126,7 +126,8 @@ pub fn photo_variance(
     Ok((var, file))
 }
 
-/// The sidecar JSON path of a variance image: `v.exr` → `v.json`.
+/// The sidecar JSON path of a variance image: `v.exr` → `v.noise.json` (not
+/// `v.json`, which is e.g. a render's render.json beside its EXR).
 pub fn sidecar(variance: &Path) -> PathBuf {
-    variance.with_extension("json")
+    variance.with_extension("noise.json")
 }
