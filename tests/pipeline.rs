@@ -622,13 +622,18 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     let html = std::fs::read_to_string(out.join("report/index.html")).unwrap();
     assert!(html.contains("Recipe fitted to the measured slices") && html.contains("Which twin is closer"), "report");
     assert!(html.contains("photo | fitted twin | difference"));
-    // Scored over the plaque's pixels as the render's object layer marks them.
-    assert_eq!(smp["compare"]["mask"]["source"], "object", "{}", smp["compare"]["mask"]);
-    // The loop against its truth, stated once: truth, recovered, the verdict and its p.
+    // Also scored over the plaque's pixels alone, as the render's object layer marks them.
+    let object = &smp["compare_object"];
+    assert_eq!(object["mask"]["source"], "object", "{}", object["mask"]);
+    assert!(object["mask"]["included_pixels"].as_u64().unwrap() < smp["compare"]["mask"]["included_pixels"].as_u64().unwrap());
+    assert!(object["twins"]["paired"]["verdict"].is_string(), "{object}");
+    // The loop against its truth, stated once: truth, recovered, the object's verdict and its p.
     let lp = &smp["loop"];
     assert_eq!(lp["parameters"][0]["truth"].as_f64(), Some(0.425), "{lp}");
     assert_eq!(lp["parameters"][0]["recovered"], p["value"], "{lp}");
-    assert_eq!(lp["verdict"], twins["paired"]["verdict"], "{lp}");
+    assert_eq!(lp["region"], "the object's pixels", "{lp}");
+    assert_eq!(lp["verdict"], object["twins"]["paired"]["verdict"], "{lp}");
+    assert_eq!(lp["p_value"], object["twins"]["paired"]["p_value"], "{lp}");
     assert!(html.contains("The loop against its known truth"), "report");
     // A second run skips every stage.
     let again = ok(&lucent(&["run", project.to_str().unwrap(), "--out", out.to_str().unwrap()]));

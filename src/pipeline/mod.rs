@@ -24,7 +24,7 @@
 //! object at `placement = "scene"` when the pose placed a sample (the finite
 //! sphere then centred on its top). Without a `[pose]` the template is used
 //! as it is.
-//! | `compare` | `lucent compare` photo vs render per sample over the object's pixels (the render's `object` layer, any mesh; minus clipped ones), with the photo's variance from develop; with a fitted twin, both twins (recipe = A, fitted = B) and which is closer | a sample's `photo`, its render |
+//! | `compare` | `lucent compare` photo vs render per sample (minus clipped pixels, with the photo's variance from develop), and the same over the object's pixels (`NAME/object/`: the render's `object` layer, any mesh); with a fitted twin, both twins (recipe = A, fitted = B) and which is closer | a sample's `photo`, its render |
 //! | `report` | `report/index.html` and `report/metrics.json` ([`report`]) | any stage's output |
 //!
 //! A stage's work is a list of [`Task`]s — `lucent` command lines, with files
@@ -978,20 +978,9 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 if let Some(f) = &fitted {
                     args.extend(["--render".into(), s(f)]);
                 }
-                args.extend(["--out".into(), format!("{{out}}/{}", smp.name)]);
-                // The fitted twin alone too: its own triplet for the report.
-                let fitted_alone = fitted.as_ref().map(|f| {
-                    let mut a = vec!["compare".into(), "--photo".into(), s(photo), "--render".into(), s(f)];
-                    a.extend(["--out".into(), format!("{{out}}/{}/fitted", smp.name)]);
-                    a
-                });
                 let mut extra = Vec::new();
                 if let Some(m) = valid_mask(out, smp, "photo") {
                     extra.extend(["--mask".into(), s(&m)]);
-                }
-                // Over the object's pixels, as the render's `object` layer marks them (any mesh).
-                if has_exr_channel(&render, "object") {
-                    extra.extend(["--mask-object".into(), s(&render)]);
                 }
                 if let Some(v) = photo_variance(out, smp) {
                     extra.extend(["--photo-variance".into(), s(&v)]);
@@ -1000,8 +989,24 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     extra.extend(["--data-range".into(), d.to_string()]);
                 }
                 args.extend(extra.iter().cloned());
+                // The same over the object's pixels, as the render's `object` layer marks
+                // them (any mesh): where the twins differ, so where their paired test looks.
+                if has_exr_channel(&render, "object") {
+                    let mut a = args.clone();
+                    a.extend([
+                        "--mask-object".into(),
+                        s(&render),
+                        "--out".into(),
+                        format!("{{out}}/{}/object", smp.name),
+                    ]);
+                    tasks.push(lucent(format!("{} object", smp.name), a));
+                }
+                args.extend(["--out".into(), format!("{{out}}/{}", smp.name)]);
                 tasks.push(lucent(smp.name.clone(), args));
-                if let Some(mut a) = fitted_alone {
+                // The fitted twin alone too: its own triplet for the report.
+                if let Some(f) = &fitted {
+                    let mut a = vec!["compare".into(), "--photo".into(), s(photo), "--render".into(), s(f)];
+                    a.extend(["--out".into(), format!("{{out}}/{}/fitted", smp.name)]);
                     a.extend(extra);
                     tasks.push(lucent(format!("{} fitted twin", smp.name), a));
                 }

@@ -524,7 +524,36 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     );
                 }
             }
-            if let Some(t) = &m.twins {
+            // The object's pixels alone (compare/NAME/object/, the render's object layer).
+            let object = read_json::<crate::compare::Report>(
+                &cdir.join("object").join("metrics.json"),
+                "a compare metrics.json",
+            )?;
+            if let Some(o) = &object
+                && let Some(n) = &o.noise
+            {
+                let _ = write!(
+                    h,
+                    "<p>Over the object's {} pixels alone ({}): RMSE {}, model RMSE {} (95 % interval {} – {}), noise \
+                     floor {}, SSIM (Y) {}.</p>",
+                    o.mask.included_pixels,
+                    esc(&o.mask.source),
+                    num(o.as_calibrated.rmse, e4),
+                    num(n.total.model_rmse, e4),
+                    num(n.total.ci95[0], e4),
+                    num(n.total.ci95[1], e4),
+                    num(n.total.noise_floor, e4),
+                    num(o.as_calibrated.ssim.y, f4)
+                );
+            }
+            // Which twin is closer, over the whole image and over the object; the
+            // loop's verdict is the object's (where the twins differ), else the image's.
+            let regions: Vec<(&str, &crate::compare::Report)> = std::iter::once(("the whole image", &m))
+                .chain(object.as_ref().map(|o| ("the object's pixels", o)))
+                .collect();
+            let mut verdict: Option<(&str, &crate::compare::noise::PairedReport)> = None;
+            for (region, r) in &regions {
+                let Some(t) = &r.twins else { continue };
                 let zero = |z: &Option<crate::compare::noise::SsimAtZeroNoise>| {
                     z.as_ref().map_or_else(
                         || "—".to_string(),
@@ -549,11 +578,12 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                         z,
                     ]
                 };
-                h.push_str("<h3>Which twin is closer: the recipe's (A) or the fitted one (B)</h3>");
+                let _ =
+                    write!(h, "<h3>Which twin is closer over {region}: the recipe's (A) or the fitted one (B)</h3>");
                 h.push_str(&table(
                     &["twin", "model RMSE, noise removed (95 %)", "SSIM (Y)", "SSIM (Y) at zero render noise (95 %)"],
                     &[
-                        twin("A: recipe", m.noise.as_ref(), m.as_calibrated.ssim.y, zero(&m.ssim_at_zero_noise)),
+                        twin("A: recipe", r.noise.as_ref(), r.as_calibrated.ssim.y, zero(&r.ssim_at_zero_noise)),
                         twin("B: fitted", Some(&t.noise_b), t.metrics_b.ssim.y, zero(&t.ssim_at_zero_noise_b)),
                     ],
                 ));
@@ -567,54 +597,62 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     num(t.paired.p_value, |x| format!("{x:.2e}")),
                     esc(&t.paired.verdict.replace('A', "A (recipe)").replace('B', "B (fitted)"))
                 );
-                // The loop against its known truth (truth_recipe, read by the report only).
-                if let (Some(t_path), false) = (&smp.truth_recipe, fitted_vs_truth.is_empty()) {
-                    let fits: Vec<String> = fitted_vs_truth
-                        .iter()
-                        .map(|(name, v, ci, k)| {
-                            format!(
-                                "{} truth {}, recovered {}{}",
-                                esc(name),
-                                num(*k, f4),
-                                v.map_or_else(|| "—".into(), |v| num(v, f4)),
-                                match ci {
-                                    Some([lo, hi]) => format!(
-                                        " (95 % {} – {}: the truth {} it)",
-                                        num(*lo, f4),
-                                        num(*hi, f4),
-                                        if *lo <= *k && *k <= *hi { "is in" } else { "is outside" }
-                                    ),
-                                    None => String::new(),
-                                }
-                            )
-                        })
-                        .collect();
-                    let named_fitted = t.paired.verdict == "B is closer";
-                    let _ = write!(
-                        h,
-                        "<p><b>The loop against its known truth</b> ({}, which no stage reads): {}; the compare stage \
-                         {} (p = {}; the demo's bar: the fitted twin named closer with p &lt; 0.01, {}).</p>",
-                        esc(&t_path.display().to_string()),
-                        fits.join("; "),
-                        if named_fitted {
-                            "names the fitted twin closer".to_string()
-                        } else {
-                            format!("does not name the fitted twin closer ({})", esc(&t.paired.verdict))
-                        },
-                        num(t.paired.p_value, |x| format!("{x:.2e}")),
-                        if named_fitted && t.paired.p_value < 0.01 { "met" } else { "not met" }
-                    );
-                    sj.insert(
-                        "loop".into(),
-                        json!({
-                            "truth_recipe": t_path,
-                            "parameters": fitted_vs_truth.iter().map(|(n, v, ci, k)| json!({"name": n, "truth": k, "recovered": v, "interval_95": ci})).collect::<Vec<_>>(),
-                            "verdict": t.paired.verdict,
-                            "p_value": t.paired.p_value,
-                            "fitted_named_closer_at_p_below_0_01": named_fitted && t.paired.p_value < 0.01,
-                        }),
-                    );
-                }
+                verdict = Some((region, &t.paired));
+            }
+            // The loop against its known truth (truth_recipe, read by the report only).
+            if let (Some(t_path), false, Some((region, paired))) =
+                (&smp.truth_recipe, fitted_vs_truth.is_empty(), verdict)
+            {
+                let fits: Vec<String> = fitted_vs_truth
+                    .iter()
+                    .map(|(name, v, ci, k)| {
+                        format!(
+                            "{} truth {}, recovered {}{}",
+                            esc(name),
+                            num(*k, f4),
+                            v.map_or_else(|| "—".into(), |v| num(v, f4)),
+                            match ci {
+                                Some([lo, hi]) => format!(
+                                    " (95 % {} – {}: the truth {} it)",
+                                    num(*lo, f4),
+                                    num(*hi, f4),
+                                    if *lo <= *k && *k <= *hi { "is in" } else { "is outside" }
+                                ),
+                                None => String::new(),
+                            }
+                        )
+                    })
+                    .collect();
+                let named_fitted = paired.verdict == "B is closer";
+                let met = named_fitted && paired.p_value < 0.01;
+                let _ = write!(
+                    h,
+                    "<p><b>The loop against its known truth</b> ({}, which no stage reads): {}; over {region} the \
+                     compare stage {} (p = {}; the demo's bar: the fitted twin named closer with p &lt; 0.01, {}).</p>",
+                    esc(&t_path.display().to_string()),
+                    fits.join("; "),
+                    if named_fitted {
+                        "names the fitted twin closer".to_string()
+                    } else {
+                        format!("does not name the fitted twin closer ({})", esc(&paired.verdict))
+                    },
+                    num(paired.p_value, |x| format!("{x:.2e}")),
+                    if met { "met" } else { "not met" }
+                );
+                sj.insert(
+                    "loop".into(),
+                    json!({
+                        "truth_recipe": t_path,
+                        "parameters": fitted_vs_truth.iter().map(|(n, v, ci, k)| json!({"name": n, "truth": k, "recovered": v, "interval_95": ci})).collect::<Vec<_>>(),
+                        "region": region,
+                        "verdict": paired.verdict,
+                        "p_value": paired.p_value,
+                        "fitted_named_closer_at_p_below_0_01": met,
+                    }),
+                );
+            }
+            if let Some(o) = &object {
+                sj.insert("compare_object".into(), trim(&to_value(o), 64));
             }
             h.push_str(&page.img(&cdir.join("triplet.png"), &format!("{} photo | render | difference", smp.name))?);
             h.push_str(&page.img(
