@@ -348,7 +348,10 @@ fn project_runs_skips_reruns_fails_and_reports() {
     }
     assert!(dom.contains("Photo | render | difference") && dom.contains("Manifest"));
     // The render's noise per region and the model RMSE beside the plain one.
-    assert!(dom.contains("the object's") && dom.contains("Model RMSE with the render's noise removed"), "{dom}");
+    assert!(
+        dom.contains("the object's") && dom.contains("Model RMSE with the render's and the photo's noise removed"),
+        "{dom}"
+    );
     assert!(shots.join("report.png").metadata().unwrap().len() > 10_000);
 }
 
@@ -625,7 +628,10 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     // Also scored over the plaque's pixels alone, as the render's object layer marks them.
     let object = &smp["compare_object"];
     assert_eq!(object["mask"]["source"], "object", "{}", object["mask"]);
-    assert!(object["mask"]["included_pixels"].as_u64().unwrap() < smp["compare"]["mask"]["included_pixels"].as_u64().unwrap());
+    assert!(
+        object["mask"]["included_pixels"].as_u64().unwrap()
+            < smp["compare"]["mask"]["included_pixels"].as_u64().unwrap()
+    );
     assert!(object["twins"]["paired"]["verdict"].is_string(), "{object}");
     // The loop against its truth, stated once: truth, recovered, the object's verdict and its p.
     let lp = &smp["loop"];
