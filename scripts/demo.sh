@@ -123,7 +123,7 @@ echo "   the synthetic phone (fixtures/demo/truth_colour.json) captures a ColorC
 loop_value() { grep -A40 '"loop": {' "$out/run/report/metrics.json" | grep -m1 "\"$1\"" | sed -E 's/^[^:]*: *//; s/[",]//g'; }
 echo "   the loop: truth $(loop_value truth) wt-% (fixtures/fit/IOL1068-09_truth_0425.toml, hidden from the pipeline);" \
   "fitted from the slices: $(loop_value recovered)," \
-  "95 %:" $(grep -m1 -A3 '"interval_95"' "$out/run/fit/IOL1068-09/fit.json" | tr -d ' ,"[]\n' | sed 's/interval_95://')
+  "95 %:" $(grep -m1 -A3 '"interval_95"' "$out/run/fit/IOL1068-09/fit.json" | tr -d ' "[]' | tr -s ',\n' '  ' | sed 's/interval_95://')
 echo "   which twin is closer to the photo over the plaque's pixels, A (recipe, 0.65 wt-%) or B (fitted): $(loop_value verdict)" \
   "(p = $(loop_value p_value)); the fitted twin named closer at p < 0.01: $(loop_value fitted_named_closer_at_p_below_0_01)"
 echo "   the photo's noise model (develop/IOL1068-09/photo_variance.noise.json): from" \

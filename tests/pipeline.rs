@@ -625,6 +625,8 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     let html = std::fs::read_to_string(out.join("report/index.html")).unwrap();
     assert!(html.contains("Recipe fitted to the measured slices") && html.contains("Which twin is closer"), "report");
     assert!(html.contains("photo | fitted twin | difference"));
+    // The slices measured vs simulated at the recipe and at the fit (sums, MSRE).
+    assert!(html.contains("simulated/measured sum: recipe") && html.contains("MSRE: recipe"), "report");
     // Also scored over the plaque's pixels alone, as the render's object layer marks them.
     let object = &smp["compare_object"];
     assert_eq!(object["mask"]["source"], "object", "{}", object["mask"]);

@@ -401,6 +401,40 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     esc(fj["reason"].as_str().unwrap_or(""))
                 );
             }
+            // The measured slices against the simulation at the recipe (start) and at the fit (end).
+            let cfgs: Vec<Vec<String>> = fj["configurations"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(|c| {
+                    let v = |k: &str, f: fn(f64) -> String| c[k].as_f64().map_or_else(|| "—".into(), |x| num(x, f));
+                    vec![
+                        format!(
+                            "{} / {}",
+                            v("theta_i_deg", |x| format!("{x:.0}")),
+                            v("theta_o_deg", |x| format!("{x:.0}"))
+                        ),
+                        v("measured_sum", e4),
+                        v("sum_ratio_start", f4),
+                        v("sum_ratio_end", f4),
+                        v("msre_start", f4),
+                        v("msre_end", f4),
+                    ]
+                })
+                .collect();
+            if !cfgs.is_empty() {
+                h.push_str(&table(
+                    &[
+                        "θi / θo",
+                        "measured sum [1/(m² sr)]",
+                        "simulated/measured sum: recipe",
+                        "fitted",
+                        "MSRE: recipe",
+                        "fitted",
+                    ],
+                    &cfgs,
+                ));
+            }
             h.push_str(&page.img(&fdir.join("objective.png"), &format!("{} fit objective", smp.name))?);
             sj.insert(
                 "fit".into(),
