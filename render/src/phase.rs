@@ -563,7 +563,6 @@ pub(crate) mod lanes;
 mod tests {
     use super::*;
     use crate::rng::Rng;
-    use statrs::distribution::{ChiSquared, ContinuousCDF};
 
     // ---------------------------------------------------------------- helpers
 
@@ -606,11 +605,10 @@ mod tests {
     /// seed, binned in cos θ on K = 256 bins whose θ edges are Chebyshev-
     /// spaced (fine near θ = 0 and θ = π, where peaked functions live),
     /// expected counts by Simpson quadrature of `pdf` over each bin (not
-    /// renormalised), bins with expected count < 5 pooled. Returns the
-    /// p-value.
+    /// renormalised), bins with expected count < 5 pooled
+    /// ([`lucent_testkit::chi2::goodness_of_fit`]). Returns the p-value.
     fn chi2_pvalue(sample: impl Fn(f64) -> f64, pdf: impl Fn(f64) -> f64, n: usize, seed: u64) -> f64 {
         const K: usize = 256;
-        const MIN_EXPECTED: f64 = 5.0;
         // θ edges 0 … π; bin j (in ascending μ) is θ ∈ [θ_{K−j−1}, θ_{K−j}].
         let theta: Vec<f64> = (0..=K).map(|k| 0.5 * PI * (1.0 - (PI * k as f64 / K as f64).cos())).collect();
         let mut mu_edges: Vec<f64> = theta.iter().rev().map(|t| t.cos()).collect();
@@ -628,31 +626,13 @@ mod tests {
         let expected: Vec<f64> =
             (0..K).map(|j| n as f64 * sphere_integral(&pdf, theta[K - j - 1], theta[K - j], 256)).collect();
 
-        // Pool the low-expectation bins (smallest first), as pbrt does.
-        let mut order: Vec<usize> = (0..K).collect();
-        order.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
-        let (mut chsq, mut dof) = (0.0, 0usize);
-        let (mut pooled_obs, mut pooled_exp, mut pooled_cells) = (0.0, 0.0, 0usize);
-        for &j in &order {
-            if expected[j] <= 0.0 {
-                if observed[j] > 0.0 {
-                    return 0.0; // a sample where the pdf says none can be
-                }
-            } else if expected[j] < MIN_EXPECTED || (pooled_exp > 0.0 && pooled_exp < MIN_EXPECTED) {
-                pooled_obs += observed[j];
-                pooled_exp += expected[j];
-                pooled_cells += 1;
-            } else {
-                chsq += (observed[j] - expected[j]).powi(2) / expected[j];
-                dof += 1;
-            }
+        // A sample where the pdf says none can be fails outright; the rest is
+        // Pearson's test with the low-expectation bins pooled (the shared
+        // harness of all crates' tests).
+        if observed.iter().zip(&expected).any(|(&o, &e)| e <= 0.0 && o > 0.0) {
+            return 0.0;
         }
-        if pooled_cells > 0 {
-            chsq += (pooled_obs - pooled_exp).powi(2) / pooled_exp;
-            dof += 1;
-        }
-        let dof = dof - 1;
-        ChiSquared::new(dof as f64).unwrap().sf(chsq)
+        lucent_testkit::chi2::goodness_of_fit(&observed, &expected).p_value
     }
 
     /// Significance per χ² test (deterministic seeds, so a pass is a pass).

@@ -963,9 +963,9 @@ impl<'a> Kernel<'a> {
             match &self.strategy {
                 Strategy::Ring(ring) => total += self.connect_ring(ring, p, dir, w, image, rng),
                 Strategy::Connection => total += self.connect(p, dir, w, exit, image, rng),
-                Strategy::Lobe { .. } => {
+                &Strategy::Lobe { vertices, reuse } => {
                     junctions.arrive();
-                    total += self.connect_lobe(p, dir, w, &exit, &junctions, chain, image, rng);
+                    total += self.connect_lobe((vertices, reuse), p, dir, w, &exit, &junctions, chain, image, rng);
                     junctions.scatter(phase.eval(angles.cos_theta));
                 }
                 Strategy::BruteForce { .. } => {}
@@ -1942,26 +1942,10 @@ mod tests {
         }
     }
 
-    /// χ² p-value of `observed` counts against `expected` (bins with
-    /// expected < 5 pooled into their neighbour).
+    /// χ² p-value of `observed` counts against `expected` (the shared
+    /// harness: bins expecting fewer than 5 pooled).
     fn chi2_p(observed: &[f64], expected: &[f64]) -> f64 {
-        use statrs::distribution::{ChiSquared, ContinuousCDF};
-        let (mut chi2, mut dof) = (0.0, 0usize);
-        let (mut o, mut e) = (0.0, 0.0);
-        for (a, b) in observed.iter().zip(expected) {
-            o += a;
-            e += b;
-            if e >= 5.0 {
-                chi2 += (o - e) * (o - e) / e;
-                dof += 1;
-                (o, e) = (0.0, 0.0);
-            }
-        }
-        if e > 0.0 {
-            chi2 += (o - e) * (o - e) / e;
-            dof += 1;
-        }
-        1.0 - ChiSquared::new((dof - 1) as f64).expect("dof ≥ 1").cdf(chi2)
+        lucent_testkit::chi2::goodness_of_fit(observed, expected).p_value
     }
 
     /// The ring's azimuth sampler draws ψ with the density it reports (χ²

@@ -500,7 +500,7 @@ enum FirstHit {
 /// Median and 90th percentile of a per-pixel figure over a set of pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Quantiles {
-    /// Pixels in the region with a positive mean (those the figure is taken over).
+    /// Pixels in the region that are not black (those the figure is taken over).
     pub pixels: usize,
     pub median: f64,
     pub p90: f64,
@@ -522,7 +522,8 @@ impl Quantiles {
 /// the pixels where at least half the camera rays hit the object first, those
 /// where at least half hit the board first, and all pixels. A pixel's
 /// relative standard error is [`Image::relative_std_error`] (the RMS over
-/// R, G, B), taken over pixels with positive means and finite variances.
+/// R, G, B), taken over the pixels that are not black; one with a channel
+/// still without light, or with one sample, counts as +∞.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct RegionErrors {
     pub object: Quantiles,
@@ -559,14 +560,21 @@ impl Image {
 
     /// The root mean square over R, G, B of the channels' relative standard
     /// errors √(var of the mean)/mean of pixel `p` (so coloured noise counts
-    /// in full); `None` where a channel's mean is not positive or its
-    /// variance not finite.
+    /// in full). `None` for a black pixel (no channel has a positive mean:
+    /// no relative error is defined). A pixel that has light in one channel
+    /// but none yet in another (a band no path of it has carried), or a
+    /// variance that is not finite (one sample), gets +∞: its error is not
+    /// known to be small, and leaving it out would make a median over few
+    /// samples read low.
     pub fn relative_std_error(&self, p: usize) -> Option<f64> {
         let (m, v) = (self.mean[p], self.variance_of_mean[p]);
+        if !m.iter().any(|&x| x > 0.0) {
+            return None;
+        }
         let mut sum = 0.0;
         for c in 0..3 {
             if !(m[c] > 0.0 && v[c].is_finite()) {
-                return None;
+                return Some(f64::INFINITY);
             }
             sum += v[c] / (m[c] * m[c]);
         }

@@ -304,6 +304,69 @@ fn wide_slab_under_a_hemispherical_sky_matches_adding_doubling() {
     assert!(tested >= 4, "only {tested} slabs tested");
 }
 
+#[test]
+fn thick_slab_over_a_floor_matches_an_independent_brute_force_on_the_mean() {
+    // A region-mean test tight enough to see a bias of 0.3 %: a 2 m × 2 m ×
+    // 6.35 mm box (μ_s 3000, μ_a 15 /m, HG 0.9, smooth n 1.5) 1 mm above a
+    // Lambertian floor of reflectance 0.5, under a uniform sky, seen straight
+    // down at its centre, where it is an infinite slab. The reference is an
+    // analog Monte Carlo of that plane-parallel problem written separately in
+    // numpy (tools/reference/slab_column.py, float64, no ray offsets), with
+    // its own standard error; the test takes the mean over all pixels (one
+    // channel: the bands are identical) and allows 3.5 combined standard errors
+    // and nothing more. (Mitsuba 3 moves by ≈ 0.6 % on this scene between
+    // metre and millimetre units, so it cannot referee at this level.)
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/reference/render/slab_column.json");
+    let text = std::fs::read_to_string(path).unwrap();
+    let number = |key: &str| -> f64 {
+        let at = text.find(&format!("\"{key}\"")).unwrap_or_else(|| panic!("{key} missing in {path}"));
+        let rest = &text[at + key.len() + 3..];
+        let end = rest.find([',', '\n', '}']).unwrap();
+        rest[..end].trim().parse().unwrap()
+    };
+    let (d, mu_s, mu_a, g, n, rho) = (
+        number("thickness_m"),
+        number("mu_s_per_m"),
+        number("mu_a_per_m"),
+        number("g"),
+        number("n"),
+        number("floor_reflectance"),
+    );
+    let (expected, expected_se) = (number("radiance"), number("std_error"));
+    let lift = 0.001;
+    let tris = cube(DVec3::new(-1.0, -1.0, lift), DVec3::new(1.0, 1.0, lift + d));
+    let phase = Phase::henyey_greenstein(g).unwrap();
+    let medium = bands([mu_s; 3], [mu_a; 3], [phase.clone(), phase.clone(), phase], [n; 3]);
+    let obj = Object::new(Accel::new(&tris), Interface::Smooth, medium).unwrap();
+    let floor = Board {
+        origin: DVec3::new(-2.0, -2.0, 0.0),
+        u: DVec3::X,
+        v: DVec3::Y,
+        square_m: 0.4,
+        columns: 10,
+        rows: 10,
+        margin_m: 0.0,
+        margin: [0.0; 3],
+        reflectance: BoardReflectance::Checker { even: [rho; 3], odd: [rho; 3] },
+    };
+    let sky = Environment::constant([1.0; 3], Projection::Infinite);
+    let cam = Camera::look_at(4, 4, DVec3::new(0.0, 0.0, 0.13), DVec3::ZERO, DVec3::Y, 0.5).unwrap();
+    let scene = Scene::new(Some(obj), Some(floor), sky, cam).unwrap();
+    let (img, stats) = render(&scene, &Settings { spp: 100_000, seed: 29, ..Settings::default() }, &mut |_| {});
+    assert_eq!(stats.leaked_paths + stats.truncated_paths, 0);
+    let px = img.mean.len() as f64;
+    let mean = img.mean.iter().map(|m| m[0]).sum::<f64>() / px;
+    let se = img.variance_of_mean.iter().map(|v| v[0]).sum::<f64>().sqrt() / px;
+    assert!(se < 0.0007 * expected, "the render's standard error {se:.6} is too large to see a 0.3 % bias");
+    let z = (mean - expected) / (se * se + expected_se * expected_se).sqrt();
+    println!("rendered {mean:.6} ± {se:.6}, brute force {expected:.6} ± {expected_se:.6}, z = {z:.2}");
+    assert!(
+        z.abs() < 3.5,
+        "rendered {mean:.6} ± {se:.6}, brute force {expected:.6} ± {expected_se:.6}: z = {z:.2} ({:+.3} %)",
+        100.0 * (mean / expected - 1.0)
+    );
+}
+
 /// A plaque whose bands differ in μ_s, μ_a and the phase function (HG g),
 /// with index `eta` per band.
 fn coloured_plaque(eta: [f64; 3]) -> Object {
@@ -531,6 +594,30 @@ fn object_fraction_and_region_errors() {
     obj.sort_by(f64::total_cmp);
     assert_eq!(e.object.median, obj[obj.len() / 2]);
     assert!(e.object.p90 >= e.object.median && e.object.median > 0.0);
+}
+
+#[test]
+fn a_pixel_with_a_channel_still_dark_counts_as_an_infinite_error() {
+    // Three object pixels: black (no relative error defined: left out),
+    // light in R and G but none yet in B (a single-band path estimator
+    // after few samples: +∞, not left out), and a converged one.
+    let img = Image {
+        width: 3,
+        height: 1,
+        mean: vec![[0.0; 3], [0.2, 0.3, 0.0], [0.5, 0.5, 0.5]],
+        variance_of_mean: vec![[0.0; 3], [0.01, 0.01, 0.0], [1e-4, 1e-4, 1e-4]],
+        samples: vec![4; 3],
+        object_samples: vec![4; 3],
+        board_samples: vec![0; 3],
+        halves: [vec![[0.0; 3]; 3], vec![[0.0; 3]; 3]],
+    };
+    assert_eq!(img.relative_std_error(0), None);
+    assert_eq!(img.relative_std_error(1), Some(f64::INFINITY));
+    assert!((img.relative_std_error(2).unwrap() - 0.02).abs() < 1e-15);
+    let e = img.region_errors();
+    assert_eq!(e.object.pixels, 2);
+    // Of {0.02, ∞} the median (upper) is ∞: half the object's pixels are not resolved.
+    assert_eq!(e.object.median, f64::INFINITY);
 }
 
 #[test]

@@ -168,10 +168,11 @@ pub enum BenchCommand {
         #[arg(long, default_value = "16,64,256,1024")]
         spp: String,
         /// Instead of the Mitsuba comparison: render the scene for this many
-        /// seconds with the previous and the current estimator, one after
-        /// the other on all cores, and print the relative standard error per
-        /// region (object, board, all) side by side, with the efficiency
-        /// 1/(median² × time) on the object and the projected time to 5 %.
+        /// seconds with the previous estimator, then with the current one and
+        /// each option at the same samples per pixel, one after the other on
+        /// all cores, and print the relative standard error per region
+        /// (object, board, all) side by side, with the efficiency
+        /// 1/(median² × CPU time) on the object and the projected time to 5 %.
         #[arg(long)]
         time_s: Option<f64>,
     },

@@ -476,8 +476,10 @@ pub fn errors_report(e: &tracer::RegionErrors) -> scene::RegionErrorsReport {
     let q = |q: &tracer::Quantiles| scene::QuantilesReport { pixels: q.pixels, median: q.median, p90: q.p90 };
     scene::RegionErrorsReport {
         definition:
-            "relative standard error of the pixel's mean, RMS over R, G, B; object: pixels where at least half \
-                     the camera rays hit the object first; board: likewise the board"
+            "relative standard error of the pixel's mean, RMS over R, G, B, over the pixels that are not black \
+                     (a pixel with a channel still without light counts as infinite); object: pixels where at least \
+                     half the camera rays hit the object first; board: likewise the board; null: no pixels, or a \
+                     quantile that is infinite"
                 .into(),
         object: q(&e.object),
         board: q(&e.board),
@@ -497,23 +499,13 @@ pub fn spp_by_region(image: &Image) -> scene::SppByRegion {
     scene::SppByRegion { object: mean(0), other: mean(1) }
 }
 
-/// The median over pixels with a positive mean of sqrt(var of mean)/mean (luminance-free: mean over channels).
+/// The median over all pixels of the relative standard error of the
+/// pixel's mean, RMS over R, G, B ([`Image::relative_std_error`]): the same
+/// figure as `relative_std_error.all.median` in render.json (once a grey
+/// mean of the channels that took their errors as independent, and so
+/// read √3 too low where the bands ride on one path).
 pub fn median_relative_std_error(image: &Image) -> f64 {
-    let mut r: Vec<f64> = image
-        .mean
-        .iter()
-        .zip(&image.variance_of_mean)
-        .filter_map(|(m, v)| {
-            let mm = (m[0] + m[1] + m[2]) / 3.0;
-            let vv = (v[0] + v[1] + v[2]) / 9.0;
-            (mm > 0.0 && vv.is_finite()).then(|| vv.sqrt() / mm)
-        })
-        .collect();
-    if r.is_empty() {
-        return f64::NAN;
-    }
-    r.sort_by(f64::total_cmp);
-    r[r.len() / 2]
+    image.region_errors().all.median
 }
 
 /// Writes render.exr and render.png; returns their names.
@@ -736,8 +728,16 @@ pub struct EstimatorRow {
 }
 
 /// `lucent bench render --time-s T`: the previous estimator (no phase
-/// connection), today's default and each selectable device on top of it, on one scene, each for `time_s` of
-/// wall time on all cores, per region.
+/// connection) for `time_s` of wall time on all cores, then today's default
+/// and each selectable device on top of it at the samples per pixel the
+/// first reached, on one scene, per region. Efficiency on the object is
+/// 1/(median² × CPU seconds of this process): on a machine shared with
+/// other work the CPU time is what the estimator cost, the wall time is
+/// not. The projected time to 5 % is that CPU time spread over the
+/// threads. (The median of per-pixel errors estimated from a dozen
+/// heavy-tailed samples reads low, and lower with fewer samples — hence
+/// equal counts; measured on the demo at 32 spp against 30 s runs, an
+/// option that looked 1.4–1.7× better at unequal counts was 0.94×.)
 pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     let loaded = scene::load(scene_path)?;
     let mut rows = Vec::new();
@@ -749,15 +749,24 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
         ("default + shared dispersion", |s| s.dispersion = tracer::Dispersion::SharedDirections),
         ("default + object-weighted", |s| s.sampling = tracer::Sampling::ObjectWeighted),
     ];
+    // The first estimator runs for `time_s`; the others render the samples
+    // per pixel it reached, so that every median is read at the same count.
+    let mut same_spp: Option<u32> = None;
     for (name, configure) in configurations {
-        let mut settings = Settings { spp: u32::MAX / 2, time_budget_s: Some(time_s), ..loaded.settings.clone() };
+        let mut settings = match same_spp {
+            None => Settings { spp: u32::MAX / 2, time_budget_s: Some(time_s), ..loaded.settings.clone() },
+            Some(spp) => Settings { spp, time_budget_s: None, ..loaded.settings.clone() },
+        };
         configure(&mut settings);
         let cpu0 = process_cpu_s();
         let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
         let cpu = process_cpu_s() - cpu0;
         let e = img.region_errors();
+        same_spp.get_or_insert_with(|| img.samples.iter().copied().max().unwrap_or(1).max(1));
         let by = spp_by_region(&img);
-        let eff = 1.0 / (e.object.median * e.object.median * stats.wall_s);
+        // CPU seconds; where they cannot be read, wall time on all threads.
+        let cost = if cpu.is_finite() && cpu > 0.0 { cpu } else { stats.wall_s * rayon::current_num_threads() as f64 };
+        let eff = 1.0 / (e.object.median * e.object.median * cost);
         let row = EstimatorRow {
             estimator: name,
             wall_s: stats.wall_s,
@@ -771,11 +780,12 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             board_p90: e.board.p90,
             all_median: e.all.median,
             object_efficiency: eff,
-            projected_s_to_5_percent: 1.0 / (eff * 0.05 * 0.05),
+            projected_s_to_5_percent: 1.0 / (eff * 0.05 * 0.05) / rayon::current_num_threads() as f64,
         };
         eprintln!(
-            "{name:>32}: {:.1} s wall, {:.1} spp on the object ({:.1} elsewhere), {:.1} M events/s; {}; time to 5 % on the object ≈ {:.0} s",
+            "{name:>32}: {:.1} s wall, {:.1} CPU s, {:.1} spp on the object ({:.1} elsewhere), {:.1} M events/s; {}; time to 5 % on the object ≈ {:.0} s",
             row.wall_s,
+            row.cpu_s,
             row.spp_object,
             row.spp_other,
             row.events_per_s / 1e6,

@@ -468,7 +468,9 @@ pub struct RenderReport {
     pub leaked_paths: u64,
     pub truncated_paths: u64,
     pub mean_rgb: [f64; 3],
-    /// NaN (written as `null`) when no pixel has a defined relative error.
+    /// The median over all pixels of the relative standard error (RMS over
+    /// R, G, B), = `relative_std_error.all.median`; NaN (written as `null`)
+    /// when no pixel has a defined relative error.
     #[serde(deserialize_with = "crate::bssrdf::f64_or_nan")]
     pub median_relative_std_error: f64,
     /// The relative standard error of the pixels' means per region (the

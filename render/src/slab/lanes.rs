@@ -161,7 +161,7 @@ impl Kernel<'_> {
             b.events += u64::from(ev.count_ones());
             paths.unscattered &= !ev;
 
-            if let Strategy::Lobe { .. } = self.strategy {
+            if let Strategy::Lobe { vertices, reuse } = self.strategy {
                 // The lobe connection, per lane (as `trace`): the walk's
                 // history, the connection and the lane's chain.
                 let phase_value = phase.eval(angles.cos_theta).lanes();
@@ -170,6 +170,7 @@ impl Kernel<'_> {
                     paths.junctions[l].arrive();
                     let chain = &mut paths.chains[l];
                     paths.total[l] += match self.lobe_event(
+                        (vertices, reuse),
                         pl,
                         dl,
                         paths.w.0[l],
@@ -281,7 +282,7 @@ impl Kernel<'_> {
         chain: &Chain,
         image: &mut [f64],
     ) -> f64 {
-        let m = self.lobe_params().0;
+        let m = ev.m;
         let sensor = &self.setup.sensor;
         let npix = sensor.pixels as f64;
         let (zero, half, n) = (F4::splat(0.0), F4::splat(0.5 * npix), F4::splat(npix));

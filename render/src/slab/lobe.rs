@@ -129,21 +129,11 @@
 //! roulette e^{−τ_u}/q = e^{−τ_r}), e^{−s_j} stored with the chain.
 //!
 
-use super::{Exit, Kernel, Strategy, MAX_LOBE_VERTICES};
+use super::{Exit, Kernel, MAX_LOBE_VERTICES};
 use crate::phase::Phase;
 use crate::rng::Rng;
 
 impl Kernel<'_> {
-    /// The lobe connection's chain length m and the events of a path that
-    /// share one chain; (0, 0) for the other estimators.
-    #[inline]
-    pub(super) fn lobe_params(&self) -> (usize, usize) {
-        match self.strategy {
-            Strategy::Lobe { vertices, reuse } => (vertices, reuse),
-            _ => (0, 0),
-        }
-    }
-
     /// The lobe connection of a scattering event at `p` (incoming direction
     /// `dir`, weight `w` after albedo; `junctions` the walk's MIS history)
     /// with m = `lobe_vertices` camera-side vertices (module doc, "Lobe
@@ -162,6 +152,7 @@ impl Kernel<'_> {
     #[inline]
     pub(super) fn connect_lobe(
         &self,
+        shape: (usize, usize),
         p: [f64; 3],
         dir: [f64; 3],
         w: f64,
@@ -171,7 +162,7 @@ impl Kernel<'_> {
         image: &mut [f64],
         rng: &mut Rng,
     ) -> f64 {
-        match self.lobe_event(p, dir, w, exit, junctions, chain, image, rng) {
+        match self.lobe_event(shape, p, dir, w, exit, junctions, chain, image, rng) {
             Ok(ev) => ev.total + self.lobe_links(&ev, p, dir, chain, image),
             Err(total) => total,
         }
@@ -185,6 +176,7 @@ impl Kernel<'_> {
     #[inline]
     pub(super) fn lobe_event(
         &self,
+        (m, reuse): (usize, usize),
         p: [f64; 3],
         dir: [f64; 3],
         w: f64,
@@ -198,13 +190,12 @@ impl Kernel<'_> {
         if exit.splat == 0.0 {
             return Err(0.0);
         }
-        let m = self.lobe_params().0;
         let phase = &self.setup.slab.medium.phase;
         let sensor = &self.setup.sensor;
         let (w21, inv_cos) = (exit.up, exit.inv_cos);
         let mut total = 0.0;
         let depth = -p[2];
-        chain.tick(self.lobe_params().1);
+        chain.tick(reuse);
         // Σ 1/p over the walk's last l junctions, l = 0 … min(m, run)
         // (filled only for an event that can contribute).
         let light = junctions.run.min(m);
@@ -267,7 +258,7 @@ impl Kernel<'_> {
         if !filled {
             fill(&mut prefix);
         }
-        Ok(LobeEvent { w21, inv_cos, tau_u, direct, e, weight: w * exit.splat, prefix, light, total })
+        Ok(LobeEvent { m, w21, inv_cos, tau_u, direct, e, weight: w * exit.splat, prefix, light, total })
     }
 
     /// The terms of strategies 1 … m of one event from its chain
@@ -283,7 +274,7 @@ impl Kernel<'_> {
         chain: &Chain,
         image: &mut [f64],
     ) -> f64 {
-        let m = self.lobe_params().0;
+        let m = ev.m;
         let phase = &self.setup.slab.medium.phase;
         let sensor = &self.setup.sensor;
         let w21 = ev.w21;
@@ -355,6 +346,8 @@ pub(super) struct Links(pub(super) [f64; MAX_LOBE_VERTICES]);
 /// What the links of one event's lobe connection share
 /// (`Kernel::lobe_event`).
 pub(super) struct LobeEvent {
+    /// The chain's length m (camera-side vertices, `Strategy::Lobe`).
+    pub(super) m: usize,
     /// The path's ω₂₁ and 1/cos θ₂₁ ([`Exit`]).
     pub(super) w21: [f64; 3],
     pub(super) inv_cos: f64,
