@@ -881,7 +881,7 @@ fn two_photos_of_the_same_view_give_the_photo_noise() {
     let image = |f: &mut dyn FnMut(usize) -> f64| RgbImage::new(w, h, (0..n).map(|i| f(i) as f32).collect()).unwrap();
     let p1 = image(&mut |i| clean(i) + sigma * rng.normal());
     let p2 = image(&mut |i| clean(i) + sigma * rng.normal());
-    let sign = |i: usize| if ((i / 3) % w / 4 + i / 3 / w / 4) % 2 == 0 { 1.0 } else { -1.0 };
+    let sign = |i: usize| if ((i / 3) % w / 4 + i / 3 / w / 4).is_multiple_of(2) { 1.0 } else { -1.0 };
     let render = image(&mut |i| clean(i) + sign(i) * bias + sigma_r * rng.normal());
     let (a, b) = (tmp.path().join("p1.exr"), tmp.path().join("p2.exr"));
     write_exr(&a, &p1).unwrap();

@@ -22,7 +22,7 @@ use lucent_testkit::normal::SplitMix64 as Rng;
 /// a coarse checker (edges), the three colours in different proportions.
 fn scene(x: usize, y: usize, c: usize, w: usize, h: usize) -> f64 {
     let t = 0.5 * (x as f64 / w as f64 + y as f64 / h as f64);
-    let patch = if (x / 48 + y / 48) % 2 == 0 { 0.2 } else { 0.0 };
+    let patch = if (x / 48 + y / 48).is_multiple_of(2) { 0.2 } else { 0.0 };
     (0.03 + 0.55 * t + patch) * [0.8, 1.0, 0.65][c]
 }
 

@@ -153,6 +153,9 @@ impl Page {
     }
 }
 
+/// A fitted parameter beside its known truth: (name, fitted, 95 % interval, truth).
+type FittedVsTruth = (String, Option<f64>, Option<[f64; 2]>, f64);
+
 fn slug(t: &str) -> String {
     let s: String = t.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
     s.split('-').filter(|p| !p.is_empty()).collect::<Vec<_>>().join("-").chars().take(48).collect()
@@ -349,7 +352,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         // Fit: the recipe fitted to the measured slices, beside the truth when known.
         let fdir = out.join("fit").join(&smp.name);
         // (parameter, fitted, 95 % interval, truth) of the fit, for the loop's summary below.
-        let mut fitted_vs_truth: Vec<(String, Option<f64>, Option<[f64; 2]>, f64)> = Vec::new();
+        let mut fitted_vs_truth: Vec<FittedVsTruth> = Vec::new();
         if let Some(fj) = read_json::<Value>(&fdir.join("fit.json"), "a fit.json")? {
             h.push_str("<h3>Recipe fitted to the measured slices (lucent fit)</h3>");
             let truth = match &smp.truth_recipe {
@@ -569,7 +572,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 let _ = write!(
                     h,
                     "<p>Over the object's {} pixels alone ({}): RMSE {}, model RMSE {} (95 % interval {} – {}), noise \
-                     floor {}, SSIM (Y) {}.</p>",
+                     floor {}, SSIM (Y) {}{}.</p>",
                     o.mask.included_pixels,
                     esc(&o.mask.source),
                     num(o.as_calibrated.rmse, e4),
@@ -577,7 +580,17 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     num(n.total.ci95[0], e4),
                     num(n.total.ci95[1], e4),
                     num(n.total.noise_floor, e4),
-                    num(o.as_calibrated.ssim.y, f4)
+                    num(o.as_calibrated.ssim.y, f4),
+                    if n.blocks < crate::compare::noise::MIN_BLOCKS {
+                        format!(
+                            "; the interval rests on {} blocks of {} px, fewer than {}: too few to trust",
+                            n.blocks,
+                            n.block_px,
+                            crate::compare::noise::MIN_BLOCKS
+                        )
+                    } else {
+                        String::new()
+                    }
                 );
             }
             // Which twin is closer, over the whole image and over the object; the
@@ -623,8 +636,13 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 ));
                 let _ = write!(
                     h,
-                    "<p>Paired test over {} pixel blocks: mean squared-error difference A − B {} ± {} (z {}, p {}): <b>{}</b>.</p>",
+                    "<p>Paired test over {} pixel blocks{}: mean squared-error difference A − B {} ± {} (z {}, p {}): <b>{}</b>.</p>",
                     t.paired.blocks,
+                    if t.paired.blocks < crate::compare::noise::MIN_BLOCKS {
+                        format!(" (fewer than {}: its standard error is itself uncertain)", crate::compare::noise::MIN_BLOCKS)
+                    } else {
+                        String::new()
+                    },
                     num(t.paired.squared_difference, e4),
                     num(t.paired.standard_error, e4),
                     num(t.paired.z, |x| format!("{x:.2}")),
