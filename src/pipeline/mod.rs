@@ -9,7 +9,7 @@
 //! | `fit` | `lucent fit` of each sample's recipe to its measured slices; writes the fitted recipe when the data pin it down | `[fit]`, a sample's `[[sample.measured]]` |
 //! | `calibrate` | `lucent calibrate` (Zhang) | `[calibration]` |
 //! | `colour` | `lucent colour calibrate` per camera | `[[colour]]` |
-//! | `develop` | `lucent colour apply`: a sample's photo and empty board (RAW or EXR in its camera's RGB) → CIE RGB; of a RAW also `lucent raw clipped`, the mask env-scale and compare then use | a sample's `camera` |
+//! | `develop` | `lucent colour apply`: a sample's photo and empty board (RAW or EXR in its camera's RGB) → CIE RGB; of a RAW also `lucent raw clipped`, the mask env-scale and compare then use, and the photo's per-pixel variance from the RAW's noise model (`--variance-out`, var P of the model RMSE) | a sample's `camera` |
 //! | `pose` | `lucent pose` on the sample photo | `[pose]` and the `calibrate` output |
 //! | `env-scale` | `lucent env fit-scale` per sample | `[render]`, a sample's `empty_board` |
 //! | `render` | `lucent render` per sample (the scene template with the sample's recipe, and the fitted scale); with a fitted recipe from stage fit, also the fitted twin (`render/NAME/fitted/`) | `[render]` |
@@ -24,7 +24,7 @@
 //! object at `placement = "scene"` when the pose placed a sample (the finite
 //! sphere then centred on its top). Without a `[pose]` the template is used
 //! as it is.
-//! | `compare` | `lucent compare` photo vs render per sample; with a fitted twin, both twins (recipe = A, fitted = B) and which is closer | a sample's `photo`, its render |
+//! | `compare` | `lucent compare` photo vs render per sample (minus clipped pixels, with the photo's variance from develop), and the same over the object's pixels (`NAME/object/`: the render's `object` layer, any mesh); with a fitted twin, both twins (recipe = A, fitted = B) and which is closer | a sample's `photo`, its render |
 //! | `report` | `report/index.html` and `report/metrics.json` ([`report`]) | any stage's output |
 //!
 //! A stage's work is a list of [`Task`]s — `lucent` command lines, with files
@@ -594,6 +594,20 @@ fn valid_mask(out: &Path, smp: &project::SampleSection, which: &str) -> Option<P
     p.is_file().then_some(p)
 }
 
+/// The develop stage's variance of a sample's RAW photo
+/// (`colour apply --variance-out`), if it wrote one.
+fn photo_variance(out: &Path, smp: &project::SampleSection) -> Option<PathBuf> {
+    smp.camera.as_ref()?;
+    let p = out.join(Stage::Develop.name()).join(&smp.name).join("photo_variance.exr");
+    p.is_file().then_some(p)
+}
+
+/// Whether the EXR at `path` has a channel `name` (its header only).
+fn has_exr_channel(path: &Path, name: &str) -> bool {
+    exr::meta::MetaData::read_from_file(path, false)
+        .is_ok_and(|m| m.headers.iter().any(|h| h.channels.list.iter().any(|c| c.name.to_string() == name)))
+}
+
 /// What `stage` will do for `project` with outputs under `out`; an inner
 /// `Err` with the reason when the project gives it nothing to do.
 pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, Skip>, PipelineError> {
@@ -810,7 +824,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 for (what, photo) in [("photo", &smp.photo), ("empty_board", &smp.empty_board)] {
                     let Some(photo) = photo else { continue };
                     inputs.push(photo.clone());
-                    let args = vec![
+                    let mut args = vec![
                         "colour".into(),
                         "apply".into(),
                         "--ccm".into(),
@@ -820,8 +834,18 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                         "--to".into(),
                         "cie-rgb".into(),
                     ];
+                    let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
+                    // The photo's noise (var P of the compare stage's model RMSE), from its RAW noise model.
+                    if is_raw && what == "photo" {
+                        args.extend([
+                            "--variance-out".into(),
+                            format!("{{out}}/{}/{what}_variance.exr", smp.name),
+                            "--seed".into(),
+                            seed.clone(),
+                        ]);
+                    }
                     tasks.push(lucent(format!("{} {what}", smp.name), args));
-                    if crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str()) {
+                    if is_raw {
                         let mask = format!("{{out}}/{}/{what}_valid.png", smp.name);
                         let args = vec!["raw".into(), "clipped".into(), s(photo), "--out".into(), mask];
                         tasks.push(lucent(format!("{} {what} clipping", smp.name), args));
@@ -954,23 +978,35 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 if let Some(f) = &fitted {
                     args.extend(["--render".into(), s(f)]);
                 }
-                args.extend(["--out".into(), format!("{{out}}/{}", smp.name)]);
-                // The fitted twin alone too: its own triplet for the report.
-                let fitted_alone = fitted.as_ref().map(|f| {
-                    let mut a = vec!["compare".into(), "--photo".into(), s(photo), "--render".into(), s(f)];
-                    a.extend(["--out".into(), format!("{{out}}/{}/fitted", smp.name)]);
-                    a
-                });
                 let mut extra = Vec::new();
                 if let Some(m) = valid_mask(out, smp, "photo") {
                     extra.extend(["--mask".into(), s(&m)]);
+                }
+                if let Some(v) = photo_variance(out, smp) {
+                    extra.extend(["--photo-variance".into(), s(&v)]);
                 }
                 if let Some(d) = f.compare.as_ref().and_then(|c| c.data_range) {
                     extra.extend(["--data-range".into(), d.to_string()]);
                 }
                 args.extend(extra.iter().cloned());
+                // The same over the object's pixels, as the render's `object` layer marks
+                // them (any mesh): where the twins differ, so where their paired test looks.
+                if has_exr_channel(&render, "object") {
+                    let mut a = args.clone();
+                    a.extend([
+                        "--mask-object".into(),
+                        s(&render),
+                        "--out".into(),
+                        format!("{{out}}/{}/object", smp.name),
+                    ]);
+                    tasks.push(lucent(format!("{} object", smp.name), a));
+                }
+                args.extend(["--out".into(), format!("{{out}}/{}", smp.name)]);
                 tasks.push(lucent(smp.name.clone(), args));
-                if let Some(mut a) = fitted_alone {
+                // The fitted twin alone too: its own triplet for the report.
+                if let Some(f) = &fitted {
+                    let mut a = vec!["compare".into(), "--photo".into(), s(photo), "--render".into(), s(f)];
+                    a.extend(["--out".into(), format!("{{out}}/{}/fitted", smp.name)]);
                     a.extend(extra);
                     tasks.push(lucent(format!("{} fitted twin", smp.name), a));
                 }
