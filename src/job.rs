@@ -369,12 +369,18 @@ pub struct ColourApplyJob {
     pub input: PathBuf,
     pub output: PathBuf,
     pub to: String,
+    /// `--variance-out` and `--seed`: the developed RAW photo's per-pixel
+    /// variance from its noise model, and the seed of its realisations.
+    pub variance_out: Option<(PathBuf, u64)>,
 }
 
 impl ColourApplyJob {
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["colour", "apply"]);
         l.flag("--ccm", s(&self.ccm)).word(s(&self.input)).word(s(&self.output)).flag("--to", &self.to);
+        if let Some((path, seed)) = &self.variance_out {
+            l.flag("--variance-out", s(path)).flag("--seed", seed);
+        }
         l.0
     }
 }
@@ -487,6 +493,11 @@ pub struct CompareJob {
     pub render: Vec<PathBuf>,
     pub out: PathBuf,
     pub mask: Option<PathBuf>,
+    /// `--mask-object`: only the object's pixels (a scene JSON or a render
+    /// EXR with an `object` layer), intersected with `mask`.
+    pub mask_object: Option<PathBuf>,
+    /// `--photo-variance`: the photo's per-pixel variance (EXR).
+    pub photo_variance: Option<PathBuf>,
     pub data_range: f64,
 }
 
@@ -503,7 +514,9 @@ impl CompareJob {
         let mut l = Line::new(&["compare"]);
         l.flag("--photo", s(&self.photo));
         l.words(self.render.iter().flat_map(|r| ["--render".to_string(), s(r)]));
-        l.flag("--out", s(&self.out)).opt("--mask", &self.mask.as_deref().map(s)).flag("--data-range", self.data_range);
+        l.flag("--out", s(&self.out)).opt("--mask", &self.mask.as_deref().map(s));
+        l.opt("--mask-object", &self.mask_object.as_deref().map(s));
+        l.opt("--photo-variance", &self.photo_variance.as_deref().map(s)).flag("--data-range", self.data_range);
         l.0
     }
 }

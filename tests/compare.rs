@@ -225,7 +225,9 @@ fn ecc_recovers_a_known_shift_on_the_board_and_the_metrics_improve() {
         photo,
         render,
         mask: MaskSpec::Object(scene),
+        mask_also: None,
         photo_variance: None,
+        photo_repeat: None,
         render_b: None,
         scene: None,
         data_range: 1.0,
@@ -468,8 +470,8 @@ fn bad_inputs_are_rejected_with_which_and_where() {
                 base.clone(),
                 "--render".into(),
                 base.clone(),
-                "--mask".into(),
-                format!("{REF}/mask.png"),
+                "--mask-object".into(),
+                "y.json".into(),
                 "--mask-board".into(),
                 "x.json".into(),
             ],
@@ -719,4 +721,216 @@ fn ssim_at_zero_render_noise_from_the_half_renders() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("no half renders"), "{}", stderr(&o));
     assert!(json(&tmp.path().join("o2/metrics.json"))["ssim_at_zero_noise"].is_null());
+}
+
+/// An icosphere of radius `r` (m) resting on the board (centre at z = r),
+/// `subdivisions` times refined from the icosahedron, as OBJ text.
+fn icosphere_obj(r: f64, subdivisions: usize) -> String {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<[f64; 3]> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .to_vec();
+    let mut f: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    let unit = |p: [f64; 3]| {
+        let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        p.map(|x| x / n)
+    };
+    v = v.into_iter().map(unit).collect();
+    for _ in 0..subdivisions {
+        let mut mid = std::collections::HashMap::new();
+        let mut next = Vec::with_capacity(4 * f.len());
+        for [a, b, c] in f {
+            let mut m = |i: usize, j: usize| {
+                *mid.entry((i.min(j), i.max(j))).or_insert_with(|| {
+                    v.push(unit([0, 1, 2].map(|k| 0.5 * (v[i][k] + v[j][k]))));
+                    v.len() - 1
+                })
+            };
+            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = next;
+    }
+    let mut s = String::new();
+    for p in &v {
+        s.push_str(&format!("v {} {} {}\n", r * p[0], r * p[1], r * (p[2] + 1.0)));
+    }
+    for t in &f {
+        s.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
+    }
+    s
+}
+
+/// Object-only metrics for an object that is not the posed box: a sphere
+/// (mesh) seen from above, its pixels from the render's `object` layer.
+/// The mask's size is the sphere's silhouette from the geometry alone
+/// (π R², R = f tan(asin(r / d))); two renders of the same sphere compare
+/// with no model error; `--mask` with `--mask-object` keeps the pixels both
+/// include.
+#[test]
+fn object_metrics_work_for_a_sphere_from_the_render_layer() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (r, cam_z, fov_deg, size) = (0.02, 0.3, 12.0f64, 64usize);
+    std::fs::write(tmp.path().join("sphere.obj"), icosphere_obj(r, 3)).unwrap();
+    let scene = format!(
+        "[camera]\nwidth = {size}\nheight = {size}\nposition_m = [0.0, 0.0, {cam_z}]\nlook_at_m = [0.0, 0.0, {r}]\n\
+         up = [0.0, 1.0, 0.0]\nvertical_fov_deg = {fov_deg}\n\n[object]\nmesh = \"sphere.obj\"\n\n[material]\n\
+         mu_s_per_m = [1200.0, 1500.0, 1800.0]\nmu_a_per_m = [30.0, 15.0, 8.0]\ng = [0.8, 0.8, 0.8]\nn = [1.5, 1.5, 1.5]\n\
+         phase = \"hg\"\n\n[board]\norigin_m = [-0.1, -0.1, 0.0]\nu = [1.0, 0.0, 0.0]\nv = [0.0, 1.0, 0.0]\n\
+         square_mm = 20.0\ncolumns = 10\nrows = 10\neven = [0.80, 0.75, 0.70]\nodd = [0.05, 0.08, 0.12]\n\n\
+         [environment]\nconstant = [1.0, 0.9, 0.8]\nprojection = \"infinite\"\n"
+    );
+    std::fs::write(tmp.path().join("sphere.toml"), scene).unwrap();
+    for seed in ["1", "2"] {
+        let out = tmp.path().join(format!("s{seed}"));
+        let toml = tmp.path().join("sphere.toml");
+        let o = lucent(&[
+            "render",
+            toml.to_str().unwrap(),
+            "--spp",
+            "16",
+            "--seed",
+            seed,
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let (a, b) = (tmp.path().join("s1/render.exr"), tmp.path().join("s2/render.exr"));
+    let run = |extra: &[&str], out: &str| -> Value {
+        let o_dir = tmp.path().join(out);
+        let mut args = vec!["compare", "--photo", a.to_str().unwrap(), "--render", b.to_str().unwrap()];
+        args.extend(["--mask-object", b.to_str().unwrap(), "--photo-variance", a.to_str().unwrap()]);
+        args.extend(extra);
+        args.extend(["--out", o_dir.to_str().unwrap()]);
+        let o = lucent(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_str(&std::fs::read_to_string(o_dir.join("metrics.json")).unwrap()).unwrap()
+    };
+    let m = run(&[], "sphere");
+    assert_eq!(m["mask"]["source"], "object");
+    let px = m["mask"]["included_pixels"].as_f64().unwrap();
+    // The silhouette of a sphere of radius r whose centre is d from the camera: a disc of
+    // angular radius asin(r / d), f tan(asin(r / d)) pixels across the focal length f.
+    let f = 0.5 * size as f64 / (0.5 * fov_deg).to_radians().tan();
+    let radius_px = f * (r / (cam_z - r)).asin().tan();
+    let disc = std::f64::consts::PI * radius_px * radius_px;
+    assert!((px / disc - 1.0).abs() < 0.03, "object pixels {px}, silhouette {disc:.1}");
+    let n = &m["noise"]["total"];
+    assert!(n["squared_ci95"][0].as_f64().unwrap() <= 0.0 && n["squared_ci95"][1].as_f64().unwrap() >= 0.0, "{n}");
+    // With a mask image of the left half: the object's left half.
+    let half: Vec<f32> = (0..size * size).flat_map(|i| [if i % size < size / 2 { 1.0 } else { 0.0 }; 3]).collect();
+    let half_png = tmp.path().join("left.png");
+    lucent::imageio::write_png(&half_png, &RgbImage::new(size, size, half).unwrap()).unwrap();
+    let both = run(&["--mask", half_png.to_str().unwrap()], "sphere-left");
+    assert_eq!(both["mask"]["source"], "object and image");
+    let (_, _, layer) = lucent::imageio::read_exr_channels(&b, &["object"]).unwrap();
+    let want = layer[0].iter().enumerate().filter(|(i, f)| **f >= 0.5 && i % size < size / 2).count();
+    assert_eq!(both["mask"]["included_pixels"].as_u64().unwrap() as usize, want);
+    assert!((want as f64 / px - 0.5).abs() < 0.05, "{want} of {px}");
+}
+
+/// The photo's variance from two photos of the same view (`--photo-repeat`):
+/// (P − P₂)²/2 per pixel is unbiased for independent noise, so the model RMSE
+/// of a render with a known ± 0.02 error against photos with noise σ = 0.05
+/// finds the 0.02; without it the photo's noise stays in the model RMSE.
+#[test]
+fn two_photos_of_the_same_view_give_the_photo_noise() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (w, h, sigma, bias, sigma_r) = (128usize, 96usize, 0.05, 0.02, 0.02);
+    let mut rng = lucent_testkit::normal::SplitMix64(41);
+    let clean = |i: usize| {
+        let (x, y, c) = ((i / 3) % w, i / 3 / w, i % 3);
+        0.4 + 0.2 * ((0.11 * x as f64 + c as f64).sin() * (0.07 * y as f64).cos())
+    };
+    let n = w * h * 3;
+    let image = |f: &mut dyn FnMut(usize) -> f64| RgbImage::new(w, h, (0..n).map(|i| f(i) as f32).collect()).unwrap();
+    let p1 = image(&mut |i| clean(i) + sigma * rng.normal());
+    let p2 = image(&mut |i| clean(i) + sigma * rng.normal());
+    let sign = |i: usize| if ((i / 3) % w / 4 + i / 3 / w / 4).is_multiple_of(2) { 1.0 } else { -1.0 };
+    let render = image(&mut |i| clean(i) + sign(i) * bias + sigma_r * rng.normal());
+    let (a, b) = (tmp.path().join("p1.exr"), tmp.path().join("p2.exr"));
+    write_exr(&a, &p1).unwrap();
+    write_exr(&b, &p2).unwrap();
+    let plane = |c: usize| render.data.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
+    let var = vec![(sigma_r * sigma_r) as f32; w * h];
+    let r = tmp.path().join("render.exr");
+    let (pr, pg, pb) = (plane(0), plane(1), plane(2));
+    lucent::imageio::write_exr_channels(
+        &r,
+        w,
+        h,
+        &[("R", &pr), ("G", &pg), ("B", &pb), ("variance.R", &var), ("variance.G", &var), ("variance.B", &var)],
+    )
+    .unwrap();
+    let run = |extra: &[&str], out: &str| -> Value {
+        let o_dir = tmp.path().join(out);
+        let mut args = vec!["compare", "--photo", a.to_str().unwrap(), "--render", r.to_str().unwrap()];
+        args.extend(extra);
+        args.extend(["--out", o_dir.to_str().unwrap()]);
+        let o = lucent(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_str::<Value>(&std::fs::read_to_string(o_dir.join("metrics.json")).unwrap()).unwrap()["noise"]
+            .clone()
+    };
+    let with = run(&["--photo-repeat", b.to_str().unwrap()], "repeat");
+    assert!(with["photo_variance"].as_str().unwrap().contains("two photos"), "{with}");
+    let t = &with["total"];
+    let (m, lo, hi) =
+        (t["model_rmse"].as_f64().unwrap(), t["ci95"][0].as_f64().unwrap(), t["ci95"][1].as_f64().unwrap());
+    assert!(lo <= bias && bias <= hi, "model RMSE {m} [{lo}, {hi}] vs the true {bias}");
+    assert!((m / bias - 1.0).abs() < 0.15, "model RMSE {m} vs {bias}");
+    // Without the photo's variance its noise (0.05) dominates the model RMSE.
+    let without = run(&[], "alone");
+    let lo = without["total"]["ci95"][0].as_f64().unwrap();
+    assert!(lo > 2.0 * bias, "{without}");
+    // Not both ways of giving the photo's noise at once.
+    let o = lucent(&[
+        "compare",
+        "--photo",
+        a.to_str().unwrap(),
+        "--render",
+        r.to_str().unwrap(),
+        "--photo-repeat",
+        b.to_str().unwrap(),
+        "--photo-variance",
+        r.to_str().unwrap(),
+        "--out",
+        tmp.path().join("x").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success() && stderr(&o).contains("cannot be used with"), "{}", stderr(&o));
 }

@@ -48,6 +48,8 @@ mod numeric_flags;
 mod optics_bulk;
 #[path = "optics_cli.rs"]
 mod optics_cli;
+#[path = "photo_noise.rs"]
+mod photo_noise;
 #[path = "pipeline.rs"]
 mod pipeline;
 #[path = "plots.rs"]

@@ -86,6 +86,7 @@ fn jobs() -> Vec<Job> {
             input: p("photo.dng"),
             output: p("{out}/s/photo.exr"),
             to: "xyz".into(),
+            variance_out: Some((p("{out}/s/photo_variance.exr"), 7)),
         }),
         Job::RawClipped(RawClippedJob { input: p("photo.dng"), out: p("{out}/s/photo_valid.png") }),
         Job::Pose(PoseJob {
@@ -120,6 +121,8 @@ fn jobs() -> Vec<Job> {
             render: vec![p("a/render.exr"), p("b/render.exr")],
             out: p("{out}/s"),
             mask: Some(p("valid.png")),
+            mask_object: Some(p("a/render.exr")),
+            photo_variance: Some(p("{out}/s/photo_variance.exr")),
             data_range: 2.0,
         }),
     ]

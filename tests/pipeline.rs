@@ -348,7 +348,10 @@ fn project_runs_skips_reruns_fails_and_reports() {
     }
     assert!(dom.contains("Photo | render | difference") && dom.contains("Manifest"));
     // The render's noise per region and the model RMSE beside the plain one.
-    assert!(dom.contains("the object's") && dom.contains("Model RMSE with the render's noise removed"), "{dom}");
+    assert!(
+        dom.contains("the object's") && dom.contains("Model RMSE with the render's and the photo's noise removed"),
+        "{dom}"
+    );
     assert!(shots.join("report.png").metadata().unwrap().len() > 10_000);
 }
 
@@ -622,6 +625,24 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     let html = std::fs::read_to_string(out.join("report/index.html")).unwrap();
     assert!(html.contains("Recipe fitted to the measured slices") && html.contains("Which twin is closer"), "report");
     assert!(html.contains("photo | fitted twin | difference"));
+    // The slices measured vs simulated at the recipe and at the fit (sums, MSRE).
+    assert!(html.contains("simulated/measured sum: recipe") && html.contains("MSRE: recipe"), "report");
+    // Also scored over the plaque's pixels alone, as the render's object layer marks them.
+    let object = &smp["compare_object"];
+    assert_eq!(object["mask"]["source"], "object", "{}", object["mask"]);
+    assert!(
+        object["mask"]["included_pixels"].as_u64().unwrap()
+            < smp["compare"]["mask"]["included_pixels"].as_u64().unwrap()
+    );
+    assert!(object["twins"]["paired"]["verdict"].is_string(), "{object}");
+    // The loop against its truth, stated once: truth, recovered, the object's verdict and its p.
+    let lp = &smp["loop"];
+    assert_eq!(lp["parameters"][0]["truth"].as_f64(), Some(0.425), "{lp}");
+    assert_eq!(lp["parameters"][0]["recovered"], p["value"], "{lp}");
+    assert_eq!(lp["region"], "the object's pixels", "{lp}");
+    assert_eq!(lp["verdict"], object["twins"]["paired"]["verdict"], "{lp}");
+    assert_eq!(lp["p_value"], object["twins"]["paired"]["p_value"], "{lp}");
+    assert!(html.contains("The loop against its known truth"), "report");
     // A second run skips every stage.
     let again = ok(&lucent(&["run", project.to_str().unwrap(), "--out", out.to_str().unwrap()]));
     for s in ["fit", "render", "compare"] {

@@ -9,6 +9,7 @@
 //! | [`buffer`] | the plain image buffers (linear RGB, 8-bit grey), bilinear sampling | as stored |
 //! | [`raw`] | RAW → black/white-scaled mosaic → linear camera RGB, metadata | 1.0 = the white level |
 //! | [`demosaic`] | Bayer demosaicing: Malvar–He–Cutler (2004), bilinear | as the mosaic |
+//! | [`noise`] | a RAW photo's shot + read noise (var = a·x + b): DNG NoiseProfile or estimated from the image; developed noise realisations | 1.0 = the white level |
 //! | [`model`] | the camera model: pinhole + Brown–Conrady / rational distortion, Kannala–Brandt fisheye, projection, validation | pixels, metres |
 //! | [`board`] | the chessboard: inner corners, square size, corner positions | metres |
 //! | [`pose`] | rigid poses in OpenCV's convention, rotation vectors (Rodrigues) | metres, radians |
@@ -25,7 +26,7 @@
 //! ([`hdr::merge_8bit_recovered`] calls [`cv::recover_response`], which takes and returns `hdr` types):
 //! the leaves [`buffer`], [`model`], [`board`], [`pose`] import nothing from this crate;
 //! [`error`] → board, buffer; [`cv`] → leaves, error, hdr; [`ecc`] → error;
-//! [`env`](mod@env) → model, buffer; [`calibrate`] → leaves, error, cv, env;
+//! [`noise`] → buffer, demosaic, raw; [`env`](mod@env) → model, buffer; [`calibrate`] → leaves, error, cv, env;
 //! [`camera`] → buffer, model, calibrate; [`scene`] → model, board, pose, calibrate.
 //!
 //! ```
@@ -46,6 +47,7 @@ pub mod env;
 pub mod error;
 pub mod hdr;
 pub mod model;
+pub mod noise;
 pub mod pose;
 pub mod raw;
 pub mod scene;

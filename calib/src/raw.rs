@@ -215,6 +215,11 @@ pub struct RawMetadata {
     pub units: String,
     /// Metadata that could not be read (e.g. no EXIF), for the user to know.
     pub warnings: Vec<String>,
+    /// The DNG's NoiseProfile (tag 51041) as stored: (S, O) pairs, one for
+    /// all planes or one per plane; variance = S·x + O in this output's units
+    /// before white balance ([`crate::noise::NoiseModel::from_noise_profile`]).
+    #[serde(default)]
+    pub noise_profile: Option<Vec<f64>>,
 }
 
 /// Black/white-scaled sensor data of the active area, before white balance,
@@ -776,12 +781,21 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
         output_height: area.height,
         units: "linear camera RGB; 0 = black level, 1 = white (saturation) level; not clipped; no tone curve".into(),
         warnings,
+        noise_profile: dng::noise_profile(&bytes),
     };
     let data = match cropped_pattern {
         Some(b) => RawData::Bayer(Mosaic { width: area.width, height: area.height, pattern: b, data: out }),
         None => RawData::Rgb(RgbBuffer { width: area.width, height: area.height, data: out }),
     };
     Ok(RawFrame { data, meta, path: path.to_path_buf() })
+}
+
+impl RawFrame {
+    /// The same frame (metadata, file) with other sensor values of the same
+    /// layout, e.g. a realisation of its noise ([`crate::noise::developed_noise`]).
+    pub(crate) fn with_data(&self, data: RawData) -> RawFrame {
+        RawFrame { data, meta: self.meta.clone(), path: self.path.clone() }
+    }
 }
 
 /// Steps 5–7: white balance (if asked), demosaicing, orientation. Returns the
@@ -1084,6 +1098,15 @@ mod dng {
             std::array::from_fn(|k| pick(black, k, 0.0))
         };
         (black, std::array::from_fn(|k| pick(white, k, 65535.0)))
+    }
+
+    /// The raw IFD's (else IFD0's) NoiseProfile values, if any.
+    pub(super) fn noise_profile(bytes: &[u8]) -> Option<Vec<f64>> {
+        let p = parse(bytes)?;
+        [&p.raw, &p.ifd0]
+            .into_iter()
+            .filter(|d| TiffFile::has(d, 51041))
+            .find_map(|d| p.t.numbers(d, 51041).ok().filter(|v| !v.is_empty()))
     }
 
     /// What is in the file but not applied, for the metadata's warnings.

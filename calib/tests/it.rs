@@ -10,6 +10,8 @@ mod env_orient;
 mod fisheye;
 #[path = "hdr_merge.rs"]
 mod hdr_merge;
+#[path = "noise.rs"]
+mod noise;
 #[path = "raw_dng.rs"]
 mod raw_dng;
 #[path = "raw_dng_phone.rs"]

@@ -509,6 +509,8 @@ fn py_compare<'py>(
             exposure: None,
             refine: None,
             photo_variance,
+            photo_repeat: None,
+            mask_also: None,
         };
         let outcome = py.detach(|| compare::compare_files(&req)).map_err(error)?;
         return to_python(py, &outcome.report);

@@ -82,6 +82,17 @@ pub struct ApplyArgs {
     /// bradford, cat02, von-kries or none.
     #[arg(long, value_enum, ignore_case = true, default_value = "bradford")]
     pub adaptation: AdaptationChoice,
+    /// Also write the output's per-pixel variance (.exr, variance.R/G/B) from the RAW input's noise
+    /// model (its DNG NoiseProfile, else estimated from the photo), with the model in a .json beside
+    /// it: `lucent compare --photo-variance` (RAW input only).
+    #[arg(long, value_name = "VARIANCE_EXR")]
+    pub variance_out: Option<PathBuf>,
+    /// Noise realisations averaged per pixel for --variance-out (per-pixel precision √(2/K)).
+    #[arg(long, default_value_t = 16, value_parser = super::count_in::<2, 1000>, requires = "variance_out")]
+    pub variance_realisations: usize,
+    /// Seed of the noise realisations of --variance-out.
+    #[arg(long, default_value_t = 1, requires = "variance_out")]
+    pub seed: u64,
 }
 
 #[derive(Debug, Args)]
@@ -303,9 +314,59 @@ fn apply(a: ApplyArgs) -> Result<()> {
     if ext != "exr" {
         bail!("{}: the output must be an .exr file (linear 32-bit float)", a.output.display());
     }
+    if let Some(v) = &a.variance_out {
+        if !imageio::RAW_EXTENSIONS.contains(&imageio::extension(&a.input).as_str()) {
+            bail!(
+                "--variance-out {}: needs a RAW photo (its noise model); for a photo in {} give                  `lucent compare --photo-variance` a variance image of your own",
+                v.display(),
+                a.input.display()
+            );
+        }
+        if file.input_encoding == InputEncoding::Srgb {
+            bail!("--variance-out: {} was fitted to sRGB-encoded values, not a RAW's linear ones", a.ccm.display());
+        }
+        if imageio::extension(v) != "exr" {
+            bail!("--variance-out {}: must be an .exr file", v.display());
+        }
+    }
     let mut img = imageio::read_rgb(&a.input)?;
     if file.input_encoding == InputEncoding::Srgb {
         decode_in_place(&mut img);
+    }
+    if let Some(v) = &a.variance_out {
+        let colour = |rgb: [f64; 3]| mat3_vec(&target, ccm.apply(rgb));
+        let (var, sidecar) =
+            crate::compare::photo_noise::photo_variance(&a.input, &colour, a.variance_realisations, a.seed)?;
+        let plane = |c: usize| var.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
+        let (r, g, b) = (plane(0), plane(1), plane(2));
+        imageio::write_exr_channels(
+            v,
+            img.width,
+            img.height,
+            &[("variance.R", &r), ("variance.G", &g), ("variance.B", &b)],
+        )?;
+        let json = crate::compare::photo_noise::sidecar(v);
+        crate::io::write_json(&json, &sidecar)?;
+        let m = &sidecar.noise_model;
+        println!(
+            "{}: noise {} a = ({:.3e}, {:.3e}, {:.3e}), b = ({:.3e}, {:.3e}, {:.3e}); variance of the output → {} ({})",
+            a.input.display(),
+            match m.source {
+                lucent_calib::noise::NoiseSource::DngNoiseProfile => "from the DNG NoiseProfile:",
+                lucent_calib::noise::NoiseSource::EstimatedFromImage => "estimated from the photo:",
+            },
+            m.a[0],
+            m.a[1],
+            m.a[2],
+            m.b[0],
+            m.b[1],
+            m.b[2],
+            v.display(),
+            json.display()
+        );
+        if !m.note.is_empty() {
+            eprintln!("note: {}", m.note);
+        }
     }
     for px in img.data.chunks_exact_mut(3) {
         let xyz = ccm.apply([f64::from(px[0]), f64::from(px[1]), f64::from(px[2])]);

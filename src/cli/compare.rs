@@ -10,7 +10,7 @@ use lucent_calib::ecc::Motion;
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
-#[command(group(clap::ArgGroup::new("masking").args(["mask", "mask_object", "mask_board"])))]
+#[command(group(clap::ArgGroup::new("masking").args(["mask_object", "mask_board"])))]
 pub struct CompareArgs {
     /// The photo: linear RGB (.exr, .hdr; .png/.tif are taken as stored), undistorted.
     #[arg(long)]
@@ -19,7 +19,8 @@ pub struct CompareArgs {
     /// (`--render A.exr --render B.exr`) to ask which of two twins is closer.
     #[arg(long, required = true, num_args = 1)]
     pub render: Vec<PathBuf>,
-    /// Mask image of the photo's size: nonzero = pixel included.
+    /// Mask image of the photo's size: nonzero = pixel included (with --mask-object or
+    /// --mask-board: the pixels both include, e.g. the object minus clipped pixels).
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Compare only the sample: its box projected from this scene JSON (`lucent pose`), or the
@@ -34,6 +35,10 @@ pub struct CompareArgs {
     /// render's own variance from the model RMSE.
     #[arg(long)]
     pub photo_variance: Option<PathBuf>,
+    /// A second photo of the same view (same camera, settings and light): the photo's variance
+    /// is then (P − P2)² / 2 per pixel, for the model RMSE.
+    #[arg(long, value_name = "PHOTO2", conflicts_with = "photo_variance")]
+    pub photo_repeat: Option<PathBuf>,
     /// Scene JSON whose board region ECC aligns on (implied by --mask-object/--mask-board).
     #[arg(long, value_name = "SCENE_JSON")]
     pub scene: Option<PathBuf>,
@@ -78,11 +83,11 @@ fn line(m: &Metrics) -> String {
 
 pub fn run(a: CompareArgs) -> Result<()> {
     let refine: Option<Motion> = a.refine.map(|RefineChoice::Ecc| a.refine_motion);
-    let mask = match (a.mask, a.mask_object, a.mask_board) {
-        (Some(p), _, _) => MaskSpec::Image(p),
-        (_, Some(p), _) => MaskSpec::Object(p),
-        (_, _, Some(p)) => MaskSpec::Board(p),
-        _ => MaskSpec::None,
+    let (mask, mask_also) = match (a.mask, a.mask_object, a.mask_board) {
+        (m, Some(p), _) => (MaskSpec::Object(p), m),
+        (m, _, Some(p)) => (MaskSpec::Board(p), m),
+        (Some(p), None, None) => (MaskSpec::Image(p), None),
+        (None, None, None) => (MaskSpec::None, None),
     };
     if a.render.len() > 2 {
         anyhow::bail!("--render given {} times: one twin, or two to compare", a.render.len());
@@ -94,12 +99,14 @@ pub fn run(a: CompareArgs) -> Result<()> {
         render,
         render_b: renders.next(),
         mask,
+        mask_also,
         scene: a.scene,
         data_range: a.data_range,
         luminance: a.luminance,
         exposure: a.exposure,
         refine,
         photo_variance: a.photo_variance,
+        photo_repeat: a.photo_repeat,
     };
     let outcome = compare::compare_files(&req)?;
     for n in &outcome.notes {

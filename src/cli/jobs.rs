@@ -37,6 +37,7 @@ pub fn job_of(command: &Command) -> Option<Job> {
             input: a.input.clone(),
             output: a.output.clone(),
             to: name(&a.to),
+            variance_out: a.variance_out.clone().map(|v| (v, a.seed)),
         }),
         Command::Raw(camera::RawCommand::Clipped(a)) => Job::RawClipped(a.into()),
         Command::Pose(a) => Job::Pose(a.into()),
@@ -191,6 +192,8 @@ impl From<&compare::CompareArgs> for CompareJob {
             render: a.render.clone(),
             out: a.out.clone(),
             mask: a.mask.clone(),
+            mask_object: a.mask_object.clone(),
+            photo_variance: a.photo_variance.clone(),
             data_range: a.data_range,
         }
     }

@@ -476,15 +476,6 @@ pub fn spp_by_region(image: &Image) -> scene::SppByRegion {
     scene::SppByRegion { object: mean(0), other: mean(1) }
 }
 
-/// The median over all pixels of the relative standard error of the
-/// pixel's mean, RMS over R, G, B ([`Image::relative_std_error`]): the same
-/// figure as `relative_std_error.all.median` in render.json (once a grey
-/// mean of the channels that took their errors as independent, and so
-/// read √3 too low where the bands ride on one path).
-pub fn median_relative_std_error(image: &Image) -> f64 {
-    image.region_errors().all.median
-}
-
 /// Writes render.exr and render.png; returns their names.
 pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<Vec<String>> {
     let (w, h) = (image.width, image.height);
@@ -541,6 +532,7 @@ fn report(
 ) -> RenderReport {
     let n = image.mean.len().max(1) as f64;
     let mean_rgb = std::array::from_fn(|c| image.mean.iter().map(|m| m[c]).sum::<f64>() / n);
+    let errors = image.region_errors();
     RenderReport {
         lucent_version: env!("CARGO_PKG_VERSION").into(),
         scene: summary.clone(),
@@ -558,8 +550,11 @@ fn report(
         leaked_paths: stats.leaked_paths,
         truncated_paths: stats.truncated_paths,
         mean_rgb,
-        median_relative_std_error: median_relative_std_error(image),
-        relative_std_error: Some(errors_report(&image.region_errors())),
+        // The all-pixels median of the one per-pixel figure the regions use
+        // (once a grey mean of the channels that read √3 too low where the
+        // bands ride on one path).
+        median_relative_std_error: errors.all.median,
+        relative_std_error: Some(errors_report(&errors)),
         sampling: Some(match settings.sampling {
             tracer::Sampling::Uniform => scene::SamplingKey::Uniform,
             tracer::Sampling::ObjectWeighted => scene::SamplingKey::ObjectWeighted,

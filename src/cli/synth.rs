@@ -55,6 +55,9 @@ pub struct RawArgs {
     /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Leave the DNG without its NoiseProfile tag (readers then estimate the noise from the image).
+    #[arg(long)]
+    pub no_noise_profile: bool,
 }
 
 /// Runs a `lucent synth` subcommand.
@@ -109,18 +112,24 @@ fn raw(a: RawArgs) -> Result<()> {
     let to_camera = synth::to_camera_matrix(space, &truth.xyz_d50_to_camera)?;
     let cap = synth::capture_mosaic(&img, &to_camera, a.exposure, &sensor, a.seed)?;
     let model = format!("lucent synthetic {}", truth.camera);
-    let file = dng::CfaDng::of_capture(&cap, &sensor, truth.xyz_d50_to_camera, &model);
+    let mut file = dng::CfaDng::of_capture(&cap, &sensor, truth.xyz_d50_to_camera, &model);
+    if a.no_noise_profile {
+        file.noise_profile = None;
+    }
     dng::write_cfa_dng(&a.output, &file).with_context(|| format!("{}", a.output.display()))?;
     let share = cap.clipped as f64 / cap.data.len() as f64;
     println!(
-        "{} → {}: {} × {} RGGB, exposure {}, {} photosites clipped ({:.3} %)",
+        "{} → {}: {} × {} RGGB, exposure {}, {} photosites clipped ({:.3} %); noise: variance = {:.4e} x + {:.4e}{}",
         a.input.display(),
         a.output.display(),
         cap.width,
         cap.height,
         a.exposure,
         cap.clipped,
-        100.0 * share
+        100.0 * share,
+        sensor.noise_profile()[0],
+        sensor.noise_profile()[1],
+        if a.no_noise_profile { " (not written)" } else { " (NoiseProfile)" }
     );
     if share > 0.05 {
         eprintln!(

@@ -45,6 +45,7 @@
 pub mod input;
 pub mod mask;
 pub mod noise;
+pub mod photo_noise;
 pub mod ssim;
 pub mod triplet;
 
@@ -472,8 +473,16 @@ pub struct Request {
     /// Per-pixel variance of the photo (an EXR with `R`, `G`, `B` or
     /// `variance.R/G/B`), for the model RMSE ([`noise`]).
     pub photo_variance: Option<PathBuf>,
+    /// A second photo of the same view (same camera, settings and light):
+    /// the photo's per-pixel variance is then (P − P₂)² / 2, unbiased for
+    /// independent noise (used when `photo_variance` is not given).
+    pub photo_repeat: Option<PathBuf>,
     /// A second twin's render: both twins' model RMSE and which is closer.
     pub render_b: Option<PathBuf>,
+    /// A mask image (nonzero = included) intersected with an object or
+    /// board mask, e.g. the photo's validly recorded pixels (`lucent raw
+    /// clipped`): `--mask` given together with `--mask-object` or `--mask-board`.
+    pub mask_also: Option<PathBuf>,
 }
 
 /// `twins` in metrics.json: the second render against the first.
@@ -755,7 +764,21 @@ fn noise_report(
         return Ok(None);
     };
     let photo_variance = match &req.photo_variance {
-        None => None,
+        None => match &req.photo_repeat {
+            None => None,
+            Some(p2) => {
+                let second = input::read_image(p2, "second photo")?;
+                check_same_size(photo, &second.image)?;
+                Some(
+                    photo
+                        .data
+                        .iter()
+                        .zip(&second.image.data)
+                        .map(|(a, b)| (0.5 * (f64::from(*a) - f64::from(*b)).powi(2)) as f32)
+                        .collect(),
+                )
+            }
+        },
         Some(p) => {
             let read = |reason: String| CompareError::Read {
                 role: "photo variance",
@@ -797,10 +820,34 @@ fn noise_report(
         ));
     }
     report.render_variance = format!("{}: variance.R/G/B (variance of each pixel's mean)", render_path.display());
-    report.photo_variance = match &req.photo_variance {
-        Some(p) => format!("{}", p.display()),
-        None => "not given (0): the model RMSE still contains the photo's noise".into(),
+    report.photo_variance = match (&req.photo_variance, &req.photo_repeat) {
+        (Some(p), _) => format!("{}", p.display()),
+        (None, Some(p2)) => {
+            format!("from two photos of the same view: (P - P2)^2 / 2 per pixel and channel, P2 = {}", p2.display())
+        }
+        (None, None) => "not given (0): the model RMSE still contains the photo's noise".into(),
     };
+    if let Some(p) = &req.photo_variance {
+        let json = photo_noise::sidecar(p);
+        if json.is_file() {
+            let text =
+                std::fs::read_to_string(&json).map_err(|source| CompareError::Io { path: json.clone(), source })?;
+            let file: photo_noise::PhotoVarianceFile = serde_json::from_str(&text).map_err(|e| CompareError::Read {
+                role: "photo variance",
+                path: json.clone(),
+                reason: ReadProblem::Invalid(format!("not the sidecar of `lucent colour apply --variance-out`: {e}")),
+            })?;
+            report.photo_variance = format!(
+                "{}: the RAW photo's noise model ({}) developed like the photo",
+                p.display(),
+                match file.noise_model.source {
+                    lucent_calib::noise::NoiseSource::DngNoiseProfile => "its DNG NoiseProfile",
+                    lucent_calib::noise::NoiseSource::EstimatedFromImage => "estimated from the photo itself",
+                }
+            );
+            report.photo_noise = Some(file);
+        }
+    }
     Ok(Some(report))
 }
 
@@ -853,6 +900,31 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             (Some(m), "board", Some(p))
         }
     };
+    // An object or board mask and a mask image: the pixels both include.
+    let (mask, source, mask_path) = match (&req.mask_also, mask) {
+        (None, m) => (m, source, mask_path.cloned()),
+        (Some(p), m) => {
+            let image = Mask::from_image(p, w, h)?;
+            let source = match source {
+                "object" => "object and image",
+                "board" => "board and image",
+                _ => "image",
+            };
+            let path = match mask_path {
+                Some(first) => PathBuf::from(format!("{} and {}", first.display(), p.display())),
+                None => p.clone(),
+            };
+            (
+                Some(match m {
+                    Some(m) => m.and(&image)?,
+                    None => image,
+                }),
+                source,
+                Some(path),
+            )
+        }
+    };
+    let mask_path = mask_path.as_ref();
     if scene.is_none()
         && let Some(p) = &req.scene
     {

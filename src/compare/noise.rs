@@ -69,6 +69,10 @@ pub struct NoiseReport {
     /// Where var R and var P come from.
     pub render_variance: String,
     pub photo_variance: String,
+    /// How the photo's variance was made from its RAW noise model (the
+    /// sidecar JSON of `lucent colour apply --variance-out`), when known.
+    #[serde(default)]
+    pub photo_noise: Option<super::photo_noise::PhotoVarianceFile>,
     pub block_px: usize,
     /// Blocks holding included pixels (the bootstrap's sample size: with
     /// fewer than [`MIN_BLOCKS`] the interval is too narrow to trust).
@@ -217,6 +221,7 @@ pub fn model_rmse(input: &NoiseInput, block_px: usize, resamples: usize, seed: u
             .into(),
         render_variance: String::new(),
         photo_variance: String::new(),
+        photo_noise: None,
         block_px,
         blocks: blocks.len(),
         resamples,

@@ -9,7 +9,7 @@
 //! | `fit` | `lucent fit` of each sample's recipe to its measured slices; writes the fitted recipe when the data pin it down | `[fit]`, a sample's `[[sample.measured]]` |
 //! | `calibrate` | `lucent calibrate` (Zhang) | `[calibration]` |
 //! | `colour` | `lucent colour calibrate` per camera | `[[colour]]` |
-//! | `develop` | `lucent colour apply`: a sample's photo and empty board (RAW or EXR in its camera's RGB) → CIE RGB; of a RAW also `lucent raw clipped`, the mask env-scale and compare then use | a sample's `camera` |
+//! | `develop` | `lucent colour apply`: a sample's photo and empty board (RAW or EXR in its camera's RGB) → CIE RGB; of a RAW also `lucent raw clipped`, the mask env-scale and compare then use, and the photo's per-pixel variance from the RAW's noise model (`--variance-out`, var P of the model RMSE) | a sample's `camera` |
 //! | `pose` | `lucent pose` on the sample photo | `[pose]` and the `calibrate` output |
 //! | `env-scale` | `lucent env fit-scale` per sample | `[render]`, a sample's `empty_board` |
 //! | `render` | `lucent render` per sample (the scene template with the sample's recipe, and the fitted scale); with a fitted recipe from stage fit, also the fitted twin (`render/NAME/fitted/`) | `[render]` |
@@ -24,7 +24,7 @@
 //! object at `placement = "scene"` when the pose placed a sample (the finite
 //! sphere then centred on its top). Without a `[pose]` the template is used
 //! as it is.
-//! | `compare` | `lucent compare` photo vs render per sample; with a fitted twin, both twins (recipe = A, fitted = B) and which is closer | a sample's `photo`, its render |
+//! | `compare` | `lucent compare` photo vs render per sample (minus clipped pixels, with the photo's variance from develop), and the same over the object's pixels (`NAME/object/`: the render's `object` layer, any mesh); with a fitted twin, both twins (recipe = A, fitted = B) and which is closer | a sample's `photo`, its render |
 //! | `report` | `report/index.html` and `report/metrics.json` ([`report`]) | any stage's output |
 //!
 //! A stage's work is a list of [`Task`]s — validated jobs ([`crate::job`]),
@@ -620,6 +620,20 @@ fn valid_mask(out: &Path, smp: &project::SampleSection, which: &str) -> Option<P
     p.is_file().then_some(p)
 }
 
+/// The develop stage's variance of a sample's RAW photo
+/// (`colour apply --variance-out`), if it wrote one.
+fn photo_variance(out: &Path, smp: &project::SampleSection) -> Option<PathBuf> {
+    smp.camera.as_ref()?;
+    let p = out.join(Stage::Develop.name()).join(&smp.name).join("photo_variance.exr");
+    p.is_file().then_some(p)
+}
+
+/// Whether the EXR at `path` has a channel `name` (its header only).
+fn has_exr_channel(path: &Path, name: &str) -> bool {
+    exr::meta::MetaData::read_from_file(path, false)
+        .is_ok_and(|m| m.headers.iter().any(|h| h.channels.list.iter().any(|c| c.name.to_string() == name)))
+}
+
 /// What `stage` will do for `project` with outputs under `out`; an inner
 /// `Err` with the reason when the project gives it nothing to do.
 pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, Skip>, PipelineError> {
@@ -730,14 +744,19 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 for (what, photo) in [("photo", &smp.photo), ("empty_board", &smp.empty_board)] {
                     let Some(photo) = photo else { continue };
                     inputs.push(photo.clone());
+                    let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
+                    // The photo's noise (var P of the compare stage's model RMSE), from its RAW noise model.
+                    let variance_out = (is_raw && what == "photo")
+                        .then(|| (under_out(format!("/{}/{what}_variance.exr", smp.name)), project.seed));
                     let job = ColourApplyJob {
                         ccm: ccm.clone(),
                         input: photo.clone(),
                         output: under_out(format!("/{}/{what}.exr", smp.name)),
                         to: "cie-rgb".into(),
+                        variance_out,
                     };
                     tasks.push(lucent(format!("{} {what}", smp.name), Job::ColourApply(job)));
-                    if crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str()) {
+                    if is_raw {
                         let mask = under_out(format!("/{}/{what}_valid.png", smp.name));
                         let job = RawClippedJob { input: photo.clone(), out: mask };
                         tasks.push(lucent(format!("{} {what} clipping", smp.name), Job::RawClipped(job)));
@@ -841,14 +860,26 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     render: std::iter::once(render.clone()).chain(fitted.clone()).collect(),
                     out: under_out(format!("/{}", smp.name)),
                     mask: valid_mask(out, smp, "photo"),
+                    mask_object: None,
+                    photo_variance: photo_variance(out, smp),
                     data_range: f.compare.as_ref().and_then(|c| c.data_range).unwrap_or(crate::job::DEFAULT_DATA_RANGE),
                 };
+                // The same over the object's pixels, as the render's `object` layer marks
+                // them (any mesh): where the twins differ, so where their paired test looks.
+                let object = has_exr_channel(&render, "object").then(|| CompareJob {
+                    mask_object: Some(render.clone()),
+                    out: under_out(format!("/{}/object", smp.name)),
+                    ..job.clone()
+                });
                 // The fitted twin alone too: its own triplet for the report.
                 let fitted_alone = fitted.map(|f| CompareJob {
                     render: vec![f],
                     out: under_out(format!("/{}/fitted", smp.name)),
                     ..job.clone()
                 });
+                if let Some(j) = object {
+                    tasks.push(lucent(format!("{} object", smp.name), Job::Compare(j)));
+                }
                 tasks.push(lucent(smp.name.clone(), Job::Compare(job)));
                 if let Some(j) = fitted_alone {
                     tasks.push(lucent(format!("{} fitted twin", smp.name), Job::Compare(j)));

@@ -456,6 +456,8 @@ fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, Stri
             render: vec![],
             out: PathBuf::new(),
             mask: None,
+            mask_object: None,
+            photo_variance: None,
             data_range: c.data_range.unwrap_or(crate::job::DEFAULT_DATA_RANGE),
         };
         check("[compare]", "", job.validate());

@@ -153,6 +153,9 @@ impl Page {
     }
 }
 
+/// A fitted parameter beside its known truth: (name, fitted, 95 % interval, truth).
+type FittedVsTruth = (String, Option<f64>, Option<[f64; 2]>, f64);
+
 fn slug(t: &str) -> String {
     let s: String = t.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect();
     s.split('-').filter(|p| !p.is_empty()).collect::<Vec<_>>().join("-").chars().take(48).collect()
@@ -348,6 +351,8 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         }
         // Fit: the recipe fitted to the measured slices, beside the truth when known.
         let fdir = out.join("fit").join(&smp.name);
+        // (parameter, fitted, 95 % interval, truth) of the fit, for the loop's summary below.
+        let mut fitted_vs_truth: Vec<FittedVsTruth> = Vec::new();
         if let Some(fj) = read_json::<Value>(&fdir.join("fit.json"), "a fit.json")? {
             h.push_str("<h3>Recipe fitted to the measured slices (lucent fit)</h3>");
             let truth = match &smp.truth_recipe {
@@ -384,6 +389,9 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     covered.into(),
                 ]);
                 pj.push(json!({"name": name, "start": p["start"], "value": value, "interval_95": ci, "truth": known}));
+                if let Some(k) = known {
+                    fitted_vs_truth.push((name.to_string(), value, ci, k));
+                }
             }
             h.push_str(&table(
                 &["parameter", "start (recipe)", "fitted", "95 % interval", "truth", "truth in interval"],
@@ -395,6 +403,40 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     "<p>The data do not pin the parameters down: {}.</p>",
                     esc(fj["reason"].as_str().unwrap_or(""))
                 );
+            }
+            // The measured slices against the simulation at the recipe (start) and at the fit (end).
+            let cfgs: Vec<Vec<String>> = fj["configurations"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(|c| {
+                    let v = |k: &str, f: fn(f64) -> String| c[k].as_f64().map_or_else(|| "—".into(), |x| num(x, f));
+                    vec![
+                        format!(
+                            "{} / {}",
+                            v("theta_i_deg", |x| format!("{x:.0}")),
+                            v("theta_o_deg", |x| format!("{x:.0}"))
+                        ),
+                        v("measured_sum", e4),
+                        v("sum_ratio_start", f4),
+                        v("sum_ratio_end", f4),
+                        v("msre_start", f4),
+                        v("msre_end", f4),
+                    ]
+                })
+                .collect();
+            if !cfgs.is_empty() {
+                h.push_str(&table(
+                    &[
+                        "θi / θo",
+                        "measured sum [1/(m² sr)]",
+                        "simulated/measured sum: recipe",
+                        "fitted",
+                        "MSRE: recipe",
+                        "fitted",
+                    ],
+                    &cfgs,
+                ));
             }
             h.push_str(&page.img(&fdir.join("objective.png"), &format!("{} fit objective", smp.name))?);
             sj.insert(
@@ -474,19 +516,91 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 rows.push(row("after ECC refinement", &r.metrics));
             }
             h.push_str(&table(&["", "RMSE", "RMSE R", "RMSE G", "RMSE B", "SSIM (Y)", "SSIM (mean RGB)"], &rows));
+            let _ = write!(
+                h,
+                "<p>Over {} pixels ({}: {}).</p>",
+                m.mask.included_pixels,
+                esc(&m.mask.source),
+                esc(m.mask.path.as_deref().unwrap_or("the whole image"))
+            );
             if let Some(n) = &m.noise {
                 let _ = write!(
                     h,
-                    "<p>Model RMSE with the render's noise removed: {} (95 % interval {} – {}); noise floor {} \
-                     (the RMSE a perfect twin would show at this noise); {}.</p>",
+                    "<p>Model RMSE with the render's and the photo's noise removed: {} (95 % interval {} – {}); noise \
+                     floor {} (the RMSE a perfect twin would show at this noise); photo variance: {}.</p>",
                     num(n.total.model_rmse, e4),
                     num(n.total.ci95[0], e4),
                     num(n.total.ci95[1], e4),
                     num(n.total.noise_floor, e4),
-                    n.photo_variance
+                    esc(&n.photo_variance)
+                );
+                if let Some(pn) = &n.photo_noise {
+                    let model = |m: &lucent_calib::noise::NoiseModel| {
+                        format!(
+                            "a = {} / {} / {}, b = {} / {} / {} (R / G / B)",
+                            num(m.a[0], e4),
+                            num(m.a[1], e4),
+                            num(m.a[2], e4),
+                            num(m.b[0], e4),
+                            num(m.b[1], e4),
+                            num(m.b[2], e4)
+                        )
+                    };
+                    let _ = write!(
+                        h,
+                        "<p>The photo's noise model, variance = a·x + b of a raw value x (1 = white level): {}{}.</p>",
+                        model(&pn.noise_model),
+                        match &pn.estimated_from_image {
+                            Some(e) => format!(
+                                "; estimated from the photo itself, as a check: {} (larger where the photo has \
+                                 texture or noise of its own at the photosite scale)",
+                                model(e)
+                            ),
+                            None => String::new(),
+                        }
+                    );
+                }
+            }
+            // The object's pixels alone (compare/NAME/object/, the render's object layer).
+            let object = read_json::<crate::compare::Report>(
+                &cdir.join("object").join("metrics.json"),
+                "a compare metrics.json",
+            )?;
+            if let Some(o) = &object
+                && let Some(n) = &o.noise
+            {
+                let _ = write!(
+                    h,
+                    "<p>Over the object's {} pixels alone ({}): RMSE {}, model RMSE {} (95 % interval {} – {}), noise \
+                     floor {}, SSIM (Y) {}{}.</p>",
+                    o.mask.included_pixels,
+                    esc(&o.mask.source),
+                    num(o.as_calibrated.rmse, e4),
+                    num(n.total.model_rmse, e4),
+                    num(n.total.ci95[0], e4),
+                    num(n.total.ci95[1], e4),
+                    num(n.total.noise_floor, e4),
+                    num(o.as_calibrated.ssim.y, f4),
+                    if n.blocks < crate::compare::noise::MIN_BLOCKS {
+                        format!(
+                            "; the interval rests on {} blocks of {} px, fewer than {}: too few to trust",
+                            n.blocks,
+                            n.block_px,
+                            crate::compare::noise::MIN_BLOCKS
+                        )
+                    } else {
+                        String::new()
+                    }
                 );
             }
-            if let Some(t) = &m.twins {
+            // Which twin is closer, over the whole image and over the object; the
+            // loop's verdict is the object's (where the twins differ), else the image's.
+            let regions: Vec<(&str, &crate::compare::Report)> = std::iter::once(("the whole image", &m))
+                .chain(object.as_ref().map(|o| ("the object's pixels", o)))
+                .collect();
+            let mut verdict: Option<(&str, &crate::compare::noise::PairedReport)> = None;
+            for (region, r) in &regions {
+                let Some(t) = &r.twins else { continue };
                 let zero = |z: &Option<crate::compare::noise::SsimAtZeroNoise>| {
                     z.as_ref().map_or_else(
                         || "—".to_string(),
@@ -511,24 +625,86 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                         z,
                     ]
                 };
-                h.push_str("<h3>Which twin is closer: the recipe's (A) or the fitted one (B)</h3>");
+                let _ =
+                    write!(h, "<h3>Which twin is closer over {region}: the recipe's (A) or the fitted one (B)</h3>");
                 h.push_str(&table(
                     &["twin", "model RMSE, noise removed (95 %)", "SSIM (Y)", "SSIM (Y) at zero render noise (95 %)"],
                     &[
-                        twin("A: recipe", m.noise.as_ref(), m.as_calibrated.ssim.y, zero(&m.ssim_at_zero_noise)),
+                        twin("A: recipe", r.noise.as_ref(), r.as_calibrated.ssim.y, zero(&r.ssim_at_zero_noise)),
                         twin("B: fitted", Some(&t.noise_b), t.metrics_b.ssim.y, zero(&t.ssim_at_zero_noise_b)),
                     ],
                 ));
                 let _ = write!(
                     h,
-                    "<p>Paired test over {} pixel blocks: mean squared-error difference A − B {} ± {} (z {}, p {}): <b>{}</b>.</p>",
+                    "<p>Paired test over {} pixel blocks{}: mean squared-error difference A − B {} ± {} (z {}, p {}): <b>{}</b>.</p>",
                     t.paired.blocks,
+                    if t.paired.blocks < crate::compare::noise::MIN_BLOCKS {
+                        format!(" (fewer than {}: its standard error is itself uncertain)", crate::compare::noise::MIN_BLOCKS)
+                    } else {
+                        String::new()
+                    },
                     num(t.paired.squared_difference, e4),
                     num(t.paired.standard_error, e4),
                     num(t.paired.z, |x| format!("{x:.2}")),
                     num(t.paired.p_value, |x| format!("{x:.2e}")),
                     esc(&t.paired.verdict.replace('A', "A (recipe)").replace('B', "B (fitted)"))
                 );
+                verdict = Some((region, &t.paired));
+            }
+            // The loop against its known truth (truth_recipe, read by the report only).
+            if let (Some(t_path), false, Some((region, paired))) =
+                (&smp.truth_recipe, fitted_vs_truth.is_empty(), verdict)
+            {
+                let fits: Vec<String> = fitted_vs_truth
+                    .iter()
+                    .map(|(name, v, ci, k)| {
+                        format!(
+                            "{} truth {}, recovered {}{}",
+                            esc(name),
+                            num(*k, f4),
+                            v.map_or_else(|| "—".into(), |v| num(v, f4)),
+                            match ci {
+                                Some([lo, hi]) => format!(
+                                    " (95 % {} – {}: the truth {} it)",
+                                    num(*lo, f4),
+                                    num(*hi, f4),
+                                    if *lo <= *k && *k <= *hi { "is in" } else { "is outside" }
+                                ),
+                                None => String::new(),
+                            }
+                        )
+                    })
+                    .collect();
+                let named_fitted = paired.verdict == "B is closer";
+                let met = named_fitted && paired.p_value < 0.01;
+                let _ = write!(
+                    h,
+                    "<p><b>The loop against its known truth</b> ({}, which no stage reads): {}; over {region} the \
+                     compare stage {} (p = {}; the demo's bar: the fitted twin named closer with p &lt; 0.01, {}).</p>",
+                    esc(&t_path.display().to_string()),
+                    fits.join("; "),
+                    if named_fitted {
+                        "names the fitted twin closer".to_string()
+                    } else {
+                        format!("does not name the fitted twin closer ({})", esc(&paired.verdict))
+                    },
+                    num(paired.p_value, |x| format!("{x:.2e}")),
+                    if met { "met" } else { "not met" }
+                );
+                sj.insert(
+                    "loop".into(),
+                    json!({
+                        "truth_recipe": t_path,
+                        "parameters": fitted_vs_truth.iter().map(|(n, v, ci, k)| json!({"name": n, "truth": k, "recovered": v, "interval_95": ci})).collect::<Vec<_>>(),
+                        "region": region,
+                        "verdict": paired.verdict,
+                        "p_value": paired.p_value,
+                        "fitted_named_closer_at_p_below_0_01": met,
+                    }),
+                );
+            }
+            if let Some(o) = &object {
+                sj.insert("compare_object".into(), trim(&to_value(o), 64));
             }
             h.push_str(&page.img(&cdir.join("triplet.png"), &format!("{} photo | render | difference", smp.name))?);
             h.push_str(&page.img(

@@ -1,8 +1,9 @@
 //! A minimal Bayer DNG writer (Adobe DNG 1.4 specification): one
 //! uncompressed 16-bit CFA image in IFD 0 with the tags a DNG reader needs to
 //! develop it — CFARepeatPatternDim/CFAPattern, BlackLevel, WhiteLevel,
-//! ColorMatrix1 (XYZ → camera) with CalibrationIlluminant1 D50, and
-//! AsShotNeutral. Written to a temporary file and renamed, so a reader never
+//! ColorMatrix1 (XYZ → camera) with CalibrationIlluminant1 D50,
+//! AsShotNeutral, and, when known, NoiseProfile (the sensor's shot and read
+//! noise, [`super::Sensor::noise_profile`]). Written to a temporary file and renamed, so a reader never
 //! sees half a file.
 //!
 //! ```no_run
@@ -11,7 +12,7 @@
 //! let dng = CfaDng {
 //!     width: 2, height: 2, data: &[1024, 9000, 9000, 4000], cfa: [0, 1, 1, 2],
 //!     black_dn: 1024, white_dn: 16383, xyz_to_camera: identity, as_shot_neutral: [1.0; 3],
-//!     model: "Synthetic",
+//!     model: "Synthetic", noise_profile: Some([5e-5, 1.7e-8]),
 //! };
 //! write_cfa_dng(std::path::Path::new("tiny.dng"), &dng).unwrap();
 //! ```
@@ -40,6 +41,8 @@ pub struct CfaDng<'a> {
     pub as_shot_neutral: [f64; 3],
     /// Camera model written to Model and UniqueCameraModel.
     pub model: &'a str,
+    /// NoiseProfile (S, O) for all planes: variance = S·x + O, x in [0, 1] of the white level.
+    pub noise_profile: Option<[f64; 2]>,
 }
 
 impl<'a> CfaDng<'a> {
@@ -56,6 +59,7 @@ impl<'a> CfaDng<'a> {
             xyz_to_camera,
             as_shot_neutral: super::as_shot_neutral(&xyz_to_camera),
             model,
+            noise_profile: Some(sensor.noise_profile()),
         }
     }
 }
@@ -113,6 +117,9 @@ pub fn write_cfa_dng(path: &Path, dng: &CfaDng) -> Result<(), DngWriteError> {
         let an: Vec<Rational> =
             dng.as_shot_neutral.iter().map(|&v| Rational { n: (v * 1e6).round() as u32, d: 1_000_000 }).collect();
         e.write_tag(Tag::Unknown(50728), &an[..])?; // AsShotNeutral
+        if let Some(p) = dng.noise_profile {
+            e.write_tag(Tag::Unknown(51041), &p[..])?; // NoiseProfile (DOUBLE)
+        }
         img.write_data(dng.data)?;
     }
     write_atomic(path, bytes.get_ref())?;

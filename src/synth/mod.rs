@@ -147,6 +147,17 @@ impl Default for Sensor {
 }
 
 impl Sensor {
+    /// The sensor's noise as a DNG NoiseProfile (S, O): variance = S·x + O
+    /// of a value x in [0, 1] of the white level — S = 1 / full well (shot
+    /// noise, 0 without), O = (read noise² + 1/12 of rounding) / (white −
+    /// black)², both in DN before scaling. Exact but for the clipping at 0
+    /// and at the white level.
+    pub fn noise_profile(&self) -> [f64; 2] {
+        let range = f64::from(self.white_dn) - f64::from(self.black_dn);
+        let shot = if self.full_well_e.is_finite() { 1.0 / self.full_well_e } else { 0.0 };
+        [shot, (self.read_noise_dn.powi(2) + 1.0 / 12.0) / (range * range)]
+    }
+
     fn validate(&self) -> Result<(), SynthError> {
         let bad = |reason: String| Err(SynthError::Invalid { what: "sensor".into(), reason });
         if self.white_dn <= self.black_dn {

@@ -1,0 +1,216 @@
+//! The photo's noise from its RAW capture (lucent::compare::photo_noise):
+//! the per-pixel variance predicted from the DNG's NoiseProfile, or from the
+//! noise model estimated on the photo, through demosaicing and the colour
+//! matrix, against the variance measured between two captures of the same
+//! scene (independent noise: mean (P₁ − P₂)² / 2 = mean var P); and the whole
+//! path on the command line, `colour apply --variance-out` into
+//! `compare --photo-variance`, stated in metrics.json.
+
+use crate::common::{lucent, stderr, stdout};
+use lucent::compare::photo_noise::photo_variance;
+use lucent::imageio::{write_exr, write_exr_channels, RgbImage};
+use lucent::synth::{self, dng, InputSpace, Sensor};
+use lucent_calib::noise::NoiseSource;
+use lucent_colour::adaptation::Cat;
+use lucent_colour::data::ICC_D50_XYZ;
+use lucent_colour::spaces::{mat3_inverse, mat3_mul, mat3_vec, RgbSpace};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// The XYZ → camera ColorMatrix of a Canon body (as in tests/synth.rs).
+const CAM: [[f64; 3]; 3] = [[0.6722, -0.0635, -0.0963], [-0.4287, 1.246, 0.2028], [-0.0908, 0.2162, 0.5668]];
+
+/// A smooth linear CIE RGB scene, 0.04 … 0.75, the channels in different ramps.
+fn scene(w: usize, h: usize) -> RgbImage {
+    let mut data = Vec::with_capacity(w * h * 3);
+    for y in 0..h {
+        for x in 0..w {
+            let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+            data.extend([0.04 + 0.6 * u, 0.05 + 0.35 * (u + v), 0.04 + 0.7 * v]);
+        }
+    }
+    RgbImage::new(w, h, data).unwrap()
+}
+
+/// Captures `img` on the default sensor (20 000 e⁻, 2 DN read noise) at exposure 0.8 into `dir/name`.
+fn capture(dir: &Path, name: &str, img: &RgbImage, seed: u64, profile: bool) -> PathBuf {
+    let sensor = Sensor::default();
+    let to_cam = synth::to_camera_matrix(InputSpace::CieRgb, &CAM).unwrap();
+    let cap = synth::capture_mosaic(img, &to_cam, 0.8, &sensor, seed).unwrap();
+    assert_eq!(cap.clipped, 0);
+    let mut file = dng::CfaDng::of_capture(&cap, &sensor, CAM, "noise test");
+    if !profile {
+        file.noise_profile = None;
+    }
+    let path = dir.join(name);
+    dng::write_cfa_dng(&path, &file).unwrap();
+    path
+}
+
+/// Camera RGB → CIE RGB with the true colour matrix (what `colour apply --to cie-rgb` does with a perfect ccm.json).
+fn develop_matrix() -> [[f64; 3]; 3] {
+    let back = RgbSpace::CieRgb.from_xyz_adapted_matrix(ICC_D50_XYZ, Some(Cat::Bradford)).unwrap();
+    mat3_mul(&back, &mat3_inverse(&CAM).unwrap())
+}
+
+fn developed(path: &Path) -> Vec<f64> {
+    let m = develop_matrix();
+    let cam = lucent::imageio::read_rgb(path).unwrap();
+    cam.data.chunks_exact(3).flat_map(|p| mat3_vec(&m, [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])).collect()
+}
+
+/// Per channel, over pixels at least 3 px from the border: (mean predicted variance, mean (P₁ − P₂)²/2).
+fn predicted_and_measured(w: usize, h: usize, var: &[f32], p1: &[f64], p2: &[f64]) -> [(f64, f64); 3] {
+    std::array::from_fn(|c| {
+        let (mut pv, mut mv, mut n) = (0.0, 0.0, 0.0);
+        for y in 3..h - 3 {
+            for x in 3..w - 3 {
+                let i = 3 * (y * w + x) + c;
+                pv += f64::from(var[i]);
+                mv += 0.5 * (p1[i] - p2[i]).powi(2);
+                n += 1.0;
+            }
+        }
+        (pv / n, mv / n)
+    })
+}
+
+#[test]
+fn the_predicted_photo_variance_is_the_variance_between_two_captures() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (160, 120);
+    let img = scene(w, h);
+    let m = develop_matrix();
+    let colour = move |rgb: [f64; 3]| mat3_vec(&m, rgb);
+    for profile in [true, false] {
+        let a = capture(dir.path(), &format!("a_{profile}.dng"), &img, 11, profile);
+        let b = capture(dir.path(), &format!("b_{profile}.dng"), &img, 12, profile);
+        let (var, file) = photo_variance(&a, &colour, 16, 1).unwrap();
+        let want = if profile { NoiseSource::DngNoiseProfile } else { NoiseSource::EstimatedFromImage };
+        assert_eq!(file.noise_model.source, want);
+        assert_eq!(var.len(), w * h * 3);
+        // The sensor's shot term is 1 / full well = 5·10⁻⁵ (the read term, ≈ 1.7·10⁻⁸, is too small
+        // next to it at these signals to be estimated).
+        let truth_a = Sensor::default().noise_profile()[0];
+        let model = if profile { file.estimated_from_image.as_ref().unwrap() } else { &file.noise_model };
+        for c in 0..3 {
+            assert!((model.a[c] / truth_a - 1.0).abs() < 0.10, "{profile}: estimated a {:?} vs {truth_a}", model.a);
+        }
+        let (p1, p2) = (developed(&a), developed(&b));
+        for (c, (predicted, measured)) in predicted_and_measured(w, h, &var, &p1, &p2).into_iter().enumerate() {
+            eprintln!("profile {profile}, channel {c}: predicted {predicted:.4e}, measured {measured:.4e}");
+            let tolerance = if profile { 0.08 } else { 0.12 };
+            assert!(
+                (predicted / measured - 1.0).abs() < tolerance,
+                "profile {profile}, channel {c}: predicted {predicted:.4e} vs measured {measured:.4e}"
+            );
+        }
+    }
+    // Without the demosaicing (the model at the photosites alone) the prediction would be off:
+    // the test can tell. Malvar–He–Cutler interpolation lowers the variance of interpolated
+    // values, so a per-photosite variance (a·x + b through the matrix's squares) is too high.
+    let a = capture(dir.path(), "c.dng", &img, 21, true);
+    let b = capture(dir.path(), "d.dng", &img, 22, true);
+    let (p1, p2) = (developed(&a), developed(&b));
+    let [np_a, np_b] = Sensor::default().noise_profile();
+    let cam = lucent::imageio::read_rgb(&a).unwrap();
+    let naive: Vec<f32> = cam
+        .data
+        .chunks_exact(3)
+        .flat_map(|p| {
+            let v = [0, 1, 2].map(|k| np_a * f64::from(p[k]) + np_b);
+            (0..3).map(move |i| (0..3).map(|k| m[i][k] * m[i][k] * v[k]).sum::<f64>() as f32).collect::<Vec<_>>()
+        })
+        .collect();
+    let off =
+        predicted_and_measured(w, h, &naive, &p1, &p2).iter().map(|(p, me)| (p / me - 1.0).abs()).fold(0.0, f64::max);
+    assert!(off > 0.15, "a per-photosite variance is within {off} of the measured one: the test cannot tell");
+}
+
+#[test]
+fn colour_apply_writes_the_variance_and_compare_states_the_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let truth = dir.path().join("truth_colour.json");
+    let t = synth::ColourTruth { camera: "phone".into(), xyz_d50_to_camera: CAM, note: String::new() };
+    std::fs::write(&truth, serde_json::to_string(&t).unwrap()).unwrap();
+    let run = |args: &[&str]| {
+        let o = lucent(args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        stdout(&o)
+    };
+    run(&["synth", "chart", "--out", &d("chart.exr")]);
+    let tr = truth.to_str().unwrap();
+    run(&["synth", "raw", &d("chart.exr"), &d("chart.dng"), "--truth", tr, "--space", "xyz-d50", "--exposure", "0.8"]);
+    run(&[
+        "colour",
+        "calibrate",
+        "--image",
+        &d("chart.dng"),
+        "--corners",
+        "48,38.4,432,32,427.2,281.6,52.8,288",
+        "--out",
+        &d("colour"),
+    ]);
+    let (w, h) = (96, 72);
+    let img = scene(w, h);
+    write_exr(&dir.path().join("scene.exr"), &img).unwrap();
+    let text =
+        run(&["synth", "raw", &d("scene.exr"), &d("photo.dng"), "--truth", tr, "--exposure", "0.8", "--seed", "3"]);
+    assert!(text.contains("NoiseProfile"), "{text}");
+    let ccm = d("colour/ccm.json");
+    let text = run(&[
+        "colour",
+        "apply",
+        "--ccm",
+        &ccm,
+        &d("photo.dng"),
+        &d("photo.exr"),
+        "--variance-out",
+        &d("photo_variance.exr"),
+    ]);
+    assert!(text.contains("from the DNG NoiseProfile"), "{text}");
+    let side: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("photo_variance.noise.json")).unwrap()).unwrap();
+    assert_eq!(side["noise_model"]["source"], "dng-noise-profile");
+    assert_eq!(side["realisations"], 16);
+    // A render 0.02 too bright everywhere, with a small known variance of its own.
+    let photo = lucent::imageio::read_rgb(&dir.path().join("photo.exr")).unwrap();
+    let render: Vec<f32> = img.data.iter().map(|v| v + 0.02).collect();
+    let plane = |v: &[f32], c: usize| v.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
+    let rvar = vec![1e-6f32; w * h];
+    let (r, g, b) = (plane(&render, 0), plane(&render, 1), plane(&render, 2));
+    write_exr_channels(
+        &dir.path().join("render.exr"),
+        w,
+        h,
+        &[("R", &r), ("G", &g), ("B", &b), ("variance.R", &rvar), ("variance.G", &rvar), ("variance.B", &rvar)],
+    )
+    .unwrap();
+    assert_eq!((photo.width, photo.height), (w, h));
+    let compare = |with_variance: bool, out: &str| -> Value {
+        let (p, rr, o) = (d("photo.exr"), d("render.exr"), d(out));
+        let pv = d("photo_variance.exr");
+        let mut args: Vec<&str> = vec!["compare", "--photo", &p, "--render", &rr, "--out", &o];
+        if with_variance {
+            args.extend(["--photo-variance", pv.as_str()]);
+        }
+        run(&args);
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join(out).join("metrics.json")).unwrap()).unwrap()
+    };
+    let with = compare(true, "with");
+    let n = &with["noise"];
+    assert_eq!(n["photo_noise"]["noise_model"]["source"], "dng-noise-profile", "{n}");
+    assert!(n["photo_variance"].as_str().unwrap().contains("NoiseProfile"), "{n}");
+    // The photo's noise removed, the model RMSE is the 0.02 offset (the colour matrix
+    // is recovered to ≈ 1 %, so the photo is within ≈ 0.005 of the scene).
+    let without = compare(false, "without");
+    let (m_with, m_without) =
+        (n["total"]["model_rmse"].as_f64().unwrap(), without["noise"]["total"]["model_rmse"].as_f64().unwrap());
+    assert!(m_with < m_without, "with the photo's variance {m_with}, without {m_without}");
+    assert!((m_with - 0.02).abs() < 0.006, "model RMSE {m_with} for an offset of 0.02");
+    // EXR input has no RAW noise model: refused with the way out.
+    let o = lucent(&["colour", "apply", "--ccm", &ccm, &d("scene.exr"), &d("x.exr"), "--variance-out", &d("v.exr")]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("needs a RAW photo") && stderr(&o).contains("--photo-variance"), "{}", stderr(&o));
+}
