@@ -357,9 +357,9 @@ impl Drop for StagedDir {
 /// hidden half-written file (an 86 MB `.x.exr.tmp` of `raw decode`).
 /// [`remove_temporaries_on_interrupt`] installs the handler (the binary does
 /// at start): it unlinks the files registered at that moment, then ends the
-/// process with the signal's default action. Up to 32 files being written at
+/// process with exit status 130 (interrupted), for SIGTERM as for SIGINT. Up to 32 files being written at
 /// once are tracked; the handler only reads atomics and fixed buffers and
-/// calls `unlink`, `signal` and `raise` (async-signal-safe).
+/// calls `unlink` and `_exit` (async-signal-safe).
 pub fn remove_temporaries_on_interrupt() {
     interrupt::install();
 }
@@ -458,7 +458,7 @@ mod interrupt {
     }
 
     /// Removes the temporary files being written and ends the process with
-    /// the signal's default action.
+    /// exit status 130.
     #[cfg(unix)]
     fn act(signal: libc::c_int) {
         for (i, armed) in ARMED.iter().enumerate() {
@@ -467,11 +467,13 @@ mod interrupt {
                 unsafe { libc::unlink((*PATHS.0.get())[i].as_ptr().cast()) };
             }
         }
-        // SAFETY: restoring the default action and re-raising are async-signal-safe.
-        unsafe {
-            libc::signal(signal, libc::SIG_DFL);
-            libc::raise(signal);
-        }
+        let _ = signal;
+        const SAID: &[u8] = b"\ninterrupted: stopped (exit 130); no half-written file is left\n";
+        // SAFETY: write(2) to stderr is async-signal-safe; a failed write changes nothing.
+        let _ = unsafe { libc::write(2, SAID.as_ptr().cast(), SAID.len()) };
+        // SAFETY: _exit is async-signal-safe. SIGINT and SIGTERM both end the
+        // process as interrupted (exit status 130), as `lucent --help` states.
+        unsafe { libc::_exit(130) };
     }
 
     pub(super) fn install() {
@@ -483,6 +485,24 @@ mod interrupt {
             libc::signal(libc::SIGTERM, handler);
         }
     }
+}
+
+/// Reads the optional word of a closed set under `key` (such as `phase =
+/// "hg"`) with the library type's own parser, so a file takes every spelling
+/// the flag takes; a wrong word is refused with the key and the valid names.
+/// For `#[serde(default, deserialize_with = "…")]` through a function that
+/// names the key.
+pub fn named<'de, D, T>(d: D, key: &str) -> Result<Option<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: std::str::FromStr + strum::VariantArray + Copy + 'static,
+    &'static str: From<T>,
+{
+    let word = <String as serde::Deserialize>::deserialize(d)?;
+    word.parse().map(Some).map_err(|_| {
+        let names: Vec<&'static str> = T::VARIANTS.iter().map(|&v| v.into()).collect();
+        serde::de::Error::custom(format!("{key} {word:?}: expected one of {}", names.join(", ")))
+    })
 }
 
 /// Serialises `value` as pretty JSON and writes it atomically.

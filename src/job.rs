@@ -158,8 +158,7 @@ pub struct BssrdfJob {
     pub paths: Option<u64>,
     pub rel_error: Option<f64>,
     pub time_s: Option<f64>,
-    /// "mie" or "hg".
-    pub phase: Option<String>,
+    pub phase: Option<crate::optics::PhaseModel>,
 }
 
 impl BssrdfJob {
@@ -178,12 +177,6 @@ impl BssrdfJob {
             return Err(bad("crop", c, format!("must lie in 1 … pixels ({})", self.pixels)));
         }
         at_least_one("paths", self.paths)?;
-        if let Some(p) = &self.phase
-            && p != "mie"
-            && p != "hg"
-        {
-            return Err(bad("phase", p, "expected \"mie\" or \"hg\""));
-        }
         if let Some(c) = &self.configs {
             crate::pipeline::project::parse_configs(c).map_err(|e| bad("configs", c, e.to_string()))?;
         }
@@ -206,7 +199,7 @@ impl BssrdfJob {
         l.opt("--paths", &self.paths)
             .opt("--rel-error", &self.rel_error)
             .opt("--time-s", &self.time_s)
-            .opt("--phase", &self.phase);
+            .opt("--phase", &self.phase.map(|p| p.name()));
         l.0
     }
 }
@@ -252,8 +245,7 @@ pub struct FitJob {
     pub wavelength_nm: f64,
     pub seed: u64,
     pub quiet: bool,
-    /// "sum" or "msre".
-    pub objective: String,
+    pub objective: crate::fit::Objective,
     pub rel_error: f64,
     pub paths: Option<u64>,
     pub measured_rel_sd: f64,
@@ -273,9 +265,6 @@ impl FitJob {
         weight_percent(self.weight_percent)?;
         if self.free.is_empty() {
             return Err(bad("free", "", "name at least one parameter, e.g. weight_percent"));
-        }
-        if self.objective != "sum" && self.objective != "msre" {
-            return Err(bad("objective", &self.objective, "expected \"sum\" or \"msre\""));
         }
         if !(self.rel_error > 0.0 && self.rel_error < 1.0) {
             return Err(bad("rel_error", self.rel_error, "must lie in (0, 1)"));
@@ -299,7 +288,7 @@ impl FitJob {
             .flag("--wavelength-nm", self.wavelength_nm)
             .flag("--seed", self.seed)
             .switch("--quiet", self.quiet)
-            .flag("--objective", &self.objective)
+            .flag("--objective", self.objective.name())
             .flag("--rel-error", self.rel_error)
             .opt("--paths", &self.paths)
             .flag("--measured-rel-sd", self.measured_rel_sd);

@@ -14,8 +14,8 @@ fn main() -> std::process::ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     // A full or closed standard output (`lucent … > /dev/full`): `println!`
-    // panics on the failed write; say so as an error and exit 1 instead of
-    // printing a panic. Every other panic keeps the default report.
+    // panics on the failed write; say so as an error of the environment
+    // (exit 3) instead of printing a panic. Every other panic keeps the default report.
     let default_hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
         let message = info
@@ -25,8 +25,9 @@ fn main() -> std::process::ExitCode {
             .or_else(|| info.payload().downcast_ref::<&str>().copied())
             .unwrap_or("");
         if let Some(reason) = message.strip_prefix("failed printing to stdout: ") {
-            eprintln!("error: cannot write to standard output: {reason}");
-            std::process::exit(1);
+            // A full device is the machine's fault, not the input's.
+            eprintln!("error (environment): cannot write to standard output: {reason}");
+            std::process::exit(i32::from(Fault::Environment.exit_code()));
         }
         default_hook(info);
     }));

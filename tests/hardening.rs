@@ -417,3 +417,33 @@ fn leftovers_a_stopped_fit_writes_nothing_and_exits_130() {
         assert_eq!(std::fs::read_dir(d).unwrap().count(), 1, "signal {signal} left {:?}", snapshot(d).keys());
     }
 }
+
+/// Leftovers: SIGTERM or Ctrl-C during a command that has no rounds to
+/// finish (`optics --uncertainty`, here a 100 000-draw study over 401
+/// wavelengths that takes a minute) ends it as interrupted: exit 130 and a
+/// message, not death by the signal (143 for SIGTERM), and nothing written.
+#[test]
+fn leftovers_any_command_stopped_by_sigterm_or_ctrl_c_exits_130_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let recipe = std::fs::read_to_string(root().join("fixtures/samples/IOL1068-09.toml")).unwrap();
+    let recipe = recipe.replace("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = 0.02 }");
+    std::fs::write(d.join("a.toml"), recipe).unwrap();
+    for signal in [libc::SIGTERM, libc::SIGINT] {
+        let child = Command::new(env!("CARGO_BIN_EXE_lucent"))
+            .args(["optics", "a.toml", "--uncertainty", "100000", "--wavelengths", "380:780:1", "--out", "u"])
+            .current_dir(d)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(1500));
+        // SAFETY: sends a signal to our own child process.
+        assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, signal) }, 0);
+        let o = child.wait_with_output().unwrap();
+        let text = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(130), "signal {signal}: {:?} {text}", o.status);
+        assert!(text.contains("interrupted"), "{text}");
+        assert_eq!(std::fs::read_dir(d).unwrap().count(), 1, "signal {signal} left {:?}", snapshot(d).keys());
+    }
+}

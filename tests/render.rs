@@ -435,7 +435,7 @@ fn limits_and_full_output_are_clear_errors() {
             .output()
             .unwrap();
         let e = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert_eq!(o.status.code(), Some(3), "{e}");
         assert!(e.contains("cannot write to standard output") && !e.contains("panicked"), "{e}");
     }
 }

@@ -16,7 +16,7 @@
 
 use lucent::cli::bssrdf as bssrdf_cli;
 use lucent::cli::camera as camera_cli;
-use lucent::cli::fit::{self as fit_cli, FitArgs, ObjectiveChoice};
+use lucent::cli::fit::{self as fit_cli, FitArgs};
 use lucent::cli::groups::{BeamArgs, TwinRenderArgs};
 use lucent::cli::render::{self as render_cli, RenderArgs};
 use lucent::compare::{self, MaskSpec, Request};
@@ -729,7 +729,6 @@ fn square<'py>(py: Python<'py>, n: usize, v: &[f64]) -> PyResult<Bound<'py, PyAn
     Ok(Array2::from_shape_vec((n, n), v.to_vec()).map_err(error)?.into_pyarray(py).into_any())
 }
 
-/// A `clap` value name (e.g. "hg", "lobe") as the CLI's choice.
 /// A library type's name, or an error listing its names.
 fn named<T: std::str::FromStr + strum::VariantNames>(what: &str, text: &str) -> PyResult<T> {
     text.parse().map_err(|_| error(format!("{what} {text:?}: expected one of {}", T::VARIANTS.join(", "))))
@@ -834,7 +833,7 @@ fn py_bssrdf<'py>(
         theta_o,
         phi_o,
         configs: None,
-        phase: phase.map(|p| choice("phase", p)).transpose()?,
+        phase: phase.map(|p| named("phase", p)).transpose()?,
         beam: BeamArgs { beam_fwhm_um, beam_map, beam_map_pixel_mm },
         pixels,
         pixel_mm,
@@ -1013,7 +1012,7 @@ fn py_fit<'py>(
         measured: path_list(measured, "measured")?,
         measured_pixel_mm,
         free,
-        objective: choice::<ObjectiveChoice>("objective", objective)?,
+        objective: named::<lucent::fit::Objective>("objective", objective)?,
         wavelength,
         beam: BeamArgs { beam_fwhm_um, beam_map, beam_map_pixel_mm },
         measured_rel_sd,

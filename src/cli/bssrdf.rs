@@ -4,8 +4,8 @@
 use super::interrupt::Interrupt;
 use crate::bssrdf::{self, OpticalUsed, RunConfig, Summary};
 use crate::fault::Interrupted;
-use crate::optics::bulk;
 use crate::optics::recipe::{Overrides, Recipe};
+use crate::optics::{bulk, PhaseModel};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -40,14 +40,6 @@ pub enum EstimatorChoice {
     Lobe,
     /// The explicit connection along the one fixed exit direction (the previous estimator).
     Connection,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum PhaseChoice {
-    /// The recipe's tabulated Lorenz–Mie phase function.
-    Mie,
-    /// Henyey–Greenstein with the same g.
-    Hg,
 }
 
 #[derive(Debug, Args)]
@@ -88,8 +80,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub configs: Option<String>,
     /// Phase function (default: mie with a recipe, hg otherwise).
-    #[arg(long, value_enum)]
-    pub phase: Option<PhaseChoice>,
+    #[arg(long, value_parser = super::choices::named::<PhaseModel>())]
+    pub phase: Option<PhaseModel>,
     #[command(flatten)]
     pub beam: super::groups::BeamArgs,
     /// Pixels per side of the camera.
@@ -253,12 +245,12 @@ fn medium(a: &RunArgs) -> Result<MediumChoice> {
         for w in &s.warnings {
             eprintln!("warning: {}: {w} (at {} nm)", recipe.name, a.wavelength);
         }
-        let choice = a.phase.unwrap_or(PhaseChoice::Mie);
+        let choice = a.phase.unwrap_or(PhaseModel::Mie);
         let (phase, name) = match choice {
-            PhaseChoice::Mie => {
+            PhaseModel::Mie => {
                 (Phase::Tabulated(PhaseTable::from_theta_samples(&s.phase)?), "mie (4096-entry table)".to_string())
             }
-            PhaseChoice::Hg => (Phase::henyey_greenstein(s.g)?, format!("hg (g = {:.5})", s.g)),
+            PhaseModel::Hg => (Phase::henyey_greenstein(s.g)?, format!("hg (g = {:.5})", s.g)),
         };
         let medium = Medium::new(s.mu_s_per_m, s.mu_a_per_m, phase, s.n_bulk.max(1.0))?;
         Ok(MediumChoice {
@@ -272,7 +264,7 @@ fn medium(a: &RunArgs) -> Result<MediumChoice> {
         let (Some(mu_s), Some(mu_a), Some(g), Some(n)) = (a.mu_s, a.mu_a, a.g, a.n) else {
             bail!("give --recipe R.toml, or all of --mu-s --mu-a --g --n (and optionally --thickness-mm)");
         };
-        if a.phase == Some(PhaseChoice::Mie) {
+        if a.phase == Some(PhaseModel::Mie) {
             bail!("--phase mie needs --recipe (a tabulated Lorenz–Mie phase function)");
         }
         let medium = Medium::new(mu_s, mu_a, Phase::henyey_greenstein(g)?, n)?;

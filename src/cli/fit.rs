@@ -4,16 +4,8 @@
 use crate::fit::{self, report, Budget, FitResult, FreeParameter, Measurement, Objective, Problem};
 use crate::optics::recipe::{Overrides, Recipe};
 use anyhow::{anyhow, bail, Context, Result};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use std::path::{Path, PathBuf};
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ObjectiveChoice {
-    /// Relative error of the slice sums, squared, mean over configurations.
-    Sum,
-    /// Mean squared relative error over the measured pixels above the threshold.
-    Msre,
-}
 
 #[derive(Debug, Args)]
 pub struct FitArgs {
@@ -33,8 +25,9 @@ pub struct FitArgs {
     /// Free parameters, comma-separated: weight_percent, diameter_um, real_part_n (NAME@K for particle type K).
     #[arg(long, required = true)]
     pub free: String,
-    #[arg(long, value_enum, default_value_t = ObjectiveChoice::Sum)]
-    pub objective: ObjectiveChoice,
+    /// What the fit minimises.
+    #[arg(long, value_parser = super::choices::named::<Objective>(), default_value = "sum")]
+    pub objective: Objective,
     /// Wavelength of the measurements in nm (`--wavelength` is the older spelling).
     #[arg(long = "wavelength-nm", alias = "wavelength", default_value_t = 550.0)]
     pub wavelength: f64,
@@ -175,10 +168,7 @@ pub fn build_problem(a: &FitArgs) -> Result<Problem> {
     };
     let mut problem = Problem::new(recipe, a.wavelength, free, measurements)?;
     problem.beam = beam;
-    problem.objective = match a.objective {
-        ObjectiveChoice::Sum => Objective::Sum,
-        ObjectiveChoice::Msre => Objective::Msre,
-    };
+    problem.objective = a.objective;
     problem.threshold = a.threshold;
     problem.measured_rel_sd = a.measured_rel_sd;
     problem.seed = a.seed;

@@ -87,7 +87,7 @@ pub fn bssrdf_run(a: &bssrdf::RunArgs) -> Option<BssrdfJob> {
         paths: a.paths,
         rel_error: a.rel_error,
         time_s: a.time_s,
-        phase: a.phase.as_ref().map(name),
+        phase: a.phase,
     })
 }
 
@@ -114,7 +114,7 @@ impl From<&fit::FitArgs> for FitJob {
             wavelength_nm: a.wavelength,
             seed: a.seed,
             quiet: a.quiet,
-            objective: name(&a.objective),
+            objective: a.objective,
             rel_error: a.rel_error,
             paths: a.paths,
             measured_rel_sd: a.measured_rel_sd,

@@ -327,19 +327,21 @@ impl Measurement {
 }
 
 /// The objective (see the module doc).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
+#[derive(strum::EnumString, strum::IntoStaticStr, strum::VariantNames, strum::VariantArray, strum::EnumMessage)]
+#[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
 pub enum Objective {
+    /// Relative error of the slice sums, squared, mean over configurations.
     Sum,
+    /// Mean squared relative error over the measured pixels above the threshold.
     Msre,
 }
 
 impl Objective {
+    /// The name files and flags use.
     pub fn name(self) -> &'static str {
-        match self {
-            Objective::Sum => "sum",
-            Objective::Msre => "msre",
-        }
+        self.into()
     }
 }
 

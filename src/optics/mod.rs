@@ -9,3 +9,23 @@ pub mod mie;
 pub mod output;
 pub mod recipe;
 pub mod uncertainty;
+
+/// The phase function a recipe's medium is simulated with (`lucent bssrdf
+/// --phase`, the scene's and the project's `phase` key).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[derive(strum::EnumString, strum::IntoStaticStr, strum::VariantNames, strum::VariantArray, strum::EnumMessage)]
+#[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
+pub enum PhaseModel {
+    /// The recipe's tabulated Lorenz–Mie phase function.
+    Mie,
+    /// Henyey–Greenstein with the same g.
+    Hg,
+}
+
+impl PhaseModel {
+    /// The name files and flags use.
+    pub fn name(self) -> &'static str {
+        self.into()
+    }
+}

@@ -140,7 +140,9 @@ pub struct BssrdfSection {
     pub paths: Option<u64>,
     pub rel_error: Option<f64>,
     pub time_s: Option<f64>,
-    pub phase: Option<String>,
+    /// Any spelling `lucent bssrdf --phase` reads.
+    #[serde(default, deserialize_with = "phase_model")]
+    pub phase: Option<crate::optics::PhaseModel>,
     pub threshold: Option<f64>,
 }
 
@@ -155,6 +157,14 @@ pub struct CalibrationSection {
     pub model: Option<DistortionModel>,
     /// The known camera of synthetic views (a `lucent calibrate` camera.json).
     pub truth: Option<PathBuf>,
+}
+
+fn phase_model<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<crate::optics::PhaseModel>, D::Error> {
+    crate::io::named(d, "phase")
+}
+
+fn objective<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<crate::fit::Objective>, D::Error> {
+    crate::io::named(d, "objective")
 }
 
 /// `[calibration] model`, read as `lucent calibrate --model` reads it (its
@@ -214,8 +224,10 @@ pub struct CompareSection {
 pub struct FitSection {
     /// Free parameters: `weight_percent`, `diameter_um`, `real_part_n`, each optionally `@K`.
     pub free: Vec<String>,
-    /// "sum" (default) or "msre".
-    pub objective: Option<String>,
+    /// What the fit minimises (default: the slice sums); any spelling
+    /// `lucent fit --objective` reads.
+    #[serde(default, deserialize_with = "objective")]
+    pub objective: Option<crate::fit::Objective>,
     /// Target relative error of each simulated slice sum at the final points.
     pub rel_error: Option<f64>,
     /// Light paths per configuration and evaluation instead of the pilot run.
@@ -334,7 +346,7 @@ pub fn bssrdf_job(b: &BssrdfSection, configs: &[(f64, f64)], smp: &SampleSection
         paths: b.paths,
         rel_error: b.rel_error,
         time_s: b.time_s,
-        phase: b.phase.clone(),
+        phase: b.phase,
     }
 }
 
@@ -349,7 +361,7 @@ pub fn fit_job(fit: &FitSection, bssrdf: Option<&BssrdfSection>, smp: &SampleSec
         wavelength_nm: bssrdf.and_then(|b| b.wavelength_nm).unwrap_or(550.0),
         seed,
         quiet: true,
-        objective: fit.objective.clone().unwrap_or_else(|| "sum".into()),
+        objective: fit.objective.unwrap_or(crate::fit::Objective::Sum),
         rel_error: fit.rel_error.unwrap_or(crate::job::DEFAULT_FIT_REL_ERROR),
         paths: fit.paths,
         measured_rel_sd: fit.measured_rel_sd.unwrap_or(crate::job::DEFAULT_MEASURED_REL_SD),

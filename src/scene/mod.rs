@@ -69,6 +69,7 @@ pub mod mesh;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::recipe::{self, Overrides, Recipe};
+use crate::optics::PhaseModel;
 use glam::DVec3;
 use lucent_calib::scene::{BoardSpec, SceneDescription};
 use lucent_colour::bands::{band_weights, BandWeights};
@@ -324,7 +325,8 @@ pub struct ObjectSection {
 pub struct MaterialSection {
     pub recipe: Option<PathBuf>,
     pub weight_percent: Option<f64>,
-    pub phase: Option<String>,
+    #[serde(default, deserialize_with = "phase_model")]
+    pub phase: Option<PhaseModel>,
     pub wavelengths: Option<String>,
     /// Scattering coefficient μs per band (R, G, B), 1/m.
     pub mu_s_per_m: Option<[f64; 3]>,
@@ -950,15 +952,13 @@ fn build_roughness(
     Err(ctx.key("material", "roughness", problem))
 }
 
+/// `[material] phase`, any spelling `lucent bssrdf --phase` reads.
+fn phase_model<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<PhaseModel>, D::Error> {
+    crate::io::named(d, "phase")
+}
+
 fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) -> Result<MaterialParts, SceneFileError> {
-    let phase_kind = m.phase.as_deref().unwrap_or(if m.recipe.is_some() { "mie" } else { "hg" });
-    if !matches!(phase_kind, "mie" | "hg") {
-        return Err(ctx.key(
-            "material",
-            "phase",
-            KeyProblem::Choice { expected: "\"mie\" or \"hg\"", got: phase_kind.into() },
-        ));
-    }
+    let mie = m.phase.unwrap_or(if m.recipe.is_some() { PhaseModel::Mie } else { PhaseModel::Hg }) == PhaseModel::Mie;
     let (mu_s, mu_s_key) = m.mu_s().map_err(|p| ctx.section("material", p))?;
     let (mu_a, mu_a_key) = m.mu_a().map_err(|p| ctx.section("material", p))?;
     let explicit = mu_s.is_some() || mu_a.is_some() || m.g.is_some();
@@ -973,7 +973,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
                 v.ok_or_else(|| ctx.key("material", key, KeyProblem::Required { when: "with explicit bands" }))
             };
             let (s, a, g, n) = (need(mu_s, mu_s_key)?, need(mu_a, mu_a_key)?, need(m.g, "g")?, need(m.n, "n")?);
-            if phase_kind == "mie" {
+            if mie {
                 return Err(ctx.key("material", "phase", KeyProblem::MieNeedsRecipe));
             }
             let phase = hg_phases(ctx, g)?;
@@ -997,8 +997,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
             let grid = grid_text
                 .parse::<WavelengthGrid>()
                 .map_err(|e| ctx.key("material", "wavelengths", KeyProblem::Wavelengths(e)))?;
-            let options =
-                bulk::Options { phase_entries: if phase_kind == "mie" { 4096 } else { 0 }, ..Default::default() };
+            let options = bulk::Options { phase_entries: if mie { 4096 } else { 0 }, ..Default::default() };
             let spectrum = bulk::compute(&recipe, &grid, &options).map_err(|source| SceneFileError::Optics {
                 path: ctx.path.to_path_buf(),
                 wavelengths: grid_text.to_string(),
@@ -1015,7 +1014,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
                     ));
                 }
             }
-            let (medium, summary) = medium_from_spectrum(ctx, &spectrum, &weights, phase_kind == "mie", &full)?;
+            let (medium, summary) = medium_from_spectrum(ctx, &spectrum, &weights, mie, &full)?;
             let size = recipe_size_m(&recipe);
             let eta = summary.n;
             Ok((medium, eta, summary, size, recipe.surface))
