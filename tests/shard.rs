@@ -80,6 +80,8 @@ fn render_shards_merge_into_the_unsharded_render() {
         let out = dir.path().join(format!("merged-{n}"));
         shards_and_merge(dir.path(), n, &out, &|o, extra| render_args(o, "3", extra));
         let merged = channels(&out.join("render.exr"), &names);
+        // Marked as lucent's, as the unsharded command marks its folder.
+        assert!(out.join(".lucent-output").is_file(), "N = {n}: the merged folder is not marked");
         let m_json = json(&out.join("render.json"));
         // The merge reads the environment map's header only: the same description.
         assert_eq!(m_json["scene"], ref_json["scene"], "N = {n}: render.json's scene");
@@ -304,6 +306,13 @@ fn bad_uncertainty_shard_sets_are_refused_and_nothing_is_written() {
     merge(&[&a0, &b1, &a2], &["another run", "seed", "u5-1-3"]);
     merge(&[&a0, r1.to_str().unwrap(), &a2], &["another run", "command", "render-1-3"]);
     merge(&[&a0, &a2], &["shard 1 of 3 missing"]);
+    // A folder of the user's (files lucent did not write) is not merged into.
+    let users = dir.path().join("mine");
+    std::fs::create_dir(&users).unwrap();
+    std::fs::write(users.join("notes.txt"), "mine").unwrap();
+    let o = lucent(&["merge", &a0, &a1, &a2, "--out", users.to_str().unwrap()]);
+    assert!(!o.status.success() && !stderr(&o).contains("panicked"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_dir(&users).unwrap().count(), 1, "merged into a folder of the user's");
     merge(&[&a0, &a1, &a2, &a1], &["both shard 1 of 3", "u3-1-3"]);
     // The draws of shard 1 replaced by other values under a valid checksum.
     let acc = Path::new(&a1).join("IOL1068-05/uncertainty.acc");

@@ -477,8 +477,23 @@ pub fn optics_uncertainty(
             }
         }
         None => {
+            // In twenty groups, to say how far a long study is (the same
+            // numbers as one group: `Draws::append`).
             for r in recipes {
-                results.push(uncertainty::propagate(r, grid, n, seed)?);
+                let start = std::time::Instant::now();
+                let design = uncertainty::design(r, n, seed)?;
+                let mut draws = uncertainty::Draws::empty(0, grid.len());
+                let group = n.div_ceil(20);
+                for lo in (0..n).step_by(group) {
+                    let part = uncertainty::evaluate(r, grid, &design, lo..(lo + group).min(n))?;
+                    draws.append(&part).map_err(anyhow::Error::msg)?;
+                    let elapsed = start.elapsed().as_secs_f64();
+                    if elapsed > 2.0 && draws.range.end < n {
+                        let left = elapsed * (n - draws.range.end) as f64 / draws.range.end as f64;
+                        eprintln!("{}: {} of {n} draws in {elapsed:.0} s, ≈ {left:.0} s left", r.name, draws.range.end);
+                    }
+                }
+                results.push(uncertainty::summarise(r, grid, seed, design, &draws));
             }
         }
     }

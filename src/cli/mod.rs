@@ -283,6 +283,7 @@ fn output_folder(command: &Command) -> Option<PathBuf> {
         Command::Compare(a) => a.out.clone(),
         Command::Fit(a) => a.out.clone(),
         Command::Bench(BenchCommand::Fit { out: Some(out), .. }) => out.clone(),
+        Command::Merge(a) => a.out.clone(),
         _ => return None,
     })
 }
