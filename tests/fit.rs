@@ -113,6 +113,9 @@ fn unidentifiable_parameter_is_reported_not_fitted() {
     assert_eq!(json["identifiable"], false);
     assert!(json["parameters"][0]["value"].is_null());
     assert!(out.join("objective.png").is_file());
+    // The measured profile against the simulated one at the recipe (no fit to show).
+    let png = std::fs::read(out.join("profiles_ti45_to0.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG"), "profiles_ti45_to0.png is not a PNG");
     assert!(!out.join("dust_fitted.toml").exists());
 }
 

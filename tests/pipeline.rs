@@ -627,6 +627,14 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     assert!(html.contains("photo | fitted twin | difference"));
     // The slices measured vs simulated at the recipe and at the fit (sums, MSRE).
     assert!(html.contains("simulated/measured sum: recipe") && html.contains("MSRE: recipe"), "report");
+    // … and their profiles: measured, at the recipe and at the fit, one plot per configuration.
+    assert!(html.contains("measured profile vs simulated at the recipe and at the fit"), "report");
+    assert!(out
+        .join("fit/IOL1068-09")
+        .read_dir()
+        .unwrap()
+        .flatten()
+        .any(|e| e.file_name().to_string_lossy().starts_with("profiles_ti")));
     // Also scored over the plaque's pixels alone, as the render's object layer marks them.
     let object = &smp["compare_object"];
     assert_eq!(object["mask"]["source"], "object", "{}", object["mask"]);

@@ -180,7 +180,8 @@ pub fn build_problem(a: &FitArgs) -> Result<Problem> {
     Ok(problem)
 }
 
-/// Writes fit.json, objective.png and (identifiable fits) the fitted recipe.
+/// Writes fit.json, objective.png, the profiles per configuration and
+/// (identifiable fits) the fitted recipe.
 pub fn write_outputs(out: &Path, problem: &Problem, result: &FitResult) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     let p = out.join("fit.json");
@@ -189,6 +190,23 @@ pub fn write_outputs(out: &Path, problem: &Problem, result: &FitResult) -> Resul
     let p = out.join("objective.png");
     crate::io::write_atomic(&p, &report::objective_png(result)?)?;
     written.push(p);
+    // Per configuration: the measured profile against the simulated ones at
+    // the recipe and at the fit.
+    for (c, m) in problem.measurements.iter().enumerate() {
+        let row = |s: &[f64]| -> Option<Vec<f64>> {
+            let n = m.grid.size;
+            (s.len() == n * n).then(|| s[(n / 2) * n..(n / 2 + 1) * n].to_vec())
+        };
+        let start = result.slices_start.get(c).and_then(|s| row(s));
+        let end = result.slices_end.as_ref().and_then(|e| e.get(c)).and_then(|s| row(s));
+        let mut curves: Vec<crate::bssrdf::ProfileCurve> = vec![("measured", m.grid.middle_row(), None)];
+        curves.extend(start.as_deref().map(|v| ("simulated at the recipe", v, None)));
+        curves.extend(end.as_deref().map(|v| ("simulated at the fit", v, None)));
+        let d = &m.directions;
+        let p = out.join(report::profiles_name(d.theta_i_deg, d.theta_o_deg));
+        crate::io::write_atomic(&p, &crate::bssrdf::profile_png(&m.grid.x_mm(), &curves, None)?)?;
+        written.push(p);
+    }
     let original = std::fs::read_to_string(&problem.recipe.path)
         .with_context(|| format!("{}: cannot read the recipe again", problem.recipe.path.display()))?;
     let dir = problem.recipe.path.parent().unwrap_or(Path::new("."));
@@ -205,7 +223,10 @@ pub fn write_outputs(out: &Path, problem: &Problem, result: &FitResult) -> Resul
 
 /// The files of `--out` that a fit writes (replaced whole by the next fit).
 fn fit_output(name: &str) -> bool {
-    name == "fit.json" || name == "objective.png" || name.ends_with("_fitted.toml")
+    name == "fit.json"
+        || name == "objective.png"
+        || name.ends_with("_fitted.toml")
+        || (name.starts_with("profiles_ti") && name.ends_with(".png"))
 }
 
 /// Runs `lucent fit`. Ctrl-C or SIGTERM stops the fit at the end of the

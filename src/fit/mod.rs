@@ -659,6 +659,13 @@ pub struct FitResult {
     pub model_curve: Vec<[f64; 2]>,
     pub configurations: Vec<ConfigResult>,
     pub history: Vec<Evaluation>,
+    /// The simulated slices per configuration at the recipe (the pilot) and
+    /// at the fitted values (identifiable fits), f_ssr in 1/(m² sr) on the
+    /// measured slices' pixels, for the profile plots.
+    #[serde(skip)]
+    pub slices_start: Vec<Vec<f64>>,
+    #[serde(skip)]
+    pub slices_end: Option<Vec<Vec<f64>>>,
 }
 
 /// Progress messages of a fit (one line each).
@@ -860,7 +867,8 @@ pub fn fit_cancellable(
             k
         ],
     };
-    let pilot = ev.evaluate(&starts, "pilot", &pilot_stops, false)?;
+    let mut pilot = ev.evaluate(&starts, "pilot", &pilot_stops, true)?;
+    let slices_start = pilot.slices.take().unwrap_or_default();
     progress(&format!(
         "pilot at {}: objective {:.4e}, sum ratios {}, paths per configuration {:?}",
         fmt_values(&starts),
@@ -1024,7 +1032,7 @@ pub fn fit_cancellable(
     }
     // Per-configuration figures at the fitted values, at the full budget.
     let end_eval = match &end_values {
-        Some(v) if identifiable => Some(ev.evaluate(v, "final", &full, false)?),
+        Some(v) if identifiable => Some(ev.evaluate(v, "final", &full, true)?),
         _ => None,
     };
     let configurations = problem
@@ -1079,6 +1087,8 @@ pub fn fit_cancellable(
         model_curve,
         configurations,
         history: ev.history,
+        slices_start,
+        slices_end: end_eval.and_then(|e| e.slices),
     })
 }
 

@@ -258,6 +258,12 @@ pub fn objective_png(result: &FitResult) -> Result<Vec<u8>, PlotError> {
     })
 }
 
+/// The file `lucent fit` writes with the measured profile of configuration
+/// θi/θo (degrees) against the simulated ones at the recipe and at the fit.
+pub fn profiles_name(theta_i_deg: f64, theta_o_deg: f64) -> String {
+    format!("profiles_ti{theta_i_deg}_to{theta_o_deg}.png")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

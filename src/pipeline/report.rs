@@ -438,7 +438,18 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     &cfgs,
                 ));
             }
-            h.push_str(&page.img(&fdir.join("objective.png"), &format!("{} fit objective", smp.name))?);
+            let mut imgs = page.img(&fdir.join("objective.png"), &format!("{} fit objective", smp.name))?;
+            for c in fj["configurations"].as_array().into_iter().flatten() {
+                let (Some(ti), Some(to)) = (c["theta_i_deg"].as_f64(), c["theta_o_deg"].as_f64()) else { continue };
+                imgs.push_str(&page.img(
+                    &fdir.join(crate::fit::report::profiles_name(ti, to)),
+                    &format!(
+                        "{} measured profile vs simulated at the recipe and at the fit, θi {ti}° θo {to}°",
+                        smp.name
+                    ),
+                )?);
+            }
+            let _ = write!(h, "<div class=\"row\">{imgs}</div>");
             sj.insert(
                 "fit".into(),
                 json!({"parameters": pj, "identifiable": fj["identifiable"], "evaluations": fj["evaluations"]}),
