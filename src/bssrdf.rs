@@ -163,7 +163,7 @@ fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
         pixel_mm: Option<f64>,
     }
     for c in candidates {
-        if let Ok(text) = std::fs::read_to_string(&c) {
+        if let Ok(text) = crate::io::read_text(&c) {
             let v: Sidecar = serde_json::from_str(&text).map_err(|e| invalid(&c, SliceProblem::Sidecar(e)))?;
             if let Some(p) = v.pixel_mm.or(v.config.and_then(|c| c.pixel_mm)) {
                 return Ok(Some(p));
@@ -174,7 +174,7 @@ fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
 }
 
 fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> {
-    let text = std::fs::read_to_string(path).map_err(|e| invalid(path, SliceProblem::Read(e)))?;
+    let text = crate::io::read_text(path).map_err(|e| invalid(path, SliceProblem::Read(e)))?;
     let mut rows: Vec<Vec<f64>> = Vec::new();
     for (k, line) in text.lines().enumerate() {
         let line = line.trim();

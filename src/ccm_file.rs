@@ -82,7 +82,7 @@ impl CcmFile {
     /// Reads and checks `path`; also returns the correction it describes.
     pub fn read(path: &Path) -> Result<(CcmFile, ColourCorrection), CcmFileError> {
         let text =
-            std::fs::read_to_string(path).map_err(|source| CcmFileError::Read { path: path.to_path_buf(), source })?;
+            crate::io::read_text(path).map_err(|source| CcmFileError::Read { path: path.to_path_buf(), source })?;
         let file: CcmFile =
             serde_json::from_str(&text).map_err(|source| CcmFileError::Format { path: path.to_path_buf(), source })?;
         let ccm = ColourCorrection::new(file.method, file.matrix.clone())

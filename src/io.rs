@@ -487,6 +487,34 @@ mod interrupt {
     }
 }
 
+/// The most [`read_text`] takes from a device or a pipe (a regular file is
+/// read whole: its size is known before it is read).
+pub const MAX_STREAM_TEXT_BYTES: u64 = 64 << 20;
+
+/// `std::fs::read_to_string` for the files a user names: a device or a pipe
+/// (`/dev/zero`, a FIFO) is read up to [`MAX_STREAM_TEXT_BYTES`] and refused
+/// beyond, so a wrong path ends with an error instead of filling the memory.
+pub fn read_text(path: impl AsRef<Path>) -> std::io::Result<String> {
+    use std::io::Read;
+    let path = path.as_ref();
+    let meta = std::fs::metadata(path)?;
+    if meta.is_dir() {
+        return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, "a folder, not a file"));
+    }
+    if meta.is_file() {
+        return std::fs::read_to_string(path);
+    }
+    let mut text = String::new();
+    std::fs::File::open(path)?.take(MAX_STREAM_TEXT_BYTES + 1).read_to_string(&mut text)?;
+    if text.len() as u64 > MAX_STREAM_TEXT_BYTES {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not a regular file and more than {} MiB long", MAX_STREAM_TEXT_BYTES >> 20),
+        ));
+    }
+    Ok(text)
+}
+
 /// Reads the optional word of a closed set under `key` (such as `phase =
 /// "hg"`) with the library type's own parser, so a file takes every spelling
 /// the flag takes; a wrong word is refused with the key and the valid names.

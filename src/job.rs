@@ -38,6 +38,17 @@ fn bad(field: &'static str, value: impl ToString, reason: impl Into<String>) -> 
     JobError { field, value: value.to_string(), reason: reason.into() }
 }
 
+/// A chessboard "COLSxROWS" of squares of `square_mm`, as
+/// [`lucent_calib::board::BoardSpec::parse`] takes it.
+fn board(text: &str, square_mm: f64) -> Result<(), JobError> {
+    use lucent_calib::board::{BoardError, BoardSpec};
+    match BoardSpec::parse(text, square_mm) {
+        Ok(_) => Ok(()),
+        Err(e @ BoardError::Square { .. }) => Err(bad("square_mm", square_mm, e.to_string())),
+        Err(e) => Err(bad("board", text, e.to_string())),
+    }
+}
+
 /// A finite number > 0.
 pub fn positive(field: &'static str, v: f64) -> Result<(), JobError> {
     if v > 0.0 && v.is_finite() {
@@ -128,7 +139,8 @@ pub struct OpticsJob {
 
 impl OpticsJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        crate::cli::parse_grid(&self.wavelengths).map_err(|e| bad("wavelengths", &self.wavelengths, e.to_string()))?;
+        (self.wavelengths.parse::<lucent_colour::WavelengthGrid>())
+            .map_err(|e| bad("wavelengths", &self.wavelengths, e.to_string()))?;
         weight_percent(self.weight_percent)
     }
     pub fn to_args(&self) -> Vec<String> {
@@ -314,7 +326,7 @@ pub struct CalibrateJob {
 
 impl CalibrateJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        positive("square_mm", self.square_mm)
+        board(&self.board, self.square_mm)
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["calibrate"]);
@@ -403,7 +415,7 @@ pub struct PoseJob {
 
 impl PoseJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        positive("square_mm", self.square_mm)
+        board(&self.board, self.square_mm)
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["pose"]);

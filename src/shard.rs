@@ -214,8 +214,8 @@ pub fn load_shards(dirs: &[PathBuf]) -> Result<Vec<Shard>, ShardError> {
     let mut shards: Vec<Shard> = Vec::new();
     for dir in dirs {
         let path = dir.join(SHARD_JSON);
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| ShardError::NotShard { path: dir.clone(), why: e.to_string() })?;
+        let text =
+            crate::io::read_text(&path).map_err(|e| ShardError::NotShard { path: dir.clone(), why: e.to_string() })?;
         let file: ShardFile =
             serde_json::from_str(&text).map_err(|e| ShardError::NotShard { path: path.clone(), why: e.to_string() })?;
         if let Some(first) = shards.first() {

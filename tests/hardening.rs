@@ -153,6 +153,17 @@ fn hang_sizes_and_counts_have_stated_limits() {
             vec!["bssrdf", "--mu-s", "1e15", "--mu-a", "1", "--g", "0.8", "--n", "1.5", "--paths", "10", "--out", "o"],
             "1e7",
         ),
+        // The work of a Mie series grows with |m·x|, of a phase table with wavelengths × entries.
+        (vec!["mie", "--size-parameter", "5", "--relative-index", "1e10"], "|m·x|"),
+        (vec!["optics", r, "--wavelengths", "400:700:0.01", "--out", "o"], "phase-table values"),
+        (
+            vec!["env", "paste", "m.exr", "--chessboard", "100000x100000", "--fov", "60", "--out", "p.exr"],
+            "at most 200",
+        ),
+        (vec!["bench", "mie", "--repeats", "4000000000"], "1 … 1000"),
+        // A device where a text file is expected is read up to a bound, not until the memory is full.
+        (vec!["optics", "/dev/zero", "--out", "o"], "/dev/zero"),
+        (vec!["render", "/dev/zero", "--out", "o"], "/dev/zero"),
     ] {
         let o = lucent_in(tmp.path(), &args);
         refused(&o, &[says], &args.join(" "));
@@ -445,5 +456,88 @@ fn leftovers_any_command_stopped_by_sigterm_or_ctrl_c_exits_130_and_writes_nothi
         assert_eq!(o.status.code(), Some(130), "signal {signal}: {:?} {text}", o.status);
         assert!(text.contains("interrupted"), "{text}");
         assert_eq!(std::fs::read_dir(d).unwrap().count(), 1, "signal {signal} left {:?}", snapshot(d).keys());
+    }
+}
+
+/// Data loss: an output never replaces a file the same command reads (the
+/// photo, the map, the camera given with `--camera` as a sidecar's name),
+/// two outputs never share a path, and `run --emit` writes only into a
+/// folder of its own.
+#[test]
+fn data_loss_an_output_never_replaces_an_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    write_exr(&d.join("map.exr"), 16, 8, 1.0);
+    std::fs::create_dir(d.join("cal")).unwrap();
+    std::fs::write(d.join("cal/camera.json"), "{}").unwrap();
+    std::fs::write(d.join("photo.exr"), "photo").unwrap();
+    std::fs::write(d.join("ccm.json"), "{}").unwrap();
+    let before = snapshot(d);
+    for (args, says) in [
+        (vec!["env", "view", "map.exr", "--fov", "60", "--size", "16x12", "--out", "map.exr"], "over the input"),
+        (vec!["env", "orient", "map.exr", "--yaw", "30", "--out", "./map.exr"], "over the input"),
+        (vec!["env", "convert", "map.exr", "map.exr"], "over the input"),
+        (vec!["undistort", "--camera", "cal/camera.json", "photo.exr", "cal/camera.png"], "cal/camera.json"),
+        (vec!["undistort", "--camera", "cal/camera.json", "photo.exr", "photo.exr"], "over the input"),
+        (vec!["colour", "apply", "--ccm", "ccm.json", "photo.exr", "photo.exr"], "over the input"),
+        (
+            vec![
+                "pose",
+                "--camera",
+                "cal/camera.json",
+                "--image",
+                "photo.exr",
+                "--board",
+                "9x6",
+                "--square-mm",
+                "20",
+                "--out",
+                "cal/camera.json",
+            ],
+            "over the input",
+        ),
+        (vec!["raw", "decode", "photo.dng", "w.exr", "--preview", "w.exr"], "the same file"),
+    ] {
+        let o = lucent_in(d, &args);
+        refused(&o, &[says], &args.join(" "));
+    }
+    assert_eq!(snapshot(d), before, "a refused command changed the folder");
+    // `lucent run --emit slurm DIR` into a folder of the user's (their own submit.sh).
+    let project = d.join("p.toml");
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    std::fs::write(
+        &project,
+        format!(
+            "[project]\nname = \"p\"\n[executor]\nkind = \"slurm\"\nshards = 2\n[[sample]]\nname = \"s\"\nrecipe = {:?}\n",
+            recipe.display().to_string()
+        ),
+    )
+    .unwrap();
+    std::fs::create_dir(d.join("mine")).unwrap();
+    std::fs::write(d.join("mine/submit.sh"), "my own").unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--emit", "slurm", "mine", "--out", "o"]);
+    refused(&o, &["mine"], "--emit into a folder of the user's");
+    assert_eq!(std::fs::read_to_string(d.join("mine/submit.sh")).unwrap(), "my own");
+}
+
+/// Panics: an environment radiance a 32-bit render cannot hold (1e300, or a
+/// scale that makes it so) is refused with its key, for a constant sky as
+/// for a map.
+#[test]
+fn panic_environment_radiance_beyond_what_a_render_can_store_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let scene = std::fs::read_to_string(root().join("fixtures/render/plaque_dense.toml")).unwrap();
+    assert!(scene.contains("constant = "), "the scene has a constant sky");
+    let line = scene.lines().find(|l| l.starts_with("constant = ")).unwrap().to_string();
+    for (name, replacement, says) in [
+        ("huge.toml", "constant = [1e300, 1e300, 1e300]".to_string(), "constant"),
+        ("scaled.toml", format!("{line}\nscale = 1e300"), "1e30"),
+    ] {
+        std::fs::write(d.join(name), scene.replace(&line, &replacement)).unwrap();
+        let o = lucent_in(d, &["render", name, "--size", "16x12", "--spp", "1", "--out", "o"]);
+        refused(&o, &[name, says], name);
+        assert_ne!(o.status.code(), Some(4), "{}", stderr(&o));
+        assert!(!d.join("o").exists());
     }
 }

@@ -30,9 +30,14 @@ pub enum BoardError {
     Syntax { text: String },
     #[error("board {text:?}: needs at least 3 × 3 inner corners (OpenCV's detectors)")]
     TooSmall { text: String },
-    #[error("square size {square_mm} mm: must be a positive number")]
+    #[error("board {text:?}: at most {MAX_CORNERS} inner corners per side")]
+    TooLarge { text: String },
+    #[error("square size {square_mm} mm: must lie in 0.001 … 10000 mm")]
     Square { square_mm: f64 },
 }
+
+/// The most inner corners along a side of a board.
+pub const MAX_CORNERS: usize = 200;
 
 impl BoardSpec {
     /// From "COLSxROWS" (inner corners, e.g. "9x6") and the square size in mm.
@@ -44,10 +49,20 @@ impl BoardSpec {
         if cols < 3 || rows < 3 {
             return Err(BoardError::TooSmall { text: text.to_string() });
         }
-        if !(square_mm.is_finite() && square_mm > 0.0) {
-            return Err(BoardError::Square { square_mm });
+        if cols > MAX_CORNERS || rows > MAX_CORNERS {
+            return Err(BoardError::TooLarge { text: text.to_string() });
         }
+        Self::check_square_mm(square_mm)?;
         Ok(Self { cols, rows, square_m: square_mm / 1000.0 })
+    }
+
+    /// A square size every reader of one accepts: 0.001 … 10000 mm.
+    pub fn check_square_mm(square_mm: f64) -> Result<(), BoardError> {
+        if (1e-3..=1e4).contains(&square_mm) {
+            Ok(())
+        } else {
+            Err(BoardError::Square { square_mm })
+        }
     }
 
     /// Corner (i, j) in board coordinates (metres, z = 0).

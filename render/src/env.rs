@@ -122,6 +122,11 @@ const CHANNELS: [char; 3] = ['R', 'G', 'B'];
 
 /// Invalid environment input. The caller (configuration or image loading) is
 /// at fault in every case; pixel errors name the pixel.
+/// The largest radiance an environment may have (scale × pixel value): far
+/// below the 32-bit float maximum (3.4e38) that rendered images are stored
+/// in, so that sums of samples and variances stay finite.
+pub const MAX_RADIANCE: f64 = 1e30;
+
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum EnvError {
     /// Width or height is 0.
@@ -139,8 +144,11 @@ pub enum EnvError {
     /// The radiance scale is NaN, infinite or negative.
     #[error("environment radiance scale {0} must be finite and ≥ 0")]
     BadScale(f64),
-    /// scale × the largest pixel value is not finite.
-    #[error("environment radiance overflows: scale {scale} × largest pixel value {max} is not finite")]
+    /// scale × the largest pixel value exceeds [`MAX_RADIANCE`].
+    #[error(
+        "environment radiance overflows: scale {scale} × largest pixel value {max} exceeds {MAX_RADIANCE:e} \
+         (renders are stored as 32-bit floats)"
+    )]
     Overflow { scale: f64, max: f32 },
     /// The yaw is NaN or infinite.
     #[error("environment yaw {0}° must be finite")]
@@ -246,7 +254,7 @@ impl Environment {
         if !(scale.is_finite() && scale >= 0.0) {
             return Err(EnvError::BadScale(scale));
         }
-        if !(scale * f64::from(max)).is_finite() {
+        if scale * f64::from(max) > MAX_RADIANCE {
             return Err(EnvError::Overflow { scale, max });
         }
         if !yaw_deg.is_finite() {

@@ -422,7 +422,7 @@ fn print_calibration(cal: &Calibration) {
 }
 
 fn read_camera(path: &Path) -> Result<Calibration> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read camera file", path.display()))?;
+    let text = crate::io::read_text(path).with_context(|| format!("{}: cannot read camera file", path.display()))?;
     serde_json::from_str(&text)
         .with_context(|| format!("{}: not a camera.json written by `lucent calibrate`", path.display()))
 }
@@ -724,7 +724,7 @@ fn env_convert(a: EnvConvertArgs) -> Result<()> {
         Some(m) => {
             let p = Path::new(m);
             let text = if p.is_file() {
-                std::fs::read_to_string(p).with_context(|| format!("{m}: cannot read matrix file"))?
+                crate::io::read_text(p).with_context(|| format!("{m}: cannot read matrix file"))?
             } else if m.ends_with(".json") || m.contains('/') {
                 bail!("--matrix {m}: no such file (give a JSON file or nine numbers \"a,b,c;d,e,f;g,h,i\")");
             } else {

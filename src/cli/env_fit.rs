@@ -42,7 +42,7 @@ pub struct FitScaleArgs {
 pub fn run(a: FitScaleArgs) -> Result<()> {
     a.render.check()?;
     let text =
-        std::fs::read_to_string(&a.scene).with_context(|| format!("{}: cannot read scene file", a.scene.display()))?;
+        crate::io::read_text(&a.scene).with_context(|| format!("{}: cannot read scene file", a.scene.display()))?;
     let file = scene::parse(&text, &a.scene)?;
     let mut empty = envfit::empty_board(&file).with_context(|| a.scene.display().to_string())?;
     // The finite sphere stays centred where the full scene puts it (the top

@@ -94,7 +94,7 @@ fn sidecar_angles(path: &Path) -> Result<Option<Angles>> {
         candidates.push(dir.join("summary.json"));
     }
     for c in candidates {
-        let Ok(text) = std::fs::read_to_string(&c) else { continue };
+        let Ok(text) = crate::io::read_text(&c) else { continue };
         let v: serde_json::Value =
             serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", c.display()))?;
         let get = |k: &str| v.get(k).or_else(|| v.pointer(&format!("/config/{k}"))).and_then(|x| x.as_f64());
@@ -207,7 +207,7 @@ pub fn write_outputs(out: &Path, problem: &Problem, result: &FitResult) -> Resul
         crate::io::write_atomic(&p, &crate::bssrdf::profile_png(&m.grid.x_mm(), &curves, None)?)?;
         written.push(p);
     }
-    let original = std::fs::read_to_string(&problem.recipe.path)
+    let original = crate::io::read_text(&problem.recipe.path)
         .with_context(|| format!("{}: cannot read the recipe again", problem.recipe.path.display()))?;
     let dir = problem.recipe.path.parent().unwrap_or(Path::new("."));
     if let Some(text) = report::fitted_recipe_text(&original, dir, result) {

@@ -152,14 +152,16 @@ pub enum BenchCommand {
     Mie {
         #[arg(long, default_value = "fixtures/reference/mie_miepython.csv")]
         cases: PathBuf,
-        #[arg(long, default_value_t = 20)]
+        /// Timed repeats (1 … 1000).
+        #[arg(long, default_value_t = 20, value_parser = count_in::<1, 1000>)]
         repeats: usize,
     },
     /// The full optical-property table with phase tables for every recipe in a folder.
     Optics {
         #[arg(long, default_value = "fixtures/samples")]
         samples: PathBuf,
-        #[arg(long, default_value_t = 5)]
+        /// Timed repeats (1 … 1000).
+        #[arg(long, default_value_t = 5, value_parser = count_in::<1, 1000>)]
         repeats: usize,
         /// Weight percentage for recipes that leave it unknown (IOL1068-15).
         #[arg(long, default_value_t = 1.0)]
@@ -244,6 +246,7 @@ pub fn run(cli: Cli) -> Result<()> {
     // is refused, see `io::check_output_folder`), marked as lucent's when the
     // command succeeds, and removed again when the command fails and leaves
     // it empty.
+    check_outputs_are_not_inputs(&cli.command)?;
     let folder = output_folder(&cli.command);
     let existed = folder.as_deref().is_some_and(|f| std::fs::symlink_metadata(f).is_ok());
     if let Some(f) = &folder {
@@ -264,6 +267,72 @@ pub fn run(cli: Cli) -> Result<()> {
         }
     }
     result
+}
+
+/// The files a command reads (`inputs`) and the files it writes, sidecars
+/// included (`outputs`), for the commands that write files the user names.
+fn file_roles(command: &Command) -> (Vec<PathBuf>, Vec<PathBuf>) {
+    let json = |p: &Path| p.with_extension("json");
+    let sibling = |p: &Path, suffix: &str| {
+        let stem = p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        p.with_file_name(format!("{stem}{suffix}"))
+    };
+    let globbed = |specs: &[String]| -> Vec<PathBuf> {
+        specs.iter().flat_map(|s| crate::io::glob_files(s).unwrap_or_default()).collect()
+    };
+    match command {
+        Command::Raw(camera::RawCommand::Decode(a)) => (
+            vec![a.input.clone()],
+            [Some(a.output.clone()), Some(json(&a.output)), a.preview.clone()].into_iter().flatten().collect(),
+        ),
+        Command::Undistort(a) => (vec![a.camera.clone(), a.input.clone()], vec![a.output.clone(), json(&a.output)]),
+        Command::Pose(a) => {
+            (vec![a.camera.clone(), a.image.clone()], vec![a.out.clone(), sibling(&a.out, "_view.png")])
+        }
+        Command::Calibrate(a) => (globbed(&a.images), vec![a.out.clone(), sibling(&a.out, "_residuals.png")]),
+        Command::Colour(colour::ColourCommand::Apply(a)) => (
+            vec![a.ccm.clone(), a.input.clone()],
+            std::iter::once(a.output.clone()).chain(a.variance_out.clone()).collect(),
+        ),
+        Command::Env(camera::EnvCommand::Convert(a)) => (vec![a.input.clone()], vec![a.output.clone()]),
+        Command::Env(camera::EnvCommand::View(a)) => {
+            (vec![a.input.clone()], vec![a.out.clone(), sibling(&a.out, ".json")])
+        }
+        Command::Env(camera::EnvCommand::Orient(a)) => {
+            (vec![a.input.clone()], vec![a.out.clone(), sibling(&a.out, ".json"), sibling(&a.out, "_board.png")])
+        }
+        Command::Env(camera::EnvCommand::Merge(a)) => (a.brackets.clone(), vec![a.out.clone()]),
+        _ => (vec![], vec![]),
+    }
+}
+
+/// A command must not write over a file it reads (`env view map.exr --out
+/// map.exr`, a sidecar `camera.json` beside `--camera camera.json`), nor
+/// write two of its outputs to one path: refused before any work.
+fn check_outputs_are_not_inputs(command: &Command) -> Result<()> {
+    let (inputs, outputs) = file_roles(command);
+    // The same file, however it is spelled (links, `./`, `..`): compared by
+    // identity when it exists, else by absolute path.
+    let key =
+        |p: &Path| std::fs::canonicalize(p).or_else(|_| std::path::absolute(p)).unwrap_or_else(|_| p.to_path_buf());
+    for (k, o) in outputs.iter().enumerate() {
+        let ko = key(o);
+        if let Some(i) = inputs.iter().find(|i| key(i) == ko) {
+            bail!(
+                "{} would be written over the input {}: give the output another name (nothing was written)",
+                o.display(),
+                i.display()
+            );
+        }
+        if let Some(other) = outputs[..k].iter().find(|p| key(p) == ko) {
+            bail!(
+                "{} and {} name the same file: two outputs cannot share it (nothing was written)",
+                other.display(),
+                o.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// The output folder (not file) a command writes into, if it has one.
@@ -323,8 +392,12 @@ pub fn count_in<const LO: usize, const HI: usize>(text: &str) -> Result<usize, S
 
 /// Parses "START:END:STEP" (nm) of `--wavelengths`.
 pub fn parse_grid(text: &str) -> Result<WavelengthGrid> {
-    text.parse().with_context(|| format!("--wavelengths {text:?}"))
+    text.parse().map_err(|e| anyhow!("--wavelengths {text:?}: {e}"))
 }
+
+/// The most phase-table values `lucent optics` writes (wavelengths × entries:
+/// about 250 MB of CSV).
+pub const MAX_PHASE_VALUES: usize = 10_000_000;
 
 /// Parses a refractive index "1.5", "1.5+0.01i" or "1.5+1e-3j" (spaces
 /// ignored) with num-complex's `FromStr`.
@@ -427,6 +500,15 @@ fn optics_from(a: OpticsArgs, merged_from: Option<&[crate::shard::Shard]>) -> Re
     };
     if a.phase_entries == 1 {
         bail!("--phase-entries must be 0 (no table) or at least 2");
+    }
+    if a.uncertainty.is_none() && grid.len() * a.phase_entries > MAX_PHASE_VALUES {
+        bail!(
+            "{} wavelengths × --phase-entries {} = {} phase-table values, more than {MAX_PHASE_VALUES}: use a coarser \
+             --wavelengths step or fewer --phase-entries (0 for none)",
+            grid.len(),
+            a.phase_entries,
+            grid.len() * a.phase_entries
+        );
     }
     let paths = collect_recipe_paths(&a.recipes)?;
     let recipes = load_recipes(&paths, Overrides { weight_percent: a.weight_percent }, a.skip_invalid)?;

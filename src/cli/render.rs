@@ -646,9 +646,8 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
         rows.push(row);
     }
     // Mitsuba's side-by-side figures, if present.
-    let mitsuba: Option<serde_json::Value> = std::fs::read_to_string(reference_dir.join("mitsuba_bench.json"))
-        .ok()
-        .and_then(|t| serde_json::from_str(&t).ok());
+    let mitsuba: Option<serde_json::Value> =
+        crate::io::read_text(reference_dir.join("mitsuba_bench.json")).ok().and_then(|t| serde_json::from_str(&t).ok());
     let mut ratios = Vec::new();
     if let (Some(m), Some(best)) = (&mitsuba, rows.last()) {
         for r in m.get("runs").and_then(|r| r.as_array()).into_iter().flatten() {

@@ -54,7 +54,7 @@ enum Emit {
 
 /// The last `n` lines of a log file.
 fn tail(log: &Path, n: usize) -> String {
-    let text = std::fs::read_to_string(log).unwrap_or_default();
+    let text = crate::io::read_text(log).unwrap_or_default();
     let lines: Vec<&str> = text.lines().collect();
     lines[lines.len().saturating_sub(n)..].join("\n    ")
 }
@@ -164,6 +164,9 @@ pub fn run(a: RunArgs) -> Result<()> {
         [] => None,
         [kind, dir] => {
             let dir = std::path::absolute(dir).with_context(|| format!("--emit {kind} {dir}: cannot resolve"))?;
+            // Like every output folder: new, or one lucent wrote (a folder of
+            // the user's, e.g. holding their own submit.sh, is refused).
+            crate::io::check_output_folder(&dir).with_context(|| format!("--emit {kind} {}", dir.display()))?;
             match kind.as_str() {
                 "slurm" => Some(Emit::Slurm(dir)),
                 "k8s" => Some(Emit::K8s(dir)),
@@ -231,6 +234,8 @@ pub fn run(a: RunArgs) -> Result<()> {
     if let Some(e) = &emit
         && emitted > 0
     {
+        let (Emit::Slurm(dir) | Emit::K8s(dir)) = e;
+        crate::io::mark_output_folder(dir)?;
         match e {
             Emit::Slurm(dir) => {
                 let path = dir.join("submit.sh");

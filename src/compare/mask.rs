@@ -163,7 +163,7 @@ fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
 /// Reads a scene JSON written by `lucent pose`.
 pub fn read_scene(path: &Path) -> Result<SceneDescription, CompareError> {
     let err = |reason: ReadProblem| CompareError::Read { role: "scene", path: path.to_path_buf(), reason };
-    let text = std::fs::read_to_string(path).map_err(|e| err(e.into()))?;
+    let text = crate::io::read_text(path).map_err(|e| err(e.into()))?;
     serde_json::from_str(&text).map_err(|e| err(e.into()))
 }
 

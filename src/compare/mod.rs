@@ -830,8 +830,7 @@ fn noise_report(
     if let Some(p) = &req.photo_variance {
         let json = photo_noise::sidecar(p);
         if json.is_file() {
-            let text =
-                std::fs::read_to_string(&json).map_err(|source| CompareError::Io { path: json.clone(), source })?;
+            let text = crate::io::read_text(&json).map_err(|source| CompareError::Io { path: json.clone(), source })?;
             let file: photo_noise::PhotoVarianceFile = serde_json::from_str(&text).map_err(|e| CompareError::Read {
                 role: "photo variance",
                 path: json.clone(),

@@ -103,6 +103,11 @@ pub enum MieError {
     RelativeIndex(Complex64),
     #[error("size parameter |x| = {0} exceeds the supported maximum of 1e5")]
     TooLarge(f64),
+    #[error(
+        "|m·x| = {0:e} (relative index × size parameter) exceeds the supported maximum of 1e5: the series \
+         inside the sphere would need that many terms"
+    )]
+    TooLargeInside(f64),
     #[error("size parameter |x| = {0:e} is below the supported minimum of 1e-20")]
     TooSmall(f64),
     #[error("radius {radius_m} m and vacuum wavelength {wavelength_m} m must be positive and finite")]
@@ -195,6 +200,10 @@ fn check_arguments(m: Complex64, x: Complex64) -> Result<f64, MieError> {
     }
     if xabs > 1e5 {
         return Err(MieError::TooLarge(xabs));
+    }
+    let mx = (m * x).norm();
+    if mx > 1e5 {
+        return Err(MieError::TooLargeInside(mx));
     }
     if xabs < MIN_SIZE_PARAMETER {
         return Err(MieError::TooSmall(xabs));

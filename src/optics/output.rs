@@ -97,7 +97,7 @@ impl OpticalProperties {
 /// Reads `optical_properties.json` (one object or an array); every entry's
 /// arrays must have one value per wavelength.
 pub fn read_optical_properties(path: &Path) -> Result<Vec<OpticalProperties>, OpticalPropertiesError> {
-    let text = std::fs::read_to_string(path)
+    let text = crate::io::read_text(path)
         .map_err(|source| OpticalPropertiesError::Read { path: path.to_path_buf(), source })?;
     let value: serde_json::Value = serde_json::from_str(&text)
         .map_err(|source| OpticalPropertiesError::Json { path: path.to_path_buf(), source })?;

@@ -323,7 +323,7 @@ impl Recipe {
     /// Loads and validates a recipe file.
     pub fn load(path: &Path, overrides: Overrides) -> Result<Self, RecipeError> {
         let text =
-            std::fs::read_to_string(path).map_err(|source| RecipeError::Read { path: path.to_path_buf(), source })?;
+            crate::io::read_text(path).map_err(|source| RecipeError::Read { path: path.to_path_buf(), source })?;
         Self::parse(&text, path, overrides)
     }
 

@@ -245,7 +245,7 @@ impl Sharded {
 
 /// Whether a scene file asks for what a shard cannot do (a time budget, an error target, object-weighted sampling).
 fn scene_shardable(scene: &Path) -> bool {
-    let Ok(text) = std::fs::read_to_string(scene) else { return false };
+    let Ok(text) = crate::io::read_text(scene) else { return false };
     let Ok(f) = crate::scene::parse(&text, scene) else { return false };
     let r = &f.render;
     r.time_s.is_none()
@@ -315,7 +315,7 @@ pub fn shard_plan(args: &[String], shards: u32, run_out: &Path) -> Option<Sharde
 /// them instead of run again.
 pub fn finished_shards(args: &[String], run_out: &Path) -> Option<Sharded> {
     let t = shard_plan(args, 2, run_out)?;
-    let text = std::fs::read_to_string(t.dir.join("0").join(crate::shard::SHARD_JSON)).ok()?;
+    let text = crate::io::read_text(t.dir.join("0").join(crate::shard::SHARD_JSON)).ok()?;
     let first: crate::shard::ShardFile = serde_json::from_str(&text).ok()?;
     let t = Sharded { shards: first.identity.shards, ..t };
     t.done().iter().all(|d| *d).then_some(t)
@@ -519,7 +519,7 @@ fn write_script(path: &Path, text: &str) -> Result<(), SlurmError> {
 
 /// The last lines of a file.
 fn tail(path: &Path, n: usize) -> String {
-    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let text = crate::io::read_text(path).unwrap_or_default();
     let lines: Vec<&str> = text.lines().collect();
     lines[lines.len().saturating_sub(n)..].join("\n    ")
 }

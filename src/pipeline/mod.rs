@@ -413,7 +413,7 @@ pub fn outputs_hash(dir: &Path) -> Result<String, PipelineError> {
 }
 
 fn read_manifest(dir: &Path) -> Option<Manifest> {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).ok()?).ok()
+    serde_json::from_str(&crate::io::read_text(dir.join("manifest.json")).ok()?).ok()
 }
 
 fn s(p: &Path) -> String {
@@ -462,7 +462,7 @@ fn sample_scene_with(
     };
     let fitted = out.join(Stage::EnvScale.name()).join(&sample.name).join("scene.toml");
     let source = if use_fitted && fitted.is_file() { fitted } else { r.scene.clone() };
-    let text = std::fs::read_to_string(&source).map_err(|e| PipelineError::Read { path: source.clone(), source: e })?;
+    let text = crate::io::read_text(&source).map_err(|e| PipelineError::Read { path: source.clone(), source: e })?;
     let file = crate::scene::parse(&text, &source)?;
     let mut file = envfit::with_paths_from(&file, &envfit::scene_dir(&source));
     match &mut file.material {
@@ -526,8 +526,8 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
             });
         }
     }
-    let text = std::fs::read_to_string(&scene_json)
-        .map_err(|source| PipelineError::Read { path: scene_json.clone(), source })?;
+    let text =
+        crate::io::read_text(&scene_json).map_err(|source| PipelineError::Read { path: scene_json.clone(), source })?;
     let pose: lucent_calib::scene::SceneDescription =
         serde_json::from_str(&text).map_err(|source| PipelineError::PoseJson { path: scene_json.clone(), source })?;
     let has_sample = pose.sample.is_some();
@@ -537,7 +537,7 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
 /// A scene file and the files it names (environment map, camera, mesh, board textures and spectra).
 pub fn scene_inputs(path: &Path) -> Vec<PathBuf> {
     let mut v = vec![path.to_path_buf()];
-    if let Ok(text) = std::fs::read_to_string(path)
+    if let Ok(text) = crate::io::read_text(path)
         && let Ok(f) = crate::scene::parse(&text, path)
     {
         let f = envfit::with_paths_from(&f, &envfit::scene_dir(path));
@@ -577,7 +577,7 @@ pub fn recipe_inputs(recipe: &Path) -> Vec<PathBuf> {
     }
     let mut v = vec![recipe.to_path_buf()];
     let dir = recipe.parent().unwrap_or(Path::new("."));
-    if let Some(table) = std::fs::read_to_string(recipe).ok().and_then(|t| toml::from_str::<toml::Table>(&t).ok()) {
+    if let Some(table) = crate::io::read_text(recipe).ok().and_then(|t| toml::from_str::<toml::Table>(&t).ok()) {
         walk(&toml::Value::Table(table), dir, &mut v);
     }
     v

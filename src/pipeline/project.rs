@@ -481,7 +481,7 @@ impl Project {
     /// Reads and validates a project file.
     pub fn load(path: &Path) -> Result<Project, ProjectError> {
         let text =
-            std::fs::read_to_string(path).map_err(|source| ProjectError::Read { path: path.to_path_buf(), source })?;
+            crate::io::read_text(path).map_err(|source| ProjectError::Read { path: path.to_path_buf(), source })?;
         let file: ProjectFile = toml::from_str(&text).map_err(|error: toml::de::Error| {
             let (line, column) = crate::scene::line_column(&text, error.span());
             ProjectError::Toml { path: path.to_path_buf(), line, column, error: Box::new(error) }
@@ -584,7 +584,7 @@ impl Project {
             c.images = p.to_string_lossy().into_owned();
             if let Some(t) = &mut c.truth {
                 existing("[calibration] truth", t)?;
-                let text = std::fs::read_to_string(&*t)
+                let text = crate::io::read_text(&*t)
                     .map_err(|e| key("[calibration] truth", format!("{}: {e}", t.display())))?;
                 if serde_json::from_str::<lucent_calib::camera::Calibration>(&text).is_err() {
                     return Err(key(

@@ -80,7 +80,7 @@ fn pose_error(truth: &[[f64; 4]; 4], rec: &[[f64; 4]; 4]) -> (f64, f64) {
 /// exist (the stage has not run), an error naming the file and the field
 /// when it exists but does not hold that type.
 pub fn read_json<T: DeserializeOwned>(p: &Path, what: &'static str) -> Result<Option<T>, ReportError> {
-    let text = match std::fs::read_to_string(p) {
+    let text = match crate::io::read_text(p) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(source) => return Err(ReportError::Read { path: p.to_path_buf(), what, source }),
@@ -862,7 +862,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         h.push_str("<h3>Board pose</h3>");
         let mut pj = trim(&to_value(&p), 16);
         if let Some(t) = project.file.pose.as_ref().and_then(|s| s.truth.as_ref()) {
-            let text = std::fs::read_to_string(t).map_err(|source| ReportError::Read {
+            let text = crate::io::read_text(t).map_err(|source| ReportError::Read {
                 path: t.clone(),
                 what: "a scene file ([pose] truth)",
                 source,

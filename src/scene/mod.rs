@@ -158,6 +158,10 @@ pub enum KeyProblem {
     Reflectance { values: [f64; 3] },
     #[error("radiance must be finite and ≥ 0, got {values:?}")]
     Radiance { values: [f64; 3] },
+    #[error("{0}")]
+    Constant(lucent_render::env::EnvError),
+    #[error("{0}")]
+    Board(lucent_calib::board::BoardError),
     #[error("box sides must be finite and > 0, got {sides_m:?} m")]
     BoxSize { sides_m: [f64; 3] },
     /// A choice among named values.
@@ -634,7 +638,7 @@ pub(crate) fn location(line: Option<usize>, column: Option<usize>) -> String {
 /// Loads and validates a scene file (both stages) into a renderable scene.
 pub fn load(path: &Path) -> Result<LoadedScene, SceneFileError> {
     let text =
-        std::fs::read_to_string(path).map_err(|source| SceneFileError::Read { path: path.to_path_buf(), source })?;
+        crate::io::read_text(path).map_err(|source| SceneFileError::Read { path: path.to_path_buf(), source })?;
     let file = parse(&text, path)?;
     build(&file, path)
 }
@@ -649,7 +653,7 @@ fn finite3(ctx: &Ctx, section: &'static str, key: &'static str, v: [f64; 3]) -> 
 
 fn read_scene_json(ctx: &Ctx, p: &Path) -> Result<SceneDescription, SceneFileError> {
     let full = ctx.resolve(p);
-    let text = std::fs::read_to_string(&full)
+    let text = crate::io::read_text(&full)
         .map_err(|source| ctx.key("camera", "scene_json", KeyProblem::Read { file: full.clone(), source }))?;
     serde_json::from_str(&text)
         .map_err(|source| ctx.key("camera", "scene_json", KeyProblem::NotSceneJson { file: full.clone(), source }))
@@ -662,7 +666,7 @@ fn read_scene_json(ctx: &Ctx, p: &Path) -> Result<SceneDescription, SceneFileErr
 /// instead. Everything else, and every check, is [`load`]'s.
 pub fn load_for_merge(path: &Path) -> Result<LoadedScene, SceneFileError> {
     let text =
-        std::fs::read_to_string(path).map_err(|source| SceneFileError::Read { path: path.to_path_buf(), source })?;
+        crate::io::read_text(path).map_err(|source| SceneFileError::Read { path: path.to_path_buf(), source })?;
     let file = parse(&text, path)?;
     build_with(&file, path, true)
 }
@@ -833,7 +837,7 @@ fn build_camera(
                 return Err(ctx.key("camera", "distortion", KeyProblem::CalibratedNeedsCameraJson));
             };
             let full = ctx.resolve(p);
-            let text = std::fs::read_to_string(&full)
+            let text = crate::io::read_text(&full)
                 .map_err(|source| ctx.key("camera", "camera_json", KeyProblem::Read { file: full.clone(), source }))?;
             let cal: lucent_calib::camera::Calibration = serde_json::from_str(&text).map_err(|source| {
                 ctx.key("camera", "camera_json", KeyProblem::NotCameraJson { file: full.clone(), source })
@@ -1312,8 +1316,9 @@ fn build_board(
             format!("{} × {} squares of {} mm from scene.json", spec.cols + 1, spec.rows + 1, sq * 1e3),
         )
     };
-    if !(square_m > 0.0 && square_m.is_finite()) {
-        return Err(ctx.key("board", "square_mm", KeyProblem::NotPositive { value: square_m * 1e3 }));
+    // The range of every command's square size (`lucent calibrate`, `pose`).
+    if let Err(e) = lucent_calib::board::BoardSpec::check_square_mm(square_m * 1e3) {
+        return Err(ctx.key("board", "square_mm", KeyProblem::Board(e)));
     }
     let reflectance = if let Some(t) = &b.texture {
         if b.even.is_some() || b.odd.is_some() || b.even_spectrum.is_some() || b.odd_spectrum.is_some() {
@@ -1377,7 +1382,7 @@ pub enum OrientationFileError {
 /// The yaw an orientation file (`lucent env orient`) gives the map `map`.
 fn orientation_yaw(path: &std::path::Path, map: &std::path::Path) -> Result<f64, OrientationFileError> {
     let p = || path.to_path_buf();
-    let text = std::fs::read_to_string(path).map_err(|source| OrientationFileError::Read { path: p(), source })?;
+    let text = crate::io::read_text(path).map_err(|source| OrientationFileError::Read { path: p(), source })?;
     let o: lucent_calib::env::Orientation =
         serde_json::from_str(&text).map_err(|source| OrientationFileError::Parse { path: p(), source })?;
     let name = map.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -1442,7 +1447,11 @@ fn build_environment(
             if c.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
                 return Err(ctx.key("environment", "constant", KeyProblem::Radiance { values: c }));
             }
-            (Environment::constant(c.map(|v| v * scale), projection), format!("constant {c:?} × {scale}"))
+            // As a 1 × 1 map, with the map's checks (32-bit values, the radiance bound).
+            let data = c.iter().map(|&v| v as f32).collect();
+            let env = Environment::new(1, 1, data, 0.0, scale, projection)
+                .map_err(|source| ctx.key("environment", "constant", KeyProblem::Constant(source)))?;
+            (env, format!("constant {c:?} × {scale}"))
         }
         (Some(p), None) if ctx.summary_only => {
             let full = ctx.resolve(p);

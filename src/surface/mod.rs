@@ -395,7 +395,7 @@ struct FitFileModel {
 /// Reads a `fit.json` written by `lucent surface fit` and returns
 /// (model, α, scale) of `model`, or of the better model when `None`.
 pub fn load_fit_choice(path: &Path, model: Option<RoughnessModel>) -> Result<(RoughnessModel, f64, f64), SurfaceError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SurfaceError::Io { path: path.into(), source })?;
+    let text = crate::io::read_text(path).map_err(|source| SurfaceError::Io { path: path.into(), source })?;
     let head: FitFileHead = serde_json::from_str(&text).map_err(|e| SurfaceError::Format {
         path: path.into(),
         reason: format!("not a fit.json of `lucent surface fit`: {e}"),

@@ -97,7 +97,7 @@ impl ColourTruth {
     /// Reads and checks a `truth_colour.json` (finite, invertible matrix).
     pub fn load(path: &Path) -> Result<Self, SynthError> {
         let err = |reason: String| SynthError::Truth { path: path.to_path_buf(), reason };
-        let text = std::fs::read_to_string(path).map_err(|e| err(e.kind().to_string()))?;
+        let text = crate::io::read_text(path).map_err(|e| err(e.kind().to_string()))?;
         let t: ColourTruth = serde_json::from_str(&text).map_err(|e| err(format!("not a colour truth file: {e}")))?;
         if t.xyz_d50_to_camera.iter().flatten().any(|v| !v.is_finite()) {
             return Err(err("xyz_d50_to_camera has a non-finite entry".into()));

@@ -330,8 +330,8 @@ impl IndexSpectrum {
     /// Read and parse a file; errors name the path.
     pub fn load(path: &Path) -> Result<Self, IndexError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| IndexError::Read { file: file.clone(), message: e.to_string() })?;
+        let text =
+            crate::io::read_text(path).map_err(|e| IndexError::Read { file: file.clone(), message: e.to_string() })?;
         Self::parse(&text, &file)
     }
 
