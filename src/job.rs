@@ -49,6 +49,18 @@ fn board(text: &str, square_mm: f64) -> Result<(), JobError> {
     }
 }
 
+/// An image size "WIDTHxHEIGHT" a render can hold
+/// ([`lucent_render::camera::check_image_size`]).
+fn image_size(size: &Option<String>) -> Result<(), JobError> {
+    let Some(text) = size else { return Ok(()) };
+    let parsed = text.split_once(['x', 'X']).and_then(|(w, h)| Some((w.trim().parse().ok()?, h.trim().parse().ok()?)));
+    match parsed {
+        None => Err(bad("size", text, "expected WIDTHxHEIGHT, e.g. 640x480")),
+        Some((0, _) | (_, 0)) => Err(bad("size", text, "width and height must be at least 1")),
+        Some((w, h)) => lucent_render::camera::check_image_size(w, h).map_err(|e| bad("size", text, e.to_string())),
+    }
+}
+
 /// A finite number > 0.
 pub fn positive(field: &'static str, v: f64) -> Result<(), JobError> {
     if v > 0.0 && v.is_finite() {
@@ -446,7 +458,8 @@ pub struct EnvScaleJob {
 
 impl EnvScaleJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        at_least_one("spp", self.spp)
+        at_least_one("spp", self.spp)?;
+        image_size(&self.size)
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["env", "fit-scale"]);
@@ -477,6 +490,7 @@ pub struct RenderJob {
 impl RenderJob {
     pub fn validate(&self) -> Result<(), JobError> {
         at_least_one("spp", self.spp)?;
+        image_size(&self.size)?;
         positive_opt("time_s", self.time_s)
     }
     pub fn to_args(&self) -> Vec<String> {

@@ -541,3 +541,42 @@ fn panic_environment_radiance_beyond_what_a_render_can_store_is_refused() {
         assert!(!d.join("o").exists());
     }
 }
+
+/// Nonsense and misleading, second round: values a command used to accept
+/// or report under another name, each refused (or warned about) where it
+/// is written.
+#[test]
+fn nonsense_second_round_is_refused_where_it_is_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    let r = recipe.to_str().unwrap();
+    let transform = bad("nonsense").join("transform_with_lift.toml");
+    let twice = bad("nonsense").join("measured_twice.toml");
+    let size = bad("misleading").join("render_size_zero.toml");
+    write_exr(&d.join("p.exr"), 16, 12, 0.5);
+    write_exr(&d.join("r.exr"), 16, 12, 0.4);
+    for (args, says) in [
+        // --g and --n are the recipe's: given with it they were silently ignored.
+        (vec!["bssrdf", "--recipe", r, "--g", "0.9", "--paths", "10", "--out", "o"], vec!["--g"]),
+        (vec!["bssrdf", "--recipe", r, "--configs", "45/0,45/0", "--paths", "10", "--out", "o"], vec!["45/0", "twice"]),
+        (vec!["render", transform.to_str().unwrap(), "--out", "o"], vec!["transform", "lift_m"]),
+        (vec!["run", twice.to_str().unwrap(), "--out", "o"], vec!["slice_3x3.csv", "given twice"]),
+        (vec!["run", size.to_str().unwrap(), "--out", "o"], vec!["[render] size", "at least 1"]),
+        (
+            vec!["compare", "--photo", "p.exr", "--render", "r.exr", "--photo-repeat", "./p.exr", "--out", "o"],
+            vec!["second photo"],
+        ),
+        // The wavelength grid says why it is refused.
+        (vec!["optics", r, "--wavelengths", "550:450:10", "--out", "o"], vec!["end is below start"]),
+    ] {
+        let o = lucent_in(d, &args);
+        refused(&o, &says, &args.join(" "));
+    }
+    // A file compared with itself is said, not refused (a sanity check of the tool).
+    let o = lucent_in(d, &["compare", "--photo", "p.exr", "--render", "p.exr", "--out", "o"]);
+    assert!(o.status.success() && stderr(&o).contains("compare a file with itself"), "{}", stderr(&o));
+    std::fs::remove_dir_all(d.join("o")).unwrap();
+    let left: Vec<_> = std::fs::read_dir(d).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert_eq!(left.len(), 2, "a refused run wrote something: {left:?}");
+}

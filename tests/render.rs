@@ -402,6 +402,19 @@ fn sigterm_stops_a_render_like_ctrl_c() {
         serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
     assert_eq!(json["interrupted"], true);
     assert!(json["spp"].as_u64().unwrap() < 1_000_000);
+    // The partial render is lucent's: the folder is marked, and the next run may replace it.
+    assert!(out.join(".lucent-output").is_file(), "the stopped render's folder is not marked");
+    let o = crate::common::lucent(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--spp",
+        "1",
+        "--size",
+        "8x6",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
 /// Sizes and counts a machine cannot hold are refused before anything is

@@ -45,7 +45,7 @@ pub enum EstimatorChoice {
 #[derive(Debug, Args)]
 pub struct RunArgs {
     /// Recipe (TOML); optical properties by Lorenz–Mie at --wavelength.
-    #[arg(long, conflicts_with_all = ["mu_s", "mu_a"])]
+    #[arg(long, conflicts_with_all = ["mu_s", "mu_a", "g", "n"])]
     pub recipe: Option<PathBuf>,
     /// Weight percentage for a recipe that leaves it unknown.
     #[arg(long)]
@@ -296,14 +296,7 @@ fn beam_map_fwhm_m(map: &BeamMap) -> f64 {
 }
 
 fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
-    text.split(',')
-        .map(|c| {
-            let (i, o) =
-                c.split_once('/').ok_or_else(|| anyhow!("--configs {c:?}: expected THETA_I/THETA_O, e.g. 45/0"))?;
-            let num = |s: &str| s.trim().parse::<f64>().map_err(|_| anyhow!("--configs {c:?}: {s:?} is not a number"));
-            Ok((num(i)?, num(o)?))
-        })
-        .collect()
+    crate::pipeline::project::parse_configs(text).map_err(|e| anyhow!("--configs {text:?}: {e}"))
 }
 
 /// One configuration of a `lucent bssrdf` run, set up as the command sets it up.

@@ -92,6 +92,29 @@ pub fn run(a: CompareArgs) -> Result<()> {
     if a.render.len() > 2 {
         anyhow::bail!("--render given {} times: one twin, or two to compare", a.render.len());
     }
+    // One file in two roles compares nothing (an SSIM of 1, a photo variance of 0).
+    let same = |x: &std::path::Path, y: &std::path::Path| {
+        std::fs::canonicalize(x).ok().zip(std::fs::canonicalize(y).ok()).is_some_and(|(x, y)| x == y)
+    };
+    let roles = std::iter::once(("--photo", &a.photo))
+        .chain(a.render.iter().map(|r| ("--render", r)))
+        .chain(a.photo_repeat.iter().map(|r| ("--photo-repeat", r)));
+    let roles: Vec<(&str, &PathBuf)> = roles.collect();
+    for (k, (flag, path)) in roles.iter().enumerate() {
+        if let Some((other, _)) = roles[..k].iter().find(|(_, p)| same(p, path)) {
+            // A repeat photo that is the photo itself would claim a noiseless photo.
+            if *flag == "--photo-repeat" {
+                anyhow::bail!(
+                    "{} is given as {other} and as {flag}: the repeat must be a second photo",
+                    path.display()
+                );
+            }
+            eprintln!(
+                "warning: {} is given as {other} and as {flag}: the metrics compare a file with itself",
+                path.display()
+            );
+        }
+    }
     let mut renders = a.render.into_iter();
     let render = renders.next().context("--render is required")?;
     let req = Request {

@@ -621,6 +621,9 @@ fn srgb_encode(v: f32) -> f32 {
     }
 }
 
+/// The most brackets `lucent env brackets` writes (and `env merge` reads).
+pub const MAX_BRACKETS: usize = 64;
+
 /// `lucent env brackets`: 8-bit exposure brackets of an HDR image through the sRGB curve.
 pub fn brackets(a: EnvBracketsArgs) -> Result<()> {
     let e = extension(&a.input);
@@ -636,8 +639,18 @@ pub fn brackets(a: EnvBracketsArgs) -> Result<()> {
             })
         })
         .collect::<Result<_>>()?;
+    if exposures.len() > MAX_BRACKETS {
+        bail!("--exposures: {} brackets, at most {MAX_BRACKETS}", exposures.len());
+    }
     let img = imageio::read_rgb(&a.input)?;
-    std::fs::create_dir_all(&a.out_dir).with_context(|| format!("{}: cannot create", a.out_dir.display()))?;
+    // All brackets or none: written into a staging folder moved in whole;
+    // Ctrl-C or SIGTERM removes it (and the folder, if this run made it).
+    let _interrupt = crate::cli::interrupt::Interrupt::abort_on_first();
+    let _remove_on_abort = (
+        crate::cli::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out_dir)),
+        (!a.out_dir.exists()).then(|| crate::cli::interrupt::remove_on_abort(&a.out_dir)),
+    );
+    let stage = crate::io::StagedDir::new(&a.out_dir)?;
     let mut names = Vec::new();
     for (k, t) in exposures.iter().enumerate() {
         let bytes: Vec<u8> =
@@ -647,11 +660,11 @@ pub fn brackets(a: EnvBracketsArgs) -> Result<()> {
         let mut out = std::io::Cursor::new(Vec::new());
         buf.write_to(&mut out, image::ImageFormat::Png).context("encode PNG")?;
         let name = format!("bracket_{}.png", k + 1);
-        crate::io::write_atomic(&a.out_dir.join(&name), &out.into_inner())?;
+        crate::io::write_atomic(&stage.path().join(&name), &out.into_inner())?;
         names.push(name);
     }
     write_json(
-        &a.out_dir.join("brackets.json"),
+        &stage.path().join("brackets.json"),
         &serde_json::json!({
             "source": file_name(&a.input),
             "brackets": names,
@@ -659,6 +672,7 @@ pub fn brackets(a: EnvBracketsArgs) -> Result<()> {
             "response": "8-bit sRGB transfer curve (IEC 61966-2-1) of min(value × exposure, 1), rounded",
         }),
     )?;
+    stage.commit(|n| n == "brackets.json" || (n.starts_with("bracket_") && n.ends_with(".png")))?;
     println!(
         "{} brackets of {} (exposures {}) → {}/bracket_1.png … ; merge with: lucent env merge {}/bracket_*.png --exposures {}",
         exposures.len(),

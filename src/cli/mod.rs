@@ -254,7 +254,13 @@ pub fn run(cli: Cli) -> Result<()> {
     }
     let result = jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli));
     if let Some(f) = folder.filter(|f| f.is_dir()) {
-        if result.is_ok() {
+        // A run stopped by Ctrl-C or SIGTERM that kept its labelled partial
+        // result (render, bssrdf) wrote lucent's files too.
+        let kept_partial =
+            result.as_ref().is_err_and(|e| crate::fault::Fault::of(e.as_ref()) == crate::fault::Fault::Interrupted)
+                && std::fs::read_dir(&f)
+                    .is_ok_and(|d| d.flatten().any(|e| !e.file_name().to_string_lossy().starts_with('.')));
+        if result.is_ok() || kept_partial {
             crate::io::mark_output_folder(&f)?;
         } else if !existed {
             let only_mark = std::fs::read_dir(&f)

@@ -20,7 +20,7 @@
 //! g and n_bulk dimensionless.
 
 use super::bulk::OpticalSpectrum;
-use crate::io::{csv_text, write_atomic, write_json, WriteError};
+use crate::io::{csv_text, json_bytes, write_files_atomic, WriteError};
 use crate::plot::{self, PlotError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -205,60 +205,56 @@ fn series(s: &OpticalSpectrum) -> plot::SpectrumSeries<'_> {
     }
 }
 
-fn png(path: &Path, bytes: Result<Vec<u8>, PlotError>) -> Result<(), OutputError> {
+fn png(path: &Path, bytes: Result<Vec<u8>, PlotError>) -> Result<(PathBuf, Vec<u8>), OutputError> {
     let bytes = bytes.map_err(|source| OutputError::Plot { path: path.to_path_buf(), source })?;
-    Ok(write_atomic(path, &bytes)?)
+    Ok((path.to_path_buf(), bytes))
 }
 
-/// Writes the phase table and the plots of one sample into `dir`; returns
-/// the files written.
-pub fn write_sample_files(dir: &Path, spectrum: &OpticalSpectrum) -> Result<Vec<PathBuf>, OutputError> {
-    let mut written = Vec::new();
+/// The phase table and the plots of one sample in `dir`, as (path, bytes).
+fn sample_files(dir: &Path, spectrum: &OpticalSpectrum) -> Result<Vec<(PathBuf, Vec<u8>)>, OutputError> {
+    let mut files = Vec::new();
     if let Some(csv) = phase_csv(spectrum) {
         let p = dir.join("phase_function.csv");
         let csv = csv.map_err(|source| OutputError::Csv { path: p.clone(), source })?;
-        write_atomic(&p, csv.as_bytes())?;
-        written.push(p);
+        files.push((p, csv.into_bytes()));
         if let Some(i) = closest_wavelength(spectrum, 550.0) {
             let w = spectrum.wavelength_nm[i];
             let p = dir.join(format!("phase_{w}nm.png"));
             let title = format!("{}: phase function at {w} nm (log radial axis)", spectrum.sample);
-            png(&p, plot::phase_polar_png(&title, &spectrum.phase[i], spectrum.g[i]))?;
-            written.push(p);
+            files.push(png(&p, plot::phase_polar_png(&title, &spectrum.phase[i], spectrum.g[i]))?);
         }
     }
     let p = dir.join("optical_properties.png");
-    png(&p, plot::spectra_png(&[series(spectrum)]))?;
-    written.push(p);
-    Ok(written)
+    files.push(png(&p, plot::spectra_png(&[series(spectrum)]))?);
+    Ok(files)
 }
 
-/// Writes the full output of the optics stage for `spectra` into `dir`.
+/// Writes the full output of the optics stage for `spectra` into `dir`, all
+/// files or none ([`crate::io::write_files_atomic`]: a full disk or Ctrl-C
+/// leaves no part of a table); returns the files written.
 pub fn write_all(dir: &Path, spectra: &[OpticalSpectrum]) -> Result<Vec<PathBuf>, OutputError> {
     let refs: Vec<&OpticalSpectrum> = spectra.iter().collect();
-    let mut written = Vec::new();
+    let mut files = Vec::new();
     let csv = dir.join("optical_properties.csv");
     let table = table_csv(&refs).map_err(|source| OutputError::Csv { path: csv.clone(), source })?;
-    write_atomic(&csv, table.as_bytes())?;
-    written.push(csv);
+    files.push((csv, table.into_bytes()));
     let json = dir.join("optical_properties.json");
     let file: Vec<OpticalProperties> = spectra.iter().map(OpticalProperties::from).collect();
     if let ([single], [entry]) = (spectra, file.as_slice()) {
-        write_json(&json, entry)?;
-        written.push(json);
-        written.extend(write_sample_files(dir, single)?);
+        files.push((json.clone(), json_bytes(&json, entry)?));
+        files.extend(sample_files(dir, single)?);
     } else {
-        write_json(&json, &file)?;
-        written.push(json);
+        files.push((json.clone(), json_bytes(&json, &file)?));
         let p = dir.join("optical_properties.png");
         let all: Vec<plot::SpectrumSeries> = spectra.iter().map(series).collect();
-        png(&p, plot::spectra_png(&all))?;
-        written.push(p);
+        files.push(png(&p, plot::spectra_png(&all))?);
         for s in spectra {
-            written.extend(write_sample_files(&dir.join(sanitise(&s.sample)), s)?);
+            files.extend(sample_files(&dir.join(sanitise(&s.sample)), s)?);
         }
     }
-    Ok(written)
+    let refs: Vec<(&Path, &[u8])> = files.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect();
+    write_files_atomic(&refs)?;
+    Ok(files.into_iter().map(|(p, _)| p).collect())
 }
 
 /// A sample name made safe as a folder name.

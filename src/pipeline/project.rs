@@ -288,6 +288,8 @@ pub enum ConfigError {
     Number { text: String },
     #[error("{part:?}: angles must lie in [0°, 90°)")]
     Angle { part: String },
+    #[error("{part:?} is given twice")]
+    Repeated { part: String },
 }
 
 /// Parses "45/0,0/45" into (θi, θo) pairs in degrees.
@@ -299,6 +301,9 @@ pub fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>, ConfigError> {
         let (ti, to) = (num(a)?, num(b)?);
         if !(0.0..90.0).contains(&ti) || !(0.0..90.0).contains(&to) {
             return Err(ConfigError::Angle { part: part.to_string() });
+        }
+        if out.contains(&(ti, to)) {
+            return Err(ConfigError::Repeated { part: part.trim().to_string() });
         }
         out.push((ti, to));
     }
@@ -445,7 +450,7 @@ fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, Stri
             spp: r.spp,
             quiet: true,
             time_s: r.time_s,
-            size: None,
+            size: r.size.clone(),
             seed: None,
             out: PathBuf::new(),
         };
@@ -545,12 +550,22 @@ impl Project {
                 crate::optics::recipe::Recipe::load(t, crate::optics::recipe::Overrides::default())
                     .map_err(|e| key(&format!("{at} truth_recipe"), e.to_string()))?;
             }
+            let mut slices: Vec<((f64, f64), PathBuf)> = Vec::new();
             for m in &mut s.measured {
                 existing(&format!("{at} measured file"), &mut m.file)?;
                 let c = parse_configs(&m.config).map_err(|e| key(&format!("{at} measured config"), e.to_string()))?;
                 if c.len() != 1 {
                     return Err(key(&format!("{at} measured config"), "one θi/θo pair per measured slice".into()));
                 }
+                // One slice given twice would count as two configurations in the fit.
+                let file = std::fs::canonicalize(&m.file).unwrap_or_else(|_| m.file.clone());
+                if let Some((cfg, _)) = slices.iter().find(|(_, f)| *f == file) {
+                    return Err(key(
+                        &format!("{at} measured"),
+                        format!("{} is given twice (at {}/{} and {})", m.file.display(), cfg.0, cfg.1, m.config),
+                    ));
+                }
+                slices.push((c[0], file));
             }
         }
         let mut bssrdf_configs = Vec::new();

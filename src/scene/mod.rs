@@ -1130,6 +1130,11 @@ fn build_object_triangles(
     if chosen > 1 {
         return Err(ctx.section("object", SectionProblem::Placement));
     }
+    // A transform places the object whole (its own z offset is the gap);
+    // lift_m beside it would be ignored.
+    if o.transform.is_some() && o.lift_m.is_some() {
+        return Err(ctx.section("object", SectionProblem::Conflict { first: "transform", second: "lift_m" }));
+    }
     let lifted = |mut m: [[f64; 4]; 4]| {
         m[2][3] += lift;
         m
