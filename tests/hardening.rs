@@ -472,6 +472,9 @@ fn data_loss_an_output_never_replaces_an_input() {
     std::fs::write(d.join("cal/camera.json"), "{}").unwrap();
     std::fs::write(d.join("photo.exr"), "photo").unwrap();
     std::fs::write(d.join("ccm.json"), "{}").unwrap();
+    // Files of the user's under the names of sidecars, without the main output beside them.
+    std::fs::write(d.join("photo_dec.json"), "my notes").unwrap();
+    std::fs::write(d.join("my_residuals.png"), "my plot").unwrap();
     let before = snapshot(d);
     for (args, says) in [
         (vec!["env", "view", "map.exr", "--fov", "60", "--size", "16x12", "--out", "map.exr"], "over the input"),
@@ -497,6 +500,11 @@ fn data_loss_an_output_never_replaces_an_input() {
             "over the input",
         ),
         (vec!["raw", "decode", "photo.dng", "w.exr", "--preview", "w.exr"], "the same file"),
+        (vec!["raw", "decode", "photo.dng", "photo_dec.exr"], "photo_dec.json exists"),
+        (
+            vec!["calibrate", "--images", "cal/*.jpg", "--board", "9x6", "--square-mm", "20", "--out", "my.json"],
+            "my_residuals.png exists",
+        ),
     ] {
         let o = lucent_in(d, &args);
         refused(&o, &[says], &args.join(" "));

@@ -275,9 +275,16 @@ pub fn run(cli: Cli) -> Result<()> {
     result
 }
 
-/// The files a command reads (`inputs`) and the files it writes, sidecars
-/// included (`outputs`), for the commands that write files the user names.
-fn file_roles(command: &Command) -> (Vec<PathBuf>, Vec<PathBuf>) {
+/// The files a command reads, the files the user names it to write, and
+/// the files it writes beside them under derived names (sidecars), for the
+/// commands that write files rather than a folder.
+struct FileRoles {
+    inputs: Vec<PathBuf>,
+    outputs: Vec<PathBuf>,
+    sidecars: Vec<PathBuf>,
+}
+
+fn file_roles(command: &Command) -> FileRoles {
     let json = |p: &Path| p.with_extension("json");
     let sibling = |p: &Path, suffix: &str| {
         let stem = p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
@@ -286,42 +293,56 @@ fn file_roles(command: &Command) -> (Vec<PathBuf>, Vec<PathBuf>) {
     let globbed = |specs: &[String]| -> Vec<PathBuf> {
         specs.iter().flat_map(|s| crate::io::glob_files(s).unwrap_or_default()).collect()
     };
+    let roles =
+        |inputs: Vec<PathBuf>, outputs: Vec<PathBuf>, sidecars: Vec<PathBuf>| FileRoles { inputs, outputs, sidecars };
     match command {
-        Command::Raw(camera::RawCommand::Decode(a)) => (
+        Command::Raw(camera::RawCommand::Decode(a)) => roles(
             vec![a.input.clone()],
-            [Some(a.output.clone()), Some(json(&a.output)), a.preview.clone()].into_iter().flatten().collect(),
+            std::iter::once(a.output.clone()).chain(a.preview.clone()).collect(),
+            vec![json(&a.output)],
         ),
-        Command::Undistort(a) => (vec![a.camera.clone(), a.input.clone()], vec![a.output.clone(), json(&a.output)]),
-        Command::Pose(a) => {
-            (vec![a.camera.clone(), a.image.clone()], vec![a.out.clone(), sibling(&a.out, "_view.png")])
+        Command::Undistort(a) => {
+            roles(vec![a.camera.clone(), a.input.clone()], vec![a.output.clone()], vec![json(&a.output)])
         }
-        Command::Calibrate(a) => (globbed(&a.images), vec![a.out.clone(), sibling(&a.out, "_residuals.png")]),
-        Command::Colour(colour::ColourCommand::Apply(a)) => (
+        Command::Pose(a) => {
+            roles(vec![a.camera.clone(), a.image.clone()], vec![a.out.clone()], vec![sibling(&a.out, "_view.png")])
+        }
+        Command::Calibrate(a) => {
+            roles(globbed(&a.images), vec![a.out.clone()], vec![sibling(&a.out, "_residuals.png")])
+        }
+        Command::Colour(colour::ColourCommand::Apply(a)) => roles(
             vec![a.ccm.clone(), a.input.clone()],
             std::iter::once(a.output.clone()).chain(a.variance_out.clone()).collect(),
+            vec![],
         ),
-        Command::Env(camera::EnvCommand::Convert(a)) => (vec![a.input.clone()], vec![a.output.clone()]),
+        Command::Env(camera::EnvCommand::Convert(a)) => roles(vec![a.input.clone()], vec![a.output.clone()], vec![]),
         Command::Env(camera::EnvCommand::View(a)) => {
-            (vec![a.input.clone()], vec![a.out.clone(), sibling(&a.out, ".json")])
+            roles(vec![a.input.clone()], vec![a.out.clone()], vec![sibling(&a.out, ".json")])
         }
-        Command::Env(camera::EnvCommand::Orient(a)) => {
-            (vec![a.input.clone()], vec![a.out.clone(), sibling(&a.out, ".json"), sibling(&a.out, "_board.png")])
-        }
-        Command::Env(camera::EnvCommand::Merge(a)) => (a.brackets.clone(), vec![a.out.clone()]),
-        _ => (vec![], vec![]),
+        Command::Env(camera::EnvCommand::Orient(a)) => roles(
+            vec![a.input.clone()],
+            vec![a.out.clone()],
+            vec![sibling(&a.out, ".json"), sibling(&a.out, "_board.png")],
+        ),
+        Command::Env(camera::EnvCommand::Merge(a)) => roles(a.brackets.clone(), vec![a.out.clone()], vec![]),
+        _ => roles(vec![], vec![], vec![]),
     }
 }
 
 /// A command must not write over a file it reads (`env view map.exr --out
 /// map.exr`, a sidecar `camera.json` beside `--camera camera.json`), nor
-/// write two of its outputs to one path: refused before any work.
+/// write two of its outputs to one path, nor replace a file under a
+/// sidecar's name that is not from an earlier run (its main output is not
+/// there: `photo.json` of the user's beside `raw decode … photo.exr`):
+/// refused before any work.
 fn check_outputs_are_not_inputs(command: &Command) -> Result<()> {
-    let (inputs, outputs) = file_roles(command);
+    let FileRoles { inputs, outputs, sidecars } = file_roles(command);
     // The same file, however it is spelled (links, `./`, `..`): compared by
     // identity when it exists, else by absolute path.
     let key =
         |p: &Path| std::fs::canonicalize(p).or_else(|_| std::path::absolute(p)).unwrap_or_else(|_| p.to_path_buf());
-    for (k, o) in outputs.iter().enumerate() {
+    let all: Vec<&PathBuf> = outputs.iter().chain(&sidecars).collect();
+    for (k, o) in all.iter().enumerate() {
         let ko = key(o);
         if let Some(i) = inputs.iter().find(|i| key(i) == ko) {
             bail!(
@@ -330,13 +351,23 @@ fn check_outputs_are_not_inputs(command: &Command) -> Result<()> {
                 i.display()
             );
         }
-        if let Some(other) = outputs[..k].iter().find(|p| key(p) == ko) {
+        if let Some(other) = all[..k].iter().find(|p| key(p) == ko) {
             bail!(
                 "{} and {} name the same file: two outputs cannot share it (nothing was written)",
                 other.display(),
                 o.display()
             );
         }
+    }
+    if let Some(main) = outputs.first().filter(|m| !m.exists())
+        && let Some(s) = sidecars.iter().find(|s| s.exists())
+    {
+        bail!(
+            "{} exists but {} does not, so it is not from an earlier run of this command: move it or give the \
+             output another name (nothing was written)",
+            s.display(),
+            main.display()
+        );
     }
     Ok(())
 }
