@@ -558,7 +558,11 @@ fn optics_from(a: OpticsArgs, merged_from: Option<&[crate::shard::Shard]>) -> Re
     let start = Instant::now();
     let spectra: Vec<OpticalSpectrum> = recipes
         .par_iter()
-        .map(|r| bulk::compute(r, &grid, &options).map_err(anyhow::Error::from))
+        .map(|r| {
+            bulk::compute(r, &grid, &options)
+                .map_err(anyhow::Error::from)
+                .with_context(|| format!("{} (its particles' size and index)", r.path.display()))
+        })
         .collect::<Result<_>>()?;
     let elapsed = start.elapsed().as_secs_f64();
     for s in &spectra {

@@ -148,10 +148,11 @@ pub enum KeyProblem {
     )]
     Coefficients { band: usize, s: f64, a: f64 },
     #[error(
-        "must be an affine map that keeps a solid a solid: last row [0, 0, 0, 1] (got {last_row:?}) and an \
-         invertible 3 × 3 part (determinant {determinant})"
+        "must be an affine map that keeps a solid a solid: last row [0, 0, 0, 1] (got {last_row:?}) and a \
+         well-conditioned 3 × 3 part (determinant {determinant}, at least 1e-9 × the cube of its largest entry \
+         {largest})"
     )]
-    SingularTransform { determinant: f64, last_row: [f64; 4] },
+    SingularTransform { determinant: f64, last_row: [f64; 4], largest: f64 },
     #[error("must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %), got {value}")]
     Fraction { value: f64 },
     #[error("reflectances must lie in [0, 1], got {values:?}")]
@@ -1158,7 +1159,7 @@ fn build_object_triangles(
             return Err(ctx.key(
                 "object",
                 "transform",
-                KeyProblem::SingularTransform { determinant: det, last_row: t[3] },
+                KeyProblem::SingularTransform { determinant: det, last_row: t[3], largest: scale },
             ));
         }
         t
