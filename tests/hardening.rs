@@ -501,6 +501,12 @@ fn data_loss_an_output_never_replaces_an_input() {
         ),
         (vec!["raw", "decode", "photo.dng", "w.exr", "--preview", "w.exr"], "the same file"),
         (vec!["raw", "decode", "photo.dng", "photo_dec.exr"], "photo_dec.json exists"),
+        // A photo's name given as the camera file (the images from a folder).
+        (
+            vec!["calibrate", "--images", "cal", "--board", "9x6", "--square-mm", "20", "--out", "photo.exr"],
+            "JSON file",
+        ),
+        (vec!["env", "convert", "map.exr", "m2.exr", "--matrix", "0,0,0;0,0,0;0,0,0"], "black"),
         (
             vec!["calibrate", "--images", "cal/*.jpg", "--board", "9x6", "--square-mm", "20", "--out", "my.json"],
             "my_residuals.png exists",

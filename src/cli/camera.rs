@@ -730,7 +730,11 @@ fn env_convert(a: EnvConvertArgs) -> Result<()> {
             } else {
                 m.clone()
             };
-            Some(env::parse_matrix(&text).with_context(|| format!("--matrix {m}"))?)
+            let matrix = env::parse_matrix(&text).with_context(|| format!("--matrix {m}"))?;
+            if matrix.iter().flatten().all(|v| *v == 0.0) {
+                bail!("--matrix {m}: every coefficient is 0, the map would be black");
+            }
+            Some(matrix)
         }
     };
     let mut img = read_env(&a.input)?;

@@ -359,6 +359,12 @@ fn check_outputs_are_not_inputs(command: &Command) -> Result<()> {
             );
         }
     }
+    // The camera and scene files are JSON: another extension is a photo's name given by mistake.
+    if let Command::Calibrate(camera::CalibrateArgs { out, .. }) | Command::Pose(camera::PoseArgs { out, .. }) = command
+        && !out.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    {
+        bail!("--out {}: the output is a JSON file (NAME.json)", out.display());
+    }
     if let Some(main) = outputs.first().filter(|m| !m.exists())
         && let Some(s) = sidecars.iter().find(|s| s.exists())
     {
@@ -721,6 +727,9 @@ pub fn read_mie_cases(path: &Path) -> Result<Vec<(Complex64, f64)>> {
     for (k, row) in reader.deserialize::<Case>().enumerate() {
         let c = row.with_context(|| format!("{}: data row {}", path.display(), k + 1))?;
         cases.push((Complex64::new(c.m_re, c.m_im), c.x));
+    }
+    if cases.is_empty() {
+        bail!("{}: no cases (a header only): nothing to time", path.display());
     }
     Ok(cases)
 }
