@@ -570,6 +570,9 @@ fn nonsense_second_round_is_refused_where_it_is_written() {
     let size = bad("misleading").join("render_size_zero.toml");
     write_exr(&d.join("p.exr"), 16, 12, 0.5);
     write_exr(&d.join("r.exr"), 16, 12, 0.4);
+    let scene = std::fs::read_to_string(root().join("fixtures/render/plaque_dense.toml")).unwrap();
+    assert!(scene.contains("u = [1.0, 0.0, 0.0]"));
+    std::fs::write(d.join("u100.toml"), scene.replace("u = [1.0, 0.0, 0.0]", "u = [100.0, 0.0, 0.0]")).unwrap();
     for (args, says) in [
         // --g and --n are the recipe's: given with it they were silently ignored.
         (vec!["bssrdf", "--recipe", r, "--g", "0.9", "--paths", "10", "--out", "o"], vec!["--g"]),
@@ -581,6 +584,8 @@ fn nonsense_second_round_is_refused_where_it_is_written() {
             vec!["compare", "--photo", "p.exr", "--render", "r.exr", "--photo-repeat", "./p.exr", "--out", "o"],
             vec!["second photo"],
         ),
+        // A board axis of length 100 was normalised without a word.
+        (vec!["render", "u100.toml", "--out", "o"], vec!["u100.toml", "[board] u", "unit vector"]),
         // The wavelength grid says why it is refused.
         (vec!["optics", r, "--wavelengths", "550:450:10", "--out", "o"], vec!["end is below start"]),
     ] {
@@ -592,5 +597,5 @@ fn nonsense_second_round_is_refused_where_it_is_written() {
     assert!(o.status.success() && stderr(&o).contains("compare a file with itself"), "{}", stderr(&o));
     std::fs::remove_dir_all(d.join("o")).unwrap();
     let left: Vec<_> = std::fs::read_dir(d).unwrap().flatten().map(|e| e.file_name()).collect();
-    assert_eq!(left.len(), 2, "a refused run wrote something: {left:?}");
+    assert_eq!(left.len(), 3, "a refused run wrote something: {left:?}");
 }

@@ -72,6 +72,12 @@ pub enum CameraError {
     BadPose { why: String },
     #[error("distortion coefficients must be finite, got {0:?}")]
     BadDistortion([f64; 5]),
+    /// The rule of a calibrated camera's principal point, for every camera.
+    #[error(
+        "principal point ({cx}, {cy}) px is far outside the {width} × {height} image (allowed: within half an \
+         image size of its edges)"
+    )]
+    PrincipalPoint { cx: f64, cy: f64, width: usize, height: usize },
 }
 
 /// OpenCV's Brown–Conrady distortion (k1, k2, p1, p2, k3) of normalised points:
@@ -145,6 +151,10 @@ impl Camera {
         let [fx, fy, cx, cy] = intrinsics;
         if !(fx > 0.0 && fy > 0.0 && fx.is_finite() && fy.is_finite() && cx.is_finite() && cy.is_finite()) {
             return Err(CameraError::BadIntrinsics { fx, fy, cx, cy });
+        }
+        let inside = |c: f64, side: usize| c >= -0.5 * side as f64 && c <= 1.5 * side as f64;
+        if !(inside(cx, width) && inside(cy, height)) {
+            return Err(CameraError::PrincipalPoint { cx, cy, width, height });
         }
         let m = camera_to_world;
         if m.iter().flatten().any(|v| !v.is_finite()) {
@@ -283,6 +293,10 @@ mod tests {
         let id = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
         assert!(matches!(Camera::new(0, 4, [1.0, 1.0, 0.0, 0.0], id, None), Err(CameraError::EmptyImage { .. })));
         assert!(matches!(Camera::new(4, 4, [-1.0, 1.0, 0.0, 0.0], id, None), Err(CameraError::BadIntrinsics { .. })));
+        // The principal point within half an image of its edges, as for a calibrated camera.
+        assert!(matches!(Camera::new(4, 4, [1.0, 1.0, 1e9, 2.0], id, None), Err(CameraError::PrincipalPoint { .. })));
+        assert!(Camera::new(4, 4, [1.0, 1.0, 6.0, -2.0], id, None).is_ok());
+        assert!(matches!(Camera::new(4, 4, [1.0, 1.0, 2.0, -2.1], id, None), Err(CameraError::PrincipalPoint { .. })));
         let mut skew = id;
         skew[0][1] = 0.5;
         assert!(matches!(Camera::new(4, 4, [1.0, 1.0, 0.0, 0.0], skew, None), Err(CameraError::BadPose { .. })));

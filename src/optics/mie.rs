@@ -104,7 +104,7 @@ pub enum MieError {
     #[error("size parameter |x| = {0} exceeds the supported maximum of 1e5")]
     TooLarge(f64),
     #[error(
-        "|m·x| = {0:e} (relative index × size parameter) exceeds the supported maximum of 1e5: the series \
+        "|m·x| = {0:e} (relative index × size parameter) exceeds the supported maximum of 1e7: the series \
          inside the sphere would need that many terms"
     )]
     TooLargeInside(f64),
@@ -202,7 +202,7 @@ fn check_arguments(m: Complex64, x: Complex64) -> Result<f64, MieError> {
         return Err(MieError::TooLarge(xabs));
     }
     let mx = (m * x).norm();
-    if mx > 1e5 {
+    if mx > 1e7 {
         return Err(MieError::TooLargeInside(mx));
     }
     if xabs < MIN_SIZE_PARAMETER {

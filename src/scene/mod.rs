@@ -148,8 +148,8 @@ pub enum KeyProblem {
     )]
     Coefficients { band: usize, s: f64, a: f64 },
     #[error(
-        "must be an affine map that keeps a solid a solid: last row [0, 0, 0, 1] (got {last_row:?}) and a \
-         well-conditioned 3 × 3 part (determinant {determinant}, at least 1e-9 × the cube of its largest entry \
+        "must be an affine map that keeps a solid a solid: last row [0, 0, 0, 1] (got {last_row:?}) and an \
+         invertible, well-conditioned 3 × 3 part (determinant {determinant}, at least 1e-9 × the cube of its largest entry \
          {largest})"
     )]
     SingularTransform { determinant: f64, last_row: [f64; 4], largest: f64 },
@@ -163,6 +163,8 @@ pub enum KeyProblem {
     Constant(lucent_render::env::EnvError),
     #[error("{0}")]
     Board(lucent_calib::board::BoardError),
+    #[error("must be a unit vector, got {values:?} of length {length}")]
+    NotUnit { values: [f64; 3], length: f64 },
     #[error("box sides must be finite and > 0, got {sides_m:?} m")]
     BoxSize { sides_m: [f64; 3] },
     /// A choice among named values.
@@ -1278,8 +1280,16 @@ fn build_board(
             "origin_m",
             b.origin_m.ok_or_else(|| ctx.key("board", "origin_m", KeyProblem::Required { when: NO_SCENE_JSON }))?,
         )?;
-        let u = finite3(ctx, "board", "u", b.u.unwrap_or([1.0, 0.0, 0.0]))?.normalize();
-        let v = finite3(ctx, "board", "v", b.v.unwrap_or([0.0, 1.0, 0.0]))?.normalize();
+        // Unit vectors, as documented: a u of [100, 0, 0] is a mistake, not a direction to normalise.
+        let unit = |key: &'static str, v: [f64; 3]| -> Result<DVec3, SceneFileError> {
+            let d = finite3(ctx, "board", key, v)?;
+            if (d.length() - 1.0).abs() > 1e-6 {
+                return Err(ctx.key("board", key, KeyProblem::NotUnit { values: v, length: d.length() }));
+            }
+            Ok(d.normalize())
+        };
+        let u = unit("u", b.u.unwrap_or([1.0, 0.0, 0.0]))?;
+        let v = unit("v", b.v.unwrap_or([0.0, 1.0, 0.0]))?;
         let (c, r) = (need_usize(b.columns, "columns")?, need_usize(b.rows, "rows")?);
         (
             origin,
