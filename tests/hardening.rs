@@ -573,6 +573,9 @@ fn nonsense_second_round_is_refused_where_it_is_written() {
     let scene = std::fs::read_to_string(root().join("fixtures/render/plaque_dense.toml")).unwrap();
     assert!(scene.contains("u = [1.0, 0.0, 0.0]"));
     std::fs::write(d.join("u100.toml"), scene.replace("u = [1.0, 0.0, 0.0]", "u = [100.0, 0.0, 0.0]")).unwrap();
+    let recipe_text = std::fs::read_to_string(&recipe).unwrap();
+    assert!(recipe_text.contains("diameter_um = 2.2"));
+    std::fs::write(d.join("metres.toml"), recipe_text.replace("diameter_um = 2.2", "diameter_um = 2.2e-6")).unwrap();
     for (args, says) in [
         // --g and --n are the recipe's: given with it they were silently ignored.
         (vec!["bssrdf", "--recipe", r, "--g", "0.9", "--paths", "10", "--out", "o"], vec!["--g"]),
@@ -586,6 +589,13 @@ fn nonsense_second_round_is_refused_where_it_is_written() {
         ),
         // A board axis of length 100 was normalised without a word.
         (vec!["render", "u100.toml", "--out", "o"], vec!["u100.toml", "[board] u", "unit vector"]),
+        // A diameter typed in metres; a yaw of 1e300°; an X3P written under a .csv name.
+        (
+            vec!["optics", "metres.toml", "--wavelength", "550", "--out", "o"],
+            vec!["metres.toml", "diameter_um", "micrometres"],
+        ),
+        (vec!["env", "orient", "p.exr", "--yaw", "1e300", "--out", "t.exr"], vec!["--yaw", "3600"]),
+        (vec!["surface", "synth", "--model", "tr", "--alpha", "0.1", "--size", "16", "--out", "s.csv"], vec!["X3P"]),
         // The wavelength grid says why it is refused.
         (vec!["optics", r, "--wavelengths", "550:450:10", "--out", "o"], vec!["end is below start"]),
     ] {
@@ -597,5 +607,5 @@ fn nonsense_second_round_is_refused_where_it_is_written() {
     assert!(o.status.success() && stderr(&o).contains("compare a file with itself"), "{}", stderr(&o));
     std::fs::remove_dir_all(d.join("o")).unwrap();
     let left: Vec<_> = std::fs::read_dir(d).unwrap().flatten().map(|e| e.file_name()).collect();
-    assert_eq!(left.len(), 3, "a refused run wrote something: {left:?}");
+    assert_eq!(left.len(), 4, "a refused run wrote something: {left:?}");
 }

@@ -127,6 +127,10 @@ const CHANNELS: [char; 3] = ['R', 'G', 'B'];
 /// in, so that sums of samples and variances stay finite.
 pub const MAX_RADIANCE: f64 = 1e30;
 
+/// The largest |yaw| of a map, degrees (ten turns: a larger value is a typo,
+/// and reduces mod 360° inexactly).
+pub const MAX_YAW_DEG: f64 = 3600.0;
+
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum EnvError {
     /// Width or height is 0.
@@ -150,8 +154,8 @@ pub enum EnvError {
          (renders are stored as 32-bit floats)"
     )]
     Overflow { scale: f64, max: f32 },
-    /// The yaw is NaN or infinite.
-    #[error("environment yaw {0}° must be finite")]
+    /// The yaw is NaN, infinite or beyond [`MAX_YAW_DEG`].
+    #[error("environment yaw {0}° must be finite and within ±{MAX_YAW_DEG}°")]
     BadYaw(f64),
     /// The sphere radius is NaN, infinite, zero or negative.
     #[error("environment sphere radius {0} m must be finite and > 0")]
@@ -257,7 +261,7 @@ impl Environment {
         if scale * f64::from(max) > MAX_RADIANCE {
             return Err(EnvError::Overflow { scale, max });
         }
-        if !yaw_deg.is_finite() {
+        if !(yaw_deg.is_finite() && yaw_deg.abs() <= MAX_YAW_DEG) {
             return Err(EnvError::BadYaw(yaw_deg));
         }
         let inv_radius = match projection {

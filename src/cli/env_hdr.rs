@@ -421,9 +421,9 @@ pub fn orient(a: EnvOrientArgs) -> Result<()> {
         bail!("{}: the output must be an .exr file (32-bit float)", a.out.display());
     }
     if let Some(y) = a.yaw
-        && !y.is_finite()
+        && !(y.is_finite() && y.abs() <= lucent_render::env::MAX_YAW_DEG)
     {
-        bail!("--yaw {y}: must be a finite number of degrees");
+        bail!("--yaw {y}: must be a finite number of degrees within ±{}°", lucent_render::env::MAX_YAW_DEG);
     }
     if !(a.max_tilt_deg.is_finite() && a.max_tilt_deg > 0.0) {
         bail!("--max-tilt-deg {}: must be a positive number of degrees", a.max_tilt_deg);

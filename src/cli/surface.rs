@@ -171,6 +171,9 @@ fn fit(a: FitArgs) -> Result<()> {
 }
 
 fn synth(a: SynthArgs) -> Result<()> {
+    if !a.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("x3p")) {
+        bail!("--out {}: the output is an X3P file (NAME.x3p)", a.out.display());
+    }
     let model = a.model;
     let (nx, ny) = match a.size.split_once(['x', 'X']) {
         Some((x, y)) => (x.trim().parse::<usize>(), y.trim().parse::<usize>()),

@@ -751,16 +751,27 @@ impl Validator<'_> {
         })
     }
 
+    /// A particle diameter in µm: positive, and between an atom (0.1 nm) and
+    /// a centimetre, so a diameter typed in metres or millimetres is caught.
+    fn diameter(&self, key: &str, value: f64) -> Result<f64, RecipeError> {
+        let d = self.positive(key, value, "micrometres")?;
+        if !(1e-4..=1e4).contains(&d) {
+            return self
+                .invalid(key, format!("{d} µm is outside 1e-4 … 1e4 µm (0.1 nm to 1 cm): the unit is micrometres"));
+        }
+        Ok(d)
+    }
+
     fn size(&self, key: &str, raw: &RawSize, particle: usize) -> Result<SizeDistribution, RecipeError> {
         Ok(match *raw {
             RawSize::Diameter { ref diameter_um } => {
                 let dkey = format!("{key}.diameter_um");
                 let d = self.value(&dkey, diameter_um.clone(), InputTarget::DiameterUm { particle })?;
-                SizeDistribution::Mono { radius_m: self.positive(&dkey, d, "micrometres")? * 0.5e-6 }
+                SizeDistribution::Mono { radius_m: self.diameter(&dkey, d)? * 0.5e-6 }
             }
             RawSize::Range { min_um, max_um, distribution } => {
-                let lo = self.positive(&format!("{key}.min_um"), min_um, "micrometres")?;
-                let hi = self.positive(&format!("{key}.max_um"), max_um, "micrometres")?;
+                let lo = self.diameter(&format!("{key}.min_um"), min_um)?;
+                let hi = self.diameter(&format!("{key}.max_um"), max_um)?;
                 if hi <= lo {
                     return self
                         .invalid(key, format!("empty diameter range [{lo}, {hi}] µm: max_um must exceed min_um"));
@@ -773,7 +784,7 @@ impl Validator<'_> {
                 }
             }
             RawSize::LogNormal { median_diameter_um, sigma } => {
-                let d = self.positive(&format!("{key}.median_diameter_um"), median_diameter_um, "micrometres")?;
+                let d = self.diameter(&format!("{key}.median_diameter_um"), median_diameter_um)?;
                 let s = self.positive(&format!("{key}.sigma"), sigma, "(geometric standard deviation of ln d)")?;
                 if s > 2.0 {
                     return self.invalid(&format!("{key}.sigma"), format!("{s} is implausibly wide (must be ≤ 2)"));
