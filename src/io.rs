@@ -487,6 +487,13 @@ mod interrupt {
     }
 }
 
+/// The same file however its path is spelled (links, `./`, `..`): the
+/// canonical path when it exists, else the absolute one. Two paths name one
+/// file when their keys are equal.
+pub fn file_key(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path).or_else(|_| std::path::absolute(path)).unwrap_or_else(|_| path.to_path_buf())
+}
+
 /// The most [`read_text`] takes from a device or a pipe (a regular file is
 /// read whole: its size is known before it is read).
 pub const MAX_STREAM_TEXT_BYTES: u64 = 64 << 20;

@@ -49,15 +49,24 @@ fn board(text: &str, square_mm: f64) -> Result<(), JobError> {
     }
 }
 
-/// An image size "WIDTHxHEIGHT" a render can hold
-/// ([`lucent_render::camera::check_image_size`]).
+/// An image size "WIDTHxHEIGHT" in pixels that a render can hold
+/// ([`lucent_render::camera::check_image_size`]); the error is the reason.
+pub fn parse_image_size(text: &str) -> Result<(usize, usize), String> {
+    let (w, h) = text.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 640x480")?;
+    let w: usize = w.trim().parse().map_err(|e| format!("bad width: {e}"))?;
+    let h: usize = h.trim().parse().map_err(|e| format!("bad height: {e}"))?;
+    if w == 0 || h == 0 {
+        return Err("width and height must be at least 1".into());
+    }
+    lucent_render::camera::check_image_size(w, h).map_err(|e| e.to_string())?;
+    Ok((w, h))
+}
+
+/// An optional `size` field, checked by [`parse_image_size`].
 fn image_size(size: &Option<String>) -> Result<(), JobError> {
-    let Some(text) = size else { return Ok(()) };
-    let parsed = text.split_once(['x', 'X']).and_then(|(w, h)| Some((w.trim().parse().ok()?, h.trim().parse().ok()?)));
-    match parsed {
-        None => Err(bad("size", text, "expected WIDTHxHEIGHT, e.g. 640x480")),
-        Some((0, _) | (_, 0)) => Err(bad("size", text, "width and height must be at least 1")),
-        Some((w, h)) => lucent_render::camera::check_image_size(w, h).map_err(|e| bad("size", text, e.to_string())),
+    match size {
+        Some(text) => parse_image_size(text).map(drop).map_err(|reason| bad("size", text, reason)),
+        None => Ok(()),
     }
 }
 

@@ -489,14 +489,10 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         return Ok(());
     }
     // Written into a staging folder, moved into --out when every configuration is done.
-    let out_existed = a.out.exists();
     // A second Ctrl-C ends the process at once: the staging folder goes with
     // it (registered before it exists), and so does --out if this run
     // created it (it is still empty then).
-    let _remove_on_abort = (
-        super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out)),
-        (!out_existed).then(|| super::interrupt::remove_on_abort(&a.out)),
-    );
+    let _remove_on_abort = super::interrupt::remove_staged_on_abort(&a.out);
     let stage = crate::io::StagedDir::new(&a.out)?;
     let mut table =
         String::from("folder,theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,sum_per_m2_sr,sum_std_error,paths,wall_s\n");

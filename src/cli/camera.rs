@@ -176,7 +176,7 @@ fn to_image(buf: RgbBuffer) -> RgbImage {
     RgbImage { width: buf.width, height: buf.height, data: buf.data }
 }
 
-fn sibling(path: &Path, suffix: &str) -> PathBuf {
+pub(super) fn sibling(path: &Path, suffix: &str) -> PathBuf {
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
     path.with_file_name(format!("{stem}{suffix}"))
 }

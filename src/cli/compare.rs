@@ -94,7 +94,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
     }
     // One file in two roles compares nothing (an SSIM of 1, a photo variance of 0).
     let same = |x: &std::path::Path, y: &std::path::Path| {
-        std::fs::canonicalize(x).ok().zip(std::fs::canonicalize(y).ok()).is_some_and(|(x, y)| x == y)
+        x.exists() && y.exists() && crate::io::file_key(x) == crate::io::file_key(y)
     };
     let roles = std::iter::once(("--photo", &a.photo))
         .chain(a.render.iter().map(|r| ("--render", r)))

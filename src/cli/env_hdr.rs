@@ -646,10 +646,7 @@ pub fn brackets(a: EnvBracketsArgs) -> Result<()> {
     // All brackets or none: written into a staging folder moved in whole;
     // Ctrl-C or SIGTERM removes it (and the folder, if this run made it).
     let _interrupt = crate::cli::interrupt::Interrupt::abort_on_first();
-    let _remove_on_abort = (
-        crate::cli::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out_dir)),
-        (!a.out_dir.exists()).then(|| crate::cli::interrupt::remove_on_abort(&a.out_dir)),
-    );
+    let _remove_on_abort = crate::cli::interrupt::remove_staged_on_abort(&a.out_dir);
     let stage = crate::io::StagedDir::new(&a.out_dir)?;
     let mut names = Vec::new();
     for (k, t) in exposures.iter().enumerate() {

@@ -139,7 +139,7 @@ pub fn build_problem(a: &FitArgs) -> Result<Problem> {
         if !path.is_file() {
             bail!("--measured {}: no such file", path.display());
         }
-        let key = std::fs::canonicalize(&path).unwrap_or_else(|_| path.clone());
+        let key = crate::io::file_key(&path);
         if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
             bail!("--measured {spec}: the same file as --measured {first}; give each measured slice once");
         }
@@ -237,11 +237,7 @@ pub fn run(a: FitArgs) -> Result<()> {
     let problem = build_problem(&a)?;
     // Registered before the staging folder exists: a second Ctrl-C the
     // moment it appears still removes it (and --out, if this run made it).
-    let out_existed = a.out.exists();
-    let _remove_on_abort = (
-        super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out)),
-        (!out_existed).then(|| super::interrupt::remove_on_abort(&a.out)),
-    );
+    let _remove_on_abort = super::interrupt::remove_staged_on_abort(&a.out);
     let stage = crate::io::StagedDir::new(&a.out)?;
     let interrupt = super::interrupt::Interrupt::install();
     let quiet = a.quiet;

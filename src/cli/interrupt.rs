@@ -188,6 +188,14 @@ pub fn remove_on_abort(path: &Path) -> Registered {
     Registered(id)
 }
 
+/// The guards of a command that writes through a [`crate::io::StagedDir`]
+/// into `out`: its staging folder, and `out` itself when this run creates
+/// it. Taken before either exists, so an abort the moment they appear still
+/// removes them.
+pub fn remove_staged_on_abort(out: &Path) -> (Registered, Option<Registered>) {
+    (remove_on_abort(&crate::io::StagedDir::staging_path(out)), (!out.exists()).then(|| remove_on_abort(out)))
+}
+
 impl Drop for Registered {
     fn drop(&mut self) {
         let mut list = REGISTERED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());

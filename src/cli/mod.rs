@@ -286,10 +286,7 @@ struct FileRoles {
 
 fn file_roles(command: &Command) -> FileRoles {
     let json = |p: &Path| p.with_extension("json");
-    let sibling = |p: &Path, suffix: &str| {
-        let stem = p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        p.with_file_name(format!("{stem}{suffix}"))
-    };
+    let sibling = camera::sibling;
     let globbed = |specs: &[String]| -> Vec<PathBuf> {
         specs.iter().flat_map(|s| crate::io::glob_files(s).unwrap_or_default()).collect()
     };
@@ -337,10 +334,7 @@ fn file_roles(command: &Command) -> FileRoles {
 /// refused before any work.
 fn check_outputs_are_not_inputs(command: &Command) -> Result<()> {
     let FileRoles { inputs, outputs, sidecars } = file_roles(command);
-    // The same file, however it is spelled (links, `./`, `..`): compared by
-    // identity when it exists, else by absolute path.
-    let key =
-        |p: &Path| std::fs::canonicalize(p).or_else(|_| std::path::absolute(p)).unwrap_or_else(|_| p.to_path_buf());
+    let key = |p: &Path| crate::io::file_key(p);
     let all: Vec<&PathBuf> = outputs.iter().chain(&sidecars).collect();
     for (k, o) in all.iter().enumerate() {
         let ko = key(o);
@@ -483,7 +477,7 @@ fn collect_recipe_paths(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     // spelling of its path) is computed once.
     let mut seen = Vec::new();
     paths.retain(|p| {
-        let key = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        let key = crate::io::file_key(p);
         if seen.contains(&key) {
             eprintln!("warning: {}: recipe given more than once; computed once", p.display());
             return false;

@@ -223,17 +223,7 @@ pub fn check_rel_error(flag: &str, e: f64) -> Result<f64> {
 }
 
 pub fn parse_size(text: &str) -> Result<(usize, usize)> {
-    let (w, h) =
-        text.split_once(['x', 'X']).with_context(|| format!("--size {text:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
-    let (w, h): (usize, usize) = (
-        w.trim().parse().with_context(|| format!("--size {text:?}: bad width"))?,
-        h.trim().parse().with_context(|| format!("--size {text:?}: bad height"))?,
-    );
-    if w == 0 || h == 0 {
-        bail!("--size {text:?}: width and height must be at least 1");
-    }
-    lucent_render::camera::check_image_size(w, h).with_context(|| format!("--size {text:?}"))?;
-    Ok((w, h))
+    crate::job::parse_image_size(text).map_err(|reason| anyhow::anyhow!("--size {text:?}: {reason}"))
 }
 
 /// Checks a wall-time budget in seconds.

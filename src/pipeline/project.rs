@@ -558,7 +558,7 @@ impl Project {
                     return Err(key(&format!("{at} measured config"), "one θi/θo pair per measured slice".into()));
                 }
                 // One slice given twice would count as two configurations in the fit.
-                let file = std::fs::canonicalize(&m.file).unwrap_or_else(|_| m.file.clone());
+                let file = crate::io::file_key(&m.file);
                 if let Some((cfg, _)) = slices.iter().find(|(_, f)| *f == file) {
                     return Err(key(
                         &format!("{at} measured"),
