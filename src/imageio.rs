@@ -31,6 +31,11 @@ pub enum ImageIoError {
     Encode { path: PathBuf, reason: String },
     #[error("image data has {got} values, expected {expected} for {width} × {height} × {channels}")]
     Size { got: usize, expected: usize, width: usize, height: usize, channels: usize },
+    /// Binning by `factor` needs both sides divisible by it.
+    #[error(
+        "a {width} × {height} image cannot be binned {factor} × {factor}: both sides must be multiples of {factor}"
+    )]
+    Bin { width: usize, height: usize, factor: usize },
 }
 
 /// A linear RGB image, interleaved, row-major, top row first.
@@ -51,11 +56,56 @@ impl RgbImage {
         Ok(Self { width, height, data })
     }
 
+    /// The image binned `factor` × `factor`: each output pixel the mean of
+    /// a square of input pixels (a box filter, as a camera pixel `factor`
+    /// times larger would record, and as the renderer's pixels integrate).
+    ///
+    /// ```
+    /// use lucent::imageio::RgbImage;
+    /// let img = RgbImage::new(2, 2, vec![1.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0]).unwrap();
+    /// assert_eq!(img.binned(2).unwrap().data, vec![1.0, 0.0, 1.0]);
+    /// ```
+    pub fn binned(&self, factor: usize) -> Result<RgbImage, ImageIoError> {
+        let data = bin_interleaved(&self.data, self.width, self.height, 3, factor)?;
+        RgbImage::new(self.width / factor, self.height / factor, data)
+    }
+
     /// The RGB value at column `x`, row `y`.
     pub fn pixel(&self, x: usize, y: usize) -> [f32; 3] {
         let i = 3 * (y * self.width + x);
         [self.data[i], self.data[i + 1], self.data[i + 2]]
     }
+}
+
+/// `data` (`channels` interleaved values per pixel, `width` × `height`,
+/// row-major) binned `factor` × `factor` by the mean (in f64).
+pub fn bin_interleaved(
+    data: &[f32],
+    width: usize,
+    height: usize,
+    channels: usize,
+    factor: usize,
+) -> Result<Vec<f32>, ImageIoError> {
+    if factor == 0 || !width.is_multiple_of(factor) || !height.is_multiple_of(factor) {
+        return Err(ImageIoError::Bin { width, height, factor });
+    }
+    let expected = width * height * channels;
+    if data.len() != expected {
+        return Err(ImageIoError::Size { got: data.len(), expected, width, height, channels });
+    }
+    let (w, h) = (width / factor, height / factor);
+    let mut sum = vec![0f64; w * h * channels];
+    for y in 0..height {
+        let row = &mut sum[(y / factor) * w * channels..(y / factor + 1) * w * channels];
+        for x in 0..width {
+            let (o, i) = ((x / factor) * channels, (y * width + x) * channels);
+            for c in 0..channels {
+                row[o + c] += f64::from(data[i + c]);
+            }
+        }
+    }
+    let n = (factor * factor) as f64;
+    Ok(sum.iter().map(|s| (s / n) as f32).collect())
 }
 
 /// The file extension in lower case ("" without one).

@@ -394,6 +394,8 @@ pub struct ColourApplyJob {
     /// `--variance-out` and `--seed`: the developed RAW photo's per-pixel
     /// variance from its noise model, and the seed of its realisations.
     pub variance_out: Option<(PathBuf, u64)>,
+    /// `--bin`: the output binned K × K (1: not binned).
+    pub bin: usize,
 }
 
 impl ColourApplyJob {
@@ -402,6 +404,9 @@ impl ColourApplyJob {
         l.flag("--ccm", s(&self.ccm)).word(s(&self.input)).word(s(&self.output)).flag("--to", &self.to);
         if let Some((path, seed)) = &self.variance_out {
             l.flag("--variance-out", s(path)).flag("--seed", seed);
+        }
+        if self.bin > 1 {
+            l.flag("--bin", self.bin);
         }
         l.0
     }
@@ -412,12 +417,17 @@ impl ColourApplyJob {
 pub struct RawClippedJob {
     pub input: PathBuf,
     pub out: PathBuf,
+    /// `--bin`: the mask of the photo binned K × K (1: not binned).
+    pub bin: usize,
 }
 
 impl RawClippedJob {
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["raw", "clipped"]);
         l.word(s(&self.input)).flag("--out", s(&self.out));
+        if self.bin > 1 {
+            l.flag("--bin", self.bin);
+        }
         l.0
     }
 }

@@ -87,8 +87,9 @@ fn jobs() -> Vec<Job> {
             output: p("{out}/s/photo.exr"),
             to: "xyz".into(),
             variance_out: Some((p("{out}/s/photo_variance.exr"), 7)),
+            bin: 4,
         }),
-        Job::RawClipped(RawClippedJob { input: p("photo.dng"), out: p("{out}/s/photo_valid.png") }),
+        Job::RawClipped(RawClippedJob { input: p("photo.dng"), out: p("{out}/s/photo_valid.png"), bin: 2 }),
         Job::Pose(PoseJob {
             camera: p("camera.json"),
             image: p("pose.jpg"),

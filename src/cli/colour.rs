@@ -93,6 +93,10 @@ pub struct ApplyArgs {
     /// Seed of the noise realisations of --variance-out.
     #[arg(long, default_value_t = 1, requires = "variance_out")]
     pub seed: u64,
+    /// Bin the output K × K (each pixel the mean of K × K developed pixels; both sides must be
+    /// multiples of K): a photo at the resolution of a smaller render, with --variance-out binned alike.
+    #[arg(long, value_name = "K", default_value_t = 1, value_parser = super::count_in::<1, 64>)]
+    pub bin: usize,
 }
 
 #[derive(Debug, Args)]
@@ -333,16 +337,27 @@ fn apply(a: ApplyArgs) -> Result<()> {
     if file.input_encoding == InputEncoding::Srgb {
         decode_in_place(&mut img);
     }
+    if !img.width.is_multiple_of(a.bin) || !img.height.is_multiple_of(a.bin) {
+        bail!(
+            "--bin {}: {} is {} × {} pixels; both sides must be multiples of {}",
+            a.bin,
+            a.input.display(),
+            img.width,
+            img.height,
+            a.bin
+        );
+    }
+    let binned = (img.width / a.bin, img.height / a.bin);
     if let Some(v) = &a.variance_out {
         let colour = |rgb: [f64; 3]| mat3_vec(&target, ccm.apply(rgb));
         let (var, sidecar) =
-            crate::compare::photo_noise::photo_variance(&a.input, &colour, a.variance_realisations, a.seed)?;
+            crate::compare::photo_noise::photo_variance(&a.input, &colour, a.variance_realisations, a.seed, a.bin)?;
         let plane = |c: usize| var.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
         let (r, g, b) = (plane(0), plane(1), plane(2));
         imageio::write_exr_channels(
             v,
-            img.width,
-            img.height,
+            binned.0,
+            binned.1,
             &[("variance.R", &r), ("variance.G", &g), ("variance.B", &b)],
         )?;
         let json = crate::compare::photo_noise::sidecar(v);
@@ -375,13 +390,18 @@ fn apply(a: ApplyArgs) -> Result<()> {
             px[k] = out[k] as f32;
         }
     }
+    let (w, h) = (img.width, img.height);
+    if a.bin > 1 {
+        img = img.binned(a.bin)?;
+    }
     imageio::write_exr(&a.output, &img)?;
     println!(
-        "{} → {}: {} × {} pixels, camera {:?} ({}) → {}{}",
+        "{} → {}: {} × {} pixels{}, camera {:?} ({}) → {}{}",
         a.input.display(),
         a.output.display(),
         img.width,
         img.height,
+        if a.bin > 1 { format!(" (binned {0} × {0} from {w} × {h})", a.bin) } else { String::new() },
         file.camera,
         file.method,
         super::choices::name(&a.to),

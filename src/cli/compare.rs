@@ -170,8 +170,15 @@ pub fn run(a: CompareArgs) -> Result<()> {
             t.noise_b.total.ci95[1]
         );
         println!(
-            "A vs B: squared-error difference {:.3e} ± {:.1e} (z {:.2}, p {:.3}): {}",
-            t.paired.squared_difference, t.paired.standard_error, t.paired.z, t.paired.p_value, t.paired.verdict
+            "A vs B over means of {c} × {c} px cells: squared-error difference {:.3e} ± {:.1e} (t {:.2}, {} blocks, p \
+             {:.2e}): {}",
+            t.paired.squared_difference,
+            t.paired.standard_error,
+            t.paired.z,
+            t.paired.blocks,
+            t.paired.p_value,
+            t.paired.verdict,
+            c = t.paired.cell_px
         );
     }
     if let Some(f) = &r.refined {

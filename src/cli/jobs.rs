@@ -38,6 +38,7 @@ pub fn job_of(command: &Command) -> Option<Job> {
             output: a.output.clone(),
             to: name(&a.to),
             variance_out: a.variance_out.clone().map(|v| (v, a.seed)),
+            bin: a.bin,
         }),
         Command::Raw(camera::RawCommand::Clipped(a)) => Job::RawClipped(a.into()),
         Command::Pose(a) => Job::Pose(a.into()),
@@ -139,7 +140,7 @@ impl From<&camera::CalibrateArgs> for CalibrateJob {
 
 impl From<&raw_clip::ClippedArgs> for RawClippedJob {
     fn from(a: &raw_clip::ClippedArgs) -> Self {
-        RawClippedJob { input: a.input.clone(), out: a.out.clone() }
+        RawClippedJob { input: a.input.clone(), out: a.out.clone(), bin: a.bin }
     }
 }
 

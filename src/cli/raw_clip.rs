@@ -27,6 +27,10 @@ pub struct ClippedArgs {
     /// Also mark pixels within this many pixels of a clipped photosite (demosaicing spreads it; at most 100).
     #[arg(long, default_value_t = 2, value_parser = super::count_in::<0, 100>)]
     pub dilate: usize,
+    /// The mask of the photo binned K × K (`lucent colour apply --bin K`): a binned pixel is valid
+    /// when all its K × K pixels are.
+    #[arg(long, value_name = "K", default_value_t = 1, value_parser = super::count_in::<1, 64>)]
+    pub bin: usize,
 }
 
 /// Runs `lucent raw clipped`.
@@ -63,16 +67,28 @@ pub fn run(a: ClippedArgs) -> Result<()> {
         }
     }
     let oriented = raw::orient(&RgbBuffer { width: w, height: h, data: valid }, frame.meta.orientation);
-    let img = RgbImage::new(oriented.width, oriented.height, oriented.data)?;
+    let mut img = RgbImage::new(oriented.width, oriented.height, oriented.data)?;
+    if a.bin > 1 {
+        // Valid only where every pixel of the square is: the mean is then 1.
+        img = img.binned(a.bin).with_context(|| format!("--bin {}: {}", a.bin, a.input.display()))?;
+        for v in &mut img.data {
+            *v = if *v >= 1.0 { 1.0 } else { 0.0 };
+        }
+    }
     imageio::write_png(&a.out, &img).with_context(|| format!("{}", a.out.display()))?;
     println!(
-        "{}: {} of {} pixels ({:.2} %) clipped or within {} px of a clipped photosite; mask {}",
+        "{}: {} of {} pixels ({:.2} %) clipped or within {} px of a clipped photosite; mask {}{}",
         a.input.display(),
         bad,
         w * h,
         100.0 * bad as f64 / (w * h) as f64,
         a.dilate,
-        a.out.display()
+        a.out.display(),
+        if a.bin > 1 {
+            format!(" (binned {0} × {0}: {1} × {2})", a.bin, img.width, img.height)
+        } else {
+            String::new()
+        }
     );
     Ok(())
 }

@@ -725,7 +725,7 @@ fn twins_report(
         (&render_a.data, var_a),
         (&b.data, &var_b),
         mask.map(|m| m.include.as_slice()),
-        NOISE_BLOCK_PX,
+        (PAIRED_CELL_PX, NOISE_BLOCK_PX),
         0.05,
     )
     .map_err(|e| CompareError::Read {
@@ -852,6 +852,11 @@ fn noise_report(
 
 /// Block side of the model RMSE's bootstrap, pixels.
 pub const NOISE_BLOCK_PX: usize = 8;
+
+/// Side of the cells whose means the paired test of two twins compares, in
+/// pixels ([`noise::paired`]): a twin's model error is smooth over a few
+/// pixels, a render's noise is not.
+pub const PAIRED_CELL_PX: usize = 8;
 /// Bootstrap resamples of the model RMSE's interval.
 pub const NOISE_RESAMPLES: usize = 1000;
 

@@ -371,12 +371,19 @@ mod tests {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PairedReport {
     pub definition: String,
-    /// mean over included pixels and channels of
-    /// [(A − P)² − var A] − [(B − P)² − var B] = (model error A)² − (model
-    /// error B)² in expectation (the photo's noise cancels).
+    /// Side of the square cells whose means are compared, in pixels (1:
+    /// pixel by pixel).
+    #[serde(default = "one")]
+    pub cell_px: usize,
+    /// Mean over the cells' included pixels and channels of
+    /// [(Ā − P̄)² − var Ā] − [(B̄ − P̄)² − var B̄] (bars: means over a cell)
+    /// = (model error A)² − (model error B)² at the cells' scale, in
+    /// expectation (the photo's noise cancels).
     pub squared_difference: f64,
     /// Its standard error over pixel blocks.
     pub standard_error: f64,
+    /// squared_difference / standard_error, referred to Student's t with
+    /// blocks − 1 degrees of freedom.
     pub z: f64,
     /// Two-sided p-value of "the twins are equally close".
     pub p_value: f64,
@@ -387,12 +394,25 @@ pub struct PairedReport {
     pub blocks: usize,
 }
 
-/// The paired comparison of two renders `a`, `b` (with their variances)
-/// against one photo, over the included pixels, by blocks of `block_px`
-/// pixels (neighbouring pixels are correlated): the ratio estimate of the
-/// mean squared-error difference and its standard error from the spread of
-/// the block sums (linearised, B/(B − 1) corrected), z and a two-sided
-/// normal p-value at level `alpha`.
+fn one() -> usize {
+    1
+}
+
+/// The paired comparison of two renders `a`, `b` (with the variances of
+/// their pixels' means) against one photo, over the included pixels.
+///
+/// The images are compared as means over square cells of `cell_px` pixels
+/// (1: pixel by pixel): a cell's mean has 1/n of a pixel's noise variance
+/// while a model error that is smooth over the cell stays whole, so cells
+/// test where a twin's error lives (a recipe changes the object's
+/// brightness and blur over many pixels) rather than the Monte Carlo noise
+/// of single pixels. A cell's variance is Σ var / n² over its n included
+/// pixels (render pixels are independent). Cells are grouped into blocks
+/// of `block_px` pixels (at least one cell; neighbouring pixels are
+/// correlated): the ratio estimate of the mean squared-error difference,
+/// its standard error from the spread of the block sums (linearised,
+/// B/(B − 1) corrected), and a two-sided Student-t p-value with B − 1
+/// degrees of freedom at level `alpha`.
 #[allow(clippy::too_many_arguments)]
 pub fn paired(
     width: usize,
@@ -401,7 +421,7 @@ pub fn paired(
     a: (&[f32], &[f32]),
     b: (&[f32], &[f32]),
     include: Option<&[bool]>,
-    block_px: usize,
+    (cell_px, block_px): (usize, usize),
     alpha: f64,
 ) -> Result<PairedReport, NoiseError> {
     let expected = width * height * 3;
@@ -411,24 +431,42 @@ pub fn paired(
             return Err(NoiseError::Size { what, got: v.len(), expected, width, height });
         }
     }
-    if block_px == 0 {
+    if block_px == 0 || cell_px == 0 {
         return Err(NoiseError::Settings);
     }
-    let bw = width.div_ceil(block_px);
-    let mut sums = vec![(0.0f64, 0.0f64); bw * height.div_ceil(block_px)];
+    // Per cell and channel: Σ A, Σ B, Σ P, Σ var A, Σ var B; and n.
+    let cw = width.div_ceil(cell_px);
+    let mut cells = vec![([[0.0f64; 5]; 3], 0usize); cw * height.div_ceil(cell_px)];
     for y in 0..height {
         for x in 0..width {
             let p = y * width + x;
             if include.is_some_and(|m| !m[p]) {
                 continue;
             }
-            let s = &mut sums[(y / block_px) * bw + x / block_px];
-            s.1 += 3.0;
-            for c in 0..3 {
+            let cell = &mut cells[(y / cell_px) * cw + x / cell_px];
+            cell.1 += 1;
+            for (c, acc) in cell.0.iter_mut().enumerate() {
                 let i = 3 * p + c;
-                let (pa, pb) = (f64::from(a.0[i]) - f64::from(photo[i]), f64::from(b.0[i]) - f64::from(photo[i]));
-                s.0 += (pa * pa - f64::from(a.1[i])) - (pb * pb - f64::from(b.1[i]));
+                for (k, v) in [a.0[i], b.0[i], photo[i], a.1[i], b.1[i]].into_iter().enumerate() {
+                    acc[k] += f64::from(v);
+                }
             }
+        }
+    }
+    let cells_a_side = (block_px / cell_px).max(1);
+    let bw = cw.div_ceil(cells_a_side);
+    let mut sums = vec![(0.0f64, 0.0f64); bw * height.div_ceil(cell_px).div_ceil(cells_a_side)];
+    for (j, (acc, n)) in cells.iter().enumerate() {
+        if *n == 0 {
+            continue;
+        }
+        let nf = *n as f64;
+        let s = &mut sums[(j / cw / cells_a_side) * bw + (j % cw) / cells_a_side];
+        s.1 += 3.0 * nf;
+        for ch in acc {
+            let (ma, mb, mp) = (ch[0] / nf, ch[1] / nf, ch[2] / nf);
+            let (va, vb) = (ch[3] / (nf * nf), ch[4] / (nf * nf));
+            s.0 += nf * (((ma - mp).powi(2) - va) - ((mb - mp).powi(2) - vb));
         }
     }
     sums.retain(|s| s.1 > 0.0);
@@ -441,7 +479,7 @@ pub fn paired(
     let spread: f64 = sums.iter().map(|s| (s.0 - mean * s.1).powi(2)).sum::<f64>() * k / (k - 1.0);
     let se = spread.sqrt() / count;
     let z = if se > 0.0 { mean / se } else { 0.0 };
-    let p = libm::erfc(z.abs() / std::f64::consts::SQRT_2);
+    let p = student_t_two_sided(z, k - 1.0);
     let verdict = if p >= alpha {
         "the data cannot tell them apart at this noise"
     } else if mean < 0.0 {
@@ -450,9 +488,13 @@ pub fn paired(
         "B is closer"
     };
     Ok(PairedReport {
-        definition: "mean over included pixels and channels of [(A - P)^2 - var A] - [(B - P)^2 - var B]; \
-                     standard error from the spread of block sums; two-sided normal test"
-            .into(),
+        definition: format!(
+            "mean over included pixels and channels of [(A - P)^2 - var A] - [(B - P)^2 - var B], A, B, P and the \
+             variances taken as means over square cells of {cell_px} x {cell_px} px (var of a cell's mean = sum of \
+             its pixels' var / n^2); standard error from the spread of block sums; two-sided Student-t test with \
+             blocks - 1 degrees of freedom"
+        ),
+        cell_px,
         squared_difference: mean,
         standard_error: se,
         z,
@@ -461,6 +503,15 @@ pub fn paired(
         verdict: verdict.into(),
         blocks: sums.len(),
     })
+}
+
+/// P(|T| ≥ |t|) for Student's t with `dof` degrees of freedom.
+fn student_t_two_sided(t: f64, dof: f64) -> f64 {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    match StudentsT::new(0.0, 1.0, dof) {
+        Ok(d) if t.is_finite() => 2.0 * d.cdf(-t.abs()),
+        _ => 1.0,
+    }
 }
 
 /// SSIM of the photo against the noise-free render, estimated from two
@@ -586,36 +637,54 @@ mod paired_tests {
     }
 
     /// A photo and two renders with model errors `bias_a`, `bias_b` (a ±
-    /// checker of 4-pixel squares) and independent noise σ in all three.
-    fn run(seed: u64, bias_a: f64, bias_b: f64) -> PairedReport {
-        let (w, h, sigma) = (48usize, 48usize, 0.05);
+    /// checker of 16-pixel squares) and independent noise `sigma` in all
+    /// three, compared over cells of `cell` pixels.
+    fn run(seed: u64, (bias_a, bias_b): (f64, f64), sigma: f64, cell: usize) -> PairedReport {
+        let (w, h) = (48usize, 48usize);
         let mut rng = lucent_render::rng::Rng::new(seed, 7);
         let n = w * h * 3;
         let (mut p, mut a, mut b) = (vec![0f32; n], vec![0f32; n], vec![0f32; n]);
         for i in 0..n {
             let (x, y) = ((i / 3) % w, i / 3 / w);
-            let sign = if (x / 4 + y / 4) % 2 == 0 { 1.0 } else { -1.0 };
+            let sign = if (x / 16 + y / 16) % 2 == 0 { 1.0 } else { -1.0 };
             let clean = 0.5 + 0.1 * (x as f64 * 0.2).sin();
             p[i] = (clean + sigma * normal(&mut rng)) as f32;
             a[i] = (clean + sign * bias_a + sigma * normal(&mut rng)) as f32;
             b[i] = (clean + sign * bias_b + sigma * normal(&mut rng)) as f32;
         }
         let var = vec![(sigma * sigma) as f32; n];
-        paired(w, h, &p, (&a, &var), (&b, &var), None, 8, 0.05).unwrap()
+        paired(w, h, &p, (&a, &var), (&b, &var), None, (cell, 8), 0.05).unwrap()
     }
 
     #[test]
     fn rejects_at_the_stated_rate_under_the_null_and_finds_a_real_difference() {
-        // Two renders of the same twin: "cannot tell" 95 % of the time
-        // (400 pairs: binomial SD 1.1 %, allowed 5 % ± 2.5 %).
-        let rejected = (0..400).filter(|&s| run(5000 + s, 0.02, 0.02).p_value < 0.05).count();
-        let rate = rejected as f64 / 400.0;
-        assert!((rate - 0.05).abs() <= 0.025, "rejection rate under the null {rate}");
-        // A twin with half the model error is found closer.
-        let r = run(1, 0.04, 0.02);
-        assert_eq!(r.verdict, "B is closer", "{r:?}");
-        let r = run(2, 0.02, 0.04);
-        assert_eq!(r.verdict, "A is closer", "{r:?}");
+        for cell in [1, 8] {
+            // Two renders of the same twin: "cannot tell" 95 % of the time
+            // (400 pairs: binomial SD 1.1 %, allowed 5 % ± 2.5 %).
+            let rejected = (0..400).filter(|&s| run(5000 + s, (0.02, 0.02), 0.05, cell).p_value < 0.05).count();
+            let rate = rejected as f64 / 400.0;
+            assert!((rate - 0.05).abs() <= 0.025, "rejection rate under the null {rate} with cells of {cell} px");
+            // A twin with half the model error is found closer.
+            let r = run(1, (0.04, 0.02), 0.05, cell);
+            assert_eq!(r.verdict, "B is closer", "{r:?}");
+            let r = run(2, (0.02, 0.04), 0.05, cell);
+            assert_eq!(r.verdict, "A is closer", "{r:?}");
+        }
+    }
+
+    #[test]
+    fn cells_find_a_smooth_model_error_that_pixel_noise_hides() {
+        // Noise 6× the model error: pixel by pixel the squared errors are
+        // noise (z ≈ 0.7 expected), cell means of 8 × 8 px keep the error
+        // and lose 1/64 of the noise variance (z ≈ 4).
+        let (mut pixel_found, mut cell_found) = (0, 0);
+        for seed in 0..20 {
+            pixel_found += usize::from(run(100 + seed, (0.05, 0.0), 0.3, 1).p_value < 0.01);
+            let r = run(100 + seed, (0.05, 0.0), 0.3, 8);
+            cell_found += usize::from(r.p_value < 0.01 && r.verdict == "B is closer");
+        }
+        assert!(pixel_found <= 3, "pixel by pixel found it {pixel_found} times in 20");
+        assert!(cell_found >= 14, "cells found it only {cell_found} times in 20");
     }
 }
 

@@ -21,7 +21,7 @@
 //! ```no_run
 //! use lucent::compare::photo_noise::photo_variance;
 //! let identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-//! let (var, file) = photo_variance(std::path::Path::new("photo.dng"), &|rgb| rgb, 16, 1).unwrap();
+//! let (var, file) = photo_variance(std::path::Path::new("photo.dng"), &|rgb| rgb, 16, 1, 1).unwrap();
 //! println!("{} variances, noise model {:?}", var.len(), file.noise_model.a);
 //! ```
 
@@ -45,6 +45,9 @@ pub struct PhotoVarianceFile {
     /// Noise realisations averaged per pixel, and the seed of the first.
     pub realisations: usize,
     pub seed: u64,
+    /// The photo's binning (bin × bin photo pixels per pixel; 1: none).
+    #[serde(default = "one")]
+    pub bin: usize,
     /// What the variance's units are.
     pub units: String,
 }
@@ -58,17 +61,21 @@ pub enum PhotoNoiseError {
     Noise { path: PathBuf, source: noise::NoiseError },
     #[error("realisations must be at least 2, got {0}")]
     Realisations(usize),
+    #[error("{}: {source}", path.display())]
+    Bin { path: PathBuf, source: crate::imageio::ImageIoError },
 }
 
 /// The per-pixel variance (interleaved RGB, the developed photo's layout)
 /// of the RAW photo at `path` developed with `develop_colour` (camera RGB →
-/// output RGB, applied after [`raw::decode_raw`] with default options), and
-/// the description of how it was made.
+/// output RGB, applied after [`raw::decode_raw`] with default options),
+/// binned `bin` × `bin` as [`crate::imageio::RgbImage::binned`] bins the
+/// developed photo (1: not binned), and the description of how it was made.
 pub fn photo_variance(
     path: &Path,
     develop_colour: &(dyn Fn([f64; 3]) -> [f64; 3] + Sync),
     realisations: usize,
     seed: u64,
+    bin: usize,
 ) -> Result<(Vec<f32>, PhotoVarianceFile), PhotoNoiseError> {
     if realisations < 2 {
         return Err(PhotoNoiseError::Realisations(realisations));
@@ -78,6 +85,10 @@ pub fn photo_variance(
     let model =
         noise::model_of(&frame).map_err(|source| PhotoNoiseError::Noise { path: path.to_path_buf(), source })?;
     let (photo, _) = raw::develop(&frame, &opts)?;
+    if bin > 1 && (!photo.width.is_multiple_of(bin) || !photo.height.is_multiple_of(bin)) {
+        let source = crate::imageio::ImageIoError::Bin { width: photo.width, height: photo.height, factor: bin };
+        return Err(PhotoNoiseError::Bin { path: path.to_path_buf(), source });
+    }
     // The colour step's Jacobian at each pixel, columns d out / d camera channel.
     let jac: Vec<[[f64; 3]; 3]> = photo
         .data
@@ -94,15 +105,29 @@ pub fn photo_variance(
             })
         })
         .collect();
-    let mut sum = vec![0f64; photo.data.len()];
+    // Each realisation through the colour Jacobian, binned, then squared:
+    // the binned pixel's variance with the demosaicing's correlations.
+    let (w, h) = (photo.width, photo.height);
+    let mut developed = vec![0f32; photo.data.len()];
+    let mut sum = vec![0f64; photo.data.len() / (bin * bin).max(1)];
     for k in 0..realisations {
         let n = noise::developed_noise(&frame, &model, &opts, seed.wrapping_add(k as u64))?;
-        for ((s, px), j) in sum.chunks_exact_mut(3).zip(n.data.chunks_exact(3)).zip(&jac) {
+        for ((o, px), j) in developed.chunks_exact_mut(3).zip(n.data.chunks_exact(3)).zip(&jac) {
             let v = [f64::from(px[0]), f64::from(px[1]), f64::from(px[2])];
-            for (i, si) in s.iter_mut().enumerate() {
-                let o: f64 = (0..3).map(|c| j[c][i] * v[c]).sum();
-                *si += o * o;
+            for (i, oi) in o.iter_mut().enumerate() {
+                *oi = (0..3).map(|c| j[c][i] * v[c]).sum::<f64>() as f32;
             }
+        }
+        let binned = if bin > 1 {
+            std::borrow::Cow::Owned(
+                crate::imageio::bin_interleaved(&developed, w, h, 3, bin)
+                    .map_err(|source| PhotoNoiseError::Bin { path: path.to_path_buf(), source })?,
+            )
+        } else {
+            std::borrow::Cow::Borrowed(&developed)
+        };
+        for (si, o) in sum.iter_mut().zip(binned.iter()) {
+            *si += f64::from(*o) * f64::from(*o);
         }
     }
     let estimated_from_image = match model.source {
@@ -113,17 +138,22 @@ pub fn photo_variance(
     let file = PhotoVarianceFile {
         definition: "per-pixel variance of the developed photo: the RAW's noise model (variance = a x + b per \
                      photosite, x its recorded value) drawn as Gaussian noise, developed like the photo \
-                     (demosaicing, orientation, colour correction's Jacobian at the photo's pixel), squared and \
-                     averaged over the realisations"
+                     (demosaicing, orientation, colour correction's Jacobian at the photo's pixel), binned as the \
+                     photo (bin), squared and averaged over the realisations"
             .into(),
         photo: path.display().to_string(),
         noise_model: model,
         estimated_from_image,
         realisations,
         seed,
+        bin: bin.max(1),
         units: "the developed photo's units, squared".into(),
     };
     Ok((var, file))
+}
+
+fn one() -> usize {
+    1
 }
 
 /// The sidecar JSON path of a variance image: `v.exr` → `v.noise.json` (not

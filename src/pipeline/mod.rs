@@ -264,6 +264,14 @@ pub enum StageProblem {
     NoCalibrationImages { pattern: String },
     #[error("{sample}: camera {camera:?} has no ccm.json from the colour stage")]
     NoCcm { sample: String, camera: String },
+    /// A photo larger than `[render] size` by other than one integer factor.
+    #[error(
+        "{sample}: {photo} is {photo_size} pixels and [render] size is {render_size}: the photo is binned to \
+         the render's size, so it must be the same size or an integer multiple of it in both directions"
+    )]
+    PhotoSize { sample: String, photo: PathBuf, photo_size: String, render_size: String },
+    #[error("{sample}: {photo}: {reason}")]
+    PhotoUnreadable { sample: String, photo: PathBuf, reason: String },
 }
 
 /// One input file as hashed.
@@ -612,6 +620,36 @@ fn developed(
     }
 }
 
+/// How many photo pixels a side make one render pixel: the photo's size
+/// over `[render] size` (1 without one, or when they are equal). A photo
+/// larger than the render by an integer factor is binned to it by the
+/// develop stage (a box filter, as the renderer's pixels integrate).
+fn photo_bin(sample: &str, photo: &Path, render_size: Option<&str>) -> Result<usize, StageProblem> {
+    let Some(size) = render_size else { return Ok(1) };
+    let Ok((rw, rh)) = crate::job::parse_image_size(size) else { return Ok(1) };
+    let unreadable =
+        |reason: String| StageProblem::PhotoUnreadable { sample: sample.into(), photo: photo.to_path_buf(), reason };
+    let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
+    let (pw, ph) = if is_raw {
+        let frame = lucent_calib::raw::read_raw(photo, None).map_err(|e| unreadable(e.to_string()))?;
+        (frame.meta.output_width, frame.meta.output_height)
+    } else {
+        let img = crate::imageio::read_rgb(photo).map_err(|e| unreadable(e.to_string()))?;
+        (img.width, img.height)
+    };
+    let k = pw / rw;
+    if k >= 1 && pw == k * rw && ph == k * rh {
+        Ok(k)
+    } else {
+        Err(StageProblem::PhotoSize {
+            sample: sample.into(),
+            photo: photo.to_path_buf(),
+            photo_size: format!("{pw} × {ph}"),
+            render_size: format!("{rw} × {rh}"),
+        })
+    }
+}
+
 /// The develop stage's mask of validly recorded pixels (not at or near a
 /// clipped photosite) of a sample's RAW photo `which`, if it wrote one.
 fn valid_mask(out: &Path, smp: &project::SampleSection, which: &str) -> Option<PathBuf> {
@@ -744,6 +782,8 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 for (what, photo) in [("photo", &smp.photo), ("empty_board", &smp.empty_board)] {
                     let Some(photo) = photo else { continue };
                     inputs.push(photo.clone());
+                    let bin = photo_bin(&smp.name, photo, f.render.as_ref().and_then(|r| r.size.as_deref()))
+                        .map_err(|problem| PipelineError::Stage { stage, problem })?;
                     let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
                     // The photo's noise (var P of the compare stage's model RMSE), from its RAW noise model.
                     let variance_out = (is_raw && what == "photo")
@@ -754,11 +794,12 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                         output: under_out(format!("/{}/{what}.exr", smp.name)),
                         to: "cie-rgb".into(),
                         variance_out,
+                        bin,
                     };
                     tasks.push(lucent(format!("{} {what}", smp.name), Job::ColourApply(job)));
                     if is_raw {
                         let mask = under_out(format!("/{}/{what}_valid.png", smp.name));
-                        let job = RawClippedJob { input: photo.clone(), out: mask };
+                        let job = RawClippedJob { input: photo.clone(), out: mask, bin };
                         tasks.push(lucent(format!("{} {what} clipping", smp.name), Job::RawClipped(job)));
                     }
                 }
@@ -1116,6 +1157,27 @@ pub fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_photo_is_binned_to_the_render_by_an_integer_factor_or_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let photo = dir.path().join("photo.exr");
+        let img = crate::imageio::RgbImage::new(320, 240, vec![0.5; 320 * 240 * 3]).unwrap();
+        crate::imageio::write_exr(&photo, &img).unwrap();
+        assert_eq!(photo_bin("s", &photo, None).unwrap(), 1);
+        assert_eq!(photo_bin("s", &photo, Some("320x240")).unwrap(), 1);
+        assert_eq!(photo_bin("s", &photo, Some("160x120")).unwrap(), 2);
+        assert_eq!(photo_bin("s", &photo, Some("80x60")).unwrap(), 4);
+        for size in ["100x75", "160x100", "640x480"] {
+            let e = photo_bin("s", &photo, Some(size)).unwrap_err().to_string();
+            assert!(
+                e.contains("photo.exr") && e.contains("320 × 240") && e.contains("integer multiple"),
+                "{size}: {e}"
+            );
+        }
+        let e = photo_bin("s", &dir.path().join("missing.exr"), Some("160x120")).unwrap_err().to_string();
+        assert!(e.contains("missing.exr"), "{e}");
+    }
 
     #[test]
     fn recipe_inputs_include_the_files_a_recipe_names() {

@@ -57,7 +57,8 @@
 //! [[sample]]
 //! name = "IOL1068-09"
 //! recipe = "samples/IOL1068-09.toml"
-//! # photo = "photo.exr"              # stage compare: the photograph (render's size, linear)
+//! # photo = "photo.exr"              # stage compare: the photograph (render's size, linear; with a
+//!                                    # camera also K times the render's size, which develop bins K × K)
 //! # camera = "phone"                 # photo and empty_board are that [[colour]] camera's RGB (RAW or EXR):
 //!                                    # stage develop turns them into CIE RGB with its ccm.json
 //! # empty_board = "empty.exr"        # stage env-scale: the board photographed without the sample

@@ -647,7 +647,8 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 ));
                 let _ = write!(
                     h,
-                    "<p>Paired test over {} pixel blocks{}: mean squared-error difference A − B {} ± {} (z {}, p {}): <b>{}</b>.</p>",
+                    "<p>Paired test of the means over {c} × {c} px cells, {} blocks{}: mean squared-error difference A − B {} ± {} \
+                     (t {}, p {}): <b>{}</b>.</p>",
                     t.paired.blocks,
                     if t.paired.blocks < crate::compare::noise::MIN_BLOCKS {
                         format!(" (fewer than {}: its standard error is itself uncertain)", crate::compare::noise::MIN_BLOCKS)
@@ -658,7 +659,8 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     num(t.paired.standard_error, e4),
                     num(t.paired.z, |x| format!("{x:.2}")),
                     num(t.paired.p_value, |x| format!("{x:.2e}")),
-                    esc(&t.paired.verdict.replace('A', "A (recipe)").replace('B', "B (fitted)"))
+                    esc(&t.paired.verdict.replace('A', "A (recipe)").replace('B', "B (fitted)")),
+                    c = t.paired.cell_px
                 );
                 verdict = Some((region, &t.paired));
             }
