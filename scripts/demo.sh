@@ -107,9 +107,9 @@ for k in 1 2 3 4 5 6; do
   "$bin" render "fixtures/demo/views/view$k.toml" --quiet --out "$out/truth/view$k"
   cp "$out/truth/view$k/render.png" "$out/truth/views/view$k.png"
 done
-# At the camera's 640 × 480: the pipeline bins the photos 4 × 4 to its 160 × 120 renders (a photo at the
+# At the camera's 640 × 480: the pipeline bins the photos 2 × 2 to its 320 × 240 renders (a photo at the
 # render's own size would carry the Bayer mosaic's colour fringes into the comparison).
-"$bin" render fixtures/demo/truth.toml --spp 256 --seed 1001 --quiet --out "$out/truth/photo"
+"$bin" render fixtures/demo/truth.toml --spp 512 --seed 1001 --quiet --out "$out/truth/photo"
 echo "   IOL1068-09's \"measured\" slices (45°/0°, 30°/0°) simulated at the hidden 0.425 wt-% (Monte Carlo noise ≈ 3 %)"
 "$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength-nm 550 --configs 45/0,30/0 \
   --crop --paths 100000 --seed 301 --quiet --out "$out/truth/slices"

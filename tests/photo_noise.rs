@@ -172,38 +172,50 @@ fn a_binned_photo_has_the_variance_of_its_binned_noise() {
     assert!(e.contains("a.dng") && e.contains("multiples of 7"), "{e}");
 }
 
+/// Runs lucent, asserting success; its standard output.
+fn run_ok(args: &[&str]) -> String {
+    let o = lucent(args);
+    assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    stdout(&o)
+}
+
+/// The synthetic phone of [`CAM`] in `dir`: its truth_colour.json, a
+/// ColorChecker captured as a DNG and calibrated; (truth, ccm.json) paths.
+fn calibrated_phone(dir: &Path) -> (String, String) {
+    let d = |n: &str| dir.join(n).to_str().unwrap().to_string();
+    let t = synth::ColourTruth { camera: "phone".into(), xyz_d50_to_camera: CAM, note: String::new() };
+    std::fs::write(dir.join("truth_colour.json"), serde_json::to_string(&t).unwrap()).unwrap();
+    let tr = d("truth_colour.json");
+    run_ok(&["synth", "chart", "--out", &d("chart.exr")]);
+    run_ok(&[
+        "synth",
+        "raw",
+        &d("chart.exr"),
+        &d("chart.dng"),
+        "--truth",
+        &tr,
+        "--space",
+        "xyz-d50",
+        "--exposure",
+        "0.8",
+    ]);
+    let corners = "48,38.4,432,32,427.2,281.6,52.8,288";
+    run_ok(&["colour", "calibrate", "--image", &d("chart.dng"), "--corners", corners, "--out", &d("colour")]);
+    (tr, d("colour/ccm.json"))
+}
+
 #[test]
 fn colour_apply_writes_the_variance_and_compare_states_the_model() {
     let dir = tempfile::tempdir().unwrap();
     let d = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
-    let truth = dir.path().join("truth_colour.json");
-    let t = synth::ColourTruth { camera: "phone".into(), xyz_d50_to_camera: CAM, note: String::new() };
-    std::fs::write(&truth, serde_json::to_string(&t).unwrap()).unwrap();
-    let run = |args: &[&str]| {
-        let o = lucent(args);
-        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
-        stdout(&o)
-    };
-    run(&["synth", "chart", "--out", &d("chart.exr")]);
-    let tr = truth.to_str().unwrap();
-    run(&["synth", "raw", &d("chart.exr"), &d("chart.dng"), "--truth", tr, "--space", "xyz-d50", "--exposure", "0.8"]);
-    run(&[
-        "colour",
-        "calibrate",
-        "--image",
-        &d("chart.dng"),
-        "--corners",
-        "48,38.4,432,32,427.2,281.6,52.8,288",
-        "--out",
-        &d("colour"),
-    ]);
+    let (truth, ccm) = calibrated_phone(dir.path());
+    let (tr, run) = (truth.as_str(), run_ok);
     let (w, h) = (96, 72);
     let img = scene(w, h);
     write_exr(&dir.path().join("scene.exr"), &img).unwrap();
     let text =
         run(&["synth", "raw", &d("scene.exr"), &d("photo.dng"), "--truth", tr, "--exposure", "0.8", "--seed", "3"]);
     assert!(text.contains("NoiseProfile"), "{text}");
-    let ccm = d("colour/ccm.json");
     let text = run(&[
         "colour",
         "apply",
@@ -264,19 +276,8 @@ fn colour_apply_writes_the_variance_and_compare_states_the_model() {
 fn colour_apply_and_raw_clipped_bin_a_photo_to_a_smaller_render() {
     let dir = tempfile::tempdir().unwrap();
     let d = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
-    let truth = dir.path().join("truth_colour.json");
-    let t = synth::ColourTruth { camera: "phone".into(), xyz_d50_to_camera: CAM, note: String::new() };
-    std::fs::write(&truth, serde_json::to_string(&t).unwrap()).unwrap();
-    let run = |args: &[&str]| {
-        let o = lucent(args);
-        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
-        stdout(&o)
-    };
-    let tr = truth.to_str().unwrap();
-    run(&["synth", "chart", "--out", &d("chart.exr")]);
-    run(&["synth", "raw", &d("chart.exr"), &d("chart.dng"), "--truth", tr, "--space", "xyz-d50", "--exposure", "0.8"]);
-    let corners = "48,38.4,432,32,427.2,281.6,52.8,288";
-    run(&["colour", "calibrate", "--image", &d("chart.dng"), "--corners", corners, "--out", &d("colour")]);
+    let (truth, ccm) = calibrated_phone(dir.path());
+    let (tr, run) = (truth.as_str(), run_ok);
     // A scene with a bright corner that clips: 96 × 72 px binned 4 × 4 to 24 × 18.
     let (w, h) = (96, 72);
     let mut img = scene(w, h);
@@ -288,7 +289,6 @@ fn colour_apply_and_raw_clipped_bin_a_photo_to_a_smaller_render() {
     }
     write_exr(&dir.path().join("scene.exr"), &img).unwrap();
     run(&["synth", "raw", &d("scene.exr"), &d("photo.dng"), "--truth", tr, "--exposure", "0.8", "--seed", "3"]);
-    let ccm = d("colour/ccm.json");
     run(&["colour", "apply", "--ccm", &ccm, &d("photo.dng"), &d("full.exr")]);
     let text = run(&[
         "colour",
