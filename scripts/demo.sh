@@ -30,9 +30,9 @@ echo
 echo "== 2d. Inverse fit (lucent fit): slices of IOL1068-09 simulated at 0.425 wt-% play the measurement"
 echo "   (45°/0°, 30°/0°); the fit starts from the recipe's 0.65 wt-%, the lab's example"
 "$bin" bssrdf --recipe fixtures/fit/IOL1068-09_truth_0425.toml --wavelength-nm 550 --configs 45/0,30/0 \
-  --crop --paths 100000 --seed 101 --quiet --out "$out/fit/measured"
+  --crop --paths 100000 --seed 101 --quiet --out "$out/fit_measured"
 "$bin" fit --recipe fixtures/samples/IOL1068-09.toml --free weight_percent --rel-error 0.01 --quiet \
-  --measured "$out/fit/measured/ti45_to0/bssrdf.exr" "$out/fit/measured/ti30_to0/bssrdf.exr" --out "$out/fit"
+  --measured "$out/fit_measured/ti45_to0/bssrdf.exr" "$out/fit_measured/ti30_to0/bssrdf.exr" --out "$out/fit"
 echo "   truth: 0.425 wt-% (the weight percentage the lab reached by hand from 0.65)"
 
 echo
@@ -67,7 +67,7 @@ mkdir -p "$e"
 "$bin" env brackets "$e/truth_camera.exr" --exposures 1/128,1/32,1/8,1/2,2 --out "$e/brackets"
 "$bin" env merge "$e"/brackets/bracket_{1,2,3,4,5}.png --exposures 1/128,1/32,1/8,1/2,2 --out "$e/env.exr"
 "$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.exr"
-"$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_view.png" >/dev/null
+"$bin" env view "$e/env.exr" --yaw 150 --pitch -20 --fov 50 --size 960x720 --out "$e/chart_preview.png" >/dev/null
 "$bin" colour calibrate --image "$e/chart_view.exr" --clip-level none --out "$e/colour" | grep -E "found|mean"
 echo "   truth: camera → XYZ = s · inverse(XYZ → camera) = s · [[0.678 0.150 0.110] [0.270 0.718 -0.016] [0.018 0.124 0.901]];"
 echo "   recovered (ccm.json):" $(tr -d ' \n' < "$e/colour/ccm.json" | grep -o '"matrix":\[\[[^]]*\],\[[^]]*\],\[[^]]*\]\]')
@@ -132,7 +132,7 @@ echo "   the photo's noise model (develop/IOL1068-09/photo_variance.noise.json):
   "$(grep -m1 '"source"' "$out/run/develop/IOL1068-09/photo_variance.noise.json" | sed -E 's/^[^:]*: *//; s/[",]//g')"
 echo "   truth: environment scale 1.6; recovered: $(grep -m1 '"new_scale"' "$out/run/env-scale/IOL1068-09/env_scale.json" | tr -d ' ,')"
 echo "   truth colour response (fixtures/demo/truth_colour.json) vs the matrix recovered from the captured chart:" \
-  $(grep -m1 -A5 '"truth_vs_recovered"' "$out/run/report/metrics.json" | tr -d ' ,"{}' | tr '\n' ' ')
+  $(grep -A4 '"truth_vs_recovered": {' "$out/run/report/metrics.json" | grep -A3 -m1 '"de2000_max"' | tr -d ' ,"{}' | tr '\n' ' ')
 echo "   truth camera: fx 530 fy 530 cx 330.5 cy 236.5 k1 -0.25 k2 0.10; recovered:" \
   $(grep -m7 -E '"(fx|fy|cx|cy|k1|k2|k3)"' "$out/run/calibrate/camera.json" | tr -d ' ,"') "(table in the report)"
 
@@ -142,7 +142,7 @@ echo "  $out/optics/optical_properties.csv   table of all samples (also .json)"
 echo "  $out/optics/optical_properties.png   μs, μa, g against wavelength"
 echo "  $out/optics/IOL1068-NN/               phase tables and polar plots per sample"
 echo "  $out/bssrdf/IOL1068-NN/tiX_toY/      bssrdf.exr/.png, profile.csv/.png, summary.json; sweep.csv per sample"
-echo "  $out/fit/                            fit.json (weight-% ± error), objective.png, IOL1068-09_fitted.toml"
+echo "  $out/fit/                            fit.json (weight-% ± error), objective.png, IOL1068-09_fitted.toml (fit_measured/: its slices)"
 echo "  $out/surface/                        fit.json, heightmap.png, distribution.png, normals.exr of the shipped height map"
 echo "  $out/bssrdf/IOL1068-09-rough/         the 45°/15° slice through the measured rough surface (summary.json: config.roughness)"
 echo "  $out/colour/ccm.json, chart.png, delta_e.png   colour-correction matrix, corrected chart, ΔE bars"
@@ -152,5 +152,5 @@ echo "  $out/render/render.exr, render.png   the rendered twin under env360/env_
 echo "  $out/camera/IMG_5952.exr/.json       a real CR2 as linear camera RGB with its metadata (if rawtran-doc is installed)"
 echo "  $out/run/report/index.html          the run's report (optics, BSSRDF, env scale, triplet with RMSE/SSIM, calibration, manifest); metrics.json"
 echo "  $out/env360/env.exr, env.json          the 360° panorama merged from brackets/ (camera RGB; dynamic range, response)"
-echo "  $out/env360/chart_view.png, colour/      the chart cut out of the panorama and the 360° camera's colour matrix (ccm.json, ΔE)"
+echo "  $out/env360/chart_preview.png, colour/    the chart cut out of the panorama and the 360° camera's colour matrix (ccm.json, ΔE)"
 echo "  $out/env360/env_cie.exr, env_cie_oriented.exr/.json/.png/_board.png, scene.toml   the map in CIE RGB, its orientation, the render's scene"
