@@ -77,6 +77,15 @@ impl RgbImage {
     }
 }
 
+/// Whether a `width` × `height` image can be binned `factor` × `factor`
+/// (both sides multiples of a factor ≥ 1).
+pub fn check_bin(width: usize, height: usize, factor: usize) -> Result<(), ImageIoError> {
+    if factor == 0 || !width.is_multiple_of(factor) || !height.is_multiple_of(factor) {
+        return Err(ImageIoError::Bin { width, height, factor });
+    }
+    Ok(())
+}
+
 /// `data` (`channels` interleaved values per pixel, `width` × `height`,
 /// row-major) binned `factor` × `factor` by the mean (in f64).
 pub fn bin_interleaved(
@@ -86,9 +95,7 @@ pub fn bin_interleaved(
     channels: usize,
     factor: usize,
 ) -> Result<Vec<f32>, ImageIoError> {
-    if factor == 0 || !width.is_multiple_of(factor) || !height.is_multiple_of(factor) {
-        return Err(ImageIoError::Bin { width, height, factor });
-    }
+    check_bin(width, height, factor)?;
     let expected = width * height * channels;
     if data.len() != expected {
         return Err(ImageIoError::Size { got: data.len(), expected, width, height, channels });

@@ -337,16 +337,9 @@ fn apply(a: ApplyArgs) -> Result<()> {
     if file.input_encoding == InputEncoding::Srgb {
         decode_in_place(&mut img);
     }
-    if !img.width.is_multiple_of(a.bin) || !img.height.is_multiple_of(a.bin) {
-        bail!(
-            "--bin {}: {} is {} × {} pixels; both sides must be multiples of {}",
-            a.bin,
-            a.input.display(),
-            img.width,
-            img.height,
-            a.bin
-        );
-    }
+    // Checked before anything is written (the variance file comes first).
+    imageio::check_bin(img.width, img.height, a.bin)
+        .with_context(|| format!("--bin {}: {}", a.bin, a.input.display()))?;
     let binned = (img.width / a.bin, img.height / a.bin);
     if let Some(v) = &a.variance_out {
         let colour = |rgb: [f64; 3]| mat3_vec(&target, ccm.apply(rgb));

@@ -857,6 +857,11 @@ pub const NOISE_BLOCK_PX: usize = 8;
 /// pixels ([`noise::paired`]): a twin's model error is smooth over a few
 /// pixels, a render's noise is not.
 pub const PAIRED_CELL_PX: usize = 8;
+/// The default of a count that older files lack (a factor of 1: none).
+fn one() -> usize {
+    1
+}
+
 /// Bootstrap resamples of the model RMSE's interval.
 pub const NOISE_RESAMPLES: usize = 1000;
 

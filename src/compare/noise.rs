@@ -373,7 +373,7 @@ pub struct PairedReport {
     pub definition: String,
     /// Side of the square cells whose means are compared, in pixels (1:
     /// pixel by pixel).
-    #[serde(default = "one")]
+    #[serde(default = "super::one")]
     pub cell_px: usize,
     /// Mean over the cells' included pixels and channels of
     /// [(Ā − P̄)² − var Ā] − [(B̄ − P̄)² − var B̄] (bars: means over a cell)
@@ -392,10 +392,6 @@ pub struct PairedReport {
     /// "A is closer", "B is closer" or "the data cannot tell them apart at this noise".
     pub verdict: String,
     pub blocks: usize,
-}
-
-fn one() -> usize {
-    1
 }
 
 /// The paired comparison of two renders `a`, `b` (with the variances of

@@ -46,7 +46,7 @@ pub struct PhotoVarianceFile {
     pub realisations: usize,
     pub seed: u64,
     /// The photo's binning (bin × bin photo pixels per pixel; 1: none).
-    #[serde(default = "one")]
+    #[serde(default = "super::one")]
     pub bin: usize,
     /// What the variance's units are.
     pub units: String,
@@ -85,10 +85,8 @@ pub fn photo_variance(
     let model =
         noise::model_of(&frame).map_err(|source| PhotoNoiseError::Noise { path: path.to_path_buf(), source })?;
     let (photo, _) = raw::develop(&frame, &opts)?;
-    if bin > 1 && (!photo.width.is_multiple_of(bin) || !photo.height.is_multiple_of(bin)) {
-        let source = crate::imageio::ImageIoError::Bin { width: photo.width, height: photo.height, factor: bin };
-        return Err(PhotoNoiseError::Bin { path: path.to_path_buf(), source });
-    }
+    crate::imageio::check_bin(photo.width, photo.height, bin.max(1))
+        .map_err(|source| PhotoNoiseError::Bin { path: path.to_path_buf(), source })?;
     // The colour step's Jacobian at each pixel, columns d out / d camera channel.
     let jac: Vec<[[f64; 3]; 3]> = photo
         .data
@@ -150,10 +148,6 @@ pub fn photo_variance(
         units: "the developed photo's units, squared".into(),
     };
     Ok((var, file))
-}
-
-fn one() -> usize {
-    1
 }
 
 /// The sidecar JSON path of a variance image: `v.exr` → `v.noise.json` (not
