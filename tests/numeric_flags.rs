@@ -100,6 +100,7 @@ fn cases() -> Vec<(Vec<&'static str>, Vec<&'static str>)> {
                 "--time-s",
                 "--seed",
                 "--lobe-vertices",
+                "--similarity-g",
             ],
         ),
         (
@@ -119,7 +120,7 @@ fn cases() -> Vec<(Vec<&'static str>, Vec<&'static str>)> {
         ),
         (
             vec!["render", "{in}/scene.toml", "--spp", "1", "--time-s", "5", "--quiet", "--out", "out"],
-            vec!["--spp", "--time-s", "--seed", "--exposure", "--target-rel-error", "--threads"],
+            vec!["--spp", "--time-s", "--seed", "--exposure", "--target-rel-error", "--threads", "--similarity-g"],
         ),
         (
             vec!["compare", "--photo", "{in}/photo.exr", "--render", "{in}/render.exr", "--out", "out"],

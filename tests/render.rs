@@ -135,6 +135,8 @@ fn bad_scene_files_are_refused_with_reasons() {
         ("bad_roughness_alpha.toml", &["[material] roughness", "-0.01"]),
         ("target_rel_error_above_one.toml", &["[render] target_rel_error", "between 0 and 1", "5"]),
         ("target_rel_error_zero.toml", &["[render] target_rel_error", "between 0 and 1"]),
+        ("similarity_g_one.toml", &["similarity_g_one.toml", "[render] similarity_g", "[0, 1)", "got 1"]),
+        ("similarity_g_without_object.toml", &["[render] similarity_g", "no object"]),
         ("bad_sampling.toml", &["bad_sampling.toml", "adaptive"]),
         ("huge_index.toml", &["huge_index.toml", "band 1", "1000000", "[1, 10]"]),
         ("zero_transform.toml", &["[object] transform", "last row", "determinant 0"]),
@@ -189,6 +191,11 @@ fn bad_scene_files_say_what_went_wrong_as_a_variant() {
     assert!(matches!((s, k, p), ("board", "even", KeyProblem::Reflectance { values: [1.2, 0.5, 0.5] })));
     let (s, k, p) = key("target_rel_error_above_one.toml");
     assert!(matches!((s, k, p), ("render", "target_rel_error", KeyProblem::Fraction { value: 5.0 })));
+    let (s, k, p) = key("similarity_g_one.toml");
+    assert!(matches!(
+        (s, k, p),
+        ("render", "similarity_g", KeyProblem::Similarity(scene::SimilarityProblem::Range { value: 1.0 }))
+    ));
     let (s, p) = section("env_both.toml");
     assert!(matches!((s, p), ("environment", SectionProblem::Conflict { first: "map", second: "constant" })));
     let (s, p) = section("object_without_material.toml");

@@ -549,6 +549,82 @@ impl PhaseTable {
     pub fn mean_cosine(&self) -> f64 {
         self.mean_cosine
     }
+
+    /// The table with its forward peak cut flat, for the similarity
+    /// relation of [`crate::medium::Medium::similar`]: the node values at
+    /// θ < θ_k replaced by one value c, everything at θ ≥ θ_k kept. c is
+    /// chosen so that the transport moment ∫ (1 − μ) p dω of the cut part
+    /// is kept. The result, normalised, has mass M = 1 − (what the cut
+    /// removed) before normalisation, so a medium that scatters M times as
+    /// often with it (μ_s′ = M μ_s) scatters exactly as often as before into
+    /// every angle θ ≥ θ_k and has the same reduced coefficient
+    /// μ_s′(1 − g′) = μ_s(1 − g): its walk replaces many small turns inside
+    /// the peak by fewer turns of up to θ_k. θ_k is the smallest node angle
+    /// at which the result's mean cosine g′ = 1 − (1 − g)/M is at most
+    /// `g_max` (a fully flat table has g′ = 0, so any `g_max` ≥ 0 is
+    /// reached). Returns a clone when g ≤ `g_max` already.
+    pub fn flat_topped(&self, g_max: f64) -> PhaseTable {
+        if self.mean_cosine <= g_max {
+            return self.clone();
+        }
+        let (mu, p) = (&self.mu, &self.values);
+        let n = p.len();
+        // ∫ p dμ and ∫ (1 − μ) p dμ over bin i (μ_{i+1} … μ_i) of the
+        // function linear from `at_lo` to `at_hi`: trapezoid and Simpson,
+        // exact for these (at most quadratic) integrands.
+        let bin = |i: usize, at_lo: f64, at_hi: f64| {
+            let (hi, lo) = (mu[i], mu[i + 1]);
+            let mid = 0.5 * (hi + lo);
+            let zeroth = (hi - lo) * 0.5 * (at_lo + at_hi);
+            let transport =
+                (hi - lo) / 6.0 * ((1.0 - lo) * at_lo + 4.0 * (1.0 - mid) * 0.5 * (at_lo + at_hi) + (1.0 - hi) * at_hi);
+            (zeroth, transport)
+        };
+        let total_transport: f64 = (0..n - 1).map(|i| bin(i, p[i + 1], p[i]).1).sum();
+        let total_mass: f64 = (0..n - 1).map(|i| bin(i, p[i + 1], p[i]).0).sum();
+        // Walk k upwards keeping: the original mass and transport of bins
+        // k.., the original transport of bins < k, and the mass and
+        // transport of bins < k − 1 at value 1.
+        let (mut mass_below, mut transport_below) = (0.0, 0.0);
+        let (mut unit_mass, mut unit_transport) = (0.0, 0.0);
+        let mut chosen = None;
+        for k in 1..n {
+            let (m, t) = bin(k - 1, p[k], p[k - 1]);
+            mass_below += m;
+            transport_below += t;
+            if k >= 2 {
+                let (um, ut) = bin(k - 2, 1.0, 1.0);
+                unit_mass += um;
+                unit_transport += ut;
+            }
+            // Bin k − 1 runs from p_k (at μ_k) to c (at μ_{k−1}).
+            let (edge_mass_pk, edge_transport_pk) = bin(k - 1, 1.0, 0.0);
+            let (edge_mass_c, edge_transport_c) = bin(k - 1, 0.0, 1.0);
+            let c_transport = unit_transport + edge_transport_c;
+            if c_transport <= 0.0 {
+                continue;
+            }
+            let c = (transport_below - p[k] * edge_transport_pk) / c_transport;
+            if c < 0.0 {
+                continue;
+            }
+            let mass = (total_mass - mass_below) + c * (unit_mass + edge_mass_c) + p[k] * edge_mass_pk;
+            if mass > 0.0 && 1.0 - total_transport / mass <= g_max {
+                chosen = Some((k, c));
+                break;
+            }
+        }
+        let mut values = p.clone();
+        match chosen {
+            Some((k, c)) => values[..k].fill(c),
+            None => values.fill(1.0),
+        }
+        // Non-negative, finite and not all zero, so construction cannot
+        // fail; the flat table is the fallback all the same.
+        PhaseTable::from_theta_samples(&values)
+            .or_else(|_| PhaseTable::from_theta_samples(&vec![1.0; n]))
+            .expect("a constant table is valid")
+    }
 }
 
 /// Lane forms of phase-function sampling and evaluation (HG, tables), the
@@ -1106,5 +1182,49 @@ mod tests {
             }
         }
         unsafe { check() }
+    }
+
+    // ------------------------------------------------------ flat top (similarity)
+
+    /// A Mie-like table: HG(0.97) on 4096 nodes plus a small backward lobe.
+    fn peaked_table() -> PhaseTable {
+        let n = 4096;
+        let values: Vec<f64> = (0..n)
+            .map(|i| {
+                let mu = (i as f64 * PI / (n - 1) as f64).cos();
+                hg_eval(0.97, mu) + 0.002 * (1.0 - mu).powi(2)
+            })
+            .collect();
+        PhaseTable::from_theta_samples(&values).expect("valid table")
+    }
+
+    #[test]
+    fn flat_top_keeps_large_angle_scattering_and_the_transport_moment() {
+        let table = peaked_table();
+        let g = table.mean_cosine();
+        assert!(g > 0.9, "g = {g}");
+        // The transport moment ∫ (1 − μ) p dω and the mass by an
+        // independent quadrature in θ (Simpson, 20 000 intervals) of `eval`.
+        let transport = |t: &PhaseTable| sphere_integral(|mu| (1.0 - mu) * t.eval(mu), 0.0, PI, 20_000);
+        for g_max in [0.9, 0.8, 0.5, 0.2, 0.0] {
+            let cut = table.flat_topped(g_max);
+            let g_cut = cut.mean_cosine();
+            assert!(g_cut <= g_max && g_cut > g_max - 0.02, "g_max {g_max}: g′ = {g_cut}");
+            // μs′ = M μs with M = (1 − g)/(1 − g′) keeps μs (1 − g) ...
+            let m = (1.0 - g) / (1.0 - g_cut);
+            let (t, t_cut) = (transport(&table), transport(&cut));
+            assert!(((m * t_cut) / t - 1.0).abs() < 1e-4, "g_max {g_max}: M t′ = {} against t = {t}", m * t_cut);
+            // ... and μs p(θ) at every node outside the cut.
+            let k = cut.theta_samples().iter().zip(table.theta_samples()).position(|(a, b)| (m * a / b - 1.0).abs() < 1e-6);
+            let k = k.expect("a node where the cut ends");
+            for (i, (a, b)) in cut.theta_samples().iter().zip(table.theta_samples()).enumerate().skip(k) {
+                assert!((m * a / b - 1.0).abs() < 1e-6, "g_max {g_max}, node {i}: {} against {b}", m * a);
+            }
+            // The cut is flat up to node k − 1 and reaches further for smaller g_max.
+            let top = cut.theta_samples()[0];
+            assert!(cut.theta_samples()[..k - 1].iter().all(|&v| v == top), "g_max {g_max}");
+        }
+        // Nothing to cut: unchanged.
+        assert_eq!(table.flat_topped(0.99), table);
     }
 }

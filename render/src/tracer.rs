@@ -221,6 +221,18 @@ impl Object {
         Ok(Self { accel, interface, medium, bands, eta_mean })
     }
 
+    /// The same object with each band's medium replaced by its similar one
+    /// ([`Medium::similar`]: asymmetry at most `g_max`, μ_s(1 − g), μ_a and
+    /// n kept): an approximation that makes the walk of a strongly
+    /// forward-scattering medium far shorter (see the module documentation).
+    pub fn similar(self, g_max: f64) -> Result<Self, SceneError> {
+        let mut media = self.medium.clone();
+        for (band, m) in media.iter_mut().enumerate() {
+            *m = m.similar(g_max).map_err(|source| SceneError::Medium { band, source })?;
+        }
+        Object::new(self.accel, self.interface, media)
+    }
+
     /// The interface's index ratio (the medium's index) in band `band`.
     #[inline]
     fn eta(&self, band: usize) -> f64 {

@@ -82,6 +82,11 @@ pub struct RunArgs {
     /// Phase function (default: mie with a recipe, hg otherwise).
     #[arg(long, value_parser = super::choices::named::<PhaseModel>())]
     pub phase: Option<PhaseModel>,
+    /// Walk the first-order similar medium whose asymmetry is at most G
+    /// (μs(1 − g), μa and n kept; an approximation whose bias this command
+    /// can measure against the exact medium; 0 ≤ G < 1).
+    #[arg(long, value_name = "G", allow_hyphen_values = true)]
+    pub similarity_g: Option<f64>,
     #[command(flatten)]
     pub beam: super::groups::BeamArgs,
     /// Pixels per side of the camera.
@@ -232,6 +237,21 @@ struct MediumChoice {
 }
 
 fn medium(a: &RunArgs) -> Result<MediumChoice> {
+    let mut choice = exact_medium(a)?;
+    if let Some(g_max) = a.similarity_g {
+        let similar = choice.medium.similar(g_max).map_err(|e| anyhow::anyhow!("--similarity-g: {e}"))?;
+        choice.phase_name = format!(
+            "{}, similar medium (g′ = {:.4}, μs′ = {:.6} /m)",
+            choice.phase_name,
+            similar.phase.mean_cosine(),
+            similar.mu_s_per_m
+        );
+        choice.medium = similar;
+    }
+    Ok(choice)
+}
+
+fn exact_medium(a: &RunArgs) -> Result<MediumChoice> {
     let explicit_thickness = match a.thickness_mm {
         Some(t) if !(t.is_finite() && t > 0.0) => {
             bail!("--thickness-mm {t}: the slab thickness must be a positive number of millimetres")
@@ -761,6 +781,7 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
             phi_o: 180.0,
             configs: None,
             phase: None,
+            similarity_g: None,
             beam: Default::default(),
             pixels: 259,
             pixel_mm: 0.1029,

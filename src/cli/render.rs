@@ -52,6 +52,12 @@ pub struct RenderArgs {
     /// directions, Fresnel per band, all bands on every path; approximate).
     #[arg(long, value_enum)]
     pub dispersion: Option<DispersionArg>,
+    /// Walk the object's similar medium of asymmetry at most G (μs(1 − g),
+    /// μa and n kept; 0 ≤ G < 1; overrides [render] similarity_g): far
+    /// fewer events and less noise for a strongly forward-scattering medium,
+    /// an approximation whose bias is measured in docs/method.md.
+    #[arg(long, value_name = "G", allow_hyphen_values = true)]
+    pub similarity_g: Option<f64>,
     /// Follow both the reflection and the refraction where a path meets the object from outside.
     #[arg(long)]
     pub split_entry: bool,
@@ -262,7 +268,18 @@ fn prepare_with(a: &RenderArgs, for_merge: bool) -> Result<(scene::LoadedScene, 
     if !a.exposure.is_finite() {
         bail!("--exposure must be finite");
     }
-    let mut loaded = if for_merge { scene::load_for_merge(&a.scene)? } else { scene::load(&a.scene)? };
+    let mut loaded = scene::load_edited(&a.scene, for_merge, |file| {
+        if a.similarity_g.is_some() {
+            file.render.similarity_g = a.similarity_g;
+        }
+    })
+    .map_err(|e| match (e, a.similarity_g) {
+        // The flag's value, not the file's: name the flag.
+        (scene::SceneFileError::Key { section: "render", key: "similarity_g", problem, .. }, Some(g)) => {
+            anyhow::anyhow!("--similarity-g {g}: {problem}")
+        }
+        (e, _) => e.into(),
+    })?;
     a.render.resize(&mut loaded)?;
     let mut settings = loaded.settings.clone();
     a.render.apply(&mut settings);
@@ -700,25 +717,50 @@ pub struct EstimatorRow {
 /// equal counts; measured on the demo at 32 spp against 30 s runs, an
 /// option that looked 1.4–1.7× better at unequal counts was 0.94×.)
 pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
-    let loaded = scene::load(scene_path)?;
+    // The exact medium and per-band dispersion whatever the file says; the
+    // approximations are rows of their own.
+    let mut loaded = scene::load_edited(scene_path, false, |f| {
+        f.render.similarity_g = None;
+        f.render.dispersion = None;
+    })?;
+    loaded.settings.dispersion = tracer::Dispersion::PerBand;
+    let exact_object = loaded.scene.object.clone();
     let mut rows = Vec::new();
     type Configure = fn(&mut Settings);
-    let configurations: [(&'static str, Configure); 5] = [
-        ("previous", |s| s.phase_connection = false),
-        ("default (+ phase connection)", |_| {}),
-        ("default + splitting at entry", |s| s.split_entry = true),
-        ("default + shared dispersion", |s| s.dispersion = tracer::Dispersion::SharedDirections),
-        ("default + object-weighted", |s| s.sampling = tracer::Sampling::ObjectWeighted),
+    let shared = |s: &mut Settings| s.dispersion = tracer::Dispersion::SharedDirections;
+    let configurations: [(&'static str, Configure, Option<f64>); 8] = [
+        ("previous", |s| s.phase_connection = false, None),
+        ("default (+ phase connection)", |_| {}, None),
+        ("default + splitting at entry", |s| s.split_entry = true, None),
+        ("default + shared dispersion", shared, None),
+        ("default + object-weighted", |s| s.sampling = tracer::Sampling::ObjectWeighted, None),
+        ("similar g′ ≤ 0.5 + shared dispersion", shared, Some(0.5)),
+        ("similar g′ ≤ 0 + shared dispersion", shared, Some(0.0)),
+        (
+            "similar g′ ≤ 0 + shared + object-weighted",
+            |s| {
+                s.dispersion = tracer::Dispersion::SharedDirections;
+                s.sampling = tracer::Sampling::ObjectWeighted;
+            },
+            Some(0.0),
+        ),
     ];
     // The first estimator runs for `time_s`; the others render the samples
     // per pixel it reached, so that every median is read at the same count.
     let mut same_spp: Option<u32> = None;
-    for (name, configure) in configurations {
+    for (name, configure, similarity_g) in configurations {
         let mut settings = match same_spp {
             None => Settings { spp: u32::MAX / 2, time_budget_s: Some(time_s), ..loaded.settings.clone() },
             Some(spp) => Settings { spp, time_budget_s: None, ..loaded.settings.clone() },
         };
         configure(&mut settings);
+        loaded.scene.object = exact_object.clone();
+        if let Some(g) = similarity_g {
+            if loaded.scene.object.is_none() {
+                continue;
+            }
+            scene::apply_similarity(&mut loaded, g)?;
+        }
         let cpu0 = process_cpu_s();
         let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
         let cpu = process_cpu_s() - cpu0;

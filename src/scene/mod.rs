@@ -155,6 +155,8 @@ pub enum KeyProblem {
     SingularTransform { determinant: f64, last_row: [f64; 4], largest: f64 },
     #[error("must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %), got {value}")]
     Fraction { value: f64 },
+    #[error("{0}")]
+    Similarity(SimilarityProblem),
     #[error("reflectances must lie in [0, 1], got {values:?}")]
     Reflectance { values: [f64; 3] },
     #[error("radiance must be finite and ≥ 0, got {values:?}")]
@@ -424,6 +426,29 @@ pub struct RenderSection {
     pub sampling: Option<SamplingKey>,
     /// Stop when the median relative standard error over the object's pixels reaches this fraction.
     pub target_rel_error: Option<f64>,
+    /// Walk the object's similar medium, asymmetry at most this (0 ≤ g < 1;
+    /// μs(1 − g), μa and n kept): an approximation, see docs/method.md.
+    pub similarity_g: Option<f64>,
+    /// "per-band" (exact, default) or "shared-directions" (the bands' mean
+    /// index for refraction directions; approximate).
+    pub dispersion: Option<DispersionKey>,
+}
+
+/// `[render] dispersion`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DispersionKey {
+    PerBand,
+    SharedDirections,
+}
+
+impl From<DispersionKey> for lucent_render::tracer::Dispersion {
+    fn from(k: DispersionKey) -> Self {
+        match k {
+            DispersionKey::PerBand => Self::PerBand,
+            DispersionKey::SharedDirections => Self::SharedDirections,
+        }
+    }
 }
 
 /// `[render] sampling`.
@@ -574,6 +599,21 @@ pub struct MaterialSummary {
     /// ("smooth" in files written before rough boundaries existed).
     #[serde(default = "smooth")]
     pub boundary: String,
+    /// The similarity approximation, when the walk used it: the largest
+    /// asymmetry asked for, and μs′ and g′ per band as walked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub similar: Option<SimilarSummary>,
+}
+
+/// The similar medium the object's walk used ([`apply_similarity`]).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct SimilarSummary {
+    /// The largest asymmetry asked for.
+    pub g_max: f64,
+    /// μs′ per band as walked, 1/m.
+    pub mu_s_per_m: [f64; 3],
+    /// g′ per band as walked.
+    pub g: [f64; 3],
 }
 
 fn yes() -> bool {
@@ -672,6 +712,21 @@ pub fn load_for_merge(path: &Path) -> Result<LoadedScene, SceneFileError> {
         crate::io::read_text(path).map_err(|source| SceneFileError::Read { path: path.to_path_buf(), source })?;
     let file = parse(&text, path)?;
     build_with(&file, path, true)
+}
+
+/// [`load`] (or [`load_for_merge`] with `summary_only`) with the file
+/// edited between parsing and validation: how a command-line flag
+/// overrides a key, checked like the key.
+pub fn load_edited(
+    path: &Path,
+    summary_only: bool,
+    edit: impl FnOnce(&mut SceneFile),
+) -> Result<LoadedScene, SceneFileError> {
+    let text =
+        crate::io::read_text(path).map_err(|source| SceneFileError::Read { path: path.to_path_buf(), source })?;
+    let mut file = parse(&text, path)?;
+    edit(&mut file);
+    build_with(&file, path, summary_only)
 }
 
 /// Stage two: the validated scene.
@@ -789,6 +844,9 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
         }
         settings.target_rel_error = Some(e);
     }
+    if let Some(d) = r.dispersion {
+        settings.dispersion = d.into();
+    }
 
     let (object, material_summary) = match object {
         Some((o, s)) => (Some(o), Some(s)),
@@ -802,7 +860,7 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
     if let Some(rep) = &mesh_report {
         warnings.extend(rep.warnings.iter().cloned());
     }
-    Ok(LoadedScene {
+    let mut loaded = LoadedScene {
         scene,
         settings,
         summary: SceneSummary {
@@ -825,7 +883,46 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
             band_weight_set: lucent_colour::bands::BAND_WEIGHT_SET.into(),
         },
         warnings,
-    })
+    };
+    if let Some(g) = r.similarity_g {
+        apply_similarity(&mut loaded, g)
+            .map_err(|problem| ctx.key("render", "similarity_g", KeyProblem::Similarity(problem)))?;
+    }
+    Ok(loaded)
+}
+
+/// Why the similarity approximation cannot be applied.
+#[derive(Debug, Clone, Error, PartialEq)]
+pub enum SimilarityProblem {
+    #[error("must lie in [0, 1) (an asymmetry g), got {value}")]
+    Range { value: f64 },
+    #[error("the scene has no object whose medium it could apply to")]
+    NoObject,
+    #[error("{0}")]
+    Object(#[from] lucent_render::tracer::SceneError),
+}
+
+/// Replaces the object's medium in every band by its similar medium of
+/// asymmetry at most `g_max` (μs(1 − g), μa and n kept;
+/// [`lucent_render::medium::Medium::similar`]) and records it in the
+/// summary. An approximation that is exact in the diffusion limit; its
+/// measured bias is in docs/method.md#render-similarity.
+pub fn apply_similarity(loaded: &mut LoadedScene, g_max: f64) -> Result<(), SimilarityProblem> {
+    if !lucent_render::medium::valid_similarity_g(g_max) {
+        return Err(SimilarityProblem::Range { value: g_max });
+    }
+    let object = loaded.scene.object.take().ok_or(SimilarityProblem::NoObject)?;
+    let similar = object.similar(g_max)?;
+    let media = &similar.medium;
+    if let Some(m) = loaded.summary.material.as_mut() {
+        m.similar = Some(SimilarSummary {
+            g_max,
+            mu_s_per_m: std::array::from_fn(|b| media[b].mu_s_per_m),
+            g: std::array::from_fn(|b| media[b].phase.mean_cosine()),
+        });
+    }
+    loaded.scene.object = Some(similar);
+    Ok(())
 }
 
 fn build_camera(
@@ -993,6 +1090,7 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
                 n,
                 dispersion: true,
                 boundary: "smooth".into(),
+                similar: None,
             };
             Ok((Bands { mu_s_per_m: s, mu_a_per_m: a, phase }, n, summary, None, None))
         }
@@ -1084,6 +1182,7 @@ fn medium_from_spectrum(
         n,
         dispersion: true,
         boundary: "smooth".into(),
+        similar: None,
     };
     Ok((Bands { mu_s_per_m: mu_s, mu_a_per_m: mu_a, phase }, summary))
 }
