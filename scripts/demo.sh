@@ -95,7 +95,7 @@ rm -f "$e/studio_xyz.exr" "$e/with_chart.exr" "$e/truth_xyz.exr" "$e/truth_cie.e
 echo
 echo "== 5. The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerboard under the 360° camera's environment"
 echo "   of 4b (merged, colour-calibrated to CIE RGB, oriented) on the finite sphere: fixtures/render/demo.toml with that map"
-"$bin" render "$out/env360/scene.toml" --spp 64 --time-s 150 --out "$out/render"
+"$bin" render "$out/env360/scene.toml" --spp 4096 --target-rel-error 0.05 --time-s 150 --out "$out/render"
 
 echo
 echo "== 6. The whole digitisation from one project file (lucent run fixtures/demo/project.toml). The synthetic truth:"

@@ -342,6 +342,22 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
     assert_eq!(s.environment_radius_m, Some(0.6));
     // studio.exr's three lossy-compression negatives are reported, not hidden.
     assert!(loaded.warnings.iter().any(|w| w.contains("negative values")), "{:?}", loaded.warnings);
+    // The demo walks the similar medium (similarity_g = 0) with the bands'
+    // mean index: μs′ = μs(1 − g) with isotropic scattering, and the object
+    // the renderer gets is that medium, not the recipe's.
+    assert!(!m.dispersion);
+    let similar = m.similar.as_ref().expect("similarity_g = 0 in demo.toml");
+    assert_eq!(similar.g_max, 0.0);
+    let object = loaded.scene.object.as_ref().expect("object");
+    for b in 0..3 {
+        assert!(similar.g[b].abs() < 1e-3, "g′ {:?}", similar.g);
+        let reduced = m.mu_s_per_m[b] * (1.0 - m.g[b]);
+        let walked = similar.mu_s_per_m[b] * (1.0 - similar.g[b]);
+        // (g here is the band mixture's; the walk keeps its table's, within 1 % in 1 − g.)
+        assert!((walked / reduced - 1.0).abs() < 0.01, "band {b}: μs′(1 − g′) {walked} against μs(1 − g) {reduced}");
+        assert_eq!(object.medium[b].mu_s_per_m, similar.mu_s_per_m[b]);
+        assert_eq!(object.medium[b].mu_a_per_m, m.mu_a_per_m[b]);
+    }
 }
 
 #[test]

@@ -166,6 +166,10 @@ pub enum SceneError {
     BadSurface(#[from] MicrofacetError),
 }
 
+/// The least depth, in mean free paths of the similar medium, across the
+/// object's thinnest side that [`Object::similar`] keeps.
+pub const SIMILAR_MIN_DEPTH: f64 = 3.0;
+
 /// The object: a closed mesh, its interface with the air around it and
 /// its interior medium per band R, G, B (each band's index
 /// [`Medium::n`] is the interface's index ratio in that band).
@@ -222,13 +226,23 @@ impl Object {
     }
 
     /// The same object with each band's medium replaced by its similar one
-    /// ([`Medium::similar`]: asymmetry at most `g_max`, μ_s(1 − g), μ_a and
-    /// n kept): an approximation that makes the walk of a strongly
-    /// forward-scattering medium far shorter (see the module documentation).
+    /// ([`Medium::similar`]: μ_s(1 − g), μ_a and n kept) of asymmetry at
+    /// most `g_max`, raised in a band where needed so that the similar
+    /// medium stays at least [`SIMILAR_MIN_DEPTH`] mean free paths deep
+    /// across the object's thinnest bounding-box side d:
+    /// g′ ≥ 1 − μ_s(1 − g) d / [`SIMILAR_MIN_DEPTH`]. (An optically thin
+    /// similar medium would let the board be seen through it unscattered,
+    /// where the exact walk blurs it by many small turns.) An
+    /// approximation that makes the walk of a strongly forward-scattering
+    /// medium far shorter (see the module documentation).
     pub fn similar(self, g_max: f64) -> Result<Self, SceneError> {
+        let (lo, hi) = self.accel.bounds();
+        let d = (hi - lo).min_element();
         let mut media = self.medium.clone();
         for (band, m) in media.iter_mut().enumerate() {
-            *m = m.similar(g_max).map_err(|source| SceneError::Medium { band, source })?;
+            let reduced_depth = m.mu_s_per_m * (1.0 - m.phase.mean_cosine()) * d;
+            let floor = (1.0 - reduced_depth / SIMILAR_MIN_DEPTH).clamp(0.0, 0.999);
+            *m = m.similar(g_max.max(floor)).map_err(|source| SceneError::Medium { band, source })?;
         }
         Object::new(self.accel, self.interface, media)
     }

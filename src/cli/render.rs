@@ -717,44 +717,48 @@ pub struct EstimatorRow {
 /// equal counts; measured on the demo at 32 spp against 30 s runs, an
 /// option that looked 1.4–1.7× better at unequal counts was 0.94×.)
 pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
-    // The exact medium and per-band dispersion whatever the file says; the
+    // The exact medium and dispersion whatever the file says; the
     // approximations are rows of their own.
-    let mut loaded = scene::load_edited(scene_path, false, |f| {
+    let exact = |f: &mut scene::SceneFile| {
         f.render.similarity_g = None;
-        f.render.dispersion = None;
+        if let Some(m) = f.material.as_mut() {
+            m.dispersion = None;
+        }
+    };
+    let exact_scene = scene::load_edited(scene_path, false, exact)?;
+    // The bands' mean index (`[material] dispersion = false`), so that every
+    // path carries R, G and B.
+    let mean_index_scene = scene::load_edited(scene_path, false, |f| {
+        exact(f);
+        if let Some(m) = f.material.as_mut() {
+            m.dispersion = Some(false);
+        }
     })?;
-    loaded.settings.dispersion = tracer::Dispersion::PerBand;
-    let exact_object = loaded.scene.object.clone();
     let mut rows = Vec::new();
     type Configure = fn(&mut Settings);
     let shared = |s: &mut Settings| s.dispersion = tracer::Dispersion::SharedDirections;
-    let configurations: [(&'static str, Configure, Option<f64>); 8] = [
-        ("previous", |s| s.phase_connection = false, None),
-        ("default (+ phase connection)", |_| {}, None),
-        ("default + splitting at entry", |s| s.split_entry = true, None),
-        ("default + shared dispersion", shared, None),
-        ("default + object-weighted", |s| s.sampling = tracer::Sampling::ObjectWeighted, None),
-        ("similar g′ ≤ 0.5 + shared dispersion", shared, Some(0.5)),
-        ("similar g′ ≤ 0 + shared dispersion", shared, Some(0.0)),
-        (
-            "similar g′ ≤ 0 + shared + object-weighted",
-            |s| {
-                s.dispersion = tracer::Dispersion::SharedDirections;
-                s.sampling = tracer::Sampling::ObjectWeighted;
-            },
-            Some(0.0),
-        ),
+    let object_weighted = |s: &mut Settings| s.sampling = tracer::Sampling::ObjectWeighted;
+    // (name, settings, mean index, similarity g_max)
+    let configurations: [(&'static str, Configure, bool, Option<f64>); 8] = [
+        ("previous", |s| s.phase_connection = false, false, None),
+        ("default (+ phase connection)", |_| {}, false, None),
+        ("default + splitting at entry", |s| s.split_entry = true, false, None),
+        ("default + shared dispersion", shared, false, None),
+        ("default + object-weighted", object_weighted, false, None),
+        ("mean index", |_| {}, true, None),
+        ("similar g′ ≤ 0.5, mean index", |_| {}, true, Some(0.5)),
+        ("similar g′ ≤ 0, mean index", |_| {}, true, Some(0.0)),
     ];
     // The first estimator runs for `time_s`; the others render the samples
     // per pixel it reached, so that every median is read at the same count.
     let mut same_spp: Option<u32> = None;
-    for (name, configure, similarity_g) in configurations {
+    for (name, configure, mean_index, similarity_g) in configurations {
+        let mut loaded = if mean_index { mean_index_scene.clone() } else { exact_scene.clone() };
         let mut settings = match same_spp {
             None => Settings { spp: u32::MAX / 2, time_budget_s: Some(time_s), ..loaded.settings.clone() },
             Some(spp) => Settings { spp, time_budget_s: None, ..loaded.settings.clone() },
         };
         configure(&mut settings);
-        loaded.scene.object = exact_object.clone();
         if let Some(g) = similarity_g {
             if loaded.scene.object.is_none() {
                 continue;

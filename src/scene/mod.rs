@@ -429,26 +429,6 @@ pub struct RenderSection {
     /// Walk the object's similar medium, asymmetry at most this (0 ≤ g < 1;
     /// μs(1 − g), μa and n kept): an approximation, see docs/method.md.
     pub similarity_g: Option<f64>,
-    /// "per-band" (exact, default) or "shared-directions" (the bands' mean
-    /// index for refraction directions; approximate).
-    pub dispersion: Option<DispersionKey>,
-}
-
-/// `[render] dispersion`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum DispersionKey {
-    PerBand,
-    SharedDirections,
-}
-
-impl From<DispersionKey> for lucent_render::tracer::Dispersion {
-    fn from(k: DispersionKey) -> Self {
-        match k {
-            DispersionKey::PerBand => Self::PerBand,
-            DispersionKey::SharedDirections => Self::SharedDirections,
-        }
-    }
 }
 
 /// `[render] sampling`.
@@ -467,6 +447,8 @@ impl From<SamplingKey> for lucent_render::tracer::Sampling {
         }
     }
 }
+
+
 
 // ------------------------------------------------------------ validated
 
@@ -608,7 +590,10 @@ pub struct MaterialSummary {
 /// The similar medium the object's walk used ([`apply_similarity`]).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct SimilarSummary {
-    /// The largest asymmetry asked for.
+    /// The largest asymmetry asked for (a band's g′ is higher where the
+    /// similar medium would otherwise be less than
+    /// `lucent_render::tracer::SIMILAR_MIN_DEPTH` mean free paths deep
+    /// across the object's thinnest side).
     pub g_max: f64,
     /// μs′ per band as walked, 1/m.
     pub mu_s_per_m: [f64; 3],
@@ -843,9 +828,6 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
             return Err(ctx.key("render", "target_rel_error", KeyProblem::Fraction { value: e }));
         }
         settings.target_rel_error = Some(e);
-    }
-    if let Some(d) = r.dispersion {
-        settings.dispersion = d.into();
     }
 
     let (object, material_summary) = match object {
