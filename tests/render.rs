@@ -136,7 +136,6 @@ fn bad_scene_files_are_refused_with_reasons() {
         ("target_rel_error_above_one.toml", &["[render] target_rel_error", "between 0 and 1", "5"]),
         ("target_rel_error_zero.toml", &["[render] target_rel_error", "between 0 and 1"]),
         ("similarity_g_one.toml", &["similarity_g_one.toml", "[render] similarity_g", "[0, 1)", "got 1"]),
-        ("similarity_g_without_object.toml", &["[render] similarity_g", "no object"]),
         ("bad_sampling.toml", &["bad_sampling.toml", "adaptive"]),
         ("huge_index.toml", &["huge_index.toml", "band 1", "1000000", "[1, 10]"]),
         ("zero_transform.toml", &["[object] transform", "last row", "determinant 0"]),

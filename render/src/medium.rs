@@ -198,8 +198,9 @@ mod tests {
                 Sensor::new(9, 1e-3).expect("valid sensor"),
                 Directions::from_degrees(45.0, 0.0, 0.0, 180.0).expect("valid directions"),
             );
-            let s = simulate(&setup, &RunOptions { stop: Stop::paths(paths), seed: 7, ..RunOptions::default() }, |_| {})
-                .expect("simulation runs");
+            let s =
+                simulate(&setup, &RunOptions { stop: Stop::paths(paths), seed: 7, ..RunOptions::default() }, |_| {})
+                    .expect("simulation runs");
             (s.diffuse_reflectance, s.transmittance)
         };
         let (r, t) = run(exact.clone(), 40_000);

@@ -1215,7 +1215,8 @@ mod tests {
             let (t, t_cut) = (transport(&table), transport(&cut));
             assert!(((m * t_cut) / t - 1.0).abs() < 1e-4, "g_max {g_max}: M t′ = {} against t = {t}", m * t_cut);
             // ... and μs p(θ) at every node outside the cut.
-            let k = cut.theta_samples().iter().zip(table.theta_samples()).position(|(a, b)| (m * a / b - 1.0).abs() < 1e-6);
+            let k =
+                cut.theta_samples().iter().zip(table.theta_samples()).position(|(a, b)| (m * a / b - 1.0).abs() < 1e-6);
             let k = k.expect("a node where the cut ends");
             for (i, (a, b)) in cut.theta_samples().iter().zip(table.theta_samples()).enumerate().skip(k) {
                 assert!((m * a / b - 1.0).abs() < 1e-6, "g_max {g_max}, node {i}: {} against {b}", m * a);

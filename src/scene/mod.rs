@@ -448,8 +448,6 @@ impl From<SamplingKey> for lucent_render::tracer::Sampling {
     }
 }
 
-
-
 // ------------------------------------------------------------ validated
 
 /// A loaded scene with what a report needs to say about it.
@@ -866,7 +864,11 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
         },
         warnings,
     };
-    if let Some(g) = r.similarity_g {
+    // A scene without an object (the empty board of env-scale) has nothing
+    // to make similar: the key is checked and otherwise has no effect.
+    if let Some(g) = r.similarity_g.filter(|_| {
+        loaded.scene.object.is_some() || !lucent_render::medium::valid_similarity_g(r.similarity_g.unwrap_or(0.0))
+    }) {
         apply_similarity(&mut loaded, g)
             .map_err(|problem| ctx.key("render", "similarity_g", KeyProblem::Similarity(problem)))?;
     }
