@@ -349,7 +349,8 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
     assert_eq!(similar.g_max, 0.0);
     let object = loaded.scene.object.as_ref().expect("object");
     for b in 0..3 {
-        assert!(similar.g[b].abs() < 1e-3, "g′ {:?}", similar.g);
+        // g′ is 0 unless the 3-mean-free-path floor raises it (μs(1 − g) d ≈ 2.5 here: up to ≈ 0.2).
+        assert!(similar.g[b] < 0.3 && similar.g[b] >= 0.0, "g′ {:?}", similar.g);
         let reduced = m.mu_s_per_m[b] * (1.0 - m.g[b]);
         let walked = similar.mu_s_per_m[b] * (1.0 - similar.g[b]);
         // (g here is the band mixture's; the walk keeps its table's, within 1 % in 1 − g.)
