@@ -353,8 +353,8 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
         assert!(similar.g[b] < 0.3 && similar.g[b] >= 0.0, "g′ {:?}", similar.g);
         let reduced = m.mu_s_per_m[b] * (1.0 - m.g[b]);
         let walked = similar.mu_s_per_m[b] * (1.0 - similar.g[b]);
-        // (g here is the band mixture's; the walk keeps its table's, within 1 % in 1 − g.)
-        assert!((walked / reduced - 1.0).abs() < 0.01, "band {b}: μs′(1 − g′) {walked} against μs(1 − g) {reduced}");
+        // (g here is the band mixture's; the walk keeps its table's, within 3 % in 1 − g.)
+        assert!((walked / reduced - 1.0).abs() < 0.03, "band {b}: μs′(1 − g′) {walked} against μs(1 − g) {reduced}");
         assert_eq!(object.medium[b].mu_s_per_m, similar.mu_s_per_m[b]);
         assert_eq!(object.medium[b].mu_a_per_m, m.mu_a_per_m[b]);
     }
