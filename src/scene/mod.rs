@@ -864,11 +864,7 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
         },
         warnings,
     };
-    // A scene without an object (the empty board of env-scale) has nothing
-    // to make similar: the key is checked and otherwise has no effect.
-    if let Some(g) = r.similarity_g.filter(|_| {
-        loaded.scene.object.is_some() || !lucent_render::medium::valid_similarity_g(r.similarity_g.unwrap_or(0.0))
-    }) {
+    if let Some(g) = r.similarity_g {
         apply_similarity(&mut loaded, g)
             .map_err(|problem| ctx.key("render", "similarity_g", KeyProblem::Similarity(problem)))?;
     }
@@ -880,8 +876,6 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
 pub enum SimilarityProblem {
     #[error("must lie in [0, 1) (an asymmetry g), got {value}")]
     Range { value: f64 },
-    #[error("the scene has no object whose medium it could apply to")]
-    NoObject,
     #[error("{0}")]
     Object(#[from] lucent_render::tracer::SceneError),
 }
@@ -890,12 +884,16 @@ pub enum SimilarityProblem {
 /// asymmetry at most `g_max` (μs(1 − g), μa and n kept;
 /// [`lucent_render::medium::Medium::similar`]) and records it in the
 /// summary. An approximation that is exact in the diffusion limit; its
-/// measured bias is in docs/method.md#render-similarity.
+/// measured bias is in docs/method.md#render-similarity. A scene without
+/// an object (env-scale's empty board) has nothing to make similar: only
+/// `g_max` is checked.
 pub fn apply_similarity(loaded: &mut LoadedScene, g_max: f64) -> Result<(), SimilarityProblem> {
     if !lucent_render::medium::valid_similarity_g(g_max) {
         return Err(SimilarityProblem::Range { value: g_max });
     }
-    let object = loaded.scene.object.take().ok_or(SimilarityProblem::NoObject)?;
+    let Some(object) = loaded.scene.object.take() else {
+        return Ok(());
+    };
     let similar = object.similar(g_max)?;
     let media = &similar.medium;
     if let Some(m) = loaded.summary.material.as_mut() {
