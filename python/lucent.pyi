@@ -97,6 +97,7 @@ def render(
     sampling: str | None = None,
     dispersion: str | None = None,
     split_entry: bool = False,
+    similarity_g: float | None = None,
     progress: Callable[[float, float, float, float], object] | None = None,
 ) -> dict[str, Any]:
     """Renders a scene file: {"mean", "variance"} (H × W × 3), "spp", "object", "board" (H × W), "seed", …"""
@@ -131,6 +132,7 @@ def bssrdf(
     lobe_vertices: int = 16,
     roughness: str | None = None,
     no_fold: bool = False,
+    similarity_g: float | None = None,
     progress: Callable[[float, float, float], object] | None = None,
 ) -> dict[str, Any]:
     """Slab BSSRDF slice as `lucent bssrdf`: {"slice", "std_error"} (N × N, 1/(m² sr)), "sum", "sum_std_error", "profile", …"""

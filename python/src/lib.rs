@@ -631,8 +631,11 @@ fn run_interruptible<T: Send>(
 /// stop when the median relative standard error over the object's pixels
 /// reaches this fraction; sampling: "uniform" or "object-weighted";
 /// dispersion: "per-band" or "shared-directions"; split_entry: follow both
-/// reflection and refraction where a path enters the object. Each overrides
-/// the scene's [render] value, as the command's options of the same names.
+/// reflection and refraction where a path enters the object; similarity_g:
+/// walk the object's similar medium with phase asymmetry at most this
+/// (0 ≤ g < 1; μs(1 − g), μa and n kept; biased by a few %, see the
+/// method's similarity section). Each overrides the scene's [render] value,
+/// as the command's options of the same names.
 /// progress: optional callable, called with the floats ``(spp_done,
 /// spp_target, elapsed_s, object_rel_error)`` after passes (object_rel_error: the
 /// median relative standard error over the object's pixels, NaN without
@@ -647,7 +650,7 @@ fn run_interruptible<T: Send>(
 #[pyfunction]
 #[pyo3(name = "render", signature = (
     scene, spp = None, time_s = None, seed = None, size = None, threads = None, target_rel_error = None,
-    sampling = None, dispersion = None, split_entry = false, progress = None
+    sampling = None, dispersion = None, split_entry = false, similarity_g = None, progress = None
 ))]
 #[allow(clippy::too_many_arguments)]
 fn py_render<'py>(
@@ -662,6 +665,7 @@ fn py_render<'py>(
     sampling: Option<&str>,
     dispersion: Option<&str>,
     split_entry: bool,
+    similarity_g: Option<f64>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let args = RenderArgs {
@@ -674,6 +678,7 @@ fn py_render<'py>(
         sampling: sampling.map(|t| choice("sampling", t)).transpose()?,
         dispersion: dispersion.map(|t| choice("dispersion", t)).transpose()?,
         split_entry,
+        similarity_g,
         quiet: true,
         shard: None,
     };
@@ -763,7 +768,9 @@ fn choice<T: clap::ValueEnum>(what: &str, text: &str) -> PyResult<T> {
 /// Stop rules (the first reached ends the run): ``paths``, ``time_s``,
 /// ``rel_error`` of the slice sum, ``pixel_rel_error`` (median per pixel);
 /// none given: 1 % on the sum, at most 600 s. ``estimator``: "auto",
-/// "ring", "lobe" or "connection"; ``seed``; ``no_fold``.
+/// "ring", "lobe" or "connection"; ``seed``; ``no_fold``; ``similarity_g``:
+/// simulate the similar medium with g at most this (0 ≤ g < 1; far off near
+/// the beam, for totals only).
 /// ``progress``: optional callable, called with the floats ``(paths,
 /// elapsed_s, rel_error)`` as the run goes; an exception it raises stops it.
 ///
@@ -781,7 +788,7 @@ fn choice<T: clap::ValueEnum>(what: &str, text: &str) -> PyResult<T> {
     thickness_mm = None, theta_i = 45.0, phi_i = 0.0, theta_o = 0.0, phi_o = 180.0, phase = None,
     beam_fwhm_um = 200.0, beam_map = None, beam_map_pixel_mm = None, pixels = 259, pixel_mm = 0.1029, crop = None,
     rel_error = None, pixel_rel_error = None, paths = None, time_s = None, seed = 1, estimator = "auto",
-    lobe_vertices = 16, roughness = None, no_fold = false, progress = None
+    lobe_vertices = 16, roughness = None, no_fold = false, similarity_g = None, progress = None
 ))]
 #[allow(clippy::too_many_arguments)]
 fn py_bssrdf<'py>(
@@ -814,6 +821,7 @@ fn py_bssrdf<'py>(
     lobe_vertices: u8,
     roughness: Option<String>,
     no_fold: bool,
+    similarity_g: Option<f64>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     if recipe.is_some() && (mu_s.is_some() || mu_a.is_some()) {
@@ -847,6 +855,7 @@ fn py_bssrdf<'py>(
         lobe_vertices,
         roughness,
         no_fold,
+        similarity_g,
         out: PathBuf::new(),
         quiet: true,
         shard: None,

@@ -37,6 +37,11 @@ def test_render_equals_the_command_exr(lucent_cli, repo, tmp_path):
             "--split-entry", "--out", tmp_path / "b", "--quiet")
     r = lucent.render(repo / SCENE, spp=4, size="32x24", sampling="object-weighted", split_entry=True)
     np.testing.assert_array_equal(r["mean"][..., 1].astype(np.float32), read_exr(tmp_path / "b/render.exr")["G"])
+    # The similar medium too.
+    run_cli(lucent_cli, "render", repo / SCENE, "--spp", 4, "--size", "32x24", "--similarity-g", 0.2,
+            "--out", tmp_path / "c", "--quiet")
+    r = lucent.render(repo / SCENE, spp=4, size="32x24", similarity_g=0.2)
+    np.testing.assert_array_equal(r["mean"][..., 0].astype(np.float32), read_exr(tmp_path / "c/render.exr")["R"])
 
 
 def test_progress_is_reported_and_can_stop_the_render(repo):
@@ -73,6 +78,7 @@ def test_ctrl_c_interrupts_a_long_render(repo):
         (dict(time_s=-1.0), "--time-s"),
         (dict(sampling="everywhere"), "sampling \"everywhere\": expected one of uniform, object-weighted"),
         (dict(target_rel_error=1.5), "--target-rel-error 1.5"),
+        (dict(similarity_g=1.0), "--similarity-g 1"),
     ],
 )
 def test_bad_render_arguments_raise(repo, kwargs, message):
