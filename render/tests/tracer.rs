@@ -763,3 +763,31 @@ fn phase_connection_in_a_forward_peaked_medium() {
     eprintln!("variance without {va:.3e}, with the phase connection {vb:.3e}");
     assert!(vb < va, "phase connection: variance {vb:.3e} vs {va:.3e} without");
 }
+
+/// `Object::similar` walks one g′ in every band, the least that keeps each
+/// band's similar medium `SIMILAR_MIN_DEPTH` mean free paths deep across
+/// the thinnest side, and keeps each band's μs(1 − g).
+#[test]
+fn similar_object_shares_one_asymmetry_deep_enough_in_every_band() {
+    use lucent_render::tracer::SIMILAR_MIN_DEPTH;
+    // 5 mm thin side; μs(1 − g) d = 1.0, 2.0, 4.0 in the three bands.
+    let g = 0.9;
+    let mu_s = [1.0, 2.0, 4.0].map(|t: f64| t / 0.005 / (1.0 - g));
+    let obj = plaque(mu_s, [1.0; 3], g, 1.5);
+    let similar = obj.clone().similar(0.0).unwrap();
+    // The thinnest band (1 reduced mean free path) sets g′ = 1 − 1/3 for all.
+    let expected_g = 1.0 - 1.0 / SIMILAR_MIN_DEPTH;
+    for (b, m) in similar.medium.iter().enumerate() {
+        let g_b = m.phase.mean_cosine();
+        assert!((g_b - expected_g).abs() < 1e-12, "band {b}: g′ {g_b}, expected {expected_g}");
+        let reduced = m.mu_s_per_m * (1.0 - g_b);
+        assert!((reduced / (mu_s[b] * (1.0 - g)) - 1.0).abs() < 1e-12, "band {b}: μs′(1 − g′) {reduced}");
+        assert!(m.mu_s_per_m * 0.005 >= SIMILAR_MIN_DEPTH - 1e-9, "band {b}: {} mfp", m.mu_s_per_m * 0.005);
+        assert_eq!(m.mu_a_per_m, 1.0);
+    }
+    // A g_max above the floor wins; a deep object keeps g_max everywhere.
+    let s = obj.similar(0.8).unwrap();
+    assert!(s.medium.iter().all(|m| (m.phase.mean_cosine() - 0.8).abs() < 1e-12));
+    let deep = plaque([1e5; 3], [1.0; 3], g, 1.5).similar(0.0).unwrap();
+    assert!(deep.medium.iter().all(|m| m.phase.mean_cosine().abs() < 1e-12));
+}
