@@ -46,7 +46,7 @@
 //! # time_s = 120, spp_per_pass = 4
 //! # spectral_mis = true, medium_connections = true   (false, false: the plain one-band estimator)
 //! # phase_connections = true     (with medium_connections: also connect along the phase function's directions)
-//! # sampling = "object-weighted"  # or "uniform": every pixel gets spp (the previous estimator)
+//! # sampling = "uniform"          # (default) every pixel gets spp; "object-weighted": the object's pixels more
 //! # target_rel_error = 0.05       # stop when the object's median relative standard error reaches 5 %
 //! ```
 //!
@@ -421,8 +421,8 @@ pub struct RenderSection {
     pub spectral_mis: Option<bool>,
     pub medium_connections: Option<bool>,
     pub phase_connections: Option<bool>,
-    /// "object-weighted" (default: the object's pixels get the samples their
-    /// error needs) or "uniform" (every pixel `spp`).
+    /// "uniform" (default: every pixel `spp`) or "object-weighted" (the
+    /// object's pixels get the samples their error needs).
     pub sampling: Option<SamplingKey>,
     /// Stop when the median relative standard error over the object's pixels reaches this fraction.
     pub target_rel_error: Option<f64>,
@@ -588,8 +588,8 @@ pub struct MaterialSummary {
 /// The similar medium the object's walk used ([`apply_similarity`]).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct SimilarSummary {
-    /// The largest asymmetry asked for (a band's g′ is higher where the
-    /// similar medium would otherwise be less than
+    /// The largest asymmetry asked for (g′, the same in every band, is
+    /// higher where a band's similar medium would otherwise be less than
     /// `lucent_render::tracer::SIMILAR_MIN_DEPTH` mean free paths deep
     /// across the object's thinnest side).
     pub g_max: f64,
