@@ -770,16 +770,27 @@ const MAX_PASS_S: f64 = 10.0;
 
 /// The samples-per-pass ratio between the object's pixels and the others
 /// that makes their relative standard errors meet: the ratio of the medians
-/// (over each region) of the per-sample relative variance n·(SE/mean)²,
-/// between 1 and [`MAX_OBJECT_RATIO`].
+/// (over each region) of the per-sample relative variance n·(SE/mean)² of
+/// the object's pixels and the board's (of all other pixels without a
+/// board: the environment's pixels, nearly noiseless, would otherwise set
+/// the ratio and starve the board), between 1 and [`MAX_OBJECT_RATIO`].
 fn object_ratio(image: &Image) -> u32 {
-    let mut by: [Vec<f64>; 2] = Default::default();
+    let mut by: [Vec<f64>; 3] = Default::default();
     for p in 0..image.mean.len() {
         let Some(r) = image.relative_std_error(p) else { continue };
         let v = f64::from(image.samples[p]) * r * r;
-        by[usize::from(image.region(p) != Region::Object)].push(v);
+        by[match image.region(p) {
+            Region::Object => 0,
+            Region::Board => 1,
+            Region::Other => 2,
+        }]
+        .push(v);
     }
-    let [o, rest] = by.map(|v| Quantiles::of(v).median);
+    let [objects, mut board, other] = by;
+    if board.is_empty() {
+        board = other;
+    }
+    let [o, rest] = [objects, board].map(|v| Quantiles::of(v).median);
     let ratio = if o.is_nan() {
         1.0
     } else if rest.is_nan() || rest <= 0.0 {
