@@ -632,7 +632,8 @@ fn run_interruptible<T: Send>(
 /// reaches this fraction; sampling: "uniform" or "object-weighted";
 /// dispersion: "per-band" or "shared-directions"; split_entry: follow both
 /// reflection and refraction where a path enters the object; similarity_g:
-/// walk the object's similar medium with phase asymmetry at most this
+/// walk the object's similar medium with phase asymmetry this, raised (the
+/// same in every band) where it would be under 3 mean free paths deep
 /// (0 ≤ g < 1; μs(1 − g), μa and n kept; biased by a few %, see the
 /// method's similarity section). Each overrides the scene's [render] value,
 /// as the command's options of the same names.

@@ -230,8 +230,8 @@ impl Object {
     /// most `g_max`, raised where needed (the same g′ in every band) so
     /// that the similar medium stays at least [`SIMILAR_MIN_DEPTH`] mean
     /// free paths deep across the object's thinnest bounding-box side d in
-    /// every band: g′ ≥ 1 − μ_s(1 − g) d / [`SIMILAR_MIN_DEPTH`]. (An optically thin
-    /// similar medium would let the board be seen through it unscattered,
+    /// every band: g′ ≥ 1 − μ_s(1 − g) d / [`SIMILAR_MIN_DEPTH`]. (An
+    /// optically thin similar medium would let the board be seen through it unscattered,
     /// where the exact walk blurs it by many small turns.) An
     /// approximation that makes the walk of a strongly forward-scattering
     /// medium far shorter (see the module documentation).

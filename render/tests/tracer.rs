@@ -806,8 +806,9 @@ fn similar_object_shares_one_asymmetry_deep_enough_in_every_band() {
 /// on a forward-scattering plaque (g 0.97, μs(1 − g) d = 1.8) on the board
 /// under a map with a bright sun, the similar walk makes far fewer
 /// scattering events per path (measured 48.6 → 2.5 per sample) and its
-/// per-pixel error over the plaque is lower (11.2 % → 5.5 %), while the plaque's mean stays within the few percent the
-/// approximation is documented to cost. Fails if the similar medium stops
+/// per-pixel error over the plaque is lower (11.2 % → 5.5 %), while the
+/// plaque's mean stays within the few percent the approximation is
+/// documented to cost. Fails if the similar medium stops
 /// cutting the walk or the noise, or drifts from the exact walk's mean.
 #[test]
 fn similar_medium_cuts_events_and_noise_and_keeps_the_plaque_mean() {

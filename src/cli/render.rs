@@ -52,7 +52,8 @@ pub struct RenderArgs {
     /// directions, Fresnel per band, all bands on every path; approximate).
     #[arg(long, value_enum)]
     pub dispersion: Option<DispersionArg>,
-    /// Walk the object's similar medium of asymmetry at most G (μs(1 − g),
+    /// Walk the object's similar medium of asymmetry G, raised (the same in
+    /// every band) where it would be under 3 mean free paths deep (μs(1 − g),
     /// μa and n kept; 0 ≤ G < 1; overrides [render] similarity_g): far
     /// fewer events and less noise for a strongly forward-scattering medium,
     /// an approximation whose bias is measured in docs/method.md.

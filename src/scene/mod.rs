@@ -426,7 +426,8 @@ pub struct RenderSection {
     pub sampling: Option<SamplingKey>,
     /// Stop when the median relative standard error over the object's pixels reaches this fraction.
     pub target_rel_error: Option<f64>,
-    /// Walk the object's similar medium, asymmetry at most this (0 ≤ g < 1;
+    /// Walk the object's similar medium, asymmetry this, raised (the same in
+    /// every band) where it would be under 3 mean free paths deep (0 ≤ g < 1;
     /// μs(1 − g), μa and n kept): an approximation, see docs/method.md.
     pub similarity_g: Option<f64>,
 }
