@@ -204,6 +204,10 @@ pub struct Environment {
     col_cdf: Vec<f64>,
     /// H + 1 cumulative row weights (starting at 0); the last is the total.
     row_cdf: Vec<f64>,
+    /// [`guide`] tables of `row_cdf` and of each row's `col_cdf`
+    /// (GUIDE_CELLS + 1 entries per row): where [`pick`]'s search starts.
+    row_guide: Vec<u32>,
+    col_guide: Vec<u32>,
     /// W·H / (2π²).
     pdf_norm: f64,
     /// Mean radiance over the sphere seen from the centre (scaled).
@@ -324,6 +328,8 @@ impl Environment {
             row_cdf.push(last + acc);
         }
 
+        let row_guide = guide(&row_cdf);
+        let col_guide = col_cdf.chunks_exact(width + 1).flat_map(guide).collect();
         let (sin_yaw, cos_yaw) = yaw_deg.to_radians().sin_cos();
         let uniform = rgb.chunks_exact(3).all(|p| p == &rgb[..3]);
         Ok(Self {
@@ -338,6 +344,8 @@ impl Environment {
             inv_radius,
             col_cdf,
             row_cdf,
+            row_guide,
+            col_guide,
             pdf_norm: (width * height) as f64 / (2.0 * PI * PI),
             mean,
             uniform,
@@ -445,9 +453,9 @@ impl Environment {
             return None;
         }
         let w = self.width;
-        let (y, fy) = pick(&self.row_cdf, u[1]);
+        let (y, fy) = pick(&self.row_cdf, &self.row_guide, u[1]);
         let row = &self.col_cdf[y * (w + 1)..(y + 1) * (w + 1)];
-        let (x, fx) = pick(row, u[0]);
+        let (x, fx) = pick(row, &self.col_guide[y * (GUIDE_CELLS + 1)..(y + 1) * (GUIDE_CELLS + 1)], u[0]);
         let prob = (self.row_cdf[y + 1] - self.row_cdf[y]) / total * ((row[x + 1] - row[x]) / row[w]);
 
         let v = (y as f64 + fy) / self.height as f64;
@@ -608,16 +616,43 @@ fn exit_point(o: DVec3, w: DVec3) -> (DVec3, f64, bool) {
     (o + t * w, t, hit)
 }
 
+/// Cells of the guide tables that start [`pick`]'s search.
+const GUIDE_CELLS: usize = 64;
+
+/// For each of the GUIDE_CELLS + 1 fractions f = j / GUIDE_CELLS of the
+/// total of the cumulative weights `cdf`, the first i with
+/// cdf[i + 1] > f · total (capped at the last bin).
+fn guide(cdf: &[f64]) -> Vec<u32> {
+    let n = cdf.len() - 1;
+    let total = cdf[n];
+    (0..=GUIDE_CELLS)
+        .map(|j| {
+            let t = j as f64 / GUIDE_CELLS as f64 * total;
+            let i = cdf[1..].partition_point(|&c| c <= t).min(n.saturating_sub(1));
+            u32::try_from(i).unwrap_or(u32::MAX)
+        })
+        .collect()
+}
+
 /// Cell i of a non-decreasing cumulative sum `cdf` (cdf[0] = 0, total =
 /// cdf[n] > 0) with cdf[i] ≤ u·total < cdf[i+1], and the fraction of the way
-/// through it. Never returns a cell of zero mass: u·total rounding up to the
+/// through it; `guide`: its [`guide`] table. Never returns a cell of zero mass: u·total rounding up to the
 /// total (or NaN) gives the last cell with mass.
 #[inline]
-fn pick(cdf: &[f64], u: f64) -> (usize, f64) {
+fn pick(cdf: &[f64], guide: &[u32], u: f64) -> (usize, f64) {
     let n = cdf.len() - 1;
     let total = cdf[n];
     let t = u * total;
-    let mut i = cdf[1..].partition_point(|&c| c <= t);
+    // The first i with cdf[i + 1] > t, searched between the guide's bounds
+    // for u's cell (widened by one for rounding) and checked, else over all.
+    let j = ((u * GUIDE_CELLS as f64) as usize).min(GUIDE_CELLS - 1);
+    let lo = (guide[j] as usize).saturating_sub(1);
+    let hi = (guide[j + 1] as usize + 1).min(n);
+    let mut i = lo + cdf[lo + 1..=hi].partition_point(|&c| c <= t);
+    let found = i < n && cdf[i + 1] > t && (i == 0 || cdf[i] <= t);
+    if !found {
+        i = cdf[1..].partition_point(|&c| c <= t);
+    }
     if i >= n || !positive(cdf[i + 1] - cdf[i]) {
         i = cdf[1..].partition_point(|&c| c < total);
     }
@@ -636,17 +671,17 @@ mod tests {
     #[test]
     fn pick_skips_zero_cells_and_handles_the_top() {
         let cdf = [0.0, 0.0, 1.0, 1.0, 3.0, 3.0];
-        assert_eq!(pick(&cdf, 0.0), (1, 0.0));
-        assert_eq!(pick(&cdf, 0.25), (1, 0.75));
-        assert_eq!(pick(&cdf, 1.0 / 3.0), (3, 0.0));
-        assert_eq!(pick(&cdf, 0.5), (3, 0.25));
+        assert_eq!(pick(&cdf, &guide(&cdf), 0.0), (1, 0.0));
+        assert_eq!(pick(&cdf, &guide(&cdf), 0.25), (1, 0.75));
+        assert_eq!(pick(&cdf, &guide(&cdf), 1.0 / 3.0), (3, 0.0));
+        assert_eq!(pick(&cdf, &guide(&cdf), 0.5), (3, 0.25));
         // u = 1 (out of contract) and the largest u below 1: last cell with mass.
-        assert_eq!(pick(&cdf, 1.0), (3, 1.0));
-        let (i, f) = pick(&cdf, 1.0 - f64::EPSILON / 2.0);
+        assert_eq!(pick(&cdf, &guide(&cdf), 1.0), (3, 1.0));
+        let (i, f) = pick(&cdf, &guide(&cdf), 1.0 - f64::EPSILON / 2.0);
         assert_eq!(i, 3);
         assert!((0.0..=1.0).contains(&f));
         // NaN does not panic and stays on a cell with mass.
-        let (i, _) = pick(&cdf, f64::NAN);
+        let (i, _) = pick(&cdf, &guide(&cdf), f64::NAN);
         assert!(i == 1 || i == 3);
     }
 

@@ -430,6 +430,14 @@ pub struct Settings {
     /// strategy in the same balance heuristic; see the module
     /// documentation). `false`: the two strategies of before.
     pub phase_connection: bool,
+    /// With [`Settings::medium_nee`]: connections also through the specular
+    /// chains a path takes without scattering (see the module
+    /// documentation): from a scattering point through one reflection at a
+    /// face and out through another (image method), and from the board
+    /// through the object (in at one face, one unscattered flight, out at
+    /// another). `false`: such paths are found only by chance, unweighted,
+    /// and carry most of the object's sparse bright pixels (fireflies).
+    pub specular_chains: bool,
     /// How a smooth boundary whose index differs between bands refracts a
     /// path that carries all bands (see [`Dispersion`]).
     pub dispersion: Dispersion,
@@ -494,6 +502,7 @@ impl Default for Settings {
             spectral_mis: true,
             medium_nee: true,
             phase_connection: true,
+            specular_chains: true,
             dispersion: Dispersion::PerBand,
             split_entry: false,
             sampling: Sampling::Uniform,
@@ -1088,6 +1097,119 @@ struct MediumVertex {
     p_phase: f64,
 }
 
+/// The board point `y` (normal `n` on the path's side) a path left by its diffuse bounce, while the path
+/// can still be a chain that [`connect_through_object`] makes (in through a
+/// face, one unscattered flight, out through another; `out`: it has left
+/// the object and must now escape):
+/// r at `y` and the driving band's density of the chain so far, in the
+/// final outside solid angle.
+#[derive(Debug, Clone, Copy)]
+struct BoardVertex {
+    y: DVec3,
+    n: DVec3,
+    r: [f64; 3],
+    pdf: f64,
+    out: bool,
+}
+
+/// A board point `y` with the normal `n` on the side the path is on, its
+/// reflectance `rho` and whether the path splits where it meets the object
+/// (then the refraction in is taken as a weight, not sampled).
+struct BoardPoint {
+    y: DVec3,
+    n: DVec3,
+    rho: [f64; 3],
+    split: bool,
+}
+
+/// The board's connection to the environment through the object, made
+/// where the object blocks the straight shadow ray: for the
+/// direction ω_o drawn by the board's next-event estimation (`sample`), and
+/// every pair of faces j ≠ k, the chain from the board point y along ω_b,
+/// refracted in at face j into ω_i, one unscattered flight of length ℓ,
+/// refracted out at face k into ω_o (ω_i from ω_o by Snell's law at k, ω_b
+/// from ω_i at j; between parallel faces ω_b = ω_o). The contribution per
+/// band c is
+///
+///   β_c ρ_c (cos θ_b / π) J (1 − F_j,c) e^{−μ_t,c ℓ} (1 − F_k,c) L_c(q, ω_o) / D,
+///
+/// J = dω_b/dω_o = cos θ_i,j cos θ_o / (cos θ_b cos θ_i,k), and
+/// D = p_env(y, ω_o) mean r + (cos θ_b / π) J mean_k r_k s_k, s_k the
+/// chain's probability when band k drives the path (the same factors; the
+/// first one 1 when the path splits there): the balance heuristic against
+/// the board's cosine-sampled bounce that follows the same chain. Without
+/// it, a shadow ray that meets the object carries nothing, and light under
+/// the object reaches the board only by chance.
+#[allow(clippy::too_many_arguments)]
+fn connect_through_object(
+    scene: &Scene,
+    obj: &Object,
+    planes: &[(DVec3, f64)],
+    tp: &Throughput,
+    at: &BoardPoint,
+    sample: &crate::env::EnvSample,
+    shared: bool,
+    radiance: &mut [f64; 3],
+) {
+    let wo = sample.dir;
+    let eta = if shared { obj.eta_mean } else { obj.eta(0) };
+    let eps = scene.epsilon_m;
+    for (k, _) in planes {
+        let cos_o = k.dot(wo);
+        if cos_o <= 0.0 {
+            continue;
+        }
+        let cos_ik = (1.0 - (1.0 - cos_o * cos_o) / (eta * eta)).max(0.0).sqrt();
+        if cos_ik <= 0.0 {
+            continue;
+        }
+        let wi = ((wo - cos_o * *k) / eta + cos_ik * *k).normalize();
+        for (j, _) in planes {
+            let cos_ij = -j.dot(wi);
+            if j == k || cos_ij <= 0.0 {
+                continue;
+            }
+            let sin2_b = eta * eta * (1.0 - cos_ij * cos_ij);
+            if sin2_b >= 1.0 {
+                continue; // no outside direction refracts into ω_i
+            }
+            let cos_b = (1.0 - sin2_b).sqrt();
+            let wb = (eta * (wi + cos_ij * *j) - cos_b * *j).normalize();
+            let cos_board = wb.dot(at.n);
+            if cos_board <= 0.0 {
+                continue;
+            }
+            let Some(h1) = obj.accel.intersect(at.y, wb, f64::INFINITY).filter(|hit| hit.normal == *j) else {
+                continue;
+            };
+            let p = at.y + h1.t * wb - eps * *j;
+            let Some(h2) = obj.accel.exit(p, wi).filter(|hit| hit.normal == *k) else { continue };
+            let q = p + h2.t * wi + eps * *k;
+            if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
+                continue;
+            }
+            let f_in =
+                if shared { band_reflectance(obj, cos_b, 0.0, false) } else { [fresnel::reflectance(cos_b, eta); 3] };
+            let f = fresnel::reflectance(cos_ik, 1.0 / eta);
+            let f_out = if shared { band_reflectance(obj, cos_ik, f, true) } else { [f; 3] };
+            let through: [f64; 3] =
+                std::array::from_fn(|c| (1.0 - f_in[c]) * (-obj.bands.sigma_t[c] * h2.t).exp() * (1.0 - f_out[c]));
+            let chance: [f64; 3] =
+                std::array::from_fn(|c| if at.split { through[c] / (1.0 - f_in[c]) } else { through[c] });
+            let jacobian = cos_ij * cos_o / (cos_b * cos_ik);
+            let bounce = cos_board * FRAC_1_PI * jacobian;
+            let denom = sample.pdf * tp.mean_r() + bounce * mean_weighted(&tp.r, &chance);
+            if denom.is_nan() || denom <= 0.0 {
+                continue;
+            }
+            let l = scene.environment.radiance(q, wo);
+            for c in 0..3 {
+                radiance[c] += tp.beta[c] * at.rho[c] * bounce * through[c] * l[c] / denom;
+            }
+        }
+    }
+}
+
 /// One camera path: the radiance estimate it carries back, per band, and
 /// the first surface the camera ray meets.
 fn trace(
@@ -1148,6 +1270,21 @@ fn trace_path(
         }
         _ => None,
     };
+    let chains = settings.specular_chains;
+    // Chains from the board through the object need every band on the path
+    // (a band picked at the object would not be known at the board).
+    let board_planes = match &scene.object {
+        Some(obj) if chains && settings.spectral_mis && (obj.bands.achromatic || shared) => planes,
+        _ => None,
+    };
+    // Medium length since the medium vertex, and the driving band's
+    // probability of the one reflection on the way (1 before it).
+    let mut stretch_t = 0.0f64;
+    let mut stretch_refl: Option<f64> = None;
+    // The board point the path left by its diffuse bounce while it can
+    // still be a chain that the board's connection through the object
+    // makes, and the driving band's density of the chain so far.
+    let mut chain: Option<BoardVertex> = None;
     loop {
         if inside {
             // In the medium: `hero` is set, the object exists.
@@ -1189,18 +1326,21 @@ fn trace_path(
                 }
                 tp.normalise();
                 events += 1;
+                chain = None;
                 safe = convex.map_or(0.0, |planes| distance_to_planes(planes, o));
                 if let Some(planes) = planes {
                     let p_attempt = attempt_probability(safe, bc.sigma_t_min);
                     let p_phase = if settings.phase_connection { p_attempt } else { 0.0 };
                     if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
-                        let c = Connection { h, x: o, d_in: d, p_attempt, p_phase, shared };
+                        let c = Connection { h, x: o, d_in: d, p_attempt, p_phase, shared, chains };
                         connect_through_faces(scene, obj, planes, &tp, &c, rng, &mut radiance);
                         if settings.phase_connection {
                             connect_along_phase(scene, obj, &tp, &c, rng, &mut radiance);
                         }
                     }
                     vertex = Some(MediumVertex { x: o, mean_r: tp.mean_r(), r: tp.r, p_attempt, p_phase });
+                    stretch_t = 0.0;
+                    stretch_refl = None;
                 }
                 let d_in = d;
                 let (u1, u2) = rng.next_f64_pair();
@@ -1236,6 +1376,10 @@ fn trace_path(
             st.surface_hits += 1;
             let p = o + hit.t * d;
             let n_out = if hit.normal.dot(d) >= 0.0 { hit.normal } else { -hit.normal };
+            stretch_t += hit.t;
+            if let Some(c) = chain.as_mut() {
+                c.pdf *= (-sigma_t * hit.t).exp();
+            }
             if obj.interface.is_rough() {
                 let Some((nd, no, now_inside)) = rough_scatter(obj, h, n_out, p, d, eps, &mut tp, rng) else {
                     break;
@@ -1256,7 +1400,14 @@ fn trace_path(
                 }
                 d -= 2.0 * d.dot(n_out) * n_out;
                 o = p - eps * n_out;
-                vertex = None;
+                // One reflection on the way out keeps the stretch one that
+                // the connections make (with the chains).
+                if chains && vertex.is_some() && stretch_refl.is_none() {
+                    stretch_refl = Some(fr[h]);
+                } else {
+                    vertex = None;
+                }
+                chain = None;
                 safe = 0.0;
             } else {
                 let f = fr[h];
@@ -1268,11 +1419,19 @@ fn trace_path(
                 o = p + eps * n_out;
                 inside = false;
                 if vertex.is_some() {
-                    // Phase sampling, the flight, refraction; in outside
+                    // Phase sampling, the flights, a reflection, refraction; in outside
                     // solid angle: dω_i/dω_o = cos θ_o / (n² cos θ_i).
                     stretch_jacobian = d.dot(n_out) / (eta * eta * cos_i);
-                    stretch_pdf =
-                        obj.medium[h].phase.eval(stretch_mu) * (-sigma_t * hit.t).exp() * (1.0 - f) * stretch_jacobian;
+                    stretch_pdf = obj.medium[h].phase.eval(stretch_mu)
+                        * (-sigma_t * stretch_t).exp()
+                        * stretch_refl.unwrap_or(1.0)
+                        * (1.0 - f)
+                        * stretch_jacobian;
+                }
+                if let Some(c) = chain.as_mut() {
+                    // Out: 1 − F and the second refraction's cos θ_o / cos θ_i.
+                    c.pdf *= (1.0 - f) * d.dot(n_out) / cos_i;
+                    c.out = true;
                 }
             }
             last_diffuse_pdf = None;
@@ -1311,11 +1470,16 @@ fn trace_path(
                             for c in 0..3 {
                                 radiance[c] += beta[c] * rho[c] * FRAC_1_PI * cos * sample.radiance[c] * w / sample.pdf;
                             }
+                        } else if let (Some(obj), Some(planes)) = (&scene.object, board_planes) {
+                            // Where the object blocks ω_o: through it.
+                            let at = BoardPoint { y: origin, n, rho, split };
+                            connect_through_object(scene, obj, planes, &tp, &at, &sample, shared, &mut radiance);
                         }
                     }
                 }
                 let (u1, u2) = rng.next_f64_pair();
                 let (nd, pdf) = cosine_direction(n, u1, u2);
+                chain = board_planes.map(|_| BoardVertex { y: origin, n, r: tp.r, pdf, out: false });
                 for (b, r) in tp.beta.iter_mut().zip(rho) {
                     *b *= r;
                 }
@@ -1347,6 +1511,19 @@ fn trace_path(
                                 radiance[c] += tp.beta[c] * stretch_pdf * l[c] / denom;
                             }
                         }
+                    } else if let Some(c) = chain.filter(|c| c.out) {
+                        // Weighed against the board's connection through the object (balance heuristic).
+                        // (The connection is made where the object blocks the
+                        // board's straight view along ω_o.)
+                        let made = d.dot(c.n) > 0.0
+                            && scene.object.as_ref().is_some_and(|obj| obj.accel.occluded(c.y, d, f64::INFINITY));
+                        let p_nee = if made { scene.environment.pdf(c.y, d) } else { 0.0 };
+                        let denom = p_nee * mean_weighted(&c.r, &[1.0; 3]) + c.pdf * tp.mean_r();
+                        if denom > 0.0 {
+                            for k in 0..3 {
+                                radiance[k] += tp.beta[k] * c.pdf * l[k] / denom;
+                            }
+                        }
                     } else {
                         let w = match last_diffuse_pdf {
                             Some(pdf_bsdf) => power_heuristic(pdf_bsdf, scene.environment.pdf(o, d)),
@@ -1361,6 +1538,9 @@ fn trace_path(
                 // The object's boundary from outside.
                 st.surface_hits += 1;
                 vertex = None;
+                if chain.is_some_and(|c| c.out) {
+                    chain = None;
+                }
                 let obj = scene.object.as_ref().expect("object hit without an object");
                 let p = o + hit.t * d;
                 let n_in = if hit.normal.dot(d) < 0.0 { hit.normal } else { -hit.normal };
@@ -1403,34 +1583,40 @@ fn trace_path(
                     continue;
                 }
                 let eta = if shared { obj.eta_mean } else { obj.eta(h) };
-                let refracts = if let Some(f) = entry_f {
+                let cos_b = -d.dot(n_in);
+                // The probability of refracting in.
+                let p_in = if let Some(f) = entry_f {
                     // The reflection was traced above; the refraction carries 1 − F_c.
                     for (b, fc) in tp.beta.iter_mut().zip(f) {
                         *b *= 1.0 - fc;
                     }
-                    true
+                    Some(1.0)
                 } else {
-                    let cos_i = -d.dot(n_in);
                     let fr = if shared {
-                        band_reflectance(obj, cos_i, 0.0, false)
+                        band_reflectance(obj, cos_b, 0.0, false)
                     } else {
-                        [fresnel::reflectance(cos_i, eta); 3]
+                        [fresnel::reflectance(cos_b, eta); 3]
                     };
                     let reflects = rng.next_f64() < fr[h];
                     if shared {
                         let w = if reflects { fr } else { fr.map(|x| 1.0 - x) };
                         tp.scale(w, w, h);
                     }
-                    !reflects
+                    (!reflects).then(|| 1.0 - fr[h])
                 };
-                if !refracts {
-                    d -= 2.0 * d.dot(n_in) * n_in;
-                    o = p + eps * n_in;
-                } else {
+                if let Some(p_in) = p_in {
                     d = refract_or_mirror(d, -n_in, eta);
                     o = p - eps * n_in;
                     inside = true;
                     safe = 0.0;
+                    if let Some(c) = chain.as_mut() {
+                        // In: the first refraction's cos θ_i / cos θ_o (dω_b/dω_i = n² cos θ_i / cos θ_b).
+                        c.pdf *= p_in * (-d.dot(n_in)) / cos_b;
+                    }
+                } else {
+                    d -= 2.0 * d.dot(n_in) * n_in;
+                    o = p + eps * n_in;
+                    chain = None;
                 }
                 last_diffuse_pdf = None;
             }
@@ -1455,6 +1641,10 @@ fn band_reflectance(obj: &Object, cos_i: f64, f_mean: f64, from_inside: bool) ->
         fresnel::reflectance(cos_i, if from_inside { 1.0 / eta } else { eta })
     })
 }
+
+/// Optical depth below which a chain through a reflection is always
+/// connected (beyond it, with probability e^{CHAIN_TAU − τ}).
+const CHAIN_TAU: f64 = 4.6;
 
 /// Distance from x to the nearest of the face planes (≥ 0).
 #[inline]
@@ -1511,6 +1701,7 @@ fn connect_through_faces(
     let wo = es.dir;
     let eta = if shared { obj.eta_mean } else { obj.eta(h) };
     let d_in = conn.d_in;
+    let eps = scene.epsilon_m;
     for (n, _) in planes {
         let cos_o = n.dot(wo);
         if cos_o <= 0.0 {
@@ -1518,27 +1709,67 @@ fn connect_through_faces(
         }
         let sin2_i = (1.0 - cos_o * cos_o) / (eta * eta);
         let cos_i = (1.0 - sin2_i).max(0.0).sqrt();
-        let wi = ((wo - cos_o * *n) / eta + cos_i * *n).normalize();
-        let Some(hit) = obj.accel.exit(x, wi) else { continue };
-        if hit.normal != *n || cos_i <= 0.0 {
-            continue; // the ray leaves through another face first
-        }
-        let q = x + hit.t * wi + scene.epsilon_m * *n;
-        if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
+        if cos_i <= 0.0 {
             continue;
         }
+        let wi = ((wo - cos_o * *n) / eta + cos_i * *n).normalize();
+        let jacobian = cos_o / (eta * eta * cos_i);
         let f = fresnel::reflectance(cos_i, 1.0 / eta);
         let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
-        let exit = Exit { t: hit.t, mu: d_in.dot(wi), jacobian: cos_o / (eta * eta * cos_i), fr, q, wo };
-        add_connection(scene, obj, tp, conn, &exit, es.pdf, radiance);
+        let blocked = |q: DVec3| scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some());
+        // Straight out through face n.
+        if let Some(hit) = obj.accel.exit(x, wi).filter(|hit| hit.normal == *n) {
+            let q = x + hit.t * wi + eps * *n;
+            if !blocked(q) {
+                let exit = Exit { t: hit.t, mu: d_in.dot(wi), jacobian, refl: [1.0; 3], fr, q, wo, weight: 1.0 };
+                add_connection(scene, obj, tp, conn, &exit, es.pdf, radiance);
+            }
+        }
+        if !conn.chains {
+            continue;
+        }
+        // Through one reflection at another face m first (the ray from x's
+        // mirror image across m along ω_i is the reflected path unfolded).
+        for (m, c_m) in planes {
+            let cos_m = -m.dot(wi);
+            if m == n || cos_m <= 0.0 {
+                continue;
+            }
+            // Made with probability max_c R_c (Russian roulette, weight
+            // 1/that): a partial reflection carries little and costs as
+            // much as a straight connection.
+            // The same with e^{−μ_t,min ℓ} below 1 %, ℓ the flight to m's plane:
+            // a far face (the plaque's sides seen from its middle) costs
+            // two boundary searches for nothing.
+            let f_m = fresnel::reflectance(cos_m, 1.0 / eta);
+            let refl = if shared { band_reflectance(obj, cos_m, f_m, true) } else { [f_m; 3] };
+            let tau = obj.bands.sigma_t_min * (c_m - m.dot(x)).max(0.0) / cos_m;
+            let keep = refl[0].max(refl[1]).max(refl[2]).min(1.0) * (CHAIN_TAU - tau).exp().min(1.0);
+            if !(keep >= 1.0 || rng.next_f64() < keep) {
+                continue;
+            }
+            let d1 = wi + 2.0 * cos_m * *m;
+            let Some(h1) = obj.accel.exit(x, d1).filter(|hit| hit.normal == *m) else { continue };
+            let p = x + h1.t * d1 - eps * *m;
+            let Some(h2) = obj.accel.exit(p, wi).filter(|hit| hit.normal == *n) else { continue };
+            let q = p + h2.t * wi + eps * *n;
+            if blocked(q) {
+                continue;
+            }
+            let exit =
+                Exit { t: h1.t + h2.t, mu: d_in.dot(d1), jacobian, refl, fr, q, wo, weight: 1.0 / keep.min(1.0) };
+            add_connection(scene, obj, tp, conn, &exit, es.pdf, radiance);
+        }
     }
 }
 
 /// Where and how a medium connection is made: the driving band `h`, the
 /// scattering point `x`, the direction the path arrived along `d_in`, the
 /// probabilities with which the environment connection (`p_attempt`) and
-/// the phase connection (`p_phase`) are made there, and whether refraction
-/// uses the bands' mean index (`shared`).
+/// the phase connection (`p_phase`) are made there, whether refraction
+/// uses the bands' mean index (`shared`) and whether chains through one
+/// reflection at a face are connected too (`chains`,
+/// [`Settings::specular_chains`]).
 #[derive(Debug, Clone, Copy)]
 struct Connection {
     h: usize,
@@ -1547,6 +1778,7 @@ struct Connection {
     p_attempt: f64,
     p_phase: f64,
     shared: bool,
+    chains: bool,
 }
 
 /// The phase functions' values p_k(μ) of the bands taking part (`active`),
@@ -1571,22 +1803,28 @@ fn mean_weighted(r: &[f64; 3], v: &[f64; 3]) -> f64 {
     (r[0] * v[0] + r[1] * v[1] + r[2] * v[2]) / 3.0
 }
 
-/// Where a medium connection leaves the object: at distance `t` along ω_i
-/// (μ = ω_in·ω_i), refracted into `wo` at the point `q` on the face, with
-/// `jacobian` = dω_i/dω_o = cos θ_o / (n² cos θ_i) and the Fresnel
-/// reflectance `fr` per band.
+/// Where a medium connection leaves the object: after a length `t` of
+/// medium (μ = ω_in·ω_1, ω_1 the direction from the scattering point),
+/// reflected on the way with the Fresnel reflectance `refl` per band (1
+/// when it leaves straight), refracted into `wo` at the point `q` on the
+/// face, with `jacobian` = dω_i/dω_o = cos θ_o / (n² cos θ_i) and the
+/// Fresnel reflectance `fr` per band there; `weight`: 1 / the probability
+/// with which the connection was made (Russian roulette on the reflection).
 struct Exit {
     t: f64,
     mu: f64,
     jacobian: f64,
+    refl: [f64; 3],
     fr: [f64; 3],
     q: DVec3,
     wo: DVec3,
+    weight: f64,
 }
 
 /// Adds a medium connection's contribution per band c,
-/// β_c u_c L_c(q, ω_o) / D, u_k = p_k(μ) e^{−μ_t,k t} (1 − F_k) J the path's
-/// own escape along ω_i in band k per unit outside solid angle, and
+/// β_c u_c L_c(q, ω_o) / D, u_k = p_k(μ) e^{−μ_t,k t} R_k (1 − F_k) J the path's
+/// own escape along the same chain in band k per unit outside solid angle
+/// (R_k the reflection on the way, 1 for none), and
 /// D = p_att p_env mean r + mean_k r_k u_k + p_phase J mean_k r_k p_k(μ),
 /// the balance heuristic over the three strategies and the bands
 /// (`pdf_env` = p_env(x, ω_o)).
@@ -1600,8 +1838,9 @@ fn add_connection(
     radiance: &mut [f64; 3],
 ) {
     let ph = band_phases(obj, |k| tp.r[k] > 0.0 || tp.beta[k] > 0.0, conn.h, exit.mu);
-    let u: [f64; 3] =
-        std::array::from_fn(|k| ph[k] * (-obj.bands.sigma_t[k] * exit.t).exp() * (1.0 - exit.fr[k]) * exit.jacobian);
+    let u: [f64; 3] = std::array::from_fn(|k| {
+        ph[k] * (-obj.bands.sigma_t[k] * exit.t).exp() * exit.refl[k] * (1.0 - exit.fr[k]) * exit.jacobian
+    });
     let phase = if conn.p_phase > 0.0 { conn.p_phase * exit.jacobian * mean_weighted(&tp.r, &ph) } else { 0.0 };
     let denom = conn.p_attempt * pdf_env * tp.mean_r() + mean_weighted(&tp.r, &u) + phase;
     if denom.is_nan() || denom <= 0.0 {
@@ -1609,7 +1848,7 @@ fn add_connection(
     }
     let l = scene.environment.radiance(exit.q, exit.wo);
     for c in 0..3 {
-        radiance[c] += tp.beta[c] * u[c] * l[c] / denom;
+        radiance[c] += exit.weight * tp.beta[c] * u[c] * l[c] / denom;
     }
 }
 
@@ -1639,24 +1878,52 @@ fn connect_along_phase(
 ) {
     let &Connection { h, x, d_in, shared, .. } = conn;
     let (u1, u2) = rng.next_f64_pair();
-    let wi = DVec3::from_array(obj.medium[h].phase.sample_direction(d_in.to_array(), u1, u2));
-    let Some(hit) = obj.accel.exit(x, wi) else { return };
-    let n = if hit.normal.dot(wi) >= 0.0 { hit.normal } else { -hit.normal };
+    let w1 = DVec3::from_array(obj.medium[h].phase.sample_direction(d_in.to_array(), u1, u2));
     let eta = if shared { obj.eta_mean } else { obj.eta(h) };
-    let cos_i = wi.dot(n);
-    let f = fresnel::reflectance(cos_i, 1.0 / eta);
-    if f >= 1.0 || cos_i <= 0.0 {
-        return;
+    let eps = scene.epsilon_m;
+    let mu = d_in.dot(w1);
+    // Out through the face that the ray x + t ω_1 meets, then (with the
+    // chains) reflected there and out through the next.
+    let Some(hit) = obj.accel.exit(x, w1) else { return };
+    let mut p = x + hit.t * w1;
+    let mut t = hit.t;
+    let mut wi = w1;
+    let mut n = if hit.normal.dot(w1) >= 0.0 { hit.normal } else { -hit.normal };
+    let mut refl = [1.0; 3];
+    let mut weight = 1.0;
+    for bounce in 0..2 {
+        let cos_i = wi.dot(n);
+        if cos_i <= 0.0 {
+            return;
+        }
+        let f = fresnel::reflectance(cos_i, 1.0 / eta);
+        let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
+        if f < 1.0 {
+            let wo = refract_or_mirror(wi, n, 1.0 / eta);
+            let cos_o = wo.dot(n);
+            let q = p + eps * n;
+            if cos_o > 0.0 && scene.board.as_ref().is_none_or(|b| b.intersect(q, wo).is_none()) {
+                let exit = Exit { t, mu, jacobian: cos_o / (eta * eta * cos_i), refl, fr, q, wo, weight };
+                add_connection(scene, obj, tp, conn, &exit, scene.environment.pdf(x, wo), radiance);
+            }
+        }
+        if bounce == 1 || !conn.chains {
+            return;
+        }
+        // On by reflection with probability max_c F_c (weight 1/that).
+        let keep = fr[0].max(fr[1]).max(fr[2]);
+        if !(keep >= 1.0 || rng.next_f64() < keep) {
+            return;
+        }
+        refl = fr;
+        weight = 1.0 / keep.min(1.0);
+        wi -= 2.0 * cos_i * n;
+        let Some(h2) = obj.accel.exit(p - eps * n, wi) else { return };
+        let n2 = if h2.normal.dot(wi) >= 0.0 { h2.normal } else { -h2.normal };
+        p = p - eps * n + h2.t * wi;
+        t += h2.t;
+        n = n2;
     }
-    let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
-    let wo = refract_or_mirror(wi, n, 1.0 / eta);
-    let cos_o = wo.dot(n);
-    let q = x + hit.t * wi + scene.epsilon_m * n;
-    if cos_o <= 0.0 || scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
-        return;
-    }
-    let exit = Exit { t: hit.t, mu: d_in.dot(wi), jacobian: cos_o / (eta * eta * cos_i), fr, q, wo };
-    add_connection(scene, obj, tp, conn, &exit, scene.environment.pdf(x, wo), radiance);
 }
 
 /// Samples the object's rough interface in band `h` (frame: +z = the

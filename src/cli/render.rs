@@ -697,6 +697,8 @@ pub struct EstimatorRow {
     pub events_per_s: f64,
     pub object_median: f64,
     pub object_p90: f64,
+    /// 99th percentile over the object's pixels: its sparse bright outliers.
+    pub object_p99: f64,
     pub board_median: f64,
     pub board_p90: f64,
     pub all_median: f64,
@@ -704,6 +706,21 @@ pub struct EstimatorRow {
     pub object_efficiency: f64,
     /// Wall seconds to an object median of 5 % at this efficiency.
     pub projected_s_to_5_percent: f64,
+}
+
+/// The q-quantile (nearest rank) of the relative standard error over the
+/// object's pixels, black ones left out as in [`tracer::Image::region_errors`];
+/// NaN without object pixels.
+fn object_quantile(img: &tracer::Image, q: f64) -> f64 {
+    let mut v: Vec<f64> = (0..img.mean.len())
+        .filter(|&p| img.region(p) == tracer::Region::Object)
+        .filter_map(|p| img.relative_std_error(p))
+        .collect();
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[((q * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1]
 }
 
 /// `lucent bench render --time-s T`: the previous estimator (no phase
@@ -740,7 +757,8 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     let shared = |s: &mut Settings| s.dispersion = tracer::Dispersion::SharedDirections;
     let object_weighted = |s: &mut Settings| s.sampling = tracer::Sampling::ObjectWeighted;
     // (name, settings, mean index, similarity g_max)
-    let configurations: [(&'static str, Configure, bool, Option<f64>); 8] = [
+    let no_chains = |s: &mut Settings| s.specular_chains = false;
+    let configurations: [(&'static str, Configure, bool, Option<f64>); 9] = [
         ("previous", |s| s.phase_connection = false, false, None),
         ("default (+ phase connection)", |_| {}, false, None),
         ("default + splitting at entry", |s| s.split_entry = true, false, None),
@@ -749,6 +767,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
         ("mean index", |_| {}, true, None),
         ("similar g′ ≤ 0.5, mean index", |_| {}, true, Some(0.5)),
         ("similar g′ ≤ 0, mean index", |_| {}, true, Some(0.0)),
+        ("similar g′ ≤ 0, mean index, no chains", no_chains, true, Some(0.0)),
     ];
     // The first estimator runs for `time_s`; the others render the samples
     // per pixel it reached, so that every median is read at the same count.
@@ -784,6 +803,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             events_per_s: stats.events as f64 / stats.wall_s,
             object_median: e.object.median,
             object_p90: e.object.p90,
+            object_p99: object_quantile(&img, 0.99),
             board_median: e.board.median,
             board_p90: e.board.p90,
             all_median: e.all.median,
@@ -791,13 +811,14 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             projected_s_to_5_percent: 1.0 / (eff * 0.05 * 0.05) / rayon::current_num_threads() as f64,
         };
         eprintln!(
-            "{name:>32}: {:.1} s wall, {:.1} CPU s, {:.1} spp on the object ({:.1} elsewhere), {:.1} M events/s; {}; time to 5 % on the object ≈ {:.0} s",
+            "{name:>32}: {:.1} s wall, {:.1} CPU s, {:.1} spp on the object ({:.1} elsewhere), {:.1} M events/s; {}; object p99 {:.1} %; time to 5 % on the object ≈ {:.0} s",
             row.wall_s,
             row.cpu_s,
             row.spp_object,
             row.spp_other,
             row.events_per_s / 1e6,
             describe_errors(&e),
+            100.0 * row.object_p99,
             row.projected_s_to_5_percent
         );
         rows.push(row);

@@ -46,6 +46,7 @@
 //! # time_s = 120, spp_per_pass = 4
 //! # spectral_mis = true, medium_connections = true   (false, false: the plain one-band estimator)
 //! # phase_connections = true     (with medium_connections: also connect along the phase function's directions)
+//! # specular_chains = true       (with medium_connections: also through one reflection at a face, and from the board through the object)
 //! # sampling = "uniform"          # (default) every pixel gets spp; "object-weighted": the object's pixels more
 //! # target_rel_error = 0.05       # stop when the object's median relative standard error reaches 5 %
 //! ```
@@ -421,6 +422,9 @@ pub struct RenderSection {
     pub spectral_mis: Option<bool>,
     pub medium_connections: Option<bool>,
     pub phase_connections: Option<bool>,
+    /// With `medium_connections`: connect through one reflection at a face
+    /// and from the board through the object too (default true).
+    pub specular_chains: Option<bool>,
     /// "uniform" (default: every pixel `spp`) or "object-weighted" (the
     /// object's pixels get the samples their error needs).
     pub sampling: Option<SamplingKey>,
@@ -818,6 +822,9 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
     }
     if let Some(b) = r.phase_connections {
         settings.phase_connection = b;
+    }
+    if let Some(b) = r.specular_chains {
+        settings.specular_chains = b;
     }
     if let Some(k) = r.sampling {
         settings.sampling = k.into();
