@@ -420,7 +420,7 @@ fn spectral_mis_and_medium_connections_agree_with_the_plain_estimator() {
         camera(12, 9),
     )
     .unwrap();
-    let base = Settings { spp: 1024, ..Settings::default() };
+    let base = Settings { spp: 1024, specular_chains: true, ..Settings::default() };
     let plain = Settings { seed: 31, spectral_mis: false, medium_nee: false, ..base.clone() };
     let (a, _) = render(&scene, &plain, &mut |_| {});
     let mut variances = Vec::new();
@@ -874,7 +874,7 @@ fn specular_chains_agree_and_cut_the_variance() {
     let scene = Scene::new(Some(object), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), sky, camera(16, 12)).unwrap();
     let base = Settings { spp: 2048, ..Settings::default() };
     let (a, _) = render(&scene, &Settings { seed: 71, specular_chains: false, ..base.clone() }, &mut |_| {});
-    let (b, _) = render(&scene, &Settings { seed: 72, ..base }, &mut |_| {});
+    let (b, _) = render(&scene, &Settings { seed: 72, specular_chains: true, ..base }, &mut |_| {});
     z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "specular chains vs without");
     let z = object_mean_z(&a, &b);
     assert!(z.abs() < 4.0, "the object's mean moved by z = {z:.2}");

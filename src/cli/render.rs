@@ -757,7 +757,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     let shared = |s: &mut Settings| s.dispersion = tracer::Dispersion::SharedDirections;
     let object_weighted = |s: &mut Settings| s.sampling = tracer::Sampling::ObjectWeighted;
     // (name, settings, mean index, similarity g_max)
-    let no_chains = |s: &mut Settings| s.specular_chains = false;
+    let chains = |s: &mut Settings| s.specular_chains = true;
     let configurations: [(&'static str, Configure, bool, Option<f64>); 9] = [
         ("previous", |s| s.phase_connection = false, false, None),
         ("default (+ phase connection)", |_| {}, false, None),
@@ -767,7 +767,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
         ("mean index", |_| {}, true, None),
         ("similar g′ ≤ 0.5, mean index", |_| {}, true, Some(0.5)),
         ("similar g′ ≤ 0, mean index", |_| {}, true, Some(0.0)),
-        ("similar g′ ≤ 0, mean index, no chains", no_chains, true, Some(0.0)),
+        ("similar g′ ≤ 0, mean index, + specular chains", chains, true, Some(0.0)),
     ];
     // The first estimator runs for `time_s`; the others render the samples
     // per pixel it reached, so that every median is read at the same count.
