@@ -1717,6 +1717,10 @@ fn connect_through_faces(
     let eta = if shared { obj.eta_mean } else { obj.eta(h) };
     let d_in = conn.d_in;
     let eps = scene.epsilon_m;
+    // One draw for the far-face roulette of every chain below: a chain
+    // whose flight to its reflecting face is τ deep is made when
+    // τ < τ_far = CHAIN_TAU − ln u, i.e. with probability min(1, e^{CHAIN_TAU − τ}).
+    let tau_far = if conn.chains { CHAIN_TAU - (1.0 - rng.next_f64()).ln() } else { 0.0 };
     for (n, _) in planes {
         let cos_o = n.dot(wo);
         if cos_o <= 0.0 {
@@ -1752,17 +1756,22 @@ fn connect_through_faces(
             }
             // Made with probability max_c R_c (Russian roulette, weight
             // 1/that): a partial reflection carries little and costs as
-            // much as a straight connection.
-            // The same with e^{−μ_t,min ℓ} below 1 %, ℓ the flight to m's plane:
-            // a far face (the plaque's sides seen from its middle) costs
-            // two boundary searches for nothing.
-            let f_m = fresnel::reflectance(cos_m, 1.0 / eta);
-            let refl = if shared { band_reflectance(obj, cos_m, f_m, true) } else { [f_m; 3] };
+            // much as a straight connection. The same, independently, with
+            // e^{CHAIN_TAU − τ} where the flight to m's plane is τ >
+            // CHAIN_TAU deep: a far face (the plaque's sides seen from its
+            // middle) costs two boundary searches for nothing. (Its test,
+            // τ < τ_far, takes no exponential per face.)
             let tau = obj.bands.sigma_t_min * (c_m - m.dot(x)).max(0.0) / cos_m;
-            let keep = refl[0].max(refl[1]).max(refl[2]).min(1.0) * (CHAIN_TAU - tau).exp().min(1.0);
-            if !(keep >= 1.0 || rng.next_f64() < keep) {
+            if tau >= tau_far {
                 continue;
             }
+            let f_m = fresnel::reflectance(cos_m, 1.0 / eta);
+            let refl = if shared { band_reflectance(obj, cos_m, f_m, true) } else { [f_m; 3] };
+            let r_max = refl[0].max(refl[1]).max(refl[2]).min(1.0);
+            if !(r_max >= 1.0 || rng.next_f64() < r_max) {
+                continue;
+            }
+            let keep = r_max * (CHAIN_TAU - tau).exp().min(1.0);
             let d1 = wi + 2.0 * cos_m * *m;
             let Some(h1) = obj.accel.exit(x, d1).filter(|hit| hit.normal == *m) else { continue };
             let p = x + h1.t * d1 - eps * *m;
