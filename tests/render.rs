@@ -475,3 +475,28 @@ fn limits_and_full_output_are_clear_errors() {
         assert!(e.contains("cannot write to standard output") && !e.contains("panicked"), "{e}");
     }
 }
+
+/// The `[render]` switches of the estimator reach its settings: the
+/// defaults when absent, the file's values when given.
+#[test]
+fn render_section_switches_reach_the_settings() {
+    let demo = std::fs::read_to_string(root().join("fixtures/render/demo.toml")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, extra: &str| {
+        let text = demo
+            .replace("../", &format!("{}/fixtures/", root().display()))
+            .replace("[render]\n", &format!("[render]\n{extra}"));
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        scene::load(&path).unwrap().settings
+    };
+    let plain = write("plain.toml", "");
+    let d = Settings::default();
+    assert_eq!(
+        (plain.medium_nee, plain.phase_connection, plain.specular_chains),
+        (d.medium_nee, d.phase_connection, d.specular_chains)
+    );
+    assert!(!d.specular_chains, "the chains are off by default");
+    let set = write("set.toml", "medium_connections = false\nphase_connections = false\nspecular_chains = true\n");
+    assert_eq!((set.medium_nee, set.phase_connection, set.specular_chains), (false, false, true));
+}
