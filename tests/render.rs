@@ -480,7 +480,10 @@ fn limits_and_full_output_are_clear_errors() {
 /// defaults when absent, the file's values when given.
 #[test]
 fn render_section_switches_reach_the_settings() {
+    // demo.toml without its own `specular_chains` line.
     let demo = std::fs::read_to_string(root().join("fixtures/render/demo.toml")).unwrap();
+    assert!(demo.contains("\nspecular_chains = true\n"), "demo.toml turns the chains on");
+    let demo = demo.replace("\nspecular_chains = true\n", "\n");
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, extra: &str| {
         let text = demo

@@ -450,8 +450,8 @@ pub struct Settings {
     /// another). `false` (default): such paths are found only by chance,
     /// unweighted, and carry most of the object's sparse bright pixels
     /// (fireflies); on the demo plaque the chains cut the 99th percentile of
-    /// the per-pixel error from 44 % to 12 % at the same median, for 28 %
-    /// more time per sample.
+    /// the per-pixel error from 44 % to 12 % at the same median, for 12 %
+    /// more time (fixtures/render/demo.toml turns them on).
     pub specular_chains: bool,
     /// How a smooth boundary whose index differs between bands refracts a
     /// path that carries all bands (see [`Dispersion`]).
@@ -1721,7 +1721,7 @@ fn connect_through_faces(
     // whose flight to its reflecting face is τ deep is made when
     // τ < τ_far = CHAIN_TAU − ln u, i.e. with probability min(1, e^{CHAIN_TAU − τ}).
     let tau_far = if conn.chains { CHAIN_TAU - (1.0 - rng.next_f64()).ln() } else { 0.0 };
-    for (n, _) in planes {
+    for (n, c_n) in planes {
         let cos_o = n.dot(wo);
         if cos_o <= 0.0 {
             continue;
@@ -1757,12 +1757,15 @@ fn connect_through_faces(
             // Made with probability max_c R_c (Russian roulette, weight
             // 1/that): a partial reflection carries little and costs as
             // much as a straight connection. The same, independently, with
-            // e^{CHAIN_TAU − τ} where the flight to m's plane is τ >
-            // CHAIN_TAU deep: a far face (the plaque's sides seen from its
-            // middle) costs two boundary searches for nothing. (Its test,
-            // τ < τ_far, takes no exponential per face.)
-            let tau = obj.bands.sigma_t_min * (c_m - m.dot(x)).max(0.0) / cos_m;
-            if tau >= tau_far {
+            // e^{CHAIN_TAU − τ} where the chain is τ > CHAIN_TAU deep (its
+            // length ℓ: from x's mirror image x′ across m, straight along
+            // ω_i to n's plane): a far face (the plaque's sides seen from
+            // its middle) costs two boundary searches for nothing. (Its
+            // test, τ < τ_far, takes no exponential per face.)
+            let x_mirror = x + 2.0 * (c_m - m.dot(x)) * *m;
+            let length = (c_n - n.dot(x_mirror)) / cos_i;
+            let tau = obj.bands.sigma_t_min * length;
+            if length.is_nan() || length <= 0.0 || tau >= tau_far {
                 continue;
             }
             let f_m = fresnel::reflectance(cos_m, 1.0 / eta);
