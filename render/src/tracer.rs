@@ -1174,22 +1174,14 @@ fn connect_through_object(
         if cos_o <= 0.0 {
             continue;
         }
-        let cos_ik = (1.0 - (1.0 - cos_o * cos_o) / (eta * eta)).max(0.0).sqrt();
-        if cos_ik <= 0.0 {
-            continue;
-        }
-        let wi = ((wo - cos_o * *k) / eta + cos_ik * *k).normalize();
+        let Some((wi, cos_ik)) = unrefract(wo, *k, eta) else { continue };
         for (j, _) in planes {
             let cos_ij = -j.dot(wi);
             if j == k || cos_ij <= 0.0 {
                 continue;
             }
-            let sin2_b = eta * eta * (1.0 - cos_ij * cos_ij);
-            if sin2_b >= 1.0 {
-                continue; // no outside direction refracts into ω_i
-            }
-            let cos_b = (1.0 - sin2_b).sqrt();
-            let wb = (eta * (wi + cos_ij * *j) - cos_b * *j).normalize();
+            // The outside direction that refracts into ω_i (none beyond the critical angle).
+            let Some((wb, cos_b)) = unrefract(wi, -*j, 1.0 / eta) else { continue };
             let cos_board = wb.dot(at.n);
             if cos_board <= 0.0 {
                 continue;
@@ -1203,14 +1195,13 @@ fn connect_through_object(
             if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
                 continue;
             }
-            let f_in =
-                if shared { band_reflectance(obj, cos_b, 0.0, false) } else { [fresnel::reflectance(cos_b, eta); 3] };
-            let f = fresnel::reflectance(cos_ik, 1.0 / eta);
-            let f_out = if shared { band_reflectance(obj, cos_ik, f, true) } else { [f; 3] };
-            let through: [f64; 3] =
-                std::array::from_fn(|c| (1.0 - f_in[c]) * (-obj.bands.sigma_t[c] * h2.t).exp() * (1.0 - f_out[c]));
-            let chance: [f64; 3] =
-                std::array::from_fn(|c| if at.split { through[c] / (1.0 - f_in[c]) } else { through[c] });
+            let (_, f_in) = reflectances(obj, cos_b, eta, shared, false);
+            let (_, f_out) = reflectances(obj, cos_ik, eta, shared, true);
+            // The flight and the way out, then with the way in; the path
+            // samples the way in unless it splits there.
+            let crossing: [f64; 3] = std::array::from_fn(|c| (-obj.bands.sigma_t[c] * h2.t).exp() * (1.0 - f_out[c]));
+            let through: [f64; 3] = std::array::from_fn(|c| (1.0 - f_in[c]) * crossing[c]);
+            let chance = if at.split { crossing } else { through };
             let jacobian = cos_ij * cos_o / (cos_b * cos_ik);
             let bounce = cos_board * FRAC_1_PI * jacobian;
             let denom = sample.pdf * tp.mean_r() + bounce * mean_weighted(&tp.r, &chance);
@@ -1407,8 +1398,7 @@ fn trace_path(
             }
             let eta = if shared { obj.eta_mean } else { obj.eta(h) };
             let cos_i = d.dot(n_out);
-            let f = fresnel::reflectance(cos_i, 1.0 / eta);
-            let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
+            let (_, fr) = reflectances(obj, cos_i, eta, shared, true);
             if rng.next_f64() < fr[h] {
                 if shared {
                     tp.scale(fr, fr, h);
@@ -1607,11 +1597,7 @@ fn trace_path(
                     }
                     Some(1.0)
                 } else {
-                    let fr = if shared {
-                        band_reflectance(obj, cos_b, 0.0, false)
-                    } else {
-                        [fresnel::reflectance(cos_b, eta); 3]
-                    };
+                    let (_, fr) = reflectances(obj, cos_b, eta, shared, false);
                     let reflects = rng.next_f64() < fr[h];
                     if shared {
                         let w = if reflects { fr } else { fr.map(|x| 1.0 - x) };
@@ -1655,6 +1641,29 @@ fn band_reflectance(obj: &Object, cos_i: f64, f_mean: f64, from_inside: bool) ->
         let eta = obj.eta(c);
         fresnel::reflectance(cos_i, if from_inside { 1.0 / eta } else { eta })
     })
+}
+
+/// The Fresnel reflectance at a smooth boundary at the angle of incidence
+/// cos_i > 0 with the path's index `eta` (its band's, or the bands' mean
+/// under `shared`), from inside the medium (relative index 1/η) or from
+/// outside: that value, and per band the same or, under `shared`, each
+/// band's own ([`band_reflectance`]).
+#[inline]
+fn reflectances(obj: &Object, cos_i: f64, eta: f64, shared: bool, from_inside: bool) -> (f64, [f64; 3]) {
+    let f = fresnel::reflectance(cos_i, if from_inside { 1.0 / eta } else { eta });
+    (f, if shared { band_reflectance(obj, cos_i, f, from_inside) } else { [f; 3] })
+}
+
+/// Snell's law backwards at a flat face with unit normal `n`: the direction
+/// v on the far side (relative index `eta` = n_far / n_near) that refracts
+/// into the unit direction `w` leaving the face on n's side (n·w > 0), and
+/// cos θ_v = n·v; `None` where no v does (w beyond the critical angle).
+/// Both travel along +n: v = (w − (n·w) n)/η + cos θ_v n.
+#[inline]
+fn unrefract(w: DVec3, n: DVec3, eta: f64) -> Option<(DVec3, f64)> {
+    let cos_w = n.dot(w);
+    let cos_v = (1.0 - (1.0 - cos_w * cos_w) / (eta * eta)).max(0.0).sqrt();
+    (cos_v > 0.0).then(|| (((w - cos_w * n) / eta + cos_v * n).normalize(), cos_v))
 }
 
 /// Optical depth below which a chain through a reflection is always
@@ -1717,24 +1726,18 @@ fn connect_through_faces(
     let eta = if shared { obj.eta_mean } else { obj.eta(h) };
     let d_in = conn.d_in;
     let eps = scene.epsilon_m;
-    // One draw for the far-face roulette of every chain below: a chain
-    // whose flight to its reflecting face is τ deep is made when
-    // τ < τ_far = CHAIN_TAU − ln u, i.e. with probability min(1, e^{CHAIN_TAU − τ}).
+    // One draw for the far-face roulette of every chain below: a chain τ
+    // deep (its whole length) is made when τ < τ_far = CHAIN_TAU − ln u,
+    // i.e. with probability min(1, e^{CHAIN_TAU − τ}).
     let tau_far = if conn.chains { CHAIN_TAU - (1.0 - rng.next_f64()).ln() } else { 0.0 };
     for (n, c_n) in planes {
         let cos_o = n.dot(wo);
         if cos_o <= 0.0 {
             continue;
         }
-        let sin2_i = (1.0 - cos_o * cos_o) / (eta * eta);
-        let cos_i = (1.0 - sin2_i).max(0.0).sqrt();
-        if cos_i <= 0.0 {
-            continue;
-        }
-        let wi = ((wo - cos_o * *n) / eta + cos_i * *n).normalize();
+        let Some((wi, cos_i)) = unrefract(wo, *n, eta) else { continue };
         let jacobian = cos_o / (eta * eta * cos_i);
-        let f = fresnel::reflectance(cos_i, 1.0 / eta);
-        let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
+        let (_, fr) = reflectances(obj, cos_i, eta, shared, true);
         let blocked = |q: DVec3| scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some());
         // Straight out through face n.
         if let Some(hit) = obj.accel.exit(x, wi).filter(|hit| hit.normal == *n) {
@@ -1768,8 +1771,7 @@ fn connect_through_faces(
             if length.is_nan() || length <= 0.0 || tau >= tau_far {
                 continue;
             }
-            let f_m = fresnel::reflectance(cos_m, 1.0 / eta);
-            let refl = if shared { band_reflectance(obj, cos_m, f_m, true) } else { [f_m; 3] };
+            let (_, refl) = reflectances(obj, cos_m, eta, shared, true);
             let r_max = refl[0].max(refl[1]).max(refl[2]).min(1.0);
             if !(r_max >= 1.0 || rng.next_f64() < r_max) {
                 continue;
@@ -1923,8 +1925,7 @@ fn connect_along_phase(
         if cos_i <= 0.0 {
             return;
         }
-        let f = fresnel::reflectance(cos_i, 1.0 / eta);
-        let fr = if shared { band_reflectance(obj, cos_i, f, true) } else { [f; 3] };
+        let (f, fr) = reflectances(obj, cos_i, eta, shared, true);
         if f < 1.0 {
             let wo = refract_or_mirror(wi, n, 1.0 / eta);
             let cos_o = wo.dot(n);
