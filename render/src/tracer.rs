@@ -571,9 +571,13 @@ impl Quantiles {
             return Self { pixels: 0, median: f64::NAN, p90: f64::NAN };
         }
         values.sort_by(f64::total_cmp);
-        let at = |q: f64| values[((q * values.len() as f64) as usize).min(values.len() - 1)];
-        Self { pixels: values.len(), median: at(0.5), p90: at(0.9) }
+        Self { pixels: values.len(), median: sorted_quantile(&values, 0.5), p90: sorted_quantile(&values, 0.9) }
     }
+}
+
+/// The q-quantile of non-empty ascending `sorted`: its element at ⌊q n⌋ (the last for q = 1).
+fn sorted_quantile(sorted: &[f64], q: f64) -> f64 {
+    sorted[((q * sorted.len() as f64) as usize).min(sorted.len() - 1)]
 }
 
 /// The relative standard error of each pixel's mean, summarised per region:
@@ -642,6 +646,25 @@ impl Image {
     /// Median and 90th percentile of the relative standard error over the
     /// object's pixels, the board's and all.
     pub fn region_errors(&self) -> RegionErrors {
+        let [o, b, a] = self.errors_by_region();
+        RegionErrors { object: Quantiles::of(o), board: Quantiles::of(b), all: Quantiles::of(a) }
+    }
+
+    /// The q-quantile (as [`Quantiles`] takes it) of the per-pixel relative
+    /// standard error over the object's pixels, e.g. 0.99 for its sparse
+    /// bright outliers; NaN without object pixels.
+    pub fn object_error_quantile(&self, q: f64) -> f64 {
+        let [mut o, _, _] = self.errors_by_region();
+        if o.is_empty() {
+            return f64::NAN;
+        }
+        o.sort_by(f64::total_cmp);
+        sorted_quantile(&o, q)
+    }
+
+    /// The pixels' relative standard errors (black pixels left out) over
+    /// the object's pixels, the board's and all.
+    fn errors_by_region(&self) -> [Vec<f64>; 3] {
         let mut by: [Vec<f64>; 3] = Default::default();
         for p in 0..self.mean.len() {
             let Some(r) = self.relative_std_error(p) else { continue };
@@ -652,8 +675,7 @@ impl Image {
             }
             by[2].push(r);
         }
-        let [o, b, a] = by;
-        RegionErrors { object: Quantiles::of(o), board: Quantiles::of(b), all: Quantiles::of(a) }
+        by
     }
 }
 

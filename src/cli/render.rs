@@ -708,21 +708,6 @@ pub struct EstimatorRow {
     pub projected_s_to_5_percent: f64,
 }
 
-/// The q-quantile (nearest rank) of the relative standard error over the
-/// object's pixels, black ones left out as in [`tracer::Image::region_errors`];
-/// NaN without object pixels.
-fn object_quantile(img: &tracer::Image, q: f64) -> f64 {
-    let mut v: Vec<f64> = (0..img.mean.len())
-        .filter(|&p| img.region(p) == tracer::Region::Object)
-        .filter_map(|p| img.relative_std_error(p))
-        .collect();
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    v[((q * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1]
-}
-
 /// `lucent bench render --time-s T`: the previous estimator (no phase
 /// connection) for `time_s` of wall time on all cores, then today's default
 /// and each selectable device on top of it at the samples per pixel the
@@ -803,7 +788,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             events_per_s: stats.events as f64 / stats.wall_s,
             object_median: e.object.median,
             object_p90: e.object.p90,
-            object_p99: object_quantile(&img, 0.99),
+            object_p99: img.object_error_quantile(0.99),
             board_median: e.board.median,
             board_p90: e.board.p90,
             all_median: e.all.median,
