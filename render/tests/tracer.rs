@@ -383,13 +383,26 @@ fn coloured_plaque(eta: [f64; 3]) -> Object {
 /// A sky brighter towards the zenith with a mild lamp patch, coloured, on
 /// the finite sphere of radius 0.3 m about the plaque's top.
 fn lamp_sky() -> Environment {
+    sky_with_lamp(3.0, 4..12, 2..6, |base, lamp, x| [base + lamp, 0.7 * base + 0.5 * lamp, 0.4 * base + 0.2 * x / 32.0])
+}
+
+/// A 32 × 16 map brighter towards the zenith (base 0.2 … 1.0) with a lamp
+/// of radiance `lamp` over the pixel columns `xs` and rows `ys` (0
+/// elsewhere), coloured per pixel by `rgb(base, lamp, column)`, on the
+/// finite sphere of radius 0.3 m about the plaque's top.
+fn sky_with_lamp(
+    lamp: f32,
+    xs: std::ops::Range<usize>,
+    ys: std::ops::Range<usize>,
+    rgb: impl Fn(f32, f32, f32) -> [f32; 3],
+) -> Environment {
     let (w, h) = (32usize, 16usize);
     let map: Vec<f32> = (0..w * h)
         .flat_map(|i| {
             let (x, y) = (i % w, i / w);
             let base = 0.2 + 0.8 * (1.0 - y as f32 / h as f32);
-            let lamp = if (4..12).contains(&x) && (2..6).contains(&y) { 3.0 } else { 0.0 };
-            [base + lamp, 0.7 * base + 0.5 * lamp, 0.4 * base + 0.2 * x as f32 / w as f32]
+            let l = if xs.contains(&x) && ys.contains(&y) { lamp } else { 0.0 };
+            rgb(base, l, x as f32)
         })
         .collect();
     let centre = DVec3::new(0.0, 0.0, 0.004);
@@ -860,17 +873,9 @@ fn specular_chains_agree_and_cut_the_variance() {
     // τ ≈ 4 across a 6.35 mm plaque on the board, n = 1.59 (a partial
     // reflection at the bottom, and total internal reflection at the sides,
     // are common on the way out), under a sky with a small lamp 20× brighter.
-    let (w, h) = (32usize, 16usize);
-    let map: Vec<f32> = (0..w * h)
-        .flat_map(|i| {
-            let (x, y) = (i % w, i / w);
-            let base = 0.2 + 0.8 * (1.0 - y as f32 / h as f32);
-            let lamp = if (5..7).contains(&x) && (3..5).contains(&y) { 20.0 } else { 0.0 };
-            [base + lamp, 0.7 * base + 0.8 * lamp, 0.4 * base + 0.6 * lamp]
-        })
-        .collect();
-    let centre = DVec3::new(0.0, 0.0, 0.004);
-    let sky = Environment::new(w, h, map, 40.0, 1.0, Projection::FiniteSphere { centre, radius_m: 0.3 }).unwrap();
+    let sky = sky_with_lamp(20.0, 5..7, 3..5, |base, lamp, _| {
+        [base + lamp, 0.7 * base + 0.8 * lamp, 0.4 * base + 0.6 * lamp]
+    });
     let tris = cube(DVec3::new(-0.02, -0.015, 1e-6), DVec3::new(0.02, 0.015, 0.00635));
     let phase = Phase::henyey_greenstein(0.2).unwrap();
     let media = bands([640.0; 3], [2.0, 5.0, 10.0], [phase.clone(), phase.clone(), phase], [1.59; 3]);
