@@ -264,6 +264,19 @@ fn cli_writes_exr_png_json() {
     assert!(e["object"]["median"].as_f64().unwrap() > 0.0);
     assert!(e["object"]["p90"].as_f64().unwrap() >= e["object"]["median"].as_f64().unwrap());
     assert_eq!(e["all"]["pixels"], 32 * 24);
+    // The estimator's switches as the render ran (plaque_dense.toml sets none).
+    let d = Settings::default();
+    let est = &json["estimator"];
+    for (key, on) in [
+        ("spectral_mis", d.spectral_mis),
+        ("medium_connections", d.medium_nee),
+        ("phase_connections", d.phase_connection),
+        ("specular_chains", false),
+        ("sphere_jumps", false),
+        ("split_entry", false),
+    ] {
+        assert_eq!(est[key].as_bool(), Some(on), "{key}: {est}");
+    }
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains("object") && stdout.contains("board") && stdout.contains("90th percentile"), "{stdout}");
     // Same seed, same image, whatever the thread count.
@@ -480,10 +493,11 @@ fn limits_and_full_output_are_clear_errors() {
 /// defaults when absent, the file's values when given.
 #[test]
 fn render_section_switches_reach_the_settings() {
-    // demo.toml without its own `specular_chains` line.
+    // demo.toml without its own `specular_chains` and `sphere_jumps` lines.
     let demo = std::fs::read_to_string(root().join("fixtures/render/demo.toml")).unwrap();
     assert!(demo.contains("\nspecular_chains = true\n"), "demo.toml turns the chains on");
-    let demo = demo.replace("\nspecular_chains = true\n", "\n");
+    assert!(demo.contains("\nsphere_jumps = true\n"), "demo.toml turns the sphere jumps on");
+    let demo = demo.replace("\nspecular_chains = true\n", "\n").replace("\nsphere_jumps = true\n", "\n");
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, extra: &str| {
         let text = demo
@@ -500,6 +514,13 @@ fn render_section_switches_reach_the_settings() {
         (d.medium_nee, d.phase_connection, d.specular_chains)
     );
     assert!(!d.specular_chains, "the chains are off by default");
-    let set = write("set.toml", "medium_connections = false\nphase_connections = false\nspecular_chains = true\n");
-    assert_eq!((set.medium_nee, set.phase_connection, set.specular_chains), (false, false, true));
+    assert!(!plain.sphere_jumps && !d.sphere_jumps, "the sphere jumps are off by default");
+    let set = write(
+        "set.toml",
+        "medium_connections = false\nphase_connections = false\nspecular_chains = true\nsphere_jumps = true\n",
+    );
+    assert_eq!(
+        (set.medium_nee, set.phase_connection, set.specular_chains, set.sphere_jumps),
+        (false, false, true, true)
+    );
 }

@@ -15,4 +15,5 @@ pub mod rng;
 #[cfg(target_arch = "x86_64")]
 mod simd;
 pub mod slab;
+pub mod sphere;
 pub mod tracer;

@@ -134,7 +134,13 @@ impl Medium {
         }
         let phase = match &self.phase {
             Phase::HenyeyGreenstein { .. } => Phase::HenyeyGreenstein { g: g_max },
-            Phase::Tabulated(t) => Phase::Tabulated(t.flat_topped(g_max)),
+            // A table cut flat all over is the isotropic function; as HG(0)
+            // it is sampled and evaluated without a table search (a third
+            // of the walk's time in a diffusive medium such as TiO₂).
+            Phase::Tabulated(t) => match t.flat_topped(g_max) {
+                flat if flat.is_constant() => Phase::HenyeyGreenstein { g: 0.0 },
+                cut => Phase::Tabulated(cut),
+            },
         };
         let g_new = phase.mean_cosine();
         let medium = Medium { mu_s_per_m: self.mu_s_per_m * (1.0 - g) / (1.0 - g_new), phase, ..self.clone() };
@@ -164,6 +170,18 @@ mod tests {
             assert_eq!((s.mu_a_per_m, s.n), (9.6, 1.589));
         }
         assert_eq!(m.similar(0.98).expect("valid g_max"), m);
+        // A forward table cut down to g′ = 0 is flat all over: it becomes the
+        // isotropic function itself (no table search), with μs(1 − g) kept;
+        // a partial cut stays a table.
+        let hg = |mu: f64| (1.0 - 0.49) / (1.0 + 0.49 - 1.4 * mu).powf(1.5);
+        let values: Vec<f64> = (0..512).map(|i| hg((std::f64::consts::PI * i as f64 / 511.0).cos())).collect();
+        let table = PhaseTable::from_theta_samples(&values).expect("valid table");
+        let g = table.mean_cosine();
+        let t = pdms_like(Phase::Tabulated(table));
+        let iso = t.similar(0.0).expect("valid g_max");
+        assert_eq!(iso.phase, Phase::HenyeyGreenstein { g: 0.0 });
+        assert!((iso.mu_s_per_m / (1.47e4 * (1.0 - g)) - 1.0).abs() < 1e-12, "{}", iso.mu_s_per_m);
+        assert!(matches!(t.similar(0.3).expect("valid g_max").phase, Phase::Tabulated(_)));
         for bad in [-0.1, 1.0, f64::NAN, f64::INFINITY] {
             let e = m.similar(bad).expect_err("outside [0, 1)");
             assert_eq!(e.name, "similarity_g");

@@ -550,6 +550,12 @@ impl PhaseTable {
         self.mean_cosine
     }
 
+    /// Whether every node has the same value: the isotropic function
+    /// 1/(4π).
+    pub fn is_constant(&self) -> bool {
+        self.values.iter().all(|&v| v == self.values[0])
+    }
+
     /// The table with its forward peak cut flat, for the similarity
     /// relation of [`crate::medium::Medium::similar`]: the node values at
     /// θ < θ_k replaced by one value c, everything at θ ≥ θ_k kept. c is

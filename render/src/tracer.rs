@@ -149,11 +149,14 @@ use crate::fresnel;
 use crate::interface::{Interface, Lobe, Transport};
 use crate::medium::{Medium, MediumError};
 use crate::microfacet::MicrofacetError;
+use crate::phase::Phase;
 use crate::rng::Rng;
+use crate::sphere::{self, SphereExits};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_1_PI, TAU};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::OnceLock;
 use std::time::Instant;
 use thiserror::Error;
 
@@ -197,6 +200,9 @@ pub struct Object {
     /// The bands' mean index, for refraction directions under
     /// [`Dispersion::SharedDirections`].
     eta_mean: f64,
+    /// The sphere-jump tables ([`Settings::sphere_jumps`]), made on first
+    /// use; `None` where jumps do not apply.
+    spheres: OnceLock<Option<SphereExits>>,
 }
 
 /// What the estimator needs to know about the bands, derived once.
@@ -234,7 +240,25 @@ impl Object {
             achromatic: eta[1] == eta[0] && eta[2] == eta[0],
         };
         let eta_mean = (eta[0] + eta[1] + eta[2]) / 3.0;
-        Ok(Self { accel, interface, medium, bands, eta_mean })
+        Ok(Self { accel, interface, medium, bands, eta_mean, spheres: OnceLock::new() })
+    }
+
+    /// The tables of [`Settings::sphere_jumps`], made on the first call:
+    /// `None` unless the object is convex and scatters isotropically in
+    /// every band. Radii up to half the bounding box's shortest side.
+    pub fn sphere_exits(&self) -> Option<&SphereExits> {
+        self.spheres
+            .get_or_init(|| {
+                let isotropic =
+                    self.medium.iter().all(|m| matches!(m.phase, Phase::HenyeyGreenstein { g } if g == 0.0));
+                if !isotropic || self.accel.convex_planes().is_none() {
+                    return None;
+                }
+                let (lo, hi) = self.accel.bounds();
+                let albedo = std::array::from_fn(|c| self.medium[c].mu_s_per_m / self.bands.sigma_t[c]);
+                Some(SphereExits::new(self.bands.sigma_t, albedo, 0.5 * (hi - lo).min_element()))
+            })
+            .as_ref()
     }
 
     /// The same object with each band's medium replaced by its similar one
@@ -453,6 +477,15 @@ pub struct Settings {
     /// the per-pixel error from 44 % to 12 % at the same median, for 12 %
     /// more time (fixtures/render/demo.toml turns them on).
     pub specular_chains: bool,
+    /// Where a path scatters deeper than [`SPHERE_MARGIN_MFP`] + the
+    /// smallest sphere inside an object that scatters isotropically in
+    /// every band (a similar medium of g′ = 0, for instance), replace the
+    /// walk inside the largest tabulated sphere that fits by one draw from
+    /// its exit distribution ([`crate::sphere`]): a diffusive medium's
+    /// deep excursions cost O(log depth) jumps instead of depth² events.
+    /// The tables are Monte Carlo estimates (a fixed error of a few % per
+    /// bin in the exit angle). `false` (default): the plain walk.
+    pub sphere_jumps: bool,
     /// How a smooth boundary whose index differs between bands refracts a
     /// path that carries all bands (see [`Dispersion`]).
     pub dispersion: Dispersion,
@@ -518,6 +551,7 @@ impl Default for Settings {
             medium_nee: true,
             phase_connection: true,
             specular_chains: false,
+            sphere_jumps: false,
             dispersion: Dispersion::PerBand,
             split_entry: false,
             sampling: Sampling::Uniform,
@@ -1292,6 +1326,10 @@ fn trace_path(
     // Distance from `o` to the nearest face plane while inside a convex object.
     let mut safe = 0.0f64;
     let convex = scene.object.as_ref().and_then(|obj| obj.accel.convex_planes());
+    let spheres = match &scene.object {
+        Some(obj) if settings.sphere_jumps => obj.sphere_exits(),
+        _ => None,
+    };
     let planes = match &scene.object {
         Some(obj) if settings.medium_nee && !obj.interface.is_rough() && !scene.environment.is_uniform() => {
             obj.accel.convex_planes()
@@ -1369,6 +1407,33 @@ fn trace_path(
                     vertex = Some(MediumVertex { x: o, mean_r: tp.mean_r(), r: tp.r, p_attempt, p_phase });
                     stretch_t = 0.0;
                     stretch_refl = None;
+                }
+                // Deep inside: jump through the largest sphere that fits.
+                if let Some(j) = spheres.and_then(|t| t.largest_within(safe - SPHERE_MARGIN_MFP / bc.sigma_t_min)) {
+                    let t = spheres.expect("a radius came from the tables");
+                    let omega = sphere::isotropic(rng);
+                    let (u, v) = rng.next_f64_pair();
+                    let exit = t.sample(h, j, u, v);
+                    let (f, p) = t.factors(j, exit);
+                    tp.scale(f, p, h);
+                    tp.normalise();
+                    o += t.radius_m(j) * omega;
+                    d = match exit.bin {
+                        None => omega,
+                        Some(_) => sphere::leave(omega, exit.cos_theta, rng.next_f64()),
+                    };
+                    safe = convex.map_or(0.0, |planes| distance_to_planes(planes, o));
+                    // No connection was made from inside the sphere: an
+                    // escape from here is the only strategy for its path.
+                    vertex = None;
+                    if events >= settings.max_events_per_path {
+                        st.truncated_paths += 1;
+                        break;
+                    }
+                    if !roulette(&mut tp, settings, rng) {
+                        break;
+                    }
+                    continue;
                 }
                 let d_in = d;
                 let (u1, u2) = rng.next_f64_pair();
@@ -1697,6 +1762,12 @@ const CHAIN_TAU: f64 = 4.6;
 fn distance_to_planes(planes: &[(DVec3, f64)], x: DVec3) -> f64 {
     planes.iter().map(|(n, c)| (c - n.dot(x)).max(0.0)).fold(f64::INFINITY, f64::min)
 }
+
+/// A sphere jump leaves at least this many mean free paths (of the least
+/// extinct band) between the sphere and the nearest face plane, so that a
+/// path rarely escapes straight after one (such escapes carry no
+/// connection to share their weight with).
+pub const SPHERE_MARGIN_MFP: f64 = 4.0;
 
 /// Probability of attempting the medium connection from x: the bound
 /// exp(−μ_t,min d) on its transmittance, d ≥ 0 the distance to the nearest

@@ -897,3 +897,30 @@ fn specular_chains_agree_and_cut_the_variance() {
     eprintln!("object variance without the chains {va:.3e}, with {vb:.3e}");
     assert!(vb < 0.9 * va, "specular chains: object variance {vb:.3e} vs {va:.3e} without");
 }
+
+/// Sphere jumps (`Settings::sphere_jumps`): deep inside a diffusive,
+/// chromatic, isotropically scattering box the walk jumps through
+/// tabulated spheres. Same image as the plain walk (per pixel, Šidák, and
+/// on the object's mean), with far fewer events; a wrong exit weight or
+/// band factor would move the object's mean (the tables' own error is
+/// bounded here too).
+#[test]
+fn sphere_jumps_agree_with_the_plain_walk_in_fewer_events() {
+    let sky = sky_with_lamp(20.0, 5..7, 3..5, |base, lamp, _| {
+        [base + lamp, 0.7 * base + 0.8 * lamp, 0.4 * base + 0.6 * lamp]
+    });
+    let tris = cube(DVec3::new(-0.02, -0.015, 1e-6), DVec3::new(0.02, 0.015, 0.00635));
+    // 6.35 mm at μt 12–18 /mm: 76–114 mean free paths thick, albedo 0.996–0.998.
+    let iso = Phase::henyey_greenstein(0.0).unwrap();
+    let media = bands([12000.0, 15000.0, 18000.0], [24.0, 40.0, 72.0], [iso.clone(), iso.clone(), iso], [1.5; 3]);
+    let object = Object::new(Accel::new(&tris), Interface::Smooth, media).unwrap();
+    let scene = Scene::new(Some(object), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), sky, camera(16, 12)).unwrap();
+    let base = Settings { spp: 512, ..Settings::default() };
+    let (a, sa) = render(&scene, &Settings { seed: 81, sphere_jumps: false, ..base.clone() }, &mut |_| {});
+    let (b, sb) = render(&scene, &Settings { seed: 82, sphere_jumps: true, ..base }, &mut |_| {});
+    z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "sphere jumps vs the plain walk");
+    let z = object_mean_z(&a, &b);
+    assert!(z.abs() < 4.0, "the object's mean moved by z = {z:.2}");
+    eprintln!("events: plain walk {}, with sphere jumps {}; object mean z {z:.2}", sa.events, sb.events);
+    assert!(sb.events * 2 < sa.events, "events: {} with jumps, {} without", sb.events, sa.events);
+}

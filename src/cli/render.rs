@@ -569,6 +569,7 @@ fn report(
         }),
         spp_by_region: Some(spp_by_region(image)),
         target_rel_error: settings.target_rel_error,
+        estimator: Some(settings.into()),
         exposure_stops_png: exposure,
         files: files.to_vec(),
         interrupted: false,
@@ -743,7 +744,11 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     let object_weighted = |s: &mut Settings| s.sampling = tracer::Sampling::ObjectWeighted;
     // (name, settings, mean index, similarity g_max)
     let chains = |s: &mut Settings| s.specular_chains = true;
-    let configurations: [(&'static str, Configure, bool, Option<f64>); 9] = [
+    let jumps = |s: &mut Settings| {
+        s.specular_chains = true;
+        s.sphere_jumps = true;
+    };
+    let configurations: [(&'static str, Configure, bool, Option<f64>); 10] = [
         ("previous", |s| s.phase_connection = false, false, None),
         ("default (+ phase connection)", |_| {}, false, None),
         ("default + splitting at entry", |s| s.split_entry = true, false, None),
@@ -753,6 +758,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
         ("similar g′ ≤ 0.5, mean index", |_| {}, true, Some(0.5)),
         ("similar g′ ≤ 0, mean index", |_| {}, true, Some(0.0)),
         ("similar g′ ≤ 0, mean index, + specular chains", chains, true, Some(0.0)),
+        ("similar g′ ≤ 0, mean index, + chains + sphere jumps", jumps, true, Some(0.0)),
     ];
     // The first estimator runs for `time_s`; the others render the samples
     // per pixel it reached, so that every median is read at the same count.

@@ -47,6 +47,7 @@
 //! # spectral_mis = true, medium_connections = true   (false, false: the plain one-band estimator)
 //! # phase_connections = true     (with medium_connections: also connect along the phase function's directions)
 //! # specular_chains = false      (true: also connect through one reflection at a face, and from the board through the object; fewer bright outliers, ≈ 12–20 % more time)
+//! # sphere_jumps = false         (true: deep inside an isotropically scattering object, jump through tabulated spheres; diffusive media)
 //! # sampling = "uniform"          # (default) every pixel gets spp; "object-weighted": the object's pixels more
 //! # target_rel_error = 0.05       # stop when the object's median relative standard error reaches 5 %
 //! ```
@@ -425,6 +426,9 @@ pub struct RenderSection {
     /// With `medium_connections`: connect through one reflection at a face
     /// and from the board through the object too (default false).
     pub specular_chains: Option<bool>,
+    /// Jump through tabulated spheres deep inside an object that scatters
+    /// isotropically in every band (default false).
+    pub sphere_jumps: Option<bool>,
     /// "uniform" (default: every pixel `spp`) or "object-weighted" (the
     /// object's pixels get the samples their error needs).
     pub sampling: Option<SamplingKey>,
@@ -505,6 +509,10 @@ pub struct RenderReport {
     pub spp_by_region: Option<SppByRegion>,
     #[serde(default)]
     pub target_rel_error: Option<f64>,
+    /// The estimator's switches as the render ran. Absent in files written
+    /// before it existed.
+    #[serde(default)]
+    pub estimator: Option<EstimatorReport>,
     pub exposure_stops_png: f64,
     pub files: Vec<String>,
     /// True when Ctrl-C stopped the render early: the files hold the
@@ -512,6 +520,39 @@ pub struct RenderReport {
     /// files written before it existed.
     #[serde(default)]
     pub interrupted: bool,
+}
+
+/// The switches of [`lucent_render::tracer::Settings`] that choose the
+/// estimator (not the image's expectation, except where a switch says it
+/// approximates), as written into render.json.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct EstimatorReport {
+    /// All three bands on one path, combined by MIS over the driving band.
+    pub spectral_mis: bool,
+    /// Connections from scattering points to the environment through the faces.
+    pub medium_connections: bool,
+    /// A third connection along a direction drawn from the phase function.
+    pub phase_connections: bool,
+    /// Connections through one reflection at a face and from the board through the object.
+    pub specular_chains: bool,
+    /// Jumps through tabulated spheres deep inside an isotropically scattering object.
+    #[serde(default)]
+    pub sphere_jumps: bool,
+    /// Both the reflection and the refraction followed where a path meets the object.
+    pub split_entry: bool,
+}
+
+impl From<&Settings> for EstimatorReport {
+    fn from(s: &Settings) -> Self {
+        EstimatorReport {
+            spectral_mis: s.spectral_mis,
+            medium_connections: s.medium_nee,
+            phase_connections: s.phase_connection,
+            specular_chains: s.specular_chains,
+            sphere_jumps: s.sphere_jumps,
+            split_entry: s.split_entry,
+        }
+    }
 }
 
 /// Median and 90th percentile of a per-pixel figure over one region.
@@ -825,6 +866,9 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
     }
     if let Some(b) = r.specular_chains {
         settings.specular_chains = b;
+    }
+    if let Some(b) = r.sphere_jumps {
+        settings.sphere_jumps = b;
     }
     if let Some(k) = r.sampling {
         settings.sampling = k.into();
