@@ -46,7 +46,7 @@ pub const PATHS: u32 = 1 << 15;
 pub const RADIUS_RATIO: f64 = 1.25;
 /// The smallest radius, in mean free paths of the band with the largest
 /// mean free path.
-pub const SMALLEST_RADIUS_MFP: f64 = 2.0;
+pub const SMALLEST_RADIUS_MFP: f64 = 1.0;
 /// At most this many radii.
 const MAX_RADII: usize = 48;
 /// Paths per work item of the tabulation (the unit of parallelism; fixed,
