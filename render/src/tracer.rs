@@ -1415,7 +1415,8 @@ fn trace_path(
                     stretch_t = 0.0;
                     stretch_refl = None;
                 }
-                // Deep inside: jump through the largest sphere that fits.
+                // Deep inside: jump through the largest sphere that fits;
+                // else turn by the phase function.
                 if let Some(j) =
                     spheres.and_then(|t| t.largest_within(safe - settings.sphere_margin_mfp / bc.sigma_t_min))
                 {
@@ -1446,28 +1447,21 @@ fn trace_path(
                         }
                     }
                     safe = convex.map_or(0.0, |planes| distance_to_planes(planes, o));
-                    if events >= settings.max_events_per_path {
-                        st.truncated_paths += 1;
-                        break;
+                } else {
+                    let d_in = d;
+                    let (u1, u2) = rng.next_f64_pair();
+                    d = DVec3::from_array(obj.medium[h].phase.sample_direction(d.to_array(), u1, u2));
+                    stretch_mu = d_in.dot(d);
+                    if !bc.same_phase && !tp.single_band() {
+                        let p: [f64; 3] = std::array::from_fn(|c| {
+                            if c == h || tp.active(c) {
+                                obj.medium[c].phase.eval(stretch_mu)
+                            } else {
+                                0.0
+                            }
+                        });
+                        tp.scale(p, p, h);
                     }
-                    if !roulette(&mut tp, settings, rng) {
-                        break;
-                    }
-                    continue;
-                }
-                let d_in = d;
-                let (u1, u2) = rng.next_f64_pair();
-                d = DVec3::from_array(obj.medium[h].phase.sample_direction(d.to_array(), u1, u2));
-                stretch_mu = d_in.dot(d);
-                if !bc.same_phase && !tp.single_band() {
-                    let p: [f64; 3] = std::array::from_fn(|c| {
-                        if c == h || tp.active(c) {
-                            obj.medium[c].phase.eval(stretch_mu)
-                        } else {
-                            0.0
-                        }
-                    });
-                    tp.scale(p, p, h);
                 }
                 if events >= settings.max_events_per_path {
                     st.truncated_paths += 1;

@@ -862,6 +862,17 @@ fn similar_medium_cuts_events_and_noise_and_keeps_the_plaque_mean() {
     assert!(rel.abs() < 0.05 + 3.0 * sigma, "plaque mean (G): similar/exact − 1 = {rel:+.4} ± {sigma:.4}");
 }
 
+/// A 40 × 30 × 6.35 mm plaque of `media` on the board under a sky with a
+/// small lamp 20× brighter (coloured), seen by `camera(16, 12)`.
+fn plaque_under_a_lamp(media: [Medium; 3]) -> Scene {
+    let sky = sky_with_lamp(20.0, 5..7, 3..5, |base, lamp, _| {
+        [base + lamp, 0.7 * base + 0.8 * lamp, 0.4 * base + 0.6 * lamp]
+    });
+    let tris = cube(DVec3::new(-0.02, -0.015, 1e-6), DVec3::new(0.02, 0.015, 0.00635));
+    let object = Object::new(Accel::new(&tris), Interface::Smooth, media).unwrap();
+    Scene::new(Some(object), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), sky, camera(16, 12)).unwrap()
+}
+
 /// The specular chains (`Settings::specular_chains`): light that leaves a
 /// scattering point through one reflection at a face, and light that
 /// crosses the object unscattered from the board under it, is connected
@@ -872,15 +883,10 @@ fn similar_medium_cuts_events_and_noise_and_keeps_the_plaque_mean() {
 fn specular_chains_agree_and_cut_the_variance() {
     // τ ≈ 4 across a 6.35 mm plaque on the board, n = 1.59 (a partial
     // reflection at the bottom, and total internal reflection at the sides,
-    // are common on the way out), under a sky with a small lamp 20× brighter.
-    let sky = sky_with_lamp(20.0, 5..7, 3..5, |base, lamp, _| {
-        [base + lamp, 0.7 * base + 0.8 * lamp, 0.4 * base + 0.6 * lamp]
-    });
-    let tris = cube(DVec3::new(-0.02, -0.015, 1e-6), DVec3::new(0.02, 0.015, 0.00635));
+    // are common on the way out).
     let phase = Phase::henyey_greenstein(0.2).unwrap();
-    let media = bands([640.0; 3], [2.0, 5.0, 10.0], [phase.clone(), phase.clone(), phase], [1.59; 3]);
-    let object = Object::new(Accel::new(&tris), Interface::Smooth, media).unwrap();
-    let scene = Scene::new(Some(object), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), sky, camera(16, 12)).unwrap();
+    let scene =
+        plaque_under_a_lamp(bands([640.0; 3], [2.0, 5.0, 10.0], [phase.clone(), phase.clone(), phase], [1.59; 3]));
     let base = Settings { spp: 2048, ..Settings::default() };
     let (a, _) = render(&scene, &Settings { seed: 71, specular_chains: false, ..base.clone() }, &mut |_| {});
     let (b, _) = render(&scene, &Settings { seed: 72, specular_chains: true, ..base }, &mut |_| {});
@@ -906,15 +912,14 @@ fn specular_chains_agree_and_cut_the_variance() {
 /// bounded here too).
 #[test]
 fn sphere_jumps_agree_with_the_plain_walk_in_fewer_events() {
-    let sky = sky_with_lamp(20.0, 5..7, 3..5, |base, lamp, _| {
-        [base + lamp, 0.7 * base + 0.8 * lamp, 0.4 * base + 0.6 * lamp]
-    });
-    let tris = cube(DVec3::new(-0.02, -0.015, 1e-6), DVec3::new(0.02, 0.015, 0.00635));
     // 6.35 mm at μt 12–18 /mm: 76–114 mean free paths thick, albedo 0.996–0.998.
     let iso = Phase::henyey_greenstein(0.0).unwrap();
-    let media = bands([12000.0, 15000.0, 18000.0], [24.0, 40.0, 72.0], [iso.clone(), iso.clone(), iso], [1.5; 3]);
-    let object = Object::new(Accel::new(&tris), Interface::Smooth, media).unwrap();
-    let scene = Scene::new(Some(object), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), sky, camera(16, 12)).unwrap();
+    let scene = plaque_under_a_lamp(bands(
+        [12000.0, 15000.0, 18000.0],
+        [24.0, 40.0, 72.0],
+        [iso.clone(), iso.clone(), iso],
+        [1.5; 3],
+    ));
     let base = Settings { spp: 1024, ..Settings::default() };
     let (a, sa) = render(&scene, &Settings { seed: 81, sphere_jumps: false, ..base.clone() }, &mut |_| {});
     let (b, sb) = render(&scene, &Settings { seed: 82, sphere_jumps: true, ..base.clone() }, &mut |_| {});
