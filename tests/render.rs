@@ -263,6 +263,7 @@ fn cli_writes_exr_png_json() {
     assert_eq!(e["object"]["pixels"].as_u64().unwrap() as usize, object_px);
     assert!(e["object"]["median"].as_f64().unwrap() > 0.0);
     assert!(e["object"]["p90"].as_f64().unwrap() >= e["object"]["median"].as_f64().unwrap());
+    assert!(e["object"]["p99"].as_f64().unwrap() >= e["object"]["p90"].as_f64().unwrap());
     assert_eq!(e["all"]["pixels"], 32 * 24);
     // The estimator's switches as the render ran (plaque_dense.toml sets none).
     let d = Settings::default();

@@ -603,16 +603,19 @@ pub struct Quantiles {
     pub pixels: usize,
     pub median: f64,
     pub p90: f64,
+    /// The 99th percentile: the sparse bright outliers' share.
+    pub p99: f64,
 }
 
 impl Quantiles {
-    /// Median and 90th percentile of `values` (NaN for an empty set).
+    /// Median, 90th and 99th percentile of `values` (NaN for an empty set).
     pub fn of(mut values: Vec<f64>) -> Self {
         if values.is_empty() {
-            return Self { pixels: 0, median: f64::NAN, p90: f64::NAN };
+            return Self { pixels: 0, median: f64::NAN, p90: f64::NAN, p99: f64::NAN };
         }
         values.sort_by(f64::total_cmp);
-        Self { pixels: values.len(), median: sorted_quantile(&values, 0.5), p90: sorted_quantile(&values, 0.9) }
+        let q = |q| sorted_quantile(&values, q);
+        Self { pixels: values.len(), median: q(0.5), p90: q(0.9), p99: q(0.99) }
     }
 }
 
@@ -689,18 +692,6 @@ impl Image {
     pub fn region_errors(&self) -> RegionErrors {
         let [o, b, a] = self.errors_by_region();
         RegionErrors { object: Quantiles::of(o), board: Quantiles::of(b), all: Quantiles::of(a) }
-    }
-
-    /// The q-quantile (as [`Quantiles`] takes it) of the per-pixel relative
-    /// standard error over the object's pixels, e.g. 0.99 for its sparse
-    /// bright outliers; NaN without object pixels.
-    pub fn object_error_quantile(&self, q: f64) -> f64 {
-        let [mut o, _, _] = self.errors_by_region();
-        if o.is_empty() {
-            return f64::NAN;
-        }
-        o.sort_by(f64::total_cmp);
-        sorted_quantile(&o, q)
     }
 
     /// The pixels' relative standard errors (black pixels left out) over

@@ -458,7 +458,12 @@ pub fn describe_errors(e: &tracer::RegionErrors) -> String {
 
 /// The region figures as written into render.json.
 pub fn errors_report(e: &tracer::RegionErrors) -> scene::RegionErrorsReport {
-    let q = |q: &tracer::Quantiles| scene::QuantilesReport { pixels: q.pixels, median: q.median, p90: q.p90 };
+    let q = |q: &tracer::Quantiles| scene::QuantilesReport {
+        pixels: q.pixels,
+        median: q.median,
+        p90: q.p90,
+        p99: Some(q.p99),
+    };
     scene::RegionErrorsReport {
         definition:
             "relative standard error of the pixel's mean, RMS over R, G, B, over the pixels that are not black \
@@ -794,7 +799,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             events_per_s: stats.events as f64 / stats.wall_s,
             object_median: e.object.median,
             object_p90: e.object.p90,
-            object_p99: img.object_error_quantile(0.99),
+            object_p99: e.object.p99,
             board_median: e.board.median,
             board_p90: e.board.p90,
             all_median: e.all.median,

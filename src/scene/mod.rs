@@ -564,6 +564,10 @@ pub struct QuantilesReport {
     pub median: f64,
     #[serde(deserialize_with = "crate::bssrdf::f64_or_nan")]
     pub p90: f64,
+    /// The 99th percentile (the sparse bright outliers' share); absent in
+    /// files written before it existed, `null` where it is infinite.
+    #[serde(default)]
+    pub p99: Option<f64>,
 }
 
 /// [`lucent_render::tracer::RegionErrors`] as written into render.json.
