@@ -186,10 +186,7 @@ impl Phase {
     /// overlaps other work).
     #[inline]
     pub fn sample_angles(&self, u1: f64, u2: f64) -> ScatteringAngles {
-        let cos_theta = self.sample_cos_theta(u1);
-        let sin_theta = ((1.0 - cos_theta) * (1.0 + cos_theta)).max(0.0).sqrt();
-        let (sin_phi, cos_phi) = sin_cos_turns(u2);
-        ScatteringAngles { cos_theta, sin_theta, cos_phi, sin_phi }
+        ScatteringAngles::at(self.sample_cos_theta(u1), u2)
     }
 }
 
@@ -204,6 +201,14 @@ pub struct ScatteringAngles {
 }
 
 impl ScatteringAngles {
+    /// Polar angle θ at cos θ = `cos_theta` ∈ [−1, 1] and azimuth φ = 2π·`u`.
+    #[inline]
+    pub fn at(cos_theta: f64, u: f64) -> Self {
+        let sin_theta = ((1.0 - cos_theta) * (1.0 + cos_theta)).max(0.0).sqrt();
+        let (sin_phi, cos_phi) = sin_cos_turns(u);
+        ScatteringAngles { cos_theta, sin_theta, cos_phi, sin_phi }
+    }
+
     /// The direction at these angles from the unit vector `incident`, φ
     /// measured in the frame of [`orthonormal_basis`]`(incident)`.
     #[inline]

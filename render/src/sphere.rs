@@ -36,6 +36,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::phase::ScatteringAngles;
 use crate::rng::Rng;
 
 /// Bins of the exit cosine μ ∈ [0, 1], equal width.
@@ -65,6 +66,22 @@ struct ExitTable {
     /// The bins' cumulative probabilities of q/(1 − e^{−R}), cdf[0] = 0,
     /// cdf[BINS] = 1.
     cdf: [f64; BINS + 1],
+}
+
+impl ExitTable {
+    /// An exit from the uniforms `u` (which kind and bin) and `v` (μ within
+    /// the bin): unscattered with probability e^{−R}, else a bin by q.
+    #[inline]
+    fn sample(&self, u: f64, v: f64) -> SphereExit {
+        if u < self.unscattered {
+            return SphereExit { cos_theta: 1.0, bin: None };
+        }
+        let u = ((u - self.unscattered) / (1.0 - self.unscattered)).min(1.0);
+        // A bin the cdf picks has q > 0 (the fallback is for rounding).
+        let k = (self.cdf.partition_point(|&c| c <= u).max(1) - 1).min(BINS - 1);
+        let k = if self.density[k] > 0.0 { k } else { (0..BINS).rev().find(|&i| self.density[i] > 0.0).unwrap_or(k) };
+        SphereExit { cos_theta: ((k as f64 + v) / BINS as f64).min(1.0), bin: Some(k) }
+    }
 }
 
 /// Where a sphere jump leaves: unscattered, or scattered into bin `bin`
@@ -132,14 +149,7 @@ impl SphereExits {
     /// and bin) and `v` (μ within the bin).
     #[inline]
     pub fn sample(&self, band: usize, j: usize, u: f64, v: f64) -> SphereExit {
-        let t = &self.tables[band][j];
-        if u < t.unscattered {
-            return SphereExit { cos_theta: 1.0, bin: None };
-        }
-        let u = ((u - t.unscattered) / (1.0 - t.unscattered)).min(1.0);
-        let k = (t.cdf.partition_point(|&c| c <= u).max(1) - 1).min(BINS - 1);
-        let k = if t.density[k] > 0.0 { k } else { (0..BINS).rev().find(|&i| t.density[i] > 0.0).unwrap_or(k) };
-        SphereExit { cos_theta: ((k as f64 + v) / BINS as f64).min(1.0), bin: Some(k) }
+        self.tables[band][j].sample(u, v)
     }
 
     /// Each band's contribution and density of `exit` at radius j (the
@@ -163,19 +173,13 @@ impl SphereExits {
 #[inline]
 pub(crate) fn isotropic(rng: &mut Rng) -> DVec3 {
     let (u1, u2) = rng.next_f64_pair();
-    let z = 1.0 - 2.0 * u1;
-    let s = ((1.0 - z) * (1.0 + z)).max(0.0).sqrt();
-    let (sin, cos) = (std::f64::consts::TAU * u2).sin_cos();
-    DVec3::new(s * cos, s * sin, z)
+    leave(DVec3::Z, 1.0 - 2.0 * u1, u2)
 }
 
 /// The direction at cos θ = `mu` to the unit `normal`, azimuth 2π`u`.
 #[inline]
 pub fn leave(normal: DVec3, mu: f64, u: f64) -> DVec3 {
-    let (t, b) = crate::phase::orthonormal_basis(normal.to_array());
-    let s = ((1.0 - mu) * (1.0 + mu)).max(0.0).sqrt();
-    let (sin, cos) = (std::f64::consts::TAU * u).sin_cos();
-    (DVec3::from_array(t) * cos + DVec3::from_array(b) * sin) * s + normal * mu
+    DVec3::from_array(ScatteringAngles::at(mu, u).turn(normal.to_array()))
 }
 
 /// The table of a sphere of optical radius `radius` (mean free paths) for
@@ -241,15 +245,14 @@ fn walk(
                 x += inner_radii[i] * omega;
                 let t = &inner[i];
                 let (u, v) = rng.next_f64_pair();
-                if u < t.unscattered {
-                    omega
-                } else {
-                    let u = (u - t.unscattered) / (1.0 - t.unscattered);
-                    // A bin the cdf picks has q > 0.
-                    let k = (t.cdf.partition_point(|&c| c <= u).max(1) - 1).min(BINS - 1);
-                    w *= t.weight[k] / t.density[k];
-                    let (a, _) = rng.next_f64_pair();
-                    leave(omega, (k as f64 + v) / BINS as f64, a)
+                let exit = t.sample(u, v);
+                match exit.bin {
+                    None => omega,
+                    Some(k) => {
+                        w *= t.weight[k] / t.density[k];
+                        let (a, _) = rng.next_f64_pair();
+                        leave(omega, exit.cos_theta, a)
+                    }
                 }
             }
             None => isotropic(rng),

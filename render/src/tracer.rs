@@ -1408,10 +1408,8 @@ fn trace_path(
                 }
                 // Deep inside: jump through the largest sphere that fits;
                 // else turn by the phase function.
-                if let Some(j) =
-                    spheres.and_then(|t| t.largest_within(safe - settings.sphere_margin_mfp / bc.sigma_t_min))
-                {
-                    let t = spheres.expect("a radius came from the tables");
+                let room = safe - settings.sphere_margin_mfp / bc.sigma_t_min;
+                if let Some((t, j)) = spheres.and_then(|t| t.largest_within(room).map(|j| (t, j))) {
                     let omega = sphere::isotropic(rng);
                     let (u, v) = rng.next_f64_pair();
                     let exit = t.sample(h, j, u, v);
