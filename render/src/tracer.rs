@@ -412,15 +412,21 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Assembles a scene; ε is 10⁻⁷ of the extent of the object, board and camera.
+    /// Assembles a scene; ε is 10⁻⁷ of the extent of the object, board and
+    /// camera. With a board, the environment's sampling is weighted towards
+    /// the board's normal on the camera's side
+    /// ([`Environment::set_sampling_normal`]): everything lit there faces up.
     pub fn new(
         object: Option<Object>,
         board: Option<Board>,
-        environment: Environment,
+        mut environment: Environment,
         camera: Camera,
     ) -> Result<Self, SceneError> {
         if let Some(b) = &board {
             b.check()?;
+            let n = b.normal();
+            let n = if n.dot(camera.position() - b.origin) >= 0.0 { n } else { -n };
+            environment.set_sampling_normal(Some(n));
         }
         let mut extent = camera.position().abs().max_element();
         if let Some(o) = &object {

@@ -7,7 +7,7 @@
 //! re-derived here from the module documentation, not taken from the module.
 
 use glam::DVec3;
-use lucent_render::env::{EnvError, Environment, Projection};
+use lucent_render::env::{EnvError, Environment, Projection, BELOW_WEIGHT};
 use lucent_render::rng::Rng;
 use std::f64::consts::{PI, TAU};
 
@@ -505,6 +505,73 @@ fn estimator_of_the_radiance_integral_is_unbiased() {
     // frame (adaptive quadrature; agreement to its accuracy).
     let direct = integrate_sphere(&|d| env.radiance(p, d)[1], 8, 7);
     assert!((direct / want[1] - 1.0).abs() < 1e-3, "{direct} vs {}", want[1]);
+}
+
+/// The test map weighted towards a tilted normal (as a scene's board does).
+fn facing_env() -> Environment {
+    let mut env = test_env(25.0, 1.3, sphere());
+    env.set_sampling_normal(Some(DVec3::new(0.3, -0.2, 0.9).normalize()));
+    env
+}
+
+#[test]
+fn weighting_towards_a_normal_keeps_sample_pdf_and_integral_consistent() {
+    let env = facing_env();
+    let p = off_centre();
+    let pv = chi2_pvalue(&env, p, 500_000, 15);
+    assert!(pv > 1e-4, "p-value {pv}");
+    let total = integrate_sphere(&|d| env.pdf(p, d), 8, 6);
+    assert!((total - 1.0).abs() < 1e-3, "∫pdf dω = {total}");
+    let mut rng = Rng::new(22, 0);
+    let (mut sum, mut sum2, n) = (0.0, 0.0, 400_000);
+    for _ in 0..n {
+        let s = env.sample(p, [rng.next_f64(), rng.next_f64()]).unwrap();
+        assert!((env.pdf(p, s.dir) - s.pdf).abs() <= 1e-9 * s.pdf);
+        let x = s.radiance[1] / s.pdf;
+        sum += x;
+        sum2 += x * x;
+    }
+    let (w, h, rgb) = test_map();
+    let want = radiance_integral_via_map(w, h, &rgb, 25.0, 1.3, p)[1];
+    let mean = sum / n as f64;
+    let se = ((sum2 / n as f64 - mean * mean) / (n - 1) as f64).sqrt();
+    assert!((mean - want).abs() < 4.0 * se, "{mean} ± {se} vs {want}");
+}
+
+#[test]
+fn weighting_towards_a_normal_follows_kappa_plus_cosine() {
+    // At the centre of an infinite map the density of pixel (x, y) is its
+    // weight over the total: weighted / plain = (κ + max(0, n·d)) / Z for
+    // every pixel centre d, one constant Z. The test map's spot and black
+    // block make the weights uneven; the floor is part of both.
+    let (w, h, rgb) = test_map();
+    let plain = Environment::new(w, h, rgb.clone(), 25.0, 1.3, Projection::Infinite).unwrap();
+    let mut weighted = Environment::new(w, h, rgb, 25.0, 1.3, Projection::Infinite).unwrap();
+    let n = DVec3::new(0.3, -0.2, 0.9).normalize();
+    weighted.set_sampling_normal(Some(n));
+    assert!(weighted.sampling_normal().is_some_and(|m| (m - n).length() < 1e-15));
+    let mut ratios = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let d = plain.world_direction((x as f64 + 0.5) / w as f64, (y as f64 + 0.5) / h as f64);
+            let (a, b) = (plain.pdf(DVec3::ZERO, d), weighted.pdf(DVec3::ZERO, d));
+            if a > 0.0 {
+                ratios.push(b / a / (BELOW_WEIGHT + n.dot(d).max(0.0)));
+            } else {
+                assert_eq!(b, 0.0, "pixel ({x}, {y})");
+            }
+        }
+    }
+    let z = ratios[0];
+    assert!(ratios.iter().all(|r| (r / z - 1.0).abs() < 1e-9), "{ratios:?}");
+    // Along n against −n: (κ + 1)/κ = 11 times more likely than plain
+    // (the test can tell the weighting from none).
+    let gain = |d: DVec3| weighted.pdf(DVec3::ZERO, d) / plain.pdf(DVec3::ZERO, d);
+    assert!(gain(n) / gain(-n) > 9.0, "{}", gain(n) / gain(-n));
+    // None restores the plain tables exactly.
+    weighted.set_sampling_normal(None);
+    let d = DVec3::new(0.1, 0.7, -0.3).normalize();
+    assert_eq!(weighted.pdf(DVec3::ZERO, d), plain.pdf(DVec3::ZERO, d));
 }
 
 #[test]

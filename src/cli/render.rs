@@ -747,29 +747,40 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     type Configure = fn(&mut Settings);
     let shared = |s: &mut Settings| s.dispersion = tracer::Dispersion::SharedDirections;
     let object_weighted = |s: &mut Settings| s.sampling = tracer::Sampling::ObjectWeighted;
-    // (name, settings, mean index, similarity g_max)
+    // (name, settings, mean index, similarity g_max, environment sampled by
+    // luminance alone rather than weighted towards the board's normal)
     let chains = |s: &mut Settings| s.specular_chains = true;
     let jumps = |s: &mut Settings| {
         s.specular_chains = true;
         s.sphere_jumps = true;
     };
-    let configurations: [(&'static str, Configure, bool, Option<f64>); 10] = [
-        ("previous", |s| s.phase_connection = false, false, None),
-        ("default (+ phase connection)", |_| {}, false, None),
-        ("default + splitting at entry", |s| s.split_entry = true, false, None),
-        ("default + shared dispersion", shared, false, None),
-        ("default + object-weighted", object_weighted, false, None),
-        ("mean index", |_| {}, true, None),
-        ("similar g′ ≤ 0.5, mean index", |_| {}, true, Some(0.5)),
-        ("similar g′ ≤ 0, mean index", |_| {}, true, Some(0.0)),
-        ("similar g′ ≤ 0, mean index, + specular chains", chains, true, Some(0.0)),
-        ("similar g′ ≤ 0, mean index, + chains + sphere jumps", jumps, true, Some(0.0)),
+    let configurations: [(&'static str, Configure, bool, Option<f64>, bool); 11] = [
+        ("previous", |s| s.phase_connection = false, false, None, true),
+        ("default (+ phase connection)", |_| {}, false, None, false),
+        ("default + splitting at entry", |s| s.split_entry = true, false, None, false),
+        ("default + shared dispersion", shared, false, None, false),
+        ("default + object-weighted", object_weighted, false, None, false),
+        ("mean index", |_| {}, true, None, false),
+        ("similar g′ ≤ 0.5, mean index", |_| {}, true, Some(0.5), false),
+        ("similar g′ ≤ 0, mean index", |_| {}, true, Some(0.0), false),
+        ("similar g′ ≤ 0, mean index, + specular chains", chains, true, Some(0.0), false),
+        ("similar g′ ≤ 0, mean index, + chains + sphere jumps", jumps, true, Some(0.0), false),
+        (
+            "similar g′ ≤ 0, mean index, + chains + jumps, luminance-only environment sampling",
+            jumps,
+            true,
+            Some(0.0),
+            true,
+        ),
     ];
     // The first estimator runs for `time_s`; the others render the samples
     // per pixel it reached, so that every median is read at the same count.
     let mut same_spp: Option<u32> = None;
-    for (name, configure, mean_index, similarity_g) in configurations {
+    for (name, configure, mean_index, similarity_g, plain_env) in configurations {
         let mut loaded = if mean_index { mean_index_scene.clone() } else { exact_scene.clone() };
+        if plain_env {
+            loaded.scene.environment.set_sampling_normal(None);
+        }
         let mut settings = match same_spp {
             None => Settings { spp: u32::MAX / 2, time_budget_s: Some(time_s), ..loaded.settings.clone() },
             Some(spp) => Settings { spp, time_budget_s: None, ..loaded.settings.clone() },
