@@ -499,7 +499,8 @@ impl Environment {
         self.pixel_radiance(i)
     }
 
-    /// A direction at `p` drawn proportionally to the map's luminance
+    /// A direction at `p` drawn proportionally to the map's luminance (times
+    /// the weight of [`Environment::set_sampling_normal`], if set)
     /// (u ∈ [0, 1)²; `u[1]` picks the row, `u[0]` the column), with the
     /// radiance along it and its density per steradian at p.
     ///
