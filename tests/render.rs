@@ -494,11 +494,15 @@ fn limits_and_full_output_are_clear_errors() {
 /// defaults when absent, the file's values when given.
 #[test]
 fn render_section_switches_reach_the_settings() {
-    // demo.toml without its own `specular_chains` and `sphere_jumps` lines.
+    // demo.toml without its own `specular_chains`, `sphere_jumps` and `phase_connections` lines.
     let demo = std::fs::read_to_string(root().join("fixtures/render/demo.toml")).unwrap();
     assert!(demo.contains("\nspecular_chains = true\n"), "demo.toml turns the chains on");
     assert!(demo.contains("\nsphere_jumps = true\n"), "demo.toml turns the sphere jumps on");
-    let demo = demo.replace("\nspecular_chains = true\n", "\n").replace("\nsphere_jumps = true\n", "\n");
+    assert!(demo.contains("\nphase_connections = false\n"), "demo.toml turns the phase connections off");
+    let demo = demo
+        .replace("\nspecular_chains = true\n", "\n")
+        .replace("\nsphere_jumps = true\n", "\n")
+        .replace("\nphase_connections = false\n", "\n");
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, extra: &str| {
         let text = demo

@@ -156,7 +156,36 @@ impl SphereExits {
     /// factors common to all bands left out).
     #[inline]
     pub fn factors(&self, j: usize, exit: SphereExit) -> ([f64; 3], [f64; 3]) {
-        match exit.bin {
+        self.bin_factors(j, exit.bin)
+    }
+
+    /// Each band's probability 1 − e^{−R_c} that a jump through sphere j
+    /// scatters inside.
+    #[inline]
+    pub fn scattered_probability(&self, j: usize) -> [f64; 3] {
+        std::array::from_fn(|c| 1.0 - self.tables[c][j].unscattered)
+    }
+
+    /// Given that a jump through sphere j scattered inside, each band's
+    /// contribution w_c(μ) and density q_c(μ)/(1 − e^{−R_c}) per unit μ of
+    /// leaving at cosine μ to the outward normal; (0, 0) for μ ≤ 0 (no path
+    /// leaves inwards). Per steradian they are these over 2π (the azimuth is
+    /// uniform): the exit point's "phase function" for a connection from it,
+    /// whose sampling of the scattered branch itself is
+    /// [`SphereExits::scattered_probability`].
+    #[inline]
+    pub fn given_scattered(&self, j: usize, mu: f64) -> ([f64; 3], [f64; 3]) {
+        if mu.is_nan() || mu <= 0.0 {
+            return ([0.0; 3], [0.0; 3]);
+        }
+        let (w, q) = self.bin_factors(j, Some(((mu * BINS as f64) as usize).min(BINS - 1)));
+        let s = self.scattered_probability(j);
+        (w, std::array::from_fn(|c| if s[c] > 0.0 { q[c] / s[c] } else { 0.0 }))
+    }
+
+    #[inline]
+    fn bin_factors(&self, j: usize, bin: Option<usize>) -> ([f64; 3], [f64; 3]) {
+        match bin {
             None => {
                 let e = std::array::from_fn(|c| self.tables[c][j].unscattered);
                 (e, e)

@@ -964,12 +964,15 @@ fn sphere_jumps_agree_with_the_plain_walk_in_fewer_events() {
     assert!(z.abs() < 4.0, "the object's mean moved by z = {z:.2}");
     eprintln!("events: plain walk {}, with sphere jumps {}; object mean z {z:.2}", sa.events, sb.events);
     assert!(sb.events * 2 < sa.events, "events: {} with jumps, {} without", sb.events, sa.events);
-    // Spheres half a mean free path from the faces: an unscattered exit's
-    // escape is one the scattering point's connections also make, and must
-    // share their weight (counted in full it shifts the mean by several σ).
-    let near = Settings { seed: 83, sphere_jumps: true, sphere_margin_mfp: 0.5, ..base };
+    // Spheres up to the faces, where most light leaves from near a jump's
+    // exit: an unscattered exit's escape is one the scattering point's
+    // connections also make, and must share their weight (counted in full
+    // it shifted the mean by z = 6 at a 0.5 mfp margin); a scattered exit's
+    // connection must count the branch's probability 1 − e^{−R} in its
+    // densities (left out, the mean falls by z ≈ 10 here).
+    let near = Settings { seed: 83, sphere_jumps: true, sphere_margin_mfp: 0.0, spp: 4096, ..base };
     let (c, _) = render(&scene, &near, &mut |_| {});
     let z = object_mean_z(&a, &c);
-    eprintln!("margin 0.5: object mean z {z:.2}");
-    assert!(z.abs() < 4.0, "margin 0.5: the object's mean moved by z = {z:.2}");
+    eprintln!("margin 0: object mean z {z:.2}");
+    assert!(z.abs() < 4.0, "margin 0: the object's mean moved by z = {z:.2}");
 }
