@@ -134,7 +134,7 @@ pub const MAX_RADIANCE: f64 = 1e30;
 /// κ of [`Environment::set_sampling_normal`]: the weight, relative to a
 /// direction along the normal, left to the directions below the plane
 /// (0.1 took the demo board's median relative error from 17 % to 9 % at
-/// equal samples, and the plaques' by 2–9 %; 0.03 and 0.3 did less).
+/// equal samples, and the plaques' by 4–10 %; 0.03 and 0.3 did less).
 pub const BELOW_WEIGHT: f64 = 0.1;
 
 /// The largest |yaw| of a map, degrees (ten turns: a larger value is a typo,
