@@ -1402,17 +1402,17 @@ fn trace_path(
                 chain = None;
                 safe = convex.map_or(0.0, |planes| distance_to_planes(planes, o));
                 if let Some(planes) = planes {
-                    let p_attempt = attempt_probability(safe, bc.sigma_t_min);
-                    let p_phase = if settings.phase_connection { p_attempt } else { 0.0 };
-                    if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
-                        let c = Connection { h, x: o, d_in: d, p_attempt, p_phase, shared, chains, exit: None };
-                        connect_through_faces(scene, obj, planes, &tp, &c, rng, &mut radiance);
-                        if settings.phase_connection {
-                            connect_along_phase(scene, obj, &tp, &c, rng, &mut radiance);
-                        }
-                    }
-                    vertex =
-                        Some(MediumVertex { x: o, mean_r: tp.mean_r(), r: tp.r, p_attempt, p_phase, sphere: None });
+                    let at = VertexAt {
+                        h,
+                        x: o,
+                        d_in: d,
+                        safe,
+                        exit: None,
+                        shared,
+                        chains,
+                        phase: settings.phase_connection,
+                    };
+                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &at, rng, &mut radiance));
                     stretch_t = 0.0;
                     stretch_refl = None;
                 }
@@ -1451,30 +1451,19 @@ fn trace_path(
                                 let mut branch = arriving;
                                 branch.scale([1.0; 3], t.scattered_probability(j), h);
                                 let safe_y = distance_to_planes(planes, o);
-                                let p_attempt = attempt_probability(safe_y, bc.sigma_t_min);
-                                if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
-                                    let c = Connection {
-                                        h,
-                                        x: o,
-                                        d_in: omega,
-                                        p_attempt,
-                                        p_phase: 0.0,
-                                        shared,
-                                        chains,
-                                        exit: Some((t, j)),
-                                    };
-                                    connect_through_faces(scene, obj, planes, &branch, &c, rng, &mut radiance);
-                                }
+                                let at = VertexAt {
+                                    h,
+                                    x: o,
+                                    d_in: omega,
+                                    safe: safe_y,
+                                    exit: Some((t, j)),
+                                    shared,
+                                    chains,
+                                    phase: false,
+                                };
                                 // (No normalisation until the next event: the
                                 // vertex's r and the path's share one scale.)
-                                vertex = Some(MediumVertex {
-                                    x: o,
-                                    mean_r: branch.mean_r(),
-                                    r: branch.r,
-                                    p_attempt,
-                                    p_phase: 0.0,
-                                    sphere: Some(j),
-                                });
+                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &at, rng, &mut radiance));
                                 stretch_mu = exit.cos_theta;
                                 stretch_t = 0.0;
                                 stretch_refl = None;
@@ -1844,6 +1833,50 @@ fn attempt_probability(d: f64, sigma_t_min: f64) -> f64 {
     } else {
         0.0
     }
+}
+
+/// A medium vertex: the driving band `h`, the point `x`, the direction the
+/// path arrived along `d_in` (a sphere's outward normal at a scattered
+/// exit), the distance `safe` from x to the nearest face plane, at a sphere
+/// jump's scattered exit the tables and the sphere, and how it is
+/// connected: [`Connection`]'s `shared` and `chains`, and whether the phase
+/// connection is made too (`phase`; never at a sphere exit).
+struct VertexAt<'a> {
+    h: usize,
+    x: DVec3,
+    d_in: DVec3,
+    safe: f64,
+    exit: Option<(&'a SphereExits, usize)>,
+    shared: bool,
+    chains: bool,
+    phase: bool,
+}
+
+/// The connections from the medium vertex `at` with the path's throughput
+/// `tp` there, attempted with [`attempt_probability`]: the environment
+/// connection, and the phase connection where `at.phase` asks for it.
+/// Returns what the path's own escape from x needs for its weight.
+fn connect_vertex(
+    scene: &Scene,
+    obj: &Object,
+    planes: &[(DVec3, f64)],
+    tp: &Throughput,
+    at: &VertexAt,
+    rng: &mut Rng,
+    radiance: &mut [f64; 3],
+) -> MediumVertex {
+    let phase = at.phase && at.exit.is_none();
+    let p_attempt = attempt_probability(at.safe, obj.bands.sigma_t_min);
+    let p_phase = if phase { p_attempt } else { 0.0 };
+    if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
+        let (h, x, d_in, exit) = (at.h, at.x, at.d_in, at.exit);
+        let c = Connection { h, x, d_in, p_attempt, p_phase, shared: at.shared, chains: at.chains, exit };
+        connect_through_faces(scene, obj, planes, tp, &c, rng, radiance);
+        if phase {
+            connect_along_phase(scene, obj, tp, &c, rng, radiance);
+        }
+    }
+    MediumVertex { x: at.x, mean_r: tp.mean_r(), r: tp.r, p_attempt, p_phase, sphere: at.exit.map(|(_, j)| j) }
 }
 
 /// The medium connection from scattering point `x` (the path arrived along
