@@ -529,3 +529,54 @@ fn render_section_switches_reach_the_settings() {
         (false, false, true, true)
     );
 }
+
+/// `lucent bench render` compares with Mitsuba on the plaque's pixels too:
+/// the pixel list that tools/reference/bench_render_mitsuba.py committed
+/// (from its own pinhole rays and the box) agrees with the pixels the
+/// renderer counts as the object's, a short run reports the plaque's RMSE
+/// and speed ratio beside the whole image's, and a list naming a pixel
+/// outside the image is refused with the file named.
+#[test]
+fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
+    let reference = root().join("fixtures/reference/render");
+    let bench: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(reference.join("mitsuba_bench.json")).unwrap()).unwrap();
+    let listed: std::collections::BTreeSet<usize> =
+        bench["object_pixels"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as usize).collect();
+    let loaded = scene::load(&root().join("fixtures/render/plaque_dense.toml")).unwrap();
+    let settings = Settings { spp: 64, ..loaded.settings.clone() };
+    let (img, _) = render(&loaded.scene, &settings, &mut |_| {});
+    let ours: std::collections::BTreeSet<usize> =
+        (0..img.mean.len()).filter(|&p| img.object_fraction(p) >= 0.5).collect();
+    let differ = listed.symmetric_difference(&ours).count();
+    assert!(
+        listed.len() > 200 && differ <= 4,
+        "Mitsuba's list {} px, the renderer's object {} px, {differ} differ",
+        listed.len(),
+        ours.len()
+    );
+
+    let o = lucent(&["bench", "render", "--spp", "2,8"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for row in out["lucent"].as_array().unwrap() {
+        let (all, plaque) = (row["rmse_vs_reference"].as_f64().unwrap(), row["rmse_object"].as_f64().unwrap());
+        assert!(plaque > 0.0 && all > 0.0, "{row}");
+    }
+    let ratios = out["versus_mitsuba"].as_array().unwrap();
+    assert!(!ratios.is_empty());
+    for r in ratios {
+        assert!(r["on_the_plaque"]["speed_ratio"].as_f64().unwrap() > 0.0, "{r}");
+    }
+
+    let tmp = tempfile::tempdir().unwrap();
+    for f in ["plaque_dense_mean.exr", "plaque_dense_var.exr"] {
+        std::fs::copy(reference.join(f), tmp.path().join(f)).unwrap();
+    }
+    let mut bad = bench.clone();
+    bad["object_pixels"] = serde_json::json!([0, 64 * 48]);
+    std::fs::write(tmp.path().join("mitsuba_bench.json"), bad.to_string()).unwrap();
+    let o = lucent(&["bench", "render", "--spp", "2", "--reference", tmp.path().to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("mitsuba_bench.json") && err.contains("object_pixels"), "{err}");
+}

@@ -617,6 +617,10 @@ pub struct BenchRow {
     pub rmse_vs_reference: f64,
     /// The same with the reference's own noise removed: sqrt(RMSE² − mean reference variance).
     pub rmse_corrected: f64,
+    /// RMSE over the plaque's pixels (`object_pixels` of mitsuba_bench.json) and channels.
+    pub rmse_object: Option<f64>,
+    /// The same with the reference's own noise there removed.
+    pub rmse_object_corrected: Option<f64>,
 }
 
 /// `lucent bench render`: the Mitsuba reference scene at increasing sample
@@ -638,6 +642,26 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
     }
     let n = (w * h * 3) as f64;
     let ref_var: f64 = var.iter().flatten().map(|v| f64::from(*v)).sum::<f64>() / n;
+    // Mitsuba's side-by-side figures, if present, and the plaque's pixels they name.
+    let bench_file = reference_dir.join("mitsuba_bench.json");
+    let mitsuba: Option<serde_json::Value> =
+        crate::io::read_text(&bench_file).ok().and_then(|t| serde_json::from_str(&t).ok());
+    let object: Vec<usize> = match mitsuba.as_ref().and_then(|m| m.get("object_pixels")) {
+        None => Vec::new(),
+        Some(list) => {
+            let ids: Option<Vec<usize>> = list
+                .as_array()
+                .map(|a| a.iter().map(|v| v.as_u64().and_then(|i| usize::try_from(i).ok())).collect())
+                .unwrap_or(None);
+            match ids {
+                Some(ids) if ids.iter().all(|&i| i < w * h) => ids,
+                _ => bail!("{}: object_pixels is not a list of pixel indices below {}", bench_file.display(), w * h),
+            }
+        }
+    };
+    let n_object = (object.len() * 3) as f64;
+    let ref_var_object: f64 =
+        object.iter().flat_map(|&p| var.iter().map(move |v| f64::from(v[p]))).sum::<f64>() / n_object.max(1.0);
     let mut rows = Vec::new();
     for &spp in spps {
         let settings = Settings { spp, seed: 77 + u64::from(spp), ..loaded.settings.clone() };
@@ -651,6 +675,11 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
             }
         }
         let mse = se / n;
+        let (got, want) = (&img.mean, &mean);
+        let mse_object = (!object.is_empty()).then(|| {
+            object.iter().flat_map(|&p| (0..3).map(move |c| (got[p][c] - f64::from(want[c][p])).powi(2))).sum::<f64>()
+                / n_object
+        });
         let row = BenchRow {
             spp,
             wall_s: stats.wall_s,
@@ -659,16 +688,16 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
             events_per_cpu_s: stats.events as f64 / cpu,
             rmse_vs_reference: mse.sqrt(),
             rmse_corrected: (mse - ref_var).max(0.0).sqrt(),
+            rmse_object: mse_object.map(f64::sqrt),
+            rmse_object_corrected: mse_object.map(|m| (m - ref_var_object).max(0.0).sqrt()),
         };
+        let on_object = row.rmse_object.map_or(String::new(), |r| format!("; on the plaque {r:.5}"));
         eprintln!(
-            "lucent {:>5} spp: {:>7.2} s wall, {:>7.2} CPU-s, {:.3} M samples/CPU-s, {:.1} M events/CPU-s, RMSE {:.5} (corrected {:.5})",
+            "lucent {:>5} spp: {:>7.2} s wall, {:>7.2} CPU-s, {:.3} M samples/CPU-s, {:.1} M events/CPU-s, RMSE {:.5} (corrected {:.5}){on_object}",
             row.spp, row.wall_s, row.cpu_s, row.samples_per_cpu_s / 1e6, row.events_per_cpu_s / 1e6, row.rmse_vs_reference, row.rmse_corrected
         );
         rows.push(row);
     }
-    // Mitsuba's side-by-side figures, if present.
-    let mitsuba: Option<serde_json::Value> =
-        crate::io::read_text(reference_dir.join("mitsuba_bench.json")).ok().and_then(|t| serde_json::from_str(&t).ok());
     let mut ratios = Vec::new();
     if let (Some(m), Some(best)) = (&mitsuba, rows.last()) {
         for r in m.get("runs").and_then(|r| r.as_array()).into_iter().flatten() {
@@ -682,12 +711,23 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
             let lucent_cpu = best.cpu_s * (best.rmse_corrected / m_corr).powi(2);
             let ratio = m_cpu / lucent_cpu;
             eprintln!("Mitsuba {:>5} spp: {m_cpu:.1} CPU-s for RMSE {m_rmse:.5} (corrected {m_corr:.5}); lucent reaches it in {lucent_cpu:.2} CPU-s: {ratio:.1}× faster", r.get("spp").and_then(|v| v.as_u64()).unwrap_or(0));
-            ratios.push(serde_json::json!({"mitsuba": r, "mitsuba_rmse_corrected": m_corr, "lucent_cpu_s_to_equal_rmse": lucent_cpu, "speed_ratio": ratio}));
+            // The same on the plaque's pixels alone.
+            let on_object = match (r.get("rmse_object").and_then(|v| v.as_f64()), best.rmse_object_corrected) {
+                (Some(m_obj), Some(l_obj)) => {
+                    let m_corr = (m_obj * m_obj - ref_var_object).max(1e-300).sqrt();
+                    let lucent_cpu = best.cpu_s * (l_obj / m_corr).powi(2);
+                    let ratio = m_cpu / lucent_cpu;
+                    eprintln!("    on the plaque: RMSE {m_obj:.5} (corrected {m_corr:.5}); lucent reaches it in {lucent_cpu:.2} CPU-s: {ratio:.1}× faster");
+                    serde_json::json!({"mitsuba_rmse_corrected": m_corr, "lucent_cpu_s_to_equal_rmse": lucent_cpu, "speed_ratio": ratio})
+                }
+                _ => serde_json::Value::Null,
+            };
+            ratios.push(serde_json::json!({"mitsuba": r, "mitsuba_rmse_corrected": m_corr, "lucent_cpu_s_to_equal_rmse": lucent_cpu, "speed_ratio": ratio, "on_the_plaque": on_object}));
         }
     } else {
         eprintln!(
             "no {}: run tools/reference/bench_render_mitsuba.py for the side-by-side figures",
-            reference_dir.join("mitsuba_bench.json").display()
+            bench_file.display()
         );
     }
     println!(

@@ -171,8 +171,9 @@ def rgb(v):
 
 
 def scene_dict(mi, spp, integrator="volpathmis", env="constant", env_path=None, board_only=False,
-               sensor=None):
-    """The scene as a Mitsuba dict.  ``env`` is 'constant' or 'envmap'."""
+               sensor=None, rr_depth=100000):
+    """The scene as a Mitsuba dict.  ``env`` is 'constant' or 'envmap'; ``rr_depth``:
+    the path depth where Russian roulette starts (the references: 100000, i.e. none)."""
     T = mi.ScalarTransform4f
     cam = SCENE["camera"]
     board = SCENE["board"]
@@ -183,7 +184,7 @@ def scene_dict(mi, spp, integrator="volpathmis", env="constant", env_path=None, 
     assert n_squares % 2 == 0
     d = {
         "type": "scene",
-        "integrator": {"type": integrator, "max_depth": -1, "rr_depth": 100000},
+        "integrator": {"type": integrator, "max_depth": -1, "rr_depth": rr_depth},
         "sensor": sensor or {
             "type": "perspective",
             "fov": cam["fov_y_degrees"],
@@ -348,6 +349,34 @@ def pixel_ray(px, py):
     sy = (1 - 2 * py / H) * t
     d = f + sx * r + sy * u
     return o, d / math.sqrt(d @ d)
+
+
+def object_mask(sub=4):
+    """The plaque's pixels: those where at least half of a sub x sub grid of
+    pinhole rays through the pixel (``pixel_ray``) meet the plaque's box (slab
+    test; the box stands on the board, so a ray meets it before the board).
+    A (height, width) bool array, row 0 at the top."""
+    import numpy as np
+
+    cam, pl = SCENE["camera"], SCENE["plaque"]
+    lo = np.array([pl["x_range"][0], pl["y_range"][0], pl["z_range"][0]])
+    hi = np.array([pl["x_range"][1], pl["y_range"][1], pl["z_range"][1]])
+    W, H = cam["width"], cam["height"]
+    mask = np.zeros((H, W), dtype=bool)
+    offsets = [(k + 0.5) / sub for k in range(sub)]
+    for py in range(H):
+        for px in range(W):
+            hits = 0
+            for ox in offsets:
+                for oy in offsets:
+                    o, d = pixel_ray(px + ox, py + oy)
+                    with np.errstate(divide="ignore", invalid="ignore"):
+                        t1, t2 = (lo - o) / d, (hi - o) / d
+                    t_near = np.nanmax(np.minimum(t1, t2))
+                    t_far = np.nanmin(np.maximum(t1, t2))
+                    hits += bool(t_near <= t_far and t_far > 0)
+            mask[py, px] = 2 * hits >= sub * sub
+    return mask
 
 
 def checker_index(x, y):
