@@ -1177,8 +1177,9 @@ struct MediumVertex {
 
 /// The board point `y` (normal `n` on the path's side) a path left by its diffuse bounce, while the path
 /// can still be a chain that [`connect_through_object`] makes (in through a
-/// face, one unscattered flight, out through another; `out`: it has left
-/// the object and must now escape):
+/// face, one unscattered flight, out through another) or
+/// [`connect_by_reflection`] (reflected at a face from outside, `mirror`);
+/// `out`: it has left the object and must now escape:
 /// r at `y` and the driving band's density of the chain so far, in the
 /// final outside solid angle.
 #[derive(Debug, Clone, Copy)]
@@ -1188,6 +1189,7 @@ struct BoardVertex {
     r: [f64; 3],
     pdf: f64,
     out: bool,
+    mirror: bool,
 }
 
 /// A board point `y` with the normal `n` on the side the path is on, its
@@ -1275,6 +1277,63 @@ fn connect_through_object(
             for c in 0..3 {
                 radiance[c] += tp.beta[c] * at.rho[c] * bounce * through[c] * l[c] / denom;
             }
+        }
+    }
+}
+
+/// The board's connection to the environment by a reflection at one of the
+/// object's faces from outside: for the direction ω_o drawn by the board's
+/// next-event estimation (`sample`) and every face k with n_k·ω_o > 0, the
+/// mirror direction ω_b = ω_o − 2(n_k·ω_o)n_k from the board point y, if the
+/// ray y + tω_b meets face k first and the board does not hide ω_o from
+/// there. The contribution per band c is
+///
+///   β_c ρ_c (cos θ_b / π) F_c L_c(q, ω_o) / D,
+///
+/// D = p_env(y, ω_o) mean r + (cos θ_b / π) mean_k r_k F_k (a mirror keeps
+/// solid angle): the balance heuristic against the board's cosine-sampled
+/// bounce that reflects there and escapes along ω_o. Without it such light
+/// (a lamp near the horizon seen in the plaque's sides from the board beside
+/// them) reaches the board only by chance, as bright single pixels.
+#[allow(clippy::too_many_arguments)]
+fn connect_by_reflection(
+    scene: &Scene,
+    obj: &Object,
+    planes: &[(DVec3, f64)],
+    tp: &Throughput,
+    at: &BoardPoint,
+    sample: &crate::env::EnvSample,
+    shared: bool,
+    radiance: &mut [f64; 3],
+) {
+    let wo = sample.dir;
+    let eta = if shared { obj.eta_mean } else { obj.eta(0) };
+    for (k, _) in planes {
+        let cos_o = k.dot(wo);
+        if cos_o <= 0.0 {
+            continue;
+        }
+        let wb = wo - 2.0 * cos_o * *k;
+        let cos_board = wb.dot(at.n);
+        if cos_board <= 0.0 {
+            continue;
+        }
+        let Some(hit) = obj.accel.intersect(at.y, wb, f64::INFINITY).filter(|hit| hit.normal == *k) else {
+            continue;
+        };
+        let q = at.y + hit.t * wb + scene.epsilon_m * *k;
+        if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
+            continue;
+        }
+        let (_, f) = reflectances(obj, cos_o, eta, shared, false);
+        let bounce = cos_board * FRAC_1_PI;
+        let denom = sample.pdf * tp.mean_r() + bounce * mean_weighted(&tp.r, &f);
+        if denom.is_nan() || denom <= 0.0 {
+            continue;
+        }
+        let l = scene.environment.radiance(q, wo);
+        for c in 0..3 {
+            radiance[c] += tp.beta[c] * at.rho[c] * bounce * f[c] * l[c] / denom;
         }
     }
 }
@@ -1612,10 +1671,18 @@ fn trace_path(
                             connect_through_object(scene, obj, planes, &tp, &at, &sample, shared, &mut radiance);
                         }
                     }
+                    // And ω_o by a reflection at a face (where the path
+                    // splits there, its reflected branch escapes unweighted).
+                    if let (Some(obj), Some(planes), false) = (&scene.object, board_planes, split)
+                        && sample.pdf > 0.0
+                    {
+                        let at = BoardPoint { y: origin, n, rho, split };
+                        connect_by_reflection(scene, obj, planes, &tp, &at, &sample, shared, &mut radiance);
+                    }
                 }
                 let (u1, u2) = rng.next_f64_pair();
                 let (nd, pdf) = cosine_direction(n, u1, u2);
-                chain = board_planes.map(|_| BoardVertex { y: origin, n, r: tp.r, pdf, out: false });
+                chain = board_planes.map(|_| BoardVertex { y: origin, n, r: tp.r, pdf, out: false, mirror: false });
                 for (b, r) in tp.beta.iter_mut().zip(rho) {
                     *b *= r;
                 }
@@ -1651,8 +1718,9 @@ fn trace_path(
                         // Weighed against the board's connection through the object (balance heuristic).
                         // (The connection is made where the object blocks the
                         // board's straight view along ω_o.)
-                        let made = d.dot(c.n) > 0.0
-                            && scene.object.as_ref().is_some_and(|obj| obj.accel.occluded(c.y, d, f64::INFINITY));
+                        let made = c.mirror
+                            || d.dot(c.n) > 0.0
+                                && scene.object.as_ref().is_some_and(|obj| obj.accel.occluded(c.y, d, f64::INFINITY));
                         let p_nee = if made { scene.environment.pdf(c.y, d) } else { 0.0 };
                         let denom = p_nee * mean_weighted(&c.r, &[1.0; 3]) + c.pdf * tp.mean_r();
                         if denom > 0.0 {
@@ -1720,7 +1788,8 @@ fn trace_path(
                 }
                 let eta = if shared { obj.eta_mean } else { obj.eta(h) };
                 let cos_b = -d.dot(n_in);
-                // The probability of refracting in.
+                // The probability of refracting in (and of reflecting, when the path does).
+                let mut p_reflect = 0.0;
                 let p_in = if let Some(f) = entry_f {
                     // The reflection was traced above; the refraction carries 1 − F_c.
                     for (b, fc) in tp.beta.iter_mut().zip(f) {
@@ -1734,6 +1803,7 @@ fn trace_path(
                         let w = if reflects { fr } else { fr.map(|x| 1.0 - x) };
                         tp.scale(w, w, h);
                     }
+                    p_reflect = fr[h];
                     (!reflects).then(|| 1.0 - fr[h])
                 };
                 if let Some(p_in) = p_in {
@@ -1748,7 +1818,14 @@ fn trace_path(
                 } else {
                     d -= 2.0 * d.dot(n_in) * n_in;
                     o = p + eps * n_in;
-                    chain = None;
+                    // Straight from the board: a chain that the board's
+                    // connection by reflection makes.
+                    chain = chain.filter(|c| !c.out).map(|c| BoardVertex {
+                        pdf: c.pdf * p_reflect,
+                        out: true,
+                        mirror: true,
+                        ..c
+                    });
                 }
                 last_diffuse_pdf = None;
             }

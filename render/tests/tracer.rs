@@ -940,6 +940,53 @@ fn specular_chains_agree_and_cut_the_variance() {
     assert!(vb < 0.9 * va, "specular chains: object variance {vb:.3e} vs {va:.3e} without");
 }
 
+/// The board's connection by a reflection at the object's faces (part of
+/// `Settings::specular_chains`): a ring of lamps just above the horizon
+/// shines on the board beside a plaque and is seen there mirrored in its
+/// sides; the board's bounce finds it only by chance. Same image as without
+/// the chains (per pixel, Šidák, and on the mean of the board's pixels
+/// beside the plaque), with less variance there; a wrong weight on either
+/// side would move that mean.
+#[test]
+fn board_connection_by_reflection_agrees_and_cuts_the_variance_beside_the_plaque() {
+    let sky = sky_with_lamp(40.0, 0..32, 7..8, |base, lamp, _| [base + lamp, base + 0.8 * lamp, base + 0.6 * lamp]);
+    let phase = Phase::henyey_greenstein(0.2).unwrap();
+    let media = bands([640.0; 3], [2.0, 5.0, 10.0], [phase.clone(), phase.clone(), phase], [1.59; 3]);
+    let tris = cube(DVec3::new(-0.02, -0.015, 1e-6), DVec3::new(0.02, 0.015, 0.00635));
+    let object = Object::new(Accel::new(&tris), Interface::Smooth, media).unwrap();
+    let camera =
+        Camera::look_at(24, 18, DVec3::new(0.0, -0.07, 0.05), DVec3::new(0.0, -0.012, 0.0), DVec3::Z, 40.0).unwrap();
+    let scene = Scene::new(Some(object), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), sky, camera).unwrap();
+    let base = Settings { spp: 2048, ..Settings::default() };
+    let (a, _) = render(&scene, &Settings { seed: 91, specular_chains: false, ..base.clone() }, &mut |_| {});
+    let (b, _) = render(&scene, &Settings { seed: 92, specular_chains: true, ..base }, &mut |_| {});
+    z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "reflection connection vs without");
+    // The board's pixels in the rows that meet the plaque's front face.
+    let near_object = |i: usize, j: usize| {
+        (i.saturating_sub(2)..(i + 3).min(a.width))
+            .any(|x| (j.saturating_sub(2)..(j + 3).min(a.height)).any(|y| a.object_fraction(y * a.width + x) > 0.0))
+    };
+    let beside: Vec<usize> = (0..a.mean.len())
+        .filter(|&p| {
+            a.object_fraction(p) == 0.0 && a.region(p) == Region::Board && near_object(p % a.width, p / a.width)
+        })
+        .collect();
+    assert!(beside.len() >= 20, "{} board pixels beside the plaque", beside.len());
+    let (mut diff, mut var, mut va, mut vb) = (0.0, 0.0, 0.0, 0.0);
+    for &p in &beside {
+        for c in 0..3 {
+            diff += b.mean[p][c] - a.mean[p][c];
+            var += a.variance_of_mean[p][c] + b.variance_of_mean[p][c];
+            va += a.variance_of_mean[p][c];
+            vb += b.variance_of_mean[p][c];
+        }
+    }
+    let z = diff / var.sqrt();
+    eprintln!("beside the plaque ({} px): mean z {z:.2}; variance without {va:.3e}, with {vb:.3e}", beside.len());
+    assert!(z.abs() < 4.0, "the board's mean beside the plaque moved by z = {z:.2}");
+    assert!(vb < 0.85 * va, "reflection connection: variance beside the plaque {vb:.3e} vs {va:.3e} without");
+}
+
 /// Sphere jumps (`Settings::sphere_jumps`): deep inside a diffusive,
 /// chromatic, isotropically scattering box the walk jumps through
 /// tabulated spheres. Same image as the plain walk (per pixel, Šidák, and
