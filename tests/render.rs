@@ -279,7 +279,10 @@ fn cli_writes_exr_png_json() {
         assert_eq!(est[key].as_bool(), Some(on), "{key}: {est}");
     }
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("object") && stdout.contains("board") && stdout.contains("90th percentile"), "{stdout}");
+    assert!(
+        stdout.contains("object") && stdout.contains("board") && stdout.contains("(90th, 99th percentile)"),
+        "{stdout}"
+    );
     // Same seed, same image, whatever the thread count.
     let out2 = tmp.path().join("r2");
     let o = lucent(&[
