@@ -1176,9 +1176,9 @@ struct MediumVertex {
 }
 
 /// The board point `y` (normal `n` on the path's side) a path left by its diffuse bounce, while the path
-/// can still be a chain that [`connect_through_object`] makes (in through a
-/// face, one unscattered flight, out through another) or
-/// [`connect_by_reflection`] (reflected at a face from outside, `mirror`);
+/// can still be a chain that [`connect_by_faces`] makes (in through a
+/// face, one unscattered flight, out through another, or reflected at a
+/// face from outside: `mirror`);
 /// `out`: it has left the object and must now escape:
 /// r at `y` and the driving band's density of the chain so far, in the
 /// final outside solid angle.
@@ -1202,10 +1202,25 @@ struct BoardPoint {
     split: bool,
 }
 
-/// The board's connection to the environment through the object, made
-/// where the object blocks the straight shadow ray: for the
-/// direction ω_o drawn by the board's next-event estimation (`sample`), and
-/// every pair of faces j ≠ k, the chain from the board point y along ω_b,
+/// The board's connections to the environment by the object's faces, for
+/// the direction ω_o drawn by the board's next-event estimation (`sample`)
+/// and each face k that ω_o leaves (n_k·ω_o > 0), from the board point y.
+///
+/// By a reflection at k from outside (unless the path splits there: its
+/// reflected branch then escapes unweighted): the mirror direction
+/// ω_b = ω_o − 2(n_k·ω_o)n_k, if the ray y + tω_b meets face k first and the
+/// board does not hide ω_o from there. The contribution per band c is
+///
+///   β_c ρ_c (cos θ_b / π) F_c L_c(q, ω_o) / D,
+///
+/// D = p_env(y, ω_o) mean r + (cos θ_b / π) mean_k r_k F_k (a mirror keeps
+/// solid angle): the balance heuristic against the board's cosine-sampled
+/// bounce that reflects there and escapes along ω_o. Without it such light
+/// (a lamp near the horizon seen in the plaque's sides from the board beside
+/// them) reaches the board only by chance, as bright single pixels.
+///
+/// Through the object, where it blocks the straight shadow ray (`through`):
+/// for every face j ≠ k, the chain from y along ω_b,
 /// refracted in at face j into ω_i, one unscattered flight of length ℓ,
 /// refracted out at face k into ω_o (ω_i from ω_o by Snell's law at k, ω_b
 /// from ω_i at j; between parallel faces ω_b = ω_o). The contribution per
@@ -1221,7 +1236,7 @@ struct BoardPoint {
 /// it, a shadow ray that meets the object carries nothing, and light under
 /// the object reaches the board only by chance.
 #[allow(clippy::too_many_arguments)]
-fn connect_through_object(
+fn connect_by_faces(
     scene: &Scene,
     obj: &Object,
     planes: &[(DVec3, f64)],
@@ -1229,14 +1244,35 @@ fn connect_through_object(
     at: &BoardPoint,
     sample: &crate::env::EnvSample,
     shared: bool,
+    through: bool,
     radiance: &mut [f64; 3],
 ) {
     let wo = sample.dir;
     let eta = if shared { obj.eta_mean } else { obj.eta(0) };
     let eps = scene.epsilon_m;
+    let hidden = |q: DVec3| scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some());
     for (k, _) in planes {
         let cos_o = k.dot(wo);
         if cos_o <= 0.0 {
+            continue;
+        }
+        let wb = wo - 2.0 * cos_o * *k;
+        let cos_board = wb.dot(at.n);
+        if !at.split && cos_board > 0.0 {
+            let hit = obj.accel.intersect(at.y, wb, f64::INFINITY).filter(|hit| hit.normal == *k);
+            if let Some(q) = hit.map(|hit| at.y + hit.t * wb + eps * *k).filter(|&q| !hidden(q)) {
+                let (_, f) = reflectances(obj, cos_o, eta, shared, false);
+                let bounce = cos_board * FRAC_1_PI;
+                let denom = sample.pdf * tp.mean_r() + bounce * mean_weighted(&tp.r, &f);
+                if denom > 0.0 {
+                    let l = scene.environment.radiance(q, wo);
+                    for c in 0..3 {
+                        radiance[c] += tp.beta[c] * at.rho[c] * bounce * f[c] * l[c] / denom;
+                    }
+                }
+            }
+        }
+        if !through {
             continue;
         }
         let Some((wi, cos_ik)) = unrefract(wo, *k, eta) else { continue };
@@ -1257,7 +1293,7 @@ fn connect_through_object(
             let p = at.y + h1.t * wb - eps * *j;
             let Some(h2) = obj.accel.exit(p, wi).filter(|hit| hit.normal == *k) else { continue };
             let q = p + h2.t * wi + eps * *k;
-            if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
+            if hidden(q) {
                 continue;
             }
             let (_, f_in) = reflectances(obj, cos_b, eta, shared, false);
@@ -1277,63 +1313,6 @@ fn connect_through_object(
             for c in 0..3 {
                 radiance[c] += tp.beta[c] * at.rho[c] * bounce * through[c] * l[c] / denom;
             }
-        }
-    }
-}
-
-/// The board's connection to the environment by a reflection at one of the
-/// object's faces from outside: for the direction ω_o drawn by the board's
-/// next-event estimation (`sample`) and every face k with n_k·ω_o > 0, the
-/// mirror direction ω_b = ω_o − 2(n_k·ω_o)n_k from the board point y, if the
-/// ray y + tω_b meets face k first and the board does not hide ω_o from
-/// there. The contribution per band c is
-///
-///   β_c ρ_c (cos θ_b / π) F_c L_c(q, ω_o) / D,
-///
-/// D = p_env(y, ω_o) mean r + (cos θ_b / π) mean_k r_k F_k (a mirror keeps
-/// solid angle): the balance heuristic against the board's cosine-sampled
-/// bounce that reflects there and escapes along ω_o. Without it such light
-/// (a lamp near the horizon seen in the plaque's sides from the board beside
-/// them) reaches the board only by chance, as bright single pixels.
-#[allow(clippy::too_many_arguments)]
-fn connect_by_reflection(
-    scene: &Scene,
-    obj: &Object,
-    planes: &[(DVec3, f64)],
-    tp: &Throughput,
-    at: &BoardPoint,
-    sample: &crate::env::EnvSample,
-    shared: bool,
-    radiance: &mut [f64; 3],
-) {
-    let wo = sample.dir;
-    let eta = if shared { obj.eta_mean } else { obj.eta(0) };
-    for (k, _) in planes {
-        let cos_o = k.dot(wo);
-        if cos_o <= 0.0 {
-            continue;
-        }
-        let wb = wo - 2.0 * cos_o * *k;
-        let cos_board = wb.dot(at.n);
-        if cos_board <= 0.0 {
-            continue;
-        }
-        let Some(hit) = obj.accel.intersect(at.y, wb, f64::INFINITY).filter(|hit| hit.normal == *k) else {
-            continue;
-        };
-        let q = at.y + hit.t * wb + scene.epsilon_m * *k;
-        if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some()) {
-            continue;
-        }
-        let (_, f) = reflectances(obj, cos_o, eta, shared, false);
-        let bounce = cos_board * FRAC_1_PI;
-        let denom = sample.pdf * tp.mean_r() + bounce * mean_weighted(&tp.r, &f);
-        if denom.is_nan() || denom <= 0.0 {
-            continue;
-        }
-        let l = scene.environment.radiance(q, wo);
-        for c in 0..3 {
-            radiance[c] += tp.beta[c] * at.rho[c] * bounce * f[c] * l[c] / denom;
         }
     }
 }
@@ -1652,10 +1631,13 @@ fn trace_path(
                 let n = if n.dot(d) < 0.0 { n } else { -n };
                 let origin = p + eps * n;
                 // Next-event estimation of the environment.
-                if let Some(sample) = scene.environment.sample(origin, [rng.next_f64(), rng.next_f64()]) {
+                if let Some(sample) = scene.environment.sample(origin, [rng.next_f64(), rng.next_f64()])
+                    && sample.pdf > 0.0
+                {
                     let cos = sample.dir.dot(n);
-                    if cos > 0.0 && sample.pdf > 0.0 {
-                        let blocked = scene
+                    let mut blocked = false;
+                    if cos > 0.0 {
+                        blocked = scene
                             .object
                             .as_ref()
                             .is_some_and(|obj| obj.accel.occluded(origin, sample.dir, f64::INFINITY));
@@ -1665,19 +1647,13 @@ fn trace_path(
                             for c in 0..3 {
                                 radiance[c] += beta[c] * rho[c] * FRAC_1_PI * cos * sample.radiance[c] * w / sample.pdf;
                             }
-                        } else if let (Some(obj), Some(planes)) = (&scene.object, board_planes) {
-                            // Where the object blocks ω_o: through it.
-                            let at = BoardPoint { y: origin, n, rho, split };
-                            connect_through_object(scene, obj, planes, &tp, &at, &sample, shared, &mut radiance);
                         }
                     }
-                    // And ω_o by a reflection at a face (where the path
-                    // splits there, its reflected branch escapes unweighted).
-                    if let (Some(obj), Some(planes), false) = (&scene.object, board_planes, split)
-                        && sample.pdf > 0.0
-                    {
+                    // By the object's faces: a reflection at one, and
+                    // through it where it blocks ω_o.
+                    if let (Some(obj), Some(planes)) = (&scene.object, board_planes) {
                         let at = BoardPoint { y: origin, n, rho, split };
-                        connect_by_reflection(scene, obj, planes, &tp, &at, &sample, shared, &mut radiance);
+                        connect_by_faces(scene, obj, planes, &tp, &at, &sample, shared, blocked, &mut radiance);
                     }
                 }
                 let (u1, u2) = rng.next_f64_pair();
