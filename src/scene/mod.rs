@@ -46,7 +46,7 @@
 //! # time_s = 120, spp_per_pass = 4
 //! # spectral_mis = true, medium_connections = true   (false, false: the plain one-band estimator)
 //! # phase_connections = true     (with medium_connections: also connect along the phase function's directions)
-//! # specular_chains = false      (true: also connect through one reflection at a face, and from the board through the object; fewer bright outliers, ≈ 12–20 % more time)
+//! # specular_chains = false      (true: also connect through one reflection at a face, and from the board through or off the object; fewer bright outliers, ≈ 12–20 % more time)
 //! # sphere_jumps = false         (true: deep inside an isotropically scattering object, jump through tabulated spheres; diffusive media)
 //! # sampling = "uniform"          # (default) every pixel gets spp; "object-weighted": the object's pixels more
 //! # target_rel_error = 0.05       # stop when the object's median relative standard error reaches 5 %
