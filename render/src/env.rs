@@ -243,6 +243,13 @@ fn row_solid_angles(width: usize, height: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The stored (unscaled) value of the pixel with row-major index `i` of
+/// row-major RGB data.
+#[inline]
+fn stored(rgb: &[f32], i: usize) -> [f64; 3] {
+    [f64::from(rgb[3 * i]), f64::from(rgb[3 * i + 1]), f64::from(rgb[3 * i + 2])]
+}
+
 /// Rec. 709 luminance of linear RGB.
 fn luminance(c: [f64; 3]) -> f64 {
     LUMINANCE[0] * c[0] + LUMINANCE[1] * c[1] + LUMINANCE[2] * c[2]
@@ -313,6 +320,22 @@ impl Environment {
             }
         };
 
+        let omega = row_solid_angles(width, height);
+        // Mean radiance and mean weight (weights are scale-free; a zero scale
+        // makes the whole map dark and the sampler empty).
+        let mut sum = [0.0; 3];
+        let mut sum_omega = 0.0;
+        let mut sum_weight = 0.0;
+        for (y, &om) in omega.iter().enumerate() {
+            for x in 0..width {
+                let c = stored(&rgb, y * width + x);
+                for k in 0..3 {
+                    sum[k] += c[k] * om;
+                }
+                sum_weight += luminance(c) * om;
+            }
+            sum_omega += om * width as f64;
+        }
         let (sin_yaw, cos_yaw) = yaw_deg.to_radians().sin_cos();
         let mut env = Self {
             width,
@@ -329,29 +352,11 @@ impl Environment {
             row_guide: Vec::new(),
             col_guide: Vec::new(),
             pdf_norm: (width * height) as f64 / (2.0 * PI * PI),
-            mean: [0.0; 3],
+            mean: sum.map(|s| scale * s / sum_omega),
             uniform: false,
-            floor: 0.0,
+            floor: FLOOR_FRACTION * sum_weight / (width * height) as f64,
             facing: None,
         };
-        let omega = row_solid_angles(width, height);
-        // Mean radiance and mean weight (weights are scale-free; a zero scale
-        // makes the whole map dark and the sampler empty).
-        let mut sum = [0.0; 3];
-        let mut sum_omega = 0.0;
-        let mut sum_weight = 0.0;
-        for (y, &om) in omega.iter().enumerate() {
-            for x in 0..width {
-                let c = env.stored(y * width + x);
-                for k in 0..3 {
-                    sum[k] += c[k] * om;
-                }
-                sum_weight += luminance(c) * om;
-            }
-            sum_omega += om * width as f64;
-        }
-        env.mean = sum.map(|s| scale * s / sum_omega);
-        env.floor = FLOOR_FRACTION * sum_weight / (width * height) as f64;
         env.uniform = env.rgb.chunks_exact(3).all(|p| p == &env.rgb[..3]);
         env.build_tables(&omega);
         Ok(env)
@@ -380,12 +385,6 @@ impl Environment {
         self.facing
     }
 
-    /// The stored (unscaled) value of the pixel with row-major index `i`.
-    #[inline]
-    fn stored(&self, i: usize) -> [f64; 3] {
-        [f64::from(self.rgb[3 * i]), f64::from(self.rgb[3 * i + 1]), f64::from(self.rgb[3 * i + 2])]
-    }
-
     /// The cumulative sums and guides of the pixel weights (module documentation).
     fn build_tables(&mut self, omega: &[f64]) {
         let (width, height) = (self.width, self.height);
@@ -397,7 +396,7 @@ impl Environment {
             col_cdf.push(acc);
             let v = (y as f64 + 0.5) / height as f64;
             for x in 0..width {
-                let c = self.stored(y * width + x);
+                let c = stored(&self.rgb, y * width + x);
                 if self.scale > 0.0 && c.iter().any(|&v| v > 0.0) {
                     let facing = self.facing.map_or(1.0, |n| {
                         BELOW_WEIGHT + n.dot(self.world_direction((x as f64 + 0.5) / width as f64, v)).max(0.0)

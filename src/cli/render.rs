@@ -640,8 +640,19 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
             loaded.scene.camera.height
         );
     }
-    let n = (w * h * 3) as f64;
-    let ref_var: f64 = var.iter().flatten().map(|v| f64::from(*v)).sum::<f64>() / n;
+    // Per region (a list of pixels): the mean over its pixels and channels of
+    // the reference's variance, and of an image's squared error against it.
+    let all: Vec<usize> = (0..w * h).collect();
+    let (var, mean) = (&var, &mean);
+    let ref_variance = |pixels: &[usize]| {
+        pixels.iter().flat_map(|&p| var.iter().map(move |v| f64::from(v[p]))).sum::<f64>()
+            / (3 * pixels.len().max(1)) as f64
+    };
+    let mean_sq_error = |img: &tracer::Image, pixels: &[usize]| {
+        pixels.iter().flat_map(|&p| (0..3).map(move |c| (img.mean[p][c] - f64::from(mean[c][p])).powi(2))).sum::<f64>()
+            / (3 * pixels.len()) as f64
+    };
+    let ref_var = ref_variance(&all);
     // Mitsuba's side-by-side figures, if present, and the plaque's pixels they name.
     let bench_file = reference_dir.join("mitsuba_bench.json");
     let mitsuba: Option<serde_json::Value> =
@@ -659,27 +670,15 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
             }
         }
     };
-    let n_object = (object.len() * 3) as f64;
-    let ref_var_object: f64 =
-        object.iter().flat_map(|&p| var.iter().map(move |v| f64::from(v[p]))).sum::<f64>() / n_object.max(1.0);
+    let ref_var_object = ref_variance(&object);
     let mut rows = Vec::new();
     for &spp in spps {
         let settings = Settings { spp, seed: 77 + u64::from(spp), ..loaded.settings.clone() };
         let cpu0 = process_cpu_s();
         let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
         let cpu = process_cpu_s() - cpu0;
-        let mut se = 0.0;
-        for (p, m) in img.mean.iter().enumerate() {
-            for (c, v) in m.iter().enumerate() {
-                se += (v - f64::from(mean[c][p])).powi(2);
-            }
-        }
-        let mse = se / n;
-        let (got, want) = (&img.mean, &mean);
-        let mse_object = (!object.is_empty()).then(|| {
-            object.iter().flat_map(|&p| (0..3).map(move |c| (got[p][c] - f64::from(want[c][p])).powi(2))).sum::<f64>()
-                / n_object
-        });
+        let mse = mean_sq_error(&img, &all);
+        let mse_object = (!object.is_empty()).then(|| mean_sq_error(&img, &object));
         let row = BenchRow {
             spp,
             wall_s: stats.wall_s,
@@ -698,6 +697,13 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
         );
         rows.push(row);
     }
+    // Mitsuba's RMSE `m_rmse` over a region whose reference variance is `rv`,
+    // corrected for the reference's noise, and the CPU time lucent (whose
+    // corrected RMSE at `best` is `l_corr`) needs to reach it (RMSE² ∝ 1/time).
+    let to_equal = |best: &BenchRow, m_rmse: f64, l_corr: f64, rv: f64| {
+        let m_corr = (m_rmse * m_rmse - rv).max(1e-300).sqrt();
+        (m_corr, best.cpu_s * (l_corr / m_corr).powi(2))
+    };
     let mut ratios = Vec::new();
     if let (Some(m), Some(best)) = (&mitsuba, rows.last()) {
         for r in m.get("runs").and_then(|r| r.as_array()).into_iter().flatten() {
@@ -706,16 +712,14 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
             else {
                 continue;
             };
-            // Both errors include the reference's noise; compare the corrected ones, RMSE² ∝ 1/time.
-            let m_corr = (m_rmse * m_rmse - ref_var).max(1e-300).sqrt();
-            let lucent_cpu = best.cpu_s * (best.rmse_corrected / m_corr).powi(2);
+            // Both errors include the reference's noise; compare the corrected ones.
+            let (m_corr, lucent_cpu) = to_equal(best, m_rmse, best.rmse_corrected, ref_var);
             let ratio = m_cpu / lucent_cpu;
             eprintln!("Mitsuba {:>5} spp: {m_cpu:.1} CPU-s for RMSE {m_rmse:.5} (corrected {m_corr:.5}); lucent reaches it in {lucent_cpu:.2} CPU-s: {ratio:.1}× faster", r.get("spp").and_then(|v| v.as_u64()).unwrap_or(0));
             // The same on the plaque's pixels alone.
             let on_object = match (r.get("rmse_object").and_then(|v| v.as_f64()), best.rmse_object_corrected) {
                 (Some(m_obj), Some(l_obj)) => {
-                    let m_corr = (m_obj * m_obj - ref_var_object).max(1e-300).sqrt();
-                    let lucent_cpu = best.cpu_s * (l_obj / m_corr).powi(2);
+                    let (m_corr, lucent_cpu) = to_equal(best, m_obj, l_obj, ref_var_object);
                     let ratio = m_cpu / lucent_cpu;
                     eprintln!("    on the plaque: RMSE {m_obj:.5} (corrected {m_corr:.5}); lucent reaches it in {lucent_cpu:.2} CPU-s: {ratio:.1}× faster");
                     serde_json::json!({"mitsuba_rmse_corrected": m_corr, "lucent_cpu_s_to_equal_rmse": lucent_cpu, "speed_ratio": ratio})
