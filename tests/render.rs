@@ -543,7 +543,7 @@ fn render_section_switches_reach_the_settings() {
 fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
     let reference = root().join("fixtures/reference/render");
     let bench: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(reference.join("mitsuba_bench.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(reference.join("mitsuba_bench_plaque_dense.json")).unwrap()).unwrap();
     let listed: std::collections::BTreeSet<usize> =
         bench["object_pixels"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as usize).collect();
     let loaded = scene::load(&root().join("fixtures/render/plaque_dense.toml")).unwrap();
@@ -578,8 +578,27 @@ fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
     }
     let mut bad = bench.clone();
     bad["object_pixels"] = serde_json::json!([0, 64 * 48]);
-    std::fs::write(tmp.path().join("mitsuba_bench.json"), bad.to_string()).unwrap();
+    std::fs::write(tmp.path().join("mitsuba_bench_plaque_dense.json"), bad.to_string()).unwrap();
     let o = lucent(&["bench", "render", "--spp", "2", "--reference", tmp.path().to_str().unwrap()]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("mitsuba_bench.json") && err.contains("object_pixels"), "{err}");
+    assert!(!o.status.success() && err.contains("mitsuba_bench_plaque_dense.json") && err.contains("object_pixels"), "{err}");
+}
+
+/// The scene with a small sun has its own reference and Mitsuba timings,
+/// found by the scene file's name; a scene without a reference is refused
+/// with the missing file named.
+#[test]
+fn bench_render_takes_the_reference_named_after_the_scene() {
+    let o = lucent(&["bench", "render", "--scene", "fixtures/render/plaque_envmap.toml", "--spp", "4"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let ratios = out["versus_mitsuba"].as_array().unwrap();
+    assert_eq!(ratios.len(), 4, "{out}");
+    for r in ratios {
+        assert_eq!(r["mitsuba"]["non_finite_pixel_calls"].as_u64().map(|n| n < 10), Some(true), "{r}");
+        assert!(r["on_the_plaque"]["speed_ratio"].as_f64().unwrap() > 0.0, "{r}");
+    }
+    let o = lucent(&["bench", "render", "--scene", "fixtures/render/demo.toml", "--spp", "4"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("demo_mean.exr") && err.contains("no Mitsuba reference"), "{err}");
 }

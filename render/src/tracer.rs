@@ -182,7 +182,10 @@ pub enum SceneError {
 }
 
 /// The least depth, in mean free paths of the similar medium, across the
-/// object's thinnest side that [`Object::similar`] keeps.
+/// object's thinnest side that [`Object::similar`] keeps. Measured against
+/// the exact walk (5 Dec 2026): 3 keeps the PVP plaque IOL1068-13 (g′ = 0.82)
+/// within 0.5 % and the demo plaque within +1.0–1.5 %; 1.5 halves the PVP
+/// plaque's time to a given noise but moves its mean by −1 to −2.6 %.
 pub const SIMILAR_MIN_DEPTH: f64 = 3.0;
 
 /// The object: a closed mesh, its interface with the air around it and

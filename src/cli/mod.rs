@@ -167,10 +167,15 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 1.0)]
         weight_percent: f64,
     },
-    /// The renderer on the Mitsuba reference scene: samples per CPU-second, RMSE against the reference, speed ratio to Mitsuba.
+    /// The renderer on a Mitsuba reference scene: samples per CPU-second, RMSE against the reference, speed ratio to Mitsuba.
     Render {
+        /// The scene: plaque_dense.toml (constant sky) or plaque_envmap.toml
+        /// (a sky map with a small sun); its reference is the file of the
+        /// same name in --reference.
         #[arg(long, default_value = "fixtures/render/plaque_dense.toml")]
         scene: PathBuf,
+        /// Folder of the references (<scene>_mean.exr, <scene>_var.exr) and
+        /// of Mitsuba's own timings (mitsuba_bench_<scene>.json).
         #[arg(long, default_value = "fixtures/reference/render")]
         reference: PathBuf,
         /// Sample counts per pixel to run, comma-separated.

@@ -617,21 +617,33 @@ pub struct BenchRow {
     pub rmse_vs_reference: f64,
     /// The same with the reference's own noise removed: sqrt(RMSE² − mean reference variance).
     pub rmse_corrected: f64,
-    /// RMSE over the plaque's pixels (`object_pixels` of mitsuba_bench.json) and channels.
+    /// RMSE over the plaque's pixels (`object_pixels` of mitsuba_bench_<scene>.json) and channels.
     pub rmse_object: Option<f64>,
     /// The same with the reference's own noise there removed.
     pub rmse_object_corrected: Option<f64>,
 }
 
-/// `lucent bench render`: the Mitsuba reference scene at increasing sample
+/// `lucent bench render`: a Mitsuba reference scene (plaque_dense: constant
+/// sky; plaque_envmap: a sky map with a small sun) at increasing sample
 /// counts on all cores; samples per CPU-second and RMSE against the
 /// reference, and the CPU time lucent needs to reach the RMSE Mitsuba
-/// reached in its own side-by-side runs (`fixtures/reference/render/mitsuba_bench.json`,
+/// reached in its own side-by-side runs (`fixtures/reference/render/mitsuba_bench_<scene>.json`,
 /// from `tools/reference/bench_render_mitsuba.py`).
 pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()> {
     let loaded = scene::load(scene_path)?;
-    let (w, h, mean) = imageio::read_exr_channels(&reference_dir.join("plaque_dense_mean.exr"), &["R", "G", "B"])?;
-    let (_, _, var) = imageio::read_exr_channels(&reference_dir.join("plaque_dense_var.exr"), &["R", "G", "B"])?;
+    // The reference of the same name as the scene file: plaque_dense.toml
+    // against plaque_dense_mean.exr, _var.exr and mitsuba_bench_plaque_dense.json.
+    let name = scene_path.file_stem().and_then(|s| s.to_str()).unwrap_or_default();
+    let mean_file = reference_dir.join(format!("{name}_mean.exr"));
+    if !mean_file.is_file() {
+        bail!(
+            "{}: no Mitsuba reference for scene {} (the scenes with one: plaque_dense.toml, plaque_envmap.toml in fixtures/render)",
+            mean_file.display(),
+            scene_path.display()
+        );
+    }
+    let (w, h, mean) = imageio::read_exr_channels(&mean_file, &["R", "G", "B"])?;
+    let (_, _, var) = imageio::read_exr_channels(&reference_dir.join(format!("{name}_var.exr")), &["R", "G", "B"])?;
     if (w, h) != (loaded.scene.camera.width, loaded.scene.camera.height) {
         bail!(
             "{}: reference is {w}×{h}, the scene renders {}×{}",
@@ -654,7 +666,7 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
     };
     let ref_var = ref_variance(&all);
     // Mitsuba's side-by-side figures, if present, and the plaque's pixels they name.
-    let bench_file = reference_dir.join("mitsuba_bench.json");
+    let bench_file = reference_dir.join(format!("mitsuba_bench_{name}.json"));
     let mitsuba: Option<serde_json::Value> =
         crate::io::read_text(&bench_file).ok().and_then(|t| serde_json::from_str(&t).ok());
     let object: Vec<usize> = match mitsuba.as_ref().and_then(|m| m.get("object_pixels")) {
