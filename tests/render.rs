@@ -543,7 +543,8 @@ fn render_section_switches_reach_the_settings() {
 fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
     let reference = root().join("fixtures/reference/render");
     let bench: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(reference.join("mitsuba_bench_plaque_dense.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(reference.join("mitsuba_bench_plaque_dense.json")).unwrap())
+            .unwrap();
     let listed: std::collections::BTreeSet<usize> =
         bench["object_pixels"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as usize).collect();
     let loaded = scene::load(&root().join("fixtures/render/plaque_dense.toml")).unwrap();
@@ -581,7 +582,10 @@ fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
     std::fs::write(tmp.path().join("mitsuba_bench_plaque_dense.json"), bad.to_string()).unwrap();
     let o = lucent(&["bench", "render", "--spp", "2", "--reference", tmp.path().to_str().unwrap()]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("mitsuba_bench_plaque_dense.json") && err.contains("object_pixels"), "{err}");
+    assert!(
+        !o.status.success() && err.contains("mitsuba_bench_plaque_dense.json") && err.contains("object_pixels"),
+        "{err}"
+    );
 }
 
 /// The scene with a small sun has its own reference and Mitsuba timings,
