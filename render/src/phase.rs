@@ -190,6 +190,30 @@ impl Phase {
     }
 }
 
+/// p_k(cos θ) per steradian of three phase functions at one angle (a
+/// medium's R, G and B bands), 0 where `active[k]` is false: the same values,
+/// bit for bit, as three [`Phase::eval`] calls, with one bin search when the
+/// functions are tables of the same length (their nodes are then the same).
+///
+/// ```
+/// use lucent_render::phase::{eval_each, Phase, PhaseTable};
+/// let a = Phase::from(PhaseTable::from_theta_samples(&[3.0, 2.0, 1.0]).unwrap());
+/// let b = Phase::from(PhaseTable::from_theta_samples(&[1.0, 1.0, 2.0]).unwrap());
+/// let p = eval_each([&a, &b, &a], [true, true, false], 0.3);
+/// assert_eq!(p, [a.eval(0.3), b.eval(0.3), 0.0]);
+/// ```
+#[inline]
+pub fn eval_each(phases: [&Phase; 3], active: [bool; 3], cos_theta: f64) -> [f64; 3] {
+    if let [Phase::Tabulated(t0), Phase::Tabulated(t1), Phase::Tabulated(t2)] = phases {
+        if t1.len() == t0.len() && t2.len() == t0.len() {
+            let (i, s) = t0.position(cos_theta);
+            let tables = [t0, t1, t2];
+            return std::array::from_fn(|k| if active[k] { tables[k].value_at(i, s) } else { 0.0 });
+        }
+    }
+    std::array::from_fn(|k| if active[k] { phases[k].eval(cos_theta) } else { 0.0 })
+}
+
 /// Polar angle θ from the incident direction and azimuth φ about it, as
 /// cosines and sines.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -519,11 +543,25 @@ impl PhaseTable {
     /// nodes around θ = acos μ. μ is clamped to [−1, 1]; NaN gives NaN.
     #[inline]
     pub fn eval(&self, cos_theta: f64) -> f64 {
+        let (i, s) = self.position(cos_theta);
+        self.value_at(i, s)
+    }
+
+    /// The bin i of cos θ (clamped to [−1, 1]) and its fraction s from
+    /// node i + 1 (s = 0) to node i (s = 1): the same for every table of
+    /// this length.
+    #[inline]
+    fn position(&self, cos_theta: f64) -> (usize, f64) {
         let mu = cos_theta.clamp(-1.0, 1.0);
         let i = self.bin_of_cos(mu);
         let (hi, lo) = (self.mu[i], self.mu[i + 1]);
         let width = hi - lo;
-        let s = if width > 0.0 { (mu - lo) / width } else { 0.5 };
+        (i, if width > 0.0 { (mu - lo) / width } else { 0.5 })
+    }
+
+    /// The value at [`PhaseTable::position`]'s (i, s).
+    #[inline]
+    fn value_at(&self, i: usize, s: f64) -> f64 {
         (1.0 - s) * self.values[i + 1] + s * self.values[i]
     }
 
@@ -1016,6 +1054,26 @@ mod tests {
             let c = cross(t, b);
             for k in 0..3 {
                 assert!((c[k] - n[k]).abs() < 1e-12, "not right-handed at n={n:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn eval_each_equals_separate_evaluations_bit_for_bit() {
+        let t = |v: Vec<f64>| Phase::from(PhaseTable::from_theta_samples(&v).unwrap());
+        let (a, b) = (t(hg_values(0.97, 4096)), t(two_lobe_values(4096)));
+        let c = t(hg_values(0.5, 257)); // another length: evaluated on its own
+        let hg = Phase::henyey_greenstein(0.8).unwrap();
+        let mut rng = Rng::new(5, 0);
+        for n in 0..20_000 {
+            let mu = if n < 4 { [-1.0, 1.0, 0.0, 1.5][n] } else { 2.0 * rng.next_f64() - 1.0 };
+            let active = [n % 3 != 0, true, n % 5 != 0];
+            for phases in [[&a, &b, &a], [&a, &b, &c], [&hg, &a, &b]] {
+                let got = eval_each(phases, active, mu);
+                for k in 0..3 {
+                    let want = if active[k] { phases[k].eval(mu) } else { 0.0 };
+                    assert_eq!(got[k].to_bits(), want.to_bits(), "μ {mu}, band {k}");
+                }
             }
         }
     }

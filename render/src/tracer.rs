@@ -149,7 +149,7 @@ use crate::fresnel;
 use crate::interface::{Interface, Lobe, Transport};
 use crate::medium::{Medium, MediumError};
 use crate::microfacet::MicrofacetError;
-use crate::phase::Phase;
+use crate::phase::{eval_each, Phase};
 use crate::rng::Rng;
 use crate::sphere::{self, SphereExits};
 use glam::DVec3;
@@ -244,6 +244,12 @@ impl Object {
         };
         let eta_mean = (eta[0] + eta[1] + eta[2]) / 3.0;
         Ok(Self { accel, interface, medium, bands, eta_mean, spheres: OnceLock::new() })
+    }
+
+    /// The bands' phase functions.
+    #[inline]
+    fn phases(&self) -> [&Phase; 3] {
+        [&self.medium[0].phase, &self.medium[1].phase, &self.medium[2].phase]
     }
 
     /// The tables of [`Settings::sphere_jumps`], made on the first call:
@@ -1521,13 +1527,8 @@ fn trace_path(
                     d = DVec3::from_array(obj.medium[h].phase.sample_direction(d.to_array(), u1, u2));
                     stretch_mu = d_in.dot(d);
                     if !bc.same_phase && !tp.single_band() {
-                        let p: [f64; 3] = std::array::from_fn(|c| {
-                            if c == h || tp.active(c) {
-                                obj.medium[c].phase.eval(stretch_mu)
-                            } else {
-                                0.0
-                            }
-                        });
+                        let active = std::array::from_fn(|c| c == h || tp.active(c));
+                        let p = eval_each(obj.phases(), active, stretch_mu);
                         tp.scale(p, p, h);
                     }
                 }
@@ -2076,16 +2077,12 @@ fn direction_factors(obj: &Object, tp: &Throughput, conn: &Connection, mu: f64) 
 /// 0 for the others; band `h`'s value serves every band when they share one.
 #[inline]
 fn band_phases(obj: &Object, active: impl Fn(usize) -> bool, h: usize, mu: f64) -> [f64; 3] {
-    let ph_h = obj.medium[h].phase.eval(mu);
-    std::array::from_fn(|k| {
-        if !active(k) {
-            0.0
-        } else if obj.bands.same_phase || k == h {
-            ph_h
-        } else {
-            obj.medium[k].phase.eval(mu)
-        }
-    })
+    if obj.bands.same_phase {
+        let ph_h = obj.medium[h].phase.eval(mu);
+        std::array::from_fn(|k| if active(k) { ph_h } else { 0.0 })
+    } else {
+        eval_each(obj.phases(), std::array::from_fn(active), mu)
+    }
 }
 
 /// (1/3) Σ_k r_k v_k.
