@@ -204,12 +204,13 @@ impl Phase {
 /// ```
 #[inline]
 pub fn eval_each(phases: [&Phase; 3], active: [bool; 3], cos_theta: f64) -> [f64; 3] {
-    if let [Phase::Tabulated(t0), Phase::Tabulated(t1), Phase::Tabulated(t2)] = phases {
-        if t1.len() == t0.len() && t2.len() == t0.len() {
-            let (i, s) = t0.position(cos_theta);
-            let tables = [t0, t1, t2];
-            return std::array::from_fn(|k| if active[k] { tables[k].value_at(i, s) } else { 0.0 });
-        }
+    if let [Phase::Tabulated(t0), Phase::Tabulated(t1), Phase::Tabulated(t2)] = phases
+        && t1.len() == t0.len()
+        && t2.len() == t0.len()
+    {
+        let (i, s) = t0.position(cos_theta);
+        let tables = [t0, t1, t2];
+        return std::array::from_fn(|k| if active[k] { tables[k].value_at(i, s) } else { 0.0 });
     }
     std::array::from_fn(|k| if active[k] { phases[k].eval(cos_theta) } else { 0.0 })
 }
