@@ -1450,17 +1450,10 @@ fn trace_path(
                 chain = None;
                 safe = convex.map_or(0.0, |planes| distance_to_planes(planes, o));
                 if let Some(planes) = planes {
-                    let at = VertexAt {
-                        h,
-                        x: o,
-                        d_in: d,
-                        safe,
-                        exit: None,
-                        shared,
-                        chains,
-                        phase: settings.phase_connection,
-                    };
-                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &at, rng, &mut radiance));
+                    let p_attempt = attempt_probability(safe, bc.sigma_t_min);
+                    let p_phase = if settings.phase_connection { p_attempt } else { 0.0 };
+                    let conn = Connection { h, x: o, d_in: d, p_attempt, p_phase, shared, chains, exit: None };
+                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &conn, rng, &mut radiance));
                     stretch_t = 0.0;
                     stretch_refl = None;
                 }
@@ -1498,20 +1491,22 @@ fn trace_path(
                                 // (the tail is given_scattered's).
                                 let mut branch = arriving;
                                 branch.scale([1.0; 3], t.scattered_probability(j), h);
-                                let safe_y = distance_to_planes(planes, o);
-                                let at = VertexAt {
+                                // No phase connection at a sphere's exit.
+                                let p_attempt = attempt_probability(distance_to_planes(planes, o), bc.sigma_t_min);
+                                let tables = Some((t, j));
+                                let conn = Connection {
                                     h,
                                     x: o,
                                     d_in: omega,
-                                    safe: safe_y,
-                                    exit: Some((t, j)),
+                                    p_attempt,
+                                    p_phase: 0.0,
                                     shared,
                                     chains,
-                                    phase: false,
+                                    exit: tables,
                                 };
                                 // (No normalisation until the next event: the
                                 // vertex's r and the path's share one scale.)
-                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &at, rng, &mut radiance));
+                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &conn, rng, &mut radiance));
                                 stretch_mu = exit.cos_theta;
                                 stretch_t = 0.0;
                                 stretch_refl = None;
@@ -1893,48 +1888,35 @@ fn attempt_probability(d: f64, sigma_t_min: f64) -> f64 {
     }
 }
 
-/// A medium vertex: the driving band `h`, the point `x`, the direction the
-/// path arrived along `d_in` (a sphere's outward normal at a scattered
-/// exit), the distance `safe` from x to the nearest face plane, at a sphere
-/// jump's scattered exit the tables and the sphere, and how it is
-/// connected: [`Connection`]'s `shared` and `chains`, and whether the phase
-/// connection is made too (`phase`; never at a sphere exit).
-struct VertexAt<'a> {
-    h: usize,
-    x: DVec3,
-    d_in: DVec3,
-    safe: f64,
-    exit: Option<(&'a SphereExits, usize)>,
-    shared: bool,
-    chains: bool,
-    phase: bool,
-}
-
-/// The connections from the medium vertex `at` with the path's throughput
-/// `tp` there, attempted with [`attempt_probability`]: the environment
-/// connection, and the phase connection where `at.phase` asks for it.
-/// Returns what the path's own escape from x needs for its weight.
+/// The connections from a medium vertex (`conn`: where, and with what
+/// probabilities) with the path's throughput `tp` there: the environment
+/// connection, made with probability `conn.p_attempt`, and with it the phase
+/// connection where `conn.p_phase` > 0. Returns what the path's own escape
+/// from the vertex needs for its weight.
 fn connect_vertex(
     scene: &Scene,
     obj: &Object,
     planes: &[(DVec3, f64)],
     tp: &Throughput,
-    at: &VertexAt,
+    conn: &Connection,
     rng: &mut Rng,
     radiance: &mut [f64; 3],
 ) -> MediumVertex {
-    let phase = at.phase && at.exit.is_none();
-    let p_attempt = attempt_probability(at.safe, obj.bands.sigma_t_min);
-    let p_phase = if phase { p_attempt } else { 0.0 };
+    let p_attempt = conn.p_attempt;
     if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
-        let (h, x, d_in, exit) = (at.h, at.x, at.d_in, at.exit);
-        let c = Connection { h, x, d_in, p_attempt, p_phase, shared: at.shared, chains: at.chains, exit };
-        connect_through_faces(scene, obj, planes, tp, &c, rng, radiance);
-        if phase {
-            connect_along_phase(scene, obj, tp, &c, rng, radiance);
+        connect_through_faces(scene, obj, planes, tp, conn, rng, radiance);
+        if conn.p_phase > 0.0 {
+            connect_along_phase(scene, obj, tp, conn, rng, radiance);
         }
     }
-    MediumVertex { x: at.x, mean_r: tp.mean_r(), r: tp.r, p_attempt, p_phase, sphere: at.exit.map(|(_, j)| j) }
+    MediumVertex {
+        x: conn.x,
+        mean_r: tp.mean_r(),
+        r: tp.r,
+        p_attempt,
+        p_phase: conn.p_phase,
+        sphere: conn.exit.map(|(_, j)| j),
+    }
 }
 
 /// The medium connection from scattering point `x` (the path arrived along
