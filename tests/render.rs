@@ -586,6 +586,14 @@ fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
         !o.status.success() && err.contains("mitsuba_bench_plaque_dense.json") && err.contains("object_pixels"),
         "{err}"
     );
+    // Mitsuba's figures present but not JSON (a NaN written by an old script): refused, not skipped.
+    std::fs::write(tmp.path().join("mitsuba_bench_plaque_dense.json"), "{\"runs\": [NaN]}").unwrap();
+    let o = lucent(&["bench", "render", "--spp", "2", "--reference", tmp.path().to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("mitsuba_bench_plaque_dense.json") && err.contains("not valid JSON"),
+        "{err}"
+    );
 }
 
 /// The scene with a small sun has its own reference and Mitsuba timings,

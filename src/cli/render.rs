@@ -667,8 +667,13 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
     let ref_var = ref_variance(&all);
     // Mitsuba's side-by-side figures, if present, and the plaque's pixels they name.
     let bench_file = reference_dir.join(format!("mitsuba_bench_{name}.json"));
-    let mitsuba: Option<serde_json::Value> =
-        crate::io::read_text(&bench_file).ok().and_then(|t| serde_json::from_str(&t).ok());
+    // Missing: no side-by-side figures; present but unreadable: an error.
+    let mitsuba: Option<serde_json::Value> = if bench_file.exists() {
+        let text = crate::io::read_text(&bench_file)?;
+        Some(serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", bench_file.display()))?)
+    } else {
+        None
+    };
     let object: Vec<usize> = match mitsuba.as_ref().and_then(|m| m.get("object_pixels")) {
         None => Vec::new(),
         Some(list) => {

@@ -143,7 +143,7 @@ def main():
         "note": "wall/cpu seconds of one mi.render call after an untimed warm-up at the same spp; shared 2-core machine, run under nice",
         "runs": runs,
     }
-    text = json.dumps(out, indent=1)
+    text = json.dumps(out, indent=1, allow_nan=False)  # a NaN would make the file unreadable JSON
     print(text)
     if args.out:
         with open(args.out, "w") as f:
