@@ -1,7 +1,9 @@
 """Shared fixtures of the pytest suite of `import lucent` (run by `make test`)."""
 
 import os
+import signal
 import subprocess
+import threading
 from pathlib import Path
 
 import pytest
@@ -16,6 +18,25 @@ REPO = Path(__file__).resolve().parents[2]
 @pytest.fixture(scope="session")
 def repo() -> Path:
     return REPO
+
+
+@pytest.fixture
+def ctrl_c():
+    """`ctrl_c(delay_s)` sends this process SIGINT after delay_s seconds, as
+    Ctrl-C would, with Python's own handler installed for the test: a process
+    started in the background by a non-interactive shell inherits SIGINT
+    ignored, and Python then never raises KeyboardInterrupt."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    timers = []
+
+    def arm(delay_s: float) -> None:
+        timers.append(threading.Timer(delay_s, lambda: os.kill(os.getpid(), signal.SIGINT)))
+        timers[-1].start()
+
+    yield arm
+    for t in timers:
+        t.cancel()
+    signal.signal(signal.SIGINT, previous)
 
 
 @pytest.fixture(scope="session")

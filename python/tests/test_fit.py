@@ -6,9 +6,6 @@ Small for test time: 21 × 21 pixels of 0.5 mm, a few thousand paths.
 """
 
 import json
-import os
-import signal
-import threading
 import time
 
 import numpy as np
@@ -50,16 +47,12 @@ def test_fit_equals_the_command_and_recovers_the_truth(lucent_cli, repo, measure
     assert lines[0].startswith("pilot at") and len(lines) >= r["evaluations"] - 2, lines
 
 
-def test_ctrl_c_interrupts_a_fit(repo, measured):
-    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+def test_ctrl_c_interrupts_a_fit(repo, measured, ctrl_c):
     start = time.monotonic()
-    timer.start()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            # The pilot alone runs for a minute without the interrupt.
-            lucent.fit(repo / START, measured, "weight_percent", measured_pixel_mm=0.5, rel_error=1e-5)
-    finally:
-        timer.cancel()
+    ctrl_c(0.5)
+    with pytest.raises(KeyboardInterrupt):
+        # The pilot alone runs for a minute without the interrupt.
+        lucent.fit(repo / START, measured, "weight_percent", measured_pixel_mm=0.5, rel_error=1e-5)
     assert time.monotonic() - start < 15.0
 
 

@@ -1,8 +1,5 @@
 """lucent.render against `lucent render`'s EXR; progress and Ctrl-C."""
 
-import os
-import signal
-import threading
 import time
 
 import numpy as np
@@ -56,17 +53,13 @@ def test_progress_is_reported_and_can_stop_the_render(repo):
         lucent.render(repo / SCENE, spp=4000, size="32x24", progress=stop)
 
 
-def test_ctrl_c_interrupts_a_long_render(repo):
-    timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
+def test_ctrl_c_interrupts_a_long_render(repo, ctrl_c):
     start = time.monotonic()
-    timer.start()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            # Minutes of work without the interrupt (the time budget only
-            # bounds the test if the interrupt were ignored).
-            lucent.render(repo / SCENE, spp=1_000_000, time_s=60.0)
-    finally:
-        timer.cancel()
+    ctrl_c(1.0)
+    with pytest.raises(KeyboardInterrupt):
+        # Minutes of work without the interrupt (the time budget only
+        # bounds the test if the interrupt were ignored).
+        lucent.render(repo / SCENE, spp=1_000_000, time_s=60.0)
     assert time.monotonic() - start < 15.0
 
 
