@@ -1493,7 +1493,6 @@ fn trace_path(
                                 branch.scale([1.0; 3], t.scattered_probability(j), h);
                                 // No phase connection at a sphere's exit.
                                 let p_attempt = attempt_probability(distance_to_planes(planes, o), bc.sigma_t_min);
-                                let tables = Some((t, j));
                                 let conn = Connection {
                                     h,
                                     x: o,
@@ -1502,7 +1501,7 @@ fn trace_path(
                                     p_phase: 0.0,
                                     shared,
                                     chains,
-                                    exit: tables,
+                                    exit: Some((t, j)),
                                 };
                                 // (No normalisation until the next event: the
                                 // vertex's r and the path's share one scale.)
@@ -1635,18 +1634,17 @@ fn trace_path(
                     && sample.pdf > 0.0
                 {
                     let cos = sample.dir.dot(n);
-                    let mut blocked = false;
-                    if cos > 0.0 {
-                        blocked = scene
+                    // The object hides ω_o (asked only where ω_o leaves the board's side).
+                    let blocked = cos > 0.0
+                        && scene
                             .object
                             .as_ref()
                             .is_some_and(|obj| obj.accel.occluded(origin, sample.dir, f64::INFINITY));
-                        if !blocked {
-                            let w = power_heuristic(sample.pdf, cos * FRAC_1_PI);
-                            let beta = tp.effective();
-                            for c in 0..3 {
-                                radiance[c] += beta[c] * rho[c] * FRAC_1_PI * cos * sample.radiance[c] * w / sample.pdf;
-                            }
+                    if cos > 0.0 && !blocked {
+                        let w = power_heuristic(sample.pdf, cos * FRAC_1_PI);
+                        let beta = tp.effective();
+                        for c in 0..3 {
+                            radiance[c] += beta[c] * rho[c] * FRAC_1_PI * cos * sample.radiance[c] * w / sample.pdf;
                         }
                     }
                     // By the object's faces: a reflection at one, and
