@@ -91,21 +91,10 @@ def main():
             dr.sync_thread()
             warm = time.perf_counter() - w
         w, c = time.perf_counter(), time.process_time()
-        # In calls of at most --chunk-spp samples; a pixel whose call gave a
-        # non-finite value leaves that call out (ref.NON_FINITE), as in the reference.
-        acc, weight, dropped, left, seed = np.zeros_like(mean), np.zeros(mean.shape[:2] + (1,)), 0, spp, args.seed
-        while left > 0:
-            s = min(left, chunk)
-            part = np.array(mi.render(scene, seed=seed, spp=s), dtype=np.float64)  # forces evaluation
-            ok = np.all(np.isfinite(part), axis=2, keepdims=True)
-            dropped += int(np.sum(~ok))
-            acc += np.where(ok, part, 0.0) * s
-            weight += ok * s
-            left, seed = left - s, seed + 1
-        img = acc / np.maximum(weight, 1)
+        # In calls of at most --chunk-spp samples, as in the reference.
+        sizes = ref.call_sizes(spp, chunk)
+        img, dropped, _ = ref.render_in_calls(mi, scene, sizes, args.seed, f"{spp} spp")
         wall, cpu = time.perf_counter() - w, time.process_time() - c
-        if np.any(weight < 0.5 * spp):
-            sys.exit(f"{spp} spp: more than half of a pixel's samples were in non-finite calls")
         rmse = float(np.sqrt(np.mean((img - mean) ** 2)))
         expected = float(np.sqrt(np.mean(per_sample_var) / spp + np.mean(var_of_mean)))
         runs.append({
@@ -119,8 +108,8 @@ def main():
             "rmse_per_channel": [float(v) for v in np.sqrt(np.mean((img - mean) ** 2, axis=(0, 1)))],
             "rmse_object": float(np.sqrt(np.mean((img[obj] - mean[obj]) ** 2))),
             "rmse_object_expected": float(np.sqrt(np.mean(per_sample_var[obj]) / spp + np.mean(var_of_mean[obj]))),
-            "calls": -(-spp // chunk),
-            "non_finite_pixel_calls": dropped,
+            "calls": len(sizes),
+            "non_finite_pixel_calls": sum(dropped),
             "warmup_wall_seconds": None if warm is None else round(warm, 3),
             "load_average_1min": round(os.getloadavg()[0], 2),
         })
@@ -140,7 +129,7 @@ def main():
         "object_pixels_rule": "row-major indices (row 0 at the top) of the pixels where at least half of 4 x 4 "
                               "pinhole rays meet the plaque's box (mitsuba_render.object_mask)",
         "cpu": _cpu_name(),
-        "note": "wall/cpu seconds of one mi.render call after an untimed warm-up at the same spp; shared 2-core machine, run under nice",
+        "note": f"wall/cpu seconds of the mi.render calls of at most {chunk} spp after an untimed warm-up at the first call's spp; shared 2-core machine, run under nice",
         "runs": runs,
     }
     text = json.dumps(out, indent=1, allow_nan=False)  # a NaN would make the file unreadable JSON

@@ -649,6 +649,39 @@ NON_FINITE = (
 )
 
 
+def call_sizes(spp, chunk_spp):
+    """``spp`` samples per pixel as the spp of successive mi.render calls of at most ``chunk_spp``."""
+    sizes = []
+    while spp > 0:
+        sizes.append(min(spp, chunk_spp))
+        spp -= sizes[-1]
+    return sizes
+
+
+def render_in_calls(mi, scene, sizes, seed, label):
+    """The mean image of one mi.render call per entry of ``sizes`` (its spp),
+    seeds ``seed``, ``seed + 1``, ...; a pixel whose call gave a non-finite
+    value leaves that call out (see NON_FINITE).  Returns the image, the
+    number of pixels left out of each call and the next unused seed; exits
+    (naming ``label``) if some pixel lost more than half of its samples."""
+    import numpy as np
+
+    H, W = SCENE["camera"]["height"], SCENE["camera"]["width"]
+    acc = np.zeros((H, W, 3))
+    weight = np.zeros((H, W, 1))
+    dropped = []
+    for s in sizes:
+        part = np.array(mi.render(scene, seed=seed, spp=s), dtype=np.float64)  # forces evaluation
+        ok = np.all(np.isfinite(part), axis=2, keepdims=True)
+        dropped.append(int(np.sum(~ok)))
+        acc += np.where(ok, part, 0.0) * s
+        weight += ok * s
+        seed += 1
+    if np.any(weight < 0.5 * sum(sizes)):
+        sys.exit(f"{label}: more than half of a pixel's samples were in non-finite chunks")
+    return acc / weight, dropped, seed
+
+
 # ---------------------------------------------------------------- outputs
 
 
@@ -728,36 +761,19 @@ def main():
 
     if args.chunk_spp is None:
         args.chunk_spp = 1024 if name == "plaque_dense" else 64
-    chunks = []
-    left = args.spp
-    while left > 0:
-        chunks.append(min(left, args.chunk_spp))
-        left -= chunks[-1]
+    chunks = call_sizes(args.spp, args.chunk_spp)
     H, W = SCENE["camera"]["height"], SCENE["camera"]["width"]
     sums = np.zeros((H, W, 3))
     sumsq = np.zeros((H, W, 3))
     pass_times = []
     seed = args.seed0
-    seeds = []
     dropped = []
     load_before = os.getloadavg()
     wall0, cpu0 = time.perf_counter(), time.process_time()
     for k in range(args.passes):
         w, c = time.perf_counter(), time.process_time()
-        acc = np.zeros((H, W, 3))
-        weight = np.zeros((H, W, 1))
-        for s in chunks:
-            part = np.array(mi.render(scene, seed=seed, spp=s), dtype=np.float64)
-            # A pixel whose chunk is not finite is left out of that chunk (see NON_FINITE).
-            ok = np.all(np.isfinite(part), axis=2, keepdims=True)
-            dropped.append(int(np.sum(~ok)))
-            acc += np.where(ok, part, 0.0) * s
-            weight += ok * s
-            seeds.append(seed)
-            seed += 1
-        if np.any(weight < 0.5 * args.spp):
-            sys.exit(f"pass {k}: more than half of a pixel's samples were in non-finite chunks")
-        img = acc / weight
+        img, lost, seed = render_in_calls(mi, scene, chunks, seed, f"pass {k}")
+        dropped += lost
         sums += img
         sumsq += img * img
         pass_times.append({"pass": k, "wall_seconds": round(time.perf_counter() - w, 3),
@@ -800,7 +816,7 @@ def main():
         "integrator": {"type": args.integrator, "max_depth": -1, "rr_depth": 100000,
                        "note": "no depth limit; Russian roulette only beyond depth 100000"},
         "sampler": "independent",
-        "seeds": f"mi.render seeds {seeds[0]}..{seeds[-1]}, one per render call, {len(chunks)} call(s) of {chunks} spp per pass",
+        "seeds": f"mi.render seeds {args.seed0}..{seed - 1}, one per render call, {len(chunks)} call(s) of {chunks} spp per pass",
         "passes": K,
         "spp_per_pass": args.spp,
         "total_spp": total_spp,
