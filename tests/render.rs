@@ -136,6 +136,18 @@ fn bad_scene_files_are_refused_with_reasons() {
         ("target_rel_error_above_one.toml", &["[render] target_rel_error", "between 0 and 1", "5"]),
         ("target_rel_error_zero.toml", &["[render] target_rel_error", "between 0 and 1"]),
         ("similarity_g_one.toml", &["similarity_g_one.toml", "[render] similarity_g", "[0, 1)", "got 1"]),
+        (
+            "similarity_floor_events_zero.toml",
+            &["similarity_floor_events_zero.toml", "[render] similarity_floor_events", "at least 1", "got 0"],
+        ),
+        (
+            "similarity_floor_events_without_g.toml",
+            &[
+                "similarity_floor_events_without_g.toml",
+                "[render] similarity_floor_events",
+                "needs [render] similarity_g",
+            ],
+        ),
         ("bad_sampling.toml", &["bad_sampling.toml", "adaptive"]),
         ("huge_index.toml", &["huge_index.toml", "band 1", "1000000", "[1, 10]"]),
         ("zero_transform.toml", &["[object] transform", "last row", "determinant 0"]),
@@ -194,6 +206,20 @@ fn bad_scene_files_say_what_went_wrong_as_a_variant() {
     assert!(matches!(
         (s, k, p),
         ("render", "similarity_g", KeyProblem::Similarity(scene::SimilarityProblem::Range { value: 1.0 }))
+    ));
+    let (s, k, p) = key("similarity_floor_events_zero.toml");
+    assert!(matches!(
+        (s, k, p),
+        (
+            "render",
+            "similarity_floor_events",
+            KeyProblem::Similarity(scene::SimilarityProblem::FloorEvents { value: 0 })
+        )
+    ));
+    let (s, k, p) = key("similarity_floor_events_without_g.toml");
+    assert!(matches!(
+        (s, k, p),
+        ("render", "similarity_floor_events", KeyProblem::Similarity(scene::SimilarityProblem::FloorEventsWithoutG))
     ));
     let (s, p) = section("env_both.toml");
     assert!(matches!((s, p), ("environment", SectionProblem::Conflict { first: "map", second: "constant" })));
@@ -364,6 +390,8 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
     assert!(!m.dispersion);
     let similar = m.similar.as_ref().expect("similarity_g = 0 in demo.toml");
     assert_eq!(similar.g_max, 0.0);
+    // The floor holds for the whole walk (no similarity_floor_events).
+    assert!(similar.later.is_none() && loaded.scene.object.as_ref().unwrap().later().is_none());
     let object = loaded.scene.object.as_ref().expect("object");
     for b in 0..3 {
         // g′ is 0 unless the 3-mean-free-path floor raises it (μs(1 − g) d ≈ 2.5 here: up to ≈ 0.2).
@@ -375,6 +403,33 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
         assert_eq!(object.medium[b].mu_s_per_m, similar.mu_s_per_m[b]);
         assert_eq!(object.medium[b].mu_a_per_m, m.mu_a_per_m[b]);
     }
+}
+
+/// `[render] similarity_floor_events`: the demo plaque's floor (g′ ≈ 0.2)
+/// holds for 16 events, then the walk goes on in the similar medium of
+/// `similarity_g = 0`; render.json's summary lists both media.
+#[test]
+fn similarity_floor_events_hands_the_walk_to_the_asked_for_medium() {
+    let loaded = scene::load_edited(&root().join("fixtures/render/demo.toml"), false, |f| {
+        f.render.similarity_floor_events = Some(16);
+    })
+    .unwrap();
+    let similar = loaded.summary.material.as_ref().unwrap().similar.as_ref().unwrap();
+    let later = similar.later.as_ref().expect("the floor raised g′ on the demo plaque");
+    assert_eq!(later.from_event, 16);
+    let object = loaded.scene.object.as_ref().unwrap();
+    let (from, walked) = object.later().expect("the object walks the later medium");
+    assert_eq!(from, 16);
+    for b in 0..3 {
+        assert!(similar.g[b] > 0.1, "floored g′ {:?}", similar.g);
+        assert_eq!(later.g[b], 0.0);
+        assert_eq!(walked.medium[b].mu_s_per_m, later.mu_s_per_m[b]);
+        // μs(1 − g) kept in both.
+        let kept = similar.mu_s_per_m[b] * (1.0 - similar.g[b]);
+        assert!((later.mu_s_per_m[b] / kept - 1.0).abs() < 1e-9, "band {b}: {} vs {kept}", later.mu_s_per_m[b]);
+    }
+    let json = serde_json::to_value(&loaded.summary).unwrap();
+    assert_eq!(json["material"]["similar"]["later"]["from_event"], 16);
 }
 
 #[test]

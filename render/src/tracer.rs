@@ -206,6 +206,9 @@ pub struct Object {
     /// The sphere-jump tables ([`Settings::sphere_jumps`]), made on first
     /// use; `None` where jumps do not apply.
     spheres: OnceLock<Option<SphereExits>>,
+    /// The scattering event from which a path walks the second object's
+    /// medium instead ([`Object::similar_floored_for`]).
+    later: Option<(u64, Box<Object>)>,
 }
 
 /// What the estimator needs to know about the bands, derived once.
@@ -243,7 +246,24 @@ impl Object {
             achromatic: eta[1] == eta[0] && eta[2] == eta[0],
         };
         let eta_mean = (eta[0] + eta[1] + eta[2]) / 3.0;
-        Ok(Self { accel, interface, medium, bands, eta_mean, spheres: OnceLock::new() })
+        Ok(Self { accel, interface, medium, bands, eta_mean, spheres: OnceLock::new(), later: None })
+    }
+
+    /// The object whose medium a path walks once it has scattered
+    /// `events` times ([`Object::later`]).
+    #[inline]
+    fn walked_after(&self, events: u64) -> &Object {
+        match &self.later {
+            Some((from, later)) if events >= *from => later,
+            _ => self,
+        }
+    }
+
+    /// ([`Object::similar_floored_for`]) The scattering event from which a
+    /// path walks the similar medium of the asked-for g′, and that medium's
+    /// object; `None` where the whole walk is in this object's medium.
+    pub fn later(&self) -> Option<(u64, &Object)> {
+        self.later.as_ref().map(|(from, o)| (*from, &**o))
     }
 
     /// The bands' phase functions.
@@ -281,6 +301,23 @@ impl Object {
     /// approximation that makes the walk of a strongly forward-scattering
     /// medium far shorter (see the module documentation).
     pub fn similar(self, g_max: f64) -> Result<Self, SceneError> {
+        self.similar_with(g_max, None)
+    }
+
+    /// [`Object::similar`] with the depth floor held for the first `events`
+    /// scattering events of a path only (≥ 1): the floor is for light that
+    /// has scattered a few times, the unscattered view through the object
+    /// above all. Where it raised g′, a path walks the similar medium of
+    /// g′ = `g_max` itself from its `events`-th event on ([`Object::later`];
+    /// μ_s(1 − g), μ_a and n kept in both). A further approximation: the
+    /// light trapped by total internal reflection in a thin plaque leaves
+    /// its trapped directions in one isotropic turn instead of many small
+    /// ones (measured in docs/method.md#render-similarity).
+    pub fn similar_floored_for(self, g_max: f64, events: u64) -> Result<Self, SceneError> {
+        self.similar_with(g_max, Some(events.max(1)))
+    }
+
+    fn similar_with(self, g_max: f64, floor_events: Option<u64>) -> Result<Self, SceneError> {
         let (lo, hi) = self.accel.bounds();
         let d = (hi - lo).min_element();
         // One g′ for all bands (the highest any band's floor asks for): the
@@ -293,11 +330,22 @@ impl Object {
             .map(|m| 1.0 - m.mu_s_per_m * (1.0 - m.phase.mean_cosine()) * d / SIMILAR_MIN_DEPTH)
             .fold(0.0_f64, f64::max)
             .min(0.999);
-        let mut media = self.medium.clone();
-        for (band, m) in media.iter_mut().enumerate() {
-            *m = m.similar(g_max.max(floor)).map_err(|source| SceneError::Medium { band, source })?;
-        }
-        Object::new(self.accel, self.interface, media)
+        let similar_media = |g: f64| -> Result<[Medium; 3], SceneError> {
+            let mut media = self.medium.clone();
+            for (band, m) in media.iter_mut().enumerate() {
+                *m = m.similar(g).map_err(|source| SceneError::Medium { band, source })?;
+            }
+            Ok(media)
+        };
+        let later = match floor_events {
+            Some(from) if floor > g_max => {
+                let media = similar_media(g_max)?;
+                Some((from, Box::new(Object::new(self.accel.clone(), self.interface.clone(), media)?)))
+            }
+            _ => None,
+        };
+        let media = similar_media(g_max.max(floor))?;
+        Ok(Object { later, ..Object::new(self.accel, self.interface, media)? })
     }
 
     /// The interface's index ratio (the medium's index) in band `band`.
@@ -1337,12 +1385,14 @@ fn trace(
     rng: &mut Rng,
     st: &mut Stats,
 ) -> ([f64; 3], FirstHit) {
-    trace_path(scene, settings, o, d, Throughput { beta: [1.0; 3], r: [1.0; 3] }, None, settings.split_entry, rng, st)
+    let tp = Throughput { beta: [1.0; 3], r: [1.0; 3] };
+    trace_path(scene, settings, o, d, tp, None, 0, settings.split_entry, rng, st)
 }
 
 /// A path from `o` along `d` (outside the object) with throughput `tp` and
-/// driving band `hero` (if already chosen); `split`: split at the object's
-/// boundary from outside ([`Settings::split_entry`]).
+/// driving band `hero` (if already chosen), after `events_before`
+/// scattering events; `split`: split at the object's boundary from outside
+/// ([`Settings::split_entry`]).
 #[allow(clippy::too_many_arguments)]
 fn trace_path(
     scene: &Scene,
@@ -1351,6 +1401,7 @@ fn trace_path(
     mut d: DVec3,
     mut tp: Throughput,
     mut hero: Option<usize>,
+    events_before: u64,
     split: bool,
     rng: &mut Rng,
     st: &mut Stats,
@@ -1375,16 +1426,12 @@ fn trace_path(
     let mut stretch_mu = 1.0f64;
     // dω_i/dω_o of the stretch's refraction out.
     let mut stretch_jacobian = 0.0f64;
-    let mut events = 0u64;
+    let mut events = events_before;
     // Whether the camera ray's first hit is the object (set at the first outside segment).
     let mut first_hit: Option<FirstHit> = None;
     // Distance from `o` to the nearest face plane while inside a convex object.
     let mut safe = 0.0f64;
     let convex = scene.object.as_ref().and_then(|obj| obj.accel.convex_planes());
-    let spheres = match &scene.object {
-        Some(obj) if settings.sphere_jumps => obj.sphere_exits(),
-        _ => None,
-    };
     let planes = match &scene.object {
         Some(obj) if settings.medium_nee && !obj.interface.is_rough() && !scene.environment.is_uniform() => {
             obj.accel.convex_planes()
@@ -1409,9 +1456,11 @@ fn trace_path(
     loop {
         if inside {
             // In the medium: `hero` is set, the object exists.
-            let (Some(obj), Some(h)) = (&scene.object, hero) else {
+            let (Some(obj0), Some(h)) = (&scene.object, hero) else {
                 break;
             };
+            let obj = obj0.walked_after(events);
+            let spheres = sphere_tables(obj, settings);
             let bc = &obj.bands;
             let sigma_t = bc.sigma_t[h];
             let s = -(1.0 - rng.next_f64()).ln() / sigma_t;
@@ -1447,6 +1496,9 @@ fn trace_path(
                 }
                 tp.normalise();
                 events += 1;
+                let obj = obj0.walked_after(events);
+                let spheres = sphere_tables(obj, settings);
+                let bc = &obj.bands;
                 chain = None;
                 safe = convex.map_or(0.0, |planes| distance_to_planes(planes, o));
                 if let Some(planes) = planes {
@@ -1651,7 +1703,17 @@ fn trace_path(
                     // through it where it blocks ω_o.
                     if let (Some(obj), Some(planes)) = (&scene.object, board_planes) {
                         let at = BoardPoint { y: origin, n, rho, split };
-                        connect_by_faces(scene, obj, planes, &tp, &at, &sample, shared, blocked, &mut radiance);
+                        connect_by_faces(
+                            scene,
+                            obj.walked_after(events),
+                            planes,
+                            &tp,
+                            &at,
+                            &sample,
+                            shared,
+                            blocked,
+                            &mut radiance,
+                        );
                     }
                 }
                 let (u1, u2) = rng.next_f64_pair();
@@ -1675,7 +1737,8 @@ fn trace_path(
                     if let Some(v) = vertex {
                         // Weighed against the medium connections from v.x (balance heuristic).
                         let p_conn = v.p_attempt * scene.environment.pdf(v.x, d);
-                        let obj = scene.object.as_ref().expect("a medium vertex without an object");
+                        let obj =
+                            scene.object.as_ref().expect("a medium vertex without an object").walked_after(events);
                         let p_phase = if v.p_phase > 0.0 {
                             let ph = band_phases(obj, |k| v.r[k] > 0.0, hero.unwrap_or(0), stretch_mu);
                             v.p_phase * stretch_jacobian * mean_weighted(&v.r, &ph)
@@ -1731,7 +1794,8 @@ fn trace_path(
                         *b *= fc;
                     }
                     let d_refl = d - 2.0 * d.dot(n_in) * n_in;
-                    let (l, _) = trace_path(scene, settings, p + eps * n_in, d_refl, branch, hero, false, rng, st);
+                    let (l, _) =
+                        trace_path(scene, settings, p + eps * n_in, d_refl, branch, hero, events, false, rng, st);
                     for c in 0..3 {
                         radiance[c] += l[c];
                     }
@@ -1805,8 +1869,18 @@ fn trace_path(
             }
         }
     }
-    st.events += events;
+    st.events += events - events_before;
     (radiance, first_hit.unwrap_or(FirstHit::Environment))
+}
+
+/// The sphere-jump tables a path in `obj`'s medium uses ([`Settings::sphere_jumps`]).
+#[inline]
+fn sphere_tables<'a>(obj: &'a Object, settings: &Settings) -> Option<&'a SphereExits> {
+    if settings.sphere_jumps {
+        obj.sphere_exits()
+    } else {
+        None
+    }
 }
 
 /// The Fresnel reflectance per band at a smooth boundary under

@@ -858,7 +858,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             if loaded.scene.object.is_none() {
                 continue;
             }
-            scene::apply_similarity(&mut loaded, g)?;
+            scene::apply_similarity(&mut loaded, g, None)?;
         }
         let cpu0 = process_cpu_s();
         let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});

@@ -438,6 +438,11 @@ pub struct RenderSection {
     /// every band) where it would be under 3 mean free paths deep (0 ≤ g < 1;
     /// μs(1 − g), μa and n kept): an approximation, see docs/method.md.
     pub similarity_g: Option<f64>,
+    /// With `similarity_g`: hold that depth floor for a path's first this
+    /// many scattering events only (≥ 1) and walk the similar medium of
+    /// `similarity_g` itself after them: a further approximation, see
+    /// docs/method.md (default: the floor holds for the whole walk).
+    pub similarity_floor_events: Option<u64>,
 }
 
 /// `[render] sampling`.
@@ -646,6 +651,23 @@ pub struct SimilarSummary {
     /// μs′ per band as walked, 1/m.
     pub mu_s_per_m: [f64; 3],
     /// g′ per band as walked.
+    pub g: [f64; 3],
+    /// Where the floor raised g′ above `g_max`: the similar medium of
+    /// `g_max` that a path walks from its `from_event`-th scattering
+    /// event on (absent in files written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub later: Option<LaterSimilar>,
+}
+
+/// The similar medium of the asked-for g′ that a path walks once it has
+/// scattered `from_event` times (`[render] similarity_floor_events`).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct LaterSimilar {
+    /// `[render] similarity_floor_events`.
+    pub from_event: u64,
+    /// μs′ per band, 1/m.
+    pub mu_s_per_m: [f64; 3],
+    /// g′ per band (`g_max`).
     pub g: [f64; 3],
 }
 
@@ -920,9 +942,18 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
         },
         warnings,
     };
-    if let Some(g) = r.similarity_g {
-        apply_similarity(&mut loaded, g)
-            .map_err(|problem| ctx.key("render", "similarity_g", KeyProblem::Similarity(problem)))?;
+    match (r.similarity_g, r.similarity_floor_events) {
+        (_, Some(0)) => {
+            let problem = SimilarityProblem::FloorEvents { value: 0 };
+            return Err(ctx.key("render", "similarity_floor_events", KeyProblem::Similarity(problem)));
+        }
+        (None, Some(_)) => {
+            let problem = SimilarityProblem::FloorEventsWithoutG;
+            return Err(ctx.key("render", "similarity_floor_events", KeyProblem::Similarity(problem)));
+        }
+        (Some(g), floor_events) => apply_similarity(&mut loaded, g, floor_events)
+            .map_err(|problem| ctx.key("render", "similarity_g", KeyProblem::Similarity(problem)))?,
+        (None, None) => {}
     }
     Ok(loaded)
 }
@@ -932,6 +963,10 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
 pub enum SimilarityProblem {
     #[error("must lie in [0, 1) (an asymmetry g), got {value}")]
     Range { value: f64 },
+    #[error("must be at least 1 (scattering events), got {value}")]
+    FloorEvents { value: u64 },
+    #[error("needs [render] similarity_g (the similar medium it applies to)")]
+    FloorEventsWithoutG,
     #[error("{0}")]
     Object(#[from] lucent_render::tracer::SceneError),
 }
@@ -942,21 +977,35 @@ pub enum SimilarityProblem {
 /// summary. An approximation that is exact in the diffusion limit; its
 /// measured bias is in docs/method.md#render-similarity. A scene without
 /// an object (env-scale's empty board) has nothing to make similar: only
-/// `g_max` is checked.
-pub fn apply_similarity(loaded: &mut LoadedScene, g_max: f64) -> Result<(), SimilarityProblem> {
+/// `g_max` is checked. `floor_events`: hold the depth floor for a path's
+/// first this many scattering events only
+/// ([`lucent_render::tracer::Object::similar_floored_for`]).
+pub fn apply_similarity(
+    loaded: &mut LoadedScene,
+    g_max: f64,
+    floor_events: Option<u64>,
+) -> Result<(), SimilarityProblem> {
     if !lucent_render::medium::valid_similarity_g(g_max) {
         return Err(SimilarityProblem::Range { value: g_max });
     }
     let Some(object) = loaded.scene.object.take() else {
         return Ok(());
     };
-    let similar = object.similar(g_max)?;
+    let similar = match floor_events {
+        Some(events) => object.similar_floored_for(g_max, events)?,
+        None => object.similar(g_max)?,
+    };
     let media = &similar.medium;
     if let Some(m) = loaded.summary.material.as_mut() {
         m.similar = Some(SimilarSummary {
             g_max,
             mu_s_per_m: std::array::from_fn(|b| media[b].mu_s_per_m),
             g: std::array::from_fn(|b| media[b].phase.mean_cosine()),
+            later: similar.later().map(|(from_event, later)| LaterSimilar {
+                from_event,
+                mu_s_per_m: std::array::from_fn(|b| later.medium[b].mu_s_per_m),
+                g: std::array::from_fn(|b| later.medium[b].phase.mean_cosine()),
+            }),
         });
     }
     loaded.scene.object = Some(similar);
