@@ -5,7 +5,7 @@
 //!
 //! The surface is the plane z = 0 with air (n = 1) above; the medium fills
 //! −d ≤ z ≤ 0 with index n, scattering and absorption coefficients μ_s, μ_a
-//! [1/m] and a phase function ([`Phase`]); below is air again. Lengths are in
+//! [1/m] and a phase function ([`Phase`](crate::phase::Phase)); below is air again. Lengths are in
 //! metres, angles in degrees at the interface and radians inside. A direction
 //! given by (θ, φ) is (sin θ cos φ, sin θ sin φ, cos θ): ω_i points from the
 //! surface towards the light, ω_o towards the camera. The camera is
@@ -311,7 +311,7 @@ pub enum Footprint<'a> {
 }
 
 impl Footprint<'_> {
-    /// A point (x, y) [m] drawn with density [`irradiance`](Self::irradiance)
+    /// A point (x, y) \[m\] drawn with density [`irradiance`](Self::irradiance)
     /// from two uniform numbers (Gaussian: Box–Muller in the beam's cross
     /// section, stretched onto the surface) or three (map: a pixel by its
     /// CDF, then uniform inside it).

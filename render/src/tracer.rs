@@ -188,6 +188,16 @@ pub enum SceneError {
 /// plaque's time to a given noise but moves its mean by −1 to −2.6 %.
 pub const SIMILAR_MIN_DEPTH: f64 = 3.0;
 
+/// The least depth, in mean free paths across the object's thinnest side,
+/// of the similar medium a path walks after the first events
+/// ([`Object::similar_floored_for`]). Thinner, light bounces between the
+/// faces unscattered, by more reflections than the specular chains
+/// connect: on the PVP plaque (5 Dec 2026) the isotropic medium of
+/// 0.55–0.78 mean free paths raised the plaque's 99th percentile error from
+/// 15 % to 25 % and moved its mean by +0.8 %; this floor (g′ 0.45 there)
+/// kept both (−0.2 to +0.1 %).
+pub const SIMILAR_LATER_MIN_DEPTH: f64 = 1.0;
+
 /// The object: a closed mesh, its interface with the air around it and
 /// its interior medium per band R, G, B (each band's index
 /// [`Medium::n`] is the interface's index ratio in that band).
@@ -260,7 +270,7 @@ impl Object {
     }
 
     /// ([`Object::similar_floored_for`]) The scattering event from which a
-    /// path walks the similar medium of the asked-for g′, and that medium's
+    /// path walks the later similar medium, and that medium's
     /// object; `None` where the whole walk is in this object's medium.
     pub fn later(&self) -> Option<(u64, &Object)> {
         self.later.as_ref().map(|(from, o)| (*from, &**o))
@@ -304,15 +314,16 @@ impl Object {
         self.similar_with(g_max, None)
     }
 
-    /// [`Object::similar`] with the depth floor held for the first `events`
-    /// scattering events of a path only (≥ 1): the floor is for light that
-    /// has scattered a few times, the unscattered view through the object
-    /// above all. Where it raised g′, a path walks the similar medium of
-    /// g′ = `g_max` itself from its `events`-th event on ([`Object::later`];
-    /// μ_s(1 − g), μ_a and n kept in both). A further approximation: the
-    /// light trapped by total internal reflection in a thin plaque leaves
-    /// its trapped directions in one isotropic turn instead of many small
-    /// ones (measured in docs/method.md#render-similarity).
+    /// [`Object::similar`] with the depth floor of [`SIMILAR_MIN_DEPTH`]
+    /// held for the first `events` scattering events of a path only (≥ 1):
+    /// that floor is for light that has scattered a few times, the
+    /// unscattered view through the object above all. From its `events`-th
+    /// event on a path walks the similar medium of g′ = `g_max` raised only
+    /// as far as [`SIMILAR_LATER_MIN_DEPTH`] asks ([`Object::later`]; μ_s(1 −
+    /// g), μ_a and n kept in both), where that is lower. A further
+    /// approximation: light trapped by total internal reflection in a thin
+    /// plaque leaves its trapped directions in fewer, larger turns
+    /// (measured in docs/method.md#render-similarity-floor-events).
     pub fn similar_floored_for(self, g_max: f64, events: u64) -> Result<Self, SceneError> {
         self.similar_with(g_max, Some(events.max(1)))
     }
@@ -324,12 +335,14 @@ impl Object {
         // bands' phase functions then differ only where their media differ,
         // and a path shared by the bands keeps weights near 1 (per-band g′
         // of 0.06–0.22 doubled the plaque's variance per sample).
-        let floor = self
-            .medium
-            .iter()
-            .map(|m| 1.0 - m.mu_s_per_m * (1.0 - m.phase.mean_cosine()) * d / SIMILAR_MIN_DEPTH)
-            .fold(0.0_f64, f64::max)
-            .min(0.999);
+        let floor_for = |depth: f64| {
+            self.medium
+                .iter()
+                .map(|m| 1.0 - m.mu_s_per_m * (1.0 - m.phase.mean_cosine()) * d / depth)
+                .fold(0.0_f64, f64::max)
+                .min(0.999)
+        };
+        let floor = floor_for(SIMILAR_MIN_DEPTH);
         let similar_media = |g: f64| -> Result<[Medium; 3], SceneError> {
             let mut media = self.medium.clone();
             for (band, m) in media.iter_mut().enumerate() {
@@ -337,9 +350,10 @@ impl Object {
             }
             Ok(media)
         };
+        let g_later = g_max.max(floor_for(SIMILAR_LATER_MIN_DEPTH));
         let later = match floor_events {
-            Some(from) if floor > g_max => {
-                let media = similar_media(g_max)?;
+            Some(from) if g_later < g_max.max(floor) => {
+                let media = similar_media(g_later)?;
                 Some((from, Box::new(Object::new(self.accel.clone(), self.interface.clone(), media)?)))
             }
             _ => None,

@@ -440,8 +440,9 @@ pub struct RenderSection {
     pub similarity_g: Option<f64>,
     /// With `similarity_g`: hold that depth floor for a path's first this
     /// many scattering events only (≥ 1) and walk the similar medium of
-    /// `similarity_g` itself after them: a further approximation, see
-    /// docs/method.md (default: the floor holds for the whole walk).
+    /// `similarity_g` after them, raised only as far as keeps it 1 mean free
+    /// path deep: a further approximation, see docs/method.md (default: the
+    /// floor holds for the whole walk).
     pub similarity_floor_events: Option<u64>,
 }
 
@@ -652,22 +653,24 @@ pub struct SimilarSummary {
     pub mu_s_per_m: [f64; 3],
     /// g′ per band as walked.
     pub g: [f64; 3],
-    /// Where the floor raised g′ above `g_max`: the similar medium of
-    /// `g_max` that a path walks from its `from_event`-th scattering
-    /// event on (absent in files written before it existed).
+    /// With `[render] similarity_floor_events`, where the floor raised g′:
+    /// the similar medium that a path walks from its `from_event`-th
+    /// scattering event on (absent otherwise).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub later: Option<LaterSimilar>,
 }
 
-/// The similar medium of the asked-for g′ that a path walks once it has
-/// scattered `from_event` times (`[render] similarity_floor_events`).
+/// The similar medium (of the asked-for g′, raised to 1 mean free path
+/// deep) that a path walks once it has scattered `from_event` times
+/// (`[render] similarity_floor_events`).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct LaterSimilar {
     /// `[render] similarity_floor_events`.
     pub from_event: u64,
     /// μs′ per band, 1/m.
     pub mu_s_per_m: [f64; 3],
-    /// g′ per band (`g_max`).
+    /// g′ per band: `g_max`, raised where the medium would be under 1 mean
+    /// free path deep (`lucent_render::tracer::SIMILAR_LATER_MIN_DEPTH`).
     pub g: [f64; 3],
 }
 
