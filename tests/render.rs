@@ -652,6 +652,29 @@ fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
 }
 
 /// The scene with a small sun has its own reference and Mitsuba timings,
+/// `lucent bench render --time-s`: the estimators side by side on a scene
+/// that holds the similar medium's floor for its first events (its own
+/// row), where the exact rows used to keep `similarity_floor_events`
+/// without `similarity_g` and refuse the scene.
+#[test]
+fn bench_render_estimators_side_by_side_on_a_scene_with_the_floor_events() {
+    let tmp = tempfile::tempdir().unwrap();
+    let demo = std::fs::read_to_string(root().join("fixtures/render/demo.toml")).unwrap();
+    let fixtures = root().join("fixtures");
+    let scene = demo
+        .replace("width = 640", "width = 8")
+        .replace("height = 480", "height = 6")
+        .replace("\"../", &format!("\"{}/", fixtures.display()))
+        .replace("similarity_g = 0.0", "similarity_g = 0.0\nsimilarity_floor_events = 16");
+    assert!(scene.contains("similarity_floor_events = 16") && scene.contains("width = 8"));
+    let path = tmp.path().join("small.toml");
+    std::fs::write(&path, scene).unwrap();
+    let o = lucent(&["bench", "render", "--scene", path.to_str().unwrap(), "--time-s", "0.05"]);
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("depth floor for 16 events") && out.contains("previous"), "{out}");
+}
+
 /// found by the scene file's name; a scene without a reference is refused
 /// with the missing file named.
 #[test]

@@ -798,6 +798,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     // approximations are rows of their own.
     let exact = |f: &mut scene::SceneFile| {
         f.render.similarity_g = None;
+        f.render.similarity_floor_events = None;
         if let Some(m) = f.material.as_mut() {
             m.dispersion = None;
         }
@@ -815,30 +816,40 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     type Configure = fn(&mut Settings);
     let shared = |s: &mut Settings| s.dispersion = tracer::Dispersion::SharedDirections;
     let object_weighted = |s: &mut Settings| s.sampling = tracer::Sampling::ObjectWeighted;
-    // (name, settings, mean index, similarity g_max, environment sampled by
-    // luminance alone rather than weighted towards the board's normal)
+    // (name, settings, mean index, similarity g_max and the events its
+    // depth floor holds for, environment sampled by luminance alone rather
+    // than weighted towards the board's normal)
     let chains = |s: &mut Settings| s.specular_chains = true;
     let jumps = |s: &mut Settings| {
         s.specular_chains = true;
         s.sphere_jumps = true;
     };
-    let configurations: [(&'static str, Configure, bool, Option<f64>, bool); 11] = [
+    type Similar = Option<(f64, Option<u64>)>;
+    let similar = Some((0.0, None));
+    let configurations: [(&'static str, Configure, bool, Similar, bool); 12] = [
         ("previous", |s| s.phase_connection = false, false, None, true),
         ("default (+ phase connection)", |_| {}, false, None, false),
         ("default + splitting at entry", |s| s.split_entry = true, false, None, false),
         ("default + shared dispersion", shared, false, None, false),
         ("default + object-weighted", object_weighted, false, None, false),
         ("mean index", |_| {}, true, None, false),
-        ("similar g′ ≤ 0.5, mean index", |_| {}, true, Some(0.5), false),
-        ("similar g′ ≤ 0, mean index", |_| {}, true, Some(0.0), false),
-        ("similar g′ ≤ 0, mean index, + specular chains", chains, true, Some(0.0), false),
-        ("similar g′ ≤ 0, mean index, + chains + sphere jumps", jumps, true, Some(0.0), false),
+        ("similar g′ ≤ 0.5, mean index", |_| {}, true, Some((0.5, None)), false),
+        ("similar g′ ≤ 0, mean index", |_| {}, true, similar, false),
+        ("similar g′ ≤ 0, mean index, + specular chains", chains, true, similar, false),
+        ("similar g′ ≤ 0, mean index, + chains + sphere jumps", jumps, true, similar, false),
         (
             "similar g′ ≤ 0, mean index, + chains + jumps, luminance-only environment sampling",
             jumps,
             true,
-            Some(0.0),
+            similar,
             true,
+        ),
+        (
+            "similar g′ ≤ 0, mean index, + chains + jumps, depth floor for 16 events",
+            jumps,
+            true,
+            Some((0.0, Some(16))),
+            false,
         ),
     ];
     // The first estimator runs for `time_s`; the others render the samples
@@ -854,11 +865,11 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             Some(spp) => Settings { spp, time_budget_s: None, ..loaded.settings.clone() },
         };
         configure(&mut settings);
-        if let Some(g) = similarity_g {
+        if let Some((g, floor_events)) = similarity_g {
             if loaded.scene.object.is_none() {
                 continue;
             }
-            scene::apply_similarity(&mut loaded, g, None)?;
+            scene::apply_similarity(&mut loaded, g, floor_events)?;
         }
         let cpu0 = process_cpu_s();
         let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
