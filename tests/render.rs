@@ -390,8 +390,11 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
     assert!(!m.dispersion);
     let similar = m.similar.as_ref().expect("similarity_g = 0 in demo.toml");
     assert_eq!(similar.g_max, 0.0);
-    // The floor holds for the whole walk (no similarity_floor_events).
-    assert!(similar.later.is_none() && loaded.scene.object.as_ref().unwrap().later().is_none());
+    // The floor holds for the first 16 events (similarity_floor_events),
+    // then the walk goes on in g′ = 0 (the plaque is over 1 mean free path deep).
+    let later = similar.later.as_ref().expect("demo.toml holds the floor for 16 events");
+    assert_eq!(later.from_event, 16);
+    assert_eq!(later.g, [0.0; 3]);
     let object = loaded.scene.object.as_ref().expect("object");
     for b in 0..3 {
         // g′ is 0 unless the 3-mean-free-path floor raises it (μs(1 − g) d ≈ 2.5 here: up to ≈ 0.2).
@@ -407,10 +410,15 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
 
 /// `[render] similarity_floor_events`: the demo plaque's floor (g′ ≈ 0.2)
 /// holds for 16 events, then the walk goes on in the similar medium of
-/// `similarity_g = 0`; render.json's summary lists both media.
+/// `similarity_g = 0`; render.json's summary lists both media. Without
+/// the key the floor holds for the whole walk.
 #[test]
 fn similarity_floor_events_hands_the_walk_to_the_asked_for_medium() {
-    let loaded = scene::load_edited(&root().join("fixtures/render/demo.toml"), false, |f| {
+    let demo = root().join("fixtures/render/demo.toml");
+    let held = scene::load_edited(&demo, false, |f| f.render.similarity_floor_events = None).unwrap();
+    assert!(held.scene.object.as_ref().unwrap().later().is_none());
+    assert!(held.summary.material.as_ref().unwrap().similar.as_ref().unwrap().later.is_none());
+    let loaded = scene::load_edited(&demo, false, |f| {
         f.render.similarity_floor_events = Some(16);
     })
     .unwrap();
@@ -652,10 +660,10 @@ fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
 }
 
 /// The scene with a small sun has its own reference and Mitsuba timings,
-/// `lucent bench render --time-s`: the estimators side by side on a scene
-/// that holds the similar medium's floor for its first events (its own
-/// row), where the exact rows used to keep `similarity_floor_events`
-/// without `similarity_g` and refuse the scene.
+/// `lucent bench render --time-s`: the estimators side by side on demo.toml
+/// (made 8 × 6 px), which holds the similar medium's floor for its first
+/// events (a row of its own), where the exact rows used to keep
+/// `similarity_floor_events` without `similarity_g` and refuse the scene.
 #[test]
 fn bench_render_estimators_side_by_side_on_a_scene_with_the_floor_events() {
     let tmp = tempfile::tempdir().unwrap();
@@ -664,8 +672,7 @@ fn bench_render_estimators_side_by_side_on_a_scene_with_the_floor_events() {
     let scene = demo
         .replace("width = 640", "width = 8")
         .replace("height = 480", "height = 6")
-        .replace("\"../", &format!("\"{}/", fixtures.display()))
-        .replace("similarity_g = 0.0", "similarity_g = 0.0\nsimilarity_floor_events = 16");
+        .replace("\"../", &format!("\"{}/", fixtures.display()));
     assert!(scene.contains("similarity_floor_events = 16") && scene.contains("width = 8"));
     let path = tmp.path().join("small.toml");
     std::fs::write(&path, scene).unwrap();
