@@ -342,7 +342,7 @@ impl Object {
                 .fold(0.0_f64, f64::max)
                 .min(0.999)
         };
-        let floor = floor_for(SIMILAR_MIN_DEPTH);
+        let g_first = g_max.max(floor_for(SIMILAR_MIN_DEPTH));
         let similar_media = |g: f64| -> Result<[Medium; 3], SceneError> {
             let mut media = self.medium.clone();
             for (band, m) in media.iter_mut().enumerate() {
@@ -350,15 +350,15 @@ impl Object {
             }
             Ok(media)
         };
-        let g_later = g_max.max(floor_for(SIMILAR_LATER_MIN_DEPTH));
-        let later = match floor_events {
-            Some(from) if g_later < g_max.max(floor) => {
-                let media = similar_media(g_later)?;
+        let g_later = floor_events.map(|from| (from, g_max.max(floor_for(SIMILAR_LATER_MIN_DEPTH))));
+        let later = match g_later {
+            Some((from, g)) if g < g_first => {
+                let media = similar_media(g)?;
                 Some((from, Box::new(Object::new(self.accel.clone(), self.interface.clone(), media)?)))
             }
             _ => None,
         };
-        let media = similar_media(g_max.max(floor))?;
+        let media = similar_media(g_first)?;
         Ok(Object { later, ..Object::new(self.accel, self.interface, media)? })
     }
 
@@ -1474,7 +1474,6 @@ fn trace_path(
                 break;
             };
             let obj = obj0.walked_after(events);
-            let spheres = sphere_tables(obj, settings);
             let bc = &obj.bands;
             let sigma_t = bc.sigma_t[h];
             let s = -(1.0 - rng.next_f64()).ln() / sigma_t;
@@ -1657,7 +1656,7 @@ fn trace_path(
                     // Phase sampling, the flights, a reflection, refraction; in outside
                     // solid angle: dω_i/dω_o = cos θ_o / (n² cos θ_i).
                     stretch_jacobian = d.dot(n_out) / (eta * eta * cos_i);
-                    let density = match (vertex.and_then(|v| v.sphere), spheres) {
+                    let density = match (vertex.and_then(|v| v.sphere), sphere_tables(obj, settings)) {
                         (Some(j), Some(t)) => t.given_scattered(j, stretch_mu).1[h] / TAU,
                         _ => obj.medium[h].phase.eval(stretch_mu),
                     };

@@ -998,16 +998,21 @@ pub fn apply_similarity(
         Some(events) => object.similar_floored_for(g_max, events)?,
         None => object.similar(g_max)?,
     };
-    let media = &similar.medium;
+    // μs′ and g′ per band of an object's medium.
+    let walked = |o: &lucent_render::tracer::Object| {
+        let mu_s: [f64; 3] = std::array::from_fn(|b| o.medium[b].mu_s_per_m);
+        let g: [f64; 3] = std::array::from_fn(|b| o.medium[b].phase.mean_cosine());
+        (mu_s, g)
+    };
     if let Some(m) = loaded.summary.material.as_mut() {
+        let (mu_s_per_m, g) = walked(&similar);
         m.similar = Some(SimilarSummary {
             g_max,
-            mu_s_per_m: std::array::from_fn(|b| media[b].mu_s_per_m),
-            g: std::array::from_fn(|b| media[b].phase.mean_cosine()),
-            later: similar.later().map(|(from_event, later)| LaterSimilar {
-                from_event,
-                mu_s_per_m: std::array::from_fn(|b| later.medium[b].mu_s_per_m),
-                g: std::array::from_fn(|b| later.medium[b].phase.mean_cosine()),
+            mu_s_per_m,
+            g,
+            later: similar.later().map(|(from_event, later)| {
+                let (mu_s_per_m, g) = walked(later);
+                LaterSimilar { from_event, mu_s_per_m, g }
             }),
         });
     }
