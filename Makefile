@@ -26,6 +26,7 @@ demo: build
 test: deps $(VENV)/.requirements
 	$(CARGO) fmt --all --check
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
+	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --workspace --no-deps
 	$(CARGO) test --workspace
 	rm -rf $(TARGET_DIR)/python-test
 	mkdir -p $(TARGET_DIR)/python-test

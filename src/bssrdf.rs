@@ -99,7 +99,7 @@ impl Grid {
         &self.values[r * self.size..(r + 1) * self.size]
     }
 
-    /// x [mm] of each column centre.
+    /// x \[mm\] of each column centre.
     pub fn x_mm(&self) -> Vec<f64> {
         (0..self.size).map(|c| (c as f64 + 0.5 - 0.5 * self.size as f64) * self.pixel_m * 1e3).collect()
     }

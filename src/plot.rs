@@ -486,7 +486,7 @@ const RESIDUAL_LEGEND_W: u32 = 280;
 /// the overall RMS as a circle (named in the title and the legend); middle,
 /// the legend (one row per view: its colour, name and RMS); right, the RMS
 /// of each view as a bar.
-/// Each view has its own colour ([`distinct_colours`]).
+/// Each view has its own colour (`distinct_colours`).
 pub fn residuals_png(views: &[(String, Vec<[f64; 2]>)], rms_px: f64) -> Result<Vec<u8>, PlotError> {
     if views.is_empty() || views.iter().any(|(_, r)| r.is_empty()) {
         return Err(PlotError::Input { plot: "the residual plot", need: "at least one view with residuals" });
@@ -697,7 +697,7 @@ pub(crate) fn overlay_scale(width: usize) -> (usize, usize) {
 }
 
 /// The photo of a chart (8-bit sRGB, `width × height`, interleaved R, G, B)
-/// at a legible size ([`overlay_scale`]), each sampled square outlined in
+/// at a legible size (`overlay_scale`), each sampled square outlined in
 /// magenta (corners in image pixels) and numbered 1, 2, … at its centre.
 pub fn patch_overlay_png(
     width: usize,

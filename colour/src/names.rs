@@ -2,7 +2,7 @@
 //! crate (illuminants, observers, colour spaces, adaptation transforms,
 //! colour-correction methods). Each such enum lists its spellings once, in
 //! strum attributes: `to_string` is its name (written in files and
-//! messages), `serialize` the other spellings read. [`named!`] derives from
+//! messages), `serialize` the other spellings read. The `named!` macro derives from
 //! that list its `FromStr` (any spelling, compared in [`canonical_name`]
 //! form; an unknown name's error lists the valid ones) and its serde form
 //! (written as the name, read as `FromStr` reads). A leaf module (no

@@ -1,6 +1,11 @@
 //! The `lucent` command line: argument parsing and orchestration only; the
 //! work is done by the library modules.
 
+// The doc comments of the argument structs are clap's `--help` text, which
+// prints them verbatim: `[render]` there names a scene file's TOML table
+// and `<scene>` a placeholder, not an intra-doc link or an HTML tag.
+#![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
+
 pub mod bssrdf;
 pub mod camera;
 pub mod choices;

@@ -517,7 +517,7 @@ pub struct SsimAtZeroNoise {
     pub definition: String,
     /// SSIM(P, R) of the whole render, as measured, over the same pixels.
     pub ssim: f64,
-    /// The estimate of SSIM(P, E[R]), the render without its noise.
+    /// The estimate of SSIM(P, E\[R\]), the render without its noise.
     pub at_zero_noise: f64,
     /// 95 % moving-block bootstrap interval of `at_zero_noise`.
     pub ci95: [f64; 2],

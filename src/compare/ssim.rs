@@ -399,7 +399,7 @@ pub fn ssim<P: Plane, Q: Plane>(x: &P, y: &Q, params: &SsimParams, mask: Option<
 /// expectation, independent noise), all `width × height` f64 planes. The
 /// window moments that noise biases are replaced by unbiased ones from the
 /// pair: μ_y² by μ_a μ_b and σ_y² by ⟨ab⟩ − μ_a μ_b (for independent noise
-/// E[a b] = E[a] E[b] pixel by pixel), while μ_y and σ_xy come from
+/// E\[a b\] = E\[a\] E\[b\] pixel by pixel), while μ_y and σ_xy come from
 /// y = (a + b)/2 (noise independent of x leaves them unbiased). The
 /// remaining bias is that of a ratio of unbiased estimates, which shrinks
 /// with the window's effective number of pixels (≈ 4πσ² = 28). Same window,

@@ -383,7 +383,7 @@ pub struct Problem {
     /// Search bounds per free parameter (natural units); default: start/10 …
     /// start·10 (real index: start/1.2 … start·1.2).
     pub bounds: Vec<Option<(f64, f64)>>,
-    /// Slab thickness [m] (default: the recipe's).
+    /// Slab thickness \[m\] (default: the recipe's).
     pub thickness_m: f64,
     /// Width of the final golden-section bracket in ln p.
     pub x_tol: f64,

@@ -441,7 +441,7 @@ impl Riccati for [Complex64; 2] {
     }
 }
 
-/// Below this |x|, ψ_n(x) comes from its power series ([`psi_series`])
+/// Below this |x|, ψ_n(x) comes from its power series (`psi_series`)
 /// instead of the upward recurrence (see the module doc, "Small spheres").
 pub const SERIES_BELOW: f64 = 1.0;
 
@@ -795,7 +795,7 @@ impl PairSums {
     }
 }
 
-/// Power absorbed inside a sphere, as a cross section [m²]: sphere radius
+/// Power absorbed inside a sphere, as a cross section \[m²\]: sphere radius
 /// `radius_m`, particle index `n_particle`, host index `n_host` (either may
 /// absorb), vacuum wavelength `wavelength_m`; relative to the intensity of
 /// the incident wave at the sphere's centre, I₀ = ½ Re(n_h) c ε₀ |E₀|².
@@ -1100,7 +1100,7 @@ impl Coefficients {
         Efficiencies { qext, qsca, qabs: qext - qsca, qback: t.backscatter.norm_sqr() / x2, g: t.g() }
     }
 
-    /// Scattering and extinction cross sections [m²] and g of a sphere of
+    /// Scattering and extinction cross sections \[m²\] and g of a sphere of
     /// radius `radius_m` in a host of index `n_host` at vacuum wavelength
     /// `wavelength_m` (Frisvad et al. 2007; the coefficients must have been
     /// computed for these): C_s with the attenuation factor F(α), g from the

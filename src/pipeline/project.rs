@@ -274,7 +274,7 @@ pub struct Project {
     /// The output folder the file asks for (None: the caller's default).
     pub out: Option<PathBuf>,
     pub file: ProjectFile,
-    /// θi/θo pairs of [bssrdf] configs.
+    /// θi/θo pairs of `[bssrdf]` configs.
     pub bssrdf_configs: Vec<(f64, f64)>,
     /// The validated `[executor]` (local, one shard, without one).
     pub executor: super::executor::Executor,
