@@ -148,6 +148,17 @@ fn bad_scene_files_are_refused_with_reasons() {
                 "needs [render] similarity_g",
             ],
         ),
+        (
+            "similarity_floor_events_negative.toml",
+            &[
+                "similarity_floor_events_negative.toml",
+                "line 13",
+                "[render] similarity_floor_events",
+                "-3",
+                "expected a whole number ≥ 0",
+            ],
+        ),
+        ("fractional_height.toml", &["fractional_height.toml", "line 3", "[camera] height", "6.5", "whole number"]),
         ("bad_sampling.toml", &["bad_sampling.toml", "adaptive"]),
         ("huge_index.toml", &["huge_index.toml", "band 1", "1000000", "[1, 10]"]),
         ("zero_transform.toml", &["[object] transform", "last row", "determinant 0"]),

@@ -83,11 +83,10 @@ pub enum ProjectError {
     #[error("{path}: cannot read project file: {source}")]
     Read { path: PathBuf, source: std::io::Error },
     /// Not valid TOML, or a key the format does not have: the parser's
-    /// message, with the 1-based line and column it points at. The parser's
-    /// error is kept but not returned as the source: its own text repeats the
-    /// location with a snippet of the file.
-    #[error("{path}:{}{}", crate::scene::location(*line, *column), error.message().trim_end())]
-    Toml { path: PathBuf, line: Option<usize>, column: Option<usize>, error: Box<toml::de::Error> },
+    /// message led by the key it concerns, with the 1-based line and column
+    /// it points at.
+    #[error("{path}:{}{message}", crate::scene::location(*line, *column))]
+    Toml { path: PathBuf, line: Option<usize>, column: Option<usize>, message: String },
     #[error("{path}: {key}: {reason}")]
     Key { path: PathBuf, key: String, reason: String },
     /// Several keys with values out of range, each with its reason.
@@ -490,7 +489,12 @@ impl Project {
             crate::io::read_text(path).map_err(|source| ProjectError::Read { path: path.to_path_buf(), source })?;
         let file: ProjectFile = toml::from_str(&text).map_err(|error: toml::de::Error| {
             let (line, column) = crate::scene::line_column(&text, error.span());
-            ProjectError::Toml { path: path.to_path_buf(), line, column, error: Box::new(error) }
+            ProjectError::Toml {
+                path: path.to_path_buf(),
+                line,
+                column,
+                message: crate::scene::toml_message(&text, &error),
+            }
         })?;
         Self::build(file, path)
     }

@@ -710,8 +710,47 @@ impl Ctx<'_> {
 pub fn parse(text: &str, path: &Path) -> Result<SceneFile, SceneFileError> {
     toml::from_str(text).map_err(|e: toml::de::Error| {
         let (line, column) = line_column(text, e.span());
-        SceneFileError::Syntax { path: path.to_path_buf(), line, column, message: e.message().trim_end().to_string() }
+        SceneFileError::Syntax { path: path.to_path_buf(), line, column, message: toml_message(text, &e) }
     })
+}
+
+/// A TOML parser's message for `text`, led by the key it concerns
+/// ("[render] spp: …") where the error's line assigns one and the message
+/// does not name it, with serde's type names in words ("expected u64" →
+/// "expected a whole number ≥ 0").
+pub(crate) fn toml_message(text: &str, e: &toml::de::Error) -> String {
+    let mut message = e.message().trim_end().to_string();
+    for (rust, words) in [
+        ("expected u8", "expected a whole number ≥ 0"),
+        ("expected u16", "expected a whole number ≥ 0"),
+        ("expected u32", "expected a whole number ≥ 0"),
+        ("expected u64", "expected a whole number ≥ 0"),
+        ("expected usize", "expected a whole number ≥ 0"),
+        ("expected i64", "expected a whole number"),
+        ("expected f64", "expected a number"),
+    ] {
+        if let Some(rest) = message.strip_suffix(rust) {
+            message = format!("{rest}{words}");
+        }
+    }
+    let Some(start) = e.span().map(|s| s.start) else { return message };
+    let before = text.get(..start).unwrap_or(text);
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let line = text[line_start..].lines().next().unwrap_or("").trim_start();
+    let key: String = line.chars().take_while(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.')).collect();
+    if key.is_empty() || !line[key.len()..].trim_start().starts_with('=') || message.contains(key.as_str()) {
+        return message;
+    }
+    let section = before[..line_start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('['))
+        .and_then(|l| l.find(']').map(|end| l[..=end].trim_end_matches(']').to_string() + "]"));
+    match section {
+        Some(s) => format!("{s} {key}: {message}"),
+        None => format!("{key}: {message}"),
+    }
 }
 
 /// The 1-based line and column (in characters) where a TOML parser's error
