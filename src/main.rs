@@ -1,7 +1,6 @@
 //! The `lucent` binary: parses arguments, runs, prints the whole error chain
 //! once and exits non-zero on failure.
 
-use clap::Parser;
 use lucent::fault::Fault;
 
 fn main() -> std::process::ExitCode {
@@ -33,7 +32,7 @@ fn main() -> std::process::ExitCode {
     }));
     // Ctrl-C while a file is being written removes its temporary file.
     lucent::io::remove_temporaries_on_interrupt();
-    let cli = lucent::cli::Cli::parse();
+    let cli = lucent::cli::Cli::parse_args();
     // The exit code says who is at fault (`lucent --help` lists them); a
     // panic is a bug: its report, then the internal class's code.
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| lucent::cli::run(cli))) {

@@ -162,3 +162,42 @@ fn bad_recipes_give_one_line_errors_naming_file_and_key() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("380"), "{}", stderr(&o));
 }
+
+/// A negative number after a space is the flag's value (`--time-s -1`, as
+/// people type it), not an unknown flag: the flag's own check names it and
+/// its range, and a negative value that is valid (`--exposure -2`) works.
+#[test]
+fn negative_numbers_after_a_space_reach_the_flags_check() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let out = out.to_str().unwrap();
+    let scene = "fixtures/render/demo.toml";
+    for (flag, value, needles) in [
+        ("--time-s", "-1", &["--time-s -1", "> 0"][..]),
+        ("--target-rel-error", "-0.5", &["--target-rel-error -0.5", "between 0 and 1"][..]),
+        ("--similarity-g", "-0.5", &["--similarity-g -0.5", "[0, 1)"][..]),
+        ("--spp", "-4", &["--spp", "-4"][..]),
+    ] {
+        let o = lucent(&["render", scene, flag, value, "--size", "8x6", "--quiet", "--out", out]);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{flag} {value} was accepted");
+        assert!(!err.contains("unexpected argument"), "{flag} {value}: {err}");
+        for n in needles {
+            assert!(err.contains(n), "{flag} {value}: {err:?} lacks {n:?}");
+        }
+    }
+    let o = lucent(&["render", scene, "--exposure", "-2", "--size", "8x6", "--spp", "1", "--quiet", "--out", out]);
+    assert!(o.status.success(), "--exposure -2: {}", stderr(&o));
+    let o = lucent(&[
+        "mie",
+        "--radius-um",
+        "-1",
+        "--wavelength-nm",
+        "550",
+        "--host-index",
+        "1.5",
+        "--particle-index",
+        "1.4",
+    ]);
+    assert!(!o.status.success() && stderr(&o).contains("--radius-um"), "mie: {}", stderr(&o));
+}

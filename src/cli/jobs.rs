@@ -11,7 +11,6 @@ use crate::job::{
     BssrdfCompareJob, BssrdfJob, CalibrateJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, FitJob,
     Job, JobError, OpticsJob, PoseJob, RawClippedJob, RenderJob,
 };
-use clap::Parser;
 
 /// The job of a parsed command, when it is one a pipeline stage runs (a
 /// `bssrdf` run needs a `--recipe` to be one).
@@ -51,7 +50,7 @@ pub fn job_of(command: &Command) -> Option<Job> {
 
 /// Parses a `lucent` command line (without the program name) into its job.
 pub fn parse_job(args: &[String]) -> anyhow::Result<Job> {
-    let cli = Cli::try_parse_from(std::iter::once("lucent".to_string()).chain(args.iter().cloned()))?;
+    let cli = Cli::try_parse_args(std::iter::once("lucent".to_string()).chain(args.iter().cloned()))?;
     job_of(&cli.command).ok_or_else(|| anyhow::anyhow!("`lucent {}` is not a job of a pipeline stage", args.join(" ")))
 }
 

@@ -35,6 +35,35 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// Every option that takes a value, in `cmd` and its subcommands, also
+/// takes a negative number after a space (`--time-s -1`): the command's own
+/// check then names the flag and its valid range, where clap would read
+/// `-1` as an unknown flag ("unexpected argument '-1'").
+fn negative_numbers(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| if a.get_action().takes_values() { a.allow_negative_numbers(true) } else { a })
+        .mut_subcommands(negative_numbers)
+}
+
+impl Cli {
+    /// Parses a command line (program name first), negative numbers
+    /// included ([`negative_numbers`]).
+    pub fn try_parse_args<I, T>(args: I) -> Result<Self, clap::Error>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<std::ffi::OsString> + Clone,
+    {
+        use clap::{CommandFactory, FromArgMatches};
+        let matches = negative_numbers(Self::command()).try_get_matches_from(args)?;
+        Self::from_arg_matches(&matches)
+    }
+
+    /// [`Cli::try_parse_args`] of the process's arguments; on an error,
+    /// clap's message and exit code 2 (help and version exit 0).
+    pub fn parse_args() -> Self {
+        Self::try_parse_args(std::env::args_os()).unwrap_or_else(|e| e.exit())
+    }
+}
+
 #[derive(Debug, Parser)]
 #[command(name = "lucent", version, about = "Digital twins of translucent objects", after_help = crate::fault::EXIT_CODES)]
 pub struct Cli {

@@ -13,7 +13,7 @@
 
 use crate::shard::{self, Identity};
 use anyhow::{bail, Context, Result};
-use clap::{Args, Parser};
+use clap::Args;
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
@@ -148,7 +148,7 @@ pub fn merge(a: MergeArgs) -> Result<()> {
     if id.command != "optics" {
         argv.push("--quiet".to_string());
     }
-    let cli = super::Cli::try_parse_from(&argv).with_context(|| {
+    let cli = super::Cli::try_parse_args(&argv).with_context(|| {
         format!("{}: cannot parse its command line", shards[0].dir.join(shard::SHARD_JSON).display())
     })?;
     match cli.command {
