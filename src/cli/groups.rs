@@ -90,7 +90,7 @@ pub struct TwinRenderArgs {
     /// Image size WIDTHxHEIGHT instead of the camera's (the intrinsics are scaled to match).
     #[arg(long)]
     pub size: Option<String>,
-    /// Worker threads (default: all cores).
+    /// Worker threads (default, and 0: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
 }
