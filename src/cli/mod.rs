@@ -46,7 +46,7 @@ fn negative_numbers(cmd: clap::Command) -> clap::Command {
 
 impl Cli {
     /// Parses a command line (program name first), negative numbers
-    /// included ([`negative_numbers`]).
+    /// included: every option that takes a value takes one too.
     pub fn try_parse_args<I, T>(args: I) -> Result<Self, clap::Error>
     where
         I: IntoIterator<Item = T>,
