@@ -358,7 +358,7 @@ fn project_runs_skips_reruns_fails_and_reports() {
 #[test]
 fn bad_projects_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
-    let cases: [(&str, &[&str]); 8] = [
+    let cases: [(&str, &[&str]); 9] = [
         (
             "[calibration]\nimages = \"b*.png\"\nboard = \"9x6\"\nsquare_mm = 25\ntruth = \"x.toml\"\n",
             &["[calibration] truth", "x.toml", "camera.json"],
@@ -370,6 +370,10 @@ fn bad_projects_are_refused() {
         ("[bssrdf]\nconfigs = \"45-0\"\npaths = 10\n", &["configs", "45-0"]),
         ("[bssrdf]\nconfigs = \"45/0\"\n", &["stop rule"]),
         ("[bssrdf]\nconfigs = \"45-0\"\npaths = -10\n", &["line 3", "[bssrdf] paths", "whole number ≥ 0"]),
+        (
+            "[[sample]] # one sample\nname = \"a\"\nrecipe = \"x.toml\"\nweight_percent = \"x\"\n",
+            &["line 4", "[[sample]] weight_percent", "expected a number"],
+        ),
     ];
     std::fs::write(tmp.path().join("x.toml"), "").unwrap();
     for (k, (text, needles)) in cases.iter().enumerate() {

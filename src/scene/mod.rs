@@ -720,17 +720,15 @@ pub fn parse(text: &str, path: &Path) -> Result<SceneFile, SceneFileError> {
 /// "expected a whole number ≥ 0").
 pub(crate) fn toml_message(text: &str, e: &toml::de::Error) -> String {
     let mut message = e.message().trim_end().to_string();
-    for (rust, words) in [
-        ("expected u8", "expected a whole number ≥ 0"),
-        ("expected u16", "expected a whole number ≥ 0"),
-        ("expected u32", "expected a whole number ≥ 0"),
-        ("expected u64", "expected a whole number ≥ 0"),
-        ("expected usize", "expected a whole number ≥ 0"),
-        ("expected i64", "expected a whole number"),
-        ("expected f64", "expected a number"),
-    ] {
-        if let Some(rest) = message.strip_suffix(rust) {
-            message = format!("{rest}{words}");
+    if let Some((rest, rust)) = message.rsplit_once("expected ") {
+        let words = match rust {
+            "u8" | "u16" | "u32" | "u64" | "usize" => Some("a whole number ≥ 0"),
+            "i64" => Some("a whole number"),
+            "f64" => Some("a number"),
+            _ => None,
+        };
+        if let Some(words) = words {
+            message = format!("{rest}expected {words}");
         }
     }
     let Some(start) = e.span().map(|s| s.start) else { return message };
@@ -741,12 +739,12 @@ pub(crate) fn toml_message(text: &str, e: &toml::de::Error) -> String {
     if key.is_empty() || !line[key.len()..].trim_start().starts_with('=') || message.contains(key.as_str()) {
         return message;
     }
+    // The last table header above the line, without a trailing comment.
     let section = before[..line_start]
         .lines()
         .rev()
-        .map(str::trim)
-        .find(|l| l.starts_with('['))
-        .and_then(|l| l.find(']').map(|end| l[..=end].trim_end_matches(']').to_string() + "]"));
+        .map(|l| l.split('#').next().unwrap_or("").trim())
+        .find(|l| l.starts_with('['));
     match section {
         Some(s) => format!("{s} {key}: {message}"),
         None => format!("{key}: {message}"),
