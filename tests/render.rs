@@ -670,7 +670,6 @@ fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
     );
 }
 
-/// The scene with a small sun has its own reference and Mitsuba timings,
 /// `lucent bench render --time-s`: the estimators side by side on demo.toml
 /// (made 8 × 6 px), which holds the similar medium's floor for its first
 /// events (a row of its own), where the exact rows used to keep
@@ -693,6 +692,7 @@ fn bench_render_estimators_side_by_side_on_a_scene_with_the_floor_events() {
     assert!(out.contains("depth floor for 16 events") && out.contains("previous"), "{out}");
 }
 
+/// The scene with a small sun has its own reference and Mitsuba timings,
 /// found by the scene file's name; a scene without a reference is refused
 /// with the missing file named.
 #[test]
