@@ -374,6 +374,39 @@ fn cli_writes_exr_png_json() {
     assert!(json["relative_std_error"]["object"]["median"].as_f64().unwrap() <= 0.3, "{json}");
     assert!(json["spp"].as_u64().unwrap() < 100_000);
     assert_eq!(json["target_rel_error"], 0.3);
+    // The target is the object's: without a sampling given, the samples go there.
+    assert_eq!(json["sampling"], "object-weighted", "{json}");
+}
+
+/// An error target weights the samples towards the object unless a
+/// sampling is given, by flag or by the scene file; without a target they
+/// are uniform.
+#[test]
+fn an_error_target_weights_the_samples_towards_the_object_unless_told_otherwise() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = root().join("fixtures/render/plaque_dense.toml");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    assert!(!text.contains("sampling"), "plaque_dense.toml gives no sampling");
+    // The same scene (it names no file) with `sampling = "uniform"` in its [render] table.
+    let keyed = tmp.path().join("keyed.toml");
+    assert!(text.contains("\n[render]\n") && !text.contains("\"../"));
+    std::fs::write(&keyed, text.replace("\n[render]\n", "\n[render]\nsampling = \"uniform\"\n")).unwrap();
+    let sampling = |file: &std::path::Path, extra: &[&str], tag: &str| -> String {
+        let out = tmp.path().join(tag);
+        let mut args = vec!["render", file.to_str().unwrap(), "--spp", "8", "--size", "16x12", "--quiet"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--out", out.to_str().unwrap()]);
+        let o = lucent(&args);
+        assert!(o.status.success(), "{tag}: {}", String::from_utf8_lossy(&o.stderr));
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+        json["sampling"].as_str().unwrap_or_default().to_string()
+    };
+    let target = ["--target-rel-error", "0.01"];
+    assert_eq!(sampling(&scene, &[], "none"), "uniform");
+    assert_eq!(sampling(&scene, &target, "target"), "object-weighted");
+    assert_eq!(sampling(&scene, &[&target[..], &["--sampling", "uniform"]].concat(), "flag"), "uniform");
+    assert_eq!(sampling(&keyed, &target, "key"), "uniform");
 }
 
 #[test]

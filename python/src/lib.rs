@@ -629,7 +629,8 @@ fn run_interruptible<T: Send>(
 /// random streams; size: "WIDTHxHEIGHT" instead of the camera's (intrinsics
 /// scaled); threads: worker threads (default all cores); target_rel_error:
 /// stop when the median relative standard error over the object's pixels
-/// reaches this fraction; sampling: "uniform" or "object-weighted";
+/// reaches this fraction; sampling: "uniform" or "object-weighted" (default:
+/// object-weighted with an error target, else uniform);
 /// dispersion: "per-band" or "shared-directions"; split_entry: follow both
 /// reflection and refraction where a path enters the object; similarity_g:
 /// walk the object's similar medium with phase asymmetry this, raised (the

@@ -44,7 +44,8 @@ pub struct RenderArgs {
     #[arg(long)]
     pub target_rel_error: Option<f64>,
     /// How samples are spread over the pixels (overrides [render] sampling):
-    /// object-weighted (the object's pixels get what their error needs) or uniform.
+    /// object-weighted (the object's pixels get what their error needs) or
+    /// uniform. Default: object-weighted with an error target, else uniform.
     #[arg(long, value_enum)]
     pub sampling: Option<SamplingArg>,
     /// Refraction where the bands' indices differ: per-band (exact, default:
@@ -269,7 +270,9 @@ fn prepare_with(a: &RenderArgs, for_merge: bool) -> Result<(scene::LoadedScene, 
     if !a.exposure.is_finite() {
         bail!("--exposure must be finite");
     }
+    let mut file_sampling = None;
     let mut loaded = scene::load_edited(&a.scene, for_merge, |file| {
+        file_sampling = file.render.sampling;
         if a.similarity_g.is_some() {
             file.render.similarity_g = a.similarity_g;
         }
@@ -296,6 +299,9 @@ fn prepare_with(a: &RenderArgs, for_merge: bool) -> Result<(scene::LoadedScene, 
     }
     if let Some(s) = a.sampling {
         settings.sampling = s.into();
+    } else if file_sampling.is_none() && settings.target_rel_error.is_some() {
+        // The error target is the object's: unless told otherwise, the samples go there.
+        settings.sampling = tracer::Sampling::ObjectWeighted;
     }
     Ok((loaded, settings))
 }

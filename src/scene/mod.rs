@@ -48,7 +48,8 @@
 //! # phase_connections = true     (with medium_connections: also connect along the phase function's directions)
 //! # specular_chains = false      (true: also connect through one reflection at a face, and from the board through or off the object; fewer bright outliers, ≈ 12–20 % more time)
 //! # sphere_jumps = false         (true: deep inside an isotropically scattering object, jump through tabulated spheres; diffusive media)
-//! # sampling = "uniform"          # (default) every pixel gets spp; "object-weighted": the object's pixels more
+//! # sampling = "uniform"          # every pixel gets spp; "object-weighted": the object's pixels more
+//! #                               # (default: object-weighted with an error target, else uniform)
 //! # target_rel_error = 0.05       # stop when the object's median relative standard error reaches 5 %
 //! ```
 //!
@@ -429,8 +430,10 @@ pub struct RenderSection {
     /// Jump through tabulated spheres deep inside an object that scatters
     /// isotropically in every band (default false).
     pub sphere_jumps: Option<bool>,
-    /// "uniform" (default: every pixel `spp`) or "object-weighted" (the
-    /// object's pixels get the samples their error needs).
+    /// "uniform" (every pixel `spp`) or "object-weighted" (the object's
+    /// pixels get the samples their error needs). Default: object-weighted
+    /// when the render stops on an error target (this file's or
+    /// `--target-rel-error`), else uniform.
     pub sampling: Option<SamplingKey>,
     /// Stop when the median relative standard error over the object's pixels reaches this fraction.
     pub target_rel_error: Option<f64>,
