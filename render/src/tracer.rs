@@ -1960,17 +1960,13 @@ fn distance_to_planes(planes: &[(DVec3, f64)], x: DVec3) -> f64 {
 /// plaque is as far from a useful face as from the top.
 #[inline]
 fn distance_to_lit_planes(planes: &[(DVec3, f64)], x: DVec3, facing: Option<DVec3>) -> f64 {
-    let d = planes
+    // (A bounded convex object has a face with n·facing > 0, so some plane
+    // always passes the filter.)
+    planes
         .iter()
         .filter(|(n, _)| facing.is_none_or(|f| n.dot(f) > -0.5))
         .map(|(n, c)| (c - n.dot(x)).max(0.0))
-        .fold(f64::INFINITY, f64::min);
-    // (A convex object has a face on every side: the filter never leaves none.)
-    if d.is_finite() {
-        d
-    } else {
-        distance_to_planes(planes, x)
-    }
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// The default [`Settings::sphere_margin_mfp`]: a sphere jump leaves at
