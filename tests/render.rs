@@ -743,3 +743,105 @@ fn bench_render_takes_the_reference_named_after_the_scene() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("demo_mean.exr") && err.contains("no Mitsuba reference"), "{err}");
 }
+
+/// A small translucent box on a board under a constant sky, whose
+/// `[render]` table is `render` (no `spp` unless it says so).
+fn small_box_scene(render: &str) -> String {
+    format!(
+        "[camera]\nwidth = 16\nheight = 12\nposition_m = [0.0, -0.2, 0.15]\nlook_at_m = [0.0, 0.0, 0.0]\n\
+         up = [0.0, 0.0, 1.0]\nvertical_fov_deg = 30.0\n\n[object]\nsize_mm = [60.0, 60.0, 10.0]\n\n[material]\n\
+         sigma_s_per_m = [200.0, 200.0, 200.0]\nsigma_a_per_m = [5.0, 5.0, 5.0]\ng = [0.0, 0.0, 0.0]\n\
+         n = [1.5, 1.5, 1.5]\nphase = \"hg\"\n\n[board]\norigin_m = [-0.1, -0.1, 0.0]\nsquare_mm = 20.0\n\
+         columns = 10\nrows = 10\neven = [0.8, 0.8, 0.8]\nodd = [0.1, 0.1, 0.1]\n\n[environment]\n\
+         constant = [1.0, 1.0, 1.0]\n\n[render]\n{render}\n"
+    )
+}
+
+#[test]
+fn a_render_without_spp_stops_at_the_default_error_target_and_says_how_long() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("s.toml");
+    std::fs::write(&scene, small_box_scene("seed = 3")).unwrap();
+    let out = tmp.path().join("r");
+    let o = lucent(&["render", scene.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("until the object's median error per pixel is 5.0 % (no spp given)"), "{err}");
+    assert!(err.contains("expect ≈") && err.contains("to 5.0 % on the object"), "{err}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    assert_eq!(json["target_rel_error"].as_f64(), Some(0.05));
+    assert_eq!(json["sampling"].as_str(), Some("object-weighted"));
+    let median = json["relative_std_error"]["object"]["median"].as_f64().unwrap();
+    assert!(median <= 0.05, "stopped at {median}");
+    // More samples than the old default of 64 were needed, and none of the advice for a short run.
+    assert!(json["spp"].as_u64().unwrap() > 64, "{}", json["spp"]);
+    assert!(!err.contains("short of the"), "{err}");
+    // An exact render names no approximation.
+    assert!(json.get("approximations").is_none(), "{}", json["approximations"]);
+    // With spp in the file, exactly that many samples and no target.
+    std::fs::write(&scene, small_box_scene("spp = 8")).unwrap();
+    let o = lucent(&["render", scene.to_str().unwrap(), "--quiet", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success());
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    assert!(json["target_rel_error"].is_null() && json["spp"].as_u64() == Some(8), "{json}");
+}
+
+#[test]
+fn a_time_budget_short_of_the_target_says_what_would_reach_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("s.toml");
+    std::fs::write(&scene, small_box_scene("seed = 3")).unwrap();
+    let out = tmp.path().join("r");
+    let o = lucent(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--target-rel-error",
+        "0.0005",
+        "--time-s",
+        "1",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let advice = err.lines().find(|l| l.contains("short of the 0.1 % target")).unwrap_or_else(|| panic!("{err}"));
+    assert!(advice.contains("--time-s") && advice.contains("similarity_g"), "{advice}");
+    // The time it names is the square law from where it stopped.
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    let (now, wall) =
+        (json["relative_std_error"]["object"]["median"].as_f64().unwrap(), json["wall_s"].as_f64().unwrap());
+    let need = (wall * (now / 0.0005).powi(2)).ceil();
+    assert!(advice.contains(&format!("--time-s {need:.0}")), "{advice} (expected {need})");
+}
+
+#[test]
+fn the_similar_medium_is_named_with_its_measured_bias_in_render_json() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("r");
+    let demo = root().join("fixtures/render/demo.toml");
+    let o = lucent(&[
+        "render",
+        demo.to_str().unwrap(),
+        "--spp",
+        "1",
+        "--size",
+        "16x12",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    let approx: Vec<&str> = json["approximations"].as_array().unwrap().iter().filter_map(|v| v.as_str()).collect();
+    let similar = approx.iter().find(|a| a.starts_with("similar medium")).unwrap_or_else(|| panic!("{approx:?}"));
+    // The interior's figure (not the whole plaque's +1.0 / +1.0 / +1.6 % of before).
+    assert!(similar.contains("+2.6 / +2.3 / +2.6 %") && similar.contains("interior"), "{similar}");
+    assert!(approx.iter().any(|a| a.contains("dispersion = false")), "{approx:?}");
+    assert!(err.contains("note: approximation: similar medium"), "{err}");
+}

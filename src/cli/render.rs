@@ -271,8 +271,10 @@ fn prepare_with(a: &RenderArgs, for_merge: bool) -> Result<(scene::LoadedScene, 
         bail!("--exposure must be finite");
     }
     let mut file_sampling = None;
+    let mut file_spp = false;
     let mut loaded = scene::load_edited(&a.scene, for_merge, |file| {
         file_sampling = file.render.sampling;
+        file_spp = file.render.spp.is_some();
         if a.similarity_g.is_some() {
             file.render.similarity_g = a.similarity_g;
         }
@@ -297,6 +299,14 @@ fn prepare_with(a: &RenderArgs, for_merge: bool) -> Result<(scene::LoadedScene, 
     if let Some(e) = a.target_rel_error {
         settings.target_rel_error = Some(check_rel_error("--target-rel-error", e)?);
     }
+    // A render that names no sample budget and no error target (a
+    // newcomer's first) stops at the default error target on the object,
+    // with a sample cap so high that the target or the time budget ends it.
+    // An error target without a sample budget is likewise not capped.
+    if !file_spp && a.render.spp.is_none() && a.shard.is_none() && !for_merge {
+        settings.target_rel_error.get_or_insert(DEFAULT_TARGET_REL_ERROR);
+        settings.spp = DEFAULT_SPP_CAP;
+    }
     if let Some(s) = a.sampling {
         settings.sampling = s.into();
     } else if file_sampling.is_none() && settings.target_rel_error.is_some() {
@@ -304,6 +314,58 @@ fn prepare_with(a: &RenderArgs, for_merge: bool) -> Result<(scene::LoadedScene, 
         settings.sampling = tracer::Sampling::ObjectWeighted;
     }
     Ok((loaded, settings))
+}
+
+/// The error target of a render that names neither a sample budget nor a
+/// target: the median relative standard error per pixel over the
+/// object's pixels.
+pub const DEFAULT_TARGET_REL_ERROR: f64 = 0.05;
+
+/// The sample cap of such a render (per object pixel): high enough that
+/// the target or a time budget ends it.
+pub const DEFAULT_SPP_CAP: u32 = 1 << 20;
+
+/// Seconds to reach the object's `target` median error from `now` after
+/// `elapsed_s` (the error falls as 1/√samples, so the time grows as its
+/// square): the estimate `lucent render` prints after its first pass.
+pub fn time_to_target_s(elapsed_s: f64, now: f64, target: f64) -> Option<f64> {
+    (now > 0.0 && target > 0.0 && elapsed_s > 0.0).then(|| elapsed_s * (now / target).powi(2))
+}
+
+/// What a render that stopped short of its error target could do instead:
+/// the time it would need, or a smaller image, or the similar medium.
+pub fn advice_short_of_target(elapsed_s: f64, now: f64, target: f64, width: usize, height: usize) -> String {
+    let need = time_to_target_s(elapsed_s, now, target).unwrap_or(f64::INFINITY);
+    // The time per pixel stays: a k × k smaller image reaches the target k² times sooner.
+    let side = (need / elapsed_s.max(1e-9)).sqrt().ceil().max(2.0) as usize;
+    let smaller = if side <= 4 {
+        format!(", or ≈ {:.0} s at {}×{} (--size)", elapsed_s, (width / side).max(1), (height / side).max(1))
+    } else {
+        String::new()
+    };
+    format!(
+        "the object reached {:.1} % in {:.0} s, short of the {:.1} % target: it needs ≈ {} at this size \
+         (--time-s {:.0}){smaller}; the similar medium ([render] similarity_g = 0) is far faster on a \
+         forward-scattering object but an approximation with a bias (docs/method.md#render-similarity)",
+        100.0 * now,
+        elapsed_s,
+        100.0 * target,
+        duration(need),
+        need.ceil(),
+    )
+}
+
+/// "95 s", "12 min", "3.4 h".
+fn duration(s: f64) -> String {
+    if !s.is_finite() {
+        "an unknown time".into()
+    } else if s < 120.0 {
+        format!("{s:.0} s")
+    } else if s < 7200.0 {
+        format!("{:.0} min", s / 60.0)
+    } else {
+        format!("{:.1} h", s / 3600.0)
+    }
 }
 
 /// Runs `lucent render`.
@@ -342,19 +404,42 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     let pool = a.render.pool()?;
     let threads = pool.current_num_threads();
     let (w, h) = (loaded.scene.camera.width, loaded.scene.camera.height);
+    let target = settings.target_rel_error;
+    for line in scene::approximations(&loaded.summary, &settings) {
+        eprintln!("note: approximation: {line}");
+    }
     if !a.quiet {
+        let budget = match target {
+            Some(e) if settings.spp == DEFAULT_SPP_CAP => {
+                format!("until the object's median error per pixel is {:.1} % (no spp given)", 100.0 * e)
+            }
+            Some(e) => format!("up to {} spp, until the object's median error is {:.1} %", settings.spp, 100.0 * e),
+            None => format!("{} spp", settings.spp),
+        };
         eprintln!(
-            "rendering {} at {w}×{h}, {} spp{}, {threads} threads",
+            "rendering {} at {w}×{h}, {budget}{}, {threads} threads",
             a.scene.display(),
-            settings.spp,
             settings.time_budget_s.map(|t| format!(" (at most {t} s)")).unwrap_or_default()
         );
     }
-    let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(u64::from(settings.spp)) };
+    // An error target's bar counts towards the target, in 0.1 % of error²
+    // reduction; a sample budget's counts samples.
+    let bar = if a.quiet {
+        ProgressBar::hidden()
+    } else if target.is_some() {
+        ProgressBar::new(1000)
+    } else {
+        ProgressBar::new(u64::from(settings.spp))
+    };
     bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} spp  {msg}  ETA {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(if target.is_some() {
+            "{bar:40} {elapsed_precise}  {msg}"
+        } else {
+            "{bar:40} {pos}/{len} spp  {msg}  ETA {eta}"
+        })
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    let mut estimated = false;
     if let Some((k, n)) = shard {
         let range = crate::shard::range(u64::from(settings.spp), k, n);
         let identity = super::shard::identity(settings.seed, format!("{} spp", settings.spp), n)?;
@@ -393,7 +478,34 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
                 &loaded.scene,
                 &settings,
                 &mut |p| {
-                    bar.set_position(u64::from(p.spp_done));
+                    match target {
+                        Some(e) if p.errors.object.pixels > 0 && p.errors.object.median > 0.0 => {
+                            // Fraction of the way in error² (∝ time), and once the first pass tells, the expected time.
+                            let now = p.errors.object.median;
+                            let frac = (e / now).powi(2).min(1.0);
+                            bar.set_position((1000.0 * frac) as u64);
+                            if !estimated && now > e {
+                                estimated = true;
+                                if let Some(t) = time_to_target_s(p.elapsed_s, now, e) {
+                                    let over = settings.time_budget_s.is_some_and(|b| t > b);
+                                    let line = format!(
+                                        "expect ≈ {} to {:.1} % on the object ({:.1} % after {} spp in {:.1} s){}",
+                                        duration(t),
+                                        100.0 * e,
+                                        100.0 * now,
+                                        p.spp_done,
+                                        p.elapsed_s,
+                                        if over { "; beyond the time budget" } else { "" }
+                                    );
+                                    // Printed whether or not the bar is drawn (a log file gets it too).
+                                    if !a.quiet {
+                                        bar.suspend(|| eprintln!("{line}"));
+                                    }
+                                }
+                            }
+                        }
+                        _ => bar.set_position(u64::from(p.spp_done)),
+                    }
                     bar.set_message(format!(
                         "object {:.1} % (p90 {:.1} %), board {:.1} %, {:.1} M events/s",
                         100.0 * p.errors.object.median,
@@ -438,6 +550,22 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         stats.events as f64 / stats.wall_s.max(1e-9) / 1e6,
     );
     println!("relative standard error per pixel, median (90th, 99th percentile): {}", describe_errors(&e));
+    if let Some(t) = settings.target_rel_error
+        && e.object.pixels > 0
+        && e.object.median > t
+        && !interrupted
+    {
+        if report.spp >= settings.spp {
+            eprintln!(
+                "warning: the object reached {:.1} % at the sample budget of {} spp (--spp or [render] spp), short of the {:.1} % target",
+                100.0 * e.object.median,
+                settings.spp,
+                100.0 * t
+            );
+        } else {
+            eprintln!("warning: {}", advice_short_of_target(report.wall_s, e.object.median, t, w, h));
+        }
+    }
     println!("wrote {}/render.exr, render.png, render.json", a.out.display());
     if interrupted {
         return Err(Interrupted(format!(
@@ -591,6 +719,7 @@ fn report(
         exposure_stops_png: exposure,
         files: files.to_vec(),
         interrupted: false,
+        approximations: scene::approximations(summary, settings),
     }
 }
 
