@@ -551,7 +551,7 @@ pub fn approximations(summary: &SceneSummary, settings: &lucent_render::tracer::
             let [r, g, b] = SIMILAR_BIAS_DEMO_INTERIOR_PERCENT;
             out.push(format!(
                 "similar medium (similarity_g = {}, g′ walked {:.2}/{:.2}/{:.2}): biased; on the demo plaque's \
-                 interior (IOL1068-09, studio.exr) {r:+.1} / {g:+.1} / {b:+.1} % (R / G / B) against the exact walk, \
+                 interior (IOL1068-09, studio.exr) {r:+.2} / {g:+.2} / {b:+.2} % (R / G / B) against the exact walk, \
                  the board +0.01 % (docs/method.md#render-similarity)",
                 s.g_max, s.g[0], s.g[1], s.g[2]
             ));
