@@ -107,7 +107,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub pixel_rel_error: Option<f64>,
     /// Stop after this many light paths.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::job::parse_paths)]
     pub paths: Option<u64>,
     /// Stop after this many seconds.
     #[arg(long)]
@@ -162,7 +162,7 @@ fn read_slice_shard(path: &Path, npix: usize) -> Result<crate::shard::Arrays> {
     Ok(arrays)
 }
 
-fn write_slice_shard(path: &Path, t: &slab::SliceSums) -> Result<()> {
+fn write_slice_shard(path: &Path, meta: &crate::shard::AccMeta, t: &slab::SliceSums) -> Result<()> {
     let scalars = [
         t.path_sum,
         t.path_sq,
@@ -173,8 +173,9 @@ fn write_slice_shard(path: &Path, t: &slab::SliceSums) -> Result<()> {
         t.paths as f64,
         t.wall_s,
     ];
-    crate::shard::write_accumulator(
+    crate::shard::write_shard_accumulator(
         path,
+        meta,
         &[("sum_b", &t.sum_b), ("sq_b", &t.sq_b), ("raw", &t.raw), ("scalars", &scalars)],
     )?;
     Ok(())
@@ -466,6 +467,7 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
     if let Some((k, n)) = shard {
         let range = crate::shard::range(total_batches, k, n);
         let identity = super::shard::identity(a.seed, format!("{} paths", a.paths.unwrap_or(0)), n)?;
+        super::shard::check_shard_out(&a.out, &identity, k)?;
         // A second Ctrl-C or SIGTERM ends the process: the staging folder goes with it.
         let _remove_on_abort = super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out));
         let stage = crate::io::StagedDir::new(&a.out)?;
@@ -486,7 +488,8 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
                 );
             }
             wall_s += t.wall_s;
-            write_slice_shard(&stage.path().join(shard_acc(i)), &t)?;
+            let meta = crate::shard::AccMeta::new(&identity, k, &range, &Default::default());
+            write_slice_shard(&stage.path().join(shard_acc(i)), &meta, &t)?;
             accumulators.push(shard_acc(i));
         }
         drop(interrupt);
@@ -499,6 +502,8 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             wall_s,
         };
         crate::io::write_json(&stage.path().join(crate::shard::SHARD_JSON), &file)?;
+        // Another shard may have finished into the same folder meanwhile.
+        super::shard::check_shard_out(&a.out, &file.identity, k)?;
         stage.commit(|n| n == crate::shard::SHARD_JSON || (n.starts_with("slice-") && n.ends_with(".acc")))?;
         println!(
             "shard {k}/{n}: path batches {}..{} of {total_batches} in {wall_s:.1} s → {}",
@@ -691,6 +696,14 @@ fn compare(a: CompareArgs) -> Result<()> {
     let measured = bssrdf::read_grid(&a.measured, a.measured_pixel_mm)?;
     let sim_path = simulated_path(&a.simulated);
     let simulated = bssrdf::read_grid(&sim_path, None)?;
+    // The measured slice must be of the simulated one's wavelength and
+    // configuration (as the simulation's summary.json says), and not negative.
+    let sim = bssrdf::sidecar_of(&sim_path)?;
+    let sim_angles = sim.as_ref().and_then(|s| match (s.theta_i_deg, s.phi_i_deg, s.theta_o_deg, s.phi_o_deg) {
+        (Some(ti), Some(pi), Some(to), Some(po)) => Some((ti, pi, to, po)),
+        _ => None,
+    });
+    bssrdf::check_measured(&a.measured, &measured, sim.as_ref().and_then(|s| s.wavelength_nm), sim_angles)?;
     let (c, rel) = bssrdf::compare(&measured, &simulated, a.threshold)
         .map_err(|e| anyhow!("{} vs {}: {e}", a.measured.display(), sim_path.display()))?;
     // Written into a staging folder and moved into --out only when all three
