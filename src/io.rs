@@ -140,6 +140,9 @@ pub fn create_folder(dir: &Path) -> std::io::Result<()> {
 /// [`create_folder`] for callers already holding the shared lock (a second
 /// shared lock of the same thread could deadlock behind a waiting freeze).
 fn create_folder_unlocked(dir: &Path) -> std::io::Result<()> {
+    if let Some(problem) = dir.ancestors().filter(|a| !a.as_os_str().is_empty()).find_map(broken_link) {
+        return Err(std::io::Error::new(std::io::ErrorKind::NotFound, problem));
+    }
     if let Some(file) = dir.ancestors().find(|a| !a.as_os_str().is_empty() && a.exists() && !a.is_dir()) {
         return Err(std::io::Error::new(
             std::io::ErrorKind::NotADirectory,
@@ -147,6 +150,24 @@ fn create_folder_unlocked(dir: &Path) -> std::io::Result<()> {
         ));
     }
     std::fs::create_dir_all(dir)
+}
+
+/// What is wrong with `path` when it is a symbolic link that leads nowhere:
+/// a loop of links, or a link to something that does not exist (`None`
+/// for anything else).
+pub fn broken_link(path: &Path) -> Option<String> {
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    if !meta.file_type().is_symlink() {
+        return None;
+    }
+    let err = std::fs::metadata(path).err()?;
+    #[cfg(unix)]
+    if err.raw_os_error() == Some(libc::ELOOP) {
+        return Some(format!("{} is a loop of symbolic links (it leads back to itself)", path.display()));
+    }
+    let _ = err;
+    let target = std::fs::read_link(path).map(|t| t.display().to_string()).unwrap_or_else(|_| "?".into());
+    Some(format!("{} is a symbolic link to {target}, which does not exist", path.display()))
 }
 
 /// The hidden file that marks a folder as lucent's output folder
@@ -158,6 +179,9 @@ pub const OUTPUT_MARK: &str = ".lucent-output";
 pub enum OutputFolderError {
     #[error("{path}: the output folder exists and is not a folder")]
     NotAFolder { path: PathBuf },
+    /// A dangling symbolic link or a loop of links where the output folder goes.
+    #[error("{problem}; lucent does not write through it — create the folder it should lead to, or choose another output folder")]
+    BrokenLink { problem: String },
     #[error(
         "{path}: the output folder already holds files lucent did not write ({example} …); lucent writes only into a \
          new or empty folder, or one an earlier lucent run wrote — choose another output folder"
@@ -186,8 +210,12 @@ pub enum OutputFolderError {
 /// ```
 pub fn check_output_folder(dir: &Path) -> Result<(), OutputFolderError> {
     let Ok(meta) = std::fs::metadata(dir) else {
+        // A dangling link (writing through it would land elsewhere) or a
+        // loop of links, here or in a folder above.
+        if let Some(problem) = dir.ancestors().filter(|a| !a.as_os_str().is_empty()).find_map(broken_link) {
+            return Err(OutputFolderError::BrokenLink { problem });
+        }
         return match std::fs::symlink_metadata(dir) {
-            // A dangling link: writing through it would land elsewhere.
             Ok(_) => Err(OutputFolderError::NotAFolder { path: dir.to_path_buf() }),
             Err(_) => Ok(()),
         };
@@ -357,7 +385,7 @@ impl Drop for StagedDir {
 /// hidden half-written file (an 86 MB `.x.exr.tmp` of `raw decode`).
 /// [`remove_temporaries_on_interrupt`] installs the handler (the binary does
 /// at start): it unlinks the files registered at that moment, then ends the
-/// process with exit status 130 (interrupted), for SIGTERM as for SIGINT. Up to 32 files being written at
+/// process with exit status 130 (interrupted), for SIGTERM and SIGHUP as for SIGINT. Up to 32 files being written at
 /// once are tracked; the handler only reads atomics and fixed buffers and
 /// calls `unlink` and `_exit` (async-signal-safe).
 pub fn remove_temporaries_on_interrupt() {
@@ -483,8 +511,37 @@ mod interrupt {
             let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
             libc::signal(libc::SIGINT, handler);
             libc::signal(libc::SIGTERM, handler);
+            // A closed terminal (SIGHUP) is a stop request like SIGTERM.
+            libc::signal(libc::SIGHUP, handler);
         }
     }
+}
+
+/// Where `path` leads: symbolic links followed (a dangling one to its
+/// target), `.` and `..` resolved, also when the path, or the end of it,
+/// does not exist yet (the existing part canonical, the rest appended).
+/// A symbolic-link loop is left as spelled after 40 links.
+pub fn resolved(path: &Path) -> PathBuf {
+    let mut p = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    for _ in 0..40 {
+        if let Ok(c) = std::fs::canonicalize(&p) {
+            return c;
+        }
+        match std::fs::read_link(&p) {
+            Ok(target) => {
+                p = match p.parent() {
+                    Some(parent) => parent.join(target),
+                    None => target,
+                };
+                continue;
+            }
+            Err(_) => {
+                let (Some(parent), Some(name)) = (p.parent(), p.file_name()) else { return p };
+                return resolved(parent).join(name);
+            }
+        }
+    }
+    p
 }
 
 /// The same file however its path is spelled (links, `./`, `..`): the
