@@ -72,8 +72,8 @@ pub enum SliceProblem {
     Sidecar(#[source] serde_json::Error),
     #[error("cannot read: {0}")]
     Read(#[source] std::io::Error),
-    #[error("line {line}: {source}")]
-    Number { line: usize, source: std::num::ParseFloatError },
+    #[error("line {line}: {token:?} is not a number ({source}) in {text:?}{hint}")]
+    Number { line: usize, token: String, text: String, hint: &'static str, source: std::num::ParseFloatError },
     #[error("line {line} has {values} values, the first row {first}")]
     RowLength { line: usize, values: usize, first: usize },
     #[error("no data rows")]
@@ -280,18 +280,36 @@ pub fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
 
 fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> {
     let text = crate::io::read_text(path).map_err(|e| invalid(path, SliceProblem::Read(e)))?;
+    // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first number.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     let mut rows: Vec<Vec<f64>> = Vec::new();
     for (k, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let row: Result<Vec<f64>, _> = line
-            .split(|c: char| c == ',' || c.is_whitespace())
-            .filter(|s| !s.is_empty())
-            .map(str::parse::<f64>)
-            .collect();
-        let row = row.map_err(|e| invalid(path, SliceProblem::Number { line: k + 1, source: e }))?;
+        let mut row = Vec::new();
+        for token in line.split(|c: char| c == ',' || c.is_whitespace()).filter(|s| !s.is_empty()) {
+            let v = token.parse::<f64>().map_err(|source| {
+                let shown: String = line.chars().take(80).collect();
+                let hint = if line.contains(';') {
+                    ": values are separated by commas or spaces, not semicolons (a spreadsheet's export setting)"
+                } else {
+                    ""
+                };
+                invalid(
+                    path,
+                    SliceProblem::Number {
+                        line: k + 1,
+                        token: token.chars().take(40).collect(),
+                        text: if line.chars().count() > 80 { format!("{shown}…") } else { shown },
+                        hint,
+                        source,
+                    },
+                )
+            })?;
+            row.push(v);
+        }
         if let Some(first) = rows.first()
             && row.len() != first.len()
         {

@@ -180,7 +180,7 @@ pub enum OutputFolderError {
     #[error("{path}: the output folder exists and is not a folder")]
     NotAFolder { path: PathBuf },
     /// A dangling symbolic link or a loop of links where the output folder goes.
-    #[error("{problem}; lucent does not write through it — create the folder it should lead to, or choose another output folder")]
+    #[error("{problem}; lucent does not write through it — fix or remove the link, or choose another output folder")]
     BrokenLink { problem: String },
     #[error(
         "{path}: the output folder already holds files lucent did not write ({example} …); lucent writes only into a \
@@ -189,6 +189,105 @@ pub enum OutputFolderError {
     Foreign { path: PathBuf, example: String },
     #[error("{path}: cannot create the output folder: {source}")]
     Create { path: PathBuf, source: std::io::Error },
+    /// Another run holds the folder's lock ([`lock_output_folder`]).
+    #[error(
+        "{path}: another lucent run (pid {pid} on {host}) is writing into this output folder ({lock}); wait for it \
+         to end, or choose another output folder"
+    )]
+    Locked { path: PathBuf, lock: PathBuf, pid: u32, host: String },
+}
+
+/// The lock file of an output folder while a run writes into it.
+pub const OUTPUT_LOCK: &str = ".lucent-lock";
+
+/// An output folder's lock, held while a run writes into it (the lock
+/// file is removed when this is dropped).
+#[derive(Debug)]
+pub struct OutputLock {
+    path: PathBuf,
+    /// A stale lock of an ended run that this one replaced (its pid and host).
+    pub replaced_stale: Option<(u32, String)>,
+}
+
+impl Drop for OutputLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+fn host_name() -> String {
+    #[cfg(unix)]
+    {
+        let mut buf = [0u8; 256];
+        // SAFETY: gethostname writes at most buf.len() bytes into buf.
+        if unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) } == 0 {
+            let end = buf.iter().position(|b| *b == 0).unwrap_or(buf.len());
+            return String::from_utf8_lossy(&buf[..end]).into_owned();
+        }
+    }
+    "unknown host".into()
+}
+
+/// Whether process `pid` of this host is alive.
+fn alive(pid: u32) -> bool {
+    #[cfg(unix)]
+    {
+        let Ok(pid) = libc::pid_t::try_from(pid) else { return false };
+        // SAFETY: kill with signal 0 only checks that the process exists.
+        let r = unsafe { libc::kill(pid, 0) };
+        r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = pid;
+        true
+    }
+}
+
+/// Takes the advisory lock of output folder `dir` (which exists) for a run:
+/// [`OUTPUT_LOCK`] with this process's pid and host, made exclusively. A
+/// lock held by a live process is [`OutputFolderError::Locked`]; one whose
+/// process has ended on this host (a run killed with SIGKILL, a power cut)
+/// is stale and replaced, and said so in [`OutputLock::replaced_stale`]. A
+/// lock of another host is taken as held (its process cannot be checked).
+pub fn lock_output_folder(dir: &Path) -> Result<OutputLock, OutputFolderError> {
+    let path = dir.join(OUTPUT_LOCK);
+    let host = host_name();
+    let me = format!("{} {}\n", std::process::id(), host);
+    let mut replaced_stale = None;
+    for _ in 0..3 {
+        match std::fs::OpenOptions::new().write(true).create_new(true).open(&path) {
+            Ok(mut f) => {
+                let _ = f.write_all(me.as_bytes());
+                return Ok(OutputLock { path, replaced_stale });
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                let text = std::fs::read_to_string(&path).unwrap_or_default();
+                let mut words = text.split_whitespace();
+                let pid: Option<u32> = words.next().and_then(|w| w.parse().ok());
+                let holder: String = words.collect::<Vec<_>>().join(" ");
+                match pid {
+                    Some(pid) if holder != host || alive(pid) => {
+                        return Err(OutputFolderError::Locked {
+                            path: dir.to_path_buf(),
+                            lock: path,
+                            pid,
+                            host: holder,
+                        });
+                    }
+                    _ => {
+                        replaced_stale = Some((pid.unwrap_or(0), holder));
+                        let _ = std::fs::remove_file(&path);
+                    }
+                }
+            }
+            Err(source) => return Err(OutputFolderError::Create { path: dir.to_path_buf(), source }),
+        }
+    }
+    Err(OutputFolderError::Create {
+        path: dir.to_path_buf(),
+        source: std::io::Error::other(format!("{}: cannot take the lock", path.display())),
+    })
 }
 
 /// Whether lucent may write into `dir` as an output folder (it is not

@@ -242,6 +242,17 @@ impl BssrdfJob {
         if !(1..=MAX_SLICE_PIXELS).contains(&self.pixels) {
             return Err(bad("pixels", self.pixels, format!("must lie in 1 … {MAX_SLICE_PIXELS}")));
         }
+        if self.pixel_mm * self.crop.unwrap_or(self.pixels) as f64 > 1000.0 {
+            return Err(bad(
+                "pixel_mm",
+                self.pixel_mm,
+                format!(
+                    "the slice ({} pixels × {} mm) must be at most 1000 mm (1 m) wide",
+                    self.crop.unwrap_or(self.pixels),
+                    self.pixel_mm
+                ),
+            ));
+        }
         if let Some(c) = self.crop
             && !(1..=self.pixels).contains(&c)
         {

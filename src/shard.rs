@@ -235,8 +235,7 @@ fn write_accumulator_with(
 pub fn read_accumulator(path: &Path) -> Result<Arrays, ShardError> {
     let bytes = std::fs::read(path).map_err(|source| ShardError::Read { path: path.to_path_buf(), source })?;
     let corrupt = |why: &str| ShardError::Corrupt { path: path.to_path_buf(), why: why.to_string() };
-    if bytes.len() < MAGIC.len() + 4 + 32 || (&bytes[..MAGIC.len()] != MAGIC && &bytes[..MAGIC.len()] != MAGIC_SHARD)
-    {
+    if bytes.len() < MAGIC.len() + 4 + 32 || (&bytes[..MAGIC.len()] != MAGIC && &bytes[..MAGIC.len()] != MAGIC_SHARD) {
         return Err(corrupt("not a lucent accumulator (wrong header or too short)"));
     }
     let (body, digest) = bytes.split_at(bytes.len() - 32);

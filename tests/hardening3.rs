@@ -122,9 +122,22 @@ fn data_loss_reruns_keep_the_users_files_in_stage_folders() {
     assert_eq!(std::fs::read_to_string(&yours).unwrap(), "the user's edit");
     assert_ne!(std::fs::read_to_string(d.join("o/optics").join(&edited)).unwrap(), "the user's edit");
     assert!(stderr(&o).contains(&format!("{edited}.yours")), "{}", stderr(&o));
+    // A second run into a folder a live run holds is refused clearly; a stale lock is replaced.
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default().trim().to_string();
+    std::fs::write(d.join("o/.lucent-lock"), format!("{} {host}\n", std::process::id())).unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o", "--force", "optics"]);
+    refused(&o, &["another lucent run", &format!("pid {}", std::process::id()), ".lucent-lock"], "a locked folder");
+    assert!(!stderr(&o).contains("did not write"), "{}", stderr(&o));
+    std::fs::write(d.join("o/.lucent-lock"), format!("999999999 {host}\n")).unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o", "--force", "optics"]);
+    ok(&o, "a stale lock");
+    assert!(stderr(&o).contains("stale lock"), "{}", stderr(&o));
+    assert!(!d.join("o/.lucent-lock").exists(), "the run left its lock");
     // No hidden previous result is left behind.
-    let names: Vec<String> =
-        std::fs::read_dir(d.join("o")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let names: Vec<String> = std::fs::read_dir(d.join("o"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
     assert!(names.iter().all(|n| !n.contains("previous")), "{names:?}");
 }
 
@@ -206,7 +219,8 @@ fn signals_sighup_is_handled_like_sigterm() {
     // A render: the finished passes are written as a labelled partial render.
     let out = d.join("r");
     let scene = root().join("fixtures/render/plaque_dense.toml");
-    let args = ["render", scene.to_str().unwrap(), "--spp", "1000000", "--size", "32x24", "--out", out.to_str().unwrap()];
+    let args =
+        ["render", scene.to_str().unwrap(), "--spp", "1000000", "--size", "32x24", "--out", out.to_str().unwrap()];
     let (status, text) = crate::common::signal_n_after(&args, "rendering", 1, libc::SIGHUP);
     assert_eq!(status.code(), Some(130), "SIGHUP during a render: {text}");
     assert!(text.contains("SIGHUP"), "no message: {text}");
@@ -309,18 +323,7 @@ fn shards_merge_only_what_belongs_to_the_run() {
     let b1 = d.join("b1");
     let o = lucent_in(
         &root(),
-        &[
-            "render",
-            "--seed=3",
-            SCENE,
-            "--shard=1/2",
-            "--spp=6",
-            "--out",
-            &s(&b1),
-            "--size",
-            "12x9",
-            "--quiet",
-        ],
+        &["render", "--seed=3", SCENE, "--shard=1/2", "--spp=6", "--out", &s(&b1), "--size", "12x9", "--quiet"],
     );
     ok(&o, "shard 1 (b), respelled");
     let o = merge(d, &[&b0, &b1], &d.join("bm"));
@@ -363,8 +366,11 @@ fn measured_slices_carry_their_metadata() {
     let d = tmp.path();
     let recipe = s(&root().join("fixtures/samples/IOL1068-09.toml"));
     slice(d, "m.csv", 101.0);
-    std::fs::write(d.join("m.csv.json"), r#"{"pixel_mm": 0.2, "wavelength_nm": 650, "theta_i_deg": 45, "theta_o_deg": 0}"#)
-        .unwrap();
+    std::fs::write(
+        d.join("m.csv.json"),
+        r#"{"pixel_mm": 0.2, "wavelength_nm": 650, "theta_i_deg": 45, "theta_o_deg": 0}"#,
+    )
+    .unwrap();
     let o = lucent_within(d, &fit_args(&recipe, "m.csv:45/0", &["--wavelength", "550"]), 60);
     refused(&o, &["m.csv.json", "650 nm", "550 nm"], "a 650 nm slice fitted at 550 nm");
     let o = lucent_within(d, &fit_args(&recipe, "m.csv:30/0", &["--wavelength", "650"]), 60);
@@ -395,7 +401,14 @@ fn write_render_with_variance(path: &Path, w: usize, h: usize, value: f32, varia
         path,
         w,
         h,
-        &[("R", &plane), ("G", &plane), ("B", &plane), ("variance.R", &var), ("variance.G", &var), ("variance.B", &var)],
+        &[
+            ("R", &plane),
+            ("G", &plane),
+            ("B", &plane),
+            ("variance.R", &var),
+            ("variance.G", &var),
+            ("variance.B", &var),
+        ],
     )
     .unwrap();
 }
@@ -430,10 +443,11 @@ fn photo_variance_is_checked_against_the_photo() {
     refused(&compare("nan.exr", "c3"), &["nan.exr", "finite"], "NaN variance");
     write_exr(&d.join("small.exr"), w / 2, h / 2, 1e-6);
     refused(&compare("small.exr", "c4"), &["small.exr", "32 × 24"], "variance of another size");
-    // The render's radiance given as the photo's variance: a warning, named.
-    let o = compare("render.exr", "c5");
+    // A radiance image (a render's R, G, B without variance layers) given as the photo's variance: a warning, named.
+    write_exr(&d.join("radiance.exr"), w, h, 0.5);
+    let o = compare("radiance.exr", "c5");
     ok(&o, "radiance as variance");
-    assert!(stderr(&o).contains("warning") && stderr(&o).contains("render.exr"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("warning") && stderr(&o).contains("radiance.exr"), "{}", stderr(&o));
     for out in ["c1", "c2", "c3", "c4"] {
         assert!(!d.join(out).exists(), "a refused compare wrote {out}");
     }
@@ -462,7 +476,61 @@ fn misleading_links_and_silently_taken_values_are_named() {
     refused(&o, &["transform_mirror.toml", "transform", "mirrors"], "a mirroring transform");
     let o = lucent_in(d, &["render", &s(&bad.join("nonsense/transform_vanishing.toml")), "--out", "r"]);
     refused(&o, &["transform_vanishing.toml", "transform", "vanish"], "a vanishing transform");
-    let o = lucent_in(d, &["optics", &s(&bad.join("index/formula_half_pair.toml")), "--wavelength", "550", "--out", "x"]);
+    let o =
+        lucent_in(d, &["optics", &s(&bad.join("index/formula_half_pair.toml")), "--wavelength", "550", "--out", "x"]);
     refused(&o, &["formula_half_pair.yml", "formula 2", "pairs"], "formula 2 with 2 coefficients");
-    assert!(!d.join("r").exists() && !d.join("x").exists());
+    // A CSV slice: a bad line is shown with its text; a UTF-8 byte-order mark is read past.
+    let o = lucent_in(
+        d,
+        &["bssrdf", "--mu-s", "1000", "--mu-a", "1", "--g", "0.8", "--n", "1.5", "--pixels", "9", "--paths", "100"]
+            .into_iter()
+            .chain(["--pixel-mm", "0.1", "--quiet", "--out", "sim"])
+            .collect::<Vec<_>>(),
+    );
+    ok(&o, "a simulated slice");
+    let row = vec!["1"; 9].join(",");
+    std::fs::write(d.join("bom.csv"), format!("\u{feff}{}\n", vec![row.as_str(); 9].join("\n"))).unwrap();
+    let o = lucent_in(
+        d,
+        &[
+            "bssrdf",
+            "compare",
+            "--measured",
+            "bom.csv",
+            "--measured-pixel-mm",
+            "0.1",
+            "--simulated",
+            "sim",
+            "--out",
+            "bc",
+        ],
+    );
+    ok(&o, "a CSV slice with a byte-order mark");
+    let o = lucent_in(
+        d,
+        &[
+            "bssrdf",
+            "compare",
+            "--measured",
+            &s(&bad.join("slice/semicolons.csv")),
+            "--measured-pixel-mm",
+            "0.1",
+            "--simulated",
+            "sim",
+            "--out",
+            "bs",
+        ],
+    );
+    refused(&o, &["semicolons.csv", "line 1", "1;2;1", "semicolons"], "a CSV with semicolons");
+    // A slice wider than 1 m: said with the flags, not the simulator's pixel_m.
+    let o = lucent_in(
+        d,
+        &["bssrdf", "--mu-s", "1000", "--mu-a", "1", "--g", "0.8", "--n", "1.5", "--pixels", "9", "--paths", "10"]
+            .into_iter()
+            .chain(["--pixel-mm", "1e300", "--out", "zz"])
+            .collect::<Vec<_>>(),
+    );
+    refused(&o, &["--pixel-mm 1e300", "1000 mm"], "--pixel-mm 1e300");
+    assert!(!stderr(&o).contains("pixel_m "), "{}", stderr(&o));
+    assert!(!d.join("r").exists() && !d.join("x").exists() && !d.join("zz").exists());
 }

@@ -376,6 +376,20 @@ pub fn plan(a: &RunArgs) -> Result<Plan> {
         Some(c) => c,
         None => a.pixels,
     };
+    // Said with the flags (the simulator's own message names its pixel_m).
+    if !(a.pixel_mm.is_finite() && a.pixel_mm > 0.0) {
+        bail!("--pixel-mm {}: must be a positive number of millimetres", a.pixel_mm);
+    }
+    if a.pixel_mm * out_pixels as f64 > 1000.0 {
+        // Large values as written (1e300, not 300 digits).
+        let num = |x: f64| if x.abs() >= 1e6 { format!("{x:e}") } else { format!("{x}") };
+        bail!(
+            "--pixel-mm {}: the slice ({out_pixels} pixels × {} mm = {} mm) must be at most 1000 mm (1 m) wide",
+            num(a.pixel_mm),
+            num(a.pixel_mm),
+            num(a.pixel_mm * out_pixels as f64)
+        );
+    }
     // Only the crop is simulated: the pixels outside it would be discarded.
     let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
     let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error, pixel_rel_error: a.pixel_rel_error };

@@ -53,9 +53,14 @@ fn identity_args() -> Vec<String> {
 pub fn inputs_sha256(args: &[String]) -> Result<String> {
     let mut h = Sha256::new();
     let mut files: Vec<PathBuf> = Vec::new();
-    for a in args {
+    for (i, a) in args.iter().enumerate() {
         h.update(a.as_bytes());
         h.update([0u8]);
+        // The command's name is no file (a folder `render/` in the current
+        // folder made the identity depend on where the shard ran).
+        if i == 0 {
+            continue;
+        }
         for candidate in [Some(a.as_str()), a.split_once(':').map(|(_, p)| p)].into_iter().flatten() {
             let p = Path::new(candidate);
             // A folder of recipes (`lucent optics FOLDER`): the recipes in it.
@@ -142,12 +147,19 @@ pub fn normalized_args(args: Vec<String>) -> Vec<String> {
             _ => toks.push(a),
         }
     }
-    let toks: Vec<String> = toks.iter().map(|t| canonical_arg(t)).collect();
+    // The command's name and words without a '/' or '.' (`render`,
+    // `uniform`, `12x9`) are never taken for paths, even when a file or
+    // folder of that name is in the current folder.
+    let toks: Vec<String> = toks
+        .iter()
+        .enumerate()
+        .map(|(i, t)| if i > 0 && (t.contains('/') || t.contains('.')) { canonical_arg(t) } else { t.clone() })
+        .collect();
     let Some(name) = toks.first() else { return toks };
     let mut cli = super::Cli::command();
     cli.build();
     let Some(sub) = cli.find_subcommand(name) else { return toks };
-    if sub.has_subcommands() {
+    if toks.get(1).is_some_and(|t| sub.find_subcommand(t).is_some()) {
         return toks;
     }
     let mut positionals = Vec::new();
@@ -207,20 +219,21 @@ pub fn identity(seed: u64, budget: String, shards: u32) -> Result<Identity> {
     })
 }
 
-/// Refuses a shard's `--out` that already holds another shard (another K,
-/// or a shard of another run): two shards written into one folder would
-/// leave only the last. The same shard of the same run again (a retry)
-/// may replace its own files. Checked before the shard runs and again just
-/// before it writes.
+/// Refuses a shard's `--out` that already holds another shard (another K
+/// or N): two shards written into one folder would leave only the last.
+/// Shard K of N again (a retry, or the same shard after its inputs
+/// changed) may replace its own files. Checked before the shard runs and
+/// again just before it writes.
 pub fn check_shard_out(out: &Path, identity: &Identity, k: u32) -> Result<()> {
     let json = out.join(shard::SHARD_JSON);
     if std::fs::symlink_metadata(&json).is_err() {
         return Ok(());
     }
-    let there: Option<shard::ShardFile> =
-        crate::io::read_text(&json).ok().and_then(|t| serde_json::from_str(&t).ok());
+    let there: Option<shard::ShardFile> = crate::io::read_text(&json).ok().and_then(|t| serde_json::from_str(&t).ok());
     match there {
-        Some(f) if f.shard == k && f.identity == *identity => Ok(()),
+        // Shard K of N again (a retry, or a rerun after its inputs changed)
+        // replaces its own files.
+        Some(f) if f.shard == k && f.identity.shards == identity.shards => Ok(()),
         Some(f) => bail!(
             "--out {}: already holds shard {} of {} of {} run ({}); give each shard its own folder (writing shard {k} \
              of {} here would replace it)",

@@ -468,7 +468,12 @@ impl Problem {
         if let Some(n) = b.paths
             && n > crate::job::MAX_PATHS
         {
-            return setting("paths per evaluation", n as f64, "", "be at most 10^12 (the most light paths any command takes)");
+            return setting(
+                "paths per evaluation",
+                n as f64,
+                "",
+                "be at most 10^12 (the most light paths any command takes)",
+            );
         }
         if !(b.explore_fraction > 0.0 && b.explore_fraction <= 1.0) {
             return setting("explore fraction", b.explore_fraction, "", "lie in (0, 1]");

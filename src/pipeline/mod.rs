@@ -1162,6 +1162,15 @@ pub fn run(
 ) -> Result<Vec<(Stage, Status)>, PipelineError> {
     let io = |path: &Path, source| PipelineError::Io { path: path.to_path_buf(), source };
     crate::io::claim_output_folder(out)?;
+    // One run at a time writes into a folder: a second is refused clearly.
+    let lock = crate::io::lock_output_folder(out)?;
+    let mut first_notes: Vec<String> = Vec::new();
+    if let Some((pid, host)) = &lock.replaced_stale {
+        first_notes.push(format!(
+            "warning: {}: a stale lock of an ended run (pid {pid} on {host}) was replaced",
+            out.join(crate::io::OUTPUT_LOCK).display()
+        ));
+    }
     let mut done: Vec<(Stage, Status)> = Vec::new();
     for stage in Stage::ALL {
         if options
@@ -1193,9 +1202,9 @@ pub fn run(
         }
         let key = stage_key(stage, project, &plan, &inputs, &upstream)?;
         let previous = read_manifest(&dir);
-        let fresh = previous
-            .as_ref()
-            .is_some_and(|m| m.key == key && hash_listed(&dir, &m.outputs).map(|h| h == m.outputs_sha256).unwrap_or(false));
+        let fresh = previous.as_ref().is_some_and(|m| {
+            m.key == key && hash_listed(&dir, &m.outputs).map(|h| h == m.outputs_sha256).unwrap_or(false)
+        });
         if fresh && !options.force.contains(&stage) {
             on_status(stage, &Status::UpToDate, &plan.notes);
             done.push((stage, Status::UpToDate));
@@ -1300,6 +1309,7 @@ pub fn run(
         if failed.exists() {
             let _ = std::fs::remove_dir_all(&failed);
         }
+        notes.append(&mut first_notes);
         let st = Status::Ran { wall_s, tasks: plan.tasks.len() };
         on_status(stage, &st, &notes);
         done.push((stage, st));
