@@ -132,15 +132,6 @@ pub fn paths_problem(n: u64) -> Option<String> {
     }
 }
 
-/// `--paths N` of every command: 1 … [`MAX_PATHS`].
-pub fn parse_paths(text: &str) -> Result<u64, String> {
-    let n: u64 = text.trim().parse().map_err(|_| format!("{text:?} is not a whole number of light paths"))?;
-    match paths_problem(n) {
-        Some(reason) => Err(format!("{n}: {reason}")),
-        None => Ok(n),
-    }
-}
-
 fn paths(v: Option<u64>) -> Result<(), JobError> {
     match v.and_then(|n| paths_problem(n).map(|r| (n, r))) {
         Some((n, reason)) => Err(bad("paths", n, reason)),

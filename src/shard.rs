@@ -109,6 +109,15 @@ impl AccMeta {
 }
 
 impl Identity {
+    /// The arguments shards are compared by: the normalised ones when known.
+    pub fn compared_args(&self) -> &[String] {
+        if self.normalized_args.is_empty() {
+            &self.args
+        } else {
+            &self.normalized_args
+        }
+    }
+
     /// SHA-256 of the identity as JSON: the run an accumulator belongs to.
     pub fn sha256(&self) -> String {
         let text = serde_json::to_string(self).unwrap_or_default();
@@ -151,8 +160,14 @@ pub fn range(total: u64, k: u32, n: u32) -> std::ops::Range<u64> {
 pub struct Identity {
     /// `render`, `bssrdf` or `optics`.
     pub command: String,
-    /// The command's arguments without `--shard`, `--out`, `--threads` and `--quiet`.
+    /// The command's arguments without `--shard`, `--out`, `--threads` and `--quiet`,
+    /// as given (the merge runs them again).
     pub args: Vec<String>,
+    /// The same in one spelling (`--flag value`, options sorted, paths
+    /// canonical): what the shards of one run must agree on, however each
+    /// was typed. Empty in shards of earlier versions (then `args` is compared).
+    #[serde(default)]
+    pub normalized_args: Vec<String>,
     /// The folder the arguments' relative paths are relative to.
     pub cwd: PathBuf,
     /// SHA-256 of the arguments and of every input file's content.
@@ -398,8 +413,8 @@ pub fn load_shards(dirs: &[PathBuf]) -> Result<Vec<Shard>, ShardError> {
                 Some(("budget", b.budget.clone(), a.budget.clone()))
             } else if a.lucent_version != b.lucent_version {
                 Some(("lucent version", b.lucent_version.clone(), a.lucent_version.clone()))
-            } else if a.args != b.args {
-                Some(("arguments", b.args.join(" "), a.args.join(" ")))
+            } else if a.compared_args() != b.compared_args() {
+                Some(("arguments", b.compared_args().join(" "), a.compared_args().join(" ")))
             } else if a.inputs_sha256 != b.inputs_sha256 {
                 Some(("input files' content", b.inputs_sha256.clone(), a.inputs_sha256.clone()))
             } else {

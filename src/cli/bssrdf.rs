@@ -107,7 +107,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub pixel_rel_error: Option<f64>,
     /// Stop after this many light paths.
-    #[arg(long, value_parser = crate::job::parse_paths)]
+    #[arg(long)]
     pub paths: Option<u64>,
     /// Stop after this many seconds.
     #[arg(long)]
@@ -394,8 +394,10 @@ pub fn plan(a: &RunArgs) -> Result<Plan> {
     let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
     let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error, pixel_rel_error: a.pixel_rel_error };
     // A stop rule and a beam that cannot give a slice are refused before any work.
-    if a.paths == Some(0) {
-        bail!("--paths 0: at least one light path is needed");
+    if let Some(n) = a.paths
+        && let Some(reason) = crate::job::paths_problem(n)
+    {
+        bail!("--paths {n}: {reason}");
     }
     let field_mm = out_pixels as f64 * a.pixel_mm;
     if a.beam.beam_map.is_none() && a.beam.beam_fwhm_um * 1e-3 > field_mm {
@@ -708,6 +710,8 @@ fn simulated_path(p: &Path) -> PathBuf {
 
 fn compare(a: CompareArgs) -> Result<()> {
     let measured = bssrdf::read_grid(&a.measured, a.measured_pixel_mm)?;
+    // A negative pixel is the measured file's fault, said before the simulated slice is read.
+    bssrdf::check_measured(&a.measured, &measured, None, None)?;
     let sim_path = simulated_path(&a.simulated);
     let simulated = bssrdf::read_grid(&sim_path, None)?;
     // The measured slice must be of the simulated one's wavelength and
@@ -906,8 +910,8 @@ pub fn bench_surface(paths: u64) -> Result<()> {
     use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
     use lucent_render::slab::{simulate, Slice};
     use std::sync::Arc;
-    if paths == 0 {
-        bail!("--paths must be at least 1");
+    if let Some(reason) = crate::job::paths_problem(paths) {
+        bail!("--paths {paths}: {reason}");
     }
     let x3p = Path::new("fixtures/surface/tr_0p0084.x3p");
     let map = crate::surface::read_height_map(x3p, &Default::default())

@@ -43,7 +43,7 @@ pub struct FitArgs {
     #[arg(long, default_value_t = crate::job::DEFAULT_FIT_REL_ERROR)]
     pub rel_error: f64,
     /// Light paths per configuration and evaluation instead of the pilot run.
-    #[arg(long, value_parser = crate::job::parse_paths)]
+    #[arg(long)]
     pub paths: Option<u64>,
     /// Time cap of the pilot run per configuration, seconds.
     #[arg(long, default_value_t = 60.0)]
@@ -133,6 +133,11 @@ pub fn build_problem(a: &FitArgs) -> Result<Problem> {
     }
     let mut measurements = Vec::new();
     // One slice given twice (under two spellings) would count as two configurations.
+    if let Some(n) = a.paths
+        && let Some(reason) = crate::job::paths_problem(n)
+    {
+        bail!("--paths {n}: {reason}");
+    }
     let mut seen: Vec<(std::path::PathBuf, String)> = Vec::new();
     for spec in &a.measured {
         let (path, angles) = parse_measured(spec)?;

@@ -264,7 +264,7 @@ pub enum BenchCommand {
     /// Rough top: slab events/s with a smooth vs rough (TR, Beckmann, measured) top, and rough dielectric BSDF sample/eval throughput.
     Surface {
         /// Light paths per slab run (best of three runs on one core).
-        #[arg(long, default_value_t = 20_000, value_parser = crate::job::parse_paths)]
+        #[arg(long, default_value_t = 20_000)]
         paths: u64,
     },
     /// The slab simulator: events/s and wall time to 1 % (PDMS-like medium), and the per-pixel error of the previous and current estimators side by side.

@@ -206,11 +206,13 @@ pub fn normalized_args(args: Vec<String>) -> Vec<String> {
 
 /// The identity of the run this process is a shard of.
 pub fn identity(seed: u64, budget: String, shards: u32) -> Result<Identity> {
-    let args = normalized_args(identity_args());
+    let args = identity_args();
+    let normalized = normalized_args(args.clone());
     Ok(Identity {
         command: args.first().cloned().unwrap_or_default(),
-        inputs_sha256: inputs_sha256(&args)?,
+        inputs_sha256: inputs_sha256(&normalized)?,
         args,
+        normalized_args: normalized,
         cwd: std::env::current_dir().context("cannot read the current folder")?,
         lucent_version: env!("CARGO_PKG_VERSION").into(),
         seed,
@@ -281,7 +283,7 @@ pub fn merge(a: MergeArgs) -> Result<()> {
     }
     std::env::set_current_dir(&id.cwd)
         .with_context(|| format!("{}: cannot enter the folder the shards ran in", id.cwd.display()))?;
-    if inputs_sha256(&id.args)? != id.inputs_sha256 {
+    if inputs_sha256(id.compared_args())? != id.inputs_sha256 {
         bail!(
             "{}: the input files of `lucent {}` changed since the shards were made (run in {}); rerun the shards",
             shards[0].dir.join(shard::SHARD_JSON).display(),
