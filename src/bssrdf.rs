@@ -40,8 +40,21 @@ pub enum SliceIoError {
     #[error("{path}: {source}")]
     Plot { path: PathBuf, source: PlotError },
     /// A measured slice's sidecar says it was taken otherwise than it is used.
-    #[error("{sidecar} says {slice} was measured at {what} {there}, but it is used as the slice at {here}: {hint}")]
-    Metadata { sidecar: PathBuf, slice: PathBuf, what: &'static str, there: String, here: String, hint: &'static str },
+    #[error(transparent)]
+    Metadata(Box<MetadataMismatch>),
+}
+
+/// A measured slice's sidecar says it was taken at another wavelength or
+/// other angles than it is used for ([`check_measured`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{sidecar} says {slice} was measured at {what} {there}, but it is used as the slice at {here}: {hint}")]
+pub struct MetadataMismatch {
+    pub sidecar: PathBuf,
+    pub slice: PathBuf,
+    pub what: &'static str,
+    pub there: String,
+    pub here: String,
+    pub hint: &'static str,
 }
 
 /// What is wrong with a slice file ([`SliceIoError::Invalid`]).
@@ -72,8 +85,9 @@ pub enum SliceProblem {
     Sidecar(#[source] serde_json::Error),
     #[error("cannot read: {0}")]
     Read(#[source] std::io::Error),
-    #[error("line {line}: {token:?} is not a number ({source}) in {text:?}{hint}")]
-    Number { line: usize, token: String, text: String, hint: &'static str, source: std::num::ParseFloatError },
+    /// A value that is not a number: the token, the line's text and a hint.
+    #[error("line {line}: {detail}")]
+    Number { line: usize, detail: Box<str> },
     #[error("line {line} has {values} values, the first row {first}")]
     RowLength { line: usize, values: usize, first: usize },
     #[error("no data rows")]
@@ -206,13 +220,15 @@ pub fn check_measured(
         return Err(invalid(path, SliceProblem::Negative { column: i % n, row: i / n, value: grid.values[i] }));
     }
     let Some(side) = sidecar_of(path)? else { return Ok(()) };
-    let mismatch = |what, there: String, here: String, hint| SliceIoError::Metadata {
-        sidecar: side.file.clone(),
-        slice: path.to_path_buf(),
-        what,
-        there,
-        here,
-        hint,
+    let mismatch = |what, there: String, here: String, hint| {
+        SliceIoError::Metadata(Box::new(MetadataMismatch {
+            sidecar: side.file.clone(),
+            slice: path.to_path_buf(),
+            what,
+            there,
+            here,
+            hint,
+        }))
     };
     if let (Some(there), Some(here)) = (side.wavelength_nm, wavelength_nm)
         && (there - here).abs() > 0.5
@@ -297,16 +313,10 @@ fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> 
                 } else {
                     ""
                 };
-                invalid(
-                    path,
-                    SliceProblem::Number {
-                        line: k + 1,
-                        token: token.chars().take(40).collect(),
-                        text: if line.chars().count() > 80 { format!("{shown}…") } else { shown },
-                        hint,
-                        source,
-                    },
-                )
+                let token: String = token.chars().take(40).collect();
+                let text = if line.chars().count() > 80 { format!("{shown}…") } else { shown };
+                let detail = format!("{token:?} is not a number ({source}) in {text:?}{hint}");
+                invalid(path, SliceProblem::Number { line: k + 1, detail: detail.into() })
             })?;
             row.push(v);
         }

@@ -488,8 +488,8 @@ fn misleading_links_and_silently_taken_values_are_named() {
             .collect::<Vec<_>>(),
     );
     ok(&o, "a simulated slice");
-    let row = vec!["1"; 9].join(",");
-    std::fs::write(d.join("bom.csv"), format!("\u{feff}{}\n", vec![row.as_str(); 9].join("\n"))).unwrap();
+    let row = ["1"; 9].join(",");
+    std::fs::write(d.join("bom.csv"), format!("\u{feff}{}\n", [row.as_str(); 9].join("\n"))).unwrap();
     let o = lucent_in(
         d,
         &[

@@ -761,7 +761,7 @@ fn check_photo_variance(v: &[f32], photo: &RgbImage) -> Result<(), String> {
     }
     let finite: Vec<f64> = photo.data.iter().map(|&p| f64::from(p)).filter(|p| p.is_finite()).collect();
     let mean = finite.iter().map(|p| p.abs()).sum::<f64>() / finite.len().max(1) as f64;
-    if !(mean > 0.0) {
+    if mean.is_nan() || mean <= 0.0 {
         return Ok(());
     }
     let bound = |i: usize| MAX_PHOTO_VARIANCE_RATIO * f64::from(photo.data[i]).abs().max(mean).powi(2);
