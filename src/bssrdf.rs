@@ -39,6 +39,22 @@ pub enum SliceIoError {
     Invalid { path: PathBuf, problem: SliceProblem },
     #[error("{path}: {source}")]
     Plot { path: PathBuf, source: PlotError },
+    /// A measured slice's sidecar says it was taken otherwise than it is used.
+    #[error(transparent)]
+    Metadata(Box<MetadataMismatch>),
+}
+
+/// A measured slice's sidecar says it was taken at another wavelength or
+/// other angles than it is used for ([`check_measured`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{sidecar} says {slice} was measured at {what} {there}, but it is used as the slice at {here}: {hint}")]
+pub struct MetadataMismatch {
+    pub sidecar: PathBuf,
+    pub slice: PathBuf,
+    pub what: &'static str,
+    pub there: String,
+    pub here: String,
+    pub hint: &'static str,
 }
 
 /// What is wrong with a slice file ([`SliceIoError::Invalid`]).
@@ -58,14 +74,20 @@ pub enum SliceProblem {
         "pixel size unknown: pass it (--measured-pixel-mm for --measured, --beam-map-pixel-mm for --beam-map) or put {{\"pixel_mm\": …}} in FILE.json"
     )]
     PixelSizeUnknown,
+    #[error(
+        "pixel (column {column}, row {row}) is {value}: a measured slice is a ratio of radiances and cannot be \
+         negative (subtract the dark frame so that no pixel goes below 0, or set such pixels to 0)"
+    )]
+    Negative { column: usize, row: usize, value: f64 },
     #[error("pixel size {pixel_mm} mm must be positive")]
     PixelSize { pixel_mm: f64 },
     #[error("not a JSON file with a number `pixel_mm` (or `config.pixel_mm`): {0}")]
     Sidecar(#[source] serde_json::Error),
     #[error("cannot read: {0}")]
     Read(#[source] std::io::Error),
-    #[error("line {line}: {source}")]
-    Number { line: usize, source: std::num::ParseFloatError },
+    /// A value that is not a number: the token, the line's text and a hint.
+    #[error("line {line}: {detail}")]
+    Number { line: usize, detail: Box<str> },
     #[error("line {line} has {values} values, the first row {first}")]
     RowLength { line: usize, values: usize, first: usize },
     #[error("no data rows")]
@@ -146,7 +168,106 @@ pub fn read_grid(path: &Path, pixel_mm: Option<f64>) -> Result<Grid, SliceIoErro
     Ok(Grid { size: w, pixel_m: pixel_mm * 1e-3, values })
 }
 
-fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
+/// How a slice was taken, as its sidecar says (`FILE.json`, else
+/// `summary.json` in its folder; keys at the top or under `config`):
+/// wavelength and angles, each when given.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SliceSidecar {
+    /// The file these come from.
+    pub file: PathBuf,
+    pub wavelength_nm: Option<f64>,
+    pub theta_i_deg: Option<f64>,
+    pub phi_i_deg: Option<f64>,
+    pub theta_o_deg: Option<f64>,
+    pub phi_o_deg: Option<f64>,
+}
+
+/// The sidecar of a slice file ([`SliceSidecar`]); `None` without one.
+pub fn sidecar_of(path: &Path) -> Result<Option<SliceSidecar>, SliceIoError> {
+    let mut candidates = vec![PathBuf::from(format!("{}.json", path.display()))];
+    if let Some(dir) = path.parent() {
+        candidates.push(dir.join("summary.json"));
+    }
+    for c in candidates {
+        let Ok(text) = crate::io::read_text(&c) else { continue };
+        let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| invalid(&c, SliceProblem::Sidecar(e)))?;
+        let get = |k: &str| v.get(k).or_else(|| v.pointer(&format!("/config/{k}"))).and_then(|x| x.as_f64());
+        return Ok(Some(SliceSidecar {
+            file: c.clone(),
+            wavelength_nm: get("wavelength_nm"),
+            theta_i_deg: get("theta_i_deg"),
+            phi_i_deg: get("phi_i_deg"),
+            theta_o_deg: get("theta_o_deg"),
+            phi_o_deg: get("phi_o_deg"),
+        }));
+    }
+    Ok(None)
+}
+
+/// Checks a measured slice before it is scored or fitted: no pixel is
+/// negative, and what its sidecar says ([`sidecar_of`]) matches the
+/// wavelength and the angles (θi, φi, θo, φo in degrees) it is used for.
+/// A wavelength within 0.5 nm and angles within 0.01° match; an azimuth
+/// is compared only off the normal (θ > 0) and modulo 360°.
+pub fn check_measured(
+    path: &Path,
+    grid: &Grid,
+    wavelength_nm: Option<f64>,
+    angles: Option<(f64, f64, f64, f64)>,
+) -> Result<(), SliceIoError> {
+    if let Some(i) = grid.values.iter().position(|v| *v < 0.0) {
+        let n = grid.size.max(1);
+        return Err(invalid(path, SliceProblem::Negative { column: i % n, row: i / n, value: grid.values[i] }));
+    }
+    let Some(side) = sidecar_of(path)? else { return Ok(()) };
+    let mismatch = |what, there: String, here: String, hint| {
+        SliceIoError::Metadata(Box::new(MetadataMismatch {
+            sidecar: side.file.clone(),
+            slice: path.to_path_buf(),
+            what,
+            there,
+            here,
+            hint,
+        }))
+    };
+    if let (Some(there), Some(here)) = (side.wavelength_nm, wavelength_nm)
+        && (there - here).abs() > 0.5
+    {
+        return Err(mismatch(
+            "wavelength",
+            format!("{there} nm"),
+            format!("{here} nm"),
+            "fit or score it at the wavelength it was measured at, or correct the sidecar",
+        ));
+    }
+    if let Some((ti, pi, to, po)) = angles {
+        let az = |a: f64, b: f64| ((a - b).rem_euclid(360.0)).min((b - a).rem_euclid(360.0)) > 0.01;
+        let differs = side.theta_i_deg.is_some_and(|t| (t - ti).abs() > 0.01)
+            || side.theta_o_deg.is_some_and(|t| (t - to).abs() > 0.01)
+            || (ti > 0.0 && side.phi_i_deg.is_some_and(|p| az(p, pi)))
+            || (to > 0.0 && side.phi_o_deg.is_some_and(|p| az(p, po)));
+        if differs {
+            let show = |v: Option<f64>| v.map_or("?".to_string(), |x| format!("{x}"));
+            return Err(mismatch(
+                "θi/φi/θo/φo",
+                format!(
+                    "{}/{}/{}/{}°",
+                    show(side.theta_i_deg),
+                    show(side.phi_i_deg),
+                    show(side.theta_o_deg),
+                    show(side.phi_o_deg)
+                ),
+                format!("{ti}/{pi}/{to}/{po}°"),
+                "give the slice with the configuration it was measured at, or correct the sidecar",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The pixel size a slice's sidecar gives (`pixel_mm` in `FILE.json`, or
+/// `config.pixel_mm` in `summary.json` beside it); `None` without one.
+pub fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
     let mut candidates = vec![PathBuf::from(format!("{}.json", path.display()))];
     if let Some(dir) = path.parent() {
         candidates.push(dir.join("summary.json"));
@@ -175,18 +296,30 @@ fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
 
 fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> {
     let text = crate::io::read_text(path).map_err(|e| invalid(path, SliceProblem::Read(e)))?;
+    // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first number.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     let mut rows: Vec<Vec<f64>> = Vec::new();
     for (k, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let row: Result<Vec<f64>, _> = line
-            .split(|c: char| c == ',' || c.is_whitespace())
-            .filter(|s| !s.is_empty())
-            .map(str::parse::<f64>)
-            .collect();
-        let row = row.map_err(|e| invalid(path, SliceProblem::Number { line: k + 1, source: e }))?;
+        let mut row = Vec::new();
+        for token in line.split(|c: char| c == ',' || c.is_whitespace()).filter(|s| !s.is_empty()) {
+            let v = token.parse::<f64>().map_err(|source| {
+                let shown: String = line.chars().take(80).collect();
+                let hint = if line.contains(';') {
+                    ": values are separated by commas or spaces, not semicolons (a spreadsheet's export setting)"
+                } else {
+                    ""
+                };
+                let token: String = token.chars().take(40).collect();
+                let text = if line.chars().count() > 80 { format!("{shown}…") } else { shown };
+                let detail = format!("{token:?} is not a number ({source}) in {text:?}{hint}");
+                invalid(path, SliceProblem::Number { line: k + 1, detail: detail.into() })
+            })?;
+            row.push(v);
+        }
         if let Some(first) = rows.first()
             && row.len() != first.len()
         {

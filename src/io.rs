@@ -140,6 +140,9 @@ pub fn create_folder(dir: &Path) -> std::io::Result<()> {
 /// [`create_folder`] for callers already holding the shared lock (a second
 /// shared lock of the same thread could deadlock behind a waiting freeze).
 fn create_folder_unlocked(dir: &Path) -> std::io::Result<()> {
+    if let Some(problem) = dir.ancestors().filter(|a| !a.as_os_str().is_empty()).find_map(broken_link) {
+        return Err(std::io::Error::new(std::io::ErrorKind::NotFound, problem));
+    }
     if let Some(file) = dir.ancestors().find(|a| !a.as_os_str().is_empty() && a.exists() && !a.is_dir()) {
         return Err(std::io::Error::new(
             std::io::ErrorKind::NotADirectory,
@@ -147,6 +150,24 @@ fn create_folder_unlocked(dir: &Path) -> std::io::Result<()> {
         ));
     }
     std::fs::create_dir_all(dir)
+}
+
+/// What is wrong with `path` when it is a symbolic link that leads nowhere:
+/// a loop of links, or a link to something that does not exist (`None`
+/// for anything else).
+pub fn broken_link(path: &Path) -> Option<String> {
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    if !meta.file_type().is_symlink() {
+        return None;
+    }
+    let err = std::fs::metadata(path).err()?;
+    #[cfg(unix)]
+    if err.raw_os_error() == Some(libc::ELOOP) {
+        return Some(format!("{} is a loop of symbolic links (it leads back to itself)", path.display()));
+    }
+    let _ = err;
+    let target = std::fs::read_link(path).map(|t| t.display().to_string()).unwrap_or_else(|_| "?".into());
+    Some(format!("{} is a symbolic link to {target}, which does not exist", path.display()))
 }
 
 /// The hidden file that marks a folder as lucent's output folder
@@ -158,6 +179,9 @@ pub const OUTPUT_MARK: &str = ".lucent-output";
 pub enum OutputFolderError {
     #[error("{path}: the output folder exists and is not a folder")]
     NotAFolder { path: PathBuf },
+    /// A dangling symbolic link or a loop of links where the output folder goes.
+    #[error("{problem}; lucent does not write through it — fix or remove the link, or choose another output folder")]
+    BrokenLink { problem: String },
     #[error(
         "{path}: the output folder already holds files lucent did not write ({example} …); lucent writes only into a \
          new or empty folder, or one an earlier lucent run wrote — choose another output folder"
@@ -165,6 +189,105 @@ pub enum OutputFolderError {
     Foreign { path: PathBuf, example: String },
     #[error("{path}: cannot create the output folder: {source}")]
     Create { path: PathBuf, source: std::io::Error },
+    /// Another run holds the folder's lock ([`lock_output_folder`]).
+    #[error(
+        "{path}: another lucent run (pid {pid} on {host}) is writing into this output folder ({lock}); wait for it \
+         to end, or choose another output folder"
+    )]
+    Locked { path: PathBuf, lock: PathBuf, pid: u32, host: String },
+}
+
+/// The lock file of an output folder while a run writes into it.
+pub const OUTPUT_LOCK: &str = ".lucent-lock";
+
+/// An output folder's lock, held while a run writes into it (the lock
+/// file is removed when this is dropped).
+#[derive(Debug)]
+pub struct OutputLock {
+    path: PathBuf,
+    /// A stale lock of an ended run that this one replaced (its pid and host).
+    pub replaced_stale: Option<(u32, String)>,
+}
+
+impl Drop for OutputLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+fn host_name() -> String {
+    #[cfg(unix)]
+    {
+        let mut buf = [0u8; 256];
+        // SAFETY: gethostname writes at most buf.len() bytes into buf.
+        if unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) } == 0 {
+            let end = buf.iter().position(|b| *b == 0).unwrap_or(buf.len());
+            return String::from_utf8_lossy(&buf[..end]).into_owned();
+        }
+    }
+    "unknown host".into()
+}
+
+/// Whether process `pid` of this host is alive.
+fn alive(pid: u32) -> bool {
+    #[cfg(unix)]
+    {
+        let Ok(pid) = libc::pid_t::try_from(pid) else { return false };
+        // SAFETY: kill with signal 0 only checks that the process exists.
+        let r = unsafe { libc::kill(pid, 0) };
+        r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = pid;
+        true
+    }
+}
+
+/// Takes the advisory lock of output folder `dir` (which exists) for a run:
+/// [`OUTPUT_LOCK`] with this process's pid and host, made exclusively. A
+/// lock held by a live process is [`OutputFolderError::Locked`]; one whose
+/// process has ended on this host (a run killed with SIGKILL, a power cut)
+/// is stale and replaced, and said so in [`OutputLock::replaced_stale`]. A
+/// lock of another host is taken as held (its process cannot be checked).
+pub fn lock_output_folder(dir: &Path) -> Result<OutputLock, OutputFolderError> {
+    let path = dir.join(OUTPUT_LOCK);
+    let host = host_name();
+    let me = format!("{} {}\n", std::process::id(), host);
+    let mut replaced_stale = None;
+    for _ in 0..3 {
+        match std::fs::OpenOptions::new().write(true).create_new(true).open(&path) {
+            Ok(mut f) => {
+                let _ = f.write_all(me.as_bytes());
+                return Ok(OutputLock { path, replaced_stale });
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                let text = std::fs::read_to_string(&path).unwrap_or_default();
+                let mut words = text.split_whitespace();
+                let pid: Option<u32> = words.next().and_then(|w| w.parse().ok());
+                let holder: String = words.collect::<Vec<_>>().join(" ");
+                match pid {
+                    Some(pid) if holder != host || alive(pid) => {
+                        return Err(OutputFolderError::Locked {
+                            path: dir.to_path_buf(),
+                            lock: path,
+                            pid,
+                            host: holder,
+                        });
+                    }
+                    _ => {
+                        replaced_stale = Some((pid.unwrap_or(0), holder));
+                        let _ = std::fs::remove_file(&path);
+                    }
+                }
+            }
+            Err(source) => return Err(OutputFolderError::Create { path: dir.to_path_buf(), source }),
+        }
+    }
+    Err(OutputFolderError::Create {
+        path: dir.to_path_buf(),
+        source: std::io::Error::other(format!("{}: cannot take the lock", path.display())),
+    })
 }
 
 /// Whether lucent may write into `dir` as an output folder (it is not
@@ -186,8 +309,12 @@ pub enum OutputFolderError {
 /// ```
 pub fn check_output_folder(dir: &Path) -> Result<(), OutputFolderError> {
     let Ok(meta) = std::fs::metadata(dir) else {
+        // A dangling link (writing through it would land elsewhere) or a
+        // loop of links, here or in a folder above.
+        if let Some(problem) = dir.ancestors().filter(|a| !a.as_os_str().is_empty()).find_map(broken_link) {
+            return Err(OutputFolderError::BrokenLink { problem });
+        }
         return match std::fs::symlink_metadata(dir) {
-            // A dangling link: writing through it would land elsewhere.
             Ok(_) => Err(OutputFolderError::NotAFolder { path: dir.to_path_buf() }),
             Err(_) => Ok(()),
         };
@@ -357,7 +484,7 @@ impl Drop for StagedDir {
 /// hidden half-written file (an 86 MB `.x.exr.tmp` of `raw decode`).
 /// [`remove_temporaries_on_interrupt`] installs the handler (the binary does
 /// at start): it unlinks the files registered at that moment, then ends the
-/// process with exit status 130 (interrupted), for SIGTERM as for SIGINT. Up to 32 files being written at
+/// process with exit status 130 (interrupted), for SIGTERM and SIGHUP as for SIGINT. Up to 32 files being written at
 /// once are tracked; the handler only reads atomics and fixed buffers and
 /// calls `unlink` and `_exit` (async-signal-safe).
 pub fn remove_temporaries_on_interrupt() {
@@ -483,8 +610,37 @@ mod interrupt {
             let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
             libc::signal(libc::SIGINT, handler);
             libc::signal(libc::SIGTERM, handler);
+            // A closed terminal (SIGHUP) is a stop request like SIGTERM.
+            libc::signal(libc::SIGHUP, handler);
         }
     }
+}
+
+/// Where `path` leads: symbolic links followed (a dangling one to its
+/// target), `.` and `..` resolved, also when the path, or the end of it,
+/// does not exist yet (the existing part canonical, the rest appended).
+/// A symbolic-link loop is left as spelled after 40 links.
+pub fn resolved(path: &Path) -> PathBuf {
+    let mut p = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    for _ in 0..40 {
+        if let Ok(c) = std::fs::canonicalize(&p) {
+            return c;
+        }
+        match std::fs::read_link(&p) {
+            Ok(target) => {
+                p = match p.parent() {
+                    Some(parent) => parent.join(target),
+                    None => target,
+                };
+                continue;
+            }
+            Err(_) => {
+                let (Some(parent), Some(name)) = (p.parent(), p.file_name()) else { return p };
+                return resolved(parent).join(name);
+            }
+        }
+    }
+    p
 }
 
 /// The same file however its path is spelled (links, `./`, `..`): the

@@ -110,6 +110,35 @@ fn at_least_one<T: PartialEq + From<u8> + ToString>(field: &'static str, v: Opti
 /// The most pixels per side of a BSSRDF slice.
 pub const MAX_SLICE_PIXELS: usize = 8192;
 
+/// The most light paths a BSSRDF slice or a fit evaluation may be given
+/// (`--paths`, `[bssrdf] paths`, `[fit] paths`, `bench surface --paths`):
+/// 10¹² paths, about 12 core-days at the slab's 1 M paths/s per core (a
+/// month on a 100-core cluster at the slower rates of dense media), and far
+/// below 2⁵³, where the tallies' path counts stop being exact. A study that
+/// needs more is several runs with different seeds.
+pub const MAX_PATHS: u64 = 1_000_000_000_000;
+
+/// Why a path count is refused (the reason half of a message naming the flag or key).
+pub fn paths_problem(n: u64) -> Option<String> {
+    if n == 0 {
+        Some("must be at least 1".into())
+    } else if n > MAX_PATHS {
+        Some(format!(
+            "must be at most {MAX_PATHS} (10^12, about 12 core-days of simulation; run a larger study as several \
+             runs with different seeds)"
+        ))
+    } else {
+        None
+    }
+}
+
+fn paths(v: Option<u64>) -> Result<(), JobError> {
+    match v.and_then(|n| paths_problem(n).map(|r| (n, r))) {
+        Some((n, reason)) => Err(bad("paths", n, reason)),
+        None => Ok(()),
+    }
+}
+
 fn s(p: &std::path::Path) -> String {
     p.display().to_string()
 }
@@ -204,12 +233,23 @@ impl BssrdfJob {
         if !(1..=MAX_SLICE_PIXELS).contains(&self.pixels) {
             return Err(bad("pixels", self.pixels, format!("must lie in 1 … {MAX_SLICE_PIXELS}")));
         }
+        if self.pixel_mm * self.crop.unwrap_or(self.pixels) as f64 > 1000.0 {
+            return Err(bad(
+                "pixel_mm",
+                self.pixel_mm,
+                format!(
+                    "the slice ({} pixels × {} mm) must be at most 1000 mm (1 m) wide",
+                    self.crop.unwrap_or(self.pixels),
+                    self.pixel_mm
+                ),
+            ));
+        }
         if let Some(c) = self.crop
             && !(1..=self.pixels).contains(&c)
         {
             return Err(bad("crop", c, format!("must lie in 1 … pixels ({})", self.pixels)));
         }
-        at_least_one("paths", self.paths)?;
+        paths(self.paths)?;
         if let Some(c) = &self.configs {
             crate::pipeline::project::parse_configs(c).map_err(|e| bad("configs", c, e.to_string()))?;
         }
@@ -302,7 +342,7 @@ impl FitJob {
         if !(self.rel_error > 0.0 && self.rel_error < 1.0) {
             return Err(bad("rel_error", self.rel_error, "must lie in (0, 1)"));
         }
-        at_least_one("paths", self.paths)?;
+        paths(self.paths)?;
         if !(self.measured_rel_sd > 0.0 && self.measured_rel_sd <= 1.0) {
             return Err(bad(
                 "measured_rel_sd",

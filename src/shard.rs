@@ -34,8 +34,11 @@ use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
-/// The first bytes of an accumulator file.
+/// The first bytes of an accumulator file without a shard's identity inside.
 pub const MAGIC: &[u8; 8] = b"LUCACC01";
+/// The first bytes of a shard's accumulator file: after them the shard's
+/// [`AccMeta`] (u32 length, JSON), then the arrays as in [`MAGIC`]'s format.
+pub const MAGIC_SHARD: &[u8; 8] = b"LUCACC02";
 /// The file in a shard folder that says which shard it is.
 pub const SHARD_JSON: &str = "shard.json";
 
@@ -60,6 +63,66 @@ pub enum ShardError {
     Missing { missing: Vec<u32>, n: u32, given: String },
     #[error("no shard folders given")]
     NoShards,
+    /// An accumulator that is a symbolic link (to another shard's, typically).
+    #[error(
+        "{path}: is a symbolic link (to {target}); a shard's accumulator must be the file that shard wrote, \
+         not a link to another one"
+    )]
+    Linked { path: PathBuf, target: PathBuf },
+    /// An accumulator whose own record of the shard differs from its folder's shard.json.
+    #[error("{path}: holds {holds}, but {json} says {says}: {why}")]
+    Mismatch { path: PathBuf, json: PathBuf, holds: String, says: String, why: &'static str },
+    /// An accumulator from before the shard's identity was kept inside it.
+    #[error("{path}: holds no record of its shard and run (an older accumulator format); rerun the shard")]
+    NoRecord { path: PathBuf },
+}
+
+/// What a shard's accumulator records about itself, inside the checksummed
+/// file: the run (SHA-256 of its [`Identity`]), the shard, its range and
+/// counters. The merge checks it against the folder's `shard.json`, so an
+/// accumulator copied (or linked) from another shard or run, or counters
+/// edited in `shard.json`, are refused.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AccMeta {
+    pub run_sha256: String,
+    pub shard: u32,
+    pub shards: u32,
+    pub range: [u64; 2],
+    pub counters: std::collections::BTreeMap<String, u64>,
+}
+
+impl AccMeta {
+    pub fn new(
+        identity: &Identity,
+        shard: u32,
+        range: &std::ops::Range<u64>,
+        counters: &std::collections::BTreeMap<String, u64>,
+    ) -> Self {
+        AccMeta {
+            run_sha256: identity.sha256(),
+            shard,
+            shards: identity.shards,
+            range: [range.start, range.end],
+            counters: counters.clone(),
+        }
+    }
+}
+
+impl Identity {
+    /// The arguments shards are compared by: the normalised ones when known.
+    pub fn compared_args(&self) -> &[String] {
+        if self.normalized_args.is_empty() {
+            &self.args
+        } else {
+            &self.normalized_args
+        }
+    }
+
+    /// SHA-256 of the identity as JSON: the run an accumulator belongs to.
+    pub fn sha256(&self) -> String {
+        let text = serde_json::to_string(self).unwrap_or_default();
+        Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
+    }
 }
 
 /// `K/N` of `--shard`.
@@ -97,8 +160,14 @@ pub fn range(total: u64, k: u32, n: u32) -> std::ops::Range<u64> {
 pub struct Identity {
     /// `render`, `bssrdf` or `optics`.
     pub command: String,
-    /// The command's arguments without `--shard`, `--out`, `--threads` and `--quiet`.
+    /// The command's arguments without `--shard`, `--out`, `--threads` and `--quiet`,
+    /// as given (the merge runs them again).
     pub args: Vec<String>,
+    /// The same in one spelling (`--flag value`, options sorted, paths
+    /// canonical): what the shards of one run must agree on, however each
+    /// was typed. Empty in shards of earlier versions (then `args` is compared).
+    #[serde(default)]
+    pub normalized_args: Vec<String>,
     /// The folder the arguments' relative paths are relative to.
     pub cwd: PathBuf,
     /// SHA-256 of the arguments and of every input file's content.
@@ -133,9 +202,35 @@ pub type Arrays = Vec<(String, Vec<f64>)>;
 /// (u32 length, UTF-8) and values (u64 count, f64 little-endian), then the
 /// SHA-256 of all the bytes before it.
 pub fn write_accumulator(path: &Path, arrays: &[(&str, &[f64])]) -> Result<(), crate::io::WriteError> {
+    write_accumulator_with(path, None, arrays)
+}
+
+/// [`write_accumulator`] for a shard: its [`AccMeta`] goes inside the file
+/// (format [`MAGIC_SHARD`]), under the checksum.
+pub fn write_shard_accumulator(
+    path: &Path,
+    meta: &AccMeta,
+    arrays: &[(&str, &[f64])],
+) -> Result<(), crate::io::WriteError> {
+    write_accumulator_with(path, Some(meta), arrays)
+}
+
+fn write_accumulator_with(
+    path: &Path,
+    meta: Option<&AccMeta>,
+    arrays: &[(&str, &[f64])],
+) -> Result<(), crate::io::WriteError> {
     let size: usize = arrays.iter().map(|(n, v)| 12 + n.len() + 8 * v.len()).sum();
     let mut bytes = Vec::with_capacity(16 + size + 32);
-    bytes.extend_from_slice(MAGIC);
+    match meta {
+        Some(m) => {
+            let json = serde_json::to_string(m).unwrap_or_default();
+            bytes.extend_from_slice(MAGIC_SHARD);
+            bytes.extend_from_slice(&(json.len() as u32).to_le_bytes());
+            bytes.extend_from_slice(json.as_bytes());
+        }
+        None => bytes.extend_from_slice(MAGIC),
+    }
     bytes.extend_from_slice(&(arrays.len() as u32).to_le_bytes());
     for (name, values) in arrays {
         bytes.extend_from_slice(&(name.len() as u32).to_le_bytes());
@@ -155,7 +250,7 @@ pub fn write_accumulator(path: &Path, arrays: &[(&str, &[f64])]) -> Result<(), c
 pub fn read_accumulator(path: &Path) -> Result<Arrays, ShardError> {
     let bytes = std::fs::read(path).map_err(|source| ShardError::Read { path: path.to_path_buf(), source })?;
     let corrupt = |why: &str| ShardError::Corrupt { path: path.to_path_buf(), why: why.to_string() };
-    if bytes.len() < MAGIC.len() + 4 + 32 || &bytes[..MAGIC.len()] != MAGIC {
+    if bytes.len() < MAGIC.len() + 4 + 32 || (&bytes[..MAGIC.len()] != MAGIC && &bytes[..MAGIC.len()] != MAGIC_SHARD) {
         return Err(corrupt("not a lucent accumulator (wrong header or too short)"));
     }
     let (body, digest) = bytes.split_at(bytes.len() - 32);
@@ -163,6 +258,10 @@ pub fn read_accumulator(path: &Path) -> Result<Arrays, ShardError> {
         return Err(corrupt("checksum mismatch (truncated or altered)"));
     }
     let mut at = MAGIC.len();
+    if &bytes[..MAGIC.len()] == MAGIC_SHARD {
+        let len = body.get(at..at + 4).map(|b| u32::from_le_bytes(b.try_into().unwrap_or([0; 4])) as usize);
+        at += 4 + len.ok_or_else(|| corrupt("ends inside its shard record"))?;
+    }
     let mut take = |n: usize| -> Result<&[u8], ShardError> {
         let s = body.get(at..at + n).ok_or_else(|| corrupt("ends inside an array"))?;
         at += n;
@@ -184,6 +283,90 @@ pub fn read_accumulator(path: &Path) -> Result<Arrays, ShardError> {
         return Err(corrupt("trailing bytes after the last array"));
     }
     Ok(arrays)
+}
+
+/// The [`AccMeta`] at the start of a shard's accumulator (only the first
+/// bytes are read; the checksum over the whole file is checked when its
+/// arrays are read): `None` for a file of the older format without one.
+pub fn read_accumulator_meta(path: &Path) -> Result<Option<AccMeta>, ShardError> {
+    use std::io::Read;
+    let corrupt = |why: String| ShardError::Corrupt { path: path.to_path_buf(), why };
+    let read = |source| ShardError::Read { path: path.to_path_buf(), source };
+    let mut f = std::fs::File::open(path).map_err(read)?;
+    let mut head = [0u8; 12];
+    f.read_exact(&mut head).map_err(|_| corrupt("not a lucent accumulator (too short)".into()))?;
+    if &head[..8] == MAGIC {
+        return Ok(None);
+    }
+    if &head[..8] != MAGIC_SHARD {
+        return Err(corrupt("not a lucent accumulator (wrong header)".into()));
+    }
+    let len = u32::from_le_bytes([head[8], head[9], head[10], head[11]]) as usize;
+    if len > 1 << 20 {
+        return Err(corrupt(format!("a shard record of {len} bytes")));
+    }
+    let mut json = vec![0u8; len];
+    f.read_exact(&mut json).map_err(|_| corrupt("ends inside its shard record".into()))?;
+    serde_json::from_slice(&json).map(Some).map_err(|e| corrupt(format!("unreadable shard record: {e}")))
+}
+
+/// Checks the accumulators a shard folder's `shard.json` lists against the
+/// record inside each ([`AccMeta`]): each must be a file of the folder (not
+/// a symbolic link), of this run and this shard, with the same range and
+/// counters as `shard.json`.
+fn check_accumulators(dir: &Path, file: &ShardFile) -> Result<(), ShardError> {
+    let json = dir.join(SHARD_JSON);
+    let run = file.identity.sha256();
+    for name in &file.accumulators {
+        let path = dir.join(name);
+        let inside = Path::new(name).components().all(|c| matches!(c, std::path::Component::Normal(_)));
+        if name.is_empty() || !inside {
+            return Err(ShardError::NotShard { path: json.clone(), why: format!("accumulator name {name:?}") });
+        }
+        if let Ok(target) = std::fs::read_link(&path) {
+            return Err(ShardError::Linked { path, target });
+        }
+        let meta = read_accumulator_meta(&path)?.ok_or_else(|| ShardError::NoRecord { path: path.clone() })?;
+        let mismatch = |holds: String, says: String, why| ShardError::Mismatch {
+            path: path.clone(),
+            json: json.clone(),
+            holds,
+            says,
+            why,
+        };
+        if meta.run_sha256 != run {
+            return Err(mismatch(
+                format!("the sums of run {}…", &meta.run_sha256[..meta.run_sha256.len().min(12)]),
+                format!("run {}…", &run[..12]),
+                "an accumulator of another run (copied into this folder?) is not merged",
+            ));
+        }
+        if meta.shard != file.shard || meta.shards != file.identity.shards {
+            return Err(mismatch(
+                format!("shard {} of {}", meta.shard, meta.shards),
+                format!("shard {} of {}", file.shard, file.identity.shards),
+                "a copy of another shard's accumulator is not a shard of its own",
+            ));
+        }
+        if meta.range != file.range {
+            return Err(mismatch(
+                format!("range {:?}", meta.range),
+                format!("range {:?}", file.range),
+                "shard.json was edited; rerun the shard",
+            ));
+        }
+        if meta.counters != file.counters {
+            let show = |c: &std::collections::BTreeMap<String, u64>| {
+                c.iter().map(|(k, v)| format!("{k} {v}")).collect::<Vec<_>>().join(", ")
+            };
+            return Err(mismatch(
+                format!("counters {{{}}}", show(&meta.counters)),
+                format!("counters {{{}}}", show(&file.counters)),
+                "the counters do not match the sums (shard.json was edited); rerun the shard",
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The array `name` of `arrays` with `len` values.
@@ -230,8 +413,8 @@ pub fn load_shards(dirs: &[PathBuf]) -> Result<Vec<Shard>, ShardError> {
                 Some(("budget", b.budget.clone(), a.budget.clone()))
             } else if a.lucent_version != b.lucent_version {
                 Some(("lucent version", b.lucent_version.clone(), a.lucent_version.clone()))
-            } else if a.args != b.args {
-                Some(("arguments", b.args.join(" "), a.args.join(" ")))
+            } else if a.compared_args() != b.compared_args() {
+                Some(("arguments", b.compared_args().join(" "), a.compared_args().join(" ")))
             } else if a.inputs_sha256 != b.inputs_sha256 {
                 Some(("input files' content", b.inputs_sha256.clone(), a.inputs_sha256.clone()))
             } else {
@@ -261,6 +444,7 @@ pub fn load_shards(dirs: &[PathBuf]) -> Result<Vec<Shard>, ShardError> {
                 n: file.identity.shards,
             });
         }
+        check_accumulators(dir, &file)?;
         shards.push(Shard { dir: dir.clone(), file });
     }
     let first = shards.first().ok_or(ShardError::NoShards)?;

@@ -34,6 +34,8 @@ mod fit;
 mod formats_doc;
 #[path = "hardening.rs"]
 mod hardening;
+#[path = "hardening3.rs"]
+mod hardening3;
 #[path = "jobs.rs"]
 mod jobs;
 #[path = "mesh.rs"]

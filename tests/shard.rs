@@ -320,7 +320,9 @@ fn bad_uncertainty_shard_sets_are_refused_and_nothing_is_written() {
     let mut arrays = lucent::shard::read_accumulator(&acc).unwrap();
     arrays.iter_mut().find(|(n, _)| n == "draws").unwrap().1[2] *= 1.01;
     let refs: Vec<(&str, &[f64])> = arrays.iter().map(|(n, v)| (n.as_str(), v.as_slice())).collect();
-    lucent::shard::write_accumulator(&acc, &refs).unwrap();
+    // With the shard's own record inside (run, shard, range, counters), as the shard wrote it.
+    let meta = lucent::shard::read_accumulator_meta(&acc).unwrap().expect("a shard's record");
+    lucent::shard::write_shard_accumulator(&acc, &meta, &refs).unwrap();
     merge(&[&a0, &a1, &a2], &["IOL1068-05/uncertainty.acc", "Latin-hypercube design", "draw 16"]);
     // A flipped bit, a truncated file, a missing file.
     let mut bytes = original.clone();

@@ -162,7 +162,7 @@ fn read_slice_shard(path: &Path, npix: usize) -> Result<crate::shard::Arrays> {
     Ok(arrays)
 }
 
-fn write_slice_shard(path: &Path, t: &slab::SliceSums) -> Result<()> {
+fn write_slice_shard(path: &Path, meta: &crate::shard::AccMeta, t: &slab::SliceSums) -> Result<()> {
     let scalars = [
         t.path_sum,
         t.path_sq,
@@ -173,8 +173,9 @@ fn write_slice_shard(path: &Path, t: &slab::SliceSums) -> Result<()> {
         t.paths as f64,
         t.wall_s,
     ];
-    crate::shard::write_accumulator(
+    crate::shard::write_shard_accumulator(
         path,
+        meta,
         &[("sum_b", &t.sum_b), ("sq_b", &t.sq_b), ("raw", &t.raw), ("scalars", &scalars)],
     )?;
     Ok(())
@@ -375,12 +376,28 @@ pub fn plan(a: &RunArgs) -> Result<Plan> {
         Some(c) => c,
         None => a.pixels,
     };
+    // Said with the flags (the simulator's own message names its pixel_m).
+    if !(a.pixel_mm.is_finite() && a.pixel_mm > 0.0) {
+        bail!("--pixel-mm {}: must be a positive number of millimetres", a.pixel_mm);
+    }
+    if a.pixel_mm * out_pixels as f64 > 1000.0 {
+        // Large values as written (1e300, not 300 digits).
+        let num = |x: f64| if x.abs() >= 1e6 { format!("{x:e}") } else { format!("{x}") };
+        bail!(
+            "--pixel-mm {}: the slice ({out_pixels} pixels × {} mm = {} mm) must be at most 1000 mm (1 m) wide",
+            num(a.pixel_mm),
+            num(a.pixel_mm),
+            num(a.pixel_mm * out_pixels as f64)
+        );
+    }
     // Only the crop is simulated: the pixels outside it would be discarded.
     let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
     let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error, pixel_rel_error: a.pixel_rel_error };
     // A stop rule and a beam that cannot give a slice are refused before any work.
-    if a.paths == Some(0) {
-        bail!("--paths 0: at least one light path is needed");
+    if let Some(n) = a.paths
+        && let Some(reason) = crate::job::paths_problem(n)
+    {
+        bail!("--paths {n}: {reason}");
     }
     let field_mm = out_pixels as f64 * a.pixel_mm;
     if a.beam.beam_map.is_none() && a.beam.beam_fwhm_um * 1e-3 > field_mm {
@@ -466,6 +483,7 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
     if let Some((k, n)) = shard {
         let range = crate::shard::range(total_batches, k, n);
         let identity = super::shard::identity(a.seed, format!("{} paths", a.paths.unwrap_or(0)), n)?;
+        super::shard::check_shard_out(&a.out, &identity, k)?;
         // A second Ctrl-C or SIGTERM ends the process: the staging folder goes with it.
         let _remove_on_abort = super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out));
         let stage = crate::io::StagedDir::new(&a.out)?;
@@ -486,7 +504,8 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
                 );
             }
             wall_s += t.wall_s;
-            write_slice_shard(&stage.path().join(shard_acc(i)), &t)?;
+            let meta = crate::shard::AccMeta::new(&identity, k, &range, &Default::default());
+            write_slice_shard(&stage.path().join(shard_acc(i)), &meta, &t)?;
             accumulators.push(shard_acc(i));
         }
         drop(interrupt);
@@ -499,6 +518,8 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             wall_s,
         };
         crate::io::write_json(&stage.path().join(crate::shard::SHARD_JSON), &file)?;
+        // Another shard may have finished into the same folder meanwhile.
+        super::shard::check_shard_out(&a.out, &file.identity, k)?;
         stage.commit(|n| n == crate::shard::SHARD_JSON || (n.starts_with("slice-") && n.ends_with(".acc")))?;
         println!(
             "shard {k}/{n}: path batches {}..{} of {total_batches} in {wall_s:.1} s → {}",
@@ -689,8 +710,18 @@ fn simulated_path(p: &Path) -> PathBuf {
 
 fn compare(a: CompareArgs) -> Result<()> {
     let measured = bssrdf::read_grid(&a.measured, a.measured_pixel_mm)?;
+    // A negative pixel is the measured file's fault, said before the simulated slice is read.
+    bssrdf::check_measured(&a.measured, &measured, None, None)?;
     let sim_path = simulated_path(&a.simulated);
     let simulated = bssrdf::read_grid(&sim_path, None)?;
+    // The measured slice must be of the simulated one's wavelength and
+    // configuration (as the simulation's summary.json says), and not negative.
+    let sim = bssrdf::sidecar_of(&sim_path)?;
+    let sim_angles = sim.as_ref().and_then(|s| match (s.theta_i_deg, s.phi_i_deg, s.theta_o_deg, s.phi_o_deg) {
+        (Some(ti), Some(pi), Some(to), Some(po)) => Some((ti, pi, to, po)),
+        _ => None,
+    });
+    bssrdf::check_measured(&a.measured, &measured, sim.as_ref().and_then(|s| s.wavelength_nm), sim_angles)?;
     let (c, rel) = bssrdf::compare(&measured, &simulated, a.threshold)
         .map_err(|e| anyhow!("{} vs {}: {e}", a.measured.display(), sim_path.display()))?;
     // Written into a staging folder and moved into --out only when all three
@@ -879,8 +910,8 @@ pub fn bench_surface(paths: u64) -> Result<()> {
     use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
     use lucent_render::slab::{simulate, Slice};
     use std::sync::Arc;
-    if paths == 0 {
-        bail!("--paths must be at least 1");
+    if let Some(reason) = crate::job::paths_problem(paths) {
+        bail!("--paths {paths}: {reason}");
     }
     let x3p = Path::new("fixtures/surface/tr_0p0084.x3p");
     let map = crate::surface::read_height_map(x3p, &Default::default())

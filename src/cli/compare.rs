@@ -133,7 +133,11 @@ pub fn run(a: CompareArgs) -> Result<()> {
     };
     let outcome = compare::compare_files(&req)?;
     for n in &outcome.notes {
-        eprintln!("note: {n}");
+        if n.starts_with("warning: ") {
+            eprintln!("{n}");
+        } else {
+            eprintln!("note: {n}");
+        }
     }
     // Ctrl-C or SIGTERM while the outputs are written removes their staging folder and ends.
     let interrupt = super::interrupt::Interrupt::abort_on_first();

@@ -133,6 +133,11 @@ pub fn build_problem(a: &FitArgs) -> Result<Problem> {
     }
     let mut measurements = Vec::new();
     // One slice given twice (under two spellings) would count as two configurations.
+    if let Some(n) = a.paths
+        && let Some(reason) = crate::job::paths_problem(n)
+    {
+        bail!("--paths {n}: {reason}");
+    }
     let mut seen: Vec<(std::path::PathBuf, String)> = Vec::new();
     for spec in &a.measured {
         let (path, angles) = parse_measured(spec)?;
@@ -154,7 +159,7 @@ pub fn build_problem(a: &FitArgs) -> Result<Problem> {
                 )
             })?,
         };
-        measurements.push(Measurement::load(&path, a.measured_pixel_mm, angles)?);
+        measurements.push(Measurement::load_at(&path, a.measured_pixel_mm, angles, Some(a.wavelength))?);
     }
     let (beam, _) = a.beam.beam()?;
     let thickness_m = match a.thickness_mm {
@@ -443,6 +448,7 @@ pub fn optics_uncertainty(
             return Err(crate::shard::ShardError::TooManyShards { k, n: shards, units: n as u64, what: "draws" }.into());
         }
         let identity = super::shard::identity(seed, format!("{n} draws"), shards)?;
+        super::shard::check_shard_out(out, &identity, k)?;
         let range = crate::shard::range(n as u64, k, shards);
         let r = range.start as usize..range.end as usize;
         let mut parts = Vec::new();
@@ -452,11 +458,14 @@ pub fn optics_uncertainty(
             parts.push((recipe.name.clone(), design[r.clone()].concat(), draws));
         }
         let mut accumulators = Vec::new();
+        let counters: std::collections::BTreeMap<String, u64> =
+            [("draws".to_string(), range.end - range.start)].into_iter().collect();
+        let meta = crate::shard::AccMeta::new(&identity, k, &range, &counters);
         for (sample, rows, draws) in &parts {
             let name = uncertainty_acc(sample);
             let values = std::iter::once(rows.as_slice()).chain(draws.values.iter().map(Vec::as_slice));
             let arrays: Vec<(&str, &[f64])> = uncertainty_arrays().into_iter().zip(values).collect();
-            crate::shard::write_accumulator(&out.join(&name), &arrays)?;
+            crate::shard::write_shard_accumulator(&out.join(&name), &meta, &arrays)?;
             accumulators.push(name);
         }
         let wall_s = start.elapsed().as_secs_f64();
@@ -465,9 +474,10 @@ pub fn optics_uncertainty(
             shard: k,
             range: [range.start, range.end],
             accumulators,
-            counters: [("draws".to_string(), range.end - range.start)].into_iter().collect(),
+            counters,
             wall_s,
         };
+        super::shard::check_shard_out(out, &file.identity, k)?;
         crate::io::write_json(&out.join(crate::shard::SHARD_JSON), &file)?;
         println!(
             "shard {k}/{shards}: draws {}..{} of {n} in {wall_s:.1} s → {}/{{{}, {}}}",

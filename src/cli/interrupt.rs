@@ -1,6 +1,6 @@
 //! Ctrl-C as a request to stop a long run early and keep its result.
 //!
-//! SIGTERM counts as Ctrl-C. The first Ctrl-C (SIGINT) sets a flag the run polls; the second ends the
+//! SIGTERM and SIGHUP (a closed terminal or ssh session) count as Ctrl-C. The first Ctrl-C (SIGINT) sets a flag the run polls; the second ends the
 //! process (exit status 130) after removing the staging folders and files
 //! registered with [`remove_on_abort`], so an aborted run leaves nothing
 //! half-made behind. The signal handler itself only updates atomics and
@@ -31,9 +31,14 @@ pub struct Interrupt {
     /// SIGTERM (`kill`, a batch system's stop) is handled like SIGINT.
     #[cfg(unix)]
     previous_term: libc::sighandler_t,
+    /// SIGHUP (the terminal or ssh session closed) too.
+    #[cfg(unix)]
+    previous_hup: libc::sighandler_t,
 }
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+/// The last stop signal received (SIGINT, SIGTERM or SIGHUP), for the message.
+static LAST_SIGNAL: AtomicI32 = AtomicI32::new(0);
 /// SIGINTs received since [`Interrupt::install`].
 static COUNT: AtomicUsize = AtomicUsize::new(0);
 /// Write end of the pipe the cleanup thread waits on; -1 if there is none.
@@ -45,8 +50,9 @@ static NEXT_ID: AtomicUsize = AtomicUsize::new(0);
 static ABORT_AT: AtomicUsize = AtomicUsize::new(2);
 
 #[cfg(unix)]
-extern "C" fn on_sigint(_: libc::c_int) {
+extern "C" fn on_sigint(signal: libc::c_int) {
     // Only async-signal-safe work here: atomics, write and _exit.
+    LAST_SIGNAL.store(signal, Ordering::SeqCst);
     INTERRUPTED.store(true, Ordering::SeqCst);
     let n = COUNT.fetch_add(1, Ordering::SeqCst) + 1;
     let fd = ABORT_PIPE.load(Ordering::SeqCst);
@@ -103,7 +109,12 @@ fn start_cleanup_thread() {
                     break;
                 }
                 if n == 1 {
-                    eprintln!("\nCtrl-C: stopping after the round under way (press Ctrl-C again to abort)");
+                    let by = match LAST_SIGNAL.load(Ordering::SeqCst) {
+                        libc::SIGHUP => "SIGHUP (the terminal closed)",
+                        libc::SIGTERM => "SIGTERM",
+                        _ => "Ctrl-C",
+                    };
+                    eprintln!("\n{by}: stopping after the round under way (press Ctrl-C again to abort)");
                 }
             }
             // Held until _exit: no write of the run starts after the removal.
@@ -148,7 +159,9 @@ impl Interrupt {
             let previous = unsafe { libc::signal(libc::SIGINT, handler) };
             // SAFETY: the same handler for SIGTERM.
             let previous_term = unsafe { libc::signal(libc::SIGTERM, handler) };
-            Self { previous, previous_term }
+            // SAFETY: the same handler for SIGHUP.
+            let previous_hup = unsafe { libc::signal(libc::SIGHUP, handler) };
+            Self { previous, previous_term, previous_hup }
         }
         #[cfg(not(unix))]
         Self {}
@@ -168,6 +181,7 @@ impl Drop for Interrupt {
         unsafe {
             libc::signal(libc::SIGINT, self.previous);
             libc::signal(libc::SIGTERM, self.previous_term);
+            libc::signal(libc::SIGHUP, self.previous_hup);
         }
     }
 }

@@ -152,18 +152,7 @@ fn write_shard(
     let counts = |v: &[u32]| v.iter().map(|&c| f64::from(c)).collect::<Vec<f64>>();
     let (sum, sq, even) = (flat(&acc.sum), flat(&acc.sum_sq), flat(&acc.sum_even));
     let (samples, object, board) = (counts(&acc.samples), counts(&acc.object_samples), counts(&acc.board_samples));
-    crate::shard::write_accumulator(
-        &out.join(SHARD_ACC),
-        &[
-            ("sum", &sum),
-            ("sum_sq", &sq),
-            ("sum_even", &even),
-            ("samples", &samples),
-            ("object_samples", &object),
-            ("board_samples", &board),
-        ],
-    )?;
-    let counters = [
+    let counters: std::collections::BTreeMap<String, u64> = [
         ("samples", stats.samples),
         ("events", stats.events),
         ("surface_hits", stats.surface_hits),
@@ -174,6 +163,18 @@ fn write_shard(
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
     .collect();
+    crate::shard::write_shard_accumulator(
+        &out.join(SHARD_ACC),
+        &crate::shard::AccMeta::new(&identity, k, &range, &counters),
+        &[
+            ("sum", &sum),
+            ("sum_sq", &sq),
+            ("sum_even", &even),
+            ("samples", &samples),
+            ("object_samples", &object),
+            ("board_samples", &board),
+        ],
+    )?;
     let file = crate::shard::ShardFile {
         identity,
         shard: k,
@@ -443,6 +444,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     if let Some((k, n)) = shard {
         let range = crate::shard::range(u64::from(settings.spp), k, n);
         let identity = super::shard::identity(settings.seed, format!("{} spp", settings.spp), n)?;
+        super::shard::check_shard_out(&a.out, &identity, k)?;
         let interrupt = Interrupt::install();
         let (acc, stats) = pool.install(|| {
             tracer::render_samples(
@@ -458,6 +460,8 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
             );
         }
         drop(interrupt);
+        // Another shard may have finished into the same folder meanwhile.
+        super::shard::check_shard_out(&a.out, &identity, k)?;
         write_shard(&a.out, &acc, &stats, identity, k, range.clone())?;
         println!(
             "shard {k}/{n}: samples {}..{} of every pixel in {:.1} s → {}/{SHARD_ACC}, {}",

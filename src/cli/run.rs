@@ -114,7 +114,7 @@ fn run_lucent(exe: &Path, args: &[String], log: &Path, interrupt: &Interrupt) ->
     }
 }
 
-/// The class of a command ended by a signal: SIGINT or SIGTERM stopped it
+/// The class of a command ended by a signal: SIGINT, SIGTERM or SIGHUP stopped it
 /// (interrupted), SIGKILL is the machine's (the kernel's out-of-memory
 /// killer, a batch system's limit), anything else (SIGSEGV, SIGABRT) a bug.
 fn killed_by(status: &std::process::ExitStatus) -> Fault {
@@ -122,7 +122,7 @@ fn killed_by(status: &std::process::ExitStatus) -> Fault {
     {
         use std::os::unix::process::ExitStatusExt;
         match status.signal() {
-            Some(libc::SIGINT | libc::SIGTERM) => Fault::Interrupted,
+            Some(libc::SIGINT | libc::SIGTERM | libc::SIGHUP) => Fault::Interrupted,
             Some(libc::SIGKILL) => Fault::Environment,
             _ => Fault::Internal,
         }
@@ -227,8 +227,16 @@ pub fn run(a: RunArgs) -> Result<()> {
             Status::Skipped { reason } => format!("skipped: {reason}"),
             Status::Deferred { tasks } => format!("{tasks} long task(s) written as batch jobs, not run here"),
         };
-        let notes = if notes.is_empty() { String::new() } else { format!(" [{}]", notes.join("; ")) };
+        let (warnings, notes): (Vec<&String>, Vec<&String>) = notes.iter().partition(|n| n.starts_with("warning: "));
+        let notes = if notes.is_empty() {
+            String::new()
+        } else {
+            format!(" [{}]", notes.iter().map(|n| n.as_str()).collect::<Vec<_>>().join("; "))
+        };
         println!("[{k}/{n}] {:<10} {what}{notes}", stage.name());
+        for w in warnings {
+            eprintln!("{w}");
+        }
     };
     let result = pipeline::run(&project, &out, &Options { force, until }, &mut exec, &mut status_line);
     if let Some(e) = &emit

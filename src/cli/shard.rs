@@ -53,9 +53,14 @@ fn identity_args() -> Vec<String> {
 pub fn inputs_sha256(args: &[String]) -> Result<String> {
     let mut h = Sha256::new();
     let mut files: Vec<PathBuf> = Vec::new();
-    for a in args {
+    for (i, a) in args.iter().enumerate() {
         h.update(a.as_bytes());
         h.update([0u8]);
+        // The command's name is no file (a folder `render/` in the current
+        // folder made the identity depend on where the shard ran).
+        if i == 0 {
+            continue;
+        }
         for candidate in [Some(a.as_str()), a.split_once(':').map(|(_, p)| p)].into_iter().flatten() {
             let p = Path::new(candidate);
             // A folder of recipes (`lucent optics FOLDER`): the recipes in it.
@@ -96,19 +101,157 @@ pub fn inputs_sha256(args: &[String]) -> Result<String> {
     Ok(format!("{:x}", h.finalize()))
 }
 
+/// An argument naming an existing file or folder (also as `kind:PATH` or
+/// `PATH:rest`, as in `measured:fit.json` or `m.csv:45/0`) as its canonical
+/// path, so a relative and an absolute spelling are the same argument.
+fn canonical_arg(a: &str) -> String {
+    let canon = |p: &str| -> Option<String> {
+        if p.is_empty() || p.starts_with('-') {
+            return None;
+        }
+        std::fs::canonicalize(p).ok().and_then(|c| c.to_str().map(str::to_string))
+    };
+    if let Some(c) = canon(a) {
+        return c;
+    }
+    if let Some((l, r)) = a.split_once(':') {
+        if let Some(c) = canon(r)
+            && !l.is_empty()
+        {
+            return format!("{l}:{c}");
+        }
+        if let Some(c) = canon(l) {
+            return format!("{c}:{r}");
+        }
+    }
+    a.to_string()
+}
+
+/// A command line in one spelling: `--flag=value` as `--flag value`, paths
+/// canonical ([`canonical_arg`]), and the options (each with its values)
+/// sorted by name after the positional arguments, a repeated option's
+/// occurrences in their order. Two shards of one run given their flags in
+/// another order, as `--spp=8`, or a path relative to another folder have
+/// the same identity. A command line this cannot split into options with a
+/// fixed number of values is kept in its order (still with `=` split and
+/// paths canonical).
+pub fn normalized_args(args: Vec<String>) -> Vec<String> {
+    use clap::CommandFactory;
+    let mut toks: Vec<String> = Vec::new();
+    for a in args {
+        match a.strip_prefix("--").and_then(|r| r.split_once('=')) {
+            Some((f, v)) if !f.is_empty() => {
+                toks.push(format!("--{f}"));
+                toks.push(v.to_string());
+            }
+            _ => toks.push(a),
+        }
+    }
+    // The command's name and words without a '/' or '.' (`render`,
+    // `uniform`, `12x9`) are never taken for paths, even when a file or
+    // folder of that name is in the current folder.
+    let toks: Vec<String> = toks
+        .iter()
+        .enumerate()
+        .map(|(i, t)| if i > 0 && (t.contains('/') || t.contains('.')) { canonical_arg(t) } else { t.clone() })
+        .collect();
+    let Some(name) = toks.first() else { return toks };
+    let mut cli = super::Cli::command();
+    cli.build();
+    let Some(sub) = cli.find_subcommand(name) else { return toks };
+    if toks.get(1).is_some_and(|t| sub.find_subcommand(t).is_some()) {
+        return toks;
+    }
+    let mut positionals = Vec::new();
+    let mut groups: Vec<(String, Vec<String>)> = Vec::new();
+    let mut i = 1;
+    while i < toks.len() {
+        let t = &toks[i];
+        if !t.starts_with('-') || t == "-" {
+            positionals.push(t.clone());
+            i += 1;
+            continue;
+        }
+        let arg = if let Some(long) = t.strip_prefix("--") {
+            sub.get_arguments().find(|a| a.get_long() == Some(long))
+        } else {
+            let mut c = t[1..].chars();
+            match (c.next(), c.next()) {
+                (Some(short), None) => sub.get_arguments().find(|a| a.get_short() == Some(short)),
+                _ => None,
+            }
+        };
+        let Some(arg) = arg else { return toks };
+        let n = if arg.get_action().takes_values() {
+            match arg.get_num_args() {
+                Some(r) if r.min_values() == r.max_values() => r.min_values(),
+                _ => return toks,
+            }
+        } else {
+            0
+        };
+        let key = arg.get_id().to_string();
+        let Some(values) = toks.get(i + 1..i + 1 + n) else { return toks };
+        let mut group = vec![t.clone()];
+        group.extend(values.iter().cloned());
+        groups.push((key, group));
+        i += 1 + n;
+    }
+    groups.sort_by(|a, b| a.0.cmp(&b.0));
+    let mut out = vec![name.clone()];
+    out.extend(positionals);
+    out.extend(groups.into_iter().flat_map(|(_, g)| g));
+    out
+}
+
 /// The identity of the run this process is a shard of.
 pub fn identity(seed: u64, budget: String, shards: u32) -> Result<Identity> {
     let args = identity_args();
+    let normalized = normalized_args(args.clone());
     Ok(Identity {
         command: args.first().cloned().unwrap_or_default(),
-        inputs_sha256: inputs_sha256(&args)?,
+        inputs_sha256: inputs_sha256(&normalized)?,
         args,
+        normalized_args: normalized,
         cwd: std::env::current_dir().context("cannot read the current folder")?,
         lucent_version: env!("CARGO_PKG_VERSION").into(),
         seed,
         budget,
         shards,
     })
+}
+
+/// Refuses a shard's `--out` that already holds another shard (another K
+/// or N): two shards written into one folder would leave only the last.
+/// Shard K of N again (a retry, or the same shard after its inputs
+/// changed) may replace its own files. Checked before the shard runs and
+/// again just before it writes.
+pub fn check_shard_out(out: &Path, identity: &Identity, k: u32) -> Result<()> {
+    let json = out.join(shard::SHARD_JSON);
+    if std::fs::symlink_metadata(&json).is_err() {
+        return Ok(());
+    }
+    let there: Option<shard::ShardFile> = crate::io::read_text(&json).ok().and_then(|t| serde_json::from_str(&t).ok());
+    match there {
+        // Shard K of N again (a retry, or a rerun after its inputs changed)
+        // replaces its own files.
+        Some(f) if f.shard == k && f.identity.shards == identity.shards => Ok(()),
+        Some(f) => bail!(
+            "--out {}: already holds shard {} of {} of {} run ({}); give each shard its own folder (writing shard {k} \
+             of {} here would replace it)",
+            out.display(),
+            f.shard,
+            f.identity.shards,
+            if f.identity == *identity { "this" } else { "another" },
+            json.display(),
+            identity.shards
+        ),
+        None => bail!(
+            "--out {}: holds a {} lucent cannot read as a shard's; give each shard its own folder",
+            out.display(),
+            json.display()
+        ),
+    }
 }
 
 /// Runs `lucent merge`.
@@ -129,12 +272,18 @@ pub fn merge(a: MergeArgs) -> Result<()> {
         );
     }
     let out = std::path::absolute(&a.out).with_context(|| format!("{}: cannot resolve", a.out.display()))?;
-    if let Some(s) = shards.iter().find(|s| out.starts_with(&s.dir) || s.dir.starts_with(&out)) {
-        bail!("--out {}: must not be or contain a shard folder ({})", out.display(), s.dir.display());
+    // Compared where the paths lead (through symbolic links), not as spelled.
+    let real_out = crate::io::resolved(&out);
+    if let Some(s) = shards.iter().find(|s| {
+        let d = crate::io::resolved(&s.dir);
+        out.starts_with(&s.dir) || s.dir.starts_with(&out) || real_out.starts_with(&d) || d.starts_with(&real_out)
+    }) {
+        let via = if real_out != out { format!(" (it leads to {})", real_out.display()) } else { String::new() };
+        bail!("--out {}{via}: must not be or contain a shard folder ({})", out.display(), s.dir.display());
     }
     std::env::set_current_dir(&id.cwd)
         .with_context(|| format!("{}: cannot enter the folder the shards ran in", id.cwd.display()))?;
-    if inputs_sha256(&id.args)? != id.inputs_sha256 {
+    if inputs_sha256(id.compared_args())? != id.inputs_sha256 {
         bail!(
             "{}: the input files of `lucent {}` changed since the shards were made (run in {}); rerun the shards",
             shards[0].dir.join(shard::SHARD_JSON).display(),

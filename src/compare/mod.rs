@@ -743,6 +743,45 @@ fn twins_report(
     })
 }
 
+/// A photo's variance image is implausible above this multiple of the
+/// squared photo value (the photo's mean value as the floor, so dark pixels
+/// are not judged by a value near 0): a variance 100 × the signal squared
+/// is a noise standard deviation 10 × the signal, which no exposed photo has.
+pub const MAX_PHOTO_VARIANCE_RATIO: f64 = 100.0;
+
+/// Checks a photo's variance (interleaved RGB, the photo's size): every
+/// value finite and ≥ 0, and in at least half the values not above
+/// [`MAX_PHOTO_VARIANCE_RATIO`] × max(photo value, the photo's mean)².
+/// The reason names the pixel and channel.
+fn check_photo_variance(v: &[f32], photo: &RgbImage) -> Result<(), String> {
+    let w = photo.width.max(1);
+    let at = |i: usize| format!("pixel ({}, {}) channel {}", (i / 3) % w, i / 3 / w, ["R", "G", "B"][i % 3]);
+    if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+        return Err(format!("{} is {}: a variance must be a finite number ≥ 0", at(i), v[i]));
+    }
+    let finite: Vec<f64> = photo.data.iter().map(|&p| f64::from(p)).filter(|p| p.is_finite()).collect();
+    let mean = finite.iter().map(|p| p.abs()).sum::<f64>() / finite.len().max(1) as f64;
+    if mean.is_nan() || mean <= 0.0 {
+        return Ok(());
+    }
+    let bound = |i: usize| MAX_PHOTO_VARIANCE_RATIO * f64::from(photo.data[i]).abs().max(mean).powi(2);
+    let above: Vec<usize> = (0..v.len().min(photo.data.len())).filter(|&i| f64::from(v[i]) > bound(i)).collect();
+    if !v.is_empty() && 2 * above.len() > v.len() {
+        let i = above[0];
+        return Err(format!(
+            "the variance is above {MAX_PHOTO_VARIANCE_RATIO} × the squared photo value in {:.0} % of the values \
+             (e.g. {}: variance {:.4e}, photo {:.4e}; the photo's mean {mean:.4e} is the floor of the photo value): \
+             a noise standard deviation of more than 10 × the signal is no photo's; is this the photo's variance \
+             (e.g. from `lucent colour apply --variance-out`), not an image or another quantity?",
+            100.0 * above.len() as f64 / v.len() as f64,
+            at(i),
+            v[i],
+            photo.data[i]
+        ));
+    }
+    Ok(())
+}
+
 /// The model RMSE of the render at `render_path` given its variance
 /// (`variance.R/G/B` of its EXR, read by [`render_variance`]); `None` with a
 /// note when it has none.
@@ -794,7 +833,9 @@ fn noise_report(
                     got.0, got.1, photo.width, photo.height
                 )));
             }
-            Some(interleave(&got.2))
+            let v = interleave(&got.2);
+            check_photo_variance(&v, photo).map_err(read)?;
+            Some(v)
         }
     };
     let input = noise::NoiseInput {
@@ -818,6 +859,31 @@ fn noise_report(
             report.blocks,
             noise::MIN_BLOCKS
         ));
+    }
+    if let (Some(p), Some(v)) = (&req.photo_variance, photo_variance.as_deref()) {
+        // The photo and render differ by at least the photo's noise: a photo
+        // variance above their mean squared difference does not describe them.
+        let included = |i: usize| mask.is_none_or(|m| m.include.get(i / 3).copied().unwrap_or(false));
+        let (mut sum_v, mut sum_d, mut n) = (0.0f64, 0.0f64, 0usize);
+        for i in (0..v.len().min(photo.data.len()).min(render.data.len())).filter(|&i| included(i)) {
+            let d = f64::from(photo.data[i]) - f64::from(render.data[i]);
+            if d.is_finite() {
+                sum_v += f64::from(v[i]);
+                sum_d += d * d;
+                n += 1;
+            }
+        }
+        if n > 0 && sum_v > sum_d {
+            notes.push(format!(
+                "warning: the photo variance {} (mean {:.4e}) is larger than the mean squared difference of photo \
+                 and render ({:.4e}), which holds the photo's noise and more: the model RMSE comes out 0 and means \
+                 nothing; check that {} is the photo's variance (not a radiance image)",
+                p.display(),
+                sum_v / n as f64,
+                sum_d / n as f64,
+                p.display()
+            ));
+        }
     }
     report.render_variance = format!("{}: variance.R/G/B (variance of each pixel's mean)", render_path.display());
     report.photo_variance = match (&req.photo_variance, &req.photo_repeat) {

@@ -307,7 +307,20 @@ impl Measurement {
     /// Reads a measured slice (EXR, float TIFF or CSV; see
     /// [`bssrdf::read_grid`]) taken at (θ_i, φ_i, θ_o, φ_o) in degrees.
     pub fn load(path: &Path, pixel_mm: Option<f64>, angles: (f64, f64, f64, f64)) -> Result<Self, FitError> {
+        Self::load_at(path, pixel_mm, angles, None)
+    }
+
+    /// [`Measurement::load`] for a fit at `wavelength_nm`: a slice with a
+    /// negative pixel, or whose sidecar says it was taken at another
+    /// wavelength or other angles, is refused ([`bssrdf::check_measured`]).
+    pub fn load_at(
+        path: &Path,
+        pixel_mm: Option<f64>,
+        angles: (f64, f64, f64, f64),
+        wavelength_nm: Option<f64>,
+    ) -> Result<Self, FitError> {
         let grid = bssrdf::read_grid(path, pixel_mm)?;
+        bssrdf::check_measured(path, &grid, wavelength_nm, Some(angles))?;
         Self::new(path, grid, angles)
     }
 
@@ -451,6 +464,16 @@ impl Problem {
         }
         if b.paths == Some(0) {
             return setting("paths per evaluation", 0.0, "", "be positive");
+        }
+        if let Some(n) = b.paths
+            && n > crate::job::MAX_PATHS
+        {
+            return setting(
+                "paths per evaluation",
+                n as f64,
+                "",
+                "be at most 10^12 (the most light paths any command takes)",
+            );
         }
         if !(b.explore_fraction > 0.0 && b.explore_fraction <= 1.0) {
             return setting("explore fraction", b.explore_fraction, "", "lie in (0, 1]");

@@ -297,6 +297,12 @@ pub struct Manifest {
     /// SHA-256 over the stage folder's files (names and contents, manifest and log excluded).
     pub outputs_sha256: String,
     pub outputs: Vec<String>,
+    /// Every file lucent wrote into the stage folder (paths relative to it)
+    /// with its size and SHA-256: only these are ever replaced or removed by
+    /// a later run. A file that is not listed, or no longer has its hash (the
+    /// user edited it), is the user's and is kept ([`users_files`]).
+    #[serde(default)]
+    pub files: Vec<InputHash>,
 }
 
 /// How a stage ended in this run.
@@ -418,6 +424,135 @@ pub fn outputs_hash(dir: &Path) -> Result<String, PipelineError> {
         h.update(hash_file(&dir.join(&f))?.sha256.as_bytes());
     }
     Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// The hash of the outputs a stage's manifest lists (files added to the
+/// folder since, e.g. the user's notes, do not change it); without a
+/// manifest, of every file in the folder ([`outputs_hash`]).
+pub fn listed_outputs_hash(dir: &Path) -> Result<String, PipelineError> {
+    match read_manifest(dir) {
+        Some(m) => hash_listed(dir, &m.outputs),
+        None => outputs_hash(dir),
+    }
+}
+
+fn hash_listed(dir: &Path, files: &[String]) -> Result<String, PipelineError> {
+    let mut h = Sha256::new();
+    for f in files {
+        h.update(f.as_bytes());
+        h.update([0]);
+        h.update(hash_file(&dir.join(f))?.sha256.as_bytes());
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Every file (and symbolic link) under `dir`, relative paths sorted, hidden
+/// ones included; symbolic links to folders are not followed.
+fn all_files(dir: &Path) -> Vec<String> {
+    fn walk(base: &Path, dir: &Path, out: &mut Vec<String>) {
+        let Ok(rd) = std::fs::read_dir(dir) else { return };
+        for e in rd.flatten() {
+            let p = e.path();
+            let Ok(meta) = std::fs::symlink_metadata(&p) else { continue };
+            if meta.is_dir() {
+                let before = out.len();
+                walk(base, &p, out);
+                if out.len() == before
+                    && let Ok(rel) = p.strip_prefix(base)
+                {
+                    // An empty folder of the user's is kept too.
+                    out.push(format!("{}/", rel.to_string_lossy().replace('\\', "/")));
+                }
+            } else if let Ok(rel) = p.strip_prefix(base) {
+                out.push(rel.to_string_lossy().replace('\\', "/"));
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(dir, dir, &mut out);
+    out.sort();
+    out
+}
+
+/// The files in a stage folder that lucent did not write: not listed in
+/// the folder's manifest, or listed with a hash the file no longer has (the
+/// user edited it). The manifest, the log and the mark of a stage under way
+/// are lucent's. Relative paths; an empty folder ends with `/`.
+pub fn users_files(dir: &Path, manifest: Option<&Manifest>) -> Vec<String> {
+    let Some(m) = manifest else { return Vec::new() };
+    let listed: std::collections::BTreeSet<&str> = m.outputs.iter().map(String::as_str).collect();
+    let hashes: std::collections::BTreeMap<&str, &str> =
+        m.files.iter().map(|f| (f.path.as_str(), f.sha256.as_str())).collect();
+    all_files(dir)
+        .into_iter()
+        .filter(|f| {
+            if f == "manifest.json" || f == "log.txt" || f == STAGE_MARK {
+                return false;
+            }
+            if !listed.contains(f.as_str()) {
+                // Empty folders lucent made are not listed; keep only ones
+                // that are not a prefix of a listed output.
+                return !(f.ends_with('/') && listed.iter().any(|l| l.starts_with(f.as_str())));
+            }
+            match hashes.get(f.as_str()) {
+                Some(h) => hash_file(&dir.join(f)).map_or(true, |now| now.sha256 != *h),
+                None => false,
+            }
+        })
+        .collect()
+}
+
+/// Moves the user's files `kept` from `from` (the previous result, moved
+/// aside) into the stage folder `to`. A name lucent has now written itself
+/// gets the user's file as `NAME.yours` (or `NAME.yours-2`, …). Returns one
+/// warning per file, naming where it is now.
+fn carry_users_files(from: &Path, to: &Path, kept: &[String], stage: Stage) -> Vec<String> {
+    let mut warnings = Vec::new();
+    for f in kept {
+        let src = from.join(f.trim_end_matches('/'));
+        if std::fs::symlink_metadata(&src).is_err() {
+            continue;
+        }
+        let mut dst = to.join(f.trim_end_matches('/'));
+        if f.ends_with('/') {
+            if !dst.exists() {
+                let _ = std::fs::create_dir_all(&dst);
+            }
+            let _ = std::fs::remove_dir(&src);
+            continue;
+        }
+        if std::fs::symlink_metadata(&dst).is_ok() {
+            let mut k = 1;
+            loop {
+                let suffix = if k == 1 { ".yours".to_string() } else { format!(".yours-{k}") };
+                let mut name = dst.as_os_str().to_owned();
+                name.push(&suffix);
+                let alt = PathBuf::from(name);
+                if std::fs::symlink_metadata(&alt).is_err() {
+                    dst = alt;
+                    break;
+                }
+                k += 1;
+            }
+        }
+        if let Some(parent) = dst.parent() {
+            let _ = std::fs::create_dir_all(parent);
+        }
+        match std::fs::rename(&src, &dst) {
+            Ok(()) => warnings.push(format!(
+                "warning: kept {}: not a file lucent wrote (not in {}/manifest.json, or edited since); \
+                 lucent leaves it alone",
+                dst.display(),
+                stage.name()
+            )),
+            Err(e) => warnings.push(format!(
+                "warning: {} is not a file lucent wrote and could not be put back ({e}); it is still in {}",
+                f,
+                from.display()
+            )),
+        }
+    }
+    warnings
 }
 
 fn read_manifest(dir: &Path) -> Option<Manifest> {
@@ -994,6 +1129,13 @@ fn recover_stage_folder(stage: Stage, dir: &Path, aside: &Path, failed: &Path) -
     }
     if aside.is_dir() {
         if dir.exists() {
+            // A run stopped between its manifest and putting the user's files
+            // back: they go back now, before the previous result is removed.
+            let kept = users_files(aside, read_manifest(aside).as_ref());
+            let _ = carry_users_files(aside, dir, &kept, stage);
+            if !users_files(aside, read_manifest(aside).as_ref()).is_empty() {
+                return Err(foreign(aside));
+            }
             std::fs::remove_dir_all(aside).map_err(|e| io(aside, e))?;
         } else {
             std::fs::rename(aside, dir).map_err(|e| io(aside, e))?;
@@ -1020,6 +1162,15 @@ pub fn run(
 ) -> Result<Vec<(Stage, Status)>, PipelineError> {
     let io = |path: &Path, source| PipelineError::Io { path: path.to_path_buf(), source };
     crate::io::claim_output_folder(out)?;
+    // One run at a time writes into a folder: a second is refused clearly.
+    let lock = crate::io::lock_output_folder(out)?;
+    let mut first_notes: Vec<String> = Vec::new();
+    if let Some((pid, host)) = &lock.replaced_stale {
+        first_notes.push(format!(
+            "warning: {}: a stale lock of an ended run (pid {pid} on {host}) was replaced",
+            out.join(crate::io::OUTPUT_LOCK).display()
+        ));
+    }
     let mut done: Vec<(Stage, Status)> = Vec::new();
     for stage in Stage::ALL {
         if options
@@ -1046,14 +1197,14 @@ pub fn run(
         for d in stage.depends_on() {
             let ddir = out.join(d.name());
             if ddir.is_dir() {
-                upstream.push((*d, outputs_hash(&ddir)?));
+                upstream.push((*d, listed_outputs_hash(&ddir)?));
             }
         }
         let key = stage_key(stage, project, &plan, &inputs, &upstream)?;
         let previous = read_manifest(&dir);
-        let fresh = previous
-            .as_ref()
-            .is_some_and(|m| m.key == key && outputs_hash(&dir).map(|h| h == m.outputs_sha256).unwrap_or(false));
+        let fresh = previous.as_ref().is_some_and(|m| {
+            m.key == key && hash_listed(&dir, &m.outputs).map(|h| h == m.outputs_sha256).unwrap_or(false)
+        });
         if fresh && !options.force.contains(&stage) {
             on_status(stage, &Status::UpToDate, &plan.notes);
             done.push((stage, Status::UpToDate));
@@ -1063,6 +1214,9 @@ pub fn run(
         let aside = out.join(format!(".{}.previous", stage.name()));
         let failed = out.join(format!("{}.failed", stage.name()));
         recover_stage_folder(stage, &dir, &aside, &failed)?;
+        // The user's files in the stage folder (not in its manifest) are
+        // carried into the new result, never removed with the old one.
+        let kept = users_files(&dir, read_manifest(&dir).as_ref());
         if dir.exists() {
             std::fs::rename(&dir, &aside).map_err(|e| io(&dir, e))?;
         }
@@ -1138,17 +1292,26 @@ pub fn run(
             wall_s,
             outputs_sha256: outputs_hash(&dir)?,
             outputs: output_files(&dir),
+            files: output_files(&dir)
+                .into_iter()
+                .map(|f| hash_file(&dir.join(&f)).map(|h| InputHash { path: f, ..h }))
+                .collect::<Result<_, _>>()?,
         };
         crate::io::write_json(&dir.join("manifest.json"), &manifest)?;
         let _ = std::fs::remove_file(dir.join(STAGE_MARK));
+        let mut notes = plan.notes.clone();
         if aside.exists() {
-            let _ = std::fs::remove_dir_all(&aside);
+            notes.extend(carry_users_files(&aside, &dir, &kept, stage));
+            if users_files(&aside, read_manifest(&aside).as_ref()).is_empty() {
+                let _ = std::fs::remove_dir_all(&aside);
+            }
         }
         if failed.exists() {
             let _ = std::fs::remove_dir_all(&failed);
         }
+        notes.append(&mut first_notes);
         let st = Status::Ran { wall_s, tasks: plan.tasks.len() };
-        on_status(stage, &st, &plan.notes);
+        on_status(stage, &st, &notes);
         done.push((stage, st));
     }
     Ok(done)

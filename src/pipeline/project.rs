@@ -572,6 +572,27 @@ impl Project {
                 }
                 slices.push((c[0], file));
             }
+            for m in &s.measured {
+                // Without pixel_mm here the slice's sidecar must give it; the
+                // message names this key, not the stage's --measured-pixel-mm.
+                if m.pixel_mm.is_none() {
+                    match crate::bssrdf::sidecar_pixel_mm(&m.file) {
+                        Ok(Some(_)) => {}
+                        Ok(None) => {
+                            return Err(key(
+                                &format!("{at} measured pixel_mm"),
+                                format!(
+                                    "{}: pixel size unknown; set pixel_mm = … (mm) in this [[sample.measured]] \
+                                     entry, or put {{\"pixel_mm\": …}} in {}.json",
+                                    m.file.display(),
+                                    m.file.display()
+                                ),
+                            ));
+                        }
+                        Err(e) => return Err(key(&format!("{at} measured pixel_mm"), e.to_string())),
+                    }
+                }
+            }
         }
         let mut bssrdf_configs = Vec::new();
         if let Some(b) = &file.bssrdf {

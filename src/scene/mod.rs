@@ -156,6 +156,17 @@ pub enum KeyProblem {
          {largest})"
     )]
     SingularTransform { determinant: f64, last_row: [f64; 4], largest: f64 },
+    #[error(
+        "mirrors the object (determinant {determinant} < 0): a mirrored mesh is turned inside out (its faces' \
+         outward normals point inwards); mirror the mesh file itself, or use a rotation (determinant > 0)"
+    )]
+    MirrorTransform { determinant: f64 },
+    #[error(
+        "scales the object by {scale:e} (the cube root of the determinant {determinant:e}): it would be \
+         {size_m:e} m across and vanish from the render; a transform places the object in metres (put a unit \
+         conversion in unit_scale_m), and must keep it at least {min_m:e} m across"
+    )]
+    VanishingTransform { determinant: f64, scale: f64, size_m: f64, min_m: f64 },
     #[error("must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %), got {value}")]
     Fraction { value: f64 },
     #[error("{0}")]
@@ -965,7 +976,10 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
         settings.seed = s;
     }
     if let Some(p) = r.spp_per_pass {
-        settings.spp_per_pass = p.max(1);
+        if p == 0 {
+            return Err(ctx.key("render", "spp_per_pass", KeyProblem::Zero));
+        }
+        settings.spp_per_pass = p;
     }
     if let Some(b) = r.spectral_mis {
         settings.spectral_mis = b;
@@ -1441,6 +1455,33 @@ fn build_object_triangles(
                 KeyProblem::SingularTransform { determinant: det, last_row: t[3], largest: scale },
             ));
         }
+        if det < 0.0 {
+            return Err(ctx.key("object", "transform", KeyProblem::MirrorTransform { determinant: det }));
+        }
+        // The object after the transform: at least 1 µm across (a smaller
+        // one covers no pixel of any camera lucent renders with).
+        let size_before = (0..3)
+            .map(|k| {
+                let (lo, hi) = mesh_obj
+                    .positions_m
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[k]), hi.max(p[k])));
+                hi - lo
+            })
+            .fold(0.0, f64::max);
+        let linear = det.abs().cbrt();
+        if size_before.is_finite() && size_before > 0.0 && size_before * linear < MIN_OBJECT_SIZE_M {
+            return Err(ctx.key(
+                "object",
+                "transform",
+                KeyProblem::VanishingTransform {
+                    determinant: det,
+                    scale: linear,
+                    size_m: size_before * linear,
+                    min_m: MIN_OBJECT_SIZE_M,
+                },
+            ));
+        }
         t
     } else if let Some(p) = &o.placement {
         if p != "scene" {
@@ -1492,6 +1533,9 @@ fn build_object_triangles(
     let tris = world.triangles.iter().map(|t| t.map(|i| DVec3::from_array(world.positions_m[i as usize]))).collect();
     Ok((tris, desc, report))
 }
+
+/// The smallest object (largest side, metres) a `transform` may leave.
+pub const MIN_OBJECT_SIZE_M: f64 = 1e-6;
 
 type BoardParts = (Board, String);
 

@@ -30,6 +30,8 @@ index_case("not_increasing", "DATA:\n  - type: tabulated nk\n    data: |\n      
 index_case("no_data", "REFERENCES: nothing\n")
 index_case("unknown_type", "DATA:\n  - type: tabulated xyz\n    data: |\n        0.4 1.5 0\n        0.8 1.49 0\n")
 index_case("negative_kappa", "DATA:\n  - type: tabulated nk\n    data: |\n        0.4 1.5 -0.1\n        0.8 1.49 0\n")
+# Sellmeier-2 with C0 and C1 only: the term's C2 was taken as 0 without a word.
+index_case("formula_half_pair", "DATA:\n  - type: formula 2\n    wavelength_range: 0.3 1.5\n    coefficients: 0 1.4182\n")
 
 # --- project files (lucent run)
 w("project/not_toml.toml", '[project]\nname = "x\nseed = 1\n')
@@ -49,6 +51,8 @@ w("slice/nan.csv", "1,2\nnan,4\n")
 w("slice/ragged.csv", "1,2\n3\n")
 w("slice/text.tif", "this is not a TIFF\n")
 w("slice/no_rows.csv", "# only a comment\n")
+w("slice/negative_pixel.csv", "1,2,1\n2,4,-2\n1,2,1\n")
+w("slice/semicolons.csv", "1;2;1\n2;4;2\n1;2;1\n")
 exr = open("fixtures/reference/compare/base.exr", "rb").read()
 w("slice/truncated.exr", exr[: len(exr) // 3], "wb")
 w("slice/empty.exr", b"", "wb")

@@ -31,6 +31,8 @@
 //!   `wavelength_range:` string `λmin λmax` (µm), which is the valid range.
 //!   Coefficients the file leaves out are zero, and a term whose leading
 //!   coefficient is zero is skipped (so `0/0` never arises from padding).
+//!   Formulas 1, 2, 3, 5 and 6 (C0, then terms of two coefficients) need an
+//!   odd count: a term given without its second coefficient is refused.
 //!
 //! The dispersion formulas (λ in µm; coefficients numbered from C0 here, the
 //! database document numbers the same coefficients from C1):

@@ -162,6 +162,15 @@ pub(super) fn parse_entry(
     if count == 0 {
         return Err(ctx.format(format!("{coefficient_location}: no coefficients")));
     }
+    // Formulas 1, 2, 3, 5 and 6 are C0 plus terms of two coefficients each:
+    // an even count leaves the last term without its second one (taken as
+    // 0, it silently changes the formula, e.g. Sellmeier-2's pole to λ² = 0).
+    if [1, 2, 3, 5, 6].contains(&kind_number) && count % 2 == 0 {
+        return Err(ctx.format(format!(
+            "{coefficient_location}: formula {kind_number} takes C0 and then pairs of coefficients (an odd count: 1, \
+             3, 5, …), found {count}: the last term lacks its second coefficient; give it (0 if it is meant)"
+        )));
+    }
     let range_text = entry
         .wavelength_range
         .as_ref()

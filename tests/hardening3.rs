@@ -1,0 +1,536 @@
+//! Hardening III (issue 51): nothing of the user's lost, nothing merged or
+//! fitted that does not belong. Each case through the real binary; each
+//! failed on main 4005c11.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn lucent_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lucent")).args(args).current_dir(dir).output().unwrap()
+}
+
+/// As [`lucent_in`], but killed (and the test failed) after `limit_s`: a hang is a failure, not a stuck test.
+fn lucent_within(dir: &Path, args: &[&str], limit_s: u64) -> Output {
+    let child = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(args)
+        .current_dir(dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id();
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = done.clone();
+    let watchdog = std::thread::spawn(move || {
+        let start = std::time::Instant::now();
+        while start.elapsed().as_secs() < limit_s {
+            if flag.load(std::sync::atomic::Ordering::SeqCst) {
+                return false;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        // SAFETY: a signal to the child this test started (not yet reaped: we hold it).
+        unsafe { libc::kill(pid as libc::pid_t, libc::SIGKILL) };
+        true
+    });
+    let o = child.wait_with_output().unwrap();
+    done.store(true, std::sync::atomic::Ordering::SeqCst);
+    assert!(!watchdog.join().unwrap(), "lucent {} ran longer than {limit_s} s (a hang)", args.join(" "));
+    o
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn ok(o: &Output, what: &str) {
+    assert!(o.status.success(), "{what}: {}\n{}", stdout(o), stderr(o));
+}
+
+/// A refusal: non-zero exit, `error:` with every piece of `says`, no panic.
+fn refused(o: &Output, says: &[&str], what: &str) {
+    let e = stderr(o);
+    assert!(!o.status.success(), "{what}: exit 0\n{e}");
+    assert!(e.contains("error") && !e.contains("panicked"), "{what}: {e}");
+    for s in says {
+        assert!(e.contains(s), "{what}: the message does not say {s:?}: {e}");
+    }
+}
+
+fn s(p: &Path) -> String {
+    p.to_str().unwrap().to_string()
+}
+
+fn write_exr(path: &Path, w: usize, h: usize, value: f32) {
+    let plane = vec![value; w * h];
+    lucent::imageio::write_exr_channels(path, w, h, &[("R", &plane), ("G", &plane), ("B", &plane)]).unwrap();
+}
+
+/// Data loss: `run --force optics` and a rerun that refreshes the report
+/// keep the user's files in the stage folders (named in a warning), a
+/// lucent file the user edited is kept beside the new one, and the user's
+/// files do not make a stage out of date.
+#[test]
+fn data_loss_reruns_keep_the_users_files_in_stage_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    std::fs::write(
+        d.join("p.toml"),
+        format!("[project]\nname = \"p\"\n[[sample]]\nname = \"s\"\nrecipe = {:?}\n", s(&recipe)),
+    )
+    .unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o"]);
+    ok(&o, "first run");
+    assert!(d.join("o/optics/manifest.json").is_file() && d.join("o/report/manifest.json").is_file());
+    std::fs::write(d.join("o/optics/notes.txt"), "the user's optics notes").unwrap();
+    std::fs::create_dir_all(d.join("o/report/mine")).unwrap();
+    std::fs::write(d.join("o/report/notes.txt"), "the user's report notes").unwrap();
+    std::fs::write(d.join("o/report/mine/plot.svg"), "<svg/>").unwrap();
+    // The user's files alone do not make a stage out of date.
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o"]);
+    ok(&o, "rerun");
+    assert!(stdout(&o).contains("up to date"), "{}", stdout(&o));
+    // --force optics reruns optics and refreshes the report.
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o", "--force", "optics"]);
+    ok(&o, "run --force optics");
+    assert_eq!(std::fs::read_to_string(d.join("o/optics/notes.txt")).unwrap(), "the user's optics notes");
+    assert_eq!(std::fs::read_to_string(d.join("o/report/notes.txt")).unwrap(), "the user's report notes");
+    assert_eq!(std::fs::read_to_string(d.join("o/report/mine/plot.svg")).unwrap(), "<svg/>");
+    let e = stderr(&o);
+    assert!(e.contains("warning") && e.contains("optics/notes.txt"), "{e}");
+    // A file lucent wrote and the user edited: the new run writes its own, the user's is kept beside it.
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/optics/manifest.json")).unwrap()).unwrap();
+    let listed: Vec<String> =
+        manifest["outputs"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect();
+    assert!(!listed.iter().any(|f| f.contains("notes")), "the user's file listed as lucent's: {listed:?}");
+    assert_eq!(manifest["files"].as_array().unwrap().len(), listed.len(), "every output with its hash");
+    let edited = listed.iter().find(|f| f.ends_with(".csv")).expect("a CSV output").clone();
+    std::fs::write(d.join("o/optics").join(&edited), "the user's edit").unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o"]);
+    ok(&o, "rerun after an edit");
+    let yours = d.join("o/optics").join(format!("{edited}.yours"));
+    assert_eq!(std::fs::read_to_string(&yours).unwrap(), "the user's edit");
+    assert_ne!(std::fs::read_to_string(d.join("o/optics").join(&edited)).unwrap(), "the user's edit");
+    assert!(stderr(&o).contains(&format!("{edited}.yours")), "{}", stderr(&o));
+    // A second run into a folder a live run holds is refused clearly; a stale lock is replaced.
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default().trim().to_string();
+    std::fs::write(d.join("o/.lucent-lock"), format!("{} {host}\n", std::process::id())).unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o", "--force", "optics"]);
+    refused(&o, &["another lucent run", &format!("pid {}", std::process::id()), ".lucent-lock"], "a locked folder");
+    assert!(!stderr(&o).contains("did not write"), "{}", stderr(&o));
+    std::fs::write(d.join("o/.lucent-lock"), format!("999999999 {host}\n")).unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o", "--force", "optics"]);
+    ok(&o, "a stale lock");
+    assert!(stderr(&o).contains("stale lock"), "{}", stderr(&o));
+    assert!(!d.join("o/.lucent-lock").exists(), "the run left its lock");
+    // No hidden previous result is left behind.
+    let names: Vec<String> = std::fs::read_dir(d.join("o"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.contains("previous")), "{names:?}");
+}
+
+/// Hangs: a path count no machine finishes is refused at once, with the
+/// documented maximum, by every command (and project key) that takes one.
+#[test]
+fn hang_path_counts_beyond_the_maximum_are_refused_at_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("m.csv"), "1,2,1\n2,4,2\n1,2,1\n").unwrap();
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    let r = s(&recipe);
+    let slab = ["bssrdf", "--mu-s", "1000", "--mu-a", "1", "--g", "0.8", "--n", "1.5", "--pixels", "9"];
+    let huge = "18446744073709551615";
+    let mut sharded: Vec<&str> = slab.to_vec();
+    sharded.extend(["--paths", huge, "--shard", "0/2", "--out", "o"]);
+    let mut plain: Vec<&str> = slab.to_vec();
+    plain.extend(["--paths", "1000000000001", "--out", "o"]);
+    for args in [
+        sharded,
+        plain,
+        vec![
+            "fit",
+            "--recipe",
+            &r,
+            "--measured",
+            "m.csv:45/0",
+            "--measured-pixel-mm",
+            "0.1",
+            "--free",
+            "weight_percent",
+            "--paths",
+            huge,
+            "--out",
+            "o",
+        ],
+        vec!["bench", "surface", "--paths", huge],
+    ] {
+        let o = lucent_within(d, &args, 60);
+        refused(&o, &["--paths", "1000000000000"], &args.join(" "));
+    }
+    // The same range for the project's keys.
+    std::fs::write(
+        d.join("p.toml"),
+        format!(
+            "[project]\nname = \"p\"\n[bssrdf]\npixels = 9\npaths = 10000000000000\n[[sample]]\nname = \"s\"\nrecipe = {r:?}\n"
+        ),
+    )
+    .unwrap();
+    let o = lucent_within(d, &["run", "p.toml", "--out", "o"], 60);
+    refused(&o, &["[bssrdf] paths", "1000000000000"], "[bssrdf] paths = 1e13");
+    assert!(!d.join("o").exists(), "a refused run wrote o/");
+}
+
+/// Signals: SIGHUP (a closed terminal) stops a command like SIGTERM:
+/// exit 130, a message, nothing half-written; a render keeps its labelled
+/// partial result.
+#[test]
+fn signals_sighup_is_handled_like_sigterm() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let recipe = std::fs::read_to_string(root().join("fixtures/samples/IOL1068-09.toml")).unwrap();
+    let recipe = recipe.replace("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = 0.02 }");
+    std::fs::write(d.join("a.toml"), recipe).unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["optics", "a.toml", "--uncertainty", "100000", "--wavelengths", "380:780:1", "--out", "u"])
+        .current_dir(d)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // SAFETY: a signal to our own child process.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGHUP) }, 0);
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "SIGHUP: {:?} {}", o.status, stderr(&o));
+    assert!(stderr(&o).contains("interrupted"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_dir(d).unwrap().count(), 1, "SIGHUP left files behind");
+    // A render: the finished passes are written as a labelled partial render.
+    let out = d.join("r");
+    let scene = root().join("fixtures/render/plaque_dense.toml");
+    let args =
+        ["render", scene.to_str().unwrap(), "--spp", "1000000", "--size", "32x24", "--out", out.to_str().unwrap()];
+    let (status, text) = crate::common::signal_n_after(&args, "rendering", 1, libc::SIGHUP);
+    assert_eq!(status.code(), Some(130), "SIGHUP during a render: {text}");
+    assert!(text.contains("SIGHUP"), "no message: {text}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    assert_eq!(json["interrupted"], true);
+}
+
+const SCENE: &str = "fixtures/render/demo.toml";
+
+fn render_shard(dir: &Path, out: &Path, k: u32) -> Output {
+    let spec = format!("{k}/2");
+    let scene = root().join(SCENE);
+    lucent_in(
+        dir,
+        &[
+            "render",
+            &s(&scene),
+            "--quiet",
+            "--size",
+            "12x9",
+            "--spp",
+            "6",
+            "--seed",
+            "3",
+            "--out",
+            &s(out),
+            "--shard",
+            &spec,
+        ],
+    )
+}
+
+fn merge(dir: &Path, shards: &[&Path], out: &Path) -> Output {
+    let mut args = vec!["merge".to_string()];
+    args.extend(shards.iter().map(|p| s(p)));
+    args.extend(["--out".to_string(), s(out)]);
+    let a: Vec<&str> = args.iter().map(String::as_str).collect();
+    lucent_in(dir, &a)
+}
+
+/// Merged what does not belong: a copied or linked accumulator of another
+/// shard, counters edited in shard.json, two shards into one folder, and a
+/// merge --out that leads into a shard folder are refused; shards of one
+/// run given their flags in another spelling merge.
+#[cfg(unix)]
+#[test]
+fn shards_merge_only_what_belongs_to_the_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let (a0, a1) = (d.join("a0"), d.join("a1"));
+    ok(&render_shard(d, &a0, 0), "shard 0");
+    ok(&render_shard(d, &a1, 1), "shard 1");
+    ok(&merge(d, &[&a0, &a1], &d.join("good")), "merge");
+    // Shard 1's accumulator copied into shard 0's folder.
+    let (c0, c1) = (d.join("c0"), d.join("c1"));
+    for (from, to) in [(&a0, &c0), (&a1, &c1)] {
+        std::fs::create_dir_all(to).unwrap();
+        for f in std::fs::read_dir(from).unwrap() {
+            let f = f.unwrap().path();
+            std::fs::copy(&f, to.join(f.file_name().unwrap())).unwrap();
+        }
+    }
+    std::fs::copy(c1.join("render.acc"), c0.join("render.acc")).unwrap();
+    let o = merge(d, &[&c0, &c1], &d.join("m1"));
+    refused(&o, &["c0/render.acc", "shard 1 of 2", "shard 0 of 2"], "a copied accumulator");
+    assert!(!d.join("m1").exists());
+    // … or linked.
+    std::fs::remove_file(c0.join("render.acc")).unwrap();
+    std::os::unix::fs::symlink(c1.join("render.acc"), c0.join("render.acc")).unwrap();
+    let o = merge(d, &[&c0, &c1], &d.join("m2"));
+    refused(&o, &["c0/render.acc", "symbolic link"], "a linked accumulator");
+    // Counters edited in shard.json.
+    std::fs::remove_file(c0.join("render.acc")).unwrap();
+    std::fs::copy(a0.join("render.acc"), c0.join("render.acc")).unwrap();
+    let json = std::fs::read_to_string(c0.join("shard.json")).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let events = v["counters"]["events"].as_u64().unwrap();
+    v["counters"]["events"] = serde_json::json!(events * 10);
+    std::fs::write(c0.join("shard.json"), serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let o = merge(d, &[&c0, &c1], &d.join("m3"));
+    refused(&o, &["c0/render.acc", "counters", "edited"], "edited counters");
+    // Two shards into one --out: the second is refused, the first kept.
+    let both = d.join("both");
+    ok(&render_shard(d, &both, 0), "shard 0 into both/");
+    let before = std::fs::read(both.join("render.acc")).unwrap();
+    let o = render_shard(d, &both, 1);
+    refused(&o, &["already holds shard 0 of 2", "its own folder"], "a second shard into one folder");
+    assert_eq!(std::fs::read(both.join("render.acc")).unwrap(), before);
+    // A retry of the same shard into its own folder is fine.
+    ok(&render_shard(d, &both, 0), "shard 0 again");
+    // merge --out through a link into a shard folder.
+    std::os::unix::fs::symlink(&a0, d.join("link")).unwrap();
+    let o = merge(d, &[&a0, &a1], &d.join("link/merged"));
+    refused(&o, &["must not be or contain a shard folder"], "merge --out into a shard through a link");
+    assert!(!a0.join("merged").exists());
+    // The same run with its flags in another order, as --flag=value, and the scene by a relative path.
+    let b0 = d.join("b0");
+    ok(&render_shard(d, &b0, 0), "shard 0 (b)");
+    let b1 = d.join("b1");
+    let o = lucent_in(
+        &root(),
+        &["render", "--seed=3", SCENE, "--shard=1/2", "--spp=6", "--out", &s(&b1), "--size", "12x9", "--quiet"],
+    );
+    ok(&o, "shard 1 (b), respelled");
+    let o = merge(d, &[&b0, &b1], &d.join("bm"));
+    ok(&o, "merge of respelled shards");
+    let (_, _, x) = lucent::imageio::read_exr_channels(&d.join("bm/render.exr"), &["R"]).unwrap();
+    let (_, _, y) = lucent::imageio::read_exr_channels(&d.join("good/render.exr"), &["R"]).unwrap();
+    assert_eq!(x, y, "the respelled shards' merge differs from the first merge");
+}
+
+fn slice(d: &Path, name: &str, centre: f64) -> PathBuf {
+    let rows: Vec<String> = (0..21)
+        .map(|i: i32| {
+            (0..21)
+                .map(|j: i32| {
+                    let v = 1.0 + 100.0 * (-((i - 10).pow(2) + (j - 10).pow(2)) as f64 / 8.0).exp();
+                    format!("{:.6}", if i == 10 && j == 10 { centre } else { v })
+                })
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect();
+    let p = d.join(name);
+    std::fs::write(&p, rows.join("\n") + "\n").unwrap();
+    p
+}
+
+fn fit_args<'a>(recipe: &'a str, measured: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut v = vec!["fit", "--recipe", recipe, "--measured", measured, "--free", "weight_percent", "--paths", "1000"];
+    v.extend_from_slice(extra);
+    v.extend(["--out", "fo"]);
+    v
+}
+
+/// Fitted what does not belong: a measured slice whose sidecar gives
+/// another wavelength or other angles than it is used for, or a negative
+/// pixel, is refused with both values and the file named.
+#[test]
+fn measured_slices_carry_their_metadata() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let recipe = s(&root().join("fixtures/samples/IOL1068-09.toml"));
+    slice(d, "m.csv", 101.0);
+    std::fs::write(
+        d.join("m.csv.json"),
+        r#"{"pixel_mm": 0.2, "wavelength_nm": 650, "theta_i_deg": 45, "theta_o_deg": 0}"#,
+    )
+    .unwrap();
+    let o = lucent_within(d, &fit_args(&recipe, "m.csv:45/0", &["--wavelength", "550"]), 60);
+    refused(&o, &["m.csv.json", "650 nm", "550 nm"], "a 650 nm slice fitted at 550 nm");
+    let o = lucent_within(d, &fit_args(&recipe, "m.csv:30/0", &["--wavelength", "650"]), 60);
+    refused(&o, &["m.csv.json", "45/", "30/"], "a 45/0 slice used as 30/0");
+    slice(d, "neg.csv", -5.0);
+    let o = lucent_within(d, &fit_args(&recipe, "neg.csv:45/0", &["--measured-pixel-mm", "0.2"]), 60);
+    refused(&o, &["neg.csv", "negative", "column 10, row 10"], "a negative pixel");
+    assert!(!d.join("fo").exists());
+    // Inside `lucent run`, a slice without a pixel size names the project key.
+    std::fs::write(d.join("bare.csv"), "1,2,1\n2,4,2\n1,2,1\n").unwrap();
+    std::fs::write(
+        d.join("p.toml"),
+        format!(
+            "[project]\nname = \"p\"\n[fit]\nfree = [\"weight_percent\"]\n[[sample]]\nname = \"s\"\nrecipe = {recipe:?}\n\
+             [[sample.measured]]\nconfig = \"45/0\"\nfile = \"bare.csv\"\n"
+        ),
+    )
+    .unwrap();
+    let o = lucent_within(d, &["run", "p.toml", "--out", "o"], 60);
+    refused(&o, &["measured pixel_mm", "bare.csv"], "a slice without pixel size in a project");
+    assert!(!stderr(&o).contains("--measured-pixel-mm"), "{}", stderr(&o));
+}
+
+fn write_render_with_variance(path: &Path, w: usize, h: usize, value: f32, variance: f32) {
+    let plane = vec![value; w * h];
+    let var = vec![variance; w * h];
+    lucent::imageio::write_exr_channels(
+        path,
+        w,
+        h,
+        &[
+            ("R", &plane),
+            ("G", &plane),
+            ("B", &plane),
+            ("variance.R", &var),
+            ("variance.G", &var),
+            ("variance.B", &var),
+        ],
+    )
+    .unwrap();
+}
+
+/// Photo variance: a variance image of another size, with a negative or
+/// NaN value, or implausibly large (1e30) is refused naming the
+/// photo-variance file (not the render's); a radiance image given as the
+/// variance gets a warning.
+#[test]
+fn photo_variance_is_checked_against_the_photo() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let (w, h) = (64, 48);
+    // A photo with a little noise, a render close to it.
+    let photo: Vec<f32> = (0..w * h).map(|i| 0.5 + 0.01 * (((i * 7919) % 101) as f32 / 101.0 - 0.5)).collect();
+    lucent::imageio::write_exr_channels(&d.join("photo.exr"), w, h, &[("R", &photo), ("G", &photo), ("B", &photo)])
+        .unwrap();
+    write_render_with_variance(&d.join("render.exr"), w, h, 0.5, 1e-6);
+    let compare = |var: &str, out: &str| {
+        lucent_in(
+            d,
+            &["compare", "--photo", "photo.exr", "--render", "render.exr", "--photo-variance", var, "--out", out],
+        )
+    };
+    write_exr(&d.join("huge.exr"), w, h, 1e30);
+    refused(&compare("huge.exr", "c1"), &["huge.exr", "photo variance", "100"], "1e30 variance");
+    write_exr(&d.join("negative.exr"), w, h, -1e-4);
+    let o = compare("negative.exr", "c2");
+    refused(&o, &["negative.exr", "≥ 0"], "negative variance");
+    assert!(!stderr(&o).contains("render.exr:"), "blamed on the render: {}", stderr(&o));
+    write_exr(&d.join("nan.exr"), w, h, f32::NAN);
+    refused(&compare("nan.exr", "c3"), &["nan.exr", "finite"], "NaN variance");
+    write_exr(&d.join("small.exr"), w / 2, h / 2, 1e-6);
+    refused(&compare("small.exr", "c4"), &["small.exr", "32 × 24"], "variance of another size");
+    // A radiance image (a render's R, G, B without variance layers) given as the photo's variance: a warning, named.
+    write_exr(&d.join("radiance.exr"), w, h, 0.5);
+    let o = compare("radiance.exr", "c5");
+    ok(&o, "radiance as variance");
+    assert!(stderr(&o).contains("warning") && stderr(&o).contains("radiance.exr"), "{}", stderr(&o));
+    for out in ["c1", "c2", "c3", "c4"] {
+        assert!(!d.join(out).exists(), "a refused compare wrote {out}");
+    }
+}
+
+/// Misleading: a dangling link and a loop of links as --out are said as
+/// such; scene and index values that were taken silently are refused with
+/// the key named.
+#[cfg(unix)]
+#[test]
+fn misleading_links_and_silently_taken_values_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let recipe = s(&root().join("fixtures/samples/IOL1068-09.toml"));
+    std::os::unix::fs::symlink(d.join("nowhere"), d.join("dangling")).unwrap();
+    std::os::unix::fs::symlink(d.join("loop"), d.join("loop")).unwrap();
+    for (out, says) in [("dangling", "symbolic link to"), ("loop", "loop of symbolic links")] {
+        let o = lucent_in(d, &["optics", &recipe, "--wavelength", "550", "--out", out]);
+        refused(&o, &[out, says], out);
+        assert!(!stderr(&o).contains("is not a folder") && !stderr(&o).contains("No such file"), "{}", stderr(&o));
+    }
+    let bad = root().join("tests/bad");
+    let o = lucent_in(d, &["render", &s(&bad.join("misleading/spp_per_pass_zero.toml")), "--out", "r"]);
+    refused(&o, &["spp_per_pass_zero.toml", "spp_per_pass", "at least 1"], "spp_per_pass = 0");
+    let o = lucent_in(d, &["render", &s(&bad.join("nonsense/transform_mirror.toml")), "--out", "r"]);
+    refused(&o, &["transform_mirror.toml", "transform", "mirrors"], "a mirroring transform");
+    let o = lucent_in(d, &["render", &s(&bad.join("nonsense/transform_vanishing.toml")), "--out", "r"]);
+    refused(&o, &["transform_vanishing.toml", "transform", "vanish"], "a vanishing transform");
+    let o =
+        lucent_in(d, &["optics", &s(&bad.join("index/formula_half_pair.toml")), "--wavelength", "550", "--out", "x"]);
+    refused(&o, &["formula_half_pair.yml", "formula 2", "pairs"], "formula 2 with 2 coefficients");
+    // A CSV slice: a bad line is shown with its text; a UTF-8 byte-order mark is read past.
+    let o = lucent_in(
+        d,
+        &["bssrdf", "--mu-s", "1000", "--mu-a", "1", "--g", "0.8", "--n", "1.5", "--pixels", "9", "--paths", "100"]
+            .into_iter()
+            .chain(["--pixel-mm", "0.1", "--quiet", "--out", "sim"])
+            .collect::<Vec<_>>(),
+    );
+    ok(&o, "a simulated slice");
+    let row = ["1"; 9].join(",");
+    std::fs::write(d.join("bom.csv"), format!("\u{feff}{}\n", [row.as_str(); 9].join("\n"))).unwrap();
+    let o = lucent_in(
+        d,
+        &[
+            "bssrdf",
+            "compare",
+            "--measured",
+            "bom.csv",
+            "--measured-pixel-mm",
+            "0.1",
+            "--simulated",
+            "sim",
+            "--out",
+            "bc",
+        ],
+    );
+    ok(&o, "a CSV slice with a byte-order mark");
+    let o = lucent_in(
+        d,
+        &[
+            "bssrdf",
+            "compare",
+            "--measured",
+            &s(&bad.join("slice/semicolons.csv")),
+            "--measured-pixel-mm",
+            "0.1",
+            "--simulated",
+            "sim",
+            "--out",
+            "bs",
+        ],
+    );
+    refused(&o, &["semicolons.csv", "line 1", "1;2;1", "semicolons"], "a CSV with semicolons");
+    // A slice wider than 1 m: said with the flags, not the simulator's pixel_m.
+    let o = lucent_in(
+        d,
+        &["bssrdf", "--mu-s", "1000", "--mu-a", "1", "--g", "0.8", "--n", "1.5", "--pixels", "9", "--paths", "10"]
+            .into_iter()
+            .chain(["--pixel-mm", "1e300", "--out", "zz"])
+            .collect::<Vec<_>>(),
+    );
+    refused(&o, &["--pixel-mm 1e300", "1000 mm"], "--pixel-mm 1e300");
+    assert!(!stderr(&o).contains("pixel_m "), "{}", stderr(&o));
+    assert!(!d.join("r").exists() && !d.join("x").exists() && !d.join("zz").exists());
+}
