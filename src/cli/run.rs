@@ -139,6 +139,23 @@ fn classified(e: anyhow::Error) -> Box<dyn std::error::Error + Send + Sync> {
     Box::new(Faulted { fault: Fault::of(e.as_ref()), message: format!("{e:#}") })
 }
 
+/// What a Slurm run lacks in the project's `[executor]` table, naming the
+/// keys; `None` when it can run (at least 2 shards per long command).
+fn slurm_settings_missing(project: &Project) -> Option<String> {
+    let keys = "shards = N (≥ 2, required: how many shards each long command is split into); optional: partition, \
+                account, time_limit, cpus_per_task (each shard's threads), sbatch, setup, retries";
+    match &project.file.executor {
+        None => Some(format!(
+            "--executor slurm needs an [executor] table in the project file: {keys} (see docs/formats.md#executor)"
+        )),
+        Some(_) if project.executor.shards < 2 => Some(format!(
+            "Slurm runs need [executor] shards ≥ 2 (it is {}): {keys}",
+            project.executor.shards
+        )),
+        Some(_) => None,
+    }
+}
+
 /// Runs `lucent run`.
 pub fn run(a: RunArgs) -> Result<()> {
     let project = Project::load(&a.project)?;
@@ -181,6 +198,14 @@ pub fn run(a: RunArgs) -> Result<()> {
             exec_cfg.shards
         );
     }
+    if emit.is_none() && exec_cfg.kind == Kind::Slurm {
+        if let Some(problem) = slurm_settings_missing(&project) {
+            anyhow::bail!("{}: {problem}", a.project.display());
+        }
+        for line in executor::plan_lines(&project.file, &exec_cfg) {
+            println!("{line}");
+        }
+    }
     let cwd = std::env::current_dir().context("cannot read the current folder")?;
     // Ctrl-C or SIGTERM: the stage under way fails (its output is kept as
     // STAGE.failed/, the previous result is put back) and no later one starts.
@@ -208,6 +233,15 @@ pub fn run(a: RunArgs) -> Result<()> {
                 let path = dir.join(format!("{name}.yaml"));
                 crate::io::write_atomic(&path, executor::k8s_job(&exec_cfg, &t, &cwd, &name).as_bytes())?;
                 Err(Box::new(executor::Deferred))
+            }
+            (None, None)
+                if exec_cfg.kind == Kind::Slurm && args.first().is_some_and(|c| c == "render" || c == "bssrdf") =>
+            {
+                // A long-looking command the cluster does not get: say so, and why.
+                if let Some(why) = executor::not_shardable(args) {
+                    println!("    here, not on the cluster: `lucent {}` ({why})", args[..2.min(args.len())].join(" "));
+                }
+                run_lucent(&exe, args, log, &interrupt).map_err(classified)
             }
             (Some(t), None) if exec_cfg.kind == Kind::Slurm => {
                 let label = t.args.join(" ");
