@@ -722,7 +722,27 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     assert!(out.join("compare/IOL1068-09/fitted/triplet.png").is_file());
     let html = std::fs::read_to_string(out.join("report/index.html")).unwrap();
     assert!(html.contains("Recipe fitted to the measured slices") && html.contains("Which twin is closer"), "report");
-    assert!(html.contains("photo | fitted twin | difference"));
+    // The answer first: the verdict names both twins with their numbers and
+    // significance, then one picture of both under one difference scale.
+    let verdict = html.find("<p class=\"verdict\">").expect("a verdict");
+    let sentence = &html[verdict..verdict + html[verdict..].find("</p>").unwrap()];
+    for needle in ["Over the object's pixels", "fitted twin (B)", "recipe's twin (A)", "paired test p = "] {
+        assert!(sentence.contains(needle), "{needle:?} not in {sentence}");
+    }
+    assert!(verdict < html.find("details per stage</h2>").unwrap() && verdict < html.find("<h2>Stages</h2>").unwrap());
+    assert!(html.contains("A (recipe) above, B (fitted) below, one difference scale"), "report");
+    let display = &smp["compare"]["display"];
+    assert!(display["difference_range_source"].as_str().unwrap().contains("one scale for both rows"), "{display}");
+    let alone: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("compare/IOL1068-09/fitted/metrics.json")).unwrap())
+            .unwrap();
+    assert!(display["difference_range"].as_f64() >= alone["display"]["difference_range"].as_f64(), "{display}");
+    let shots = root().join("target/test-output");
+    std::fs::create_dir_all(&shots).unwrap();
+    for (name, window) in [("report-loop-1440.png", "1440,900"), ("report-loop-1280x800.png", "1280,800")] {
+        let (console, _) = chromium_at(&out.join("report/index.html"), &shots.join(name), window);
+        assert!(console.is_empty(), "console messages: {console:?}");
+    }
     // The slices measured vs simulated at the recipe and at the fit (sums, MSRE).
     assert!(html.contains("simulated/measured sum: recipe") && html.contains("MSRE: recipe"), "report");
     // … and their profiles: measured, at the recipe and at the fit, one plot per configuration.

@@ -513,6 +513,37 @@ fn roughness_from_the_recipe_or_the_scene_file() {
 }
 
 #[test]
+fn negative_map_values_warn_only_when_they_take_away_visible_light() {
+    // A 16 × 8 map of 1.0 with one negative value: −1e-9 (lossy compression's
+    // size) is set to 0 and said in the description; −5 takes 4 % of the
+    // light away and is warned about.
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    let load = |negative: f32| {
+        let mut r = vec![1.0f32; 16 * 8];
+        r[5] = negative;
+        let one = vec![1.0f32; 16 * 8];
+        write_exr_channels(&dir.path().join("env.exr"), 16, 8, &[("R", &r), ("G", &one), ("B", &one)]).unwrap();
+        let path = dir.path().join("scene.toml");
+        std::fs::write(
+            &path,
+            format!(
+                "[camera]\nwidth = 8\nheight = 6\nposition_m = [0.0, -0.1, 0.1]\nlook_at_m = [0.0, 0.0, 0.0]\n\
+                 vertical_fov_deg = 30.0\n\n[object]\n\n[material]\nrecipe = {recipe:?}\nphase = \"hg\"\n\
+                 wavelengths = \"400:700:50\"\n\n[environment]\nmap = \"env.exr\"\n"
+            ),
+        )
+        .unwrap();
+        scene::load(&path).unwrap()
+    };
+    let quiet = load(-1e-9);
+    assert!(!quiet.warnings.iter().any(|w| w.contains("negative")), "{:?}", quiet.warnings);
+    assert!(quiet.summary.environment.contains("1 negative values"), "{}", quiet.summary.environment);
+    let loud = load(-5.0);
+    assert!(loud.warnings.iter().any(|w| w.contains("1 negative values") && w.contains("set to 0")), "{:?}", loud.warnings);
+}
+
+#[test]
 fn ctrl_c_writes_a_labelled_partial_render() {
     // SIGINT during a long render: the samples finished by then are written
     // as a valid image (each pixel with its own count in the spp layer:

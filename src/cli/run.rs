@@ -167,9 +167,6 @@ pub fn run(a: RunArgs) -> Result<()> {
     let out =
         std::path::absolute(&out).with_context(|| format!("{}: cannot resolve the output folder", out.display()))?;
     let exe = std::env::current_exe().context("cannot find the lucent binary to run the stages")?;
-    println!("lucent run {} → {}", a.project.display(), out.display());
-    let total = std::time::Instant::now();
-    let n = Stage::ALL.len();
     // The whole chain of causes goes into the stage's error message.
     let mut exec_cfg = project.executor.clone();
     match a.executor {
@@ -177,6 +174,15 @@ pub fn run(a: RunArgs) -> Result<()> {
         Some(ExecutorChoice::Slurm) => exec_cfg.kind = Kind::Slurm,
         None => {}
     }
+    if a.emit.is_empty()
+        && exec_cfg.kind == Kind::Slurm
+        && let Some(problem) = slurm_settings_missing(&project)
+    {
+        anyhow::bail!("{}: {problem}", a.project.display());
+    }
+    println!("lucent run {} → {}", a.project.display(), out.display());
+    let total = std::time::Instant::now();
+    let n = Stage::ALL.len();
     let emit = match a.emit.as_slice() {
         [] => None,
         [kind, dir] => {
@@ -199,9 +205,6 @@ pub fn run(a: RunArgs) -> Result<()> {
         );
     }
     if emit.is_none() && exec_cfg.kind == Kind::Slurm {
-        if let Some(problem) = slurm_settings_missing(&project) {
-            anyhow::bail!("{}: {problem}", a.project.display());
-        }
         for line in executor::plan_lines(&project.file, &exec_cfg) {
             println!("{line}");
         }

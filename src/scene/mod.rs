@@ -1752,8 +1752,8 @@ fn build_environment(
 
 /// The fraction of an environment map's light (Σ|value|) that its negative
 /// values, set to 0, may take away without a warning: 10⁻⁴, far below any
-/// render's Monte Carlo noise (studio.exr's three DWAB negatives are 2·10⁻¹¹,
-/// night.exr's 829 are 3·10⁻⁶). Above it the map is not a linear radiance map
+/// render's Monte Carlo noise (studio.exr's three DWAB negatives are 8·10⁻¹²,
+/// night.exr's 829 are 6·10⁻⁷). Above it the map is not a linear radiance map
 /// and the user is warned.
 pub const NEGATIVE_LIGHT_WARN: f64 = 1e-4;
 
