@@ -420,10 +420,10 @@ fn twins_share_one_scale_and_lead_the_report(d: &Path, project: &Path, out: &Pat
     let a_dir = out.join("compare/IOL1068-09");
     let (ra, rb, rt) = (range(&a_dir), range(&alone_b), range(&twins));
     assert_eq!(rt, ra.max(rb), "one scale for both twins: the larger of their own ({ra}, {rb})");
-    // Both rows in one picture, under one colour bar.
-    let (_, h_one) = lucent::imageio::image_size(&alone_b.join("triplet.png")).unwrap();
-    let (_, h_two) = lucent::imageio::image_size(&twins.join("triplet.png")).unwrap();
-    assert!(h_two > h_one + 36, "two rows: {h_two} px vs one {h_one} px");
+    // Both twins side by side in one picture (photo, A, A − photo, B, B − photo), under one colour bar.
+    let (w_one, _) = lucent::imageio::image_size(&alone_b.join("triplet.png")).unwrap();
+    let (w_two, _) = lucent::imageio::image_size(&twins.join("triplet.png")).unwrap();
+    assert!(3 * w_two > 4 * w_one, "five panels side by side: {w_two} px vs three {w_one} px");
     // The report with the twins' comparison: the verdict names both twins with
     // their numbers and significance, before any per-stage section.
     for f in ["metrics.json", "triplet.png"] {
@@ -445,7 +445,7 @@ fn twins_share_one_scale_and_lead_the_report(d: &Path, project: &Path, out: &Pat
     // The twins' picture follows the verdict, before the details; one scale said in words.
     let img = dom[start..].find("<img ").map(|i| i + start).unwrap();
     assert!(img < dom.find("details per stage</h2>").unwrap());
-    assert!(dom[start..img].contains("one colour scale") && dom[start..img].contains("for both rows"), "{dom}");
+    assert!(dom[start..img].contains("one colour scale") && dom[start..img].contains("for both twins"), "{dom}");
 }
 
 #[test]
@@ -730,9 +730,9 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
         assert!(sentence.contains(needle), "{needle:?} not in {sentence}");
     }
     assert!(verdict < html.find("details per stage</h2>").unwrap() && verdict < html.find("<h2>Stages</h2>").unwrap());
-    assert!(html.contains("A (recipe) above, B (fitted) below, one difference scale"), "report");
+    assert!(html.contains("A (recipe) render, difference | B (fitted) render, difference, one difference scale"));
     let display = &smp["compare"]["display"];
-    assert!(display["difference_range_source"].as_str().unwrap().contains("one scale for both rows"), "{display}");
+    assert!(display["difference_range_source"].as_str().unwrap().contains("one scale for both twins"), "{display}");
     let alone: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("compare/IOL1068-09/fitted/metrics.json")).unwrap())
             .unwrap();

@@ -1183,7 +1183,40 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         });
     }
     let style = triplet::Style { exposure, luminance: lw, diff_range, header };
-    let triplet_png = triplet::triplet_png(&rows, &style)?;
+    // Two twins (and no ECC row): side by side against the photo, one scale.
+    let triplet_png = match (&render_b_img, &twins, &req.render_b, &refined_parts) {
+        (Some(b), Some(t), Some(pb), None) => {
+            let short_metrics = |m: &Metrics| {
+                format!("RMSE {:.3e}, SSIM Y {:.4}, rel. error {:.2} %", m.rmse, m.ssim.y, 100.0 * m.relative_error)
+            };
+            let noise_text = |n: Option<&noise::NoiseReport>| {
+                n.map_or_else(String::new, |n| {
+                    format!(
+                        "model RMSE {:.3e} (95 % {:.3e} – {:.3e}), floor {:.3e}; ",
+                        n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor
+                    )
+                })
+            };
+            triplet::twins_png(
+                photo_img,
+                mask.as_ref(),
+                [
+                    triplet::Twin {
+                        render: render_img,
+                        title: twin_label(0, &req.render),
+                        caption: format!("A: {}{}", noise_text(noise.as_ref()), short_metrics(&calibrated)),
+                    },
+                    triplet::Twin {
+                        render: b,
+                        title: twin_label(1, pb),
+                        caption: format!("B: {}{}", noise_text(Some(&t.noise_b)), short_metrics(&t.metrics_b)),
+                    },
+                ],
+                &style,
+            )?
+        }
+        _ => triplet::triplet_png(&rows, &style)?,
+    };
 
     // difference.exr channels.
     let plane = |img: &RgbImage, other: &RgbImage, c: usize| -> Vec<f32> {
@@ -1244,7 +1277,7 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             difference_range: diff_range,
             difference_range_source: if render_b_img.is_some() {
                 "the larger of the two twins' 99th percentiles of |dY| over included pixels (1 % of the data range \
-                 if zero): one scale for both rows"
+                 if zero): one scale for both twins"
                     .into()
             } else {
                 "99th percentile of |dY| over included pixels (1 % of the data range if zero)".into()

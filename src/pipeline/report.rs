@@ -1053,8 +1053,8 @@ fn single_twin_sentence(region: &str, r: &crate::compare::Report) -> String {
 }
 
 /// The first thing on the page for one sample: the verdict in one sentence,
-/// then the photo | render | difference picture (with two twins: both rows
-/// under one difference scale, each row naming its twin). Empty when the
+/// then the photo | render | difference picture (with two twins: side by side
+/// under one difference scale, each headed by its twin). Empty when the
 /// compare stage has not run for the sample.
 fn answer(page: &mut Page, out: &Path, smp: &super::project::SampleSection) -> Result<String, ReportError> {
     let cdir = out.join(Stage::Compare.name()).join(&smp.name);
@@ -1080,10 +1080,15 @@ fn answer(page: &mut Page, out: &Path, smp: &super::project::SampleSection) -> R
         h,
         "<p class=\"why\">{}Difference column: luminance of the render minus the photo, blue = render darker, red = \
          render brighter, one colour scale ±{} for {}; {:.1} % of the pixels lie beyond it and show at full colour \
-         (they are not lost: the metrics use every value).{}</p>",
-        if twins { "Top row A: the recipe's twin; bottom row B: the fitted twin. " } else { "" },
+         (they are not lost: the metrics use every value).{}{}</p>",
+        if twins {
+            "Left to right: the photo, the recipe's twin A (render, difference), the fitted twin B (render, \
+             difference). "
+        } else {
+            ""
+        },
         num(d.difference_range, e3),
-        if twins { "both rows" } else { "the picture" },
+        if twins { "both twins" } else { "the picture" },
         100.0 * d.clipped_fraction_difference,
         if d.clipped_fraction_photo > 0.0 || d.clipped_fraction_render > 0.0 {
             format!(
@@ -1094,10 +1099,15 @@ fn answer(page: &mut Page, out: &Path, smp: &super::project::SampleSection) -> R
             )
         } else {
             String::new()
+        },
+        if region == "the whole image" {
+            String::new()
+        } else {
+            format!(" The picture shows the whole image; the verdict's numbers are over {region}, where the twins differ.")
         }
     );
     let alt = if twins {
-        format!("{}: photo | twin | difference, A (recipe) above, B (fitted) below, one difference scale", smp.name)
+        format!("{}: photo | A (recipe) render, difference | B (fitted) render, difference, one difference scale", smp.name)
     } else {
         format!("{}: photo | render | difference", smp.name)
     };
