@@ -430,7 +430,11 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
     // the environment's description (render.json), not warned about: the
     // light they take away is far below any render's noise.
     assert!(!loaded.warnings.iter().any(|w| w.contains("negative values")), "{:?}", loaded.warnings);
-    assert!(s.environment.contains("3 negative values") && s.environment.contains("too little to see"), "{}", s.environment);
+    assert!(
+        s.environment.contains("3 negative values") && s.environment.contains("too little to see"),
+        "{}",
+        s.environment
+    );
     // The demo walks the similar medium (similarity_g = 0) with the bands'
     // mean index: μs′ = μs(1 − g) with isotropic scattering, and the object
     // the renderer gets is that medium, not the recipe's.
@@ -540,7 +544,11 @@ fn negative_map_values_warn_only_when_they_take_away_visible_light() {
     assert!(!quiet.warnings.iter().any(|w| w.contains("negative")), "{:?}", quiet.warnings);
     assert!(quiet.summary.environment.contains("1 negative values"), "{}", quiet.summary.environment);
     let loud = load(-5.0);
-    assert!(loud.warnings.iter().any(|w| w.contains("1 negative values") && w.contains("set to 0")), "{:?}", loud.warnings);
+    assert!(
+        loud.warnings.iter().any(|w| w.contains("1 negative values") && w.contains("set to 0")),
+        "{:?}",
+        loud.warnings
+    );
 }
 
 #[test]

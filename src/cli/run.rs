@@ -148,10 +148,9 @@ fn slurm_settings_missing(project: &Project) -> Option<String> {
         None => Some(format!(
             "--executor slurm needs an [executor] table in the project file: {keys} (see docs/formats.md#executor)"
         )),
-        Some(_) if project.executor.shards < 2 => Some(format!(
-            "Slurm runs need [executor] shards ≥ 2 (it is {}): {keys}",
-            project.executor.shards
-        )),
+        Some(_) if project.executor.shards < 2 => {
+            Some(format!("Slurm runs need [executor] shards ≥ 2 (it is {}): {keys}", project.executor.shards))
+        }
         Some(_) => None,
     }
 }

@@ -959,16 +959,10 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         ssim_zero_noise_report(&req.render, photo_img, &ssim_map, mask.as_ref(), &settings, &mut notes)?;
     let (twins, render_b_img) = match &req.render_b {
         None => (None, None),
-        Some(pb) => twins_report(
-            req,
-            pb,
-            photo_img,
-            (render_img, render_var.as_deref()),
-            mask.as_ref(),
-            &settings,
-            &mut notes,
-        )
-        .map(|(t, b)| (Some(t), Some(b)))?,
+        Some(pb) => {
+            twins_report(req, pb, photo_img, (render_img, render_var.as_deref()), mask.as_ref(), &settings, &mut notes)
+                .map(|(t, b)| (Some(t), Some(b)))?
+        }
     };
 
     // ECC refinement.
@@ -1033,7 +1027,11 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             .collect()
     };
     let included_abs = |d: &[f32]| -> Vec<f32> {
-        d.iter().enumerate().filter(|(i, _)| mask.as_ref().is_none_or(|m| m.include[*i])).map(|(_, v)| v.abs()).collect()
+        d.iter()
+            .enumerate()
+            .filter(|(i, _)| mask.as_ref().is_none_or(|m| m.include[*i]))
+            .map(|(_, v)| v.abs())
+            .collect()
     };
     let dy = luminance_difference(render_img);
     let mut abs_included = included_abs(&dy);

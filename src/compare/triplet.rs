@@ -427,7 +427,8 @@ pub fn twins_png(photo: &RgbImage, mask: Option<&Mask>, twins: [Twin; 2], style:
         }
         y0 += ph + 4;
         for (k, t) in twins.iter().enumerate() {
-            text(&t.caption, col_x(1 + 2 * k as i32), y0 + LINE * k as i32, 15, left)?;
+            // Both under the twins' four columns (a caption is wider than its own two).
+            text(&t.caption, col_x(1), y0 + LINE * k as i32, 15, left)?;
         }
         y0 += 2 * LINE + 8;
         // One colour bar for both difference columns, under the four twin columns.

@@ -836,9 +836,10 @@ mod tests {
 
     #[test]
     fn the_plan_names_what_goes_to_the_cluster_and_what_stays_here() {
-        let file: crate::pipeline::project::ProjectFile =
-            toml::from_str("[bssrdf]\nconfigs = \"45/0\"\npaths = 3000\n\n[render]\nscene = \"/nonexistent.toml\"\nspp = 8\n")
-                .expect("toml");
+        let file: crate::pipeline::project::ProjectFile = toml::from_str(
+            "[bssrdf]\nconfigs = \"45/0\"\npaths = 3000\n\n[render]\nscene = \"/nonexistent.toml\"\nspp = 8\n",
+        )
+        .expect("toml");
         let e = Executor { kind: Kind::Slurm, shards: 4, cpus_per_task: Some(2), ..Executor::default() };
         let text = plan_lines(&file, &e).join("\n");
         assert!(text.contains("4 shards per long command") && text.contains("2 CPU(s) per shard"), "{text}");

@@ -250,7 +250,8 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     let mut samples_json = serde_json::Map::new();
     for smp in &project.file.sample {
         let mut sj = serde_json::Map::new();
-        let mut h = format!("<section id=\"sample-{}\"><h2>Sample {}: details per stage</h2>", slug(&smp.name), esc(&smp.name));
+        let mut h =
+            format!("<section id=\"sample-{}\"><h2>Sample {}: details per stage</h2>", slug(&smp.name), esc(&smp.name));
         // Optics: match by recipe name (the "sample" field is the recipe's sample name).
         let recipe_name = crate::optics::recipe::Recipe::load(
             &smp.recipe,
@@ -1061,7 +1062,8 @@ fn answer(page: &mut Page, out: &Path, smp: &super::project::SampleSection) -> R
     let Some(image) = read_json::<crate::compare::Report>(&cdir.join("metrics.json"), "a compare metrics.json")? else {
         return Ok(String::new());
     };
-    let object = read_json::<crate::compare::Report>(&cdir.join("object").join("metrics.json"), "a compare metrics.json")?;
+    let object =
+        read_json::<crate::compare::Report>(&cdir.join("object").join("metrics.json"), "a compare metrics.json")?;
     // The object's pixels, where the twins differ, when the render marks them.
     let (region, r) = match &object {
         Some(o) if o.twins.is_some() || image.twins.is_none() => ("the object's pixels", o),
@@ -1103,16 +1105,25 @@ fn answer(page: &mut Page, out: &Path, smp: &super::project::SampleSection) -> R
         if region == "the whole image" {
             String::new()
         } else {
-            format!(" The picture shows the whole image; the verdict's numbers are over {region}, where the twins differ.")
+            format!(
+                " The picture shows the whole image; the verdict's numbers are over {region}, where the twins differ."
+            )
         }
     );
     let alt = if twins {
-        format!("{}: photo | A (recipe) render, difference | B (fitted) render, difference, one difference scale", smp.name)
+        format!(
+            "{}: photo | A (recipe) render, difference | B (fitted) render, difference, one difference scale",
+            smp.name
+        )
     } else {
         format!("{}: photo | render | difference", smp.name)
     };
     h.push_str(&page.img(&cdir.join("triplet.png"), &alt)?);
-    let _ = write!(h, "<p class=\"note\"><a href=\"#sample-{}\">The details per stage ↓</a></p></section>", slug(&smp.name));
+    let _ = write!(
+        h,
+        "<p class=\"note\"><a href=\"#sample-{}\">The details per stage ↓</a></p></section>",
+        slug(&smp.name)
+    );
     Ok(h)
 }
 
