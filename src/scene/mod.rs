@@ -1717,14 +1717,14 @@ fn build_environment(
             // Lossy EXR compression (DWAB, as in Blender's maps) leaves tiny
             // negative values; they are set to 0, never kept. Where the light
             // they remove is below NEGATIVE_LIGHT_WARN of the map's (no render
-            // could see it) that is said in the environment's description
-            // (render.json), otherwise as a warning.
+            // could see it) that is not warned about, otherwise it is. (The
+            // environment's description stays the map's alone: a sharded
+            // render's merge describes the scene without reading the map.)
             lucent_calib::env::check_equirectangular(img.width, img.height).map_err(|source| {
                 ctx.key("environment", "map", KeyProblem::Equirectangular { file: full.clone(), source })
             })?;
             let mut data = img.data;
             let negative = data.iter().filter(|v| **v < 0.0).count();
-            let mut clamped_note = String::new();
             if negative > 0 {
                 let min = data.iter().copied().fold(0.0f32, f32::min);
                 let max = data.iter().copied().fold(0.0f32, f32::max);
@@ -1736,15 +1736,13 @@ fn build_environment(
                 );
                 if fraction > NEGATIVE_LIGHT_WARN {
                     warnings.push(format!("{}: {text}", full.display()));
-                } else {
-                    clamped_note = format!("; {text}, lossy compression's, too little to see");
                 }
                 data.iter_mut().for_each(|v| *v = v.max(0.0));
             }
             let env = Environment::new(img.width, img.height, data, yaw, scale, projection).map_err(|source| {
                 ctx.key("environment", "map", KeyProblem::Environment { file: full.clone(), source })
             })?;
-            (env, format!("{} ({}×{}), yaw {yaw}°, scale {scale}{clamped_note}", full.display(), img.width, img.height))
+            (env, format!("{} ({}×{}), yaw {yaw}°, scale {scale}", full.display(), img.width, img.height))
         }
     };
     Ok((env, desc, projection_name.to_string(), centre, radius))
