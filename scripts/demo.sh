@@ -5,12 +5,24 @@ cd "$(dirname "$0")/.."
 bin=target/release/lucent
 out=demo-out
 
+# Expected duration first: the renders and slices are capped by time, so the total hardly depends on the machine
+# beyond its core count (16.8 min measured on 2 cores, issue 52).
+cores=$(nproc 2>/dev/null || echo 2)
+echo "make demo: the whole pipeline on the shipped samples, into $out/."
+if [ "$cores" -le 2 ]; then
+  echo "Expect about 15-17 minutes on this machine's $cores core(s); the longest steps (2, 2c, 5, 6) say what they run."
+else
+  echo "Expect about 15-17 minutes on 2 cores, less on this machine's $cores (the slices and renders stop at error targets"
+  echo "or time caps); the longest steps (2, 2c, 5, 6) say what they run."
+fi
+echo
+
 echo "== 1. Optical properties of the Covestro samples (Lorenz–Mie, 380–780 nm)"
 echo "   (IOL1068-15 has no known weight percentage and is reported, not computed)"
 "$bin" optics fixtures/samples --out "$out/optics" --skip-invalid
 
 echo
-echo "== 2. BSSRDF slices at 550 nm, the three lab configurations (θi/θo = 45/0, 0/45, 45/15; φi 0°, φo 180°), to 5 % median per-pixel error or 90 s"
+echo "== 2. (at most 90 s per slice, 6 slices) BSSRDF slices at 550 nm, the three lab configurations (θi/θo = 45/0, 0/45, 45/15; φi 0°, φo 180°), to 5 % median per-pixel error or 90 s"
 for s in IOL1068-09 IOL1068-16; do
   echo "-- $s"
   "$bin" bssrdf --recipe "fixtures/samples/$s.toml" --wavelength-nm 550 --configs 45/0,0/45,45/15 \
@@ -22,7 +34,7 @@ echo "== 2b. Surface topography: the shipped height map (X3P) → microfacet nor
 "$bin" surface fit fixtures/surface/tr_0p0084.x3p --out "$out/surface"
 
 echo
-echo "== 2c. The same IOL1068-09 slice (45°/15°) through a rough top: the measured normals of 2b (--roughness measured:fit.json)"
+echo "== 2c. (at most 180 s) The same IOL1068-09 slice (45°/15°) through a rough top: the measured normals of 2b (--roughness measured:fit.json)"
 "$bin" bssrdf --recipe fixtures/samples/IOL1068-09.toml --wavelength-nm 550 --theta-i 45 --theta-o 15 \
   --roughness "measured:$out/surface/fit.json" --crop --pixel-rel-error 0.05 --time-s 180 --quiet --out "$out/bssrdf/IOL1068-09-rough"
 
@@ -93,12 +105,12 @@ echo "     env_cie $("$bin" env info "$e/env_cie.exr" | tr -d ' \n' | grep -o '"
   || { echo "demo.sh: fixtures/render/demo.toml changed; cannot point its copy at the 360° map" >&2; exit 1; }
 rm -f "$e/studio_xyz.exr" "$e/with_chart.exr" "$e/truth_xyz.exr" "$e/truth_cie.exr"
 echo
-echo "== 5. The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerboard under the 360° camera's environment"
+echo "== 5. (at most 150 s) The digital twin in 3D: IOL1068-09 (from its recipe) on the checkerboard under the 360° camera's environment"
 echo "   of 4b (merged, colour-calibrated to CIE RGB, oriented) on the finite sphere: fixtures/render/demo.toml with that map"
 "$bin" render "$out/env360/scene.toml" --spp 4096 --target-rel-error 0.05 --time-s 150 --out "$out/render"
 
 echo
-echo "== 6. The whole digitisation from one project file (lucent run fixtures/demo/project.toml). The synthetic truth:"
+echo "== 6. (the longest step: truth renders, then every stage with one status line each) The whole digitisation from one project file (lucent run fixtures/demo/project.toml). The synthetic truth:"
 echo "   six board views by a known camera (fixtures/demo/truth_camera.json), and a photo and empty board of IOL1068-09"
 echo "   by that camera from view 1 with the environment scaled by 1.6, captured as Bayer DNGs by a phone"
 echo "   with a known colour response; then every stage"

@@ -573,6 +573,9 @@ pub struct CompareJob {
     /// `--photo-variance`: the photo's per-pixel variance (EXR).
     pub photo_variance: Option<PathBuf>,
     pub data_range: f64,
+    /// `--twin-names A,B`: what the two renders are (e.g. "recipe,fitted"),
+    /// for the rows of the twins' triplet.png.
+    pub twin_names: Option<[String; 2]>,
 }
 
 /// The default of `lucent compare --data-range`.
@@ -591,6 +594,7 @@ impl CompareJob {
         l.flag("--out", s(&self.out)).opt("--mask", &self.mask.as_deref().map(s));
         l.opt("--mask-object", &self.mask_object.as_deref().map(s));
         l.opt("--photo-variance", &self.photo_variance.as_deref().map(s)).flag("--data-range", self.data_range);
+        l.opt("--twin-names", &self.twin_names.as_ref().map(|[a, b]| format!("{a},{b}")));
         l.0
     }
 }

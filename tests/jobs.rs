@@ -125,6 +125,7 @@ fn jobs() -> Vec<Job> {
             mask_object: Some(p("a/render.exr")),
             photo_variance: Some(p("{out}/s/photo_variance.exr")),
             data_range: 2.0,
+            twin_names: Some(["recipe".into(), "fitted".into()]),
         }),
     ]
 }

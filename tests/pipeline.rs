@@ -189,6 +189,11 @@ pixel_mm = 0.2
 
 /// Headless Chromium on a page: (stderr console lines, DOM, screenshot written).
 fn chromium(page: &Path, screenshot: &Path) -> (Vec<String>, String) {
+    chromium_at(page, screenshot, "1280,2400")
+}
+
+/// [`chromium`] with the window size "WIDTH,HEIGHT" of the screenshot.
+fn chromium_at(page: &Path, screenshot: &Path, window: &str) -> (Vec<String>, String) {
     let bin = ["chromium", "chromium-browser"]
         .into_iter()
         .find(|b| Command::new("sh").args(["-c", &format!("command -v {b}")]).output().is_ok_and(|o| o.status.success()))
@@ -199,7 +204,7 @@ fn chromium(page: &Path, screenshot: &Path) -> (Vec<String>, String) {
     let shot = Command::new(bin)
         .args(common)
         .arg(format!("--screenshot={}", screenshot.display()))
-        .arg("--window-size=1280,2400")
+        .arg(format!("--window-size={window}"))
         .arg(&url)
         .output()
         .expect("run chromium");
@@ -353,6 +358,94 @@ fn project_runs_skips_reruns_fails_and_reports() {
         "{dom}"
     );
     assert!(shots.join("report.png").metadata().unwrap().len() > 10_000);
+    // The answer comes first: the verdict sentence before the stage table and
+    // before the first per-stage section.
+    let verdict = dom.find("class=\"verdict\"").expect("a verdict sentence");
+    assert!(verdict < dom.find("<h2>Stages</h2>").unwrap(), "{dom}");
+    assert!(verdict < dom.find("details per stage</h2>").unwrap(), "{dom}");
+    assert!(verdict < dom.find("Optical properties").unwrap(), "{dom}");
+    // Figures that may alarm carry a line saying what they are.
+    assert!(dom.contains("What the ") && dom.contains("not an error of k"), "the env-scale residual is explained");
+
+    // 6. Two twins (the run's render as A, a render of the same scene with
+    // another seed as B): one difference scale for both, each row named.
+    twins_share_one_scale_and_lead_the_report(d, &project, &out, &shots);
+}
+
+/// The arguments of the stage's recorded command whose `--out` ends with `out_end`.
+fn recorded_command(out: &Path, stage: &str, out_end: &str) -> Vec<String> {
+    let man: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join(stage).join("manifest.json")).unwrap()).unwrap();
+    man["commands"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_array().unwrap().iter().map(|a| a.as_str().unwrap().to_string()).collect::<Vec<_>>())
+        .find(|c| c.windows(2).any(|w| w[0] == "--out" && w[1].ends_with(out_end)))
+        .unwrap_or_else(|| panic!("no {stage} command writing …{out_end}: {man}"))
+}
+
+/// `args` with the value of `flag` replaced.
+fn with_flag(mut args: Vec<String>, flag: &str, value: &str) -> Vec<String> {
+    match args.iter().position(|a| a == flag) {
+        Some(i) => args[i + 1] = value.to_string(),
+        None => args.extend([flag.to_string(), value.to_string()]),
+    }
+    args
+}
+
+fn twins_share_one_scale_and_lead_the_report(d: &Path, project: &Path, out: &Path, shots: &Path) {
+    let run = |args: &[String]| ok(&lucent(&args.iter().map(String::as_str).collect::<Vec<_>>()));
+    let twin_b = d.join("twin-b");
+    let render = recorded_command(out, "render", "/IOL1068-09");
+    run(&with_flag(with_flag(render, "--seed", "99"), "--out", twin_b.to_str().unwrap()));
+    let b_exr = twin_b.join("render.exr");
+    let compare = recorded_command(out, "compare", "/IOL1068-09");
+    let (alone_b, twins) = (d.join("compare-b"), d.join("compare-twins"));
+    let b_only: Vec<String> = {
+        let i = compare.iter().position(|a| a == "--render").unwrap();
+        let mut v = compare.clone();
+        v[i + 1] = b_exr.display().to_string();
+        v
+    };
+    run(&with_flag(b_only, "--out", alone_b.to_str().unwrap()));
+    let mut both = with_flag(compare.clone(), "--out", twins.to_str().unwrap());
+    both.extend(["--render".into(), b_exr.display().to_string(), "--twin-names".into(), "recipe,fitted".into()]);
+    run(&both);
+    let range = |dir: &Path| -> f64 {
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("metrics.json")).unwrap()).unwrap();
+        m["display"]["difference_range"].as_f64().unwrap()
+    };
+    let a_dir = out.join("compare/IOL1068-09");
+    let (ra, rb, rt) = (range(&a_dir), range(&alone_b), range(&twins));
+    assert_eq!(rt, ra.max(rb), "one scale for both twins: the larger of their own ({ra}, {rb})");
+    // Both twins side by side in one picture (photo, A, A − photo, B, B − photo), under one colour bar.
+    let (w_one, _) = lucent::imageio::image_size(&alone_b.join("triplet.png")).unwrap();
+    let (w_two, _) = lucent::imageio::image_size(&twins.join("triplet.png")).unwrap();
+    assert!(3 * w_two > 4 * w_one, "five panels side by side: {w_two} px vs three {w_one} px");
+    // The report with the twins' comparison: the verdict names both twins with
+    // their numbers and significance, before any per-stage section.
+    for f in ["metrics.json", "triplet.png"] {
+        std::fs::copy(twins.join(f), a_dir.join(f)).unwrap();
+    }
+    let project = lucent::pipeline::project::Project::load(project).unwrap();
+    let report = d.join("report-twins");
+    lucent::pipeline::report::write(&project, out, &report, &[]).unwrap();
+    let index = report.join("index.html");
+    let (console, dom) = chromium_at(&index, &shots.join("report-twins-1440.png"), "1440,900");
+    assert!(console.is_empty(), "console messages: {console:?}");
+    let (_, _) = chromium_at(&index, &shots.join("report-twins-1280x800.png"), "1280,800");
+    let start = dom.find("class=\"verdict\"").expect("a verdict");
+    let sentence = &dom[start..start + dom[start..].find("</p>").unwrap()];
+    for needle in ["recipe's twin (A)", "fitted twin (B)", "model RMSE with the noise removed", "paired test p = "] {
+        assert!(sentence.contains(needle), "{needle:?} not in {sentence}");
+    }
+    assert!(start < dom.find("<h2>Stages</h2>").unwrap() && start < dom.find("details per stage</h2>").unwrap());
+    // The twins' picture follows the verdict, before the details; one scale said in words.
+    let img = dom[start..].find("<img ").map(|i| i + start).unwrap();
+    assert!(img < dom.find("details per stage</h2>").unwrap());
+    assert!(dom[start..img].contains("one colour scale") && dom[start..img].contains("for both twins"), "{dom}");
 }
 
 #[test]
@@ -629,7 +722,27 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     assert!(out.join("compare/IOL1068-09/fitted/triplet.png").is_file());
     let html = std::fs::read_to_string(out.join("report/index.html")).unwrap();
     assert!(html.contains("Recipe fitted to the measured slices") && html.contains("Which twin is closer"), "report");
-    assert!(html.contains("photo | fitted twin | difference"));
+    // The answer first: the verdict names both twins with their numbers and
+    // significance, then one picture of both under one difference scale.
+    let verdict = html.find("<p class=\"verdict\">").expect("a verdict");
+    let sentence = &html[verdict..verdict + html[verdict..].find("</p>").unwrap()];
+    for needle in ["Over the object's pixels", "fitted twin (B)", "recipe's twin (A)", "paired test p = "] {
+        assert!(sentence.contains(needle), "{needle:?} not in {sentence}");
+    }
+    assert!(verdict < html.find("details per stage</h2>").unwrap() && verdict < html.find("<h2>Stages</h2>").unwrap());
+    assert!(html.contains("A (recipe) render, difference | B (fitted) render, difference, one difference scale"));
+    let display = &smp["compare"]["display"];
+    assert!(display["difference_range_source"].as_str().unwrap().contains("one scale for both twins"), "{display}");
+    let alone: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("compare/IOL1068-09/fitted/metrics.json")).unwrap())
+            .unwrap();
+    assert!(display["difference_range"].as_f64() >= alone["display"]["difference_range"].as_f64(), "{display}");
+    let shots = root().join("target/test-output");
+    std::fs::create_dir_all(&shots).unwrap();
+    for (name, window) in [("report-loop-1440.png", "1440,900"), ("report-loop-1280x800.png", "1280,800")] {
+        let (console, _) = chromium_at(&out.join("report/index.html"), &shots.join(name), window);
+        assert!(console.is_empty(), "console messages: {console:?}");
+    }
     // The slices measured vs simulated at the recipe and at the fit (sums, MSRE).
     assert!(html.contains("simulated/measured sum: recipe") && html.contains("MSRE: recipe"), "report");
     // … and their profiles: measured, at the recipe and at the fit, one plot per configuration.

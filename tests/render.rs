@@ -426,8 +426,9 @@ fn demo_scene_loads_with_recipe_bands_and_finite_sphere() {
     let c = s.environment_centre_m.unwrap();
     assert!((c[2] - (6.35e-3 + 1e-6)).abs() < 1e-12, "{c:?}");
     assert_eq!(s.environment_radius_m, Some(0.6));
-    // studio.exr's three lossy-compression negatives are reported, not hidden.
-    assert!(loaded.warnings.iter().any(|w| w.contains("negative values")), "{:?}", loaded.warnings);
+    // studio.exr's three lossy-compression negatives are set to 0 without a
+    // warning: the light they take away is far below any render's noise.
+    assert!(!loaded.warnings.iter().any(|w| w.contains("negative values")), "{:?}", loaded.warnings);
     // The demo walks the similar medium (similarity_g = 0) with the bands'
     // mean index: μs′ = μs(1 − g) with isotropic scattering, and the object
     // the renderer gets is that medium, not the recipe's.
@@ -507,6 +508,39 @@ fn roughness_from_the_recipe_or_the_scene_file() {
     assert_eq!(boundary("roughness = \"smooth\""), "smooth");
     assert_eq!(boundary("roughness = \"beckmann:0.02\""), "rough: Beckmann α = 0.02 (the scene file)");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn negative_map_values_warn_only_when_they_take_away_visible_light() {
+    // A 16 × 8 map of 1.0 with one negative value: −1e-9 (lossy compression's
+    // size) is set to 0 quietly; −5 takes 1 % of the light away and is warned about.
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = root().join("fixtures/samples/IOL1068-09.toml");
+    let load = |negative: f32| {
+        let mut r = vec![1.0f32; 16 * 8];
+        r[5] = negative;
+        let one = vec![1.0f32; 16 * 8];
+        write_exr_channels(&dir.path().join("env.exr"), 16, 8, &[("R", &r), ("G", &one), ("B", &one)]).unwrap();
+        let path = dir.path().join("scene.toml");
+        std::fs::write(
+            &path,
+            format!(
+                "[camera]\nwidth = 8\nheight = 6\nposition_m = [0.0, -0.1, 0.1]\nlook_at_m = [0.0, 0.0, 0.0]\n\
+                 vertical_fov_deg = 30.0\n\n[object]\n\n[material]\nrecipe = {recipe:?}\nphase = \"hg\"\n\
+                 wavelengths = \"400:700:50\"\n\n[environment]\nmap = \"env.exr\"\n"
+            ),
+        )
+        .unwrap();
+        scene::load(&path).unwrap()
+    };
+    let quiet = load(-1e-9);
+    assert!(!quiet.warnings.iter().any(|w| w.contains("negative")), "{:?}", quiet.warnings);
+    let loud = load(-5.0);
+    assert!(
+        loud.warnings.iter().any(|w| w.contains("1 negative values") && w.contains("set to 0")),
+        "{:?}",
+        loud.warnings
+    );
 }
 
 #[test]

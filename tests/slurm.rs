@@ -280,6 +280,13 @@ fn slurm_executor_matches_the_local_one_and_resubmits_a_killed_shard() {
     let out = finish(&cluster, run, "slurm run");
     assert!(out.contains("resubmitting"), "{out}");
     assert!(out.contains("submitted merge job"), "{out}");
+    // The plan came first, and the progress lines count the shards.
+    let plan = out.find("plan: Slurm job arrays of 4 shards per long command").expect("the plan");
+    assert!(plan < out.find("submitted job array").expect("an array"), "{out}");
+    assert!(out.contains("bssrdf      on the cluster: each slice ([bssrdf] paths = 3000) as 4 shards"), "{out}");
+    assert!(out.contains("render      on the cluster: each render ([render] spp = 8) as 4 shards"), "{out}");
+    assert!(out.contains(": 4 shards of `lucent bssrdf` (array indices 0-3)"), "{out}");
+    assert!(out.contains(": 1 shard of `lucent bssrdf` (array indices 1)"), "the resubmission: {out}");
     // The same results as the local executor's (sums in another order: to rounding).
     let (sl, sr) = (json(&local.join("bssrdf/s1/summary.json")), json(&remote.join("bssrdf/s1/summary.json")));
     assert_eq!(sl["paths"], sr["paths"]);
@@ -389,6 +396,36 @@ fn emitted_jobs_are_slurm_arrays_and_kubernetes_indexed_jobs() {
     std::fs::write(&proj, text).expect("project");
     let o = lucent_cli(&["run", p, "--out", dir.path().join("x").to_str().unwrap(), "--emit", "slurm", "jobs"]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("shards"));
+}
+
+/// `--executor slurm` without its settings is refused with the keys named,
+/// before anything runs; with them, the plan is printed before any stage
+/// (here only optics runs: nothing is submitted, no cluster needed).
+#[test]
+fn slurm_runs_need_their_settings_and_print_their_plan() {
+    let dir = tempfile::tempdir().expect("temp");
+    let proj = project(dir.path(), &dir.path().join("marker"));
+    let p = proj.to_str().unwrap();
+    let text = std::fs::read_to_string(&proj).expect("project");
+    let cut = text.find("[executor]").expect("an [executor] table");
+    let bare = dir.path().join("bare.toml");
+    std::fs::write(&bare, &text[..cut]).expect("project");
+    let out = dir.path().join("out-bare");
+    let o = lucent_cli(&["run", bare.to_str().unwrap(), "--executor", "slurm", "--out", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    for key in ["[executor]", "shards", "partition", "time_limit", "cpus_per_task"] {
+        assert!(err.contains(key), "{key}: {err}");
+    }
+    assert!(!out.exists(), "nothing ran");
+    let out = dir.path().join("out-plan");
+    let o = lucent_cli(&["run", p, "--executor", "slurm", "--until", "optics", "--out", out.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{text}{}", String::from_utf8_lossy(&o.stderr));
+    let plan = text.find("plan: Slurm job arrays of 4 shards per long command").expect("the plan");
+    assert!(plan < text.find("] optics ").expect("optics ran"), "{text}");
+    assert!(text.contains("bssrdf      on the cluster") && text.contains("render      on the cluster"), "{text}");
+    assert!(text.contains("here: short commands"), "{text}");
 }
 
 fn lucent_cli(args: &[&str]) -> std::process::Output {

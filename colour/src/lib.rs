@@ -127,7 +127,7 @@ pub enum GridError {
 /// A wavelength grid written as text that cannot be read or built.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum GridTextError {
-    #[error("expected START:END:STEP in nm, e.g. 380:780:10")]
+    #[error("expected START:END:STEP in nm, e.g. 380:780:10, or one wavelength, e.g. 550")]
     Syntax,
     #[error("{0:?} is not a number")]
     NotANumber(String),
@@ -139,19 +139,25 @@ impl std::str::FromStr for WavelengthGrid {
     type Err = GridTextError;
 
     /// "START:END:STEP" in nm (spaces around the numbers ignored), built by
-    /// [`WavelengthGrid::new`].
+    /// [`WavelengthGrid::new`], or one wavelength "W" (the grid W:W:1).
     ///
     /// ```
     /// let grid: lucent_colour::WavelengthGrid = "400:700:10".parse().unwrap();
     /// assert_eq!(grid.len(), 31);
+    /// let one: lucent_colour::WavelengthGrid = "550".parse().unwrap();
+    /// assert_eq!(one.wavelengths_nm(), &[550.0]);
     /// ```
     fn from_str(text: &str) -> Result<Self, Self::Err> {
         let parts: Vec<&str> = text.split(':').collect();
-        let [a, b, c] = parts.as_slice() else {
-            return Err(GridTextError::Syntax);
-        };
         let num = |s: &str| s.trim().parse::<f64>().map_err(|_| GridTextError::NotANumber(s.to_string()));
-        Ok(WavelengthGrid::new(num(a)?, num(b)?, num(c)?)?)
+        match parts.as_slice() {
+            [a, b, c] => Ok(WavelengthGrid::new(num(a)?, num(b)?, num(c)?)?),
+            [w] if !w.trim().is_empty() => {
+                let w = num(w)?;
+                Ok(WavelengthGrid::new(w, w, 1.0)?)
+            }
+            _ => Err(GridTextError::Syntax),
+        }
     }
 }
 
@@ -212,6 +218,18 @@ impl WavelengthGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn one_wavelength_is_a_grid() {
+        let g: WavelengthGrid = "550".parse().unwrap();
+        assert_eq!(g.wavelengths_nm(), &[550.0]);
+        let g: WavelengthGrid = " 632.8 ".parse().unwrap();
+        assert_eq!(g.wavelengths_nm(), &[632.8]);
+        assert!(matches!("-5".parse::<WavelengthGrid>(), Err(GridTextError::Grid(_))));
+        assert!(matches!("".parse::<WavelengthGrid>(), Err(GridTextError::Syntax)));
+        assert!(matches!("400:700".parse::<WavelengthGrid>(), Err(GridTextError::Syntax)));
+        assert!(matches!("nm".parse::<WavelengthGrid>(), Err(GridTextError::NotANumber(_))));
+    }
 
     #[test]
     fn rejects_bad_grids() {

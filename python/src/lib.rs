@@ -511,6 +511,7 @@ fn py_compare<'py>(
             photo_variance,
             photo_repeat: None,
             mask_also: None,
+            twin_names: None,
         };
         let outcome = py.detach(|| compare::compare_files(&req)).map_err(error)?;
         return to_python(py, &outcome.report);

@@ -103,7 +103,7 @@ pub struct ApplyArgs {
 pub struct BandsArgs {
     /// A recipe (.toml) or an optical_properties.json written by `lucent optics`.
     pub input: PathBuf,
-    /// Wavelength grid START:END:STEP in nm (recipes only).
+    /// Wavelength grid START:END:STEP in nm, or one wavelength (recipes only).
     #[arg(long, default_value = "380:780:10")]
     pub wavelengths: String,
     /// Weight percentage for particle types whose recipe leaves it unknown.

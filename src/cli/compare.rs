@@ -53,6 +53,10 @@ pub struct CompareArgs {
     /// percentile of the photo's max(R, G, B).
     #[arg(long, allow_hyphen_values = true)]
     pub exposure: Option<f64>,
+    /// With two --render: what they are, e.g. "recipe,fitted" (the rows of triplet.png say
+    /// "A: recipe" and "B: fitted"; default "A,B").
+    #[arg(long, value_name = "NAME_A,NAME_B", value_parser = twin_names, requires = "render")]
+    pub twin_names: Option<[String; 2]>,
     /// Also align the render to the photo and report the metrics after it: ecc (OpenCV findTransformECC).
     #[arg(long, value_enum, ignore_case = true, value_name = "METHOD")]
     pub refine: Option<RefineChoice>,
@@ -62,6 +66,14 @@ pub struct CompareArgs {
     /// Output folder (created; existing metrics.json, triplet.png, difference.exr in it are replaced).
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// `--twin-names A,B`: two non-empty names.
+fn twin_names(text: &str) -> Result<[String; 2], String> {
+    match text.split(',').map(str::trim).collect::<Vec<_>>().as_slice() {
+        [a, b] if !a.is_empty() && !b.is_empty() => Ok([a.to_string(), b.to_string()]),
+        _ => Err(format!("{text:?}: expected two names separated by a comma, e.g. recipe,fitted")),
+    }
 }
 
 fn line(m: &Metrics) -> String {
@@ -115,6 +127,9 @@ pub fn run(a: CompareArgs) -> Result<()> {
             );
         }
     }
+    if a.twin_names.is_some() && a.render.len() != 2 {
+        anyhow::bail!("--twin-names names two renders: give --render twice");
+    }
     let mut renders = a.render.into_iter();
     let render = renders.next().context("--render is required")?;
     let req = Request {
@@ -130,6 +145,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         refine,
         photo_variance: a.photo_variance,
         photo_repeat: a.photo_repeat,
+        twin_names: a.twin_names,
     };
     let outcome = compare::compare_files(&req)?;
     for n in &outcome.notes {

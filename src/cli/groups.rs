@@ -90,7 +90,8 @@ pub struct TwinRenderArgs {
     /// Image size WIDTHxHEIGHT instead of the camera's (the intrinsics are scaled to match).
     #[arg(long)]
     pub size: Option<String>,
-    /// Worker threads (default, and 0: all cores).
+    /// Worker threads (default: the batch job's allocation, LUCENT_THREADS or
+    /// SLURM_CPUS_PER_TASK, when set, else all cores; 0: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
 }
@@ -136,7 +137,11 @@ impl TwinRenderArgs {
     /// The worker pool of `--threads`.
     pub fn pool(&self) -> Result<rayon::ThreadPool> {
         rayon::ThreadPoolBuilder::new()
-            .num_threads(self.threads.unwrap_or(0))
+            .num_threads(
+                self.threads
+                    .or_else(|| super::allocated_threads(|k| std::env::var(k).ok()).map(|(n, _)| n))
+                    .unwrap_or(0),
+            )
             .build()
             .context("cannot start worker threads")
     }

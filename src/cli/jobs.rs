@@ -195,6 +195,7 @@ impl From<&compare::CompareArgs> for CompareJob {
             mask_object: a.mask_object.clone(),
             photo_variance: a.photo_variance.clone(),
             data_range: a.data_range,
+            twin_names: a.twin_names.clone(),
         }
     }
 }

@@ -122,7 +122,7 @@ pub struct OpticsArgs {
     /// Recipe files (TOML) or folders of recipes.
     #[arg(required = true)]
     pub recipes: Vec<PathBuf>,
-    /// Wavelength grid START:END:STEP in nm.
+    /// Wavelength grid START:END:STEP in nm, or one wavelength (e.g. 550).
     #[arg(long, default_value = "380:780:10", conflicts_with = "wavelength")]
     pub wavelengths: String,
     /// A single wavelength in nm (`--wavelength` is the older spelling).
@@ -279,8 +279,34 @@ pub enum BenchCommand {
     },
 }
 
+/// The CPUs a batch system gave this process, with the variable that says
+/// so: `LUCENT_THREADS` (set by the Kubernetes Job `lucent run --emit k8s`
+/// writes, from the pod's CPU request), else Slurm's `SLURM_CPUS_PER_TASK`
+/// (set when the job asks for `--cpus-per-task`). A value that is not a
+/// whole number in 1 … [`render::MAX_THREADS`] is ignored.
+pub fn allocated_threads(var: impl Fn(&str) -> Option<String>) -> Option<(usize, &'static str)> {
+    ["LUCENT_THREADS", "SLURM_CPUS_PER_TASK"].into_iter().find_map(|k| {
+        let n: usize = var(k)?.trim().parse().ok()?;
+        (1..=render::MAX_THREADS).contains(&n).then_some((n, k))
+    })
+}
+
+/// Rayon's global pool sized to the allocation ([`allocated_threads`]),
+/// unless `RAYON_NUM_THREADS` says otherwise: a shard on a cluster node
+/// uses the CPUs its job was given, not every core of the node.
+fn size_threads_to_allocation() {
+    if std::env::var_os("RAYON_NUM_THREADS").is_some() {
+        return;
+    }
+    if let Some((n, _)) = allocated_threads(|k| std::env::var(k).ok()) {
+        // Fails only when the pool already exists; it then keeps its size.
+        let _ = rayon::ThreadPoolBuilder::new().num_threads(n).build_global();
+    }
+}
+
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> Result<()> {
+    size_threads_to_allocation();
     // The output folder is checked before any work (a folder of the user's
     // is refused, see `io::check_output_folder`), marked as lucent's when the
     // command succeeds, and removed again when the command fails and leaves
@@ -466,7 +492,7 @@ pub fn count_in<const LO: usize, const HI: usize>(text: &str) -> Result<usize, S
     }
 }
 
-/// Parses "START:END:STEP" (nm) of `--wavelengths`.
+/// Parses "START:END:STEP" or one wavelength "W" (nm) of `--wavelengths`.
 pub fn parse_grid(text: &str) -> Result<WavelengthGrid> {
     text.parse().map_err(|e| anyhow!("--wavelengths {text:?}: {e}"))
 }
@@ -604,10 +630,8 @@ fn optics_from(a: OpticsArgs, merged_from: Option<&[crate::shard::Shard]>) -> Re
         })
         .collect::<Result<_>>()?;
     let elapsed = start.elapsed().as_secs_f64();
-    for s in &spectra {
-        for w in &s.warnings {
-            eprintln!("warning: {}: {w}", s.sample);
-        }
+    for line in grouped_warnings(&spectra) {
+        eprintln!("{line}");
     }
     if a.json && a.out.is_none() {
         let text = if let [single] = spectra.as_slice() {
@@ -637,6 +661,39 @@ fn optics_from(a: OpticsArgs, merged_from: Option<&[crate::shard::Shard]>) -> Re
         );
     }
     Ok(())
+}
+
+/// The samples' warnings, each text once with the samples it applies to
+/// ("warning: TEXT [11 samples: A, B, …]"): a set of recipes that share a
+/// host gives one line, not one per recipe. An index held at its end value
+/// (`extrapolate = "clamp"`) is followed by one line saying what that means.
+fn grouped_warnings(spectra: &[OpticalSpectrum]) -> Vec<String> {
+    let mut groups: Vec<(&str, Vec<&str>)> = Vec::new();
+    for s in spectra {
+        for w in &s.warnings {
+            match groups.iter_mut().find(|(t, _)| *t == w.as_str()) {
+                Some((_, samples)) => samples.push(&s.sample),
+                None => groups.push((w, vec![&s.sample])),
+            }
+        }
+    }
+    let mut lines: Vec<String> = groups
+        .iter()
+        .map(|(text, samples)| match samples.as_slice() {
+            [one] => format!("warning: {one}: {text}"),
+            many if many.len() == spectra.len() => format!("warning: {text} [all {} samples]", many.len()),
+            many => format!("warning: {text} [{} samples: {}]", many.len(), many.join(", ")),
+        })
+        .collect();
+    if groups.iter().any(|(t, _)| t.contains(" clamped outside its data range")) {
+        lines.push(
+            "   (clamped: the recipe's extrapolate = \"clamp\" holds n and κ at the data's end value at those \
+             wavelengths; expected at 380–399 nm for tables that start at 400 nm, where the CIE colour-matching \
+             functions are below 1.2 % of their peaks, so a render's colour barely depends on it)"
+                .into(),
+        );
+    }
+    lines
 }
 
 /// Prints a readable table: every wavelength for one sample, or 450/550/650 nm for several.

@@ -139,6 +139,22 @@ fn classified(e: anyhow::Error) -> Box<dyn std::error::Error + Send + Sync> {
     Box::new(Faulted { fault: Fault::of(e.as_ref()), message: format!("{e:#}") })
 }
 
+/// What a Slurm run lacks in the project's `[executor]` table, naming the
+/// keys; `None` when it can run (at least 2 shards per long command).
+fn slurm_settings_missing(project: &Project) -> Option<String> {
+    let keys = "shards = N (≥ 2, required: how many shards each long command is split into); optional: partition, \
+                account, time_limit, cpus_per_task (each shard's threads), sbatch, setup, retries";
+    match &project.file.executor {
+        None => Some(format!(
+            "--executor slurm needs an [executor] table in the project file: {keys} (see docs/formats.md#executor)"
+        )),
+        Some(_) if project.executor.shards < 2 => {
+            Some(format!("Slurm runs need [executor] shards ≥ 2 (it is {}): {keys}", project.executor.shards))
+        }
+        Some(_) => None,
+    }
+}
+
 /// Runs `lucent run`.
 pub fn run(a: RunArgs) -> Result<()> {
     let project = Project::load(&a.project)?;
@@ -150,9 +166,6 @@ pub fn run(a: RunArgs) -> Result<()> {
     let out =
         std::path::absolute(&out).with_context(|| format!("{}: cannot resolve the output folder", out.display()))?;
     let exe = std::env::current_exe().context("cannot find the lucent binary to run the stages")?;
-    println!("lucent run {} → {}", a.project.display(), out.display());
-    let total = std::time::Instant::now();
-    let n = Stage::ALL.len();
     // The whole chain of causes goes into the stage's error message.
     let mut exec_cfg = project.executor.clone();
     match a.executor {
@@ -160,6 +173,15 @@ pub fn run(a: RunArgs) -> Result<()> {
         Some(ExecutorChoice::Slurm) => exec_cfg.kind = Kind::Slurm,
         None => {}
     }
+    if a.emit.is_empty()
+        && exec_cfg.kind == Kind::Slurm
+        && let Some(problem) = slurm_settings_missing(&project)
+    {
+        anyhow::bail!("{}: {problem}", a.project.display());
+    }
+    println!("lucent run {} → {}", a.project.display(), out.display());
+    let total = std::time::Instant::now();
+    let n = Stage::ALL.len();
     let emit = match a.emit.as_slice() {
         [] => None,
         [kind, dir] => {
@@ -180,6 +202,11 @@ pub fn run(a: RunArgs) -> Result<()> {
             "--emit: [executor] shards is {}: set it to the number of shards per long command (≥ 2)",
             exec_cfg.shards
         );
+    }
+    if emit.is_none() && exec_cfg.kind == Kind::Slurm {
+        for line in executor::plan_lines(&project.file, &exec_cfg) {
+            println!("{line}");
+        }
     }
     let cwd = std::env::current_dir().context("cannot read the current folder")?;
     // Ctrl-C or SIGTERM: the stage under way fails (its output is kept as
@@ -208,6 +235,15 @@ pub fn run(a: RunArgs) -> Result<()> {
                 let path = dir.join(format!("{name}.yaml"));
                 crate::io::write_atomic(&path, executor::k8s_job(&exec_cfg, &t, &cwd, &name).as_bytes())?;
                 Err(Box::new(executor::Deferred))
+            }
+            (None, None)
+                if exec_cfg.kind == Kind::Slurm && args.first().is_some_and(|c| c == "render" || c == "bssrdf") =>
+            {
+                // A long-looking command the cluster does not get: say so, and why.
+                if let Some(why) = executor::not_shardable(args) {
+                    println!("    here, not on the cluster: `lucent {}` ({why})", args[..2.min(args.len())].join(" "));
+                }
+                run_lucent(&exe, args, log, &interrupt).map_err(classified)
             }
             (Some(t), None) if exec_cfg.kind == Kind::Slurm => {
                 let label = t.args.join(" ");

@@ -483,6 +483,9 @@ pub struct Request {
     /// board mask, e.g. the photo's validly recorded pixels (`lucent raw
     /// clipped`): `--mask` given together with `--mask-object` or `--mask-board`.
     pub mask_also: Option<PathBuf>,
+    /// What the two twins are (e.g. "recipe", "fitted"), for the rows of
+    /// triplet.png; `None`: "A" and "B" with their files.
+    pub twin_names: Option<[String; 2]>,
 }
 
 /// `twins` in metrics.json: the second render against the first.
@@ -693,7 +696,8 @@ fn ssim_zero_noise_report(
 }
 
 /// The second twin `path_b` against the first: its metrics and model RMSE,
-/// and the paired test of which is closer (both renders need their variance).
+/// and the paired test of which is closer (both renders need their variance);
+/// with the second render, for the picture.
 fn twins_report(
     req: &Request,
     path_b: &Path,
@@ -702,7 +706,7 @@ fn twins_report(
     mask: Option<&Mask>,
     settings: &Settings,
     notes: &mut Vec<String>,
-) -> Result<TwinsReport, CompareError> {
+) -> Result<(TwinsReport, RgbImage), CompareError> {
     let loaded = input::read_image(path_b, "render B")?;
     check_same_size(photo, &loaded.image)?;
     let b = &loaded.image;
@@ -733,14 +737,15 @@ fn twins_report(
         path: path_b.to_path_buf(),
         reason: ReadProblem::Invalid(e.to_string()),
     })?;
-    Ok(TwinsReport {
+    let report = TwinsReport {
         render_a: req.render.display().to_string(),
         render_b: path_b.display().to_string(),
         metrics_b,
         noise_b,
         ssim_at_zero_noise_b,
         paired,
-    })
+    };
+    Ok((report, loaded.image))
 }
 
 /// A photo's variance image is implausible above this multiple of the
@@ -1018,17 +1023,12 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         noise_report(req, &req.render, render_var.as_deref(), photo_img, render_img, mask.as_ref(), &mut notes)?;
     let ssim_at_zero_noise =
         ssim_zero_noise_report(&req.render, photo_img, &ssim_map, mask.as_ref(), &settings, &mut notes)?;
-    let twins = match &req.render_b {
-        None => None,
-        Some(pb) => Some(twins_report(
-            req,
-            pb,
-            photo_img,
-            (render_img, render_var.as_deref()),
-            mask.as_ref(),
-            &settings,
-            &mut notes,
-        )?),
+    let (twins, render_b_img) = match &req.render_b {
+        None => (None, None),
+        Some(pb) => {
+            twins_report(req, pb, photo_img, (render_img, render_var.as_deref()), mask.as_ref(), &settings, &mut notes)
+                .map(|(t, b)| (Some(t), Some(b)))?
+        }
     };
 
     // ECC refinement.
@@ -1084,20 +1084,38 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         }
     };
     let lw = settings.luminance.weights();
-    let dy: Vec<f32> = photo_img
-        .data
-        .chunks_exact(3)
-        .zip(render_img.data.chunks_exact(3))
-        .map(|(p, r)| (0..3).map(|c| lw[c] * (f64::from(r[c]) - f64::from(p[c]))).sum::<f64>() as f32)
-        .collect();
-    let abs_included: Vec<f32> = dy
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| mask.as_ref().is_none_or(|m| m.include[*i]))
-        .map(|(_, v)| v.abs())
-        .collect();
+    let luminance_difference = |render: &RgbImage| -> Vec<f32> {
+        photo_img
+            .data
+            .chunks_exact(3)
+            .zip(render.data.chunks_exact(3))
+            .map(|(p, r)| (0..3).map(|c| lw[c] * (f64::from(r[c]) - f64::from(p[c]))).sum::<f64>() as f32)
+            .collect()
+    };
+    let included_abs = |d: &[f32]| -> Vec<f32> {
+        d.iter()
+            .enumerate()
+            .filter(|(i, _)| mask.as_ref().is_none_or(|m| m.include[*i]))
+            .map(|(_, v)| v.abs())
+            .collect()
+    };
+    let dy = luminance_difference(render_img);
+    let mut abs_included = included_abs(&dy);
+    // Two twins share one scale: the larger of their 99th percentiles, so
+    // their difference columns can be compared by eye.
+    if let Some(b) = &render_b_img {
+        abs_included.extend(included_abs(&luminance_difference(b)));
+    }
     let n_included = abs_included.len();
-    let p99 = f64::from(percentile(abs_included.clone(), 0.99).unwrap_or(0.0));
+    let p99 = match &render_b_img {
+        None => f64::from(percentile(abs_included.clone(), 0.99).unwrap_or(0.0)),
+        Some(_) => {
+            let half = n_included / 2;
+            let a = f64::from(percentile(abs_included[..half].to_vec(), 0.99).unwrap_or(0.0));
+            let b = f64::from(percentile(abs_included[half..].to_vec(), 0.99).unwrap_or(0.0));
+            a.max(b)
+        }
+    };
     let diff_range = if p99 > 0.0 { p99 } else { 0.01 * req.data_range };
     let clipped_diff =
         abs_included.iter().filter(|v| f64::from(**v) > diff_range).count() as f64 / n_included.max(1) as f64;
@@ -1128,8 +1146,26 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     };
     let name =
         |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| p.display().to_string());
+    // A twin's file as its folder and name ("fitted/render.exr"): two renders
+    // are often both render.exr.
+    let short = |p: &Path| match p.parent().and_then(Path::file_name) {
+        Some(d) => format!("{}/{}", d.to_string_lossy(), name(p)),
+        None => name(p),
+    };
+    let twin_label = |k: usize, p: &Path| match &req.twin_names {
+        Some(n) => format!("{}: {} twin ({})", ["A", "B"][k], n[k], short(p)),
+        None => format!("{}: {}", ["A", "B"][k], short(p)),
+    };
     let mut header = vec![
-        format!("photo {}  |  render {}  |  {w} × {h} px", name(&req.photo), name(&req.render)),
+        match &req.render_b {
+            None => format!("photo {}  |  render {}  |  {w} × {h} px", name(&req.photo), name(&req.render)),
+            Some(b) => format!(
+                "photo {}  |  twin {}  |  twin {}  |  {w} × {h} px; one difference scale for both",
+                name(&req.photo),
+                twin_label(0, &req.render),
+                twin_label(1, b)
+            ),
+        },
         format!(
             "mask: {}   data range {}   luminance: {} ({:.4}, {:.4}, {:.4})",
             match (&mask, source) {
@@ -1175,6 +1211,18 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             z.at_zero_noise, z.ci95[0], z.ci95[1]
         ));
     }
+    // Two twins: each row names its twin, with its model RMSE (the SSIM at
+    // zero noise is in metrics.json; the row title must fit the picture).
+    let twin_title = |label: String, n: Option<&noise::NoiseReport>| match n {
+        Some(n) => format!(
+            "{label}: model RMSE {:.3e} (95 %: {:.3e} – {:.3e}), floor {:.3e}",
+            n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor
+        ),
+        None => label,
+    };
+    if req.render_b.is_some() {
+        title = twin_title(twin_label(0, &req.render), noise.as_ref());
+    }
     let mut rows = vec![triplet::Row {
         title,
         photo: photo_img,
@@ -1182,6 +1230,10 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         mask: mask.as_ref(),
         caption: fmt(&calibrated),
     }];
+    if let (Some(b), Some(t), Some(pb)) = (&render_b_img, &twins, &req.render_b) {
+        let title = twin_title(twin_label(1, pb), Some(&t.noise_b));
+        rows.push(triplet::Row { title, photo: photo_img, render: b, mask: mask.as_ref(), caption: fmt(&t.metrics_b) });
+    }
     if let Some((r, warped, m)) = &refined_parts {
         rows.push(triplet::Row {
             title: format!(
@@ -1195,7 +1247,40 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         });
     }
     let style = triplet::Style { exposure, luminance: lw, diff_range, header };
-    let triplet_png = triplet::triplet_png(&rows, &style)?;
+    // Two twins (and no ECC row): side by side against the photo, one scale.
+    let triplet_png = match (&render_b_img, &twins, &req.render_b, &refined_parts) {
+        (Some(b), Some(t), Some(pb), None) => {
+            let short_metrics = |m: &Metrics| {
+                format!("RMSE {:.3e}, SSIM Y {:.4}, rel. error {:.2} %", m.rmse, m.ssim.y, 100.0 * m.relative_error)
+            };
+            let noise_text = |n: Option<&noise::NoiseReport>| {
+                n.map_or_else(String::new, |n| {
+                    format!(
+                        "model RMSE {:.3e} (95 % {:.3e} – {:.3e}), floor {:.3e}; ",
+                        n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor
+                    )
+                })
+            };
+            triplet::twins_png(
+                photo_img,
+                mask.as_ref(),
+                [
+                    triplet::Twin {
+                        render: render_img,
+                        title: twin_label(0, &req.render),
+                        caption: format!("A: {}{}", noise_text(noise.as_ref()), short_metrics(&calibrated)),
+                    },
+                    triplet::Twin {
+                        render: b,
+                        title: twin_label(1, pb),
+                        caption: format!("B: {}{}", noise_text(Some(&t.noise_b)), short_metrics(&t.metrics_b)),
+                    },
+                ],
+                &style,
+            )?
+        }
+        _ => triplet::triplet_png(&rows, &style)?,
+    };
 
     // difference.exr channels.
     let plane = |img: &RgbImage, other: &RgbImage, c: usize| -> Vec<f32> {
@@ -1254,7 +1339,13 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             difference: "luminance Y(render) - Y(photo), linear units (not scaled by the exposure)".into(),
             difference_colour_map: "ColorBrewer RdBu: blue = render darker, white = 0, red = render brighter".into(),
             difference_range: diff_range,
-            difference_range_source: "99th percentile of |dY| over included pixels (1 % of the data range if zero)".into(),
+            difference_range_source: if render_b_img.is_some() {
+                "the larger of the two twins' 99th percentiles of |dY| over included pixels (1 % of the data range \
+                 if zero): one scale for both twins"
+                    .into()
+            } else {
+                "99th percentile of |dY| over included pixels (1 % of the data range if zero)".into()
+            },
             clipped_fraction_photo: clip_photo,
             clipped_fraction_render: clip_render,
             clipped_fraction_difference: clipped_diff,

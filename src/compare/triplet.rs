@@ -116,12 +116,17 @@ struct Scale {
 }
 
 fn scale_for(w: usize, h: usize) -> Scale {
+    scale_within(w, h, PANEL_MAX)
+}
+
+/// [`scale_for`] with panels at most `max` pixels wide or high.
+fn scale_within(w: usize, h: usize, max: usize) -> Scale {
     let side = w.max(h);
-    if side > PANEL_MAX {
-        let down = side.div_ceil(PANEL_MAX);
+    if side > max {
+        let down = side.div_ceil(max);
         Scale { down, up: 1, pw: w.div_ceil(down), ph: h.div_ceil(down) }
     } else if w < PANEL_MIN {
-        let up = PANEL_MIN.div_ceil(w).min((PANEL_MAX / side).max(1));
+        let up = PANEL_MIN.div_ceil(w).min((max / side).max(1));
         Scale { down: 1, up, pw: w * up, ph: h * up }
     } else {
         Scale { down: 1, up: 1, pw: w, ph: h }
@@ -338,6 +343,126 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
     })
 }
 
+/// Widest panel of the twins' picture ([`twins_png`]): five panels side by
+/// side must fit a page.
+pub const TWIN_PANEL_MAX: usize = 400;
+
+/// One twin of [`twins_png`]: its render, the title above its two columns
+/// (e.g. "A: recipe twin — model RMSE …") and the caption under them.
+pub struct Twin<'a> {
+    pub render: &'a RgbImage,
+    pub title: String,
+    pub caption: String,
+}
+
+/// Two twins side by side against one photo: photo | A render | A
+/// difference | B render | B difference, both difference columns under ONE
+/// colour scale (±`style.diff_range`), so the twins can be compared by eye.
+/// PNG bytes.
+pub fn twins_png(photo: &RgbImage, mask: Option<&Mask>, twins: [Twin; 2], style: &Style) -> Result<Vec<u8>, PlotError> {
+    let (w, h) = (photo.width, photo.height);
+    for t in &twins {
+        if (t.render.width, t.render.height) != (w, h) || mask.is_some_and(|m| (m.width, m.height) != (w, h)) {
+            return Err(perr("twins of different image sizes"));
+        }
+    }
+    let s = scale_within(w, h, TWIN_PANEL_MAX);
+    let (pw, ph) = (s.pw as i32, s.ph as i32);
+    let header_h = LINE * style.header.len() as i32 + 8;
+    let bar_h = 16 + 24 + LINE;
+    let width = 2 * MARGIN + 5 * pw + 4 * GAP;
+    let height = MARGIN + header_h + LINE + LINE + ph + 4 + 2 * LINE + 8 + bar_h + MARGIN;
+    let rows: Vec<Row> = twins
+        .iter()
+        .map(|t| Row { title: String::new(), photo, render: t.render, mask, caption: String::new() })
+        .collect();
+    let reduced: Vec<Panels> = rows.iter().map(|r| reduce(r, s, style.luminance)).collect();
+    let range = if style.diff_range > 0.0 && style.diff_range.is_finite() { style.diff_range } else { 1.0 };
+    let col_x = |c: i32| MARGIN + c * (pw + GAP);
+    render_png(width as u32, height as u32, |root| {
+        let text = |t: &str, x: i32, y: i32, size: i32, pos: Pos| {
+            let st = TextStyle::from(("sans-serif", size).into_font()).color(&BLACK).pos(pos);
+            root.draw(&Text::new(t.to_string(), (x, y), st)).map_err(perr)
+        };
+        let left = Pos::new(HPos::Left, VPos::Top);
+        let centre = Pos::new(HPos::Center, VPos::Top);
+        let mut y0 = MARGIN;
+        for line in &style.header {
+            text(line, MARGIN, y0, 16, left)?;
+            y0 += LINE;
+        }
+        y0 += 8;
+        for (k, t) in twins.iter().enumerate() {
+            text(&t.title, col_x(1 + 2 * k as i32), y0, 18, left)?;
+        }
+        y0 += LINE;
+        let columns = ["photo", "A: render", "A: render − photo", "B: render", "B: render − photo"];
+        for (c, name) in columns.iter().enumerate() {
+            text(name, col_x(c as i32) + pw / 2, y0, 16, centre)?;
+        }
+        y0 += LINE;
+        for py in 0..s.ph {
+            for px in 0..s.pw {
+                let k = (py / s.up).min(reduced[0].h - 1) * reduced[0].w + (px / s.up).min(reduced[0].w - 1);
+                let m = reduced[0].masked[k];
+                let mark = |rgb: [f64; 3]| {
+                    if !m && clipped(rgb, style.exposure) && clip_stripe(px, py) {
+                        CLIP_MARK
+                    } else {
+                        shown(rgb, style.exposure, m)
+                    }
+                };
+                let diff = |p: &Panels| if m { MASK_MARK } else { diverging(p.diff[k] / range) };
+                let colours = [
+                    mark(reduced[0].photo[k]),
+                    mark(reduced[0].render[k]),
+                    diff(&reduced[0]),
+                    mark(reduced[1].render[k]),
+                    diff(&reduced[1]),
+                ];
+                for (c, colour) in colours.iter().enumerate() {
+                    root.draw_pixel((col_x(c as i32) + px as i32, y0 + py as i32), colour).map_err(perr)?;
+                }
+            }
+        }
+        y0 += ph + 4;
+        for (k, t) in twins.iter().enumerate() {
+            // Both under the twins' four columns (a caption is wider than its own two).
+            text(&t.caption, col_x(1), y0 + LINE * k as i32, 15, left)?;
+        }
+        y0 += 2 * LINE + 8;
+        // One colour bar for both difference columns, under the four twin columns.
+        let (bx, bw) = (col_x(1), 4 * pw + 3 * GAP);
+        for i in 0..bw {
+            let t = 2.0 * (f64::from(i) + 0.5) / f64::from(bw) - 1.0;
+            root.draw(&Rectangle::new([(bx + i, y0), (bx + i + 1, y0 + 16)], diverging(t).filled())).map_err(perr)?;
+        }
+        root.draw(&Rectangle::new([(bx, y0), (bx + bw, y0 + 16)], BLACK.stroke_width(1))).map_err(perr)?;
+        for k in 0..5 {
+            let x = bx + ((bw - 1) * k) / 4;
+            root.draw(&PathElement::new(vec![(x, y0 + 16), (x, y0 + 21)], BLACK.stroke_width(1))).map_err(perr)?;
+            let v = range * (f64::from(k) / 2.0 - 1.0);
+            let hpos = match k {
+                0 => HPos::Left,
+                4 => HPos::Right,
+                _ => HPos::Center,
+            };
+            text(&tick_label(v, range), x, y0 + 22, 15, Pos::new(hpos, VPos::Top))?;
+        }
+        text(
+            "Y(render) − Y(photo), linear units: ONE scale for both twins' difference columns",
+            bx + bw / 2,
+            y0 + 40,
+            15,
+            centre,
+        )?;
+        if mask.is_some() {
+            text("grey: excluded by the mask", MARGIN, y0, 15, left)?;
+        }
+        Ok(())
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -378,6 +503,25 @@ mod tests {
         // 0.8 × 1 ≤ 1: nothing clips.
         let img = draw(1.0);
         assert_eq!(marked(&img, 0, img.width()), 0);
+    }
+
+    #[test]
+    fn twins_sit_side_by_side_under_one_bar() {
+        let (w, h) = (64, 48);
+        let photo = RgbImage::new(w, h, vec![0.5; w * h * 3]).unwrap();
+        let a = RgbImage::new(w, h, vec![0.6; w * h * 3]).unwrap();
+        let b = RgbImage::new(w, h, vec![0.4; w * h * 3]).unwrap();
+        let style = Style { exposure: 1.0, luminance: [0.2126, 0.7152, 0.0722], diff_range: 0.1, header: vec![] };
+        let twin = |render, t: &str| Twin { render, title: t.into(), caption: String::new() };
+        let png = twins_png(&photo, None, [twin(&a, "A: recipe twin"), twin(&b, "B: fitted twin")], &style).unwrap();
+        let img = image::load_from_memory(&png).unwrap();
+        assert_eq!(img.width() as i32, 2 * MARGIN + 5 * 320 + 4 * GAP);
+        // A's difference (+0.1 = the bar's end) is dark red, B's (−0.1) dark blue: one scale.
+        let at = |c: i32| img.to_rgb8().get_pixel((MARGIN + c * (320 + GAP) + 160) as u32, 200).0;
+        assert_eq!(at(2), [103, 0, 31]);
+        assert_eq!(at(4), [5, 48, 97]);
+        // A 640 × 480 render's panels are halved to fit five on a page.
+        assert_eq!(scale_within(640, 480, TWIN_PANEL_MAX).pw, 320);
     }
 
     #[test]

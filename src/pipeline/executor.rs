@@ -243,14 +243,136 @@ impl Sharded {
     }
 }
 
-/// Whether a scene file asks for what a shard cannot do (a time budget, an error target, object-weighted sampling).
-fn scene_shardable(scene: &Path) -> bool {
-    let Ok(text) = crate::io::read_text(scene) else { return false };
-    let Ok(f) = crate::scene::parse(&text, scene) else { return false };
+/// Why a scene file's render cannot be split into shards (a time budget,
+/// an error target, object-weighted sampling), `None` when it can.
+fn scene_unshardable(scene: &Path) -> Option<String> {
+    let name = scene.display();
+    let Ok(text) = crate::io::read_text(scene) else { return Some(format!("{name} cannot be read")) };
+    let Ok(f) = crate::scene::parse(&text, scene) else { return Some(format!("{name} is not a scene file")) };
     let r = &f.render;
-    r.time_s.is_none()
-        && r.target_rel_error.is_none()
-        && r.sampling.is_none_or(|s| s == crate::scene::SamplingKey::Uniform)
+    if r.time_s.is_some() {
+        Some(format!("{name} sets [render] time_s (a time budget cannot be split exactly)"))
+    } else if r.target_rel_error.is_some() {
+        Some(format!("{name} sets [render] target_rel_error (an error target cannot be split exactly)"))
+    } else if r.sampling.is_some_and(|s| s != crate::scene::SamplingKey::Uniform) {
+        Some(format!("{name} sets [render] sampling other than uniform (shards sample uniformly)"))
+    } else {
+        None
+    }
+}
+
+/// Why `args` is not a long command that shards split exactly (see the
+/// module doc), `None` when it is one.
+pub fn not_shardable(args: &[String]) -> Option<String> {
+    let has = |f: &str| flag_value(args, f).is_some();
+    match args.first().map(String::as_str) {
+        Some("render") => {
+            if !has("--spp") {
+                Some("no sample budget (--spp): only a fixed number of samples splits exactly".into())
+            } else if has("--time-s") {
+                Some("a time budget (--time-s) cannot be split exactly".into())
+            } else if has("--target-rel-error") {
+                Some("an error target (--target-rel-error) cannot be split exactly".into())
+            } else if flag_value(args, "--sampling").is_some_and(|s| s != "uniform") {
+                Some("shards sample uniformly, the command asks for another --sampling".into())
+            } else {
+                match args.get(1) {
+                    Some(s) => scene_unshardable(Path::new(s)),
+                    None => Some("no scene file".into()),
+                }
+            }
+        }
+        Some("bssrdf") if args.get(1).is_some_and(|a| a == "compare") => {
+            Some("a comparison of slices, seconds of work".into())
+        }
+        Some("bssrdf") => {
+            if !has("--paths") {
+                Some("no path budget (--paths): only a fixed number of paths splits exactly".into())
+            } else if has("--time-s") || has("--rel-error") || has("--pixel-rel-error") {
+                Some("a time budget or an error target cannot be split exactly".into())
+            } else {
+                None
+            }
+        }
+        Some(other) => Some(format!("`lucent {other}` is not split into shards (only renders and BSSRDF slices are)")),
+        None => Some("an empty command".into()),
+    }
+}
+
+/// Where each stage of `file`'s project runs under executor `e` (kind
+/// Slurm): one line per stage or group of stages, printed by `lucent run
+/// --executor slurm` before anything is submitted.
+pub fn plan_lines(file: &super::project::ProjectFile, e: &Executor) -> Vec<String> {
+    let shards = e.shards;
+    let mut lines = vec![format!(
+        "plan: Slurm job arrays of {shards} shards per long command{}{}{}{}, each shard resubmitted up to {} time(s), \
+         then a merge job",
+        e.partition.as_ref().map(|p| format!(", partition {p}")).unwrap_or_default(),
+        e.account.as_ref().map(|a| format!(", account {a}")).unwrap_or_default(),
+        e.time_limit.as_ref().map(|t| format!(", time limit {t}")).unwrap_or_default(),
+        e.cpus_per_task.map(|c| format!(", {c} CPU(s) per shard (its threads)")).unwrap_or_default(),
+        e.retries
+    )];
+    let mut here: Vec<&str> = Vec::new();
+    // bssrdf: each slice with a path budget and no other stop rule.
+    match &file.bssrdf {
+        Some(b) if b.paths.is_some() && b.time_s.is_none() && b.rel_error.is_none() => lines.push(format!(
+            "  bssrdf      on the cluster: each slice ([bssrdf] paths = {}) as {shards} shards of {} paths or so",
+            b.paths.unwrap_or(0),
+            b.paths.unwrap_or(0).div_ceil(u64::from(shards))
+        )),
+        Some(b) => lines.push(format!(
+            "  bssrdf      here: [bssrdf] {} (only a fixed path budget, `paths` alone, splits exactly)",
+            if b.paths.is_none() { "has no paths" } else { "sets time_s or rel_error beside paths" }
+        )),
+        None => here.push("bssrdf"),
+    }
+    // render: each render with a sample budget and a scene that allows it.
+    match &file.render {
+        Some(r) => {
+            let why = if r.spp.is_none() {
+                Some("[render] has no spp (only a fixed sample budget splits exactly)".to_string())
+            } else if r.time_s.is_some() {
+                Some("[render] time_s is set (a time budget cannot be split exactly)".to_string())
+            } else {
+                scene_unshardable(&r.scene)
+            };
+            lines.push(match why {
+                None => format!(
+                    "  render      on the cluster: each render ([render] spp = {}) as {shards} shards, merged \
+                     byte-identical to one unsharded render",
+                    r.spp.unwrap_or(0)
+                ),
+                Some(why) => format!("  render      here: {why}"),
+            });
+        }
+        None => here.push("render"),
+    }
+    let short: Vec<&str> =
+        super::Stage::ALL.iter().map(|s| s.name()).filter(|n| !["bssrdf", "render"].contains(n)).collect();
+    lines.push(format!(
+        "  {}  here: short commands, or not splittable into shards (only renders with a sample budget and \
+         BSSRDF slices with a path budget are)",
+        short.join(", ")
+    ));
+    if !here.is_empty() {
+        lines.push(format!("  ({} not in this project)", here.join(", ")));
+    }
+    lines
+}
+
+/// How many shards an sbatch `--array` spec holds: "0-3" → 4, "1,3" → 2.
+pub fn array_count(indices: &str) -> usize {
+    indices
+        .split(',')
+        .map(|part| match part.split_once('-') {
+            Some((a, b)) => match (a.trim().parse::<usize>(), b.trim().parse::<usize>()) {
+                (Ok(a), Ok(b)) if b >= a => b - a + 1,
+                _ => 1,
+            },
+            None => 1,
+        })
+        .sum()
 }
 
 /// The value of `--flag V` or `--flag=V` in `args`.
@@ -270,28 +392,7 @@ fn flag_value<'a>(args: &'a [String], flag: &str) -> Option<&'a str> {
 /// `args` as shards when it is a long command (see the module doc) and
 /// `shards` > 1; `run_out` is the run's output folder.
 pub fn shard_plan(args: &[String], shards: u32, run_out: &Path) -> Option<Sharded> {
-    if shards < 2 {
-        return None;
-    }
-    let has = |f: &str| flag_value(args, f).is_some();
-    let long = match args.first().map(String::as_str) {
-        Some("render") => {
-            has("--spp")
-                && !has("--time-s")
-                && !has("--target-rel-error")
-                && flag_value(args, "--sampling").is_none_or(|s| s == "uniform")
-                && args.get(1).is_some_and(|s| scene_shardable(Path::new(s)))
-        }
-        Some("bssrdf") => {
-            args.get(1).is_none_or(|a| a != "compare")
-                && has("--paths")
-                && !has("--time-s")
-                && !has("--rel-error")
-                && !has("--pixel-rel-error")
-        }
-        _ => false,
-    };
-    if !long {
+    if shards < 2 || not_shardable(args).is_some() {
         return None;
     }
     let out = PathBuf::from(flag_value(args, "--out")?);
@@ -357,14 +458,10 @@ pub fn array_script(e: &Executor, t: &Sharded, exe: &Path, cwd: &Path, indices: 
         s.push_str(l);
         s.push('\n');
     }
-    let mut cmd = t.shard_command("$SLURM_ARRAY_TASK_ID");
-    if e.cpus_per_task.is_some() {
-        cmd.extend(["--threads".into(), "$SLURM_CPUS_PER_TASK".into()]);
-    }
-    s.push_str(&format!(
-        "exec {}\n",
-        shell_line(exe, &cmd).replace("'$SLURM_CPUS_PER_TASK'", "\"$SLURM_CPUS_PER_TASK\"")
-    ));
+    // lucent takes its threads from SLURM_CPUS_PER_TASK itself (set when
+    // the job asks for --cpus-per-task, here or in [executor] sbatch).
+    s.push_str("# threads: lucent uses $SLURM_CPUS_PER_TASK when Slurm sets it, else every core it sees\n");
+    s.push_str(&format!("exec {}\n", shell_line(exe, &t.shard_command("$SLURM_ARRAY_TASK_ID"))));
     s
 }
 
@@ -411,9 +508,15 @@ pub fn merge_script(e: &Executor, t: &Sharded, exe: &Path, cwd: &Path, name: &st
 pub fn k8s_job(e: &Executor, t: &Sharded, cwd: &Path, name: &str) -> String {
     let cmd = t.shard_command("$(JOB_COMPLETION_INDEX)");
     let args: Vec<String> = cmd.iter().map(|a| format!("        - {}", serde_json::Value::String(a.clone()))).collect();
+    // The pod's CPU request, handed to lucent's threads through LUCENT_THREADS
+    // (the downward API; a container sees every core of its node otherwise).
     let cpus = e
         .cpus_per_task
-        .map(|c| format!("          resources:\n            requests:\n              cpu: \"{c}\"\n"))
+        .map(|c| {
+            format!(
+                "          resources:\n            requests:\n              cpu: \"{c}\"\n          env:\n          - name: LUCENT_THREADS\n            valueFrom:\n              resourceFieldRef:\n                resource: requests.cpu\n                divisor: \"1\"\n"
+            )
+        })
         .unwrap_or_default();
     let merge: Vec<String> = t.merge_command().iter().map(|a| shell_word(a)).collect();
     format!(
@@ -553,7 +656,12 @@ pub fn run_on_slurm(
         let script = t.dir.join(format!("array-{attempt}.sbatch"));
         write_script(&script, &array_script(e, t, exe, &cwd, &indices, &name))?;
         let id = sbatch(&script, &[])?;
-        report(&format!("submitted job array {id} ({} shard(s): {indices})", indices.split(',').count().max(1)));
+        let n = array_count(&indices);
+        report(&format!(
+            "submitted job array {id}: {n} shard{} of `lucent {}` (array indices {indices})",
+            if n == 1 { "" } else { "s" },
+            t.args.first().map(String::as_str).unwrap_or("")
+        ));
         jobs.push(id.clone());
         let mut last = (usize::MAX, usize::MAX);
         wait(&id, poll, &mut |pending, running| {
@@ -696,8 +804,53 @@ mod tests {
         assert!(s.contains("#SBATCH --array=0-3\n"), "{s}");
         assert!(s.contains("#SBATCH --partition=debug\n"), "{s}");
         assert!(s.contains("--shard \"$SLURM_ARRAY_TASK_ID/4\""), "{s}");
-        assert!(s.contains("--threads \"$SLURM_CPUS_PER_TASK\""), "{s}");
+        // Threads come from SLURM_CPUS_PER_TASK inside lucent (bssrdf has no --threads).
+        assert!(s.contains("#SBATCH --cpus-per-task=2\n") && !s.contains("--threads"), "{s}");
         let k = k8s_job(&e, &t, Path::new("/work"), "lucent-bssrdf");
         assert!(k.contains("completionMode: Indexed") && k.contains("$(JOB_COMPLETION_INDEX)/4"), "{k}");
+        assert!(k.contains("cpu: \"2\"") && k.contains("name: LUCENT_THREADS") && k.contains("resource: requests.cpu"));
+        // Without a CPU request, no thread count is passed.
+        let k = k8s_job(&Executor::default(), &t, Path::new("/work"), "lucent-bssrdf");
+        assert!(!k.contains("LUCENT_THREADS"), "{k}");
+    }
+
+    #[test]
+    fn array_specs_count_their_shards() {
+        assert_eq!(array_count("0-3"), 4);
+        assert_eq!(array_count("1,3"), 2);
+        assert_eq!(array_count("2"), 1);
+        assert_eq!(array_count("0-1,5,7-9"), 6);
+    }
+
+    #[test]
+    fn commands_say_why_they_are_not_sharded() {
+        let a = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert!(not_shardable(&a(&["bssrdf", "--paths", "9", "--out", "x"])).is_none());
+        let why = not_shardable(&a(&["bssrdf", "--time-s", "9", "--out", "x"])).unwrap();
+        assert!(why.contains("path budget"), "{why}");
+        let why = not_shardable(&a(&["render", "s.toml", "--spp", "8", "--time-s", "3"])).unwrap();
+        assert!(why.contains("time budget"), "{why}");
+        let why = not_shardable(&a(&["optics", "r.toml"])).unwrap();
+        assert!(why.contains("not split"), "{why}");
+    }
+
+    #[test]
+    fn the_plan_names_what_goes_to_the_cluster_and_what_stays_here() {
+        let file: crate::pipeline::project::ProjectFile = toml::from_str(
+            "[bssrdf]\nconfigs = \"45/0\"\npaths = 3000\n\n[render]\nscene = \"/nonexistent.toml\"\nspp = 8\n",
+        )
+        .expect("toml");
+        let e = Executor { kind: Kind::Slurm, shards: 4, cpus_per_task: Some(2), ..Executor::default() };
+        let text = plan_lines(&file, &e).join("\n");
+        assert!(text.contains("4 shards per long command") && text.contains("2 CPU(s) per shard"), "{text}");
+        assert!(text.contains("bssrdf      on the cluster: each slice ([bssrdf] paths = 3000) as 4 shards"), "{text}");
+        // The scene cannot be read here: the render stays here, and the line says why.
+        assert!(text.contains("render      here: /nonexistent.toml cannot be read"), "{text}");
+        assert!(text.contains("optics, ") && text.contains("report  here: "), "{text}");
+        let timed: crate::pipeline::project::ProjectFile =
+            toml::from_str("[bssrdf]\nconfigs = \"45/0\"\npaths = 3000\ntime_s = 9\n").expect("toml");
+        let text = plan_lines(&timed, &e).join("\n");
+        assert!(text.contains("bssrdf      here: [bssrdf] sets time_s or rel_error"), "{text}");
+        assert!(text.contains("(render not in this project)"), "{text}");
     }
 }

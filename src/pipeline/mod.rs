@@ -1039,6 +1039,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     mask_object: None,
                     photo_variance: photo_variance(out, smp),
                     data_range: f.compare.as_ref().and_then(|c| c.data_range).unwrap_or(crate::job::DEFAULT_DATA_RANGE),
+                    twin_names: fitted.is_some().then(|| ["recipe".to_string(), "fitted".to_string()]),
                 };
                 // The same over the object's pixels, as the render's `object` layer marks
                 // them (any mesh): where the twins differ, so where their paired test looks.
@@ -1050,6 +1051,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 // The fitted twin alone too: its own triplet for the report.
                 let fitted_alone = fitted.map(|f| CompareJob {
                     render: vec![f],
+                    twin_names: None,
                     out: under_out(format!("/{}/fitted", smp.name)),
                     ..job.clone()
                 });

@@ -476,6 +476,7 @@ fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, Stri
             mask_object: None,
             photo_variance: None,
             data_range: c.data_range.unwrap_or(crate::job::DEFAULT_DATA_RANGE),
+            twin_names: None,
         };
         check("[compare]", "", job.validate());
     }

@@ -119,6 +119,9 @@ fn num(v: f64, fmt: fn(f64) -> String) -> String {
 fn e4(x: f64) -> String {
     format!("{x:.4e}")
 }
+fn e3(x: f64) -> String {
+    format!("{x:.3e}")
+}
 fn f3(x: f64) -> String {
     format!("{x:.3}")
 }
@@ -230,19 +233,25 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         stage_json.insert(s.name().into(), json!({"status": text, "wall_s": m.map(|m| m.wall_s)}));
     }
     metrics.insert("stages".into(), Value::Object(stage_json));
+    page.html.push_str(h);
+    // ---- the answer, per sample, before any detail
+    for smp in &project.file.sample {
+        let a = answer(&mut page, out, smp)?;
+        page.html.push_str(&a);
+    }
     let _ = write!(
-        h,
+        page.html,
         "<h2>Stages</h2>{}",
         table(&["stage", "in the run that made this report", "wall time (last run)"], &rows)
     );
-    page.html.push_str(h);
 
     // ---- per sample
     let all_spectra = spectra(out)?;
     let mut samples_json = serde_json::Map::new();
     for smp in &project.file.sample {
         let mut sj = serde_json::Map::new();
-        let mut h = format!("<section><h2>Sample {}</h2>", esc(&smp.name));
+        let mut h =
+            format!("<section id=\"sample-{}\"><h2>Sample {}: details per stage</h2>", slug(&smp.name), esc(&smp.name));
         // Optics: match by recipe name (the "sample" field is the recipe's sample name).
         let recipe_name = crate::optics::recipe::Recipe::load(
             &smp.recipe,
@@ -274,6 +283,16 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             h.push_str(&table(&["λ [nm]", "μs [1/m]", "μa [1/m]", "μt [1/m]", "g", "n_bulk"], &rows));
             if let Some(a) = &sp.absorption {
                 let _ = write!(h, "<p class=\"note\">absorption model: {}</p>", esc(a));
+            }
+            let clamps: Vec<&String> = sp.warnings.iter().filter(|w| w.contains(" clamped outside")).collect();
+            if !clamps.is_empty() {
+                let _ = write!(
+                    h,
+                    "<p class=\"why\">Clamped index: {}. The recipe's extrapolate = \"clamp\" holds n and κ at the \
+                     data's end value there; at 380–399 nm the CIE colour-matching functions are below 1.2 % of their \
+                     peaks, so a render's colour barely depends on it.</p>",
+                    esc(&clamps.iter().map(|s| s.as_str()).collect::<Vec<_>>().join("; "))
+                );
             }
             let single = all_spectra.len() == 1;
             let odir = if single { out.join("optics") } else { out.join("optics").join(sanitise(&recipe_name)) };
@@ -307,6 +326,8 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             let mut rows = Vec::new();
             let mut bj = Vec::new();
             let mut imgs = String::new();
+            // The largest median per-pixel error of a slice drawn with the ring estimator.
+            let mut ring_noise: Option<f64> = None;
             for &c in &project.bssrdf_configs {
                 let run = PathBuf::from(super::bssrdf_run_dir(&bdir.display().to_string(), &project.bssrdf_configs, c));
                 let summary: Option<crate::bssrdf::Summary> =
@@ -315,6 +336,12 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     &bdir.join(format!("compare_ti{}_to{}", c.0, c.1)).join("comparison.json"),
                     "a BSSRDF comparison.json",
                 )?;
+                if let Some(sm) = &summary
+                    && sm.estimator.contains("ring")
+                {
+                    let e = sm.pixel_rel_error_median;
+                    ring_noise = Some(ring_noise.map_or(e, |r: f64| if e.is_finite() { r.max(e) } else { r }));
+                }
                 if let Some(sm) = &summary {
                     rows.push(vec![
                         format!("{}° / {}°", c.0, c.1),
@@ -347,6 +374,17 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 &rows,
             ));
             let _ = write!(h, "<div class=\"row\">{imgs}</div>");
+            if let Some(e) = ring_noise {
+                let _ = write!(
+                    h,
+                    "<p class=\"why\">Rings in a slice: Monte Carlo noise of the ring estimator, not structure of \
+                     the material. With θi or θo = 0° each scattering event is spread over a whole ring of azimuths, \
+                     so its noise lies on circles instead of in single pixels; the rings move with the seed, shrink \
+                     with more paths, bias neither the sum nor the profile, and their size is the per-pixel error \
+                     (median up to {} % here). They matter only for a pixel-by-pixel reading closer than that.</p>",
+                    num(e, |x| format!("{:.1}", 100.0 * x))
+                );
+            }
             sj.insert("bssrdf".into(), trim(&json!(bj), 64));
         }
         // Fit: the recipe fitted to the measured slices, beside the truth when known.
@@ -471,6 +509,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 num(f.relative_residual, |x| format!("{:.2}", 100.0 * x)),
                 num(f.render_noise_rms, e4),
             );
+            let _ = write!(h, "<p class=\"why\">{}</p>", esc(&env_residual_note(f)));
             sj.insert("env_scale".into(), to_value(&e));
         }
         // Render and comparison
@@ -719,11 +758,12 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             if let Some(o) = &object {
                 sj.insert("compare_object".into(), trim(&to_value(o), 64));
             }
-            h.push_str(&page.img(&cdir.join("triplet.png"), &format!("{} photo | render | difference", smp.name))?);
-            h.push_str(&page.img(
-                &cdir.join("fitted").join("triplet.png"),
-                &format!("{} photo | fitted twin | difference", smp.name),
-            )?);
+            // The triplet (with two twins: both, under one scale) is in the answer at the top.
+            let _ = write!(
+                h,
+                "<p class=\"note\">The photo | render | difference picture{} is at the top of the page.</p>",
+                if m.twins.is_some() { " of both twins" } else { "" }
+            );
             sj.insert("compare".into(), trim(&to_value(&m), 64));
         } else if rdir.is_dir() {
             h.push_str(&page.img(&rdir.join("render.png"), &format!("{} render", smp.name))?);
@@ -936,6 +976,176 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     Ok(())
 }
 
+/// The significance of a paired test's p-value, in words.
+fn significance(p: f64) -> &'static str {
+    if !p.is_finite() {
+        "its significance could not be computed"
+    } else if p < 0.01 {
+        "significant at the 1 % level"
+    } else if p < 0.05 {
+        "significant at 5 % but not at 1 %"
+    } else {
+        "not significant (p ≥ 0.05)"
+    }
+}
+
+/// The one-sentence verdict of two twins over `region`: which is closer,
+/// by how much (their model RMSE with the noise removed) and how sure (the
+/// paired test).
+pub fn verdict_sentence(region: &str, a: &crate::compare::Report) -> Option<String> {
+    let t = a.twins.as_ref()?;
+    let (ra, rb) = (a.noise.as_ref()?.total.model_rmse, t.noise_b.total.model_rmse);
+    let p = &t.paired;
+    let numbers = format!(
+        "model RMSE with the noise removed {} for the recipe's twin (A) and {} for the fitted twin (B)",
+        num(ra, e3),
+        num(rb, e3)
+    );
+    let by = |closer: f64, other: f64| {
+        if other > 0.0 && closer.is_finite() && other.is_finite() {
+            format!(", {:.0} % lower", 100.0 * (other - closer) / other)
+        } else {
+            String::new()
+        }
+    };
+    Some(match p.verdict.as_str() {
+        "B is closer" => format!(
+            "Over {region}, the fitted twin (B) is closer to the photo than the recipe's twin (A): {numbers}{}; \
+             paired test p = {}, {}.",
+            by(rb, ra),
+            num(p.p_value, |x| format!("{x:.1e}")),
+            significance(p.p_value)
+        ),
+        "A is closer" => format!(
+            "Over {region}, the recipe's twin (A) is closer to the photo than the fitted twin (B): {numbers}{}; \
+             paired test p = {}, {}.",
+            by(ra, rb),
+            num(p.p_value, |x| format!("{x:.1e}")),
+            significance(p.p_value)
+        ),
+        _ => format!(
+            "Over {region}, the photo cannot tell the recipe's twin (A) from the fitted twin (B) at this noise: \
+             {numbers}; paired test p = {}, {}.",
+            num(p.p_value, |x| format!("{x:.2}")),
+            significance(p.p_value)
+        ),
+    })
+}
+
+/// One twin against the photo, in one sentence (no fitted twin to compare with).
+fn single_twin_sentence(region: &str, r: &crate::compare::Report) -> String {
+    match &r.noise {
+        Some(n) => format!(
+            "Over {region}, the twin differs from the photo by a model RMSE with the noise removed of {} (95 % {} – \
+             {}); a perfect twin would show an RMSE of {} at this noise (the noise floor), this one shows {}.",
+            num(n.total.model_rmse, e3),
+            num(n.total.ci95[0], e3),
+            num(n.total.ci95[1], e3),
+            num(n.total.noise_floor, e3),
+            num(r.as_calibrated.rmse, e3)
+        ),
+        None => format!(
+            "Over {region}, the twin differs from the photo by an RMSE of {} and SSIM (Y) {} (the render has no \
+             variance, so the noise cannot be removed).",
+            num(r.as_calibrated.rmse, e3),
+            num(r.as_calibrated.ssim.y, f4)
+        ),
+    }
+}
+
+/// The first thing on the page for one sample: the verdict in one sentence,
+/// then the photo | render | difference picture (with two twins: side by side
+/// under one difference scale, each headed by its twin). Empty when the
+/// compare stage has not run for the sample.
+fn answer(page: &mut Page, out: &Path, smp: &super::project::SampleSection) -> Result<String, ReportError> {
+    let cdir = out.join(Stage::Compare.name()).join(&smp.name);
+    let Some(image) = read_json::<crate::compare::Report>(&cdir.join("metrics.json"), "a compare metrics.json")? else {
+        return Ok(String::new());
+    };
+    let object =
+        read_json::<crate::compare::Report>(&cdir.join("object").join("metrics.json"), "a compare metrics.json")?;
+    // The object's pixels, where the twins differ, when the render marks them.
+    let (region, r) = match &object {
+        Some(o) if o.twins.is_some() || image.twins.is_none() => ("the object's pixels", o),
+        _ => ("the whole image", &image),
+    };
+    let sentence = verdict_sentence(region, r).unwrap_or_else(|| single_twin_sentence(region, r));
+    let mut h = format!(
+        "<section class=\"answer\" id=\"answer-{}\"><h2>{}: the answer</h2><p class=\"verdict\">{}</p>",
+        slug(&smp.name),
+        esc(&smp.name),
+        esc(&sentence)
+    );
+    let twins = image.twins.is_some();
+    let d = &image.display;
+    let _ = write!(
+        h,
+        "<p class=\"why\">{}Difference column: luminance of the render minus the photo, blue = render darker, red = \
+         render brighter, one colour scale ±{} for {}; {:.1} % of the pixels lie beyond it and show at full colour \
+         (they are not lost: the metrics use every value).{}{}</p>",
+        if twins {
+            "Left to right: the photo, the recipe's twin A (render, difference), the fitted twin B (render, \
+             difference). "
+        } else {
+            ""
+        },
+        num(d.difference_range, e3),
+        if twins { "both twins" } else { "the picture" },
+        100.0 * d.clipped_fraction_difference,
+        if d.clipped_fraction_photo > 0.0 || d.clipped_fraction_render > 0.0 {
+            format!(
+                " Striped pixels ({:.2} % of the photo's, {:.2} % of the render's) are brighter than the display \
+                 range at this exposure: a display clip only, the metrics use the unclipped values.",
+                100.0 * d.clipped_fraction_photo,
+                100.0 * d.clipped_fraction_render
+            )
+        } else {
+            String::new()
+        },
+        if region == "the whole image" {
+            String::new()
+        } else {
+            format!(
+                " The picture shows the whole image; the verdict's numbers are over {region}, where the twins differ."
+            )
+        }
+    );
+    let alt = if twins {
+        format!(
+            "{}: photo | A (recipe) render, difference | B (fitted) render, difference, one difference scale",
+            smp.name
+        )
+    } else {
+        format!("{}: photo | render | difference", smp.name)
+    };
+    h.push_str(&page.img(&cdir.join("triplet.png"), &alt)?);
+    let _ = write!(
+        h,
+        "<p class=\"note\"><a href=\"#sample-{}\">The details per stage ↓</a></p></section>",
+        slug(&smp.name)
+    );
+    Ok(h)
+}
+
+/// What the environment scale's residual is, and whether it matters: it is
+/// the pixel-by-pixel scatter of the photo about k × the render over the
+/// board, not an error of k (a ratio of sums over many pixels).
+fn env_residual_note(f: &crate::envfit::ScaleFit) -> String {
+    // Were the scatter independent from pixel to pixel, it would move the
+    // ratio of sums by about relative_residual / √(3 N).
+    let moves = f.relative_residual / (3.0 * f.pixels.max(1) as f64).sqrt();
+    format!(
+        "What the {} % means: the residual is the pixel-by-pixel scatter of the photo about k × the render over the \
+         board (the photo's noise, the render's noise, demosaicing and the squares' edges), not an error of k. k is \
+         a ratio of sums over {} pixels, which scatter of this size moves by only about ±{:.2} % (were it \
+         independent from pixel to pixel); it matters only if the per-channel k disagree or the residual is far \
+         above the noise.",
+        num(f.relative_residual, |x| format!("{:.2}", 100.0 * x)),
+        f.pixels,
+        100.0 * moves
+    )
+}
+
 fn sanitise(name: &str) -> String {
     name.chars().map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect()
 }
@@ -947,7 +1157,10 @@ table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #ccc;padding
 th{background:#f2f2f2}td:first-child,th:first-child{text-align:left}\
 figure{display:inline-block;margin:.4em;vertical-align:top}figure img{max-width:100%;border:1px solid #ddd}\
 .row figure{max-width:48%}figcaption{font-size:85%;color:#555}.meta,.note{color:#666;font-size:90%}\
-pre{background:#f7f7f7;padding:.6em;overflow-x:auto;font-size:80%}code{font-size:90%}";
+pre{background:#f7f7f7;padding:.6em;overflow-x:auto;font-size:80%}code{font-size:90%}\
+.answer h2{margin-top:.6em}.verdict{font-size:118%;font-weight:600;background:#eef5ff;border-left:4px solid #3b73c4;\
+padding:.5em .8em}.answer figure{display:block;margin:.4em 0}.why{color:#444;font-size:90%;border-left:3px solid #ddd;\
+padding-left:.6em}";
 
 #[cfg(test)]
 mod tests {

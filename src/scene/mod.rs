@@ -1802,7 +1802,11 @@ fn build_environment(
             let img = crate::imageio::read_rgb(&full)
                 .map_err(|source| SceneFileError::Image { path: ctx.path.to_path_buf(), source })?;
             // Lossy EXR compression (DWAB, as in Blender's maps) leaves tiny
-            // negative values; they are set to 0 and reported, never kept.
+            // negative values; they are set to 0, never kept. Where the light
+            // they remove is below NEGATIVE_LIGHT_WARN of the map's (no render
+            // could see it) that is not warned about, otherwise it is. (The
+            // environment's description stays the map's alone: a sharded
+            // render's merge describes the scene without reading the map.)
             lucent_calib::env::check_equirectangular(img.width, img.height).map_err(|source| {
                 ctx.key("environment", "map", KeyProblem::Equirectangular { file: full.clone(), source })
             })?;
@@ -1811,10 +1815,15 @@ fn build_environment(
             if negative > 0 {
                 let min = data.iter().copied().fold(0.0f32, f32::min);
                 let max = data.iter().copied().fold(0.0f32, f32::max);
-                warnings.push(format!(
-                    "{}: {negative} negative values (down to {min:e}, map maximum {max:e}) set to 0",
-                    full.display()
-                ));
+                let removed: f64 = data.iter().filter(|v| **v < 0.0).map(|v| -f64::from(*v)).sum();
+                let total: f64 = data.iter().map(|v| f64::from(v.abs())).sum();
+                let fraction = if total > 0.0 { removed / total } else { 1.0 };
+                let text = format!(
+                    "{negative} negative values (down to {min:e}, map maximum {max:e}; {fraction:.1e} of the map's light) set to 0"
+                );
+                if fraction > NEGATIVE_LIGHT_WARN {
+                    warnings.push(format!("{}: {text}", full.display()));
+                }
                 data.iter_mut().for_each(|v| *v = v.max(0.0));
             }
             let env = Environment::new(img.width, img.height, data, yaw, scale, projection).map_err(|source| {
@@ -1825,6 +1834,13 @@ fn build_environment(
     };
     Ok((env, desc, projection_name.to_string(), centre, radius))
 }
+
+/// The fraction of an environment map's light (Σ|value|) that its negative
+/// values, set to 0, may take away without a warning: 10⁻⁴, far below any
+/// render's Monte Carlo noise (studio.exr's three DWAB negatives are 8·10⁻¹²,
+/// night.exr's 829 are 6·10⁻⁷). Above it the map is not a linear radiance map
+/// and the user is warned.
+pub const NEGATIVE_LIGHT_WARN: f64 = 1e-4;
 
 #[cfg(test)]
 mod tests {
