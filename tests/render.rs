@@ -778,6 +778,11 @@ fn bench_render_takes_the_reference_named_after_the_scene() {
     assert!(!o.status.success() && err.contains("demo_mean.exr") && err.contains("no Mitsuba reference"), "{err}");
 }
 
+/// The render.json a render wrote into `out`.
+fn render_json(out: &std::path::Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap()
+}
+
 /// A small translucent box on a board under a constant sky, whose
 /// `[render]` table is `render` (no `spp` unless it says so).
 fn small_box_scene(render: &str) -> String {

@@ -128,7 +128,7 @@ fn canonical_arg(a: &str) -> String {
 }
 
 /// A command line in one spelling: `--flag=value` as `--flag value`, paths
-/// canonical ([`canonical_arg`]), and the options (each with its values)
+/// canonical (`canonical_arg`), and the options (each with its values)
 /// sorted by name after the positional arguments, a repeated option's
 /// occurrences in their order. Two shards of one run given their flags in
 /// another order, as `--spp=8`, or a path relative to another folder have
