@@ -807,8 +807,7 @@ fn a_render_without_spp_stops_at_the_default_error_target_and_says_how_long() {
     assert!(o.status.success(), "{err}");
     assert!(err.contains("until the object's median error per pixel is 5.0 % (no spp given)"), "{err}");
     assert!(err.contains("expect ≈") && err.contains("to 5.0 % on the object"), "{err}");
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    let json = render_json(&out);
     assert_eq!(json["target_rel_error"].as_f64(), Some(0.05));
     assert_eq!(json["sampling"].as_str(), Some("object-weighted"));
     let median = json["relative_std_error"]["object"]["median"].as_f64().unwrap();
@@ -822,8 +821,7 @@ fn a_render_without_spp_stops_at_the_default_error_target_and_says_how_long() {
     std::fs::write(&scene, small_box_scene("spp = 8")).unwrap();
     let o = lucent(&["render", scene.to_str().unwrap(), "--quiet", "--out", out.to_str().unwrap()]);
     assert!(o.status.success());
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    let json = render_json(&out);
     assert!(json["target_rel_error"].is_null() && json["spp"].as_u64() == Some(8), "{json}");
 }
 
@@ -849,8 +847,7 @@ fn a_time_budget_short_of_the_target_says_what_would_reach_it() {
     let advice = err.lines().find(|l| l.contains("short of the 0.1 % target")).unwrap_or_else(|| panic!("{err}"));
     assert!(advice.contains("--time-s") && advice.contains("similarity_g"), "{advice}");
     // The time it names is the square law from where it stopped.
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    let json = render_json(&out);
     let (now, wall) =
         (json["relative_std_error"]["object"]["median"].as_f64().unwrap(), json["wall_s"].as_f64().unwrap());
     let need = (wall * (now / 0.0005).powi(2)).ceil();
@@ -875,8 +872,7 @@ fn the_similar_medium_is_named_with_its_measured_bias_in_render_json() {
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    let json = render_json(&out);
     let approx: Vec<&str> = json["approximations"].as_array().unwrap().iter().filter_map(|v| v.as_str()).collect();
     let similar = approx.iter().find(|a| a.starts_with("similar medium")).unwrap_or_else(|| panic!("{approx:?}"));
     // The interior's figure (not the whole plaque's +1.0 / +1.0 / +1.6 % of before).
