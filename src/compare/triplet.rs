@@ -218,6 +218,37 @@ fn tick_label(v: f64, range: f64) -> String {
     }
 }
 
+/// The diverging colour bar from −`range` to +`range`, 16 px high and
+/// `width` wide with its top-left corner at `at`, five ticks with labels
+/// of `label_size` px under it (the end labels inside the bar's extent).
+fn diverging_bar(
+    root: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    at: (i32, i32),
+    width: i32,
+    range: f64,
+    label_size: i32,
+) -> Result<(), PlotError> {
+    let (bx, y0) = at;
+    for i in 0..width {
+        let t = 2.0 * (f64::from(i) + 0.5) / f64::from(width) - 1.0;
+        root.draw(&Rectangle::new([(bx + i, y0), (bx + i + 1, y0 + 16)], diverging(t).filled())).map_err(perr)?;
+    }
+    root.draw(&Rectangle::new([(bx, y0), (bx + width, y0 + 16)], BLACK.stroke_width(1))).map_err(perr)?;
+    for k in 0..5 {
+        let x = bx + ((width - 1) * k) / 4;
+        root.draw(&PathElement::new(vec![(x, y0 + 16), (x, y0 + 21)], BLACK.stroke_width(1))).map_err(perr)?;
+        let v = range * (f64::from(k) / 2.0 - 1.0);
+        let hpos = match k {
+            0 => HPos::Left,
+            4 => HPos::Right,
+            _ => HPos::Center,
+        };
+        let st = TextStyle::from(("sans-serif", label_size).into_font()).color(&BLACK).pos(Pos::new(hpos, VPos::Top));
+        root.draw(&Text::new(tick_label(v, range), (x, y0 + 22), st)).map_err(perr)?;
+    }
+    Ok(())
+}
+
 /// Draws the picture and returns PNG bytes. All rows must have images of
 /// one size.
 pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
@@ -285,23 +316,7 @@ pub fn triplet_png(rows: &[Row], style: &Style) -> Result<Vec<u8>, PlotError> {
         }
         // Colour bar under the difference column.
         let bx = MARGIN + 2 * (pw + GAP);
-        for i in 0..pw {
-            let t = 2.0 * (f64::from(i) + 0.5) / f64::from(pw) - 1.0;
-            root.draw(&Rectangle::new([(bx + i, y0), (bx + i + 1, y0 + 16)], diverging(t).filled())).map_err(perr)?;
-        }
-        root.draw(&Rectangle::new([(bx, y0), (bx + pw, y0 + 16)], BLACK.stroke_width(1))).map_err(perr)?;
-        for k in 0..5 {
-            let x = bx + ((pw - 1) * k) / 4;
-            root.draw(&PathElement::new(vec![(x, y0 + 16), (x, y0 + 21)], BLACK.stroke_width(1))).map_err(perr)?;
-            let v = range * (f64::from(k) / 2.0 - 1.0);
-            // End labels inside the bar's extent.
-            let hpos = match k {
-                0 => HPos::Left,
-                4 => HPos::Right,
-                _ => HPos::Center,
-            };
-            text(&tick_label(v, range), x, y0 + 22, 13, Pos::new(hpos, VPos::Top))?;
-        }
+        diverging_bar(root, (bx, y0), pw, range, 13)?;
         text("Y(render) − Y(photo), linear units", bx + pw / 2, y0 + 40, 13, centre)?;
         // Legend for excluded pixels, under the photo column.
         if rows.iter().any(|r| r.mask.is_some()) {
@@ -433,22 +448,7 @@ pub fn twins_png(photo: &RgbImage, mask: Option<&Mask>, twins: [Twin; 2], style:
         y0 += 2 * LINE + 8;
         // One colour bar for both difference columns, under the four twin columns.
         let (bx, bw) = (col_x(1), 4 * pw + 3 * GAP);
-        for i in 0..bw {
-            let t = 2.0 * (f64::from(i) + 0.5) / f64::from(bw) - 1.0;
-            root.draw(&Rectangle::new([(bx + i, y0), (bx + i + 1, y0 + 16)], diverging(t).filled())).map_err(perr)?;
-        }
-        root.draw(&Rectangle::new([(bx, y0), (bx + bw, y0 + 16)], BLACK.stroke_width(1))).map_err(perr)?;
-        for k in 0..5 {
-            let x = bx + ((bw - 1) * k) / 4;
-            root.draw(&PathElement::new(vec![(x, y0 + 16), (x, y0 + 21)], BLACK.stroke_width(1))).map_err(perr)?;
-            let v = range * (f64::from(k) / 2.0 - 1.0);
-            let hpos = match k {
-                0 => HPos::Left,
-                4 => HPos::Right,
-                _ => HPos::Center,
-            };
-            text(&tick_label(v, range), x, y0 + 22, 15, Pos::new(hpos, VPos::Top))?;
-        }
+        diverging_bar(root, (bx, y0), bw, range, 15)?;
         text(
             "Y(render) − Y(photo), linear units: ONE scale for both twins' difference columns",
             bx + bw / 2,
