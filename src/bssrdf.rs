@@ -12,6 +12,15 @@
 //! | `profile.png` | the same, log scale, beam on a second axis |
 //! | `summary.json` | configuration (including the top boundary, `config.roughness`), optical properties used, sum, errors (of the sum; per pixel: median and 90th percentile of the relative standard error over the pixels above 1 % of the maximum), paths, events, speed |
 //!
+//! With `--uncertainty` ([`SliceBand`]), beside them:
+//!
+//! | file | content |
+//! |---|---|
+//! | `uncertainty.json` | per uncertain recipe input: nominal, σ, the slice sum's difference between +1 σ and −1 σ with its Monte Carlo standard error, its share of the variance; the sum's standard deviation from all inputs (first order) with its own Monte Carlo error, beside the sum's Monte Carlo standard error |
+//! | `band.exr` | channels `Y` (f_ssr), `std_error` (Monte Carlo), `inputs_sd` (first-order standard deviation from the inputs), `inputs_sd_std_error` (its Monte Carlo error), per pixel [1/(m² sr)] |
+//! | `profile-band.csv` | x_mm, f_per_m2_sr, std_error_per_m2_sr, inputs_sd_per_m2_sr, inputs_sd_std_error_per_m2_sr along the plane of incidence |
+//! | `profile-band.png` | the profile with its ±1 σ band from the inputs (shaded) and its Monte Carlo error bars |
+//!
 //! Comparison (`lucent bssrdf compare`): the mean squared relative error
 //! MSRE = mean over the mask of ((f_sim − f_meas)/f_meas)², where the mask
 //! holds the measured pixels above `threshold` × max(f_meas) (default 0.01,
@@ -23,7 +32,7 @@ use crate::imageio::{self, ImageIoError};
 use crate::io::{write_atomic, write_json, WriteError};
 use crate::plot::{perr, render_png, viridis, PlotError};
 use lucent_render::interface::Interface;
-use lucent_render::slab::{Beam, Directions, Slice};
+use lucent_render::slab::{Beam, Directions, Slice, SliceDifference};
 use plotters::prelude::*;
 use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
@@ -653,6 +662,243 @@ pub fn write_run(dir: &Path, slice: &Slice, summary: &Summary, beam: &[f64]) -> 
     write_json(&p, summary)?;
     written.push(p);
     Ok(written)
+}
+
+/// One uncertain input of a slice band: its recipe key, nominal value and
+/// standard deviation (in the key's units).
+#[derive(Debug, Clone, Serialize)]
+pub struct BandInput {
+    pub key: String,
+    pub nominal: f64,
+    pub sd: f64,
+}
+
+/// What one input does to the slice sum.
+#[derive(Debug, Clone, Serialize)]
+pub struct BandInputEffect {
+    #[serde(flatten)]
+    pub input: BandInput,
+    /// Slice sum at +1 σ minus at −1 σ [1/(m² sr)], and its Monte Carlo standard error.
+    pub sum_difference: f64,
+    pub sum_difference_std_error: f64,
+    /// d(sum)/d(input) ≈ difference/(2σ) [1/(m² sr) per unit of the input].
+    pub sum_sensitivity: f64,
+    /// Its share of the sum's variance from the inputs (0 … 1).
+    pub share_of_variance: f64,
+}
+
+/// A slice's uncertainty from the recipe's uncertain inputs, first order
+/// ([`crate::optics::uncertainty::first_order`]), written as
+/// `uncertainty.json` (the per-pixel arrays go to `band.exr`).
+#[derive(Debug, Clone, Serialize)]
+pub struct SliceBand {
+    pub method: &'static str,
+    pub inputs: Vec<BandInputEffect>,
+    /// The nominal slice sum [1/(m² sr)] and its Monte Carlo standard error.
+    pub sum: f64,
+    pub sum_std_error: f64,
+    /// The sum's standard deviation from the inputs, its Monte Carlo
+    /// standard error, and relative to the sum.
+    pub sum_inputs_sd: f64,
+    pub sum_inputs_sd_std_error: f64,
+    pub sum_inputs_relative_sd: f64,
+    /// Median over the bright pixels (above 1 % of the maximum) of the
+    /// per-pixel standard deviation from the inputs relative to the pixel.
+    pub pixel_inputs_relative_sd_median: f64,
+    pub paths: u64,
+    #[serde(skip)]
+    pub pixel_sd: Vec<f64>,
+    #[serde(skip)]
+    pub pixel_sd_std_error: Vec<f64>,
+}
+
+impl SliceBand {
+    /// The band of `slice` from the coupled differences at ±1 σ of `inputs` (same order).
+    pub fn new(slice: &Slice, inputs: &[BandInput], differences: &[SliceDifference]) -> Self {
+        use crate::optics::uncertainty::first_order;
+        let sums = first_order(
+            &differences.iter().map(|d| vec![d.sum]).collect::<Vec<_>>(),
+            &differences.iter().map(|d| vec![d.sum_std_error]).collect::<Vec<_>>(),
+        );
+        let pixels = first_order(
+            &differences.iter().map(|d| d.values.clone()).collect::<Vec<_>>(),
+            &differences.iter().map(|d| d.std_error.clone()).collect::<Vec<_>>(),
+        );
+        let max = slice.values.iter().copied().fold(0.0, f64::max);
+        let mut rel: Vec<f64> = slice
+            .values
+            .iter()
+            .zip(&pixels.sd)
+            .filter(|(v, _)| **v > lucent_render::slab::PIXEL_MASK_FRACTION * max && **v > 0.0)
+            .map(|(v, s)| s / v)
+            .collect();
+        rel.sort_by(f64::total_cmp);
+        let median = rel.get(rel.len() / 2).copied().unwrap_or(f64::NAN);
+        let effects = inputs
+            .iter()
+            .zip(differences)
+            .zip(&sums.shares)
+            .map(|((input, d), share)| BandInputEffect {
+                input: input.clone(),
+                sum_difference: d.sum,
+                sum_difference_std_error: d.sum_std_error,
+                sum_sensitivity: d.sum / (2.0 * input.sd),
+                share_of_variance: share[0],
+            })
+            .collect();
+        SliceBand {
+            method: "first order (GUM): per input, the slices at +1 σ and −1 σ traced with the nominal slice's random numbers; u² = Σ (Δ/2)²",
+            inputs: effects,
+            sum: slice.sum,
+            sum_std_error: slice.sum_std_error,
+            sum_inputs_sd: sums.sd[0],
+            sum_inputs_sd_std_error: sums.sd_std_error[0],
+            sum_inputs_relative_sd: sums.sd[0] / slice.sum,
+            pixel_inputs_relative_sd_median: median,
+            paths: slice.paths,
+            pixel_sd: pixels.sd,
+            pixel_sd_std_error: pixels.sd_std_error,
+        }
+    }
+
+    /// One line for the terminal: the sum's band beside its Monte Carlo error, and each input's share.
+    pub fn sentence(&self) -> String {
+        let shares: Vec<String> =
+            self.inputs.iter().map(|e| format!("{} {:.0} %", e.input.key, 100.0 * e.share_of_variance)).collect();
+        format!(
+            "slice sum {:.5e} 1/(m² sr): ±{:.2} % from the inputs (±{:.2} % Monte Carlo error of that band; shares: {}), ±{:.2} % Monte Carlo; per pixel ±{:.1} % (median)",
+            self.sum,
+            100.0 * self.sum_inputs_relative_sd,
+            100.0 * self.sum_inputs_sd_std_error / self.sum,
+            shares.join(", "),
+            100.0 * self.sum_std_error / self.sum,
+            100.0 * self.pixel_inputs_relative_sd_median,
+        )
+    }
+}
+
+/// Writes `uncertainty.json`, `band.exr`, `profile-band.csv` and
+/// `profile-band.png` of `band` (the band of `slice`) into `dir`.
+pub fn write_band(dir: &Path, slice: &Slice, band: &SliceBand, beam: &[f64]) -> Result<Vec<PathBuf>, SliceIoError> {
+    let n = slice.pixels;
+    let mut written = Vec::new();
+    let p = dir.join("uncertainty.json");
+    write_json(&p, band)?;
+    written.push(p);
+    let f32v = |v: &[f64]| v.iter().map(|x| *x as f32).collect::<Vec<f32>>();
+    let exr = dir.join("band.exr");
+    imageio::write_exr_channels(
+        &exr,
+        n,
+        n,
+        &[
+            ("Y", &f32v(&slice.values)),
+            ("std_error", &f32v(&slice.std_error)),
+            ("inputs_sd", &f32v(&band.pixel_sd)),
+            ("inputs_sd_std_error", &f32v(&band.pixel_sd_std_error)),
+        ],
+    )?;
+    written.push(exr);
+    let row = n / 2;
+    let x: Vec<f64> = (0..n).map(|c| (c as f64 + 0.5 - 0.5 * n as f64) * slice.pixel_m * 1e3).collect();
+    let at = |v: &[f64]| -> Vec<f64> { (0..n).map(|c| v[row * n + c]).collect() };
+    let (f, se, sd, sd_se) =
+        (at(&slice.values), at(&slice.std_error), at(&band.pixel_sd), at(&band.pixel_sd_std_error));
+    let mut csv =
+        String::from("x_mm,f_per_m2_sr,std_error_per_m2_sr,inputs_sd_per_m2_sr,inputs_sd_std_error_per_m2_sr\n");
+    for c in 0..n {
+        csv.push_str(&format!("{:.6},{:.8e},{:.8e},{:.8e},{:.8e}\n", x[c], f[c], se[c], sd[c], sd_se[c]));
+    }
+    let p = dir.join("profile-band.csv");
+    write_atomic(&p, csv.as_bytes())?;
+    written.push(p);
+    let p = dir.join("profile-band.png");
+    let bytes = profile_band_png(&x, &f, &se, &sd, band, Some(beam))
+        .map_err(|source| SliceIoError::Plot { path: p.clone(), source })?;
+    write_atomic(&p, &bytes)?;
+    written.push(p);
+    Ok(written)
+}
+
+/// The profile along the plane of incidence (log scale) with its ±1 σ band
+/// from the recipe's inputs shaded and its Monte Carlo errors as bars.
+fn profile_band_png(
+    x_mm: &[f64],
+    values: &[f64],
+    mc: &[f64],
+    sd: &[f64],
+    band: &SliceBand,
+    beam: Option<&[f64]>,
+) -> Result<Vec<u8>, PlotError> {
+    let positive: Vec<f64> = values.iter().copied().filter(|v| *v > 0.0).collect();
+    let hi = positive.iter().copied().fold(0.0, f64::max) * 2.0;
+    let lo = (hi * 1e-5).max(positive.iter().copied().fold(f64::INFINITY, f64::min) / 2.0);
+    if !(hi > 0.0 && lo.is_finite()) {
+        return Err(perr("profile has no positive values"));
+    }
+    let (x0, x1) = (x_mm.first().copied().unwrap_or(-1.0), x_mm.last().copied().unwrap_or(1.0));
+    let caption = format!(
+        "profile with ±1 σ from the recipe's inputs (sum ±{:.2} %; Monte Carlo ±{:.2} %)",
+        100.0 * band.sum_inputs_relative_sd,
+        100.0 * band.sum_std_error / band.sum
+    );
+    render_png(1220, 600, |root| {
+        let (root, legend) = root.split_horizontally(1000);
+        let blue = crate::plot::palette(0);
+        let grey = RGBColor(120, 120, 120);
+        // The band's colour: the curve's at 30 % over white (what `mix(0.3)` shows).
+        let over_white = |c: u8| (0.3 * f64::from(c) + 0.7 * 255.0).round() as u8;
+        let pale = RGBColor(over_white(blue.0), over_white(blue.1), over_white(blue.2));
+        let mut items = vec![
+            ("simulated, Monte Carlo ±1 s.e.".to_string(), crate::plot::Mark::Line(blue, 2)),
+            ("±1 σ from the inputs".to_string(), crate::plot::Mark::Box(pale)),
+        ];
+        if beam.is_some() {
+            items.push(("beam (right axis)".into(), crate::plot::Mark::Line(grey, 1)));
+        }
+        crate::plot::legend_column(&legend, 60, &items)?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin(15)
+            .caption(caption, ("sans-serif", 18))
+            .x_label_area_size(40)
+            .y_label_area_size(80)
+            .right_y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, crate::plot::log_axis(lo, hi))
+            .map_err(perr)?
+            .set_secondary_coord(x0..x1, 0.0..1.05);
+        chart
+            .configure_mesh()
+            .x_desc("x [mm]")
+            .y_desc("f_ssr [1/(m² sr)]")
+            .y_label_formatter(&|v| crate::plot::short_number(*v))
+            .draw()
+            .map_err(perr)?;
+        // The band as one polygon: upper edge left to right, lower edge back.
+        let upper: Vec<(f64, f64)> =
+            x_mm.iter().zip(values.iter().zip(sd)).map(|(x, (v, s))| (*x, (v + s).max(lo))).collect();
+        let lower: Vec<(f64, f64)> =
+            x_mm.iter().zip(values.iter().zip(sd)).rev().map(|(x, (v, s))| (*x, (v - s).max(lo))).collect();
+        let outline: Vec<(f64, f64)> = upper.into_iter().chain(lower).collect();
+        chart.draw_series(std::iter::once(Polygon::new(outline, pale.filled()))).map_err(perr)?;
+        let pts: Vec<(f64, f64)> =
+            x_mm.iter().zip(values.iter()).filter(|(_, v)| **v > 0.0).map(|(x, v)| (*x, *v)).collect();
+        chart.draw_series(LineSeries::new(pts, blue.stroke_width(2))).map_err(perr)?;
+        chart
+            .draw_series(
+                x_mm.iter()
+                    .zip(values.iter().zip(mc))
+                    .filter(|(_, (v, s))| **v - **s > 0.0)
+                    .map(|(x, (v, s))| PathElement::new(vec![(*x, v - s), (*x, v + s)], BLACK.mix(0.6))),
+            )
+            .map_err(perr)?;
+        if let Some(b) = beam {
+            chart.configure_secondary_axes().y_desc("beam (relative)").draw().map_err(perr)?;
+            chart
+                .draw_secondary_series(LineSeries::new(x_mm.iter().zip(b).map(|(x, v)| (*x, *v)), grey.stroke_width(1)))
+                .map_err(perr)?;
+        }
+        Ok(())
+    })
 }
 
 /// Log-scale false-colour panels side by side on one shared scale

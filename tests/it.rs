@@ -66,6 +66,8 @@ mod slurm;
 mod surface;
 #[path = "synth.rs"]
 mod synth;
+#[path = "uncertainty.rs"]
+mod uncertainty;
 
 /// Cargo's autotests are off in the three crates with integration tests
 /// (root, calib, render): a file under their tests/ runs only if their

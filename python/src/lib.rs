@@ -862,6 +862,7 @@ fn py_bssrdf<'py>(
         out: PathBuf::new(),
         quiet: true,
         shard: None,
+        uncertainty: false,
     };
     if let Some(job) = lucent::cli::jobs::bssrdf_run(&args) {
         job.validate().map_err(error)?;

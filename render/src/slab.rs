@@ -905,7 +905,10 @@ impl<'a> Kernel<'a> {
 
     /// Traces one path, adding to `image`; returns (path total, events,
     /// reflected weight, transmitted weight).
-    fn trace(&self, rng: &mut Rng, image: &mut [f64], chain: &mut Chain) -> (f64, u64, f64, f64) {
+    /// `rng` drives the walk (launch, flights, scattering angles, boundary
+    /// choices), `aux` everything else (connections, their roulette, the
+    /// weight roulette): see [`aux_stream`].
+    fn trace(&self, rng: &mut Rng, aux: &mut Rng, image: &mut [f64], chain: &mut Chain) -> (f64, u64, f64, f64) {
         let phase = &self.setup.slab.medium.phase;
         let sensor = &self.setup.sensor;
         let Some((mut p, mut dir, mut w, exit)) = self.launch(rng) else {
@@ -961,17 +964,17 @@ impl<'a> Kernel<'a> {
             events += 1;
             w *= self.albedo;
             match &self.strategy {
-                Strategy::Ring(ring) => total += self.connect_ring(ring, p, dir, w, image, rng),
-                Strategy::Connection => total += self.connect(p, dir, w, exit, image, rng),
+                Strategy::Ring(ring) => total += self.connect_ring(ring, p, dir, w, image, aux),
+                Strategy::Connection => total += self.connect(p, dir, w, exit, image, aux),
                 &Strategy::Lobe { vertices, reuse } => {
                     junctions.arrive();
-                    total += self.connect_lobe((vertices, reuse), p, dir, w, &exit, &junctions, chain, image, rng);
+                    total += self.connect_lobe((vertices, reuse), p, dir, w, &exit, &junctions, chain, image, aux);
                     junctions.scatter(phase.eval(angles.cos_theta));
                 }
                 Strategy::BruteForce { .. } => {}
             }
             dir = angles.turn(dir);
-            if w < 0.1 && !survives_roulette(&mut w, rng) {
+            if w < 0.1 && !survives_roulette(&mut w, aux) {
                 return (total, events, 0.0, 0.0);
             }
         }
@@ -1241,7 +1244,8 @@ impl<'a> Kernel<'a> {
         let mut chain = Chain::new();
         for k in 0..paths {
             let mut rng = Rng::new(seed, first_path + k);
-            let (t, e, r, tr) = self.trace(&mut rng, &mut b.image, &mut chain);
+            let mut aux = aux_stream(seed, first_path + k);
+            let (t, e, r, tr) = self.trace(&mut rng, &mut aux, &mut b.image, &mut chain);
             b.path_sum += t;
             b.path_sq += t * t;
             b.events += e;
@@ -1322,6 +1326,18 @@ fn rough_specular(top: &Interface, omega_i: [f64; 3], n: f64) -> f64 {
 /// index `n` ≥ 1 through the plane z = 0 (never total internal reflection).
 fn refract_z(d: [f64; 3], n: f64) -> [f64; 3] {
     fresnel::refract(DVec3::from_array(d), DVec3::Z, n).expect("air → denser medium always refracts").to_array()
+}
+
+/// The second random stream of path `path`: connections, their roulette
+/// and the weight roulette draw from it, the walk itself (launch, flights,
+/// scattering angles, boundary choices) from `Rng::new(seed, path)`. How
+/// many numbers those draw depends on μ_t and the weight, so in one stream
+/// they would shift the walk's numbers whenever a coefficient changes; kept
+/// apart, the walks of slightly different slabs traced with one seed stay
+/// alike ([`simulate_coupled`]).
+#[inline]
+fn aux_stream(seed: u64, path: u64) -> Rng {
+    Rng::new(seed ^ 0x5eed_a0c5_11ce_5a17, path)
 }
 
 /// Russian roulette on a path's weight `w` < 0.1: survives with probability
@@ -1559,39 +1575,8 @@ impl SliceSums {
             .zip(batches.par_iter())
             .map(|(image, &(first, count))| (count, kernel.batch(seed, first, count, image)))
             .collect();
-        let (fold, side) = (self.folded, self.pixels);
-        const CHUNK: usize = 4096;
-        self.sum_b
-            .par_chunks_mut(CHUNK)
-            .zip(self.sq_b.par_chunks_mut(CHUNK))
-            .zip(self.raw.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(c, ((sum_b, sq_b), raw))| {
-                let at = c * CHUNK;
-                for (count, b) in &results {
-                    let scale = 1.0 / *count as f64;
-                    if fold {
-                        // Pixel (r, c) and its mirror (N−1−r, c), averaged.
-                        for (k, ((s, q), r)) in sum_b.iter_mut().zip(sq_b.iter_mut()).zip(raw.iter_mut()).enumerate() {
-                            let i = at + k;
-                            let mirror = (side - 1 - i / side) * side + i % side;
-                            let v = 0.5 * (b.image[i] + b.image[mirror]);
-                            let m = v * scale;
-                            *s += m;
-                            *q += m * m;
-                            *r += v;
-                        }
-                        continue;
-                    }
-                    let image = &b.image[at..at + sum_b.len()];
-                    for (((s, q), r), v) in sum_b.iter_mut().zip(sq_b.iter_mut()).zip(raw.iter_mut()).zip(image) {
-                        let m = v * scale;
-                        *s += m;
-                        *q += m * m;
-                        *r += v;
-                    }
-                }
-            });
+        let images: Vec<(u64, &[f64])> = results.iter().map(|(count, b)| (*count, b.image.as_slice())).collect();
+        tally_images(&mut self.sum_b, &mut self.sq_b, &mut self.raw, &images, self.folded, self.pixels);
         for (_, b) in results {
             self.path_sum += b.path_sum;
             self.path_sq += b.path_sq;
@@ -1698,6 +1683,196 @@ fn pixel_estimates(raw: &[f64], sum_b: &[f64], sq_b: &[f64], paths: u64, batches
     (values, std_error)
 }
 
+/// Adds batch images `(paths, image)`, in their order, to the per-pixel
+/// sums of batch means (`sum_b`), of their squares (`sq_b`) and of the raw
+/// splats (`raw`); with `fold`, pixel (r, c) and its mirror (N−1−r, c) of
+/// the `side` × `side` image averaged first. Parallel over pixel chunks,
+/// each pixel taking the batches in order (so the sums do not depend on
+/// the thread count).
+fn tally_images(
+    sum_b: &mut [f64],
+    sq_b: &mut [f64],
+    raw: &mut [f64],
+    images: &[(u64, &[f64])],
+    fold: bool,
+    side: usize,
+) {
+    const CHUNK: usize = 4096;
+    sum_b.par_chunks_mut(CHUNK).zip(sq_b.par_chunks_mut(CHUNK)).zip(raw.par_chunks_mut(CHUNK)).enumerate().for_each(
+        |(c, ((sum_b, sq_b), raw))| {
+            let at = c * CHUNK;
+            for (count, image) in images {
+                let scale = 1.0 / *count as f64;
+                for (k, ((s, q), r)) in sum_b.iter_mut().zip(sq_b.iter_mut()).zip(raw.iter_mut()).enumerate() {
+                    let i = at + k;
+                    let v = if fold {
+                        let mirror = (side - 1 - i / side) * side + i % side;
+                        0.5 * (image[i] + image[mirror])
+                    } else {
+                        image[i]
+                    };
+                    let m = v * scale;
+                    *s += m;
+                    *q += m * m;
+                    *r += v;
+                }
+            }
+        },
+    );
+}
+
+/// The difference f_a − f_b of two slices traced with common random
+/// numbers ([`simulate_coupled`]): per pixel [1/(m² sr)], row-major from
+/// the top row, with its standard error from the spread of the batches'
+/// differences (so the two slices' shared noise, which cancels in the
+/// difference, does not count).
+#[derive(Debug, Clone)]
+pub struct SliceDifference {
+    pub pixels: usize,
+    pub pixel_m: f64,
+    pub values: Vec<f64>,
+    pub std_error: Vec<f64>,
+    /// Σ over pixels of f_a − f_b [1/(m² sr)] and its standard error.
+    pub sum: f64,
+    pub sum_std_error: f64,
+    pub paths: u64,
+}
+
+/// The slice of `nominal` and, for each pair (a, b) of `pairs`, the
+/// difference of the slices of a and b, all traced with **common random
+/// numbers**: path k of every setup draws from the same stream
+/// ([`Rng::new`]`(seed, k)`), so where the setups differ a little (a
+/// perturbed μ_s, μ_a or phase function), their paths stay alike and the
+/// difference carries far less noise than either slice (the correlated
+/// sampling of Rubinstein & Kroese, *Simulation and the Monte Carlo
+/// Method*, 2017, §5.2; the central differences of a sensitivity). Every
+/// setup must have the nominal one's sensor; the estimator is the nominal
+/// run's and must apply to each setup. Stops by `options.stop.paths` or
+/// `time_s` (required: one of them), or at the end of the round under way
+/// when `cancel` becomes true; `progress` is called after every round with
+/// the nominal slice's figures.
+pub fn simulate_coupled(
+    nominal: &Setup,
+    pairs: &[(Setup, Setup)],
+    options: &RunOptions,
+    mut progress: impl FnMut(&Progress),
+    cancel: &AtomicBool,
+) -> Result<(Slice, Vec<SliceDifference>), SlabError> {
+    let stop = options.stop;
+    if stop.paths.is_none() && stop.time_s.is_none() {
+        return Err(SlabError::NoStopRule);
+    }
+    if let Some(t) = stop.time_s {
+        check("time_s", t, t > 0.0, "must be > 0")?;
+    }
+    let batch_paths = options.batch_paths.max(1);
+    let kernel = Kernel::new(nominal, options.estimator)?;
+    let kernels: Vec<(Kernel, Kernel)> = pairs
+        .iter()
+        .map(|(a, b)| {
+            for s in [a, b] {
+                if s.sensor != nominal.sensor {
+                    return Err(SlabError::Parameter {
+                        name: "pixels",
+                        value: s.sensor.pixels as f64,
+                        reason: "a coupled setup must have the nominal setup's sensor",
+                    });
+                }
+            }
+            Ok((Kernel::new(a, options.estimator)?, Kernel::new(b, options.estimator)?))
+        })
+        .collect::<Result<_, SlabError>>()?;
+    let fold = options.fold
+        && nominal.mirror_symmetric()
+        && pairs.iter().all(|(a, b)| a.mirror_symmetric() && b.mirror_symmetric());
+    let mut sums = SliceSums::empty(&kernel, nominal, fold);
+    let npix = nominal.sensor.pixels * nominal.sensor.pixels;
+    // Per pair: sums over batches of the batch mean differences, their squares, the raw differences; and of the batch sum differences.
+    let mut diffs: Vec<([Vec<f64>; 3], f64, f64, f64)> =
+        pairs.iter().map(|_| ([vec![0.0; npix], vec![0.0; npix], vec![0.0; npix]], 0.0, 0.0, 0.0)).collect();
+    let mut pool: Vec<Vec<f64>> = Vec::new();
+    let start = Instant::now();
+    let mut batches = 0u64;
+    loop {
+        let mut round = ROUND_BATCHES;
+        if let Some(max) = stop.paths {
+            round = round.min(max.saturating_sub(batches * batch_paths).div_ceil(batch_paths));
+        }
+        if round == 0 {
+            break;
+        }
+        let firsts: Vec<(u64, u64)> = (0..round)
+            .map(|k| {
+                let first = (batches + k) * batch_paths;
+                (first, stop.paths.map_or(batch_paths, |max| batch_paths.min(max - first)))
+            })
+            .collect();
+        sums.add_round(&kernel, options.seed, &firsts, &mut pool);
+        for ((ka, kb), (d, s, sq, raw_sum)) in kernels.iter().zip(diffs.iter_mut()) {
+            let traced: Vec<(u64, Vec<f64>, f64)> = firsts
+                .par_iter()
+                .map(|&(first, count)| {
+                    let a = ka.batch(options.seed, first, count, Vec::new());
+                    let b = kb.batch(options.seed, first, count, Vec::new());
+                    let image: Vec<f64> = a.image.iter().zip(&b.image).map(|(x, y)| x - y).collect();
+                    (count, image, a.path_sum - b.path_sum)
+                })
+                .collect();
+            let images: Vec<(u64, &[f64])> = traced.iter().map(|(c, im, _)| (*c, im.as_slice())).collect();
+            let [sum_b, sq_b, raw] = d;
+            tally_images(sum_b, sq_b, raw, &images, fold, nominal.sensor.pixels);
+            for (count, _, path_diff) in &traced {
+                let m = path_diff / *count as f64;
+                *s += m;
+                *sq += m * m;
+                *raw_sum += path_diff;
+            }
+        }
+        batches += round;
+        let elapsed = start.elapsed().as_secs_f64();
+        let paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
+        let n = paths as f64;
+        let mean = sums.path_sum / n;
+        let var = (sums.path_sq / n - mean * mean).max(0.0) / (n - 1.0).max(1.0);
+        let (v, se) = pixel_estimates(&sums.raw, &sums.sum_b, &sums.sq_b, paths, batches);
+        progress(&Progress {
+            paths,
+            events: sums.events,
+            elapsed_s: elapsed,
+            rel_error: if mean > 0.0 { var.sqrt() / mean } else { f64::INFINITY },
+            pixels: PixelErrors::of(&v, &se),
+        });
+        if stop.paths.is_some_and(|m| paths >= m)
+            || stop.time_s.is_some_and(|t| elapsed >= t)
+            || cancel.load(Ordering::Relaxed)
+        {
+            break;
+        }
+    }
+    sums.batches = batches;
+    sums.paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
+    sums.wall_s = start.elapsed().as_secs_f64();
+    let paths = sums.paths;
+    let nb = batches.max(1) as f64;
+    let differences = diffs
+        .into_iter()
+        .map(|([sum_b, sq_b, raw], s, sq, raw_sum)| {
+            let (values, std_error) = pixel_estimates(&raw, &sum_b, &sq_b, paths, batches);
+            let mean_b = s / nb;
+            SliceDifference {
+                pixels: nominal.sensor.pixels,
+                pixel_m: nominal.sensor.pixel_m,
+                values,
+                std_error,
+                sum: raw_sum / paths.max(1) as f64,
+                sum_std_error: ((sq / nb - mean_b * mean_b).max(0.0) / (nb - 1.0).max(1.0)).sqrt(),
+                paths,
+            }
+        })
+        .collect();
+    Ok((sums.slice(), differences))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1710,6 +1885,76 @@ mod tests {
         let n = paths as f64;
         let mean = b.path_sum / n;
         (mean, ((b.path_sq / n - mean * mean) / (n - 1.0)).sqrt())
+    }
+
+    /// Common random numbers: the coupled difference of two slabs whose μ_s
+    /// differ by 4 % agrees with the difference of two independent long
+    /// runs; its stated standard error matches the spread over seeds; and
+    /// it is several times smaller than the independent runs' at the same
+    /// paths (what the coupling is for).
+    #[test]
+    fn coupled_differences_are_unbiased_with_honest_errors() {
+        let setup = |mu_s: f64| {
+            let medium =
+                Medium::new(mu_s, 30.0, Phase::henyey_greenstein(0.8).expect("valid g"), 1.5).expect("valid medium");
+            Setup::new(
+                Slab::new(2.0e-3, medium).expect("valid slab"),
+                Beam::gaussian(300e-6).expect("valid beam"),
+                Sensor::new(21, 0.2e-3).expect("valid sensor"),
+                Directions::from_degrees(45.0, 0.0, 0.0, 180.0).expect("valid directions"),
+            )
+        };
+        let (nominal, a, b) = (setup(5.0e3), setup(5.1e3), setup(4.9e3));
+        let paths = 20_000;
+        let options = |seed: u64, paths: u64| RunOptions {
+            stop: Stop::paths(paths),
+            seed,
+            batch_paths: 250,
+            estimator: Estimator::Connection,
+            fold: true,
+        };
+        let never = AtomicBool::new(false);
+        let pairs = [(a.clone(), b.clone())];
+        let runs: Vec<SliceDifference> = (0..8)
+            .map(|seed| {
+                let (slice, mut d) =
+                    simulate_coupled(&nominal, &pairs, &options(10 + seed, paths), |_| {}, &never).unwrap();
+                assert_eq!(slice.paths, paths);
+                d.remove(0)
+            })
+            .collect();
+        let sums: Vec<f64> = runs.iter().map(|d| d.sum).collect();
+        let mean = sums.iter().sum::<f64>() / 8.0;
+        let spread = (sums.iter().map(|s| (s - mean).powi(2)).sum::<f64>() / 7.0).sqrt();
+        let stated = (runs.iter().map(|d| d.sum_std_error.powi(2)).sum::<f64>() / 8.0).sqrt();
+        // 8 seeds: the sample sd lies within 0.45 … 1.6 of the true one with probability > 0.99.
+        assert!(spread > 0.45 * stated && spread < 1.6 * stated, "spread over seeds {spread} vs stated {stated}");
+        // The same per pixel, pooled over the bright pixels.
+        let bright: Vec<usize> = (0..runs[0].values.len()).filter(|&i| runs[0].std_error[i] > 0.0).collect();
+        let mut ratio = 0.0;
+        for &i in &bright {
+            let m = runs.iter().map(|d| d.values[i]).sum::<f64>() / 8.0;
+            let var = runs.iter().map(|d| (d.values[i] - m).powi(2)).sum::<f64>() / 7.0;
+            let stated = runs.iter().map(|d| d.std_error[i].powi(2)).sum::<f64>() / 8.0;
+            ratio += var / stated;
+        }
+        ratio /= bright.len() as f64;
+        assert!(ratio > 0.7 && ratio < 1.4, "per-pixel variance over seeds / stated variance: {ratio}");
+        // Independent long runs of a and b (their own seeds).
+        let long = 8 * paths;
+        let sa = simulate(&a, &options(101, long), |_| {}).unwrap();
+        let sb = simulate(&b, &options(202, long), |_| {}).unwrap();
+        let independent = sa.sum - sb.sum;
+        let se_independent = (sa.sum_std_error.powi(2) + sb.sum_std_error.powi(2)).sqrt();
+        let se_coupled = stated / 8f64.sqrt();
+        let z = (mean - independent) / (se_coupled.powi(2) + se_independent.powi(2)).sqrt();
+        assert!(z.abs() < 3.5, "coupled {mean} ± {se_coupled} vs independent {independent} ± {se_independent} (z {z})");
+        // At equal paths the independent difference's error is ×√8 larger than the long runs'.
+        let se_independent_equal = se_independent * 8f64.sqrt();
+        assert!(
+            stated < 0.5 * se_independent_equal,
+            "coupled s.e. {stated} vs independent {se_independent_equal} at {paths} paths"
+        );
     }
 
     #[test]

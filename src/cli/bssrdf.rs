@@ -129,6 +129,13 @@ pub struct RunArgs {
     /// and applied, when φi and φo are 0° or 180° and the beam is mirror-symmetric).
     #[arg(long)]
     pub no_fold: bool,
+    /// Carry the recipe's uncertain inputs (e.g. `weight_percent = { value =
+    /// 0.65, sd = 0.03 }`) to the slice: per input, the slices at ±1 σ
+    /// traced with the nominal one's random numbers; writes uncertainty.json,
+    /// band.exr, profile-band.csv and profile-band.png beside the slice.
+    /// Needs --recipe and --paths or --time-s.
+    #[arg(long, requires = "recipe")]
+    pub uncertainty: bool,
     /// Output folder.
     #[arg(long, default_value = "lucent-out/bssrdf")]
     pub out: PathBuf,
@@ -238,7 +245,12 @@ struct MediumChoice {
 }
 
 fn medium(a: &RunArgs) -> Result<MediumChoice> {
-    let mut choice = exact_medium(a)?;
+    let choice = exact_medium(a)?;
+    similar_if_asked(a, choice)
+}
+
+/// `choice` with its medium replaced by the similar one when --similarity-g asks for it.
+fn similar_if_asked(a: &RunArgs, mut choice: MediumChoice) -> Result<MediumChoice> {
     if let Some(g_max) = a.similarity_g {
         let similar = choice.medium.similar(g_max).map_err(|e| anyhow::anyhow!("--similarity-g: {e}"))?;
         choice.phase_name = format!(
@@ -252,35 +264,47 @@ fn medium(a: &RunArgs) -> Result<MediumChoice> {
     Ok(choice)
 }
 
-fn exact_medium(a: &RunArgs) -> Result<MediumChoice> {
-    let explicit_thickness = match a.thickness_mm {
+/// --thickness-mm in metres, checked.
+fn explicit_thickness_m(a: &RunArgs) -> Result<Option<f64>> {
+    match a.thickness_mm {
         Some(t) if !(t.is_finite() && t > 0.0) => {
             bail!("--thickness-mm {t}: the slab thickness must be a positive number of millimetres")
         }
-        t => t.map(|t| t * 1e-3),
-    };
-    if let Some(path) = &a.recipe {
-        let recipe = Recipe::load(path, Overrides { weight_percent: a.weight_percent })?;
-        let options = bulk::Options::default();
-        let s = bulk::at_wavelength(&recipe, a.wavelength, &options)?;
+        t => Ok(t.map(|t| t * 1e-3)),
+    }
+}
+
+/// The medium of `recipe` at --wavelength-nm (Lorenz–Mie), with the phase function --phase asks for.
+fn recipe_medium(a: &RunArgs, recipe: &Recipe, warn: bool) -> Result<MediumChoice> {
+    let options = bulk::Options::default();
+    let s = bulk::at_wavelength(recipe, a.wavelength, &options)?;
+    if warn {
         for w in &s.warnings {
             eprintln!("warning: {}: {w} (at {} nm)", recipe.name, a.wavelength);
         }
-        let choice = a.phase.unwrap_or(PhaseModel::Mie);
-        let (phase, name) = match choice {
-            PhaseModel::Mie => {
-                (Phase::Tabulated(PhaseTable::from_theta_samples(&s.phase)?), "mie (4096-entry table)".to_string())
-            }
-            PhaseModel::Hg => (Phase::henyey_greenstein(s.g)?, format!("hg (g = {:.5})", s.g)),
-        };
-        let medium = Medium::new(s.mu_s_per_m, s.mu_a_per_m, phase, s.n_bulk.max(1.0))?;
-        Ok(MediumChoice {
-            surface: recipe.surface,
-            medium,
-            thickness_m: explicit_thickness.unwrap_or(recipe.thickness_m),
-            used: OpticalUsed { mu_s_per_m: s.mu_s_per_m, mu_a_per_m: s.mu_a_per_m, g: s.g, n: s.n_bulk },
-            phase_name: name,
-        })
+    }
+    let choice = a.phase.unwrap_or(PhaseModel::Mie);
+    let (phase, name) = match choice {
+        PhaseModel::Mie => {
+            (Phase::Tabulated(PhaseTable::from_theta_samples(&s.phase)?), "mie (4096-entry table)".to_string())
+        }
+        PhaseModel::Hg => (Phase::henyey_greenstein(s.g)?, format!("hg (g = {:.5})", s.g)),
+    };
+    let medium = Medium::new(s.mu_s_per_m, s.mu_a_per_m, phase, s.n_bulk.max(1.0))?;
+    Ok(MediumChoice {
+        surface: recipe.surface,
+        medium,
+        thickness_m: explicit_thickness_m(a)?.unwrap_or(recipe.thickness_m),
+        used: OpticalUsed { mu_s_per_m: s.mu_s_per_m, mu_a_per_m: s.mu_a_per_m, g: s.g, n: s.n_bulk },
+        phase_name: name,
+    })
+}
+
+fn exact_medium(a: &RunArgs) -> Result<MediumChoice> {
+    let explicit_thickness = explicit_thickness_m(a)?;
+    if let Some(path) = &a.recipe {
+        let recipe = Recipe::load(path, Overrides { weight_percent: a.weight_percent })?;
+        recipe_medium(a, &recipe, true)
     } else {
         let (Some(mu_s), Some(mu_a), Some(g), Some(n)) = (a.mu_s, a.mu_a, a.g, a.n) else {
             bail!("give --recipe R.toml, or all of --mu-s --mu-a --g --n (and optionally --thickness-mm)");
@@ -297,6 +321,51 @@ fn exact_medium(a: &RunArgs) -> Result<MediumChoice> {
             phase_name: format!("hg (g = {g})"),
         })
     }
+}
+
+/// One uncertain recipe input of `lucent bssrdf --uncertainty`: its key,
+/// nominal value and standard deviation, and the slabs at ±1 σ.
+pub struct Perturbation {
+    pub key: String,
+    pub nominal: f64,
+    pub sd: f64,
+    plus: Slab,
+    minus: Slab,
+}
+
+/// The perturbed slabs of --uncertainty (empty without it), their tops `top`.
+fn perturbations(a: &RunArgs, top: &lucent_render::interface::Interface) -> Result<Vec<Perturbation>> {
+    let (true, Some(path)) = (a.uncertainty, &a.recipe) else {
+        return Ok(Vec::new());
+    };
+    let recipe = Recipe::load(path, Overrides { weight_percent: a.weight_percent })?;
+    if recipe.uncertain.is_empty() {
+        bail!(
+            "--uncertainty: {} gives no input with an uncertainty (write e.g. weight_percent = {{ value = 0.65, sd = 0.03 }})",
+            path.display()
+        );
+    }
+    recipe
+        .uncertain
+        .iter()
+        .map(|input| {
+            let sd = crate::optics::uncertainty::standard_deviation(&input.distribution);
+            let slab_at = |v: f64| -> Result<Slab> {
+                let r = recipe
+                    .with_input(input.target, v)
+                    .with_context(|| format!("--uncertainty: {} = {v} (nominal ∓ 1 σ)", input.key))?;
+                let m = similar_if_asked(a, recipe_medium(a, &r, false)?)?;
+                Ok(Slab::new(m.thickness_m, m.medium)?.with_top(top.clone()))
+            };
+            Ok(Perturbation {
+                key: input.key.clone(),
+                nominal: input.nominal,
+                sd,
+                plus: slab_at(input.nominal + sd)?,
+                minus: slab_at(input.nominal - sd)?,
+            })
+        })
+        .collect()
 }
 
 /// The larger of the map's Gaussian-equivalent FWHMs along x and y [m]:
@@ -327,6 +396,8 @@ pub struct PlannedRun {
     pub dirs: Directions,
     pub setup: Setup,
     pub options: RunOptions,
+    /// Per [`Plan::perturbations`] entry, the setups at +1 σ and −1 σ.
+    pub pairs: Vec<(Setup, Setup)>,
 }
 
 /// Everything `lucent bssrdf` simulates for the arguments, checked before
@@ -345,6 +416,8 @@ pub struct Plan {
     /// The top boundary as described in summary.json.
     pub roughness: String,
     pub runs: Vec<PlannedRun>,
+    /// The uncertain inputs --uncertainty carries to the slices (empty without it).
+    pub perturbations: Vec<Perturbation>,
 }
 
 impl Plan {
@@ -414,6 +487,7 @@ pub fn plan(a: &RunArgs) -> Result<Plan> {
     // configuration (strongly forward-peaked media converge slowly).
     let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
     let (top, roughness) = bssrdf::roughness(a.roughness.as_deref(), m.surface.as_ref())?;
+    let perturbations = perturbations(a, &top)?;
     let slab = Slab::new(m.thickness_m, m.medium.clone())?.with_top(top);
     let configs = match &a.configs {
         Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
@@ -426,10 +500,19 @@ pub fn plan(a: &RunArgs) -> Result<Plan> {
                 .with_context(|| format!("configuration θi {ti}° → θo {to}°"))?;
             let setup = Setup::new(slab.clone(), beam.clone(), sensor, dirs);
             let options = run_options(a, &setup, stop);
-            Ok(PlannedRun { angles: (ti, pi, to, po), dirs, setup, options })
+            let pairs = perturbations
+                .iter()
+                .map(|p| {
+                    (
+                        Setup::new(p.plus.clone(), beam.clone(), sensor, dirs),
+                        Setup::new(p.minus.clone(), beam.clone(), sensor, dirs),
+                    )
+                })
+                .collect();
+            Ok(PlannedRun { angles: (ti, pi, to, po), dirs, setup, options, pairs })
         })
         .collect::<Result<Vec<_>>>()?;
-    Ok(Plan { medium: m, beam, beam_name, out_pixels, stop, roughness, runs })
+    Ok(Plan { medium: m, beam, beam_name, out_pixels, stop, roughness, runs, perturbations })
 }
 
 /// Runs `lucent bssrdf`, or with `merged_from` writes the outputs of the
@@ -439,6 +522,17 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
     let Plan { medium: m, beam_name, out_pixels, stop, roughness, .. } = &plan;
     let configs = &plan.runs;
     let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
+    if a.uncertainty {
+        if shard.is_some() || merged_from.is_some() {
+            bail!("--uncertainty: the coupled runs of the uncertain inputs are not sharded; run without --shard");
+        }
+        if a.paths.is_none() && a.time_s.is_none() {
+            bail!("--uncertainty: give --paths or --time-s (the runs at ±1 σ stop with the nominal one, on a path count or a time budget)");
+        }
+        if a.rel_error.is_some() || a.pixel_rel_error.is_some() {
+            bail!("--uncertainty: --rel-error and --pixel-rel-error do not apply; give --paths or --time-s");
+        }
+    }
     let batch_paths = RunOptions::default().batch_paths;
     let total_batches = a.paths.unwrap_or(0).div_ceil(batch_paths);
     if shard.is_some() || merged_from.is_some() {
@@ -552,6 +646,7 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
         let bar = progress_bar(a.quiet, stop);
         bar.set_prefix(format!("θi {ti}° → θo {to}°"));
+        let mut band = None;
         let slice = if let Some(tallies) = &merged_tallies {
             // The shards' tallies added in shard order to an empty run's (its constants).
             let mut sums = slab::simulate_batches(setup, options, 0..0, a.paths.unwrap_or(0), interrupt.flag())?;
@@ -561,21 +656,24 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             }
             sums.slice()
         } else {
-            slab::simulate_cancellable(
-                setup,
-                options,
-                |p| {
-                    bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
-                    bar.set_message(format!(
-                        "{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
-                        p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
-                        100.0 * p.rel_error,
-                        100.0 * p.pixels.median,
-                        100.0 * p.pixels.p90
-                    ));
-                },
-                interrupt.flag(),
-            )?
+            let on_progress = |p: &slab::Progress| {
+                bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
+                bar.set_message(format!(
+                    "{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
+                    p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
+                    100.0 * p.rel_error,
+                    100.0 * p.pixels.median,
+                    100.0 * p.pixels.p90
+                ));
+            };
+            if a.uncertainty {
+                let (slice, differences) =
+                    slab::simulate_coupled(setup, &run.pairs, options, on_progress, interrupt.flag())?;
+                band = Some(differences);
+                slice
+            } else {
+                slab::simulate_cancellable(setup, options, on_progress, interrupt.flag())?
+            }
         };
         bar.finish_and_clear();
         let interrupted = interrupt.requested();
@@ -630,6 +728,16 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         };
         let beam_row = plan.beam_profile(run, a.pixel_mm);
         bssrdf::write_run(&dir, &slice, &summary, &beam_row)?;
+        if let Some(differences) = &band {
+            let inputs: Vec<bssrdf::BandInput> = plan
+                .perturbations
+                .iter()
+                .map(|p| bssrdf::BandInput { key: p.key.clone(), nominal: p.nominal, sd: p.sd })
+                .collect();
+            let u = bssrdf::SliceBand::new(&slice, &inputs, differences);
+            bssrdf::write_band(&dir, &slice, &u, &beam_row)?;
+            println!("θi {ti}° → θo {to}°: {}", u.sentence());
+        }
         println!(
             "θi {ti}° φi {pi}° → θo {to}° φo {po}°: sum = {:.5e} ± {:.2e} 1/(m² sr) ({:.2} %), per pixel {:.1} % median, {:.1} % p90, {} paths, {:.1} M events/s, {:.1} s → {}",
             slice.sum,
@@ -660,7 +768,18 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         crate::io::write_atomic(&stage.path().join("sweep.csv"), table.as_bytes())?;
         println!("combined table: {}", a.out.join("sweep.csv").display());
     }
-    let owned = ["bssrdf.exr", "bssrdf.png", "profile.csv", "profile.png", "summary.json", "sweep.csv"];
+    let owned = [
+        "bssrdf.exr",
+        "bssrdf.png",
+        "profile.csv",
+        "profile.png",
+        "summary.json",
+        "sweep.csv",
+        "uncertainty.json",
+        "band.exr",
+        "profile-band.csv",
+        "profile-band.png",
+    ];
     stage.commit(|n| owned.contains(&n) || (n.starts_with("ti") && n.contains("_to")))?;
     if let Some(at) = interrupted_at {
         return Err(Interrupted(format!(
@@ -827,6 +946,7 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
             roughness: None,
             no_fold: false,
             shard: None,
+            uncertainty: false,
             out: PathBuf::new(),
             quiet: true,
         };

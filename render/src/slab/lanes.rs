@@ -18,7 +18,9 @@
 //! ends takes the batch's next path, so all four stay busy until the batch
 //! runs out.
 
-use super::{survives_roulette, Batch, Chain, Crossing, Exit, Junctions, Kernel, Links, LobeEvent, Strategy};
+use super::{
+    aux_stream, survives_roulette, Batch, Chain, Crossing, Exit, Junctions, Kernel, Links, LobeEvent, Strategy,
+};
 use crate::phase::lanes::PhaseLanes;
 use crate::rng::Rng;
 use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4};
@@ -32,6 +34,8 @@ struct Paths {
     /// Σ of the path's splats, per lane.
     total: [f64; 4],
     rng: [Rng; 4],
+    /// Each lane's second stream (`aux_stream`).
+    aux: [Rng; 4],
     /// Bit l set while lane l carries a path.
     live: u32,
     /// Bit l set while lane l's path has not scattered yet.
@@ -63,15 +67,16 @@ impl Kernel<'_> {
     /// the batch is done.
     fn start_lane(&self, paths: &mut Paths, l: usize) {
         // A path lost at a rough entry adds nothing: the lane takes the next.
-        let (rng, (p, dir, w, exit)) = loop {
+        let (rng, aux, (p, dir, w, exit)) = loop {
             if paths.next >= paths.end {
                 paths.live &= !(1 << l);
                 return;
             }
             let mut rng = Rng::new(paths.seed, paths.next);
+            let aux = aux_stream(paths.seed, paths.next);
             paths.next += 1;
             if let Some(start) = self.launch(&mut rng) {
-                break (rng, start);
+                break (rng, aux, start);
             }
         };
         for k in 0..3 {
@@ -84,6 +89,7 @@ impl Kernel<'_> {
         paths.chains[l].restart();
         paths.total[l] = 0.0;
         paths.rng[l] = rng;
+        paths.aux[l] = aux;
         paths.live |= 1 << l;
         paths.unscattered |= 1 << l;
     }
@@ -111,6 +117,7 @@ impl Kernel<'_> {
             w: Lanes::default(),
             total: [0.0; 4],
             rng: std::array::from_fn(|_| Rng::new(seed, first_path)),
+            aux: std::array::from_fn(|_| Rng::new(seed, first_path)),
             live: 0,
             unscattered: 0,
             exit: [Exit::LOST; 4],
@@ -178,7 +185,7 @@ impl Kernel<'_> {
                         &paths.junctions[l],
                         chain,
                         &mut b.image,
-                        &mut paths.rng[l],
+                        &mut paths.aux[l],
                     ) {
                         Ok(e) => e.total + self.lobe_links_lanes(&phase, &e, pl, dl, chain, &mut b.image),
                         Err(total) => total,
@@ -191,7 +198,7 @@ impl Kernel<'_> {
                 let tau = -p[2] * F4::splat(self.inv_cos_t * self.mu_t);
                 for l in lanes_of(tau.le(F4::splat(40.0 + 1e-9)).bits() & ev) {
                     let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
-                    paths.total[l] += self.connect_ring(ring, pl, dl, paths.w.0[l], &mut b.image, &mut paths.rng[l]);
+                    paths.total[l] += self.connect_ring(ring, pl, dl, paths.w.0[l], &mut b.image, &mut paths.aux[l]);
                 }
             } else if self.image_terms || self.rough {
                 // Thin slab (the image terms' loop) or a rough top (sampled
@@ -199,7 +206,7 @@ impl Kernel<'_> {
                 for l in lanes_of(ev) {
                     let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
                     let (w, exit) = (paths.w.0[l], paths.exit[l]);
-                    paths.total[l] += self.connect(pl, dl, w, exit, &mut b.image, &mut paths.rng[l]);
+                    paths.total[l] += self.connect(pl, dl, w, exit, &mut b.image, &mut paths.aux[l]);
                 }
             } else {
                 // Thick slab: `connect`'s straight-up term.
@@ -219,7 +226,7 @@ impl Kernel<'_> {
                     let tau = tau.lanes();
                     let pixel = to_i32(r.floor() * n + c.floor());
                     for l in lanes_of(made) {
-                        let t = self.connection_transmittance(tau.0[l], e.0[l], &mut paths.rng[l]);
+                        let t = self.connection_transmittance(tau.0[l], e.0[l], &mut paths.aux[l]);
                         if t != 0.0 {
                             let v = wp.0[l] * t * self.splat;
                             b.image[pixel[l] as usize] += v;
@@ -234,7 +241,7 @@ impl Kernel<'_> {
                 t.store(d);
             }
             for l in lanes_of(w.lt(F4::splat(0.1)).bits() & ev) {
-                if !survives_roulette(&mut paths.w.0[l], &mut paths.rng[l]) {
+                if !survives_roulette(&mut paths.w.0[l], &mut paths.aux[l]) {
                     self.end_lane(&mut paths, &mut b, l, 0.0, 0.0);
                 }
             }
