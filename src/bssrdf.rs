@@ -30,6 +30,7 @@
 
 use crate::imageio::{self, ImageIoError};
 use crate::io::{write_atomic, write_json, WriteError};
+use crate::optics::uncertainty::InputSd;
 use crate::plot::{perr, render_png, viridis, PlotError};
 use lucent_render::interface::Interface;
 use lucent_render::slab::{Beam, Directions, Slice, SliceDifference};
@@ -664,20 +665,11 @@ pub fn write_run(dir: &Path, slice: &Slice, summary: &Summary, beam: &[f64]) -> 
     Ok(written)
 }
 
-/// One uncertain input of a slice band: its recipe key, nominal value and
-/// standard deviation (in the key's units).
-#[derive(Debug, Clone, Serialize)]
-pub struct BandInput {
-    pub key: String,
-    pub nominal: f64,
-    pub sd: f64,
-}
-
 /// What one input does to the slice sum.
 #[derive(Debug, Clone, Serialize)]
-pub struct BandInputEffect {
+pub struct InputEffect {
     #[serde(flatten)]
-    pub input: BandInput,
+    pub input: InputSd,
     /// Slice sum at +1 σ minus at −1 σ [1/(m² sr)], and its Monte Carlo standard error.
     pub sum_difference: f64,
     pub sum_difference_std_error: f64,
@@ -693,7 +685,7 @@ pub struct BandInputEffect {
 #[derive(Debug, Clone, Serialize)]
 pub struct SliceBand {
     pub method: &'static str,
-    pub inputs: Vec<BandInputEffect>,
+    pub inputs: Vec<InputEffect>,
     /// The nominal slice sum [1/(m² sr)] and its Monte Carlo standard error.
     pub sum: f64,
     pub sum_std_error: f64,
@@ -714,7 +706,7 @@ pub struct SliceBand {
 
 impl SliceBand {
     /// The band of `slice` from the coupled differences at ±1 σ of `inputs` (same order).
-    pub fn new(slice: &Slice, inputs: &[BandInput], differences: &[SliceDifference]) -> Self {
+    pub fn new(slice: &Slice, inputs: &[InputSd], differences: &[SliceDifference]) -> Self {
         use crate::optics::uncertainty::first_order;
         let sums = first_order(
             &differences.iter().map(|d| vec![d.sum]).collect::<Vec<_>>(),
@@ -738,7 +730,7 @@ impl SliceBand {
             .iter()
             .zip(differences)
             .zip(&sums.shares)
-            .map(|((input, d), share)| BandInputEffect {
+            .map(|((input, d), share)| InputEffect {
                 input: input.clone(),
                 sum_difference: d.sum,
                 sum_difference_std_error: d.sum_std_error,

@@ -105,3 +105,115 @@ fn first_order_band_of_the_slice_sum_matches_brute_force_sampling() {
         fo.sd_std_error[0]
     );
 }
+
+mod cli {
+    use crate::common::{lucent, stderr};
+    use std::path::Path;
+
+    /// A 24 × 18 view of an IOL1068-09 plaque (weight percentage ±5 %) on a
+    /// board under a constant sky, the similar medium (a fast walk).
+    fn scene(dir: &Path, render: &str) -> std::path::PathBuf {
+        let recipe = include_str!("../fixtures/samples/IOL1068-09.toml")
+            .replace("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = 0.0325 }")
+            .replace("size_mm = [149.1, 104.5]", "size_mm = [40.0, 40.0]");
+        std::fs::write(dir.join("u.toml"), recipe).unwrap();
+        let scene = format!(
+            "[camera]\nwidth = 24\nheight = 18\nposition_m = [0.0, -0.12, 0.10]\nlook_at_m = [0.0, 0.0, 0.0]\n\
+             up = [0.0, 0.0, 1.0]\nvertical_fov_deg = 25.0\n\n[object]\n\n[material]\nrecipe = \"u.toml\"\n\
+             wavelengths = \"400:700:50\"\ndispersion = false\n\n[board]\norigin_m = [-0.1, -0.1, 0.0]\n\
+             square_mm = 20.0\ncolumns = 10\nrows = 10\neven = [0.8, 0.8, 0.8]\nodd = [0.1, 0.1, 0.1]\n\n\
+             [environment]\nconstant = [1.0, 1.0, 1.0]\n\n[render]\nsimilarity_g = 0.0\n{render}\n"
+        );
+        let path = dir.join("s.toml");
+        std::fs::write(&path, scene).unwrap();
+        path
+    }
+
+    fn json(path: &Path) -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+    }
+
+    /// `lucent render --uncertainty`: uncertainty.json and band.exr; the
+    /// object's difference between +1 σ and −1 σ has a stated Monte Carlo
+    /// error that matches its spread over six seeds.
+    #[test]
+    fn render_bands_carry_errors_that_match_the_spread_over_seeds() {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut diffs: Vec<[f64; 3]> = Vec::new();
+        let mut stated = 0.0;
+        for seed in 1..=6 {
+            let s = scene(tmp.path(), &format!("spp = 32\nseed = {seed}"));
+            let out = tmp.path().join(format!("r{seed}"));
+            let o =
+                lucent(&["render", s.to_str().unwrap(), "--uncertainty", "--quiet", "--out", out.to_str().unwrap()]);
+            assert!(o.status.success(), "{}", stderr(&o));
+            assert!(out.join("band.exr").is_file() && out.join("render.exr").is_file());
+            let j = json(&out.join("uncertainty.json"));
+            assert_eq!(j["spp_per_input_render"].as_u64(), Some(16), "{j}");
+            let object = &j["regions"][0];
+            assert_eq!(object["region"].as_str(), Some("object"), "{j}");
+            let effect = &object["inputs"][0];
+            assert_eq!(effect["key"].as_str(), Some("particles[0].weight_percent"), "{j}");
+            let d: [f64; 3] = std::array::from_fn(|c| effect["difference"][c].as_f64().unwrap());
+            for c in 0..3 {
+                let se = effect["difference_std_error"][c].as_f64().unwrap();
+                assert!(se > 0.0 && se.is_finite(), "{j}");
+                stated += se * se / 18.0;
+                let sd = object["inputs_sd"][c].as_f64().unwrap();
+                assert!((sd - 0.5 * d[c].abs()).abs() <= 1e-12 * sd.max(1e-300), "one input: sd = |Δ|/2 ({j})");
+            }
+            diffs.push(d);
+        }
+        let mut spread = 0.0;
+        for c in 0..3 {
+            let m = diffs.iter().map(|d| d[c]).sum::<f64>() / 6.0;
+            spread += diffs.iter().map(|d| (d[c] - m).powi(2)).sum::<f64>() / 5.0 / 3.0;
+        }
+        // 6 seeds (channels strongly correlated): the variance ratio lies in 0.2 … 2.6 with probability ≈ 0.98.
+        let ratio = spread / stated;
+        assert!(ratio > 0.2 && ratio < 2.6, "variance over seeds / stated variance = {ratio}");
+    }
+
+    #[test]
+    fn render_uncertainty_refuses_what_it_cannot_do() {
+        let tmp = tempfile::tempdir().unwrap();
+        let s = scene(tmp.path(), "spp = 4");
+        let out = tmp.path().join("r");
+        let (s_arg, out_arg) = (s.to_str().unwrap(), out.to_str().unwrap());
+        let o = lucent(&["render", s_arg, "--uncertainty", "--uncertainty-spp", "3", "--out", out_arg]);
+        assert!(!o.status.success() && stderr(&o).contains("--uncertainty-spp 3: must be a positive even number"));
+        let o = lucent(&["render", s_arg, "--uncertainty", "--shard", "0/2", "--out", out_arg]);
+        assert!(!o.status.success() && stderr(&o).contains("not sharded"), "{}", stderr(&o));
+        // A recipe without an uncertain input.
+        let plain = include_str!("../fixtures/samples/IOL1068-09.toml");
+        std::fs::write(tmp.path().join("u.toml"), plain).unwrap();
+        let o = lucent(&["render", s_arg, "--uncertainty", "--out", out_arg]);
+        assert!(!o.status.success() && stderr(&o).contains("gives no input with an uncertainty"), "{}", stderr(&o));
+        assert!(!out.exists(), "nothing written before the check");
+    }
+
+    /// `lucent bssrdf --uncertainty`: the four files, and the refusals.
+    #[test]
+    fn slice_bands_are_written_beside_the_slice() {
+        let tmp = tempfile::tempdir().unwrap();
+        scene(tmp.path(), "");
+        let recipe = tmp.path().join("u.toml");
+        let out = tmp.path().join("b");
+        let (r, o_arg) = (recipe.to_str().unwrap(), out.to_str().unwrap());
+        let common = ["bssrdf", "--recipe", r, "--uncertainty", "--crop", "31", "--quiet", "--out", o_arg];
+        let o = lucent(&[&common[..], &["--rel-error", "0.05"]].concat());
+        assert!(!o.status.success() && stderr(&o).contains("give --paths or --time-s"), "{}", stderr(&o));
+        let o = lucent(&[&common[..], &["--paths", "2000"]].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        for f in ["uncertainty.json", "band.exr", "profile-band.csv", "profile-band.png", "bssrdf.exr"] {
+            assert!(out.join(f).is_file(), "{f}");
+        }
+        let j = json(&out.join("uncertainty.json"));
+        assert_eq!(j["inputs"][0]["key"].as_str(), Some("particles[0].weight_percent"), "{j}");
+        let rel = j["sum_inputs_relative_sd"].as_f64().unwrap();
+        assert!(rel > 0.0 && rel < 0.5, "{j}");
+        let csv = std::fs::read_to_string(out.join("profile-band.csv")).unwrap();
+        assert!(csv.starts_with("x_mm,f_per_m2_sr,std_error_per_m2_sr,inputs_sd_per_m2_sr,"), "{csv}");
+        assert_eq!(csv.lines().count(), 32);
+    }
+}

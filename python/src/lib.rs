@@ -684,6 +684,8 @@ fn py_render<'py>(
         similarity_g,
         quiet: true,
         shard: None,
+        uncertainty: false,
+        uncertainty_spp: None,
     };
     // The job `lucent render` checks (the ranges of its flags), then the scene.
     lucent::job::RenderJob::from(&args).validate().map_err(error)?;

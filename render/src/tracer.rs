@@ -345,6 +345,19 @@ impl Object {
                 .min(0.999)
         };
         let g_first = g_max.max(floor_for(SIMILAR_MIN_DEPTH));
+        let g_later = floor_events.map(|from| (from, g_max.max(floor_for(SIMILAR_LATER_MIN_DEPTH))));
+        self.similar_at(g_first, g_later)
+    }
+
+    /// The same object with each band's medium replaced by its similar one
+    /// of asymmetry at most `g_first` exactly (no depth floor), and, with
+    /// `later` = (event, g), the medium of asymmetry at most g from that
+    /// scattering event on where g < `g_first`: the media an earlier call of
+    /// [`Object::similar`] or [`Object::similar_floored_for`] walked (its g′
+    /// as `g_first`), for a slightly different medium. Renders that must
+    /// share their random numbers (`lucent render --uncertainty`) then
+    /// share the phase functions too.
+    pub fn similar_at(self, g_first: f64, later: Option<(u64, f64)>) -> Result<Self, SceneError> {
         let similar_media = |g: f64| -> Result<[Medium; 3], SceneError> {
             let mut media = self.medium.clone();
             for (band, m) in media.iter_mut().enumerate() {
@@ -352,8 +365,7 @@ impl Object {
             }
             Ok(media)
         };
-        let g_later = floor_events.map(|from| (from, g_max.max(floor_for(SIMILAR_LATER_MIN_DEPTH))));
-        let later = match g_later {
+        let later = match later {
             Some((from, g)) if g < g_first => {
                 let media = similar_media(g)?;
                 Some((from, Box::new(Object::new(self.accel.clone(), self.interface.clone(), media)?)))
@@ -1402,8 +1414,17 @@ fn trace(
     st: &mut Stats,
 ) -> ([f64; 3], FirstHit) {
     let tp = Throughput { beta: [1.0; 3], r: [1.0; 3] };
-    trace_path(scene, settings, o, d, tp, None, 0, settings.split_entry, rng, st)
+    // The second stream: connections, the board's next-event estimation
+    // and the roulettes draw from it, the walk from `rng`. How many numbers
+    // those draw depends on μ_t and the throughput; kept apart, renders of
+    // slightly different objects with one seed keep their paths alike (the
+    // renders at ±1 σ of `lucent render --uncertainty`).
+    let mut aux = Rng::new(rng.next_u64(), AUX_STREAM);
+    trace_path(scene, settings, o, d, tp, None, 0, settings.split_entry, (rng, &mut aux), st)
 }
+
+/// The stream index of a sample's second random stream ([`trace`]).
+const AUX_STREAM: u64 = 0xa0c5_5eed;
 
 /// A path from `o` along `d` (outside the object) with throughput `tp` and
 /// driving band `hero` (if already chosen), after `events_before`
@@ -1419,7 +1440,7 @@ fn trace_path(
     mut hero: Option<usize>,
     events_before: u64,
     split: bool,
-    rng: &mut Rng,
+    (rng, aux): (&mut Rng, &mut Rng),
     st: &mut Stats,
 ) -> ([f64; 3], FirstHit) {
     let eps = scene.epsilon_m;
@@ -1523,7 +1544,7 @@ fn trace_path(
                     let p_attempt = attempt_probability(reach, bc.sigma_t_min);
                     let p_phase = if settings.phase_connection { p_attempt } else { 0.0 };
                     let conn = Connection { h, x: o, d_in: d, p_attempt, p_phase, shared, chains, exit: None };
-                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &conn, rng, &mut radiance));
+                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &conn, aux, &mut radiance));
                     stretch_t = 0.0;
                     stretch_refl = None;
                 }
@@ -1576,7 +1597,7 @@ fn trace_path(
                                 };
                                 // (No normalisation until the next event: the
                                 // vertex's r and the path's share one scale.)
-                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &conn, rng, &mut radiance));
+                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &conn, aux, &mut radiance));
                                 stretch_mu = exit.cos_theta;
                                 stretch_t = 0.0;
                                 stretch_refl = None;
@@ -1601,7 +1622,7 @@ fn trace_path(
                     st.truncated_paths += 1;
                     break;
                 }
-                if !roulette(&mut tp, settings, rng) {
+                if !roulette(&mut tp, settings, aux) {
                     break;
                 }
                 continue;
@@ -1626,7 +1647,7 @@ fn trace_path(
                     break;
                 };
                 (d, o, inside, safe, last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
-                if !roulette(&mut tp, settings, rng) {
+                if !roulette(&mut tp, settings, aux) {
                     break;
                 }
                 continue;
@@ -1701,7 +1722,7 @@ fn trace_path(
                 let n = if n.dot(d) < 0.0 { n } else { -n };
                 let origin = p + eps * n;
                 // Next-event estimation of the environment.
-                if let Some(sample) = scene.environment.sample(origin, [rng.next_f64(), rng.next_f64()])
+                if let Some(sample) = scene.environment.sample(origin, [aux.next_f64(), aux.next_f64()])
                     && sample.pdf > 0.0
                 {
                     let cos = sample.dir.dot(n);
@@ -1744,7 +1765,7 @@ fn trace_path(
                 d = nd;
                 o = origin;
                 last_diffuse_pdf = Some(pdf);
-                if !roulette(&mut tp, settings, rng) {
+                if !roulette(&mut tp, settings, aux) {
                     break;
                 }
             }
@@ -1813,8 +1834,18 @@ fn trace_path(
                         *b *= fc;
                     }
                     let d_refl = d - 2.0 * d.dot(n_in) * n_in;
-                    let (l, _) =
-                        trace_path(scene, settings, p + eps * n_in, d_refl, branch, hero, events, false, rng, st);
+                    let (l, _) = trace_path(
+                        scene,
+                        settings,
+                        p + eps * n_in,
+                        d_refl,
+                        branch,
+                        hero,
+                        events,
+                        false,
+                        (rng, aux),
+                        st,
+                    );
                     for c in 0..3 {
                         radiance[c] += l[c];
                     }
@@ -1838,7 +1869,7 @@ fn trace_path(
                         break;
                     };
                     (d, o, inside, safe, last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
-                    if !roulette(&mut tp, settings, rng) {
+                    if !roulette(&mut tp, settings, aux) {
                         break;
                     }
                     continue;

@@ -729,10 +729,10 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         let beam_row = plan.beam_profile(run, a.pixel_mm);
         bssrdf::write_run(&dir, &slice, &summary, &beam_row)?;
         if let Some(differences) = &band {
-            let inputs: Vec<bssrdf::BandInput> = plan
+            let inputs: Vec<crate::optics::uncertainty::InputSd> = plan
                 .perturbations
                 .iter()
-                .map(|p| bssrdf::BandInput { key: p.key.clone(), nominal: p.nominal, sd: p.sd })
+                .map(|p| crate::optics::uncertainty::InputSd { key: p.key.clone(), nominal: p.nominal, sd: p.sd })
                 .collect();
             let u = bssrdf::SliceBand::new(&slice, &inputs, differences);
             bssrdf::write_band(&dir, &slice, &u, &beam_row)?;

@@ -73,6 +73,17 @@ pub struct RenderArgs {
     /// error target) and uniform sampling.
     #[arg(long, value_name = "K/N")]
     pub shard: Option<String>,
+    /// Carry the recipe's uncertain inputs (e.g. `weight_percent = { value =
+    /// 0.65, sd = 0.03 }`) to the render: after the render, per input the
+    /// scene at +1 σ and −1 σ with the same seed and samples; writes
+    /// uncertainty.json (each region's mean with its band) and band.exr
+    /// (per pixel). Needs a scene whose [material] has a recipe.
+    #[arg(long)]
+    pub uncertainty: bool,
+    /// Samples per pixel of each render at ±1 σ (--uncertainty; even;
+    /// default: half the nominal render's median over the object's pixels).
+    #[arg(long, requires = "uncertainty")]
+    pub uncertainty_spp: Option<u32>,
 }
 
 /// The accumulator file of a render shard.
@@ -264,6 +275,26 @@ pub fn prepare(a: &RenderArgs) -> Result<(scene::LoadedScene, Settings)> {
 /// [`prepare`]; for a merge (`for_merge`) without decoding the environment
 /// map ([`scene::load_for_merge`]).
 fn prepare_with(a: &RenderArgs, for_merge: bool) -> Result<(scene::LoadedScene, Settings)> {
+    prepare_input(a, for_merge, None)
+}
+
+/// [`prepare_with`] with one of the recipe's uncertain inputs set to a value.
+fn prepare_input(
+    a: &RenderArgs,
+    for_merge: bool,
+    input: Option<(crate::optics::recipe::InputTarget, f64)>,
+) -> Result<(scene::LoadedScene, Settings)> {
+    prepare_as(a, for_merge, input, None)
+}
+
+/// [`prepare_input`] with the similar medium's g′ fixed at what another
+/// render of the scene walked (`walked`, see `scene::apply_similarity`).
+fn prepare_as(
+    a: &RenderArgs,
+    for_merge: bool,
+    input: Option<(crate::optics::recipe::InputTarget, f64)>,
+    walked: Option<(f64, Option<(u64, f64)>)>,
+) -> Result<(scene::LoadedScene, Settings)> {
     a.render.check()?;
     if let Some(t) = a.time_s {
         check_time_s(t)?;
@@ -279,6 +310,10 @@ fn prepare_with(a: &RenderArgs, for_merge: bool) -> Result<(scene::LoadedScene, 
         if a.similarity_g.is_some() {
             file.render.similarity_g = a.similarity_g;
         }
+        if let Some(m) = file.material.as_mut() {
+            m.recipe_input = input;
+        }
+        file.render.similarity_walked = walked;
     })
     .map_err(|e| match (e, a.similarity_g) {
         // The flag's value, not the file's: name the flag.
@@ -385,6 +420,32 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     if shard.is_some() || merged_from.is_some() {
         check_shardable(&settings)?;
     }
+    // The uncertain inputs, checked before any work.
+    let uncertain = if a.uncertainty {
+        if shard.is_some() || merged_from.is_some() {
+            bail!("--uncertainty: the renders at ±1 σ are not sharded; run without --shard");
+        }
+        if let Some(n) = a.uncertainty_spp
+            && (n == 0 || n % 2 == 1)
+        {
+            bail!("--uncertainty-spp {n}: must be a positive even number (the band's error comes from the two halves of the samples)");
+        }
+        let recipe = scene::material_recipe(&a.scene)?.ok_or_else(|| {
+            anyhow::anyhow!(
+                "--uncertainty: {} has no [material] recipe to take uncertain inputs from",
+                a.scene.display()
+            )
+        })?;
+        if recipe.uncertain.is_empty() {
+            bail!(
+                "--uncertainty: the recipe {} gives no input with an uncertainty (write e.g. weight_percent = {{ value = 0.65, sd = 0.03 }})",
+                recipe.path.display()
+            );
+        }
+        Some(recipe)
+    } else {
+        None
+    };
     if let Some((k, n)) = shard
         && n > settings.spp
     {
@@ -571,6 +632,9 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         }
     }
     println!("wrote {}/render.exr, render.png, render.json", a.out.display());
+    if let (Some(recipe), false) = (&uncertain, interrupted) {
+        render_band(&a, &loaded, &settings, &pool, &image, recipe)?;
+    }
     if interrupted {
         return Err(Interrupted(format!(
             "{}/render.* hold the {} spp finished before Ctrl-C (render.json says \"interrupted\": true)",
@@ -579,6 +643,104 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         ))
         .into());
     }
+    Ok(())
+}
+
+/// `lucent render --uncertainty`: the renders at ±1 σ of each of
+/// `recipe`'s uncertain inputs and their band ([`scene::band`]), written to
+/// uncertainty.json and band.exr beside the nominal render `image`.
+fn render_band(
+    a: &RenderArgs,
+    loaded: &scene::LoadedScene,
+    settings: &Settings,
+    pool: &rayon::ThreadPool,
+    image: &Image,
+    recipe: &crate::optics::recipe::Recipe,
+) -> Result<()> {
+    use crate::optics::uncertainty::InputSd;
+    let spp = match a.uncertainty_spp {
+        Some(n) => n,
+        None => {
+            // Half the nominal's median over the object's pixels (all pixels without an object), even, ≥ 2.
+            let mut counts: Vec<u32> = (0..image.samples.len())
+                .filter(|&p| image.region(p) == tracer::Region::Object)
+                .map(|p| image.samples[p])
+                .collect();
+            if counts.is_empty() {
+                counts = image.samples.clone();
+            }
+            counts.sort_unstable();
+            let median = counts.get(counts.len() / 2).copied().unwrap_or(2);
+            ((median / 2).max(2) + 1) & !1
+        }
+    };
+    let inputs = InputSd::of(recipe);
+    let renders = 2 * inputs.len();
+    if !a.quiet {
+        eprintln!(
+            "uncertainty: {renders} renders of {spp} spp (each input of {} at ±1 σ, with the same seed)",
+            recipe.path.display()
+        );
+    }
+    // The similar medium (if any) at the nominal render's g′ in every
+    // render: the depth floor would move g′ with the input and the phase
+    // functions with it, and the renders would no longer share their paths.
+    let walked = loaded.summary.material.as_ref().and_then(|m| m.similar.as_ref()).map(|s| {
+        // (+1e-9: the walked g′ is the table's mean cosine, which the cut's own test may round just above.)
+        (s.g[0] + 1e-9, s.later.as_ref().map(|l| (l.from_event, l.g[0] + 1e-9)))
+    });
+    let interrupt = Interrupt::install();
+    let mut pairs = Vec::new();
+    let mut wall_s = 0.0;
+    for (input, sd) in recipe.uncertain.iter().zip(&inputs) {
+        let mut pair = Vec::new();
+        for (sign, value) in [("+", input.nominal + sd.sd), ("−", input.nominal - sd.sd)] {
+            let (loaded, _) = prepare_as(a, false, Some((input.target, value)), walked)
+                .with_context(|| format!("--uncertainty: {} = {value} (nominal {sign} 1 σ)", input.key))?;
+            let (acc, stats) =
+                pool.install(|| tracer::render_samples(&loaded.scene, settings, 0..spp, Some(interrupt.flag())));
+            if interrupt.requested() {
+                return Err(Interrupted(format!(
+                    "the band was not written (the render itself is in {}/render.*)",
+                    a.out.display()
+                ))
+                .into());
+            }
+            wall_s += stats.wall_s;
+            if !a.quiet {
+                eprintln!("  {} {sign} 1 σ = {value:.6}: {spp} spp in {:.1} s", input.key, stats.wall_s);
+            }
+            pair.push(acc.image());
+        }
+        let minus = pair.pop().context("two renders per input")?;
+        let plus = pair.pop().context("two renders per input")?;
+        pairs.push((plus, minus));
+    }
+    drop(interrupt);
+    let band = scene::band::render_band(image, &inputs, &pairs, spp);
+    crate::io::write_json(&a.out.join("uncertainty.json"), &band)
+        .with_context(|| format!("{}: cannot write uncertainty.json", a.out.display()))?;
+    let channel = |v: &[[f64; 3]], c: usize| -> Vec<f32> { v.iter().map(|t| t[c] as f32).collect() };
+    let (sd, se) = (&band.pixel_sd, &band.pixel_sd_std_error);
+    let (r, g, b) = (channel(sd, 0), channel(sd, 1), channel(sd, 2));
+    let (er, eg, eb) = (channel(se, 0), channel(se, 1), channel(se, 2));
+    crate::imageio::write_exr_channels(
+        &a.out.join("band.exr"),
+        image.width,
+        image.height,
+        &[
+            ("inputs_sd.R", &r),
+            ("inputs_sd.G", &g),
+            ("inputs_sd.B", &b),
+            ("inputs_sd_std_error.R", &er),
+            ("inputs_sd_std_error.G", &eg),
+            ("inputs_sd_std_error.B", &eb),
+        ],
+    )?;
+    for line in band.lines() {
+        println!("{line}");
+    }
+    println!("wrote {}/uncertainty.json, band.exr ({renders} renders, {wall_s:.1} s)", a.out.display());
     Ok(())
 }
 
@@ -1008,7 +1170,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             if loaded.scene.object.is_none() {
                 continue;
             }
-            scene::apply_similarity(&mut loaded, g, floor_events)?;
+            scene::apply_similarity(&mut loaded, g, floor_events, None)?;
         }
         let cpu0 = process_cpu_s();
         let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});

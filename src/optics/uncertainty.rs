@@ -276,6 +276,26 @@ pub fn propagate(recipe: &Recipe, grid: &WavelengthGrid, n: usize, seed: u64) ->
     Ok(summarise(recipe, grid, seed, design, &draws))
 }
 
+/// One uncertain input as a band reports it: its recipe key, nominal value
+/// and standard deviation (in the key's units).
+#[derive(Debug, Clone, Serialize)]
+pub struct InputSd {
+    pub key: String,
+    pub nominal: f64,
+    pub sd: f64,
+}
+
+impl InputSd {
+    /// The recipe's uncertain inputs, each with [`standard_deviation`].
+    pub fn of(recipe: &Recipe) -> Vec<InputSd> {
+        recipe
+            .uncertain
+            .iter()
+            .map(|i| InputSd { key: i.key.clone(), nominal: i.nominal, sd: standard_deviation(&i.distribution) })
+            .collect()
+    }
+}
+
 /// The standard deviation of an uncertain input, in its own units: the
 /// `sd` of a normal one, (max − min)/√12 of a uniform one.
 pub fn standard_deviation(d: &InputDistribution) -> f64 {

@@ -68,6 +68,7 @@
 //! the bottom face crosses a 1 µm air gap to the board, as under a plaque
 //! lying on paper.
 
+pub mod band;
 pub mod mesh;
 
 use crate::optics::bulk::{self, OpticalSpectrum};
@@ -365,6 +366,11 @@ pub struct MaterialSection {
     pub n: Option<[f64; 3]>,
     pub dispersion: Option<bool>,
     pub roughness: Option<String>,
+    /// One of the recipe's uncertain inputs set to a value (`lucent render
+    /// --uncertainty` renders the scene at each input ± 1 σ); never read
+    /// from a file.
+    #[serde(skip)]
+    pub recipe_input: Option<(recipe::InputTarget, f64)>,
 }
 
 impl MaterialSection {
@@ -428,6 +434,11 @@ pub struct EnvironmentSection {
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct RenderSection {
+    /// The similar medium's g′ (and its later medium's event and g′) as
+    /// another render of this scene walked them, used without the depth
+    /// floor (`lucent render --uncertainty`); never read from a file.
+    #[serde(skip)]
+    pub similarity_walked: Option<(f64, Option<(u64, f64)>)>,
     pub spp: Option<u32>,
     pub time_s: Option<f64>,
     pub seed: Option<u64>,
@@ -854,6 +865,21 @@ fn read_scene_json(ctx: &Ctx, p: &Path) -> Result<SceneDescription, SceneFileErr
         .map_err(|source| ctx.key("camera", "scene_json", KeyProblem::NotSceneJson { file: full.clone(), source }))
 }
 
+/// The recipe of the scene file's `[material]` (with its `weight_percent`
+/// override), or `None` for a scene without one: what `lucent render
+/// --uncertainty` reads the uncertain inputs from.
+pub fn material_recipe(path: &Path) -> Result<Option<Recipe>, SceneFileError> {
+    let text =
+        crate::io::read_text(path).map_err(|source| SceneFileError::Read { path: path.to_path_buf(), source })?;
+    let file = parse(&text, path)?;
+    let Some(m) = &file.material else { return Ok(None) };
+    let Some(recipe_path) = &m.recipe else { return Ok(None) };
+    let ctx = Ctx { path, dir: path.parent().map(Path::to_path_buf).unwrap_or_default(), summary_only: true };
+    Recipe::load(&ctx.resolve(recipe_path), Overrides { weight_percent: m.weight_percent })
+        .map(Some)
+        .map_err(|source| SceneFileError::Recipe { path: path.to_path_buf(), source })
+}
+
 /// [`load`] for `lucent merge`, which writes a render's outputs from its
 /// shards' sums and needs the scene's settings and description, not its
 /// light: the environment map is not decoded (its header gives the size the
@@ -1051,7 +1077,7 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
             let problem = SimilarityProblem::FloorEventsWithoutG;
             return Err(ctx.key("render", "similarity_floor_events", KeyProblem::Similarity(problem)));
         }
-        (Some(g), floor_events) => apply_similarity(&mut loaded, g, floor_events)
+        (Some(g), floor_events) => apply_similarity(&mut loaded, g, floor_events, r.similarity_walked)
             .map_err(|problem| ctx.key("render", "similarity_g", KeyProblem::Similarity(problem)))?,
         (None, None) => {}
     }
@@ -1079,11 +1105,14 @@ pub enum SimilarityProblem {
 /// an object (env-scale's empty board) has nothing to make similar: only
 /// `g_max` is checked. `floor_events`: hold the depth floor for a path's
 /// first this many scattering events only
-/// ([`lucent_render::tracer::Object::similar_floored_for`]).
+/// ([`lucent_render::tracer::Object::similar_floored_for`]). `walked`: the
+/// g′ an earlier scene walked (and its later medium's event and g′), used
+/// as they are instead ([`lucent_render::tracer::Object::similar_at`]).
 pub fn apply_similarity(
     loaded: &mut LoadedScene,
     g_max: f64,
     floor_events: Option<u64>,
+    walked: Option<(f64, Option<(u64, f64)>)>,
 ) -> Result<(), SimilarityProblem> {
     if !lucent_render::medium::valid_similarity_g(g_max) {
         return Err(SimilarityProblem::Range { value: g_max });
@@ -1091,9 +1120,10 @@ pub fn apply_similarity(
     let Some(object) = loaded.scene.object.take() else {
         return Ok(());
     };
-    let similar = match floor_events {
-        Some(events) => object.similar_floored_for(g_max, events)?,
-        None => object.similar(g_max)?,
+    let similar = match (walked, floor_events) {
+        (Some((g_first, later)), _) => object.similar_at(g_first, later)?,
+        (None, Some(events)) => object.similar_floored_for(g_max, events)?,
+        (None, None) => object.similar(g_max)?,
     };
     // μs′ and g′ per band of an object's medium.
     let walked = |o: &lucent_render::tracer::Object| {
@@ -1288,8 +1318,13 @@ fn build_material(ctx: &Ctx, m: &MaterialSection, warnings: &mut Vec<String>) ->
         }
         (Some(recipe_path), false) => {
             let full = ctx.resolve(recipe_path);
-            let recipe = Recipe::load(&full, Overrides { weight_percent: m.weight_percent })
+            let mut recipe = Recipe::load(&full, Overrides { weight_percent: m.weight_percent })
                 .map_err(|source| SceneFileError::Recipe { path: ctx.path.to_path_buf(), source })?;
+            if let Some((target, value)) = m.recipe_input {
+                recipe = recipe
+                    .with_input(target, value)
+                    .map_err(|source| SceneFileError::Recipe { path: ctx.path.to_path_buf(), source })?;
+            }
             let grid_text = m.wavelengths.as_deref().unwrap_or("380:780:10");
             let grid = grid_text
                 .parse::<WavelengthGrid>()

@@ -1,0 +1,185 @@
+//! The render's uncertainty from the recipe's uncertain inputs (`lucent
+//! render --uncertainty`): per input, the scene rendered with the input at
+//! +1 σ and at −1 σ with the same seed and samples (common random numbers),
+//! and the first-order band u² = Σᵢ (Δᵢ/2)² (JCGM 100:2008 "GUM", eq. 10;
+//! [`crate::optics::uncertainty::first_order`]) of
+//!
+//! * each region's mean radiance per band R, G, B (the object's pixels, the
+//!   board's: [`Image::region`]), with its Monte Carlo standard error from
+//!   the renders' two independent halves (per pixel (Δ_even − Δ_odd)²/4
+//!   estimates the variance of Δ, the shared noise of the two renders
+//!   cancelling as it does in Δ), beside the nominal mean's own Monte Carlo
+//!   standard error;
+//! * every pixel, in the units of the environment map, with a conservative
+//!   Monte Carlo error per pixel (the two renders' variances added, as if
+//!   their noise were independent).
+//!
+//! ```
+//! use lucent::optics::uncertainty::InputSd;
+//! use lucent::scene::band::render_band;
+//! use lucent_render::tracer::Image;
+//! // A one-pixel "object" whose mean rises from 0.9 to 1.1 between −1 σ and +1 σ.
+//! let image = |v: f64| Image {
+//!     width: 1, height: 1, mean: vec![[v; 3]], variance_of_mean: vec![[1e-6; 3]],
+//!     samples: vec![4], object_samples: vec![4], board_samples: vec![0],
+//!     halves: [vec![[v; 3]], vec![[v; 3]]],
+//! };
+//! let input = InputSd { key: "particles[0].weight_percent".into(), nominal: 0.65, sd: 0.0325 };
+//! let band = render_band(&image(1.0), &[input], &[(image(1.1), image(0.9))], 4);
+//! assert!((band.regions[0].inputs_sd[1] - 0.1).abs() < 1e-12);
+//! ```
+
+use crate::optics::uncertainty::{first_order, InputSd};
+use lucent_render::tracer::{Image, Region};
+use serde::Serialize;
+
+/// What one input does to a region's mean.
+#[derive(Debug, Clone, Serialize)]
+pub struct RegionEffect {
+    pub key: String,
+    /// Mean at +1 σ minus at −1 σ per band R, G, B, and its Monte Carlo standard error.
+    pub difference: [f64; 3],
+    pub difference_std_error: [f64; 3],
+    /// Its share of the region's variance from the inputs, per band (0 … 1).
+    pub share_of_variance: [f64; 3],
+}
+
+/// A region's mean and its bands.
+#[derive(Debug, Clone, Serialize)]
+pub struct RegionBand {
+    /// "object" or "board" ([`Image::region`] of the nominal render).
+    pub region: &'static str,
+    pub pixels: usize,
+    /// The nominal render's mean over the region per band R, G, B, and its Monte Carlo standard error.
+    pub mean: [f64; 3],
+    pub mean_std_error: [f64; 3],
+    /// The mean's standard deviation from the inputs (first order), its
+    /// Monte Carlo standard error, and relative to the mean.
+    pub inputs_sd: [f64; 3],
+    pub inputs_sd_std_error: [f64; 3],
+    pub inputs_relative_sd: [f64; 3],
+    pub inputs: Vec<RegionEffect>,
+}
+
+/// The render's band, written as `uncertainty.json` (the per-pixel arrays go to `band.exr`).
+#[derive(Debug, Clone, Serialize)]
+pub struct RenderBand {
+    pub method: &'static str,
+    pub inputs: Vec<InputSd>,
+    /// Samples per pixel of each render at ±1 σ (the nominal render's are in render.json).
+    pub spp_per_input_render: u32,
+    pub regions: Vec<RegionBand>,
+    /// Per pixel and band, the standard deviation from the inputs and its (conservative) Monte Carlo error.
+    #[serde(skip)]
+    pub pixel_sd: Vec<[f64; 3]>,
+    #[serde(skip)]
+    pub pixel_sd_std_error: Vec<[f64; 3]>,
+}
+
+/// The band of `nominal` from `pairs[i]` = (the render at input i + 1 σ,
+/// at − 1 σ), each of `spp` samples per pixel with the same seed.
+pub fn render_band(nominal: &Image, inputs: &[InputSd], pairs: &[(Image, Image)], spp: u32) -> RenderBand {
+    let n = nominal.mean.len();
+    let mut regions = Vec::new();
+    for (name, which) in [("object", Region::Object), ("board", Region::Board)] {
+        let pixels: Vec<usize> = (0..n).filter(|&p| nominal.region(p) == which).collect();
+        if pixels.is_empty() {
+            continue;
+        }
+        let count = pixels.len() as f64;
+        let mut mean = [0.0; 3];
+        let mut mean_var = [0.0; 3];
+        for &p in &pixels {
+            for c in 0..3 {
+                mean[c] += nominal.mean[p][c] / count;
+                mean_var[c] += nominal.variance_of_mean[p][c] / (count * count);
+            }
+        }
+        let effects: Vec<([f64; 3], [f64; 3])> = pairs
+            .iter()
+            .map(|(plus, minus)| {
+                let (mut d, mut var) = ([0.0; 3], [0.0; 3]);
+                for &p in &pixels {
+                    for c in 0..3 {
+                        d[c] += (plus.mean[p][c] - minus.mean[p][c]) / count;
+                        let even = plus.halves[0][p][c] - minus.halves[0][p][c];
+                        let odd = plus.halves[1][p][c] - minus.halves[1][p][c];
+                        var[c] += 0.25 * (even - odd).powi(2) / (count * count);
+                    }
+                }
+                (d, var.map(f64::sqrt))
+            })
+            .collect();
+        let mut band = RegionBand {
+            region: name,
+            pixels: pixels.len(),
+            mean,
+            mean_std_error: mean_var.map(f64::sqrt),
+            inputs_sd: [0.0; 3],
+            inputs_sd_std_error: [0.0; 3],
+            inputs_relative_sd: [0.0; 3],
+            inputs: inputs
+                .iter()
+                .zip(&effects)
+                .map(|(i, (d, se))| RegionEffect {
+                    key: i.key.clone(),
+                    difference: *d,
+                    difference_std_error: *se,
+                    share_of_variance: [0.0; 3],
+                })
+                .collect(),
+        };
+        for c in 0..3 {
+            let fo = first_order(
+                &effects.iter().map(|(d, _)| vec![d[c]]).collect::<Vec<_>>(),
+                &effects.iter().map(|(_, se)| vec![se[c]]).collect::<Vec<_>>(),
+            );
+            band.inputs_sd[c] = fo.sd[0];
+            band.inputs_sd_std_error[c] = fo.sd_std_error[0];
+            band.inputs_relative_sd[c] = if mean[c] > 0.0 { fo.sd[0] / mean[c] } else { f64::NAN };
+            for (e, share) in band.inputs.iter_mut().zip(&fo.shares) {
+                e.share_of_variance[c] = share[0];
+            }
+        }
+        regions.push(band);
+    }
+    // Per pixel: the outputs are the 3n values, pixel-major.
+    let flat = |f: &dyn Fn(usize, usize) -> f64| -> Vec<f64> { (0..3 * n).map(|k| f(k / 3, k % 3)).collect() };
+    let differences: Vec<Vec<f64>> =
+        pairs.iter().map(|(plus, minus)| flat(&|p, c| plus.mean[p][c] - minus.mean[p][c])).collect();
+    let errors: Vec<Vec<f64>> = pairs
+        .iter()
+        .map(|(plus, minus)| flat(&|p, c| (plus.variance_of_mean[p][c] + minus.variance_of_mean[p][c]).sqrt()))
+        .collect();
+    let fo = first_order(&differences, &errors);
+    let triples = |v: &[f64]| -> Vec<[f64; 3]> { v.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect() };
+    RenderBand {
+        method: "first order (GUM): per input, the scene rendered at +1 σ and −1 σ with the same seed and samples; u² = Σ (Δ/2)²",
+        inputs: inputs.to_vec(),
+        spp_per_input_render: spp,
+        regions,
+        pixel_sd: triples(&fo.sd),
+        pixel_sd_std_error: triples(&fo.sd_std_error),
+    }
+}
+
+impl RenderBand {
+    /// One line per region for the terminal.
+    pub fn lines(&self) -> Vec<String> {
+        self.regions
+            .iter()
+            .map(|r| {
+                let pct = |v: [f64; 3]| v.map(|x| format!("{:.2}", 100.0 * x)).join("/");
+                let rel = |v: [f64; 3]| std::array::from_fn::<f64, 3, _>(|c| v[c] / r.mean[c]);
+                format!(
+                    "{} mean ({} px), R/G/B: ±{} % from the inputs (Monte Carlo error of that band ±{} %), ±{} % Monte Carlo",
+                    r.region,
+                    r.pixels,
+                    pct(r.inputs_relative_sd),
+                    pct(rel(r.inputs_sd_std_error)),
+                    pct(rel(r.mean_std_error)),
+                )
+            })
+            .collect()
+    }
+}
