@@ -7,6 +7,7 @@ Small for test time: 21 × 21 pixels of 0.5 mm, a few thousand paths.
 
 import json
 import time
+import tomllib
 
 import numpy as np
 import pytest
@@ -71,3 +72,19 @@ def test_bad_fit_arguments_raise(repo, measured, kwargs, message):
     args = dict(measured=measured, free="weight_percent", measured_pixel_mm=0.5, paths=1000) | kwargs
     with pytest.raises(lucent.LucentError, match=message):
         lucent.fit(repo / START, **args)
+
+
+def test_fit_takes_the_recipe_as_a_dict(repo, measured, tmp_path):
+    # A dict of the recipe's keys fits as its file does; the fitted recipe is named after its `name`.
+    with open(repo / START, "rb") as f:
+        recipe = tomllib.load(f)
+    args = dict(measured_pixel_mm=0.5, paths=2000, wavelength_nm=550.0)
+    a = lucent.fit(recipe, measured, "weight_percent", out=tmp_path, **args)
+    b = lucent.fit(repo / START, measured, "weight_percent", **args)
+    for key in ["value", "std_error", "interval_95", "start"]:
+        assert a["parameters"][0][key] == b["parameters"][0][key], key
+    assert a["identifiable"] == b["identifiable"]
+    assert (tmp_path / "fit.json").is_file()
+    if a["identifiable"]:
+        fitted = tmp_path / "IOL1068-09_fitted.toml"
+        assert lucent.optics(fitted, wavelengths_nm=550.0, phase_entries=0).sample == "IOL1068-09"

@@ -237,8 +237,21 @@ struct MediumChoice {
     phase_name: String,
 }
 
+/// The medium of the arguments, the recipe read from `--recipe`.
 fn medium(a: &RunArgs) -> Result<MediumChoice> {
-    let mut choice = exact_medium(a)?;
+    medium_of(a, load_recipe(a)?.as_ref())
+}
+
+/// `--recipe`'s recipe (with `--weight-percent`), if given.
+fn load_recipe(a: &RunArgs) -> Result<Option<Recipe>> {
+    let overrides = Overrides { weight_percent: a.weight_percent };
+    Ok(a.recipe.as_ref().map(|path| Recipe::load(path, overrides)).transpose()?)
+}
+
+/// The medium of the arguments with `recipe` as the recipe (`None`: the
+/// explicit coefficients).
+fn medium_of(a: &RunArgs, recipe: Option<&Recipe>) -> Result<MediumChoice> {
+    let mut choice = exact_medium(a, recipe)?;
     if let Some(g_max) = a.similarity_g {
         let similar = choice.medium.similar(g_max).map_err(|e| anyhow::anyhow!("--similarity-g: {e}"))?;
         choice.phase_name = format!(
@@ -252,17 +265,16 @@ fn medium(a: &RunArgs) -> Result<MediumChoice> {
     Ok(choice)
 }
 
-fn exact_medium(a: &RunArgs) -> Result<MediumChoice> {
+fn exact_medium(a: &RunArgs, recipe: Option<&Recipe>) -> Result<MediumChoice> {
     let explicit_thickness = match a.thickness_mm {
         Some(t) if !(t.is_finite() && t > 0.0) => {
             bail!("--thickness-mm {t}: the slab thickness must be a positive number of millimetres")
         }
         t => t.map(|t| t * 1e-3),
     };
-    if let Some(path) = &a.recipe {
-        let recipe = Recipe::load(path, Overrides { weight_percent: a.weight_percent })?;
+    if let Some(recipe) = recipe {
         let options = bulk::Options::default();
-        let s = bulk::at_wavelength(&recipe, a.wavelength, &options)?;
+        let s = bulk::at_wavelength(recipe, a.wavelength, &options)?;
         for w in &s.warnings {
             eprintln!("warning: {}: {w} (at {} nm)", recipe.name, a.wavelength);
         }
@@ -369,7 +381,14 @@ impl Plan {
 
 /// The [`Plan`] of `lucent bssrdf` for the arguments `a`.
 pub fn plan(a: &RunArgs) -> Result<Plan> {
-    let m = medium(a)?;
+    plan_with_recipe(a, load_recipe(a)?.as_ref())
+}
+
+/// The [`Plan`] of `lucent bssrdf` for the arguments `a` with `recipe` as
+/// the medium's recipe in place of `--recipe` (a recipe not read from a
+/// file, e.g. the Python API's dict); `None`: the explicit coefficients.
+pub fn plan_with_recipe(a: &RunArgs, recipe: Option<&Recipe>) -> Result<Plan> {
+    let m = medium_of(a, recipe)?;
     let (beam, beam_name) = a.beam.beam()?;
     let out_pixels = match a.crop {
         Some(c) if c == 0 || c > a.pixels => bail!("--crop {c}: must lie in 1 … --pixels ({})", a.pixels),
