@@ -392,7 +392,11 @@ impl RecipeArg {
             let json: String = py
                 .import("json")?
                 .call_method1("dumps", (d,))
-                .map_err(|e| error(format!("recipe dict: not expressible as TOML (a value is not a str, number, bool, list or dict): {e}")))?
+                .map_err(|e| {
+                    error(format!(
+                        "recipe dict: not expressible as TOML (a value is not a str, number, bool, list or dict): {e}"
+                    ))
+                })?
                 .extract()?;
             let value: serde_json::Value = serde_json::from_str(&json).map_err(error)?;
             let text =
@@ -427,11 +431,7 @@ impl RecipeArg {
 /// Raises TypeError for the keyword arguments in `kwargs` (those `func`
 /// does not take), naming the argument's current name where `renamed`
 /// lists it as (old name, new name).
-fn reject_unknown_keywords(
-    func: &str,
-    kwargs: Option<&Bound<'_, PyDict>>,
-    renamed: &[(&str, &str)],
-) -> PyResult<()> {
+fn reject_unknown_keywords(func: &str, kwargs: Option<&Bound<'_, PyDict>>, renamed: &[(&str, &str)]) -> PyResult<()> {
     let Some((key, _)) = kwargs.and_then(|k| k.iter().next()) else {
         return Ok(());
     };
@@ -472,7 +472,11 @@ fn py_optics(
     weight_percent: Option<f64>,
     kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Optics> {
-    reject_unknown_keywords("optics", kwargs, &[("wavelength_nm", "wavelengths_nm"), ("wavelength", "wavelengths_nm")])?;
+    reject_unknown_keywords(
+        "optics",
+        kwargs,
+        &[("wavelength_nm", "wavelengths_nm"), ("wavelength", "wavelengths_nm")],
+    )?;
     if phase_entries == 1 {
         return Err(error("phase_entries must be 0 (no table) or at least 2"));
     }
@@ -614,7 +618,9 @@ fn py_compare<'py>(
         let photo_variance = photo_variance
             .map(|v| {
                 as_path(v).ok_or_else(|| {
-                    error("photo_variance: with file paths for the images, give the photo's variance as an EXR path too")
+                    error(
+                        "photo_variance: with file paths for the images, give the photo's variance as an EXR path too",
+                    )
                 })
             })
             .transpose()?;
@@ -677,31 +683,25 @@ fn py_compare<'py>(
     };
     let settings = compare::Settings { ssim: compare::ssim::SsimParams::new(data_range).map_err(error)?, luminance };
     let mut notes = Vec::new();
-    let (metrics, noise) = py.detach(|| -> Result<_, String> {
-        let metrics = compare::metrics(&photo, &render, mask.as_ref(), &settings).map_err(|e| e.to_string())?;
-        let noise = match &render_variance {
-            None => None,
-            Some(rv) => {
-                let mut report = compare::model_error(
-                    &photo,
-                    &render,
-                    (rv, photo_variance.as_deref()),
-                    mask.as_ref(),
-                    photo_variance.as_ref().map(|_| "photo_variance"),
-                    &mut notes,
-                )
-                .map_err(|e| format!("model RMSE: {e}"))?;
-                report.render_variance = "render_variance (the variance of each pixel's mean)".into();
-                report.photo_variance = match photo_variance {
-                    Some(_) => "photo_variance".into(),
-                    None => compare::PHOTO_VARIANCE_NOT_GIVEN.into(),
-                };
-                Some(report)
-            }
+    let (metrics, noise) = py.detach(|| -> PyResult<_> {
+        let metrics = compare::metrics(&photo, &render, mask.as_ref(), &settings).map_err(error)?;
+        let Some(rv) = &render_variance else {
+            return Ok((metrics, None));
         };
-        Ok((metrics, noise))
-    })
-    .map_err(error)?;
+        let mut report = compare::model_error(
+            &photo,
+            &render,
+            (rv, photo_variance.as_deref()),
+            mask.as_ref(),
+            photo_variance.as_ref().map(|_| "photo_variance"),
+            &mut notes,
+        )
+        .map_err(|e| error(format!("model RMSE: {e}")))?;
+        report.render_variance = "render_variance (the variance of each pixel's mean)".into();
+        report.photo_variance =
+            if photo_variance.is_some() { "photo_variance" } else { compare::PHOTO_VARIANCE_NOT_GIVEN }.into();
+        Ok((metrics, Some(report)))
+    })?;
     let out = PyDict::new(py);
     out.set_item("width", photo.width)?;
     out.set_item("height", photo.height)?;
