@@ -40,8 +40,8 @@ bench: deps
 # `import lucent`: builds the module (python/, PyO3) with maturin in the
 # release profile (as `make build` builds the command: the simulations run
 # at full speed) and installs it in the venv, with the test tools pinned in
-# python/requirements.txt. Several minutes on 2 cores: a release build of
-# the module and the dependencies whose features differ from the command's.
+# python/requirements.txt. Several minutes on 2 cores (docs/benchmarks.md,
+# "The Python module").
 python: deps $(VENV)/.requirements
 	VIRTUAL_ENV=$(CURDIR)/$(VENV) $(VENV)/bin/maturin develop --release --quiet --manifest-path python/Cargo.toml
 
