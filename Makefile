@@ -37,11 +37,13 @@ test: deps $(VENV)/.requirements
 bench: deps
 	$(CARGO) bench --workspace
 
-# `import lucent`: builds the module (python/, PyO3) with maturin into a
-# wheel installed in the venv, with the test tools pinned in
-# python/requirements.txt.
+# `import lucent`: builds the module (python/, PyO3) with maturin in the
+# release profile (as `make build` builds the command: the simulations run
+# at full speed) and installs it in the venv, with the test tools pinned in
+# python/requirements.txt. Several minutes on 2 cores (docs/benchmarks.md,
+# "The Python module").
 python: deps $(VENV)/.requirements
-	VIRTUAL_ENV=$(CURDIR)/$(VENV) $(VENV)/bin/maturin develop --quiet --manifest-path python/Cargo.toml
+	VIRTUAL_ENV=$(CURDIR)/$(VENV) $(VENV)/bin/maturin develop --release --quiet --manifest-path python/Cargo.toml
 
 $(VENV)/.requirements: python/requirements.txt
 	$(PYTHON3) -m venv $(VENV)

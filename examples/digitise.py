@@ -24,7 +24,7 @@ os.environ.setdefault("MIEPYTHON_USE_JIT", "0")  # miepython without numba compi
 
 # %%
 o = lucent.optics(REPO / "fixtures/samples/IOL1068-09.toml", wavelengths_nm=[450, 550, 650], phase_entries=181)
-for w, mu_s, mu_a, g in zip(o.wavelength_nm, o.mu_s, o.mu_a, o.g):
+for w, mu_s, mu_a, g in zip(o.wavelengths_nm, o.mu_s, o.mu_a, o.g):
     print(f"{w:5.0f} nm  μs {mu_s:9.1f} {o.units['mu_s']}  μa {mu_a:7.3f} {o.units['mu_a']}  g {g:.4f}")
 print("phase table:", o.phase.shape, "over θ =", np.degrees(o.theta_rad[[0, -1]]), "deg")
 

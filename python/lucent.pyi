@@ -3,11 +3,21 @@
 Units: lengths of spheres in µm, wavelengths in nm, coefficients in 1/m,
 phase functions in 1/sr, angles in rad, times in s. Absorbing refractive
 indices are n + κi with κ ≥ 0 (miepython writes n − ki).
+
+One naming throughout: a recipe is a path (str or os.PathLike) or a dict of
+its keys wherever a function takes one; `wavelengths_nm` is a grid of
+wavelengths, `wavelength_nm` a single one (or, in `mie_sphere`, one per
+element of broadcast arrays). `**kwargs` only catches an older or confused
+name (`wavelength=`) to raise a TypeError naming the current one.
+python/tests/test_stubs.py checks that every function here has the
+module's parameter names, kinds and defaults.
 """
 
 from collections.abc import Callable, Mapping
 from os import PathLike
 from typing import Any
+
+from typing_extensions import Never
 
 import numpy as np
 import numpy.typing as npt
@@ -18,6 +28,7 @@ _Path = str | PathLike[str]
 _Float = float | npt.ArrayLike
 _Complex = complex | float | npt.ArrayLike
 _Efficiencies = tuple[Any, Any, Any, Any, Any]
+_Recipe = _Path | Mapping[str, Any]
 
 class LucentError(ValueError):
     """Bad input or a failed computation; the message is the lucent command's."""
@@ -38,7 +49,11 @@ class Optics:
     @property
     def absorption(self) -> str: ...
     @property
-    def wavelength_nm(self) -> npt.NDArray[np.float64]: ...
+    def wavelengths_nm(self) -> npt.NDArray[np.float64]:
+        """Vacuum wavelengths [nm] of the grid."""
+    @property
+    def wavelength_nm(self) -> npt.NDArray[np.float64]:
+        """The same as `wavelengths_nm` (the CSV column's name)."""
     @property
     def mu_s(self) -> npt.NDArray[np.float64]:
         """Scattering coefficient [1/m]."""
@@ -67,10 +82,11 @@ class Optics:
         """The table as `lucent optics` writes optical_properties.csv."""
 
 def optics(
-    recipe: _Path | Mapping[str, Any],
+    recipe: _Recipe,
     wavelengths_nm: _Float | None = None,
     phase_entries: int = 4096,
     weight_percent: float | None = None,
+    **kwargs: Never,
 ) -> Optics:
     """Bulk optical properties of a recipe (file path or dict); default grid 380–780 nm in 10 nm steps."""
 
@@ -80,11 +96,13 @@ def compare(
     mask: _Path | npt.ArrayLike | None = None,
     mask_object: _Path | None = None,
     mask_board: _Path | None = None,
-    photo_variance: _Path | None = None,
+    photo_variance: _Path | npt.ArrayLike | None = None,
+    render_variance: npt.ArrayLike | None = None,
     data_range: float = 1.0,
     luminance: str = "cie-rgb",
 ) -> dict[str, Any]:
-    """Photo vs render metrics (RMSE, SSIM, …): metrics.json's dict for paths, {"as_calibrated": …} for arrays."""
+    """Photo vs render metrics (RMSE, SSIM, model RMSE "noise" given the variances): metrics.json's dict (+ "notes")
+    for paths; {"as_calibrated", "noise", "notes", "width", "height"} for arrays, variances (H × W × 3) as arrays."""
 
 def render(
     scene: _Path,
@@ -100,12 +118,12 @@ def render(
     similarity_g: float | None = None,
     progress: Callable[[float, float, float, float], object] | None = None,
 ) -> dict[str, Any]:
-    """Renders a scene file: {"mean", "variance"} (H × W × 3), "spp", "object", "board" (H × W), "seed", …"""
+    """Renders a scene file: {"mean", "variance"} (H × W × 3), "spp" (int), "spp_per_pixel", "object", "board" (H × W), "seed", …"""
 
 def bssrdf(
-    recipe: _Path | None = None,
+    recipe: _Recipe | None = None,
     *,
-    wavelength: float = 550.0,
+    wavelength_nm: float = 550.0,
     weight_percent: float | None = None,
     mu_s: float | None = None,
     mu_a: float | None = None,
@@ -134,16 +152,17 @@ def bssrdf(
     no_fold: bool = False,
     similarity_g: float | None = None,
     progress: Callable[[float, float, float], object] | None = None,
+    **kwargs: Never,
 ) -> dict[str, Any]:
     """Slab BSSRDF slice as `lucent bssrdf`: {"slice", "std_error"} (N × N, 1/(m² sr)), "sum", "sum_std_error", "profile", …"""
 
 def fit(
-    recipe: _Path,
+    recipe: _Recipe,
     measured: _Path | list[_Path],
     free: str | list[str],
     *,
     objective: str = "sum",
-    wavelength: float = 550.0,
+    wavelength_nm: float = 550.0,
     weight_percent: float | None = None,
     measured_pixel_mm: float | None = None,
     beam_fwhm_um: float = 200.0,
@@ -159,6 +178,7 @@ def fit(
     seed: int = 1,
     out: _Path | None = None,
     progress: Callable[[str], object] | None = None,
+    **kwargs: Never,
 ) -> dict[str, Any]:
     """Recipe parameters fitted to measured slices as `lucent fit`: fit.json's dict ("parameters", "identifiable", …)."""
 

@@ -34,7 +34,7 @@ use num_complex::Complex64;
 use numpy::ndarray::{Array, Array2, IxDyn};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::create_exception;
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString, PyTuple};
 use rayon::prelude::*;
@@ -258,7 +258,8 @@ struct Optics {
 }
 
 /// Units of the arrays of `Optics`.
-const OPTICS_UNITS: [(&str, &str); 8] = [
+const OPTICS_UNITS: [(&str, &str); 9] = [
+    ("wavelengths_nm", "nm"),
     ("wavelength_nm", "nm"),
     ("mu_s", "1/m"),
     ("mu_a", "1/m"),
@@ -281,7 +282,12 @@ impl Optics {
     fn absorption(&self) -> &'static str {
         self.spectrum.absorption.name()
     }
-    /// Vacuum wavelengths [nm].
+    /// Vacuum wavelengths [nm] of the grid (``optics(wavelengths_nm=…)``).
+    #[getter]
+    fn wavelengths_nm<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.spectrum.wavelength_nm)
+    }
+    /// The same as ``wavelengths_nm`` under the name of the CSV column.
     #[getter]
     fn wavelength_nm<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         PyArray1::from_slice(py, &self.spectrum.wavelength_nm)
@@ -364,33 +370,88 @@ impl Optics {
     }
 }
 
-/// A recipe from a path or a dict (the TOML recipe's keys and values).
-fn recipe_from(py: Python<'_>, recipe: &Bound<'_, PyAny>, overrides: Overrides) -> PyResult<Recipe> {
-    if let Some(path) = as_path(recipe) {
-        return Recipe::load(&path, overrides).map_err(error);
+/// The name under which a recipe given as a dict appears in messages; its
+/// relative index-file paths start from the working folder.
+const RECIPE_DICT: &str = "<recipe dict>";
+
+/// A `recipe` argument: a TOML file, or a dict with the file's keys and
+/// values (as TOML text, relative paths anchored at `anchor`, a name in the
+/// working folder).
+enum RecipeArg {
+    File(PathBuf),
+    Dict { text: String, anchor: PathBuf },
+}
+
+impl RecipeArg {
+    /// A path (str or os.PathLike) or a dict; anything else is a LucentError naming `recipe`.
+    fn from_py(py: Python<'_>, recipe: &Bound<'_, PyAny>) -> PyResult<Self> {
+        if let Some(path) = as_path(recipe) {
+            return Ok(Self::File(path));
+        }
+        if let Ok(d) = recipe.cast::<PyDict>() {
+            let json: String = py
+                .import("json")?
+                .call_method1("dumps", (d,))
+                .map_err(|e| {
+                    error(format!(
+                        "recipe dict: not expressible as TOML (a value is not a str, number, bool, list or dict): {e}"
+                    ))
+                })?
+                .extract()?;
+            let value: serde_json::Value = serde_json::from_str(&json).map_err(error)?;
+            let text =
+                toml::to_string(&value).map_err(|e| error(format!("recipe dict: not expressible as TOML: {e}")))?;
+            let cwd = std::env::current_dir()
+                .map_err(|e| error(format!("recipe dict: the working folder is unknown: {e}")))?;
+            return Ok(Self::Dict { text, anchor: cwd.join(RECIPE_DICT) });
+        }
+        Err(error(format!(
+            "recipe: expected a path (str or os.PathLike) or a dict of the recipe's keys, got {}",
+            type_name(recipe)
+        )))
     }
-    if let Ok(d) = recipe.cast::<PyDict>() {
-        let json: String = py.import("json")?.call_method1("dumps", (d,))?.extract()?;
-        let value: serde_json::Value = serde_json::from_str(&json).map_err(error)?;
-        let text = toml::to_string(&value).map_err(|e| error(format!("recipe dict: not expressible as TOML: {e}")))?;
-        // Relative index-file paths are taken from the working folder.
-        let anchor = std::env::current_dir().unwrap_or_default().join("<recipe dict>");
-        return Recipe::parse(&text, &anchor, overrides).map_err(error);
+
+    /// The validated recipe.
+    fn load(&self, overrides: Overrides) -> PyResult<Recipe> {
+        match self {
+            Self::File(path) => Recipe::load(path, overrides).map_err(error),
+            Self::Dict { text, anchor } => Recipe::parse(text, anchor, overrides).map_err(error),
+        }
     }
-    Err(error(format!(
-        "recipe: expected a path (str or os.PathLike) or a dict of the recipe's keys, got {}",
-        recipe.get_type().name()?
-    )))
+
+    /// The path that stands for the recipe in the command's arguments.
+    fn path(&self) -> PathBuf {
+        match self {
+            Self::File(path) => path.clone(),
+            Self::Dict { anchor, .. } => anchor.clone(),
+        }
+    }
+}
+
+/// Raises TypeError for the keyword arguments in `kwargs` (those `func`
+/// does not take), naming the argument's current name where `renamed`
+/// lists it as (old name, new name).
+fn reject_unknown_keywords(func: &str, kwargs: Option<&Bound<'_, PyDict>>, renamed: &[(&str, &str)]) -> PyResult<()> {
+    let Some((key, _)) = kwargs.and_then(|k| k.iter().next()) else {
+        return Ok(());
+    };
+    let key: String = key.extract()?;
+    Err(PyTypeError::new_err(match renamed.iter().find(|(old, _)| *old == key) {
+        Some((old, new)) => format!("{func}() got an unexpected keyword argument '{old}': it is called '{new}'"),
+        None => format!("{func}() got an unexpected keyword argument '{key}'"),
+    }))
 }
 
 /// Bulk optical properties of a turbid material from its recipe (Lorenz–Mie
 /// theory over the particle types and their size distributions), as
 /// ``lucent optics RECIPE`` computes them.
 ///
-/// recipe: path of a recipe TOML file, or a dict with the same keys
-///     (relative index-file paths then start from the working folder).
-/// wavelengths_nm: vacuum wavelengths [nm], an array or a scalar; default
-///     380–780 nm in 10 nm steps.
+/// recipe: path of a recipe TOML file (str or os.PathLike), or a dict with
+///     the same keys (relative index-file paths then start from the working
+///     folder).
+/// wavelengths_nm: the grid of vacuum wavelengths [nm], an array or a
+///     scalar; default 380–780 nm in 10 nm steps. (``wavelength_nm`` or
+///     ``wavelength`` raise a TypeError naming ``wavelengths_nm``.)
 /// phase_entries: entries of the tabulated phase function, uniform in θ
 ///     over [0, π] (0: no table).
 /// weight_percent: weight percentage for particle types whose recipe leaves
@@ -398,22 +459,28 @@ fn recipe_from(py: Python<'_>, recipe: &Bound<'_, PyAny>, overrides: Overrides) 
 ///
 /// Returns an ``Optics`` object with numpy arrays ``mu_s``, ``mu_a``,
 /// ``mu_t`` [1/m], ``g``, ``n_bulk``, ``phase`` [1/sr] (wavelength × angle,
-/// angles in ``theta_rad``), ``wavelength_nm`` and their ``units``.
+/// angles in ``theta_rad``), ``wavelengths_nm`` and their ``units``.
 /// Raises LucentError with the message of ``lucent optics`` for a bad
 /// recipe (unknown key, missing index file, …) or wavelength.
 #[pyfunction]
-#[pyo3(name = "optics", signature = (recipe, wavelengths_nm = None, phase_entries = 4096, weight_percent = None))]
+#[pyo3(name = "optics", signature = (recipe, wavelengths_nm = None, phase_entries = 4096, weight_percent = None, **kwargs))]
 fn py_optics(
     py: Python<'_>,
     recipe: &Bound<'_, PyAny>,
     wavelengths_nm: Option<&Bound<'_, PyAny>>,
     phase_entries: usize,
     weight_percent: Option<f64>,
+    kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Optics> {
+    reject_unknown_keywords(
+        "optics",
+        kwargs,
+        &[("wavelength_nm", "wavelengths_nm"), ("wavelength", "wavelengths_nm")],
+    )?;
     if phase_entries == 1 {
         return Err(error("phase_entries must be 0 (no table) or at least 2"));
     }
-    let recipe = recipe_from(py, recipe, Overrides { weight_percent })?;
+    let recipe = RecipeArg::from_py(py, recipe)?.load(Overrides { weight_percent })?;
     let grid = match wavelengths_nm {
         None => WavelengthGrid::visible(),
         Some(w) => {
@@ -450,28 +517,71 @@ fn to_python<'py, T: serde::Serialize>(py: Python<'py>, value: &T) -> PyResult<B
     py.import("json")?.call_method1("loads", (text,))
 }
 
+/// A per-pixel variance of `compare` given as an array: the images' shape
+/// (height, width, 3), every value finite and ≥ 0; `role` names the argument.
+fn variance_image(py: Python<'_>, obj: &Bound<'_, PyAny>, role: &str, images: &RgbImage) -> PyResult<Vec<f32>> {
+    if as_path(obj).is_some() {
+        return Err(error(format!(
+            "{role}: a file path needs the photo and render as file paths too; with arrays give {role} as an array \
+             of shape (height, width, 3)"
+        )));
+    }
+    let a = as_array(py, obj, "float32", role)?;
+    let r: PyReadonlyArrayDyn<'_, f32> = a.extract()?;
+    let shape = r.shape().to_vec();
+    if shape != [images.height, images.width, 3] {
+        return Err(error(format!(
+            "{role}: expected shape ({}, {}, 3) like the images, got {shape:?}",
+            images.height, images.width
+        )));
+    }
+    let data: Vec<f32> = r.as_array().iter().copied().collect();
+    if let Some(i) = data.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+        return Err(error(format!(
+            "{role}: pixel {} holds {} (a variance must be finite and ≥ 0)",
+            index_of(i, &shape),
+            data[i]
+        )));
+    }
+    Ok(data)
+}
+
 /// Photo against render: RMSE (total and per channel), mean absolute error,
 /// relative error, mean colours and SSIM (per channel, their mean, and of
 /// the luminance Y; Wang et al. 2004, computed as scikit-image's
 /// ``structural_similarity(gaussian_weights=True, sigma=1.5,
-/// use_sample_covariance=False, data_range=data_range)``), as
-/// ``lucent compare`` computes them.
+/// use_sample_covariance=False, data_range=data_range)``), and with the
+/// render's variance the model RMSE (the error with the expected noise
+/// removed, its 95 % interval and the noise floor), as ``lucent compare``
+/// computes them.
 ///
-/// photo, render: file paths (EXR, HDR, PNG, TIFF) or arrays of shape
-///     (height, width, 3), linear RGB in the same units.
-///
-/// With both as paths the result is the dict of metrics.json that
-/// ``lucent compare --photo P --render R`` writes (``as_calibrated``, the
-/// model RMSE ``noise`` when the render EXR carries its variance, …; mask
-/// from ``mask`` (image path), ``mask_object``/``mask_board`` (scene JSON
-/// or render EXR), ``photo_variance`` (EXR path)). With arrays it is
-/// ``{"as_calibrated": metrics, "width": W, "height": H}``; ``mask`` may
-/// then be a boolean array (height, width), True = compared.
-///
+/// photo, render: file paths (EXR, HDR, PNG, TIFF; str or os.PathLike) or
+///     arrays of shape (height, width, 3), linear RGB in the same units.
+/// mask: an image path, or with arrays a boolean array (height, width),
+///     True = compared. mask_object, mask_board: scene JSON or render EXR
+///     paths (with file paths only).
+/// photo_variance: the per-pixel variance of the photo: an EXR path with
+///     file paths, an array (height, width, 3) with arrays.
+/// render_variance: with arrays, the variance of each render pixel's mean
+///     (height, width, 3), e.g. ``render(…)["variance"]``; with a file path
+///     the render EXR's variance layers are read instead.
 /// data_range: SSIM's L (C1 = (0.01 L)², C2 = (0.03 L)²) in the images'
-/// units; luminance: "cie-rgb" (0.1769, 0.8124, 0.0107) or "rec709".
+///     units; luminance: "cie-rgb" (0.1769, 0.8124, 0.0107) or "rec709".
+///
+/// With both images as paths the result is the dict of metrics.json that
+/// ``lucent compare --photo P --render R`` writes (``as_calibrated``, the
+/// model RMSE ``noise`` when the render EXR carries its variance, …) plus
+/// ``notes``. With arrays it is ``{"as_calibrated": metrics, "noise":
+/// model RMSE or None, "notes": [...], "width": W, "height": H}``, ``noise``
+/// the same numbers as the command's for the same images and variances
+/// (given ``render_variance``; ``photo_variance`` needs it). The
+/// variances must be finite, ≥ 0 and of the images' shape (LucentError, a
+/// ValueError, naming the argument otherwise).
 #[pyfunction]
-#[pyo3(name = "compare", signature = (photo, render, mask = None, mask_object = None, mask_board = None, photo_variance = None, data_range = 1.0, luminance = "cie-rgb"))]
+#[pyo3(name = "compare", signature = (
+    photo, render, mask = None, mask_object = None, mask_board = None, photo_variance = None,
+    render_variance = None, data_range = 1.0, luminance = "cie-rgb"
+))]
 #[allow(clippy::too_many_arguments)]
 fn py_compare<'py>(
     py: Python<'py>,
@@ -480,7 +590,8 @@ fn py_compare<'py>(
     mask: Option<&Bound<'py, PyAny>>,
     mask_object: Option<PathBuf>,
     mask_board: Option<PathBuf>,
-    photo_variance: Option<PathBuf>,
+    photo_variance: Option<&Bound<'py, PyAny>>,
+    render_variance: Option<&Bound<'py, PyAny>>,
     data_range: f64,
     luminance: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
@@ -498,6 +609,21 @@ fn py_compare<'py>(
             (None, None, None) => MaskSpec::None,
             _ => return Err(error("give at most one of mask, mask_object, mask_board")),
         };
+        if render_variance.is_some() {
+            return Err(error(
+                "render_variance: with the render as a file path its variance is read from the EXR's \
+                 variance.R/G/B layers; give the images as arrays to pass render_variance",
+            ));
+        }
+        let photo_variance = photo_variance
+            .map(|v| {
+                as_path(v).ok_or_else(|| {
+                    error(
+                        "photo_variance: with file paths for the images, give the photo's variance as an EXR path too",
+                    )
+                })
+            })
+            .transpose()?;
         let req = Request {
             photo: photo_path,
             render: render_path,
@@ -514,14 +640,27 @@ fn py_compare<'py>(
             twin_names: None,
         };
         let outcome = py.detach(|| compare::compare_files(&req)).map_err(error)?;
-        return to_python(py, &outcome.report);
+        let out = to_python(py, &outcome.report)?;
+        out.set_item("notes", outcome.notes)?;
+        return Ok(out);
     }
-    if mask_object.is_some() || mask_board.is_some() || photo_variance.is_some() {
-        return Err(error("mask_object, mask_board and photo_variance need the photo and render as file paths"));
+    if mask_object.is_some() || mask_board.is_some() {
+        return Err(error("mask_object and mask_board need the photo and render as file paths"));
     }
     let photo = rgb_image(py, photo, "photo")?;
     let render = rgb_image(py, render, "render")?;
     compare::check_same_size(&photo, &render).map_err(error)?;
+    let render_variance = render_variance.map(|v| variance_image(py, v, "render_variance", &photo)).transpose()?;
+    let photo_variance = photo_variance.map(|v| variance_image(py, v, "photo_variance", &photo)).transpose()?;
+    if let Some(v) = &photo_variance {
+        if render_variance.is_none() {
+            return Err(error(
+                "photo_variance needs render_variance too: the model RMSE removes the noise of both images \
+                 (give the render's variance, e.g. render(…)[\"variance\"])",
+            ));
+        }
+        compare::check_photo_variance(v, &photo).map_err(|e| error(format!("photo_variance: {e}")))?;
+    }
     let mask = match mask {
         None => None,
         Some(m) => {
@@ -543,11 +682,32 @@ fn py_compare<'py>(
         }
     };
     let settings = compare::Settings { ssim: compare::ssim::SsimParams::new(data_range).map_err(error)?, luminance };
-    let metrics = py.detach(|| compare::metrics(&photo, &render, mask.as_ref(), &settings)).map_err(error)?;
+    let mut notes = Vec::new();
+    let (metrics, noise) = py.detach(|| -> PyResult<_> {
+        let metrics = compare::metrics(&photo, &render, mask.as_ref(), &settings).map_err(error)?;
+        let Some(rv) = &render_variance else {
+            return Ok((metrics, None));
+        };
+        let mut report = compare::model_error(
+            &photo,
+            &render,
+            (rv, photo_variance.as_deref()),
+            mask.as_ref(),
+            photo_variance.as_ref().map(|_| "photo_variance"),
+            &mut notes,
+        )
+        .map_err(|e| error(format!("model RMSE: {e}")))?;
+        report.render_variance = "render_variance (the variance of each pixel's mean)".into();
+        report.photo_variance =
+            if photo_variance.is_some() { "photo_variance" } else { compare::PHOTO_VARIANCE_NOT_GIVEN }.into();
+        Ok((metrics, Some(report)))
+    })?;
     let out = PyDict::new(py);
     out.set_item("width", photo.width)?;
     out.set_item("height", photo.height)?;
     out.set_item("as_calibrated", to_python(py, &metrics)?)?;
+    out.set_item("noise", noise.map(|n| to_python(py, &n)).transpose()?)?;
+    out.set_item("notes", notes)?;
     Ok(out.into_any())
 }
 
@@ -625,7 +785,7 @@ fn run_interruptible<T: Send>(
 /// (same scene loading, same overrides, same random streams: for a given
 /// seed and spp, ``mean`` equals the R, G, B of the command's render.exr).
 ///
-/// scene: path of the scene TOML. spp: samples per pixel; time_s: wall-time
+/// scene: path of the scene TOML (str or os.PathLike). spp: samples per pixel; time_s: wall-time
 /// budget [s] (stops after the pass that exceeds it); seed: seed of the
 /// random streams; size: "WIDTHxHEIGHT" instead of the camera's (intrinsics
 /// scaled); threads: worker threads (default all cores); target_rel_error:
@@ -646,9 +806,13 @@ fn run_interruptible<T: Send>(
 ///
 /// Returns a dict: ``mean`` (H × W × 3, linear CIE RGB radiance),
 /// ``variance`` (H × W × 3, the variance of each pixel's mean), ``spp``
-/// (H × W samples), ``object`` and ``board`` (H × W, the fraction of the
-/// pixel's camera rays that hit the object / the board first), ``seed``,
-/// ``wall_s``, ``samples``, ``warnings``. Releases the GIL while rendering;
+/// (an int: the samples per pixel, render.json's ``spp``, i.e. the largest
+/// per-pixel count; every pixel's with uniform sampling), ``spp_per_pixel``
+/// (H × W int array: each pixel's samples, more on the object with
+/// object-weighted sampling; the EXR's ``spp`` layer), ``object`` and
+/// ``board`` (H × W, the fraction of the pixel's camera rays that hit the
+/// object / the board first), ``seed``, ``wall_s``, ``samples`` (in all),
+/// ``warnings``. Releases the GIL while rendering;
 /// Ctrl-C (KeyboardInterrupt) stops it after the current pass and raises.
 #[pyfunction]
 #[pyo3(name = "render", signature = (
@@ -724,7 +888,11 @@ fn py_render<'py>(
     let out = PyDict::new(py);
     out.set_item("mean", rgb(&image.mean)?)?;
     out.set_item("variance", rgb(&image.variance_of_mean)?)?;
-    out.set_item("spp", plane(&|i| f64::from(image.samples[i]))?)?;
+    out.set_item("spp", image.samples.iter().copied().max().unwrap_or(0))?;
+    out.set_item(
+        "spp_per_pixel",
+        Array2::from_shape_vec((h, w), image.samples.clone()).map_err(error)?.into_pyarray(py),
+    )?;
     out.set_item("object", plane(&|i| image.object_fraction(i))?)?;
     out.set_item("board", plane(&|i| f64::from(image.board_samples[i]) / f64::from(image.samples[i].max(1)))?)?;
     out.set_item("seed", settings.seed)?;
@@ -760,20 +928,25 @@ fn choice<T: clap::ValueEnum>(what: &str, text: &str) -> PyResult<T> {
 /// options under the same names, same defaults, same random streams: for a
 /// given seed and ``paths``, ``slice`` equals the Y of its bssrdf.exr).
 ///
-/// The medium: ``recipe`` (path; bulk properties by Lorenz–Mie at
-/// ``wavelength`` [nm], ``weight_percent`` for a recipe that leaves it
+/// The medium: ``recipe`` (a path, str or os.PathLike, or a dict of the
+/// recipe's keys as ``optics`` takes it; bulk properties by Lorenz–Mie at
+/// ``wavelength_nm`` [nm], ``weight_percent`` for a recipe that leaves it
 /// unknown, the recipe's thickness and [surface]) or all of ``mu_s``,
 /// ``mu_a`` [1/m], ``g`` and ``n`` (Henyey–Greenstein; ``thickness_mm``
 /// default 6.35). ``phase``: "mie" or "hg".
 /// Geometry: incidence ``theta_i``, ``phi_i`` and view ``theta_o``,
 /// ``phi_o`` [degrees]; a Gaussian beam of ``beam_fwhm_um`` [µm] or a
-/// measured ``beam_map``; a camera of ``pixels`` × ``pixels`` of
+/// measured ``beam_map`` (EXR, float TIFF or CSV grid of irradiance; its
+/// pixel size ``beam_map_pixel_mm`` [mm], else from its sidecar JSON); a
+/// camera of ``pixels`` × ``pixels`` of
 /// ``pixel_mm`` [mm] on the surface (``crop``: only the central N × N).
 /// ``roughness``: "smooth", "tr:ALPHA", "beckmann:ALPHA" or "measured:FIT.json".
 /// Stop rules (the first reached ends the run): ``paths``, ``time_s``,
 /// ``rel_error`` of the slice sum, ``pixel_rel_error`` (median per pixel);
 /// none given: 1 % on the sum, at most 600 s. ``estimator``: "auto",
-/// "ring", "lobe" or "connection"; ``seed``; ``no_fold``; ``similarity_g``:
+/// "ring", "lobe" or "connection"; ``lobe_vertices``: camera-side vertices
+/// of the lobe connection's chains (0 … 32; 0: the fixed-direction
+/// connection); ``seed``; ``no_fold``; ``similarity_g``:
 /// simulate the similar medium with g at most this (0 ≤ g < 1; far off near
 /// the beam, for totals only).
 /// ``progress``: optional callable, called with the floats ``(paths,
@@ -787,19 +960,20 @@ fn choice<T: clap::ValueEnum>(what: &str, text: &str) -> PyResult<T> {
 /// ``estimator``, ``specular_reflectance``, ``diffuse_reflectance``,
 /// ``transmittance``, ``optical_properties`` (mu_s_per_m, mu_a_per_m, g, n),
 /// ``phase``, ``roughness``. Releases the GIL; Ctrl-C stops it.
+/// ``wavelength=`` (the older name) raises a TypeError naming ``wavelength_nm``.
 #[pyfunction]
 #[pyo3(name = "bssrdf", signature = (
-    recipe = None, *, wavelength = 550.0, weight_percent = None, mu_s = None, mu_a = None, g = None, n = None,
+    recipe = None, *, wavelength_nm = 550.0, weight_percent = None, mu_s = None, mu_a = None, g = None, n = None,
     thickness_mm = None, theta_i = 45.0, phi_i = 0.0, theta_o = 0.0, phi_o = 180.0, phase = None,
     beam_fwhm_um = 200.0, beam_map = None, beam_map_pixel_mm = None, pixels = 259, pixel_mm = 0.1029, crop = None,
     rel_error = None, pixel_rel_error = None, paths = None, time_s = None, seed = 1, estimator = "auto",
-    lobe_vertices = 16, roughness = None, no_fold = false, similarity_g = None, progress = None
+    lobe_vertices = 16, roughness = None, no_fold = false, similarity_g = None, progress = None, **kwargs
 ))]
 #[allow(clippy::too_many_arguments)]
 fn py_bssrdf<'py>(
     py: Python<'py>,
-    recipe: Option<PathBuf>,
-    wavelength: f64,
+    recipe: Option<&Bound<'py, PyAny>>,
+    wavelength_nm: f64,
     weight_percent: Option<f64>,
     mu_s: Option<f64>,
     mu_a: Option<f64>,
@@ -828,14 +1002,17 @@ fn py_bssrdf<'py>(
     no_fold: bool,
     similarity_g: Option<f64>,
     progress: Option<Py<PyAny>>,
+    kwargs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    reject_unknown_keywords("bssrdf", kwargs, &[("wavelength", "wavelength_nm"), ("wavelengths_nm", "wavelength_nm")])?;
     if recipe.is_some() && (mu_s.is_some() || mu_a.is_some()) {
         return Err(error("give either recipe or mu_s, mu_a, g, n, not both"));
     }
+    let recipe = recipe.map(|r| RecipeArg::from_py(py, r)).transpose()?;
     let args = bssrdf_cli::RunArgs {
-        recipe,
+        recipe: recipe.as_ref().map(RecipeArg::path),
         weight_percent,
-        wavelength,
+        wavelength: wavelength_nm,
         mu_s,
         mu_a,
         g,
@@ -869,7 +1046,8 @@ fn py_bssrdf<'py>(
     if let Some(job) = lucent::cli::jobs::bssrdf_run(&args) {
         job.validate().map_err(error)?;
     }
-    let plan = bssrdf_cli::plan(&args).map_err(error_chain)?;
+    let recipe = recipe.map(|r| r.load(Overrides { weight_percent })).transpose()?;
+    let plan = bssrdf_cli::plan_with_recipe(&args, recipe.as_ref()).map_err(error_chain)?;
     let run = plan.runs.first().ok_or_else(|| error("no configuration to simulate"))?;
     let slice = run_interruptible(py, progress, |cancel, report| {
         slab::simulate_cancellable(
@@ -938,7 +1116,8 @@ fn type_name(obj: &Bound<'_, PyAny>) -> String {
 /// fits them (same options under the same names, same defaults, same
 /// common random numbers: for a given seed the result equals its fit.json).
 ///
-/// recipe: path of the recipe TOML holding the start values.
+/// recipe: the recipe holding the start values: a path of its TOML file
+///     (str or os.PathLike) or a dict of its keys, as ``optics`` takes it.
 /// measured: measured slices, a path or a list, each "FILE", "FILE:THETA_I/
 ///     THETA_O" or "FILE:THETA_I/PHI_I/THETA_O/PHI_O" [degrees] (without
 ///     angles: from the file's sidecar FILE.json or summary.json); EXR,
@@ -948,7 +1127,7 @@ fn type_name(obj: &Bound<'_, PyAny>) -> String {
 ///     diameter_um [µm], real_part_n.
 /// objective: "sum" (relative error of the slice sums) or "msre" (mean
 ///     squared relative error over the pixels above ``threshold`` of the
-///     measured maximum). wavelength [nm]; measured_pixel_mm [mm]; the beam:
+///     measured maximum). wavelength_nm [nm]; measured_pixel_mm [mm]; the beam:
 ///     ``beam_fwhm_um`` [µm] or ``beam_map`` (+ ``beam_map_pixel_mm``);
 ///     measured_rel_sd: relative uncertainty of each measured slice;
 ///     rel_error: target relative error of each simulated sum (sets the path
@@ -956,7 +1135,8 @@ fn type_name(obj: &Bound<'_, PyAny>) -> String {
 ///     per configuration and evaluation; bounds: "LO:HI,…" or a list of
 ///     (lo, hi) per free parameter; thickness_mm [mm]; seed.
 /// out: optional folder for fit.json, objective.png and the fitted recipe
-///     (as the command writes them).
+///     (as the command writes them; ``NAME_fitted.toml`` after the recipe
+///     file, or after the recipe's ``name`` for a dict).
 /// progress: optional callable, called with one line of text per
 ///     evaluation; an exception it raises stops the fit.
 ///
@@ -967,22 +1147,23 @@ fn type_name(obj: &Bound<'_, PyAny>) -> String {
 /// ``history``. Unlike the command (which exits non-zero), a fit the data
 /// cannot pin down is returned with ``identifiable`` False and values None.
 /// Releases the GIL; Ctrl-C stops it at the end of the simulation round
-/// under way and raises KeyboardInterrupt.
+/// under way and raises KeyboardInterrupt. ``wavelength=`` (the older
+/// name) raises a TypeError naming ``wavelength_nm``.
 #[pyfunction]
 #[pyo3(name = "fit", signature = (
-    recipe, measured, free, *, objective = "sum", wavelength = 550.0, weight_percent = None,
+    recipe, measured, free, *, objective = "sum", wavelength_nm = 550.0, weight_percent = None,
     measured_pixel_mm = None, beam_fwhm_um = 200.0, beam_map = None, beam_map_pixel_mm = None,
     measured_rel_sd = 0.05, threshold = 0.01, rel_error = 0.005, paths = None, pilot_time_s = 60.0,
-    bounds = None, thickness_mm = None, seed = 1, out = None, progress = None
+    bounds = None, thickness_mm = None, seed = 1, out = None, progress = None, **kwargs
 ))]
 #[allow(clippy::too_many_arguments)]
 fn py_fit<'py>(
     py: Python<'py>,
-    recipe: PathBuf,
+    recipe: &Bound<'py, PyAny>,
     measured: &Bound<'py, PyAny>,
     free: &Bound<'py, PyAny>,
     objective: &str,
-    wavelength: f64,
+    wavelength_nm: f64,
     weight_percent: Option<f64>,
     measured_pixel_mm: Option<f64>,
     beam_fwhm_um: f64,
@@ -998,7 +1179,10 @@ fn py_fit<'py>(
     seed: u64,
     out: Option<PathBuf>,
     progress: Option<Py<PyAny>>,
+    kwargs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    reject_unknown_keywords("fit", kwargs, &[("wavelength", "wavelength_nm"), ("wavelengths_nm", "wavelength_nm")])?;
+    let recipe = RecipeArg::from_py(py, recipe)?;
     let free = match free.extract::<String>() {
         Ok(text) => text,
         Err(_) => free
@@ -1022,13 +1206,13 @@ fn py_fit<'py>(
         }),
     };
     let args = FitArgs {
-        recipe,
+        recipe: recipe.path(),
         weight_percent,
         measured: path_list(measured, "measured")?,
         measured_pixel_mm,
         free,
         objective: named::<lucent::fit::Objective>("objective", objective)?,
-        wavelength,
+        wavelength: wavelength_nm,
         beam: BeamArgs { beam_fwhm_um, beam_map, beam_map_pixel_mm },
         measured_rel_sd,
         threshold,
@@ -1042,7 +1226,8 @@ fn py_fit<'py>(
         quiet: true,
     };
     lucent::job::FitJob::from(&args).validate().map_err(error)?;
-    let problem = fit_cli::build_problem(&args).map_err(error_chain)?;
+    let problem =
+        fit_cli::build_problem_with_recipe(&args, recipe.load(Overrides { weight_percent })?).map_err(error_chain)?;
     let result = run_interruptible(py, progress, |cancel, report| {
         fit::fit_cancellable(&problem, |line| report(Report::Line(line.clone())), cancel)
     })?
@@ -1050,7 +1235,19 @@ fn py_fit<'py>(
     if let Some(dir) = &out {
         std::fs::create_dir_all(dir)
             .map_err(|e| error(format!("out {}: cannot create the folder: {e}", dir.display())))?;
-        fit_cli::write_outputs(dir, &problem, &result).map_err(error_chain)?;
+        match &recipe {
+            RecipeArg::File(_) => fit_cli::write_outputs(dir, &problem, &result),
+            RecipeArg::Dict { text, .. } => {
+                let stem: String = problem
+                    .recipe
+                    .name
+                    .chars()
+                    .map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' })
+                    .collect();
+                fit_cli::write_outputs_with_recipe_text(dir, &problem, &result, text, &stem)
+            }
+        }
+        .map_err(error_chain)?;
     }
     to_python(py, &result)
 }

@@ -7,6 +7,7 @@ Small for test time: 21 × 21 pixels of 0.5 mm, a few thousand paths.
 
 import json
 import time
+import tomllib
 
 import numpy as np
 import pytest
@@ -28,13 +29,20 @@ def measured(repo, tmp_path_factory):
     return f"{path}:45/0"
 
 
-def test_fit_equals_the_command_and_recovers_the_truth(lucent_cli, repo, measured, tmp_path):
-    run_cli(lucent_cli, "fit", "--recipe", repo / START, "--measured", measured, "--measured-pixel-mm", 0.5,
-            "--free", "weight_percent", "--paths", 5000, "--quiet", "--out", tmp_path)
-    cli = json.loads((tmp_path / "fit.json").read_text())
+@pytest.fixture(scope="module")
+def fitted(repo, measured):
+    """lucent.fit of the sample recipe's file to the measurement, and its progress lines."""
     lines = []
     r = lucent.fit(repo / START, measured, "weight_percent", measured_pixel_mm=0.5, paths=5000,
                    progress=lines.append)
+    return r, lines
+
+
+def test_fit_equals_the_command_and_recovers_the_truth(lucent_cli, repo, measured, fitted, tmp_path):
+    run_cli(lucent_cli, "fit", "--recipe", repo / START, "--measured", measured, "--measured-pixel-mm", 0.5,
+            "--free", "weight_percent", "--paths", 5000, "--quiet", "--out", tmp_path)
+    cli = json.loads((tmp_path / "fit.json").read_text())
+    r, lines = fitted
     p, q = r["parameters"][0], cli["parameters"][0]
     for key in ["value", "std_error", "interval_95", "start", "bounds"]:
         assert p[key] == q[key], (key, p[key], q[key])
@@ -71,3 +79,18 @@ def test_bad_fit_arguments_raise(repo, measured, kwargs, message):
     args = dict(measured=measured, free="weight_percent", measured_pixel_mm=0.5, paths=1000) | kwargs
     with pytest.raises(lucent.LucentError, match=message):
         lucent.fit(repo / START, **args)
+
+
+def test_fit_takes_the_recipe_as_a_dict(repo, measured, fitted, tmp_path):
+    # A dict of the recipe's keys fits as its file does; the fitted recipe is named after its `name`.
+    with open(repo / START, "rb") as f:
+        recipe = tomllib.load(f)
+    a = lucent.fit(recipe, measured, "weight_percent", measured_pixel_mm=0.5, paths=5000, wavelength_nm=550.0,
+                   out=tmp_path)
+    b, _ = fitted
+    for key in ["value", "std_error", "interval_95", "start"]:
+        assert a["parameters"][0][key] == b["parameters"][0][key], key
+    assert a["identifiable"] and b["identifiable"]
+    fitted_recipe = tmp_path / "IOL1068-09_fitted.toml"
+    assert (tmp_path / "fit.json").is_file() and fitted_recipe.is_file()
+    assert lucent.optics(fitted_recipe, wavelengths_nm=550.0, phase_entries=0).sample == "IOL1068-09"

@@ -26,7 +26,8 @@ def test_render_equals_the_command_exr(lucent_cli, repo, tmp_path):
     for c, name in enumerate("RGB"):
         np.testing.assert_array_equal(r["mean"][..., c].astype(np.float32), exr[name])
         np.testing.assert_array_equal(r["variance"][..., c].astype(np.float32), exr[f"variance.{name}"])
-    np.testing.assert_array_equal(r["spp"].astype(np.float32), exr["spp"])
+    np.testing.assert_array_equal(r["spp_per_pixel"].astype(np.float32), exr["spp"])
+    assert r["spp"] == 8
     np.testing.assert_array_equal(r["object"].astype(np.float32), exr["object"])
     assert r["seed"] == 11 and r["mean"].mean() > 0
     # The estimator options pass through as the command's.

@@ -244,8 +244,21 @@ struct MediumChoice {
     phase_name: String,
 }
 
+/// The medium of the arguments, the recipe read from `--recipe`.
 fn medium(a: &RunArgs) -> Result<MediumChoice> {
-    let choice = exact_medium(a)?;
+    medium_of(a, load_recipe(a)?.as_ref())
+}
+
+/// `--recipe`'s recipe (with `--weight-percent`), if given.
+fn load_recipe(a: &RunArgs) -> Result<Option<Recipe>> {
+    let overrides = Overrides { weight_percent: a.weight_percent };
+    Ok(a.recipe.as_ref().map(|path| Recipe::load(path, overrides)).transpose()?)
+}
+
+/// The medium of the arguments with `recipe` as the recipe (`None`: the
+/// explicit coefficients).
+fn medium_of(a: &RunArgs, recipe: Option<&Recipe>) -> Result<MediumChoice> {
+    let choice = exact_medium(a, recipe)?;
     similar_if_asked(a, choice)
 }
 
@@ -300,11 +313,10 @@ fn recipe_medium(a: &RunArgs, recipe: &Recipe, warn: bool) -> Result<MediumChoic
     })
 }
 
-fn exact_medium(a: &RunArgs) -> Result<MediumChoice> {
+fn exact_medium(a: &RunArgs, recipe: Option<&Recipe>) -> Result<MediumChoice> {
     let explicit_thickness = explicit_thickness_m(a)?;
-    if let Some(path) = &a.recipe {
-        let recipe = Recipe::load(path, Overrides { weight_percent: a.weight_percent })?;
-        recipe_medium(a, &recipe, true)
+    if let Some(recipe) = recipe {
+        recipe_medium(a, recipe, true)
     } else {
         let (Some(mu_s), Some(mu_a), Some(g), Some(n)) = (a.mu_s, a.mu_a, a.g, a.n) else {
             bail!("give --recipe R.toml, or all of --mu-s --mu-a --g --n (and optionally --thickness-mm)");
@@ -333,16 +345,19 @@ pub struct Perturbation {
     minus: Slab,
 }
 
-/// The perturbed slabs of --uncertainty (empty without it), their tops `top`.
-fn perturbations(a: &RunArgs, top: &lucent_render::interface::Interface) -> Result<Vec<Perturbation>> {
-    let (true, Some(path)) = (a.uncertainty, &a.recipe) else {
+/// The perturbed slabs of --uncertainty (empty without it) of `recipe`, their tops `top`.
+fn perturbations(
+    a: &RunArgs,
+    recipe: Option<&Recipe>,
+    top: &lucent_render::interface::Interface,
+) -> Result<Vec<Perturbation>> {
+    let (true, Some(recipe)) = (a.uncertainty, recipe) else {
         return Ok(Vec::new());
     };
-    let recipe = Recipe::load(path, Overrides { weight_percent: a.weight_percent })?;
     if recipe.uncertain.is_empty() {
         bail!(
             "--uncertainty: {} gives no input with an uncertainty (write e.g. weight_percent = {{ value = 0.65, sd = 0.03 }})",
-            path.display()
+            recipe.path.display()
         );
     }
     recipe
@@ -442,7 +457,14 @@ impl Plan {
 
 /// The [`Plan`] of `lucent bssrdf` for the arguments `a`.
 pub fn plan(a: &RunArgs) -> Result<Plan> {
-    let m = medium(a)?;
+    plan_with_recipe(a, load_recipe(a)?.as_ref())
+}
+
+/// The [`Plan`] of `lucent bssrdf` for the arguments `a` with `recipe` as
+/// the medium's recipe in place of `--recipe` (a recipe not read from a
+/// file, e.g. the Python API's dict); `None`: the explicit coefficients.
+pub fn plan_with_recipe(a: &RunArgs, recipe: Option<&Recipe>) -> Result<Plan> {
+    let m = medium_of(a, recipe)?;
     let (beam, beam_name) = a.beam.beam()?;
     let out_pixels = match a.crop {
         Some(c) if c == 0 || c > a.pixels => bail!("--crop {c}: must lie in 1 … --pixels ({})", a.pixels),
@@ -487,7 +509,7 @@ pub fn plan(a: &RunArgs) -> Result<Plan> {
     // configuration (strongly forward-peaked media converge slowly).
     let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
     let (top, roughness) = bssrdf::roughness(a.roughness.as_deref(), m.surface.as_ref())?;
-    let perturbations = perturbations(a, &top)?;
+    let perturbations = perturbations(a, recipe, &top)?;
     let slab = Slab::new(m.thickness_m, m.medium.clone())?.with_top(top);
     let configs = match &a.configs {
         Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),

@@ -123,7 +123,13 @@ fn parse_bounds(text: &str, n: usize) -> Result<Vec<Option<(f64, f64)>>> {
 
 /// The fit problem of `lucent fit` for the arguments `a`, checked before any work.
 pub fn build_problem(a: &FitArgs) -> Result<Problem> {
-    let recipe = Recipe::load(&a.recipe, Overrides { weight_percent: a.weight_percent })?;
+    build_problem_with_recipe(a, Recipe::load(&a.recipe, Overrides { weight_percent: a.weight_percent })?)
+}
+
+/// The fit problem of `lucent fit` for the arguments `a` with `recipe` (the
+/// start values) in place of the file `--recipe` names: a recipe not read
+/// from a file, e.g. the Python API's dict.
+pub fn build_problem_with_recipe(a: &FitArgs, recipe: Recipe) -> Result<Problem> {
     let free: Vec<FreeParameter> =
         a.free.split(',').map(|t| FreeParameter::parse(t, &recipe)).collect::<Result<_, _>>()?;
     if let Some(p) = a.measured_pixel_mm
@@ -186,8 +192,26 @@ pub fn build_problem(a: &FitArgs) -> Result<Problem> {
 }
 
 /// Writes fit.json, objective.png, the profiles per configuration and
-/// (identifiable fits) the fitted recipe.
+/// (identifiable fits) the fitted recipe, `NAME_fitted.toml` after the
+/// recipe file's name.
 pub fn write_outputs(out: &Path, problem: &Problem, result: &FitResult) -> Result<Vec<PathBuf>> {
+    let original = crate::io::read_text(&problem.recipe.path)
+        .with_context(|| format!("{}: cannot read the recipe again", problem.recipe.path.display()))?;
+    let stem = problem.recipe.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or("recipe".into());
+    write_outputs_with_recipe_text(out, problem, result, &original, &stem)
+}
+
+/// [`write_outputs`] with the recipe's TOML text given (`original`, its
+/// relative paths anchored at the folder of `problem.recipe.path`) and the
+/// fitted recipe written as `STEM_fitted.toml`: for a recipe not read from
+/// a file.
+pub fn write_outputs_with_recipe_text(
+    out: &Path,
+    problem: &Problem,
+    result: &FitResult,
+    original: &str,
+    stem: &str,
+) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     let p = out.join("fit.json");
     crate::io::write_json(&p, result)?;
@@ -212,11 +236,8 @@ pub fn write_outputs(out: &Path, problem: &Problem, result: &FitResult) -> Resul
         crate::io::write_atomic(&p, &crate::bssrdf::profile_png(&m.grid.x_mm(), &curves, None)?)?;
         written.push(p);
     }
-    let original = crate::io::read_text(&problem.recipe.path)
-        .with_context(|| format!("{}: cannot read the recipe again", problem.recipe.path.display()))?;
     let dir = problem.recipe.path.parent().unwrap_or(Path::new("."));
-    if let Some(text) = report::fitted_recipe_text(&original, dir, result) {
-        let stem = problem.recipe.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or("recipe".into());
+    if let Some(text) = report::fitted_recipe_text(original, dir, result) {
         let p = out.join(format!("{stem}_fitted.toml"));
         // The fitted recipe must load as it is written.
         Recipe::parse(&text, &p, Overrides::default()).with_context(|| "the fitted recipe does not validate")?;

@@ -758,7 +758,7 @@ pub const MAX_PHOTO_VARIANCE_RATIO: f64 = 100.0;
 /// value finite and ≥ 0, and in at least half the values not above
 /// [`MAX_PHOTO_VARIANCE_RATIO`] × max(photo value, the photo's mean)².
 /// The reason names the pixel and channel.
-fn check_photo_variance(v: &[f32], photo: &RgbImage) -> Result<(), String> {
+pub fn check_photo_variance(v: &[f32], photo: &RgbImage) -> Result<(), String> {
     let w = photo.width.max(1);
     let at = |i: usize| format!("pixel ({}, {}) channel {}", (i / 3) % w, i / 3 / w, ["R", "G", "B"][i % 3]);
     if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
@@ -785,6 +785,69 @@ fn check_photo_variance(v: &[f32], photo: &RgbImage) -> Result<(), String> {
         ));
     }
     Ok(())
+}
+
+/// The model RMSE of `render` against `photo` ([`noise::model_rmse`] with
+/// `lucent compare`'s block size [`NOISE_BLOCK_PX`], [`NOISE_RESAMPLES`]
+/// resamples and seed 1) given the variance of the render's pixel means and,
+/// if known, the photo's (`variances`: both interleaved RGB of the images'
+/// size), over `mask`'s pixels. Pushes to `notes` what `lucent compare`
+/// says about the result: too few bootstrap blocks, and a photo variance
+/// (named `photo_variance_name` in the message) larger than the mean squared
+/// difference of the images. `render_variance` and `photo_variance` of the
+/// report are left empty for the caller to say where they come from. The
+/// photo variance is taken as given: [`check_photo_variance`] checks that it
+/// is plausible.
+pub fn model_error(
+    photo: &RgbImage,
+    render: &RgbImage,
+    (render_variance, photo_variance): (&[f32], Option<&[f32]>),
+    mask: Option<&Mask>,
+    photo_variance_name: Option<&str>,
+    notes: &mut Vec<String>,
+) -> Result<noise::NoiseReport, noise::NoiseError> {
+    let input = noise::NoiseInput {
+        width: photo.width,
+        height: photo.height,
+        photo: &photo.data,
+        render: &render.data,
+        render_variance,
+        photo_variance,
+        include: mask.map(|m| m.include.as_slice()),
+    };
+    let report = noise::model_rmse(&input, NOISE_BLOCK_PX, NOISE_RESAMPLES, 1)?;
+    if report.blocks < noise::MIN_BLOCKS {
+        notes.push(format!(
+            "the model RMSE's interval rests on {} blocks of {NOISE_BLOCK_PX} × {NOISE_BLOCK_PX} px (fewer than {}): \
+             too few to trust; compare a larger region or image",
+            report.blocks,
+            noise::MIN_BLOCKS
+        ));
+    }
+    if let (Some(name), Some(v)) = (photo_variance_name, photo_variance) {
+        // The photo and render differ by at least the photo's noise: a photo
+        // variance above their mean squared difference does not describe them.
+        let included = |i: usize| mask.is_none_or(|m| m.include.get(i / 3).copied().unwrap_or(false));
+        let (mut sum_v, mut sum_d, mut n) = (0.0f64, 0.0f64, 0usize);
+        for i in (0..v.len().min(photo.data.len()).min(render.data.len())).filter(|&i| included(i)) {
+            let d = f64::from(photo.data[i]) - f64::from(render.data[i]);
+            if d.is_finite() {
+                sum_v += f64::from(v[i]);
+                sum_d += d * d;
+                n += 1;
+            }
+        }
+        if n > 0 && sum_v > sum_d {
+            notes.push(format!(
+                "warning: the photo variance {name} (mean {:.4e}) is larger than the mean squared difference of photo \
+                 and render ({:.4e}), which holds the photo's noise and more: the model RMSE comes out 0 and means \
+                 nothing; check that {name} is the photo's variance (not a radiance image)",
+                sum_v / n as f64,
+                sum_d / n as f64,
+            ));
+        }
+    }
+    Ok(report)
 }
 
 /// The model RMSE of the render at `render_path` given its variance
@@ -843,60 +906,27 @@ fn noise_report(
             Some(v)
         }
     };
-    let input = noise::NoiseInput {
-        width: photo.width,
-        height: photo.height,
-        photo: &photo.data,
-        render: &render.data,
-        render_variance,
-        photo_variance: photo_variance.as_deref(),
-        include: mask.map(|m| m.include.as_slice()),
-    };
-    let mut report = noise::model_rmse(&input, NOISE_BLOCK_PX, NOISE_RESAMPLES, 1).map_err(|e| CompareError::Read {
+    let photo_variance_name = req.photo_variance.as_ref().map(|p| p.display().to_string());
+    let mut report = model_error(
+        photo,
+        render,
+        (render_variance, photo_variance.as_deref()),
+        mask,
+        photo_variance_name.as_deref(),
+        notes,
+    )
+    .map_err(|e| CompareError::Read {
         role: "render variance",
         path: render_path.to_path_buf(),
         reason: ReadProblem::Invalid(e.to_string()),
     })?;
-    if report.blocks < noise::MIN_BLOCKS {
-        notes.push(format!(
-            "the model RMSE's interval rests on {} blocks of {NOISE_BLOCK_PX} × {NOISE_BLOCK_PX} px (fewer than {}): \
-             too few to trust; compare a larger region or image",
-            report.blocks,
-            noise::MIN_BLOCKS
-        ));
-    }
-    if let (Some(p), Some(v)) = (&req.photo_variance, photo_variance.as_deref()) {
-        // The photo and render differ by at least the photo's noise: a photo
-        // variance above their mean squared difference does not describe them.
-        let included = |i: usize| mask.is_none_or(|m| m.include.get(i / 3).copied().unwrap_or(false));
-        let (mut sum_v, mut sum_d, mut n) = (0.0f64, 0.0f64, 0usize);
-        for i in (0..v.len().min(photo.data.len()).min(render.data.len())).filter(|&i| included(i)) {
-            let d = f64::from(photo.data[i]) - f64::from(render.data[i]);
-            if d.is_finite() {
-                sum_v += f64::from(v[i]);
-                sum_d += d * d;
-                n += 1;
-            }
-        }
-        if n > 0 && sum_v > sum_d {
-            notes.push(format!(
-                "warning: the photo variance {} (mean {:.4e}) is larger than the mean squared difference of photo \
-                 and render ({:.4e}), which holds the photo's noise and more: the model RMSE comes out 0 and means \
-                 nothing; check that {} is the photo's variance (not a radiance image)",
-                p.display(),
-                sum_v / n as f64,
-                sum_d / n as f64,
-                p.display()
-            ));
-        }
-    }
     report.render_variance = format!("{}: variance.R/G/B (variance of each pixel's mean)", render_path.display());
     report.photo_variance = match (&req.photo_variance, &req.photo_repeat) {
         (Some(p), _) => format!("{}", p.display()),
         (None, Some(p2)) => {
             format!("from two photos of the same view: (P - P2)^2 / 2 per pixel and channel, P2 = {}", p2.display())
         }
-        (None, None) => "not given (0): the model RMSE still contains the photo's noise".into(),
+        (None, None) => PHOTO_VARIANCE_NOT_GIVEN.into(),
     };
     if let Some(p) = &req.photo_variance {
         let json = photo_noise::sidecar(p);
@@ -920,6 +950,9 @@ fn noise_report(
     }
     Ok(Some(report))
 }
+
+/// `photo_variance` of the model RMSE's report without a photo variance.
+pub const PHOTO_VARIANCE_NOT_GIVEN: &str = "not given (0): the model RMSE still contains the photo's noise";
 
 /// Block side of the model RMSE's bootstrap, pixels.
 pub const NOISE_BLOCK_PX: usize = 8;
