@@ -534,3 +534,35 @@ fn misleading_links_and_silently_taken_values_are_named() {
     assert!(!stderr(&o).contains("pixel_m "), "{}", stderr(&o));
     assert!(!d.join("r").exists() && !d.join("x").exists() && !d.join("zz").exists());
 }
+
+/// Another project's results: `lucent run` into the output folder of a
+/// different project is refused (naming both); an earlier version of the
+/// same project (with a [bssrdf] since removed) leaves no BSSRDF in the
+/// report of the project without one.
+#[test]
+fn a_run_reports_only_its_own_projects_stages() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let r = s(&root().join("fixtures/samples/IOL1068-09.toml"));
+    let project = |name: &str, bssrdf: bool| {
+        let b = if bssrdf { "[bssrdf]\npixels = 9\npaths = 2000\nconfigs = \"45/0\"\n" } else { "" };
+        format!("[project]\nname = \"{name}\"\n{b}[[sample]]\nname = \"s\"\nrecipe = {r:?}\n")
+    };
+    std::fs::write(d.join("a.toml"), project("a", true)).unwrap();
+    std::fs::write(d.join("b.toml"), project("b", false)).unwrap();
+    std::fs::write(d.join("a2.toml"), project("a", false)).unwrap();
+    ok(&lucent_in(d, &["run", "a.toml", "--out", "o"]), "project a");
+    assert!(std::fs::read_to_string(d.join("o/report/index.html")).unwrap().contains("BSSRDF slices"));
+    let before = std::fs::read(d.join("o/report/index.html")).unwrap();
+    let o = lucent_in(d, &["run", "b.toml", "--out", "o"]);
+    refused(&o, &["o: holds the results of project \"a\"", "not of \"b\"", "--out"], "another project's folder");
+    assert_eq!(std::fs::read(d.join("o/report/index.html")).unwrap(), before, "the refused run changed the report");
+    // The same project without its [bssrdf]: the old slices are not in its report.
+    ok(&lucent_in(d, &["run", "a2.toml", "--out", "o"]), "project a without [bssrdf]");
+    let html = std::fs::read_to_string(d.join("o/report/index.html")).unwrap();
+    assert!(!html.contains("BSSRDF slices"), "an earlier plan's bssrdf in the report");
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/report/metrics.json")).unwrap()).unwrap();
+    assert!(metrics["manifests"].get("bssrdf").is_none(), "{}", metrics["manifests"]);
+    assert!(metrics["stages"]["bssrdf"]["wall_s"].is_null(), "{}", metrics["stages"]);
+}
