@@ -566,3 +566,25 @@ fn a_run_reports_only_its_own_projects_stages() {
     assert!(metrics["manifests"].get("bssrdf").is_none(), "{}", metrics["manifests"]);
     assert!(metrics["stages"]["bssrdf"]["wall_s"].is_null(), "{}", metrics["stages"]);
 }
+
+/// A scene error inside `lucent run` names the user's project file, its
+/// `[render] scene` and the key in the user's scene file, not the
+/// `input_scene.toml` the run writes from it; no stage runs a render.
+#[test]
+fn a_scene_error_in_a_run_names_the_users_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let r = s(&root().join("fixtures/samples/IOL1068-09.toml"));
+    let scene = s(&root().join("tests/bad/misleading/spp_per_pass_zero.toml"));
+    std::fs::write(
+        d.join("p.toml"),
+        format!(
+            "[project]\nname = \"p\"\n[render]\nscene = {scene:?}\nspp = 1\n[[sample]]\nname = \"s\"\nrecipe = {r:?}\n"
+        ),
+    )
+    .unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o"]);
+    refused(&o, &["p.toml: [render] scene", "spp_per_pass_zero.toml: [render] spp_per_pass"], "a run's bad scene");
+    assert!(!stderr(&o).contains("input_scene.toml"), "{}", stderr(&o));
+    assert!(!d.join("o/render").exists() && !d.join("o/render.failed").exists());
+}

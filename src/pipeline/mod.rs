@@ -220,6 +220,9 @@ pub enum PipelineError {
     /// valid scene file (the message names the file and key).
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneFileError),
+    /// The `[render]` scene template (with a sample's recipe) is not a valid scene.
+    #[error("{project}: [render] scene (for sample {sample}): {source}")]
+    Template { project: PathBuf, sample: String, source: Box<crate::scene::SceneFileError> },
     /// The `[render]` scene template has no `[material]` to take the samples' recipes.
     #[error("{path}: the [render] scene has no [material]: the samples' recipes need one to replace")]
     SceneWithoutMaterial { path: PathBuf },
@@ -658,6 +661,13 @@ fn sample_scene_with(
             return Err(PipelineError::SceneWithoutMaterial { path: source });
         }
     }
+    // The template as the user wrote it (with the sample's recipe): an error
+    // names their file and key, not the input_scene.toml written from it.
+    crate::scene::check(&file, &source).map_err(|e| PipelineError::Template {
+        project: project.path.clone(),
+        sample: sample.name.clone(),
+        source: Box::new(e),
+    })?;
     let frame = pose_frame(project, out)?;
     if let Some((scene_json, camera_json, has_sample)) = &frame {
         file.camera = crate::scene::CameraSection {

@@ -881,6 +881,14 @@ pub fn load_edited(
     build_with(&file, path, summary_only)
 }
 
+/// Every check of [`build`] on `file` (read from `path`) without decoding
+/// the environment map's pixels: how `lucent run` checks the user's scene
+/// template before it writes a stage's `input_scene.toml`, so an error names
+/// the user's file and key.
+pub fn check(file: &SceneFile, path: &Path) -> Result<(), SceneFileError> {
+    build_with(file, path, true).map(|_| ())
+}
+
 /// Stage two: the validated scene.
 pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileError> {
     build_with(file, path, false)
