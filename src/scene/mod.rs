@@ -169,6 +169,16 @@ pub enum KeyProblem {
     VanishingTransform { determinant: f64, scale: f64, size_m: f64, min_m: f64 },
     #[error("must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %), got {value}")]
     Fraction { value: f64 },
+    #[error(
+        "{radius} m: the camera at {camera:?} m is {distance:.4} m from the sphere's centre {centre:?} m, outside \
+         the sphere; the environment's finite sphere must enclose the camera (a larger radius_m, or another centre_m)"
+    )]
+    CameraOutsideSphere { radius: f64, camera: [f64; 3], centre: [f64; 3], distance: f64 },
+    #[error(
+        "the object spans {lo:?} … {hi:?} m, around the camera at {camera:?} m: the camera must be outside the \
+         object (is the size in metres where millimetres are meant?)"
+    )]
+    CameraInsideObject { lo: [f64; 3], hi: [f64; 3], camera: [f64; 3] },
     #[error("{0}")]
     Similarity(SimilarityProblem),
     #[error("reflectances must lie in [0, 1], got {values:?}")]
@@ -964,6 +974,28 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
     // --- environment
     let (environment, env_desc, projection_desc, centre, radius) =
         build_environment(&ctx, &file.environment, top_centre, &mut warnings)?;
+
+    // --- where the camera is: outside the object, inside the finite sphere
+    let eye = camera.position();
+    if let (Some(o), Some([lo, hi])) = (&file.object, bounds) {
+        if (0..3).all(|k| lo[k] < eye[k] && eye[k] < hi[k]) {
+            let key = if o.transform.is_some() {
+                "transform"
+            } else if o.mesh.is_some() {
+                "unit_scale_m"
+            } else {
+                "size_mm"
+            };
+            return Err(ctx.key("object", key, KeyProblem::CameraInsideObject { lo, hi, camera: eye.to_array() }));
+        }
+    }
+    if let (Some(c), Some(r)) = (centre, radius) {
+        let distance = (eye - DVec3::from_array(c)).length();
+        if distance >= r {
+            let problem = KeyProblem::CameraOutsideSphere { radius: r, camera: eye.to_array(), centre: c, distance };
+            return Err(ctx.key("environment", "radius_m", problem));
+        }
+    }
 
     // --- render settings
     let r = &file.render;
