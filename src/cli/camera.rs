@@ -586,9 +586,30 @@ fn parse_numbers<const N: usize>(flag: &str, text: &str) -> Result<[f64; N]> {
     <[f64; N]>::try_from(v).map_err(|_| anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))
 }
 
+/// The largest sample side `lucent pose` takes, in units of the board's
+/// larger side (a sample lies on the board).
+pub const SAMPLE_PER_BOARD_MAX: f64 = 10.0;
+
 pub fn pose(a: PoseArgs) -> Result<()> {
     let cal = read_camera(&a.camera)?;
     let board = a.board.spec()?;
+    // The calibration's board with its columns and rows swapped: the corners
+    // would be numbered along the other axis (the sample corner and the
+    // world's x and y turned).
+    let c = &cal.board;
+    if board.cols != board.rows && (board.cols, board.rows) == (c.rows, c.cols) {
+        bail!(
+            "--board {}x{}: {} was calibrated on a board of {}x{} inner corners — the same board with its columns and \
+             rows swapped? --board counts the inner corners along a row first; give --board {}x{}",
+            board.cols,
+            board.rows,
+            a.camera.display(),
+            c.cols,
+            c.rows,
+            c.cols,
+            c.rows
+        );
+    }
     let sample = match (&a.sample_corner, &a.sample_size_mm) {
         (Some(c), Some(s)) => {
             let [i, j] = parse_numbers::<2>("--sample-corner", c)?;
@@ -608,6 +629,17 @@ pub fn pose(a: PoseArgs) -> Result<()> {
             let size = parse_numbers::<3>("--sample-size-mm", s)?;
             if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
                 bail!("--sample-size-mm {s}: width, height and thickness must be positive");
+            }
+            // A sample lies on the board: ten times the board's extent is not a sample's size.
+            let extent_mm = (board.cols.max(board.rows) + 1) as f64 * board.square_m * 1e3;
+            if let Some(big) = size.iter().find(|v| **v > SAMPLE_PER_BOARD_MAX * extent_mm) {
+                bail!(
+                    "--sample-size-mm {s}: {big} mm is more than {SAMPLE_PER_BOARD_MAX}× the {}x{} board's {extent_mm} mm \
+                     (squares of {} mm); give the sample's size in millimetres",
+                    board.cols,
+                    board.rows,
+                    board.square_m * 1e3
+                );
             }
             Some(SampleSpec { corner: [i as usize, j as usize], size_m: size.map(|v| v / 1000.0) })
         }
