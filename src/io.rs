@@ -463,6 +463,25 @@ impl StagedDir {
     }
 }
 
+/// A line of a user's text file as an error message quotes it: in quotes,
+/// cut to 80 characters (with "…"), and with a hint when it holds semicolons
+/// where commas are expected (a spreadsheet's export setting).
+///
+/// ```
+/// assert_eq!(lucent::io::quoted_line("1;2;3"), "\"1;2;3\" (values separated by semicolons: export with commas)");
+/// assert!(lucent::io::quoted_line(&"9,".repeat(100)).ends_with("…\""));
+/// ```
+pub fn quoted_line(line: &str) -> String {
+    let shown: String = line.chars().take(80).collect();
+    let text = if line.chars().count() > 80 { format!("{shown}…") } else { shown };
+    let hint = if line.contains(';') && !line.contains(',') {
+        " (values separated by semicolons: export with commas)"
+    } else {
+        ""
+    };
+    format!("{text:?}{hint}")
+}
+
 /// `message` with every staging folder of this process
 /// ([`StagedDir::staging_path`], `.NAME.staging-PID`) and temporary file of
 /// [`write_atomic`] (`.NAME.PID.tmp`) named as the output the user asked

@@ -244,8 +244,8 @@ pub enum KeyProblem {
     NotCameraJson { file: PathBuf, source: serde_json::Error },
     #[error("{file}: {source}")]
     Csv { file: PathBuf, source: csv::Error },
-    #[error("{file}: line {line}: expected wavelength_nm,reflectance")]
-    SpectrumLine { file: PathBuf, line: u64 },
+    #[error("{file}: line {line}: expected wavelength_nm,reflectance, got {text}")]
+    SpectrumLine { file: PathBuf, line: u64, text: String },
     #[error("{file}: reflectance values must lie in [0, 1]")]
     SpectrumRange { file: PathBuf },
     #[error("{file}: {source}")]
@@ -1609,7 +1609,8 @@ fn read_spectrum_csv(ctx: &Ctx, key: &'static str, p: &Path) -> Result<[f64; 3],
             _ if k == 0 => continue, // header
             _ => {
                 let line = record.position().map_or(k as u64 + 1, csv::Position::line);
-                return Err(bad(KeyProblem::SpectrumLine { file: file(), line }));
+                let text = crate::io::quoted_line(&record.iter().collect::<Vec<_>>().join(","));
+                return Err(bad(KeyProblem::SpectrumLine { file: file(), line, text }));
             }
         }
     }
