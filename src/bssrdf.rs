@@ -323,12 +323,15 @@ fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> 
         if let Some(first) = rows.first()
             && row.len() != first.len()
         {
-            return Err(invalid(path, SliceProblem::RowLength {
-                line: k + 1,
-                values: row.len(),
-                first: first.len(),
-                text: crate::io::quoted_line(line).into(),
-            }));
+            return Err(invalid(
+                path,
+                SliceProblem::RowLength {
+                    line: k + 1,
+                    values: row.len(),
+                    first: first.len(),
+                    text: crate::io::quoted_line(line).into(),
+                },
+            ));
         }
         rows.push(row);
     }

@@ -501,7 +501,8 @@ pub fn user_visible_paths(message: &str) -> String {
         let mut from = 0;
         while let Some(i) = out[from..].find(&suffix).map(|i| i + from) {
             // The start of the path component: after '/', whitespace or a quote.
-            let start = out[..i].rfind(|c: char| c == '/' || c.is_whitespace() || c == '"' || c == '\'').map_or(0, |j| j + 1);
+            let start =
+                out[..i].rfind(|c: char| c == '/' || c.is_whitespace() || c == '"' || c == '\'').map_or(0, |j| j + 1);
             if leading && out[start..].starts_with('.') && start + 1 < i {
                 let name = out[start + 1..i].to_string();
                 out.replace_range(start..i + suffix.len(), &name);

@@ -121,7 +121,12 @@ pub fn calibrate_photos(
     // many distortion coefficients needs the views to pin them down.
     let needed = min_views(model);
     if found.len() < needed {
-        return Err(CalibError::TooFewViewsForModel { model, views: found.len(), needed, coefficients: coefficients(model) });
+        return Err(CalibError::TooFewViewsForModel {
+            model,
+            views: found.len(),
+            needed,
+            coefficients: coefficients(model),
+        });
     }
     let corners: Vec<Vec<[f64; 2]>> = found.iter().map(|(_, c)| c.points.clone()).collect();
     let solved = cv::calibrate(&corners, board, size, model)?;

@@ -586,10 +586,6 @@ fn parse_numbers<const N: usize>(flag: &str, text: &str) -> Result<[f64; N]> {
     <[f64; N]>::try_from(v).map_err(|_| anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))
 }
 
-/// The largest sample side `lucent pose` takes, in units of the board's
-/// larger side (a sample lies on the board).
-pub const SAMPLE_PER_BOARD_MAX: f64 = 10.0;
-
 pub fn pose(a: PoseArgs) -> Result<()> {
     let cal = read_camera(&a.camera)?;
     let board = a.board.spec()?;
@@ -630,16 +626,9 @@ pub fn pose(a: PoseArgs) -> Result<()> {
             if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
                 bail!("--sample-size-mm {s}: width, height and thickness must be positive");
             }
-            // A sample lies on the board: ten times the board's extent is not a sample's size.
-            let extent_mm = (board.cols.max(board.rows) + 1) as f64 * board.square_m * 1e3;
-            if let Some(big) = size.iter().find(|v| **v > SAMPLE_PER_BOARD_MAX * extent_mm) {
-                bail!(
-                    "--sample-size-mm {s}: {big} mm is more than {SAMPLE_PER_BOARD_MAX}× the {}x{} board's {extent_mm} mm \
-                     (squares of {} mm); give the sample's size in millimetres",
-                    board.cols,
-                    board.rows,
-                    board.square_m * 1e3
-                );
+            // A sample lies on the board (the range of the project's [pose] sample_size_mm).
+            if let Some(reason) = crate::job::sample_size_problem(size, board.cols, board.rows, board.square_m * 1e3) {
+                bail!("--sample-size-mm {s}: {reason}");
             }
             Some(SampleSpec { corner: [i as usize, j as usize], size_m: size.map(|v| v / 1000.0) })
         }

@@ -794,7 +794,9 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     let mut h = String::from("<section><h2>Calibration</h2>");
     let mut any = false;
     type Calibration = lucent_calib::camera::Calibration;
-    if let Some(c) = read_json::<Calibration>(&stage_folder(out, done, Stage::Calibrate).join("camera.json"), "a camera.json")? {
+    if let Some(c) =
+        read_json::<Calibration>(&stage_folder(out, done, Stage::Calibrate).join("camera.json"), "a camera.json")?
+    {
         any = true;
         let (k, d) = (&c.camera.intrinsics, &c.camera.distortion);
         h.push_str("<h3>Camera (Zhang)</h3>");
@@ -846,7 +848,10 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             h.push_str(&table(&["parameter", "truth", "recovered", "recovered − truth"], &rows));
             truth_json = Some(Value::Object(tj));
         }
-        h.push_str(&page.img(&stage_folder(out, done, Stage::Calibrate).join("camera_residuals.png"), "reprojection residuals per view")?);
+        h.push_str(&page.img(
+            &stage_folder(out, done, Stage::Calibrate).join("camera_residuals.png"),
+            "reprojection residuals per view",
+        )?);
         let mut cj = trim(&to_value(&c), 16);
         if let Some(t) = truth_json {
             cj["truth_vs_recovered"] = t;
@@ -915,7 +920,9 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     }
     metrics.insert("colour".into(), Value::Object(colour_json));
     type Pose = lucent_calib::scene::SceneDescription;
-    if let Some(p) = read_json::<Pose>(&stage_folder(out, done, Stage::Pose).join("scene.json"), "a scene.json of `lucent pose`")? {
+    if let Some(p) =
+        read_json::<Pose>(&stage_folder(out, done, Stage::Pose).join("scene.json"), "a scene.json of `lucent pose`")?
+    {
         any = true;
         h.push_str("<h3>Board pose</h3>");
         let mut pj = trim(&to_value(&p), 16);
@@ -940,7 +947,9 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 None => h.push_str("<p class=\"note\">[pose] truth has no [camera] camera_to_world.</p>"),
             }
         }
-        h.push_str(&page.img(&stage_folder(out, done, Stage::Pose).join("scene_view.png"), "board pose and sample outline")?);
+        h.push_str(
+            &page.img(&stage_folder(out, done, Stage::Pose).join("scene_view.png"), "board pose and sample outline")?,
+        );
         metrics.insert("pose".into(), pj);
     }
     if !any {
