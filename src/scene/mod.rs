@@ -175,10 +175,11 @@ pub enum KeyProblem {
     )]
     CameraOutsideSphere { radius: f64, camera: [f64; 3], centre: [f64; 3], distance: f64 },
     #[error(
-        "the object spans {lo:?} … {hi:?} m, around the camera at {camera:?} m: the camera must be outside the \
-         object (is the size in metres where millimetres are meant?)"
+        "the object is {:.4} × {:.4} × {:.4} m ({lo:?} … {hi:?} m), around the camera at {camera:?} m: the camera \
+         must be outside the object, or every path is lost{hint}",
+        hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]
     )]
-    CameraInsideObject { lo: [f64; 3], hi: [f64; 3], camera: [f64; 3] },
+    CameraInsideObject { lo: [f64; 3], hi: [f64; 3], camera: [f64; 3], hint: &'static str },
     #[error("{0}")]
     Similarity(SimilarityProblem),
     #[error("reflectances must lie in [0, 1], got {values:?}")]
@@ -986,7 +987,13 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
             } else {
                 "size_mm"
             };
-            return Err(ctx.key("object", key, KeyProblem::CameraInsideObject { lo, hi, camera: eye.to_array() }));
+            let hint = match key {
+                "unit_scale_m" => "; a mesh in millimetres needs unit_scale_m = 0.001",
+                "size_mm" => "; size_mm is in millimetres",
+                _ => "; a transform places the object in metres",
+            };
+            let problem = KeyProblem::CameraInsideObject { lo, hi, camera: eye.to_array(), hint };
+            return Err(ctx.key("object", key, problem));
         }
     }
     if let (Some(c), Some(r)) = (centre, radius) {
