@@ -57,7 +57,8 @@ fn a_mesh_in_millimetres_read_as_metres_is_named_with_its_size() {
     // The scene loader: the 60 m plaque is around the camera, an error with its size and the key.
     let scene_path = tmp.path().join("scene.toml");
     std::fs::write(&scene_path, scene_text("mesh = \"plaque_mm.obj\"", "constant = [1.0, 1.0, 1.0]")).unwrap();
-    let e = scene::load(&scene_path).err().expect("the camera inside the object").to_string();
+    let Err(e) = scene::load(&scene_path) else { panic!("the camera inside the object was taken") };
+    let e = e.to_string();
     assert!(e.contains("[object] unit_scale_m") && e.contains("60.0000 × 40.0000") && e.contains(SIZE_HINT), "{e}");
 }
 

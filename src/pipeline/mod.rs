@@ -1216,16 +1216,16 @@ pub fn run(
     let lock = crate::io::lock_output_folder(out)?;
     // The results of another project are not mixed into this one's.
     let file = project.path.display().to_string();
-    if let Some(earlier) = earlier_project(out) {
-        if earlier.project != project.name {
-            return Err(PipelineError::OtherProject {
-                out: out.to_path_buf(),
-                earlier: earlier.project,
-                earlier_file: earlier.project_file,
-                name: project.name.clone(),
-                file,
-            });
-        }
+    if let Some(earlier) = earlier_project(out)
+        && earlier.project != project.name
+    {
+        return Err(PipelineError::OtherProject {
+            out: out.to_path_buf(),
+            earlier: earlier.project,
+            earlier_file: earlier.project_file,
+            name: project.name.clone(),
+            file,
+        });
     }
     let mark = ProjectMark { project: project.name.clone(), project_file: file };
     crate::io::write_json(&out.join(PROJECT_MARK), &mark)?;

@@ -978,23 +978,23 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
 
     // --- where the camera is: outside the object, inside the finite sphere
     let eye = camera.position();
-    if let (Some(o), Some([lo, hi])) = (&file.object, bounds) {
-        if (0..3).all(|k| lo[k] < eye[k] && eye[k] < hi[k]) {
-            let key = if o.transform.is_some() {
-                "transform"
-            } else if o.mesh.is_some() {
-                "unit_scale_m"
-            } else {
-                "size_mm"
-            };
-            let hint = match key {
-                "unit_scale_m" => "; a mesh in millimetres needs unit_scale_m = 0.001",
-                "size_mm" => "; size_mm is in millimetres",
-                _ => "; a transform places the object in metres",
-            };
-            let problem = KeyProblem::CameraInsideObject { lo, hi, camera: eye.to_array(), hint };
-            return Err(ctx.key("object", key, problem));
-        }
+    if let (Some(o), Some([lo, hi])) = (&file.object, bounds)
+        && (0..3).all(|k| lo[k] < eye[k] && eye[k] < hi[k])
+    {
+        let key = if o.transform.is_some() {
+            "transform"
+        } else if o.mesh.is_some() {
+            "unit_scale_m"
+        } else {
+            "size_mm"
+        };
+        let hint = match key {
+            "unit_scale_m" => "; a mesh in millimetres needs unit_scale_m = 0.001",
+            "size_mm" => "; size_mm is in millimetres",
+            _ => "; a transform places the object in metres",
+        };
+        let problem = KeyProblem::CameraInsideObject { lo, hi, camera: eye.to_array(), hint };
+        return Err(ctx.key("object", key, problem));
     }
     if let (Some(c), Some(r)) = (centre, radius) {
         let distance = (eye - DVec3::from_array(c)).length();
