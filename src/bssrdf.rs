@@ -98,8 +98,8 @@ pub enum SliceProblem {
     /// A value that is not a number: the token, the line's text and a hint.
     #[error("line {line}: {detail}")]
     Number { line: usize, detail: Box<str> },
-    #[error("line {line} has {values} values, the first row {first}")]
-    RowLength { line: usize, values: usize, first: usize },
+    #[error("line {line} has {values} values, the first row {first}: {text}")]
+    RowLength { line: usize, values: usize, first: usize, text: Box<str> },
     #[error("no data rows")]
     Empty,
     #[error("cannot read EXR: {0}")]
@@ -333,7 +333,15 @@ fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> 
         if let Some(first) = rows.first()
             && row.len() != first.len()
         {
-            return Err(invalid(path, SliceProblem::RowLength { line: k + 1, values: row.len(), first: first.len() }));
+            return Err(invalid(
+                path,
+                SliceProblem::RowLength {
+                    line: k + 1,
+                    values: row.len(),
+                    first: first.len(),
+                    text: crate::io::quoted_line(line).into(),
+                },
+            ));
         }
         rows.push(row);
     }

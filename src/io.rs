@@ -463,6 +463,58 @@ impl StagedDir {
     }
 }
 
+/// A line of a user's text file as an error message quotes it: in quotes,
+/// cut to 80 characters (with "…"), and with a hint when it holds semicolons
+/// where commas are expected (a spreadsheet's export setting).
+///
+/// ```
+/// assert_eq!(lucent::io::quoted_line("1;2;3"), "\"1;2;3\" (values separated by semicolons: export with commas)");
+/// assert!(lucent::io::quoted_line(&"9,".repeat(100)).ends_with("…\""));
+/// ```
+pub fn quoted_line(line: &str) -> String {
+    let shown: String = line.chars().take(80).collect();
+    let text = if line.chars().count() > 80 { format!("{shown}…") } else { shown };
+    let hint = if line.contains(';') && !line.contains(',') {
+        " (values separated by semicolons: export with commas)"
+    } else {
+        ""
+    };
+    format!("{text:?}{hint}")
+}
+
+/// `message` with every staging folder of this process
+/// ([`StagedDir::staging_path`], `.NAME.staging-PID`) and temporary file of
+/// [`write_atomic`] (`.NAME.PID.tmp`) named as the output the user asked
+/// for (`NAME`): an error while writing (a full disk) names the
+/// destination the user knows, not a hidden path that is gone by the time
+/// they look.
+///
+/// ```
+/// let pid = std::process::id();
+/// let m = format!("out/.run.staging-{pid}/profile.png: no space left; .a.csv.{pid}.tmp: no space");
+/// assert_eq!(lucent::io::user_visible_paths(&m), "out/run/profile.png: no space left; a.csv: no space");
+/// ```
+pub fn user_visible_paths(message: &str) -> String {
+    let pid = std::process::id();
+    let mut out = message.to_string();
+    for (suffix, leading) in [(format!(".staging-{pid}"), true), (format!(".{pid}.tmp"), true)] {
+        let mut from = 0;
+        while let Some(i) = out[from..].find(&suffix).map(|i| i + from) {
+            // The start of the path component: after '/', whitespace or a quote.
+            let start =
+                out[..i].rfind(|c: char| c == '/' || c.is_whitespace() || c == '"' || c == '\'').map_or(0, |j| j + 1);
+            if leading && out[start..].starts_with('.') && start + 1 < i {
+                let name = out[start + 1..i].to_string();
+                out.replace_range(start..i + suffix.len(), &name);
+                from = start + name.len();
+            } else {
+                from = i + suffix.len();
+            }
+        }
+    }
+    out
+}
+
 impl Drop for StagedDir {
     fn drop(&mut self) {
         if !self.committed {

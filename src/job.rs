@@ -484,9 +484,37 @@ pub struct PoseJob {
     pub sample: Option<(String, String)>,
 }
 
+/// The largest sample side `lucent pose` takes, in units of the board's
+/// larger side (a sample lies on the board).
+pub const SAMPLE_PER_BOARD_MAX: f64 = 10.0;
+
+/// Why a sample of `size_mm` (width, height, thickness) cannot lie on a
+/// board of `cols` × `rows` inner corners and `square_mm` squares (a side
+/// more than [`SAMPLE_PER_BOARD_MAX`] × the board's larger side: a size in
+/// the wrong unit), if it cannot.
+pub fn sample_size_problem(size_mm: [f64; 3], cols: usize, rows: usize, square_mm: f64) -> Option<String> {
+    let extent_mm = (cols.max(rows) + 1) as f64 * square_mm;
+    let big = size_mm.iter().find(|v| **v > SAMPLE_PER_BOARD_MAX * extent_mm)?;
+    Some(format!(
+        "{big} mm is more than {SAMPLE_PER_BOARD_MAX}× the {cols}x{rows} board's {extent_mm} mm (squares of \
+         {square_mm} mm); give the sample's size in millimetres"
+    ))
+}
+
 impl PoseJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        board(&self.board, self.square_mm)
+        board(&self.board, self.square_mm)?;
+        if let (Some((_, size)), Ok(b)) =
+            (&self.sample, lucent_calib::board::BoardSpec::parse(&self.board, self.square_mm))
+        {
+            let v: Vec<f64> = size.split(',').filter_map(|t| t.trim().parse().ok()).collect();
+            if let Ok(v) = <[f64; 3]>::try_from(v)
+                && let Some(reason) = sample_size_problem(v, b.cols, b.rows, self.square_mm)
+            {
+                return Err(bad("sample_size_mm", size, reason));
+            }
+        }
+        Ok(())
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["pose"]);

@@ -68,5 +68,6 @@ fn error_chain(e: &anyhow::Error) -> String {
         }
         line.push_str(&text);
     }
-    line
+    // A write that failed inside a staging folder is said at the output's own path.
+    lucent::io::user_visible_paths(&line)
 }

@@ -534,3 +534,242 @@ fn misleading_links_and_silently_taken_values_are_named() {
     assert!(!stderr(&o).contains("pixel_m "), "{}", stderr(&o));
     assert!(!d.join("r").exists() && !d.join("x").exists() && !d.join("zz").exists());
 }
+
+/// Another project's results: `lucent run` into the output folder of a
+/// different project is refused (naming both); an earlier version of the
+/// same project (with a [bssrdf] since removed) leaves no BSSRDF in the
+/// report of the project without one.
+#[test]
+fn a_run_reports_only_its_own_projects_stages() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let r = s(&root().join("fixtures/samples/IOL1068-09.toml"));
+    let project = |name: &str, bssrdf: bool| {
+        let b = if bssrdf { "[bssrdf]\npixels = 9\npaths = 2000\nconfigs = \"45/0\"\n" } else { "" };
+        format!("[project]\nname = \"{name}\"\n{b}[[sample]]\nname = \"s\"\nrecipe = {r:?}\n")
+    };
+    std::fs::write(d.join("a.toml"), project("a", true)).unwrap();
+    std::fs::write(d.join("b.toml"), project("b", false)).unwrap();
+    std::fs::write(d.join("a2.toml"), project("a", false)).unwrap();
+    ok(&lucent_in(d, &["run", "a.toml", "--out", "o"]), "project a");
+    assert!(std::fs::read_to_string(d.join("o/report/index.html")).unwrap().contains("BSSRDF slices"));
+    let before = std::fs::read(d.join("o/report/index.html")).unwrap();
+    let o = lucent_in(d, &["run", "b.toml", "--out", "o"]);
+    refused(&o, &["o: holds the results of project \"a\"", "not of \"b\"", "--out"], "another project's folder");
+    assert_eq!(std::fs::read(d.join("o/report/index.html")).unwrap(), before, "the refused run changed the report");
+    // The same project without its [bssrdf]: the old slices are not in its report.
+    ok(&lucent_in(d, &["run", "a2.toml", "--out", "o"]), "project a without [bssrdf]");
+    let html = std::fs::read_to_string(d.join("o/report/index.html")).unwrap();
+    assert!(!html.contains("BSSRDF slices"), "an earlier plan's bssrdf in the report");
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/report/metrics.json")).unwrap()).unwrap();
+    assert!(metrics["manifests"].get("bssrdf").is_none(), "{}", metrics["manifests"]);
+    assert!(metrics["stages"]["bssrdf"]["wall_s"].is_null(), "{}", metrics["stages"]);
+}
+
+/// A scene error inside `lucent run` names the user's project file, its
+/// `[render] scene` and the key in the user's scene file, not the
+/// `input_scene.toml` the run writes from it; no stage runs a render.
+#[test]
+fn a_scene_error_in_a_run_names_the_users_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let r = s(&root().join("fixtures/samples/IOL1068-09.toml"));
+    let scene = s(&root().join("tests/bad/misleading/spp_per_pass_zero.toml"));
+    std::fs::write(
+        d.join("p.toml"),
+        format!(
+            "[project]\nname = \"p\"\n[render]\nscene = {scene:?}\nspp = 1\n[[sample]]\nname = \"s\"\nrecipe = {r:?}\n"
+        ),
+    )
+    .unwrap();
+    let o = lucent_in(d, &["run", "p.toml", "--out", "o"]);
+    refused(&o, &["p.toml: [render] scene", "spp_per_pass_zero.toml: [render] spp_per_pass"], "a run's bad scene");
+    assert!(!stderr(&o).contains("input_scene.toml"), "{}", stderr(&o));
+    assert!(!d.join("o/render").exists() && !d.join("o/render.failed").exists());
+}
+
+/// A scene of tests/bad/misleading/spp_per_pass_zero.toml (a 60 × 40 mm
+/// box, camera 0.21 m away) with `edit` applied to its text.
+fn scene_with(d: &Path, name: &str, edit: &dyn Fn(String) -> String) -> String {
+    let text = std::fs::read_to_string(root().join("tests/bad/misleading/spp_per_pass_zero.toml")).unwrap();
+    let text = text.replace("spp_per_pass = 0   # was taken as 1 without a word", "");
+    std::fs::write(d.join(name), edit(text)).unwrap();
+    name.to_string()
+}
+
+/// Implausible geometry is refused with the key named: a finite environment
+/// sphere the camera is outside of, and an object (1e12 mm) around the camera.
+#[test]
+fn the_camera_is_inside_the_sphere_and_outside_the_object() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let sphere = scene_with(d, "sphere.toml", &|t| {
+        t.replace("projection = \"infinite\"", "projection = \"finite-sphere\"\nradius_m = 0.01")
+    });
+    let o = lucent_in(d, &["render", &sphere, "--out", "r", "--spp", "1"]);
+    refused(&o, &["sphere.toml", "[environment] radius_m", "camera", "outside the sphere"], "radius 0.01 m");
+    let big = scene_with(d, "big.toml", &|t| t.replace("size_mm = [60.0, 40.0, 6.35]", "size_mm = [1e12, 1e12, 1e12]"));
+    let o = lucent_in(d, &["render", &big, "--out", "r", "--spp", "1"]);
+    refused(&o, &["big.toml", "[object] size_mm", "around the camera"], "a 1e12 mm object");
+    assert!(!d.join("r").exists());
+    // The scene as given renders.
+    let fine = scene_with(d, "fine.toml", &|t| t);
+    ok(&lucent_in(d, &["render", &fine, "--out", "r", "--spp", "1", "--size", "16x12"]), "the scene as given");
+}
+
+/// Messages in the user's units: a flag in degrees or micrometres is not
+/// said as the library's radians or metres, nor a tiny value in 300 digits.
+#[test]
+fn messages_name_the_flags_in_the_users_units() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let synth = ["surface", "synth", "--model", "ggx", "--alpha", "0.1", "--size", "16", "--out", "s.x3p"];
+    let o = lucent_in(d, &[&synth[..], &["--tilt-deg", "89"]].concat());
+    refused(&o, &["tilt-deg 89", "85.9°"], "--tilt-deg 89");
+    assert!(!stderr(&o).contains("1.55"), "radians: {}", stderr(&o));
+    let o = lucent_in(d, &[&synth[..], &["--tilt-azimuth-deg", "inf"]].concat());
+    refused(&o, &["tilt-azimuth-deg inf"], "--tilt-azimuth-deg inf");
+    let slab =
+        ["bssrdf", "--mu-s", "1000", "--mu-a", "1", "--g", "0.8", "--n", "1.5", "--pixels", "9", "--paths", "10"];
+    let o = lucent_in(d, &[&slab[..], &["--beam-fwhm-um", "0", "--out", "b"]].concat());
+    refused(&o, &["--beam-fwhm-um 0", "micrometres"], "--beam-fwhm-um 0");
+    assert!(!stderr(&o).contains("beam_fwhm_m"), "{}", stderr(&o));
+    let o = lucent_in(d, &[&slab[..], &["--pixel-mm", "1e-300", "--out", "b"]].concat());
+    refused(&o, &["1e-300 mm"], "--pixel-mm 1e-300");
+    assert!(!stderr(&o).contains("0.0000000000"), "{}", stderr(&o));
+    assert!(!d.join("b").exists() && !d.join("s.x3p").exists());
+}
+
+/// A text grid's bad line is quoted with its number; a UTF-8 byte-order
+/// mark is read past (height maps; a slice's ragged row).
+#[test]
+fn csv_bad_lines_are_quoted() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("h.csv"), "\u{feff}# pitch = 1 um\n1,2,3\n4,x5,6\n").unwrap();
+    let o = lucent_in(d, &["surface", "fit", "h.csv", "--out", "f"]);
+    refused(&o, &["h.csv: line 3", "\"x5\"", "\"4,x5,6\""], "a bad token");
+    std::fs::write(d.join("r.csv"), "# pitch = 1 um\n1,2,3\n4,5\n").unwrap();
+    let o = lucent_in(d, &["surface", "fit", "r.csv", "--out", "f"]);
+    refused(&o, &["r.csv: line 3", "\"4,5\"", "line 2"], "a short row");
+    std::fs::write(d.join("s.csv"), "1,2,1\n2,4\n1,2,1\n").unwrap();
+    std::fs::write(d.join("sim.csv"), "1,2,1\n2,4,2\n1,2,1\n").unwrap();
+    let o = lucent_in(
+        d,
+        &[
+            "bssrdf",
+            "compare",
+            "--measured",
+            "s.csv",
+            "--measured-pixel-mm",
+            "0.1",
+            "--simulated",
+            "sim.csv",
+            "--out",
+            "c",
+        ],
+    );
+    refused(&o, &["s.csv", "line 2", "\"2,4\""], "a slice's short row");
+}
+
+/// A full disk (here a file-size limit) while writing: the error names the
+/// output the user asked for, not the hidden staging folder it was written in.
+#[cfg(unix)]
+#[test]
+fn a_failed_write_names_the_users_output_path() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let script = format!(
+        "ulimit -f 2; trap '' XFSZ; exec {} bssrdf --mu-s 1000 --mu-a 1 --g 0.8 --n 1.5 --pixels 9 --paths 100 \
+         --quiet --out out",
+        env!("CARGO_BIN_EXE_lucent")
+    );
+    let o = Command::new("sh").args(["-c", &script]).current_dir(d).output().unwrap();
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(e.contains("out/bssrdf.") && e.contains("File too large"), "{e}");
+    assert!(!e.contains("staging") && !e.contains(".tmp"), "{e}");
+    assert!(std::fs::read_dir(d).unwrap().count() == 0, "left behind in the folder");
+}
+
+/// Calibration plausibility: the rational model from 3 views, a pose with
+/// the calibration's board transposed, a 1 km sample on a 25 mm board.
+#[test]
+fn calibration_plausibility() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let img = |n: &str| s(&root().join(format!("fixtures/camera/chessboard/left{n}.jpg")));
+    let three = [img("01"), img("02"), img("03")];
+    let mut args: Vec<&str> = vec!["calibrate", "--images"];
+    args.extend(three.iter().map(String::as_str));
+    args.extend(["--board", "9x6", "--square-mm", "25", "--model", "rational", "--out", "r.json"]);
+    let o = lucent_in(d, &args);
+    refused(&o, &["--model rational", "3 views", "at least 6"], "rational from 3 views");
+    assert!(!d.join("r.json").exists());
+    let all = s(&root().join("fixtures/camera/chessboard"));
+    ok(
+        &lucent_in(d, &["calibrate", "--images", &all, "--board", "9x6", "--square-mm", "25", "--out", "c.json"]),
+        "9x6",
+    );
+    let pose = ["pose", "--camera", "c.json", "--image", &three[0], "--square-mm", "25", "--out", "p.json"];
+    let o = lucent_in(d, &[&pose[..], &["--board", "6x9"]].concat());
+    refused(&o, &["--board 6x9", "9x6", "swapped"], "a transposed board");
+    let o = lucent_in(
+        d,
+        &[&pose[..], &["--board", "9x6", "--sample-corner", "1,1", "--sample-size-mm", "1e6,1e6,6"]].concat(),
+    );
+    refused(&o, &["--sample-size-mm", "1000000 mm", "board"], "a 1 km sample");
+    assert!(!d.join("p.json").exists());
+    ok(
+        &lucent_in(
+            d,
+            &[&pose[..], &["--board", "9x6", "--sample-corner", "1,1", "--sample-size-mm", "60,40,6"]].concat(),
+        ),
+        "pose",
+    );
+}
+
+/// An inverted chart (a negative) is said to be inverted, not blamed on
+/// the corner order; an all-negative one is refused.
+#[test]
+fn an_inverted_colour_chart_is_said_so() {
+    use lucent_colour::chart::{draw_chart, SampleOptions};
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let corners = [[40.0, 30.0], [560.0, 55.0], [540.0, 390.0], [25.0, 360.0]];
+    let arg = corners.iter().flatten().map(|v: &f64| v.to_string()).collect::<Vec<_>>().join(",");
+    let xyz: Vec<[f64; 3]> = lucent_colour::data::colorchecker_2014().iter().map(|p| p.xyz()).collect();
+    let write = |name: &str, f: &dyn Fn(f64) -> f64, background: f32| {
+        let patches: Vec<[f64; 3]> = xyz.iter().map(|c| c.map(f)).collect();
+        let data = draw_chart(600, 420, corners, &patches, &SampleOptions::default(), [background; 3]).unwrap();
+        lucent::imageio::write_exr(&d.join(name), &lucent::imageio::RgbImage::new(600, 420, data).unwrap()).unwrap();
+    };
+    write("negative.exr", &|v| 0.95 - v, 0.9);
+    write("minus.exr", &|v| -v, -0.01);
+    let o = lucent_in(d, &["colour", "calibrate", "--image", "negative.exr", "--corners", &arg, "--out", "n"]);
+    let e = stderr(&o);
+    assert!(e.contains("warning") && e.contains("inverted") && !e.contains("order of the corners"), "{e}");
+    let o = lucent_in(d, &["colour", "calibrate", "--image", "minus.exr", "--corners", &arg, "--out", "m"]);
+    refused(&o, &["minus.exr", "inverted", "negative"], "an all-negative chart");
+    assert!(!stderr(&o).contains("order of the corners") && !d.join("m").exists(), "{}", stderr(&o));
+}
+
+/// A long optics study stops at Ctrl-C after the group of draws under way:
+/// exit 130, the reason said, nothing written.
+#[cfg(unix)]
+#[test]
+fn an_optics_uncertainty_study_stops_at_ctrl_c() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let text = std::fs::read_to_string(root().join("fixtures/samples/IOL1068-09.toml")).unwrap();
+    let text = text.replacen("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = 0.02 }", 1);
+    assert!(text.contains("sd = 0.02"), "the fixture's weight_percent moved");
+    std::fs::write(d.join("u.toml"), text).unwrap();
+    let (u, out) = (s(&d.join("u.toml")), s(&d.join("uo")));
+    let (status, e) =
+        crate::common::interrupt_after(&["optics", &u, "--uncertainty", "100000", "--out", &out], "draws in");
+    assert_eq!(status.code(), Some(130), "{e}");
+    assert!(e.contains("stopped after") && e.contains("nothing was written"), "{e}");
+    assert!(!d.join("uo").exists(), "written after Ctrl-C");
+}

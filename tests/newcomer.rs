@@ -54,11 +54,12 @@ fn a_mesh_in_millimetres_read_as_metres_is_named_with_its_size() {
     let (_, report) = mesh::load(&obj_m, 1e-3).unwrap();
     let w = report.warnings.join("\n");
     assert!(w.contains("0.060 mm") && w.contains("unit_scale_m"), "{w}");
-    // The scene loader passes the warning on (it is printed by `lucent render` and kept in render.json).
+    // The scene loader: the 60 m plaque is around the camera, an error with its size and the key.
     let scene_path = tmp.path().join("scene.toml");
     std::fs::write(&scene_path, scene_text("mesh = \"plaque_mm.obj\"", "constant = [1.0, 1.0, 1.0]")).unwrap();
-    let loaded = scene::load(&scene_path).unwrap();
-    assert!(loaded.warnings.iter().any(|w| w.contains(SIZE_HINT)), "{:?}", loaded.warnings);
+    let Err(e) = scene::load(&scene_path) else { panic!("the camera inside the object was taken") };
+    let e = e.to_string();
+    assert!(e.contains("[object] unit_scale_m") && e.contains("60.0000 × 40.0000") && e.contains(SIZE_HINT), "{e}");
 }
 
 #[test]
@@ -70,9 +71,10 @@ fn the_limits_of_a_plausible_size_are_where_the_doc_says() {
 }
 
 #[test]
-fn render_says_the_size_where_it_warns_about_lost_light() {
+fn render_says_the_size_where_it_refuses_a_camera_inside_the_object() {
     // The README's 30 mm sphere (fixtures/example/part.obj, in mm) read as metres: the camera is
-    // inside a 30 m object and every path is lost; the warning says the size and the key.
+    // inside a 30 m object and every path would be lost; the error says the size and the key
+    // (it was rendered with a warning).
     let tmp = tempfile::tempdir().unwrap();
     let mesh = format!("mesh = {:?}", root().join("fixtures/example/part.obj").display().to_string());
     let scene_path = tmp.path().join("scene.toml");
@@ -82,9 +84,9 @@ fn render_says_the_size_where_it_warns_about_lost_light() {
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    let lost = err.lines().find(|l| l.contains("their light is lost")).unwrap_or_else(|| panic!("{err}"));
-    assert!(lost.contains("30.0000 × 30.0000 × 30.0000 m") && lost.contains(SIZE_HINT), "{lost}");
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("[object] unit_scale_m") && err.contains("30.0000 × 30.0000 × 30.0000 m"), "{err}");
+    assert!(err.contains(SIZE_HINT) && !tmp.path().join("r").exists(), "{err}");
 }
 
 #[test]

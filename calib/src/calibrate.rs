@@ -117,6 +117,17 @@ pub fn calibrate_photos(
             needed: MIN_VIEWS,
         });
     }
+    // Each view fits 6 pose parameters besides the camera's: a model with
+    // many distortion coefficients needs the views to pin them down.
+    let needed = min_views(model);
+    if found.len() < needed {
+        return Err(CalibError::TooFewViewsForModel {
+            model,
+            views: found.len(),
+            needed,
+            coefficients: coefficients(model),
+        });
+    }
     let corners: Vec<Vec<[f64; 2]>> = found.iter().map(|(_, c)| c.points.clone()).collect();
     let solved = cv::calibrate(&corners, board, size, model)?;
     // The camera `undistort`, `pose` and the renderer would refuse is not
@@ -171,6 +182,33 @@ pub fn calibrate_photos(
         method,
         opencv_version: cv::version(),
     })
+}
+
+/// The fewest views [`calibrate_photos`] accepts for `model`: [`MIN_VIEWS`],
+/// and for the rational model (8 distortion coefficients, 12 with the
+/// intrinsics) [`MIN_VIEWS_RATIONAL`].
+pub fn min_views(model: DistortionModel) -> usize {
+    match model {
+        DistortionModel::Rational => MIN_VIEWS_RATIONAL,
+        DistortionModel::PinholeK3 | DistortionModel::Fisheye => MIN_VIEWS,
+    }
+}
+
+/// Fewest views accepted for the rational model: each view's homography
+/// leaves 2 constraints on the camera after its own 6 pose parameters
+/// (Zhang 2000), and the model has 12 camera coefficients (fx, fy, cx, cy,
+/// k1…k6, p1, p2). With fewer, its coefficients are not pinned down by the
+/// views (with 3 views on OpenCV's left01–03 the fit still passes the
+/// one-to-one check, so it was written without a word).
+pub const MIN_VIEWS_RATIONAL: usize = 6;
+
+/// The camera's coefficients `model` fits (intrinsics and distortion).
+fn coefficients(model: DistortionModel) -> usize {
+    match model {
+        DistortionModel::PinholeK3 => 9,
+        DistortionModel::Rational => 12,
+        DistortionModel::Fisheye => 8,
+    }
 }
 
 /// Why a board may not have been found, for the report.

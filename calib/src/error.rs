@@ -65,6 +65,13 @@ pub enum CalibError {
         /// Fewest views a calibration accepts.
         needed: usize,
     },
+    /// Too few views for the coefficients of the chosen model.
+    #[error(
+        "--model {}: {views} views for {coefficients} camera coefficients (and 6 per view) is too few: the fit \
+         follows the noise; this model needs at least {needed} views, or use --model pinhole-k3",
+        <&'static str>::from(*model)
+    )]
+    TooFewViewsForModel { model: crate::model::DistortionModel, views: usize, needed: usize, coefficients: usize },
     /// The fitted camera fails [`crate::model::CameraModel::validate`].
     #[error(
         "the camera fitted to {views} views is not usable: {source}; photograph the board in more views, tilted \

@@ -345,12 +345,55 @@ pub fn neutral_ramp_warning(samples: &[PatchSample]) -> Option<String> {
     }
     let lum: Vec<f64> = samples[18..24].iter().map(|s| s.mean.iter().sum::<f64>()).collect();
     if lum.windows(2).all(|w| w[0] > w[1]) {
-        None
+        return None;
+    }
+    // An inverted image (a negative, or values multiplied by −1) runs
+    // against the chart's lightness on all 24 patches, not only on the
+    // neutral row as corners in the wrong order do.
+    let all: Vec<f64> = samples.iter().map(|s| s.mean.iter().sum::<f64>()).collect();
+    let reference: Vec<f64> = crate::data::colorchecker_2014().iter().map(|p| p.xyy[2]).collect();
+    let r = correlation(&all, &reference);
+    if all.iter().all(|v| *v < 0.0) {
+        Some(format!(
+            "every patch is negative (R+G+B from {:.3} to {:.3}): the image is inverted (its values multiplied by −1), \
+             not a chart with its corners in the wrong order",
+            all.iter().copied().fold(f64::INFINITY, f64::min),
+            all.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+        ))
+    } else if r < -INVERTED_CORRELATION {
+        Some(format!(
+            "the patches' lightness runs against the chart's on all 24 patches (correlation {r:.2} with the reference \
+             Y): the image is inverted (a negative), not a chart with its corners in the wrong order"
+        ))
     } else {
         Some(format!(
             "the neutral row (patches 19–24) does not get darker from white to black (R+G+B = {}); check the order of the corners: top-left is the dark-skin corner, bottom-left the white one",
             lum.iter().map(|v| format!("{v:.3}")).collect::<Vec<_>>().join(", ")
         ))
+    }
+}
+
+/// The correlation below −this between the patches' R+G+B and the chart's
+/// reference Y that says an image is inverted ([`neutral_ramp_warning`]).
+/// Corners in a wrong order give no lower than −0.52 on the reference values
+/// themselves (mirrored left–right −0.51, upside down −0.39, turned 180°
+/// +0.14): the rows' lightness is not symmetric.
+pub const INVERTED_CORRELATION: f64 = 0.8;
+
+/// Pearson's correlation of `a` and `b` (same length); 0 when either is constant.
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len()) as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        ab += (x - ma) * (y - mb);
+        aa += (x - ma) * (x - ma);
+        bb += (y - mb) * (y - mb);
+    }
+    if aa > 0.0 && bb > 0.0 {
+        ab / (aa * bb).sqrt()
+    } else {
+        0.0
     }
 }
 
@@ -407,6 +450,36 @@ mod tests {
     fn synthetic(width: usize, height: usize, corners: [[f64; 2]; 4], opts: &SampleOptions) -> Vec<f32> {
         let patches: Vec<[f64; 3]> = (0..24).map(|k| [(k + 1) as f64 / 100.0; 3]).collect();
         draw_chart(width, height, corners, &patches, opts, [0.005; 3]).unwrap()
+    }
+
+    #[test]
+    fn an_inverted_chart_is_said_to_be_inverted_not_in_the_wrong_order() {
+        let y: Vec<f64> = crate::data::colorchecker_2014().iter().map(|p| p.xyy[2]).collect();
+        let samples = |v: &[f64]| -> Vec<PatchSample> {
+            v.iter()
+                .enumerate()
+                .map(|(i, y)| PatchSample {
+                    patch: i + 1,
+                    name: "",
+                    mean: [*y / 3.0; 3],
+                    std_dev: [0.0; 3],
+                    pixels: 100,
+                    clipped_fraction: 0.0,
+                    outline: [[0.0; 2]; 4],
+                })
+                .collect()
+        };
+        assert!(neutral_ramp_warning(&samples(&y)).is_none());
+        let negative: Vec<f64> = y.iter().map(|v| -v).collect();
+        let w = neutral_ramp_warning(&samples(&negative)).unwrap();
+        assert!(w.contains("inverted") && w.contains("negative") && !w.contains("check the order"), "{w}");
+        let negated: Vec<f64> = y.iter().map(|v| 1.0 - v).collect();
+        let w = neutral_ramp_warning(&samples(&negated)).unwrap();
+        assert!(w.contains("inverted") && !w.contains("check the order"), "{w}");
+        // Mirrored left–right (corners in the wrong order): blamed on the corners.
+        let mirrored: Vec<f64> = y.chunks(COLS).flat_map(|r| r.iter().rev().copied()).collect();
+        let w = neutral_ramp_warning(&samples(&mirrored)).unwrap();
+        assert!(w.contains("check the order") && !w.contains("inverted"), "{w}");
     }
 
     #[test]

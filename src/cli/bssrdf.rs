@@ -472,12 +472,12 @@ pub fn plan_with_recipe(a: &RunArgs, recipe: Option<&Recipe>) -> Result<Plan> {
         None => a.pixels,
     };
     // Said with the flags (the simulator's own message names its pixel_m).
+    // Large and small values as written (1e300, not 300 digits).
+    let num = |x: f64| if x != 0.0 && !(1e-4..1e6).contains(&x.abs()) { format!("{x:e}") } else { format!("{x}") };
     if !(a.pixel_mm.is_finite() && a.pixel_mm > 0.0) {
         bail!("--pixel-mm {}: must be a positive number of millimetres", a.pixel_mm);
     }
     if a.pixel_mm * out_pixels as f64 > 1000.0 {
-        // Large values as written (1e300, not 300 digits).
-        let num = |x: f64| if x.abs() >= 1e6 { format!("{x:e}") } else { format!("{x}") };
         bail!(
             "--pixel-mm {}: the slice ({out_pixels} pixels × {} mm = {} mm) must be at most 1000 mm (1 m) wide",
             num(a.pixel_mm),
@@ -496,13 +496,13 @@ pub fn plan_with_recipe(a: &RunArgs, recipe: Option<&Recipe>) -> Result<Plan> {
     }
     let field_mm = out_pixels as f64 * a.pixel_mm;
     if a.beam.beam_map.is_none() && a.beam.beam_fwhm_um * 1e-3 > field_mm {
-        bail!("--beam-fwhm-um {}: the beam is wider than the slice ({out_pixels} pixels × {} mm = {field_mm} mm); widen the slice (--pixels, --pixel-mm) or narrow the beam", a.beam.beam_fwhm_um, a.pixel_mm);
+        bail!("--beam-fwhm-um {}: the beam is wider than the slice ({out_pixels} pixels × {} mm = {} mm); widen the slice (--pixels, --pixel-mm) or narrow the beam", a.beam.beam_fwhm_um, num(a.pixel_mm), num(field_mm));
     }
     if let (Beam::Map(map), Some(path)) = (&beam, &a.beam.beam_map) {
         // The same rule for a map, by its second moments (a map may have a wide dark border).
         let fwhm_mm = beam_map_fwhm_m(map) * 1e3;
         if fwhm_mm > field_mm {
-            bail!("--beam-map {}: the beam is wider than the slice (Gaussian-equivalent FWHM {fwhm_mm:.3} mm from its second moments; the slice is {out_pixels} pixels × {} mm = {field_mm} mm); widen the slice (--pixels, --pixel-mm) or check --beam-map-pixel-mm", path.display(), a.pixel_mm);
+            bail!("--beam-map {}: the beam is wider than the slice (Gaussian-equivalent FWHM {fwhm_mm:.3} mm from its second moments; the slice is {out_pixels} pixels × {} mm = {} mm); widen the slice (--pixels, --pixel-mm) or check --beam-map-pixel-mm", path.display(), num(a.pixel_mm), num(field_mm));
         }
     }
     // Without a stop rule: 1 % on the slice sum, but at most 10 minutes per

@@ -589,6 +589,23 @@ fn parse_numbers<const N: usize>(flag: &str, text: &str) -> Result<[f64; N]> {
 pub fn pose(a: PoseArgs) -> Result<()> {
     let cal = read_camera(&a.camera)?;
     let board = a.board.spec()?;
+    // The calibration's board with its columns and rows swapped: the corners
+    // would be numbered along the other axis (the sample corner and the
+    // world's x and y turned).
+    let c = &cal.board;
+    if board.cols != board.rows && (board.cols, board.rows) == (c.rows, c.cols) {
+        bail!(
+            "--board {}x{}: {} was calibrated on a board of {}x{} inner corners — the same board with its columns and \
+             rows swapped? --board counts the inner corners along a row first; give --board {}x{}",
+            board.cols,
+            board.rows,
+            a.camera.display(),
+            c.cols,
+            c.rows,
+            c.cols,
+            c.rows
+        );
+    }
     let sample = match (&a.sample_corner, &a.sample_size_mm) {
         (Some(c), Some(s)) => {
             let [i, j] = parse_numbers::<2>("--sample-corner", c)?;
@@ -608,6 +625,10 @@ pub fn pose(a: PoseArgs) -> Result<()> {
             let size = parse_numbers::<3>("--sample-size-mm", s)?;
             if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
                 bail!("--sample-size-mm {s}: width, height and thickness must be positive");
+            }
+            // A sample lies on the board (the range of the project's [pose] sample_size_mm).
+            if let Some(reason) = crate::job::sample_size_problem(size, board.cols, board.rows, board.square_m * 1e3) {
+                bail!("--sample-size-mm {s}: {reason}");
             }
             Some(SampleSpec { corner: [i as usize, j as usize], size_m: size.map(|v| v / 1000.0) })
         }

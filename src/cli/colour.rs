@@ -182,6 +182,10 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
     let samples = sample_patches(&view, corners, &options)
         .with_context(|| format!("{}: cannot sample the ColorChecker", a.image.display()))?;
     if let Some(w) = neutral_ramp_warning(&samples) {
+        // No camera records a chart below black: a matrix fitted to it is no camera's.
+        if samples.iter().all(|s| s.mean.iter().sum::<f64>() < 0.0) {
+            bail!("{}: {w}; no matrix fitted", a.image.display());
+        }
         eprintln!("warning: {}: {w}", a.image.display());
     }
     let camera_rgb: Vec<[f64; 3]> = samples.iter().map(|s| s.mean).collect();

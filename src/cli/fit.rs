@@ -526,13 +526,23 @@ pub fn optics_uncertainty(
         }
         None => {
             // In twenty groups, to say how far a long study is (the same
-            // numbers as one group: `Draws::append`).
+            // numbers as one group: `Draws::append`). Ctrl-C (or SIGTERM,
+            // SIGHUP) stops after the group under way, writing nothing.
+            let interrupt = super::interrupt::Interrupt::install();
             for r in recipes {
                 let start = std::time::Instant::now();
                 let design = uncertainty::design(r, n, seed)?;
                 let mut draws = uncertainty::Draws::empty(0, grid.len());
                 let group = n.div_ceil(20);
                 for lo in (0..n).step_by(group) {
+                    if interrupt.requested() {
+                        return Err(crate::fault::Interrupted(format!(
+                            "{}: the uncertainty study stopped after {lo} of {n} draws; nothing was written to {}",
+                            r.name,
+                            out.display()
+                        ))
+                        .into());
+                    }
                     let part = uncertainty::evaluate(r, grid, &design, lo..(lo + group).min(n))?;
                     draws.append(&part).map_err(anyhow::Error::msg)?;
                     let elapsed = start.elapsed().as_secs_f64();

@@ -49,6 +49,10 @@ impl BeamArgs {
             }
             None => {
                 let fwhm = self.beam_fwhm_um;
+                // Said in the flag's micrometres (the simulator's beam_fwhm_m is not the user's).
+                if !(fwhm.is_finite() && fwhm > 0.0) {
+                    bail!("--beam-fwhm-um {fwhm}: must be a positive number of micrometres");
+                }
                 let beam = Beam::gaussian(fwhm * 1e-6).map_err(|e| anyhow!("--beam-fwhm-um {fwhm}: {e}"))?;
                 Ok((beam, format!("gaussian, FWHM {fwhm} µm")))
             }

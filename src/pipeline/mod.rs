@@ -220,6 +220,9 @@ pub enum PipelineError {
     /// valid scene file (the message names the file and key).
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneFileError),
+    /// The `[render]` scene template (with a sample's recipe) is not a valid scene.
+    #[error("{project}: [render] scene (for sample {sample}): {source}")]
+    Template { project: PathBuf, sample: String, source: Box<crate::scene::SceneFileError> },
     /// The `[render]` scene template has no `[material]` to take the samples' recipes.
     #[error("{path}: the [render] scene has no [material]: the samples' recipes need one to replace")]
     SceneWithoutMaterial { path: PathBuf },
@@ -242,6 +245,37 @@ pub enum PipelineError {
          another output folder"
     )]
     Foreign { path: PathBuf, what: String, stage: Stage },
+    /// The output folder holds the results of another project: its stages
+    /// would be mixed into this one's (a stale fit rendered, a report of both).
+    #[error(
+        "{out}: holds the results of project {earlier:?} ({earlier_file}), not of {name:?} ({file}); a run of {name:?} \
+         there would mix the two projects' stages — choose another output folder (--out), or remove {out} to start clean"
+    )]
+    OtherProject { out: PathBuf, earlier: String, earlier_file: String, name: String, file: String },
+}
+
+/// `OUT/.lucent-project`: the project whose results an output folder of
+/// `lucent run` holds (its name and project file).
+pub const PROJECT_MARK: &str = ".lucent-project";
+
+#[derive(Serialize, Deserialize)]
+struct ProjectMark {
+    project: String,
+    project_file: String,
+}
+
+/// The project whose results `out` holds: [`PROJECT_MARK`], else (a folder of
+/// a run before the mark) the name in `report/metrics.json`.
+fn earlier_project(out: &Path) -> Option<ProjectMark> {
+    if let Ok(t) = std::fs::read_to_string(out.join(PROJECT_MARK)) {
+        return serde_json::from_str(&t).ok();
+    }
+    let t = std::fs::read_to_string(out.join(Stage::Report.name()).join("metrics.json")).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&t).ok()?;
+    Some(ProjectMark {
+        project: v.get("project")?.as_str()?.to_string(),
+        project_file: v.get("project_file").and_then(|f| f.as_str()).unwrap_or("?").to_string(),
+    })
 }
 
 /// Why a stage cannot be planned (the `problem` of [`PipelineError::Stage`]).
@@ -584,8 +618,13 @@ fn sample_scene(
     sample_scene_with(project, out, sample, use_fitted, None)
 }
 
-/// The recipe stage fit wrote for `sample` (`fit/NAME/*_fitted.toml`), if any.
-pub fn fitted_recipe(out: &Path, sample: &project::SampleSection) -> Option<PathBuf> {
+/// The recipe stage fit wrote for `sample` (`fit/NAME/*_fitted.toml`), if
+/// any and if the project has a `[fit]` (a fit of an earlier version of the
+/// project, left in its folder, is not this project's).
+pub fn fitted_recipe(project: &Project, out: &Path, sample: &project::SampleSection) -> Option<PathBuf> {
+    if project.file.fit.is_none() || sample.measured.is_empty() {
+        return None;
+    }
     let stem = sample.recipe.file_stem()?.to_string_lossy().into_owned();
     let p = out.join(Stage::Fit.name()).join(&sample.name).join(format!("{stem}_fitted.toml"));
     p.is_file().then_some(p)
@@ -604,7 +643,8 @@ fn sample_scene_with(
         return Err(PipelineError::Stage { stage: Stage::Render, problem: StageProblem::NoRender });
     };
     let fitted = out.join(Stage::EnvScale.name()).join(&sample.name).join("scene.toml");
-    let source = if use_fitted && fitted.is_file() { fitted } else { r.scene.clone() };
+    // env-scale's scene only where this project has that stage for the sample.
+    let source = if use_fitted && sample.empty_board.is_some() && fitted.is_file() { fitted } else { r.scene.clone() };
     let text = crate::io::read_text(&source).map_err(|e| PipelineError::Read { path: source.clone(), source: e })?;
     let file = crate::scene::parse(&text, &source)?;
     let mut file = envfit::with_paths_from(&file, &envfit::scene_dir(&source));
@@ -621,6 +661,13 @@ fn sample_scene_with(
             return Err(PipelineError::SceneWithoutMaterial { path: source });
         }
     }
+    // The template as the user wrote it (with the sample's recipe): an error
+    // names their file and key, not the input_scene.toml written from it.
+    crate::scene::check(&file, &source).map_err(|e| PipelineError::Template {
+        project: project.path.clone(),
+        sample: sample.name.clone(),
+        source: Box::new(e),
+    })?;
     let frame = pose_frame(project, out)?;
     if let Some((scene_json, camera_json, has_sample)) = &frame {
         file.camera = crate::scene::CameraSection {
@@ -662,7 +709,8 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
     let scene_json = out.join(Stage::Pose.name()).join("scene.json");
     let camera_json = out.join(Stage::Calibrate.name()).join("camera.json");
     for p in [&scene_json, &camera_json] {
-        if !p.is_file() {
+        // Without a [calibration] the calibrate stage's camera is not this project's.
+        if !p.is_file() || f.calibration.is_none() {
             return Err(PipelineError::Stage {
                 stage: Stage::Render,
                 problem: StageProblem::PoseOutputMissing { missing: p.clone() },
@@ -946,7 +994,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
         Stage::Pose => {
             let Some(p) = &f.pose else { return Ok(Err(Skip::Missing("[pose]"))) };
             let camera = out.join(Stage::Calibrate.name()).join("camera.json");
-            if !camera.is_file() {
+            if f.calibration.is_none() || !camera.is_file() {
                 return Ok(Err(Skip::NoCamera));
             }
             inputs.push(p.image.clone());
@@ -993,7 +1041,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     out: sample_out,
                 };
                 // The fitted twin: the same render with stage fit's recipe.
-                let twin = match fitted_recipe(out, smp) {
+                let twin = match fitted_recipe(project, out, smp) {
                     Some(recipe) => {
                         let text = sample_scene_with(project, out, smp, true, Some(&recipe))?;
                         inputs.push(recipe);
@@ -1166,6 +1214,21 @@ pub fn run(
     crate::io::claim_output_folder(out)?;
     // One run at a time writes into a folder: a second is refused clearly.
     let lock = crate::io::lock_output_folder(out)?;
+    // The results of another project are not mixed into this one's.
+    let file = project.path.display().to_string();
+    if let Some(earlier) = earlier_project(out)
+        && earlier.project != project.name
+    {
+        return Err(PipelineError::OtherProject {
+            out: out.to_path_buf(),
+            earlier: earlier.project,
+            earlier_file: earlier.project_file,
+            name: project.name.clone(),
+            file,
+        });
+    }
+    let mark = ProjectMark { project: project.name.clone(), project_file: file };
+    crate::io::write_json(&out.join(PROJECT_MARK), &mark)?;
     let mut first_notes: Vec<String> = Vec::new();
     if let Some((pid, host)) = &lock.replaced_stale {
         first_notes.push(format!(

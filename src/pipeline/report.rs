@@ -183,12 +183,27 @@ fn table(head: &[&str], rows: &[Vec<String>]) -> String {
 
 /// The optics stage's spectra (one sample writes an object, several an
 /// array), none when the stage has not run.
-fn spectra(out: &Path) -> Result<Vec<crate::optics::output::OpticalProperties>, ReportError> {
-    let p = out.join("optics/optical_properties.json");
+fn spectra(optics: &Path) -> Result<Vec<crate::optics::output::OpticalProperties>, ReportError> {
+    let p = optics.join("optical_properties.json");
     if !p.exists() {
         return Ok(vec![]);
     }
     Ok(crate::optics::output::read_optical_properties(&p)?)
+}
+
+/// The folder of `stage` under `out` when it is in this run's plan (ran or
+/// up to date); else a path that does not exist, so a folder left by an
+/// earlier project, or an earlier version of this one, is not reported.
+/// Without statuses (`done` empty: a report of a folder, not of a run) every
+/// stage's folder.
+fn stage_folder(out: &Path, done: &[(Stage, Status)], stage: Stage) -> PathBuf {
+    if done.is_empty() {
+        return out.join(stage.name());
+    }
+    match done.iter().find(|(s, _)| *s == stage).map(|(_, st)| st) {
+        Some(Status::Ran { .. } | Status::UpToDate) => out.join(stage.name()),
+        _ => out.join(format!(".{}.not-in-this-plan", stage.name())),
+    }
 }
 
 /// Writes index.html and metrics.json into `dir` (the report stage's folder).
@@ -197,7 +212,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     let mut metrics = serde_json::Map::new();
     let mut manifests: Vec<(Stage, Manifest)> = Vec::new();
     for s in Stage::ALL {
-        if let Some(m) = read_json(&out.join(s.name()).join("manifest.json"), "a stage manifest")? {
+        if let Some(m) = read_json(&stage_folder(out, done, s).join("manifest.json"), "a stage manifest")? {
             manifests.push((s, m));
         }
     }
@@ -236,7 +251,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     page.html.push_str(h);
     // ---- the answer, per sample, before any detail
     for smp in &project.file.sample {
-        let a = answer(&mut page, out, smp)?;
+        let a = answer(&mut page, &stage_folder(out, done, Stage::Compare), smp)?;
         page.html.push_str(&a);
     }
     let _ = write!(
@@ -246,7 +261,8 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     );
 
     // ---- per sample
-    let all_spectra = spectra(out)?;
+    let all_spectra = spectra(&stage_folder(out, done, Stage::Optics))?;
+    let optics_dir = stage_folder(out, done, Stage::Optics);
     let mut samples_json = serde_json::Map::new();
     for smp in &project.file.sample {
         let mut sj = serde_json::Map::new();
@@ -295,7 +311,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 );
             }
             let single = all_spectra.len() == 1;
-            let odir = if single { out.join("optics") } else { out.join("optics").join(sanitise(&recipe_name)) };
+            let odir = if single { optics_dir.clone() } else { optics_dir.join(sanitise(&recipe_name)) };
             h.push_str("<div class=\"row\">");
             h.push_str(
                 &page
@@ -320,7 +336,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             sj.insert("optics".into(), trim(&to_value(sp), 64));
         }
         // BSSRDF
-        let bdir = out.join("bssrdf").join(&smp.name);
+        let bdir = stage_folder(out, done, Stage::Bssrdf).join(&smp.name);
         if bdir.is_dir() {
             h.push_str("<h3>BSSRDF slices (slab simulator)</h3>");
             let mut rows = Vec::new();
@@ -388,7 +404,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             sj.insert("bssrdf".into(), trim(&json!(bj), 64));
         }
         // Fit: the recipe fitted to the measured slices, beside the truth when known.
-        let fdir = out.join("fit").join(&smp.name);
+        let fdir = stage_folder(out, done, Stage::Fit).join(&smp.name);
         // (parameter, fitted, 95 % interval, truth) of the fit, for the loop's summary below.
         let mut fitted_vs_truth: Vec<FittedVsTruth> = Vec::new();
         if let Some(fj) = read_json::<Value>(&fdir.join("fit.json"), "a fit.json")? {
@@ -494,7 +510,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             );
         }
         // Environment scale
-        let env_path = out.join("env-scale").join(&smp.name).join("env_scale.json");
+        let env_path = stage_folder(out, done, Stage::EnvScale).join(&smp.name).join("env_scale.json");
         if let Some(e) = read_json::<crate::envfit::FitReport>(&env_path, "an env_scale.json")? {
             let f = &e.fit;
             let _ = write!(
@@ -513,7 +529,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             sj.insert("env_scale".into(), to_value(&e));
         }
         // Render and comparison
-        let rdir = out.join("render").join(&smp.name);
+        let rdir = stage_folder(out, done, Stage::Render).join(&smp.name);
         if let Some(r) = read_json::<crate::scene::RenderReport>(&rdir.join("render.json"), "a render.json")? {
             let _ = write!(
                 h,
@@ -547,7 +563,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             );
             sj.insert("render".into(), trim(&to_value(&r), 64));
         }
-        let cdir = out.join("compare").join(&smp.name);
+        let cdir = stage_folder(out, done, Stage::Compare).join(&smp.name);
         if let Some(m) = read_json::<crate::compare::Report>(&cdir.join("metrics.json"), "a compare metrics.json")? {
             h.push_str("<h3>Photo | render | difference</h3>");
             let row = |label: &str, x: &crate::compare::Metrics| {
@@ -778,7 +794,9 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     let mut h = String::from("<section><h2>Calibration</h2>");
     let mut any = false;
     type Calibration = lucent_calib::camera::Calibration;
-    if let Some(c) = read_json::<Calibration>(&out.join("calibrate/camera.json"), "a camera.json")? {
+    if let Some(c) =
+        read_json::<Calibration>(&stage_folder(out, done, Stage::Calibrate).join("camera.json"), "a camera.json")?
+    {
         any = true;
         let (k, d) = (&c.camera.intrinsics, &c.camera.distortion);
         h.push_str("<h3>Camera (Zhang)</h3>");
@@ -830,7 +848,10 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             h.push_str(&table(&["parameter", "truth", "recovered", "recovered − truth"], &rows));
             truth_json = Some(Value::Object(tj));
         }
-        h.push_str(&page.img(&out.join("calibrate/camera_residuals.png"), "reprojection residuals per view")?);
+        h.push_str(&page.img(
+            &stage_folder(out, done, Stage::Calibrate).join("camera_residuals.png"),
+            "reprojection residuals per view",
+        )?);
         let mut cj = trim(&to_value(&c), 16);
         if let Some(t) = truth_json {
             cj["truth_vs_recovered"] = t;
@@ -840,7 +861,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     }
     let mut colour_json = serde_json::Map::new();
     for c in &project.file.colour {
-        let cdir = out.join("colour").join(&c.camera);
+        let cdir = stage_folder(out, done, Stage::Colour).join(&c.camera);
         let path = cdir.join("ccm.json");
         if !path.exists() {
             continue;
@@ -899,7 +920,9 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     }
     metrics.insert("colour".into(), Value::Object(colour_json));
     type Pose = lucent_calib::scene::SceneDescription;
-    if let Some(p) = read_json::<Pose>(&out.join("pose/scene.json"), "a scene.json of `lucent pose`")? {
+    if let Some(p) =
+        read_json::<Pose>(&stage_folder(out, done, Stage::Pose).join("scene.json"), "a scene.json of `lucent pose`")?
+    {
         any = true;
         h.push_str("<h3>Board pose</h3>");
         let mut pj = trim(&to_value(&p), 16);
@@ -924,7 +947,9 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 None => h.push_str("<p class=\"note\">[pose] truth has no [camera] camera_to_world.</p>"),
             }
         }
-        h.push_str(&page.img(&out.join("pose/scene_view.png"), "board pose and sample outline")?);
+        h.push_str(
+            &page.img(&stage_folder(out, done, Stage::Pose).join("scene_view.png"), "board pose and sample outline")?,
+        );
         metrics.insert("pose".into(), pj);
     }
     if !any {
@@ -1057,8 +1082,8 @@ fn single_twin_sentence(region: &str, r: &crate::compare::Report) -> String {
 /// then the photo | render | difference picture (with two twins: side by side
 /// under one difference scale, each headed by its twin). Empty when the
 /// compare stage has not run for the sample.
-fn answer(page: &mut Page, out: &Path, smp: &super::project::SampleSection) -> Result<String, ReportError> {
-    let cdir = out.join(Stage::Compare.name()).join(&smp.name);
+fn answer(page: &mut Page, compare: &Path, smp: &super::project::SampleSection) -> Result<String, ReportError> {
+    let cdir = compare.join(&smp.name);
     let Some(image) = read_json::<crate::compare::Report>(&cdir.join("metrics.json"), "a compare metrics.json")? else {
         return Ok(String::new());
     };

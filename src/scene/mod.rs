@@ -170,6 +170,17 @@ pub enum KeyProblem {
     VanishingTransform { determinant: f64, scale: f64, size_m: f64, min_m: f64 },
     #[error("must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %), got {value}")]
     Fraction { value: f64 },
+    #[error(
+        "{radius} m: the camera at {camera:?} m is {distance:.4} m from the sphere's centre {centre:?} m, outside \
+         the sphere; the environment's finite sphere must enclose the camera (a larger radius_m, or another centre_m)"
+    )]
+    CameraOutsideSphere { radius: f64, camera: [f64; 3], centre: [f64; 3], distance: f64 },
+    #[error(
+        "the object is {:.4} × {:.4} × {:.4} m ({lo:?} … {hi:?} m), around the camera at {camera:?} m: the camera \
+         must be outside the object, or every path is lost{hint}",
+        hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]
+    )]
+    CameraInsideObject { lo: [f64; 3], hi: [f64; 3], camera: [f64; 3], hint: &'static str },
     #[error("{0}")]
     Similarity(SimilarityProblem),
     #[error("reflectances must lie in [0, 1], got {values:?}")]
@@ -235,8 +246,8 @@ pub enum KeyProblem {
     NotCameraJson { file: PathBuf, source: serde_json::Error },
     #[error("{file}: {source}")]
     Csv { file: PathBuf, source: csv::Error },
-    #[error("{file}: line {line}: expected wavelength_nm,reflectance")]
-    SpectrumLine { file: PathBuf, line: u64 },
+    #[error("{file}: line {line}: expected wavelength_nm,reflectance, got {text}")]
+    SpectrumLine { file: PathBuf, line: u64, text: String },
     #[error("{file}: reflectance values must lie in [0, 1]")]
     SpectrumRange { file: PathBuf },
     #[error("{file}: {source}")]
@@ -907,6 +918,14 @@ pub fn load_edited(
     build_with(&file, path, summary_only)
 }
 
+/// Every check of [`build`] on `file` (read from `path`) without decoding
+/// the environment map's pixels: how `lucent run` checks the user's scene
+/// template before it writes a stage's `input_scene.toml`, so an error names
+/// the user's file and key.
+pub fn check(file: &SceneFile, path: &Path) -> Result<(), SceneFileError> {
+    build_with(file, path, true).map(|_| ())
+}
+
 /// Stage two: the validated scene.
 pub fn build(file: &SceneFile, path: &Path) -> Result<LoadedScene, SceneFileError> {
     build_with(file, path, false)
@@ -982,6 +1001,34 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
     // --- environment
     let (environment, env_desc, projection_desc, centre, radius) =
         build_environment(&ctx, &file.environment, top_centre, &mut warnings)?;
+
+    // --- where the camera is: outside the object, inside the finite sphere
+    let eye = camera.position();
+    if let (Some(o), Some([lo, hi])) = (&file.object, bounds)
+        && (0..3).all(|k| lo[k] < eye[k] && eye[k] < hi[k])
+    {
+        let key = if o.transform.is_some() {
+            "transform"
+        } else if o.mesh.is_some() {
+            "unit_scale_m"
+        } else {
+            "size_mm"
+        };
+        let hint = match key {
+            "unit_scale_m" => "; a mesh in millimetres needs unit_scale_m = 0.001",
+            "size_mm" => "; size_mm is in millimetres",
+            _ => "; a transform places the object in metres",
+        };
+        let problem = KeyProblem::CameraInsideObject { lo, hi, camera: eye.to_array(), hint };
+        return Err(ctx.key("object", key, problem));
+    }
+    if let (Some(c), Some(r)) = (centre, radius) {
+        let distance = (eye - DVec3::from_array(c)).length();
+        if distance >= r {
+            let problem = KeyProblem::CameraOutsideSphere { radius: r, camera: eye.to_array(), centre: c, distance };
+            return Err(ctx.key("environment", "radius_m", problem));
+        }
+    }
 
     // --- render settings
     let r = &file.render;
@@ -1604,7 +1651,8 @@ fn read_spectrum_csv(ctx: &Ctx, key: &'static str, p: &Path) -> Result<[f64; 3],
             _ if k == 0 => continue, // header
             _ => {
                 let line = record.position().map_or(k as u64 + 1, csv::Position::line);
-                return Err(bad(KeyProblem::SpectrumLine { file: file(), line }));
+                let text = crate::io::quoted_line(&record.iter().collect::<Vec<_>>().join(","));
+                return Err(bad(KeyProblem::SpectrumLine { file: file(), line, text }));
             }
         }
     }

@@ -334,7 +334,11 @@ fn read_text(path: &Path, options: &ReadOptions) -> Result<HeightMap, SurfaceErr
                 f.parse::<f64>().map_err(|_| {
                     text_err(
                         line_no,
-                        format!("column {}: {f:?} is not a number (an invalid point is an empty field or NaN)", c + 1),
+                        format!(
+                            "column {}: {f:?} is not a number (an invalid point is an empty field or NaN) in {}",
+                            c + 1,
+                            crate::io::quoted_line(line)
+                        ),
                     )
                 })?
             };
@@ -344,7 +348,12 @@ fn read_text(path: &Path, options: &ReadOptions) -> Result<HeightMap, SurfaceErr
             if row.len() != first.len() {
                 return Err(text_err(
                     line_no,
-                    format!("{} values, but line {first_row_line} (the first row) has {}", row.len(), first.len()),
+                    format!(
+                        "{} values in {}, but line {first_row_line} (the first row) has {}",
+                        row.len(),
+                        crate::io::quoted_line(line),
+                        first.len()
+                    ),
                 ));
             }
         } else {

@@ -158,7 +158,7 @@ pub fn synthesize(spec: &SynthSpec) -> Result<Synthetic, SurfaceError> {
         ));
     }
     if !(spec.pitch_m.is_finite() && spec.pitch_m > 0.0) {
-        return bad("pitch", spec.pitch_m, "must be a positive finite length");
+        return bad("pitch-um", spec.pitch_m * 1e6, "must be a positive finite length in µm");
     }
     if !(spec.alpha.is_finite() && spec.alpha > 0.0 && spec.alpha <= 10.0) {
         return bad("alpha", spec.alpha, "must lie in (0, 10]");
@@ -169,8 +169,12 @@ pub fn synthesize(spec: &SynthSpec) -> Result<Synthetic, SurfaceError> {
     if !(spec.amplitude_correlation_px.is_finite() && (1.0..=2000.0).contains(&spec.amplitude_correlation_px)) {
         return bad("amplitude-correlation-px", spec.amplitude_correlation_px, "must lie in [1, 2000] pixels");
     }
-    if !spec.tilt_rad.is_finite() || spec.tilt_rad.abs() >= 1.5 || !spec.tilt_azimuth_rad.is_finite() {
-        return bad("tilt", spec.tilt_rad, "must be a finite angle below 85°");
+    // Said in the degrees the user gives (--tilt-deg), not the spec's radians.
+    if !spec.tilt_rad.is_finite() || spec.tilt_rad.abs() >= 1.5 {
+        return bad("tilt-deg", spec.tilt_rad.to_degrees(), "must be a finite angle below 85.9° (1.5 rad)");
+    }
+    if !spec.tilt_azimuth_rad.is_finite() {
+        return bad("tilt-azimuth-deg", spec.tilt_azimuth_rad.to_degrees(), "must be a finite angle");
     }
     if !(0.0..1.0).contains(&spec.invalid_fraction) {
         return bad("invalid-fraction", spec.invalid_fraction, "must lie in [0, 1)");
