@@ -184,6 +184,14 @@ mod cli {
         assert!(!o.status.success() && stderr(&o).contains("--uncertainty-spp 3: must be a positive even number"));
         let o = lucent(&["render", s_arg, "--uncertainty", "--shard", "0/2", "--out", out_arg]);
         assert!(!o.status.success() && stderr(&o).contains("not sharded"), "{}", stderr(&o));
+        // The time budget bounds the renders at ±1 σ too.
+        let start = std::time::Instant::now();
+        let big = ["render", s_arg, "--uncertainty", "--uncertainty-spp", "2000000000", "--time-s", "2"];
+        let o = lucent(&[&big[..], &["--quiet", "--out", out_arg]].concat());
+        assert!(!o.status.success() && stderr(&o).contains("within the time budget (2 s)"), "{}", stderr(&o));
+        assert!(start.elapsed().as_secs() < 60, "took {:?}", start.elapsed());
+        assert!(out.join("render.exr").is_file() && !out.join("uncertainty.json").exists());
+        std::fs::remove_dir_all(&out).unwrap();
         // A recipe without an uncertain input.
         let plain = include_str!("../fixtures/samples/IOL1068-09.toml");
         std::fs::write(tmp.path().join("u.toml"), plain).unwrap();
@@ -201,6 +209,24 @@ mod cli {
         let out = tmp.path().join("b");
         let (r, o_arg) = (recipe.to_str().unwrap(), out.to_str().unwrap());
         let common = ["bssrdf", "--recipe", r, "--uncertainty", "--crop", "31", "--quiet", "--out", o_arg];
+        let o = lucent(&[
+            "bssrdf",
+            "--mu-s",
+            "1e4",
+            "--mu-a",
+            "1",
+            "--g",
+            "0.9",
+            "--n",
+            "1.5",
+            "--uncertainty",
+            "--paths",
+            "100",
+            "--out",
+            o_arg,
+        ]);
+        assert!(!o.status.success() && stderr(&o).contains("--uncertainty needs --recipe"), "{}", stderr(&o));
+        assert!(!out.exists());
         let o = lucent(&[&common[..], &["--rel-error", "0.05"]].concat());
         assert!(!o.status.success() && stderr(&o).contains("give --paths or --time-s"), "{}", stderr(&o));
         let o = lucent(&[&common[..], &["--paths", "2000"]].concat());

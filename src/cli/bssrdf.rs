@@ -351,8 +351,11 @@ fn perturbations(
     recipe: Option<&Recipe>,
     top: &lucent_render::interface::Interface,
 ) -> Result<Vec<Perturbation>> {
-    let (true, Some(recipe)) = (a.uncertainty, recipe) else {
+    if !a.uncertainty {
         return Ok(Vec::new());
+    }
+    let Some(recipe) = recipe else {
+        bail!("--uncertainty needs --recipe: the uncertain inputs are a recipe's (e.g. weight_percent = {{ value = 0.65, sd = 0.03 }})");
     };
     if recipe.uncertain.is_empty() {
         bail!(

@@ -425,10 +425,10 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         if shard.is_some() || merged_from.is_some() {
             bail!("--uncertainty: the renders at ±1 σ are not sharded; run without --shard");
         }
-        if let Some(n) = a.uncertainty_spp
-            && (n == 0 || n % 2 == 1)
-        {
-            bail!("--uncertainty-spp {n}: must be a positive even number (the band's error comes from the two halves of the samples)");
+        if let Some(n) = a.uncertainty_spp {
+            if n == 0 || n % 2 == 1 {
+                bail!("--uncertainty-spp {n}: must be a positive even number (the band's error comes from the two halves of the samples)");
+            }
         }
         let recipe = scene::material_recipe(&a.scene)?.ok_or_else(|| {
             anyhow::anyhow!(
@@ -690,6 +690,17 @@ fn render_band(
         (s.g[0] + 1e-9, s.later.as_ref().map(|l| (l.from_event, l.g[0] + 1e-9)))
     });
     let interrupt = Interrupt::install();
+    // --time-s (or [render] time_s) bounds the ±1 σ renders too, together: past it they stop like at Ctrl-C.
+    let deadline = settings.time_budget_s.map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t));
+    let timed_out = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    if let Some(deadline) = deadline {
+        let (flag, done) = (interrupt.flag(), timed_out.clone());
+        std::thread::spawn(move || {
+            std::thread::sleep(deadline.saturating_duration_since(std::time::Instant::now()));
+            done.store(true, std::sync::atomic::Ordering::Relaxed);
+            flag.store(true, std::sync::atomic::Ordering::Relaxed);
+        });
+    }
     let mut pairs = Vec::new();
     let mut wall_s = 0.0;
     for (input, sd) in recipe.uncertain.iter().zip(&inputs) {
@@ -699,6 +710,13 @@ fn render_band(
                 .with_context(|| format!("--uncertainty: {} = {value} (nominal {sign} 1 σ)", input.key))?;
             let (acc, stats) =
                 pool.install(|| tracer::render_samples(&loaded.scene, settings, 0..spp, Some(interrupt.flag())));
+            if timed_out.load(std::sync::atomic::Ordering::Relaxed) {
+                bail!(
+                    "--uncertainty: the renders at ±1 σ did not finish within the time budget ({} s); the band was not written (the render itself is in {}/render.*); give a smaller --uncertainty-spp or more time",
+                    settings.time_budget_s.unwrap_or(0.0),
+                    a.out.display()
+                );
+            }
             if interrupt.requested() {
                 return Err(Interrupted(format!(
                     "the band was not written (the render itself is in {}/render.*)",
