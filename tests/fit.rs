@@ -49,7 +49,10 @@ fn weight_percent_recovered_within_its_error() {
     assert!(r.identifiable, "{:?}", r.reason);
     let (v, se) = (p.value.unwrap(), p.std_error.unwrap());
     let [lo, hi] = p.interval_95.unwrap();
-    assert!(lo <= 0.425 && 0.425 <= hi, "0.425 outside the 95 % interval {lo} … {hi} (value {v} ± {se})");
+    // One run: within 3 standard errors (a 95 % interval would miss the
+    // truth in one run of twenty; its coverage is tested over many runs in
+    // `uncertainty_intervals_cover_95_percent`).
+    assert!((v - 0.425).abs() < 3.0 * se, "0.425 more than 3 SE from {v} ± {se} (95 %: {lo} … {hi})");
     // The error is informative: 5 % on the slice level over two
     // configurations pins w down to well under ±20 %.
     assert!(se / v < 0.2 && se > 0.0, "SE {se} of {v}");
