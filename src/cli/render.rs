@@ -425,10 +425,10 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         if shard.is_some() || merged_from.is_some() {
             bail!("--uncertainty: the renders at ±1 σ are not sharded; run without --shard");
         }
-        if let Some(n) = a.uncertainty_spp {
-            if n == 0 || n % 2 == 1 {
-                bail!("--uncertainty-spp {n}: must be a positive even number (the band's error comes from the two halves of the samples)");
-            }
+        if let Some(n) = a.uncertainty_spp
+            && (n == 0 || n % 2 == 1)
+        {
+            bail!("--uncertainty-spp {n}: must be a positive even number (the band's error comes from the two halves of the samples)");
         }
         let recipe = scene::material_recipe(&a.scene)?.ok_or_else(|| {
             anyhow::anyhow!(
