@@ -1414,17 +1414,8 @@ fn trace(
     st: &mut Stats,
 ) -> ([f64; 3], FirstHit) {
     let tp = Throughput { beta: [1.0; 3], r: [1.0; 3] };
-    // The second stream: connections, the board's next-event estimation
-    // and the roulettes draw from it, the walk from `rng`. How many numbers
-    // those draw depends on μ_t and the throughput; kept apart, renders of
-    // slightly different objects with one seed keep their paths alike (the
-    // renders at ±1 σ of `lucent render --uncertainty`).
-    let mut aux = Rng::new(rng.next_u64(), AUX_STREAM);
-    trace_path(scene, settings, o, d, tp, None, 0, settings.split_entry, (rng, &mut aux), st)
+    trace_path(scene, settings, o, d, tp, None, 0, settings.split_entry, rng, st)
 }
-
-/// The stream index of a sample's second random stream ([`trace`]).
-const AUX_STREAM: u64 = 0xa0c5_5eed;
 
 /// A path from `o` along `d` (outside the object) with throughput `tp` and
 /// driving band `hero` (if already chosen), after `events_before`
@@ -1440,7 +1431,7 @@ fn trace_path(
     mut hero: Option<usize>,
     events_before: u64,
     split: bool,
-    (rng, aux): (&mut Rng, &mut Rng),
+    rng: &mut Rng,
     st: &mut Stats,
 ) -> ([f64; 3], FirstHit) {
     let eps = scene.epsilon_m;
@@ -1544,7 +1535,7 @@ fn trace_path(
                     let p_attempt = attempt_probability(reach, bc.sigma_t_min);
                     let p_phase = if settings.phase_connection { p_attempt } else { 0.0 };
                     let conn = Connection { h, x: o, d_in: d, p_attempt, p_phase, shared, chains, exit: None };
-                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &conn, aux, &mut radiance));
+                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &conn, rng, &mut radiance));
                     stretch_t = 0.0;
                     stretch_refl = None;
                 }
@@ -1597,7 +1588,7 @@ fn trace_path(
                                 };
                                 // (No normalisation until the next event: the
                                 // vertex's r and the path's share one scale.)
-                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &conn, aux, &mut radiance));
+                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &conn, rng, &mut radiance));
                                 stretch_mu = exit.cos_theta;
                                 stretch_t = 0.0;
                                 stretch_refl = None;
@@ -1622,7 +1613,7 @@ fn trace_path(
                     st.truncated_paths += 1;
                     break;
                 }
-                if !roulette(&mut tp, settings, aux) {
+                if !roulette(&mut tp, settings, rng) {
                     break;
                 }
                 continue;
@@ -1647,7 +1638,7 @@ fn trace_path(
                     break;
                 };
                 (d, o, inside, safe, last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
-                if !roulette(&mut tp, settings, aux) {
+                if !roulette(&mut tp, settings, rng) {
                     break;
                 }
                 continue;
@@ -1722,7 +1713,7 @@ fn trace_path(
                 let n = if n.dot(d) < 0.0 { n } else { -n };
                 let origin = p + eps * n;
                 // Next-event estimation of the environment.
-                if let Some(sample) = scene.environment.sample(origin, [aux.next_f64(), aux.next_f64()])
+                if let Some(sample) = scene.environment.sample(origin, [rng.next_f64(), rng.next_f64()])
                     && sample.pdf > 0.0
                 {
                     let cos = sample.dir.dot(n);
@@ -1765,7 +1756,7 @@ fn trace_path(
                 d = nd;
                 o = origin;
                 last_diffuse_pdf = Some(pdf);
-                if !roulette(&mut tp, settings, aux) {
+                if !roulette(&mut tp, settings, rng) {
                     break;
                 }
             }
@@ -1834,18 +1825,8 @@ fn trace_path(
                         *b *= fc;
                     }
                     let d_refl = d - 2.0 * d.dot(n_in) * n_in;
-                    let (l, _) = trace_path(
-                        scene,
-                        settings,
-                        p + eps * n_in,
-                        d_refl,
-                        branch,
-                        hero,
-                        events,
-                        false,
-                        (rng, aux),
-                        st,
-                    );
+                    let (l, _) =
+                        trace_path(scene, settings, p + eps * n_in, d_refl, branch, hero, events, false, rng, st);
                     for c in 0..3 {
                         radiance[c] += l[c];
                     }
@@ -1869,7 +1850,7 @@ fn trace_path(
                         break;
                     };
                     (d, o, inside, safe, last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
-                    if !roulette(&mut tp, settings, aux) {
+                    if !roulette(&mut tp, settings, rng) {
                         break;
                     }
                     continue;
