@@ -597,6 +597,106 @@ pub struct Settings {
     /// Stop after the pass in which the median relative standard error over
     /// the object's pixels ([`RegionErrors::object`]) reaches this fraction.
     pub target_rel_error: Option<f64>,
+    /// Changes of the object's coefficients whose effect on every pixel the
+    /// render estimates from its own paths ([`Image::derivatives`]; at most
+    /// [`MAX_DERIVATIVES`], the rest are ignored). Turns
+    /// [`Settings::sphere_jumps`] off (a jump's events are not seen).
+    pub derivatives: Vec<CoefficientDerivative>,
+}
+
+/// The most [`CoefficientDerivative`]s one render carries.
+pub const MAX_DERIVATIVES: usize = 4;
+
+/// The derivative of the object's scattering and absorption coefficients
+/// with respect to one parameter θ (a recipe's weight percentage, for
+/// instance), per band R, G, B; the phase functions, indices and geometry
+/// do not depend on θ. The render then estimates ∂L/∂θ per pixel from the
+/// same paths as L (perturbation Monte Carlo, the likelihood-ratio or
+/// "score" estimator: Hayakawa et al., Opt. Lett. 26(17), 2001; Sassaroli,
+/// J. Biomed. Opt. 17(7), 2012): every contribution f/p of a path with n
+/// scattering events and medium length ℓ_c in band c is weighted by
+///
+///   ∂ ln f_c / ∂θ = n ∂ln μ_s,c/∂θ − (∂μ_s,c/∂θ + ∂μ_a,c/∂θ) ℓ_c,
+///
+/// unbiased for ∂L/∂θ, whatever the sampling densities and multiple
+/// importance weights (they do not depend on θ). A similar medium of fixed
+/// g and g′ scales its μ_s′ with μ_s, so the relative derivative serves it
+/// too.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoefficientDerivative {
+    /// ∂ ln μ_s / ∂θ per band (per unit of θ).
+    pub d_ln_mu_s: [f64; 3],
+    /// ∂μ_a / ∂θ per band, 1/m per unit of θ.
+    pub d_mu_a_per_m: [f64; 3],
+}
+
+impl CoefficientDerivative {
+    /// ∂μ_t/∂θ in band c of a medium whose scattering coefficient is `mu_s_per_m`.
+    #[inline]
+    fn d_mu_t(&self, c: usize, mu_s_per_m: f64) -> f64 {
+        self.d_ln_mu_s[c] * mu_s_per_m + self.d_mu_a_per_m[c]
+    }
+}
+
+/// What one camera path carries back: the radiance per band, and per
+/// [`CoefficientDerivative`] its derivative, with the path's running score
+/// ∂ ln f/∂θ (flights and events so far) that each contribution is weighted by.
+struct Estimate<'a> {
+    derivatives: &'a [CoefficientDerivative],
+    l: [f64; 3],
+    dl: [[f64; 3]; MAX_DERIVATIVES],
+    score: [[f64; 3]; MAX_DERIVATIVES],
+}
+
+impl<'a> Estimate<'a> {
+    fn new(settings: &'a Settings) -> Self {
+        let k = settings.derivatives.len().min(MAX_DERIVATIVES);
+        Self {
+            derivatives: &settings.derivatives[..k],
+            l: [0.0; 3],
+            dl: [[0.0; 3]; MAX_DERIVATIVES],
+            score: [[0.0; 3]; MAX_DERIVATIVES],
+        }
+    }
+
+    /// A contribution `v` to band c.
+    #[inline]
+    fn add(&mut self, c: usize, v: f64) {
+        self.l[c] += v;
+        for (k, _) in self.derivatives.iter().enumerate() {
+            self.dl[k][c] += v * self.score[k][c];
+        }
+    }
+
+    /// A contribution `v` to band c that crossed `length_m` more of `obj`'s
+    /// medium than the path has walked (a connection).
+    #[inline]
+    fn add_through(&mut self, c: usize, v: f64, obj: &Object, length_m: f64) {
+        self.l[c] += v;
+        for (k, d) in self.derivatives.iter().enumerate() {
+            self.dl[k][c] += v * (self.score[k][c] - d.d_mu_t(c, obj.medium[c].mu_s_per_m) * length_m);
+        }
+    }
+
+    /// The path flew `length_m` through `obj`'s medium.
+    #[inline]
+    fn flight(&mut self, obj: &Object, length_m: f64) {
+        for (k, d) in self.derivatives.iter().enumerate() {
+            for c in 0..3 {
+                self.score[k][c] -= d.d_mu_t(c, obj.medium[c].mu_s_per_m) * length_m;
+            }
+        }
+    }
+
+    /// The path scattered.
+    #[inline]
+    fn scatter(&mut self) {
+        for (k, d) in self.derivatives.iter().enumerate() {
+            for c in 0..3 {
+                self.score[k][c] += d.d_ln_mu_s[c];
+            }
+        }
+    }
 }
 
 /// Refraction at a smooth boundary whose index n differs between bands.
@@ -655,6 +755,7 @@ impl Default for Settings {
             split_entry: false,
             sampling: Sampling::Uniform,
             target_rel_error: None,
+            derivatives: Vec::new(),
         }
     }
 }
@@ -678,6 +779,16 @@ pub struct Image {
     /// noise is independent and twice the variance of `mean`, which is what
     /// an extrapolation of a noisy figure to zero noise needs.
     pub halves: [Vec<[f64; 3]>; 2],
+    /// Per [`Settings::derivatives`] entry, ∂L/∂θ per pixel (empty without).
+    pub derivatives: Vec<DerivativeImage>,
+}
+
+/// One [`CoefficientDerivative`]'s ∂L/∂θ per pixel: the mean over the
+/// pixel's samples and its variance, row-major like [`Image::mean`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct DerivativeImage {
+    pub mean: Vec<[f64; 3]>,
+    pub variance_of_mean: Vec<[f64; 3]>,
 }
 
 /// The first surface a camera ray meets.
@@ -1020,6 +1131,10 @@ pub struct Accumulator {
     pub board_samples: Vec<u32>,
     /// The index of the first sample of every pixel (0 for a whole render).
     pub first_sample: u32,
+    /// Σ ∂L/∂θ and Σ (∂L/∂θ)² per pixel and [`Settings::derivatives`]
+    /// entry k, at p · K + k (K entries; empty until a pass carries them).
+    pub derivative_sum: Vec<[f64; 3]>,
+    pub derivative_sum_sq: Vec<[f64; 3]>,
 }
 
 impl Accumulator {
@@ -1035,7 +1150,14 @@ impl Accumulator {
             samples: vec![0; n],
             object_samples: vec![0; n],
             board_samples: vec![0; n],
+            derivative_sum: Vec::new(),
+            derivative_sum_sq: Vec::new(),
         }
+    }
+
+    /// The number of derivatives the sums hold.
+    fn derivative_count(&self) -> usize {
+        self.derivative_sum.len() / (self.width * self.height).max(1)
     }
 
     fn max_samples(&self) -> u32 {
@@ -1049,14 +1171,31 @@ impl Accumulator {
     fn add_pass(&mut self, scene: &Scene, settings: &Settings, quota: &[u32], cancel: Option<&AtomicBool>) -> Stats {
         let w = self.width;
         let first_sample = self.first_sample;
+        let kd = settings.derivatives.len().min(MAX_DERIVATIVES);
+        if self.derivative_count() != kd {
+            // (A render's settings do not change between passes: this is the first.)
+            self.derivative_sum = vec![[0.0; 3]; self.sum.len() * kd];
+            self.derivative_sum_sq = vec![[0.0; 3]; self.sum.len() * kd];
+        }
+        // Rows of the derivative sums (empty rows without derivatives).
+        fn rows(v: &mut [[f64; 3]], width: usize, height: usize) -> Vec<&mut [[f64; 3]]> {
+            if v.is_empty() {
+                (0..height).map(|_| <&mut [[f64; 3]]>::default()).collect()
+            } else {
+                v.chunks_mut(width).collect()
+            }
+        }
+        let mut d_rows = rows(&mut self.derivative_sum, w * kd, self.height);
+        let mut d_rows_sq = rows(&mut self.derivative_sum_sq, w * kd, self.height);
         self.sum
             .par_chunks_mut(w)
             .zip(self.sum_sq.par_chunks_mut(w))
             .zip(self.sum_even.par_chunks_mut(w))
             .zip(self.samples.par_chunks_mut(w))
             .zip(self.object_samples.par_chunks_mut(w).zip(self.board_samples.par_chunks_mut(w)))
+            .zip(d_rows.par_iter_mut().zip(d_rows_sq.par_iter_mut()))
             .enumerate()
-            .map(|(j, ((((row, row_sq), row_even), row_n), (row_obj, row_board)))| {
+            .map(|(j, (((((row, row_sq), row_even), row_n), (row_obj, row_board)), (row_d, row_d_sq)))| {
                 let mut st = Stats::default();
                 'pixels: for i in 0..w {
                     let pixel = (j * w + i) as u64;
@@ -1071,10 +1210,16 @@ impl Accumulator {
                         let mut rng = Rng::new(settings.seed, (u64::from(first_sample + k) << 32) | pixel);
                         let u = [rng.next_f64(), rng.next_f64()];
                         let (o, d) = scene.camera.ray(i, j, u);
-                        let (l, first) = trace(scene, settings, o, d, &mut rng, &mut st);
+                        let (l, dl, first) = trace(scene, settings, o, d, &mut rng, &mut st);
                         for c in 0..3 {
                             row[i][c] += l[c];
                             row_sq[i][c] += l[c] * l[c];
+                        }
+                        for (k, dk) in dl.iter().enumerate().take(kd) {
+                            for c in 0..3 {
+                                row_d[i * kd + k][c] += dk[c];
+                                row_d_sq[i * kd + k][c] += dk[c] * dk[c];
+                            }
                         }
                         if (first_sample + k).is_multiple_of(2) {
                             for c in 0..3 {
@@ -1132,6 +1277,15 @@ impl Accumulator {
                 .collect()
         };
         let halves = [half(false), half(true)];
+        let kd = self.derivative_count();
+        let derivatives = (0..kd)
+            .map(|k| {
+                let (mean, variance_of_mean) = (0..self.samples.len())
+                    .map(|p| mean_and_variance(self.derivative_sum[p * kd + k], self.derivative_sum_sq[p * kd + k], self.samples[p]))
+                    .unzip();
+                DerivativeImage { mean, variance_of_mean }
+            })
+            .collect();
         Image {
             width: self.width,
             height: self.height,
@@ -1141,8 +1295,23 @@ impl Accumulator {
             samples: self.samples.clone(),
             object_samples: self.object_samples.clone(),
             board_samples: self.board_samples.clone(),
+            derivatives,
         }
     }
+}
+
+/// The mean of k samples from their sum and sum of squares, and the variance of that mean (∞ below 2 samples).
+fn mean_and_variance(sum: [f64; 3], sum_sq: [f64; 3], k: u32) -> ([f64; 3], [f64; 3]) {
+    let m = f64::from(k);
+    let mean = sum.map(|v| v / m.max(1.0));
+    let var = std::array::from_fn(|c| {
+        if k > 1 {
+            ((sum_sq[c] - sum[c] * sum[c] / m) / (m - 1.0)).max(0.0) / m
+        } else {
+            f64::INFINITY
+        }
+    });
+    (mean, var)
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -1331,7 +1500,7 @@ fn connect_by_faces(
     sample: &crate::env::EnvSample,
     shared: bool,
     through: bool,
-    radiance: &mut [f64; 3],
+    est: &mut Estimate,
 ) {
     let wo = sample.dir;
     let eta = if shared { obj.eta_mean } else { obj.eta(0) };
@@ -1353,7 +1522,7 @@ fn connect_by_faces(
                 if denom > 0.0 {
                     let l = scene.environment.radiance(q, wo);
                     for c in 0..3 {
-                        radiance[c] += tp.beta[c] * at.rho[c] * bounce * f[c] * l[c] / denom;
+                        est.add(c, tp.beta[c] * at.rho[c] * bounce * f[c] * l[c] / denom);
                     }
                 }
             }
@@ -1397,7 +1566,7 @@ fn connect_by_faces(
             }
             let l = scene.environment.radiance(q, wo);
             for c in 0..3 {
-                radiance[c] += tp.beta[c] * at.rho[c] * bounce * through[c] * l[c] / denom;
+                est.add_through(c, tp.beta[c] * at.rho[c] * bounce * through[c] * l[c] / denom, obj, h2.t);
             }
         }
     }
@@ -1412,15 +1581,17 @@ fn trace(
     d: DVec3,
     rng: &mut Rng,
     st: &mut Stats,
-) -> ([f64; 3], FirstHit) {
+) -> ([f64; 3], [[f64; 3]; MAX_DERIVATIVES], FirstHit) {
     let tp = Throughput { beta: [1.0; 3], r: [1.0; 3] };
-    trace_path(scene, settings, o, d, tp, None, 0, settings.split_entry, rng, st)
+    let mut est = Estimate::new(settings);
+    let first = trace_path(scene, settings, o, d, tp, None, 0, settings.split_entry, &mut est, rng, st);
+    (est.l, est.dl, first)
 }
 
 /// A path from `o` along `d` (outside the object) with throughput `tp` and
 /// driving band `hero` (if already chosen), after `events_before`
 /// scattering events; `split`: split at the object's boundary from outside
-/// ([`Settings::split_entry`]).
+/// ([`Settings::split_entry`]). Adds its contributions to `est`.
 #[allow(clippy::too_many_arguments)]
 fn trace_path(
     scene: &Scene,
@@ -1431,11 +1602,11 @@ fn trace_path(
     mut hero: Option<usize>,
     events_before: u64,
     split: bool,
+    est: &mut Estimate,
     rng: &mut Rng,
     st: &mut Stats,
-) -> ([f64; 3], FirstHit) {
+) -> FirstHit {
     let eps = scene.epsilon_m;
-    let mut radiance = [0.0f64; 3];
     // All bands ride on one path whose refractions use the bands' mean index.
     let shared = scene.object.as_ref().is_some_and(|obj| {
         settings.spectral_mis
@@ -1507,6 +1678,8 @@ fn trace_path(
             let Some(hit) = hit.filter(|hit| s >= hit.t) else {
                 // Scattering at x: density μ_t,h e^{−μ_t,h s}, contribution μ_s,c e^{−μ_t,c s}.
                 o += s * d;
+                est.flight(obj, s);
+                est.scatter();
                 if bc.same_sigma_t || tp.single_band() {
                     // (One band: its ratios f/p reduce to μ_s/μ_t.)
                     for c in 0..3 {
@@ -1535,7 +1708,7 @@ fn trace_path(
                     let p_attempt = attempt_probability(reach, bc.sigma_t_min);
                     let p_phase = if settings.phase_connection { p_attempt } else { 0.0 };
                     let conn = Connection { h, x: o, d_in: d, p_attempt, p_phase, shared, chains, exit: None };
-                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &conn, rng, &mut radiance));
+                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &conn, rng, est));
                     stretch_t = 0.0;
                     stretch_refl = None;
                 }
@@ -1588,7 +1761,7 @@ fn trace_path(
                                 };
                                 // (No normalisation until the next event: the
                                 // vertex's r and the path's share one scale.)
-                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &conn, rng, &mut radiance));
+                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &conn, rng, est));
                                 stretch_mu = exit.cos_theta;
                                 stretch_t = 0.0;
                                 stretch_refl = None;
@@ -1627,6 +1800,7 @@ fn trace_path(
                 tp.scale(decay, decay, h);
             }
             st.surface_hits += 1;
+            est.flight(obj, hit.t);
             let p = o + hit.t * d;
             let n_out = if hit.normal.dot(d) >= 0.0 { hit.normal } else { -hit.normal };
             stretch_t += hit.t;
@@ -1727,7 +1901,7 @@ fn trace_path(
                         let w = power_heuristic(sample.pdf, cos * FRAC_1_PI);
                         let beta = tp.effective();
                         for c in 0..3 {
-                            radiance[c] += beta[c] * rho[c] * FRAC_1_PI * cos * sample.radiance[c] * w / sample.pdf;
+                            est.add(c, beta[c] * rho[c] * FRAC_1_PI * cos * sample.radiance[c] * w / sample.pdf);
                         }
                     }
                     // By the object's faces: a reflection at one, and
@@ -1743,7 +1917,7 @@ fn trace_path(
                             &sample,
                             shared,
                             blocked,
-                            &mut radiance,
+                            est,
                         );
                     }
                 }
@@ -1779,7 +1953,7 @@ fn trace_path(
                         let denom = p_conn * v.mean_r + stretch_pdf * tp.mean_r() + p_phase;
                         if denom > 0.0 {
                             for c in 0..3 {
-                                radiance[c] += tp.beta[c] * stretch_pdf * l[c] / denom;
+                                est.add(c, tp.beta[c] * stretch_pdf * l[c] / denom);
                             }
                         }
                     } else if let Some(c) = chain.filter(|c| c.out) {
@@ -1793,7 +1967,7 @@ fn trace_path(
                         let denom = p_nee * mean_weighted(&c.r, &[1.0; 3]) + c.pdf * tp.mean_r();
                         if denom > 0.0 {
                             for k in 0..3 {
-                                radiance[k] += tp.beta[k] * c.pdf * l[k] / denom;
+                                est.add(k, tp.beta[k] * c.pdf * l[k] / denom);
                             }
                         }
                     } else {
@@ -1802,7 +1976,7 @@ fn trace_path(
                             None => 1.0,
                         };
                         for c in 0..3 {
-                            radiance[c] += beta[c] * l[c] * w;
+                            est.add(c, beta[c] * l[c] * w);
                         }
                     }
                     break;
@@ -1825,11 +1999,10 @@ fn trace_path(
                         *b *= fc;
                     }
                     let d_refl = d - 2.0 * d.dot(n_in) * n_in;
-                    let (l, _) =
-                        trace_path(scene, settings, p + eps * n_in, d_refl, branch, hero, events, false, rng, st);
-                    for c in 0..3 {
-                        radiance[c] += l[c];
-                    }
+                    // (The branch's score goes on from the path's, and the path's from here.)
+                    let score = est.score;
+                    trace_path(scene, settings, p + eps * n_in, d_refl, branch, hero, events, false, est, rng, st);
+                    est.score = score;
                     f
                 });
                 let h = *hero.get_or_insert_with(|| {
@@ -1901,13 +2074,13 @@ fn trace_path(
         }
     }
     st.events += events - events_before;
-    (radiance, first_hit.unwrap_or(FirstHit::Environment))
+    first_hit.unwrap_or(FirstHit::Environment)
 }
 
 /// The sphere-jump tables a path in `obj`'s medium uses ([`Settings::sphere_jumps`]).
 #[inline]
 fn sphere_tables<'a>(obj: &'a Object, settings: &Settings) -> Option<&'a SphereExits> {
-    if settings.sphere_jumps {
+    if settings.sphere_jumps && settings.derivatives.is_empty() {
         obj.sphere_exits()
     } else {
         None
@@ -2025,13 +2198,13 @@ fn connect_vertex(
     tp: &Throughput,
     conn: &Connection,
     rng: &mut Rng,
-    radiance: &mut [f64; 3],
+    est: &mut Estimate,
 ) -> MediumVertex {
     let p_attempt = conn.p_attempt;
     if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
-        connect_through_faces(scene, obj, planes, tp, conn, rng, radiance);
+        connect_through_faces(scene, obj, planes, tp, conn, rng, est);
         if conn.p_phase > 0.0 {
-            connect_along_phase(scene, obj, tp, conn, rng, radiance);
+            connect_along_phase(scene, obj, tp, conn, rng, est);
         }
     }
     MediumVertex {
@@ -2062,7 +2235,7 @@ fn connect_through_faces(
     tp: &Throughput,
     conn: &Connection,
     rng: &mut Rng,
-    radiance: &mut [f64; 3],
+    est: &mut Estimate,
 ) {
     let &Connection { h, x, shared, .. } = conn;
     let Some(es) = scene.environment.sample(x, [rng.next_f64(), rng.next_f64()]) else {
@@ -2093,7 +2266,7 @@ fn connect_through_faces(
             let q = x + hit.t * wi + eps * *n;
             if !blocked(q) {
                 let exit = Exit { t: hit.t, mu: d_in.dot(wi), jacobian, refl: [1.0; 3], fr, q, wo, weight: 1.0 };
-                add_connection(scene, obj, tp, conn, &exit, es.pdf, radiance);
+                add_connection(scene, obj, tp, conn, &exit, es.pdf, est);
             }
         }
         if !conn.chains {
@@ -2136,7 +2309,7 @@ fn connect_through_faces(
             }
             let exit =
                 Exit { t: h1.t + h2.t, mu: d_in.dot(d1), jacobian, refl, fr, q, wo, weight: 1.0 / keep.min(1.0) };
-            add_connection(scene, obj, tp, conn, &exit, es.pdf, radiance);
+            add_connection(scene, obj, tp, conn, &exit, es.pdf, est);
         }
     }
 }
@@ -2230,7 +2403,7 @@ fn add_connection(
     conn: &Connection,
     exit: &Exit,
     pdf_env: f64,
-    radiance: &mut [f64; 3],
+    est: &mut Estimate,
 ) {
     let (f, ph) = direction_factors(obj, tp, conn, exit.mu);
     let through: [f64; 3] = std::array::from_fn(|k| {
@@ -2244,7 +2417,7 @@ fn add_connection(
     }
     let l = scene.environment.radiance(exit.q, exit.wo);
     for c in 0..3 {
-        radiance[c] += exit.weight * tp.beta[c] * f[c] * through[c] * l[c] / denom;
+        est.add_through(c, exit.weight * tp.beta[c] * f[c] * through[c] * l[c] / denom, obj, exit.t);
     }
 }
 
@@ -2270,7 +2443,7 @@ fn connect_along_phase(
     tp: &Throughput,
     conn: &Connection,
     rng: &mut Rng,
-    radiance: &mut [f64; 3],
+    est: &mut Estimate,
 ) {
     let &Connection { h, x, d_in, shared, .. } = conn;
     let (u1, u2) = rng.next_f64_pair();
@@ -2299,7 +2472,7 @@ fn connect_along_phase(
             let q = p + eps * n;
             if cos_o > 0.0 && scene.board.as_ref().is_none_or(|b| b.intersect(q, wo).is_none()) {
                 let exit = Exit { t, mu, jacobian: cos_o / (eta * eta * cos_i), refl, fr, q, wo, weight };
-                add_connection(scene, obj, tp, conn, &exit, scene.environment.pdf(x, wo), radiance);
+                add_connection(scene, obj, tp, conn, &exit, scene.environment.pdf(x, wo), est);
             }
         }
         if bounce == 1 || !conn.chains {

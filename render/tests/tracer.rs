@@ -625,6 +625,7 @@ fn a_pixel_with_a_channel_still_dark_counts_as_an_infinite_error() {
         object_samples: vec![4; 3],
         board_samples: vec![0; 3],
         halves: [vec![[0.0; 3]; 3], vec![[0.0; 3]; 3]],
+        derivatives: Vec::new(),
     };
     assert_eq!(img.relative_std_error(0), None);
     assert_eq!(img.relative_std_error(1), Some(f64::INFINITY));
@@ -1094,4 +1095,108 @@ fn sphere_jumps_agree_with_the_plain_walk_in_fewer_events() {
     let z = object_mean_z(&a, &c);
     eprintln!("margin 0: object mean z {z:.2}");
     assert!(z.abs() < 4.0, "margin 0: the object's mean moved by z = {z:.2}");
+}
+
+/// The derivatives of the image with respect to the object's coefficients
+/// that a render estimates from its own paths (`Settings::derivatives`,
+/// perturbation Monte Carlo) against an independent estimator: central
+/// finite differences of renders at θ ± h (common random numbers between
+/// the two). Two parameters: a relative change of μs in every band (which
+/// scores the scattering events and the flights) and a change of μa (the
+/// flights and the connections' lengths alone). The stated standard errors
+/// are checked against the spread over seeds. Every estimator option that
+/// adds contributions is on (specular chains through and beside the
+/// plaque, phase connections, splitting at the entry), so a contribution
+/// left unscored, or scored with the wrong length, moves the derivative.
+#[test]
+fn coefficient_derivatives_agree_with_finite_differences() {
+    use lucent_render::tracer::CoefficientDerivative;
+    let mu_s = [500.0, 650.0, 800.0];
+    let mu_a = [2.0, 5.0, 10.0];
+    // θ₂ changes μa by this much per unit, 1/m.
+    let d_mu_a = [20.0, 30.0, 40.0];
+    let media = |scale_s: f64, add_a: f64| {
+        let phase = Phase::henyey_greenstein(0.6).unwrap();
+        bands(
+            mu_s.map(|s| s * scale_s),
+            std::array::from_fn(|c| mu_a[c] + add_a * d_mu_a[c]),
+            [phase.clone(), phase.clone(), phase],
+            [1.5; 3],
+        )
+    };
+    let base = Settings { specular_chains: true, split_entry: true, ..Settings::default() };
+    let derivatives = vec![
+        CoefficientDerivative { d_ln_mu_s: [1.0; 3], d_mu_a_per_m: [0.0; 3] },
+        CoefficientDerivative { d_ln_mu_s: [0.0; 3], d_mu_a_per_m: d_mu_a },
+    ];
+    // The plaque on the board under a sky without a lamp (a lamp makes
+    // every estimate here heavy-tailed, its stated error too small).
+    let scene = |media: [Medium; 3]| {
+        let sky = sky_with_lamp(0.0, 0..0, 0..0, |base, _, x| [base, 0.7 * base, 0.4 * base + 0.2 * x / 32.0]);
+        let tris = cube(DVec3::new(-0.02, -0.015, 1e-6), DVec3::new(0.02, 0.015, 0.00635));
+        let object = Object::new(Accel::new(&tris), Interface::Smooth, media).unwrap();
+        Scene::new(Some(object), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), sky, camera(16, 12)).unwrap()
+    };
+    let nominal = scene(media(1.0, 0.0));
+    // The object's mean per band over the pixels whose rays all hit it, and its variance.
+    let object = |img: &Image, mean: &[[f64; 3]], var: &[[f64; 3]]| -> ([f64; 3], [f64; 3]) {
+        let pixels: Vec<usize> = (0..mean.len()).filter(|&p| img.object_fraction(p) == 1.0).collect();
+        let n = pixels.len() as f64;
+        assert!(n >= 20.0, "only {n} object pixels");
+        let m = std::array::from_fn(|c| pixels.iter().map(|&p| mean[p][c]).sum::<f64>() / n);
+        let v = std::array::from_fn(|c| pixels.iter().map(|&p| var[p][c]).sum::<f64>() / (n * n));
+        (m, v)
+    };
+    // Four seeds: the derivatives' object means, their stated variances, and their spread.
+    let runs: Vec<Image> = (0..6u64)
+        .map(|s| {
+            let settings = Settings { spp: 256, seed: 300 + s, derivatives: derivatives.clone(), ..base.clone() };
+            render(&nominal, &settings, &mut |_| {}).0
+        })
+        .collect();
+    for (k, (h, plus_minus)) in [(0.2, [(1.2, 0.0), (0.8, 0.0)]), (0.05, [(1.0, 0.05), (1.0, -0.05)])].into_iter().enumerate() {
+        let per_seed: Vec<([f64; 3], [f64; 3])> = runs
+            .iter()
+            .map(|img| object(img, &img.derivatives[k].mean, &img.derivatives[k].variance_of_mean))
+            .collect();
+        let n = per_seed.len() as f64;
+        let d: [f64; 3] = std::array::from_fn(|c| per_seed.iter().map(|r| r.0[c]).sum::<f64>() / n);
+        let d_var: [f64; 3] = std::array::from_fn(|c| per_seed.iter().map(|r| r.1[c]).sum::<f64>() / (n * n));
+        // The stated errors against the spread over the seeds (pooled over the bands: 15 degrees of freedom).
+        let spread: f64 = (0..3)
+            .map(|c| per_seed.iter().map(|r| (r.0[c] - d[c]).powi(2)).sum::<f64>() / (n - 1.0) / (d_var[c] * n))
+            .sum::<f64>()
+            / 3.0;
+        assert!((0.3..2.5).contains(&spread), "derivative {k}: spread over seeds / stated variance = {spread:.2}");
+        // Central differences, the two renders with one seed (common random numbers).
+        let fd_settings = Settings { spp: 1024, seed: 400, ..base.clone() };
+        let [(sp, ap), (sm, am)] = plus_minus;
+        let (plus, _) = render(&scene(media(sp, ap)), &fd_settings, &mut |_| {});
+        let (minus, _) = render(&scene(media(sm, am)), &fd_settings, &mut |_| {});
+        let diff: Vec<[f64; 3]> =
+            (0..plus.mean.len()).map(|p| std::array::from_fn(|c| (plus.mean[p][c] - minus.mean[p][c]) / (2.0 * h))).collect();
+        // The difference's variance from the two half renders: (Δ_even − Δ_odd)²/4 per pixel.
+        let diff_var: Vec<[f64; 3]> = (0..plus.mean.len())
+            .map(|p| {
+                std::array::from_fn(|c| {
+                    let even = plus.halves[0][p][c] - minus.halves[0][p][c];
+                    let odd = plus.halves[1][p][c] - minus.halves[1][p][c];
+                    0.25 * (even - odd).powi(2) / (2.0 * h).powi(2)
+                })
+            })
+            .collect();
+        let (fd, fd_var) = object(&plus, &diff, &diff_var);
+        for c in 0..3 {
+            let z = (d[c] - fd[c]) / (d_var[c] + fd_var[c]).sqrt();
+            eprintln!(
+                "derivative {k} band {c}: {:.5} ± {:.5} (paths) vs {:.5} ± {:.5} (differences), z {z:.2}",
+                d[c],
+                d_var[c].sqrt(),
+                fd[c],
+                fd_var[c].sqrt()
+            );
+            assert!(d[c].abs() > 6.0 * d_var[c].sqrt(), "derivative {k} band {c} not resolved");
+            assert!(z.abs() < 3.5, "derivative {k} band {c}: z = {z:.2}");
+        }
+    }
 }

@@ -22,7 +22,7 @@
 //! let image = |v: f64| Image {
 //!     width: 1, height: 1, mean: vec![[v; 3]], variance_of_mean: vec![[1e-6; 3]],
 //!     samples: vec![4], object_samples: vec![4], board_samples: vec![0],
-//!     halves: [vec![[v; 3]], vec![[v; 3]]],
+//!     halves: [vec![[v; 3]], vec![[v; 3]]], derivatives: Vec::new(),
 //! };
 //! let input = InputSd { key: "particles[0].weight_percent".into(), nominal: 0.65, sd: 0.0325 };
 //! let band = render_band(&image(1.0), &[input], &[(image(1.1), image(0.9))], 4);
