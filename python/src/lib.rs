@@ -850,6 +850,7 @@ fn py_render<'py>(
         shard: None,
         uncertainty: false,
         uncertainty_spp: None,
+        uncertainty_renders: false,
     };
     // The job `lucent render` checks (the ranges of its flags), then the scene.
     lucent::job::RenderJob::from(&args).validate().map_err(error)?;

@@ -278,6 +278,83 @@ impl Object {
         self.later.as_ref().map(|(from, o)| (*from, &**o))
     }
 
+    /// The derivative of this object's coefficients along the central
+    /// difference from `minus` (θ − δ) to `plus` (θ + δ), per unit of δ:
+    /// ∂ln μ_s = (μ_s⁺ − μ_s⁻)/(2 μ_s), ∂μ_a = (μ_a⁺ − μ_a⁻)/2 per band, and
+    /// the largest relative change of the phase functions (over 65 cosines)
+    /// and indices between the three, which the derivative leaves out, if
+    /// that is at most `tolerance` and the three agree in the rest (bounds
+    /// and triangle count, the interface's kind (its roughness comes from
+    /// the scene, not from the medium), the later medium's event and its
+    /// μ_s and μ_a in the same ratio); `None` otherwise (the change needs
+    /// renders of its own). A weight percentage changes the bands' phase
+    /// functions (their spectral weights) and the mixture's index a little
+    /// too.
+    pub fn coefficient_derivative(
+        &self,
+        plus: &Object,
+        minus: &Object,
+        tolerance: f64,
+    ) -> Option<(CoefficientDerivative, f64)> {
+        let rel = |a: f64, b: f64| if a == b { 0.0 } else { (a - b).abs() / a.abs().max(b.abs()) };
+        let left_out = |o: &Object| -> f64 {
+            (0..3)
+                .map(|c| {
+                    let (p, q) = (&o.medium[c].phase, &self.medium[c].phase);
+                    let phase = if p == q {
+                        0.0
+                    } else {
+                        (0..=64)
+                            .map(|i| {
+                                let mu = -1.0 + 2.0 * f64::from(i) / 64.0;
+                                rel(p.eval(mu), q.eval(mu))
+                            })
+                            .fold(0.0, f64::max)
+                    };
+                    phase.max(rel(o.medium[c].n, self.medium[c].n))
+                })
+                .fold(0.0, f64::max)
+        };
+        let alike = |o: &Object| {
+            o.accel.bounds() == self.accel.bounds()
+                && o.accel.len() == self.accel.len()
+                && o.interface.is_rough() == self.interface.is_rough()
+        };
+        if !alike(plus) || !alike(minus) {
+            return None;
+        }
+        let change = left_out(plus).max(left_out(minus));
+        if change.is_nan() || change > tolerance {
+            return None;
+        }
+        let d = CoefficientDerivative {
+            d_ln_mu_s: std::array::from_fn(|c| {
+                let m = self.medium[c].mu_s_per_m;
+                if m > 0.0 {
+                    (plus.medium[c].mu_s_per_m - minus.medium[c].mu_s_per_m) / (2.0 * m)
+                } else {
+                    0.0
+                }
+            }),
+            d_mu_a_per_m: std::array::from_fn(|c| 0.5 * (plus.medium[c].mu_a_per_m - minus.medium[c].mu_a_per_m)),
+        };
+        if !d.d_ln_mu_s.iter().chain(&d.d_mu_a_per_m).all(|v| v.is_finite()) {
+            return None;
+        }
+        match (self.later(), plus.later(), minus.later()) {
+            (None, None, None) => Some((d, change)),
+            (Some((k, l)), Some((kp, lp)), Some((km, lm))) if k == kp && k == km => {
+                let (dl, later_change) = l.coefficient_derivative(lp, lm, tolerance)?;
+                let same = (0..3).all(|c| {
+                    (dl.d_ln_mu_s[c] - d.d_ln_mu_s[c]).abs() <= 1e-6 * d.d_ln_mu_s[c].abs().max(1e-12)
+                        && (dl.d_mu_a_per_m[c] - d.d_mu_a_per_m[c]).abs() <= 1e-6 * d.d_mu_a_per_m[c].abs().max(1e-12)
+                });
+                same.then_some((d, change.max(later_change)))
+            }
+            _ => None,
+        }
+    }
+
     /// The bands' phase functions.
     #[inline]
     fn phases(&self) -> [&Phase; 3] {

@@ -74,8 +74,10 @@ pub struct RenderArgs {
     #[arg(long, value_name = "K/N")]
     pub shard: Option<String>,
     /// Carry the recipe's uncertain inputs (e.g. `weight_percent = { value =
-    /// 0.65, sd = 0.03 }`) to the render: after the render, per input the
-    /// scene at +1 σ and −1 σ with the same seed and samples; writes
+    /// 0.65, sd = 0.03 }`) to the render: an input that changes only μs and
+    /// μa (a weight percentage) by the render's own paths (path
+    /// derivative, no extra render), any other by the scene rendered at
+    /// +1 σ and −1 σ with the same seed and samples; writes
     /// uncertainty.json (each region's mean with its band) and band.exr
     /// (per pixel). Needs a scene whose [material] has a recipe.
     #[arg(long)]
@@ -84,6 +86,10 @@ pub struct RenderArgs {
     /// default: half the nominal render's median over the object's pixels).
     #[arg(long, requires = "uncertainty")]
     pub uncertainty_spp: Option<u32>,
+    /// With --uncertainty: every input by renders at ±1 σ, also those the
+    /// path derivative would take (a check of one estimator by the other).
+    #[arg(long, requires = "uncertainty")]
+    pub uncertainty_renders: bool,
 }
 
 /// The accumulator file of a render shard.
@@ -412,7 +418,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
 /// Runs `lucent render`, or with `merged` writes the outputs of the run
 /// whose shards these are (`lucent merge`).
 pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
-    let (loaded, settings) = prepare_with(&a, merged_from.is_some())?;
+    let (loaded, mut settings) = prepare_with(&a, merged_from.is_some())?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }
@@ -445,6 +451,32 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         Some(recipe)
     } else {
         None
+    };
+    // The inputs whose effect the nominal render's own paths carry (index
+    // into settings.derivatives), the others rendered at ±1 σ.
+    let path_derivatives = match &uncertain {
+        Some(recipe) => {
+            let found = if a.uncertainty_renders {
+                vec![None; recipe.uncertain.len()]
+            } else {
+                coefficient_derivatives(&a, &loaded, recipe)?
+            };
+            let mut index = Vec::new();
+            for d in found {
+                index.push(match d {
+                    Some((d, left_out)) if settings.derivatives.len() < tracer::MAX_DERIVATIVES => {
+                        settings.derivatives.push(d);
+                        Some((settings.derivatives.len() - 1, left_out))
+                    }
+                    _ => None,
+                });
+            }
+            if settings.sphere_jumps && !settings.derivatives.is_empty() && !a.quiet {
+                eprintln!("note: sphere jumps are off in this render: the path derivatives of --uncertainty need every scattering event");
+            }
+            index
+        }
+        None => Vec::new(),
     };
     if let Some((k, n)) = shard
         && n > settings.spp
@@ -633,7 +665,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     }
     println!("wrote {}/render.exr, render.png, render.json", a.out.display());
     if let (Some(recipe), false) = (&uncertain, interrupted) {
-        render_band(&a, &loaded, &settings, &pool, &image, recipe)?;
+        render_band(&a, &loaded, &settings, &pool, &image, recipe, &path_derivatives)?;
     }
     if interrupted {
         return Err(Interrupted(format!(
@@ -646,9 +678,57 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     Ok(())
 }
 
-/// `lucent render --uncertainty`: the renders at ±1 σ of each of
-/// `recipe`'s uncertain inputs and their band ([`scene::band`]), written to
-/// uncertainty.json and band.exr beside the nominal render `image`.
+/// The similar medium's g′ (and the later one's) that the nominal render
+/// walks, for the renders at ±1 σ: the depth floor would otherwise move g′
+/// with the input, and the phase functions with it, and the renders would
+/// no longer share their paths.
+fn walked_similarity(loaded: &scene::LoadedScene) -> Option<(f64, Option<(u64, f64)>)> {
+    loaded.summary.material.as_ref().and_then(|m| m.similar.as_ref()).map(|s| {
+        // (+1e-9: the walked g′ is the table's mean cosine, which the cut's own test may round just above.)
+        (s.g[0] + 1e-9, s.later.as_ref().map(|l| (l.from_event, l.g[0] + 1e-9)))
+    })
+}
+
+/// The largest relative change of the phase functions and indices between
+/// an input's ±1 σ that its path derivative may leave out (a weight
+/// percentage of IOL1068-09 changes them by ≤ 4·10⁻⁴ through the bands'
+/// spectral weights and 2·10⁻⁶ through the mixture's index; the test
+/// against renders at ±1 σ bounds the effect).
+const PATH_DERIVATIVE_LEFT_OUT: f64 = 1e-3;
+
+/// Per uncertain input of `recipe`, the derivative of the object's
+/// coefficients per 1 σ where the input changes only μs and μa
+/// ([`tracer::Object::coefficient_derivative`] of the scenes at ±1 σ): the
+/// nominal render then estimates its effect from its own paths. `None`
+/// for an input that changes more (it is rendered at ±1 σ).
+fn coefficient_derivatives(
+    a: &RenderArgs,
+    loaded: &scene::LoadedScene,
+    recipe: &crate::optics::recipe::Recipe,
+) -> Result<Vec<Option<(tracer::CoefficientDerivative, f64)>>> {
+    let walked = walked_similarity(loaded);
+    let inputs = crate::optics::uncertainty::InputSd::of(recipe);
+    let mut out = Vec::new();
+    for (input, sd) in recipe.uncertain.iter().zip(&inputs) {
+        let mut at = Vec::new();
+        for (sign, value) in [("+", input.nominal + sd.sd), ("−", input.nominal - sd.sd)] {
+            let (scene, _) = prepare_as(a, false, Some((input.target, value)), walked)
+                .with_context(|| format!("--uncertainty: {} = {value} (nominal {sign} 1 σ)", input.key))?;
+            at.push(scene.scene.object);
+        }
+        out.push(match (&loaded.scene.object, &at[0], &at[1]) {
+            (Some(o), Some(plus), Some(minus)) => o.coefficient_derivative(plus, minus, PATH_DERIVATIVE_LEFT_OUT),
+            _ => None,
+        });
+    }
+    Ok(out)
+}
+
+/// `lucent render --uncertainty`: each of `recipe`'s uncertain inputs'
+/// effect, from the nominal render's own paths where `path_derivatives`
+/// gives its index in [`Image::derivatives`], else from renders at ±1 σ,
+/// and their band ([`scene::band`]), written to uncertainty.json and
+/// band.exr beside the nominal render `image`.
 fn render_band(
     a: &RenderArgs,
     loaded: &scene::LoadedScene,
@@ -656,8 +736,12 @@ fn render_band(
     pool: &rayon::ThreadPool,
     image: &Image,
     recipe: &crate::optics::recipe::Recipe,
+    path_derivatives: &[Option<(usize, f64)>],
 ) -> Result<()> {
     use crate::optics::uncertainty::InputSd;
+    use scene::band::EffectEstimate;
+    // The renders at ±1 σ carry no derivatives.
+    let settings = &Settings { derivatives: Vec::new(), ..settings.clone() };
     let spp = match a.uncertainty_spp {
         Some(n) => n,
         None => {
@@ -675,20 +759,25 @@ fn render_band(
         }
     };
     let inputs = InputSd::of(recipe);
-    let renders = 2 * inputs.len();
+    let rendered = path_derivatives.iter().filter(|d| d.is_none()).count();
+    let renders = 2 * rendered;
     if !a.quiet {
-        eprintln!(
-            "uncertainty: {renders} renders of {spp} spp (each input of {} at ±1 σ, with the same seed)",
-            recipe.path.display()
-        );
+        for (input, d) in inputs.iter().zip(path_derivatives) {
+            if let Some((_, left_out)) = d {
+                eprintln!(
+                    "uncertainty: {} changes μs and μa (its phase functions and index by ≤ {left_out:.1e}, left out): its effect from the render's own paths (path derivative)",
+                    input.key
+                );
+            }
+        }
+        if renders > 0 {
+            eprintln!(
+                "uncertainty: {renders} renders of {spp} spp (each other input of {} at ±1 σ, with the same seed)",
+                recipe.path.display()
+            );
+        }
     }
-    // The similar medium (if any) at the nominal render's g′ in every
-    // render: the depth floor would move g′ with the input and the phase
-    // functions with it, and the renders would no longer share their paths.
-    let walked = loaded.summary.material.as_ref().and_then(|m| m.similar.as_ref()).map(|s| {
-        // (+1e-9: the walked g′ is the table's mean cosine, which the cut's own test may round just above.)
-        (s.g[0] + 1e-9, s.later.as_ref().map(|l| (l.from_event, l.g[0] + 1e-9)))
-    });
+    let walked = walked_similarity(loaded);
     let interrupt = Interrupt::install();
     // --time-s (or [render] time_s) bounds the ±1 σ renders too, together: past it they stop like at Ctrl-C.
     let deadline = settings.time_budget_s.map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t));
@@ -703,7 +792,7 @@ fn render_band(
     }
     let mut pairs = Vec::new();
     let mut wall_s = 0.0;
-    for (input, sd) in recipe.uncertain.iter().zip(&inputs) {
+    for ((input, sd), _) in recipe.uncertain.iter().zip(&inputs).zip(path_derivatives).filter(|(_, d)| d.is_none()) {
         let mut pair = Vec::new();
         for (sign, value) in [("+", input.nominal + sd.sd), ("−", input.nominal - sd.sd)] {
             let (loaded, _) = prepare_as(a, false, Some((input.target, value)), walked)
@@ -735,7 +824,18 @@ fn render_band(
         pairs.push((plus, minus));
     }
     drop(interrupt);
-    let band = scene::band::render_band(image, &inputs, &pairs, spp);
+    let mut rendered = pairs.iter();
+    let mut effects = Vec::new();
+    for d in path_derivatives {
+        effects.push(match d {
+            Some((index, left_out)) => EffectEstimate::PathDerivative { index: *index, left_out: *left_out },
+            None => {
+                let (plus, minus) = rendered.next().context("one pair of renders per rendered input")?;
+                EffectEstimate::Renders { plus, minus, spp }
+            }
+        });
+    }
+    let band = scene::band::render_band(image, &inputs, &effects);
     crate::io::write_json(&a.out.join("uncertainty.json"), &band)
         .with_context(|| format!("{}: cannot write uncertainty.json", a.out.display()))?;
     let channel = |v: &[[f64; 3]], c: usize| -> Vec<f32> { v.iter().map(|t| t[c] as f32).collect() };

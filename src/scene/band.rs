@@ -1,22 +1,30 @@
 //! The render's uncertainty from the recipe's uncertain inputs (`lucent
-//! render --uncertainty`): per input, the scene rendered with the input at
-//! +1 σ and at −1 σ with the same seed and samples (common random numbers),
-//! and the first-order band u² = Σᵢ (Δᵢ/2)² (JCGM 100:2008 "GUM", eq. 10;
-//! [`crate::optics::uncertainty::first_order`]) of
+//! render --uncertainty`): per input Δᵢ, the change of the image between
+//! the input at +1 σ and at −1 σ, and the first-order band
+//! u² = Σᵢ (Δᵢ/2)² (JCGM 100:2008 "GUM", eq. 10;
+//! [`crate::optics::uncertainty::first_order`]). Δᵢ comes from one of
+//! two estimators ([`EffectEstimate`]):
 //!
-//! * each region's mean radiance per band R, G, B (the object's pixels, the
-//!   board's: [`Image::region`]), with its Monte Carlo standard error from
-//!   the renders' two independent halves (per pixel (Δ_even − Δ_odd)²/4
-//!   estimates the variance of Δ, the shared noise of the two renders
-//!   cancelling as it does in Δ), beside the nominal mean's own Monte Carlo
-//!   standard error;
-//! * every pixel, in the units of the environment map, with a conservative
-//!   Monte Carlo error per pixel (the two renders' variances added, as if
-//!   their noise were independent).
+//! * **path derivative**, for an input that changes only the object's μs
+//!   and μa (a weight percentage): Δᵢ = 2 σ ∂L/∂θ, estimated by the nominal
+//!   render from its own paths ([`lucent_render::tracer::CoefficientDerivative`],
+//!   perturbation Monte Carlo), at no extra render, with each pixel's Monte
+//!   Carlo error from the spread of its samples;
+//! * **renders at ±1 σ**, for any other input (a diameter, an index, which
+//!   change the phase functions): the scene rendered twice with the
+//!   nominal's seed and samples (common random numbers), Δ's error from the
+//!   renders' two independent halves (per pixel (Δ_even − Δ_odd)²/4, the
+//!   shared noise cancelling as it does in Δ) for a region, conservatively
+//!   from the two renders' variances added for a pixel.
+//!
+//! The band is given for each region's mean radiance per band R, G, B (the
+//! object's pixels, the board's: [`Image::region`]), beside the nominal
+//! mean's own Monte Carlo standard error, and for every pixel, in the units
+//! of the environment map.
 //!
 //! ```
 //! use lucent::optics::uncertainty::InputSd;
-//! use lucent::scene::band::render_band;
+//! use lucent::scene::band::{render_band, EffectEstimate};
 //! use lucent_render::tracer::Image;
 //! // A one-pixel "object" whose mean rises from 0.9 to 1.1 between −1 σ and +1 σ.
 //! let image = |v: f64| Image {
@@ -25,7 +33,8 @@
 //!     halves: [vec![[v; 3]], vec![[v; 3]]], derivatives: Vec::new(),
 //! };
 //! let input = InputSd { key: "particles[0].weight_percent".into(), nominal: 0.65, sd: 0.0325 };
-//! let band = render_band(&image(1.0), &[input], &[(image(1.1), image(0.9))], 4);
+//! let (plus, minus) = (image(1.1), image(0.9));
+//! let band = render_band(&image(1.0), &[input], &[EffectEstimate::Renders { plus: &plus, minus: &minus, spp: 4 }]);
 //! assert!((band.regions[0].inputs_sd[1] - 0.1).abs() < 1e-12);
 //! ```
 
@@ -33,10 +42,67 @@ use crate::optics::uncertainty::{first_order, InputSd};
 use lucent_render::tracer::{Image, Region};
 use serde::Serialize;
 
+/// How an input's effect Δ (+1 σ minus −1 σ) on the image is estimated.
+#[derive(Debug, Clone, Copy)]
+pub enum EffectEstimate<'a> {
+    /// 2 σ ∂L/∂θ from the nominal render's own paths: its
+    /// [`Image::derivatives`] entry `index`, made per 1 σ; `left_out`: the
+    /// largest relative change of the phase functions and indices between
+    /// ±1 σ, which the derivative does not carry
+    /// ([`lucent_render::tracer::Object::coefficient_derivative`]).
+    PathDerivative { index: usize, left_out: f64 },
+    /// The renders at +1 σ and −1 σ, of `spp` samples per pixel with the nominal's seed.
+    Renders { plus: &'a Image, minus: &'a Image, spp: u32 },
+}
+
+impl EffectEstimate<'_> {
+    /// The name written to uncertainty.json.
+    pub fn method(&self) -> &'static str {
+        match self {
+            EffectEstimate::PathDerivative { .. } => "path derivative",
+            EffectEstimate::Renders { .. } => "renders at ±1 σ",
+        }
+    }
+
+    /// Δ at pixel p per band, its variance for a region's mean (whose
+    /// terms add over pixels) and a conservative variance for the pixel alone.
+    fn at(&self, nominal: &Image, p: usize) -> ([f64; 3], [f64; 3], [f64; 3]) {
+        match *self {
+            EffectEstimate::PathDerivative { index, .. } => {
+                let d = &nominal.derivatives[index];
+                let var = d.variance_of_mean[p].map(|v| 4.0 * v);
+                (d.mean[p].map(|v| 2.0 * v), var, var)
+            }
+            EffectEstimate::Renders { plus, minus, .. } => (
+                std::array::from_fn(|c| plus.mean[p][c] - minus.mean[p][c]),
+                std::array::from_fn(|c| {
+                    let even = plus.halves[0][p][c] - minus.halves[0][p][c];
+                    let odd = plus.halves[1][p][c] - minus.halves[1][p][c];
+                    0.25 * (even - odd).powi(2)
+                }),
+                std::array::from_fn(|c| plus.variance_of_mean[p][c] + minus.variance_of_mean[p][c]),
+            ),
+        }
+    }
+}
+
+/// How one input's effect was estimated.
+#[derive(Debug, Clone, Serialize)]
+pub struct InputMethod {
+    pub key: String,
+    /// [`EffectEstimate::method`].
+    pub method: &'static str,
+    /// For a path derivative, the largest relative change of the phase
+    /// functions and indices between ±1 σ that it leaves out.
+    pub left_out_relative_change: Option<f64>,
+}
+
 /// What one input does to a region's mean.
 #[derive(Debug, Clone, Serialize)]
 pub struct RegionEffect {
     pub key: String,
+    /// [`EffectEstimate::method`].
+    pub method: &'static str,
     /// Mean at +1 σ minus at −1 σ per band R, G, B, and its Monte Carlo standard error.
     pub difference: [f64; 3],
     pub difference_std_error: [f64; 3],
@@ -66,8 +132,12 @@ pub struct RegionBand {
 pub struct RenderBand {
     pub method: &'static str,
     pub inputs: Vec<InputSd>,
-    /// Samples per pixel of each render at ±1 σ (the nominal render's are in render.json).
-    pub spp_per_input_render: u32,
+    /// Per input, how its effect was estimated.
+    pub input_methods: Vec<InputMethod>,
+    /// Samples per pixel of each render at ±1 σ (the nominal render's are
+    /// in render.json); `None` where every input's effect came from the
+    /// nominal render's paths.
+    pub spp_per_input_render: Option<u32>,
     pub regions: Vec<RegionBand>,
     /// Per pixel and band, the standard deviation from the inputs and its (conservative) Monte Carlo error.
     #[serde(skip)]
@@ -76,9 +146,8 @@ pub struct RenderBand {
     pub pixel_sd_std_error: Vec<[f64; 3]>,
 }
 
-/// The band of `nominal` from `pairs[i]` = (the render at input i + 1 σ,
-/// at − 1 σ), each of `spp` samples per pixel with the same seed.
-pub fn render_band(nominal: &Image, inputs: &[InputSd], pairs: &[(Image, Image)], spp: u32) -> RenderBand {
+/// The band of `nominal` from each input's effect, `effects[i]` for `inputs[i]`.
+pub fn render_band(nominal: &Image, inputs: &[InputSd], effects: &[EffectEstimate]) -> RenderBand {
     let n = nominal.mean.len();
     let mut regions = Vec::new();
     for (name, which) in [("object", Region::Object), ("board", Region::Board)] {
@@ -95,16 +164,15 @@ pub fn render_band(nominal: &Image, inputs: &[InputSd], pairs: &[(Image, Image)]
                 mean_var[c] += nominal.variance_of_mean[p][c] / (count * count);
             }
         }
-        let effects: Vec<([f64; 3], [f64; 3])> = pairs
+        let per_input: Vec<([f64; 3], [f64; 3])> = effects
             .iter()
-            .map(|(plus, minus)| {
+            .map(|e| {
                 let (mut d, mut var) = ([0.0; 3], [0.0; 3]);
                 for &p in &pixels {
+                    let (dp, vp, _) = e.at(nominal, p);
                     for c in 0..3 {
-                        d[c] += (plus.mean[p][c] - minus.mean[p][c]) / count;
-                        let even = plus.halves[0][p][c] - minus.halves[0][p][c];
-                        let odd = plus.halves[1][p][c] - minus.halves[1][p][c];
-                        var[c] += 0.25 * (even - odd).powi(2) / (count * count);
+                        d[c] += dp[c] / count;
+                        var[c] += vp[c] / (count * count);
                     }
                 }
                 (d, var.map(f64::sqrt))
@@ -120,9 +188,11 @@ pub fn render_band(nominal: &Image, inputs: &[InputSd], pairs: &[(Image, Image)]
             inputs_relative_sd: [0.0; 3],
             inputs: inputs
                 .iter()
-                .zip(&effects)
-                .map(|(i, (d, se))| RegionEffect {
+                .zip(&per_input)
+                .zip(effects)
+                .map(|((i, (d, se)), e)| RegionEffect {
                     key: i.key.clone(),
+                    method: e.method(),
                     difference: *d,
                     difference_std_error: *se,
                     share_of_variance: [0.0; 3],
@@ -131,8 +201,8 @@ pub fn render_band(nominal: &Image, inputs: &[InputSd], pairs: &[(Image, Image)]
         };
         for c in 0..3 {
             let fo = first_order(
-                &effects.iter().map(|(d, _)| vec![d[c]]).collect::<Vec<_>>(),
-                &effects.iter().map(|(_, se)| vec![se[c]]).collect::<Vec<_>>(),
+                &per_input.iter().map(|(d, _)| vec![d[c]]).collect::<Vec<_>>(),
+                &per_input.iter().map(|(_, se)| vec![se[c]]).collect::<Vec<_>>(),
             );
             band.inputs_sd[c] = fo.sd[0];
             band.inputs_sd_std_error[c] = fo.sd_std_error[0];
@@ -145,18 +215,29 @@ pub fn render_band(nominal: &Image, inputs: &[InputSd], pairs: &[(Image, Image)]
     }
     // Per pixel: the outputs are the 3n values, pixel-major.
     let flat = |f: &dyn Fn(usize, usize) -> f64| -> Vec<f64> { (0..3 * n).map(|k| f(k / 3, k % 3)).collect() };
-    let differences: Vec<Vec<f64>> =
-        pairs.iter().map(|(plus, minus)| flat(&|p, c| plus.mean[p][c] - minus.mean[p][c])).collect();
-    let errors: Vec<Vec<f64>> = pairs
-        .iter()
-        .map(|(plus, minus)| flat(&|p, c| (plus.variance_of_mean[p][c] + minus.variance_of_mean[p][c]).sqrt()))
-        .collect();
+    let differences: Vec<Vec<f64>> = effects.iter().map(|e| flat(&|p, c| e.at(nominal, p).0[c])).collect();
+    let errors: Vec<Vec<f64>> = effects.iter().map(|e| flat(&|p, c| e.at(nominal, p).2[c].sqrt())).collect();
     let fo = first_order(&differences, &errors);
     let triples = |v: &[f64]| -> Vec<[f64; 3]> { v.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect() };
     RenderBand {
-        method: "first order (GUM): per input, the scene rendered at +1 σ and −1 σ with the same seed and samples; u² = Σ (Δ/2)²",
+        method: "first order (GUM): u² = Σ (Δ/2)², per input Δ (+1 σ minus −1 σ) from the nominal render's own paths (path derivative, 2σ ∂L/∂θ) or from the scene rendered at +1 σ and −1 σ with the same seed and samples",
         inputs: inputs.to_vec(),
-        spp_per_input_render: spp,
+        input_methods: inputs
+            .iter()
+            .zip(effects)
+            .map(|(i, e)| InputMethod {
+                key: i.key.clone(),
+                method: e.method(),
+                left_out_relative_change: match e {
+                    EffectEstimate::PathDerivative { left_out, .. } => Some(*left_out),
+                    EffectEstimate::Renders { .. } => None,
+                },
+            })
+            .collect(),
+        spp_per_input_render: effects.iter().find_map(|e| match e {
+            EffectEstimate::Renders { spp, .. } => Some(*spp),
+            EffectEstimate::PathDerivative { .. } => None,
+        }),
         regions,
         pixel_sd: triples(&fo.sd),
         pixel_sd_std_error: triples(&fo.sd_std_error),
