@@ -113,8 +113,14 @@ mod cli {
     /// A 24 × 18 view of an IOL1068-09 plaque (weight percentage ±5 %) on a
     /// board under a constant sky, the similar medium (a fast walk).
     fn scene(dir: &Path, render: &str) -> std::path::PathBuf {
+        scene_of(dir, render, "weight_percent = { value = 0.65, sd = 0.0325 }", "diameter_um = 2.2")
+    }
+
+    /// [`scene`] with the recipe's weight percentage and diameter lines.
+    fn scene_of(dir: &Path, render: &str, weight: &str, diameter: &str) -> std::path::PathBuf {
         let recipe = include_str!("../fixtures/samples/IOL1068-09.toml")
-            .replace("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = 0.0325 }")
+            .replace("weight_percent = 0.65", weight)
+            .replace("diameter_um = 2.2", diameter)
             .replace("size_mm = [149.1, 104.5]", "size_mm = [40.0, 40.0]");
         std::fs::write(dir.join("u.toml"), recipe).unwrap();
         let scene = format!(
@@ -134,8 +140,10 @@ mod cli {
     }
 
     /// `lucent render --uncertainty`: uncertainty.json and band.exr; the
-    /// object's difference between +1 σ and −1 σ has a stated Monte Carlo
-    /// error that matches its spread over six seeds.
+    /// weight percentage's effect comes from the render's own paths (path
+    /// derivative, no extra render), and the object's difference between
+    /// +1 σ and −1 σ has a stated Monte Carlo error that matches its spread
+    /// over six seeds.
     #[test]
     fn render_bands_carry_errors_that_match_the_spread_over_seeds() {
         let tmp = tempfile::tempdir().unwrap();
@@ -149,7 +157,10 @@ mod cli {
             assert!(o.status.success(), "{}", stderr(&o));
             assert!(out.join("band.exr").is_file() && out.join("render.exr").is_file());
             let j = json(&out.join("uncertainty.json"));
-            assert_eq!(j["spp_per_input_render"].as_u64(), Some(16), "{j}");
+            assert!(j["spp_per_input_render"].is_null(), "{j}");
+            assert_eq!(j["input_methods"][0]["method"].as_str(), Some("path derivative"), "{j}");
+            let left_out = j["input_methods"][0]["left_out_relative_change"].as_f64().unwrap();
+            assert!((0.0..1e-3).contains(&left_out), "{j}");
             let object = &j["regions"][0];
             assert_eq!(object["region"].as_str(), Some("object"), "{j}");
             let effect = &object["inputs"][0];
@@ -174,10 +185,54 @@ mod cli {
         assert!(ratio > 0.2 && ratio < 2.6, "variance over seeds / stated variance = {ratio}");
     }
 
+    /// The two estimators of an input's effect, independent (other seeds):
+    /// the path derivative of the nominal render and the renders at ±1 σ
+    /// (`--uncertainty-renders`), on the object's mean per band, within 3.5
+    /// standard errors; and the renders are what a diameter, which changes
+    /// the phase functions, gets.
+    #[test]
+    fn path_derivative_agrees_with_renders_at_plus_minus_one_sigma() {
+        let tmp = tempfile::tempdir().unwrap();
+        let s = scene(tmp.path(), "spp = 2048");
+        let run = |name: &str, extra: &[&str]| -> serde_json::Value {
+            let out = tmp.path().join(name);
+            let args = [
+                &["render", s.to_str().unwrap(), "--uncertainty", "--quiet"][..],
+                extra,
+                &["--out", out.to_str().unwrap()],
+            ]
+            .concat();
+            let o = lucent(&args);
+            assert!(o.status.success(), "{}", stderr(&o));
+            json(&out.join("uncertainty.json"))
+        };
+        let path = run("path", &["--seed", "11"]);
+        let renders = run("renders", &["--seed", "12", "--uncertainty-renders", "--uncertainty-spp", "2048"]);
+        assert_eq!(path["input_methods"][0]["method"].as_str(), Some("path derivative"), "{path}");
+        assert_eq!(renders["input_methods"][0]["method"].as_str(), Some("renders at ±1 σ"), "{renders}");
+        let effect = |j: &serde_json::Value, f: &str, c: usize| j["regions"][0]["inputs"][0][f][c].as_f64().unwrap();
+        for c in 0..3 {
+            let (a, b) = (effect(&path, "difference", c), effect(&renders, "difference", c));
+            let (ea, eb) = (effect(&path, "difference_std_error", c), effect(&renders, "difference_std_error", c));
+            let z = (a - b) / (ea * ea + eb * eb).sqrt();
+            assert!(a > 6.0 * ea, "band {c}: the effect {a} ± {ea} is not resolved");
+            assert!(z.abs() < 3.5, "band {c}: path derivative {a} ± {ea}, renders {b} ± {eb}, z = {z:.2}");
+        }
+        // A diameter changes the phase functions: rendered at ±1 σ.
+        let d = scene_of(tmp.path(), "spp = 8", "weight_percent = 0.65", "diameter_um = { value = 2.2, sd = 0.1 }");
+        let out = tmp.path().join("diameter");
+        let o = lucent(&["render", d.to_str().unwrap(), "--uncertainty", "--quiet", "--out", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let j = json(&out.join("uncertainty.json"));
+        assert_eq!(j["input_methods"][0]["method"].as_str(), Some("renders at ±1 σ"), "{j}");
+        assert_eq!(j["spp_per_input_render"].as_u64(), Some(4), "{j}");
+    }
+
     #[test]
     fn render_uncertainty_refuses_what_it_cannot_do() {
         let tmp = tempfile::tempdir().unwrap();
-        let s = scene(tmp.path(), "spp = 4");
+        // (A diameter's effect needs renders at ±1 σ, which the time budget must bound.)
+        let s = scene_of(tmp.path(), "spp = 4", "weight_percent = 0.65", "diameter_um = { value = 2.2, sd = 0.1 }");
         let out = tmp.path().join("r");
         let (s_arg, out_arg) = (s.to_str().unwrap(), out.to_str().unwrap());
         let o = lucent(&["render", s_arg, "--uncertainty", "--uncertainty-spp", "3", "--out", out_arg]);

@@ -1358,7 +1358,13 @@ impl Accumulator {
         let derivatives = (0..kd)
             .map(|k| {
                 let (mean, variance_of_mean) = (0..self.samples.len())
-                    .map(|p| mean_and_variance(self.derivative_sum[p * kd + k], self.derivative_sum_sq[p * kd + k], self.samples[p]))
+                    .map(|p| {
+                        mean_and_variance(
+                            self.derivative_sum[p * kd + k],
+                            self.derivative_sum_sq[p * kd + k],
+                            self.samples[p],
+                        )
+                    })
                     .unzip();
                 DerivativeImage { mean, variance_of_mean }
             })

@@ -1154,7 +1154,9 @@ fn coefficient_derivatives_agree_with_finite_differences() {
             render(&nominal, &settings, &mut |_| {}).0
         })
         .collect();
-    for (k, (h, plus_minus)) in [(0.2, [(1.2, 0.0), (0.8, 0.0)]), (0.05, [(1.0, 0.05), (1.0, -0.05)])].into_iter().enumerate() {
+    for (k, (h, plus_minus)) in
+        [(0.2, [(1.2, 0.0), (0.8, 0.0)]), (0.05, [(1.0, 0.05), (1.0, -0.05)])].into_iter().enumerate()
+    {
         let per_seed: Vec<([f64; 3], [f64; 3])> = runs
             .iter()
             .map(|img| object(img, &img.derivatives[k].mean, &img.derivatives[k].variance_of_mean))
@@ -1173,8 +1175,9 @@ fn coefficient_derivatives_agree_with_finite_differences() {
         let [(sp, ap), (sm, am)] = plus_minus;
         let (plus, _) = render(&scene(media(sp, ap)), &fd_settings, &mut |_| {});
         let (minus, _) = render(&scene(media(sm, am)), &fd_settings, &mut |_| {});
-        let diff: Vec<[f64; 3]> =
-            (0..plus.mean.len()).map(|p| std::array::from_fn(|c| (plus.mean[p][c] - minus.mean[p][c]) / (2.0 * h))).collect();
+        let diff: Vec<[f64; 3]> = (0..plus.mean.len())
+            .map(|p| std::array::from_fn(|c| (plus.mean[p][c] - minus.mean[p][c]) / (2.0 * h)))
+            .collect();
         // The difference's variance from the two half renders: (Δ_even − Δ_odd)²/4 per pixel.
         let diff_var: Vec<[f64; 3]> = (0..plus.mean.len())
             .map(|p| {
