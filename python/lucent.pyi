@@ -100,9 +100,11 @@ def compare(
     render_variance: npt.ArrayLike | None = None,
     data_range: float = 1.0,
     luminance: str = "cie-rgb",
+    band: _Path | dict[str, Any] | None = None,
+    band_region: str = "object",
 ) -> dict[str, Any]:
     """Photo vs render metrics (RMSE, SSIM, model RMSE "noise" given the variances): metrics.json's dict (+ "notes")
-    for paths; {"as_calibrated", "noise", "notes", "width", "height"} for arrays, variances (H × W × 3) as arrays."""
+    for paths, with "bands" (is the photo within the twin's predictive band? band = the render's uncertainty.json); {"as_calibrated", "noise", "notes", "width", "height"} for arrays, variances (H × W × 3) as arrays."""
 
 def render(
     scene: _Path,
@@ -117,8 +119,11 @@ def render(
     split_entry: bool = False,
     similarity_g: float | None = None,
     progress: Callable[[float, float, float, float], object] | None = None,
+    uncertainty: bool = False,
+    uncertainty_spp: int | None = None,
 ) -> dict[str, Any]:
-    """Renders a scene file: {"mean", "variance"} (H × W × 3), "spp" (int), "spp_per_pixel", "object", "board" (H × W), "seed", …"""
+    """Renders a scene file: {"mean", "variance"} (H × W × 3), "spp" (int), "spp_per_pixel", "object", "board" (H × W), "seed", …;
+    with uncertainty=True also "band" (per region), "band_sd", "band_sd_std_error" (H × W × 3)."""
 
 def bssrdf(
     recipe: _Recipe | None = None,

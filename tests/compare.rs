@@ -235,6 +235,7 @@ fn ecc_recovers_a_known_shift_on_the_board_and_the_metrics_improve() {
         exposure: None,
         refine: Some(Motion::Translation),
         twin_names: None,
+        bands: Vec::new(),
     };
     let out = compare::compare_files(&req).unwrap();
     let r = out.report.refined.as_ref().unwrap();

@@ -567,6 +567,15 @@ fn variance_image(py: Python<'_>, obj: &Bound<'_, PyAny>, role: &str, images: &R
 ///     the render EXR's variance layers are read instead.
 /// data_range: SSIM's L (C1 = (0.01 L)², C2 = (0.03 L)²) in the images'
 ///     units; luminance: "cie-rgb" (0.1769, 0.8124, 0.0107) or "rec709".
+/// band: the twin's band: ``render(…, uncertainty=True)["band"]`` or the
+///     path of ``lucent render --uncertainty``'s uncertainty.json (or its
+///     folder). With file paths it needs mask_object or mask_board; with
+///     arrays a mask, whose pixels are taken as the band's ``band_region``
+///     ("object" or "board"). The result's ``bands[0]`` says whether the
+///     photo's mean over those pixels lies within the twin's predictive
+///     band (``within``, ``z`` per band, ``statement``); with arrays the
+///     render's and photo's noise come from render_variance and
+///     photo_variance.
 ///
 /// With both images as paths the result is the dict of metrics.json that
 /// ``lucent compare --photo P --render R`` writes (``as_calibrated``, the
@@ -580,7 +589,8 @@ fn variance_image(py: Python<'_>, obj: &Bound<'_, PyAny>, role: &str, images: &R
 #[pyfunction]
 #[pyo3(name = "compare", signature = (
     photo, render, mask = None, mask_object = None, mask_board = None, photo_variance = None,
-    render_variance = None, data_range = 1.0, luminance = "cie-rgb"
+    render_variance = None, data_range = 1.0, luminance = "cie-rgb", band = None,
+    band_region = "object"
 ))]
 #[allow(clippy::too_many_arguments)]
 fn py_compare<'py>(
@@ -594,8 +604,19 @@ fn py_compare<'py>(
     render_variance: Option<&Bound<'py, PyAny>>,
     data_range: f64,
     luminance: &str,
+    band: Option<&Bound<'py, PyAny>>,
+    band_region: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let luminance = compare::Luminance::from_name(luminance).map_err(error)?;
+    let band = band
+        .map(|b| match as_path(b) {
+            Some(p) => compare::band::TwinBands::read(&p).map_err(error),
+            None => {
+                let text: String = py.import("json")?.call_method1("dumps", (b,))?.extract()?;
+                compare::band::TwinBands::from_json(&text, "band").map_err(error)
+            }
+        })
+        .transpose()?;
     if let (Some(photo_path), Some(render_path)) = (as_path(photo), as_path(render)) {
         let mask_image = mask
             .map(|m| {
@@ -638,6 +659,7 @@ fn py_compare<'py>(
             photo_repeat: None,
             mask_also: None,
             twin_names: None,
+            bands: band.into_iter().collect(),
         };
         let outcome = py.detach(|| compare::compare_files(&req)).map_err(error)?;
         let out = to_python(py, &outcome.report)?;
@@ -702,11 +724,30 @@ fn py_compare<'py>(
             if photo_variance.is_some() { "photo_variance" } else { compare::PHOTO_VARIANCE_NOT_GIVEN }.into();
         Ok((metrics, Some(report)))
     })?;
+    let bands = match &band {
+        None => Vec::new(),
+        Some(b) => {
+            let Some(m) = &mask else {
+                return Err(error("band: give the mask of the band's region (band_region) with the arrays"));
+            };
+            let twin = b.region(band_region).map_err(error)?;
+            let include = Some(m.include.as_slice());
+            let (photo_mean, photo_var, n) =
+                compare::band::region_mean(&photo.data, photo_variance.as_deref(), include);
+            let (render_mean, render_var, _) =
+                compare::band::region_mean(&render.data, render_variance.as_deref(), include);
+            let mut c = compare::band::check(twin, photo_mean, photo_var, render_mean, render_var, n);
+            c.render = "render".into();
+            c.band = "band".into();
+            vec![c]
+        }
+    };
     let out = PyDict::new(py);
     out.set_item("width", photo.width)?;
     out.set_item("height", photo.height)?;
     out.set_item("as_calibrated", to_python(py, &metrics)?)?;
     out.set_item("noise", noise.map(|n| to_python(py, &n)).transpose()?)?;
+    out.set_item("bands", to_python(py, &bands)?)?;
     out.set_item("notes", notes)?;
     Ok(out.into_any())
 }
@@ -799,6 +840,15 @@ fn run_interruptible<T: Send>(
 /// (0 ≤ g < 1; μs(1 − g), μa and n kept; biased by a few %, see the
 /// method's similarity section). Each overrides the scene's [render] value,
 /// as the command's options of the same names.
+/// uncertainty: carry the recipe's uncertain inputs (``weight_percent = {
+/// value = 0.65, sd = 0.03 }`` in the scene's [material] recipe) to the
+/// render, as ``lucent render --uncertainty``: the result gets ``band``
+/// (uncertainty.json's dict: per region, the mean's standard deviation
+/// from the inputs, its Monte Carlo error, each input's share) and
+/// ``band_sd``, ``band_sd_std_error`` (H × W × 3, per pixel);
+/// uncertainty_spp: samples of each render at ±1 σ (even; default half the
+/// render's on the object), for inputs the render's own paths do not carry.
+/// Pass ``band`` to ``compare(…, band=…)``.
 /// progress: optional callable, called with the floats ``(spp_done,
 /// spp_target, elapsed_s, object_rel_error)`` after passes (object_rel_error: the
 /// median relative standard error over the object's pixels, NaN without
@@ -817,7 +867,8 @@ fn run_interruptible<T: Send>(
 #[pyfunction]
 #[pyo3(name = "render", signature = (
     scene, spp = None, time_s = None, seed = None, size = None, threads = None, target_rel_error = None,
-    sampling = None, dispersion = None, split_entry = false, similarity_g = None, progress = None
+    sampling = None, dispersion = None, split_entry = false, similarity_g = None, progress = None,
+    uncertainty = false, uncertainty_spp = None
 ))]
 #[allow(clippy::too_many_arguments)]
 fn py_render<'py>(
@@ -834,6 +885,8 @@ fn py_render<'py>(
     split_entry: bool,
     similarity_g: Option<f64>,
     progress: Option<Py<PyAny>>,
+    uncertainty: bool,
+    uncertainty_spp: Option<u32>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let args = RenderArgs {
         scene,
@@ -848,13 +901,14 @@ fn py_render<'py>(
         similarity_g,
         quiet: true,
         shard: None,
-        uncertainty: false,
-        uncertainty_spp: None,
+        uncertainty,
+        uncertainty_spp,
         uncertainty_renders: false,
     };
     // The job `lucent render` checks (the ranges of its flags), then the scene.
     lucent::job::RenderJob::from(&args).validate().map_err(error)?;
-    let (loaded, settings) = render_cli::prepare(&args).map_err(error_chain)?;
+    let (loaded, mut settings) = render_cli::prepare(&args).map_err(error_chain)?;
+    let uncertain = render_cli::uncertain_inputs(&args, &loaded, &mut settings).map_err(error_chain)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build().map_err(error)?;
     let (image, stats) = run_interruptible(py, progress, |cancel, report| {
         pool.install(|| {
@@ -900,6 +954,15 @@ fn py_render<'py>(
     out.set_item("wall_s", stats.wall_s)?;
     out.set_item("samples", stats.samples)?;
     out.set_item("warnings", loaded.warnings.clone())?;
+    if let Some(u) = &uncertain {
+        let (band, _) = run_interruptible(py, None, |cancel, _| {
+            render_cli::band_of(&args, &loaded, &settings, &pool, &image, &u.recipe, &u.path_derivatives, cancel)
+        })?
+        .map_err(error_chain)?;
+        out.set_item("band_sd", rgb(&band.pixel_sd)?)?;
+        out.set_item("band_sd_std_error", rgb(&band.pixel_sd_std_error)?)?;
+        out.set_item("band", to_python(py, &band)?)?;
+    }
     Ok(out)
 }
 

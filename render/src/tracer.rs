@@ -2035,8 +2035,8 @@ fn trace_path(
                         };
                         let denom = p_conn * v.mean_r + stretch_pdf * tp.mean_r() + p_phase;
                         if denom > 0.0 {
-                            for c in 0..3 {
-                                est.add(c, tp.beta[c] * stretch_pdf * l[c] / denom);
+                            for (c, lc) in l.iter().enumerate() {
+                                est.add(c, tp.beta[c] * stretch_pdf * lc / denom);
                             }
                         }
                     } else if let Some(c) = chain.filter(|c| c.out) {
@@ -2049,8 +2049,8 @@ fn trace_path(
                         let p_nee = if made { scene.environment.pdf(c.y, d) } else { 0.0 };
                         let denom = p_nee * mean_weighted(&c.r, &[1.0; 3]) + c.pdf * tp.mean_r();
                         if denom > 0.0 {
-                            for k in 0..3 {
-                                est.add(k, tp.beta[k] * c.pdf * l[k] / denom);
+                            for (k, lk) in l.iter().enumerate() {
+                                est.add(k, tp.beta[k] * c.pdf * lk / denom);
                             }
                         }
                     } else {

@@ -63,6 +63,11 @@ pub struct CompareArgs {
     /// Motion model of the refinement: translation, euclidean, affine or homography.
     #[arg(long, value_parser = named::<Motion>(), default_value = "translation", requires = "refine")]
     pub refine_motion: Motion,
+    /// A twin's band: its render's uncertainty.json (or the folder holding it) from `lucent
+    /// render --uncertainty`; once per --render, in the same order. With --mask-object or
+    /// --mask-board: is the photo's mean over those pixels within the twin's predictive band?
+    #[arg(long, value_name = "UNCERTAINTY_JSON")]
+    pub band: Vec<PathBuf>,
     /// Output folder (created; existing metrics.json, triplet.png, difference.exr in it are replaced).
     #[arg(long)]
     pub out: PathBuf,
@@ -146,6 +151,7 @@ pub fn run(a: CompareArgs) -> Result<()> {
         photo_variance: a.photo_variance,
         photo_repeat: a.photo_repeat,
         twin_names: a.twin_names,
+        bands: a.band.iter().map(|p| compare::band::TwinBands::read(p)).collect::<Result<_, _>>()?,
     };
     let outcome = compare::compare_files(&req)?;
     for n in &outcome.notes {
@@ -210,6 +216,9 @@ pub fn run(a: CompareArgs) -> Result<()> {
             f.correlation,
             line(&f.metrics)
         );
+    }
+    for b in &r.bands {
+        println!("{}: {}", b.render, b.statement);
     }
     println!("written: {}", written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
     Ok(())

@@ -426,57 +426,13 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     if shard.is_some() || merged_from.is_some() {
         check_shardable(&settings)?;
     }
+    if a.uncertainty && (shard.is_some() || merged_from.is_some()) {
+        bail!("--uncertainty: the renders at ±1 σ are not sharded; run without --shard");
+    }
     // The uncertain inputs, checked before any work.
-    let uncertain = if a.uncertainty {
-        if shard.is_some() || merged_from.is_some() {
-            bail!("--uncertainty: the renders at ±1 σ are not sharded; run without --shard");
-        }
-        if let Some(n) = a.uncertainty_spp
-            && (n == 0 || n % 2 == 1)
-        {
-            bail!("--uncertainty-spp {n}: must be a positive even number (the band's error comes from the two halves of the samples)");
-        }
-        let recipe = scene::material_recipe(&a.scene)?.ok_or_else(|| {
-            anyhow::anyhow!(
-                "--uncertainty: {} has no [material] recipe to take uncertain inputs from",
-                a.scene.display()
-            )
-        })?;
-        if recipe.uncertain.is_empty() {
-            bail!(
-                "--uncertainty: the recipe {} gives no input with an uncertainty (write e.g. weight_percent = {{ value = 0.65, sd = 0.03 }})",
-                recipe.path.display()
-            );
-        }
-        Some(recipe)
-    } else {
-        None
-    };
-    // The inputs whose effect the nominal render's own paths carry (index
-    // into settings.derivatives), the others rendered at ±1 σ.
-    let path_derivatives = match &uncertain {
-        Some(recipe) => {
-            let found = if a.uncertainty_renders {
-                vec![None; recipe.uncertain.len()]
-            } else {
-                coefficient_derivatives(&a, &loaded, recipe)?
-            };
-            let mut index = Vec::new();
-            for d in found {
-                index.push(match d {
-                    Some((d, left_out)) if settings.derivatives.len() < tracer::MAX_DERIVATIVES => {
-                        settings.derivatives.push(d);
-                        Some((settings.derivatives.len() - 1, left_out))
-                    }
-                    _ => None,
-                });
-            }
-            if settings.sphere_jumps && !settings.derivatives.is_empty() && !a.quiet {
-                eprintln!("note: sphere jumps are off in this render: the path derivatives of --uncertainty need every scattering event");
-            }
-            index
-        }
-        None => Vec::new(),
+    let (uncertain, path_derivatives) = match uncertain_inputs(&a, &loaded, &mut settings)? {
+        Some(u) => (Some(u.recipe), u.path_derivatives),
+        None => (None, Vec::new()),
     };
     if let Some((k, n)) = shard
         && n > settings.spp
@@ -678,6 +634,62 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     Ok(())
 }
 
+/// With `--uncertainty`: the scene's recipe (refused without one or
+/// without an uncertain input) and, per uncertain input, its index in
+/// `settings.derivatives` (pushed here) where the nominal render's own
+/// paths carry its effect (with what that leaves out), `None` where it is
+/// rendered at ±1 σ. `None` without `--uncertainty`.
+pub fn uncertain_inputs(
+    a: &RenderArgs,
+    loaded: &scene::LoadedScene,
+    settings: &mut Settings,
+) -> Result<Option<Uncertain>> {
+    if !a.uncertainty {
+        return Ok(None);
+    }
+    if let Some(n) = a.uncertainty_spp
+        && (n == 0 || n % 2 == 1)
+    {
+        bail!("--uncertainty-spp {n}: must be a positive even number (the band's error comes from the two halves of the samples)");
+    }
+    let recipe = scene::material_recipe(&a.scene)?.ok_or_else(|| {
+        anyhow::anyhow!("--uncertainty: {} has no [material] recipe to take uncertain inputs from", a.scene.display())
+    })?;
+    if recipe.uncertain.is_empty() {
+        bail!(
+            "--uncertainty: the recipe {} gives no input with an uncertainty (write e.g. weight_percent = {{ value = 0.65, sd = 0.03 }})",
+            recipe.path.display()
+        );
+    }
+    let found = if a.uncertainty_renders {
+        vec![None; recipe.uncertain.len()]
+    } else {
+        coefficient_derivatives(a, loaded, &recipe)?
+    };
+    let mut index = Vec::new();
+    for d in found {
+        index.push(match d {
+            Some((d, left_out)) if settings.derivatives.len() < tracer::MAX_DERIVATIVES => {
+                settings.derivatives.push(d);
+                Some((settings.derivatives.len() - 1, left_out))
+            }
+            _ => None,
+        });
+    }
+    if settings.sphere_jumps && !settings.derivatives.is_empty() && !a.quiet {
+        eprintln!("note: sphere jumps are off in this render: the path derivatives of --uncertainty need every scattering event");
+    }
+    Ok(Some(Uncertain { recipe, path_derivatives: index }))
+}
+
+/// The recipe's uncertain inputs of a render ([`uncertain_inputs`]).
+pub struct Uncertain {
+    pub recipe: crate::optics::recipe::Recipe,
+    /// Per input, its index in the settings' derivatives and what that
+    /// leaves out (relative), or `None`: rendered at ±1 σ.
+    pub path_derivatives: Vec<Option<(usize, f64)>>,
+}
+
 /// The similar medium's g′ (and the later one's) that the nominal render
 /// walks, for the renders at ±1 σ: the depth floor would otherwise move g′
 /// with the input, and the phase functions with it, and the renders would
@@ -738,6 +750,63 @@ fn render_band(
     recipe: &crate::optics::recipe::Recipe,
     path_derivatives: &[Option<(usize, f64)>],
 ) -> Result<()> {
+    let interrupt = Interrupt::install();
+    let started = std::time::Instant::now();
+    let (band, renders) = band_of(a, loaded, settings, pool, image, recipe, path_derivatives, interrupt.flag())
+        .with_context(|| format!("the band was not written (the render itself is in {}/render.*)", a.out.display()))?;
+    drop(interrupt);
+    let wall_s = started.elapsed().as_secs_f64();
+    write_band(&a.out, image, &band)?;
+    for line in band.lines() {
+        println!("{line}");
+    }
+    println!("wrote {}/uncertainty.json, band.exr ({renders} renders, {wall_s:.1} s)", a.out.display());
+    Ok(())
+}
+
+/// uncertainty.json and band.exr (per pixel and band, the standard
+/// deviation from the inputs and its Monte Carlo error) in `out`.
+pub fn write_band(out: &Path, image: &Image, band: &scene::band::RenderBand) -> Result<()> {
+    crate::io::write_json(&out.join("uncertainty.json"), band)
+        .with_context(|| format!("{}: cannot write uncertainty.json", out.display()))?;
+    let channel = |v: &[[f64; 3]], c: usize| -> Vec<f32> { v.iter().map(|t| t[c] as f32).collect() };
+    let (sd, se) = (&band.pixel_sd, &band.pixel_sd_std_error);
+    let (r, g, b) = (channel(sd, 0), channel(sd, 1), channel(sd, 2));
+    let (er, eg, eb) = (channel(se, 0), channel(se, 1), channel(se, 2));
+    crate::imageio::write_exr_channels(
+        &out.join("band.exr"),
+        image.width,
+        image.height,
+        &[
+            ("inputs_sd.R", &r),
+            ("inputs_sd.G", &g),
+            ("inputs_sd.B", &b),
+            ("inputs_sd_std_error.R", &er),
+            ("inputs_sd_std_error.G", &eg),
+            ("inputs_sd_std_error.B", &eb),
+        ],
+    )?;
+    Ok(())
+}
+
+/// The band of the nominal render `image` ([`scene::band::render_band`]):
+/// each of `recipe`'s uncertain inputs' effect from the nominal render's own
+/// paths where `path_derivatives` ([`uncertain_inputs`]) gives its index in
+/// [`Image::derivatives`], else from renders at ±1 σ with the nominal's
+/// seed (`--uncertainty-spp` samples, default half the nominal's median on
+/// the object), which `cancel` stops (an error) as does the time budget.
+/// Also the number of those renders.
+#[allow(clippy::too_many_arguments)]
+pub fn band_of(
+    a: &RenderArgs,
+    loaded: &scene::LoadedScene,
+    settings: &Settings,
+    pool: &rayon::ThreadPool,
+    image: &Image,
+    recipe: &crate::optics::recipe::Recipe,
+    path_derivatives: &[Option<(usize, f64)>],
+    cancel: &std::sync::atomic::AtomicBool,
+) -> Result<(scene::band::RenderBand, usize)> {
     use crate::optics::uncertainty::InputSd;
     use scene::band::EffectEstimate;
     // The renders at ±1 σ carry no derivatives.
@@ -778,52 +847,57 @@ fn render_band(
         }
     }
     let walked = walked_similarity(loaded);
-    let interrupt = Interrupt::install();
-    // --time-s (or [render] time_s) bounds the ±1 σ renders too, together: past it they stop like at Ctrl-C.
+    // --time-s (or [render] time_s) bounds the ±1 σ renders too, together:
+    // past it, or when `cancel` is set, a watcher stops them.
+    use std::sync::atomic::{AtomicBool, Ordering};
     let deadline = settings.time_budget_s.map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t));
-    let timed_out = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    if let Some(deadline) = deadline {
-        let (flag, done) = (interrupt.flag(), timed_out.clone());
-        std::thread::spawn(move || {
-            std::thread::sleep(deadline.saturating_duration_since(std::time::Instant::now()));
-            done.store(true, std::sync::atomic::Ordering::Relaxed);
-            flag.store(true, std::sync::atomic::Ordering::Relaxed);
+    let (stop, finished, timed_out) = (AtomicBool::new(false), AtomicBool::new(false), AtomicBool::new(false));
+    let pairs = std::thread::scope(|scope| {
+        scope.spawn(|| {
+            while !finished.load(Ordering::Relaxed) {
+                if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+                    timed_out.store(true, Ordering::Relaxed);
+                    stop.store(true, Ordering::Relaxed);
+                }
+                if cancel.load(Ordering::Relaxed) {
+                    stop.store(true, Ordering::Relaxed);
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
         });
-    }
-    let mut pairs = Vec::new();
-    let mut wall_s = 0.0;
-    for ((input, sd), _) in recipe.uncertain.iter().zip(&inputs).zip(path_derivatives).filter(|(_, d)| d.is_none()) {
-        let mut pair = Vec::new();
-        for (sign, value) in [("+", input.nominal + sd.sd), ("−", input.nominal - sd.sd)] {
-            let (loaded, _) = prepare_as(a, false, Some((input.target, value)), walked)
-                .with_context(|| format!("--uncertainty: {} = {value} (nominal {sign} 1 σ)", input.key))?;
-            let (acc, stats) =
-                pool.install(|| tracer::render_samples(&loaded.scene, settings, 0..spp, Some(interrupt.flag())));
-            if timed_out.load(std::sync::atomic::Ordering::Relaxed) {
-                bail!(
-                    "--uncertainty: the renders at ±1 σ did not finish within the time budget ({} s); the band was not written (the render itself is in {}/render.*); give a smaller --uncertainty-spp or more time",
-                    settings.time_budget_s.unwrap_or(0.0),
-                    a.out.display()
-                );
+        let rendered = (|| -> Result<Vec<(Image, Image)>> {
+            let mut pairs = Vec::new();
+            let each = recipe.uncertain.iter().zip(&inputs).zip(path_derivatives).filter(|(_, d)| d.is_none());
+            for ((input, sd), _) in each {
+                let mut pair = Vec::new();
+                for (sign, value) in [("+", input.nominal + sd.sd), ("−", input.nominal - sd.sd)] {
+                    let (loaded, _) = prepare_as(a, false, Some((input.target, value)), walked)
+                        .with_context(|| format!("--uncertainty: {} = {value} (nominal {sign} 1 σ)", input.key))?;
+                    let (acc, stats) =
+                        pool.install(|| tracer::render_samples(&loaded.scene, settings, 0..spp, Some(&stop)));
+                    if timed_out.load(Ordering::Relaxed) {
+                        bail!(
+                            "--uncertainty: the renders at ±1 σ did not finish within the time budget ({} s); give a smaller --uncertainty-spp or more time",
+                            settings.time_budget_s.unwrap_or(0.0),
+                        );
+                    }
+                    if stop.load(Ordering::Relaxed) {
+                        return Err(Interrupted("the renders at ±1 σ were stopped".into()).into());
+                    }
+                    if !a.quiet {
+                        eprintln!("  {} {sign} 1 σ = {value:.6}: {spp} spp in {:.1} s", input.key, stats.wall_s);
+                    }
+                    pair.push(acc.image());
+                }
+                let minus = pair.pop().context("two renders per input")?;
+                let plus = pair.pop().context("two renders per input")?;
+                pairs.push((plus, minus));
             }
-            if interrupt.requested() {
-                return Err(Interrupted(format!(
-                    "the band was not written (the render itself is in {}/render.*)",
-                    a.out.display()
-                ))
-                .into());
-            }
-            wall_s += stats.wall_s;
-            if !a.quiet {
-                eprintln!("  {} {sign} 1 σ = {value:.6}: {spp} spp in {:.1} s", input.key, stats.wall_s);
-            }
-            pair.push(acc.image());
-        }
-        let minus = pair.pop().context("two renders per input")?;
-        let plus = pair.pop().context("two renders per input")?;
-        pairs.push((plus, minus));
-    }
-    drop(interrupt);
+            Ok(pairs)
+        })();
+        finished.store(true, Ordering::Relaxed);
+        rendered
+    })?;
     let mut rendered = pairs.iter();
     let mut effects = Vec::new();
     for d in path_derivatives {
@@ -835,31 +909,7 @@ fn render_band(
             }
         });
     }
-    let band = scene::band::render_band(image, &inputs, &effects);
-    crate::io::write_json(&a.out.join("uncertainty.json"), &band)
-        .with_context(|| format!("{}: cannot write uncertainty.json", a.out.display()))?;
-    let channel = |v: &[[f64; 3]], c: usize| -> Vec<f32> { v.iter().map(|t| t[c] as f32).collect() };
-    let (sd, se) = (&band.pixel_sd, &band.pixel_sd_std_error);
-    let (r, g, b) = (channel(sd, 0), channel(sd, 1), channel(sd, 2));
-    let (er, eg, eb) = (channel(se, 0), channel(se, 1), channel(se, 2));
-    crate::imageio::write_exr_channels(
-        &a.out.join("band.exr"),
-        image.width,
-        image.height,
-        &[
-            ("inputs_sd.R", &r),
-            ("inputs_sd.G", &g),
-            ("inputs_sd.B", &b),
-            ("inputs_sd_std_error.R", &er),
-            ("inputs_sd_std_error.G", &eg),
-            ("inputs_sd_std_error.B", &eb),
-        ],
-    )?;
-    for line in band.lines() {
-        println!("{line}");
-    }
-    println!("wrote {}/uncertainty.json, band.exr ({renders} renders, {wall_s:.1} s)", a.out.display());
-    Ok(())
+    Ok((scene::band::render_band(image, &inputs, &effects), renders))
 }
 
 /// "object 4.1 % (6.0 %, 9.2 %) over 51234 px, board …, all …": per region

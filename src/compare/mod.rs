@@ -42,6 +42,7 @@
 //! assert!(m.ssim.y < 1.0 && m.ssim.y > 0.9);
 //! ```
 
+pub mod band;
 pub mod input;
 pub mod mask;
 pub mod noise;
@@ -125,6 +126,11 @@ pub enum CompareError {
     Write(#[from] WriteError),
     #[error("{}: {source}", path.display())]
     Io { path: PathBuf, source: std::io::Error },
+    #[error("--band: {0}")]
+    Band(#[from] band::BandError),
+    /// A band without an object or board mask, or more bands than renders.
+    #[error("--band: {0}")]
+    BandUse(String),
 }
 
 /// Why an input file of a comparison cannot be read ([`CompareError::Read`]).
@@ -486,6 +492,10 @@ pub struct Request {
     /// What the two twins are (e.g. "recipe", "fitted"), for the rows of
     /// triplet.png; `None`: "A" and "B" with their files.
     pub twin_names: Option<[String; 2]>,
+    /// Each twin's bands (its `uncertainty.json` from `lucent render
+    /// --uncertainty`), in the order of the renders: is the photo within its
+    /// predictive band over the object or board mask ([`band`])?
+    pub bands: Vec<band::TwinBands>,
 }
 
 /// `twins` in metrics.json: the second render against the first.
@@ -586,6 +596,9 @@ pub struct Report {
     #[serde(default)]
     pub ssim_at_zero_noise: Option<noise::SsimAtZeroNoise>,
     pub refined: Option<Refinement>,
+    /// Per twin given a band (`--band`): is the photo within its predictive band?
+    #[serde(default)]
+    pub bands: Vec<band::BandCheck>,
     pub display: DisplayReport,
     pub files: Vec<String>,
 }
@@ -850,27 +863,10 @@ pub fn model_error(
     Ok(report)
 }
 
-/// The model RMSE of the render at `render_path` given its variance
-/// (`variance.R/G/B` of its EXR, read by [`render_variance`]); `None` with a
-/// note when it has none.
-#[allow(clippy::too_many_arguments)]
-fn noise_report(
-    req: &Request,
-    render_path: &Path,
-    render_variance: Option<&[f32]>,
-    photo: &RgbImage,
-    render: &RgbImage,
-    mask: Option<&Mask>,
-    notes: &mut Vec<String>,
-) -> Result<Option<noise::NoiseReport>, CompareError> {
-    let Some(render_variance) = render_variance else {
-        notes.push(format!(
-            "{} has no variance layers (variance.R/G/B of lucent render's EXR): no model RMSE",
-            render_path.display()
-        ));
-        return Ok(None);
-    };
-    let photo_variance = match &req.photo_variance {
+/// The photo's per-pixel variance (interleaved RGB): `--photo-variance`,
+/// else (P − P₂)²/2 from `--photo-repeat`, else `None`.
+fn photo_variance(req: &Request, photo: &RgbImage) -> Result<Option<Vec<f32>>, CompareError> {
+    Ok(match &req.photo_variance {
         None => match &req.photo_repeat {
             None => None,
             Some(p2) => {
@@ -905,7 +901,30 @@ fn noise_report(
             check_photo_variance(&v, photo).map_err(read)?;
             Some(v)
         }
+    })
+}
+
+/// The model RMSE of the render at `render_path` given its variance
+/// (`variance.R/G/B` of its EXR, read by [`render_variance`]); `None` with a
+/// note when it has none.
+#[allow(clippy::too_many_arguments)]
+fn noise_report(
+    req: &Request,
+    render_path: &Path,
+    render_variance: Option<&[f32]>,
+    photo: &RgbImage,
+    render: &RgbImage,
+    mask: Option<&Mask>,
+    notes: &mut Vec<String>,
+) -> Result<Option<noise::NoiseReport>, CompareError> {
+    let Some(render_variance) = render_variance else {
+        notes.push(format!(
+            "{} has no variance layers (variance.R/G/B of lucent render's EXR): no model RMSE",
+            render_path.display()
+        ));
+        return Ok(None);
     };
+    let photo_variance = photo_variance(req, photo)?;
     let photo_variance_name = req.photo_variance.as_ref().map(|p| p.display().to_string());
     let mut report = model_error(
         photo,
@@ -1048,6 +1067,25 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     {
         return Err(CompareError::EmptyMask { kind: Some(source), path: mask_path.cloned() });
     }
+    // The bands: one per twin, over the object's or the board's pixels.
+    let renders = 1 + usize::from(req.render_b.is_some());
+    if req.bands.len() > renders {
+        return Err(CompareError::BandUse(format!(
+            "{} bands for {renders} render(s): give one per --render, in the same order",
+            req.bands.len()
+        )));
+    }
+    let band_region = match source {
+        "object" | "object and image" => "object",
+        "board" | "board and image" => "board",
+        _ => "",
+    };
+    if !req.bands.is_empty() && band_region.is_empty() {
+        return Err(CompareError::BandUse(
+            "a twin's band is of the object's or the board's mean: give --mask-object or --mask-board".into(),
+        ));
+    }
+    let twin_bands = req.bands.iter().map(|b| b.region(band_region)).collect::<Result<Vec<_>, _>>()?;
     let mut notes: Vec<String> = Vec::new();
 
     let (calibrated, ssim_map) = metrics_and_ssim_map(photo_img, render_img, mask.as_ref(), &settings)?;
@@ -1062,6 +1100,33 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             twins_report(req, pb, photo_img, (render_img, render_var.as_deref()), mask.as_ref(), &settings, &mut notes)
                 .map(|(t, b)| (Some(t), Some(b)))?
         }
+    };
+
+    let bands = if twin_bands.is_empty() {
+        Vec::new()
+    } else {
+        let include = mask.as_ref().map(|m| m.include.as_slice());
+        let pv = photo_variance(req, photo_img)?;
+        let (photo_mean, photo_var, n) = band::region_mean(&photo_img.data, pv.as_deref(), include);
+        if pv.is_none() {
+            notes.push("--band: no photo variance given (--photo-variance or --photo-repeat): the photo's noise is taken as 0 in the predictive band".into());
+        }
+        let renders: Vec<(&Path, &RgbImage, Option<Vec<f32>>)> =
+            std::iter::once((req.render.as_path(), render_img, render_var.clone()))
+                .chain(req.render_b.as_deref().zip(render_b_img.as_ref()).map(|(p, img)| (p, img, render_variance(p))))
+                .collect();
+        twin_bands
+            .iter()
+            .zip(&renders)
+            .zip(&req.bands)
+            .map(|((b, (path, img, var)), bands)| {
+                let (render_mean, render_var_mean, _) = band::region_mean(&img.data, var.as_deref(), include);
+                let mut c = band::check(b, photo_mean, photo_var, render_mean, render_var_mean, n);
+                c.render = path.display().to_string();
+                c.band.clone_from(&bands.source);
+                c
+            })
+            .collect()
     };
 
     // ECC refinement.
@@ -1365,6 +1430,7 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         twins,
         ssim_at_zero_noise,
         refined: refined_parts.as_ref().map(|(r, _, _)| r.clone()),
+        bands,
         display: DisplayReport {
             exposure,
             exposure_source,
