@@ -571,6 +571,8 @@ pub struct RenderJob {
     pub time_s: Option<f64>,
     pub size: Option<String>,
     pub seed: Option<u64>,
+    /// `--uncertainty`: the band from the recipe's uncertain inputs (uncertainty.json, band.exr).
+    pub uncertainty: bool,
     pub out: PathBuf,
 }
 
@@ -583,7 +585,8 @@ impl RenderJob {
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["render"]);
         l.word(s(&self.scene)).opt("--spp", &self.spp).switch("--quiet", self.quiet).opt("--time-s", &self.time_s);
-        l.opt("--size", &self.size).opt("--seed", &self.seed).flag("--out", s(&self.out));
+        l.opt("--size", &self.size).opt("--seed", &self.seed).switch("--uncertainty", self.uncertainty);
+        l.flag("--out", s(&self.out));
         l.0
     }
 }
@@ -604,6 +607,8 @@ pub struct CompareJob {
     /// `--twin-names A,B`: what the two renders are (e.g. "recipe,fitted"),
     /// for the rows of the twins' triplet.png.
     pub twin_names: Option<[String; 2]>,
+    /// `--band`: each render's uncertainty.json, in the renders' order.
+    pub band: Vec<PathBuf>,
 }
 
 /// The default of `lucent compare --data-range`.
@@ -623,6 +628,7 @@ impl CompareJob {
         l.opt("--mask-object", &self.mask_object.as_deref().map(s));
         l.opt("--photo-variance", &self.photo_variance.as_deref().map(s)).flag("--data-range", self.data_range);
         l.opt("--twin-names", &self.twin_names.as_ref().map(|[a, b]| format!("{a},{b}")));
+        l.words(self.band.iter().flat_map(|b| ["--band".to_string(), s(b)]));
         l.0
     }
 }

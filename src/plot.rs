@@ -736,6 +736,82 @@ pub fn patch_overlay_png(
     })
 }
 
+/// One twin's check against the photo for [`band_check_png`]: its name and,
+/// per band R, G, B, the photo's offset from the twin's mean and the
+/// predictive and recipe-only half widths (k·u), all relative to the twin's mean.
+pub struct BandBars {
+    pub twin: String,
+    pub photo_offset: [f64; 3],
+    pub predictive_half_width: [f64; 3],
+    pub inputs_half_width: [f64; 3],
+    pub within: bool,
+}
+
+/// The photo against each twin's predictive band, per band R, G, B, in %
+/// of the twin's mean: the twin at 0, its band ±k·u (light: everything;
+/// dark: the recipe's inputs alone) and the photo as a black dot.
+pub fn band_check_png(twins: &[BandBars], k: f64) -> Result<Vec<u8>, PlotError> {
+    if twins.is_empty() {
+        return Err(PlotError::Input { plot: "the band check", need: "at least one twin" });
+    }
+    let all =
+        twins.iter().flat_map(|t| t.photo_offset.iter().chain(&t.predictive_half_width).chain(&t.inputs_half_width));
+    if all.clone().any(|v| !v.is_finite()) {
+        return Err(PlotError::NonFinite { plot: "the band check" });
+    }
+    let reach = 100.0 * all.map(|v| v.abs()).fold(0.0, f64::max) * 1.25;
+    let reach = if reach > 0.0 { reach } else { 1.0 };
+    let n = twins.len();
+    let channel = [RGBColor(200, 60, 60), RGBColor(60, 150, 60), RGBColor(60, 90, 200)];
+    let light = [RGBColor(245, 205, 205), RGBColor(205, 235, 205), RGBColor(205, 215, 245)];
+    render_png(260 + 300 * n as u32, 480, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .margin(16)
+            .x_label_area_size(60)
+            .y_label_area_size(70)
+            .caption(format!("photo (dot) against each twin's predictive band (k = {k})"), ("sans-serif", 20))
+            .build_cartesian_2d(0f64..(4 * n) as f64, -reach..reach)
+            .map_err(perr)?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(0)
+            .y_desc("photo − twin [% of the twin's mean]")
+            .y_label_formatter(&|v| format!("{v:+.1}"))
+            .draw()
+            .map_err(perr)?;
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                vec![(0.0, 0.0), ((4 * n) as f64, 0.0)],
+                BLACK.stroke_width(1),
+            )))
+            .map_err(perr)?;
+        for (i, t) in twins.iter().enumerate() {
+            for c in 0..3 {
+                let x = (4 * i + c) as f64 + 0.5;
+                let (p, u) = (100.0 * t.predictive_half_width[c], 100.0 * t.inputs_half_width[c]);
+                chart
+                    .draw_series(std::iter::once(Rectangle::new([(x, -p), (x + 0.8, p)], light[c].filled())))
+                    .map_err(perr)?;
+                chart
+                    .draw_series(std::iter::once(Rectangle::new([(x + 0.25, -u), (x + 0.55, u)], channel[c].filled())))
+                    .map_err(perr)?;
+                chart
+                    .draw_series(std::iter::once(Circle::new((x + 0.4, 100.0 * t.photo_offset[c]), 6, BLACK.filled())))
+                    .map_err(perr)?;
+            }
+            for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
+                let at = chart.backend_coord(&((4 * i + c) as f64 + 0.9, -reach));
+                root.draw(&Text::new(name, (at.0 - 5, at.1 + 8), ("sans-serif", 15).into_font())).map_err(perr)?;
+            }
+            let label = format!("{}: {}", t.twin, if t.within { "within" } else { "outside" });
+            let at = chart.backend_coord(&((4 * i) as f64 + 0.5, -reach));
+            root.draw(&Text::new(label, (at.0, at.1 + 30), ("sans-serif", 17).into_font())).map_err(perr)?;
+        }
+        Ok(())
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

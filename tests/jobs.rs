@@ -115,6 +115,7 @@ fn jobs() -> Vec<Job> {
             time_s: Some(2.5),
             size: Some("64x48".into()),
             seed: Some(9),
+            uncertainty: true,
             out: p("{out}/s"),
         }),
         Job::Compare(CompareJob {
@@ -126,6 +127,7 @@ fn jobs() -> Vec<Job> {
             photo_variance: Some(p("{out}/s/photo_variance.exr")),
             data_range: 2.0,
             twin_names: Some(["recipe".into(), "fitted".into()]),
+            band: vec![p("a/uncertainty.json"), p("b/uncertainty.json")],
         }),
     ]
 }

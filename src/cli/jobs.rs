@@ -180,6 +180,7 @@ impl From<&render::RenderArgs> for RenderJob {
             time_s: a.time_s,
             size: a.render.size.clone(),
             seed: a.render.seed,
+            uncertainty: a.uncertainty,
             out: a.out.clone(),
         }
     }
@@ -196,6 +197,7 @@ impl From<&compare::CompareArgs> for CompareJob {
             photo_variance: a.photo_variance.clone(),
             data_range: a.data_range,
             twin_names: a.twin_names.clone(),
+            band: a.band.clone(),
         }
     }
 }

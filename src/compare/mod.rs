@@ -611,6 +611,8 @@ pub struct Outcome {
     pub height: usize,
     /// Channels of difference.exr.
     pub difference: Vec<(String, Vec<f32>)>,
+    /// band.png ([`BAND_PNG`]): the photo against each twin's band, with `--band`.
+    pub band_png: Option<Vec<u8>>,
     /// Things the user should know (clipping, ECC region), for stderr.
     pub notes: Vec<String>,
 }
@@ -990,6 +992,9 @@ pub const NOISE_RESAMPLES: usize = 1000;
 
 /// Output file names inside the folder.
 pub const FILES: [&str; 3] = ["metrics.json", "triplet.png", "difference.exr"];
+
+/// The picture of `--band`'s check, beside [`FILES`] when bands are given.
+pub const BAND_PNG: &str = "band.png";
 
 /// Reads, checks and compares the images of `req`; nothing is written.
 pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
@@ -1452,7 +1457,33 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         },
         files: FILES.iter().map(|s| s.to_string()).collect(),
     };
-    Ok(Outcome { report, triplet_png, width: w, height: h, difference, notes })
+    let band_png = if report.bands.is_empty() {
+        None
+    } else {
+        let bars: Vec<crate::plot::BandBars> = report
+            .bands
+            .iter()
+            .enumerate()
+            .map(|(k, b)| {
+                let rel = |v: [f64; 3], scale: f64| -> [f64; 3] {
+                    std::array::from_fn(|c| scale * v[c] / b.render_mean[c].abs().max(f64::MIN_POSITIVE))
+                };
+                let off: [f64; 3] = std::array::from_fn(|c| b.photo_mean[c] - b.render_mean[c]);
+                crate::plot::BandBars {
+                    twin: match &req.twin_names {
+                        Some(n) => format!("{} twin", n[k]),
+                        None => short(Path::new(&b.render)),
+                    },
+                    photo_offset: rel(off, 1.0),
+                    predictive_half_width: rel(b.predictive_sd, b.coverage_factor),
+                    inputs_half_width: rel(b.inputs_sd, b.coverage_factor),
+                    within: b.within,
+                }
+            })
+            .collect();
+        Some(crate::plot::band_check_png(&bars, band::COVERAGE_FACTOR)?)
+    };
+    Ok(Outcome { report, triplet_png, width: w, height: h, difference, band_png, notes })
 }
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> CompareError + '_ {
@@ -1485,9 +1516,19 @@ pub fn write_outputs(out: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>, Comp
         let channels: Vec<(&str, &[f32])> =
             outcome.difference.iter().map(|(n, v)| (n.as_str(), v.as_slice())).collect();
         write_exr_channels(&tmp.join(FILES[2]), outcome.width, outcome.height, &channels)?;
+        if let Some(png) = &outcome.band_png {
+            write_atomic(&tmp.join(BAND_PNG), png)?;
+        }
         if out.is_dir() {
             for f in FILES {
                 std::fs::rename(tmp.join(f), out.join(f)).map_err(io_err(&out.join(f)))?;
+            }
+            // A band.png of an earlier comparison would no longer belong to metrics.json.
+            let band = out.join(BAND_PNG);
+            if outcome.band_png.is_some() {
+                std::fs::rename(tmp.join(BAND_PNG), &band).map_err(io_err(&band))?;
+            } else if band.is_file() {
+                std::fs::remove_file(&band).map_err(io_err(&band))?;
             }
             std::fs::remove_dir(&tmp).map_err(io_err(&tmp))?;
         } else if out.exists() {
@@ -1504,7 +1545,7 @@ pub fn write_outputs(out: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>, Comp
         let _ = std::fs::remove_dir_all(&tmp);
     }
     result?;
-    Ok(FILES.iter().map(|f| out.join(f)).collect())
+    Ok(FILES.iter().copied().chain(outcome.band_png.as_ref().map(|_| BAND_PNG)).map(|f| out.join(f)).collect())
 }
 
 #[cfg(test)]

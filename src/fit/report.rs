@@ -103,27 +103,29 @@ pub fn fitted_recipe_text(original: &str, recipe_dir: &Path, result: &FitResult)
         let value = p.value?;
         let se = p.std_error.unwrap_or(f64::NAN);
         notes.push(format!("# {} {} → {value:.6} ± {se:.2e}", p.name, p.start));
+        // The fit's standard error travels as the value's uncertainty
+        // (`lucent render --uncertainty` carries it to the twin's band).
+        let v = if se.is_finite() && se > 0.0 {
+            format!("{{ value = {value:.6}, sd = {se:.6e} }}")
+        } else {
+            format!("{value:.6}")
+        };
         let (kind, particle) = free;
         text = match kind {
-            ParameterKind::WeightPercent => {
-                set_particle_key(&text, particle, "weight_percent", &format!("{value:.6}"))?
+            ParameterKind::WeightPercent => set_particle_key(&text, particle, "weight_percent", &v)?,
+            ParameterKind::DiameterUm => {
+                set_particle_key(&text, particle, "size", &format!("{{ kind = \"diameter\", diameter_um = {v} }}"))?
             }
-            ParameterKind::DiameterUm => set_particle_key(
-                &text,
-                particle,
-                "size",
-                &format!("{{ kind = \"diameter\", diameter_um = {value:.6} }}"),
-            )?,
             ParameterKind::RealPartN => set_particle_key(
                 &text,
                 particle,
                 "real_part",
-                &format!("{{ wavelength_nm = {}, n = {value:.6}, mode = \"shift\" }}", result.wavelength_nm),
+                &format!("{{ wavelength_nm = {}, n = {v}, mode = \"shift\" }}", result.wavelength_nm),
             )?,
         };
     }
     Some(format!(
-        "# Fitted by `lucent fit` ({} objective, {} configuration(s), {} nm): see fit.json.\n{}\n{text}",
+        "# Fitted by `lucent fit` ({} objective, {} configuration(s), {} nm): see fit.json. Each fitted value\n# carries the fit's standard error as its sd (parameters taken as independent).\n{}\n{text}",
         result.objective.name(),
         result.configurations.len(),
         result.wavelength_nm,

@@ -630,6 +630,12 @@ pub fn fitted_recipe(project: &Project, out: &Path, sample: &project::SampleSect
     p.is_file().then_some(p)
 }
 
+/// Whether the recipe at `path` gives an input with an uncertainty (false
+/// when it does not load: the render stage then says why).
+fn recipe_has_uncertain_input(path: &Path) -> bool {
+    crate::optics::recipe::Recipe::load(path, Default::default()).is_ok_and(|r| !r.uncertain.is_empty())
+}
+
 /// [`sample_scene`] with `recipe` (a fitted recipe, its weight percentage
 /// inside) in place of the sample's.
 fn sample_scene_with(
@@ -1031,6 +1037,18 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], job });
                     continue;
                 }
+                // The band where the recipe gives an uncertain input (else a note).
+                let uncertainty = r.uncertainty == Some(true) && {
+                    let any = recipe_has_uncertain_input(&smp.recipe);
+                    if !any {
+                        notes.push(format!(
+                            "{}: [render] uncertainty: its recipe gives no input with an uncertainty (e.g. \
+                             weight_percent = {{ value = 0.65, sd = 0.03 }}): rendered without a band",
+                            smp.name
+                        ));
+                    }
+                    any
+                };
                 let job = RenderJob {
                     scene,
                     spp: Some(r.spp.unwrap_or(16)),
@@ -1038,17 +1056,19 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     time_s: r.time_s,
                     size: r.size.clone(),
                     seed: Some(project.seed),
+                    uncertainty,
                     out: sample_out,
                 };
                 // The fitted twin: the same render with stage fit's recipe.
                 let twin = match fitted_recipe(project, out, smp) {
                     Some(recipe) => {
                         let text = sample_scene_with(project, out, smp, true, Some(&recipe))?;
-                        inputs.push(recipe);
+                        inputs.push(recipe.clone());
                         let rel = format!("{}/input_scene_fitted.toml", smp.name);
                         let twin = RenderJob {
                             scene: under_out(format!("/{rel}")),
                             out: under_out(format!("/{}/fitted", smp.name)),
+                            uncertainty: r.uncertainty == Some(true) && recipe_has_uncertain_input(&recipe),
                             ..job.clone()
                         };
                         let label = format!("{} fitted twin", smp.name);
@@ -1088,11 +1108,21 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     photo_variance: photo_variance(out, smp),
                     data_range: f.compare.as_ref().and_then(|c| c.data_range).unwrap_or(crate::job::DEFAULT_DATA_RANGE),
                     twin_names: fitted.is_some().then(|| ["recipe".to_string(), "fitted".to_string()]),
+                    band: Vec::new(),
                 };
+                // Each twin's band (render --uncertainty), when the first has one.
+                let band: Vec<PathBuf> = std::iter::once(render.clone())
+                    .chain(fitted.clone())
+                    .map(|r| r.with_file_name("uncertainty.json"))
+                    .take_while(|b| b.is_file())
+                    .collect();
+                inputs.extend(band.iter().cloned());
                 // The same over the object's pixels, as the render's `object` layer marks
-                // them (any mesh): where the twins differ, so where their paired test looks.
+                // them (any mesh): where the twins differ, so where their paired test looks,
+                // and where the bands are.
                 let object = has_exr_channel(&render, "object").then(|| CompareJob {
                     mask_object: Some(render.clone()),
+                    band,
                     out: under_out(format!("/{}/object", smp.name)),
                     ..job.clone()
                 });

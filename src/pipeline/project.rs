@@ -43,6 +43,8 @@
 //! spp = 16
 //! # size = "320x240"
 //! # camera = "template"           # keep the template's camera; default with a [pose]: the pose stage's
+//! # uncertainty = true            # each twin with its band from its recipe's uncertain inputs (the fitted
+//! #                               # twin's: the fit's standard errors); compare: is the photo within it?
 //!
 //! [compare]
 //! data_range = 1.0
@@ -210,6 +212,11 @@ pub struct RenderSection {
     pub per_channel_scale: Option<bool>,
     /// "pose" (the default with a `[pose]`) or "template".
     pub camera: Option<String>,
+    /// Each twin rendered with its band from the recipe's uncertain inputs
+    /// (`lucent render --uncertainty`; the fitted twin's from the fit's
+    /// standard errors), and the compare stage says whether the photo lies
+    /// within it.
+    pub uncertainty: Option<bool>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -452,6 +459,7 @@ fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, Stri
             time_s: r.time_s,
             size: r.size.clone(),
             seed: None,
+            uncertainty: r.uncertainty == Some(true),
             out: PathBuf::new(),
         };
         check("[render]", "", job.validate());
@@ -477,6 +485,7 @@ fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, Stri
             photo_variance: None,
             data_range: c.data_range.unwrap_or(crate::job::DEFAULT_DATA_RANGE),
             twin_names: None,
+            band: Vec::new(),
         };
         check("[compare]", "", job.validate());
     }
