@@ -228,6 +228,77 @@ mod cli {
         assert_eq!(j["spp_per_input_render"].as_u64(), Some(4), "{j}");
     }
 
+    /// `lucent compare --band`: a "photo" rendered (another seed) from the
+    /// recipe at +0.5 σ lies within the nominal twin's predictive band on the
+    /// object, one at +5 σ outside it, the z per band close to the input's
+    /// offset in units of the predictive sd; band.png is written; a band
+    /// without an object mask, or more bands than renders, is refused.
+    #[test]
+    fn compare_states_whether_the_photo_lies_within_the_band() {
+        let tmp = tempfile::tempdir().unwrap();
+        let render = |name: &str, weight: &str, seed: u64, extra: &[&str]| -> std::path::PathBuf {
+            let dir = tmp.path().join(name);
+            std::fs::create_dir_all(&dir).unwrap();
+            let s = scene_of(&dir, &format!("spp = 1024\nseed = {seed}"), weight, "diameter_um = 2.2");
+            let out = dir.join("out");
+            let args = [&["render", s.to_str().unwrap(), "--quiet"][..], extra, &["--out", out.to_str().unwrap()]];
+            let o = lucent(&args.concat());
+            assert!(o.status.success(), "{}", stderr(&o));
+            out
+        };
+        let twin = render("twin", "weight_percent = { value = 0.65, sd = 0.0325 }", 1, &["--uncertainty"]);
+        let compare = |photo: &Path, name: &str, extra: &[&str]| -> std::process::Output {
+            let exr = photo.join("render.exr");
+            let (p, t) = (exr.to_str().unwrap(), twin.join("render.exr"));
+            let out = tmp.path().join(name);
+            let args = [
+                &["compare", "--photo", p, "--photo-variance", p, "--render", t.to_str().unwrap()][..],
+                extra,
+                &["--out", out.to_str().unwrap()],
+            ];
+            lucent(&args.concat())
+        };
+        let mask = twin.join("render.exr");
+        let (mask, band) = (mask.to_str().unwrap(), twin.to_str().unwrap());
+        let mut z_near = Vec::new();
+        for (name, weight) in [("near", 0.65 + 0.5 * 0.0325), ("far", 0.65 + 5.0 * 0.0325)] {
+            let photo = render(name, &format!("weight_percent = {weight}"), 7, &[]);
+            let o = compare(&photo, &format!("c_{name}"), &["--mask-object", mask, "--band", band]);
+            assert!(o.status.success(), "{}", stderr(&o));
+            let out = tmp.path().join(format!("c_{name}"));
+            assert!(out.join("band.png").is_file());
+            let j = json(&out.join("metrics.json"));
+            let b = &j["bands"][0];
+            assert_eq!(b["region"].as_str(), Some("object"), "{b}");
+            assert!(b["photo_noise_known"].as_bool().unwrap(), "{b}");
+            let z: Vec<f64> = (0..3).map(|c| b["z"][c].as_f64().unwrap()).collect();
+            let within = b["within"].as_bool().unwrap();
+            let stdout = String::from_utf8_lossy(&o.stdout);
+            if name == "near" {
+                assert!(within && stdout.contains("within its predictive band"), "{b}");
+                z_near = z;
+            } else {
+                assert!(!within && stdout.contains("outside its predictive band"), "{b}");
+                // The effect is near linear: ten times the near photo's offset (to 40 %, for curvature and noise).
+                for c in 0..3 {
+                    assert!(
+                        z[c] > 2.0 && (z[c] / (10.0 * z_near[c]) - 1.0).abs() < 0.4,
+                        "band {c}: far z {z:?}, near {z_near:?}"
+                    );
+                }
+            }
+        }
+        // A band needs the object's (or board's) pixels, and one per render.
+        let photo = tmp.path().join("near/out");
+        let o = compare(&photo, "c_bad", &["--band", band]);
+        assert!(!o.status.success() && stderr(&o).contains("--mask-object or --mask-board"), "{}", stderr(&o));
+        let o = compare(&photo, "c_bad", &["--mask-object", mask, "--band", band, "--band", band]);
+        assert!(!o.status.success() && stderr(&o).contains("2 bands for 1 render"), "{}", stderr(&o));
+        let o = compare(&photo, "c_bad", &["--mask-object", mask, "--band", mask]);
+        assert!(!o.status.success() && stderr(&o).contains("not a render's uncertainty.json"), "{}", stderr(&o));
+        assert!(!tmp.path().join("c_bad").exists(), "nothing written");
+    }
+
     #[test]
     fn render_uncertainty_refuses_what_it_cannot_do() {
         let tmp = tempfile::tempdir().unwrap();

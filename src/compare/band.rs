@@ -81,8 +81,14 @@ impl TwinBands {
     pub fn read(path: &Path) -> Result<Self, BandError> {
         let file = if path.is_dir() { path.join("uncertainty.json") } else { path.to_path_buf() };
         let name = file.display().to_string();
-        let text = std::fs::read_to_string(&file)
-            .map_err(|e| BandError::Read { source_name: name.clone(), reason: e.to_string() })?;
+        let text = std::fs::read_to_string(&file).map_err(|e| BandError::Read {
+            source_name: name.clone(),
+            reason: if e.kind() == std::io::ErrorKind::InvalidData {
+                "not a render's uncertainty.json (lucent render --uncertainty): not text".into()
+            } else {
+                e.to_string()
+            },
+        })?;
         Self::from_json(&text, &name)
     }
 

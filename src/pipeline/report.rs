@@ -1144,6 +1144,30 @@ fn answer(page: &mut Page, compare: &Path, smp: &super::project::SampleSection) 
         format!("{}: photo | render | difference", smp.name)
     };
     h.push_str(&page.img(&cdir.join("triplet.png"), &alt)?);
+    // Is the photo within each twin's predictive band (`[render] uncertainty`)?
+    if let Some(o) = object.as_ref().filter(|o| !o.bands.is_empty()) {
+        let names = ["A (recipe)", "B (fitted)"];
+        h.push_str("<h3>Within the twin's predictive band?</h3><ul>");
+        for (k, b) in o.bands.iter().enumerate() {
+            let name = if o.twins.is_some() { names[k] } else { "the twin" };
+            let _ = write!(
+                h,
+                "<li><b>{}: {}</b>. {}</li>",
+                esc(name),
+                if b.within { "within" } else { "outside" },
+                esc(&b.statement)
+            );
+        }
+        h.push_str(
+            "</ul><p class=\"why\">The band is what the twin predicts for the object's mean given the recipe's \
+             uncertain inputs (the fitted twin's: the fit's standard errors), the render's Monte Carlo error and \
+             the photo's noise; outside it, the difference is more than those uncertainties explain.</p>",
+        );
+        h.push_str(&page.img(
+            &cdir.join("object").join(crate::compare::BAND_PNG),
+            &format!("{}: photo against the twins' bands", smp.name),
+        )?);
+    }
     let _ = write!(
         h,
         "<p class=\"note\"><a href=\"#sample-{}\">The details per stage ↓</a></p></section>",
