@@ -321,6 +321,42 @@ fn cli_writes_metrics_triplet_and_difference() {
     assert_eq!(m["display"]["exposure"], 0.5);
 }
 
+/// A render made with an approximation says so in its render.json; compare
+/// carries that list, with its measured bias, into metrics.json and says it
+/// beside the numbers. An exact render adds nothing, and a render.json that
+/// is not one is a note, not a failure.
+#[test]
+fn a_render_s_approximations_travel_into_the_comparison() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = root().join(REF).join("base.exr");
+    let render = dir.path().join("render.exr");
+    std::fs::copy(root().join(REF).join("shifted.exr"), &render).unwrap();
+    let said = "similar medium (similarity_g = 0): biased; on the demo plaque's interior +2.64 / +2.29 / +2.55 %";
+    let run = |out: &str| {
+        let out = dir.path().join(out);
+        let o = lucent(&["compare", "--photo", s(&base), "--render", s(&render), "--out", s(&out)]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        (json(&out.join("metrics.json")), stderr(&o))
+    };
+    // No render.json: nothing to say.
+    let (m, _) = run("none");
+    assert!(m.get("approximations").is_none(), "{m}");
+    std::fs::write(dir.path().join("render.json"), serde_json::json!({ "approximations": [said] }).to_string())
+        .unwrap();
+    let (m, err) = run("approximate");
+    assert_eq!(m["approximations"][0]["render"], s(&render));
+    assert_eq!(m["approximations"][0]["approximations"][0], said);
+    assert!(err.contains("approximates: similar medium") && err.contains("includes that bias"), "{err}");
+    // An exact render's render.json lists none.
+    std::fs::write(dir.path().join("render.json"), "{\"spp\": 4}").unwrap();
+    let (m, _) = run("exact");
+    assert!(m.get("approximations").is_none(), "{m}");
+    std::fs::write(dir.path().join("render.json"), "not json").unwrap();
+    let (m, err) = run("unreadable");
+    assert!(m.get("approximations").is_none(), "{m}");
+    assert!(err.contains("not a render.json") && err.contains("unknown"), "{err}");
+}
+
 /// The end-to-end run whose triplet.png is kept for people to look at
 /// (target/tmp/compare-cli/).
 #[test]

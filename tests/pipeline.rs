@@ -731,6 +731,12 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     }
     assert!(verdict < html.find("details per stage</h2>").unwrap() && verdict < html.find("<h2>Stages</h2>").unwrap());
     assert!(html.contains("A (recipe) render, difference | B (fitted) render, difference, one difference scale"));
+    // demo.toml walks the similar medium: its measured bias on the object's
+    // interior stands beside the answer, and in the render's details.
+    let approximate = html.find("<b>The renders approximate</b>").expect("the approximations beside the answer");
+    assert!(approximate < html.find("details per stage</h2>").unwrap(), "beside the answer");
+    assert!(html[approximate..].contains("+2.64 / +2.29 / +2.55 %"), "the measured bias");
+    assert!(html.contains("<p class=\"why approximation\">Approximation: similar medium"), "in the render's section");
     let display = &smp["compare"]["display"];
     assert!(display["difference_range_source"].as_str().unwrap().contains("one scale for both twins"), "{display}");
     let alone: serde_json::Value =

@@ -18,6 +18,25 @@ fn uncertain_recipe() -> Recipe {
     Recipe::parse(&text, std::path::Path::new("fixtures/samples/u.toml"), Overrides::default()).unwrap()
 }
 
+/// The shipped example of an uncertain recipe reads with its three
+/// uncertain inputs (normal, normal, uniform) and is otherwise IOL1068-09.
+#[test]
+fn the_shipped_uncertain_recipe_reads_with_its_inputs() {
+    use lucent::optics::recipe::InputDistribution;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let r = Recipe::load(&root.join("fixtures/samples/uncertain/IOL1068-09.toml"), Overrides::default()).unwrap();
+    let keys: Vec<&str> = r.uncertain.iter().map(|u| u.key.as_str()).collect();
+    assert_eq!(keys.len(), 3, "{keys:?}");
+    let weight = r.uncertain.iter().find(|u| u.key.ends_with("weight_percent")).expect("weight_percent");
+    assert_eq!((weight.nominal, &weight.distribution), (0.65, &InputDistribution::Normal { sd: 0.0325 }));
+    assert!(r.uncertain.iter().any(|u| u.key.ends_with("diameter_um") && (u.nominal - 2.2).abs() < 1e-12));
+    assert!(r.uncertain.iter().any(|u| u.key.contains("real_part")));
+    let plain = Recipe::load(&root.join("fixtures/samples/IOL1068-09.toml"), Overrides::default()).unwrap();
+    let a = bulk::at_wavelength(&r, 550.0, &bulk::Options::default()).unwrap();
+    let b = bulk::at_wavelength(&plain, 550.0, &bulk::Options::default()).unwrap();
+    assert_eq!((a.mu_s_per_m, a.mu_a_per_m, a.g), (b.mu_s_per_m, b.mu_a_per_m, b.g), "the nominal is IOL1068-09");
+}
+
 /// The plaque of `recipe` at 550 nm (6.35 mm, Mie phase table), a 31-pixel
 /// crop of 0.2 mm pixels, 45° → 0°.
 fn setup(recipe: &Recipe) -> Setup {
@@ -190,10 +209,21 @@ mod cli {
     /// (`--uncertainty-renders`), on the object's mean per band, within 3.5
     /// standard errors; and the renders are what a diameter, which changes
     /// the phase functions, gets.
+    ///
+    /// Twice: with the similar medium's depth floor held throughout, and for
+    /// the first 16 events only (demo.toml's `similarity_floor_events`),
+    /// where the later medium's coefficients move with the input as the
+    /// first one's do only up to its flat top's cut.
     #[test]
     fn path_derivative_agrees_with_renders_at_plus_minus_one_sigma() {
+        for render in ["spp = 2048", "spp = 2048\nsimilarity_floor_events = 16"] {
+            path_derivative_agrees_with_renders(render);
+        }
+    }
+
+    fn path_derivative_agrees_with_renders(render: &str) {
         let tmp = tempfile::tempdir().unwrap();
-        let s = scene(tmp.path(), "spp = 2048");
+        let s = scene(tmp.path(), render);
         let run = |name: &str, extra: &[&str]| -> serde_json::Value {
             let out = tmp.path().join(name);
             let args = [
@@ -216,7 +246,7 @@ mod cli {
             let (ea, eb) = (effect(&path, "difference_std_error", c), effect(&renders, "difference_std_error", c));
             let z = (a - b) / (ea * ea + eb * eb).sqrt();
             assert!(a > 6.0 * ea, "band {c}: the effect {a} ± {ea} is not resolved");
-            assert!(z.abs() < 3.5, "band {c}: path derivative {a} ± {ea}, renders {b} ± {eb}, z = {z:.2}");
+            assert!(z.abs() < 3.5, "{render}: band {c}: path derivative {a} ± {ea}, renders {b} ± {eb}, z = {z:.2}");
         }
         // A diameter changes the phase functions: rendered at ±1 σ.
         let d = scene_of(tmp.path(), "spp = 8", "weight_percent = 0.65", "diameter_um = { value = 2.2, sd = 0.1 }");

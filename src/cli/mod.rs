@@ -679,10 +679,13 @@ fn grouped_warnings(spectra: &[OpticalSpectrum]) -> Vec<String> {
     }
     let mut lines: Vec<String> = groups
         .iter()
-        .map(|(text, samples)| match samples.as_slice() {
-            [one] => format!("warning: {one}: {text}"),
-            many if many.len() == spectra.len() => format!("warning: {text} [all {} samples]", many.len()),
-            many => format!("warning: {text} [{} samples: {}]", many.len(), many.join(", ")),
+        .map(|(text, samples)| {
+            let level = if expected_clamp(text) { "note" } else { "warning" };
+            match samples.as_slice() {
+                [one] => format!("{level}: {one}: {text}"),
+                many if many.len() == spectra.len() => format!("{level}: {text} [all {} samples]", many.len()),
+                many => format!("{level}: {text} [{} samples: {}]", many.len(), many.join(", ")),
+            }
         })
         .collect();
     if groups.iter().any(|(t, _)| t.contains(" clamped outside its data range")) {
@@ -694,6 +697,22 @@ fn grouped_warnings(spectra: &[OpticalSpectrum]) -> Vec<String> {
         );
     }
     lines
+}
+
+/// Whether a sample's warning is an index the recipe asked to clamp
+/// (`extrapolate = "clamp"`) at wavelengths of 380–399 nm only: the
+/// shipped tables start at 400 nm, and there the CIE colour-matching
+/// functions are below 1.2 % of their peaks. Such a line is a note, not a
+/// warning; a clamp anywhere else stays a warning.
+fn expected_clamp(text: &str) -> bool {
+    let Some(at) = text.split(" clamped outside its data range ").nth(1) else {
+        return false;
+    };
+    let Some(list) = at.split("(at ").nth(1).and_then(|l| l.strip_suffix(" nm)")) else {
+        return false;
+    };
+    let nm: Vec<Option<f64>> = list.split(", ").map(|x| x.parse::<f64>().ok()).collect();
+    !nm.is_empty() && nm.iter().all(|x| matches!(x, Some(l) if (380.0..400.0).contains(l)))
 }
 
 /// Prints a readable table: every wavelength for one sample, or 450/550/650 nm for several.
@@ -958,6 +977,35 @@ mod tests {
         assert!(parse_index("f", "abc").is_err());
         assert!(parse_index("f", "-1.5").is_err());
         assert!(parse_index("f", "nan").is_err());
+    }
+
+    #[test]
+    fn a_clamp_below_400_nm_is_a_note_and_any_other_a_warning() {
+        let clamp =
+            |at: &str| format!("host PC index (builtin:PC) clamped outside its data range 400–19942 nm (at {at} nm)");
+        assert!(expected_clamp(&clamp("380, 390")));
+        assert!(!expected_clamp(&clamp("370, 380, 390")));
+        assert!(!expected_clamp(&clamp("20000")));
+        assert!(!expected_clamp(&clamp("")));
+        let linear = "host PC index (x) linearly extrapolated outside its data range 400–900 nm (at 390 nm)";
+        assert!(!expected_clamp(linear));
+        let one = OpticalSpectrum {
+            sample: "A".into(),
+            absorption: crate::optics::recipe::AbsorptionModel::Mie,
+            corrections: Vec::new(),
+            wavelength_nm: vec![390.0],
+            mu_s_per_m: vec![1.0],
+            mu_a_per_m: vec![0.0],
+            mu_t_per_m: vec![1.0],
+            g: vec![0.0],
+            n_bulk: vec![1.5],
+            phase: Vec::new(),
+            phase_integral_before_normalisation: Vec::new(),
+            warnings: vec![clamp("380, 390"), clamp("360")],
+        };
+        let lines = grouped_warnings(std::slice::from_ref(&one));
+        assert!(lines[0].starts_with("note: A: host PC"), "{lines:?}");
+        assert!(lines[1].starts_with("warning: A: host PC"), "{lines:?}");
     }
 
     #[test]

@@ -599,6 +599,12 @@ pub struct Report {
     /// Per twin given a band (`--band`): is the photo within its predictive band?
     #[serde(default)]
     pub bands: Vec<band::BandCheck>,
+    /// Per render that approximates (its `render.json`'s `approximations`,
+    /// e.g. the similar medium with its measured bias on the object's
+    /// interior): what the difference on the object includes besides the
+    /// twin. Empty for exact renders and renders without a render.json.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub approximations: Vec<RenderApproximations>,
     pub display: DisplayReport,
     pub files: Vec<String>,
 }
@@ -639,6 +645,44 @@ fn mask_from_render_layer(path: &Path, layer: &'static str, w: usize, h: usize) 
 const VARIANCE_CHANNELS: [&str; 3] = ["variance.R", "variance.G", "variance.B"];
 
 /// Three planes as interleaved RGB.
+/// A compared render's approximations, read from the `render.json` beside
+/// its EXR (`metrics.json` `approximations`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RenderApproximations {
+    /// The render's EXR.
+    pub render: String,
+    /// Each approximation with its measured bias, as render.json states it.
+    pub approximations: Vec<String>,
+}
+
+/// The approximations `render` (an EXR) was made with, from the
+/// `render.json` beside it; `None` when there is none or it lists none.
+/// An unreadable render.json is a note, not an error: the EXR holds the
+/// image that is compared.
+fn render_approximations(render: &Path, notes: &mut Vec<String>) -> Option<RenderApproximations> {
+    let json = render.with_file_name("render.json");
+    let text = std::fs::read_to_string(&json).ok()?;
+    #[derive(Deserialize)]
+    struct Approximations {
+        #[serde(default)]
+        approximations: Vec<String>,
+    }
+    match serde_json::from_str::<Approximations>(&text) {
+        Ok(a) if !a.approximations.is_empty() => {
+            Some(RenderApproximations { render: render.display().to_string(), approximations: a.approximations })
+        }
+        Ok(_) => None,
+        Err(e) => {
+            notes.push(format!(
+                "{}: not a render.json ({e}); the approximations of {} are unknown",
+                json.display(),
+                render.display()
+            ));
+            None
+        }
+    }
+}
+
 fn interleave(ch: &[Vec<f32>]) -> Vec<f32> {
     (0..ch[0].len()).flat_map(|i| [ch[0][i], ch[1][i], ch[2][i]]).collect()
 }
@@ -1107,6 +1151,15 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         }
     };
 
+    let approximations: Vec<RenderApproximations> = std::iter::once(req.render.as_path())
+        .chain(req.render_b.as_deref())
+        .filter_map(|r| render_approximations(r, &mut notes))
+        .collect();
+    for a in &approximations {
+        for line in &a.approximations {
+            notes.push(format!("{} approximates: {line}; the difference on the object includes that bias", a.render));
+        }
+    }
     let bands = if twin_bands.is_empty() {
         Vec::new()
     } else {
@@ -1436,6 +1489,7 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         ssim_at_zero_noise,
         refined: refined_parts.as_ref().map(|(r, _, _)| r.clone()),
         bands,
+        approximations,
         display: DisplayReport {
             exposure,
             exposure_source,

@@ -514,7 +514,7 @@ pub fn k8s_job(e: &Executor, t: &Sharded, cwd: &Path, name: &str) -> String {
         .cpus_per_task
         .map(|c| {
             format!(
-                "          resources:\n            requests:\n              cpu: \"{c}\"\n          env:\n          - name: LUCENT_THREADS\n            valueFrom:\n              resourceFieldRef:\n                resource: requests.cpu\n                divisor: \"1\"\n"
+                "        resources:\n          requests:\n            cpu: \"{c}\"\n        env:\n        - name: LUCENT_THREADS\n          valueFrom:\n            resourceFieldRef:\n              resource: requests.cpu\n              divisor: \"1\"\n"
             )
         })
         .unwrap_or_default();
@@ -809,9 +809,25 @@ mod tests {
         let k = k8s_job(&e, &t, Path::new("/work"), "lucent-bssrdf");
         assert!(k.contains("completionMode: Indexed") && k.contains("$(JOB_COMPLETION_INDEX)/4"), "{k}");
         assert!(k.contains("cpu: \"2\"") && k.contains("name: LUCENT_THREADS") && k.contains("resource: requests.cpu"));
+        // The file is the Job it says: parsed as YAML, the CPU request and
+        // the thread count sit on the shard's container.
+        let job: serde_yaml_ng::Value = serde_yaml_ng::from_str(&k).expect("the emitted Job is valid YAML");
+        let container = &job["spec"]["template"]["spec"]["containers"][0];
+        assert_eq!(container["name"].as_str(), Some("shard"), "{k}");
+        assert_eq!(container["resources"]["requests"]["cpu"].as_str(), Some("2"), "{k}");
+        assert_eq!(container["env"][0]["name"].as_str(), Some("LUCENT_THREADS"), "{k}");
+        assert_eq!(
+            container["env"][0]["valueFrom"]["resourceFieldRef"]["resource"].as_str(),
+            Some("requests.cpu"),
+            "{k}"
+        );
+        assert_eq!(container["args"].as_sequence().map(Vec::len), Some(t.shard_command("0").len()), "{k}");
+        assert_eq!(job["spec"]["completions"].as_u64(), Some(4), "{k}");
         // Without a CPU request, no thread count is passed.
         let k = k8s_job(&Executor::default(), &t, Path::new("/work"), "lucent-bssrdf");
         assert!(!k.contains("LUCENT_THREADS"), "{k}");
+        let job: serde_yaml_ng::Value = serde_yaml_ng::from_str(&k).expect("the emitted Job is valid YAML");
+        assert!(job["spec"]["template"]["spec"]["containers"][0]["resources"].is_null(), "{k}");
     }
 
     #[test]

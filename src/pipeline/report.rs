@@ -561,6 +561,9 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     ),
                 },
             );
+            for a in &r.approximations {
+                let _ = write!(h, "<p class=\"why approximation\">Approximation: {}.</p>", esc(a));
+            }
             sj.insert("render".into(), trim(&to_value(&r), 64));
         }
         let cdir = stage_folder(out, done, Stage::Compare).join(&smp.name);
@@ -1144,6 +1147,23 @@ fn answer(page: &mut Page, compare: &Path, smp: &super::project::SampleSection) 
         format!("{}: photo | render | difference", smp.name)
     };
     h.push_str(&page.img(&cdir.join("triplet.png"), &alt)?);
+    // The approximations the renders made, with their measured bias, beside the comparison that uses them.
+    let approximate = &r.approximations;
+    if !approximate.is_empty() {
+        let shared = twins && approximate.len() == 2 && approximate[0].approximations == approximate[1].approximations;
+        h.push_str("<p class=\"why approximation\"><b>The renders approximate</b>: ");
+        let lists: Vec<String> = if shared {
+            vec![approximate[0].approximations.join("; ")]
+        } else {
+            approximate.iter().map(|a| format!("{}: {}", a.render, a.approximations.join("; "))).collect()
+        };
+        let _ = write!(
+            h,
+            "{}. A difference to the photo on the object includes that bias{}.</p>",
+            esc(&lists.join(" — ")),
+            if shared { "; both twins share it, so which is closer is not moved by it as much" } else { "" }
+        );
+    }
     // Is the photo within each twin's predictive band (`[render] uncertainty`)?
     if let Some(o) = object.as_ref().filter(|o| !o.bands.is_empty()) {
         let names = ["A (recipe)", "B (fitted)"];
