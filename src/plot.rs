@@ -759,7 +759,7 @@ pub fn band_check_png(twins: &[BandBars], k: f64) -> Result<Vec<u8>, PlotError> 
     if all.clone().any(|v| !v.is_finite()) {
         return Err(PlotError::NonFinite { plot: "the band check" });
     }
-    let reach = 100.0 * all.map(|v| v.abs()).fold(0.0, f64::max) * 1.25;
+    let reach = 100.0 * all.map(|v| v.abs()).fold(0.0, f64::max) * 1.35;
     let reach = if reach > 0.0 { reach } else { 1.0 };
     let n = twins.len();
     let channel = [RGBColor(200, 60, 60), RGBColor(60, 150, 60), RGBColor(60, 90, 200)];
@@ -776,10 +776,14 @@ pub fn band_check_png(twins: &[BandBars], k: f64) -> Result<Vec<u8>, PlotError> 
             .configure_mesh()
             .disable_x_mesh()
             .x_labels(0)
+            .max_light_lines(1)
             .y_desc("photo − twin [% of the twin's mean]")
             .y_label_formatter(&|v| format!("{v:+.1}"))
             .draw()
             .map_err(perr)?;
+        let key = "light: the predictive band (recipe's inputs, Monte Carlo, photo noise); dark: the inputs alone";
+        let at = chart.backend_coord(&(0.0, reach));
+        root.draw(&Text::new(key, (at.0 + 8, at.1 + 6), ("sans-serif", 13).into_font())).map_err(perr)?;
         chart
             .draw_series(std::iter::once(PathElement::new(
                 vec![(0.0, 0.0), ((4 * n) as f64, 0.0)],

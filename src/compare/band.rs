@@ -158,7 +158,14 @@ pub fn check(
     let within = z.iter().all(|v| v.abs() <= COVERAGE_FACTOR);
     let pct = |v: [f64; 3]| {
         std::array::from_fn::<String, 3, _>(|c| {
-            format!("{:+.1}", 100.0 * v[c] / render_mean[c].abs().max(f64::MIN_POSITIVE))
+            // One decimal, two below 1 % (a render's Monte Carlo error of
+            // the object's mean is often a few hundredths of a percent).
+            let p = 100.0 * v[c] / render_mean[c].abs().max(f64::MIN_POSITIVE);
+            if p.abs() < 1.0 {
+                format!("{p:+.2}")
+            } else {
+                format!("{p:+.1}")
+            }
         })
         .join("/")
     };
