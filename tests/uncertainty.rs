@@ -256,6 +256,20 @@ mod cli {
         let j = json(&out.join("uncertainty.json"));
         assert_eq!(j["input_methods"][0]["method"].as_str(), Some("renders at ±1 σ"), "{j}");
         assert_eq!(j["spp_per_input_render"].as_u64(), Some(4), "{j}");
+        // So does the plaque's thickness, which moves its faces.
+        let t = scene_of(tmp.path(), "spp = 8", "weight_percent = 0.65", "diameter_um = 2.2");
+        let text = std::fs::read_to_string(tmp.path().join("u.toml")).unwrap();
+        std::fs::write(
+            tmp.path().join("u.toml"),
+            text.replace("thickness_mm = 6.35", "thickness_mm = { value = 6.35, sd = 0.1 }"),
+        )
+        .unwrap();
+        let out = tmp.path().join("thickness");
+        let o = lucent(&["render", t.to_str().unwrap(), "--uncertainty", "--quiet", "--out", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let j = json(&out.join("uncertainty.json"));
+        assert_eq!(j["inputs"][0]["key"].as_str(), Some("thickness_mm"), "{j}");
+        assert_eq!(j["input_methods"][0]["method"].as_str(), Some("renders at ±1 σ"), "{j}");
     }
 
     /// `lucent compare --band`: a "photo" rendered (another seed) from the

@@ -114,7 +114,7 @@ impl AbsorptionModel {
 struct RawRecipe {
     name: Option<String>,
     description: Option<String>,
-    thickness_mm: f64,
+    thickness_mm: RawValue,
     size_mm: Option<Vec<f64>>,
     #[serde(default)]
     absorption: AbsorptionModel,
@@ -194,9 +194,19 @@ pub enum InputDistribution {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(tag = "input", rename_all = "kebab-case")]
 pub enum InputTarget {
-    WeightPercent { particle: usize },
-    DiameterUm { particle: usize },
-    RealPartN { medium: MediumRef, wavelength_nm: f64 },
+    WeightPercent {
+        particle: usize,
+    },
+    DiameterUm {
+        particle: usize,
+    },
+    RealPartN {
+        medium: MediumRef,
+        wavelength_nm: f64,
+    },
+    /// The slab's (plaque's) thickness, mm: the slice's slab and the
+    /// render's box, not the optical properties.
+    ThicknessMm,
 }
 
 /// An input the recipe gives with an uncertainty (`lucent optics --uncertainty`).
@@ -472,7 +482,18 @@ impl Recipe {
             InputTarget::WeightPercent { particle } => self.with_weight_percent(particle, value),
             InputTarget::DiameterUm { particle } => self.with_diameter_um(particle, value),
             InputTarget::RealPartN { medium, wavelength_nm } => self.with_real_part(medium, wavelength_nm, value),
+            InputTarget::ThicknessMm => self.with_thickness_mm(value),
         }
+    }
+
+    /// The recipe with its thickness set to `mm` (> 0).
+    pub fn with_thickness_mm(&self, mm: f64) -> Result<Recipe, RecipeError> {
+        if !(mm.is_finite() && mm > 0.0) {
+            return self.invalid("thickness_mm".into(), format!("must be a positive number of millimetres, got {mm}"));
+        }
+        let mut r = self.clone();
+        r.thickness_m = mm * 1e-3;
+        Ok(r)
     }
 
     /// The recipe with medium `m`'s κ(λ) replaced by the constant `kappa`.
@@ -580,7 +601,8 @@ impl Validator<'_> {
             Some(_) => return self.invalid("name", "must not be empty"),
             None => self.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
         };
-        let thickness_m = self.positive("thickness_mm", raw.thickness_mm, "millimetres")? * 1e-3;
+        let thickness_mm = self.value("thickness_mm", raw.thickness_mm, InputTarget::ThicknessMm)?;
+        let thickness_m = self.positive("thickness_mm", thickness_mm, "millimetres")? * 1e-3;
         let size_m = match raw.size_mm {
             None => None,
             Some(v) if v.len() == 2 => Some([
@@ -939,6 +961,14 @@ size = { kind = "diameter", diameter_um = 2.2 }
         let r = parse(&GOOD.replace("n = 1.5889", "n = { value = 1.5889, sd = 0.001 }")).unwrap();
         assert_eq!(r.uncertain[0].target, InputTarget::RealPartN { medium: MediumRef::Host, wavelength_nm: 550.0 });
         assert!(parse(GOOD).unwrap().uncertain.is_empty());
+        // The thickness: recorded, and set by with_input; the properties do not depend on it.
+        let r = parse(&GOOD.replace("thickness_mm = 6.35", "thickness_mm = { value = 6.35, sd = 0.05 }")).unwrap();
+        assert_eq!((r.thickness_m, r.uncertain[0].target), (6.35e-3, InputTarget::ThicknessMm));
+        assert_eq!(r.uncertain[0].key, "thickness_mm");
+        assert!((r.with_input(InputTarget::ThicknessMm, 6.4).unwrap().thickness_m - 6.4e-3).abs() < 1e-15);
+        assert!(r.with_input(InputTarget::ThicknessMm, -1.0).unwrap_err().to_string().contains("thickness_mm"));
+        let e = error(&GOOD.replace("thickness_mm = 6.35", "thickness_mm = { value = -6.35, sd = 0.05 }"));
+        assert!(e.contains("thickness_mm"), "{e}");
         for (from, to, key) in [
             ("weight_percent = 0.65", "weight_percent = { value = 0.65 }", "particles[0].weight_percent"),
             ("weight_percent = 0.65", "weight_percent = { value = 0.65, sd = -1 }", "particles[0].weight_percent.sd"),
