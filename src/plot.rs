@@ -816,9 +816,110 @@ pub fn band_check_png(twins: &[BandBars], k: f64) -> Result<Vec<u8>, PlotError> 
     })
 }
 
+/// The colour of a pixel whose value is below its own noise ([`relative_band_png`]).
+pub const UNRESOLVED: RGBColor = RGBColor(215, 215, 215);
+
+/// A per-pixel map of a render's relative band (the recipe's inputs' 1 σ
+/// over the pixel's value, in %): `relative` row-major over `width` ×
+/// `height`, NaN where there is nothing to show (outside the object), drawn
+/// in viridis from 0 to the 99th percentile of the finite values, with
+/// NaN in [`crate::bssrdf::MASKED`] grey, pixels whose band is not
+/// `resolved` (below its own noise) in [`UNRESOLVED`] and a colour bar
+/// under the image.
+pub fn relative_band_png(
+    width: usize,
+    height: usize,
+    relative: &[f64],
+    resolved: &[bool],
+    title: &str,
+) -> Result<Vec<u8>, PlotError> {
+    if width == 0 || height == 0 || relative.len() != width * height || resolved.len() != relative.len() {
+        return Err(PlotError::Input { plot: "the relative band", need: "one value per pixel" });
+    }
+    let mut finite: Vec<f64> =
+        relative.iter().zip(resolved).filter(|(v, r)| v.is_finite() && **r).map(|(v, _)| *v).collect();
+    if relative.iter().any(|v| *v < 0.0) {
+        return Err(PlotError::Input { plot: "the relative band", need: "values ≥ 0" });
+    }
+    finite.sort_by(f64::total_cmp);
+    let top = finite.get(((finite.len() as f64 - 1.0) * 0.99).round().max(0.0) as usize).copied().unwrap_or(0.0);
+    let top = if top > 0.0 { top } else { 1.0 };
+    // Each image pixel drawn as a square of `scale` screen pixels, at least 480 wide.
+    let scale = 480usize.div_ceil(width).max(1);
+    let (w, h) = ((width * scale) as u32, (height * scale) as u32);
+    let lines: Vec<&str> = title.lines().collect();
+    let head = 14 + 22 * lines.len() as u32;
+    render_png(w + 40, h + head + 90, |root| {
+        let (top_area, bar) = root.split_vertically(h + head + 10);
+        for (k, line) in lines.iter().enumerate() {
+            top_area
+                .draw(&Text::new(line.to_string(), (20, 8 + 22 * k as i32), ("sans-serif", 16).into_font()))
+                .map_err(perr)?;
+        }
+        let origin = (20i32, head as i32);
+        for (i, v) in relative.iter().enumerate() {
+            let (x, y) = ((i % width * scale) as i32 + origin.0, (i / width * scale) as i32 + origin.1);
+            let colour = match (v.is_finite(), resolved[i]) {
+                (false, _) => crate::bssrdf::MASKED,
+                (true, false) => UNRESOLVED,
+                (true, true) => viridis((v / top).min(1.0)),
+            };
+            top_area
+                .draw(&Rectangle::new([(x, y), (x + scale as i32, y + scale as i32)], colour.filled()))
+                .map_err(perr)?;
+        }
+        let mut chart = ChartBuilder::on(&bar)
+            .margin_left(20)
+            .margin_right(20)
+            .x_label_area_size(45)
+            .build_cartesian_2d(0.0..100.0 * top, 0.0..1.0)
+            .map_err(perr)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .disable_y_axis()
+            .x_desc("the recipe's inputs, 1 σ, in % of the pixel's value (grey: not the object)")
+            .x_labels(7)
+            .x_label_formatter(&|v| format!("{v:.2}"))
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 15))
+            .draw()
+            .map_err(perr)?;
+        let steps = 200;
+        chart
+            .draw_series((0..steps).map(|k| {
+                let (a, b) = (k as f64 / steps as f64, (k + 1) as f64 / steps as f64);
+                Rectangle::new([(100.0 * top * a, 0.0), (100.0 * top * b, 1.0)], viridis(a).filled())
+            }))
+            .map_err(perr)?;
+        Ok(())
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn relative_band_map_is_a_png_and_checks_its_input() {
+        let v: Vec<f64> = (0..12).map(|i| if i % 5 == 0 { f64::NAN } else { 0.001 * i as f64 }).collect();
+        let mut resolved = vec![true; 12];
+        resolved[1] = false;
+        let png = relative_band_png(4, 3, &v, &resolved, "band").unwrap();
+        let img = image::load_from_memory(&png).unwrap().to_rgb8();
+        // 480 px wide at 120 screen pixels per image pixel; pixel (0, 0) is NaN: grey.
+        assert_eq!(img.width(), 4 * 120 + 40);
+        let grey = img.get_pixel(20 + 60, 36 + 60);
+        assert_eq!(grey.0, [crate::bssrdf::MASKED.0, crate::bssrdf::MASKED.1, crate::bssrdf::MASKED.2]);
+        // The largest value is at the top of the scale: viridis(1).
+        let last = img.get_pixel(20 + 3 * 120 + 60, 36 + 2 * 120 + 60);
+        let top = viridis(1.0);
+        assert_eq!(last.0, [top.0, top.1, top.2]);
+        let unresolved = img.get_pixel(20 + 120 + 60, 36 + 60);
+        assert_eq!(unresolved.0, [UNRESOLVED.0, UNRESOLVED.1, UNRESOLVED.2]);
+        assert!(relative_band_png(4, 3, &v[..11], &resolved[..11], "band").is_err());
+        assert!(relative_band_png(4, 3, &[-1.0; 12], &resolved, "band").is_err());
+    }
 
     #[test]
     fn residuals_plot_is_a_png_and_checks_its_input() {

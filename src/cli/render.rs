@@ -78,8 +78,9 @@ pub struct RenderArgs {
     /// μa (a weight percentage) by the render's own paths (path
     /// derivative, no extra render), any other by the scene rendered at
     /// +1 σ and −1 σ with the same seed and samples; writes
-    /// uncertainty.json (each region's mean with its band) and band.exr
-    /// (per pixel). Needs a scene whose [material] has a recipe.
+    /// uncertainty.json (each region's mean with its band), band.exr
+    /// (per pixel) and band.png (the relative band over the object).
+    /// Needs a scene whose [material] has a recipe.
     #[arg(long)]
     pub uncertainty: bool,
     /// Samples per pixel of each render at ±1 σ (--uncertainty; even;
@@ -760,12 +761,13 @@ fn render_band(
     for line in band.lines() {
         println!("{line}");
     }
-    println!("wrote {}/uncertainty.json, band.exr ({renders} renders, {wall_s:.1} s)", a.out.display());
+    println!("wrote {}/uncertainty.json, band.exr, band.png ({renders} renders, {wall_s:.1} s)", a.out.display());
     Ok(())
 }
 
-/// uncertainty.json and band.exr (per pixel and band, the standard
-/// deviation from the inputs and its Monte Carlo error) in `out`.
+/// uncertainty.json, band.exr (per pixel and band, the standard
+/// deviation from the inputs and its Monte Carlo error) and band.png (the
+/// relative band over the object's pixels, to look at) in `out`.
 pub fn write_band(out: &Path, image: &Image, band: &scene::band::RenderBand) -> Result<()> {
     crate::io::write_json(&out.join("uncertainty.json"), band)
         .with_context(|| format!("{}: cannot write uncertainty.json", out.display()))?;
@@ -786,6 +788,50 @@ pub fn write_band(out: &Path, image: &Image, band: &scene::band::RenderBand) -> 
             ("inputs_sd_std_error.B", &eb),
         ],
     )?;
+    // band.png: the relative band over the object, to look at.
+    let relative: Vec<f64> = (0..image.width * image.height)
+        .map(|p| {
+            let m = image.mean[p];
+            let lum: f64 = m.iter().sum();
+            if image.region(p) != tracer::Region::Object || lum <= 0.0 {
+                return f64::NAN;
+            }
+            // The bands' sds added as a sum's (fully correlated: one input moves all bands alike).
+            sd[p].iter().sum::<f64>() / lum
+        })
+        .collect();
+    // Cropped to the object's pixels and a margin of a tenth of their extent.
+    let (w, h) = (image.width, image.height);
+    let on: Vec<usize> = (0..w * h).filter(|&p| relative[p].is_finite()).collect();
+    let (x0, x1, y0, y1) = on.iter().fold((w, 0, h, 0), |(a, b, c, d), &p| {
+        let (x, y) = (p % w, p / w);
+        (a.min(x), b.max(x), c.min(y), d.max(y))
+    });
+    let (x0, x1, y0, y1) = if on.is_empty() {
+        (0, w - 1, 0, h - 1)
+    } else {
+        let (mx, my) = ((x1 - x0) / 10 + 1, (y1 - y0) / 10 + 1);
+        (x0.saturating_sub(mx), (x1 + mx).min(w - 1), y0.saturating_sub(my), (y1 + my).min(h - 1))
+    };
+    // A pixel's band is resolved where it is at least twice its own Monte Carlo error in every band.
+    let resolved = |p: usize| (0..3).all(|c| sd[p][c] >= 2.0 * se[p][c]);
+    let pixels = || (y0..=y1).flat_map(|y| (x0..=x1).map(move |x| y * w + x));
+    let crop: Vec<f64> = pixels().map(|p| relative[p]).collect();
+    let crop_resolved: Vec<bool> = pixels().map(resolved).collect();
+    let shown = on.iter().filter(|&&p| resolved(p)).count();
+    let png = crate::plot::relative_band_png(
+        x1 - x0 + 1,
+        y1 - y0 + 1,
+        &crop,
+        &crop_resolved,
+        &format!(
+            "the twin's band per pixel (R + G + B) from the recipe's inputs;\nlight grey: under 2× its own Monte \
+             Carlo error ({:.0} % of {} object px):\nmore samples resolve it; uncertainty.json has the region means",
+            100.0 * (on.len() - shown) as f64 / on.len().max(1) as f64,
+            on.len()
+        ),
+    )?;
+    std::fs::write(out.join("band.png"), png).with_context(|| format!("{}: cannot write band.png", out.display()))?;
     Ok(())
 }
 
