@@ -891,7 +891,7 @@ fn bar_position(stop: &Stop, p: &slab::Progress) -> u64 {
 /// ended it (or nothing can tell).
 fn expectation(stop: &Stop, p: &slab::Progress) -> Option<(f64, String)> {
     let elapsed = p.elapsed_s;
-    if p.paths == 0 || !(elapsed > 0.0) {
+    if p.paths == 0 || elapsed.is_nan() || elapsed <= 0.0 {
         return None;
     }
     if stop.paths.is_some_and(|n| p.paths >= n) || stop.time_s.is_some_and(|t| elapsed >= t) {
