@@ -405,3 +405,30 @@ fn roughness_errors_are_typed() {
     assert!(matches!(&e, RoughnessError::Normals { source: NormalsError::Read(_), .. }), "{e:?}");
     assert_eq!(e.to_string().matches("nope.exr").count(), 2, "the value and the file: {e}");
 }
+
+#[test]
+fn a_path_budget_says_how_long_it_expects_unless_quiet() {
+    let dir = tempfile::tempdir().unwrap();
+    // 20000 paths are three rounds: the first tells the rate.
+    let args = |out: &Path, quiet: bool| {
+        let mut a = vec!["bssrdf", "--thickness-mm", "2", "--pixels", "41", "--pixel-mm", "0.1", "--paths", "20000"];
+        a.extend_from_slice(&THIN);
+        if quiet {
+            a.push("--quiet");
+        }
+        a.extend_from_slice(&["--out", out.to_str().unwrap()]);
+        a.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run = |out: &Path, quiet: bool| {
+        let a = args(out, quiet);
+        lucent(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let o = run(&dir.path().join("loud"), false);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    let line = err.lines().find(|l| l.contains("expect ≈")).unwrap_or_else(|| panic!("no expect line: {err}"));
+    assert!(line.starts_with("θi 45° → θo 0°: expect ≈ ") && line.contains(" for 20000 paths ("), "{line}");
+    let o = run(&dir.path().join("quiet"), true);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("expect"), "{}", stderr(&o));
+}

@@ -189,6 +189,39 @@ fn calibrate_errors_name_the_files() {
 /// `{a,b}`, and took the pattern for a missing file). A wrong board size
 /// makes the run stop after detection, listing every photo it was given.
 #[test]
+fn calibrate_says_which_view_it_is_at_unless_quiet() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, quiet: bool| {
+        let out = dir.path().join(name);
+        let mut a = vec![
+            "calibrate",
+            "--images",
+            "fixtures/camera/chessboard/left0[1-4].jpg",
+            "--board",
+            "9x6",
+            "--square-mm",
+            "25",
+            "--out",
+            s(&out),
+        ];
+        if quiet {
+            a.push("--quiet");
+        }
+        let o = lucent(&a);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let err = run("loud.json", false);
+    assert!(err.contains("reading 4 photo(s)"), "{err}");
+    for k in 1..=4 {
+        assert!(err.contains(&format!("view {k}/4: left0")), "{k}: {err}");
+    }
+    assert!(err.contains("expect ≈") && err.contains("fitting the model to "), "{err}");
+    let err = run("quiet.json", true);
+    assert!(!err.contains("view ") && !err.contains("reading"), "{err}");
+}
+
+#[test]
 fn calibrate_images_accept_character_classes() {
     let dir = tempfile::tempdir().unwrap();
     let e = calibrate_with_wrong_board("fixtures/camera/chessboard/left0[1-3].jpg", dir.path());

@@ -60,6 +60,10 @@ fn scale_of_a_map_environment_is_recovered() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The render says what it does and, after its first pass, how long it expects.
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("rendering the empty board of") && err.contains("64 spp"), "{err}");
+    assert!(err.contains("expect ≈") && err.contains("for 64 spp ("), "{err}");
     let j = json(&out.join("env_scale.json"));
     let k = j["fit"]["scale"].as_f64().unwrap();
     let pixels = j["fit"]["pixels"].as_u64().unwrap();

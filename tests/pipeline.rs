@@ -278,8 +278,13 @@ fn project_runs_skips_reruns_fails_and_reports() {
         lucent(&a)
     };
 
-    // 1. Everything runs.
-    let first = ok(&run(&[]));
+    // 1. Everything runs; each stage says on stderr when it starts (no time yet: no earlier run).
+    let o = run(&[]);
+    let first = ok(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    for s in ["optics", "bssrdf", "render", "report"] {
+        assert!(err.lines().any(|l| l.starts_with('[') && l.ends_with(&format!("] {s} …"))), "{s}:\n{err}");
+    }
     for s in ["optics", "bssrdf", "calibrate", "colour", "pose", "env-scale", "render", "compare", "report"] {
         assert_eq!(status_of(&first, s), "ran", "{s}:\n{first}");
         let man: serde_json::Value =
@@ -323,7 +328,12 @@ fn project_runs_skips_reruns_fails_and_reports() {
     let (pw, ph, ch) = read_exr_channels(&photo, &["R", "G", "B"]).unwrap();
     let data: Vec<f32> = (0..pw * ph).flat_map(|i| [ch[0][i] * 1.01, ch[1][i], ch[2][i]]).collect();
     write_exr(&photo, &RgbImage::new(pw, ph, data).unwrap()).unwrap();
-    let third = ok(&run(&["--force", "colour"]));
+    let o = run(&["--force", "colour"]);
+    let third = ok(&o);
+    // A stage that ran before says how long it took then; an up-to-date one does not start.
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.lines().any(|l| l.contains("] colour … (≈ ") && l.ends_with(" s, as last time)")), "{err}");
+    assert!(!err.contains("] optics …"), "{err}");
     for (s, want) in [("optics", "up"), ("colour", "ran"), ("render", "up"), ("compare", "ran"), ("report", "ran")] {
         assert_eq!(status_of(&third, s), want, "{s}:\n{third}");
     }

@@ -32,6 +32,7 @@ use crate::env;
 use crate::model::{CameraModel, DistortionModel};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 pub use crate::error::{CalibError, NotFound};
 
@@ -75,6 +76,16 @@ pub struct Calibration {
 /// Fewest views accepted for a calibration.
 pub const MIN_VIEWS: usize = 3;
 
+/// What [`calibrate_photos_reporting`] says while it works.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CalibrationStep<'a> {
+    /// The board was looked for in one more photo: `done` of `of` so far (in
+    /// the order the searches finish), with the detector that found it.
+    Searched { done: usize, of: usize, photo: &'a str, found: Option<&'static str> },
+    /// The board was found in `views` photos: the model is being fitted.
+    Fitting { views: usize },
+}
+
 /// Detects the board in every photo, calibrates, and reports per view.
 /// Photos must share one size. Errors (naming the photos) when fewer than
 /// [`MIN_VIEWS`] photos show the board.
@@ -83,6 +94,18 @@ pub fn calibrate_photos(
     board: &BoardSpec,
     model: DistortionModel,
     detector: Detector,
+) -> Result<Calibration, CalibError> {
+    calibrate_photos_reporting(photos, board, model, detector, &|_| {})
+}
+
+/// [`calibrate_photos`] that tells `progress` of every photo searched and of
+/// the fit (from the search's threads: it must be `Sync`).
+pub fn calibrate_photos_reporting(
+    photos: &[Photo],
+    board: &BoardSpec,
+    model: DistortionModel,
+    detector: Detector,
+    progress: &(dyn Fn(CalibrationStep<'_>) + Sync),
 ) -> Result<Calibration, CalibError> {
     let first = photos.first().ok_or(CalibError::NoPhotos)?;
     let size = (first.image.width, first.image.height);
@@ -94,8 +117,17 @@ pub fn calibrate_photos(
     if !odd.is_empty() {
         return Err(CalibError::PhotoSizes { first: first.name.clone(), width: size.0, height: size.1, others: odd });
     }
-    let detections: Vec<Result<Option<cv::Corners>, CalibError>> =
-        photos.par_iter().map(|p| cv::find_corners(&p.image, board, detector)).collect();
+    let searched = AtomicUsize::new(0);
+    let detections: Vec<Result<Option<cv::Corners>, CalibError>> = photos
+        .par_iter()
+        .map(|p| {
+            let d = cv::find_corners(&p.image, board, detector);
+            let done = searched.fetch_add(1, Ordering::Relaxed) + 1;
+            let found = d.as_ref().ok().and_then(|c| c.as_ref()).map(|c| c.detector);
+            progress(CalibrationStep::Searched { done, of: photos.len(), photo: &p.name, found });
+            d
+        })
+        .collect();
     let mut found = Vec::new();
     let mut not_found = Vec::new();
     for (p, d) in photos.iter().zip(detections) {
@@ -129,6 +161,7 @@ pub fn calibrate_photos(
         });
     }
     let corners: Vec<Vec<[f64; 2]>> = found.iter().map(|(_, c)| c.points.clone()).collect();
+    progress(CalibrationStep::Fitting { views: found.len() });
     let solved = cv::calibrate(&corners, board, size, model)?;
     // The camera `undistort`, `pose` and the renderer would refuse is not
     // written: the same check as theirs (too few or too alike views fit

@@ -33,7 +33,10 @@ use rayon::prelude::*;
 // The camera model, bilinear sampling and the calibration driver at this module's paths
 // (the root crate, the fuzz target and the tests use them).
 pub use crate::buffer::sample_bilinear;
-pub use crate::calibrate::{calibrate_photos, Calibration, CalibrationView, NotFound, Photo, MIN_VIEWS};
+pub use crate::calibrate::{
+    calibrate_photos, calibrate_photos_reporting, Calibration, CalibrationStep, CalibrationView, NotFound, Photo,
+    MIN_VIEWS,
+};
 pub use crate::model::{
     CameraError, CameraModel, Distortion, DistortionModel, Intrinsics, MAX_IMAGE_SIDE, RADIAL_SCALE_RANGE,
 };

@@ -670,7 +670,9 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         let sub = if configs.len() > 1 { format!("ti{ti}_to{to}") } else { String::new() };
         let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
         let bar = progress_bar(a.quiet, stop);
-        bar.set_prefix(format!("θi {ti}° → θo {to}°"));
+        let label = format!("θi {ti}° → θo {to}°");
+        bar.set_prefix(label.clone());
+        let mut estimated = false;
         let mut band = None;
         let slice = if let Some(tallies) = &merged_tallies {
             // The shards' tallies added in shard order to an empty run's (its constants).
@@ -682,9 +684,33 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
             sums.slice()
         } else {
             let on_progress = |p: &slab::Progress| {
-                bar.set_position(p.paths.min(bar.length().unwrap_or(u64::MAX)));
+                bar.set_position(bar_position(stop, p));
+                // Once the first round tells, the time this configuration expects.
+                if !estimated {
+                    estimated = true;
+                    if let Some(line) = expectation(stop, p)
+                        && !a.quiet
+                    {
+                        let all = if i == 0 && configs.len() > 1 {
+                            format!(
+                                "; ≈ {} for all {} configurations",
+                                super::render::duration(line.0 * configs.len() as f64),
+                                configs.len()
+                            )
+                        } else {
+                            String::new()
+                        };
+                        // Printed whether or not the bar is drawn (a log file gets it too).
+                        bar.suspend(|| eprintln!("{label}: {}{all}", line.1));
+                    }
+                }
                 bar.set_message(format!(
-                    "{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
+                    "{}{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
+                    if stop.paths.is_none() && stop.time_s.is_some() {
+                        format!("{} paths, ", p.paths)
+                    } else {
+                        String::new()
+                    },
                     p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
                     100.0 * p.rel_error,
                     100.0 * p.pixels.median,
@@ -830,18 +856,99 @@ fn run_options(a: &RunArgs, setup: &Setup, stop: Stop) -> RunOptions {
     RunOptions { stop, seed: a.seed, estimator, fold: !a.no_fold, ..RunOptions::default() }
 }
 
+/// The bar of one configuration: the paths of a path budget (with the time
+/// left), else the fraction of a time budget, else a spinner counting paths
+/// (an error target alone: its time shows in the "expect ≈" line).
 fn progress_bar(quiet: bool, stop: &Stop) -> ProgressBar {
     if quiet {
         return ProgressBar::hidden();
     }
-    let bar = match stop.paths {
-        Some(n) => ProgressBar::new(n),
-        None => ProgressBar::new_spinner(),
+    let (bar, template) = match (stop.paths, stop.time_s) {
+        (Some(n), _) => (ProgressBar::new(n), "{prefix} {bar:40} {pos}/{len} paths  {msg}  ETA {eta}"),
+        (None, Some(_)) => {
+            (ProgressBar::new(1000), "{prefix} {bar:40} {percent} % of the time budget  {msg}  ETA {eta}")
+        }
+        (None, None) => (ProgressBar::new_spinner(), "{prefix} {spinner} [{elapsed_precise}] {pos} paths  {msg}"),
     };
-    let style = ProgressStyle::with_template("{prefix} {spinner} [{elapsed_precise}] {pos} paths {msg}")
-        .unwrap_or_else(|_| ProgressStyle::default_spinner());
-    bar.set_style(style);
+    bar.set_style(ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_bar()));
     bar
+}
+
+/// Where [`progress_bar`]'s bar stands after a round: paths done, or
+/// thousandths of the time budget.
+fn bar_position(stop: &Stop, p: &slab::Progress) -> u64 {
+    match (stop.paths, stop.time_s) {
+        (Some(n), _) => p.paths.min(n),
+        (None, Some(t)) => (1000.0 * (p.elapsed_s / t).clamp(0.0, 1.0)) as u64,
+        (None, None) => p.paths,
+    }
+}
+
+/// After a configuration's first round: roughly how long it takes in all
+/// (seconds) and the line that says so. The first stop rule expected to end
+/// it decides: a path budget at the rate so far, an error target by
+/// error² ∝ 1/time, a time budget as given. `None` when the round already
+/// ended it (or nothing can tell).
+fn expectation(stop: &Stop, p: &slab::Progress) -> Option<(f64, String)> {
+    let elapsed = p.elapsed_s;
+    if p.paths == 0 || elapsed.is_nan() || elapsed <= 0.0 {
+        return None;
+    }
+    if stop.paths.is_some_and(|n| p.paths >= n) || stop.time_s.is_some_and(|t| elapsed >= t) {
+        return None;
+    }
+    let target = |name: &str, now: f64, e: f64| -> Option<(f64, String)> {
+        (now.is_finite() && now > e).then(|| {
+            (
+                elapsed * (now / e).powi(2),
+                format!(
+                    "to {:.2} % {name} ({:.2} % after {} paths in {:.2} s)",
+                    100.0 * e,
+                    100.0 * now,
+                    p.paths,
+                    elapsed
+                ),
+            )
+        })
+    };
+    let mut rules: Vec<(f64, String)> = Vec::new();
+    if let Some(n) = stop.paths {
+        rules.push((
+            elapsed * n as f64 / p.paths as f64,
+            format!("for {n} paths ({} done in {:.2} s)", p.paths, elapsed),
+        ));
+    }
+    // A target reached already ends the run within a round or two.
+    if let Some(e) = stop.rel_error {
+        if p.rel_error <= e {
+            return None;
+        }
+        rules.extend(target("on the slice sum", p.rel_error, e));
+    }
+    if let Some(e) = stop.pixel_rel_error {
+        if p.pixels.median <= e {
+            return None;
+        }
+        rules.extend(target("per pixel (median)", p.pixels.median, e));
+    }
+    let first = rules.iter().min_by(|a, b| a.0.total_cmp(&b.0)).cloned();
+    let line = |t: f64, what: &str| format!("expect ≈ {} {what}", super::render::duration(t));
+    match (first, stop.time_s) {
+        (Some((t, what)), Some(budget)) if t > budget => Some((
+            budget,
+            format!(
+                "expect ≈ {} (the time budget; {} would take ≈ {})",
+                super::render::duration(budget),
+                what,
+                super::render::duration(t)
+            ),
+        )),
+        (Some((t, what)), _) => Some((t, line(t, &what))),
+        (None, Some(budget)) => {
+            Some((budget, format!("expect ≈ {} (the time budget)", super::render::duration(budget))))
+        }
+        (None, None) => None,
+    }
 }
 
 fn simulated_path(p: &Path) -> PathBuf {

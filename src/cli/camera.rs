@@ -8,6 +8,7 @@ use crate::io::{json_bytes, write_atomic, write_json};
 use crate::plot;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
 use lucent_calib::camera::{self, Calibration, DistortionModel, NewCamera, Photo};
 use lucent_calib::cv::{self, Detector};
 use lucent_calib::demosaic::Demosaic;
@@ -75,6 +76,9 @@ pub struct CalibrateArgs {
     /// (NAME_residuals.png, NAME_views/).
     #[arg(long)]
     pub out: PathBuf,
+    /// No progress lines (the photos read, the board found in each).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Debug, Args)]
@@ -309,15 +313,27 @@ pub fn board_spec(board: &str, square_mm: f64) -> Result<BoardSpec> {
 /// [`expand_images`]), sorted by path without repeats, as 8-bit grey;
 /// one error listing every file that cannot be read.
 pub fn read_photos(images: &[String]) -> Result<Vec<Photo>> {
+    read_photo_files(&photo_files(images)?, &mut |_, _| {})
+}
+
+/// The files of `--images` (see [`read_photos`]), sorted, without repeats.
+fn photo_files(images: &[String]) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     for spec in images {
         files.extend(expand_images(spec)?);
     }
     files.sort();
     files.dedup();
+    Ok(files)
+}
+
+/// [`read_photos`] of the files given, telling `before` of each file it is
+/// about to read (with how many were read before it).
+fn read_photo_files(files: &[PathBuf], before: &mut dyn FnMut(usize, &Path)) -> Result<Vec<Photo>> {
     let mut photos = Vec::new();
     let mut unreadable = Vec::new();
-    for f in &files {
+    for (k, f) in files.iter().enumerate() {
+        before(k, f);
         match load_gray(f) {
             Ok(image) => photos.push(Photo { name: file_name(f), image }),
             Err(e) => unreadable.push(format!("{e:#}")),
@@ -338,8 +354,30 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
         );
     }
     let board = a.board.spec()?;
-    let photos = read_photos(&a.images)?;
-    let cal = camera::calibrate_photos(&photos, &board, a.model, a.detector)?;
+    let files = photo_files(&a.images)?;
+    // Reading (RAW files are demosaiced) and the board search take seconds a
+    // photo on large images: a bar while reading, a line per photo searched.
+    let bar = if a.quiet || files.is_empty() { ProgressBar::hidden() } else { ProgressBar::new(files.len() as u64) };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} photos read  {msg}  ETA {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    if !a.quiet && !files.is_empty() {
+        eprintln!("reading {} photo(s), then finding the board in each and fitting the model", files.len());
+    }
+    let photos = read_photo_files(&files, &mut |k, f| {
+        bar.set_position(k as u64);
+        bar.set_message(file_name(f));
+    })?;
+    bar.finish_and_clear();
+    let start = std::time::Instant::now();
+    let threads = rayon::current_num_threads().max(1);
+    let quiet = a.quiet;
+    let cal = camera::calibrate_photos_reporting(&photos, &board, a.model, a.detector, &|step| {
+        if !quiet {
+            eprintln!("{}", calibration_step_line(step, start.elapsed().as_secs_f64(), threads));
+        }
+    })?;
 
     // Plots first, camera.json last; the views go to a staging folder that
     // replaces NAME_views/ whole, so no view of an earlier run stays beside
@@ -384,6 +422,31 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
         view_dir.display()
     );
     Ok(())
+}
+
+/// The progress line of one step of `lucent calibrate`: "view k/n: FILE: …",
+/// after the first search with the time the search of all photos expects
+/// (the threads search side by side), then the fit.
+fn calibration_step_line(step: camera::CalibrationStep<'_>, elapsed_s: f64, threads: usize) -> String {
+    match step {
+        camera::CalibrationStep::Searched { done, of, photo, found } => {
+            let what = match found {
+                Some(detector) => format!("board found ({detector})"),
+                None => "no board found".into(),
+            };
+            let expect = if done == 1 && of > 1 {
+                let rounds = of.div_ceil(threads) as f64;
+                format!(
+                    "; expect ≈ {} for all {of} photos ({threads} at a time)",
+                    super::render::duration(elapsed_s * rounds)
+                )
+            } else {
+                String::new()
+            };
+            format!("view {done}/{of}: {photo}: {what}{expect}")
+        }
+        camera::CalibrationStep::Fitting { views } => format!("fitting the model to {views} views …"),
+    }
 }
 
 fn print_calibration(cal: &Calibration) {

@@ -36,6 +36,9 @@ pub struct FitScaleArgs {
     /// Output folder.
     #[arg(long, default_value = "lucent-out/env-scale")]
     pub out: PathBuf,
+    /// No progress bar or progress lines.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// Runs `lucent env fit-scale`.
@@ -70,7 +73,25 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
     let mut settings = loaded.settings.clone();
     a.render.apply(&mut settings);
     let pool = a.render.pool()?;
-    let (image, stats) = pool.install(|| tracer::render(&loaded.scene, &settings, &mut |_| {}));
+    if !a.quiet {
+        let budget = match settings.target_rel_error {
+            Some(e) => format!("up to {} spp, until the median error per pixel is {:.1} %", settings.spp, 100.0 * e),
+            None => format!("{} spp", settings.spp),
+        };
+        eprintln!(
+            "rendering the empty board of {} at {w}×{h}, {budget}, {} threads",
+            a.scene.display(),
+            pool.current_num_threads()
+        );
+    }
+    let bar = super::render::progress_bar(a.quiet, &settings);
+    let mut estimated = false;
+    let (image, stats) = pool.install(|| {
+        tracer::render(&loaded.scene, &settings, &mut |p| {
+            super::render::show_progress(&bar, &settings, a.quiet, &mut estimated, p)
+        })
+    });
+    bar.finish_and_clear();
     let fit = envfit::fit_scale(&image.mean, &image.variance_of_mean, &photo, &mask)
         .with_context(|| format!("{} against {}", a.scene.display(), a.photo.display()))?;
 

@@ -398,8 +398,102 @@ pub fn advice_short_of_target(elapsed_s: f64, now: f64, target: f64, width: usiz
     )
 }
 
-/// "95 s", "12 min", "3.4 h".
-fn duration(s: f64) -> String {
+/// The bar of a render: an error target's counts towards the target, in
+/// 0.1 % of error² reduction; a sample budget's counts samples (with the
+/// time left). Hidden when `quiet`.
+pub(super) fn progress_bar(quiet: bool, settings: &tracer::Settings) -> ProgressBar {
+    let target = settings.target_rel_error;
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else if target.is_some() {
+        ProgressBar::new(1000)
+    } else {
+        ProgressBar::new(u64::from(settings.spp))
+    };
+    bar.set_style(
+        ProgressStyle::with_template(if target.is_some() {
+            "{bar:40} {elapsed_precise}  {msg}"
+        } else {
+            "{bar:40} {pos}/{len} spp  {msg}  ETA {eta}"
+        })
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// A render's pass on [`progress_bar`]'s bar; after the first pass that
+/// tells (`estimated` not yet set), the line "expect ≈ …" on stderr unless `quiet`.
+pub(super) fn show_progress(
+    bar: &ProgressBar,
+    settings: &tracer::Settings,
+    quiet: bool,
+    estimated: &mut bool,
+    p: &tracer::Progress,
+) {
+    let line = match settings.target_rel_error {
+        Some(e) if p.errors.object.pixels > 0 && p.errors.object.median > 0.0 => {
+            // Fraction of the way in error² (∝ time), and once the first pass tells, the expected time.
+            let now = p.errors.object.median;
+            let frac = (e / now).powi(2).min(1.0);
+            bar.set_position((1000.0 * frac) as u64);
+            if !*estimated && now > e {
+                *estimated = true;
+                time_to_target_s(p.elapsed_s, now, e).map(|t| {
+                    let over = settings.time_budget_s.is_some_and(|b| t > b);
+                    format!(
+                        "expect ≈ {} to {:.1} % on the object ({:.1} % after {} spp in {:.1} s){}",
+                        duration(t),
+                        100.0 * e,
+                        100.0 * now,
+                        p.spp_done,
+                        p.elapsed_s,
+                        if over { "; beyond the time budget" } else { "" }
+                    )
+                })
+            } else {
+                None
+            }
+        }
+        Some(_) => {
+            bar.set_position(u64::from(p.spp_done));
+            None
+        }
+        None => {
+            bar.set_position(u64::from(p.spp_done));
+            // A sample budget: the rate of the first pass.
+            let first = !*estimated && p.spp_done > 0 && p.spp_done < settings.spp && p.elapsed_s > 0.0;
+            *estimated = true;
+            first.then(|| {
+                let t = p.elapsed_s * f64::from(settings.spp) / f64::from(p.spp_done);
+                let over = settings.time_budget_s.is_some_and(|b| t > b);
+                format!(
+                    "expect ≈ {} for {} spp ({} spp in {:.1} s){}",
+                    duration(t),
+                    settings.spp,
+                    p.spp_done,
+                    p.elapsed_s,
+                    if over { "; beyond the time budget" } else { "" }
+                )
+            })
+        }
+    };
+    // Printed whether or not the bar is drawn (a log file gets it too).
+    if let Some(line) = line
+        && !quiet
+    {
+        bar.suspend(|| eprintln!("{line}"));
+    }
+    bar.set_message(format!(
+        "object {:.1} % (p90 {:.1} %), board {:.1} %, {:.1} M events/s",
+        100.0 * p.errors.object.median,
+        100.0 * p.errors.object.p90,
+        100.0 * p.errors.board.median,
+        p.stats.events as f64 / p.elapsed_s / 1e6
+    ));
+}
+
+/// "95 s", "12 min", "3.4 h" (the "expect ≈ …" lines).
+pub(super) fn duration(s: f64) -> String {
     if !s.is_finite() {
         "an unknown time".into()
     } else if s < 120.0 {
@@ -473,23 +567,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
             settings.time_budget_s.map(|t| format!(" (at most {t} s)")).unwrap_or_default()
         );
     }
-    // An error target's bar counts towards the target, in 0.1 % of error²
-    // reduction; a sample budget's counts samples.
-    let bar = if a.quiet {
-        ProgressBar::hidden()
-    } else if target.is_some() {
-        ProgressBar::new(1000)
-    } else {
-        ProgressBar::new(u64::from(settings.spp))
-    };
-    bar.set_style(
-        ProgressStyle::with_template(if target.is_some() {
-            "{bar:40} {elapsed_precise}  {msg}"
-        } else {
-            "{bar:40} {pos}/{len} spp  {msg}  ETA {eta}"
-        })
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = progress_bar(a.quiet, &settings);
     let mut estimated = false;
     if let Some((k, n)) = shard {
         let range = crate::shard::range(u64::from(settings.spp), k, n);
@@ -531,43 +609,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
             tracer::render_cancellable(
                 &loaded.scene,
                 &settings,
-                &mut |p| {
-                    match target {
-                        Some(e) if p.errors.object.pixels > 0 && p.errors.object.median > 0.0 => {
-                            // Fraction of the way in error² (∝ time), and once the first pass tells, the expected time.
-                            let now = p.errors.object.median;
-                            let frac = (e / now).powi(2).min(1.0);
-                            bar.set_position((1000.0 * frac) as u64);
-                            if !estimated && now > e {
-                                estimated = true;
-                                if let Some(t) = time_to_target_s(p.elapsed_s, now, e) {
-                                    let over = settings.time_budget_s.is_some_and(|b| t > b);
-                                    let line = format!(
-                                        "expect ≈ {} to {:.1} % on the object ({:.1} % after {} spp in {:.1} s){}",
-                                        duration(t),
-                                        100.0 * e,
-                                        100.0 * now,
-                                        p.spp_done,
-                                        p.elapsed_s,
-                                        if over { "; beyond the time budget" } else { "" }
-                                    );
-                                    // Printed whether or not the bar is drawn (a log file gets it too).
-                                    if !a.quiet {
-                                        bar.suspend(|| eprintln!("{line}"));
-                                    }
-                                }
-                            }
-                        }
-                        _ => bar.set_position(u64::from(p.spp_done)),
-                    }
-                    bar.set_message(format!(
-                        "object {:.1} % (p90 {:.1} %), board {:.1} %, {:.1} M events/s",
-                        100.0 * p.errors.object.median,
-                        100.0 * p.errors.object.p90,
-                        100.0 * p.errors.board.median,
-                        p.stats.events as f64 / p.elapsed_s / 1e6
-                    ));
-                },
+                &mut |p| show_progress(&bar, &settings, a.quiet, &mut estimated, p),
                 Some(interrupt.flag()),
             )
         })

@@ -155,6 +155,17 @@ fn slurm_settings_missing(project: &Project) -> Option<String> {
     }
 }
 
+/// The line `lucent run` prints (on stderr) as stage `k` of `n` starts:
+/// "[k/n] STAGE … (≈ N s, as last time)", the time from the stage's
+/// previous manifest.json when there is one.
+fn start_line(k: usize, n: usize, stage: Stage, last_wall_s: Option<f64>) -> String {
+    let last = match last_wall_s {
+        Some(s) if s.is_finite() && s >= 0.0 => format!(" (≈ {}, as last time)", super::render::duration(s)),
+        _ => String::new(),
+    };
+    format!("[{k}/{n}] {} …{last}", stage.name())
+}
+
 /// Runs `lucent run`.
 pub fn run(a: RunArgs) -> Result<()> {
     let project = Project::load(&a.project)?;
@@ -256,6 +267,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {
         let k = Stage::ALL.iter().position(|s| *s == stage).unwrap_or(0) + 1;
         let what = match st {
+            Status::Started { last_wall_s, .. } => {
+                // Before the stage's commands: which, and how long it took last time.
+                eprintln!("{}", start_line(k, n, stage, *last_wall_s));
+                return;
+            }
             Status::Ran { wall_s, tasks } => {
                 format!("ran {tasks} task{} in {wall_s:.1} s", if *tasks == 1 { "" } else { "s" })
             }

@@ -339,9 +339,16 @@ pub struct Manifest {
     pub files: Vec<InputHash>,
 }
 
-/// How a stage ended in this run.
+/// How a stage ended in this run; [`Status::Started`] only as the note
+/// that a stage begins (never a stage's end).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Status {
+    /// The stage is about to run its tasks; `last_wall_s` is the time its
+    /// previous result took (from its manifest.json), when there is one.
+    Started {
+        tasks: usize,
+        last_wall_s: Option<f64>,
+    },
     Ran {
         wall_s: f64,
         tasks: usize,
@@ -1311,13 +1318,19 @@ pub fn run(
         recover_stage_folder(stage, &dir, &aside, &failed)?;
         // The user's files in the stage folder (not in its manifest) are
         // carried into the new result, never removed with the old one.
-        let kept = users_files(&dir, read_manifest(&dir).as_ref());
+        let last = read_manifest(&dir);
+        let kept = users_files(&dir, last.as_ref());
         if dir.exists() {
             std::fs::rename(&dir, &aside).map_err(|e| io(&dir, e))?;
         }
         std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
         crate::io::write_atomic(&dir.join(STAGE_MARK), stage.name().as_bytes())?;
         let log = dir.join("log.txt");
+        on_status(
+            stage,
+            &Status::Started { tasks: plan.tasks.len(), last_wall_s: last.as_ref().map(|m| m.wall_s) },
+            &[],
+        );
         let start = Instant::now();
         let started_unix_s =
             std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);

@@ -241,6 +241,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             Some(Status::UpToDate) => "up to date (inputs unchanged)".to_string(),
             Some(Status::Skipped { reason }) => format!("skipped: {reason}"),
             Some(Status::Deferred { tasks }) => format!("{tasks} task(s) written as batch jobs, not yet run"),
+            Some(Status::Started { .. }) => "running".to_string(),
             None => "not run".to_string(),
         };
         let wall = m.map(|m| format!("{:.2} s", m.wall_s)).unwrap_or_else(|| "—".into());
