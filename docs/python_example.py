@@ -9,10 +9,11 @@
 #
 # Run it as a script after `make python` (from the repository root):
 #
-#     .venv-py/bin/python docs/python_example.py [--out DIR] [--fast]
+#     .venv-py/bin/python docs/python_example.py [--out DIR] [--fast] [--show]
 #
 # or cell by cell (`# %%`) in an editor that understands them. It writes
-# slice.png, render.png, photo.png, difference.png and metrics.json into
+# slice.png, render.png, photo.png, difference.png, overview.png (all four
+# side by side) and metrics.json into
 # DIR (default lucent-out/python_example) and prints the metrics. `--fast`
 # (or the environment variable LUCENT_EXAMPLE_FAST=1) takes tiny settings,
 # seconds in all; python/tests/test_example.py runs it so. Needs Python ≥
@@ -40,6 +41,7 @@ REFERENCE = REPO / "fixtures/reference/render/plaque_dense"
 parser = argparse.ArgumentParser(description="optics → BSSRDF slice → render → compare with lucent")
 parser.add_argument("--out", type=Path, default=Path("lucent-out/python_example"))
 parser.add_argument("--fast", action="store_true", default=os.environ.get("LUCENT_EXAMPLE_FAST") == "1")
+parser.add_argument("--show", action="store_true", help="show the pictures in a matplotlib window")
 args = parser.parse_args()
 OUT = args.out
 OUT.mkdir(parents=True, exist_ok=True)
@@ -105,7 +107,8 @@ print(f"slice {s['slice'].shape}: sum {s['sum']:.4e} ± {s['sum_std_error']:.1e}
 positive = s["slice"][s["slice"] > 0]
 floor = positive.min() if positive.size else 1.0
 log = np.log10(np.maximum(s["slice"], floor))
-write_png(OUT / "slice.png", (log - log.min()) / max(np.ptp(log), 1e-12))
+slice_display = (log - log.min()) / max(np.ptp(log), 1e-12)
+write_png(OUT / "slice.png", slice_display)
 
 # %% [markdown]
 # ## 3. A render of the twin
@@ -146,5 +149,39 @@ difference = (r["mean"] - photo) @ np.array([0.1769, 0.8124, 0.0107])
 span = max(np.percentile(np.abs(difference), 99), 1e-12)
 write_png(OUT / "difference.png", 0.5 + 0.5 * np.clip(difference / span, -1, 1))
 (OUT / "metrics.json").write_text(json.dumps({"whole_image": m, "plaque": p}, indent=1))
+
+# %% [markdown]
+# ## 5. Look at them
+# overview.png puts the slice, the photo, the render and the difference side
+# by side (nearest-neighbour enlarged to one height); `--show` opens it in a
+# matplotlib window, and in a notebook the last cell's figure shows inline.
+
+# %%
+def enlarge(image: np.ndarray, height: int) -> np.ndarray:
+    """Nearest-neighbour enlargement of an H × W (× 3) image in [0, 1] to `height` rows, as RGB."""
+    rgb = image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=-1)
+    k = max(1, height // rgb.shape[0])
+    return np.repeat(np.repeat(rgb, k, axis=0), k, axis=1)
+
+
+panels = [("slice", slice_display), ("photo", srgb(exposure * photo)), ("render", srgb(exposure * r["mean"])),
+          ("difference", 0.5 + 0.5 * np.clip(difference / span, -1, 1))]
+height = 8 * photo.shape[0]
+big = [enlarge(np.asarray(image, dtype=np.float64), height) for _, image in panels]
+rows = max(b.shape[0] for b in big)
+gap = np.ones((rows, 8, 3))
+overview = np.concatenate(
+    [np.concatenate([np.pad(b, ((0, rows - b.shape[0]), (0, 0), (0, 0)), constant_values=1.0), gap], axis=1)
+     for b in big], axis=1)
+write_png(OUT / "overview.png", overview)
+if args.show:
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(panels), figsize=(4 * len(panels), 3.5))
+    for ax, (name, image) in zip(axes, panels):
+        ax.imshow(np.clip(image, 0, 1), cmap="gray" if np.ndim(image) == 2 else None, interpolation="nearest")
+        ax.set_title(name)
+        ax.axis("off")
+    plt.show()
 print("written:", ", ".join(str(OUT / n) for n in ["slice.png", "photo.png", "render.png", "difference.png",
-                                                    "metrics.json"]))
+                                                    "overview.png", "metrics.json"]))

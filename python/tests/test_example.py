@@ -25,5 +25,8 @@ def test_the_python_example_runs_and_writes_its_pictures(repo, tmp_path):
     sizes = {name: Image.open(tmp_path / "out" / f"{name}.png").size for name in
              ["slice", "photo", "render", "difference"]}
     assert sizes == {"slice": (21, 21), "photo": (64, 48), "render": (64, 48), "difference": (64, 48)}
+    # overview.png: the four side by side at 8 × 48 rows (the slice at 18 × 21 = 378), 8-px gaps.
+    overview = Image.open(tmp_path / "out/overview.png")
+    assert overview.size == (18 * 21 + 3 * 8 * 64 + 4 * 8, 8 * 48), overview.size
     metrics = json.loads((tmp_path / "out/metrics.json").read_text())
     assert metrics["plaque"]["noise"]["pixels"] < metrics["whole_image"]["noise"]["pixels"] == 64 * 48
