@@ -88,7 +88,7 @@ fn fit_against_synthetic(
         .arg(recipe)
         .arg("--measured")
         .arg(format!("{}:45/0", measured.display()))
-        .args(["--measured-pixel-mm", "0.5", "--free", free, "--paths", "4000", "--quiet"])
+        .args(["--measured-pixel-mm", "0.5", "--free", free, "--paths", "4000"])
         .args(extra)
         .arg("--out")
         .arg(&out)
@@ -112,6 +112,9 @@ fn unidentifiable_parameter_is_reported_not_fitted() {
         fit_against_synthetic(dir.path(), &recipe_path, 78, &recipe_path, "weight_percent@2", &[]);
     assert!(!success, "must fail: {stderr}");
     assert!(stderr.contains("cannot pin down weight_percent@2"), "{stderr}");
+    // Each evaluation numbered with the time so far, and after the pilot the time a search takes.
+    assert!(stderr.contains("[1, ") && stderr.contains("] pilot at") && stderr.contains("[2, "), "{stderr}");
+    assert!(stderr.contains("expect ≈ ") && stderr.contains("evaluations of ≈ "), "{stderr}");
     let out = dir.path().join("out");
     assert_eq!(json["identifiable"], false);
     assert!(json["parameters"][0]["value"].is_null());
@@ -255,7 +258,7 @@ fn free_diameter_fit_crosses_into_thin_media() {
     let recipe_path = write(dir.path(), "r.toml", &text);
     let thin = write(dir.path(), "thin.toml", &text.replace("diameter_um = 2.2", "diameter_um = 0.15"));
     let (stderr, _, json) =
-        fit_against_synthetic(dir.path(), &thin, 79, &recipe_path, "diameter_um", &["--bounds", "0.05:3"]);
+        fit_against_synthetic(dir.path(), &thin, 79, &recipe_path, "diameter_um", &["--bounds", "0.05:3", "--quiet"]);
     assert!(!stderr.contains("thick"), "{stderr}");
     let history = json["history"].as_array().unwrap();
     let optical_depth =

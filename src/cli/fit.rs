@@ -276,11 +276,29 @@ pub fn run(a: FitArgs) -> Result<()> {
             a.out.display()
         ))
     };
+    // Each evaluation numbered with the time so far; after the pilot, the
+    // time a search of this many parameters roughly takes (a one-parameter
+    // golden search 12–20 evaluations, Nelder–Mead up to 40 per parameter).
+    let started = std::time::Instant::now();
+    let mut count = 0usize;
+    let free = problem.free.len();
     let result = match fit::fit_cancellable(
         &problem,
         |e| {
-            if !quiet {
-                eprintln!("{e}");
+            if quiet {
+                return;
+            }
+            count += 1;
+            let t = started.elapsed().as_secs_f64();
+            eprintln!("[{count}, {t:.0} s] {e}");
+            if count == 1 {
+                let (lo, hi) = if free == 1 { (12, 20) } else { (10 * free, 40 * free) };
+                eprintln!(
+                    "expect ≈ {}–{} s: a search over {free} parameter(s) takes ≈ {lo}–{hi} evaluations of ≈ {:.0} s",
+                    (lo as f64 * t).round(),
+                    (hi as f64 * t).round(),
+                    t
+                );
             }
         },
         interrupt.flag(),
