@@ -117,6 +117,17 @@ fn first_order_band_of_the_slice_sum_matches_brute_force_sampling() {
     };
     let linear: Vec<f64> = draws.iter().map(|x| slope * (x - x0)).collect();
     let (observed, predicted) = (sd_of(&sums), sd_of(&linear));
+    // The figures of docs/benchmarks.md (`--nocapture`).
+    eprintln!(
+        "slice sum {:.5e}: first-order band {:.4e} ± {:.1e}; slope {slope:.4e} ± {slope_se:.1e} vs brute force \
+         {b:.4e} ± {se_b:.1e} (z {z:.2}); spread over the {} draws {observed:.4e}, first order {predicted:.4e} \
+         ({:+.1} %)",
+        slice.sum,
+        fo.sd[0],
+        fo.sd_std_error[0],
+        draws.len(),
+        100.0 * (predicted / observed - 1.0)
+    );
     assert!(
         (predicted - observed).abs() < 0.1 * observed,
         "spread of the slice sum over the draws {observed} vs first order {predicted} (band {} ± {}; slopes {slope} ± {slope_se}, brute force {b} ± {se_b})",
