@@ -204,6 +204,10 @@ pub enum InputTarget {
         medium: MediumRef,
         wavelength_nm: f64,
     },
+    /// The σ of a log-normal size distribution (of ln d).
+    SizeSigma {
+        particle: usize,
+    },
     /// The slab's (plaque's) thickness, mm: the slice's slab and the
     /// render's box, not the optical properties.
     ThicknessMm,
@@ -238,7 +242,7 @@ struct RawParticle {
 enum RawSize {
     Diameter { diameter_um: RawValue },
     Range { min_um: f64, max_um: f64, distribution: RangeDistribution },
-    LogNormal { median_diameter_um: f64, sigma: f64 },
+    LogNormal { median_diameter_um: RawValue, sigma: RawValue },
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -482,7 +486,25 @@ impl Recipe {
             InputTarget::WeightPercent { particle } => self.with_weight_percent(particle, value),
             InputTarget::DiameterUm { particle } => self.with_diameter_um(particle, value),
             InputTarget::RealPartN { medium, wavelength_nm } => self.with_real_part(medium, wavelength_nm, value),
+            InputTarget::SizeSigma { particle } => self.with_size_sigma(particle, value),
             InputTarget::ThicknessMm => self.with_thickness_mm(value),
+        }
+    }
+
+    /// The recipe with particle `i`'s log-normal σ set to `sigma` (0 < σ ≤ 2).
+    pub fn with_size_sigma(&self, i: usize, sigma: f64) -> Result<Recipe, RecipeError> {
+        let key = format!("particles[{i}].size.sigma");
+        if !(sigma.is_finite() && sigma > 0.0 && sigma <= 2.0) {
+            return self.invalid(key, format!("must lie in (0, 2], got {sigma}"));
+        }
+        let mut r = self.clone();
+        let p = r.particle_mut(i)?;
+        match p.size {
+            SizeDistribution::LogNormal { median_radius_m, .. } => {
+                p.size = SizeDistribution::LogNormal { median_radius_m, sigma };
+                Ok(r)
+            }
+            _ => self.invalid(key, "the particle's size is not log-normal".into()),
         }
     }
 
@@ -805,9 +827,12 @@ impl Validator<'_> {
                     }
                 }
             }
-            RawSize::LogNormal { median_diameter_um, sigma } => {
-                let d = self.diameter(&format!("{key}.median_diameter_um"), median_diameter_um)?;
-                let s = self.positive(&format!("{key}.sigma"), sigma, "(geometric standard deviation of ln d)")?;
+            RawSize::LogNormal { ref median_diameter_um, ref sigma } => {
+                let (dkey, skey) = (format!("{key}.median_diameter_um"), format!("{key}.sigma"));
+                let d = self.value(&dkey, median_diameter_um.clone(), InputTarget::DiameterUm { particle })?;
+                let d = self.diameter(&dkey, d)?;
+                let s = self.value(&skey, sigma.clone(), InputTarget::SizeSigma { particle })?;
+                let s = self.positive(&skey, s, "(geometric standard deviation of ln d)")?;
                 if s > 2.0 {
                     return self.invalid(&format!("{key}.sigma"), format!("{s} is implausibly wide (must be ≤ 2)"));
                 }
@@ -961,6 +986,20 @@ size = { kind = "diameter", diameter_um = 2.2 }
         let r = parse(&GOOD.replace("n = 1.5889", "n = { value = 1.5889, sd = 0.001 }")).unwrap();
         assert_eq!(r.uncertain[0].target, InputTarget::RealPartN { medium: MediumRef::Host, wavelength_nm: 550.0 });
         assert!(parse(GOOD).unwrap().uncertain.is_empty());
+        // A log-normal distribution's median and σ.
+        let text = GOOD.replace(
+            "size = { kind = \"diameter\", diameter_um = 2.2 }",
+            "size = { kind = \"log-normal\", median_diameter_um = { value = 2.2, sd = 0.1 }, sigma = { min = 0.1, max = 0.3 } }",
+        );
+        assert_ne!(text, GOOD);
+        let r = parse(&text).unwrap();
+        assert_eq!(r.particles[0].size, SizeDistribution::LogNormal { median_radius_m: 1.1e-6, sigma: 0.2 });
+        let targets: Vec<InputTarget> = r.uncertain.iter().map(|u| u.target).collect();
+        assert_eq!(targets, [InputTarget::DiameterUm { particle: 0 }, InputTarget::SizeSigma { particle: 0 }]);
+        let wider = r.with_input(InputTarget::SizeSigma { particle: 0 }, 0.25).unwrap();
+        assert_eq!(wider.particles[0].size, SizeDistribution::LogNormal { median_radius_m: 1.1e-6, sigma: 0.25 });
+        assert!(r.with_input(InputTarget::SizeSigma { particle: 0 }, 3.0).is_err());
+        assert!(parse(GOOD).unwrap().with_size_sigma(0, 0.2).unwrap_err().to_string().contains("not log-normal"));
         // The thickness: recorded, and set by with_input; the properties do not depend on it.
         let r = parse(&GOOD.replace("thickness_mm = 6.35", "thickness_mm = { value = 6.35, sd = 0.05 }")).unwrap();
         assert_eq!((r.thickness_m, r.uncertain[0].target), (6.35e-3, InputTarget::ThicknessMm));
