@@ -549,40 +549,18 @@ fn bad_scenes_are_rejected() {
 
 // ------------------------------------------------------------ speed
 
-/// SSIM (R, G, B, Y) and the error metrics of a 12-Mpixel pair; run with
-/// `cargo test --release --test it compare:: -- --ignored --nocapture`.
+/// `lucent bench compare` (the speed figure of docs/guide.md) runs and
+/// reports its size and metrics; a size out of range is refused.
 #[test]
-#[ignore]
-fn speed_on_a_12_megapixel_pair() {
-    let (w, h) = (4000, 3000);
-    let mut rng = Rng(12);
-    let x = random_image(&mut rng, w, h);
-    let y = RgbImage::new(w, h, x.data.iter().map(|v| 0.9 * v + 0.02 * (rng.next() as f32 - 0.5)).collect()).unwrap();
-    let settings = Settings { ssim: SsimParams::new(1.0).unwrap(), luminance: Luminance::CieRgb };
-    let mut best = f64::INFINITY;
-    for _ in 0..3 {
-        let t = std::time::Instant::now();
-        let m = metrics(&x, &y, None, &settings).unwrap();
-        best = best.min(t.elapsed().as_secs_f64());
-        std::hint::black_box(m);
-    }
-    let t = std::time::Instant::now();
-    let params = settings.ssim;
-    let gx: Vec<f64> = x.data.iter().step_by(3).map(|v| f64::from(*v)).collect();
-    let gy: Vec<f64> = y.data.iter().step_by(3).map(|v| f64::from(*v)).collect();
-    let one = ssim(&Gray::new(w, h, &gx), &Gray::new(w, h, &gy), &params, None).unwrap();
-    let single = t.elapsed().as_secs_f64();
-    println!(
-        "12 Mpixel: all metrics (SSIM R, G, B, Y + errors) best of 3: {best:.2} s; one SSIM plane {single:.2} s; {} threads; SSIM {:.4}",
-        rayon::current_num_threads(),
-        one.mean
-    );
+fn bench_compare_times_a_synthetic_pair() {
+    let o = lucent(&["bench", "compare", "--megapixels", "0.05", "--repeats", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("compare 258 × 194: all metrics") && out.contains("SSIM Y 0."), "{out}");
+    let o = lucent(&["bench", "compare", "--megapixels", "0"]);
+    assert!(!o.status.success() && stderr(&o).contains("--megapixels 0"), "{}", stderr(&o));
 }
 
-/// Two renders of the same twin (seeds 1 and 2) compared on the object's
-/// pixels taken from the render's own `object` layer: the plain RMSE is all
-/// noise, the model RMSE's interval contains 0 and its noise floor explains
-/// the RMSE; a render made brighter by 20 % is told apart from noise.
 #[test]
 fn model_rmse_separates_the_twin_from_its_noise() {
     let tmp = tempfile::tempdir().unwrap();

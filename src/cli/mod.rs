@@ -267,6 +267,15 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 20_000)]
         paths: u64,
     },
+    /// Photo vs render metrics: SSIM (R, G, B, Y) and the error metrics of a synthetic pair of this size, best of the repeats, wall time.
+    Compare {
+        /// Image size in megapixels (4:3; 0.001 … 100).
+        #[arg(long, default_value_t = 12.0)]
+        megapixels: f64,
+        /// Timed repeats (1 … 100).
+        #[arg(long, default_value_t = 3, value_parser = count_in::<1, 100>)]
+        repeats: usize,
+    },
     /// The slab simulator: events/s and wall time to 1 % (PDMS-like medium), and the per-pixel error of the previous and current estimators side by side.
     Bssrdf {
         /// Target relative standard error of the slice sum.
@@ -912,6 +921,7 @@ fn bench(b: BenchCommand) -> Result<()> {
         }
         BenchCommand::Bssrdf { rel_error, time_s } => bssrdf::bench(rel_error, time_s)?,
         BenchCommand::Surface { paths } => bssrdf::bench_surface(paths)?,
+        BenchCommand::Compare { megapixels, repeats } => compare::bench(megapixels, repeats)?,
         BenchCommand::Fit { rel_error, out } => fit::bench(rel_error, out)?,
         BenchCommand::Shard { scene, size, spp, shards, repeats, lucent, megapixels, nodes, projected_spp } => {
             shard::bench(
