@@ -566,11 +566,22 @@ fn collect_recipe_paths(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
 fn load_recipes(paths: &[PathBuf], overrides: Overrides, skip_invalid: bool) -> Result<Vec<Recipe>> {
     let mut recipes = Vec::new();
     let mut failures = Vec::new();
+    // Recipes that leave a weight percentage unknown on purpose (IOL1068-15):
+    // in a folder they are skipped with a note, not a warning.
+    let mut unknown = Vec::new();
     for p in paths {
         match Recipe::load(p, overrides) {
             Ok(r) => recipes.push(r),
+            Err(e @ crate::optics::recipe::RecipeError::WeightPercentUnknown { .. }) => unknown.push(e.to_string()),
             Err(e) => failures.push(e.to_string()),
         }
+    }
+    if skip_invalid && !recipes.is_empty() {
+        for f in &unknown {
+            eprintln!("note: skipped {f}");
+        }
+    } else {
+        failures.append(&mut unknown);
     }
     if !failures.is_empty() {
         if skip_invalid && !recipes.is_empty() {

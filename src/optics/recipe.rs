@@ -66,6 +66,12 @@ pub enum RecipeError {
     Parse { path: PathBuf, message: String },
     #[error("{path}: {key}: {message}")]
     Invalid { path: PathBuf, key: String, message: String },
+    /// A particle type whose weight percentage the recipe leaves unknown
+    /// (no `weight_percent`, no override): a folder of recipes skips it.
+    #[error(
+        "{path}: {key}: the weight percentage of {particle} is not given (unknown); set it in the recipe or pass --weight-percent"
+    )]
+    WeightPercentUnknown { path: PathBuf, key: String, particle: String },
     #[error("{path}: {key}: {source}")]
     /// Boxed: an [`IndexError`] is large and this error travels through
     /// every `Result` of the recipe loader.
@@ -665,13 +671,11 @@ impl Validator<'_> {
             let w = match raw_w {
                 Some(w) => w,
                 None => {
-                    return self.invalid(
-                        &wkey,
-                        format!(
-                            "the weight percentage of {} is not given (unknown); set it in the recipe or pass --weight-percent",
-                            p.name
-                        ),
-                    )
+                    return Err(RecipeError::WeightPercentUnknown {
+                        path: self.path.to_path_buf(),
+                        key: wkey,
+                        particle: p.name.clone(),
+                    })
                 }
             };
             if !(w.is_finite() && w > 0.0 && w < 100.0) {
