@@ -830,8 +830,8 @@ fn photo_bin(sample: &str, photo: &Path, render_size: Option<&str>) -> Result<us
         let frame = lucent_calib::raw::read_raw(photo, None).map_err(|e| unreadable(e.to_string()))?;
         (frame.meta.output_width, frame.meta.output_height)
     } else {
-        let img = crate::imageio::read_rgb(photo).map_err(|e| unreadable(e.to_string()))?;
-        (img.width, img.height)
+        // The header only: planning needs the size, not the pixels.
+        crate::imageio::image_size(photo).map_err(|e| unreadable(e.to_string()))?
     };
     let k = pw / rw;
     if k >= 1 && pw == k * rw && ph == k * rh {
