@@ -746,6 +746,8 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
     let approximate = html.find("<b>The renders approximate</b>").expect("the approximations beside the answer");
     assert!(approximate < html.find("details per stage</h2>").unwrap(), "beside the answer");
     assert!(html[approximate..].contains("+2.64 / +2.29 / +2.55 %"), "the measured bias");
+    let paragraph = &html[approximate..approximate + html[approximate..].find("</p>").unwrap()];
+    assert!(paragraph.contains("A (recipe): similar medium") && !paragraph.contains("/render.exr"), "{paragraph}");
     assert!(html.contains("<p class=\"why approximation\">Approximation: similar medium"), "in the render's section");
     let display = &smp["compare"]["display"];
     assert!(display["difference_range_source"].as_str().unwrap().contains("one scale for both twins"), "{display}");

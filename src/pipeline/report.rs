@@ -1156,7 +1156,20 @@ fn answer(page: &mut Page, compare: &Path, smp: &super::project::SampleSection) 
         let lists: Vec<String> = if shared {
             vec![approximate[0].approximations.join("; ")]
         } else {
-            approximate.iter().map(|a| format!("{}: {}", a.render, a.approximations.join("; "))).collect()
+            approximate
+                .iter()
+                .map(|a| {
+                    // The twin's name where the render is one of the compared twins, else its file.
+                    let name = if twins && a.render == r.render {
+                        "A (recipe)".to_string()
+                    } else if r.twins.as_ref().is_some_and(|t| t.render_b == a.render) {
+                        "B (fitted)".to_string()
+                    } else {
+                        a.render.clone()
+                    };
+                    format!("{name}: {}", a.approximations.join("; "))
+                })
+                .collect()
         };
         let _ = write!(
             h,
