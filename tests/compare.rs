@@ -549,6 +549,28 @@ fn bad_scenes_are_rejected() {
 
 // ------------------------------------------------------------ speed
 
+/// A pair of over 2 Mpixel says its size and the time it expects before
+/// the work; a small one does not.
+#[test]
+fn a_large_pair_says_how_long_it_expects() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (1800, 1200);
+    let data: Vec<f32> = (0..w * h * 3).map(|i| 0.4 + 0.2 * ((i % 7) as f32 / 7.0)).collect();
+    let photo = dir.path().join("p.exr");
+    let render = dir.path().join("r.exr");
+    write_exr(&photo, &RgbImage::new(w, h, data.clone()).unwrap()).unwrap();
+    write_exr(&render, &RgbImage::new(w, h, data.iter().map(|v| 0.9 * v).collect()).unwrap()).unwrap();
+    let out = dir.path().join("out");
+    let o = lucent(&["compare", "--photo", s(&photo), "--render", s(&render), "--out", s(&out)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    let line = err.lines().find(|l| l.starts_with("comparing ")).unwrap_or_else(|| panic!("no start line: {err}"));
+    assert!(line.contains("1800 × 1200 px (2.2 Mpixel, 1 twin(s)): expect ≈ "), "{line}");
+    let base = root().join(REF).join("base.exr");
+    let o = lucent(&["compare", "--photo", s(&base), "--render", s(&base), "--out", s(&dir.path().join("small"))]);
+    assert!(o.status.success() && !stderr(&o).contains("comparing "), "{}", stderr(&o));
+}
+
 /// `lucent bench compare` (the speed figure of docs/guide.md) runs and
 /// reports its size and metrics; a size out of range is refused.
 #[test]
