@@ -977,45 +977,14 @@ pub fn heatmap_png(panels: &[(&str, &Grid)], diverging: Option<(&str, &Grid)>) -
         }
         // Colour bars.
         let bars = bar.split_evenly((1, count));
-        let bar_chart = |area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
-                         lo: f64,
-                         hi: f64,
-                         label: &str,
-                         colour: &dyn Fn(f64) -> RGBColor|
-         -> Result<(), PlotError> {
-            let mut chart = ChartBuilder::on(area)
-                .margin_left(55)
-                .margin_right(20)
-                .x_label_area_size(45)
-                .build_cartesian_2d(lo..hi, 0.0..1.0)
-                .map_err(perr)?;
-            chart
-                .configure_mesh()
-                .disable_mesh()
-                .disable_y_axis()
-                .x_desc(label)
-                .x_labels(9)
-                .label_style(("sans-serif", 14))
-                .axis_desc_style(("sans-serif", 15))
-                .draw()
-                .map_err(perr)?;
-            let steps = 200;
-            chart
-                .draw_series((0..steps).map(|k| {
-                    let a = lo + (hi - lo) * k as f64 / steps as f64;
-                    let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
-                    Rectangle::new([(a, 0.0), (b, 1.0)], colour(0.5 * (a + b)).filled())
-                }))
-                .map_err(perr)?;
-            Ok(())
-        };
         let fmax_label = format!("log10(f / f_max), f_max = {fmax:.3e} 1/(m² sr)");
         for b in bars.iter().take(panels.len()) {
-            bar_chart(&b.split_vertically(80).0, -decades, 0.0, &fmax_label, &|v| viridis((v + decades) / decades))?;
+            let colour = |v: f64| viridis((v + decades) / decades);
+            crate::plot::colour_bar(&b.split_vertically(80).0, (-decades, 0.0), &fmax_label, 9, &colour)?;
         }
         if diverging.is_some() {
             let (b, keys) = bars[count - 1].split_vertically(80);
-            bar_chart(&b, -1.0, 1.0, "(simulated − measured) / measured", &diverge)?;
+            crate::plot::colour_bar(&b, (-1.0, 1.0), "(simulated − measured) / measured", 9, &diverge)?;
             let font = ("sans-serif", 14).into_font();
             for (k, (c, label)) in
                 [(MASKED, "masked"), (UNDER, "< −1 (clipped)"), (OVER, "> +1 (clipped)")].iter().enumerate()

@@ -816,6 +816,43 @@ pub fn band_check_png(twins: &[BandBars], k: f64) -> Result<Vec<u8>, PlotError> 
     })
 }
 
+/// A horizontal colour bar over `range` with `labels` ticks and the axis
+/// `label`, each value drawn in `colour(value)` (the bars of the slice
+/// heat maps and of the render's band map).
+pub(crate) fn colour_bar(
+    area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    (lo, hi): (f64, f64),
+    label: &str,
+    labels: usize,
+    colour: &dyn Fn(f64) -> RGBColor,
+) -> Result<(), PlotError> {
+    let mut chart = ChartBuilder::on(area)
+        .margin_left(55)
+        .margin_right(20)
+        .x_label_area_size(45)
+        .build_cartesian_2d(lo..hi, 0.0..1.0)
+        .map_err(perr)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .disable_y_axis()
+        .x_desc(label)
+        .x_labels(labels)
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
+        .draw()
+        .map_err(perr)?;
+    let steps = 200;
+    chart
+        .draw_series((0..steps).map(|k| {
+            let a = lo + (hi - lo) * k as f64 / steps as f64;
+            let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
+            Rectangle::new([(a, 0.0), (b, 1.0)], colour(0.5 * (a + b)).filled())
+        }))
+        .map_err(perr)?;
+    Ok(())
+}
+
 /// The colour of a pixel whose value is below its own noise ([`relative_band_png`]).
 pub const UNRESOLVED: RGBColor = RGBColor(215, 215, 215);
 
@@ -868,30 +905,14 @@ pub fn relative_band_png(
                 .draw(&Rectangle::new([(x, y), (x + scale as i32, y + scale as i32)], colour.filled()))
                 .map_err(perr)?;
         }
-        let mut chart = ChartBuilder::on(&bar)
-            .margin_left(20)
-            .margin_right(20)
-            .x_label_area_size(45)
-            .build_cartesian_2d(0.0..100.0 * top, 0.0..1.0)
-            .map_err(perr)?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .disable_y_axis()
-            .x_desc("the recipe's inputs, 1 σ, in % of the pixel's value (grey: not the object)")
-            .x_labels(7)
-            .x_label_formatter(&|v| format!("{v:.2}"))
-            .label_style(("sans-serif", 14))
-            .axis_desc_style(("sans-serif", 15))
-            .draw()
-            .map_err(perr)?;
-        let steps = 200;
-        chart
-            .draw_series((0..steps).map(|k| {
-                let (a, b) = (k as f64 / steps as f64, (k + 1) as f64 / steps as f64);
-                Rectangle::new([(100.0 * top * a, 0.0), (100.0 * top * b, 1.0)], viridis(a).filled())
-            }))
-            .map_err(perr)?;
+        let colour = |v: f64| viridis(v / (100.0 * top));
+        colour_bar(
+            &bar,
+            (0.0, 100.0 * top),
+            "the recipe's inputs, 1 σ, in % of the pixel's value (grey: not the object)",
+            7,
+            &colour,
+        )?;
         Ok(())
     })
 }

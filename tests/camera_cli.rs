@@ -19,24 +19,22 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `lucent calibrate` of the photos `images` (9 × 6 corners, 25 mm
+/// squares) into `out`, with `extra` flags; it must succeed.
+fn calibrate_9x6(images: &str, out: &Path, extra: &[&str]) -> std::process::Output {
+    let args = [&["calibrate", "--images", images, "--board", "9x6", "--square-mm", "25", "--out", s(out)][..], extra];
+    let o = lucent(&args.concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    o
+}
+
 /// One calibration of the shipped photos, shared by the tests of this file.
 fn calibrated() -> &'static (tempfile::TempDir, PathBuf, String) {
     static CAL: OnceLock<(tempfile::TempDir, PathBuf, String)> = OnceLock::new();
     CAL.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("camera.json");
-        let o = lucent(&[
-            "calibrate",
-            "--images",
-            "fixtures/camera/chessboard/*.{jpg,png}",
-            "--board",
-            "9x6",
-            "--square-mm",
-            "25",
-            "--out",
-            s(&out),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
+        let o = calibrate_9x6("fixtures/camera/chessboard/*.{jpg,png}", &out, &[]);
         (dir, out, stdout(&o))
     })
 }
@@ -184,32 +182,14 @@ fn calibrate_errors_name_the_files() {
     assert!(stderr(&o).contains("pinhole-k3, rational, fisheye"), "{}", stderr(&o));
 }
 
-/// `--images` takes globset patterns: a character class picks
-/// left01–left03 (the old hand-written matcher knew only `*`, `?` and
-/// `{a,b}`, and took the pattern for a missing file). A wrong board size
-/// makes the run stop after detection, listing every photo it was given.
+/// `lucent calibrate` says which photo it is at and how long the search
+/// takes, unless `--quiet`.
 #[test]
 fn calibrate_says_which_view_it_is_at_unless_quiet() {
     let dir = tempfile::tempdir().unwrap();
     let run = |name: &str, quiet: bool| {
-        let out = dir.path().join(name);
-        let mut a = vec![
-            "calibrate",
-            "--images",
-            "fixtures/camera/chessboard/left0[1-4].jpg",
-            "--board",
-            "9x6",
-            "--square-mm",
-            "25",
-            "--out",
-            s(&out),
-        ];
-        if quiet {
-            a.push("--quiet");
-        }
-        let o = lucent(&a);
-        assert!(o.status.success(), "{}", stderr(&o));
-        stderr(&o)
+        let extra: &[&str] = if quiet { &["--quiet"] } else { &[] };
+        stderr(&calibrate_9x6("fixtures/camera/chessboard/left0[1-4].jpg", &dir.path().join(name), extra))
     };
     let err = run("loud.json", false);
     assert!(err.contains("reading 4 photo(s)"), "{err}");
@@ -221,6 +201,10 @@ fn calibrate_says_which_view_it_is_at_unless_quiet() {
     assert!(!err.contains("view ") && !err.contains("reading"), "{err}");
 }
 
+/// `--images` takes globset patterns: a character class picks
+/// left01–left03 (the old hand-written matcher knew only `*`, `?` and
+/// `{a,b}`, and took the pattern for a missing file). A wrong board size
+/// makes the run stop after detection, listing every photo it was given.
 #[test]
 fn calibrate_images_accept_character_classes() {
     let dir = tempfile::tempdir().unwrap();

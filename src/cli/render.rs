@@ -873,7 +873,8 @@ pub fn write_band(out: &Path, image: &Image, band: &scene::band::RenderBand) -> 
             on.len()
         ),
     )?;
-    std::fs::write(out.join("band.png"), png).with_context(|| format!("{}: cannot write band.png", out.display()))?;
+    crate::io::write_atomic(&out.join("band.png"), &png)
+        .with_context(|| format!("{}: cannot write band.png", out.display()))?;
     Ok(())
 }
 

@@ -267,7 +267,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {
         let k = Stage::ALL.iter().position(|s| *s == stage).unwrap_or(0) + 1;
         let what = match st {
-            Status::Started { last_wall_s, .. } => {
+            Status::Started { last_wall_s } => {
                 // Before the stage's commands: which, and how long it took last time.
                 eprintln!("{}", start_line(k, n, stage, *last_wall_s));
                 return;

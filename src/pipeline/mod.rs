@@ -346,7 +346,6 @@ pub enum Status {
     /// The stage is about to run its tasks; `last_wall_s` is the time its
     /// previous result took (from its manifest.json), when there is one.
     Started {
-        tasks: usize,
         last_wall_s: Option<f64>,
     },
     Ran {
@@ -1326,11 +1325,7 @@ pub fn run(
         std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
         crate::io::write_atomic(&dir.join(STAGE_MARK), stage.name().as_bytes())?;
         let log = dir.join("log.txt");
-        on_status(
-            stage,
-            &Status::Started { tasks: plan.tasks.len(), last_wall_s: last.as_ref().map(|m| m.wall_s) },
-            &[],
-        );
+        on_status(stage, &Status::Started { last_wall_s: last.as_ref().map(|m| m.wall_s) }, &[]);
         let start = Instant::now();
         let started_unix_s =
             std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
