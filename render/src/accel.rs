@@ -52,6 +52,7 @@ use obvhs::{
     ray::{Ray, RayHit},
     Boundable, BvhBuildParams,
 };
+use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 /// A hit on the mesh.
@@ -80,6 +81,92 @@ pub struct Accel {
     /// For a convex mesh with at most [`MAX_CONVEX_PLANES`] distinct face
     /// planes: the outward unit normals n and offsets c (n·x = c on the face).
     planes: Option<Vec<(DVec3, f64)>>,
+    /// The mesh is convex (every vertex on the inner side of every face's
+    /// plane); checked up to [`MAX_CONVEX_CHECK`] triangles, larger meshes
+    /// count as not convex.
+    convex: bool,
+    /// The grid of [`Accel::distance_lower_bound`], built on its first call
+    /// (shared by clones: the same mesh).
+    surface: Arc<OnceLock<DistanceGrid>>,
+}
+
+/// A grid over the mesh's bounding box that holds, per cell, a lower bound
+/// of the distance from any point of the cell to the surface: surface
+/// points are placed no farther apart than half a cell (a barycentric grid
+/// on each triangle), the cells holding one are marked, and a cell k steps
+/// (in the max norm, 26-neighbour breadth-first) from the nearest marked
+/// cell is at least (k − 1) cells minus half a cell from the surface.
+#[derive(Debug)]
+struct DistanceGrid {
+    lo: DVec3,
+    cell: f64,
+    dims: [usize; 3],
+    /// Steps to the nearest marked cell (u16::MAX: none, an empty mesh).
+    steps: Vec<u16>,
+}
+
+/// Cells along the bounding box's longest side.
+const DISTANCE_GRID_CELLS: f64 = 64.0;
+
+impl DistanceGrid {
+    fn new(tris: &[[DVec3; 3]], lo: DVec3, hi: DVec3) -> Self {
+        let cell = ((hi - lo).max_element() / DISTANCE_GRID_CELLS).max(f64::MIN_POSITIVE);
+        let lo = lo - DVec3::splat(cell);
+        let dims = ((hi - lo) / cell).to_array().map(|x| (x.ceil() as usize + 2).max(1));
+        let index = |c: [usize; 3]| (c[2] * dims[1] + c[1]) * dims[0] + c[0];
+        let cell_of = |x: DVec3| -> [usize; 3] {
+            let f = ((x - lo) / cell).to_array();
+            std::array::from_fn(|k| (f[k].max(0.0) as usize).min(dims[k] - 1))
+        };
+        let mut steps = vec![u16::MAX; dims[0] * dims[1] * dims[2]];
+        let mut queue = std::collections::VecDeque::new();
+        for &[a, b, c] in tris {
+            let longest = (b - a).length().max((c - b).length()).max((a - c).length());
+            let m = ((2.0 * longest / cell).ceil() as usize).max(1);
+            for i in 0..=m {
+                for j in 0..=m - i {
+                    let (u, v) = (i as f64 / m as f64, j as f64 / m as f64);
+                    let at = index(cell_of(a + u * (b - a) + v * (c - a)));
+                    if steps[at] != 0 {
+                        steps[at] = 0;
+                        queue.push_back(at);
+                    }
+                }
+            }
+        }
+        while let Some(at) = queue.pop_front() {
+            let (x, y, z) = (at % dims[0], (at / dims[0]) % dims[1], at / (dims[0] * dims[1]));
+            let next = steps[at].saturating_add(1);
+            for dz in z.saturating_sub(1)..=(z + 1).min(dims[2] - 1) {
+                for dy in y.saturating_sub(1)..=(y + 1).min(dims[1] - 1) {
+                    for dx in x.saturating_sub(1)..=(x + 1).min(dims[0] - 1) {
+                        let n = index([dx, dy, dz]);
+                        if steps[n] > next {
+                            steps[n] = next;
+                            queue.push_back(n);
+                        }
+                    }
+                }
+            }
+        }
+        Self { lo, cell, dims, steps }
+    }
+
+    /// Steps from x's cell to the nearest marked cell (None outside the
+    /// grid or for an empty mesh).
+    fn steps(&self, x: DVec3) -> Option<u16> {
+        let f = ((x - self.lo) / self.cell).to_array();
+        if f.iter().zip(self.dims).any(|(&v, d)| !(v >= 0.0 && v < d as f64)) {
+            return None;
+        }
+        let c = f.map(|v| v as usize);
+        let k = self.steps[(c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]];
+        (k != u16::MAX).then_some(k)
+    }
+
+    fn lower_bound(&self, x: DVec3) -> f64 {
+        self.steps(x).map_or(0.0, |k| ((f64::from(k) - 1.5) * self.cell).max(0.0))
+    }
 }
 
 /// Convex meshes with more distinct face planes than this are traced with
@@ -108,6 +195,29 @@ fn convex_planes(triangles: &[[DVec3; 3]], extent: f64) -> Option<Vec<(DVec3, f6
     }
     let convex = triangles.iter().flatten().all(|v| planes.iter().all(|(n, c)| n.dot(*v) - c <= tol));
     (convex && planes.len() >= 4).then_some(planes)
+}
+
+/// Meshes with more triangles than this are not checked for convexity
+/// (the check costs triangles × vertices).
+pub const MAX_CONVEX_CHECK: usize = 4000;
+
+/// True when every vertex lies on the inner side of every triangle's plane
+/// (within 10⁻⁹ of the extent): a closed mesh with outward winding that is
+/// convex. False beyond [`MAX_CONVEX_CHECK`] triangles.
+fn convex_mesh(triangles: &[[DVec3; 3]], extent: f64) -> bool {
+    if triangles.len() > MAX_CONVEX_CHECK || triangles.len() < 4 {
+        return false;
+    }
+    let tol = 1e-9 * extent;
+    triangles.iter().all(|t| {
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        if n.length() == 0.0 {
+            return true;
+        }
+        let n = n.normalize();
+        let c = n.dot(t[0]);
+        triangles.iter().flatten().all(|v| n.dot(*v) - c <= tol)
+    })
 }
 
 /// The f32 box of one triangle, inflated by `pad` on every side.
@@ -165,6 +275,8 @@ impl Accel {
                 bounds_max: DVec3::ZERO,
                 scale: 1.0,
                 planes: None,
+                convex: false,
+                surface: Arc::default(),
             };
         }
         let extent = (hi - lo).max_element().max(lo.abs().max(hi.abs()).max_element());
@@ -182,7 +294,31 @@ impl Accel {
         let original = bvh.primitive_indices.clone();
         let tris = original.iter().map(|&i| triangles[i as usize]).collect();
         let planes = convex_planes(triangles, extent);
-        Self { bvh, tris, original, bounds_min: lo, bounds_max: hi, scale, planes }
+        let convex = planes.is_some() || convex_mesh(triangles, extent);
+        Self { bvh, tris, original, bounds_min: lo, bounds_max: hi, scale, planes, convex, surface: Arc::default() }
+    }
+
+    /// A lower bound of the distance from `x` to the mesh's surface, in the
+    /// vertices' units, from a grid of 64 cells along the bounding box's
+    /// longest side built on the first call: within 1.5 cells of the surface
+    /// it is 0, beyond it falls short of the true distance by at most
+    /// ≈ 3.2 cells; 0 outside the box. One array read per call.
+    pub fn distance_lower_bound(&self, x: DVec3) -> f64 {
+        self.distance_grid().lower_bound(x)
+    }
+
+    /// An estimate of the distance from `x` to the surface from the same
+    /// grid: (k − ½) cells for a cell k steps from the surface's cells (in
+    /// the max norm, so up to √3 short along a diagonal), 0 outside the
+    /// box. Not a bound: for weights that need only be positive, such as a
+    /// connection's attempt probability.
+    pub fn distance_estimate(&self, x: DVec3) -> f64 {
+        let grid = self.distance_grid();
+        grid.steps(x).map_or(0.0, |k| ((f64::from(k) - 0.5) * grid.cell).max(0.0))
+    }
+
+    fn distance_grid(&self) -> &DistanceGrid {
+        self.surface.get_or_init(|| DistanceGrid::new(&self.tris, self.bounds_min, self.bounds_max))
     }
 
     /// Number of triangles.
@@ -236,9 +372,10 @@ impl Accel {
         Some(Hit { t: best_t, triangle: self.original[best as usize], normal: (b - a).cross(c - a).normalize() })
     }
 
-    /// True when the mesh is convex and [`exit`](Self::exit) uses its face planes.
+    /// True when the mesh is convex (a ray leaving it never meets it again);
+    /// [`exit`](Self::exit) uses its face planes when it also has few.
     pub fn is_convex(&self) -> bool {
-        self.planes.is_some()
+        self.convex
     }
 
     /// The outward unit normals n and offsets c (n·x = c) of the face planes

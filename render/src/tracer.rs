@@ -1718,12 +1718,21 @@ fn trace_path(
     let mut events = events_before;
     // Whether the camera ray's first hit is the object (set at the first outside segment).
     let mut first_hit: Option<FirstHit> = None;
-    // Distance from `o` to the nearest face plane while inside a convex object.
+    // A lower bound of the distance from `o` to the surface while inside: a
+    // flight shorter than it cannot leave (exact for a convex object's planes).
     let mut safe = 0.0f64;
     let convex = scene.object.as_ref().and_then(|obj| obj.accel.convex_planes());
     let planes = match &scene.object {
         Some(obj) if settings.medium_nee && !obj.interface.is_rough() && !scene.environment.is_uniform() => {
             obj.accel.convex_planes()
+        }
+        _ => None,
+    };
+    // Any other closed mesh with smooth faces connects through the face
+    // that [`mesh_exit`] finds.
+    let faces = match &scene.object {
+        Some(obj) if settings.medium_nee && !obj.interface.is_rough() && !scene.environment.is_uniform() => {
+            Some(planes.map_or(Faces::Mesh, Faces::Planes))
         }
         _ => None,
     };
@@ -1740,6 +1749,9 @@ fn trace_path(
     // probability of the one reflection on the way (1 before it).
     let mut stretch_t = 0.0f64;
     let mut stretch_refl: Option<f64> = None;
+    // The triangle the stretch left the object through (a mesh's connections
+    // make it only through the one [`mesh_exit`] finds).
+    let mut stretch_triangle = u32::MAX;
     // The board point the path left by its diffuse bounce while it can
     // still be a chain that the board's connection through the object
     // makes, and the driving band's density of the chain so far.
@@ -1792,13 +1804,20 @@ fn trace_path(
                 let spheres = sphere_tables(obj, settings);
                 let bc = &obj.bands;
                 chain = None;
-                safe = convex.map_or(0.0, |planes| distance_to_planes(planes, o));
-                if let Some(planes) = planes {
-                    let reach = distance_to_lit_planes(planes, o, facing);
+                safe = match convex {
+                    Some(planes) => distance_to_planes(planes, o),
+                    None => obj.accel.distance_lower_bound(o),
+                };
+                if let Some(faces) = faces {
+                    let reach = match faces {
+                        Faces::Planes(planes) => distance_to_lit_planes(planes, o, facing),
+                        Faces::Mesh => obj.accel.distance_estimate(o),
+                    };
                     let p_attempt = attempt_probability(reach, bc.sigma_t_min);
                     let p_phase = if settings.phase_connection { p_attempt } else { 0.0 };
+                    let chains = chains && planes.is_some();
                     let conn = Connection { h, x: o, d_in: d, p_attempt, p_phase, shared, chains, exit: None };
-                    vertex = Some(connect_vertex(scene, obj, planes, &tp, &conn, rng, est));
+                    vertex = Some(connect_vertex(scene, obj, faces, &tp, &conn, rng, est));
                     stretch_t = 0.0;
                     stretch_refl = None;
                 }
@@ -1851,7 +1870,8 @@ fn trace_path(
                                 };
                                 // (No normalisation until the next event: the
                                 // vertex's r and the path's share one scale.)
-                                vertex = Some(connect_vertex(scene, obj, planes, &branch, &conn, rng, est));
+                                vertex =
+                                    Some(connect_vertex(scene, obj, Faces::Planes(planes), &branch, &conn, rng, est));
                                 stretch_mu = exit.cos_theta;
                                 stretch_t = 0.0;
                                 stretch_refl = None;
@@ -1918,7 +1938,7 @@ fn trace_path(
                 o = p - eps * n_out;
                 // One reflection on the way out keeps the stretch one that
                 // the connections make (with the chains).
-                if chains && vertex.is_some() && stretch_refl.is_none() {
+                if chains && planes.is_some() && vertex.is_some() && stretch_refl.is_none() {
                     stretch_refl = Some(fr[h]);
                 } else {
                     vertex = None;
@@ -1935,6 +1955,7 @@ fn trace_path(
                 o = p + eps * n_out;
                 inside = false;
                 if vertex.is_some() {
+                    stretch_triangle = hit.triangle;
                     // Phase sampling, the flights, a reflection, refraction; in outside
                     // solid angle: dω_i/dω_o = cos θ_o / (n² cos θ_i).
                     stretch_jacobian = d.dot(n_out) / (eta * eta * cos_i);
@@ -2031,9 +2052,16 @@ fn trace_path(
                     let beta = tp.effective();
                     if let Some(v) = vertex {
                         // Weighed against the medium connections from v.x (balance heuristic).
-                        let p_conn = v.p_attempt * scene.environment.pdf(v.x, d);
                         let obj =
                             scene.object.as_ref().expect("a medium vertex without an object").walked_after(events);
+                        // A mesh's connection makes this path only if it
+                        // finds the face the path left through.
+                        let made = planes.is_some()
+                            || v.p_attempt > 0.0 && {
+                                let eta = if shared { obj.eta_mean } else { obj.eta(hero.unwrap_or(0)) };
+                                mesh_exit(&obj.accel, v.x, d, eta).is_some_and(|e| e.hit.triangle == stretch_triangle)
+                            };
+                        let p_conn = if made { v.p_attempt * scene.environment.pdf(v.x, d) } else { 0.0 };
                         let p_phase = if v.p_phase > 0.0 {
                             let ph = band_phases(obj, |k| v.r[k] > 0.0, hero.unwrap_or(0), stretch_mu);
                             v.p_phase * stretch_jacobian * mean_weighted(&v.r, &ph)
@@ -2276,6 +2304,91 @@ fn attempt_probability(d: f64, sigma_t_min: f64) -> f64 {
     }
 }
 
+/// The boundary a medium connection crosses: a convex mesh's face planes
+/// (every face is tried, and chains through one reflection), or any other
+/// closed mesh with smooth faces (the one face [`mesh_exit`] finds).
+#[derive(Debug, Clone, Copy)]
+enum Faces<'a> {
+    Planes(&'a [(DVec3, f64)]),
+    Mesh,
+}
+
+/// Steps of [`mesh_exit`]'s search.
+const MESH_EXIT_STEPS: usize = 4;
+
+/// Where the inside ray from `x` that refracts into the outside direction
+/// `wo` leaves a mesh: the face is searched by fixed-point steps, starting
+/// from the face the ray x + t·ω_o meets: the inside direction ω_i that
+/// refracts into ω_o at that face's plane (Snell backwards, relative index
+/// `eta`) is traced from x, and the face it meets is taken next, until a
+/// face is met by its own ω_i (found) or [`MESH_EXIT_STEPS`] steps pass
+/// (none). The search is deterministic in (x, ω_o), so the path's own escape
+/// asks it whether a connection would have made the same path
+/// (multiple-importance weights), and a face it does not find is left to the
+/// path's escape and the phase connection.
+fn mesh_exit(accel: &Accel, x: DVec3, wo: DVec3, eta: f64) -> Option<MeshExit> {
+    let mut hit = accel.intersect(x, wo, f64::INFINITY)?;
+    let mut dir = wo;
+    for _ in 0..MESH_EXIT_STEPS {
+        let n = if hit.normal.dot(dir) >= 0.0 { hit.normal } else { -hit.normal };
+        if n.dot(wo) <= 0.0 {
+            return None;
+        }
+        let (wi, cos_i) = unrefract(wo, n, eta)?;
+        let next = accel.intersect(x, wi, f64::INFINITY)?;
+        if next.triangle == hit.triangle {
+            return Some(MeshExit { hit: next, n, wi, cos_i });
+        }
+        (hit, dir) = (next, wi);
+    }
+    None
+}
+
+/// A face found by [`mesh_exit`]: the hit, the outward normal n, the inside
+/// direction ω_i and cos θ_i = n·ω_i.
+struct MeshExit {
+    hit: crate::accel::Hit,
+    n: DVec3,
+    wi: DVec3,
+    cos_i: f64,
+}
+
+/// The medium connection from scattering point `x` of a mesh that is not a
+/// convex polyhedron of few planes: one direction ω_o drawn from the
+/// environment's sampler at x, the face the inside ray refracting into it
+/// leaves through ([`mesh_exit`]), and the contribution and denominator of
+/// [`connect_through_faces`] through that face (no chains). Shadowed by the
+/// board and, for a mesh that is not convex, by the mesh itself.
+fn connect_through_mesh(
+    scene: &Scene,
+    obj: &Object,
+    tp: &Throughput,
+    conn: &Connection,
+    rng: &mut Rng,
+    est: &mut Estimate,
+) {
+    let &Connection { h, x, d_in, shared, .. } = conn;
+    let Some(es) = scene.environment.sample(x, [rng.next_f64(), rng.next_f64()]) else {
+        return;
+    };
+    if es.pdf.is_nan() || es.pdf <= 0.0 {
+        return;
+    }
+    let wo = es.dir;
+    let eta = if shared { obj.eta_mean } else { obj.eta(h) };
+    let Some(MeshExit { hit, n, wi, cos_i }) = mesh_exit(&obj.accel, x, wo, eta) else { return };
+    let q = x + hit.t * wi + scene.epsilon_m * n;
+    if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some())
+        || !obj.accel.is_convex() && obj.accel.occluded(q, wo, f64::INFINITY)
+    {
+        return;
+    }
+    let jacobian = n.dot(wo) / (eta * eta * cos_i);
+    let (_, fr) = reflectances(obj, cos_i, eta, shared, true);
+    let exit = Exit { t: hit.t, mu: d_in.dot(wi), jacobian, refl: [1.0; 3], fr, q, wo, weight: 1.0 };
+    add_connection(scene, obj, tp, conn, &exit, es.pdf, est);
+}
+
 /// The connections from a medium vertex (`conn`: where, and with what
 /// probabilities) with the path's throughput `tp` there: the environment
 /// connection, made with probability `conn.p_attempt`, and with it the phase
@@ -2284,7 +2397,7 @@ fn attempt_probability(d: f64, sigma_t_min: f64) -> f64 {
 fn connect_vertex(
     scene: &Scene,
     obj: &Object,
-    planes: &[(DVec3, f64)],
+    faces: Faces,
     tp: &Throughput,
     conn: &Connection,
     rng: &mut Rng,
@@ -2292,7 +2405,10 @@ fn connect_vertex(
 ) -> MediumVertex {
     let p_attempt = conn.p_attempt;
     if p_attempt >= 1.0 || rng.next_f64() < p_attempt {
-        connect_through_faces(scene, obj, planes, tp, conn, rng, est);
+        match faces {
+            Faces::Planes(planes) => connect_through_faces(scene, obj, planes, tp, conn, rng, est),
+            Faces::Mesh => connect_through_mesh(scene, obj, tp, conn, rng, est),
+        }
         if conn.p_phase > 0.0 {
             connect_along_phase(scene, obj, tp, conn, rng, est);
         }
@@ -2560,9 +2676,19 @@ fn connect_along_phase(
             let wo = refract_or_mirror(wi, n, 1.0 / eta);
             let cos_o = wo.dot(n);
             let q = p + eps * n;
-            if cos_o > 0.0 && scene.board.as_ref().is_none_or(|b| b.intersect(q, wo).is_none()) {
+            // (A mesh that is not convex may stand in its own way.)
+            let hidden = |q: DVec3| {
+                scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some())
+                    || !obj.accel.is_convex() && obj.accel.occluded(q, wo, f64::INFINITY)
+            };
+            if cos_o > 0.0 && !hidden(q) {
                 let exit = Exit { t, mu, jacobian: cos_o / (eta * eta * cos_i), refl, fr, q, wo, weight };
-                add_connection(scene, obj, tp, conn, &exit, scene.environment.pdf(x, wo), est);
+                // A mesh's environment connection makes this path only
+                // through the face its search finds.
+                let made = obj.accel.convex_planes().is_some()
+                    || mesh_exit(&obj.accel, x, wo, eta).is_some_and(|e| e.hit.triangle == hit.triangle);
+                let pdf_env = if made { scene.environment.pdf(x, wo) } else { 0.0 };
+                add_connection(scene, obj, tp, conn, &exit, pdf_env, est);
             }
         }
         if bounce == 1 || !conn.chains {
