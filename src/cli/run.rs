@@ -152,14 +152,14 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
         .unwrap_or("")
 }
 
-/// Runs `command` (whose command line is `args`) in this process, as a
-/// child `lucent` would have run it: its output appended to `log` after a
+/// Runs `work` (a command, whose command line is `args`) in this process,
+/// as a child `lucent` would have run it: its output appended to `log` after a
 /// line `$ lucent ARGS`, its error written there as the binary prints it,
 /// a panic caught and classed as a bug (or, when the log could not be
 /// written, as the machine's), the current folder put back afterwards. A
 /// stop request (Ctrl-C, SIGTERM) before or during it fails it as interrupted.
 fn run_here(
-    command: super::Command,
+    work: impl FnOnce() -> Result<()>,
     args: &[String],
     log: &Path,
     interrupt: &Interrupt,
@@ -177,13 +177,13 @@ fn run_here(
     let cwd = std::env::current_dir().context("cannot read the current folder")?;
     let outcome = console.redirected(&f, || {
         let _stage = super::jobs::InStage::enter();
-        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| super::run(super::Cli { command })));
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
         if let Ok(Err(e)) = &caught {
             // As the binary says it (into the log, standard error meanwhile).
-            match Fault::of(e.as_ref()) {
-                Fault::Input | Fault::Interrupted => eprintln!("error: {e:#}"),
-                fault => eprintln!("error ({fault}): {e:#}"),
-            }
+            let _ = match Fault::of(e.as_ref()) {
+                Fault::Input | Fault::Interrupted => writeln!(std::io::stderr(), "error: {e:#}"),
+                fault => writeln!(std::io::stderr(), "error ({fault}): {e:#}"),
+            };
         }
         caught
     });
@@ -217,13 +217,14 @@ fn run_here(
 /// Runs a stage's job in this process ([`run_here`] of the command built
 /// from the job's fields, [`super::jobs::command_of`]).
 fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    run_here(super::jobs::command_of(job)?, &job.to_args(), log, interrupt, console)
+    let command = super::jobs::command_of(job)?;
+    run_here(|| super::run(super::Cli { command }), &job.to_args(), log, interrupt, console)
 }
 
 /// Merges the finished shards of `t` into its output, in this process.
 fn merge_here(t: &executor::Sharded, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
     let command = super::Command::Merge(super::shard::MergeArgs { shards: t.shard_dirs(), out: t.out.clone() });
-    run_here(command, &t.merge_command(), log, interrupt, console)
+    run_here(|| super::run(super::Cli { command }), &t.merge_command(), log, interrupt, console)
 }
 
 /// A command's error for the pipeline: its whole chain as one message, and its class.
@@ -418,5 +419,49 @@ pub fn run(a: RunArgs) -> Result<()> {
             Ok(())
         }
         Err(e) => Err(e.into()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A stage's work runs here with its output in the log: a panic is caught
+    /// and classed as a bug (internal), and an error keeps its type for the
+    /// class. (While it runs, descriptors 1 and 2 of the test process go to
+    /// the log: the harness's lines of other tests then may go there too.)
+    #[test]
+    fn a_stage_that_panics_fails_as_a_bug_and_errors_keep_their_class() {
+        let dir = tempfile::tempdir().expect("temporary folder");
+        let log = dir.path().join("log.txt");
+        let interrupt = Interrupt::install();
+        let console = Console::save().expect("standard descriptors");
+        let args = ["render".to_string(), "scene.toml".to_string()];
+        let work = || -> Result<()> {
+            // Written to descriptor 1 itself (println! is the test harness's here).
+            let _ = writeln!(std::io::stdout(), "a line of the command");
+            panic!("tile index out of range")
+        };
+        let e = run_here(work, &args, &log, &interrupt, &console).expect_err("a panic fails the stage");
+        assert_eq!(Fault::of(e.as_ref()), Fault::Internal, "{e:#}");
+        let text = format!("{e:#}");
+        assert!(
+            text.contains("`lucent render scene.toml` panicked") && text.contains("tile index out of range"),
+            "{text}"
+        );
+        let written = std::fs::read_to_string(&log).expect("log");
+        assert!(written.starts_with("$ lucent render scene.toml\n"), "{written}");
+        assert!(written.contains("a line of the command"), "the command's output goes to the log: {written}");
+        let disk = || -> Result<()> {
+            Err(anyhow::Error::from(std::io::Error::from(std::io::ErrorKind::StorageFull)).context("render.exr"))
+        };
+        let e = run_here(disk, &args, &log, &interrupt, &console).expect_err("an error fails the stage");
+        assert_eq!(Fault::of(e.as_ref()), Fault::Environment, "{e:#}");
+        let written = std::fs::read_to_string(&log).expect("log");
+        assert!(
+            written.contains("error (environment): render.exr"),
+            "the error is in the log as the binary says it: {written}"
+        );
+        assert!(run_here(|| Ok(()), &args, &log, &interrupt, &console).is_ok());
     }
 }
