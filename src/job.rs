@@ -6,7 +6,7 @@
 //! Every job has
 //! * `validate()`: the ranges its flags accept (the same limits the
 //!   commands check), so a project value out of range is refused with the
-//!   project key before any stage runs, never as a child process's
+//!   project key before any stage runs, never as a command's
 //!   "unexpected argument";
 //! * `to_args()`: its canonical `lucent` command line (every field with a
 //!   default is written, optional ones only when set). The pipeline records

@@ -1234,9 +1234,9 @@ fn recover_stage_folder(stage: Stage, dir: &Path, aside: &Path, failed: &Path) -
     Ok(())
 }
 
-/// Runs one `lucent` command line: `args` with `{out}` replaced, output
-/// appended to `log`; on failure, an error saying what failed (the binary
-/// uses `anyhow`, tests their own types).
+/// Runs one job (its `{out}` already replaced by the stage folder), its
+/// output appended to `log`; on failure, an error saying what failed (the
+/// binary uses `anyhow`, tests their own types).
 pub type Executor<'a> = dyn FnMut(&Job, &Path) -> Result<(), Box<dyn std::error::Error + Send + Sync>> + 'a;
 
 /// Runs the project's stages in order. `exec` runs a job (its `{out}`
