@@ -6,17 +6,26 @@
 //! Every job has
 //! * `validate()`: the ranges its flags accept (the same limits the
 //!   commands check), so a project value out of range is refused with the
-//!   project key before any stage runs, never as a child process's
+//!   project key before any stage runs, never as a command's
 //!   "unexpected argument";
 //! * `to_args()`: its canonical `lucent` command line (every field with a
 //!   default is written, optional ones only when set). The pipeline records
-//!   and hashes this line, runs it, and writes it into the Slurm and
+//!   this line in a stage's manifest.json and writes it into the Slurm and
 //!   Kubernetes scripts it emits; parsing it back gives the same job.
+//!
+//! A job is also a JSON value (serde; `{"render": {"scene": …}}`, the
+//! format `lucent job run JOB.json` reads): the stage key hashes it, and
+//! [`Job::identity_sha256`] (the job without its output folder, paths
+//! canonical) names the run a long job's shards belong to. A stage runs its
+//! jobs in the `lucent run` process (`lucent::cli::jobs::run_job`), with
+//! the command's typed arguments built from the job's fields.
 //!
 //! Paths may hold the placeholder `{out}` (the stage folder), replaced when
 //! the command runs.
 
-use std::path::PathBuf;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 /// A job field out of range: which field (its snake-case name, the flag
@@ -139,8 +148,28 @@ fn paths(v: Option<u64>) -> Result<(), JobError> {
     }
 }
 
-fn s(p: &std::path::Path) -> String {
+fn s(p: &Path) -> String {
     p.display().to_string()
+}
+
+/// A field of a type the command line names by its `name()` (a word its
+/// `FromStr` reads back), serialised as that word.
+mod by_name {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer, T: Copy + Into<&'static str>>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str((*v).into())
+    }
+
+    pub fn deserialize<'de, D, T>(d: D) -> Result<T, D::Error>
+    where
+        D: Deserializer<'de>,
+        T: std::str::FromStr,
+        T::Err: std::fmt::Display,
+    {
+        let text = String::deserialize(d)?;
+        text.parse().map_err(|e| serde::de::Error::custom(format!("{text:?}: {e}")))
+    }
 }
 
 /// A command line under construction.
@@ -178,7 +207,8 @@ impl Line {
 }
 
 /// `lucent optics RECIPE… --wavelengths GRID --out DIR`.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct OpticsJob {
     pub recipes: Vec<PathBuf>,
     /// START:END:STEP in nm.
@@ -204,7 +234,8 @@ impl OpticsJob {
 }
 
 /// `lucent bssrdf --recipe R …`: slab BSSRDF slices of a recipe.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct BssrdfJob {
     pub recipe: PathBuf,
     pub wavelength_nm: f64,
@@ -278,7 +309,8 @@ impl BssrdfJob {
 }
 
 /// `lucent bssrdf compare`: a simulated slice against a measured one.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct BssrdfCompareJob {
     pub measured: PathBuf,
     pub simulated: PathBuf,
@@ -307,7 +339,8 @@ impl BssrdfCompareJob {
 }
 
 /// `lucent fit`: recipe parameters fitted to measured slices.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct FitJob {
     pub recipe: PathBuf,
     /// FILE:θi/θo per measured slice.
@@ -374,7 +407,8 @@ impl FitJob {
 }
 
 /// `lucent calibrate`: camera intrinsics from chessboard photos.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CalibrateJob {
     /// Files, folders or glob patterns.
     pub images: Vec<String>,
@@ -401,12 +435,14 @@ impl CalibrateJob {
 }
 
 /// `lucent colour calibrate`: a camera's colour correction from a chart photo.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ColourCalibrateJob {
     pub image: PathBuf,
     pub camera: Option<String>,
     pub out: PathBuf,
     pub corners: Option<String>,
+    #[serde(with = "by_name")]
     pub method: lucent_colour::ccm::CcmMethod,
     pub decode_srgb: bool,
 }
@@ -425,7 +461,8 @@ impl ColourCalibrateJob {
 }
 
 /// `lucent colour apply`: an image in a camera's RGB → a standard space.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ColourApplyJob {
     pub ccm: PathBuf,
     pub input: PathBuf,
@@ -453,7 +490,8 @@ impl ColourApplyJob {
 }
 
 /// `lucent raw clipped`: the mask of validly recorded pixels of a RAW photo.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct RawClippedJob {
     pub input: PathBuf,
     pub out: PathBuf,
@@ -473,7 +511,8 @@ impl RawClippedJob {
 }
 
 /// `lucent pose`: the board's (and sample's) pose in one photo.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PoseJob {
     pub camera: PathBuf,
     pub image: PathBuf,
@@ -531,7 +570,8 @@ impl PoseJob {
 }
 
 /// `lucent env fit-scale`: the environment's scale from an empty-board photo.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct EnvScaleJob {
     pub scene: PathBuf,
     pub photo: PathBuf,
@@ -563,7 +603,8 @@ impl EnvScaleJob {
 }
 
 /// `lucent render SCENE`: the digital twin.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct RenderJob {
     pub scene: PathBuf,
     pub spp: Option<u32>,
@@ -592,7 +633,8 @@ impl RenderJob {
 }
 
 /// `lucent compare`: photo against one or two renders.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CompareJob {
     pub photo: PathBuf,
     pub render: Vec<PathBuf>,
@@ -634,7 +676,8 @@ impl CompareJob {
 }
 
 /// Any job a pipeline stage runs.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Job {
     Optics(OpticsJob),
     Bssrdf(BssrdfJob),
@@ -665,6 +708,105 @@ impl Job {
             Job::Compare(j) => j.validate(),
             Job::ColourCalibrate(_) | Job::ColourApply(_) | Job::RawClipped(_) => Ok(()),
         }
+    }
+
+    /// The command's name as `lucent` spells it ("render", "bssrdf compare", …).
+    pub fn command_name(&self) -> &'static str {
+        match self {
+            Job::Optics(_) => "optics",
+            Job::Bssrdf(_) => "bssrdf",
+            Job::BssrdfCompare(_) => "bssrdf compare",
+            Job::Fit(_) => "fit",
+            Job::Calibrate(_) => "calibrate",
+            Job::ColourCalibrate(_) => "colour calibrate",
+            Job::ColourApply(_) => "colour apply",
+            Job::RawClipped(_) => "raw clipped",
+            Job::Pose(_) => "pose",
+            Job::EnvScale(_) => "env fit-scale",
+            Job::Render(_) => "render",
+            Job::Compare(_) => "compare",
+        }
+    }
+
+    /// The job with the placeholder `{out}` in every path and word replaced
+    /// by `dir` (the stage folder).
+    pub fn with_out(&self, dir: &Path) -> Result<Job, serde_json::Error> {
+        fn replace(v: &mut serde_json::Value, dir: &str) {
+            match v {
+                serde_json::Value::String(t) if t.contains("{out}") => *t = t.replace("{out}", dir),
+                serde_json::Value::Array(a) => a.iter_mut().for_each(|v| replace(v, dir)),
+                serde_json::Value::Object(o) => o.values_mut().for_each(|v| replace(v, dir)),
+                _ => {}
+            }
+        }
+        let mut v = serde_json::to_value(self)?;
+        replace(&mut v, &s(dir));
+        serde_json::from_value(v)
+    }
+
+    /// The job as one run's identity: what does not change the result left
+    /// out (`out`, `quiet`) and the input paths canonical (an existing file's
+    /// real path, else the absolute path), so the same run spelled with a
+    /// relative or an absolute path, or written to another folder, is one job.
+    pub fn normalised(&self) -> Job {
+        let canon = |p: &Path| std::fs::canonicalize(p).or_else(|_| std::path::absolute(p)).unwrap_or(p.to_path_buf());
+        let mut j = self.clone();
+        match &mut j {
+            Job::Optics(o) => {
+                o.recipes = o.recipes.iter().map(|r| canon(r)).collect();
+                o.out = PathBuf::new();
+            }
+            Job::Bssrdf(b) => {
+                b.recipe = canon(&b.recipe);
+                b.out = PathBuf::new();
+                b.quiet = false;
+            }
+            Job::Render(r) => {
+                r.scene = canon(&r.scene);
+                r.out = PathBuf::new();
+                r.quiet = false;
+            }
+            Job::EnvScale(e) => {
+                e.scene = canon(&e.scene);
+                e.photo = canon(&e.photo);
+                e.mask = e.mask.as_deref().map(canon);
+                e.out = PathBuf::new();
+            }
+            Job::Fit(f) => {
+                f.recipe = canon(&f.recipe);
+                f.out = PathBuf::new();
+                f.quiet = false;
+            }
+            Job::BssrdfCompare(c) => {
+                c.measured = canon(&c.measured);
+                c.simulated = canon(&c.simulated);
+                c.out = PathBuf::new();
+            }
+            Job::Calibrate(c) => c.out = PathBuf::new(),
+            Job::ColourCalibrate(c) => {
+                c.image = canon(&c.image);
+                c.out = PathBuf::new();
+            }
+            Job::ColourApply(_) | Job::RawClipped(_) => {}
+            Job::Pose(p) => {
+                p.camera = canon(&p.camera);
+                p.image = canon(&p.image);
+                p.out = PathBuf::new();
+            }
+            Job::Compare(c) => {
+                c.photo = canon(&c.photo);
+                c.render = c.render.iter().map(|r| canon(r)).collect();
+                c.out = PathBuf::new();
+            }
+        }
+        j
+    }
+
+    /// SHA-256 (hex) of the [`normalised`](Job::normalised) job as JSON:
+    /// the run a job's shards belong to, however its command line was spelled.
+    pub fn identity_sha256(&self) -> String {
+        let text = serde_json::to_string(&self.normalised()).unwrap_or_default();
+        Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
     }
 
     /// The canonical `lucent` command line (without the program name).

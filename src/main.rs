@@ -23,7 +23,10 @@ fn main() -> std::process::ExitCode {
             .map(String::as_str)
             .or_else(|| info.payload().downcast_ref::<&str>().copied())
             .unwrap_or("");
-        if let Some(reason) = message.strip_prefix("failed printing to stdout: ") {
+        // Inside a stage of `lucent run` the stage catches the panic and says it.
+        if let Some(reason) = message.strip_prefix("failed printing to stdout: ")
+            && !lucent::cli::jobs::in_stage()
+        {
             // A full device is the machine's fault, not the input's.
             eprintln!("error (environment): cannot write to standard output: {reason}");
             std::process::exit(i32::from(Fault::Environment.exit_code()));

@@ -144,6 +144,111 @@ fn every_job_round_trips_through_its_command_line() {
     }
 }
 
+/// A stage runs its job in process with the command's arguments built from
+/// the job's fields: they must be exactly what clap makes of the job's
+/// command line, every flag the job does not hold at its default.
+#[test]
+fn every_job_builds_the_arguments_its_command_line_parses_into() {
+    let mut all = jobs();
+    // The same jobs with every optional field unset.
+    all.extend(jobs().into_iter().map(|j| match j {
+        Job::Optics(o) => Job::Optics(OpticsJob { weight_percent: None, ..o }),
+        Job::Bssrdf(b) => Job::Bssrdf(BssrdfJob {
+            configs: None,
+            weight_percent: None,
+            crop: None,
+            paths: None,
+            rel_error: None,
+            time_s: None,
+            phase: None,
+            quiet: false,
+            ..b
+        }),
+        Job::Render(r) => Job::Render(RenderJob {
+            spp: None,
+            time_s: None,
+            size: None,
+            seed: None,
+            quiet: false,
+            uncertainty: false,
+            ..r
+        }),
+        Job::Compare(c) => Job::Compare(CompareJob {
+            mask: None,
+            mask_object: None,
+            photo_variance: None,
+            twin_names: None,
+            band: vec![],
+            ..c
+        }),
+        Job::ColourApply(c) => Job::ColourApply(ColourApplyJob { variance_out: None, bin: 1, ..c }),
+        Job::Pose(p) => Job::Pose(PoseJob { sample: None, ..p }),
+        other => other,
+    }));
+    for job in all {
+        let args = job.to_args();
+        let parsed =
+            lucent::cli::Cli::try_parse_args(std::iter::once("lucent".to_string()).chain(args.iter().cloned()))
+                .unwrap_or_else(|e| panic!("lucent {}: {e}", args.join(" ")));
+        let built = lucent::cli::jobs::command_of(&job).unwrap_or_else(|e| panic!("{job:?}: {e}"));
+        assert_eq!(format!("{built:?}"), format!("{:?}", parsed.command), "lucent {}", args.join(" "));
+    }
+}
+
+/// `lucent job run JOB.json` reads what serde writes: every job round-trips
+/// through JSON, and the JSON names the command.
+#[test]
+fn every_job_round_trips_through_json() {
+    for job in jobs() {
+        let text = serde_json::to_string_pretty(&job).unwrap();
+        let back: Job = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{text}: {e}"));
+        assert_eq!(back, job, "{text}");
+    }
+    let text = r#"{"render": {"scene": "s.toml", "spp": 8, "quiet": true, "time_s": null, "size": null,
+        "seed": null, "uncertainty": false, "out": "o"}}"#;
+    assert!(matches!(serde_json::from_str::<Job>(text), Ok(Job::Render(RenderJob { spp: Some(8), .. }))));
+    let typo = text.replace("\"spp\"", "\"sp\"");
+    let e = serde_json::from_str::<Job>(&typo).unwrap_err().to_string();
+    assert!(e.contains("sp"), "{e}");
+}
+
+/// Shards of one run are one run however its command line is spelled: the
+/// typed job's identity does not see the order of the flags, `--spp=8` for
+/// `--spp 8`, a relative or an absolute path, or the output folder.
+#[test]
+fn a_jobs_identity_ignores_how_its_command_line_is_spelled() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, "").unwrap();
+    let abs = scene.display().to_string();
+    let here = std::env::current_dir().unwrap();
+    let rel = pathdiff(&scene, &here);
+    let id = |args: &[&str]| {
+        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        parse_job(&args).unwrap_or_else(|e| panic!("{args:?}: {e}")).identity_sha256()
+    };
+    let a = id(&["render", &abs, "--spp", "8", "--seed", "3", "--out", "x"]);
+    assert_eq!(a, id(&["render", &abs, "--spp=8", "--seed=3", "--out", "x"]));
+    assert_eq!(a, id(&["render", "--seed", "3", &abs, "--out", "elsewhere", "--spp", "8", "--quiet"]));
+    assert_eq!(a, id(&["render", &rel, "--spp", "8", "--seed", "3", "--out", "x"]));
+    assert_ne!(a, id(&["render", &abs, "--spp", "9", "--seed", "3", "--out", "x"]));
+    assert_ne!(a, id(&["render", &abs, "--spp", "8", "--seed", "4", "--out", "x"]));
+}
+
+/// `path` relative to `base` ("../.." as needed).
+fn pathdiff(path: &std::path::Path, base: &std::path::Path) -> String {
+    let (p, b): (Vec<_>, Vec<_>) = (path.components().collect(), base.components().collect());
+    let common = p.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut out = PathBuf::new();
+    for _ in common..b.len() {
+        out.push("..");
+    }
+    for c in &p[common..] {
+        out.push(c);
+    }
+    out.display().to_string()
+}
+
 #[test]
 fn jobs_refuse_what_their_flags_refuse() {
     let Job::Bssrdf(b) = jobs().swap_remove(1) else { unreachable!() };
@@ -353,4 +458,97 @@ fn phase_and_objective_are_typed_in_projects_and_scenes() {
     assert_eq!(o.status.code(), Some(1), "{e}");
     assert!(e.contains("scene.toml") && e.contains("rayleigh") && e.contains("mie, hg"), "{e}");
     assert!(!d.join("r").exists());
+}
+
+/// `lucent job run JOB.json` runs a job as its command does: the same
+/// files, byte for byte; a job file with a misspelt field, a value out of
+/// range or the `{out}` placeholder is refused, naming the file.
+#[test]
+fn job_run_runs_a_json_job_as_its_command_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let recipe = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/samples/IOL1068-09.toml");
+    let job = Job::Optics(OpticsJob {
+        recipes: vec![recipe.clone()],
+        wavelengths: "450:650:100".into(),
+        out: p("by-job"),
+        weight_percent: None,
+    });
+    std::fs::write(d.join("job.json"), serde_json::to_string_pretty(&job).unwrap()).unwrap();
+    let o = lucent_in(d, &["job", "run", "job.json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = recipe.display().to_string();
+    let o = lucent_in(d, &["optics", &r, "--wavelengths", "450:650:100", "--out", "by-command"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let files = |sub: &str| {
+        let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(d.join(sub))
+            .unwrap()
+            .map(|e| e.unwrap())
+            .filter(|e| e.file_type().unwrap().is_file())
+            .map(|e| (e.file_name().to_string_lossy().into_owned(), std::fs::read(e.path()).unwrap()))
+            .collect();
+        v.sort();
+        v
+    };
+    let (a, b) = (files("by-job"), files("by-command"));
+    assert!(!a.is_empty());
+    assert_eq!(a.iter().map(|f| &f.0).collect::<Vec<_>>(), b.iter().map(|f| &f.0).collect::<Vec<_>>());
+    for ((name, x), (_, y)) in a.iter().zip(&b) {
+        // The summary records the output folder it was written to; everything else is identical.
+        if !name.ends_with(".json") {
+            assert!(x == y, "{name} differs between `job run` and the command");
+        }
+    }
+    let refused = |text: &str, expect: &str| {
+        std::fs::write(d.join("bad.json"), text).unwrap();
+        let o = lucent_in(d, &["job", "run", "bad.json"]);
+        let e = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert!(e.contains("bad.json") && e.contains(expect), "{expect}: {e}");
+    };
+    let text = serde_json::to_string(&job).unwrap();
+    refused(&text.replace("\"wavelengths\"", "\"wavelength\""), "wavelength");
+    refused(&text.replace("450:650:100", "650:450:100"), "--wavelengths");
+    refused(&text.replace("by-job", "{out}/optics"), "{out}");
+    refused("{\"optics\": ", "not a job");
+}
+
+/// The stages of `lucent run` run in its own process: with the binary
+/// removed from the disk after it started (no second `lucent` can be
+/// started from it), a stage still runs, its output in its log.txt and not
+/// on the terminal, which shows the usual status lines.
+#[cfg(unix)]
+#[test]
+fn stages_run_in_process_without_the_binary_on_disk() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let exe = d.join("lucent-copy");
+    std::fs::copy(env!("CARGO_BIN_EXE_lucent"), &exe).unwrap();
+    let recipe = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/samples/IOL1068-09.toml");
+    std::fs::write(
+        d.join("p.toml"),
+        format!(
+            "[project]\nname = \"p\"\n[optics]\nwavelengths = \"450:650:100\"\n[[sample]]\nname = \"s\"\nrecipe = {:?}\n",
+            recipe.display().to_string()
+        ),
+    )
+    .unwrap();
+    let child = Command::new(&exe)
+        .args(["run", "p.toml", "--out", "o", "--until", "optics"])
+        .current_dir(d)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::fs::remove_file(&exe).unwrap();
+    let o = child.wait_with_output().unwrap();
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{out}\n{err}");
+    assert!(out.contains("[1/11] optics     ran 1 task"), "{out}");
+    assert!(err.contains("[1/11] optics …"), "{err}");
+    let log = std::fs::read_to_string(d.join("o/optics/log.txt")).unwrap();
+    assert!(log.starts_with("$ lucent optics "), "{log}");
+    assert!(log.contains("μs [1/m]"), "the command's table goes to the log: {log}");
+    assert!(!out.contains("μs [1/m]") && !err.contains("μs [1/m]"), "the command's output leaked: {out}\n{err}");
+    assert!(d.join("o/optics/manifest.json").is_file());
 }

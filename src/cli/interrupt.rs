@@ -15,6 +15,14 @@
 //! recreate a removed folder, so nothing of the run is left behind.
 //! Commands without rounds to finish ([`Interrupt::abort_on_first`], e.g.
 //! `calibrate`) clean up and end at the first Ctrl-C.
+//!
+//! Installs nest: a command that `lucent run` runs in its own process
+//! installs its `Interrupt` inside the run's. The inner one keeps the
+//! outer's request (a stop asked for before the command started stays
+//! asked for) and its abort count (the first Ctrl-C never ends the whole
+//! run: the stage under way is stopped and kept as `STAGE.failed/`), and
+//! the helper thread says its message on the run's terminal
+//! ([`set_console`]), not in the stage's log.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
@@ -48,6 +56,31 @@ static REGISTERED: Mutex<Vec<(usize, PathBuf)>> = Mutex::new(Vec::new());
 static NEXT_ID: AtomicUsize = AtomicUsize::new(0);
 /// The Ctrl-C that aborts: 2 for [`Interrupt::install`], 1 for [`Interrupt::abort_on_first`].
 static ABORT_AT: AtomicUsize = AtomicUsize::new(2);
+/// How many [`Interrupt`]s are installed (an inner one nests in an outer one).
+static DEPTH: AtomicUsize = AtomicUsize::new(0);
+/// The descriptor the helper thread writes its messages to; -1: standard error.
+static CONSOLE: AtomicI32 = AtomicI32::new(-1);
+
+/// Where the messages about a stop go while standard error is redirected
+/// (`lucent run` sends a stage's output to its log): a duplicate of the
+/// terminal's standard error, or -1 for standard error itself.
+pub fn set_console(fd: i32) {
+    CONSOLE.store(fd, Ordering::SeqCst);
+}
+
+/// Writes a message line to the console ([`set_console`]).
+fn say(message: &str) {
+    let fd = CONSOLE.load(Ordering::SeqCst);
+    #[cfg(unix)]
+    if fd >= 0 {
+        let line = format!("{message}\n");
+        // SAFETY: write(2) of a buffer we own to a descriptor lucent run keeps open.
+        let _ = unsafe { libc::write(fd, line.as_ptr().cast(), line.len()) };
+        return;
+    }
+    let _ = fd;
+    eprintln!("{message}");
+}
 
 #[cfg(unix)]
 extern "C" fn on_sigint(signal: libc::c_int) {
@@ -114,16 +147,16 @@ fn start_cleanup_thread() {
                         libc::SIGTERM => "SIGTERM",
                         _ => "Ctrl-C",
                     };
-                    eprintln!("\n{by}: stopping after the round under way (press Ctrl-C again to abort)");
+                    say(&format!("\n{by}: stopping after the round under way (press Ctrl-C again to abort)"));
                 }
             }
             // Held until _exit: no write of the run starts after the removal.
             let _frozen = crate::io::freeze_output();
             remove_registered();
             if ABORT_AT.load(Ordering::SeqCst) >= 2 {
-                eprintln!("interrupted twice: stopped at once; the unfinished output was removed");
+                say("interrupted twice: stopped at once; the unfinished output was removed");
             } else {
-                eprintln!("\ninterrupted: stopped; the unfinished output was removed");
+                say("\ninterrupted: stopped; the unfinished output was removed");
             }
             // SAFETY: ends the process without running destructors on other threads' data.
             unsafe { libc::_exit(130) };
@@ -148,9 +181,13 @@ impl Interrupt {
     }
 
     fn install_aborting_at(abort_at: usize) -> Self {
-        ABORT_AT.store(abort_at, Ordering::SeqCst);
-        INTERRUPTED.store(false, Ordering::SeqCst);
-        COUNT.store(0, Ordering::SeqCst);
+        // Inside an outer Interrupt (a command `lucent run` runs in its
+        // process) the outer's request and abort count stand.
+        if DEPTH.fetch_add(1, Ordering::SeqCst) == 0 {
+            ABORT_AT.store(abort_at, Ordering::SeqCst);
+            INTERRUPTED.store(false, Ordering::SeqCst);
+            COUNT.store(0, Ordering::SeqCst);
+        }
         #[cfg(unix)]
         {
             start_cleanup_thread();
@@ -176,6 +213,7 @@ impl Interrupt {
 
 impl Drop for Interrupt {
     fn drop(&mut self) {
+        DEPTH.fetch_sub(1, Ordering::SeqCst);
         #[cfg(unix)]
         // SAFETY: restores the disposition found by `install`.
         unsafe {

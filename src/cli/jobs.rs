@@ -201,3 +201,289 @@ impl From<&compare::CompareArgs> for CompareJob {
         }
     }
 }
+
+/// The arguments of a `bssrdf` run as clap gives them when no flag is set.
+fn bssrdf_run_defaults() -> bssrdf::RunArgs {
+    bssrdf::RunArgs {
+        recipe: None,
+        weight_percent: None,
+        wavelength: 550.0,
+        mu_s: None,
+        mu_a: None,
+        g: None,
+        n: None,
+        thickness_mm: None,
+        theta_i: 45.0,
+        phi_i: 0.0,
+        theta_o: 0.0,
+        phi_o: 180.0,
+        configs: None,
+        phase: None,
+        similarity_g: None,
+        beam: super::groups::BeamArgs::default(),
+        pixels: 259,
+        pixel_mm: 0.1029,
+        crop: None,
+        rel_error: None,
+        pixel_rel_error: None,
+        paths: None,
+        time_s: None,
+        seed: 1,
+        estimator: bssrdf::EstimatorChoice::Auto,
+        lobe_vertices: lucent_render::slab::LOBE_VERTICES as u8,
+        roughness: None,
+        no_fold: false,
+        uncertainty: false,
+        out: "lucent-out/bssrdf".into(),
+        quiet: false,
+        shard: None,
+    }
+}
+
+/// The render options of a twin (render, env fit-scale) as a job holds them.
+fn twin_render(spp: Option<u32>, seed: Option<u64>, size: &Option<String>) -> super::groups::TwinRenderArgs {
+    super::groups::TwinRenderArgs { spp, seed, size: size.clone(), threads: None }
+}
+
+/// The parsed command a job stands for: the command's typed arguments built
+/// from the job's fields, every other flag at the default clap gives it (the
+/// inverse of [`job_of`], without a command line in between).
+pub fn command_of(job: &Job) -> anyhow::Result<Command> {
+    use clap::ValueEnum;
+    let board = |board: &str, square_mm: f64| super::groups::BoardArgs { board: board.to_string(), square_mm };
+    Ok(match job {
+        Job::Optics(j) => Command::Optics(super::OpticsArgs {
+            recipes: j.recipes.clone(),
+            wavelengths: j.wavelengths.clone(),
+            wavelength: None,
+            out: Some(j.out.clone()),
+            json: false,
+            phase_entries: 4096,
+            weight_percent: j.weight_percent,
+            skip_invalid: false,
+            uncertainty: None,
+            uncertainty_seed: 1,
+            shard: None,
+        }),
+        Job::Bssrdf(j) => Command::Bssrdf(bssrdf::BssrdfArgs {
+            command: None,
+            run: bssrdf::RunArgs {
+                recipe: Some(j.recipe.clone()),
+                weight_percent: j.weight_percent,
+                wavelength: j.wavelength_nm,
+                configs: j.configs.clone(),
+                phase: j.phase,
+                pixels: j.pixels,
+                pixel_mm: j.pixel_mm,
+                crop: j.crop,
+                rel_error: j.rel_error,
+                paths: j.paths,
+                time_s: j.time_s,
+                seed: j.seed,
+                out: j.out.clone(),
+                quiet: j.quiet,
+                ..bssrdf_run_defaults()
+            },
+        }),
+        Job::BssrdfCompare(j) => Command::Bssrdf(bssrdf::BssrdfArgs {
+            command: Some(bssrdf::BssrdfCommand::Compare(bssrdf::CompareArgs {
+                measured: j.measured.clone(),
+                measured_pixel_mm: j.measured_pixel_mm,
+                simulated: j.simulated.clone(),
+                threshold: j.threshold,
+                out: j.out.clone(),
+            })),
+            run: bssrdf_run_defaults(),
+        }),
+        Job::Fit(j) => Command::Fit(fit::FitArgs {
+            recipe: j.recipe.clone(),
+            weight_percent: j.weight_percent,
+            measured: j.measured.clone(),
+            measured_pixel_mm: j.measured_pixel_mm,
+            free: j.free.join(","),
+            objective: j.objective,
+            wavelength: j.wavelength_nm,
+            beam: super::groups::BeamArgs::default(),
+            measured_rel_sd: j.measured_rel_sd,
+            threshold: j.threshold,
+            rel_error: j.rel_error,
+            paths: j.paths,
+            pilot_time_s: 60.0,
+            bounds: j.bounds.clone(),
+            thickness_mm: None,
+            seed: j.seed,
+            out: j.out.clone(),
+            quiet: j.quiet,
+        }),
+        Job::Calibrate(j) => Command::Calibrate(camera::CalibrateArgs {
+            images: j.images.clone(),
+            board: board(&j.board, j.square_mm),
+            model: j.model,
+            detector: lucent_calib::cv::Detector::Auto,
+            out: j.out.clone(),
+            quiet: false,
+        }),
+        Job::ColourCalibrate(j) => Command::Colour(colour::ColourCommand::Calibrate(colour::CalibrateArgs {
+            image: j.image.clone(),
+            corners: j.corners.clone(),
+            camera: j.camera.clone(),
+            method: j.method,
+            out: j.out.clone(),
+            decode_srgb: j.decode_srgb,
+            clip_level: "0.99".into(),
+            gap_ratio: 0.14,
+            inner_fraction: 0.5,
+        })),
+        Job::ColourApply(j) => Command::Colour(colour::ColourCommand::Apply(colour::ApplyArgs {
+            ccm: j.ccm.clone(),
+            input: j.input.clone(),
+            output: j.output.clone(),
+            to: super::choices::TargetChoice::from_str(&j.to, true)
+                .map_err(|e| anyhow::anyhow!("colour apply --to {:?}: {e}", j.to))?,
+            adaptation: super::choices::AdaptationChoice::Bradford,
+            variance_out: j.variance_out.as_ref().map(|(p, _)| p.clone()),
+            variance_realisations: 16,
+            seed: j.variance_out.as_ref().map_or(1, |(_, seed)| *seed),
+            bin: j.bin,
+        })),
+        Job::RawClipped(j) => Command::Raw(camera::RawCommand::Clipped(raw_clip::ClippedArgs {
+            input: j.input.clone(),
+            out: j.out.clone(),
+            level: 0.999,
+            dilate: 2,
+            bin: j.bin,
+        })),
+        Job::Pose(j) => Command::Pose(camera::PoseArgs {
+            camera: j.camera.clone(),
+            image: j.image.clone(),
+            board: board(&j.board, j.square_mm),
+            sample_corner: j.sample.as_ref().map(|(c, _)| c.clone()),
+            sample_size_mm: j.sample.as_ref().map(|(_, z)| z.clone()),
+            keep_all: false,
+            out: j.out.clone(),
+        }),
+        Job::EnvScale(j) => Command::Env(camera::EnvCommand::FitScale(env_fit::FitScaleArgs {
+            scene: j.scene.clone(),
+            photo: j.photo.clone(),
+            mask: j.mask.clone(),
+            per_channel: j.per_channel,
+            render: twin_render(j.spp, j.seed, &j.size),
+            out: j.out.clone(),
+            quiet: false,
+        })),
+        Job::Render(j) => Command::Render(render::RenderArgs {
+            scene: j.scene.clone(),
+            out: j.out.clone(),
+            render: twin_render(j.spp, j.seed, &j.size),
+            time_s: j.time_s,
+            exposure: 0.0,
+            target_rel_error: None,
+            sampling: None,
+            dispersion: None,
+            similarity_g: None,
+            split_entry: false,
+            quiet: j.quiet,
+            shard: None,
+            uncertainty: j.uncertainty,
+            uncertainty_spp: None,
+            uncertainty_renders: false,
+        }),
+        Job::Compare(j) => Command::Compare(compare::CompareArgs {
+            photo: j.photo.clone(),
+            render: j.render.clone(),
+            mask: j.mask.clone(),
+            mask_object: j.mask_object.clone(),
+            mask_board: None,
+            photo_variance: j.photo_variance.clone(),
+            photo_repeat: None,
+            scene: None,
+            data_range: j.data_range,
+            luminance: crate::compare::Luminance::CieRgb,
+            exposure: None,
+            twin_names: j.twin_names.clone(),
+            refine: None,
+            refine_motion: lucent_calib::ecc::Motion::Translation,
+            band: j.band.clone(),
+            out: j.out.clone(),
+        }),
+    })
+}
+
+/// Runs a job as its command does ([`super::run`] of [`command_of`]): the
+/// output folder checked and marked, the job validated, then the work.
+pub fn run_job(job: &Job) -> anyhow::Result<()> {
+    super::run(Cli { command: command_of(job)? })
+}
+
+/// How many stages of `lucent run` are running a command in this process.
+static IN_STAGE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// While alive: a command runs in this process as a stage of `lucent run`
+/// ([`in_stage`]).
+pub struct InStage(());
+
+impl InStage {
+    pub fn enter() -> Self {
+        IN_STAGE.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        InStage(())
+    }
+}
+
+impl Drop for InStage {
+    fn drop(&mut self) {
+        IN_STAGE.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
+}
+
+/// Whether a command runs as a stage of `lucent run` in this process: a
+/// panic then unwinds to the stage (which classes it) instead of ending
+/// the process.
+pub fn in_stage() -> bool {
+    IN_STAGE.load(std::sync::atomic::Ordering::SeqCst) > 0
+}
+
+/// `lucent job …`.
+#[derive(Debug, clap::Subcommand)]
+pub enum JobCommand {
+    /// Run one job (JSON, as a stage of `lucent run` holds it: `{"render": {"scene": …, "out": …}}`,
+    /// every key in docs/formats.md#job) exactly as its command would run.
+    Run(JobRunArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct JobRunArgs {
+    /// The job file (JSON).
+    pub job: std::path::PathBuf,
+}
+
+/// Why a job file cannot be run.
+#[derive(Debug, thiserror::Error)]
+pub enum JobFileError {
+    #[error("{path}: cannot read: {source}")]
+    Read { path: std::path::PathBuf, source: std::io::Error },
+    #[error("{path}: not a job of lucent (JSON, e.g. {{\"render\": {{\"scene\": \"scene.toml\", …}}}}): {source}")]
+    Parse { path: std::path::PathBuf, source: serde_json::Error },
+    #[error("{path}: holds the placeholder {{out}} (a stage folder of `lucent run`): give the output folder itself")]
+    Placeholder { path: std::path::PathBuf },
+    #[error("{path}: {source}")]
+    Invalid { path: std::path::PathBuf, source: JobError },
+}
+
+/// Reads and checks a job file.
+pub fn read_job(path: &std::path::Path) -> Result<Job, JobFileError> {
+    let text = crate::io::read_text(path).map_err(|source| JobFileError::Read { path: path.to_path_buf(), source })?;
+    let job: Job =
+        serde_json::from_str(&text).map_err(|source| JobFileError::Parse { path: path.to_path_buf(), source })?;
+    if serde_json::to_string(&job).is_ok_and(|t| t.contains("{out}")) {
+        return Err(JobFileError::Placeholder { path: path.to_path_buf() });
+    }
+    job.validate().map_err(|source| JobFileError::Invalid { path: path.to_path_buf(), source })?;
+    Ok(job)
+}
+
+/// Runs `lucent job …`.
+pub fn run_command(c: JobCommand) -> anyhow::Result<()> {
+    match c {
+        JobCommand::Run(a) => run_job(&read_job(&a.job)?),
+    }
+}

@@ -112,6 +112,9 @@ pub enum Command {
     Run(run::RunArgs),
     /// Merge the shards of a render, bssrdf or optics --uncertainty run (each made with --shard K/N) into the run's outputs.
     Merge(shard::MergeArgs),
+    /// Jobs of pipeline stages as JSON files: `lucent job run JOB.json` runs one as its command would.
+    #[command(subcommand)]
+    Job(jobs::JobCommand),
     /// Synthetic inputs with a known truth: a ColorChecker chart, RAW (DNG) captures through a known camera.
     #[command(subcommand)]
     Synth(synth::SynthCommand),
@@ -487,6 +490,7 @@ fn dispatch(cli: Cli) -> Result<()> {
         Command::Fit(a) => fit::run(a),
         Command::Synth(c) => synth::run(c),
         Command::Merge(a) => shard::merge(a),
+        Command::Job(c) => jobs::run_command(c),
     }
 }
 

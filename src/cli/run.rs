@@ -1,17 +1,20 @@
 //! `lucent run PROJECT.toml`: the stages of [`crate::pipeline`] in order,
-//! each stage's `lucent` commands run as child processes of this binary with
-//! their output in `STAGE/log.txt`; one status line per stage with its time.
+//! each stage's jobs run in this process (the command each stands for,
+//! called with its typed arguments) with their output (descriptors 1 and 2)
+//! in `STAGE/log.txt`; one status line per stage with its time on the
+//! standard output and error `lucent run` was started with. Only the
+//! cluster executors start processes (Slurm jobs, Kubernetes manifests).
 
 use super::choices::{ForceChoice, StageChoice};
 use super::interrupt::Interrupt;
 use crate::fault::{Fault, Faulted, Interrupted};
+use crate::job::Job;
 use crate::pipeline::executor::{self, Kind};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
 use anyhow::{Context, Result};
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 
 #[derive(Debug, Args)]
 pub struct RunArgs {
@@ -59,79 +62,169 @@ fn tail(log: &Path, n: usize) -> String {
     lines[lines.len().saturating_sub(n)..].join("\n    ")
 }
 
-/// Runs `lucent ARGS` with stdout and stderr appended to `log`.
-fn run_lucent(exe: &Path, args: &[String], log: &Path, interrupt: &Interrupt) -> Result<()> {
+/// Standard output and error of this process as they were when `lucent
+/// run` started (the terminal, a pipe, a file): the status lines keep going
+/// there while a stage's output goes to its log.
+struct Console {
+    #[cfg(unix)]
+    saved: [libc::c_int; 2],
+}
+
+impl Console {
+    /// Duplicates descriptors 1 and 2 (and tells the Ctrl-C helper to say its
+    /// messages on the duplicate of 2).
+    fn save() -> Result<Self> {
+        #[cfg(unix)]
+        {
+            // SAFETY: duplicates the standard descriptors (closed on exec: the
+            // cluster tools lucent starts do not inherit them); the copies are ours until drop.
+            let saved = unsafe { [1, 2].map(|fd| libc::fcntl(fd, libc::F_DUPFD_CLOEXEC, 3)) };
+            if saved.iter().any(|fd| *fd < 0) {
+                let e = std::io::Error::last_os_error();
+                for fd in saved.into_iter().filter(|fd| *fd >= 0) {
+                    // SAFETY: closes a copy made above.
+                    unsafe { libc::close(fd) };
+                }
+                return Err(anyhow::Error::from(e).context("cannot duplicate standard output and error"));
+            }
+            super::interrupt::set_console(saved[1]);
+            Ok(Console { saved })
+        }
+        #[cfg(not(unix))]
+        Ok(Console {})
+    }
+
+    /// Runs `f` with descriptors 1 and 2 appended to `log` (what a command
+    /// prints with println! and eprintln! goes there), then puts them back.
+    fn redirected<T>(&self, log: &std::fs::File, f: impl FnOnce() -> T) -> Result<T> {
+        #[cfg(unix)]
+        {
+            use std::os::fd::AsRawFd;
+            let _ = std::io::stdout().flush();
+            // SAFETY: dup2(2) onto the standard descriptors of a file we hold open.
+            if unsafe { libc::dup2(log.as_raw_fd(), 1) } < 0 || unsafe { libc::dup2(log.as_raw_fd(), 2) } < 0 {
+                let e = std::io::Error::last_os_error();
+                self.restore();
+                return Err(anyhow::Error::from(e).context("cannot send a stage's output to its log"));
+            }
+            let out = f();
+            self.restore();
+            Ok(out)
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = log;
+            Ok(f())
+        }
+    }
+
+    #[cfg(unix)]
+    fn restore(&self) {
+        let _ = std::io::stdout().flush();
+        // SAFETY: dup2(2) of the saved copies back onto 1 and 2.
+        unsafe {
+            libc::dup2(self.saved[0], 1);
+            libc::dup2(self.saved[1], 2);
+        }
+    }
+}
+
+impl Drop for Console {
+    fn drop(&mut self) {
+        #[cfg(unix)]
+        {
+            super::interrupt::set_console(-1);
+            // SAFETY: closes the copies made by `save`.
+            unsafe {
+                libc::close(self.saved[0]);
+                libc::close(self.saved[1]);
+            }
+        }
+    }
+}
+
+/// What a caught panic says (its message, when it is text).
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
+    payload
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| payload.downcast_ref::<&str>().copied())
+        .unwrap_or("")
+}
+
+/// Runs `work` (a command, whose command line is `args`) in this process,
+/// as a child `lucent` would have run it: its output appended to `log` after a
+/// line `$ lucent ARGS`, its error written there as the binary prints it,
+/// a panic caught and classed as a bug (or, when the log could not be
+/// written, as the machine's), the current folder put back afterwards. A
+/// stop request (Ctrl-C, SIGTERM) before or during it fails it as interrupted.
+fn run_here(
+    work: impl FnOnce() -> Result<()>,
+    args: &[String],
+    log: &Path,
+    interrupt: &Interrupt,
+    console: &Console,
+) -> Result<()> {
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(log)
         .with_context(|| format!("{}: cannot open log", log.display()))?;
     let _ = writeln!(f, "$ lucent {}", args.join(" "));
-    let err = f.try_clone().with_context(|| format!("{}: cannot open log", log.display()))?;
     if interrupt.requested() {
         return Err(Interrupted(format!("before `lucent {}`", args.join(" "))).into());
     }
-    let mut child = Command::new(exe)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::from(f))
-        .stderr(Stdio::from(err))
-        .spawn()
-        .with_context(|| format!("cannot start {}", exe.display()))?;
-    // A stop request reaches the command too (a Ctrl-C at the terminal does
-    // by itself; a SIGTERM to this process alone is passed on), and the stage
-    // then fails whatever the command did with it: an interrupted result is
-    // kept as STAGE.failed/, never taken for the stage's output.
-    let mut passed_on = false;
-    let status = loop {
-        if let Some(status) = child.try_wait().with_context(|| format!("waiting for `lucent {}`", args.join(" ")))? {
-            break status;
+    let cwd = std::env::current_dir().context("cannot read the current folder")?;
+    let outcome = console.redirected(&f, || {
+        let _stage = super::jobs::InStage::enter();
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
+        if let Ok(Err(e)) = &caught {
+            // As the binary says it (into the log, standard error meanwhile).
+            let _ = match Fault::of(e.as_ref()) {
+                Fault::Input | Fault::Interrupted => writeln!(std::io::stderr(), "error: {e:#}"),
+                fault => writeln!(std::io::stderr(), "error ({fault}): {e:#}"),
+            };
         }
-        if interrupt.requested() && !passed_on {
-            passed_on = true;
-            #[cfg(unix)]
-            if let Ok(pid) = libc::pid_t::try_from(child.id()) {
-                // SAFETY: kill(2) on the child we started and have not yet reaped.
-                unsafe { libc::kill(pid, libc::SIGTERM) };
-            }
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    };
+        caught
+    });
+    // A command may enter another folder (`lucent merge` enters the shards'):
+    // the run's relative paths stay those of its own.
+    std::env::set_current_dir(&cwd).with_context(|| format!("{}: cannot go back to", cwd.display()))?;
     if interrupt.requested() {
         return Err(Interrupted(format!("during `lucent {}`", args.join(" "))).into());
     }
-    match status.code().map_or_else(|| Some(killed_by(&status)), Fault::from_exit_code) {
-        None => Ok(()),
-        Some(fault) => Err(anyhow::Error::from(Faulted {
-            fault,
-            message: format!(
-                "`lucent {}` exited with {status} ({fault}); the end of {}:\n    {}",
-                args.join(" "),
-                log.display(),
-                tail(log, 12)
-            ),
-        })),
+    match outcome? {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(e.context(format!("`lucent {}` (its log: {})", args.join(" "), log.display()))),
+        Err(payload) => {
+            let message = panic_message(payload.as_ref());
+            let fault =
+                if message.starts_with("failed printing to std") { Fault::Environment } else { Fault::Internal };
+            Err(anyhow::Error::from(Faulted {
+                fault,
+                message: format!(
+                    "`lucent {}` panicked ({fault}{}): {message}; the end of {}:\n    {}",
+                    args.join(" "),
+                    if fault == Fault::Internal { ", a bug; please report it" } else { "" },
+                    log.display(),
+                    tail(log, 12)
+                ),
+            }))
+        }
     }
 }
 
-/// The class of a command ended by a signal: SIGINT, SIGTERM or SIGHUP stopped it
-/// (interrupted), SIGKILL is the machine's (the kernel's out-of-memory
-/// killer, a batch system's limit), anything else (SIGSEGV, SIGABRT) a bug.
-fn killed_by(status: &std::process::ExitStatus) -> Fault {
-    #[cfg(unix)]
-    {
-        use std::os::unix::process::ExitStatusExt;
-        match status.signal() {
-            Some(libc::SIGINT | libc::SIGTERM | libc::SIGHUP) => Fault::Interrupted,
-            Some(libc::SIGKILL) => Fault::Environment,
-            _ => Fault::Internal,
-        }
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = status;
-        Fault::Internal
-    }
+/// Runs a stage's job in this process ([`run_here`] of the command built
+/// from the job's fields, [`super::jobs::command_of`]).
+fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
+    let command = super::jobs::command_of(job)?;
+    run_here(|| super::run(super::Cli { command }), &job.to_args(), log, interrupt, console)
+}
+
+/// Merges the finished shards of `t` into its output, in this process.
+fn merge_here(t: &executor::Sharded, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
+    let command = super::Command::Merge(super::shard::MergeArgs { shards: t.shard_dirs(), out: t.out.clone() });
+    run_here(|| super::run(super::Cli { command }), &t.merge_command(), log, interrupt, console)
 }
 
 /// A command's error for the pipeline: its whole chain as one message, and its class.
@@ -176,7 +269,8 @@ pub fn run(a: RunArgs) -> Result<()> {
     // resolve paths relative to themselves), so the folder must be absolute.
     let out =
         std::path::absolute(&out).with_context(|| format!("{}: cannot resolve the output folder", out.display()))?;
-    let exe = std::env::current_exe().context("cannot find the lucent binary to run the stages")?;
+    // The binary the cluster's scripts run (the stages here run in this process).
+    let exe = || std::env::current_exe().context("cannot find the lucent binary for the cluster's scripts");
     // The whole chain of causes goes into the stage's error message.
     let mut exec_cfg = project.executor.clone();
     match a.executor {
@@ -223,21 +317,23 @@ pub fn run(a: RunArgs) -> Result<()> {
     // Ctrl-C or SIGTERM: the stage under way fails (its output is kept as
     // STAGE.failed/, the previous result is put back) and no later one starts.
     let interrupt = Interrupt::install();
+    // The stages' output goes to their logs; the status lines to these.
+    let console = Console::save()?;
     let mut submit = String::new();
     let mut emitted = 0usize;
-    let mut exec = |args: &[String], log: &Path| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+    let mut exec = |job: &Job, log: &Path| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         // Shards an earlier run's jobs finished are merged, not run again.
-        if let Some(t) = executor::finished_shards(args, &out) {
-            run_lucent(&exe, &t.merge_command(), log, &interrupt).map_err(classified)?;
+        if let Some(t) = executor::finished_shards(job, &out) {
+            merge_here(&t, log, &interrupt, &console).map_err(classified)?;
             std::fs::remove_dir_all(&t.dir).map_err(|e| format!("{}: {e}", t.dir.display()))?;
             return Ok(());
         }
-        let sharded = executor::shard_plan(args, exec_cfg.shards, &out);
+        let sharded = executor::shard_plan(job, exec_cfg.shards, &out);
         match (sharded, &emit) {
             (Some(t), Some(Emit::Slurm(dir))) => {
                 emitted += 1;
                 let name = format!("lucent-{emitted:02}-{}", t.args[0]);
-                submit.push_str(&executor::emit_slurm(&exec_cfg, &t, &exe, &cwd, dir, &name)?);
+                submit.push_str(&executor::emit_slurm(&exec_cfg, &t, &exe()?, &cwd, dir, &name)?);
                 Err(Box::new(executor::Deferred))
             }
             (Some(t), Some(Emit::K8s(dir))) => {
@@ -247,21 +343,20 @@ pub fn run(a: RunArgs) -> Result<()> {
                 crate::io::write_atomic(&path, executor::k8s_job(&exec_cfg, &t, &cwd, &name).as_bytes())?;
                 Err(Box::new(executor::Deferred))
             }
-            (None, None)
-                if exec_cfg.kind == Kind::Slurm && args.first().is_some_and(|c| c == "render" || c == "bssrdf") =>
-            {
+            (None, None) if exec_cfg.kind == Kind::Slurm && matches!(job, Job::Render(_) | Job::Bssrdf(_)) => {
                 // A long-looking command the cluster does not get: say so, and why.
-                if let Some(why) = executor::not_shardable(args) {
+                if let Some(why) = executor::not_shardable(job) {
+                    let args = job.to_args();
                     println!("    here, not on the cluster: `lucent {}` ({why})", args[..2.min(args.len())].join(" "));
                 }
-                run_lucent(&exe, args, log, &interrupt).map_err(classified)
+                run_job_here(job, log, &interrupt, &console).map_err(classified)
             }
             (Some(t), None) if exec_cfg.kind == Kind::Slurm => {
                 let label = t.args.join(" ");
-                executor::run_on_slurm(&exec_cfg, &t, &exe, log, &mut |line| println!("    {line}"))
+                executor::run_on_slurm(&exec_cfg, &t, &exe()?, log, &mut |line| println!("    {line}"))
                     .map_err(|e| classified(anyhow::Error::from(e).context(format!("`lucent {label}` on Slurm"))))
             }
-            _ => run_lucent(&exe, args, log, &interrupt).map_err(classified),
+            _ => run_job_here(job, log, &interrupt, &console).map_err(classified),
         }
     };
     let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {
@@ -324,5 +419,49 @@ pub fn run(a: RunArgs) -> Result<()> {
             Ok(())
         }
         Err(e) => Err(e.into()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A stage's work runs here with its output in the log: a panic is caught
+    /// and classed as a bug (internal), and an error keeps its type for the
+    /// class. (While it runs, descriptors 1 and 2 of the test process go to
+    /// the log: the harness's lines of other tests then may go there too.)
+    #[test]
+    fn a_stage_that_panics_fails_as_a_bug_and_errors_keep_their_class() {
+        let dir = tempfile::tempdir().expect("temporary folder");
+        let log = dir.path().join("log.txt");
+        let interrupt = Interrupt::install();
+        let console = Console::save().expect("standard descriptors");
+        let args = ["render".to_string(), "scene.toml".to_string()];
+        let work = || -> Result<()> {
+            // Written to descriptor 1 itself (println! is the test harness's here).
+            let _ = writeln!(std::io::stdout(), "a line of the command");
+            panic!("tile index out of range")
+        };
+        let e = run_here(work, &args, &log, &interrupt, &console).expect_err("a panic fails the stage");
+        assert_eq!(Fault::of(e.as_ref()), Fault::Internal, "{e:#}");
+        let text = format!("{e:#}");
+        assert!(
+            text.contains("`lucent render scene.toml` panicked") && text.contains("tile index out of range"),
+            "{text}"
+        );
+        let written = std::fs::read_to_string(&log).expect("log");
+        assert!(written.starts_with("$ lucent render scene.toml\n"), "{written}");
+        assert!(written.contains("a line of the command"), "the command's output goes to the log: {written}");
+        let disk = || -> Result<()> {
+            Err(anyhow::Error::from(std::io::Error::from(std::io::ErrorKind::StorageFull)).context("render.exr"))
+        };
+        let e = run_here(disk, &args, &log, &interrupt, &console).expect_err("an error fails the stage");
+        assert_eq!(Fault::of(e.as_ref()), Fault::Environment, "{e:#}");
+        let written = std::fs::read_to_string(&log).expect("log");
+        assert!(
+            written.contains("error (environment): render.exr"),
+            "the error is in the log as the binary says it: {written}"
+        );
+        assert!(run_here(|| Ok(()), &args, &log, &interrupt, &console).is_ok());
     }
 }

@@ -2,16 +2,18 @@
 //! as job arrays, or written out as batch scripts (Slurm) or manifests
 //! (Kubernetes Indexed Jobs) for someone to submit.
 //!
-//! A **long command** is a `lucent render` with a sample budget and
-//! uniform sampling, or a `lucent bssrdf` slice run with a path budget and
-//! no other stop rule: the commands that `--shard K/N` can split exactly
-//! ([`crate::shard`]). With `[executor] shards = N` (N > 1) such a command
-//! becomes N shards, each writing into `OUT/.lucent-shards/ID/K` (ID from
-//! the command line, outside every stage folder), and `lucent merge`
-//! writes the command's own `--out`. The stage folders, manifests and keys
-//! are those of the local executor: the same commands are recorded, and
-//! the shard folders are removed after the merge. Every other command runs
-//! on this machine.
+//! A **long command** is a render job with a sample budget and uniform
+//! sampling, or a BSSRDF slice job with a path budget and no other stop
+//! rule: the commands that `--shard K/N` can split exactly
+//! ([`crate::shard`]), told from the job's type and fields
+//! ([`not_shardable`]), never from how a command line spells them. With
+//! `[executor] shards = N` (N > 1) such a job becomes N shards, each
+//! writing into `OUT/.lucent-shards/ID/K` (ID from the typed job,
+//! [`Job::identity_sha256`], outside every stage folder), and `lucent
+//! merge` writes the job's own output folder. The stage folders, manifests
+//! and keys are those of the local executor: the same jobs are recorded,
+//! and the shard folders are removed after the merge. Every other job runs
+//! on this machine, in the `lucent run` process.
 //!
 //! ```toml
 //! [executor]
@@ -27,8 +29,8 @@
 //! image = "registry.example.org/lucent:0.1"  # container image of --emit k8s
 //! ```
 
+use crate::job::Job;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -261,41 +263,34 @@ fn scene_unshardable(scene: &Path) -> Option<String> {
     }
 }
 
-/// Why `args` is not a long command that shards split exactly (see the
-/// module doc), `None` when it is one.
-pub fn not_shardable(args: &[String]) -> Option<String> {
-    let has = |f: &str| flag_value(args, f).is_some();
-    match args.first().map(String::as_str) {
-        Some("render") => {
-            if !has("--spp") {
+/// Why `job` is not a long command that shards split exactly (see the
+/// module doc), `None` when it is one: decided from the job's type and
+/// fields, never from how a command line spells them.
+pub fn not_shardable(job: &Job) -> Option<String> {
+    match job {
+        Job::Render(r) => {
+            if r.spp.is_none() {
                 Some("no sample budget (--spp): only a fixed number of samples splits exactly".into())
-            } else if has("--time-s") {
+            } else if r.time_s.is_some() {
                 Some("a time budget (--time-s) cannot be split exactly".into())
-            } else if has("--target-rel-error") {
-                Some("an error target (--target-rel-error) cannot be split exactly".into())
-            } else if flag_value(args, "--sampling").is_some_and(|s| s != "uniform") {
-                Some("shards sample uniformly, the command asks for another --sampling".into())
             } else {
-                match args.get(1) {
-                    Some(s) => scene_unshardable(Path::new(s)),
-                    None => Some("no scene file".into()),
-                }
+                scene_unshardable(&r.scene)
             }
         }
-        Some("bssrdf") if args.get(1).is_some_and(|a| a == "compare") => {
-            Some("a comparison of slices, seconds of work".into())
-        }
-        Some("bssrdf") => {
-            if !has("--paths") {
+        Job::BssrdfCompare(_) => Some("a comparison of slices, seconds of work".into()),
+        Job::Bssrdf(b) => {
+            if b.paths.is_none() {
                 Some("no path budget (--paths): only a fixed number of paths splits exactly".into())
-            } else if has("--time-s") || has("--rel-error") || has("--pixel-rel-error") {
+            } else if b.time_s.is_some() || b.rel_error.is_some() {
                 Some("a time budget or an error target cannot be split exactly".into())
             } else {
                 None
             }
         }
-        Some(other) => Some(format!("`lucent {other}` is not split into shards (only renders and BSSRDF slices are)")),
-        None => Some("an empty command".into()),
+        other => Some(format!(
+            "`lucent {}` is not split into shards (only renders and BSSRDF slices are)",
+            other.command_name()
+        )),
     }
 }
 
@@ -375,47 +370,38 @@ pub fn array_count(indices: &str) -> usize {
         .sum()
 }
 
-/// The value of `--flag V` or `--flag=V` in `args`.
-fn flag_value<'a>(args: &'a [String], flag: &str) -> Option<&'a str> {
-    let eq = format!("{flag}=");
-    args.iter().enumerate().find_map(
-        |(i, a)| {
-            if a == flag {
-                args.get(i + 1).map(String::as_str)
-            } else {
-                a.strip_prefix(&eq)
-            }
-        },
-    )
-}
-
-/// `args` as shards when it is a long command (see the module doc) and
-/// `shards` > 1; `run_out` is the run's output folder.
-pub fn shard_plan(args: &[String], shards: u32, run_out: &Path) -> Option<Sharded> {
-    if shards < 2 || not_shardable(args).is_some() {
+/// `job` as shards when it is a long command (see the module doc) and
+/// `shards` > 1; `run_out` is the run's output folder. The shard folder is
+/// named by the job's identity ([`Job::identity_sha256`]: the typed job
+/// without its output folder, paths canonical).
+pub fn shard_plan(job: &Job, shards: u32, run_out: &Path) -> Option<Sharded> {
+    if shards < 2 || not_shardable(job).is_some() {
         return None;
     }
-    let out = PathBuf::from(flag_value(args, "--out")?);
+    let (out, plain) = match job {
+        Job::Render(r) => (r.out.clone(), Job::Render(crate::job::RenderJob { quiet: false, ..r.clone() })),
+        Job::Bssrdf(b) => (b.out.clone(), Job::Bssrdf(crate::job::BssrdfJob { quiet: false, ..b.clone() })),
+        _ => return None,
+    };
     let mut kept = Vec::new();
-    let mut it = args.iter();
+    let mut it = plain.to_args().into_iter();
     while let Some(a) = it.next() {
-        if a == "--out" || a == "--threads" {
+        if a == "--out" {
             it.next();
-        } else if !(a.starts_with("--out=") || a.starts_with("--threads=") || a == "--quiet") {
-            kept.push(a.clone());
+        } else {
+            kept.push(a);
         }
     }
-    let id = Sha256::digest(args.join("\0").as_bytes());
-    let id: String = id.iter().take(8).map(|b| format!("{b:02x}")).collect();
+    let id: String = job.identity_sha256().chars().take(16).collect();
     Some(Sharded { args: kept, out, shards, dir: run_out.join(".lucent-shards").join(id) })
 }
 
-/// The finished shards of `args` that an earlier run left in `run_out`
+/// The finished shards of `job` that an earlier run left in `run_out`
 /// (written by the jobs of `--emit`, or by an interrupted Slurm run): all
 /// N shard folders hold a `shard.json`. The command is then merged from
 /// them instead of run again.
-pub fn finished_shards(args: &[String], run_out: &Path) -> Option<Sharded> {
-    let t = shard_plan(args, 2, run_out)?;
+pub fn finished_shards(job: &Job, run_out: &Path) -> Option<Sharded> {
+    let t = shard_plan(job, 2, run_out)?;
     let text = crate::io::read_text(t.dir.join("0").join(crate::shard::SHARD_JSON)).ok()?;
     let first: crate::shard::ShardFile = serde_json::from_str(&text).ok()?;
     let t = Sharded { shards: first.identity.shards, ..t };
@@ -787,18 +773,39 @@ mod tests {
         }
     }
 
+    fn slice(paths: Option<u64>, time_s: Option<f64>, out: &str) -> Job {
+        Job::Bssrdf(crate::job::BssrdfJob {
+            recipe: "/r/recipe.toml".into(),
+            wavelength_nm: 550.0,
+            configs: None,
+            pixels: 65,
+            pixel_mm: 0.1,
+            seed: 1,
+            quiet: true,
+            out: out.into(),
+            weight_percent: None,
+            crop: None,
+            paths,
+            rel_error: None,
+            time_s,
+            phase: None,
+        })
+    }
+
     #[test]
     fn long_commands_become_shards_and_scripts() {
-        let args: Vec<String> = ["bssrdf", "--mu-s", "3000", "--paths", "9000", "--quiet", "--out", "/r/bssrdf/s1"]
-            .map(String::from)
-            .to_vec();
-        let t = shard_plan(&args, 4, Path::new("/r")).expect("a long command");
+        let job = slice(Some(9000), None, "/r/bssrdf/s1");
+        let t = shard_plan(&job, 4, Path::new("/r")).expect("a long command");
         assert_eq!(t.out, PathBuf::from("/r/bssrdf/s1"));
         assert!(t.dir.starts_with("/r/.lucent-shards"));
-        assert_eq!(t.args, ["bssrdf", "--mu-s", "3000", "--paths", "9000"]);
-        assert!(shard_plan(&args, 1, Path::new("/r")).is_none());
-        let timed: Vec<String> = ["bssrdf", "--time-s", "9", "--paths", "9", "--out", "x"].map(String::from).to_vec();
-        assert!(shard_plan(&timed, 4, Path::new("/r")).is_none());
+        assert_eq!(t.args.len(), job.to_args().len() - 3, "the job's line without --quiet and --out: {:?}", t.args);
+        assert!(!t.args.iter().any(|a| a == "--out" || a == "--quiet"), "{:?}", t.args);
+        assert!(shard_plan(&job, 1, Path::new("/r")).is_none());
+        // The shard folder is the job's, wherever its output goes.
+        let elsewhere = shard_plan(&slice(Some(9000), None, "/r/bssrdf/s2"), 4, Path::new("/r")).unwrap();
+        assert_eq!(elsewhere.dir, t.dir);
+        assert_ne!(shard_plan(&slice(Some(9001), None, "/r/bssrdf/s1"), 4, Path::new("/r")).unwrap().dir, t.dir);
+        assert!(shard_plan(&slice(Some(9), Some(9.0), "x"), 4, Path::new("/r")).is_none());
         let e = Executor { partition: Some("debug".into()), cpus_per_task: Some(2), ..Executor::default() };
         let s = array_script(&e, &t, Path::new("/usr/bin/lucent"), Path::new("/work"), "0-3", "lucent-bssrdf");
         assert!(s.contains("#SBATCH --array=0-3\n"), "{s}");
@@ -840,13 +847,28 @@ mod tests {
 
     #[test]
     fn commands_say_why_they_are_not_sharded() {
-        let a = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
-        assert!(not_shardable(&a(&["bssrdf", "--paths", "9", "--out", "x"])).is_none());
-        let why = not_shardable(&a(&["bssrdf", "--time-s", "9", "--out", "x"])).unwrap();
+        assert!(not_shardable(&slice(Some(9), None, "x")).is_none());
+        let why = not_shardable(&slice(None, Some(9.0), "x")).unwrap();
         assert!(why.contains("path budget"), "{why}");
-        let why = not_shardable(&a(&["render", "s.toml", "--spp", "8", "--time-s", "3"])).unwrap();
+        let render = crate::job::RenderJob {
+            scene: "s.toml".into(),
+            spp: Some(8),
+            quiet: false,
+            time_s: Some(3.0),
+            size: None,
+            seed: None,
+            uncertainty: false,
+            out: "x".into(),
+        };
+        let why = not_shardable(&Job::Render(render)).unwrap();
         assert!(why.contains("time budget"), "{why}");
-        let why = not_shardable(&a(&["optics", "r.toml"])).unwrap();
+        let optics = crate::job::OpticsJob {
+            recipes: vec!["r.toml".into()],
+            wavelengths: "550".into(),
+            out: "x".into(),
+            weight_percent: None,
+        };
+        let why = not_shardable(&Job::Optics(optics)).unwrap();
         assert!(why.contains("not split"), "{why}");
     }
 

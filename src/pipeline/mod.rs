@@ -28,10 +28,12 @@
 //! | `report` | `report/index.html` and `report/metrics.json` ([`report`]) | any stage's output |
 //!
 //! A stage's work is a list of [`Task`]s — validated jobs ([`crate::job`]),
-//! run as their canonical `lucent` command lines, with files to write first —
-//! planned just before it runs ([`plan`]), so a stage reads what the stages
-//! before it wrote. Its **key** is the SHA-256 of: the stage name, the
-//! lucent version, the tasks (command lines and file contents), the
+//! run by the executor `lucent run` hands in (in this process, or as shards
+//! on a cluster), with files to write first — planned just before it runs
+//! ([`plan`]), so a stage reads what the stages before it wrote; its
+//! manifest.json records each job as its canonical `lucent` command line.
+//! Its **key** is the SHA-256 of: the stage name, the
+//! lucent version, the tasks (typed jobs and file contents), the
 //! content of every input file, and the output hash of the stages it
 //! depends on. A stage whose key equals the one in its folder's
 //! `manifest.json`, and whose outputs still hash to what the manifest says,
@@ -154,23 +156,24 @@ impl std::fmt::Display for Stage {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Task {
     /// Write these files (path relative to the stage folder, contents), then
-    /// run the job as `lucent ARGS` ([`Job::to_args`]; `{out}` in an
-    /// argument stands for the stage folder).
+    /// run the job (`{out}` in a path or word stands for the stage folder,
+    /// [`Job::with_out`]); manifest.json records it as its command line
+    /// ([`Job::to_args`]).
     Lucent { label: String, files: Vec<(String, String)>, job: Job },
     /// Write the report (in process).
     Report,
 }
 
-/// A task as it goes into the stage key: the job as its command line.
+/// A task as it goes into the stage key: the typed job (its JSON form).
 impl Serialize for Task {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         #[derive(Serialize)]
         enum Form<'a> {
-            Lucent { label: &'a str, files: &'a [(String, String)], args: Vec<String> },
+            Lucent { label: &'a str, files: &'a [(String, String)], job: &'a Job },
             Report,
         }
         match self {
-            Task::Lucent { label, files, job } => Form::Lucent { label, files, args: job.to_args() },
+            Task::Lucent { label, files, job } => Form::Lucent { label, files, job },
             Task::Report => Form::Report,
         }
         .serialize(serializer)
@@ -388,6 +391,9 @@ pub enum TaskError {
     /// A file the task hands to its command could not be written.
     #[error("{label}: {source}")]
     Write { label: String, source: crate::io::WriteError },
+    /// The job's `{out}` could not be replaced by the stage folder.
+    #[error("{label}: cannot place the job in its stage folder: {source}")]
+    Place { label: String, source: crate::fault::Internal },
     /// The command failed ([`Executor`]'s error).
     #[error("{label}: {source}")]
     Command { label: String, source: Box<dyn std::error::Error + Send + Sync> },
@@ -597,10 +603,6 @@ fn carry_users_files(from: &Path, to: &Path, kept: &[String], stage: Stage) -> V
 
 fn read_manifest(dir: &Path) -> Option<Manifest> {
     serde_json::from_str(&crate::io::read_text(dir.join("manifest.json")).ok()?).ok()
-}
-
-fn s(p: &Path) -> String {
-    p.display().to_string()
 }
 
 /// The slice folder `lucent bssrdf` writes for a configuration.
@@ -1232,12 +1234,13 @@ fn recover_stage_folder(stage: Stage, dir: &Path, aside: &Path, failed: &Path) -
     Ok(())
 }
 
-/// Runs one `lucent` command line: `args` with `{out}` replaced, output
-/// appended to `log`; on failure, an error saying what failed (the binary
-/// uses `anyhow`, tests their own types).
-pub type Executor<'a> = dyn FnMut(&[String], &Path) -> Result<(), Box<dyn std::error::Error + Send + Sync>> + 'a;
+/// Runs one job (its `{out}` already replaced by the stage folder), its
+/// output appended to `log`; on failure, an error saying what failed (the
+/// binary uses `anyhow`, tests their own types).
+pub type Executor<'a> = dyn FnMut(&Job, &Path) -> Result<(), Box<dyn std::error::Error + Send + Sync>> + 'a;
 
-/// Runs the project's stages in order. `exec` runs a lucent command line;
+/// Runs the project's stages in order. `exec` runs a job (its `{out}`
+/// replaced by the stage folder) with its output appended to the log file;
 /// `on_status` hears about every stage (for the status lines).
 pub fn run(
     project: &Project,
@@ -1341,9 +1344,17 @@ pub fn run(
                             r = Err(TaskError::Write { label: label.clone(), source });
                         }
                     }
-                    let args: Vec<String> = job.to_args().iter().map(|a| a.replace("{out}", &s(&dir))).collect();
-                    commands.push(args.clone());
-                    r.and_then(|_| match exec(&args, &log) {
+                    let placed = job.with_out(&dir);
+                    if let Ok(job) = &placed {
+                        commands.push(job.to_args());
+                    }
+                    r.and_then(|_| {
+                        placed.map_err(|e| TaskError::Place {
+                            label: label.clone(),
+                            source: crate::fault::Internal(e.to_string()),
+                        })
+                    })
+                    .and_then(|job| match exec(&job, &log) {
                         Err(e) if e.is::<executor::Deferred>() => {
                             deferred += 1;
                             Ok(())
