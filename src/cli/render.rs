@@ -817,7 +817,7 @@ pub fn write_band(out: &Path, image: &Image, band: &scene::band::RenderBand) -> 
     let (sd, se) = (&band.pixel_sd, &band.pixel_sd_std_error);
     let (r, g, b) = (channel(sd, 0), channel(sd, 1), channel(sd, 2));
     let (er, eg, eb) = (channel(se, 0), channel(se, 1), channel(se, 2));
-    crate::imageio::write_exr_channels(
+    crate::exr::write_channels(
         &out.join("band.exr"),
         image.width,
         image.height,
@@ -1068,7 +1068,7 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
     let board = plane(&|i| f64::from(image.board_samples[i]) / f64::from(image.samples[i].max(1)));
     let half = |k: usize, c: usize| plane(&|i| image.halves[k][i][c]);
     let (ar, ag, ab, br, bg, bb) = (half(0, 0), half(0, 1), half(0, 2), half(1, 0), half(1, 1), half(1, 2));
-    imageio::write_exr_channels(
+    crate::exr::write_channels(
         &out.join("render.exr"),
         w,
         h,
@@ -1200,8 +1200,8 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
             scene_path.display()
         );
     }
-    let (w, h, mean) = imageio::read_exr_channels(&mean_file, &["R", "G", "B"])?;
-    let (_, _, var) = imageio::read_exr_channels(&reference_dir.join(format!("{name}_var.exr")), &["R", "G", "B"])?;
+    let (w, h, mean) = crate::exr::read_channels(&mean_file, &["R", "G", "B"])?;
+    let (_, _, var) = crate::exr::read_channels(&reference_dir.join(format!("{name}_var.exr")), &["R", "G", "B"])?;
     if (w, h) != (loaded.scene.camera.width, loaded.scene.camera.height) {
         bail!(
             "{}: reference is {w}×{h}, the scene renders {}×{}",
