@@ -13,6 +13,9 @@
 //! * `render.png` — sRGB preview (`--exposure` in stops);
 //! * `render.json` — the scene as resolved, settings, seed, timings, counters.
 
+// `duration` is re-exported for cli/run.rs (`super::render::duration`) until it calls common.
+use super::common::check_time_s;
+pub(super) use super::common::duration;
 use super::interrupt::Interrupt;
 use crate::fault::Interrupted;
 use crate::imageio::{self, RgbImage};
@@ -205,9 +208,6 @@ fn write_shard(
     Ok(())
 }
 
-/// The most worker threads `--threads` starts.
-pub const MAX_THREADS: usize = 1024;
-
 /// `--dispersion`.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum DispersionArg {
@@ -247,28 +247,6 @@ pub fn check_rel_error(flag: &str, e: f64) -> Result<f64> {
         bail!("{flag} {e}: must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %)");
     }
     Ok(e)
-}
-
-pub fn parse_size(text: &str) -> Result<(usize, usize)> {
-    crate::job::parse_image_size(text).map_err(|reason| anyhow::anyhow!("--size {text:?}: {reason}"))
-}
-
-/// Checks a wall-time budget in seconds.
-pub fn check_time_s(t: f64) -> Result<f64> {
-    if !(t > 0.0 && t.is_finite()) {
-        bail!("--time-s {t}: must be a positive number of seconds");
-    }
-    Ok(t)
-}
-
-/// Checks `--threads` against [`MAX_THREADS`] (rayon would try to start them all).
-pub fn check_threads(threads: Option<usize>) -> Result<()> {
-    if let Some(t) = threads
-        && t > MAX_THREADS
-    {
-        bail!("--threads {t}: at most {MAX_THREADS} (default: one per core)");
-    }
-    Ok(())
 }
 
 /// The scene of `a` loaded and checked, with the arguments' overrides
@@ -490,19 +468,6 @@ pub(super) fn show_progress(
         100.0 * p.errors.board.median,
         p.stats.events as f64 / p.elapsed_s / 1e6
     ));
-}
-
-/// "95 s", "12 min", "3.4 h" (the "expect ≈ …" lines).
-pub(super) fn duration(s: f64) -> String {
-    if !s.is_finite() {
-        "an unknown time".into()
-    } else if s < 120.0 {
-        format!("{s:.0} s")
-    } else if s < 7200.0 {
-        format!("{:.0} min", s / 60.0)
-    } else {
-        format!("{:.1} h", s / 3600.0)
-    }
 }
 
 /// Runs `lucent render`.
