@@ -43,6 +43,9 @@ use std::path::{Path, PathBuf};
 pub enum SliceIoError {
     #[error(transparent)]
     Image(#[from] ImageIoError),
+    /// An EXR that cannot be written (the message names the file).
+    #[error(transparent)]
+    ExrWrite(#[from] crate::exr::ExrWriteError),
     #[error(transparent)]
     Write(#[from] WriteError),
     #[error("{path}: {problem}")]
@@ -103,9 +106,7 @@ pub enum SliceProblem {
     #[error("no data rows")]
     Empty,
     #[error("cannot read EXR: {0}")]
-    ExrSize(#[source] imageio::ExrSizeError),
-    #[error("cannot read EXR: {}", imageio::exr_reason(.0))]
-    Exr(#[source] exr::error::Error),
+    Exr(#[source] crate::exr::ExrProblem),
     #[error("EXR has no channels")]
     NoChannels,
     #[error(
@@ -353,32 +354,21 @@ fn read_csv_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> 
 }
 
 fn read_exr_scalar(path: &Path) -> Result<(usize, usize, Vec<f64>), SliceIoError> {
-    use exr::prelude::*;
-    imageio::check_exr_size(path).map_err(|e| invalid(path, SliceProblem::ExrSize(e)))?;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .pedantic()
-        .from_file(path)
-        .map_err(|e| invalid(path, SliceProblem::Exr(e)))?;
-    let size = image.layer_data.size;
-    let channels = &image.layer_data.channel_data.list;
+    let exr_err = |e: crate::exr::ExrReadError| invalid(path, SliceProblem::Exr(e.problem));
+    let layer = crate::exr::read_layer(path).map_err(exr_err)?;
     // A slice has one value per pixel: channel Y, or the only channel
     // besides an alpha or a standard error. An RGB image is refused rather
     // than read as its R channel.
-    let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
+    let names = layer.names();
     let data: Vec<usize> = (0..names.len()).filter(|&i| !["A", "std_error"].contains(&names[i].as_str())).collect();
     let pick = match (names.iter().position(|n| n == "Y"), data.as_slice()) {
-        (Some(y), _) => &channels[y],
-        (None, [only]) => &channels[*only],
+        (Some(y), _) => y,
+        (None, [only]) => *only,
         (None, []) => return Err(invalid(path, SliceProblem::NoChannels)),
         (None, _) => return Err(invalid(path, SliceProblem::Channels { names })),
     };
-    let values: Vec<f64> = pick.sample_data.values_as_f32().map(f64::from).collect();
-    Ok((size.width(), size.height(), values))
+    let values: Vec<f64> = layer.plane_at(pick).map_err(exr_err)?.iter().copied().map(f64::from).collect();
+    Ok((layer.width, layer.height, values))
 }
 
 /// Two slices that [`compare`] cannot compare.
@@ -416,7 +406,7 @@ pub use crate::surface::model::RoughnessSyntax;
 pub enum NormalsError {
     /// Not readable as an EXR with channels R, G, B, A (the message names the file).
     #[error(transparent)]
-    Read(#[from] ImageIoError),
+    Read(#[from] crate::exr::ExrReadError),
     #[error("{path}: pixel ({column}, {row}) = {value:?} is not a unit normal facing +z")]
     NotUnit { path: PathBuf, column: usize, row: usize, value: [f64; 3] },
     #[error("{path}: no pixel holds a normal (alpha is 0 everywhere)")]
@@ -489,7 +479,7 @@ pub fn roughness(
 /// x, y, z, A = 1 where the pixel has a normal), renormalised from 32-bit
 /// floats; pixels with A = 0 are skipped.
 fn read_normals(path: &Path) -> Result<Vec<[f64; 3]>, NormalsError> {
-    let (w, h, planes) = crate::imageio::read_exr_channels(path, &["R", "G", "B", "A"])?;
+    let (w, h, planes) = crate::exr::read_channels(path, &["R", "G", "B", "A"])?;
     let mut out = Vec::with_capacity(w * h);
     let pixels = planes[0].iter().zip(&planes[1]).zip(&planes[2]).zip(&planes[3]);
     for (k, (((x, y), z), a)) in pixels.enumerate() {
@@ -633,7 +623,7 @@ pub fn write_run(dir: &Path, slice: &Slice, summary: &Summary, beam: &[f64]) -> 
     let mut written = Vec::new();
     let exr = dir.join("bssrdf.exr");
     let f32v = |v: &[f64]| v.iter().map(|x| *x as f32).collect::<Vec<f32>>();
-    imageio::write_exr_channels(&exr, n, n, &[("Y", &f32v(&slice.values)), ("std_error", &f32v(&slice.std_error))])?;
+    crate::exr::write_channels(&exr, n, n, &[("Y", &f32v(&slice.values)), ("std_error", &f32v(&slice.std_error))])?;
     written.push(exr);
     let grid = Grid { size: n, pixel_m: slice.pixel_m, values: slice.values.clone() };
     let png = dir.join("bssrdf.png");
@@ -787,7 +777,7 @@ pub fn write_band(dir: &Path, slice: &Slice, band: &SliceBand, beam: &[f64]) -> 
     written.push(p);
     let f32v = |v: &[f64]| v.iter().map(|x| *x as f32).collect::<Vec<f32>>();
     let exr = dir.join("band.exr");
-    imageio::write_exr_channels(
+    crate::exr::write_channels(
         &exr,
         n,
         n,

@@ -1,4 +1,5 @@
-//! Linear images on disk: OpenEXR (32-bit float, read 16/32-bit), Radiance
+//! Linear images on disk: OpenEXR (32-bit float, read 16/32-bit, through
+//! [`crate::exr`], which owns the EXR format), Radiance
 //! `.hdr`, 16/8-bit PNG and TIFF (values scaled to [0, 1], no transfer
 //! function removed), and 8-bit sRGB PNG for looking at. Every write is
 //! atomic (temporary file, then rename); every read checks what it got: a
@@ -29,6 +30,13 @@ pub enum ImageIoError {
     Raw(#[from] lucent_calib::raw::RawError),
     #[error("{path}: cannot encode image: {reason}")]
     Encode { path: PathBuf, reason: String },
+    /// An EXR that could not be read (the message names the file; boxed,
+    /// as every variant here stays small).
+    #[error(transparent)]
+    ExrRead(Box<crate::exr::ExrReadError>),
+    /// An EXR that could not be written (the message names the file).
+    #[error(transparent)]
+    ExrWrite(Box<crate::exr::ExrWriteError>),
     #[error("image data has {got} values, expected {expected} for {width} × {height} × {channels}")]
     Size { got: usize, expected: usize, width: usize, height: usize, channels: usize },
     /// Binning by `factor` needs both sides divisible by it.
@@ -36,6 +44,18 @@ pub enum ImageIoError {
         "a {width} × {height} image cannot be binned {factor} × {factor}: both sides must be multiples of {factor}"
     )]
     Bin { width: usize, height: usize, factor: usize },
+}
+
+impl From<crate::exr::ExrReadError> for ImageIoError {
+    fn from(e: crate::exr::ExrReadError) -> Self {
+        ImageIoError::ExrRead(Box::new(e))
+    }
+}
+
+impl From<crate::exr::ExrWriteError> for ImageIoError {
+    fn from(e: crate::exr::ExrWriteError) -> Self {
+        ImageIoError::ExrWrite(Box::new(e))
+    }
 }
 
 /// A linear RGB image, interleaved, row-major, top row first.
@@ -167,17 +187,7 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
 pub fn image_size(path: &Path) -> Result<(usize, usize), ImageIoError> {
     let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
     match extension(path).as_str() {
-        "exr" => {
-            check_exr_size(path).map_err(|e| read_err(e.to_string()))?;
-            let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| read_err(exr_reason(&e)))?;
-            // The layer read_rgb reads: the first with R, G and B channels.
-            let rgb = |h: &&exr::meta::header::Header| {
-                ["R", "G", "B"].iter().all(|c| h.channels.list.iter().any(|ch| ch.name.eq_case_insensitive(c)))
-            };
-            let h =
-                meta.headers.iter().find(rgb).or(meta.headers.first()).ok_or_else(|| read_err("no layer".into()))?;
-            Ok((h.layer_size.width(), h.layer_size.height()))
-        }
+        "exr" => Ok(crate::exr::image_size(path)?),
         "hdr" | "png" | "tif" | "tiff" => {
             let (w, h) = image::ImageReader::open(path)
                 .map_err(|e| read_err(e.to_string()))?
@@ -195,137 +205,14 @@ pub fn image_size(path: &Path) -> Result<(usize, usize), ImageIoError> {
 pub const RAW_EXTENSIONS: [&str; 14] =
     ["dng", "cr2", "nef", "nrw", "arw", "srf", "sr2", "orf", "rw2", "raf", "pef", "srw", "erf", "3fr"];
 
-/// The exr crate's error in words a user can act on ("invalid: reference to
-/// missing bytes" is what an empty or cut-off file gives).
-pub fn exr_reason(e: &exr::error::Error) -> String {
-    let text = e.to_string();
-    if text.contains("missing bytes")
-        || matches!(e, exr::error::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof)
-    {
-        format!("the EXR file is empty or cut short ({text})")
-    } else {
-        text
-    }
-}
-
-/// Largest EXR layer read, in pixels: 2²⁷ (a 16384 × 8192 panorama). A
-/// header is checked against it before any pixel buffer is allocated, so a
-/// small damaged or hostile file that claims a huge size (a 5 kB file asking
-/// for 34 GB, found by `fuzz/`) is an error naming it, not an abort.
-pub const MAX_EXR_PIXELS: usize = 1 << 27;
-
-/// Why [`check_exr_size`] refused an EXR (the caller names the file).
-#[derive(Debug, thiserror::Error)]
-pub enum ExrSizeError {
-    #[error("{}", exr_reason(.0))]
-    Header(exr::error::Error),
-    #[error("the header claims a {width} × {height} image, more than the {MAX_EXR_PIXELS} pixels lucent reads (damaged file?)")]
-    TooLarge { width: usize, height: usize },
-}
-
-/// Reads only the headers of an EXR and refuses layers larger than
-/// [`MAX_EXR_PIXELS`].
-pub fn check_exr_size(path: &Path) -> Result<(), ExrSizeError> {
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(ExrSizeError::Header)?;
-    for header in meta.headers.iter() {
-        let (width, height) = (header.layer_size.width(), header.layer_size.height());
-        if width.checked_mul(height).is_none_or(|n| n > MAX_EXR_PIXELS) {
-            return Err(ExrSizeError::TooLarge { width, height });
-        }
-    }
-    Ok(())
-}
-
 fn read_exr(path: &Path) -> Result<RgbImage, ImageIoError> {
-    use exr::prelude::*;
+    let (w, h, data) = crate::exr::read_rgb(path)?;
     let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
-    check_exr_size(path).map_err(|e| read_err(e.to_string()))?;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .rgba_channels(
-            |res, _| (res.width(), res.height(), vec![0f32; res.width() * res.height() * 3]),
-            |(w, _, px): &mut (usize, usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-                let i = 3 * (pos.y() * *w + pos.x());
-                px[i] = r;
-                px[i + 1] = g;
-                px[i + 2] = b;
-            },
-        )
-        .first_valid_layer()
-        .all_attributes()
-        .pedantic()
-        .from_file(path)
-        .map_err(|e| read_err(exr_reason(&e)))?;
-    let (w, h, data) = image.layer_data.channel_data.pixels;
     let out = RgbImage::new(w, h, data).map_err(|e| read_err(e.to_string()))?;
     if out.data.iter().any(|v| !v.is_finite()) {
         return Err(read_err("contains NaN or infinite values".into()));
     }
     Ok(out)
-}
-
-/// Writes named float channels (each `width × height`, row-major) as one
-/// 32-bit float EXR layer, atomically. Channel names like `R`, `G`, `B`,
-/// `std_error.Y`.
-pub fn write_exr_channels(
-    path: &Path,
-    width: usize,
-    height: usize,
-    channels: &[(&str, &[f32])],
-) -> Result<(), ImageIoError> {
-    Ok(write_atomic(path, &encode_exr_channels(path, width, height, channels)?)?)
-}
-
-/// The bytes [`write_exr_channels`] writes (`path` only names the file in an error).
-pub fn encode_exr_channels(
-    path: &Path,
-    width: usize,
-    height: usize,
-    channels: &[(&str, &[f32])],
-) -> Result<Vec<u8>, ImageIoError> {
-    use exr::prelude::*;
-    for (_, c) in channels {
-        if c.len() != width * height {
-            return Err(ImageIoError::Size { got: c.len(), expected: width * height, width, height, channels: 1 });
-        }
-    }
-    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
-        channels.iter().map(|(name, c)| AnyChannel::new(*name, FlatSamples::F32(c.to_vec()))).collect();
-    let layer =
-        Layer::new((width, height), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
-    let image = Image::from_layer(layer);
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    image
-        .write()
-        .to_buffered(&mut bytes)
-        .map_err(|e| ImageIoError::Encode { path: path.to_path_buf(), reason: e.to_string() })?;
-    Ok(bytes.into_inner())
-}
-
-/// Reads the named float channels (e.g. `variance.R`, `spp`) of an EXR's
-/// first layer: (width, height, one row-major plane per name). A missing
-/// channel is an error naming the file and listing the channels present.
-pub fn read_exr_channels(path: &Path, names: &[&str]) -> Result<(usize, usize, Vec<Vec<f32>>), ImageIoError> {
-    use exr::prelude::*;
-    let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
-    check_exr_size(path).map_err(|e| read_err(e.to_string()))?;
-    let image = read_all_flat_layers_from_file(path).map_err(|e| read_err(exr_reason(&e)))?;
-    let layer = image.layer_data.first().ok_or_else(|| read_err("no layer".into()))?;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    let mut out = Vec::with_capacity(names.len());
-    for name in names {
-        let ch = layer.channel_data.list.iter().find(|c| c.name.to_string() == *name).ok_or_else(|| {
-            let present: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
-            read_err(format!("no channel {name:?} (channels: {})", present.join(", ")))
-        })?;
-        let plane: Vec<f32> = ch.sample_data.values_as_f32().collect();
-        if plane.len() != w * h {
-            return Err(read_err(format!("channel {name:?} has {} samples, expected {}", plane.len(), w * h)));
-        }
-        out.push(plane);
-    }
-    Ok((w, h, out))
 }
 
 /// Writes a linear RGB image as a 32-bit float EXR, atomically.
@@ -335,9 +222,7 @@ pub fn write_exr(path: &Path, img: &RgbImage) -> Result<(), ImageIoError> {
 
 /// The bytes [`write_exr`] writes (`path` only names the file in an error).
 pub fn encode_exr(path: &Path, img: &RgbImage) -> Result<Vec<u8>, ImageIoError> {
-    let plane = |c: usize| img.data.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
-    let (r, g, b) = (plane(0), plane(1), plane(2));
-    encode_exr_channels(path, img.width, img.height, &[("R", &r), ("G", &g), ("B", &b)])
+    Ok(crate::exr::encode_rgb(path, img.width, img.height, &img.data)?)
 }
 
 /// The sRGB transfer function (IEC 61966-2-1) of a linear value in [0, 1].

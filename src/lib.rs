@@ -10,6 +10,7 @@ pub mod chart_detect;
 pub mod cli;
 pub mod compare;
 pub mod envfit;
+pub mod exr;
 pub mod fault;
 pub mod fit;
 pub mod imageio;

@@ -391,12 +391,12 @@ fn roughness_errors_are_typed() {
     // No pixel holds a normal (alpha 0 everywhere).
     let zero = vec![0.0f32; 4];
     let up = vec![1.0f32; 4];
-    lucent::imageio::write_exr_channels(&exr, 2, 2, &[("R", &zero), ("G", &zero), ("B", &up), ("A", &zero)]).unwrap();
+    lucent::exr::write_channels(&exr, 2, 2, &[("R", &zero), ("G", &zero), ("B", &up), ("A", &zero)]).unwrap();
     let e = normals(&exr);
     assert!(matches!(&e, NormalsError::Empty { path } if path == &exr), "{e:?}");
     // Pixel (1, 0) is not of unit length.
     let z = vec![1.0f32, 2.0, 1.0, 1.0];
-    lucent::imageio::write_exr_channels(&exr, 2, 2, &[("R", &zero), ("G", &zero), ("B", &z), ("A", &up)]).unwrap();
+    lucent::exr::write_channels(&exr, 2, 2, &[("R", &zero), ("G", &zero), ("B", &z), ("A", &up)]).unwrap();
     let e = normals(&exr);
     assert!(matches!(e, NormalsError::NotUnit { column: 1, row: 0, value: [0.0, 0.0, 2.0], .. }), "{e:?}");
     // A missing file: its name once, in the image reader's message.

@@ -634,7 +634,7 @@ fn model_rmse_separates_the_twin_from_its_noise() {
     let rj: Value = serde_json::from_str(&std::fs::read_to_string(tmp.path().join("s2/render.json")).unwrap()).unwrap();
     assert_eq!(same["mask"]["included_pixels"], rj["relative_std_error"]["object"]["pixels"]);
     // A twin 20 % too bright on the object: a model error the interval excludes 0 for.
-    let (w, h, ch) = lucent::imageio::read_exr_channels(
+    let (w, h, ch) = lucent::exr::read_channels(
         &b,
         &["R", "G", "B", "variance.R", "variance.G", "variance.B", "spp", "object", "board"],
     )
@@ -654,7 +654,7 @@ fn model_rmse_separates_the_twin_from_its_noise() {
             .collect();
     let bright = tmp.path().join("bright.exr");
     let refs: Vec<(&str, &[f32])> = planes.iter().map(|(n, v)| (*n, v.as_slice())).collect();
-    lucent::imageio::write_exr_channels(&bright, w, h, &refs).unwrap();
+    lucent::exr::write_channels(&bright, w, h, &refs).unwrap();
     let off = compare(&bright, "bright");
     let lo = off["noise"]["total"]["ci95"][0].as_f64().unwrap();
     assert!(lo > 0.0, "{}", off["noise"]);
@@ -742,7 +742,7 @@ fn ssim_at_zero_render_noise_from_the_half_renders() {
     let mut layers: Vec<(&str, &[f32])> = names.iter().zip(&planes).map(|(n, v)| (*n, v.as_slice())).collect();
     layers.extend([("variance.R", var.as_slice()), ("variance.G", &var), ("variance.B", &var), ("spp", &spp)]);
     let render = tmp.path().join("render.exr");
-    lucent::imageio::write_exr_channels(&render, w, h, &layers).unwrap();
+    lucent::exr::write_channels(&render, w, h, &layers).unwrap();
     let photo = tmp.path().join("photo.exr");
     write_exr(&photo, &RgbImage::new(w, h, clean.clone()).unwrap()).unwrap();
     let out = tmp.path().join("out");
@@ -902,7 +902,7 @@ fn object_metrics_work_for_a_sphere_from_the_render_layer() {
     lucent::imageio::write_png(&half_png, &RgbImage::new(size, size, half).unwrap()).unwrap();
     let both = run(&["--mask", half_png.to_str().unwrap()], "sphere-left");
     assert_eq!(both["mask"]["source"], "object and image");
-    let (_, _, layer) = lucent::imageio::read_exr_channels(&b, &["object"]).unwrap();
+    let (_, _, layer) = lucent::exr::read_channels(&b, &["object"]).unwrap();
     let want = layer[0].iter().enumerate().filter(|(i, f)| **f >= 0.5 && i % size < size / 2).count();
     assert_eq!(both["mask"]["included_pixels"].as_u64().unwrap() as usize, want);
     assert!((want as f64 / px - 0.5).abs() < 0.05, "{want} of {px}");
@@ -934,7 +934,7 @@ fn two_photos_of_the_same_view_give_the_photo_noise() {
     let var = vec![(sigma_r * sigma_r) as f32; w * h];
     let r = tmp.path().join("render.exr");
     let (pr, pg, pb) = (plane(0), plane(1), plane(2));
-    lucent::imageio::write_exr_channels(
+    lucent::exr::write_channels(
         &r,
         w,
         h,

@@ -2,7 +2,8 @@
 //! environment scale is fitted from scale 1 (scalar, and per channel with a
 //! constant sky); bad inputs are refused with reasons and write nothing.
 
-use lucent::imageio::{read_exr_channels, read_rgb, write_exr, RgbImage};
+use lucent::exr::read_channels;
+use lucent::imageio::{read_rgb, write_exr, RgbImage};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -94,7 +95,7 @@ fn scale_of_a_map_environment_is_recovered() {
         tmp.path().join("again").to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (w, h, _) = read_exr_channels(&out.join("board_render.exr"), &["R", "G", "B"]).unwrap();
+    let (w, h, _) = read_channels(&out.join("board_render.exr"), &["R", "G", "B"]).unwrap();
     assert_eq!((w, h), (48, 36));
 }
 

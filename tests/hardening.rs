@@ -55,7 +55,7 @@ fn refused(o: &Output, says: &[&str], what: &str) {
 
 fn write_exr(path: &Path, w: usize, h: usize, value: f32) {
     let plane = vec![value; w * h];
-    lucent::imageio::write_exr_channels(path, w, h, &[("R", &plane), ("G", &plane), ("B", &plane)]).unwrap();
+    lucent::exr::write_channels(path, w, h, &[("R", &plane), ("G", &plane), ("B", &plane)]).unwrap();
 }
 
 /// A user's working folder: their own optics/ and report/ folders and a file.

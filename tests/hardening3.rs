@@ -71,7 +71,7 @@ fn s(p: &Path) -> String {
 
 fn write_exr(path: &Path, w: usize, h: usize, value: f32) {
     let plane = vec![value; w * h];
-    lucent::imageio::write_exr_channels(path, w, h, &[("R", &plane), ("G", &plane), ("B", &plane)]).unwrap();
+    lucent::exr::write_channels(path, w, h, &[("R", &plane), ("G", &plane), ("B", &plane)]).unwrap();
 }
 
 /// Data loss: `run --force optics` and a rerun that refreshes the report
@@ -328,8 +328,8 @@ fn shards_merge_only_what_belongs_to_the_run() {
     ok(&o, "shard 1 (b), respelled");
     let o = merge(d, &[&b0, &b1], &d.join("bm"));
     ok(&o, "merge of respelled shards");
-    let (_, _, x) = lucent::imageio::read_exr_channels(&d.join("bm/render.exr"), &["R"]).unwrap();
-    let (_, _, y) = lucent::imageio::read_exr_channels(&d.join("good/render.exr"), &["R"]).unwrap();
+    let (_, _, x) = lucent::exr::read_channels(&d.join("bm/render.exr"), &["R"]).unwrap();
+    let (_, _, y) = lucent::exr::read_channels(&d.join("good/render.exr"), &["R"]).unwrap();
     assert_eq!(x, y, "the respelled shards' merge differs from the first merge");
 }
 
@@ -397,7 +397,7 @@ fn measured_slices_carry_their_metadata() {
 fn write_render_with_variance(path: &Path, w: usize, h: usize, value: f32, variance: f32) {
     let plane = vec![value; w * h];
     let var = vec![variance; w * h];
-    lucent::imageio::write_exr_channels(
+    lucent::exr::write_channels(
         path,
         w,
         h,
@@ -424,8 +424,7 @@ fn photo_variance_is_checked_against_the_photo() {
     let (w, h) = (64, 48);
     // A photo with a little noise, a render close to it.
     let photo: Vec<f32> = (0..w * h).map(|i| 0.5 + 0.01 * (((i * 7919) % 101) as f32 / 101.0 - 0.5)).collect();
-    lucent::imageio::write_exr_channels(&d.join("photo.exr"), w, h, &[("R", &photo), ("G", &photo), ("B", &photo)])
-        .unwrap();
+    lucent::exr::write_channels(&d.join("photo.exr"), w, h, &[("R", &photo), ("G", &photo), ("B", &photo)]).unwrap();
     write_render_with_variance(&d.join("render.exr"), w, h, 0.5, 1e-6);
     let compare = |var: &str, out: &str| {
         lucent_in(

@@ -23,7 +23,7 @@ fn root() -> PathBuf {
 
 fn write_exr(path: &Path, w: usize, h: usize, value: f32) {
     let plane = vec![value; w * h];
-    lucent::imageio::write_exr_channels(path, w, h, &[("R", &plane), ("G", &plane), ("B", &plane)]).unwrap();
+    lucent::exr::write_channels(path, w, h, &[("R", &plane), ("G", &plane), ("B", &plane)]).unwrap();
 }
 
 /// The small valid inputs the command lines name.

@@ -8,7 +8,8 @@
 
 use crate::common::{lucent, stderr, stdout};
 use lucent::compare::photo_noise::photo_variance;
-use lucent::imageio::{write_exr, write_exr_channels, RgbImage};
+use lucent::exr::write_channels;
+use lucent::imageio::{write_exr, RgbImage};
 use lucent::synth::{self, dng, InputSpace, Sensor};
 use lucent_calib::noise::NoiseSource;
 use lucent_colour::adaptation::Cat;
@@ -237,7 +238,7 @@ fn colour_apply_writes_the_variance_and_compare_states_the_model() {
     let plane = |v: &[f32], c: usize| v.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
     let rvar = vec![1e-6f32; w * h];
     let (r, g, b) = (plane(&render, 0), plane(&render, 1), plane(&render, 2));
-    write_exr_channels(
+    write_channels(
         &dir.path().join("render.exr"),
         w,
         h,
@@ -312,8 +313,7 @@ fn colour_apply_and_raw_clipped_bin_a_photo_to_a_smaller_render() {
         let got = f64::from(binned.pixel(x, y)[c]);
         assert!((got - mean).abs() < 1e-5 * mean.abs().max(1.0), "({x}, {y}) channel {c}: {got} vs {mean}");
     }
-    let (vw, vh, var) =
-        lucent::imageio::read_exr_channels(&dir.path().join("binned_variance.exr"), &["variance.G"]).unwrap();
+    let (vw, vh, var) = lucent::exr::read_channels(&dir.path().join("binned_variance.exr"), &["variance.G"]).unwrap();
     assert_eq!((vw, vh), (24, 18));
     assert!(var[0].iter().all(|v| v.is_finite() && *v > 0.0));
     let side: Value =

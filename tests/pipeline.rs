@@ -8,7 +8,8 @@
 //! it references exists, and its screenshot is kept in
 //! target/test-output/report.png. Bad project files are refused.
 
-use lucent::imageio::{read_exr_channels, write_exr, RgbImage};
+use lucent::exr::read_channels;
+use lucent::imageio::{write_exr, RgbImage};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -314,7 +315,7 @@ fn project_runs_skips_reruns_fails_and_reports() {
     assert!(scene.contains(&format!("scene_json = {:?}", pose_json.display().to_string())), "{scene}");
     assert!(scene.contains("distortion = \"calibrated\"") && scene.contains("placement = \"scene\""), "{scene}");
     assert!(!scene.contains("position_m") && !scene.contains("origin_m"), "{scene}");
-    let (w, h, _) = read_exr_channels(&out.join("render/IOL1068-09/render.exr"), &["R"]).unwrap();
+    let (w, h, _) = read_channels(&out.join("render/IOL1068-09/render.exr"), &["R"]).unwrap();
     assert_eq!((w, h), (48, 36));
 
     // 2. Nothing changed: every stage is skipped.
@@ -325,7 +326,7 @@ fn project_runs_skips_reruns_fails_and_reports() {
 
     // 3. A changed photo reruns compare and the report only; --force reruns a stage.
     let photo = d.join("photo/render.exr");
-    let (pw, ph, ch) = read_exr_channels(&photo, &["R", "G", "B"]).unwrap();
+    let (pw, ph, ch) = read_channels(&photo, &["R", "G", "B"]).unwrap();
     let data: Vec<f32> = (0..pw * ph).flat_map(|i| [ch[0][i] * 1.01, ch[1][i], ch[2][i]]).collect();
     write_exr(&photo, &RgbImage::new(pw, ph, data).unwrap()).unwrap();
     let o = run(&["--force", "colour"]);

@@ -3,7 +3,8 @@
 //! refused with a message naming the file and the problem, and the CLI's
 //! outputs (EXR channels, PNG, JSON) end to end.
 
-use lucent::imageio::{read_exr_channels, read_rgb, write_exr_channels};
+use lucent::exr::{read_channels, write_channels};
+use lucent::imageio::read_rgb;
 use lucent::scene;
 use lucent_render::tracer::{render, Settings};
 use std::path::PathBuf;
@@ -36,10 +37,10 @@ fn envmap_scene_agrees_with_mitsuba() {
 /// within `sum_tolerance` (relative). `block` > 1 tests block × block sums.
 fn agrees_with_mitsuba(name: &str, spp: u32, sum_tolerance: f64, block: usize) {
     let dir = root().join("fixtures/reference/render");
-    let (w, h, mean) = read_exr_channels(&dir.join(format!("{name}_mean.exr")), &["R", "G", "B"])
+    let (w, h, mean) = read_channels(&dir.join(format!("{name}_mean.exr")), &["R", "G", "B"])
         .expect("Mitsuba reference mean (tools/reference/mitsuba_render.py)");
     let (_, _, var) =
-        read_exr_channels(&dir.join(format!("{name}_var.exr")), &["R", "G", "B"]).expect("Mitsuba reference variance");
+        read_channels(&dir.join(format!("{name}_var.exr")), &["R", "G", "B"]).expect("Mitsuba reference variance");
     let loaded = scene::load(&root().join(format!("fixtures/render/{name}.toml"))).unwrap();
     assert_eq!((loaded.scene.camera.width, loaded.scene.camera.height), (w, h));
     let settings = Settings { spp, seed: 2024, ..loaded.settings.clone() };
@@ -87,11 +88,10 @@ fn agrees_with_mitsuba(name: &str, spp: u32, sum_tolerance: f64, block: usize) {
         std::fs::create_dir_all(&out).unwrap();
         let plane = |c: usize| img.mean.iter().map(|v| v[c] as f32).collect::<Vec<f32>>();
         let (r, g, b) = (plane(0), plane(1), plane(2));
-        write_exr_channels(&out.join("actual.exr"), w, h, &[("R", &r), ("G", &g), ("B", &b)]).unwrap();
-        write_exr_channels(&out.join("reference.exr"), w, h, &[("R", &mean[0]), ("G", &mean[1]), ("B", &mean[2])])
-            .unwrap();
+        write_channels(&out.join("actual.exr"), w, h, &[("R", &r), ("G", &g), ("B", &b)]).unwrap();
+        write_channels(&out.join("reference.exr"), w, h, &[("R", &mean[0]), ("G", &mean[1]), ("B", &mean[2])]).unwrap();
         let n = w * h;
-        write_exr_channels(
+        write_channels(
             &out.join("z.exr"),
             w,
             h,
@@ -275,7 +275,7 @@ fn cli_writes_exr_png_json() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (w, h, ch) = read_exr_channels(
+    let (w, h, ch) = read_channels(
         &out.join("render.exr"),
         &["R", "G", "B", "variance.R", "variance.G", "variance.B", "spp", "object"],
     )
@@ -339,8 +339,8 @@ fn cli_writes_exr_png_json() {
     ]);
     assert!(o.status.success());
     assert_eq!(
-        read_exr_channels(&out2.join("render.exr"), &["R", "G", "B"]).unwrap(),
-        read_exr_channels(&out.join("render.exr"), &["R", "G", "B"]).unwrap()
+        read_channels(&out2.join("render.exr"), &["R", "G", "B"]).unwrap(),
+        read_channels(&out.join("render.exr"), &["R", "G", "B"]).unwrap()
     );
     // A bad scene: non-zero exit, message names the file, nothing written.
     let bad = root().join("tests/bad/render/negative_sigma.toml");
@@ -520,7 +520,7 @@ fn negative_map_values_warn_only_when_they_take_away_visible_light() {
         let mut r = vec![1.0f32; 16 * 8];
         r[5] = negative;
         let one = vec![1.0f32; 16 * 8];
-        write_exr_channels(&dir.path().join("env.exr"), 16, 8, &[("R", &r), ("G", &one), ("B", &one)]).unwrap();
+        write_channels(&dir.path().join("env.exr"), 16, 8, &[("R", &r), ("G", &one), ("B", &one)]).unwrap();
         let path = dir.path().join("scene.toml");
         std::fs::write(
             &path,
@@ -563,7 +563,7 @@ fn ctrl_c_writes_a_labelled_partial_render() {
     assert_eq!(json["interrupted"], true);
     let spp = json["spp"].as_u64().unwrap();
     assert!(spp > 0 && spp < 1_000_000, "spp {spp}");
-    let (_, _, ch) = read_exr_channels(&out.join("render.exr"), &["R", "spp"]).unwrap();
+    let (_, _, ch) = read_channels(&out.join("render.exr"), &["R", "spp"]).unwrap();
     assert!(ch[1].iter().all(|&s| s <= spp as f32) && ch[1].contains(&(spp as f32)));
     assert!(ch[0].iter().all(|v| v.is_finite()));
 }

@@ -47,7 +47,7 @@ fn shards_and_merge(dir: &Path, n: u32, out: &Path, args_of: &dyn Fn(&Path, &[&s
 }
 
 fn channels(path: &Path, names: &[&str]) -> Vec<Vec<f32>> {
-    lucent::imageio::read_exr_channels(path, names).expect("read exr").2
+    lucent::exr::read_channels(path, names).expect("read exr").2
 }
 
 fn json(path: &Path) -> serde_json::Value {

@@ -241,7 +241,7 @@ fn json(path: &Path) -> serde_json::Value {
 }
 
 fn exr(path: &Path, names: &[&str]) -> Vec<Vec<f32>> {
-    lucent::imageio::read_exr_channels(path, names).expect("exr").2
+    lucent::exr::read_channels(path, names).expect("exr").2
 }
 
 fn close(a: &[Vec<f32>], b: &[Vec<f32>], rel: f32, what: &str) {

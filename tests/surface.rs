@@ -406,7 +406,7 @@ fn text_tiff_and_exr_readers_agree() {
     }
     let exr = dir.path().join("e.exr");
     let data: Vec<f32> = um.iter().map(|v| *v as f32).collect();
-    lucent::imageio::write_exr_channels(&exr, map.nx, map.ny, &[("Z", &data)]).unwrap();
+    lucent::exr::write_channels(&exr, map.nx, map.ny, &[("Z", &data)]).unwrap();
     let cli = ReadOptions { pitch_x_m: Some(0.871e-6), pitch_y_m: Some(1.25e-6), height_unit: Some(LengthUnit::Um) };
     for (p, opts, tol) in [
         (&csv, ReadOptions::default(), 1e-15),
@@ -569,7 +569,7 @@ fn cli_fits_the_shipped_height_map() {
     // 256 × 256 points are few for a heavy-tailed surface: ±10 % realisation noise.
     let a = r["fits"]["trowbridge-reitz"]["alpha"].as_f64().unwrap();
     assert!((a / 0.0084 - 1.0).abs() < 0.15, "α {a}");
-    let (w, h, planes) = lucent::imageio::read_exr_channels(&out.join("normals.exr"), &["R", "G", "B", "A"]).unwrap();
+    let (w, h, planes) = lucent::exr::read_channels(&out.join("normals.exr"), &["R", "G", "B", "A"]).unwrap();
     assert_eq!((w, h), (256, 256));
     let k = 128 * 256 + 128;
     let n = (planes[0][k].powi(2) + planes[1][k].powi(2) + planes[2][k].powi(2)).sqrt();

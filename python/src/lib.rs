@@ -1384,7 +1384,7 @@ fn py_calibrate<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let model: lucent_calib::camera::DistortionModel = named("model", model)?;
     let detector: lucent_calib::cv::Detector = named("detector", detector)?;
-    let board = camera_cli::board_spec(board, square_mm).map_err(error_chain)?;
+    let board = lucent::cli::common::board_spec(board, square_mm).map_err(error_chain)?;
     let photos = calibration_photos(py, images)?;
     let cal = run_interruptible(py, None, |_, _| calib_camera::calibrate_photos(&photos, &board, model, detector))?
         .map_err(error)?;

@@ -694,7 +694,7 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
                         let all = if i == 0 && configs.len() > 1 {
                             format!(
                                 "; ≈ {} for all {} configurations",
-                                super::render::duration(line.0 * configs.len() as f64),
+                                super::common::duration(line.0 * configs.len() as f64),
                                 configs.len()
                             )
                         } else {
@@ -932,20 +932,20 @@ fn expectation(stop: &Stop, p: &slab::Progress) -> Option<(f64, String)> {
         rules.extend(target("per pixel (median)", p.pixels.median, e));
     }
     let first = rules.iter().min_by(|a, b| a.0.total_cmp(&b.0)).cloned();
-    let line = |t: f64, what: &str| format!("expect ≈ {} {what}", super::render::duration(t));
+    let line = |t: f64, what: &str| format!("expect ≈ {} {what}", super::common::duration(t));
     match (first, stop.time_s) {
         (Some((t, what)), Some(budget)) if t > budget => Some((
             budget,
             format!(
                 "expect ≈ {} (the time budget; {} would take ≈ {})",
-                super::render::duration(budget),
+                super::common::duration(budget),
                 what,
-                super::render::duration(t)
+                super::common::duration(t)
             ),
         )),
         (Some((t, what)), _) => Some((t, line(t, &what))),
         (None, Some(budget)) => {
-            Some((budget, format!("expect ≈ {} (the time budget)", super::render::duration(budget))))
+            Some((budget, format!("expect ≈ {} (the time budget)", super::common::duration(budget))))
         }
         (None, None) => None,
     }

@@ -304,11 +304,6 @@ fn load_gray(path: &Path) -> Result<GrayImage> {
     Ok(cv::read_gray(path)?)
 }
 
-/// The chessboard of `--board COLSxROWS` (inner corners) and `--square-mm`.
-pub fn board_spec(board: &str, square_mm: f64) -> Result<BoardSpec> {
-    BoardSpec::parse(board, square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))
-}
-
 /// The photos of `--images` (folders, files or patterns; see
 /// [`expand_images`]), sorted by path without repeats, as 8-bit grey;
 /// one error listing every file that cannot be read.
@@ -438,7 +433,7 @@ fn calibration_step_line(step: camera::CalibrationStep<'_>, elapsed_s: f64, thre
                 let rounds = of.div_ceil(threads) as f64;
                 format!(
                     "; expect ≈ {} for all {of} photos ({threads} at a time)",
-                    super::render::duration(elapsed_s * rounds)
+                    super::common::duration(elapsed_s * rounds)
                 )
             } else {
                 String::new()

@@ -351,7 +351,7 @@ fn apply(a: ApplyArgs) -> Result<()> {
             crate::compare::photo_noise::photo_variance(&a.input, &colour, a.variance_realisations, a.seed, a.bin)?;
         let plane = |c: usize| var.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
         let (r, g, b) = (plane(0), plane(1), plane(2));
-        imageio::write_exr_channels(
+        crate::exr::write_channels(
             v,
             binned.0,
             binned.1,

@@ -77,7 +77,7 @@ pub struct BoardArgs {
 impl BoardArgs {
     /// The board, or an error naming both flags.
     pub fn spec(&self) -> Result<BoardSpec> {
-        super::camera::board_spec(&self.board, self.square_mm)
+        super::common::board_spec(&self.board, self.square_mm)
     }
 }
 
@@ -103,7 +103,7 @@ pub struct TwinRenderArgs {
 impl TwinRenderArgs {
     /// The checks that need no scene: thread count and sample count.
     pub fn check(&self) -> Result<()> {
-        super::render::check_threads(self.threads)?;
+        super::common::check_threads(self.threads)?;
         if self.spp == Some(0) {
             bail!("--spp 0: at least one sample per pixel");
         }
@@ -114,7 +114,7 @@ impl TwinRenderArgs {
     /// (about the image edge, pixel centres at integers).
     pub fn resize(&self, loaded: &mut LoadedScene) -> Result<()> {
         let Some(size) = &self.size else { return Ok(()) };
-        let (w, h) = super::render::parse_size(size)?;
+        let (w, h) = super::common::parse_size(size)?;
         let cam = &mut loaded.scene.camera;
         let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
         let [fx, fy, cx, cy] = cam.intrinsics;

@@ -10,6 +10,7 @@ pub mod bssrdf;
 pub mod camera;
 pub mod choices;
 pub mod colour;
+pub mod common;
 pub mod compare;
 pub mod env_fit;
 pub mod fit;
@@ -295,11 +296,11 @@ pub enum BenchCommand {
 /// so: `LUCENT_THREADS` (set by the Kubernetes Job `lucent run --emit k8s`
 /// writes, from the pod's CPU request), else Slurm's `SLURM_CPUS_PER_TASK`
 /// (set when the job asks for `--cpus-per-task`). A value that is not a
-/// whole number in 1 … [`render::MAX_THREADS`] is ignored.
+/// whole number in 1 … [`common::MAX_THREADS`] is ignored.
 pub fn allocated_threads(var: impl Fn(&str) -> Option<String>) -> Option<(usize, &'static str)> {
     ["LUCENT_THREADS", "SLURM_CPUS_PER_TASK"].into_iter().find_map(|k| {
         let n: usize = var(k)?.trim().parse().ok()?;
-        (1..=render::MAX_THREADS).contains(&n).then_some((n, k))
+        (1..=common::MAX_THREADS).contains(&n).then_some((n, k))
     })
 }
 
@@ -489,8 +490,22 @@ fn dispatch(cli: Cli) -> Result<()> {
         Command::Run(a) => run::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Synth(c) => synth::run(c),
-        Command::Merge(a) => shard::merge(a),
+        Command::Merge(a) => merge(a),
         Command::Job(c) => jobs::run_command(c),
+    }
+}
+
+/// Runs `lucent merge`: the command that made the shards ([`shard::merge_command`]) run again with their sums.
+fn merge(a: shard::MergeArgs) -> Result<()> {
+    let (argv, shards) = shard::merge_command(a)?;
+    let (dir, made_by) = (shards[0].dir.clone(), shards[0].file.identity.command.clone());
+    let cli = Cli::try_parse_args(&argv)
+        .with_context(|| format!("{}: cannot parse its command line", dir.join(crate::shard::SHARD_JSON).display()))?;
+    match cli.command {
+        Command::Render(r) => render::run_from(r, Some(&shards)),
+        Command::Bssrdf(b) if b.command.is_none() => bssrdf::simulate_from(b.run, Some(&shards)),
+        Command::Optics(o) if o.uncertainty.is_some() => optics_from(o, Some(&shards)),
+        _ => bail!("{}: `lucent {made_by}` is not a command with shards", dir.display()),
     }
 }
 
@@ -950,7 +965,7 @@ fn bench(b: BenchCommand) -> Result<()> {
             )?
         }
         BenchCommand::Render { scene, time_s: Some(t), .. } => {
-            render::check_time_s(t)?;
+            common::check_time_s(t)?;
             render::bench_estimators(&repository_file(&scene), t)?
         }
         BenchCommand::Render { scene, reference, spp, time_s: None } => {

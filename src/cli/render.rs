@@ -13,6 +13,7 @@
 //! * `render.png` — sRGB preview (`--exposure` in stops);
 //! * `render.json` — the scene as resolved, settings, seed, timings, counters.
 
+use super::common::{check_time_s, duration};
 use super::interrupt::Interrupt;
 use crate::fault::Interrupted;
 use crate::imageio::{self, RgbImage};
@@ -205,9 +206,6 @@ fn write_shard(
     Ok(())
 }
 
-/// The most worker threads `--threads` starts.
-pub const MAX_THREADS: usize = 1024;
-
 /// `--dispersion`.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum DispersionArg {
@@ -247,28 +245,6 @@ pub fn check_rel_error(flag: &str, e: f64) -> Result<f64> {
         bail!("{flag} {e}: must lie strictly between 0 and 1 (a fraction, e.g. 0.05 for 5 %)");
     }
     Ok(e)
-}
-
-pub fn parse_size(text: &str) -> Result<(usize, usize)> {
-    crate::job::parse_image_size(text).map_err(|reason| anyhow::anyhow!("--size {text:?}: {reason}"))
-}
-
-/// Checks a wall-time budget in seconds.
-pub fn check_time_s(t: f64) -> Result<f64> {
-    if !(t > 0.0 && t.is_finite()) {
-        bail!("--time-s {t}: must be a positive number of seconds");
-    }
-    Ok(t)
-}
-
-/// Checks `--threads` against [`MAX_THREADS`] (rayon would try to start them all).
-pub fn check_threads(threads: Option<usize>) -> Result<()> {
-    if let Some(t) = threads
-        && t > MAX_THREADS
-    {
-        bail!("--threads {t}: at most {MAX_THREADS} (default: one per core)");
-    }
-    Ok(())
 }
 
 /// The scene of `a` loaded and checked, with the arguments' overrides
@@ -490,19 +466,6 @@ pub(super) fn show_progress(
         100.0 * p.errors.board.median,
         p.stats.events as f64 / p.elapsed_s / 1e6
     ));
-}
-
-/// "95 s", "12 min", "3.4 h" (the "expect ≈ …" lines).
-pub(super) fn duration(s: f64) -> String {
-    if !s.is_finite() {
-        "an unknown time".into()
-    } else if s < 120.0 {
-        format!("{s:.0} s")
-    } else if s < 7200.0 {
-        format!("{:.0} min", s / 60.0)
-    } else {
-        format!("{:.1} h", s / 3600.0)
-    }
 }
 
 /// Runs `lucent render`.
@@ -817,7 +780,7 @@ pub fn write_band(out: &Path, image: &Image, band: &scene::band::RenderBand) -> 
     let (sd, se) = (&band.pixel_sd, &band.pixel_sd_std_error);
     let (r, g, b) = (channel(sd, 0), channel(sd, 1), channel(sd, 2));
     let (er, eg, eb) = (channel(se, 0), channel(se, 1), channel(se, 2));
-    crate::imageio::write_exr_channels(
+    crate::exr::write_channels(
         &out.join("band.exr"),
         image.width,
         image.height,
@@ -1068,7 +1031,7 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
     let board = plane(&|i| f64::from(image.board_samples[i]) / f64::from(image.samples[i].max(1)));
     let half = |k: usize, c: usize| plane(&|i| image.halves[k][i][c]);
     let (ar, ag, ab, br, bg, bb) = (half(0, 0), half(0, 1), half(0, 2), half(1, 0), half(1, 1), half(1, 2));
-    imageio::write_exr_channels(
+    crate::exr::write_channels(
         &out.join("render.exr"),
         w,
         h,
@@ -1200,8 +1163,8 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
             scene_path.display()
         );
     }
-    let (w, h, mean) = imageio::read_exr_channels(&mean_file, &["R", "G", "B"])?;
-    let (_, _, var) = imageio::read_exr_channels(&reference_dir.join(format!("{name}_var.exr")), &["R", "G", "B"])?;
+    let (w, h, mean) = crate::exr::read_channels(&mean_file, &["R", "G", "B"])?;
+    let (_, _, var) = crate::exr::read_channels(&reference_dir.join(format!("{name}_var.exr")), &["R", "G", "B"])?;
     if (w, h) != (loaded.scene.camera.width, loaded.scene.camera.height) {
         bail!(
             "{}: reference is {w}×{h}, the scene renders {}×{}",

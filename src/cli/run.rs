@@ -253,7 +253,7 @@ fn slurm_settings_missing(project: &Project) -> Option<String> {
 /// previous manifest.json when there is one.
 fn start_line(k: usize, n: usize, stage: Stage, last_wall_s: Option<f64>) -> String {
     let last = match last_wall_s {
-        Some(s) if s.is_finite() && s >= 0.0 => format!(" (≈ {}, as last time)", super::render::duration(s)),
+        Some(s) if s.is_finite() && s >= 0.0 => format!(" (≈ {}, as last time)", super::common::duration(s)),
         _ => String::new(),
     };
     format!("[{k}/{n}] {} …{last}", stage.name())

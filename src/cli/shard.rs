@@ -254,8 +254,12 @@ pub fn check_shard_out(out: &Path, identity: &Identity, k: u32) -> Result<()> {
     }
 }
 
-/// Runs `lucent merge`.
-pub fn merge(a: MergeArgs) -> Result<()> {
+/// The checks of `lucent merge`: the shards, loaded, are of one run of
+/// this version, `--out` is none of them, and their input files are
+/// unchanged. Returns the command line that made them (with `--out`, and
+/// `--quiet` but for `optics`), to be parsed and run with the shards in
+/// the folder they ran in (this process's current folder on return).
+pub fn merge_command(a: MergeArgs) -> Result<(Vec<String>, Vec<shard::Shard>)> {
     let dirs: Vec<PathBuf> = a
         .shards
         .iter()
@@ -297,15 +301,7 @@ pub fn merge(a: MergeArgs) -> Result<()> {
     if id.command != "optics" {
         argv.push("--quiet".to_string());
     }
-    let cli = super::Cli::try_parse_args(&argv).with_context(|| {
-        format!("{}: cannot parse its command line", shards[0].dir.join(shard::SHARD_JSON).display())
-    })?;
-    match cli.command {
-        super::Command::Render(r) => super::render::run_from(r, Some(&shards)),
-        super::Command::Bssrdf(b) if b.command.is_none() => super::bssrdf::simulate_from(b.run, Some(&shards)),
-        super::Command::Optics(o) if o.uncertainty.is_some() => super::optics_from(o, Some(&shards)),
-        _ => bail!("{}: `lucent {}` is not a command with shards", shards[0].dir.display(), id.command),
-    }
+    Ok((argv, shards))
 }
 
 /// The large run `lucent bench shard` projects.
@@ -391,7 +387,7 @@ pub fn bench(
         Some(e) => bail!("--lucent {}: no such binary", e.display()),
         None => std::env::current_exe().context("cannot find the lucent binary")?,
     };
-    let (w, h) = super::render::parse_size(size)?;
+    let (w, h) = super::common::parse_size(size)?;
     if shards < 2 || shards > spp {
         bail!("--shards {shards}: must lie in 2 … --spp ({spp})");
     }

@@ -69,7 +69,7 @@ pub fn run(cmd: SynthCommand) -> Result<()> {
 }
 
 fn chart(a: ChartArgs) -> Result<()> {
-    let (w, h) = super::render::parse_size(&a.size).with_context(|| format!("--size {:?}", a.size))?;
+    let (w, h) = super::common::parse_size(&a.size).with_context(|| format!("--size {:?}", a.size))?;
     if w < 60 || h < 40 {
         bail!("--size {}: the chart needs at least 60x40 pixels", a.size);
     }

@@ -62,40 +62,28 @@ pub fn read_image(path: &Path, role: &'static str) -> Result<Loaded, CompareErro
 }
 
 fn read_exr(path: &Path) -> Result<Loaded, ReadProblem> {
-    use exr::prelude::*;
-    crate::imageio::check_exr_size(path)?;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .pedantic()
-        .from_file(path)?;
-    let layer = &image.layer_data;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    let list = &layer.channel_data.list;
-    let names: Vec<String> = list.iter().map(|c| c.name.to_string()).collect();
+    let layer = crate::exr::read_layer(path).map_err(|e| ReadProblem::Exr(Box::new(e.problem)))?;
+    let (w, h) = (layer.width, layer.height);
     let find = |want: &str| {
-        list.iter().find(|c| {
-            let n = c.name.to_string();
+        layer.channels.iter().position(|c| {
+            let n = &c.name;
             n == want || n.rsplit_once('.').is_some_and(|(_, last)| last == want)
         })
     };
-    let planes: Vec<(&str, &AnyChannel<FlatSamples>)> = match (find("R"), find("G"), find("B"), find("Y")) {
+    let planes: Vec<(&str, usize)> = match (find("R"), find("G"), find("B"), find("Y")) {
         (Some(r), Some(g), Some(b), _) => vec![("R", r), ("G", g), ("B", b)],
         (None, None, None, Some(y)) => vec![("Y", y)],
-        _ => return Err(ReadProblem::NoColourChannels(names)),
+        _ => return Err(ReadProblem::NoColourChannels(layer.names())),
     };
     let mut data = vec![0f32; w * h * 3];
-    for (k, (name, ch)) in planes.iter().enumerate() {
-        let values: Vec<f32> = ch.sample_data.values_as_f32().collect();
+    for (k, (name, index)) in planes.iter().enumerate() {
+        let values = &layer.channels[*index].values;
         if values.len() != w * h {
             return Err(ReadProblem::Subsampled { name, got: values.len(), width: w, height: h });
         }
         let targets: &[usize] = if planes.len() == 1 { &[0, 1, 2] } else { std::slice::from_ref(&k) };
         for &t in targets {
-            for (px, v) in data.chunks_exact_mut(3).zip(&values) {
+            for (px, v) in data.chunks_exact_mut(3).zip(values) {
                 px[t] = *v;
             }
         }

@@ -50,7 +50,8 @@ pub mod photo_noise;
 pub mod ssim;
 pub mod triplet;
 
-use crate::imageio::{write_exr_channels, ImageIoError, RgbImage};
+use crate::exr::write_channels;
+use crate::imageio::{ImageIoError, RgbImage};
 use crate::io::{write_atomic, write_json, WriteError};
 use crate::plot::PlotError;
 use lucent_calib::ecc::{self, EccOptions, Motion};
@@ -122,6 +123,9 @@ pub enum CompareError {
     Plot(#[from] PlotError),
     #[error(transparent)]
     Image(#[from] ImageIoError),
+    /// An EXR that cannot be written (the message names the file).
+    #[error(transparent)]
+    ExrWrite(#[from] crate::exr::ExrWriteError),
     #[error(transparent)]
     Write(#[from] WriteError),
     #[error("{}: {source}", path.display())]
@@ -145,9 +149,7 @@ pub enum ReadProblem {
     #[error("{0}")]
     Io(#[from] std::io::Error),
     #[error("{0}")]
-    Exr(#[from] exr::error::Error),
-    #[error("{0}")]
-    ExrSize(#[from] crate::imageio::ExrSizeError),
+    Exr(Box<crate::exr::ExrProblem>),
     #[error("{0}")]
     Decode(#[from] image::ImageError),
     /// Readable, but not what the comparison needs (a missing layer, a value out of range).
@@ -626,17 +628,17 @@ pub struct Outcome {
 /// The include mask of a render EXR's `layer` ("object" or "board"): the
 /// pixels whose fraction is at least ½.
 fn mask_from_render_layer(path: &Path, layer: &'static str, w: usize, h: usize) -> Result<Mask, CompareError> {
-    let read = |reason: String| CompareError::Read {
-        role: if layer == "object" { "--mask-object" } else { "--mask-board" },
-        path: path.to_path_buf(),
-        reason: ReadProblem::Invalid(reason),
-    };
-    let (mw, mh, ch) = crate::imageio::read_exr_channels(path, &[layer]).map_err(|e| read(e.to_string()))?;
+    let role = if layer == "object" { "--mask-object" } else { "--mask-board" };
+    let read = |reason: ReadProblem| CompareError::Read { role, path: path.to_path_buf(), reason };
+    let (mw, mh, ch) =
+        crate::exr::read_channels(path, &[layer]).map_err(|e| read(ReadProblem::Exr(Box::new(e.problem))))?;
     if (mw, mh) != (w, h) {
-        return Err(read(format!("its {layer} layer is {mw} × {mh} pixels, the photo {w} × {h}")));
+        return Err(read(ReadProblem::Invalid(format!(
+            "its {layer} layer is {mw} × {mh} pixels, the photo {w} × {h}"
+        ))));
     }
     if let Some(v) = ch[0].iter().find(|v| !(v.is_finite() && (0.0..=1.0).contains(*v))) {
-        return Err(read(format!("its {layer} layer holds {v}, not a fraction in [0, 1]")));
+        return Err(read(ReadProblem::Invalid(format!("its {layer} layer holds {v}, not a fraction in [0, 1]"))));
     }
     Ok(Mask { width: w, height: h, include: ch[0].iter().map(|&f| f >= 0.5).collect() })
 }
@@ -692,7 +694,7 @@ fn render_variance(path: &Path) -> Option<Vec<f32>> {
     if crate::imageio::extension(path) != "exr" {
         return None;
     }
-    let (_, _, ch) = crate::imageio::read_exr_channels(path, &VARIANCE_CHANNELS).ok()?;
+    let (_, _, ch) = crate::exr::read_channels(path, &VARIANCE_CHANNELS).ok()?;
     Some(interleave(&ch))
 }
 
@@ -715,7 +717,7 @@ fn ssim_zero_noise_report(
         return Ok(None);
     }
     let (w, h) = (photo.width, photo.height);
-    let read = |names: &[&str]| crate::imageio::read_exr_channels(path, names).ok().filter(|g| (g.0, g.1) == (w, h));
+    let read = |names: &[&str]| crate::exr::read_channels(path, names).ok().filter(|g| (g.0, g.1) == (w, h));
     let (Some(a), Some(b)) = (read(&HALF_CHANNELS[0]), read(&HALF_CHANNELS[1])) else {
         notes.push(format!(
             "{} has no half renders (half_a/half_b of lucent render's EXR): no SSIM at zero render noise",
@@ -934,9 +936,13 @@ fn photo_variance(req: &Request, photo: &RgbImage) -> Result<Option<Vec<f32>>, C
                 path: p.clone(),
                 reason: ReadProblem::Invalid(reason),
             };
-            let got = crate::imageio::read_exr_channels(p, &VARIANCE_CHANNELS)
-                .or_else(|_| crate::imageio::read_exr_channels(p, &["R", "G", "B"]))
-                .map_err(|e| read(e.to_string()))?;
+            let got = crate::exr::read_channels(p, &VARIANCE_CHANNELS)
+                .or_else(|_| crate::exr::read_channels(p, &["R", "G", "B"]))
+                .map_err(|e| CompareError::Read {
+                    role: "photo variance",
+                    path: p.clone(),
+                    reason: ReadProblem::Exr(Box::new(e.problem)),
+                })?;
             if (got.0, got.1) != (photo.width, photo.height) {
                 return Err(read(format!(
                     "{} × {} pixels, the photo {} × {}",
@@ -1569,7 +1575,7 @@ pub fn write_outputs(out: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>, Comp
         write_atomic(&tmp.join(FILES[1]), &outcome.triplet_png)?;
         let channels: Vec<(&str, &[f32])> =
             outcome.difference.iter().map(|(n, v)| (n.as_str(), v.as_slice())).collect();
-        write_exr_channels(&tmp.join(FILES[2]), outcome.width, outcome.height, &channels)?;
+        write_channels(&tmp.join(FILES[2]), outcome.width, outcome.height, &channels)?;
         if let Some(png) = &outcome.band_png {
             write_atomic(&tmp.join(BAND_PNG), png)?;
         }

@@ -865,8 +865,7 @@ fn photo_variance(out: &Path, smp: &project::SampleSection) -> Option<PathBuf> {
 
 /// Whether the EXR at `path` has a channel `name` (its header only).
 fn has_exr_channel(path: &Path, name: &str) -> bool {
-    exr::meta::MetaData::read_from_file(path, false)
-        .is_ok_and(|m| m.headers.iter().any(|h| h.channels.list.iter().any(|c| c.name.to_string() == name)))
+    crate::exr::channel_names(path).is_ok_and(|names| names.iter().any(|c| c == name))
 }
 
 /// What `stage` will do for `project` with outputs under `out`; an inner

@@ -213,15 +213,10 @@ fn read_tiff(path: &Path) -> Result<(usize, usize, Vec<f64>), SurfaceError> {
 }
 
 fn read_exr(path: &Path) -> Result<(usize, usize, Vec<f64>), SurfaceError> {
-    use exr::prelude::*;
     let err = |reason: String| SurfaceError::Format { path: path.into(), reason: format!("cannot read EXR: {reason}") };
-    crate::imageio::check_exr_size(path).map_err(|e| err(e.to_string()))?;
-    let image = read_all_flat_layers_from_file(path).map_err(|e| err(e.to_string()))?;
-    let layer = image.layer_data.first().ok_or_else(|| err("no layer".into()))?;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    let channels = &layer.channel_data.list;
-    let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
-    let index = if channels.len() == 1 {
+    let layer = crate::exr::read_layer(path)?;
+    let names = layer.names();
+    let index = if names.len() == 1 {
         0
     } else {
         ["Z", "Y", "H", "height", "Height"].iter().find_map(|want| names.iter().position(|n| n == want)).ok_or_else(
@@ -234,11 +229,8 @@ fn read_exr(path: &Path) -> Result<(usize, usize, Vec<f64>), SurfaceError> {
             },
         )?
     };
-    let values: Vec<f64> = channels[index].sample_data.values_as_f32().map(f64::from).collect();
-    if values.len() != w * h {
-        return Err(err(format!("channel {} has {} samples for {w} × {h} pixels", names[index], values.len())));
-    }
-    Ok((w, h, values))
+    let values: Vec<f64> = layer.plane_at(index)?.iter().copied().map(f64::from).collect();
+    Ok((layer.width, layer.height, values))
 }
 
 /// Parses "871.000 µm" or "0.871" (with a default unit) into metres.

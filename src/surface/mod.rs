@@ -94,6 +94,11 @@ pub enum SurfaceError {
     Write(#[from] WriteError),
     #[error(transparent)]
     Image(#[from] ImageIoError),
+    /// An EXR height map that cannot be read (the message names the file).
+    #[error(transparent)]
+    ExrRead(#[from] crate::exr::ExrReadError),
+    #[error(transparent)]
+    ExrWrite(#[from] crate::exr::ExrWriteError),
     #[error("{path}: {source}")]
     Plot { path: PathBuf, source: PlotError },
 }
@@ -475,7 +480,7 @@ pub fn write_fit_outputs(out: &Path, fit: &SurfaceFit) -> Result<Vec<PathBuf>, S
         write_json(&tmp.join(OUTPUT_FILES[0]), &fit.report)?;
         write_atomic(&tmp.join(OUTPUT_FILES[1]), &heightmap)?;
         write_atomic(&tmp.join(OUTPUT_FILES[2]), &distribution)?;
-        crate::imageio::write_exr_channels(
+        crate::exr::write_channels(
             &tmp.join(OUTPUT_FILES[3]),
             nx,
             ny,

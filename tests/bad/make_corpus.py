@@ -57,6 +57,13 @@ exr = open("fixtures/reference/compare/base.exr", "rb").read()
 w("slice/truncated.exr", exr[: len(exr) // 3], "wb")
 w("slice/empty.exr", b"", "wb")
 
+# --- EXR files (every reader of lucent::exr: an image, a compare input, a
+# render's object layer, a slice, a height map); huge_size_claimed.exr is copied from slice/
+w("exr/truncated.exr", exr[: len(exr) // 3], "wb")
+w("exr/empty.exr", b"", "wb")
+w("exr/cut_in_header.exr", exr[:300], "wb")
+w("exr/text.exr", "this is not an OpenEXR file\n")
+
 # --- beam maps (lucent bssrdf --beam-map)
 w("beam/negative.csv", "0,1\n-1,0\n")
 w("beam/all_zero.csv", "0,0\n0,0\n")

@@ -1,0 +1,52 @@
+//! Helpers the commands share: flag checks (`--size`, `--time-s`,
+//! `--threads`, `--board`/`--square-mm`) and the wording of a time. This
+//! module imports no command module, so the commands that use it
+//! (render, bssrdf, camera, groups, shard, synth, …) do not import each
+//! other for them.
+
+use anyhow::{anyhow, bail, Result};
+use lucent_calib::scene::BoardSpec;
+
+/// The most worker threads `--threads` starts.
+pub const MAX_THREADS: usize = 1024;
+
+/// `--size WxH` in pixels, checked as `[render] size` is.
+pub fn parse_size(text: &str) -> Result<(usize, usize)> {
+    crate::job::parse_image_size(text).map_err(|reason| anyhow::anyhow!("--size {text:?}: {reason}"))
+}
+
+/// Checks a wall-time budget in seconds.
+pub fn check_time_s(t: f64) -> Result<f64> {
+    if !(t > 0.0 && t.is_finite()) {
+        bail!("--time-s {t}: must be a positive number of seconds");
+    }
+    Ok(t)
+}
+
+/// Checks `--threads` against [`MAX_THREADS`] (rayon would try to start them all).
+pub fn check_threads(threads: Option<usize>) -> Result<()> {
+    if let Some(t) = threads
+        && t > MAX_THREADS
+    {
+        bail!("--threads {t}: at most {MAX_THREADS} (default: one per core)");
+    }
+    Ok(())
+}
+
+/// "95 s", "12 min", "3.4 h" (the "expect ≈ …" lines).
+pub fn duration(s: f64) -> String {
+    if !s.is_finite() {
+        "an unknown time".into()
+    } else if s < 120.0 {
+        format!("{s:.0} s")
+    } else if s < 7200.0 {
+        format!("{:.0} min", s / 60.0)
+    } else {
+        format!("{:.1} h", s / 3600.0)
+    }
+}
+
+/// The chessboard of `--board COLSxROWS` (inner corners) and `--square-mm`.
+pub fn board_spec(board: &str, square_mm: f64) -> Result<BoardSpec> {
+    BoardSpec::parse(board, square_mm).map_err(|e| anyhow!("--board/--square-mm: {e}"))
+}
