@@ -880,3 +880,33 @@ fn the_similar_medium_is_named_with_its_measured_bias_in_render_json() {
     assert!(approx.iter().any(|a| a.contains("dispersion = false")), "{approx:?}");
     assert!(err.contains("note: approximation: similar medium"), "{err}");
 }
+
+/// The README's worked example without `spp`: its first pass (4 spp) leaves
+/// some sphere pixel without light in a channel, so its median error is
+/// infinite and tells nothing; the estimate comes from the next pass, never
+/// "an unknown time".
+#[test]
+fn the_worked_example_says_how_long_it_needs_even_when_its_first_pass_is_dark_somewhere() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    for f in ["part.obj", "tio2_pmma.toml"] {
+        std::fs::copy(root.join("fixtures/example").join(f), tmp.path().join(f)).unwrap();
+    }
+    std::fs::copy(root.join("fixtures/env/studio.exr"), tmp.path().join("studio.exr")).unwrap();
+    let scene = std::fs::read_to_string(root.join("fixtures/example/scene.toml")).unwrap();
+    assert!(scene.contains("\nspp = 16\n"), "the example's scene changed: {scene}");
+    std::fs::write(tmp.path().join("scene.toml"), scene.replace("\nspp = 16\n", "\n")).unwrap();
+    let out = tmp.path().join("r");
+    let o = lucent(&[
+        "render",
+        tmp.path().join("scene.toml").to_str().unwrap(),
+        "--time-s",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let line = err.lines().find(|l| l.contains("expect ≈")).unwrap_or_else(|| panic!("no expect line: {err}"));
+    assert!(line.contains("to 5.0 % on the object") && !line.contains("unknown"), "{line}");
+}

@@ -412,7 +412,9 @@ pub(super) fn show_progress(
             let now = p.errors.object.median;
             let frac = (e / now).powi(2).min(1.0);
             bar.set_position((1000.0 * frac) as u64);
-            if !*estimated && now > e {
+            // (A median still infinite, some object pixel without light in
+            // a channel, tells nothing yet: the next pass will.)
+            if !*estimated && now.is_finite() && now > e {
                 *estimated = true;
                 time_to_target_s(p.elapsed_s, now, e).map(|t| {
                     let over = settings.time_budget_s.is_some_and(|b| t > b);
