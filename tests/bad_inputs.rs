@@ -106,6 +106,18 @@ fn commands(reader: &str) -> Vec<Vec<&'static str>> {
                 "OUT",
             ],
             vec!["surface", "fit", "FILE", "--out", "OUT"],
+            // (Read even though this render has no variance layers to use it with.)
+            vec![
+                "compare",
+                "--photo",
+                "fixtures/reference/compare/base.exr",
+                "--render",
+                "fixtures/reference/compare/shifted.exr",
+                "--photo-variance",
+                "FILE",
+                "--out",
+                "OUT",
+            ],
         ],
         other => panic!("no command for tests/bad/{other}"),
     }

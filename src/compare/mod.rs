@@ -969,6 +969,10 @@ fn noise_report(
     mask: Option<&Mask>,
     notes: &mut Vec<String>,
 ) -> Result<Option<noise::NoiseReport>, CompareError> {
+    // Read (and checked) even when the render gives no variance to use it
+    // with: a photo variance or repeat that cannot be read is an error, not
+    // silently passed over.
+    let photo_variance = photo_variance(req, photo)?;
     let Some(render_variance) = render_variance else {
         notes.push(format!(
             "{} has no variance layers (variance.R/G/B of lucent render's EXR): no model RMSE",
@@ -976,7 +980,6 @@ fn noise_report(
         ));
         return Ok(None);
     };
-    let photo_variance = photo_variance(req, photo)?;
     let photo_variance_name = req.photo_variance.as_ref().map(|p| p.display().to_string());
     let mut report = model_error(
         photo,
