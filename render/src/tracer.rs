@@ -2059,7 +2059,7 @@ fn trace_path(
                         let made = planes.is_some()
                             || v.p_attempt > 0.0 && {
                                 let eta = if shared { obj.eta_mean } else { obj.eta(hero.unwrap_or(0)) };
-                                mesh_exit(&obj.accel, v.x, d, eta).is_some_and(|e| e.hit.triangle == stretch_triangle)
+                                mesh_exit_through(&obj.accel, v.x, d, eta, stretch_triangle)
                             };
                         let p_conn = if made { v.p_attempt * scene.environment.pdf(v.x, d) } else { 0.0 };
                         let p_phase = if v.p_phase > 0.0 {
@@ -2344,6 +2344,27 @@ fn mesh_exit(accel: &Accel, x: DVec3, wo: DVec3, eta: f64) -> Option<MeshExit> {
     None
 }
 
+/// True when [`mesh_exit`] finds `triangle` for (x, ω_o): the environment
+/// connection makes a path that left through it (the path's own escape and
+/// the phase connection ask this for their weights).
+fn mesh_exit_through(accel: &Accel, x: DVec3, wo: DVec3, eta: f64, triangle: u32) -> bool {
+    mesh_exit(accel, x, wo, eta).is_some_and(|e| e.hit.triangle == triangle)
+}
+
+/// One direction drawn from the environment's sampler at `x` for a medium
+/// connection, or None where its density is not positive.
+fn sample_environment(scene: &Scene, x: DVec3, rng: &mut Rng) -> Option<crate::env::EnvSample> {
+    let es = scene.environment.sample(x, [rng.next_f64(), rng.next_f64()])?;
+    (es.pdf > 0.0).then_some(es)
+}
+
+/// True when the ray leaving the object at `q` along ω_o meets the board,
+/// or, for a mesh that is not convex, the mesh itself.
+fn outside_blocked(scene: &Scene, obj: &Object, q: DVec3, wo: DVec3) -> bool {
+    scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some())
+        || !obj.accel.is_convex() && obj.accel.occluded(q, wo, f64::INFINITY)
+}
+
 /// A face found by [`mesh_exit`]: the hit, the outward normal n, the inside
 /// direction ω_i and cos θ_i = n·ω_i.
 struct MeshExit {
@@ -2368,19 +2389,12 @@ fn connect_through_mesh(
     est: &mut Estimate,
 ) {
     let &Connection { h, x, d_in, shared, .. } = conn;
-    let Some(es) = scene.environment.sample(x, [rng.next_f64(), rng.next_f64()]) else {
-        return;
-    };
-    if es.pdf.is_nan() || es.pdf <= 0.0 {
-        return;
-    }
+    let Some(es) = sample_environment(scene, x, rng) else { return };
     let wo = es.dir;
     let eta = if shared { obj.eta_mean } else { obj.eta(h) };
     let Some(MeshExit { hit, n, wi, cos_i }) = mesh_exit(&obj.accel, x, wo, eta) else { return };
     let q = x + hit.t * wi + scene.epsilon_m * n;
-    if scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some())
-        || !obj.accel.is_convex() && obj.accel.occluded(q, wo, f64::INFINITY)
-    {
+    if outside_blocked(scene, obj, q, wo) {
         return;
     }
     let jacobian = n.dot(wo) / (eta * eta * cos_i);
@@ -2444,12 +2458,7 @@ fn connect_through_faces(
     est: &mut Estimate,
 ) {
     let &Connection { h, x, shared, .. } = conn;
-    let Some(es) = scene.environment.sample(x, [rng.next_f64(), rng.next_f64()]) else {
-        return;
-    };
-    if es.pdf.is_nan() || es.pdf <= 0.0 {
-        return;
-    }
+    let Some(es) = sample_environment(scene, x, rng) else { return };
     let wo = es.dir;
     let eta = if shared { obj.eta_mean } else { obj.eta(h) };
     let d_in = conn.d_in;
@@ -2466,7 +2475,7 @@ fn connect_through_faces(
         let Some((wi, cos_i)) = unrefract(wo, *n, eta) else { continue };
         let jacobian = cos_o / (eta * eta * cos_i);
         let (_, fr) = reflectances(obj, cos_i, eta, shared, true);
-        let blocked = |q: DVec3| scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some());
+        let blocked = |q: DVec3| outside_blocked(scene, obj, q, wo);
         // Straight out through face n.
         if let Some(hit) = obj.accel.exit(x, wi).filter(|hit| hit.normal == *n) {
             let q = x + hit.t * wi + eps * *n;
@@ -2676,17 +2685,12 @@ fn connect_along_phase(
             let wo = refract_or_mirror(wi, n, 1.0 / eta);
             let cos_o = wo.dot(n);
             let q = p + eps * n;
-            // (A mesh that is not convex may stand in its own way.)
-            let hidden = |q: DVec3| {
-                scene.board.as_ref().is_some_and(|b| b.intersect(q, wo).is_some())
-                    || !obj.accel.is_convex() && obj.accel.occluded(q, wo, f64::INFINITY)
-            };
-            if cos_o > 0.0 && !hidden(q) {
+            if cos_o > 0.0 && !outside_blocked(scene, obj, q, wo) {
                 let exit = Exit { t, mu, jacobian: cos_o / (eta * eta * cos_i), refl, fr, q, wo, weight };
                 // A mesh's environment connection makes this path only
                 // through the face its search finds.
-                let made = obj.accel.convex_planes().is_some()
-                    || mesh_exit(&obj.accel, x, wo, eta).is_some_and(|e| e.hit.triangle == hit.triangle);
+                let made =
+                    obj.accel.convex_planes().is_some() || mesh_exit_through(&obj.accel, x, wo, eta, hit.triangle);
                 let pdf_env = if made { scene.environment.pdf(x, wo) } else { 0.0 };
                 add_connection(scene, obj, tp, conn, &exit, pdf_env, est);
             }

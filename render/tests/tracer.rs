@@ -1204,59 +1204,11 @@ fn coefficient_derivatives_agree_with_finite_differences() {
     }
 }
 
-/// An icosphere of `radius` about `centre`: the icosahedron with each
-/// triangle split into four `levels` times and its vertices pushed out to
-/// the sphere (20·4^levels triangles, outward winding).
-fn icosphere(levels: u32, centre: DVec3, radius: f64) -> Vec<[DVec3; 3]> {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let v = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .map(|p| DVec3::from_array(p).normalize());
-    let faces = [
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let mut tris: Vec<[DVec3; 3]> = faces.iter().map(|f| f.map(|i| v[i])).collect();
-    for _ in 0..levels {
-        tris = tris
-            .iter()
-            .flat_map(|&[a, b, c]| {
-                let (ab, bc, ca) = ((a + b).normalize(), (b + c).normalize(), (c + a).normalize());
-                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-            })
-            .collect();
-    }
-    tris.iter().map(|t| t.map(|p| centre + radius * p)).collect()
+/// An icosphere of `radius` about `centre` (20·4^levels triangles, outward
+/// winding; [`lucent_testkit::mesh::icosphere`]).
+fn icosphere(levels: usize, centre: DVec3, radius: f64) -> Vec<[DVec3; 3]> {
+    let (v, f) = lucent_testkit::mesh::icosphere(levels);
+    f.iter().map(|t| t.map(|i| centre + radius * DVec3::from_array(v[i]))).collect()
 }
 
 /// An L-shaped prism from z = 1 mm to 6 mm: the square [−8, 8]² mm without

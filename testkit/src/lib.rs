@@ -8,9 +8,11 @@
 //! - [`spread`]: reported standard errors against the spread over seeds.
 //! - [`normal`]: standard normal variates from uniform ones (Box–Muller).
 //! - [`exr`]: reading EXR channels as `f32` planes.
+//! - [`mesh`]: test meshes (an icosphere).
 
 pub mod chi2;
 pub mod exr;
+pub mod mesh;
 pub mod normal;
 pub mod sidak;
 pub mod spread;
