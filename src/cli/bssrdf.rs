@@ -1050,37 +1050,13 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
         let recipe = PathBuf::from(format!("fixtures/samples/{sample}.toml"));
         let args = RunArgs {
             recipe: Some(recipe.clone()),
-            weight_percent: None,
-            wavelength: 550.0,
-            mu_s: None,
-            mu_a: None,
-            g: None,
-            n: None,
-            thickness_mm: None,
             theta_i,
-            phi_i: 0.0,
             theta_o,
-            phi_o: 180.0,
-            configs: None,
-            phase: None,
-            similarity_g: None,
-            beam: Default::default(),
-            pixels: 259,
-            pixel_mm: 0.1029,
             crop: Some(117),
-            rel_error: None,
-            pixel_rel_error: None,
-            paths: None,
             time_s: Some(time_s),
-            seed: 1,
-            estimator: EstimatorChoice::Auto,
-            lobe_vertices: lucent_render::slab::LOBE_VERTICES as u8,
-            roughness: None,
-            no_fold: false,
-            shard: None,
-            uncertainty: false,
             out: PathBuf::new(),
             quiet: true,
+            ..RunArgs::defaults()
         };
         let m =
             medium(&args).with_context(|| format!("{} (run the bench from the repository root)", recipe.display()))?;
@@ -1262,6 +1238,46 @@ pub fn bench_surface(paths: u64) -> Result<()> {
     });
     println!("{}", serde_json::to_string_pretty(&json)?);
     Ok(())
+}
+
+impl RunArgs {
+    /// The arguments of a `bssrdf` run as clap gives them when no flag is set.
+    pub(super) fn defaults() -> Self {
+        RunArgs {
+            recipe: None,
+            weight_percent: None,
+            wavelength: 550.0,
+            mu_s: None,
+            mu_a: None,
+            g: None,
+            n: None,
+            thickness_mm: None,
+            theta_i: 45.0,
+            phi_i: 0.0,
+            theta_o: 0.0,
+            phi_o: 180.0,
+            configs: None,
+            phase: None,
+            similarity_g: None,
+            beam: super::groups::BeamArgs::default(),
+            pixels: 259,
+            pixel_mm: 0.1029,
+            crop: None,
+            rel_error: None,
+            pixel_rel_error: None,
+            paths: None,
+            time_s: None,
+            seed: 1,
+            estimator: EstimatorChoice::Auto,
+            lobe_vertices: lucent_render::slab::LOBE_VERTICES as u8,
+            roughness: None,
+            no_fold: false,
+            uncertainty: false,
+            out: "lucent-out/bssrdf".into(),
+            quiet: false,
+            shard: None,
+        }
+    }
 }
 
 #[cfg(test)]

@@ -202,44 +202,6 @@ impl From<&compare::CompareArgs> for CompareJob {
     }
 }
 
-/// The arguments of a `bssrdf` run as clap gives them when no flag is set.
-fn bssrdf_run_defaults() -> bssrdf::RunArgs {
-    bssrdf::RunArgs {
-        recipe: None,
-        weight_percent: None,
-        wavelength: 550.0,
-        mu_s: None,
-        mu_a: None,
-        g: None,
-        n: None,
-        thickness_mm: None,
-        theta_i: 45.0,
-        phi_i: 0.0,
-        theta_o: 0.0,
-        phi_o: 180.0,
-        configs: None,
-        phase: None,
-        similarity_g: None,
-        beam: super::groups::BeamArgs::default(),
-        pixels: 259,
-        pixel_mm: 0.1029,
-        crop: None,
-        rel_error: None,
-        pixel_rel_error: None,
-        paths: None,
-        time_s: None,
-        seed: 1,
-        estimator: bssrdf::EstimatorChoice::Auto,
-        lobe_vertices: lucent_render::slab::LOBE_VERTICES as u8,
-        roughness: None,
-        no_fold: false,
-        uncertainty: false,
-        out: "lucent-out/bssrdf".into(),
-        quiet: false,
-        shard: None,
-    }
-}
-
 /// The render options of a twin (render, env fit-scale) as a job holds them.
 fn twin_render(spp: Option<u32>, seed: Option<u64>, size: &Option<String>) -> super::groups::TwinRenderArgs {
     super::groups::TwinRenderArgs { spp, seed, size: size.clone(), threads: None }
@@ -282,7 +244,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
                 seed: j.seed,
                 out: j.out.clone(),
                 quiet: j.quiet,
-                ..bssrdf_run_defaults()
+                ..bssrdf::RunArgs::defaults()
             },
         }),
         Job::BssrdfCompare(j) => Command::Bssrdf(bssrdf::BssrdfArgs {
@@ -293,7 +255,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
                 threshold: j.threshold,
                 out: j.out.clone(),
             })),
-            run: bssrdf_run_defaults(),
+            run: bssrdf::RunArgs::defaults(),
         }),
         Job::Fit(j) => Command::Fit(fit::FitArgs {
             recipe: j.recipe.clone(),
