@@ -433,7 +433,8 @@ fn spectral_mis_and_medium_connections_agree_with_the_plain_estimator() {
         camera(12, 9),
     )
     .unwrap();
-    let base = Settings { spp: 1024, specular_chains: true, ..Settings::default() };
+    // (One band at random where a path keeps one band: the branches have a test of their own.)
+    let base = Settings { spp: 1024, specular_chains: true, band_branches: false, ..Settings::default() };
     let plain = Settings { seed: 31, spectral_mis: false, medium_nee: false, ..base.clone() };
     let (a, _) = render(&scene, &plain, &mut |_| {});
     let mut variances = Vec::new();
@@ -539,6 +540,58 @@ fn rough_boundary_furnace_and_smooth_limit() {
 }
 
 /// The plaque under [`lamp_sky`], on the board, seen from above.
+/// Σ over the pixels whose rays all hit the object, and over the channels, of the variance of the mean.
+fn object_variance(img: &Image) -> f64 {
+    (0..img.mean.len())
+        .filter(|&p| img.object_fraction(p) == 1.0)
+        .map(|p| img.variance_of_mean[p].iter().sum::<f64>())
+        .sum()
+}
+
+#[test]
+fn band_branches_agree_with_one_band_at_random_and_pay_for_their_walks() {
+    // A dispersive boundary (an index per band) keeps one band per path from
+    // the object on: one band drawn at random (weight 3) and three branches,
+    // one per band, are two estimators of the same image.
+    let scene = Scene::new(
+        Some(coloured_plaque([1.43, 1.45, 1.48])),
+        Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])),
+        lamp_sky(),
+        camera(12, 9),
+    )
+    .unwrap();
+    let base = Settings { spp: 1024, specular_chains: true, ..Settings::default() };
+    assert!(base.band_branches, "branches are the default");
+    let random = Settings { seed: 51, band_branches: false, ..base.clone() };
+    let (a, sa) = render(&scene, &random, &mut |_| {});
+    let (b, sb) = render(&scene, &Settings { seed: 52, ..base.clone() }, &mut |_| {});
+    z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "band branches vs one band at random");
+    let z = object_mean_z(&a, &b);
+    assert!(z.abs() < 4.0, "the object's mean differs between the two by z = {z:.2}");
+    // The reported variances are those of the spread between two seeds:
+    // the per-pixel z of two branch renders has a standard deviation of 1.
+    let (c, _) = render(&scene, &Settings { seed: 53, ..base.clone() }, &mut |_| {});
+    let zs: Vec<f64> = (0..b.mean.len())
+        .filter(|&p| b.object_fraction(p) == 1.0)
+        .flat_map(|p| {
+            let (b, c) = (&b, &c);
+            (0..3).map(move |k| {
+                (b.mean[p][k] - c.mean[p][k]) / (b.variance_of_mean[p][k] + c.variance_of_mean[p][k]).sqrt()
+            })
+        })
+        .collect();
+    let sd = (zs.iter().map(|z| z * z).sum::<f64>() / zs.len() as f64).sqrt();
+    assert!(zs.len() >= 30 && (0.75..1.3).contains(&sd), "z over {} object pixel channels: sd {sd:.2}", zs.len());
+    // Cost by scattering events (not time: the machine's load does not
+    // enter): the branches walk ≈ 3× more in the object and must still
+    // win, variance × events, on the object's pixels.
+    let (va, vb) = (object_variance(&a), object_variance(&b));
+    let (ea, eb) = (sa.events as f64, sb.events as f64);
+    eprintln!("object variance: random band {va:.3e} ({ea:.3e} events), branches {vb:.3e} ({eb:.3e} events)");
+    assert!(vb < 0.5 * va, "branches: variance {vb:.3e} vs one band at random {va:.3e}");
+    assert!(vb * eb < 0.9 * va * ea, "branches: variance × events {:.3e} vs {:.3e}", vb * eb, va * ea);
+}
+
 fn region_scene(eta: [f64; 3]) -> Scene {
     Scene::new(Some(coloured_plaque(eta)), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), lamp_sky(), camera(12, 9))
         .unwrap()
@@ -685,7 +738,9 @@ fn splitting_and_shared_dispersion_directions() {
     let scene = region_scene([1.43, 1.45, 1.48]);
     // (4096 samples: dropping the 1 − F weight of the refracted branch, a
     // bias of ≈ 4 %, gives z ≈ 7 on the object's mean; 1024 gave 3.4.)
-    let base = Settings { spp: 4096, ..Settings::default() };
+    // (One band at random where a path keeps one band, as the shared
+    // directions' variance is weighed against it below.)
+    let base = Settings { spp: 4096, band_branches: false, ..Settings::default() };
     let (a, _) = render(&scene, &Settings { seed: 81, ..base.clone() }, &mut |_| {});
     let (b, _) = render(&scene, &Settings { seed: 82, split_entry: true, ..base.clone() }, &mut |_| {});
     z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "splitting at the object vs choosing");
@@ -1309,7 +1364,8 @@ fn medium_connections_through_a_curved_or_concave_mesh_agree_with_the_escapes() 
         ("L prism", l_prism(), [1.45; 3]),
     ] {
         let scene = mesh_scene(&tris, eta);
-        let base = Settings { spp: 2048, ..Settings::default() };
+        // (One band at random where the index differs: the test is the connections'.)
+        let base = Settings { spp: 2048, band_branches: false, ..Settings::default() };
         let (a, _) = render(&scene, &Settings { seed: 91, medium_nee: false, ..base.clone() }, &mut |_| {});
         let (b, _) = render(&scene, &Settings { seed: 92, ..base }, &mut |_| {});
         z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), what);

@@ -45,6 +45,7 @@
 //! seed = 1
 //! # time_s = 120, spp_per_pass = 4
 //! # spectral_mis = true, medium_connections = true   (false, false: the plain one-band estimator)
+//! # band_branches = true         (where a path keeps one band: one branch per band; false: one band at random, weight 3)
 //! # phase_connections = true     (with medium_connections: also connect along the phase function's directions)
 //! # specular_chains = false      (true: also connect through one reflection at a face, and from the board through or off the object; fewer bright outliers, ≈ 12–20 % more time)
 //! # sphere_jumps = false         (true: deep inside an isotropically scattering object, jump through tabulated spheres; diffusive media)
@@ -455,6 +456,9 @@ pub struct RenderSection {
     pub seed: Option<u64>,
     pub spp_per_pass: Option<u32>,
     pub spectral_mis: Option<bool>,
+    /// Where a path keeps one band (a dispersive boundary): three branches,
+    /// one per band, instead of one band at random (default true).
+    pub band_branches: Option<bool>,
     pub medium_connections: Option<bool>,
     pub phase_connections: Option<bool>,
     /// With `medium_connections`: connect through one reflection at a face
@@ -614,6 +618,9 @@ pub fn approximations(summary: &SceneSummary, settings: &lucent_render::tracer::
 pub struct EstimatorReport {
     /// All three bands on one path, combined by MIS over the driving band.
     pub spectral_mis: bool,
+    /// Where a path keeps one band: one branch per band instead of one band at random.
+    #[serde(default)]
+    pub band_branches: bool,
     /// Connections from scattering points to the environment through the faces.
     pub medium_connections: bool,
     /// A third connection along a direction drawn from the phase function.
@@ -631,6 +638,7 @@ impl From<&Settings> for EstimatorReport {
     fn from(s: &Settings) -> Self {
         EstimatorReport {
             spectral_mis: s.spectral_mis,
+            band_branches: s.band_branches,
             medium_connections: s.medium_nee,
             phase_connections: s.phase_connection,
             specular_chains: s.specular_chains,
@@ -1056,6 +1064,9 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
     }
     if let Some(b) = r.spectral_mis {
         settings.spectral_mis = b;
+    }
+    if let Some(b) = r.band_branches {
+        settings.band_branches = b;
     }
     if let Some(b) = r.medium_connections {
         settings.medium_nee = b;
