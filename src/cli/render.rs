@@ -1305,8 +1305,8 @@ pub struct EstimatorRow {
     pub projected_s_to_5_percent: f64,
 }
 
-/// `lucent bench render --time-s T`: the previous estimator (no phase
-/// connection) for `time_s` of wall time on all cores, then today's default
+/// `lucent bench render --time-s T`: the previous estimator (one band at
+/// random where a path keeps one band) for `time_s` of wall time on all cores, then today's default
 /// and each selectable device on top of it at the samples per pixel the
 /// first reached, on one scene, per region. Efficiency on the object is
 /// 1/(median² × CPU seconds of this process): on a machine shared with
@@ -1350,7 +1350,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     type Similar = Option<(f64, Option<u64>)>;
     let similar = Some((0.0, None));
     let configurations: [(&'static str, Configure, bool, Similar, bool); 12] = [
-        ("previous", |s| s.phase_connection = false, false, None, true),
+        ("previous (one band at random)", |s| s.band_branches = false, false, None, false),
         ("default (+ phase connection)", |_| {}, false, None, false),
         ("default + splitting at entry", |s| s.split_entry = true, false, None, false),
         ("default + shared dispersion", shared, false, None, false),
