@@ -638,7 +638,7 @@ pub struct Settings {
     /// drawn at random with weight 3 (docs/method.md §5). A sample's value
     /// is the branches' sum, so its variance stays that of independent
     /// samples. Per sample the object costs three walks instead of one, and
-    /// the variance of the random band's estimator, 3 E[X²] − E[X]² per band,
+    /// the variance of the random band's estimator, 3 E(X²) − E(X)² per band,
     /// falls to Var X, for any X: never less efficient. `false`: one band
     /// at random.
     pub band_branches: bool,
