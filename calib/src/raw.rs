@@ -38,6 +38,10 @@
 //! 6. Demosaic ([`crate::demosaic`], Malvar–He–Cutler by default).
 //! 7. Orientation from the file (EXIF values 1–8), applied last.
 //!
+//! [`raw_output_size`] gives the size of [`read_raw`]'s output (the active
+//! area) from step 1 without the pixel data: the tags and, for other
+//! formats, `rawloader`'s "dummy" decode (for `lucent run`'s planning).
+//!
 //! The result is camera RGB (the sensor's own primaries), not sRGB; the
 //! camera's XYZ → camera matrix goes into the metadata for the colour stage.
 //! Checked against LibRaw through rawpy on a real Canon EOS 30D file
@@ -592,10 +596,33 @@ fn quiet_rawloader_panics() {
     });
 }
 
-/// Decodes `path`: steps 1–4 of the module docs (black/white scaling and
-/// crop; no white balance, demosaicing or orientation). `white_level`
-/// overrides the file's white level (raw digital numbers).
-pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawError> {
+/// The size of the image [`read_raw`] would give for `path` —
+/// `(meta.output_width, meta.output_height)`: the active area, before
+/// orientation — from the file's directories alone, without decoding its
+/// pixel data (what planning needs). The same checks as [`read_raw`] run
+/// before decoding (unreadable, empty or truncated file; unsupported DNG
+/// compression or layout; crop outside the sensor; not a 1-sample Bayer or
+/// 3-sample image), so a file refused for those reasons is refused here
+/// too, with the same error. Not checked here, as they need the pixel
+/// values: the number of samples the data holds and the levels measured on
+/// masked pixels, so a file whose image data is corrupt (but present) gives
+/// its size here and an error from [`read_raw`].
+pub fn raw_output_size(path: &Path) -> Result<(usize, usize), RawError> {
+    let (_, img) = load(path, true)?;
+    let area = active_area(path, &img)?;
+    sensor_pattern(path, &img)?;
+    Ok((area.width, area.height))
+}
+
+/// `rawloader`'s decoder and camera table (parsed once).
+static RAWLOADER: std::sync::LazyLock<rawloader::RawLoader> = std::sync::LazyLock::new(rawloader::RawLoader::new);
+
+/// The file's bytes and its sensor image (step 1 of the module docs), after
+/// the checks on the file before decoding. `header_only`: the image's
+/// size, crops, levels and tags without its pixel data (`img.data` then
+/// holds no samples: `rawloader`'s "dummy" decode and [`dng::decode_uncompressed`]
+/// without its sample loop), for [`raw_output_size`].
+fn load(path: &Path, header_only: bool) -> Result<(Vec<u8>, rawloader::RawImage), RawError> {
     let p = || path.to_path_buf();
     let bytes = std::fs::read(path).map_err(|source| RawError::Io { path: p(), source })?;
     if bytes.is_empty() {
@@ -612,14 +639,12 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
         _ => {}
     }
     quiet_rawloader_panics();
-    let own = dng::decode_uncompressed(&bytes).map_err(|reason| RawError::Decode { path: p(), reason })?;
+    let own = dng::decode_uncompressed(&bytes, header_only).map_err(|reason| RawError::Decode { path: p(), reason })?;
     let decoded = match own {
         Some(img) => Ok(img),
-        None => rawloader::decode(&mut std::io::Cursor::new(&bytes)),
+        None => RAWLOADER.decode(&mut std::io::Cursor::new(&bytes), header_only),
     };
-    let mut img = decoded.map_err(|e| {
-        let msg = e.to_string();
-        let msg = msg.strip_prefix("RawLoaderError: ").unwrap_or(&msg).trim_matches('"').to_string();
+    let img = decoded.map_err(|msg| {
         let msg = if msg.starts_with("Caught a panic") {
             "the decoder failed on malformed data (corrupt or truncated file)".to_string()
         } else {
@@ -627,6 +652,49 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
         };
         RawError::Decode { path: p(), reason: msg }
     })?;
+    Ok((bytes, img))
+}
+
+/// The active area of `img`: the sensor without its crops (masked borders).
+/// This is the size of [`read_raw`]'s output ([`raw_output_size`]).
+fn active_area(path: &Path, img: &rawloader::RawImage) -> Result<ActiveArea, RawError> {
+    let (w, h) = (img.width, img.height);
+    let [top, right, bottom, left] = img.crops;
+    if left.saturating_add(right) >= w || top.saturating_add(bottom) >= h {
+        return Err(RawError::Unsupported {
+            path: path.to_path_buf(),
+            reason: format!("crop {:?} leaves no active area in {w} × {h}", img.crops),
+        });
+    }
+    Ok(ActiveArea { top, left, width: w - left - right, height: h - top - bottom })
+}
+
+/// The Bayer pattern of `img` as `rawloader` names it (from the sensor's
+/// origin; a DNG's from the active area's) for one sample per pixel, `None`
+/// for three; an error for other layouts.
+fn sensor_pattern(path: &Path, img: &rawloader::RawImage) -> Result<Option<Bayer>, RawError> {
+    let p = || path.to_path_buf();
+    match img.cpp {
+        1 => {
+            if !img.cfa.is_valid() {
+                return Err(RawError::Unsupported { path: p(), reason: "monochrome sensor (no CFA)".into() });
+            }
+            Bayer::from_name(&img.cfa.name).map(Some).map_err(|_| RawError::Unsupported {
+                path: p(),
+                reason: format!("CFA pattern {:?} is not a 2 × 2 RGB Bayer pattern (X-Trans and four-colour sensors are not supported)", img.cfa.name),
+            })
+        }
+        3 => Ok(None),
+        n => Err(RawError::Unsupported { path: p(), reason: format!("{n} samples per pixel") }),
+    }
+}
+
+/// Decodes `path`: steps 1–4 of the module docs (black/white scaling and
+/// crop; no white balance, demosaicing or orientation). `white_level`
+/// overrides the file's white level (raw digital numbers).
+pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawError> {
+    let p = || path.to_path_buf();
+    let (bytes, mut img) = load(path, false)?;
     if img.cpp == 3
         && let Some((black, white)) = dng::levels(&bytes)
     {
@@ -646,14 +714,8 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
     if w == 0 || h == 0 || w.checked_mul(h).and_then(|n| n.checked_mul(cpp)) != Some(got) {
         return Err(RawError::Size { path: p(), width: w, height: h, samples: cpp, got });
     }
-    let [top, right, bottom, left] = img.crops;
-    if left + right >= w || top + bottom >= h {
-        return Err(RawError::Unsupported {
-            path: p(),
-            reason: format!("crop {:?} leaves no active area in {w} × {h}", img.crops),
-        });
-    }
-    let area = ActiveArea { top, left, width: w - left - right, height: h - top - bottom };
+    let area = active_area(path, &img)?;
+    let (top, left) = (area.top, area.left);
 
     // DNG gives the CFA pattern and black levels from the active area's
     // origin; other formats (and rawloader's tables) from the sensor's. This
@@ -662,20 +724,7 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
     let swap = |k: usize| 2 * (((k / 2) + top) & 1) + (((k % 2) + left) & 1);
 
     // Colour (rawloader index 0 R, 1 G, 2 B) per sensor parity, for a Bayer CFA.
-    let pattern = match cpp {
-        1 => {
-            if !img.cfa.is_valid() {
-                return Err(RawError::Unsupported { path: p(), reason: "monochrome sensor (no CFA)".into() });
-            }
-            let named = Bayer::from_name(&img.cfa.name).map_err(|_| RawError::Unsupported {
-                path: p(),
-                reason: format!("CFA pattern {:?} is not a 2 × 2 RGB Bayer pattern (X-Trans and four-colour sensors are not supported)", img.cfa.name),
-            })?;
-            Some(if exif.dng { named.shifted(top, left) } else { named })
-        }
-        3 => None,
-        n => return Err(RawError::Unsupported { path: p(), reason: format!("{n} samples per pixel") }),
-    };
+    let pattern = sensor_pattern(path, &img)?.map(|named| if exif.dng { named.shifted(top, left) } else { named });
 
     // Black and white levels per sensor parity (k = 2·(y&1) + (x&1)) or per channel.
     let colour_of = |k: usize| pattern.map_or(k.min(2), |b| b.colour_at(k / 2, k % 2));
@@ -1129,8 +1178,10 @@ mod dng {
 
     /// The raw image of an uncompressed DNG (strips or tiles, 8 or 16 bits,
     /// either byte order, CFA or LinearRaw); `Ok(None)` for other files
-    /// (not a DNG, or compressed: `rawloader`'s).
-    pub(super) fn decode_uncompressed(bytes: &[u8]) -> Result<Option<rawloader::RawImage>, String> {
+    /// (not a DNG, or compressed: `rawloader`'s). `header_only`: everything
+    /// but the samples (the data is left empty; the tags and the strip or
+    /// tile layout are still read and checked), for [`super::raw_output_size`].
+    pub(super) fn decode_uncompressed(bytes: &[u8], header_only: bool) -> Result<Option<rawloader::RawImage>, String> {
         let Some(p) = parse(bytes) else { return Ok(None) };
         let (t, raw) = (&p.t, &p.raw);
         let unreadable = |tag: u16, e: tiff::TiffError| format!("DNG tag {tag} cannot be read: {e}");
@@ -1193,7 +1244,7 @@ mod dng {
                 table[usize::from(v).min(table.len() - 1)].clamp(0.0, 65535.0) as u16
             })
         };
-        let mut data = vec![0u16; w * h * cpp];
+        let mut data = if header_only { Vec::new() } else { vec![0u16; w * h * cpp] };
         let short = || "image data runs past the end of the file (truncated)".to_string();
         // (offset, x0, y0, block width, block height, stored row length in pixels)
         let mut blocks = Vec::new();
@@ -1223,6 +1274,8 @@ mod dng {
         } else {
             return Err("DNG raw image without strip or tile offsets".into());
         }
+        // The samples (none for `header_only`).
+        let blocks = if header_only { Vec::new() } else { blocks };
         for (o, x0, y0, bw, bh, stride) in blocks {
             for y in 0..bh {
                 for x in 0..bw {

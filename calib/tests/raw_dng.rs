@@ -4,7 +4,7 @@
 //! give errors naming the file.
 
 use lucent_calib::demosaic::Demosaic;
-use lucent_calib::raw::{decode_raw, read_raw, RawData, RawError, RawOptions, WhiteBalance};
+use lucent_calib::raw::{decode_raw, raw_output_size, read_raw, RawData, RawError, RawOptions, WhiteBalance};
 use std::path::{Path, PathBuf};
 use tiff::encoder::{colortype, Rational, SRational, TiffEncoder};
 use tiff::tags::Tag;
@@ -94,6 +94,7 @@ fn known_mosaic_round_trips_exactly() {
 
         let RawData::Bayer(mos) = &frame.data else { panic!("Bayer") };
         assert_eq!((mos.width, mos.height), (right - left, bottom - top));
+        assert_eq!(raw_output_size(&path).unwrap(), (m.output_width, m.output_height), "{name}: header-only size");
         for y in 0..mos.height {
             for x in 0..mos.width {
                 let k = 2 * (y & 1) + (x & 1);
@@ -117,6 +118,10 @@ fn orientation_white_balance_and_demosaic_through_the_pipeline() {
     assert_eq!((img.width, img.height), (ah, aw), "rotated 90°");
     assert_eq!(meta.orientation_applied, "rotate 90° clockwise");
     assert_eq!((meta.output_width, meta.output_height), (ah, aw));
+    // read_raw's size (and raw_output_size's) is the active area as stored, before orientation.
+    let frame = read_raw(&path, None).unwrap();
+    assert_eq!((frame.meta.output_width, frame.meta.output_height), (aw, ah));
+    assert_eq!(raw_output_size(&path).unwrap(), (aw, ah));
     // Output (xo, yo) shows stored pixel (yo, ah − 1 − xo); its own CFA sample survives demosaicing.
     let (xo, yo) = (10, 20);
     let (xs, ys) = (yo, ah - 1 - xo);
@@ -144,6 +149,7 @@ fn a_dng_cut_inside_its_directory_names_the_file_and_the_problem() {
         let e = read_raw(&cut, None).unwrap_err();
         assert!(matches!(e, RawError::Decode { .. }), "{e:?}");
         let e = e.to_string();
+        assert_eq!(raw_output_size(&cut).unwrap_err().to_string(), e, "header-only: the same error");
         let problem =
             format!("truncated or corrupt: its TIFF directory structure runs past the end of the file ({len} bytes)");
         assert!(e.contains(name) && e.contains(&problem), "{e}");
@@ -164,6 +170,10 @@ fn truncated_and_corrupt_dngs_are_errors_naming_the_file() {
     let e = read_raw(&cut, None).unwrap_err();
     assert!(matches!(e, RawError::Decode { .. }), "{e:?}");
     assert!(e.to_string().contains("cut.dng") && e.to_string().contains("truncated"), "{e}");
+    // The header-only size refuses it too (the directories declare data past the end), with the same error.
+    let h = raw_output_size(&cut).unwrap_err();
+    assert!(matches!(h, RawError::Decode { .. }), "{h:?}");
+    assert_eq!(h.to_string(), e.to_string());
 
     // Header destroyed.
     let mut bad = bytes.clone();
@@ -172,6 +182,7 @@ fn truncated_and_corrupt_dngs_are_errors_naming_the_file() {
     std::fs::write(&corrupt, &bad).unwrap();
     let e = read_raw(&corrupt, None).unwrap_err();
     assert!(e.to_string().contains("corrupt.dng"), "{e}");
+    assert_eq!(raw_output_size(&corrupt).unwrap_err().to_string(), e.to_string());
 
     // A plain greyscale TIFF is not a RAW file.
     let plain = temp("plain.tif");
@@ -182,11 +193,55 @@ fn truncated_and_corrupt_dngs_are_errors_naming_the_file() {
     }
     let e = read_raw(&plain, None).unwrap_err();
     assert!(matches!(e, RawError::Decode { .. }) && e.to_string().contains("plain.tif"), "{e}");
+    assert_eq!(raw_output_size(&plain).unwrap_err().to_string(), e.to_string());
 
     // The intact file still decodes.
     let (img, _) = decode_raw(&path, &RawOptions::default()).unwrap();
     assert_eq!((img.width, img.height), (64, 48));
     for p in [&path, &cut, &corrupt, &plain] {
+        std::fs::remove_file(p).ok();
+    }
+}
+
+#[test]
+fn the_header_only_size_ignores_the_pixel_values_and_refuses_missing_data() {
+    // Every pixel byte replaced by garbage, the file's length and directories
+    // intact: the size comes from the tags alone, so it is still reported
+    // (and read_raw, which has no check on DNG sample values, decodes the
+    // same size: all its values are then garbage, not an error).
+    let path = temp("garbage_pixels.dng");
+    write_dng(&path, &Dng { orientation: 1, cfa: [0, 1, 1, 2] });
+    let mut bytes = std::fs::read(&path).unwrap();
+    let (w, h) = SENSOR;
+    // IFD0's StripOffsets entry: one LONG, the only strip's offset inline.
+    let ifd0 = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as usize;
+    let n = usize::from(u16::from_le_bytes([bytes[ifd0], bytes[ifd0 + 1]]));
+    let entry = (0..n).map(|k| ifd0 + 2 + 12 * k).find(|&e| bytes[e..e + 2] == 273u16.to_le_bytes()).unwrap();
+    assert_eq!(bytes[entry + 2..entry + 8], [4, 0, 1, 0, 0, 0], "StripOffsets: one LONG");
+    let strip = u32::from_le_bytes(bytes[entry + 8..entry + 12].try_into().unwrap()) as usize;
+    for (k, b) in bytes[strip..strip + 2 * w * h].iter_mut().enumerate() {
+        *b = (k * 7919 % 251) as u8;
+    }
+    std::fs::write(&path, &bytes).unwrap();
+    let [top, left, bottom, right] = ACTIVE.map(|v| v as usize);
+    assert_eq!(raw_output_size(&path).unwrap(), (right - left, bottom - top));
+    let frame = read_raw(&path, None).unwrap();
+    assert_eq!((frame.meta.output_width, frame.meta.output_height), (right - left, bottom - top));
+
+    // The directories intact but the pixel data missing, as a file cut after
+    // its directories looks to a reader: the strip's offset moved past the
+    // end of the file. The header-only size refuses it as truncated (the
+    // declared data runs past the end), with read_raw's error, naming the
+    // file; never a panic.
+    let past = bytes.len() as u32 + 1000;
+    bytes[entry + 8..entry + 12].copy_from_slice(&past.to_le_bytes());
+    let cut = temp("no_pixels.dng");
+    std::fs::write(&cut, &bytes).unwrap();
+    let e = raw_output_size(&cut).unwrap_err();
+    assert!(matches!(e, RawError::Decode { .. }), "{e:?}");
+    assert!(e.to_string().contains("no_pixels.dng") && e.to_string().contains("truncated"), "{e}");
+    assert_eq!(e.to_string(), read_raw(&cut, None).unwrap_err().to_string());
+    for p in [&path, &cut] {
         std::fs::remove_file(p).ok();
     }
 }

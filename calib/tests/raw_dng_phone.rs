@@ -9,7 +9,7 @@
 //! Each variant is also given to `rawloader` 0.37 directly, to record why
 //! `lucent_calib::raw` reads uncompressed DNGs itself.
 
-use lucent_calib::raw::{decode_raw, read_raw, RawData, RawOptions};
+use lucent_calib::raw::{decode_raw, raw_output_size, read_raw, RawData, RawOptions};
 use std::path::{Path, PathBuf};
 
 /// A TIFF value: type code and its bytes (already in the file's byte order).
@@ -354,6 +354,7 @@ fn linear_phone_dngs_decode_to_the_stored_camera_rgb() {
         assert!((m.xyz_to_camera[1][1] - 1.246).abs() < 1e-6);
         let RawData::Rgb(img) = &frame.data else { panic!("{name}: three-channel data") };
         assert_eq!((img.width, img.height), (W, H));
+        assert_eq!(raw_output_size(&path).unwrap(), (m.output_width, m.output_height), "{name}: header-only size");
         for y in 0..H {
             for x in 0..W {
                 for c in 0..3 {
@@ -393,6 +394,8 @@ fn bayer_dngs_in_strips_and_tiles_of_either_byte_order_decode_exactly() {
         assert!(frame.meta.warnings.iter().any(|w| w.contains("OpcodeList1")), "{:?}", frame.meta.warnings);
         let RawData::Bayer(mos) = &frame.data else { panic!("{name}: Bayer") };
         assert_eq!((mos.width, mos.height), (34, 26));
+        let m = &frame.meta;
+        assert_eq!(raw_output_size(&path).unwrap(), (m.output_width, m.output_height), "{name}: header-only size");
         for y in 0..26 {
             for x in 0..34 {
                 let k = 2 * (y & 1) + (x & 1);
@@ -443,6 +446,7 @@ fn broken_phone_dngs_are_errors_naming_the_file() {
     let bad = temp("too_few_tiles.dng");
     std::fs::write(&bad, w.file(tags, &b[..4], &[0, 1, 2, 3], 324, 325)).unwrap();
     let e = read_raw(&bad, None).unwrap_err().to_string();
+    assert_eq!(raw_output_size(&bad).unwrap_err().to_string(), e, "header-only: the same error");
     assert!(e.contains("too_few_tiles.dng") && e.contains("tile offsets"), "{e}");
     // LinearRaw with one sample per pixel.
     let mut tags = dng_tags(&w, 1, true);
@@ -450,6 +454,7 @@ fn broken_phone_dngs_are_errors_naming_the_file() {
     let bad = temp("linear_one_sample.dng");
     std::fs::write(&bad, w.file(tags, &b, &order, ot, ct)).unwrap();
     let e = read_raw(&bad, None).unwrap_err().to_string();
+    assert_eq!(raw_output_size(&bad).unwrap_err().to_string(), e, "header-only: the same error");
     assert!(e.contains("linear_one_sample.dng") && e.contains("samples per pixel"), "{e}");
     // A compression other than none (1) and lossless JPEG (7): JPEG XL, as newer phones write.
     let mut tags = dng_tags(&w, 3, true);
@@ -459,6 +464,7 @@ fn broken_phone_dngs_are_errors_naming_the_file() {
     let bad = temp("jpeg_xl.dng");
     std::fs::write(&bad, w.file(tags, &b, &order, ot, ct)).unwrap();
     let e = read_raw(&bad, None).unwrap_err().to_string();
+    assert_eq!(raw_output_size(&bad).unwrap_err().to_string(), e, "header-only: the same error");
     assert!(e.contains("jpeg_xl.dng") && e.contains("compression 52546") && e.contains("JPEG XL"), "{e}");
     // Lossless JPEG with predictor 6, which rawloader does not decode.
     let mut tags = dng_tags(&w, 3, true);
@@ -469,6 +475,7 @@ fn broken_phone_dngs_are_errors_naming_the_file() {
     let bad = temp("ljpeg_predictor6.dng");
     std::fs::write(&bad, w.file(tags, &b, &order, ot, ct)).unwrap();
     let e = read_raw(&bad, None).unwrap_err().to_string();
+    assert_eq!(raw_output_size(&bad).unwrap_err().to_string(), e, "header-only: the same error");
     assert!(e.contains("ljpeg_predictor6.dng") && e.contains("predictor 6"), "{e}");
     // Cut inside the last tile.
     let good = temp("cut_tiles.dng");
@@ -477,5 +484,6 @@ fn broken_phone_dngs_are_errors_naming_the_file() {
     let first_tile_end = 8 + 16 * 16 * 3 * 2;
     std::fs::write(&good, &bytes[..first_tile_end + 100]).unwrap();
     let e = read_raw(&good, None).unwrap_err().to_string();
+    assert_eq!(raw_output_size(&good).unwrap_err().to_string(), e, "header-only: the same error");
     assert!(e.contains("cut_tiles.dng") && (e.contains("truncated") || e.contains("corrupt")), "{e}");
 }

@@ -7,7 +7,7 @@
 //! `tools/reference/rawpy_reference.py`.
 
 use lucent_calib::demosaic::{demosaic, Demosaic, Mosaic};
-use lucent_calib::raw::{develop, read_raw, RawData, RawOptions, WhiteBalance};
+use lucent_calib::raw::{develop, raw_output_size, read_raw, RawData, RawOptions, WhiteBalance};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -111,6 +111,8 @@ fn default_levels_and_metadata() {
     assert_eq!(meta.cfa_pattern, "RGGB");
     assert_eq!((meta.sensor_width, meta.sensor_height), (3596, 2360));
     assert_eq!((meta.output_width, meta.output_height), (3522, 2348));
+    // From the CR2's directories and rawloader's camera table alone (its "dummy" decode, no LJPEG data).
+    assert_eq!(raw_output_size(&path).unwrap(), (3522, 2348));
     assert!(!meta.dng);
     // EXIF of IMG_5952 as Pillow reads it: ISO 640, 1/400 s, f/22, 22 mm.
     assert_eq!(meta.iso, Some(640));
@@ -242,10 +244,12 @@ fn truncated_cr2_is_an_error_naming_it() {
     let cut = dir.join("cut.CR2");
     std::fs::write(&cut, &bytes[..bytes.len() / 3]).unwrap();
     let e = read_raw(&cut, None).unwrap_err().to_string();
+    assert_eq!(raw_output_size(&cut).unwrap_err().to_string(), e, "header-only: the same error");
     assert!(e.contains("cut.CR2") && e.contains("truncated"), "{e}");
     // Cut inside the directory structure.
     std::fs::write(&cut, &bytes[..5000]).unwrap();
     let e = read_raw(&cut, None).unwrap_err().to_string();
+    assert_eq!(raw_output_size(&cut).unwrap_err().to_string(), e, "header-only: the same error");
     assert!(e.contains("cut.CR2") && e.contains("truncated or corrupt"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -828,8 +828,8 @@ fn photo_bin(sample: &str, photo: &Path, render_size: Option<&str>) -> Result<us
         |reason: String| StageProblem::PhotoUnreadable { sample: sample.into(), photo: photo.to_path_buf(), reason };
     let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
     let (pw, ph) = if is_raw {
-        let frame = lucent_calib::raw::read_raw(photo, None).map_err(|e| unreadable(e.to_string()))?;
-        (frame.meta.output_width, frame.meta.output_height)
+        // The active area from the file's tags, without decoding the pixel data.
+        lucent_calib::raw::raw_output_size(photo).map_err(|e| unreadable(e.to_string()))?
     } else {
         // The header only: planning needs the size, not the pixels.
         crate::imageio::image_size(photo).map_err(|e| unreadable(e.to_string()))?
