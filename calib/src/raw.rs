@@ -146,6 +146,11 @@ impl Orientation {
         Self(if (1..=8).contains(&v) { v } else { 1 })
     }
 
+    /// Width and height swap when the image is shown upright (EXIF 5–8).
+    pub fn transposes(self) -> bool {
+        matches!(self.0, 5..=8)
+    }
+
     /// A readable name of the transformation that shows the image upright.
     pub fn describe(self) -> &'static str {
         match self.0 {
@@ -608,10 +613,33 @@ fn quiet_rawloader_panics() {
 /// masked pixels, so a file whose image data is corrupt (but present) gives
 /// its size here and an error from [`read_raw`].
 pub fn raw_output_size(path: &Path) -> Result<(usize, usize), RawError> {
-    let (_, img) = load(path, true)?;
+    Ok(header_sizes(path)?.0)
+}
+
+/// The size of the image [`decode_raw`] gives for `path`: [`raw_output_size`]
+/// turned by the file's orientation (width and height swapped for EXIF
+/// orientations 5–8), from the file's directories alone — what a photo
+/// developed from this file measures.
+pub fn developed_size(path: &Path) -> Result<(usize, usize), RawError> {
+    let ((w, h), orientation) = header_sizes(path)?;
+    Ok(if orientation.transposes() { (h, w) } else { (w, h) })
+}
+
+/// [`raw_output_size`] and the orientation [`read_raw`] would report.
+fn header_sizes(path: &Path) -> Result<((usize, usize), Orientation), RawError> {
+    let (bytes, img) = load(path, true)?;
     let area = active_area(path, &img)?;
     sensor_pattern(path, &img)?;
-    Ok((area.width, area.height))
+    let exif = read_exif(&bytes).unwrap_or_default();
+    Ok(((area.width, area.height), file_orientation(&img, &exif)))
+}
+
+/// The orientation of a decoded file: rawloader's where it knows one, else the EXIF tag's.
+fn file_orientation(img: &rawloader::RawImage, exif: &ExifInfo) -> Orientation {
+    match img.orientation {
+        rawloader::Orientation::Unknown => Orientation::from_exif(exif.orientation.unwrap_or(1)),
+        o => Orientation::from_exif(o.to_u16()),
+    }
 }
 
 /// `rawloader`'s decoder and camera table (parsed once).
@@ -791,10 +819,7 @@ pub fn read_raw(path: &Path, white_level: Option<f32>) -> Result<RawFrame, RawEr
     let wb = img.wb_coeffs;
     let camera_wb = (wb[..3].iter().all(|v| v.is_finite() && *v > 0.0))
         .then(|| [f64::from(wb[0] / wb[1]), 1.0, f64::from(wb[2] / wb[1])]);
-    let orientation = match img.orientation {
-        rawloader::Orientation::Unknown => Orientation::from_exif(exif.orientation.unwrap_or(1)),
-        o => Orientation::from_exif(o.to_u16()),
-    };
+    let orientation = file_orientation(&img, &exif);
     // rawloader keeps its camera table's matrices as integers ×10000 (dcraw's
     // adobe_coeff convention) and DNG matrices as they are.
     let matrix_scale = if exif.dng { 1.0 } else { 1e-4 };
@@ -905,8 +930,7 @@ pub fn decode_raw(path: &Path, opts: &RawOptions) -> Result<(RgbBuffer, RawMetad
 /// The image as it should be viewed, given its EXIF orientation.
 pub fn orient(img: &RgbBuffer, o: Orientation) -> RgbBuffer {
     let (w, h) = (img.width, img.height);
-    let swap = matches!(o.0, 5..=8);
-    let (ow, oh) = if swap { (h, w) } else { (w, h) };
+    let (ow, oh) = if o.transposes() { (h, w) } else { (w, h) };
     let mut data = vec![0.0f32; img.data.len()];
     for yo in 0..oh {
         for xo in 0..ow {

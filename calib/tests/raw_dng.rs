@@ -4,7 +4,9 @@
 //! give errors naming the file.
 
 use lucent_calib::demosaic::Demosaic;
-use lucent_calib::raw::{decode_raw, raw_output_size, read_raw, RawData, RawError, RawOptions, WhiteBalance};
+use lucent_calib::raw::{
+    decode_raw, developed_size, raw_output_size, read_raw, RawData, RawError, RawOptions, WhiteBalance,
+};
 use std::path::{Path, PathBuf};
 use tiff::encoder::{colortype, Rational, SRational, TiffEncoder};
 use tiff::tags::Tag;
@@ -95,6 +97,7 @@ fn known_mosaic_round_trips_exactly() {
         let RawData::Bayer(mos) = &frame.data else { panic!("Bayer") };
         assert_eq!((mos.width, mos.height), (right - left, bottom - top));
         assert_eq!(raw_output_size(&path).unwrap(), (m.output_width, m.output_height), "{name}: header-only size");
+        assert_eq!(developed_size(&path).unwrap(), (m.output_width, m.output_height), "{name}: unturned");
         for y in 0..mos.height {
             for x in 0..mos.width {
                 let k = 2 * (y & 1) + (x & 1);
@@ -122,6 +125,8 @@ fn orientation_white_balance_and_demosaic_through_the_pipeline() {
     let frame = read_raw(&path, None).unwrap();
     assert_eq!((frame.meta.output_width, frame.meta.output_height), (aw, ah));
     assert_eq!(raw_output_size(&path).unwrap(), (aw, ah));
+    // The developed photo's size, what planning checks against the render, is turned.
+    assert_eq!(developed_size(&path).unwrap(), (img.width, img.height), "developed size, from the header");
     // Output (xo, yo) shows stored pixel (yo, ah − 1 − xo); its own CFA sample survives demosaicing.
     let (xo, yo) = (10, 20);
     let (xs, ys) = (yo, ah - 1 - xo);

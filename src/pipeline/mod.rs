@@ -829,7 +829,7 @@ fn photo_bin(sample: &str, photo: &Path, render_size: Option<&str>) -> Result<us
     let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
     let (pw, ph) = if is_raw {
         // The active area from the file's tags, without decoding the pixel data.
-        lucent_calib::raw::raw_output_size(photo).map_err(|e| unreadable(e.to_string()))?
+        lucent_calib::raw::developed_size(photo).map_err(|e| unreadable(e.to_string()))?
     } else {
         // The header only: planning needs the size, not the pixels.
         crate::imageio::image_size(photo).map_err(|e| unreadable(e.to_string()))?
