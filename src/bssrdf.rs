@@ -38,6 +38,37 @@ use plotters::prelude::*;
 use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
 
+/// What is wrong with a list of θi/θo goniometer configurations ([`parse_configs`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{part:?}: expected θi/θo in degrees, e.g. 45/0")]
+    Syntax { part: String },
+    #[error("{text:?} is not a number")]
+    Number { text: String },
+    #[error("{part:?}: angles must lie in [0°, 90°)")]
+    Angle { part: String },
+    #[error("{part:?} is given twice")]
+    Repeated { part: String },
+}
+
+/// Parses "45/0,0/45" into (θi, θo) pairs in degrees.
+pub fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>, ConfigError> {
+    let mut out = Vec::new();
+    for part in text.split(',') {
+        let (a, b) = part.split_once('/').ok_or_else(|| ConfigError::Syntax { part: part.to_string() })?;
+        let num = |s: &str| s.trim().parse::<f64>().map_err(|_| ConfigError::Number { text: s.to_string() });
+        let (ti, to) = (num(a)?, num(b)?);
+        if !(0.0..90.0).contains(&ti) || !(0.0..90.0).contains(&to) {
+            return Err(ConfigError::Angle { part: part.to_string() });
+        }
+        if out.contains(&(ti, to)) {
+            return Err(ConfigError::Repeated { part: part.trim().to_string() });
+        }
+        out.push((ti, to));
+    }
+    Ok(out)
+}
+
 /// A slice file that cannot be read or written.
 #[derive(Debug, thiserror::Error)]
 pub enum SliceIoError {

@@ -24,6 +24,10 @@ pub enum Fault {
     Interrupted,
 }
 
+/// The class of the errors of one module (`None`: not one of its), for
+/// [`Fault::of_with`].
+pub type Classifier = fn(&(dyn Error + 'static)) -> Option<Fault>;
+
 /// The exit codes, as `lucent --help` lists them.
 pub const EXIT_CODES: &str = "Exit codes:
   0    success
@@ -67,26 +71,31 @@ impl Fault {
     }
 
     /// The class of an error: the first cause in its chain that says (a
-    /// [`Faulted`] or [`Internal`], a Slurm failure, an I/O error of the
-    /// machine such as a full disk or a refused permission), else the user
-    /// input.
+    /// [`Faulted`] or [`Internal`], an I/O error of the machine such as a
+    /// full disk or a refused permission), else the user input. Errors of
+    /// the modules above this one (the pipeline's, Slurm's) are classed by
+    /// [`Fault::of_with`] with their classifiers
+    /// (`lucent::pipeline::fault_of`).
     pub fn of(error: &(dyn Error + 'static)) -> Fault {
+        Self::of_with(error, &[])
+    }
+
+    /// [`Fault::of`], asking `classifiers` too at every cause of the chain
+    /// (after [`Faulted`]): each names the class of the errors it knows.
+    pub fn of_with(error: &(dyn Error + 'static), classifiers: &[Classifier]) -> Fault {
         let mut cause: Option<&(dyn Error + 'static)> = Some(error);
         while let Some(e) = cause {
             if let Some(f) = e.downcast_ref::<Faulted>() {
                 return f.fault;
             }
-            if let Some(crate::pipeline::PipelineError::Failed { fault, .. }) = e.downcast_ref() {
-                return *fault;
+            if let Some(f) = classifiers.iter().find_map(|c| c(e)) {
+                return f;
             }
             if e.is::<Internal>() {
                 return Fault::Internal;
             }
             if e.is::<Interrupted>() || matches!(e.downcast_ref(), Some(crate::fit::FitError::Interrupted { .. })) {
                 return Fault::Interrupted;
-            }
-            if e.is::<crate::pipeline::executor::SlurmError>() {
-                return Fault::Environment;
             }
             if let Some(io) = e.downcast_ref::<std::io::Error>()
                 && environment_io(io.kind())

@@ -282,7 +282,7 @@ impl BssrdfJob {
         }
         paths(self.paths)?;
         if let Some(c) = &self.configs {
-            crate::pipeline::project::parse_configs(c).map_err(|e| bad("configs", c, e.to_string()))?;
+            crate::bssrdf::parse_configs(c).map_err(|e| bad("configs", c, e.to_string()))?;
         }
         Ok(())
     }

@@ -41,7 +41,7 @@ fn main() -> std::process::ExitCode {
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| lucent::cli::run(cli))) {
         Ok(Ok(())) => std::process::ExitCode::SUCCESS,
         Ok(Err(e)) => {
-            let fault = Fault::of(e.as_ref());
+            let fault = lucent::pipeline::fault_of(e.as_ref());
             match fault {
                 Fault::Input | Fault::Interrupted => eprintln!("error: {}", error_chain(&e)),
                 _ => eprintln!("error ({fault}): {}", error_chain(&e)),

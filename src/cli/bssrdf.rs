@@ -404,7 +404,7 @@ fn beam_map_fwhm_m(map: &BeamMap) -> f64 {
 }
 
 fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
-    crate::pipeline::project::parse_configs(text).map_err(|e| anyhow!("--configs {text:?}: {e}"))
+    crate::bssrdf::parse_configs(text).map_err(|e| anyhow!("--configs {text:?}: {e}"))
 }
 
 /// One configuration of a `lucent bssrdf` run, set up as the command sets it up.

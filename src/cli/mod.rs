@@ -335,7 +335,7 @@ pub fn run(cli: Cli) -> Result<()> {
         // A run stopped by Ctrl-C or SIGTERM that kept its labelled partial
         // result (render, bssrdf) wrote lucent's files too.
         let kept_partial =
-            result.as_ref().is_err_and(|e| crate::fault::Fault::of(e.as_ref()) == crate::fault::Fault::Interrupted)
+            result.as_ref().is_err_and(|e| crate::pipeline::fault_of(e.as_ref()) == crate::fault::Fault::Interrupted)
                 && std::fs::read_dir(&f)
                     .is_ok_and(|d| d.flatten().any(|e| !e.file_name().to_string_lossy().starts_with('.')));
         if result.is_ok() || kept_partial {

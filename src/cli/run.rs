@@ -180,7 +180,7 @@ fn run_here(
         let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
         if let Ok(Err(e)) = &caught {
             // As the binary says it (into the log, standard error meanwhile).
-            let _ = match Fault::of(e.as_ref()) {
+            let _ = match crate::pipeline::fault_of(e.as_ref()) {
                 Fault::Input | Fault::Interrupted => writeln!(std::io::stderr(), "error: {e:#}"),
                 fault => writeln!(std::io::stderr(), "error ({fault}): {e:#}"),
             };
@@ -229,7 +229,7 @@ fn merge_here(t: &executor::Sharded, log: &Path, interrupt: &Interrupt, console:
 
 /// A command's error for the pipeline: its whole chain as one message, and its class.
 fn classified(e: anyhow::Error) -> Box<dyn std::error::Error + Send + Sync> {
-    Box::new(Faulted { fault: Fault::of(e.as_ref()), message: format!("{e:#}") })
+    Box::new(Faulted { fault: crate::pipeline::fault_of(e.as_ref()), message: format!("{e:#}") })
 }
 
 /// What a Slurm run lacks in the project's `[executor]` table, naming the
@@ -443,7 +443,7 @@ mod tests {
             panic!("tile index out of range")
         };
         let e = run_here(work, &args, &log, &interrupt, &console).expect_err("a panic fails the stage");
-        assert_eq!(Fault::of(e.as_ref()), Fault::Internal, "{e:#}");
+        assert_eq!(crate::pipeline::fault_of(e.as_ref()), Fault::Internal, "{e:#}");
         let text = format!("{e:#}");
         assert!(
             text.contains("`lucent render scene.toml` panicked") && text.contains("tile index out of range"),
@@ -456,7 +456,7 @@ mod tests {
             Err(anyhow::Error::from(std::io::Error::from(std::io::ErrorKind::StorageFull)).context("render.exr"))
         };
         let e = run_here(disk, &args, &log, &interrupt, &console).expect_err("an error fails the stage");
-        assert_eq!(Fault::of(e.as_ref()), Fault::Environment, "{e:#}");
+        assert_eq!(crate::pipeline::fault_of(e.as_ref()), Fault::Environment, "{e:#}");
         let written = std::fs::read_to_string(&log).expect("log");
         assert!(
             written.contains("error (environment): render.exr"),

@@ -54,6 +54,7 @@ pub mod project;
 pub mod report;
 
 use crate::envfit;
+use crate::fault::Fault;
 use crate::job::{
     BssrdfCompareJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, Job, OpticsJob, RawClippedJob,
     RenderJob,
@@ -195,6 +196,21 @@ pub struct Plan {
 #[error("no stage {name:?}; the stages are {}", Stage::ALL.iter().map(|s| s.name()).collect::<Vec<_>>().join(", "))]
 pub struct UnknownStage {
     pub name: String,
+}
+
+/// The class of a failure, the pipeline's and Slurm's errors included: a
+/// stage that failed has its class, a Slurm failure is the environment's
+/// ([`Fault::of_with`] with [`classify`]).
+pub fn fault_of(error: &(dyn std::error::Error + 'static)) -> Fault {
+    Fault::of_with(error, &[classify])
+}
+
+/// The class of the pipeline's own errors that know it (`None` for others).
+fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Fault> {
+    if let Some(PipelineError::Failed { fault, .. }) = e.downcast_ref() {
+        return Some(*fault);
+    }
+    e.is::<executor::SlurmError>().then_some(Fault::Environment)
 }
 
 /// Why the pipeline stopped.
@@ -1380,7 +1396,7 @@ pub fn run(
             if aside.exists() {
                 let _ = std::fs::rename(&aside, &dir);
             }
-            let fault = crate::fault::Fault::of(&message);
+            let fault = fault_of(&message);
             return Err(PipelineError::Failed { stage, fault, message, kept: failed });
         }
         if deferred > 0 {
@@ -1433,6 +1449,28 @@ pub fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_pipeline_classes_its_own_and_slurms_errors() {
+        // A Slurm failure is the environment's wherever it sits in the chain;
+        // `Fault::of` below the pipeline does not know the type (user input).
+        let slurm = anyhow::Error::from(executor::SlurmError::NoJobId("".into())).context("render shards");
+        assert_eq!(fault_of(slurm.as_ref()), Fault::Environment);
+        assert_eq!(Fault::of(slurm.as_ref()), Fault::Input);
+        // A failed stage carries the class its task had.
+        let failed = PipelineError::Failed {
+            stage: Stage::Render,
+            fault: Fault::Internal,
+            message: TaskError::Command { label: "render".into(), source: "tile index out of range".into() },
+            kept: PathBuf::from("render.failed"),
+        };
+        let e = anyhow::Error::from(failed).context("lucent run");
+        assert_eq!(fault_of(e.as_ref()), Fault::Internal);
+        // Anything else is classed as before.
+        let disk = anyhow::Error::from(std::io::Error::from(std::io::ErrorKind::StorageFull));
+        assert_eq!(fault_of(disk.as_ref()), Fault::Environment);
+        assert_eq!(fault_of(anyhow::anyhow!("--spp 0").as_ref()), Fault::Input);
+    }
 
     #[test]
     fn a_photo_is_binned_to_the_render_by_an_integer_factor_or_refused() {

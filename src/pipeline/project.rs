@@ -70,6 +70,7 @@
 //! # file = "slice.exr"
 //! ```
 
+pub use crate::bssrdf::{parse_configs, ConfigError};
 use crate::job::{
     BssrdfCompareJob, BssrdfJob, CalibrateJob, CompareJob, EnvScaleJob, FitJob, JobError, OpticsJob, PoseJob, RenderJob,
 };
@@ -284,37 +285,6 @@ pub struct Project {
     pub bssrdf_configs: Vec<(f64, f64)>,
     /// The validated `[executor]` (local, one shard, without one).
     pub executor: super::executor::Executor,
-}
-
-/// What is wrong with a list of θi/θo configurations ([`parse_configs`]).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum ConfigError {
-    #[error("{part:?}: expected θi/θo in degrees, e.g. 45/0")]
-    Syntax { part: String },
-    #[error("{text:?} is not a number")]
-    Number { text: String },
-    #[error("{part:?}: angles must lie in [0°, 90°)")]
-    Angle { part: String },
-    #[error("{part:?} is given twice")]
-    Repeated { part: String },
-}
-
-/// Parses "45/0,0/45" into (θi, θo) pairs in degrees.
-pub fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>, ConfigError> {
-    let mut out = Vec::new();
-    for part in text.split(',') {
-        let (a, b) = part.split_once('/').ok_or_else(|| ConfigError::Syntax { part: part.to_string() })?;
-        let num = |s: &str| s.trim().parse::<f64>().map_err(|_| ConfigError::Number { text: s.to_string() });
-        let (ti, to) = (num(a)?, num(b)?);
-        if !(0.0..90.0).contains(&ti) || !(0.0..90.0).contains(&to) {
-            return Err(ConfigError::Angle { part: part.to_string() });
-        }
-        if out.contains(&(ti, to)) {
-            return Err(ConfigError::Repeated { part: part.trim().to_string() });
-        }
-        out.push((ti, to));
-    }
-    Ok(out)
 }
 
 /// Checks that a name from the project file (the project's, a sample's, a
