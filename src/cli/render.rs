@@ -585,8 +585,8 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     let files = write_outputs(&a.out, &image, a.exposure)?;
     let mut report = report(&loaded.summary, &settings, &image, &stats, threads, a.exposure, &files);
     report.interrupted = interrupted;
-    crate::io::write_json(&a.out.join("render.json"), &report)
-        .with_context(|| format!("{}: cannot write render.json", a.out.display()))?;
+    let json = scene::RenderFiles::in_dir(&a.out).json;
+    crate::io::write_json(&json, &report).with_context(|| format!("{}: cannot write", json.display()))?;
     if stats.leaked_paths > 0 {
         // A hole, or a mesh in the wrong unit (larger than the scene around it): say which is likelier.
         let size = loaded.summary.object_bounds_m.and_then(|[lo, hi]| scene::mesh::size_warning(lo, hi));
@@ -1033,8 +1033,9 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
     let board = plane(&|i| f64::from(image.board_samples[i]) / f64::from(image.samples[i].max(1)));
     let half = |k: usize, c: usize| plane(&|i| image.halves[k][i][c]);
     let (ar, ag, ab, br, bg, bb) = (half(0, 0), half(0, 1), half(0, 2), half(1, 0), half(1, 1), half(1, 2));
+    let files = scene::RenderFiles::in_dir(out);
     crate::exr::write_channels(
-        &out.join("render.exr"),
+        &files.exr,
         w,
         h,
         &[
@@ -1055,12 +1056,12 @@ pub fn write_outputs(out: &Path, image: &Image, exposure_stops: f64) -> Result<V
             ("half_b.B", &bb),
         ],
     )
-    .with_context(|| format!("{}: cannot write render.exr", out.display()))?;
+    .with_context(|| format!("{}: cannot write", files.exr.display()))?;
     let k = 2f64.powf(exposure_stops);
     let data: Vec<f32> = image.mean.iter().flat_map(|m| m.map(|v| (v * k) as f32)).collect();
-    imageio::write_png(&out.join("render.png"), &RgbImage::new(w, h, data)?)
-        .with_context(|| format!("{}: cannot write render.png", out.display()))?;
-    Ok(vec!["render.exr".into(), "render.png".into(), "render.json".into()])
+    imageio::write_png(&files.png, &RgbImage::new(w, h, data)?)
+        .with_context(|| format!("{}: cannot write", files.png.display()))?;
+    Ok(scene::RenderFiles::NAMES.map(String::from).to_vec())
 }
 
 fn report(

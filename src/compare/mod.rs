@@ -662,7 +662,7 @@ pub struct RenderApproximations {
 /// An unreadable render.json is a note, not an error: the EXR holds the
 /// image that is compared.
 fn render_approximations(render: &Path, notes: &mut Vec<String>) -> Option<RenderApproximations> {
-    let json = render.with_file_name("render.json");
+    let json = render.with_file_name(crate::scene::RenderFiles::JSON);
     let text = std::fs::read_to_string(&json).ok()?;
     #[derive(Deserialize)]
     struct Approximations {

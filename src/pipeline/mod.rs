@@ -59,6 +59,7 @@ use crate::job::{
     BssrdfCompareJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, Job, OpticsJob, RawClippedJob,
     RenderJob,
 };
+use crate::scene::RenderFiles;
 use project::Project;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -200,7 +201,7 @@ pub struct UnknownStage {
 
 /// The class of a failure, the pipeline's and Slurm's errors included: a
 /// stage that failed has its class, a Slurm failure is the environment's
-/// ([`Fault::of_with`] with [`classify`]).
+/// ([`Fault::of_with`] with the pipeline's classifier).
 pub fn fault_of(error: &(dyn std::error::Error + 'static)) -> Fault {
     Fault::of_with(error, &[classify])
 }
@@ -1109,7 +1110,8 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
         }
         Stage::Compare => {
             for smp in &f.sample {
-                let render = out.join(Stage::Render.name()).join(&smp.name).join("render.exr");
+                let render_dir = out.join(Stage::Render.name()).join(&smp.name);
+                let render = RenderFiles::in_dir(&render_dir).exr;
                 let Some(photo) = &smp.photo else {
                     notes.push(format!("{}: no photo", smp.name));
                     continue;
@@ -1120,7 +1122,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     continue;
                 }
                 inputs.push(photo.clone());
-                let fitted = render.with_file_name("fitted").join("render.exr");
+                let fitted = RenderFiles::in_dir(&render_dir.join("fitted")).exr;
                 let fitted = fitted.is_file().then_some(fitted);
                 let job = CompareJob {
                     photo: photo.clone(),

@@ -28,6 +28,7 @@
 
 use super::project::Project;
 use super::{Manifest, Stage, Status};
+use crate::scene::RenderFiles;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::{json, Value};
@@ -531,7 +532,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         }
         // Render and comparison
         let rdir = stage_folder(out, done, Stage::Render).join(&smp.name);
-        if let Some(r) = read_json::<crate::scene::RenderReport>(&rdir.join("render.json"), "a render.json")? {
+        if let Some(r) = read_json::<crate::scene::RenderReport>(&RenderFiles::in_dir(&rdir).json, "a render.json")? {
             let _ = write!(
                 h,
                 "<h3>Render</h3><p>{} spp{}, {} × {} px, seed {}, {} s; {}.</p>",
@@ -786,7 +787,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             );
             sj.insert("compare".into(), trim(&to_value(&m), 64));
         } else if rdir.is_dir() {
-            h.push_str(&page.img(&rdir.join("render.png"), &format!("{} render", smp.name))?);
+            h.push_str(&page.img(&RenderFiles::in_dir(&rdir).png, &format!("{} render", smp.name))?);
         }
         h.push_str("</section>");
         page.html.push_str(&h);

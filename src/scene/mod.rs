@@ -516,6 +516,38 @@ pub struct LoadedScene {
     pub warnings: Vec<String>,
 }
 
+/// The files of a render in its output folder, each name spelled here
+/// once: the linear image with its variance, sample counts, object and
+/// board fractions and half renders (`exr`), its preview (`png`) and its
+/// report ([`RenderReport`], `json`). Written by `lucent render` and `lucent
+/// merge`, read by `lucent run`'s planning, compare and report.
+///
+/// ```
+/// use lucent::scene::RenderFiles;
+/// let f = RenderFiles::in_dir(std::path::Path::new("out/render/s1"));
+/// assert_eq!(f.exr, std::path::Path::new("out/render/s1/render.exr"));
+/// assert_eq!(RenderFiles::NAMES, ["render.exr", "render.png", "render.json"]);
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RenderFiles {
+    pub exr: PathBuf,
+    pub png: PathBuf,
+    pub json: PathBuf,
+}
+
+impl RenderFiles {
+    /// The file names, as render.json's `files` lists them.
+    pub const NAMES: [&'static str; 3] = ["render.exr", "render.png", "render.json"];
+    /// The report's name ([`RenderFiles::json`]'s), beside any render's EXR.
+    pub const JSON: &'static str = Self::NAMES[2];
+
+    /// The files of the render whose output folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [exr, png, json] = Self::NAMES.map(|n| dir.join(n));
+        Self { exr, png, json }
+    }
+}
+
 /// `render.json` of `lucent render`: the scene as resolved, settings, seed,
 /// timings and counters; written by the command and read back by the report
 /// of `lucent run`.
