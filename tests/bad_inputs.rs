@@ -29,22 +29,27 @@ fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     out
 }
 
+/// `lucent bssrdf compare` reading FILE as the measured slice.
+fn compare_measured() -> Vec<&'static str> {
+    vec![
+        "bssrdf",
+        "compare",
+        "--measured",
+        "FILE",
+        "--measured-pixel-mm",
+        "0.1",
+        "--simulated",
+        "GOOD_SLICE",
+        "--out",
+        "OUT",
+    ]
+}
+
 /// The commands that read each corpus folder; FILE is the bad file, OUT the output folder.
 fn commands(reader: &str) -> Vec<Vec<&'static str>> {
     match reader {
         "recipe" | "index" => vec![vec!["optics", "FILE", "--wavelength", "550", "--out", "OUT"]],
-        "slice" => vec![vec![
-            "bssrdf",
-            "compare",
-            "--measured",
-            "FILE",
-            "--measured-pixel-mm",
-            "0.1",
-            "--simulated",
-            "GOOD_SLICE",
-            "--out",
-            "OUT",
-        ]],
+        "slice" => vec![compare_measured()],
         "beam" => vec![vec![
             "bssrdf",
             "--mu-s",
@@ -93,18 +98,7 @@ fn commands(reader: &str) -> Vec<Vec<&'static str>> {
                 "--out",
                 "OUT",
             ],
-            vec![
-                "bssrdf",
-                "compare",
-                "--measured",
-                "FILE",
-                "--measured-pixel-mm",
-                "0.1",
-                "--simulated",
-                "GOOD_SLICE",
-                "--out",
-                "OUT",
-            ],
+            compare_measured(),
             vec!["surface", "fit", "FILE", "--out", "OUT"],
             // (Read even though this render has no variance layers to use it with.)
             vec![

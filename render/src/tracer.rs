@@ -1498,6 +1498,17 @@ impl Throughput {
         }
     }
 
+    /// The throughput of a path that carries band b alone from here,
+    /// weighing `weight` in it (3 for a band drawn with probability 1/3, 1
+    /// for one branch of three): β_b × weight, the other bands 0, mean r kept.
+    #[inline]
+    fn keep_band(&self, b: usize, weight: f64) -> Throughput {
+        let mut kept = Throughput { beta: [0.0; 3], r: [0.0; 3] };
+        kept.beta[b] = weight * self.beta[b];
+        kept.r[b] = 3.0 * self.mean_r();
+        kept
+    }
+
     /// Rescales (β, r) so that mean r = 1 (the estimate is unchanged).
     #[inline]
     fn normalise(&mut self) {
@@ -2112,7 +2123,6 @@ fn trace_path(
                     break;
                 };
                 // The object's boundary from outside.
-                st.surface_hits += 1;
                 vertex = None;
                 if chain.is_some_and(|c| c.out) {
                     chain = None;
@@ -2124,17 +2134,16 @@ fn trace_path(
                 if hero.is_none() && one_band && settings.band_branches {
                     // One branch per band from here, each in its band alone
                     // (each makes its own split of the entry, if any).
-                    let m = tp.mean_r();
                     let score = est.score;
                     for b in 0..3 {
-                        let mut branch = Throughput { beta: [0.0; 3], r: [0.0; 3] };
-                        branch.beta[b] = tp.beta[b];
-                        branch.r[b] = 3.0 * m;
+                        let branch = tp.keep_band(b, 1.0);
                         trace_path(scene, settings, o, d, branch, Some(b), events, split, est, rng, st);
                         est.score = score;
                     }
                     break;
                 }
+                // (Counted here, after the branches, which count their own.)
+                st.surface_hits += 1;
                 // Splitting: the reflection, weighted by F_c, as a branch of its own.
                 let entry_f = (split && !obj.interface.is_rough()).then(|| {
                     let cos_i = -d.dot(n_in);
@@ -2154,12 +2163,7 @@ fn trace_path(
                     let b = ((rng.next_f64() * 3.0) as usize).min(2);
                     if one_band {
                         // One band per path (docs/method.md §5): weight 3 in band b.
-                        let keep = 3.0 * tp.beta[b];
-                        tp.beta = [0.0; 3];
-                        tp.beta[b] = keep;
-                        let m = tp.mean_r();
-                        tp.r = [0.0; 3];
-                        tp.r[b] = 3.0 * m;
+                        tp = tp.keep_band(b, 3.0);
                     }
                     b
                 });
