@@ -88,6 +88,97 @@ pub struct Accel {
     /// The grid of [`Accel::distance_lower_bound`], built on its first call
     /// (shared by clones: the same mesh).
     surface: Arc<OnceLock<DistanceGrid>>,
+    /// A convex mesh's face adjacency for [`Accel::exit_from`]'s walks.
+    walk: Option<Arc<Walk>>,
+}
+
+/// Face adjacency of a closed convex mesh (every edge shared by exactly two
+/// faces). Seen from a point inside, the faces project onto the unit sphere
+/// of directions as a spherical triangulation; the face a ray leaves
+/// through is the one whose projection holds the ray's direction, found by
+/// walking across the edges the direction lies beyond (a visibility walk,
+/// Devillers, Pion & Teillaud, "Walking in a triangulation", IJFCS 13, 2002).
+#[derive(Debug)]
+struct Walk {
+    /// Per triangle (the order given to [`Accel::new`]): its vertices,
+    /// counter-clockwise seen from outside.
+    outward: Vec<[DVec3; 3]>,
+    /// Per triangle: the triangle across the edge (v_k, v_k+1) of `outward`.
+    next: Vec<[u32; 3]>,
+    /// Per triangle: its index in the BVH's order.
+    slot: Vec<u32>,
+}
+
+/// Steps a walk takes before [`Accel::exit_from`] asks the BVH instead
+/// (a walk from a face near the exit takes a few).
+const WALK_STEPS: usize = 12;
+
+impl Walk {
+    /// The adjacency of `triangles` (convex, closed, no face of zero area),
+    /// or None when an edge is not shared by exactly two faces in opposite
+    /// directions.
+    fn new(triangles: &[[DVec3; 3]], original: &[u32]) -> Option<Self> {
+        let n = triangles.len();
+        let count = (3 * n) as f64;
+        let centre = triangles.iter().flatten().fold(DVec3::ZERO, |s, v| s + *v) / count;
+        let mut outward = Vec::with_capacity(n);
+        for &[a, b, c] in triangles {
+            let normal = (b - a).cross(c - a);
+            let side = normal.dot(a - centre);
+            if side == 0.0 || side.is_nan() {
+                return None;
+            }
+            outward.push(if side > 0.0 { [a, b, c] } else { [a, c, b] });
+        }
+        let key = |v: DVec3| v.to_array().map(f64::to_bits);
+        let mut edges = std::collections::HashMap::with_capacity(3 * n);
+        for (i, t) in outward.iter().enumerate() {
+            for k in 0..3 {
+                if edges.insert((key(t[k]), key(t[(k + 1) % 3])), i as u32).is_some() {
+                    return None;
+                }
+            }
+        }
+        let mut next = Vec::with_capacity(n);
+        for t in &outward {
+            let mut across = [0u32; 3];
+            for (k, a) in across.iter_mut().enumerate() {
+                *a = *edges.get(&(key(t[(k + 1) % 3]), key(t[k])))?;
+            }
+            next.push(across);
+        }
+        let mut slot = vec![0u32; n];
+        for (at, &i) in original.iter().enumerate() {
+            slot[i as usize] = at as u32;
+        }
+        Some(Self { outward, next, slot })
+    }
+
+    /// The triangle the ray from `origin` (inside) along `dir` leaves
+    /// through, walking from `start`; None after [`WALK_STEPS`] steps or
+    /// where `origin` is not inside the face reached.
+    #[inline]
+    fn find(&self, origin: DVec3, dir: DVec3, start: u32) -> Option<u32> {
+        let mut f = start as usize;
+        for _ in 0..WALK_STEPS {
+            let [a, b, c] = self.outward[f];
+            let (a, b, c) = (a - origin, b - origin, c - origin);
+            // With dir = αa + βb + γc: these are γV, αV, βV, V = a·(b × c).
+            let beyond = [a.cross(b).dot(dir), b.cross(c).dot(dir), c.cross(a).dot(dir)];
+            let k = if beyond[0] <= beyond[1].min(beyond[2]) {
+                0
+            } else if beyond[1] <= beyond[2] {
+                1
+            } else {
+                2
+            };
+            if beyond[k] >= 0.0 {
+                return (a.dot(b.cross(c)) > 0.0).then_some(f as u32);
+            }
+            f = self.next[f][k] as usize;
+        }
+        None
+    }
 }
 
 /// A grid over the mesh's bounding box that holds, per cell, a lower bound
@@ -277,6 +368,7 @@ impl Accel {
                 planes: None,
                 convex: false,
                 surface: Arc::default(),
+                walk: None,
             };
         }
         let extent = (hi - lo).max_element().max(lo.abs().max(hi.abs()).max_element());
@@ -295,7 +387,19 @@ impl Accel {
         let tris = original.iter().map(|&i| triangles[i as usize]).collect();
         let planes = convex_planes(triangles, extent);
         let convex = planes.is_some() || convex_mesh(triangles, extent);
-        Self { bvh, tris, original, bounds_min: lo, bounds_max: hi, scale, planes, convex, surface: Arc::default() }
+        let walk = (convex && planes.is_none()).then(|| Walk::new(triangles, &original).map(Arc::new)).flatten();
+        Self {
+            bvh,
+            tris,
+            original,
+            bounds_min: lo,
+            bounds_max: hi,
+            scale,
+            planes,
+            convex,
+            surface: Arc::default(),
+            walk,
+        }
     }
 
     /// A lower bound of the distance from `x` to the mesh's surface, in the
@@ -405,6 +509,33 @@ impl Accel {
             }
         }
         (best.0 < f64::INFINITY).then_some(Hit { t: best.0, triangle: u32::MAX, normal: best.1 })
+    }
+
+    /// The same hit as [`exit`](Self::exit) for a ray from inside the closed
+    /// mesh, found on a convex mesh of many faces by walking across the
+    /// edges from triangle `near` (any triangle; one near the answer makes
+    /// it a few steps) and measured by the same watertight test as the BVH's;
+    /// the BVH answers where the walk does not arrive, on other meshes and
+    /// for `near` = `u32::MAX`.
+    #[inline]
+    pub fn exit_from(&self, origin: DVec3, dir: DVec3, near: u32) -> Option<Hit> {
+        let walked = self.walk.as_deref().filter(|_| (near as usize) < self.tris.len()).and_then(|w| {
+            let f = w.find(origin, dir, near)?;
+            let tri = &self.tris[w.slot[f as usize] as usize];
+            let t = Shear::new(dir).intersect(origin, tri)?;
+            let [a, b, c] = *tri;
+            Some(Hit { t, triangle: f, normal: (b - a).cross(c - a).normalize() })
+        });
+        if walked.is_some() {
+            return walked;
+        }
+        self.exit(origin, dir)
+    }
+
+    /// True when [`exit_from`](Self::exit_from) walks across faces (a
+    /// closed convex mesh of more than [`MAX_CONVEX_PLANES`] planes).
+    pub fn walks(&self) -> bool {
+        self.walk.is_some()
     }
 
     /// True when some triangle lies at 0 < t < `t_max` along the ray.

@@ -2366,7 +2366,7 @@ fn mesh_exit(accel: &Accel, x: DVec3, wo: DVec3, eta: f64) -> Option<MeshExit> {
             return None;
         }
         let (wi, cos_i) = unrefract(wo, n, eta)?;
-        let next = accel.intersect(x, wi, f64::INFINITY)?;
+        let next = accel.exit_from(x, wi, hit.triangle)?;
         if next.triangle == hit.triangle {
             return Some(MeshExit { hit: next, n, wi, cos_i });
         }

@@ -1290,6 +1290,56 @@ fn l_prism() -> Vec<[DVec3; 3]> {
 }
 
 #[test]
+fn the_face_walk_finds_the_bvh_exit_from_any_start() {
+    // From inside a convex mesh of many faces, exit_from walks across edges
+    // from the start face: the hit (face, t, normal) must be the BVH's,
+    // bit for bit, from a start next to the answer (where the walk arrives)
+    // and from random faces (where it may hand over to the BVH). Meshes
+    // that are not walked (few planes, not convex) answer as exit does.
+    let sphere = icosphere(3, DVec3::new(0.0, 0.0, 0.015), 0.015);
+    let accel = Accel::new(&sphere);
+    assert!(accel.walks() && accel.convex_planes().is_none(), "a 1280-face icosphere is walked");
+    let mut rng = lucent_render::rng::Rng::new(11, 0);
+    let direction = |rng: &mut lucent_render::rng::Rng| {
+        let z: f64 = 2.0 * rng.next_f64() - 1.0;
+        let phi = std::f64::consts::TAU * rng.next_f64();
+        let s = (1.0 - z * z).sqrt();
+        DVec3::new(s * phi.cos(), s * phi.sin(), z)
+    };
+    let mut moved = 0;
+    let rays = 20_000;
+    for _ in 0..rays {
+        // Points from the centre to the faces (the inradius is ≈ 0.998 R),
+        // most of them near the surface.
+        let r = 0.015 * 0.99 * (1.0 - rng.next_f64().powi(3));
+        let o = DVec3::new(0.0, 0.0, 0.015) + r * direction(&mut rng);
+        let d = direction(&mut rng);
+        let want = accel.intersect(o, d, f64::INFINITY).expect("every ray from inside leaves");
+        let nudged = (d + 0.05 * direction(&mut rng)).normalize();
+        let near = accel.intersect(o, nudged, f64::INFINITY).expect("leaves").triangle;
+        let random = (rng.next_f64() * sphere.len() as f64) as u32;
+        for start in [near, random, u32::MAX] {
+            let got = accel.exit_from(o, d, start).expect("every ray from inside leaves");
+            assert_eq!((got.triangle, got.t.to_bits(), got.normal), (want.triangle, want.t.to_bits(), want.normal));
+        }
+        moved += usize::from(near != want.triangle);
+    }
+    // Many nudged starts are other faces than the answer: the walk moves.
+    assert!(moved > rays / 10, "{moved} of {rays} starts were not the answer");
+    for (what, tris) in
+        [("box", cube(DVec3::new(-0.01, -0.01, 0.001), DVec3::new(0.01, 0.01, 0.004))), ("L prism", l_prism())]
+    {
+        let accel = Accel::new(&tris);
+        assert!(!accel.walks(), "{what}");
+        for _ in 0..2_000 {
+            let o = DVec3::new(-0.004 + 0.002 * rng.next_f64(), -0.004 + 0.002 * rng.next_f64(), 0.002);
+            let d = direction(&mut rng);
+            assert_eq!(accel.exit_from(o, d, 0), accel.exit(o, d), "{what}");
+        }
+    }
+}
+
+#[test]
 fn distance_grid_bounds_the_distance_to_a_convex_mesh() {
     // For a convex mesh the distance from an inside point to the surface is
     // the least distance to a face plane: the grid's bound must never

@@ -1351,8 +1351,8 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
     type Similar = Option<(f64, Option<u64>)>;
     let similar = Some((0.0, None));
     let configurations: [(&'static str, Configure, bool, Similar, bool); 12] = [
-        ("previous (one band at random)", |s| s.band_branches = false, false, None, false),
-        ("default (+ phase connection)", |_| {}, false, None, false),
+        ("previous (phase connections through any mesh)", |s| s.phase_connection = true, false, None, false),
+        ("default", |_| {}, false, None, false),
         ("default + splitting at entry", |s| s.split_entry = true, false, None, false),
         ("default + shared dispersion", shared, false, None, false),
         ("default + object-weighted", object_weighted, false, None, false),
