@@ -18,9 +18,10 @@
 //! ends takes the batch's next path, so all four stay busy until the batch
 //! runs out.
 
-use super::{
-    aux_stream, survives_roulette, Batch, Chain, Crossing, Exit, Junctions, Kernel, Links, LobeEvent, Strategy,
-};
+use super::boundary::{Crossing, Exit};
+use super::kernel::{aux_stream, survives_roulette, Kernel, Strategy};
+use super::lobe::{Chain, Junctions, Links, LobeEvent};
+use super::tally::Batch;
 use crate::phase::lanes::PhaseLanes;
 use crate::rng::Rng;
 use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4};
