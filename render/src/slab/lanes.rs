@@ -18,9 +18,10 @@
 //! ends takes the batch's next path, so all four stay busy until the batch
 //! runs out.
 
-use super::{
-    aux_stream, survives_roulette, Batch, Chain, Crossing, Exit, Junctions, Kernel, Links, LobeEvent, Strategy,
-};
+use super::boundary::{Crossing, Exit};
+use super::kernel::{aux_stream, survives_roulette, Kernel, Strategy};
+use super::lobe::{Chain, Junctions, Links, LobeEvent};
+use super::tally::Batch;
 use crate::phase::lanes::PhaseLanes;
 use crate::rng::Rng;
 use crate::simd::{to_i32, unit_f64, unit_pair, Lanes, F4};
@@ -49,6 +50,29 @@ struct Paths {
     next: u64,
     end: u64,
     seed: u64,
+}
+
+impl Paths {
+    /// Four idle lanes for the paths `first_path` … `first_path + count − 1`
+    /// of `seed` (`Kernel::start_lane` puts a path in each).
+    fn new(seed: u64, first_path: u64, count: u64) -> Self {
+        Paths {
+            p: [Lanes::default(); 3],
+            dir: [Lanes::default(); 3],
+            w: Lanes::default(),
+            total: [0.0; 4],
+            rng: std::array::from_fn(|_| Rng::new(seed, first_path)),
+            aux: std::array::from_fn(|_| Rng::new(seed, first_path)),
+            live: 0,
+            unscattered: 0,
+            exit: [Exit::LOST; 4],
+            junctions: [Junctions::new(); 4],
+            chains: Box::new(std::array::from_fn(|_| Chain::new())),
+            next: first_path,
+            end: first_path + count,
+            seed,
+        }
+    }
 }
 
 /// The set bits of `bits`, lowest first.
@@ -104,36 +128,21 @@ impl Kernel<'_> {
         self.start_lane(paths, l);
     }
 
-    /// `Kernel::batch` for the connection estimators, four paths at a time.
+    /// `Kernel::batch` for the connection estimators, four paths at a time:
+    /// per round of the loop the free path and the scattering angles of
+    /// every lane, the scattering events of the lanes that do not reach a
+    /// boundary ([`connect_lanes`](Self::connect_lanes), the turn, the
+    /// weight's roulette), then the boundary hits of the others
+    /// ([`cross_lanes`](Self::cross_lanes)).
     #[target_feature(enable = "avx2,fma")]
     pub(super) fn batch_lanes(&self, seed: u64, first_path: u64, count: u64, image: Vec<f64>) -> Batch {
-        let sensor = &self.setup.sensor;
         let phase = PhaseLanes::new(&self.setup.slab.medium.phase);
-        let npix = sensor.pixels;
-        let mut b = Batch::new(image, npix);
-        let mut paths = Paths {
-            p: [Lanes::default(); 3],
-            dir: [Lanes::default(); 3],
-            w: Lanes::default(),
-            total: [0.0; 4],
-            rng: std::array::from_fn(|_| Rng::new(seed, first_path)),
-            aux: std::array::from_fn(|_| Rng::new(seed, first_path)),
-            live: 0,
-            unscattered: 0,
-            exit: [Exit::LOST; 4],
-            junctions: [Junctions::new(); 4],
-            chains: Box::new(std::array::from_fn(|_| Chain::new())),
-            next: first_path,
-            end: first_path + count,
-            seed,
-        };
+        let mut b = Batch::new(image, self.setup.sensor.pixels);
+        let mut paths = Paths::new(seed, first_path, count);
         for l in 0..4 {
             self.start_lane(&mut paths, l);
         }
         let (zero, one) = (F4::splat(0.0), F4::splat(1.0));
-        let w21 = self.w21.map(F4::splat);
-        let half = 0.5 * npix as f64;
-        let inv_pixel = 1.0 / sensor.pixel_m;
         while paths.live != 0 {
             let live = paths.live;
             // Random numbers: the free path's, then the angles' (as `trace`),
@@ -168,73 +177,7 @@ impl Kernel<'_> {
             b.events += u64::from(ev.count_ones());
             paths.unscattered &= !ev;
 
-            if let Strategy::Lobe { vertices, reuse } = self.strategy {
-                // The lobe connection, per lane (as `trace`): the walk's
-                // history, the connection and the lane's chain.
-                let phase_value = phase.eval(angles.cos_theta).lanes();
-                for l in lanes_of(ev) {
-                    let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
-                    paths.junctions[l].arrive();
-                    let chain = &mut paths.chains[l];
-                    paths.total[l] += match self.lobe_event(
-                        (vertices, reuse),
-                        pl,
-                        dl,
-                        paths.w.0[l],
-                        &paths.exit[l],
-                        &paths.junctions[l],
-                        chain,
-                        &mut b.image,
-                        &mut paths.aux[l],
-                    ) {
-                        Ok(e) => e.total + self.lobe_links_lanes(&phase, &e, pl, dl, chain, &mut b.image),
-                        Err(total) => total,
-                    };
-                    paths.junctions[l].scatter(phase_value.0[l]);
-                }
-            } else if let Strategy::Ring(ring) = &self.strategy {
-                // The ring connection, per lane, where it can contribute
-                // (τ ≤ 40 along the exit direction).
-                let tau = -p[2] * F4::splat(self.inv_cos_t * self.mu_t);
-                for l in lanes_of(tau.le(F4::splat(40.0 + 1e-9)).bits() & ev) {
-                    let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
-                    paths.total[l] += self.connect_ring(ring, pl, dl, paths.w.0[l], &mut b.image, &mut paths.aux[l]);
-                }
-            } else if self.image_terms || self.rough {
-                // Thin slab (the image terms' loop) or a rough top (sampled
-                // exit directions), per lane.
-                for l in lanes_of(ev) {
-                    let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
-                    let (w, exit) = (paths.w.0[l], paths.exit[l]);
-                    paths.total[l] += self.connect(pl, dl, w, exit, &mut b.image, &mut paths.aux[l]);
-                }
-            } else {
-                // Thick slab: `connect`'s straight-up term.
-                let l = -p[2] * F4::splat(self.inv_cos_t);
-                let tau = F4::splat(self.mu_t) * l;
-                let c = (p[0] + l * w21[0]) * F4::splat(inv_pixel) + F4::splat(half);
-                let r = F4::splat(half) - (p[1] + l * w21[1]) * F4::splat(inv_pixel);
-                let n = F4::splat(npix as f64);
-                let inside = tau.le(F4::splat(40.0)) & c.ge(zero) & r.ge(zero) & c.lt(n) & r.lt(n);
-                let made = inside.bits() & ev;
-                if made != 0 {
-                    let depth = F4::splat(self.roulette_depth);
-                    let e = tau.gt(depth).select(depth - tau, -tau).exp().lanes();
-                    let cos_up = dir[0] * w21[0] + dir[1] * w21[1] + dir[2] * w21[2];
-                    let phase_value = phase.eval(cos_up);
-                    let wp = (w * phase_value).lanes();
-                    let tau = tau.lanes();
-                    let pixel = to_i32(r.floor() * n + c.floor());
-                    for l in lanes_of(made) {
-                        let t = self.connection_transmittance(tau.0[l], e.0[l], &mut paths.aux[l]);
-                        if t != 0.0 {
-                            let v = wp.0[l] * t * self.splat;
-                            b.image[pixel[l] as usize] += v;
-                            paths.total[l] += v;
-                        }
-                    }
-                }
-            }
+            self.connect_lanes(&phase, &mut paths, &mut b.image, ev, (p, dir, w), angles.cos_theta);
 
             let turned = angles.turn(dir);
             for (t, d) in turned.iter().zip(paths.dir.iter_mut()) {
@@ -245,33 +188,141 @@ impl Kernel<'_> {
                     self.end_lane(&mut paths, &mut b, l, 0.0, 0.0);
                 }
             }
-            // Boundary hits, per lane (as `trace`), from the state before
-            // the event.
-            if let Some((p_before, dir_before, w_before)) = before_hit {
-                let gap = gap.lanes();
-                for l in lanes_of(hit) {
-                    let mut p = p_before.map(|c| c.0[l]);
-                    let mut dir = dir_before.map(|c| c.0[l]);
-                    let mut w = w_before.0[l];
-                    if self.rough && dir[2] > 0.0 && paths.unscattered & (1 << l) != 0 {
-                        paths.total[l] += self.connect_unscattered(p, dir, gap.0[l], w, &mut b.image);
-                    }
-                    let crossing = self.cross(&mut p, &mut dir, &mut w, gap.0[l], &mut paths.rng[l]);
-                    for k in 0..3 {
-                        paths.p[k].0[l] = p[k];
-                        paths.dir[k].0[l] = dir[k];
-                    }
-                    paths.w.0[l] = w;
-                    match crossing {
-                        Crossing::Reflected => paths.junctions[l].from_scatter = false,
-                        Crossing::Lost => self.end_lane(&mut paths, &mut b, l, 0.0, 0.0),
-                        Crossing::LeftTop(_) => self.end_lane(&mut paths, &mut b, l, w, 0.0),
-                        Crossing::LeftBottom => self.end_lane(&mut paths, &mut b, l, 0.0, w),
+            if let Some(before) = before_hit {
+                self.cross_lanes(&mut paths, &mut b, hit, gap.lanes(), before);
+            }
+        }
+        b
+    }
+
+    /// The connections of the scattering events in the lanes of `ev` (at
+    /// `p`, incoming direction `dir`, weight `w` after albedo; `cos_theta`
+    /// the cosine of each lane's next scattering angle, for the lobe
+    /// connection's MIS history), splatted into `image`, each lane's value
+    /// added to its path total: the lobe and ring connections and those of
+    /// a thin slab or a rough top per lane, the thick slab's straight-up
+    /// term of `connect` in vector instructions.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn connect_lanes(
+        &self,
+        phase: &PhaseLanes,
+        paths: &mut Paths,
+        image: &mut [f64],
+        ev: u32,
+        (p, dir, w): ([F4; 3], [F4; 3], F4),
+        cos_theta: F4,
+    ) {
+        if let Strategy::Lobe { vertices, reuse } = self.strategy {
+            // The lobe connection, per lane (as `trace`): the walk's
+            // history, the connection and the lane's chain.
+            let phase_value = phase.eval(cos_theta).lanes();
+            for l in lanes_of(ev) {
+                let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
+                paths.junctions[l].arrive();
+                let chain = &mut paths.chains[l];
+                paths.total[l] += match self.lobe_event(
+                    (vertices, reuse),
+                    pl,
+                    dl,
+                    paths.w.0[l],
+                    &paths.exit[l],
+                    &paths.junctions[l],
+                    chain,
+                    image,
+                    &mut paths.aux[l],
+                ) {
+                    Ok(e) => e.total + self.lobe_links_lanes(phase, &e, pl, dl, chain, image),
+                    Err(total) => total,
+                };
+                paths.junctions[l].scatter(phase_value.0[l]);
+            }
+        } else if let Strategy::Ring(ring) = &self.strategy {
+            // The ring connection, per lane, where it can contribute
+            // (τ ≤ 40 along the exit direction).
+            let tau = -p[2] * F4::splat(self.inv_cos_t * self.mu_t);
+            for l in lanes_of(tau.le(F4::splat(40.0 + 1e-9)).bits() & ev) {
+                let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
+                paths.total[l] += self.connect_ring(ring, pl, dl, paths.w.0[l], image, &mut paths.aux[l]);
+            }
+        } else if self.image_terms || self.rough {
+            // Thin slab (the image terms' loop) or a rough top (sampled
+            // exit directions), per lane.
+            for l in lanes_of(ev) {
+                let (pl, dl) = (paths.p.map(|c| c.0[l]), paths.dir.map(|c| c.0[l]));
+                let (w, exit) = (paths.w.0[l], paths.exit[l]);
+                paths.total[l] += self.connect(pl, dl, w, exit, image, &mut paths.aux[l]);
+            }
+        } else {
+            // Thick slab: `connect`'s straight-up term.
+            let sensor = &self.setup.sensor;
+            let npix = sensor.pixels;
+            let zero = F4::splat(0.0);
+            let w21 = self.w21.map(F4::splat);
+            let half = 0.5 * npix as f64;
+            let inv_pixel = 1.0 / sensor.pixel_m;
+            let l = -p[2] * F4::splat(self.inv_cos_t);
+            let tau = F4::splat(self.mu_t) * l;
+            let c = (p[0] + l * w21[0]) * F4::splat(inv_pixel) + F4::splat(half);
+            let r = F4::splat(half) - (p[1] + l * w21[1]) * F4::splat(inv_pixel);
+            let n = F4::splat(npix as f64);
+            let inside = tau.le(F4::splat(40.0)) & c.ge(zero) & r.ge(zero) & c.lt(n) & r.lt(n);
+            let made = inside.bits() & ev;
+            if made != 0 {
+                let depth = F4::splat(self.roulette_depth);
+                let e = tau.gt(depth).select(depth - tau, -tau).exp().lanes();
+                let cos_up = dir[0] * w21[0] + dir[1] * w21[1] + dir[2] * w21[2];
+                let phase_value = phase.eval(cos_up);
+                let wp = (w * phase_value).lanes();
+                let tau = tau.lanes();
+                let pixel = to_i32(r.floor() * n + c.floor());
+                for l in lanes_of(made) {
+                    let t = self.connection_transmittance(tau.0[l], e.0[l], &mut paths.aux[l]);
+                    if t != 0.0 {
+                        let v = wp.0[l] * t * self.splat;
+                        image[pixel[l] as usize] += v;
+                        paths.total[l] += v;
                     }
                 }
             }
         }
-        b
+    }
+
+    /// The boundary hits of the lanes of `hit`, per lane (as `trace`), from
+    /// their state `before` the event (position, direction, weight; `gap`
+    /// the vertical distance to the boundary ahead): the connection of
+    /// unscattered light at a rough top, then the crossing; a path that
+    /// leaves or is lost ends, and its lane takes the batch's next path.
+    #[target_feature(enable = "avx2,fma")]
+    #[inline]
+    fn cross_lanes(
+        &self,
+        paths: &mut Paths,
+        b: &mut Batch,
+        hit: u32,
+        gap: Lanes,
+        (p_before, dir_before, w_before): ([Lanes; 3], [Lanes; 3], Lanes),
+    ) {
+        for l in lanes_of(hit) {
+            let mut p = p_before.map(|c| c.0[l]);
+            let mut dir = dir_before.map(|c| c.0[l]);
+            let mut w = w_before.0[l];
+            if self.rough && dir[2] > 0.0 && paths.unscattered & (1 << l) != 0 {
+                paths.total[l] += self.connect_unscattered(p, dir, gap.0[l], w, &mut b.image);
+            }
+            let crossing = self.cross(&mut p, &mut dir, &mut w, gap.0[l], &mut paths.rng[l]);
+            for k in 0..3 {
+                paths.p[k].0[l] = p[k];
+                paths.dir[k].0[l] = dir[k];
+            }
+            paths.w.0[l] = w;
+            match crossing {
+                Crossing::Reflected => paths.junctions[l].from_scatter = false,
+                Crossing::Lost => self.end_lane(paths, b, l, 0.0, 0.0),
+                Crossing::LeftTop(_) => self.end_lane(paths, b, l, w, 0.0),
+                Crossing::LeftBottom => self.end_lane(paths, b, l, 0.0, w),
+            }
+        }
     }
 }
 

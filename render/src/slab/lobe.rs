@@ -129,9 +129,60 @@
 //! roulette e^{−τ_u}/q = e^{−τ_r}), e^{−s_j} stored with the chain.
 //!
 
-use super::{Exit, Kernel, MAX_LOBE_VERTICES};
+use super::boundary::Exit;
+use super::kernel::Kernel;
+use super::setup::Setup;
 use crate::phase::Phase;
 use crate::rng::Rng;
+
+/// Camera-side vertices of the lobe connection by default (see the module
+/// doc, "Lobe connection"; [`Estimator::Lobe`](super::Estimator::Lobe)). Measured on IOL1068-09
+/// (Lorenz–Mie, 45°/15°, 117 px of 0.1029 mm, 20 s runs on a loaded
+/// machine), the median per-pixel variance × paths fell from 70 k (the
+/// fixed-direction connection) to 35 k, 24 k, 12.7 k, 5.4 k and 1.9 k for
+/// m = 1, 2, 4, 8, 16 while the time per path grew 1.9×, 2.3×, 3.9×, 7.0×
+/// and 15× (the lane kernel of the connection against the scalar one):
+/// median² × time 2.4× lower than the connection's at m = 16, 1.8× at 8,
+/// 1.0× at 1. Longer chains still gain a little (30 s runs: variance ×
+/// paths 2.4 k, 1.1 k, 0.77 k and median² × time 2.7, 2.3, 2.2 s for
+/// m = 16, 24, 32), but a round of 32 batches then takes tens of seconds
+/// on a loaded machine, which a time-limited run overshoots: 16 is kept.
+/// (Those figures are for a chain drawn at every event. With one chain a
+/// path, [`LOBE_REUSE`], and the lane kernel, 20 s runs on 1 Dec 2026 gave
+/// median² × time 2.7, 1.4, 1.7 and 1.6 s for m = 8, 16, 24, 32: 16 is
+/// still the best.)
+pub const LOBE_VERTICES: usize = 16;
+
+/// The most camera-side vertices [`Estimator::Lobe`](super::Estimator::Lobe) accepts.
+pub const MAX_LOBE_VERTICES: usize = 32;
+
+/// Events of a path that share one chain of the lobe connection (module
+/// doc, "Chain reuse"); `usize::MAX`: one chain for the whole path.
+/// Measured side by side on IOL1068-09 (Lorenz–Mie, 45°/15°, m = 16, 117 px
+/// of 0.1029 mm, lane kernel, 20 s each on a loaded machine, 1 Dec 2026):
+/// redrawn every K = 1, 2, 4, 8 events and once a path, the paths/s were
+/// 667, 1113, 1728, 2205, 2865, the median per-pixel variance × paths
+/// 1.9 k, 2.6 k, 3.6 k, 4.3 k, 5.0 k (the shared chain correlates a
+/// path's events) and median² × time 2.89, 2.37, 2.09, 1.94, 1.73 s: the
+/// time a chain saves outweighs the correlation all the way to one chain a
+/// path.
+pub const LOBE_REUSE: usize = usize::MAX;
+
+/// Whether the lobe connection is exact for `setup`: a slab at least 40
+/// optical depths thick along the exit direction (no image terms; the
+/// chains do not reflect). Through a rough top the exit direction ω₂₁ is
+/// drawn per path and μ_t d / cos θ₂₁ ≥ μ_t d, so μ_t d ≥ 40 is asked (the
+/// rough connection's own test for image terms).
+pub(super) fn lobe_applies(setup: &Setup) -> bool {
+    let m = &setup.slab.medium;
+    let tau_d = m.mu_t_per_m() * setup.slab.thickness_m;
+    if setup.slab.top.is_rough() {
+        return tau_d >= 40.0;
+    }
+    let sin_t = setup.directions.theta_o_deg.to_radians().sin() / m.n;
+    let cos_t = (1.0 - sin_t * sin_t).sqrt();
+    tau_d / cos_t >= 40.0
+}
 
 impl Kernel<'_> {
     /// The lobe connection of a scattering event at `p` (incoming direction
