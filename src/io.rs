@@ -57,6 +57,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
         let _registered = interrupt::Registered::new(&tmp);
         f.write_all(bytes)?;
         f.sync_all()?;
+        mark_before_writing_into(parent)?;
         std::fs::rename(&tmp, path)
     })();
     if result.is_err() {
@@ -115,6 +116,13 @@ pub fn write_files_atomic(files: &[(&Path, &[u8])]) -> Result<(), WriteError> {
     // Every file is complete: move them in, a signal waiting until the last.
     let _deferred = interrupt::defer();
     let existed: Vec<bool> = temps.iter().map(|(_, p, _)| std::fs::symlink_metadata(p).is_ok()).collect();
+    for (tmp, path, _) in &temps {
+        let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if let Err(source) = mark_before_writing_into(parent) {
+            remove_temps(&temps);
+            return Err(WriteError { path: tmp.clone(), source });
+        }
+    }
     for (i, (tmp, path, _)) in temps.iter().enumerate() {
         if let Err(source) = std::fs::rename(tmp, path) {
             // Undo: the files this call added go, the unmoved temporaries too.
@@ -346,13 +354,44 @@ fn is_marked(dir: &Path) -> bool {
     absolute.ancestors().any(|a| a.join(OUTPUT_MARK).is_file())
 }
 
+/// The output folder of this process's command, until a file is written
+/// into it ([`mark_when_written`]).
+static UNMARKED_OUTPUT: std::sync::Mutex<Option<PathBuf>> = std::sync::Mutex::new(None);
+
+/// Marks `dir` ([`mark_output_folder`]) just before the first file of this
+/// process lands in it or below it ([`write_atomic`], [`write_files_atomic`]),
+/// so a command killed after writing its files (a closed pipe on its last
+/// line of output, SIGKILL) leaves a folder the next run may write into; a
+/// command that writes nothing leaves no mark.
+pub fn mark_when_written(dir: &Path) {
+    let dir = std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf());
+    *UNMARKED_OUTPUT.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(dir);
+}
+
+/// The mark of [`mark_when_written`], written when `folder` (where a file
+/// is about to land) is the output folder or below it.
+fn mark_before_writing_into(folder: &Path) -> std::io::Result<()> {
+    let folder = std::path::absolute(folder).unwrap_or_else(|_| folder.to_path_buf());
+    let mut pending = UNMARKED_OUTPUT.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let Some(dir) = pending.as_ref().filter(|d| folder.starts_with(d) && d.is_dir()) else { return Ok(()) };
+    if !is_marked(dir) {
+        let mark = dir.join(OUTPUT_MARK);
+        std::fs::write(&mark, MARK_TEXT)?;
+    }
+    *pending = None;
+    Ok(())
+}
+
+/// What [`OUTPUT_MARK`] holds.
+const MARK_TEXT: &[u8] = b"written by lucent; lucent may replace its own files in this folder\n";
+
 /// Marks `dir` (which exists) as lucent's output folder, so later runs may
 /// write into it again ([`check_output_folder`]).
 pub fn mark_output_folder(dir: &Path) -> Result<(), WriteError> {
     if is_marked(dir) {
         return Ok(());
     }
-    write_atomic(&dir.join(OUTPUT_MARK), b"written by lucent; lucent may replace its own files in this folder\n")
+    write_atomic(&dir.join(OUTPUT_MARK), MARK_TEXT)
 }
 
 /// [`check_output_folder`], then creates the folder and marks it: for a
@@ -437,8 +476,7 @@ impl StagedDir {
         create_folder_unlocked(&self.target).map_err(err(&self.target))?;
         if !is_marked(&self.target) {
             let mark = self.staging.join(OUTPUT_MARK);
-            std::fs::write(&mark, b"written by lucent; lucent may replace its own files in this folder\n")
-                .map_err(err(&mark))?;
+            std::fs::write(&mark, MARK_TEXT).map_err(err(&mark))?;
         }
         let new: Vec<std::ffi::OsString> = std::fs::read_dir(&self.staging)
             .map_err(err(&self.staging))?

@@ -772,3 +772,32 @@ fn an_optics_uncertainty_study_stops_at_ctrl_c() {
     assert!(e.contains("stopped after") && e.contains("nothing was written"), "{e}");
     assert!(!d.join("uo").exists(), "written after Ctrl-C");
 }
+
+/// A command killed after writing its files — here by SIGPIPE, its output
+/// piped into a reader that has gone (`lucent render … | head -c 0`) — leaves
+/// its folder marked as lucent's, so the next run into it is not refused
+/// as a folder "holding files lucent did not write"; a command that fails
+/// before writing leaves nothing.
+#[test]
+fn a_render_killed_by_a_closed_pipe_leaves_a_folder_the_next_run_may_use() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let plaque = root().join("fixtures/render/plaque_dense.toml");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["render", &s(&plaque), "--spp", "1", "--out", "r"])
+        .current_dir(d)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let status = child.wait().unwrap();
+    use std::os::unix::process::ExitStatusExt;
+    assert_eq!(status.signal(), Some(libc::SIGPIPE), "the render is killed by its closed pipe: {status:?}");
+    assert!(d.join("r/render.exr").is_file() && d.join("r/render.json").is_file(), "it wrote its files first");
+    let o = lucent_in(d, &["render", &s(&plaque), "--spp", "1", "--out", "r"]);
+    ok(&o, "a render into the folder a killed render wrote");
+    let o = lucent_in(d, &["render", "missing.toml", "--out", "gone"]);
+    refused(&o, &["missing.toml"], "render of a missing scene");
+    assert!(!d.join("gone").exists(), "a run that wrote nothing leaves no folder");
+}

@@ -329,6 +329,7 @@ pub fn run(cli: Cli) -> Result<()> {
     let existed = folder.as_deref().is_some_and(|f| std::fs::symlink_metadata(f).is_ok());
     if let Some(f) = &folder {
         crate::io::check_output_folder(f)?;
+        crate::io::mark_when_written(f);
     }
     let result = jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli));
     if let Some(f) = folder.filter(|f| f.is_dir()) {
