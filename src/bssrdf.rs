@@ -228,7 +228,7 @@ pub struct SliceSidecar {
 pub fn sidecar_of(path: &Path) -> Result<Option<SliceSidecar>, SliceIoError> {
     let mut candidates = vec![PathBuf::from(format!("{}.json", path.display()))];
     if let Some(dir) = path.parent() {
-        candidates.push(dir.join("summary.json"));
+        candidates.push(dir.join(SliceFiles::SUMMARY));
     }
     for c in candidates {
         let Ok(text) = crate::io::read_text(&c) else { continue };
@@ -312,7 +312,7 @@ pub fn check_measured(
 pub fn sidecar_pixel_mm(path: &Path) -> Result<Option<f64>, SliceIoError> {
     let mut candidates = vec![PathBuf::from(format!("{}.json", path.display()))];
     if let Some(dir) = path.parent() {
-        candidates.push(dir.join("summary.json"));
+        candidates.push(dir.join(SliceFiles::SUMMARY));
     }
     // `FILE.json` holds `pixel_mm`; a simulated slice's `summary.json` holds
     // it in `config` (other fields of either are not read here).
@@ -493,7 +493,7 @@ pub fn roughness(
             } else {
                 crate::surface::load_fit_choice(&path, None)
                     .map_err(|e| RoughnessError::Surface { text: text.into(), source: Box::new(e) })?;
-                path.parent().unwrap_or(Path::new(".")).join("normals.exr")
+                path.parent().unwrap_or(Path::new(".")).join(crate::surface::OUTPUT_FILES[3])
             };
             let normals_err = |source| RoughnessError::Normals { text: text.into(), source };
             let normals = read_normals(&normals_path).map_err(normals_err)?;
@@ -648,16 +648,113 @@ pub fn beam_profile(beam: &Beam, dirs: &Directions, x_mm: &[f64]) -> Vec<f64> {
     }
 }
 
+/// The files of one slice run in its folder, each name spelled here once:
+/// the slice (`exr`), its picture (`png`), the profile along the plane of
+/// incidence (`profile_csv`, `profile_png`) and the run's [`Summary`]
+/// (`summary`). Written by [`write_run`], read by `lucent bssrdf compare`,
+/// `lucent fit` and `lucent run`'s report.
+///
+/// ```
+/// use lucent::bssrdf::SliceFiles;
+/// let f = SliceFiles::in_dir(std::path::Path::new("out/bssrdf/s1"));
+/// assert_eq!(f.summary, std::path::Path::new("out/bssrdf/s1/summary.json"));
+/// assert_eq!(SliceFiles::run_subdir(2, 45.0, 0.0), "ti45_to0");
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SliceFiles {
+    pub exr: PathBuf,
+    pub png: PathBuf,
+    pub profile_csv: PathBuf,
+    pub profile_png: PathBuf,
+    pub summary: PathBuf,
+}
+
+impl SliceFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 5] = ["bssrdf.exr", "bssrdf.png", "profile.csv", "profile.png", "summary.json"];
+    /// The summary's name ([`SliceFiles::summary`]'s), beside any slice it describes.
+    pub const SUMMARY: &'static str = Self::NAMES[4];
+    /// The table of a run over several configurations, in the folder above their runs.
+    pub const SWEEP_CSV: &'static str = "sweep.csv";
+
+    /// The files of the run whose folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [exr, png, profile_csv, profile_png, summary] = Self::NAMES.map(|n| dir.join(n));
+        Self { exr, png, profile_csv, profile_png, summary }
+    }
+
+    /// The subfolder of configuration θi/θo in a run over `count`
+    /// configurations: empty for one (it runs in the folder itself).
+    pub fn run_subdir(count: usize, theta_i_deg: f64, theta_o_deg: f64) -> String {
+        if count > 1 {
+            format!("ti{theta_i_deg}_to{theta_o_deg}")
+        } else {
+            String::new()
+        }
+    }
+
+    /// Whether `name` is of a [`SliceFiles::run_subdir`].
+    pub fn is_run_subdir(name: &str) -> bool {
+        name.starts_with("ti") && name.contains("_to")
+    }
+}
+
+/// The files of a slice's band (`--uncertainty`, [`SliceBand`]) beside the
+/// run's [`SliceFiles`]: `uncertainty.json` (`json`), `band.exr` (`exr`) and
+/// the profile with its band (`profile_csv`, `profile_png`). Written by
+/// [`write_band`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SliceBandFiles {
+    pub json: PathBuf,
+    pub exr: PathBuf,
+    pub profile_csv: PathBuf,
+    pub profile_png: PathBuf,
+}
+
+impl SliceBandFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 4] = ["uncertainty.json", "band.exr", "profile-band.csv", "profile-band.png"];
+
+    /// The band files of the run whose folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [json, exr, profile_csv, profile_png] = Self::NAMES.map(|n| dir.join(n));
+        Self { json, exr, profile_csv, profile_png }
+    }
+}
+
+/// The files of `lucent bssrdf compare` in its output folder: the
+/// [`Comparison`] (`json`), the two profiles (`profiles`) and the
+/// side-by-side panel with the relative difference (`panel`). Read by
+/// `lucent run`'s report.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ComparisonFiles {
+    pub json: PathBuf,
+    pub profiles: PathBuf,
+    pub panel: PathBuf,
+}
+
+impl ComparisonFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 3] = ["comparison.json", "profiles.png", "panel.png"];
+
+    /// The files of the comparison whose folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [json, profiles, panel] = Self::NAMES.map(|n| dir.join(n));
+        Self { json, profiles, panel }
+    }
+}
+
 /// Writes the files of one run into `dir`; returns their paths.
 pub fn write_run(dir: &Path, slice: &Slice, summary: &Summary, beam: &[f64]) -> Result<Vec<PathBuf>, SliceIoError> {
     let n = slice.pixels;
     let mut written = Vec::new();
-    let exr = dir.join("bssrdf.exr");
+    let files = SliceFiles::in_dir(dir);
+    let exr = files.exr;
     let f32v = |v: &[f64]| v.iter().map(|x| *x as f32).collect::<Vec<f32>>();
     crate::exr::write_channels(&exr, n, n, &[("Y", &f32v(&slice.values)), ("std_error", &f32v(&slice.std_error))])?;
     written.push(exr);
     let grid = Grid { size: n, pixel_m: slice.pixel_m, values: slice.values.clone() };
-    let png = dir.join("bssrdf.png");
+    let png = files.png;
     let title = format!(
         "f_ssr, θi {}° φi {}° → θo {}° φo {}°",
         summary.config.theta_i_deg, summary.config.phi_i_deg, summary.config.theta_o_deg, summary.config.phi_o_deg
@@ -679,16 +776,16 @@ pub fn write_run(dir: &Path, slice: &Slice, summary: &Summary, beam: &[f64]) -> 
             beam.get(c).copied().unwrap_or(0.0)
         ));
     }
-    let p = dir.join("profile.csv");
+    let p = files.profile_csv;
     write_atomic(&p, csv.as_bytes())?;
     written.push(p);
-    let p = dir.join("profile.png");
+    let p = files.profile_png;
     let err: Vec<f64> = (0..n).map(|c| slice.std_error[row * n + c]).collect();
     let bytes = profile_png(&x, &[("simulated", grid.middle_row(), Some(&err[..]))], Some(beam))
         .map_err(|source| SliceIoError::Plot { path: p.clone(), source })?;
     write_atomic(&p, &bytes)?;
     written.push(p);
-    let p = dir.join("summary.json");
+    let p = files.summary;
     write_json(&p, summary)?;
     written.push(p);
     Ok(written)
@@ -803,11 +900,12 @@ impl SliceBand {
 pub fn write_band(dir: &Path, slice: &Slice, band: &SliceBand, beam: &[f64]) -> Result<Vec<PathBuf>, SliceIoError> {
     let n = slice.pixels;
     let mut written = Vec::new();
-    let p = dir.join("uncertainty.json");
+    let files = SliceBandFiles::in_dir(dir);
+    let p = files.json;
     write_json(&p, band)?;
     written.push(p);
     let f32v = |v: &[f64]| v.iter().map(|x| *x as f32).collect::<Vec<f32>>();
-    let exr = dir.join("band.exr");
+    let exr = files.exr;
     crate::exr::write_channels(
         &exr,
         n,
@@ -830,10 +928,10 @@ pub fn write_band(dir: &Path, slice: &Slice, band: &SliceBand, beam: &[f64]) -> 
     for c in 0..n {
         csv.push_str(&format!("{:.6},{:.8e},{:.8e},{:.8e},{:.8e}\n", x[c], f[c], se[c], sd[c], sd_se[c]));
     }
-    let p = dir.join("profile-band.csv");
+    let p = files.profile_csv;
     write_atomic(&p, csv.as_bytes())?;
     written.push(p);
-    let p = dir.join("profile-band.png");
+    let p = files.profile_png;
     let bytes = profile_band_png(&x, &f, &se, &sd, band, Some(beam))
         .map_err(|source| SliceIoError::Plot { path: p.clone(), source })?;
     write_atomic(&p, &bytes)?;

@@ -15,6 +15,36 @@ use lucent_colour::chart::SampleOptions;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+/// The files of `lucent colour calibrate` in its output folder, each name
+/// spelled here once: the [`CcmFile`] (`ccm`), the chart measured |
+/// corrected | reference (`chart`), the ΔE per patch (`delta_e`) and the
+/// sampled areas (`patches`). Written by the command, read by `lucent run`'s
+/// planning and report.
+///
+/// ```
+/// use lucent::ccm_file::ColourFiles;
+/// let f = ColourFiles::in_dir(std::path::Path::new("out/colour/phone"));
+/// assert_eq!(f.ccm, std::path::Path::new("out/colour/phone/ccm.json"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ColourFiles {
+    pub ccm: PathBuf,
+    pub chart: PathBuf,
+    pub delta_e: PathBuf,
+    pub patches: PathBuf,
+}
+
+impl ColourFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 4] = ["ccm.json", "chart.png", "delta_e.png", "patches.png"];
+
+    /// The files of the calibration whose output folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [ccm, chart, delta_e, patches] = Self::NAMES.map(|n| dir.join(n));
+        Self { ccm, chart, delta_e, patches }
+    }
+}
+
 /// A ccm.json that cannot be read.
 #[derive(Debug, thiserror::Error)]
 pub enum CcmFileError {

@@ -59,6 +59,34 @@ pub enum FitError {
     NoBoard,
 }
 
+/// The files of `lucent env fit-scale` in its output folder, each name
+/// spelled here once: the render of the empty board (`exr`), the scene with
+/// the fitted scale (`toml`) and the [`FitReport`] (`json`). Written by the
+/// command, read by `lucent run`'s planning and report.
+///
+/// ```
+/// use lucent::envfit::EnvScaleFiles;
+/// let f = EnvScaleFiles::in_dir(std::path::Path::new("out/env-scale/s1"));
+/// assert_eq!(f.json, std::path::Path::new("out/env-scale/s1/env_scale.json"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct EnvScaleFiles {
+    pub exr: PathBuf,
+    pub toml: PathBuf,
+    pub json: PathBuf,
+}
+
+impl EnvScaleFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 3] = ["board_render.exr", "scene.toml", "env_scale.json"];
+
+    /// The files of the fit whose output folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [exr, toml, json] = Self::NAMES.map(|n| dir.join(n));
+        Self { exr, toml, json }
+    }
+}
+
 /// `env_scale.json` of `lucent env fit-scale`: the fit and what it was
 /// made from; written by the command and read back by the report of
 /// `lucent run`.

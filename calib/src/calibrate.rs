@@ -32,6 +32,7 @@ use crate::env;
 use crate::model::{CameraModel, DistortionModel};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 pub use crate::error::{CalibError, NotFound};
@@ -58,6 +59,44 @@ pub struct CalibrationView {
     pub corners_px: Vec<[f64; 2]>,
     /// Detected minus reprojected, pixels.
     pub residuals_px: Vec<[f64; 2]>,
+}
+
+/// The files of `lucent calibrate`, each name spelled here once: the
+/// [`Calibration`] (`camera`, in a stage folder `camera.json`), beside it
+/// the reprojection residuals per view (`residuals_png`, `NAME_residuals.png`)
+/// and the folder of the detected and reprojected corners per view
+/// (`views`, `NAME_views/`). Written by `lucent calibrate`, read by `lucent
+/// run`'s planning and report.
+///
+/// ```
+/// use lucent_calib::calibrate::CalibrationFiles;
+/// let f = CalibrationFiles::in_dir(std::path::Path::new("out/calibrate"));
+/// assert_eq!(f.residuals_png, std::path::Path::new("out/calibrate/camera_residuals.png"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CalibrationFiles {
+    pub camera: PathBuf,
+    pub residuals_png: PathBuf,
+    pub views: PathBuf,
+}
+
+impl CalibrationFiles {
+    /// The camera file's name in a folder ([`CalibrationFiles::in_dir`]).
+    pub const CAMERA: &'static str = "camera.json";
+
+    /// The files beside the camera file `camera`.
+    pub fn of(camera: &Path) -> Self {
+        Self {
+            camera: camera.to_path_buf(),
+            residuals_png: crate::scene::sibling(camera, "_residuals.png"),
+            views: crate::scene::sibling(camera, "_views"),
+        }
+    }
+
+    /// The files of the calibration written into the folder `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        Self::of(&dir.join(Self::CAMERA))
+    }
 }
 
 /// What `lucent calibrate` writes as camera.json.

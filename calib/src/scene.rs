@@ -51,6 +51,7 @@
 use crate::model::Intrinsics;
 use crate::pose::{mat_mul, mat_vec, transpose};
 use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
 
 // Kept at these paths for the root crate and the tests (`lucent_calib::scene::Pose`, …):
 // boards and poses are leaf modules of their own, the detection is the driver's.
@@ -163,6 +164,45 @@ pub fn place_sample(board: &BoardSpec, sample: &SampleSpec, frame: &RendererFram
         size_m: sample.size_m,
         object_to_world: m,
         box_corners_world_m: corners,
+    }
+}
+
+/// `path` with `suffix` in place of its extension: `out/camera.json`,
+/// `"_views"` → `out/camera_views` (stem `out` when `path` has none).
+pub fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    path.with_file_name(format!("{stem}{suffix}"))
+}
+
+/// The files of `lucent pose`, each name spelled here once: the
+/// [`SceneDescription`] (`json`, in a stage folder `scene.json`) and beside
+/// it the view of the board's pose and the sample's outline (`view_png`,
+/// `NAME_view.png`). Written by `lucent pose`, read by `lucent run`'s
+/// planning and report.
+///
+/// ```
+/// use lucent_calib::scene::PoseFiles;
+/// let f = PoseFiles::in_dir(std::path::Path::new("out/pose"));
+/// assert_eq!(f.view_png, std::path::Path::new("out/pose/scene_view.png"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PoseFiles {
+    pub json: PathBuf,
+    pub view_png: PathBuf,
+}
+
+impl PoseFiles {
+    /// The scene file's name in a folder ([`PoseFiles::in_dir`]).
+    pub const JSON: &'static str = "scene.json";
+
+    /// The files beside the scene file `json`.
+    pub fn of(json: &Path) -> Self {
+        Self { json: json.to_path_buf(), view_png: sibling(json, "_view.png") }
+    }
+
+    /// The files of the pose written into the folder `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        Self::of(&dir.join(Self::JSON))
     }
 }
 

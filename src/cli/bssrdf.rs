@@ -667,7 +667,7 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
     for (i, run) in configs.iter().enumerate() {
         let (ti, pi, to, po) = run.angles;
         let (setup, options) = (&run.setup, &run.options);
-        let sub = if configs.len() > 1 { format!("ti{ti}_to{to}") } else { String::new() };
+        let sub = bssrdf::SliceFiles::run_subdir(configs.len(), ti, to);
         let (dir, shown) = (stage.path().join(&sub), a.out.join(&sub));
         let bar = progress_bar(a.quiet, stop);
         let label = format!("θi {ti}° → θo {to}°");
@@ -816,22 +816,16 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
     }
     drop(interrupt);
     if configs.len() > 1 {
-        crate::io::write_atomic(&stage.path().join("sweep.csv"), table.as_bytes())?;
-        println!("combined table: {}", a.out.join("sweep.csv").display());
+        let sweep = bssrdf::SliceFiles::SWEEP_CSV;
+        crate::io::write_atomic(&stage.path().join(sweep), table.as_bytes())?;
+        println!("combined table: {}", a.out.join(sweep).display());
     }
-    let owned = [
-        "bssrdf.exr",
-        "bssrdf.png",
-        "profile.csv",
-        "profile.png",
-        "summary.json",
-        "sweep.csv",
-        "uncertainty.json",
-        "band.exr",
-        "profile-band.csv",
-        "profile-band.png",
-    ];
-    stage.commit(|n| owned.contains(&n) || (n.starts_with("ti") && n.contains("_to")))?;
+    let owned: Vec<&str> = bssrdf::SliceFiles::NAMES
+        .into_iter()
+        .chain([bssrdf::SliceFiles::SWEEP_CSV])
+        .chain(bssrdf::SliceBandFiles::NAMES)
+        .collect();
+    stage.commit(|n| owned.contains(&n) || bssrdf::SliceFiles::is_run_subdir(n))?;
     if let Some(at) = interrupted_at {
         return Err(Interrupted(format!(
             "{} holds the slice from the paths finished before Ctrl-C (summary.json says \"interrupted\": true); the configurations after it were not run",
@@ -953,7 +947,7 @@ fn expectation(stop: &Stop, p: &slab::Progress) -> Option<(f64, String)> {
 
 fn simulated_path(p: &Path) -> PathBuf {
     if p.is_dir() {
-        p.join("bssrdf.exr")
+        bssrdf::SliceFiles::in_dir(p).exr
     } else {
         p.to_path_buf()
     }
@@ -980,23 +974,23 @@ fn compare(a: CompareArgs) -> Result<()> {
     let _interrupt = Interrupt::abort_on_first();
     let _remove_on_abort = super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out));
     let stage = crate::io::StagedDir::new(&a.out)?;
-    let out = stage.path();
-    crate::io::write_json(&out.join("comparison.json"), &c)?;
+    let files = bssrdf::ComparisonFiles::in_dir(stage.path());
+    crate::io::write_json(&files.json, &c)?;
     let x = measured.x_mm();
     let png = bssrdf::profile_png(
         &x,
         &[("measured", measured.middle_row(), None), ("simulated", simulated.middle_row(), None)],
         None,
     )?;
-    crate::io::write_atomic(&out.join("profiles.png"), &png)?;
+    crate::io::write_atomic(&files.profiles, &png)?;
     let panel = bssrdf::heatmap_png(
         &[("measured", &measured), ("simulated", &simulated)],
         Some(("relative difference (masked)", &rel)),
     )?;
-    crate::io::write_atomic(&out.join("panel.png"), &panel)?;
-    stage.commit(|n| ["comparison.json", "profiles.png", "panel.png"].contains(&n))?;
+    crate::io::write_atomic(&files.panel, &panel)?;
+    stage.commit(|n| bssrdf::ComparisonFiles::NAMES.contains(&n))?;
     println!("{}", serde_json::to_string_pretty(&c)?);
-    println!("written: {}/{{comparison.json, profiles.png, panel.png}}", a.out.display());
+    println!("written: {}/{{{}}}", a.out.display(), bssrdf::ComparisonFiles::NAMES.join(", "));
     Ok(())
 }
 

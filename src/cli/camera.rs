@@ -181,8 +181,7 @@ fn to_image(buf: RgbBuffer) -> RgbImage {
 }
 
 pub(super) fn sibling(path: &Path, suffix: &str) -> PathBuf {
-    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    path.with_file_name(format!("{stem}{suffix}"))
+    lucent_calib::scene::sibling(path, suffix)
 }
 
 fn file_name(path: &Path) -> String {
@@ -345,7 +344,7 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
         bail!(
             "--out {}: is a folder; give the camera file to write, e.g. {}",
             a.out.display(),
-            a.out.join("camera.json").display()
+            a.out.join(lucent_calib::calibrate::CalibrationFiles::CAMERA).display()
         );
     }
     let board = a.board.spec()?;
@@ -379,9 +378,10 @@ pub fn calibrate(a: CalibrateArgs) -> Result<()> {
     // the new camera.json.
     let views: Vec<(String, Vec<[f64; 2]>)> =
         cal.views.iter().map(|v| (v.image.clone(), v.residuals_px.clone())).collect();
-    let plot_path = sibling(&a.out, "_residuals.png");
+    let files = lucent_calib::calibrate::CalibrationFiles::of(&a.out);
+    let plot_path = files.residuals_png;
     let residuals_png = plot::residuals_png(&views, cal.rms_px)?;
-    let view_dir = sibling(&a.out, "_views");
+    let view_dir = files.views;
     // Ctrl-C from here on removes the staging folder (and the views folder,
     // plot and camera file if this run created them) and ends the run.
     let _interrupt = super::interrupt::Interrupt::abort_on_first();
@@ -740,7 +740,7 @@ pub fn pose(a: PoseArgs) -> Result<()> {
     }
     let label = format!("{}  PnP RMS {:.3} px", file_name(&a.image), rms);
     let png = cv::draw_view_png(&gray, &board, &corners.points, &reprojected, &segments, &label)?;
-    let view = sibling(&a.out, "_view.png");
+    let view = lucent_calib::scene::PoseFiles::of(&a.out).view_png;
     // The scene and its view image are one output: both or neither.
     write_all(&[(a.out.clone(), json_bytes(&a.out, &scene)?), (view.clone(), png)])?;
     let c = scene.camera_position_m;

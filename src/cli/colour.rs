@@ -224,9 +224,9 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
             .collect(),
     };
 
-    let out = &a.out;
-    file.write(&out.join("ccm.json"))?;
-    crate::io::write_atomic(&out.join("chart.png"), &chart_comparison(&ccm, &file)?)?;
+    let files = crate::ccm_file::ColourFiles::in_dir(&a.out);
+    file.write(&files.ccm)?;
+    crate::io::write_atomic(&files.chart, &chart_comparison(&ccm, &file)?)?;
     let labels: Vec<String> = file.patches.iter().map(|p| format!("{} {}", p.fit.patch, p.fit.name)).collect();
     let de2000: Vec<f64> = file.patches.iter().map(|p| p.fit.de2000).collect();
     let de76: Vec<f64> = file.patches.iter().map(|p| p.fit.de76).collect();
@@ -234,8 +234,8 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
     let colours: Vec<[u8; 3]> = file.patches.iter().map(|p| srgb8(mat3_vec(&to_srgb8, p.fit.reference_xyz))).collect();
     let title = format!("{} — {} — ΔE00 mean {:.2}, max {:.2}", file.camera, method, file.de2000_mean, file.de2000_max);
     let png = crate::plot::delta_e_bars_png(&title, &labels, &de2000, &de76, &colours)?;
-    crate::io::write_atomic(&out.join("delta_e.png"), &png)?;
-    crate::io::write_atomic(&out.join("patches.png"), &sampling_overlay(&img, &samples)?)?;
+    crate::io::write_atomic(&files.delta_e, &png)?;
+    crate::io::write_atomic(&files.patches, &sampling_overlay(&img, &samples)?)?;
 
     print_delta_e_table(&file);
     println!(
@@ -243,7 +243,7 @@ fn calibrate(a: CalibrateArgs) -> Result<()> {
         method,
         method.description(),
         a.image.display(),
-        out.display()
+        a.out.display()
     );
     Ok(())
 }

@@ -161,13 +161,14 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
         previous,
         new_scale
     );
-    println!("wrote {}/env_scale.json, scene.toml, board_render.exr", a.out.display());
+    let [exr, toml, json] = crate::envfit::EnvScaleFiles::NAMES;
+    println!("wrote {}/{json}, {toml}, {exr}", a.out.display());
     Ok(())
 }
 
 fn write(out: &Path, report: &FitReport, header: &str, scene_text: &str, img: &RgbImage) -> Result<()> {
     // One output: the scaled scene never appears without its fit and render.
-    let (exr, toml, json) = (out.join("board_render.exr"), out.join("scene.toml"), out.join("env_scale.json"));
+    let crate::envfit::EnvScaleFiles { exr, toml, json } = crate::envfit::EnvScaleFiles::in_dir(out);
     crate::io::write_files_atomic(&[
         (&exr, &imageio::encode_exr(&exr, img)?),
         (&toml, format!("{header}{scene_text}").as_bytes()),

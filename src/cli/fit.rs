@@ -91,7 +91,7 @@ pub fn parse_measured(spec: &str) -> Result<(PathBuf, Option<Angles>)> {
 fn sidecar_angles(path: &Path) -> Result<Option<Angles>> {
     let mut candidates = vec![PathBuf::from(format!("{}.json", path.display()))];
     if let Some(dir) = path.parent() {
-        candidates.push(dir.join("summary.json"));
+        candidates.push(dir.join(crate::bssrdf::SliceFiles::SUMMARY));
     }
     for c in candidates {
         let Ok(text) = crate::io::read_text(&c) else { continue };
@@ -213,10 +213,11 @@ pub fn write_outputs_with_recipe_text(
     stem: &str,
 ) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    let p = out.join("fit.json");
+    let files = report::FitFiles::in_dir(out);
+    let p = files.json.clone();
     crate::io::write_json(&p, result)?;
     written.push(p);
-    let p = out.join("objective.png");
+    let p = files.objective_png.clone();
     crate::io::write_atomic(&p, &report::objective_png(result)?)?;
     written.push(p);
     // Per configuration: the measured profile against the simulated ones at
@@ -232,13 +233,13 @@ pub fn write_outputs_with_recipe_text(
         curves.extend(start.as_deref().map(|v| ("simulated at the recipe", v, None)));
         curves.extend(end.as_deref().map(|v| ("simulated at the fit", v, None)));
         let d = &m.directions;
-        let p = out.join(report::profiles_name(d.theta_i_deg, d.theta_o_deg));
+        let p = files.profiles_png(d.theta_i_deg, d.theta_o_deg);
         crate::io::write_atomic(&p, &crate::bssrdf::profile_png(&m.grid.x_mm(), &curves, None)?)?;
         written.push(p);
     }
     let dir = problem.recipe.path.parent().unwrap_or(Path::new("."));
     if let Some(text) = report::fitted_recipe_text(original, dir, result) {
-        let p = out.join(format!("{stem}_fitted.toml"));
+        let p = files.fitted_recipe(stem);
         // The fitted recipe must load as it is written.
         Recipe::parse(&text, &p, Overrides::default()).with_context(|| "the fitted recipe does not validate")?;
         crate::io::write_atomic(&p, text.as_bytes())?;
@@ -249,10 +250,7 @@ pub fn write_outputs_with_recipe_text(
 
 /// The files of `--out` that a fit writes (replaced whole by the next fit).
 fn fit_output(name: &str) -> bool {
-    name == "fit.json"
-        || name == "objective.png"
-        || name.ends_with("_fitted.toml")
-        || (name.starts_with("profiles_ti") && name.ends_with(".png"))
+    report::FitFiles::is_output(name)
 }
 
 /// Runs `lucent fit`. Ctrl-C or SIGTERM stops the fit at the end of the
@@ -575,9 +573,10 @@ pub fn optics_uncertainty(
     }
     for u in &results {
         let dir = out.join(&u.sample);
-        crate::io::write_atomic(&dir.join("uncertainty.csv"), uncertainty::to_csv(u)?.as_bytes())?;
-        crate::io::write_json(&dir.join("uncertainty.json"), u)?;
-        crate::io::write_atomic(&dir.join("uncertainty.png"), &bands_png(u)?)?;
+        let files = uncertainty::UncertaintyFiles::in_dir(&dir);
+        crate::io::write_atomic(&files.csv, uncertainty::to_csv(u)?.as_bytes())?;
+        crate::io::write_json(&files.json, u)?;
+        crate::io::write_atomic(&files.png, &bands_png(u)?)?;
         println!(
             "{}: {} Latin-hypercube samples of {}",
             u.sample,

@@ -768,7 +768,8 @@ fn render_band(
     for line in band.lines() {
         println!("{line}");
     }
-    println!("wrote {}/uncertainty.json, band.exr, band.png ({renders} renders, {wall_s:.1} s)", a.out.display());
+    let names = scene::band::RenderBandFiles::NAMES.join(", ");
+    println!("wrote {}/{names} ({renders} renders, {wall_s:.1} s)", a.out.display());
     Ok(())
 }
 
@@ -776,14 +777,15 @@ fn render_band(
 /// deviation from the inputs and its Monte Carlo error) and band.png (the
 /// relative band over the object's pixels, to look at) in `out`.
 pub fn write_band(out: &Path, image: &Image, band: &scene::band::RenderBand) -> Result<()> {
-    crate::io::write_json(&out.join("uncertainty.json"), band)
-        .with_context(|| format!("{}: cannot write uncertainty.json", out.display()))?;
+    let files = scene::band::RenderBandFiles::in_dir(out);
+    crate::io::write_json(&files.json, band)
+        .with_context(|| format!("{}: cannot write {}", out.display(), scene::band::RenderBandFiles::NAMES[0]))?;
     let channel = |v: &[[f64; 3]], c: usize| -> Vec<f32> { v.iter().map(|t| t[c] as f32).collect() };
     let (sd, se) = (&band.pixel_sd, &band.pixel_sd_std_error);
     let (r, g, b) = (channel(sd, 0), channel(sd, 1), channel(sd, 2));
     let (er, eg, eb) = (channel(se, 0), channel(se, 1), channel(se, 2));
     crate::exr::write_channels(
-        &out.join("band.exr"),
+        &files.exr,
         image.width,
         image.height,
         &[
@@ -838,8 +840,8 @@ pub fn write_band(out: &Path, image: &Image, band: &scene::band::RenderBand) -> 
             on.len()
         ),
     )?;
-    crate::io::write_atomic(&out.join("band.png"), &png)
-        .with_context(|| format!("{}: cannot write band.png", out.display()))?;
+    crate::io::write_atomic(&files.png, &png)
+        .with_context(|| format!("{}: cannot write {}", out.display(), scene::band::RenderBandFiles::NAMES[2]))?;
     Ok(())
 }
 

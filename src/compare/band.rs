@@ -79,7 +79,8 @@ impl TwinBands {
 
     /// The `uncertainty.json` at `path` (or in the folder `path`).
     pub fn read(path: &Path) -> Result<Self, BandError> {
-        let file = if path.is_dir() { path.join("uncertainty.json") } else { path.to_path_buf() };
+        let file =
+            if path.is_dir() { crate::scene::band::RenderBandFiles::in_dir(path).json } else { path.to_path_buf() };
         let name = file.display().to_string();
         let text = std::fs::read_to_string(&file).map_err(|e| BandError::Read {
             source_name: name.clone(),

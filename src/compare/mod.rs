@@ -1043,11 +1043,41 @@ fn one() -> usize {
 /// Bootstrap resamples of the model RMSE's interval.
 pub const NOISE_RESAMPLES: usize = 1000;
 
-/// Output file names inside the folder.
-pub const FILES: [&str; 3] = ["metrics.json", "triplet.png", "difference.exr"];
+/// Output file names inside the folder ([`CompareFiles::NAMES`]).
+pub const FILES: [&str; 3] = CompareFiles::NAMES;
 
 /// The picture of `--band`'s check, beside [`FILES`] when bands are given.
 pub const BAND_PNG: &str = "band.png";
+
+/// The files of a comparison in its output folder, each name spelled here
+/// once: the [`Report`] (`metrics`), the photo | render | difference picture
+/// (`triplet`), the difference image (`difference`) and, with `--band`, the
+/// photo against the twins' bands (`band_png`). Written by
+/// [`write_outputs`], read by `lucent run`'s report.
+///
+/// ```
+/// use lucent::compare::CompareFiles;
+/// let f = CompareFiles::in_dir(std::path::Path::new("out/compare/s1"));
+/// assert_eq!(f.metrics, std::path::Path::new("out/compare/s1/metrics.json"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CompareFiles {
+    pub metrics: PathBuf,
+    pub triplet: PathBuf,
+    pub difference: PathBuf,
+    pub band_png: PathBuf,
+}
+
+impl CompareFiles {
+    /// The names of the files every comparison writes.
+    pub const NAMES: [&'static str; 3] = ["metrics.json", "triplet.png", "difference.exr"];
+
+    /// The files of the comparison whose output folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [metrics, triplet, difference] = Self::NAMES.map(|n| dir.join(n));
+        Self { metrics, triplet, difference, band_png: dir.join(BAND_PNG) }
+    }
+}
 
 /// Reads, checks and compares the images of `req`; nothing is written.
 pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
@@ -1574,13 +1604,14 @@ pub fn write_outputs(out: &Path, outcome: &Outcome) -> Result<Vec<PathBuf>, Comp
     }
     let result = (|| -> Result<(), CompareError> {
         std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
-        write_json(&tmp.join(FILES[0]), &outcome.report)?;
-        write_atomic(&tmp.join(FILES[1]), &outcome.triplet_png)?;
+        let files = CompareFiles::in_dir(&tmp);
+        write_json(&files.metrics, &outcome.report)?;
+        write_atomic(&files.triplet, &outcome.triplet_png)?;
         let channels: Vec<(&str, &[f32])> =
             outcome.difference.iter().map(|(n, v)| (n.as_str(), v.as_slice())).collect();
-        write_channels(&tmp.join(FILES[2]), outcome.width, outcome.height, &channels)?;
+        write_channels(&files.difference, outcome.width, outcome.height, &channels)?;
         if let Some(png) = &outcome.band_png {
-            write_atomic(&tmp.join(BAND_PNG), png)?;
+            write_atomic(&files.band_png, png)?;
         }
         if out.is_dir() {
             for f in FILES {

@@ -12,7 +12,7 @@
 use super::{FitResult, ParameterKind};
 use crate::plot::{legend_column, palette, perr, render_png, Mark, PlotError};
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Sets `key = value` in the `particle`-th `[[particles]]` table of recipe
 /// text (replacing the existing line, keeping its trailing comment, or
@@ -263,7 +263,62 @@ pub fn objective_png(result: &FitResult) -> Result<Vec<u8>, PlotError> {
 /// The file `lucent fit` writes with the measured profile of configuration
 /// θi/θo (degrees) against the simulated ones at the recipe and at the fit.
 pub fn profiles_name(theta_i_deg: f64, theta_o_deg: f64) -> String {
-    format!("profiles_ti{theta_i_deg}_to{theta_o_deg}.png")
+    let (start, end) = FitFiles::PROFILES;
+    format!("{start}ti{theta_i_deg}_to{theta_o_deg}{end}")
+}
+
+/// The files of `lucent fit` in its output folder, each name spelled here
+/// once: the [`FitResult`] (`json`), the objective against each parameter
+/// (`objective_png`), per configuration the profiles
+/// ([`FitFiles::profiles_png`]) and the fitted recipe
+/// ([`FitFiles::fitted_recipe`]). Written by `lucent fit`, read by `lucent
+/// run`'s planning and report.
+///
+/// ```
+/// use lucent::fit::report::FitFiles;
+/// let f = FitFiles::in_dir(std::path::Path::new("out/fit/s1"));
+/// assert_eq!(f.json, std::path::Path::new("out/fit/s1/fit.json"));
+/// assert_eq!(f.fitted_recipe("r"), std::path::Path::new("out/fit/s1/r_fitted.toml"));
+/// assert!(FitFiles::is_output("profiles_ti45_to0.png") && !FitFiles::is_output("notes.txt"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FitFiles {
+    pub json: PathBuf,
+    pub objective_png: PathBuf,
+    dir: PathBuf,
+}
+
+impl FitFiles {
+    /// The names of the files every fit writes.
+    pub const NAMES: [&'static str; 2] = ["fit.json", "objective.png"];
+    /// The end of a fitted recipe's name (after the recipe's stem).
+    const FITTED: &'static str = "_fitted.toml";
+    /// The start and end of a profiles plot's name.
+    const PROFILES: (&'static str, &'static str) = ("profiles_", ".png");
+
+    /// The files of the fit whose output folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [json, objective_png] = Self::NAMES.map(|n| dir.join(n));
+        Self { json, objective_png, dir: dir.to_path_buf() }
+    }
+
+    /// The profiles plot of configuration θi/θo (degrees).
+    pub fn profiles_png(&self, theta_i_deg: f64, theta_o_deg: f64) -> PathBuf {
+        self.dir.join(profiles_name(theta_i_deg, theta_o_deg))
+    }
+
+    /// The fitted recipe of the recipe whose file stem is `stem`.
+    pub fn fitted_recipe(&self, stem: &str) -> PathBuf {
+        self.dir.join(format!("{stem}{}", Self::FITTED))
+    }
+
+    /// Whether `name` is of a file a fit writes (the next fit replaces them all).
+    pub fn is_output(name: &str) -> bool {
+        let (start, end) = Self::PROFILES;
+        Self::NAMES.contains(&name)
+            || name.ends_with(Self::FITTED)
+            || (name.starts_with(&format!("{start}ti")) && name.ends_with(end))
+    }
 }
 
 #[cfg(test)]

@@ -210,22 +210,106 @@ fn png(path: &Path, bytes: Result<Vec<u8>, PlotError>) -> Result<(PathBuf, Vec<u
     Ok((path.to_path_buf(), bytes))
 }
 
+/// The files of the optics stage in its output folder, each name spelled
+/// here once: the property table (`csv`), its JSON ([`OpticalProperties`],
+/// `json`) and the spectra plot (`png`). Written by [`write_all`], read by
+/// `lucent run`'s report.
+///
+/// ```
+/// use lucent::optics::output::OpticsFiles;
+/// let f = OpticsFiles::in_dir(std::path::Path::new("out/optics"));
+/// assert_eq!(f.json, std::path::Path::new("out/optics/optical_properties.json"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OpticsFiles {
+    pub csv: PathBuf,
+    pub json: PathBuf,
+    pub png: PathBuf,
+}
+
+impl OpticsFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 3] =
+        ["optical_properties.csv", "optical_properties.json", "optical_properties.png"];
+
+    /// The files of the optics output folder `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [csv, json, png] = Self::NAMES.map(|n| dir.join(n));
+        Self { csv, json, png }
+    }
+
+    /// The folder of one sample's phase table and plots: `dir` itself when
+    /// the folder holds `count` = 1 sample, else the subfolder of its name.
+    pub fn sample_dir(dir: &Path, count: usize, sample: &str) -> PathBuf {
+        if count == 1 {
+            dir.to_path_buf()
+        } else {
+            dir.join(sanitise(sample))
+        }
+    }
+}
+
+/// One sample's phase table (`phase_csv`), its spectra plot (`png`) and its
+/// phase-function plots ([`SampleFiles::phase_png`]) in its folder
+/// ([`OpticsFiles::sample_dir`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SampleFiles {
+    pub phase_csv: PathBuf,
+    pub png: PathBuf,
+    dir: PathBuf,
+}
+
+impl SampleFiles {
+    const PHASE_CSV: &'static str = "phase_function.csv";
+    /// The start and end of a phase-function plot's name.
+    const PHASE_PNG: (&'static str, &'static str) = ("phase_", "nm.png");
+
+    /// The files of the sample folder `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        Self { phase_csv: dir.join(Self::PHASE_CSV), png: OpticsFiles::in_dir(dir).png, dir: dir.to_path_buf() }
+    }
+
+    /// The phase-function plot at `wavelength_nm`.
+    pub fn phase_png(&self, wavelength_nm: f64) -> PathBuf {
+        let (start, end) = Self::PHASE_PNG;
+        self.dir.join(format!("{start}{wavelength_nm}{end}"))
+    }
+
+    /// The phase-function plots in the folder, sorted (none when it cannot be read).
+    pub fn phase_pngs(&self) -> Vec<PathBuf> {
+        let (start, _) = Self::PHASE_PNG;
+        let Ok(rd) = std::fs::read_dir(&self.dir) else { return Vec::new() };
+        let mut v: Vec<PathBuf> = rd
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| {
+                p.file_name().is_some_and(|n| {
+                    let n = n.to_string_lossy();
+                    n.starts_with(start) && n.ends_with(".png")
+                })
+            })
+            .collect();
+        v.sort();
+        v
+    }
+}
+
 /// The phase table and the plots of one sample in `dir`, as (path, bytes).
 fn sample_files(dir: &Path, spectrum: &OpticalSpectrum) -> Result<Vec<(PathBuf, Vec<u8>)>, OutputError> {
+    let names = SampleFiles::in_dir(dir);
     let mut files = Vec::new();
     if let Some(csv) = phase_csv(spectrum) {
-        let p = dir.join("phase_function.csv");
+        let p = names.phase_csv.clone();
         let csv = csv.map_err(|source| OutputError::Csv { path: p.clone(), source })?;
         files.push((p, csv.into_bytes()));
         if let Some(i) = closest_wavelength(spectrum, 550.0) {
             let w = spectrum.wavelength_nm[i];
-            let p = dir.join(format!("phase_{w}nm.png"));
+            let p = names.phase_png(w);
             let title = format!("{}: phase function at {w} nm (log radial axis)", spectrum.sample);
             files.push(png(&p, plot::phase_polar_png(&title, &spectrum.phase[i], spectrum.g[i]))?);
         }
     }
-    let p = dir.join("optical_properties.png");
-    files.push(png(&p, plot::spectra_png(&[series(spectrum)]))?);
+    files.push(png(&names.png, plot::spectra_png(&[series(spectrum)]))?);
     Ok(files)
 }
 
@@ -235,21 +319,19 @@ fn sample_files(dir: &Path, spectrum: &OpticalSpectrum) -> Result<Vec<(PathBuf, 
 pub fn write_all(dir: &Path, spectra: &[OpticalSpectrum]) -> Result<Vec<PathBuf>, OutputError> {
     let refs: Vec<&OpticalSpectrum> = spectra.iter().collect();
     let mut files = Vec::new();
-    let csv = dir.join("optical_properties.csv");
+    let OpticsFiles { csv, json, png: all_png } = OpticsFiles::in_dir(dir);
     let table = table_csv(&refs).map_err(|source| OutputError::Csv { path: csv.clone(), source })?;
     files.push((csv, table.into_bytes()));
-    let json = dir.join("optical_properties.json");
     let file: Vec<OpticalProperties> = spectra.iter().map(OpticalProperties::from).collect();
     if let ([single], [entry]) = (spectra, file.as_slice()) {
         files.push((json.clone(), json_bytes(&json, entry)?));
         files.extend(sample_files(dir, single)?);
     } else {
         files.push((json.clone(), json_bytes(&json, &file)?));
-        let p = dir.join("optical_properties.png");
         let all: Vec<plot::SpectrumSeries> = spectra.iter().map(series).collect();
-        files.push(png(&p, plot::spectra_png(&all))?);
+        files.push(png(&all_png, plot::spectra_png(&all))?);
         for s in spectra {
-            files.extend(sample_files(&dir.join(sanitise(&s.sample)), s)?);
+            files.extend(sample_files(&OpticsFiles::sample_dir(dir, spectra.len(), &s.sample), s)?);
         }
     }
     let refs: Vec<(&Path, &[u8])> = files.iter().map(|(p, b)| (p.as_path(), b.as_slice())).collect();

@@ -55,6 +55,34 @@ pub struct Band {
     pub p97_5: Vec<f64>,
 }
 
+/// The files of an optics uncertainty study of one sample in its folder,
+/// each name spelled here once: the bands per wavelength as a table (`csv`),
+/// the [`Uncertainty`] (`json`) and their plot (`png`). Written by `lucent
+/// optics --uncertainty`.
+///
+/// ```
+/// use lucent::optics::uncertainty::UncertaintyFiles;
+/// let f = UncertaintyFiles::in_dir(std::path::Path::new("out/s1"));
+/// assert_eq!(f.json, std::path::Path::new("out/s1/uncertainty.json"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UncertaintyFiles {
+    pub csv: std::path::PathBuf,
+    pub json: std::path::PathBuf,
+    pub png: std::path::PathBuf,
+}
+
+impl UncertaintyFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 3] = ["uncertainty.csv", "uncertainty.json", "uncertainty.png"];
+
+    /// The files of the sample folder `dir`.
+    pub fn in_dir(dir: &std::path::Path) -> Self {
+        let [csv, json, png] = Self::NAMES.map(|n| dir.join(n));
+        Self { csv, json, png }
+    }
+}
+
 /// The result of a propagation.
 #[derive(Debug, Clone, Serialize)]
 pub struct Uncertainty {

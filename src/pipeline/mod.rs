@@ -53,13 +53,20 @@ pub mod executor;
 pub mod project;
 pub mod report;
 
+use crate::bssrdf::SliceFiles;
+use crate::ccm_file::ColourFiles;
 use crate::envfit;
+use crate::envfit::EnvScaleFiles;
 use crate::fault::Fault;
+use crate::fit::report::FitFiles;
 use crate::job::{
     BssrdfCompareJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, Job, OpticsJob, RawClippedJob,
     RenderJob,
 };
+use crate::scene::band::RenderBandFiles;
 use crate::scene::RenderFiles;
+use lucent_calib::calibrate::CalibrationFiles;
+use lucent_calib::scene::PoseFiles;
 use project::Project;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -290,7 +297,7 @@ fn earlier_project(out: &Path) -> Option<ProjectMark> {
     if let Ok(t) = std::fs::read_to_string(out.join(PROJECT_MARK)) {
         return serde_json::from_str(&t).ok();
     }
-    let t = std::fs::read_to_string(out.join(Stage::Report.name()).join("metrics.json")).ok()?;
+    let t = std::fs::read_to_string(report::ReportFiles::in_dir(&out.join(Stage::Report.name())).metrics).ok()?;
     let v: serde_json::Value = serde_json::from_str(&t).ok()?;
     Some(ProjectMark {
         project: v.get("project")?.as_str()?.to_string(),
@@ -456,6 +463,122 @@ pub fn hash_file(path: &Path) -> Result<InputHash, PipelineError> {
     })
 }
 
+/// The bookkeeping files of every stage folder, each name spelled here
+/// once: the stage's [`Manifest`] (`manifest`) and the log of its jobs
+/// (`log`). Written by [`run`], read by planning, the report and
+/// [`users_files`].
+///
+/// ```
+/// use lucent::pipeline::StageFiles;
+/// let f = StageFiles::in_dir(std::path::Path::new("out/optics"));
+/// assert_eq!(f.manifest, std::path::Path::new("out/optics/manifest.json"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StageFiles {
+    pub manifest: PathBuf,
+    pub log: PathBuf,
+}
+
+impl StageFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 2] = ["manifest.json", "log.txt"];
+
+    /// The bookkeeping files of the stage folder `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [manifest, log] = Self::NAMES.map(|n| dir.join(n));
+        Self { manifest, log }
+    }
+}
+
+/// The develop stage's files of a sample's photo `which` ("photo" or
+/// "empty_board") in the sample's folder, each name spelled here once (the
+/// planning below names them as the jobs' outputs): the photo in CIE RGB
+/// (`exr`), of a RAW photo its per-pixel variance (`variance`, the photo
+/// only) and its mask of validly recorded pixels (`valid`).
+///
+/// ```
+/// use lucent::pipeline::DevelopFiles;
+/// let f = DevelopFiles::in_dir(std::path::Path::new("out/develop/s1"), "photo");
+/// assert_eq!(f.variance, std::path::Path::new("out/develop/s1/photo_variance.exr"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DevelopFiles {
+    pub exr: PathBuf,
+    pub variance: PathBuf,
+    pub valid: PathBuf,
+}
+
+impl DevelopFiles {
+    /// The files of photo `which` in the sample folder `dir`.
+    pub fn in_dir(dir: &Path, which: &str) -> Self {
+        Self {
+            exr: dir.join(format!("{which}.exr")),
+            variance: dir.join(format!("{which}_variance.exr")),
+            valid: dir.join(format!("{which}_valid.png")),
+        }
+    }
+}
+
+/// The render and env-scale stages' files of one sample in its folder,
+/// each name spelled here once (the planning below writes the scenes and
+/// names the folders): the scene the sample is rendered with (`scene`), its
+/// render ([`RenderFiles`] in the folder itself) and, with a fitted recipe,
+/// the fitted twin's scene (`fitted_scene`) and render folder (`fitted`).
+///
+/// ```
+/// use lucent::pipeline::SampleRenderFiles;
+/// let f = SampleRenderFiles::in_dir(std::path::Path::new("out/render/s1"));
+/// assert_eq!(f.fitted, std::path::Path::new("out/render/s1/fitted"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SampleRenderFiles {
+    pub scene: PathBuf,
+    pub fitted_scene: PathBuf,
+    pub fitted: PathBuf,
+}
+
+impl SampleRenderFiles {
+    /// The files of the sample folder `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        Self {
+            scene: dir.join("input_scene.toml"),
+            fitted_scene: dir.join("input_scene_fitted.toml"),
+            fitted: dir.join("fitted"),
+        }
+    }
+}
+
+/// The compare stage's folders of one sample, each spelled here once (the
+/// planning below names them as the jobs' outputs), each holding
+/// [`crate::compare::CompareFiles`]: the whole image (`image`, the sample's folder itself),
+/// the object's pixels alone (`object`) and the fitted twin alone (`fitted`).
+///
+/// ```
+/// use lucent::pipeline::CompareDirs;
+/// let d = CompareDirs::in_dir(std::path::Path::new("out/compare/s1"));
+/// assert_eq!(d.object, std::path::Path::new("out/compare/s1/object"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CompareDirs {
+    pub image: PathBuf,
+    pub object: PathBuf,
+    pub fitted: PathBuf,
+}
+
+impl CompareDirs {
+    /// The folders of the sample folder `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        Self { image: dir.to_path_buf(), object: dir.join("object"), fitted: dir.join("fitted") }
+    }
+}
+
+/// The bssrdf stage's folder of a sample's comparison with its measured
+/// slice of configuration `c` (θi, θo): `compare_tiθi_toθo` in the sample's
+/// folder `dir`, holding [`crate::bssrdf::ComparisonFiles`].
+pub fn bssrdf_comparison_dir(dir: &Path, c: (f64, f64)) -> PathBuf {
+    dir.join(format!("compare_ti{}_to{}", c.0, c.1))
+}
+
 /// Files under `dir`, relative paths sorted, excluding the manifest and log.
 pub fn output_files(dir: &Path) -> Vec<String> {
     fn walk(base: &Path, dir: &Path, out: &mut Vec<String>) {
@@ -466,7 +589,7 @@ pub fn output_files(dir: &Path) -> Vec<String> {
                 walk(base, &p, out);
             } else if let Ok(rel) = p.strip_prefix(base) {
                 let r = rel.to_string_lossy().replace('\\', "/");
-                if r != "manifest.json" && r != "log.txt" && !r.starts_with('.') {
+                if !StageFiles::NAMES.contains(&r.as_str()) && !r.starts_with('.') {
                     out.push(r);
                 }
             }
@@ -549,7 +672,7 @@ pub fn users_files(dir: &Path, manifest: Option<&Manifest>) -> Vec<String> {
     all_files(dir)
         .into_iter()
         .filter(|f| {
-            if f == "manifest.json" || f == "log.txt" || f == STAGE_MARK {
+            if StageFiles::NAMES.contains(&f.as_str()) || f == STAGE_MARK {
                 return false;
             }
             if !listed.contains(f.as_str()) {
@@ -619,15 +742,16 @@ fn carry_users_files(from: &Path, to: &Path, kept: &[String], stage: Stage) -> V
 }
 
 fn read_manifest(dir: &Path) -> Option<Manifest> {
-    serde_json::from_str(&crate::io::read_text(dir.join("manifest.json")).ok()?).ok()
+    serde_json::from_str(&crate::io::read_text(StageFiles::in_dir(dir).manifest).ok()?).ok()
 }
 
 /// The slice folder `lucent bssrdf` writes for a configuration.
 pub fn bssrdf_run_dir(sample_dir: &str, configs: &[(f64, f64)], c: (f64, f64)) -> String {
-    if configs.len() > 1 {
-        format!("{sample_dir}/ti{}_to{}", c.0, c.1)
-    } else {
+    let sub = SliceFiles::run_subdir(configs.len(), c.0, c.1);
+    if sub.is_empty() {
         sample_dir.to_string()
+    } else {
+        format!("{sample_dir}/{sub}")
     }
 }
 
@@ -651,7 +775,7 @@ pub fn fitted_recipe(project: &Project, out: &Path, sample: &project::SampleSect
         return None;
     }
     let stem = sample.recipe.file_stem()?.to_string_lossy().into_owned();
-    let p = out.join(Stage::Fit.name()).join(&sample.name).join(format!("{stem}_fitted.toml"));
+    let p = FitFiles::in_dir(&out.join(Stage::Fit.name()).join(&sample.name)).fitted_recipe(&stem);
     p.is_file().then_some(p)
 }
 
@@ -673,7 +797,7 @@ fn sample_scene_with(
     let Some(r) = &project.file.render else {
         return Err(PipelineError::Stage { stage: Stage::Render, problem: StageProblem::NoRender });
     };
-    let fitted = out.join(Stage::EnvScale.name()).join(&sample.name).join("scene.toml");
+    let fitted = EnvScaleFiles::in_dir(&out.join(Stage::EnvScale.name()).join(&sample.name)).toml;
     // env-scale's scene only where this project has that stage for the sample.
     let source = if use_fitted && sample.empty_board.is_some() && fitted.is_file() { fitted } else { r.scene.clone() };
     let text = crate::io::read_text(&source).map_err(|e| PipelineError::Read { path: source.clone(), source: e })?;
@@ -737,8 +861,8 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
     if f.pose.is_none() || template {
         return Ok(None);
     }
-    let scene_json = out.join(Stage::Pose.name()).join("scene.json");
-    let camera_json = out.join(Stage::Calibrate.name()).join("camera.json");
+    let scene_json = PoseFiles::in_dir(&out.join(Stage::Pose.name())).json;
+    let camera_json = CalibrationFiles::in_dir(&out.join(Stage::Calibrate.name())).camera;
     for p in [&scene_json, &camera_json] {
         // Without a [calibration] the calibrate stage's camera is not this project's.
         if !p.is_file() || f.calibration.is_none() {
@@ -818,7 +942,7 @@ fn developed(
     if smp.camera.is_none() {
         return Ok(given);
     }
-    let p = out.join(Stage::Develop.name()).join(&smp.name).join(format!("{which}.exr"));
+    let p = DevelopFiles::in_dir(&out.join(Stage::Develop.name()).join(&smp.name), which).exr;
     if p.is_file() {
         Ok(p)
     } else {
@@ -868,7 +992,7 @@ fn photo_bin(sample: &str, photo: &Path, render_size: Option<&str>) -> Result<us
 /// clipped photosite) of a sample's RAW photo `which`, if it wrote one.
 fn valid_mask(out: &Path, smp: &project::SampleSection, which: &str) -> Option<PathBuf> {
     smp.camera.as_ref()?;
-    let p = out.join(Stage::Develop.name()).join(&smp.name).join(format!("{which}_valid.png"));
+    let p = DevelopFiles::in_dir(&out.join(Stage::Develop.name()).join(&smp.name), which).valid;
     p.is_file().then_some(p)
 }
 
@@ -876,7 +1000,7 @@ fn valid_mask(out: &Path, smp: &project::SampleSection, which: &str) -> Option<P
 /// (`colour apply --variance-out`), if it wrote one.
 fn photo_variance(out: &Path, smp: &project::SampleSection) -> Option<PathBuf> {
     smp.camera.as_ref()?;
-    let p = out.join(Stage::Develop.name()).join(&smp.name).join("photo_variance.exr");
+    let p = DevelopFiles::in_dir(&out.join(Stage::Develop.name()).join(&smp.name), "photo").variance;
     p.is_file().then_some(p)
 }
 
@@ -931,7 +1055,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     let job = BssrdfCompareJob {
                         measured: m.file.clone(),
                         simulated: PathBuf::from(bssrdf_run_dir(&format!("{{out}}/{}", smp.name), configs, c)),
-                        out: under_out(format!("/{}/compare_ti{}_to{}", smp.name, c.0, c.1)),
+                        out: bssrdf_comparison_dir(&under_out(format!("/{}", smp.name)), c),
                         measured_pixel_mm: m.pixel_mm,
                         threshold: b.threshold.unwrap_or(crate::job::DEFAULT_THRESHOLD),
                     };
@@ -962,7 +1086,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 });
             }
             inputs.extend(files);
-            let job = project::calibrate_job(c, under_out("/camera.json".into()));
+            let job = project::calibrate_job(c, CalibrationFiles::in_dir(&under_out(String::new())).camera);
             tasks.push(lucent(format!("{} photos", inputs.len()), Job::Calibrate(job)));
         }
         Stage::Colour => {
@@ -985,7 +1109,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
         Stage::Develop => {
             for smp in &f.sample {
                 let Some(cam) = &smp.camera else { continue };
-                let ccm = out.join(Stage::Colour.name()).join(cam).join("ccm.json");
+                let ccm = ColourFiles::in_dir(&out.join(Stage::Colour.name()).join(cam)).ccm;
                 if !ccm.is_file() {
                     return Err(PipelineError::Stage {
                         stage,
@@ -999,20 +1123,19 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                         .map_err(|problem| PipelineError::Stage { stage, problem })?;
                     let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
                     // The photo's noise (var P of the compare stage's model RMSE), from its RAW noise model.
-                    let variance_out = (is_raw && what == "photo")
-                        .then(|| (under_out(format!("/{}/{what}_variance.exr", smp.name)), project.seed));
+                    let files = DevelopFiles::in_dir(&under_out(format!("/{}", smp.name)), what);
+                    let variance_out = (is_raw && what == "photo").then_some((files.variance, project.seed));
                     let job = ColourApplyJob {
                         ccm: ccm.clone(),
                         input: photo.clone(),
-                        output: under_out(format!("/{}/{what}.exr", smp.name)),
+                        output: files.exr,
                         to: "cie-rgb".into(),
                         variance_out,
                         bin,
                     };
                     tasks.push(lucent(format!("{} {what}", smp.name), Job::ColourApply(job)));
                     if is_raw {
-                        let mask = under_out(format!("/{}/{what}_valid.png", smp.name));
-                        let job = RawClippedJob { input: photo.clone(), out: mask, bin };
+                        let job = RawClippedJob { input: photo.clone(), out: files.valid, bin };
                         tasks.push(lucent(format!("{} {what} clipping", smp.name), Job::RawClipped(job)));
                     }
                 }
@@ -1023,12 +1146,13 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
         }
         Stage::Pose => {
             let Some(p) = &f.pose else { return Ok(Err(Skip::Missing("[pose]"))) };
-            let camera = out.join(Stage::Calibrate.name()).join("camera.json");
+            let camera = CalibrationFiles::in_dir(&out.join(Stage::Calibrate.name())).camera;
             if f.calibration.is_none() || !camera.is_file() {
                 return Ok(Err(Skip::NoCamera));
             }
             inputs.push(p.image.clone());
-            let job = project::pose_job(p, f.calibration.as_ref(), camera, under_out("/scene.json".into()));
+            let job =
+                project::pose_job(p, f.calibration.as_ref(), camera, PoseFiles::in_dir(&under_out(String::new())).json);
             tasks.push(lucent("board pose".into(), Job::Pose(job)));
         }
         Stage::EnvScale | Stage::Render => {
@@ -1041,9 +1165,11 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 let scene_text = sample_scene(project, out, smp, stage == Stage::Render)?;
                 inputs.extend(scene_inputs(&r.scene));
                 inputs.extend(recipe_inputs(&smp.recipe));
-                let scene_rel = format!("{}/input_scene.toml", smp.name);
-                let scene = under_out(format!("/{scene_rel}"));
                 let sample_out = under_out(format!("/{}", smp.name));
+                // The scenes' paths in the stage folder, as the task's files name them.
+                let rel = SampleRenderFiles::in_dir(Path::new(&smp.name));
+                let scene_rel = rel.scene.display().to_string();
+                let scene = SampleRenderFiles::in_dir(&sample_out).scene;
                 if stage == Stage::EnvScale {
                     let photo = developed(out, smp, "empty_board", smp.empty_board.as_deref())?;
                     inputs.push(photo.clone());
@@ -1081,17 +1207,18 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     size: r.size.clone(),
                     seed: Some(project.seed),
                     uncertainty,
-                    out: sample_out,
+                    out: sample_out.clone(),
                 };
                 // The fitted twin: the same render with stage fit's recipe.
                 let twin = match fitted_recipe(project, out, smp) {
                     Some(recipe) => {
                         let text = sample_scene_with(project, out, smp, true, Some(&recipe))?;
                         inputs.push(recipe.clone());
-                        let rel = format!("{}/input_scene_fitted.toml", smp.name);
+                        let in_out = SampleRenderFiles::in_dir(&sample_out);
+                        let rel = rel.fitted_scene.display().to_string();
                         let twin = RenderJob {
-                            scene: under_out(format!("/{rel}")),
-                            out: under_out(format!("/{}/fitted", smp.name)),
+                            scene: in_out.fitted_scene,
+                            out: in_out.fitted,
                             uncertainty: r.uncertainty == Some(true) && recipe_has_uncertain_input(&recipe),
                             ..job.clone()
                         };
@@ -1111,6 +1238,7 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
         Stage::Compare => {
             for smp in &f.sample {
                 let render_dir = out.join(Stage::Render.name()).join(&smp.name);
+                let fitted_dir = SampleRenderFiles::in_dir(&render_dir).fitted;
                 let render = RenderFiles::in_dir(&render_dir).exr;
                 let Some(photo) = &smp.photo else {
                     notes.push(format!("{}: no photo", smp.name));
@@ -1122,12 +1250,13 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     continue;
                 }
                 inputs.push(photo.clone());
-                let fitted = RenderFiles::in_dir(&render_dir.join("fitted")).exr;
+                let fitted = RenderFiles::in_dir(&fitted_dir).exr;
                 let fitted = fitted.is_file().then_some(fitted);
+                let dirs = CompareDirs::in_dir(&under_out(format!("/{}", smp.name)));
                 let job = CompareJob {
                     photo: photo.clone(),
                     render: std::iter::once(render.clone()).chain(fitted.clone()).collect(),
-                    out: under_out(format!("/{}", smp.name)),
+                    out: dirs.image.clone(),
                     mask: valid_mask(out, smp, "photo"),
                     mask_object: None,
                     photo_variance: photo_variance(out, smp),
@@ -1136,9 +1265,9 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                     band: Vec::new(),
                 };
                 // Each twin's band (render --uncertainty), when the first has one.
-                let band: Vec<PathBuf> = std::iter::once(render.clone())
-                    .chain(fitted.clone())
-                    .map(|r| r.with_file_name("uncertainty.json"))
+                let band: Vec<PathBuf> = std::iter::once(render_dir.clone())
+                    .chain(fitted.is_some().then_some(fitted_dir))
+                    .map(|d| RenderBandFiles::in_dir(&d).json)
                     .take_while(|b| b.is_file())
                     .collect();
                 inputs.extend(band.iter().cloned());
@@ -1148,16 +1277,12 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
                 let object = has_exr_channel(&render, "object").then(|| CompareJob {
                     mask_object: Some(render.clone()),
                     band,
-                    out: under_out(format!("/{}/object", smp.name)),
+                    out: dirs.object,
                     ..job.clone()
                 });
                 // The fitted twin alone too: its own triplet for the report.
-                let fitted_alone = fitted.map(|f| CompareJob {
-                    render: vec![f],
-                    twin_names: None,
-                    out: under_out(format!("/{}/fitted", smp.name)),
-                    ..job.clone()
-                });
+                let fitted_alone =
+                    fitted.map(|f| CompareJob { render: vec![f], twin_names: None, out: dirs.fitted, ..job.clone() });
                 if let Some(j) = object {
                     tasks.push(lucent(format!("{} object", smp.name), Job::Compare(j)));
                 }
@@ -1205,7 +1330,7 @@ const STAGE_MARK: &str = ".lucent-stage";
 /// Whether `dir` is a stage folder this pipeline wrote (a manifest, or the
 /// mark of a stage under way).
 fn is_stage_folder(dir: &Path) -> bool {
-    dir.join("manifest.json").is_file() || dir.join(STAGE_MARK).is_file()
+    StageFiles::in_dir(dir).manifest.is_file() || dir.join(STAGE_MARK).is_file()
 }
 
 /// Before a stage runs: its folder must be the pipeline's own (a file or a
@@ -1226,7 +1351,7 @@ fn recover_stage_folder(stage: Stage, dir: &Path, aside: &Path, failed: &Path) -
     if dir.is_dir() && !is_stage_folder(dir) && std::fs::read_dir(dir).map_or(true, |mut d| d.next().is_some()) {
         return Err(foreign(dir));
     }
-    if dir.is_dir() && !dir.join("manifest.json").is_file() {
+    if dir.is_dir() && !StageFiles::in_dir(dir).manifest.is_file() {
         if failed.exists() {
             std::fs::remove_dir_all(failed).map_err(|e| io(failed, e))?;
         }
@@ -1344,7 +1469,7 @@ pub fn run(
         }
         std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
         crate::io::write_atomic(&dir.join(STAGE_MARK), stage.name().as_bytes())?;
-        let log = dir.join("log.txt");
+        let log = StageFiles::in_dir(&dir).log;
         on_status(stage, &Status::Started { last_wall_s: last.as_ref().map(|m| m.wall_s) }, &[]);
         let start = Instant::now();
         let started_unix_s =
@@ -1428,7 +1553,7 @@ pub fn run(
                 .map(|f| hash_file(&dir.join(&f)).map(|h| InputHash { path: f, ..h }))
                 .collect::<Result<_, _>>()?,
         };
-        crate::io::write_json(&dir.join("manifest.json"), &manifest)?;
+        crate::io::write_json(&StageFiles::in_dir(&dir).manifest, &manifest)?;
         let _ = std::fs::remove_file(dir.join(STAGE_MARK));
         let mut notes = plan.notes.clone();
         if aside.exists() {

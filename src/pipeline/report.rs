@@ -25,10 +25,23 @@
 //! run); one that is there but not in its format stops the report with
 //! [`ReportError`] naming the file and the field. Fields added to a format
 //! later default when older files are read (see each type).
+//!
+//! Each stage's files are found through the struct that names them beside
+//! their writer (e.g. [`crate::bssrdf::SliceFiles`],
+//! [`crate::compare::CompareFiles`], [`super::StageFiles`]), and each stage
+//! contributes its own section from them; [`write()`] assembles the sections.
 
-use super::project::Project;
-use super::{Manifest, Stage, Status};
+use super::project::{Project, SampleSection};
+use super::{CompareDirs, Manifest, Stage, StageFiles, Status};
+use crate::bssrdf::{ComparisonFiles, SliceFiles};
+use crate::ccm_file::ColourFiles;
+use crate::compare::CompareFiles;
+use crate::envfit::EnvScaleFiles;
+use crate::fit::report::FitFiles;
+use crate::optics::output::{OpticalProperties, OpticsFiles, SampleFiles};
 use crate::scene::RenderFiles;
+use lucent_calib::calibrate::CalibrationFiles;
+use lucent_calib::scene::PoseFiles;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::{json, Value};
@@ -157,6 +170,9 @@ impl Page {
     }
 }
 
+/// A section's numbers for metrics.json.
+type Metrics = serde_json::Map<String, Value>;
+
 /// A fitted parameter beside its known truth: (name, fitted, 95 % interval, truth).
 type FittedVsTruth = (String, Option<f64>, Option<[f64; 2]>, f64);
 
@@ -184,12 +200,11 @@ fn table(head: &[&str], rows: &[Vec<String>]) -> String {
 
 /// The optics stage's spectra (one sample writes an object, several an
 /// array), none when the stage has not run.
-fn spectra(optics: &Path) -> Result<Vec<crate::optics::output::OpticalProperties>, ReportError> {
-    let p = optics.join("optical_properties.json");
-    if !p.exists() {
+fn spectra(files: &OpticsFiles) -> Result<Vec<OpticalProperties>, ReportError> {
+    if !files.json.exists() {
         return Ok(vec![]);
     }
-    Ok(crate::optics::output::read_optical_properties(&p)?)
+    Ok(crate::optics::output::read_optical_properties(&files.json)?)
 }
 
 /// The folder of `stage` under `out` when it is in this run's plan (ran or
@@ -207,31 +222,147 @@ fn stage_folder(out: &Path, done: &[(Stage, Status)], stage: Stage) -> PathBuf {
     }
 }
 
-/// Writes index.html and metrics.json into `dir` (the report stage's folder).
+/// The files of the report stage in its folder, each name spelled here
+/// once: the page (`html`) and every number the stages wrote (`metrics`).
+/// Written by [`write()`], read by `lucent run` (the project a folder holds).
+///
+/// ```
+/// use lucent::pipeline::report::ReportFiles;
+/// let f = ReportFiles::in_dir(std::path::Path::new("out/report"));
+/// assert_eq!(f.html, std::path::Path::new("out/report/index.html"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ReportFiles {
+    pub html: PathBuf,
+    pub metrics: PathBuf,
+}
+
+impl ReportFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 2] = ["index.html", "metrics.json"];
+
+    /// The files of the report folder `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [html, metrics] = Self::NAMES.map(|n| dir.join(n));
+        Self { html, metrics }
+    }
+}
+
+/// Writes index.html and metrics.json into `dir` (the report stage's
+/// folder): the answer per sample, the stages, each sample's sections, the
+/// calibration sections and the manifests, each from its stage's files.
 pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]) -> Result<(), ReportError> {
     let mut page = Page { html: String::new(), img_dir: dir.join("img"), copied: 0 };
-    let mut metrics = serde_json::Map::new();
+    let folder = |s: Stage| stage_folder(out, done, s);
     let mut manifests: Vec<(Stage, Manifest)> = Vec::new();
     for s in Stage::ALL {
-        if let Some(m) = read_json(&stage_folder(out, done, s).join("manifest.json"), "a stage manifest")? {
+        if let Some(m) = read_json(&StageFiles::in_dir(&folder(s)).manifest, "a stage manifest")? {
             manifests.push((s, m));
         }
     }
+    let mut metrics = Metrics::new();
+    page.html = project_heading(project, &mut metrics);
+    let stages = stages_section(done, &manifests, &mut metrics);
+    // The answer, per sample, before any detail.
+    for smp in &project.file.sample {
+        let a = answer(&mut page, &CompareDirs::in_dir(&folder(Stage::Compare).join(&smp.name)), smp)?;
+        page.html.push_str(&a);
+    }
+    page.html.push_str(&stages);
+    let all_spectra = spectra(&OpticsFiles::in_dir(&folder(Stage::Optics)))?;
+    let mut samples = Metrics::new();
+    for smp in &project.file.sample {
+        let (h, sj) = sample_sections(&mut page, project, smp, &all_spectra, &folder)?;
+        page.html.push_str(&h);
+        samples.insert(smp.name.clone(), Value::Object(sj));
+    }
+    metrics.insert("samples".into(), Value::Object(samples));
+    let calibration = calibration_sections(&mut page, project, &folder, &mut metrics)?;
+    page.html.push_str(&calibration);
+    page.html.push_str(&manifest_section(&manifests, &mut metrics));
+    let html = format!(
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{} — lucent report</title>\n<style>{STYLE}</style></head>\n<body>{}</body></html>\n",
+        esc(&project.name),
+        page.html
+    );
+    let files = ReportFiles::in_dir(dir);
+    crate::io::write_json(&files.metrics, &Value::Object(metrics))?;
+    crate::io::write_atomic(&files.html, html.as_bytes())?;
+    Ok(())
+}
+
+/// The page's heading (project, version, project file, seed), the same in
+/// metrics.json.
+fn project_heading(project: &Project, metrics: &mut Metrics) -> String {
     metrics.insert("project".into(), json!(project.name));
     metrics.insert("project_file".into(), json!(project.path.display().to_string()));
     metrics.insert("lucent_version".into(), json!(env!("CARGO_PKG_VERSION")));
     metrics.insert("seed".into(), json!(project.seed));
-
-    let h = &mut String::new();
-    let _ = write!(
-        h,
+    format!(
         "<h1>{}</h1><p class=\"meta\">lucent {} · project file <code>{}</code> · seed {}</p>",
         esc(&project.name),
         env!("CARGO_PKG_VERSION"),
         esc(&project.path.display().to_string()),
         project.seed
-    );
-    // ---- stage status
+    )
+}
+
+/// A sample's details, one section per stage from that stage's files under
+/// `folder(stage)` (optics, bssrdf, fit, env-scale, render, compare; without
+/// a comparison the render's picture), with their numbers for metrics.json.
+fn sample_sections(
+    page: &mut Page,
+    project: &Project,
+    smp: &SampleSection,
+    all_spectra: &[OpticalProperties],
+    folder: &impl Fn(Stage) -> PathBuf,
+) -> Result<(String, Metrics), ReportError> {
+    let mut sj = Metrics::new();
+    let sample_dir = |s: Stage| folder(s).join(&smp.name);
+    let mut h =
+        format!("<section id=\"sample-{}\"><h2>Sample {}: details per stage</h2>", slug(&smp.name), esc(&smp.name));
+    h.push_str(&optics_section(page, smp, all_spectra, &folder(Stage::Optics), &mut sj)?);
+    h.push_str(&bssrdf_section(page, smp, &project.bssrdf_configs, &sample_dir(Stage::Bssrdf), &mut sj)?);
+    let (fit, fitted_vs_truth) = fit_section(page, smp, &FitFiles::in_dir(&sample_dir(Stage::Fit)), &mut sj)?;
+    h.push_str(&fit);
+    h.push_str(&env_scale_section(&EnvScaleFiles::in_dir(&sample_dir(Stage::EnvScale)), &mut sj)?);
+    let rdir = sample_dir(Stage::Render);
+    h.push_str(&render_section(&RenderFiles::in_dir(&rdir), &mut sj)?);
+    let dirs = CompareDirs::in_dir(&sample_dir(Stage::Compare));
+    match compare_section(smp, &dirs, &fitted_vs_truth, &mut sj)? {
+        Some(c) => h.push_str(&c),
+        None if rdir.is_dir() => {
+            h.push_str(&page.img(&RenderFiles::in_dir(&rdir).png, &format!("{} render", smp.name))?)
+        }
+        None => {}
+    }
+    h.push_str("</section>");
+    Ok((h, sj))
+}
+
+/// The calibration section: the camera, the colour calibrations and the
+/// board's pose, each from its stage's files under `folder(stage)`.
+fn calibration_sections(
+    page: &mut Page,
+    project: &Project,
+    folder: &impl Fn(Stage) -> PathBuf,
+    metrics: &mut Metrics,
+) -> Result<String, ReportError> {
+    let camera = calibrate_section(page, project, &CalibrationFiles::in_dir(&folder(Stage::Calibrate)), metrics)?;
+    let (colour, any_colour) = colour_section(page, project, &folder(Stage::Colour), metrics)?;
+    let pose = pose_section(page, project, &PoseFiles::in_dir(&folder(Stage::Pose)), metrics)?;
+    let none = camera.is_none() && !any_colour && pose.is_none();
+    Ok(format!(
+        "<section><h2>Calibration</h2>{}{colour}{}{}</section>",
+        camera.unwrap_or_default(),
+        pose.unwrap_or_default(),
+        if none { "<p class=\"note\">No calibration in this project.</p>" } else { "" }
+    ))
+}
+
+/// The stages' table: each stage's status in the run that made the report
+/// (`done`) and its wall time from its manifest.
+fn stages_section(done: &[(Stage, Status)], manifests: &[(Stage, Manifest)], metrics: &mut Metrics) -> String {
     let mut rows = Vec::new();
     let mut stage_json = serde_json::Map::new();
     for s in Stage::ALL.iter().filter(|s| **s != Stage::Report) {
@@ -250,272 +381,266 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         stage_json.insert(s.name().into(), json!({"status": text, "wall_s": m.map(|m| m.wall_s)}));
     }
     metrics.insert("stages".into(), Value::Object(stage_json));
-    page.html.push_str(h);
-    // ---- the answer, per sample, before any detail
-    for smp in &project.file.sample {
-        let a = answer(&mut page, &stage_folder(out, done, Stage::Compare), smp)?;
-        page.html.push_str(&a);
-    }
-    let _ = write!(
-        page.html,
-        "<h2>Stages</h2>{}",
-        table(&["stage", "in the run that made this report", "wall time (last run)"], &rows)
-    );
+    format!("<h2>Stages</h2>{}", table(&["stage", "in the run that made this report", "wall time (last run)"], &rows))
+}
 
-    // ---- per sample
-    let all_spectra = spectra(&stage_folder(out, done, Stage::Optics))?;
-    let optics_dir = stage_folder(out, done, Stage::Optics);
-    let mut samples_json = serde_json::Map::new();
-    for smp in &project.file.sample {
-        let mut sj = serde_json::Map::new();
-        let mut h =
-            format!("<section id=\"sample-{}\"><h2>Sample {}: details per stage</h2>", slug(&smp.name), esc(&smp.name));
-        // Optics: match by recipe name (the "sample" field is the recipe's sample name).
-        let recipe_name = crate::optics::recipe::Recipe::load(
-            &smp.recipe,
-            crate::optics::recipe::Overrides { weight_percent: smp.weight_percent },
-        )
-        .map(|r| r.name)
-        .unwrap_or_else(|_| smp.name.clone());
-        if let Some(sp) = all_spectra.iter().find(|s| s.sample.as_deref() == Some(recipe_name.as_str())) {
-            h.push_str("<h3>Optical properties (Lorenz–Mie)</h3>");
-            let wl = &sp.wavelength_nm;
-            let mut rows = Vec::new();
-            for (i, w) in wl.iter().enumerate() {
-                if wl.len() > 12 && (w.round() as i64) % 50 != 0 {
-                    continue;
-                }
-                // μt and n_bulk may be left out of a hand-made file (read_optical_properties
-                // checks every array given has one value per wavelength); μt = μs + μa then.
-                let (mu_s, mu_a) = (sp.mu_s_per_m[i], sp.mu_a_per_m[i]);
-                let mu_t = sp.mu_t_per_m.get(i).copied().unwrap_or(mu_s + mu_a);
-                rows.push(vec![
-                    format!("{w}"),
-                    num(mu_s, e4),
-                    num(mu_a, e4),
-                    num(mu_t, e4),
-                    num(sp.g[i], f4),
-                    sp.n_bulk.get(i).map_or_else(|| "not in the file".into(), |n| num(*n, f4)),
-                ]);
+/// A sample's optical properties (its entry of the optics stage's
+/// `all_spectra`, matched by its recipe's name) with their plots in
+/// `optics_dir`; empty when the stage has not computed the sample.
+fn optics_section(
+    page: &mut Page,
+    smp: &SampleSection,
+    all_spectra: &[OpticalProperties],
+    optics_dir: &Path,
+    sj: &mut Metrics,
+) -> Result<String, ReportError> {
+    let mut h = String::new();
+    // Optics: match by recipe name (the "sample" field is the recipe's sample name).
+    let recipe_name = crate::optics::recipe::Recipe::load(
+        &smp.recipe,
+        crate::optics::recipe::Overrides { weight_percent: smp.weight_percent },
+    )
+    .map(|r| r.name)
+    .unwrap_or_else(|_| smp.name.clone());
+    if let Some(sp) = all_spectra.iter().find(|s| s.sample.as_deref() == Some(recipe_name.as_str())) {
+        h.push_str("<h3>Optical properties (Lorenz–Mie)</h3>");
+        let wl = &sp.wavelength_nm;
+        let mut rows = Vec::new();
+        for (i, w) in wl.iter().enumerate() {
+            if wl.len() > 12 && (w.round() as i64) % 50 != 0 {
+                continue;
             }
-            h.push_str(&table(&["λ [nm]", "μs [1/m]", "μa [1/m]", "μt [1/m]", "g", "n_bulk"], &rows));
-            if let Some(a) = &sp.absorption {
-                let _ = write!(h, "<p class=\"note\">absorption model: {}</p>", esc(a));
-            }
-            let clamps: Vec<&String> = sp.warnings.iter().filter(|w| w.contains(" clamped outside")).collect();
-            if !clamps.is_empty() {
-                let _ = write!(
-                    h,
-                    "<p class=\"why\">Clamped index: {}. The recipe's extrapolate = \"clamp\" holds n and κ at the \
+            // μt and n_bulk may be left out of a hand-made file (read_optical_properties
+            // checks every array given has one value per wavelength); μt = μs + μa then.
+            let (mu_s, mu_a) = (sp.mu_s_per_m[i], sp.mu_a_per_m[i]);
+            let mu_t = sp.mu_t_per_m.get(i).copied().unwrap_or(mu_s + mu_a);
+            rows.push(vec![
+                format!("{w}"),
+                num(mu_s, e4),
+                num(mu_a, e4),
+                num(mu_t, e4),
+                num(sp.g[i], f4),
+                sp.n_bulk.get(i).map_or_else(|| "not in the file".into(), |n| num(*n, f4)),
+            ]);
+        }
+        h.push_str(&table(&["λ [nm]", "μs [1/m]", "μa [1/m]", "μt [1/m]", "g", "n_bulk"], &rows));
+        if let Some(a) = &sp.absorption {
+            let _ = write!(h, "<p class=\"note\">absorption model: {}</p>", esc(a));
+        }
+        let clamps: Vec<&String> = sp.warnings.iter().filter(|w| w.contains(" clamped outside")).collect();
+        if !clamps.is_empty() {
+            let _ = write!(
+                h,
+                "<p class=\"why\">Clamped index: {}. The recipe's extrapolate = \"clamp\" holds n and κ at the \
                      data's end value there; at 380–399 nm the CIE colour-matching functions are below 1.2 % of their \
                      peaks, so a render's colour barely depends on it.</p>",
-                    esc(&clamps.iter().map(|s| s.as_str()).collect::<Vec<_>>().join("; "))
-                );
-            }
-            let single = all_spectra.len() == 1;
-            let odir = if single { optics_dir.clone() } else { optics_dir.join(sanitise(&recipe_name)) };
-            h.push_str("<div class=\"row\">");
-            h.push_str(
-                &page
-                    .img(&odir.join("optical_properties.png"), &format!("{} μs, μa, g against wavelength", smp.name))?,
+                esc(&clamps.iter().map(|s| s.as_str()).collect::<Vec<_>>().join("; "))
             );
-            if let Ok(rd) = std::fs::read_dir(&odir) {
-                let mut phase: Vec<PathBuf> = rd
-                    .flatten()
-                    .map(|e| e.path())
-                    .filter(|p| {
-                        p.file_name().is_some_and(|n| {
-                            n.to_string_lossy().starts_with("phase_") && n.to_string_lossy().ends_with(".png")
-                        })
-                    })
-                    .collect();
-                phase.sort();
-                for p in phase {
-                    h.push_str(&page.img(&p, &format!("{} phase function (Lorenz–Mie vs HG)", smp.name))?);
-                }
-            }
-            h.push_str("</div>");
-            sj.insert("optics".into(), trim(&to_value(sp), 64));
         }
-        // BSSRDF
-        let bdir = stage_folder(out, done, Stage::Bssrdf).join(&smp.name);
-        if bdir.is_dir() {
-            h.push_str("<h3>BSSRDF slices (slab simulator)</h3>");
-            let mut rows = Vec::new();
-            let mut bj = Vec::new();
-            let mut imgs = String::new();
-            // The largest median per-pixel error of a slice drawn with the ring estimator.
-            let mut ring_noise: Option<f64> = None;
-            for &c in &project.bssrdf_configs {
-                let run = PathBuf::from(super::bssrdf_run_dir(&bdir.display().to_string(), &project.bssrdf_configs, c));
-                let summary: Option<crate::bssrdf::Summary> =
-                    read_json(&run.join("summary.json"), "a BSSRDF summary.json")?;
-                let cmp: Option<crate::bssrdf::Comparison> = read_json(
-                    &bdir.join(format!("compare_ti{}_to{}", c.0, c.1)).join("comparison.json"),
-                    "a BSSRDF comparison.json",
-                )?;
-                if let Some(sm) = &summary
-                    && sm.estimator.contains("ring")
-                {
-                    let e = sm.pixel_rel_error_median;
-                    ring_noise = Some(ring_noise.map_or(e, |r: f64| if e.is_finite() { r.max(e) } else { r }));
-                }
-                if let Some(sm) = &summary {
-                    rows.push(vec![
-                        format!("{}° / {}°", c.0, c.1),
-                        format!("{} ± {}", num(sm.sum, e4), num(sm.sum_std_error, e4)),
-                        cmp.as_ref().map_or_else(|| "not measured".into(), |x| num(x.measured_sum, e4)),
-                        cmp.as_ref().map_or_else(|| "—".into(), |x| num(x.sum_ratio, f4)),
-                        cmp.as_ref().map_or_else(|| "—".into(), |x| num(x.mean_squared_relative_error, f4)),
-                        format!("{}{}", sm.paths, if sm.interrupted { " (interrupted)" } else { "" }),
-                    ]);
-                }
-                imgs.push_str(
-                    &page.img(&run.join("bssrdf.png"), &format!("{} slice θi {}° θo {}°", smp.name, c.0, c.1))?,
-                );
-                imgs.push_str(
-                    &page.img(&run.join("profile.png"), &format!("{} profile θi {}° θo {}°", smp.name, c.0, c.1))?,
-                );
-                let cdir = bdir.join(format!("compare_ti{}_to{}", c.0, c.1));
-                imgs.push_str(&page.img(
-                    &cdir.join("panel.png"),
-                    &format!("{} measured vs simulated θi {}° θo {}°", smp.name, c.0, c.1),
-                )?);
-                imgs.push_str(&page.img(
-                    &cdir.join("profiles.png"),
-                    &format!("{} measured vs simulated profiles θi {}° θo {}°", smp.name, c.0, c.1),
-                )?);
-                bj.push(json!({"theta_i_deg": c.0, "theta_o_deg": c.1, "summary": summary, "comparison": cmp}));
+        let files = SampleFiles::in_dir(&OpticsFiles::sample_dir(optics_dir, all_spectra.len(), &recipe_name));
+        h.push_str("<div class=\"row\">");
+        h.push_str(&page.img(&files.png, &format!("{} μs, μa, g against wavelength", smp.name))?);
+        for p in files.phase_pngs() {
+            h.push_str(&page.img(&p, &format!("{} phase function (Lorenz–Mie vs HG)", smp.name))?);
+        }
+        h.push_str("</div>");
+        sj.insert("optics".into(), trim(&to_value(sp), 64));
+    }
+    Ok(h)
+}
+
+/// A sample's BSSRDF slices (its folder `bdir` of the bssrdf stage, one
+/// run per configuration of `configs`) and, where measured, their
+/// comparisons; empty when the stage has not run for the sample.
+fn bssrdf_section(
+    page: &mut Page,
+    smp: &SampleSection,
+    configs: &[(f64, f64)],
+    bdir: &Path,
+    sj: &mut Metrics,
+) -> Result<String, ReportError> {
+    let mut h = String::new();
+    if bdir.is_dir() {
+        h.push_str("<h3>BSSRDF slices (slab simulator)</h3>");
+        let mut rows = Vec::new();
+        let mut bj = Vec::new();
+        let mut imgs = String::new();
+        // The largest median per-pixel error of a slice drawn with the ring estimator.
+        let mut ring_noise: Option<f64> = None;
+        for &c in configs {
+            let run = SliceFiles::in_dir(Path::new(&super::bssrdf_run_dir(&bdir.display().to_string(), configs, c)));
+            let compared = ComparisonFiles::in_dir(&super::bssrdf_comparison_dir(bdir, c));
+            let summary: Option<crate::bssrdf::Summary> = read_json(&run.summary, "a BSSRDF summary.json")?;
+            let cmp: Option<crate::bssrdf::Comparison> = read_json(&compared.json, "a BSSRDF comparison.json")?;
+            if let Some(sm) = &summary
+                && sm.estimator.contains("ring")
+            {
+                let e = sm.pixel_rel_error_median;
+                ring_noise = Some(ring_noise.map_or(e, |r: f64| if e.is_finite() { r.max(e) } else { r }));
             }
-            h.push_str(&table(
-                &["θi / θo", "simulated sum [1/(m² sr)]", "measured sum", "sim/meas", "MSRE", "paths"],
-                &rows,
-            ));
-            let _ = write!(h, "<div class=\"row\">{imgs}</div>");
-            if let Some(e) = ring_noise {
-                let _ = write!(
-                    h,
-                    "<p class=\"why\">Rings in a slice: Monte Carlo noise of the ring estimator, not structure of \
+            if let Some(sm) = &summary {
+                rows.push(vec![
+                    format!("{}° / {}°", c.0, c.1),
+                    format!("{} ± {}", num(sm.sum, e4), num(sm.sum_std_error, e4)),
+                    cmp.as_ref().map_or_else(|| "not measured".into(), |x| num(x.measured_sum, e4)),
+                    cmp.as_ref().map_or_else(|| "—".into(), |x| num(x.sum_ratio, f4)),
+                    cmp.as_ref().map_or_else(|| "—".into(), |x| num(x.mean_squared_relative_error, f4)),
+                    format!("{}{}", sm.paths, if sm.interrupted { " (interrupted)" } else { "" }),
+                ]);
+            }
+            imgs.push_str(&page.img(&run.png, &format!("{} slice θi {}° θo {}°", smp.name, c.0, c.1))?);
+            imgs.push_str(&page.img(&run.profile_png, &format!("{} profile θi {}° θo {}°", smp.name, c.0, c.1))?);
+            imgs.push_str(
+                &page.img(&compared.panel, &format!("{} measured vs simulated θi {}° θo {}°", smp.name, c.0, c.1))?,
+            );
+            imgs.push_str(&page.img(
+                &compared.profiles,
+                &format!("{} measured vs simulated profiles θi {}° θo {}°", smp.name, c.0, c.1),
+            )?);
+            bj.push(json!({"theta_i_deg": c.0, "theta_o_deg": c.1, "summary": summary, "comparison": cmp}));
+        }
+        h.push_str(&table(
+            &["θi / θo", "simulated sum [1/(m² sr)]", "measured sum", "sim/meas", "MSRE", "paths"],
+            &rows,
+        ));
+        let _ = write!(h, "<div class=\"row\">{imgs}</div>");
+        if let Some(e) = ring_noise {
+            let _ = write!(
+                h,
+                "<p class=\"why\">Rings in a slice: Monte Carlo noise of the ring estimator, not structure of \
                      the material. With θi or θo = 0° each scattering event is spread over a whole ring of azimuths, \
                      so its noise lies on circles instead of in single pixels; the rings move with the seed, shrink \
                      with more paths, bias neither the sum nor the profile, and their size is the per-pixel error \
                      (median up to {} % here). They matter only for a pixel-by-pixel reading closer than that.</p>",
-                    num(e, |x| format!("{:.1}", 100.0 * x))
-                );
-            }
-            sj.insert("bssrdf".into(), trim(&json!(bj), 64));
-        }
-        // Fit: the recipe fitted to the measured slices, beside the truth when known.
-        let fdir = stage_folder(out, done, Stage::Fit).join(&smp.name);
-        // (parameter, fitted, 95 % interval, truth) of the fit, for the loop's summary below.
-        let mut fitted_vs_truth: Vec<FittedVsTruth> = Vec::new();
-        if let Some(fj) = read_json::<Value>(&fdir.join("fit.json"), "a fit.json")? {
-            h.push_str("<h3>Recipe fitted to the measured slices (lucent fit)</h3>");
-            let truth = match &smp.truth_recipe {
-                Some(t) => crate::optics::recipe::Recipe::load(t, crate::optics::recipe::Overrides::default()).ok(),
-                None => None,
-            };
-            let mut rows = Vec::new();
-            let mut pj = Vec::new();
-            for p in fj["parameters"].as_array().into_iter().flatten() {
-                let name = p["name"].as_str().unwrap_or_default();
-                let value = p["value"].as_f64();
-                let ci = p["interval_95"].as_array().and_then(|a| Some([a.first()?.as_f64()?, a.get(1)?.as_f64()?]));
-                let particle = name.split_once('@').and_then(|(_, k)| k.parse::<usize>().ok()).unwrap_or(0);
-                let known = truth.as_ref().and_then(|t| match name.split('@').next() {
-                    Some("weight_percent") => t.particles.get(particle).map(|q| q.weight_percent),
-                    _ => None,
-                });
-                let covered = match (known, ci) {
-                    (Some(k), Some([lo, hi])) => {
-                        if lo <= k && k <= hi {
-                            "yes"
-                        } else {
-                            "no"
-                        }
-                    }
-                    _ => "—",
-                };
-                rows.push(vec![
-                    esc(name),
-                    num(p["start"].as_f64().unwrap_or(f64::NAN), f4),
-                    value.map_or_else(|| "not identifiable".into(), |v| num(v, f4)),
-                    ci.map_or_else(|| "—".into(), |[lo, hi]| format!("{} – {}", num(lo, f4), num(hi, f4))),
-                    known.map_or_else(|| "—".into(), |k| num(k, f4)),
-                    covered.into(),
-                ]);
-                pj.push(json!({"name": name, "start": p["start"], "value": value, "interval_95": ci, "truth": known}));
-                if let Some(k) = known {
-                    fitted_vs_truth.push((name.to_string(), value, ci, k));
-                }
-            }
-            h.push_str(&table(
-                &["parameter", "start (recipe)", "fitted", "95 % interval", "truth", "truth in interval"],
-                &rows,
-            ));
-            if fj["identifiable"] == json!(false) {
-                let _ = write!(
-                    h,
-                    "<p>The data do not pin the parameters down: {}.</p>",
-                    esc(fj["reason"].as_str().unwrap_or(""))
-                );
-            }
-            // The measured slices against the simulation at the recipe (start) and at the fit (end).
-            let cfgs: Vec<Vec<String>> = fj["configurations"]
-                .as_array()
-                .into_iter()
-                .flatten()
-                .map(|c| {
-                    let v = |k: &str, f: fn(f64) -> String| c[k].as_f64().map_or_else(|| "—".into(), |x| num(x, f));
-                    vec![
-                        format!(
-                            "{} / {}",
-                            v("theta_i_deg", |x| format!("{x:.0}")),
-                            v("theta_o_deg", |x| format!("{x:.0}"))
-                        ),
-                        v("measured_sum", e4),
-                        v("sum_ratio_start", f4),
-                        v("sum_ratio_end", f4),
-                        v("msre_start", f4),
-                        v("msre_end", f4),
-                    ]
-                })
-                .collect();
-            if !cfgs.is_empty() {
-                h.push_str(&table(
-                    &[
-                        "θi / θo",
-                        "measured sum [1/(m² sr)]",
-                        "simulated/measured sum: recipe",
-                        "fitted",
-                        "MSRE: recipe",
-                        "fitted",
-                    ],
-                    &cfgs,
-                ));
-            }
-            let mut imgs = page.img(&fdir.join("objective.png"), &format!("{} fit objective", smp.name))?;
-            for c in fj["configurations"].as_array().into_iter().flatten() {
-                let (Some(ti), Some(to)) = (c["theta_i_deg"].as_f64(), c["theta_o_deg"].as_f64()) else { continue };
-                imgs.push_str(&page.img(
-                    &fdir.join(crate::fit::report::profiles_name(ti, to)),
-                    &format!(
-                        "{} measured profile vs simulated at the recipe and at the fit, θi {ti}° θo {to}°",
-                        smp.name
-                    ),
-                )?);
-            }
-            let _ = write!(h, "<div class=\"row\">{imgs}</div>");
-            sj.insert(
-                "fit".into(),
-                json!({"parameters": pj, "identifiable": fj["identifiable"], "evaluations": fj["evaluations"]}),
+                num(e, |x| format!("{:.1}", 100.0 * x))
             );
         }
-        // Environment scale
-        let env_path = stage_folder(out, done, Stage::EnvScale).join(&smp.name).join("env_scale.json");
-        if let Some(e) = read_json::<crate::envfit::FitReport>(&env_path, "an env_scale.json")? {
-            let f = &e.fit;
+        sj.insert("bssrdf".into(), trim(&json!(bj), 64));
+    }
+    Ok(h)
+}
+
+/// A sample's fitted recipe (stage fit's `files`) beside the truth when
+/// known, and the parameters with their truth for the loop's summary
+/// ([`compare_section`]); empty when the stage has not fitted the sample.
+fn fit_section(
+    page: &mut Page,
+    smp: &SampleSection,
+    files: &FitFiles,
+    sj: &mut Metrics,
+) -> Result<(String, Vec<FittedVsTruth>), ReportError> {
+    let mut h = String::new();
+    // (parameter, fitted, 95 % interval, truth) of the fit, for the loop's summary below.
+    let mut fitted_vs_truth: Vec<FittedVsTruth> = Vec::new();
+    if let Some(fj) = read_json::<Value>(&files.json, "a fit.json")? {
+        h.push_str("<h3>Recipe fitted to the measured slices (lucent fit)</h3>");
+        let truth = match &smp.truth_recipe {
+            Some(t) => crate::optics::recipe::Recipe::load(t, crate::optics::recipe::Overrides::default()).ok(),
+            None => None,
+        };
+        let mut rows = Vec::new();
+        let mut pj = Vec::new();
+        for p in fj["parameters"].as_array().into_iter().flatten() {
+            let name = p["name"].as_str().unwrap_or_default();
+            let value = p["value"].as_f64();
+            let ci = p["interval_95"].as_array().and_then(|a| Some([a.first()?.as_f64()?, a.get(1)?.as_f64()?]));
+            let particle = name.split_once('@').and_then(|(_, k)| k.parse::<usize>().ok()).unwrap_or(0);
+            let known = truth.as_ref().and_then(|t| match name.split('@').next() {
+                Some("weight_percent") => t.particles.get(particle).map(|q| q.weight_percent),
+                _ => None,
+            });
+            let covered = match (known, ci) {
+                (Some(k), Some([lo, hi])) => {
+                    if lo <= k && k <= hi {
+                        "yes"
+                    } else {
+                        "no"
+                    }
+                }
+                _ => "—",
+            };
+            rows.push(vec![
+                esc(name),
+                num(p["start"].as_f64().unwrap_or(f64::NAN), f4),
+                value.map_or_else(|| "not identifiable".into(), |v| num(v, f4)),
+                ci.map_or_else(|| "—".into(), |[lo, hi]| format!("{} – {}", num(lo, f4), num(hi, f4))),
+                known.map_or_else(|| "—".into(), |k| num(k, f4)),
+                covered.into(),
+            ]);
+            pj.push(json!({"name": name, "start": p["start"], "value": value, "interval_95": ci, "truth": known}));
+            if let Some(k) = known {
+                fitted_vs_truth.push((name.to_string(), value, ci, k));
+            }
+        }
+        h.push_str(&table(
+            &["parameter", "start (recipe)", "fitted", "95 % interval", "truth", "truth in interval"],
+            &rows,
+        ));
+        if fj["identifiable"] == json!(false) {
             let _ = write!(
+                h,
+                "<p>The data do not pin the parameters down: {}.</p>",
+                esc(fj["reason"].as_str().unwrap_or(""))
+            );
+        }
+        // The measured slices against the simulation at the recipe (start) and at the fit (end).
+        let cfgs: Vec<Vec<String>> = fj["configurations"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|c| {
+                let v = |k: &str, f: fn(f64) -> String| c[k].as_f64().map_or_else(|| "—".into(), |x| num(x, f));
+                vec![
+                    format!(
+                        "{} / {}",
+                        v("theta_i_deg", |x| format!("{x:.0}")),
+                        v("theta_o_deg", |x| format!("{x:.0}"))
+                    ),
+                    v("measured_sum", e4),
+                    v("sum_ratio_start", f4),
+                    v("sum_ratio_end", f4),
+                    v("msre_start", f4),
+                    v("msre_end", f4),
+                ]
+            })
+            .collect();
+        if !cfgs.is_empty() {
+            h.push_str(&table(
+                &[
+                    "θi / θo",
+                    "measured sum [1/(m² sr)]",
+                    "simulated/measured sum: recipe",
+                    "fitted",
+                    "MSRE: recipe",
+                    "fitted",
+                ],
+                &cfgs,
+            ));
+        }
+        let mut imgs = page.img(&files.objective_png, &format!("{} fit objective", smp.name))?;
+        for c in fj["configurations"].as_array().into_iter().flatten() {
+            let (Some(ti), Some(to)) = (c["theta_i_deg"].as_f64(), c["theta_o_deg"].as_f64()) else { continue };
+            imgs.push_str(&page.img(
+                &files.profiles_png(ti, to),
+                &format!("{} measured profile vs simulated at the recipe and at the fit, θi {ti}° θo {to}°", smp.name),
+            )?);
+        }
+        let _ = write!(h, "<div class=\"row\">{imgs}</div>");
+        sj.insert(
+            "fit".into(),
+            json!({"parameters": pj, "identifiable": fj["identifiable"], "evaluations": fj["evaluations"]}),
+        );
+    }
+    Ok((h, fitted_vs_truth))
+}
+
+/// A sample's environment scale (stage env-scale's `files`); empty when the
+/// stage has not fitted one for the sample.
+fn env_scale_section(files: &EnvScaleFiles, sj: &mut Metrics) -> Result<String, ReportError> {
+    let mut h = String::new();
+    if let Some(e) = read_json::<crate::envfit::FitReport>(&files.json, "an env_scale.json")? {
+        let f = &e.fit;
+        let _ = write!(
                 h,
                 "<h3>Environment scale</h3><p>k = {} (per channel {}, {}, {}) over {} board pixels; residual RMS {} ({} % of the photo; render noise {}).</p>",
                 num(f.scale, f4),
@@ -527,185 +652,203 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                 num(f.relative_residual, |x| format!("{:.2}", 100.0 * x)),
                 num(f.render_noise_rms, e4),
             );
-            let _ = write!(h, "<p class=\"why\">{}</p>", esc(&env_residual_note(f)));
-            sj.insert("env_scale".into(), to_value(&e));
-        }
-        // Render and comparison
-        let rdir = stage_folder(out, done, Stage::Render).join(&smp.name);
-        if let Some(r) = read_json::<crate::scene::RenderReport>(&RenderFiles::in_dir(&rdir).json, "a render.json")? {
-            let _ = write!(
-                h,
-                "<h3>Render</h3><p>{} spp{}, {} × {} px, seed {}, {} s; {}.</p>",
-                r.spp,
-                if r.interrupted { " (interrupted)" } else { "" },
-                r.scene.image_width,
-                r.scene.image_height,
-                r.seed,
-                num(r.wall_s, |x| format!("{x:.1}")),
-                match &r.relative_std_error {
-                    Some(e) => {
-                        let pct = |x: f64| num(x, |x| format!("{:.1}", 100.0 * x));
-                        format!(
-                            "relative standard error per pixel, median (90th percentile): the object's {} px {} % ({} %), \
+        let _ = write!(h, "<p class=\"why\">{}</p>", esc(&env_residual_note(f)));
+        sj.insert("env_scale".into(), to_value(&e));
+    }
+    Ok(h)
+}
+
+/// A sample's render (stage render's `files`): samples, size, seed, time,
+/// noise and approximations; empty when the stage has not rendered it.
+fn render_section(files: &RenderFiles, sj: &mut Metrics) -> Result<String, ReportError> {
+    let mut h = String::new();
+    if let Some(r) = read_json::<crate::scene::RenderReport>(&files.json, "a render.json")? {
+        let _ = write!(
+            h,
+            "<h3>Render</h3><p>{} spp{}, {} × {} px, seed {}, {} s; {}.</p>",
+            r.spp,
+            if r.interrupted { " (interrupted)" } else { "" },
+            r.scene.image_width,
+            r.scene.image_height,
+            r.seed,
+            num(r.wall_s, |x| format!("{x:.1}")),
+            match &r.relative_std_error {
+                Some(e) => {
+                    let pct = |x: f64| num(x, |x| format!("{:.1}", 100.0 * x));
+                    format!(
+                        "relative standard error per pixel, median (90th percentile): the object's {} px {} % ({} %), \
                              the board's {} px {} % ({} %), all {} %",
-                            e.object.pixels,
-                            pct(e.object.median),
-                            pct(e.object.p90),
-                            e.board.pixels,
-                            pct(e.board.median),
-                            pct(e.board.p90),
-                            pct(e.all.median)
-                        )
-                    }
-                    None => format!(
-                        "median relative standard error over all pixels {} %",
-                        num(r.median_relative_std_error, |x| format!("{:.1}", 100.0 * x))
-                    ),
-                },
-            );
-            for a in &r.approximations {
-                let _ = write!(h, "<p class=\"why approximation\">Approximation: {}.</p>", esc(a));
-            }
-            sj.insert("render".into(), trim(&to_value(&r), 64));
+                        e.object.pixels,
+                        pct(e.object.median),
+                        pct(e.object.p90),
+                        e.board.pixels,
+                        pct(e.board.median),
+                        pct(e.board.p90),
+                        pct(e.all.median)
+                    )
+                }
+                None => format!(
+                    "median relative standard error over all pixels {} %",
+                    num(r.median_relative_std_error, |x| format!("{:.1}", 100.0 * x))
+                ),
+            },
+        );
+        for a in &r.approximations {
+            let _ = write!(h, "<p class=\"why approximation\">Approximation: {}.</p>", esc(a));
         }
-        let cdir = stage_folder(out, done, Stage::Compare).join(&smp.name);
-        if let Some(m) = read_json::<crate::compare::Report>(&cdir.join("metrics.json"), "a compare metrics.json")? {
-            h.push_str("<h3>Photo | render | difference</h3>");
-            let row = |label: &str, x: &crate::compare::Metrics| {
-                vec![
-                    label.to_string(),
-                    num(x.rmse, e4),
-                    num(x.rmse_channels.r, e4),
-                    num(x.rmse_channels.g, e4),
-                    num(x.rmse_channels.b, e4),
-                    num(x.ssim.y, f4),
-                    num(x.ssim.mean_rgb, f4),
-                ]
+        sj.insert("render".into(), trim(&to_value(&r), 64));
+    }
+    Ok(h)
+}
+
+/// A sample's comparison with its photo (stage compare's folders `dirs`):
+/// the metrics, the noise, the object's pixels, which twin is closer and
+/// the loop against its known truth (`fitted_vs_truth`, from
+/// [`fit_section`]); `None` when the stage has not compared the sample.
+fn compare_section(
+    smp: &SampleSection,
+    dirs: &CompareDirs,
+    fitted_vs_truth: &[FittedVsTruth],
+    sj: &mut Metrics,
+) -> Result<Option<String>, ReportError> {
+    let mut h = String::new();
+    let Some(m) =
+        read_json::<crate::compare::Report>(&CompareFiles::in_dir(&dirs.image).metrics, "a compare metrics.json")?
+    else {
+        return Ok(None);
+    };
+    h.push_str("<h3>Photo | render | difference</h3>");
+    let row = |label: &str, x: &crate::compare::Metrics| {
+        vec![
+            label.to_string(),
+            num(x.rmse, e4),
+            num(x.rmse_channels.r, e4),
+            num(x.rmse_channels.g, e4),
+            num(x.rmse_channels.b, e4),
+            num(x.ssim.y, f4),
+            num(x.ssim.mean_rgb, f4),
+        ]
+    };
+    let mut rows = vec![row("as calibrated", &m.as_calibrated)];
+    if let Some(r) = &m.refined {
+        rows.push(row("after ECC refinement", &r.metrics));
+    }
+    h.push_str(&table(&["", "RMSE", "RMSE R", "RMSE G", "RMSE B", "SSIM (Y)", "SSIM (mean RGB)"], &rows));
+    let _ = write!(
+        h,
+        "<p>Over {} pixels ({}: {}).</p>",
+        m.mask.included_pixels,
+        esc(&m.mask.source),
+        esc(m.mask.path.as_deref().unwrap_or("the whole image"))
+    );
+    if let Some(n) = &m.noise {
+        let _ = write!(
+            h,
+            "<p>Model RMSE with the render's and the photo's noise removed: {} (95 % interval {} – {}); noise \
+                     floor {} (the RMSE a perfect twin would show at this noise); photo variance: {}.</p>",
+            num(n.total.model_rmse, e4),
+            num(n.total.ci95[0], e4),
+            num(n.total.ci95[1], e4),
+            num(n.total.noise_floor, e4),
+            esc(&n.photo_variance)
+        );
+        if let Some(pn) = &n.photo_noise {
+            let model = |m: &lucent_calib::noise::NoiseModel| {
+                format!(
+                    "a = {} / {} / {}, b = {} / {} / {} (R / G / B)",
+                    num(m.a[0], e4),
+                    num(m.a[1], e4),
+                    num(m.a[2], e4),
+                    num(m.b[0], e4),
+                    num(m.b[1], e4),
+                    num(m.b[2], e4)
+                )
             };
-            let mut rows = vec![row("as calibrated", &m.as_calibrated)];
-            if let Some(r) = &m.refined {
-                rows.push(row("after ECC refinement", &r.metrics));
-            }
-            h.push_str(&table(&["", "RMSE", "RMSE R", "RMSE G", "RMSE B", "SSIM (Y)", "SSIM (mean RGB)"], &rows));
             let _ = write!(
                 h,
-                "<p>Over {} pixels ({}: {}).</p>",
-                m.mask.included_pixels,
-                esc(&m.mask.source),
-                esc(m.mask.path.as_deref().unwrap_or("the whole image"))
-            );
-            if let Some(n) = &m.noise {
-                let _ = write!(
-                    h,
-                    "<p>Model RMSE with the render's and the photo's noise removed: {} (95 % interval {} – {}); noise \
-                     floor {} (the RMSE a perfect twin would show at this noise); photo variance: {}.</p>",
-                    num(n.total.model_rmse, e4),
-                    num(n.total.ci95[0], e4),
-                    num(n.total.ci95[1], e4),
-                    num(n.total.noise_floor, e4),
-                    esc(&n.photo_variance)
-                );
-                if let Some(pn) = &n.photo_noise {
-                    let model = |m: &lucent_calib::noise::NoiseModel| {
-                        format!(
-                            "a = {} / {} / {}, b = {} / {} / {} (R / G / B)",
-                            num(m.a[0], e4),
-                            num(m.a[1], e4),
-                            num(m.a[2], e4),
-                            num(m.b[0], e4),
-                            num(m.b[1], e4),
-                            num(m.b[2], e4)
-                        )
-                    };
-                    let _ = write!(
-                        h,
-                        "<p>The photo's noise model, variance = a·x + b of a raw value x (1 = white level): {}{}.</p>",
-                        model(&pn.noise_model),
-                        match &pn.estimated_from_image {
-                            Some(e) => format!(
-                                "; estimated from the photo itself, as a check: {} (larger where the photo has \
+                "<p>The photo's noise model, variance = a·x + b of a raw value x (1 = white level): {}{}.</p>",
+                model(&pn.noise_model),
+                match &pn.estimated_from_image {
+                    Some(e) => format!(
+                        "; estimated from the photo itself, as a check: {} (larger where the photo has \
                                  texture or noise of its own at the photosite scale)",
-                                model(e)
-                            ),
-                            None => String::new(),
-                        }
-                    );
+                        model(e)
+                    ),
+                    None => String::new(),
                 }
-            }
-            // The object's pixels alone (compare/NAME/object/, the render's object layer).
-            let object = read_json::<crate::compare::Report>(
-                &cdir.join("object").join("metrics.json"),
-                "a compare metrics.json",
-            )?;
-            if let Some(o) = &object
-                && let Some(n) = &o.noise
-            {
-                let _ = write!(
-                    h,
-                    "<p>Over the object's {} pixels alone ({}): RMSE {}, model RMSE {} (95 % interval {} – {}), noise \
+            );
+        }
+    }
+    // The object's pixels alone (compare/NAME/object/, the render's object layer).
+    let object =
+        read_json::<crate::compare::Report>(&CompareFiles::in_dir(&dirs.object).metrics, "a compare metrics.json")?;
+    if let Some(o) = &object
+        && let Some(n) = &o.noise
+    {
+        let _ = write!(
+            h,
+            "<p>Over the object's {} pixels alone ({}): RMSE {}, model RMSE {} (95 % interval {} – {}), noise \
                      floor {}, SSIM (Y) {}{}.</p>",
-                    o.mask.included_pixels,
-                    esc(&o.mask.source),
-                    num(o.as_calibrated.rmse, e4),
-                    num(n.total.model_rmse, e4),
-                    num(n.total.ci95[0], e4),
-                    num(n.total.ci95[1], e4),
-                    num(n.total.noise_floor, e4),
-                    num(o.as_calibrated.ssim.y, f4),
-                    if n.blocks < crate::compare::noise::MIN_BLOCKS {
-                        format!(
-                            "; the interval rests on {} blocks of {} px, fewer than {}: too few to trust",
-                            n.blocks,
-                            n.block_px,
-                            crate::compare::noise::MIN_BLOCKS
-                        )
-                    } else {
-                        String::new()
-                    }
-                );
+            o.mask.included_pixels,
+            esc(&o.mask.source),
+            num(o.as_calibrated.rmse, e4),
+            num(n.total.model_rmse, e4),
+            num(n.total.ci95[0], e4),
+            num(n.total.ci95[1], e4),
+            num(n.total.noise_floor, e4),
+            num(o.as_calibrated.ssim.y, f4),
+            if n.blocks < crate::compare::noise::MIN_BLOCKS {
+                format!(
+                    "; the interval rests on {} blocks of {} px, fewer than {}: too few to trust",
+                    n.blocks,
+                    n.block_px,
+                    crate::compare::noise::MIN_BLOCKS
+                )
+            } else {
+                String::new()
             }
-            // Which twin is closer, over the whole image and over the object; the
-            // loop's verdict is the object's (where the twins differ), else the image's.
-            let regions: Vec<(&str, &crate::compare::Report)> = std::iter::once(("the whole image", &m))
-                .chain(object.as_ref().map(|o| ("the object's pixels", o)))
-                .collect();
-            let mut verdict: Option<(&str, &crate::compare::noise::PairedReport)> = None;
-            for (region, r) in &regions {
-                let Some(t) = &r.twins else { continue };
-                let zero = |z: &Option<crate::compare::noise::SsimAtZeroNoise>| {
-                    z.as_ref().map_or_else(
-                        || "—".to_string(),
-                        |z| format!("{} ({} – {})", num(z.at_zero_noise, f4), num(z.ci95[0], f4), num(z.ci95[1], f4)),
-                    )
-                };
-                let twin = |label: &str, n: Option<&crate::compare::noise::NoiseReport>, ssim: f64, z: String| {
-                    vec![
-                        label.to_string(),
-                        n.map_or_else(
-                            || "—".into(),
-                            |n| {
-                                format!(
-                                    "{} ({} – {})",
-                                    num(n.total.model_rmse, e4),
-                                    num(n.total.ci95[0], e4),
-                                    num(n.total.ci95[1], e4)
-                                )
-                            },
-                        ),
-                        num(ssim, f4),
-                        z,
-                    ]
-                };
-                let _ =
-                    write!(h, "<h3>Which twin is closer over {region}: the recipe's (A) or the fitted one (B)</h3>");
-                h.push_str(&table(
-                    &["twin", "model RMSE, noise removed (95 %)", "SSIM (Y)", "SSIM (Y) at zero render noise (95 %)"],
-                    &[
-                        twin("A: recipe", r.noise.as_ref(), r.as_calibrated.ssim.y, zero(&r.ssim_at_zero_noise)),
-                        twin("B: fitted", Some(&t.noise_b), t.metrics_b.ssim.y, zero(&t.ssim_at_zero_noise_b)),
-                    ],
-                ));
-                let _ = write!(
+        );
+    }
+    // Which twin is closer, over the whole image and over the object; the
+    // loop's verdict is the object's (where the twins differ), else the image's.
+    let regions: Vec<(&str, &crate::compare::Report)> =
+        std::iter::once(("the whole image", &m)).chain(object.as_ref().map(|o| ("the object's pixels", o))).collect();
+    let mut verdict: Option<(&str, &crate::compare::noise::PairedReport)> = None;
+    for (region, r) in &regions {
+        let Some(t) = &r.twins else { continue };
+        let zero = |z: &Option<crate::compare::noise::SsimAtZeroNoise>| {
+            z.as_ref().map_or_else(
+                || "—".to_string(),
+                |z| format!("{} ({} – {})", num(z.at_zero_noise, f4), num(z.ci95[0], f4), num(z.ci95[1], f4)),
+            )
+        };
+        let twin = |label: &str, n: Option<&crate::compare::noise::NoiseReport>, ssim: f64, z: String| {
+            vec![
+                label.to_string(),
+                n.map_or_else(
+                    || "—".into(),
+                    |n| {
+                        format!(
+                            "{} ({} – {})",
+                            num(n.total.model_rmse, e4),
+                            num(n.total.ci95[0], e4),
+                            num(n.total.ci95[1], e4)
+                        )
+                    },
+                ),
+                num(ssim, f4),
+                z,
+            ]
+        };
+        let _ = write!(h, "<h3>Which twin is closer over {region}: the recipe's (A) or the fitted one (B)</h3>");
+        h.push_str(&table(
+            &["twin", "model RMSE, noise removed (95 %)", "SSIM (Y)", "SSIM (Y) at zero render noise (95 %)"],
+            &[
+                twin("A: recipe", r.noise.as_ref(), r.as_calibrated.ssim.y, zero(&r.ssim_at_zero_noise)),
+                twin("B: fitted", Some(&t.noise_b), t.metrics_b.ssim.y, zero(&t.ssim_at_zero_noise_b)),
+            ],
+        ));
+        let _ = write!(
                     h,
                     "<p>Paired test of the means over {c} × {c} px cells, {} blocks{}: mean squared-error difference A − B {} ± {} \
                      (t {}, p {}): <b>{}</b>.</p>",
@@ -722,49 +865,47 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                     esc(&t.paired.verdict.replace('A', "A (recipe)").replace('B', "B (fitted)")),
                     c = t.paired.cell_px
                 );
-                verdict = Some((region, &t.paired));
-            }
-            // The loop against its known truth (truth_recipe, read by the report only).
-            if let (Some(t_path), false, Some((region, paired))) =
-                (&smp.truth_recipe, fitted_vs_truth.is_empty(), verdict)
-            {
-                let fits: Vec<String> = fitted_vs_truth
-                    .iter()
-                    .map(|(name, v, ci, k)| {
-                        format!(
-                            "{} truth {}, recovered {}{}",
-                            esc(name),
-                            num(*k, f4),
-                            v.map_or_else(|| "—".into(), |v| num(v, f4)),
-                            match ci {
-                                Some([lo, hi]) => format!(
-                                    " (95 % {} – {}: the truth {} it)",
-                                    num(*lo, f4),
-                                    num(*hi, f4),
-                                    if *lo <= *k && *k <= *hi { "is in" } else { "is outside" }
-                                ),
-                                None => String::new(),
-                            }
-                        )
-                    })
-                    .collect();
-                let named_fitted = paired.verdict == "B is closer";
-                let met = named_fitted && paired.p_value < 0.01;
-                let _ = write!(
-                    h,
-                    "<p><b>The loop against its known truth</b> ({}, which no stage reads): {}; over {region} the \
+        verdict = Some((region, &t.paired));
+    }
+    // The loop against its known truth (truth_recipe, read by the report only).
+    if let (Some(t_path), false, Some((region, paired))) = (&smp.truth_recipe, fitted_vs_truth.is_empty(), verdict) {
+        let fits: Vec<String> = fitted_vs_truth
+            .iter()
+            .map(|(name, v, ci, k)| {
+                format!(
+                    "{} truth {}, recovered {}{}",
+                    esc(name),
+                    num(*k, f4),
+                    v.map_or_else(|| "—".into(), |v| num(v, f4)),
+                    match ci {
+                        Some([lo, hi]) => format!(
+                            " (95 % {} – {}: the truth {} it)",
+                            num(*lo, f4),
+                            num(*hi, f4),
+                            if *lo <= *k && *k <= *hi { "is in" } else { "is outside" }
+                        ),
+                        None => String::new(),
+                    }
+                )
+            })
+            .collect();
+        let named_fitted = paired.verdict == "B is closer";
+        let met = named_fitted && paired.p_value < 0.01;
+        let _ = write!(
+            h,
+            "<p><b>The loop against its known truth</b> ({}, which no stage reads): {}; over {region} the \
                      compare stage {} (p = {}; the demo's bar: the fitted twin named closer with p &lt; 0.01, {}).</p>",
-                    esc(&t_path.display().to_string()),
-                    fits.join("; "),
-                    if named_fitted {
-                        "names the fitted twin closer".to_string()
-                    } else {
-                        format!("does not name the fitted twin closer ({})", esc(&paired.verdict))
-                    },
-                    num(paired.p_value, |x| format!("{x:.2e}")),
-                    if met { "met" } else { "not met" }
-                );
-                sj.insert(
+            esc(&t_path.display().to_string()),
+            fits.join("; "),
+            if named_fitted {
+                "names the fitted twin closer".to_string()
+            } else {
+                format!("does not name the fitted twin closer ({})", esc(&paired.verdict))
+            },
+            num(paired.p_value, |x| format!("{x:.2e}")),
+            if met { "met" } else { "not met" }
+        );
+        sj.insert(
                     "loop".into(),
                     json!({
                         "truth_recipe": t_path,
@@ -775,103 +916,112 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
                         "fitted_named_closer_at_p_below_0_01": met,
                     }),
                 );
-            }
-            if let Some(o) = &object {
-                sj.insert("compare_object".into(), trim(&to_value(o), 64));
-            }
-            // The triplet (with two twins: both, under one scale) is in the answer at the top.
-            let _ = write!(
-                h,
-                "<p class=\"note\">The photo | render | difference picture{} is at the top of the page.</p>",
-                if m.twins.is_some() { " of both twins" } else { "" }
-            );
-            sj.insert("compare".into(), trim(&to_value(&m), 64));
-        } else if rdir.is_dir() {
-            h.push_str(&page.img(&RenderFiles::in_dir(&rdir).png, &format!("{} render", smp.name))?);
-        }
-        h.push_str("</section>");
-        page.html.push_str(&h);
-        samples_json.insert(smp.name.clone(), Value::Object(sj));
     }
-    metrics.insert("samples".into(), Value::Object(samples_json));
+    if let Some(o) = &object {
+        sj.insert("compare_object".into(), trim(&to_value(o), 64));
+    }
+    // The triplet (with two twins: both, under one scale) is in the answer at the top.
+    let _ = write!(
+        h,
+        "<p class=\"note\">The photo | render | difference picture{} is at the top of the page.</p>",
+        if m.twins.is_some() { " of both twins" } else { "" }
+    );
+    sj.insert("compare".into(), trim(&to_value(&m), 64));
+    Ok(Some(h))
+}
 
-    // ---- calibration
-    let mut h = String::from("<section><h2>Calibration</h2>");
-    let mut any = false;
+/// The camera calibration (stage calibrate's `files`), beside the known
+/// camera when `[calibration] truth` gives one; `None` when the stage has
+/// not run.
+fn calibrate_section(
+    page: &mut Page,
+    project: &Project,
+    files: &CalibrationFiles,
+    metrics: &mut Metrics,
+) -> Result<Option<String>, ReportError> {
+    let mut h = String::new();
     type Calibration = lucent_calib::camera::Calibration;
-    if let Some(c) =
-        read_json::<Calibration>(&stage_folder(out, done, Stage::Calibrate).join("camera.json"), "a camera.json")?
-    {
-        any = true;
-        let (k, d) = (&c.camera.intrinsics, &c.camera.distortion);
-        h.push_str("<h3>Camera (Zhang)</h3>");
-        h.push_str(&table(
-            &["fx [px]", "fy [px]", "cx [px]", "cy [px]", "k1", "k2", "p1", "p2", "k3", "RMS [px]", "views"],
-            &[vec![
-                num(k.fx, f3),
-                num(k.fy, f3),
-                num(k.cx, f3),
-                num(k.cy, f3),
-                num(d.k1, f4),
-                num(d.k2, f4),
-                num(d.p1, e4),
-                num(d.p2, e4),
-                num(d.k3, f4),
-                num(c.rms_px, f4),
-                c.views.len().to_string(),
-            ]],
-        ));
-        let truth = match project.file.calibration.as_ref().and_then(|c| c.truth.as_ref()) {
-            Some(p) => read_json::<Calibration>(p, "a camera.json ([calibration] truth)")?,
-            None => None,
+    let Some(c) = read_json::<Calibration>(&files.camera, "a camera.json")? else {
+        return Ok(None);
+    };
+    let (k, d) = (&c.camera.intrinsics, &c.camera.distortion);
+    h.push_str("<h3>Camera (Zhang)</h3>");
+    h.push_str(&table(
+        &["fx [px]", "fy [px]", "cx [px]", "cy [px]", "k1", "k2", "p1", "p2", "k3", "RMS [px]", "views"],
+        &[vec![
+            num(k.fx, f3),
+            num(k.fy, f3),
+            num(k.cx, f3),
+            num(k.cy, f3),
+            num(d.k1, f4),
+            num(d.k2, f4),
+            num(d.p1, e4),
+            num(d.p2, e4),
+            num(d.k3, f4),
+            num(c.rms_px, f4),
+            c.views.len().to_string(),
+        ]],
+    ));
+    let truth = match project.file.calibration.as_ref().and_then(|c| c.truth.as_ref()) {
+        Some(p) => read_json::<Calibration>(p, "a camera.json ([calibration] truth)")?,
+        None => None,
+    };
+    let mut truth_json = None;
+    if let Some(t) = &truth {
+        // Synthetic views from a known camera: truth, recovered and their difference.
+        let values = |c: &Calibration| {
+            let (k, d) = (&c.camera.intrinsics, &c.camera.distortion);
+            [
+                ("fx", k.fx),
+                ("fy", k.fy),
+                ("cx", k.cx),
+                ("cy", k.cy),
+                ("k1", d.k1),
+                ("k2", d.k2),
+                ("p1", d.p1),
+                ("p2", d.p2),
+                ("k3", d.k3),
+            ]
         };
-        let mut truth_json = None;
-        if let Some(t) = &truth {
-            // Synthetic views from a known camera: truth, recovered and their difference.
-            let values = |c: &Calibration| {
-                let (k, d) = (&c.camera.intrinsics, &c.camera.distortion);
-                [
-                    ("fx", k.fx),
-                    ("fy", k.fy),
-                    ("cx", k.cx),
-                    ("cy", k.cy),
-                    ("k1", d.k1),
-                    ("k2", d.k2),
-                    ("p1", d.p1),
-                    ("p2", d.p2),
-                    ("k3", d.k3),
-                ]
-            };
-            let mut rows = Vec::new();
-            let mut tj = serde_json::Map::new();
-            for ((name, tv), (_, rv)) in values(t).into_iter().zip(values(&c)) {
-                let fmt = |x: f64| format!("{x:.5}");
-                rows.push(vec![name.to_string(), fmt(tv), fmt(rv), fmt(rv - tv)]);
-                tj.insert(name.into(), json!({"truth": tv, "recovered": rv, "error": rv - tv}));
-            }
-            h.push_str("<h3>Recovered vs known camera (synthetic views)</h3>");
-            h.push_str(&table(&["parameter", "truth", "recovered", "recovered − truth"], &rows));
-            truth_json = Some(Value::Object(tj));
+        let mut rows = Vec::new();
+        let mut tj = serde_json::Map::new();
+        for ((name, tv), (_, rv)) in values(t).into_iter().zip(values(&c)) {
+            let fmt = |x: f64| format!("{x:.5}");
+            rows.push(vec![name.to_string(), fmt(tv), fmt(rv), fmt(rv - tv)]);
+            tj.insert(name.into(), json!({"truth": tv, "recovered": rv, "error": rv - tv}));
         }
-        h.push_str(&page.img(
-            &stage_folder(out, done, Stage::Calibrate).join("camera_residuals.png"),
-            "reprojection residuals per view",
-        )?);
-        let mut cj = trim(&to_value(&c), 16);
-        if let Some(t) = truth_json {
-            cj["truth_vs_recovered"] = t;
-        }
-        cj["views"] = json!(c.views.iter().map(|v| json!({"image": v.image, "rms_px": v.rms_px})).collect::<Vec<_>>());
-        metrics.insert("calibration".into(), cj);
+        h.push_str("<h3>Recovered vs known camera (synthetic views)</h3>");
+        h.push_str(&table(&["parameter", "truth", "recovered", "recovered − truth"], &rows));
+        truth_json = Some(Value::Object(tj));
     }
+    h.push_str(&page.img(&files.residuals_png, "reprojection residuals per view")?);
+    let mut cj = trim(&to_value(&c), 16);
+    if let Some(t) = truth_json {
+        cj["truth_vs_recovered"] = t;
+    }
+    cj["views"] = json!(c.views.iter().map(|v| json!({"image": v.image, "rms_px": v.rms_px})).collect::<Vec<_>>());
+    metrics.insert("calibration".into(), cj);
+    Ok(Some(h))
+}
+
+/// Every colour calibration of the project (stage colour's folder
+/// `colour_dir`, one [`ColourFiles`] per camera) with its ΔE2000 table,
+/// beside the known camera response where `[[colour]] truth` gives one; and
+/// whether there was any.
+fn colour_section(
+    page: &mut Page,
+    project: &Project,
+    colour_dir: &Path,
+    metrics: &mut Metrics,
+) -> Result<(String, bool), ReportError> {
+    let (mut h, mut any) = (String::new(), false);
     let mut colour_json = serde_json::Map::new();
     for c in &project.file.colour {
-        let cdir = stage_folder(out, done, Stage::Colour).join(&c.camera);
-        let path = cdir.join("ccm.json");
-        if !path.exists() {
+        let files = ColourFiles::in_dir(&colour_dir.join(&c.camera));
+        if !files.ccm.exists() {
             continue;
         }
-        let (ccm, _) = crate::ccm_file::CcmFile::read(&path)?;
+        let (ccm, _) = crate::ccm_file::CcmFile::read(&files.ccm)?;
         any = true;
         let _ = write!(
             h,
@@ -916,57 +1066,61 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
             }
         }
         h.push_str("<div class=\"row\">");
-        h.push_str(
-            &page.img(&cdir.join("chart.png"), &format!("{} chart: measured | corrected | reference", c.camera))?,
-        );
-        h.push_str(&page.img(&cdir.join("delta_e.png"), &format!("{} ΔE per patch", c.camera))?);
+        h.push_str(&page.img(&files.chart, &format!("{} chart: measured | corrected | reference", c.camera))?);
+        h.push_str(&page.img(&files.delta_e, &format!("{} ΔE per patch", c.camera))?);
         h.push_str("</div>");
         colour_json.insert(c.camera.clone(), cj);
     }
     metrics.insert("colour".into(), Value::Object(colour_json));
-    type Pose = lucent_calib::scene::SceneDescription;
-    if let Some(p) =
-        read_json::<Pose>(&stage_folder(out, done, Stage::Pose).join("scene.json"), "a scene.json of `lucent pose`")?
-    {
-        any = true;
-        h.push_str("<h3>Board pose</h3>");
-        let mut pj = trim(&to_value(&p), 16);
-        if let Some(t) = project.file.pose.as_ref().and_then(|s| s.truth.as_ref()) {
-            let text = crate::io::read_text(t).map_err(|source| ReportError::Read {
-                path: t.clone(),
-                what: "a scene file ([pose] truth)",
-                source,
-            })?;
-            match crate::scene::parse(&text, t).map_err(|e| ReportError::PoseTruth(Box::new(e)))?.camera.camera_to_world
-            {
-                Some(k) => {
-                    let (mm, deg) = pose_error(&k, &p.camera_to_world);
-                    let _ = write!(
-                        h,
-                        "<p>Known camera pose ({}): recovered camera position {mm:.2} mm from the truth, \
-                         orientation {deg:.3}° off.</p>",
-                        esc(&t.display().to_string())
-                    );
-                    pj["truth_vs_recovered"] = json!({"position_error_mm": mm, "rotation_error_deg": deg});
-                }
-                None => h.push_str("<p class=\"note\">[pose] truth has no [camera] camera_to_world.</p>"),
-            }
-        }
-        h.push_str(
-            &page.img(&stage_folder(out, done, Stage::Pose).join("scene_view.png"), "board pose and sample outline")?,
-        );
-        metrics.insert("pose".into(), pj);
-    }
-    if !any {
-        h.push_str("<p class=\"note\">No calibration in this project.</p>");
-    }
-    h.push_str("</section>");
-    page.html.push_str(&h);
+    Ok((h, any))
+}
 
-    // ---- manifest
+/// The board's pose (stage pose's `files`), beside the known pose when
+/// `[pose] truth` gives one; `None` when the stage has not run.
+fn pose_section(
+    page: &mut Page,
+    project: &Project,
+    files: &PoseFiles,
+    metrics: &mut Metrics,
+) -> Result<Option<String>, ReportError> {
+    let mut h = String::new();
+    type Pose = lucent_calib::scene::SceneDescription;
+    let Some(p) = read_json::<Pose>(&files.json, "a scene.json of `lucent pose`")? else {
+        return Ok(None);
+    };
+    h.push_str("<h3>Board pose</h3>");
+    let mut pj = trim(&to_value(&p), 16);
+    if let Some(t) = project.file.pose.as_ref().and_then(|s| s.truth.as_ref()) {
+        let text = crate::io::read_text(t).map_err(|source| ReportError::Read {
+            path: t.clone(),
+            what: "a scene file ([pose] truth)",
+            source,
+        })?;
+        match crate::scene::parse(&text, t).map_err(|e| ReportError::PoseTruth(Box::new(e)))?.camera.camera_to_world {
+            Some(k) => {
+                let (mm, deg) = pose_error(&k, &p.camera_to_world);
+                let _ = write!(
+                    h,
+                    "<p>Known camera pose ({}): recovered camera position {mm:.2} mm from the truth, \
+                         orientation {deg:.3}° off.</p>",
+                    esc(&t.display().to_string())
+                );
+                pj["truth_vs_recovered"] = json!({"position_error_mm": mm, "rotation_error_deg": deg});
+            }
+            None => h.push_str("<p class=\"note\">[pose] truth has no [camera] camera_to_world.</p>"),
+        }
+    }
+    h.push_str(&page.img(&files.view_png, "board pose and sample outline")?);
+    metrics.insert("pose".into(), pj);
+    Ok(Some(h))
+}
+
+/// The manifest of every stage that has one: key, version, seed, wall
+/// time, inputs with their SHA-256 and the commands.
+fn manifest_section(manifests: &[(Stage, Manifest)], metrics: &mut Metrics) -> String {
     let mut h = String::from("<section><h2>Manifest</h2>");
     let mut mj = serde_json::Map::new();
-    for (s, m) in &manifests {
+    for (s, m) in manifests {
         let _ = write!(
             h,
             "<h3>{}</h3><p class=\"meta\">key <code>{}</code> · lucent {} · seed {} · {:.2} s · outputs <code>{}</code></p>",
@@ -993,17 +1147,8 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
         mj.insert(s.name().into(), to_value(m));
     }
     h.push_str("</section>");
-    page.html.push_str(&h);
     metrics.insert("manifests".into(), Value::Object(mj));
-
-    let html = format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{} — lucent report</title>\n<style>{STYLE}</style></head>\n<body>{}</body></html>\n",
-        esc(&project.name),
-        page.html
-    );
-    crate::io::write_json(&dir.join("metrics.json"), &Value::Object(metrics))?;
-    crate::io::write_atomic(&dir.join("index.html"), html.as_bytes())?;
-    Ok(())
+    h
 }
 
 /// The significance of a paired test's p-value, in words.
@@ -1087,13 +1232,12 @@ fn single_twin_sentence(region: &str, r: &crate::compare::Report) -> String {
 /// then the photo | render | difference picture (with two twins: side by side
 /// under one difference scale, each headed by its twin). Empty when the
 /// compare stage has not run for the sample.
-fn answer(page: &mut Page, compare: &Path, smp: &super::project::SampleSection) -> Result<String, ReportError> {
-    let cdir = compare.join(&smp.name);
-    let Some(image) = read_json::<crate::compare::Report>(&cdir.join("metrics.json"), "a compare metrics.json")? else {
+fn answer(page: &mut Page, dirs: &CompareDirs, smp: &SampleSection) -> Result<String, ReportError> {
+    let (image_files, object_files) = (CompareFiles::in_dir(&dirs.image), CompareFiles::in_dir(&dirs.object));
+    let Some(image) = read_json::<crate::compare::Report>(&image_files.metrics, "a compare metrics.json")? else {
         return Ok(String::new());
     };
-    let object =
-        read_json::<crate::compare::Report>(&cdir.join("object").join("metrics.json"), "a compare metrics.json")?;
+    let object = read_json::<crate::compare::Report>(&object_files.metrics, "a compare metrics.json")?;
     // The object's pixels, where the twins differ, when the render marks them.
     let (region, r) = match &object {
         Some(o) if o.twins.is_some() || image.twins.is_none() => ("the object's pixels", o),
@@ -1148,7 +1292,7 @@ fn answer(page: &mut Page, compare: &Path, smp: &super::project::SampleSection) 
     } else {
         format!("{}: photo | render | difference", smp.name)
     };
-    h.push_str(&page.img(&cdir.join("triplet.png"), &alt)?);
+    h.push_str(&page.img(&image_files.triplet, &alt)?);
     // The approximations the renders made, with their measured bias, beside the comparison that uses them.
     let approximate = &r.approximations;
     if !approximate.is_empty() {
@@ -1198,10 +1342,7 @@ fn answer(page: &mut Page, compare: &Path, smp: &super::project::SampleSection) 
              uncertain inputs (the fitted twin's: the fit's standard errors), the render's Monte Carlo error and \
              the photo's noise; outside it, the difference is more than those uncertainties explain.</p>",
         );
-        h.push_str(&page.img(
-            &cdir.join("object").join(crate::compare::BAND_PNG),
-            &format!("{}: photo against the twins' bands", smp.name),
-        )?);
+        h.push_str(&page.img(&object_files.band_png, &format!("{}: photo against the twins' bands", smp.name))?);
     }
     let _ = write!(
         h,
@@ -1228,10 +1369,6 @@ fn env_residual_note(f: &crate::envfit::ScaleFit) -> String {
         f.pixels,
         100.0 * moves
     )
-}
-
-fn sanitise(name: &str) -> String {
-    name.chars().map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect()
 }
 
 const STYLE: &str =

@@ -41,6 +41,7 @@
 use crate::optics::uncertainty::{first_order, InputSd};
 use lucent_render::tracer::{Image, Region};
 use serde::Serialize;
+use std::path::{Path, PathBuf};
 
 /// How an input's effect Δ (+1 σ minus −1 σ) on the image is estimated.
 #[derive(Debug, Clone, Copy)]
@@ -125,6 +126,35 @@ pub struct RegionBand {
     pub inputs_sd_std_error: [f64; 3],
     pub inputs_relative_sd: [f64; 3],
     pub inputs: Vec<RegionEffect>,
+}
+
+/// The files of a render's band (`lucent render --uncertainty`) beside its
+/// [`super::RenderFiles`], each name spelled here once: the [`RenderBand`]
+/// (`json`), the per-pixel band (`exr`) and its picture over the object
+/// (`png`). Written by `lucent render`, read by `lucent compare --band` and
+/// `lucent run`'s planning.
+///
+/// ```
+/// use lucent::scene::band::RenderBandFiles;
+/// let f = RenderBandFiles::in_dir(std::path::Path::new("out/render/s1"));
+/// assert_eq!(f.json, std::path::Path::new("out/render/s1/uncertainty.json"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RenderBandFiles {
+    pub json: PathBuf,
+    pub exr: PathBuf,
+    pub png: PathBuf,
+}
+
+impl RenderBandFiles {
+    /// The file names.
+    pub const NAMES: [&'static str; 3] = ["uncertainty.json", "band.exr", "band.png"];
+
+    /// The band files of the render whose output folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [json, exr, png] = Self::NAMES.map(|n| dir.join(n));
+        Self { json, exr, png }
+    }
 }
 
 /// The render's band, written as `uncertainty.json` (the per-pixel arrays go to `band.exr`).
