@@ -472,8 +472,7 @@ impl Accel {
         if best == u32::MAX {
             return None;
         }
-        let [a, b, c] = self.tris[best as usize];
-        Some(Hit { t: best_t, triangle: self.original[best as usize], normal: (b - a).cross(c - a).normalize() })
+        Some(self.hit(best as usize, best_t))
     }
 
     /// True when the mesh is convex (a ray leaving it never meets it again);
@@ -520,16 +519,18 @@ impl Accel {
     #[inline]
     pub fn exit_from(&self, origin: DVec3, dir: DVec3, near: u32) -> Option<Hit> {
         let walked = self.walk.as_deref().filter(|_| (near as usize) < self.tris.len()).and_then(|w| {
-            let f = w.find(origin, dir, near)?;
-            let tri = &self.tris[w.slot[f as usize] as usize];
-            let t = Shear::new(dir).intersect(origin, tri)?;
-            let [a, b, c] = *tri;
-            Some(Hit { t, triangle: f, normal: (b - a).cross(c - a).normalize() })
+            let slot = w.slot[w.find(origin, dir, near)? as usize] as usize;
+            let t = Shear::new(dir).intersect(origin, &self.tris[slot])?;
+            Some(self.hit(slot, t))
         });
-        if walked.is_some() {
-            return walked;
-        }
-        self.exit(origin, dir)
+        walked.or_else(|| self.exit(origin, dir))
+    }
+
+    /// The hit at distance `t` on the triangle at `slot` (the BVH's order).
+    #[inline]
+    fn hit(&self, slot: usize, t: f64) -> Hit {
+        let [a, b, c] = self.tris[slot];
+        Hit { t, triangle: self.original[slot], normal: (b - a).cross(c - a).normalize() }
     }
 
     /// True when [`exit_from`](Self::exit_from) walks across faces (a

@@ -180,9 +180,7 @@ fn to_image(buf: RgbBuffer) -> RgbImage {
     RgbImage { width: buf.width, height: buf.height, data: buf.data }
 }
 
-pub(super) fn sibling(path: &Path, suffix: &str) -> PathBuf {
-    lucent_calib::scene::sibling(path, suffix)
-}
+pub(super) use lucent_calib::scene::sibling;
 
 fn file_name(path: &Path) -> String {
     path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string())

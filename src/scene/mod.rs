@@ -1103,9 +1103,6 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
     if let Some(b) = r.medium_connections {
         settings.medium_nee = b;
     }
-    if let Some(b) = r.phase_connections {
-        settings.phase_connection = b;
-    }
     if let Some(b) = r.specular_chains {
         settings.specular_chains = b;
     }
@@ -1131,9 +1128,8 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
     // planes: through any other mesh each needs the face search of the
     // environment connection for its weight, and on the worked example's
     // sphere they cost 1.35× the CPU time for no less variance.
-    if r.phase_connections.is_none() {
-        settings.phase_connection = object.as_ref().is_none_or(|o| o.accel.convex_planes().is_some());
-    }
+    settings.phase_connection =
+        r.phase_connections.unwrap_or_else(|| object.as_ref().is_none_or(|o| o.accel.convex_planes().is_some()));
     let (intr, dist) = (camera.intrinsics, camera.distortion.map(|d| [d.k1, d.k2, d.p1, d.p2, d.k3]));
     let (w, h) = (camera.width, camera.height);
     let scene = Scene::new(object, board.as_ref().map(|b| b.0.clone()), environment, camera)
