@@ -107,7 +107,27 @@ struct Walk {
     next: Vec<[u32; 3]>,
     /// Per triangle: its index in the BVH's order.
     slot: Vec<u32>,
+    /// A ball inside the mesh: its centre (the vertices' mean) and radius
+    /// (a hair under the least distance from the centre to a face plane),
+    /// so a segment that stays in the ball cannot cross the surface.
+    centre: DVec3,
+    radius: f64,
+    /// The ball is nearly the mesh (its radius at least [`BALL_LIKE`] of the
+    /// farthest vertex's distance from the centre): its depth then bounds
+    /// the distance to the surface better than the grid does.
+    ball_like: bool,
+    /// Cells along each side of [`Walk::starts`]' cube of directions.
+    cube: usize,
+    /// Per cell of a cube of directions about `centre` (6 sides of `cube`²
+    /// cells): the triangle the ray from the centre through the cell's
+    /// middle leaves through, where [`Accel::exit`] starts its walk.
+    starts: Vec<u32>,
 }
+
+/// How close to a ball a convex mesh is for its inscribed ball's depth to
+/// serve as [`Accel::distance_lower_bound`] (the ratio of the inscribed
+/// radius to the farthest vertex's distance from the centre).
+const BALL_LIKE: f64 = 0.9;
 
 /// Steps a walk takes before [`Accel::exit_from`] asks the BVH instead
 /// (a walk from a face near the exit takes a few).
@@ -151,7 +171,90 @@ impl Walk {
         for (at, &i) in original.iter().enumerate() {
             slot[i as usize] = at as u32;
         }
-        Some(Self { outward, next, slot })
+        let radius = outward
+            .iter()
+            .map(|&[a, b, c]| (b - a).cross(c - a).normalize().dot(a - centre))
+            .fold(f64::INFINITY, f64::min);
+        if radius.is_nan() || radius <= 0.0 {
+            return None;
+        }
+        // About 4 cells per face over the cube's 6 sides.
+        let cube = (((2 * n) as f64 / 3.0).sqrt().ceil() as usize).clamp(2, 64);
+        let far = triangles.iter().flatten().map(|v| v.distance(centre)).fold(0.0, f64::max);
+        let radius = radius * (1.0 - 1e-9);
+        let ball_like = radius >= BALL_LIKE * far;
+        let mut walk = Self { outward, next, slot, centre, radius, ball_like, cube, starts: Vec::new() };
+        // Each cell's face walked to from the cell before (a step or two);
+        // the first from face 0 with as many steps as there are faces.
+        let mut starts = Vec::with_capacity(6 * cube * cube);
+        let mut at = 0u32;
+        for side in 0..6 {
+            for i in 0..cube {
+                for j in 0..cube {
+                    let dir = walk.cell_direction(side, i, j);
+                    at = walk.find_in(centre, dir, at, n.max(WALK_STEPS))?;
+                    starts.push(at);
+                }
+            }
+        }
+        walk.starts = starts;
+        Some(walk)
+    }
+
+    /// The direction from the centre through the middle of cell (i, j) of
+    /// the cube's side `side` (axis side / 2, towards + for even sides).
+    fn cell_direction(&self, side: usize, i: usize, j: usize) -> DVec3 {
+        let m = self.cube as f64;
+        let (u, v) = (2.0 * (i as f64 + 0.5) / m - 1.0, 2.0 * (j as f64 + 0.5) / m - 1.0);
+        let w = if side % 2 == 0 { 1.0 } else { -1.0 };
+        match side / 2 {
+            0 => DVec3::new(w, u, v),
+            1 => DVec3::new(u, w, v),
+            _ => DVec3::new(u, v, w),
+        }
+    }
+
+    /// The cube cell holding the direction of `p` from the centre.
+    fn cell_of(&self, p: DVec3) -> usize {
+        let a = p.abs();
+        let (side, u, v, w) = if a.x >= a.y && a.x >= a.z {
+            (usize::from(p.x < 0.0), p.y, p.z, a.x)
+        } else if a.y >= a.z {
+            (2 + usize::from(p.y < 0.0), p.x, p.z, a.y)
+        } else {
+            (4 + usize::from(p.z < 0.0), p.x, p.y, a.z)
+        };
+        let m = self.cube as f64;
+        // NaN and w = 0 (p at the centre) land in cell 0 by the saturating cast.
+        let cell = |x: f64| (((x / w + 1.0) * 0.5 * m) as usize).min(self.cube - 1);
+        (side * self.cube + cell(u)) * self.cube + cell(v)
+    }
+
+    /// A face near where the ray from `origin` (inside) along `dir` leaves:
+    /// the one the centre's ray through the point where the ray leaves the
+    /// ball (or, where it misses the ball, the point of its closest
+    /// approach to the centre) leaves through.
+    #[inline]
+    fn start(&self, origin: DVec3, dir: DVec3) -> u32 {
+        let q = origin - self.centre;
+        let (a, b) = (dir.length_squared(), q.dot(dir));
+        let disc = b * b - a * (q.length_squared() - self.radius * self.radius);
+        let t = if disc >= 0.0 { (disc.sqrt() - b) / a } else { -b / a };
+        self.starts[self.cell_of(q + t.max(0.0) * dir)]
+    }
+
+    /// The distance along `dir` (in its lengths) that the ray from `origin`
+    /// stays in the inscribed ball; 0 from a point outside it.
+    #[inline]
+    fn in_ball(&self, origin: DVec3, dir: DVec3) -> f64 {
+        let q = origin - self.centre;
+        let c = q.length_squared() - self.radius * self.radius;
+        if c >= 0.0 {
+            return 0.0;
+        }
+        let (a, b) = (dir.length_squared(), q.dot(dir));
+        // c < 0: the roots straddle 0, the far one is positive.
+        ((b * b - a * c).sqrt() - b) / a
     }
 
     /// The triangle the ray from `origin` (inside) along `dir` leaves
@@ -159,8 +262,14 @@ impl Walk {
     /// where `origin` is not inside the face reached.
     #[inline]
     fn find(&self, origin: DVec3, dir: DVec3, start: u32) -> Option<u32> {
+        self.find_in(origin, dir, start, WALK_STEPS)
+    }
+
+    /// [`Walk::find`] with at most `steps` steps.
+    #[inline]
+    fn find_in(&self, origin: DVec3, dir: DVec3, start: u32, steps: usize) -> Option<u32> {
         let mut f = start as usize;
-        for _ in 0..WALK_STEPS {
+        for _ in 0..steps {
             let [a, b, c] = self.outward[f];
             let (a, b, c) = (a - origin, b - origin, c - origin);
             // With dir = αa + βb + γc: these are γV, αV, βV, V = a·(b × c).
@@ -407,7 +516,17 @@ impl Accel {
     /// longest side built on the first call: within 1.5 cells of the surface
     /// it is 0, beyond it falls short of the true distance by at most
     /// ≈ 3.2 cells; 0 outside the box. One array read per call.
+    ///
+    /// For a convex mesh close to a ball (a sphere's facets) the depth in
+    /// its inscribed ball, r − |x − centre|, where that is positive: no grid
+    /// read, and short of the true distance by at most the facets' sag.
     pub fn distance_lower_bound(&self, x: DVec3) -> f64 {
+        if let Some(w) = self.walk.as_deref().filter(|w| w.ball_like) {
+            let depth = w.radius - x.distance(w.centre);
+            if depth > 0.0 {
+                return depth;
+            }
+        }
         self.distance_grid().lower_bound(x)
     }
 
@@ -494,8 +613,31 @@ impl Accel {
     /// an order of magnitude cheaper than the BVH for a plaque box (the
     /// renderer calls it at every scattering event); otherwise the BVH hit.
     /// `triangle` is `u32::MAX` for a plane hit.
+    ///
+    /// On a convex mesh of many faces the hit is walked to across the edges
+    /// from a face near it (found from the ray's exit from the inscribed
+    /// ball; the BVH where the walk does not arrive): the BVH's hit, bit for
+    /// bit, where the ray does not pass through an edge.
     #[inline]
     pub fn exit(&self, origin: DVec3, dir: DVec3) -> Option<Hit> {
+        match self.walk.as_deref() {
+            Some(w) => self.exit_from(origin, dir, w.start(origin, dir)),
+            None => self.plane_or_bvh_exit(origin, dir),
+        }
+    }
+
+    /// True when the segment from `origin` over `t` lengths of `dir`
+    /// provably stays inside the mesh (it lies in the ball inscribed in a
+    /// convex mesh of many faces): no exit closer than `t`. False says
+    /// nothing.
+    #[inline]
+    pub fn stays_inside(&self, origin: DVec3, dir: DVec3, t: f64) -> bool {
+        self.walk.as_deref().is_some_and(|w| t < w.in_ball(origin, dir))
+    }
+
+    /// [`exit`](Self::exit) by the face planes or the BVH.
+    #[inline]
+    fn plane_or_bvh_exit(&self, origin: DVec3, dir: DVec3) -> Option<Hit> {
         let Some(planes) = &self.planes else { return self.intersect(origin, dir, f64::INFINITY) };
         let mut best = (f64::INFINITY, DVec3::ZERO);
         for (n, c) in planes {
@@ -523,7 +665,7 @@ impl Accel {
             let t = Shear::new(dir).intersect(origin, &self.tris[slot])?;
             Some(self.hit(slot, t))
         });
-        walked.or_else(|| self.exit(origin, dir))
+        walked.or_else(|| self.plane_or_bvh_exit(origin, dir))
     }
 
     /// The hit at distance `t` on the triangle at `slot` (the BVH's order).

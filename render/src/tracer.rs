@@ -1789,9 +1789,10 @@ fn trace_path(
             let bc = &obj.bands;
             let sigma_t = bc.sigma_t[h];
             let s = -(1.0 - rng.next_f64()).ln() / sigma_t;
-            // A flight shorter than the distance to the nearest face plane
-            // cannot leave: no boundary search needed.
-            let hit = if s < safe {
+            // A flight shorter than the distance to the nearest face plane,
+            // or within a convex mesh's inscribed ball, cannot leave: no
+            // boundary search needed.
+            let hit = if s < safe || obj.accel.stays_inside(o, d, s) {
                 None
             } else {
                 let Some(hit) = obj.accel.exit(o, d) else {
@@ -2358,7 +2359,7 @@ const MESH_EXIT_STEPS: usize = 4;
 /// (multiple-importance weights), and a face it does not find is left to the
 /// path's escape and the phase connection.
 fn mesh_exit(accel: &Accel, x: DVec3, wo: DVec3, eta: f64) -> Option<MeshExit> {
-    let mut hit = accel.intersect(x, wo, f64::INFINITY)?;
+    let mut hit = accel.exit(x, wo)?;
     let mut dir = wo;
     for _ in 0..MESH_EXIT_STEPS {
         let n = if hit.normal.dot(dir) >= 0.0 { hit.normal } else { -hit.normal };
