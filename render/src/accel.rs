@@ -206,7 +206,7 @@ impl Walk {
     fn cell_direction(&self, side: usize, i: usize, j: usize) -> DVec3 {
         let m = self.cube as f64;
         let (u, v) = (2.0 * (i as f64 + 0.5) / m - 1.0, 2.0 * (j as f64 + 0.5) / m - 1.0);
-        let w = if side % 2 == 0 { 1.0 } else { -1.0 };
+        let w = if side.is_multiple_of(2) { 1.0 } else { -1.0 };
         match side / 2 {
             0 => DVec3::new(w, u, v),
             1 => DVec3::new(u, w, v),
