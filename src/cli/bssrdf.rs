@@ -544,109 +544,19 @@ pub fn plan_with_recipe(a: &RunArgs, recipe: Option<&Recipe>) -> Result<Plan> {
 /// run whose shards these are (`lucent merge`).
 pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
     let plan = plan(&a)?;
-    let Plan { medium: m, beam_name, out_pixels, stop, roughness, .. } = &plan;
+    let Plan { out_pixels, stop, .. } = &plan;
     let configs = &plan.runs;
     let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
-    if a.uncertainty {
-        if shard.is_some() || merged_from.is_some() {
-            bail!("--uncertainty: the coupled runs of the uncertain inputs are not sharded; run without --shard");
-        }
-        if a.paths.is_none() && a.time_s.is_none() {
-            bail!("--uncertainty: give --paths or --time-s (the runs at ±1 σ stop with the nominal one, on a path count or a time budget)");
-        }
-        if a.rel_error.is_some() || a.pixel_rel_error.is_some() {
-            bail!("--uncertainty: --rel-error and --pixel-rel-error do not apply; give --paths or --time-s");
-        }
-    }
     let batch_paths = RunOptions::default().batch_paths;
     let total_batches = a.paths.unwrap_or(0).div_ceil(batch_paths);
-    if shard.is_some() || merged_from.is_some() {
-        if a.paths.is_none() || a.time_s.is_some() || a.rel_error.is_some() || a.pixel_rel_error.is_some() {
-            bail!("--shard: needs a path budget (--paths) and no other stop rule (--time-s, --rel-error and --pixel-rel-error depend on the whole run and cannot be split exactly)");
-        }
-        if let Some((k, n)) = shard
-            && u64::from(n) > total_batches
-        {
-            return Err(crate::shard::ShardError::TooManyShards {
-                k,
-                n,
-                units: total_batches,
-                what: "batches of paths",
-            }
-            .into());
-        }
-    }
+    check_stop_for_split(&a, shard, merged_from.is_some(), total_batches)?;
     // A merge reads and checks every shard before it writes anything.
-    let merged_tallies: Option<Vec<Vec<crate::shard::Arrays>>> = match merged_from {
-        Some(shards) => Some(
-            shards
-                .iter()
-                .map(|s| {
-                    let k = s.file.shard;
-                    let expected = crate::shard::range(total_batches, k, s.file.identity.shards);
-                    if s.file.range != [expected.start, expected.end] {
-                        bail!(
-                            "{}: shard {k} holds batches {:?}, the run's shard {k} is {expected:?}",
-                            s.dir.display(),
-                            s.file.range
-                        );
-                    }
-                    (0..configs.len())
-                        .map(|i| read_slice_shard(&s.dir.join(shard_acc(i)), out_pixels * out_pixels))
-                        .collect::<Result<Vec<_>>>()
-                })
-                .collect::<Result<Vec<_>>>()?,
-        ),
+    let merged_tallies = match merged_from {
+        Some(shards) => Some(read_merged_tallies(shards, configs.len(), *out_pixels, total_batches)?),
         None => None,
     };
     if let Some((k, n)) = shard {
-        let range = crate::shard::range(total_batches, k, n);
-        let identity = super::shard::identity(a.seed, format!("{} paths", a.paths.unwrap_or(0)), n)?;
-        super::shard::check_shard_out(&a.out, &identity, k)?;
-        // A second Ctrl-C or SIGTERM ends the process: the staging folder goes with it.
-        let _remove_on_abort = super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out));
-        let stage = crate::io::StagedDir::new(&a.out)?;
-        let interrupt = Interrupt::install();
-        let mut wall_s = 0.0;
-        let mut accumulators = Vec::new();
-        for (i, run) in configs.iter().enumerate() {
-            let t = slab::simulate_batches(
-                &run.setup,
-                &run.options,
-                range.clone(),
-                a.paths.unwrap_or(0),
-                interrupt.flag(),
-            )?;
-            if interrupt.requested() {
-                return Err(
-                    Interrupted(format!("shard {k}/{n} not written (a shard is merged whole or not at all)")).into()
-                );
-            }
-            wall_s += t.wall_s;
-            let meta = crate::shard::AccMeta::new(&identity, k, &range, &Default::default());
-            write_slice_shard(&stage.path().join(shard_acc(i)), &meta, &t)?;
-            accumulators.push(shard_acc(i));
-        }
-        drop(interrupt);
-        let file = crate::shard::ShardFile {
-            identity,
-            shard: k,
-            range: [range.start, range.end],
-            accumulators,
-            counters: Default::default(),
-            wall_s,
-        };
-        crate::io::write_json(&stage.path().join(crate::shard::SHARD_JSON), &file)?;
-        // Another shard may have finished into the same folder meanwhile.
-        super::shard::check_shard_out(&a.out, &file.identity, k)?;
-        stage.commit(|n| n == crate::shard::SHARD_JSON || (n.starts_with("slice-") && n.ends_with(".acc")))?;
-        println!(
-            "shard {k}/{n}: path batches {}..{} of {total_batches} in {wall_s:.1} s → {}",
-            range.start,
-            range.end,
-            a.out.display()
-        );
-        return Ok(());
+        return run_shard(&a, configs, (k, n), total_batches);
     }
     // Written into a staging folder, moved into --out when every configuration is done.
     // A second Ctrl-C ends the process at once: the staging folder goes with
@@ -704,18 +614,7 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
                         bar.suspend(|| eprintln!("{label}: {}{all}", line.1));
                     }
                 }
-                bar.set_message(format!(
-                    "{}{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
-                    if stop.paths.is_none() && stop.time_s.is_some() {
-                        format!("{} paths, ", p.paths)
-                    } else {
-                        String::new()
-                    },
-                    p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
-                    100.0 * p.rel_error,
-                    100.0 * p.pixels.median,
-                    100.0 * p.pixels.p90
-                ));
+                bar.set_message(progress_message(stop, p));
             };
             if a.uncertainty {
                 let (slice, differences) =
@@ -738,64 +637,19 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
                 );
             }
         }
-        let pixel_errors = slice.pixel_errors();
-        let summary = Summary {
-            config: RunConfig {
-                recipe: a.recipe.as_ref().map(|p| p.display().to_string()),
-                wavelength_nm: a.recipe.as_ref().map(|_| a.wavelength),
-                theta_i_deg: ti,
-                phi_i_deg: pi,
-                theta_o_deg: to,
-                phi_o_deg: po,
-                phase: m.phase_name.clone(),
-                beam: beam_name.clone(),
-                pixels: *out_pixels,
-                pixel_mm: a.pixel_mm,
-                crop_of: a.crop.map(|_| a.pixels),
-                seed: a.seed,
-                thickness_mm: m.thickness_m * 1e3,
-                roughness: roughness.clone(),
-            },
-            optical_properties: m.used,
-            sum: slice.sum,
-            sum_std_error: slice.sum_std_error,
-            relative_std_error: slice.sum_std_error / slice.sum,
-            pixel_rel_error_median: pixel_errors.median,
-            pixel_rel_error_p90: pixel_errors.p90,
-            pixel_mask_pixels: pixel_errors.pixels,
-            paths: slice.paths,
-            events: slice.events,
-            events_per_s: slice.events_per_s(),
-            kernel: slice.kernel.into(),
-            estimator: slice.estimator.name().into(),
-            folded: slice.folded,
-            reciprocal: slice.reciprocal,
-            wall_s: slice.wall_s,
-            specular_reflectance: slice.specular_reflectance,
-            diffuse_reflectance: slice.diffuse_reflectance,
-            transmittance: slice.transmittance,
-            pixel_mm: a.pixel_mm,
-            interrupted,
-        };
+        let summary = slice_summary(&a, &plan, run, &slice, interrupted);
         let beam_row = plan.beam_profile(run, a.pixel_mm);
         bssrdf::write_run(&dir, &slice, &summary, &beam_row)?;
         if let Some(differences) = &band {
-            let inputs: Vec<crate::optics::uncertainty::InputSd> = plan
-                .perturbations
-                .iter()
-                .map(|p| crate::optics::uncertainty::InputSd { key: p.key.clone(), nominal: p.nominal, sd: p.sd })
-                .collect();
-            let u = bssrdf::SliceBand::new(&slice, &inputs, differences);
-            bssrdf::write_band(&dir, &slice, &u, &beam_row)?;
-            println!("θi {ti}° → θo {to}°: {}", u.sentence());
+            println!("θi {ti}° → θo {to}°: {}", write_slice_band(&plan, &dir, &slice, differences, &beam_row)?);
         }
         println!(
             "θi {ti}° φi {pi}° → θo {to}° φo {po}°: sum = {:.5e} ± {:.2e} 1/(m² sr) ({:.2} %), per pixel {:.1} % median, {:.1} % p90, {} paths, {:.1} M events/s, {:.1} s → {}",
             slice.sum,
             slice.sum_std_error,
             100.0 * summary.relative_std_error,
-            100.0 * pixel_errors.median,
-            100.0 * pixel_errors.p90,
+            100.0 * summary.pixel_rel_error_median,
+            100.0 * summary.pixel_rel_error_p90,
             slice.paths,
             summary.events_per_s / 1e6,
             slice.wall_s,
@@ -834,6 +688,191 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
         .into());
     }
     Ok(())
+}
+
+/// Checks the stop rules against the run's mode: `--uncertainty` (not
+/// sharded, a path count or time budget), a `shard` (k, n) or a merge
+/// (`merged`: a path budget alone, at most `total_batches` shards).
+fn check_stop_for_split(a: &RunArgs, shard: Option<(u32, u32)>, merged: bool, total_batches: u64) -> Result<()> {
+    if a.uncertainty {
+        if shard.is_some() || merged {
+            bail!("--uncertainty: the coupled runs of the uncertain inputs are not sharded; run without --shard");
+        }
+        if a.paths.is_none() && a.time_s.is_none() {
+            bail!("--uncertainty: give --paths or --time-s (the runs at ±1 σ stop with the nominal one, on a path count or a time budget)");
+        }
+        if a.rel_error.is_some() || a.pixel_rel_error.is_some() {
+            bail!("--uncertainty: --rel-error and --pixel-rel-error do not apply; give --paths or --time-s");
+        }
+    }
+    if shard.is_some() || merged {
+        if a.paths.is_none() || a.time_s.is_some() || a.rel_error.is_some() || a.pixel_rel_error.is_some() {
+            bail!("--shard: needs a path budget (--paths) and no other stop rule (--time-s, --rel-error and --pixel-rel-error depend on the whole run and cannot be split exactly)");
+        }
+        if let Some((k, n)) = shard
+            && u64::from(n) > total_batches
+        {
+            return Err(crate::shard::ShardError::TooManyShards {
+                k,
+                n,
+                units: total_batches,
+                what: "batches of paths",
+            }
+            .into());
+        }
+    }
+    Ok(())
+}
+
+/// The tallies of every shard (in shard order), one per configuration (of
+/// `configs`, slices of `out_pixels` per side), each shard checked to hold
+/// its range of the `total_batches`.
+fn read_merged_tallies(
+    shards: &[crate::shard::Shard],
+    configs: usize,
+    out_pixels: usize,
+    total_batches: u64,
+) -> Result<Vec<Vec<crate::shard::Arrays>>> {
+    shards
+        .iter()
+        .map(|s| {
+            let k = s.file.shard;
+            let expected = crate::shard::range(total_batches, k, s.file.identity.shards);
+            if s.file.range != [expected.start, expected.end] {
+                bail!(
+                    "{}: shard {k} holds batches {:?}, the run's shard {k} is {expected:?}",
+                    s.dir.display(),
+                    s.file.range
+                );
+            }
+            (0..configs)
+                .map(|i| read_slice_shard(&s.dir.join(shard_acc(i)), out_pixels * out_pixels))
+                .collect::<Result<Vec<_>>>()
+        })
+        .collect::<Result<Vec<_>>>()
+}
+
+/// Shard k of n (`--shard K/N`): its range of the `total_batches` of every
+/// configuration, tallied into --out with shard.json.
+fn run_shard(a: &RunArgs, configs: &[PlannedRun], (k, n): (u32, u32), total_batches: u64) -> Result<()> {
+    let range = crate::shard::range(total_batches, k, n);
+    let identity = super::shard::identity(a.seed, format!("{} paths", a.paths.unwrap_or(0)), n)?;
+    super::shard::check_shard_out(&a.out, &identity, k)?;
+    // A second Ctrl-C or SIGTERM ends the process: the staging folder goes with it.
+    let _remove_on_abort = super::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&a.out));
+    let stage = crate::io::StagedDir::new(&a.out)?;
+    let interrupt = Interrupt::install();
+    let mut wall_s = 0.0;
+    let mut accumulators = Vec::new();
+    for (i, run) in configs.iter().enumerate() {
+        let t =
+            slab::simulate_batches(&run.setup, &run.options, range.clone(), a.paths.unwrap_or(0), interrupt.flag())?;
+        if interrupt.requested() {
+            return Err(
+                Interrupted(format!("shard {k}/{n} not written (a shard is merged whole or not at all)")).into()
+            );
+        }
+        wall_s += t.wall_s;
+        let meta = crate::shard::AccMeta::new(&identity, k, &range, &Default::default());
+        write_slice_shard(&stage.path().join(shard_acc(i)), &meta, &t)?;
+        accumulators.push(shard_acc(i));
+    }
+    drop(interrupt);
+    let file = crate::shard::ShardFile {
+        identity,
+        shard: k,
+        range: [range.start, range.end],
+        accumulators,
+        counters: Default::default(),
+        wall_s,
+    };
+    crate::io::write_json(&stage.path().join(crate::shard::SHARD_JSON), &file)?;
+    // Another shard may have finished into the same folder meanwhile.
+    super::shard::check_shard_out(&a.out, &file.identity, k)?;
+    stage.commit(|n| n == crate::shard::SHARD_JSON || (n.starts_with("slice-") && n.ends_with(".acc")))?;
+    println!(
+        "shard {k}/{n}: path batches {}..{} of {total_batches} in {wall_s:.1} s → {}",
+        range.start,
+        range.end,
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// The progress bar's message during a run with stop rule `stop`.
+fn progress_message(stop: &Stop, p: &slab::Progress) -> String {
+    format!(
+        "{}{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
+        if stop.paths.is_none() && stop.time_s.is_some() { format!("{} paths, ", p.paths) } else { String::new() },
+        p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
+        100.0 * p.rel_error,
+        100.0 * p.pixels.median,
+        100.0 * p.pixels.p90
+    )
+}
+
+/// summary.json of one configuration's `slice` (of `run` in `plan`).
+fn slice_summary(a: &RunArgs, plan: &Plan, run: &PlannedRun, slice: &slab::Slice, interrupted: bool) -> Summary {
+    let m = &plan.medium;
+    let (ti, pi, to, po) = run.angles;
+    let pixel_errors = slice.pixel_errors();
+    Summary {
+        config: RunConfig {
+            recipe: a.recipe.as_ref().map(|p| p.display().to_string()),
+            wavelength_nm: a.recipe.as_ref().map(|_| a.wavelength),
+            theta_i_deg: ti,
+            phi_i_deg: pi,
+            theta_o_deg: to,
+            phi_o_deg: po,
+            phase: m.phase_name.clone(),
+            beam: plan.beam_name.clone(),
+            pixels: plan.out_pixels,
+            pixel_mm: a.pixel_mm,
+            crop_of: a.crop.map(|_| a.pixels),
+            seed: a.seed,
+            thickness_mm: m.thickness_m * 1e3,
+            roughness: plan.roughness.clone(),
+        },
+        optical_properties: m.used,
+        sum: slice.sum,
+        sum_std_error: slice.sum_std_error,
+        relative_std_error: slice.sum_std_error / slice.sum,
+        pixel_rel_error_median: pixel_errors.median,
+        pixel_rel_error_p90: pixel_errors.p90,
+        pixel_mask_pixels: pixel_errors.pixels,
+        paths: slice.paths,
+        events: slice.events,
+        events_per_s: slice.events_per_s(),
+        kernel: slice.kernel.into(),
+        estimator: slice.estimator.name().into(),
+        folded: slice.folded,
+        reciprocal: slice.reciprocal,
+        wall_s: slice.wall_s,
+        specular_reflectance: slice.specular_reflectance,
+        diffuse_reflectance: slice.diffuse_reflectance,
+        transmittance: slice.transmittance,
+        pixel_mm: a.pixel_mm,
+        interrupted,
+    }
+}
+
+/// The band of a configuration's `slice` from its runs at ±1 σ of the
+/// plan's uncertain inputs (`differences`), written into `dir`; its sentence.
+fn write_slice_band(
+    plan: &Plan,
+    dir: &Path,
+    slice: &slab::Slice,
+    differences: &[slab::SliceDifference],
+    beam_row: &[f64],
+) -> Result<String> {
+    let inputs: Vec<crate::optics::uncertainty::InputSd> = plan
+        .perturbations
+        .iter()
+        .map(|p| crate::optics::uncertainty::InputSd { key: p.key.clone(), nominal: p.nominal, sd: p.sd })
+        .collect();
+    let u = bssrdf::SliceBand::new(slice, &inputs, differences);
+    bssrdf::write_band(dir, slice, &u, beam_row)?;
+    Ok(u.sentence())
 }
 
 /// The run options of one configuration.

@@ -214,19 +214,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
     use clap::ValueEnum;
     let board = |board: &str, square_mm: f64| super::groups::BoardArgs { board: board.to_string(), square_mm };
     Ok(match job {
-        Job::Optics(j) => Command::Optics(super::OpticsArgs {
-            recipes: j.recipes.clone(),
-            wavelengths: j.wavelengths.clone(),
-            wavelength: None,
-            out: Some(j.out.clone()),
-            json: false,
-            phase_entries: 4096,
-            weight_percent: j.weight_percent,
-            skip_invalid: false,
-            uncertainty: None,
-            uncertainty_seed: 1,
-            shard: None,
-        }),
+        Job::Optics(j) => Command::Optics(optics_args(j)),
         Job::Bssrdf(j) => Command::Bssrdf(bssrdf::BssrdfArgs {
             command: None,
             run: bssrdf::RunArgs {
@@ -257,26 +245,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
             })),
             run: bssrdf::RunArgs::defaults(),
         }),
-        Job::Fit(j) => Command::Fit(fit::FitArgs {
-            recipe: j.recipe.clone(),
-            weight_percent: j.weight_percent,
-            measured: j.measured.clone(),
-            measured_pixel_mm: j.measured_pixel_mm,
-            free: j.free.join(","),
-            objective: j.objective,
-            wavelength: j.wavelength_nm,
-            beam: super::groups::BeamArgs::default(),
-            measured_rel_sd: j.measured_rel_sd,
-            threshold: j.threshold,
-            rel_error: j.rel_error,
-            paths: j.paths,
-            pilot_time_s: 60.0,
-            bounds: j.bounds.clone(),
-            thickness_mm: None,
-            seed: j.seed,
-            out: j.out.clone(),
-            quiet: j.quiet,
-        }),
+        Job::Fit(j) => Command::Fit(fit_args(j)),
         Job::Calibrate(j) => Command::Calibrate(camera::CalibrateArgs {
             images: j.images.clone(),
             board: board(&j.board, j.square_mm),
@@ -333,42 +302,93 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
             out: j.out.clone(),
             quiet: false,
         })),
-        Job::Render(j) => Command::Render(render::RenderArgs {
-            scene: j.scene.clone(),
-            out: j.out.clone(),
-            render: twin_render(j.spp, j.seed, &j.size),
-            time_s: j.time_s,
-            exposure: 0.0,
-            target_rel_error: None,
-            sampling: None,
-            dispersion: None,
-            similarity_g: None,
-            split_entry: false,
-            quiet: j.quiet,
-            shard: None,
-            uncertainty: j.uncertainty,
-            uncertainty_spp: None,
-            uncertainty_renders: false,
-        }),
-        Job::Compare(j) => Command::Compare(compare::CompareArgs {
-            photo: j.photo.clone(),
-            render: j.render.clone(),
-            mask: j.mask.clone(),
-            mask_object: j.mask_object.clone(),
-            mask_board: None,
-            photo_variance: j.photo_variance.clone(),
-            photo_repeat: None,
-            scene: None,
-            data_range: j.data_range,
-            luminance: crate::compare::Luminance::CieRgb,
-            exposure: None,
-            twin_names: j.twin_names.clone(),
-            refine: None,
-            refine_motion: lucent_calib::ecc::Motion::Translation,
-            band: j.band.clone(),
-            out: j.out.clone(),
-        }),
+        Job::Render(j) => Command::Render(render_args(j)),
+        Job::Compare(j) => Command::Compare(compare_args(j)),
     })
+}
+
+/// `lucent optics` of an optics job.
+fn optics_args(j: &OpticsJob) -> super::OpticsArgs {
+    super::OpticsArgs {
+        recipes: j.recipes.clone(),
+        wavelengths: j.wavelengths.clone(),
+        wavelength: None,
+        out: Some(j.out.clone()),
+        json: false,
+        phase_entries: 4096,
+        weight_percent: j.weight_percent,
+        skip_invalid: false,
+        uncertainty: None,
+        uncertainty_seed: 1,
+        shard: None,
+    }
+}
+
+/// `lucent fit` of a fit job.
+fn fit_args(j: &FitJob) -> fit::FitArgs {
+    fit::FitArgs {
+        recipe: j.recipe.clone(),
+        weight_percent: j.weight_percent,
+        measured: j.measured.clone(),
+        measured_pixel_mm: j.measured_pixel_mm,
+        free: j.free.join(","),
+        objective: j.objective,
+        wavelength: j.wavelength_nm,
+        beam: super::groups::BeamArgs::default(),
+        measured_rel_sd: j.measured_rel_sd,
+        threshold: j.threshold,
+        rel_error: j.rel_error,
+        paths: j.paths,
+        pilot_time_s: 60.0,
+        bounds: j.bounds.clone(),
+        thickness_mm: None,
+        seed: j.seed,
+        out: j.out.clone(),
+        quiet: j.quiet,
+    }
+}
+
+/// `lucent render` of a render job.
+fn render_args(j: &RenderJob) -> render::RenderArgs {
+    render::RenderArgs {
+        scene: j.scene.clone(),
+        out: j.out.clone(),
+        render: twin_render(j.spp, j.seed, &j.size),
+        time_s: j.time_s,
+        exposure: 0.0,
+        target_rel_error: None,
+        sampling: None,
+        dispersion: None,
+        similarity_g: None,
+        split_entry: false,
+        quiet: j.quiet,
+        shard: None,
+        uncertainty: j.uncertainty,
+        uncertainty_spp: None,
+        uncertainty_renders: false,
+    }
+}
+
+/// `lucent compare` of a compare job.
+fn compare_args(j: &CompareJob) -> compare::CompareArgs {
+    compare::CompareArgs {
+        photo: j.photo.clone(),
+        render: j.render.clone(),
+        mask: j.mask.clone(),
+        mask_object: j.mask_object.clone(),
+        mask_board: None,
+        photo_variance: j.photo_variance.clone(),
+        photo_repeat: None,
+        scene: None,
+        data_range: j.data_range,
+        luminance: crate::compare::Luminance::CieRgb,
+        exposure: None,
+        twin_names: j.twin_names.clone(),
+        refine: None,
+        refine_motion: lucent_calib::ecc::Motion::Translation,
+        band: j.band.clone(),
+        out: j.out.clone(),
+    }
 }
 
 /// Runs a job as its command does ([`super::run`] of [`command_of`]): the

@@ -535,36 +535,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     let bar = progress_bar(a.quiet, &settings);
     let mut estimated = false;
     if let Some((k, n)) = shard {
-        let range = crate::shard::range(u64::from(settings.spp), k, n);
-        let identity = super::shard::identity(settings.seed, format!("{} spp", settings.spp), n)?;
-        super::shard::check_shard_out(&a.out, &identity, k)?;
-        let interrupt = Interrupt::install();
-        let (acc, stats) = pool.install(|| {
-            tracer::render_samples(
-                &loaded.scene,
-                &settings,
-                range.start as u32..range.end as u32,
-                Some(interrupt.flag()),
-            )
-        });
-        if interrupt.requested() {
-            return Err(
-                Interrupted(format!("shard {k}/{n} not written (a shard is merged whole or not at all)")).into()
-            );
-        }
-        drop(interrupt);
-        // Another shard may have finished into the same folder meanwhile.
-        super::shard::check_shard_out(&a.out, &identity, k)?;
-        write_shard(&a.out, &acc, &stats, identity, k, range.clone())?;
-        println!(
-            "shard {k}/{n}: samples {}..{} of every pixel in {:.1} s → {}/{SHARD_ACC}, {}",
-            range.start,
-            range.end,
-            stats.wall_s,
-            a.out.display(),
-            crate::shard::SHARD_JSON
-        );
-        return Ok(());
+        return render_shard(&a, &loaded, &settings, &pool, (k, n));
     }
     let interrupt = Interrupt::install();
     let (image, stats) = if let Some(m) = merged_result {
@@ -587,21 +558,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     report.interrupted = interrupted;
     let json = scene::RenderFiles::in_dir(&a.out).json;
     crate::io::write_json(&json, &report).with_context(|| format!("{}: cannot write", json.display()))?;
-    if stats.leaked_paths > 0 {
-        // A hole, or a mesh in the wrong unit (larger than the scene around it): say which is likelier.
-        let size = loaded.summary.object_bounds_m.and_then(|[lo, hi]| scene::mesh::size_warning(lo, hi));
-        eprintln!(
-            "warning: {} paths found no boundary while inside the object (a hole in the mesh{}); their light is lost",
-            stats.leaked_paths,
-            size.map_or(String::new(), |s| format!(", or {s}"))
-        );
-    }
-    if stats.truncated_paths > 0 {
-        eprintln!(
-            "warning: {} paths were ended after {} scattering events (biased low there)",
-            stats.truncated_paths, settings.max_events_per_path
-        );
-    }
+    warn_lost_paths(&loaded.summary, &settings, &stats);
     let e = image.region_errors();
     println!(
         "{} spp in {:.1} s ({:.3} M samples/s, {:.1} M scattering events/s)",
@@ -616,16 +573,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         && e.object.median > t
         && !interrupted
     {
-        if report.spp >= settings.spp {
-            eprintln!(
-                "warning: the object reached {:.1} % at the sample budget of {} spp (--spp or [render] spp), short of the {:.1} % target",
-                100.0 * e.object.median,
-                settings.spp,
-                100.0 * t
-            );
-        } else {
-            eprintln!("warning: {}", advice_short_of_target(report.wall_s, e.object.median, t, w, h));
-        }
+        warn_short_of_target(&report, &settings, e.object.median, t, (w, h));
     }
     println!("wrote {}/render.exr, render.png, render.json", a.out.display());
     if let (Some(recipe), false) = (&uncertain, interrupted) {
@@ -640,6 +588,76 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         .into());
     }
     Ok(())
+}
+
+/// Renders shard k of n (`--shard K/N`): its range of the samples of every
+/// pixel, tallied into --out with shard.json.
+fn render_shard(
+    a: &RenderArgs,
+    loaded: &scene::LoadedScene,
+    settings: &Settings,
+    pool: &rayon::ThreadPool,
+    (k, n): (u32, u32),
+) -> Result<()> {
+    let range = crate::shard::range(u64::from(settings.spp), k, n);
+    let identity = super::shard::identity(settings.seed, format!("{} spp", settings.spp), n)?;
+    super::shard::check_shard_out(&a.out, &identity, k)?;
+    let interrupt = Interrupt::install();
+    let (acc, stats) = pool.install(|| {
+        tracer::render_samples(&loaded.scene, settings, range.start as u32..range.end as u32, Some(interrupt.flag()))
+    });
+    if interrupt.requested() {
+        return Err(Interrupted(format!("shard {k}/{n} not written (a shard is merged whole or not at all)")).into());
+    }
+    drop(interrupt);
+    // Another shard may have finished into the same folder meanwhile.
+    super::shard::check_shard_out(&a.out, &identity, k)?;
+    write_shard(&a.out, &acc, &stats, identity, k, range.clone())?;
+    println!(
+        "shard {k}/{n}: samples {}..{} of every pixel in {:.1} s → {}/{SHARD_ACC}, {}",
+        range.start,
+        range.end,
+        stats.wall_s,
+        a.out.display(),
+        crate::shard::SHARD_JSON
+    );
+    Ok(())
+}
+
+/// Warns of paths lost inside the object (a hole, or a mesh in the wrong
+/// unit) and of paths ended at the event limit.
+fn warn_lost_paths(summary: &SceneSummary, settings: &Settings, stats: &Stats) {
+    if stats.leaked_paths > 0 {
+        // A hole, or a mesh in the wrong unit (larger than the scene around it): say which is likelier.
+        let size = summary.object_bounds_m.and_then(|[lo, hi]| scene::mesh::size_warning(lo, hi));
+        eprintln!(
+            "warning: {} paths found no boundary while inside the object (a hole in the mesh{}); their light is lost",
+            stats.leaked_paths,
+            size.map_or(String::new(), |s| format!(", or {s}"))
+        );
+    }
+    if stats.truncated_paths > 0 {
+        eprintln!(
+            "warning: {} paths were ended after {} scattering events (biased low there)",
+            stats.truncated_paths, settings.max_events_per_path
+        );
+    }
+}
+
+/// Warns that the object's median error `median` stayed above the target
+/// `t`: at the sample budget, or with advice on the time a `w` × `h` image
+/// would take.
+fn warn_short_of_target(report: &RenderReport, settings: &Settings, median: f64, t: f64, (w, h): (usize, usize)) {
+    if report.spp >= settings.spp {
+        eprintln!(
+            "warning: the object reached {:.1} % at the sample budget of {} spp (--spp or [render] spp), short of the {:.1} % target",
+            100.0 * median,
+            settings.spp,
+            100.0 * t
+        );
+    } else {
+        eprintln!("warning: {}", advice_short_of_target(report.wall_s, median, t, w, h));
+    }
 }
 
 /// With `--uncertainty`: the scene's recipe (refused without one or

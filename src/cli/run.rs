@@ -287,21 +287,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     println!("lucent run {} → {}", a.project.display(), out.display());
     let total = std::time::Instant::now();
     let n = Stage::ALL.len();
-    let emit = match a.emit.as_slice() {
-        [] => None,
-        [kind, dir] => {
-            let dir = std::path::absolute(dir).with_context(|| format!("--emit {kind} {dir}: cannot resolve"))?;
-            // Like every output folder: new, or one lucent wrote (a folder of
-            // the user's, e.g. holding their own submit.sh, is refused).
-            crate::io::check_output_folder(&dir).with_context(|| format!("--emit {kind} {}", dir.display()))?;
-            match kind.as_str() {
-                "slurm" => Some(Emit::Slurm(dir)),
-                "k8s" => Some(Emit::K8s(dir)),
-                other => anyhow::bail!("--emit {other:?}: expected slurm or k8s"),
-            }
-        }
-        _ => anyhow::bail!("--emit needs KIND and DIR, e.g. --emit slurm jobs/"),
-    };
+    let emit = emit_target(&a.emit)?;
     if emit.is_some() && exec_cfg.shards < 2 {
         anyhow::bail!(
             "--emit: [executor] shards is {}: set it to the number of shards per long command (≥ 2)",
@@ -359,54 +345,12 @@ pub fn run(a: RunArgs) -> Result<()> {
             _ => run_job_here(job, log, &interrupt, &console).map_err(classified),
         }
     };
-    let mut status_line = |stage: Stage, st: &Status, notes: &[String]| {
-        let k = Stage::ALL.iter().position(|s| *s == stage).unwrap_or(0) + 1;
-        let what = match st {
-            Status::Started { last_wall_s } => {
-                // Before the stage's commands: which, and how long it took last time.
-                eprintln!("{}", start_line(k, n, stage, *last_wall_s));
-                return;
-            }
-            Status::Ran { wall_s, tasks } => {
-                format!("ran {tasks} task{} in {wall_s:.1} s", if *tasks == 1 { "" } else { "s" })
-            }
-            Status::UpToDate => "up to date (inputs and parameters unchanged)".into(),
-            Status::Skipped { reason } => format!("skipped: {reason}"),
-            Status::Deferred { tasks } => format!("{tasks} long task(s) written as batch jobs, not run here"),
-        };
-        let (warnings, notes): (Vec<&String>, Vec<&String>) = notes.iter().partition(|n| n.starts_with("warning: "));
-        let notes = if notes.is_empty() {
-            String::new()
-        } else {
-            format!(" [{}]", notes.iter().map(|n| n.as_str()).collect::<Vec<_>>().join("; "))
-        };
-        println!("[{k}/{n}] {:<10} {what}{notes}", stage.name());
-        for w in warnings {
-            eprintln!("{w}");
-        }
-    };
+    let mut status_line = |stage: Stage, st: &Status, notes: &[String]| print_status(n, stage, st, notes);
     let result = pipeline::run(&project, &out, &Options { force, until }, &mut exec, &mut status_line);
     if let Some(e) = &emit
         && emitted > 0
     {
-        let (Emit::Slurm(dir) | Emit::K8s(dir)) = e;
-        crate::io::mark_output_folder(dir)?;
-        match e {
-            Emit::Slurm(dir) => {
-                let path = dir.join("submit.sh");
-                let text = format!("#!/bin/bash\n# Submits the shards of {emitted} long command(s) of `lucent run {}` and their merges.\nset -eu\n{submit}", a.project.display());
-                crate::io::write_atomic(&path, text.as_bytes())?;
-                println!("wrote {emitted} job array(s) and merge job(s); submit them with: bash {}", path.display());
-            }
-            Emit::K8s(dir) => println!(
-                "wrote {emitted} Indexed Job manifest(s) to {}; apply them with kubectl apply -f",
-                dir.display()
-            ),
-        }
-        println!(
-            "when the jobs have finished, run `lucent run {}` again: it merges the shards and goes on",
-            a.project.display()
-        );
+        write_emitted(e, emitted, &submit, &a.project)?;
     }
     match result {
         Ok(_) => {
@@ -420,6 +364,79 @@ pub fn run(a: RunArgs) -> Result<()> {
         }
         Err(e) => Err(e.into()),
     }
+}
+
+/// The `--emit KIND DIR` target (`args`, none or two), its folder absolute
+/// and new or lucent's.
+fn emit_target(args: &[String]) -> Result<Option<Emit>> {
+    Ok(match args {
+        [] => None,
+        [kind, dir] => {
+            let dir = std::path::absolute(dir).with_context(|| format!("--emit {kind} {dir}: cannot resolve"))?;
+            // Like every output folder: new, or one lucent wrote (a folder of
+            // the user's, e.g. holding their own submit.sh, is refused).
+            crate::io::check_output_folder(&dir).with_context(|| format!("--emit {kind} {}", dir.display()))?;
+            match kind.as_str() {
+                "slurm" => Some(Emit::Slurm(dir)),
+                "k8s" => Some(Emit::K8s(dir)),
+                other => anyhow::bail!("--emit {other:?}: expected slurm or k8s"),
+            }
+        }
+        _ => anyhow::bail!("--emit needs KIND and DIR, e.g. --emit slurm jobs/"),
+    })
+}
+
+/// The status line of `stage` (of `n`): its start on stderr, how it ended
+/// on stdout with its notes (their warnings on stderr).
+fn print_status(n: usize, stage: Stage, st: &Status, notes: &[String]) {
+    let k = Stage::ALL.iter().position(|s| *s == stage).unwrap_or(0) + 1;
+    let what = match st {
+        Status::Started { last_wall_s } => {
+            // Before the stage's commands: which, and how long it took last time.
+            eprintln!("{}", start_line(k, n, stage, *last_wall_s));
+            return;
+        }
+        Status::Ran { wall_s, tasks } => {
+            format!("ran {tasks} task{} in {wall_s:.1} s", if *tasks == 1 { "" } else { "s" })
+        }
+        Status::UpToDate => "up to date (inputs and parameters unchanged)".into(),
+        Status::Skipped { reason } => format!("skipped: {reason}"),
+        Status::Deferred { tasks } => format!("{tasks} long task(s) written as batch jobs, not run here"),
+    };
+    let (warnings, notes): (Vec<&String>, Vec<&String>) = notes.iter().partition(|n| n.starts_with("warning: "));
+    let notes = if notes.is_empty() {
+        String::new()
+    } else {
+        format!(" [{}]", notes.iter().map(|n| n.as_str()).collect::<Vec<_>>().join("; "))
+    };
+    println!("[{k}/{n}] {:<10} {what}{notes}", stage.name());
+    for w in warnings {
+        eprintln!("{w}");
+    }
+}
+
+/// After `emitted` jobs were written to `e`'s folder: marks it as lucent's,
+/// writes submit.sh (Slurm, its `submit` lines) and says how to go on with
+/// the project file `project`.
+fn write_emitted(e: &Emit, emitted: usize, submit: &str, project: &Path) -> Result<()> {
+    let (Emit::Slurm(dir) | Emit::K8s(dir)) = e;
+    crate::io::mark_output_folder(dir)?;
+    match e {
+        Emit::Slurm(dir) => {
+            let path = dir.join("submit.sh");
+            let text = format!("#!/bin/bash\n# Submits the shards of {emitted} long command(s) of `lucent run {}` and their merges.\nset -eu\n{submit}", project.display());
+            crate::io::write_atomic(&path, text.as_bytes())?;
+            println!("wrote {emitted} job array(s) and merge job(s); submit them with: bash {}", path.display());
+        }
+        Emit::K8s(dir) => {
+            println!("wrote {emitted} Indexed Job manifest(s) to {}; apply them with kubectl apply -f", dir.display())
+        }
+    }
+    println!(
+        "when the jobs have finished, run `lucent run {}` again: it merges the shards and goes on",
+        project.display()
+    );
+    Ok(())
 }
 
 #[cfg(test)]

@@ -364,6 +364,99 @@ fn median(v: &[f64]) -> f64 {
     v[v.len() / 2]
 }
 
+/// The commands `lucent bench shard` times: `exe` rendering `scene` at
+/// `size` and `spp` into folders under `tmp`, as one process or `shards`.
+struct BenchRun<'a> {
+    exe: &'a Path,
+    scene: &'a Path,
+    tmp: &'a Path,
+    size: &'a str,
+    spp: u32,
+    shards: u32,
+}
+
+/// The times of [`BenchRun::rounds`].
+struct Rounds {
+    /// Median of three: `lucent --version`.
+    startup: Time,
+    /// Median of three: a render of 8 × 6 pixels at 1 spp.
+    fixed: Time,
+    /// Per round: the render as one process.
+    one: Vec<Time>,
+    /// Per round: the shards and their merge.
+    sharded: Vec<Time>,
+    /// Per round: each shard.
+    shard_t: Vec<Vec<Time>>,
+    /// Per round: the merge.
+    merge_t: Vec<Time>,
+}
+
+impl BenchRun<'_> {
+    /// The render's arguments into `out` at `spp` and `size`.
+    fn base(&self, out: &Path, spp: u32, size: &str) -> Vec<String> {
+        let mut v: Vec<String> = vec!["render".into(), self.scene.display().to_string(), "--quiet".into()];
+        v.extend(["--size".into(), size.into(), "--spp".into(), spp.to_string(), "--seed".into(), "1".into()]);
+        v.extend(["--out".into(), out.display().to_string()]);
+        v
+    }
+
+    /// The median of three runs of a short command.
+    fn median3(&self, args: &[String]) -> Result<Time> {
+        let t = [timed(self.exe, args)?, timed(self.exe, args)?, timed(self.exe, args)?];
+        Ok(Time { wall_s: median(&t.map(|t| t.wall_s)), cpu_s: median(&t.map(|t| t.cpu_s)) })
+    }
+
+    /// The shards one after the other, then their merge: each shard's time
+    /// and the merge's.
+    fn run_sharded(&self) -> Result<(Vec<Time>, Time)> {
+        let (spp, size, shards) = (self.spp, self.size, self.shards);
+        let mut times = Vec::new();
+        let mut dirs = Vec::new();
+        for k in 0..shards {
+            let d = self.tmp.join(format!("shard-{k}"));
+            let mut a = self.base(&d, spp, size);
+            a.extend(["--shard".into(), format!("{k}/{shards}")]);
+            times.push(timed(self.exe, &a)?);
+            dirs.push(d.display().to_string());
+        }
+        let mut m = vec!["merge".to_string()];
+        m.extend(dirs);
+        let merged = self.tmp.join("merged");
+        let _ = std::fs::remove_dir_all(&merged);
+        m.extend(["--out".into(), merged.display().to_string()]);
+        Ok((times, timed(self.exe, &m)?))
+    }
+
+    /// The fixed costs, then `repeats` rounds of one process and the
+    /// shards with their merge, alternating which comes first.
+    fn rounds(&self, repeats: u32) -> Result<Rounds> {
+        // Fixed cost per process: start-up (the dynamic loader, 150 shared
+        // libraries through OpenCV), then scene loading (Lorenz–Mie phase
+        // tables, the environment map) and writing.
+        let startup = self.median3(&["--version".to_string()])?;
+        let fixed = self.median3(&self.base(&self.tmp.join("fixed"), 1, "8x6"))?;
+        let mut one = Vec::new();
+        let mut sharded = Vec::new();
+        let mut shard_t: Vec<Vec<Time>> = Vec::new();
+        let mut merge_t = Vec::new();
+        for round in 0..repeats {
+            let run_one = || timed(self.exe, &self.base(&self.tmp.join("one"), self.spp, self.size));
+            let (o, (s, m)) = if round % 2 == 0 {
+                let o = run_one()?;
+                (o, self.run_sharded()?)
+            } else {
+                let s = self.run_sharded()?;
+                (run_one()?, s)
+            };
+            one.push(o);
+            sharded.push(s.iter().fold(m, |a, b| a + *b));
+            shard_t.push(s);
+            merge_t.push(m);
+        }
+        Ok(Rounds { startup, fixed, one, sharded, shard_t, merge_t })
+    }
+}
+
 /// `lucent bench shard`: the scene rendered as one process and as
 /// `shards` shard processes run one after the other (each on all cores)
 /// plus their merge, each as a child process of this binary (start-up,
@@ -395,58 +488,9 @@ pub fn bench(
         bail!("--repeats {repeats}: must lie in 1 … 20");
     }
     let tmp = std::env::temp_dir().join(format!("lucent-bench-shard-{}", std::process::id()));
-    let base = |out: &Path, spp: u32, size: &str| -> Vec<String> {
-        let mut v: Vec<String> = vec!["render".into(), scene.display().to_string(), "--quiet".into()];
-        v.extend(["--size".into(), size.into(), "--spp".into(), spp.to_string(), "--seed".into(), "1".into()]);
-        v.extend(["--out".into(), out.display().to_string()]);
-        v
-    };
-    // The median of three runs of a short command.
-    let median3 = |args: &[String]| -> Result<Time> {
-        let t = [timed(&exe, args)?, timed(&exe, args)?, timed(&exe, args)?];
-        Ok(Time { wall_s: median(&t.map(|t| t.wall_s)), cpu_s: median(&t.map(|t| t.cpu_s)) })
-    };
     let result = (|| -> Result<serde_json::Value> {
-        // Fixed cost per process: start-up (the dynamic loader, 150 shared
-        // libraries through OpenCV), then scene loading (Lorenz–Mie phase
-        // tables, the environment map) and writing.
-        let startup = median3(&["--version".to_string()])?;
-        let fixed = median3(&base(&tmp.join("fixed"), 1, "8x6"))?;
-        let mut one = Vec::new();
-        let mut sharded = Vec::new();
-        let mut shard_t: Vec<Vec<Time>> = Vec::new();
-        let mut merge_t = Vec::new();
-        for round in 0..repeats {
-            let run_one = || timed(&exe, &base(&tmp.join("one"), spp, size));
-            let run_sharded = || -> Result<(Vec<Time>, Time)> {
-                let mut times = Vec::new();
-                let mut dirs = Vec::new();
-                for k in 0..shards {
-                    let d = tmp.join(format!("shard-{k}"));
-                    let mut a = base(&d, spp, size);
-                    a.extend(["--shard".into(), format!("{k}/{shards}")]);
-                    times.push(timed(&exe, &a)?);
-                    dirs.push(d.display().to_string());
-                }
-                let mut m = vec!["merge".to_string()];
-                m.extend(dirs);
-                let merged = tmp.join("merged");
-                let _ = std::fs::remove_dir_all(&merged);
-                m.extend(["--out".into(), merged.display().to_string()]);
-                Ok((times, timed(&exe, &m)?))
-            };
-            let (o, (s, m)) = if round % 2 == 0 {
-                let o = run_one()?;
-                (o, run_sharded()?)
-            } else {
-                let s = run_sharded()?;
-                (run_one()?, s)
-            };
-            one.push(o);
-            sharded.push(s.iter().fold(m, |a, b| a + *b));
-            shard_t.push(s);
-            merge_t.push(m);
-        }
+        let run = BenchRun { exe: &exe, scene, tmp: &tmp, size, spp, shards };
+        let Rounds { startup, fixed, one, sharded, shard_t, merge_t } = run.rounds(repeats)?;
         let total = |v: &[Time]| v.iter().fold(Time::default(), |a, b| a + *b);
         let (one_sum, sharded_sum) = (total(&one), total(&sharded));
         let overhead = sharded_sum.wall_s / one_sum.wall_s - 1.0;

@@ -1096,7 +1096,136 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     let (w, h) = (photo.image.width, photo.image.height);
     let (photo_img, render_img) = (&photo.image, &render.image);
 
-    // Mask and scene.
+    let Selection { mask, source, path: mask_path, scene } = select_pixels(req, w, h)?;
+    let mask_path = mask_path.as_ref();
+    let twin_bands = band_regions(req, source)?;
+    let mut notes: Vec<String> = Vec::new();
+
+    let (calibrated, ssim_map) = metrics_and_ssim_map(photo_img, render_img, mask.as_ref(), &settings)?;
+    let render_var = render_variance(&req.render);
+    let noise =
+        noise_report(req, &req.render, render_var.as_deref(), photo_img, render_img, mask.as_ref(), &mut notes)?;
+    let ssim_at_zero_noise =
+        ssim_zero_noise_report(&req.render, photo_img, &ssim_map, mask.as_ref(), &settings, &mut notes)?;
+    let (twins, render_b_img) = match &req.render_b {
+        None => (None, None),
+        Some(pb) => {
+            twins_report(req, pb, photo_img, (render_img, render_var.as_deref()), mask.as_ref(), &settings, &mut notes)
+                .map(|(t, b)| (Some(t), Some(b)))?
+        }
+    };
+    let images = Images { photo: photo_img, render: render_img, render_b: render_b_img.as_ref() };
+
+    let approximations: Vec<RenderApproximations> = std::iter::once(req.render.as_path())
+        .chain(req.render_b.as_deref())
+        .filter_map(|r| render_approximations(r, &mut notes))
+        .collect();
+    for a in &approximations {
+        for line in &a.approximations {
+            notes.push(format!("{} approximates: {line}; the difference on the object includes that bias", a.render));
+        }
+    }
+    let bands = if twin_bands.is_empty() {
+        Vec::new()
+    } else {
+        band_checks(req, &twin_bands, images, render_var.clone(), mask.as_ref(), &mut notes)?
+    };
+
+    // ECC refinement.
+    let refined_parts = match req.refine {
+        Some(motion) => Some(ecc_refinement(motion, scene.as_ref(), images, mask.as_ref(), &settings, &mut notes)?),
+        None => None,
+    };
+
+    let display = display_scale(req, images, mask.as_ref(), &settings, &mut notes);
+
+    let lw = settings.luminance.weights();
+    let report = Report {
+        lucent_version: env!("CARGO_PKG_VERSION").into(),
+        photo: req.photo.display().to_string(),
+        render: req.render.display().to_string(),
+        width: w,
+        height: h,
+        channels: photo.channels.clone(),
+        mask: MaskReport {
+            source: source.into(),
+            path: mask_path.map(|p| p.display().to_string()),
+            included_pixels: mask.as_ref().map_or(w * h, Mask::count),
+            included_fraction: mask.as_ref().map_or(1.0, Mask::fraction),
+        },
+        definitions: Definitions {
+            difference: "render - photo, linear, the images' own units".into(),
+            ssim: "Wang, Bovik, Sheikh & Simoncelli 2004 (IEEE TIP 13(4)); = skimage.metrics.structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=L) per channel".into(),
+            ssim_parameters: settings.ssim,
+            ssim_window_taps: settings.ssim.window(),
+            ssim_border_px: settings.ssim.border(),
+            ssim_with_mask: "mean of the SSIM map over included pixels at least ssim_border_px from the image border".into(),
+            luminance: settings.luminance.describe().into(),
+            luminance_weights: lw,
+            relative_error: "sum |render - photo| / sum |photo| over included pixels and channels".into(),
+        },
+        as_calibrated: calibrated,
+        noise,
+        twins,
+        ssim_at_zero_noise,
+        refined: refined_parts.as_ref().map(|(r, _, _)| r.clone()),
+        bands,
+        approximations,
+        display: DisplayReport {
+            exposure: display.exposure,
+            exposure_source: display.exposure_source,
+            transfer: "sRGB (IEC 61966-2-1) of exposure x linear value, clipped to [0, 1]".into(),
+            difference: "luminance Y(render) - Y(photo), linear units (not scaled by the exposure)".into(),
+            difference_colour_map: "ColorBrewer RdBu: blue = render darker, white = 0, red = render brighter".into(),
+            difference_range: display.diff_range,
+            difference_range_source: if render_b_img.is_some() {
+                "the larger of the two twins' 99th percentiles of |dY| over included pixels (1 % of the data range \
+                 if zero): one scale for both twins"
+                    .into()
+            } else {
+                "99th percentile of |dY| over included pixels (1 % of the data range if zero)".into()
+            },
+            clipped_fraction_photo: display.clip_photo,
+            clipped_fraction_render: display.clip_render,
+            clipped_fraction_difference: display.clipped_diff,
+            masked_pixels: "greyed (photo, render), hatched light grey (difference)".into(),
+        },
+        files: FILES.iter().map(|s| s.to_string()).collect(),
+    };
+    let triplet_png = picture(req, &report, images, mask.as_ref(), refined_parts.as_ref())?;
+    let difference = difference_channels(images, display.dy, ssim_map, mask.as_ref(), refined_parts.as_ref());
+    let band_png = band_png(req, &report)?;
+    Ok(Outcome { report, triplet_png, width: w, height: h, difference, band_png, notes })
+}
+
+/// The images a comparison reads: the photo, the render (twin A) and, with
+/// two twins, twin B's render.
+#[derive(Clone, Copy)]
+struct Images<'a> {
+    photo: &'a RgbImage,
+    render: &'a RgbImage,
+    render_b: Option<&'a RgbImage>,
+}
+
+/// The pixels a comparison includes ([`select_pixels`]).
+struct Selection {
+    /// `None`: every pixel.
+    mask: Option<Mask>,
+    /// `mask.source` of metrics.json: "none", "image", "object", "board",
+    /// "object and image" or "board and image".
+    source: &'static str,
+    /// The mask's file(s).
+    path: Option<PathBuf>,
+    /// The scene JSON (of the mask, else of `--scene`) and its path, for
+    /// the ECC region.
+    scene: Option<(lucent_calib::scene::SceneDescription, PathBuf)>,
+}
+
+/// The mask of `req` (an image, an object or board mask from a render EXR's
+/// layer or a scene JSON, intersected with a mask image when both are
+/// given) over a `w` × `h` image, and the scene; an error when it includes
+/// no pixel.
+fn select_pixels(req: &Request, w: usize, h: usize) -> Result<Selection, CompareError> {
     let mut scene = None;
     let (mask, source, mask_path) = match &req.mask {
         MaskSpec::None => (None, "none", None),
@@ -1144,7 +1273,6 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             )
         }
     };
-    let mask_path = mask_path.as_ref();
     if scene.is_none()
         && let Some(p) = &req.scene
     {
@@ -1153,9 +1281,15 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     if let Some(m) = &mask
         && m.count() == 0
     {
-        return Err(CompareError::EmptyMask { kind: Some(source), path: mask_path.cloned() });
+        return Err(CompareError::EmptyMask { kind: Some(source), path: mask_path });
     }
-    // The bands: one per twin, over the object's or the board's pixels.
+    Ok(Selection { mask, source, path: mask_path, scene })
+}
+
+/// The bands of `req`, one per twin, of the region the mask `source` is
+/// over (the object's or the board's pixels); an error when there are more
+/// bands than renders or the mask is of neither.
+fn band_regions<'a>(req: &'a Request, source: &str) -> Result<Vec<&'a band::TwinBand>, CompareError> {
     let renders = 1 + usize::from(req.render_b.is_some());
     if req.bands.len() > renders {
         return Err(CompareError::BandUse(format!(
@@ -1173,108 +1307,127 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             "a twin's band is of the object's or the board's mean: give --mask-object or --mask-board".into(),
         ));
     }
-    let twin_bands = req.bands.iter().map(|b| b.region(band_region)).collect::<Result<Vec<_>, _>>()?;
-    let mut notes: Vec<String> = Vec::new();
+    Ok(req.bands.iter().map(|b| b.region(band_region)).collect::<Result<Vec<_>, _>>()?)
+}
 
-    let (calibrated, ssim_map) = metrics_and_ssim_map(photo_img, render_img, mask.as_ref(), &settings)?;
-    let render_var = render_variance(&req.render);
-    let noise =
-        noise_report(req, &req.render, render_var.as_deref(), photo_img, render_img, mask.as_ref(), &mut notes)?;
-    let ssim_at_zero_noise =
-        ssim_zero_noise_report(&req.render, photo_img, &ssim_map, mask.as_ref(), &settings, &mut notes)?;
-    let (twins, render_b_img) = match &req.render_b {
-        None => (None, None),
-        Some(pb) => {
-            twins_report(req, pb, photo_img, (render_img, render_var.as_deref()), mask.as_ref(), &settings, &mut notes)
-                .map(|(t, b)| (Some(t), Some(b)))?
+/// The photo's mean over the `mask`ed pixels against each twin's band
+/// (`twin_bands`, in the order of the renders; `render_var` the first
+/// render's variance).
+fn band_checks(
+    req: &Request,
+    twin_bands: &[&band::TwinBand],
+    images: Images,
+    render_var: Option<Vec<f32>>,
+    mask: Option<&Mask>,
+    notes: &mut Vec<String>,
+) -> Result<Vec<band::BandCheck>, CompareError> {
+    let include = mask.map(|m| m.include.as_slice());
+    let pv = photo_variance(req, images.photo)?;
+    let (photo_mean, photo_var, n) = band::region_mean(&images.photo.data, pv.as_deref(), include);
+    if pv.is_none() {
+        notes.push("--band: no photo variance given (--photo-variance or --photo-repeat): the photo's noise is taken as 0 in the predictive band".into());
+    }
+    let renders: Vec<(&Path, &RgbImage, Option<Vec<f32>>)> =
+        std::iter::once((req.render.as_path(), images.render, render_var))
+            .chain(req.render_b.as_deref().zip(images.render_b).map(|(p, img)| (p, img, render_variance(p))))
+            .collect();
+    Ok(twin_bands
+        .iter()
+        .zip(&renders)
+        .zip(&req.bands)
+        .map(|((b, (path, img, var)), bands)| {
+            let (render_mean, render_var_mean, _) = band::region_mean(&img.data, var.as_deref(), include);
+            let mut c = band::check(b, photo_mean, photo_var, render_mean, render_var_mean, n);
+            c.render = path.display().to_string();
+            c.band.clone_from(&bands.source);
+            c
+        })
+        .collect())
+}
+
+/// The render aligned to the photo by ECC (`motion`), over the board minus
+/// the sample of `scene` (else the whole image): the refinement's record,
+/// the warped render and the pixels still included.
+fn ecc_refinement(
+    motion: Motion,
+    scene: Option<&(lucent_calib::scene::SceneDescription, PathBuf)>,
+    images: Images,
+    mask: Option<&Mask>,
+    settings: &Settings,
+    notes: &mut Vec<String>,
+) -> Result<(Refinement, RgbImage, Mask), CompareError> {
+    let (photo_img, render_img) = (images.photo, images.render);
+    let (w, h) = (photo_img.width, photo_img.height);
+    let (region, region_text) = match scene {
+        Some((s, p)) => (Some(mask::board_mask(s, w, h)?), format!("board minus sample, from {}", p.display())),
+        None => {
+            notes.push(
+                "ECC ran on the whole image (no scene JSON given: pass --scene to align on the board only)".into(),
+            );
+            (None, "whole image".to_string())
         }
     };
-
-    let approximations: Vec<RenderApproximations> = std::iter::once(req.render.as_path())
-        .chain(req.render_b.as_deref())
-        .filter_map(|r| render_approximations(r, &mut notes))
-        .collect();
-    for a in &approximations {
-        for line in &a.approximations {
-            notes.push(format!("{} approximates: {line}; the difference on the object includes that bias", a.render));
-        }
-    }
-    let bands = if twin_bands.is_empty() {
-        Vec::new()
-    } else {
-        let include = mask.as_ref().map(|m| m.include.as_slice());
-        let pv = photo_variance(req, photo_img)?;
-        let (photo_mean, photo_var, n) = band::region_mean(&photo_img.data, pv.as_deref(), include);
-        if pv.is_none() {
-            notes.push("--band: no photo variance given (--photo-variance or --photo-repeat): the photo's noise is taken as 0 in the predictive band".into());
-        }
-        let renders: Vec<(&Path, &RgbImage, Option<Vec<f32>>)> =
-            std::iter::once((req.render.as_path(), render_img, render_var.clone()))
-                .chain(req.render_b.as_deref().zip(render_b_img.as_ref()).map(|(p, img)| (p, img, render_variance(p))))
-                .collect();
-        twin_bands
-            .iter()
-            .zip(&renders)
-            .zip(&req.bands)
-            .map(|((b, (path, img, var)), bands)| {
-                let (render_mean, render_var_mean, _) = band::region_mean(&img.data, var.as_deref(), include);
-                let mut c = band::check(b, photo_mean, photo_var, render_mean, render_var_mean, n);
-                c.render = path.display().to_string();
-                c.band.clone_from(&bands.source);
-                c
-            })
-            .collect()
+    let lw = settings.luminance.weights();
+    let (t, i) = (luminance_plane(photo_img, lw), luminance_plane(render_img, lw));
+    let region_u8 = region.as_ref().map(Mask::to_u8);
+    let found = ecc::find_transform_ecc(&t, &i, w, h, region_u8.as_deref(), &EccOptions::new(motion))?;
+    let (warped, valid) = warp_bilinear(render_img, &found.warp);
+    let base = mask.cloned().unwrap_or_else(|| Mask::all(w, h));
+    let refined_mask = base.and(&valid)?;
+    let outside = base.count() - refined_mask.count();
+    let (m, _) = metrics_and_ssim_map(photo_img, &warped, Some(&refined_mask), settings)?;
+    let c = [(w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0];
+    let wp = found.warp;
+    let d = wp[2][0] * c[0] + wp[2][1] * c[1] + wp[2][2];
+    let shift = [
+        (wp[0][0] * c[0] + wp[0][1] * c[1] + wp[0][2]) / d - c[0],
+        (wp[1][0] * c[0] + wp[1][1] * c[1] + wp[1][2]) / d - c[1],
+    ];
+    let refinement = Refinement {
+        method: "OpenCV findTransformECC (Evangelidis & Psarakis 2008) on luminance, coarse to fine".into(),
+        motion: motion.name().into(),
+        warp: wp,
+        warp_convention: "render(W (x, y, 1)) ~ photo(x, y); pixel centres at integers".into(),
+        shift_px: shift,
+        correlation: found.correlation,
+        pyramid_levels: found.levels,
+        region: region_text,
+        region_pixels: region.as_ref().map_or(w * h, Mask::count),
+        outside_render_pixels: outside,
+        metrics: m,
     };
+    Ok((refinement, warped, refined_mask))
+}
 
-    // ECC refinement.
-    let mut refined_parts = None;
-    if let Some(motion) = req.refine {
-        let (region, region_text) = match &scene {
-            Some((s, p)) => (Some(mask::board_mask(s, w, h)?), format!("board minus sample, from {}", p.display())),
-            None => {
-                notes.push(
-                    "ECC ran on the whole image (no scene JSON given: pass --scene to align on the board only)".into(),
-                );
-                (None, "whole image".to_string())
-            }
-        };
-        let lw = settings.luminance.weights();
-        let (t, i) = (luminance_plane(photo_img, lw), luminance_plane(render_img, lw));
-        let region_u8 = region.as_ref().map(Mask::to_u8);
-        let found = ecc::find_transform_ecc(&t, &i, w, h, region_u8.as_deref(), &EccOptions::new(motion))?;
-        let (warped, valid) = warp_bilinear(render_img, &found.warp);
-        let base = mask.clone().unwrap_or_else(|| Mask::all(w, h));
-        let refined_mask = base.and(&valid)?;
-        let outside = base.count() - refined_mask.count();
-        let (m, _) = metrics_and_ssim_map(photo_img, &warped, Some(&refined_mask), &settings)?;
-        let c = [(w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0];
-        let wp = found.warp;
-        let d = wp[2][0] * c[0] + wp[2][1] * c[1] + wp[2][2];
-        let shift = [
-            (wp[0][0] * c[0] + wp[0][1] * c[1] + wp[0][2]) / d - c[0],
-            (wp[1][0] * c[0] + wp[1][1] * c[1] + wp[1][2]) / d - c[1],
-        ];
-        let refinement = Refinement {
-            method: "OpenCV findTransformECC (Evangelidis & Psarakis 2008) on luminance, coarse to fine".into(),
-            motion: motion.name().into(),
-            warp: wp,
-            warp_convention: "render(W (x, y, 1)) ~ photo(x, y); pixel centres at integers".into(),
-            shift_px: shift,
-            correlation: found.correlation,
-            pyramid_levels: found.levels,
-            region: region_text,
-            region_pixels: region.as_ref().map_or(w * h, Mask::count),
-            outside_render_pixels: outside,
-            metrics: m,
-        };
-        refined_parts = Some((refinement, warped, refined_mask));
-    }
+/// How triplet.png shows the images ([`display_scale`]).
+struct DisplayScale {
+    exposure: f64,
+    exposure_source: String,
+    /// The luminance difference render − photo of twin A, per pixel.
+    dy: Vec<f32>,
+    /// The difference colour bar spans ± this.
+    diff_range: f64,
+    /// The fraction of included differences beyond the bar.
+    clipped_diff: f64,
+    clip_photo: f64,
+    clip_render: f64,
+}
 
-    // Display.
+/// The display exposure (`--exposure`, else from the photo), the difference
+/// scale (one for both twins) and what each clips over the `mask`ed pixels
+/// (a note when the photo or the render clips).
+fn display_scale(
+    req: &Request,
+    images: Images,
+    mask: Option<&Mask>,
+    settings: &Settings,
+    notes: &mut Vec<String>,
+) -> DisplayScale {
+    let (photo_img, render_img) = (images.photo, images.render);
     let (exposure, exposure_source) = match req.exposure {
         Some(k) => (k, "--exposure".to_string()),
         None => {
-            let (k, p99) = auto_exposure(photo_img, mask.as_ref());
+            let (k, p99) = auto_exposure(photo_img, mask);
             (k, format!("auto: 1 / (99th percentile of the photo's max(R, G, B) over included pixels = {p99:.6e})"))
         }
     };
@@ -1288,21 +1441,17 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             .collect()
     };
     let included_abs = |d: &[f32]| -> Vec<f32> {
-        d.iter()
-            .enumerate()
-            .filter(|(i, _)| mask.as_ref().is_none_or(|m| m.include[*i]))
-            .map(|(_, v)| v.abs())
-            .collect()
+        d.iter().enumerate().filter(|(i, _)| mask.is_none_or(|m| m.include[*i])).map(|(_, v)| v.abs()).collect()
     };
     let dy = luminance_difference(render_img);
     let mut abs_included = included_abs(&dy);
     // Two twins share one scale: the larger of their 99th percentiles, so
     // their difference columns can be compared by eye.
-    if let Some(b) = &render_b_img {
+    if let Some(b) = images.render_b {
         abs_included.extend(included_abs(&luminance_difference(b)));
     }
     let n_included = abs_included.len();
-    let p99 = match &render_b_img {
+    let p99 = match images.render_b {
         None => f64::from(percentile(abs_included.clone(), 0.99).unwrap_or(0.0)),
         Some(_) => {
             let half = n_included / 2;
@@ -1314,8 +1463,8 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
     let diff_range = if p99 > 0.0 { p99 } else { 0.01 * req.data_range };
     let clipped_diff =
         abs_included.iter().filter(|v| f64::from(**v) > diff_range).count() as f64 / n_included.max(1) as f64;
-    let clip_photo = clipped_fraction(photo_img, mask.as_ref(), exposure);
-    let clip_render = clipped_fraction(render_img, mask.as_ref(), exposure);
+    let clip_photo = clipped_fraction(photo_img, mask, exposure);
+    let clip_render = clipped_fraction(render_img, mask, exposure);
     if clip_photo > 0.0 || clip_render > 0.0 {
         notes.push(format!(
             "clipping in triplet.png at exposure ×{exposure:.4}: {:.2} % of the photo's and {:.2} % of the render's included pixels exceed 1 (the metrics use the unclipped values)",
@@ -1323,65 +1472,69 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             100.0 * clip_render
         ));
     }
+    DisplayScale { exposure, exposure_source, dy, diff_range, clipped_diff, clip_photo, clip_render }
+}
 
-    // Picture.
-    let fmt = |m: &Metrics| {
-        format!(
-            "RMSE {:.4e} (R {:.3e}, G {:.3e}, B {:.3e})   SSIM Y {:.4} (R {:.4}, G {:.4}, B {:.4})   rel. error {:.2} %",
-            m.rmse,
-            m.rmse_channels.r,
-            m.rmse_channels.g,
-            m.rmse_channels.b,
-            m.ssim.y,
-            m.ssim.r,
-            m.ssim.g,
-            m.ssim.b,
-            100.0 * m.relative_error
-        )
-    };
-    let name =
-        |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| p.display().to_string());
-    // A twin's file as its folder and name ("fitted/render.exr"): two renders
-    // are often both render.exr.
-    let short = |p: &Path| match p.parent().and_then(Path::file_name) {
-        Some(d) => format!("{}/{}", d.to_string_lossy(), name(p)),
-        None => name(p),
-    };
-    let twin_label = |k: usize, p: &Path| match &req.twin_names {
-        Some(n) => format!("{}: {} twin ({})", ["A", "B"][k], n[k], short(p)),
-        None => format!("{}: {}", ["A", "B"][k], short(p)),
-    };
+/// A file's name, or its whole path when it has none.
+fn file_name(p: &Path) -> String {
+    p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| p.display().to_string())
+}
+
+/// A twin's file as its folder and name ("fitted/render.exr"): two renders
+/// are often both render.exr.
+fn short_name(p: &Path) -> String {
+    match p.parent().and_then(Path::file_name) {
+        Some(d) => format!("{}/{}", d.to_string_lossy(), file_name(p)),
+        None => file_name(p),
+    }
+}
+
+/// Twin `k`'s label in triplet.png ("A: recipe twin (recipe/render.exr)").
+fn twin_label(req: &Request, k: usize, p: &Path) -> String {
+    match &req.twin_names {
+        Some(n) => format!("{}: {} twin ({})", ["A", "B"][k], n[k], short_name(p)),
+        None => format!("{}: {}", ["A", "B"][k], short_name(p)),
+    }
+}
+
+/// The lines above triplet.png: the files, the mask, the display and the
+/// ECC shift.
+fn picture_header(req: &Request, report: &Report, mask: Option<&Mask>) -> Vec<String> {
+    let (w, h) = (report.width, report.height);
+    let d = &report.display;
+    let lw = report.definitions.luminance_weights;
     let mut header = vec![
         match &req.render_b {
-            None => format!("photo {}  |  render {}  |  {w} × {h} px", name(&req.photo), name(&req.render)),
+            None => format!("photo {}  |  render {}  |  {w} × {h} px", file_name(&req.photo), file_name(&req.render)),
             Some(b) => format!(
                 "photo {}  |  twin {}  |  twin {}  |  {w} × {h} px; one difference scale for both",
-                name(&req.photo),
-                twin_label(0, &req.render),
-                twin_label(1, b)
+                file_name(&req.photo),
+                twin_label(req, 0, &req.render),
+                twin_label(req, 1, b)
             ),
         },
         format!(
             "mask: {}   data range {}   luminance: {} ({:.4}, {:.4}, {:.4})",
-            match (&mask, source) {
-                (Some(m), s) => format!("{s} ({:.1} % of the pixels)", 100.0 * m.fraction()),
-                (None, _) => "none".into(),
+            match mask {
+                Some(m) => format!("{} ({:.1} % of the pixels)", report.mask.source, 100.0 * m.fraction()),
+                None => "none".into(),
             },
             req.data_range,
-            settings.luminance.describe(),
+            req.luminance.describe(),
             lw[0],
             lw[1],
             lw[2]
         ),
         format!(
-            "display: exposure ×{exposure:.4} ({}), sRGB; clipped: photo {:.2} %, render {:.2} %; difference beyond the bar: {:.2} %",
+            "display: exposure ×{:.4} ({}), sRGB; clipped: photo {:.2} %, render {:.2} %; difference beyond the bar: {:.2} %",
+            d.exposure,
             if req.exposure.is_some() { "--exposure" } else { "auto, photo p99" },
-            100.0 * clip_photo,
-            100.0 * clip_render,
-            100.0 * clipped_diff
+            100.0 * d.clipped_fraction_photo,
+            100.0 * d.clipped_fraction_render,
+            100.0 * d.clipped_fraction_difference
         ),
     ];
-    if let Some((r, _, _)) = &refined_parts {
+    if let Some(r) = &report.refined {
         header.push(format!(
             "ECC ({}): shift dx = {:+.3} px, dy = {:+.3} px, correlation {:.4}, region: {}",
             r.motion,
@@ -1391,14 +1544,48 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             r.region.split(", from").next().unwrap_or_default()
         ));
     }
-    let mut title = match &noise {
+    header
+}
+
+/// A row's metrics under its picture.
+fn metrics_caption(m: &Metrics) -> String {
+    format!(
+        "RMSE {:.4e} (R {:.3e}, G {:.3e}, B {:.3e})   SSIM Y {:.4} (R {:.4}, G {:.4}, B {:.4})   rel. error {:.2} %",
+        m.rmse,
+        m.rmse_channels.r,
+        m.rmse_channels.g,
+        m.rmse_channels.b,
+        m.ssim.y,
+        m.ssim.r,
+        m.ssim.g,
+        m.ssim.b,
+        100.0 * m.relative_error
+    )
+}
+
+/// Two twins: a row's title names its twin, with its model RMSE (the SSIM
+/// at zero noise is in metrics.json; the row title must fit the picture).
+fn twin_title(label: String, n: Option<&noise::NoiseReport>) -> String {
+    match n {
+        Some(n) => format!(
+            "{label}: model RMSE {:.3e} (95 %: {:.3e} – {:.3e}), floor {:.3e}",
+            n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor
+        ),
+        None => label,
+    }
+}
+
+/// The first row's title: as calibrated, with the model RMSE and the SSIM
+/// at zero render noise when known (with two twins, twin A's title).
+fn calibrated_title(req: &Request, report: &Report) -> String {
+    let mut title = match &report.noise {
         Some(n) => format!(
             "as calibrated; model RMSE with the noise removed {:.3e} (95 %: {:.3e} – {:.3e}), noise floor {:.3e}",
             n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor
         ),
         None => "as calibrated".into(),
     };
-    if let Some(z) = &ssim_at_zero_noise {
+    if let Some(z) = &report.ssim_at_zero_noise {
         // Shorter words so the row title fits the picture's width.
         title = title.replace("model RMSE with the noise removed", "model RMSE").replace("noise floor", "floor");
         title.push_str(&format!(
@@ -1406,30 +1593,35 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             z.at_zero_noise, z.ci95[0], z.ci95[1]
         ));
     }
-    // Two twins: each row names its twin, with its model RMSE (the SSIM at
-    // zero noise is in metrics.json; the row title must fit the picture).
-    let twin_title = |label: String, n: Option<&noise::NoiseReport>| match n {
-        Some(n) => format!(
-            "{label}: model RMSE {:.3e} (95 %: {:.3e} – {:.3e}), floor {:.3e}",
-            n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor
-        ),
-        None => label,
-    };
     if req.render_b.is_some() {
-        title = twin_title(twin_label(0, &req.render), noise.as_ref());
+        title = twin_title(twin_label(req, 0, &req.render), report.noise.as_ref());
     }
+    title
+}
+
+/// triplet.png: photo | render | difference per row (as calibrated, twin B,
+/// after ECC), or with two twins and no ECC row, both side by side against
+/// the photo under one difference scale.
+fn picture(
+    req: &Request,
+    report: &Report,
+    images: Images,
+    mask: Option<&Mask>,
+    refined: Option<&(Refinement, RgbImage, Mask)>,
+) -> Result<Vec<u8>, CompareError> {
+    let photo_img = images.photo;
     let mut rows = vec![triplet::Row {
-        title,
+        title: calibrated_title(req, report),
         photo: photo_img,
-        render: render_img,
-        mask: mask.as_ref(),
-        caption: fmt(&calibrated),
+        render: images.render,
+        mask,
+        caption: metrics_caption(&report.as_calibrated),
     }];
-    if let (Some(b), Some(t), Some(pb)) = (&render_b_img, &twins, &req.render_b) {
-        let title = twin_title(twin_label(1, pb), Some(&t.noise_b));
-        rows.push(triplet::Row { title, photo: photo_img, render: b, mask: mask.as_ref(), caption: fmt(&t.metrics_b) });
+    if let (Some(b), Some(t), Some(pb)) = (images.render_b, &report.twins, &req.render_b) {
+        let title = twin_title(twin_label(req, 1, pb), Some(&t.noise_b));
+        rows.push(triplet::Row { title, photo: photo_img, render: b, mask, caption: metrics_caption(&t.metrics_b) });
     }
-    if let Some((r, warped, m)) = &refined_parts {
+    if let Some((r, warped, m)) = refined {
         rows.push(triplet::Row {
             title: format!(
                 "after ECC refinement ({}: dx = {:+.3} px, dy = {:+.3} px)",
@@ -1438,12 +1630,17 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             photo: photo_img,
             render: warped,
             mask: Some(m),
-            caption: fmt(&r.metrics),
+            caption: metrics_caption(&r.metrics),
         });
     }
-    let style = triplet::Style { exposure, luminance: lw, diff_range, header };
+    let style = triplet::Style {
+        exposure: report.display.exposure,
+        luminance: report.definitions.luminance_weights,
+        diff_range: report.display.difference_range,
+        header: picture_header(req, report, mask),
+    };
     // Two twins (and no ECC row): side by side against the photo, one scale.
-    let triplet_png = match (&render_b_img, &twins, &req.render_b, &refined_parts) {
+    Ok(match (images.render_b, &report.twins, &req.render_b, refined) {
         (Some(b), Some(t), Some(pb), None) => {
             let short_metrics = |m: &Metrics| {
                 format!("RMSE {:.3e}, SSIM Y {:.4}, rel. error {:.2} %", m.rmse, m.ssim.y, 100.0 * m.relative_error)
@@ -1458,16 +1655,20 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             };
             triplet::twins_png(
                 photo_img,
-                mask.as_ref(),
+                mask,
                 [
                     triplet::Twin {
-                        render: render_img,
-                        title: twin_label(0, &req.render),
-                        caption: format!("A: {}{}", noise_text(noise.as_ref()), short_metrics(&calibrated)),
+                        render: images.render,
+                        title: twin_label(req, 0, &req.render),
+                        caption: format!(
+                            "A: {}{}",
+                            noise_text(report.noise.as_ref()),
+                            short_metrics(&report.as_calibrated)
+                        ),
                     },
                     triplet::Twin {
                         render: b,
-                        title: twin_label(1, pb),
+                        title: twin_label(req, 1, pb),
                         caption: format!("B: {}{}", noise_text(Some(&t.noise_b)), short_metrics(&t.metrics_b)),
                     },
                 ],
@@ -1475,9 +1676,20 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
             )?
         }
         _ => triplet::triplet_png(&rows, &style)?,
-    };
+    })
+}
 
-    // difference.exr channels.
+/// The channels of difference.exr: render − photo per channel, the
+/// luminance difference `dy`, the SSIM map, the mask and, after ECC, the
+/// refined differences and mask.
+fn difference_channels(
+    images: Images,
+    dy: Vec<f32>,
+    ssim_map: Vec<f32>,
+    mask: Option<&Mask>,
+    refined: Option<&(Refinement, RgbImage, Mask)>,
+) -> Vec<(String, Vec<f32>)> {
+    let (photo_img, render_img) = (images.photo, images.render);
     let plane = |img: &RgbImage, other: &RgbImage, c: usize| -> Vec<f32> {
         img.data.iter().skip(c).step_by(3).zip(other.data.iter().skip(c).step_by(3)).map(|(r, p)| r - p).collect()
     };
@@ -1488,95 +1700,46 @@ pub fn compare_files(req: &Request) -> Result<Outcome, CompareError> {
         ("Y".to_string(), dy),
         ("ssim.Y".to_string(), ssim_map),
     ];
-    if let Some(m) = &mask {
+    if let Some(m) = mask {
         difference.push(("mask".to_string(), m.include.iter().map(|&v| f32::from(u8::from(v))).collect()));
     }
-    if let Some((_, warped, m)) = &refined_parts {
+    if let Some((_, warped, m)) = refined {
         for (c, n) in ["R", "G", "B"].iter().enumerate() {
             difference.push((format!("refined.{n}"), plane(warped, photo_img, c)));
         }
         difference.push(("refined.mask".to_string(), m.include.iter().map(|&v| f32::from(u8::from(v))).collect()));
     }
+    difference
+}
 
-    let report = Report {
-        lucent_version: env!("CARGO_PKG_VERSION").into(),
-        photo: req.photo.display().to_string(),
-        render: req.render.display().to_string(),
-        width: w,
-        height: h,
-        channels: photo.channels.clone(),
-        mask: MaskReport {
-            source: source.into(),
-            path: mask_path.map(|p| p.display().to_string()),
-            included_pixels: mask.as_ref().map_or(w * h, Mask::count),
-            included_fraction: mask.as_ref().map_or(1.0, Mask::fraction),
-        },
-        definitions: Definitions {
-            difference: "render - photo, linear, the images' own units".into(),
-            ssim: "Wang, Bovik, Sheikh & Simoncelli 2004 (IEEE TIP 13(4)); = skimage.metrics.structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=L) per channel".into(),
-            ssim_parameters: settings.ssim,
-            ssim_window_taps: settings.ssim.window(),
-            ssim_border_px: settings.ssim.border(),
-            ssim_with_mask: "mean of the SSIM map over included pixels at least ssim_border_px from the image border".into(),
-            luminance: settings.luminance.describe().into(),
-            luminance_weights: lw,
-            relative_error: "sum |render - photo| / sum |photo| over included pixels and channels".into(),
-        },
-        as_calibrated: calibrated,
-        noise,
-        twins,
-        ssim_at_zero_noise,
-        refined: refined_parts.as_ref().map(|(r, _, _)| r.clone()),
-        bands,
-        approximations,
-        display: DisplayReport {
-            exposure,
-            exposure_source,
-            transfer: "sRGB (IEC 61966-2-1) of exposure x linear value, clipped to [0, 1]".into(),
-            difference: "luminance Y(render) - Y(photo), linear units (not scaled by the exposure)".into(),
-            difference_colour_map: "ColorBrewer RdBu: blue = render darker, white = 0, red = render brighter".into(),
-            difference_range: diff_range,
-            difference_range_source: if render_b_img.is_some() {
-                "the larger of the two twins' 99th percentiles of |dY| over included pixels (1 % of the data range \
-                 if zero): one scale for both twins"
-                    .into()
-            } else {
-                "99th percentile of |dY| over included pixels (1 % of the data range if zero)".into()
-            },
-            clipped_fraction_photo: clip_photo,
-            clipped_fraction_render: clip_render,
-            clipped_fraction_difference: clipped_diff,
-            masked_pixels: "greyed (photo, render), hatched light grey (difference)".into(),
-        },
-        files: FILES.iter().map(|s| s.to_string()).collect(),
-    };
-    let band_png = if report.bands.is_empty() {
-        None
-    } else {
-        let bars: Vec<crate::plot::BandBars> = report
-            .bands
-            .iter()
-            .enumerate()
-            .map(|(k, b)| {
-                let rel = |v: [f64; 3], scale: f64| -> [f64; 3] {
-                    std::array::from_fn(|c| scale * v[c] / b.render_mean[c].abs().max(f64::MIN_POSITIVE))
-                };
-                let off: [f64; 3] = std::array::from_fn(|c| b.photo_mean[c] - b.render_mean[c]);
-                crate::plot::BandBars {
-                    twin: match &req.twin_names {
-                        Some(n) => format!("{} twin", n[k]),
-                        None => short(Path::new(&b.render)),
-                    },
-                    photo_offset: rel(off, 1.0),
-                    predictive_half_width: rel(b.predictive_sd, b.coverage_factor),
-                    inputs_half_width: rel(b.inputs_sd, b.coverage_factor),
-                    within: b.within,
-                }
-            })
-            .collect();
-        Some(crate::plot::band_check_png(&bars, band::COVERAGE_FACTOR)?)
-    };
-    Ok(Outcome { report, triplet_png, width: w, height: h, difference, band_png, notes })
+/// band.png ([`BAND_PNG`]): the photo against each twin's band, relative to
+/// the twin's mean; `None` without bands.
+fn band_png(req: &Request, report: &Report) -> Result<Option<Vec<u8>>, CompareError> {
+    if report.bands.is_empty() {
+        return Ok(None);
+    }
+    let bars: Vec<crate::plot::BandBars> = report
+        .bands
+        .iter()
+        .enumerate()
+        .map(|(k, b)| {
+            let rel = |v: [f64; 3], scale: f64| -> [f64; 3] {
+                std::array::from_fn(|c| scale * v[c] / b.render_mean[c].abs().max(f64::MIN_POSITIVE))
+            };
+            let off: [f64; 3] = std::array::from_fn(|c| b.photo_mean[c] - b.render_mean[c]);
+            crate::plot::BandBars {
+                twin: match &req.twin_names {
+                    Some(n) => format!("{} twin", n[k]),
+                    None => short_name(Path::new(&b.render)),
+                },
+                photo_offset: rel(off, 1.0),
+                predictive_half_width: rel(b.predictive_sd, b.coverage_factor),
+                inputs_half_width: rel(b.inputs_sd, b.coverage_factor),
+                within: b.within,
+            }
+        })
+        .collect();
+    Ok(Some(crate::plot::band_check_png(&bars, band::COVERAGE_FACTOR)?))
 }
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> CompareError + '_ {

@@ -864,7 +864,6 @@ pub fn fit_cancellable(
 ) -> Result<FitResult, FitError> {
     problem.validate()?;
     let start = Instant::now();
-    let n_particles = problem.recipe.particles.len();
     let mut ev = Evaluator::new(problem, cancel)?;
     let starts: Vec<f64> =
         problem.free.iter().map(|a| a.value_in(&problem.recipe, problem.wavelength_nm)).collect::<Result<_, _>>()?;
@@ -876,7 +875,6 @@ pub fn fit_cancellable(
         .map(|((a, b), s)| b.unwrap_or_else(|| a.default_bounds(*s, &problem.recipe)))
         .collect();
     let k = problem.measurements.len();
-    let chi2 = |j: f64| k as f64 * j / (problem.measured_rel_sd * problem.measured_rel_sd);
 
     // Pilot: the path count per configuration for the target error.
     let pilot_stops: Vec<Stop> = match problem.budget.paths {
@@ -899,153 +897,15 @@ pub fn fit_cancellable(
         fmt_list(&pilot.sum_ratio),
         ev.paths
     ));
-    let explore = ev.stops(problem.budget.explore_fraction);
-    let full = ev.stops(1.0);
+    let stops = Stops { explore: ev.stops(problem.budget.explore_fraction), full: ev.stops(1.0) };
 
-    let mut identifiable = true;
-    let mut reason: Option<String> = None;
-    let mut params: Vec<ParameterResult> = problem
-        .free
-        .iter()
-        .zip(&starts)
-        .zip(&bounds)
-        .map(|((a, s), b)| ParameterResult {
-            name: a.label(n_particles),
-            particle: problem.recipe.particles[a.particle].medium.name.clone(),
-            start: *s,
-            value: None,
-            std_error: None,
-            std_error_measurement: None,
-            std_error_bootstrap_configurations: None,
-            interval_95: None,
-            bounds: [b.0, b.1],
-        })
-        .collect();
-    let mut model_curve = Vec::new();
-    let mut objective_end = None;
-    let mut end_values: Option<Vec<f64>> = None;
-
-    if problem.free.len() == 1 {
-        let (lo, hi) = (bounds[0].0.ln(), bounds[0].1.ln());
-        let step = problem.free[0].step();
-        let name = params[0].name.clone();
-        let x0 = starts[0].ln();
-        let search_result = {
-            let mut seen: Vec<(f64, f64)> = Vec::new();
-            let progress = &mut progress;
-            let ev = &mut ev;
-            let mut f = |x: f64| -> Result<f64, FitError> {
-                if let Some(&(_, v)) = seen.iter().find(|(p, _)| (p - x).abs() < 1e-12) {
-                    return Ok(v);
-                }
-                let e = ev.evaluate(&[x.exp()], "search", &explore, false)?;
-                progress(&format!("{name} = {:.5}: objective {:.4e}", x.exp(), e.objective));
-                seen.push((x, e.objective));
-                Ok(e.objective)
-            };
-            // Flat around the start? Then look at both bounds at once.
-            let f0 = f(x0)?;
-            let fp = f((x0 + step).min(hi))?;
-            let fm = f((x0 - step).max(lo))?;
-            let span = |v: &[f64]| {
-                chi2(v.iter().copied().fold(f64::NEG_INFINITY, f64::max))
-                    - chi2(v.iter().copied().fold(f64::INFINITY, f64::min))
-            };
-            let mut flat = None;
-            if span(&[f0, fp, fm]) < 0.1 {
-                let all = [f0, fp, fm, f(lo)?, f(hi)?];
-                if span(&all) < 1.0 {
-                    flat = Some(span(&all));
-                }
-            }
-            match flat {
-                Some(s) => Err(s),
-                None => Ok(search::golden_bracket_search(&mut f, x0, step, (lo, hi), problem.x_tol)?),
-            }
-        };
-        match search_result {
-            Err(span) => {
-                identifiable = false;
-                reason = Some(format!(
-                    "the data cannot pin down {name}: the objective changes by only Δχ² = {span:.3} (in units of the measurement uncertainty σ = {}) over the whole search range {:.4} … {:.4}",
-                    problem.measured_rel_sd, bounds[0].0, bounds[0].1
-                ));
-            }
-            Ok(r) if r.at_bound.is_some() => {
-                identifiable = false;
-                reason = Some(format!(
-                    "the data cannot pin down {name} within the search range: the objective still falls at the bound {:.5} (widen --bounds if that is physical)",
-                    r.at_bound.unwrap_or(f64::NAN).exp()
-                ));
-            }
-            Ok(r) => match final_model(problem, &mut ev, &full, r.best_x, (lo, hi), &mut progress)? {
-                Ok(fin) => {
-                    let p = &mut params[0];
-                    let se = fin.se_meas.max(fin.se_boot.unwrap_or(0.0));
-                    let v = fin.x.exp();
-                    p.value = Some(v);
-                    p.std_error = Some(v * se);
-                    p.std_error_measurement = Some(v * fin.se_meas);
-                    p.std_error_bootstrap_configurations = fin.se_boot.map(|s| v * s);
-                    p.interval_95 = Some([(fin.x - 1.96 * se).exp(), (fin.x + 1.96 * se).exp()]);
-                    model_curve = fin.curve;
-                    objective_end = Some(fin.j_end);
-                    end_values = Some(vec![v]);
-                    if 1.96 * se > 0.5 * (hi - lo) {
-                        identifiable = false;
-                        reason = Some(format!(
-                            "the data cannot pin down {name}: its 95 % interval {:.4} … {:.4} is wider than the search range {:.4} … {:.4}",
-                            (fin.x - 1.96 * se).exp(),
-                            (fin.x + 1.96 * se).exp(),
-                            bounds[0].0,
-                            bounds[0].1
-                        ));
-                    }
-                }
-                Err(why) => {
-                    identifiable = false;
-                    reason = Some(format!("the data cannot pin down {name}: {why}"));
-                }
-            },
-        }
+    let mut params = initial_parameters(problem, &starts, &bounds);
+    let searched = if problem.free.len() == 1 {
+        search_one(problem, &mut ev, &mut params[0], starts[0], bounds[0], &stops, &mut progress)?
     } else {
-        let x0: Vec<f64> = starts.iter().map(|s| s.ln()).collect();
-        let steps: Vec<f64> = problem.free.iter().map(|a| 2.0 * a.step()).collect();
-        let names: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
-        let (xb, fb, hist) = {
-            let ev = &mut ev;
-            let progress = &mut progress;
-            let mut f = |x: &[f64]| -> Result<f64, FitError> {
-                let v: Vec<f64> = x.iter().zip(&bounds).map(|(x, b)| x.exp().clamp(b.0, b.1)).collect();
-                let e = ev.evaluate(&v, "search", &full, false)?;
-                progress(&format!("{}: objective {:.4e}", fmt_named(&names, &v), e.objective));
-                Ok(e.objective)
-            };
-            let f_tol = 0.01 * problem.measured_rel_sd * problem.measured_rel_sd / k as f64;
-            search::nelder_mead(&mut f, &x0, &steps, f_tol, 0.05, 40 * problem.free.len())?
-        };
-        objective_end = Some(fb);
-        let vb: Vec<f64> = xb.iter().zip(&bounds).map(|(x, b)| x.exp().clamp(b.0, b.1)).collect();
-        end_values = Some(vb.clone());
-        match local_errors(&hist, &xb, problem) {
-            Some(se) => {
-                for (i, p) in params.iter_mut().enumerate() {
-                    p.value = Some(vb[i]);
-                    p.std_error = Some(vb[i] * se[i]);
-                    p.std_error_measurement = Some(vb[i] * se[i]);
-                    p.interval_95 = Some([(xb[i] - 1.96 * se[i]).exp(), (xb[i] + 1.96 * se[i]).exp()]);
-                }
-            }
-            None => {
-                identifiable = false;
-                reason = Some(format!(
-                    "the data cannot pin down {} together: the objective is flat along some combination of them near the best point {}",
-                    names.join(", "),
-                    fmt_named(&names, &vb)
-                ));
-            }
-        }
-    }
+        search_many(problem, &mut ev, &mut params, &starts, &bounds, &stops.full, &mut progress)?
+    };
+    let Searched { identifiable, reason, model_curve, objective_end, end_values } = searched;
     if !identifiable {
         for p in &mut params {
             p.value = None;
@@ -1055,33 +915,13 @@ pub fn fit_cancellable(
     }
     // Per-configuration figures at the fitted values, at the full budget.
     let end_eval = match &end_values {
-        Some(v) if identifiable => Some(ev.evaluate(v, "final", &full, true)?),
+        Some(v) if identifiable => Some(ev.evaluate(v, "final", &stops.full, true)?),
         _ => None,
     };
-    let configurations = problem
-        .measurements
-        .iter()
-        .enumerate()
-        .map(|(c, m)| ConfigResult {
-            file: m.path.display().to_string(),
-            theta_i_deg: m.directions.theta_i_deg,
-            phi_i_deg: m.directions.phi_i_deg,
-            theta_o_deg: m.directions.theta_o_deg,
-            phi_o_deg: m.directions.phi_o_deg,
-            pixels: m.grid.size,
-            pixel_mm: m.grid.pixel_m * 1e3,
-            estimator: ev.estimators.get(c).map(|e| e.name()).unwrap_or(""),
-            paths_per_evaluation: ev.paths[c],
-            measured_sum: m.grid.sum(),
-            sum_ratio_start: pilot.sum_ratio[c],
-            sum_ratio_end: end_eval.as_ref().map(|e| e.sum_ratio[c]),
-            msre_start: pilot.msre[c],
-            msre_end: end_eval.as_ref().map(|e| e.msre[c]),
-        })
-        .collect();
+    let configurations = configurations(problem, &ev, &pilot, end_eval.as_ref());
     let objs: Vec<f64> = ev.history.iter().map(|e| e.objective).filter(|v| v.is_finite()).collect();
-    let chi2_span = chi2(objs.iter().copied().fold(f64::NEG_INFINITY, f64::max))
-        - chi2(objs.iter().copied().fold(f64::INFINITY, f64::min));
+    let chi2_span = chi2(problem, objs.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+        - chi2(problem, objs.iter().copied().fold(f64::INFINITY, f64::min));
     let optics = match ev.model {
         OpticsModel::Linear(_) => "affine in the weight percentage (two Lorenz–Mie computations)",
         OpticsModel::Direct => "Lorenz–Mie at every evaluation",
@@ -1113,6 +953,243 @@ pub fn fit_cancellable(
         slices_start,
         slices_end: end_eval.and_then(|e| e.slices),
     })
+}
+
+/// The objective `j` as χ² in units of the measurement uncertainty.
+fn chi2(problem: &Problem, j: f64) -> f64 {
+    let k = problem.measurements.len();
+    k as f64 * j / (problem.measured_rel_sd * problem.measured_rel_sd)
+}
+
+/// The path counts per configuration of the search (`explore`, one
+/// parameter) and of the final evaluations (`full`).
+struct Stops {
+    explore: Vec<Stop>,
+    full: Vec<Stop>,
+}
+
+/// What a search found ([`search_one`], [`search_many`]); its parameters'
+/// values are set in place.
+struct Searched {
+    identifiable: bool,
+    /// Why the data do not pin the parameters down.
+    reason: Option<String>,
+    model_curve: Vec<[f64; 2]>,
+    objective_end: Option<f64>,
+    /// The fitted values, for the final evaluation.
+    end_values: Option<Vec<f64>>,
+}
+
+/// The free parameters at their `starts` within their `bounds`, not fitted yet.
+fn initial_parameters(problem: &Problem, starts: &[f64], bounds: &[(f64, f64)]) -> Vec<ParameterResult> {
+    let n_particles = problem.recipe.particles.len();
+    problem
+        .free
+        .iter()
+        .zip(starts)
+        .zip(bounds)
+        .map(|((a, s), b)| ParameterResult {
+            name: a.label(n_particles),
+            particle: problem.recipe.particles[a.particle].medium.name.clone(),
+            start: *s,
+            value: None,
+            std_error: None,
+            std_error_measurement: None,
+            std_error_bootstrap_configurations: None,
+            interval_95: None,
+            bounds: [b.0, b.1],
+        })
+        .collect()
+}
+
+/// One free parameter `param` from `start` within `bounds`: golden-ratio
+/// bracketing and golden-section search in ln p (unless the objective is
+/// flat over the range), then the final model through points at the full
+/// path count for its value and standard errors.
+fn search_one(
+    problem: &Problem,
+    ev: &mut Evaluator,
+    param: &mut ParameterResult,
+    start: f64,
+    bounds: (f64, f64),
+    stops: &Stops,
+    progress: &mut impl FnMut(&Event),
+) -> Result<Searched, FitError> {
+    let mut identifiable = true;
+    let mut reason: Option<String> = None;
+    let mut model_curve = Vec::new();
+    let mut objective_end = None;
+    let mut end_values: Option<Vec<f64>> = None;
+    let (lo, hi) = (bounds.0.ln(), bounds.1.ln());
+    let step = problem.free[0].step();
+    let name = param.name.clone();
+    let x0 = start.ln();
+    let explore = &stops.explore;
+    let search_result = {
+        let mut seen: Vec<(f64, f64)> = Vec::new();
+        let progress = &mut *progress;
+        let ev = &mut *ev;
+        let mut f = |x: f64| -> Result<f64, FitError> {
+            if let Some(&(_, v)) = seen.iter().find(|(p, _)| (p - x).abs() < 1e-12) {
+                return Ok(v);
+            }
+            let e = ev.evaluate(&[x.exp()], "search", explore, false)?;
+            progress(&format!("{name} = {:.5}: objective {:.4e}", x.exp(), e.objective));
+            seen.push((x, e.objective));
+            Ok(e.objective)
+        };
+        // Flat around the start? Then look at both bounds at once.
+        let f0 = f(x0)?;
+        let fp = f((x0 + step).min(hi))?;
+        let fm = f((x0 - step).max(lo))?;
+        let span = |v: &[f64]| {
+            chi2(problem, v.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+                - chi2(problem, v.iter().copied().fold(f64::INFINITY, f64::min))
+        };
+        let mut flat = None;
+        if span(&[f0, fp, fm]) < 0.1 {
+            let all = [f0, fp, fm, f(lo)?, f(hi)?];
+            if span(&all) < 1.0 {
+                flat = Some(span(&all));
+            }
+        }
+        match flat {
+            Some(s) => Err(s),
+            None => Ok(search::golden_bracket_search(&mut f, x0, step, (lo, hi), problem.x_tol)?),
+        }
+    };
+    match search_result {
+        Err(span) => {
+            identifiable = false;
+            reason = Some(format!(
+                "the data cannot pin down {name}: the objective changes by only Δχ² = {span:.3} (in units of the measurement uncertainty σ = {}) over the whole search range {:.4} … {:.4}",
+                problem.measured_rel_sd, bounds.0, bounds.1
+            ));
+        }
+        Ok(r) if r.at_bound.is_some() => {
+            identifiable = false;
+            reason = Some(format!(
+                "the data cannot pin down {name} within the search range: the objective still falls at the bound {:.5} (widen --bounds if that is physical)",
+                r.at_bound.unwrap_or(f64::NAN).exp()
+            ));
+        }
+        Ok(r) => match final_model(problem, ev, &stops.full, r.best_x, (lo, hi), progress)? {
+            Ok(fin) => {
+                let p = param;
+                let se = fin.se_meas.max(fin.se_boot.unwrap_or(0.0));
+                let v = fin.x.exp();
+                p.value = Some(v);
+                p.std_error = Some(v * se);
+                p.std_error_measurement = Some(v * fin.se_meas);
+                p.std_error_bootstrap_configurations = fin.se_boot.map(|s| v * s);
+                p.interval_95 = Some([(fin.x - 1.96 * se).exp(), (fin.x + 1.96 * se).exp()]);
+                model_curve = fin.curve;
+                objective_end = Some(fin.j_end);
+                end_values = Some(vec![v]);
+                if 1.96 * se > 0.5 * (hi - lo) {
+                    identifiable = false;
+                    reason = Some(format!(
+                        "the data cannot pin down {name}: its 95 % interval {:.4} … {:.4} is wider than the search range {:.4} … {:.4}",
+                        (fin.x - 1.96 * se).exp(),
+                        (fin.x + 1.96 * se).exp(),
+                        bounds.0,
+                        bounds.1
+                    ));
+                }
+            }
+            Err(why) => {
+                identifiable = false;
+                reason = Some(format!("the data cannot pin down {name}: {why}"));
+            }
+        },
+    }
+    Ok(Searched { identifiable, reason, model_curve, objective_end, end_values })
+}
+
+/// Several free parameters (`params`, from `starts` within `bounds`):
+/// Nelder–Mead in ln p at the full path count (`full`), standard errors
+/// from a quadratic surface through the points nearest the best.
+fn search_many(
+    problem: &Problem,
+    ev: &mut Evaluator,
+    params: &mut [ParameterResult],
+    starts: &[f64],
+    bounds: &[(f64, f64)],
+    full: &[Stop],
+    progress: &mut impl FnMut(&Event),
+) -> Result<Searched, FitError> {
+    let k = problem.measurements.len();
+    let mut identifiable = true;
+    let mut reason: Option<String> = None;
+    let x0: Vec<f64> = starts.iter().map(|s| s.ln()).collect();
+    let steps: Vec<f64> = problem.free.iter().map(|a| 2.0 * a.step()).collect();
+    let names: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
+    let (xb, fb, hist) = {
+        let ev = &mut *ev;
+        let progress = &mut *progress;
+        let mut f = |x: &[f64]| -> Result<f64, FitError> {
+            let v: Vec<f64> = x.iter().zip(bounds).map(|(x, b)| x.exp().clamp(b.0, b.1)).collect();
+            let e = ev.evaluate(&v, "search", full, false)?;
+            progress(&format!("{}: objective {:.4e}", fmt_named(&names, &v), e.objective));
+            Ok(e.objective)
+        };
+        let f_tol = 0.01 * problem.measured_rel_sd * problem.measured_rel_sd / k as f64;
+        search::nelder_mead(&mut f, &x0, &steps, f_tol, 0.05, 40 * problem.free.len())?
+    };
+    let objective_end = Some(fb);
+    let vb: Vec<f64> = xb.iter().zip(bounds).map(|(x, b)| x.exp().clamp(b.0, b.1)).collect();
+    let end_values = Some(vb.clone());
+    match local_errors(&hist, &xb, problem) {
+        Some(se) => {
+            for (i, p) in params.iter_mut().enumerate() {
+                p.value = Some(vb[i]);
+                p.std_error = Some(vb[i] * se[i]);
+                p.std_error_measurement = Some(vb[i] * se[i]);
+                p.interval_95 = Some([(xb[i] - 1.96 * se[i]).exp(), (xb[i] + 1.96 * se[i]).exp()]);
+            }
+        }
+        None => {
+            identifiable = false;
+            reason = Some(format!(
+                "the data cannot pin down {} together: the objective is flat along some combination of them near the best point {}",
+                names.join(", "),
+                fmt_named(&names, &vb)
+            ));
+        }
+    }
+    Ok(Searched { identifiable, reason, model_curve: Vec::new(), objective_end, end_values })
+}
+
+/// Per-configuration figures: the measured slice, the path count, and the
+/// sum ratio and MSRE at the start (`pilot`) and at the fitted values
+/// (`end_eval`).
+fn configurations(
+    problem: &Problem,
+    ev: &Evaluator,
+    pilot: &Evaluation,
+    end_eval: Option<&Evaluation>,
+) -> Vec<ConfigResult> {
+    problem
+        .measurements
+        .iter()
+        .enumerate()
+        .map(|(c, m)| ConfigResult {
+            file: m.path.display().to_string(),
+            theta_i_deg: m.directions.theta_i_deg,
+            phi_i_deg: m.directions.phi_i_deg,
+            theta_o_deg: m.directions.theta_o_deg,
+            phi_o_deg: m.directions.phi_o_deg,
+            pixels: m.grid.size,
+            pixel_mm: m.grid.pixel_m * 1e3,
+            estimator: ev.estimators.get(c).map(|e| e.name()).unwrap_or(""),
+            paths_per_evaluation: ev.paths[c],
+            measured_sum: m.grid.sum(),
+            sum_ratio_start: pilot.sum_ratio[c],
+            sum_ratio_end: end_eval.map(|e| e.sum_ratio[c]),
+            msre_start: pilot.msre[c],
+            msre_end: end_eval.map(|e| e.msre[c]),
+        })
+        .collect()
 }
 
 struct Final {

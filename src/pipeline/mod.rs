@@ -1012,296 +1012,367 @@ fn has_exr_channel(path: &Path, name: &str) -> bool {
 /// What `stage` will do for `project` with outputs under `out`; an inner
 /// `Err` with the reason when the project gives it nothing to do.
 pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, Skip>, PipelineError> {
+    let mut p = Plan { tasks: Vec::new(), inputs: Vec::new(), notes: Vec::new() };
+    let planned = match stage {
+        Stage::Optics => plan_optics(project, &mut p),
+        Stage::Bssrdf => plan_bssrdf(project, &mut p),
+        Stage::Fit => plan_fit(project, &mut p),
+        Stage::Calibrate => plan_calibrate(project, &mut p),
+        Stage::Colour => plan_colour(project, &mut p),
+        Stage::Develop => plan_develop(project, out, &mut p),
+        Stage::Pose => plan_pose(project, out, &mut p),
+        Stage::EnvScale | Stage::Render => plan_render(stage, project, out, &mut p),
+        Stage::Compare => plan_compare(project, out, &mut p),
+        Stage::Report => plan_report(project, &mut p),
+    }?;
+    Ok(planned.map(|()| p))
+}
+
+/// What a stage's planner adds to its [`Plan`]: `Ok(Err(skip))` when the
+/// project gives the stage nothing to do.
+type Planned = Result<Result<(), Skip>, PipelineError>;
+
+/// A task running `job` as its lucent command.
+fn lucent_task(label: String, job: Job) -> Task {
+    Task::Lucent { label, files: vec![], job }
+}
+
+/// `rel` under the stage folder, as a job names it (`{out}` + `rel`).
+fn under_out(rel: String) -> PathBuf {
+    PathBuf::from(format!("{{out}}{rel}"))
+}
+
+/// The optics stage: every sample's recipe in one run.
+fn plan_optics(project: &Project, p: &mut Plan) -> Planned {
     let f = &project.file;
-    let mut inputs: Vec<PathBuf> = Vec::new();
-    let mut notes = Vec::new();
-    let mut tasks = Vec::new();
-    let lucent = |label: String, job: Job| Task::Lucent { label, files: vec![], job };
-    let under_out = |rel: String| PathBuf::from(format!("{{out}}{rel}"));
-    match stage {
-        Stage::Optics => {
-            if f.sample.is_empty() {
-                return Ok(Err(Skip::Missing("[[sample]]")));
-            }
-            for smp in &f.sample {
-                inputs.extend(recipe_inputs(&smp.recipe));
-            }
-            let job = OpticsJob {
-                recipes: f.sample.iter().map(|smp| smp.recipe.clone()).collect(),
-                wavelengths: f
-                    .optics
-                    .as_ref()
-                    .and_then(|o| o.wavelengths.clone())
-                    .unwrap_or_else(|| "380:780:10".into()),
-                out: under_out(String::new()),
-                weight_percent: f.sample.iter().find_map(|s| s.weight_percent),
+    let Plan { inputs, tasks, .. } = p;
+    if f.sample.is_empty() {
+        return Ok(Err(Skip::Missing("[[sample]]")));
+    }
+    for smp in &f.sample {
+        inputs.extend(recipe_inputs(&smp.recipe));
+    }
+    let job = OpticsJob {
+        recipes: f.sample.iter().map(|smp| smp.recipe.clone()).collect(),
+        wavelengths: f.optics.as_ref().and_then(|o| o.wavelengths.clone()).unwrap_or_else(|| "380:780:10".into()),
+        out: under_out(String::new()),
+        weight_percent: f.sample.iter().find_map(|s| s.weight_percent),
+    };
+    tasks.push(lucent_task(format!("{} recipes", f.sample.len()), Job::Optics(job)));
+    Ok(Ok(()))
+}
+
+/// The bssrdf stage: each sample's slices and their comparison with each
+/// measured slice.
+fn plan_bssrdf(project: &Project, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let Plan { inputs, tasks, .. } = p;
+    let Some(b) = &f.bssrdf else { return Ok(Err(Skip::Missing("[bssrdf]"))) };
+    if f.sample.is_empty() {
+        return Ok(Err(Skip::Missing("[[sample]]")));
+    }
+    let configs = &project.bssrdf_configs;
+    for smp in &f.sample {
+        inputs.extend(recipe_inputs(&smp.recipe));
+        let job = project::bssrdf_job(b, configs, smp, project.seed);
+        tasks.push(lucent_task(format!("{} slices", smp.name), Job::Bssrdf(job)));
+        for m in &smp.measured {
+            inputs.push(m.file.clone());
+            let c = project::parse_configs(&m.config).unwrap_or_default();
+            let Some(&c) = c.first() else { continue };
+            let job = BssrdfCompareJob {
+                measured: m.file.clone(),
+                simulated: PathBuf::from(bssrdf_run_dir(&format!("{{out}}/{}", smp.name), configs, c)),
+                out: bssrdf_comparison_dir(&under_out(format!("/{}", smp.name)), c),
+                measured_pixel_mm: m.pixel_mm,
+                threshold: b.threshold.unwrap_or(crate::job::DEFAULT_THRESHOLD),
             };
-            tasks.push(lucent(format!("{} recipes", f.sample.len()), Job::Optics(job)));
-        }
-        Stage::Bssrdf => {
-            let Some(b) = &f.bssrdf else { return Ok(Err(Skip::Missing("[bssrdf]"))) };
-            if f.sample.is_empty() {
-                return Ok(Err(Skip::Missing("[[sample]]")));
-            }
-            let configs = &project.bssrdf_configs;
-            for smp in &f.sample {
-                inputs.extend(recipe_inputs(&smp.recipe));
-                let job = project::bssrdf_job(b, configs, smp, project.seed);
-                tasks.push(lucent(format!("{} slices", smp.name), Job::Bssrdf(job)));
-                for m in &smp.measured {
-                    inputs.push(m.file.clone());
-                    let c = project::parse_configs(&m.config).unwrap_or_default();
-                    let Some(&c) = c.first() else { continue };
-                    let job = BssrdfCompareJob {
-                        measured: m.file.clone(),
-                        simulated: PathBuf::from(bssrdf_run_dir(&format!("{{out}}/{}", smp.name), configs, c)),
-                        out: bssrdf_comparison_dir(&under_out(format!("/{}", smp.name)), c),
-                        measured_pixel_mm: m.pixel_mm,
-                        threshold: b.threshold.unwrap_or(crate::job::DEFAULT_THRESHOLD),
-                    };
-                    tasks.push(lucent(format!("{} vs measured {}", smp.name, m.config), Job::BssrdfCompare(job)));
-                }
-            }
-        }
-        Stage::Fit => {
-            let Some(fit) = &f.fit else { return Ok(Err(Skip::Missing("[fit]"))) };
-            for smp in f.sample.iter().filter(|s| !s.measured.is_empty()) {
-                inputs.extend(recipe_inputs(&smp.recipe));
-                inputs.extend(smp.measured.iter().map(|m| m.file.clone()));
-                let job = project::fit_job(fit, f.bssrdf.as_ref(), smp, project.seed);
-                tasks.push(lucent(format!("{} fit", smp.name), Job::Fit(job)));
-            }
-            if tasks.is_empty() {
-                return Ok(Err(Skip::NoMeasured));
-            }
-        }
-        Stage::Calibrate => {
-            let Some(c) = &f.calibration else { return Ok(Err(Skip::Missing("[calibration]"))) };
-            let files = crate::io::glob_files(&c.images)
-                .map_err(|e| PipelineError::Stage { stage, problem: StageProblem::CalibrationImages(e) })?;
-            if files.is_empty() {
-                return Err(PipelineError::Stage {
-                    stage,
-                    problem: StageProblem::NoCalibrationImages { pattern: c.images.clone() },
-                });
-            }
-            inputs.extend(files);
-            let job = project::calibrate_job(c, CalibrationFiles::in_dir(&under_out(String::new())).camera);
-            tasks.push(lucent(format!("{} photos", inputs.len()), Job::Calibrate(job)));
-        }
-        Stage::Colour => {
-            if f.colour.is_empty() {
-                return Ok(Err(Skip::Missing("[[colour]]")));
-            }
-            for c in &f.colour {
-                inputs.push(c.image.clone());
-                let job = ColourCalibrateJob {
-                    image: c.image.clone(),
-                    camera: Some(c.camera.clone()),
-                    out: under_out(format!("/{}", c.camera)),
-                    corners: c.corners.clone(),
-                    method: c.method.unwrap_or(lucent_colour::CcmMethod::Cheung2004),
-                    decode_srgb: c.decode_srgb == Some(true),
-                };
-                tasks.push(lucent(c.camera.clone(), Job::ColourCalibrate(job)));
-            }
-        }
-        Stage::Develop => {
-            for smp in &f.sample {
-                let Some(cam) = &smp.camera else { continue };
-                let ccm = ColourFiles::in_dir(&out.join(Stage::Colour.name()).join(cam)).ccm;
-                if !ccm.is_file() {
-                    return Err(PipelineError::Stage {
-                        stage,
-                        problem: StageProblem::NoCcm { sample: smp.name.clone(), camera: cam.clone() },
-                    });
-                }
-                for (what, photo) in [("photo", &smp.photo), ("empty_board", &smp.empty_board)] {
-                    let Some(photo) = photo else { continue };
-                    inputs.push(photo.clone());
-                    let bin = photo_bin(&smp.name, photo, f.render.as_ref().and_then(|r| r.size.as_deref()))
-                        .map_err(|problem| PipelineError::Stage { stage, problem })?;
-                    let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
-                    // The photo's noise (var P of the compare stage's model RMSE), from its RAW noise model.
-                    let files = DevelopFiles::in_dir(&under_out(format!("/{}", smp.name)), what);
-                    let variance_out = (is_raw && what == "photo").then_some((files.variance, project.seed));
-                    let job = ColourApplyJob {
-                        ccm: ccm.clone(),
-                        input: photo.clone(),
-                        output: files.exr,
-                        to: "cie-rgb".into(),
-                        variance_out,
-                        bin,
-                    };
-                    tasks.push(lucent(format!("{} {what}", smp.name), Job::ColourApply(job)));
-                    if is_raw {
-                        let job = RawClippedJob { input: photo.clone(), out: files.valid, bin };
-                        tasks.push(lucent(format!("{} {what} clipping", smp.name), Job::RawClipped(job)));
-                    }
-                }
-            }
-            if tasks.is_empty() {
-                return Ok(Err(Skip::NoSampleCamera));
-            }
-        }
-        Stage::Pose => {
-            let Some(p) = &f.pose else { return Ok(Err(Skip::Missing("[pose]"))) };
-            let camera = CalibrationFiles::in_dir(&out.join(Stage::Calibrate.name())).camera;
-            if f.calibration.is_none() || !camera.is_file() {
-                return Ok(Err(Skip::NoCamera));
-            }
-            inputs.push(p.image.clone());
-            let job =
-                project::pose_job(p, f.calibration.as_ref(), camera, PoseFiles::in_dir(&under_out(String::new())).json);
-            tasks.push(lucent("board pose".into(), Job::Pose(job)));
-        }
-        Stage::EnvScale | Stage::Render => {
-            let Some(r) = &f.render else { return Ok(Err(Skip::Missing("[render]"))) };
-            for smp in &f.sample {
-                if stage == Stage::EnvScale && smp.empty_board.is_none() {
-                    notes.push(format!("{}: no empty_board photo", smp.name));
-                    continue;
-                }
-                let scene_text = sample_scene(project, out, smp, stage == Stage::Render)?;
-                inputs.extend(scene_inputs(&r.scene));
-                inputs.extend(recipe_inputs(&smp.recipe));
-                let sample_out = under_out(format!("/{}", smp.name));
-                // The scenes' paths in the stage folder, as the task's files name them.
-                let rel = SampleRenderFiles::in_dir(Path::new(&smp.name));
-                let scene_rel = rel.scene.display().to_string();
-                let scene = SampleRenderFiles::in_dir(&sample_out).scene;
-                if stage == Stage::EnvScale {
-                    let photo = developed(out, smp, "empty_board", smp.empty_board.as_deref())?;
-                    inputs.push(photo.clone());
-                    let job = EnvScaleJob {
-                        scene,
-                        photo,
-                        spp: Some(r.env_spp.or(r.spp).unwrap_or(16)),
-                        per_channel: r.per_channel_scale == Some(true),
-                        mask: valid_mask(out, smp, "empty_board"),
-                        size: r.size.clone(),
-                        seed: Some(project.seed),
-                        out: sample_out,
-                    };
-                    let job = Job::EnvScale(job);
-                    tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], job });
-                    continue;
-                }
-                // The band where the recipe gives an uncertain input (else a note).
-                let uncertainty = r.uncertainty == Some(true) && {
-                    let any = recipe_has_uncertain_input(&smp.recipe);
-                    if !any {
-                        notes.push(format!(
-                            "{}: [render] uncertainty: its recipe gives no input with an uncertainty (e.g. \
-                             weight_percent = {{ value = 0.65, sd = 0.03 }}): rendered without a band",
-                            smp.name
-                        ));
-                    }
-                    any
-                };
-                let job = RenderJob {
-                    scene,
-                    spp: Some(r.spp.unwrap_or(16)),
-                    quiet: true,
-                    time_s: r.time_s,
-                    size: r.size.clone(),
-                    seed: Some(project.seed),
-                    uncertainty,
-                    out: sample_out.clone(),
-                };
-                // The fitted twin: the same render with stage fit's recipe.
-                let twin = match fitted_recipe(project, out, smp) {
-                    Some(recipe) => {
-                        let text = sample_scene_with(project, out, smp, true, Some(&recipe))?;
-                        inputs.push(recipe.clone());
-                        let in_out = SampleRenderFiles::in_dir(&sample_out);
-                        let rel = rel.fitted_scene.display().to_string();
-                        let twin = RenderJob {
-                            scene: in_out.fitted_scene,
-                            out: in_out.fitted,
-                            uncertainty: r.uncertainty == Some(true) && recipe_has_uncertain_input(&recipe),
-                            ..job.clone()
-                        };
-                        let label = format!("{} fitted twin", smp.name);
-                        Some(Task::Lucent { label, files: vec![(rel, text)], job: Job::Render(twin) })
-                    }
-                    None => None,
-                };
-                let job = Job::Render(job);
-                tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], job });
-                tasks.extend(twin);
-            }
-            if tasks.is_empty() {
-                return Ok(Err(if f.sample.is_empty() { Skip::Missing("[[sample]]") } else { Skip::NoEmptyBoard }));
-            }
-        }
-        Stage::Compare => {
-            for smp in &f.sample {
-                let render_dir = out.join(Stage::Render.name()).join(&smp.name);
-                let fitted_dir = SampleRenderFiles::in_dir(&render_dir).fitted;
-                let render = RenderFiles::in_dir(&render_dir).exr;
-                let Some(photo) = &smp.photo else {
-                    notes.push(format!("{}: no photo", smp.name));
-                    continue;
-                };
-                let photo = &developed(out, smp, "photo", Some(photo))?;
-                if !render.is_file() {
-                    notes.push(format!("{}: no render", smp.name));
-                    continue;
-                }
-                inputs.push(photo.clone());
-                let fitted = RenderFiles::in_dir(&fitted_dir).exr;
-                let fitted = fitted.is_file().then_some(fitted);
-                let dirs = CompareDirs::in_dir(&under_out(format!("/{}", smp.name)));
-                let job = CompareJob {
-                    photo: photo.clone(),
-                    render: std::iter::once(render.clone()).chain(fitted.clone()).collect(),
-                    out: dirs.image.clone(),
-                    mask: valid_mask(out, smp, "photo"),
-                    mask_object: None,
-                    photo_variance: photo_variance(out, smp),
-                    data_range: f.compare.as_ref().and_then(|c| c.data_range).unwrap_or(crate::job::DEFAULT_DATA_RANGE),
-                    twin_names: fitted.is_some().then(|| ["recipe".to_string(), "fitted".to_string()]),
-                    band: Vec::new(),
-                };
-                // Each twin's band (render --uncertainty), when the first has one.
-                let band: Vec<PathBuf> = std::iter::once(render_dir.clone())
-                    .chain(fitted.is_some().then_some(fitted_dir))
-                    .map(|d| RenderBandFiles::in_dir(&d).json)
-                    .take_while(|b| b.is_file())
-                    .collect();
-                inputs.extend(band.iter().cloned());
-                // The same over the object's pixels, as the render's `object` layer marks
-                // them (any mesh): where the twins differ, so where their paired test looks,
-                // and where the bands are.
-                let object = has_exr_channel(&render, "object").then(|| CompareJob {
-                    mask_object: Some(render.clone()),
-                    band,
-                    out: dirs.object,
-                    ..job.clone()
-                });
-                // The fitted twin alone too: its own triplet for the report.
-                let fitted_alone =
-                    fitted.map(|f| CompareJob { render: vec![f], twin_names: None, out: dirs.fitted, ..job.clone() });
-                if let Some(j) = object {
-                    tasks.push(lucent(format!("{} object", smp.name), Job::Compare(j)));
-                }
-                tasks.push(lucent(smp.name.clone(), Job::Compare(job)));
-                if let Some(j) = fitted_alone {
-                    tasks.push(lucent(format!("{} fitted twin", smp.name), Job::Compare(j)));
-                }
-            }
-            if tasks.is_empty() {
-                return Ok(Err(Skip::NoPhotoAndRender));
-            }
-        }
-        Stage::Report => {
-            inputs.push(project.path.clone());
-            inputs.extend(f.calibration.as_ref().and_then(|c| c.truth.clone()));
-            tasks.push(Task::Report);
+            tasks.push(lucent_task(format!("{} vs measured {}", smp.name, m.config), Job::BssrdfCompare(job)));
         }
     }
-    Ok(Ok(Plan { tasks, inputs, notes }))
+    Ok(Ok(()))
+}
+
+/// The fit stage: a fit per sample with measured slices.
+fn plan_fit(project: &Project, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let Plan { inputs, tasks, .. } = p;
+    let Some(fit) = &f.fit else { return Ok(Err(Skip::Missing("[fit]"))) };
+    for smp in f.sample.iter().filter(|s| !s.measured.is_empty()) {
+        inputs.extend(recipe_inputs(&smp.recipe));
+        inputs.extend(smp.measured.iter().map(|m| m.file.clone()));
+        let job = project::fit_job(fit, f.bssrdf.as_ref(), smp, project.seed);
+        tasks.push(lucent_task(format!("{} fit", smp.name), Job::Fit(job)));
+    }
+    if tasks.is_empty() {
+        return Ok(Err(Skip::NoMeasured));
+    }
+    Ok(Ok(()))
+}
+
+/// The calibrate stage: the camera from the `[calibration]` photos.
+fn plan_calibrate(project: &Project, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let stage = Stage::Calibrate;
+    let Plan { inputs, tasks, .. } = p;
+    let Some(c) = &f.calibration else { return Ok(Err(Skip::Missing("[calibration]"))) };
+    let files = crate::io::glob_files(&c.images)
+        .map_err(|e| PipelineError::Stage { stage, problem: StageProblem::CalibrationImages(e) })?;
+    if files.is_empty() {
+        return Err(PipelineError::Stage {
+            stage,
+            problem: StageProblem::NoCalibrationImages { pattern: c.images.clone() },
+        });
+    }
+    inputs.extend(files);
+    let job = project::calibrate_job(c, CalibrationFiles::in_dir(&under_out(String::new())).camera);
+    tasks.push(lucent_task(format!("{} photos", inputs.len()), Job::Calibrate(job)));
+    Ok(Ok(()))
+}
+
+/// The colour stage: a colour correction per `[[colour]]` chart photo.
+fn plan_colour(project: &Project, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let Plan { inputs, tasks, .. } = p;
+    if f.colour.is_empty() {
+        return Ok(Err(Skip::Missing("[[colour]]")));
+    }
+    for c in &f.colour {
+        inputs.push(c.image.clone());
+        let job = ColourCalibrateJob {
+            image: c.image.clone(),
+            camera: Some(c.camera.clone()),
+            out: under_out(format!("/{}", c.camera)),
+            corners: c.corners.clone(),
+            method: c.method.unwrap_or(lucent_colour::CcmMethod::Cheung2004),
+            decode_srgb: c.decode_srgb == Some(true),
+        };
+        tasks.push(lucent_task(c.camera.clone(), Job::ColourCalibrate(job)));
+    }
+    Ok(Ok(()))
+}
+
+/// The develop stage: each sample's photos through its camera's colour
+/// correction (with their noise and clipping when RAW).
+fn plan_develop(project: &Project, out: &Path, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let stage = Stage::Develop;
+    let Plan { inputs, tasks, .. } = p;
+    for smp in &f.sample {
+        let Some(cam) = &smp.camera else { continue };
+        let ccm = ColourFiles::in_dir(&out.join(Stage::Colour.name()).join(cam)).ccm;
+        if !ccm.is_file() {
+            return Err(PipelineError::Stage {
+                stage,
+                problem: StageProblem::NoCcm { sample: smp.name.clone(), camera: cam.clone() },
+            });
+        }
+        for (what, photo) in [("photo", &smp.photo), ("empty_board", &smp.empty_board)] {
+            let Some(photo) = photo else { continue };
+            inputs.push(photo.clone());
+            let bin = photo_bin(&smp.name, photo, f.render.as_ref().and_then(|r| r.size.as_deref()))
+                .map_err(|problem| PipelineError::Stage { stage, problem })?;
+            let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
+            // The photo's noise (var P of the compare stage's model RMSE), from its RAW noise model.
+            let files = DevelopFiles::in_dir(&under_out(format!("/{}", smp.name)), what);
+            let variance_out = (is_raw && what == "photo").then_some((files.variance, project.seed));
+            let job = ColourApplyJob {
+                ccm: ccm.clone(),
+                input: photo.clone(),
+                output: files.exr,
+                to: "cie-rgb".into(),
+                variance_out,
+                bin,
+            };
+            tasks.push(lucent_task(format!("{} {what}", smp.name), Job::ColourApply(job)));
+            if is_raw {
+                let job = RawClippedJob { input: photo.clone(), out: files.valid, bin };
+                tasks.push(lucent_task(format!("{} {what} clipping", smp.name), Job::RawClipped(job)));
+            }
+        }
+    }
+    if tasks.is_empty() {
+        return Ok(Err(Skip::NoSampleCamera));
+    }
+    Ok(Ok(()))
+}
+
+/// The pose stage: the board's pose with the calibrated camera.
+fn plan_pose(project: &Project, out: &Path, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let Plan { inputs, tasks, .. } = p;
+    let Some(pose) = &f.pose else { return Ok(Err(Skip::Missing("[pose]"))) };
+    let camera = CalibrationFiles::in_dir(&out.join(Stage::Calibrate.name())).camera;
+    if f.calibration.is_none() || !camera.is_file() {
+        return Ok(Err(Skip::NoCamera));
+    }
+    inputs.push(pose.image.clone());
+    let job =
+        project::pose_job(pose, f.calibration.as_ref(), camera, PoseFiles::in_dir(&under_out(String::new())).json);
+    tasks.push(lucent_task("board pose".into(), Job::Pose(job)));
+    Ok(Ok(()))
+}
+
+/// The env-scale stage (`stage` [`Stage::EnvScale`]: each sample's empty board)
+/// or the render stage (each sample's twin and, after a fit, its fitted twin).
+fn plan_render(stage: Stage, project: &Project, out: &Path, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let Plan { inputs, notes, tasks } = p;
+    let Some(r) = &f.render else { return Ok(Err(Skip::Missing("[render]"))) };
+    for smp in &f.sample {
+        if stage == Stage::EnvScale && smp.empty_board.is_none() {
+            notes.push(format!("{}: no empty_board photo", smp.name));
+            continue;
+        }
+        let scene_text = sample_scene(project, out, smp, stage == Stage::Render)?;
+        inputs.extend(scene_inputs(&r.scene));
+        inputs.extend(recipe_inputs(&smp.recipe));
+        let sample_out = under_out(format!("/{}", smp.name));
+        // The scenes' paths in the stage folder, as the task's files name them.
+        let rel = SampleRenderFiles::in_dir(Path::new(&smp.name));
+        let scene_rel = rel.scene.display().to_string();
+        let scene = SampleRenderFiles::in_dir(&sample_out).scene;
+        if stage == Stage::EnvScale {
+            let photo = developed(out, smp, "empty_board", smp.empty_board.as_deref())?;
+            inputs.push(photo.clone());
+            let job = EnvScaleJob {
+                scene,
+                photo,
+                spp: Some(r.env_spp.or(r.spp).unwrap_or(16)),
+                per_channel: r.per_channel_scale == Some(true),
+                mask: valid_mask(out, smp, "empty_board"),
+                size: r.size.clone(),
+                seed: Some(project.seed),
+                out: sample_out,
+            };
+            let job = Job::EnvScale(job);
+            tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], job });
+            continue;
+        }
+        // The band where the recipe gives an uncertain input (else a note).
+        let uncertainty = r.uncertainty == Some(true) && {
+            let any = recipe_has_uncertain_input(&smp.recipe);
+            if !any {
+                notes.push(format!(
+                    "{}: [render] uncertainty: its recipe gives no input with an uncertainty (e.g. \
+                     weight_percent = {{ value = 0.65, sd = 0.03 }}): rendered without a band",
+                    smp.name
+                ));
+            }
+            any
+        };
+        let job = RenderJob {
+            scene,
+            spp: Some(r.spp.unwrap_or(16)),
+            quiet: true,
+            time_s: r.time_s,
+            size: r.size.clone(),
+            seed: Some(project.seed),
+            uncertainty,
+            out: sample_out.clone(),
+        };
+        // The fitted twin: the same render with stage fit's recipe.
+        let twin = match fitted_recipe(project, out, smp) {
+            Some(recipe) => {
+                let text = sample_scene_with(project, out, smp, true, Some(&recipe))?;
+                inputs.push(recipe.clone());
+                let in_out = SampleRenderFiles::in_dir(&sample_out);
+                let rel = rel.fitted_scene.display().to_string();
+                let twin = RenderJob {
+                    scene: in_out.fitted_scene,
+                    out: in_out.fitted,
+                    uncertainty: r.uncertainty == Some(true) && recipe_has_uncertain_input(&recipe),
+                    ..job.clone()
+                };
+                let label = format!("{} fitted twin", smp.name);
+                Some(Task::Lucent { label, files: vec![(rel, text)], job: Job::Render(twin) })
+            }
+            None => None,
+        };
+        let job = Job::Render(job);
+        tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], job });
+        tasks.extend(twin);
+    }
+    if tasks.is_empty() {
+        return Ok(Err(if f.sample.is_empty() { Skip::Missing("[[sample]]") } else { Skip::NoEmptyBoard }));
+    }
+    Ok(Ok(()))
+}
+
+/// The compare stage: each sample's photo against its render (and fitted twin),
+/// over the image and over the object's pixels.
+fn plan_compare(project: &Project, out: &Path, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let Plan { inputs, notes, tasks } = p;
+    for smp in &f.sample {
+        let render_dir = out.join(Stage::Render.name()).join(&smp.name);
+        let fitted_dir = SampleRenderFiles::in_dir(&render_dir).fitted;
+        let render = RenderFiles::in_dir(&render_dir).exr;
+        let Some(photo) = &smp.photo else {
+            notes.push(format!("{}: no photo", smp.name));
+            continue;
+        };
+        let photo = &developed(out, smp, "photo", Some(photo))?;
+        if !render.is_file() {
+            notes.push(format!("{}: no render", smp.name));
+            continue;
+        }
+        inputs.push(photo.clone());
+        let fitted = RenderFiles::in_dir(&fitted_dir).exr;
+        let fitted = fitted.is_file().then_some(fitted);
+        let dirs = CompareDirs::in_dir(&under_out(format!("/{}", smp.name)));
+        let job = CompareJob {
+            photo: photo.clone(),
+            render: std::iter::once(render.clone()).chain(fitted.clone()).collect(),
+            out: dirs.image.clone(),
+            mask: valid_mask(out, smp, "photo"),
+            mask_object: None,
+            photo_variance: photo_variance(out, smp),
+            data_range: f.compare.as_ref().and_then(|c| c.data_range).unwrap_or(crate::job::DEFAULT_DATA_RANGE),
+            twin_names: fitted.is_some().then(|| ["recipe".to_string(), "fitted".to_string()]),
+            band: Vec::new(),
+        };
+        // Each twin's band (render --uncertainty), when the first has one.
+        let band: Vec<PathBuf> = std::iter::once(render_dir.clone())
+            .chain(fitted.is_some().then_some(fitted_dir))
+            .map(|d| RenderBandFiles::in_dir(&d).json)
+            .take_while(|b| b.is_file())
+            .collect();
+        inputs.extend(band.iter().cloned());
+        // The same over the object's pixels, as the render's `object` layer marks
+        // them (any mesh): where the twins differ, so where their paired test looks,
+        // and where the bands are.
+        let object = has_exr_channel(&render, "object").then(|| CompareJob {
+            mask_object: Some(render.clone()),
+            band,
+            out: dirs.object,
+            ..job.clone()
+        });
+        // The fitted twin alone too: its own triplet for the report.
+        let fitted_alone =
+            fitted.map(|f| CompareJob { render: vec![f], twin_names: None, out: dirs.fitted, ..job.clone() });
+        if let Some(j) = object {
+            tasks.push(lucent_task(format!("{} object", smp.name), Job::Compare(j)));
+        }
+        tasks.push(lucent_task(smp.name.clone(), Job::Compare(job)));
+        if let Some(j) = fitted_alone {
+            tasks.push(lucent_task(format!("{} fitted twin", smp.name), Job::Compare(j)));
+        }
+    }
+    if tasks.is_empty() {
+        return Ok(Err(Skip::NoPhotoAndRender));
+    }
+    Ok(Ok(()))
+}
+
+/// The report stage: its inputs are the project file and the known camera.
+fn plan_report(project: &Project, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let Plan { inputs, tasks, .. } = p;
+    inputs.push(project.path.clone());
+    inputs.extend(f.calibration.as_ref().and_then(|c| c.truth.clone()));
+    tasks.push(Task::Report);
+    Ok(Ok(()))
 }
 
 /// The key of a planned stage (see the module doc).
@@ -1392,31 +1463,8 @@ pub fn run(
     on_status: &mut dyn FnMut(Stage, &Status, &[String]),
 ) -> Result<Vec<(Stage, Status)>, PipelineError> {
     let io = |path: &Path, source| PipelineError::Io { path: path.to_path_buf(), source };
-    crate::io::claim_output_folder(out)?;
-    // One run at a time writes into a folder: a second is refused clearly.
-    let lock = crate::io::lock_output_folder(out)?;
-    // The results of another project are not mixed into this one's.
-    let file = project.path.display().to_string();
-    if let Some(earlier) = earlier_project(out)
-        && earlier.project != project.name
-    {
-        return Err(PipelineError::OtherProject {
-            out: out.to_path_buf(),
-            earlier: earlier.project,
-            earlier_file: earlier.project_file,
-            name: project.name.clone(),
-            file,
-        });
-    }
-    let mark = ProjectMark { project: project.name.clone(), project_file: file };
-    crate::io::write_json(&out.join(PROJECT_MARK), &mark)?;
-    let mut first_notes: Vec<String> = Vec::new();
-    if let Some((pid, host)) = &lock.replaced_stale {
-        first_notes.push(format!(
-            "warning: {}: a stale lock of an ended run (pid {pid} on {host}) was replaced",
-            out.join(crate::io::OUTPUT_LOCK).display()
-        ));
-    }
+    // Held until the run ends.
+    let (_lock, mut first_notes) = claim_for_project(project, out)?;
     let mut done: Vec<(Stage, Status)> = Vec::new();
     for stage in Stage::ALL {
         if options
@@ -1435,18 +1483,7 @@ pub fn run(
                 continue;
             }
         };
-        let mut inputs = Vec::new();
-        for p in &plan.inputs {
-            inputs.push(hash_file(p)?);
-        }
-        let mut upstream = Vec::new();
-        for d in stage.depends_on() {
-            let ddir = out.join(d.name());
-            if ddir.is_dir() {
-                upstream.push((*d, listed_outputs_hash(&ddir)?));
-            }
-        }
-        let key = stage_key(stage, project, &plan, &inputs, &upstream)?;
+        let (inputs, key) = hashed_inputs_and_key(stage, project, out, &plan)?;
         let previous = read_manifest(&dir);
         let fresh = previous.as_ref().is_some_and(|m| {
             m.key == key && hash_listed(&dir, &m.outputs).map(|h| h == m.outputs_sha256).unwrap_or(false)
@@ -1469,51 +1506,11 @@ pub fn run(
         }
         std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
         crate::io::write_atomic(&dir.join(STAGE_MARK), stage.name().as_bytes())?;
-        let log = StageFiles::in_dir(&dir).log;
         on_status(stage, &Status::Started { last_wall_s: last.as_ref().map(|m| m.wall_s) }, &[]);
         let start = Instant::now();
         let started_unix_s =
             std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
-        let mut commands = Vec::new();
-        let mut deferred = 0usize;
-        let mut result: Result<(), TaskError> = Ok(());
-        for task in &plan.tasks {
-            let r = match task {
-                Task::Lucent { label, files, job } => {
-                    let mut r = Ok(());
-                    for (name, text) in files {
-                        if let Err(source) = crate::io::write_atomic(&dir.join(name), text.as_bytes()) {
-                            r = Err(TaskError::Write { label: label.clone(), source });
-                        }
-                    }
-                    let placed = job.with_out(&dir);
-                    if let Ok(job) = &placed {
-                        commands.push(job.to_args());
-                    }
-                    r.and_then(|_| {
-                        placed.map_err(|e| TaskError::Place {
-                            label: label.clone(),
-                            source: crate::fault::Internal(e.to_string()),
-                        })
-                    })
-                    .and_then(|job| match exec(&job, &log) {
-                        Err(e) if e.is::<executor::Deferred>() => {
-                            deferred += 1;
-                            Ok(())
-                        }
-                        other => other.map_err(|source| TaskError::Command { label: label.clone(), source }),
-                    })
-                }
-                Task::Report => {
-                    commands.push(vec!["(report, in process)".into()]);
-                    report::write(project, out, &dir, &done).map_err(TaskError::from)
-                }
-            };
-            if r.is_err() {
-                result = r;
-                break;
-            }
-        }
+        let TasksRun { commands, deferred, result } = run_tasks(project, out, &dir, &plan.tasks, &done, exec);
         let wall_s = start.elapsed().as_secs_f64();
         if let Err(message) = result {
             if failed.exists() {
@@ -1571,6 +1568,125 @@ pub fn run(
         done.push((stage, st));
     }
     Ok(done)
+}
+
+/// Claims and locks `out` for `project`'s run (one run at a time; refused
+/// when it holds another project's results) and marks it as the project's:
+/// the lock, held until the run ends, and a note when it replaced a stale
+/// lock.
+fn claim_for_project(project: &Project, out: &Path) -> Result<(crate::io::OutputLock, Vec<String>), PipelineError> {
+    crate::io::claim_output_folder(out)?;
+    // One run at a time writes into a folder: a second is refused clearly.
+    let lock = crate::io::lock_output_folder(out)?;
+    // The results of another project are not mixed into this one's.
+    let file = project.path.display().to_string();
+    if let Some(earlier) = earlier_project(out)
+        && earlier.project != project.name
+    {
+        return Err(PipelineError::OtherProject {
+            out: out.to_path_buf(),
+            earlier: earlier.project,
+            earlier_file: earlier.project_file,
+            name: project.name.clone(),
+            file,
+        });
+    }
+    let mark = ProjectMark { project: project.name.clone(), project_file: file };
+    crate::io::write_json(&out.join(PROJECT_MARK), &mark)?;
+    let mut first_notes: Vec<String> = Vec::new();
+    if let Some((pid, host)) = &lock.replaced_stale {
+        first_notes.push(format!(
+            "warning: {}: a stale lock of an ended run (pid {pid} on {host}) was replaced",
+            out.join(crate::io::OUTPUT_LOCK).display()
+        ));
+    }
+    Ok((lock, first_notes))
+}
+
+/// The hashes of a planned stage's inputs and its key (over them and the
+/// outputs of the stages it depends on that have a folder under `out`).
+fn hashed_inputs_and_key(
+    stage: Stage,
+    project: &Project,
+    out: &Path,
+    plan: &Plan,
+) -> Result<(Vec<InputHash>, String), PipelineError> {
+    let mut inputs = Vec::new();
+    for p in &plan.inputs {
+        inputs.push(hash_file(p)?);
+    }
+    let mut upstream = Vec::new();
+    for d in stage.depends_on() {
+        let ddir = out.join(d.name());
+        if ddir.is_dir() {
+            upstream.push((*d, listed_outputs_hash(&ddir)?));
+        }
+    }
+    let key = stage_key(stage, project, plan, &inputs, &upstream)?;
+    Ok((inputs, key))
+}
+
+/// What [`run_tasks`] did: the commands it placed, how many jobs the
+/// executor deferred and the first failure.
+struct TasksRun {
+    commands: Vec<Vec<String>>,
+    deferred: usize,
+    result: Result<(), TaskError>,
+}
+
+/// Runs a stage's `tasks` into its folder `dir` (a task's files written
+/// first, its job's `{out}` placed there; the report written in process
+/// from the stages `done`), until the first that fails.
+fn run_tasks(
+    project: &Project,
+    out: &Path,
+    dir: &Path,
+    tasks: &[Task],
+    done: &[(Stage, Status)],
+    exec: &mut Executor,
+) -> TasksRun {
+    let log = StageFiles::in_dir(dir).log;
+    let mut commands = Vec::new();
+    let mut deferred = 0usize;
+    let mut result: Result<(), TaskError> = Ok(());
+    for task in tasks {
+        let r = match task {
+            Task::Lucent { label, files, job } => {
+                let mut r = Ok(());
+                for (name, text) in files {
+                    if let Err(source) = crate::io::write_atomic(&dir.join(name), text.as_bytes()) {
+                        r = Err(TaskError::Write { label: label.clone(), source });
+                    }
+                }
+                let placed = job.with_out(dir);
+                if let Ok(job) = &placed {
+                    commands.push(job.to_args());
+                }
+                r.and_then(|_| {
+                    placed.map_err(|e| TaskError::Place {
+                        label: label.clone(),
+                        source: crate::fault::Internal(e.to_string()),
+                    })
+                })
+                .and_then(|job| match exec(&job, &log) {
+                    Err(e) if e.is::<executor::Deferred>() => {
+                        deferred += 1;
+                        Ok(())
+                    }
+                    other => other.map_err(|source| TaskError::Command { label: label.clone(), source }),
+                })
+            }
+            Task::Report => {
+                commands.push(vec!["(report, in process)".into()]);
+                report::write(project, out, dir, done).map_err(TaskError::from)
+            }
+        };
+        if r.is_err() {
+            result = r;
+            break;
+        }
+    }
+    TasksRun { commands, deferred, result }
 }
 
 #[cfg(test)]

@@ -484,223 +484,296 @@ impl Project {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let dir =
             std::path::absolute(if dir.as_os_str().is_empty() { Path::new(".") } else { &dir }).unwrap_or(dir.clone());
-        let key = |k: &str, reason: String| ProjectError::Key { path: path.to_path_buf(), key: k.to_string(), reason };
-        let resolve = |p: &Path| if p.is_absolute() { p.to_path_buf() } else { dir.join(p) };
-        let existing = |k: &str, p: &mut PathBuf| -> Result<(), ProjectError> {
-            *p = resolve(p);
-            if p.exists() {
-                Ok(())
-            } else {
-                Err(key(k, format!("{}: no such file", p.display())))
-            }
-        };
+        let c = Checker { path, dir };
         let name = match &file.project.name {
             Some(n) => n.clone(),
             None => path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "project".into()),
         };
         if let Err(reason) = folder_name(&name) {
-            return Err(key("[project] name", format!("{name:?}: {reason}")));
+            return Err(c.key("[project] name", format!("{name:?}: {reason}")));
         }
-        let out = file.project.out.as_ref().map(|p| resolve(p));
+        let out = file.project.out.as_ref().map(|p| c.resolve(p));
         let mut seen = std::collections::HashSet::new();
         for (k, s) in file.sample.iter_mut().enumerate() {
-            let at = format!("[[sample]] #{} ({})", k + 1, s.name);
-            if let Some(w) = s.weight_percent
-                && !(w > 0.0 && w < 100.0)
-            {
-                return Err(key(&format!("{at} weight_percent"), format!("must lie in (0, 100), got {w}")));
-            }
-            for m in &s.measured {
-                if let Some(px) = m.pixel_mm
-                    && !(px > 0.0 && px.is_finite())
-                {
-                    return Err(key(&format!("{at} measured pixel_mm"), format!("must be finite and > 0, got {px}")));
-                }
-            }
-            if let Err(reason) = folder_name(&s.name) {
-                return Err(key(&format!("{at} name"), reason.into()));
-            }
-            if !seen.insert(s.name.clone()) {
-                return Err(key(&format!("{at} name"), "two samples have this name".into()));
-            }
-            existing(&format!("{at} recipe"), &mut s.recipe)?;
-            if let Some(p) = &mut s.photo {
-                existing(&format!("{at} photo"), p)?;
-            }
-            if let Some(p) = &mut s.empty_board {
-                existing(&format!("{at} empty_board"), p)?;
-            }
-            if let Some(t) = &mut s.truth_recipe {
-                existing(&format!("{at} truth_recipe"), t)?;
-                crate::optics::recipe::Recipe::load(t, crate::optics::recipe::Overrides::default())
-                    .map_err(|e| key(&format!("{at} truth_recipe"), e.to_string()))?;
-            }
-            let mut slices: Vec<((f64, f64), PathBuf)> = Vec::new();
-            for m in &mut s.measured {
-                existing(&format!("{at} measured file"), &mut m.file)?;
-                let c = parse_configs(&m.config).map_err(|e| key(&format!("{at} measured config"), e.to_string()))?;
-                if c.len() != 1 {
-                    return Err(key(&format!("{at} measured config"), "one θi/θo pair per measured slice".into()));
-                }
-                // One slice given twice would count as two configurations in the fit.
-                let file = crate::io::file_key(&m.file);
-                if let Some((cfg, _)) = slices.iter().find(|(_, f)| *f == file) {
-                    return Err(key(
-                        &format!("{at} measured"),
-                        format!("{} is given twice (at {}/{} and {})", m.file.display(), cfg.0, cfg.1, m.config),
-                    ));
-                }
-                slices.push((c[0], file));
-            }
-            for m in &s.measured {
-                // Without pixel_mm here the slice's sidecar must give it; the
-                // message names this key, not the stage's --measured-pixel-mm.
-                if m.pixel_mm.is_none() {
-                    match crate::bssrdf::sidecar_pixel_mm(&m.file) {
-                        Ok(Some(_)) => {}
-                        Ok(None) => {
-                            return Err(key(
-                                &format!("{at} measured pixel_mm"),
-                                format!(
-                                    "{}: pixel size unknown; set pixel_mm = … (mm) in this [[sample.measured]] \
-                                     entry, or put {{\"pixel_mm\": …}} in {}.json",
-                                    m.file.display(),
-                                    m.file.display()
-                                ),
-                            ));
-                        }
-                        Err(e) => return Err(key(&format!("{at} measured pixel_mm"), e.to_string())),
-                    }
-                }
-            }
+            check_sample(&c, k, s, &mut seen)?;
         }
-        let mut bssrdf_configs = Vec::new();
-        if let Some(b) = &file.bssrdf {
-            bssrdf_configs = parse_configs(b.configs.as_deref().unwrap_or("45/0"))
-                .map_err(|e| key("[bssrdf] configs", e.to_string()))?;
-            if b.paths.is_none() && b.rel_error.is_none() && b.time_s.is_none() {
-                return Err(key("[bssrdf]", "give a stop rule: paths, rel_error or time_s".into()));
-            }
-            for s in &file.sample {
-                for m in &s.measured {
-                    let c = parse_configs(&m.config).map_err(|e| key("[[sample.measured]] config", e.to_string()))?[0];
-                    if !bssrdf_configs.contains(&c) {
-                        return Err(key(
-                            &format!("[[sample]] {} measured config", s.name),
-                            format!("{:?} is not among [bssrdf] configs", m.config),
-                        ));
-                    }
-                }
-            }
-        }
+        let bssrdf_configs = check_bssrdf(&c, &file)?;
         // The values that become flags of the stages' commands, checked by
         // their jobs with the flags' ranges: all named here, before any stage runs.
         match job_problems(&file, &bssrdf_configs).as_slice() {
             [] => {}
-            [(k, reason)] => return Err(key(k, reason.clone())),
+            [(k, reason)] => return Err(c.key(k, reason.clone())),
             many => return Err(ProjectError::Keys { path: path.to_path_buf(), problems: many.to_vec() }),
         }
-        if let Some(c) = &mut file.calibration {
-            let p = resolve(Path::new(&c.images));
-            c.images = p.to_string_lossy().into_owned();
-            if let Some(t) = &mut c.truth {
-                existing("[calibration] truth", t)?;
-                let text = crate::io::read_text(&*t)
-                    .map_err(|e| key("[calibration] truth", format!("{}: {e}", t.display())))?;
-                if serde_json::from_str::<lucent_calib::camera::Calibration>(&text).is_err() {
-                    return Err(key(
-                        "[calibration] truth",
-                        format!("{}: not a camera.json in `lucent calibrate`'s format", t.display()),
-                    ));
-                }
-            }
+        if let Some(cal) = &mut file.calibration {
+            check_calibration(&c, cal)?;
         }
-        let mut cameras = std::collections::HashSet::new();
-        for c in &mut file.colour {
-            if let Err(reason) = folder_name(&c.camera) {
-                return Err(key("[[colour]] camera", format!("{:?}: {reason}", c.camera)));
-            }
-            if !cameras.insert(c.camera.clone()) {
-                return Err(key("[[colour]] camera", format!("{:?}: two [[colour]] sections name it", c.camera)));
-            }
-            existing(&format!("[[colour]] {} image", c.camera), &mut c.image)?;
-            if let Some(t) = &mut c.truth {
-                let k = format!("[[colour]] {} truth", c.camera);
-                existing(&k, t)?;
-                crate::synth::ColourTruth::load(t).map_err(|e| key(&k, e.to_string()))?;
-            }
-        }
-        for s in &file.sample {
-            if let Some(c) = &s.camera {
-                if !cameras.contains(c) {
-                    return Err(key(
-                        &format!("[[sample]] {} camera", s.name),
-                        format!("{c:?} is not a [[colour]] camera (its ccm.json develops the photos)"),
-                    ));
-                }
-                if s.photo.is_none() && s.empty_board.is_none() {
-                    return Err(key(&format!("[[sample]] {} camera", s.name), "there is no photo to develop".into()));
-                }
-            }
-        }
+        check_colour(&c, &mut file)?;
         if let Some(p) = &mut file.pose {
-            existing("[pose] image", &mut p.image)?;
+            c.existing("[pose] image", &mut p.image)?;
             if let Some(t) = &mut p.truth {
-                existing("[pose] truth", t)?;
+                c.existing("[pose] truth", t)?;
             }
             if p.board.is_none() && file.calibration.is_none() {
-                return Err(key("[pose] board", "required without [calibration]".into()));
+                return Err(c.key("[pose] board", "required without [calibration]".into()));
             }
         }
         if let Some(r) = &mut file.render {
-            existing("[render] scene", &mut r.scene)?;
-            if let Some(c) = &r.camera {
-                if c != "pose" && c != "template" {
-                    return Err(key("[render] camera", format!("expected \"pose\" or \"template\", got {c:?}")));
+            c.existing("[render] scene", &mut r.scene)?;
+            if let Some(cam) = &r.camera {
+                if cam != "pose" && cam != "template" {
+                    return Err(c.key("[render] camera", format!("expected \"pose\" or \"template\", got {cam:?}")));
                 }
-                if c == "pose" && file.pose.is_none() {
-                    return Err(key("[render] camera", "\"pose\" needs a [pose] section".into()));
+                if cam == "pose" && file.pose.is_none() {
+                    return Err(c.key("[render] camera", "\"pose\" needs a [pose] section".into()));
                 }
             }
         }
         if let Some(f) = &file.fit {
-            if f.free.is_empty() {
-                return Err(key("[fit] free", "name at least one parameter, e.g. [\"weight_percent\"]".into()));
-            }
-            for name in &f.free {
-                let base = name.split('@').next().unwrap_or_default();
-                let particle_ok = name.split_once('@').is_none_or(|(_, k)| k.parse::<usize>().is_ok());
-                if !["weight_percent", "diameter_um", "real_part_n"].contains(&base) || !particle_ok {
-                    return Err(key(
-                        "[fit] free",
-                        format!("{name:?}: expected weight_percent, diameter_um or real_part_n (NAME@K for particle type K)"),
-                    ));
-                }
-            }
-            for smp in &file.sample {
-                let px: Vec<Option<f64>> = smp.measured.iter().map(|m| m.pixel_mm).collect();
-                if px.windows(2).any(|w| w[0] != w[1]) {
-                    return Err(key(
-                        &format!("[[sample]] {} measured pixel_mm", smp.name),
-                        "the fit takes one pixel size for all of a sample's measured slices".into(),
-                    ));
-                }
-                if let Some(Some(p)) = px.first()
-                    && !(*p > 0.0 && p.is_finite())
-                {
-                    return Err(key(
-                        &format!("[[sample]] {} measured pixel_mm", smp.name),
-                        format!("must be finite and > 0, got {p}"),
-                    ));
-                }
-            }
+            check_fit(&c, f, &file.sample)?;
         }
         let seed = file.project.seed.unwrap_or(1);
         let executor = match &file.executor {
             Some(e) => super::executor::Executor::from_section(e)
-                .map_err(|e| key(&format!("[executor] {}", e.key), e.reason))?,
+                .map_err(|e| c.key(&format!("[executor] {}", e.key), e.reason))?,
             None => super::executor::Executor::default(),
         };
         Ok(Project { path: path.to_path_buf(), name, seed, out, file, bssrdf_configs, executor })
     }
+}
+
+/// The project file at `path` being checked: its keys named in errors, its
+/// relative paths resolved against its folder `dir`.
+struct Checker<'a> {
+    path: &'a Path,
+    dir: PathBuf,
+}
+
+impl Checker<'_> {
+    /// The error of key `k`.
+    fn key(&self, k: &str, reason: String) -> ProjectError {
+        ProjectError::Key { path: self.path.to_path_buf(), key: k.to_string(), reason }
+    }
+
+    /// `p` resolved against the project file's folder.
+    fn resolve(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.dir.join(p)
+        }
+    }
+
+    /// Resolves `p` (of key `k`) in place; an error when it does not exist.
+    fn existing(&self, k: &str, p: &mut PathBuf) -> Result<(), ProjectError> {
+        *p = self.resolve(p);
+        if p.exists() {
+            Ok(())
+        } else {
+            Err(self.key(k, format!("{}: no such file", p.display())))
+        }
+    }
+}
+
+/// Checks `[[sample]]` number `k` (from 0) and resolves its paths: its
+/// numbers, its name (a folder name, not in `seen`), its files and its
+/// measured slices.
+fn check_sample(
+    c: &Checker,
+    k: usize,
+    s: &mut SampleSection,
+    seen: &mut std::collections::HashSet<String>,
+) -> Result<(), ProjectError> {
+    let at = format!("[[sample]] #{} ({})", k + 1, s.name);
+    if let Some(w) = s.weight_percent
+        && !(w > 0.0 && w < 100.0)
+    {
+        return Err(c.key(&format!("{at} weight_percent"), format!("must lie in (0, 100), got {w}")));
+    }
+    for m in &s.measured {
+        if let Some(px) = m.pixel_mm
+            && !(px > 0.0 && px.is_finite())
+        {
+            return Err(c.key(&format!("{at} measured pixel_mm"), format!("must be finite and > 0, got {px}")));
+        }
+    }
+    if let Err(reason) = folder_name(&s.name) {
+        return Err(c.key(&format!("{at} name"), reason.into()));
+    }
+    if !seen.insert(s.name.clone()) {
+        return Err(c.key(&format!("{at} name"), "two samples have this name".into()));
+    }
+    c.existing(&format!("{at} recipe"), &mut s.recipe)?;
+    if let Some(p) = &mut s.photo {
+        c.existing(&format!("{at} photo"), p)?;
+    }
+    if let Some(p) = &mut s.empty_board {
+        c.existing(&format!("{at} empty_board"), p)?;
+    }
+    if let Some(t) = &mut s.truth_recipe {
+        c.existing(&format!("{at} truth_recipe"), t)?;
+        crate::optics::recipe::Recipe::load(t, crate::optics::recipe::Overrides::default())
+            .map_err(|e| c.key(&format!("{at} truth_recipe"), e.to_string()))?;
+    }
+    check_measured(c, &at, &mut s.measured)
+}
+
+/// Checks a sample's measured slices (named `at` in errors) and resolves
+/// their files: one configuration each, no file twice, a pixel size here
+/// or in the slice's sidecar.
+fn check_measured(c: &Checker, at: &str, measured: &mut [MeasuredSection]) -> Result<(), ProjectError> {
+    let mut slices: Vec<((f64, f64), PathBuf)> = Vec::new();
+    for m in measured.iter_mut() {
+        c.existing(&format!("{at} measured file"), &mut m.file)?;
+        let cfg = parse_configs(&m.config).map_err(|e| c.key(&format!("{at} measured config"), e.to_string()))?;
+        if cfg.len() != 1 {
+            return Err(c.key(&format!("{at} measured config"), "one θi/θo pair per measured slice".into()));
+        }
+        // One slice given twice would count as two configurations in the fit.
+        let file = crate::io::file_key(&m.file);
+        if let Some((cfg, _)) = slices.iter().find(|(_, f)| *f == file) {
+            return Err(c.key(
+                &format!("{at} measured"),
+                format!("{} is given twice (at {}/{} and {})", m.file.display(), cfg.0, cfg.1, m.config),
+            ));
+        }
+        slices.push((cfg[0], file));
+    }
+    for m in measured.iter() {
+        // Without pixel_mm here the slice's sidecar must give it; the
+        // message names this key, not the stage's --measured-pixel-mm.
+        if m.pixel_mm.is_none() {
+            match crate::bssrdf::sidecar_pixel_mm(&m.file) {
+                Ok(Some(_)) => {}
+                Ok(None) => {
+                    return Err(c.key(
+                        &format!("{at} measured pixel_mm"),
+                        format!(
+                            "{}: pixel size unknown; set pixel_mm = … (mm) in this [[sample.measured]] \
+                             entry, or put {{\"pixel_mm\": …}} in {}.json",
+                            m.file.display(),
+                            m.file.display()
+                        ),
+                    ));
+                }
+                Err(e) => return Err(c.key(&format!("{at} measured pixel_mm"), e.to_string())),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The `[bssrdf]` configurations (none without the section), checked: a
+/// stop rule, and every measured slice's configuration among them.
+fn check_bssrdf(c: &Checker, file: &ProjectFile) -> Result<Vec<(f64, f64)>, ProjectError> {
+    let mut bssrdf_configs = Vec::new();
+    if let Some(b) = &file.bssrdf {
+        bssrdf_configs = parse_configs(b.configs.as_deref().unwrap_or("45/0"))
+            .map_err(|e| c.key("[bssrdf] configs", e.to_string()))?;
+        if b.paths.is_none() && b.rel_error.is_none() && b.time_s.is_none() {
+            return Err(c.key("[bssrdf]", "give a stop rule: paths, rel_error or time_s".into()));
+        }
+        for s in &file.sample {
+            for m in &s.measured {
+                let cfg = parse_configs(&m.config).map_err(|e| c.key("[[sample.measured]] config", e.to_string()))?[0];
+                if !bssrdf_configs.contains(&cfg) {
+                    return Err(c.key(
+                        &format!("[[sample]] {} measured config", s.name),
+                        format!("{:?} is not among [bssrdf] configs", m.config),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(bssrdf_configs)
+}
+
+/// Resolves `[calibration]`'s images pattern and checks its truth, a
+/// camera.json in `lucent calibrate`'s format.
+fn check_calibration(c: &Checker, cal: &mut CalibrationSection) -> Result<(), ProjectError> {
+    let p = c.resolve(Path::new(&cal.images));
+    cal.images = p.to_string_lossy().into_owned();
+    if let Some(t) = &mut cal.truth {
+        c.existing("[calibration] truth", t)?;
+        let text =
+            crate::io::read_text(&*t).map_err(|e| c.key("[calibration] truth", format!("{}: {e}", t.display())))?;
+        if serde_json::from_str::<lucent_calib::camera::Calibration>(&text).is_err() {
+            return Err(c.key(
+                "[calibration] truth",
+                format!("{}: not a camera.json in `lucent calibrate`'s format", t.display()),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks the `[[colour]]` sections (one per camera, their chart photos and
+/// truths) and each sample's camera (a `[[colour]]` camera, with a photo to
+/// develop).
+fn check_colour(c: &Checker, file: &mut ProjectFile) -> Result<(), ProjectError> {
+    let mut cameras = std::collections::HashSet::new();
+    for col in &mut file.colour {
+        if let Err(reason) = folder_name(&col.camera) {
+            return Err(c.key("[[colour]] camera", format!("{:?}: {reason}", col.camera)));
+        }
+        if !cameras.insert(col.camera.clone()) {
+            return Err(c.key("[[colour]] camera", format!("{:?}: two [[colour]] sections name it", col.camera)));
+        }
+        c.existing(&format!("[[colour]] {} image", col.camera), &mut col.image)?;
+        if let Some(t) = &mut col.truth {
+            let k = format!("[[colour]] {} truth", col.camera);
+            c.existing(&k, t)?;
+            crate::synth::ColourTruth::load(t).map_err(|e| c.key(&k, e.to_string()))?;
+        }
+    }
+    for s in &file.sample {
+        if let Some(cam) = &s.camera {
+            if !cameras.contains(cam) {
+                return Err(c.key(
+                    &format!("[[sample]] {} camera", s.name),
+                    format!("{cam:?} is not a [[colour]] camera (its ccm.json develops the photos)"),
+                ));
+            }
+            if s.photo.is_none() && s.empty_board.is_none() {
+                return Err(c.key(&format!("[[sample]] {} camera", s.name), "there is no photo to develop".into()));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks `[fit]` (free parameters it knows) against the `samples` (one
+/// valid pixel size per sample's measured slices).
+fn check_fit(c: &Checker, f: &FitSection, samples: &[SampleSection]) -> Result<(), ProjectError> {
+    if f.free.is_empty() {
+        return Err(c.key("[fit] free", "name at least one parameter, e.g. [\"weight_percent\"]".into()));
+    }
+    for name in &f.free {
+        let base = name.split('@').next().unwrap_or_default();
+        let particle_ok = name.split_once('@').is_none_or(|(_, k)| k.parse::<usize>().is_ok());
+        if !["weight_percent", "diameter_um", "real_part_n"].contains(&base) || !particle_ok {
+            return Err(c.key(
+                "[fit] free",
+                format!("{name:?}: expected weight_percent, diameter_um or real_part_n (NAME@K for particle type K)"),
+            ));
+        }
+    }
+    for smp in samples {
+        let px: Vec<Option<f64>> = smp.measured.iter().map(|m| m.pixel_mm).collect();
+        if px.windows(2).any(|w| w[0] != w[1]) {
+            return Err(c.key(
+                &format!("[[sample]] {} measured pixel_mm", smp.name),
+                "the fit takes one pixel size for all of a sample's measured slices".into(),
+            ));
+        }
+        if let Some(Some(p)) = px.first()
+            && !(*p > 0.0 && p.is_finite())
+        {
+            return Err(c.key(
+                &format!("[[sample]] {} measured pixel_mm", smp.name),
+                format!("must be finite and > 0, got {p}"),
+            ));
+        }
+    }
+    Ok(())
 }

@@ -711,13 +711,55 @@ fn compare_section(
     fitted_vs_truth: &[FittedVsTruth],
     sj: &mut Metrics,
 ) -> Result<Option<String>, ReportError> {
-    let mut h = String::new();
     let Some(m) =
         read_json::<crate::compare::Report>(&CompareFiles::in_dir(&dirs.image).metrics, "a compare metrics.json")?
     else {
         return Ok(None);
     };
-    h.push_str("<h3>Photo | render | difference</h3>");
+    let mut h = String::from("<h3>Photo | render | difference</h3>");
+    h.push_str(&compare_metrics_table(&m));
+    if let Some(n) = &m.noise {
+        h.push_str(&noise_paragraphs(n));
+    }
+    // The object's pixels alone (compare/NAME/object/, the render's object layer).
+    let object =
+        read_json::<crate::compare::Report>(&CompareFiles::in_dir(&dirs.object).metrics, "a compare metrics.json")?;
+    if let Some(o) = &object
+        && let Some(n) = &o.noise
+    {
+        h.push_str(&object_paragraph(o, n));
+    }
+    // Which twin is closer, over the whole image and over the object; the
+    // loop's verdict is the object's (where the twins differ), else the image's.
+    let regions: Vec<(&str, &crate::compare::Report)> =
+        std::iter::once(("the whole image", &m)).chain(object.as_ref().map(|o| ("the object's pixels", o))).collect();
+    let mut verdict: Option<(&str, &crate::compare::noise::PairedReport)> = None;
+    for (region, r) in &regions {
+        let Some(t) = &r.twins else { continue };
+        h.push_str(&twins_table(region, r, t));
+        h.push_str(&paired_test_paragraph(&t.paired));
+        verdict = Some((region, &t.paired));
+    }
+    // The loop against its known truth (truth_recipe, read by the report only).
+    if let (Some(t_path), false, Some((region, paired))) = (&smp.truth_recipe, fitted_vs_truth.is_empty(), verdict) {
+        h.push_str(&loop_against_truth(t_path, fitted_vs_truth, region, paired, sj));
+    }
+    if let Some(o) = &object {
+        sj.insert("compare_object".into(), trim(&to_value(o), 64));
+    }
+    // The triplet (with two twins: both, under one scale) is in the answer at the top.
+    let _ = write!(
+        h,
+        "<p class=\"note\">The photo | render | difference picture{} is at the top of the page.</p>",
+        if m.twins.is_some() { " of both twins" } else { "" }
+    );
+    sj.insert("compare".into(), trim(&to_value(&m), 64));
+    Ok(Some(h))
+}
+
+/// The comparison's metrics table (as calibrated and, when refined, after
+/// ECC refinement) and the pixels it is over.
+fn compare_metrics_table(m: &crate::compare::Report) -> String {
     let row = |label: &str, x: &crate::compare::Metrics| {
         vec![
             label.to_string(),
@@ -733,7 +775,7 @@ fn compare_section(
     if let Some(r) = &m.refined {
         rows.push(row("after ECC refinement", &r.metrics));
     }
-    h.push_str(&table(&["", "RMSE", "RMSE R", "RMSE G", "RMSE B", "SSIM (Y)", "SSIM (mean RGB)"], &rows));
+    let mut h = table(&["", "RMSE", "RMSE R", "RMSE G", "RMSE B", "SSIM (Y)", "SSIM (mean RGB)"], &rows);
     let _ = write!(
         h,
         "<p>Over {} pixels ({}: {}).</p>",
@@ -741,193 +783,200 @@ fn compare_section(
         esc(&m.mask.source),
         esc(m.mask.path.as_deref().unwrap_or("the whole image"))
     );
-    if let Some(n) = &m.noise {
-        let _ = write!(
-            h,
-            "<p>Model RMSE with the render's and the photo's noise removed: {} (95 % interval {} – {}); noise \
-                     floor {} (the RMSE a perfect twin would show at this noise); photo variance: {}.</p>",
-            num(n.total.model_rmse, e4),
-            num(n.total.ci95[0], e4),
-            num(n.total.ci95[1], e4),
-            num(n.total.noise_floor, e4),
-            esc(&n.photo_variance)
-        );
-        if let Some(pn) = &n.photo_noise {
-            let model = |m: &lucent_calib::noise::NoiseModel| {
-                format!(
-                    "a = {} / {} / {}, b = {} / {} / {} (R / G / B)",
-                    num(m.a[0], e4),
-                    num(m.a[1], e4),
-                    num(m.a[2], e4),
-                    num(m.b[0], e4),
-                    num(m.b[1], e4),
-                    num(m.b[2], e4)
-                )
-            };
-            let _ = write!(
-                h,
-                "<p>The photo's noise model, variance = a·x + b of a raw value x (1 = white level): {}{}.</p>",
-                model(&pn.noise_model),
-                match &pn.estimated_from_image {
-                    Some(e) => format!(
-                        "; estimated from the photo itself, as a check: {} (larger where the photo has \
-                                 texture or noise of its own at the photosite scale)",
-                        model(e)
+    h
+}
+
+/// The model RMSE with the noise removed over the image, and the photo's
+/// noise model when the comparison has one.
+fn noise_paragraphs(n: &crate::compare::noise::NoiseReport) -> String {
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<p>Model RMSE with the render's and the photo's noise removed: {} (95 % interval {} – {}); noise \
+                 floor {} (the RMSE a perfect twin would show at this noise); photo variance: {}.</p>",
+        num(n.total.model_rmse, e4),
+        num(n.total.ci95[0], e4),
+        num(n.total.ci95[1], e4),
+        num(n.total.noise_floor, e4),
+        esc(&n.photo_variance)
+    );
+    if let Some(pn) = &n.photo_noise {
+        h.push_str(&photo_noise_paragraph(pn));
+    }
+    h
+}
+
+/// The photo's noise model (variance = a·x + b), and the one estimated from
+/// the photo itself when there is one.
+fn photo_noise_paragraph(pn: &crate::compare::photo_noise::PhotoVarianceFile) -> String {
+    let model = |m: &lucent_calib::noise::NoiseModel| {
+        format!(
+            "a = {} / {} / {}, b = {} / {} / {} (R / G / B)",
+            num(m.a[0], e4),
+            num(m.a[1], e4),
+            num(m.a[2], e4),
+            num(m.b[0], e4),
+            num(m.b[1], e4),
+            num(m.b[2], e4)
+        )
+    };
+    format!(
+        "<p>The photo's noise model, variance = a·x + b of a raw value x (1 = white level): {}{}.</p>",
+        model(&pn.noise_model),
+        match &pn.estimated_from_image {
+            Some(e) => format!(
+                "; estimated from the photo itself, as a check: {} (larger where the photo has \
+                         texture or noise of its own at the photosite scale)",
+                model(e)
+            ),
+            None => String::new(),
+        }
+    )
+}
+
+/// The metrics over the object's pixels alone (`o`, with its noise `n`),
+/// with a warning when the interval rests on too few blocks.
+fn object_paragraph(o: &crate::compare::Report, n: &crate::compare::noise::NoiseReport) -> String {
+    format!(
+        "<p>Over the object's {} pixels alone ({}): RMSE {}, model RMSE {} (95 % interval {} – {}), noise \
+                 floor {}, SSIM (Y) {}{}.</p>",
+        o.mask.included_pixels,
+        esc(&o.mask.source),
+        num(o.as_calibrated.rmse, e4),
+        num(n.total.model_rmse, e4),
+        num(n.total.ci95[0], e4),
+        num(n.total.ci95[1], e4),
+        num(n.total.noise_floor, e4),
+        num(o.as_calibrated.ssim.y, f4),
+        if n.blocks < crate::compare::noise::MIN_BLOCKS {
+            format!(
+                "; the interval rests on {} blocks of {} px, fewer than {}: too few to trust",
+                n.blocks,
+                n.block_px,
+                crate::compare::noise::MIN_BLOCKS
+            )
+        } else {
+            String::new()
+        }
+    )
+}
+
+/// The heading and table of the two twins over `region` (`r` the recipe's
+/// twin A, `t` the fitted twin B): model RMSE with the noise removed, SSIM
+/// and SSIM at zero render noise.
+fn twins_table(region: &str, r: &crate::compare::Report, t: &crate::compare::TwinsReport) -> String {
+    let zero = |z: &Option<crate::compare::noise::SsimAtZeroNoise>| {
+        z.as_ref().map_or_else(
+            || "—".to_string(),
+            |z| format!("{} ({} – {})", num(z.at_zero_noise, f4), num(z.ci95[0], f4), num(z.ci95[1], f4)),
+        )
+    };
+    let twin = |label: &str, n: Option<&crate::compare::noise::NoiseReport>, ssim: f64, z: String| {
+        vec![
+            label.to_string(),
+            n.map_or_else(
+                || "—".into(),
+                |n| {
+                    format!(
+                        "{} ({} – {})",
+                        num(n.total.model_rmse, e4),
+                        num(n.total.ci95[0], e4),
+                        num(n.total.ci95[1], e4)
+                    )
+                },
+            ),
+            num(ssim, f4),
+            z,
+        ]
+    };
+    let mut h = format!("<h3>Which twin is closer over {region}: the recipe's (A) or the fitted one (B)</h3>");
+    h.push_str(&table(
+        &["twin", "model RMSE, noise removed (95 %)", "SSIM (Y)", "SSIM (Y) at zero render noise (95 %)"],
+        &[
+            twin("A: recipe", r.noise.as_ref(), r.as_calibrated.ssim.y, zero(&r.ssim_at_zero_noise)),
+            twin("B: fitted", Some(&t.noise_b), t.metrics_b.ssim.y, zero(&t.ssim_at_zero_noise_b)),
+        ],
+    ));
+    h
+}
+
+/// The paired test of the two twins' means and its verdict, in bold.
+fn paired_test_paragraph(p: &crate::compare::noise::PairedReport) -> String {
+    format!(
+        "<p>Paired test of the means over {c} × {c} px cells, {} blocks{}: mean squared-error difference A − B {} ± {} \
+         (t {}, p {}): <b>{}</b>.</p>",
+        p.blocks,
+        if p.blocks < crate::compare::noise::MIN_BLOCKS {
+            format!(" (fewer than {}: its standard error is itself uncertain)", crate::compare::noise::MIN_BLOCKS)
+        } else {
+            String::new()
+        },
+        num(p.squared_difference, e4),
+        num(p.standard_error, e4),
+        num(p.z, |x| format!("{x:.2}")),
+        num(p.p_value, |x| format!("{x:.2e}")),
+        esc(&p.verdict.replace('A', "A (recipe)").replace('B', "B (fitted)")),
+        c = p.cell_px
+    )
+}
+
+/// The loop against its known truth (`truth_recipe` at `t_path`): each
+/// fitted parameter beside its truth, and whether the compare stage names
+/// the fitted twin closer over `region` at p < 0.01 (also into `sj`).
+fn loop_against_truth(
+    t_path: &Path,
+    fitted_vs_truth: &[FittedVsTruth],
+    region: &str,
+    paired: &crate::compare::noise::PairedReport,
+    sj: &mut Metrics,
+) -> String {
+    let fits: Vec<String> = fitted_vs_truth
+        .iter()
+        .map(|(name, v, ci, k)| {
+            format!(
+                "{} truth {}, recovered {}{}",
+                esc(name),
+                num(*k, f4),
+                v.map_or_else(|| "—".into(), |v| num(v, f4)),
+                match ci {
+                    Some([lo, hi]) => format!(
+                        " (95 % {} – {}: the truth {} it)",
+                        num(*lo, f4),
+                        num(*hi, f4),
+                        if *lo <= *k && *k <= *hi { "is in" } else { "is outside" }
                     ),
                     None => String::new(),
                 }
-            );
-        }
-    }
-    // The object's pixels alone (compare/NAME/object/, the render's object layer).
-    let object =
-        read_json::<crate::compare::Report>(&CompareFiles::in_dir(&dirs.object).metrics, "a compare metrics.json")?;
-    if let Some(o) = &object
-        && let Some(n) = &o.noise
-    {
-        let _ = write!(
-            h,
-            "<p>Over the object's {} pixels alone ({}): RMSE {}, model RMSE {} (95 % interval {} – {}), noise \
-                     floor {}, SSIM (Y) {}{}.</p>",
-            o.mask.included_pixels,
-            esc(&o.mask.source),
-            num(o.as_calibrated.rmse, e4),
-            num(n.total.model_rmse, e4),
-            num(n.total.ci95[0], e4),
-            num(n.total.ci95[1], e4),
-            num(n.total.noise_floor, e4),
-            num(o.as_calibrated.ssim.y, f4),
-            if n.blocks < crate::compare::noise::MIN_BLOCKS {
-                format!(
-                    "; the interval rests on {} blocks of {} px, fewer than {}: too few to trust",
-                    n.blocks,
-                    n.block_px,
-                    crate::compare::noise::MIN_BLOCKS
-                )
-            } else {
-                String::new()
-            }
-        );
-    }
-    // Which twin is closer, over the whole image and over the object; the
-    // loop's verdict is the object's (where the twins differ), else the image's.
-    let regions: Vec<(&str, &crate::compare::Report)> =
-        std::iter::once(("the whole image", &m)).chain(object.as_ref().map(|o| ("the object's pixels", o))).collect();
-    let mut verdict: Option<(&str, &crate::compare::noise::PairedReport)> = None;
-    for (region, r) in &regions {
-        let Some(t) = &r.twins else { continue };
-        let zero = |z: &Option<crate::compare::noise::SsimAtZeroNoise>| {
-            z.as_ref().map_or_else(
-                || "—".to_string(),
-                |z| format!("{} ({} – {})", num(z.at_zero_noise, f4), num(z.ci95[0], f4), num(z.ci95[1], f4)),
             )
-        };
-        let twin = |label: &str, n: Option<&crate::compare::noise::NoiseReport>, ssim: f64, z: String| {
-            vec![
-                label.to_string(),
-                n.map_or_else(
-                    || "—".into(),
-                    |n| {
-                        format!(
-                            "{} ({} – {})",
-                            num(n.total.model_rmse, e4),
-                            num(n.total.ci95[0], e4),
-                            num(n.total.ci95[1], e4)
-                        )
-                    },
-                ),
-                num(ssim, f4),
-                z,
-            ]
-        };
-        let _ = write!(h, "<h3>Which twin is closer over {region}: the recipe's (A) or the fitted one (B)</h3>");
-        h.push_str(&table(
-            &["twin", "model RMSE, noise removed (95 %)", "SSIM (Y)", "SSIM (Y) at zero render noise (95 %)"],
-            &[
-                twin("A: recipe", r.noise.as_ref(), r.as_calibrated.ssim.y, zero(&r.ssim_at_zero_noise)),
-                twin("B: fitted", Some(&t.noise_b), t.metrics_b.ssim.y, zero(&t.ssim_at_zero_noise_b)),
-            ],
-        ));
-        let _ = write!(
-                    h,
-                    "<p>Paired test of the means over {c} × {c} px cells, {} blocks{}: mean squared-error difference A − B {} ± {} \
-                     (t {}, p {}): <b>{}</b>.</p>",
-                    t.paired.blocks,
-                    if t.paired.blocks < crate::compare::noise::MIN_BLOCKS {
-                        format!(" (fewer than {}: its standard error is itself uncertain)", crate::compare::noise::MIN_BLOCKS)
-                    } else {
-                        String::new()
-                    },
-                    num(t.paired.squared_difference, e4),
-                    num(t.paired.standard_error, e4),
-                    num(t.paired.z, |x| format!("{x:.2}")),
-                    num(t.paired.p_value, |x| format!("{x:.2e}")),
-                    esc(&t.paired.verdict.replace('A', "A (recipe)").replace('B', "B (fitted)")),
-                    c = t.paired.cell_px
-                );
-        verdict = Some((region, &t.paired));
-    }
-    // The loop against its known truth (truth_recipe, read by the report only).
-    if let (Some(t_path), false, Some((region, paired))) = (&smp.truth_recipe, fitted_vs_truth.is_empty(), verdict) {
-        let fits: Vec<String> = fitted_vs_truth
-            .iter()
-            .map(|(name, v, ci, k)| {
-                format!(
-                    "{} truth {}, recovered {}{}",
-                    esc(name),
-                    num(*k, f4),
-                    v.map_or_else(|| "—".into(), |v| num(v, f4)),
-                    match ci {
-                        Some([lo, hi]) => format!(
-                            " (95 % {} – {}: the truth {} it)",
-                            num(*lo, f4),
-                            num(*hi, f4),
-                            if *lo <= *k && *k <= *hi { "is in" } else { "is outside" }
-                        ),
-                        None => String::new(),
-                    }
-                )
-            })
-            .collect();
-        let named_fitted = paired.verdict == "B is closer";
-        let met = named_fitted && paired.p_value < 0.01;
-        let _ = write!(
-            h,
-            "<p><b>The loop against its known truth</b> ({}, which no stage reads): {}; over {region} the \
-                     compare stage {} (p = {}; the demo's bar: the fitted twin named closer with p &lt; 0.01, {}).</p>",
-            esc(&t_path.display().to_string()),
-            fits.join("; "),
-            if named_fitted {
-                "names the fitted twin closer".to_string()
-            } else {
-                format!("does not name the fitted twin closer ({})", esc(&paired.verdict))
-            },
-            num(paired.p_value, |x| format!("{x:.2e}")),
-            if met { "met" } else { "not met" }
-        );
-        sj.insert(
-                    "loop".into(),
-                    json!({
-                        "truth_recipe": t_path,
-                        "parameters": fitted_vs_truth.iter().map(|(n, v, ci, k)| json!({"name": n, "truth": k, "recovered": v, "interval_95": ci})).collect::<Vec<_>>(),
-                        "region": region,
-                        "verdict": paired.verdict,
-                        "p_value": paired.p_value,
-                        "fitted_named_closer_at_p_below_0_01": met,
-                    }),
-                );
-    }
-    if let Some(o) = &object {
-        sj.insert("compare_object".into(), trim(&to_value(o), 64));
-    }
-    // The triplet (with two twins: both, under one scale) is in the answer at the top.
-    let _ = write!(
-        h,
-        "<p class=\"note\">The photo | render | difference picture{} is at the top of the page.</p>",
-        if m.twins.is_some() { " of both twins" } else { "" }
+        })
+        .collect();
+    let named_fitted = paired.verdict == "B is closer";
+    let met = named_fitted && paired.p_value < 0.01;
+    let h = format!(
+        "<p><b>The loop against its known truth</b> ({}, which no stage reads): {}; over {region} the \
+                 compare stage {} (p = {}; the demo's bar: the fitted twin named closer with p &lt; 0.01, {}).</p>",
+        esc(&t_path.display().to_string()),
+        fits.join("; "),
+        if named_fitted {
+            "names the fitted twin closer".to_string()
+        } else {
+            format!("does not name the fitted twin closer ({})", esc(&paired.verdict))
+        },
+        num(paired.p_value, |x| format!("{x:.2e}")),
+        if met { "met" } else { "not met" }
     );
-    sj.insert("compare".into(), trim(&to_value(&m), 64));
-    Ok(Some(h))
+    sj.insert(
+        "loop".into(),
+        json!({
+            "truth_recipe": t_path,
+            "parameters": fitted_vs_truth.iter().map(|(n, v, ci, k)| json!({"name": n, "truth": k, "recovered": v, "interval_95": ci})).collect::<Vec<_>>(),
+            "region": region,
+            "verdict": paired.verdict,
+            "p_value": paired.p_value,
+            "fitted_named_closer_at_p_below_0_01": met,
+        }),
+    );
+    h
 }
 
 /// The camera calibration (stage calibrate's `files`), beside the known
@@ -1251,9 +1300,35 @@ fn answer(page: &mut Page, dirs: &CompareDirs, smp: &SampleSection) -> Result<St
         esc(&sentence)
     );
     let twins = image.twins.is_some();
-    let d = &image.display;
+    h.push_str(&difference_note(&image.display, twins, region));
+    let alt = if twins {
+        format!(
+            "{}: photo | A (recipe) render, difference | B (fitted) render, difference, one difference scale",
+            smp.name
+        )
+    } else {
+        format!("{}: photo | render | difference", smp.name)
+    };
+    h.push_str(&page.img(&image_files.triplet, &alt)?);
+    // The approximations the renders made, with their measured bias, beside the comparison that uses them.
+    h.push_str(&approximation_note(r, twins));
+    // Is the photo within each twin's predictive band (`[render] uncertainty`)?
+    if let Some(o) = object.as_ref().filter(|o| !o.bands.is_empty()) {
+        h.push_str(&band_section(page, o, &object_files, smp)?);
+    }
     let _ = write!(
         h,
+        "<p class=\"note\"><a href=\"#sample-{}\">The details per stage ↓</a></p></section>",
+        slug(&smp.name)
+    );
+    Ok(h)
+}
+
+/// How to read the answer's picture (`d`, its display scale): the columns
+/// with two twins, the difference column's colour scale and what it clips,
+/// and where the verdict's numbers are from when not the whole image.
+fn difference_note(d: &crate::compare::DisplayReport, twins: bool, region: &str) -> String {
+    format!(
         "<p class=\"why\">{}Difference column: luminance of the render minus the photo, blue = render darker, red = \
          render brighter, one colour scale ±{} for {}; {:.1} % of the pixels lie beyond it and show at full colour \
          (they are not lost: the metrics use every value).{}{}</p>",
@@ -1283,72 +1358,71 @@ fn answer(page: &mut Page, dirs: &CompareDirs, smp: &SampleSection) -> Result<St
                 " The picture shows the whole image; the verdict's numbers are over {region}, where the twins differ."
             )
         }
-    );
-    let alt = if twins {
-        format!(
-            "{}: photo | A (recipe) render, difference | B (fitted) render, difference, one difference scale",
-            smp.name
-        )
-    } else {
-        format!("{}: photo | render | difference", smp.name)
-    };
-    h.push_str(&page.img(&image_files.triplet, &alt)?);
-    // The approximations the renders made, with their measured bias, beside the comparison that uses them.
+    )
+}
+
+/// The approximations the renders compared in `r` made (once when both
+/// twins share them, else per twin or render file); empty when none.
+fn approximation_note(r: &crate::compare::Report, twins: bool) -> String {
     let approximate = &r.approximations;
-    if !approximate.is_empty() {
-        let shared = twins && approximate.len() == 2 && approximate[0].approximations == approximate[1].approximations;
-        h.push_str("<p class=\"why approximation\"><b>The renders approximate</b>: ");
-        let lists: Vec<String> = if shared {
-            vec![approximate[0].approximations.join("; ")]
-        } else {
-            approximate
-                .iter()
-                .map(|a| {
-                    // The twin's name where the render is one of the compared twins, else its file.
-                    let name = if twins && a.render == r.render {
-                        "A (recipe)".to_string()
-                    } else if r.twins.as_ref().is_some_and(|t| t.render_b == a.render) {
-                        "B (fitted)".to_string()
-                    } else {
-                        a.render.clone()
-                    };
-                    format!("{name}: {}", a.approximations.join("; "))
-                })
-                .collect()
-        };
-        let _ = write!(
-            h,
-            "{}. A difference to the photo on the object includes that bias{}.</p>",
-            esc(&lists.join(" — ")),
-            if shared { "; both twins share it, so which is closer is not moved by it as much" } else { "" }
-        );
+    if approximate.is_empty() {
+        return String::new();
     }
-    // Is the photo within each twin's predictive band (`[render] uncertainty`)?
-    if let Some(o) = object.as_ref().filter(|o| !o.bands.is_empty()) {
-        let names = ["A (recipe)", "B (fitted)"];
-        h.push_str("<h3>Within the twin's predictive band?</h3><ul>");
-        for (k, b) in o.bands.iter().enumerate() {
-            let name = if o.twins.is_some() { names[k] } else { "the twin" };
-            let _ = write!(
-                h,
-                "<li><b>{}: {}</b>. {}</li>",
-                esc(name),
-                if b.within { "within" } else { "outside" },
-                esc(&b.statement)
-            );
-        }
-        h.push_str(
-            "</ul><p class=\"why\">The band is what the twin predicts for the object's mean given the recipe's \
-             uncertain inputs (the fitted twin's: the fit's standard errors), the render's Monte Carlo error and \
-             the photo's noise; outside it, the difference is more than those uncertainties explain.</p>",
-        );
-        h.push_str(&page.img(&object_files.band_png, &format!("{}: photo against the twins' bands", smp.name))?);
-    }
+    let shared = twins && approximate.len() == 2 && approximate[0].approximations == approximate[1].approximations;
+    let mut h = String::from("<p class=\"why approximation\"><b>The renders approximate</b>: ");
+    let lists: Vec<String> = if shared {
+        vec![approximate[0].approximations.join("; ")]
+    } else {
+        approximate
+            .iter()
+            .map(|a| {
+                // The twin's name where the render is one of the compared twins, else its file.
+                let name = if twins && a.render == r.render {
+                    "A (recipe)".to_string()
+                } else if r.twins.as_ref().is_some_and(|t| t.render_b == a.render) {
+                    "B (fitted)".to_string()
+                } else {
+                    a.render.clone()
+                };
+                format!("{name}: {}", a.approximations.join("; "))
+            })
+            .collect()
+    };
     let _ = write!(
         h,
-        "<p class=\"note\"><a href=\"#sample-{}\">The details per stage ↓</a></p></section>",
-        slug(&smp.name)
+        "{}. A difference to the photo on the object includes that bias{}.</p>",
+        esc(&lists.join(" — ")),
+        if shared { "; both twins share it, so which is closer is not moved by it as much" } else { "" }
     );
+    h
+}
+
+/// Whether the photo is within each twin's predictive band over the object
+/// (`o`, whose bands are not empty), with the band picture.
+fn band_section(
+    page: &mut Page,
+    o: &crate::compare::Report,
+    object_files: &CompareFiles,
+    smp: &SampleSection,
+) -> Result<String, ReportError> {
+    let names = ["A (recipe)", "B (fitted)"];
+    let mut h = String::from("<h3>Within the twin's predictive band?</h3><ul>");
+    for (k, b) in o.bands.iter().enumerate() {
+        let name = if o.twins.is_some() { names[k] } else { "the twin" };
+        let _ = write!(
+            h,
+            "<li><b>{}: {}</b>. {}</li>",
+            esc(name),
+            if b.within { "within" } else { "outside" },
+            esc(&b.statement)
+        );
+    }
+    h.push_str(
+        "</ul><p class=\"why\">The band is what the twin predicts for the object's mean given the recipe's \
+         uncertain inputs (the fitted twin's: the fit's standard errors), the render's Monte Carlo error and \
+         the photo's noise; outside it, the difference is more than those uncertainties explain.</p>",
+    );
+    h.push_str(&page.img(&object_files.band_png, &format!("{}: photo against the twins' bands", smp.name))?);
     Ok(h)
 }
 

@@ -984,49 +984,11 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
 
     // --- material and object
     let material = match &file.material {
-        Some(m) => {
-            let (medium, mut eta, mut summary, size, surface) = build_material(&ctx, m, &mut warnings)?;
-            for b in 0..3 {
-                let (s, a) = (medium.mu_s_per_m[b], medium.mu_a_per_m[b]);
-                if !lucent_render::slab::valid_coefficients(s, a) {
-                    let key = m.mu_s().map_or("mu_s_per_m", |(_, key)| key);
-                    return Err(ctx.key("material", key, KeyProblem::Coefficients { band: b, s, a }));
-                }
-            }
-            let rough = build_roughness(&ctx, m, surface)?;
-            if let Some((_, desc)) = &rough {
-                summary.boundary.clone_from(desc);
-            }
-            if m.dispersion == Some(false) {
-                // One index for all bands (their mean), so that a path can
-                // carry all three bands (spectral MIS in the renderer).
-                eta = [(eta[0] + eta[1] + eta[2]) / 3.0; 3];
-                summary.n = eta;
-                summary.dispersion = false;
-            }
-            Some((medium, eta, summary, size, rough))
-        }
+        Some(m) => Some(checked_material(&ctx, m, &mut warnings)?),
         None => None,
     };
     let (object, object_desc, mesh_report, bounds, top_centre) = match (&file.object, material) {
-        (Some(o), Some((medium, eta, summary, size_from_recipe, rough))) => {
-            let (triangles, desc, report) =
-                build_object_triangles(&ctx, o, size_from_recipe, scene_json.as_ref(), &mut warnings)?;
-            let accel = Accel::new(&triangles);
-            let (lo, hi) = accel.bounds();
-            let scene_error = |source| SceneFileError::Scene { path: path.to_path_buf(), source };
-            let interface = match rough {
-                Some((surface, _)) => Interface::new(surface).map_err(|e| scene_error(e.into()))?,
-                None => Interface::Smooth,
-            };
-            let Bands { mu_s_per_m, mu_a_per_m, phase } = medium;
-            let [p0, p1, p2] = phase;
-            let band =
-                |b: usize, phase| Medium { mu_s_per_m: mu_s_per_m[b], mu_a_per_m: mu_a_per_m[b], phase, n: eta[b] };
-            let object = Object::new(accel, interface, [band(0, p0), band(1, p1), band(2, p2)]).map_err(scene_error)?;
-            let top = DVec3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z);
-            (Some((object, summary)), Some(desc), report, Some([lo.to_array(), hi.to_array()]), Some(top))
-        }
+        (Some(o), Some(material)) => placed_object(&ctx, o, material, scene_json.as_ref(), &mut warnings)?,
         (Some(_), None) => return Err(ctx.section("material", SectionProblem::ObjectNeedsMaterial)),
         (None, Some(_)) => return Err(ctx.section("object", SectionProblem::MaterialNeedsObject)),
         (None, None) => (None, None, None, None, None),
@@ -1044,80 +1006,11 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
 
     // --- where the camera is: outside the object, inside the finite sphere
     let eye = camera.position();
-    if let (Some(o), Some([lo, hi])) = (&file.object, bounds)
-        && (0..3).all(|k| lo[k] < eye[k] && eye[k] < hi[k])
-    {
-        let key = if o.transform.is_some() {
-            "transform"
-        } else if o.mesh.is_some() {
-            "unit_scale_m"
-        } else {
-            "size_mm"
-        };
-        let hint = match key {
-            "unit_scale_m" => "; a mesh in millimetres needs unit_scale_m = 0.001",
-            "size_mm" => "; size_mm is in millimetres",
-            _ => "; a transform places the object in metres",
-        };
-        let problem = KeyProblem::CameraInsideObject { lo, hi, camera: eye.to_array(), hint };
-        return Err(ctx.key("object", key, problem));
-    }
-    if let (Some(c), Some(r)) = (centre, radius) {
-        let distance = (eye - DVec3::from_array(c)).length();
-        if distance >= r {
-            let problem = KeyProblem::CameraOutsideSphere { radius: r, camera: eye.to_array(), centre: c, distance };
-            return Err(ctx.key("environment", "radius_m", problem));
-        }
-    }
+    check_camera_place(&ctx, file.object.as_ref(), eye, bounds, centre.zip(radius))?;
 
     // --- render settings
     let r = &file.render;
-    let mut settings = Settings::default();
-    if let Some(spp) = r.spp {
-        if spp == 0 {
-            return Err(ctx.key("render", "spp", KeyProblem::Zero));
-        }
-        settings.spp = spp;
-    }
-    if let Some(t) = r.time_s {
-        if !(t > 0.0 && t.is_finite()) {
-            return Err(ctx.key("render", "time_s", KeyProblem::NotPositive { value: t }));
-        }
-        settings.time_budget_s = Some(t);
-    }
-    if let Some(s) = r.seed {
-        settings.seed = s;
-    }
-    if let Some(p) = r.spp_per_pass {
-        if p == 0 {
-            return Err(ctx.key("render", "spp_per_pass", KeyProblem::Zero));
-        }
-        settings.spp_per_pass = p;
-    }
-    if let Some(b) = r.spectral_mis {
-        settings.spectral_mis = b;
-    }
-    if let Some(b) = r.band_branches {
-        settings.band_branches = b;
-    }
-    if let Some(b) = r.medium_connections {
-        settings.medium_nee = b;
-    }
-    if let Some(b) = r.specular_chains {
-        settings.specular_chains = b;
-    }
-    if let Some(b) = r.sphere_jumps {
-        settings.sphere_jumps = b;
-    }
-    if let Some(k) = r.sampling {
-        settings.sampling = k.into();
-    }
-    if let Some(e) = r.target_rel_error {
-        if !(e > 0.0 && e < 1.0) {
-            return Err(ctx.key("render", "target_rel_error", KeyProblem::Fraction { value: e }));
-        }
-        settings.target_rel_error = Some(e);
-    }
+    let mut settings = render_settings(&ctx, r)?;
 
     let (object, material_summary) = match object {
         Some((o, s)) => (Some(o), Some(s)),
@@ -1175,6 +1068,159 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
         (None, None) => {}
     }
     Ok(loaded)
+}
+
+/// A checked `[material]`: its bands, its index per band, its summary, the
+/// object's size from the recipe and its boundary ([`checked_material`]).
+type CheckedMaterial = (Bands, [f64; 3], MaterialSummary, Option<[f64; 3]>, Option<(Microsurface, String)>);
+
+/// `[material]` `m` built and checked: valid coefficients in every band, its
+/// boundary, and one index for all bands without dispersion.
+fn checked_material(
+    ctx: &Ctx,
+    m: &MaterialSection,
+    warnings: &mut Vec<String>,
+) -> Result<CheckedMaterial, SceneFileError> {
+    let (medium, mut eta, mut summary, size, surface) = build_material(ctx, m, warnings)?;
+    for b in 0..3 {
+        let (s, a) = (medium.mu_s_per_m[b], medium.mu_a_per_m[b]);
+        if !lucent_render::slab::valid_coefficients(s, a) {
+            let key = m.mu_s().map_or("mu_s_per_m", |(_, key)| key);
+            return Err(ctx.key("material", key, KeyProblem::Coefficients { band: b, s, a }));
+        }
+    }
+    let rough = build_roughness(ctx, m, surface)?;
+    if let Some((_, desc)) = &rough {
+        summary.boundary.clone_from(desc);
+    }
+    if m.dispersion == Some(false) {
+        // One index for all bands (their mean), so that a path can
+        // carry all three bands (spectral MIS in the renderer).
+        eta = [(eta[0] + eta[1] + eta[2]) / 3.0; 3];
+        summary.n = eta;
+        summary.dispersion = false;
+    }
+    Ok((medium, eta, summary, size, rough))
+}
+
+/// The object placed in the scene ([`placed_object`]): the object with its
+/// material's summary, its description, its mesh report, its bounds (m)
+/// and the centre of its top.
+type PlacedObject =
+    (Option<(Object, MaterialSummary)>, Option<String>, Option<mesh::MeshReport>, Option<[[f64; 3]; 2]>, Option<DVec3>);
+
+/// `[object]` `o` of `material`: its triangles in their BVH, its boundary
+/// and its medium per band.
+fn placed_object(
+    ctx: &Ctx,
+    o: &ObjectSection,
+    (medium, eta, summary, size_from_recipe, rough): CheckedMaterial,
+    scene_json: Option<&SceneDescription>,
+    warnings: &mut Vec<String>,
+) -> Result<PlacedObject, SceneFileError> {
+    let (triangles, desc, report) = build_object_triangles(ctx, o, size_from_recipe, scene_json, warnings)?;
+    let accel = Accel::new(&triangles);
+    let (lo, hi) = accel.bounds();
+    let scene_error = |source| SceneFileError::Scene { path: ctx.path.to_path_buf(), source };
+    let interface = match rough {
+        Some((surface, _)) => Interface::new(surface).map_err(|e| scene_error(e.into()))?,
+        None => Interface::Smooth,
+    };
+    let Bands { mu_s_per_m, mu_a_per_m, phase } = medium;
+    let [p0, p1, p2] = phase;
+    let band = |b: usize, phase| Medium { mu_s_per_m: mu_s_per_m[b], mu_a_per_m: mu_a_per_m[b], phase, n: eta[b] };
+    let object = Object::new(accel, interface, [band(0, p0), band(1, p1), band(2, p2)]).map_err(scene_error)?;
+    let top = DVec3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z);
+    Ok((Some((object, summary)), Some(desc), report, Some([lo.to_array(), hi.to_array()]), Some(top)))
+}
+
+/// The camera at `eye` must be outside the object (`o`, within `bounds`)
+/// and inside the finite environment sphere (`sphere`: centre, radius).
+fn check_camera_place(
+    ctx: &Ctx,
+    o: Option<&ObjectSection>,
+    eye: DVec3,
+    bounds: Option<[[f64; 3]; 2]>,
+    sphere: Option<([f64; 3], f64)>,
+) -> Result<(), SceneFileError> {
+    if let (Some(o), Some([lo, hi])) = (o, bounds)
+        && (0..3).all(|k| lo[k] < eye[k] && eye[k] < hi[k])
+    {
+        let key = if o.transform.is_some() {
+            "transform"
+        } else if o.mesh.is_some() {
+            "unit_scale_m"
+        } else {
+            "size_mm"
+        };
+        let hint = match key {
+            "unit_scale_m" => "; a mesh in millimetres needs unit_scale_m = 0.001",
+            "size_mm" => "; size_mm is in millimetres",
+            _ => "; a transform places the object in metres",
+        };
+        let problem = KeyProblem::CameraInsideObject { lo, hi, camera: eye.to_array(), hint };
+        return Err(ctx.key("object", key, problem));
+    }
+    if let Some((c, r)) = sphere {
+        let distance = (eye - DVec3::from_array(c)).length();
+        if distance >= r {
+            let problem = KeyProblem::CameraOutsideSphere { radius: r, camera: eye.to_array(), centre: c, distance };
+            return Err(ctx.key("environment", "radius_m", problem));
+        }
+    }
+    Ok(())
+}
+
+/// The renderer's settings from `[render]` `r` (the defaults where it
+/// gives none), each checked.
+fn render_settings(ctx: &Ctx, r: &RenderSection) -> Result<Settings, SceneFileError> {
+    let mut settings = Settings::default();
+    if let Some(spp) = r.spp {
+        if spp == 0 {
+            return Err(ctx.key("render", "spp", KeyProblem::Zero));
+        }
+        settings.spp = spp;
+    }
+    if let Some(t) = r.time_s {
+        if !(t > 0.0 && t.is_finite()) {
+            return Err(ctx.key("render", "time_s", KeyProblem::NotPositive { value: t }));
+        }
+        settings.time_budget_s = Some(t);
+    }
+    if let Some(s) = r.seed {
+        settings.seed = s;
+    }
+    if let Some(p) = r.spp_per_pass {
+        if p == 0 {
+            return Err(ctx.key("render", "spp_per_pass", KeyProblem::Zero));
+        }
+        settings.spp_per_pass = p;
+    }
+    if let Some(b) = r.spectral_mis {
+        settings.spectral_mis = b;
+    }
+    if let Some(b) = r.band_branches {
+        settings.band_branches = b;
+    }
+    if let Some(b) = r.medium_connections {
+        settings.medium_nee = b;
+    }
+    if let Some(b) = r.specular_chains {
+        settings.specular_chains = b;
+    }
+    if let Some(b) = r.sphere_jumps {
+        settings.sphere_jumps = b;
+    }
+    if let Some(k) = r.sampling {
+        settings.sampling = k.into();
+    }
+    if let Some(e) = r.target_rel_error {
+        if !(e > 0.0 && e < 1.0) {
+            return Err(ctx.key("render", "target_rel_error", KeyProblem::Fraction { value: e }));
+        }
+        settings.target_rel_error = Some(e);
+    }
+    Ok(settings)
 }
 
 /// Why the similarity approximation cannot be applied.
@@ -1457,6 +1503,98 @@ fn hg_phases(ctx: &Ctx, g: [f64; 3]) -> Result<[Phase; 3], SceneFileError> {
     Ok([one(0)?, one(1)?, one(2)?])
 }
 
+/// The object's mesh in metres: `[object] mesh` (scaled by `unit_scale_m`,
+/// with its report) or a plaque box of `size_mm`, else of the recipe's
+/// size; with its description.
+fn object_mesh(
+    ctx: &Ctx,
+    o: &ObjectSection,
+    size_from_recipe: Option<[f64; 3]>,
+) -> Result<(mesh::Mesh, String, Option<mesh::MeshReport>), SceneFileError> {
+    Ok(match &o.mesh {
+        Some(p) => {
+            let scale = o.unit_scale_m.unwrap_or(1.0);
+            if !(scale > 0.0 && scale.is_finite()) {
+                return Err(ctx.key("object", "unit_scale_m", KeyProblem::NotPositive { value: scale }));
+            }
+            let full = ctx.resolve(p);
+            let (m, report) = mesh::load(&full, scale)
+                .map_err(|source| SceneFileError::Mesh { path: ctx.path.to_path_buf(), source })?;
+            (m, format!("mesh {}", full.display()), Some(report))
+        }
+        None => {
+            let size = match (o.size_mm, size_from_recipe) {
+                (Some(s), _) => s.map(|v| v * 1e-3),
+                (None, Some(s)) => s,
+                (None, None) => return Err(ctx.section("object", SectionProblem::NoObjectSize)),
+            };
+            if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(ctx.key("object", "size_mm", KeyProblem::BoxSize { sides_m: size }));
+            }
+            (
+                mesh::plaque_box(size[0], size[1], size[2]),
+                format!("plaque box {:.2} × {:.2} × {:.2} mm", size[0] * 1e3, size[1] * 1e3, size[2] * 1e3),
+                None,
+            )
+        }
+    })
+}
+
+/// `[object] transform` `t` checked for the mesh `mesh_obj`: finite, affine,
+/// invertible, not a mirror, and leaving the object at least
+/// [`MIN_OBJECT_SIZE_M`] across.
+fn checked_transform(ctx: &Ctx, t: [[f64; 4]; 4], mesh_obj: &mesh::Mesh) -> Result<[[f64; 4]; 4], SceneFileError> {
+    if t.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(ctx.key(
+            "object",
+            "transform",
+            KeyProblem::NotFinite { values: t.iter().flatten().copied().collect() },
+        ));
+    }
+    // An affine map that keeps a solid a solid: last row (0, 0, 0, 1),
+    // an invertible 3 × 3 part (a zero or flattening matrix would
+    // collapse the mesh to a plane, a line or a point).
+    let a = |i: usize, j: usize| t[i][j];
+    let det = a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) - a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0))
+        + a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
+    let scale = (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).map(|(i, j)| a(i, j).abs()).fold(0.0, f64::max);
+    if t[3] != [0.0, 0.0, 0.0, 1.0] || det.abs() <= 1e-9 * scale.powi(3) || scale == 0.0 {
+        return Err(ctx.key(
+            "object",
+            "transform",
+            KeyProblem::SingularTransform { determinant: det, last_row: t[3], largest: scale },
+        ));
+    }
+    if det < 0.0 {
+        return Err(ctx.key("object", "transform", KeyProblem::MirrorTransform { determinant: det }));
+    }
+    // The object after the transform: at least 1 µm across (a smaller
+    // one covers no pixel of any camera lucent renders with).
+    let size_before = (0..3)
+        .map(|k| {
+            let (lo, hi) = mesh_obj
+                .positions_m
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[k]), hi.max(p[k])));
+            hi - lo
+        })
+        .fold(0.0, f64::max);
+    let linear = det.abs().cbrt();
+    if size_before.is_finite() && size_before > 0.0 && size_before * linear < MIN_OBJECT_SIZE_M {
+        return Err(ctx.key(
+            "object",
+            "transform",
+            KeyProblem::VanishingTransform {
+                determinant: det,
+                scale: linear,
+                size_m: size_before * linear,
+                min_m: MIN_OBJECT_SIZE_M,
+            },
+        ));
+    }
+    Ok(t)
+}
+
 /// Band values of a computed spectrum; with `mie`, the band phase tables.
 fn medium_from_spectrum(
     ctx: &Ctx,
@@ -1516,33 +1654,7 @@ fn build_object_triangles(
     scene_json: Option<&SceneDescription>,
     warnings: &mut Vec<String>,
 ) -> Result<ObjectParts, SceneFileError> {
-    let (mesh_obj, desc, report) = match &o.mesh {
-        Some(p) => {
-            let scale = o.unit_scale_m.unwrap_or(1.0);
-            if !(scale > 0.0 && scale.is_finite()) {
-                return Err(ctx.key("object", "unit_scale_m", KeyProblem::NotPositive { value: scale }));
-            }
-            let full = ctx.resolve(p);
-            let (m, report) = mesh::load(&full, scale)
-                .map_err(|source| SceneFileError::Mesh { path: ctx.path.to_path_buf(), source })?;
-            (m, format!("mesh {}", full.display()), Some(report))
-        }
-        None => {
-            let size = match (o.size_mm, size_from_recipe) {
-                (Some(s), _) => s.map(|v| v * 1e-3),
-                (None, Some(s)) => s,
-                (None, None) => return Err(ctx.section("object", SectionProblem::NoObjectSize)),
-            };
-            if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
-                return Err(ctx.key("object", "size_mm", KeyProblem::BoxSize { sides_m: size }));
-            }
-            (
-                mesh::plaque_box(size[0], size[1], size[2]),
-                format!("plaque box {:.2} × {:.2} × {:.2} mm", size[0] * 1e3, size[1] * 1e3, size[2] * 1e3),
-                None,
-            )
-        }
-    };
+    let (mesh_obj, desc, report) = object_mesh(ctx, o, size_from_recipe)?;
     let lift = o.lift_m.unwrap_or(1e-6);
     if !(lift >= 0.0 && lift.is_finite()) {
         return Err(ctx.key("object", "lift_m", KeyProblem::Negative { value: lift }));
@@ -1562,55 +1674,7 @@ fn build_object_triangles(
         m
     };
     let transform: [[f64; 4]; 4] = if let Some(t) = o.transform {
-        if t.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(ctx.key(
-                "object",
-                "transform",
-                KeyProblem::NotFinite { values: t.iter().flatten().copied().collect() },
-            ));
-        }
-        // An affine map that keeps a solid a solid: last row (0, 0, 0, 1),
-        // an invertible 3 × 3 part (a zero or flattening matrix would
-        // collapse the mesh to a plane, a line or a point).
-        let a = |i: usize, j: usize| t[i][j];
-        let det = a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) - a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0))
-            + a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
-        let scale = (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).map(|(i, j)| a(i, j).abs()).fold(0.0, f64::max);
-        if t[3] != [0.0, 0.0, 0.0, 1.0] || det.abs() <= 1e-9 * scale.powi(3) || scale == 0.0 {
-            return Err(ctx.key(
-                "object",
-                "transform",
-                KeyProblem::SingularTransform { determinant: det, last_row: t[3], largest: scale },
-            ));
-        }
-        if det < 0.0 {
-            return Err(ctx.key("object", "transform", KeyProblem::MirrorTransform { determinant: det }));
-        }
-        // The object after the transform: at least 1 µm across (a smaller
-        // one covers no pixel of any camera lucent renders with).
-        let size_before = (0..3)
-            .map(|k| {
-                let (lo, hi) = mesh_obj
-                    .positions_m
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[k]), hi.max(p[k])));
-                hi - lo
-            })
-            .fold(0.0, f64::max);
-        let linear = det.abs().cbrt();
-        if size_before.is_finite() && size_before > 0.0 && size_before * linear < MIN_OBJECT_SIZE_M {
-            return Err(ctx.key(
-                "object",
-                "transform",
-                KeyProblem::VanishingTransform {
-                    determinant: det,
-                    scale: linear,
-                    size_m: size_before * linear,
-                    min_m: MIN_OBJECT_SIZE_M,
-                },
-            ));
-        }
-        t
+        checked_transform(ctx, t, &mesh_obj)?
     } else if let Some(p) = &o.placement {
         if p != "scene" {
             return Err(ctx.key(

@@ -248,11 +248,7 @@ fn read_text(path: &Path, options: &ReadOptions) -> Result<HeightMap, SurfaceErr
     let text = String::from_utf8(bytes)
         .map_err(|e| SurfaceError::Format { path: path.into(), reason: format!("not a UTF-8 text grid: {e}") })?;
     let text_err = |line: usize, reason: String| SurfaceError::Text { path: path.into(), line, reason };
-    let mut pitch_x: Option<f64> = None;
-    let mut pitch_y: Option<f64> = None;
-    let mut width_m: Option<f64> = None;
-    let mut height_m: Option<f64> = None;
-    let mut unit: Option<LengthUnit> = None;
+    let mut header = TextHeader::default();
     let mut rows: Vec<Vec<f64>> = Vec::new();
     let mut first_row_line = 0;
     for (k, raw) in text.lines().enumerate() {
@@ -261,81 +257,11 @@ fn read_text(path: &Path, options: &ReadOptions) -> Result<HeightMap, SurfaceErr
         if line.is_empty() {
             continue;
         }
-        if let Some(header) = line.strip_prefix('#') {
-            let Some(pos) = header.find(['=', ':']) else { continue };
-            let key = header[..pos].trim().to_ascii_lowercase().replace([' ', '-'], "_");
-            let value = header[pos + 1..].trim();
-            let num = || -> Result<f64, SurfaceError> {
-                value.parse::<f64>().map_err(|_| text_err(line_no, format!("header {key}: {value:?} is not a number")))
-            };
-            let suffix_unit = |k: &str| -> Option<(String, f64)> {
-                for (suffix, m) in [("_m", 1.0), ("_mm", 1e-3), ("_um", 1e-6), ("_nm", 1e-9)] {
-                    if let Some(stem) = k.strip_suffix(suffix) {
-                        return Some((stem.to_string(), m));
-                    }
-                }
-                None
-            };
-            match suffix_unit(&key) {
-                Some((stem, m)) if stem == "pitch" => pitch_x = Some(num()? * m),
-                Some((stem, m)) if stem == "pitch_x" => pitch_x = Some(num()? * m),
-                Some((stem, m)) if stem == "pitch_y" => pitch_y = Some(num()? * m),
-                _ => match key.as_str() {
-                    "height_unit" | "value_units" | "z_unit" => {
-                        unit = Some(
-                            LengthUnit::from_name(value)
-                                .map_err(|e| text_err(line_no, format!("header {key}: {e}")))?,
-                        )
-                    }
-                    "width" => {
-                        width_m = Some(length_with_unit(value).ok_or_else(|| {
-                            text_err(
-                                line_no,
-                                format!("header Width {value:?}: expected a length with a unit, e.g. 871.0 µm"),
-                            )
-                        })?)
-                    }
-                    "height" => {
-                        height_m = Some(length_with_unit(value).ok_or_else(|| {
-                            text_err(
-                                line_no,
-                                format!("header Height {value:?}: expected a length with a unit, e.g. 871.0 µm"),
-                            )
-                        })?)
-                    }
-                    _ => {}
-                },
-            }
+        if let Some(h) = line.strip_prefix('#') {
+            header.read_line(h, line_no, path)?;
             continue;
         }
-        let fields: Vec<&str> = if line.contains(',') {
-            line.split(',').collect()
-        } else if line.contains(';') {
-            line.split(';').collect()
-        } else if line.contains('\t') {
-            line.split('\t').collect()
-        } else {
-            line.split_whitespace().collect()
-        };
-        let mut row = Vec::with_capacity(fields.len());
-        for (c, f) in fields.iter().enumerate() {
-            let f = f.trim();
-            let v = if f.is_empty() || f.eq_ignore_ascii_case("nan") {
-                f64::NAN
-            } else {
-                f.parse::<f64>().map_err(|_| {
-                    text_err(
-                        line_no,
-                        format!(
-                            "column {}: {f:?} is not a number (an invalid point is an empty field or NaN) in {}",
-                            c + 1,
-                            crate::io::quoted_line(line)
-                        ),
-                    )
-                })?
-            };
-            row.push(v);
-        }
+        let row = text_row(line, line_no, path)?;
         if let Some(first) = rows.first() {
             if row.len() != first.len() {
                 return Err(text_err(
@@ -358,38 +284,9 @@ fn read_text(path: &Path, options: &ReadOptions) -> Result<HeightMap, SurfaceErr
     if ny == 0 || nx == 0 {
         return Err(SurfaceError::Format { path: path.into(), reason: "no rows of heights".into() });
     }
-    if pitch_x.is_none() {
-        pitch_x = width_m.map(|w| w / nx as f64);
-        if pitch_y.is_none() {
-            pitch_y = height_m.map(|h| h / ny as f64);
-        }
-    }
     let mut notes = Vec::new();
-    let header_pitch = pitch_x.map(|px| (px, pitch_y.unwrap_or(px)));
-    let (px, py) = match (options.pitch_x_m, header_pitch) {
-        (Some(px), Some((hx, hy))) => {
-            let py = options.pitch_y_m.unwrap_or(px);
-            if (px - hx).abs() > 1e-9 * px || (py - hy).abs() > 1e-9 * py {
-                notes.push(format!(
-                    "pitch {:.6} × {:.6} µm from the command line replaces {:.6} × {:.6} µm of the header",
-                    px * 1e6,
-                    py * 1e6,
-                    hx * 1e6,
-                    hy * 1e6
-                ));
-            }
-            (px, py)
-        }
-        (Some(px), None) => (px, options.pitch_y_m.unwrap_or(px)),
-        (None, Some(h)) => h,
-        (None, None) => {
-            return Err(SurfaceError::Format {
-                path: path.into(),
-                reason: "no pitch: give it in the header (# pitch_um = 0.871) or with --pitch-um".into(),
-            })
-        }
-    };
-    let unit = match (options.height_unit, unit) {
+    let (px, py) = header.pitch(nx, ny, options, &mut notes, path)?;
+    let unit = match (options.height_unit, header.unit) {
         (Some(u), Some(h)) if u != h => {
             notes.push(format!("height unit {u:?} from the command line replaces {h:?} of the header"));
             u
@@ -413,4 +310,145 @@ fn read_text(path: &Path, options: &ReadOptions) -> Result<HeightMap, SurfaceErr
     })?;
     map.notes = notes;
     Ok(map)
+}
+
+/// What the `#` header lines of a text grid state.
+#[derive(Default)]
+struct TextHeader {
+    pitch_x: Option<f64>,
+    pitch_y: Option<f64>,
+    width_m: Option<f64>,
+    height_m: Option<f64>,
+    unit: Option<LengthUnit>,
+}
+
+impl TextHeader {
+    /// Reads the header line `header` (after its `#`; line `line_no` of the
+    /// file at `path`): `key = value` or `key: value`; other lines and keys
+    /// are comments.
+    fn read_line(&mut self, header: &str, line_no: usize, path: &Path) -> Result<(), SurfaceError> {
+        let text_err = |line: usize, reason: String| SurfaceError::Text { path: path.into(), line, reason };
+        let Some(pos) = header.find(['=', ':']) else { return Ok(()) };
+        let key = header[..pos].trim().to_ascii_lowercase().replace([' ', '-'], "_");
+        let value = header[pos + 1..].trim();
+        let num = || -> Result<f64, SurfaceError> {
+            value.parse::<f64>().map_err(|_| text_err(line_no, format!("header {key}: {value:?} is not a number")))
+        };
+        let suffix_unit = |k: &str| -> Option<(String, f64)> {
+            for (suffix, m) in [("_m", 1.0), ("_mm", 1e-3), ("_um", 1e-6), ("_nm", 1e-9)] {
+                if let Some(stem) = k.strip_suffix(suffix) {
+                    return Some((stem.to_string(), m));
+                }
+            }
+            None
+        };
+        match suffix_unit(&key) {
+            Some((stem, m)) if stem == "pitch" => self.pitch_x = Some(num()? * m),
+            Some((stem, m)) if stem == "pitch_x" => self.pitch_x = Some(num()? * m),
+            Some((stem, m)) if stem == "pitch_y" => self.pitch_y = Some(num()? * m),
+            _ => match key.as_str() {
+                "height_unit" | "value_units" | "z_unit" => {
+                    self.unit = Some(
+                        LengthUnit::from_name(value).map_err(|e| text_err(line_no, format!("header {key}: {e}")))?,
+                    )
+                }
+                "width" => {
+                    self.width_m = Some(length_with_unit(value).ok_or_else(|| {
+                        text_err(
+                            line_no,
+                            format!("header Width {value:?}: expected a length with a unit, e.g. 871.0 µm"),
+                        )
+                    })?)
+                }
+                "height" => {
+                    self.height_m = Some(length_with_unit(value).ok_or_else(|| {
+                        text_err(
+                            line_no,
+                            format!("header Height {value:?}: expected a length with a unit, e.g. 871.0 µm"),
+                        )
+                    })?)
+                }
+                _ => {}
+            },
+        }
+        Ok(())
+    }
+
+    /// The pitch (x, y) of an `nx` × `ny` grid: the command line's (a note
+    /// when it replaces the header's), else the header's pitch or its width
+    /// and height over the grid.
+    fn pitch(
+        &self,
+        nx: usize,
+        ny: usize,
+        options: &ReadOptions,
+        notes: &mut Vec<String>,
+        path: &Path,
+    ) -> Result<(f64, f64), SurfaceError> {
+        let (mut pitch_x, mut pitch_y) = (self.pitch_x, self.pitch_y);
+        if pitch_x.is_none() {
+            pitch_x = self.width_m.map(|w| w / nx as f64);
+            if pitch_y.is_none() {
+                pitch_y = self.height_m.map(|h| h / ny as f64);
+            }
+        }
+        let header_pitch = pitch_x.map(|px| (px, pitch_y.unwrap_or(px)));
+        Ok(match (options.pitch_x_m, header_pitch) {
+            (Some(px), Some((hx, hy))) => {
+                let py = options.pitch_y_m.unwrap_or(px);
+                if (px - hx).abs() > 1e-9 * px || (py - hy).abs() > 1e-9 * py {
+                    notes.push(format!(
+                        "pitch {:.6} × {:.6} µm from the command line replaces {:.6} × {:.6} µm of the header",
+                        px * 1e6,
+                        py * 1e6,
+                        hx * 1e6,
+                        hy * 1e6
+                    ));
+                }
+                (px, py)
+            }
+            (Some(px), None) => (px, options.pitch_y_m.unwrap_or(px)),
+            (None, Some(h)) => h,
+            (None, None) => {
+                return Err(SurfaceError::Format {
+                    path: path.into(),
+                    reason: "no pitch: give it in the header (# pitch_um = 0.871) or with --pitch-um".into(),
+                })
+            }
+        })
+    }
+}
+
+/// One row of heights of a text grid (`line`, line `line_no`): fields
+/// separated by commas, semicolons, tabs or spaces; an empty field or NaN
+/// is an invalid point.
+fn text_row(line: &str, line_no: usize, path: &Path) -> Result<Vec<f64>, SurfaceError> {
+    let fields: Vec<&str> = if line.contains(',') {
+        line.split(',').collect()
+    } else if line.contains(';') {
+        line.split(';').collect()
+    } else if line.contains('\t') {
+        line.split('\t').collect()
+    } else {
+        line.split_whitespace().collect()
+    };
+    let mut row = Vec::with_capacity(fields.len());
+    for (c, f) in fields.iter().enumerate() {
+        let f = f.trim();
+        let v = if f.is_empty() || f.eq_ignore_ascii_case("nan") {
+            f64::NAN
+        } else {
+            f.parse::<f64>().map_err(|_| SurfaceError::Text {
+                path: path.into(),
+                line: line_no,
+                reason: format!(
+                    "column {}: {f:?} is not a number (an invalid point is an empty field or NaN) in {}",
+                    c + 1,
+                    crate::io::quoted_line(line)
+                ),
+            })?
+        };
+        row.push(v);
+    }
+    Ok(row)
 }

@@ -123,159 +123,171 @@ pub const DISTRIBUTION_LEGEND_H: u32 = 100;
 /// map (radius θ, angle φ, colour log₁₀ D over three decades).
 pub fn distribution_png(report: &FitReport) -> Result<Vec<u8>, PlotError> {
     let d = &report.distribution;
-    let centres = d.centres_rad();
     let ymax = d.d_per_sr.iter().copied().fold(0.0, f64::max);
     if ymax.is_nan() || ymax <= 0.0 {
         return Err(perr("distribution has no positive value"));
     }
     let ymin_data = d.d_per_sr.iter().copied().filter(|v| *v > 0.0).fold(f64::INFINITY, f64::min);
     let (lo, hi) = ((ymin_data / 2.0).max(ymax * 1e-7), ymax * 3.0);
-    let tmax_deg = d.theta_max_rad.to_degrees();
     render_png(1500, 700 + DISTRIBUTION_LEGEND_H, |root| {
         let (left, right) = root.split_horizontally(900);
         let (left, legend) = left.split_vertically(700);
-        let mut chart = ChartBuilder::on(&left)
-            .margin(15)
-            .caption(format!("measured D(θ) of {} normals, least-squares fits", d.normals), ("sans-serif", 20))
-            .x_label_area_size(60)
-            .y_label_area_size(80)
-            .build_cartesian_2d(0.0..tmax_deg, crate::plot::log_axis(lo, hi))
-            .map_err(perr)?;
-        chart
-            .configure_mesh()
-            .x_desc(format!(
-                "θ_m [°]   ({} bins of {:.3}°, Freedman–Diaconis; range to the 99.9th percentile)",
-                d.counts.len(),
-                d.bin_width_rad.to_degrees()
-            ))
-            .y_desc("D(θ) [1/sr], logarithmic axis")
-            .x_label_formatter(&|v| short_number(*v))
-            .y_label_formatter(&|v| short_number(*v))
-            .draw()
-            .map_err(perr)?;
-        let black = RGBColor(0, 0, 0);
-        let pts: Vec<(f64, f64)> =
-            centres.iter().zip(&d.d_per_sr).filter(|(_, v)| **v > 0.0).map(|(t, v)| (t.to_degrees(), *v)).collect();
-        chart
-            .draw_series(
-                centres
-                    .iter()
-                    .zip(d.d_per_sr.iter().zip(&d.d_std_error_per_sr))
-                    .filter(|(_, (v, e))| **v - **e > 0.0)
-                    .map(|(t, (v, e))| {
-                        PathElement::new(vec![(t.to_degrees(), v - e), (t.to_degrees(), v + e)], black.mix(0.5))
-                    }),
-            )
-            .map_err(perr)?;
-        chart.draw_series(pts.iter().map(|p| Circle::new(*p, 2, black.filled()))).map_err(perr)?;
-        let mut items = vec![("measured (± Poisson error)".to_string(), Mark::Dot(black))];
-        let fine: Vec<f64> = (0..=400).map(|k| d.theta_max_rad * k as f64 / 400.0).collect();
-        for (k, &model) in RoughnessModel::ALL.iter().enumerate() {
-            let f = report.fits.get(model);
-            let colour = crate::plot::palette(if k == 0 { 3 } else { 0 });
-            let curve: Vec<(f64, f64)> = fine
-                .iter()
-                .map(|t| (t.to_degrees(), f.scale * d_tilted_phi_average(model, f.alpha, f.tilt_deg.to_radians(), *t)))
-                .filter(|(_, v)| *v >= lo)
-                .collect();
-            let name = model.label();
-            let tilt = if f.tilt_fitted { format!(", tilt {:.3}°", f.tilt_deg) } else { String::new() };
-            let better = if report.better_model == model { "  ← better" } else { "" };
-            chart.draw_series(LineSeries::new(curve, colour.stroke_width(2))).map_err(perr)?;
-            let label = format!(
-                "{name}: α = {}, scale {:.4}{tilt}, MSE {:.3e}/sr²{better}",
-                short_number(f.alpha),
-                f.scale,
-                f.mse_per_sr2
-            );
-            items.push((label, Mark::Line(colour, 2)));
-        }
-        // The legend band starts at the left edge of the plotting area.
-        let legend = legend.margin(0, 0, 80 + 15 - 6, 0);
-        legend_column(&legend, 16, &items)?;
-
-        // Polar 2-D histogram.
-        let h2 = &d.histogram_2d;
-        let r = h2.theta_edges_rad.last().copied().unwrap_or(1.0).to_degrees();
-        let (polar, bar) = right.split_vertically(620);
-        let mut pc = ChartBuilder::on(&polar)
-            .margin(20)
-            .caption("D(θ, φ) to the 90th percentile of θ_m: radius θ_m [°], angle φ_m", ("sans-serif", 17))
-            .x_label_area_size(30)
-            .y_label_area_size(45)
-            .build_cartesian_2d(-r * 1.05..r * 1.05, -r * 1.05..r * 1.05)
-            .map_err(perr)?;
-        pc.configure_mesh()
-            .disable_mesh()
-            .x_label_formatter(&|v| short_number(*v))
-            .y_label_formatter(&|v| short_number(*v))
-            .draw()
-            .map_err(perr)?;
-        let dmax = h2.d_per_sr.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
-        let nphi = h2.phi_edges_rad.len() - 1;
-        let mut cells = Vec::new();
-        for (b, t) in h2.theta_edges_rad.windows(2).enumerate() {
-            for (p, f) in h2.phi_edges_rad.windows(2).enumerate() {
-                let v = h2.d_per_sr[b * nphi + p];
-                let colour = if v > 0.0 { viridis(((v / dmax).log10() + 3.0) / 3.0) } else { RGBColor(255, 255, 255) };
-                let (r0, r1) = (t[0].to_degrees(), t[1].to_degrees());
-                let mut poly = Vec::new();
-                for s in 0..=6 {
-                    let a = f[0] + (f[1] - f[0]) * s as f64 / 6.0;
-                    poly.push((r1 * a.cos(), r1 * a.sin()));
-                }
-                for s in (0..=6).rev() {
-                    let a = f[0] + (f[1] - f[0]) * s as f64 / 6.0;
-                    poly.push((r0 * a.cos(), r0 * a.sin()));
-                }
-                cells.push(Polygon::new(poly, colour.filled()));
-            }
-        }
-        pc.draw_series(cells).map_err(perr)?;
-        for k in 0..4 {
-            let a = k as f64 * PI / 4.0;
-            pc.draw_series(LineSeries::new(
-                [(-r * a.cos(), -r * a.sin()), (r * a.cos(), r * a.sin())],
-                RGBColor(255, 255, 255).mix(0.6),
-            ))
-            .map_err(perr)?;
-        }
-        pc.draw_series(std::iter::once(Text::new(
-            "φ = 0° (+x)",
-            (r * 0.62, -r * 0.08),
-            ("sans-serif", 13).into_font().color(&WHITE),
-        )))
-        .map_err(perr)?;
-        let an = &d.anisotropy;
-        pc.draw_series(std::iter::once(Text::new(
-            format!("anisotropy {:.3} (major axis {:.1}°)", an.ratio, an.major_azimuth_deg),
-            (-r * 1.0, -r * 1.0),
-            ("sans-serif", 13).into_font(),
-        )))
-        .map_err(perr)?;
-        let mut bc = ChartBuilder::on(&bar)
-            .margin_left(70)
-            .margin_right(30)
-            .x_label_area_size(45)
-            .build_cartesian_2d(-3.0..0.0, 0.0..1.0)
-            .map_err(perr)?;
-        bc.configure_mesh()
-            .disable_mesh()
-            .disable_y_axis()
-            .x_desc(format!("log10(D / D_max), D_max = {:.3e} /sr", dmax))
-            .x_labels(4)
-            .label_style(("sans-serif", 14))
-            .axis_desc_style(("sans-serif", 15))
-            .draw()
-            .map_err(perr)?;
-        bc.draw_series((0..100).map(|k| {
-            let a = -3.0 + 3.0 * k as f64 / 100.0;
-            let b = a + 0.03;
-            Rectangle::new([(a, 0.0), (b, 1.0)], viridis((a + 3.0) / 3.0).filled())
-        }))
-        .map_err(perr)?;
-        Ok(())
+        draw_d_theta(&left, &legend, report, lo, hi)?;
+        draw_polar_histogram(&right, d)
     })
+}
+
+/// A drawing area of a PNG picture.
+type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+
+/// The D(θ) chart of [`distribution_png`] on `left` (logarithmic axis from
+/// `lo` to `hi`), its legend on `legend`.
+fn draw_d_theta(left: &Area, legend: &Area, report: &FitReport, lo: f64, hi: f64) -> Result<(), PlotError> {
+    let d = &report.distribution;
+    let centres = d.centres_rad();
+    let tmax_deg = d.theta_max_rad.to_degrees();
+    let mut chart = ChartBuilder::on(left)
+        .margin(15)
+        .caption(format!("measured D(θ) of {} normals, least-squares fits", d.normals), ("sans-serif", 20))
+        .x_label_area_size(60)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..tmax_deg, crate::plot::log_axis(lo, hi))
+        .map_err(perr)?;
+    chart
+        .configure_mesh()
+        .x_desc(format!(
+            "θ_m [°]   ({} bins of {:.3}°, Freedman–Diaconis; range to the 99.9th percentile)",
+            d.counts.len(),
+            d.bin_width_rad.to_degrees()
+        ))
+        .y_desc("D(θ) [1/sr], logarithmic axis")
+        .x_label_formatter(&|v| short_number(*v))
+        .y_label_formatter(&|v| short_number(*v))
+        .draw()
+        .map_err(perr)?;
+    let black = RGBColor(0, 0, 0);
+    let pts: Vec<(f64, f64)> =
+        centres.iter().zip(&d.d_per_sr).filter(|(_, v)| **v > 0.0).map(|(t, v)| (t.to_degrees(), *v)).collect();
+    chart
+        .draw_series(
+            centres.iter().zip(d.d_per_sr.iter().zip(&d.d_std_error_per_sr)).filter(|(_, (v, e))| **v - **e > 0.0).map(
+                |(t, (v, e))| PathElement::new(vec![(t.to_degrees(), v - e), (t.to_degrees(), v + e)], black.mix(0.5)),
+            ),
+        )
+        .map_err(perr)?;
+    chart.draw_series(pts.iter().map(|p| Circle::new(*p, 2, black.filled()))).map_err(perr)?;
+    let mut items = vec![("measured (± Poisson error)".to_string(), Mark::Dot(black))];
+    let fine: Vec<f64> = (0..=400).map(|k| d.theta_max_rad * k as f64 / 400.0).collect();
+    for (k, &model) in RoughnessModel::ALL.iter().enumerate() {
+        let f = report.fits.get(model);
+        let colour = crate::plot::palette(if k == 0 { 3 } else { 0 });
+        let curve: Vec<(f64, f64)> = fine
+            .iter()
+            .map(|t| (t.to_degrees(), f.scale * d_tilted_phi_average(model, f.alpha, f.tilt_deg.to_radians(), *t)))
+            .filter(|(_, v)| *v >= lo)
+            .collect();
+        let name = model.label();
+        let tilt = if f.tilt_fitted { format!(", tilt {:.3}°", f.tilt_deg) } else { String::new() };
+        let better = if report.better_model == model { "  ← better" } else { "" };
+        chart.draw_series(LineSeries::new(curve, colour.stroke_width(2))).map_err(perr)?;
+        let label = format!(
+            "{name}: α = {}, scale {:.4}{tilt}, MSE {:.3e}/sr²{better}",
+            short_number(f.alpha),
+            f.scale,
+            f.mse_per_sr2
+        );
+        items.push((label, Mark::Line(colour, 2)));
+    }
+    // The legend band starts at the left edge of the plotting area.
+    let legend = legend.margin(0, 0, 80 + 15 - 6, 0);
+    legend_column(&legend, 16, &items)?;
+    Ok(())
+}
+
+/// The 2-D (θ, φ) histogram of `d` as a polar map on `right` (radius θ,
+/// angle φ, colour log₁₀ D over three decades) with its colour bar.
+fn draw_polar_histogram(right: &Area, d: &super::distribution::Distribution) -> Result<(), PlotError> {
+    // Polar 2-D histogram.
+    let h2 = &d.histogram_2d;
+    let r = h2.theta_edges_rad.last().copied().unwrap_or(1.0).to_degrees();
+    let (polar, bar) = right.split_vertically(620);
+    let mut pc = ChartBuilder::on(&polar)
+        .margin(20)
+        .caption("D(θ, φ) to the 90th percentile of θ_m: radius θ_m [°], angle φ_m", ("sans-serif", 17))
+        .x_label_area_size(30)
+        .y_label_area_size(45)
+        .build_cartesian_2d(-r * 1.05..r * 1.05, -r * 1.05..r * 1.05)
+        .map_err(perr)?;
+    pc.configure_mesh()
+        .disable_mesh()
+        .x_label_formatter(&|v| short_number(*v))
+        .y_label_formatter(&|v| short_number(*v))
+        .draw()
+        .map_err(perr)?;
+    let dmax = h2.d_per_sr.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let nphi = h2.phi_edges_rad.len() - 1;
+    let mut cells = Vec::new();
+    for (b, t) in h2.theta_edges_rad.windows(2).enumerate() {
+        for (p, f) in h2.phi_edges_rad.windows(2).enumerate() {
+            let v = h2.d_per_sr[b * nphi + p];
+            let colour = if v > 0.0 { viridis(((v / dmax).log10() + 3.0) / 3.0) } else { RGBColor(255, 255, 255) };
+            let (r0, r1) = (t[0].to_degrees(), t[1].to_degrees());
+            let mut poly = Vec::new();
+            for s in 0..=6 {
+                let a = f[0] + (f[1] - f[0]) * s as f64 / 6.0;
+                poly.push((r1 * a.cos(), r1 * a.sin()));
+            }
+            for s in (0..=6).rev() {
+                let a = f[0] + (f[1] - f[0]) * s as f64 / 6.0;
+                poly.push((r0 * a.cos(), r0 * a.sin()));
+            }
+            cells.push(Polygon::new(poly, colour.filled()));
+        }
+    }
+    pc.draw_series(cells).map_err(perr)?;
+    for k in 0..4 {
+        let a = k as f64 * PI / 4.0;
+        pc.draw_series(LineSeries::new(
+            [(-r * a.cos(), -r * a.sin()), (r * a.cos(), r * a.sin())],
+            RGBColor(255, 255, 255).mix(0.6),
+        ))
+        .map_err(perr)?;
+    }
+    pc.draw_series(std::iter::once(Text::new(
+        "φ = 0° (+x)",
+        (r * 0.62, -r * 0.08),
+        ("sans-serif", 13).into_font().color(&WHITE),
+    )))
+    .map_err(perr)?;
+    let an = &d.anisotropy;
+    pc.draw_series(std::iter::once(Text::new(
+        format!("anisotropy {:.3} (major axis {:.1}°)", an.ratio, an.major_azimuth_deg),
+        (-r * 1.0, -r * 1.0),
+        ("sans-serif", 13).into_font(),
+    )))
+    .map_err(perr)?;
+    let mut bc = ChartBuilder::on(&bar)
+        .margin_left(70)
+        .margin_right(30)
+        .x_label_area_size(45)
+        .build_cartesian_2d(-3.0..0.0, 0.0..1.0)
+        .map_err(perr)?;
+    bc.configure_mesh()
+        .disable_mesh()
+        .disable_y_axis()
+        .x_desc(format!("log10(D / D_max), D_max = {:.3e} /sr", dmax))
+        .x_labels(4)
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
+        .draw()
+        .map_err(perr)?;
+    bc.draw_series((0..100).map(|k| {
+        let a = -3.0 + 3.0 * k as f64 / 100.0;
+        let b = a + 0.03;
+        Rectangle::new([(a, 0.0), (b, 1.0)], viridis((a + 3.0) / 3.0).filled())
+    }))
+    .map_err(perr)?;
+    Ok(())
 }
 
 #[cfg(test)]

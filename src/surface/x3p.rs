@@ -338,47 +338,14 @@ pub fn read_x3p_bytes(bytes: &[u8], path: &Path) -> Result<HeightMap, SurfaceErr
     let zip = zip::ZipArchive::new(std::io::Cursor::new(bytes))
         .map_err(|e| SurfaceError::Archive { path: path.into(), reason: e.to_string() })?;
     let mut notes = Vec::new();
-    // main.xml at the root, or in the one folder of the archive.
-    let names: Vec<String> = zip.file_names().filter_map(|s| s.ok().map(|s| s.into_owned())).collect();
-    let prefix = if names.iter().any(|n| n == "main.xml") {
-        String::new()
-    } else {
-        let nested: Vec<&String> =
-            names.iter().filter(|n| n.ends_with("/main.xml") && n.matches('/').count() == 1).collect();
-        match nested.as_slice() {
-            [one] => one.trim_end_matches("main.xml").to_string(),
-            [] => {
-                return Err(SurfaceError::Member {
-                    path: path.into(),
-                    member: "main.xml".into(),
-                    reason: "not in the archive (not an X3P file?)".into(),
-                })
-            }
-            _ => {
-                return Err(SurfaceError::Format {
-                    path: path.into(),
-                    reason: "the archive holds several folders with a main.xml".into(),
-                })
-            }
-        }
-    };
+    let prefix = main_xml_folder(&zip, path)?;
     let mut ar = Archive { path: path.into(), zip, prefix };
     let main = ar.read("main.xml")?;
-    let xml_err = |reason: String| SurfaceError::Xml { path: path.into(), reason };
-    let text = std::str::from_utf8(&main).map_err(|e| xml_err(format!("not UTF-8: {e}")))?;
-    let doc = roxmltree::Document::parse(text).map_err(|e| xml_err(e.to_string()))?;
+    let text = std::str::from_utf8(&main).map_err(|e| xml_err(path, format!("not UTF-8: {e}")))?;
+    let doc = roxmltree::Document::parse(text).map_err(|e| xml_err(path, e.to_string()))?;
     let root = doc.root_element();
     if root.tag_name().name() != "ISO5436_2" {
-        return Err(xml_err(format!("root element <{}>, expected <ISO5436_2>", root.tag_name().name())));
-    }
-    fn need<'a, 'i>(
-        node: roxmltree::Node<'a, 'i>,
-        name: &str,
-        within: &str,
-        path: &Path,
-    ) -> Result<roxmltree::Node<'a, 'i>, SurfaceError> {
-        child(node, name)
-            .ok_or_else(|| SurfaceError::Xml { path: path.into(), reason: format!("<{within}> has no <{name}>") })
+        return Err(xml_err(path, format!("root element <{}>, expected <ISO5436_2>", root.tag_name().name())));
     }
 
     // Checksum of main.xml (Record4 names the file).
@@ -402,48 +369,9 @@ pub fn read_x3p_bytes(bytes: &[u8], path: &Path) -> Result<HeightMap, SurfaceErr
     }
 
     let record1 = need(root, "Record1", "ISO5436_2", path)?;
-    let feature = text_of(need(record1, "FeatureType", "Record1", path)?).to_ascii_uppercase();
-    match feature.as_str() {
-        "SUR" => {}
-        "PRF" => {
-            return Err(SurfaceError::Format {
-                path: path.into(),
-                reason:
-                    "a profile (FeatureType PRF), not an areal surface: a normal distribution needs a surface (SUR)"
-                        .into(),
-            })
-        }
-        "PCL" => {
-            return Err(SurfaceError::Format {
-                path: path.into(),
-                reason: "a point cloud (FeatureType PCL) is not supported: resample it to a grid (SUR) first".into(),
-            })
-        }
-        other => return Err(xml_err(format!("unknown FeatureType {other:?} (expected SUR, PRF or PCL)"))),
-    }
+    check_feature_type(record1, path)?;
     let axes = need(record1, "Axes", "Record1", path)?;
-    let axis = |name: &str| -> Result<Axis, SurfaceError> {
-        let a = need(axes, name, "Axes", path)?;
-        let kind = text_of(need(a, "AxisType", name, path)?);
-        let incremental = match kind.as_str() {
-            "I" => true,
-            "A" => false,
-            other => return Err(xml_err(format!("{name}/AxisType {other:?}: expected I or A"))),
-        };
-        let point_type = match child(a, "DataType").map(text_of) {
-            None => None,
-            Some(t) => Some(
-                PointType::parse(&t).ok_or_else(|| xml_err(format!("{name}/DataType {t:?}: expected I, L, F or D")))?,
-            ),
-        };
-        let increment = match child(a, "Increment").map(text_of) {
-            None => 1.0,
-            Some(t) if t.is_empty() => 1.0,
-            Some(t) => t.parse::<f64>().map_err(|_| xml_err(format!("{name}/Increment {t:?} is not a number")))?,
-        };
-        Ok(Axis { incremental, point_type, increment })
-    };
-    let (cx, cy, cz) = (axis("CX")?, axis("CY")?, axis("CZ")?);
+    let (cx, cy, cz) = (axis(axes, "CX", path)?, axis(axes, "CY", path)?, axis(axes, "CZ", path)?);
     if !cx.incremental || !cy.incremental {
         return Err(SurfaceError::Format {
             path: path.into(),
@@ -456,12 +384,125 @@ pub fn read_x3p_bytes(bytes: &[u8], path: &Path) -> Result<HeightMap, SurfaceErr
         }
     }
     if cz.incremental {
-        return Err(xml_err("CZ/AxisType I: the height axis must be absolute (A)".into()));
+        return Err(xml_err(path, "CZ/AxisType I: the height axis must be absolute (A)".into()));
     }
     if !(cz.increment.is_finite() && cz.increment != 0.0) {
-        return Err(xml_err(format!("CZ/Increment {}: must be a finite, non-zero scale", cz.increment)));
+        return Err(xml_err(path, format!("CZ/Increment {}: must be a finite, non-zero scale", cz.increment)));
     }
     let record3 = need(root, "Record3", "ISO5436_2", path)?;
+    let dims = matrix_dimension(record3, path)?;
+    if dims.nz > 1 {
+        notes.push(format!("{}: {} layers (SizeZ); the first is used", path.display(), dims.nz));
+    }
+    let heights = if let Some(link) = child(record3, "DataLink") {
+        linked_heights(&mut ar, link, &cz, &dims, path)?
+    } else if let Some(list) = child(record3, "DataList") {
+        listed_heights(list, &cz, &dims, path)?
+    } else {
+        return Err(xml_err(path, "Record3 has neither a DataLink nor a DataList".into()));
+    };
+    let mut map = HeightMap::new(dims.nx, dims.ny, cx.increment, cy.increment, heights, path.display().to_string())?;
+    map.notes = notes;
+    Ok(map)
+}
+
+/// An error in main.xml of the archive at `path`.
+fn xml_err(path: &Path, reason: String) -> SurfaceError {
+    SurfaceError::Xml { path: path.into(), reason }
+}
+
+/// The child element `name` of `node` (the element `within`); an error
+/// naming both when it has none.
+fn need<'a, 'i>(
+    node: roxmltree::Node<'a, 'i>,
+    name: &str,
+    within: &str,
+    path: &Path,
+) -> Result<roxmltree::Node<'a, 'i>, SurfaceError> {
+    child(node, name)
+        .ok_or_else(|| SurfaceError::Xml { path: path.into(), reason: format!("<{within}> has no <{name}>") })
+}
+
+/// The folder of main.xml in the archive: "" at the root, or "name/" for
+/// the archive's one folder holding one.
+fn main_xml_folder(zip: &zip::ZipArchive<std::io::Cursor<&[u8]>>, path: &Path) -> Result<String, SurfaceError> {
+    let names: Vec<String> = zip.file_names().filter_map(|s| s.ok().map(|s| s.into_owned())).collect();
+    if names.iter().any(|n| n == "main.xml") {
+        return Ok(String::new());
+    }
+    let nested: Vec<&String> =
+        names.iter().filter(|n| n.ends_with("/main.xml") && n.matches('/').count() == 1).collect();
+    match nested.as_slice() {
+        [one] => Ok(one.trim_end_matches("main.xml").to_string()),
+        [] => Err(SurfaceError::Member {
+            path: path.into(),
+            member: "main.xml".into(),
+            reason: "not in the archive (not an X3P file?)".into(),
+        }),
+        _ => Err(SurfaceError::Format {
+            path: path.into(),
+            reason: "the archive holds several folders with a main.xml".into(),
+        }),
+    }
+}
+
+/// Record1's FeatureType: an areal surface (SUR), not a profile or a point cloud.
+fn check_feature_type(record1: roxmltree::Node, path: &Path) -> Result<(), SurfaceError> {
+    let feature = text_of(need(record1, "FeatureType", "Record1", path)?).to_ascii_uppercase();
+    match feature.as_str() {
+        "SUR" => Ok(()),
+        "PRF" => Err(SurfaceError::Format {
+            path: path.into(),
+            reason: "a profile (FeatureType PRF), not an areal surface: a normal distribution needs a surface (SUR)"
+                .into(),
+        }),
+        "PCL" => Err(SurfaceError::Format {
+            path: path.into(),
+            reason: "a point cloud (FeatureType PCL) is not supported: resample it to a grid (SUR) first".into(),
+        }),
+        other => Err(xml_err(path, format!("unknown FeatureType {other:?} (expected SUR, PRF or PCL)"))),
+    }
+}
+
+/// The axis `name` (CX, CY or CZ) of Record1's `axes`.
+fn axis(axes: roxmltree::Node, name: &str, path: &Path) -> Result<Axis, SurfaceError> {
+    let a = need(axes, name, "Axes", path)?;
+    let kind = text_of(need(a, "AxisType", name, path)?);
+    let incremental = match kind.as_str() {
+        "I" => true,
+        "A" => false,
+        other => return Err(xml_err(path, format!("{name}/AxisType {other:?}: expected I or A"))),
+    };
+    let point_type = match child(a, "DataType").map(text_of) {
+        None => None,
+        Some(t) => Some(
+            PointType::parse(&t)
+                .ok_or_else(|| xml_err(path, format!("{name}/DataType {t:?}: expected I, L, F or D")))?,
+        ),
+    };
+    let increment = match child(a, "Increment").map(text_of) {
+        None => 1.0,
+        Some(t) if t.is_empty() => 1.0,
+        Some(t) => t.parse::<f64>().map_err(|_| xml_err(path, format!("{name}/Increment {t:?} is not a number")))?,
+    };
+    Ok(Axis { incremental, point_type, increment })
+}
+
+/// Record3's MatrixDimension: the grid's size and its point counts.
+struct Dimensions {
+    nx: usize,
+    ny: usize,
+    nz: usize,
+    /// Points of one layer (the heights read).
+    layer: usize,
+    /// Points of every layer (the points stored).
+    total: usize,
+    /// Where the count is stated, for messages.
+    stated: String,
+}
+
+/// Record3's MatrixDimension (a grid, every size at least 1).
+fn matrix_dimension(record3: roxmltree::Node, path: &Path) -> Result<Dimensions, SurfaceError> {
     let Some(matrix) = child(record3, "MatrixDimension") else {
         return Err(SurfaceError::Format {
             path: path.into(),
@@ -470,112 +511,122 @@ pub fn read_x3p_bytes(bytes: &[u8], path: &Path) -> Result<HeightMap, SurfaceErr
     };
     let size = |name: &str| -> Result<usize, SurfaceError> {
         let t = text_of(need(matrix, name, "MatrixDimension", path)?);
-        t.parse::<usize>().map_err(|_| xml_err(format!("MatrixDimension/{name} {t:?} is not a count")))
+        t.parse::<usize>().map_err(|_| xml_err(path, format!("MatrixDimension/{name} {t:?} is not a count")))
     };
     let (nx, ny, nz) = (size("SizeX")?, size("SizeY")?, size("SizeZ")?);
     if nx == 0 || ny == 0 || nz == 0 {
-        return Err(xml_err(format!("MatrixDimension {nx} × {ny} × {nz}: every size must be at least 1")));
+        return Err(xml_err(path, format!("MatrixDimension {nx} × {ny} × {nz}: every size must be at least 1")));
     }
-    let layer = nx.checked_mul(ny).ok_or_else(|| xml_err(format!("MatrixDimension {nx} × {ny} is too large")))?;
-    let total =
-        layer.checked_mul(nz).ok_or_else(|| xml_err(format!("MatrixDimension {nx} × {ny} × {nz} is too large")))?;
-    if nz > 1 {
-        notes.push(format!("{}: {nz} layers (SizeZ); the first is used", path.display()));
-    }
+    let layer = nx.checked_mul(ny).ok_or_else(|| xml_err(path, format!("MatrixDimension {nx} × {ny} is too large")))?;
+    let total = layer
+        .checked_mul(nz)
+        .ok_or_else(|| xml_err(path, format!("MatrixDimension {nx} × {ny} × {nz} is too large")))?;
     let stated = format!("main.xml (MatrixDimension {nx} × {ny} × {nz})");
+    Ok(Dimensions { nx, ny, nz, layer, total, stated })
+}
 
-    let mut heights = vec![f64::NAN; layer];
-    if let Some(link) = child(record3, "DataLink") {
-        let t = cz.point_type.ok_or_else(|| xml_err("CZ has no DataType: cannot decode binary points".into()))?;
-        let data_name = text_of(need(link, "PointDataLink", "DataLink", path)?).replace('\\', "/");
-        let data = ar.read(&data_name)?;
-        if data.len() != total * t.size() {
-            return Err(SurfaceError::PointCount {
+/// The first layer's heights from the binary point data of Record3's
+/// DataLink (`link`), checked against its MD5, with its validity bits.
+fn linked_heights(
+    ar: &mut Archive,
+    link: roxmltree::Node,
+    cz: &Axis,
+    dims: &Dimensions,
+    path: &Path,
+) -> Result<Vec<f64>, SurfaceError> {
+    let (total, stated) = (dims.total, &dims.stated);
+    let mut heights = vec![f64::NAN; dims.layer];
+    let t = cz.point_type.ok_or_else(|| xml_err(path, "CZ has no DataType: cannot decode binary points".into()))?;
+    let data_name = text_of(need(link, "PointDataLink", "DataLink", path)?).replace('\\', "/");
+    let data = ar.read(&data_name)?;
+    if data.len() != total * t.size() {
+        return Err(SurfaceError::PointCount {
+            path: path.into(),
+            member: format!("{data_name} ({} bytes of {}-byte {} points)", data.len(), t.size(), t.letter()),
+            got: data.len() / t.size(),
+            expected: total,
+            stated_in: stated.clone(),
+        });
+    }
+    if let Some(sum) = child(link, "MD5ChecksumPointData").map(text_of).filter(|s| !s.is_empty()) {
+        let actual = md5_hex(&data);
+        if sum.to_ascii_lowercase() != actual {
+            return Err(SurfaceError::Checksum {
                 path: path.into(),
-                member: format!("{data_name} ({} bytes of {}-byte {} points)", data.len(), t.size(), t.letter()),
-                got: data.len() / t.size(),
-                expected: total,
-                stated_in: stated,
+                member: data_name,
+                expected: sum.to_ascii_lowercase(),
+                actual,
+                stated_in: "main.xml (MD5ChecksumPointData)".into(),
             });
         }
-        if let Some(sum) = child(link, "MD5ChecksumPointData").map(text_of).filter(|s| !s.is_empty()) {
-            let actual = md5_hex(&data);
+    }
+    let inc = cz.increment;
+    for (k, h) in heights.iter_mut().enumerate() {
+        let b = &data[k * t.size()..(k + 1) * t.size()];
+        let v = match t {
+            PointType::I => i16::from_le_bytes([b[0], b[1]]) as f64 * inc,
+            PointType::L => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64 * inc,
+            PointType::F => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64 * inc,
+            PointType::D => f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]) * inc,
+        };
+        *h = if v.is_finite() { v } else { f64::NAN };
+    }
+    if let Some(valid_name) = child(link, "ValidPointsLink").map(text_of).filter(|s| !s.is_empty()) {
+        let valid_name = valid_name.replace('\\', "/");
+        let bits = ar.read(&valid_name)?;
+        if bits.len() < total.div_ceil(8) {
+            return Err(SurfaceError::PointCount {
+                path: path.into(),
+                member: format!("{valid_name} ({} bytes of validity bits)", bits.len()),
+                got: bits.len() * 8,
+                expected: total,
+                stated_in: stated.clone(),
+            });
+        }
+        if let Some(sum) = child(link, "MD5ChecksumValidPoints").map(text_of).filter(|s| !s.is_empty()) {
+            let actual = md5_hex(&bits);
             if sum.to_ascii_lowercase() != actual {
                 return Err(SurfaceError::Checksum {
                     path: path.into(),
-                    member: data_name,
+                    member: valid_name,
                     expected: sum.to_ascii_lowercase(),
                     actual,
-                    stated_in: "main.xml (MD5ChecksumPointData)".into(),
+                    stated_in: "main.xml (MD5ChecksumValidPoints)".into(),
                 });
             }
         }
-        let inc = cz.increment;
         for (k, h) in heights.iter_mut().enumerate() {
-            let b = &data[k * t.size()..(k + 1) * t.size()];
-            let v = match t {
-                PointType::I => i16::from_le_bytes([b[0], b[1]]) as f64 * inc,
-                PointType::L => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64 * inc,
-                PointType::F => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64 * inc,
-                PointType::D => f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]) * inc,
-            };
-            *h = if v.is_finite() { v } else { f64::NAN };
-        }
-        if let Some(valid_name) = child(link, "ValidPointsLink").map(text_of).filter(|s| !s.is_empty()) {
-            let valid_name = valid_name.replace('\\', "/");
-            let bits = ar.read(&valid_name)?;
-            if bits.len() < total.div_ceil(8) {
-                return Err(SurfaceError::PointCount {
-                    path: path.into(),
-                    member: format!("{valid_name} ({} bytes of validity bits)", bits.len()),
-                    got: bits.len() * 8,
-                    expected: total,
-                    stated_in: stated,
-                });
-            }
-            if let Some(sum) = child(link, "MD5ChecksumValidPoints").map(text_of).filter(|s| !s.is_empty()) {
-                let actual = md5_hex(&bits);
-                if sum.to_ascii_lowercase() != actual {
-                    return Err(SurfaceError::Checksum {
-                        path: path.into(),
-                        member: valid_name,
-                        expected: sum.to_ascii_lowercase(),
-                        actual,
-                        stated_in: "main.xml (MD5ChecksumValidPoints)".into(),
-                    });
-                }
-            }
-            for (k, h) in heights.iter_mut().enumerate() {
-                if bits[k / 8] & (1 << (k % 8)) == 0 {
-                    *h = f64::NAN;
-                }
+            if bits[k / 8] & (1 << (k % 8)) == 0 {
+                *h = f64::NAN;
             }
         }
-    } else if let Some(list) = child(record3, "DataList") {
-        let datums: Vec<roxmltree::Node> =
-            list.children().filter(|c| c.is_element() && c.tag_name().name() == "Datum").collect();
-        if datums.len() != total {
-            return Err(SurfaceError::PointCount {
-                path: path.into(),
-                member: "main.xml DataList".into(),
-                got: datums.len(),
-                expected: total,
-                stated_in: stated,
-            });
-        }
-        for (k, h) in heights.iter_mut().enumerate() {
-            let t = text_of(datums[k]);
-            if t.is_empty() {
-                continue; // an empty Datum is an invalid point
-            }
-            let v: f64 = t.parse().map_err(|_| xml_err(format!("Datum {} {t:?} is not a number", k + 1)))?;
-            let v = v * cz.increment;
-            *h = if v.is_finite() { v } else { f64::NAN };
-        }
-    } else {
-        return Err(xml_err("Record3 has neither a DataLink nor a DataList".into()));
     }
-    let mut map = HeightMap::new(nx, ny, cx.increment, cy.increment, heights, path.display().to_string())?;
-    map.notes = notes;
-    Ok(map)
+    Ok(heights)
+}
+
+/// The first layer's heights from the Datum elements of Record3's
+/// DataList (`list`; an empty Datum is an invalid point).
+fn listed_heights(list: roxmltree::Node, cz: &Axis, dims: &Dimensions, path: &Path) -> Result<Vec<f64>, SurfaceError> {
+    let mut heights = vec![f64::NAN; dims.layer];
+    let datums: Vec<roxmltree::Node> =
+        list.children().filter(|c| c.is_element() && c.tag_name().name() == "Datum").collect();
+    if datums.len() != dims.total {
+        return Err(SurfaceError::PointCount {
+            path: path.into(),
+            member: "main.xml DataList".into(),
+            got: datums.len(),
+            expected: dims.total,
+            stated_in: dims.stated.clone(),
+        });
+    }
+    for (k, h) in heights.iter_mut().enumerate() {
+        let t = text_of(datums[k]);
+        if t.is_empty() {
+            continue; // an empty Datum is an invalid point
+        }
+        let v: f64 = t.parse().map_err(|_| xml_err(path, format!("Datum {} {t:?} is not a number", k + 1)))?;
+        let v = v * cz.increment;
+        *h = if v.is_finite() { v } else { f64::NAN };
+    }
+    Ok(heights)
 }
