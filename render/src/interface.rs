@@ -104,6 +104,7 @@
 
 use crate::fresnel;
 use crate::microfacet::{MicrofacetError, Microsurface};
+use crate::rng::Rng;
 use glam::DVec3;
 
 /// Which quantity a path carries (pbrt-v4's TransportMode).
@@ -137,6 +138,24 @@ pub struct Sample {
     pub transmitted: bool,
 }
 
+/// A crossing of the interface drawn by [`Interface::cross`], in the
+/// caller's frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Crossing {
+    /// The new unit direction of travel.
+    pub dir: DVec3,
+    /// `dir` leads through to the other side.
+    pub transmitted: bool,
+    /// The factor of the path's weight: f |cos θ_i| / pdf of a microfacet
+    /// sample (radiance transport); 1 at a smooth interface, whose choice
+    /// with the caller's probability cancels the Fresnel factor.
+    pub weight: f64,
+    /// `weight` is a sampled factor (every crossing of a rough interface),
+    /// so the caller's Russian roulette applies after it; a smooth
+    /// interface's crossing leaves the path's estimate as it was.
+    pub weighted: bool,
+}
+
 /// A dielectric interface (closed set): the index ratio is given per call,
 /// so one interface serves every wavelength band.
 #[derive(Debug, Clone)]
@@ -163,6 +182,15 @@ impl Interface {
     /// Whether the interface is rough (sampled microfacets).
     pub fn is_rough(&self) -> bool {
         matches!(self, Interface::Rough(_))
+    }
+
+    /// Whether every crossing is a mirror reflection or a Snell refraction,
+    /// whatever the index (smooth): a direction on one side then fixes the
+    /// one on the other, so a path tracer can connect through the
+    /// interface backwards, share one refraction direction between bands
+    /// and split a crossing into its two lobes.
+    pub fn is_specular(&self) -> bool {
+        matches!(self, Interface::Smooth)
     }
 
     /// True when the BSDF at index ratio `eta` consists of delta lobes only
@@ -261,6 +289,53 @@ impl Interface {
         }
         let weight = if reflect { weight } else { radiance(weight) };
         Some(Sample { wi, weight, transmitted: !reflect })
+    }
+
+    /// Crosses the interface in the caller's frame, for smooth and rough
+    /// alike: a ray travelling along the unit direction `d` meets it where
+    /// its unit outward normal is `outward` (the local +z: outside above,
+    /// the medium of index ratio `eta` = n_inside/n_outside below), coming
+    /// from the inside (`from_inside`) or from outside. Smooth: the mirror
+    /// direction d − 2(d·n)n with probability `reflect` (one number from
+    /// `rng`; the caller's Fresnel reflectance, which may be one band's while
+    /// `eta` is the bands' mean), else Snell's refraction
+    /// ([`fresnel::refract`], relative index 1/η from inside, η from
+    /// outside; the mirror direction should it find total internal
+    /// reflection); `reflect` = `None` takes the refraction (no number
+    /// drawn; its factor 1 − F is the caller's). Rough: [`Interface::sample`]
+    /// with [`Lobe::Fresnel`] and radiance transport in the frame of
+    /// `outward` (three numbers; `reflect` is not used). `None` when a rough
+    /// sample is lost.
+    pub fn cross(
+        &self,
+        d: DVec3,
+        outward: DVec3,
+        eta: f64,
+        from_inside: bool,
+        reflect: Option<f64>,
+        rng: &mut Rng,
+    ) -> Option<Crossing> {
+        match self {
+            Interface::Smooth => {
+                let reflects = reflect.is_some_and(|f| rng.next_f64() < f);
+                let dir = if reflects {
+                    d - 2.0 * d.dot(outward) * outward
+                } else {
+                    let (n, eta) = if from_inside { (outward, 1.0 / eta) } else { (-outward, eta) };
+                    fresnel::refract(d, n, eta).unwrap_or_else(|| d - 2.0 * d.dot(n) * n)
+                };
+                Some(Crossing { dir, transmitted: !reflects, weight: 1.0, weighted: false })
+            }
+            Interface::Rough(_) => {
+                let (t, b) = crate::phase::orthonormal_basis(outward.to_array());
+                let (t, b) = (DVec3::from_array(t), DVec3::from_array(b));
+                let wo = DVec3::new(-d.dot(t), -d.dot(b), -d.dot(outward));
+                let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
+                let s = self.sample(wo, eta, Lobe::Fresnel, u, Transport::Radiance)?;
+                let dir = (s.wi.x * t + s.wi.y * b + s.wi.z * outward).normalize();
+                Some(Crossing { dir, transmitted: s.transmitted, weight: s.weight, weighted: true })
+            }
+        }
     }
 
     /// The BSDF f(ω_o, ω_i) in 1/sr without the cosine at index ratio `eta`

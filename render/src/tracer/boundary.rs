@@ -1,24 +1,26 @@
-//! Crossing the object's surface. From inside (`leave_medium`) and from
-//! outside (`enter_object`): a smooth boundary chooses reflection with
-//! the Fresnel reflectance F of the driving band (unpolarised Fresnel and
-//! Snell, [`crate::fresnel`]; per band under shared directions) and
-//! refraction otherwise, so the factors cancel; a rough one is sampled
-//! ([`Interface::sample`](crate::interface::Interface::sample), Walter et al. 2007, weight f|cos|/pdf, radiance
-//! transport). Entering, a path picks its band (or branches into three)
-//! and may split into reflection and refraction. Also the geometry the
-//! connections share: Snell's law backwards (`unrefract`), the face search
-//! of a mesh that is not a convex polyhedron (`mesh_exit`). Angles are
-//! given by their cosines to the face normal.
+//! Crossing the object's surface, from inside (`leave_medium`) and from
+//! outside (`enter_object`), both through one routine (`cross`) that asks
+//! the interface for the crossing, smooth and rough alike
+//! ([`Interface::cross`](crate::interface::Interface::cross)): a smooth
+//! boundary chooses reflection with the Fresnel reflectance F of the
+//! driving band (unpolarised Fresnel and Snell, [`crate::fresnel`]; per
+//! band under shared directions) and refraction otherwise, so the factors
+//! cancel; a rough one is sampled (Walter et al. 2007, weight f|cos|/pdf,
+//! radiance transport). Entering, a path picks its band (or branches into
+//! three) and may split into reflection and refraction. Also the geometry
+//! the connections share: Snell's law backwards (`unrefract`), the face
+//! search of a mesh that is not a convex polyhedron (`mesh_exit`). Angles
+//! are given by their cosines to the face normal.
 
 use super::accumulate::Estimate;
 use super::board_nee::BoardVertex;
 use super::image::Stats;
 use super::scene::Object;
-use super::throughput::{roulette, Throughput};
+use super::throughput::roulette;
 use super::walk::{sphere_tables, trace_path, Path, Walk};
 use crate::accel::{Accel, Hit};
 use crate::fresnel;
-use crate::interface::{Lobe, Transport};
+use crate::interface::Crossing;
 use crate::rng::Rng;
 use glam::DVec3;
 use std::f64::consts::TAU;
@@ -72,38 +74,6 @@ pub(super) fn refract_or_mirror(d: DVec3, n: DVec3, eta: f64) -> DVec3 {
     fresnel::refract(d, n, eta).unwrap_or_else(|| d - 2.0 * d.dot(n) * n)
 }
 
-/// Samples the object's rough interface in band `h` (frame: +z = the
-/// outward normal `n_out` at the hit point `p`, η = n_h) for a ray arriving
-/// along `d`, multiplies the throughput by the weight f|cos θ_i|/pdf
-/// (radiance transport), and returns the new direction, the new origin
-/// (offset by `eps` to the side it leaves into) and whether that side is the
-/// inside. `None` when the sample is lost (the microfacet model's energy
-/// loss).
-#[inline]
-#[allow(clippy::too_many_arguments)]
-pub(super) fn rough_scatter(
-    obj: &Object,
-    h: usize,
-    n_out: DVec3,
-    p: DVec3,
-    d: DVec3,
-    eps: f64,
-    tp: &mut Throughput,
-    rng: &mut Rng,
-) -> Option<(DVec3, DVec3, bool)> {
-    let (t, b) = crate::phase::orthonormal_basis(n_out.to_array());
-    let (t, b) = (DVec3::from_array(t), DVec3::from_array(b));
-    let wo = DVec3::new(-d.dot(t), -d.dot(b), -d.dot(n_out));
-    let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-    let s = obj.interface.sample(wo, obj.eta(h), Lobe::Fresnel, u, Transport::Radiance)?;
-    for beta in tp.beta.iter_mut() {
-        *beta *= s.weight;
-    }
-    let wi = (s.wi.x * t + s.wi.y * b + s.wi.z * n_out).normalize();
-    let inside = s.wi.z < 0.0;
-    Some((wi, if inside { p - eps * n_out } else { p + eps * n_out }, inside))
-}
-
 /// Steps of [`mesh_exit`]'s search.
 pub(super) const MESH_EXIT_STEPS: usize = 4;
 
@@ -152,14 +122,48 @@ pub(super) struct MeshExit {
 }
 
 impl Walk<'_> {
+    /// One crossing of the object's boundary at `p` (unit outward normal
+    /// `outward`) by the path, from inside or from outside, in driving band
+    /// `h`, for smooth and rough boundaries alike: the interface's crossing
+    /// ([`Interface::cross`](crate::interface::Interface::cross); `reflect`:
+    /// a smooth boundary's probability of reflection, `None` to take the
+    /// refraction), its sampled weight on the throughput, and the path
+    /// moved to the side it goes to (offset ε along the normal). `None`:
+    /// the sample was lost (the path ends).
+    #[allow(clippy::too_many_arguments)]
+    fn cross(
+        &self,
+        obj: &Object,
+        h: usize,
+        outward: DVec3,
+        p: DVec3,
+        from_inside: bool,
+        reflect: Option<f64>,
+        path: &mut Path,
+        rng: &mut Rng,
+    ) -> Option<Crossing> {
+        let eta = if self.shared { obj.eta_mean } else { obj.eta(h) };
+        let crossing = obj.interface.cross(path.d, outward, eta, from_inside, reflect, rng)?;
+        if crossing.weighted {
+            for beta in path.tp.beta.iter_mut() {
+                *beta *= crossing.weight;
+            }
+        }
+        let eps = self.scene.epsilon_m;
+        path.inside = from_inside != crossing.transmitted;
+        path.d = crossing.dir;
+        path.o = if path.inside { p - eps * outward } else { p + eps * outward };
+        Some(crossing)
+    }
+
     /// The flight from the path's point in `obj`'s medium reaches the
-    /// boundary at `hit` (probability e^{−μ_t,h t} in driving band `h`): a
-    /// rough boundary is sampled (`rough_scatter`, then the roulette); a
-    /// smooth one reflects with probability F_h (the stretch stays one the
-    /// connections make after one reflection, with the chains) or refracts
-    /// out, and the stretch's density in outside solid angle (for the
-    /// weights of its escape) takes the refraction's
-    /// dω_i/dω_o = cos θ_o / (n² cos θ_i).
+    /// boundary at `hit` (probability e^{−μ_t,h t} in driving band `h`) and
+    /// crosses it (`cross`; a smooth boundary reflects with probability F_h):
+    /// after a reflection the stretch stays one the connections make (one
+    /// reflection, with the chains); after a refraction out its density in
+    /// outside solid angle (for the weights of its escape) takes the
+    /// refraction's dω_i/dω_o = cos θ_o / (n² cos θ_i). A rough boundary's
+    /// sampled weight is followed by the roulette.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn leave_medium(
         &self,
@@ -172,7 +176,6 @@ impl Walk<'_> {
         st: &mut Stats,
     ) -> ControlFlow<()> {
         let (settings, shared) = (self.settings, self.shared);
-        let eps = self.scene.epsilon_m;
         let bc = &obj.bands;
         let sigma_t = bc.sigma_t[h];
         // The flight reaches the boundary: probability e^{−μ_t,h t}.
@@ -190,25 +193,16 @@ impl Walk<'_> {
         if let Some(c) = path.chain.as_mut() {
             c.pdf *= (-sigma_t * hit.t).exp();
         }
-        if obj.interface.is_rough() {
-            let Some((nd, no, now_inside)) = rough_scatter(obj, h, n_out, p, path.d, eps, &mut path.tp, rng) else {
-                return ControlFlow::Break(());
-            };
-            (path.d, path.o, path.inside, path.safe, path.last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
-            if !roulette(&mut path.tp, settings, rng) {
-                return ControlFlow::Break(());
-            }
-            return ControlFlow::Continue(());
-        }
         let eta = if shared { obj.eta_mean } else { obj.eta(h) };
         let cos_i = path.d.dot(n_out);
         let (_, fr) = reflectances(obj, cos_i, eta, shared, true);
-        if rng.next_f64() < fr[h] {
+        let Some(crossing) = self.cross(obj, h, n_out, p, true, Some(fr[h]), path, rng) else {
+            return ControlFlow::Break(());
+        };
+        if !crossing.transmitted {
             if shared {
                 path.tp.scale(fr, fr, h);
             }
-            path.d -= 2.0 * path.d.dot(n_out) * n_out;
-            path.o = p - eps * n_out;
             // One reflection on the way out keeps the stretch one that
             // the connections make (with the chains).
             if self.chains && self.planes.is_some() && path.vertex.is_some() && path.stretch.refl.is_none() {
@@ -224,9 +218,6 @@ impl Walk<'_> {
                 let t = fr.map(|x| 1.0 - x);
                 path.tp.scale(t, t, h);
             }
-            path.d = refract_or_mirror(path.d, n_out, 1.0 / eta);
-            path.o = p + eps * n_out;
-            path.inside = false;
             if path.vertex.is_some() {
                 let stretch = &mut path.stretch;
                 stretch.triangle = hit.triangle;
@@ -247,14 +238,18 @@ impl Walk<'_> {
             }
         }
         path.last_diffuse_pdf = None;
+        if crossing.weighted && !roulette(&mut path.tp, settings, rng) {
+            return ControlFlow::Break(());
+        }
         ControlFlow::Continue(())
     }
 
     /// The path meets the object's boundary from outside at `hit`: with
     /// band branches, one branch per band from here; else (after the
-    /// split's reflection branch, if any) the driving band is picked, and
-    /// a rough boundary is sampled, a smooth one refracts in with
-    /// probability 1 − F_h (or weight 1 − F_c when split) or reflects.
+    /// split's reflection branch, if any) the driving band is picked and
+    /// the path crosses (`cross`): a smooth boundary refracts in with
+    /// probability 1 − F_h (or weight 1 − F_c when split) or reflects; a
+    /// rough one's sampled weight is followed by the roulette.
     pub(super) fn enter_object(
         &self,
         hit: &Hit,
@@ -264,7 +259,6 @@ impl Walk<'_> {
         st: &mut Stats,
     ) -> ControlFlow<()> {
         let (scene, settings, shared) = (self.scene, self.settings, self.shared);
-        let eps = scene.epsilon_m;
         path.vertex = None;
         if path.chain.is_some_and(|c| c.out) {
             path.chain = None;
@@ -287,8 +281,8 @@ impl Walk<'_> {
         // (Counted here, after the branches, which count their own.)
         st.surface_hits += 1;
         // Splitting: the reflection, weighted by F_c, as a branch of its own.
-        let entry_f =
-            (self.split && !obj.interface.is_rough()).then(|| self.reflect_at_entry(obj, p, n_in, path, est, rng, st));
+        let entry_f = (self.split && obj.interface.is_specular())
+            .then(|| self.reflect_at_entry(obj, p, n_in, path, est, rng, st));
         let tp = &mut path.tp;
         let h = *path.hero.get_or_insert_with(|| {
             let b = ((rng.next_f64() * 3.0) as usize).min(2);
@@ -298,18 +292,14 @@ impl Walk<'_> {
             }
             b
         });
-        if obj.interface.is_rough() {
-            let Some((nd, no, now_inside)) = rough_scatter(obj, h, n_in, p, path.d, eps, &mut path.tp, rng) else {
-                return ControlFlow::Break(());
-            };
-            (path.d, path.o, path.inside, path.safe, path.last_diffuse_pdf) = (nd, no, now_inside, 0.0, None);
-            if !roulette(&mut path.tp, settings, rng) {
-                return ControlFlow::Break(());
-            }
-            return ControlFlow::Continue(());
-        }
         let eta = if shared { obj.eta_mean } else { obj.eta(h) };
         let cos_b = -path.d.dot(n_in);
+        let (_, fr) = reflectances(obj, cos_b, eta, shared, false);
+        // Split: the refraction is taken (its reflection was traced above).
+        let reflect = if entry_f.is_some() { None } else { Some(fr[h]) };
+        let Some(crossing) = self.cross(obj, h, n_in, p, false, reflect, path, rng) else {
+            return ControlFlow::Break(());
+        };
         // The probability of refracting in (and of reflecting, when the path does).
         let mut p_reflect = 0.0;
         let p_in = if let Some(f) = entry_f {
@@ -319,27 +309,20 @@ impl Walk<'_> {
             }
             Some(1.0)
         } else {
-            let (_, fr) = reflectances(obj, cos_b, eta, shared, false);
-            let reflects = rng.next_f64() < fr[h];
             if shared {
-                let w = if reflects { fr } else { fr.map(|x| 1.0 - x) };
+                let w = if crossing.transmitted { fr.map(|x| 1.0 - x) } else { fr };
                 path.tp.scale(w, w, h);
             }
             p_reflect = fr[h];
-            (!reflects).then(|| 1.0 - fr[h])
+            crossing.transmitted.then(|| 1.0 - fr[h])
         };
         if let Some(p_in) = p_in {
-            path.d = refract_or_mirror(path.d, -n_in, eta);
-            path.o = p - eps * n_in;
-            path.inside = true;
             path.safe = 0.0;
             if let Some(c) = path.chain.as_mut() {
                 // In: the first refraction's cos θ_i / cos θ_o (dω_b/dω_i = n² cos θ_i / cos θ_b).
                 c.pdf *= p_in * (-path.d.dot(n_in)) / cos_b;
             }
         } else {
-            path.d -= 2.0 * path.d.dot(n_in) * n_in;
-            path.o = p + eps * n_in;
             // Straight from the board: a chain that the board's
             // connection by reflection makes.
             path.chain = path.chain.filter(|c| !c.out).map(|c| BoardVertex {
@@ -350,6 +333,9 @@ impl Walk<'_> {
             });
         }
         path.last_diffuse_pdf = None;
+        if crossing.weighted && !roulette(&mut path.tp, settings, rng) {
+            return ControlFlow::Break(());
+        }
         ControlFlow::Continue(())
     }
 

@@ -175,12 +175,12 @@ impl<'a> Walk<'a> {
         let shared = scene.object.as_ref().is_some_and(|obj| {
             settings.spectral_mis
                 && !obj.bands.achromatic
-                && !obj.interface.is_rough()
+                && obj.interface.is_specular()
                 && settings.dispersion == Dispersion::SharedDirections
         });
         let convex = scene.object.as_ref().and_then(|obj| obj.accel.convex_planes());
         let planes = match &scene.object {
-            Some(obj) if settings.medium_nee && !obj.interface.is_rough() && !scene.environment.is_uniform() => {
+            Some(obj) if settings.medium_nee && obj.interface.is_specular() && !scene.environment.is_uniform() => {
                 obj.accel.convex_planes()
             }
             _ => None,
@@ -188,7 +188,7 @@ impl<'a> Walk<'a> {
         // Any other closed mesh with smooth faces connects through the face
         // that `mesh_exit` finds.
         let faces = match &scene.object {
-            Some(obj) if settings.medium_nee && !obj.interface.is_rough() && !scene.environment.is_uniform() => {
+            Some(obj) if settings.medium_nee && obj.interface.is_specular() && !scene.environment.is_uniform() => {
                 Some(planes.map_or(Faces::Mesh, Faces::Planes))
             }
             _ => None,
