@@ -126,6 +126,32 @@ impl CcmFile {
     }
 }
 
+/// The space `colour apply` writes a camera image into.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    strum::EnumString,
+    strum::IntoStaticStr,
+    strum::VariantNames,
+    strum::VariantArray,
+    strum::EnumMessage,
+)]
+#[strum(ascii_case_insensitive)]
+pub enum ApplyTarget {
+    /// CIE 1931 RGB, white E.
+    #[strum(to_string = "cie-rgb", serialize = "ciergb", serialize = "cie1931rgb", serialize = "cie-1931-rgb")]
+    CieRgb,
+    /// CIE XYZ, D50-adapted as fitted.
+    #[strum(to_string = "xyz")]
+    Xyz,
+    /// Linear sRGB, D65.
+    #[strum(to_string = "srgb", serialize = "rec709", serialize = "linear-srgb")]
+    Srgb,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -467,7 +467,8 @@ pub struct ColourApplyJob {
     pub ccm: PathBuf,
     pub input: PathBuf,
     pub output: PathBuf,
-    pub to: String,
+    #[serde(with = "by_name")]
+    pub to: crate::ccm_file::ApplyTarget,
     /// `--variance-out` and `--seed`: the developed RAW photo's per-pixel
     /// variance from its noise model, and the seed of its realisations.
     pub variance_out: Option<(PathBuf, u64)>,
@@ -478,7 +479,7 @@ pub struct ColourApplyJob {
 impl ColourApplyJob {
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["colour", "apply"]);
-        l.flag("--ccm", s(&self.ccm)).word(s(&self.input)).word(s(&self.output)).flag("--to", &self.to);
+        l.flag("--ccm", s(&self.ccm)).word(s(&self.input)).word(s(&self.output)).flag("--to", <&str>::from(self.to));
         if let Some((path, seed)) = &self.variance_out {
             l.flag("--variance-out", s(path)).flag("--seed", seed);
         }

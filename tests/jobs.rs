@@ -3,6 +3,7 @@
 //! named with their key before any stage runs, and the exit code says who
 //! is at fault.
 
+use lucent::ccm_file::ApplyTarget;
 use lucent::cli::jobs::parse_job;
 use lucent::job::*;
 use std::path::PathBuf;
@@ -85,7 +86,7 @@ fn jobs() -> Vec<Job> {
             ccm: p("ccm.json"),
             input: p("photo.dng"),
             output: p("{out}/s/photo.exr"),
-            to: "xyz".into(),
+            to: lucent::ccm_file::ApplyTarget::Xyz,
             variance_out: Some((p("{out}/s/photo_variance.exr"), 7)),
             bin: 4,
         }),
@@ -210,6 +211,21 @@ fn every_job_round_trips_through_json() {
     let typo = text.replace("\"spp\"", "\"sp\"");
     let e = serde_json::from_str::<Job>(&typo).unwrap_err().to_string();
     assert!(e.contains("sp"), "{e}");
+    // The colour space is a type: written as the word the command line
+    // takes, read in any of its spellings, a wrong one refused with its name.
+    let apply = |to: &str| {
+        format!(
+            r#"{{"colour-apply": {{"ccm": "c.json", "input": "a.exr", "output": "b.exr", "to": "{to}", "variance_out": null, "bin": 1}}}}"#
+        )
+    };
+    for (word, want) in [("cie-rgb", ApplyTarget::CieRgb), ("REC709", ApplyTarget::Srgb), ("xyz", ApplyTarget::Xyz)] {
+        let job = serde_json::from_str::<Job>(&apply(word)).unwrap_or_else(|e| panic!("{word}: {e}"));
+        let Job::ColourApply(j) = &job else { panic!("{word}") };
+        assert_eq!(j.to, want, "{word}");
+        assert!(serde_json::to_string(&job).unwrap().contains(&format!("\"to\":\"{}\"", <&str>::from(want))));
+    }
+    let e = serde_json::from_str::<Job>(&apply("lab")).unwrap_err().to_string();
+    assert!(e.contains("\"lab\""), "{e}");
 }
 
 /// Shards of one run are one run however its command line is spelled: the

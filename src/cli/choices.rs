@@ -58,11 +58,6 @@ where
     }
 }
 
-/// The name a choice is given by on the command line (its first spelling).
-pub fn name<T: ValueEnum>(choice: &T) -> String {
-    choice.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default()
-}
-
 /// `undistort --to`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ProjectionChoice {
@@ -78,19 +73,6 @@ pub enum ProjectionChoice {
 pub enum RefineChoice {
     /// OpenCV findTransformECC.
     Ecc,
-}
-
-/// `colour apply --to`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum TargetChoice {
-    /// CIE 1931 RGB, white E.
-    #[value(alias = "ciergb", alias = "cie1931rgb", alias = "cie-1931-rgb")]
-    CieRgb,
-    /// CIE XYZ, D50-adapted as fitted.
-    Xyz,
-    /// Linear sRGB, D65.
-    #[value(alias = "rec709", alias = "linear-srgb")]
-    Srgb,
 }
 
 /// `colour apply --adaptation`.

@@ -3,7 +3,8 @@
 //! optical properties. Orchestration only; the colour science is in
 //! `lucent-colour`.
 
-use super::choices::{named, AdaptationChoice, TargetChoice};
+use super::choices::{named, AdaptationChoice};
+use crate::ccm_file::ApplyTarget;
 use crate::ccm_file::{CcmFile, CcmPatch, InputEncoding};
 use crate::imageio::{self, RgbImage};
 use crate::optics::bulk::{self, OpticalSpectrum};
@@ -76,8 +77,8 @@ pub struct ApplyArgs {
     /// Output image (.exr, 32-bit float, linear).
     pub output: PathBuf,
     /// Target space: cie-rgb (CIE 1931 RGB, white E), xyz (CIE XYZ, D50-adapted as fitted) or srgb (linear, D65).
-    #[arg(long, value_enum, ignore_case = true, default_value = "cie-rgb")]
-    pub to: TargetChoice,
+    #[arg(long, value_parser = named::<ApplyTarget>(), default_value = "cie-rgb")]
+    pub to: ApplyTarget,
     /// Chromatic adaptation from the fitted D50 to the target's white (cie-rgb: E, srgb: D65):
     /// bradford, cat02, von-kries or none.
     #[arg(long, value_enum, ignore_case = true, default_value = "bradford")]
@@ -314,9 +315,9 @@ fn apply(a: ApplyArgs) -> Result<()> {
     let (file, ccm) = CcmFile::read(&a.ccm)?;
     let cat = a.adaptation.cat();
     let target: Mat3 = match a.to {
-        TargetChoice::Xyz => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        TargetChoice::CieRgb => RgbSpace::CieRgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
-        TargetChoice::Srgb => RgbSpace::Srgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
+        ApplyTarget::Xyz => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        ApplyTarget::CieRgb => RgbSpace::CieRgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
+        ApplyTarget::Srgb => RgbSpace::Srgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
     };
     let ext = a.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     if ext != "exr" {
@@ -401,9 +402,9 @@ fn apply(a: ApplyArgs) -> Result<()> {
         if a.bin > 1 { format!(" (binned {0} × {0} from {w} × {h})", a.bin) } else { String::new() },
         file.camera,
         file.method,
-        super::choices::name(&a.to),
+        <&str>::from(a.to),
         match (a.to, cat) {
-            (TargetChoice::Xyz, _) => " (D50-adapted XYZ as fitted)".to_string(),
+            (ApplyTarget::Xyz, _) => " (D50-adapted XYZ as fitted)".to_string(),
             (_, Some(c)) => format!(" ({} adaptation from D50)", c.name()),
             (_, None) => " (no chromatic adaptation)".to_string(),
         }

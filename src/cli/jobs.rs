@@ -5,7 +5,6 @@
 //! command does any work, with the same ranges and words for a flag as for
 //! the project key. The Python module converts its arguments the same way.
 
-use super::choices::name;
 use super::{bssrdf, camera, colour, compare, env_fit, fit, raw_clip, render, Cli, Command};
 use crate::job::{
     BssrdfCompareJob, BssrdfJob, CalibrateJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, FitJob,
@@ -35,7 +34,7 @@ pub fn job_of(command: &Command) -> Option<Job> {
             ccm: a.ccm.clone(),
             input: a.input.clone(),
             output: a.output.clone(),
-            to: name(&a.to),
+            to: a.to,
             variance_out: a.variance_out.clone().map(|v| (v, a.seed)),
             bin: a.bin,
         }),
@@ -211,7 +210,6 @@ fn twin_render(spp: Option<u32>, seed: Option<u64>, size: &Option<String>) -> su
 /// from the job's fields, every other flag at the default clap gives it (the
 /// inverse of [`job_of`], without a command line in between).
 pub fn command_of(job: &Job) -> anyhow::Result<Command> {
-    use clap::ValueEnum;
     let board = |board: &str, square_mm: f64| super::groups::BoardArgs { board: board.to_string(), square_mm };
     Ok(match job {
         Job::Optics(j) => Command::Optics(optics_args(j)),
@@ -269,8 +267,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
             ccm: j.ccm.clone(),
             input: j.input.clone(),
             output: j.output.clone(),
-            to: super::choices::TargetChoice::from_str(&j.to, true)
-                .map_err(|e| anyhow::anyhow!("colour apply --to {:?}: {e}", j.to))?,
+            to: j.to,
             adaptation: super::choices::AdaptationChoice::Bradford,
             variance_out: j.variance_out.as_ref().map(|(p, _)| p.clone()),
             variance_realisations: 16,

@@ -1180,7 +1180,7 @@ fn plan_develop(project: &Project, out: &Path, p: &mut Plan) -> Planned {
                 ccm: ccm.clone(),
                 input: photo.clone(),
                 output: files.exr,
-                to: "cie-rgb".into(),
+                to: crate::ccm_file::ApplyTarget::CieRgb,
                 variance_out,
                 bin,
             };
