@@ -86,8 +86,9 @@ def match_brace(text: str, open_at: int) -> int:
     return len(text) - 1
 
 
-def item_end(text: str, start: int) -> int:
-    """End of the item starting at `start`: its matching `}` or its `;`."""
+def item_stop(text: str, start: int):
+    """The first `{` or `;` outside brackets from `start`: (position, char),
+    or (None, None) at the end of the text."""
     par = 0
     for j in range(start, len(text)):
         ch = text[j]
@@ -95,11 +96,17 @@ def item_end(text: str, start: int) -> int:
             par += 1
         elif ch in ")]":
             par -= 1
-        elif par == 0 and ch == ";":
-            return j
-        elif par == 0 and ch == "{":
-            return match_brace(text, j)
-    return len(text) - 1
+        elif par == 0 and ch in ";{":
+            return j, ch
+    return None, None
+
+
+def item_end(text: str, start: int) -> int:
+    """End of the item starting at `start`: its matching `}` or its `;`."""
+    j, ch = item_stop(text, start)
+    if j is None:
+        return len(text) - 1
+    return match_brace(text, j) if ch == "{" else j
 
 
 def functions(path: str):
@@ -122,20 +129,9 @@ def functions(path: str):
         pos = m.start()
         if any(a <= pos <= b for a, b in excluded):
             continue
-        # find body
-        par, body = 0, None
-        for j in range(m.end(), len(text)):
-            ch = text[j]
-            if ch in "([":
-                par += 1
-            elif ch in ")]":
-                par -= 1
-            elif par == 0 and ch == ";":
-                break
-            elif par == 0 and ch == "{":
-                body = j
-                break
-        if body is None:
+        # its body (none for a declaration ending in `;`)
+        body, ch = item_stop(text, m.end())
+        if ch != "{":
             continue
         end = match_brace(text, body)
         first, last = line_of(pos), line_of(end)

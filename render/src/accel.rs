@@ -237,8 +237,8 @@ impl Walk {
     #[inline]
     fn start(&self, origin: DVec3, dir: DVec3) -> u32 {
         let q = origin - self.centre;
-        let (a, b) = (dir.length_squared(), q.dot(dir));
-        let disc = b * b - a * (q.length_squared() - self.radius * self.radius);
+        let (a, b, c) = Self::ball_quadratic(q, dir, self.radius);
+        let disc = b * b - a * c;
         let t = if disc >= 0.0 { (disc.sqrt() - b) / a } else { -b / a };
         self.starts[self.cell_of(q + t.max(0.0) * dir)]
     }
@@ -247,14 +247,19 @@ impl Walk {
     /// stays in the inscribed ball; 0 from a point outside it.
     #[inline]
     fn in_ball(&self, origin: DVec3, dir: DVec3) -> f64 {
-        let q = origin - self.centre;
-        let c = q.length_squared() - self.radius * self.radius;
+        let (a, b, c) = Self::ball_quadratic(origin - self.centre, dir, self.radius);
         if c >= 0.0 {
             return 0.0;
         }
-        let (a, b) = (dir.length_squared(), q.dot(dir));
         // c < 0: the roots straddle 0, the far one is positive.
         ((b * b - a * c).sqrt() - b) / a
+    }
+
+    /// |q + t·dir|² = r² as a t² + 2b t + c = 0: (a, b, c) = (|dir|²,
+    /// q·dir, |q|² − r²), q the ray's origin from the ball's centre.
+    #[inline]
+    fn ball_quadratic(q: DVec3, dir: DVec3, r: f64) -> (f64, f64, f64) {
+        (dir.length_squared(), q.dot(dir), q.length_squared() - r * r)
     }
 
     /// The triangle the ray from `origin` (inside) along `dir` leaves
