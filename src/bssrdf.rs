@@ -38,7 +38,8 @@ use plotters::prelude::*;
 use serde::{Deserialize, Deserializer, Serialize};
 use std::path::{Path, PathBuf};
 
-/// What is wrong with a list of θi/θo goniometer configurations ([`parse_configs`]).
+/// What is wrong with a θi/θo goniometer configuration or a list of them
+/// ([`Configuration`], [`Configurations`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ConfigError {
     #[error("{part:?}: expected θi/θo in degrees, e.g. 45/0")]
@@ -49,25 +50,103 @@ pub enum ConfigError {
     Angle { part: String },
     #[error("{part:?} is given twice")]
     Repeated { part: String },
+    #[error("{text:?}: one θi/θo pair per measured slice")]
+    NotOne { text: String },
 }
 
-/// Parses "45/0,0/45" into (θi, θo) pairs in degrees.
-pub fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>, ConfigError> {
-    let mut out = Vec::new();
-    for part in text.split(',') {
-        let (a, b) = part.split_once('/').ok_or_else(|| ConfigError::Syntax { part: part.to_string() })?;
+/// One goniometer configuration: the polar angles of incidence θi and of
+/// observation θo in degrees, each in [0°, 90°) (φi = 0°, φo = 180°: the
+/// plane of incidence).
+///
+/// As text (its `FromStr`, `Display` and serde form) "θi/θo", e.g. "45/0",
+/// each number written in its shortest form ("45.0/0" is written "45/0").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Configuration {
+    pub theta_i_deg: f64,
+    pub theta_o_deg: f64,
+}
+
+impl Configuration {
+    /// (θi, θo) in degrees.
+    pub fn pair(self) -> (f64, f64) {
+        (self.theta_i_deg, self.theta_o_deg)
+    }
+}
+
+impl std::str::FromStr for Configuration {
+    type Err = ConfigError;
+
+    fn from_str(text: &str) -> Result<Self, ConfigError> {
+        if text.contains(',') {
+            return Err(ConfigError::NotOne { text: text.to_string() });
+        }
+        let (a, b) = text.split_once('/').ok_or_else(|| ConfigError::Syntax { part: text.to_string() })?;
         let num = |s: &str| s.trim().parse::<f64>().map_err(|_| ConfigError::Number { text: s.to_string() });
         let (ti, to) = (num(a)?, num(b)?);
         if !(0.0..90.0).contains(&ti) || !(0.0..90.0).contains(&to) {
-            return Err(ConfigError::Angle { part: part.to_string() });
+            return Err(ConfigError::Angle { part: text.to_string() });
         }
-        if out.contains(&(ti, to)) {
-            return Err(ConfigError::Repeated { part: part.trim().to_string() });
-        }
-        out.push((ti, to));
+        Ok(Self { theta_i_deg: ti, theta_o_deg: to })
     }
-    Ok(out)
 }
+
+impl std::fmt::Display for Configuration {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.theta_i_deg, self.theta_o_deg)
+    }
+}
+
+crate::job::values::serde_as_text!(Configuration);
+
+/// Goniometer configurations ([`Configuration`]), at least one, none twice.
+///
+/// As text "θi/θo,θi/θo,…", e.g. "45/0,0/45".
+#[derive(Debug, Clone, PartialEq)]
+pub struct Configurations(Vec<Configuration>);
+
+impl Configurations {
+    /// The configurations in the order given.
+    pub fn list(&self) -> &[Configuration] {
+        &self.0
+    }
+
+    /// (θi, θo) pairs in degrees, in the order given.
+    pub fn pairs(&self) -> Vec<(f64, f64)> {
+        self.0.iter().map(|c| c.pair()).collect()
+    }
+}
+
+impl From<Configuration> for Configurations {
+    fn from(c: Configuration) -> Self {
+        Configurations(vec![c])
+    }
+}
+
+impl std::str::FromStr for Configurations {
+    type Err = ConfigError;
+
+    /// "45/0,0/45": each part a [`Configuration`], none given twice.
+    fn from_str(text: &str) -> Result<Self, ConfigError> {
+        let mut out: Vec<Configuration> = Vec::new();
+        for part in text.split(',') {
+            let c: Configuration = part.parse()?;
+            if out.contains(&c) {
+                return Err(ConfigError::Repeated { part: part.trim().to_string() });
+            }
+            out.push(c);
+        }
+        Ok(Configurations(out))
+    }
+}
+
+impl std::fmt::Display for Configurations {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let words: Vec<String> = self.0.iter().map(Configuration::to_string).collect();
+        f.write_str(&words.join(","))
+    }
+}
+
+crate::job::values::serde_as_text!(Configurations);
 
 /// A slice file that cannot be read or written.
 #[derive(Debug, thiserror::Error)]

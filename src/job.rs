@@ -22,11 +22,26 @@
 //!
 //! Paths may hold the placeholder `{out}` (the stage folder), replaced when
 //! the command runs.
+//!
+//! A field with structure (an image size, a wavelength grid, goniometer
+//! configurations, a board, free parameters and their bounds, a sample's
+//! corner and size) is a type that reads its text in one place, its
+//! `FromStr` (the flags' parser, the project file's and the job file's):
+//! a job never holds a value its command would refuse to read, and its
+//! JSON holds the text its command line does ([`values`]). Strings left
+//! are free text: names, file patterns.
 
+use crate::bssrdf::Configurations;
+use crate::fit::{FreeSpec, SearchBounds};
+use lucent_calib::board::BoardSize;
+use lucent_colour::WavelengthGrid;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
+
+pub mod values;
+pub use values::{ImageSize, MeasuredAngles, MeasuredSlice, SampleCorner, SampleSizeMm};
 
 /// A job field out of range: which field (its snake-case name, the flag
 /// `--field-name`, the project key `field_name`) and why.
@@ -47,36 +62,10 @@ fn bad(field: &'static str, value: impl ToString, reason: impl Into<String>) -> 
     JobError { field, value: value.to_string(), reason: reason.into() }
 }
 
-/// A chessboard "COLSxROWS" of squares of `square_mm`, as
-/// [`lucent_calib::board::BoardSpec::parse`] takes it.
-fn board(text: &str, square_mm: f64) -> Result<(), JobError> {
-    use lucent_calib::board::{BoardError, BoardSpec};
-    match BoardSpec::parse(text, square_mm) {
-        Ok(_) => Ok(()),
-        Err(e @ BoardError::Square { .. }) => Err(bad("square_mm", square_mm, e.to_string())),
-        Err(e) => Err(bad("board", text, e.to_string())),
-    }
-}
-
-/// An image size "WIDTHxHEIGHT" in pixels that a render can hold
-/// ([`lucent_render::camera::check_image_size`]); the error is the reason.
-pub fn parse_image_size(text: &str) -> Result<(usize, usize), String> {
-    let (w, h) = text.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 640x480")?;
-    let w: usize = w.trim().parse().map_err(|e| format!("bad width: {e}"))?;
-    let h: usize = h.trim().parse().map_err(|e| format!("bad height: {e}"))?;
-    if w == 0 || h == 0 {
-        return Err("width and height must be at least 1".into());
-    }
-    lucent_render::camera::check_image_size(w, h).map_err(|e| e.to_string())?;
-    Ok((w, h))
-}
-
-/// An optional `size` field, checked by [`parse_image_size`].
-fn image_size(size: &Option<String>) -> Result<(), JobError> {
-    match size {
-        Some(text) => parse_image_size(text).map(drop).map_err(|reason| bad("size", text, reason)),
-        None => Ok(()),
-    }
+/// A chessboard of squares of `square_mm` (the board's corners are checked
+/// by its type).
+fn board(board: BoardSize, square_mm: f64) -> Result<lucent_calib::board::BoardSpec, JobError> {
+    lucent_calib::board::BoardSpec::new(board, square_mm).map_err(|e| bad("square_mm", square_mm, e.to_string()))
 }
 
 /// A finite number > 0.
@@ -211,16 +200,14 @@ impl Line {
 #[serde(deny_unknown_fields)]
 pub struct OpticsJob {
     pub recipes: Vec<PathBuf>,
-    /// START:END:STEP in nm.
-    pub wavelengths: String,
+    /// The wavelengths in nm ("START:END:STEP" or one "W" as text).
+    pub wavelengths: WavelengthGrid,
     pub out: PathBuf,
     pub weight_percent: Option<f64>,
 }
 
 impl OpticsJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        (self.wavelengths.parse::<lucent_colour::WavelengthGrid>())
-            .map_err(|e| bad("wavelengths", &self.wavelengths, e.to_string()))?;
         weight_percent(self.weight_percent)
     }
     pub fn to_args(&self) -> Vec<String> {
@@ -239,8 +226,9 @@ impl OpticsJob {
 pub struct BssrdfJob {
     pub recipe: PathBuf,
     pub wavelength_nm: f64,
-    /// θi/θo pairs, e.g. "45/0,0/45" (else the command's single configuration).
-    pub configs: Option<String>,
+    /// θi/θo pairs in degrees, "45/0,0/45" as text (else the command's
+    /// single configuration).
+    pub configs: Option<Configurations>,
     pub pixels: usize,
     pub pixel_mm: f64,
     pub seed: u64,
@@ -280,11 +268,7 @@ impl BssrdfJob {
         {
             return Err(bad("crop", c, format!("must lie in 1 … pixels ({})", self.pixels)));
         }
-        paths(self.paths)?;
-        if let Some(c) = &self.configs {
-            crate::bssrdf::parse_configs(c).map_err(|e| bad("configs", c, e.to_string()))?;
-        }
-        Ok(())
+        paths(self.paths)
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["bssrdf"]);
@@ -343,11 +327,12 @@ impl BssrdfCompareJob {
 #[serde(deny_unknown_fields)]
 pub struct FitJob {
     pub recipe: PathBuf,
-    /// FILE:θi/θo per measured slice.
-    pub measured: Vec<String>,
+    /// The measured slices, "FILE:θi/θo" each as text.
+    pub measured: Vec<MeasuredSlice>,
     pub measured_pixel_mm: Option<f64>,
     pub weight_percent: Option<f64>,
-    pub free: Vec<String>,
+    /// The free parameters, "NAME" or "NAME@K" each as text.
+    pub free: Vec<FreeSpec>,
     pub wavelength_nm: f64,
     pub seed: u64,
     pub quiet: bool,
@@ -355,7 +340,8 @@ pub struct FitJob {
     pub rel_error: f64,
     pub paths: Option<u64>,
     pub measured_rel_sd: f64,
-    pub bounds: Option<String>,
+    /// Search ranges, one per free parameter, "LO:HI,…" as text.
+    pub bounds: Option<SearchBounds>,
     pub threshold: f64,
     pub out: PathBuf,
 }
@@ -371,6 +357,15 @@ impl FitJob {
         weight_percent(self.weight_percent)?;
         if self.free.is_empty() {
             return Err(bad("free", "", "name at least one parameter, e.g. weight_percent"));
+        }
+        if let Some(b) = &self.bounds
+            && b.0.len() != self.free.len()
+        {
+            return Err(bad(
+                "bounds",
+                b,
+                format!("{} entries for {} free parameter(s): one per free parameter", b.0.len(), self.free.len()),
+            ));
         }
         if !(self.rel_error > 0.0 && self.rel_error < 1.0) {
             return Err(bad("rel_error", self.rel_error, "must lie in (0, 1)"));
@@ -390,7 +385,7 @@ impl FitJob {
         l.flag("--recipe", s(&self.recipe)).word("--measured").words(&self.measured);
         l.opt("--measured-pixel-mm", &self.measured_pixel_mm)
             .opt("--weight-percent", &self.weight_percent)
-            .flag("--free", self.free.join(","))
+            .flag("--free", self.free.iter().map(FreeSpec::to_string).collect::<Vec<_>>().join(","))
             .flag("--wavelength-nm", self.wavelength_nm)
             .flag("--seed", self.seed)
             .switch("--quiet", self.quiet)
@@ -410,10 +405,11 @@ impl FitJob {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CalibrateJob {
-    /// Files, folders or glob patterns.
+    /// Files, folders or glob patterns (free text: a pattern is matched
+    /// against the disk when the command runs).
     pub images: Vec<String>,
-    /// COLSxROWS inner corners.
-    pub board: String,
+    /// Inner corners ("COLSxROWS" as text).
+    pub board: BoardSize,
     pub square_mm: f64,
     pub out: PathBuf,
     pub model: lucent_calib::model::DistortionModel,
@@ -421,12 +417,12 @@ pub struct CalibrateJob {
 
 impl CalibrateJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        board(&self.board, self.square_mm)
+        board(self.board, self.square_mm).map(drop)
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["calibrate"]);
         l.word("--images").words(&self.images);
-        l.flag("--board", &self.board)
+        l.flag("--board", self.board)
             .flag("--square-mm", self.square_mm)
             .flag("--out", s(&self.out))
             .flag("--model", self.model.name());
@@ -439,8 +435,11 @@ impl CalibrateJob {
 #[serde(deny_unknown_fields)]
 pub struct ColourCalibrateJob {
     pub image: PathBuf,
+    /// The camera's name (free text, written into the ccm.json).
     pub camera: Option<String>,
     pub out: PathBuf,
+    /// The chart's four corners "x1,y1,…,x4,y4" in pixels, passed to the
+    /// command as given (read by `lucent colour calibrate --corners`).
     pub corners: Option<String>,
     #[serde(with = "by_name")]
     pub method: lucent_colour::ccm::CcmMethod,
@@ -517,11 +516,13 @@ impl RawClippedJob {
 pub struct PoseJob {
     pub camera: PathBuf,
     pub image: PathBuf,
-    pub board: String,
+    /// Inner corners ("COLSxROWS" as text).
+    pub board: BoardSize,
     pub square_mm: f64,
     pub out: PathBuf,
-    /// `--sample-corner` and `--sample-size-mm`.
-    pub sample: Option<(String, String)>,
+    /// `--sample-corner` and `--sample-size-mm`: the board corner under the
+    /// sample's corner and the sample's size ("I,J" and "W,H,T" in mm as text).
+    pub sample: Option<(SampleCorner, SampleSizeMm)>,
 }
 
 /// The largest sample side `lucent pose` takes, in units of the board's
@@ -543,16 +544,11 @@ pub fn sample_size_problem(size_mm: [f64; 3], cols: usize, rows: usize, square_m
 
 impl PoseJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        board(&self.board, self.square_mm)?;
-        if let (Some((_, size)), Ok(b)) =
-            (&self.sample, lucent_calib::board::BoardSpec::parse(&self.board, self.square_mm))
+        let b = board(self.board, self.square_mm)?;
+        if let Some((_, size)) = &self.sample
+            && let Some(reason) = sample_size_problem(size.mm(), b.cols, b.rows, self.square_mm)
         {
-            let v: Vec<f64> = size.split(',').filter_map(|t| t.trim().parse().ok()).collect();
-            if let Ok(v) = <[f64; 3]>::try_from(v)
-                && let Some(reason) = sample_size_problem(v, b.cols, b.rows, self.square_mm)
-            {
-                return Err(bad("sample_size_mm", size, reason));
-            }
+            return Err(bad("sample_size_mm", size, reason));
         }
         Ok(())
     }
@@ -560,7 +556,7 @@ impl PoseJob {
         let mut l = Line::new(&["pose"]);
         l.flag("--camera", s(&self.camera))
             .flag("--image", s(&self.image))
-            .flag("--board", &self.board)
+            .flag("--board", self.board)
             .flag("--square-mm", self.square_mm)
             .flag("--out", s(&self.out));
         if let Some((c, z)) = &self.sample {
@@ -579,15 +575,15 @@ pub struct EnvScaleJob {
     pub spp: Option<u32>,
     pub per_channel: bool,
     pub mask: Option<PathBuf>,
-    pub size: Option<String>,
+    /// The render's size ("WIDTHxHEIGHT" as text; else the scene camera's).
+    pub size: Option<ImageSize>,
     pub seed: Option<u64>,
     pub out: PathBuf,
 }
 
 impl EnvScaleJob {
     pub fn validate(&self) -> Result<(), JobError> {
-        at_least_one("spp", self.spp)?;
-        image_size(&self.size)
+        at_least_one("spp", self.spp)
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["env", "fit-scale"]);
@@ -611,7 +607,8 @@ pub struct RenderJob {
     pub spp: Option<u32>,
     pub quiet: bool,
     pub time_s: Option<f64>,
-    pub size: Option<String>,
+    /// The image size ("WIDTHxHEIGHT" as text; else the scene camera's).
+    pub size: Option<ImageSize>,
     pub seed: Option<u64>,
     /// `--uncertainty`: the band from the recipe's uncertain inputs (uncertainty.json, band.exr).
     pub uncertainty: bool,
@@ -621,7 +618,6 @@ pub struct RenderJob {
 impl RenderJob {
     pub fn validate(&self) -> Result<(), JobError> {
         at_least_one("spp", self.spp)?;
-        image_size(&self.size)?;
         positive_opt("time_s", self.time_s)
     }
     pub fn to_args(&self) -> Vec<String> {

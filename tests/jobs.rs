@@ -23,14 +23,14 @@ fn jobs() -> Vec<Job> {
     vec![
         Job::Optics(OpticsJob {
             recipes: vec![p("a.toml"), p("b.toml")],
-            wavelengths: "400:700:5".into(),
+            wavelengths: "400:700:5".parse().unwrap(),
             out: p("{out}"),
             weight_percent: Some(0.4),
         }),
         Job::Bssrdf(BssrdfJob {
             recipe: p("r.toml"),
             wavelength_nm: 632.8,
-            configs: Some("45/0,0/45".into()),
+            configs: Some("45/0,0/45".parse().unwrap()),
             pixels: 65,
             pixel_mm: 0.2,
             seed: 7,
@@ -52,10 +52,10 @@ fn jobs() -> Vec<Job> {
         }),
         Job::Fit(FitJob {
             recipe: p("r.toml"),
-            measured: vec!["m1.exr:45/0".into(), "m2.exr:0/45".into()],
+            measured: vec!["m1.exr:45/0".parse().unwrap(), "m2.exr:0/45".parse().unwrap()],
             measured_pixel_mm: Some(0.1),
             weight_percent: Some(0.5),
-            free: vec!["weight_percent".into(), "diameter_um@1".into()],
+            free: vec!["weight_percent".parse().unwrap(), "diameter_um@1".parse().unwrap()],
             wavelength_nm: 550.0,
             seed: 3,
             quiet: true,
@@ -63,13 +63,13 @@ fn jobs() -> Vec<Job> {
             rel_error: 0.01,
             paths: Some(20_000),
             measured_rel_sd: 0.1,
-            bounds: Some("0.1:2,0.1:1".into()),
+            bounds: Some("0.1:2,0.1:1".parse().unwrap()),
             threshold: 0.05,
             out: p("{out}/s"),
         }),
         Job::Calibrate(CalibrateJob {
             images: vec!["photos/*.jpg".into()],
-            board: "9x6".into(),
+            board: "9x6".parse().unwrap(),
             square_mm: 25.0,
             out: p("{out}/camera.json"),
             model: lucent_calib::model::DistortionModel::Fisheye,
@@ -94,10 +94,10 @@ fn jobs() -> Vec<Job> {
         Job::Pose(PoseJob {
             camera: p("camera.json"),
             image: p("pose.jpg"),
-            board: "9x6".into(),
+            board: "9x6".parse().unwrap(),
             square_mm: 20.0,
             out: p("{out}/scene.json"),
-            sample: Some(("2,3".into(), "60x40x6".into())),
+            sample: Some(("2,3".parse().unwrap(), "60,40,6".parse().unwrap())),
         }),
         Job::EnvScale(EnvScaleJob {
             scene: p("{out}/s/input_scene.toml"),
@@ -105,7 +105,7 @@ fn jobs() -> Vec<Job> {
             spp: Some(32),
             per_channel: true,
             mask: Some(p("valid.png")),
-            size: Some("64x48".into()),
+            size: Some("64x48".parse().unwrap()),
             seed: Some(9),
             out: p("{out}/s"),
         }),
@@ -114,7 +114,7 @@ fn jobs() -> Vec<Job> {
             spp: Some(64),
             quiet: true,
             time_s: Some(2.5),
-            size: Some("64x48".into()),
+            size: Some("64x48".parse().unwrap()),
             seed: Some(9),
             uncertainty: true,
             out: p("{out}/s"),
@@ -272,8 +272,9 @@ fn jobs_refuse_what_their_flags_refuse() {
     assert_eq!((e.field, e.to_string()), ("pixel_mm", "--pixel-mm -0.5: must be finite and > 0".to_string()));
     assert_eq!(BssrdfJob { pixels: 0, ..b.clone() }.validate().unwrap_err().field, "pixels");
     assert_eq!(BssrdfJob { crop: Some(66), ..b.clone() }.validate().unwrap_err().field, "crop");
-    let Job::Optics(o) = jobs().swap_remove(0) else { unreachable!() };
-    assert_eq!(OpticsJob { wavelengths: "780:380:10".into(), ..o }.validate().unwrap_err().field, "wavelengths");
+    let Job::Fit(f) = jobs().swap_remove(3) else { unreachable!() };
+    let e = FitJob { bounds: Some("0.1:2".parse().unwrap()), ..f }.validate().unwrap_err();
+    assert_eq!((e.field, e.to_string().contains("1 entries for 2 free")), ("bounds", true), "{e}");
     // The command line refuses the same value with the same words, before any work.
     let tmp = tempfile::tempdir().unwrap();
     let recipe = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/samples/IOL1068-09.toml");
@@ -323,11 +324,21 @@ fn nonsense_project_values_are_named_before_any_stage_runs() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{e}");
     for needle in
-        ["nonsense_values.toml", "[bssrdf] pixel_mm: must be finite and > 0, got -0.5", "[optics] wavelengths"]
+        ["nonsense_values.toml", "[bssrdf] pixel_mm: must be finite and > 0, got -0.5", "[compare] data_range"]
     {
         assert!(e.contains(needle), "{needle:?} missing from: {e}");
     }
     assert!(!e.contains("unexpected argument") && !e.contains("stage"), "{e}");
+    assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 0, "a stage ran or a folder was made");
+    // A value that is not one of its type is refused as the file is read:
+    // its line, its key and why.
+    let project = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/bad/project/backwards_wavelengths.toml");
+    let o = lucent_in(tmp.path(), &["run", project.to_str().unwrap(), "--out", "o"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    for needle in ["backwards_wavelengths.toml:7:", "[optics] wavelengths", "\"780:380:10\"", "end is below start"] {
+        assert!(e.contains(needle), "{needle:?} missing from: {e}");
+    }
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 0, "a stage ran or a folder was made");
 }
 
@@ -486,7 +497,7 @@ fn job_run_runs_a_json_job_as_its_command_does() {
     let recipe = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/samples/IOL1068-09.toml");
     let job = Job::Optics(OpticsJob {
         recipes: vec![recipe.clone()],
-        wavelengths: "450:650:100".into(),
+        wavelengths: "450:650:100".parse().unwrap(),
         out: p("by-job"),
         weight_percent: None,
     });
@@ -524,7 +535,7 @@ fn job_run_runs_a_json_job_as_its_command_does() {
     };
     let text = serde_json::to_string(&job).unwrap();
     refused(&text.replace("\"wavelengths\"", "\"wavelength\""), "wavelength");
-    refused(&text.replace("450:650:100", "650:450:100"), "--wavelengths");
+    refused(&text.replace("450:650:100", "650:450:100"), "\"650:450:100\"");
     refused(&text.replace("by-job", "{out}/optics"), "{out}");
     refused("{\"optics\": ", "not a job");
 }
@@ -567,4 +578,129 @@ fn stages_run_in_process_without_the_binary_on_disk() {
     assert!(log.contains("μs [1/m]"), "the command's table goes to the log: {log}");
     assert!(!out.contains("μs [1/m]") && !err.contains("μs [1/m]"), "the command's output leaked: {out}\n{err}");
     assert!(d.join("o/optics/manifest.json").is_file());
+}
+
+/// Every structured job value is a type that reads its text in one place:
+/// its canonical text reads and writes back unchanged (also through
+/// serde), another spelling of it is written canonically, and a wrong
+/// text is refused with a message naming that text.
+#[test]
+fn each_job_value_type_round_trips_through_its_text() {
+    use lucent::bssrdf::{Configuration, Configurations};
+    use lucent::fit::{FreeSpec, SearchBounds};
+    use lucent_calib::board::BoardSize;
+    use lucent_colour::WavelengthGrid;
+    use std::fmt::Display;
+    use std::str::FromStr;
+
+    fn check<T>(what: &str, canonical: &[&str], other: &[(&str, &str)], wrong: &[&str])
+    where
+        T: FromStr + Display + std::fmt::Debug + PartialEq + serde::Serialize + serde::de::DeserializeOwned,
+        T::Err: Display,
+    {
+        for text in canonical {
+            let v: T = text.parse().unwrap_or_else(|e| panic!("{what} {text:?}: {e}"));
+            assert_eq!(v.to_string(), *text, "{what}");
+            let json = serde_json::to_string(&v).unwrap();
+            assert_eq!(json, format!("{text:?}"), "{what}: serialised as its text");
+            assert_eq!(serde_json::from_str::<T>(&json).unwrap(), v, "{what}");
+        }
+        for (text, written) in other {
+            let v: T = text.parse().unwrap_or_else(|e| panic!("{what} {text:?}: {e}"));
+            assert_eq!(v.to_string(), *written, "{what} {text:?}");
+        }
+        for text in wrong {
+            let e = text.parse::<T>().map(|v| format!("{v:?}")).unwrap_err().to_string();
+            assert!(e.contains(&format!("{text:?}")), "{what} {text:?}: the message does not name it: {e}");
+            let e = serde_json::from_str::<T>(&format!("{text:?}")).unwrap_err().to_string();
+            assert!(e.contains(&format!("{text:?}")), "{what} {text:?} (serde): the message does not name it: {e}");
+        }
+    }
+    check::<WavelengthGrid>(
+        "wavelengths",
+        &["380:780:10", "400:700:5", "450:650:100", "550", "632.8"],
+        &[("400.0:700:10", "400:700:10"), (" 550 ", "550")],
+        &["780:380:10", "400:700", "nm"],
+    );
+    check::<Configuration>(
+        "config",
+        &["45/0", "0/45", "12.5/30"],
+        &[(" 45 /0", "45/0")],
+        &["45-0", "45/95", "45/0,0/45"],
+    );
+    check::<Configurations>("configs", &["45/0", "45/0,0/45"], &[("45/0, 0/45", "45/0,0/45")], &["45/0,45/0", "x/0"]);
+    check::<ImageSize>("size", &["640x480", "64x48"], &[("640X480", "640x480")], &["0x12", "640", "40000x2", "-1x2"]);
+    check::<BoardSize>("board", &["9x6", "3x3"], &[("9X6", "9x6"), ("9×6", "9x6")], &["9", "2x6", "9x600"]);
+    check::<MeasuredSlice>(
+        "measured",
+        &["m.exr:45/0", "dir/m.exr", "m.exr:45/10/0/190"],
+        &[("m.exr:45.0/0", "m.exr:45/0")],
+        &["m.exr:45/x", "m.exr:45/0/1", "m.exr:95/0"],
+    );
+    check::<FreeSpec>(
+        "free",
+        &["weight_percent", "diameter_um@1", "real_part_n@2"],
+        &[(" weight_percent ", "weight_percent")],
+        &["weight", "weight_percent@0", "diameter_um@x"],
+    );
+    check::<SearchBounds>(
+        "bounds",
+        &["0.1:2,0.1:1", "1.3:1.6"],
+        &[("0.10:2", "0.1:2")],
+        &["0.1-2", "0.1:x", "0.1:inf"],
+    );
+    check::<SampleCorner>("sample_corner", &["2,1", "0,0"], &[("2.0, 1", "2,1")], &["2", "-1,2", "1.5,2"]);
+    check::<SampleSizeMm>(
+        "sample_size_mm",
+        &["100,60,6.35", "149.1,104.5,6.35"],
+        &[],
+        &["100,60", "0,60,6", "60x40x6"],
+    );
+}
+
+/// A job's JSON (what the stage key and a shard's run identity hash) is the
+/// text its typed fields held as strings before they were types: each
+/// canonical job reads and writes back byte for byte, and its identity is
+/// pinned (SHA-256 of the same JSON with `out` emptied and `quiet` false,
+/// as the jobs of string fields hashed it).
+#[test]
+fn a_canonical_jobs_json_is_unchanged_by_its_typed_fields() {
+    let texts = [
+        (
+            r#"{"optics":{"recipes":["/r/a.toml"],"wavelengths":"380:780:10","out":"{out}","weight_percent":null}}"#,
+            "0dfffa5a24728d0d72da1c4aa61e22097020439e6bc7aae798920892512bf9c3",
+        ),
+        (
+            r#"{"bssrdf":{"recipe":"/r/a.toml","wavelength_nm":550.0,"configs":"45/0,0/45","pixels":259,"pixel_mm":0.1029,"seed":1,"quiet":true,"out":"{out}/s","weight_percent":null,"crop":null,"paths":200000,"rel_error":null,"time_s":null,"phase":null}}"#,
+            "7499edc8977ad560a96c675487cfec2f2926c28ec1f9c01c9e35a830c414443b",
+        ),
+        (
+            r#"{"fit":{"recipe":"/r/a.toml","measured":["/r/m.exr:45/0","/r/n.exr:0/45"],"measured_pixel_mm":0.1,"weight_percent":null,"free":["weight_percent","diameter_um@1"],"wavelength_nm":550.0,"seed":1,"quiet":true,"objective":"sum","rel_error":0.005,"paths":null,"measured_rel_sd":0.05,"bounds":"0.1:2,0.5:5","threshold":0.01,"out":"{out}/s"}}"#,
+            "7d3afe0d204beff9b5c322a1c68a05d0b0f3f87b2f2b767cab5d3dc37c403136",
+        ),
+        (
+            r#"{"calibrate":{"images":["/r/photos/*.jpg"],"board":"9x6","square_mm":25.0,"out":"{out}/camera.json","model":"pinhole-k3"}}"#,
+            "b2fac14d77727c6cb57342d1cb91714699451a527f82ea5f856929ab9c8f93a4",
+        ),
+        (
+            r#"{"pose":{"camera":"/r/camera.json","image":"/r/pose.jpg","board":"9x6","square_mm":25.0,"out":"{out}/scene.json","sample":["2,1","100,60,6.35"]}}"#,
+            "fa6c9fb34106c2a991e58d43491cd11b7bc2473df5c32385f89130a3f488da75",
+        ),
+        (
+            r#"{"env-scale":{"scene":"/r/s.toml","photo":"/r/empty.exr","spp":16,"per_channel":false,"mask":null,"size":"320x240","seed":1,"out":"{out}/s"}}"#,
+            "b24e54114d1f396d33e66cdf129995fdd97ddc0084bcdc3c7ca67cc8189304b3",
+        ),
+        (
+            r#"{"render":{"scene":"/r/s.toml","spp":16,"quiet":true,"time_s":null,"size":"320x240","seed":1,"uncertainty":false,"out":"{out}/s"}}"#,
+            "4dbcf8ceb8aa8458ff630598c83bbf68786abc3817ec88ad9b43502366110a00",
+        ),
+    ];
+    for (text, identity) in texts {
+        let job: Job = serde_json::from_str(text).unwrap_or_else(|e| panic!("{text}: {e}"));
+        assert_eq!(serde_json::to_string(&job).unwrap(), text);
+        assert_eq!(job.identity_sha256(), identity, "{text}");
+        job.validate().unwrap_or_else(|e| panic!("{text}: {e}"));
+        let back = parse_job(&job.to_args()).unwrap_or_else(|e| panic!("{text}: {e}"));
+        assert_eq!(serde_json::to_string(&back).unwrap(), text, "through its command line");
+    }
 }

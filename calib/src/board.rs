@@ -39,9 +39,31 @@ pub enum BoardError {
 /// The most inner corners along a side of a board.
 pub const MAX_CORNERS: usize = 200;
 
-impl BoardSpec {
-    /// From "COLSxROWS" (inner corners, e.g. "9x6") and the square size in mm.
-    pub fn parse(text: &str, square_mm: f64) -> Result<Self, BoardError> {
+/// The inner corners of a chessboard, 3 … [`MAX_CORNERS`] along each side.
+///
+/// As text (its `FromStr`, `Display` and serde form) "COLSxROWS", e.g.
+/// "9x6" for a board of 10 × 7 squares ("9X6" and "9×6" are read too, and
+/// written "9x6").
+///
+/// ```
+/// use lucent_calib::board::BoardSize;
+/// let b: BoardSize = "9 × 6".parse().unwrap();
+/// assert_eq!((b.cols, b.rows), (9, 6));
+/// assert_eq!(b.to_string(), "9x6");
+/// assert!("9".parse::<BoardSize>().unwrap_err().to_string().contains("\"9\""));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BoardSize {
+    /// Inner corners along a row (index i).
+    pub cols: usize,
+    /// Inner corners along a column (index j).
+    pub rows: usize,
+}
+
+impl std::str::FromStr for BoardSize {
+    type Err = BoardError;
+
+    fn from_str(text: &str) -> Result<Self, BoardError> {
         let bad = || BoardError::Syntax { text: text.to_string() };
         let (a, b) = text.trim().split_once(['x', 'X', '×']).ok_or_else(bad)?;
         let cols: usize = a.trim().parse().map_err(|_| bad())?;
@@ -52,8 +74,39 @@ impl BoardSpec {
         if cols > MAX_CORNERS || rows > MAX_CORNERS {
             return Err(BoardError::TooLarge { text: text.to_string() });
         }
+        Ok(Self { cols, rows })
+    }
+}
+
+impl std::fmt::Display for BoardSize {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}x{}", self.cols, self.rows)
+    }
+}
+
+impl Serialize for BoardSize {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> Deserialize<'de> for BoardSize {
+    /// "COLSxROWS", refused with the text and the reason.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        String::deserialize(d)?.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+impl BoardSpec {
+    /// From "COLSxROWS" (inner corners, e.g. "9x6") and the square size in mm.
+    pub fn parse(text: &str, square_mm: f64) -> Result<Self, BoardError> {
+        Self::new(text.parse()?, square_mm)
+    }
+
+    /// From its inner corners and the square size in mm.
+    pub fn new(size: BoardSize, square_mm: f64) -> Result<Self, BoardError> {
         Self::check_square_mm(square_mm)?;
-        Ok(Self { cols, rows, square_m: square_mm / 1000.0 })
+        Ok(Self { cols: size.cols, rows: size.rows, square_m: square_mm / 1000.0 })
     }
 
     /// A square size every reader of one accepts: 0.001 … 10000 mm.

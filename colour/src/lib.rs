@@ -105,16 +105,36 @@ pub(crate) fn check_finite(what: &str, values: &[f64]) -> Result<(), ColourError
     }
 }
 
-/// An inclusive, evenly spaced wavelength grid in nanometres.
+/// An inclusive, evenly spaced wavelength grid in nanometres (or a list of
+/// wavelengths, [`WavelengthGrid::from_list`]).
+///
+/// As text (its [`FromStr`](std::str::FromStr), [`Display`](std::fmt::Display)
+/// and serde form) a grid is "START:END:STEP" in nm, or one wavelength "W";
+/// it is written as it was given, each number in its shortest form
+/// ("400.0:700:10" is written "400:700:10").
 ///
 /// ```
 /// let grid = lucent_colour::WavelengthGrid::new(380.0, 780.0, 10.0).unwrap();
 /// assert_eq!(grid.len(), 41);
 /// assert_eq!(grid.wavelengths_nm()[4], 420.0);
+/// assert_eq!(grid.to_string(), "380:780:10");
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct WavelengthGrid {
     wavelengths_nm: Vec<f64>,
+    spelling: GridSpelling,
+}
+
+/// How a grid was given, for its text form.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum GridSpelling {
+    /// START:END:STEP in nm.
+    Range { start_nm: f64, end_nm: f64, step_nm: f64 },
+    /// One wavelength "W" in nm.
+    One,
+    /// An explicit list ([`WavelengthGrid::from_list`]): written as its
+    /// wavelengths separated by commas, which no parser reads back.
+    List,
 }
 
 /// A wavelength grid that cannot be built.
@@ -154,10 +174,39 @@ impl std::str::FromStr for WavelengthGrid {
             [a, b, c] => Ok(WavelengthGrid::new(num(a)?, num(b)?, num(c)?)?),
             [w] if !w.trim().is_empty() => {
                 let w = num(w)?;
-                Ok(WavelengthGrid::new(w, w, 1.0)?)
+                Ok(WavelengthGrid { spelling: GridSpelling::One, ..WavelengthGrid::new(w, w, 1.0)? })
             }
             _ => Err(GridTextError::Syntax),
         }
+    }
+}
+
+impl std::fmt::Display for WavelengthGrid {
+    /// The text [`FromStr`](std::str::FromStr) reads: "START:END:STEP" or "W" in nm.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.spelling {
+            GridSpelling::Range { start_nm, end_nm, step_nm } => write!(f, "{start_nm}:{end_nm}:{step_nm}"),
+            GridSpelling::One | GridSpelling::List => {
+                let words: Vec<String> = self.wavelengths_nm.iter().map(f64::to_string).collect();
+                f.write_str(&words.join(","))
+            }
+        }
+    }
+}
+
+impl serde::Serialize for WavelengthGrid {
+    /// The grid's text ([`Display`](std::fmt::Display)).
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for WavelengthGrid {
+    /// The grid's text, read by its [`FromStr`](std::str::FromStr); a wrong
+    /// text is refused with the text and the reason.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let text = String::deserialize(d)?;
+        text.parse().map_err(|e| serde::de::Error::custom(format!("{text:?}: {e}")))
     }
 }
 
@@ -181,7 +230,10 @@ impl WavelengthGrid {
         if n > 100_000 {
             return bad("more than 100000 wavelengths");
         }
-        Ok(Self { wavelengths_nm: (0..n).map(|i| start_nm + step_nm * i as f64).collect() })
+        Ok(Self {
+            wavelengths_nm: (0..n).map(|i| start_nm + step_nm * i as f64).collect(),
+            spelling: GridSpelling::Range { start_nm, end_nm, step_nm },
+        })
     }
 
     /// A grid of explicitly listed wavelengths (each positive and finite).
@@ -194,7 +246,7 @@ impl WavelengthGrid {
                 reason: "wavelengths must be a non-empty list of positive numbers",
             });
         }
-        Ok(Self { wavelengths_nm })
+        Ok(Self { wavelengths_nm, spelling: GridSpelling::List })
     }
 
     /// The default visible grid: 380–780 nm in 10 nm steps.
@@ -229,6 +281,19 @@ mod tests {
         assert!(matches!("".parse::<WavelengthGrid>(), Err(GridTextError::Syntax)));
         assert!(matches!("400:700".parse::<WavelengthGrid>(), Err(GridTextError::Syntax)));
         assert!(matches!("nm".parse::<WavelengthGrid>(), Err(GridTextError::NotANumber(_))));
+    }
+
+    #[test]
+    fn a_grid_is_written_as_it_was_given() {
+        for (text, written) in [("400:700:10", "400:700:10"), (" 380.0 : 780 : 2.5", "380:780:2.5"), ("550", "550")] {
+            let g: WavelengthGrid = text.parse().unwrap();
+            assert_eq!(g.to_string(), written, "{text}");
+            assert_eq!(written.parse::<WavelengthGrid>().unwrap(), g, "{text}");
+            assert_eq!(serde_json::to_string(&g).unwrap(), format!("\"{written}\""));
+            assert_eq!(serde_json::from_str::<WavelengthGrid>(&format!("\"{written}\"")).unwrap(), g);
+        }
+        let e = serde_json::from_str::<WavelengthGrid>("\"780:380:10\"").unwrap_err().to_string();
+        assert!(e.contains("\"780:380:10\"") && e.contains("end is below start"), "{e}");
     }
 
     #[test]

@@ -891,7 +891,12 @@ fn py_render<'py>(
     let args = RenderArgs {
         scene,
         out: PathBuf::new(),
-        render: TwinRenderArgs { spp, seed, size, threads },
+        render: TwinRenderArgs {
+            spp,
+            seed,
+            size: size.map(|t| t.parse().map_err(|e| error(format!("size: {e}")))).transpose()?,
+            threads,
+        },
         time_s,
         exposure: 0.0,
         target_rel_error,
@@ -1247,32 +1252,37 @@ fn py_fit<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     reject_unknown_keywords("fit", kwargs, &[("wavelength", "wavelength_nm"), ("wavelengths_nm", "wavelength_nm")])?;
     let recipe = RecipeArg::from_py(py, recipe)?;
-    let free = match free.extract::<String>() {
-        Ok(text) => text,
+    let free: Vec<String> = match free.extract::<String>() {
+        Ok(text) => text.split(',').map(str::to_string).collect(),
         Err(_) => free
             .extract::<Vec<String>>()
-            .map_err(|_| error(format!("free: expected a str or a list of str, got {}", type_name(free))))?
-            .join(","),
+            .map_err(|_| error(format!("free: expected a str or a list of str, got {}", type_name(free))))?,
     };
+    let free: Vec<lucent::fit::FreeSpec> =
+        free.iter().map(|t| t.parse().map_err(|e| error(format!("free: {e}")))).collect::<PyResult<_>>()?;
     let bounds = match bounds {
         None => None,
         Some(b) => Some(match b.extract::<String>() {
-            Ok(text) => text,
-            Err(_) => b
-                .extract::<Vec<(f64, f64)>>()
-                .map_err(|_| {
-                    error(format!("bounds: expected \"LO:HI,…\" or a list of (lo, hi), got {}", type_name(b)))
-                })?
-                .iter()
-                .map(|(lo, hi)| format!("{lo}:{hi}"))
-                .collect::<Vec<_>>()
-                .join(","),
+            Ok(text) => text.parse::<lucent::fit::SearchBounds>().map_err(|e| error(format!("bounds: {e}")))?,
+            Err(_) => lucent::fit::SearchBounds(
+                b.extract::<Vec<(f64, f64)>>()
+                    .map_err(|_| {
+                        error(format!("bounds: expected \"LO:HI,…\" or a list of (lo, hi), got {}", type_name(b)))
+                    })?
+                    .into_iter()
+                    .map(|(lo, hi)| lucent::fit::SearchRange { lo, hi })
+                    .collect(),
+            ),
         }),
     };
+    let measured: Vec<lucent::job::MeasuredSlice> = path_list(measured, "measured")?
+        .iter()
+        .map(|t| t.parse().map_err(|e| error(format!("measured: {e}"))))
+        .collect::<PyResult<_>>()?;
     let args = FitArgs {
         recipe: recipe.path(),
         weight_percent,
-        measured: path_list(measured, "measured")?,
+        measured,
         measured_pixel_mm,
         free,
         objective: named::<lucent::fit::Objective>("objective", objective)?,

@@ -78,7 +78,7 @@ pub struct RunArgs {
     pub phi_o: f64,
     /// Several θi/θo configurations at once, e.g. 45/0,0/45,45/15 (φi, φo as given).
     #[arg(long)]
-    pub configs: Option<String>,
+    pub configs: Option<crate::bssrdf::Configurations>,
     /// Phase function (default: mie with a recipe, hg otherwise).
     #[arg(long, value_parser = super::choices::named::<PhaseModel>())]
     pub phase: Option<PhaseModel>,
@@ -403,10 +403,6 @@ fn beam_map_fwhm_m(map: &BeamMap) -> f64 {
     var(sx, sxx).max(var(sy, syy)).sqrt() / slab::fwhm_to_sigma(1.0)
 }
 
-fn parse_configs(text: &str) -> Result<Vec<(f64, f64)>> {
-    crate::bssrdf::parse_configs(text).map_err(|e| anyhow!("--configs {text:?}: {e}"))
-}
-
 /// One configuration of a `lucent bssrdf` run, set up as the command sets it up.
 pub struct PlannedRun {
     /// θi, φi, θo, φo in degrees.
@@ -515,7 +511,7 @@ pub fn plan_with_recipe(a: &RunArgs, recipe: Option<&Recipe>) -> Result<Plan> {
     let perturbations = perturbations(a, recipe, &top)?;
     let slab = Slab::new(m.thickness_m, m.medium.clone())?.with_top(top);
     let configs = match &a.configs {
-        Some(text) => parse_configs(text)?.into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
+        Some(list) => list.pairs().into_iter().map(|(ti, to)| (ti, a.phi_i, to, a.phi_o)).collect(),
         None => vec![(a.theta_i, a.phi_i, a.theta_o, a.phi_o)],
     };
     let runs = configs

@@ -121,10 +121,10 @@ pub struct PoseArgs {
     pub board: super::groups::BoardArgs,
     /// Board inner corner I,J under the sample's top-left corner (indices as drawn in the view image).
     #[arg(long, requires = "sample_size_mm")]
-    pub sample_corner: Option<String>,
+    pub sample_corner: Option<crate::job::SampleCorner>,
     /// Sample width (along i), height (along j) and thickness in mm, e.g. 149.1,104.5,6.35.
     #[arg(long, requires = "sample_corner")]
-    pub sample_size_mm: Option<String>,
+    pub sample_size_mm: Option<crate::job::SampleSizeMm>,
     /// The photo will be undistorted with --keep-all (use those intrinsics in the scene).
     #[arg(long)]
     pub keep_all: bool,
@@ -633,15 +633,6 @@ fn ambiguous_board_warning(board: &BoardSpec, what: &str) -> String {
     )
 }
 
-fn parse_numbers<const N: usize>(flag: &str, text: &str) -> Result<[f64; N]> {
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|s| s.trim().parse::<f64>())
-        .collect::<std::result::Result<_, _>>()
-        .map_err(|_| anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))?;
-    <[f64; N]>::try_from(v).map_err(|_| anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))
-}
-
 pub fn pose(a: PoseArgs) -> Result<()> {
     let cal = read_camera(&a.camera)?;
     let board = a.board.spec()?;
@@ -664,29 +655,19 @@ pub fn pose(a: PoseArgs) -> Result<()> {
     }
     let sample = match (&a.sample_corner, &a.sample_size_mm) {
         (Some(c), Some(s)) => {
-            let [i, j] = parse_numbers::<2>("--sample-corner", c)?;
-            if i < 0.0
-                || j < 0.0
-                || i.fract() != 0.0
-                || j.fract() != 0.0
-                || i >= board.cols as f64
-                || j >= board.rows as f64
-            {
+            if c.i >= board.cols || c.j >= board.rows {
                 bail!(
                     "--sample-corner {c}: must be inner-corner indices I,J with 0 ≤ I < {} and 0 ≤ J < {}",
                     board.cols,
                     board.rows
                 );
             }
-            let size = parse_numbers::<3>("--sample-size-mm", s)?;
-            if size.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
-                bail!("--sample-size-mm {s}: width, height and thickness must be positive");
-            }
+            let size = s.mm();
             // A sample lies on the board (the range of the project's [pose] sample_size_mm).
             if let Some(reason) = crate::job::sample_size_problem(size, board.cols, board.rows, board.square_m * 1e3) {
                 bail!("--sample-size-mm {s}: {reason}");
             }
-            Some(SampleSpec { corner: [i as usize, j as usize], size_m: size.map(|v| v / 1000.0) })
+            Some(SampleSpec { corner: [c.i, c.j], size_m: size.map(|v| v / 1000.0) })
         }
         _ => None,
     };

@@ -10,9 +10,11 @@ use lucent_calib::scene::BoardSpec;
 /// The most worker threads `--threads` starts.
 pub const MAX_THREADS: usize = 1024;
 
-/// `--size WxH` in pixels, checked as `[render] size` is.
+/// `--size WxH` in pixels of a command whose flag is not an
+/// [`ImageSize`](crate::job::ImageSize) itself, read as that type reads it.
 pub fn parse_size(text: &str) -> Result<(usize, usize)> {
-    crate::job::parse_image_size(text).map_err(|reason| anyhow::anyhow!("--size {text:?}: {reason}"))
+    let size: crate::job::ImageSize = text.parse().map_err(|e| anyhow!("--size {e}"))?;
+    Ok((size.width, size.height))
 }
 
 /// Checks a wall-time budget in seconds.

@@ -1,7 +1,10 @@
 //! `lucent fit`: recipe parameters fitted to measured BSSRDF slices
 //! ([`crate::fit`]), and `lucent bench fit`.
 
-use crate::fit::{self, report, Budget, FitResult, FreeParameter, Measurement, Objective, Problem};
+use crate::fit::{
+    self, report, Budget, FitResult, FreeParameter, FreeSpec, Measurement, Objective, Problem, SearchBounds,
+};
+use crate::job::MeasuredSlice;
 use crate::optics::recipe::{Overrides, Recipe};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
@@ -18,13 +21,13 @@ pub struct FitArgs {
     /// Measured slices FILE[:THETA_I/THETA_O] or FILE:THETA_I/PHI_I/THETA_O/PHI_O (degrees; φi 0°, φo 180° by default;
     /// without angles, from the file's sidecar FILE.json or summary.json "config").
     #[arg(long, required = true, num_args = 1..)]
-    pub measured: Vec<String>,
+    pub measured: Vec<MeasuredSlice>,
     /// Pixel size of the measured slices in mm (else from their sidecar JSON).
     #[arg(long)]
     pub measured_pixel_mm: Option<f64>,
     /// Free parameters, comma-separated: weight_percent, diameter_um, real_part_n (NAME@K for particle type K).
-    #[arg(long, required = true)]
-    pub free: String,
+    #[arg(long, required = true, value_delimiter = ',')]
+    pub free: Vec<FreeSpec>,
     /// What the fit minimises.
     #[arg(long, value_parser = super::choices::named::<Objective>(), default_value = "sum")]
     pub objective: Objective,
@@ -50,7 +53,7 @@ pub struct FitArgs {
     pub pilot_time_s: f64,
     /// Search bounds LO:HI per free parameter, comma-separated (default start/10 … start·10; n: ÷/× 1.2).
     #[arg(long)]
-    pub bounds: Option<String>,
+    pub bounds: Option<SearchBounds>,
     /// Slab thickness in mm (default: the recipe's).
     #[arg(long)]
     pub thickness_mm: Option<f64>,
@@ -66,25 +69,6 @@ pub struct FitArgs {
 
 /// (θi, φi, θo, φo) in degrees.
 pub type Angles = (f64, f64, f64, f64);
-
-/// Splits "FILE:A/B" or "FILE:A/B/C/D" into the file and its angles.
-pub fn parse_measured(spec: &str) -> Result<(PathBuf, Option<Angles>)> {
-    if let Some((file, angles)) = spec.rsplit_once(':')
-        && angles.contains('/')
-    {
-        let nums: Vec<f64> =
-            angles.split('/').map(|s| s.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
-                anyhow!("--measured {spec:?}: {angles:?} is not THETA_I/THETA_O or THETA_I/PHI_I/THETA_O/PHI_O")
-            })?;
-        let a = match nums.as_slice() {
-            [ti, to] => (*ti, 0.0, *to, 180.0),
-            [ti, pi, to, po] => (*ti, *pi, *to, *po),
-            _ => bail!("--measured {spec:?}: give 2 angles (θi/θo) or 4 (θi/φi/θo/φo)"),
-        };
-        return Ok((PathBuf::from(file), Some(a)));
-    }
-    Ok((PathBuf::from(spec), None))
-}
 
 /// The configuration from a sidecar (`FILE.json`, or `summary.json` beside
 /// it, as `lucent bssrdf` writes): `config.theta_i_deg` etc.
@@ -105,22 +89,6 @@ fn sidecar_angles(path: &Path) -> Result<Option<Angles>> {
     Ok(None)
 }
 
-fn parse_bounds(text: &str, n: usize) -> Result<Vec<Option<(f64, f64)>>> {
-    let parts: Vec<&str> = text.split(',').collect();
-    if parts.len() != n {
-        bail!("--bounds {text:?}: {} entries for {n} free parameter(s)", parts.len());
-    }
-    parts
-        .iter()
-        .map(|p| {
-            let (a, b) = p.split_once(':').ok_or_else(|| anyhow!("--bounds {text:?}: expected LO:HI, got {p:?}"))?;
-            let num =
-                |s: &str| s.trim().parse::<f64>().map_err(|_| anyhow!("--bounds {text:?}: {s:?} is not a number"));
-            Ok(Some((num(a)?, num(b)?)))
-        })
-        .collect()
-}
-
 /// The fit problem of `lucent fit` for the arguments `a`, checked before any work.
 pub fn build_problem(a: &FitArgs) -> Result<Problem> {
     build_problem_with_recipe(a, Recipe::load(&a.recipe, Overrides { weight_percent: a.weight_percent })?)
@@ -131,7 +99,7 @@ pub fn build_problem(a: &FitArgs) -> Result<Problem> {
 /// from a file, e.g. the Python API's dict.
 pub fn build_problem_with_recipe(a: &FitArgs, recipe: Recipe) -> Result<Problem> {
     let free: Vec<FreeParameter> =
-        a.free.split(',').map(|t| FreeParameter::parse(t, &recipe)).collect::<Result<_, _>>()?;
+        a.free.iter().map(|spec| FreeParameter::of(*spec, &recipe)).collect::<Result<_, _>>()?;
     if let Some(p) = a.measured_pixel_mm
         && !(p.is_finite() && p > 0.0)
     {
@@ -144,20 +112,20 @@ pub fn build_problem_with_recipe(a: &FitArgs, recipe: Recipe) -> Result<Problem>
     {
         bail!("--paths {n}: {reason}");
     }
-    let mut seen: Vec<(std::path::PathBuf, String)> = Vec::new();
+    let mut seen: Vec<(std::path::PathBuf, &MeasuredSlice)> = Vec::new();
     for spec in &a.measured {
-        let (path, angles) = parse_measured(spec)?;
+        let (path, angles) = (&spec.path, spec.angles.map(|a| a.degrees()));
         if !path.is_file() {
             bail!("--measured {}: no such file", path.display());
         }
-        let key = crate::io::file_key(&path);
+        let key = crate::io::file_key(path);
         if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
             bail!("--measured {spec}: the same file as --measured {first}; give each measured slice once");
         }
-        seen.push((key, spec.clone()));
+        seen.push((key, spec));
         let angles = match angles {
             Some(x) => x,
-            None => sidecar_angles(&path)?.ok_or_else(|| {
+            None => sidecar_angles(path)?.ok_or_else(|| {
                 anyhow!(
                     "--measured {}: configuration unknown; write it as {}:45/0 (θi/θo in degrees) or give a FILE.json with theta_i_deg, theta_o_deg",
                     path.display(),
@@ -165,7 +133,7 @@ pub fn build_problem_with_recipe(a: &FitArgs, recipe: Recipe) -> Result<Problem>
                 )
             })?,
         };
-        measurements.push(Measurement::load_at(&path, a.measured_pixel_mm, angles, Some(a.wavelength))?);
+        measurements.push(Measurement::load_at(path, a.measured_pixel_mm, angles, Some(a.wavelength))?);
     }
     let (beam, _) = a.beam.beam()?;
     let thickness_m = match a.thickness_mm {
@@ -174,7 +142,10 @@ pub fn build_problem_with_recipe(a: &FitArgs, recipe: Recipe) -> Result<Problem>
         None => recipe.thickness_m,
     };
     let bounds = match &a.bounds {
-        Some(t) => parse_bounds(t, free.len())?,
+        Some(b) if b.0.len() != free.len() => {
+            bail!("--bounds {b}: {} entries for {} free parameter(s)", b.0.len(), free.len())
+        }
+        Some(b) => b.0.iter().map(|r| Some((r.lo, r.hi))).collect(),
         None => vec![None; free.len()],
     };
     let mut problem = Problem::new(recipe, a.wavelength, free, measurements)?;
@@ -666,14 +637,19 @@ mod tests {
 
     #[test]
     fn measured_specs() {
-        let (p, a) = parse_measured("m.exr:45/0").unwrap();
-        assert_eq!((p, a), (PathBuf::from("m.exr"), Some((45.0, 0.0, 0.0, 180.0))));
-        let (_, a) = parse_measured("dir:x/m.exr:45/10/0/190").unwrap();
-        assert_eq!(a, Some((45.0, 10.0, 0.0, 190.0)));
-        assert_eq!(parse_measured("m.exr").unwrap().1, None);
-        assert!(parse_measured("m.exr:45/x").is_err());
-        assert!(parse_measured("m.exr:45/0/1").is_err());
-        assert!(parse_bounds("0.1:1", 2).is_err());
-        assert_eq!(parse_bounds("0.1:1", 1).unwrap(), vec![Some((0.1, 1.0))]);
+        let m = |t: &str| t.parse::<MeasuredSlice>();
+        let a = m("m.exr:45/0").unwrap();
+        assert_eq!((a.path, a.angles.map(|a| a.degrees())), (PathBuf::from("m.exr"), Some((45.0, 0.0, 0.0, 180.0))));
+        let a = m("dir:x/m.exr:45/10/0/190").unwrap();
+        assert_eq!(
+            (a.path, a.angles.map(|a| a.degrees())),
+            (PathBuf::from("dir:x/m.exr"), Some((45.0, 10.0, 0.0, 190.0)))
+        );
+        assert_eq!(m("m.exr").unwrap().angles, None);
+        assert!(m("m.exr:45/x").is_err());
+        assert!(m("m.exr:45/0/1").is_err());
+        let b: SearchBounds = "0.1:1".parse().unwrap();
+        assert_eq!(b.0, vec![fit::SearchRange { lo: 0.1, hi: 1.0 }]);
+        assert!("0.1-1".parse::<SearchBounds>().is_err());
     }
 }

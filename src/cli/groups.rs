@@ -11,6 +11,7 @@ use crate::bssrdf;
 use crate::scene::LoadedScene;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
+use lucent_calib::board::BoardSize;
 use lucent_calib::scene::BoardSpec;
 use lucent_render::slab::{Beam, BeamMap};
 use lucent_render::tracer::Settings;
@@ -68,7 +69,7 @@ pub struct BoardArgs {
     /// numbering, also `lucent env orient`'s); only a board with one odd and one even count
     /// (e.g. 9x6) fixes it.
     #[arg(long)]
-    pub board: String,
+    pub board: BoardSize,
     /// Side of one square in millimetres.
     #[arg(long)]
     pub square_mm: f64,
@@ -77,7 +78,7 @@ pub struct BoardArgs {
 impl BoardArgs {
     /// The board, or an error naming both flags.
     pub fn spec(&self) -> Result<BoardSpec> {
-        super::common::board_spec(&self.board, self.square_mm)
+        BoardSpec::new(self.board, self.square_mm).map_err(|e| anyhow!("--square-mm: {e}"))
     }
 }
 
@@ -93,7 +94,7 @@ pub struct TwinRenderArgs {
     pub seed: Option<u64>,
     /// Image size WIDTHxHEIGHT instead of the camera's (the intrinsics are scaled to match).
     #[arg(long)]
-    pub size: Option<String>,
+    pub size: Option<crate::job::ImageSize>,
     /// Worker threads (default: the batch job's allocation, LUCENT_THREADS or
     /// SLURM_CPUS_PER_TASK, when set, else all cores; 0: all cores).
     #[arg(long)]
@@ -113,8 +114,8 @@ impl TwinRenderArgs {
     /// `--size`: the camera's image size, its intrinsics scaled to match
     /// (about the image edge, pixel centres at integers).
     pub fn resize(&self, loaded: &mut LoadedScene) -> Result<()> {
-        let Some(size) = &self.size else { return Ok(()) };
-        let (w, h) = super::common::parse_size(size)?;
+        let Some(size) = self.size else { return Ok(()) };
+        let (w, h) = (size.width, size.height);
         let cam = &mut loaded.scene.camera;
         let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
         let [fx, fy, cx, cy] = cam.intrinsics;

@@ -109,7 +109,7 @@ impl From<&fit::FitArgs> for FitJob {
             measured: a.measured.clone(),
             measured_pixel_mm: a.measured_pixel_mm,
             weight_percent: a.weight_percent,
-            free: a.free.split(',').map(|f| f.trim().to_string()).filter(|f| !f.is_empty()).collect(),
+            free: a.free.clone(),
             wavelength_nm: a.wavelength,
             seed: a.seed,
             quiet: a.quiet,
@@ -128,7 +128,7 @@ impl From<&camera::CalibrateArgs> for CalibrateJob {
     fn from(a: &camera::CalibrateArgs) -> Self {
         CalibrateJob {
             images: a.images.clone(),
-            board: a.board.board.clone(),
+            board: a.board.board,
             square_mm: a.board.square_mm,
             out: a.out.clone(),
             model: a.model,
@@ -147,10 +147,10 @@ impl From<&camera::PoseArgs> for PoseJob {
         PoseJob {
             camera: a.camera.clone(),
             image: a.image.clone(),
-            board: a.board.board.clone(),
+            board: a.board.board,
             square_mm: a.board.square_mm,
             out: a.out.clone(),
-            sample: a.sample_corner.clone().zip(a.sample_size_mm.clone()),
+            sample: a.sample_corner.zip(a.sample_size_mm),
         }
     }
 }
@@ -163,7 +163,7 @@ impl From<&env_fit::FitScaleArgs> for EnvScaleJob {
             spp: a.render.spp,
             per_channel: a.per_channel,
             mask: a.mask.clone(),
-            size: a.render.size.clone(),
+            size: a.render.size,
             seed: a.render.seed,
             out: a.out.clone(),
         }
@@ -177,7 +177,7 @@ impl From<&render::RenderArgs> for RenderJob {
             spp: a.render.spp,
             quiet: a.quiet,
             time_s: a.time_s,
-            size: a.render.size.clone(),
+            size: a.render.size,
             seed: a.render.seed,
             uncertainty: a.uncertainty,
             out: a.out.clone(),
@@ -202,15 +202,19 @@ impl From<&compare::CompareArgs> for CompareJob {
 }
 
 /// The render options of a twin (render, env fit-scale) as a job holds them.
-fn twin_render(spp: Option<u32>, seed: Option<u64>, size: &Option<String>) -> super::groups::TwinRenderArgs {
-    super::groups::TwinRenderArgs { spp, seed, size: size.clone(), threads: None }
+fn twin_render(
+    spp: Option<u32>,
+    seed: Option<u64>,
+    size: Option<crate::job::ImageSize>,
+) -> super::groups::TwinRenderArgs {
+    super::groups::TwinRenderArgs { spp, seed, size, threads: None }
 }
 
 /// The parsed command a job stands for: the command's typed arguments built
 /// from the job's fields, every other flag at the default clap gives it (the
 /// inverse of [`job_of`], without a command line in between).
 pub fn command_of(job: &Job) -> anyhow::Result<Command> {
-    let board = |board: &str, square_mm: f64| super::groups::BoardArgs { board: board.to_string(), square_mm };
+    let board = |board, square_mm| super::groups::BoardArgs { board, square_mm };
     Ok(match job {
         Job::Optics(j) => Command::Optics(optics_args(j)),
         Job::Bssrdf(j) => Command::Bssrdf(bssrdf::BssrdfArgs {
@@ -246,7 +250,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
         Job::Fit(j) => Command::Fit(fit_args(j)),
         Job::Calibrate(j) => Command::Calibrate(camera::CalibrateArgs {
             images: j.images.clone(),
-            board: board(&j.board, j.square_mm),
+            board: board(j.board, j.square_mm),
             model: j.model,
             detector: lucent_calib::cv::Detector::Auto,
             out: j.out.clone(),
@@ -284,9 +288,9 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
         Job::Pose(j) => Command::Pose(camera::PoseArgs {
             camera: j.camera.clone(),
             image: j.image.clone(),
-            board: board(&j.board, j.square_mm),
-            sample_corner: j.sample.as_ref().map(|(c, _)| c.clone()),
-            sample_size_mm: j.sample.as_ref().map(|(_, z)| z.clone()),
+            board: board(j.board, j.square_mm),
+            sample_corner: j.sample.map(|(c, _)| c),
+            sample_size_mm: j.sample.map(|(_, z)| z),
             keep_all: false,
             out: j.out.clone(),
         }),
@@ -295,7 +299,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
             photo: j.photo.clone(),
             mask: j.mask.clone(),
             per_channel: j.per_channel,
-            render: twin_render(j.spp, j.seed, &j.size),
+            render: twin_render(j.spp, j.seed, j.size),
             out: j.out.clone(),
             quiet: false,
         })),
@@ -328,7 +332,7 @@ fn fit_args(j: &FitJob) -> fit::FitArgs {
         weight_percent: j.weight_percent,
         measured: j.measured.clone(),
         measured_pixel_mm: j.measured_pixel_mm,
-        free: j.free.join(","),
+        free: j.free.clone(),
         objective: j.objective,
         wavelength: j.wavelength_nm,
         beam: super::groups::BeamArgs::default(),
@@ -350,7 +354,7 @@ fn render_args(j: &RenderJob) -> render::RenderArgs {
     render::RenderArgs {
         scene: j.scene.clone(),
         out: j.out.clone(),
-        render: twin_render(j.spp, j.seed, &j.size),
+        render: twin_render(j.spp, j.seed, j.size),
         time_s: j.time_s,
         exposure: 0.0,
         target_rel_error: None,

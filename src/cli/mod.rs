@@ -128,7 +128,7 @@ pub struct OpticsArgs {
     pub recipes: Vec<PathBuf>,
     /// Wavelength grid START:END:STEP in nm, or one wavelength (e.g. 550).
     #[arg(long, default_value = "380:780:10", conflicts_with = "wavelength")]
-    pub wavelengths: String,
+    pub wavelengths: WavelengthGrid,
     /// A single wavelength in nm (`--wavelength` is the older spelling).
     #[arg(long = "wavelength-nm", alias = "wavelength", allow_hyphen_values = true)]
     pub wavelength: Option<f64>,
@@ -638,7 +638,7 @@ fn optics_from(a: OpticsArgs, merged_from: Option<&[crate::shard::Shard]>) -> Re
     let grid = match a.wavelength {
         Some(w) if !(w.is_finite() && w > 0.0) => bail!("--wavelength {w}: must be a positive number of nanometres"),
         Some(w) => WavelengthGrid::from_list(vec![w]).context("--wavelength")?,
-        None => parse_grid(&a.wavelengths)?,
+        None => a.wavelengths.clone(),
     };
     if a.phase_entries == 1 {
         bail!("--phase-entries must be 0 (no table) or at least 2");

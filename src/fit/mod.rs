@@ -117,9 +117,6 @@ pub enum FitError {
     Medium(#[from] lucent_render::medium::MediumError),
     #[error("phase table: {0}")]
     Phase(#[from] PhaseError),
-    /// `--free NAME` that is not a parameter.
-    #[error("unknown free parameter {name:?} (valid: {})", ParameterKind::ALL.map(|k| k.name()).join(", "))]
-    UnknownParameter { name: String },
     /// `--free NAME` without `@K` for a recipe of several particle types.
     #[error("{}: the recipe has {count} particle types; say which, e.g. {name}@1 … {name}@{count}", recipe.display())]
     WhichParticle { recipe: PathBuf, name: String, count: usize },
@@ -172,9 +169,12 @@ pub enum Undetermined {
     Moved,
 }
 
-/// The kind of a free parameter.
+/// The kind of a free parameter: the closed set of recipe values a fit can
+/// free, named as `--free` and `[fit] free` spell them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[derive(strum::EnumString, strum::IntoStaticStr, strum::VariantNames, strum::VariantArray)]
+#[strum(serialize_all = "snake_case")]
 pub enum ParameterKind {
     /// A particle type's weight percentage.
     WeightPercent,
@@ -186,18 +186,126 @@ pub enum ParameterKind {
 }
 
 impl ParameterKind {
+    /// The name `--free` takes.
     pub fn name(self) -> &'static str {
-        match self {
-            ParameterKind::WeightPercent => "weight_percent",
-            ParameterKind::DiameterUm => "diameter_um",
-            ParameterKind::RealPartN => "real_part_n",
-        }
+        self.into()
     }
 
     /// All kinds, for messages listing the valid names.
     pub const ALL: [ParameterKind; 3] =
         [ParameterKind::WeightPercent, ParameterKind::DiameterUm, ParameterKind::RealPartN];
 }
+
+/// A free parameter as `--free` and `[fit] free` name it: its kind and,
+/// for a recipe of several particle types, which one (1-based K of
+/// `NAME@K`; checked against the recipe by [`FreeParameter::of`]).
+///
+/// As text "NAME" or "NAME@K", e.g. "weight_percent" or "diameter_um@2".
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FreeSpec {
+    pub kind: ParameterKind,
+    /// K of `NAME@K` (1 = the recipe's first `[[particles]]`); None: the
+    /// recipe's only particle type.
+    pub particle: Option<usize>,
+}
+
+/// A free parameter written as text that is not one ([`FreeSpec`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FreeSpecError {
+    #[error(
+        "unknown free parameter {text:?} (valid: {}; NAME@K for particle type K)",
+        ParameterKind::ALL.map(|k| k.name()).join(", ")
+    )]
+    Name { text: String },
+    #[error("{text:?}: the particle type K of NAME@K must be a whole number from 1")]
+    Particle { text: String },
+}
+
+impl std::str::FromStr for FreeSpec {
+    type Err = FreeSpecError;
+
+    fn from_str(text: &str) -> Result<Self, FreeSpecError> {
+        let (name, which) = match text.split_once('@') {
+            Some((n, k)) => (n.trim(), Some(k.trim())),
+            None => (text.trim(), None),
+        };
+        let kind = name.parse().map_err(|_| FreeSpecError::Name { text: text.to_string() })?;
+        let particle = match which {
+            None => None,
+            Some(k) => match k.parse::<usize>() {
+                Ok(k) if k >= 1 => Some(k),
+                _ => return Err(FreeSpecError::Particle { text: text.to_string() }),
+            },
+        };
+        Ok(FreeSpec { kind, particle })
+    }
+}
+
+impl std::fmt::Display for FreeSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.particle {
+            Some(k) => write!(f, "{}@{k}", self.kind.name()),
+            None => f.write_str(self.kind.name()),
+        }
+    }
+}
+
+crate::job::values::serde_as_text!(FreeSpec);
+
+/// The search range of one free parameter, in its natural unit (wt-%, µm,
+/// or the index): `lo` … `hi`, both finite. Whether it is positive,
+/// increasing and holds the start value is the fit's check
+/// ([`Problem::validate`]), which knows the start value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SearchRange {
+    pub lo: f64,
+    pub hi: f64,
+}
+
+/// Search ranges, one per free parameter in `--free`'s order.
+///
+/// As text "LO:HI,LO:HI,…", e.g. "0.1:2,0.5:5".
+#[derive(Debug, Clone, PartialEq)]
+pub struct SearchBounds(pub Vec<SearchRange>);
+
+/// Search bounds written as text that are not ([`SearchBounds`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SearchBoundsError {
+    #[error("{text:?}: expected LO:HI, got {part:?}")]
+    Syntax { text: String, part: String },
+    #[error("{text:?}: {number:?} is not a finite number")]
+    Number { text: String, number: String },
+}
+
+impl std::str::FromStr for SearchBounds {
+    type Err = SearchBoundsError;
+
+    fn from_str(text: &str) -> Result<Self, SearchBoundsError> {
+        let range = |part: &str| {
+            let (a, b) = part
+                .split_once(':')
+                .ok_or_else(|| SearchBoundsError::Syntax { text: text.to_string(), part: part.to_string() })?;
+            let num = |s: &str| {
+                s.trim()
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| SearchBoundsError::Number { text: text.to_string(), number: s.to_string() })
+            };
+            Ok(SearchRange { lo: num(a)?, hi: num(b)? })
+        };
+        text.split(',').map(range).collect::<Result<_, _>>().map(SearchBounds)
+    }
+}
+
+impl std::fmt::Display for SearchBounds {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let words: Vec<String> = self.0.iter().map(|r| format!("{}:{}", r.lo, r.hi)).collect();
+        f.write_str(&words.join(","))
+    }
+}
+
+crate::job::values::serde_as_text!(SearchBounds);
 
 /// A free parameter: its kind and the particle type (0-based) it belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -211,27 +319,23 @@ impl FreeParameter {
         Self { kind: ParameterKind::WeightPercent, particle }
     }
 
-    /// Parses `NAME` or `NAME@K` (K the 1-based particle type; required
-    /// when the recipe has several).
-    pub fn parse(text: &str, recipe: &Recipe) -> Result<Self, FitError> {
-        let (name, which) = match text.split_once('@') {
-            Some((n, k)) => (n.trim(), Some(k.trim())),
-            None => (text.trim(), None),
-        };
-        let kind = ParameterKind::ALL
-            .into_iter()
-            .find(|k| k.name() == name)
-            .ok_or_else(|| FitError::UnknownParameter { name: name.to_string() })?;
+    /// The parameter `spec` names in `recipe` (its `@K` required when the
+    /// recipe has several particle types, and one of them).
+    pub fn of(spec: FreeSpec, recipe: &Recipe) -> Result<Self, FitError> {
         let count = recipe.particles.len();
-        let particle = match which {
+        let particle = match spec.particle {
             None if count == 1 => 0,
-            None => return Err(FitError::WhichParticle { recipe: recipe.path.clone(), name: name.to_string(), count }),
-            Some(k) => match k.parse::<usize>() {
-                Ok(k) if (1..=count).contains(&k) => k - 1,
-                _ => return Err(FitError::ParticleNumber { text: text.to_string(), count }),
-            },
+            None => {
+                return Err(FitError::WhichParticle {
+                    recipe: recipe.path.clone(),
+                    name: spec.kind.name().to_string(),
+                    count,
+                });
+            }
+            Some(k) if (1..=count).contains(&k) => k - 1,
+            Some(_) => return Err(FitError::ParticleNumber { text: spec.to_string(), count }),
         };
-        Ok(Self { kind, particle })
+        Ok(Self { kind: spec.kind, particle })
     }
 
     /// `NAME` or `NAME@K` for a recipe with `particles` types.
@@ -1603,11 +1707,18 @@ mod tests {
     #[test]
     fn free_parameter_names() {
         let r = pdms();
-        assert_eq!(FreeParameter::parse("weight_percent", &r).unwrap(), FreeParameter::weight_percent(0));
-        assert_eq!(FreeParameter::parse("diameter_um@1", &r).unwrap().kind, ParameterKind::DiameterUm);
-        let e = FreeParameter::parse("weight", &r).unwrap_err().to_string();
-        assert!(e.contains("weight_percent, diameter_um, real_part_n"), "{e}");
-        assert!(FreeParameter::parse("weight_percent@2", &r).is_err());
+        let of = |t: &str| FreeParameter::of(t.parse().unwrap(), &r);
+        assert_eq!(of("weight_percent").unwrap(), FreeParameter::weight_percent(0));
+        assert_eq!(of("diameter_um@1").unwrap().kind, ParameterKind::DiameterUm);
+        let e = "weight".parse::<FreeSpec>().unwrap_err().to_string();
+        assert!(e.contains("\"weight\"") && e.contains("weight_percent, diameter_um, real_part_n"), "{e}");
+        assert!(of("weight_percent@2").is_err());
+        let spec: FreeSpec = " diameter_um@2 ".parse().unwrap();
+        assert_eq!(
+            (spec.kind, spec.particle, spec.to_string()),
+            (ParameterKind::DiameterUm, Some(2), "diameter_um@2".into())
+        );
+        assert!("weight_percent@0".parse::<FreeSpec>().is_err());
         let n = FreeParameter { kind: ParameterKind::RealPartN, particle: 0 };
         let v = n.value_in(&r, 550.0).unwrap();
         let r2 = n.apply(&r, v + 0.01, 550.0).unwrap();
@@ -1619,7 +1730,7 @@ mod tests {
     #[test]
     fn typed_errors_name_the_file_and_the_problem() {
         let r = pdms();
-        let e = FreeParameter::parse("weight_percent@2", &r).unwrap_err();
+        let e = FreeParameter::of("weight_percent@2".parse().unwrap(), &r).unwrap_err();
         assert!(matches!(e, FitError::ParticleNumber { count: 1, .. }), "{e:?}");
         assert!(e.to_string().contains("\"weight_percent@2\": the particle type must be 1 … 1"), "{e}");
         let path = Path::new("slices/dark.exr");

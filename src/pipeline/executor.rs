@@ -864,7 +864,7 @@ mod tests {
         assert!(why.contains("time budget"), "{why}");
         let optics = crate::job::OpticsJob {
             recipes: vec!["r.toml".into()],
-            wavelengths: "550".into(),
+            wavelengths: "550".parse().expect("a grid"),
             out: "x".into(),
             weight_percent: None,
         };

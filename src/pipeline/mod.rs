@@ -60,13 +60,14 @@ use crate::envfit::EnvScaleFiles;
 use crate::fault::Fault;
 use crate::fit::report::FitFiles;
 use crate::job::{
-    BssrdfCompareJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, Job, OpticsJob, RawClippedJob,
-    RenderJob,
+    BssrdfCompareJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, ImageSize, Job, OpticsJob,
+    RawClippedJob, RenderJob,
 };
 use crate::scene::band::RenderBandFiles;
 use crate::scene::RenderFiles;
 use lucent_calib::calibrate::CalibrationFiles;
 use lucent_calib::scene::PoseFiles;
+use lucent_colour::WavelengthGrid;
 use project::Project;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -962,9 +963,8 @@ fn developed(
 /// over `[render] size` (1 without one, or when they are equal). A photo
 /// larger than the render by an integer factor is binned to it by the
 /// develop stage (a box filter, as the renderer's pixels integrate).
-fn photo_bin(sample: &str, photo: &Path, render_size: Option<&str>) -> Result<usize, StageProblem> {
-    let Some(size) = render_size else { return Ok(1) };
-    let Ok((rw, rh)) = crate::job::parse_image_size(size) else { return Ok(1) };
+fn photo_bin(sample: &str, photo: &Path, render_size: Option<ImageSize>) -> Result<usize, StageProblem> {
+    let Some(ImageSize { width: rw, height: rh }) = render_size else { return Ok(1) };
     let unreadable =
         |reason: String| StageProblem::PhotoUnreadable { sample: sample.into(), photo: photo.to_path_buf(), reason };
     let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
@@ -1054,7 +1054,7 @@ fn plan_optics(project: &Project, p: &mut Plan) -> Planned {
     }
     let job = OpticsJob {
         recipes: f.sample.iter().map(|smp| smp.recipe.clone()).collect(),
-        wavelengths: f.optics.as_ref().and_then(|o| o.wavelengths.clone()).unwrap_or_else(|| "380:780:10".into()),
+        wavelengths: f.optics.as_ref().and_then(|o| o.wavelengths.clone()).unwrap_or_else(WavelengthGrid::visible),
         out: under_out(String::new()),
         weight_percent: f.sample.iter().find_map(|s| s.weight_percent),
     };
@@ -1074,12 +1074,11 @@ fn plan_bssrdf(project: &Project, p: &mut Plan) -> Planned {
     let configs = &project.bssrdf_configs;
     for smp in &f.sample {
         inputs.extend(recipe_inputs(&smp.recipe));
-        let job = project::bssrdf_job(b, configs, smp, project.seed);
+        let job = project::bssrdf_job(b, smp, project.seed);
         tasks.push(lucent_task(format!("{} slices", smp.name), Job::Bssrdf(job)));
         for m in &smp.measured {
             inputs.push(m.file.clone());
-            let c = project::parse_configs(&m.config).unwrap_or_default();
-            let Some(&c) = c.first() else { continue };
+            let c = m.config.pair();
             let job = BssrdfCompareJob {
                 measured: m.file.clone(),
                 simulated: PathBuf::from(bssrdf_run_dir(&format!("{{out}}/{}", smp.name), configs, c)),
@@ -1170,7 +1169,7 @@ fn plan_develop(project: &Project, out: &Path, p: &mut Plan) -> Planned {
         for (what, photo) in [("photo", &smp.photo), ("empty_board", &smp.empty_board)] {
             let Some(photo) = photo else { continue };
             inputs.push(photo.clone());
-            let bin = photo_bin(&smp.name, photo, f.render.as_ref().and_then(|r| r.size.as_deref()))
+            let bin = photo_bin(&smp.name, photo, f.render.as_ref().and_then(|r| r.size))
                 .map_err(|problem| PipelineError::Stage { stage, problem })?;
             let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
             // The photo's noise (var P of the compare stage's model RMSE), from its RAW noise model.
@@ -1207,8 +1206,11 @@ fn plan_pose(project: &Project, out: &Path, p: &mut Plan) -> Planned {
         return Ok(Err(Skip::NoCamera));
     }
     inputs.push(pose.image.clone());
-    let job =
-        project::pose_job(pose, f.calibration.as_ref(), camera, PoseFiles::in_dir(&under_out(String::new())).json);
+    let Some(job) =
+        project::pose_job(pose, f.calibration.as_ref(), camera, PoseFiles::in_dir(&under_out(String::new())).json)
+    else {
+        return Ok(Err(Skip::NoCamera));
+    };
     tasks.push(lucent_task("board pose".into(), Job::Pose(job)));
     Ok(Ok(()))
 }
@@ -1241,7 +1243,7 @@ fn plan_render(stage: Stage, project: &Project, out: &Path, p: &mut Plan) -> Pla
                 spp: Some(r.env_spp.or(r.spp).unwrap_or(16)),
                 per_channel: r.per_channel_scale == Some(true),
                 mask: valid_mask(out, smp, "empty_board"),
-                size: r.size.clone(),
+                size: r.size,
                 seed: Some(project.seed),
                 out: sample_out,
             };
@@ -1266,7 +1268,7 @@ fn plan_render(stage: Stage, project: &Project, out: &Path, p: &mut Plan) -> Pla
             spp: Some(r.spp.unwrap_or(16)),
             quiet: true,
             time_s: r.time_s,
-            size: r.size.clone(),
+            size: r.size,
             seed: Some(project.seed),
             uncertainty,
             out: sample_out.clone(),
@@ -1722,17 +1724,18 @@ mod tests {
         let img = crate::imageio::RgbImage::new(320, 240, vec![0.5; 320 * 240 * 3]).unwrap();
         crate::imageio::write_exr(&photo, &img).unwrap();
         assert_eq!(photo_bin("s", &photo, None).unwrap(), 1);
-        assert_eq!(photo_bin("s", &photo, Some("320x240")).unwrap(), 1);
-        assert_eq!(photo_bin("s", &photo, Some("160x120")).unwrap(), 2);
-        assert_eq!(photo_bin("s", &photo, Some("80x60")).unwrap(), 4);
-        for size in ["100x75", "160x100", "640x480"] {
-            let e = photo_bin("s", &photo, Some(size)).unwrap_err().to_string();
+        let size = |width, height| Some(ImageSize { width, height });
+        assert_eq!(photo_bin("s", &photo, size(320, 240)).unwrap(), 1);
+        assert_eq!(photo_bin("s", &photo, size(160, 120)).unwrap(), 2);
+        assert_eq!(photo_bin("s", &photo, size(80, 60)).unwrap(), 4);
+        for (w, h) in [(100, 75), (160, 100), (640, 480)] {
+            let e = photo_bin("s", &photo, size(w, h)).unwrap_err().to_string();
             assert!(
                 e.contains("photo.exr") && e.contains("320 × 240") && e.contains("integer multiple"),
-                "{size}: {e}"
+                "{w}x{h}: {e}"
             );
         }
-        let e = photo_bin("s", &dir.path().join("missing.exr"), Some("160x120")).unwrap_err().to_string();
+        let e = photo_bin("s", &dir.path().join("missing.exr"), size(160, 120)).unwrap_err().to_string();
         assert!(e.contains("missing.exr"), "{e}");
     }
 

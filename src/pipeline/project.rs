@@ -70,12 +70,15 @@
 //! # file = "slice.exr"
 //! ```
 
-pub use crate::bssrdf::{parse_configs, ConfigError};
+pub use crate::bssrdf::{ConfigError, Configuration, Configurations};
+use crate::fit::{FreeSpec, SearchBounds};
 use crate::job::{
-    BssrdfCompareJob, BssrdfJob, CalibrateJob, CompareJob, EnvScaleJob, FitJob, JobError, OpticsJob, PoseJob, RenderJob,
+    BssrdfCompareJob, BssrdfJob, CalibrateJob, CompareJob, EnvScaleJob, FitJob, ImageSize, JobError, MeasuredAngles,
+    MeasuredSlice, PoseJob, RenderJob, SampleCorner, SampleSizeMm,
 };
+use lucent_calib::board::BoardSize;
 use lucent_calib::model::DistortionModel;
-use lucent_colour::CcmMethod;
+use lucent_colour::{CcmMethod, WavelengthGrid};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -129,14 +132,16 @@ pub struct ProjectSection {
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct OpticsSection {
-    pub wavelengths: Option<String>,
+    /// "START:END:STEP" in nm (default 380:780:10).
+    pub wavelengths: Option<WavelengthGrid>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct BssrdfSection {
     pub wavelength_nm: Option<f64>,
-    pub configs: Option<String>,
+    /// θi/θo pairs in degrees, "45/0,0/45" (default 45/0).
+    pub configs: Option<Configurations>,
     pub pixels: Option<usize>,
     pub pixel_mm: Option<f64>,
     pub crop: Option<usize>,
@@ -149,11 +154,20 @@ pub struct BssrdfSection {
     pub threshold: Option<f64>,
 }
 
-#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+impl BssrdfSection {
+    /// `configs`, or the one configuration 45/0 without it.
+    pub fn configurations(&self) -> Configurations {
+        self.configs.clone().unwrap_or_else(|| Configuration { theta_i_deg: 45.0, theta_o_deg: 0.0 }.into())
+    }
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CalibrationSection {
+    /// A file pattern (free text, wildcards in the file name).
     pub images: String,
-    pub board: String,
+    /// Inner corners "COLSxROWS".
+    pub board: BoardSize,
     pub square_mm: f64,
     /// Any spelling `lucent calibrate --model` reads.
     #[serde(default, deserialize_with = "distortion_model")]
@@ -180,8 +194,11 @@ fn distortion_model<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Dis
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ColourSection {
+    /// The camera's name (it names a folder).
     pub camera: String,
     pub image: PathBuf,
+    /// The chart's corners "x1,y1,…,x4,y4" in pixels, passed to `lucent
+    /// colour calibrate --corners` as written.
     pub corners: Option<String>,
     /// Any spelling `lucent colour calibrate --method` reads.
     pub method: Option<CcmMethod>,
@@ -194,10 +211,13 @@ pub struct ColourSection {
 #[serde(deny_unknown_fields)]
 pub struct PoseSection {
     pub image: PathBuf,
-    pub board: Option<String>,
+    /// Inner corners "COLSxROWS" (default: `[calibration]`'s).
+    pub board: Option<BoardSize>,
     pub square_mm: Option<f64>,
-    pub sample_corner: Option<String>,
-    pub sample_size_mm: Option<String>,
+    /// "I,J": the board corner under the sample's corner.
+    pub sample_corner: Option<SampleCorner>,
+    /// "W,H,T": the sample's size in mm.
+    pub sample_size_mm: Option<SampleSizeMm>,
     /// A scene file whose `[camera] camera_to_world` is the known pose (synthetic photos): the report compares.
     pub truth: Option<PathBuf>,
 }
@@ -207,7 +227,8 @@ pub struct PoseSection {
 pub struct RenderSection {
     pub scene: PathBuf,
     pub spp: Option<u32>,
-    pub size: Option<String>,
+    /// "WIDTHxHEIGHT" in pixels (default: the scene camera's).
+    pub size: Option<ImageSize>,
     pub time_s: Option<f64>,
     pub env_spp: Option<u32>,
     pub per_channel_scale: Option<bool>,
@@ -231,7 +252,7 @@ pub struct CompareSection {
 #[serde(deny_unknown_fields)]
 pub struct FitSection {
     /// Free parameters: `weight_percent`, `diameter_um`, `real_part_n`, each optionally `@K`.
-    pub free: Vec<String>,
+    pub free: Vec<FreeSpec>,
     /// What the fit minimises (default: the slice sums); any spelling
     /// `lucent fit --objective` reads.
     #[serde(default, deserialize_with = "objective")]
@@ -243,7 +264,7 @@ pub struct FitSection {
     /// Relative uncertainty of each measured slice (default 0.05).
     pub measured_rel_sd: Option<f64>,
     /// Search bounds "LO:HI,…", one per free parameter.
-    pub bounds: Option<String>,
+    pub bounds: Option<SearchBounds>,
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -263,10 +284,11 @@ pub struct SampleSection {
     pub truth_recipe: Option<PathBuf>,
 }
 
-#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MeasuredSection {
-    pub config: String,
+    /// "θi/θo" in degrees.
+    pub config: Configuration,
     pub file: PathBuf,
     pub pixel_mm: Option<f64>,
 }
@@ -313,11 +335,11 @@ pub fn folder_name(name: &str) -> Result<(), &'static str> {
 }
 
 /// Sample `smp`'s slice job of `[bssrdf]` (outputs under `{out}/NAME`).
-pub fn bssrdf_job(b: &BssrdfSection, configs: &[(f64, f64)], smp: &SampleSection, seed: u64) -> BssrdfJob {
+pub fn bssrdf_job(b: &BssrdfSection, smp: &SampleSection, seed: u64) -> BssrdfJob {
     BssrdfJob {
         recipe: smp.recipe.clone(),
         wavelength_nm: b.wavelength_nm.unwrap_or(550.0),
-        configs: Some(configs.iter().map(|(a, b)| format!("{a}/{b}")).collect::<Vec<_>>().join(",")),
+        configs: Some(b.configurations()),
         pixels: b.pixels.unwrap_or(259),
         pixel_mm: b.pixel_mm.unwrap_or(0.1029),
         seed,
@@ -336,7 +358,11 @@ pub fn bssrdf_job(b: &BssrdfSection, configs: &[(f64, f64)], smp: &SampleSection
 pub fn fit_job(fit: &FitSection, bssrdf: Option<&BssrdfSection>, smp: &SampleSection, seed: u64) -> FitJob {
     FitJob {
         recipe: smp.recipe.clone(),
-        measured: smp.measured.iter().map(|m| format!("{}:{}", m.file.display(), m.config)).collect(),
+        measured: smp
+            .measured
+            .iter()
+            .map(|m| MeasuredSlice { path: m.file.clone(), angles: Some(MeasuredAngles::Plane(m.config)) })
+            .collect(),
         measured_pixel_mm: smp.measured.first().and_then(|m| m.pixel_mm),
         weight_percent: smp.weight_percent,
         free: fit.free.clone(),
@@ -357,29 +383,35 @@ pub fn fit_job(fit: &FitSection, bssrdf: Option<&BssrdfSection>, smp: &SampleSec
 pub fn calibrate_job(c: &CalibrationSection, out: PathBuf) -> CalibrateJob {
     CalibrateJob {
         images: vec![c.images.clone()],
-        board: c.board.clone(),
+        board: c.board,
         square_mm: c.square_mm,
         out,
         model: c.model.unwrap_or(DistortionModel::PinholeK3),
     }
 }
 
-/// The pose job of `[pose]` (board and square size from `[calibration]` unless given).
-pub fn pose_job(p: &PoseSection, calibration: Option<&CalibrationSection>, camera: PathBuf, out: PathBuf) -> PoseJob {
-    PoseJob {
+/// The pose job of `[pose]` (board and square size from `[calibration]`
+/// unless given); None without a board in either.
+pub fn pose_job(
+    p: &PoseSection,
+    calibration: Option<&CalibrationSection>,
+    camera: PathBuf,
+    out: PathBuf,
+) -> Option<PoseJob> {
+    Some(PoseJob {
         camera,
         image: p.image.clone(),
-        board: p.board.clone().or_else(|| calibration.map(|c| c.board.clone())).unwrap_or_default(),
+        board: p.board.or(calibration.map(|c| c.board))?,
         square_mm: p.square_mm.or(calibration.map(|c| c.square_mm)).unwrap_or(20.0),
         out,
-        sample: p.sample_corner.clone().zip(p.sample_size_mm.clone()),
-    }
+        sample: p.sample_corner.zip(p.sample_size_mm),
+    })
 }
 
 /// The values of the project that become job fields, checked by the jobs
 /// ([`crate::job`]) with the ranges of the commands' flags: every problem,
 /// as (project key, reason).
-fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, String)> {
+fn job_problems(file: &ProjectFile) -> Vec<(String, String)> {
     let mut problems = Vec::new();
     let mut check = |section: &str, prefix: &str, r: Result<(), JobError>| {
         if let Err(e) = r {
@@ -388,19 +420,9 @@ fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, Stri
         }
     };
     let nobody = SampleSection::default();
-    if let Some(o) = &file.optics {
-        let job = OpticsJob {
-            recipes: vec![],
-            wavelengths: o.wavelengths.clone().unwrap_or_default(),
-            out: PathBuf::new(),
-            weight_percent: None,
-        };
-        if o.wavelengths.is_some() {
-            check("[optics]", "", job.validate());
-        }
-    }
+    // ([optics] holds only its grid, whose type is its check.)
     if let Some(b) = &file.bssrdf {
-        check("[bssrdf]", "", bssrdf_job(b, configs, &nobody, 1).validate());
+        check("[bssrdf]", "", bssrdf_job(b, &nobody, 1).validate());
         let compare = BssrdfCompareJob {
             measured: PathBuf::new(),
             simulated: PathBuf::new(),
@@ -418,8 +440,9 @@ fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, Stri
     }
     if let Some(p) = &file.pose
         && p.square_mm.is_some()
+        && let Some(job) = pose_job(p, None, PathBuf::new(), PathBuf::new())
     {
-        check("[pose]", "", pose_job(p, None, PathBuf::new(), PathBuf::new()).validate());
+        check("[pose]", "", job.validate());
     }
     if let Some(r) = &file.render {
         let job = RenderJob {
@@ -427,7 +450,7 @@ fn job_problems(file: &ProjectFile, configs: &[(f64, f64)]) -> Vec<(String, Stri
             spp: r.spp,
             quiet: true,
             time_s: r.time_s,
-            size: r.size.clone(),
+            size: r.size,
             seed: None,
             uncertainty: r.uncertainty == Some(true),
             out: PathBuf::new(),
@@ -497,10 +520,11 @@ impl Project {
         for (k, s) in file.sample.iter_mut().enumerate() {
             check_sample(&c, k, s, &mut seen)?;
         }
-        let bssrdf_configs = check_bssrdf(&c, &file)?;
+        let configs = check_bssrdf(&c, &file)?;
+        let bssrdf_configs = configs.as_ref().map(Configurations::pairs).unwrap_or_default();
         // The values that become flags of the stages' commands, checked by
         // their jobs with the flags' ranges: all named here, before any stage runs.
-        match job_problems(&file, &bssrdf_configs).as_slice() {
+        match job_problems(&file).as_slice() {
             [] => {}
             [(k, reason)] => return Err(c.key(k, reason.clone())),
             many => return Err(ProjectError::Keys { path: path.to_path_buf(), problems: many.to_vec() }),
@@ -622,22 +646,18 @@ fn check_sample(
 /// their files: one configuration each, no file twice, a pixel size here
 /// or in the slice's sidecar.
 fn check_measured(c: &Checker, at: &str, measured: &mut [MeasuredSection]) -> Result<(), ProjectError> {
-    let mut slices: Vec<((f64, f64), PathBuf)> = Vec::new();
+    let mut slices: Vec<(Configuration, PathBuf)> = Vec::new();
     for m in measured.iter_mut() {
         c.existing(&format!("{at} measured file"), &mut m.file)?;
-        let cfg = parse_configs(&m.config).map_err(|e| c.key(&format!("{at} measured config"), e.to_string()))?;
-        if cfg.len() != 1 {
-            return Err(c.key(&format!("{at} measured config"), "one θi/θo pair per measured slice".into()));
-        }
         // One slice given twice would count as two configurations in the fit.
         let file = crate::io::file_key(&m.file);
         if let Some((cfg, _)) = slices.iter().find(|(_, f)| *f == file) {
             return Err(c.key(
                 &format!("{at} measured"),
-                format!("{} is given twice (at {}/{} and {})", m.file.display(), cfg.0, cfg.1, m.config),
+                format!("{} is given twice (at {cfg} and {})", m.file.display(), m.config),
             ));
         }
-        slices.push((cfg[0], file));
+        slices.push((m.config, file));
     }
     for m in measured.iter() {
         // Without pixel_mm here the slice's sidecar must give it; the
@@ -665,27 +685,23 @@ fn check_measured(c: &Checker, at: &str, measured: &mut [MeasuredSection]) -> Re
 
 /// The `[bssrdf]` configurations (none without the section), checked: a
 /// stop rule, and every measured slice's configuration among them.
-fn check_bssrdf(c: &Checker, file: &ProjectFile) -> Result<Vec<(f64, f64)>, ProjectError> {
-    let mut bssrdf_configs = Vec::new();
-    if let Some(b) = &file.bssrdf {
-        bssrdf_configs = parse_configs(b.configs.as_deref().unwrap_or("45/0"))
-            .map_err(|e| c.key("[bssrdf] configs", e.to_string()))?;
-        if b.paths.is_none() && b.rel_error.is_none() && b.time_s.is_none() {
-            return Err(c.key("[bssrdf]", "give a stop rule: paths, rel_error or time_s".into()));
-        }
-        for s in &file.sample {
-            for m in &s.measured {
-                let cfg = parse_configs(&m.config).map_err(|e| c.key("[[sample.measured]] config", e.to_string()))?[0];
-                if !bssrdf_configs.contains(&cfg) {
-                    return Err(c.key(
-                        &format!("[[sample]] {} measured config", s.name),
-                        format!("{:?} is not among [bssrdf] configs", m.config),
-                    ));
-                }
+fn check_bssrdf(c: &Checker, file: &ProjectFile) -> Result<Option<Configurations>, ProjectError> {
+    let Some(b) = &file.bssrdf else { return Ok(None) };
+    let configs = b.configurations();
+    if b.paths.is_none() && b.rel_error.is_none() && b.time_s.is_none() {
+        return Err(c.key("[bssrdf]", "give a stop rule: paths, rel_error or time_s".into()));
+    }
+    for s in &file.sample {
+        for m in &s.measured {
+            if !configs.list().contains(&m.config) {
+                return Err(c.key(
+                    &format!("[[sample]] {} measured config", s.name),
+                    format!("\"{}\" is not among [bssrdf] configs", m.config),
+                ));
             }
         }
     }
-    Ok(bssrdf_configs)
+    Ok(Some(configs))
 }
 
 /// Resolves `[calibration]`'s images pattern and checks its truth, a
@@ -742,21 +758,11 @@ fn check_colour(c: &Checker, file: &mut ProjectFile) -> Result<(), ProjectError>
     Ok(())
 }
 
-/// Checks `[fit]` (free parameters it knows) against the `samples` (one
+/// Checks `[fit]` (at least one free parameter) against the `samples` (one
 /// valid pixel size per sample's measured slices).
 fn check_fit(c: &Checker, f: &FitSection, samples: &[SampleSection]) -> Result<(), ProjectError> {
     if f.free.is_empty() {
         return Err(c.key("[fit] free", "name at least one parameter, e.g. [\"weight_percent\"]".into()));
-    }
-    for name in &f.free {
-        let base = name.split('@').next().unwrap_or_default();
-        let particle_ok = name.split_once('@').is_none_or(|(_, k)| k.parse::<usize>().is_ok());
-        if !["weight_percent", "diameter_um", "real_part_n"].contains(&base) || !particle_ok {
-            return Err(c.key(
-                "[fit] free",
-                format!("{name:?}: expected weight_percent, diameter_um or real_part_n (NAME@K for particle type K)"),
-            ));
-        }
     }
     for smp in samples {
         let px: Vec<Option<f64>> = smp.measured.iter().map(|m| m.pixel_mm).collect();
