@@ -44,8 +44,8 @@ use std::path::{Path, PathBuf};
 pub enum ConfigError {
     #[error("{part:?}: expected θi/θo in degrees, e.g. 45/0")]
     Syntax { part: String },
-    #[error("{text:?} is not a number")]
-    Number { text: String },
+    #[error("{part:?}: {text:?} is not a number")]
+    Number { part: String, text: String },
     #[error("{part:?}: angles must lie in [0°, 90°)")]
     Angle { part: String },
     #[error("{part:?} is given twice")]
@@ -81,7 +81,9 @@ impl std::str::FromStr for Configuration {
             return Err(ConfigError::NotOne { text: text.to_string() });
         }
         let (a, b) = text.split_once('/').ok_or_else(|| ConfigError::Syntax { part: text.to_string() })?;
-        let num = |s: &str| s.trim().parse::<f64>().map_err(|_| ConfigError::Number { text: s.to_string() });
+        let num = |s: &str| {
+            s.trim().parse::<f64>().map_err(|_| ConfigError::Number { part: text.to_string(), text: s.to_string() })
+        };
         let (ti, to) = (num(a)?, num(b)?);
         if !(0.0..90.0).contains(&ti) || !(0.0..90.0).contains(&to) {
             return Err(ConfigError::Angle { part: text.to_string() });

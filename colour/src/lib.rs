@@ -147,12 +147,12 @@ pub enum GridError {
 /// A wavelength grid written as text that cannot be read or built.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum GridTextError {
-    #[error("expected START:END:STEP in nm, e.g. 380:780:10, or one wavelength, e.g. 550")]
-    Syntax,
-    #[error("{0:?} is not a number")]
-    NotANumber(String),
-    #[error(transparent)]
-    Grid(#[from] GridError),
+    #[error("{text:?}: expected START:END:STEP in nm, e.g. 380:780:10, or one wavelength, e.g. 550")]
+    Syntax { text: String },
+    #[error("{text:?}: {part:?} is not a number")]
+    NotANumber { text: String, part: String },
+    #[error("{text:?}: {source}")]
+    Grid { text: String, source: GridError },
 }
 
 impl std::str::FromStr for WavelengthGrid {
@@ -169,14 +169,19 @@ impl std::str::FromStr for WavelengthGrid {
     /// ```
     fn from_str(text: &str) -> Result<Self, Self::Err> {
         let parts: Vec<&str> = text.split(':').collect();
-        let num = |s: &str| s.trim().parse::<f64>().map_err(|_| GridTextError::NotANumber(s.to_string()));
+        let num = |s: &str| {
+            s.trim()
+                .parse::<f64>()
+                .map_err(|_| GridTextError::NotANumber { text: text.to_string(), part: s.to_string() })
+        };
+        let grid = |source| GridTextError::Grid { text: text.to_string(), source };
         match parts.as_slice() {
-            [a, b, c] => Ok(WavelengthGrid::new(num(a)?, num(b)?, num(c)?)?),
+            [a, b, c] => WavelengthGrid::new(num(a)?, num(b)?, num(c)?).map_err(grid),
             [w] if !w.trim().is_empty() => {
                 let w = num(w)?;
-                Ok(WavelengthGrid { spelling: GridSpelling::One, ..WavelengthGrid::new(w, w, 1.0)? })
+                Ok(WavelengthGrid { spelling: GridSpelling::One, ..WavelengthGrid::new(w, w, 1.0).map_err(grid)? })
             }
-            _ => Err(GridTextError::Syntax),
+            _ => Err(GridTextError::Syntax { text: text.to_string() }),
         }
     }
 }
@@ -206,7 +211,7 @@ impl<'de> serde::Deserialize<'de> for WavelengthGrid {
     /// text is refused with the text and the reason.
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let text = String::deserialize(d)?;
-        text.parse().map_err(|e| serde::de::Error::custom(format!("{text:?}: {e}")))
+        text.parse().map_err(serde::de::Error::custom)
     }
 }
 
@@ -277,10 +282,12 @@ mod tests {
         assert_eq!(g.wavelengths_nm(), &[550.0]);
         let g: WavelengthGrid = " 632.8 ".parse().unwrap();
         assert_eq!(g.wavelengths_nm(), &[632.8]);
-        assert!(matches!("-5".parse::<WavelengthGrid>(), Err(GridTextError::Grid(_))));
-        assert!(matches!("".parse::<WavelengthGrid>(), Err(GridTextError::Syntax)));
-        assert!(matches!("400:700".parse::<WavelengthGrid>(), Err(GridTextError::Syntax)));
-        assert!(matches!("nm".parse::<WavelengthGrid>(), Err(GridTextError::NotANumber(_))));
+        assert!(matches!("-5".parse::<WavelengthGrid>(), Err(GridTextError::Grid { .. })));
+        assert!(matches!("".parse::<WavelengthGrid>(), Err(GridTextError::Syntax { .. })));
+        assert!(matches!("400:700".parse::<WavelengthGrid>(), Err(GridTextError::Syntax { .. })));
+        assert!(matches!("nm".parse::<WavelengthGrid>(), Err(GridTextError::NotANumber { .. })));
+        let e = "400:700".parse::<WavelengthGrid>().unwrap_err().to_string();
+        assert!(e.starts_with("\"400:700\": expected START:END:STEP"), "{e}");
     }
 
     #[test]

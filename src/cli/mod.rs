@@ -523,7 +523,7 @@ pub fn count_in<const LO: usize, const HI: usize>(text: &str) -> Result<usize, S
 
 /// Parses "START:END:STEP" or one wavelength "W" (nm) of `--wavelengths`.
 pub fn parse_grid(text: &str) -> Result<WavelengthGrid> {
-    text.parse().map_err(|e| anyhow!("--wavelengths {text:?}: {e}"))
+    text.parse().map_err(|e| anyhow!("--wavelengths {e}"))
 }
 
 /// The most phase-table values `lucent optics` writes (wavelengths × entries:
