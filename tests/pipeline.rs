@@ -462,7 +462,7 @@ fn twins_share_one_scale_and_lead_the_report(d: &Path, project: &Path, out: &Pat
 #[test]
 fn bad_projects_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
-    let cases: [(&str, &[&str]); 9] = [
+    let cases: [(&str, &[&str]); 10] = [
         (
             "[calibration]\nimages = \"b*.png\"\nboard = \"9x6\"\nsquare_mm = 25\ntruth = \"x.toml\"\n",
             &["[calibration] truth", "x.toml", "camera.json"],
@@ -473,7 +473,8 @@ fn bad_projects_are_refused() {
         ("[[sample]]\nname = \"a b\"\nrecipe = \"x.toml\"\n", &["name", "folder name"]),
         ("[bssrdf]\nconfigs = \"45-0\"\npaths = 10\n", &["configs", "45-0"]),
         ("[bssrdf]\nconfigs = \"45/0\"\n", &["stop rule"]),
-        ("[bssrdf]\nconfigs = \"45-0\"\npaths = -10\n", &["line 3", "[bssrdf] paths", "whole number ≥ 0"]),
+        ("[bssrdf]\nconfigs = \"45/0\"\npaths = -10\n", &["line 3", "[bssrdf] paths", "whole number ≥ 0"]),
+        ("[bssrdf]\nconfigs = \"45-0\"\npaths = -10\n", &["line 2", "[bssrdf] configs", "\"45-0\""]),
         (
             "[[sample]] # one sample\nname = \"a\"\nrecipe = \"x.toml\"\nweight_percent = \"x\"\n",
             &["line 4", "[[sample]] weight_percent", "expected a number"],
