@@ -31,7 +31,7 @@
 use crate::imageio::{self, ImageIoError};
 use crate::io::{write_atomic, write_json, WriteError};
 use crate::optics::uncertainty::InputSd;
-use crate::plot::{perr, render_png, viridis, PlotError};
+use crate::plot::{perr, render_png, viridis, PlotError, MASKED};
 use lucent_render::interface::Interface;
 use lucent_render::slab::{Beam, Directions, Slice, SliceDifference};
 use plotters::prelude::*;
@@ -508,6 +508,28 @@ pub enum RoughnessError {
     /// The measured normals (`normals.exr`) cannot be used; the source names the file.
     #[error("--roughness {text:?}: {source}")]
     Normals { text: String, source: NormalsError },
+}
+
+/// The most light paths a BSSRDF slice or a fit evaluation may be given
+/// (`--paths`, `[bssrdf] paths`, `[fit] paths`, `bench surface --paths`):
+/// 10¹² paths, about 12 core-days at the slab's 1 M paths/s per core (a
+/// month on a 100-core cluster at the slower rates of dense media), and far
+/// below 2⁵³, where the tallies' path counts stop being exact. A study that
+/// needs more is several runs with different seeds.
+pub const MAX_PATHS: u64 = 1_000_000_000_000;
+
+/// Why a path count is refused (the reason half of a message naming the flag or key).
+pub fn paths_problem(n: u64) -> Option<String> {
+    if n == 0 {
+        Some("must be at least 1".into())
+    } else if n > MAX_PATHS {
+        Some(format!(
+            "must be at most {MAX_PATHS} (10^12, about 12 core-days of simulation; run a larger study as several \
+             runs with different seeds)"
+        ))
+    } else {
+        None
+    }
 }
 
 pub use crate::surface::model::RoughnessSyntax;
@@ -1107,8 +1129,8 @@ fn profile_band_png(
 /// [−1, 1] instead (blue negative, white 0, red positive), NaN (outside the
 /// mask) in [`MASKED`] grey, values beyond ±1 clipped and marked in the
 /// darker [`OVER`] / [`UNDER`], each keyed under its colour bar.
-/// Colours of the difference map outside its range: masked (NaN), above +1, below −1.
-pub const MASKED: RGBColor = RGBColor(150, 150, 150);
+/// Colours of the difference map outside its range: above +1, below −1
+/// (masked pixels, NaN, in [`MASKED`]).
 pub const OVER: RGBColor = RGBColor(110, 0, 0);
 pub const UNDER: RGBColor = RGBColor(0, 0, 110);
 

@@ -31,6 +31,12 @@
 //! JSON holds the text its command line does ([`values`]). Strings left
 //! are free text: names, file patterns.
 
+mod compare;
+mod context;
+
+pub use compare::CompareRun;
+pub use context::Context;
+
 use crate::bssrdf::Configurations;
 use crate::fit::{FreeSpec, SearchBounds};
 use lucent_calib::board::BoardSize;
@@ -108,27 +114,7 @@ fn at_least_one<T: PartialEq + From<u8> + ToString>(field: &'static str, v: Opti
 /// The most pixels per side of a BSSRDF slice.
 pub const MAX_SLICE_PIXELS: usize = 8192;
 
-/// The most light paths a BSSRDF slice or a fit evaluation may be given
-/// (`--paths`, `[bssrdf] paths`, `[fit] paths`, `bench surface --paths`):
-/// 10¹² paths, about 12 core-days at the slab's 1 M paths/s per core (a
-/// month on a 100-core cluster at the slower rates of dense media), and far
-/// below 2⁵³, where the tallies' path counts stop being exact. A study that
-/// needs more is several runs with different seeds.
-pub const MAX_PATHS: u64 = 1_000_000_000_000;
-
-/// Why a path count is refused (the reason half of a message naming the flag or key).
-pub fn paths_problem(n: u64) -> Option<String> {
-    if n == 0 {
-        Some("must be at least 1".into())
-    } else if n > MAX_PATHS {
-        Some(format!(
-            "must be at most {MAX_PATHS} (10^12, about 12 core-days of simulation; run a larger study as several \
-             runs with different seeds)"
-        ))
-    } else {
-        None
-    }
-}
+use crate::bssrdf::paths_problem;
 
 fn paths(v: Option<u64>) -> Result<(), JobError> {
     match v.and_then(|n| paths_problem(n).map(|r| (n, r))) {
@@ -158,6 +144,30 @@ mod by_name {
     {
         let text = String::deserialize(d)?;
         text.parse().map_err(|e| serde::de::Error::custom(format!("{text:?}: {e}")))
+    }
+}
+
+/// An optional [`by_name`] field (`null` when absent).
+mod by_name_opt {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer, T: Copy + Into<&'static str>>(v: &Option<T>, s: S) -> Result<S::Ok, S::Error> {
+        match v {
+            Some(v) => s.serialize_str((*v).into()),
+            None => s.serialize_none(),
+        }
+    }
+
+    pub fn deserialize<'de, D, T>(d: D) -> Result<Option<T>, D::Error>
+    where
+        D: Deserializer<'de>,
+        T: std::str::FromStr,
+        T::Err: std::fmt::Display,
+    {
+        match Option::<String>::deserialize(d)? {
+            Some(text) => text.parse().map(Some).map_err(|e| serde::de::Error::custom(format!("{text:?}: {e}"))),
+            None => Ok(None),
+        }
     }
 }
 
@@ -629,7 +639,9 @@ impl RenderJob {
     }
 }
 
-/// `lucent compare`: photo against one or two renders.
+/// `lucent compare`: photo against one or two renders ([`CompareJob::run`]).
+/// The keys a stage of `lucent run` leaves at their defaults are not
+/// written into its job.json.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CompareJob {
@@ -640,9 +652,28 @@ pub struct CompareJob {
     /// `--mask-object`: only the object's pixels (a scene JSON or a render
     /// EXR with an `object` layer), intersected with `mask`.
     pub mask_object: Option<PathBuf>,
+    /// `--mask-board`: only the board's pixels (a scene JSON or a render
+    /// EXR with a `board` layer), intersected with `mask`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask_board: Option<PathBuf>,
     /// `--photo-variance`: the photo's per-pixel variance (EXR).
     pub photo_variance: Option<PathBuf>,
+    /// `--photo-repeat`: a second photo of the same view, for the photo's variance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub photo_repeat: Option<PathBuf>,
+    /// `--scene`: the scene JSON whose board region ECC aligns on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<PathBuf>,
     pub data_range: f64,
+    /// `--luminance`: the weights of SSIM's Y, the difference picture and ECC.
+    #[serde(default, with = "by_name", skip_serializing_if = "is_default_luminance")]
+    pub luminance: crate::compare::Luminance,
+    /// `--exposure`: triplet.png's display exposure (default: from the photo).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exposure: Option<f64>,
+    /// `--refine ecc --refine-motion M`: also align the render to the photo with this motion.
+    #[serde(default, with = "by_name_opt", skip_serializing_if = "Option::is_none")]
+    pub refine: Option<lucent_calib::ecc::Motion>,
     /// `--twin-names A,B`: what the two renders are (e.g. "recipe,fitted"),
     /// for the rows of the twins' triplet.png.
     pub twin_names: Option<[String; 2]>,
@@ -650,11 +681,21 @@ pub struct CompareJob {
     pub band: Vec<PathBuf>,
 }
 
+fn is_default_luminance(l: &crate::compare::Luminance) -> bool {
+    *l == crate::compare::Luminance::default()
+}
+
 /// The default of `lucent compare --data-range`.
 pub const DEFAULT_DATA_RANGE: f64 = 1.0;
 
 impl CompareJob {
     pub fn validate(&self) -> Result<(), JobError> {
+        if let (Some(_), Some(p)) = (&self.photo_variance, &self.photo_repeat) {
+            return Err(bad("photo_repeat", s(p), "give the photo's variance or a repeat photo, not both"));
+        }
+        if let (Some(_), Some(p)) = (&self.mask_object, &self.mask_board) {
+            return Err(bad("mask_board", s(p), "compare the object's pixels or the board's, not both"));
+        }
         crate::compare::ssim::SsimParams::new(self.data_range)
             .map(drop)
             .map_err(|e| bad("data_range", self.data_range, e.to_string()))
@@ -665,7 +706,17 @@ impl CompareJob {
         l.words(self.render.iter().flat_map(|r| ["--render".to_string(), s(r)]));
         l.flag("--out", s(&self.out)).opt("--mask", &self.mask.as_deref().map(s));
         l.opt("--mask-object", &self.mask_object.as_deref().map(s));
+        l.opt("--mask-board", &self.mask_board.as_deref().map(s));
         l.opt("--photo-variance", &self.photo_variance.as_deref().map(s)).flag("--data-range", self.data_range);
+        l.opt("--photo-repeat", &self.photo_repeat.as_deref().map(s));
+        l.opt("--scene", &self.scene.as_deref().map(s));
+        if !is_default_luminance(&self.luminance) {
+            l.flag("--luminance", <&str>::from(self.luminance));
+        }
+        l.opt("--exposure", &self.exposure);
+        if let Some(m) = self.refine {
+            l.flag("--refine", "ecc").flag("--refine-motion", <&str>::from(m));
+        }
         l.opt("--twin-names", &self.twin_names.as_ref().map(|[a, b]| format!("{a},{b}")));
         l.words(self.band.iter().flat_map(|b| ["--band".to_string(), s(b)]));
         l.0

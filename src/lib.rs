@@ -14,6 +14,7 @@ pub mod exr;
 pub mod fault;
 pub mod fit;
 pub mod imageio;
+pub mod interrupt;
 pub mod io;
 pub mod job;
 pub mod optics;

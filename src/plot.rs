@@ -853,6 +853,9 @@ pub(crate) fn colour_bar(
     Ok(())
 }
 
+/// The grey of a pixel with nothing to show (NaN: outside a mask or the object).
+pub const MASKED: RGBColor = RGBColor(150, 150, 150);
+
 /// The colour of a pixel whose value is below its own noise ([`relative_band_png`]).
 pub const UNRESOLVED: RGBColor = RGBColor(215, 215, 215);
 
@@ -860,7 +863,7 @@ pub const UNRESOLVED: RGBColor = RGBColor(215, 215, 215);
 /// over the pixel's value, in %): `relative` row-major over `width` ×
 /// `height`, NaN where there is nothing to show (outside the object), drawn
 /// in viridis from 0 to the 99th percentile of the finite values, with
-/// NaN in [`crate::bssrdf::MASKED`] grey, pixels whose band is not
+/// NaN in [`MASKED`] grey, pixels whose band is not
 /// `resolved` (below its own noise) in [`UNRESOLVED`] and a colour bar
 /// under the image.
 pub fn relative_band_png(
@@ -897,7 +900,7 @@ pub fn relative_band_png(
         for (i, v) in relative.iter().enumerate() {
             let (x, y) = ((i % width * scale) as i32 + origin.0, (i / width * scale) as i32 + origin.1);
             let colour = match (v.is_finite(), resolved[i]) {
-                (false, _) => crate::bssrdf::MASKED,
+                (false, _) => MASKED,
                 (true, false) => UNRESOLVED,
                 (true, true) => viridis((v / top).min(1.0)),
             };
@@ -931,7 +934,7 @@ mod tests {
         // 480 px wide at 120 screen pixels per image pixel; pixel (0, 0) is NaN: grey.
         assert_eq!(img.width(), 4 * 120 + 40);
         let grey = img.get_pixel(20 + 60, 36 + 60);
-        assert_eq!(grey.0, [crate::bssrdf::MASKED.0, crate::bssrdf::MASKED.1, crate::bssrdf::MASKED.2]);
+        assert_eq!(grey.0, [MASKED.0, MASKED.1, MASKED.2]);
         // The largest value is at the top of the scale: viridis(1).
         let last = img.get_pixel(20 + 3 * 120 + 60, 36 + 2 * 120 + 60);
         let top = viridis(1.0);

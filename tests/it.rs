@@ -42,6 +42,8 @@ mod jobs;
 mod mesh;
 #[path = "mie_reference.rs"]
 mod mie_reference;
+#[path = "modules.rs"]
+mod modules;
 #[path = "newcomer.rs"]
 mod newcomer;
 #[path = "numeric_flags.rs"]

@@ -125,8 +125,15 @@ fn jobs() -> Vec<Job> {
             out: p("{out}/s"),
             mask: Some(p("valid.png")),
             mask_object: Some(p("a/render.exr")),
+            mask_board: None,
             photo_variance: Some(p("{out}/s/photo_variance.exr")),
+            // (--photo-repeat is the other way to the photo's variance, not beside it.)
+            photo_repeat: None,
+            scene: Some(p("scene.json")),
             data_range: 2.0,
+            luminance: lucent::compare::Luminance::Rec709,
+            exposure: Some(0.5),
+            refine: Some(lucent_calib::ecc::Motion::Affine),
             twin_names: Some(["recipe".into(), "fitted".into()]),
             band: vec![p("a/uncertainty.json"), p("b/uncertainty.json")],
         }),
@@ -178,6 +185,11 @@ fn every_job_builds_the_arguments_its_command_line_parses_into() {
             mask: None,
             mask_object: None,
             photo_variance: None,
+            photo_repeat: None,
+            scene: None,
+            luminance: Default::default(),
+            exposure: None,
+            refine: None,
             twin_names: None,
             band: vec![],
             ..c
@@ -706,4 +718,47 @@ fn a_canonical_jobs_json_is_unchanged_by_its_typed_fields() {
         let back = parse_job(&job.to_args()).unwrap_or_else(|e| panic!("{text}: {e}"));
         assert_eq!(serde_json::to_string(&back).unwrap(), text, "through its command line");
     }
+}
+/// The compare job holds every flag of `lucent compare`; the ones a stage
+/// of `lucent run` leaves at their defaults are not written, so its
+/// job.json (and the stage's key, its hash) is what it was before the job
+/// held them.
+#[test]
+fn a_compare_jobs_json_leaves_out_the_flags_at_their_defaults() {
+    let job = CompareJob {
+        photo: "p.exr".into(),
+        render: vec!["r.exr".into()],
+        out: "o".into(),
+        mask: None,
+        mask_object: None,
+        mask_board: None,
+        photo_variance: None,
+        photo_repeat: None,
+        scene: None,
+        data_range: 1.0,
+        luminance: Default::default(),
+        exposure: None,
+        refine: None,
+        twin_names: None,
+        band: vec![],
+    };
+    let text = serde_json::to_string(&Job::Compare(job.clone())).unwrap();
+    assert_eq!(
+        text,
+        r#"{"compare":{"photo":"p.exr","render":["r.exr"],"out":"o","mask":null,"mask_object":null,"photo_variance":null,"data_range":1.0,"twin_names":null,"band":[]}}"#
+    );
+    let set = CompareJob {
+        luminance: lucent::compare::Luminance::Rec709,
+        refine: Some(lucent_calib::ecc::Motion::Homography),
+        ..job
+    };
+    let text = serde_json::to_string(&Job::Compare(set.clone())).unwrap();
+    assert!(text.contains(r#""luminance":"rec709""#) && text.contains(r#""refine":"homography""#), "{text}");
+    assert_eq!(serde_json::from_str::<Job>(&text).unwrap(), Job::Compare(set.clone()));
+    let args = set.to_args();
+    let at = |flag: &str| args.iter().position(|a| a == flag).map(|i| args[i + 1].as_str());
+    assert_eq!(
+        (at("--luminance"), at("--refine"), at("--refine-motion")),
+        (Some("rec709"), Some("ecc"), Some("homography"))
+    );
 }

@@ -1,7 +1,8 @@
 //! Plots a reader can trust: properties of the drawn pixels that a
 //! wrong plot would not have.
 
-use lucent::bssrdf::{compare, heatmap_png, Grid, MASKED, OVER};
+use lucent::bssrdf::{compare, heatmap_png, Grid, OVER};
+use lucent::plot::MASKED;
 use plotters::style::RGBColor;
 
 /// Pixels of colour `c` inside the map of the third panel (panels 620 px wide; the map between

@@ -489,7 +489,7 @@ pub fn plan_with_recipe(a: &RunArgs, recipe: Option<&Recipe>) -> Result<Plan> {
     let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error, pixel_rel_error: a.pixel_rel_error };
     // A stop rule and a beam that cannot give a slice are refused before any work.
     if let Some(n) = a.paths
-        && let Some(reason) = crate::job::paths_problem(n)
+        && let Some(reason) = crate::bssrdf::paths_problem(n)
     {
         bail!("--paths {n}: {reason}");
     }
@@ -1167,7 +1167,7 @@ pub fn bench_surface(paths: u64) -> Result<()> {
     use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
     use lucent_render::slab::{simulate, Slice};
     use std::sync::Arc;
-    if let Some(reason) = crate::job::paths_problem(paths) {
+    if let Some(reason) = crate::bssrdf::paths_problem(paths) {
         bail!("--paths {paths}: {reason}");
     }
     let x3p = Path::new("fixtures/surface/tr_0p0084.x3p");

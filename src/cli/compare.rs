@@ -1,10 +1,11 @@
 //! `lucent compare`: a photo and its twin's render → metrics.json,
 //! triplet.png and difference.exr (docs/method.md#compare). Argument handling and
-//! printing only; the work is done by [`crate::compare`].
+//! printing only: the flags become a [`CompareJob`], which does the work.
 
 use super::choices::{named, RefineChoice};
-use crate::compare::{self, Luminance, MaskSpec, Metrics, Request};
-use anyhow::{Context, Result};
+use crate::compare::{self, Luminance};
+use crate::job::{CompareJob, Context};
+use anyhow::{Context as _, Result};
 use clap::Args;
 use lucent_calib::ecc::Motion;
 use std::path::PathBuf;
@@ -81,161 +82,13 @@ fn twin_names(text: &str) -> Result<[String; 2], String> {
     }
 }
 
-fn line(m: &Metrics) -> String {
-    format!(
-        "RMSE {:.4e} (R {:.3e}, G {:.3e}, B {:.3e}), SSIM Y {:.4} (R {:.4}, G {:.4}, B {:.4}), MAE {:.3e}, relative error {:.2} %, {} pixels",
-        m.rmse,
-        m.rmse_channels.r,
-        m.rmse_channels.g,
-        m.rmse_channels.b,
-        m.ssim.y,
-        m.ssim.r,
-        m.ssim.g,
-        m.ssim.b,
-        m.mean_abs_error,
-        100.0 * m.relative_error,
-        m.pixels
-    )
-}
-
+/// `lucent compare`: the job of the flags ([`CompareJob::run`]), then its summary on stdout.
 pub fn run(a: CompareArgs) -> Result<()> {
-    let refine: Option<Motion> = a.refine.map(|RefineChoice::Ecc| a.refine_motion);
-    let (mask, mask_also) = match (a.mask, a.mask_object, a.mask_board) {
-        (m, Some(p), _) => (MaskSpec::Object(p), m),
-        (m, _, Some(p)) => (MaskSpec::Board(p), m),
-        (Some(p), None, None) => (MaskSpec::Image(p), None),
-        (None, None, None) => (MaskSpec::None, None),
-    };
-    if a.render.len() > 2 {
-        anyhow::bail!("--render given {} times: one twin, or two to compare", a.render.len());
+    let job = CompareJob::from(&a);
+    let done = job.run(&Context::default())?;
+    for line in done.summary() {
+        println!("{line}");
     }
-    // One file in two roles compares nothing (an SSIM of 1, a photo variance of 0).
-    let same = |x: &std::path::Path, y: &std::path::Path| {
-        x.exists() && y.exists() && crate::io::file_key(x) == crate::io::file_key(y)
-    };
-    let roles = std::iter::once(("--photo", &a.photo))
-        .chain(a.render.iter().map(|r| ("--render", r)))
-        .chain(a.photo_repeat.iter().map(|r| ("--photo-repeat", r)));
-    let roles: Vec<(&str, &PathBuf)> = roles.collect();
-    for (k, (flag, path)) in roles.iter().enumerate() {
-        if let Some((other, _)) = roles[..k].iter().find(|(_, p)| same(p, path)) {
-            // A repeat photo that is the photo itself would claim a noiseless photo.
-            if *flag == "--photo-repeat" {
-                anyhow::bail!(
-                    "{} is given as {other} and as {flag}: the repeat must be a second photo",
-                    path.display()
-                );
-            }
-            eprintln!(
-                "warning: {} is given as {other} and as {flag}: the metrics compare a file with itself",
-                path.display()
-            );
-        }
-    }
-    if a.twin_names.is_some() && a.render.len() != 2 {
-        anyhow::bail!("--twin-names names two renders: give --render twice");
-    }
-    let mut renders = a.render.into_iter();
-    let render = renders.next().context("--render is required")?;
-    let req = Request {
-        photo: a.photo,
-        render,
-        render_b: renders.next(),
-        mask,
-        mask_also,
-        scene: a.scene,
-        data_range: a.data_range,
-        luminance: a.luminance,
-        exposure: a.exposure,
-        refine,
-        photo_variance: a.photo_variance,
-        photo_repeat: a.photo_repeat,
-        twin_names: a.twin_names,
-        bands: a.band.iter().map(|p| compare::band::TwinBands::read(p)).collect::<Result<_, _>>()?,
-    };
-    // A large pair says first what it is and roughly how long it takes
-    // (`lucent bench compare`: the metrics ≈ 0.2 s per Mpixel per twin on
-    // 2 cores, reading and writing the files ≈ 0.5 s per Mpixel; ECC
-    // refinement more).
-    if let Ok((w, h)) = crate::imageio::image_size(&req.photo) {
-        let mpix = (w * h) as f64 / 1e6;
-        if mpix >= 2.0 {
-            let twins = 1 + usize::from(req.render_b.is_some());
-            eprintln!(
-                "comparing {w} × {h} px ({mpix:.1} Mpixel, {twins} twin(s)){}: expect ≈ {:.0} s",
-                if req.refine.is_some() { " with ECC refinement" } else { "" },
-                (mpix * (0.5 + 0.2 * twins as f64) * if req.refine.is_some() { 3.0 } else { 1.0 }).max(1.0)
-            );
-        }
-    }
-    let outcome = compare::compare_files(&req)?;
-    for n in &outcome.notes {
-        if n.starts_with("warning: ") {
-            eprintln!("{n}");
-        } else {
-            eprintln!("note: {n}");
-        }
-    }
-    // Ctrl-C or SIGTERM while the outputs are written removes their staging folder and ends.
-    let interrupt = super::interrupt::Interrupt::abort_on_first();
-    let staging = super::interrupt::remove_on_abort(&compare::staging_path(&a.out));
-    let written = compare::write_outputs(&a.out, &outcome).with_context(|| format!("writing {}", a.out.display()))?;
-    drop((staging, interrupt));
-    let r = &outcome.report;
-    println!("as calibrated: {}", line(&r.as_calibrated));
-    if let Some(n) = &r.noise {
-        println!(
-            "model RMSE (noise removed) {:.4e}, 95 % interval [{:.4e}, {:.4e}], noise floor {:.4e}, over {} pixels",
-            n.total.model_rmse, n.total.ci95[0], n.total.ci95[1], n.total.noise_floor, n.pixels
-        );
-    }
-    let zero = |z: &compare::noise::SsimAtZeroNoise| {
-        format!(
-            "SSIM Y at zero render noise {:.4}, 95 % interval [{:.4}, {:.4}] (as measured {:.4}), over {} pixels",
-            z.at_zero_noise, z.ci95[0], z.ci95[1], z.ssim, z.pixels
-        )
-    };
-    if let Some(z) = &r.ssim_at_zero_noise {
-        println!("{}", zero(z));
-    }
-    if let Some(t) = &r.twins {
-        if let Some(z) = &t.ssim_at_zero_noise_b {
-            println!("twin B: {}", zero(z));
-        }
-        println!(
-            "twin B ({}): {}; model RMSE {:.4e} [{:.4e}, {:.4e}]",
-            t.render_b,
-            line(&t.metrics_b),
-            t.noise_b.total.model_rmse,
-            t.noise_b.total.ci95[0],
-            t.noise_b.total.ci95[1]
-        );
-        println!(
-            "A vs B over means of {c} × {c} px cells: squared-error difference {:.3e} ± {:.1e} (t {:.2}, {} blocks, p \
-             {:.2e}): {}",
-            t.paired.squared_difference,
-            t.paired.standard_error,
-            t.paired.z,
-            t.paired.blocks,
-            t.paired.p_value,
-            t.paired.verdict,
-            c = t.paired.cell_px
-        );
-    }
-    if let Some(f) = &r.refined {
-        println!(
-            "after ECC ({}, dx {:+.3} px, dy {:+.3} px, correlation {:.4}): {}",
-            f.motion,
-            f.shift_px[0],
-            f.shift_px[1],
-            f.correlation,
-            line(&f.metrics)
-        );
-    }
-    for b in &r.bands {
-        println!("{}: {}", b.render, b.statement);
-    }
-    println!("written: {}", written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
     Ok(())
 }
 

@@ -645,8 +645,8 @@ pub fn brackets(a: EnvBracketsArgs) -> Result<()> {
     let img = imageio::read_rgb(&a.input)?;
     // All brackets or none: written into a staging folder moved in whole;
     // Ctrl-C or SIGTERM removes it (and the folder, if this run made it).
-    let _interrupt = crate::cli::interrupt::Interrupt::abort_on_first();
-    let _remove_on_abort = crate::cli::interrupt::remove_staged_on_abort(&a.out_dir);
+    let _interrupt = crate::interrupt::Interrupt::abort_on_first();
+    let _remove_on_abort = crate::interrupt::remove_staged_on_abort(&a.out_dir);
     let stage = crate::io::StagedDir::new(&a.out_dir)?;
     let mut names = Vec::new();
     for (k, t) in exposures.iter().enumerate() {

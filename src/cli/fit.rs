@@ -108,7 +108,7 @@ pub fn build_problem_with_recipe(a: &FitArgs, recipe: Recipe) -> Result<Problem>
     let mut measurements = Vec::new();
     // One slice given twice (under two spellings) would count as two configurations.
     if let Some(n) = a.paths
-        && let Some(reason) = crate::job::paths_problem(n)
+        && let Some(reason) = crate::bssrdf::paths_problem(n)
     {
         bail!("--paths {n}: {reason}");
     }

@@ -15,7 +15,8 @@ pub mod compare;
 pub mod env_fit;
 pub mod fit;
 pub mod groups;
-pub mod interrupt;
+/// Ctrl-C handling lives below the commands (library stages install it too).
+pub use crate::interrupt;
 pub mod jobs;
 pub mod raw_clip;
 pub mod render;

@@ -65,6 +65,15 @@ use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 /// A comparison that could not be made.
 #[derive(Debug, thiserror::Error)]
 pub enum CompareError {
+    /// Not one render nor two.
+    #[error("--render given {count} times: one twin, or two to compare")]
+    Renders { count: usize },
+    /// Names for two twins with one render.
+    #[error("--twin-names names two renders: give --render twice")]
+    TwinNamesWithoutTwoRenders,
+    /// The repeat photo is a file already given in another role.
+    #[error("{} is given as {other} and as --photo-repeat: the repeat must be a second photo", path.display())]
+    RepeatIsNotSecondPhoto { path: PathBuf, other: &'static str },
     /// A file that cannot be read (missing, unreadable, wrong format).
     #[error("{role} {}: cannot read: {reason}", path.display())]
     Read { role: &'static str, path: PathBuf, reason: ReadProblem },
@@ -166,10 +175,13 @@ pub enum ReadProblem {
 }
 
 /// Luminance weights for `ssim.Y`, the difference picture and ECC.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage,
+)]
 #[strum(ascii_case_insensitive)]
 pub enum Luminance {
-    /// Y row of CIE 1931 RGB → XYZ: 0.1769, 0.8124, 0.0107.
+    /// Y row of CIE 1931 RGB → XYZ: 0.1769, 0.8124, 0.0107 (the default).
+    #[default]
     #[strum(to_string = "cie-rgb", serialize = "cie")]
     CieRgb,
     /// Y row of linear sRGB / Rec. 709 → XYZ: 0.2126, 0.7152, 0.0722.

@@ -570,7 +570,7 @@ impl Problem {
             return setting("paths per evaluation", 0.0, "", "be positive");
         }
         if let Some(n) = b.paths
-            && n > crate::job::MAX_PATHS
+            && n > crate::bssrdf::MAX_PATHS
         {
             return setting(
                 "paths per evaluation",

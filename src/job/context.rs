@@ -1,0 +1,28 @@
+//! What a job's `run` is given besides the job: where its messages go.
+
+/// The surroundings of a running job: `quiet` silences what it says about
+/// its progress (warnings are always said). Messages go to standard error,
+/// which `lucent run` sends into the stage's log.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Context {
+    pub quiet: bool,
+}
+
+impl Context {
+    /// A line about the work (what it is, how long it takes), unless quiet.
+    pub fn say(&self, line: &str) {
+        if !self.quiet {
+            eprintln!("{line}");
+        }
+    }
+
+    /// Something the user should know about the result ("note: …").
+    pub fn note(&self, line: &str) {
+        eprintln!("note: {line}");
+    }
+
+    /// Something that may be wrong with the input ("warning: …").
+    pub fn warn(&self, line: &str) {
+        eprintln!("warning: {line}");
+    }
+}
