@@ -262,3 +262,61 @@ impl fmt::Display for Stop {
         f.write_str(&self.describe("samples"))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_first_condition_met_ends_the_run() {
+        let stop =
+            Stop { time_s: Some(10.0), rel_error: Some(0.01), pixel_rel_error: Some(0.05), ..Stop::samples(100) };
+        let at = |samples, elapsed_s, rel_error, pixel_rel_error| Standing {
+            samples,
+            elapsed_s,
+            rel_error,
+            pixel_rel_error,
+        };
+        assert_eq!(stop.met(&at(Some(50), 1.0, Some(0.5), Some(0.5))), None);
+        assert_eq!(stop.met(&at(Some(100), 11.0, None, None)), Some(Condition::Samples));
+        assert_eq!(stop.met(&at(None, 10.0, Some(0.001), None)), Some(Condition::Time));
+        assert_eq!(stop.met(&at(None, 1.0, Some(0.01), Some(0.01))), Some(Condition::RelError));
+        assert_eq!(stop.met(&at(None, 1.0, None, Some(0.05))), Some(Condition::PixelRelError));
+        // A figure not measured yet (or NaN) meets nothing.
+        assert_eq!(stop.met(&at(None, 1.0, Some(f64::NAN), None)), None);
+        assert_eq!(Stop::default().met(&at(Some(u64::MAX), 1e9, Some(0.0), Some(0.0))), None);
+    }
+
+    #[test]
+    fn checks_name_the_condition() {
+        assert_eq!(Stop::default().check(), Err(StopError::Empty));
+        assert!(Stop::samples(1).check().is_ok());
+        for (stop, name) in [
+            (Stop { rel_error: Some(1.0), ..Stop::default() }, "rel_error"),
+            (Stop { pixel_rel_error: Some(0.0), ..Stop::default() }, "pixel_rel_error"),
+            (Stop { time_s: Some(f64::INFINITY), ..Stop::default() }, "time_s"),
+            (Stop { time_s: Some(-1.0), ..Stop::samples(8) }, "time_s"),
+        ] {
+            assert!(matches!(stop.check(), Err(StopError::Parameter { name: n, .. }) if n == name), "{stop:?}");
+        }
+        let timed = Stop { time_s: Some(5.0), ..Stop::samples(8) };
+        assert_eq!(timed.refuse_unsupported("x", &[Condition::Samples, Condition::Time]), Ok(()));
+        assert_eq!(
+            timed.refuse_unsupported("x", &[Condition::Samples]),
+            Err(StopError::Unsupported { integrator: "x", condition: Condition::Time })
+        );
+    }
+
+    #[test]
+    fn only_a_sample_count_alone_splits() {
+        assert_eq!(Stop::samples(9).shard_samples(), Ok(9));
+        let target = Stop { pixel_rel_error: Some(0.05), ..Stop::samples(9) };
+        assert_eq!(target.shard_samples(), Err(NotSplittable::Beside(Condition::PixelRelError)));
+        let both = Stop { time_s: Some(1.0), rel_error: Some(0.1), ..Stop::samples(9) };
+        assert_eq!(both.shard_samples(), Err(NotSplittable::Beside(Condition::Time)));
+        assert_eq!(Stop { time_s: Some(1.0), ..Stop::default() }.shard_samples(), Err(NotSplittable::NoSamples));
+        assert!(target.has_error_target() && !Stop::samples(9).has_error_target());
+        assert_eq!(target.describe("spp"), "up to 9 spp, until the median error per pixel is 5.0 %");
+        assert_eq!(Stop::default().to_string(), "no stop rule");
+    }
+}

@@ -297,6 +297,22 @@ fn bad_input_is_rejected() {
     let s = setup(3000.0, 50.0, 0.8, 1.5, 2e-3, 16, 0.2e-3, lab_45_0());
     let no_stop = RunOptions { stop: Stop::default(), ..RunOptions::default() };
     assert_eq!(simulate(&s, &no_stop, |_| {}).unwrap_err(), SlabError::Stop(StopError::Empty));
+    // The coupled simulation stops on paths or time only: an error target is refused, not ignored.
+    let target = RunOptions { stop: Stop { pixel_rel_error: Some(0.1), ..Stop::samples(64) }, ..RunOptions::default() };
+    let e = simulate_coupled(&s, &[], &target, |_| {}, &std::sync::atomic::AtomicBool::new(false)).unwrap_err();
+    assert_eq!(
+        e,
+        SlabError::Stop(StopError::Unsupported {
+            integrator: "the coupled simulation",
+            condition: Condition::PixelRelError
+        })
+    );
+    assert!(e.to_string().contains("pixel_rel_error"), "{e}");
+    let bad = RunOptions { stop: Stop { rel_error: Some(1.5), ..Stop::default() }, ..RunOptions::default() };
+    assert!(matches!(
+        simulate(&s, &bad, |_| {}).unwrap_err(),
+        SlabError::Stop(StopError::Parameter { name: "rel_error", .. })
+    ));
 }
 
 #[test]

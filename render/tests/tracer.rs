@@ -1503,3 +1503,22 @@ fn medium_connections_through_a_curved_or_concave_mesh_agree_with_the_escapes() 
     let z = pooled.iter().sum::<f64>() / (pooled.len() as f64).sqrt();
     assert!(z.abs() < 4.0, "pooled over the meshes, the object's mean moved by z = {z:.2}");
 }
+
+/// A render stops on samples per pixel, time and the object's median error;
+/// a target on the whole image's total, or more samples than a pixel can
+/// count, is refused before any work, never ignored.
+#[test]
+fn a_render_refuses_a_stop_rule_it_cannot_honour() {
+    use lucent_render::tracer::{Condition, StopError};
+    let scene = region_scene([1.45; 3]);
+    let total = Settings { stop: Stop { rel_error: Some(0.05), ..Stop::samples(4) }, ..Settings::default() };
+    let e = lucent_render::tracer::render(&scene, &total, &mut |_| panic!("no pass")).unwrap_err();
+    assert_eq!(e, StopError::Unsupported { integrator: "a render", condition: Condition::RelError });
+    let many = Settings { stop: Stop::samples(1 << 40), ..Settings::default() };
+    assert!(matches!(
+        lucent_render::tracer::render(&scene, &many, &mut |_| panic!("no pass")),
+        Err(StopError::TooManySamples { .. })
+    ));
+    let empty = Settings { stop: Stop::default(), ..Settings::default() };
+    assert_eq!(lucent_render::tracer::render(&scene, &empty, &mut |_| {}).unwrap_err(), StopError::Empty);
+}

@@ -868,6 +868,11 @@ mod tests {
         assert!(not_shardable(&slice(Some(9), None, "x")).is_none());
         let why = not_shardable(&slice(None, Some(9.0), "x")).unwrap();
         assert!(why.contains("path budget"), "{why}");
+        let Job::Bssrdf(mut targeted) = slice(Some(9), None, "x") else { unreachable!() };
+        targeted.rel_error = Some(0.01);
+        assert_eq!(targeted.stop().shard_samples(), Err(NotSplittable::Beside(Condition::RelError)));
+        let why = not_shardable(&Job::Bssrdf(targeted)).unwrap();
+        assert!(why.contains("error target (--rel-error)"), "{why}");
         let render = crate::job::RenderJob {
             scene: "s.toml".into(),
             spp: Some(8),
@@ -878,6 +883,7 @@ mod tests {
             uncertainty: false,
             out: "x".into(),
         };
+        assert_eq!(render.stop(), Stop { time_s: Some(3.0), ..Stop::samples(8) });
         let why = not_shardable(&Job::Render(render)).unwrap();
         assert!(why.contains("time budget"), "{why}");
         let optics = crate::job::OpticsJob {

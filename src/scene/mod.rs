@@ -570,7 +570,9 @@ pub struct RenderReport {
     pub lucent_version: String,
     pub scene: SceneSummary,
     pub spp: u32,
+    /// The stop rule's samples per pixel ([`Settings::stop`]).
     pub spp_requested: u32,
+    /// The stop rule's time budget, seconds.
     pub time_budget_s: Option<f64>,
     pub seed: u64,
     pub threads: usize,
@@ -599,6 +601,8 @@ pub struct RenderReport {
     /// Samples per pixel per region: the object's pixels, the others (means).
     #[serde(default)]
     pub spp_by_region: Option<SppByRegion>,
+    /// The stop rule's target for the object's median per-pixel relative
+    /// standard error.
     #[serde(default)]
     pub target_rel_error: Option<f64>,
     /// The estimator's switches as the render ran. Absent in files written
