@@ -875,3 +875,36 @@ impl Job {
         }
     }
 }
+
+/// The stop rule of a render job ([`lucent_render::stop::Stop`]), which
+/// the shard planner asks.
+impl RenderJob {
+    /// The stop rule the job's flags give: samples per pixel (`spp`) and a
+    /// time budget in seconds (`time_s`). The scene file may add its own
+    /// ([`crate::scene::RenderSection::stop`]), and `lucent render` a
+    /// default error target where neither gives a sample count.
+    pub fn stop(&self) -> lucent_render::stop::Stop {
+        lucent_render::stop::Stop {
+            samples: self.spp.map(u64::from),
+            time_s: self.time_s,
+            ..lucent_render::stop::Stop::default()
+        }
+    }
+}
+
+/// The stop rule of a slab job ([`lucent_render::stop::Stop`]), which the
+/// shard planner asks.
+impl BssrdfJob {
+    /// The stop rule the job's flags give: light paths (`paths`), a time
+    /// budget in seconds (`time_s`) and a target relative error of the
+    /// slice sum (`rel_error`); empty, `lucent bssrdf` stops at 1 % or
+    /// after 600 s.
+    pub fn stop(&self) -> lucent_render::stop::Stop {
+        lucent_render::stop::Stop {
+            samples: self.paths,
+            time_s: self.time_s,
+            rel_error: self.rel_error,
+            pixel_rel_error: None,
+        }
+    }
+}

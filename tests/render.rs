@@ -6,7 +6,7 @@
 use lucent::exr::{read_channels, write_channels};
 use lucent::imageio::read_rgb;
 use lucent::scene;
-use lucent_render::tracer::{render, Settings};
+use lucent_render::tracer::{render, Settings, Stop};
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -43,8 +43,8 @@ fn agrees_with_mitsuba(name: &str, spp: u32, sum_tolerance: f64, block: usize) {
         read_channels(&dir.join(format!("{name}_var.exr")), &["R", "G", "B"]).expect("Mitsuba reference variance");
     let loaded = scene::load(&root().join(format!("fixtures/render/{name}.toml"))).unwrap();
     assert_eq!((loaded.scene.camera.width, loaded.scene.camera.height), (w, h));
-    let settings = Settings { spp, seed: 2024, ..loaded.settings.clone() };
-    let (img, stats) = render(&loaded.scene, &settings, &mut |_| {});
+    let settings = Settings { stop: Stop::samples(spp.into()), seed: 2024, ..loaded.settings.clone() };
+    let (img, stats) = render(&loaded.scene, &settings, &mut |_| {}).unwrap();
     assert_eq!(stats.leaked_paths + stats.truncated_paths, 0);
     let (bw, bh) = (w / block, h / block);
     let m = bw * bh * 3;
@@ -689,8 +689,8 @@ fn bench_render_compares_on_the_plaque_and_checks_its_pixel_list() {
     let listed: std::collections::BTreeSet<usize> =
         bench["object_pixels"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as usize).collect();
     let loaded = scene::load(&root().join("fixtures/render/plaque_dense.toml")).unwrap();
-    let settings = Settings { spp: 64, ..loaded.settings.clone() };
-    let (img, _) = render(&loaded.scene, &settings, &mut |_| {});
+    let settings = Settings { stop: Stop::samples(64), ..loaded.settings.clone() };
+    let (img, _) = render(&loaded.scene, &settings, &mut |_| {}).unwrap();
     let ours: std::collections::BTreeSet<usize> =
         (0..img.mean.len()).filter(|&p| img.object_fraction(p) >= 0.5).collect();
     let differ = listed.symmetric_difference(&ours).count();

@@ -52,7 +52,7 @@ fn setup(recipe: &Recipe) -> Setup {
 }
 
 fn options(setup: &Setup, seed: u64, paths: u64) -> RunOptions {
-    RunOptions { stop: Stop::paths(paths), seed, batch_paths: 250, estimator: Estimator::best_for(setup), fold: true }
+    RunOptions { stop: Stop::samples(paths), seed, batch_paths: 250, estimator: Estimator::best_for(setup), fold: true }
 }
 
 /// First order against brute force on the slice sum of the plaque (the

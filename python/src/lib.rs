@@ -931,7 +931,8 @@ fn py_render<'py>(
                 Some(cancel),
             )
         })
-    })?;
+    })?
+    .map_err(error)?;
     let (w, h) = (image.width, image.height);
     let rgb = |v: &[[f64; 3]]| -> PyResult<Bound<'py, PyAny>> {
         Ok(Array::from_shape_vec(IxDyn(&[h, w, 3]), v.iter().flatten().copied().collect())

@@ -1,7 +1,7 @@
 //! Light transport for lucent: phase functions, media, the dielectric
-//! interface (smooth or rough), the slab BSSRDF simulator and the 3D
-//! spectral path tracer. No OpenCV; inputs are plain numbers converted by
-//! the root crate.
+//! interface (smooth or rough), the slab BSSRDF simulator, the 3D spectral
+//! path tracer and the stop rule both share ([`stop`]). No OpenCV; inputs
+//! are plain numbers converted by the root crate.
 
 pub mod accel;
 pub mod camera;
@@ -16,4 +16,5 @@ pub mod rng;
 mod simd;
 pub mod slab;
 pub mod sphere;
+pub mod stop;
 pub mod tracer;

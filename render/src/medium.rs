@@ -217,7 +217,7 @@ mod tests {
                 Directions::from_degrees(45.0, 0.0, 0.0, 180.0).expect("valid directions"),
             );
             let s =
-                simulate(&setup, &RunOptions { stop: Stop::paths(paths), seed: 7, ..RunOptions::default() }, |_| {})
+                simulate(&setup, &RunOptions { stop: Stop::samples(paths), seed: 7, ..RunOptions::default() }, |_| {})
                     .expect("simulation runs");
             (s.diffuse_reflectance, s.transmittance)
         };

@@ -25,7 +25,7 @@ fn setup(mu_s: f64, mu_a: f64, g: f64, n: f64, d_m: f64, pixels: usize, pixel_m:
 }
 
 fn run(s: &Setup, paths: u64, seed: u64, estimator: Estimator) -> Slice {
-    let opts = RunOptions { stop: Stop::paths(paths), seed, batch_paths: 256, estimator, fold: false };
+    let opts = RunOptions { stop: Stop::samples(paths), seed, batch_paths: 256, estimator, fold: false };
     simulate(s, &opts, |_| {}).unwrap()
 }
 
@@ -230,7 +230,7 @@ fn deterministic_for_a_seed_whatever_the_thread_count() {
     let s = setup(3000.0, 50.0, 0.8, 1.5, 2e-3, 16, 0.2e-3, lab_45_0());
     // 20 050 paths: the last batch is partial.
     let opts = RunOptions {
-        stop: Stop::paths(20_050),
+        stop: Stop::samples(20_050),
         seed: 42,
         batch_paths: 100,
         estimator: Estimator::Connection,
@@ -296,7 +296,23 @@ fn bad_input_is_rejected() {
     }
     let s = setup(3000.0, 50.0, 0.8, 1.5, 2e-3, 16, 0.2e-3, lab_45_0());
     let no_stop = RunOptions { stop: Stop::default(), ..RunOptions::default() };
-    assert_eq!(simulate(&s, &no_stop, |_| {}).unwrap_err(), SlabError::NoStopRule);
+    assert_eq!(simulate(&s, &no_stop, |_| {}).unwrap_err(), SlabError::Stop(StopError::Empty));
+    // The coupled simulation stops on paths or time only: an error target is refused, not ignored.
+    let target = RunOptions { stop: Stop { pixel_rel_error: Some(0.1), ..Stop::samples(64) }, ..RunOptions::default() };
+    let e = simulate_coupled(&s, &[], &target, |_| {}, &std::sync::atomic::AtomicBool::new(false)).unwrap_err();
+    assert_eq!(
+        e,
+        SlabError::Stop(StopError::Unsupported {
+            integrator: "the coupled simulation",
+            condition: Condition::PixelRelError
+        })
+    );
+    assert!(e.to_string().contains("pixel_rel_error"), "{e}");
+    let bad = RunOptions { stop: Stop { rel_error: Some(1.5), ..Stop::default() }, ..RunOptions::default() };
+    assert!(matches!(
+        simulate(&s, &bad, |_| {}).unwrap_err(),
+        SlabError::Stop(StopError::Parameter { name: "rel_error", .. })
+    ));
 }
 
 #[test]
@@ -384,7 +400,7 @@ fn reported_standard_errors_match_the_spread_over_seeds() {
         let runs: Vec<Slice> = (0..seeds)
             .map(|k| {
                 let opts =
-                    RunOptions { stop: Stop::paths(paths), seed: 500 + k, batch_paths: 64, estimator, fold: true };
+                    RunOptions { stop: Stop::samples(paths), seed: 500 + k, batch_paths: 64, estimator, fold: true };
                 simulate(&s, &opts, |_| {}).unwrap()
             })
             .collect();
@@ -511,7 +527,7 @@ fn lobe_is_refused_where_it_does_not_apply() {
     let thin = setup(2000.0, 200.0, 0.5, 1.4, 1e-3, 8, 0.25e-3, lab_45_15());
     assert_eq!(Estimator::best_for(&thin), Estimator::Connection);
     let opts = RunOptions {
-        stop: Stop::paths(100),
+        stop: Stop::samples(100),
         estimator: Estimator::Lobe { vertices: LOBE_VERTICES },
         ..RunOptions::default()
     };
@@ -527,7 +543,7 @@ fn fold_gives_a_symmetric_slice_that_agrees_with_the_unfolded_one() {
     let s = thick_setup(lab_45_0(), 12, 0.5e-3);
     assert!(s.mirror_symmetric());
     let opts =
-        RunOptions { stop: Stop::paths(6_000), seed: 3, batch_paths: 64, estimator: Estimator::Ring, fold: true };
+        RunOptions { stop: Stop::samples(6_000), seed: 3, batch_paths: 64, estimator: Estimator::Ring, fold: true };
     let folded = simulate(&s, &opts, |_| {}).unwrap();
     let plain = simulate(&s, &RunOptions { fold: false, seed: 4, ..opts }, |_| {}).unwrap();
     assert!(folded.folded && !plain.folded);
@@ -690,7 +706,7 @@ fn estimator_applies_where_the_kernel_accepts_it() {
     let mut refused = 0;
     for (name, s) in &cases {
         for e in estimators {
-            let options = RunOptions { stop: Stop::paths(8), estimator: e, ..RunOptions::default() };
+            let options = RunOptions { stop: Stop::samples(8), estimator: e, ..RunOptions::default() };
             let result = simulate(s, &options, |_| {});
             let accepted = !matches!(result, Err(SlabError::RingNotApplicable | SlabError::LobeNotApplicable));
             assert_eq!(e.applies(s), accepted, "{name}, {e:?}: {:?}", result.err());

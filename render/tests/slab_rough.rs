@@ -62,7 +62,7 @@ fn thick(top: Interface, dirs: Directions) -> Setup {
 }
 
 fn run(s: &Setup, paths: u64, seed: u64, estimator: Estimator) -> Slice {
-    let opts = RunOptions { stop: Stop::paths(paths), seed, batch_paths: 256, estimator, fold: false };
+    let opts = RunOptions { stop: Stop::samples(paths), seed, batch_paths: 256, estimator, fold: false };
     simulate(s, &opts, |_| {}).unwrap()
 }
 
@@ -171,9 +171,9 @@ fn rough_tops_use_the_lobe_or_the_connection_not_the_ring() {
     let thin_slab = thin(tr(0.05), dirs(45.0, 15.0));
     assert_eq!(Estimator::best_for(&thin_slab), Estimator::Connection);
     let lobe =
-        RunOptions { stop: Stop::paths(100), estimator: Estimator::Lobe { vertices: 4 }, ..RunOptions::default() };
+        RunOptions { stop: Stop::samples(100), estimator: Estimator::Lobe { vertices: 4 }, ..RunOptions::default() };
     assert_eq!(simulate(&thin_slab, &lobe, |_| {}).unwrap_err(), SlabError::LobeNotApplicable);
-    let opts = RunOptions { stop: Stop::paths(100), estimator: Estimator::Ring, ..RunOptions::default() };
+    let opts = RunOptions { stop: Stop::samples(100), estimator: Estimator::Ring, ..RunOptions::default() };
     assert_eq!(simulate(&s, &opts, |_| {}).unwrap_err(), SlabError::RingNotApplicable);
     // Below α = 10⁻⁴ the boundary is the smooth one; a bad α is refused.
     assert!(!tr(5e-5).is_rough());
@@ -251,7 +251,7 @@ fn rough_lobe_standard_errors_match_the_spread_over_seeds() {
     let runs: Vec<Slice> = (0..seeds)
         .map(|k| {
             let opts = RunOptions {
-                stop: Stop::paths(1_500),
+                stop: Stop::samples(1_500),
                 seed: 700 + k,
                 batch_paths: 64,
                 estimator: Estimator::Lobe { vertices: 3 },

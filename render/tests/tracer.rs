@@ -12,7 +12,12 @@ use lucent_render::env::{Environment, Projection};
 use lucent_render::interface::Interface;
 use lucent_render::medium::Medium;
 use lucent_render::phase::Phase;
-use lucent_render::tracer::{render, Board, BoardReflectance, Image, Object, Region, Scene, Settings};
+use lucent_render::tracer::{Board, BoardReflectance, Image, Object, Progress, Region, Scene, Settings, Stats, Stop};
+
+/// [`lucent_render::tracer::render`] of a stop rule it honours.
+fn render(scene: &Scene, settings: &Settings, on_pass: &mut dyn FnMut(&Progress)) -> (Image, Stats) {
+    lucent_render::tracer::render(scene, settings, on_pass).expect("a stop rule a render honours")
+}
 
 /// 12 outward triangles of the box [lo, hi].
 fn cube(lo: DVec3, hi: DVec3) -> Vec<[DVec3; 3]> {
@@ -96,7 +101,7 @@ fn furnace_object_without_absorption_returns_the_sky() {
     ] {
         let obj = plaque([600.0, 900.0, 1200.0], [0.0; 3], 0.7, eta);
         let scene = Scene::new(Some(obj), None, Environment::constant(SKY, projection), camera(16, 12)).unwrap();
-        let settings = Settings { spp: 256, seed: 7, ..Settings::default() };
+        let settings = Settings { stop: Stop::samples(256), seed: 7, ..Settings::default() };
         let (img, stats) = render(&scene, &settings, &mut |_| {});
         assert_eq!(stats.leaked_paths, 0);
         assert!(stats.events > 20_000, "the medium was hardly entered: {} events", stats.events);
@@ -109,7 +114,7 @@ fn furnace_absorbing_object_is_darker() {
     // The same test must fail when the medium absorbs: a check that the z-test has teeth.
     let obj = plaque([600.0, 900.0, 1200.0], [60.0, 60.0, 60.0], 0.7, 1.5);
     let scene = Scene::new(Some(obj), None, Environment::constant(SKY, Projection::Infinite), camera(16, 12)).unwrap();
-    let (img, _) = render(&scene, &Settings { spp: 128, seed: 3, ..Settings::default() }, &mut |_| {});
+    let (img, _) = render(&scene, &Settings { stop: Stop::samples(128), seed: 3, ..Settings::default() }, &mut |_| {});
     let centre = img.mean[6 * 16 + 8];
     assert!(centre[0] < 0.9 * SKY[0], "absorbing plaque should be darker than the sky: {centre:?}");
 }
@@ -139,7 +144,8 @@ fn furnace_board_nee_and_mis() {
         let cam = Camera::look_at(16, 12, DVec3::new(0.0, -0.02, 0.2), DVec3::ZERO, DVec3::Z, 40.0).unwrap();
         let scene =
             Scene::new(None, Some(board(even, odd)), Environment::constant(SKY, projection), cam.clone()).unwrap();
-        let (img, _) = render(&scene, &Settings { spp: 64, seed: 11, ..Settings::default() }, &mut |_| {});
+        let (img, _) =
+            render(&scene, &Settings { stop: Stop::samples(64), seed: 11, ..Settings::default() }, &mut |_| {});
         // Expected per pixel: ρ of the square under the pixel centre, where the
         // whole pixel lies on one square (pixels on square edges skipped).
         let expected = |p: usize| -> Option<([f64; 3], [f64; 3])> {
@@ -193,7 +199,7 @@ fn finite_sphere_board_radiance_matches_quadrature() {
     bd.columns = 20;
     bd.rows = 20;
     let scene = Scene::new(None, Some(bd), env.clone(), cam).unwrap();
-    let (img, _) = render(&scene, &Settings { spp: 4096, seed: 5, ..Settings::default() }, &mut |_| {});
+    let (img, _) = render(&scene, &Settings { stop: Stop::samples(4096), seed: 5, ..Settings::default() }, &mut |_| {});
     let (nt, np) = (1200usize, 2400usize);
     let mut e = [0.0f64; 3];
     for a in 0..nt {
@@ -231,7 +237,7 @@ fn roulette_is_unbiased() {
     let obj = || plaque([800.0, 1000.0, 1200.0], [40.0, 20.0, 10.0], 0.8, 1.5);
     let scene =
         Scene::new(Some(obj()), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), test_sphere(), camera(12, 9)).unwrap();
-    let base = Settings { spp: 512, ..Settings::default() };
+    let base = Settings { stop: Stop::samples(512), ..Settings::default() };
     let (a, sa) = render(&scene, &Settings { seed: 21, roulette_threshold: None, ..base.clone() }, &mut |_| {});
     let (b, sb) = render(&scene, &Settings { seed: 22, roulette_threshold: Some(0.9), ..base }, &mut |_| {});
     assert!(sb.events < sa.events, "roulette at 0.9 should shorten paths: {} vs {}", sb.events, sa.events);
@@ -248,7 +254,7 @@ fn same_image_whatever_the_thread_count() {
         camera(10, 8),
     )
     .unwrap();
-    let settings = Settings { spp: 16, spp_per_pass: 3, seed: 99, ..Settings::default() };
+    let settings = Settings { stop: Stop::samples(16), spp_per_pass: 3, seed: 99, ..Settings::default() };
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| render(&scene, &settings, &mut |_| {}).0)
@@ -292,7 +298,8 @@ fn wide_slab_under_a_hemispherical_sky_matches_adding_doubling() {
         let sky = Environment::new(1, 2, vec![1.0, 1.0, 1.0, 0.0, 0.0, 0.0], 0.0, 1.0, Projection::Infinite).unwrap();
         let cam = Camera::look_at(2, 2, DVec3::new(0.0, 0.0, 0.05), DVec3::ZERO, DVec3::Y, 0.01).unwrap();
         let scene = Scene::new(Some(obj), None, sky, cam).unwrap();
-        let (img, stats) = render(&scene, &Settings { spp: 40_000, seed: 13, ..Settings::default() }, &mut |_| {});
+        let (img, stats) =
+            render(&scene, &Settings { stop: Stop::samples(40_000), seed: 13, ..Settings::default() }, &mut |_| {});
         assert_eq!(stats.leaked_paths + stats.truncated_paths, 0);
         // The four pixels and three bands are independent estimates of one value.
         let mean = img.mean.iter().flatten().sum::<f64>() / 12.0;
@@ -352,7 +359,8 @@ fn thick_slab_over_a_floor_matches_an_independent_brute_force_on_the_mean() {
     let sky = Environment::constant([1.0; 3], Projection::Infinite);
     let cam = Camera::look_at(4, 4, DVec3::new(0.0, 0.0, 0.13), DVec3::ZERO, DVec3::Y, 0.5).unwrap();
     let scene = Scene::new(Some(obj), Some(floor), sky, cam).unwrap();
-    let (img, stats) = render(&scene, &Settings { spp: 100_000, seed: 29, ..Settings::default() }, &mut |_| {});
+    let (img, stats) =
+        render(&scene, &Settings { stop: Stop::samples(100_000), seed: 29, ..Settings::default() }, &mut |_| {});
     assert_eq!(stats.leaked_paths + stats.truncated_paths, 0);
     let px = img.mean.len() as f64;
     let mean = img.mean.iter().map(|m| m[0]).sum::<f64>() / px;
@@ -434,7 +442,8 @@ fn spectral_mis_and_medium_connections_agree_with_the_plain_estimator() {
     )
     .unwrap();
     // (One band at random where a path keeps one band: the branches have a test of their own.)
-    let base = Settings { spp: 1024, specular_chains: true, band_branches: false, ..Settings::default() };
+    let base =
+        Settings { stop: Stop::samples(1024), specular_chains: true, band_branches: false, ..Settings::default() };
     let plain = Settings { seed: 31, spectral_mis: false, medium_nee: false, ..base.clone() };
     let (a, _) = render(&scene, &plain, &mut |_| {});
     let mut variances = Vec::new();
@@ -501,7 +510,8 @@ fn rough_boundary_furnace_and_smooth_limit() {
     // the single-scattering model's energy loss (< 0.1 % at α = 0.05).
     let env = || Environment::constant(SKY, Projection::Infinite);
     let scene = Scene::new(Some(rough_plaque(0.05, 1.5, 0.0)), None, env(), camera(16, 12)).unwrap();
-    let (img, stats) = render(&scene, &Settings { spp: 256, seed: 11, ..Settings::default() }, &mut |_| {});
+    let (img, stats) =
+        render(&scene, &Settings { stop: Stop::samples(256), seed: 11, ..Settings::default() }, &mut |_| {});
     assert!(stats.events > 20_000, "the medium was hardly entered: {} events", stats.events);
     z_test(&img, &|_| Some((SKY, SKY.map(|v| (2e-4 * v).powi(2)))), "rough furnace α = 0.05");
     // With absorption and a board, a nearly smooth rough boundary (α = 10⁻³)
@@ -510,14 +520,14 @@ fn rough_boundary_furnace_and_smooth_limit() {
     let smooth = plaque([600.0, 900.0, 1200.0], [20.0; 3], 0.7, 1.5);
     let a = render(
         &Scene::new(Some(smooth), bd(), test_sphere(), camera(12, 9)).unwrap(),
-        &Settings { spp: 512, seed: 12, ..Settings::default() },
+        &Settings { stop: Stop::samples(512), seed: 12, ..Settings::default() },
         &mut |_| {},
     )
     .0;
     let rough = rough_plaque(1e-3, 1.5, 20.0);
     let b = render(
         &Scene::new(Some(rough), bd(), test_sphere(), camera(12, 9)).unwrap(),
-        &Settings { spp: 512, seed: 13, ..Settings::default() },
+        &Settings { stop: Stop::samples(512), seed: 13, ..Settings::default() },
         &mut |_| {},
     )
     .0;
@@ -526,7 +536,7 @@ fn rough_boundary_furnace_and_smooth_limit() {
     let rougher = rough_plaque(0.5, 1.5, 20.0);
     let c = render(
         &Scene::new(Some(rougher), bd(), test_sphere(), camera(12, 9)).unwrap(),
-        &Settings { spp: 512, seed: 14, ..Settings::default() },
+        &Settings { stop: Stop::samples(512), seed: 14, ..Settings::default() },
         &mut |_| {},
     )
     .0;
@@ -560,7 +570,7 @@ fn band_branches_agree_with_one_band_at_random_and_pay_for_their_walks() {
         camera(12, 9),
     )
     .unwrap();
-    let base = Settings { spp: 1024, specular_chains: true, ..Settings::default() };
+    let base = Settings { stop: Stop::samples(1024), specular_chains: true, ..Settings::default() };
     assert!(base.band_branches, "branches are the default");
     let random = Settings { seed: 51, band_branches: false, ..base.clone() };
     let (a, sa) = render(&scene, &random, &mut |_| {});
@@ -619,7 +629,7 @@ fn object_mean_z(a: &Image, b: &Image) -> f64 {
 fn object_fraction_and_region_errors() {
     use lucent_render::tracer::Region;
     let scene = region_scene([1.45; 3]);
-    let (img, _) = render(&scene, &Settings { spp: 64, seed: 5, ..Settings::default() }, &mut |_| {});
+    let (img, _) = render(&scene, &Settings { stop: Stop::samples(64), seed: 5, ..Settings::default() }, &mut |_| {});
     // The object's fraction per pixel from an independent geometric test:
     // a camera ray through the pixel centre hits the plaque's box (its
     // projection covers the image's centre, not its corners).
@@ -693,7 +703,7 @@ fn a_pixel_with_a_channel_still_dark_counts_as_an_infinite_error() {
 fn object_weighted_sampling_is_unbiased_and_stops_at_the_target() {
     use lucent_render::tracer::{Region, Sampling};
     let scene = region_scene([1.45; 3]);
-    let base = Settings { spp: 512, ..Settings::default() };
+    let base = Settings { stop: Stop::samples(512), ..Settings::default() };
     let (a, _) = render(&scene, &Settings { seed: 61, sampling: Sampling::Uniform, ..base.clone() }, &mut |_| {});
     let (b, _) =
         render(&scene, &Settings { seed: 62, sampling: Sampling::ObjectWeighted, ..base.clone() }, &mut |_| {});
@@ -717,13 +727,13 @@ fn object_weighted_sampling_is_unbiased_and_stops_at_the_target() {
     let wide =
         Camera::look_at(24, 18, DVec3::new(0.0, -0.04, 0.012), DVec3::new(0.0, 0.0, 0.01), DVec3::Z, 60.0).unwrap();
     let sky_scene = Scene::new(scene.object.clone(), scene.board.clone(), lamp_sky(), wide).unwrap();
-    let s = Settings { seed: 64, spp: 256, sampling: Sampling::ObjectWeighted, ..base.clone() };
+    let s = Settings { seed: 64, stop: Stop::samples(256), sampling: Sampling::ObjectWeighted, ..base.clone() };
     let e = render(&sky_scene, &s, &mut |_| {}).0.region_errors();
     assert!(e.all.pixels > e.object.pixels + e.board.pixels + 50, "sky in view: {e:?}");
     assert!(e.board.median < 2.0 * e.object.median, "board starved: {e:?}");
     // A target on the object's median stops the render early, once it is met.
     let mut last = None;
-    let s = Settings { seed: 63, spp: 100_000, target_rel_error: Some(0.08), ..base };
+    let s = Settings { seed: 63, stop: Stop { pixel_rel_error: Some(0.08), ..Stop::samples(100_000) }, ..base };
     let (c, _) = render(&scene, &s, &mut |p| last = Some(p.errors));
     let e = c.region_errors();
     assert!(e.object.median <= 0.08, "{e:?}");
@@ -740,7 +750,7 @@ fn splitting_and_shared_dispersion_directions() {
     // bias of ≈ 4 %, gives z ≈ 7 on the object's mean; 1024 gave 3.4.)
     // (One band at random where a path keeps one band, as the shared
     // directions' variance is weighed against it below.)
-    let base = Settings { spp: 4096, band_branches: false, ..Settings::default() };
+    let base = Settings { stop: Stop::samples(4096), band_branches: false, ..Settings::default() };
     let (a, _) = render(&scene, &Settings { seed: 81, ..base.clone() }, &mut |_| {});
     let (b, _) = render(&scene, &Settings { seed: 82, split_entry: true, ..base.clone() }, &mut |_| {});
     z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "splitting at the object vs choosing");
@@ -766,7 +776,7 @@ fn cancellation_ends_a_long_pass_within_moments() {
     // One pass of a million samples per pixel would take hours; the flag,
     // set 0.2 s in, ends it between two samples and leaves a valid image.
     let scene = region_scene([1.45; 3]);
-    let settings = Settings { spp: 1_000_000, spp_per_pass: 1_000_000, ..Settings::default() };
+    let settings = Settings { stop: Stop::samples(1_000_000), spp_per_pass: 1_000_000, ..Settings::default() };
     let cancel = AtomicBool::new(false);
     let start = std::time::Instant::now();
     let (img, _) = std::thread::scope(|s| {
@@ -774,7 +784,7 @@ fn cancellation_ends_a_long_pass_within_moments() {
             std::thread::sleep(std::time::Duration::from_millis(200));
             cancel.store(true, Ordering::Relaxed);
         });
-        lucent_render::tracer::render_cancellable(&scene, &settings, &mut |_| {}, Some(&cancel))
+        lucent_render::tracer::render_cancellable(&scene, &settings, &mut |_| {}, Some(&cancel)).unwrap()
     });
     let took = start.elapsed().as_secs_f64();
     assert!(took < 20.0, "cancellation took {took} s");
@@ -795,7 +805,8 @@ fn cancellation_ends_a_long_pass_within_moments() {
 fn half_renders_are_independent_halves_of_the_samples() {
     let scene = region_scene([1.45; 3]);
     for spp in [31, 32] {
-        let (img, _) = render(&scene, &Settings { spp, seed: 9, ..Settings::default() }, &mut |_| {});
+        let (img, _) =
+            render(&scene, &Settings { stop: Stop::samples(spp), seed: 9, ..Settings::default() }, &mut |_| {});
         let (mut ratio, mut n) = (0.0, 0usize);
         for p in 0..img.mean.len() {
             let k = f64::from(img.samples[p]);
@@ -838,7 +849,7 @@ fn phase_connection_in_a_forward_peaked_medium() {
     )
     .unwrap();
     scene.environment.set_sampling_normal(None);
-    let base = Settings { spp: 256, ..Settings::default() };
+    let base = Settings { stop: Stop::samples(256), ..Settings::default() };
     let (a, _) = render(&scene, &Settings { seed: 61, phase_connection: false, ..base.clone() }, &mut |_| {});
     let (b, _) = render(&scene, &Settings { seed: 62, ..base }, &mut |_| {});
     z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "phase connection vs without");
@@ -866,7 +877,7 @@ fn environment_weighted_towards_the_board_agrees_and_quietens_the_board() {
     assert_eq!(weighted.environment.sampling_normal(), Some(DVec3::Z));
     let mut plain = weighted.clone();
     plain.environment.set_sampling_normal(None);
-    let base = Settings { spp: 256, ..Settings::default() };
+    let base = Settings { stop: Stop::samples(256), ..Settings::default() };
     let (a, _) = render(&plain, &Settings { seed: 81, ..base.clone() }, &mut |_| {});
     let (b, _) = render(&weighted, &Settings { seed: 82, ..base }, &mut |_| {});
     z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "weighted vs plain environment sampling");
@@ -961,8 +972,13 @@ fn similarity_floor_held_for_the_first_events_shortens_the_walk() {
         let scene =
             Scene::new(Some(obj), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), sky.clone(), camera(16, 12)).unwrap();
         // demo.toml's connections: specular chains, no phase connections.
-        let settings =
-            Settings { spp: 1024, seed, specular_chains: true, phase_connection: false, ..Settings::default() };
+        let settings = Settings {
+            stop: Stop::samples(1024),
+            seed,
+            specular_chains: true,
+            phase_connection: false,
+            ..Settings::default()
+        };
         let (img, stats) = render(&scene, &settings, &mut |_| {});
         let object: Vec<usize> = (0..img.mean.len()).filter(|&p| img.object_fraction(p) == 1.0).collect();
         let n = object.len() as f64;
@@ -1007,7 +1023,8 @@ fn similar_medium_cuts_events_and_noise_and_keeps_the_plaque_mean() {
     let grey = [0.5; 3];
     let run = |obj: Object, spp: u32| {
         let scene = Scene::new(Some(obj), Some(board(grey, [0.1; 3])), env.clone(), camera(24, 18)).unwrap();
-        let (img, stats) = render(&scene, &Settings { spp, seed: 21, ..Settings::default() }, &mut |_| {});
+        let (img, stats) =
+            render(&scene, &Settings { stop: Stop::samples(spp.into()), seed: 21, ..Settings::default() }, &mut |_| {});
         let object: Vec<usize> =
             (0..img.mean.len()).filter(|&p| img.region(p) == lucent_render::tracer::Region::Object).collect();
         let n = object.len() as f64;
@@ -1051,7 +1068,7 @@ fn specular_chains_agree_and_cut_the_variance() {
     let phase = Phase::henyey_greenstein(0.2).unwrap();
     let scene =
         plaque_under_a_lamp(bands([640.0; 3], [2.0, 5.0, 10.0], [phase.clone(), phase.clone(), phase], [1.59; 3]));
-    let base = Settings { spp: 2048, ..Settings::default() };
+    let base = Settings { stop: Stop::samples(2048), ..Settings::default() };
     let (a, _) = render(&scene, &Settings { seed: 71, specular_chains: false, ..base.clone() }, &mut |_| {});
     let (b, _) = render(&scene, &Settings { seed: 72, specular_chains: true, ..base }, &mut |_| {});
     z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "specular chains vs without");
@@ -1085,7 +1102,7 @@ fn board_connection_by_reflection_agrees_and_cuts_the_variance_beside_the_plaque
     let camera =
         Camera::look_at(24, 18, DVec3::new(0.0, -0.07, 0.05), DVec3::new(0.0, -0.012, 0.0), DVec3::Z, 40.0).unwrap();
     let scene = Scene::new(Some(object), Some(board([0.8, 0.7, 0.6], [0.05, 0.1, 0.2])), sky, camera).unwrap();
-    let base = Settings { spp: 2048, ..Settings::default() };
+    let base = Settings { stop: Stop::samples(2048), ..Settings::default() };
     let (a, _) = render(&scene, &Settings { seed: 91, specular_chains: false, ..base.clone() }, &mut |_| {});
     let (b, _) = render(&scene, &Settings { seed: 92, specular_chains: true, ..base }, &mut |_| {});
     z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "reflection connection vs without");
@@ -1131,7 +1148,7 @@ fn sphere_jumps_agree_with_the_plain_walk_in_fewer_events() {
         [iso.clone(), iso.clone(), iso],
         [1.5; 3],
     ));
-    let base = Settings { spp: 1024, ..Settings::default() };
+    let base = Settings { stop: Stop::samples(1024), ..Settings::default() };
     let (a, sa) = render(&scene, &Settings { seed: 81, sphere_jumps: false, ..base.clone() }, &mut |_| {});
     let (b, sb) = render(&scene, &Settings { seed: 82, sphere_jumps: true, ..base.clone() }, &mut |_| {});
     z_test(&b, &|p| Some((a.mean[p], a.variance_of_mean[p])), "sphere jumps vs the plain walk");
@@ -1145,7 +1162,7 @@ fn sphere_jumps_agree_with_the_plain_walk_in_fewer_events() {
     // it shifted the mean by z = 6 at a 0.5 mfp margin); a scattered exit's
     // connection must count the branch's probability 1 − e^{−R} in its
     // densities (left out, the mean falls by z ≈ 10 here).
-    let near = Settings { seed: 83, sphere_jumps: true, sphere_margin_mfp: 0.0, spp: 4096, ..base };
+    let near = Settings { seed: 83, sphere_jumps: true, sphere_margin_mfp: 0.0, stop: Stop::samples(4096), ..base };
     let (c, _) = render(&scene, &near, &mut |_| {});
     let z = object_mean_z(&a, &c);
     eprintln!("margin 0: object mean z {z:.2}");
@@ -1205,7 +1222,8 @@ fn coefficient_derivatives_agree_with_finite_differences() {
     // Four seeds: the derivatives' object means, their stated variances, and their spread.
     let runs: Vec<Image> = (0..6u64)
         .map(|s| {
-            let settings = Settings { spp: 256, seed: 300 + s, derivatives: derivatives.clone(), ..base.clone() };
+            let settings =
+                Settings { stop: Stop::samples(256), seed: 300 + s, derivatives: derivatives.clone(), ..base.clone() };
             render(&nominal, &settings, &mut |_| {}).0
         })
         .collect();
@@ -1226,7 +1244,7 @@ fn coefficient_derivatives_agree_with_finite_differences() {
             / 3.0;
         assert!((0.3..2.5).contains(&spread), "derivative {k}: spread over seeds / stated variance = {spread:.2}");
         // Central differences, the two renders with one seed (common random numbers).
-        let fd_settings = Settings { spp: 1024, seed: 400, ..base.clone() };
+        let fd_settings = Settings { stop: Stop::samples(1024), seed: 400, ..base.clone() };
         let [(sp, ap), (sm, am)] = plus_minus;
         let (plus, _) = render(&scene(media(sp, ap)), &fd_settings, &mut |_| {});
         let (minus, _) = render(&scene(media(sm, am)), &fd_settings, &mut |_| {});
@@ -1465,7 +1483,7 @@ fn medium_connections_through_a_curved_or_concave_mesh_agree_with_the_escapes() 
     ] {
         let scene = mesh_scene(&tris, eta);
         // (One band at random where the index differs: the test is the connections'.)
-        let base = Settings { spp: 2048, band_branches: false, ..Settings::default() };
+        let base = Settings { stop: Stop::samples(2048), band_branches: false, ..Settings::default() };
         let (a, _) = render(&scene, &Settings { seed: 91, medium_nee: false, ..base.clone() }, &mut |_| {});
         let (b, _) = render(&scene, &Settings { seed: 92, ..base.clone() }, &mut |_| {});
         // Without the phase connection (the default through such a mesh):
@@ -1484,4 +1502,23 @@ fn medium_connections_through_a_curved_or_concave_mesh_agree_with_the_escapes() 
     }
     let z = pooled.iter().sum::<f64>() / (pooled.len() as f64).sqrt();
     assert!(z.abs() < 4.0, "pooled over the meshes, the object's mean moved by z = {z:.2}");
+}
+
+/// A render stops on samples per pixel, time and the object's median error;
+/// a target on the whole image's total, or more samples than a pixel can
+/// count, is refused before any work, never ignored.
+#[test]
+fn a_render_refuses_a_stop_rule_it_cannot_honour() {
+    use lucent_render::tracer::{Condition, StopError};
+    let scene = region_scene([1.45; 3]);
+    let total = Settings { stop: Stop { rel_error: Some(0.05), ..Stop::samples(4) }, ..Settings::default() };
+    let e = lucent_render::tracer::render(&scene, &total, &mut |_| panic!("no pass")).unwrap_err();
+    assert_eq!(e, StopError::Unsupported { integrator: "a render", condition: Condition::RelError });
+    let many = Settings { stop: Stop::samples(1 << 40), ..Settings::default() };
+    assert!(matches!(
+        lucent_render::tracer::render(&scene, &many, &mut |_| panic!("no pass")),
+        Err(StopError::TooManySamples { .. })
+    ));
+    let empty = Settings { stop: Stop::default(), ..Settings::default() };
+    assert_eq!(lucent_render::tracer::render(&scene, &empty, &mut |_| {}).unwrap_err(), StopError::Empty);
 }

@@ -11,6 +11,7 @@ use clap::{Args, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_render::phase::{Phase, PhaseTable};
 use lucent_render::slab::{self, Beam, BeamMap, Directions, Estimator, Medium, RunOptions, Sensor, Setup, Slab, Stop};
+use lucent_render::stop::{Condition, Standing};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Args)]
@@ -486,7 +487,7 @@ pub fn plan_with_recipe(a: &RunArgs, recipe: Option<&Recipe>) -> Result<Plan> {
     }
     // Only the crop is simulated: the pixels outside it would be discarded.
     let sensor = Sensor::new(out_pixels, a.pixel_mm * 1e-3)?;
-    let stop = Stop { paths: a.paths, time_s: a.time_s, rel_error: a.rel_error, pixel_rel_error: a.pixel_rel_error };
+    let stop = a.stop();
     // A stop rule and a beam that cannot give a slice are refused before any work.
     if let Some(n) = a.paths
         && let Some(reason) = crate::bssrdf::paths_problem(n)
@@ -506,7 +507,7 @@ pub fn plan_with_recipe(a: &RunArgs, recipe: Option<&Recipe>) -> Result<Plan> {
     }
     // Without a stop rule: 1 % on the slice sum, but at most 10 minutes per
     // configuration (strongly forward-peaked media converge slowly).
-    let stop = if stop == Stop::default() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
+    let stop = if stop.is_empty() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
     let (top, roughness) = bssrdf::roughness(a.roughness.as_deref(), m.surface.as_ref())?;
     let perturbations = perturbations(a, recipe, &top)?;
     let slab = Slab::new(m.thickness_m, m.medium.clone())?.with_top(top);
@@ -544,7 +545,7 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
     let configs = &plan.runs;
     let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
     let batch_paths = RunOptions::default().batch_paths;
-    let total_batches = a.paths.unwrap_or(0).div_ceil(batch_paths);
+    let total_batches = a.stop().samples.unwrap_or(0).div_ceil(batch_paths);
     check_stop_for_split(&a, shard, merged_from.is_some(), total_batches)?;
     // A merge reads and checks every shard before it writes anything.
     let merged_tallies = match merged_from {
@@ -690,19 +691,20 @@ pub fn simulate_from(a: RunArgs, merged_from: Option<&[crate::shard::Shard]>) ->
 /// sharded, a path count or time budget), a `shard` (k, n) or a merge
 /// (`merged`: a path budget alone, at most `total_batches` shards).
 fn check_stop_for_split(a: &RunArgs, shard: Option<(u32, u32)>, merged: bool, total_batches: u64) -> Result<()> {
+    let stop = a.stop();
     if a.uncertainty {
         if shard.is_some() || merged {
             bail!("--uncertainty: the coupled runs of the uncertain inputs are not sharded; run without --shard");
         }
-        if a.paths.is_none() && a.time_s.is_none() {
+        if !stop.has(Condition::Samples) && !stop.has(Condition::Time) {
             bail!("--uncertainty: give --paths or --time-s (the runs at ±1 σ stop with the nominal one, on a path count or a time budget)");
         }
-        if a.rel_error.is_some() || a.pixel_rel_error.is_some() {
+        if stop.has_error_target() {
             bail!("--uncertainty: --rel-error and --pixel-rel-error do not apply; give --paths or --time-s");
         }
     }
     if shard.is_some() || merged {
-        if a.paths.is_none() || a.time_s.is_some() || a.rel_error.is_some() || a.pixel_rel_error.is_some() {
+        if stop.shard_samples().is_err() {
             bail!("--shard: needs a path budget (--paths) and no other stop rule (--time-s, --rel-error and --pixel-rel-error depend on the whole run and cannot be split exactly)");
         }
         if let Some((k, n)) = shard
@@ -799,7 +801,7 @@ fn run_shard(a: &RunArgs, configs: &[PlannedRun], (k, n): (u32, u32), total_batc
 fn progress_message(stop: &Stop, p: &slab::Progress) -> String {
     format!(
         "{}{:.2} M events/s, rel. error {:.2} % (sum), per pixel {:.1} % median, {:.1} % p90",
-        if stop.paths.is_none() && stop.time_s.is_some() { format!("{} paths, ", p.paths) } else { String::new() },
+        if stop.samples.is_none() && stop.time_s.is_some() { format!("{} paths, ", p.paths) } else { String::new() },
         p.events as f64 / p.elapsed_s.max(1e-9) / 1e6,
         100.0 * p.rel_error,
         100.0 * p.pixels.median,
@@ -892,7 +894,7 @@ fn progress_bar(quiet: bool, stop: &Stop) -> ProgressBar {
     if quiet {
         return ProgressBar::hidden();
     }
-    let (bar, template) = match (stop.paths, stop.time_s) {
+    let (bar, template) = match (stop.samples, stop.time_s) {
         (Some(n), _) => (ProgressBar::new(n), "{prefix} {bar:40} {pos}/{len} paths  {msg}  ETA {eta}"),
         (None, Some(_)) => {
             (ProgressBar::new(1000), "{prefix} {bar:40} {percent} % of the time budget  {msg}  ETA {eta}")
@@ -906,7 +908,7 @@ fn progress_bar(quiet: bool, stop: &Stop) -> ProgressBar {
 /// Where [`progress_bar`]'s bar stands after a round: paths done, or
 /// thousandths of the time budget.
 fn bar_position(stop: &Stop, p: &slab::Progress) -> u64 {
-    match (stop.paths, stop.time_s) {
+    match (stop.samples, stop.time_s) {
         (Some(n), _) => p.paths.min(n),
         (None, Some(t)) => (1000.0 * (p.elapsed_s / t).clamp(0.0, 1.0)) as u64,
         (None, None) => p.paths,
@@ -923,7 +925,8 @@ fn expectation(stop: &Stop, p: &slab::Progress) -> Option<(f64, String)> {
     if p.paths == 0 || elapsed.is_nan() || elapsed <= 0.0 {
         return None;
     }
-    if stop.paths.is_some_and(|n| p.paths >= n) || stop.time_s.is_some_and(|t| elapsed >= t) {
+    let standing = Standing { samples: Some(p.paths), elapsed_s: elapsed, ..Standing::default() };
+    if stop.met(&standing).is_some() {
         return None;
     }
     let target = |name: &str, now: f64, e: f64| -> Option<(f64, String)> {
@@ -941,7 +944,7 @@ fn expectation(stop: &Stop, p: &slab::Progress) -> Option<(f64, String)> {
         })
     };
     let mut rules: Vec<(f64, String)> = Vec::new();
-    if let Some(n) = stop.paths {
+    if let Some(n) = stop.samples {
         rules.push((
             elapsed * n as f64 / p.paths as f64,
             format!("for {n} paths ({} done in {:.2} s)", p.paths, elapsed),
@@ -1055,7 +1058,7 @@ pub fn bench(rel_error: f64, time_s: f64) -> Result<()> {
     let mut single: Option<Slice> = None;
     for seed in 7..12 {
         let run = one_core.install(|| {
-            simulate(&setup, &RunOptions { stop: Stop::paths(20_000), seed, ..RunOptions::default() }, |_| {})
+            simulate(&setup, &RunOptions { stop: Stop::samples(20_000), seed, ..RunOptions::default() }, |_| {})
         })?;
         if single.as_ref().is_none_or(|s| run.events_per_s() > s.events_per_s()) {
             single = Some(run);
@@ -1200,7 +1203,7 @@ pub fn bench_surface(paths: u64) -> Result<()> {
         );
         let mut best: Option<Slice> = None;
         for seed in 1..4 {
-            let options = RunOptions { stop: Stop::paths(paths), seed, ..RunOptions::default() };
+            let options = RunOptions { stop: Stop::samples(paths), seed, ..RunOptions::default() };
             let run = one_core.install(|| simulate(&setup, &options, |_| {}))?;
             if best.as_ref().is_none_or(|b| run.events_per_s() > b.events_per_s()) {
                 best = Some(run);
@@ -1270,6 +1273,18 @@ pub fn bench_surface(paths: u64) -> Result<()> {
 }
 
 impl RunArgs {
+    /// The stop rule the flags give (--paths, --time-s, --rel-error,
+    /// --pixel-rel-error), without the default a run adds when none is
+    /// given.
+    pub fn stop(&self) -> Stop {
+        Stop {
+            samples: self.paths,
+            time_s: self.time_s,
+            rel_error: self.rel_error,
+            pixel_rel_error: self.pixel_rel_error,
+        }
+    }
+
     /// The arguments of a `bssrdf` run as clap gives them when no flag is set.
     pub(super) fn defaults() -> Self {
         RunArgs {

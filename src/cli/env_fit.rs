@@ -74,10 +74,7 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
     a.render.apply(&mut settings);
     let pool = a.render.pool()?;
     if !a.quiet {
-        let budget = match settings.target_rel_error {
-            Some(e) => format!("up to {} spp, until the median error per pixel is {:.1} %", settings.spp, 100.0 * e),
-            None => format!("{} spp", settings.spp),
-        };
+        let budget = settings.stop.describe("spp");
         eprintln!(
             "rendering the empty board of {} at {w}×{h}, {budget}, {} threads",
             a.scene.display(),
@@ -90,7 +87,7 @@ pub fn run(a: FitScaleArgs) -> Result<()> {
         tracer::render(&loaded.scene, &settings, &mut |p| {
             super::render::show_progress(&bar, &settings, a.quiet, &mut estimated, p)
         })
-    });
+    })?;
     bar.finish_and_clear();
     let fit = envfit::fit_scale(&image.mean, &image.variance_of_mean, &photo, &mask)
         .with_context(|| format!("{} against {}", a.scene.display(), a.photo.display()))?;

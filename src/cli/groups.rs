@@ -132,7 +132,7 @@ impl TwinRenderArgs {
     /// `--spp` and `--seed` over the scene's settings.
     pub fn apply(&self, settings: &mut Settings) {
         if let Some(s) = self.spp {
-            settings.spp = s;
+            settings.stop.samples = Some(s.into());
         }
         if let Some(s) = self.seed {
             settings.seed = s;

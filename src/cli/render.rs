@@ -21,7 +21,7 @@ use crate::scene::{self, RenderReport, SceneSummary};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use lucent_render::tracer::{self, Image, Settings, Stats};
+use lucent_render::tracer::{self, Condition, Image, NotSplittable, Settings, Stats, Stop};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -97,13 +97,18 @@ pub struct RenderArgs {
 /// The accumulator file of a render shard.
 pub const SHARD_ACC: &str = "render.acc";
 
-/// Refuses what a shard of a render cannot do exactly.
+/// Refuses what a shard of a render cannot do exactly: a stop rule other
+/// than a sample count ([`Stop::shard_samples`]), object-weighted sampling.
 fn check_shardable(settings: &Settings) -> Result<()> {
-    if settings.time_budget_s.is_some() {
-        bail!("--shard: a time budget (--time-s or [render] time_s) cannot be split into shards exactly; give a sample budget (--spp) instead");
-    }
-    if settings.target_rel_error.is_some() {
-        bail!("--shard: an error target (--target-rel-error or [render] target_rel_error) depends on the whole image; give a sample budget (--spp) instead");
+    match settings.stop.shard_samples() {
+        Ok(_) => {}
+        Err(NotSplittable::NoSamples) => bail!("--shard: needs a sample budget (--spp or [render] spp)"),
+        Err(NotSplittable::Beside(Condition::Time)) => {
+            bail!("--shard: a time budget (--time-s or [render] time_s) cannot be split into shards exactly; give a sample budget (--spp) instead")
+        }
+        Err(NotSplittable::Beside(_)) => {
+            bail!("--shard: an error target (--target-rel-error or [render] target_rel_error) depends on the whole image; give a sample budget (--spp) instead")
+        }
     }
     if settings.sampling != tracer::Sampling::Uniform {
         bail!("--shard: object-weighted sampling plans every pass from the image so far and cannot be split; use --sampling uniform");
@@ -118,7 +123,7 @@ fn merged(shards: &[crate::shard::Shard], settings: &Settings, w: usize, h: usiz
     let mut stats = Stats::default();
     for s in shards {
         let k = s.file.shard;
-        let expected = crate::shard::range(u64::from(settings.spp), k, s.file.identity.shards);
+        let expected = crate::shard::range(u64::from(settings.spp()), k, s.file.identity.shards);
         if s.file.range != [expected.start, expected.end] {
             bail!(
                 "{}: shard {k} holds samples {:?}, the run's shard {k} is {expected:?}",
@@ -309,26 +314,26 @@ fn prepare_as(
     let mut settings = loaded.settings.clone();
     a.render.apply(&mut settings);
     if a.time_s.is_some() {
-        settings.time_budget_s = a.time_s;
+        settings.stop.time_s = a.time_s;
     }
     if let Some(d) = a.dispersion {
         settings.dispersion = d.into();
     }
     settings.split_entry |= a.split_entry;
     if let Some(e) = a.target_rel_error {
-        settings.target_rel_error = Some(check_rel_error("--target-rel-error", e)?);
+        settings.stop.pixel_rel_error = Some(check_rel_error("--target-rel-error", e)?);
     }
     // A render that names no sample budget and no error target (a
     // newcomer's first) stops at the default error target on the object,
     // with a sample cap so high that the target or the time budget ends it.
     // An error target without a sample budget is likewise not capped.
     if !file_spp && a.render.spp.is_none() && a.shard.is_none() && !for_merge {
-        settings.target_rel_error.get_or_insert(DEFAULT_TARGET_REL_ERROR);
-        settings.spp = DEFAULT_SPP_CAP;
+        settings.stop.pixel_rel_error.get_or_insert(DEFAULT_TARGET_REL_ERROR);
+        settings.stop.samples = Some(DEFAULT_SPP_CAP.into());
     }
     if let Some(s) = a.sampling {
         settings.sampling = s.into();
-    } else if file_sampling.is_none() && settings.target_rel_error.is_some() {
+    } else if file_sampling.is_none() && settings.stop.pixel_rel_error.is_some() {
         // The error target is the object's: unless told otherwise, the samples go there.
         settings.sampling = tracer::Sampling::ObjectWeighted;
     }
@@ -378,13 +383,13 @@ pub fn advice_short_of_target(elapsed_s: f64, now: f64, target: f64, width: usiz
 /// 0.1 % of error² reduction; a sample budget's counts samples (with the
 /// time left). Hidden when `quiet`.
 pub(super) fn progress_bar(quiet: bool, settings: &tracer::Settings) -> ProgressBar {
-    let target = settings.target_rel_error;
+    let target = settings.stop.pixel_rel_error;
     let bar = if quiet {
         ProgressBar::hidden()
     } else if target.is_some() {
         ProgressBar::new(1000)
     } else {
-        ProgressBar::new(u64::from(settings.spp))
+        ProgressBar::new(u64::from(settings.spp()))
     };
     bar.set_style(
         ProgressStyle::with_template(if target.is_some() {
@@ -406,7 +411,7 @@ pub(super) fn show_progress(
     estimated: &mut bool,
     p: &tracer::Progress,
 ) {
-    let line = match settings.target_rel_error {
+    let line = match settings.stop.pixel_rel_error {
         Some(e) if p.errors.object.pixels > 0 && p.errors.object.median > 0.0 => {
             // Fraction of the way in error² (∝ time), and once the first pass tells, the expected time.
             let now = p.errors.object.median;
@@ -417,7 +422,7 @@ pub(super) fn show_progress(
             if !*estimated && now.is_finite() && now > e {
                 *estimated = true;
                 time_to_target_s(p.elapsed_s, now, e).map(|t| {
-                    let over = settings.time_budget_s.is_some_and(|b| t > b);
+                    let over = settings.stop.time_s.is_some_and(|b| t > b);
                     format!(
                         "expect ≈ {} to {:.1} % on the object ({:.1} % after {} spp in {:.1} s){}",
                         duration(t),
@@ -439,15 +444,16 @@ pub(super) fn show_progress(
         None => {
             bar.set_position(u64::from(p.spp_done));
             // A sample budget: the rate of the first pass.
-            let first = !*estimated && p.spp_done > 0 && p.spp_done < settings.spp && p.elapsed_s > 0.0;
+            let spp = settings.spp();
+            let first = !*estimated && p.spp_done > 0 && p.spp_done < spp && p.elapsed_s > 0.0;
             *estimated = true;
             first.then(|| {
-                let t = p.elapsed_s * f64::from(settings.spp) / f64::from(p.spp_done);
-                let over = settings.time_budget_s.is_some_and(|b| t > b);
+                let t = p.elapsed_s * f64::from(spp) / f64::from(p.spp_done);
+                let over = settings.stop.time_s.is_some_and(|b| t > b);
                 format!(
                     "expect ≈ {} for {} spp ({} spp in {:.1} s){}",
                     duration(t),
-                    settings.spp,
+                    spp,
                     p.spp_done,
                     p.elapsed_s,
                     if over { "; beyond the time budget" } else { "" }
@@ -495,12 +501,12 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         None => (None, Vec::new()),
     };
     if let Some((k, n)) = shard
-        && n > settings.spp
+        && n > settings.spp()
     {
         return Err(crate::shard::ShardError::TooManyShards {
             k,
             n,
-            units: settings.spp.into(),
+            units: settings.spp().into(),
             what: "samples per pixel",
         }
         .into());
@@ -514,22 +520,22 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
     let pool = a.render.pool()?;
     let threads = pool.current_num_threads();
     let (w, h) = (loaded.scene.camera.width, loaded.scene.camera.height);
-    let target = settings.target_rel_error;
+    let target = settings.stop.pixel_rel_error;
     for line in scene::approximations(&loaded.summary, &settings) {
         eprintln!("note: approximation: {line}");
     }
     if !a.quiet {
         let budget = match target {
-            Some(e) if settings.spp == DEFAULT_SPP_CAP => {
+            Some(e) if settings.spp() == DEFAULT_SPP_CAP => {
                 format!("until the object's median error per pixel is {:.1} % (no spp given)", 100.0 * e)
             }
-            Some(e) => format!("up to {} spp, until the object's median error is {:.1} %", settings.spp, 100.0 * e),
-            None => format!("{} spp", settings.spp),
+            Some(e) => format!("up to {} spp, until the object's median error is {:.1} %", settings.spp(), 100.0 * e),
+            None => format!("{} spp", settings.spp()),
         };
         eprintln!(
             "rendering {} at {w}×{h}, {budget}{}, {threads} threads",
             a.scene.display(),
-            settings.time_budget_s.map(|t| format!(" (at most {t} s)")).unwrap_or_default()
+            settings.stop.time_s.map(|t| format!(" (at most {t} s)")).unwrap_or_default()
         );
     }
     let bar = progress_bar(a.quiet, &settings);
@@ -548,7 +554,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
                 &mut |p| show_progress(&bar, &settings, a.quiet, &mut estimated, p),
                 Some(interrupt.flag()),
             )
-        })
+        })?
     };
     let interrupted = interrupt.requested();
     drop(interrupt);
@@ -568,7 +574,7 @@ pub fn run_from(a: RenderArgs, merged_from: Option<&[crate::shard::Shard]>) -> R
         stats.events as f64 / stats.wall_s.max(1e-9) / 1e6,
     );
     println!("relative standard error per pixel, median (90th, 99th percentile): {}", describe_errors(&e));
-    if let Some(t) = settings.target_rel_error
+    if let Some(t) = settings.stop.pixel_rel_error
         && e.object.pixels > 0
         && e.object.median > t
         && !interrupted
@@ -599,8 +605,8 @@ fn render_shard(
     pool: &rayon::ThreadPool,
     (k, n): (u32, u32),
 ) -> Result<()> {
-    let range = crate::shard::range(u64::from(settings.spp), k, n);
-    let identity = super::shard::identity(settings.seed, format!("{} spp", settings.spp), n)?;
+    let range = crate::shard::range(u64::from(settings.spp()), k, n);
+    let identity = super::shard::identity(settings.seed, format!("{} spp", settings.spp()), n)?;
     super::shard::check_shard_out(&a.out, &identity, k)?;
     let interrupt = Interrupt::install();
     let (acc, stats) = pool.install(|| {
@@ -648,11 +654,11 @@ fn warn_lost_paths(summary: &SceneSummary, settings: &Settings, stats: &Stats) {
 /// `t`: at the sample budget, or with advice on the time a `w` × `h` image
 /// would take.
 fn warn_short_of_target(report: &RenderReport, settings: &Settings, median: f64, t: f64, (w, h): (usize, usize)) {
-    if report.spp >= settings.spp {
+    if report.spp >= settings.spp() {
         eprintln!(
             "warning: the object reached {:.1} % at the sample budget of {} spp (--spp or [render] spp), short of the {:.1} % target",
             100.0 * median,
-            settings.spp,
+            settings.spp(),
             100.0 * t
         );
     } else {
@@ -924,7 +930,7 @@ pub fn band_of(
     // --time-s (or [render] time_s) bounds the ±1 σ renders too, together:
     // past it, or when `cancel` is set, a watcher stops them.
     use std::sync::atomic::{AtomicBool, Ordering};
-    let deadline = settings.time_budget_s.map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t));
+    let deadline = settings.stop.time_s.map(|t| std::time::Instant::now() + std::time::Duration::from_secs_f64(t));
     let (stop, finished, timed_out) = (AtomicBool::new(false), AtomicBool::new(false), AtomicBool::new(false));
     let pairs = std::thread::scope(|scope| {
         scope.spawn(|| {
@@ -952,7 +958,7 @@ pub fn band_of(
                     if timed_out.load(Ordering::Relaxed) {
                         bail!(
                             "--uncertainty: the renders at ±1 σ did not finish within the time budget ({} s); give a smaller --uncertainty-spp or more time",
-                            settings.time_budget_s.unwrap_or(0.0),
+                            settings.stop.time_s.unwrap_or(0.0),
                         );
                     }
                     if stop.load(Ordering::Relaxed) {
@@ -1100,8 +1106,8 @@ fn report(
         lucent_version: env!("CARGO_PKG_VERSION").into(),
         scene: summary.clone(),
         spp: image.samples.iter().copied().max().unwrap_or(0),
-        spp_requested: settings.spp,
-        time_budget_s: settings.time_budget_s,
+        spp_requested: settings.spp(),
+        time_budget_s: settings.stop.time_s,
         seed: settings.seed,
         threads,
         roulette_threshold: settings.roulette_threshold,
@@ -1123,7 +1129,7 @@ fn report(
             tracer::Sampling::ObjectWeighted => scene::SamplingKey::ObjectWeighted,
         }),
         spp_by_region: Some(spp_by_region(image)),
-        target_rel_error: settings.target_rel_error,
+        target_rel_error: settings.stop.pixel_rel_error,
         estimator: Some(settings.into()),
         exposure_stops_png: exposure,
         files: files.to_vec(),
@@ -1234,9 +1240,10 @@ pub fn bench(scene_path: &Path, reference_dir: &Path, spps: &[u32]) -> Result<()
     let ref_var_object = ref_variance(&object);
     let mut rows = Vec::new();
     for &spp in spps {
-        let settings = Settings { spp, seed: 77 + u64::from(spp), ..loaded.settings.clone() };
+        let stop = Stop { samples: Some(spp.into()), ..loaded.settings.stop };
+        let settings = Settings { stop, seed: 77 + u64::from(spp), ..loaded.settings.clone() };
         let cpu0 = process_cpu_s();
-        let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
+        let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {})?;
         let cpu = process_cpu_s() - cpu0;
         let mse = mean_sq_error(&img, &all);
         let mse_object = (!object.is_empty()).then(|| mean_sq_error(&img, &object));
@@ -1405,8 +1412,14 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             loaded.scene.environment.set_sampling_normal(None);
         }
         let mut settings = match same_spp {
-            None => Settings { spp: u32::MAX / 2, time_budget_s: Some(time_s), ..loaded.settings.clone() },
-            Some(spp) => Settings { spp, time_budget_s: None, ..loaded.settings.clone() },
+            None => Settings {
+                stop: Stop { samples: Some((u32::MAX / 2).into()), time_s: Some(time_s), ..loaded.settings.stop },
+                ..loaded.settings.clone()
+            },
+            Some(spp) => Settings {
+                stop: Stop { samples: Some(spp.into()), time_s: None, ..loaded.settings.stop },
+                ..loaded.settings.clone()
+            },
         };
         configure(&mut settings);
         if let Some((g, floor_events)) = similarity_g {
@@ -1416,7 +1429,7 @@ pub fn bench_estimators(scene_path: &Path, time_s: f64) -> Result<()> {
             scene::apply_similarity(&mut loaded, g, floor_events, None)?;
         }
         let cpu0 = process_cpu_s();
-        let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {});
+        let (img, stats) = tracer::render(&loaded.scene, &settings, &mut |_| {})?;
         let cpu = process_cpu_s() - cpu0;
         let e = img.region_errors();
         same_spp.get_or_insert_with(|| img.samples.iter().copied().max().unwrap_or(1).max(1));

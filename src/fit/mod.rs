@@ -950,7 +950,7 @@ impl<'a> Evaluator<'a> {
     }
 
     fn stops(&self, fraction: f64) -> Vec<Stop> {
-        self.paths.iter().map(|&n| Stop::paths(((n as f64 * fraction).ceil() as u64).max(256))).collect()
+        self.paths.iter().map(|&n| Stop::samples(((n as f64 * fraction).ceil() as u64).max(256))).collect()
     }
 }
 
@@ -982,7 +982,7 @@ pub fn fit_cancellable(
 
     // Pilot: the path count per configuration for the target error.
     let pilot_stops: Vec<Stop> = match problem.budget.paths {
-        Some(n) => vec![Stop::paths(n); k],
+        Some(n) => vec![Stop::samples(n); k],
         None => vec![
             Stop {
                 rel_error: Some(problem.budget.rel_error),
@@ -1627,7 +1627,7 @@ pub fn synthetic_slices(
             Directions::from_degrees(ti, pi, to, po)?,
         );
         let options = RunOptions {
-            stop: Stop::paths(paths),
+            stop: Stop::samples(paths),
             seed,
             estimator: Estimator::best_for(&setup),
             fold: true,

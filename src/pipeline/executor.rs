@@ -5,8 +5,9 @@
 //! A **long command** is a render job with a sample budget and uniform
 //! sampling, or a BSSRDF slice job with a path budget and no other stop
 //! rule: the commands that `--shard K/N` can split exactly
-//! ([`crate::shard`]), told from the job's type and fields
-//! ([`not_shardable`]), never from how a command line spells them. With
+//! ([`crate::shard`]), told from the job's type and its stop rule
+//! ([`not_shardable`] asks [`Stop::shard_samples`]), never from how a
+//! command line spells them. With
 //! `[executor] shards = N` (N > 1) such a job becomes N shards, each
 //! writing into `OUT/.lucent-shards/ID/K` (ID from the typed job,
 //! [`Job::identity_sha256`], outside every stage folder), and `lucent
@@ -30,6 +31,7 @@
 //! ```
 
 use crate::job::Job;
+use lucent_render::stop::{Condition, NotSplittable, Stop};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -252,41 +254,51 @@ fn scene_unshardable(scene: &Path) -> Option<String> {
     let Ok(text) = crate::io::read_text(scene) else { return Some(format!("{name} cannot be read")) };
     let Ok(f) = crate::scene::parse(&text, scene) else { return Some(format!("{name} is not a scene file")) };
     let r = &f.render;
-    if r.time_s.is_some() {
-        Some(format!("{name} sets [render] time_s (a time budget cannot be split exactly)"))
-    } else if r.target_rel_error.is_some() {
-        Some(format!("{name} sets [render] target_rel_error (an error target cannot be split exactly)"))
-    } else if r.sampling.is_some_and(|s| s != crate::scene::SamplingKey::Uniform) {
+    // A scene without a sample count leaves it to the job (or the default).
+    match r.stop().shard_samples() {
+        Err(NotSplittable::Beside(Condition::Time)) => {
+            return Some(format!("{name} sets [render] time_s (a time budget cannot be split exactly)"));
+        }
+        Err(NotSplittable::Beside(_)) => {
+            return Some(format!("{name} sets [render] target_rel_error (an error target cannot be split exactly)"));
+        }
+        Ok(_) | Err(NotSplittable::NoSamples) => {}
+    }
+    if r.sampling.is_some_and(|s| s != crate::scene::SamplingKey::Uniform) {
         Some(format!("{name} sets [render] sampling other than uniform (shards sample uniformly)"))
     } else {
         None
     }
 }
 
+/// Why a job's stop rule `stop` does not split exactly into shards
+/// ([`Stop::shard_samples`]), said with the job's flags: its sample count
+/// `flag` of `unit`s. `None` when it splits.
+fn stop_unshardable(stop: &Stop, budget: &str, flag: &str, unit: &str) -> Option<String> {
+    match stop.shard_samples() {
+        Ok(_) => None,
+        Err(NotSplittable::NoSamples) => {
+            Some(format!("no {budget} budget ({flag}): only a fixed number of {unit} splits exactly"))
+        }
+        Err(NotSplittable::Beside(Condition::Time)) => Some("a time budget (--time-s) cannot be split exactly".into()),
+        Err(NotSplittable::Beside(c)) => {
+            Some(format!("an error target (--{}) cannot be split exactly", c.key().replace('_', "-")))
+        }
+    }
+}
+
 /// Why `job` is not a long command that shards split exactly (see the
 /// module doc), `None` when it is one: decided from the job's type and
-/// fields, never from how a command line spells them.
+/// its stop rule ([`RenderJob::stop`](crate::job::RenderJob::stop),
+/// [`BssrdfJob::stop`](crate::job::BssrdfJob::stop)), never from how a
+/// command line spells them.
 pub fn not_shardable(job: &Job) -> Option<String> {
     match job {
         Job::Render(r) => {
-            if r.spp.is_none() {
-                Some("no sample budget (--spp): only a fixed number of samples splits exactly".into())
-            } else if r.time_s.is_some() {
-                Some("a time budget (--time-s) cannot be split exactly".into())
-            } else {
-                scene_unshardable(&r.scene)
-            }
+            stop_unshardable(&r.stop(), "sample", "--spp", "samples").or_else(|| scene_unshardable(&r.scene))
         }
         Job::BssrdfCompare(_) => Some("a comparison of slices, seconds of work".into()),
-        Job::Bssrdf(b) => {
-            if b.paths.is_none() {
-                Some("no path budget (--paths): only a fixed number of paths splits exactly".into())
-            } else if b.time_s.is_some() || b.rel_error.is_some() {
-                Some("a time budget or an error target cannot be split exactly".into())
-            } else {
-                None
-            }
-        }
+        Job::Bssrdf(b) => stop_unshardable(&b.stop(), "path", "--paths", "paths"),
         other => Some(format!(
             "`lucent {}` is not split into shards (only renders and BSSRDF slices are)",
             other.command_name()
@@ -310,33 +322,39 @@ pub fn plan_lines(file: &super::project::ProjectFile, e: &Executor) -> Vec<Strin
     )];
     let mut here: Vec<&str> = Vec::new();
     // bssrdf: each slice with a path budget and no other stop rule.
-    match &file.bssrdf {
-        Some(b) if b.paths.is_some() && b.time_s.is_none() && b.rel_error.is_none() => lines.push(format!(
-            "  bssrdf      on the cluster: each slice ([bssrdf] paths = {}) as {shards} shards of {} paths or so",
-            b.paths.unwrap_or(0),
-            b.paths.unwrap_or(0).div_ceil(u64::from(shards))
+    let bssrdf_stop = file.bssrdf.as_ref().map(|b| Stop {
+        samples: b.paths,
+        time_s: b.time_s,
+        rel_error: b.rel_error,
+        pixel_rel_error: None,
+    });
+    match bssrdf_stop.map(|s| s.shard_samples()) {
+        Some(Ok(paths)) => lines.push(format!(
+            "  bssrdf      on the cluster: each slice ([bssrdf] paths = {paths}) as {shards} shards of {} paths or so",
+            paths.div_ceil(u64::from(shards))
         )),
-        Some(b) => lines.push(format!(
+        Some(Err(why)) => lines.push(format!(
             "  bssrdf      here: [bssrdf] {} (only a fixed path budget, `paths` alone, splits exactly)",
-            if b.paths.is_none() { "has no paths" } else { "sets time_s or rel_error beside paths" }
+            if why == NotSplittable::NoSamples { "has no paths" } else { "sets time_s or rel_error beside paths" }
         )),
         None => here.push("bssrdf"),
     }
     // render: each render with a sample budget and a scene that allows it.
     match &file.render {
         Some(r) => {
-            let why = if r.spp.is_none() {
-                Some("[render] has no spp (only a fixed sample budget splits exactly)".to_string())
-            } else if r.time_s.is_some() {
-                Some("[render] time_s is set (a time budget cannot be split exactly)".to_string())
-            } else {
-                scene_unshardable(&r.scene)
+            let stop = Stop { samples: r.spp.map(u64::from), time_s: r.time_s, ..Stop::default() };
+            let why = match stop.shard_samples() {
+                Err(NotSplittable::NoSamples) => {
+                    Some("[render] has no spp (only a fixed sample budget splits exactly)".to_string())
+                }
+                Err(_) => Some("[render] time_s is set (a time budget cannot be split exactly)".to_string()),
+                Ok(_) => scene_unshardable(&r.scene),
             };
             lines.push(match why {
                 None => format!(
                     "  render      on the cluster: each render ([render] spp = {}) as {shards} shards, merged \
                      byte-identical to one unsharded render",
-                    r.spp.unwrap_or(0)
+                    stop.samples.unwrap_or(0)
                 ),
                 Some(why) => format!("  render      here: {why}"),
             });
@@ -850,6 +868,11 @@ mod tests {
         assert!(not_shardable(&slice(Some(9), None, "x")).is_none());
         let why = not_shardable(&slice(None, Some(9.0), "x")).unwrap();
         assert!(why.contains("path budget"), "{why}");
+        let Job::Bssrdf(mut targeted) = slice(Some(9), None, "x") else { unreachable!() };
+        targeted.rel_error = Some(0.01);
+        assert_eq!(targeted.stop().shard_samples(), Err(NotSplittable::Beside(Condition::RelError)));
+        let why = not_shardable(&Job::Bssrdf(targeted)).unwrap();
+        assert!(why.contains("error target (--rel-error)"), "{why}");
         let render = crate::job::RenderJob {
             scene: "s.toml".into(),
             spp: Some(8),
@@ -860,6 +883,7 @@ mod tests {
             uncertainty: false,
             out: "x".into(),
         };
+        assert_eq!(render.stop(), Stop { time_s: Some(3.0), ..Stop::samples(8) });
         let why = not_shardable(&Job::Render(render)).unwrap();
         assert!(why.contains("time budget"), "{why}");
         let optics = crate::job::OpticsJob {

@@ -86,7 +86,7 @@ use lucent_render::interface::Interface;
 use lucent_render::medium::Medium;
 use lucent_render::microfacet::Microsurface;
 use lucent_render::phase::{Phase, PhaseTable};
-use lucent_render::tracer::{Board, BoardReflectance, Object, Scene, Settings};
+use lucent_render::tracer::{Board, BoardReflectance, Object, Scene, Settings, Stop};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -486,6 +486,20 @@ pub struct RenderSection {
     pub similarity_floor_events: Option<u64>,
 }
 
+impl RenderSection {
+    /// The stop rule this section gives (samples per pixel `spp`, `time_s`,
+    /// the object's median error `target_rel_error`), with none of the
+    /// defaults a render adds where it gives none.
+    pub fn stop(&self) -> Stop {
+        Stop {
+            samples: self.spp.map(u64::from),
+            time_s: self.time_s,
+            rel_error: None,
+            pixel_rel_error: self.target_rel_error,
+        }
+    }
+}
+
 /// `[render] sampling`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -556,7 +570,9 @@ pub struct RenderReport {
     pub lucent_version: String,
     pub scene: SceneSummary,
     pub spp: u32,
+    /// The stop rule's samples per pixel ([`Settings::stop`]).
     pub spp_requested: u32,
+    /// The stop rule's time budget, seconds.
     pub time_budget_s: Option<f64>,
     pub seed: u64,
     pub threads: usize,
@@ -585,6 +601,8 @@ pub struct RenderReport {
     /// Samples per pixel per region: the object's pixels, the others (means).
     #[serde(default)]
     pub spp_by_region: Option<SppByRegion>,
+    /// The stop rule's target for the object's median per-pixel relative
+    /// standard error.
     #[serde(default)]
     pub target_rel_error: Option<f64>,
     /// The estimator's switches as the render ran. Absent in files written
@@ -1179,13 +1197,13 @@ fn render_settings(ctx: &Ctx, r: &RenderSection) -> Result<Settings, SceneFileEr
         if spp == 0 {
             return Err(ctx.key("render", "spp", KeyProblem::Zero));
         }
-        settings.spp = spp;
+        settings.stop.samples = Some(spp.into());
     }
     if let Some(t) = r.time_s {
         if !(t > 0.0 && t.is_finite()) {
             return Err(ctx.key("render", "time_s", KeyProblem::NotPositive { value: t }));
         }
-        settings.time_budget_s = Some(t);
+        settings.stop.time_s = Some(t);
     }
     if let Some(s) = r.seed {
         settings.seed = s;
@@ -1218,7 +1236,7 @@ fn render_settings(ctx: &Ctx, r: &RenderSection) -> Result<Settings, SceneFileEr
         if !(e > 0.0 && e < 1.0) {
             return Err(ctx.key("render", "target_rel_error", KeyProblem::Fraction { value: e }));
         }
-        settings.target_rel_error = Some(e);
+        settings.stop.pixel_rel_error = Some(e);
     }
     Ok(settings)
 }

@@ -5,12 +5,13 @@
 //! either slice (Rubinstein & Kroese, *Simulation and the Monte Carlo
 //! Method*, 2017, §5.2).
 
-use super::error::{check, SlabError};
+use super::error::SlabError;
 use super::kernel::Kernel;
 use super::options::{Progress, RunOptions};
 use super::setup::Setup;
 use super::tally::{pixel_estimates, tally_images, PixelErrors, Slice, SliceSums};
 use super::ROUND_BATCHES;
+use crate::stop::{Condition, Standing};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -41,7 +42,7 @@ pub struct SliceDifference {
 /// sampling of Rubinstein & Kroese, *Simulation and the Monte Carlo
 /// Method*, 2017, §5.2; the central differences of a sensitivity). Every
 /// setup must have the nominal one's sensor; the estimator is the nominal
-/// run's and must apply to each setup. Stops by `options.stop.paths` or
+/// run's and must apply to each setup. Stops by `options.stop.samples` or
 /// `time_s` (required: one of them), or at the end of the round under way
 /// when `cancel` becomes true; `progress` is called after every round with
 /// the nominal slice's figures.
@@ -53,12 +54,8 @@ pub fn simulate_coupled(
     cancel: &AtomicBool,
 ) -> Result<(Slice, Vec<SliceDifference>), SlabError> {
     let stop = options.stop;
-    if stop.paths.is_none() && stop.time_s.is_none() {
-        return Err(SlabError::NoStopRule);
-    }
-    if let Some(t) = stop.time_s {
-        check("time_s", t, t > 0.0, "must be > 0")?;
-    }
+    stop.check()?;
+    stop.refuse_unsupported("the coupled simulation", &[Condition::Samples, Condition::Time])?;
     let batch_paths = options.batch_paths.max(1);
     let kernel = Kernel::new(nominal, options.estimator)?;
     let kernels: Vec<(Kernel, Kernel)> = pairs
@@ -89,7 +86,7 @@ pub fn simulate_coupled(
     let mut batches = 0u64;
     loop {
         let mut round = ROUND_BATCHES;
-        if let Some(max) = stop.paths {
+        if let Some(max) = stop.samples {
             round = round.min(max.saturating_sub(batches * batch_paths).div_ceil(batch_paths));
         }
         if round == 0 {
@@ -98,7 +95,7 @@ pub fn simulate_coupled(
         let firsts: Vec<(u64, u64)> = (0..round)
             .map(|k| {
                 let first = (batches + k) * batch_paths;
-                (first, stop.paths.map_or(batch_paths, |max| batch_paths.min(max - first)))
+                (first, stop.samples.map_or(batch_paths, |max| batch_paths.min(max - first)))
             })
             .collect();
         sums.add_round(&kernel, options.seed, &firsts, &mut pool);
@@ -124,7 +121,7 @@ pub fn simulate_coupled(
         }
         batches += round;
         let elapsed = start.elapsed().as_secs_f64();
-        let paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
+        let paths = stop.samples.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
         let n = paths as f64;
         let mean = sums.path_sum / n;
         let var = (sums.path_sq / n - mean * mean).max(0.0) / (n - 1.0).max(1.0);
@@ -136,15 +133,13 @@ pub fn simulate_coupled(
             rel_error: if mean > 0.0 { var.sqrt() / mean } else { f64::INFINITY },
             pixels: PixelErrors::of(&v, &se),
         });
-        if stop.paths.is_some_and(|m| paths >= m)
-            || stop.time_s.is_some_and(|t| elapsed >= t)
-            || cancel.load(Ordering::Relaxed)
-        {
+        let standing = Standing { samples: Some(paths), elapsed_s: elapsed, ..Standing::default() };
+        if stop.met(&standing).is_some() || cancel.load(Ordering::Relaxed) {
             break;
         }
     }
     sums.batches = batches;
-    sums.paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
+    sums.paths = stop.samples.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
     sums.wall_s = start.elapsed().as_secs_f64();
     let paths = sums.paths;
     let nb = batches.max(1) as f64;

@@ -2,6 +2,7 @@
 //! invalid input) and the one check the numeric parameters go through.
 
 use crate::medium::MediumError;
+use crate::stop::StopError;
 
 /// Invalid simulator input.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -16,8 +17,9 @@ pub enum SlabError {
     BeamMapNegative { column: usize, row: usize },
     #[error("beam map: all pixels are zero")]
     BeamMapAllZero,
-    #[error("the stop rule needs a path count, a time budget or a target relative error")]
-    NoStopRule,
+    /// A stop rule that is empty, out of range or asks what the run cannot honour.
+    #[error(transparent)]
+    Stop(#[from] StopError),
     #[error("the ring connection needs exactly one of θ_i, θ_o to be 0°, a slab at least 40 optical depths thick along the exit direction and a smooth top")]
     RingNotApplicable,
     #[error(

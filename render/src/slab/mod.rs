@@ -131,6 +131,13 @@
 //! σ_i/f_i over the pixels above 1 % of the maximum, after every round and
 //! as a stop rule ([`Stop::pixel_rel_error`]).
 //!
+//! **Stop rule** ([`Stop`], checked after every round): its samples are
+//! light paths; [`simulate`] honours all four conditions (the error
+//! targets once two rounds are in), [`simulate_coupled`] a path count and
+//! a time budget and refuses the error targets
+//! ([`StopError::Unsupported`]); [`simulate_batches`] runs a given range
+//! of batches (one shard) and takes no stop rule.
+//!
 //! **Brute force** ([`Estimator::BruteForce`], for testing): photons that
 //! leave through the top within a cone of half-angle δ around ω_o add
 //! w / (A_o cos θ_e Ω_δ) to the pixel of their exit point, Ω_δ = 2π(1 − cos δ).
@@ -165,7 +172,7 @@
 //! let slab = Slab::new(1e-3, Medium::new(2000.0, 10.0, Phase::henyey_greenstein(0.5).unwrap(), 1.4).unwrap()).unwrap();
 //! let setup = Setup::new(slab, Beam::gaussian(200e-6).unwrap(), Sensor::new(31, 0.1e-3).unwrap(),
 //!     Directions::from_degrees(45.0, 0.0, 0.0, 180.0).unwrap());
-//! let slice = simulate(&setup, &RunOptions { stop: Stop::paths(20_000), ..RunOptions::default() }, |_| {}).unwrap();
+//! let slice = simulate(&setup, &RunOptions { stop: Stop::samples(20_000), ..RunOptions::default() }, |_| {}).unwrap();
 //! assert!(slice.sum > 0.0 && slice.sum_std_error < 0.1 * slice.sum);
 //! ```
 //!
@@ -205,16 +212,17 @@ mod tally;
 mod tests;
 
 pub use crate::medium::{valid_coefficients, Medium, MediumError, MU_T_MAX_PER_M};
+pub use crate::stop::{Condition, NotSplittable, Stop, StopError};
 pub use beam::{fwhm_to_sigma, Beam, BeamMap, Footprint};
 pub use coupled::{simulate_coupled, SliceDifference};
 pub use error::SlabError;
 pub use lobe::{LOBE_REUSE, LOBE_VERTICES, MAX_LOBE_VERTICES};
-pub use options::{Estimator, Progress, RunOptions, Stop};
+pub use options::{Estimator, Progress, RunOptions};
 pub use ring::RING_SPLATS;
 pub use setup::{direction, Directions, Sensor, Setup, Slab};
 pub use tally::{PixelErrors, Slice, SliceSums, PIXEL_MASK_FRACTION};
 
-use error::check;
+use crate::stop::Standing;
 use kernel::Kernel;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -238,18 +246,7 @@ pub fn simulate_cancellable(
     cancel: &AtomicBool,
 ) -> Result<Slice, SlabError> {
     let stop = options.stop;
-    if stop.paths.is_none() && stop.time_s.is_none() && stop.rel_error.is_none() && stop.pixel_rel_error.is_none() {
-        return Err(SlabError::NoStopRule);
-    }
-    if let Some(e) = stop.rel_error {
-        check("rel_error", e, e > 0.0 && e < 1.0, "must lie in (0, 1)")?;
-    }
-    if let Some(e) = stop.pixel_rel_error {
-        check("pixel_rel_error", e, e > 0.0 && e < 1.0, "must lie in (0, 1)")?;
-    }
-    if let Some(t) = stop.time_s {
-        check("time_s", t, t > 0.0, "must be > 0")?;
-    }
+    stop.check()?;
     let batch_paths = options.batch_paths.max(1);
     let kernel = Kernel::new(setup, options.estimator)?;
     let fold = options.fold && setup.mirror_symmetric();
@@ -269,7 +266,7 @@ pub fn simulate_cancellable(
     };
     loop {
         let mut round = ROUND_BATCHES;
-        if let Some(max) = stop.paths {
+        if let Some(max) = stop.samples {
             let left = max.saturating_sub(batches * batch_paths).div_ceil(batch_paths);
             round = round.min(left);
         }
@@ -279,7 +276,7 @@ pub fn simulate_cancellable(
         let firsts: Vec<(u64, u64)> = (0..round)
             .map(|k| {
                 let first = (batches + k) * batch_paths;
-                let count = match stop.paths {
+                let count = match stop.samples {
                     Some(max) => batch_paths.min(max - first),
                     None => batch_paths,
                 };
@@ -289,30 +286,32 @@ pub fn simulate_cancellable(
         sums.add_round(&kernel, options.seed, &firsts, &mut pool);
         let (path_sum, path_sq, events) = (sums.path_sum, sums.path_sq, sums.events);
         batches += round;
-        let paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
+        let paths = stop.samples.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
         let elapsed = start.elapsed().as_secs_f64();
         let e = rel_err(paths, path_sum, path_sq);
         let (v, se) = pixel_estimates(&sums.raw, &sums.sum_b, &sums.sq_b, paths, batches);
         let pixels = PixelErrors::of(&v, &se);
         progress(&Progress { paths, events, elapsed_s: elapsed, rel_error: e, pixels });
+        // The error estimates are trusted after two rounds.
         let enough = batches >= 2 * ROUND_BATCHES;
-        if stop.paths.is_some_and(|m| paths >= m)
-            || stop.time_s.is_some_and(|t| elapsed >= t)
-            || stop.rel_error.is_some_and(|t| e <= t && enough)
-            || stop.pixel_rel_error.is_some_and(|t| pixels.median <= t && enough)
-            || cancel.load(Ordering::Relaxed)
-        {
+        let standing = Standing {
+            samples: Some(paths),
+            elapsed_s: elapsed,
+            rel_error: enough.then_some(e),
+            pixel_rel_error: enough.then_some(pixels.median),
+        };
+        if stop.met(&standing).is_some() || cancel.load(Ordering::Relaxed) {
             break;
         }
     }
     sums.batches = batches;
-    sums.paths = stop.paths.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
+    sums.paths = stop.samples.map_or(batches * batch_paths, |m| m.min(batches * batch_paths));
     sums.wall_s = start.elapsed().as_secs_f64();
     Ok(sums.slice())
 }
 
 /// Batches `batches` of the run [`simulate`] makes with
-/// `options.stop = Stop::paths(total_paths)` (batch b holds paths
+/// `options.stop = Stop::samples(total_paths)` (batch b holds paths
 /// b·batch_paths … up to `total_paths`, each path drawing from its own
 /// stream), as tallies: one shard of that run. The shards of a partition of
 /// its batches add up to its tallies ([`SliceSums::add`], in batch order).

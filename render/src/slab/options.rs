@@ -1,5 +1,6 @@
-//! How a run is made: its stop rule ([`Stop`]), the estimator that fills
-//! the slice ([`Estimator`]), the seed, batch size and fold
+//! How a run is made: its stop rule ([`Stop`]; its samples are light
+//! paths, checked after each round of 32 batches), the estimator that
+//! fills the slice ([`Estimator`]), the seed, batch size and fold
 //! ([`RunOptions`]), and what is reported after every round of batches
 //! ([`Progress`]).
 
@@ -7,25 +8,7 @@ use super::lobe::{lobe_applies, LOBE_VERTICES};
 use super::ring::Ring;
 use super::setup::Setup;
 use super::tally::PixelErrors;
-
-/// When to stop; the first condition met ends the run (checked after each
-/// round of 32 batches).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Stop {
-    pub paths: Option<u64>,
-    pub time_s: Option<f64>,
-    /// Target relative standard error of the slice sum.
-    pub rel_error: Option<f64>,
-    /// Target median per-pixel relative standard error over the pixels above
-    /// [`PIXEL_MASK_FRACTION`](super::PIXEL_MASK_FRACTION) of the maximum (see [`PixelErrors`]).
-    pub pixel_rel_error: Option<f64>,
-}
-
-impl Stop {
-    pub fn paths(n: u64) -> Self {
-        Self { paths: Some(n), ..Self::default() }
-    }
-}
+use crate::stop::Stop;
 
 /// Which estimator fills the slice.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -108,7 +91,7 @@ pub struct RunOptions {
 
 impl Default for RunOptions {
     fn default() -> Self {
-        Self { stop: Stop::paths(100_000), seed: 1, batch_paths: 256, estimator: Estimator::Connection, fold: false }
+        Self { stop: Stop::samples(100_000), seed: 1, batch_paths: 256, estimator: Estimator::Connection, fold: false }
     }
 }
 

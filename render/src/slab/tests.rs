@@ -41,7 +41,7 @@ fn coupled_differences_are_unbiased_with_honest_errors() {
     let (nominal, a, b) = (setup(5.0e3), setup(5.1e3), setup(4.9e3));
     let paths = 20_000;
     let options = |seed: u64, paths: u64| RunOptions {
-        stop: Stop::paths(paths),
+        stop: Stop::samples(paths),
         seed,
         batch_paths: 250,
         estimator: Estimator::Connection,

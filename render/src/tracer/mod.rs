@@ -122,8 +122,8 @@
 //! **Figures.** Every [`Image`] counts per pixel the camera rays whose first
 //! hit is the object or the board; [`Image::region_errors`] gives the median
 //! and 90th percentile of the per-pixel relative standard error over the
-//! object's pixels, the board's and all, and [`Settings::target_rel_error`]
-//! stops on the object's median.
+//! object's pixels, the board's and all, and the stop rule's per-pixel
+//! target ([`Stop::pixel_rel_error`]) stops on the object's median.
 //!
 //! **Self-intersection:** a ray leaving a surface starts ε = 10⁻⁷ × (the
 //! scene's extent) off the surface along the geometric normal (20 nm for a
@@ -138,7 +138,7 @@
 //! - here: the entry points [`render`], [`render_cancellable`] and
 //!   [`render_samples`] (progressive passes, the samples each pixel gets
 //!   per pass, the stop rules);
-//! - `settings.rs`: how a render is made ([`Settings`], [`Dispersion`],
+//! - `settings.rs`: how a render is made ([`Settings`] with its [`Stop`], [`Dispersion`],
 //!   [`Sampling`], [`CoefficientDerivative`]);
 //! - `scene.rs`: what is rendered ([`Scene`], [`Object`], [`Board`],
 //!   [`BoardReflectance`], [`SceneError`]) and the similar media;
@@ -167,7 +167,8 @@
 //! let camera = Camera::look_at(8, 6, DVec3::new(0.0, -1.0, 1.0), DVec3::ZERO, DVec3::Z, 40.0).unwrap();
 //! let env = Environment::constant([0.5, 1.0, 2.0], Projection::Infinite);
 //! let scene = Scene::new(None, None, env, camera).unwrap();
-//! let (img, _) = render(&scene, &Settings { spp: 4, ..Settings::default() }, &mut |_| {});
+//! let settings = Settings { stop: Stop::samples(4), ..Settings::default() };
+//! let (img, _) = render(&scene, &settings, &mut |_| {}).unwrap();
 //! assert_eq!(img.mean[0], [0.5, 1.0, 2.0]);
 //! ```
 //!
@@ -191,6 +192,7 @@ mod tests;
 mod throughput;
 mod walk;
 
+pub use crate::stop::{Condition, NotSplittable, Stop, StopError};
 pub use accumulate::Accumulator;
 pub use image::{DerivativeImage, Image, Progress, Quantiles, Region, RegionErrors, Stats};
 pub use scene::{Board, BoardReflectance, Object, Scene, SceneError, SIMILAR_LATER_MIN_DEPTH, SIMILAR_MIN_DEPTH};
@@ -198,13 +200,21 @@ pub use settings::{
     CoefficientDerivative, Dispersion, Sampling, Settings, MAX_DERIVATIVES, MAX_OBJECT_RATIO, SPHERE_MARGIN_MFP,
 };
 
+use crate::stop::Standing;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Renders `scene` progressively; `on_pass` is called after every pass.
-/// Stops at `settings.spp` samples per pixel, after the pass that exceeds the
-/// time budget, or when `cancel` (if given) is set.
-pub fn render(scene: &Scene, settings: &Settings, on_pass: &mut dyn FnMut(&Progress)) -> (Image, Stats) {
+/// Stops by `settings.stop` ([`Settings::stop`]: at its samples per pixel,
+/// after the pass that exceeds its time budget or in which the object's
+/// median error reaches its target) or when `cancel` (if given) is set.
+/// A stop rule a render cannot honour is refused before any work
+/// ([`Settings::check_stop`]).
+pub fn render(
+    scene: &Scene,
+    settings: &Settings,
+    on_pass: &mut dyn FnMut(&Progress),
+) -> Result<(Image, Stats), StopError> {
     render_cancellable(scene, settings, on_pass, None)
 }
 
@@ -214,7 +224,9 @@ pub fn render_cancellable(
     settings: &Settings,
     on_pass: &mut dyn FnMut(&Progress),
     cancel: Option<&AtomicBool>,
-) -> (Image, Stats) {
+) -> Result<(Image, Stats), StopError> {
+    settings.check_stop()?;
+    let spp = settings.spp();
     let (w, h) = (scene.camera.width, scene.camera.height);
     let n = w * h;
     let mut acc = Accumulator::new(w, h);
@@ -236,14 +248,14 @@ pub fn render_cancellable(
         // This pass's samples per pixel: the object's pixels get `step`
         // times more, pro rata of the fraction of rays that hit the object;
         // in all, the object's pixels get `spp`, the others spp / ratio.
-        let object_next = object_done.saturating_add(per_pass.saturating_mul(step)).min(settings.spp);
+        let object_next = object_done.saturating_add(per_pass.saturating_mul(step)).min(spp);
         let mut any = false;
         for (p, q) in quota.iter_mut().enumerate() {
             let done = acc.samples[p];
             let target = if !weighted {
                 object_next
             } else if done == 0 {
-                per_pass.min(settings.spp)
+                per_pass.min(spp)
             } else {
                 // Keep pace with the object's pixels, at 1/ratio for a pixel that misses the object.
                 let share = f64::from(acc.object_samples[p]) / f64::from(done);
@@ -255,7 +267,7 @@ pub fn render_cancellable(
                     t
                 }
             };
-            *q = target.min(settings.spp).saturating_sub(done);
+            *q = target.min(spp).saturating_sub(done);
             any |= *q > 0;
         }
         if !any {
@@ -274,25 +286,28 @@ pub fn render_cancellable(
             let unit_s = (elapsed - last_elapsed) / f64::from(step);
             let mut next = step.saturating_mul(2).min(ratio);
             if unit_s > 0.0 {
-                let remaining = settings.time_budget_s.map_or(MAX_PASS_S, |b| (b - elapsed).min(MAX_PASS_S));
+                let remaining = settings.stop.time_s.map_or(MAX_PASS_S, |b| (b - elapsed).min(MAX_PASS_S));
                 next = next.min((remaining / unit_s).floor().max(1.0) as u32);
             }
             step = next.max(1);
         }
         last_elapsed = elapsed;
         let spp_done = acc.max_samples();
-        on_pass(&Progress { spp_done, spp_target: settings.spp, elapsed_s: elapsed, stats, errors });
-        let target_met =
-            settings.target_rel_error.is_some_and(|e| errors.object.pixels > 0 && errors.object.median <= e);
-        if target_met
-            || settings.time_budget_s.is_some_and(|b| elapsed >= b)
-            || cancel.is_some_and(|c| c.load(Ordering::Relaxed))
-        {
+        on_pass(&Progress { spp_done, spp_target: spp, elapsed_s: elapsed, stats, errors });
+        // The sample count ends the render through the quotas above (with
+        // object-weighted sampling the other pixels may still be short).
+        let standing = Standing {
+            samples: None,
+            elapsed_s: elapsed,
+            rel_error: None,
+            pixel_rel_error: (errors.object.pixels > 0).then_some(errors.object.median),
+        };
+        if settings.stop.met(&standing).is_some() || cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
             break;
         }
     }
     stats.wall_s = start.elapsed().as_secs_f64();
-    (acc.image(), stats)
+    Ok((acc.image(), stats))
 }
 
 /// The longest a pass of [`Sampling::ObjectWeighted`] is planned to take,
@@ -336,8 +351,8 @@ pub(super) fn object_ratio(image: &Image) -> u32 {
 /// sampling, in passes of `settings.spp_per_pass`), as per-pixel sums: one
 /// shard of the render [`render`] makes with `spp = samples.end` (sample k
 /// of pixel p draws from the same stream, so the shards of a partition of
-/// 0..spp together hold exactly that render's samples). `settings.spp`,
-/// the time budget, the error target and the sampling are not used. Stops
+/// 0..spp together hold exactly that render's samples). The stop rule
+/// (`settings.stop`) and the sampling are not used. Stops
 /// early only when `cancel` is set (then the counts say so).
 pub fn render_samples(
     scene: &Scene,

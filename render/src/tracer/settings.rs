@@ -1,4 +1,5 @@
-//! How a render is made ([`Settings`]): samples per pixel and passes, the
+//! How a render is made ([`Settings`]): the stop rule ([`Stop`]: samples
+//! per pixel, seconds, the object's median relative error), passes, the
 //! seed, Russian roulette, and which of the estimator's strategies are on
 //! (spectral MIS, band branches, the medium connections, specular chains,
 //! sphere jumps, entry splitting); how dispersion is handled
@@ -7,13 +8,24 @@
 //! ([`CoefficientDerivative`]: perturbation Monte Carlo, Hayakawa et al.
 //! 2001, Sassaroli 2012). Distances in metres, coefficients in 1/m.
 
+use crate::stop::{Condition, Stop, StopError};
+
 /// How long to render and with what.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Settings {
-    /// Samples per pixel in all (the render stops earlier if `time_budget_s` runs out).
-    pub spp: u32,
-    /// Stop after the pass that exceeds this wall time, seconds.
-    pub time_budget_s: Option<f64>,
+    /// When to stop, checked after every pass; the first condition met
+    /// ends the render. Its samples are samples per pixel (at most
+    /// `u32::MAX`; with [`Sampling::ObjectWeighted`] the object's pixels'),
+    /// its time budget ends the render after the pass that exceeds it, its
+    /// per-pixel target is the median relative standard error over the
+    /// object's pixels ([`RegionErrors::object`]). A target relative error
+    /// of the whole image is refused
+    /// ([`StopError::Unsupported`](crate::stop::StopError::Unsupported)).
+    /// Without a sample count the render goes on until another condition
+    /// ends it.
+    ///
+    /// [`RegionErrors::object`]: super::RegionErrors::object
+    pub stop: Stop,
     /// Samples per pixel per progressive pass.
     pub spp_per_pass: u32,
     pub seed: u64,
@@ -88,11 +100,6 @@ pub struct Settings {
     pub split_entry: bool,
     /// How the samples are spread over the pixels.
     pub sampling: Sampling,
-    /// Stop after the pass in which the median relative standard error over
-    /// the object's pixels ([`RegionErrors::object`]) reaches this fraction.
-    ///
-    /// [`RegionErrors::object`]: super::RegionErrors::object
-    pub target_rel_error: Option<f64>,
     /// Changes of the object's coefficients whose effect on every pixel the
     /// render estimates from its own paths ([`Image::derivatives`]; at most
     /// [`MAX_DERIVATIVES`], the rest are ignored). Turns
@@ -105,8 +112,7 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Self {
-            spp: 64,
-            time_budget_s: None,
+            stop: Stop::samples(64),
             spp_per_pass: 4,
             seed: 1,
             roulette_threshold: Some(0.25),
@@ -121,8 +127,33 @@ impl Default for Settings {
             dispersion: Dispersion::PerBand,
             split_entry: false,
             sampling: Sampling::Uniform,
-            target_rel_error: None,
             derivatives: Vec::new(),
+        }
+    }
+}
+
+impl Settings {
+    /// What the stop rule asks a render to stop on: samples per pixel, a
+    /// time budget, the object's median per-pixel error.
+    pub const STOP_CONDITIONS: [Condition; 3] = [Condition::Samples, Condition::Time, Condition::PixelRelError];
+
+    /// The samples per pixel a render plans for: the stop rule's sample
+    /// count, `u32::MAX` without one.
+    pub fn spp(&self) -> u32 {
+        self.stop.samples.map_or(u32::MAX, |n| u32::try_from(n).unwrap_or(u32::MAX))
+    }
+
+    /// Checks the stop rule ([`Stop::check`]) and refuses what a render
+    /// cannot honour: a target relative error of the whole image, more
+    /// than `u32::MAX` samples per pixel.
+    pub fn check_stop(&self) -> Result<(), StopError> {
+        self.stop.check()?;
+        self.stop.refuse_unsupported("a render", &Self::STOP_CONDITIONS)?;
+        match self.stop.samples {
+            Some(n) if n > u64::from(u32::MAX) => {
+                Err(StopError::TooManySamples { integrator: "a render", samples: n, max: u32::MAX.into() })
+            }
+            _ => Ok(()),
         }
     }
 }
@@ -146,15 +177,15 @@ pub enum Dispersion {
 /// How a render spreads its samples over the pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Sampling {
-    /// Every pixel gets `spp` samples.
+    /// Every pixel gets the stop rule's samples.
     Uniform,
     /// Samples go where the error is: after each pass the per-sample
     /// relative variance of the object's pixels and of the others (medians
     /// over each region, [`RegionErrors`]) sets how many more samples a
     /// pixel whose camera rays hit the object gets per pass than one whose
     /// rays miss it (at most [`MAX_OBJECT_RATIO`]), so both regions approach
-    /// the same relative error. The object's pixels get `spp` samples, the
-    /// others `spp / ratio` (at least one pass). A pixel's share depends on
+    /// the same relative error. The object's pixels get the stop rule's
+    /// samples (spp), the others spp / ratio (at least one pass). A pixel's share depends on
     /// the fraction of its camera rays that hit the object (geometry) and
     /// on the two region medians, never on its own samples alone.
     ///
