@@ -208,8 +208,8 @@ pub enum KeyProblem {
     CalibratedNeedsIntrinsics,
     /// A camera.json whose lens model the renderer's rays do not follow.
     #[error(
-        "{} (camera.json) holds the {model} distortion model, which the renderer cannot draw (it draws \
-         pinhole-k3 and rational); calibrate with one of those or render undistorted (distortion = \"none\")",
+        "the lens of camera.json {} is the {model} distortion model, which the renderer cannot draw (it \
+         draws pinhole-k3 and rational); calibrate with one of those or render undistorted (distortion = \"none\")",
         file.display()
     )]
     UnsupportedLens { file: PathBuf, model: &'static str },
