@@ -252,6 +252,41 @@ fn bad_scene_files_say_what_went_wrong_as_a_variant() {
     assert_eq!(text.matches(&source.to_string()).count(), 1, "{text}");
 }
 
+/// `distortion = "calibrated"` hands camera.json's lens to the renderer: a
+/// rational one (k4–k6 too) is drawn, a fisheye one refused by name.
+#[test]
+fn a_calibrated_camera_follows_a_rational_lens_and_refuses_a_fisheye_one() {
+    use lucent_render::camera::DistortionModel;
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = std::fs::read_to_string(root().join("fixtures/demo/truth_camera.json")).unwrap();
+    let mut cal: serde_json::Value = serde_json::from_str(&truth).unwrap();
+    let scene = "[camera]\nwidth = 64\nheight = 48\nintrinsics = [53.0, 53.0, 33.05, 23.65]\n\
+                 camera_to_world = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0.5], [0, 0, 0, 1]]\n\
+                 distortion = \"calibrated\"\ncamera_json = \"camera.json\"\n\
+                 [environment]\nconstant = [1, 1, 1]\n";
+    let path = tmp.path().join("s.toml");
+    std::fs::write(&path, scene).unwrap();
+    let load = |cal: &serde_json::Value| {
+        std::fs::write(tmp.path().join("camera.json"), cal.to_string()).unwrap();
+        scene::load(&path)
+    };
+    cal["camera"]["model"] = "rational".into();
+    cal["camera"]["distortion"]["k4"] = 0.2.into();
+    let loaded = load(&cal).unwrap();
+    let d = loaded.summary.distortion.clone().unwrap();
+    assert_eq!(d, [-0.25, 0.1, 0.001, -0.0005, 0.0, 0.2, 0.0, 0.0]);
+    let lens = loaded.scene.camera.distortion.unwrap();
+    assert_eq!((lens.model, lens.distortion.k4), (DistortionModel::Rational, 0.2));
+
+    cal["camera"]["model"] = "fisheye".into();
+    cal["camera"]["distortion"] = serde_json::json!({"k1": 0.01, "k2": 0.0, "p1": 0.0, "p2": 0.0, "k3": 0.0});
+    let e = load(&cal).unwrap_err().to_string();
+    assert!(
+        e.contains("[camera] distortion: the lens of camera.json ") && e.contains("is the fisheye distortion model"),
+        "{e}"
+    );
+}
+
 fn lucent(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_lucent")).args(args).output().expect("run lucent")
 }

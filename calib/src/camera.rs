@@ -38,7 +38,7 @@ pub use crate::calibrate::{
     MIN_VIEWS,
 };
 pub use crate::model::{
-    CameraError, CameraModel, Distortion, DistortionModel, Intrinsics, MAX_IMAGE_SIDE, RADIAL_SCALE_RANGE,
+    CameraError, CameraModel, Distortion, DistortionModel, Intrinsics, Lens, MAX_IMAGE_SIDE, RADIAL_SCALE_RANGE,
 };
 
 /// Intrinsics of an undistorted image.

@@ -10,7 +10,7 @@
 //! | [`raw`] | RAW → black/white-scaled mosaic → linear camera RGB, metadata | 1.0 = the white level |
 //! | [`demosaic`] | Bayer demosaicing: Malvar–He–Cutler (2004), bilinear | as the mosaic |
 //! | [`noise`] | a RAW photo's shot + read noise (var = a·x + b): DNG NoiseProfile or estimated from the image; developed noise realisations | 1.0 = the white level |
-//! | [`model`] | the camera model: pinhole + Brown–Conrady / rational distortion, Kannala–Brandt fisheye, projection, validation | pixels, metres |
+//! | [`model`] | the camera model: pinhole + the lens distortion of `lucent-lens` (Brown–Conrady / rational, Kannala–Brandt fisheye; re-exported), projection, validation | pixels, metres |
 //! | [`board`] | the chessboard: inner corners, square size, corner positions | metres |
 //! | [`pose`] | rigid poses in OpenCV's convention, rotation vectors (Rodrigues) | metres, radians |
 //! | [`camera`] | undistortion of photos; re-exports [`model`] and the [`calibrate`] driver at their old paths | pixels |

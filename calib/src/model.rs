@@ -5,32 +5,23 @@
 //! [`crate::cv`] (OpenCV), [`crate::scene`] (the renderer's convention) and
 //! [`crate::calibrate`] (the calibration driver) all build on it.
 //!
-//! Model (OpenCV's, Brown–Conrady with the rational extension): a point
-//! (X, Y, Z) in the camera frame (x right, y down, z forward, metres) goes to
-//! normalised coordinates x = X/Z, y = Y/Z, r² = x² + y², then
+//! Model: a point (X, Y, Z) in the camera frame (x right, y down, z
+//! forward, metres) goes to normalised coordinates x = X/Z, y = Y/Z, the
+//! lens distorts them to (x_d, y_d) by its [`DistortionModel`] — Brown–Conrady
+//! `pinhole-k3` (k1, k2, p1, p2, k3), OpenCV's `rational` (k1–k6, p1, p2) or
+//! Kannala–Brandt `fisheye` (k1–k4), whose equations and inverses are in
+//! `lucent-lens` ([`Lens`]; re-exported here) — then
 //!
 //! ```text
-//! radial = (1 + k1 r² + k2 r⁴ + k3 r⁶) / (1 + k4 r² + k5 r⁴ + k6 r⁶)
-//! x_d = x·radial + 2 p1 x y + p2 (r² + 2x²)
-//! y_d = y·radial + p1 (r² + 2y²) + 2 p2 x y
 //! u = fx x_d + cx,   v = fy y_d + cy        (pixels)
 //! ```
 //!
 //! with pixel centres at integer coordinates (the centre of the top-left
-//! pixel is (0, 0)). `pinhole-k3` estimates k1, k2, p1, p2, k3 (k4–k6 = 0);
-//! `rational` all eight.
-//!
-//! `fisheye` is Kannala–Brandt (Kannala & Brandt, PAMI 2006; OpenCV's
-//! `cv::fisheye`): r = √(x² + y²), θ = atan r (the angle off the axis),
-//! θ_d = θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸), (x_d, y_d) = (θ_d / r)(x, y),
-//! then the same u, v; k1–k4 are stored in the fields `k1`–`k4` (p1 = p2 = 0).
-//! Its inverse solves θ_d(θ) = r_d by Newton's method; pixels more than 90°
-//! off axis have no pinhole ray (`None`).
-//!
-//! The Brown–Conrady inverse is solved by Newton's method
-//! (analytic Jacobian) to 1e-12. This projection is tested against OpenCV's
+//! pixel is (0, 0)). Pixels go back to rays by Newton's method
+//! ([`Lens::undistort`]); fisheye pixels more than 90° off axis have no
+//! pinhole ray (`None`). This projection is tested against OpenCV's
 //! `projectPoints` and the undistortion map against `initUndistortRectifyMap`
-//! (`calib/tests/calibration.rs`).
+//! (`calib/tests/calibration.rs`, `calib/tests/fisheye.rs`).
 //!
 //! ```
 //! use lucent_calib::model::{CameraModel, Distortion, DistortionModel, Intrinsics};
@@ -48,35 +39,10 @@
 //! ```
 
 use serde::{Deserialize, Serialize};
-use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 
-/// Which distortion coefficients a calibration estimates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-#[derive(EnumString, IntoStaticStr, VariantNames, VariantArray, EnumMessage)]
-#[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
-pub enum DistortionModel {
-    /// k1, k2, p1, p2, k3.
-    #[strum(to_string = "pinhole-k3", serialize = "k3", serialize = "brown-conrady")]
-    PinholeK3,
-    /// k1–k6, p1, p2 (OpenCV's `CALIB_RATIONAL_MODEL`), for wide lenses.
-    Rational,
-    /// Kannala–Brandt k1–k4 on the angle off the axis (OpenCV's `fisheye`), for fisheye lenses.
-    #[strum(to_string = "fisheye", serialize = "kannala-brandt")]
-    Fisheye,
-}
-
-impl DistortionModel {
-    /// Any spelling of a model (case ignored).
-    pub fn from_name(name: &str) -> Result<Self, CameraError> {
-        name.trim().parse().map_err(|_| CameraError::UnknownModel { name: name.to_string() })
-    }
-
-    /// The name, as written in camera.json ("pinhole-k3", …).
-    pub fn name(self) -> &'static str {
-        self.into()
-    }
-}
+/// The distortion model and its coefficients, with their maths: one type
+/// for the calibration and the renderer, re-exported from `lucent-lens`.
+pub use lucent_lens::{Distortion, DistortionModel, Lens, UnknownModel};
 
 /// Pinhole intrinsics in pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -91,145 +57,6 @@ impl Intrinsics {
     /// The 3 × 3 camera matrix K, row-major.
     pub fn matrix(&self) -> [[f64; 3]; 3] {
         [[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]]
-    }
-}
-
-/// OpenCV distortion coefficients (dimensionless).
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct Distortion {
-    pub k1: f64,
-    pub k2: f64,
-    pub p1: f64,
-    pub p2: f64,
-    pub k3: f64,
-    #[serde(default)]
-    pub k4: f64,
-    #[serde(default)]
-    pub k5: f64,
-    #[serde(default)]
-    pub k6: f64,
-}
-
-impl Distortion {
-    /// In OpenCV's order: k1, k2, p1, p2, k3[, k4, k5, k6]; for `Fisheye`, k1, k2, k3, k4.
-    pub fn to_opencv(&self, model: DistortionModel) -> Vec<f64> {
-        if model == DistortionModel::Fisheye {
-            return vec![self.k1, self.k2, self.k3, self.k4];
-        }
-        let mut v = vec![self.k1, self.k2, self.p1, self.p2, self.k3];
-        if model == DistortionModel::Rational {
-            v.extend([self.k4, self.k5, self.k6]);
-        }
-        v
-    }
-
-    /// From OpenCV's order (4, 5, 8 or more values; missing ones are 0).
-    pub fn from_opencv(v: &[f64]) -> Self {
-        let g = |i: usize| v.get(i).copied().unwrap_or(0.0);
-        Self { k1: g(0), k2: g(1), p1: g(2), p2: g(3), k3: g(4), k4: g(5), k5: g(6), k6: g(7) }
-    }
-
-    /// From OpenCV's fisheye order k1, k2, k3, k4 (missing ones are 0).
-    pub fn from_opencv_fisheye(v: &[f64]) -> Self {
-        let g = |i: usize| v.get(i).copied().unwrap_or(0.0);
-        Self { k1: g(0), k2: g(1), k3: g(2), k4: g(3), ..Default::default() }
-    }
-
-    /// Kannala–Brandt: normalised undistorted (x, y) → distorted (module doc).
-    #[inline]
-    pub fn apply_fisheye(&self, x: f64, y: f64) -> [f64; 2] {
-        let r = (x * x + y * y).sqrt();
-        if r < 1e-15 {
-            return [x, y]; // θ_d / r → 1 on the axis
-        }
-        let t = r.atan();
-        let t2 = t * t;
-        let s = t * (1.0 + t2 * (self.k1 + t2 * (self.k2 + t2 * (self.k3 + t2 * self.k4)))) / r;
-        [x * s, y * s]
-    }
-
-    /// Kannala–Brandt inverse: θ from θ_d by Newton's method, then
-    /// r = tan θ; `None` where θ would reach 90° or the polynomial does not
-    /// invert.
-    pub fn invert_fisheye(&self, xd: f64, yd: f64) -> Option<[f64; 2]> {
-        let rd = (xd * xd + yd * yd).sqrt();
-        if rd < 1e-15 {
-            return Some([xd, yd]);
-        }
-        let poly = |t: f64| {
-            let t2 = t * t;
-            t * (1.0 + t2 * (self.k1 + t2 * (self.k2 + t2 * (self.k3 + t2 * self.k4))))
-        };
-        let mut t = rd.min(1.5);
-        for _ in 0..60 {
-            let t2 = t * t;
-            let df = 1.0 + t2 * (3.0 * self.k1 + t2 * (5.0 * self.k2 + t2 * (7.0 * self.k3 + t2 * 9.0 * self.k4)));
-            if !(df.is_finite() && df > 1e-9) {
-                return None;
-            }
-            let step = (poly(t) - rd) / df;
-            t -= step;
-            if !t.is_finite() {
-                return None;
-            }
-            if step.abs() < 1e-15 {
-                break;
-            }
-        }
-        if !(0.0..std::f64::consts::FRAC_PI_2 - 1e-9).contains(&t) || (poly(t) - rd).abs() > 1e-10 {
-            return None;
-        }
-        let s = t.tan() / rd;
-        Some([xd * s, yd * s])
-    }
-
-    /// Normalised undistorted (x, y) → distorted (x_d, y_d).
-    #[inline]
-    pub fn apply(&self, x: f64, y: f64) -> [f64; 2] {
-        let r2 = x * x + y * y;
-        let a = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-        let b = 1.0 + r2 * (self.k4 + r2 * (self.k5 + r2 * self.k6));
-        let radial = a / b;
-        [
-            x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
-            y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
-        ]
-    }
-
-    /// Distorted → undistorted normalised coordinates by Newton's method;
-    /// `None` where it does not converge (outside the lens's invertible
-    /// field).
-    pub fn invert(&self, xd: f64, yd: f64) -> Option<[f64; 2]> {
-        let (mut x, mut y) = (xd, yd);
-        for _ in 0..50 {
-            let [fx, fy] = self.apply(x, y);
-            let (ex, ey) = (fx - xd, fy - yd);
-            if ex.abs() < 1e-13 && ey.abs() < 1e-13 {
-                return Some([x, y]);
-            }
-            let r2 = x * x + y * y;
-            let a = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-            let b = 1.0 + r2 * (self.k4 + r2 * (self.k5 + r2 * self.k6));
-            let da = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2);
-            let db = self.k4 + r2 * (2.0 * self.k5 + 3.0 * self.k6 * r2);
-            let radial = a / b;
-            let dr = (da * b - a * db) / (b * b);
-            let j11 = radial + 2.0 * x * x * dr + 2.0 * self.p1 * y + 6.0 * self.p2 * x;
-            let j12 = 2.0 * x * y * dr + 2.0 * self.p1 * x + 2.0 * self.p2 * y;
-            let j21 = j12;
-            let j22 = radial + 2.0 * y * y * dr + 6.0 * self.p1 * y + 2.0 * self.p2 * x;
-            let det = j11 * j22 - j12 * j21;
-            if !det.is_finite() || det.abs() < 1e-12 {
-                return None;
-            }
-            x -= (j22 * ex - j12 * ey) / det;
-            y -= (j11 * ey - j21 * ex) / det;
-            if !(x.is_finite() && y.is_finite()) {
-                return None;
-            }
-        }
-        let [fx, fy] = self.apply(x, y);
-        ((fx - xd).abs() < 1e-9 && (fy - yd).abs() < 1e-9).then_some([x, y])
     }
 }
 
@@ -283,8 +110,6 @@ pub const RADIAL_SCALE_RANGE: (f64, f64) = (0.1, 10.0);
 /// Why a camera model cannot be used (see [`CameraModel::validate`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CameraError {
-    #[error("unknown camera model {name:?}; valid: {}", <DistortionModel as strum::VariantNames>::VARIANTS.join(", "))]
-    UnknownModel { name: String },
     /// A photo whose size is not the one the camera was calibrated at.
     #[error("image is {width} × {height} pixels but the camera was calibrated at {camera_width} × {camera_height}")]
     PhotoSize { width: usize, height: usize, camera_width: usize, camera_height: usize },
@@ -337,20 +162,8 @@ impl CameraModel {
         if !(inside(k.cx, wf) && inside(k.cy, hf)) {
             return Err(CameraError::PrincipalPoint { cx: k.cx, cy: k.cy, width: w, height: h });
         }
-        let d = &self.distortion;
-        for (name, value) in [
-            ("k1", d.k1),
-            ("k2", d.k2),
-            ("p1", d.p1),
-            ("p2", d.p2),
-            ("k3", d.k3),
-            ("k4", d.k4),
-            ("k5", d.k5),
-            ("k6", d.k6),
-        ] {
-            if !value.is_finite() {
-                return Err(CameraError::Coefficient { name, value });
-            }
+        if let Some((name, value)) = self.lens().non_finite() {
+            return Err(CameraError::Coefficient { name, value });
         }
         // Distorted normalised radius of the farthest image corner.
         let corner = [(0.0, 0.0), (wf - 1.0, 0.0), (0.0, hf - 1.0), (wf - 1.0, hf - 1.0)]
@@ -419,21 +232,21 @@ impl CameraModel {
 }
 
 impl CameraModel {
-    /// Normalised undistorted → distorted coordinates for this camera's model.
-    #[inline]
-    pub fn distort(&self, x: f64, y: f64) -> [f64; 2] {
-        match self.model {
-            DistortionModel::Fisheye => self.distortion.apply_fisheye(x, y),
-            DistortionModel::PinholeK3 | DistortionModel::Rational => self.distortion.apply(x, y),
-        }
+    /// The camera's lens: its distortion model and coefficients.
+    pub fn lens(&self) -> Lens {
+        Lens { model: self.model, distortion: self.distortion }
     }
 
-    /// Distorted → undistorted normalised coordinates for this camera's model.
+    /// Normalised undistorted → distorted coordinates for this camera's model ([`Lens::distort`]).
+    #[inline]
+    pub fn distort(&self, x: f64, y: f64) -> [f64; 2] {
+        self.lens().distort(x, y)
+    }
+
+    /// Distorted → undistorted normalised coordinates for this camera's model
+    /// ([`Lens::undistort`], Newton's method).
     pub fn undistort_normalised(&self, xd: f64, yd: f64) -> Option<[f64; 2]> {
-        match self.model {
-            DistortionModel::Fisheye => self.distortion.invert_fisheye(xd, yd),
-            DistortionModel::PinholeK3 | DistortionModel::Rational => self.distortion.invert(xd, yd),
-        }
+        self.lens().undistort(xd, yd)
     }
 
     /// Pixel of a point in the camera frame (OpenCV axes); `None` behind the camera.
@@ -500,20 +313,6 @@ pub(crate) mod tests {
             intrinsics: Intrinsics { fx: 60.0, fy: 61.0, cx: 31.2, cy: 24.3 },
             distortion: Distortion { k1: -0.28, k2: 0.09, p1: 0.001, p2: -0.0015, k3: -0.01, ..Default::default() },
         }
-    }
-
-    #[test]
-    fn inverse_distortion_round_trips() {
-        let mut d = camera().distortion;
-        for (x, y) in [(0.0, 0.0), (0.3, -0.2), (-0.55, 0.4), (0.7, 0.5)] {
-            let [xd, yd] = d.apply(x, y);
-            let [xu, yu] = d.invert(xd, yd).unwrap();
-            assert!((xu - x).abs() < 1e-11 && (yu - y).abs() < 1e-11, "({x},{y}) → ({xu},{yu})");
-        }
-        d = Distortion { k1: 0.1, k2: -0.02, k4: 0.3, k5: 0.01, k6: 0.002, p1: 0.0005, ..Default::default() };
-        let [xd, yd] = d.apply(-0.8, 0.6);
-        let [xu, yu] = d.invert(xd, yd).unwrap();
-        assert!((xu + 0.8).abs() < 1e-11 && (yu - 0.6).abs() < 1e-11);
     }
 
     #[test]
@@ -600,16 +399,5 @@ pub(crate) mod tests {
         assert_ne!(bad, text);
         let e = serde_json::from_str::<CameraModel>(&bad).unwrap_err().to_string();
         assert!(e.contains("focal length fx = -60"), "{e}");
-    }
-
-    #[test]
-    fn model_names() {
-        assert_eq!(DistortionModel::from_name("rational").unwrap(), DistortionModel::Rational);
-        assert!(DistortionModel::from_name("fish").unwrap_err().to_string().contains("pinhole-k3, rational, fisheye"));
-        assert_eq!(DistortionModel::from_name("Fisheye").unwrap(), DistortionModel::Fisheye);
-        let f = Distortion::from_opencv_fisheye(&[0.1, 0.2, 0.3, 0.4]);
-        assert_eq!(f.to_opencv(DistortionModel::Fisheye), [0.1, 0.2, 0.3, 0.4]);
-        let d = Distortion::from_opencv(&[1.0, 2.0, 3.0, 4.0]);
-        assert_eq!(d.to_opencv(DistortionModel::PinholeK3), [1.0, 2.0, 3.0, 4.0, 0.0]);
     }
 }

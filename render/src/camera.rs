@@ -12,11 +12,14 @@
 //! The image point (x, y) becomes the normalised point
 //! ((x − cx)/fx, (y − cy)/fy) = (x_d, y_d). Without distortion this is the
 //! ray's direction in OpenCV camera axes (x right, y down, z forward),
-//! (x_d, y_d, 1). With [`Distortion`] (Brown–Conrady, OpenCV's k1, k2, p1,
-//! p2, k3), (x_d, y_d) is the *distorted* point and the ray goes through the
-//! undistorted (x_u, y_u) that distorts onto it, found by OpenCV's fixed-point
-//! iteration (`cv::undistortPoints`), run to convergence (< 10⁻¹⁴) — so the
-//! render matches the raw photo's geometry without resampling the photo.
+//! (x_d, y_d, 1). With a [`Lens`] (the distortion model and coefficients of
+//! camera.json, from `lucent-lens`: Brown–Conrady `pinhole-k3`, OpenCV's
+//! `rational`), (x_d, y_d) is the *distorted* point and the ray goes through
+//! the undistorted (x_u, y_u) that distorts onto it, found by OpenCV's
+//! fixed-point iteration (`cv::undistortPoints`,
+//! [`Distortion::undistort_fixed_point`]), run to convergence (< 10⁻¹⁴) — so
+//! the render matches the raw photo's geometry without resampling the photo.
+//! The Kannala–Brandt `fisheye` model is not drawn: [`Camera::new`] refuses it.
 //!
 //! The camera-to-world matrix is the renderer's (see `lucent_calib::scene`):
 //! camera x right, **y up, looking along −z**; the OpenCV direction
@@ -36,6 +39,10 @@
 
 use glam::{DMat3, DVec3};
 use thiserror::Error;
+
+/// The lens distortion the camera takes: one type with the calibration's
+/// camera.json, re-exported from `lucent-lens`.
+pub use lucent_lens::{Distortion, DistortionModel, Lens};
 
 /// The largest image side a render makes, pixels.
 pub const MAX_IMAGE_SIDE: usize = 32_768;
@@ -70,58 +77,20 @@ pub enum CameraError {
         "camera_to_world must be finite with an orthonormal rotation part (columns of length 1, determinant +1); {why}"
     )]
     BadPose { why: String },
-    #[error("distortion coefficients must be finite, got {0:?}")]
-    BadDistortion([f64; 5]),
+    #[error("distortion coefficient {name} = {value} is not a finite number")]
+    BadDistortion { name: &'static str, value: f64 },
+    /// A lens model the ray generation does not follow.
+    #[error(
+        "the renderer draws the pinhole-k3 and rational distortion models, not {}",
+        model.name()
+    )]
+    UnsupportedLens { model: DistortionModel },
     /// The rule of a calibrated camera's principal point, for every camera.
     #[error(
         "principal point ({cx}, {cy}) px is far outside the {width} × {height} image (allowed: within half an \
          image size of its edges)"
     )]
     PrincipalPoint { cx: f64, cy: f64, width: usize, height: usize },
-}
-
-/// OpenCV's Brown–Conrady distortion (k1, k2, p1, p2, k3) of normalised points:
-/// x_d = x(1 + k1 r² + k2 r⁴ + k3 r⁶) + 2 p1 x y + p2 (r² + 2x²),
-/// y_d = y(1 + k1 r² + k2 r⁴ + k3 r⁶) + p1 (r² + 2y²) + 2 p2 x y.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Distortion {
-    pub k1: f64,
-    pub k2: f64,
-    pub p1: f64,
-    pub p2: f64,
-    pub k3: f64,
-}
-
-impl Distortion {
-    /// The distorted normalised point of the undistorted (x, y).
-    pub fn distort(&self, x: f64, y: f64) -> (f64, f64) {
-        let r2 = x * x + y * y;
-        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-        (
-            x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
-            y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
-        )
-    }
-
-    /// The undistorted point that [`distort`](Self::distort)s onto (xd, yd):
-    /// OpenCV's fixed-point iteration, at most 100 steps, stopping at a step
-    /// below 10⁻¹⁴.
-    pub fn undistort(&self, xd: f64, yd: f64) -> (f64, f64) {
-        let (mut x, mut y) = (xd, yd);
-        for _ in 0..100 {
-            let r2 = x * x + y * y;
-            let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-            let dx = 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x);
-            let dy = self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y;
-            let (nx, ny) = ((xd - dx) / radial, (yd - dy) / radial);
-            let step = (nx - x).abs().max((ny - y).abs());
-            (x, y) = (nx, ny);
-            if step < 1e-14 || !step.is_finite() {
-                break;
-            }
-        }
-        (x, y)
-    }
 }
 
 /// A pinhole camera with optional lens distortion.
@@ -131,21 +100,22 @@ pub struct Camera {
     pub height: usize,
     /// fx, fy, cx, cy in OpenCV pixels.
     pub intrinsics: [f64; 4],
-    pub distortion: Option<Distortion>,
+    /// The lens distortion (`pinhole-k3` or `rational`); None for an ideal pinhole.
+    pub distortion: Option<Lens>,
     position: DVec3,
     rotation: DMat3,
 }
 
 impl Camera {
     /// A camera from intrinsics `[fx, fy, cx, cy]` (OpenCV pixels), the
-    /// renderer's 4 × 4 row-major `camera_to_world` and optional distortion
-    /// coefficients `[k1, k2, p1, p2, k3]`.
+    /// renderer's 4 × 4 row-major `camera_to_world` and an optional lens
+    /// (`pinhole-k3` or `rational`, finite coefficients).
     pub fn new(
         width: usize,
         height: usize,
         intrinsics: [f64; 4],
         camera_to_world: [[f64; 4]; 4],
-        distortion: Option<[f64; 5]>,
+        distortion: Option<Lens>,
     ) -> Result<Self, CameraError> {
         check_image_size(width, height)?;
         let [fx, fy, cx, cy] = intrinsics;
@@ -175,11 +145,14 @@ impl Camera {
                 why: format!("RᵀR − I is {ortho:.2e} off, det R = {:.6}", rotation.determinant()),
             });
         }
-        let distortion = match distortion {
-            Some(d) if d.iter().any(|v| !v.is_finite()) => return Err(CameraError::BadDistortion(d)),
-            Some([k1, k2, p1, p2, k3]) => Some(Distortion { k1, k2, p1, p2, k3 }),
-            None => None,
-        };
+        if let Some(lens) = &distortion {
+            if let Some((name, value)) = lens.non_finite() {
+                return Err(CameraError::BadDistortion { name, value });
+            }
+            if lens.model == DistortionModel::Fisheye {
+                return Err(CameraError::UnsupportedLens { model: lens.model });
+            }
+        }
         Ok(Self { width, height, intrinsics, distortion, position: DVec3::new(m[0][3], m[1][3], m[2][3]), rotation })
     }
 
@@ -228,8 +201,8 @@ impl Camera {
         let x = i as f64 - 0.5 + u[0];
         let y = j as f64 - 0.5 + u[1];
         let (mut xn, mut yn) = ((x - cx) / fx, (y - cy) / fy);
-        if let Some(d) = &self.distortion {
-            (xn, yn) = d.undistort(xn, yn);
+        if let Some(lens) = &self.distortion {
+            (xn, yn) = lens.distortion.undistort_fixed_point(xn, yn);
         }
         let local = DVec3::new(xn, -yn, -1.0);
         (self.position, (self.rotation * local).normalize())
@@ -243,8 +216,8 @@ impl Camera {
             return None;
         }
         let (mut xn, mut yn) = (local.x / -local.z, -local.y / -local.z);
-        if let Some(d) = &self.distortion {
-            (xn, yn) = d.distort(xn, yn);
+        if let Some(lens) = &self.distortion {
+            [xn, yn] = lens.distort(xn, yn);
         }
         let [fx, fy, cx, cy] = self.intrinsics;
         Some([fx * xn + cx, fy * yn + cy])
@@ -256,16 +229,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn undistort_inverts_distort() {
-        let d = Distortion { k1: -0.28, k2: 0.07, p1: 1e-3, p2: -2e-4, k3: 0.01 };
-        for &(x, y) in &[(0.0, 0.0), (0.3, -0.2), (-0.5, 0.4), (0.1, 0.6)] {
-            let (xd, yd) = d.distort(x, y);
-            let (xu, yu) = d.undistort(xd, yd);
-            assert!((xu - x).abs() < 1e-12 && (yu - y).abs() < 1e-12, "({x}, {y}) → ({xu}, {yu})");
-        }
-    }
-
-    #[test]
     fn ray_projects_back_to_its_pixel_point() {
         let cam =
             Camera::look_at(64, 48, DVec3::new(0.0, -0.14, 0.16), DVec3::new(0.0, 0.0, 0.004), DVec3::Z, 36.0).unwrap();
@@ -273,15 +236,27 @@ mod tests {
         let mut m: [[f64; 4]; 4] =
             std::array::from_fn(|i| if i < 3 { [r.col(0)[i], r.col(1)[i], r.col(2)[i], p[i]] } else { [0.0; 4] });
         m[3][3] = 1.0;
-        let cam = Camera::new(64, 48, cam.intrinsics, m, Some([-0.2, 0.05, 1e-3, 5e-4, 0.0])).unwrap();
-        for &(i, j, u) in &[(0, 0, [0.0, 0.0]), (63, 47, [0.999, 0.5]), (20, 30, [0.25, 0.75])] {
-            let (o, d) = cam.ray(i, j, u);
-            let px = cam.project(o + 0.3 * d).unwrap();
-            assert!(
-                (px[0] - (i as f64 - 0.5 + u[0])).abs() < 1e-9 && (px[1] - (j as f64 - 0.5 + u[1])).abs() < 1e-9,
-                "{px:?}"
-            );
+        let k3 = Distortion { k1: -0.2, k2: 0.05, p1: 1e-3, p2: 5e-4, ..Default::default() };
+        let lenses = [
+            Lens { model: DistortionModel::PinholeK3, distortion: k3 },
+            // A wide lens: OpenCV's rational model, its denominator k4–k6 too.
+            Lens {
+                model: DistortionModel::Rational,
+                distortion: Distortion { k1: 0.3, k4: 0.6, k5: -0.02, k6: 0.005, ..k3 },
+            },
+        ];
+        for lens in lenses {
+            let cam = Camera::new(64, 48, cam.intrinsics, m, Some(lens)).unwrap();
+            for &(i, j, u) in &[(0, 0, [0.0, 0.0]), (63, 47, [0.999, 0.5]), (20, 30, [0.25, 0.75])] {
+                let (o, d) = cam.ray(i, j, u);
+                let px = cam.project(o + 0.3 * d).unwrap();
+                assert!(
+                    (px[0] - (i as f64 - 0.5 + u[0])).abs() < 1e-9 && (px[1] - (j as f64 - 0.5 + u[1])).abs() < 1e-9,
+                    "{lens:?}: {px:?}"
+                );
+            }
         }
+        let cam = Camera::new(64, 48, cam.intrinsics, m, Some(lenses[0])).unwrap();
         // Image up is world up: the top row looks higher than the bottom row.
         assert!(cam.ray(32, 0, [0.5; 2]).1.z > cam.ray(32, 47, [0.5; 2]).1.z);
         // Image right is world +x here (camera at −y looking towards +y).
@@ -300,10 +275,14 @@ mod tests {
         let mut skew = id;
         skew[0][1] = 0.5;
         assert!(matches!(Camera::new(4, 4, [1.0, 1.0, 0.0, 0.0], skew, None), Err(CameraError::BadPose { .. })));
+        let lens = |model, k1| Some(Lens { model, distortion: Distortion { k1, ..Default::default() } });
         assert!(matches!(
-            Camera::new(4, 4, [1.0, 1.0, 0.0, 0.0], id, Some([f64::NAN, 0.0, 0.0, 0.0, 0.0])),
-            Err(CameraError::BadDistortion(_))
+            Camera::new(4, 4, [1.0, 1.0, 0.0, 0.0], id, lens(DistortionModel::PinholeK3, f64::NAN)),
+            Err(CameraError::BadDistortion { name: "k1", .. })
         ));
+        let e = Camera::new(4, 4, [1.0, 1.0, 0.0, 0.0], id, lens(DistortionModel::Fisheye, 0.01)).unwrap_err();
+        assert_eq!(e, CameraError::UnsupportedLens { model: DistortionModel::Fisheye });
+        assert!(e.to_string().contains("not fisheye"), "{e}");
         assert!(Camera::look_at(4, 4, DVec3::Z, DVec3::Z, DVec3::Z, 40.0).is_err());
     }
 }

@@ -206,11 +206,13 @@ pub enum KeyProblem {
     CalibratedNeedsCameraJson,
     #[error("\"calibrated\" needs the calibrated intrinsics (scene_json or intrinsics)")]
     CalibratedNeedsIntrinsics,
+    /// A camera.json whose lens model the renderer's rays do not follow.
     #[error(
-        "the rational model's k4–k6 are not supported by the renderer; calibrate with pinhole-k3 or render \
-         undistorted (distortion = \"none\")"
+        "the lens of camera.json {} is the {model} distortion model, which the renderer cannot draw (it \
+         draws pinhole-k3 and rational); calibrate with one of those or render undistorted (distortion = \"none\")",
+        file.display()
     )]
-    RationalDistortion,
+    UnsupportedLens { file: PathBuf, model: &'static str },
     #[error("\"mie\" needs a recipe; explicit bands use \"hg\"")]
     MieNeedsRecipe,
     #[error(
@@ -750,7 +752,9 @@ pub struct SceneSummary {
     pub image_width: usize,
     pub image_height: usize,
     pub intrinsics: [f64; 4],
-    pub distortion: Option<[f64; 5]>,
+    /// The calibrated lens's coefficients in OpenCV's order for its model:
+    /// k1, k2, p1, p2, k3 (`pinhole-k3`), then k4, k5, k6 (`rational`).
+    pub distortion: Option<Vec<f64>>,
     pub band_weight_set: String,
 }
 
@@ -1041,7 +1045,7 @@ fn build_with(file: &SceneFile, path: &Path, summary_only: bool) -> Result<Loade
     // sphere they cost 1.35× the CPU time for no less variance.
     settings.phase_connection =
         r.phase_connections.unwrap_or_else(|| object.as_ref().is_none_or(|o| o.accel.convex_planes().is_some()));
-    let (intr, dist) = (camera.intrinsics, camera.distortion.map(|d| [d.k1, d.k2, d.p1, d.p2, d.k3]));
+    let (intr, dist) = (camera.intrinsics, camera.distortion.map(|l| l.distortion.to_opencv(l.model)));
     let (w, h) = (camera.width, camera.height);
     let scene = Scene::new(object, board.as_ref().map(|b| b.0.clone()), environment, camera)
         .map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
@@ -1321,11 +1325,13 @@ fn build_camera(
             let cal: lucent_calib::camera::Calibration = serde_json::from_str(&text).map_err(|source| {
                 ctx.key("camera", "camera_json", KeyProblem::NotCameraJson { file: full.clone(), source })
             })?;
-            let d = cal.camera.distortion;
-            if d.k4 != 0.0 || d.k5 != 0.0 || d.k6 != 0.0 {
-                return Err(ctx.key("camera", "distortion", KeyProblem::RationalDistortion));
+            let lens = cal.camera.lens();
+            if lens.model == lucent_calib::model::DistortionModel::Fisheye {
+                let problem = KeyProblem::UnsupportedLens { file: full, model: lens.model.name() };
+                return Err(ctx.key("camera", "distortion", problem));
             }
-            Some([d.k1, d.k2, d.p1, d.p2, d.k3])
+            // The same lucent_lens::Lens type in both crates: the render's rays follow camera.json's lens.
+            Some(lens)
         }
         Some(other) => {
             return Err(ctx.key(
