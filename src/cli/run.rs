@@ -295,7 +295,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         );
     }
     if emit.is_none() && exec_cfg.kind == Kind::Slurm {
-        for line in executor::plan_lines(&project.file, &exec_cfg) {
+        for line in crate::pipeline::project::plan_lines(&project.file, &exec_cfg) {
             println!("{line}");
         }
     }

@@ -249,7 +249,7 @@ impl Sharded {
 
 /// Why a scene file's render cannot be split into shards (a time budget,
 /// an error target, object-weighted sampling), `None` when it can.
-fn scene_unshardable(scene: &Path) -> Option<String> {
+pub(crate) fn scene_unshardable(scene: &Path) -> Option<String> {
     let name = scene.display();
     let Ok(text) = crate::io::read_text(scene) else { return Some(format!("{name} cannot be read")) };
     let Ok(f) = crate::scene::parse(&text, scene) else { return Some(format!("{name} is not a scene file")) };
@@ -304,74 +304,6 @@ pub fn not_shardable(job: &Job) -> Option<String> {
             other.command_name()
         )),
     }
-}
-
-/// Where each stage of `file`'s project runs under executor `e` (kind
-/// Slurm): one line per stage or group of stages, printed by `lucent run
-/// --executor slurm` before anything is submitted.
-pub fn plan_lines(file: &super::project::ProjectFile, e: &Executor) -> Vec<String> {
-    let shards = e.shards;
-    let mut lines = vec![format!(
-        "plan: Slurm job arrays of {shards} shards per long command{}{}{}{}, each shard resubmitted up to {} time(s), \
-         then a merge job",
-        e.partition.as_ref().map(|p| format!(", partition {p}")).unwrap_or_default(),
-        e.account.as_ref().map(|a| format!(", account {a}")).unwrap_or_default(),
-        e.time_limit.as_ref().map(|t| format!(", time limit {t}")).unwrap_or_default(),
-        e.cpus_per_task.map(|c| format!(", {c} CPU(s) per shard (its threads)")).unwrap_or_default(),
-        e.retries
-    )];
-    let mut here: Vec<&str> = Vec::new();
-    // bssrdf: each slice with a path budget and no other stop rule.
-    let bssrdf_stop = file.bssrdf.as_ref().map(|b| Stop {
-        samples: b.paths,
-        time_s: b.time_s,
-        rel_error: b.rel_error,
-        pixel_rel_error: None,
-    });
-    match bssrdf_stop.map(|s| s.shard_samples()) {
-        Some(Ok(paths)) => lines.push(format!(
-            "  bssrdf      on the cluster: each slice ([bssrdf] paths = {paths}) as {shards} shards of {} paths or so",
-            paths.div_ceil(u64::from(shards))
-        )),
-        Some(Err(why)) => lines.push(format!(
-            "  bssrdf      here: [bssrdf] {} (only a fixed path budget, `paths` alone, splits exactly)",
-            if why == NotSplittable::NoSamples { "has no paths" } else { "sets time_s or rel_error beside paths" }
-        )),
-        None => here.push("bssrdf"),
-    }
-    // render: each render with a sample budget and a scene that allows it.
-    match &file.render {
-        Some(r) => {
-            let stop = Stop { samples: r.spp.map(u64::from), time_s: r.time_s, ..Stop::default() };
-            let why = match stop.shard_samples() {
-                Err(NotSplittable::NoSamples) => {
-                    Some("[render] has no spp (only a fixed sample budget splits exactly)".to_string())
-                }
-                Err(_) => Some("[render] time_s is set (a time budget cannot be split exactly)".to_string()),
-                Ok(_) => scene_unshardable(&r.scene),
-            };
-            lines.push(match why {
-                None => format!(
-                    "  render      on the cluster: each render ([render] spp = {}) as {shards} shards, merged \
-                     byte-identical to one unsharded render",
-                    stop.samples.unwrap_or(0)
-                ),
-                Some(why) => format!("  render      here: {why}"),
-            });
-        }
-        None => here.push("render"),
-    }
-    let short: Vec<&str> =
-        super::Stage::ALL.iter().map(|s| s.name()).filter(|n| !["bssrdf", "render"].contains(n)).collect();
-    lines.push(format!(
-        "  {}  here: short commands, or not splittable into shards (only renders with a sample budget and \
-         BSSRDF slices with a path budget are)",
-        short.join(", ")
-    ));
-    if !here.is_empty() {
-        lines.push(format!("  ({} not in this project)", here.join(", ")));
-    }
-    lines
 }
 
 /// How many shards an sbatch `--array` spec holds: "0-3" → 4, "1,3" → 2.
@@ -903,7 +835,7 @@ mod tests {
         )
         .expect("toml");
         let e = Executor { kind: Kind::Slurm, shards: 4, cpus_per_task: Some(2), ..Executor::default() };
-        let text = plan_lines(&file, &e).join("\n");
+        let text = crate::pipeline::project::plan_lines(&file, &e).join("\n");
         assert!(text.contains("4 shards per long command") && text.contains("2 CPU(s) per shard"), "{text}");
         assert!(text.contains("bssrdf      on the cluster: each slice ([bssrdf] paths = 3000) as 4 shards"), "{text}");
         // The scene cannot be read here: the render stays here, and the line says why.
@@ -911,7 +843,7 @@ mod tests {
         assert!(text.contains("optics, ") && text.contains("report  here: "), "{text}");
         let timed: crate::pipeline::project::ProjectFile =
             toml::from_str("[bssrdf]\nconfigs = \"45/0\"\npaths = 3000\ntime_s = 9\n").expect("toml");
-        let text = plan_lines(&timed, &e).join("\n");
+        let text = crate::pipeline::project::plan_lines(&timed, &e).join("\n");
         assert!(text.contains("bssrdf      here: [bssrdf] sets time_s or rel_error"), "{text}");
         assert!(text.contains("(render not in this project)"), "{text}");
     }

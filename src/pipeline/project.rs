@@ -79,6 +79,7 @@ use crate::job::{
 use lucent_calib::board::BoardSize;
 use lucent_calib::model::DistortionModel;
 use lucent_colour::{CcmMethod, WavelengthGrid};
+use lucent_render::stop::{NotSplittable, Stop};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -788,4 +789,72 @@ fn check_fit(c: &Checker, f: &FitSection, samples: &[SampleSection]) -> Result<(
         }
     }
     Ok(())
+}
+
+/// Where each stage of `file`'s project runs under executor `e` (kind
+/// Slurm): one line per stage or group of stages, printed by `lucent run
+/// --executor slurm` before anything is submitted.
+pub fn plan_lines(file: &ProjectFile, e: &super::executor::Executor) -> Vec<String> {
+    let shards = e.shards;
+    let mut lines = vec![format!(
+        "plan: Slurm job arrays of {shards} shards per long command{}{}{}{}, each shard resubmitted up to {} time(s), \
+         then a merge job",
+        e.partition.as_ref().map(|p| format!(", partition {p}")).unwrap_or_default(),
+        e.account.as_ref().map(|a| format!(", account {a}")).unwrap_or_default(),
+        e.time_limit.as_ref().map(|t| format!(", time limit {t}")).unwrap_or_default(),
+        e.cpus_per_task.map(|c| format!(", {c} CPU(s) per shard (its threads)")).unwrap_or_default(),
+        e.retries
+    )];
+    let mut here: Vec<&str> = Vec::new();
+    // bssrdf: each slice with a path budget and no other stop rule.
+    let bssrdf_stop = file.bssrdf.as_ref().map(|b| Stop {
+        samples: b.paths,
+        time_s: b.time_s,
+        rel_error: b.rel_error,
+        pixel_rel_error: None,
+    });
+    match bssrdf_stop.map(|s| s.shard_samples()) {
+        Some(Ok(paths)) => lines.push(format!(
+            "  bssrdf      on the cluster: each slice ([bssrdf] paths = {paths}) as {shards} shards of {} paths or so",
+            paths.div_ceil(u64::from(shards))
+        )),
+        Some(Err(why)) => lines.push(format!(
+            "  bssrdf      here: [bssrdf] {} (only a fixed path budget, `paths` alone, splits exactly)",
+            if why == NotSplittable::NoSamples { "has no paths" } else { "sets time_s or rel_error beside paths" }
+        )),
+        None => here.push("bssrdf"),
+    }
+    // render: each render with a sample budget and a scene that allows it.
+    match &file.render {
+        Some(r) => {
+            let stop = Stop { samples: r.spp.map(u64::from), time_s: r.time_s, ..Stop::default() };
+            let why = match stop.shard_samples() {
+                Err(NotSplittable::NoSamples) => {
+                    Some("[render] has no spp (only a fixed sample budget splits exactly)".to_string())
+                }
+                Err(_) => Some("[render] time_s is set (a time budget cannot be split exactly)".to_string()),
+                Ok(_) => super::executor::scene_unshardable(&r.scene),
+            };
+            lines.push(match why {
+                None => format!(
+                    "  render      on the cluster: each render ([render] spp = {}) as {shards} shards, merged \
+                     byte-identical to one unsharded render",
+                    stop.samples.unwrap_or(0)
+                ),
+                Some(why) => format!("  render      here: {why}"),
+            });
+        }
+        None => here.push("render"),
+    }
+    let short: Vec<&str> =
+        super::Stage::ALL.iter().map(|s| s.name()).filter(|n| !["bssrdf", "render"].contains(n)).collect();
+    lines.push(format!(
+        "  {}  here: short commands, or not splittable into shards (only renders with a sample budget and \
+         BSSRDF slices with a path budget are)",
+        short.join(", ")
+    ));
+    if !here.is_empty() {
+        lines.push(format!("  ({} not in this project)", here.join(", ")));
+    }
+    lines
 }
