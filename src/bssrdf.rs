@@ -98,7 +98,7 @@ impl std::fmt::Display for Configuration {
     }
 }
 
-crate::job::values::serde_as_text!(Configuration);
+crate::text::serde_as_text!(Configuration);
 
 /// Goniometer configurations ([`Configuration`]), at least one, none twice.
 ///
@@ -148,7 +148,7 @@ impl std::fmt::Display for Configurations {
     }
 }
 
-crate::job::values::serde_as_text!(Configurations);
+crate::text::serde_as_text!(Configurations);
 
 /// A slice file that cannot be read or written.
 #[derive(Debug, thiserror::Error)]

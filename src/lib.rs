@@ -24,3 +24,4 @@ pub mod scene;
 pub mod shard;
 pub mod surface;
 pub mod synth;
+mod text;

@@ -250,7 +250,7 @@ impl std::fmt::Display for FreeSpec {
     }
 }
 
-crate::job::values::serde_as_text!(FreeSpec);
+crate::text::serde_as_text!(FreeSpec);
 
 /// The search range of one free parameter, in its natural unit (wt-%, µm,
 /// or the index): `lo` … `hi`, both finite. Whether it is positive,
@@ -305,7 +305,7 @@ impl std::fmt::Display for SearchBounds {
     }
 }
 
-crate::job::values::serde_as_text!(SearchBounds);
+crate::text::serde_as_text!(SearchBounds);
 
 /// A free parameter: its kind and the particle type (0-based) it belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

@@ -13,24 +13,7 @@
 use std::path::PathBuf;
 use thiserror::Error;
 
-/// Serde for a type as its text: serialised with `Display`, read with
-/// `FromStr` (whose error names the text).
-macro_rules! serde_as_text {
-    ($t:ty) => {
-        impl serde::Serialize for $t {
-            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-                s.collect_str(self)
-            }
-        }
-        impl<'de> serde::Deserialize<'de> for $t {
-            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-                let text = <String as serde::Deserialize>::deserialize(d)?;
-                text.parse().map_err(serde::de::Error::custom)
-            }
-        }
-    };
-}
-pub(crate) use serde_as_text;
+use crate::text::serde_as_text;
 
 /// An image size in pixels that a render can hold (at least 1 × 1, within
 /// [`lucent_render::camera::check_image_size`]'s limits).
