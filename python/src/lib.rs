@@ -894,7 +894,7 @@ fn py_render<'py>(
         render: TwinRenderArgs {
             spp,
             seed,
-            size: size.map(|t| t.parse().map_err(|e| error(format!("size: {e}")))).transpose()?,
+            size: size.map(|t| t.parse().map_err(|e| error(format!("--size {e}")))).transpose()?,
             threads,
         },
         time_s,
