@@ -47,7 +47,7 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 pub mod values;
-pub use values::{ImageSize, MeasuredAngles, MeasuredSlice, SampleCorner, SampleSizeMm};
+pub use values::{ChartCorners, ImageSize, MeasuredAngles, MeasuredSlice, SampleCorner, SampleSizeMm};
 
 /// A job field out of range: which field (its snake-case name, the flag
 /// `--field-name`, the project key `field_name`) and why.
@@ -448,9 +448,9 @@ pub struct ColourCalibrateJob {
     /// The camera's name (free text, written into the ccm.json).
     pub camera: Option<String>,
     pub out: PathBuf,
-    /// The chart's four corners "x1,y1,…,x4,y4" in pixels, passed to the
-    /// command as given (read by `lucent colour calibrate --corners`).
-    pub corners: Option<String>,
+    /// The chart's four corners in pixels ("x1,y1,…,x4,y4" as text), else
+    /// found by OpenCV's mcc.
+    pub corners: Option<ChartCorners>,
     #[serde(with = "by_name")]
     pub method: lucent_colour::ccm::CcmMethod,
     pub decode_srgb: bool,
@@ -689,6 +689,28 @@ fn is_default_luminance(l: &crate::compare::Luminance) -> bool {
 pub const DEFAULT_DATA_RANGE: f64 = 1.0;
 
 impl CompareJob {
+    /// The photo against `render` (one or two twins) into `out`, every
+    /// other flag at its default.
+    pub fn new(photo: PathBuf, render: Vec<PathBuf>, out: PathBuf) -> Self {
+        CompareJob {
+            photo,
+            render,
+            out,
+            mask: None,
+            mask_object: None,
+            mask_board: None,
+            photo_variance: None,
+            photo_repeat: None,
+            scene: None,
+            data_range: DEFAULT_DATA_RANGE,
+            luminance: Default::default(),
+            exposure: None,
+            refine: None,
+            twin_names: None,
+            band: Vec::new(),
+        }
+    }
+
     pub fn validate(&self) -> Result<(), JobError> {
         if let (Some(_), Some(p)) = (&self.photo_variance, &self.photo_repeat) {
             return Err(bad("photo_repeat", s(p), "give the photo's variance or a repeat photo, not both"));

@@ -644,6 +644,12 @@ fn each_job_value_type_round_trips_through_its_text() {
     check::<Configurations>("configs", &["45/0", "45/0,0/45"], &[("45/0, 0/45", "45/0,0/45")], &["x/0", "45/95"]);
     let e = "45/0,0/45,45/0".parse::<Configurations>().unwrap_err().to_string();
     assert!(e.contains("\"45/0\" is given twice"), "{e}");
+    check::<ChartCorners>(
+        "corners",
+        &["10,20,300,20,300,200,10,200", "10.5,-2,300,20,300,200,10,200"],
+        &[("10, 20,300,20 ,300,200,10,200.0", "10,20,300,20,300,200,10,200")],
+        &["1,2,3", "1,2,3,4,5,6,7,x", "1,2,3,4,5,6,7,inf"],
+    );
     check::<ImageSize>("size", &["640x480", "64x48"], &[("640X480", "640x480")], &["0x12", "640", "40000x2", "-1x2"]);
     check::<BoardSize>("board", &["9x6", "3x3"], &[("9X6", "9x6"), ("9×6", "9x6")], &["9", "2x6", "9x600"]);
     check::<MeasuredSlice>(

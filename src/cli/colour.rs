@@ -39,8 +39,8 @@ pub struct CalibrateArgs {
     /// Outer corners of the 4 × 6 patch grid in pixels (x right, y down, image edge at 0):
     /// x1,y1,…,x4,y4 for the dark-skin, bluish-green, black and white corners (clockwise in the image).
     /// Without it the chart is found automatically (OpenCV's mcc detector).
-    #[arg(long)]
-    pub corners: Option<String>,
+    #[arg(long, allow_hyphen_values = true)]
+    pub corners: Option<crate::job::ChartCorners>,
     /// Name of the camera, stored in ccm.json (default: the image's file name).
     #[arg(long)]
     pub camera: Option<String>,
@@ -124,21 +124,6 @@ pub fn run(cmd: ColourCommand) -> Result<()> {
     }
 }
 
-/// Parses "x1,y1,x2,y2,x3,y3,x4,y4".
-pub fn parse_corners(text: &str) -> Result<[[f64; 2]; 4]> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|s| s.trim().parse::<f64>().map_err(|_| anyhow!("--corners {text:?}: {s:?} is not a number")))
-        .collect::<Result<_>>()?;
-    if values.len() != 8 {
-        bail!("--corners {text:?}: expected 8 numbers x1,y1,x2,y2,x3,y3,x4,y4, got {}", values.len());
-    }
-    if let Some(v) = values.iter().find(|v| !v.is_finite()) {
-        bail!("--corners {text:?}: {v} is not a finite number");
-    }
-    Ok([[values[0], values[1]], [values[2], values[3]], [values[4], values[5]], [values[6], values[7]]])
-}
-
 fn parse_clip_level(text: &str) -> Result<Option<f64>> {
     if text.trim().eq_ignore_ascii_case("none") {
         return Ok(None);
@@ -157,7 +142,7 @@ fn decode_in_place(img: &mut RgbImage) {
 
 fn calibrate(a: CalibrateArgs) -> Result<()> {
     let method = a.method;
-    let given_corners = a.corners.as_deref().map(parse_corners).transpose()?;
+    let given_corners = a.corners.map(|c| c.0);
     let clip = parse_clip_level(&a.clip_level)?;
     let mut img = imageio::read_rgb(&a.image)?;
     let encoding = if a.decode_srgb { InputEncoding::Srgb } else { InputEncoding::Linear };

@@ -26,7 +26,7 @@ pub fn job_of(command: &Command) -> Option<Job> {
             image: a.image.clone(),
             camera: a.camera.clone(),
             out: a.out.clone(),
-            corners: a.corners.clone(),
+            corners: a.corners,
             method: a.method,
             decode_srgb: a.decode_srgb,
         }),
@@ -264,7 +264,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
         }),
         Job::ColourCalibrate(j) => Command::Colour(colour::ColourCommand::Calibrate(colour::CalibrateArgs {
             image: j.image.clone(),
-            corners: j.corners.clone(),
+            corners: j.corners,
             camera: j.camera.clone(),
             method: j.method,
             out: j.out.clone(),

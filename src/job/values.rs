@@ -261,3 +261,62 @@ impl std::fmt::Display for SampleSizeMm {
 }
 
 serde_as_text!(SampleSizeMm);
+
+/// The outer corners of a ColorChecker's 4 × 6 patch grid in pixels (x
+/// right, y down, the image's edge at 0): the dark-skin, bluish-green,
+/// black and white patches' corners, clockwise in the image; each finite.
+///
+/// As text "x1,y1,x2,y2,x3,y3,x4,y4".
+///
+/// ```
+/// use lucent::job::ChartCorners;
+/// let c: ChartCorners = "10,20, 300,20,300,200,10,200".parse().unwrap();
+/// assert_eq!(c.0[1], [300.0, 20.0]);
+/// assert_eq!(c.to_string(), "10,20,300,20,300,200,10,200");
+/// assert!("1,2,3".parse::<ChartCorners>().unwrap_err().to_string().contains("got 3"));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChartCorners(pub [[f64; 2]; 4]);
+
+/// Chart corners written as text that is not 8 finite numbers.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ChartCornersError {
+    #[error("{text:?}: {value:?} is not a number")]
+    NotNumber { text: String, value: String },
+    #[error("{text:?}: expected 8 numbers x1,y1,x2,y2,x3,y3,x4,y4, got {count}")]
+    Count { text: String, count: usize },
+    #[error("{text:?}: {value} is not a finite number")]
+    NotFinite { text: String, value: f64 },
+}
+
+impl std::str::FromStr for ChartCorners {
+    type Err = ChartCornersError;
+
+    fn from_str(text: &str) -> Result<Self, ChartCornersError> {
+        let values = text
+            .split(',')
+            .map(|s| {
+                s.trim().parse::<f64>().map_err(|_| ChartCornersError::NotNumber {
+                    text: text.into(),
+                    value: s.trim().into(),
+                })
+            })
+            .collect::<Result<Vec<f64>, _>>()?;
+        let Ok(v) = <[f64; 8]>::try_from(values.as_slice()) else {
+            return Err(ChartCornersError::Count { text: text.into(), count: values.len() });
+        };
+        if let Some(value) = v.iter().copied().find(|v| !v.is_finite()) {
+            return Err(ChartCornersError::NotFinite { text: text.into(), value });
+        }
+        Ok(ChartCorners([[v[0], v[1]], [v[2], v[3]], [v[4], v[5]], [v[6], v[7]]]))
+    }
+}
+
+impl std::fmt::Display for ChartCorners {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let words: Vec<String> = self.0.iter().flatten().map(f64::to_string).collect();
+        f.write_str(&words.join(","))
+    }
+}
+
+serde_as_text!(ChartCorners);

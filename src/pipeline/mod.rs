@@ -1142,7 +1142,7 @@ fn plan_colour(project: &Project, p: &mut Plan) -> Planned {
             image: c.image.clone(),
             camera: Some(c.camera.clone()),
             out: under_out(format!("/{}", c.camera)),
-            corners: c.corners.clone(),
+            corners: c.corners,
             method: c.method.unwrap_or(lucent_colour::CcmMethod::Cheung2004),
             decode_srgb: c.decode_srgb == Some(true),
         };
@@ -1324,21 +1324,15 @@ fn plan_compare(project: &Project, out: &Path, p: &mut Plan) -> Planned {
         let fitted = fitted.is_file().then_some(fitted);
         let dirs = CompareDirs::in_dir(&under_out(format!("/{}", smp.name)));
         let job = CompareJob {
-            photo: photo.clone(),
-            render: std::iter::once(render.clone()).chain(fitted.clone()).collect(),
-            out: dirs.image.clone(),
             mask: valid_mask(out, smp, "photo"),
-            mask_object: None,
-            mask_board: None,
-            photo_repeat: None,
-            scene: None,
-            luminance: Default::default(),
-            exposure: None,
-            refine: None,
             photo_variance: photo_variance(out, smp),
             data_range: f.compare.as_ref().and_then(|c| c.data_range).unwrap_or(crate::job::DEFAULT_DATA_RANGE),
             twin_names: fitted.is_some().then(|| ["recipe".to_string(), "fitted".to_string()]),
-            band: Vec::new(),
+            ..CompareJob::new(
+                photo.clone(),
+                std::iter::once(render.clone()).chain(fitted.clone()).collect(),
+                dirs.image.clone(),
+            )
         };
         // Each twin's band (render --uncertainty), when the first has one.
         let band: Vec<PathBuf> = std::iter::once(render_dir.clone())

@@ -198,9 +198,8 @@ pub struct ColourSection {
     /// The camera's name (it names a folder).
     pub camera: String,
     pub image: PathBuf,
-    /// The chart's corners "x1,y1,…,x4,y4" in pixels, passed to `lucent
-    /// colour calibrate --corners` as written.
-    pub corners: Option<String>,
+    /// The chart's corners in pixels ("x1,y1,…,x4,y4" as text).
+    pub corners: Option<crate::job::ChartCorners>,
     /// Any spelling `lucent colour calibrate --method` reads.
     pub method: Option<CcmMethod>,
     pub decode_srgb: Option<bool>,
@@ -471,21 +470,8 @@ fn job_problems(file: &ProjectFile) -> Vec<(String, String)> {
     }
     if let Some(c) = &file.compare {
         let job = CompareJob {
-            photo: PathBuf::new(),
-            render: vec![],
-            out: PathBuf::new(),
-            mask: None,
-            mask_object: None,
-            mask_board: None,
-            photo_repeat: None,
-            scene: None,
-            luminance: Default::default(),
-            exposure: None,
-            refine: None,
-            photo_variance: None,
             data_range: c.data_range.unwrap_or(crate::job::DEFAULT_DATA_RANGE),
-            twin_names: None,
-            band: Vec::new(),
+            ..CompareJob::new(PathBuf::new(), vec![], PathBuf::new())
         };
         check("[compare]", "", job.validate());
     }
