@@ -78,7 +78,7 @@ fn jobs() -> Vec<Job> {
             image: p("chart.exr"),
             camera: Some("phone".into()),
             out: p("{out}/phone"),
-            corners: Some("1,2,3,4,5,6,7,8".into()),
+            corners: Some("1,2,3,4,5,6,7,8".parse().expect("corners")),
             method: lucent_colour::ccm::CcmMethod::Finlayson2015,
             decode_srgb: true,
         }),

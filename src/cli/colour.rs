@@ -9,7 +9,7 @@ use crate::ccm_file::{CcmFile, CcmPatch, InputEncoding};
 use crate::imageio::{self, RgbImage};
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::recipe::{Overrides, Recipe};
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use lucent_colour::adaptation::Cat;
 use lucent_colour::bands::{band_weights, BandWeights, BANDS};
@@ -504,10 +504,11 @@ mod tests {
 
     #[test]
     fn corner_and_option_parsing() {
-        assert_eq!(parse_corners("1,2,3,4,5,6,7,8").unwrap()[2], [5.0, 6.0]);
-        assert!(parse_corners("1,2,3").unwrap_err().to_string().contains("expected 8 numbers"));
-        assert!(parse_corners("1,2,3,4,5,6,7,x").unwrap_err().to_string().contains("\"x\""));
-        assert!(parse_corners("1,2,3,4,5,6,7,nan").is_err());
+        let corners = |t: &str| t.parse::<crate::job::ChartCorners>();
+        assert_eq!(corners("1,2,3,4,5,6,7,8").unwrap().0[2], [5.0, 6.0]);
+        assert!(corners("1,2,3").unwrap_err().to_string().contains("expected 8 numbers"));
+        assert!(corners("1,2,3,4,5,6,7,x").unwrap_err().to_string().contains("\"x\""));
+        assert!(corners("1,2,3,4,5,6,7,nan").is_err());
         assert_eq!(parse_clip_level("none").unwrap(), None);
         assert_eq!(parse_clip_level("0.95").unwrap(), Some(0.95));
         assert!(parse_clip_level("-1").is_err());

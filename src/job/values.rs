@@ -296,10 +296,9 @@ impl std::str::FromStr for ChartCorners {
         let values = text
             .split(',')
             .map(|s| {
-                s.trim().parse::<f64>().map_err(|_| ChartCornersError::NotNumber {
-                    text: text.into(),
-                    value: s.trim().into(),
-                })
+                s.trim()
+                    .parse::<f64>()
+                    .map_err(|_| ChartCornersError::NotNumber { text: text.into(), value: s.trim().into() })
             })
             .collect::<Result<Vec<f64>, _>>()?;
         let Ok(v) = <[f64; 8]>::try_from(values.as_slice()) else {
