@@ -2,19 +2,18 @@
 //! renders of its twin ([`crate::compare`]: RMSE, SSIM, the noise-aware
 //! model RMSE, the paired test of two twins, ECC refinement, the twins'
 //! bands) and writes metrics.json, triplet.png and difference.exr
-//! ([`CompareFiles`]) into the job's folder. `lucent compare` and the
+//! ([`CompareFiles`](crate::compare::CompareFiles)) into the job's folder. `lucent compare` and the
 //! pipeline's compare stage both run it; the command only parses its flags
 //! into the job and prints [`CompareRun::summary`].
 
 use super::{CompareJob, Context};
-use crate::compare::{self, CompareError, CompareFiles, MaskSpec, Metrics, Outcome, Request};
+use crate::compare::{self, CompareError, MaskSpec, Metrics, Outcome, Request};
 use std::path::{Path, PathBuf};
 
-/// What a compare job produced: the comparison and its files.
+/// What a compare job produced: the comparison and the files it wrote
+/// (their names: [`CompareFiles::in_dir`](crate::compare::CompareFiles::in_dir) of the job's `out`).
 pub struct CompareRun {
     pub outcome: Outcome,
-    /// The files written, in `out`.
-    pub files: CompareFiles,
     /// The paths written, in the order they were written.
     pub written: Vec<PathBuf>,
 }
@@ -92,7 +91,7 @@ impl CompareJob {
         let staging = crate::interrupt::remove_on_abort(&compare::staging_path(&self.out));
         let written = compare::write_outputs(&self.out, &outcome)?;
         drop((staging, interrupt));
-        Ok(CompareRun { outcome, files: CompareFiles::in_dir(&self.out), written })
+        Ok(CompareRun { outcome, written })
     }
 }
 

@@ -160,6 +160,12 @@ impl BssrdfSection {
     pub fn configurations(&self) -> Configurations {
         self.configs.clone().unwrap_or_else(|| Configuration { theta_i_deg: 45.0, theta_o_deg: 0.0 }.into())
     }
+
+    /// The stop rule of each slice: `paths`, `time_s`, `rel_error` (as
+    /// [`crate::job::BssrdfJob::stop`] of the stage's jobs).
+    pub fn stop(&self) -> Stop {
+        Stop { samples: self.paths, time_s: self.time_s, rel_error: self.rel_error, pixel_rel_error: None }
+    }
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
@@ -239,6 +245,14 @@ pub struct RenderSection {
     /// standard errors), and the compare stage says whether the photo lies
     /// within it.
     pub uncertainty: Option<bool>,
+}
+
+impl RenderSection {
+    /// The stop rule of each render: `spp`, `time_s` (as
+    /// [`crate::job::RenderJob::stop`] of the stage's jobs; the scene may add its own).
+    pub fn stop(&self) -> Stop {
+        Stop { samples: self.spp.map(u64::from), time_s: self.time_s, ..Stop::default() }
+    }
 }
 
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -793,13 +807,7 @@ pub fn plan_lines(file: &ProjectFile, e: &super::executor::Executor) -> Vec<Stri
     )];
     let mut here: Vec<&str> = Vec::new();
     // bssrdf: each slice with a path budget and no other stop rule.
-    let bssrdf_stop = file.bssrdf.as_ref().map(|b| Stop {
-        samples: b.paths,
-        time_s: b.time_s,
-        rel_error: b.rel_error,
-        pixel_rel_error: None,
-    });
-    match bssrdf_stop.map(|s| s.shard_samples()) {
+    match file.bssrdf.as_ref().map(|b| b.stop().shard_samples()) {
         Some(Ok(paths)) => lines.push(format!(
             "  bssrdf      on the cluster: each slice ([bssrdf] paths = {paths}) as {shards} shards of {} paths or so",
             paths.div_ceil(u64::from(shards))
@@ -813,7 +821,7 @@ pub fn plan_lines(file: &ProjectFile, e: &super::executor::Executor) -> Vec<Stri
     // render: each render with a sample budget and a scene that allows it.
     match &file.render {
         Some(r) => {
-            let stop = Stop { samples: r.spp.map(u64::from), time_s: r.time_s, ..Stop::default() };
+            let stop = r.stop();
             let why = match stop.shard_samples() {
                 Err(NotSplittable::NoSamples) => {
                     Some("[render] has no spp (only a fixed sample budget splits exactly)".to_string())
