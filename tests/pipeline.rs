@@ -795,3 +795,38 @@ file = "{d}/measured/ti30_to0/bssrdf.exr"
         assert_eq!(status_of(&again, s), "up", "{s}:\n{again}");
     }
 }
+
+/// The worked example's project names no `spp`: its render job carries
+/// none, so the render stops at the default 5 % on the object (a project
+/// render used to fall back to 16 samples, a noisy preview).
+#[test]
+fn a_project_without_spp_renders_to_the_default_error_target() {
+    use lucent::job::Job;
+    use lucent::pipeline::{plan, project::Project, Stage, Task};
+    let tmp = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for f in ["part.obj", "tio2_pmma.toml", "scene.toml", "project.toml"] {
+        std::fs::copy(root.join("fixtures/example").join(f), tmp.path().join(f)).unwrap();
+    }
+    std::fs::copy(root.join("fixtures/env/studio.exr"), tmp.path().join("studio.exr")).unwrap();
+    let project = Project::load(&tmp.path().join("project.toml")).unwrap();
+    let planned = plan(Stage::Render, &project, &tmp.path().join("out")).unwrap().unwrap();
+    let renders: Vec<_> = planned
+        .tasks
+        .iter()
+        .filter_map(|t| match t {
+            Task::Lucent { job: Job::Render(r), .. } => Some(r),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(renders.len(), 1);
+    assert_eq!(renders[0].spp, None);
+    let stop = renders[0].stop();
+    assert_eq!((stop.samples, stop.time_s), (None, None), "{stop:?}");
+    // With spp the project's budget is the job's.
+    let text = std::fs::read_to_string(tmp.path().join("project.toml")).unwrap();
+    std::fs::write(tmp.path().join("project.toml"), text.replace("[render]\n", "[render]\nspp = 8\n")).unwrap();
+    let project = Project::load(&tmp.path().join("project.toml")).unwrap();
+    let planned = plan(Stage::Render, &project, &tmp.path().join("out")).unwrap().unwrap();
+    assert!(planned.tasks.iter().any(|t| matches!(t, Task::Lucent { job: Job::Render(r), .. } if r.spp == Some(8))));
+}

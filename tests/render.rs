@@ -924,13 +924,16 @@ fn the_similar_medium_is_named_with_its_measured_bias_in_render_json() {
 fn the_worked_example_says_how_long_it_needs_even_when_its_first_pass_is_dark_somewhere() {
     let tmp = tempfile::tempdir().unwrap();
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    for f in ["part.obj", "tio2_pmma.toml"] {
+    for f in ["part.obj", "tio2_pmma.toml", "scene.toml"] {
         std::fs::copy(root.join("fixtures/example").join(f), tmp.path().join(f)).unwrap();
     }
     std::fs::copy(root.join("fixtures/env/studio.exr"), tmp.path().join("studio.exr")).unwrap();
-    let scene = std::fs::read_to_string(root.join("fixtures/example/scene.toml")).unwrap();
-    assert!(scene.contains("\nspp = 16\n"), "the example's scene changed: {scene}");
-    std::fs::write(tmp.path().join("scene.toml"), scene.replace("\nspp = 16\n", "\n")).unwrap();
+    // The example names no sample budget, in its scene or its project: a
+    // newcomer's render stops at the default error target.
+    for f in ["scene.toml", "project.toml"] {
+        let text = std::fs::read_to_string(root.join("fixtures/example").join(f)).unwrap();
+        assert!(!text.lines().any(|l| l.trim_start().starts_with("spp")), "fixtures/example/{f} sets spp: {text}");
+    }
     let out = tmp.path().join("r");
     let o = lucent(&[
         "render",
@@ -944,4 +947,6 @@ fn the_worked_example_says_how_long_it_needs_even_when_its_first_pass_is_dark_so
     assert!(o.status.success(), "{err}");
     let line = err.lines().find(|l| l.contains("expect ≈")).unwrap_or_else(|| panic!("no expect line: {err}"));
     assert!(line.contains("to 5.0 % on the object") && !line.contains("unknown"), "{line}");
+    // Stopped short by the 3 s budget, it says what would reach the target.
+    assert!(err.contains("short of the 5.0 % target: it needs ≈"), "{err}");
 }

@@ -1265,7 +1265,8 @@ fn plan_render(stage: Stage, project: &Project, out: &Path, p: &mut Plan) -> Pla
         };
         let job = RenderJob {
             scene,
-            spp: Some(r.spp.unwrap_or(16)),
+            // No spp: the scene's stop rule, else the render's default (5 % on the object).
+            spp: r.spp,
             quiet: true,
             time_s: r.time_s,
             size: r.size,

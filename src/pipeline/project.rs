@@ -40,7 +40,7 @@
 //!
 //! [render]                       # stages env-scale, render: the scene template (a scene file)
 //! scene = "scene.toml"           # its [material] recipe is replaced by each sample's
-//! spp = 16
+//! # spp = 1024                  # default: the scene's stop rule, else 5 % per pixel on the object
 //! # size = "320x240"
 //! # camera = "template"           # keep the template's camera; default with a [pose]: the pose stage's
 //! # uncertainty = true            # each twin with its band from its recipe's uncertain inputs (the fitted
