@@ -33,6 +33,7 @@
 
 mod compare;
 mod context;
+pub mod guard;
 
 pub use compare::CompareRun;
 pub use context::Context;

@@ -472,6 +472,7 @@ fn data_loss_an_output_never_replaces_an_input() {
     std::fs::write(d.join("cal/camera.json"), "{}").unwrap();
     std::fs::write(d.join("photo.exr"), "photo").unwrap();
     std::fs::write(d.join("ccm.json"), "{}").unwrap();
+    std::fs::write(d.join("photo.dng"), "raw").unwrap();
     // Files of the user's under the names of sidecars, without the main output beside them.
     std::fs::write(d.join("photo_dec.json"), "my notes").unwrap();
     std::fs::write(d.join("my_residuals.png"), "my plot").unwrap();
@@ -483,6 +484,8 @@ fn data_loss_an_output_never_replaces_an_input() {
         (vec!["undistort", "--camera", "cal/camera.json", "photo.exr", "cal/camera.png"], "cal/camera.json"),
         (vec!["undistort", "--camera", "cal/camera.json", "photo.exr", "photo.exr"], "over the input"),
         (vec!["colour", "apply", "--ccm", "ccm.json", "photo.exr", "photo.exr"], "over the input"),
+        // The clipping mask over the RAW photo it is made from.
+        (vec!["raw", "clipped", "photo.dng", "--out", "./photo.dng"], "over the input"),
         (
             vec![
                 "pose",

@@ -25,6 +25,7 @@ pub mod shard;
 pub mod surface;
 pub mod synth;
 
+use crate::job::guard::FileRoles;
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::mie::{self, Coefficients, Efficiencies};
 use crate::optics::output;
@@ -326,83 +327,42 @@ pub fn run(cli: Cli) -> Result<()> {
     // command succeeds, and removed again when the command fails and leaves
     // it empty.
     check_outputs_are_not_inputs(&cli.command)?;
-    let folder = output_folder(&cli.command);
-    let existed = folder.as_deref().is_some_and(|f| std::fs::symlink_metadata(f).is_ok());
-    if let Some(f) = &folder {
-        crate::io::check_output_folder(f)?;
-        crate::io::mark_when_written(f);
-    }
+    let folder = crate::job::guard::OutputFolder::open(output_folder(&cli.command).as_deref())?;
     let result = jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli));
-    if let Some(f) = folder.filter(|f| f.is_dir()) {
-        // A run stopped by Ctrl-C or SIGTERM that kept its labelled partial
-        // result (render, bssrdf) wrote lucent's files too.
-        let kept_partial =
-            result.as_ref().is_err_and(|e| crate::pipeline::fault_of(e.as_ref()) == crate::fault::Fault::Interrupted)
-                && std::fs::read_dir(&f)
-                    .is_ok_and(|d| d.flatten().any(|e| !e.file_name().to_string_lossy().starts_with('.')));
-        if result.is_ok() || kept_partial {
-            crate::io::mark_output_folder(&f)?;
-        } else if !existed {
-            let only_mark = std::fs::read_dir(&f)
-                .map(|d| d.flatten().all(|e| e.file_name() == crate::io::OUTPUT_MARK))
-                .unwrap_or(false);
-            if only_mark {
-                let _ = std::fs::remove_file(f.join(crate::io::OUTPUT_MARK));
-                let _ = std::fs::remove_dir(&f);
-            }
-        }
-    }
+    let interrupted =
+        result.as_ref().is_err_and(|e| crate::pipeline::fault_of(e.as_ref()) == crate::fault::Fault::Interrupted);
+    folder.close(result.is_ok(), interrupted)?;
     result
 }
 
-/// The files a command reads, the files the user names it to write, and
-/// the files it writes beside them under derived names (sidecars), for the
-/// commands that write files rather than a folder.
-struct FileRoles {
-    inputs: Vec<PathBuf>,
-    outputs: Vec<PathBuf>,
-    sidecars: Vec<PathBuf>,
-}
-
+/// The files a command that is not a job's reads, writes and writes
+/// beside them under derived names (sidecars); a job's are
+/// [`Job::file_roles`](crate::job::Job::file_roles).
 fn file_roles(command: &Command) -> FileRoles {
     let json = |p: &Path| p.with_extension("json");
     let sibling = camera::sibling;
-    let globbed = |specs: &[String]| -> Vec<PathBuf> {
-        specs.iter().flat_map(|s| crate::io::glob_files(s).unwrap_or_default()).collect()
-    };
-    let roles =
-        |inputs: Vec<PathBuf>, outputs: Vec<PathBuf>, sidecars: Vec<PathBuf>| FileRoles { inputs, outputs, sidecars };
     match command {
-        Command::Raw(camera::RawCommand::Decode(a)) => roles(
+        Command::Raw(camera::RawCommand::Decode(a)) => FileRoles::new(
             vec![a.input.clone()],
             std::iter::once(a.output.clone()).chain(a.preview.clone()).collect(),
             vec![json(&a.output)],
         ),
         Command::Undistort(a) => {
-            roles(vec![a.camera.clone(), a.input.clone()], vec![a.output.clone()], vec![json(&a.output)])
+            FileRoles::new(vec![a.camera.clone(), a.input.clone()], vec![a.output.clone()], vec![json(&a.output)])
         }
-        Command::Pose(a) => {
-            roles(vec![a.camera.clone(), a.image.clone()], vec![a.out.clone()], vec![sibling(&a.out, "_view.png")])
+        Command::Env(camera::EnvCommand::Convert(a)) => {
+            FileRoles::new(vec![a.input.clone()], vec![a.output.clone()], vec![])
         }
-        Command::Calibrate(a) => {
-            roles(globbed(&a.images), vec![a.out.clone()], vec![sibling(&a.out, "_residuals.png")])
-        }
-        Command::Colour(colour::ColourCommand::Apply(a)) => roles(
-            vec![a.ccm.clone(), a.input.clone()],
-            std::iter::once(a.output.clone()).chain(a.variance_out.clone()).collect(),
-            vec![],
-        ),
-        Command::Env(camera::EnvCommand::Convert(a)) => roles(vec![a.input.clone()], vec![a.output.clone()], vec![]),
         Command::Env(camera::EnvCommand::View(a)) => {
-            roles(vec![a.input.clone()], vec![a.out.clone()], vec![sibling(&a.out, ".json")])
+            FileRoles::new(vec![a.input.clone()], vec![a.out.clone()], vec![sibling(&a.out, ".json")])
         }
-        Command::Env(camera::EnvCommand::Orient(a)) => roles(
+        Command::Env(camera::EnvCommand::Orient(a)) => FileRoles::new(
             vec![a.input.clone()],
             vec![a.out.clone()],
             vec![sibling(&a.out, ".json"), sibling(&a.out, "_board.png")],
         ),
-        Command::Env(camera::EnvCommand::Merge(a)) => roles(a.brackets.clone(), vec![a.out.clone()], vec![]),
-        _ => roles(vec![], vec![], vec![]),
+        Command::Env(camera::EnvCommand::Merge(a)) => FileRoles::new(a.brackets.clone(), vec![a.out.clone()], vec![]),
+        _ => FileRoles::default(),
     }
 }
 
@@ -411,43 +371,11 @@ fn file_roles(command: &Command) -> FileRoles {
 /// write two of its outputs to one path, nor replace a file under a
 /// sidecar's name that is not from an earlier run (its main output is not
 /// there: `photo.json` of the user's beside `raw decode … photo.exr`):
-/// refused before any work.
+/// refused before any work ([`FileRoles::check`]; a job's by [`Job::check_files`](crate::job::Job::check_files)).
 fn check_outputs_are_not_inputs(command: &Command) -> Result<()> {
-    let FileRoles { inputs, outputs, sidecars } = file_roles(command);
-    let key = |p: &Path| crate::io::file_key(p);
-    let all: Vec<&PathBuf> = outputs.iter().chain(&sidecars).collect();
-    for (k, o) in all.iter().enumerate() {
-        let ko = key(o);
-        if let Some(i) = inputs.iter().find(|i| key(i) == ko) {
-            bail!(
-                "{} would be written over the input {}: give the output another name (nothing was written)",
-                o.display(),
-                i.display()
-            );
-        }
-        if let Some(other) = all[..k].iter().find(|p| key(p) == ko) {
-            bail!(
-                "{} and {} name the same file: two outputs cannot share it (nothing was written)",
-                other.display(),
-                o.display()
-            );
-        }
-    }
-    // The camera and scene files are JSON: another extension is a photo's name given by mistake.
-    if let Command::Calibrate(camera::CalibrateArgs { out, .. }) | Command::Pose(camera::PoseArgs { out, .. }) = command
-        && !out.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"))
-    {
-        bail!("--out {}: the output is a JSON file (NAME.json)", out.display());
-    }
-    if let Some(main) = outputs.first().filter(|m| !m.exists())
-        && let Some(s) = sidecars.iter().find(|s| s.exists())
-    {
-        bail!(
-            "{} exists but {} does not, so it is not from an earlier run of this command: move it or give the \
-             output another name (nothing was written)",
-            s.display(),
-            main.display()
-        );
+    match jobs::job_of(command) {
+        Some(job) => job.check_files()?,
+        None => file_roles(command).check()?,
     }
     Ok(())
 }
