@@ -39,7 +39,7 @@ pub enum ColourJobError {
          grid: dark skin, bluish green, black, white)",
         path.display()
     )]
-    NotDetected { path: PathBuf, source: crate::chart_detect::ChartError },
+    NotDetected { path: PathBuf, source: Box<crate::chart_detect::ChartError> },
     #[error("{}: cannot sample the ColorChecker: {source}", path.display())]
     Sample { path: PathBuf, source: ColourError },
     #[error("{}: {warning}; no matrix fitted", path.display())]
@@ -246,7 +246,7 @@ fn detect_corners(
             );
             Ok((d.corners, line))
         }
-        Err(source) => Err(ColourJobError::NotDetected { path: path.to_path_buf(), source }),
+        Err(e) => Err(ColourJobError::NotDetected { path: path.to_path_buf(), source: Box::new(e) }),
     }
 }
 
