@@ -31,12 +31,20 @@
 //! JSON holds the text its command line does ([`values`]). Strings left
 //! are free text: names, file patterns.
 
+pub mod camera;
+mod colour;
 mod compare;
 mod context;
 pub mod guard;
+pub mod optics;
+mod raw;
 
+pub use camera::{CalibrateRun, CameraJobError, PoseRun};
+pub use colour::{ColourApplyRun, ColourCalibrateRun, ColourJobError};
 pub use compare::CompareRun;
 pub use context::Context;
+pub use optics::{OpticsJobError, OpticsRun};
+pub use raw::{RawClippedError, RawClippedRun};
 
 use crate::bssrdf::Configurations;
 use crate::fit::{FreeSpec, SearchBounds};
@@ -206,27 +214,88 @@ impl Line {
     }
 }
 
-/// `lucent optics RECIPE… --wavelengths GRID --out DIR`.
+/// `lucent optics RECIPE… --wavelengths GRID --out DIR`: the recipes'
+/// bulk optical properties ([`OpticsJob::run`]). The keys at their
+/// defaults are not written into a stage's job.json.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OpticsJob {
     pub recipes: Vec<PathBuf>,
     /// The wavelengths in nm ("START:END:STEP" or one "W" as text).
     pub wavelengths: WavelengthGrid,
-    pub out: PathBuf,
+    /// The output folder; `None` (with `json`): nothing is written, the
+    /// properties are printed as JSON only.
+    pub out: Option<PathBuf>,
     pub weight_percent: Option<f64>,
+    /// `--wavelength-nm`: one wavelength, instead of `wavelengths`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wavelength_nm: Option<f64>,
+    /// `--json`: the properties printed as JSON instead of tables.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub json: bool,
+    /// `--phase-entries`: entries of the tabulated phase function (0: none).
+    #[serde(default = "default_phase_entries", skip_serializing_if = "is_default_phase_entries")]
+    pub phase_entries: usize,
+    /// `--skip-invalid`: in a folder, recipes that fail validation are
+    /// reported and left out.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub skip_invalid: bool,
 }
 
+fn is_false(b: &bool) -> bool {
+    !*b
+}
+
+/// The default of `lucent optics --phase-entries`.
+pub const DEFAULT_PHASE_ENTRIES: usize = 4096;
+
+fn default_phase_entries() -> usize {
+    DEFAULT_PHASE_ENTRIES
+}
+
+fn is_default_phase_entries(n: &usize) -> bool {
+    *n == DEFAULT_PHASE_ENTRIES
+}
+
+/// The output folder of `lucent optics` without `--out`.
+pub const DEFAULT_OPTICS_OUT: &str = "lucent-out/optics";
+
 impl OpticsJob {
+    /// The recipes at `wavelengths` into `out`, every other flag at its default.
+    pub fn new(recipes: Vec<PathBuf>, wavelengths: WavelengthGrid, out: PathBuf) -> Self {
+        OpticsJob {
+            recipes,
+            wavelengths,
+            out: Some(out),
+            weight_percent: None,
+            wavelength_nm: None,
+            json: false,
+            phase_entries: DEFAULT_PHASE_ENTRIES,
+            skip_invalid: false,
+        }
+    }
     pub fn validate(&self) -> Result<(), JobError> {
+        if self.out.is_none() && !self.json {
+            return Err(bad(
+                "out",
+                "",
+                "give the output folder (without one the properties are only printed, as JSON)",
+            ));
+        }
         weight_percent(self.weight_percent)
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["optics"]);
         l.words(self.recipes.iter().map(|r| s(r)));
-        l.flag("--wavelengths", &self.wavelengths)
-            .flag("--out", s(&self.out))
-            .opt("--weight-percent", &self.weight_percent);
+        match self.wavelength_nm {
+            Some(w) => l.flag("--wavelength-nm", w),
+            None => l.flag("--wavelengths", &self.wavelengths),
+        };
+        l.opt("--out", &self.out.as_deref().map(s)).opt("--weight-percent", &self.weight_percent);
+        l.switch("--json", self.json).switch("--skip-invalid", self.skip_invalid);
+        if !is_default_phase_entries(&self.phase_entries) {
+            l.flag("--phase-entries", self.phase_entries);
+        }
         l.0
     }
 }
@@ -412,7 +481,9 @@ impl FitJob {
     }
 }
 
-/// `lucent calibrate`: camera intrinsics from chessboard photos.
+/// `lucent calibrate`: camera intrinsics from chessboard photos
+/// ([`CalibrateJob::run`]). The keys at their defaults are not written into
+/// a stage's job.json.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CalibrateJob {
@@ -424,9 +495,33 @@ pub struct CalibrateJob {
     pub square_mm: f64,
     pub out: PathBuf,
     pub model: lucent_calib::model::DistortionModel,
+    /// `--detector`: the corner detector (auto, sector-based or classic).
+    #[serde(default = "default_detector", with = "by_name", skip_serializing_if = "is_default_detector")]
+    pub detector: lucent_calib::cv::Detector,
+    /// `--quiet`: no progress lines.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub quiet: bool,
+}
+
+fn default_detector() -> lucent_calib::cv::Detector {
+    lucent_calib::cv::Detector::Auto
+}
+fn is_default_detector(d: &lucent_calib::cv::Detector) -> bool {
+    *d == default_detector()
 }
 
 impl CalibrateJob {
+    /// The photos `images` of `board` into the camera file `out`, the
+    /// detector and progress lines at their defaults.
+    pub fn new(
+        images: Vec<String>,
+        board: BoardSize,
+        square_mm: f64,
+        out: PathBuf,
+        model: lucent_calib::model::DistortionModel,
+    ) -> Self {
+        CalibrateJob { images, board, square_mm, out, model, detector: default_detector(), quiet: false }
+    }
     pub fn validate(&self) -> Result<(), JobError> {
         board(self.board, self.square_mm).map(drop)
     }
@@ -437,11 +532,17 @@ impl CalibrateJob {
             .flag("--square-mm", self.square_mm)
             .flag("--out", s(&self.out))
             .flag("--model", self.model.name());
+        if !is_default_detector(&self.detector) {
+            l.flag("--detector", <&str>::from(self.detector));
+        }
+        l.switch("--quiet", self.quiet);
         l.0
     }
 }
 
-/// `lucent colour calibrate`: a camera's colour correction from a chart photo.
+/// `lucent colour calibrate`: a camera's colour correction from a chart
+/// photo ([`ColourCalibrateJob::run`]). The keys at their defaults are not
+/// written into a stage's job.json.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ColourCalibrateJob {
@@ -455,9 +556,57 @@ pub struct ColourCalibrateJob {
     #[serde(with = "by_name")]
     pub method: lucent_colour::ccm::CcmMethod,
     pub decode_srgb: bool,
+    /// `--clip-level`: a pixel with a channel at or above it (as stored) is
+    /// clipped, a number or "none" (the text the command reads when it runs).
+    #[serde(default = "default_clip_level", skip_serializing_if = "is_default_clip_level")]
+    pub clip_level: String,
+    /// `--gap-ratio`: the gap between patches as a fraction of the patch side.
+    #[serde(default = "default_gap_ratio", skip_serializing_if = "is_default_gap_ratio")]
+    pub gap_ratio: f64,
+    /// `--inner-fraction`: the sampled square's side as a fraction of the patch side.
+    #[serde(default = "default_inner_fraction", skip_serializing_if = "is_default_inner_fraction")]
+    pub inner_fraction: f64,
+}
+
+/// The defaults of `lucent colour calibrate --clip-level`, `--gap-ratio` and `--inner-fraction`.
+pub const DEFAULT_CLIP_LEVEL: &str = "0.99";
+pub const DEFAULT_GAP_RATIO: f64 = 0.14;
+pub const DEFAULT_INNER_FRACTION: f64 = 0.5;
+
+fn default_clip_level() -> String {
+    DEFAULT_CLIP_LEVEL.into()
+}
+fn is_default_clip_level(t: &str) -> bool {
+    t == DEFAULT_CLIP_LEVEL
+}
+fn default_gap_ratio() -> f64 {
+    DEFAULT_GAP_RATIO
+}
+fn is_default_gap_ratio(v: &f64) -> bool {
+    *v == DEFAULT_GAP_RATIO
+}
+fn default_inner_fraction() -> f64 {
+    DEFAULT_INNER_FRACTION
+}
+fn is_default_inner_fraction(v: &f64) -> bool {
+    *v == DEFAULT_INNER_FRACTION
 }
 
 impl ColourCalibrateJob {
+    /// The chart in `image` into `out`, every other flag at its default.
+    pub fn new(image: PathBuf, out: PathBuf, method: lucent_colour::ccm::CcmMethod) -> Self {
+        ColourCalibrateJob {
+            image,
+            camera: None,
+            out,
+            corners: None,
+            method,
+            decode_srgb: false,
+            clip_level: default_clip_level(),
+            gap_ratio: DEFAULT_GAP_RATIO,
+            inner_fraction: DEFAULT_INNER_FRACTION,
+        }
+    }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["colour", "calibrate"]);
         l.flag("--image", s(&self.image))
@@ -466,11 +615,22 @@ impl ColourCalibrateJob {
             .opt("--corners", &self.corners)
             .flag("--method", self.method.name())
             .switch("--decode-srgb", self.decode_srgb);
+        if !is_default_clip_level(&self.clip_level) {
+            l.word(format!("--clip-level={}", self.clip_level));
+        }
+        if !is_default_gap_ratio(&self.gap_ratio) {
+            l.word(format!("--gap-ratio={}", self.gap_ratio));
+        }
+        if !is_default_inner_fraction(&self.inner_fraction) {
+            l.word(format!("--inner-fraction={}", self.inner_fraction));
+        }
         l.0
     }
 }
 
-/// `lucent colour apply`: an image in a camera's RGB → a standard space.
+/// `lucent colour apply`: an image in a camera's RGB → a standard space
+/// ([`ColourApplyJob::run`]). The keys at their defaults are not written
+/// into a stage's job.json.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ColourApplyJob {
@@ -484,23 +644,79 @@ pub struct ColourApplyJob {
     pub variance_out: Option<(PathBuf, u64)>,
     /// `--bin`: the output binned K × K (1: not binned).
     pub bin: usize,
+    /// `--adaptation`: the chromatic adaptation from the fitted D50 to the
+    /// target's white (`null`: none).
+    #[serde(default = "default_adaptation", skip_serializing_if = "is_default_adaptation")]
+    pub adaptation: Option<lucent_colour::adaptation::Cat>,
+    /// `--variance-realisations`: noise realisations averaged per pixel of `variance_out`.
+    #[serde(default = "default_variance_realisations", skip_serializing_if = "is_default_variance_realisations")]
+    pub variance_realisations: usize,
+}
+
+/// The defaults of `lucent colour apply --adaptation` and `--variance-realisations`.
+pub const DEFAULT_ADAPTATION: Option<lucent_colour::adaptation::Cat> = Some(lucent_colour::adaptation::Cat::Bradford);
+pub const DEFAULT_VARIANCE_REALISATIONS: usize = 16;
+
+fn default_adaptation() -> Option<lucent_colour::adaptation::Cat> {
+    DEFAULT_ADAPTATION
+}
+fn is_default_adaptation(c: &Option<lucent_colour::adaptation::Cat>) -> bool {
+    *c == DEFAULT_ADAPTATION
+}
+fn default_variance_realisations() -> usize {
+    DEFAULT_VARIANCE_REALISATIONS
+}
+fn is_default_variance_realisations(n: &usize) -> bool {
+    *n == DEFAULT_VARIANCE_REALISATIONS
+}
+
+/// The word of `--adaptation` for a transform (`None`: "none").
+pub fn adaptation_word(c: Option<lucent_colour::adaptation::Cat>) -> &'static str {
+    use lucent_colour::adaptation::Cat;
+    match c {
+        Some(Cat::Bradford) => "bradford",
+        Some(Cat::VonKries) => "von-kries",
+        Some(Cat::Cat02) => "cat02",
+        None => "none",
+    }
 }
 
 impl ColourApplyJob {
+    /// `ccm` applied to `input` into `output` in `to`, every other flag at its default.
+    pub fn new(ccm: PathBuf, input: PathBuf, output: PathBuf, to: crate::ccm_file::ApplyTarget) -> Self {
+        ColourApplyJob {
+            ccm,
+            input,
+            output,
+            to,
+            variance_out: None,
+            bin: 1,
+            adaptation: DEFAULT_ADAPTATION,
+            variance_realisations: DEFAULT_VARIANCE_REALISATIONS,
+        }
+    }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["colour", "apply"]);
         l.flag("--ccm", s(&self.ccm)).word(s(&self.input)).word(s(&self.output)).flag("--to", <&str>::from(self.to));
         if let Some((path, seed)) = &self.variance_out {
             l.flag("--variance-out", s(path)).flag("--seed", seed);
+            if !is_default_variance_realisations(&self.variance_realisations) {
+                l.flag("--variance-realisations", self.variance_realisations);
+            }
         }
         if self.bin > 1 {
             l.flag("--bin", self.bin);
+        }
+        if !is_default_adaptation(&self.adaptation) {
+            l.flag("--adaptation", adaptation_word(self.adaptation));
         }
         l.0
     }
 }
 
-/// `lucent raw clipped`: the mask of validly recorded pixels of a RAW photo.
+/// `lucent raw clipped`: the mask of validly recorded pixels of a RAW
+/// photo ([`RawClippedJob::run`]). The keys at their defaults are not
+/// written into a stage's job.json.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawClippedJob {
@@ -508,20 +724,56 @@ pub struct RawClippedJob {
     pub out: PathBuf,
     /// `--bin`: the mask of the photo binned K × K (1: not binned).
     pub bin: usize,
+    /// `--level`: clipped at or above this fraction of the white level.
+    #[serde(default = "default_clip_fraction", skip_serializing_if = "is_default_clip_fraction")]
+    pub level: f32,
+    /// `--dilate`: pixels within this many pixels of a clipped photosite are invalid too.
+    #[serde(default = "default_dilate", skip_serializing_if = "is_default_dilate")]
+    pub dilate: usize,
+}
+
+/// The defaults of `lucent raw clipped --level` and `--dilate`.
+pub const DEFAULT_CLIPPED_LEVEL: f32 = 0.999;
+pub const DEFAULT_DILATE: usize = 2;
+
+fn default_clip_fraction() -> f32 {
+    DEFAULT_CLIPPED_LEVEL
+}
+fn is_default_clip_fraction(v: &f32) -> bool {
+    *v == DEFAULT_CLIPPED_LEVEL
+}
+fn default_dilate() -> usize {
+    DEFAULT_DILATE
+}
+fn is_default_dilate(n: &usize) -> bool {
+    *n == DEFAULT_DILATE
 }
 
 impl RawClippedJob {
+    /// The mask of `input` into `out`, binned `bin` × `bin`, the level and
+    /// dilation at their defaults.
+    pub fn new(input: PathBuf, out: PathBuf, bin: usize) -> Self {
+        RawClippedJob { input, out, bin, level: DEFAULT_CLIPPED_LEVEL, dilate: DEFAULT_DILATE }
+    }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["raw", "clipped"]);
         l.word(s(&self.input)).flag("--out", s(&self.out));
         if self.bin > 1 {
             l.flag("--bin", self.bin);
         }
+        if !is_default_clip_fraction(&self.level) {
+            l.word(format!("--level={}", self.level));
+        }
+        if !is_default_dilate(&self.dilate) {
+            l.flag("--dilate", self.dilate);
+        }
         l.0
     }
 }
 
-/// `lucent pose`: the board's (and sample's) pose in one photo.
+/// `lucent pose`: the board's (and sample's) pose in one photo
+/// ([`PoseJob::run`]). The keys at their defaults are not written into a
+/// stage's job.json.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PoseJob {
@@ -534,6 +786,10 @@ pub struct PoseJob {
     /// `--sample-corner` and `--sample-size-mm`: the board corner under the
     /// sample's corner and the sample's size ("I,J" and "W,H,T" in mm as text).
     pub sample: Option<(SampleCorner, SampleSizeMm)>,
+    /// `--keep-all`: the photo will be undistorted keeping every pixel (the
+    /// scene's intrinsics are those).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub keep_all: bool,
 }
 
 /// The largest sample side `lucent pose` takes, in units of the board's
@@ -573,6 +829,7 @@ impl PoseJob {
         if let Some((c, z)) = &self.sample {
             l.flag("--sample-corner", c).flag("--sample-size-mm", z);
         }
+        l.switch("--keep-all", self.keep_all);
         l.0
     }
 }
@@ -825,7 +1082,7 @@ impl Job {
         match &mut j {
             Job::Optics(o) => {
                 o.recipes = o.recipes.iter().map(|r| canon(r)).collect();
-                o.out = PathBuf::new();
+                o.out = o.out.as_ref().map(|_| PathBuf::new());
             }
             Job::Bssrdf(b) => {
                 b.recipe = canon(&b.recipe);
@@ -853,7 +1110,10 @@ impl Job {
                 c.simulated = canon(&c.simulated);
                 c.out = PathBuf::new();
             }
-            Job::Calibrate(c) => c.out = PathBuf::new(),
+            Job::Calibrate(c) => {
+                c.out = PathBuf::new();
+                c.quiet = false;
+            }
             Job::ColourCalibrate(c) => {
                 c.image = canon(&c.image);
                 c.out = PathBuf::new();

@@ -24,8 +24,12 @@ fn jobs() -> Vec<Job> {
         Job::Optics(OpticsJob {
             recipes: vec![p("a.toml"), p("b.toml")],
             wavelengths: "400:700:5".parse().unwrap(),
-            out: p("{out}"),
+            out: Some(p("{out}")),
             weight_percent: Some(0.4),
+            wavelength_nm: None,
+            json: true,
+            phase_entries: 0,
+            skip_invalid: true,
         }),
         Job::Bssrdf(BssrdfJob {
             recipe: p("r.toml"),
@@ -73,6 +77,8 @@ fn jobs() -> Vec<Job> {
             square_mm: 25.0,
             out: p("{out}/camera.json"),
             model: lucent_calib::model::DistortionModel::Fisheye,
+            detector: lucent_calib::cv::Detector::Classic,
+            quiet: true,
         }),
         Job::ColourCalibrate(ColourCalibrateJob {
             image: p("chart.exr"),
@@ -81,6 +87,9 @@ fn jobs() -> Vec<Job> {
             corners: Some("1,2,3,4,5,6,7,8".parse().expect("corners")),
             method: lucent_colour::ccm::CcmMethod::Finlayson2015,
             decode_srgb: true,
+            clip_level: "none".into(),
+            gap_ratio: 0.2,
+            inner_fraction: 0.25,
         }),
         Job::ColourApply(ColourApplyJob {
             ccm: p("ccm.json"),
@@ -89,8 +98,16 @@ fn jobs() -> Vec<Job> {
             to: lucent::ccm_file::ApplyTarget::Xyz,
             variance_out: Some((p("{out}/s/photo_variance.exr"), 7)),
             bin: 4,
+            adaptation: Some(lucent_colour::adaptation::Cat::VonKries),
+            variance_realisations: 8,
         }),
-        Job::RawClipped(RawClippedJob { input: p("photo.dng"), out: p("{out}/s/photo_valid.png"), bin: 2 }),
+        Job::RawClipped(RawClippedJob {
+            input: p("photo.dng"),
+            out: p("{out}/s/photo_valid.png"),
+            bin: 2,
+            level: 0.98,
+            dilate: 3,
+        }),
         Job::Pose(PoseJob {
             camera: p("camera.json"),
             image: p("pose.jpg"),
@@ -98,6 +115,7 @@ fn jobs() -> Vec<Job> {
             square_mm: 20.0,
             out: p("{out}/scene.json"),
             sample: Some(("2,3".parse().unwrap(), "60,40,6".parse().unwrap())),
+            keep_all: true,
         }),
         Job::EnvScale(EnvScaleJob {
             scene: p("{out}/s/input_scene.toml"),
@@ -160,7 +178,13 @@ fn every_job_builds_the_arguments_its_command_line_parses_into() {
     let mut all = jobs();
     // The same jobs with every optional field unset.
     all.extend(jobs().into_iter().map(|j| match j {
-        Job::Optics(o) => Job::Optics(OpticsJob { weight_percent: None, ..o }),
+        Job::Optics(o) => Job::Optics(OpticsJob {
+            weight_percent: None,
+            json: false,
+            phase_entries: lucent::job::DEFAULT_PHASE_ENTRIES,
+            skip_invalid: false,
+            ..o
+        }),
         Job::Bssrdf(b) => Job::Bssrdf(BssrdfJob {
             configs: None,
             weight_percent: None,
@@ -194,8 +218,28 @@ fn every_job_builds_the_arguments_its_command_line_parses_into() {
             band: vec![],
             ..c
         }),
-        Job::ColourApply(c) => Job::ColourApply(ColourApplyJob { variance_out: None, bin: 1, ..c }),
-        Job::Pose(p) => Job::Pose(PoseJob { sample: None, ..p }),
+        Job::ColourApply(c) => Job::ColourApply(ColourApplyJob {
+            variance_out: None,
+            bin: 1,
+            adaptation: lucent::job::DEFAULT_ADAPTATION,
+            variance_realisations: lucent::job::DEFAULT_VARIANCE_REALISATIONS,
+            ..c
+        }),
+        Job::ColourCalibrate(c) => Job::ColourCalibrate(ColourCalibrateJob {
+            clip_level: lucent::job::DEFAULT_CLIP_LEVEL.into(),
+            gap_ratio: lucent::job::DEFAULT_GAP_RATIO,
+            inner_fraction: lucent::job::DEFAULT_INNER_FRACTION,
+            ..c
+        }),
+        Job::Pose(p) => Job::Pose(PoseJob { sample: None, keep_all: false, ..p }),
+        Job::Calibrate(c) => {
+            Job::Calibrate(CalibrateJob { detector: lucent_calib::cv::Detector::Auto, quiet: false, ..c })
+        }
+        Job::RawClipped(r) => Job::RawClipped(RawClippedJob {
+            level: lucent::job::DEFAULT_CLIPPED_LEVEL,
+            dilate: lucent::job::DEFAULT_DILATE,
+            ..r
+        }),
         other => other,
     }));
     for job in all {
@@ -508,12 +552,7 @@ fn job_run_runs_a_json_job_as_its_command_does() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let recipe = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/samples/IOL1068-09.toml");
-    let job = Job::Optics(OpticsJob {
-        recipes: vec![recipe.clone()],
-        wavelengths: "450:650:100".parse().unwrap(),
-        out: p("by-job"),
-        weight_percent: None,
-    });
+    let job = Job::Optics(OpticsJob::new(vec![recipe.clone()], "450:650:100".parse().unwrap(), p("by-job")));
     std::fs::write(d.join("job.json"), serde_json::to_string_pretty(&job).unwrap()).unwrap();
     let o = lucent_in(d, &["job", "run", "job.json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

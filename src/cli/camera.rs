@@ -4,19 +4,16 @@
 
 use super::choices::{named, ProjectionChoice};
 use crate::imageio::{self, extension, RgbImage, RAW_EXTENSIONS};
-use crate::io::{json_bytes, write_atomic, write_json};
-use crate::plot;
+use crate::io::json_bytes;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use lucent_calib::camera::{self, Calibration, DistortionModel, NewCamera, Photo};
 use lucent_calib::cv::{self, Detector};
 use lucent_calib::demosaic::Demosaic;
 use lucent_calib::env;
 use lucent_calib::raw::WhiteBalance;
 use lucent_calib::raw::{self, RawOptions};
-use lucent_calib::scene::{self, BoardSpec, SampleSpec};
-use lucent_calib::{GrayImage, RgbBuffer};
+use lucent_calib::RgbBuffer;
 use std::path::{Path, PathBuf};
 
 #[path = "env_hdr.rs"]
@@ -172,21 +169,13 @@ pub struct EnvConvertArgs {
     pub matrix: Option<String>,
 }
 
-fn to_buffer(img: RgbImage) -> RgbBuffer {
-    RgbBuffer { width: img.width, height: img.height, data: img.data }
-}
+use crate::job::camera::{file_name, read_camera, to_buffer};
 
 fn to_image(buf: RgbBuffer) -> RgbImage {
     RgbImage { width: buf.width, height: buf.height, data: buf.data }
 }
 
 pub(super) use lucent_calib::scene::sibling;
-
-fn file_name(path: &Path) -> String {
-    path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string())
-}
-
-const IMAGE_EXTENSIONS: [&str; 8] = ["jpg", "jpeg", "png", "tif", "tiff", "bmp", "exr", "hdr"];
 
 // ---------------------------------------------------------------- raw
 
@@ -253,234 +242,19 @@ fn raw_decode(a: RawDecodeArgs) -> Result<()> {
 
 // ---------------------------------------------------------------- calibrate
 
-/// Files named by a folder, a file, or a glob pattern in the file-name
-/// part (`DIR/*.jpg`, `DIR/left??.{jpg,png}`, `DIR/left0[1-5].jpg`; see
-/// [`crate::io::glob_files`]), sorted.
-pub fn expand_images(spec: &str) -> Result<Vec<PathBuf>> {
-    let path = Path::new(spec);
-    if path.is_dir() {
-        let mut files: Vec<PathBuf> = std::fs::read_dir(path)
-            .with_context(|| format!("{spec}: cannot list folder"))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| {
-                let e = extension(p);
-                IMAGE_EXTENSIONS.contains(&e.as_str()) || RAW_EXTENSIONS.contains(&e.as_str())
-            })
-            .collect();
-        files.sort();
-        if files.is_empty() {
-            bail!("{spec}: no images in this folder (looked for {}, and RAW files)", IMAGE_EXTENSIONS.join(", "));
-        }
-        return Ok(files);
-    }
-    if path.is_file() {
-        return Ok(vec![path.to_path_buf()]);
-    }
-    if !crate::io::is_glob(spec) {
-        bail!("{spec}: no such file or folder");
-    }
-    let files = crate::io::glob_files(spec).context("--images")?;
-    if files.is_empty() {
-        bail!("--images {spec}: no files match");
-    }
-    Ok(files)
-}
-
-/// Loads any supported photo as 8-bit grey for corner detection.
-fn load_gray(path: &Path) -> Result<GrayImage> {
-    let e = extension(path);
-    if RAW_EXTENSIONS.contains(&e.as_str()) {
-        let opts = RawOptions { demosaic: Demosaic::Bilinear, ..Default::default() };
-        let (img, _) = raw::decode_raw(path, &opts)?;
-        return Ok(GrayImage::from_linear_rgb(&img));
-    }
-    if e == "exr" || e == "hdr" {
-        let img = imageio::read_rgb(path)?;
-        return Ok(GrayImage::from_linear_rgb(&to_buffer(img)));
-    }
-    Ok(cv::read_gray(path)?)
-}
-
-/// The photos of `--images` (folders, files or patterns; see
-/// [`expand_images`]), sorted by path without repeats, as 8-bit grey;
-/// one error listing every file that cannot be read.
+/// The photos of `--images` as 8-bit grey ([`crate::job::camera::read_photos`]).
 pub fn read_photos(images: &[String]) -> Result<Vec<Photo>> {
-    read_photo_files(&photo_files(images)?, &mut |_, _| {})
+    Ok(crate::job::camera::read_photos(images)?)
 }
 
-/// The files of `--images` (see [`read_photos`]), sorted, without repeats.
-fn photo_files(images: &[String]) -> Result<Vec<PathBuf>> {
-    let mut files = Vec::new();
-    for spec in images {
-        files.extend(expand_images(spec)?);
-    }
-    files.sort();
-    files.dedup();
-    Ok(files)
-}
-
-/// [`read_photos`] of the files given, telling `before` of each file it is
-/// about to read (with how many were read before it).
-fn read_photo_files(files: &[PathBuf], before: &mut dyn FnMut(usize, &Path)) -> Result<Vec<Photo>> {
-    let mut photos = Vec::new();
-    let mut unreadable = Vec::new();
-    for (k, f) in files.iter().enumerate() {
-        before(k, f);
-        match load_gray(f) {
-            Ok(image) => photos.push(Photo { name: file_name(f), image }),
-            Err(e) => unreadable.push(format!("{e:#}")),
-        }
-    }
-    if !unreadable.is_empty() {
-        bail!("{} of {} image(s) cannot be read:\n  {}", unreadable.len(), files.len(), unreadable.join("\n  "));
-    }
-    Ok(photos)
-}
-
+/// `lucent calibrate`: the job of the flags ([`crate::job::CalibrateJob::run`]),
+/// then its summary on stdout.
 pub fn calibrate(a: CalibrateArgs) -> Result<()> {
-    if a.out.is_dir() {
-        bail!(
-            "--out {}: is a folder; give the camera file to write, e.g. {}",
-            a.out.display(),
-            a.out.join(lucent_calib::calibrate::CalibrationFiles::CAMERA).display()
-        );
+    let done = crate::job::CalibrateJob::from(&a).run(&crate::job::Context::default())?;
+    for line in done.summary() {
+        println!("{line}");
     }
-    let board = a.board.spec()?;
-    let files = photo_files(&a.images)?;
-    // Reading (RAW files are demosaiced) and the board search take seconds a
-    // photo on large images: a bar while reading, a line per photo searched.
-    let bar = if a.quiet || files.is_empty() { ProgressBar::hidden() } else { ProgressBar::new(files.len() as u64) };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} photos read  {msg}  ETA {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    if !a.quiet && !files.is_empty() {
-        eprintln!("reading {} photo(s), then finding the board in each and fitting the model", files.len());
-    }
-    let photos = read_photo_files(&files, &mut |k, f| {
-        bar.set_position(k as u64);
-        bar.set_message(file_name(f));
-    })?;
-    bar.finish_and_clear();
-    let start = std::time::Instant::now();
-    let threads = rayon::current_num_threads().max(1);
-    let quiet = a.quiet;
-    let cal = camera::calibrate_photos_reporting(&photos, &board, a.model, a.detector, &|step| {
-        if !quiet {
-            eprintln!("{}", calibration_step_line(step, start.elapsed().as_secs_f64(), threads));
-        }
-    })?;
-
-    // Plots first, camera.json last; the views go to a staging folder that
-    // replaces NAME_views/ whole, so no view of an earlier run stays beside
-    // the new camera.json.
-    let views: Vec<(String, Vec<[f64; 2]>)> =
-        cal.views.iter().map(|v| (v.image.clone(), v.residuals_px.clone())).collect();
-    let files = lucent_calib::calibrate::CalibrationFiles::of(&a.out);
-    let plot_path = files.residuals_png;
-    let residuals_png = plot::residuals_png(&views, cal.rms_px)?;
-    let view_dir = files.views;
-    // Ctrl-C from here on removes the staging folder (and the views folder,
-    // plot and camera file if this run created them) and ends the run.
-    let _interrupt = super::interrupt::Interrupt::abort_on_first();
-    let created: Vec<_> = [&view_dir, &plot_path, &a.out].into_iter().filter(|p| !p.exists()).collect();
-    // Registered before the staging folder exists: a Ctrl-C the moment it
-    // appears still removes it.
-    let staging = crate::io::StagedDir::staging_path(&view_dir);
-    let _remove_on_abort: Vec<_> = std::iter::once(staging.as_path())
-        .chain(created.into_iter().map(|p| p.as_path()))
-        .map(super::interrupt::remove_on_abort)
-        .collect();
-    let stage = crate::io::StagedDir::new(&view_dir)?;
-    for v in &cal.views {
-        let photo = photos
-            .iter()
-            .find(|p| p.name == v.image)
-            .ok_or_else(|| anyhow!("internal: view {} has no photo", v.image))?;
-        let reprojected: Vec<[f64; 2]> =
-            v.corners_px.iter().zip(&v.residuals_px).map(|(c, r)| [c[0] - r[0], c[1] - r[1]]).collect();
-        let label = format!("{}  RMS {:.3} px  ({})", v.image, v.rms_px, v.detector);
-        let png = cv::draw_view_png(&photo.image, &board, &v.corners_px, &reprojected, &[], &label)?;
-        let stem = Path::new(&v.image).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        write_atomic(&stage.path().join(format!("{stem}.png")), &png)?;
-    }
-    write_atomic(&plot_path, &residuals_png)?;
-    stage.commit(|name| name.ends_with(".png"))?;
-    write_json(&a.out, &cal)?;
-    print_calibration(&cal);
-    println!(
-        "written: {} (camera), {} (residuals), {}/ (detected ● and reprojected × corners per view)",
-        a.out.display(),
-        plot_path.display(),
-        view_dir.display()
-    );
     Ok(())
-}
-
-/// The progress line of one step of `lucent calibrate`: "view k/n: FILE: …",
-/// after the first search with the time the search of all photos expects
-/// (the threads search side by side), then the fit.
-fn calibration_step_line(step: camera::CalibrationStep<'_>, elapsed_s: f64, threads: usize) -> String {
-    match step {
-        camera::CalibrationStep::Searched { done, of, photo, found } => {
-            let what = match found {
-                Some(detector) => format!("board found ({detector})"),
-                None => "no board found".into(),
-            };
-            let expect = if done == 1 && of > 1 {
-                let rounds = of.div_ceil(threads) as f64;
-                format!(
-                    "; expect ≈ {} for all {of} photos ({threads} at a time)",
-                    super::common::duration(elapsed_s * rounds)
-                )
-            } else {
-                String::new()
-            };
-            format!("view {done}/{of}: {photo}: {what}{expect}")
-        }
-        camera::CalibrationStep::Fitting { views } => format!("fitting the model to {views} views …"),
-    }
-}
-
-fn print_calibration(cal: &Calibration) {
-    let k = &cal.camera.intrinsics;
-    let d = &cal.camera.distortion;
-    println!(
-        "camera {} × {} px, model {}: fx {:.3}  fy {:.3}  cx {:.3}  cy {:.3} px",
-        cal.camera.image_width,
-        cal.camera.image_height,
-        match cal.camera.model {
-            DistortionModel::PinholeK3 => "pinhole-k3",
-            DistortionModel::Rational => "rational",
-            DistortionModel::Fisheye => "fisheye",
-        },
-        k.fx,
-        k.fy,
-        k.cx,
-        k.cy
-    );
-    if cal.camera.model == DistortionModel::Fisheye {
-        print!("distortion (Kannala–Brandt) k1 {:.5}  k2 {:.5}  k3 {:.5}  k4 {:.5}", d.k1, d.k2, d.k3, d.k4);
-    } else {
-        print!("distortion k1 {:.5}  k2 {:.5}  p1 {:.6}  p2 {:.6}  k3 {:.5}", d.k1, d.k2, d.p1, d.p2, d.k3);
-    }
-    if cal.camera.model == DistortionModel::Rational {
-        print!("  k4 {:.5}  k5 {:.5}  k6 {:.5}", d.k4, d.k5, d.k6);
-    }
-    println!();
-    println!("RMS reprojection error {:.4} px over {} views", cal.rms_px, cal.views.len());
-    for v in &cal.views {
-        println!("  {:<24} {:>7.4} px  ({})", v.image, v.rms_px, v.detector);
-    }
-    for n in &cal.not_found {
-        println!("  {:<24} not used: {}", n.image, n.reason);
-    }
-}
-
-fn read_camera(path: &Path) -> Result<Calibration> {
-    let text = crate::io::read_text(path).with_context(|| format!("{}: cannot read camera file", path.display()))?;
-    serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a camera.json written by `lucent calibrate`", path.display()))
 }
 
 // ---------------------------------------------------------------- undistort
@@ -623,122 +397,13 @@ fn undistort_equirect(a: &UndistortArgs, cal: &Calibration, img: &RgbBuffer, lin
 
 // ---------------------------------------------------------------- pose
 
-/// The warning of `pose` and `env orient` when corner (0, 0) cannot be told from the opposite one.
-fn ambiguous_board_warning(board: &BoardSpec, what: &str) -> String {
-    format!(
-        "warning: corner (0, 0) of the {}x{} board cannot be told from the opposite corner (a board with two even \
-         or two odd counts looks the same turned 180°, or its outer corner squares are not both visible): {what} \
-         may be off by 180°; use a board with one odd and one even count, e.g. 9x6, seen whole",
-        board.cols, board.rows
-    )
-}
-
+/// `lucent pose`: the job of the flags ([`crate::job::PoseJob::run`]), then
+/// its summary on stdout.
 pub fn pose(a: PoseArgs) -> Result<()> {
-    let cal = read_camera(&a.camera)?;
-    let board = a.board.spec()?;
-    // The calibration's board with its columns and rows swapped: the corners
-    // would be numbered along the other axis (the sample corner and the
-    // world's x and y turned).
-    let c = &cal.board;
-    if board.cols != board.rows && (board.cols, board.rows) == (c.rows, c.cols) {
-        bail!(
-            "--board {}x{}: {} was calibrated on a board of {}x{} inner corners — the same board with its columns and \
-             rows swapped? --board counts the inner corners along a row first; give --board {}x{}",
-            board.cols,
-            board.rows,
-            a.camera.display(),
-            c.cols,
-            c.rows,
-            c.cols,
-            c.rows
-        );
+    let done = crate::job::PoseJob::from(&a).run(&crate::job::Context::default())?;
+    for line in done.summary() {
+        println!("{line}");
     }
-    let sample = match (&a.sample_corner, &a.sample_size_mm) {
-        (Some(c), Some(s)) => {
-            if c.i >= board.cols || c.j >= board.rows {
-                bail!(
-                    "--sample-corner {c}: must be inner-corner indices I,J with 0 ≤ I < {} and 0 ≤ J < {}",
-                    board.cols,
-                    board.rows
-                );
-            }
-            let size = s.mm();
-            // A sample lies on the board (the range of the project's [pose] sample_size_mm).
-            if let Some(reason) = crate::job::sample_size_problem(size, board.cols, board.rows, board.square_m * 1e3) {
-                bail!("--sample-size-mm {s}: {reason}");
-            }
-            Some(SampleSpec { corner: [c.i, c.j], size_m: size.map(|v| v / 1000.0) })
-        }
-        _ => None,
-    };
-    let gray = load_gray(&a.image)?;
-    if (gray.width, gray.height) != (cal.camera.image_width, cal.camera.image_height) {
-        bail!(
-            "{}: {} × {} pixels, but {} was calibrated at {} × {}",
-            a.image.display(),
-            gray.width,
-            gray.height,
-            a.camera.display(),
-            cal.camera.image_width,
-            cal.camera.image_height
-        );
-    }
-    // Numbered as `lucent env orient` numbers them (lucent_calib::scene: the light outer square at corner (0, 0)).
-    let (corners, order) = scene::find_board_corners(&gray, &board)?.ok_or_else(|| {
-        anyhow!("{}: no chessboard of {}x{} inner corners found", a.image.display(), board.cols, board.rows)
-    })?;
-    if order == env::CornerOrder::Ambiguous {
-        eprintln!("{}", ambiguous_board_warning(&board, "the pose"));
-    }
-    let pose = cv::solve_pnp(&corners.points, &board, &cal.camera)?;
-    let reprojected: Vec<[f64; 2]> =
-        board.corners().iter().map(|p| cal.camera.project(pose.to_camera(*p)).unwrap_or([f64::NAN; 2])).collect();
-    let ss: f64 =
-        corners.points.iter().zip(&reprojected).map(|(d, r)| (d[0] - r[0]).powi(2) + (d[1] - r[1]).powi(2)).sum();
-    let rms = (ss / corners.points.len() as f64).sqrt();
-    let k = if a.keep_all { cal.camera.keep_all_intrinsics() } else { cal.camera.intrinsics };
-    let scene = scene::describe_scene(&k, (gray.width, gray.height), &pose, &board, sample.as_ref(), rms);
-    // The sample's box drawn through the calibrated (distorting) camera.
-    let mut segments = Vec::new();
-    if let Some(sp) = &scene.sample {
-        let frame = scene::opencv_to_renderer(&pose);
-        let px: Vec<[f64; 2]> = sp
-            .box_corners_world_m
-            .iter()
-            .map(|w| {
-                // world_from_board is diagonal ±1, its own inverse.
-                let b = frame.board_to_world(*w);
-                cal.camera.project(pose.to_camera(b)).unwrap_or([f64::NAN; 2])
-            })
-            .collect();
-        for k in 0..4 {
-            segments.push((px[k], px[(k + 1) % 4]));
-            segments.push((px[4 + k], px[4 + (k + 1) % 4]));
-            segments.push((px[k], px[4 + k]));
-        }
-    }
-    let label = format!("{}  PnP RMS {:.3} px", file_name(&a.image), rms);
-    let png = cv::draw_view_png(&gray, &board, &corners.points, &reprojected, &segments, &label)?;
-    let view = lucent_calib::scene::PoseFiles::of(&a.out).view_png;
-    // The scene and its view image are one output: both or neither.
-    write_all(&[(a.out.clone(), json_bytes(&a.out, &scene)?), (view.clone(), png)])?;
-    let c = scene.camera_position_m;
-    println!(
-        "board pose: camera at ({:.4}, {:.4}, {:.4}) m in the board's world (z up), {:.3} m from corner (0,0); PnP RMS {:.3} px; \
-         corner order {:?} ({} detector)",
-        c[0],
-        c[1],
-        c[2],
-        (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt(),
-        rms,
-        order,
-        corners.detector
-    );
-    if let Some(s) = &scene.sample {
-        let o = s.object_to_world;
-        println!("sample centre (bottom face) at ({:.4}, {:.4}, {:.4}) m", o[0][3], o[1][3], o[2][3]);
-    }
-    println!("written: {} (scene), {} (corners and axes)", a.out.display(), view.display());
     Ok(())
 }
 

@@ -1,25 +1,21 @@
-//! `lucent colour …`: ColorChecker calibration of a camera, applying the
-//! fitted matrix to linear images, and the RGB band values of spectral
-//! optical properties. Orchestration only; the colour science is in
-//! `lucent-colour`.
+//! `lucent colour …`: ColorChecker calibration of a camera and applying
+//! the fitted matrix to linear images (argument handling and printing: the
+//! flags become a [`ColourCalibrateJob`] or [`ColourApplyJob`], which does
+//! the work), and the RGB band values of spectral optical properties. The
+//! colour science is in `lucent-colour`.
 
 use super::choices::{named, AdaptationChoice};
 use crate::ccm_file::ApplyTarget;
-use crate::ccm_file::{CcmFile, CcmPatch, InputEncoding};
-use crate::imageio::{self, RgbImage};
+use crate::job::{ColourApplyJob, ColourCalibrateJob};
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::recipe::{Overrides, Recipe};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
-use lucent_colour::adaptation::Cat;
 use lucent_colour::bands::{band_weights, BandWeights, BANDS};
-use lucent_colour::ccm::{fit_colorchecker, CcmMethod, ColourCorrection};
-use lucent_colour::chart::{neutral_ramp_warning, sample_patches, ImageRef, PatchSample, SampleOptions};
-use lucent_colour::data::ICC_D50_XYZ;
-use lucent_colour::spaces::{mat3_vec, srgb_decode, RgbSpace};
-use lucent_colour::{Mat3, WavelengthGrid};
+use lucent_colour::ccm::CcmMethod;
+use lucent_colour::WavelengthGrid;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Debug, Subcommand)]
 pub enum ColourCommand {
@@ -57,13 +53,13 @@ pub struct CalibrateArgs {
     pub decode_srgb: bool,
     /// A pixel with a channel ≥ this value (in the image as stored) is clipped; a patch with more
     /// than 1 % clipped pixels is refused. "none" disables the check.
-    #[arg(long, default_value = "0.99")]
+    #[arg(long, default_value = crate::job::DEFAULT_CLIP_LEVEL)]
     pub clip_level: String,
     /// Gap between patches as a fraction of the patch side.
-    #[arg(long, default_value_t = 0.14)]
+    #[arg(long, default_value_t = crate::job::DEFAULT_GAP_RATIO)]
     pub gap_ratio: f64,
     /// Side of the sampled square as a fraction of the patch side.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = crate::job::DEFAULT_INNER_FRACTION)]
     pub inner_fraction: f64,
 }
 
@@ -89,7 +85,7 @@ pub struct ApplyArgs {
     #[arg(long, value_name = "VARIANCE_EXR")]
     pub variance_out: Option<PathBuf>,
     /// Noise realisations averaged per pixel for --variance-out (per-pixel precision √(2/K)).
-    #[arg(long, default_value_t = 16, value_parser = super::count_in::<2, 1000>, requires = "variance_out")]
+    #[arg(long, default_value_t = crate::job::DEFAULT_VARIANCE_REALISATIONS, value_parser = super::count_in::<2, 1000>, requires = "variance_out")]
     pub variance_realisations: usize,
     /// Seed of the noise realisations of --variance-out.
     #[arg(long, default_value_t = 1, requires = "variance_out")]
@@ -124,276 +120,23 @@ pub fn run(cmd: ColourCommand) -> Result<()> {
     }
 }
 
-fn parse_clip_level(text: &str) -> Result<Option<f64>> {
-    if text.trim().eq_ignore_ascii_case("none") {
-        return Ok(None);
-    }
-    match text.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(Some(v)),
-        _ => bail!("--clip-level {text:?}: expected a positive number or \"none\""),
-    }
-}
-
-fn decode_in_place(img: &mut RgbImage) {
-    for v in &mut img.data {
-        *v = srgb_decode(f64::from(*v)) as f32;
-    }
-}
-
+/// `lucent colour calibrate`: the job of the flags
+/// ([`ColourCalibrateJob::run`]), then its summary (the ΔE table) on stdout.
 fn calibrate(a: CalibrateArgs) -> Result<()> {
-    let method = a.method;
-    let given_corners = a.corners.map(|c| c.0);
-    let clip = parse_clip_level(&a.clip_level)?;
-    let mut img = imageio::read_rgb(&a.image)?;
-    let encoding = if a.decode_srgb { InputEncoding::Srgb } else { InputEncoding::Linear };
-    // The clip level refers to the stored values; sRGB decoding is monotonic.
-    let clip_linear = match encoding {
-        InputEncoding::Srgb => clip.map(srgb_decode),
-        InputEncoding::Linear => clip,
-    };
-    if encoding == InputEncoding::Srgb {
-        decode_in_place(&mut img);
+    let done = ColourCalibrateJob::from(&a).run(&crate::job::Context::default())?;
+    for line in done.summary() {
+        println!("{line}");
     }
-    let options = SampleOptions {
-        gap_ratio: a.gap_ratio,
-        inner_fraction: a.inner_fraction,
-        clip_level: clip_linear,
-        ..SampleOptions::default()
-    };
-    let corners = match given_corners {
-        Some(c) => c,
-        None => detect_corners(&img, &options, &a.image)?,
-    };
-    let view = ImageRef::new(img.width, img.height, &img.data)?;
-    let samples = sample_patches(&view, corners, &options)
-        .with_context(|| format!("{}: cannot sample the ColorChecker", a.image.display()))?;
-    if let Some(w) = neutral_ramp_warning(&samples) {
-        // No camera records a chart below black: a matrix fitted to it is no camera's.
-        if samples.iter().all(|s| s.mean.iter().sum::<f64>() < 0.0) {
-            bail!("{}: {w}; no matrix fitted", a.image.display());
-        }
-        eprintln!("warning: {}: {w}", a.image.display());
-    }
-    let camera_rgb: Vec<[f64; 3]> = samples.iter().map(|s| s.mean).collect();
-    let (ccm, report) = fit_colorchecker(method, &camera_rgb)?;
-
-    let camera = a.camera.clone().unwrap_or_else(|| {
-        a.image.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "camera".into())
-    });
-    let file = CcmFile {
-        camera,
-        image: a.image.display().to_string(),
-        corners,
-        corners_detected: given_corners.is_none(),
-        method,
-        method_description: method.description().to_string(),
-        terms: method.term_names().iter().map(|s| s.to_string()).collect(),
-        matrix: ccm.matrix().to_vec(),
-        maps: "linear camera RGB → CIE XYZ (CIE 1931 2°) as under D50, Y of the perfect white = 1".into(),
-        input_encoding: encoding,
-        reference_set:
-            "X-Rite ColorChecker Classic 24, post-November-2014 reference L*a*b* (X-Rite 2016, via colour-science)"
-                .into(),
-        illuminant: "D50 (ICC PCS white)".into(),
-        white_xyz: ICC_D50_XYZ,
-        observer: "CIE 1931 2°".into(),
-        sampling: options.clone(),
-        de2000_mean: report.de2000_mean,
-        de2000_max: report.de2000_max,
-        de76_mean: report.de76_mean,
-        de76_max: report.de76_max,
-        patches: report
-            .patches
-            .iter()
-            .zip(&samples)
-            .map(|(p, s)| CcmPatch { fit: p.clone(), camera_rgb_std_dev: s.std_dev, pixels: s.pixels })
-            .collect(),
-    };
-
-    let files = crate::ccm_file::ColourFiles::in_dir(&a.out);
-    file.write(&files.ccm)?;
-    crate::io::write_atomic(&files.chart, &chart_comparison(&ccm, &file)?)?;
-    let labels: Vec<String> = file.patches.iter().map(|p| format!("{} {}", p.fit.patch, p.fit.name)).collect();
-    let de2000: Vec<f64> = file.patches.iter().map(|p| p.fit.de2000).collect();
-    let de76: Vec<f64> = file.patches.iter().map(|p| p.fit.de76).collect();
-    let to_srgb8 = srgb_display_matrix()?;
-    let colours: Vec<[u8; 3]> = file.patches.iter().map(|p| srgb8(mat3_vec(&to_srgb8, p.fit.reference_xyz))).collect();
-    let title = format!("{} — {} — ΔE00 mean {:.2}, max {:.2}", file.camera, method, file.de2000_mean, file.de2000_max);
-    let png = crate::plot::delta_e_bars_png(&title, &labels, &de2000, &de76, &colours)?;
-    crate::io::write_atomic(&files.delta_e, &png)?;
-    crate::io::write_atomic(&files.patches, &sampling_overlay(&img, &samples)?)?;
-
-    print_delta_e_table(&file);
-    println!(
-        "\n{} ({}) fitted to {}; written to {}/: ccm.json, chart.png (each patch: corrected photo | reference), delta_e.png, patches.png (sampled areas)",
-        method,
-        method.description(),
-        a.image.display(),
-        a.out.display()
-    );
     Ok(())
 }
 
-/// The chart's patch-grid corners found by OpenCV's mcc detector, or an
-/// error that says so and asks for --corners.
-fn detect_corners(img: &RgbImage, options: &SampleOptions, path: &Path) -> Result<[[f64; 2]; 4]> {
-    let buffer = lucent_calib::RgbBuffer::new(img.width, img.height, img.data.clone())?;
-    match crate::chart_detect::detect_colorchecker(&buffer, options) {
-        Ok(d) => {
-            let list = d.corners.iter().flatten().map(|v| format!("{v:.1}")).collect::<Vec<_>>().join(",");
-            println!(
-                "chart found by OpenCV mcc: --corners {list} (patches in reference order: mean ΔE00 {:.2} after a 3 × 3 fit, {:.2} turned round)",
-                d.mean_de2000, d.other_orientation_de2000
-            );
-            Ok(d.corners)
-        }
-        Err(e) => bail!(
-            "{}: {e}; give the chart's corners with --corners x1,y1,x2,y2,x3,y3,x4,y4 (outer corners of the patch grid: dark skin, bluish green, black, white)",
-            path.display()
-        ),
-    }
-}
-
-fn print_delta_e_table(file: &CcmFile) {
-    println!("{:>5}  {:<22} {:>8} {:>8}", "patch", "name", "ΔE00", "ΔE*ab");
-    for CcmPatch { fit: p, .. } in &file.patches {
-        println!("{:>5}  {:<22} {:>8.2} {:>8.2}", p.patch, p.name, p.de2000, p.de76);
-    }
-    println!("{:>5}  {:<22} {:>8.2} {:>8.2}", "", "mean", file.de2000_mean, file.de76_mean);
-    println!("{:>5}  {:<22} {:>8.2} {:>8.2}", "", "max", file.de2000_max, file.de76_max);
-}
-
-/// XYZ (D50) → linear sRGB (D65, Bradford), for pictures people look at.
-fn srgb_display_matrix() -> Result<Mat3> {
-    Ok(RgbSpace::Srgb.from_xyz_adapted_matrix(ICC_D50_XYZ, Some(Cat::Bradford))?)
-}
-
-fn srgb8(linear: [f64; 3]) -> [u8; 3] {
-    linear.map(|v| (imageio::srgb_encode(v as f32) * 255.0 + 0.5) as u8)
-}
-
-/// chart.png: the 4 × 6 chart, each patch split into the corrected photo
-/// (left half) and the reference (right half), in sRGB for display, the
-/// halves named under each patch and in the header.
-fn chart_comparison(ccm: &ColourCorrection, file: &CcmFile) -> Result<Vec<u8>> {
-    let to_srgb = srgb_display_matrix()?;
-    let labels: Vec<String> = file.patches.iter().map(|p| format!("{} {}", p.fit.patch, p.fit.name)).collect();
-    let photo: Vec<[u8; 3]> =
-        file.patches.iter().map(|p| srgb8(mat3_vec(&to_srgb, ccm.apply(p.fit.camera_rgb)))).collect();
-    let reference: Vec<[u8; 3]> = file.patches.iter().map(|p| srgb8(mat3_vec(&to_srgb, p.fit.reference_xyz))).collect();
-    let title = format!("{} — {}: photo corrected by the fitted matrix vs reference", file.camera, file.method);
-    Ok(crate::plot::chart_halves_png(&title, &labels, &photo, &reference)?)
-}
-
-/// patches.png: the (linear) chart image scaled so the white patch is at
-/// 0.9, sRGB-encoded, enlarged to a legible size, with the sampled squares
-/// outlined in magenta and numbered.
-fn sampling_overlay(img: &RgbImage, samples: &[PatchSample]) -> Result<Vec<u8>> {
-    let white = samples.get(18).map(|s| s.mean.iter().copied().fold(0.0, f64::max)).unwrap_or(1.0);
-    let scale = if white > 0.0 { (0.9 / white) as f32 } else { 1.0 };
-    let bytes: Vec<u8> = img.data.iter().map(|v| (imageio::srgb_encode(v * scale) * 255.0 + 0.5) as u8).collect();
-    let outlines: Vec<[[f64; 2]; 4]> = samples.iter().map(|s| s.outline).collect();
-    Ok(crate::plot::patch_overlay_png(img.width, img.height, &bytes, &outlines)?)
-}
-
+/// `lucent colour apply`: the job of the flags ([`ColourApplyJob::run`]),
+/// then its summary on stdout.
 fn apply(a: ApplyArgs) -> Result<()> {
-    let (file, ccm) = CcmFile::read(&a.ccm)?;
-    let cat = a.adaptation.cat();
-    let target: Mat3 = match a.to {
-        ApplyTarget::Xyz => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        ApplyTarget::CieRgb => RgbSpace::CieRgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
-        ApplyTarget::Srgb => RgbSpace::Srgb.from_xyz_adapted_matrix(file.white_xyz, cat)?,
-    };
-    let ext = a.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-    if ext != "exr" {
-        bail!("{}: the output must be an .exr file (linear 32-bit float)", a.output.display());
+    let done = ColourApplyJob::from(&a).run(&crate::job::Context::default())?;
+    for line in done.summary() {
+        println!("{line}");
     }
-    if let Some(v) = &a.variance_out {
-        if !imageio::RAW_EXTENSIONS.contains(&imageio::extension(&a.input).as_str()) {
-            bail!(
-                "--variance-out {}: needs a RAW photo (its noise model); for a photo in {} give                  `lucent compare --photo-variance` a variance image of your own",
-                v.display(),
-                a.input.display()
-            );
-        }
-        if file.input_encoding == InputEncoding::Srgb {
-            bail!("--variance-out: {} was fitted to sRGB-encoded values, not a RAW's linear ones", a.ccm.display());
-        }
-        if imageio::extension(v) != "exr" {
-            bail!("--variance-out {}: must be an .exr file", v.display());
-        }
-    }
-    let mut img = imageio::read_rgb(&a.input)?;
-    if file.input_encoding == InputEncoding::Srgb {
-        decode_in_place(&mut img);
-    }
-    // Checked before anything is written (the variance file comes first).
-    imageio::check_bin(img.width, img.height, a.bin)
-        .with_context(|| format!("--bin {}: {}", a.bin, a.input.display()))?;
-    let binned = (img.width / a.bin, img.height / a.bin);
-    if let Some(v) = &a.variance_out {
-        let colour = |rgb: [f64; 3]| mat3_vec(&target, ccm.apply(rgb));
-        let (var, sidecar) =
-            crate::compare::photo_noise::photo_variance(&a.input, &colour, a.variance_realisations, a.seed, a.bin)?;
-        let plane = |c: usize| var.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
-        let (r, g, b) = (plane(0), plane(1), plane(2));
-        crate::exr::write_channels(
-            v,
-            binned.0,
-            binned.1,
-            &[("variance.R", &r), ("variance.G", &g), ("variance.B", &b)],
-        )?;
-        let json = crate::compare::photo_noise::sidecar(v);
-        crate::io::write_json(&json, &sidecar)?;
-        let m = &sidecar.noise_model;
-        println!(
-            "{}: noise {} a = ({:.3e}, {:.3e}, {:.3e}), b = ({:.3e}, {:.3e}, {:.3e}); variance of the output → {} ({})",
-            a.input.display(),
-            match m.source {
-                lucent_calib::noise::NoiseSource::DngNoiseProfile => "from the DNG NoiseProfile:",
-                lucent_calib::noise::NoiseSource::EstimatedFromImage => "estimated from the photo:",
-            },
-            m.a[0],
-            m.a[1],
-            m.a[2],
-            m.b[0],
-            m.b[1],
-            m.b[2],
-            v.display(),
-            json.display()
-        );
-        if !m.note.is_empty() {
-            eprintln!("note: {}", m.note);
-        }
-    }
-    for px in img.data.chunks_exact_mut(3) {
-        let xyz = ccm.apply([f64::from(px[0]), f64::from(px[1]), f64::from(px[2])]);
-        let out = mat3_vec(&target, xyz);
-        for k in 0..3 {
-            px[k] = out[k] as f32;
-        }
-    }
-    let (w, h) = (img.width, img.height);
-    if a.bin > 1 {
-        img = img.binned(a.bin)?;
-    }
-    imageio::write_exr(&a.output, &img)?;
-    println!(
-        "{} → {}: {} × {} pixels{}, camera {:?} ({}) → {}{}",
-        a.input.display(),
-        a.output.display(),
-        img.width,
-        img.height,
-        if a.bin > 1 { format!(" (binned {0} × {0} from {w} × {h})", a.bin) } else { String::new() },
-        file.camera,
-        file.method,
-        <&str>::from(a.to),
-        match (a.to, cat) {
-            (ApplyTarget::Xyz, _) => " (D50-adapted XYZ as fitted)".to_string(),
-            (_, Some(c)) => format!(" ({} adaptation from D50)", c.name()),
-            (_, None) => " (no chromatic adaptation)".to_string(),
-        }
-    );
     Ok(())
 }
 
@@ -501,6 +244,7 @@ pub fn warn_partial_coverage(what: &str, w: &BandWeights) {
 mod tests {
     use super::*;
     use clap::ValueEnum;
+    use lucent_colour::adaptation::Cat;
 
     #[test]
     fn corner_and_option_parsing() {
@@ -509,9 +253,6 @@ mod tests {
         assert!(corners("1,2,3").unwrap_err().to_string().contains("expected 8 numbers"));
         assert!(corners("1,2,3,4,5,6,7,x").unwrap_err().to_string().contains("\"x\""));
         assert!(corners("1,2,3,4,5,6,7,nan").is_err());
-        assert_eq!(parse_clip_level("none").unwrap(), None);
-        assert_eq!(parse_clip_level("0.95").unwrap(), Some(0.95));
-        assert!(parse_clip_level("-1").is_err());
         // The spellings of --adaptation, through clap as the command line parses them.
         let parse = |s: &str| AdaptationChoice::from_str(s, true).map(AdaptationChoice::cat);
         assert_eq!(parse("CAT02").unwrap(), Some(Cat::Cat02));

@@ -493,7 +493,7 @@ pub fn orient(a: EnvOrientArgs) -> Result<()> {
                 );
             }
             if order == env::CornerOrder::Ambiguous {
-                eprintln!("{}", super::ambiguous_board_warning(&board, "the yaw"));
+                eprintln!("warning: {}", crate::job::camera::ambiguous_board_warning(&board, "the yaw"));
             }
             let label = format!("board in view: PnP RMS {rms:.3} px, yaw {:.2} deg", in_map.yaw_deg);
             let png = cv::draw_view_png(&gray, &board, &points, &reprojected, &[], &label)?;

@@ -22,22 +22,8 @@ pub fn job_of(command: &Command) -> Option<Job> {
         },
         Command::Fit(a) => Job::Fit(a.into()),
         Command::Calibrate(a) => Job::Calibrate(a.into()),
-        Command::Colour(colour::ColourCommand::Calibrate(a)) => Job::ColourCalibrate(ColourCalibrateJob {
-            image: a.image.clone(),
-            camera: a.camera.clone(),
-            out: a.out.clone(),
-            corners: a.corners,
-            method: a.method,
-            decode_srgb: a.decode_srgb,
-        }),
-        Command::Colour(colour::ColourCommand::Apply(a)) => Job::ColourApply(ColourApplyJob {
-            ccm: a.ccm.clone(),
-            input: a.input.clone(),
-            output: a.output.clone(),
-            to: a.to,
-            variance_out: a.variance_out.clone().map(|v| (v, a.seed)),
-            bin: a.bin,
-        }),
+        Command::Colour(colour::ColourCommand::Calibrate(a)) => Job::ColourCalibrate(a.into()),
+        Command::Colour(colour::ColourCommand::Apply(a)) => Job::ColourApply(a.into()),
         Command::Raw(camera::RawCommand::Clipped(a)) => Job::RawClipped(a.into()),
         Command::Pose(a) => Job::Pose(a.into()),
         Command::Env(camera::EnvCommand::FitScale(a)) => Job::EnvScale(a.into()),
@@ -63,9 +49,56 @@ impl From<&super::OpticsArgs> for OpticsJob {
         OpticsJob {
             recipes: a.recipes.clone(),
             wavelengths: a.wavelengths.clone(),
-            out: a.out.clone().unwrap_or_else(|| "lucent-out/optics".into()),
+            out: crate::job::optics::output_folder(a.out.as_deref(), a.json),
             weight_percent: a.weight_percent,
+            wavelength_nm: a.wavelength,
+            json: a.json,
+            phase_entries: a.phase_entries,
+            skip_invalid: a.skip_invalid,
         }
+    }
+}
+
+impl From<&colour::CalibrateArgs> for ColourCalibrateJob {
+    fn from(a: &colour::CalibrateArgs) -> Self {
+        ColourCalibrateJob {
+            image: a.image.clone(),
+            camera: a.camera.clone(),
+            out: a.out.clone(),
+            corners: a.corners,
+            method: a.method,
+            decode_srgb: a.decode_srgb,
+            clip_level: a.clip_level.clone(),
+            gap_ratio: a.gap_ratio,
+            inner_fraction: a.inner_fraction,
+        }
+    }
+}
+
+impl From<&colour::ApplyArgs> for ColourApplyJob {
+    fn from(a: &colour::ApplyArgs) -> Self {
+        ColourApplyJob {
+            ccm: a.ccm.clone(),
+            input: a.input.clone(),
+            output: a.output.clone(),
+            to: a.to,
+            variance_out: a.variance_out.clone().map(|v| (v, a.seed)),
+            bin: a.bin,
+            adaptation: a.adaptation.cat(),
+            variance_realisations: a.variance_realisations,
+        }
+    }
+}
+
+/// The `--adaptation` choice of a transform (`None`: none).
+fn adaptation_choice(c: Option<lucent_colour::adaptation::Cat>) -> super::choices::AdaptationChoice {
+    use super::choices::AdaptationChoice;
+    use lucent_colour::adaptation::Cat;
+    match c {
+        Some(Cat::Bradford) => AdaptationChoice::Bradford,
+        Some(Cat::VonKries) => AdaptationChoice::VonKries,
+        Some(Cat::Cat02) => AdaptationChoice::Cat02,
+        None => AdaptationChoice::None,
     }
 }
 
@@ -132,13 +165,15 @@ impl From<&camera::CalibrateArgs> for CalibrateJob {
             square_mm: a.board.square_mm,
             out: a.out.clone(),
             model: a.model,
+            detector: a.detector,
+            quiet: a.quiet,
         }
     }
 }
 
 impl From<&raw_clip::ClippedArgs> for RawClippedJob {
     fn from(a: &raw_clip::ClippedArgs) -> Self {
-        RawClippedJob { input: a.input.clone(), out: a.out.clone(), bin: a.bin }
+        RawClippedJob { input: a.input.clone(), out: a.out.clone(), bin: a.bin, level: a.level, dilate: a.dilate }
     }
 }
 
@@ -151,6 +186,7 @@ impl From<&camera::PoseArgs> for PoseJob {
             square_mm: a.board.square_mm,
             out: a.out.clone(),
             sample: a.sample_corner.zip(a.sample_size_mm),
+            keep_all: a.keep_all,
         }
     }
 }
@@ -258,9 +294,9 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
             images: j.images.clone(),
             board: board(j.board, j.square_mm),
             model: j.model,
-            detector: lucent_calib::cv::Detector::Auto,
+            detector: j.detector,
             out: j.out.clone(),
-            quiet: false,
+            quiet: j.quiet,
         }),
         Job::ColourCalibrate(j) => Command::Colour(colour::ColourCommand::Calibrate(colour::CalibrateArgs {
             image: j.image.clone(),
@@ -269,26 +305,26 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
             method: j.method,
             out: j.out.clone(),
             decode_srgb: j.decode_srgb,
-            clip_level: "0.99".into(),
-            gap_ratio: 0.14,
-            inner_fraction: 0.5,
+            clip_level: j.clip_level.clone(),
+            gap_ratio: j.gap_ratio,
+            inner_fraction: j.inner_fraction,
         })),
         Job::ColourApply(j) => Command::Colour(colour::ColourCommand::Apply(colour::ApplyArgs {
             ccm: j.ccm.clone(),
             input: j.input.clone(),
             output: j.output.clone(),
             to: j.to,
-            adaptation: super::choices::AdaptationChoice::Bradford,
+            adaptation: adaptation_choice(j.adaptation),
             variance_out: j.variance_out.as_ref().map(|(p, _)| p.clone()),
-            variance_realisations: 16,
+            variance_realisations: j.variance_realisations,
             seed: j.variance_out.as_ref().map_or(1, |(_, seed)| *seed),
             bin: j.bin,
         })),
         Job::RawClipped(j) => Command::Raw(camera::RawCommand::Clipped(raw_clip::ClippedArgs {
             input: j.input.clone(),
             out: j.out.clone(),
-            level: 0.999,
-            dilate: 2,
+            level: j.level,
+            dilate: j.dilate,
             bin: j.bin,
         })),
         Job::Pose(j) => Command::Pose(camera::PoseArgs {
@@ -297,7 +333,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
             board: board(j.board, j.square_mm),
             sample_corner: j.sample.map(|(c, _)| c),
             sample_size_mm: j.sample.map(|(_, z)| z),
-            keep_all: false,
+            keep_all: j.keep_all,
             out: j.out.clone(),
         }),
         Job::EnvScale(j) => Command::Env(camera::EnvCommand::FitScale(env_fit::FitScaleArgs {
@@ -319,12 +355,12 @@ fn optics_args(j: &OpticsJob) -> super::OpticsArgs {
     super::OpticsArgs {
         recipes: j.recipes.clone(),
         wavelengths: j.wavelengths.clone(),
-        wavelength: None,
-        out: Some(j.out.clone()),
-        json: false,
-        phase_entries: 4096,
+        wavelength: j.wavelength_nm,
+        out: j.out.clone(),
+        json: j.json,
+        phase_entries: j.phase_entries,
         weight_percent: j.weight_percent,
-        skip_invalid: false,
+        skip_invalid: j.skip_invalid,
         uncertainty: None,
         uncertainty_seed: 1,
         shard: None,

@@ -28,8 +28,7 @@ pub mod synth;
 use crate::job::guard::FileRoles;
 use crate::optics::bulk::{self, OpticalSpectrum};
 use crate::optics::mie::{self, Coefficients, Efficiencies};
-use crate::optics::output;
-use crate::optics::recipe::{Overrides, Recipe};
+use crate::optics::recipe::Overrides;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use lucent_colour::WavelengthGrid;
@@ -383,8 +382,7 @@ fn check_outputs_are_not_inputs(command: &Command) -> Result<()> {
 /// The output folder (not file) a command writes into, if it has one.
 fn output_folder(command: &Command) -> Option<PathBuf> {
     Some(match command {
-        Command::Optics(a) if a.json && a.out.is_none() => return None,
-        Command::Optics(a) => a.out.clone().unwrap_or_else(|| PathBuf::from("lucent-out/optics")),
+        Command::Optics(a) => return crate::job::optics::output_folder(a.out.as_deref(), a.json),
         Command::Bssrdf(a) => match &a.command {
             Some(bssrdf::BssrdfCommand::Compare(c)) => c.out.clone(),
             None => a.run.out.clone(),
@@ -455,10 +453,6 @@ pub fn parse_grid(text: &str) -> Result<WavelengthGrid> {
     text.parse().map_err(|e| anyhow!("--wavelengths {e}"))
 }
 
-/// The most phase-table values `lucent optics` writes (wavelengths × entries:
-/// about 250 MB of CSV).
-pub const MAX_PHASE_VALUES: usize = 10_000_000;
-
 /// Parses a refractive index "1.5", "1.5+0.01i" or "1.5+1e-3j" (spaces
 /// ignored) with num-complex's `FromStr`.
 pub fn parse_index(flag: &str, text: &str) -> Result<Complex64> {
@@ -476,264 +470,28 @@ pub fn parse_index(flag: &str, text: &str) -> Result<Complex64> {
     Ok(value)
 }
 
-fn collect_recipe_paths(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
-    let mut paths = Vec::new();
-    for input in inputs {
-        if input.is_dir() {
-            let mut found: Vec<PathBuf> = std::fs::read_dir(input)
-                .with_context(|| format!("{}: cannot list folder", input.display()))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-                .collect();
-            if found.is_empty() {
-                bail!("{}: no recipe files (*.toml) in this folder", input.display());
-            }
-            found.sort();
-            paths.extend(found);
-        } else if input.exists() {
-            paths.push(input.clone());
-        } else {
-            bail!("{}: no such recipe file or folder", input.display());
-        }
-    }
-    // The same file given twice (directly, through a folder, or by another
-    // spelling of its path) is computed once.
-    let mut seen = Vec::new();
-    paths.retain(|p| {
-        let key = crate::io::file_key(p);
-        if seen.contains(&key) {
-            eprintln!("warning: {}: recipe given more than once; computed once", p.display());
-            return false;
-        }
-        seen.push(key);
-        true
-    });
-    Ok(paths)
-}
-
-/// Loads recipes; with `skip_invalid`, invalid ones are reported and left out.
-fn load_recipes(paths: &[PathBuf], overrides: Overrides, skip_invalid: bool) -> Result<Vec<Recipe>> {
-    let mut recipes = Vec::new();
-    let mut failures = Vec::new();
-    // Recipes that leave a weight percentage unknown on purpose (IOL1068-15):
-    // in a folder they are skipped with a note, not a warning.
-    let mut unknown = Vec::new();
-    for p in paths {
-        match Recipe::load(p, overrides) {
-            Ok(r) => recipes.push(r),
-            Err(e @ crate::optics::recipe::RecipeError::WeightPercentUnknown { .. }) => unknown.push(e.to_string()),
-            Err(e) => failures.push(e.to_string()),
-        }
-    }
-    if skip_invalid && !recipes.is_empty() {
-        for f in &unknown {
-            eprintln!("note: skipped {f}");
-        }
-    } else {
-        failures.append(&mut unknown);
-    }
-    if !failures.is_empty() {
-        if skip_invalid && !recipes.is_empty() {
-            for f in &failures {
-                eprintln!("warning: skipped {f}");
-            }
-        } else if failures.len() == 1 {
-            bail!("{}", failures[0]);
-        } else {
-            bail!("{} recipes are invalid:\n  {}", failures.len(), failures.join("\n  "));
-        }
-    }
-    // Two files with one sample name would give rows nobody can tell apart.
-    for (i, r) in recipes.iter().enumerate() {
-        if let Some(first) = recipes[..i].iter().find(|q| q.name == r.name) {
-            bail!(
-                "{} and {} both name the sample {:?}; sample names must differ",
-                first.path.display(),
-                r.path.display(),
-                r.name
-            );
-        }
-    }
-    Ok(recipes)
-}
-
 fn optics(a: OpticsArgs) -> Result<()> {
     optics_from(a, None)
 }
 
-/// `lucent optics`, or with `merged_from` the outputs of the
-/// `--uncertainty` run whose shards these are (`lucent merge`).
+/// `lucent optics` ([`crate::job::OpticsJob::run`], its summary on stdout), or with
+/// `--uncertainty` the propagation of the recipes' uncertain inputs; with
+/// `merged_from` the outputs of the `--uncertainty` run whose shards these
+/// are (`lucent merge`).
 fn optics_from(a: OpticsArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
-    let grid = match a.wavelength {
-        Some(w) if !(w.is_finite() && w > 0.0) => bail!("--wavelength {w}: must be a positive number of nanometres"),
-        Some(w) => WavelengthGrid::from_list(vec![w]).context("--wavelength")?,
-        None => a.wavelengths.clone(),
-    };
-    if a.phase_entries == 1 {
-        bail!("--phase-entries must be 0 (no table) or at least 2");
-    }
-    if a.uncertainty.is_none() && grid.len() * a.phase_entries > MAX_PHASE_VALUES {
-        bail!(
-            "{} wavelengths × --phase-entries {} = {} phase-table values, more than {MAX_PHASE_VALUES}: use a coarser \
-             --wavelengths step or fewer --phase-entries (0 for none)",
-            grid.len(),
-            a.phase_entries,
-            grid.len() * a.phase_entries
-        );
-    }
-    let paths = collect_recipe_paths(&a.recipes)?;
-    let recipes = load_recipes(&paths, Overrides { weight_percent: a.weight_percent }, a.skip_invalid)?;
+    let job = crate::job::OpticsJob::from(&a);
+    let ctx = crate::job::Context::default();
     if let Some(n) = a.uncertainty {
-        let out = a.out.unwrap_or_else(|| PathBuf::from("lucent-out/optics"));
+        let grid = job.checked_grid(false)?;
+        let recipes = job.load_recipes(&ctx)?;
+        let out = a.out.unwrap_or_else(|| PathBuf::from(crate::job::DEFAULT_OPTICS_OUT));
         let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
         return fit::optics_uncertainty(&recipes, &grid, n, a.uncertainty_seed, &out, shard, merged_from);
     }
-    let options = bulk::Options { phase_entries: a.phase_entries, ..Default::default() };
-    let start = Instant::now();
-    let spectra: Vec<OpticalSpectrum> = recipes
-        .par_iter()
-        .map(|r| {
-            bulk::compute(r, &grid, &options)
-                .map_err(anyhow::Error::from)
-                .with_context(|| format!("{} (its particles' size and index)", r.path.display()))
-        })
-        .collect::<Result<_>>()?;
-    let elapsed = start.elapsed().as_secs_f64();
-    for line in grouped_warnings(&spectra) {
-        eprintln!("{line}");
-    }
-    if a.json && a.out.is_none() {
-        let text = if let [single] = spectra.as_slice() {
-            serde_json::to_string_pretty(single)?
-        } else {
-            serde_json::to_string_pretty(&spectra)?
-        };
-        println!("{text}");
-        return Ok(());
-    }
-    let out = a.out.unwrap_or_else(|| PathBuf::from("lucent-out/optics"));
-    let written = output::write_all(&out, &spectra)?;
-    if a.json {
-        let text = serde_json::to_string_pretty(&spectra)?;
-        println!("{text}");
-    } else {
-        print_table(&spectra);
-        print_models_and_corrections(&spectra);
-        println!(
-            "\n{} sample(s) × {} wavelength(s) in {:.2} s; {} files written to {}/ (full table: {})",
-            spectra.len(),
-            grid.len(),
-            elapsed,
-            written.len(),
-            out.display(),
-            out.join("optical_properties.csv").display()
-        );
+    for line in job.run(&ctx)?.summary() {
+        println!("{line}");
     }
     Ok(())
-}
-
-/// The samples' warnings, each text once with the samples it applies to
-/// ("warning: TEXT [11 samples: A, B, …]"): a set of recipes that share a
-/// host gives one line, not one per recipe. An index held at its end value
-/// (`extrapolate = "clamp"`) is followed by one line saying what that means.
-fn grouped_warnings(spectra: &[OpticalSpectrum]) -> Vec<String> {
-    let mut groups: Vec<(&str, Vec<&str>)> = Vec::new();
-    for s in spectra {
-        for w in &s.warnings {
-            match groups.iter_mut().find(|(t, _)| *t == w.as_str()) {
-                Some((_, samples)) => samples.push(&s.sample),
-                None => groups.push((w, vec![&s.sample])),
-            }
-        }
-    }
-    let mut lines: Vec<String> = groups
-        .iter()
-        .map(|(text, samples)| {
-            let level = if expected_clamp(text) { "note" } else { "warning" };
-            match samples.as_slice() {
-                [one] => format!("{level}: {one}: {text}"),
-                many if many.len() == spectra.len() => format!("{level}: {text} [all {} samples]", many.len()),
-                many => format!("{level}: {text} [{} samples: {}]", many.len(), many.join(", ")),
-            }
-        })
-        .collect();
-    if groups.iter().any(|(t, _)| t.contains(" clamped outside its data range")) {
-        lines.push(
-            "   (clamped: the recipe's extrapolate = \"clamp\" holds n and κ at the data's end value at those \
-             wavelengths; expected at 380–399 nm for tables that start at 400 nm, where the CIE colour-matching \
-             functions are below 1.2 % of their peaks, so a render's colour barely depends on it)"
-                .into(),
-        );
-    }
-    lines
-}
-
-/// Whether a sample's warning is an index the recipe asked to clamp
-/// (`extrapolate = "clamp"`) at wavelengths of 380–399 nm only: the
-/// shipped tables start at 400 nm, and there the CIE colour-matching
-/// functions are below 1.2 % of their peaks. Such a line is a note, not a
-/// warning; a clamp anywhere else stays a warning.
-fn expected_clamp(text: &str) -> bool {
-    let Some(at) = text.split(" clamped outside its data range ").nth(1) else {
-        return false;
-    };
-    let Some(list) = at.split("(at ").nth(1).and_then(|l| l.strip_suffix(" nm)")) else {
-        return false;
-    };
-    let nm: Vec<Option<f64>> = list.split(", ").map(|x| x.parse::<f64>().ok()).collect();
-    !nm.is_empty() && nm.iter().all(|x| matches!(x, Some(l) if (380.0..400.0).contains(l)))
-}
-
-/// Prints a readable table: every wavelength for one sample, or 450/550/650 nm for several.
-fn print_table(spectra: &[OpticalSpectrum]) {
-    println!(
-        "{:<14} {:>8} {:>13} {:>13} {:>13} {:>9} {:>9}",
-        "sample", "λ [nm]", "μs [1/m]", "μa [1/m]", "μt [1/m]", "g", "n_bulk"
-    );
-    for s in spectra {
-        let rows: Vec<usize> = if spectra.len() == 1 {
-            (0..s.wavelength_nm.len()).collect()
-        } else {
-            let picks: Vec<usize> =
-                (0..s.wavelength_nm.len()).filter(|&i| [450.0, 550.0, 650.0].contains(&s.wavelength_nm[i])).collect();
-            if picks.is_empty() {
-                (0..s.wavelength_nm.len()).collect()
-            } else {
-                picks
-            }
-        };
-        for i in rows {
-            println!(
-                "{:<14} {:>8} {:>13.5e} {:>13.5e} {:>13.5e} {:>9.5} {:>9.5}",
-                s.sample, s.wavelength_nm[i], s.mu_s_per_m[i], s.mu_a_per_m[i], s.mu_t_per_m[i], s.g[i], s.n_bulk[i]
-            );
-        }
-    }
-}
-
-/// Prints, under the table, the absorption model and the corrections of the
-/// index data, each line once with the samples it applies to.
-fn print_models_and_corrections(spectra: &[OpticalSpectrum]) {
-    let mut lines: Vec<(String, Vec<&str>)> = Vec::new();
-    for s in spectra {
-        let model = format!("absorption {}: {}", s.absorption.name(), s.absorption.formula());
-        for text in std::iter::once(model).chain(s.corrections.iter().cloned()) {
-            match lines.iter_mut().find(|(t, _)| *t == text) {
-                Some((_, samples)) => samples.push(&s.sample),
-                None => lines.push((text, vec![&s.sample])),
-            }
-        }
-    }
-    println!();
-    for (text, samples) in lines {
-        if spectra.len() > 1 && samples.len() == spectra.len() {
-            println!("{text} [all samples]");
-        } else if spectra.len() > 1 {
-            println!("{text} [{}]", samples.join(", "));
-        } else {
-            println!("{text}");
-        }
-    }
 }
 
 /// Efficiencies of one sphere, for either form of the `mie` arguments.
@@ -906,8 +664,14 @@ fn bench(b: BenchCommand) -> Result<()> {
             render::bench(&repository_file(&scene), &repository_file(&reference), &spps)?
         }
         BenchCommand::Optics { samples, repeats, weight_percent } => {
-            let paths = collect_recipe_paths(&[repository_file(&samples)])?;
-            let recipes = load_recipes(&paths, Overrides { weight_percent: Some(weight_percent) }, false)?;
+            let ctx = crate::job::Context::default();
+            let paths = crate::job::optics::collect_recipe_paths(&[repository_file(&samples)], &ctx)?;
+            let recipes = crate::job::optics::load_recipes(
+                &paths,
+                Overrides { weight_percent: Some(weight_percent) },
+                false,
+                &ctx,
+            )?;
             let grid = WavelengthGrid::visible();
             let options = bulk::Options::default();
             let mut times = Vec::new();
@@ -947,35 +711,6 @@ mod tests {
         assert!(parse_index("f", "abc").is_err());
         assert!(parse_index("f", "-1.5").is_err());
         assert!(parse_index("f", "nan").is_err());
-    }
-
-    #[test]
-    fn a_clamp_below_400_nm_is_a_note_and_any_other_a_warning() {
-        let clamp =
-            |at: &str| format!("host PC index (builtin:PC) clamped outside its data range 400–19942 nm (at {at} nm)");
-        assert!(expected_clamp(&clamp("380, 390")));
-        assert!(!expected_clamp(&clamp("370, 380, 390")));
-        assert!(!expected_clamp(&clamp("20000")));
-        assert!(!expected_clamp(&clamp("")));
-        let linear = "host PC index (x) linearly extrapolated outside its data range 400–900 nm (at 390 nm)";
-        assert!(!expected_clamp(linear));
-        let one = OpticalSpectrum {
-            sample: "A".into(),
-            absorption: crate::optics::recipe::AbsorptionModel::Mie,
-            corrections: Vec::new(),
-            wavelength_nm: vec![390.0],
-            mu_s_per_m: vec![1.0],
-            mu_a_per_m: vec![0.0],
-            mu_t_per_m: vec![1.0],
-            g: vec![0.0],
-            n_bulk: vec![1.5],
-            phase: Vec::new(),
-            phase_integral_before_normalisation: Vec::new(),
-            warnings: vec![clamp("380, 390"), clamp("360")],
-        };
-        let lines = grouped_warnings(std::slice::from_ref(&one));
-        assert!(lines[0].starts_with("note: A: host PC"), "{lines:?}");
-        assert!(lines[1].starts_with("warning: A: host PC"), "{lines:?}");
     }
 
     #[test]

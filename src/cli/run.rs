@@ -214,11 +214,31 @@ fn run_here(
     }
 }
 
-/// Runs a stage's job in this process ([`run_here`] of the command built
-/// from the job's fields, [`super::jobs::command_of`]).
+/// Runs a stage's job in this process ([`run_here`]): the job's own `run`
+/// with its summary printed as its command prints it, or for the stages not
+/// yet jobs of the library the command built from the job's fields
+/// ([`super::jobs::command_of`]).
 fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    let command = super::jobs::command_of(job)?;
-    run_here(|| super::run(super::Cli { command }), &job.to_args(), log, interrupt, console)
+    let ctx = crate::job::Context::default();
+    let print = |lines: Vec<String>| -> Result<()> {
+        for line in lines {
+            println!("{line}");
+        }
+        Ok(())
+    };
+    let work: Box<dyn FnOnce() -> Result<()> + '_> = match job {
+        Job::Optics(j) => Box::new(move || print(j.run(&ctx)?.summary())),
+        Job::ColourCalibrate(j) => Box::new(move || print(j.run(&ctx)?.summary())),
+        Job::ColourApply(j) => Box::new(move || print(j.run(&ctx)?.summary())),
+        Job::RawClipped(j) => Box::new(move || print(j.run(&ctx)?.summary())),
+        Job::Calibrate(j) => Box::new(move || print(j.run(&ctx)?.summary())),
+        Job::Pose(j) => Box::new(move || print(j.run(&ctx)?.summary())),
+        _ => {
+            let command = super::jobs::command_of(job)?;
+            Box::new(move || super::run(super::Cli { command }))
+        }
+    };
+    run_here(work, &job.to_args(), log, interrupt, console)
 }
 
 /// Merges the finished shards of `t` into its output, in this process.

@@ -140,7 +140,7 @@ impl Job {
     /// The folder the job writes into, if it writes a folder (not files).
     pub fn output_folder(&self) -> Option<&Path> {
         Some(match self {
-            Job::Optics(j) => &j.out,
+            Job::Optics(j) => return j.out.as_deref(),
             Job::Bssrdf(j) => &j.out,
             Job::BssrdfCompare(j) => &j.out,
             Job::Fit(j) => &j.out,

@@ -818,12 +818,7 @@ mod tests {
         assert_eq!(render.stop(), Stop { time_s: Some(3.0), ..Stop::samples(8) });
         let why = not_shardable(&Job::Render(render)).unwrap();
         assert!(why.contains("time budget"), "{why}");
-        let optics = crate::job::OpticsJob {
-            recipes: vec!["r.toml".into()],
-            wavelengths: "550".parse().expect("a grid"),
-            out: "x".into(),
-            weight_percent: None,
-        };
+        let optics = crate::job::OpticsJob::new(vec!["r.toml".into()], "550".parse().expect("a grid"), "x".into());
         let why = not_shardable(&Job::Optics(optics)).unwrap();
         assert!(why.contains("not split"), "{why}");
     }

@@ -1053,10 +1053,12 @@ fn plan_optics(project: &Project, p: &mut Plan) -> Planned {
         inputs.extend(recipe_inputs(&smp.recipe));
     }
     let job = OpticsJob {
-        recipes: f.sample.iter().map(|smp| smp.recipe.clone()).collect(),
-        wavelengths: f.optics.as_ref().and_then(|o| o.wavelengths.clone()).unwrap_or_else(WavelengthGrid::visible),
-        out: under_out(String::new()),
         weight_percent: f.sample.iter().find_map(|s| s.weight_percent),
+        ..OpticsJob::new(
+            f.sample.iter().map(|smp| smp.recipe.clone()).collect(),
+            f.optics.as_ref().and_then(|o| o.wavelengths.clone()).unwrap_or_else(WavelengthGrid::visible),
+            under_out(String::new()),
+        )
     };
     tasks.push(lucent_task(format!("{} recipes", f.sample.len()), Job::Optics(job)));
     Ok(Ok(()))
@@ -1139,12 +1141,14 @@ fn plan_colour(project: &Project, p: &mut Plan) -> Planned {
     for c in &f.colour {
         inputs.push(c.image.clone());
         let job = ColourCalibrateJob {
-            image: c.image.clone(),
             camera: Some(c.camera.clone()),
-            out: under_out(format!("/{}", c.camera)),
             corners: c.corners,
-            method: c.method.unwrap_or(lucent_colour::CcmMethod::Cheung2004),
             decode_srgb: c.decode_srgb == Some(true),
+            ..ColourCalibrateJob::new(
+                c.image.clone(),
+                under_out(format!("/{}", c.camera)),
+                c.method.unwrap_or(lucent_colour::CcmMethod::Cheung2004),
+            )
         };
         tasks.push(lucent_task(c.camera.clone(), Job::ColourCalibrate(job)));
     }
@@ -1176,16 +1180,13 @@ fn plan_develop(project: &Project, out: &Path, p: &mut Plan) -> Planned {
             let files = DevelopFiles::in_dir(&under_out(format!("/{}", smp.name)), what);
             let variance_out = (is_raw && what == "photo").then_some((files.variance, project.seed));
             let job = ColourApplyJob {
-                ccm: ccm.clone(),
-                input: photo.clone(),
-                output: files.exr,
-                to: crate::ccm_file::ApplyTarget::CieRgb,
                 variance_out,
                 bin,
+                ..ColourApplyJob::new(ccm.clone(), photo.clone(), files.exr, crate::ccm_file::ApplyTarget::CieRgb)
             };
             tasks.push(lucent_task(format!("{} {what}", smp.name), Job::ColourApply(job)));
             if is_raw {
-                let job = RawClippedJob { input: photo.clone(), out: files.valid, bin };
+                let job = RawClippedJob::new(photo.clone(), files.valid, bin);
                 tasks.push(lucent_task(format!("{} {what} clipping", smp.name), Job::RawClipped(job)));
             }
         }

@@ -395,13 +395,7 @@ pub fn fit_job(fit: &FitSection, bssrdf: Option<&BssrdfSection>, smp: &SampleSec
 
 /// The calibrate job of `[calibration]`.
 pub fn calibrate_job(c: &CalibrationSection, out: PathBuf) -> CalibrateJob {
-    CalibrateJob {
-        images: vec![c.images.clone()],
-        board: c.board,
-        square_mm: c.square_mm,
-        out,
-        model: c.model.unwrap_or(DistortionModel::PinholeK3),
-    }
+    CalibrateJob::new(vec![c.images.clone()], c.board, c.square_mm, out, c.model.unwrap_or(DistortionModel::PinholeK3))
 }
 
 /// The pose job of `[pose]` (board and square size from `[calibration]`
@@ -419,6 +413,7 @@ pub fn pose_job(
         square_mm: p.square_mm.or(calibration.map(|c| c.square_mm)).unwrap_or(20.0),
         out,
         sample: p.sample_corner.zip(p.sample_size_mm),
+        keep_all: false,
     })
 }
 
