@@ -38,6 +38,7 @@ mod context;
 pub mod guard;
 pub mod optics;
 mod raw;
+pub mod run;
 
 pub use camera::{CalibrateRun, CameraJobError, PoseRun};
 pub use colour::{ColourApplyRun, ColourCalibrateRun, ColourJobError};

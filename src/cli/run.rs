@@ -8,6 +8,7 @@
 use super::choices::{ForceChoice, StageChoice};
 use super::interrupt::Interrupt;
 use crate::fault::{Fault, Faulted, Interrupted};
+use crate::job::run::JobRunError;
 use crate::job::Job;
 use crate::pipeline::executor::{self, Kind};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
@@ -214,31 +215,42 @@ fn run_here(
     }
 }
 
-/// Runs a stage's job in this process ([`run_here`]): the job's own `run`
-/// with its summary printed as its command prints it, or for the stages not
-/// yet jobs of the library the command built from the job's fields
-/// ([`super::jobs::command_of`]).
+/// Runs a stage's job in this process ([`run_here`]): the library's
+/// [`Job::run`] (the job's files and output folder checked as its command
+/// checks them) with its summary printed as its command prints it, or for
+/// the stages not yet jobs of the library the command built from the job's
+/// fields ([`super::jobs::command_of`]).
 fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    let ctx = crate::job::Context::default();
-    let print = |lines: Vec<String>| -> Result<()> {
-        for line in lines {
-            println!("{line}");
-        }
-        Ok(())
-    };
-    let work: Box<dyn FnOnce() -> Result<()> + '_> = match job {
-        Job::Optics(j) => Box::new(move || print(j.run(&ctx)?.summary())),
-        Job::ColourCalibrate(j) => Box::new(move || print(j.run(&ctx)?.summary())),
-        Job::ColourApply(j) => Box::new(move || print(j.run(&ctx)?.summary())),
-        Job::RawClipped(j) => Box::new(move || print(j.run(&ctx)?.summary())),
-        Job::Calibrate(j) => Box::new(move || print(j.run(&ctx)?.summary())),
-        Job::Pose(j) => Box::new(move || print(j.run(&ctx)?.summary())),
-        _ => {
-            let command = super::jobs::command_of(job)?;
-            Box::new(move || super::run(super::Cli { command }))
-        }
+    let work: Box<dyn FnOnce() -> Result<()> + '_> = if job.runs_in_library() {
+        Box::new(move || {
+            let done = job.run(&crate::job::Context::default()).map_err(job_error)?;
+            for line in done.summary() {
+                println!("{line}");
+            }
+            Ok(())
+        })
+    } else {
+        let command = super::jobs::command_of(job)?;
+        Box::new(move || super::run(super::Cli { command }))
     };
     run_here(work, &job.to_args(), log, interrupt, console)
+}
+
+/// A job's error as its command returns it: the stage's own error, so that
+/// its fault class is read from it ([`crate::pipeline::fault_of`]).
+pub(super) fn job_error(e: JobRunError) -> anyhow::Error {
+    match e {
+        JobRunError::Invalid(e) => e.into(),
+        JobRunError::Files(e) => e.into(),
+        JobRunError::Folder(e) => e.into(),
+        JobRunError::Mark(e) => e.into(),
+        JobRunError::Optics(e) => e.into(),
+        JobRunError::Colour(e) => e.into(),
+        JobRunError::RawClipped(e) => e.into(),
+        JobRunError::Camera(e) => e.into(),
+        JobRunError::Compare(e) => e.into(),
+        e @ JobRunError::NotInLibrary(_) => e.into(),
+    }
 }
 
 /// Merges the finished shards of `t` into its output, in this process.
