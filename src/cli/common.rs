@@ -35,18 +35,7 @@ pub fn check_threads(threads: Option<usize>) -> Result<()> {
     Ok(())
 }
 
-/// "95 s", "12 min", "3.4 h" (the "expect ≈ …" lines).
-pub fn duration(s: f64) -> String {
-    if !s.is_finite() {
-        "an unknown time".into()
-    } else if s < 120.0 {
-        format!("{s:.0} s")
-    } else if s < 7200.0 {
-        format!("{:.0} min", s / 60.0)
-    } else {
-        format!("{:.1} h", s / 3600.0)
-    }
-}
+pub use crate::job::duration;
 
 /// The chessboard of `--board COLSxROWS` (inner corners) and `--square-mm`.
 pub fn board_spec(board: &str, square_mm: f64) -> Result<BoardSpec> {

@@ -327,12 +327,22 @@ pub fn run(cli: Cli) -> Result<()> {
     // it empty.
     check_outputs_are_not_inputs(&cli.command)?;
     let folder = output_folder(&cli.command);
+    with_output_folder(folder, || {
+        jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli))
+    })
+}
+
+/// Runs `work` writing into the output folder `folder` (if any): checked
+/// before any work (a folder of the user's is refused, see
+/// `io::check_output_folder`), marked as lucent's when the work succeeds,
+/// and removed again when it fails and leaves it empty.
+pub(crate) fn with_output_folder(folder: Option<PathBuf>, work: impl FnOnce() -> Result<()>) -> Result<()> {
     let existed = folder.as_deref().is_some_and(|f| std::fs::symlink_metadata(f).is_ok());
     if let Some(f) = &folder {
         crate::io::check_output_folder(f)?;
         crate::io::mark_when_written(f);
     }
-    let result = jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli));
+    let result = work();
     if let Some(f) = folder.filter(|f| f.is_dir()) {
         // A run stopped by Ctrl-C or SIGTERM that kept its labelled partial
         // result (render, bssrdf) wrote lucent's files too.
@@ -505,7 +515,7 @@ fn merge(a: shard::MergeArgs) -> Result<()> {
         .with_context(|| format!("{}: cannot parse its command line", dir.join(crate::shard::SHARD_JSON).display()))?;
     match cli.command {
         Command::Render(r) => render::run_from(r, Some(&shards)),
-        Command::Bssrdf(b) if b.command.is_none() => bssrdf::simulate_from(b.run, Some(&shards)),
+        Command::Bssrdf(b) if b.command.is_none() => bssrdf::merge(&b.run, &shards),
         Command::Optics(o) if o.uncertainty.is_some() => optics_from(o, Some(&shards)),
         _ => bail!("{}: `lucent {made_by}` is not a command with shards", dir.display()),
     }

@@ -217,8 +217,47 @@ fn run_here(
 /// Runs a stage's job in this process ([`run_here`] of the command built
 /// from the job's fields, [`super::jobs::command_of`]).
 fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    let command = super::jobs::command_of(job)?;
-    run_here(|| super::run(super::Cli { command }), &job.to_args(), log, interrupt, console)
+    let ctx = crate::job::Context::default();
+    let print = |lines: Vec<String>| lines.iter().for_each(|l| println!("{l}"));
+    match job {
+        Job::Bssrdf(j) => {
+            let work = || -> Result<()> {
+                let done = j.run(&ctx, &mut super::bssrdf::Bar::new(j.quiet)).map_err(super::bssrdf::job_error)?;
+                print(done.summary());
+                Ok(done.finished()?)
+            };
+            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
+        }
+        Job::BssrdfCompare(j) => {
+            let work = || -> Result<()> {
+                print(j.run(&ctx)?.summary());
+                Ok(())
+            };
+            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
+        }
+        Job::Fit(j) => {
+            let work = || -> Result<()> {
+                let done = j.run(&ctx).map_err(super::fit::job_error)?;
+                print(done.summary());
+                Ok(done.finished()?)
+            };
+            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
+        }
+        _ => {
+            let command = super::jobs::command_of(job)?;
+            run_here(|| super::run(super::Cli { command }), &job.to_args(), log, interrupt, console)
+        }
+    }
+}
+
+/// `work` of `job` as [`super::run`] runs a command: the job validated and
+/// its output folder `out` checked, marked when it succeeds and removed
+/// again when it fails and leaves it empty ([`super::with_output_folder`]).
+fn in_output_folder(out: &Path, job: &Job, work: impl FnOnce() -> Result<()>) -> Result<()> {
+    super::with_output_folder(Some(out.to_path_buf()), || {
+        job.validate()?;
+        work()
+    })
 }
 
 /// Merges the finished shards of `t` into its output, in this process.

@@ -26,3 +26,16 @@ impl Context {
         eprintln!("warning: {line}");
     }
 }
+
+/// A duration as a "how long it takes" line says it: "45 s", "12 min", "3.5 h".
+pub fn duration(s: f64) -> String {
+    if !s.is_finite() {
+        "an unknown time".into()
+    } else if s < 120.0 {
+        format!("{s:.0} s")
+    } else if s < 7200.0 {
+        format!("{:.0} min", s / 60.0)
+    } else {
+        format!("{:.1} h", s / 3600.0)
+    }
+}
