@@ -31,19 +31,27 @@
 //! JSON holds the text its command line does ([`values`]). Strings left
 //! are free text: names, file patterns.
 
+mod bssrdf;
 pub mod camera;
 mod colour;
 mod compare;
 mod context;
+mod fit;
 pub mod guard;
 pub mod optics;
 mod raw;
 pub mod run;
 
+pub use crate::text::duration;
+pub use bssrdf::{
+    beam, expectation, BssrdfCompareRun, BssrdfJobError, BssrdfRun, EstimatorChoice, MediumChoice, NoHooks,
+    Perturbation, Plan, PlannedRun, SliceHooks,
+};
 pub use camera::{CalibrateRun, CameraJobError, PoseRun};
 pub use colour::{ColourApplyRun, ColourCalibrateRun, ColourJobError};
 pub use compare::CompareRun;
 pub use context::Context;
+pub use fit::{write_fit_outputs, write_fit_outputs_with_recipe_text, FitJobError, FitRun};
 pub use optics::{OpticsJobError, OpticsRun};
 pub use raw::{RawClippedError, RawClippedRun};
 
@@ -301,14 +309,17 @@ impl OpticsJob {
     }
 }
 
-/// `lucent bssrdf --recipe R …`: slab BSSRDF slices of a recipe.
+/// `lucent bssrdf`: slab BSSRDF slices of a recipe (or of explicit
+/// optical coefficients: no pipeline stage's job) ([`BssrdfJob::run`]).
+/// The flags a stage of `lucent run` leaves at their defaults are not
+/// written into its job.json.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BssrdfJob {
-    pub recipe: PathBuf,
+    pub recipe: Option<PathBuf>,
     pub wavelength_nm: f64,
-    /// θi/θo pairs in degrees, "45/0,0/45" as text (else the command's
-    /// single configuration).
+    /// θi/θo pairs in degrees, "45/0,0/45" as text (else the job's
+    /// single configuration `theta_i` … `phi_o`).
     pub configs: Option<Configurations>,
     pub pixels: usize,
     pub pixel_mm: f64,
@@ -321,6 +332,134 @@ pub struct BssrdfJob {
     pub rel_error: Option<f64>,
     pub time_s: Option<f64>,
     pub phase: Option<crate::optics::PhaseModel>,
+    /// `--mu-s`, `--mu-a`, `--g`, `--n`: the medium without a recipe.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mu_s: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mu_a: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub g: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub n: Option<f64>,
+    /// `--thickness-mm` (default: the recipe's, else 6.35).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thickness_mm: Option<f64>,
+    /// The one configuration without `configs` (degrees).
+    #[serde(default = "slab_defaults::theta_i", skip_serializing_if = "slab_defaults::is_theta_i")]
+    pub theta_i: f64,
+    #[serde(default, skip_serializing_if = "slab_defaults::is_zero")]
+    pub phi_i: f64,
+    #[serde(default, skip_serializing_if = "slab_defaults::is_zero")]
+    pub theta_o: f64,
+    #[serde(default = "slab_defaults::phi_o", skip_serializing_if = "slab_defaults::is_phi_o")]
+    pub phi_o: f64,
+    /// `--similarity-g`: walk the similar medium of asymmetry at most this.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub similarity_g: Option<f64>,
+    /// `--beam-fwhm-um`: the Gaussian beam's FWHM (without a beam map).
+    #[serde(default = "slab_defaults::beam_fwhm_um", skip_serializing_if = "slab_defaults::is_beam_fwhm_um")]
+    pub beam_fwhm_um: f64,
+    /// `--beam-map`, `--beam-map-pixel-mm`: a measured irradiance map.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beam_map: Option<PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beam_map_pixel_mm: Option<f64>,
+    /// `--pixel-rel-error`: stop at this median per-pixel relative error.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pixel_rel_error: Option<f64>,
+    #[serde(default, skip_serializing_if = "slab_defaults::is_auto")]
+    pub estimator: EstimatorChoice,
+    /// `--lobe-vertices`: camera-side vertices of the lobe connection's chains.
+    #[serde(default = "slab_defaults::lobe_vertices", skip_serializing_if = "slab_defaults::is_lobe_vertices")]
+    pub lobe_vertices: u8,
+    /// `--roughness`: the top boundary (default: the recipe's surface, else smooth).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub roughness: Option<String>,
+    /// `--no-fold`: do not fold the slice about the plane of incidence.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub no_fold: bool,
+    /// `--uncertainty`: the band of the recipe's uncertain inputs.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub uncertainty: bool,
+    /// `--shard K/N`: only the K-th of N ranges of the path batches, as a shard.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<String>,
+}
+
+/// The defaults of a slab job's fields that a job.json leaves out.
+mod slab_defaults {
+    pub fn theta_i() -> f64 {
+        45.0
+    }
+    pub fn is_theta_i(v: &f64) -> bool {
+        *v == theta_i()
+    }
+    pub fn is_zero(v: &f64) -> bool {
+        *v == 0.0
+    }
+    pub fn phi_o() -> f64 {
+        180.0
+    }
+    pub fn is_phi_o(v: &f64) -> bool {
+        *v == phi_o()
+    }
+    pub fn beam_fwhm_um() -> f64 {
+        200.0
+    }
+    pub fn is_beam_fwhm_um(v: &f64) -> bool {
+        *v == beam_fwhm_um()
+    }
+    pub fn is_auto(e: &super::EstimatorChoice) -> bool {
+        *e == super::EstimatorChoice::Auto
+    }
+    pub fn lobe_vertices() -> u8 {
+        lucent_render::slab::LOBE_VERTICES as u8
+    }
+    pub fn is_lobe_vertices(v: &u8) -> bool {
+        *v == lobe_vertices()
+    }
+}
+
+impl Default for BssrdfJob {
+    /// The job of `lucent bssrdf` with no flag given (it names no medium).
+    fn default() -> Self {
+        BssrdfJob {
+            recipe: None,
+            wavelength_nm: 550.0,
+            configs: None,
+            pixels: 259,
+            pixel_mm: 0.1029,
+            seed: 1,
+            quiet: false,
+            out: "lucent-out/bssrdf".into(),
+            weight_percent: None,
+            crop: None,
+            paths: None,
+            rel_error: None,
+            time_s: None,
+            phase: None,
+            mu_s: None,
+            mu_a: None,
+            g: None,
+            n: None,
+            thickness_mm: None,
+            theta_i: slab_defaults::theta_i(),
+            phi_i: 0.0,
+            theta_o: 0.0,
+            phi_o: slab_defaults::phi_o(),
+            similarity_g: None,
+            beam_fwhm_um: slab_defaults::beam_fwhm_um(),
+            beam_map: None,
+            beam_map_pixel_mm: None,
+            pixel_rel_error: None,
+            estimator: EstimatorChoice::Auto,
+            lobe_vertices: slab_defaults::lobe_vertices(),
+            roughness: None,
+            no_fold: false,
+            uncertainty: false,
+            shard: None,
+        }
+    }
 }
 
 impl BssrdfJob {
@@ -353,7 +492,7 @@ impl BssrdfJob {
     }
     pub fn to_args(&self) -> Vec<String> {
         let mut l = Line::new(&["bssrdf"]);
-        l.flag("--recipe", s(&self.recipe))
+        l.opt("--recipe", &self.recipe.as_deref().map(s))
             .flag("--wavelength-nm", self.wavelength_nm)
             .opt("--configs", &self.configs)
             .flag("--pixels", self.pixels)
@@ -369,7 +508,52 @@ impl BssrdfJob {
             .opt("--rel-error", &self.rel_error)
             .opt("--time-s", &self.time_s)
             .opt("--phase", &self.phase.map(|p| p.name()));
+        self.other_args(&mut l);
         l.0
+    }
+
+    /// The flags a stage leaves at their defaults, when set.
+    fn other_args(&self, l: &mut Line) {
+        let d = BssrdfJob::default();
+        let eq = |v: f64| format!("={v}");
+        l.opt("--mu-s", &self.mu_s).opt("--mu-a", &self.mu_a);
+        // Values that may be negative are written `--flag=V`.
+        if let Some(g) = self.g {
+            l.word(format!("--g{}", eq(g)));
+        }
+        l.opt("--n", &self.n);
+        if let Some(t) = self.thickness_mm {
+            l.word(format!("--thickness-mm{}", eq(t)));
+        }
+        for (flag, v, default) in [
+            ("--theta-i", self.theta_i, d.theta_i),
+            ("--phi-i", self.phi_i, d.phi_i),
+            ("--theta-o", self.theta_o, d.theta_o),
+            ("--phi-o", self.phi_o, d.phi_o),
+        ] {
+            if v != default {
+                l.word(format!("{flag}{}", eq(v)));
+            }
+        }
+        if let Some(g) = self.similarity_g {
+            l.word(format!("--similarity-g{}", eq(g)));
+        }
+        if self.beam_fwhm_um != d.beam_fwhm_um {
+            l.word(format!("--beam-fwhm-um{}", eq(self.beam_fwhm_um)));
+        }
+        l.opt("--beam-map", &self.beam_map.as_deref().map(s))
+            .opt("--beam-map-pixel-mm", &self.beam_map_pixel_mm)
+            .opt("--pixel-rel-error", &self.pixel_rel_error);
+        if self.estimator != d.estimator {
+            l.flag("--estimator", self.estimator.name());
+        }
+        if self.lobe_vertices != d.lobe_vertices {
+            l.flag("--lobe-vertices", self.lobe_vertices);
+        }
+        l.opt("--roughness", &self.roughness)
+            .switch("--no-fold", self.no_fold)
+            .switch("--uncertainty", self.uncertainty)
+            .opt("--shard", &self.shard);
     }
 }
 
@@ -425,6 +609,60 @@ pub struct FitJob {
     pub bounds: Option<SearchBounds>,
     pub threshold: f64,
     pub out: PathBuf,
+    /// `--beam-fwhm-um`: the Gaussian beam's FWHM (without a beam map).
+    #[serde(default = "slab_defaults::beam_fwhm_um", skip_serializing_if = "slab_defaults::is_beam_fwhm_um")]
+    pub beam_fwhm_um: f64,
+    /// `--beam-map`, `--beam-map-pixel-mm`: a measured irradiance map.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beam_map: Option<PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beam_map_pixel_mm: Option<f64>,
+    /// `--pilot-time-s`: the pilot run's time cap per configuration.
+    #[serde(default = "fit_defaults::pilot_time_s", skip_serializing_if = "fit_defaults::is_pilot_time_s")]
+    pub pilot_time_s: f64,
+    /// `--thickness-mm` (default: the recipe's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thickness_mm: Option<f64>,
+}
+
+impl Default for FitJob {
+    /// The flags' defaults of `lucent fit` (the recipe, measured slices and
+    /// free parameters, which it requires, empty).
+    fn default() -> Self {
+        FitJob {
+            recipe: PathBuf::new(),
+            measured: Vec::new(),
+            measured_pixel_mm: None,
+            weight_percent: None,
+            free: Vec::new(),
+            wavelength_nm: 550.0,
+            seed: 1,
+            quiet: false,
+            objective: crate::fit::Objective::Sum,
+            rel_error: DEFAULT_FIT_REL_ERROR,
+            paths: None,
+            measured_rel_sd: DEFAULT_MEASURED_REL_SD,
+            bounds: None,
+            threshold: DEFAULT_THRESHOLD,
+            out: "lucent-out/fit".into(),
+            beam_fwhm_um: slab_defaults::beam_fwhm_um(),
+            beam_map: None,
+            beam_map_pixel_mm: None,
+            pilot_time_s: fit_defaults::pilot_time_s(),
+            thickness_mm: None,
+        }
+    }
+}
+
+/// The defaults of a fit job's fields that a job.json leaves out.
+mod fit_defaults {
+    /// `--pilot-time-s`.
+    pub fn pilot_time_s() -> f64 {
+        60.0
+    }
+    pub fn is_pilot_time_s(v: &f64) -> bool {
+        *v == pilot_time_s()
+    }
 }
 
 /// Defaults of `lucent fit`'s flags.
@@ -478,6 +716,16 @@ impl FitJob {
             l.word(format!("--bounds={b}"));
         }
         l.flag("--threshold", self.threshold).flag("--out", s(&self.out));
+        if self.beam_fwhm_um != slab_defaults::beam_fwhm_um() {
+            l.word(format!("--beam-fwhm-um={}", self.beam_fwhm_um));
+        }
+        l.opt("--beam-map", &self.beam_map.as_deref().map(s)).opt("--beam-map-pixel-mm", &self.beam_map_pixel_mm);
+        if self.pilot_time_s != fit_defaults::pilot_time_s() {
+            l.word(format!("--pilot-time-s={}", self.pilot_time_s));
+        }
+        if let Some(t) = self.thickness_mm {
+            l.word(format!("--thickness-mm={t}"));
+        }
         l.0
     }
 }
@@ -1086,9 +1334,11 @@ impl Job {
                 o.out = o.out.as_ref().map(|_| PathBuf::new());
             }
             Job::Bssrdf(b) => {
-                b.recipe = canon(&b.recipe);
+                b.recipe = b.recipe.as_deref().map(canon);
+                b.beam_map = b.beam_map.as_deref().map(canon);
                 b.out = PathBuf::new();
                 b.quiet = false;
+                b.shard = None;
             }
             Job::Render(r) => {
                 r.scene = canon(&r.scene);
@@ -1103,6 +1353,7 @@ impl Job {
             }
             Job::Fit(f) => {
                 f.recipe = canon(&f.recipe);
+                f.beam_map = f.beam_map.as_deref().map(canon);
                 f.out = PathBuf::new();
                 f.quiet = false;
             }
@@ -1172,23 +1423,6 @@ impl RenderJob {
             samples: self.spp.map(u64::from),
             time_s: self.time_s,
             ..lucent_render::stop::Stop::default()
-        }
-    }
-}
-
-/// The stop rule of a slab job ([`lucent_render::stop::Stop`]), which the
-/// shard planner asks.
-impl BssrdfJob {
-    /// The stop rule the job's flags give: light paths (`paths`), a time
-    /// budget in seconds (`time_s`) and a target relative error of the
-    /// slice sum (`rel_error`); empty, `lucent bssrdf` stops at 1 % or
-    /// after 600 s.
-    pub fn stop(&self) -> lucent_render::stop::Stop {
-        lucent_render::stop::Stop {
-            samples: self.paths,
-            time_s: self.time_s,
-            rel_error: self.rel_error,
-            pixel_rel_error: None,
         }
     }
 }

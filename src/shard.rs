@@ -75,6 +75,46 @@ pub enum ShardError {
     /// An accumulator from before the shard's identity was kept inside it.
     #[error("{path}: holds no record of its shard and run (an older accumulator format); rerun the shard")]
     NoRecord { path: PathBuf },
+    /// A shard's output folder holds another shard ([`check_shard_out`]).
+    #[error(
+        "--out {}: already holds shard {there} of {there_of} of {} run ({}); give each shard its own folder (writing shard {k} \
+         of {n} here would replace it)",
+        out.display(),
+        if *same_run { "this" } else { "another" },
+        json.display()
+    )]
+    OutHoldsShard { out: PathBuf, json: PathBuf, there: u32, there_of: u32, same_run: bool, k: u32, n: u32 },
+    /// A shard's output folder holds a shard.json that is not one.
+    #[error("--out {}: holds a {} lucent cannot read as a shard's; give each shard its own folder", out.display(), json.display())]
+    OutNotShard { out: PathBuf, json: PathBuf },
+}
+
+/// Refuses a shard's `--out` that already holds another shard (another K
+/// or N): two shards written into one folder would leave only the last.
+/// Shard K of N again (a retry, or the same shard after its inputs
+/// changed) may replace its own files. Checked before the shard runs and
+/// again just before it writes.
+pub fn check_shard_out(out: &Path, identity: &Identity, k: u32) -> Result<(), ShardError> {
+    let json = out.join(SHARD_JSON);
+    if std::fs::symlink_metadata(&json).is_err() {
+        return Ok(());
+    }
+    let there: Option<ShardFile> = crate::io::read_text(&json).ok().and_then(|t| serde_json::from_str(&t).ok());
+    match there {
+        // Shard K of N again (a retry, or a rerun after its inputs changed)
+        // replaces its own files.
+        Some(f) if f.shard == k && f.identity.shards == identity.shards => Ok(()),
+        Some(f) => Err(ShardError::OutHoldsShard {
+            out: out.to_path_buf(),
+            json,
+            there: f.shard,
+            there_of: f.identity.shards,
+            same_run: f.identity == *identity,
+            k,
+            n: identity.shards,
+        }),
+        None => Err(ShardError::OutNotShard { out: out.to_path_buf(), json }),
+    }
 }
 
 /// What a shard's accumulator records about itself, inside the checksummed

@@ -16,7 +16,7 @@
 
 use lucent::cli::bssrdf as bssrdf_cli;
 use lucent::cli::camera as camera_cli;
-use lucent::cli::fit::{self as fit_cli, FitArgs};
+use lucent::cli::fit::FitArgs;
 use lucent::cli::groups::{BeamArgs, TwinRenderArgs};
 use lucent::cli::render::{self as render_cli, RenderArgs};
 use lucent::compare::{self, MaskSpec, Request};
@@ -1103,7 +1103,7 @@ fn py_bssrdf<'py>(
         paths,
         time_s,
         seed,
-        estimator: choice("estimator", estimator)?,
+        estimator: named("estimator", estimator)?,
         lobe_vertices,
         roughness,
         no_fold,
@@ -1116,8 +1116,10 @@ fn py_bssrdf<'py>(
     if let Some(job) = lucent::cli::jobs::bssrdf_run(&args) {
         job.validate().map_err(error)?;
     }
+    let job = lucent::job::BssrdfJob::from(&args);
     let recipe = recipe.map(|r| r.load(Overrides { weight_percent })).transpose()?;
-    let plan = bssrdf_cli::plan_with_recipe(&args, recipe.as_ref()).map_err(error_chain)?;
+    let ctx = lucent::job::Context::default();
+    let plan = job.plan_with(recipe.as_ref(), Some(&ctx)).map_err(|e| error_chain(e.into()))?;
     let run = plan.runs.first().ok_or_else(|| error("no configuration to simulate"))?;
     let slice = run_interruptible(py, progress, |cancel, report| {
         slab::simulate_cancellable(
@@ -1300,9 +1302,9 @@ fn py_fit<'py>(
         out: out.clone().unwrap_or_default(),
         quiet: true,
     };
-    lucent::job::FitJob::from(&args).validate().map_err(error)?;
-    let problem =
-        fit_cli::build_problem_with_recipe(&args, recipe.load(Overrides { weight_percent })?).map_err(error_chain)?;
+    let job = lucent::job::FitJob::from(&args);
+    job.validate().map_err(error)?;
+    let problem = job.problem_with(recipe.load(Overrides { weight_percent })?).map_err(|e| error_chain(e.into()))?;
     let result = run_interruptible(py, progress, |cancel, report| {
         fit::fit_cancellable(&problem, |line| report(Report::Line(line.clone())), cancel)
     })?
@@ -1311,7 +1313,7 @@ fn py_fit<'py>(
         std::fs::create_dir_all(dir)
             .map_err(|e| error(format!("out {}: cannot create the folder: {e}", dir.display())))?;
         match &recipe {
-            RecipeArg::File(_) => fit_cli::write_outputs(dir, &problem, &result),
+            RecipeArg::File(_) => lucent::job::write_fit_outputs(dir, &problem, &result),
             RecipeArg::Dict { text, .. } => {
                 let stem: String = problem
                     .recipe
@@ -1319,10 +1321,10 @@ fn py_fit<'py>(
                     .chars()
                     .map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' })
                     .collect();
-                fit_cli::write_outputs_with_recipe_text(dir, &problem, &result, text, &stem)
+                lucent::job::write_fit_outputs_with_recipe_text(dir, &problem, &result, text, &stem)
             }
         }
-        .map_err(error_chain)?;
+        .map_err(|e| error_chain(e.into()))?;
     }
     to_python(py, &result)
 }

@@ -1,10 +1,10 @@
 //! `lucent fit`: recipe parameters fitted to measured BSSRDF slices
-//! ([`crate::fit`]), and `lucent bench fit`.
+//! ([`crate::fit`]). Argument handling and printing only: the flags become
+//! a [`FitJob`], which does the work. Also `lucent bench fit`, and `lucent
+//! optics --uncertainty N` ([`optics_uncertainty`]).
 
-use crate::fit::{
-    self, report, Budget, FitResult, FreeParameter, FreeSpec, Measurement, Objective, Problem, SearchBounds,
-};
-use crate::job::MeasuredSlice;
+use crate::fit::{self, FreeParameter, FreeSpec, Measurement, Objective, Problem, SearchBounds};
+use crate::job::{FitJob, FitJobError, MeasuredSlice};
 use crate::optics::recipe::{Overrides, Recipe};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
@@ -67,259 +67,23 @@ pub struct FitArgs {
     pub quiet: bool,
 }
 
-/// (θi, φi, θo, φo) in degrees.
-pub type Angles = (f64, f64, f64, f64);
-
-/// The configuration from a sidecar (`FILE.json`, or `summary.json` beside
-/// it, as `lucent bssrdf` writes): `config.theta_i_deg` etc.
-fn sidecar_angles(path: &Path) -> Result<Option<Angles>> {
-    let mut candidates = vec![PathBuf::from(format!("{}.json", path.display()))];
-    if let Some(dir) = path.parent() {
-        candidates.push(dir.join(crate::bssrdf::SliceFiles::SUMMARY));
-    }
-    for c in candidates {
-        let Ok(text) = crate::io::read_text(&c) else { continue };
-        let v: serde_json::Value =
-            serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", c.display()))?;
-        let get = |k: &str| v.get(k).or_else(|| v.pointer(&format!("/config/{k}"))).and_then(|x| x.as_f64());
-        if let (Some(ti), Some(to)) = (get("theta_i_deg"), get("theta_o_deg")) {
-            return Ok(Some((ti, get("phi_i_deg").unwrap_or(0.0), to, get("phi_o_deg").unwrap_or(180.0))));
-        }
-    }
-    Ok(None)
-}
-
-/// The fit problem of `lucent fit` for the arguments `a`, checked before any work.
-pub fn build_problem(a: &FitArgs) -> Result<Problem> {
-    build_problem_with_recipe(a, Recipe::load(&a.recipe, Overrides { weight_percent: a.weight_percent })?)
-}
-
-/// The fit problem of `lucent fit` for the arguments `a` with `recipe` (the
-/// start values) in place of the file `--recipe` names: a recipe not read
-/// from a file, e.g. the Python API's dict.
-pub fn build_problem_with_recipe(a: &FitArgs, recipe: Recipe) -> Result<Problem> {
-    let free: Vec<FreeParameter> =
-        a.free.iter().map(|spec| FreeParameter::of(*spec, &recipe)).collect::<Result<_, _>>()?;
-    if let Some(p) = a.measured_pixel_mm
-        && !(p.is_finite() && p > 0.0)
-    {
-        bail!("--measured-pixel-mm {p}: must be a positive number of millimetres");
-    }
-    let mut measurements = Vec::new();
-    // One slice given twice (under two spellings) would count as two configurations.
-    if let Some(n) = a.paths
-        && let Some(reason) = crate::bssrdf::paths_problem(n)
-    {
-        bail!("--paths {n}: {reason}");
-    }
-    let mut seen: Vec<(std::path::PathBuf, &MeasuredSlice)> = Vec::new();
-    for spec in &a.measured {
-        let (path, angles) = (&spec.path, spec.angles.map(|a| a.degrees()));
-        if !path.is_file() {
-            bail!("--measured {}: no such file", path.display());
-        }
-        let key = crate::io::file_key(path);
-        if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
-            bail!("--measured {spec}: the same file as --measured {first}; give each measured slice once");
-        }
-        seen.push((key, spec));
-        let angles = match angles {
-            Some(x) => x,
-            None => sidecar_angles(path)?.ok_or_else(|| {
-                anyhow!(
-                    "--measured {}: configuration unknown; write it as {}:45/0 (θi/θo in degrees) or give a FILE.json with theta_i_deg, theta_o_deg",
-                    path.display(),
-                    path.display()
-                )
-            })?,
-        };
-        measurements.push(Measurement::load_at(path, a.measured_pixel_mm, angles, Some(a.wavelength))?);
-    }
-    let (beam, _) = a.beam.beam()?;
-    let thickness_m = match a.thickness_mm {
-        Some(t) if !(t.is_finite() && t > 0.0) => bail!("--thickness-mm {t}: must be a positive number of millimetres"),
-        Some(t) => t * 1e-3,
-        None => recipe.thickness_m,
-    };
-    let bounds = match &a.bounds {
-        Some(b) if b.0.len() != free.len() => {
-            bail!("--bounds {b}: {} entries for {} free parameter(s)", b.0.len(), free.len())
-        }
-        Some(b) => b.0.iter().map(|r| Some((r.lo, r.hi))).collect(),
-        None => vec![None; free.len()],
-    };
-    let mut problem = Problem::new(recipe, a.wavelength, free, measurements)?;
-    problem.beam = beam;
-    problem.objective = a.objective;
-    problem.threshold = a.threshold;
-    problem.measured_rel_sd = a.measured_rel_sd;
-    problem.seed = a.seed;
-    problem.budget =
-        Budget { rel_error: a.rel_error, pilot_time_s: a.pilot_time_s, paths: a.paths, ..Budget::default() };
-    problem.bounds = bounds;
-    problem.thickness_m = thickness_m;
-    problem.validate()?;
-    Ok(problem)
-}
-
-/// Writes fit.json, objective.png, the profiles per configuration and
-/// (identifiable fits) the fitted recipe, `NAME_fitted.toml` after the
-/// recipe file's name.
-pub fn write_outputs(out: &Path, problem: &Problem, result: &FitResult) -> Result<Vec<PathBuf>> {
-    let original = crate::io::read_text(&problem.recipe.path)
-        .with_context(|| format!("{}: cannot read the recipe again", problem.recipe.path.display()))?;
-    let stem = problem.recipe.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or("recipe".into());
-    write_outputs_with_recipe_text(out, problem, result, &original, &stem)
-}
-
-/// [`write_outputs`] with the recipe's TOML text given (`original`, its
-/// relative paths anchored at the folder of `problem.recipe.path`) and the
-/// fitted recipe written as `STEM_fitted.toml`: for a recipe not read from
-/// a file.
-pub fn write_outputs_with_recipe_text(
-    out: &Path,
-    problem: &Problem,
-    result: &FitResult,
-    original: &str,
-    stem: &str,
-) -> Result<Vec<PathBuf>> {
-    let mut written = Vec::new();
-    let files = report::FitFiles::in_dir(out);
-    let p = files.json.clone();
-    crate::io::write_json(&p, result)?;
-    written.push(p);
-    let p = files.objective_png.clone();
-    crate::io::write_atomic(&p, &report::objective_png(result)?)?;
-    written.push(p);
-    // Per configuration: the measured profile against the simulated ones at
-    // the recipe and at the fit.
-    for (c, m) in problem.measurements.iter().enumerate() {
-        let row = |s: &[f64]| -> Option<Vec<f64>> {
-            let n = m.grid.size;
-            (s.len() == n * n).then(|| s[(n / 2) * n..(n / 2 + 1) * n].to_vec())
-        };
-        let start = result.slices_start.get(c).and_then(|s| row(s));
-        let end = result.slices_end.as_ref().and_then(|e| e.get(c)).and_then(|s| row(s));
-        let mut curves: Vec<crate::bssrdf::ProfileCurve> = vec![("measured", m.grid.middle_row(), None)];
-        curves.extend(start.as_deref().map(|v| ("simulated at the recipe", v, None)));
-        curves.extend(end.as_deref().map(|v| ("simulated at the fit", v, None)));
-        let d = &m.directions;
-        let p = files.profiles_png(d.theta_i_deg, d.theta_o_deg);
-        crate::io::write_atomic(&p, &crate::bssrdf::profile_png(&m.grid.x_mm(), &curves, None)?)?;
-        written.push(p);
-    }
-    let dir = problem.recipe.path.parent().unwrap_or(Path::new("."));
-    if let Some(text) = report::fitted_recipe_text(original, dir, result) {
-        let p = files.fitted_recipe(stem);
-        // The fitted recipe must load as it is written.
-        Recipe::parse(&text, &p, Overrides::default()).with_context(|| "the fitted recipe does not validate")?;
-        crate::io::write_atomic(&p, text.as_bytes())?;
-        written.push(p);
-    }
-    Ok(written)
-}
-
-/// The files of `--out` that a fit writes (replaced whole by the next fit).
-fn fit_output(name: &str) -> bool {
-    report::FitFiles::is_output(name)
-}
-
-/// Runs `lucent fit`. Ctrl-C or SIGTERM stops the fit at the end of the
-/// simulation under way and writes nothing (exit 130; a second one ends it
-/// at once); the outputs are written into a staging folder and moved into
-/// `--out` only when all of them are, so `--out` never holds half a fit.
+/// `lucent fit`: the job of the flags ([`FitJob::run`]), then its summary
+/// on stdout; a fit the data cannot pin down fails after it is written.
 pub fn run(a: FitArgs) -> Result<()> {
-    let problem = build_problem(&a)?;
-    // Registered before the staging folder exists: a second Ctrl-C the
-    // moment it appears still removes it (and --out, if this run made it).
-    let _remove_on_abort = super::interrupt::remove_staged_on_abort(&a.out);
-    let stage = crate::io::StagedDir::new(&a.out)?;
-    let interrupt = super::interrupt::Interrupt::install();
-    let quiet = a.quiet;
-    if !quiet {
-        eprintln!("fitting; Ctrl-C stops after the simulation under way and writes nothing");
+    let done = FitJob::from(&a).run(&crate::job::Context::default()).map_err(job_error)?;
+    for line in done.summary() {
+        println!("{line}");
     }
-    let stopped = |evaluations: usize| {
-        crate::fault::Interrupted(format!(
-            "the fit stopped after {evaluations} evaluation(s), without a result; nothing was written to {}",
-            a.out.display()
-        ))
-    };
-    // Each evaluation numbered with the time so far; after the pilot, the
-    // time a search of this many parameters roughly takes (a one-parameter
-    // golden search 12–20 evaluations, Nelder–Mead up to 40 per parameter).
-    let started = std::time::Instant::now();
-    let mut count = 0usize;
-    let free = problem.free.len();
-    let result = match fit::fit_cancellable(
-        &problem,
-        |e| {
-            if quiet {
-                return;
-            }
-            count += 1;
-            let t = started.elapsed().as_secs_f64();
-            eprintln!("[{count}, {t:.0} s] {e}");
-            if count == 1 {
-                let (lo, hi) = if free == 1 { (12, 20) } else { (10 * free, 40 * free) };
-                eprintln!(
-                    "expect ≈ {}–{} s: a search over {free} parameter(s) takes ≈ {lo}–{hi} evaluations of ≈ {:.0} s",
-                    (lo as f64 * t).round(),
-                    (hi as f64 * t).round(),
-                    t
-                );
-            }
-        },
-        interrupt.flag(),
-    ) {
-        Err(fit::FitError::Interrupted { evaluations }) => return Err(stopped(evaluations).into()),
-        r => r?,
-    };
-    write_outputs(stage.path(), &problem, &result)?;
-    if interrupt.requested() {
-        return Err(stopped(result.evaluations).into());
-    }
-    let mut written: Vec<PathBuf> = std::fs::read_dir(stage.path())
-        .with_context(|| format!("{}: cannot list the staged outputs", stage.path().display()))?
-        .filter_map(|e| e.ok())
-        .map(|e| a.out.join(e.file_name()))
-        .filter(|p| p.file_name().is_some_and(|n| fit_output(&n.to_string_lossy())))
-        .collect();
-    written.sort();
-    stage.commit(fit_output)?;
-    drop(interrupt);
-    print_result(&result);
-    println!("written: {}", written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
-    if !result.identifiable {
-        bail!("{}", result.reason.clone().unwrap_or_else(|| "the fit is not identifiable".into()));
-    }
-    Ok(())
+    Ok(done.finished()?)
 }
 
-fn print_result(r: &FitResult) {
-    for p in &r.parameters {
-        match (p.value, p.std_error, p.interval_95) {
-            (Some(v), Some(se), Some([lo, hi])) => println!(
-                "{}: {:.5} → {v:.5} ± {se:.5} (95 %: {lo:.5} … {hi:.5}; SE from the measurement uncertainty {:.5}{})",
-                p.name,
-                p.start,
-                p.std_error_measurement.unwrap_or(f64::NAN),
-                p.std_error_bootstrap_configurations
-                    .map(|s| format!(", bootstrap over configurations {s:.5}"))
-                    .unwrap_or_default()
-            ),
-            _ => println!("{}: not identifiable", p.name),
-        }
+/// A fit job's error for the command: a fit stopped by Ctrl-C as the
+/// [`crate::fault::Interrupted`] it is (its exit code), others as they are.
+pub fn job_error(e: FitJobError) -> anyhow::Error {
+    match e.into_parts() {
+        Ok(e) => e.into(),
+        Err(interrupted) => interrupted.into(),
     }
-    println!(
-        "objective ({}): {:.4e} → {}; {} evaluations, {:.2e} paths, {:.1} s",
-        r.objective.name(),
-        r.objective_start,
-        r.objective_end.map(|v| format!("{v:.4e}")).unwrap_or("—".into()),
-        r.evaluations,
-        r.paths_total as f64,
-        r.wall_s
-    );
 }
 
 /// `lucent bench fit`: a one-parameter weight-percentage fit of IOL1068-09
@@ -343,7 +107,7 @@ pub fn bench(rel_error: f64, out: Option<PathBuf>) -> Result<()> {
     problem.budget.rel_error = rel_error;
     let result = fit::fit(&problem, |e| eprintln!("{e}"))?;
     if let Some(dir) = out {
-        write_outputs(&dir, &problem, &result)?;
+        crate::job::write_fit_outputs(&dir, &problem, &result)?;
     }
     let p = &result.parameters[0];
     let json = serde_json::json!({

@@ -7,13 +7,12 @@
 //! * [`TwinRenderArgs`]: the overrides of a scene's `[render]` section and
 //!   the image size (`render`, `env fit-scale`).
 
-use crate::bssrdf;
 use crate::scene::LoadedScene;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use lucent_calib::board::BoardSize;
 use lucent_calib::scene::BoardSpec;
-use lucent_render::slab::{Beam, BeamMap};
+use lucent_render::slab::Beam;
 use lucent_render::tracer::Settings;
 use std::path::PathBuf;
 
@@ -41,23 +40,7 @@ impl Default for BeamArgs {
 impl BeamArgs {
     /// The beam, and how a report describes it.
     pub fn beam(&self) -> Result<(Beam, String)> {
-        match &self.beam_map {
-            Some(path) => {
-                let grid = bssrdf::read_grid(path, self.beam_map_pixel_mm).context("--beam-map")?;
-                let map = BeamMap::new(grid.size, grid.size, grid.pixel_m, grid.values)
-                    .map_err(|e| anyhow!("{}: {e}", path.display()))?;
-                Ok((Beam::Map(map), format!("map {}", path.display())))
-            }
-            None => {
-                let fwhm = self.beam_fwhm_um;
-                // Said in the flag's micrometres (the simulator's beam_fwhm_m is not the user's).
-                if !(fwhm.is_finite() && fwhm > 0.0) {
-                    bail!("--beam-fwhm-um {fwhm}: must be a positive number of micrometres");
-                }
-                let beam = Beam::gaussian(fwhm * 1e-6).map_err(|e| anyhow!("--beam-fwhm-um {fwhm}: {e}"))?;
-                Ok((beam, format!("gaussian, FWHM {fwhm} µm")))
-            }
-        }
+        Ok(crate::job::beam(self.beam_fwhm_um, self.beam_map.as_deref(), self.beam_map_pixel_mm)?)
     }
 }
 

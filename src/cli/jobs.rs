@@ -102,25 +102,51 @@ fn adaptation_choice(c: Option<lucent_colour::adaptation::Cat>) -> super::choice
     }
 }
 
-/// The job of a `bssrdf` run; `None` without `--recipe` (optical
-/// coefficients given directly are no pipeline stage's job).
+/// The job of a `bssrdf` run when it is a pipeline stage's; `None`
+/// without `--recipe` (optical coefficients given directly are no stage's job).
 pub fn bssrdf_run(a: &bssrdf::RunArgs) -> Option<BssrdfJob> {
-    Some(BssrdfJob {
-        recipe: a.recipe.clone()?,
-        wavelength_nm: a.wavelength,
-        configs: a.configs.clone(),
-        pixels: a.pixels,
-        pixel_mm: a.pixel_mm,
-        seed: a.seed,
-        quiet: a.quiet,
-        out: a.out.clone(),
-        weight_percent: a.weight_percent,
-        crop: a.crop,
-        paths: a.paths,
-        rel_error: a.rel_error,
-        time_s: a.time_s,
-        phase: a.phase,
-    })
+    a.recipe.is_some().then(|| a.into())
+}
+
+impl From<&bssrdf::RunArgs> for BssrdfJob {
+    fn from(a: &bssrdf::RunArgs) -> Self {
+        BssrdfJob {
+            recipe: a.recipe.clone(),
+            wavelength_nm: a.wavelength,
+            configs: a.configs.clone(),
+            pixels: a.pixels,
+            pixel_mm: a.pixel_mm,
+            seed: a.seed,
+            quiet: a.quiet,
+            out: a.out.clone(),
+            weight_percent: a.weight_percent,
+            crop: a.crop,
+            paths: a.paths,
+            rel_error: a.rel_error,
+            time_s: a.time_s,
+            phase: a.phase,
+            mu_s: a.mu_s,
+            mu_a: a.mu_a,
+            g: a.g,
+            n: a.n,
+            thickness_mm: a.thickness_mm,
+            theta_i: a.theta_i,
+            phi_i: a.phi_i,
+            theta_o: a.theta_o,
+            phi_o: a.phi_o,
+            similarity_g: a.similarity_g,
+            beam_fwhm_um: a.beam.beam_fwhm_um,
+            beam_map: a.beam.beam_map.clone(),
+            beam_map_pixel_mm: a.beam.beam_map_pixel_mm,
+            pixel_rel_error: a.pixel_rel_error,
+            estimator: a.estimator,
+            lobe_vertices: a.lobe_vertices,
+            roughness: a.roughness.clone(),
+            no_fold: a.no_fold,
+            uncertainty: a.uncertainty,
+            shard: a.shard.clone(),
+        }
+    }
 }
 
 impl From<&bssrdf::CompareArgs> for BssrdfCompareJob {
@@ -153,6 +179,11 @@ impl From<&fit::FitArgs> for FitJob {
             bounds: a.bounds.clone(),
             threshold: a.threshold,
             out: a.out.clone(),
+            beam_fwhm_um: a.beam.beam_fwhm_um,
+            beam_map: a.beam.beam_map.clone(),
+            beam_map_pixel_mm: a.beam.beam_map_pixel_mm,
+            pilot_time_s: a.pilot_time_s,
+            thickness_mm: a.thickness_mm,
         }
     }
 }
@@ -259,26 +290,7 @@ pub fn command_of(job: &Job) -> anyhow::Result<Command> {
     let board = |board, square_mm| super::groups::BoardArgs { board, square_mm };
     Ok(match job {
         Job::Optics(j) => Command::Optics(optics_args(j)),
-        Job::Bssrdf(j) => Command::Bssrdf(bssrdf::BssrdfArgs {
-            command: None,
-            run: bssrdf::RunArgs {
-                recipe: Some(j.recipe.clone()),
-                weight_percent: j.weight_percent,
-                wavelength: j.wavelength_nm,
-                configs: j.configs.clone(),
-                phase: j.phase,
-                pixels: j.pixels,
-                pixel_mm: j.pixel_mm,
-                crop: j.crop,
-                rel_error: j.rel_error,
-                paths: j.paths,
-                time_s: j.time_s,
-                seed: j.seed,
-                out: j.out.clone(),
-                quiet: j.quiet,
-                ..bssrdf::RunArgs::defaults()
-            },
-        }),
+        Job::Bssrdf(j) => Command::Bssrdf(bssrdf::BssrdfArgs { command: None, run: bssrdf_args(j) }),
         Job::BssrdfCompare(j) => Command::Bssrdf(bssrdf::BssrdfArgs {
             command: Some(bssrdf::BssrdfCommand::Compare(bssrdf::CompareArgs {
                 measured: j.measured.clone(),
@@ -367,6 +379,48 @@ fn optics_args(j: &OpticsJob) -> super::OpticsArgs {
     }
 }
 
+/// `lucent bssrdf` of a slab job.
+fn bssrdf_args(j: &BssrdfJob) -> bssrdf::RunArgs {
+    bssrdf::RunArgs {
+        recipe: j.recipe.clone(),
+        weight_percent: j.weight_percent,
+        wavelength: j.wavelength_nm,
+        mu_s: j.mu_s,
+        mu_a: j.mu_a,
+        g: j.g,
+        n: j.n,
+        thickness_mm: j.thickness_mm,
+        theta_i: j.theta_i,
+        phi_i: j.phi_i,
+        theta_o: j.theta_o,
+        phi_o: j.phi_o,
+        configs: j.configs.clone(),
+        phase: j.phase,
+        similarity_g: j.similarity_g,
+        beam: super::groups::BeamArgs {
+            beam_fwhm_um: j.beam_fwhm_um,
+            beam_map: j.beam_map.clone(),
+            beam_map_pixel_mm: j.beam_map_pixel_mm,
+        },
+        pixels: j.pixels,
+        pixel_mm: j.pixel_mm,
+        crop: j.crop,
+        rel_error: j.rel_error,
+        pixel_rel_error: j.pixel_rel_error,
+        paths: j.paths,
+        time_s: j.time_s,
+        seed: j.seed,
+        estimator: j.estimator,
+        lobe_vertices: j.lobe_vertices,
+        roughness: j.roughness.clone(),
+        no_fold: j.no_fold,
+        uncertainty: j.uncertainty,
+        out: j.out.clone(),
+        quiet: j.quiet,
+        shard: j.shard.clone(),
+    }
+}
+
 /// `lucent fit` of a fit job.
 fn fit_args(j: &FitJob) -> fit::FitArgs {
     fit::FitArgs {
@@ -377,14 +431,18 @@ fn fit_args(j: &FitJob) -> fit::FitArgs {
         free: j.free.clone(),
         objective: j.objective,
         wavelength: j.wavelength_nm,
-        beam: super::groups::BeamArgs::default(),
+        beam: super::groups::BeamArgs {
+            beam_fwhm_um: j.beam_fwhm_um,
+            beam_map: j.beam_map.clone(),
+            beam_map_pixel_mm: j.beam_map_pixel_mm,
+        },
         measured_rel_sd: j.measured_rel_sd,
         threshold: j.threshold,
         rel_error: j.rel_error,
         paths: j.paths,
-        pilot_time_s: 60.0,
+        pilot_time_s: j.pilot_time_s,
         bounds: j.bounds.clone(),
-        thickness_mm: None,
+        thickness_mm: j.thickness_mm,
         seed: j.seed,
         out: j.out.clone(),
         quiet: j.quiet,

@@ -326,11 +326,23 @@ pub fn run(cli: Cli) -> Result<()> {
     // command succeeds, and removed again when the command fails and leaves
     // it empty.
     check_outputs_are_not_inputs(&cli.command)?;
-    let folder = crate::job::guard::OutputFolder::open(output_folder(&cli.command).as_deref())?;
-    let result = jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli));
+    let folder = output_folder(&cli.command);
+    with_output_folder(folder, || {
+        jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli))
+    })
+}
+
+/// Runs `work` writing into the output folder `folder` (if any) between
+/// [`OutputFolder::open`](crate::job::guard::OutputFolder::open) and
+/// [`close`](crate::job::guard::OutputFolder::close): refused before any
+/// work when it is the user's, marked as lucent's when the work succeeds,
+/// removed again when it fails and leaves it empty.
+pub(crate) fn with_output_folder(folder: Option<PathBuf>, work: impl FnOnce() -> Result<()>) -> Result<()> {
+    let guard = crate::job::guard::OutputFolder::open(folder.as_deref())?;
+    let result = work();
     let interrupted =
         result.as_ref().is_err_and(|e| crate::pipeline::fault_of(e.as_ref()) == crate::fault::Fault::Interrupted);
-    folder.close(result.is_ok(), interrupted)?;
+    guard.close(result.is_ok(), interrupted)?;
     result
 }
 
@@ -431,7 +443,7 @@ fn merge(a: shard::MergeArgs) -> Result<()> {
         .with_context(|| format!("{}: cannot parse its command line", dir.join(crate::shard::SHARD_JSON).display()))?;
     match cli.command {
         Command::Render(r) => render::run_from(r, Some(&shards)),
-        Command::Bssrdf(b) if b.command.is_none() => bssrdf::simulate_from(b.run, Some(&shards)),
+        Command::Bssrdf(b) if b.command.is_none() => bssrdf::merge(&b.run, &shards),
         Command::Optics(o) if o.uncertainty.is_some() => optics_from(o, Some(&shards)),
         _ => bail!("{}: `lucent {made_by}` is not a command with shards", dir.display()),
     }

@@ -221,19 +221,54 @@ fn run_here(
 /// the stages not yet jobs of the library the command built from the job's
 /// fields ([`super::jobs::command_of`]).
 fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    let work: Box<dyn FnOnce() -> Result<()> + '_> = if job.runs_in_library() {
-        Box::new(move || {
-            let done = job.run(&crate::job::Context::default()).map_err(job_error)?;
-            for line in done.summary() {
-                println!("{line}");
-            }
-            Ok(())
-        })
-    } else {
-        let command = super::jobs::command_of(job)?;
-        Box::new(move || super::run(super::Cli { command }))
-    };
-    run_here(work, &job.to_args(), log, interrupt, console)
+    let ctx = crate::job::Context::default();
+    let print = |lines: Vec<String>| lines.iter().for_each(|l| println!("{l}"));
+    match job {
+        Job::Bssrdf(j) => {
+            let work = || -> Result<()> {
+                let done = j.run(&ctx, &mut super::bssrdf::Bar::new(j.quiet)).map_err(super::bssrdf::job_error)?;
+                print(done.summary());
+                Ok(done.finished()?)
+            };
+            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
+        }
+        Job::BssrdfCompare(j) => {
+            let work = || -> Result<()> {
+                print(j.run(&ctx)?.summary());
+                Ok(())
+            };
+            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
+        }
+        Job::Fit(j) => {
+            let work = || -> Result<()> {
+                let done = j.run(&ctx).map_err(super::fit::job_error)?;
+                print(done.summary());
+                Ok(done.finished()?)
+            };
+            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
+        }
+        _ if job.runs_in_library() => {
+            let work = || -> Result<()> {
+                print(job.run(&ctx).map_err(job_error)?.summary());
+                Ok(())
+            };
+            run_here(work, &job.to_args(), log, interrupt, console)
+        }
+        _ => {
+            let command = super::jobs::command_of(job)?;
+            run_here(|| super::run(super::Cli { command }), &job.to_args(), log, interrupt, console)
+        }
+    }
+}
+
+/// `work` of `job` as [`super::run`] runs a command: the job validated and
+/// its output folder `out` checked, marked when it succeeds and removed
+/// again when it fails and leaves it empty ([`super::with_output_folder`]).
+fn in_output_folder(out: &Path, job: &Job, work: impl FnOnce() -> Result<()>) -> Result<()> {
+    super::with_output_folder(Some(out.to_path_buf()), || {
+        job.validate()?;
+        work()
+    })
 }
 
 /// A job's error as its command returns it: the stage's own error, so that

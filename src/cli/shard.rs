@@ -221,37 +221,10 @@ pub fn identity(seed: u64, budget: String, shards: u32) -> Result<Identity> {
     })
 }
 
-/// Refuses a shard's `--out` that already holds another shard (another K
-/// or N): two shards written into one folder would leave only the last.
-/// Shard K of N again (a retry, or the same shard after its inputs
-/// changed) may replace its own files. Checked before the shard runs and
-/// again just before it writes.
+/// Refuses a shard's `--out` that already holds another shard
+/// ([`crate::shard::check_shard_out`]).
 pub fn check_shard_out(out: &Path, identity: &Identity, k: u32) -> Result<()> {
-    let json = out.join(shard::SHARD_JSON);
-    if std::fs::symlink_metadata(&json).is_err() {
-        return Ok(());
-    }
-    let there: Option<shard::ShardFile> = crate::io::read_text(&json).ok().and_then(|t| serde_json::from_str(&t).ok());
-    match there {
-        // Shard K of N again (a retry, or a rerun after its inputs changed)
-        // replaces its own files.
-        Some(f) if f.shard == k && f.identity.shards == identity.shards => Ok(()),
-        Some(f) => bail!(
-            "--out {}: already holds shard {} of {} of {} run ({}); give each shard its own folder (writing shard {k} \
-             of {} here would replace it)",
-            out.display(),
-            f.shard,
-            f.identity.shards,
-            if f.identity == *identity { "this" } else { "another" },
-            json.display(),
-            identity.shards
-        ),
-        None => bail!(
-            "--out {}: holds a {} lucent cannot read as a shard's; give each shard its own folder",
-            out.display(),
-            json.display()
-        ),
-    }
+    Ok(shard::check_shard_out(out, identity, k)?)
 }
 
 /// The checks of `lucent merge`: the shards, loaded, are of one run of

@@ -725,7 +725,7 @@ mod tests {
 
     fn slice(paths: Option<u64>, time_s: Option<f64>, out: &str) -> Job {
         Job::Bssrdf(crate::job::BssrdfJob {
-            recipe: "/r/recipe.toml".into(),
+            recipe: Some("/r/recipe.toml".into()),
             wavelength_nm: 550.0,
             configs: None,
             pixels: 65,
@@ -739,6 +739,7 @@ mod tests {
             rel_error: None,
             time_s,
             phase: None,
+            ..crate::job::BssrdfJob::default()
         })
     }
 

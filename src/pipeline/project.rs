@@ -351,7 +351,7 @@ pub fn folder_name(name: &str) -> Result<(), &'static str> {
 /// Sample `smp`'s slice job of `[bssrdf]` (outputs under `{out}/NAME`).
 pub fn bssrdf_job(b: &BssrdfSection, smp: &SampleSection, seed: u64) -> BssrdfJob {
     BssrdfJob {
-        recipe: smp.recipe.clone(),
+        recipe: Some(smp.recipe.clone()),
         wavelength_nm: b.wavelength_nm.unwrap_or(550.0),
         configs: Some(b.configurations()),
         pixels: b.pixels.unwrap_or(259),
@@ -365,6 +365,7 @@ pub fn bssrdf_job(b: &BssrdfSection, smp: &SampleSection, seed: u64) -> BssrdfJo
         rel_error: b.rel_error,
         time_s: b.time_s,
         phase: b.phase,
+        ..BssrdfJob::default()
     }
 }
 
@@ -390,6 +391,7 @@ pub fn fit_job(fit: &FitSection, bssrdf: Option<&BssrdfSection>, smp: &SampleSec
         bounds: fit.bounds.clone(),
         threshold: bssrdf.and_then(|b| b.threshold).unwrap_or(crate::job::DEFAULT_THRESHOLD),
         out: PathBuf::from(format!("{{out}}/{}", smp.name)),
+        ..FitJob::default()
     }
 }
 
