@@ -8,7 +8,7 @@ use anyhow::{anyhow, bail, Result};
 use lucent_calib::scene::BoardSpec;
 
 /// The most worker threads `--threads` starts.
-pub const MAX_THREADS: usize = 1024;
+pub use crate::job::MAX_THREADS;
 
 /// `--size WxH` in pixels of a command whose flag is not an
 /// [`ImageSize`](crate::job::ImageSize) itself, read as that type reads it.
@@ -27,26 +27,11 @@ pub fn check_time_s(t: f64) -> Result<f64> {
 
 /// Checks `--threads` against [`MAX_THREADS`] (rayon would try to start them all).
 pub fn check_threads(threads: Option<usize>) -> Result<()> {
-    if let Some(t) = threads
-        && t > MAX_THREADS
-    {
-        bail!("--threads {t}: at most {MAX_THREADS} (default: one per core)");
-    }
-    Ok(())
+    Ok(crate::job::check_threads(threads)?)
 }
 
 /// "95 s", "12 min", "3.4 h" (the "expect ≈ …" lines).
-pub fn duration(s: f64) -> String {
-    if !s.is_finite() {
-        "an unknown time".into()
-    } else if s < 120.0 {
-        format!("{s:.0} s")
-    } else if s < 7200.0 {
-        format!("{:.0} min", s / 60.0)
-    } else {
-        format!("{:.1} h", s / 3600.0)
-    }
-}
+pub use crate::job::render::duration;
 
 /// The chessboard of `--board COLSxROWS` (inner corners) and `--square-mm`.
 pub fn board_spec(board: &str, square_mm: f64) -> Result<BoardSpec> {

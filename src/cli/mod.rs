@@ -299,10 +299,7 @@ pub enum BenchCommand {
 /// (set when the job asks for `--cpus-per-task`). A value that is not a
 /// whole number in 1 … [`common::MAX_THREADS`] is ignored.
 pub fn allocated_threads(var: impl Fn(&str) -> Option<String>) -> Option<(usize, &'static str)> {
-    ["LUCENT_THREADS", "SLURM_CPUS_PER_TASK"].into_iter().find_map(|k| {
-        let n: usize = var(k)?.trim().parse().ok()?;
-        (1..=common::MAX_THREADS).contains(&n).then_some((n, k))
-    })
+    crate::job::allocated_threads(var)
 }
 
 /// Rayon's global pool sized to the allocation ([`allocated_threads`]),
@@ -320,19 +317,28 @@ fn size_threads_to_allocation() {
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> Result<()> {
-    size_threads_to_allocation();
-    // The output folder is checked before any work (a folder of the user's
-    // is refused, see `io::check_output_folder`), marked as lucent's when the
-    // command succeeds, and removed again when the command fails and leaves
-    // it empty.
     check_outputs_are_not_inputs(&cli.command)?;
     let folder = output_folder(&cli.command);
+    writing_into(folder, || {
+        jobs::validate(&cli.command)?;
+        dispatch(cli)
+    })
+}
+
+/// Runs `work`, a command or job that writes into the output folder
+/// `folder` (if it has one), as [`run`] runs a command: rayon's pool sized
+/// to the allocation ([`size_threads_to_allocation`]), the folder
+/// checked before any work (a folder of the user's is refused, see
+/// `io::check_output_folder`), marked as lucent's when the work succeeds,
+/// and removed again when it fails and leaves the folder empty.
+pub fn writing_into(folder: Option<PathBuf>, work: impl FnOnce() -> Result<()>) -> Result<()> {
+    size_threads_to_allocation();
     let existed = folder.as_deref().is_some_and(|f| std::fs::symlink_metadata(f).is_ok());
     if let Some(f) = &folder {
         crate::io::check_output_folder(f)?;
         crate::io::mark_when_written(f);
     }
-    let result = jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli));
+    let result = work();
     if let Some(f) = folder.filter(|f| f.is_dir()) {
         // A run stopped by Ctrl-C or SIGTERM that kept its labelled partial
         // result (render, bssrdf) wrote lucent's files too.
@@ -504,7 +510,7 @@ fn merge(a: shard::MergeArgs) -> Result<()> {
     let cli = Cli::try_parse_args(&argv)
         .with_context(|| format!("{}: cannot parse its command line", dir.join(crate::shard::SHARD_JSON).display()))?;
     match cli.command {
-        Command::Render(r) => render::run_from(r, Some(&shards)),
+        Command::Render(r) => render::run_from(r, &shards),
         Command::Bssrdf(b) if b.command.is_none() => bssrdf::simulate_from(b.run, Some(&shards)),
         Command::Optics(o) if o.uncertainty.is_some() => optics_from(o, Some(&shards)),
         _ => bail!("{}: `lucent {made_by}` is not a command with shards", dir.display()),

@@ -214,11 +214,26 @@ fn run_here(
     }
 }
 
-/// Runs a stage's job in this process ([`run_here`] of the command built
-/// from the job's fields, [`super::jobs::command_of`]).
+/// Runs a stage's job in this process ([`run_here`]): a render job itself
+/// ([`crate::job::RenderJob::run_with`], its output folder handled as
+/// [`super::writing_into`] handles a command's), the others as the command
+/// built from the job's fields ([`super::jobs::command_of`]).
 fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    let command = super::jobs::command_of(job)?;
-    run_here(|| super::run(super::Cli { command }), &job.to_args(), log, interrupt, console)
+    let args = job.to_args();
+    match job {
+        Job::Render(j) => {
+            let work = || {
+                j.validate()?;
+                let done = j.run_with(&crate::job::Context::default(), &mut super::render::Terminal::new(j.quiet))?;
+                super::render::finish(done)
+            };
+            run_here(|| super::writing_into(Some(j.out.clone()), work), &args, log, interrupt, console)
+        }
+        _ => {
+            let command = super::jobs::command_of(job)?;
+            run_here(|| super::run(super::Cli { command }), &args, log, interrupt, console)
+        }
+    }
 }
 
 /// Merges the finished shards of `t` into its output, in this process.
