@@ -172,7 +172,7 @@ impl RenderJob {
             ));
         }
         let pairs = self.renders_at_one_sigma(ctx, loaded, settings, pool, recipe, path_derivatives, spp, cancel)?;
-        let mut rendered = pairs.into_iter();
+        let mut rendered = pairs.iter();
         let mut effects = Vec::new();
         for d in path_derivatives {
             effects.push(match d {
