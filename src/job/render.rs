@@ -13,9 +13,10 @@
 //! * `render.png` — sRGB preview (`exposure` in stops);
 //! * `render.json` — the scene as resolved, settings, seed, timings, counters;
 //! * with `uncertainty`, the band of the recipe's uncertain inputs
-//!   ([`band`]: uncertainty.json, band.exr, band.png);
-//! * with `shard` K/N, only shard K's sums ([`shard`]: render.acc,
-//!   shard.json), which [`RenderJob::merge`] adds into the run's outputs.
+//!   ([`RenderJob::band_of`], [`write_band`]: uncertainty.json, band.exr,
+//!   band.png);
+//! * with `shard` K/N, only shard K's sums ([`SHARD_ACC`], shard.json),
+//!   which [`RenderJob::merge`] adds into the run's outputs.
 //!
 //! `lucent render`, `lucent merge` and the pipeline's render stage run it;
 //! the command draws the progress bar ([`RenderHooks`]) and prints
@@ -511,12 +512,7 @@ impl RenderJob {
         let (image, stats) = match merged_result {
             Some(m) => m,
             None => pool.install(|| {
-                tracer::render_cancellable(
-                    &loaded.scene,
-                    &settings,
-                    &mut |p| hooks.pass(p),
-                    Some(interrupt.flag()),
-                )
+                tracer::render_cancellable(&loaded.scene, &settings, &mut |p| hooks.pass(p), Some(interrupt.flag()))
             })?,
         };
         let interrupted = interrupt.requested();

@@ -64,8 +64,8 @@ impl RenderJob {
         {
             return Err(RenderError::UncertaintySpp(n));
         }
-        let recipe = scene::material_recipe(&self.scene)?
-            .ok_or_else(|| RenderError::NoRecipe { scene: self.scene.clone() })?;
+        let recipe =
+            scene::material_recipe(&self.scene)?.ok_or_else(|| RenderError::NoRecipe { scene: self.scene.clone() })?;
         if recipe.uncertain.is_empty() {
             return Err(RenderError::NoUncertainInput { recipe: recipe.path.clone() });
         }
@@ -178,7 +178,8 @@ impl RenderJob {
             effects.push(match d {
                 Some((index, left_out)) => EffectEstimate::PathDerivative { index: *index, left_out: *left_out },
                 None => {
-                    let (plus, minus) = rendered.next().ok_or(RenderError::Internal("one pair of renders per rendered input"))?;
+                    let (plus, minus) =
+                        rendered.next().ok_or(RenderError::Internal("one pair of renders per rendered input"))?;
                     EffectEstimate::Renders { plus, minus, spp }
                 }
             });
@@ -234,7 +235,10 @@ impl RenderJob {
                         if stop.load(Ordering::Relaxed) {
                             return Err(Interrupted("the renders at ±1 σ were stopped".into()).into());
                         }
-                        ctx.say(&format!("  {} {sign} 1 σ = {value:.6}: {spp} spp in {:.1} s", input.key, stats.wall_s));
+                        ctx.say(&format!(
+                            "  {} {sign} 1 σ = {value:.6}: {spp} spp in {:.1} s",
+                            input.key, stats.wall_s
+                        ));
                         pair.push(acc.image());
                     }
                     let minus = pair.pop().ok_or(RenderError::Internal("two renders per input"))?;

@@ -151,7 +151,12 @@ impl RenderJob {
         hooks.check_shard_out(&self.out, &identity, k).map_err(RenderError::Hook)?;
         let interrupt = Interrupt::install();
         let (acc, stats) = pool.install(|| {
-            tracer::render_samples(&loaded.scene, settings, range.start as u32..range.end as u32, Some(interrupt.flag()))
+            tracer::render_samples(
+                &loaded.scene,
+                settings,
+                range.start as u32..range.end as u32,
+                Some(interrupt.flag()),
+            )
         });
         if interrupt.requested() {
             return Ok(RenderRun {
