@@ -40,7 +40,9 @@ mod fit;
 pub mod guard;
 pub mod optics;
 mod raw;
+pub mod render;
 pub mod run;
+mod threads;
 
 pub use crate::text::duration;
 pub use bssrdf::{
@@ -54,6 +56,8 @@ pub use context::Context;
 pub use fit::{write_fit_outputs, write_fit_outputs_with_recipe_text, FitJobError, FitRun};
 pub use optics::{OpticsJobError, OpticsRun};
 pub use raw::{RawClippedError, RawClippedRun};
+pub use render::{RenderError, RenderHooks, RenderRun};
+pub use threads::{allocated_threads, check_threads, worker_pool, ThreadsError, MAX_THREADS};
 
 use crate::bssrdf::Configurations;
 use crate::fit::{FreeSpec, SearchBounds};
@@ -1116,8 +1120,10 @@ impl EnvScaleJob {
     }
 }
 
-/// `lucent render SCENE`: the digital twin.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// `lucent render SCENE`: the digital twin ([`RenderJob::run`]). The
+/// flags a stage of `lucent run` leaves at their defaults are not written
+/// into its job.json.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RenderJob {
     pub scene: PathBuf,
@@ -1130,6 +1136,40 @@ pub struct RenderJob {
     /// `--uncertainty`: the band from the recipe's uncertain inputs (uncertainty.json, band.exr).
     pub uncertainty: bool,
     pub out: PathBuf,
+    /// `--exposure`: of the PNG preview, in stops.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub exposure: f64,
+    /// `--target-rel-error`: stop at this median relative error over the object's pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_rel_error: Option<f64>,
+    /// `--sampling`: how samples are spread over the pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampling: Option<crate::scene::SamplingKey>,
+    /// `--dispersion`: refraction where the bands' indices differ.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dispersion: Option<render::DispersionKey>,
+    /// `--similarity-g`: walk the object's similar medium of this asymmetry.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub similarity_g: Option<f64>,
+    /// `--split-entry`: follow reflection and refraction where a path enters the object.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub split_entry: bool,
+    /// `--shard K/N`: only the K-th of N ranges of sample indices.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<String>,
+    /// `--uncertainty-spp`: samples per pixel of each render at ±1 σ.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty_spp: Option<u32>,
+    /// `--uncertainty-renders`: every uncertain input by renders at ±1 σ.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub uncertainty_renders: bool,
+    /// `--threads`: worker threads (default: the allocation, else all cores).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub threads: Option<usize>,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl RenderJob {
@@ -1142,6 +1182,18 @@ impl RenderJob {
         l.word(s(&self.scene)).opt("--spp", &self.spp).switch("--quiet", self.quiet).opt("--time-s", &self.time_s);
         l.opt("--size", &self.size).opt("--seed", &self.seed).switch("--uncertainty", self.uncertainty);
         l.flag("--out", s(&self.out));
+        if !is_zero(&self.exposure) {
+            l.flag("--exposure", self.exposure);
+        }
+        l.opt("--target-rel-error", &self.target_rel_error)
+            .opt("--sampling", &self.sampling.map(render::sampling_name))
+            .opt("--dispersion", &self.dispersion.map(<&str>::from))
+            .opt("--similarity-g", &self.similarity_g)
+            .switch("--split-entry", self.split_entry)
+            .opt("--shard", &self.shard)
+            .opt("--uncertainty-spp", &self.uncertainty_spp)
+            .switch("--uncertainty-renders", self.uncertainty_renders)
+            .opt("--threads", &self.threads);
         l.0
     }
 }
@@ -1344,6 +1396,8 @@ impl Job {
                 r.scene = canon(&r.scene);
                 r.out = PathBuf::new();
                 r.quiet = false;
+                r.threads = None;
+                r.shard = None;
             }
             Job::EnvScale(e) => {
                 e.scene = canon(&e.scene);

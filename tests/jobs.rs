@@ -157,6 +157,7 @@ fn jobs() -> Vec<Job> {
             seed: Some(9),
             uncertainty: true,
             out: p("{out}/s"),
+            ..Default::default()
         }),
         Job::Compare(CompareJob {
             photo: p("photo.exr"),
@@ -826,5 +827,50 @@ fn a_compare_jobs_json_leaves_out_the_flags_at_their_defaults() {
     assert_eq!(
         (at("--luminance"), at("--refine"), at("--refine-motion")),
         (Some("rec709"), Some("ecc"), Some("homography"))
+    );
+}
+
+/// The render job holds every flag of `lucent render`; the ones a stage of
+/// `lucent run` leaves at their defaults are not written, so its job.json
+/// (and the stage's key) is what it was before the job held them, and
+/// those set go through its command line and its JSON.
+#[test]
+fn a_render_jobs_json_leaves_out_the_flags_at_their_defaults() {
+    let job = RenderJob { scene: "s.toml".into(), out: "o".into(), ..Default::default() };
+    let text = serde_json::to_string(&Job::Render(job.clone())).unwrap();
+    assert_eq!(
+        text,
+        r#"{"render":{"scene":"s.toml","spp":null,"quiet":false,"time_s":null,"size":null,"seed":null,"uncertainty":false,"out":"o"}}"#
+    );
+    let set = RenderJob {
+        exposure: 1.5,
+        target_rel_error: Some(0.1),
+        sampling: Some(lucent::scene::SamplingKey::ObjectWeighted),
+        dispersion: Some(lucent::job::render::DispersionKey::SharedDirections),
+        similarity_g: Some(0.0),
+        split_entry: true,
+        uncertainty: true,
+        uncertainty_spp: Some(4),
+        uncertainty_renders: true,
+        threads: Some(2),
+        ..job
+    };
+    let text = serde_json::to_string(&Job::Render(set.clone())).unwrap();
+    assert!(text.contains(r#""sampling":"object-weighted""#) && text.contains(r#""dispersion":"shared-directions""#));
+    assert_eq!(serde_json::from_str::<Job>(&text).unwrap(), Job::Render(set.clone()));
+    let back = parse_job(&set.to_args()).unwrap_or_else(|e| panic!("lucent {}: {e}", set.to_args().join(" ")));
+    assert_eq!(back, Job::Render(set.clone()), "through its command line");
+    let sharded = RenderJob {
+        scene: "s.toml".into(),
+        out: "o".into(),
+        shard: Some("1/4".into()),
+        spp: Some(8),
+        ..Default::default()
+    };
+    assert_eq!(parse_job(&sharded.to_args()).unwrap(), Job::Render(sharded.clone()));
+    assert_eq!(
+        Job::Render(sharded.clone()).identity_sha256(),
+        Job::Render(RenderJob { shard: None, threads: Some(3), ..sharded }).identity_sha256(),
+        "a shard and the thread count are not the run's identity"
     );
 }

@@ -18,7 +18,7 @@ use lucent::cli::bssrdf as bssrdf_cli;
 use lucent::cli::camera as camera_cli;
 use lucent::cli::fit::FitArgs;
 use lucent::cli::groups::{BeamArgs, TwinRenderArgs};
-use lucent::cli::render::{self as render_cli, RenderArgs};
+use lucent::cli::render::RenderArgs;
 use lucent::compare::{self, MaskSpec, Request};
 use lucent::fit;
 use lucent::imageio::RgbImage;
@@ -911,9 +911,11 @@ fn py_render<'py>(
         uncertainty_renders: false,
     };
     // The job `lucent render` checks (the ranges of its flags), then the scene.
-    lucent::job::RenderJob::from(&args).validate().map_err(error)?;
-    let (loaded, mut settings) = render_cli::prepare(&args).map_err(error_chain)?;
-    let uncertain = render_cli::uncertain_inputs(&args, &loaded, &mut settings).map_err(error_chain)?;
+    let job = lucent::job::RenderJob::from(&args);
+    job.validate().map_err(error)?;
+    let ctx = lucent::job::Context { quiet: true };
+    let (loaded, mut settings) = job.prepare().map_err(|e| error_chain(e.into()))?;
+    let uncertain = job.uncertain_inputs(&ctx, &loaded, &mut settings).map_err(|e| error_chain(e.into()))?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build().map_err(error)?;
     let (image, stats) = run_interruptible(py, progress, |cancel, report| {
         pool.install(|| {
@@ -962,9 +964,9 @@ fn py_render<'py>(
     out.set_item("warnings", loaded.warnings.clone())?;
     if let Some(u) = &uncertain {
         let (band, _) = run_interruptible(py, None, |cancel, _| {
-            render_cli::band_of(&args, &loaded, &settings, &pool, &image, &u.recipe, &u.path_derivatives, cancel)
+            job.band_of(&ctx, &loaded, &settings, &pool, &image, &u.recipe, &u.path_derivatives, cancel)
         })?
-        .map_err(error_chain)?;
+        .map_err(|e| error_chain(anyhow::anyhow!(e)))?;
         out.set_item("band_sd", rgb(&band.pixel_sd)?)?;
         out.set_item("band_sd_std_error", rgb(&band.pixel_sd_std_error)?)?;
         out.set_item("band", to_python(py, &band)?)?;

@@ -8,7 +8,7 @@ use anyhow::{anyhow, bail, Result};
 use lucent_calib::scene::BoardSpec;
 
 /// The most worker threads `--threads` starts.
-pub const MAX_THREADS: usize = 1024;
+pub use crate::job::MAX_THREADS;
 
 /// `--size WxH` in pixels of a command whose flag is not an
 /// [`ImageSize`](crate::job::ImageSize) itself, read as that type reads it.
@@ -27,12 +27,7 @@ pub fn check_time_s(t: f64) -> Result<f64> {
 
 /// Checks `--threads` against [`MAX_THREADS`] (rayon would try to start them all).
 pub fn check_threads(threads: Option<usize>) -> Result<()> {
-    if let Some(t) = threads
-        && t > MAX_THREADS
-    {
-        bail!("--threads {t}: at most {MAX_THREADS} (default: one per core)");
-    }
-    Ok(())
+    Ok(crate::job::check_threads(threads)?)
 }
 
 pub use crate::text::duration;

@@ -8,7 +8,7 @@
 //!   the image size (`render`, `env fit-scale`).
 
 use crate::scene::LoadedScene;
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use lucent_calib::board::BoardSize;
 use lucent_calib::scene::BoardSpec;
@@ -97,18 +97,9 @@ impl TwinRenderArgs {
     /// `--size`: the camera's image size, its intrinsics scaled to match
     /// (about the image edge, pixel centres at integers).
     pub fn resize(&self, loaded: &mut LoadedScene) -> Result<()> {
-        let Some(size) = self.size else { return Ok(()) };
-        let (w, h) = (size.width, size.height);
-        let cam = &mut loaded.scene.camera;
-        let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
-        let [fx, fy, cx, cy] = cam.intrinsics;
-        // Pixel centres at integers: the image edge is at −½, so scale about it.
-        cam.intrinsics = [fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5];
-        cam.width = w;
-        cam.height = h;
-        loaded.summary.image_width = w;
-        loaded.summary.image_height = h;
-        loaded.summary.intrinsics = cam.intrinsics;
+        if let Some(size) = self.size {
+            crate::job::render::resize(size, loaded);
+        }
         Ok(())
     }
 
@@ -124,13 +115,6 @@ impl TwinRenderArgs {
 
     /// The worker pool of `--threads`.
     pub fn pool(&self) -> Result<rayon::ThreadPool> {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(
-                self.threads
-                    .or_else(|| super::allocated_threads(|k| std::env::var(k).ok()).map(|(n, _)| n))
-                    .unwrap_or(0),
-            )
-            .build()
-            .context("cannot start worker threads")
+        Ok(crate::job::worker_pool(self.threads)?)
     }
 }

@@ -248,6 +248,16 @@ impl From<&render::RenderArgs> for RenderJob {
             seed: a.render.seed,
             uncertainty: a.uncertainty,
             out: a.out.clone(),
+            exposure: a.exposure,
+            target_rel_error: a.target_rel_error,
+            sampling: a.sampling.map(Into::into),
+            dispersion: a.dispersion.map(Into::into),
+            similarity_g: a.similarity_g,
+            split_entry: a.split_entry,
+            shard: a.shard.clone(),
+            uncertainty_spp: a.uncertainty_spp,
+            uncertainty_renders: a.uncertainty_renders,
+            threads: a.render.threads,
         }
     }
 }
@@ -451,22 +461,30 @@ fn fit_args(j: &FitJob) -> fit::FitArgs {
 
 /// `lucent render` of a render job.
 fn render_args(j: &RenderJob) -> render::RenderArgs {
+    use crate::job::render::DispersionKey;
+    use crate::scene::SamplingKey;
     render::RenderArgs {
         scene: j.scene.clone(),
         out: j.out.clone(),
-        render: twin_render(j.spp, j.seed, j.size),
+        render: super::groups::TwinRenderArgs { threads: j.threads, ..twin_render(j.spp, j.seed, j.size) },
         time_s: j.time_s,
-        exposure: 0.0,
-        target_rel_error: None,
-        sampling: None,
-        dispersion: None,
-        similarity_g: None,
-        split_entry: false,
+        exposure: j.exposure,
+        target_rel_error: j.target_rel_error,
+        sampling: j.sampling.map(|s| match s {
+            SamplingKey::Uniform => render::SamplingArg::Uniform,
+            SamplingKey::ObjectWeighted => render::SamplingArg::ObjectWeighted,
+        }),
+        dispersion: j.dispersion.map(|d| match d {
+            DispersionKey::PerBand => render::DispersionArg::PerBand,
+            DispersionKey::SharedDirections => render::DispersionArg::SharedDirections,
+        }),
+        similarity_g: j.similarity_g,
+        split_entry: j.split_entry,
         quiet: j.quiet,
-        shard: None,
+        shard: j.shard.clone(),
         uncertainty: j.uncertainty,
-        uncertainty_spp: None,
-        uncertainty_renders: false,
+        uncertainty_spp: j.uncertainty_spp,
+        uncertainty_renders: j.uncertainty_renders,
     }
 }
 

@@ -299,10 +299,7 @@ pub enum BenchCommand {
 /// (set when the job asks for `--cpus-per-task`). A value that is not a
 /// whole number in 1 … [`common::MAX_THREADS`] is ignored.
 pub fn allocated_threads(var: impl Fn(&str) -> Option<String>) -> Option<(usize, &'static str)> {
-    ["LUCENT_THREADS", "SLURM_CPUS_PER_TASK"].into_iter().find_map(|k| {
-        let n: usize = var(k)?.trim().parse().ok()?;
-        (1..=common::MAX_THREADS).contains(&n).then_some((n, k))
-    })
+    crate::job::allocated_threads(var)
 }
 
 /// Rayon's global pool sized to the allocation ([`allocated_threads`]),
@@ -320,24 +317,23 @@ fn size_threads_to_allocation() {
 
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> Result<()> {
-    size_threads_to_allocation();
-    // The output folder is checked before any work (a folder of the user's
-    // is refused, see `io::check_output_folder`), marked as lucent's when the
-    // command succeeds, and removed again when the command fails and leaves
-    // it empty.
     check_outputs_are_not_inputs(&cli.command)?;
     let folder = output_folder(&cli.command);
-    with_output_folder(folder, || {
-        jobs::validate(&cli.command).map_err(anyhow::Error::from).and_then(|()| dispatch(cli))
+    writing_into(folder, || {
+        jobs::validate(&cli.command)?;
+        dispatch(cli)
     })
 }
 
-/// Runs `work` writing into the output folder `folder` (if any) between
-/// [`OutputFolder::open`](crate::job::guard::OutputFolder::open) and
-/// [`close`](crate::job::guard::OutputFolder::close): refused before any
-/// work when it is the user's, marked as lucent's when the work succeeds,
-/// removed again when it fails and leaves it empty.
-pub(crate) fn with_output_folder(folder: Option<PathBuf>, work: impl FnOnce() -> Result<()>) -> Result<()> {
+/// Runs `work`, a command or job that writes into the output folder
+/// `folder` (if it has one), as [`run`] runs a command: rayon's pool sized
+/// to the allocation ([`size_threads_to_allocation`]), the folder opened
+/// ([`OutputFolder::open`](crate::job::guard::OutputFolder::open): a folder
+/// of the user's is refused before any work) and closed
+/// ([`close`](crate::job::guard::OutputFolder::close): marked as lucent's
+/// when the work succeeds, removed again when it fails and leaves it empty).
+pub fn writing_into(folder: Option<PathBuf>, work: impl FnOnce() -> Result<()>) -> Result<()> {
+    size_threads_to_allocation();
     let guard = crate::job::guard::OutputFolder::open(folder.as_deref())?;
     let result = work();
     let interrupted =
@@ -442,7 +438,7 @@ fn merge(a: shard::MergeArgs) -> Result<()> {
     let cli = Cli::try_parse_args(&argv)
         .with_context(|| format!("{}: cannot parse its command line", dir.join(crate::shard::SHARD_JSON).display()))?;
     match cli.command {
-        Command::Render(r) => render::run_from(r, Some(&shards)),
+        Command::Render(r) => render::run_from(r, &shards),
         Command::Bssrdf(b) if b.command.is_none() => bssrdf::merge(&b.run, &shards),
         Command::Optics(o) if o.uncertainty.is_some() => optics_from(o, Some(&shards)),
         _ => bail!("{}: `lucent {made_by}` is not a command with shards", dir.display()),

@@ -224,6 +224,13 @@ fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console)
     let ctx = crate::job::Context::default();
     let print = |lines: Vec<String>| lines.iter().for_each(|l| println!("{l}"));
     match job {
+        Job::Render(j) => {
+            let work = || {
+                let done = j.run_with(&ctx, &mut super::render::Terminal::new(j.quiet))?;
+                super::render::finish(done)
+            };
+            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
+        }
         Job::Bssrdf(j) => {
             let work = || -> Result<()> {
                 let done = j.run(&ctx, &mut super::bssrdf::Bar::new(j.quiet)).map_err(super::bssrdf::job_error)?;
@@ -263,9 +270,9 @@ fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console)
 
 /// `work` of `job` as [`super::run`] runs a command: the job validated and
 /// its output folder `out` checked, marked when it succeeds and removed
-/// again when it fails and leaves it empty ([`super::with_output_folder`]).
+/// again when it fails and leaves it empty ([`super::writing_into`]).
 fn in_output_folder(out: &Path, job: &Job, work: impl FnOnce() -> Result<()>) -> Result<()> {
-    super::with_output_folder(Some(out.to_path_buf()), || {
+    super::writing_into(Some(out.to_path_buf()), || {
         job.validate()?;
         work()
     })

@@ -815,6 +815,7 @@ mod tests {
             seed: None,
             uncertainty: false,
             out: "x".into(),
+            ..Default::default()
         };
         assert_eq!(render.stop(), Stop { time_s: Some(3.0), ..Stop::samples(8) });
         let why = not_shardable(&Job::Render(render)).unwrap();

@@ -1274,6 +1274,7 @@ fn plan_render(stage: Stage, project: &Project, out: &Path, p: &mut Plan) -> Pla
             seed: Some(project.seed),
             uncertainty,
             out: sample_out.clone(),
+            ..RenderJob::default()
         };
         // The fitted twin: the same render with stage fit's recipe.
         let twin = match fitted_recipe(project, out, smp) {

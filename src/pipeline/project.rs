@@ -465,6 +465,7 @@ fn job_problems(file: &ProjectFile) -> Vec<(String, String)> {
             seed: None,
             uncertainty: r.uncertainty == Some(true),
             out: PathBuf::new(),
+            ..RenderJob::default()
         };
         check("[render]", "", job.validate());
         let env = EnvScaleJob {
