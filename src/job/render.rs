@@ -196,7 +196,7 @@ pub struct RenderRun {
 /// The result of a render job.
 pub enum Rendered {
     /// render.exr, png and json written (and with `uncertainty`, the band).
-    Image { report: Box<RenderReport>, errors: tracer::RegionErrors, band: Option<BandRun> },
+    Image { report: Box<RenderReport>, errors: tracer::RegionErrors, band: Option<Box<BandRun>> },
     /// Shard `k` of `n`: samples `range` of every pixel, in `wall_s`.
     Shard { k: u32, n: u32, range: std::ops::Range<u64>, wall_s: f64 },
 }
@@ -533,7 +533,7 @@ impl RenderJob {
                 report.spp
             ))
         });
-        let rendered = Some(Rendered::Image { report: Box::new(report), errors, band });
+        let rendered = Some(Rendered::Image { report: Box::new(report), errors, band: band.map(Box::new) });
         Ok(RenderRun { out: self.out.clone(), rendered, interrupted })
     }
 

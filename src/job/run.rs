@@ -9,15 +9,15 @@ use super::guard::{FileRoleError, OutputFolder};
 use super::{Context, Job, JobError};
 use crate::io::{OutputFolderError, WriteError};
 
-/// What a job produced: the run of its stage (files written, figures).
+/// What a job produced: the run of its stage (files written, figures), boxed (the runs differ in size).
 pub enum JobRun {
-    Optics(super::OpticsRun),
-    ColourCalibrate(super::ColourCalibrateRun),
-    ColourApply(super::ColourApplyRun),
-    RawClipped(super::RawClippedRun),
-    Calibrate(super::CalibrateRun),
-    Pose(super::PoseRun),
-    Compare(super::CompareRun),
+    Optics(Box<super::OpticsRun>),
+    ColourCalibrate(Box<super::ColourCalibrateRun>),
+    ColourApply(Box<super::ColourApplyRun>),
+    RawClipped(Box<super::RawClippedRun>),
+    Calibrate(Box<super::CalibrateRun>),
+    Pose(Box<super::PoseRun>),
+    Compare(Box<super::CompareRun>),
 }
 
 impl JobRun {
@@ -98,13 +98,13 @@ impl Job {
 
     fn run_stage(&self, ctx: &Context) -> Result<JobRun, JobRunError> {
         Ok(match self {
-            Job::Optics(j) => JobRun::Optics(j.run(ctx)?),
-            Job::ColourCalibrate(j) => JobRun::ColourCalibrate(j.run(ctx)?),
-            Job::ColourApply(j) => JobRun::ColourApply(j.run(ctx)?),
-            Job::RawClipped(j) => JobRun::RawClipped(j.run(ctx)?),
-            Job::Calibrate(j) => JobRun::Calibrate(j.run(ctx)?),
-            Job::Pose(j) => JobRun::Pose(j.run(ctx)?),
-            Job::Compare(j) => JobRun::Compare(j.run(ctx)?),
+            Job::Optics(j) => JobRun::Optics(Box::new(j.run(ctx)?)),
+            Job::ColourCalibrate(j) => JobRun::ColourCalibrate(Box::new(j.run(ctx)?)),
+            Job::ColourApply(j) => JobRun::ColourApply(Box::new(j.run(ctx)?)),
+            Job::RawClipped(j) => JobRun::RawClipped(Box::new(j.run(ctx)?)),
+            Job::Calibrate(j) => JobRun::Calibrate(Box::new(j.run(ctx)?)),
+            Job::Pose(j) => JobRun::Pose(Box::new(j.run(ctx)?)),
+            Job::Compare(j) => JobRun::Compare(Box::new(j.run(ctx)?)),
             other => return Err(JobRunError::NotInLibrary(other.command_name())),
         })
     }
