@@ -327,7 +327,7 @@ pub fn run(cli: Cli) -> Result<()> {
 
 /// Runs `work`, a command or job that writes into the output folder
 /// `folder` (if it has one), as [`run`] runs a command: rayon's pool sized
-/// to the allocation ([`size_threads_to_allocation`]), the folder opened
+/// to the allocation (`size_threads_to_allocation`), the folder opened
 /// ([`OutputFolder::open`](crate::job::guard::OutputFolder::open): a folder
 /// of the user's is refused before any work) and closed
 /// ([`close`](crate::job::guard::OutputFolder::close): marked as lucent's
