@@ -3,7 +3,7 @@
 //! an output never replaces an input, two outputs never share a file, a
 //! sidecar that is not from an earlier run is never replaced
 //! ([`FileRoles::check`]), and an output folder is lucent's own or new
-//! ([`in_output_folder`]: refused when it is a folder of the user's,
+//! ([`OutputFolder`]: refused when it is a folder of the user's,
 //! marked as lucent's when the work succeeds, removed again when the work
 //! fails and leaves it empty).
 
@@ -68,17 +68,6 @@ impl FileRoles {
     }
 }
 
-/// Why a job's output folder cannot be used, or the job's own failure.
-#[derive(Debug, thiserror::Error)]
-pub enum Guarded<E: std::error::Error + 'static> {
-    #[error(transparent)]
-    Folder(#[from] OutputFolderError),
-    #[error(transparent)]
-    Mark(#[from] WriteError),
-    #[error(transparent)]
-    Work(E),
-}
-
 /// An output folder in use: opened before the work
 /// ([`OutputFolder::open`]), closed after it ([`OutputFolder::close`]).
 #[derive(Debug)]
@@ -121,19 +110,6 @@ impl OutputFolder {
         }
         Ok(())
     }
-}
-
-/// Runs `work`, which writes into `folder` (if any), between
-/// [`OutputFolder::open`] and [`OutputFolder::close`].
-pub fn in_output_folder<T, E: std::error::Error + 'static>(
-    folder: Option<&Path>,
-    work: impl FnOnce() -> Result<T, E>,
-) -> Result<T, Guarded<E>> {
-    let guard = OutputFolder::open(folder)?;
-    let result = work();
-    let interrupted = result.as_ref().is_err_and(|e| crate::fault::Fault::of(e) == crate::fault::Fault::Interrupted);
-    guard.close(result.is_ok(), interrupted)?;
-    result.map_err(Guarded::Work)
 }
 
 impl Job {
