@@ -183,7 +183,8 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
 }
 
 /// The width and height of an image [`read_rgb`] reads, from its header
-/// only (EXR, HDR, PNG, TIFF; other formats are decoded).
+/// only: EXR, HDR, PNG, TIFF; JPEG with its EXIF orientation applied
+/// ([`lucent_calib::jpeg`]); RAW as developed ([`lucent_calib::raw::developed_size`]).
 pub fn image_size(path: &Path) -> Result<(usize, usize), ImageIoError> {
     let read_err = |reason: String| ImageIoError::Read { path: path.to_path_buf(), reason };
     match extension(path).as_str() {
@@ -197,7 +198,9 @@ pub fn image_size(path: &Path) -> Result<(usize, usize), ImageIoError> {
                 .map_err(|e| read_err(e.to_string()))?;
             Ok((w as usize, h as usize))
         }
-        _ => read_rgb(path).map(|i| (i.width, i.height)),
+        "jpg" | "jpeg" => lucent_calib::jpeg::jpeg_size(path).map_err(|e| read_err(e.reason)),
+        e if RAW_EXTENSIONS.contains(&e) => Ok(lucent_calib::raw::developed_size(path)?),
+        _ => Err(ImageIoError::Format { path: path.to_path_buf() }),
     }
 }
 

@@ -46,6 +46,7 @@ pub mod ecc;
 pub mod env;
 pub mod error;
 pub mod hdr;
+pub mod jpeg;
 pub mod model;
 pub mod noise;
 pub mod pose;

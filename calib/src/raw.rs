@@ -1207,23 +1207,72 @@ mod dng {
     /// tile layout are still read and checked), for [`super::raw_output_size`].
     pub(super) fn decode_uncompressed(bytes: &[u8], header_only: bool) -> Result<Option<rawloader::RawImage>, String> {
         let Some(p) = parse(bytes) else { return Ok(None) };
-        let (t, raw) = (&p.t, &p.raw);
-        let unreadable = |tag: u16, e: tiff::TiffError| format!("DNG tag {tag} cannot be read: {e}");
-        let get = |tag: u16| t.numbers(raw, tag).map_err(|e| unreadable(tag, e));
-        let one = |tag: u16| get(tag).map(|v| v.first().copied());
-        match one(259)?.unwrap_or(1.0) as u32 {
-            1 => {}
-            7 => {
-                // Lossless JPEG (ITU-T T.81 process 14): `rawloader` decodes it, predictor 1 only.
-                return match ljpeg_predictor(&p) {
-                    Some(1) | None => Ok(None),
-                    Some(k) => Err(format!(
-                        "lossless-JPEG DNG (compression 7) with predictor {k}: only predictor 1 (the sample to \
-                         the left, what phones and Adobe's DNG SDK write) is decoded; convert it with Adobe DNG \
-                         Converter (uncompressed) first"
-                    )),
-                };
-            }
+        if rawloaders_compression(&p)? {
+            return Ok(None);
+        }
+        let need =
+            |tag: u16, name: &str| first(&p, &p.raw, tag)?.ok_or_else(|| format!("DNG raw image without {name}"));
+        let (w, h) = (need(256, "ImageWidth")? as usize, need(257, "ImageLength")? as usize);
+        let layout = sample_layout(&p)?;
+        if w == 0 || h == 0 || w > 1 << 16 || h > 1 << 16 {
+            return Err(format!("DNG raw image size {w} × {h}"));
+        }
+        let table = values(&p, &p.raw, 50712)?; // Linearization
+        let blocks = data_blocks(&p, w, h)?;
+        // The samples (none for `header_only`).
+        let data = if header_only { Vec::new() } else { read_samples(&p, &blocks, &table, w, h, layout)? };
+        let (make, model, wb_coeffs, xyz_to_cam) = colour_tags(&p)?;
+        let cfa = if layout.linear { rawloader::CFA::new("") } else { bayer_pattern(&p)? };
+        let (black, white) = per_sample(&values(&p, &p.raw, 50714)?, &values(&p, &p.raw, 50717)?, layout.cpp);
+        let crops = active_area_crops(&values(&p, &p.raw, 50829)?, w, h)?;
+        let orientation = values(&p, &p.ifd0, 274)?
+            .first()
+            .map_or(rawloader::Orientation::Unknown, |v| rawloader::Orientation::from_u16(*v as u16));
+        Ok(Some(rawloader::RawImage {
+            make: make.clone(),
+            model: model.clone(),
+            clean_make: make,
+            clean_model: model,
+            width: w,
+            height: h,
+            cpp: layout.cpp,
+            wb_coeffs,
+            whitelevels: white,
+            blacklevels: black,
+            xyz_to_cam,
+            cfa,
+            crops,
+            blackareas: Vec::new(),
+            orientation,
+            data: rawloader::RawImageData::Integer(data),
+        }))
+    }
+
+    /// A tag's numbers in directory `d`, its read error said with the tag.
+    fn values(p: &Parsed, d: &Directory, tag: u16) -> Result<Vec<f64>, String> {
+        p.t.numbers(d, tag).map_err(|e| format!("DNG tag {tag} cannot be read: {e}"))
+    }
+
+    /// A tag's first number in directory `d`, if it has one.
+    fn first(p: &Parsed, d: &Directory, tag: u16) -> Result<Option<f64>, String> {
+        values(p, d, tag).map(|v| v.first().copied())
+    }
+
+    /// Whether the raw image is lossless JPEG that `rawloader` decodes
+    /// (compression 7, predictor 1); `false` for uncompressed data, an
+    /// error naming any other compression.
+    fn rawloaders_compression(p: &Parsed) -> Result<bool, String> {
+        match first(p, &p.raw, 259)?.unwrap_or(1.0) as u32 {
+            1 => Ok(false),
+            // Lossless JPEG (ITU-T T.81 process 14): `rawloader` decodes it, predictor 1 only.
+            7 => match ljpeg_predictor(p) {
+                Some(1) | None => Ok(true),
+                Some(k) => Err(format!(
+                    "lossless-JPEG DNG (compression 7) with predictor {k}: only predictor 1 (the sample to \
+                     the left, what phones and Adobe's DNG SDK write) is decoded; convert it with Adobe DNG \
+                     Converter (uncompressed) first"
+                )),
+            },
             c => {
                 let name = match c {
                     8 | 32946 => "Deflate",
@@ -1231,17 +1280,26 @@ mod dng {
                     52546 => "JPEG XL",
                     _ => "unknown",
                 };
-                return Err(format!(
+                Err(format!(
                     "DNG raw image with compression {c} ({name}): lucent reads uncompressed (1) and lossless-JPEG \
                      (7) DNGs; convert it with Adobe DNG Converter (compatibility DNG 1.4, uncompressed) first"
-                ));
+                ))
             }
         }
-        let need = |tag: u16, name: &str| one(tag)?.ok_or_else(|| format!("DNG raw image without {name}"));
-        let (w, h) = (need(256, "ImageWidth")? as usize, need(257, "ImageLength")? as usize);
-        let cpp = one(277)?.unwrap_or(1.0) as usize;
-        let bps = one(258)?.unwrap_or(1.0) as usize;
-        let photometric = one(262)?;
+    }
+
+    /// How the samples are stored: per pixel, in bytes, LinearRaw or CFA.
+    #[derive(Clone, Copy)]
+    struct SampleLayout {
+        cpp: usize,
+        bytes_per: usize,
+        linear: bool,
+    }
+
+    fn sample_layout(p: &Parsed) -> Result<SampleLayout, String> {
+        let cpp = first(p, &p.raw, 277)?.unwrap_or(1.0) as usize;
+        let bps = first(p, &p.raw, 258)?.unwrap_or(1.0) as usize;
+        let photometric = first(p, &p.raw, 262)?;
         let linear = photometric == Some(34892.0);
         if !(cpp == 1 && !linear || cpp == 3 && linear) {
             return Err(format!(
@@ -1249,36 +1307,30 @@ mod dng {
                 photometric.unwrap_or(0.0)
             ));
         }
-        if one(284)?.unwrap_or(1.0) as u32 != 1 {
+        if first(p, &p.raw, 284)?.unwrap_or(1.0) as u32 != 1 {
             return Err("DNG raw image with planar (not interleaved) samples".into());
         }
         if bps != 8 && bps != 16 {
             return Err(format!("uncompressed DNG with {bps} bits per sample (8 and 16 are read)"));
         }
-        if w == 0 || h == 0 || w > 1 << 16 || h > 1 << 16 {
-            return Err(format!("DNG raw image size {w} × {h}"));
-        }
-        let table = get(50712)?; // Linearization
-        let bytes_per = bps / 8;
-        let sample = |o: usize| -> Option<u16> {
-            let v = if bytes_per == 2 { t.u16_at(o)? } else { u16::from(*t.bytes.get(o)?) };
-            Some(if table.is_empty() {
-                v
-            } else {
-                table[usize::from(v).min(table.len() - 1)].clamp(0.0, 65535.0) as u16
-            })
-        };
-        let mut data = if header_only { Vec::new() } else { vec![0u16; w * h * cpp] };
-        let short = || "image data runs past the end of the file (truncated)".to_string();
-        // (offset, x0, y0, block width, block height, stored row length in pixels)
+        Ok(SampleLayout { cpp, bytes_per: bps / 8, linear })
+    }
+
+    /// A block of stored samples: (offset, x0, y0, block width, block
+    /// height, stored row length in pixels).
+    type Block = (usize, usize, usize, usize, usize, usize);
+
+    /// The tiles or strips of a `w` × `h` image, checked against its size.
+    fn data_blocks(p: &Parsed, w: usize, h: usize) -> Result<Vec<Block>, String> {
         let mut blocks = Vec::new();
-        if let (true, Some(tw), Some(tl)) = (TiffFile::has(raw, 324), one(322)?, one(323)?) {
+        if let (true, Some(tw), Some(tl)) = (TiffFile::has(&p.raw, 324), first(p, &p.raw, 322)?, first(p, &p.raw, 323)?)
+        {
             let (tw, tl) = (tw as usize, tl as usize);
             if tw == 0 || tl == 0 {
                 return Err("DNG tile size 0".into());
             }
             let (across, down) = (w.div_ceil(tw), h.div_ceil(tl));
-            let offs = get(324)?;
+            let offs = values(p, &p.raw, 324)?;
             if offs.len() != across * down {
                 return Err(format!("DNG with {} tile offsets for {across} × {down} tiles", offs.len()));
             }
@@ -1286,9 +1338,9 @@ mod dng {
                 let (x0, y0) = ((k % across) * tw, (k / across) * tl);
                 blocks.push((*o as usize, x0, y0, tw.min(w - x0), tl.min(h - y0), tw));
             }
-        } else if TiffFile::has(raw, 273) {
-            let rows = one(278)?.map_or(h, |r| (r as usize).clamp(1, h));
-            let offs = get(273)?;
+        } else if TiffFile::has(&p.raw, 273) {
+            let rows = first(p, &p.raw, 278)?.map_or(h, |r| (r as usize).clamp(1, h));
+            let offs = values(p, &p.raw, 273)?;
             if offs.len() != h.div_ceil(rows) {
                 return Err(format!("DNG with {} strip offsets for {} strips", offs.len(), h.div_ceil(rows)));
             }
@@ -1298,29 +1350,58 @@ mod dng {
         } else {
             return Err("DNG raw image without strip or tile offsets".into());
         }
-        // The samples (none for `header_only`).
-        let blocks = if header_only { Vec::new() } else { blocks };
-        for (o, x0, y0, bw, bh, stride) in blocks {
+        Ok(blocks)
+    }
+
+    /// The samples of every block, through the Linearization table if there is one.
+    fn read_samples(
+        p: &Parsed,
+        blocks: &[Block],
+        table: &[f64],
+        w: usize,
+        h: usize,
+        l: SampleLayout,
+    ) -> Result<Vec<u16>, String> {
+        let t = &p.t;
+        let sample = |o: usize| -> Option<u16> {
+            let v = if l.bytes_per == 2 { t.u16_at(o)? } else { u16::from(*t.bytes.get(o)?) };
+            Some(if table.is_empty() {
+                v
+            } else {
+                table[usize::from(v).min(table.len() - 1)].clamp(0.0, 65535.0) as u16
+            })
+        };
+        let short = || "image data runs past the end of the file (truncated)".to_string();
+        let cpp = l.cpp;
+        let mut data = vec![0u16; w * h * cpp];
+        for &(o, x0, y0, bw, bh, stride) in blocks {
             for y in 0..bh {
                 for x in 0..bw {
                     for c in 0..cpp {
-                        let at = o + ((y * stride + x) * cpp + c) * bytes_per;
+                        let at = o + ((y * stride + x) * cpp + c) * l.bytes_per;
                         data[((y0 + y) * w + x0 + x) * cpp + c] = sample(at).ok_or_else(short)?;
                     }
                 }
             }
         }
-        let text0 = |tag: u16| t.text(&p.ifd0, tag).map_err(|e| unreadable(tag, e));
-        let vals0 = |tag: u16| t.numbers(&p.ifd0, tag).map_err(|e| unreadable(tag, e));
+        Ok(data)
+    }
+
+    /// Make, model, white-balance coefficients (1 / AsShotNeutral) and the
+    /// XYZ → camera matrix: ColorMatrix2 if present, else ColorMatrix1,
+    /// else sRGB's XYZ matrix (as `rawloader`).
+    #[allow(clippy::type_complexity)]
+    fn colour_tags(p: &Parsed) -> Result<(String, String, [f32; 4], [[f32; 3]; 4]), String> {
+        let text0 = |tag: u16| p.t.text(&p.ifd0, tag).map_err(|e| format!("DNG tag {tag} cannot be read: {e}"));
         let (make, model) = (text0(271)?, text0(272)?);
-        let neutral = vals0(50728)?;
+        let neutral = values(p, &p.ifd0, 50728)?;
         let wb_coeffs = if neutral.len() >= 3 && neutral[..3].iter().all(|v| *v > 0.0) {
             [(1.0 / neutral[0]) as f32, (1.0 / neutral[1]) as f32, (1.0 / neutral[2]) as f32, f32::NAN]
         } else {
             [f32::NAN; 4]
         };
-        // As rawloader: ColorMatrix2 if present, else ColorMatrix1, else sRGB's XYZ matrix.
-        let cm = if vals0(50722)?.len() >= 9 { vals0(50722)? } else { vals0(50721)? };
+        let cm =
+            if values(p, &p.ifd0, 50722)?.len() >= 9 { values(p, &p.ifd0, 50722)? } else { values(p, &p.ifd0, 50721)? };
         let mut xyz_to_cam = [[0.0f32; 3]; 4];
         if cm.len() >= 9 {
             for k in 0..9 {
@@ -1333,56 +1414,38 @@ mod dng {
                 [0.019334, 0.119193, 0.950227],
             ]);
         }
-        let cfa = if linear {
-            rawloader::CFA::new("")
-        } else {
-            let dim = get(33421)?;
-            let pat = get(33422)?;
-            if dim.len() != 2 || dim[0] != 2.0 || dim[1] != 2.0 || pat.len() != 4 {
-                return Err(format!("DNG CFA pattern {pat:?} of repeat {dim:?} (a 2 × 2 Bayer pattern is read)"));
-            }
-            let name: String = pat
-                .iter()
-                .map(|c| match *c as u8 {
-                    0 => Ok('R'),
-                    1 => Ok('G'),
-                    2 => Ok('B'),
-                    other => Err(format!("DNG CFA colour {other} (R, G, B = 0, 1, 2 are read)")),
-                })
-                .collect::<Result<_, _>>()?;
-            rawloader::CFA::new(&name)
-        };
-        let (black, white) = per_sample(&get(50714)?, &get(50717)?, cpp);
-        let area = get(50829)?;
-        let crops = if area.len() == 4 {
-            let [top, left, bottom, right] = [area[0], area[1], area[2], area[3]].map(|v| v as usize);
-            if !(top < bottom && left < right && bottom <= h && right <= w) {
-                return Err(format!("DNG ActiveArea {area:?} outside the {w} × {h} image"));
-            }
-            [top, w - right, h - bottom, left]
-        } else {
-            [0; 4]
-        };
-        let orientation = vals0(274)?
-            .first()
-            .map_or(rawloader::Orientation::Unknown, |v| rawloader::Orientation::from_u16(*v as u16));
-        Ok(Some(rawloader::RawImage {
-            make: make.clone(),
-            model: model.clone(),
-            clean_make: make,
-            clean_model: model,
-            width: w,
-            height: h,
-            cpp,
-            wb_coeffs,
-            whitelevels: white,
-            blacklevels: black,
-            xyz_to_cam,
-            cfa,
-            crops,
-            blackareas: Vec::new(),
-            orientation,
-            data: rawloader::RawImageData::Integer(data),
-        }))
+        Ok((make, model, wb_coeffs, xyz_to_cam))
+    }
+
+    /// The 2 × 2 Bayer pattern of CFARepeatPatternDim / CFAPattern.
+    fn bayer_pattern(p: &Parsed) -> Result<rawloader::CFA, String> {
+        let dim = values(p, &p.raw, 33421)?;
+        let pat = values(p, &p.raw, 33422)?;
+        if dim.len() != 2 || dim[0] != 2.0 || dim[1] != 2.0 || pat.len() != 4 {
+            return Err(format!("DNG CFA pattern {pat:?} of repeat {dim:?} (a 2 × 2 Bayer pattern is read)"));
+        }
+        let name: String = pat
+            .iter()
+            .map(|c| match *c as u8 {
+                0 => Ok('R'),
+                1 => Ok('G'),
+                2 => Ok('B'),
+                other => Err(format!("DNG CFA colour {other} (R, G, B = 0, 1, 2 are read)")),
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(rawloader::CFA::new(&name))
+    }
+
+    /// `rawloader`'s crops (top, right, bottom, left) of ActiveArea (top,
+    /// left, bottom, right) in a `w` × `h` image; none without the tag.
+    fn active_area_crops(area: &[f64], w: usize, h: usize) -> Result<[usize; 4], String> {
+        if area.len() != 4 {
+            return Ok([0; 4]);
+        }
+        let [top, left, bottom, right] = [area[0], area[1], area[2], area[3]].map(|v| v as usize);
+        if !(top < bottom && left < right && bottom <= h && right <= w) {
+            return Err(format!("DNG ActiveArea {area:?} outside the {w} × {h} image"));
+        }
+        Ok([top, w - right, h - bottom, left])
     }
 }

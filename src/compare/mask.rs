@@ -54,6 +54,42 @@ impl Mask {
         self.include.iter().filter(|&&v| v).count()
     }
 
+    /// The object's interior in a render: pixels whose object fraction
+    /// (render.exr's `object` layer: the share of camera rays that hit the
+    /// object first) exceeds `min_fraction` and all of whose neighbours
+    /// within `erode_px` pixels (a (2·erode_px + 1)² square) do too, so
+    /// that the silhouette's edge, where sub-pixel position changes the
+    /// value, is left out. The region where an estimator's bias on the
+    /// object is measured (docs/method.md#render-similarity).
+    pub fn interior(object: &[f32], width: usize, height: usize, min_fraction: f64, erode_px: usize) -> Self {
+        let inside = |x: usize, y: usize| f64::from(object[y * width + x]) > min_fraction;
+        let include = (0..width * height)
+            .map(|i| {
+                let (x, y) = (i % width, i / width);
+                x >= erode_px
+                    && y >= erode_px
+                    && x + erode_px < width
+                    && y + erode_px < height
+                    && (y - erode_px..=y + erode_px).all(|v| (x - erode_px..=x + erode_px).all(|u| inside(u, v)))
+            })
+            .collect();
+        Self { width, height, include }
+    }
+
+    /// The mean over the included pixels of `values` and its standard
+    /// error from the pixels' own variances of the mean (`variances`, same
+    /// layout): √(Σ var) / n, the pixels' estimates being independent.
+    /// `None` without included pixels.
+    pub fn mean_with_error(&self, values: &[f32], variances: &[f32]) -> Option<(f64, f64)> {
+        let (mut sum, mut var, mut n) = (0.0, 0.0, 0usize);
+        for ((v, s), _) in values.iter().zip(variances).zip(&self.include).filter(|(_, inc)| **inc) {
+            sum += f64::from(*v);
+            var += f64::from(*s);
+            n += 1;
+        }
+        (n > 0).then(|| (sum / n as f64, var.sqrt() / n as f64))
+    }
+
     /// Included fraction of the image.
     pub fn fraction(&self) -> f64 {
         self.count() as f64 / self.include.len().max(1) as f64
@@ -235,6 +271,30 @@ mod tests {
     use super::*;
     use lucent_calib::camera::Intrinsics;
     use lucent_calib::scene::{describe_scene, BoardSpec, Pose, SampleSpec};
+
+    #[test]
+    fn the_interior_leaves_out_the_edge_and_its_mean_carries_the_pixels_errors() {
+        // A 7 × 6 object (fraction 1) in a 11 × 10 image, one edge pixel at 0.5.
+        let (w, h) = (11, 10);
+        let mut object = vec![0.0f32; w * h];
+        for y in 2..8 {
+            for x in 2..9 {
+                object[y * w + x] = 1.0;
+            }
+        }
+        object[2 * w + 2] = 0.5;
+        assert_eq!(Mask::interior(&object, w, h, 0.99, 0).count(), 41);
+        // Eroded by 1 px: x 3..=7, y 3..=6 (20), less the corner's neighbour (3, 3).
+        let m = Mask::interior(&object, w, h, 0.99, 1);
+        assert_eq!(m.count(), 19);
+        assert!(!m.get(3, 3) && m.get(4, 3) && m.get(7, 6) && !m.get(8, 6));
+        assert_eq!(Mask::interior(&object, w, h, 0.99, 3).count(), 0);
+        // Values 2 with variance 0.04 each: mean 2, error √(19 · 0.04) / 19.
+        let (v, var) = (vec![2.0f32; w * h], vec![0.04f32; w * h]);
+        let (mean, se) = m.mean_with_error(&v, &var).unwrap();
+        assert!((mean - 2.0).abs() < 1e-12 && (se - (19.0f64 * 0.04).sqrt() / 19.0).abs() < 1e-7, "{mean} {se}");
+        assert_eq!(Mask::interior(&object, w, h, 0.99, 3).mean_with_error(&v, &var), None);
+    }
 
     #[test]
     fn adjacent_polygons_share_no_pixel_and_cover_their_union() {

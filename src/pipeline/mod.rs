@@ -967,14 +967,8 @@ fn photo_bin(sample: &str, photo: &Path, render_size: Option<ImageSize>) -> Resu
     let Some(ImageSize { width: rw, height: rh }) = render_size else { return Ok(1) };
     let unreadable =
         |reason: String| StageProblem::PhotoUnreadable { sample: sample.into(), photo: photo.to_path_buf(), reason };
-    let is_raw = crate::imageio::RAW_EXTENSIONS.contains(&crate::imageio::extension(photo).as_str());
-    let (pw, ph) = if is_raw {
-        // The active area from the file's tags, without decoding the pixel data.
-        lucent_calib::raw::developed_size(photo).map_err(|e| unreadable(e.to_string()))?
-    } else {
-        // The header only: planning needs the size, not the pixels.
-        crate::imageio::image_size(photo).map_err(|e| unreadable(e.to_string()))?
-    };
+    // The header only (RAW: the developed size from the file's tags): planning needs the size, not the pixels.
+    let (pw, ph) = crate::imageio::image_size(photo).map_err(|e| unreadable(e.to_string()))?;
     let k = pw / rw;
     if k >= 1 && pw == k * rw && ph == k * rh {
         Ok(k)
