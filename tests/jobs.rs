@@ -970,13 +970,15 @@ fn job_run_of_a_bad_job_fails_as_its_command_does() {
             &["missing.exr"],
         ),
         // User input: the scene is not there.
-        (Job::Render(RenderJob { scene: p("nowhere.toml"), spp: Some(1), out: p("out"), ..Default::default() }), &[
-            "nowhere.toml",
-        ]),
+        (
+            Job::Render(RenderJob { scene: p("nowhere.toml"), spp: Some(1), out: p("out"), ..Default::default() }),
+            &["nowhere.toml"],
+        ),
         // User input: the output folder holds the user's files.
-        (Job::Render(RenderJob { scene: p("twin.toml"), spp: Some(1), out: p("mine"), ..Default::default() }), &[
-            "mine", "lucent did not write",
-        ]),
+        (
+            Job::Render(RenderJob { scene: p("twin.toml"), spp: Some(1), out: p("mine"), ..Default::default() }),
+            &["mine", "lucent did not write"],
+        ),
     ];
     std::fs::create_dir(d.join("mine")).unwrap();
     std::fs::write(d.join("mine/thesis.tex"), "mine").unwrap();

@@ -122,8 +122,8 @@ impl EnvScaleJob {
         if self.spp == Some(0) {
             return Err(E::ZeroSpp);
         }
-        let text = crate::io::read_text(&self.scene)
-            .map_err(|source| E::ReadScene { path: self.scene.clone(), source })?;
+        let text =
+            crate::io::read_text(&self.scene).map_err(|source| E::ReadScene { path: self.scene.clone(), source })?;
         let file = scene::parse(&text, &self.scene)?;
         let mut empty =
             envfit::empty_board(&file).map_err(|source| E::EmptyBoard { scene: self.scene.clone(), source })?;
@@ -168,8 +168,10 @@ impl EnvScaleJob {
         hooks.start(&settings);
         let (image, stats) = pool.install(|| tracer::render(&loaded.scene, &settings, &mut |p| hooks.pass(p)))?;
         hooks.finish();
-        let fit = envfit::fit_scale(&image.mean, &image.variance_of_mean, &photo, &mask).map_err(|source| {
-            E::Fit { scene: self.scene.clone(), photo: self.photo.clone(), source }
+        let fit = envfit::fit_scale(&image.mean, &image.variance_of_mean, &photo, &mask).map_err(|source| E::Fit {
+            scene: self.scene.clone(),
+            photo: self.photo.clone(),
+            source,
         })?;
 
         let previous = file.environment.scale.unwrap_or(1.0);
