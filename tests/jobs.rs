@@ -996,3 +996,30 @@ fn job_run_of_a_bad_job_fails_as_its_command_does() {
         assert_eq!(std::fs::read_dir(d.join("mine")).unwrap().count(), 1, "the user's folder is untouched");
     }
 }
+
+/// `lucent job run` of a render stopped by Ctrl-C ends as the command does:
+/// the summary of the samples finished, an error saying so, exit code 130,
+/// and the output folder kept (labelled, marked as lucent's).
+#[cfg(unix)]
+#[test]
+fn job_run_of_an_interrupted_render_keeps_what_it_finished() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("twin.toml"), board_scene([1.0, 1.0, 1.0], 1)).unwrap();
+    let out = d.join("out");
+    let job = Job::Render(RenderJob {
+        scene: d.join("twin.toml"),
+        spp: Some(1 << 20),
+        out: out.clone(),
+        ..Default::default()
+    });
+    std::fs::write(d.join("job.json"), serde_json::to_string(&job).unwrap()).unwrap();
+    let job_file = d.join("job.json").display().to_string();
+    let (status, err) = crate::common::interrupt_n_after(&["job", "run", &job_file], "rendering", 1);
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(err.contains("error: interrupted (Ctrl-C or SIGTERM): ") && err.contains("render.* hold the"), "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    assert_eq!(report["interrupted"], true, "{report}");
+    assert!(out.join(lucent::io::OUTPUT_MARK).is_file(), "the kept folder is lucent's");
+}
