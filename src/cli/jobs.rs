@@ -315,8 +315,8 @@ pub fn job_error(e: JobRunError) -> anyhow::Error {
         JobRunError::Colour(e) => e.into(),
         JobRunError::RawClipped(e) => e.into(),
         JobRunError::Camera(e) => e.into(),
-        JobRunError::EnvScale(e) => e.into(),
-        JobRunError::Render(e) => e.into(),
+        JobRunError::EnvScale(e) => (*e).into(),
+        JobRunError::Render(e) => (*e).into(),
         JobRunError::Compare(e) => e.into(),
         JobRunError::Interrupted(e) => e.into(),
     }

@@ -115,10 +115,11 @@ pub enum JobRunError {
     RawClipped(#[from] super::RawClippedError),
     #[error(transparent)]
     Camera(#[from] super::CameraJobError),
+    /// (Boxed, as is a render's: the largest errors.)
     #[error(transparent)]
-    EnvScale(#[from] super::EnvScaleJobError),
+    EnvScale(Box<super::EnvScaleJobError>),
     #[error(transparent)]
-    Render(#[from] super::RenderError),
+    Render(Box<super::RenderError>),
     #[error(transparent)]
     Compare(#[from] crate::compare::CompareError),
     /// Ctrl-C or SIGTERM stopped the stage.
@@ -146,6 +147,18 @@ impl From<super::FitJobError> for JobRunError {
     }
 }
 
+impl From<super::EnvScaleJobError> for JobRunError {
+    fn from(e: super::EnvScaleJobError) -> Self {
+        JobRunError::EnvScale(Box::new(e))
+    }
+}
+
+impl From<super::RenderError> for JobRunError {
+    fn from(e: super::RenderError) -> Self {
+        JobRunError::Render(Box::new(e))
+    }
+}
+
 impl JobRunError {
     /// The stage's own error inside the variant.
     pub fn inner(&self) -> &(dyn std::error::Error + Send + Sync + 'static) {
@@ -160,8 +173,8 @@ impl JobRunError {
             JobRunError::Colour(e) => e,
             JobRunError::RawClipped(e) => e,
             JobRunError::Camera(e) => e,
-            JobRunError::EnvScale(e) => e,
-            JobRunError::Render(e) => e,
+            JobRunError::EnvScale(e) => e.as_ref(),
+            JobRunError::Render(e) => e.as_ref(),
             JobRunError::Compare(e) => e,
             JobRunError::Interrupted(e) => e,
         }
