@@ -282,8 +282,8 @@ impl From<&compare::CompareArgs> for CompareJob {
 /// hooks (the progress bars of a render and of a slab simulation, hidden
 /// when the job is quiet; a shard's identity from its command line), the
 /// job's summary on stdout, and a run that wrote its outputs but failed
-/// ([`JobRun::finished`](crate::job::run::JobRun::finished): interrupted, a fit the data cannot pin down)
-/// failing after its summary.
+/// ([`JobRun::finished`](crate::job::run::JobRun::finished): interrupted,
+/// a fit the data cannot pin down) failing after its summary.
 pub fn run_in_process(job: &Job) -> anyhow::Result<()> {
     let quiet = match job {
         Job::Render(j) => j.quiet,
