@@ -17,8 +17,9 @@
 //! format `lucent job run JOB.json` reads): the stage key hashes it, and
 //! [`Job::identity_sha256`] (the job without its output folder, paths
 //! canonical) names the run a long job's shards belong to. A stage runs its
-//! jobs in the `lucent run` process (`lucent::cli::jobs::run_job`), with
-//! the command's typed arguments built from the job's fields.
+//! jobs in the `lucent run` process through [`Job::run_with`] (the stage's
+//! own `run`, e.g. [`RenderJob::run_with`], inside the checks its command
+//! makes), as `lucent job run JOB.json` runs a job file.
 //!
 //! Paths may hold the placeholder `{out}` (the stage folder), replaced when
 //! the command runs.
@@ -36,6 +37,7 @@ pub mod camera;
 mod colour;
 mod compare;
 mod context;
+mod env_scale;
 mod fit;
 pub mod guard;
 pub mod optics;
@@ -53,6 +55,7 @@ pub use camera::{CalibrateRun, CameraJobError, PoseRun};
 pub use colour::{ColourApplyRun, ColourCalibrateRun, ColourJobError};
 pub use compare::CompareRun;
 pub use context::Context;
+pub use env_scale::{EnvScaleJobError, EnvScaleRun};
 pub use fit::{write_fit_outputs, write_fit_outputs_with_recipe_text, FitJobError, FitRun};
 pub use optics::{OpticsJobError, OpticsRun};
 pub use raw::{RawClippedError, RawClippedRun};
@@ -1100,6 +1103,12 @@ pub struct EnvScaleJob {
     pub size: Option<ImageSize>,
     pub seed: Option<u64>,
     pub out: PathBuf,
+    /// `--quiet`: no progress bar or progress lines.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub quiet: bool,
+    /// `--threads`: worker threads of the render (default: the allocation, else all cores).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub threads: Option<usize>,
 }
 
 impl EnvScaleJob {
@@ -1115,7 +1124,9 @@ impl EnvScaleJob {
         l.opt("--mask", &self.mask.as_deref().map(s))
             .opt("--size", &self.size)
             .opt("--seed", &self.seed)
-            .flag("--out", s(&self.out));
+            .flag("--out", s(&self.out))
+            .switch("--quiet", self.quiet)
+            .opt("--threads", &self.threads);
         l.0
     }
 }
@@ -1404,6 +1415,8 @@ impl Job {
                 e.photo = canon(&e.photo);
                 e.mask = e.mask.as_deref().map(canon);
                 e.out = PathBuf::new();
+                e.quiet = false;
+                e.threads = None;
             }
             Job::Fit(f) => {
                 f.recipe = canon(&f.recipe);

@@ -147,6 +147,8 @@ fn jobs() -> Vec<Job> {
             size: Some("64x48".parse().unwrap()),
             seed: Some(9),
             out: p("{out}/s"),
+            quiet: true,
+            threads: Some(2),
         }),
         Job::Render(RenderJob {
             scene: p("{out}/s/input_scene.toml"),
@@ -192,11 +194,12 @@ fn every_job_round_trips_through_its_command_line() {
     }
 }
 
-/// A stage runs its job in process with the command's arguments built from
-/// the job's fields: they must be exactly what clap makes of the job's
-/// command line, every flag the job does not hold at its default.
+/// A job and its command line are one: with its optional fields set or
+/// unset, the job's command line (`to_args`, what a stage's manifest and
+/// the cluster's scripts hold) parses with clap into the command whose job
+/// (`job_of`) is the same job, so running either does the same work.
 #[test]
-fn every_job_builds_the_arguments_its_command_line_parses_into() {
+fn every_job_and_its_command_line_parse_into_the_same_job() {
     let mut all = jobs();
     // The same jobs with every optional field unset.
     all.extend(jobs().into_iter().map(|j| match j {
@@ -262,6 +265,16 @@ fn every_job_builds_the_arguments_its_command_line_parses_into() {
             dilate: lucent::job::DEFAULT_DILATE,
             ..r
         }),
+        Job::EnvScale(e) => Job::EnvScale(EnvScaleJob {
+            spp: None,
+            per_channel: false,
+            mask: None,
+            size: None,
+            seed: None,
+            quiet: false,
+            threads: None,
+            ..e
+        }),
         other => other,
     }));
     for job in all {
@@ -269,8 +282,9 @@ fn every_job_builds_the_arguments_its_command_line_parses_into() {
         let parsed =
             lucent::cli::Cli::try_parse_args(std::iter::once("lucent".to_string()).chain(args.iter().cloned()))
                 .unwrap_or_else(|e| panic!("lucent {}: {e}", args.join(" ")));
-        let built = lucent::cli::jobs::command_of(&job).unwrap_or_else(|e| panic!("{job:?}: {e}"));
-        assert_eq!(format!("{built:?}"), format!("{:?}", parsed.command), "lucent {}", args.join(" "));
+        let back = lucent::cli::jobs::job_of(&parsed.command)
+            .unwrap_or_else(|| panic!("lucent {}: not a stage's job", args.join(" ")));
+        assert_eq!(back, job, "lucent {}", args.join(" "));
     }
 }
 
@@ -873,4 +887,139 @@ fn a_render_jobs_json_leaves_out_the_flags_at_their_defaults() {
         Job::Render(RenderJob { shard: None, threads: Some(3), ..sharded }).identity_sha256(),
         "a shard and the thread count are not the run's identity"
     );
+}
+
+/// A 48 × 36 view of a 10 × 8 board of 20 mm squares under a constant sky
+/// (`sky` its RGB), `spp` samples per pixel.
+fn board_scene(sky: [f64; 3], spp: u32) -> String {
+    format!(
+        "[camera]\nwidth = 48\nheight = 36\nposition_m = [0.0, -0.25, 0.30]\nlook_at_m = [0.0, 0.0, 0.0]\n\
+         vertical_fov_deg = 34.0\n\n[board]\norigin_m = [-0.10, -0.08, 0.0]\nsquare_mm = 20.0\ncolumns = 10\n\
+         rows = 8\neven = [0.05, 0.05, 0.05]\nodd = [0.8, 0.7, 0.6]\nmargin_mm = 40.0\n\n[environment]\n\
+         constant = {sky:?}\n\n[render]\nspp = {spp}\nseed = 3\n"
+    )
+}
+
+/// Every stage runs in the library: `Job::run` of a render job renders into
+/// its output folder (marked as lucent's) and of an env-scale job fits the
+/// sky's scale to that render, in this process, each with its typed run
+/// and the summary its command prints.
+#[test]
+fn render_and_env_scale_jobs_run_in_process() {
+    use lucent::job::run::JobRun;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("photo.toml"), board_scene([2.0, 2.0, 2.0], 8)).unwrap();
+    std::fs::write(d.join("twin.toml"), board_scene([1.0, 1.0, 1.0], 8)).unwrap();
+    let ctx = Context { quiet: true };
+    let render =
+        Job::Render(RenderJob { scene: d.join("photo.toml"), quiet: true, out: d.join("photo"), ..Default::default() });
+    let done = render.run(&ctx).unwrap_or_else(|e| panic!("{e}"));
+    let JobRun::Render(r) = &done else { panic!("a render job's run is a render's") };
+    assert!(r.interrupted.is_none() && done.finished().is_ok());
+    assert!(done.summary().iter().any(|l| l.starts_with("8 spp in ")), "{:?}", done.summary());
+    assert!(d.join("photo/render.exr").is_file() && d.join("photo").join(lucent::io::OUTPUT_MARK).is_file());
+    let fit = Job::EnvScale(EnvScaleJob {
+        scene: d.join("twin.toml"),
+        photo: d.join("photo/render.exr"),
+        spp: Some(8),
+        per_channel: false,
+        mask: None,
+        size: None,
+        seed: Some(5),
+        out: d.join("env"),
+        quiet: true,
+        threads: Some(1),
+    });
+    let done = fit.run(&ctx).unwrap_or_else(|e| panic!("{e}"));
+    let JobRun::EnvScale(e) = &done else { panic!("an env-scale job's run is an env-scale's") };
+    // The photo is the same board under a sky twice as bright (both renders noisy).
+    assert!((e.report.fit.scale - 2.0).abs() < 0.1, "k = {}", e.report.fit.scale);
+    assert!(e.files.toml.is_file() && e.files.exr.is_file() && e.files.json.is_file());
+    assert!(done.summary()[0].starts_with("environment scale k = "), "{:?}", done.summary());
+    // A bad job fails before any work and leaves no folder behind.
+    let Job::EnvScale(good) = &fit else { unreachable!() };
+    let missing = Job::EnvScale(EnvScaleJob { photo: d.join("missing.exr"), out: d.join("env2"), ..good.clone() });
+    let e = missing.run(&ctx).err().expect("a missing photo fails");
+    assert_eq!(e.fault(), lucent::fault::Fault::Input, "{e}");
+    assert!(!d.join("env2").exists(), "the failed job's empty folder is removed");
+}
+
+/// `lucent job run` of a job that fails says what its command says, with
+/// the same exit code, and leaves what its command leaves.
+#[test]
+fn job_run_of_a_bad_job_fails_as_its_command_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("twin.toml"), board_scene([1.0, 1.0, 1.0], 1)).unwrap();
+    let cases: [(Job, &[&str]); 3] = [
+        // User input (exit 1): the photo is not there.
+        (
+            Job::EnvScale(EnvScaleJob {
+                scene: p("twin.toml"),
+                photo: p("missing.exr"),
+                spp: Some(1),
+                per_channel: false,
+                mask: None,
+                size: None,
+                seed: None,
+                out: p("out"),
+                quiet: true,
+                threads: None,
+            }),
+            &["missing.exr"],
+        ),
+        // User input: the scene is not there.
+        (
+            Job::Render(RenderJob { scene: p("nowhere.toml"), spp: Some(1), out: p("out"), ..Default::default() }),
+            &["nowhere.toml"],
+        ),
+        // User input: the output folder holds the user's files.
+        (
+            Job::Render(RenderJob { scene: p("twin.toml"), spp: Some(1), out: p("mine"), ..Default::default() }),
+            &["mine", "lucent did not write"],
+        ),
+    ];
+    std::fs::create_dir(d.join("mine")).unwrap();
+    std::fs::write(d.join("mine/thesis.tex"), "mine").unwrap();
+    for (job, needles) in cases {
+        std::fs::write(d.join("job.json"), serde_json::to_string(&job).unwrap()).unwrap();
+        let by_job = lucent_in(d, &["job", "run", "job.json"]);
+        let args = job.to_args();
+        let by_command = lucent_in(d, &args.iter().map(String::as_str).collect::<Vec<_>>());
+        let err = String::from_utf8_lossy(&by_job.stderr);
+        assert_eq!(by_job.status.code(), Some(1), "{err}");
+        assert_eq!(by_job.status.code(), by_command.status.code(), "{err}");
+        assert_eq!(err, String::from_utf8_lossy(&by_command.stderr), "lucent {}", args.join(" "));
+        assert!(needles.iter().all(|n| err.contains(n)), "{needles:?}: {err}");
+        assert!(!d.join("out").exists(), "lucent {}: a folder was left behind", args.join(" "));
+        assert_eq!(std::fs::read_dir(d.join("mine")).unwrap().count(), 1, "the user's folder is untouched");
+    }
+}
+
+/// `lucent job run` of a render stopped by Ctrl-C ends as the command does:
+/// the summary of the samples finished, an error saying so, exit code 130,
+/// and the output folder kept (labelled, marked as lucent's).
+#[cfg(unix)]
+#[test]
+fn job_run_of_an_interrupted_render_keeps_what_it_finished() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("twin.toml"), board_scene([1.0, 1.0, 1.0], 1)).unwrap();
+    let out = d.join("out");
+    let job = Job::Render(RenderJob {
+        scene: d.join("twin.toml"),
+        spp: Some(1 << 20),
+        out: out.clone(),
+        ..Default::default()
+    });
+    std::fs::write(d.join("job.json"), serde_json::to_string(&job).unwrap()).unwrap();
+    let job_file = d.join("job.json").display().to_string();
+    let (status, err) = crate::common::interrupt_n_after(&["job", "run", &job_file], "rendering", 1);
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(err.contains("error: interrupted (Ctrl-C or SIGTERM): ") && err.contains("render.* hold the"), "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
+    assert_eq!(report["interrupted"], true, "{report}");
+    assert!(out.join(lucent::io::OUTPUT_MARK).is_file(), "the kept folder is lucent's");
 }

@@ -7,13 +7,11 @@
 //! * [`TwinRenderArgs`]: the overrides of a scene's `[render]` section and
 //!   the image size (`render`, `env fit-scale`).
 
-use crate::scene::LoadedScene;
-use anyhow::{anyhow, bail, Result};
+use anyhow::{anyhow, Result};
 use clap::Args;
 use lucent_calib::board::BoardSize;
 use lucent_calib::scene::BoardSpec;
 use lucent_render::slab::Beam;
-use lucent_render::tracer::Settings;
 use std::path::PathBuf;
 
 /// The beam that lights the slab.
@@ -82,39 +80,4 @@ pub struct TwinRenderArgs {
     /// SLURM_CPUS_PER_TASK, when set, else all cores; 0: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-}
-
-impl TwinRenderArgs {
-    /// The checks that need no scene: thread count and sample count.
-    pub fn check(&self) -> Result<()> {
-        super::common::check_threads(self.threads)?;
-        if self.spp == Some(0) {
-            bail!("--spp 0: at least one sample per pixel");
-        }
-        Ok(())
-    }
-
-    /// `--size`: the camera's image size, its intrinsics scaled to match
-    /// (about the image edge, pixel centres at integers).
-    pub fn resize(&self, loaded: &mut LoadedScene) -> Result<()> {
-        if let Some(size) = self.size {
-            crate::job::render::resize(size, loaded);
-        }
-        Ok(())
-    }
-
-    /// `--spp` and `--seed` over the scene's settings.
-    pub fn apply(&self, settings: &mut Settings) {
-        if let Some(s) = self.spp {
-            settings.stop.samples = Some(s.into());
-        }
-        if let Some(s) = self.seed {
-            settings.seed = s;
-        }
-    }
-
-    /// The worker pool of `--threads`.
-    pub fn pool(&self) -> Result<rayon::ThreadPool> {
-        Ok(crate::job::worker_pool(self.threads)?)
-    }
 }

@@ -4,11 +4,14 @@
 //! directly from a project, and [`validate`] checks that job before the
 //! command does any work, with the same ranges and words for a flag as for
 //! the project key. The Python module converts its arguments the same way.
+//! [`run_in_process`] runs a job as its command does (`lucent job run
+//! JOB.json`, each stage of `lucent run`).
 
 use super::{bssrdf, camera, colour, compare, env_fit, fit, raw_clip, render, Cli, Command};
+use crate::job::run::{Hooks, JobRunError};
 use crate::job::{
-    BssrdfCompareJob, BssrdfJob, CalibrateJob, ColourApplyJob, ColourCalibrateJob, CompareJob, EnvScaleJob, FitJob,
-    Job, JobError, OpticsJob, PoseJob, RawClippedJob, RenderJob,
+    BssrdfCompareJob, BssrdfJob, CalibrateJob, ColourApplyJob, ColourCalibrateJob, CompareJob, Context, EnvScaleJob,
+    FitJob, Job, JobError, OpticsJob, PoseJob, RawClippedJob, RenderJob,
 };
 
 /// The job of a parsed command, when it is one a pipeline stage runs (a
@@ -87,18 +90,6 @@ impl From<&colour::ApplyArgs> for ColourApplyJob {
             adaptation: a.adaptation.cat(),
             variance_realisations: a.variance_realisations,
         }
-    }
-}
-
-/// The `--adaptation` choice of a transform (`None`: none).
-fn adaptation_choice(c: Option<lucent_colour::adaptation::Cat>) -> super::choices::AdaptationChoice {
-    use super::choices::AdaptationChoice;
-    use lucent_colour::adaptation::Cat;
-    match c {
-        Some(Cat::Bradford) => AdaptationChoice::Bradford,
-        Some(Cat::VonKries) => AdaptationChoice::VonKries,
-        Some(Cat::Cat02) => AdaptationChoice::Cat02,
-        None => AdaptationChoice::None,
     }
 }
 
@@ -233,6 +224,8 @@ impl From<&env_fit::FitScaleArgs> for EnvScaleJob {
             size: a.render.size,
             seed: a.render.seed,
             out: a.out.clone(),
+            quiet: a.quiet,
+            threads: a.render.threads,
         }
     }
 }
@@ -284,236 +277,49 @@ impl From<&compare::CompareArgs> for CompareJob {
     }
 }
 
-/// The render options of a twin (render, env fit-scale) as a job holds them.
-fn twin_render(
-    spp: Option<u32>,
-    seed: Option<u64>,
-    size: Option<crate::job::ImageSize>,
-) -> super::groups::TwinRenderArgs {
-    super::groups::TwinRenderArgs { spp, seed, size, threads: None }
-}
-
-/// The parsed command a job stands for: the command's typed arguments built
-/// from the job's fields, every other flag at the default clap gives it (the
-/// inverse of [`job_of`], without a command line in between).
-pub fn command_of(job: &Job) -> anyhow::Result<Command> {
-    let board = |board, square_mm| super::groups::BoardArgs { board, square_mm };
-    Ok(match job {
-        Job::Optics(j) => Command::Optics(optics_args(j)),
-        Job::Bssrdf(j) => Command::Bssrdf(bssrdf::BssrdfArgs { command: None, run: bssrdf_args(j) }),
-        Job::BssrdfCompare(j) => Command::Bssrdf(bssrdf::BssrdfArgs {
-            command: Some(bssrdf::BssrdfCommand::Compare(bssrdf::CompareArgs {
-                measured: j.measured.clone(),
-                measured_pixel_mm: j.measured_pixel_mm,
-                simulated: j.simulated.clone(),
-                threshold: j.threshold,
-                out: j.out.clone(),
-            })),
-            run: bssrdf::RunArgs::defaults(),
-        }),
-        Job::Fit(j) => Command::Fit(fit_args(j)),
-        Job::Calibrate(j) => Command::Calibrate(camera::CalibrateArgs {
-            images: j.images.clone(),
-            board: board(j.board, j.square_mm),
-            model: j.model,
-            detector: j.detector,
-            out: j.out.clone(),
-            quiet: j.quiet,
-        }),
-        Job::ColourCalibrate(j) => Command::Colour(colour::ColourCommand::Calibrate(colour::CalibrateArgs {
-            image: j.image.clone(),
-            corners: j.corners,
-            camera: j.camera.clone(),
-            method: j.method,
-            out: j.out.clone(),
-            decode_srgb: j.decode_srgb,
-            clip_level: j.clip_level.clone(),
-            gap_ratio: j.gap_ratio,
-            inner_fraction: j.inner_fraction,
-        })),
-        Job::ColourApply(j) => Command::Colour(colour::ColourCommand::Apply(colour::ApplyArgs {
-            ccm: j.ccm.clone(),
-            input: j.input.clone(),
-            output: j.output.clone(),
-            to: j.to,
-            adaptation: adaptation_choice(j.adaptation),
-            variance_out: j.variance_out.as_ref().map(|(p, _)| p.clone()),
-            variance_realisations: j.variance_realisations,
-            seed: j.variance_out.as_ref().map_or(1, |(_, seed)| *seed),
-            bin: j.bin,
-        })),
-        Job::RawClipped(j) => Command::Raw(camera::RawCommand::Clipped(raw_clip::ClippedArgs {
-            input: j.input.clone(),
-            out: j.out.clone(),
-            level: j.level,
-            dilate: j.dilate,
-            bin: j.bin,
-        })),
-        Job::Pose(j) => Command::Pose(camera::PoseArgs {
-            camera: j.camera.clone(),
-            image: j.image.clone(),
-            board: board(j.board, j.square_mm),
-            sample_corner: j.sample.map(|(c, _)| c),
-            sample_size_mm: j.sample.map(|(_, z)| z),
-            keep_all: j.keep_all,
-            out: j.out.clone(),
-        }),
-        Job::EnvScale(j) => Command::Env(camera::EnvCommand::FitScale(env_fit::FitScaleArgs {
-            scene: j.scene.clone(),
-            photo: j.photo.clone(),
-            mask: j.mask.clone(),
-            per_channel: j.per_channel,
-            render: twin_render(j.spp, j.seed, j.size),
-            out: j.out.clone(),
-            quiet: false,
-        })),
-        Job::Render(j) => Command::Render(render_args(j)),
-        Job::Compare(j) => Command::Compare(compare_args(j)),
-    })
-}
-
-/// `lucent optics` of an optics job.
-fn optics_args(j: &OpticsJob) -> super::OpticsArgs {
-    super::OpticsArgs {
-        recipes: j.recipes.clone(),
-        wavelengths: j.wavelengths.clone(),
-        wavelength: j.wavelength_nm,
-        out: j.out.clone(),
-        json: j.json,
-        phase_entries: j.phase_entries,
-        weight_percent: j.weight_percent,
-        skip_invalid: j.skip_invalid,
-        uncertainty: None,
-        uncertainty_seed: 1,
-        shard: None,
+/// Runs a job in this process as its command runs it, for `lucent job run`
+/// and the stages of `lucent run`: [`Job::run_with`] with the terminal's
+/// hooks (the progress bars of a render and of a slab simulation, hidden
+/// when the job is quiet; a shard's identity from its command line), the
+/// job's summary on stdout, and a run that wrote its outputs but failed
+/// ([`JobRun::finished`](crate::job::run::JobRun::finished): interrupted,
+/// a fit the data cannot pin down) failing after its summary.
+pub fn run_in_process(job: &Job) -> anyhow::Result<()> {
+    let quiet = match job {
+        Job::Render(j) => j.quiet,
+        Job::Bssrdf(j) => j.quiet,
+        Job::EnvScale(j) => j.quiet,
+        _ => false,
+    };
+    let (mut terminal, mut bars) = (render::Terminal::new(quiet), bssrdf::Bar::new(quiet));
+    let done = job.run_with(&Context::default(), Hooks::new(&mut terminal, &mut bars)).map_err(job_error)?;
+    for line in done.summary() {
+        println!("{line}");
     }
+    done.finished().map_err(job_error)
 }
 
-/// `lucent bssrdf` of a slab job.
-fn bssrdf_args(j: &BssrdfJob) -> bssrdf::RunArgs {
-    bssrdf::RunArgs {
-        recipe: j.recipe.clone(),
-        weight_percent: j.weight_percent,
-        wavelength: j.wavelength_nm,
-        mu_s: j.mu_s,
-        mu_a: j.mu_a,
-        g: j.g,
-        n: j.n,
-        thickness_mm: j.thickness_mm,
-        theta_i: j.theta_i,
-        phi_i: j.phi_i,
-        theta_o: j.theta_o,
-        phi_o: j.phi_o,
-        configs: j.configs.clone(),
-        phase: j.phase,
-        similarity_g: j.similarity_g,
-        beam: super::groups::BeamArgs {
-            beam_fwhm_um: j.beam_fwhm_um,
-            beam_map: j.beam_map.clone(),
-            beam_map_pixel_mm: j.beam_map_pixel_mm,
-        },
-        pixels: j.pixels,
-        pixel_mm: j.pixel_mm,
-        crop: j.crop,
-        rel_error: j.rel_error,
-        pixel_rel_error: j.pixel_rel_error,
-        paths: j.paths,
-        time_s: j.time_s,
-        seed: j.seed,
-        estimator: j.estimator,
-        lobe_vertices: j.lobe_vertices,
-        roughness: j.roughness.clone(),
-        no_fold: j.no_fold,
-        uncertainty: j.uncertainty,
-        out: j.out.clone(),
-        quiet: j.quiet,
-        shard: j.shard.clone(),
+/// A job's error as its command returns it: the stage's own error (not the
+/// wrapper, whose transparent variants hide its type), so that its fault
+/// class is read from it ([`crate::pipeline::fault_of`]: a run stopped by
+/// Ctrl-C exits with 130, a bad input with 1).
+pub fn job_error(e: JobRunError) -> anyhow::Error {
+    match e {
+        JobRunError::Invalid(e) => e.into(),
+        JobRunError::Files(e) => e.into(),
+        JobRunError::Folder(e) => e.into(),
+        JobRunError::Mark(e) => e.into(),
+        JobRunError::Optics(e) => e.into(),
+        JobRunError::Bssrdf(e) => e.into(),
+        JobRunError::Fit(e) => e.into(),
+        JobRunError::Colour(e) => e.into(),
+        JobRunError::RawClipped(e) => e.into(),
+        JobRunError::Camera(e) => e.into(),
+        JobRunError::EnvScale(e) => (*e).into(),
+        JobRunError::Render(e) => (*e).into(),
+        JobRunError::Compare(e) => e.into(),
+        JobRunError::Interrupted(e) => e.into(),
     }
-}
-
-/// `lucent fit` of a fit job.
-fn fit_args(j: &FitJob) -> fit::FitArgs {
-    fit::FitArgs {
-        recipe: j.recipe.clone(),
-        weight_percent: j.weight_percent,
-        measured: j.measured.clone(),
-        measured_pixel_mm: j.measured_pixel_mm,
-        free: j.free.clone(),
-        objective: j.objective,
-        wavelength: j.wavelength_nm,
-        beam: super::groups::BeamArgs {
-            beam_fwhm_um: j.beam_fwhm_um,
-            beam_map: j.beam_map.clone(),
-            beam_map_pixel_mm: j.beam_map_pixel_mm,
-        },
-        measured_rel_sd: j.measured_rel_sd,
-        threshold: j.threshold,
-        rel_error: j.rel_error,
-        paths: j.paths,
-        pilot_time_s: j.pilot_time_s,
-        bounds: j.bounds.clone(),
-        thickness_mm: j.thickness_mm,
-        seed: j.seed,
-        out: j.out.clone(),
-        quiet: j.quiet,
-    }
-}
-
-/// `lucent render` of a render job.
-fn render_args(j: &RenderJob) -> render::RenderArgs {
-    use crate::job::render::DispersionKey;
-    use crate::scene::SamplingKey;
-    render::RenderArgs {
-        scene: j.scene.clone(),
-        out: j.out.clone(),
-        render: super::groups::TwinRenderArgs { threads: j.threads, ..twin_render(j.spp, j.seed, j.size) },
-        time_s: j.time_s,
-        exposure: j.exposure,
-        target_rel_error: j.target_rel_error,
-        sampling: j.sampling.map(|s| match s {
-            SamplingKey::Uniform => render::SamplingArg::Uniform,
-            SamplingKey::ObjectWeighted => render::SamplingArg::ObjectWeighted,
-        }),
-        dispersion: j.dispersion.map(|d| match d {
-            DispersionKey::PerBand => render::DispersionArg::PerBand,
-            DispersionKey::SharedDirections => render::DispersionArg::SharedDirections,
-        }),
-        similarity_g: j.similarity_g,
-        split_entry: j.split_entry,
-        quiet: j.quiet,
-        shard: j.shard.clone(),
-        uncertainty: j.uncertainty,
-        uncertainty_spp: j.uncertainty_spp,
-        uncertainty_renders: j.uncertainty_renders,
-    }
-}
-
-/// `lucent compare` of a compare job.
-fn compare_args(j: &CompareJob) -> compare::CompareArgs {
-    compare::CompareArgs {
-        photo: j.photo.clone(),
-        render: j.render.clone(),
-        mask: j.mask.clone(),
-        mask_object: j.mask_object.clone(),
-        mask_board: j.mask_board.clone(),
-        photo_variance: j.photo_variance.clone(),
-        photo_repeat: j.photo_repeat.clone(),
-        scene: j.scene.clone(),
-        data_range: j.data_range,
-        luminance: j.luminance,
-        exposure: j.exposure,
-        twin_names: j.twin_names.clone(),
-        refine: j.refine.map(|_| super::choices::RefineChoice::Ecc),
-        refine_motion: j.refine.unwrap_or(lucent_calib::ecc::Motion::Translation),
-        band: j.band.clone(),
-        out: j.out.clone(),
-    }
-}
-
-/// Runs a job as its command does ([`super::run`] of [`command_of`]): the
-/// output folder checked and marked, the job validated, then the work.
-pub fn run_job(job: &Job) -> anyhow::Result<()> {
-    super::run(Cli { command: command_of(job)? })
 }
 
 /// How many stages of `lucent run` are running a command in this process.
@@ -585,6 +391,6 @@ pub fn read_job(path: &std::path::Path) -> Result<Job, JobFileError> {
 /// Runs `lucent job …`.
 pub fn run_command(c: JobCommand) -> anyhow::Result<()> {
     match c {
-        JobCommand::Run(a) => run_job(&read_job(&a.job)?),
+        JobCommand::Run(a) => run_in_process(&read_job(&a.job)?),
     }
 }

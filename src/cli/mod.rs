@@ -325,14 +325,14 @@ pub fn run(cli: Cli) -> Result<()> {
     })
 }
 
-/// Runs `work`, a command or job that writes into the output folder
+/// Runs `work`, a command that writes into the output folder
 /// `folder` (if it has one), as [`run`] runs a command: rayon's pool sized
 /// to the allocation (`size_threads_to_allocation`), the folder opened
 /// ([`OutputFolder::open`](crate::job::guard::OutputFolder::open): a folder
 /// of the user's is refused before any work) and closed
 /// ([`close`](crate::job::guard::OutputFolder::close): marked as lucent's
 /// when the work succeeds, removed again when it fails and leaves it empty).
-pub fn writing_into(folder: Option<PathBuf>, work: impl FnOnce() -> Result<()>) -> Result<()> {
+fn writing_into(folder: Option<PathBuf>, work: impl FnOnce() -> Result<()>) -> Result<()> {
     size_threads_to_allocation();
     let guard = crate::job::guard::OutputFolder::open(folder.as_deref())?;
     let result = work();

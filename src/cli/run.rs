@@ -1,6 +1,6 @@
 //! `lucent run PROJECT.toml`: the stages of [`crate::pipeline`] in order,
-//! each stage's jobs run in this process (the command each stands for,
-//! called with its typed arguments) with their output (descriptors 1 and 2)
+//! each stage's jobs run in this process (the library's job, as `lucent job
+//! run` runs it) with their output (descriptors 1 and 2)
 //! in `STAGE/log.txt`; one status line per stage with its time on the
 //! standard output and error `lucent run` was started with. Only the
 //! cluster executors start processes (Slurm jobs, Kubernetes manifests).
@@ -8,7 +8,6 @@
 use super::choices::{ForceChoice, StageChoice};
 use super::interrupt::Interrupt;
 use crate::fault::{Fault, Faulted, Interrupted};
-use crate::job::run::JobRunError;
 use crate::job::Job;
 use crate::pipeline::executor::{self, Kind};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
@@ -215,84 +214,13 @@ fn run_here(
     }
 }
 
-/// Runs a stage's job in this process ([`run_here`]): the library's
-/// [`Job::run`] (the job's files and output folder checked as its command
-/// checks them) with its summary printed as its command prints it, or for
-/// the stages not yet jobs of the library the command built from the job's
-/// fields ([`super::jobs::command_of`]).
+/// Runs a stage's job in this process ([`run_here`]) as `lucent job run`
+/// runs a job file ([`super::jobs::run_in_process`]: the library's
+/// [`Job::run_with`] with the terminal's hooks, the job's files and output
+/// folder checked as its command checks them, its summary printed as its
+/// command prints it).
 fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    let ctx = crate::job::Context::default();
-    let print = |lines: Vec<String>| lines.iter().for_each(|l| println!("{l}"));
-    match job {
-        Job::Render(j) => {
-            let work = || {
-                let done = j.run_with(&ctx, &mut super::render::Terminal::new(j.quiet))?;
-                super::render::finish(done)
-            };
-            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
-        }
-        Job::Bssrdf(j) => {
-            let work = || -> Result<()> {
-                let done = j.run(&ctx, &mut super::bssrdf::Bar::new(j.quiet)).map_err(super::bssrdf::job_error)?;
-                print(done.summary());
-                Ok(done.finished()?)
-            };
-            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
-        }
-        Job::BssrdfCompare(j) => {
-            let work = || -> Result<()> {
-                print(j.run(&ctx)?.summary());
-                Ok(())
-            };
-            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
-        }
-        Job::Fit(j) => {
-            let work = || -> Result<()> {
-                let done = j.run(&ctx).map_err(super::fit::job_error)?;
-                print(done.summary());
-                Ok(done.finished()?)
-            };
-            run_here(|| in_output_folder(&j.out, job, work), &job.to_args(), log, interrupt, console)
-        }
-        _ if job.runs_in_library() => {
-            let work = || -> Result<()> {
-                print(job.run(&ctx).map_err(job_error)?.summary());
-                Ok(())
-            };
-            run_here(work, &job.to_args(), log, interrupt, console)
-        }
-        _ => {
-            let command = super::jobs::command_of(job)?;
-            run_here(|| super::run(super::Cli { command }), &job.to_args(), log, interrupt, console)
-        }
-    }
-}
-
-/// `work` of `job` as [`super::run`] runs a command: the job validated and
-/// its output folder `out` checked, marked when it succeeds and removed
-/// again when it fails and leaves it empty ([`super::writing_into`]).
-fn in_output_folder(out: &Path, job: &Job, work: impl FnOnce() -> Result<()>) -> Result<()> {
-    super::writing_into(Some(out.to_path_buf()), || {
-        job.validate()?;
-        work()
-    })
-}
-
-/// A job's error as its command returns it: the stage's own error, so that
-/// its fault class is read from it ([`crate::pipeline::fault_of`]).
-pub(super) fn job_error(e: JobRunError) -> anyhow::Error {
-    match e {
-        JobRunError::Invalid(e) => e.into(),
-        JobRunError::Files(e) => e.into(),
-        JobRunError::Folder(e) => e.into(),
-        JobRunError::Mark(e) => e.into(),
-        JobRunError::Optics(e) => e.into(),
-        JobRunError::Colour(e) => e.into(),
-        JobRunError::RawClipped(e) => e.into(),
-        JobRunError::Camera(e) => e.into(),
-        JobRunError::Compare(e) => e.into(),
-        e @ JobRunError::NotInLibrary(_) => e.into(),
-    }
+    run_here(|| super::jobs::run_in_process(job), &job.to_args(), log, interrupt, console)
 }
 
 /// Merges the finished shards of `t` into its output, in this process.

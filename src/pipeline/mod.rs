@@ -1241,6 +1241,8 @@ fn plan_render(stage: Stage, project: &Project, out: &Path, p: &mut Plan) -> Pla
                 size: r.size,
                 seed: Some(project.seed),
                 out: sample_out,
+                quiet: false,
+                threads: None,
             };
             let job = Job::EnvScale(job);
             tasks.push(Task::Lucent { label: smp.name.clone(), files: vec![(scene_rel, scene_text)], job });

@@ -477,6 +477,8 @@ fn job_problems(file: &ProjectFile) -> Vec<(String, String)> {
             size: None,
             seed: None,
             out: PathBuf::new(),
+            quiet: false,
+            threads: None,
         };
         check("[render]", "env_", env.validate());
     }
