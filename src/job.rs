@@ -42,6 +42,7 @@ pub mod optics;
 mod raw;
 pub mod render;
 pub mod run;
+pub mod shards;
 mod threads;
 
 pub use crate::text::duration;
@@ -57,6 +58,7 @@ pub use fit::{write_fit_outputs, write_fit_outputs_with_recipe_text, FitJobError
 pub use optics::{OpticsJobError, OpticsRun};
 pub use raw::{RawClippedError, RawClippedRun};
 pub use render::{RenderError, RenderHooks, RenderRun};
+pub use shards::{merge, MergeError, Merged};
 pub use threads::{allocated_threads, check_threads, worker_pool, ThreadsError, MAX_THREADS};
 
 use crate::bssrdf::Configurations;
@@ -253,6 +255,25 @@ pub struct OpticsJob {
     /// reported and left out.
     #[serde(default, skip_serializing_if = "is_false")]
     pub skip_invalid: bool,
+    /// `--uncertainty N`: instead of the properties, the propagation of
+    /// the recipes' uncertain inputs with N Latin-hypercube draws
+    /// ([`OpticsJob::run_uncertainty`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<usize>,
+    /// `--uncertainty-seed`: the seed of the draws.
+    #[serde(default = "default_uncertainty_seed", skip_serializing_if = "is_default_uncertainty_seed")]
+    pub uncertainty_seed: u64,
+    /// `--shard K/N` (with `uncertainty`): only the K-th of N ranges of the draws, as a shard.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<String>,
+}
+
+fn default_uncertainty_seed() -> u64 {
+    1
+}
+
+fn is_default_uncertainty_seed(s: &u64) -> bool {
+    *s == 1
 }
 
 fn is_false(b: &bool) -> bool {
@@ -270,6 +291,9 @@ fn is_default_phase_entries(n: &usize) -> bool {
     *n == DEFAULT_PHASE_ENTRIES
 }
 
+/// The most draws of `lucent optics --uncertainty`.
+pub const MAX_UNCERTAINTY_DRAWS: usize = 100_000;
+
 /// The output folder of `lucent optics` without `--out`.
 pub const DEFAULT_OPTICS_OUT: &str = "lucent-out/optics";
 
@@ -285,9 +309,24 @@ impl OpticsJob {
             json: false,
             phase_entries: DEFAULT_PHASE_ENTRIES,
             skip_invalid: false,
+            uncertainty: None,
+            uncertainty_seed: default_uncertainty_seed(),
+            shard: None,
         }
     }
     pub fn validate(&self) -> Result<(), JobError> {
+        if let Some(n) = self.uncertainty
+            && !(2..=MAX_UNCERTAINTY_DRAWS).contains(&n)
+        {
+            return Err(bad("uncertainty", n, format!("must lie in 2 … {MAX_UNCERTAINTY_DRAWS}")));
+        }
+        if self.shard.is_some() && self.uncertainty.is_none() {
+            return Err(bad(
+                "shard",
+                self.shard.as_deref().unwrap_or_default(),
+                "only an --uncertainty study of optics is split into shards",
+            ));
+        }
         if self.out.is_none() && !self.json {
             return Err(bad(
                 "out",
@@ -309,6 +348,11 @@ impl OpticsJob {
         if !is_default_phase_entries(&self.phase_entries) {
             l.flag("--phase-entries", self.phase_entries);
         }
+        l.opt("--uncertainty", &self.uncertainty);
+        if !is_default_uncertainty_seed(&self.uncertainty_seed) {
+            l.flag("--uncertainty-seed", self.uncertainty_seed);
+        }
+        l.opt("--shard", &self.shard);
         l.0
     }
 }
@@ -1384,6 +1428,7 @@ impl Job {
             Job::Optics(o) => {
                 o.recipes = o.recipes.iter().map(|r| canon(r)).collect();
                 o.out = o.out.as_ref().map(|_| PathBuf::new());
+                o.shard = None;
             }
             Job::Bssrdf(b) => {
                 b.recipe = b.recipe.as_deref().map(canon);

@@ -8,11 +8,16 @@
 //! by its index), and writes its sums (per pixel Σx, Σx², counts) as an
 //! accumulator file ([`write_accumulator`]: named f64 arrays, little-endian,
 //! with a SHA-256 of the content) beside `shard.json` ([`ShardFile`]: the
-//! run's [`Identity`] and the shard's index and range).
+//! run's [`Identity`] and the shard's index and range). The identity is
+//! the run's typed job, normalised (no output folder or shard, paths
+//! absolute), with the SHA-256 of the job and of its input files' content
+//! ([`Identity::new`]; `Job::shard_identity` computes it), so shards of
+//! one run agree however each was spelled or started.
 //!
 //! [`load_shards`] reads the shard folders of one run and checks that they
-//! belong together: the same identity, every K in 0 … N−1 exactly once,
-//! accumulators intact. The merged sums are the shards' sums added in
+//! belong together: this version's [`FORMAT`], the same identity (the
+//! first field of the job that differs is named), every K in 0 … N−1
+//! exactly once, accumulators intact. The merged sums are the shards' sums added in
 //! shard order. Merged and unsharded results agree to rounding only: the
 //! unsharded run adds each sample to a running sum, the merge adds the
 //! shards' partial sums, and floating-point addition is not associative.
@@ -29,6 +34,7 @@
 //! together in draw order and summarises them with the unsharded code, so
 //! there the merged result is bit-for-bit the unsharded one for every N.
 
+use crate::job::Job;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -57,6 +63,8 @@ pub enum ShardError {
     Corrupt { path: PathBuf, why: String },
     #[error("{path}: belongs to another run than {first} ({what} differs: {this} vs {that})")]
     OtherRun { path: PathBuf, first: PathBuf, what: &'static str, this: String, that: String },
+    #[error("{path}: belongs to another run than {first} (its job differs: {difference})")]
+    OtherJob { path: PathBuf, first: PathBuf, difference: String },
     #[error("{path} and {other} are both shard {k} of {n}")]
     Repeated { path: PathBuf, other: PathBuf, k: u32, n: u32 },
     #[error("shard{} {} of {n} missing (given: {given})", if missing.len() > 1 { "s" } else { "" }, missing.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(", "))]
@@ -84,6 +92,19 @@ pub enum ShardError {
         json.display()
     )]
     OutHoldsShard { out: PathBuf, json: PathBuf, there: u32, there_of: u32, same_run: bool, k: u32, n: u32 },
+    /// A shard of an earlier version, whose run was named by its command line.
+    #[error(
+        "{path}: a shard of lucent {version} in an older format (its run named by the command line that made it, \
+         not by its job); rerun the shards with this version (lucent {this})",
+        this = env!("CARGO_PKG_VERSION")
+    )]
+    OldFormat { path: PathBuf, version: String },
+    /// A shard of a format newer than this version's.
+    #[error("{path}: a shard of format {format} (lucent {version}); this version (lucent {this}) merges format {FORMAT}", this = env!("CARGO_PKG_VERSION"))]
+    NewerFormat { path: PathBuf, format: u64, version: String },
+    /// The input files of a shard's job cannot be read.
+    #[error("{path}: cannot read an input file of the job: {source}")]
+    Input { path: PathBuf, source: std::io::Error },
     /// A shard's output folder holds a shard.json that is not one.
     #[error("--out {}: holds a {} lucent cannot read as a shard's; give each shard its own folder", out.display(), json.display())]
     OutNotShard { out: PathBuf, json: PathBuf },
@@ -99,20 +120,27 @@ pub fn check_shard_out(out: &Path, identity: &Identity, k: u32) -> Result<(), Sh
     if std::fs::symlink_metadata(&json).is_err() {
         return Ok(());
     }
-    let there: Option<ShardFile> = crate::io::read_text(&json).ok().and_then(|t| serde_json::from_str(&t).ok());
+    // Which shard it is, in any format (an older shard's identity is not this version's).
+    let value: Option<serde_json::Value> = crate::io::read_text(&json).ok().and_then(|t| serde_json::from_str(&t).ok());
+    let there = value.as_ref().and_then(|v| Some((v.get("shard")?.as_u64()?, v.get("identity")?.get("shards")?.as_u64()?)));
     match there {
         // Shard K of N again (a retry, or a rerun after its inputs changed)
         // replaces its own files.
-        Some(f) if f.shard == k && f.identity.shards == identity.shards => Ok(()),
-        Some(f) => Err(ShardError::OutHoldsShard {
-            out: out.to_path_buf(),
-            json,
-            there: f.shard,
-            there_of: f.identity.shards,
-            same_run: f.identity == *identity,
-            k,
-            n: identity.shards,
-        }),
+        Some((t, tn)) if t == u64::from(k) && tn == u64::from(identity.shards) => Ok(()),
+        Some((t, tn)) => {
+            let same_run = value
+                .and_then(|v| serde_json::from_value::<ShardFile>(v).ok())
+                .is_some_and(|f| f.identity == *identity);
+            Err(ShardError::OutHoldsShard {
+                out: out.to_path_buf(),
+                json,
+                there: u32::try_from(t).unwrap_or(u32::MAX),
+                there_of: u32::try_from(tn).unwrap_or(u32::MAX),
+                same_run,
+                k,
+                n: identity.shards,
+            })
+        }
         None => Err(ShardError::OutNotShard { out: out.to_path_buf(), json }),
     }
 }
@@ -149,12 +177,24 @@ impl AccMeta {
 }
 
 impl Identity {
-    /// The arguments shards are compared by: the normalised ones when known.
-    pub fn compared_args(&self) -> &[String] {
-        if self.normalized_args.is_empty() {
-            &self.args
-        } else {
-            &self.normalized_args
+    /// The identity of a run of `job` split into `shards`, with its `seed`
+    /// and `budget` ("64 spp") and the SHA-256 of its input files' content
+    /// (`inputs_sha256`): the job [`normalised`](Job::normalised) (its
+    /// output folder, shard and settings that do not change the result left
+    /// out, paths absolute), so the shards of one run have one identity
+    /// however each was spelled or wherever it ran.
+    pub fn new(job: &Job, inputs_sha256: String, seed: u64, budget: String, shards: u32) -> Self {
+        let job = job.normalised();
+        Identity {
+            format: FORMAT,
+            command: job.command_name().to_string(),
+            job_sha256: job_sha256(&job),
+            job,
+            inputs_sha256,
+            lucent_version: env!("CARGO_PKG_VERSION").into(),
+            seed,
+            budget,
+            shards,
         }
     }
 
@@ -163,6 +203,38 @@ impl Identity {
         let text = serde_json::to_string(self).unwrap_or_default();
         Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
     }
+}
+
+/// SHA-256 (hex) of a normalised job as JSON.
+fn job_sha256(job: &Job) -> String {
+    let text = serde_json::to_string(job).unwrap_or_default();
+    Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Where two jobs differ, as `key is A here, B there` for the first key (in
+/// the JSON's order, nested keys joined by `.`) whose values differ.
+fn job_difference(a: &Job, b: &Job) -> String {
+    fn first(path: &str, a: &serde_json::Value, b: &serde_json::Value) -> Option<String> {
+        use serde_json::Value::Object;
+        match (a, b) {
+            (Object(x), Object(y)) => {
+                let keys = x.keys().chain(y.keys().filter(|k| !x.contains_key(*k)));
+                for k in keys {
+                    let null = serde_json::Value::Null;
+                    let (va, vb) = (x.get(k).unwrap_or(&null), y.get(k).unwrap_or(&null));
+                    let p = if path.is_empty() { k.clone() } else { format!("{path}.{k}") };
+                    if let Some(d) = first(&p, va, vb) {
+                        return Some(d);
+                    }
+                }
+                None
+            }
+            _ if a != b => Some(format!("{path} is {a} here, {b} there")),
+            _ => None,
+        }
+    }
+    let (a, b) = (serde_json::to_value(a).unwrap_or_default(), serde_json::to_value(b).unwrap_or_default());
+    first("", &a, &b).unwrap_or_else(|| "the jobs' JSON".into())
 }
 
 /// `K/N` of `--shard`.
@@ -195,22 +267,27 @@ pub fn range(total: u64, k: u32, n: u32) -> std::ops::Range<u64> {
     start..start + q + u64::from(k < r)
 }
 
+/// The format of `shard.json` this version writes and merges: 2, the run
+/// named by its typed job (format 1, of earlier versions, named it by the
+/// command line and the folder it ran in).
+pub const FORMAT: u32 = 2;
+
 /// What makes shards parts of one run.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Identity {
+    /// [`FORMAT`].
+    pub format: u32,
     /// `render`, `bssrdf` or `optics`.
     pub command: String,
-    /// The command's arguments without `--shard`, `--out`, `--threads` and `--quiet`,
-    /// as given (the merge runs them again).
-    pub args: Vec<String>,
-    /// The same in one spelling (`--flag value`, options sorted, paths
-    /// canonical): what the shards of one run must agree on, however each
-    /// was typed. Empty in shards of earlier versions (then `args` is compared).
-    #[serde(default)]
-    pub normalized_args: Vec<String>,
-    /// The folder the arguments' relative paths are relative to.
-    pub cwd: PathBuf,
-    /// SHA-256 of the arguments and of every input file's content.
+    /// The run's job, [`normalised`](Job::normalised): without its output
+    /// folder, its shard and the settings that do not change the result
+    /// (`quiet`, `threads`), its paths absolute. `lucent merge` runs its
+    /// merge with the output folder it is given.
+    pub job: Job,
+    /// SHA-256 of `job` as JSON.
+    pub job_sha256: String,
+    /// SHA-256 of every input file's path and content (the scene or recipe
+    /// and the files it names, [`Job::inputs_sha256`]).
     pub inputs_sha256: String,
     pub lucent_version: String,
     pub seed: u64,
@@ -424,6 +501,29 @@ pub fn array<'a>(arrays: &'a Arrays, name: &str, len: usize, path: &Path) -> Res
     Ok(v)
 }
 
+/// A `shard.json` of this version's [`FORMAT`]; an older or newer one, or
+/// one that is no shard's, refused naming `path`.
+pub fn parse_shard_file(path: &Path, text: &str) -> Result<ShardFile, ShardError> {
+    let not = |why: String| ShardError::NotShard { path: path.to_path_buf(), why };
+    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| not(e.to_string()))?;
+    let identity = value.get("identity");
+    let version = identity
+        .and_then(|i| i.get("lucent_version"))
+        .and_then(|v| v.as_str())
+        .unwrap_or("(unknown)")
+        .to_string();
+    match identity.map(|i| i.get("format").and_then(|f| f.as_u64())) {
+        Some(None) if identity.is_some_and(|i| i.get("args").is_some()) => {
+            return Err(ShardError::OldFormat { path: path.to_path_buf(), version });
+        }
+        Some(Some(f)) if f > u64::from(FORMAT) => {
+            return Err(ShardError::NewerFormat { path: path.to_path_buf(), format: f, version });
+        }
+        _ => {}
+    }
+    serde_json::from_value(value).map_err(|e| not(e.to_string()))
+}
+
 /// One shard folder as read by [`load_shards`].
 #[derive(Debug, Clone)]
 pub struct Shard {
@@ -439,8 +539,7 @@ pub fn load_shards(dirs: &[PathBuf]) -> Result<Vec<Shard>, ShardError> {
         let path = dir.join(SHARD_JSON);
         let text =
             crate::io::read_text(&path).map_err(|e| ShardError::NotShard { path: dir.clone(), why: e.to_string() })?;
-        let file: ShardFile =
-            serde_json::from_str(&text).map_err(|e| ShardError::NotShard { path: path.clone(), why: e.to_string() })?;
+        let file = parse_shard_file(&path, &text)?;
         if let Some(first) = shards.first() {
             let (a, b) = (&first.file.identity, &file.identity);
             let differs: Option<(&'static str, String, String)> = if a.command != b.command {
@@ -453,8 +552,12 @@ pub fn load_shards(dirs: &[PathBuf]) -> Result<Vec<Shard>, ShardError> {
                 Some(("budget", b.budget.clone(), a.budget.clone()))
             } else if a.lucent_version != b.lucent_version {
                 Some(("lucent version", b.lucent_version.clone(), a.lucent_version.clone()))
-            } else if a.compared_args() != b.compared_args() {
-                Some(("arguments", b.compared_args().join(" "), a.compared_args().join(" ")))
+            } else if a.job != b.job || a.job_sha256 != b.job_sha256 {
+                return Err(ShardError::OtherJob {
+                    path: path.clone(),
+                    first: first.dir.join(SHARD_JSON),
+                    difference: job_difference(&b.job, &a.job),
+                });
             } else if a.inputs_sha256 != b.inputs_sha256 {
                 Some(("input files' content", b.inputs_sha256.clone(), a.inputs_sha256.clone()))
             } else {

@@ -55,6 +55,9 @@ impl From<&super::OpticsArgs> for OpticsJob {
             json: a.json,
             phase_entries: a.phase_entries,
             skip_invalid: a.skip_invalid,
+            uncertainty: a.uncertainty,
+            uncertainty_seed: a.uncertainty_seed,
+            shard: a.shard.clone(),
         }
     }
 }
@@ -383,9 +386,9 @@ fn optics_args(j: &OpticsJob) -> super::OpticsArgs {
         phase_entries: j.phase_entries,
         weight_percent: j.weight_percent,
         skip_invalid: j.skip_invalid,
-        uncertainty: None,
-        uncertainty_seed: 1,
-        shard: None,
+        uncertainty: j.uncertainty,
+        uncertainty_seed: j.uncertainty_seed,
+        shard: j.shard.clone(),
     }
 }
 

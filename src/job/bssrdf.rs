@@ -91,9 +91,6 @@ pub enum BssrdfJobError {
     /// The slices cannot be compared.
     #[error("{measured} vs {simulated}: {error}")]
     Comparison { measured: PathBuf, simulated: PathBuf, error: bssrdf::ComparisonError },
-    /// The identity of a shard's run cannot be made.
-    #[error("{0}")]
-    Identity(String),
     /// Stopped by Ctrl-C or SIGTERM ([`BssrdfJobError::into_parts`] hands
     /// the [`Interrupted`] itself to a caller that classes errors).
     #[error(transparent)]
@@ -114,9 +111,8 @@ impl BssrdfJobError {
 type E = BssrdfJobError;
 
 /// What a slab job tells its caller while it runs, besides `ctx`'s lines:
-/// each configuration's progress (`lucent bssrdf` draws a bar), and for a
-/// shard the identity of the run it belongs to. Every method has a
-/// default: no progress shown, lines to `ctx`, no shard.
+/// each configuration's progress (`lucent bssrdf` draws a bar). Every
+/// method has a default: no progress shown, lines to `ctx`.
 pub trait SliceHooks {
     /// A configuration's simulation starts: its label ("θi 45° → θo 0°")
     /// and the stop rule it runs under.
@@ -130,12 +126,6 @@ pub trait SliceHooks {
     }
     /// The configuration's simulation ended.
     fn finish(&mut self) {}
-    /// The identity of the run a shard of `shards` belongs to, with its
-    /// `seed` and `budget` ("200000 paths"): the command line that made it
-    /// (`lucent::cli::shard::identity`).
-    fn shard_identity(&mut self, _seed: u64, _budget: String, _shards: u32) -> Result<crate::shard::Identity, String> {
-        Err("a shard's run is named by the command line that made it: run it as `lucent bssrdf --shard K/N`".into())
-    }
 }
 
 /// [`SliceHooks`] at their defaults.
@@ -206,7 +196,7 @@ impl BssrdfJob {
             None => None,
         };
         if let Some((k, n)) = shard {
-            return self.run_shard(hooks, &plan.runs, (k, n), total_batches);
+            return self.run_shard(&plan.runs, (k, n), total_batches);
         }
         // Written into a staging folder, moved into `out` when every configuration is done.
         // A second Ctrl-C ends the process at once: the staging folder goes with

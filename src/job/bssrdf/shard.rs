@@ -3,7 +3,7 @@
 //! (`slice-I.acc` per configuration, shard.json); the merge reads them back
 //! and adds them in shard order.
 
-use super::{BssrdfJobError as E, BssrdfRun, PlannedRun, SliceHooks};
+use super::{BssrdfJobError as E, BssrdfRun, PlannedRun};
 use crate::fault::Interrupted;
 use crate::interrupt::Interrupt;
 use crate::job::BssrdfJob;
@@ -99,17 +99,17 @@ pub(super) fn read_merged_tallies(
 
 impl BssrdfJob {
     /// Shard k of n: its range of the `total_batches` of every
-    /// configuration, tallied into `out` with shard.json.
+    /// configuration, tallied into `out` with shard.json (the run named by
+    /// the job, [`Job::shard_identity`](crate::job::Job::shard_identity)).
     pub(super) fn run_shard(
         &self,
-        hooks: &mut dyn SliceHooks,
         configs: &[PlannedRun],
         (k, n): (u32, u32),
         total_batches: u64,
     ) -> Result<BssrdfRun, E> {
         let range = crate::shard::range(total_batches, k, n);
         let paths = self.paths.unwrap_or(0);
-        let identity = hooks.shard_identity(self.seed, format!("{paths} paths"), n).map_err(E::Identity)?;
+        let identity = crate::job::Job::Bssrdf(self.clone()).shard_identity(self.seed, format!("{paths} paths"), n)?;
         crate::shard::check_shard_out(&self.out, &identity, k)?;
         // A second Ctrl-C or SIGTERM ends the process: the staging folder goes with it.
         let _remove_on_abort = crate::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&self.out));

@@ -3,7 +3,7 @@
 //! ([`SHARD_ACC`], shard.json); a merge adds the N shards' sums in shard
 //! order into the image the unsharded run renders ([`merged`]).
 
-use super::{RenderError, RenderHooks, RenderJob, RenderRun, Rendered};
+use super::{RenderError, RenderJob, RenderRun, Rendered};
 use crate::fault::Interrupted;
 use crate::interrupt::Interrupt;
 use crate::scene;
@@ -135,20 +135,20 @@ fn write_shard(
 
 impl RenderJob {
     /// Renders shard k of n (`--shard K/N`): its range of the samples of every
-    /// pixel, tallied into `out` with shard.json; the run's identity and the
-    /// check of the folder are the caller's (`hooks`).
+    /// pixel, tallied into `out` with shard.json (the run named by the job,
+    /// [`Job::shard_identity`](crate::job::Job::shard_identity); `out` must
+    /// not hold another shard).
     pub(super) fn render_shard(
         &self,
         loaded: &scene::LoadedScene,
         settings: &Settings,
         pool: &rayon::ThreadPool,
         (k, n): (u32, u32),
-        hooks: &mut dyn RenderHooks,
     ) -> Result<RenderRun, RenderError> {
         let range = crate::shard::range(u64::from(settings.spp()), k, n);
-        let identity =
-            hooks.shard_identity(settings.seed, format!("{} spp", settings.spp()), n).map_err(RenderError::Hook)?;
-        hooks.check_shard_out(&self.out, &identity, k).map_err(RenderError::Hook)?;
+        let job = crate::job::Job::Render(self.clone());
+        let identity = job.shard_identity(settings.seed, format!("{} spp", settings.spp()), n)?;
+        crate::shard::check_shard_out(&self.out, &identity, k)?;
         let interrupt = Interrupt::install();
         let (acc, stats) = pool.install(|| {
             tracer::render_samples(
@@ -169,7 +169,7 @@ impl RenderJob {
         }
         drop(interrupt);
         // Another shard may have finished into the same folder meanwhile.
-        hooks.check_shard_out(&self.out, &identity, k).map_err(RenderError::Hook)?;
+        crate::shard::check_shard_out(&self.out, &identity, k)?;
         write_shard(&self.out, &acc, &stats, identity, k, range.clone())?;
         Ok(RenderRun {
             out: self.out.clone(),
