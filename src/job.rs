@@ -10,13 +10,16 @@
 //!   "unexpected argument";
 //! * `to_args()`: its canonical `lucent` command line (every field with a
 //!   default is written, optional ones only when set). The pipeline records
-//!   this line in a stage's manifest.json and writes it into the Slurm and
-//!   Kubernetes scripts it emits; parsing it back gives the same job.
+//!   this line in a stage's manifest.json and its logs; parsing it back
+//!   gives the same job.
 //!
 //! A job is also a JSON value (serde; `{"render": {"scene": …}}`, the
-//! format `lucent job run JOB.json` reads): the stage key hashes it, and
+//! format `lucent job run JOB.json` reads, and the one the cluster scripts
+//! run each shard from): the stage key hashes it, and
 //! [`Job::identity_sha256`] (the job without its output folder, paths
-//! canonical) names the run a long job's shards belong to. A stage runs its
+//! canonical) names the folder of a long job's shards; a shard's run is
+//! named by the same normalised job with its input files' SHA-256
+//! ([`Job::shard_identity`], [`shards`]). A stage runs its
 //! jobs in the `lucent run` process (`lucent::cli::jobs::run_job`), with
 //! the command's typed arguments built from the job's fields.
 //!
@@ -42,6 +45,7 @@ pub mod optics;
 mod raw;
 pub mod render;
 pub mod run;
+pub mod shard;
 pub mod shards;
 mod threads;
 

@@ -188,8 +188,8 @@ fn run_here(
         }
         caught
     });
-    // A command may enter another folder (`lucent merge` enters the shards'):
-    // the run's relative paths stay those of its own.
+    // A command may enter another folder: the run's relative paths stay
+    // those of its own.
     std::env::set_current_dir(&cwd).with_context(|| format!("{}: cannot go back to", cwd.display()))?;
     if interrupt.requested() {
         return Err(Interrupted(format!("during `lucent {}`", args.join(" "))).into());

@@ -23,11 +23,12 @@ pub struct MergeArgs {
 pub fn merge(shards: &[PathBuf], out: &Path) -> Result<()> {
     use crate::job::{MergeError, Merged};
     let ctx = crate::job::Context::default();
-    let merged = crate::job::merge(&ctx, shards, out, &mut super::render::Terminal::new(true)).map_err(|e| match e {
-        MergeError::Bssrdf(e) => super::bssrdf::job_error(e),
-        MergeError::Optics(e) => super::optics_error(e),
-        e => e.into(),
-    })?;
+    let merged =
+        crate::job::merge(&ctx, shards, out, &mut super::render::Terminal::new(true)).map_err(|e| match e {
+            MergeError::Bssrdf(e) => super::bssrdf::job_error(e),
+            MergeError::Optics(e) => super::optics_error(e),
+            e => e.into(),
+        })?;
     match merged {
         Merged::Render(done) => super::render::finish(done),
         Merged::Bssrdf(done) => {

@@ -78,7 +78,7 @@ pub enum BssrdfJobError {
     #[error(transparent)]
     Plot(#[from] crate::plot::PlotError),
     #[error(transparent)]
-    Shard(#[from] crate::shard::ShardError),
+    Shard(#[from] crate::job::shard::ShardError),
     /// The beam map cannot be read.
     #[error("--beam-map")]
     BeamMap(#[source] bssrdf::SliceIoError),
@@ -175,7 +175,7 @@ impl BssrdfJob {
     /// Writes the outputs of the run whose shards these are (`lucent
     /// merge`): the shards' tallies added in shard order, what the
     /// unsharded run writes.
-    pub fn merge(&self, ctx: &Context, shards: &[crate::shard::Shard]) -> Result<BssrdfRun, E> {
+    pub fn merge(&self, ctx: &Context, shards: &[crate::job::shard::Shard]) -> Result<BssrdfRun, E> {
         self.simulate(ctx, &mut NoHooks, Some(shards))
     }
 
@@ -183,10 +183,10 @@ impl BssrdfJob {
         &self,
         ctx: &Context,
         hooks: &mut dyn SliceHooks,
-        merged_from: Option<&[crate::shard::Shard]>,
+        merged_from: Option<&[crate::job::shard::Shard]>,
     ) -> Result<BssrdfRun, E> {
         let plan = self.plan(ctx)?;
-        let shard = self.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
+        let shard = self.shard.as_deref().map(crate::job::shard::parse_spec).transpose()?;
         let batch_paths = RunOptions::default().batch_paths;
         let total_batches = self.stop().samples.unwrap_or(0).div_ceil(batch_paths);
         self.check_stop_for_split(shard, merged_from.is_some(), total_batches)?;
@@ -262,7 +262,7 @@ impl BssrdfJob {
         hooks: &mut dyn SliceHooks,
         plan: &Plan,
         i: usize,
-        tallies: Option<&[&crate::shard::Arrays]>,
+        tallies: Option<&[&crate::job::shard::Arrays]>,
         interrupt: &Interrupt,
     ) -> Result<(slab::Slice, Option<Vec<slab::SliceDifference>>), E> {
         let run = &plan.runs[i];
@@ -387,7 +387,7 @@ impl BssrdfJob {
             if let Some((k, n)) = shard
                 && u64::from(n) > total_batches
             {
-                return Err(crate::shard::ShardError::TooManyShards {
+                return Err(crate::job::shard::ShardError::TooManyShards {
                     k,
                     n,
                     units: total_batches,

@@ -65,7 +65,7 @@ pub enum OpticsJobError {
     #[error(transparent)]
     Study(#[from] crate::optics::uncertainty::UncertaintyError),
     #[error(transparent)]
-    Shard(#[from] crate::shard::ShardError),
+    Shard(#[from] crate::job::shard::ShardError),
     #[error("{}: shard {k} holds draws {held:?}, the run's shard {k} is {expected:?}", dir.display())]
     ShardRange { dir: PathBuf, k: u32, held: [u64; 2], expected: std::ops::Range<u64> },
     #[error("{}: {why}", path.display())]
@@ -154,7 +154,14 @@ impl OpticsJob {
             let study = self.run_uncertainty(ctx)?;
             let written = Some((study.out.clone(), Vec::new()));
             let wavelengths = self.checked_grid(false)?.len();
-            return Ok(OpticsRun { spectra: Vec::new(), wavelengths, elapsed_s: 0.0, written, json: None, study: Some(study) });
+            return Ok(OpticsRun {
+                spectra: Vec::new(),
+                wavelengths,
+                elapsed_s: 0.0,
+                written,
+                json: None,
+                study: Some(study),
+            });
         }
         let grid = self.checked_grid(true)?;
         let recipes = self.load_recipes(ctx)?;
@@ -184,7 +191,14 @@ impl OpticsJob {
         };
         let Some(out) = &self.out else {
             let text = if self.json { Some(json(false)?) } else { None };
-            return Ok(OpticsRun { wavelengths: grid.len(), elapsed_s, written: None, json: text, spectra, study: None });
+            return Ok(OpticsRun {
+                wavelengths: grid.len(),
+                elapsed_s,
+                written: None,
+                json: text,
+                spectra,
+                study: None,
+            });
         };
         let written = output::write_all(out, &spectra)?;
         let text = if self.json { Some(json(true)?) } else { None };

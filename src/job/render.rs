@@ -112,7 +112,7 @@ pub enum RenderError {
     #[error("--uncertainty: the renders at ±1 σ are not sharded; run without --shard")]
     UncertaintyShard,
     #[error(transparent)]
-    Shard(#[from] crate::shard::ShardError),
+    Shard(#[from] crate::job::shard::ShardError),
     #[error("{dir}: shard {k} holds samples {held:?}, the run's shard {k} is {expected:?}")]
     ShardRange { dir: PathBuf, k: u32, held: [u64; 2], expected: std::ops::Range<u64> },
     #[error("{path}: pixel {pixel} has {samples} samples, the shard should have {count}")]
@@ -192,7 +192,7 @@ impl RenderRun {
                 "shard {k}/{n}: samples {}..{} of every pixel in {wall_s:.1} s → {out}/{SHARD_ACC}, {}",
                 range.start,
                 range.end,
-                crate::shard::SHARD_JSON
+                crate::job::shard::SHARD_JSON
             )],
             Some(Rendered::Image { report, errors, band }) => {
                 let mut lines = vec![
@@ -298,7 +298,7 @@ impl RenderJob {
     pub fn merge(
         &self,
         ctx: &Context,
-        shards: &[crate::shard::Shard],
+        shards: &[crate::job::shard::Shard],
         hooks: &mut dyn RenderHooks,
     ) -> Result<RenderRun, RenderError> {
         self.run_from(ctx, hooks, Some(shards))
@@ -431,14 +431,14 @@ impl RenderJob {
         &self,
         ctx: &Context,
         hooks: &mut dyn RenderHooks,
-        merged_from: Option<&[crate::shard::Shard]>,
+        merged_from: Option<&[crate::job::shard::Shard]>,
     ) -> Result<RenderRun, RenderError> {
         let ctx = &Context { quiet: ctx.quiet || self.quiet };
         let (loaded, mut settings) = self.prepare_as(merged_from.is_some(), None, None)?;
         for w in &loaded.warnings {
             ctx.warn(w);
         }
-        let shard = self.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
+        let shard = self.shard.as_deref().map(crate::job::shard::parse_spec).transpose()?;
         if shard.is_some() || merged_from.is_some() {
             shard::check_shardable(&settings)?;
         }
@@ -451,7 +451,7 @@ impl RenderJob {
             && n > settings.spp()
         {
             let units = settings.spp().into();
-            return Err(crate::shard::ShardError::TooManyShards { k, n, units, what: "samples per pixel" }.into());
+            return Err(crate::job::shard::ShardError::TooManyShards { k, n, units, what: "samples per pixel" }.into());
         }
         let (w, h) = (loaded.scene.camera.width, loaded.scene.camera.height);
         // A merge reads every shard before it writes anything.

@@ -9,7 +9,7 @@
 
 use super::{BssrdfJob, BssrdfJobError, BssrdfRun, Context, Job, OpticsJob, RenderError, RenderHooks, RenderRun};
 use crate::job::optics::{OpticsJobError, UncertaintyRun};
-use crate::shard::{self, Identity, Shard, ShardError};
+use crate::job::shard::{self, Identity, Shard, ShardError};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use thiserror::Error;

@@ -370,8 +370,12 @@ pub fn shard_plan(job: &Job, shards: u32, run_out: &Path) -> Option<Sharded> {
         return None;
     }
     let (out, plain) = match job {
-        Job::Render(r) => (r.out.clone(), Job::Render(crate::job::RenderJob { quiet: false, shard: None, ..r.clone() })),
-        Job::Bssrdf(b) => (b.out.clone(), Job::Bssrdf(crate::job::BssrdfJob { quiet: false, shard: None, ..b.clone() })),
+        Job::Render(r) => {
+            (r.out.clone(), Job::Render(crate::job::RenderJob { quiet: false, shard: None, ..r.clone() }))
+        }
+        Job::Bssrdf(b) => {
+            (b.out.clone(), Job::Bssrdf(crate::job::BssrdfJob { quiet: false, shard: None, ..b.clone() }))
+        }
         _ => return None,
     };
     let id: String = job.identity_sha256().chars().take(16).collect();
@@ -696,7 +700,8 @@ pub fn run_on_slurm(
 fn append_logs(t: &Sharded, log: &Path) {
     use std::io::Write;
     let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(log) else { return };
-    let _ = writeln!(f, "$ lucent {} (as {} shards on Slurm, each `lucent job run` of its job file)", t.label(), t.shards);
+    let _ =
+        writeln!(f, "$ lucent {} (as {} shards on Slurm, each `lucent job run` of its job file)", t.label(), t.shards);
     let mut logs: Vec<PathBuf> = std::fs::read_dir(&t.dir)
         .map(|d| d.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|x| x == "log")).collect())
         .unwrap_or_default();
@@ -841,6 +846,21 @@ mod tests {
         assert!(!k.contains("LUCENT_THREADS"), "{k}");
         let job: serde_yaml_ng::Value = serde_yaml_ng::from_str(&k).expect("the emitted Job is valid YAML");
         assert!(job["spec"]["template"]["spec"]["containers"][0]["resources"].is_null(), "{k}");
+    }
+
+    #[test]
+    fn each_shard_has_its_job_file_beside_its_folder() {
+        let tmp = tempfile::tempdir().expect("temporary folder");
+        let t = shard_plan(&slice(Some(9000), None, "/r/bssrdf/s1"), 3, tmp.path()).expect("a long command");
+        t.write_job_files().expect("job files");
+        for k in 0..3u32 {
+            let text = std::fs::read_to_string(t.job_file(&k.to_string())).expect("job file");
+            let job: Job = serde_json::from_str(&text).expect("a job");
+            assert_eq!(job, t.shard_job(k));
+            assert_eq!(t.shard_command(&k.to_string())[..2], ["job".to_string(), "run".to_string()]);
+        }
+        // The shard folders are not made: a folder holds a shard only once it ran.
+        assert!(t.done().iter().all(|d| !d) && !t.dir.join("0").exists());
     }
 
     #[test]
