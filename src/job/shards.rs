@@ -162,11 +162,17 @@ pub enum MergeError {
     #[error("{}: `lucent {command}` is not a job with shards", dir.display())]
     NotSharded { dir: PathBuf, command: String },
     #[error(transparent)]
-    Render(#[from] RenderError),
+    Render(Box<RenderError>),
     #[error(transparent)]
     Bssrdf(#[from] BssrdfJobError),
     #[error(transparent)]
     Optics(#[from] OpticsJobError),
+}
+
+impl From<RenderError> for MergeError {
+    fn from(e: RenderError) -> Self {
+        MergeError::Render(Box::new(e))
+    }
 }
 
 /// What a merge wrote: what the unsharded job writes, and its summary.
