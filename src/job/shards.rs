@@ -3,7 +3,7 @@
 //! its input files' content, [`Job::inputs_sha256`]) and the merge of a
 //! run's shard folders into the run's outputs ([`merge`]: the job read out
 //! of the shards' `shard.json`, checked, and merged by its own
-//! [`RenderJob::merge`], [`BssrdfJob::merge`] or
+//! [`RenderJob::merge`](super::RenderJob::merge), [`BssrdfJob::merge`] or
 //! [`OpticsJob::merge_uncertainty`]). `lucent merge` and the pipeline's
 //! merge of a cluster's shards both call [`merge`].
 
