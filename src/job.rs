@@ -10,13 +10,16 @@
 //!   "unexpected argument";
 //! * `to_args()`: its canonical `lucent` command line (every field with a
 //!   default is written, optional ones only when set). The pipeline records
-//!   this line in a stage's manifest.json and writes it into the Slurm and
-//!   Kubernetes scripts it emits; parsing it back gives the same job.
+//!   this line in a stage's manifest.json and its logs; parsing it back
+//!   gives the same job.
 //!
 //! A job is also a JSON value (serde; `{"render": {"scene": …}}`, the
-//! format `lucent job run JOB.json` reads): the stage key hashes it, and
+//! format `lucent job run JOB.json` reads, and the one the cluster scripts
+//! run each shard from): the stage key hashes it, and
 //! [`Job::identity_sha256`] (the job without its output folder, paths
-//! canonical) names the run a long job's shards belong to. A stage runs its
+//! canonical) names the folder of a long job's shards; a shard's run is
+//! named by the same normalised job with its input files' SHA-256
+//! ([`Job::shard_identity`], [`shards`]). A stage runs its
 //! jobs in the `lucent run` process through [`Job::run_with`] (the stage's
 //! own `run`, e.g. [`RenderJob::run_with`], inside the checks its command
 //! makes), as `lucent job run JOB.json` runs a job file.
@@ -44,6 +47,8 @@ pub mod optics;
 mod raw;
 pub mod render;
 pub mod run;
+pub mod shard;
+pub mod shards;
 mod threads;
 
 pub use crate::text::duration;
@@ -60,6 +65,7 @@ pub use fit::{write_fit_outputs, write_fit_outputs_with_recipe_text, FitJobError
 pub use optics::{OpticsJobError, OpticsRun};
 pub use raw::{RawClippedError, RawClippedRun};
 pub use render::{RenderError, RenderHooks, RenderRun};
+pub use shards::{merge, MergeError, Merged};
 pub use threads::{allocated_threads, check_threads, worker_pool, ThreadsError, MAX_THREADS};
 
 use crate::bssrdf::Configurations;
@@ -256,6 +262,25 @@ pub struct OpticsJob {
     /// reported and left out.
     #[serde(default, skip_serializing_if = "is_false")]
     pub skip_invalid: bool,
+    /// `--uncertainty N`: instead of the properties, the propagation of
+    /// the recipes' uncertain inputs with N Latin-hypercube draws
+    /// ([`OpticsJob::run_uncertainty`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<usize>,
+    /// `--uncertainty-seed`: the seed of the draws.
+    #[serde(default = "default_uncertainty_seed", skip_serializing_if = "is_default_uncertainty_seed")]
+    pub uncertainty_seed: u64,
+    /// `--shard K/N` (with `uncertainty`): only the K-th of N ranges of the draws, as a shard.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<String>,
+}
+
+fn default_uncertainty_seed() -> u64 {
+    1
+}
+
+fn is_default_uncertainty_seed(s: &u64) -> bool {
+    *s == 1
 }
 
 fn is_false(b: &bool) -> bool {
@@ -273,6 +298,9 @@ fn is_default_phase_entries(n: &usize) -> bool {
     *n == DEFAULT_PHASE_ENTRIES
 }
 
+/// The most draws of `lucent optics --uncertainty`.
+pub const MAX_UNCERTAINTY_DRAWS: usize = 100_000;
+
 /// The output folder of `lucent optics` without `--out`.
 pub const DEFAULT_OPTICS_OUT: &str = "lucent-out/optics";
 
@@ -288,9 +316,24 @@ impl OpticsJob {
             json: false,
             phase_entries: DEFAULT_PHASE_ENTRIES,
             skip_invalid: false,
+            uncertainty: None,
+            uncertainty_seed: default_uncertainty_seed(),
+            shard: None,
         }
     }
     pub fn validate(&self) -> Result<(), JobError> {
+        if let Some(n) = self.uncertainty
+            && !(2..=MAX_UNCERTAINTY_DRAWS).contains(&n)
+        {
+            return Err(bad("uncertainty", n, format!("must lie in 2 … {MAX_UNCERTAINTY_DRAWS}")));
+        }
+        if self.shard.is_some() && self.uncertainty.is_none() {
+            return Err(bad(
+                "shard",
+                self.shard.as_deref().unwrap_or_default(),
+                "only an --uncertainty study of optics is split into shards",
+            ));
+        }
         if self.out.is_none() && !self.json {
             return Err(bad(
                 "out",
@@ -312,6 +355,11 @@ impl OpticsJob {
         if !is_default_phase_entries(&self.phase_entries) {
             l.flag("--phase-entries", self.phase_entries);
         }
+        l.opt("--uncertainty", &self.uncertainty);
+        if !is_default_uncertainty_seed(&self.uncertainty_seed) {
+            l.flag("--uncertainty-seed", self.uncertainty_seed);
+        }
+        l.opt("--shard", &self.shard);
         l.0
     }
 }
@@ -1395,6 +1443,7 @@ impl Job {
             Job::Optics(o) => {
                 o.recipes = o.recipes.iter().map(|r| canon(r)).collect();
                 o.out = o.out.as_ref().map(|_| PathBuf::new());
+                o.shard = None;
             }
             Job::Bssrdf(b) => {
                 b.recipe = b.recipe.as_deref().map(canon);

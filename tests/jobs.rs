@@ -30,6 +30,9 @@ fn jobs() -> Vec<Job> {
             json: true,
             phase_entries: 0,
             skip_invalid: true,
+            uncertainty: Some(40),
+            uncertainty_seed: 3,
+            shard: Some("1/2".into()),
         }),
         Job::Bssrdf(BssrdfJob {
             recipe: Some(p("r.toml")),
@@ -208,6 +211,9 @@ fn every_job_and_its_command_line_parse_into_the_same_job() {
             json: false,
             phase_entries: lucent::job::DEFAULT_PHASE_ENTRIES,
             skip_invalid: false,
+            uncertainty: None,
+            uncertainty_seed: 1,
+            shard: None,
             ..o
         }),
         Job::Bssrdf(b) => Job::Bssrdf(BssrdfJob {

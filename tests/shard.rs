@@ -83,8 +83,15 @@ fn render_shards_merge_into_the_unsharded_render() {
         // Marked as lucent's, as the unsharded command marks its folder.
         assert!(out.join(".lucent-output").is_file(), "N = {n}: the merged folder is not marked");
         let m_json = json(&out.join("render.json"));
-        // The merge reads the environment map's header only: the same description.
-        assert_eq!(m_json["scene"], ref_json["scene"], "N = {n}: render.json's scene");
+        // The merge reads the environment map's header only: the same
+        // description, but for the paths of the scene and the files it
+        // names, which the merge has from the run's job (absolute) rather
+        // than as the command was given (relative to the repository here).
+        let real = std::fs::canonicalize(SCENE).unwrap();
+        assert_eq!(m_json["scene"]["scene_file"], real.display().to_string(), "N = {n}: the scene's path");
+        let root = format!("{}/", std::fs::canonicalize(env!("CARGO_MANIFEST_DIR")).unwrap().display());
+        let relative = m_json["scene"].to_string().replace(&root, "");
+        assert_eq!(relative, ref_json["scene"].to_string(), "N = {n}: render.json's scene");
         assert_eq!(m_json["spp"], ref_json["spp"]);
         assert_eq!(m_json["samples"], ref_json["samples"]);
         assert_eq!(m_json["scattering_events"], ref_json["scattering_events"], "N = {n}: the same paths");
@@ -396,4 +403,105 @@ fn refused_merge(out: &std::path::Path, dirs: &[&str], expect: &[&str]) {
     }
     assert!(!e.contains("panicked"), "{e}");
     assert!(!out.exists(), "{dirs:?}: wrote {}", out.display());
+}
+
+/// A shard's identity is its typed job's: shards spelled differently (flag
+/// order, `--spp=7`, the scene by a relative or an absolute path, run from
+/// another folder) and a shard run through the library alone
+/// (`RenderJob::run` with `shard` set, no command line) merge into the
+/// same render; a shard of another job is refused, the folder and the
+/// field that differs named.
+#[test]
+fn shards_of_one_job_merge_however_spelled_and_without_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (a0, a1) = (d.join("a0"), d.join("a1"));
+    run(&render_args(&a0, "3", &["--shard", "0/2"]));
+    // Another spelling, from another folder, the scene's path absolute.
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join(SCENE);
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_lucent"))
+        .args(["render", "--shard=1/2", "--spp=7", "--seed", "3", "--size=12x9"])
+        .arg(&scene)
+        .args(["--out", "a1", "--quiet"])
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let same = |a: &Path, b: &Path| {
+        let id = |p: &Path| json(&p.join("shard.json"))["identity"].clone();
+        assert_eq!(id(a), id(b), "{} and {} are shards of one run", a.display(), b.display());
+    };
+    same(&a0, &a1);
+    let out = d.join("merged");
+    run(&[
+        "merge".into(),
+        a0.display().to_string(),
+        a1.display().to_string(),
+        "--out".into(),
+        out.display().to_string(),
+    ]);
+    // Shard 1 again, through the library in this process: no command line.
+    let lib1 = d.join("lib1");
+    let job = lucent::job::RenderJob {
+        scene: SCENE.into(),
+        spp: Some(7),
+        seed: Some(3),
+        size: Some("12x9".parse().unwrap()),
+        quiet: true,
+        out: lib1.clone(),
+        shard: Some("1/2".into()),
+        ..Default::default()
+    };
+    let done = job.run(&lucent::job::Context { quiet: true }).expect("a shard run through the library");
+    assert!(done.interrupted.is_none());
+    same(&a0, &lib1);
+    let out_lib = d.join("merged-lib");
+    let dirs = [a0.clone(), lib1.clone()];
+    let merged = lucent::job::merge(&lucent::job::Context { quiet: true }, &dirs, &out_lib, &mut ())
+        .expect("the library merges the shards");
+    assert!(matches!(merged, lucent::job::Merged::Render(_)));
+    for f in ["render.exr", "render.png"] {
+        assert_eq!(std::fs::read(out.join(f)).unwrap(), std::fs::read(out_lib.join(f)).unwrap(), "{f}");
+    }
+    // A shard of another job (another image size): refused, named.
+    let other = d.join("other-size");
+    let mut args = render_args(&other, "3", &["--shard", "1/2"]);
+    let at = args.iter().position(|a| a == "12x9").unwrap();
+    args[at] = "12x8".into();
+    run(&args);
+    refused_merge(
+        &d.join("refused"),
+        &[a0.to_str().unwrap(), other.to_str().unwrap()],
+        &["other-size", "another run", "render.size is \"12x8\" here, \"12x9\" there"],
+    );
+}
+
+/// A shard folder of an earlier version, whose run was named by its command
+/// line (shard.json without the job), is refused with the format named,
+/// never merged or a panic; so is one of a newer format.
+#[test]
+fn shards_of_the_older_command_line_format_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (a0, a1) = (d.join("a0"), d.join("a1"));
+    run(&render_args(&a0, "3", &["--shard", "0/2"]));
+    run(&render_args(&a1, "3", &["--shard", "1/2"]));
+    let path = a1.join("shard.json");
+    let mut v = json(&path);
+    let id = v["identity"].as_object_mut().unwrap();
+    for k in ["format", "job", "job_sha256"] {
+        id.remove(k);
+    }
+    id.insert("args".into(), serde_json::json!(["render", SCENE, "--spp", "7"]));
+    id.insert("normalized_args".into(), serde_json::json!([]));
+    id.insert("cwd".into(), serde_json::json!(env!("CARGO_MANIFEST_DIR")));
+    std::fs::write(&path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let (s0, s1) = (a0.display().to_string(), a1.display().to_string());
+    refused_merge(&d.join("out"), &[&s0, &s1], &["a1/shard.json", "older format", "command line", "rerun the shards"]);
+    refused_merge(&d.join("out"), &[&s1], &["a1/shard.json", "older format"]);
+    // A shard of a format this version does not know yet.
+    let mut v = json(&a0.join("shard.json"));
+    v["identity"]["format"] = serde_json::json!(99);
+    std::fs::write(a0.join("shard.json"), serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    refused_merge(&d.join("out"), &[&s0], &["a0/shard.json", "format 99"]);
 }

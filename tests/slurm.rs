@@ -374,7 +374,10 @@ fn emitted_jobs_are_slurm_arrays_and_kubernetes_indexed_jobs() {
         if kind == "slurm" {
             let array = std::fs::read_to_string(jobs.join("lucent-01-bssrdf.array.sbatch")).expect("array script");
             assert!(array.contains("#SBATCH --array=0-3\n") && array.contains("#SBATCH --time=10:00\n"), "{array}");
-            assert!(array.contains("--shard \"$SLURM_ARRAY_TASK_ID/4\""), "{array}");
+            // Each task runs its shard's job file, not a rebuilt command line.
+            assert!(array.contains(" job run \"") && array.contains("/job-$SLURM_ARRAY_TASK_ID.json\""), "{array}");
+            let exec = array.lines().find(|l| l.starts_with("exec ")).expect("the task's command");
+            assert!(!exec.contains("--shard") && !exec.contains("--paths"), "{array}");
             let merge = std::fs::read_to_string(jobs.join("lucent-01-bssrdf.merge.sbatch")).expect("merge script");
             assert!(
                 merge.contains(" merge ") && merge.contains(&format!("--out {}", out.join("bssrdf/s1").display())),
@@ -384,11 +387,24 @@ fn emitted_jobs_are_slurm_arrays_and_kubernetes_indexed_jobs() {
             assert!(submit.contains("--dependency=afterok:"), "{submit}");
         } else {
             let job = std::fs::read_to_string(jobs.join("lucent-01-bssrdf.yaml")).expect("manifest");
-            for s in
-                ["kind: Job", "completionMode: Indexed", "completions: 4", "$(JOB_COMPLETION_INDEX)/4", "\"--paths\""]
-            {
+            for s in ["kind: Job", "completionMode: Indexed", "completions: 4", "/job-$(JOB_COMPLETION_INDEX).json\""] {
                 assert!(job.contains(s), "{s}: {job}");
             }
+            assert!(!job.contains("\"--shard\""), "{job}");
+        }
+        // The shards' job files: shard K's job, beside (not in) its folder.
+        let shards: Vec<PathBuf> = std::fs::read_dir(out.join(".lucent-shards"))
+            .expect("the shards' folder")
+            .map(|e| e.expect("entry").path())
+            .collect();
+        assert!(!shards.is_empty());
+        for (dir, k) in shards.iter().flat_map(|d| (0..4).map(move |k| (d, k))) {
+            let file = dir.join(format!("job-{k}.json"));
+            let job: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&file).expect("a job file")).expect("JSON");
+            assert_eq!(job["bssrdf"]["shard"], format!("{k}/4"), "{}", file.display());
+            assert_eq!(job["bssrdf"]["out"], dir.join(k.to_string()).display().to_string());
+            assert!(lucent::cli::jobs::read_job(&file).is_ok(), "`lucent job run` reads {}", file.display());
         }
     }
     // --emit needs shards.

@@ -174,15 +174,6 @@ pub fn run(a: BssrdfArgs) -> Result<()> {
     }
 }
 
-/// `lucent merge` of a `bssrdf` run's shards: the outputs of the run of `a`.
-pub fn merge(a: &RunArgs, shards: &[crate::shard::Shard]) -> Result<()> {
-    let done = BssrdfJob::from(a).merge(&Context::default(), shards).map_err(job_error)?;
-    for line in done.summary() {
-        println!("{line}");
-    }
-    Ok(done.finished()?)
-}
-
 /// A slab job's error for the command: a run stopped by Ctrl-C as the
 /// [`crate::fault::Interrupted`] it is (its exit code), others as they are.
 pub fn job_error(e: BssrdfJobError) -> anyhow::Error {
@@ -193,7 +184,7 @@ pub fn job_error(e: BssrdfJobError) -> anyhow::Error {
 }
 
 /// The progress bar of `lucent bssrdf` (one per configuration; hidden
-/// with --quiet) and the identity of a shard's run (its command line).
+/// with --quiet).
 pub struct Bar {
     quiet: bool,
     bar: Option<ProgressBar>,
@@ -231,10 +222,6 @@ impl SliceHooks for Bar {
         if let Some(bar) = self.bar.take() {
             bar.finish_and_clear();
         }
-    }
-
-    fn shard_identity(&mut self, seed: u64, budget: String, shards: u32) -> Result<crate::shard::Identity, String> {
-        super::shard::identity(seed, budget, shards).map_err(|e| format!("{e:#}"))
     }
 }
 

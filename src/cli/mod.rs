@@ -431,18 +431,9 @@ fn dispatch(cli: Cli) -> Result<()> {
     }
 }
 
-/// Runs `lucent merge`: the command that made the shards ([`shard::merge_command`]) run again with their sums.
+/// Runs `lucent merge` ([`shard::merge`]).
 fn merge(a: shard::MergeArgs) -> Result<()> {
-    let (argv, shards) = shard::merge_command(a)?;
-    let (dir, made_by) = (shards[0].dir.clone(), shards[0].file.identity.command.clone());
-    let cli = Cli::try_parse_args(&argv)
-        .with_context(|| format!("{}: cannot parse its command line", dir.join(crate::shard::SHARD_JSON).display()))?;
-    match cli.command {
-        Command::Render(r) => render::run_from(r, &shards),
-        Command::Bssrdf(b) if b.command.is_none() => bssrdf::merge(&b.run, &shards),
-        Command::Optics(o) if o.uncertainty.is_some() => optics_from(o, Some(&shards)),
-        _ => bail!("{}: `lucent {made_by}` is not a command with shards", dir.display()),
-    }
+    shard::merge(&a.shards, &a.out)
 }
 
 /// A count flag's value, refused outside `LO ..= HI` (every flag that sets a
@@ -478,28 +469,25 @@ pub fn parse_index(flag: &str, text: &str) -> Result<Complex64> {
     Ok(value)
 }
 
+/// `lucent optics` ([`crate::job::OpticsJob::run`]: the properties, or
+/// with `--uncertainty` the propagation of the recipes' uncertain inputs),
+/// its summary on stdout.
 fn optics(a: OpticsArgs) -> Result<()> {
-    optics_from(a, None)
-}
-
-/// `lucent optics` ([`crate::job::OpticsJob::run`], its summary on stdout), or with
-/// `--uncertainty` the propagation of the recipes' uncertain inputs; with
-/// `merged_from` the outputs of the `--uncertainty` run whose shards these
-/// are (`lucent merge`).
-fn optics_from(a: OpticsArgs, merged_from: Option<&[crate::shard::Shard]>) -> Result<()> {
     let job = crate::job::OpticsJob::from(&a);
-    let ctx = crate::job::Context::default();
-    if let Some(n) = a.uncertainty {
-        let grid = job.checked_grid(false)?;
-        let recipes = job.load_recipes(&ctx)?;
-        let out = a.out.unwrap_or_else(|| PathBuf::from(crate::job::DEFAULT_OPTICS_OUT));
-        let shard = a.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
-        return fit::optics_uncertainty(&recipes, &grid, n, a.uncertainty_seed, &out, shard, merged_from);
-    }
-    for line in job.run(&ctx)?.summary() {
+    let done = job.run(&crate::job::Context::default()).map_err(optics_error)?;
+    for line in done.summary() {
         println!("{line}");
     }
     Ok(())
+}
+
+/// An optics job's error for the command: a study stopped by Ctrl-C as the
+/// [`crate::fault::Interrupted`] it is (its exit code), others as they are.
+pub fn optics_error(e: crate::job::OpticsJobError) -> anyhow::Error {
+    match e.into_parts() {
+        Ok(e) => e.into(),
+        Err(interrupted) => interrupted.into(),
+    }
 }
 
 /// Efficiencies of one sphere, for either form of the `mie` arguments.

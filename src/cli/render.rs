@@ -216,8 +216,7 @@ pub(super) fn show_progress(
 }
 
 /// The terminal's view of a render ([`RenderHooks`]): the progress bar
-/// and its "expect ≈ …" line (neither when `quiet`), and a shard's run
-/// named by this process's command line.
+/// and its "expect ≈ …" line (neither when `quiet`).
 pub struct Terminal {
     quiet: bool,
     shown: Option<(ProgressBar, Settings, bool)>,
@@ -245,36 +244,12 @@ impl RenderHooks for Terminal {
             bar.finish_and_clear();
         }
     }
-
-    fn shard_identity(
-        &mut self,
-        seed: u64,
-        budget: String,
-        shards: u32,
-    ) -> Result<crate::shard::Identity, Box<dyn std::error::Error + Send + Sync>> {
-        Ok(super::shard::identity(seed, budget, shards)?)
-    }
-
-    fn check_shard_out(
-        &mut self,
-        out: &Path,
-        identity: &crate::shard::Identity,
-        k: u32,
-    ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        Ok(super::shard::check_shard_out(out, identity, k)?)
-    }
 }
 
 /// Runs `lucent render`.
 pub fn run(a: RenderArgs) -> Result<()> {
     let job = RenderJob::from(&a);
     finish(job.run_with(&Context::default(), &mut Terminal::new(job.quiet))?)
-}
-
-/// Runs `lucent render` with `merged` the shards of its run (`lucent merge`).
-pub fn run_from(a: RenderArgs, merged: &[crate::shard::Shard]) -> Result<()> {
-    let job = RenderJob::from(&a);
-    finish(job.merge(&Context::default(), merged, &mut Terminal::new(job.quiet))?)
 }
 
 /// Prints a render's summary; fails as interrupted when Ctrl-C or SIGTERM

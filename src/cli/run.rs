@@ -187,8 +187,8 @@ fn run_here(
         }
         caught
     });
-    // A command may enter another folder (`lucent merge` enters the shards'):
-    // the run's relative paths stay those of its own.
+    // A command may enter another folder: the run's relative paths stay
+    // those of its own.
     std::env::set_current_dir(&cwd).with_context(|| format!("{}: cannot go back to", cwd.display()))?;
     if interrupt.requested() {
         return Err(Interrupted(format!("during `lucent {}`", args.join(" "))).into());
@@ -223,10 +223,12 @@ fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console)
     run_here(|| super::jobs::run_in_process(job), &job.to_args(), log, interrupt, console)
 }
 
-/// Merges the finished shards of `t` into its output, in this process.
+/// Merges the finished shards of `t` into its output, in this process, as
+/// `lucent merge` does ([`super::shard::merge`], the library's merge), its
+/// output folder checked and marked as the command's.
 fn merge_here(t: &executor::Sharded, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    let command = super::Command::Merge(super::shard::MergeArgs { shards: t.shard_dirs(), out: t.out.clone() });
-    run_here(|| super::run(super::Cli { command }), &t.merge_command(), log, interrupt, console)
+    let work = || super::writing_into(Some(t.out.clone()), || super::shard::merge(&t.shard_dirs(), &t.out));
+    run_here(work, &t.merge_command(), log, interrupt, console)
 }
 
 /// A command's error for the pipeline: its whole chain as one message, and its class.
@@ -320,15 +322,14 @@ pub fn run(a: RunArgs) -> Result<()> {
         match (sharded, &emit) {
             (Some(t), Some(Emit::Slurm(dir))) => {
                 emitted += 1;
-                let name = format!("lucent-{emitted:02}-{}", t.args[0]);
+                let name = format!("lucent-{emitted:02}-{}", t.command_name());
                 submit.push_str(&executor::emit_slurm(&exec_cfg, &t, &exe()?, &cwd, dir, &name)?);
                 Err(Box::new(executor::Deferred))
             }
             (Some(t), Some(Emit::K8s(dir))) => {
                 emitted += 1;
-                let name = format!("lucent-{emitted:02}-{}", t.args[0]);
-                let path = dir.join(format!("{name}.yaml"));
-                crate::io::write_atomic(&path, executor::k8s_job(&exec_cfg, &t, &cwd, &name).as_bytes())?;
+                let name = format!("lucent-{emitted:02}-{}", t.command_name());
+                executor::emit_k8s(&exec_cfg, &t, &cwd, dir, &name)?;
                 Err(Box::new(executor::Deferred))
             }
             (None, None) if exec_cfg.kind == Kind::Slurm && matches!(job, Job::Render(_) | Job::Bssrdf(_)) => {
@@ -340,7 +341,7 @@ pub fn run(a: RunArgs) -> Result<()> {
                 run_job_here(job, log, &interrupt, &console).map_err(classified)
             }
             (Some(t), None) if exec_cfg.kind == Kind::Slurm => {
-                let label = t.args.join(" ");
+                let label = t.label();
                 executor::run_on_slurm(&exec_cfg, &t, &exe()?, log, &mut |line| println!("    {line}"))
                     .map_err(|e| classified(anyhow::Error::from(e).context(format!("`lucent {label}` on Slurm"))))
             }

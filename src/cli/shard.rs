@@ -1,20 +1,10 @@
-//! `--shard K/N` of `lucent render`, `lucent bssrdf` and `lucent optics
-//! --uncertainty N`, and `lucent merge SHARD… --out DIR` (the format and
-//! the checks are in [`crate::shard`]).
-//!
-//! A shard's identity is the command line it was given (without `--shard`,
-//! `--out`, `--threads` and `--quiet`), the folder it ran in, and a SHA-256
-//! of that command line and of every input file it names (a scene or
-//! recipe and the files *they* name; for a folder, the recipes in it). The
-//! merge parses the same command line again in the same folder, checks the
-//! input files still hash to the same value, adds the shards' sums (for an
-//! uncertainty run: puts their draws together) in shard order and writes
-//! what the unsharded command writes.
+//! `lucent merge SHARD… --out DIR` (the merge itself is the library's,
+//! [`crate::job::shards::merge`]: the run's job read out of the shards'
+//! `shard.json`, checked, merged by the job; the format and the checks of
+//! the shard folders are in [`crate::shard`]), and `lucent bench shard`.
 
-use crate::shard::{self, Identity};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Args)]
@@ -27,254 +17,33 @@ pub struct MergeArgs {
     pub out: PathBuf,
 }
 
-/// Arguments that do not change a result (and `--shard`, `--out`, which differ per shard).
-const NOT_IDENTITY: [(&str, bool); 4] = [("--shard", true), ("--out", true), ("--threads", true), ("--quiet", false)];
-
-/// This process's command line after the binary's name, without the arguments of [`NOT_IDENTITY`].
-fn identity_args() -> Vec<String> {
-    let mut out = Vec::new();
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        let flag = NOT_IDENTITY.iter().find(|(f, _)| a == *f || a.starts_with(&format!("{f}=")));
-        match flag {
-            Some((f, true)) if a == *f => {
-                args.next();
+/// Merges the shard folders `shards` of one run into `out`
+/// ([`crate::job::shards::merge`]) and prints what the unsharded command
+/// prints; a merge stopped by Ctrl-C fails as interrupted.
+pub fn merge(shards: &[PathBuf], out: &Path) -> Result<()> {
+    use crate::job::{MergeError, Merged};
+    let ctx = crate::job::Context::default();
+    let merged =
+        crate::job::merge(&ctx, shards, out, &mut super::render::Terminal::new(true)).map_err(|e| match e {
+            MergeError::Bssrdf(e) => super::bssrdf::job_error(e),
+            MergeError::Optics(e) => super::optics_error(e),
+            e => e.into(),
+        })?;
+    match merged {
+        Merged::Render(done) => super::render::finish(done),
+        Merged::Bssrdf(done) => {
+            for line in done.summary() {
+                println!("{line}");
             }
-            Some(_) => {}
-            None => out.push(a),
+            Ok(done.finished()?)
         }
-    }
-    out
-}
-
-/// SHA-256 of the arguments and of every existing file an argument names
-/// (also after a `kind:` prefix, as in `measured:fit.json`), a TOML file
-/// with the files it names.
-pub fn inputs_sha256(args: &[String]) -> Result<String> {
-    let mut h = Sha256::new();
-    let mut files: Vec<PathBuf> = Vec::new();
-    for (i, a) in args.iter().enumerate() {
-        h.update(a.as_bytes());
-        h.update([0u8]);
-        // The command's name is no file (a folder `render/` in the current
-        // folder made the identity depend on where the shard ran).
-        if i == 0 {
-            continue;
-        }
-        for candidate in [Some(a.as_str()), a.split_once(':').map(|(_, p)| p)].into_iter().flatten() {
-            let p = Path::new(candidate);
-            // A folder of recipes (`lucent optics FOLDER`): the recipes in it.
-            let listed: Vec<PathBuf> = if p.is_dir() {
-                let mut v: Vec<PathBuf> = std::fs::read_dir(p)
-                    .with_context(|| format!("{}: cannot list folder", p.display()))?
-                    .filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|f| f.is_file() && f.extension().is_some_and(|e| e == "toml"))
-                    .collect();
-                v.sort();
-                v
-            } else if p.is_file() {
-                vec![p.to_path_buf()]
-            } else {
-                continue;
-            };
-            for p in listed {
-                let p = p.as_path();
-                let mut named = vec![p.to_path_buf()];
-                if p.extension().is_some_and(|e| e == "toml") {
-                    named.extend(crate::pipeline::scene_inputs(p));
-                    named.extend(crate::pipeline::recipe_inputs(p));
-                }
-                for f in named {
-                    if !files.contains(&f) {
-                        files.push(f);
-                    }
-                }
+        merged @ Merged::Optics(_) => {
+            for line in merged.summary() {
+                println!("{line}");
             }
+            Ok(())
         }
     }
-    for f in &files {
-        let bytes = std::fs::read(f).with_context(|| format!("{}: cannot read", f.display()))?;
-        h.update(f.to_string_lossy().as_bytes());
-        h.update([0u8]);
-        h.update(Sha256::digest(&bytes));
-    }
-    Ok(format!("{:x}", h.finalize()))
-}
-
-/// An argument naming an existing file or folder (also as `kind:PATH` or
-/// `PATH:rest`, as in `measured:fit.json` or `m.csv:45/0`) as its canonical
-/// path, so a relative and an absolute spelling are the same argument.
-fn canonical_arg(a: &str) -> String {
-    let canon = |p: &str| -> Option<String> {
-        if p.is_empty() || p.starts_with('-') {
-            return None;
-        }
-        std::fs::canonicalize(p).ok().and_then(|c| c.to_str().map(str::to_string))
-    };
-    if let Some(c) = canon(a) {
-        return c;
-    }
-    if let Some((l, r)) = a.split_once(':') {
-        if let Some(c) = canon(r)
-            && !l.is_empty()
-        {
-            return format!("{l}:{c}");
-        }
-        if let Some(c) = canon(l) {
-            return format!("{c}:{r}");
-        }
-    }
-    a.to_string()
-}
-
-/// A command line in one spelling: `--flag=value` as `--flag value`, paths
-/// canonical (`canonical_arg`), and the options (each with its values)
-/// sorted by name after the positional arguments, a repeated option's
-/// occurrences in their order. Two shards of one run given their flags in
-/// another order, as `--spp=8`, or a path relative to another folder have
-/// the same identity. A command line this cannot split into options with a
-/// fixed number of values is kept in its order (still with `=` split and
-/// paths canonical).
-pub fn normalized_args(args: Vec<String>) -> Vec<String> {
-    use clap::CommandFactory;
-    let mut toks: Vec<String> = Vec::new();
-    for a in args {
-        match a.strip_prefix("--").and_then(|r| r.split_once('=')) {
-            Some((f, v)) if !f.is_empty() => {
-                toks.push(format!("--{f}"));
-                toks.push(v.to_string());
-            }
-            _ => toks.push(a),
-        }
-    }
-    // The command's name and words without a '/' or '.' (`render`,
-    // `uniform`, `12x9`) are never taken for paths, even when a file or
-    // folder of that name is in the current folder.
-    let toks: Vec<String> = toks
-        .iter()
-        .enumerate()
-        .map(|(i, t)| if i > 0 && (t.contains('/') || t.contains('.')) { canonical_arg(t) } else { t.clone() })
-        .collect();
-    let Some(name) = toks.first() else { return toks };
-    let mut cli = super::Cli::command();
-    cli.build();
-    let Some(sub) = cli.find_subcommand(name) else { return toks };
-    if toks.get(1).is_some_and(|t| sub.find_subcommand(t).is_some()) {
-        return toks;
-    }
-    let mut positionals = Vec::new();
-    let mut groups: Vec<(String, Vec<String>)> = Vec::new();
-    let mut i = 1;
-    while i < toks.len() {
-        let t = &toks[i];
-        if !t.starts_with('-') || t == "-" {
-            positionals.push(t.clone());
-            i += 1;
-            continue;
-        }
-        let arg = if let Some(long) = t.strip_prefix("--") {
-            sub.get_arguments().find(|a| a.get_long() == Some(long))
-        } else {
-            let mut c = t[1..].chars();
-            match (c.next(), c.next()) {
-                (Some(short), None) => sub.get_arguments().find(|a| a.get_short() == Some(short)),
-                _ => None,
-            }
-        };
-        let Some(arg) = arg else { return toks };
-        let n = if arg.get_action().takes_values() {
-            match arg.get_num_args() {
-                Some(r) if r.min_values() == r.max_values() => r.min_values(),
-                _ => return toks,
-            }
-        } else {
-            0
-        };
-        let key = arg.get_id().to_string();
-        let Some(values) = toks.get(i + 1..i + 1 + n) else { return toks };
-        let mut group = vec![t.clone()];
-        group.extend(values.iter().cloned());
-        groups.push((key, group));
-        i += 1 + n;
-    }
-    groups.sort_by(|a, b| a.0.cmp(&b.0));
-    let mut out = vec![name.clone()];
-    out.extend(positionals);
-    out.extend(groups.into_iter().flat_map(|(_, g)| g));
-    out
-}
-
-/// The identity of the run this process is a shard of.
-pub fn identity(seed: u64, budget: String, shards: u32) -> Result<Identity> {
-    let args = identity_args();
-    let normalized = normalized_args(args.clone());
-    Ok(Identity {
-        command: args.first().cloned().unwrap_or_default(),
-        inputs_sha256: inputs_sha256(&normalized)?,
-        args,
-        normalized_args: normalized,
-        cwd: std::env::current_dir().context("cannot read the current folder")?,
-        lucent_version: env!("CARGO_PKG_VERSION").into(),
-        seed,
-        budget,
-        shards,
-    })
-}
-
-/// Refuses a shard's `--out` that already holds another shard
-/// ([`crate::shard::check_shard_out`]).
-pub fn check_shard_out(out: &Path, identity: &Identity, k: u32) -> Result<()> {
-    Ok(shard::check_shard_out(out, identity, k)?)
-}
-
-/// The checks of `lucent merge`: the shards, loaded, are of one run of
-/// this version, `--out` is none of them, and their input files are
-/// unchanged. Returns the command line that made them (with `--out`, and
-/// `--quiet` but for `optics`), to be parsed and run with the shards in
-/// the folder they ran in (this process's current folder on return).
-pub fn merge_command(a: MergeArgs) -> Result<(Vec<String>, Vec<shard::Shard>)> {
-    let dirs: Vec<PathBuf> = a
-        .shards
-        .iter()
-        .map(|d| std::path::absolute(d).with_context(|| format!("{}: cannot resolve", d.display())))
-        .collect::<Result<_>>()?;
-    let shards = shard::load_shards(&dirs)?;
-    let id = shards[0].file.identity.clone();
-    if id.lucent_version != env!("CARGO_PKG_VERSION") {
-        bail!(
-            "{}: made by lucent {}, this is {}: merge with the version that made the shards",
-            shards[0].dir.display(),
-            id.lucent_version,
-            env!("CARGO_PKG_VERSION")
-        );
-    }
-    let out = std::path::absolute(&a.out).with_context(|| format!("{}: cannot resolve", a.out.display()))?;
-    // Compared where the paths lead (through symbolic links), not as spelled.
-    let real_out = crate::io::resolved(&out);
-    if let Some(s) = shards.iter().find(|s| {
-        let d = crate::io::resolved(&s.dir);
-        out.starts_with(&s.dir) || s.dir.starts_with(&out) || real_out.starts_with(&d) || d.starts_with(&real_out)
-    }) {
-        let via = if real_out != out { format!(" (it leads to {})", real_out.display()) } else { String::new() };
-        bail!("--out {}{via}: must not be or contain a shard folder ({})", out.display(), s.dir.display());
-    }
-    std::env::set_current_dir(&id.cwd)
-        .with_context(|| format!("{}: cannot enter the folder the shards ran in", id.cwd.display()))?;
-    if inputs_sha256(id.compared_args())? != id.inputs_sha256 {
-        bail!(
-            "{}: the input files of `lucent {}` changed since the shards were made (run in {}); rerun the shards",
-            shards[0].dir.join(shard::SHARD_JSON).display(),
-            id.args.join(" "),
-            id.cwd.display()
-        );
-    }
-    let mut argv = vec!["lucent".to_string()];
-    argv.extend(id.args.iter().cloned());
-    argv.extend(["--out".to_string(), out.display().to_string()]);
-    if id.command != "optics" {
-        argv.push("--quiet".to_string());
-    }
-    Ok((argv, shards))
 }
 
 /// The large run `lucent bench shard` projects.

@@ -78,7 +78,7 @@ pub enum BssrdfJobError {
     #[error(transparent)]
     Plot(#[from] crate::plot::PlotError),
     #[error(transparent)]
-    Shard(#[from] crate::shard::ShardError),
+    Shard(#[from] crate::job::shard::ShardError),
     /// The beam map cannot be read.
     #[error("--beam-map")]
     BeamMap(#[source] bssrdf::SliceIoError),
@@ -91,9 +91,6 @@ pub enum BssrdfJobError {
     /// The slices cannot be compared.
     #[error("{measured} vs {simulated}: {error}")]
     Comparison { measured: PathBuf, simulated: PathBuf, error: bssrdf::ComparisonError },
-    /// The identity of a shard's run cannot be made.
-    #[error("{0}")]
-    Identity(String),
     /// Stopped by Ctrl-C or SIGTERM ([`BssrdfJobError::into_parts`] hands
     /// the [`Interrupted`] itself to a caller that classes errors).
     #[error(transparent)]
@@ -114,9 +111,8 @@ impl BssrdfJobError {
 type E = BssrdfJobError;
 
 /// What a slab job tells its caller while it runs, besides `ctx`'s lines:
-/// each configuration's progress (`lucent bssrdf` draws a bar), and for a
-/// shard the identity of the run it belongs to. Every method has a
-/// default: no progress shown, lines to `ctx`, no shard.
+/// each configuration's progress (`lucent bssrdf` draws a bar). Every
+/// method has a default: no progress shown, lines to `ctx`.
 pub trait SliceHooks {
     /// A configuration's simulation starts: its label ("θi 45° → θo 0°")
     /// and the stop rule it runs under.
@@ -130,12 +126,6 @@ pub trait SliceHooks {
     }
     /// The configuration's simulation ended.
     fn finish(&mut self) {}
-    /// The identity of the run a shard of `shards` belongs to, with its
-    /// `seed` and `budget` ("200000 paths"): the command line that made it
-    /// (`lucent::cli::shard::identity`).
-    fn shard_identity(&mut self, _seed: u64, _budget: String, _shards: u32) -> Result<crate::shard::Identity, String> {
-        Err("a shard's run is named by the command line that made it: run it as `lucent bssrdf --shard K/N`".into())
-    }
 }
 
 /// [`SliceHooks`] at their defaults.
@@ -185,7 +175,7 @@ impl BssrdfJob {
     /// Writes the outputs of the run whose shards these are (`lucent
     /// merge`): the shards' tallies added in shard order, what the
     /// unsharded run writes.
-    pub fn merge(&self, ctx: &Context, shards: &[crate::shard::Shard]) -> Result<BssrdfRun, E> {
+    pub fn merge(&self, ctx: &Context, shards: &[crate::job::shard::Shard]) -> Result<BssrdfRun, E> {
         self.simulate(ctx, &mut NoHooks, Some(shards))
     }
 
@@ -193,10 +183,10 @@ impl BssrdfJob {
         &self,
         ctx: &Context,
         hooks: &mut dyn SliceHooks,
-        merged_from: Option<&[crate::shard::Shard]>,
+        merged_from: Option<&[crate::job::shard::Shard]>,
     ) -> Result<BssrdfRun, E> {
         let plan = self.plan(ctx)?;
-        let shard = self.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
+        let shard = self.shard.as_deref().map(crate::job::shard::parse_spec).transpose()?;
         let batch_paths = RunOptions::default().batch_paths;
         let total_batches = self.stop().samples.unwrap_or(0).div_ceil(batch_paths);
         self.check_stop_for_split(shard, merged_from.is_some(), total_batches)?;
@@ -206,7 +196,7 @@ impl BssrdfJob {
             None => None,
         };
         if let Some((k, n)) = shard {
-            return self.run_shard(hooks, &plan.runs, (k, n), total_batches);
+            return self.run_shard(&plan.runs, (k, n), total_batches);
         }
         // Written into a staging folder, moved into `out` when every configuration is done.
         // A second Ctrl-C ends the process at once: the staging folder goes with
@@ -272,7 +262,7 @@ impl BssrdfJob {
         hooks: &mut dyn SliceHooks,
         plan: &Plan,
         i: usize,
-        tallies: Option<&[&crate::shard::Arrays]>,
+        tallies: Option<&[&crate::job::shard::Arrays]>,
         interrupt: &Interrupt,
     ) -> Result<(slab::Slice, Option<Vec<slab::SliceDifference>>), E> {
         let run = &plan.runs[i];
@@ -397,7 +387,7 @@ impl BssrdfJob {
             if let Some((k, n)) = shard
                 && u64::from(n) > total_batches
             {
-                return Err(crate::shard::ShardError::TooManyShards {
+                return Err(crate::job::shard::ShardError::TooManyShards {
                     k,
                     n,
                     units: total_batches,

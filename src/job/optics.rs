@@ -5,7 +5,14 @@
 //! ([`crate::optics::output::write_all`]). `lucent optics` and the
 //! pipeline's optics stage both run it; the command only parses its flags
 //! into the job and prints [`OpticsRun::summary`] (the table, the models and
-//! corrections, or the JSON). The `--uncertainty` study is the command's own.
+//! corrections, or the JSON). With `uncertainty` N the job is instead the
+//! propagation of the recipes' uncertain inputs
+//! ([`OpticsJob::run_uncertainty`], which `shard` splits and
+//! [`OpticsJob::merge_uncertainty`] merges).
+
+mod uncertainty;
+
+pub use uncertainty::{uncertainty_acc, UncertaintyRun};
 
 use super::{Context, OpticsJob, DEFAULT_OPTICS_OUT};
 use crate::optics::bulk::{self, OpticalSpectrum};
@@ -52,6 +59,41 @@ pub enum OpticsJobError {
     Output(#[from] OutputError),
     #[error("cannot write the properties as JSON: {0}")]
     Json(serde_json::Error),
+    /// The uncertainty study's functions called on a job without `uncertainty`.
+    #[error("the job has no --uncertainty study")]
+    NoStudy,
+    #[error(transparent)]
+    Study(#[from] crate::optics::uncertainty::UncertaintyError),
+    #[error(transparent)]
+    Shard(#[from] crate::job::shard::ShardError),
+    #[error("{}: shard {k} holds draws {held:?}, the run's shard {k} is {expected:?}", dir.display())]
+    ShardRange { dir: PathBuf, k: u32, held: [u64; 2], expected: std::ops::Range<u64> },
+    #[error("{}: {why}", path.display())]
+    Draws { path: PathBuf, why: String },
+    #[error("the shards hold draws {held:?} of the run's 0..{n}")]
+    DrawsMissing { held: std::ops::Range<usize>, n: usize },
+    #[error("cannot write uncertainty.csv: {0}")]
+    Csv(csv::Error),
+    #[error(transparent)]
+    Write(#[from] crate::io::WriteError),
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+    /// Stopped by Ctrl-C or SIGTERM ([`OpticsJobError::into_parts`] hands
+    /// the [`Interrupted`](crate::fault::Interrupted) itself to a caller
+    /// that classes errors).
+    #[error(transparent)]
+    Interrupted(#[from] crate::fault::Interrupted),
+}
+
+impl OpticsJobError {
+    /// The error as the [`Interrupted`](crate::fault::Interrupted) it is,
+    /// if it is one, else itself.
+    pub fn into_parts(self) -> Result<Self, crate::fault::Interrupted> {
+        match self {
+            OpticsJobError::Interrupted(i) => Err(i),
+            e => Ok(e),
+        }
+    }
 }
 
 fn invalid_text(failures: &[String]) -> String {
@@ -74,6 +116,8 @@ pub struct OpticsRun {
     /// With `json`: the properties as JSON text (one object for one sample
     /// and nothing written, else an array), printed instead of the tables.
     pub json: Option<String>,
+    /// With `uncertainty`: the study (or its shard) instead of the properties.
+    pub study: Option<UncertaintyRun>,
 }
 
 impl OpticsJob {
@@ -103,8 +147,22 @@ impl OpticsJob {
     }
 
     /// Computes the properties and writes them (unless the job only prints
-    /// JSON). Warnings and notes go to `ctx`.
+    /// JSON); with `uncertainty`, the study instead
+    /// ([`OpticsJob::run_uncertainty`]). Warnings and notes go to `ctx`.
     pub fn run(&self, ctx: &Context) -> Result<OpticsRun, OpticsJobError> {
+        if self.uncertainty.is_some() {
+            let study = self.run_uncertainty(ctx)?;
+            let written = Some((study.out.clone(), Vec::new()));
+            let wavelengths = self.checked_grid(false)?.len();
+            return Ok(OpticsRun {
+                spectra: Vec::new(),
+                wavelengths,
+                elapsed_s: 0.0,
+                written,
+                json: None,
+                study: Some(study),
+            });
+        }
         let grid = self.checked_grid(true)?;
         let recipes = self.load_recipes(ctx)?;
         let options = bulk::Options { phase_entries: self.phase_entries, ..Default::default() };
@@ -133,11 +191,25 @@ impl OpticsJob {
         };
         let Some(out) = &self.out else {
             let text = if self.json { Some(json(false)?) } else { None };
-            return Ok(OpticsRun { wavelengths: grid.len(), elapsed_s, written: None, json: text, spectra });
+            return Ok(OpticsRun {
+                wavelengths: grid.len(),
+                elapsed_s,
+                written: None,
+                json: text,
+                spectra,
+                study: None,
+            });
         };
         let written = output::write_all(out, &spectra)?;
         let text = if self.json { Some(json(true)?) } else { None };
-        Ok(OpticsRun { wavelengths: grid.len(), elapsed_s, written: Some((out.clone(), written)), json: text, spectra })
+        Ok(OpticsRun {
+            wavelengths: grid.len(),
+            elapsed_s,
+            written: Some((out.clone(), written)),
+            json: text,
+            spectra,
+            study: None,
+        })
     }
 }
 
@@ -146,6 +218,9 @@ impl OpticsRun {
     /// wavelength of one sample, 450/550/650 nm of several), the absorption
     /// models and index corrections, and what was written.
     pub fn summary(&self) -> Vec<String> {
+        if let Some(study) = &self.study {
+            return study.summary();
+        }
         if let Some(text) = &self.json {
             return vec![text.clone()];
         }

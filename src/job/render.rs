@@ -37,7 +37,7 @@ use crate::scene::{self, RenderReport, SceneSummary};
 use lucent_render::tracer::{self, Settings, Stats};
 use serde::{Deserialize, Serialize};
 use std::error::Error as StdError;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use thiserror::Error;
 
 /// The error target of a render that names neither a sample budget nor a
@@ -112,17 +112,11 @@ pub enum RenderError {
     #[error("--uncertainty: the renders at ±1 σ are not sharded; run without --shard")]
     UncertaintyShard,
     #[error(transparent)]
-    Shard(#[from] crate::shard::ShardError),
+    Shard(#[from] crate::job::shard::ShardError),
     #[error("{dir}: shard {k} holds samples {held:?}, the run's shard {k} is {expected:?}")]
     ShardRange { dir: PathBuf, k: u32, held: [u64; 2], expected: std::ops::Range<u64> },
     #[error("{path}: pixel {pixel} has {samples} samples, the shard should have {count}")]
     ShardSamples { path: PathBuf, pixel: usize, samples: f64, count: f64 },
-    /// The caller's answer about a shard (its run's identity, its folder).
-    #[error(transparent)]
-    Hook(Box<dyn StdError + Send + Sync>),
-    /// A shard's run is named by the command line that started it.
-    #[error("--shard: a shard's run is named by its command line: run it as `lucent render --shard K/N`")]
-    NoCommandLine,
     #[error(
         "--uncertainty-spp {0}: must be a positive even number (the band's error comes from the two halves of the samples)"
     )]
@@ -147,9 +141,9 @@ pub enum RenderError {
     Internal(&'static str),
 }
 
-/// What the caller of a render sees of it as it runs, and what only the
-/// command line knows. Every method has a default that does nothing (the
-/// shard's: refuse), so `()` is the hooks of a render nobody watches.
+/// What the caller of a render sees of it as it runs. Every method has a
+/// default that does nothing, so `()` is the hooks of a render nobody
+/// watches.
 pub trait RenderHooks: Send {
     /// Before the first pass, with the settings the render runs with.
     fn start(&mut self, _settings: &Settings) {}
@@ -157,26 +151,6 @@ pub trait RenderHooks: Send {
     fn pass(&mut self, _progress: &tracer::Progress) {}
     /// After the last pass, before the outputs are written.
     fn finish(&mut self) {}
-    /// The run a shard belongs to, from the seed, the budget ("N spp") and
-    /// the number of shards.
-    fn shard_identity(
-        &mut self,
-        _seed: u64,
-        _budget: String,
-        _shards: u32,
-    ) -> Result<crate::shard::Identity, Box<dyn StdError + Send + Sync>> {
-        Err(Box::new(RenderError::NoCommandLine))
-    }
-    /// Refuses a shard's `out` that holds another shard (checked before the
-    /// shard runs and again before it writes).
-    fn check_shard_out(
-        &mut self,
-        _out: &Path,
-        _identity: &crate::shard::Identity,
-        _k: u32,
-    ) -> Result<(), Box<dyn StdError + Send + Sync>> {
-        Ok(())
-    }
 }
 
 impl RenderHooks for () {}
@@ -218,7 +192,7 @@ impl RenderRun {
                 "shard {k}/{n}: samples {}..{} of every pixel in {wall_s:.1} s → {out}/{SHARD_ACC}, {}",
                 range.start,
                 range.end,
-                crate::shard::SHARD_JSON
+                crate::job::shard::SHARD_JSON
             )],
             Some(Rendered::Image { report, errors, band }) => {
                 let mut lines = vec![
@@ -313,8 +287,8 @@ impl RenderJob {
         self.run_with(ctx, &mut ())
     }
 
-    /// Renders and writes the outputs, `hooks` told of its passes (and
-    /// asked for a shard's identity). Warnings and notes go to `ctx`
+    /// Renders and writes the outputs (with `shard` K/N, shard K's sums:
+    /// its run named by the job, [`Job::shard_identity`](super::Job::shard_identity)), `hooks` told of its passes. Warnings and notes go to `ctx`
     /// (`quiet` or the job's `quiet` silences what it says of its progress).
     pub fn run_with(&self, ctx: &Context, hooks: &mut dyn RenderHooks) -> Result<RenderRun, RenderError> {
         self.run_from(ctx, hooks, None)
@@ -324,7 +298,7 @@ impl RenderJob {
     pub fn merge(
         &self,
         ctx: &Context,
-        shards: &[crate::shard::Shard],
+        shards: &[crate::job::shard::Shard],
         hooks: &mut dyn RenderHooks,
     ) -> Result<RenderRun, RenderError> {
         self.run_from(ctx, hooks, Some(shards))
@@ -457,14 +431,14 @@ impl RenderJob {
         &self,
         ctx: &Context,
         hooks: &mut dyn RenderHooks,
-        merged_from: Option<&[crate::shard::Shard]>,
+        merged_from: Option<&[crate::job::shard::Shard]>,
     ) -> Result<RenderRun, RenderError> {
         let ctx = &Context { quiet: ctx.quiet || self.quiet };
         let (loaded, mut settings) = self.prepare_as(merged_from.is_some(), None, None)?;
         for w in &loaded.warnings {
             ctx.warn(w);
         }
-        let shard = self.shard.as_deref().map(crate::shard::parse_spec).transpose()?;
+        let shard = self.shard.as_deref().map(crate::job::shard::parse_spec).transpose()?;
         if shard.is_some() || merged_from.is_some() {
             shard::check_shardable(&settings)?;
         }
@@ -477,7 +451,7 @@ impl RenderJob {
             && n > settings.spp()
         {
             let units = settings.spp().into();
-            return Err(crate::shard::ShardError::TooManyShards { k, n, units, what: "samples per pixel" }.into());
+            return Err(crate::job::shard::ShardError::TooManyShards { k, n, units, what: "samples per pixel" }.into());
         }
         let (w, h) = (loaded.scene.camera.width, loaded.scene.camera.height);
         // A merge reads every shard before it writes anything.
@@ -494,7 +468,7 @@ impl RenderJob {
         }
         ctx.say(&self.rendering_line(&settings, (w, h), threads));
         if let Some((k, n)) = shard {
-            return self.render_shard(&loaded, &settings, &pool, (k, n), hooks);
+            return self.render_shard(&loaded, &settings, &pool, (k, n));
         }
         hooks.start(&settings);
         let interrupt = Interrupt::install();

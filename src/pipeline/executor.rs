@@ -8,10 +8,13 @@
 //! ([`crate::shard`]), told from the job's type and its stop rule
 //! ([`not_shardable`] asks [`Stop::shard_samples`]), never from how a
 //! command line spells them. With
-//! `[executor] shards = N` (N > 1) such a job becomes N shards, each
-//! writing into `OUT/.lucent-shards/ID/K` (ID from the typed job,
-//! [`Job::identity_sha256`], outside every stage folder), and `lucent
-//! merge` writes the job's own output folder. The stage folders, manifests
+//! `[executor] shards = N` (N > 1) such a job becomes N shards: shard K is
+//! the typed job with `shard` K/N writing into `OUT/.lucent-shards/ID/K`
+//! (ID from the typed job, [`Job::identity_sha256`], outside every stage
+//! folder), written as the job file `OUT/.lucent-shards/ID/job-K.json`
+//! beside the shard folders, which the Slurm array task or Kubernetes pod
+//! of index K runs (`lucent job run`); `lucent merge` then writes the job's
+//! own output folder. The stage folders, manifests
 //! and keys are those of the local executor: the same jobs are recorded,
 //! and the shard folders are removed after the merge. Every other job runs
 //! on this machine, in the `lucent run` process.
@@ -205,12 +208,13 @@ impl Executor {
 /// A long command split into shards.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Sharded {
-    /// The command line without `--out`, `--quiet` and `--threads`.
-    pub args: Vec<String>,
-    /// The command's `--out`.
+    /// The job, writing into `out` (not quiet, no shard).
+    pub job: Job,
+    /// The job's output folder: what the merge writes.
     pub out: PathBuf,
     pub shards: u32,
-    /// Where the shard folders go: `K` under it for shard K.
+    /// Where the shard folders go: `K` under it for shard K, beside it
+    /// shard K's job file `job-K.json` ([`Sharded::job_file`]).
     pub dir: PathBuf,
 }
 
@@ -220,17 +224,54 @@ impl Sharded {
         (0..self.shards).map(|k| self.dir.join(k.to_string())).collect()
     }
 
-    /// `lucent ARGS --shard K/N --out DIR/K --quiet` with `K` given as a shell word (e.g. "$SLURM_ARRAY_TASK_ID").
+    /// `render` or `bssrdf`: the command the job stands for.
+    pub fn command_name(&self) -> &'static str {
+        self.job.command_name()
+    }
+
+    /// The job's command line without `--out` (for log lines and messages;
+    /// the shards run their job files).
+    pub fn label(&self) -> String {
+        let mut kept = Vec::new();
+        let mut it = self.job.to_args().into_iter();
+        while let Some(a) = it.next() {
+            if a == "--out" {
+                it.next();
+            } else {
+                kept.push(a);
+            }
+        }
+        kept.join(" ")
+    }
+
+    /// Shard K's job: the job with `shard` K/N, writing quietly into `DIR/K`.
+    pub fn shard_job(&self, k: u32) -> Job {
+        let (spec, out) = (Some(format!("{k}/{}", self.shards)), self.dir.join(k.to_string()));
+        match &self.job {
+            Job::Render(r) => Job::Render(crate::job::RenderJob { shard: spec, out, quiet: true, ..r.clone() }),
+            Job::Bssrdf(b) => Job::Bssrdf(crate::job::BssrdfJob { shard: spec, out, quiet: true, ..b.clone() }),
+            other => other.clone(),
+        }
+    }
+
+    /// `DIR/job-K.json`, shard K's job file (`K` a number or a shell word,
+    /// e.g. "$SLURM_ARRAY_TASK_ID"), beside the shard folders, never inside one.
+    pub fn job_file(&self, k: &str) -> PathBuf {
+        self.dir.join(format!("job-{k}.json"))
+    }
+
+    /// Writes every shard's job file ([`Sharded::shard_job`] as JSON, the
+    /// format `lucent job run` reads), creating `DIR`.
+    pub fn write_job_files(&self) -> Result<(), crate::io::WriteError> {
+        for k in 0..self.shards {
+            crate::io::write_json(&self.job_file(&k.to_string()), &self.shard_job(k))?;
+        }
+        Ok(())
+    }
+
+    /// `lucent job run DIR/job-K.json` with `K` given as a shell word (e.g. "$SLURM_ARRAY_TASK_ID").
     pub fn shard_command(&self, k: &str) -> Vec<String> {
-        let mut v = self.args.clone();
-        v.extend([
-            "--shard".into(),
-            format!("{k}/{}", self.shards),
-            "--out".into(),
-            format!("{}/{k}", self.dir.display()),
-            "--quiet".into(),
-        ]);
-        v
+        vec!["job".into(), "run".into(), self.job_file(k).display().to_string()]
     }
 
     /// `lucent merge DIR/0 … --out OUT`.
@@ -329,21 +370,16 @@ pub fn shard_plan(job: &Job, shards: u32, run_out: &Path) -> Option<Sharded> {
         return None;
     }
     let (out, plain) = match job {
-        Job::Render(r) => (r.out.clone(), Job::Render(crate::job::RenderJob { quiet: false, ..r.clone() })),
-        Job::Bssrdf(b) => (b.out.clone(), Job::Bssrdf(crate::job::BssrdfJob { quiet: false, ..b.clone() })),
+        Job::Render(r) => {
+            (r.out.clone(), Job::Render(crate::job::RenderJob { quiet: false, shard: None, ..r.clone() }))
+        }
+        Job::Bssrdf(b) => {
+            (b.out.clone(), Job::Bssrdf(crate::job::BssrdfJob { quiet: false, shard: None, ..b.clone() }))
+        }
         _ => return None,
     };
-    let mut kept = Vec::new();
-    let mut it = plain.to_args().into_iter();
-    while let Some(a) = it.next() {
-        if a == "--out" {
-            it.next();
-        } else {
-            kept.push(a);
-        }
-    }
     let id: String = job.identity_sha256().chars().take(16).collect();
-    Some(Sharded { args: kept, out, shards, dir: run_out.join(".lucent-shards").join(id) })
+    Some(Sharded { job: plain, out, shards, dir: run_out.join(".lucent-shards").join(id) })
 }
 
 /// The finished shards of `job` that an earlier run left in `run_out`
@@ -380,7 +416,8 @@ fn shell_line(exe: &Path, args: &[String]) -> String {
 }
 
 /// The sbatch script of a job array over the shards of `t` (`indices`
-/// "0-3" or "1,3"), each task `lucent … --shard $SLURM_ARRAY_TASK_ID/N`.
+/// "0-3" or "1,3"), each task `lucent job run DIR/job-$SLURM_ARRAY_TASK_ID.json`
+/// (shard K's job file, [`Sharded::write_job_files`]).
 pub fn array_script(e: &Executor, t: &Sharded, exe: &Path, cwd: &Path, indices: &str, name: &str) -> String {
     let mut s = String::from("#!/bin/bash\n");
     s.push_str(&format!("#SBATCH --job-name={}\n", shell_word(name)));
@@ -394,6 +431,7 @@ pub fn array_script(e: &Executor, t: &Sharded, exe: &Path, cwd: &Path, indices: 
         s.push_str(l);
         s.push('\n');
     }
+    s.push_str(&format!("# shard $SLURM_ARRAY_TASK_ID of {} of `lucent {}`\n", t.shards, t.label()));
     // lucent takes its threads from SLURM_CPUS_PER_TASK itself (set when
     // the job asks for --cpus-per-task, here or in [executor] sbatch).
     s.push_str("# threads: lucent uses $SLURM_CPUS_PER_TASK when Slurm sets it, else every core it sees\n");
@@ -438,9 +476,10 @@ pub fn merge_script(e: &Executor, t: &Sharded, exe: &Path, cwd: &Path, name: &st
     s
 }
 
-/// A Kubernetes Indexed Job running the shards of `t` (the index from
-/// `JOB_COMPLETION_INDEX`), in YAML; the output folders must be on a
-/// volume shared with the merge (`lucent merge`, printed in a comment).
+/// A Kubernetes Indexed Job running the shards of `t` (`lucent job run
+/// DIR/job-$(JOB_COMPLETION_INDEX).json`, shard K's job file), in YAML; the
+/// job files and output folders must be on a volume shared with the merge
+/// (`lucent merge`, printed in a comment).
 pub fn k8s_job(e: &Executor, t: &Sharded, cwd: &Path, name: &str) -> String {
     let cmd = t.shard_command("$(JOB_COMPLETION_INDEX)");
     let args: Vec<String> = cmd.iter().map(|a| format!("        - {}", serde_json::Value::String(a.clone()))).collect();
@@ -456,9 +495,10 @@ pub fn k8s_job(e: &Executor, t: &Sharded, cwd: &Path, name: &str) -> String {
         .unwrap_or_default();
     let merge: Vec<String> = t.merge_command().iter().map(|a| shell_word(a)).collect();
     format!(
-        "# The shards of `lucent {}`; when all {} have completed, merge them with:\n#   lucent {}\n\
+        "# The shards of `lucent {}`, each running its job file {}; when all {} have completed, merge them with:\n#   lucent {}\n\
          apiVersion: batch/v1\nkind: Job\nmetadata:\n  name: {name}\nspec:\n  completionMode: Indexed\n  completions: {n}\n  parallelism: {n}\n  backoffLimitPerIndex: {retries}\n  template:\n    spec:\n      restartPolicy: Never\n      containers:\n      - name: shard\n        image: {image}\n        workingDir: {cwd}\n        command: [\"lucent\"]\n        args:\n{args}\n{cpus}",
-        t.args.join(" "),
+        t.label(),
+        t.job_file("K").display(),
         t.shards,
         merge.join(" "),
         n = t.shards,
@@ -467,6 +507,13 @@ pub fn k8s_job(e: &Executor, t: &Sharded, cwd: &Path, name: &str) -> String {
         cwd = serde_json::Value::String(cwd.display().to_string()),
         args = args.join("\n"),
     )
+}
+
+/// Writes the Indexed Job of `t` ([`k8s_job`]) as `dir/NAME.yaml` and the
+/// shards' job files into `t.dir`.
+pub fn emit_k8s(e: &Executor, t: &Sharded, cwd: &Path, dir: &Path, name: &str) -> Result<(), SlurmError> {
+    t.write_job_files().map_err(|e| SlurmError::Io { path: e.path, source: e.source })?;
+    write_script(&dir.join(format!("{name}.yaml")), &k8s_job(e, t, cwd, name))
 }
 
 /// The error an executor returns for a command it wrote out as batch jobs
@@ -487,10 +534,10 @@ pub enum SlurmError {
     NoJobId(String),
     #[error("{path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
-    #[error("shard{} {} of `lucent {}` still failed after {retries} resubmission(s); logs in {dir}", if shards.len() > 1 { "s" } else { "" }, shards.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(", "), args.join(" "))]
-    ShardsFailed { shards: Vec<u32>, retries: u32, args: Vec<String>, dir: PathBuf },
-    #[error("the merge job of `lucent {}` failed; its log {log}:\n    {tail}", args.join(" "))]
-    MergeFailed { args: Vec<String>, log: PathBuf, tail: String },
+    #[error("shard{} {} of `lucent {command}` still failed after {retries} resubmission(s); logs in {dir}", if shards.len() > 1 { "s" } else { "" }, shards.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(", "))]
+    ShardsFailed { shards: Vec<u32>, retries: u32, command: String, dir: PathBuf },
+    #[error("the merge job of `lucent {command}` failed; its log {log}:\n    {tail}")]
+    MergeFailed { command: String, log: PathBuf, tail: String },
 }
 
 fn run_tool(program: &str, args: &[&str]) -> Result<String, SlurmError> {
@@ -583,7 +630,8 @@ pub fn run_on_slurm(
         std::fs::remove_dir_all(&t.dir).map_err(io(&t.dir))?;
     }
     std::fs::create_dir_all(&t.dir).map_err(io(&t.dir))?;
-    let name = format!("lucent-{}", t.args.first().map(String::as_str).unwrap_or("task"));
+    t.write_job_files().map_err(|e| SlurmError::Io { path: e.path, source: e.source })?;
+    let name = format!("lucent-{}", t.command_name());
     let poll = Duration::from_millis(500);
     let start = Instant::now();
     let mut indices = format!("0-{}", t.shards - 1);
@@ -596,7 +644,7 @@ pub fn run_on_slurm(
         report(&format!(
             "submitted job array {id}: {n} shard{} of `lucent {}` (array indices {indices})",
             if n == 1 { "" } else { "s" },
-            t.args.first().map(String::as_str).unwrap_or("")
+            t.command_name()
         ));
         jobs.push(id.clone());
         let mut last = (usize::MAX, usize::MAX);
@@ -620,7 +668,7 @@ pub fn run_on_slurm(
             return Err(SlurmError::ShardsFailed {
                 shards: missing,
                 retries: e.retries,
-                args: t.args.clone(),
+                command: t.label(),
                 dir: t.dir.clone(),
             });
         }
@@ -639,7 +687,7 @@ pub fn run_on_slurm(
         && !tail(&t.dir.join("merge.log"), 50).contains("error:");
     if !merged {
         return Err(SlurmError::MergeFailed {
-            args: t.args.clone(),
+            command: t.label(),
             log: t.dir.join("merge.log"),
             tail: tail(&t.dir.join("merge.log"), 12),
         });
@@ -652,7 +700,8 @@ pub fn run_on_slurm(
 fn append_logs(t: &Sharded, log: &Path) {
     use std::io::Write;
     let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(log) else { return };
-    let _ = writeln!(f, "$ lucent {} (as {} shards on Slurm)", t.args.join(" "), t.shards);
+    let _ =
+        writeln!(f, "$ lucent {} (as {} shards on Slurm, each `lucent job run` of its job file)", t.label(), t.shards);
     let mut logs: Vec<PathBuf> = std::fs::read_dir(&t.dir)
         .map(|d| d.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|x| x == "log")).collect())
         .unwrap_or_default();
@@ -664,8 +713,9 @@ fn append_logs(t: &Sharded, log: &Path) {
 }
 
 /// Writes the scripts of `t` into `dir` (`NAME.array.sbatch`,
-/// `NAME.merge.sbatch`) and returns the lines of `submit.sh` that submit
-/// them, the merge after the array (`--dependency=afterok`).
+/// `NAME.merge.sbatch`) and the shards' job files into `t.dir`, and returns
+/// the lines of `submit.sh` that submit them, the merge after the array
+/// (`--dependency=afterok`).
 pub fn emit_slurm(
     e: &Executor,
     t: &Sharded,
@@ -674,6 +724,7 @@ pub fn emit_slurm(
     dir: &Path,
     name: &str,
 ) -> Result<String, SlurmError> {
+    t.write_job_files().map_err(|e| SlurmError::Io { path: e.path, source: e.source })?;
     let array = dir.join(format!("{name}.array.sbatch"));
     let merge = dir.join(format!("{name}.merge.sbatch"));
     write_script(&array, &array_script(e, t, exe, cwd, &format!("0-{}", t.shards - 1), name))?;
@@ -749,8 +800,16 @@ mod tests {
         let t = shard_plan(&job, 4, Path::new("/r")).expect("a long command");
         assert_eq!(t.out, PathBuf::from("/r/bssrdf/s1"));
         assert!(t.dir.starts_with("/r/.lucent-shards"));
-        assert_eq!(t.args.len(), job.to_args().len() - 3, "the job's line without --quiet and --out: {:?}", t.args);
-        assert!(!t.args.iter().any(|a| a == "--out" || a == "--quiet"), "{:?}", t.args);
+        // The job itself, not quiet; shard K's job is it with its shard and folder.
+        let Job::Bssrdf(b) = &t.job else { panic!("{:?}", t.job) };
+        assert!(!b.quiet && b.shard.is_none() && b.out == t.out, "{b:?}");
+        let Job::Bssrdf(s2) = t.shard_job(2) else { panic!() };
+        assert_eq!((s2.shard.as_deref(), s2.out.clone(), s2.quiet), (Some("2/4"), t.dir.join("2"), true));
+        assert_eq!(Job::Bssrdf(crate::job::BssrdfJob { shard: None, out: t.out.clone(), quiet: false, ..s2 }), t.job);
+        // Job files sit beside the shard folders, never inside one.
+        assert_eq!(t.job_file("3"), t.dir.join("job-3.json"));
+        assert!(!t.shard_dirs().iter().any(|d| t.job_file("3").starts_with(d)));
+        assert!(!t.label().contains("--out") && t.label().starts_with("bssrdf "), "{}", t.label());
         assert!(shard_plan(&job, 1, Path::new("/r")).is_none());
         // The shard folder is the job's, wherever its output goes.
         let elsewhere = shard_plan(&slice(Some(9000), None, "/r/bssrdf/s2"), 4, Path::new("/r")).unwrap();
@@ -761,11 +820,12 @@ mod tests {
         let s = array_script(&e, &t, Path::new("/usr/bin/lucent"), Path::new("/work"), "0-3", "lucent-bssrdf");
         assert!(s.contains("#SBATCH --array=0-3\n"), "{s}");
         assert!(s.contains("#SBATCH --partition=debug\n"), "{s}");
-        assert!(s.contains("--shard \"$SLURM_ARRAY_TASK_ID/4\""), "{s}");
+        let file = format!("job run \"{}/job-$SLURM_ARRAY_TASK_ID.json\"\n", t.dir.display());
+        assert!(s.contains(&file) && !s.contains("--shard"), "each task runs its job file: {s}");
         // Threads come from SLURM_CPUS_PER_TASK inside lucent (bssrdf has no --threads).
         assert!(s.contains("#SBATCH --cpus-per-task=2\n") && !s.contains("--threads"), "{s}");
         let k = k8s_job(&e, &t, Path::new("/work"), "lucent-bssrdf");
-        assert!(k.contains("completionMode: Indexed") && k.contains("$(JOB_COMPLETION_INDEX)/4"), "{k}");
+        assert!(k.contains("completionMode: Indexed") && k.contains("/job-$(JOB_COMPLETION_INDEX).json"), "{k}");
         assert!(k.contains("cpu: \"2\"") && k.contains("name: LUCENT_THREADS") && k.contains("resource: requests.cpu"));
         // The file is the Job it says: parsed as YAML, the CPU request and
         // the thread count sit on the shard's container.
@@ -786,6 +846,21 @@ mod tests {
         assert!(!k.contains("LUCENT_THREADS"), "{k}");
         let job: serde_yaml_ng::Value = serde_yaml_ng::from_str(&k).expect("the emitted Job is valid YAML");
         assert!(job["spec"]["template"]["spec"]["containers"][0]["resources"].is_null(), "{k}");
+    }
+
+    #[test]
+    fn each_shard_has_its_job_file_beside_its_folder() {
+        let tmp = tempfile::tempdir().expect("temporary folder");
+        let t = shard_plan(&slice(Some(9000), None, "/r/bssrdf/s1"), 3, tmp.path()).expect("a long command");
+        t.write_job_files().expect("job files");
+        for k in 0..3u32 {
+            let text = std::fs::read_to_string(t.job_file(&k.to_string())).expect("job file");
+            let job: Job = serde_json::from_str(&text).expect("a job");
+            assert_eq!(job, t.shard_job(k));
+            assert_eq!(t.shard_command(&k.to_string())[..2], ["job".to_string(), "run".to_string()]);
+        }
+        // The shard folders are not made: a folder holds a shard only once it ran.
+        assert!(t.done().iter().all(|d| !d) && !t.dir.join("0").exists());
     }
 
     #[test]

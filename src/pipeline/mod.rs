@@ -881,54 +881,7 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
     Ok(Some((scene_json, camera_json, has_sample)))
 }
 
-/// A scene file and the files it names (environment map, camera, mesh, board textures and spectra).
-pub fn scene_inputs(path: &Path) -> Vec<PathBuf> {
-    let mut v = vec![path.to_path_buf()];
-    if let Ok(text) = crate::io::read_text(path)
-        && let Ok(f) = crate::scene::parse(&text, path)
-    {
-        let f = envfit::with_paths_from(&f, &envfit::scene_dir(path));
-        v.extend(f.environment.map);
-        v.extend(f.camera.scene_json);
-        v.extend(f.camera.camera_json);
-        if let Some(o) = f.object {
-            v.extend(o.mesh);
-        }
-        if let Some(b) = f.board {
-            v.extend(b.texture);
-            v.extend(b.even_spectrum);
-            v.extend(b.odd_spectrum);
-        }
-    }
-    v.retain(|p| p.is_file());
-    v
-}
-
-/// A recipe and the files it names (index tables, a surface fit.json): every
-/// string value of the TOML that is the path of an existing file relative to
-/// the recipe's folder (or absolute), so editing an index file reruns the
-/// stages that read it.
-pub fn recipe_inputs(recipe: &Path) -> Vec<PathBuf> {
-    fn walk(v: &toml::Value, dir: &Path, out: &mut Vec<PathBuf>) {
-        match v {
-            toml::Value::String(t) if (!t.is_empty() && !t.contains(':')) || t.starts_with('/') => {
-                let p = dir.join(t);
-                if p.is_file() && !out.contains(&p) {
-                    out.push(p);
-                }
-            }
-            toml::Value::Array(a) => a.iter().for_each(|x| walk(x, dir, out)),
-            toml::Value::Table(t) => t.values().for_each(|x| walk(x, dir, out)),
-            _ => {}
-        }
-    }
-    let mut v = vec![recipe.to_path_buf()];
-    let dir = recipe.parent().unwrap_or(Path::new("."));
-    if let Some(table) = crate::io::read_text(recipe).ok().and_then(|t| toml::from_str::<toml::Table>(&t).ok()) {
-        walk(&toml::Value::Table(table), dir, &mut v);
-    }
-    v
-}
+pub use crate::job::shards::{recipe_inputs, scene_inputs};
 
 /// The photo `which` ("photo" or "empty_board") of a sample as the stages
 /// after develop read it: the develop stage's CIE RGB EXR when the sample

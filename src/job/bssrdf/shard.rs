@@ -3,7 +3,7 @@
 //! (`slice-I.acc` per configuration, shard.json); the merge reads them back
 //! and adds them in shard order.
 
-use super::{BssrdfJobError as E, BssrdfRun, PlannedRun, SliceHooks};
+use super::{BssrdfJobError as E, BssrdfRun, PlannedRun};
 use crate::fault::Interrupted;
 use crate::interrupt::Interrupt;
 use crate::job::BssrdfJob;
@@ -20,16 +20,16 @@ fn shard_acc(i: usize) -> String {
 }
 
 /// A shard's tallies of one configuration as written by [`write_slice_shard`].
-fn read_slice_shard(path: &Path, npix: usize) -> Result<crate::shard::Arrays, E> {
-    let arrays = crate::shard::read_accumulator(path)?;
+fn read_slice_shard(path: &Path, npix: usize) -> Result<crate::job::shard::Arrays, E> {
+    let arrays = crate::job::shard::read_accumulator(path)?;
     for name in ["sum_b", "sq_b", "raw"] {
-        crate::shard::array(&arrays, name, npix, path)?;
+        crate::job::shard::array(&arrays, name, npix, path)?;
     }
-    crate::shard::array(&arrays, "scalars", SHARD_SCALARS.len(), path)?;
+    crate::job::shard::array(&arrays, "scalars", SHARD_SCALARS.len(), path)?;
     Ok(arrays)
 }
 
-fn write_slice_shard(path: &Path, meta: &crate::shard::AccMeta, t: &slab::SliceSums) -> Result<(), E> {
+fn write_slice_shard(path: &Path, meta: &crate::job::shard::AccMeta, t: &slab::SliceSums) -> Result<(), E> {
     let scalars = [
         t.path_sum,
         t.path_sq,
@@ -40,7 +40,7 @@ fn write_slice_shard(path: &Path, meta: &crate::shard::AccMeta, t: &slab::SliceS
         t.paths as f64,
         t.wall_s,
     ];
-    crate::shard::write_shard_accumulator(
+    crate::job::shard::write_shard_accumulator(
         path,
         meta,
         &[("sum_b", &t.sum_b), ("sq_b", &t.sq_b), ("raw", &t.raw), ("scalars", &scalars)],
@@ -49,7 +49,7 @@ fn write_slice_shard(path: &Path, meta: &crate::shard::AccMeta, t: &slab::SliceS
 }
 
 /// `empty` with the tallies of a shard's arrays (read by [`read_slice_shard`]).
-pub(super) fn slice_sums_of(empty: &slab::SliceSums, arrays: &crate::shard::Arrays) -> slab::SliceSums {
+pub(super) fn slice_sums_of(empty: &slab::SliceSums, arrays: &crate::job::shard::Arrays) -> slab::SliceSums {
     let get = |name: &str| arrays.iter().find(|(n, _)| n == name).map(|(_, v)| v.clone()).unwrap_or_default();
     let sc = get("scalars");
     let at = |k: usize| sc.get(k).copied().unwrap_or(0.0);
@@ -73,16 +73,16 @@ pub(super) fn slice_sums_of(empty: &slab::SliceSums, arrays: &crate::shard::Arra
 /// `configs`, slices of `out_pixels` per side), each shard checked to hold
 /// its range of the `total_batches`.
 pub(super) fn read_merged_tallies(
-    shards: &[crate::shard::Shard],
+    shards: &[crate::job::shard::Shard],
     configs: usize,
     out_pixels: usize,
     total_batches: u64,
-) -> Result<Vec<Vec<crate::shard::Arrays>>, E> {
+) -> Result<Vec<Vec<crate::job::shard::Arrays>>, E> {
     shards
         .iter()
         .map(|s| {
             let k = s.file.shard;
-            let expected = crate::shard::range(total_batches, k, s.file.identity.shards);
+            let expected = crate::job::shard::range(total_batches, k, s.file.identity.shards);
             if s.file.range != [expected.start, expected.end] {
                 return Err(E::Refused(format!(
                     "{}: shard {k} holds batches {:?}, the run's shard {k} is {expected:?}",
@@ -99,18 +99,18 @@ pub(super) fn read_merged_tallies(
 
 impl BssrdfJob {
     /// Shard k of n: its range of the `total_batches` of every
-    /// configuration, tallied into `out` with shard.json.
+    /// configuration, tallied into `out` with shard.json (the run named by
+    /// the job, [`Job::shard_identity`](crate::job::Job::shard_identity)).
     pub(super) fn run_shard(
         &self,
-        hooks: &mut dyn SliceHooks,
         configs: &[PlannedRun],
         (k, n): (u32, u32),
         total_batches: u64,
     ) -> Result<BssrdfRun, E> {
-        let range = crate::shard::range(total_batches, k, n);
+        let range = crate::job::shard::range(total_batches, k, n);
         let paths = self.paths.unwrap_or(0);
-        let identity = hooks.shard_identity(self.seed, format!("{paths} paths"), n).map_err(E::Identity)?;
-        crate::shard::check_shard_out(&self.out, &identity, k)?;
+        let identity = crate::job::Job::Bssrdf(self.clone()).shard_identity(self.seed, format!("{paths} paths"), n)?;
+        crate::job::shard::check_shard_out(&self.out, &identity, k)?;
         // A second Ctrl-C or SIGTERM ends the process: the staging folder goes with it.
         let _remove_on_abort = crate::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&self.out));
         let stage = crate::io::StagedDir::new(&self.out)?;
@@ -125,12 +125,12 @@ impl BssrdfJob {
                 );
             }
             wall_s += t.wall_s;
-            let meta = crate::shard::AccMeta::new(&identity, k, &range, &Default::default());
+            let meta = crate::job::shard::AccMeta::new(&identity, k, &range, &Default::default());
             write_slice_shard(&stage.path().join(shard_acc(i)), &meta, &t)?;
             accumulators.push(shard_acc(i));
         }
         drop(interrupt);
-        let file = crate::shard::ShardFile {
+        let file = crate::job::shard::ShardFile {
             identity,
             shard: k,
             range: [range.start, range.end],
@@ -138,10 +138,10 @@ impl BssrdfJob {
             counters: Default::default(),
             wall_s,
         };
-        crate::io::write_json(&stage.path().join(crate::shard::SHARD_JSON), &file)?;
+        crate::io::write_json(&stage.path().join(crate::job::shard::SHARD_JSON), &file)?;
         // Another shard may have finished into the same folder meanwhile.
-        crate::shard::check_shard_out(&self.out, &file.identity, k)?;
-        stage.commit(|n| n == crate::shard::SHARD_JSON || (n.starts_with("slice-") && n.ends_with(".acc")))?;
+        crate::job::shard::check_shard_out(&self.out, &file.identity, k)?;
+        stage.commit(|n| n == crate::job::shard::SHARD_JSON || (n.starts_with("slice-") && n.ends_with(".acc")))?;
         let line = format!(
             "shard {k}/{n}: path batches {}..{} of {total_batches} in {wall_s:.1} s → {}",
             range.start,

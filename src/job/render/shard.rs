@@ -3,7 +3,7 @@
 //! ([`SHARD_ACC`], shard.json); a merge adds the N shards' sums in shard
 //! order into the image the unsharded run renders ([`merged`]).
 
-use super::{RenderError, RenderHooks, RenderJob, RenderRun, Rendered};
+use super::{RenderError, RenderJob, RenderRun, Rendered};
 use crate::fault::Interrupted;
 use crate::interrupt::Interrupt;
 use crate::scene;
@@ -39,7 +39,7 @@ pub(super) fn check_shardable(settings: &Settings) -> Result<(), RenderError> {
 
 /// The merged sums of a render's shards (added in shard order) and their counters.
 pub(super) fn merged(
-    shards: &[crate::shard::Shard],
+    shards: &[crate::job::shard::Shard],
     settings: &Settings,
     w: usize,
     h: usize,
@@ -49,13 +49,13 @@ pub(super) fn merged(
     let mut stats = Stats::default();
     for s in shards {
         let k = s.file.shard;
-        let expected = crate::shard::range(u64::from(settings.spp()), k, s.file.identity.shards);
+        let expected = crate::job::shard::range(u64::from(settings.spp()), k, s.file.identity.shards);
         if s.file.range != [expected.start, expected.end] {
             return Err(RenderError::ShardRange { dir: s.dir.clone(), k, held: s.file.range, expected });
         }
         let path = s.dir.join(SHARD_ACC);
-        let arrays = crate::shard::read_accumulator(&path)?;
-        let get = |name: &str, len: usize| crate::shard::array(&arrays, name, len, &path);
+        let arrays = crate::job::shard::read_accumulator(&path)?;
+        let get = |name: &str, len: usize| crate::job::shard::array(&arrays, name, len, &path);
         let (sum, sq, even) = (get("sum", 3 * n)?, get("sum_sq", 3 * n)?, get("sum_even", 3 * n)?);
         let (samples, object, board) = (get("samples", n)?, get("object_samples", n)?, get("board_samples", n)?);
         let count = (expected.end - expected.start) as f64;
@@ -90,7 +90,7 @@ fn write_shard(
     out: &Path,
     acc: &tracer::Accumulator,
     stats: &Stats,
-    identity: crate::shard::Identity,
+    identity: crate::job::shard::Identity,
     k: u32,
     range: std::ops::Range<u64>,
 ) -> Result<(), RenderError> {
@@ -109,9 +109,9 @@ fn write_shard(
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
     .collect();
-    crate::shard::write_shard_accumulator(
+    crate::job::shard::write_shard_accumulator(
         &out.join(SHARD_ACC),
-        &crate::shard::AccMeta::new(&identity, k, &range, &counters),
+        &crate::job::shard::AccMeta::new(&identity, k, &range, &counters),
         &[
             ("sum", &sum),
             ("sum_sq", &sq),
@@ -121,7 +121,7 @@ fn write_shard(
             ("board_samples", &board),
         ],
     )?;
-    let file = crate::shard::ShardFile {
+    let file = crate::job::shard::ShardFile {
         identity,
         shard: k,
         range: [range.start, range.end],
@@ -129,26 +129,26 @@ fn write_shard(
         counters,
         wall_s: stats.wall_s,
     };
-    crate::io::write_json(&out.join(crate::shard::SHARD_JSON), &file)?;
+    crate::io::write_json(&out.join(crate::job::shard::SHARD_JSON), &file)?;
     Ok(())
 }
 
 impl RenderJob {
     /// Renders shard k of n (`--shard K/N`): its range of the samples of every
-    /// pixel, tallied into `out` with shard.json; the run's identity and the
-    /// check of the folder are the caller's (`hooks`).
+    /// pixel, tallied into `out` with shard.json (the run named by the job,
+    /// [`Job::shard_identity`](crate::job::Job::shard_identity); `out` must
+    /// not hold another shard).
     pub(super) fn render_shard(
         &self,
         loaded: &scene::LoadedScene,
         settings: &Settings,
         pool: &rayon::ThreadPool,
         (k, n): (u32, u32),
-        hooks: &mut dyn RenderHooks,
     ) -> Result<RenderRun, RenderError> {
-        let range = crate::shard::range(u64::from(settings.spp()), k, n);
-        let identity =
-            hooks.shard_identity(settings.seed, format!("{} spp", settings.spp()), n).map_err(RenderError::Hook)?;
-        hooks.check_shard_out(&self.out, &identity, k).map_err(RenderError::Hook)?;
+        let range = crate::job::shard::range(u64::from(settings.spp()), k, n);
+        let job = crate::job::Job::Render(self.clone());
+        let identity = job.shard_identity(settings.seed, format!("{} spp", settings.spp()), n)?;
+        crate::job::shard::check_shard_out(&self.out, &identity, k)?;
         let interrupt = Interrupt::install();
         let (acc, stats) = pool.install(|| {
             tracer::render_samples(
@@ -169,7 +169,7 @@ impl RenderJob {
         }
         drop(interrupt);
         // Another shard may have finished into the same folder meanwhile.
-        hooks.check_shard_out(&self.out, &identity, k).map_err(RenderError::Hook)?;
+        crate::job::shard::check_shard_out(&self.out, &identity, k)?;
         write_shard(&self.out, &acc, &stats, identity, k, range.clone())?;
         Ok(RenderRun {
             out: self.out.clone(),
