@@ -283,7 +283,7 @@ impl From<&compare::CompareArgs> for CompareJob {
 /// Runs a job in this process as its command runs it, for `lucent job run`
 /// and the stages of `lucent run`: [`Job::run_with`] with the terminal's
 /// hooks (the progress bars of a render and of a slab simulation, hidden
-/// when the job is quiet;), the
+/// when the job is quiet), the
 /// job's summary on stdout, and a run that wrote its outputs but failed
 /// ([`JobRun::finished`](crate::job::run::JobRun::finished): interrupted,
 /// a fit the data cannot pin down) failing after its summary.
