@@ -4,7 +4,7 @@
 //! an output folder that is lucent's or new, marked when the work is done),
 //! checks the job ([`Job::validate`]), then runs the stage's own `run` and
 //! returns its typed outputs ([`JobRun`]). The caller watches a render or a
-//! slab simulation through [`Hooks`] (a progress bar, a shard's identity).
+//! slab simulation through [`Hooks`] (a progress bar).
 
 use super::guard::{FileRoleError, OutputFolder};
 use super::{Context, Job, JobError, NoHooks, RenderHooks, SliceHooks};
@@ -13,7 +13,7 @@ use crate::io::{OutputFolderError, WriteError};
 
 /// What a job was given to watch it run: the hooks of a render (also the
 /// empty-board render of env-scale) and of a slab simulation. `None` (as
-/// in [`Hooks::none`]): nobody watches, a shard is refused its identity.
+/// in [`Hooks::none`]): nobody watches.
 #[derive(Default)]
 pub struct Hooks<'a> {
     pub render: Option<&'a mut dyn RenderHooks>,
