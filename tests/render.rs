@@ -962,45 +962,60 @@ fn interior_means(exr: &std::path::Path, mask_from: &std::path::Path) -> [(f64, 
     std::array::from_fn(|c| mask.mean_with_error(&layers[c], &layers[3 + c]).unwrap())
 }
 
-/// The similar medium (demo.toml as shipped) against the committed long
-/// render of the exact walk (tools/reference/exact_walk.sh) on the demo
-/// plaque's interior: the bias render.json and the docs state
-/// ([`lucent::scene::SIMILAR_BIAS_DEMO_INTERIOR_PERCENT`]) is what it
-/// measures, within 3.5 standard errors of the difference, and is a bias
-/// (more than 5 of them), not noise. Fails if the similar medium or the
-/// figure changes without the other.
+/// The similar medium (demo.toml's estimator keys as shipped) against the
+/// committed long renders of the exact walk (tools/reference/exact_walk.sh)
+/// on the interior of the demo plaque (IOL1068-09) and of the PVP plaque
+/// (IOL1068-13) in the same scene: the bias render.json and the docs state
+/// ([`lucent::scene::SIMILAR_BIAS_INTERIOR_PERCENT`]) is what it measures,
+/// within 3.5 standard errors of the difference (the figures were measured
+/// with other seeds), and where it is more than 5 of them it is a bias, not
+/// noise. Fails if the similar medium or the figures change without the other.
 #[test]
-fn the_similar_mediums_stated_bias_on_the_demo_plaque_is_measured_against_the_exact_walk() {
-    let reference = root().join("fixtures/reference/render/exact_IOL1068-09.exr");
+fn the_similar_mediums_stated_bias_is_measured_against_the_exact_walk_on_two_plaques() {
     let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("r");
-    let demo = root().join("fixtures/render/demo.toml");
-    let o = lucent(&[
-        "render",
-        demo.to_str().unwrap(),
-        "--spp",
-        "256",
-        "--size",
-        "160x120",
-        "--seed",
-        "17",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let exact = interior_means(&reference, &reference);
-    let similar = interior_means(&out.join("render.exr"), &reference);
-    let stated = lucent::scene::SIMILAR_BIAS_DEMO_INTERIOR_PERCENT;
-    for c in 0..3 {
-        let ((s, ss), (e, se)) = (similar[c], exact[c]);
-        let bias = 100.0 * (s / e - 1.0);
-        let sigma = 100.0 * ((ss / e).powi(2) + (s * se / (e * e)).powi(2)).sqrt();
-        assert!(
-            (bias - stated[c]).abs() <= 3.5 * sigma,
-            "channel {c}: measured {bias:+.2} ± {sigma:.2} %, stated {:+.2} %",
-            stated[c]
-        );
-        assert!(bias > 5.0 * sigma, "channel {c}: {bias:+.2} ± {sigma:.2} % is no bias");
+    let demo = std::fs::read_to_string(root().join("fixtures/render/demo.toml")).unwrap();
+    for (family, stated) in lucent::scene::SIMILAR_BIAS_INTERIOR_PERCENT {
+        let reference = root().join(format!("fixtures/reference/render/exact_{family}.exr"));
+        // demo.toml with the family's recipe, its paths absolute.
+        let scene = tmp.path().join(format!("{family}.toml"));
+        let fixtures = root().join("fixtures");
+        let text = demo
+            .replace(
+                "\"../samples/IOL1068-09.toml\"",
+                &format!("{:?}", fixtures.join(format!("samples/{family}.toml"))),
+            )
+            .replace("\"../env/studio.exr\"", &format!("{:?}", fixtures.join("env/studio.exr")));
+        std::fs::write(&scene, text).unwrap();
+        let out = tmp.path().join(family);
+        let o = lucent(&[
+            "render",
+            scene.to_str().unwrap(),
+            "--spp",
+            "1024",
+            "--size",
+            "160x120",
+            "--seed",
+            "17",
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let exact = interior_means(&reference, &reference);
+        let similar = interior_means(&out.join("render.exr"), &reference);
+        for c in 0..3 {
+            let ((s, ss), (e, se)) = (similar[c], exact[c]);
+            let bias = 100.0 * (s / e - 1.0);
+            let sigma = 100.0 * ((ss / e).powi(2) + (s * se / (e * e)).powi(2)).sqrt();
+            assert!(
+                (bias - stated[c]).abs() <= 3.5 * sigma,
+                "{family}, channel {c}: measured {bias:+.2} ± {sigma:.2} %, stated {:+.2} %",
+                stated[c]
+            );
+            // Where the stated figure is a resolved bias, the measured one is too.
+            if stated[c].abs() > 5.0 * sigma {
+                assert!(bias.abs() > 5.0 * sigma, "{family}, channel {c}: {bias:+.2} ± {sigma:.2} % is no bias");
+            }
+        }
     }
 }
