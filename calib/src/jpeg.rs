@@ -55,31 +55,13 @@ fn read_header(r: &mut impl Read) -> Result<((usize, usize), Orientation), Strin
     }
     let mut orientation = Orientation::from_exif(1);
     loop {
-        // A marker: 0xFF, optional 0xFF fill bytes, the code.
-        let mut b = [0u8; 1];
-        r.read_exact(&mut b).map_err(truncated)?;
-        if b[0] != 0xFF {
-            return Err(format!("corrupt marker structure (byte 0x{:02X} where a marker should start)", b[0]));
-        }
-        let mut code = 0xFF;
-        while code == 0xFF {
-            r.read_exact(&mut b).map_err(truncated)?;
-            code = b[0];
-        }
-        // Markers without a length: TEM, RSTn, SOI.
-        if code == 0x01 || (0xD0..=0xD8).contains(&code) {
-            continue;
-        }
+        let (code, body) = next_segment(r).map_err(|e| match e {
+            SegmentError::Io(e) => truncated(e),
+            SegmentError::Corrupt(why) => why,
+        })?;
         if code == 0xD9 || code == 0xDA {
             return Err("no frame header before the image data".into());
         }
-        r.read_exact(&mut two).map_err(truncated)?;
-        let len = usize::from(u16::from_be_bytes(two));
-        if len < 2 {
-            return Err(format!("corrupt segment length {len} of marker 0x{code:02X}"));
-        }
-        let mut body = vec![0u8; len - 2];
-        r.read_exact(&mut body).map_err(truncated)?;
         if code == 0xE1 && body.starts_with(b"Exif\0\0") {
             orientation = exif_orientation(&body[6..]).unwrap_or(orientation);
         } else if is_frame_header(code) {
@@ -96,6 +78,52 @@ fn read_header(r: &mut impl Read) -> Result<((usize, usize), Orientation), Strin
             }
             return Ok(((w, h), orientation));
         }
+    }
+}
+
+/// Why [`next_segment`] found no segment.
+pub(crate) enum SegmentError {
+    /// The reader failed or ended (`UnexpectedEof`: the data is cut off).
+    Io(std::io::Error),
+    /// Bytes that are not a marker where one should start, or a length under 2.
+    Corrupt(String),
+}
+
+/// The next marker segment after SOI (T.81 B.1.1.4): its marker code and
+/// the bytes its length covers (empty for EOI and for markers without a
+/// length: TEM, RSTn, which are skipped). Fill bytes 0xFF before a code are
+/// skipped. Also the DNG reader's walk to a lossless-JPEG tile's scan header.
+pub(crate) fn next_segment(r: &mut impl Read) -> Result<(u8, Vec<u8>), SegmentError> {
+    let mut b = [0u8; 1];
+    loop {
+        r.read_exact(&mut b).map_err(SegmentError::Io)?;
+        if b[0] != 0xFF {
+            return Err(SegmentError::Corrupt(format!(
+                "corrupt marker structure (byte 0x{:02X} where a marker should start)",
+                b[0]
+            )));
+        }
+        let mut code = 0xFF;
+        while code == 0xFF {
+            r.read_exact(&mut b).map_err(SegmentError::Io)?;
+            code = b[0];
+        }
+        // Markers without a length: TEM, RSTn, SOI; EOI ends the data.
+        if code == 0x01 || (0xD0..=0xD8).contains(&code) {
+            continue;
+        }
+        if code == 0xD9 {
+            return Ok((code, Vec::new()));
+        }
+        let mut two = [0u8; 2];
+        r.read_exact(&mut two).map_err(SegmentError::Io)?;
+        let len = usize::from(u16::from_be_bytes(two));
+        if len < 2 {
+            return Err(SegmentError::Corrupt(format!("corrupt segment length {len} of marker 0x{code:02X}")));
+        }
+        let mut body = vec![0u8; len - 2];
+        r.read_exact(&mut body).map_err(SegmentError::Io)?;
+        return Ok((code, body));
     }
 }
 

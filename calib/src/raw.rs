@@ -1125,26 +1125,15 @@ mod dng {
         if b.get(..2)? != [0xFF, 0xD8] {
             return None;
         }
-        // Marker segments after SOI: FF xx, then a big-endian length that counts itself.
-        let mut k = 2;
+        // The marker segments after SOI, up to the start of scan.
+        let mut segments = &b[2..];
         loop {
-            while *b.get(k)? == 0xFF && *b.get(k + 1)? == 0xFF {
-                k += 1;
-            }
-            if *b.get(k)? != 0xFF {
-                return None;
-            }
-            let marker = *b.get(k + 1)?;
-            let len = usize::from(u16::from_be_bytes([*b.get(k + 2)?, *b.get(k + 3)?]));
-            if marker == 0xDA {
+            match crate::jpeg::next_segment(&mut segments).ok()? {
                 // SOS: Ns, Ns × (Cs, Td/Ta), then Ss = the predictor.
-                let ns = usize::from(*b.get(k + 4)?);
-                return b.get(k + 5 + 2 * ns).copied();
+                (0xDA, body) => return body.get(1 + 2 * usize::from(*body.first()?)).copied(),
+                (0xD9, _) => return None,
+                _ => {}
             }
-            if len < 2 {
-                return None;
-            }
-            k += 2 + len;
         }
     }
 
