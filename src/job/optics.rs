@@ -253,21 +253,27 @@ pub fn output_folder(out: Option<&Path>, json: bool) -> Option<PathBuf> {
     }
 }
 
+/// The `*.toml` entries of folder `dir`, sorted.
+pub fn toml_files_in(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut found: Vec<PathBuf> = std::fs::read_dir(dir)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    found.sort();
+    Ok(found)
+}
+
 /// The recipe files of `inputs` (a folder gives its `*.toml`, sorted), each
 /// file once (a repeat is warned of).
 pub fn collect_recipe_paths(inputs: &[PathBuf], ctx: &Context) -> Result<Vec<PathBuf>, OpticsJobError> {
     let mut paths = Vec::new();
     for input in inputs {
         if input.is_dir() {
-            let mut found: Vec<PathBuf> = std::fs::read_dir(input)
-                .map_err(|source| OpticsJobError::ListFolder { path: input.clone(), source })?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-                .collect();
+            let found =
+                toml_files_in(input).map_err(|source| OpticsJobError::ListFolder { path: input.clone(), source })?;
             if found.is_empty() {
                 return Err(OpticsJobError::NoRecipes { path: input.clone() });
             }
-            found.sort();
             paths.extend(found);
         } else if input.exists() {
             paths.push(input.clone());

@@ -71,14 +71,8 @@ fn recipe_files(recipes: &[PathBuf]) -> Vec<PathBuf> {
     let mut out = Vec::new();
     for r in recipes {
         if r.is_dir() {
-            let mut v: Vec<PathBuf> = std::fs::read_dir(r)
-                .map(|d| d.flatten().map(|e| e.path()).collect::<Vec<PathBuf>>())
-                .unwrap_or_default()
-                .into_iter()
-                .filter(|f: &PathBuf| f.is_file() && f.extension().is_some_and(|e| e == "toml"))
-                .collect();
-            v.sort();
-            out.extend(v);
+            let found = crate::job::optics::toml_files_in(r).unwrap_or_default();
+            out.extend(found.into_iter().filter(|f| f.is_file()));
         } else {
             out.push(r.clone());
         }
