@@ -1504,8 +1504,7 @@ impl Job {
     /// SHA-256 (hex) of the [`normalised`](Job::normalised) job as JSON:
     /// the run a job's shards belong to, however its command line was spelled.
     pub fn identity_sha256(&self) -> String {
-        let text = serde_json::to_string(&self.normalised()).unwrap_or_default();
-        Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
+        json_sha256(&self.normalised())
     }
 
     /// The canonical `lucent` command line (without the program name).
@@ -1541,4 +1540,10 @@ impl RenderJob {
             ..lucent_render::stop::Stop::default()
         }
     }
+}
+
+/// SHA-256 (hex) of a value as JSON: a job's and a shard run's identity.
+pub(crate) fn json_sha256(v: &impl Serialize) -> String {
+    let text = serde_json::to_string(v).unwrap_or_default();
+    Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
 }

@@ -29,20 +29,15 @@ pub fn merge(shards: &[PathBuf], out: &Path) -> Result<()> {
             MergeError::Optics(e) => super::optics_error(e),
             e => e.into(),
         })?;
+    if let Merged::Render(done) = merged {
+        return super::render::finish(done);
+    }
+    for line in merged.summary() {
+        println!("{line}");
+    }
     match merged {
-        Merged::Render(done) => super::render::finish(done),
-        Merged::Bssrdf(done) => {
-            for line in done.summary() {
-                println!("{line}");
-            }
-            Ok(done.finished()?)
-        }
-        merged @ Merged::Optics(_) => {
-            for line in merged.summary() {
-                println!("{line}");
-            }
-            Ok(())
-        }
+        Merged::Bssrdf(done) => Ok(done.finished()?),
+        _ => Ok(()),
     }
 }
 

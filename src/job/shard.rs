@@ -190,7 +190,7 @@ impl Identity {
         Identity {
             format: FORMAT,
             command: job.command_name().to_string(),
-            job_sha256: job_sha256(&job),
+            job_sha256: job.identity_sha256(),
             job,
             inputs_sha256,
             lucent_version: env!("CARGO_PKG_VERSION").into(),
@@ -202,15 +202,8 @@ impl Identity {
 
     /// SHA-256 of the identity as JSON: the run an accumulator belongs to.
     pub fn sha256(&self) -> String {
-        let text = serde_json::to_string(self).unwrap_or_default();
-        Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
+        super::json_sha256(self)
     }
-}
-
-/// SHA-256 (hex) of a normalised job as JSON.
-fn job_sha256(job: &Job) -> String {
-    let text = serde_json::to_string(job).unwrap_or_default();
-    Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// Where two jobs differ, as `key is A here, B there` for the first key (in
