@@ -46,6 +46,7 @@ pub mod guard;
 pub mod optics;
 mod raw;
 pub mod render;
+pub mod report;
 pub mod run;
 pub mod shard;
 pub mod shards;
@@ -67,6 +68,14 @@ pub use raw::{RawClippedError, RawClippedRun};
 pub use render::{RenderError, RenderHooks, RenderRun};
 pub use shards::{merge, MergeError, Merged};
 pub use threads::{allocated_threads, check_threads, worker_pool, ThreadsError, MAX_THREADS};
+
+// Each stage's section of the run's report, beside its outputs ([`report`]).
+pub use bssrdf::{BssrdfConfigFiles, BssrdfSection};
+pub use camera::{CalibrateSection, PoseSection};
+pub use colour::{ColourCamera, ColourSection};
+pub use compare::{verdict_sentence, CompareSection};
+pub use fit::FitSection;
+pub use optics::{read_spectra, OpticsSection};
 
 use crate::bssrdf::Configurations;
 use crate::fit::{FreeSpec, SearchBounds};

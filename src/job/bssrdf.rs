@@ -12,9 +12,11 @@
 //! run's summary.
 
 mod plan;
+mod section;
 mod shard;
 
 pub use plan::{beam, MediumChoice, Perturbation, Plan, PlannedRun};
+pub use section::{BssrdfConfigFiles, BssrdfSection};
 
 use super::{BssrdfCompareJob, BssrdfJob, Context};
 use crate::bssrdf::{self, RunConfig, Summary};

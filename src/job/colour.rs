@@ -10,6 +10,9 @@
 //! print the summaries ([`ColourCalibrateRun::summary`], the ΔE table;
 //! [`ColourApplyRun::summary`]).
 
+mod section;
+pub use section::{ColourCamera, ColourSection};
+
 use super::{ColourApplyJob, ColourCalibrateJob, Context};
 use crate::ccm_file::{ApplyTarget, CcmFile, CcmFileError, CcmPatch, ColourFiles, InputEncoding};
 use crate::imageio::{self, ImageIoError, RgbImage};

@@ -24,6 +24,7 @@
 
 mod band;
 mod outputs;
+mod section;
 mod shard;
 
 pub use band::{BandError, Uncertain};
