@@ -19,7 +19,7 @@
 //! [`Job::identity_sha256`] (the job without its output folder, paths
 //! canonical) names the folder of a long job's shards; a shard's run is
 //! named by the same normalised job with its input files' SHA-256
-//! ([`Job::shard_identity`], [`shards`]). A stage runs its
+//! ([`Job::shard_identity`], [`shard`]). A stage runs its
 //! jobs in the `lucent run` process through [`Job::run_with`] (the stage's
 //! own `run`, e.g. [`RenderJob::run_with`], inside the checks its command
 //! makes), as `lucent job run JOB.json` runs a job file.
@@ -49,7 +49,6 @@ pub mod render;
 pub mod report;
 pub mod run;
 pub mod shard;
-pub mod shards;
 mod threads;
 
 pub use crate::text::duration;
@@ -66,7 +65,7 @@ pub use fit::{write_fit_outputs, write_fit_outputs_with_recipe_text, FitJobError
 pub use optics::{OpticsJobError, OpticsRun};
 pub use raw::{RawClippedError, RawClippedRun};
 pub use render::{RenderError, RenderHooks, RenderRun};
-pub use shards::{merge, MergeError, Merged};
+pub use shard::{merge, MergeError, Merged};
 pub use threads::{allocated_threads, check_threads, worker_pool, ThreadsError, MAX_THREADS};
 
 // Each stage's section of the run's report, beside its outputs ([`report`]).

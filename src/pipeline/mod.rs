@@ -881,7 +881,7 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
     Ok(Some((scene_json, camera_json, has_sample)))
 }
 
-pub use crate::job::shards::{recipe_inputs, scene_inputs};
+pub use crate::job::shard::{recipe_inputs, scene_inputs};
 
 /// The photo `which` ("photo" or "empty_board") of a sample as the stages
 /// after develop read it: the develop stage's CIE RGB EXR when the sample
