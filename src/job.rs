@@ -1550,8 +1550,18 @@ impl RenderJob {
     }
 }
 
+/// SHA-256 of `bytes`, lower-case hex: the one spelling of a hash the
+/// jobs and the pipeline write (a stage's key, a job's and a shard run's
+/// identity).
+///
+/// ```
+/// assert_eq!(&lucent::job::sha256_hex(b"abc")[..16], "ba7816bf8f01cfea");
+/// ```
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    format!("{:x}", Sha256::digest(bytes))
+}
+
 /// SHA-256 (hex) of a value as JSON: a job's and a shard run's identity.
 pub(crate) fn json_sha256(v: &impl Serialize) -> String {
-    let text = serde_json::to_string(v).unwrap_or_default();
-    Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
+    sha256_hex(serde_json::to_string(v).unwrap_or_default().as_bytes())
 }

@@ -435,11 +435,8 @@ pub struct Options {
     pub until: Option<Stage>,
 }
 
-/// Hex SHA-256 of bytes.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    let d = Sha256::digest(bytes);
-    d.iter().map(|b| format!("{b:02x}")).collect()
-}
+/// Hex SHA-256 of bytes (the jobs' [`crate::job::sha256_hex`]).
+pub use crate::job::sha256_hex;
 
 /// Hash of one file, streamed.
 pub fn hash_file(path: &Path) -> Result<InputHash, PipelineError> {
@@ -457,11 +454,7 @@ pub fn hash_file(path: &Path) -> Result<InputHash, PipelineError> {
         n += k as u64;
         h.update(&buf[..k]);
     }
-    Ok(InputHash {
-        path: path.display().to_string(),
-        bytes: n,
-        sha256: h.finalize().iter().map(|b| format!("{b:02x}")).collect(),
-    })
+    Ok(InputHash { path: path.display().to_string(), bytes: n, sha256: format!("{:x}", h.finalize()) })
 }
 
 /// The bookkeeping files of every stage folder, each name spelled here
@@ -610,7 +603,7 @@ pub fn outputs_hash(dir: &Path) -> Result<String, PipelineError> {
         h.update([0]);
         h.update(hash_file(&dir.join(&f))?.sha256.as_bytes());
     }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(format!("{:x}", h.finalize()))
 }
 
 /// The hash of the outputs a stage's manifest lists (files added to the
@@ -630,7 +623,7 @@ fn hash_listed(dir: &Path, files: &[String]) -> Result<String, PipelineError> {
         h.update([0]);
         h.update(hash_file(&dir.join(f))?.sha256.as_bytes());
     }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(format!("{:x}", h.finalize()))
 }
 
 /// Every file (and symbolic link) under `dir`, relative paths sorted, hidden
