@@ -475,7 +475,7 @@ pub struct StageFiles {
 
 impl StageFiles {
     /// The file names.
-    pub const NAMES: [&'static str; 2] = ["manifest.json", "log.txt"];
+    pub const NAMES: [&'static str; 2] = [crate::io::STAGE_MANIFEST, "log.txt"];
 
     /// The bookkeeping files of the stage folder `dir`.
     pub fn in_dir(dir: &Path) -> Self {
