@@ -57,7 +57,7 @@ pub use bssrdf::{
     Perturbation, Plan, PlannedRun, SliceHooks,
 };
 pub use camera::{CalibrateRun, CameraJobError, PoseRun};
-pub use colour::{ColourApplyRun, ColourCalibrateRun, ColourJobError};
+pub use colour::{BadClipLevel, ClipLevel, ColourApplyRun, ColourCalibrateRun, ColourJobError};
 pub use compare::CompareRun;
 pub use context::Context;
 pub use env_scale::{EnvScaleJobError, EnvScaleRun};
@@ -280,7 +280,7 @@ pub struct OpticsJob {
     pub uncertainty_seed: u64,
     /// `--shard K/N` (with `uncertainty`): only the K-th of N ranges of the draws, as a shard.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shard: Option<String>,
+    pub shard: Option<shard::ShardSpec>,
 }
 
 fn default_uncertainty_seed() -> u64 {
@@ -338,7 +338,7 @@ impl OpticsJob {
         if self.shard.is_some() && self.uncertainty.is_none() {
             return Err(bad(
                 "shard",
-                self.shard.as_deref().unwrap_or_default(),
+                self.shard.map(|s| s.to_string()).unwrap_or_default(),
                 "only an --uncertainty study of optics is split into shards",
             ));
         }
@@ -446,7 +446,7 @@ pub struct BssrdfJob {
     pub uncertainty: bool,
     /// `--shard K/N`: only the K-th of N ranges of the path batches, as a shard.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shard: Option<String>,
+    pub shard: Option<shard::ShardSpec>,
 }
 
 /// The defaults of a slab job's fields that a job.json leaves out.
@@ -871,7 +871,7 @@ pub struct ColourCalibrateJob {
     /// `--clip-level`: a pixel with a channel at or above it (as stored) is
     /// clipped, a number or "none" (the text the command reads when it runs).
     #[serde(default = "default_clip_level", skip_serializing_if = "is_default_clip_level")]
-    pub clip_level: String,
+    pub clip_level: colour::ClipLevel,
     /// `--gap-ratio`: the gap between patches as a fraction of the patch side.
     #[serde(default = "default_gap_ratio", skip_serializing_if = "is_default_gap_ratio")]
     pub gap_ratio: f64,
@@ -885,11 +885,11 @@ pub const DEFAULT_CLIP_LEVEL: &str = "0.99";
 pub const DEFAULT_GAP_RATIO: f64 = 0.14;
 pub const DEFAULT_INNER_FRACTION: f64 = 0.5;
 
-fn default_clip_level() -> String {
-    DEFAULT_CLIP_LEVEL.into()
+fn default_clip_level() -> colour::ClipLevel {
+    colour::ClipLevel::default()
 }
-fn is_default_clip_level(t: &str) -> bool {
-    t == DEFAULT_CLIP_LEVEL
+fn is_default_clip_level(c: &colour::ClipLevel) -> bool {
+    *c == colour::ClipLevel::default()
 }
 fn default_gap_ratio() -> f64 {
     DEFAULT_GAP_RATIO
@@ -1223,7 +1223,7 @@ pub struct RenderJob {
     pub split_entry: bool,
     /// `--shard K/N`: only the K-th of N ranges of sample indices.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shard: Option<String>,
+    pub shard: Option<shard::ShardSpec>,
     /// `--uncertainty-spp`: samples per pixel of each render at ±1 σ.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub uncertainty_spp: Option<u32>,

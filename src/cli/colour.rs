@@ -54,7 +54,7 @@ pub struct CalibrateArgs {
     /// A pixel with a channel ≥ this value (in the image as stored) is clipped; a patch with more
     /// than 1 % clipped pixels is refused. "none" disables the check.
     #[arg(long, default_value = crate::job::DEFAULT_CLIP_LEVEL)]
-    pub clip_level: String,
+    pub clip_level: crate::job::ClipLevel,
     /// Gap between patches as a fraction of the patch side.
     #[arg(long, default_value_t = crate::job::DEFAULT_GAP_RATIO)]
     pub gap_ratio: f64,

@@ -161,7 +161,7 @@ pub struct OpticsArgs {
     /// draws (0 ≤ K < N) into --out as a shard (SAMPLE/uncertainty.acc,
     /// shard.json); `lucent merge` writes the run's uncertainty files.
     #[arg(long, value_name = "K/N", requires = "uncertainty")]
-    pub shard: Option<String>,
+    pub shard: Option<crate::job::shard::ShardSpec>,
 }
 
 #[derive(Debug, Args)]

@@ -2,7 +2,7 @@
 //! [`read_accumulator`]: named f64 arrays, little-endian, with a SHA-256 of
 //! the content; a shard's carries its [`AccMeta`]), `shard.json`
 //! ([`ShardFile`]: the run's [`Identity`], the shard's index and range),
-//! how a run is split ([`parse_spec`], [`range`]) and the checks that shard
+//! how a run is split ([`ShardSpec`], [`range`]) and the checks that shard
 //! folders belong together ([`load_shards`]). The overview is the parent
 //! module's.
 use crate::job::Job;
@@ -202,20 +202,61 @@ fn job_difference(a: &Job, b: &Job) -> String {
     first("", &a, &b).unwrap_or_else(|| "the jobs' JSON".into())
 }
 
-/// `K/N` of `--shard`.
+/// `K/N` of `--shard`: shard `k` (from 0) of `n` ≥ 1, k < n. A job file
+/// spells it as the command line does, the text "K/N".
 ///
 /// ```
-/// assert_eq!(lucent::job::shard::parse_spec("2/7").unwrap(), (2, 7));
-/// assert!(lucent::job::shard::parse_spec("7/7").is_err());
+/// use lucent::job::shard::ShardSpec;
+/// let s: ShardSpec = "2/7".parse().unwrap();
+/// assert_eq!((s.k, s.n, s.to_string()), (2, 7, "2/7".to_string()));
+/// assert!("7/7".parse::<ShardSpec>().is_err());
 /// ```
-pub fn parse_spec(spec: &str) -> Result<(u32, u32), ShardError> {
-    let bad = || ShardError::BadSpec { spec: spec.to_string() };
-    let (k, n) = spec.split_once('/').ok_or_else(bad)?;
-    let (k, n): (u32, u32) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
-    if n == 0 || k >= n {
-        return Err(bad());
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct ShardSpec {
+    /// This shard's index, 0 ≤ k < n.
+    pub k: u32,
+    /// The number of shards the run is split into.
+    pub n: u32,
+}
+
+impl ShardSpec {
+    /// (k, n).
+    pub fn pair(self) -> (u32, u32) {
+        (self.k, self.n)
     }
-    Ok((k, n))
+}
+
+impl std::str::FromStr for ShardSpec {
+    type Err = ShardError;
+    fn from_str(spec: &str) -> Result<Self, ShardError> {
+        let bad = || ShardError::BadSpec { spec: spec.to_string() };
+        let (k, n) = spec.split_once('/').ok_or_else(bad)?;
+        let (k, n): (u32, u32) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+        if n == 0 || k >= n {
+            return Err(bad());
+        }
+        Ok(Self { k, n })
+    }
+}
+
+impl TryFrom<String> for ShardSpec {
+    type Error = ShardError;
+    fn try_from(spec: String) -> Result<Self, ShardError> {
+        spec.parse()
+    }
+}
+
+impl From<ShardSpec> for String {
+    fn from(s: ShardSpec) -> String {
+        s.to_string()
+    }
+}
+
+impl std::fmt::Display for ShardSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.k, self.n)
+    }
 }
 
 /// The K-th of N contiguous ranges that split 0 … total−1 as evenly as
