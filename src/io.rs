@@ -182,6 +182,11 @@ pub fn broken_link(path: &Path) -> Option<String> {
 /// ([`claim_output_folder`], [`mark_output_folder`]).
 pub const OUTPUT_MARK: &str = ".lucent-output";
 
+/// The manifest of a stage folder of `lucent run`, the pipeline's
+/// `StageFiles::manifest` (spelled here, below the pipeline, for
+/// [`check_output_folder`]'s test of a run's folder from before the mark).
+pub const STAGE_MANIFEST: &str = "manifest.json";
+
 /// An output folder lucent may not write into.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputFolderError {
@@ -301,7 +306,7 @@ pub fn lock_output_folder(dir: &Path) -> Result<OutputLock, OutputFolderError> {
 /// Whether lucent may write into `dir` as an output folder (it is not
 /// created): it does not exist, or is an empty folder, or is marked as
 /// lucent's ([`OUTPUT_MARK`] in it or in a folder above it), or holds a
-/// stage folder of `lucent run` (a `manifest.json` one level down, from
+/// stage folder of `lucent run` (a [`STAGE_MANIFEST`] one level down, from
 /// before the mark). A folder of the user's with other files in it is
 /// refused, so no output ever replaces or removes a file of theirs.
 ///
@@ -337,7 +342,7 @@ pub fn check_output_folder(dir: &Path) -> Result<(), OutputFolderError> {
     let mut example = None;
     for e in entries.flatten() {
         let p = e.path();
-        if p.is_dir() && p.join("manifest.json").is_file() {
+        if p.is_dir() && p.join(STAGE_MANIFEST).is_file() {
             return Ok(());
         }
         example.get_or_insert_with(|| e.file_name().to_string_lossy().into_owned());

@@ -19,7 +19,7 @@
 //! [`Job::identity_sha256`] (the job without its output folder, paths
 //! canonical) names the folder of a long job's shards; a shard's run is
 //! named by the same normalised job with its input files' SHA-256
-//! ([`Job::shard_identity`], [`shards`]). A stage runs its
+//! ([`Job::shard_identity`], [`shard`]). A stage runs its
 //! jobs in the `lucent run` process through [`Job::run_with`] (the stage's
 //! own `run`, e.g. [`RenderJob::run_with`], inside the checks its command
 //! makes), as `lucent job run JOB.json` runs a job file.
@@ -46,9 +46,9 @@ pub mod guard;
 pub mod optics;
 mod raw;
 pub mod render;
+pub mod report;
 pub mod run;
 pub mod shard;
-pub mod shards;
 mod threads;
 
 pub use crate::text::duration;
@@ -57,7 +57,7 @@ pub use bssrdf::{
     Perturbation, Plan, PlannedRun, SliceHooks,
 };
 pub use camera::{CalibrateRun, CameraJobError, PoseRun};
-pub use colour::{ColourApplyRun, ColourCalibrateRun, ColourJobError};
+pub use colour::{BadClipLevel, ClipLevel, ColourApplyRun, ColourCalibrateRun, ColourJobError};
 pub use compare::CompareRun;
 pub use context::Context;
 pub use env_scale::{EnvScaleJobError, EnvScaleRun};
@@ -65,8 +65,16 @@ pub use fit::{write_fit_outputs, write_fit_outputs_with_recipe_text, FitJobError
 pub use optics::{OpticsJobError, OpticsRun};
 pub use raw::{RawClippedError, RawClippedRun};
 pub use render::{RenderError, RenderHooks, RenderRun};
-pub use shards::{merge, MergeError, Merged};
+pub use shard::{merge, MergeError, Merged};
 pub use threads::{allocated_threads, check_threads, worker_pool, ThreadsError, MAX_THREADS};
+
+// Each stage's section of the run's report, beside its outputs ([`report`]).
+pub use bssrdf::{BssrdfConfigFiles, BssrdfSection};
+pub use camera::{CalibrateSection, PoseSection};
+pub use colour::{ColourCamera, ColourSection};
+pub use compare::{verdict_sentence, CompareSection};
+pub use fit::FitSection;
+pub use optics::{read_spectra, OpticsSection};
 
 use crate::bssrdf::Configurations;
 use crate::fit::{FreeSpec, SearchBounds};
@@ -272,7 +280,7 @@ pub struct OpticsJob {
     pub uncertainty_seed: u64,
     /// `--shard K/N` (with `uncertainty`): only the K-th of N ranges of the draws, as a shard.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shard: Option<String>,
+    pub shard: Option<shard::ShardSpec>,
 }
 
 fn default_uncertainty_seed() -> u64 {
@@ -330,7 +338,7 @@ impl OpticsJob {
         if self.shard.is_some() && self.uncertainty.is_none() {
             return Err(bad(
                 "shard",
-                self.shard.as_deref().unwrap_or_default(),
+                self.shard.map(|s| s.to_string()).unwrap_or_default(),
                 "only an --uncertainty study of optics is split into shards",
             ));
         }
@@ -438,7 +446,7 @@ pub struct BssrdfJob {
     pub uncertainty: bool,
     /// `--shard K/N`: only the K-th of N ranges of the path batches, as a shard.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shard: Option<String>,
+    pub shard: Option<shard::ShardSpec>,
 }
 
 /// The defaults of a slab job's fields that a job.json leaves out.
@@ -863,7 +871,7 @@ pub struct ColourCalibrateJob {
     /// `--clip-level`: a pixel with a channel at or above it (as stored) is
     /// clipped, a number or "none" (the text the command reads when it runs).
     #[serde(default = "default_clip_level", skip_serializing_if = "is_default_clip_level")]
-    pub clip_level: String,
+    pub clip_level: colour::ClipLevel,
     /// `--gap-ratio`: the gap between patches as a fraction of the patch side.
     #[serde(default = "default_gap_ratio", skip_serializing_if = "is_default_gap_ratio")]
     pub gap_ratio: f64,
@@ -877,11 +885,11 @@ pub const DEFAULT_CLIP_LEVEL: &str = "0.99";
 pub const DEFAULT_GAP_RATIO: f64 = 0.14;
 pub const DEFAULT_INNER_FRACTION: f64 = 0.5;
 
-fn default_clip_level() -> String {
-    DEFAULT_CLIP_LEVEL.into()
+fn default_clip_level() -> colour::ClipLevel {
+    colour::ClipLevel::default()
 }
-fn is_default_clip_level(t: &str) -> bool {
-    t == DEFAULT_CLIP_LEVEL
+fn is_default_clip_level(c: &colour::ClipLevel) -> bool {
+    *c == colour::ClipLevel::default()
 }
 fn default_gap_ratio() -> f64 {
     DEFAULT_GAP_RATIO
@@ -1215,7 +1223,7 @@ pub struct RenderJob {
     pub split_entry: bool,
     /// `--shard K/N`: only the K-th of N ranges of sample indices.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shard: Option<String>,
+    pub shard: Option<shard::ShardSpec>,
     /// `--uncertainty-spp`: samples per pixel of each render at ±1 σ.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub uncertainty_spp: Option<u32>,
@@ -1542,8 +1550,18 @@ impl RenderJob {
     }
 }
 
+/// SHA-256 of `bytes`, lower-case hex: the one spelling of a hash the
+/// jobs and the pipeline write (a stage's key, a job's and a shard run's
+/// identity).
+///
+/// ```
+/// assert_eq!(&lucent::job::sha256_hex(b"abc")[..16], "ba7816bf8f01cfea");
+/// ```
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    format!("{:x}", Sha256::digest(bytes))
+}
+
 /// SHA-256 (hex) of a value as JSON: a job's and a shard run's identity.
 pub(crate) fn json_sha256(v: &impl Serialize) -> String {
-    let text = serde_json::to_string(v).unwrap_or_default();
-    Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
+    sha256_hex(serde_json::to_string(v).unwrap_or_default().as_bytes())
 }

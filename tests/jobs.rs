@@ -32,7 +32,7 @@ fn jobs() -> Vec<Job> {
             skip_invalid: true,
             uncertainty: Some(40),
             uncertainty_seed: 3,
-            shard: Some("1/2".into()),
+            shard: Some(lucent::job::shard::ShardSpec { k: 1, n: 2 }),
         }),
         Job::Bssrdf(BssrdfJob {
             recipe: Some(p("r.toml")),
@@ -63,7 +63,7 @@ fn jobs() -> Vec<Job> {
             roughness: Some("tr:0.01".into()),
             no_fold: true,
             uncertainty: true,
-            shard: Some("1/4".into()),
+            shard: Some(lucent::job::shard::ShardSpec { k: 1, n: 4 }),
             ..BssrdfJob::default()
         }),
         Job::BssrdfCompare(BssrdfCompareJob {
@@ -111,7 +111,7 @@ fn jobs() -> Vec<Job> {
             corners: Some("1,2,3,4,5,6,7,8".parse().expect("corners")),
             method: lucent_colour::ccm::CcmMethod::Finlayson2015,
             decode_srgb: true,
-            clip_level: "none".into(),
+            clip_level: lucent::job::ClipLevel::None,
             gap_ratio: 0.2,
             inner_fraction: 0.25,
         }),
@@ -257,7 +257,7 @@ fn every_job_and_its_command_line_parse_into_the_same_job() {
             ..c
         }),
         Job::ColourCalibrate(c) => Job::ColourCalibrate(ColourCalibrateJob {
-            clip_level: lucent::job::DEFAULT_CLIP_LEVEL.into(),
+            clip_level: lucent::job::ClipLevel::default(),
             gap_ratio: lucent::job::DEFAULT_GAP_RATIO,
             inner_fraction: lucent::job::DEFAULT_INNER_FRACTION,
             ..c
@@ -347,6 +347,38 @@ fn a_jobs_identity_ignores_how_its_command_line_is_spelled() {
     assert_eq!(a, id(&["render", &rel, "--spp", "8", "--seed", "3", "--out", "x"]));
     assert_ne!(a, id(&["render", &abs, "--spp", "9", "--seed", "3", "--out", "x"]));
     assert_ne!(a, id(&["render", &abs, "--spp", "8", "--seed", "4", "--out", "x"]));
+}
+
+#[test]
+fn shard_and_clip_level_are_typed_in_job_files_and_command_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, "").unwrap();
+    let abs = scene.display().to_string();
+    let job = |args: &[&str]| {
+        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        parse_job(&args).unwrap_or_else(|e| panic!("{args:?}: {e}"))
+    };
+    // One shard, however spaced, is one job; its JSON spells it "K/N".
+    let a = job(&["render", &abs, "--spp", "8", "--shard", "1/2", "--out", "x"]);
+    assert_eq!(
+        a.identity_sha256(),
+        job(&["render", &abs, "--spp", "8", "--shard", " 1 / 2", "--out", "x"]).identity_sha256()
+    );
+    let text = serde_json::to_string(&a).unwrap();
+    assert!(text.contains("\"shard\":\"1/2\""), "{text}");
+    // A job file with a shard or a clip level its flag refuses is refused when read.
+    let bad_shard = text.replace("\"1/2\"", "\"2/2\"");
+    let e = serde_json::from_str::<Job>(&bad_shard).unwrap_err().to_string();
+    assert!(e.contains("expected K/N"), "{e}");
+    let Job::ColourCalibrate(c) = job(&["colour", "calibrate", "--image", &abs, "--clip-level", "none", "--out", "x"])
+    else {
+        panic!("not a colour calibrate job")
+    };
+    assert_eq!(c.clip_level, lucent::job::ClipLevel::None);
+    let text = serde_json::to_string(&Job::ColourCalibrate(c)).unwrap();
+    let e = serde_json::from_str::<Job>(&text.replace("\"none\"", "\"-1\"")).unwrap_err().to_string();
+    assert!(e.contains("expected a positive number"), "{e}");
 }
 
 /// `path` relative to `base` ("../.." as needed).
@@ -883,7 +915,7 @@ fn a_render_jobs_json_leaves_out_the_flags_at_their_defaults() {
     let sharded = RenderJob {
         scene: "s.toml".into(),
         out: "o".into(),
-        shard: Some("1/4".into()),
+        shard: Some(lucent::job::shard::ShardSpec { k: 1, n: 4 }),
         spp: Some(8),
         ..Default::default()
     };

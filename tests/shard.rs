@@ -449,7 +449,7 @@ fn shards_of_one_job_merge_however_spelled_and_without_the_command_line() {
         size: Some("12x9".parse().unwrap()),
         quiet: true,
         out: lib1.clone(),
-        shard: Some("1/2".into()),
+        shard: Some(lucent::job::shard::ShardSpec { k: 1, n: 2 }),
         ..Default::default()
     };
     let done = job.run(&lucent::job::Context { quiet: true }).expect("a shard run through the library");

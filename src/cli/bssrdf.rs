@@ -132,7 +132,7 @@ pub struct RunArgs {
     /// shard.json); `lucent merge` adds the N shards into the run's outputs.
     /// Needs --paths and no other stop rule.
     #[arg(long, value_name = "K/N")]
-    pub shard: Option<String>,
+    pub shard: Option<crate::job::shard::ShardSpec>,
 }
 
 #[derive(Debug, Args)]

@@ -102,7 +102,7 @@ pub struct UndistortArgs {
     #[arg(long)]
     pub fov: Option<f64>,
     /// Equirect output: map width in pixels (even, at most 32768; height = width/2). Default: twice the photo's height.
-    #[arg(long, value_parser = super::count_in::<2, 32_768>)]
+    #[arg(long, value_parser = super::common::count_in::<2, 32_768>)]
     pub width: Option<usize>,
 }
 

@@ -54,7 +54,7 @@ pub struct CalibrateArgs {
     /// A pixel with a channel ≥ this value (in the image as stored) is clipped; a patch with more
     /// than 1 % clipped pixels is refused. "none" disables the check.
     #[arg(long, default_value = crate::job::DEFAULT_CLIP_LEVEL)]
-    pub clip_level: String,
+    pub clip_level: crate::job::ClipLevel,
     /// Gap between patches as a fraction of the patch side.
     #[arg(long, default_value_t = crate::job::DEFAULT_GAP_RATIO)]
     pub gap_ratio: f64,
@@ -85,14 +85,14 @@ pub struct ApplyArgs {
     #[arg(long, value_name = "VARIANCE_EXR")]
     pub variance_out: Option<PathBuf>,
     /// Noise realisations averaged per pixel for --variance-out (per-pixel precision √(2/K)).
-    #[arg(long, default_value_t = crate::job::DEFAULT_VARIANCE_REALISATIONS, value_parser = super::count_in::<2, 1000>, requires = "variance_out")]
+    #[arg(long, default_value_t = crate::job::DEFAULT_VARIANCE_REALISATIONS, value_parser = super::common::count_in::<2, 1000>, requires = "variance_out")]
     pub variance_realisations: usize,
     /// Seed of the noise realisations of --variance-out.
     #[arg(long, default_value_t = 1, requires = "variance_out")]
     pub seed: u64,
     /// Bin the output K × K (each pixel the mean of K × K developed pixels; both sides must be
     /// multiples of K): a photo at the resolution of a smaller render, with --variance-out binned alike.
-    #[arg(long, value_name = "K", default_value_t = 1, value_parser = super::count_in::<1, 64>)]
+    #[arg(long, value_name = "K", default_value_t = 1, value_parser = super::common::count_in::<1, 64>)]
     pub bin: usize,
 }
 
@@ -156,7 +156,7 @@ fn bands(a: BandsArgs) -> Result<()> {
     let ext = a.input.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let spectra: Vec<NamedSpectra> = match ext.as_str() {
         "toml" => {
-            let grid = super::parse_grid(&a.wavelengths)?;
+            let grid = super::common::parse_grid(&a.wavelengths)?;
             let recipe = Recipe::load(&a.input, Overrides { weight_percent: a.weight_percent })?;
             let options = bulk::Options { phase_entries: 0, ..Default::default() };
             let s: OpticalSpectrum = bulk::compute(&recipe, &grid, &options)?;

@@ -60,7 +60,7 @@ impl From<&super::OpticsArgs> for OpticsJob {
             skip_invalid: a.skip_invalid,
             uncertainty: a.uncertainty,
             uncertainty_seed: a.uncertainty_seed,
-            shard: a.shard.clone(),
+            shard: a.shard,
         }
     }
 }
@@ -74,7 +74,7 @@ impl From<&colour::CalibrateArgs> for ColourCalibrateJob {
             corners: a.corners,
             method: a.method,
             decode_srgb: a.decode_srgb,
-            clip_level: a.clip_level.clone(),
+            clip_level: a.clip_level,
             gap_ratio: a.gap_ratio,
             inner_fraction: a.inner_fraction,
         }
@@ -138,7 +138,7 @@ impl From<&bssrdf::RunArgs> for BssrdfJob {
             roughness: a.roughness.clone(),
             no_fold: a.no_fold,
             uncertainty: a.uncertainty,
-            shard: a.shard.clone(),
+            shard: a.shard,
         }
     }
 }
@@ -250,7 +250,7 @@ impl From<&render::RenderArgs> for RenderJob {
             dispersion: a.dispersion.map(Into::into),
             similarity_g: a.similarity_g,
             split_entry: a.split_entry,
-            shard: a.shard.clone(),
+            shard: a.shard,
             uncertainty_spp: a.uncertainty_spp,
             uncertainty_renders: a.uncertainty_renders,
             threads: a.render.threads,

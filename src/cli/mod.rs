@@ -11,6 +11,7 @@ pub mod camera;
 pub mod choices;
 pub mod colour;
 pub mod common;
+pub use common::{count_in, optics_error, parse_grid};
 pub mod compare;
 pub mod env_fit;
 pub mod fit;
@@ -160,7 +161,7 @@ pub struct OpticsArgs {
     /// draws (0 ≤ K < N) into --out as a shard (SAMPLE/uncertainty.acc,
     /// shard.json); `lucent merge` writes the run's uncertainty files.
     #[arg(long, value_name = "K/N", requires = "uncertainty")]
-    pub shard: Option<String>,
+    pub shard: Option<crate::job::shard::ShardSpec>,
 }
 
 #[derive(Debug, Args)]
@@ -302,44 +303,14 @@ pub fn allocated_threads(var: impl Fn(&str) -> Option<String>) -> Option<(usize,
     crate::job::allocated_threads(var)
 }
 
-/// Rayon's global pool sized to the allocation ([`allocated_threads`]),
-/// unless `RAYON_NUM_THREADS` says otherwise: a shard on a cluster node
-/// uses the CPUs its job was given, not every core of the node.
-fn size_threads_to_allocation() {
-    if std::env::var_os("RAYON_NUM_THREADS").is_some() {
-        return;
-    }
-    if let Some((n, _)) = allocated_threads(|k| std::env::var(k).ok()) {
-        // Fails only when the pool already exists; it then keeps its size.
-        let _ = rayon::ThreadPoolBuilder::new().num_threads(n).build_global();
-    }
-}
-
 /// Runs the parsed command.
 pub fn run(cli: Cli) -> Result<()> {
     check_outputs_are_not_inputs(&cli.command)?;
     let folder = output_folder(&cli.command);
-    writing_into(folder, || {
+    common::writing_into(folder, || {
         jobs::validate(&cli.command)?;
         dispatch(cli)
     })
-}
-
-/// Runs `work`, a command that writes into the output folder
-/// `folder` (if it has one), as [`run`] runs a command: rayon's pool sized
-/// to the allocation (`size_threads_to_allocation`), the folder opened
-/// ([`OutputFolder::open`](crate::job::guard::OutputFolder::open): a folder
-/// of the user's is refused before any work) and closed
-/// ([`close`](crate::job::guard::OutputFolder::close): marked as lucent's
-/// when the work succeeds, removed again when it fails and leaves it empty).
-fn writing_into(folder: Option<PathBuf>, work: impl FnOnce() -> Result<()>) -> Result<()> {
-    size_threads_to_allocation();
-    let guard = crate::job::guard::OutputFolder::open(folder.as_deref())?;
-    let result = work();
-    let interrupted =
-        result.as_ref().is_err_and(|e| crate::pipeline::fault_of(e.as_ref()) == crate::fault::Fault::Interrupted);
-    guard.close(result.is_ok(), interrupted)?;
-    result
 }
 
 /// The files a command that is not a job's reads, writes and writes
@@ -436,22 +407,6 @@ fn merge(a: shard::MergeArgs) -> Result<()> {
     shard::merge(&a.shards, &a.out)
 }
 
-/// A count flag's value, refused outside `LO ..= HI` (every flag that sets a
-/// size or a count states its limit).
-pub fn count_in<const LO: usize, const HI: usize>(text: &str) -> Result<usize, String> {
-    let n: usize = text.trim().parse().map_err(|_| format!("{text:?} is not a whole number"))?;
-    if (LO..=HI).contains(&n) {
-        Ok(n)
-    } else {
-        Err(format!("{n} is outside {LO} … {HI}"))
-    }
-}
-
-/// Parses "START:END:STEP" or one wavelength "W" (nm) of `--wavelengths`.
-pub fn parse_grid(text: &str) -> Result<WavelengthGrid> {
-    text.parse().map_err(|e| anyhow!("--wavelengths {e}"))
-}
-
 /// Parses a refractive index "1.5", "1.5+0.01i" or "1.5+1e-3j" (spaces
 /// ignored) with num-complex's `FromStr`.
 pub fn parse_index(flag: &str, text: &str) -> Result<Complex64> {
@@ -479,15 +434,6 @@ fn optics(a: OpticsArgs) -> Result<()> {
         println!("{line}");
     }
     Ok(())
-}
-
-/// An optics job's error for the command: a study stopped by Ctrl-C as the
-/// [`crate::fault::Interrupted`] it is (its exit code), others as they are.
-pub fn optics_error(e: crate::job::OpticsJobError) -> anyhow::Error {
-    match e.into_parts() {
-        Ok(e) => e.into(),
-        Err(interrupted) => interrupted.into(),
-    }
 }
 
 /// Efficiencies of one sphere, for either form of the `mie` arguments.

@@ -18,11 +18,11 @@ pub struct ClippedArgs {
     #[arg(long, default_value_t = crate::job::DEFAULT_CLIPPED_LEVEL)]
     pub level: f32,
     /// Also mark pixels within this many pixels of a clipped photosite (demosaicing spreads it; at most 100).
-    #[arg(long, default_value_t = crate::job::DEFAULT_DILATE, value_parser = super::count_in::<0, 100>)]
+    #[arg(long, default_value_t = crate::job::DEFAULT_DILATE, value_parser = super::common::count_in::<0, 100>)]
     pub dilate: usize,
     /// The mask of the photo binned K × K (`lucent colour apply --bin K`): a binned pixel is valid
     /// when all its K × K pixels are.
-    #[arg(long, value_name = "K", default_value_t = 1, value_parser = super::count_in::<1, 64>)]
+    #[arg(long, value_name = "K", default_value_t = 1, value_parser = super::common::count_in::<1, 64>)]
     pub bin: usize,
 }
 

@@ -65,7 +65,7 @@ pub struct RenderArgs {
     /// json. Needs a sample budget (--spp or [render] spp; no time budget or
     /// error target) and uniform sampling.
     #[arg(long, value_name = "K/N")]
-    pub shard: Option<String>,
+    pub shard: Option<crate::job::shard::ShardSpec>,
     /// Carry the recipe's uncertain inputs (e.g. `weight_percent = { value =
     /// 0.65, sd = 0.03 }`) to the render: an input that changes only μs and
     /// μa (a weight percentage) by the render's own paths (path

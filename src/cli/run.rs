@@ -6,8 +6,8 @@
 //! cluster executors start processes (Slurm jobs, Kubernetes manifests).
 
 use super::choices::{ForceChoice, StageChoice};
-use super::interrupt::Interrupt;
 use crate::fault::{Fault, Faulted, Interrupted};
+use crate::interrupt::Interrupt;
 use crate::job::Job;
 use crate::pipeline::executor::{self, Kind};
 use crate::pipeline::{self, project::Project, Options, Stage, Status};
@@ -87,7 +87,7 @@ impl Console {
                 }
                 return Err(anyhow::Error::from(e).context("cannot duplicate standard output and error"));
             }
-            super::interrupt::set_console(saved[1]);
+            crate::interrupt::set_console(saved[1]);
             Ok(Console { saved })
         }
         #[cfg(not(unix))]
@@ -133,7 +133,7 @@ impl Drop for Console {
     fn drop(&mut self) {
         #[cfg(unix)]
         {
-            super::interrupt::set_console(-1);
+            crate::interrupt::set_console(-1);
             // SAFETY: closes the copies made by `save`.
             unsafe {
                 libc::close(self.saved[0]);
@@ -227,7 +227,7 @@ fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console)
 /// `lucent merge` does ([`super::shard::merge`], the library's merge), its
 /// output folder checked and marked as the command's.
 fn merge_here(t: &executor::Sharded, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    let work = || super::writing_into(Some(t.out.clone()), || super::shard::merge(&t.shard_dirs(), &t.out));
+    let work = || super::common::writing_into(Some(t.out.clone()), || super::shard::merge(&t.shard_dirs(), &t.out));
     run_here(work, &t.merge_command(), log, interrupt, console)
 }
 

@@ -26,7 +26,7 @@ pub fn merge(shards: &[PathBuf], out: &Path) -> Result<()> {
     let merged =
         crate::job::merge(&ctx, shards, out, &mut super::render::Terminal::new(true)).map_err(|e| match e {
             MergeError::Bssrdf(e) => super::bssrdf::job_error(e),
-            MergeError::Optics(e) => super::optics_error(e),
+            MergeError::Optics(e) => super::common::optics_error(e),
             e => e.into(),
         })?;
     if let Merged::Render(done) = merged {

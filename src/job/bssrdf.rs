@@ -12,9 +12,11 @@
 //! run's summary.
 
 mod plan;
+mod section;
 mod shard;
 
 pub use plan::{beam, MediumChoice, Perturbation, Plan, PlannedRun};
+pub use section::{BssrdfConfigFiles, BssrdfSection};
 
 use super::{BssrdfCompareJob, BssrdfJob, Context};
 use crate::bssrdf::{self, RunConfig, Summary};
@@ -186,7 +188,7 @@ impl BssrdfJob {
         merged_from: Option<&[crate::job::shard::Shard]>,
     ) -> Result<BssrdfRun, E> {
         let plan = self.plan(ctx)?;
-        let shard = self.shard.as_deref().map(crate::job::shard::parse_spec).transpose()?;
+        let shard = self.shard.map(crate::job::shard::ShardSpec::pair);
         let batch_paths = RunOptions::default().batch_paths;
         let total_batches = self.stop().samples.unwrap_or(0).div_ceil(batch_paths);
         self.check_stop_for_split(shard, merged_from.is_some(), total_batches)?;

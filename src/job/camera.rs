@@ -13,6 +13,9 @@
 //! orient`, the Python module): reading photos of any supported format as
 //! 8-bit grey ([`read_photos`]), the camera file ([`read_camera`]).
 
+mod section;
+pub use section::{CalibrateSection, PoseSection};
+
 use super::{CalibrateJob, Context, PoseJob};
 use crate::imageio::{self, extension, ImageIoError, RAW_EXTENSIONS};
 use crate::io::{write_atomic, write_json, GlobError, OutputFolderError, WriteError};

@@ -10,6 +10,9 @@
 //! print the summaries ([`ColourCalibrateRun::summary`], the ΔE table;
 //! [`ColourApplyRun::summary`]).
 
+mod section;
+pub use section::{ColourCamera, ColourSection};
+
 use super::{ColourApplyJob, ColourCalibrateJob, Context};
 use crate::ccm_file::{ApplyTarget, CcmFile, CcmFileError, CcmPatch, ColourFiles, InputEncoding};
 use crate::imageio::{self, ImageIoError, RgbImage};
@@ -26,8 +29,6 @@ use std::path::{Path, PathBuf};
 /// Why a colour job cannot run.
 #[derive(Debug, thiserror::Error)]
 pub enum ColourJobError {
-    #[error("--clip-level {0:?}: expected a positive number or \"none\"")]
-    ClipLevel(String),
     #[error(transparent)]
     Image(#[from] ImageIoError),
     #[error(transparent)]
@@ -83,14 +84,79 @@ pub struct ColourCalibrateRun {
     out: PathBuf,
 }
 
-/// A `--clip-level` text: a positive number, or "none" (no check).
-pub fn parse_clip_level(text: &str) -> Result<Option<f64>, ColourJobError> {
-    if text.trim().eq_ignore_ascii_case("none") {
-        return Ok(None);
+/// `--clip-level`: a pixel with a channel at or above this level (in the
+/// image as stored) is clipped, or no check. A job file spells it as the
+/// command line does: a positive number, or "none".
+///
+/// ```
+/// use lucent::job::ClipLevel;
+/// assert_eq!("none".parse::<ClipLevel>().unwrap().level(), None);
+/// assert_eq!("0.95".parse::<ClipLevel>().unwrap().level(), Some(0.95));
+/// assert!("-1".parse::<ClipLevel>().is_err());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum ClipLevel {
+    /// No check.
+    None,
+    /// The level, > 0.
+    At(f64),
+}
+
+/// A `--clip-level` that is neither a positive number nor "none".
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("--clip-level {0:?}: expected a positive number or \"none\"")]
+pub struct BadClipLevel(pub String);
+
+impl ClipLevel {
+    /// The level, `None` for no check.
+    pub fn level(self) -> Option<f64> {
+        match self {
+            ClipLevel::None => None,
+            ClipLevel::At(v) => Some(v),
+        }
     }
-    match text.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(Some(v)),
-        _ => Err(ColourJobError::ClipLevel(text.to_string())),
+}
+
+impl Default for ClipLevel {
+    /// [`DEFAULT_CLIP_LEVEL`](crate::job::DEFAULT_CLIP_LEVEL).
+    fn default() -> Self {
+        ClipLevel::At(0.99)
+    }
+}
+
+impl std::str::FromStr for ClipLevel {
+    type Err = BadClipLevel;
+    fn from_str(text: &str) -> Result<Self, BadClipLevel> {
+        if text.trim().eq_ignore_ascii_case("none") {
+            return Ok(ClipLevel::None);
+        }
+        match text.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Ok(ClipLevel::At(v)),
+            _ => Err(BadClipLevel(text.to_string())),
+        }
+    }
+}
+
+impl TryFrom<String> for ClipLevel {
+    type Error = BadClipLevel;
+    fn try_from(text: String) -> Result<Self, BadClipLevel> {
+        text.parse()
+    }
+}
+
+impl From<ClipLevel> for String {
+    fn from(c: ClipLevel) -> String {
+        c.to_string()
+    }
+}
+
+impl std::fmt::Display for ClipLevel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ClipLevel::None => f.write_str("none"),
+            ClipLevel::At(v) => write!(f, "{v}"),
+        }
     }
 }
 
@@ -106,7 +172,7 @@ impl ColourCalibrateJob {
     pub fn run(&self, ctx: &Context) -> Result<ColourCalibrateRun, ColourJobError> {
         let method = self.method;
         let given_corners = self.corners.map(|c| c.0);
-        let clip = parse_clip_level(&self.clip_level)?;
+        let clip = self.clip_level.level();
         let mut img = imageio::read_rgb(&self.image)?;
         let encoding = if self.decode_srgb { InputEncoding::Srgb } else { InputEncoding::Linear };
         // The clip level refers to the stored values; sRGB decoding is monotonic.
@@ -463,8 +529,15 @@ mod tests {
 
     #[test]
     fn clip_levels() {
-        assert_eq!(parse_clip_level("none").unwrap(), None);
-        assert_eq!(parse_clip_level("0.95").unwrap(), Some(0.95));
-        assert!(parse_clip_level("-1").is_err());
+        assert_eq!("none".parse::<ClipLevel>().unwrap(), ClipLevel::None);
+        assert_eq!("0.95".parse::<ClipLevel>().unwrap(), ClipLevel::At(0.95));
+        assert!("-1".parse::<ClipLevel>().is_err());
+        assert!("x".parse::<ClipLevel>().is_err());
+        // A job file spells it as the command line does.
+        assert_eq!(
+            serde_json::to_string(&ClipLevel::default()).unwrap(),
+            format!("\"{}\"", crate::job::DEFAULT_CLIP_LEVEL)
+        );
+        assert!(serde_json::from_str::<ClipLevel>("\"0\"").is_err());
     }
 }

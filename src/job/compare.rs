@@ -6,6 +6,9 @@
 //! pipeline's compare stage both run it; the command only parses its flags
 //! into the job and prints [`CompareRun::summary`].
 
+mod section;
+pub use section::{verdict_sentence, CompareSection};
+
 use super::{CompareJob, Context};
 use crate::compare::{self, CompareError, MaskSpec, Metrics, Outcome, Request};
 use std::path::{Path, PathBuf};

@@ -23,6 +23,8 @@
 //! command draws the render's progress bar ([`RenderHooks`]) and prints
 //! [`EnvScaleRun::summary`].
 
+mod section;
+
 use super::{check_threads, render::resize, worker_pool, Context, EnvScaleJob, RenderHooks, ThreadsError};
 use crate::envfit::{self, EnvScaleFiles, FitReport};
 use crate::imageio::{self, ImageIoError, RgbImage};

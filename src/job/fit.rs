@@ -5,6 +5,9 @@
 //! job's folder. `lucent fit` and the pipeline's fit stage run it; the
 //! command parses its flags into the job and prints [`FitRun::summary`].
 
+mod section;
+pub use section::FitSection;
+
 use super::{Context, FitJob, MeasuredSlice};
 use crate::fit::{self, report, Budget, FitResult, FreeParameter, Measurement, Problem};
 use crate::optics::recipe::{Overrides, Recipe};

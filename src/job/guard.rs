@@ -9,7 +9,8 @@
 
 use super::Job;
 use crate::io::{OutputFolderError, WriteError};
-use lucent_calib::scene::sibling;
+use lucent_calib::calibrate::CalibrationFiles;
+use lucent_calib::scene::PoseFiles;
 use std::path::{Path, PathBuf};
 
 /// The files a command reads, the files the user names it to write, and
@@ -134,12 +135,12 @@ impl Job {
             Job::Pose(j) => FileRoles::new(
                 vec![j.camera.clone(), j.image.clone()],
                 vec![j.out.clone()],
-                vec![sibling(&j.out, "_view.png")],
+                vec![PoseFiles::of(&j.out).view_png],
             ),
             Job::Calibrate(j) => FileRoles::new(
                 j.images.iter().flat_map(|s| crate::io::glob_files(s).unwrap_or_default()).collect(),
                 vec![j.out.clone()],
-                vec![sibling(&j.out, "_residuals.png")],
+                vec![CalibrationFiles::of(&j.out).residuals_png],
             ),
             Job::ColourApply(j) => FileRoles::new(
                 vec![j.ccm.clone(), j.input.clone()],

@@ -10,8 +10,10 @@
 //! ([`OpticsJob::run_uncertainty`], which `shard` splits and
 //! [`OpticsJob::merge_uncertainty`] merges).
 
+mod section;
 mod uncertainty;
 
+pub use section::{read_spectra, OpticsSection};
 pub use uncertainty::{uncertainty_acc, UncertaintyRun};
 
 use super::{Context, OpticsJob, DEFAULT_OPTICS_OUT};

@@ -24,6 +24,7 @@
 
 mod band;
 mod outputs;
+mod section;
 mod shard;
 
 pub use band::{BandError, Uncertain};
@@ -438,7 +439,7 @@ impl RenderJob {
         for w in &loaded.warnings {
             ctx.warn(w);
         }
-        let shard = self.shard.as_deref().map(crate::job::shard::parse_spec).transpose()?;
+        let shard = self.shard.map(crate::job::shard::ShardSpec::pair);
         if shard.is_some() || merged_from.is_some() {
             shard::check_shardable(&settings)?;
         }

@@ -246,7 +246,7 @@ impl Sharded {
 
     /// Shard K's job: the job with `shard` K/N, writing quietly into `DIR/K`.
     pub fn shard_job(&self, k: u32) -> Job {
-        let (spec, out) = (Some(format!("{k}/{}", self.shards)), self.dir.join(k.to_string()));
+        let (spec, out) = (Some(crate::job::shard::ShardSpec { k, n: self.shards }), self.dir.join(k.to_string()));
         match &self.job {
             Job::Render(r) => Job::Render(crate::job::RenderJob { shard: spec, out, quiet: true, ..r.clone() }),
             Job::Bssrdf(b) => Job::Bssrdf(crate::job::BssrdfJob { shard: spec, out, quiet: true, ..b.clone() }),
@@ -804,7 +804,10 @@ mod tests {
         let Job::Bssrdf(b) = &t.job else { panic!("{:?}", t.job) };
         assert!(!b.quiet && b.shard.is_none() && b.out == t.out, "{b:?}");
         let Job::Bssrdf(s2) = t.shard_job(2) else { panic!() };
-        assert_eq!((s2.shard.as_deref(), s2.out.clone(), s2.quiet), (Some("2/4"), t.dir.join("2"), true));
+        assert_eq!(
+            (s2.shard.map(|s| s.to_string()), s2.out.clone(), s2.quiet),
+            (Some("2/4".to_string()), t.dir.join("2"), true)
+        );
         assert_eq!(Job::Bssrdf(crate::job::BssrdfJob { shard: None, out: t.out.clone(), quiet: false, ..s2 }), t.job);
         // Job files sit beside the shard folders, never inside one.
         assert_eq!(t.job_file("3"), t.dir.join("job-3.json"));

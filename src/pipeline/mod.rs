@@ -435,11 +435,8 @@ pub struct Options {
     pub until: Option<Stage>,
 }
 
-/// Hex SHA-256 of bytes.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    let d = Sha256::digest(bytes);
-    d.iter().map(|b| format!("{b:02x}")).collect()
-}
+/// Hex SHA-256 of bytes (the jobs' [`crate::job::sha256_hex`]).
+pub use crate::job::sha256_hex;
 
 /// Hash of one file, streamed.
 pub fn hash_file(path: &Path) -> Result<InputHash, PipelineError> {
@@ -457,11 +454,7 @@ pub fn hash_file(path: &Path) -> Result<InputHash, PipelineError> {
         n += k as u64;
         h.update(&buf[..k]);
     }
-    Ok(InputHash {
-        path: path.display().to_string(),
-        bytes: n,
-        sha256: h.finalize().iter().map(|b| format!("{b:02x}")).collect(),
-    })
+    Ok(InputHash { path: path.display().to_string(), bytes: n, sha256: format!("{:x}", h.finalize()) })
 }
 
 /// The bookkeeping files of every stage folder, each name spelled here
@@ -482,7 +475,7 @@ pub struct StageFiles {
 
 impl StageFiles {
     /// The file names.
-    pub const NAMES: [&'static str; 2] = ["manifest.json", "log.txt"];
+    pub const NAMES: [&'static str; 2] = [crate::io::STAGE_MANIFEST, "log.txt"];
 
     /// The bookkeeping files of the stage folder `dir`.
     pub fn in_dir(dir: &Path) -> Self {
@@ -610,7 +603,7 @@ pub fn outputs_hash(dir: &Path) -> Result<String, PipelineError> {
         h.update([0]);
         h.update(hash_file(&dir.join(&f))?.sha256.as_bytes());
     }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(format!("{:x}", h.finalize()))
 }
 
 /// The hash of the outputs a stage's manifest lists (files added to the
@@ -630,7 +623,7 @@ fn hash_listed(dir: &Path, files: &[String]) -> Result<String, PipelineError> {
         h.update([0]);
         h.update(hash_file(&dir.join(f))?.sha256.as_bytes());
     }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(format!("{:x}", h.finalize()))
 }
 
 /// Every file (and symbolic link) under `dir`, relative paths sorted, hidden
@@ -881,7 +874,7 @@ pub fn pose_frame(project: &Project, out: &Path) -> Result<Option<(PathBuf, Path
     Ok(Some((scene_json, camera_json, has_sample)))
 }
 
-pub use crate::job::shards::{recipe_inputs, scene_inputs};
+pub use crate::job::shard::{recipe_inputs, scene_inputs};
 
 /// The photo `which` ("photo" or "empty_board") of a sample as the stages
 /// after develop read it: the develop stage's CIE RGB EXR when the sample

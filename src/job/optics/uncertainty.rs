@@ -152,7 +152,7 @@ impl OpticsJob {
         let grid = self.checked_grid(false)?;
         let recipes = self.load_recipes(ctx)?;
         let out = self.out.clone().unwrap_or_else(|| PathBuf::from(crate::job::DEFAULT_OPTICS_OUT));
-        if let Some((k, shards)) = self.shard.as_deref().map(crate::job::shard::parse_spec).transpose()? {
+        if let Some((k, shards)) = self.shard.map(crate::job::shard::ShardSpec::pair) {
             let line = self.study_shard(&recipes, &grid, n, (k, shards), &out)?;
             return Ok(UncertaintyRun { out, results: Vec::new(), shard: Some(line) });
         }

@@ -1,41 +1,11 @@
-//! Long runs split into shards and merged back (re-exported as
-//! `lucent::shard`).
-//!
-//! A run of `lucent render` (samples 0 … spp−1 of every pixel) or of
-//! `lucent bssrdf` (path batches 0 … B−1) is split into N disjoint,
-//! contiguous ranges of sample or batch indices ([`range`]); shard K runs
-//! range K with the random streams the whole run would use for those
-//! indices (every sample and every path draws from its own stream, seeded
-//! by its index), and writes its sums (per pixel Σx, Σx², counts) as an
-//! accumulator file ([`write_accumulator`]: named f64 arrays, little-endian,
-//! with a SHA-256 of the content) beside `shard.json` ([`ShardFile`]: the
-//! run's [`Identity`] and the shard's index and range). The identity is
-//! the run's typed job, normalised (no output folder or shard, paths
-//! absolute), with the SHA-256 of the job and of its input files' content
-//! ([`Identity::new`]; `Job::shard_identity` computes it), so shards of
-//! one run agree however each was spelled or started.
-//!
-//! [`load_shards`] reads the shard folders of one run and checks that they
-//! belong together: this version's [`FORMAT`], the same identity (the
-//! first field of the job that differs is named), every K in 0 … N−1
-//! exactly once, accumulators intact. The merged sums are the shards' sums added in
-//! shard order. Merged and unsharded results agree to rounding only: the
-//! unsharded run adds each sample to a running sum, the merge adds the
-//! shards' partial sums, and floating-point addition is not associative.
-//! For the non-negative terms of both estimators each way's relative error
-//! is at most (m − 1)·2⁻⁵³ for a sum of m terms (Higham 2002, *Accuracy and
-//! Stability of Numerical Algorithms*, §4.2), so means differ by at most
-//! 2m·2⁻⁵³ relatively (2.8·10⁻¹⁴ for m = 64 samples); with N = 1 they are
-//! bit-for-bit equal.
-//!
-//! A run of `lucent optics --uncertainty N` is split the same way over its
-//! Latin-hypercube draws 0 … N−1: every shard makes the whole design from
-//! the seed and evaluates its range, and its accumulator holds the draws'
-//! values, not sums (the percentiles need every value). The merge puts them
-//! together in draw order and summarises them with the unsharded code, so
-//! there the merged result is bit-for-bit the unsharded one for every N.
-
-use super::Job;
+//! The files of a shard: the accumulator format ([`write_accumulator`],
+//! [`read_accumulator`]: named f64 arrays, little-endian, with a SHA-256 of
+//! the content; a shard's carries its [`AccMeta`]), `shard.json`
+//! ([`ShardFile`]: the run's [`Identity`], the shard's index and range),
+//! how a run is split ([`ShardSpec`], [`range`]) and the checks that shard
+//! folders belong together ([`load_shards`]). The overview is the parent
+//! module's.
+use crate::job::Job;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -202,7 +172,7 @@ impl Identity {
 
     /// SHA-256 of the identity as JSON: the run an accumulator belongs to.
     pub fn sha256(&self) -> String {
-        super::json_sha256(self)
+        crate::job::json_sha256(self)
     }
 }
 
@@ -232,20 +202,61 @@ fn job_difference(a: &Job, b: &Job) -> String {
     first("", &a, &b).unwrap_or_else(|| "the jobs' JSON".into())
 }
 
-/// `K/N` of `--shard`.
+/// `K/N` of `--shard`: shard `k` (from 0) of `n` ≥ 1, k < n. A job file
+/// spells it as the command line does, the text "K/N".
 ///
 /// ```
-/// assert_eq!(lucent::job::shard::parse_spec("2/7").unwrap(), (2, 7));
-/// assert!(lucent::job::shard::parse_spec("7/7").is_err());
+/// use lucent::job::shard::ShardSpec;
+/// let s: ShardSpec = "2/7".parse().unwrap();
+/// assert_eq!((s.k, s.n, s.to_string()), (2, 7, "2/7".to_string()));
+/// assert!("7/7".parse::<ShardSpec>().is_err());
 /// ```
-pub fn parse_spec(spec: &str) -> Result<(u32, u32), ShardError> {
-    let bad = || ShardError::BadSpec { spec: spec.to_string() };
-    let (k, n) = spec.split_once('/').ok_or_else(bad)?;
-    let (k, n): (u32, u32) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
-    if n == 0 || k >= n {
-        return Err(bad());
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct ShardSpec {
+    /// This shard's index, 0 ≤ k < n.
+    pub k: u32,
+    /// The number of shards the run is split into.
+    pub n: u32,
+}
+
+impl ShardSpec {
+    /// (k, n).
+    pub fn pair(self) -> (u32, u32) {
+        (self.k, self.n)
     }
-    Ok((k, n))
+}
+
+impl std::str::FromStr for ShardSpec {
+    type Err = ShardError;
+    fn from_str(spec: &str) -> Result<Self, ShardError> {
+        let bad = || ShardError::BadSpec { spec: spec.to_string() };
+        let (k, n) = spec.split_once('/').ok_or_else(bad)?;
+        let (k, n): (u32, u32) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+        if n == 0 || k >= n {
+            return Err(bad());
+        }
+        Ok(Self { k, n })
+    }
+}
+
+impl TryFrom<String> for ShardSpec {
+    type Error = ShardError;
+    fn try_from(spec: String) -> Result<Self, ShardError> {
+        spec.parse()
+    }
+}
+
+impl From<ShardSpec> for String {
+    fn from(s: ShardSpec) -> String {
+        s.to_string()
+    }
+}
+
+impl std::fmt::Display for ShardSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.k, self.n)
+    }
 }
 
 /// The K-th of N contiguous ranges that split 0 … total−1 as evenly as
