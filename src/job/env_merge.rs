@@ -323,9 +323,9 @@ impl EnvMergeReport {
 pub enum EnvMergeError {
     #[error("bracket {}: the same file as {} (each bracket is one exposure)", path.display(), first.display())]
     SameFile { path: PathBuf, first: PathBuf },
-    /// A bracket that cannot be read (the source says why).
+    /// A bracket that cannot be read (the source says why; boxed, the largest error).
     #[error("bracket {}", path.display())]
-    Bracket { path: PathBuf, source: BracketError },
+    Bracket { path: PathBuf, source: Box<BracketError> },
     #[error(
         "bracket {}: value {value} at pixel ({x}, {y}) is negative; linear brackets hold light (≥ 0)",
         path.display()
@@ -428,7 +428,7 @@ impl EnvMergeJob {
         }
         let (mut linear, mut eight, mut meta_exposures) = (Vec::new(), Vec::new(), Vec::new());
         for p in &self.brackets {
-            match read_bracket(p).map_err(|source| E::Bracket { path: p.clone(), source })? {
+            match read_bracket(p).map_err(|e| E::Bracket { path: p.clone(), source: Box::new(e) })? {
                 Bracket::Linear(img, t) => {
                     // Linear values are light: a negative one is no exposure of a scene.
                     if let Some(i) = img.data.iter().position(|v| *v < 0.0) {

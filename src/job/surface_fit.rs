@@ -178,9 +178,9 @@ pub enum SurfaceFitError {
     /// The height map cannot be read, or the outputs written.
     #[error(transparent)]
     Surface(#[from] SurfaceError),
-    /// The fit failed on the map read (the source says why).
+    /// The fit failed on the map read (the source says why; boxed, the largest error).
     #[error("{}: fitting", heightmap.display())]
-    Fit { heightmap: PathBuf, source: SurfaceError },
+    Fit { heightmap: PathBuf, source: Box<SurfaceError> },
 }
 
 /// What a surface fit found and wrote.
@@ -258,7 +258,7 @@ impl SurfaceFitJob {
             ctx.note(n);
         }
         let fit = fit_surface(&map, &self.options())
-            .map_err(|source| SurfaceFitError::Fit { heightmap: self.heightmap.clone(), source })?;
+            .map_err(|e| SurfaceFitError::Fit { heightmap: self.heightmap.clone(), source: Box::new(e) })?;
         let files = write_fit_outputs(&self.out, &fit)?;
         Ok(SurfaceFitRun { heightmap: self.heightmap.clone(), report: fit.report, files })
     }
