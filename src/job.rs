@@ -1,7 +1,9 @@
 //! Jobs: one validated value per command that `lucent run` hands to a
 //! stage, built by the pipeline from the project file and by the command
 //! line from its flags (the pattern of ripgrep's `HiArgs`, which its
-//! low-level argument struct converts into).
+//! low-level argument struct converts into). `surface fit`, `env merge`
+//! and `env orient`, which no stage runs, are jobs too: their commands and
+//! `lucent job run` run them the same way.
 //!
 //! Every job has
 //! * `validate()`: the ranges its flags accept (the same limits the
@@ -40,6 +42,8 @@ pub mod camera;
 mod colour;
 mod compare;
 mod context;
+pub mod env_merge;
+pub mod env_orient;
 mod env_scale;
 mod fit;
 pub mod guard;
@@ -49,6 +53,7 @@ pub mod render;
 pub mod report;
 pub mod run;
 pub mod shard;
+pub mod surface_fit;
 mod threads;
 
 pub use crate::text::duration;
@@ -60,12 +65,19 @@ pub use camera::{CalibrateRun, CameraJobError, PoseRun};
 pub use colour::{BadClipLevel, ClipLevel, ColourApplyRun, ColourCalibrateRun, ColourJobError};
 pub use compare::CompareRun;
 pub use context::Context;
+pub use env_merge::{
+    BracketError, EnvMergeError, EnvMergeFiles, EnvMergeJob, EnvMergeReport, EnvMergeRun, Exposures, ExposuresError,
+};
+pub use env_orient::{
+    read_env_map, EnvMapError, EnvOrientError, EnvOrientFiles, EnvOrientJob, EnvOrientRun, ViewAngles, ViewAnglesError,
+};
 pub use env_scale::{EnvScaleJobError, EnvScaleRun};
 pub use fit::{write_fit_outputs, write_fit_outputs_with_recipe_text, FitJobError, FitRun};
 pub use optics::{OpticsJobError, OpticsRun};
 pub use raw::{RawClippedError, RawClippedRun};
 pub use render::{RenderError, RenderHooks, RenderRun};
 pub use shard::{merge, MergeError, Merged};
+pub use surface_fit::{SurfaceFitError, SurfaceFitJob, SurfaceFitRun};
 pub use threads::{allocated_threads, check_threads, worker_pool, ThreadsError, MAX_THREADS};
 
 // Each stage's section of the run's report, beside its outputs ([`report`]).
@@ -1371,7 +1383,8 @@ impl CompareJob {
     }
 }
 
-/// Any job a pipeline stage runs.
+/// Any job: a pipeline stage's, or a command's that `lucent job run` runs
+/// from a file as well (`surface fit`, `env merge`, `env orient`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Job {
@@ -1387,6 +1400,9 @@ pub enum Job {
     EnvScale(EnvScaleJob),
     Render(RenderJob),
     Compare(CompareJob),
+    SurfaceFit(SurfaceFitJob),
+    EnvMerge(EnvMergeJob),
+    EnvOrient(EnvOrientJob),
 }
 
 impl Job {
@@ -1402,6 +1418,9 @@ impl Job {
             Job::EnvScale(j) => j.validate(),
             Job::Render(j) => j.validate(),
             Job::Compare(j) => j.validate(),
+            Job::SurfaceFit(j) => j.validate(),
+            Job::EnvMerge(j) => j.validate(),
+            Job::EnvOrient(j) => j.validate(),
             Job::ColourCalibrate(_) | Job::ColourApply(_) | Job::RawClipped(_) => Ok(()),
         }
     }
@@ -1421,6 +1440,9 @@ impl Job {
             Job::EnvScale(_) => "env fit-scale",
             Job::Render(_) => "render",
             Job::Compare(_) => "compare",
+            Job::SurfaceFit(_) => "surface fit",
+            Job::EnvMerge(_) => "env merge",
+            Job::EnvOrient(_) => "env orient",
         }
     }
 
@@ -1505,6 +1527,18 @@ impl Job {
                 c.render = c.render.iter().map(|r| canon(r)).collect();
                 c.out = PathBuf::new();
             }
+            Job::SurfaceFit(f) => {
+                f.heightmap = canon(&f.heightmap);
+                f.out = PathBuf::new();
+            }
+            Job::EnvMerge(m) => {
+                m.brackets = m.brackets.iter().map(|b| canon(b)).collect();
+                m.out = PathBuf::new();
+            }
+            Job::EnvOrient(o) => {
+                o.input = canon(&o.input);
+                o.out = PathBuf::new();
+            }
         }
         j
     }
@@ -1530,6 +1564,9 @@ impl Job {
             Job::EnvScale(j) => j.to_args(),
             Job::Render(j) => j.to_args(),
             Job::Compare(j) => j.to_args(),
+            Job::SurfaceFit(j) => j.to_args(),
+            Job::EnvMerge(j) => j.to_args(),
+            Job::EnvOrient(j) => j.to_args(),
         }
     }
 }

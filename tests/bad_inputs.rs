@@ -82,6 +82,7 @@ fn commands(reader: &str) -> Vec<Vec<&'static str>> {
         "png" => vec![vec!["undistort", "--camera", "fixtures/demo/truth_camera.json", "FILE", "OUT/u.png"]],
         "hdr" => vec![vec!["env", "info", "FILE"], vec!["env", "convert", "FILE", "OUT/env.exr"]],
         "project" => vec![vec!["run", "FILE", "--out", "OUT"]],
+        "job" => vec![vec!["job", "run", "FILE"]],
         // Every reader of lucent::exr: an image (read_rgb), a compare input and a
         // slice and a height map (read_layer), a render's object layer (read_channels).
         "exr" => vec![
@@ -124,7 +125,8 @@ fn every_bad_file_is_refused_by_name_without_panic_or_output() {
     std::fs::write(&good_slice, "1,2,1\n2,4,2\n1,2,1\n").unwrap();
     let mut runs = 0;
     let mut failures = Vec::new();
-    for reader in ["recipe", "index", "slice", "beam", "camera", "scene", "raw", "jpeg", "png", "hdr", "project", "exr"]
+    for reader in
+        ["recipe", "index", "slice", "beam", "camera", "scene", "raw", "jpeg", "png", "hdr", "project", "job", "exr"]
     {
         let dir = root().join("tests/bad").join(reader);
         let mut files: Vec<PathBuf> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();

@@ -182,13 +182,45 @@ fn jobs() -> Vec<Job> {
             twin_names: Some(["recipe".into(), "fitted".into()]),
             band: vec![p("a/uncertainty.json"), p("b/uncertainty.json")],
         }),
+        Job::SurfaceFit(SurfaceFitJob {
+            heightmap: p("scan.tif"),
+            pitch_um: Some(0.871),
+            pitch_y_um: Some(0.9),
+            height_unit: Some(lucent::surface::LengthUnit::Nm),
+            window: 21,
+            sigma_px: 1.5,
+            min_weight: 0.8,
+            keep_tilt: true,
+            fit_tilt: true,
+            out: p("{out}/surface"),
+        }),
+        Job::EnvMerge(EnvMergeJob {
+            brackets: vec![p("b1.jpg"), p("b2.jpg"), p("b3.jpg")],
+            exposures: Some("1/1000,1/250,0.016".parse().unwrap()),
+            out: p("{out}/env.exr"),
+            method: lucent_calib::hdr::ResponseMethod::Robertson,
+            saturation: 0.9,
+            noise_floor: 0.001,
+            saturation_code: 240,
+            floor_code: 10,
+        }),
+        Job::EnvOrient(EnvOrientJob {
+            input: p("pano.exr"),
+            yaw: None,
+            board_view: Some("20,-90,100".parse().unwrap()),
+            board: Some("9x6".parse().unwrap()),
+            square_mm: Some(30.0),
+            view_size: "1000x1000".parse().unwrap(),
+            max_tilt_deg: 5.0,
+            out: p("{out}/pano_oriented.exr"),
+        }),
     ]
 }
 
 #[test]
 fn every_job_round_trips_through_its_command_line() {
     let all = jobs();
-    assert_eq!(all.len(), 12, "one job per command a stage runs");
+    assert_eq!(all.len(), 15, "one job per command a stage runs, and surface fit, env merge, env orient");
     for job in all {
         job.validate().unwrap_or_else(|e| panic!("{job:?}: {e}"));
         let args = job.to_args();
@@ -281,6 +313,10 @@ fn every_job_and_its_command_line_parse_into_the_same_job() {
             threads: None,
             ..e
         }),
+        Job::SurfaceFit(f) => Job::SurfaceFit(SurfaceFitJob::new(f.heightmap, f.out)),
+        Job::EnvMerge(m) => Job::EnvMerge(EnvMergeJob::new(m.brackets, m.out)),
+        // (A yaw given instead of the board's view.)
+        Job::EnvOrient(o) => Job::EnvOrient(EnvOrientJob::given_yaw(o.input, -117.5, o.out)),
         other => other,
     }));
     for job in all {
@@ -1060,4 +1096,161 @@ fn job_run_of_an_interrupted_render_keeps_what_it_finished() {
         serde_json::from_str(&std::fs::read_to_string(out.join("render.json")).unwrap()).unwrap();
     assert_eq!(report["interrupted"], true, "{report}");
     assert!(out.join(lucent::io::OUTPUT_MARK).is_file(), "the kept folder is lucent's");
+}
+
+/// The files under `dir` (relative name → bytes), the output mark left out.
+fn files_under(dir: &std::path::Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap_or_else(|e| panic!("{}: {e}", d.display())) {
+            let path = e.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.file_name() != Some(std::ffi::OsStr::new(lucent::io::OUTPUT_MARK)) {
+                out.insert(path.strip_prefix(dir).unwrap().to_path_buf(), std::fs::read(&path).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// `lucent job run` of a `surface fit`, `env merge` or `env orient` job
+/// writes what its command writes, byte for byte (`fit.json` but for its
+/// wall time in seconds), and prints the same summary (the surface fit's
+/// but for its time).
+#[test]
+fn job_run_of_surface_and_env_jobs_writes_what_their_commands_write() {
+    use lucent::imageio::{write_exr, RgbImage};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ok = |o: &std::process::Output, what: &str| {
+        assert!(o.status.success(), "{what}: {}", String::from_utf8_lossy(&o.stderr));
+    };
+    // Linear brackets of a 2:1 radiance field (exposures 1/4, 1, 4, clipped
+    // at 1) and 8-bit ones of it through the sRGB curve.
+    let (w, h) = (64, 32);
+    let radiance: Vec<f32> = (0..w * h * 3)
+        .map(|k| {
+            let (x, y, c) = ((k / 3) % w, (k / 3) / w, k % 3);
+            0.02 * (5.0 * x as f32 / w as f32).exp() * (0.6 + 0.4 * (7.0 * y as f32 / h as f32 + c as f32).sin())
+        })
+        .collect();
+    for (name, t) in [("l1.exr", 0.25f32), ("l2.exr", 1.0), ("l3.exr", 4.0)] {
+        let img = RgbImage::new(w, h, radiance.iter().map(|v| (v * t).min(1.0)).collect()).unwrap();
+        write_exr(&d.join(name), &img).unwrap();
+    }
+    write_exr(&d.join("map.exr"), &RgbImage::new(w, h, radiance).unwrap()).unwrap();
+    ok(&lucent_in(d, &["env", "brackets", "map.exr", "--exposures", "1/4,1,4,16", "--out", "b8"]), "env brackets");
+    // A panorama of a level 9x6 board (as tests/env_orient.rs makes one).
+    write_exr(&d.join("grey.exr"), &RgbImage::new(512, 256, vec![0.3; 512 * 256 * 3]).unwrap()).unwrap();
+    let paste = [
+        "env",
+        "paste",
+        "grey.exr",
+        "--chessboard",
+        "9x6",
+        "--yaw",
+        "27",
+        "--pitch=-90",
+        "--fov",
+        "70",
+        "--width",
+        "2048",
+        "--out",
+        "pano.exr",
+    ];
+    ok(&lucent_in(d, &paste), "env paste");
+    let heightmap = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/surface/tr_0p0084.x3p");
+    let jobs = [
+        Job::SurfaceFit(SurfaceFitJob { fit_tilt: true, ..SurfaceFitJob::new(heightmap, p("{out}/surface")) }),
+        Job::EnvMerge(EnvMergeJob {
+            exposures: Some("1/4,1,4".parse().unwrap()),
+            saturation: 0.95,
+            ..EnvMergeJob::new(vec![p("l1.exr"), p("l2.exr"), p("l3.exr")], p("{out}/linear.exr"))
+        }),
+        Job::EnvMerge(EnvMergeJob {
+            exposures: Some("1/4,1,4,16".parse().unwrap()),
+            ..EnvMergeJob::new((1..=4).map(|k| p(&format!("b8/bracket_{k}.png"))).collect(), p("{out}/eight.exr"))
+        }),
+        Job::EnvOrient(EnvOrientJob::given_yaw(p("map.exr"), -37.5, p("{out}/turned.exr"))),
+        Job::EnvOrient(EnvOrientJob {
+            yaw: None,
+            board_view: Some("0,-90,100".parse().unwrap()),
+            board: Some("9x6".parse().unwrap()),
+            square_mm: Some(30.0),
+            view_size: "1000x1000".parse().unwrap(),
+            ..EnvOrientJob::given_yaw(p("pano.exr"), 0.0, p("{out}/pano_oriented.exr"))
+        }),
+    ];
+    for (k, job) in jobs.iter().enumerate() {
+        let (by_job, by_command) = (format!("by-job/{k}"), format!("by-command/{k}"));
+        let file = d.join(format!("job-{k}.json"));
+        std::fs::write(&file, serde_json::to_string_pretty(&job.with_out(&p(&by_job)).unwrap()).unwrap()).unwrap();
+        let o = lucent_in(d, &["job", "run", file.to_str().unwrap()]);
+        ok(&o, &format!("lucent job run {}", file.display()));
+        let args = job.with_out(&p(&by_command)).unwrap().to_args();
+        let c = lucent_in(d, &args.iter().map(String::as_str).collect::<Vec<_>>());
+        ok(&c, &format!("lucent {}", args.join(" ")));
+        let (a, b) = (files_under(&d.join(&by_job)), files_under(&d.join(&by_command)));
+        assert!(a.len() >= 2, "{k}: {:?}", a.keys());
+        assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>(), "{k}: the same files");
+        for ((name, x), (_, y)) in a.iter().zip(&b) {
+            if name.ends_with("fit.json") {
+                let without_time = |bytes: &[u8]| {
+                    let mut v: serde_json::Value = serde_json::from_slice(bytes).unwrap();
+                    v.as_object_mut().unwrap().remove("seconds").expect("fit.json has its wall time");
+                    v
+                };
+                assert_eq!(without_time(x), without_time(y), "{k}: {}", name.display());
+            } else {
+                assert!(x == y, "{k}: {} differs between `job run` and the command", name.display());
+            }
+        }
+        let printed = |o: &std::process::Output| {
+            let text = String::from_utf8_lossy(&o.stdout).replace(&by_job, &by_command);
+            let lines: Vec<String> = text.lines().map(String::from).collect();
+            // The surface fit's last line starts with its wall time.
+            if matches!(job, Job::SurfaceFit(_)) {
+                lines[..lines.len() - 1].to_vec()
+            } else {
+                lines
+            }
+        };
+        assert_eq!(printed(&o), printed(&c), "{k}: the same summary");
+    }
+    // The orientation from the board: the yaw the paste implies (−117°, tests/env_orient.rs).
+    let orientation: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("by-job/4/pano_oriented.json")).unwrap()).unwrap();
+    let yaw = orientation["source_yaw_deg"].as_f64().unwrap();
+    assert!((yaw + 117.0).abs() < 0.05, "{orientation}");
+}
+
+/// tests/bad/job/: job files of the surface and env commands that are
+/// refused as the file is read, each naming the file and what is wrong
+/// (exit 1, nothing written).
+#[test]
+fn bad_surface_and_env_job_files_are_refused_naming_the_file() {
+    let bad = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/bad/job");
+    let cases = [
+        ("env_merge_exposures.json", &["not a job of lucent", "\"-4\" is not a positive number or fraction"][..]),
+        ("env_merge_count.json", &["--exposures 1,4,16: 3 values for 2 brackets"][..]),
+        ("env_orient_yaw_and_view.json", &["--board-view 0,-90,100: give --yaw or --board-view, not both"][..]),
+        ("env_orient_unknown_field.json", &["unknown field `yaw_deg`"][..]),
+        ("surface_fit_window.json", &["--window 4: must be an odd number of pixels from 3 to 201"][..]),
+    ];
+    let listed: Vec<String> = std::fs::read_dir(&bad)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".json"))
+        .collect();
+    assert_eq!(listed.len(), cases.len(), "every file of tests/bad/job has its case: {listed:?}");
+    let dir = tempfile::tempdir().unwrap();
+    for (name, needles) in cases {
+        let o = lucent_in(dir.path(), &["job", "run", bad.join(name).to_str().unwrap()]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{name}: {e}");
+        assert!(e.contains(name) && needles.iter().all(|n| e.contains(n)), "{name}: {needles:?}: {e}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "{name}: something was written");
+    }
 }

@@ -3,7 +3,7 @@
 //! file handling only; the work is done by `lucent-calib`.
 
 use super::choices::{named, ProjectionChoice};
-use crate::imageio::{self, extension, RgbImage, RAW_EXTENSIONS};
+use crate::imageio::{self, extension, RAW_EXTENSIONS};
 use crate::io::json_bytes;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Subcommand};
@@ -17,7 +17,7 @@ use lucent_calib::RgbBuffer;
 use std::path::{Path, PathBuf};
 
 #[path = "env_hdr.rs"]
-mod env_hdr;
+pub mod env_hdr;
 
 #[derive(Debug, Subcommand)]
 pub enum RawCommand {
@@ -169,11 +169,7 @@ pub struct EnvConvertArgs {
     pub matrix: Option<String>,
 }
 
-use crate::job::camera::{file_name, read_camera, to_buffer};
-
-fn to_image(buf: RgbBuffer) -> RgbImage {
-    RgbImage { width: buf.width, height: buf.height, data: buf.data }
-}
+use crate::job::camera::{file_name, read_camera, to_buffer, to_image};
 
 pub(super) use lucent_calib::scene::sibling;
 
@@ -426,15 +422,9 @@ pub fn run_env(cmd: EnvCommand) -> Result<()> {
     }
 }
 
+/// An equirectangular HDR map, checked ([`crate::job::read_env_map`]).
 fn read_env(path: &Path) -> Result<RgbBuffer> {
-    let e = extension(path);
-    if e != "exr" && e != "hdr" {
-        bail!("{}: an HDR environment must be .exr or .hdr", path.display());
-    }
-    let img = to_buffer(imageio::read_rgb(path)?);
-    env::check_equirectangular(img.width, img.height).with_context(|| format!("{}", path.display()))?;
-    env::check_finite(&img).with_context(|| format!("{}", path.display()))?;
-    Ok(img)
+    Ok(crate::job::read_env_map(path)?)
 }
 
 fn env_convert(a: EnvConvertArgs) -> Result<()> {

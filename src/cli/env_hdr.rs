@@ -1,22 +1,26 @@
-//! `lucent env merge` (HDR from exposure brackets), `lucent env view`
-//! (a perspective view cut from an equirectangular map) and `lucent env
-//! orient` (the map turned to the board's world, from a given yaw or the
-//! board found in a view): file handling only; the merge is
-//! `lucent_calib::hdr`, the view and orientation `lucent_calib::env`.
+//! `lucent env merge` (HDR from exposure brackets) and `lucent env orient`
+//! (the map turned to the board's world, from a given yaw or the board
+//! found in a view): their flags become an [`EnvMergeJob`] and an
+//! [`EnvOrientJob`], whose `run` does the work and writes the files
+//! ([`crate::job::EnvMergeFiles`], [`crate::job::EnvOrientFiles`]); this
+//! module parses the flags and prints the job's summary. `lucent env view`
+//! (a perspective view cut from an equirectangular map, a viewer), `env
+//! paste` and `env brackets` (synthetic panoramas and brackets) work here,
+//! with `lucent_calib::env`.
 
-use super::{file_name, sibling, to_buffer, to_image, RAW_EXTENSIONS};
+use super::{file_name, sibling, to_buffer, to_image};
 use crate::cli::choices::named;
-use crate::imageio::{self, extension, RgbImage};
+use crate::imageio::{self, extension};
 use crate::io::{json_bytes, write_json};
+use crate::job::{Context as JobContext, EnvMergeJob, EnvOrientJob, Exposures, ImageSize, ViewAngles};
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args};
-use lucent_calib::camera::{CameraModel, Distortion, DistortionModel};
-use lucent_calib::env::{self, BoardFound, Orientation, ViewSpec};
-use lucent_calib::hdr::{self, CodeWeights, LinearWeights, Merged, ResponseMethod, Rgb8Buffer};
-use lucent_calib::raw::{self, RawOptions};
+use lucent_calib::board::BoardSize;
+use lucent_calib::env::{self, ViewSpec};
+use lucent_calib::hdr::ResponseMethod;
 use lucent_calib::scene::BoardSpec;
-use lucent_calib::{cv, RgbBuffer};
-use std::path::{Path, PathBuf};
+use lucent_calib::RgbBuffer;
+use std::path::PathBuf;
 
 #[derive(Debug, Args)]
 pub struct EnvMergeArgs {
@@ -28,7 +32,7 @@ pub struct EnvMergeArgs {
     /// Relative exposure of each bracket, in order, comma-separated; fractions allowed
     /// (e.g. "1/1000,1/250,1/60"). Overrides RAW metadata.
     #[arg(long)]
-    pub exposures: Option<String>,
+    pub exposures: Option<Exposures>,
     /// Output HDR (.exr, 32-bit float); the report goes to NAME.json and the mask of pixels saturated
     /// in every bracket to NAME_saturated.png.
     #[arg(long)]
@@ -38,16 +42,16 @@ pub struct EnvMergeArgs {
     #[arg(long, value_parser = named::<ResponseMethod>(), default_value = "debevec")]
     pub method: ResponseMethod,
     /// Linear brackets: a pixel whose largest channel reaches this is saturated (RAW white = 1).
-    #[arg(long, default_value_t = 0.98)]
+    #[arg(long, default_value_t = crate::job::env_merge::defaults::SATURATION)]
     pub saturation: f32,
     /// Linear brackets: values below this are noise (weights rise from here to twice it).
-    #[arg(long, default_value_t = 0.002)]
+    #[arg(long, default_value_t = crate::job::env_merge::defaults::NOISE_FLOOR)]
     pub noise_floor: f32,
     /// 8-bit brackets: codes at or above this are saturated.
-    #[arg(long, default_value_t = 250)]
+    #[arg(long, default_value_t = crate::job::env_merge::defaults::SATURATION_CODE)]
     pub saturation_code: u8,
     /// 8-bit brackets: codes at or below this are noise.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = crate::job::env_merge::defaults::FLOOR_CODE)]
     pub floor_code: u8,
 }
 
@@ -86,21 +90,21 @@ pub struct EnvOrientArgs {
     /// Find the board instead: the view of the map that shows it, YAW,PITCH,FOV in degrees as for
     /// `lucent env view` (e.g. "0,-90,100" looks straight down). Needs --board and --square-mm.
     #[arg(long, requires_all = ["board", "square_mm"], allow_hyphen_values = true)]
-    pub board_view: Option<String>,
+    pub board_view: Option<ViewAngles>,
     /// Inner corners COLSxROWS of the board (its i axis becomes the world's +x). Corner (0, 0) is numbered
     /// as `lucent pose` numbers it: the one diagonally beyond the light outer corner square (OpenCV's
     /// numbering); only a board with one odd and one even count (e.g. 9x6) fixes it.
     #[arg(long)]
-    pub board: Option<String>,
+    pub board: Option<BoardSize>,
     /// Side of one square in millimetres.
     #[arg(long)]
     pub square_mm: Option<f64>,
     /// Size of the board view, WIDTHxHEIGHT pixels.
     #[arg(long, default_value = "1600x1200")]
-    pub view_size: String,
+    pub view_size: ImageSize,
     /// Refuse a board whose normal is further than this from the map's zenith (degrees): a yaw cannot
     /// level a tilted map.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = crate::job::env_orient::DEFAULT_MAX_TILT_DEG)]
     pub max_tilt_deg: f64,
     /// Output map (.exr), turned so world = map (render it with yaw 0); the orientation goes to
     /// NAME.json (a scene's [environment] orientation = "NAME.json" takes its yaw from it) and, with
@@ -137,7 +141,7 @@ pub struct EnvPasteArgs {
     pub fov: f64,
     /// Resample the map to this width first (bilinear; height = width/2, at most 32768), so a small picture keeps
     /// its detail.
-    #[arg(long, value_parser = crate::cli::count_in::<2, 32_768>)]
+    #[arg(long, value_parser = crate::cli::common::count_in::<2, 32_768>)]
     pub width: Option<usize>,
     /// Output map (.exr).
     #[arg(long)]
@@ -158,220 +162,12 @@ pub struct EnvBracketsArgs {
     pub out_dir: PathBuf,
 }
 
-/// "1/250", "0.004", "2" → seconds (or any relative unit).
-fn parse_exposure(s: &str) -> Option<f64> {
-    let s = s.trim();
-    let v = match s.split_once('/') {
-        Some((a, b)) => a.trim().parse::<f64>().ok()? / b.trim().parse::<f64>().ok()?,
-        None => s.parse::<f64>().ok()?,
-    };
-    (v.is_finite() && v > 0.0).then_some(v)
-}
-
-fn parse_exposures(text: &str, n: usize) -> Result<Vec<f64>> {
-    let parts: Vec<&str> = text.split(',').collect();
-    let mut out = Vec::with_capacity(parts.len());
-    for p in &parts {
-        match parse_exposure(p) {
-            Some(v) => out.push(v),
-            None => bail!("--exposures {text}: {p:?} is not a positive number or fraction (e.g. 1/250)"),
-        }
-    }
-    if out.len() != n {
-        bail!("--exposures {text}: {} values for {n} brackets; give one exposure per bracket, in order", out.len());
-    }
-    Ok(out)
-}
-
-/// A bracket as read: linear (with its exposure from metadata, if any) or 8-bit codes.
-enum Bracket {
-    Linear(RgbBuffer, Option<f64>),
-    Codes(Rgb8Buffer),
-}
-
-fn read_bracket(path: &Path) -> Result<Bracket> {
-    let e = extension(path);
-    if !path.is_file() {
-        bail!("{}: no such file", path.display());
-    }
-    if RAW_EXTENSIONS.contains(&e.as_str()) {
-        let (img, meta) = raw::decode_raw(path, &RawOptions::default())?;
-        // Relative exposure ∝ t · ISO / N² (only the factors the file records).
-        let exposure = meta.exposure_time_s.filter(|t| *t > 0.0).map(|t| {
-            let iso = meta.iso.map_or(1.0, |i| f64::from(i.max(1)) / 100.0);
-            let n = meta.f_number.filter(|n| *n > 0.0).map_or(1.0, |n| 1.0 / (n * n));
-            t * iso * n
-        });
-        return Ok(Bracket::Linear(img, exposure));
-    }
-    match e.as_str() {
-        "exr" | "hdr" => Ok(Bracket::Linear(to_buffer(imageio::read_rgb(path)?), None)),
-        "jpg" | "jpeg" => {
-            let img = cv::read_rgb8(path)?;
-            Ok(Bracket::Codes(codes(img)))
-        }
-        "png" | "tif" | "tiff" => {
-            let read_err = |e: image::ImageError| anyhow::anyhow!("{}: cannot read image: {e}", path.display());
-            let img = image::ImageReader::open(path)
-                .with_context(|| format!("{}: cannot open", path.display()))?
-                .with_guessed_format()
-                .with_context(|| format!("{}: cannot read", path.display()))?
-                .decode()
-                .map_err(read_err)?;
-            let eight = matches!(
-                img.color(),
-                image::ColorType::L8 | image::ColorType::La8 | image::ColorType::Rgb8 | image::ColorType::Rgba8
-            );
-            if eight {
-                let rgb = img.to_rgb8();
-                let (w, h) = rgb.dimensions();
-                Ok(Bracket::Codes(Rgb8Buffer::new(w as usize, h as usize, rgb.into_raw())?))
-            } else {
-                let rgb = img.into_rgb32f();
-                let (w, h) = rgb.dimensions();
-                Ok(Bracket::Linear(RgbBuffer::new(w as usize, h as usize, rgb.into_raw())?, None))
-            }
-        }
-        _ => {
-            bail!("{}: unsupported bracket format (RAW, .exr, .hdr, .png, .tif, .tiff, .jpg or .jpeg)", path.display())
-        }
-    }
-}
-
-/// 8-bit values read as v/255 back to codes (exact).
-fn codes(img: RgbBuffer) -> Rgb8Buffer {
-    let data = img.data.iter().map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8).collect();
-    Rgb8Buffer { width: img.width, height: img.height, data }
-}
-
+/// Runs `lucent env merge`: the job of the flags ([`EnvMergeJob::run`]),
+/// then its summary on stdout.
 pub fn merge(a: EnvMergeArgs) -> Result<()> {
-    if extension(&a.out) != "exr" {
-        bail!("{}: the output must be an .exr file (32-bit float)", a.out.display());
-    }
-    let method = a.method;
-    let mut linear = Vec::new();
-    let mut eight = Vec::new();
-    let mut meta_exposures = Vec::new();
-    // One file given twice (under two spellings) would weigh one exposure twice.
-    let mut seen: Vec<(PathBuf, &Path)> = Vec::new();
-    for p in &a.brackets {
-        let key = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
-        if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
-            bail!("bracket {}: the same file as {} (each bracket is one exposure)", p.display(), first.display());
-        }
-        seen.push((key, p));
-    }
-    for p in &a.brackets {
-        match read_bracket(p).with_context(|| format!("bracket {}", p.display()))? {
-            Bracket::Linear(img, t) => {
-                // Linear values are light: a negative one is no exposure of a scene.
-                if let Some(i) = img.data.iter().position(|v| *v < 0.0) {
-                    let px = i / 3;
-                    bail!(
-                        "bracket {}: value {} at pixel ({}, {}) is negative; linear brackets hold light (≥ 0)",
-                        p.display(),
-                        img.data[i],
-                        px % img.width,
-                        px / img.width
-                    );
-                }
-                linear.push((p, img));
-                meta_exposures.push(t);
-            }
-            Bracket::Codes(img) => eight.push((p, img)),
-        }
-    }
-    if !linear.is_empty() && !eight.is_empty() {
-        bail!(
-            "the brackets mix linear ({}) and 8-bit ({}) files; merge one kind at a time",
-            file_name(linear[0].0),
-            file_name(eight[0].0)
-        );
-    }
-    let n = a.brackets.len();
-    let exposures = match &a.exposures {
-        Some(text) => parse_exposures(text, n)?,
-        None => {
-            let missing: Vec<String> = a
-                .brackets
-                .iter()
-                .zip(meta_exposures.iter().chain(std::iter::repeat(&None)))
-                .filter(|(_, t)| t.is_none())
-                .map(|(p, _)| file_name(p))
-                .collect();
-            if !missing.is_empty() {
-                bail!(
-                    "no exposure recorded for {}: give --exposures (one per bracket, e.g. 1/1000,1/250,1/60)",
-                    missing.join(", ")
-                );
-            }
-            meta_exposures.iter().map(|t| t.unwrap_or(1.0)).collect()
-        }
-    };
-    let size_err = |e: hdr::HdrError| -> anyhow::Error {
-        match e {
-            hdr::HdrError::SizeMismatch { index, .. } => {
-                anyhow::anyhow!("{}: {e}", a.brackets[index].display())
-            }
-            other => other.into(),
-        }
-    };
-    let (merged, response): (Merged, Option<hdr::Response>) = if eight.is_empty() {
-        let w = LinearWeights { saturation: a.saturation, noise_floor: a.noise_floor };
-        let imgs: Vec<RgbBuffer> = linear.into_iter().map(|(_, i)| i).collect();
-        (hdr::merge_linear(&imgs, &exposures, &w).map_err(size_err)?, None)
-    } else {
-        let w = CodeWeights { saturation: a.saturation_code, floor: a.floor_code };
-        let imgs: Vec<Rgb8Buffer> = eight.into_iter().map(|(_, i)| i).collect();
-        let (m, r) = hdr::merge_8bit_recovered(&imgs, &exposures, method, &w).map_err(size_err)?;
-        (m, Some(r))
-    };
-    let rep = &merged.report;
-    let json_path = sibling(&a.out, ".json");
-    let mask_path = sibling(&a.out, "_saturated.png");
-    let json = serde_json::json!({
-        "output": file_name(&a.out),
-        "brackets": a.brackets.iter().map(|p| file_name(p)).collect::<Vec<_>>(),
-        "report": rep,
-        "response": response,
-        "saturated_mask": file_name(&mask_path),
-        "units": if response.is_some() {
-            "relative radiance (8-bit: the response is known up to one global factor)"
-        } else {
-            "bracket values / relative exposure (RAW: 1.0 = white level at exposure 1)"
-        },
-    });
-    let mask = RgbImage {
-        width: rep.width,
-        height: rep.height,
-        data: merged.saturated_mask.iter().flat_map(|&s| [if s { 1.0f32 } else { 0.0 }; 3]).collect(),
-    };
-    // The map, its JSON and its saturation mask are one output: all or none.
-    crate::io::write_files_atomic(&[
-        (&mask_path, &imageio::encode_png(&mask_path, &mask)?),
-        (&json_path, &json_bytes(&json_path, &json)?),
-        (&a.out, &imageio::encode_exr(&a.out, &to_image(merged.image))?),
-    ])?;
-    println!(
-        "{} {} brackets ({} × {}) → {}: dynamic range {:.1} stops (the bracket set can capture {:.1}); \
-         {} pixels saturated in every bracket{}, {} below the noise floor in every bracket; report {}",
-        n,
-        rep.mode,
-        rep.width,
-        rep.height,
-        a.out.display(),
-        rep.dynamic_range_stops,
-        rep.capturable_range_stops,
-        rep.saturated_in_every_bracket,
-        if rep.saturated_in_every_bracket > 0 { format!(" (mask {})", mask_path.display()) } else { String::new() },
-        rep.below_floor_in_every_bracket,
-        json_path.display()
-    );
-    if rep.width != 2 * rep.height {
-        eprintln!(
-            "note: {} × {} is not 2:1; `lucent env` commands that need an equirectangular map will refuse it",
-            rep.width, rep.height
-        );
+    let done = EnvMergeJob::from(&a).run(&JobContext::default())?;
+    for line in done.summary() {
+        println!("{line}");
     }
     Ok(())
 }
@@ -416,145 +212,13 @@ pub fn view(a: EnvViewArgs) -> Result<()> {
     Ok(())
 }
 
+/// Runs `lucent env orient`: the job of the flags ([`EnvOrientJob::run`]),
+/// then its summary on stdout.
 pub fn orient(a: EnvOrientArgs) -> Result<()> {
-    if extension(&a.out) != "exr" {
-        bail!("{}: the output must be an .exr file (32-bit float)", a.out.display());
+    let done = EnvOrientJob::from(&a).run(&JobContext::default())?;
+    for line in done.summary() {
+        println!("{line}");
     }
-    if let Some(y) = a.yaw
-        && !(y.is_finite() && y.abs() <= lucent_render::env::MAX_YAW_DEG)
-    {
-        bail!("--yaw {y}: must be a finite number of degrees within ±{}°", lucent_render::env::MAX_YAW_DEG);
-    }
-    if !(a.max_tilt_deg.is_finite() && a.max_tilt_deg > 0.0) {
-        bail!("--max-tilt-deg {}: must be a positive number of degrees", a.max_tilt_deg);
-    }
-    // Parameters are checked before the map is read.
-    let board_setup = match &a.board_view {
-        None => None,
-        Some(text) => {
-            let v: Vec<f64> =
-                text.split(',').map(|s| s.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
-                    anyhow::anyhow!("--board-view {text:?}: expected YAW,PITCH,FOV in degrees, e.g. 0,-90,100")
-                })?;
-            let [yaw, pitch, fov] = <[f64; 3]>::try_from(v).map_err(|_| {
-                anyhow::anyhow!("--board-view {text:?}: expected YAW,PITCH,FOV in degrees, e.g. 0,-90,100")
-            })?;
-            let (width, height) = parse_size(&a.view_size).context("--view-size")?;
-            let spec = ViewSpec { yaw_deg: yaw, pitch_deg: pitch, fov_deg: fov, width, height };
-            spec.camera().context("--board-view")?;
-            let square_mm = a.square_mm.unwrap_or(f64::NAN);
-            let board = BoardSpec::parse(a.board.as_deref().unwrap_or(""), square_mm)
-                .map_err(|e| anyhow::anyhow!("--board/--square-mm: {e}"))?;
-            Some((spec, board, square_mm))
-        }
-    };
-    let map = super::read_env(&a.input)?;
-    let (yaw, found, png) = match board_setup {
-        None => (a.yaw.unwrap_or(0.0), None, None),
-        Some((spec, board, square_mm)) => {
-            let (view, cam) = env::perspective_view(&map, &spec)?;
-            let gray = lucent_calib::GrayImage::from_linear_rgb(&view);
-            let (corners, order) = lucent_calib::scene::find_board_corners(&gray, &board)?.ok_or_else(|| {
-                anyhow::anyhow!(
-                    "{}: no chessboard of {}x{} inner corners in the view --board-view {} (yaw {}°, pitch {}°, fov {}°); \
-                     cut it with `lucent env view` to look, and aim the view at the board",
-                    a.input.display(),
-                    board.cols,
-                    board.rows,
-                    a.board_view.as_deref().unwrap_or(""),
-                    spec.yaw_deg,
-                    spec.pitch_deg,
-                    spec.fov_deg
-                )
-            })?;
-            let points = corners.points.clone();
-            let pinhole = CameraModel {
-                model: DistortionModel::PinholeK3,
-                image_width: spec.width,
-                image_height: spec.height,
-                intrinsics: env::view_intrinsics(&cam),
-                distortion: Distortion::default(),
-            };
-            let pose = cv::solve_pnp(&points, &board, &pinhole)?;
-            let reprojected: Vec<[f64; 2]> =
-                board.corners().iter().map(|p| pinhole.project(pose.to_camera(*p)).unwrap_or([f64::NAN; 2])).collect();
-            let ss: f64 =
-                points.iter().zip(&reprojected).map(|(d, r)| (d[0] - r[0]).powi(2) + (d[1] - r[1]).powi(2)).sum();
-            let rms = (ss / points.len() as f64).sqrt();
-            let in_map = env::board_in_map(&cam, &pose.rotation, pose.translation_m);
-            if in_map.tilt_deg.is_nan() || in_map.tilt_deg > a.max_tilt_deg {
-                bail!(
-                    "{}: the board's normal is {:.1}° from the map's zenith (more than --max-tilt-deg {}): either the \
-                     board is not the level one the scene stands on or the 360° camera was not level; a yaw cannot \
-                     align them",
-                    a.input.display(),
-                    in_map.tilt_deg,
-                    a.max_tilt_deg
-                );
-            }
-            if order == env::CornerOrder::Ambiguous {
-                eprintln!("warning: {}", crate::job::camera::ambiguous_board_warning(&board, "the yaw"));
-            }
-            let label = format!("board in view: PnP RMS {rms:.3} px, yaw {:.2} deg", in_map.yaw_deg);
-            let png = cv::draw_view_png(&gray, &board, &points, &reprojected, &[], &label)?;
-            let yaw = in_map.yaw_deg;
-            let found = BoardFound {
-                view: spec,
-                board: format!("{}x{}", board.cols, board.rows),
-                square_mm,
-                detector: corners.detector.to_string(),
-                corner_order: order,
-                pnp_rms_px: rms,
-                in_map,
-            };
-            (yaw, Some(found), Some(png))
-        }
-    };
-    let turned = env::rotate_yaw(&map, yaw)?;
-    let orientation = Orientation {
-        convention: env::ORIENTATION_CONVENTION.into(),
-        source: file_name(&a.input),
-        source_yaw_deg: yaw,
-        output: file_name(&a.out),
-        output_yaw_deg: 0.0,
-        method: if found.is_some() { "board" } else { "given" }.into(),
-        board: found,
-    };
-    let json_path = sibling(&a.out, ".json");
-    let png_path = sibling(&a.out, "_board.png");
-    let json = json_bytes(&json_path, &orientation)?;
-    let map = imageio::encode_exr(&a.out, &to_image(turned))?;
-    let mut files: Vec<(&std::path::Path, &[u8])> = vec![(&json_path, &json), (&a.out, &map)];
-    if let Some(png) = &png {
-        files.insert(0, (&png_path, png));
-    }
-    crate::io::write_files_atomic(&files)?;
-    match &orientation.board {
-        Some(b) => println!(
-            "board {} found in the view (yaw {}°, pitch {}°, fov {}°; {} detector, PnP RMS {:.3} px, corner order {:?}): \
-             its i axis points {:.2}° from the map's +x, tilt {:.2}° from level, corner (0, 0) {:.3} m away; yaw {:.3}°",
-            b.board,
-            b.view.yaw_deg,
-            b.view.pitch_deg,
-            b.view.fov_deg,
-            b.detector,
-            b.pnp_rms_px,
-            b.corner_order,
-            -yaw,
-            b.in_map.tilt_deg,
-            b.in_map.corner00_distance_m,
-            yaw
-        ),
-        None => println!("given yaw {yaw}°"),
-    }
-    println!(
-        "{} turned by {yaw:.3}° → {} (render with yaw 0; or render {} with yaw_deg = {yaw:.3}); orientation {}{}",
-        a.input.display(),
-        a.out.display(),
-        file_name(&a.input),
-        json_path.display(),
-        if png.is_some() { format!(", board view {}", png_path.display()) } else { String::new() }
-    );
     Ok(())
 }
 
@@ -634,7 +298,7 @@ pub fn brackets(a: EnvBracketsArgs) -> Result<()> {
         .exposures
         .split(',')
         .map(|p| {
-            parse_exposure(p).ok_or_else(|| {
+            crate::job::env_merge::parse_exposure(p).map(|(_, v)| v).ok_or_else(|| {
                 anyhow::anyhow!("--exposures {}: {p:?} is not a positive number or fraction", a.exposures)
             })
         })

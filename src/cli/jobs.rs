@@ -7,15 +7,17 @@
 //! [`run_in_process`] runs a job as its command does (`lucent job run
 //! JOB.json`, each stage of `lucent run`).
 
-use super::{bssrdf, camera, colour, compare, env_fit, fit, raw_clip, render, Cli, Command};
+use super::camera::env_hdr;
+use super::{bssrdf, camera, colour, compare, env_fit, fit, raw_clip, render, surface, Cli, Command};
 use crate::job::run::{Hooks, JobRunError};
 use crate::job::{
-    BssrdfCompareJob, BssrdfJob, CalibrateJob, ColourApplyJob, ColourCalibrateJob, CompareJob, Context, EnvScaleJob,
-    FitJob, Job, JobError, OpticsJob, PoseJob, RawClippedJob, RenderJob,
+    BssrdfCompareJob, BssrdfJob, CalibrateJob, ColourApplyJob, ColourCalibrateJob, CompareJob, Context, EnvMergeJob,
+    EnvOrientJob, EnvScaleJob, FitJob, Job, JobError, OpticsJob, PoseJob, RawClippedJob, RenderJob, SurfaceFitJob,
 };
 
-/// The job of a parsed command, when it is one a pipeline stage runs (a
-/// `bssrdf` run needs a `--recipe` to be one).
+/// The job of a parsed command, when it has one: a pipeline stage's (a
+/// `bssrdf` run needs a `--recipe` to be one), or `surface fit`'s, `env
+/// merge`'s or `env orient`'s.
 pub fn job_of(command: &Command) -> Option<Job> {
     Some(match command {
         Command::Optics(a) => Job::Optics(a.into()),
@@ -30,6 +32,9 @@ pub fn job_of(command: &Command) -> Option<Job> {
         Command::Raw(camera::RawCommand::Clipped(a)) => Job::RawClipped(a.into()),
         Command::Pose(a) => Job::Pose(a.into()),
         Command::Env(camera::EnvCommand::FitScale(a)) => Job::EnvScale(a.into()),
+        Command::Env(camera::EnvCommand::Merge(a)) => Job::EnvMerge(a.into()),
+        Command::Env(camera::EnvCommand::Orient(a)) => Job::EnvOrient(a.into()),
+        Command::Surface(surface::SurfaceCommand::Fit(a)) => Job::SurfaceFit(a.into()),
         Command::Render(a) => Job::Render(a.into()),
         Command::Compare(a) => Job::Compare(a.into()),
         _ => return None,
@@ -233,6 +238,53 @@ impl From<&env_fit::FitScaleArgs> for EnvScaleJob {
     }
 }
 
+impl From<&env_hdr::EnvMergeArgs> for EnvMergeJob {
+    fn from(a: &env_hdr::EnvMergeArgs) -> Self {
+        EnvMergeJob {
+            brackets: a.brackets.clone(),
+            exposures: a.exposures.clone(),
+            out: a.out.clone(),
+            method: a.method,
+            saturation: a.saturation,
+            noise_floor: a.noise_floor,
+            saturation_code: a.saturation_code,
+            floor_code: a.floor_code,
+        }
+    }
+}
+
+impl From<&env_hdr::EnvOrientArgs> for EnvOrientJob {
+    fn from(a: &env_hdr::EnvOrientArgs) -> Self {
+        EnvOrientJob {
+            input: a.input.clone(),
+            yaw: a.yaw,
+            board_view: a.board_view,
+            board: a.board,
+            square_mm: a.square_mm,
+            view_size: a.view_size,
+            max_tilt_deg: a.max_tilt_deg,
+            out: a.out.clone(),
+        }
+    }
+}
+
+impl From<&surface::FitArgs> for SurfaceFitJob {
+    fn from(a: &surface::FitArgs) -> Self {
+        SurfaceFitJob {
+            heightmap: a.heightmap.clone(),
+            pitch_um: a.pitch_um,
+            pitch_y_um: a.pitch_y_um,
+            height_unit: a.height_unit,
+            window: a.window,
+            sigma_px: a.sigma_px,
+            min_weight: a.min_weight,
+            keep_tilt: a.keep_tilt,
+            fit_tilt: a.fit_tilt,
+            out: a.out.clone(),
+        }
+    }
+}
+
 impl From<&render::RenderArgs> for RenderJob {
     fn from(a: &render::RenderArgs) -> Self {
         RenderJob {
@@ -321,6 +373,9 @@ pub fn job_error(e: JobRunError) -> anyhow::Error {
         JobRunError::EnvScale(e) => (*e).into(),
         JobRunError::Render(e) => (*e).into(),
         JobRunError::Compare(e) => e.into(),
+        JobRunError::SurfaceFit(e) => e.into(),
+        JobRunError::EnvMerge(e) => e.into(),
+        JobRunError::EnvOrient(e) => e.into(),
         JobRunError::Interrupted(e) => e.into(),
     }
 }

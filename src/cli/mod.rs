@@ -334,12 +334,6 @@ fn file_roles(command: &Command) -> FileRoles {
         Command::Env(camera::EnvCommand::View(a)) => {
             FileRoles::new(vec![a.input.clone()], vec![a.out.clone()], vec![sibling(&a.out, ".json")])
         }
-        Command::Env(camera::EnvCommand::Orient(a)) => FileRoles::new(
-            vec![a.input.clone()],
-            vec![a.out.clone()],
-            vec![sibling(&a.out, ".json"), sibling(&a.out, "_board.png")],
-        ),
-        Command::Env(camera::EnvCommand::Merge(a)) => FileRoles::new(a.brackets.clone(), vec![a.out.clone()], vec![]),
         _ => FileRoles::default(),
     }
 }

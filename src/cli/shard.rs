@@ -1,5 +1,5 @@
 //! `lucent merge SHARD… --out DIR` (the merge itself is the library's,
-//! [`crate::job::shards::merge`]: the run's job read out of the shards'
+//! [`crate::job::shard::merge`]: the run's job read out of the shards'
 //! `shard.json`, checked, merged by the job; the format and the checks of
 //! the shard folders are in [`crate::shard`]), and `lucent bench shard`.
 
@@ -18,7 +18,7 @@ pub struct MergeArgs {
 }
 
 /// Merges the shard folders `shards` of one run into `out`
-/// ([`crate::job::shards::merge`]) and prints what the unsharded command
+/// ([`crate::job::shard::merge`]) and prints what the unsharded command
 /// prints; a merge stopped by Ctrl-C fails as interrupted.
 pub fn merge(shards: &[PathBuf], out: &Path) -> Result<()> {
     use crate::job::{MergeError, Merged};

@@ -1,13 +1,17 @@
 //! `lucent surface`: height maps → microfacet normal distribution (docs/method.md#surface).
-//! Argument handling and printing only; the work is done by
-//! [`crate::surface`].
+//! Argument handling and printing only: `surface fit`'s flags become a
+//! [`SurfaceFitJob`], whose `run` reads, fits and writes
+//! ([`crate::surface::SurfaceFitFiles`]); `surface synth` writes with
+//! [`crate::surface::synth`].
 
 use super::choices::named;
+use crate::job::surface_fit::defaults;
+use crate::job::{Context, SurfaceFitJob};
 use crate::surface::model::RoughnessModel;
 use crate::surface::synth::{synthesize, SynthSpec};
 use crate::surface::x3p::{write_x3p, PointType, WriteOptions};
-use crate::surface::{fit_surface, read_height_map, write_fit_outputs, FitOptions, LengthUnit, ReadOptions};
-use anyhow::{bail, Context, Result};
+use crate::surface::LengthUnit;
+use anyhow::{bail, Result};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 
@@ -33,13 +37,13 @@ pub struct FitArgs {
     #[arg(long, value_parser = named::<LengthUnit>())]
     pub height_unit: Option<LengthUnit>,
     /// Side k of the k × k window of the per-pixel plane fits (odd, 3 … 201).
-    #[arg(long, default_value_t = 15)]
+    #[arg(long, default_value_t = defaults::WINDOW)]
     pub window: usize,
     /// σ of the Gaussian weights of the plane fits, in pixels.
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = defaults::SIGMA_PX, allow_hyphen_values = true)]
     pub sigma_px: f64,
     /// Minimum fraction of the window's weight on valid points for a pixel to get a normal.
-    #[arg(long, default_value_t = 0.9, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = defaults::MIN_WEIGHT, allow_hyphen_values = true)]
     pub min_weight: f64,
     /// Keep the global tilt (do not subtract the least-squares plane first).
     #[arg(long)]
@@ -99,74 +103,13 @@ pub fn run(c: SurfaceCommand) -> Result<()> {
     }
 }
 
+/// Runs `lucent surface fit`: the job of the flags ([`SurfaceFitJob::run`]),
+/// then its summary on stdout.
 fn fit(a: FitArgs) -> Result<()> {
-    for (flag, v) in [("--pitch-um", a.pitch_um), ("--pitch-y-um", a.pitch_y_um)] {
-        if let Some(v) = v
-            && !(v.is_finite() && v > 0.0)
-        {
-            bail!("{flag} {v}: must be a positive finite number of µm");
-        }
+    let done = SurfaceFitJob::from(&a).run(&Context::default())?;
+    for line in done.summary() {
+        println!("{line}");
     }
-    let height_unit = a.height_unit;
-    let read =
-        ReadOptions { pitch_x_m: a.pitch_um.map(|p| p * 1e-6), pitch_y_m: a.pitch_y_um.map(|p| p * 1e-6), height_unit };
-    let options = FitOptions {
-        window_px: a.window,
-        sigma_px: a.sigma_px,
-        min_weight_fraction: a.min_weight,
-        remove_tilt: !a.keep_tilt,
-        fit_tilt: a.fit_tilt,
-    };
-    options.validate()?;
-    let map = read_height_map(&a.heightmap, &read)?;
-    for n in &map.notes {
-        eprintln!("note: {n}");
-    }
-    let fit = fit_surface(&map, &options).with_context(|| format!("{}: fitting", a.heightmap.display()))?;
-    let written = write_fit_outputs(&a.out, &fit)?;
-    let r = &fit.report;
-    println!(
-        "{}: {} × {} points at {:.4} × {:.4} µm, {} valid; global plane tilt {:.4}° (normal azimuth {:.1}°){}",
-        a.heightmap.display(),
-        r.input.nx,
-        r.input.ny,
-        r.input.pitch_x_m * 1e6,
-        r.input.pitch_y_m * 1e6,
-        r.input.valid_points,
-        r.global_plane.tilt_deg,
-        r.global_plane.normal_azimuth_deg,
-        if r.global_plane.removed { ", removed" } else { ", kept" }
-    );
-    println!(
-        "S_q {:.4} µm, S_dq {:.5} (plane-fit normals {:.5}); {} normals ({} × {} window, σ {} px); anisotropy {:.3}",
-        r.roughness.sq_m * 1e6,
-        r.roughness.sdq,
-        r.roughness.sdq_plane_fit,
-        r.distribution.normals,
-        r.options.window_px,
-        r.options.window_px,
-        r.options.sigma_px,
-        r.distribution.anisotropy.ratio
-    );
-    println!("bins: {}", r.distribution.bin_rule);
-    for &m in RoughnessModel::ALL {
-        let f = r.fits.get(m);
-        let tilt = if f.tilt_fitted { format!(", tilt {:.4}°", f.tilt_deg) } else { String::new() };
-        println!(
-            "{:<17} α = {:.5}, scale {:.4}{tilt}, MSE {:.4e} /sr², NRMSE {:.4}{}",
-            RoughnessModel::label(m),
-            f.alpha,
-            f.scale,
-            f.mse_per_sr2,
-            f.nrmse,
-            if m == r.better_model { "  ← better" } else { "" }
-        );
-    }
-    println!(
-        "{:.2} s; wrote {}",
-        r.seconds,
-        written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
-    );
     Ok(())
 }
 

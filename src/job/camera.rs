@@ -101,6 +101,11 @@ pub fn to_buffer(img: imageio::RgbImage) -> RgbBuffer {
     RgbBuffer { width: img.width, height: img.height, data: img.data }
 }
 
+/// An RGB buffer of `lucent_calib` as an image.
+pub fn to_image(buf: RgbBuffer) -> imageio::RgbImage {
+    imageio::RgbImage { width: buf.width, height: buf.height, data: buf.data }
+}
+
 /// Files named by a folder, a file, or a glob pattern in the file-name
 /// part (`DIR/*.jpg`, `DIR/left??.{jpg,png}`, `DIR/left0[1-5].jpg`; see
 /// [`crate::io::glob_files`]), sorted.

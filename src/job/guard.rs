@@ -38,6 +38,8 @@ pub enum FileRoleError {
     StraySidecar { sidecar: PathBuf, main: PathBuf },
     #[error("--out {}: the output is a JSON file (NAME.json)", out.display())]
     NotJson { out: PathBuf },
+    #[error("{}: the output must be an .exr file (32-bit float)", out.display())]
+    NotExr { out: PathBuf },
 }
 
 impl FileRoles {
@@ -125,7 +127,13 @@ impl Job {
             Job::EnvScale(j) => &j.out,
             Job::Render(j) => &j.out,
             Job::Compare(j) => &j.out,
-            Job::Calibrate(_) | Job::ColourApply(_) | Job::RawClipped(_) | Job::Pose(_) => return None,
+            Job::SurfaceFit(j) => &j.out,
+            Job::Calibrate(_)
+            | Job::ColourApply(_)
+            | Job::RawClipped(_)
+            | Job::Pose(_)
+            | Job::EnvMerge(_)
+            | Job::EnvOrient(_) => return None,
         })
     }
 
@@ -148,18 +156,29 @@ impl Job {
                 vec![],
             ),
             Job::RawClipped(j) => FileRoles::new(vec![j.input.clone()], vec![j.out.clone()], vec![]),
+            Job::EnvMerge(j) => FileRoles::new(j.brackets.clone(), vec![j.out.clone()], vec![]),
+            Job::EnvOrient(j) => {
+                let files = super::EnvOrientFiles::of(&j.out);
+                FileRoles::new(vec![j.input.clone()], vec![files.exr], vec![files.json, files.board_png])
+            }
             _ => FileRoles::default(),
         }
     }
 
-    /// [`FileRoles::check`] of the job's files, and a camera or scene file
-    /// (calibrate, pose) named `.json`.
+    /// [`FileRoles::check`] of the job's files, a camera or scene file
+    /// (calibrate, pose) named `.json` and a merged or turned map (env
+    /// merge, env orient) named `.exr`.
     pub fn check_files(&self) -> Result<(), FileRoleError> {
         self.file_roles().check()?;
         if let Job::Calibrate(super::CalibrateJob { out, .. }) | Job::Pose(super::PoseJob { out, .. }) = self
             && !out.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"))
         {
             return Err(FileRoleError::NotJson { out: out.clone() });
+        }
+        if let Job::EnvMerge(super::EnvMergeJob { out, .. }) | Job::EnvOrient(super::EnvOrientJob { out, .. }) = self
+            && crate::imageio::extension(out) != "exr"
+        {
+            return Err(FileRoleError::NotExr { out: out.clone() });
         }
         Ok(())
     }

@@ -46,6 +46,9 @@ pub enum JobRun {
     EnvScale(Box<super::EnvScaleRun>),
     Render(Box<super::RenderRun>),
     Compare(Box<super::CompareRun>),
+    SurfaceFit(Box<super::SurfaceFitRun>),
+    EnvMerge(Box<super::EnvMergeRun>),
+    EnvOrient(Box<super::EnvOrientRun>),
 }
 
 impl JobRun {
@@ -64,6 +67,9 @@ impl JobRun {
             JobRun::EnvScale(r) => r.summary(),
             JobRun::Render(r) => r.summary(),
             JobRun::Compare(r) => r.summary(),
+            JobRun::SurfaceFit(r) => r.summary(),
+            JobRun::EnvMerge(r) => r.summary(),
+            JobRun::EnvOrient(r) => r.summary(),
         }
     }
 
@@ -122,6 +128,12 @@ pub enum JobRunError {
     Render(Box<super::RenderError>),
     #[error(transparent)]
     Compare(#[from] crate::compare::CompareError),
+    #[error(transparent)]
+    SurfaceFit(#[from] super::SurfaceFitError),
+    #[error(transparent)]
+    EnvMerge(#[from] super::EnvMergeError),
+    #[error(transparent)]
+    EnvOrient(#[from] super::EnvOrientError),
     /// Ctrl-C or SIGTERM stopped the stage.
     #[error(transparent)]
     Interrupted(#[from] Interrupted),
@@ -176,6 +188,9 @@ impl JobRunError {
             JobRunError::EnvScale(e) => e.as_ref(),
             JobRunError::Render(e) => e.as_ref(),
             JobRunError::Compare(e) => e,
+            JobRunError::SurfaceFit(e) => e,
+            JobRunError::EnvMerge(e) => e,
+            JobRunError::EnvOrient(e) => e,
             JobRunError::Interrupted(e) => e,
         }
     }
@@ -235,6 +250,9 @@ impl Job {
             Job::EnvScale(j) => JobRun::EnvScale(Box::new(j.run_with(ctx, render)?)),
             Job::Render(j) => JobRun::Render(Box::new(j.run_with(ctx, render)?)),
             Job::Compare(j) => JobRun::Compare(Box::new(j.run(ctx)?)),
+            Job::SurfaceFit(j) => JobRun::SurfaceFit(Box::new(j.run(ctx)?)),
+            Job::EnvMerge(j) => JobRun::EnvMerge(Box::new(j.run(ctx)?)),
+            Job::EnvOrient(j) => JobRun::EnvOrient(Box::new(j.run(ctx)?)),
         })
     }
 }

@@ -426,7 +426,41 @@ pub fn load_fit_choice(path: &Path, model: Option<RoughnessModel>) -> Result<(Ro
 }
 
 /// Files [`write_fit_outputs`] writes into the output folder.
-pub const OUTPUT_FILES: [&str; 4] = ["fit.json", "heightmap.png", "distribution.png", "normals.exr"];
+pub const OUTPUT_FILES: [&str; 4] = SurfaceFitFiles::NAMES;
+
+/// The files of a surface fit ([`write_fit_outputs`]), each name spelled
+/// here once: the [`FitReport`] (`json`), the levelled height map
+/// (`heightmap_png`), the distribution and its fits (`distribution_png`)
+/// and the normals (`normals_exr`).
+///
+/// ```
+/// use lucent::surface::SurfaceFitFiles;
+/// let f = SurfaceFitFiles::in_dir(std::path::Path::new("out/surface"));
+/// assert_eq!(f.json, std::path::Path::new("out/surface/fit.json"));
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SurfaceFitFiles {
+    pub json: PathBuf,
+    pub heightmap_png: PathBuf,
+    pub distribution_png: PathBuf,
+    pub normals_exr: PathBuf,
+}
+
+impl SurfaceFitFiles {
+    /// The file names, in the order they are listed.
+    pub const NAMES: [&'static str; 4] = ["fit.json", "heightmap.png", "distribution.png", "normals.exr"];
+
+    /// The files of the fit whose output folder is `dir`.
+    pub fn in_dir(dir: &Path) -> Self {
+        let [json, heightmap_png, distribution_png, normals_exr] = Self::NAMES.map(|n| dir.join(n));
+        Self { json, heightmap_png, distribution_png, normals_exr }
+    }
+
+    /// Every file, in the order of [`SurfaceFitFiles::NAMES`].
+    pub fn all(&self) -> [&Path; 4] {
+        [&self.json, &self.heightmap_png, &self.distribution_png, &self.normals_exr]
+    }
+}
 
 /// Writes `fit.json`, `heightmap.png`, `distribution.png` and `normals.exr`
 /// into `out`, all or nothing: the files are written into a temporary
@@ -435,7 +469,7 @@ pub const OUTPUT_FILES: [&str; 4] = ["fit.json", "heightmap.png", "distribution.
 /// `normals.exr`: 32-bit float, R, G, B = the unit normal's x, y, z, A = 1
 /// where the pixel has a normal and 0 (with R = G = B = 0) where it has
 /// none; the top row is the largest y, as in `heightmap.png`.
-pub fn write_fit_outputs(out: &Path, fit: &SurfaceFit) -> Result<Vec<PathBuf>, SurfaceError> {
+pub fn write_fit_outputs(out: &Path, fit: &SurfaceFit) -> Result<SurfaceFitFiles, SurfaceError> {
     use crate::io::{write_atomic, write_json};
     let io_err = |p: &Path| {
         let p = p.to_path_buf();
@@ -500,5 +534,5 @@ pub fn write_fit_outputs(out: &Path, fit: &SurfaceFit) -> Result<Vec<PathBuf>, S
         let _ = std::fs::remove_dir_all(&tmp);
     }
     result?;
-    Ok(OUTPUT_FILES.iter().map(|f| out.join(f)).collect())
+    Ok(SurfaceFitFiles::in_dir(out))
 }
