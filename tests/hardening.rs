@@ -476,6 +476,7 @@ fn data_loss_an_output_never_replaces_an_input() {
     // Files of the user's under the names of sidecars, without the main output beside them.
     std::fs::write(d.join("photo_dec.json"), "my notes").unwrap();
     std::fs::write(d.join("my_residuals.png"), "my plot").unwrap();
+    std::fs::write(d.join("notes.json"), "my notes").unwrap();
     let before = snapshot(d);
     for (args, says) in [
         (vec!["env", "view", "map.exr", "--fov", "60", "--size", "16x12", "--out", "map.exr"], "over the input"),
@@ -504,6 +505,8 @@ fn data_loss_an_output_never_replaces_an_input() {
         ),
         (vec!["raw", "decode", "photo.dng", "w.exr", "--preview", "w.exr"], "the same file"),
         (vec!["raw", "decode", "photo.dng", "photo_dec.exr"], "photo_dec.json exists"),
+        // The merge's report beside its map.
+        (vec!["env", "merge", "map.exr", "photo.exr", "--exposures", "1,2", "--out", "notes.exr"], "notes.json exists"),
         // A photo's name given as the camera file (the images from a folder).
         (
             vec!["calibrate", "--images", "cal", "--board", "9x6", "--square-mm", "20", "--out", "photo.exr"],

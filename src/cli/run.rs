@@ -180,10 +180,12 @@ fn run_here(
         let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
         if let Ok(Err(e)) = &caught {
             // As the binary says it (into the log, standard error meanwhile).
-            let _ = match crate::pipeline::fault_of(e.as_ref()) {
-                Fault::Input | Fault::Interrupted => writeln!(std::io::stderr(), "error: {e:#}"),
-                fault => writeln!(std::io::stderr(), "error ({fault}): {e:#}"),
+            // One write: the line stays whole where other threads write too.
+            let line = match crate::pipeline::fault_of(e.as_ref()) {
+                Fault::Input | Fault::Interrupted => format!("error: {e:#}\n"),
+                fault => format!("error ({fault}): {e:#}\n"),
             };
+            let _ = std::io::stderr().write_all(line.as_bytes());
         }
         caught
     });

@@ -156,7 +156,10 @@ impl Job {
                 vec![],
             ),
             Job::RawClipped(j) => FileRoles::new(vec![j.input.clone()], vec![j.out.clone()], vec![]),
-            Job::EnvMerge(j) => FileRoles::new(j.brackets.clone(), vec![j.out.clone()], vec![]),
+            Job::EnvMerge(j) => {
+                let files = super::EnvMergeFiles::of(&j.out);
+                FileRoles::new(j.brackets.clone(), vec![files.exr], vec![files.json, files.saturated_png])
+            }
             Job::EnvOrient(j) => {
                 let files = super::EnvOrientFiles::of(&j.out);
                 FileRoles::new(vec![j.input.clone()], vec![files.exr], vec![files.json, files.board_png])
