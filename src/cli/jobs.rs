@@ -44,7 +44,7 @@ pub fn job_of(command: &Command) -> Option<Job> {
 /// Parses a `lucent` command line (without the program name) into its job.
 pub fn parse_job(args: &[String]) -> anyhow::Result<Job> {
     let cli = Cli::try_parse_args(std::iter::once("lucent".to_string()).chain(args.iter().cloned()))?;
-    job_of(&cli.command).ok_or_else(|| anyhow::anyhow!("`lucent {}` is not a job of a pipeline stage", args.join(" ")))
+    job_of(&cli.command).ok_or_else(|| anyhow::anyhow!("`lucent {}` is not a command that runs as a job (`lucent job run` runs the stages' commands, surface fit and env merge, orient, fit-scale)", args.join(" ")))
 }
 
 /// Checks the job of a parsed command, if it has one (the flag is named).

@@ -144,7 +144,7 @@ fn override_pitch(map: &mut HeightMap, options: &ReadOptions, from: &str) {
         let py = options.pitch_y_m.unwrap_or(px);
         if (px - map.pitch_x_m).abs() > 1e-9 * px || (py - map.pitch_y_m).abs() > 1e-9 * py {
             map.notes.push(format!(
-                "pitch {:.6} × {:.6} µm from the command line replaces {:.6} × {:.6} µm of {from}",
+                "pitch {:.6} × {:.6} µm given (pitch_um) replaces {:.6} × {:.6} µm of {from}",
                 px * 1e6,
                 py * 1e6,
                 map.pitch_x_m * 1e6,
@@ -288,7 +288,7 @@ fn read_text(path: &Path, options: &ReadOptions) -> Result<HeightMap, SurfaceErr
     let (px, py) = header.pitch(nx, ny, options, &mut notes, path)?;
     let unit = match (options.height_unit, header.unit) {
         (Some(u), Some(h)) if u != h => {
-            notes.push(format!("height unit {u:?} from the command line replaces {h:?} of the header"));
+            notes.push(format!("height unit {u:?} given (height_unit) replaces {h:?} of the header"));
             u
         }
         (Some(u), _) => u,
@@ -398,7 +398,7 @@ impl TextHeader {
                 let py = options.pitch_y_m.unwrap_or(px);
                 if (px - hx).abs() > 1e-9 * px || (py - hy).abs() > 1e-9 * py {
                     notes.push(format!(
-                        "pitch {:.6} × {:.6} µm from the command line replaces {:.6} × {:.6} µm of the header",
+                        "pitch {:.6} × {:.6} µm given (pitch_um) replaces {:.6} × {:.6} µm of the header",
                         px * 1e6,
                         py * 1e6,
                         hx * 1e6,
