@@ -94,8 +94,7 @@ pub struct ColourCalibrateRun {
 /// assert_eq!("0.95".parse::<ClipLevel>().unwrap().level(), Some(0.95));
 /// assert!("-1".parse::<ClipLevel>().is_err());
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(try_from = "String", into = "String")]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ClipLevel {
     /// No check.
     None,
@@ -138,18 +137,7 @@ impl std::str::FromStr for ClipLevel {
     }
 }
 
-impl TryFrom<String> for ClipLevel {
-    type Error = BadClipLevel;
-    fn try_from(text: String) -> Result<Self, BadClipLevel> {
-        text.parse()
-    }
-}
-
-impl From<ClipLevel> for String {
-    fn from(c: ClipLevel) -> String {
-        c.to_string()
-    }
-}
+crate::text::serde_as_text!(ClipLevel);
 
 impl std::fmt::Display for ClipLevel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

@@ -211,8 +211,7 @@ fn job_difference(a: &Job, b: &Job) -> String {
 /// assert_eq!((s.k, s.n, s.to_string()), (2, 7, "2/7".to_string()));
 /// assert!("7/7".parse::<ShardSpec>().is_err());
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(try_from = "String", into = "String")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ShardSpec {
     /// This shard's index, 0 ≤ k < n.
     pub k: u32,
@@ -240,18 +239,7 @@ impl std::str::FromStr for ShardSpec {
     }
 }
 
-impl TryFrom<String> for ShardSpec {
-    type Error = ShardError;
-    fn try_from(spec: String) -> Result<Self, ShardError> {
-        spec.parse()
-    }
-}
-
-impl From<ShardSpec> for String {
-    fn from(s: ShardSpec) -> String {
-        s.to_string()
-    }
-}
+crate::text::serde_as_text!(ShardSpec);
 
 impl std::fmt::Display for ShardSpec {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
