@@ -124,6 +124,7 @@ fn data_loss_names_become_folders_only_after_validation_and_foreign_folders_are_
         vec!["compare", "--photo", p, "--render", p, "--out", w],
         vec!["env", "fit-scale", plaque.to_str().unwrap(), "--photo", p, "--out", w],
         vec!["env", "brackets", p, "--exposures", "1,2", "--out-dir", w],
+        vec!["report", project.to_str().unwrap(), "--run", out.to_str().unwrap(), "--out", w],
     ];
     for mut args in commands {
         if args[0] == "bssrdf" {

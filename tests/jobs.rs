@@ -1226,11 +1226,11 @@ fn job_run_of_surface_and_env_jobs_writes_what_their_commands_write() {
     assert!((yaw + 117.0).abs() < 0.05, "{orientation}");
 }
 
-/// tests/bad/job/: job files of the surface and env commands that are
+/// tests/bad/job/: job files of the surface, env and report jobs that are
 /// refused as the file is read, each naming the file and what is wrong
 /// (exit 1, nothing written).
 #[test]
-fn bad_surface_and_env_job_files_are_refused_naming_the_file() {
+fn bad_job_files_are_refused_naming_the_file() {
     let bad = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/bad/job");
     let cases = [
         ("env_merge_exposures.json", &["not a job of lucent", "\"-4\" is not a positive number or fraction"][..]),
@@ -1238,6 +1238,8 @@ fn bad_surface_and_env_job_files_are_refused_naming_the_file() {
         ("env_orient_yaw_and_view.json", &["--board-view 0,-90,100: give --yaw or --board-view, not both"][..]),
         ("env_orient_unknown_field.json", &["unknown field `yaw_deg`"][..]),
         ("surface_fit_window.json", &["--window 4: must be an odd number of pixels from 3 to 201"][..]),
+        ("report_into_stage.json", &["would be written into the render stage's folder", "nothing was written"][..]),
+        ("report_unknown_stage.json", &["not a job of lucent", "unknown variant `rendering`"][..]),
     ];
     let listed: Vec<String> = std::fs::read_dir(&bad)
         .unwrap()

@@ -318,6 +318,8 @@ fn project_runs_skips_reruns_fails_and_reports() {
     let (w, h, _) = read_channels(&out.join("render/IOL1068-09/render.exr"), &["R"]).unwrap();
     assert_eq!((w, h), (48, 36));
 
+    report_again_by_command_and_job(d, &project, &out);
+
     // 2. Nothing changed: every stage is skipped.
     let second = ok(&run(&[]));
     for s in ["optics", "bssrdf", "calibrate", "colour", "pose", "env-scale", "render", "compare", "report"] {
@@ -440,9 +442,14 @@ fn twins_share_one_scale_and_lead_the_report(d: &Path, project: &Path, out: &Pat
     for f in ["metrics.json", "triplet.png"] {
         std::fs::copy(twins.join(f), a_dir.join(f)).unwrap();
     }
-    let project = lucent::pipeline::project::Project::load(project).unwrap();
     let report = d.join("report-twins");
-    lucent::pipeline::report::write(&project, out, &report, &[]).unwrap();
+    let job = lucent::pipeline::report::ReportJob {
+        project: project.to_path_buf(),
+        run: out.to_path_buf(),
+        out: report.clone(),
+        stages: Default::default(),
+    };
+    job.run().unwrap();
     let index = report.join("index.html");
     let (console, dom) = chromium_at(&index, &shots.join("report-twins-1440.png"), "1440,900");
     assert!(console.is_empty(), "console messages: {console:?}");
@@ -522,18 +529,85 @@ fn project_syntax_errors_give_line_and_column() {
 }
 
 /// A project with one sample and a [bssrdf] stage, and its output folder
+/// The report stage's job run again from the command line (`lucent report`)
+/// and from a job file (`lucent job run`) writes the stage's report: the
+/// same page and numbers but for the table of how each stage ended, which
+/// only the run knows (the command reports the folders as they are; a job
+/// file may say it). The stage's manifest records the job's command.
+fn report_again_by_command_and_job(d: &Path, project: &Path, out: &Path) {
+    let man: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report/manifest.json")).unwrap()).unwrap();
+    let command: Vec<&str> = man["commands"][0].as_array().unwrap().iter().map(|w| w.as_str().unwrap()).collect();
+    let (p, o, r) = (project.to_str().unwrap(), out.to_str().unwrap(), out.join("report"));
+    assert_eq!(command, ["report", p, "--run", o, "--out", r.to_str().unwrap()], "{man}");
+    // Without the stages' table (and its numbers), one page.
+    let page = |dir: &Path| {
+        let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+        let start = html.find("<h2>Stages</h2>").expect("a table of stages");
+        let end = start + html[start..].find("</table>").unwrap();
+        let mut metrics: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("metrics.json")).unwrap()).unwrap();
+        let stages = metrics.as_object_mut().unwrap().remove("stages").unwrap();
+        (format!("{}{}", &html[..start], &html[end..]), metrics, stages, html[start..end].to_string())
+    };
+    let (html, metrics, _, _) = page(&r);
+    let again = d.join("report-again");
+    let o_cmd = ok(&lucent(&["report", p, "--run", o, "--out", again.to_str().unwrap()]));
+    assert!(o_cmd.contains("report: ") && o_cmd.contains("index.html"), "{o_cmd}");
+    let (html_cmd, metrics_cmd, stages_cmd, _) = page(&again);
+    assert!(html_cmd == html, "lucent report wrote another page");
+    assert_eq!(metrics_cmd, metrics);
+    assert_eq!(stages_cmd["optics"]["status"], "as in the run's folder (its manifest)", "{stages_cmd}");
+    assert_eq!(stages_cmd["fit"]["status"], "not run", "{stages_cmd}");
+    // A job file that says how the stages ended, as the run's table has them: the run's page and numbers.
+    let (_, _, run_stages, _) = page(&r);
+    let outcomes: serde_json::Map<String, serde_json::Value> = run_stages
+        .as_object()
+        .unwrap()
+        .iter()
+        .filter_map(|(stage, v)| {
+            let status = v["status"].as_str().unwrap();
+            let outcome = match status.strip_prefix("skipped: ") {
+                Some(reason) => serde_json::json!({ "skipped": reason }),
+                None if status == "ran" => serde_json::json!("ran"),
+                None if status.starts_with("up to date") => serde_json::json!("up-to-date"),
+                None => return None,
+            };
+            Some((stage.clone(), outcome))
+        })
+        .collect();
+    assert!(outcomes.len() >= 10, "{run_stages}");
+    let job = d.join("report-job.json");
+    let by_job = d.join("report-by-job");
+    let text = serde_json::json!({"report": {"project": p, "run": o, "out": by_job, "stages": outcomes}});
+    std::fs::write(&job, text.to_string()).unwrap();
+    ok(&lucent(&["job", "run", job.to_str().unwrap()]));
+    for f in ["index.html", "metrics.json"] {
+        let (a, b) = (std::fs::read(r.join(f)).unwrap(), std::fs::read(by_job.join(f)).unwrap());
+        assert!(a == b, "lucent job run of the report's job wrote another {f}");
+    }
+    // Outside a run's plan a stage's folder is not read: bssrdf "skipped" leaves its section out.
+    let skipped = d.join("report-skipped");
+    let text = serde_json::json!({"report": {"project": p, "run": o, "out": skipped,
+        "stages": {"optics": "ran", "bssrdf": {"skipped": "said so"}}}});
+    std::fs::write(&job, text.to_string()).unwrap();
+    ok(&lucent(&["job", "run", job.to_str().unwrap()]));
+    let (html_skipped, _, _, _) = page(&skipped);
+    assert!(html.contains("BSSRDF slices") && !html_skipped.contains("BSSRDF slices"), "the skipped stage is left out");
+}
+
 /// holding `summary` as the sample's BSSRDF summary.json.
-fn report_with_summary(dir: &Path, summary: &str) -> Result<String, lucent::pipeline::report::ReportError> {
+fn report_with_summary(dir: &Path, summary: &str) -> Result<String, lucent::pipeline::report::ReportJobError> {
     let recipe = root().join("fixtures/samples/IOL1068-09.toml");
     let text = format!("[bssrdf]\nconfigs = \"45/0\"\npaths = 10\n\n[[sample]]\nname = \"s\"\nrecipe = {recipe:?}\n");
     let p = dir.join("p.toml");
     std::fs::write(&p, text).unwrap();
-    let project = lucent::pipeline::project::Project::load(&p).unwrap();
     let out = dir.join("out");
     std::fs::create_dir_all(out.join("bssrdf/s")).unwrap();
     std::fs::write(out.join("bssrdf/s/summary.json"), summary).unwrap();
     let report = out.join("report");
-    lucent::pipeline::report::write(&project, &out, &report, &[])?;
+    lucent::pipeline::report::ReportJob { project: p, run: out, out: report.clone(), stages: Default::default() }
+        .run()?;
     Ok(std::fs::read_to_string(report.join("index.html")).unwrap())
 }
 
@@ -555,7 +629,7 @@ const OLD_SUMMARY: &str = r#"{
 /// "—"); one missing a field fails with an error naming the file and field.
 #[test]
 fn report_reads_summaries_typed_and_names_a_missing_field() {
-    use lucent::pipeline::report::ReportError;
+    use lucent::pipeline::report::{ReportError, ReportJobError};
     let tmp = tempfile::tempdir().unwrap();
     let html = report_with_summary(tmp.path(), OLD_SUMMARY).unwrap();
     assert!(html.contains("1.2346e2 ± 1.5000e0") && html.contains("<td>10000</td>"), "{html}");
@@ -566,7 +640,7 @@ fn report_reads_summaries_typed_and_names_a_missing_field() {
     let tmp = tempfile::tempdir().unwrap();
     let broken = OLD_SUMMARY.replace("\"sum\": 123.456, ", "");
     let e = report_with_summary(tmp.path(), &broken).unwrap_err();
-    let ReportError::Format { path, source, .. } = &e else { panic!("{e:?}") };
+    let ReportJobError::Report(ReportError::Format { path, source, .. }) = &e else { panic!("{e:?}") };
     assert!(path.ends_with("bssrdf/s/summary.json"), "{}", path.display());
     assert!(source.is_data(), "{source}");
     let text = e.to_string();

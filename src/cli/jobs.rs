@@ -14,6 +14,7 @@ use crate::job::{
     BssrdfCompareJob, BssrdfJob, CalibrateJob, ColourApplyJob, ColourCalibrateJob, CompareJob, Context, EnvMergeJob,
     EnvOrientJob, EnvScaleJob, FitJob, Job, JobError, OpticsJob, PoseJob, RawClippedJob, RenderJob, SurfaceFitJob,
 };
+use crate::pipeline::report::ReportJob;
 
 /// The job of a parsed command, when it has one: a pipeline stage's (a
 /// `bssrdf` run needs a `--recipe` to be one), or `surface fit`'s, `env
@@ -432,23 +433,68 @@ pub enum JobFileError {
     Placeholder { path: std::path::PathBuf },
     #[error("{path}: {source}")]
     Invalid { path: std::path::PathBuf, source: JobError },
+    #[error("{path}: {source}")]
+    Report { path: std::path::PathBuf, source: crate::pipeline::report::ReportJobError },
+}
+
+/// What a job file holds: a stage's or a command's job, or the report's
+/// (`{"report": {"project": …, "run": …, "out": …}}`, which reads the whole
+/// run and so lives with the pipeline, [`ReportJob`]).
+#[derive(Debug)]
+pub enum JobFile {
+    Job(Box<Job>),
+    Report(ReportJob),
+}
+
+/// A report job as its file holds it.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ReportJobFile {
+    report: ReportJob,
 }
 
 /// Reads and checks a job file.
-pub fn read_job(path: &std::path::Path) -> Result<Job, JobFileError> {
+pub fn read_job(path: &std::path::Path) -> Result<JobFile, JobFileError> {
     let text = crate::io::read_text(path).map_err(|source| JobFileError::Read { path: path.to_path_buf(), source })?;
-    let job: Job =
-        serde_json::from_str(&text).map_err(|source| JobFileError::Parse { path: path.to_path_buf(), source })?;
-    if serde_json::to_string(&job).is_ok_and(|t| t.contains("{out}")) {
+    let parse = |source| JobFileError::Parse { path: path.to_path_buf(), source };
+    let is_report = serde_json::from_str::<serde_json::Value>(&text)
+        .is_ok_and(|v| v.as_object().is_some_and(|o| o.len() == 1 && o.contains_key("report")));
+    let job = if is_report {
+        JobFile::Report(serde_json::from_str::<ReportJobFile>(&text).map_err(parse)?.report)
+    } else {
+        JobFile::Job(Box::new(serde_json::from_str(&text).map_err(parse)?))
+    };
+    let placeholder = match &job {
+        JobFile::Job(j) => serde_json::to_string(j),
+        JobFile::Report(j) => serde_json::to_string(j),
+    };
+    if placeholder.is_ok_and(|t| t.contains("{out}")) {
         return Err(JobFileError::Placeholder { path: path.to_path_buf() });
     }
-    job.validate().map_err(|source| JobFileError::Invalid { path: path.to_path_buf(), source })?;
+    match &job {
+        JobFile::Job(j) => j.validate().map_err(|source| JobFileError::Invalid { path: path.to_path_buf(), source })?,
+        JobFile::Report(j) => {
+            j.validate().map_err(|source| JobFileError::Report { path: path.to_path_buf(), source })?
+        }
+    }
     Ok(job)
+}
+
+/// Runs a report job as `lucent report` does: the report written, its
+/// files printed.
+pub fn run_report(job: &ReportJob) -> anyhow::Result<()> {
+    let files = job.run()?;
+    println!("report: {}", files.html.display());
+    println!("metrics: {}", files.metrics.display());
+    Ok(())
 }
 
 /// Runs `lucent job …`.
 pub fn run_command(c: JobCommand) -> anyhow::Result<()> {
     match c {
-        JobCommand::Run(a) => run_in_process(&read_job(&a.job)?),
+        JobCommand::Run(a) => match read_job(&a.job)? {
+            JobFile::Job(job) => run_in_process(&job),
+            JobFile::Report(job) => run_report(&job),
+        },
     }
 }

@@ -21,6 +21,7 @@ pub use crate::interrupt;
 pub mod jobs;
 pub mod raw_clip;
 pub mod render;
+pub mod report;
 pub mod run;
 pub mod shard;
 pub mod surface;
@@ -113,6 +114,8 @@ pub enum Command {
     Fit(fit::FitArgs),
     /// The whole digitisation from one project file: stages in order, unchanged ones skipped, report/index.html.
     Run(run::RunArgs),
+    /// The report of a run's folder (report/index.html, metrics.json), as `lucent run`'s last stage writes it.
+    Report(report::ReportArgs),
     /// Merge the shards of a render, bssrdf or optics --uncertainty run (each made with --shard K/N) into the run's outputs.
     Merge(shard::MergeArgs),
     /// Jobs of pipeline stages as JSON files: `lucent job run JOB.json` runs one as its command would.
@@ -389,6 +392,7 @@ fn dispatch(cli: Cli) -> Result<()> {
         Command::Env(c) => camera::run_env(c),
         Command::Compare(a) => compare::run(a),
         Command::Run(a) => run::run(a),
+        Command::Report(a) => report::run(a),
         Command::Fit(a) => fit::run(a),
         Command::Synth(c) => synth::run(c),
         Command::Merge(a) => merge(a),

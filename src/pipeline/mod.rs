@@ -76,7 +76,7 @@ use std::time::Instant;
 use thiserror::Error;
 
 /// The stages, in the order they run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Stage {
     Optics,
@@ -170,7 +170,8 @@ pub enum Task {
     /// [`Job::with_out`]); manifest.json records it as its command line
     /// ([`Job::to_args`]).
     Lucent { label: String, files: Vec<(String, String)>, job: Job },
-    /// Write the report (in process).
+    /// Write the report: the stage's [`report::ReportJob`], made when the
+    /// stage runs (it carries how the stages before it ended).
     Report,
 }
 
@@ -423,7 +424,7 @@ pub enum TaskError {
     #[error("{label}: {source}")]
     Command { label: String, source: Box<dyn std::error::Error + Send + Sync> },
     #[error(transparent)]
-    Report(#[from] report::ReportError),
+    Report(#[from] report::ReportJobError),
 }
 
 /// Options of a run.
@@ -1624,8 +1625,14 @@ fn run_tasks(
                 })
             }
             Task::Report => {
-                commands.push(vec!["(report, in process)".into()]);
-                report::write(project, out, dir, done).map_err(TaskError::from)
+                let job = report::ReportJob {
+                    project: project.path.clone(),
+                    run: out.to_path_buf(),
+                    out: dir.to_path_buf(),
+                    stages: report::outcomes(done),
+                };
+                commands.push(job.to_args());
+                job.run_on(project).map(|_| ()).map_err(TaskError::from)
             }
         };
         if r.is_err() {

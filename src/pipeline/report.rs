@@ -43,6 +43,7 @@ use crate::bssrdf::{ComparisonFiles, SliceFiles};
 use crate::compare::CompareFiles;
 use crate::envfit::EnvScaleFiles;
 use crate::fit::report::FitFiles;
+use crate::job::guard::OutputFolder;
 use crate::job::report::{slug, table, to_value, Metrics, Page, ReportSection, SectionContext};
 use crate::job::{
     read_spectra, BssrdfConfigFiles, BssrdfSection, CalibrateSection, ColourCamera, ColourSection, CompareSection,
@@ -52,7 +53,9 @@ use crate::optics::output::{OpticalProperties, OpticsFiles};
 use crate::scene::RenderFiles;
 use lucent_calib::calibrate::CalibrationFiles;
 use lucent_calib::scene::PoseFiles;
+use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -62,15 +65,152 @@ pub use crate::job::verdict_sentence;
 /// The folder of `stage` under `out` when it is in this run's plan (ran or
 /// up to date); else a path that does not exist, so a folder left by an
 /// earlier project, or an earlier version of this one, is not reported.
-/// Without statuses (`done` empty: a report of a folder, not of a run) every
-/// stage's folder.
-fn stage_folder(out: &Path, done: &[(Stage, Status)], stage: Stage) -> PathBuf {
-    if done.is_empty() {
+/// Without outcomes (`stages` empty: a report of a folder, not of a run)
+/// every stage's folder.
+fn stage_folder(out: &Path, stages: &StageOutcomes, stage: Stage) -> PathBuf {
+    if stages.is_empty() {
         return out.join(stage.name());
     }
-    match done.iter().find(|(s, _)| *s == stage).map(|(_, st)| st) {
-        Some(Status::Ran { .. } | Status::UpToDate) => out.join(stage.name()),
+    match stages.get(&stage) {
+        Some(StageOutcome::Ran | StageOutcome::UpToDate) => out.join(stage.name()),
         _ => out.join(format!(".{}.not-in-this-plan", stage.name())),
+    }
+}
+
+/// How a stage ended in the run whose report it is, as the report's table
+/// of stages says it ([`Status`] without its times: the report stage's key
+/// does not hash it, so a rerun where every stage is up to date keeps the
+/// report of the run that made it).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+pub enum StageOutcome {
+    Ran,
+    UpToDate,
+    /// Skipped, and why.
+    Skipped(String),
+    /// Its tasks were written as batch jobs and have not run yet.
+    Deferred {
+        tasks: usize,
+    },
+    Running,
+}
+
+impl StageOutcome {
+    /// The outcome of a stage that ended with `status`.
+    pub fn of(status: &Status) -> Self {
+        match status {
+            Status::Ran { .. } => StageOutcome::Ran,
+            Status::UpToDate => StageOutcome::UpToDate,
+            Status::Skipped { reason } => StageOutcome::Skipped(reason.to_string()),
+            Status::Deferred { tasks } => StageOutcome::Deferred { tasks: *tasks },
+            Status::Started { .. } => StageOutcome::Running,
+        }
+    }
+
+    /// The words of the report's table of stages.
+    fn text(&self) -> String {
+        match self {
+            StageOutcome::Ran => "ran".into(),
+            StageOutcome::UpToDate => "up to date (inputs unchanged)".into(),
+            StageOutcome::Skipped(reason) => format!("skipped: {reason}"),
+            StageOutcome::Deferred { tasks } => format!("{tasks} task(s) written as batch jobs, not yet run"),
+            StageOutcome::Running => "running".into(),
+        }
+    }
+}
+
+/// Every stage's outcome in the run whose report it is (in the stages' order).
+pub type StageOutcomes = BTreeMap<Stage, StageOutcome>;
+
+/// The outcomes of a run's stages as [`crate::pipeline::run`] returns them.
+pub fn outcomes(done: &[(Stage, Status)]) -> StageOutcomes {
+    done.iter().map(|(s, st)| (*s, StageOutcome::of(st))).collect()
+}
+
+/// The report stage's job: the report of the run in `run` (the stage
+/// folders' parent) for `project`, written into `out` (`run/report` in
+/// `lucent run`). `stages` says how each stage ended in that run; without
+/// it (`lucent report`, a job file that leaves it out) every stage folder
+/// in `run` is reported as it is. [`ReportJob::run`] writes
+/// [`ReportFiles`]; the pipeline's report stage runs the same job
+/// ([`ReportJob::run_on`] with the project it has loaded).
+///
+/// ```
+/// use lucent::pipeline::report::ReportJob;
+/// let job: ReportJob = serde_json::from_str(
+///     r#"{"project": "demo/project.toml", "run": "lucent-out/demo", "out": "lucent-out/demo/report"}"#,
+/// ).unwrap();
+/// assert!(job.stages.is_empty());
+/// assert_eq!(job.to_args(), ["report", "demo/project.toml", "--run", "lucent-out/demo", "--out", "lucent-out/demo/report"]);
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReportJob {
+    /// The project file.
+    pub project: PathBuf,
+    /// The run's output folder (the parent of its stage folders).
+    pub run: PathBuf,
+    /// The report's folder.
+    pub out: PathBuf,
+    /// How each stage ended in the run; empty: every stage folder as it is.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub stages: StageOutcomes,
+}
+
+/// Why a report job did not write its report.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportJobError {
+    #[error(transparent)]
+    Project(#[from] super::project::ProjectError),
+    #[error("{}: the report would be written into the {stage} stage's folder {}: give the report its own folder (nothing was written)", out.display(), folder.display())]
+    IntoStage { out: PathBuf, stage: &'static str, folder: PathBuf },
+    #[error(transparent)]
+    Folder(#[from] crate::io::OutputFolderError),
+    #[error(transparent)]
+    Mark(#[from] crate::io::WriteError),
+    #[error(transparent)]
+    Report(#[from] ReportError),
+}
+
+impl ReportJob {
+    /// The job's command line (`lucent report …`), as a stage's manifest records it.
+    pub fn to_args(&self) -> Vec<String> {
+        let s = |p: &Path| p.display().to_string();
+        vec!["report".into(), s(&self.project), "--run".into(), s(&self.run), "--out".into(), s(&self.out)]
+    }
+
+    /// The report folder is neither the run's folder nor a stage's (it
+    /// would mix its files with theirs).
+    pub fn validate(&self) -> Result<(), ReportJobError> {
+        let key = crate::io::file_key;
+        let out = key(&self.out);
+        let stages = Stage::ALL.iter().filter(|s| **s != Stage::Report);
+        for (name, folder) in
+            std::iter::once(("run", self.run.clone())).chain(stages.map(|s| (s.name(), self.run.join(s.name()))))
+        {
+            if out == key(&folder) {
+                return Err(ReportJobError::IntoStage { out: self.out.clone(), stage: name, folder });
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads the project and writes the report ([`ReportJob::run_on`]).
+    pub fn run(&self) -> Result<ReportFiles, ReportJobError> {
+        self.validate()?;
+        let project = Project::load(&self.project)?;
+        self.run_on(&project)
+    }
+
+    /// Writes the report of `project` (the job's project, as loaded) into
+    /// the job's folder: refused before any work when the folder is the
+    /// user's, marked as lucent's when written.
+    pub fn run_on(&self, project: &Project) -> Result<ReportFiles, ReportJobError> {
+        self.validate()?;
+        let folder = OutputFolder::open(Some(&self.out))?;
+        let written = write(project, &self.run, &self.out, &self.stages);
+        folder.close(written.is_ok(), false)?;
+        Ok(written?)
     }
 }
 
@@ -103,24 +243,25 @@ impl ReportFiles {
 /// Writes index.html and metrics.json into `dir` (the report stage's
 /// folder): the answer per sample, the stages, each sample's sections, the
 /// calibration sections and the manifests, each from its stage's files.
-pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]) -> Result<(), ReportError> {
+pub fn write(project: &Project, out: &Path, dir: &Path, stages: &StageOutcomes) -> Result<ReportFiles, ReportError> {
     let mut page = Page::new(dir.join("img"));
-    let folder = |s: Stage| stage_folder(out, done, s);
+    let folder = |s: Stage| stage_folder(out, stages, s);
     let mut manifests: Vec<(Stage, Manifest)> = Vec::new();
-    for s in Stage::ALL {
+    // The stages the report is of (its own folder's manifest is written after it).
+    for s in Stage::ALL.into_iter().filter(|s| *s != Stage::Report) {
         if let Some(m) = read_json(&StageFiles::in_dir(&folder(s)).manifest, "a stage manifest")? {
             manifests.push((s, m));
         }
     }
     let mut metrics = Metrics::new();
     let mut html = project_heading(project, &mut metrics);
-    let stages = stages_section(done, &manifests, &mut metrics);
+    let stage_table = stages_section(stages, &manifests, &mut metrics);
     // The answer, per sample, before any detail.
     for smp in &project.file.sample {
         let render = RenderFiles::in_dir(&folder(Stage::Render).join(&smp.name));
         html.push_str(&compare_section(smp, &folder, &render).answer(&mut page)?);
     }
-    html.push_str(&stages);
+    html.push_str(&stage_table);
     let all_spectra = read_spectra(&OpticsFiles::in_dir(&folder(Stage::Optics)))?;
     let mut samples = Metrics::new();
     for smp in &project.file.sample {
@@ -139,7 +280,7 @@ pub fn write(project: &Project, out: &Path, dir: &Path, done: &[(Stage, Status)]
     let files = ReportFiles::in_dir(dir);
     crate::io::write_json(&files.metrics, &Value::Object(metrics))?;
     crate::io::write_atomic(&files.html, html.as_bytes())?;
-    Ok(())
+    Ok(files)
 }
 
 /// The page's heading (project, version, project file, seed), the same in
@@ -266,21 +407,17 @@ fn calibration_sections(
     Ok(h)
 }
 
-/// The stages' table: each stage's status in the run that made the report
-/// (`done`) and its wall time from its manifest.
-fn stages_section(done: &[(Stage, Status)], manifests: &[(Stage, Manifest)], metrics: &mut Metrics) -> String {
+/// The stages' table: each stage's outcome in the run that made the report
+/// (`stages`) and its wall time from its manifest.
+fn stages_section(stages: &StageOutcomes, manifests: &[(Stage, Manifest)], metrics: &mut Metrics) -> String {
     let mut rows = Vec::new();
     let mut stage_json = serde_json::Map::new();
     for s in Stage::ALL.iter().filter(|s| **s != Stage::Report) {
-        let status = done.iter().find(|(d, _)| d == s).map(|(_, st)| st.clone());
         let m = manifests.iter().find(|(d, _)| d == s).map(|(_, m)| m);
-        let text = match &status {
-            Some(Status::Ran { .. }) => "ran".to_string(),
-            Some(Status::UpToDate) => "up to date (inputs unchanged)".to_string(),
-            Some(Status::Skipped { reason }) => format!("skipped: {reason}"),
-            Some(Status::Deferred { tasks }) => format!("{tasks} task(s) written as batch jobs, not yet run"),
-            Some(Status::Started { .. }) => "running".to_string(),
-            None => "not run".to_string(),
+        let text = match (stages.get(s), m) {
+            (Some(outcome), _) => outcome.text(),
+            (None, Some(_)) if stages.is_empty() => "as in the run's folder (its manifest)".to_string(),
+            (None, _) => "not run".to_string(),
         };
         let wall = m.map(|m| format!("{:.2} s", m.wall_s)).unwrap_or_else(|| "—".into());
         rows.push(vec![s.name().to_string(), text.clone(), wall]);
