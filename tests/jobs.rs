@@ -60,7 +60,7 @@ fn jobs() -> Vec<Job> {
             pixel_rel_error: Some(0.05),
             estimator: lucent::job::EstimatorChoice::Lobe,
             lobe_vertices: 8,
-            roughness: Some("tr:0.01".into()),
+            roughness: Some("tr:0.01".parse().unwrap()),
             no_fold: true,
             uncertainty: true,
             shard: Some(lucent::job::shard::ShardSpec { k: 1, n: 4 }),
@@ -1238,6 +1238,10 @@ fn bad_surface_and_env_job_files_are_refused_naming_the_file() {
         ("env_orient_yaw_and_view.json", &["--board-view 0,-90,100: give --yaw or --board-view, not both"][..]),
         ("env_orient_unknown_field.json", &["unknown field `yaw_deg`"][..]),
         ("surface_fit_window.json", &["--window 4: must be an odd number of pixels from 3 to 201"][..]),
+        (
+            "bssrdf_roughness.json",
+            &["not a job of lucent", "roughness \"tr:9\": α = 9 must be a number in [0, 4]", "measured:FIT.json"][..],
+        ),
     ];
     let listed: Vec<String> = std::fs::read_dir(&bad)
         .unwrap()
