@@ -733,8 +733,8 @@ fn stages_run_in_process_without_the_binary_on_disk() {
     let o = child.wait_with_output().unwrap();
     let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
     assert!(o.status.success(), "{out}\n{err}");
-    assert!(out.contains("[1/11] optics     ran 1 task"), "{out}");
-    assert!(err.contains("[1/11] optics …"), "{err}");
+    assert!(out.contains("[1/12] optics     ran 1 task"), "{out}");
+    assert!(err.contains("[1/12] optics …"), "{err}");
     let log = std::fs::read_to_string(d.join("o/optics/log.txt")).unwrap();
     assert!(log.starts_with("$ lucent optics "), "{log}");
     assert!(log.contains("μs [1/m]"), "the command's table goes to the log: {log}");
