@@ -496,12 +496,13 @@ pub enum ComparisonError {
     NoPositiveMeasured,
 }
 
-/// A `--roughness` value that cannot be used.
+/// A top boundary (`--roughness`, a job's `roughness`) that cannot be used;
+/// its text is parsed with the flag ([`RoughnessSpec`]), so what is left is
+/// what only reading its files or building the boundary finds.
 #[derive(Debug, thiserror::Error)]
 pub enum RoughnessError {
-    #[error(
-        "--roughness {text:?}: {problem} (expected smooth, tr:ALPHA, ggx:ALPHA, beckmann:ALPHA or measured:FIT.json)"
-    )]
+    /// The boundary cannot be built from the distribution (the recipe's `[surface]` or `--roughness`).
+    #[error("--roughness {text:?}: {problem} (expected {})", crate::surface::model::ROUGHNESS_WORDS)]
     Syntax { text: String, problem: RoughnessSyntax },
     #[error("--roughness {text:?}: {source}")]
     Surface { text: String, source: Box<crate::surface::SurfaceError> },
@@ -532,7 +533,7 @@ pub fn paths_problem(n: u64) -> Option<String> {
     }
 }
 
-pub use crate::surface::model::RoughnessSyntax;
+pub use crate::surface::model::{RoughnessSpec, RoughnessSyntax};
 
 /// A `normals.exr` (of `lucent surface fit`) that cannot be used as a
 /// measured normal set; every variant names the file.
@@ -549,13 +550,13 @@ pub enum NormalsError {
     Set { path: PathBuf, source: lucent_render::microfacet::MicrofacetError },
 }
 
-/// The top boundary of `--roughness TEXT` (or, without it, of the recipe's
+/// The top boundary of `--roughness` (`spec`; without it, of the recipe's
 /// `[surface]`, else smooth) and a description for the summary:
 ///
 /// * `smooth`;
 /// * `tr:ALPHA` (also `ggx:`, `trowbridge-reitz:`) or `beckmann:ALPHA`:
-///   the analytic distribution with roughness α (0 ≤ α ≤ 4; below 10⁻⁴ the
-///   boundary is smooth);
+///   the analytic distribution with roughness α (0 ≤ α ≤ 4, checked when
+///   the text is read; below 10⁻⁴ the boundary is smooth);
 /// * `measured:FIT.json`: the measured normal set of a `lucent surface fit`
 ///   run — `normals.exr` beside its `fit.json` (the fit's schema is
 ///   checked) — as a kernel density estimate of the slopes
@@ -565,10 +566,9 @@ pub enum NormalsError {
 /// The recipe's `[surface]` gives its model and α; its fitted scale factor
 /// is not used (the distributions are normalised).
 pub fn roughness(
-    text: Option<&str>,
+    spec: Option<&RoughnessSpec>,
     recipe_surface: Option<&crate::optics::recipe::Surface>,
 ) -> Result<(Interface, String), RoughnessError> {
-    use crate::surface::model::RoughnessSpec;
     use lucent_render::microfacet::{Distribution, MeasuredNormals, Microsurface};
     let analytic = |d: Distribution, origin: &str, text: &str| -> Result<(Interface, String), RoughnessError> {
         let boundary = Interface::new(Microsurface::Analytic(d))
@@ -580,25 +580,24 @@ pub fn roughness(
         Some(s) => analytic(s.model.distribution(s.alpha), "the recipe's [surface]", "recipe"),
         None => Ok((Interface::Smooth, "smooth".into())),
     };
-    let Some(text) = text else {
+    let Some(spec) = spec else {
         return from_recipe();
     };
-    let syntax = |problem: RoughnessSyntax| RoughnessError::Syntax { text: text.into(), problem };
-    match text.parse::<RoughnessSpec>().map_err(syntax)? {
+    let text = spec.to_string();
+    match spec {
         RoughnessSpec::Recipe => from_recipe(),
         RoughnessSpec::Smooth => Ok((Interface::Smooth, "smooth (--roughness)".into())),
-        RoughnessSpec::Analytic { alpha, .. } if alpha > 4.0 => Err(syntax(RoughnessSyntax::Alpha(alpha))),
-        RoughnessSpec::Analytic { model, alpha } => analytic(model.distribution(alpha), "--roughness", text),
+        RoughnessSpec::Analytic { model, alpha } => analytic(model.distribution(*alpha), "--roughness", &text),
         RoughnessSpec::Measured(path) => {
             let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
             let normals_path = if is_exr {
                 path.clone()
             } else {
-                crate::surface::load_fit_choice(&path, None)
-                    .map_err(|e| RoughnessError::Surface { text: text.into(), source: Box::new(e) })?;
+                crate::surface::load_fit_choice(path, None)
+                    .map_err(|e| RoughnessError::Surface { text: text.clone(), source: Box::new(e) })?;
                 path.parent().unwrap_or(Path::new(".")).join(crate::surface::OUTPUT_FILES[3])
             };
-            let normals_err = |source| RoughnessError::Normals { text: text.into(), source };
+            let normals_err = |source| RoughnessError::Normals { text: text.clone(), source };
             let normals = read_normals(&normals_path).map_err(normals_err)?;
             let set = MeasuredNormals::new(&normals, None)
                 .map_err(|source| normals_err(NormalsError::Set { path: normals_path.clone(), source }))?;

@@ -447,9 +447,10 @@ pub struct BssrdfJob {
     /// `--lobe-vertices`: camera-side vertices of the lobe connection's chains.
     #[serde(default = "slab_defaults::lobe_vertices", skip_serializing_if = "slab_defaults::is_lobe_vertices")]
     pub lobe_vertices: u8,
-    /// `--roughness`: the top boundary (default: the recipe's surface, else smooth).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub roughness: Option<String>,
+    /// `--roughness`: the top boundary (default: the recipe's surface, else
+    /// smooth), written as the flag's text.
+    #[serde(default, skip_serializing_if = "Option::is_none", deserialize_with = "roughness_field")]
+    pub roughness: Option<crate::bssrdf::RoughnessSpec>,
     /// `--no-fold`: do not fold the slice about the plane of incidence.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub no_fold: bool,
@@ -459,6 +460,13 @@ pub struct BssrdfJob {
     /// `--shard K/N`: only the K-th of N ranges of the path batches, as a shard.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shard: Option<shard::ShardSpec>,
+}
+
+/// A job file's `roughness`, read as `--roughness` reads it; a bad text's
+/// message names the field and the valid words.
+fn roughness_field<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<crate::bssrdf::RoughnessSpec>, D::Error> {
+    let text = String::deserialize(d)?;
+    text.parse().map(Some).map_err(|e| serde::de::Error::custom(format!("roughness {e}")))
 }
 
 /// The defaults of a slab job's fields that a job.json leaves out.

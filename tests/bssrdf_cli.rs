@@ -262,25 +262,34 @@ fn ring_runs_stop_on_the_per_pixel_error() {
 }
 
 /// The bad `--roughness` values of tests/bad/bssrdf/README.md: a clear
-/// error naming the value and the problem, non-zero exit, nothing written.
+/// error naming the flag, the value and the problem, non-zero exit (2, the
+/// usage error, for a text that is not a roughness: refused as the flags are
+/// read), nothing written.
 #[test]
 fn bad_roughness_gives_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("rough");
+    let words = "recipe, smooth, tr:ALPHA (ggx:ALPHA), beckmann:ALPHA or measured:FIT.json";
     let cases = [
-        ("tr:abc", "\"abc\" is not a number"),
-        ("beckmann:-1", "α = -1"),
-        ("tr:nan", "[0, 4]"),
-        ("glossy:0.1", "unknown model \"glossy\""),
-        ("0.01", "MODEL:VALUE"),
-        ("measured:tests/bad/bssrdf/wrong_schema_fit.json", "schema"),
-        ("measured:tests/bad/bssrdf/missing/fit.json", "cannot read"),
+        ("tr:abc", "\"abc\" is not a number", Some(2)),
+        ("beckmann:-1", "α = -1", Some(2)),
+        ("tr:nan", "[0, 4]", Some(2)),
+        ("ggx:4.5", "[0, 4]", Some(2)),
+        ("glossy:0.1", "unknown model \"glossy\"", Some(2)),
+        ("0.01", "MODEL:VALUE", Some(2)),
+        ("measured:", "names no file", Some(2)),
+        ("measured:tests/bad/bssrdf/wrong_schema_fit.json", "schema", None),
+        ("measured:tests/bad/bssrdf/missing/fit.json", "cannot read", None),
     ];
-    for (value, key) in cases {
+    for (value, key, code) in cases {
         let o = run_thin(&out, &["--roughness", value, "--paths", "100"]);
         let e = stderr(&o);
         assert!(!o.status.success(), "{value} accepted");
         assert!(e.contains(key) && e.contains("--roughness"), "{value}: {e}");
+        if let Some(code) = code {
+            assert_eq!(o.status.code(), Some(code), "{value}: {e}");
+            assert!(e.contains(words), "{value}: the valid words: {e}");
+        }
         assert!(!e.contains("panicked"), "{value}: {e}");
         assert!(!out.exists(), "{value}: output written");
     }
@@ -368,15 +377,13 @@ fn a_second_ctrl_c_aborts_and_removes_the_staging_folder() {
     assert_eq!(left, vec!["notes.txt".to_string()], "the staging folder and the new --out must be gone");
 }
 
-/// `--roughness` errors as variants: the syntax problem, and a measured
-/// normal set that cannot be used, named once with its file.
+/// `--roughness` errors as variants: the syntax problem (as the text is
+/// read), and a measured normal set that cannot be used, named once with
+/// its file.
 #[test]
 fn roughness_errors_are_typed() {
-    use lucent::bssrdf::{roughness, NormalsError, RoughnessError, RoughnessSyntax};
-    let syntax = |text: &str| match roughness(Some(text), None) {
-        Err(RoughnessError::Syntax { problem, .. }) => problem,
-        other => panic!("{text}: {other:?}"),
-    };
+    use lucent::bssrdf::{roughness, NormalsError, RoughnessError, RoughnessSpec, RoughnessSyntax};
+    let syntax = |text: &str| text.parse::<RoughnessSpec>().unwrap_err().problem;
     assert_eq!(syntax("tr:abc"), RoughnessSyntax::NotANumber("abc".into()));
     assert_eq!(syntax("beckmann:-1"), RoughnessSyntax::Alpha(-1.0));
     assert_eq!(syntax("glossy:0.1"), RoughnessSyntax::UnknownModel("glossy".into()));
@@ -384,7 +391,8 @@ fn roughness_errors_are_typed() {
 
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("normals.exr");
-    let normals = |path: &Path| match roughness(Some(&format!("measured:{}", path.display())), None) {
+    let measured = |path: &Path| RoughnessSpec::Measured(path.to_path_buf());
+    let normals = |path: &Path| match roughness(Some(&measured(path)), None) {
         Err(RoughnessError::Normals { source, .. }) => source,
         other => panic!("{}: {other:?}", path.display()),
     };
@@ -401,7 +409,7 @@ fn roughness_errors_are_typed() {
     assert!(matches!(e, NormalsError::NotUnit { column: 1, row: 0, value: [0.0, 0.0, 2.0], .. }), "{e:?}");
     // A missing file: its name once, in the image reader's message.
     let missing = dir.path().join("nope.exr");
-    let e = roughness(Some(&format!("measured:{}", missing.display())), None).unwrap_err();
+    let e = roughness(Some(&measured(&missing)), None).unwrap_err();
     assert!(matches!(&e, RoughnessError::Normals { source: NormalsError::Read(_), .. }), "{e:?}");
     assert_eq!(e.to_string().matches("nope.exr").count(), 2, "the value and the file: {e}");
 }

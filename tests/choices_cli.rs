@@ -52,7 +52,7 @@ fn bad_words_get_the_list_of_choices_and_exit_2() {
     refused(&["surface", "synth", "--alpha", "0.1", "--out", "s.x3p"], "--model", "tr, beckmann");
     refused(&["surface", "synth", "--model", "tr", "--alpha", "0.1", "--out", "s.x3p"], "--point-type", "I, L, F, D");
     refused(&["synth", "raw", "a.exr", "b.dng", "--truth", "t.json"], "--space", "cie-rgb, xyz-d50");
-    let stages = "optics, bssrdf, fit, calibrate, colour, develop, pose, env-scale, render, compare, report";
+    let stages = "optics, surface, bssrdf, fit, calibrate, colour, develop, pose, env-scale, render, compare, report";
     refused(&["run", "p.toml"], "--until", stages);
     refused(&["run", "p.toml"], "--force", &format!("all, {stages}"));
 }

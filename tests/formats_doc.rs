@@ -146,6 +146,8 @@ const PROJECT: &str = r#"{top}
 {project}
 [optics]
 {optics}
+[surface]
+{surface}
 [bssrdf]
 {bssrdf}
 [calibration]
@@ -202,6 +204,7 @@ const PROBES: &[(Format, &str, &str, &str)] = &[
     (Format::Project, PROJECT, "top", "top"),
     (Format::Project, PROJECT, "project", "[project]"),
     (Format::Project, PROJECT, "optics", "[optics]"),
+    (Format::Project, PROJECT, "surface", "[surface]"),
     (Format::Project, PROJECT, "bssrdf", "[bssrdf]"),
     (Format::Project, PROJECT, "calibration", "[calibration]"),
     (Format::Project, PROJECT, "colour", "[[colour]]"),

@@ -60,7 +60,7 @@ fn jobs() -> Vec<Job> {
             pixel_rel_error: Some(0.05),
             estimator: lucent::job::EstimatorChoice::Lobe,
             lobe_vertices: 8,
-            roughness: Some("tr:0.01".into()),
+            roughness: Some("tr:0.01".parse().unwrap()),
             no_fold: true,
             uncertainty: true,
             shard: Some(lucent::job::shard::ShardSpec { k: 1, n: 4 }),
@@ -733,8 +733,8 @@ fn stages_run_in_process_without_the_binary_on_disk() {
     let o = child.wait_with_output().unwrap();
     let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
     assert!(o.status.success(), "{out}\n{err}");
-    assert!(out.contains("[1/11] optics     ran 1 task"), "{out}");
-    assert!(err.contains("[1/11] optics …"), "{err}");
+    assert!(out.contains("[1/12] optics     ran 1 task"), "{out}");
+    assert!(err.contains("[1/12] optics …"), "{err}");
     let log = std::fs::read_to_string(d.join("o/optics/log.txt")).unwrap();
     assert!(log.starts_with("$ lucent optics "), "{log}");
     assert!(log.contains("μs [1/m]"), "the command's table goes to the log: {log}");
@@ -1240,6 +1240,10 @@ fn bad_job_files_are_refused_naming_the_file() {
         ("surface_fit_window.json", &["--window 4: must be an odd number of pixels from 3 to 201"][..]),
         ("report_into_stage.json", &["would be written into the render stage's folder", "nothing was written"][..]),
         ("report_unknown_stage.json", &["not a job of lucent", "unknown variant `rendering`"][..]),
+        (
+            "bssrdf_roughness.json",
+            &["not a job of lucent", "roughness \"tr:9\": α = 9 must be a number in [0, 4]", "measured:FIT.json"][..],
+        ),
     ];
     let listed: Vec<String> = std::fs::read_dir(&bad)
         .unwrap()

@@ -469,7 +469,7 @@ fn twins_share_one_scale_and_lead_the_report(d: &Path, project: &Path, out: &Pat
 #[test]
 fn bad_projects_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
-    let cases: [(&str, &[&str]); 10] = [
+    let cases: [(&str, &[&str]); 13] = [
         (
             "[calibration]\nimages = \"b*.png\"\nboard = \"9x6\"\nsquare_mm = 25\ntruth = \"x.toml\"\n",
             &["[calibration] truth", "x.toml", "camera.json"],
@@ -486,6 +486,12 @@ fn bad_projects_are_refused() {
             "[[sample]] # one sample\nname = \"a\"\nrecipe = \"x.toml\"\nweight_percent = \"x\"\n",
             &["line 4", "[[sample]] weight_percent", "expected a number"],
         ),
+        (
+            "[[sample]]\nname = \"a\"\nrecipe = \"x.toml\"\nsurface = \"nope.x3p\"\n",
+            &["[[sample]] #1 (a) surface", "nope.x3p", "no such file"],
+        ),
+        ("[surface]\nwindow = 4\n", &["[surface] window", "odd number of pixels", "got 4"]),
+        ("[surface]\nwindow_px = 5\n", &["line 2", "window_px", "unknown field"]),
     ];
     std::fs::write(tmp.path().join("x.toml"), "").unwrap();
     for (k, (text, needles)) in cases.iter().enumerate() {
@@ -903,4 +909,73 @@ fn a_project_without_spp_renders_to_the_default_error_target() {
     let project = Project::load(&tmp.path().join("project.toml")).unwrap();
     let planned = plan(Stage::Render, &project, &tmp.path().join("out")).unwrap().unwrap();
     assert!(planned.tasks.iter().any(|t| matches!(t, Task::Lucent { job: Job::Render(r), .. } if r.spp == Some(8))));
+}
+
+/// A sample with a measured height map (`surface`, relative to the project
+/// file): stage surface fits it, the bssrdf stage's job takes its normals as
+/// the top boundary (`--roughness measured:…/fit.json`), the report shows
+/// the fit, and a second run finds every stage up to date. `[bssrdf]
+/// roughness` wins over the fitted surface.
+#[test]
+fn a_sample_surface_is_fitted_and_is_the_slices_top_boundary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::copy(root().join("fixtures/surface/tr_0p0084.x3p"), d.join("heights.x3p")).unwrap();
+    let text = |roughness: &str| {
+        format!(
+            "[project]\nname = \"rough\"\n\n[surface]\nwindow = 9\n\n[bssrdf]\nconfigs = \"45/0\"\npixels = 33\n\
+             pixel_mm = 0.2\npaths = 3000\nphase = \"hg\"\n{roughness}\n[[sample]]\nname = \"s1\"\n\
+             recipe = \"{}\"\nsurface = \"heights.x3p\"\n",
+            root().join("fixtures/samples/IOL1068-09.toml").display()
+        )
+    };
+    let project = d.join("project.toml");
+    std::fs::write(&project, text("")).unwrap();
+    let out = d.join("out");
+    let run = || ok(&lucent(&["run", project.to_str().unwrap(), "--out", out.to_str().unwrap()]));
+    let first = run();
+    assert_eq!(status_of(&first, "surface"), "ran", "{first}");
+    assert_eq!(status_of(&first, "bssrdf"), "ran", "{first}");
+
+    // The fit: fit.json as `surface fit` writes it, with the project's window.
+    let fit_json = out.join("surface/s1/fit.json");
+    let fit: lucent::surface::FitReport =
+        serde_json::from_str(&std::fs::read_to_string(&fit_json).unwrap()).expect("surface/s1/fit.json");
+    assert_eq!(fit.schema, lucent::surface::FIT_SCHEMA);
+    assert_eq!(fit.options.window_px, 9);
+    let tr = fit.fits.trowbridge_reitz.alpha;
+    assert!((0.007..0.0095).contains(&tr), "TR α {tr} of a TR α = 0.0084 surface");
+    assert!(out.join("surface/s1/normals.exr").is_file() && out.join("surface/s1/distribution.png").is_file());
+
+    // The bssrdf stage's job carries the measured top boundary, and the slice used it.
+    let roughness = |out: &Path| {
+        let args = recorded_command(out, "bssrdf", "/s1");
+        let k = args.iter().position(|a| a == "--roughness").map(|k| k + 1);
+        k.map(|k| args[k].clone())
+    };
+    assert_eq!(roughness(&out), Some(format!("measured:{}", fit_json.display())));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("bssrdf/s1/summary.json")).unwrap()).unwrap();
+    let boundary = summary["config"]["roughness"].as_str().unwrap();
+    assert!(boundary.contains("measured normals") && boundary.contains("normals.exr"), "{boundary}");
+
+    // The report's section, and its numbers in metrics.json.
+    let html = std::fs::read_to_string(out.join("report/index.html")).unwrap();
+    assert!(html.contains("<h3>Surface</h3>") && html.contains("Trowbridge–Reitz (better)"), "no surface section");
+    assert!(html.contains(&format!("{tr:.5}")), "the fitted α in the report");
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report/metrics.json")).unwrap()).unwrap();
+    assert_eq!(metrics["samples"]["s1"]["surface"]["fits"]["trowbridge-reitz"]["alpha"].as_f64(), Some(tr));
+
+    // A second run: nothing to do.
+    let second = run();
+    for s in ["optics", "surface", "bssrdf", "report"] {
+        assert_eq!(status_of(&second, s), "up", "{s}: {second}");
+    }
+
+    // [bssrdf] roughness wins over the fitted surface.
+    std::fs::write(&project, text("roughness = \"smooth\"\n")).unwrap();
+    let third = run();
+    assert_eq!((status_of(&third, "surface"), status_of(&third, "bssrdf")), ("up".into(), "ran".into()), "{third}");
+    assert_eq!(roughness(&out).as_deref(), Some("smooth"));
 }

@@ -545,6 +545,11 @@ fn recipe_surface_accepts_fit_json() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("surface"), "{e}");
+    // α in the one range every file and command takes.
+    let e = Recipe::load(&write("f.toml", "model = \"beckmann\"\nalpha = 5.0"), Overrides::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("surface.alpha") && e.contains("[0, 4]"), "{e}");
     std::fs::write(dir.path().join("bad.json"), "{\"schema\": 3}").unwrap();
     let e = Recipe::load(&write("e.toml", "fit = \"bad.json\""), Overrides::default()).unwrap_err().to_string();
     assert!(e.contains("bad.json"), "{e}");

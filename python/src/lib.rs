@@ -1107,7 +1107,9 @@ fn py_bssrdf<'py>(
         seed,
         estimator: named("estimator", estimator)?,
         lobe_vertices,
-        roughness,
+        roughness: roughness
+            .map(|r| r.parse::<lucent::bssrdf::RoughnessSpec>().map_err(|e| error(format!("roughness {e}"))))
+            .transpose()?,
         no_fold,
         similarity_g,
         out: PathBuf::new(),

@@ -105,11 +105,11 @@ pub struct RunArgs {
     /// Camera-side vertices of the lobe connection's chains (0 … 32; 0 is the fixed-direction connection).
     #[arg(long, default_value_t = lucent_render::slab::LOBE_VERTICES as u8)]
     pub lobe_vertices: u8,
-    /// Top boundary: smooth, tr:ALPHA (ggx:ALPHA), beckmann:ALPHA, or
-    /// measured:FIT.json (the normals.exr beside a `lucent surface fit`
-    /// fit.json). Default: the recipe's [surface], else smooth.
+    /// Top boundary: smooth, tr:ALPHA (ggx:ALPHA), beckmann:ALPHA (α in
+    /// [0, 4]), measured:FIT.json (the normals.exr beside a `lucent surface
+    /// fit` fit.json), or recipe. Default: the recipe's [surface], else smooth.
     #[arg(long)]
-    pub roughness: Option<String>,
+    pub roughness: Option<crate::bssrdf::RoughnessSpec>,
     /// Do not fold the slice about the plane of incidence (the fold is exact,
     /// and applied, when φi and φo are 0° or 180° and the beam is mirror-symmetric).
     #[arg(long)]

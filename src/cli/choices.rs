@@ -104,8 +104,9 @@ impl AdaptationChoice {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StageChoice(pub Stage);
 
-const STAGE_CHOICES: [StageChoice; 11] = [
+const STAGE_CHOICES: [StageChoice; 12] = [
     StageChoice(Stage::Optics),
+    StageChoice(Stage::Surface),
     StageChoice(Stage::Bssrdf),
     StageChoice(Stage::Fit),
     StageChoice(Stage::Calibrate),
@@ -131,9 +132,10 @@ impl ValueEnum for StageChoice {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ForceChoice(pub Option<Stage>);
 
-const FORCE_CHOICES: [ForceChoice; 12] = [
+const FORCE_CHOICES: [ForceChoice; 13] = [
     ForceChoice(None),
     ForceChoice(Some(Stage::Optics)),
+    ForceChoice(Some(Stage::Surface)),
     ForceChoice(Some(Stage::Bssrdf)),
     ForceChoice(Some(Stage::Fit)),
     ForceChoice(Some(Stage::Calibrate)),

@@ -15,6 +15,8 @@
 //! wall time in seconds), `heightmap.png`, `distribution.png` and
 //! `normals.exr` ([`crate::surface::write_fit_outputs`]).
 
+mod section;
+
 use super::{bad, by_name_opt, s, Context, JobError, Line};
 use crate::surface::model::RoughnessModel;
 use crate::surface::{

@@ -710,7 +710,8 @@ impl Validator<'_> {
                 let Some(alpha) = alpha else { return self.invalid("surface.alpha", "missing") };
                 Some(Surface {
                     model,
-                    alpha: self.positive("surface.alpha", alpha, "(dimensionless roughness)")?,
+                    alpha: crate::surface::model::check_alpha(alpha)
+                        .or_else(|p| self.invalid("surface.alpha", format!("{p} (dimensionless roughness)")))?,
                     scale: self.positive("surface.scale", scale.unwrap_or(1.0), "(dimensionless scale)")?,
                 })
             }

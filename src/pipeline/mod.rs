@@ -5,7 +5,8 @@
 //! | stage | does | needs |
 //! |---|---|---|
 //! | `optics` | `lucent optics` on every sample's recipe | `[[sample]]` |
-//! | `bssrdf` | `lucent bssrdf` slices per sample, `bssrdf compare` with measured slices | `[bssrdf]` |
+//! | `surface` | `lucent surface fit` of each sample's height map (`surface/NAME/`: fit.json, normals.exr, plots) | a sample's `surface` |
+//! | `bssrdf` | `lucent bssrdf` slices per sample (top boundary: `[bssrdf] roughness`, else the sample's fitted surface, `--roughness measured:surface/NAME/fit.json`, else the recipe's `[surface]`), `bssrdf compare` with measured slices | `[bssrdf]` |
 //! | `fit` | `lucent fit` of each sample's recipe to its measured slices; writes the fitted recipe when the data pin it down | `[fit]`, a sample's `[[sample.measured]]` |
 //! | `calibrate` | `lucent calibrate` (Zhang) | `[calibration]` |
 //! | `colour` | `lucent colour calibrate` per camera | `[[colour]]` |
@@ -41,6 +42,10 @@
 //! after the previous result is moved aside; if it fails the partial output
 //! is moved to `STAGE.failed/` (with `log.txt`), the previous result is put
 //! back, and the run stops: earlier results stay intact.
+//!
+//! A stage a project gives nothing to do is skipped and leaves no folder,
+//! so it adds nothing to the keys of the stages after it: a project without
+//! surfaces keeps the keys it had before the surface stage existed.
 //!
 //! ```
 //! use lucent::pipeline::Stage;
@@ -80,6 +85,7 @@ use thiserror::Error;
 #[serde(rename_all = "kebab-case")]
 pub enum Stage {
     Optics,
+    Surface,
     Bssrdf,
     Fit,
     Calibrate,
@@ -93,8 +99,9 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 11] = [
+    pub const ALL: [Stage; 12] = [
         Stage::Optics,
+        Stage::Surface,
         Stage::Bssrdf,
         Stage::Fit,
         Stage::Calibrate,
@@ -111,6 +118,7 @@ impl Stage {
     pub fn name(self) -> &'static str {
         match self {
             Stage::Optics => "optics",
+            Stage::Surface => "surface",
             Stage::Bssrdf => "bssrdf",
             Stage::Fit => "fit",
             Stage::Calibrate => "calibrate",
@@ -132,7 +140,8 @@ impl Stage {
     /// The stages whose outputs this one reads.
     pub fn depends_on(self) -> &'static [Stage] {
         match self {
-            Stage::Optics | Stage::Bssrdf | Stage::Fit | Stage::Calibrate | Stage::Colour => &[],
+            Stage::Optics | Stage::Surface | Stage::Fit | Stage::Calibrate | Stage::Colour => &[],
+            Stage::Bssrdf => &[Stage::Surface],
             Stage::Develop => &[Stage::Colour],
             Stage::Pose => &[Stage::Calibrate],
             Stage::EnvScale => &[Stage::Pose, Stage::Develop],
@@ -140,6 +149,7 @@ impl Stage {
             Stage::Compare => &[Stage::Render, Stage::Develop],
             Stage::Report => &[
                 Stage::Optics,
+                Stage::Surface,
                 Stage::Bssrdf,
                 Stage::Fit,
                 Stage::Calibrate,
@@ -335,6 +345,9 @@ pub enum StageProblem {
     PhotoSize { sample: String, photo: PathBuf, photo_size: String, render_size: String },
     #[error("{sample}: {photo}: {reason}")]
     PhotoUnreadable { sample: String, photo: PathBuf, reason: String },
+    /// A sample's surface is its slices' top boundary but the surface stage has not written its fit.
+    #[error("{sample}: its surface is the slices' top boundary but the surface stage has not written {expected}")]
+    NoSurfaceFit { sample: String, expected: PathBuf },
 }
 
 /// One input file as hashed.
@@ -409,6 +422,8 @@ pub enum Skip {
     NoPhotoAndRender,
     #[error("no sample has measured slices ([[sample.measured]])")]
     NoMeasured,
+    #[error("no sample has a surface height map ([[sample]] surface)")]
+    NoSurface,
 }
 
 /// Why a task of a stage failed.
@@ -956,7 +971,8 @@ pub fn plan(stage: Stage, project: &Project, out: &Path) -> Result<Result<Plan, 
     let mut p = Plan { tasks: Vec::new(), inputs: Vec::new(), notes: Vec::new() };
     let planned = match stage {
         Stage::Optics => plan_optics(project, &mut p),
-        Stage::Bssrdf => plan_bssrdf(project, &mut p),
+        Stage::Surface => plan_surface(project, &mut p),
+        Stage::Bssrdf => plan_bssrdf(project, out, &mut p),
         Stage::Fit => plan_fit(project, &mut p),
         Stage::Calibrate => plan_calibrate(project, &mut p),
         Stage::Colour => plan_colour(project, &mut p),
@@ -1005,11 +1021,50 @@ fn plan_optics(project: &Project, p: &mut Plan) -> Planned {
     Ok(Ok(()))
 }
 
-/// The bssrdf stage: each sample's slices and their comparison with each
-/// measured slice.
-fn plan_bssrdf(project: &Project, p: &mut Plan) -> Planned {
+/// The surface stage: a surface fit of each sample's height map.
+fn plan_surface(project: &Project, p: &mut Plan) -> Planned {
     let f = &project.file;
     let Plan { inputs, tasks, .. } = p;
+    for smp in &f.sample {
+        let Some(job) = project::surface_job(f.surface.as_ref(), smp) else { continue };
+        inputs.push(job.heightmap.clone());
+        tasks.push(lucent_task(format!("{} surface", smp.name), Job::SurfaceFit(job)));
+    }
+    if tasks.is_empty() {
+        return Ok(Err(Skip::NoSurface));
+    }
+    Ok(Ok(()))
+}
+
+/// The surface stage's fit of `sample` (`surface/NAME/fit.json`), the
+/// slices' top boundary, when the sample has a surface and `[bssrdf]` sets
+/// no roughness; an error when the stage has not written it.
+fn sample_surface_fit(
+    project: &Project,
+    out: &Path,
+    smp: &project::SampleSection,
+) -> Result<Option<PathBuf>, PipelineError> {
+    let set = project.file.bssrdf.as_ref().is_some_and(|b| b.roughness.is_some());
+    if smp.surface.is_none() || set {
+        return Ok(None);
+    }
+    let fit = crate::surface::SurfaceFitFiles::in_dir(&out.join(Stage::Surface.name()).join(&smp.name)).json;
+    if fit.is_file() {
+        Ok(Some(fit))
+    } else {
+        Err(PipelineError::Stage {
+            stage: Stage::Bssrdf,
+            problem: StageProblem::NoSurfaceFit { sample: smp.name.clone(), expected: fit },
+        })
+    }
+}
+
+/// The bssrdf stage: each sample's slices (with its fitted surface as the
+/// top boundary, when it has one) and their comparison with each measured
+/// slice.
+fn plan_bssrdf(project: &Project, out: &Path, p: &mut Plan) -> Planned {
+    let f = &project.file;
+    let Plan { inputs, tasks, notes } = p;
     let Some(b) = &f.bssrdf else { return Ok(Err(Skip::Missing("[bssrdf]"))) };
     if f.sample.is_empty() {
         return Ok(Err(Skip::Missing("[[sample]]")));
@@ -1017,7 +1072,11 @@ fn plan_bssrdf(project: &Project, p: &mut Plan) -> Planned {
     let configs = &project.bssrdf_configs;
     for smp in &f.sample {
         inputs.extend(recipe_inputs(&smp.recipe));
-        let job = project::bssrdf_job(b, smp, project.seed);
+        let mut job = project::bssrdf_job(b, smp, project.seed);
+        if let Some(fit) = sample_surface_fit(project, out, smp)? {
+            notes.push(format!("{}: top boundary the measured surface {}", smp.name, fit.display()));
+            job.roughness = Some(crate::surface::model::RoughnessSpec::Measured(fit));
+        }
         tasks.push(lucent_task(format!("{} slices", smp.name), Job::Bssrdf(job)));
         for m in &smp.measured {
             inputs.push(m.file.clone());
@@ -1708,6 +1767,15 @@ mod tests {
         assert!(got.contains(&dir.join("idx/host.yml")) && got.contains(&dir.join("fit.json")), "{got:?}");
         assert_eq!(got.len(), 3, "each file once, builtins and missing files left out: {got:?}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn the_surface_stage_comes_before_the_bssrdf_stage_that_reads_it() {
+        let k = |s: Stage| Stage::ALL.iter().position(|x| *x == s).unwrap();
+        assert!(k(Stage::Optics) < k(Stage::Surface) && k(Stage::Surface) < k(Stage::Bssrdf));
+        assert_eq!(Stage::Bssrdf.depends_on(), &[Stage::Surface]);
+        assert!(Stage::Report.depends_on().contains(&Stage::Surface));
+        assert_eq!(Stage::from_name("surface").unwrap(), Stage::Surface);
     }
 
     #[test]

@@ -12,6 +12,9 @@
 //! [optics]                       # stage optics: every sample's recipe
 //! wavelengths = "380:780:10"
 //!
+//! # [surface]                    # stage surface: `lucent surface fit` of each sample's `surface` height map
+//! # window = 15                  # the flags of `surface fit`, same names, ranges and defaults
+//!
 //! [bssrdf]                       # stage bssrdf: slab slices per sample (and comparison with measurements)
 //! wavelength_nm = 550.0
 //! configs = "45/0"               # θi/θo pairs, φi = 0°, φo = 180°
@@ -19,6 +22,8 @@
 //! pixel_mm = 0.1029
 //! # crop = 117
 //! paths = 200000                 # stop rule: paths, rel_error and/or time_s
+//! # roughness = "smooth"         # top boundary, as `lucent bssrdf --roughness` (default: the sample's fitted
+//!                                # surface from stage surface, else the recipe's [surface], else smooth)
 //!
 //! [calibration]                  # stage calibrate: Zhang's method
 //! images = "photos/board_*.jpg"  # wildcards in the file name
@@ -65,6 +70,8 @@
 //!                                    # stage develop turns them into CIE RGB with its ccm.json
 //! # empty_board = "empty.exr"        # stage env-scale: the board photographed without the sample
 //! # truth_recipe = "truth.toml"      # synthetic data: the known recipe, tabulated beside the fit (report only)
+//! # surface = "heights.x3p"          # stage surface: a measured height map of the top; its fitted normals
+//!                                    # are the top boundary of the sample's BSSRDF slices
 //! # [[sample.measured]]              # stage bssrdf: measured slices to score; stage fit: to fit
 //! # config = "45/0"
 //! # file = "slice.exr"
@@ -74,8 +81,9 @@ pub use crate::bssrdf::{ConfigError, Configuration, Configurations};
 use crate::fit::{FreeSpec, SearchBounds};
 use crate::job::{
     BssrdfCompareJob, BssrdfJob, CalibrateJob, CompareJob, EnvScaleJob, FitJob, ImageSize, JobError, MeasuredAngles,
-    MeasuredSlice, PoseJob, RenderJob, SampleCorner, SampleSizeMm,
+    MeasuredSlice, PoseJob, RenderJob, SampleCorner, SampleSizeMm, SurfaceFitJob,
 };
+use crate::surface::model::RoughnessSpec;
 use lucent_calib::board::BoardSize;
 use lucent_calib::model::DistortionModel;
 use lucent_colour::{CcmMethod, WavelengthGrid};
@@ -108,6 +116,9 @@ pub struct ProjectFile {
     #[serde(default)]
     pub project: ProjectSection,
     pub optics: Option<OpticsSection>,
+    /// The `surface fit` settings of stage surface (its defaults without it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface: Option<SurfaceSection>,
     pub bssrdf: Option<BssrdfSection>,
     pub calibration: Option<CalibrationSection>,
     #[serde(default)]
@@ -153,6 +164,48 @@ pub struct BssrdfSection {
     #[serde(default, deserialize_with = "phase_model")]
     pub phase: Option<crate::optics::PhaseModel>,
     pub threshold: Option<f64>,
+    /// The top boundary, as `lucent bssrdf --roughness` reads it (a
+    /// `measured:` path relative to the project file). Default: the
+    /// sample's fitted surface (stage surface), else the recipe's
+    /// `[surface]`, else smooth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub roughness: Option<RoughnessSpec>,
+}
+
+/// `[surface]`: the flags of `lucent surface fit` that a project sets for
+/// every sample's height map (`[[sample]] surface`), with the flags' names,
+/// ranges and defaults ([`SurfaceFitJob`]).
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SurfaceSection {
+    /// Point spacing in µm (overrides the file's; required for TIFF, EXR and header-less text).
+    pub pitch_um: Option<f64>,
+    /// Row spacing in µm, if it differs (with `pitch_um`).
+    pub pitch_y_um: Option<f64>,
+    /// The unit of the stored heights: any spelling `surface fit --height-unit` reads.
+    #[serde(default, deserialize_with = "height_unit", serialize_with = "height_unit_name")]
+    pub height_unit: Option<crate::surface::LengthUnit>,
+    /// Side of the plane fits' window in pixels (odd, 3 … 201; default 15).
+    pub window: Option<usize>,
+    /// σ of the plane fits' Gaussian weights in pixels (default 1).
+    pub sigma_px: Option<f64>,
+    /// The least fraction of the window's weight on valid points for a normal (default 0.9).
+    pub min_weight: Option<f64>,
+    /// Do not subtract the least-squares plane first.
+    pub keep_tilt: Option<bool>,
+    /// Fit a tilt of the distribution's axis too.
+    pub fit_tilt: Option<bool>,
+}
+
+fn height_unit<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<crate::surface::LengthUnit>, D::Error> {
+    crate::io::named(d, "height_unit")
+}
+
+fn height_unit_name<S: serde::Serializer>(v: &Option<crate::surface::LengthUnit>, s: S) -> Result<S::Ok, S::Error> {
+    match v {
+        Some(u) => s.serialize_str(<&str>::from(*u)),
+        None => s.serialize_none(),
+    }
 }
 
 impl BssrdfSection {
@@ -296,6 +349,11 @@ pub struct SampleSection {
     /// A recipe with the sample's known values (synthetic data): the report
     /// tabulates them beside what stage fit recovered. Never read by a stage.
     pub truth_recipe: Option<PathBuf>,
+    /// A measured height map of the sample's top (.x3p, text grid, TIFF,
+    /// EXR): stage surface fits it, and its normals are the top boundary of
+    /// the sample's BSSRDF slices unless `[bssrdf] roughness` is set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
@@ -365,7 +423,30 @@ pub fn bssrdf_job(b: &BssrdfSection, smp: &SampleSection, seed: u64) -> BssrdfJo
         rel_error: b.rel_error,
         time_s: b.time_s,
         phase: b.phase,
+        roughness: b.roughness.clone(),
         ..BssrdfJob::default()
+    }
+}
+
+/// Sample `smp`'s surface-fit job of `[surface]` (its defaults without
+/// one; outputs under `{out}/NAME`); None when the sample has no `surface`.
+pub fn surface_job(sec: Option<&SurfaceSection>, smp: &SampleSection) -> Option<SurfaceFitJob> {
+    let heightmap = smp.surface.clone()?;
+    Some(surface_job_of(sec.cloned().unwrap_or_default(), heightmap, PathBuf::from(format!("{{out}}/{}", smp.name))))
+}
+
+fn surface_job_of(sec: SurfaceSection, heightmap: PathBuf, out: PathBuf) -> SurfaceFitJob {
+    let d = SurfaceFitJob::new(heightmap, out);
+    SurfaceFitJob {
+        pitch_um: sec.pitch_um,
+        pitch_y_um: sec.pitch_y_um,
+        height_unit: sec.height_unit,
+        window: sec.window.unwrap_or(d.window),
+        sigma_px: sec.sigma_px.unwrap_or(d.sigma_px),
+        min_weight: sec.min_weight.unwrap_or(d.min_weight),
+        keep_tilt: sec.keep_tilt.unwrap_or(d.keep_tilt),
+        fit_tilt: sec.fit_tilt.unwrap_or(d.fit_tilt),
+        ..d
     }
 }
 
@@ -432,6 +513,9 @@ fn job_problems(file: &ProjectFile) -> Vec<(String, String)> {
     };
     let nobody = SampleSection::default();
     // ([optics] holds only its grid, whose type is its check.)
+    if let Some(sf) = &file.surface {
+        check("[surface]", "", surface_job_of(sf.clone(), PathBuf::new(), PathBuf::new()).validate());
+    }
     if let Some(b) = &file.bssrdf {
         check("[bssrdf]", "", bssrdf_job(b, &nobody, 1).validate());
         let compare = BssrdfCompareJob {
@@ -528,6 +612,9 @@ impl Project {
             check_sample(&c, k, s, &mut seen)?;
         }
         let configs = check_bssrdf(&c, &file)?;
+        if let Some(RoughnessSpec::Measured(p)) = file.bssrdf.as_mut().and_then(|b| b.roughness.as_mut()) {
+            c.existing("[bssrdf] roughness", p)?;
+        }
         let bssrdf_configs = configs.as_ref().map(Configurations::pairs).unwrap_or_default();
         // The values that become flags of the stages' commands, checked by
         // their jobs with the flags' ranges: all named here, before any stage runs.
@@ -640,6 +727,9 @@ fn check_sample(
     }
     if let Some(p) = &mut s.empty_board {
         c.existing(&format!("{at} empty_board"), p)?;
+    }
+    if let Some(p) = &mut s.surface {
+        c.existing(&format!("{at} surface"), p)?;
     }
     if let Some(t) = &mut s.truth_recipe {
         c.existing(&format!("{at} truth_recipe"), t)?;

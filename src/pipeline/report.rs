@@ -7,6 +7,8 @@
 //!
 //! Per sample: the optical-property table (μs, μa, μt in 1/m, g, n_bulk at
 //! every 50 nm of the grid) with the spectra and phase-function plots; the
+//! fitted surface (each microfacet model's α, scale, tilt, MSE and NRMSE,
+//! with the distribution plot); the
 //! BSSRDF slices (sum ± standard error in 1/(m² sr)) and, where measured,
 //! the mean squared relative error and the sums measured vs simulated with
 //! their panels; the photo | render | difference triplet with RMSE and SSIM;
@@ -17,6 +19,7 @@
 //!
 //! Every stage file is read into the type its writer serialises, so each
 //! format is defined once: [`crate::optics::output::OpticalProperties`],
+//! [`crate::surface::FitReport`],
 //! [`crate::bssrdf::Summary`] and [`crate::bssrdf::Comparison`],
 //! [`crate::envfit::FitReport`], [`crate::scene::RenderReport`],
 //! [`crate::compare::Report`], `lucent_calib`'s `Calibration` (camera.json)
@@ -51,6 +54,7 @@ use crate::job::{
 };
 use crate::optics::output::{OpticalProperties, OpticsFiles};
 use crate::scene::RenderFiles;
+use crate::surface::SurfaceFitFiles;
 use lucent_calib::calibrate::CalibrationFiles;
 use lucent_calib::scene::PoseFiles;
 use serde::{Deserialize, Serialize};
@@ -317,7 +321,7 @@ fn compare_section<'a>(
 }
 
 /// A sample's details, one section per stage from that stage's files under
-/// `folder(stage)` (optics, bssrdf, fit, env-scale, render, compare; without
+/// `folder(stage)` (optics, surface, bssrdf, fit, env-scale, render, compare; without
 /// a comparison the render's picture), with their numbers for metrics.json.
 fn sample_sections(
     page: &mut Page,
@@ -338,7 +342,7 @@ fn sample_sections(
         comparison: ComparisonFiles::in_dir(&bssrdf_comparison_dir(&bssrdf_dir, c)),
     });
     let render = RenderFiles::in_dir(&sample_dir(Stage::Render));
-    let sections: [&dyn ReportSection; 6] = [
+    let sections: [&dyn ReportSection; 7] = [
         &OpticsSection {
             sample: &smp.name,
             recipe: &smp.recipe,
@@ -346,6 +350,7 @@ fn sample_sections(
             spectra: all_spectra,
             dir: &optics_dir,
         },
+        &SurfaceFitFiles::in_dir(&sample_dir(Stage::Surface)),
         &BssrdfSection { sample: &smp.name, dir: &bssrdf_dir, configs: configs.collect() },
         &FitSection {
             sample: &smp.name,

@@ -230,7 +230,7 @@ pub enum KeyProblem {
     UnknownRoughnessModel(String),
     #[error("α {0:?} is not a number")]
     AlphaNotANumber(String),
-    #[error("α must be finite and ≥ 0, got {0}")]
+    #[error("α must be a number in [0, {max}], got {0}", max = lucent_render::microfacet::MAX_ALPHA)]
     Alpha(f64),
     #[error(transparent)]
     Microfacet(lucent_render::microfacet::MicrofacetError),
@@ -1425,7 +1425,7 @@ fn build_roughness(
         Ok(Some((Microsurface::Analytic(d), format!("rough: {} α = {alpha} ({origin})", model.label()))))
     };
     let text = m.roughness.as_deref().unwrap_or("recipe");
-    let problem = match text.parse::<RoughnessSpec>() {
+    let problem = match text.parse::<RoughnessSpec>().map_err(|e| e.problem) {
         Ok(RoughnessSpec::Recipe) => {
             return match from_recipe {
                 Some(sf) => analytic(sf.model, sf.alpha, "the recipe's [surface]"),
@@ -1434,7 +1434,10 @@ fn build_roughness(
         }
         Ok(RoughnessSpec::Smooth) => return Ok(None),
         Ok(RoughnessSpec::Analytic { model, alpha }) => return analytic(model, alpha, "the scene file"),
-        Ok(RoughnessSpec::Measured(_)) => KeyProblem::UnknownRoughnessModel("measured".into()),
+        // The renderer's object takes an analytic distribution only.
+        Ok(RoughnessSpec::Measured(_)) | Err(RoughnessSyntax::NoFile) => {
+            KeyProblem::UnknownRoughnessModel("measured".into())
+        }
         Err(RoughnessSyntax::NoModel) => KeyProblem::Choice {
             expected: "\"recipe\", \"smooth\" or MODEL:ALPHA (trowbridge-reitz, ggx, beckmann)",
             got: text.trim().into(),

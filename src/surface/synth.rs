@@ -160,8 +160,10 @@ pub fn synthesize(spec: &SynthSpec) -> Result<Synthetic, SurfaceError> {
     if !(spec.pitch_m.is_finite() && spec.pitch_m > 0.0) {
         return bad("pitch-um", spec.pitch_m * 1e6, "must be a positive finite length in µm");
     }
-    if !(spec.alpha.is_finite() && spec.alpha > 0.0 && spec.alpha <= 10.0) {
-        return bad("alpha", spec.alpha, "must lie in (0, 10]");
+    // The range every command takes (model::check_alpha), and a slope to draw.
+    if crate::surface::model::check_alpha(spec.alpha).is_err() || spec.alpha == 0.0 {
+        let why = format!("must lie in (0, {}] (0 is a flat surface)", lucent_render::microfacet::MAX_ALPHA);
+        return bad("alpha", spec.alpha, &why);
     }
     if !(spec.correlation_px.is_finite() && spec.correlation_px >= 1.0 && spec.correlation_px <= 200.0) {
         return bad("correlation-px", spec.correlation_px, "must lie in [1, 200] pixels");

@@ -283,7 +283,7 @@ impl BssrdfJob {
         // configuration (strongly forward-peaked media converge slowly).
         let stop = self.stop();
         let stop = if stop.is_empty() { Stop { rel_error: Some(0.01), time_s: Some(600.0), ..stop } } else { stop };
-        let (top, roughness) = bssrdf::roughness(self.roughness.as_deref(), m.surface.as_ref())?;
+        let (top, roughness) = bssrdf::roughness(self.roughness.as_ref(), m.surface.as_ref())?;
         let perturbations = self.perturbations(recipe, &top)?;
         let slab = Slab::new(m.thickness_m, m.medium.clone())?.with_top(top);
         let configs = match &self.configs {
