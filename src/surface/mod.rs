@@ -422,6 +422,9 @@ pub fn load_fit_choice(path: &Path, model: Option<RoughnessModel>) -> Result<(Ro
             reason: format!("fit of {model:?} has α = {}, scale = {}: not positive", m.alpha, m.scale),
         });
     }
+    // The range every microfacet α has (a fitted one as a typed one).
+    model::check_alpha(m.alpha)
+        .map_err(|e| SurfaceError::Format { path: path.into(), reason: format!("fit of {model:?}: {e}") })?;
     Ok((model, m.alpha, m.scale))
 }
 
@@ -535,4 +538,29 @@ pub fn write_fit_outputs(out: &Path, fit: &SurfaceFit) -> Result<SurfaceFitFiles
     }
     result?;
     Ok(SurfaceFitFiles::in_dir(out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fit.json's α is held to the range of every microfacet α ([0, 4]),
+    /// as `tr:ALPHA` is: an edited α = 7 is refused naming the file.
+    #[test]
+    fn a_fitted_alpha_has_the_range_of_every_alpha() {
+        let dir = tempfile::tempdir().expect("a temporary folder");
+        let path = dir.path().join("fit.json");
+        let fit = |alpha: f64| {
+            format!(
+                r#"{{"schema": "{FIT_SCHEMA}", "better_model": "trowbridge-reitz",
+                    "fits": {{"trowbridge-reitz": {{"alpha": {alpha}, "scale": 1.0}}, "beckmann": {{"alpha": 0.01, "scale": 1.0}}}}}}"#
+            )
+        };
+        std::fs::write(&path, fit(0.0084)).expect("write");
+        let (model, alpha, _) = load_fit_choice(&path, None).expect("a valid fit");
+        assert_eq!((model, alpha), (RoughnessModel::TrowbridgeReitz, 0.0084));
+        std::fs::write(&path, fit(7.0)).expect("write");
+        let e = load_fit_choice(&path, None).expect_err("α = 7 is out of range").to_string();
+        assert!(e.contains("fit.json") && e.contains("α = 7 must be a number in [0, 4]"), "{e}");
+    }
 }
