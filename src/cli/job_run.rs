@@ -1,0 +1,129 @@
+//! `lucent job run JOB.json`, and running a job in this process as its
+//! command runs it ([`run_in_process`], also each stage of `lucent run`,
+//! inside an [`InStage`]): the terminal's hooks, the summary on stdout, the
+//! stage's own error.
+
+use super::{bssrdf, render};
+use crate::job::run::{Hooks, JobRunError};
+use crate::job::{Context, Job, JobError};
+
+/// Runs a job in this process as its command runs it, for `lucent job run`
+/// and the stages of `lucent run`: [`Job::run_with`] with the terminal's
+/// hooks (the progress bars of a render and of a slab simulation, hidden
+/// when the job is quiet), the
+/// job's summary on stdout, and a run that wrote its outputs but failed
+/// ([`JobRun::finished`](crate::job::run::JobRun::finished): interrupted,
+/// a fit the data cannot pin down) failing after its summary.
+pub fn run_in_process(job: &Job) -> anyhow::Result<()> {
+    let quiet = match job {
+        Job::Render(j) => j.quiet,
+        Job::Bssrdf(j) => j.quiet,
+        Job::EnvScale(j) => j.quiet,
+        _ => false,
+    };
+    let (mut terminal, mut bars) = (render::Terminal::new(quiet), bssrdf::Bar::new(quiet));
+    let done = job.run_with(&Context::default(), Hooks::new(&mut terminal, &mut bars)).map_err(job_error)?;
+    for line in done.summary() {
+        println!("{line}");
+    }
+    done.finished().map_err(job_error)
+}
+
+/// A job's error as its command returns it: the stage's own error (not the
+/// wrapper, whose transparent variants hide its type), so that its fault
+/// class is read from it ([`crate::pipeline::fault_of`]: a run stopped by
+/// Ctrl-C exits with 130, a bad input with 1).
+pub fn job_error(e: JobRunError) -> anyhow::Error {
+    match e {
+        JobRunError::Invalid(e) => e.into(),
+        JobRunError::Files(e) => e.into(),
+        JobRunError::Folder(e) => e.into(),
+        JobRunError::Mark(e) => e.into(),
+        JobRunError::Optics(e) => e.into(),
+        JobRunError::Bssrdf(e) => e.into(),
+        JobRunError::Fit(e) => e.into(),
+        JobRunError::Colour(e) => e.into(),
+        JobRunError::RawClipped(e) => e.into(),
+        JobRunError::Camera(e) => e.into(),
+        JobRunError::EnvScale(e) => (*e).into(),
+        JobRunError::Render(e) => (*e).into(),
+        JobRunError::Compare(e) => e.into(),
+        JobRunError::SurfaceFit(e) => e.into(),
+        JobRunError::EnvMerge(e) => e.into(),
+        JobRunError::EnvOrient(e) => e.into(),
+        JobRunError::Interrupted(e) => e.into(),
+    }
+}
+
+/// How many stages of `lucent run` are running a command in this process.
+static IN_STAGE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// While alive: a command runs in this process as a stage of `lucent run`
+/// ([`in_stage`]).
+pub struct InStage(());
+
+impl InStage {
+    pub fn enter() -> Self {
+        IN_STAGE.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        InStage(())
+    }
+}
+
+impl Drop for InStage {
+    fn drop(&mut self) {
+        IN_STAGE.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
+}
+
+/// Whether a command runs as a stage of `lucent run` in this process: a
+/// panic then unwinds to the stage (which classes it) instead of ending
+/// the process.
+pub fn in_stage() -> bool {
+    IN_STAGE.load(std::sync::atomic::Ordering::SeqCst) > 0
+}
+
+/// `lucent job …`.
+#[derive(Debug, clap::Subcommand)]
+pub enum JobCommand {
+    /// Run one job (JSON, as a stage of `lucent run` holds it: `{"render": {"scene": …, "out": …}}`,
+    /// every key in docs/formats.md#job) exactly as its command would run.
+    Run(JobRunArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct JobRunArgs {
+    /// The job file (JSON).
+    pub job: std::path::PathBuf,
+}
+
+/// Why a job file cannot be run.
+#[derive(Debug, thiserror::Error)]
+pub enum JobFileError {
+    #[error("{path}: cannot read: {source}")]
+    Read { path: std::path::PathBuf, source: std::io::Error },
+    #[error("{path}: not a job of lucent (JSON, e.g. {{\"render\": {{\"scene\": \"scene.toml\", …}}}}): {source}")]
+    Parse { path: std::path::PathBuf, source: serde_json::Error },
+    #[error("{path}: holds the placeholder {{out}} (a stage folder of `lucent run`): give the output folder itself")]
+    Placeholder { path: std::path::PathBuf },
+    #[error("{path}: {source}")]
+    Invalid { path: std::path::PathBuf, source: JobError },
+}
+
+/// Reads and checks a job file.
+pub fn read_job(path: &std::path::Path) -> Result<Job, JobFileError> {
+    let text = crate::io::read_text(path).map_err(|source| JobFileError::Read { path: path.to_path_buf(), source })?;
+    let job: Job =
+        serde_json::from_str(&text).map_err(|source| JobFileError::Parse { path: path.to_path_buf(), source })?;
+    if serde_json::to_string(&job).is_ok_and(|t| t.contains("{out}")) {
+        return Err(JobFileError::Placeholder { path: path.to_path_buf() });
+    }
+    job.validate().map_err(|source| JobFileError::Invalid { path: path.to_path_buf(), source })?;
+    Ok(job)
+}
+
+/// Runs `lucent job …`.
+pub fn run_command(c: JobCommand) -> anyhow::Result<()> {
+    match c {
+        JobCommand::Run(a) => run_in_process(&read_job(&a.job)?),
+    }
+}
