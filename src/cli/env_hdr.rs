@@ -8,17 +8,17 @@
 //! paste` and `env brackets` (synthetic panoramas and brackets) work here,
 //! with `lucent_calib::env`.
 
-use super::{file_name, sibling, to_buffer, to_image};
 use crate::cli::choices::named;
 use crate::imageio::{self, extension};
 use crate::io::{json_bytes, write_json};
-use crate::job::{Context as JobContext, EnvMergeJob, EnvOrientJob, Exposures, ImageSize, ViewAngles};
+use crate::job::camera::{file_name, to_buffer, to_image};
+use crate::job::{read_env_map, Context as JobContext, EnvMergeJob, EnvOrientJob, Exposures, ImageSize, ViewAngles};
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args};
 use lucent_calib::board::BoardSize;
 use lucent_calib::env::{self, ViewSpec};
 use lucent_calib::hdr::ResponseMethod;
-use lucent_calib::scene::BoardSpec;
+use lucent_calib::scene::{sibling, BoardSpec};
 use lucent_calib::RgbBuffer;
 use std::path::PathBuf;
 
@@ -192,7 +192,7 @@ pub fn view(a: EnvViewArgs) -> Result<()> {
     let (width, height) = parse_size(&a.size)?;
     let spec = ViewSpec { yaw_deg: a.yaw, pitch_deg: a.pitch, fov_deg: a.fov, width, height };
     spec.camera()?; // parameters checked before the map is read
-    let map = super::read_env(&a.input)?;
+    let map = read_env_map(&a.input)?;
     let (img, cam) = env::perspective_view(&map, &spec)?;
     let img = to_image(img);
     let json_path = sibling(&a.out, ".json");
@@ -241,7 +241,7 @@ pub fn paste(a: EnvPasteArgs) -> Result<()> {
     let spec =
         ViewSpec { yaw_deg: a.yaw, pitch_deg: a.pitch, fov_deg: a.fov, width: picture.width, height: picture.height };
     spec.camera()?;
-    let mut map = super::read_env(&a.input)?;
+    let mut map = read_env_map(&a.input)?;
     if let Some(w) = a.width {
         if w < 2 || !w.is_multiple_of(2) || w > 32768 {
             bail!("--width {w}: an even number of pixels, 2 to 32768");

@@ -176,7 +176,7 @@ fn run_here(
     }
     let cwd = std::env::current_dir().context("cannot read the current folder")?;
     let outcome = console.redirected(&f, || {
-        let _stage = super::jobs::InStage::enter();
+        let _stage = super::job_run::InStage::enter();
         let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
         if let Ok(Err(e)) = &caught {
             // As the binary says it (into the log, standard error meanwhile).
@@ -217,12 +217,12 @@ fn run_here(
 }
 
 /// Runs a stage's job in this process ([`run_here`]) as `lucent job run`
-/// runs a job file ([`super::jobs::run_in_process`]: the library's
+/// runs a job file ([`super::job_run::run_in_process`]: the library's
 /// [`Job::run_with`] with the terminal's hooks, the job's files and output
 /// folder checked as its command checks them, its summary printed as its
 /// command prints it).
 fn run_job_here(job: &Job, log: &Path, interrupt: &Interrupt, console: &Console) -> Result<()> {
-    run_here(|| super::jobs::run_in_process(job), &job.to_args(), log, interrupt, console)
+    run_here(|| super::job_run::run_in_process(job), &job.to_args(), log, interrupt, console)
 }
 
 /// Merges the finished shards of `t` into its output, in this process, as

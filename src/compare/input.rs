@@ -23,7 +23,7 @@
 //! assert!(e.contains("render") && e.contains("(1, 1)") && e.contains("G"), "{e}");
 //! ```
 
-use super::{CompareError, ReadProblem};
+use super::error::{CompareError, ReadProblem};
 use crate::imageio::{extension, RgbImage};
 use std::path::Path;
 

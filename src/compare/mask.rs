@@ -26,7 +26,7 @@
 //! assert!(m.get(1, 1) && m.get(4, 3) && !m.get(0, 0) && !m.get(5, 4));
 //! ```
 
-use super::{CompareError, ReadProblem};
+use super::error::{CompareError, ReadProblem};
 use lucent_calib::scene::{project_renderer, SceneDescription};
 use std::path::Path;
 

@@ -373,7 +373,7 @@ pub struct PairedReport {
     pub definition: String,
     /// Side of the square cells whose means are compared, in pixels (1:
     /// pixel by pixel).
-    #[serde(default = "super::one")]
+    #[serde(default = "super::photo_noise::one")]
     pub cell_px: usize,
     /// Mean over the cells' included pixels and channels of
     /// [(Ā − P̄)² − var Ā] − [(B̄ − P̄)² − var B̄] (bars: means over a cell)

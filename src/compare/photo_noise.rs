@@ -46,10 +46,16 @@ pub struct PhotoVarianceFile {
     pub realisations: usize,
     pub seed: u64,
     /// The photo's binning (bin × bin photo pixels per pixel; 1: none).
-    #[serde(default = "super::one")]
+    #[serde(default = "one")]
     pub bin: usize,
     /// What the variance's units are.
     pub units: String,
+}
+
+/// The default of a count that older files lack (a factor of 1: none);
+/// also the noise report's ([`super::noise`]).
+pub(super) fn one() -> usize {
+    1
 }
 
 /// Why the photo's variance cannot be made.

@@ -37,8 +37,8 @@
 //! assert!(other.mean < 1.0 && other.mean > 0.9, "{}", other.mean);
 //! ```
 
+use super::error::CompareError;
 use super::mask::Mask;
-use super::CompareError;
 use crate::imageio::RgbImage;
 use rayon::prelude::*;
 

@@ -55,10 +55,17 @@
 //! ```
 
 pub mod executor;
+mod layout;
 pub mod project;
 pub mod report;
+mod stage;
 
-use crate::bssrdf::SliceFiles;
+pub use layout::{
+    bssrdf_comparison_dir, bssrdf_run_dir, CompareDirs, DevelopFiles, InputHash, Manifest, SampleRenderFiles,
+    StageFiles,
+};
+pub use stage::{Skip, Stage, Status, UnknownStage};
+
 use crate::ccm_file::ColourFiles;
 use crate::envfit;
 use crate::envfit::EnvScaleFiles;
@@ -79,96 +86,6 @@ use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use thiserror::Error;
-
-/// The stages, in the order they run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Stage {
-    Optics,
-    Surface,
-    Bssrdf,
-    Fit,
-    Calibrate,
-    Colour,
-    Develop,
-    Pose,
-    EnvScale,
-    Render,
-    Compare,
-    Report,
-}
-
-impl Stage {
-    pub const ALL: [Stage; 12] = [
-        Stage::Optics,
-        Stage::Surface,
-        Stage::Bssrdf,
-        Stage::Fit,
-        Stage::Calibrate,
-        Stage::Colour,
-        Stage::Develop,
-        Stage::Pose,
-        Stage::EnvScale,
-        Stage::Render,
-        Stage::Compare,
-        Stage::Report,
-    ];
-
-    /// The stage's name (also its folder).
-    pub fn name(self) -> &'static str {
-        match self {
-            Stage::Optics => "optics",
-            Stage::Surface => "surface",
-            Stage::Bssrdf => "bssrdf",
-            Stage::Fit => "fit",
-            Stage::Calibrate => "calibrate",
-            Stage::Colour => "colour",
-            Stage::Develop => "develop",
-            Stage::Pose => "pose",
-            Stage::EnvScale => "env-scale",
-            Stage::Render => "render",
-            Stage::Compare => "compare",
-            Stage::Report => "report",
-        }
-    }
-
-    /// The stage of a name; a bad name lists the valid ones.
-    pub fn from_name(name: &str) -> Result<Stage, UnknownStage> {
-        Stage::ALL.into_iter().find(|s| s.name() == name).ok_or_else(|| UnknownStage { name: name.to_string() })
-    }
-
-    /// The stages whose outputs this one reads.
-    pub fn depends_on(self) -> &'static [Stage] {
-        match self {
-            Stage::Optics | Stage::Surface | Stage::Fit | Stage::Calibrate | Stage::Colour => &[],
-            Stage::Bssrdf => &[Stage::Surface],
-            Stage::Develop => &[Stage::Colour],
-            Stage::Pose => &[Stage::Calibrate],
-            Stage::EnvScale => &[Stage::Pose, Stage::Develop],
-            Stage::Render => &[Stage::EnvScale, Stage::Pose, Stage::Fit],
-            Stage::Compare => &[Stage::Render, Stage::Develop],
-            Stage::Report => &[
-                Stage::Optics,
-                Stage::Surface,
-                Stage::Bssrdf,
-                Stage::Fit,
-                Stage::Calibrate,
-                Stage::Colour,
-                Stage::Develop,
-                Stage::Pose,
-                Stage::EnvScale,
-                Stage::Render,
-                Stage::Compare,
-            ],
-        }
-    }
-}
-
-impl std::fmt::Display for Stage {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
 
 /// One unit of a stage's work.
 // A stage plans a handful of tasks: boxing the job would buy nothing.
@@ -209,13 +126,6 @@ pub struct Plan {
     pub inputs: Vec<PathBuf>,
     /// Notes for the status line (e.g. samples left out and why).
     pub notes: Vec<String>,
-}
-
-/// A stage name that [`Stage::from_name`] does not know.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("no stage {name:?}; the stages are {}", Stage::ALL.iter().map(|s| s.name()).collect::<Vec<_>>().join(", "))]
-pub struct UnknownStage {
-    pub name: String,
 }
 
 /// The class of a failure, the pipeline's and Slurm's errors included: a
@@ -350,82 +260,6 @@ pub enum StageProblem {
     NoSurfaceFit { sample: String, expected: PathBuf },
 }
 
-/// One input file as hashed.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct InputHash {
-    pub path: String,
-    pub bytes: u64,
-    pub sha256: String,
-}
-
-/// `STAGE/manifest.json`: what a stage ran on and what it produced.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Manifest {
-    pub stage: Stage,
-    pub key: String,
-    pub lucent_version: String,
-    pub seed: u64,
-    pub inputs: Vec<InputHash>,
-    pub commands: Vec<Vec<String>>,
-    pub notes: Vec<String>,
-    pub started_unix_s: u64,
-    pub wall_s: f64,
-    /// SHA-256 over the stage folder's files (names and contents, manifest and log excluded).
-    pub outputs_sha256: String,
-    pub outputs: Vec<String>,
-    /// Every file lucent wrote into the stage folder (paths relative to it)
-    /// with its size and SHA-256: only these are ever replaced or removed by
-    /// a later run. A file that is not listed, or no longer has its hash (the
-    /// user edited it), is the user's and is kept ([`users_files`]).
-    #[serde(default)]
-    pub files: Vec<InputHash>,
-}
-
-/// How a stage ended in this run; [`Status::Started`] only as the note
-/// that a stage begins (never a stage's end).
-#[derive(Debug, Clone, PartialEq)]
-pub enum Status {
-    /// The stage is about to run its tasks; `last_wall_s` is the time its
-    /// previous result took (from its manifest.json), when there is one.
-    Started {
-        last_wall_s: Option<f64>,
-    },
-    Ran {
-        wall_s: f64,
-        tasks: usize,
-    },
-    UpToDate,
-    Skipped {
-        reason: Skip,
-    },
-    /// Tasks handed to someone else to run ([`executor::Deferred`]): the
-    /// stage and the ones after it wait for a later run.
-    Deferred {
-        tasks: usize,
-    },
-}
-
-/// Why a stage is skipped: what the project (or an earlier stage) does not
-/// provide for it.
-#[derive(Debug, Clone, PartialEq, Eq, Error)]
-pub enum Skip {
-    /// A section the stage needs (`[bssrdf]`, `[[sample]]`, …).
-    #[error("no {0} in the project")]
-    Missing(&'static str),
-    #[error("no sample names a camera whose RGB its photos are in")]
-    NoSampleCamera,
-    #[error("needs the calibrate stage's camera.json (no [calibration] or it has not run)")]
-    NoCamera,
-    #[error("no sample has an empty_board photo")]
-    NoEmptyBoard,
-    #[error("no sample has both a photo and a render")]
-    NoPhotoAndRender,
-    #[error("no sample has measured slices ([[sample.measured]])")]
-    NoMeasured,
-    #[error("no sample has a surface height map ([[sample]] surface)")]
-    NoSurface,
-}
-
 /// Why a task of a stage failed.
 #[derive(Debug, Error)]
 pub enum TaskError {
@@ -471,122 +305,6 @@ pub fn hash_file(path: &Path) -> Result<InputHash, PipelineError> {
         h.update(&buf[..k]);
     }
     Ok(InputHash { path: path.display().to_string(), bytes: n, sha256: format!("{:x}", h.finalize()) })
-}
-
-/// The bookkeeping files of every stage folder, each name spelled here
-/// once: the stage's [`Manifest`] (`manifest`) and the log of its jobs
-/// (`log`). Written by [`run`], read by planning, the report and
-/// [`users_files`].
-///
-/// ```
-/// use lucent::pipeline::StageFiles;
-/// let f = StageFiles::in_dir(std::path::Path::new("out/optics"));
-/// assert_eq!(f.manifest, std::path::Path::new("out/optics/manifest.json"));
-/// ```
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct StageFiles {
-    pub manifest: PathBuf,
-    pub log: PathBuf,
-}
-
-impl StageFiles {
-    /// The file names.
-    pub const NAMES: [&'static str; 2] = [crate::io::STAGE_MANIFEST, "log.txt"];
-
-    /// The bookkeeping files of the stage folder `dir`.
-    pub fn in_dir(dir: &Path) -> Self {
-        let [manifest, log] = Self::NAMES.map(|n| dir.join(n));
-        Self { manifest, log }
-    }
-}
-
-/// The develop stage's files of a sample's photo `which` ("photo" or
-/// "empty_board") in the sample's folder, each name spelled here once (the
-/// planning below names them as the jobs' outputs): the photo in CIE RGB
-/// (`exr`), of a RAW photo its per-pixel variance (`variance`, the photo
-/// only) and its mask of validly recorded pixels (`valid`).
-///
-/// ```
-/// use lucent::pipeline::DevelopFiles;
-/// let f = DevelopFiles::in_dir(std::path::Path::new("out/develop/s1"), "photo");
-/// assert_eq!(f.variance, std::path::Path::new("out/develop/s1/photo_variance.exr"));
-/// ```
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct DevelopFiles {
-    pub exr: PathBuf,
-    pub variance: PathBuf,
-    pub valid: PathBuf,
-}
-
-impl DevelopFiles {
-    /// The files of photo `which` in the sample folder `dir`.
-    pub fn in_dir(dir: &Path, which: &str) -> Self {
-        Self {
-            exr: dir.join(format!("{which}.exr")),
-            variance: dir.join(format!("{which}_variance.exr")),
-            valid: dir.join(format!("{which}_valid.png")),
-        }
-    }
-}
-
-/// The render and env-scale stages' files of one sample in its folder,
-/// each name spelled here once (the planning below writes the scenes and
-/// names the folders): the scene the sample is rendered with (`scene`), its
-/// render ([`RenderFiles`] in the folder itself) and, with a fitted recipe,
-/// the fitted twin's scene (`fitted_scene`) and render folder (`fitted`).
-///
-/// ```
-/// use lucent::pipeline::SampleRenderFiles;
-/// let f = SampleRenderFiles::in_dir(std::path::Path::new("out/render/s1"));
-/// assert_eq!(f.fitted, std::path::Path::new("out/render/s1/fitted"));
-/// ```
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SampleRenderFiles {
-    pub scene: PathBuf,
-    pub fitted_scene: PathBuf,
-    pub fitted: PathBuf,
-}
-
-impl SampleRenderFiles {
-    /// The files of the sample folder `dir`.
-    pub fn in_dir(dir: &Path) -> Self {
-        Self {
-            scene: dir.join("input_scene.toml"),
-            fitted_scene: dir.join("input_scene_fitted.toml"),
-            fitted: dir.join("fitted"),
-        }
-    }
-}
-
-/// The compare stage's folders of one sample, each spelled here once (the
-/// planning below names them as the jobs' outputs), each holding
-/// [`crate::compare::CompareFiles`]: the whole image (`image`, the sample's folder itself),
-/// the object's pixels alone (`object`) and the fitted twin alone (`fitted`).
-///
-/// ```
-/// use lucent::pipeline::CompareDirs;
-/// let d = CompareDirs::in_dir(std::path::Path::new("out/compare/s1"));
-/// assert_eq!(d.object, std::path::Path::new("out/compare/s1/object"));
-/// ```
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct CompareDirs {
-    pub image: PathBuf,
-    pub object: PathBuf,
-    pub fitted: PathBuf,
-}
-
-impl CompareDirs {
-    /// The folders of the sample folder `dir`.
-    pub fn in_dir(dir: &Path) -> Self {
-        Self { image: dir.to_path_buf(), object: dir.join("object"), fitted: dir.join("fitted") }
-    }
-}
-
-/// The bssrdf stage's folder of a sample's comparison with its measured
-/// slice of configuration `c` (θi, θo): `compare_tiθi_toθo` in the sample's
-/// folder `dir`, holding [`crate::bssrdf::ComparisonFiles`].
-pub fn bssrdf_comparison_dir(dir: &Path, c: (f64, f64)) -> PathBuf {
-    dir.join(format!("compare_ti{}_to{}", c.0, c.1))
 }
 
 /// Files under `dir`, relative paths sorted, excluding the manifest and log.
@@ -753,16 +471,6 @@ fn carry_users_files(from: &Path, to: &Path, kept: &[String], stage: Stage) -> V
 
 fn read_manifest(dir: &Path) -> Option<Manifest> {
     serde_json::from_str(&crate::io::read_text(StageFiles::in_dir(dir).manifest).ok()?).ok()
-}
-
-/// The slice folder `lucent bssrdf` writes for a configuration.
-pub fn bssrdf_run_dir(sample_dir: &str, configs: &[(f64, f64)], c: (f64, f64)) -> String {
-    let sub = SliceFiles::run_subdir(configs.len(), c.0, c.1);
-    if sub.is_empty() {
-        sample_dir.to_string()
-    } else {
-        format!("{sample_dir}/{sub}")
-    }
 }
 
 /// The scene file a sample renders: the project's template with the

@@ -931,7 +931,7 @@ pub fn plan_lines(file: &ProjectFile, e: &super::executor::Executor) -> Vec<Stri
         None => here.push("render"),
     }
     let short: Vec<&str> =
-        super::Stage::ALL.iter().map(|s| s.name()).filter(|n| !["bssrdf", "render"].contains(n)).collect();
+        super::stage::Stage::ALL.iter().map(|s| s.name()).filter(|n| !["bssrdf", "render"].contains(n)).collect();
     lines.push(format!(
         "  {}  here: short commands, or not splittable into shards (only renders with a sample budget and \
          BSSRDF slices with a path budget are)",

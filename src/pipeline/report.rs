@@ -40,8 +40,9 @@
 //! table and the manifests are the pipeline's own, from the project and
 //! its [`Manifest`]s).
 
+use super::layout::{bssrdf_comparison_dir, bssrdf_run_dir, CompareDirs, Manifest, StageFiles};
 use super::project::{Project, SampleSection};
-use super::{bssrdf_comparison_dir, bssrdf_run_dir, CompareDirs, Manifest, Stage, StageFiles, Status};
+use super::stage::{Stage, Status};
 use crate::bssrdf::{ComparisonFiles, SliceFiles};
 use crate::compare::CompareFiles;
 use crate::envfit::EnvScaleFiles;

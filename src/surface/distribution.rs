@@ -37,8 +37,8 @@
 //! assert!((total - d.fraction_in_range).abs() < 1e-12);
 //! ```
 
+use super::error::SurfaceError;
 use super::normals::NormalField;
-use super::SurfaceError;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 

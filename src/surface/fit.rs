@@ -35,7 +35,7 @@
 //! ```
 
 use super::distribution::Distribution;
-use super::SurfaceError;
+use super::error::SurfaceError;
 use crate::surface::model::RoughnessModel;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;

@@ -33,7 +33,8 @@
 //! assert!((map.pitch_x_m - 0.871e-6).abs() < 1e-18 && (map.at(2, 1) - 6e-9).abs() < 1e-21);
 //! ```
 
-use super::{HeightMap, SurfaceError};
+use super::error::SurfaceError;
+use super::map::HeightMap;
 use std::path::Path;
 use strum::{EnumMessage, EnumString, IntoStaticStr, VariantArray, VariantNames};
 

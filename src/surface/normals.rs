@@ -41,7 +41,9 @@
 //! assert!((n[0] + 0.01 / (1.0001f64).sqrt()).abs() < 1e-9 && n[1].abs() < 1e-9);
 //! ```
 
-use super::{FitOptions, HeightMap, SurfaceError};
+use super::error::SurfaceError;
+use super::map::HeightMap;
+use super::options::FitOptions;
 use rayon::prelude::*;
 
 /// The least-squares plane z = mean + slope_x (x − x_c) + slope_y (y − y_c),

@@ -5,7 +5,8 @@
 //! (see [`crate::plot`]) so the caller writes them atomically.
 
 use super::fit::d_tilted_phi_average;
-use super::{FitReport, HeightMap};
+use super::map::HeightMap;
+use super::report::FitReport;
 use crate::plot::{legend_column, perr, render_png, short_number, viridis, Mark, PlotError};
 use crate::surface::model::RoughnessModel;
 use plotters::element::BitMapElement;

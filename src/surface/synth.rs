@@ -36,7 +36,8 @@
 //! assert_eq!((s.map.nx, s.map.ny), (64, 48));
 //! ```
 
-use super::{HeightMap, SurfaceError};
+use super::error::SurfaceError;
+use super::map::HeightMap;
 use crate::surface::model::RoughnessModel;
 use lucent_render::rng::Rng;
 use rayon::prelude::*;

@@ -42,7 +42,8 @@
 //! assert_eq!(back.pitch_x_m, 0.871e-6);
 //! ```
 
-use super::{HeightMap, SurfaceError};
+use super::error::SurfaceError;
+use super::map::HeightMap;
 use crate::io::write_atomic;
 use md5::{Digest, Md5};
 use std::io::{Read, Write};

@@ -4,7 +4,13 @@
 //! part with its correction, and the range helpers. See the parent module
 //! for the formulas' definitions and the file format.
 
-use super::*;
+/// How far beyond its valid range a part of the data may be extrapolated,
+/// as a fraction of the nearer range end's wavelength (the parent module's
+/// doc).
+pub const MAX_EXTRAPOLATION: f64 = 0.25;
+
+/// Relative tolerance on range ends (absorbs nm ↔ µm rounding).
+pub(super) const RANGE_TOLERANCE: f64 = 1e-9;
 
 /// A tabulated quantity: strictly increasing wavelengths (µm), ≥ 2 rows.
 #[derive(Debug, Clone)]

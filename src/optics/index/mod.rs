@@ -153,13 +153,10 @@
 
 use std::path::Path;
 
+pub use dispersion::MAX_EXTRAPOLATION;
+pub use error::IndexError;
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
-use serde_yaml_ng::Value;
-
-/// How far beyond its valid range a part of the data may be extrapolated,
-/// as a fraction of the nearer range end's wavelength (module doc).
-pub const MAX_EXTRAPOLATION: f64 = 0.25;
 
 /// What to do at a wavelength outside the valid range of the data.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
@@ -207,75 +204,6 @@ pub struct IndexSample {
     pub extrapolated: bool,
 }
 
-/// Errors from reading or evaluating refractive-index data. Every message
-/// names the file (the spectrum's [`IndexSpectrum::source`]).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[non_exhaustive]
-pub enum IndexError {
-    /// The file could not be read.
-    #[error("cannot read refractive-index file {file}: {message}")]
-    Read { file: String, message: String },
-    /// Not YAML, or not a mapping with a `DATA` list of entries.
-    #[error("{file}: not a valid refractiveindex.info YAML file: {message}")]
-    Yaml { file: String, message: String },
-    /// A `DATA` entry of a type other than `tabulated nk|n|k`, `formula 1…9`.
-    #[error(
-        "{file}: {location}: unknown DATA type '{kind}' (expected tabulated nk, tabulated n, tabulated k or formula 1 … formula 9)"
-    )]
-    UnknownType { file: String, location: String, kind: String },
-    /// A token that is not a number.
-    #[error("{file}: {location}: malformed number '{token}'")]
-    BadNumber { file: String, location: String, token: String },
-    /// A number that is NaN, infinite or negative where that is not allowed.
-    #[error("{file}: {location}: {quantity} = {value} is not allowed (must be {requirement})")]
-    InvalidValue { file: String, location: String, quantity: String, value: f64, requirement: String },
-    /// A table with fewer than two rows.
-    #[error("{file}: {location}: a table needs at least 2 rows, found {rows}")]
-    TooFewRows { file: String, location: String, rows: usize },
-    /// Table wavelengths that do not increase strictly.
-    #[error("{file}: {location}: wavelengths must increase strictly, but {wavelength_um} µm follows {previous_um} µm")]
-    NonIncreasing { file: String, location: String, previous_um: f64, wavelength_um: f64 },
-    /// Any other structural problem (missing keys, wrong column count, …).
-    #[error("{file}: {message}")]
-    Format { file: String, message: String },
-    /// No entry provides the real part n.
-    #[error("{file}: no DATA entry provides the real part n (need a formula, tabulated n or tabulated nk)")]
-    NoRealPart { file: String },
-    /// The wavelength is outside the valid range of the n or κ data and no
-    /// extrapolation was asked for.
-    #[error(
-        "{file}: wavelength {} nm is outside the valid range {}–{} nm of the {part} data (to go beyond it, set extrapolate = \"clamp\" or \"linear\" for this medium in the recipe: under [host] or its [[particles]] entry)",
-        fmt_nm(*wavelength_nm), fmt_nm(*min_nm), fmt_nm(*max_nm)
-    )]
-    OutOfRange { file: String, part: String, wavelength_nm: f64, min_nm: f64, max_nm: f64 },
-    /// The wavelength is further outside the valid range than any
-    /// extrapolation reaches ([`MAX_EXTRAPOLATION`]).
-    #[error(
-        "{file}: wavelength {} nm is too far outside the valid range {}–{} nm of the {part} data: extrapolation reaches {}–{} nm (25 % of the range ends)",
-        fmt_nm(*wavelength_nm), fmt_nm(*min_nm), fmt_nm(*max_nm),
-        fmt_nm(*min_nm * (1.0 - MAX_EXTRAPOLATION)), fmt_nm(*max_nm * (1.0 + MAX_EXTRAPOLATION))
-    )]
-    TooFarOutside { file: String, part: String, wavelength_nm: f64, min_nm: f64, max_nm: f64 },
-    /// The requested wavelength is NaN, infinite or not positive.
-    #[error("{file}: requested wavelength {wavelength_nm} nm is not a finite positive number")]
-    InvalidWavelength { file: String, wavelength_nm: f64 },
-    /// The data give no physical index at this wavelength (formula with
-    /// n² < 0, a pole, n ≤ 0 after extrapolation, …).
-    #[error("{file}: the data give no physical refractive index at {} nm ({detail})", fmt_nm(*wavelength_nm))]
-    NonPhysical { file: String, wavelength_nm: f64, detail: String },
-    /// [`IndexSpectrum::with_real_part_at`] with a value of n that is not
-    /// finite and positive.
-    #[error("{file}: cannot set the real part to n = {n} at {wavelength_nm} nm (n must be finite and positive)")]
-    InvalidCorrection { file: String, wavelength_nm: f64, n: f64 },
-    /// [`IndexSpectrum::with_imaginary_part`] with a value that is not
-    /// finite and ≥ 0.
-    #[error("{file}: cannot override the imaginary part with {what} = {value} (must be finite and ≥ 0)")]
-    InvalidImaginaryCorrection { file: String, what: String, value: f64 },
-    /// [`IndexSpectrum::builtin`] with a name that is not built in.
-    #[error("unknown built-in refractive-index data '{name}'; valid names: {valid}")]
-    UnknownBuiltin { name: String, valid: String },
-}
-
 /// Names of the built-in spectra (file stems in `data/refractiveindex/`).
 pub const BUILTIN_NAMES: &[&str] = &[
     "PC_Zhang2020",
@@ -308,9 +236,6 @@ const BUILTIN_FILES: &[(&str, &str)] = &[
     ("PMMA_Zhang2020_Tomson", include_str!("../../../data/refractiveindex/PMMA_Zhang2020_Tomson.yml")),
 ];
 
-/// Relative tolerance on range ends (absorbs nm ↔ µm rounding).
-const RANGE_TOLERANCE: f64 = 1e-9;
-
 /// A complex refractive-index spectrum read from a refractiveindex.info file.
 #[derive(Debug, Clone)]
 pub struct IndexSpectrum {
@@ -326,7 +251,8 @@ impl IndexSpectrum {
     /// Parse the text of a refractiveindex.info YAML file. `source` names it
     /// in error messages and in [`IndexSpectrum::source`].
     pub fn parse(yaml_text: &str, source: &str) -> Result<Self, IndexError> {
-        parse_spectrum(yaml_text, source)
+        let (n, k) = parse_spectrum(yaml_text, source)?;
+        Ok(IndexSpectrum { source: source.to_string(), n, k, k_correction: None })
     }
 
     /// Read and parse a file; errors name the path.
@@ -521,6 +447,7 @@ impl IndexSpectrum {
 }
 
 mod dispersion;
+mod error;
 #[cfg(test)]
 mod tests;
 mod yaml;

@@ -1,9 +1,12 @@
 //! The parser of refractiveindex.info YAML files (`DATA` entries of
 //! `tabulated n`, `tabulated k`, `tabulated nk` and `formula 1`–`formula 9`)
-//! into an [`IndexSpectrum`]; errors name the file, the entry and, where
-//! known, the line.
+//! into the parts of an [`IndexSpectrum`](super::IndexSpectrum); errors
+//! name the file, the entry and, where known, the line.
 
-use super::*;
+use super::dispersion::{Correction, Formula, RealPart, RealSource, Table, MAX_COEFFICIENTS};
+use super::error::IndexError;
+use serde::Deserialize;
+use serde_yaml_ng::Value;
 
 #[derive(Deserialize)]
 pub(super) struct RawFile {
@@ -45,7 +48,9 @@ impl Ctx<'_> {
     }
 }
 
-pub(super) fn parse_spectrum(text: &str, file: &str) -> Result<IndexSpectrum, IndexError> {
+/// The real part n and, if the file has one, the table of κ of the
+/// spectrum in `text` (the file `file`).
+pub(super) fn parse_spectrum(text: &str, file: &str) -> Result<(RealPart, Option<Table>), IndexError> {
     let raw: RawFile = serde_yaml_ng::from_str(text)
         .map_err(|e| IndexError::Yaml { file: file.to_string(), message: e.to_string() })?;
     let ctx = Ctx { text, file };
@@ -79,12 +84,7 @@ pub(super) fn parse_spectrum(text: &str, file: &str) -> Result<IndexSpectrum, In
         }
     }
     let n = n.ok_or_else(|| IndexError::NoRealPart { file: file.to_string() })?;
-    Ok(IndexSpectrum {
-        source: file.to_string(),
-        n: RealPart { source: n, correction: Correction::None },
-        k,
-        k_correction: None,
-    })
+    Ok((RealPart { source: n, correction: Correction::None }, k))
 }
 
 pub(super) fn scalar_text(v: &Value) -> Option<String> {
