@@ -11,104 +11,24 @@
 //! into the job, draws the progress bar ([`SliceHooks`]) and prints the
 //! run's summary.
 
+mod error;
+mod outcome;
 mod plan;
 mod section;
 mod shard;
 
+pub use error::BssrdfJobError;
+pub use outcome::BssrdfRun;
 pub use plan::{beam, MediumChoice, Perturbation, Plan, PlannedRun};
 pub use section::{BssrdfConfigFiles, BssrdfSection};
 
-use super::{BssrdfCompareJob, BssrdfJob, Context};
+use super::context::Context;
+use super::spec::{BssrdfCompareJob, BssrdfJob};
 use crate::bssrdf::{self, RunConfig, Summary};
-use crate::fault::Interrupted;
 use crate::interrupt::Interrupt;
 use lucent_render::slab::{self, RunOptions, Stop};
 use lucent_render::stop::{Condition, Standing};
 use std::path::{Path, PathBuf};
-use thiserror::Error;
-
-/// The estimator of a slab job's slices (`--estimator`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-#[derive(strum::EnumString, strum::IntoStaticStr, strum::VariantNames, strum::VariantArray, strum::EnumMessage)]
-#[strum(serialize_all = "kebab-case", ascii_case_insensitive)]
-pub enum EstimatorChoice {
-    /// The ring connection where it applies (θi = 0 or θo = 0, thick slab, smooth top), else the lobe connection
-    /// (thick slab, smooth or rough top), else the fixed-direction one.
-    #[default]
-    Auto,
-    /// The ring connection (azimuthal symmetry; an error where it does not apply).
-    Ring,
-    /// The lobe connection (MIS with chains drawn through the phase lobe around the exit direction; thick slab,
-    /// smooth or rough top).
-    Lobe,
-    /// The explicit connection along the one fixed exit direction (the previous estimator).
-    Connection,
-}
-
-impl EstimatorChoice {
-    /// The name flags and job files use.
-    pub fn name(self) -> &'static str {
-        self.into()
-    }
-}
-
-/// Why a slab job or a slice comparison failed.
-#[derive(Debug, Error)]
-pub enum BssrdfJobError {
-    /// A value the job cannot use (the message names its flag).
-    #[error("{0}")]
-    Refused(String),
-    #[error(transparent)]
-    Recipe(#[from] crate::optics::recipe::RecipeError),
-    #[error(transparent)]
-    Optics(#[from] crate::optics::bulk::OpticsError),
-    #[error(transparent)]
-    Phase(#[from] lucent_render::phase::PhaseError),
-    #[error(transparent)]
-    Medium(#[from] lucent_render::medium::MediumError),
-    #[error(transparent)]
-    Slab(#[from] slab::SlabError),
-    #[error(transparent)]
-    Roughness(#[from] bssrdf::RoughnessError),
-    #[error(transparent)]
-    Slice(#[from] bssrdf::SliceIoError),
-    #[error(transparent)]
-    Output(#[from] crate::io::OutputFolderError),
-    #[error(transparent)]
-    Write(#[from] crate::io::WriteError),
-    #[error(transparent)]
-    Plot(#[from] crate::plot::PlotError),
-    #[error(transparent)]
-    Shard(#[from] crate::job::shard::ShardError),
-    /// The beam map cannot be read.
-    #[error("--beam-map")]
-    BeamMap(#[source] bssrdf::SliceIoError),
-    /// A configuration's directions cannot be used.
-    #[error("configuration θi {ti}° → θo {to}°")]
-    Configuration { ti: f64, to: f64, source: slab::SlabError },
-    /// The recipe at ±1 σ of an uncertain input is not valid.
-    #[error("{what}")]
-    Perturbed { what: String, source: crate::optics::recipe::RecipeError },
-    /// The slices cannot be compared.
-    #[error("{measured} vs {simulated}: {error}")]
-    Comparison { measured: PathBuf, simulated: PathBuf, error: bssrdf::ComparisonError },
-    /// Stopped by Ctrl-C or SIGTERM ([`BssrdfJobError::into_parts`] hands
-    /// the [`Interrupted`] itself to a caller that classes errors).
-    #[error(transparent)]
-    Interrupted(#[from] Interrupted),
-}
-
-impl BssrdfJobError {
-    /// The error as the [`Interrupted`] it is, if it is one (a caller that
-    /// classes errors by their type sees it then), else itself.
-    pub fn into_parts(self) -> Result<Self, Interrupted> {
-        match self {
-            BssrdfJobError::Interrupted(i) => Err(i),
-            e => Ok(e),
-        }
-    }
-}
 
 type E = BssrdfJobError;
 
@@ -135,35 +55,6 @@ pub struct NoHooks;
 
 impl SliceHooks for NoHooks {}
 
-/// What a slab job did: the lines `lucent bssrdf` prints (one per
-/// configuration, the band's sentences, the sweep table's path or the
-/// shard's line), and where a run stopped by Ctrl-C kept its slice.
-pub struct BssrdfRun {
-    pub lines: Vec<String>,
-    /// The configuration's folder when Ctrl-C stopped the run: it holds the
-    /// slice so far, and the configurations after it were not run.
-    pub interrupted_at: Option<PathBuf>,
-}
-
-impl BssrdfRun {
-    /// The lines to print.
-    pub fn summary(&self) -> Vec<String> {
-        self.lines.clone()
-    }
-
-    /// `Err` when Ctrl-C stopped the run (its outputs are written, labelled
-    /// "interrupted").
-    pub fn finished(&self) -> Result<(), Interrupted> {
-        match &self.interrupted_at {
-            Some(at) => Err(Interrupted(format!(
-                "{} holds the slice from the paths finished before Ctrl-C (summary.json says \"interrupted\": true); the configurations after it were not run",
-                at.display()
-            ))),
-            None => Ok(()),
-        }
-    }
-}
-
 impl BssrdfJob {
     /// Simulates the job's slices into `out` (staged: moved into `out` when
     /// every configuration is done), or with `shard` one shard's tallies.
@@ -177,7 +68,7 @@ impl BssrdfJob {
     /// Writes the outputs of the run whose shards these are (`lucent
     /// merge`): the shards' tallies added in shard order, what the
     /// unsharded run writes.
-    pub fn merge(&self, ctx: &Context, shards: &[crate::job::shard::Shard]) -> Result<BssrdfRun, E> {
+    pub fn merge(&self, ctx: &Context, shards: &[crate::job::shard::format::Shard]) -> Result<BssrdfRun, E> {
         self.simulate(ctx, &mut NoHooks, Some(shards))
     }
 
@@ -185,10 +76,10 @@ impl BssrdfJob {
         &self,
         ctx: &Context,
         hooks: &mut dyn SliceHooks,
-        merged_from: Option<&[crate::job::shard::Shard]>,
+        merged_from: Option<&[crate::job::shard::format::Shard]>,
     ) -> Result<BssrdfRun, E> {
         let plan = self.plan(ctx)?;
-        let shard = self.shard.map(crate::job::shard::ShardSpec::pair);
+        let shard = self.shard.map(crate::job::shard::format::ShardSpec::pair);
         let batch_paths = RunOptions::default().batch_paths;
         let total_batches = self.stop().samples.unwrap_or(0).div_ceil(batch_paths);
         self.check_stop_for_split(shard, merged_from.is_some(), total_batches)?;
@@ -264,7 +155,7 @@ impl BssrdfJob {
         hooks: &mut dyn SliceHooks,
         plan: &Plan,
         i: usize,
-        tallies: Option<&[&crate::job::shard::Arrays]>,
+        tallies: Option<&[&crate::job::shard::format::Arrays]>,
         interrupt: &Interrupt,
     ) -> Result<(slab::Slice, Option<Vec<slab::SliceDifference>>), E> {
         let run = &plan.runs[i];
@@ -293,7 +184,10 @@ impl BssrdfJob {
                         && !self.quiet
                     {
                         let all = if i == 0 && configs > 1 {
-                            format!("; ≈ {} for all {configs} configurations", super::duration(line.0 * configs as f64))
+                            format!(
+                                "; ≈ {} for all {configs} configurations",
+                                crate::text::duration(line.0 * configs as f64)
+                            )
                         } else {
                             String::new()
                         };
@@ -389,7 +283,7 @@ impl BssrdfJob {
             if let Some((k, n)) = shard
                 && u64::from(n) > total_batches
             {
-                return Err(crate::job::shard::ShardError::TooManyShards {
+                return Err(crate::job::shard::format::ShardError::TooManyShards {
                     k,
                     n,
                     units: total_batches,
@@ -472,7 +366,7 @@ fn write_slice_band(
 /// error² ∝ 1/time, a time budget as given. `None` when the round already
 /// ended it (or nothing can tell).
 pub fn expectation(stop: &Stop, p: &slab::Progress) -> Option<(f64, String)> {
-    use super::duration;
+    use crate::text::duration;
     let elapsed = p.elapsed_s;
     if p.paths == 0 || elapsed.is_nan() || elapsed <= 0.0 {
         return None;

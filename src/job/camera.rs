@@ -16,7 +16,10 @@
 mod section;
 pub use section::{CalibrateSection, PoseSection};
 
-use super::{CalibrateJob, Context, PoseJob};
+pub use super::images::{ambiguous_board_warning, file_name, to_buffer, to_image};
+
+use super::context::Context;
+use super::spec::{CalibrateJob, PoseJob};
 use crate::imageio::{self, extension, ImageIoError, RAW_EXTENSIONS};
 use crate::io::{write_atomic, write_json, GlobError, OutputFolderError, WriteError};
 use crate::text::duration;
@@ -29,7 +32,7 @@ use lucent_calib::env;
 use lucent_calib::error::CalibError;
 use lucent_calib::raw::{self, RawError, RawOptions};
 use lucent_calib::scene::{self, BoardSpec, PoseFiles, SampleSpec};
-use lucent_calib::{GrayImage, RgbBuffer};
+use lucent_calib::GrayImage;
 use std::path::{Path, PathBuf};
 
 /// Why a calibrate or pose job (or reading its photos) fails.
@@ -90,21 +93,6 @@ pub enum CameraJobError {
 
 /// The file extensions of the photos a folder of `--images` is searched for (besides RAW files).
 pub const IMAGE_EXTENSIONS: [&str; 8] = ["jpg", "jpeg", "png", "tif", "tiff", "bmp", "exr", "hdr"];
-
-/// A path's file name (the whole path when it has none).
-pub fn file_name(path: &Path) -> String {
-    path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string())
-}
-
-/// An image as the RGB buffer of `lucent_calib`.
-pub fn to_buffer(img: imageio::RgbImage) -> RgbBuffer {
-    RgbBuffer { width: img.width, height: img.height, data: img.data }
-}
-
-/// An RGB buffer of `lucent_calib` as an image.
-pub fn to_image(buf: RgbBuffer) -> imageio::RgbImage {
-    imageio::RgbImage { width: buf.width, height: buf.height, data: buf.data }
-}
 
 /// Files named by a folder, a file, or a glob pattern in the file-name
 /// part (`DIR/*.jpg`, `DIR/left??.{jpg,png}`, `DIR/left0[1-5].jpg`; see
@@ -206,17 +194,6 @@ pub fn read_camera(path: &Path) -> Result<Calibration, CameraJobError> {
     let text =
         crate::io::read_text(path).map_err(|source| CameraJobError::ReadCamera { path: path.to_path_buf(), source })?;
     serde_json::from_str(&text).map_err(|source| CameraJobError::CameraJson { path: path.to_path_buf(), source })
-}
-
-/// The warning of `pose` and `env orient` when corner (0, 0) cannot be
-/// told from the opposite one (without its "warning: ").
-pub fn ambiguous_board_warning(board: &BoardSpec, what: &str) -> String {
-    format!(
-        "corner (0, 0) of the {}x{} board cannot be told from the opposite corner (a board with two even \
-         or two odd counts looks the same turned 180°, or its outer corner squares are not both visible): {what} \
-         may be off by 180°; use a board with one odd and one even count, e.g. 9x6, seen whole",
-        board.cols, board.rows
-    )
 }
 
 /// The chessboard of a job's `board` and `square_mm`.
@@ -408,7 +385,7 @@ impl PoseJob {
         }
         let size = s.mm();
         // A sample lies on the board (the range of the project's [pose] sample_size_mm).
-        if let Some(reason) = super::sample_size_problem(size, board.cols, board.rows, board.square_m * 1e3) {
+        if let Some(reason) = super::spec::sample_size_problem(size, board.cols, board.rows, board.square_m * 1e3) {
             return Err(CameraJobError::SampleSize { size: s.to_string(), reason });
         }
         Ok(Some(SampleSpec { corner: [c.i, c.j], size_m: size.map(|v| v / 1000.0) }))

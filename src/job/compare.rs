@@ -9,7 +9,8 @@
 mod section;
 pub use section::{verdict_sentence, CompareSection};
 
-use super::{CompareJob, Context};
+use super::context::Context;
+use super::spec::CompareJob;
 use crate::compare::{self, CompareError, MaskSpec, Metrics, Outcome, Request};
 use std::path::{Path, PathBuf};
 

@@ -22,8 +22,9 @@
 //! * `NAME_saturated.png` — white where a pixel is saturated in every
 //!   bracket (its value is a lower bound).
 
-use super::camera::{file_name, to_buffer, to_image};
-use super::{bad, by_name, s, Context, JobError, Line};
+use super::context::Context;
+use super::fields::{bad, by_name, s, JobError, Line};
+use super::images::{file_name, to_buffer, to_image};
 use crate::imageio::{self, extension, ImageIoError, RgbImage, RAW_EXTENSIONS};
 use crate::io::{json_bytes, WriteError};
 use crate::text::serde_as_text;

@@ -22,8 +22,10 @@
 //! * `NAME_board.png` (from a board) — the view with the detected and
 //!   reprojected corners.
 
-use super::camera::{ambiguous_board_warning, file_name, to_buffer, to_image};
-use super::{bad, board, s, Context, ImageSize, JobError, Line};
+use super::context::Context;
+use super::fields::{bad, board, s, JobError, Line};
+use super::images::{ambiguous_board_warning, file_name, to_buffer, to_image};
+use super::values::ImageSize;
 use crate::imageio::{self, extension, ImageIoError};
 use crate::io::{json_bytes, WriteError};
 use crate::text::serde_as_text;

@@ -25,7 +25,10 @@
 
 mod section;
 
-use super::{check_threads, render::resize, worker_pool, Context, EnvScaleJob, RenderHooks, ThreadsError};
+use super::context::Context;
+use super::render::{resize, RenderHooks};
+use super::spec::EnvScaleJob;
+use super::threads::{check_threads, worker_pool, ThreadsError};
 use crate::envfit::{self, EnvScaleFiles, FitReport};
 use crate::imageio::{self, ImageIoError, RgbImage};
 use crate::scene::{self, SceneFileError};

@@ -8,7 +8,9 @@
 mod section;
 pub use section::FitSection;
 
-use super::{Context, FitJob, MeasuredSlice};
+use super::context::Context;
+use super::spec::FitJob;
+use super::values::MeasuredSlice;
 use crate::fit::{self, report, Budget, FitResult, FreeParameter, Measurement, Problem};
 use crate::optics::recipe::{Overrides, Recipe};
 use std::path::{Path, PathBuf};
@@ -25,7 +27,7 @@ pub enum FitJobError {
     #[error(transparent)]
     Recipe(#[from] crate::optics::recipe::RecipeError),
     #[error(transparent)]
-    Beam(#[from] super::BssrdfJobError),
+    Beam(#[from] super::bssrdf::BssrdfJobError),
     #[error(transparent)]
     Output(#[from] crate::io::OutputFolderError),
     #[error(transparent)]

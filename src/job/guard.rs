@@ -7,7 +7,7 @@
 //! marked as lucent's when the work succeeds, removed again when the work
 //! fails and leaves it empty).
 
-use super::Job;
+use super::spec::Job;
 use crate::io::{OutputFolderError, WriteError};
 use lucent_calib::calibrate::CalibrationFiles;
 use lucent_calib::scene::PoseFiles;
@@ -157,11 +157,11 @@ impl Job {
             ),
             Job::RawClipped(j) => FileRoles::new(vec![j.input.clone()], vec![j.out.clone()], vec![]),
             Job::EnvMerge(j) => {
-                let files = super::EnvMergeFiles::of(&j.out);
+                let files = super::env_merge::EnvMergeFiles::of(&j.out);
                 FileRoles::new(j.brackets.clone(), vec![files.exr], vec![files.json, files.saturated_png])
             }
             Job::EnvOrient(j) => {
-                let files = super::EnvOrientFiles::of(&j.out);
+                let files = super::env_orient::EnvOrientFiles::of(&j.out);
                 FileRoles::new(vec![j.input.clone()], vec![files.exr], vec![files.json, files.board_png])
             }
             _ => FileRoles::default(),
@@ -173,12 +173,14 @@ impl Job {
     /// merge, env orient) named `.exr`.
     pub fn check_files(&self) -> Result<(), FileRoleError> {
         self.file_roles().check()?;
-        if let Job::Calibrate(super::CalibrateJob { out, .. }) | Job::Pose(super::PoseJob { out, .. }) = self
+        if let Job::Calibrate(super::spec::CalibrateJob { out, .. }) | Job::Pose(super::spec::PoseJob { out, .. }) =
+            self
             && !out.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"))
         {
             return Err(FileRoleError::NotJson { out: out.clone() });
         }
-        if let Job::EnvMerge(super::EnvMergeJob { out, .. }) | Job::EnvOrient(super::EnvOrientJob { out, .. }) = self
+        if let Job::EnvMerge(super::env_merge::EnvMergeJob { out, .. })
+        | Job::EnvOrient(super::env_orient::EnvOrientJob { out, .. }) = self
             && crate::imageio::extension(out) != "exr"
         {
             return Err(FileRoleError::NotExr { out: out.clone() });

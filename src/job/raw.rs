@@ -9,7 +9,8 @@
 //! black = clipped — the `--mask` of `lucent compare` and `lucent env
 //! fit-scale`. `lucent raw clipped` and the pipeline's develop stage run it.
 
-use super::{Context, RawClippedJob};
+use super::context::Context;
+use super::spec::RawClippedJob;
 use crate::imageio::{self, ImageIoError, RgbImage};
 use lucent_calib::raw::{self, RawData, RawError};
 use lucent_calib::RgbBuffer;

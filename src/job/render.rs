@@ -23,23 +23,27 @@
 //! [`RenderRun::summary`].
 
 mod band;
+mod error;
+mod outcome;
 mod outputs;
 mod section;
 mod shard;
 
-pub use band::{BandError, Uncertain};
+pub use band::Uncertain;
+pub use error::{BandError, RenderError};
+pub use outcome::{BandRun, RenderRun, Rendered};
 pub use outputs::{describe_errors, errors_report, report, spp_by_region, write_band, write_outputs};
 pub use shard::SHARD_ACC;
+// Where the render job's own words were defined before the jobs had a module.
+pub use super::spec::{sampling_name, DispersionKey};
 
-use super::{Context, ImageSize, RenderJob, ThreadsError};
+use super::context::Context;
+use super::spec::RenderJob;
+use super::values::ImageSize;
 use crate::fault::Interrupted;
 use crate::interrupt::Interrupt;
 use crate::scene::{self, RenderReport, SceneSummary};
 use lucent_render::tracer::{self, Settings, Stats};
-use serde::{Deserialize, Serialize};
-use std::error::Error as StdError;
-use std::path::PathBuf;
-use thiserror::Error;
 
 /// The error target of a render that names neither a sample budget nor a
 /// target: the median relative standard error per pixel over the
@@ -49,98 +53,6 @@ pub const DEFAULT_TARGET_REL_ERROR: f64 = 0.05;
 /// The sample cap of such a render (per object pixel): high enough that
 /// the target or a time budget ends it.
 pub const DEFAULT_SPP_CAP: u32 = 1 << 20;
-
-/// `dispersion`: refraction where the bands' indices differ.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, strum::IntoStaticStr)]
-#[serde(rename_all = "kebab-case")]
-#[strum(serialize_all = "kebab-case")]
-pub enum DispersionKey {
-    /// Exact: one band per path.
-    PerBand,
-    /// The bands' mean index for directions, Fresnel per band (approximate).
-    SharedDirections,
-}
-
-impl From<DispersionKey> for tracer::Dispersion {
-    fn from(d: DispersionKey) -> Self {
-        match d {
-            DispersionKey::PerBand => Self::PerBand,
-            DispersionKey::SharedDirections => Self::SharedDirections,
-        }
-    }
-}
-
-/// `--sampling`'s word for a `[render] sampling` value.
-pub fn sampling_name(k: scene::SamplingKey) -> &'static str {
-    match k {
-        scene::SamplingKey::Uniform => "uniform",
-        scene::SamplingKey::ObjectWeighted => "object-weighted",
-    }
-}
-
-/// Why a render job failed.
-#[derive(Debug, Error)]
-pub enum RenderError {
-    /// A flag's value is out of range (the message names the flag).
-    #[error("{flag} {value}: {reason}")]
-    Flag { flag: &'static str, value: f64, reason: String },
-    #[error("--spp 0: at least one sample per pixel")]
-    ZeroSpp,
-    #[error("--exposure must be finite")]
-    ExposureNotFinite,
-    #[error(transparent)]
-    Threads(#[from] ThreadsError),
-    #[error(transparent)]
-    Scene(#[from] scene::SceneFileError),
-    #[error(transparent)]
-    Stop(#[from] tracer::StopError),
-    #[error("{path}: cannot create output folder")]
-    CreateDir { path: PathBuf, source: std::io::Error },
-    /// An output file could not be written.
-    #[error("{path}: cannot write")]
-    Write { path: PathBuf, source: Box<dyn StdError + Send + Sync> },
-    #[error(transparent)]
-    WriteFile(#[from] crate::io::WriteError),
-    #[error(transparent)]
-    Image(#[from] crate::imageio::ImageIoError),
-    #[error(transparent)]
-    Exr(#[from] crate::exr::ExrWriteError),
-    #[error(transparent)]
-    Plot(#[from] crate::plot::PlotError),
-    /// `--shard` with what a shard cannot split.
-    #[error("--shard: {0}")]
-    NotShardable(&'static str),
-    #[error("--uncertainty: the renders at ±1 σ are not sharded; run without --shard")]
-    UncertaintyShard,
-    #[error(transparent)]
-    Shard(#[from] crate::job::shard::ShardError),
-    #[error("{dir}: shard {k} holds samples {held:?}, the run's shard {k} is {expected:?}")]
-    ShardRange { dir: PathBuf, k: u32, held: [u64; 2], expected: std::ops::Range<u64> },
-    #[error("{path}: pixel {pixel} has {samples} samples, the shard should have {count}")]
-    ShardSamples { path: PathBuf, pixel: usize, samples: f64, count: f64 },
-    #[error(
-        "--uncertainty-spp {0}: must be a positive even number (the band's error comes from the two halves of the samples)"
-    )]
-    UncertaintySpp(u32),
-    #[error("--uncertainty: {scene} has no [material] recipe to take uncertain inputs from")]
-    NoRecipe { scene: PathBuf },
-    #[error(
-        "--uncertainty: the recipe {recipe} gives no input with an uncertainty (write e.g. weight_percent = {{ value = 0.65, sd = 0.03 }})"
-    )]
-    NoUncertainInput { recipe: PathBuf },
-    #[error("--uncertainty: {key} = {value} (nominal {sign} 1 σ)")]
-    AtOneSigma { key: String, value: f64, sign: &'static str, source: Box<RenderError> },
-    #[error(
-        "--uncertainty: the renders at ±1 σ did not finish within the time budget ({0} s); give a smaller --uncertainty-spp or more time"
-    )]
-    BandTimeBudget(f64),
-    #[error("the band was not written (the render itself is in {}/render.*)", out.display())]
-    Band { out: PathBuf, source: BandError },
-    #[error("{}: cannot write {name}", out.display())]
-    BandFile { out: PathBuf, name: &'static str, source: crate::io::WriteError },
-    #[error("{0}")]
-    Internal(&'static str),
-}
 
 /// What the caller of a render sees of it as it runs. Every method has a
 /// default that does nothing, so `()` is the hooks of a render nobody
@@ -156,33 +68,6 @@ pub trait RenderHooks: Send {
 
 impl RenderHooks for () {}
 
-/// What a render job did: the image (its report and error figures, the
-/// band) or a shard, in `out`.
-pub struct RenderRun {
-    pub out: PathBuf,
-    /// `None`: a shard stopped before it wrote anything.
-    pub rendered: Option<Rendered>,
-    /// Ctrl-C or SIGTERM stopped the render: the files hold what was
-    /// finished (render.json says so), or a shard was not written. The
-    /// command fails with it after the summary.
-    pub interrupted: Option<Interrupted>,
-}
-
-/// The result of a render job.
-pub enum Rendered {
-    /// render.exr, png and json written (and with `uncertainty`, the band).
-    Image { report: Box<RenderReport>, errors: tracer::RegionErrors, band: Option<Box<BandRun>> },
-    /// Shard `k` of `n`: samples `range` of every pixel, in `wall_s`.
-    Shard { k: u32, n: u32, range: std::ops::Range<u64>, wall_s: f64 },
-}
-
-/// The band a render with `uncertainty` wrote, the renders at ±1 σ it took and their time.
-pub struct BandRun {
-    pub band: scene::band::RenderBand,
-    pub renders: usize,
-    pub wall_s: f64,
-}
-
 impl RenderRun {
     /// What `lucent render` prints on its standard output.
     pub fn summary(&self) -> Vec<String> {
@@ -193,7 +78,7 @@ impl RenderRun {
                 "shard {k}/{n}: samples {}..{} of every pixel in {wall_s:.1} s → {out}/{SHARD_ACC}, {}",
                 range.start,
                 range.end,
-                crate::job::shard::SHARD_JSON
+                crate::job::shard::format::SHARD_JSON
             )],
             Some(Rendered::Image { report, errors, band }) => {
                 let mut lines = vec![
@@ -299,7 +184,7 @@ impl RenderJob {
     pub fn merge(
         &self,
         ctx: &Context,
-        shards: &[crate::job::shard::Shard],
+        shards: &[crate::job::shard::format::Shard],
         hooks: &mut dyn RenderHooks,
     ) -> Result<RenderRun, RenderError> {
         self.run_from(ctx, hooks, Some(shards))
@@ -324,7 +209,7 @@ impl RenderJob {
         input: Option<(crate::optics::recipe::InputTarget, f64)>,
         walked: Option<(f64, Option<(u64, f64)>)>,
     ) -> Result<(scene::LoadedScene, Settings), RenderError> {
-        super::check_threads(self.threads)?;
+        super::threads::check_threads(self.threads)?;
         if self.spp == Some(0) {
             return Err(RenderError::ZeroSpp);
         }
@@ -432,14 +317,14 @@ impl RenderJob {
         &self,
         ctx: &Context,
         hooks: &mut dyn RenderHooks,
-        merged_from: Option<&[crate::job::shard::Shard]>,
+        merged_from: Option<&[crate::job::shard::format::Shard]>,
     ) -> Result<RenderRun, RenderError> {
         let ctx = &Context { quiet: ctx.quiet || self.quiet };
         let (loaded, mut settings) = self.prepare_as(merged_from.is_some(), None, None)?;
         for w in &loaded.warnings {
             ctx.warn(w);
         }
-        let shard = self.shard.map(crate::job::shard::ShardSpec::pair);
+        let shard = self.shard.map(crate::job::shard::format::ShardSpec::pair);
         if shard.is_some() || merged_from.is_some() {
             shard::check_shardable(&settings)?;
         }
@@ -452,7 +337,13 @@ impl RenderJob {
             && n > settings.spp()
         {
             let units = settings.spp().into();
-            return Err(crate::job::shard::ShardError::TooManyShards { k, n, units, what: "samples per pixel" }.into());
+            return Err(crate::job::shard::format::ShardError::TooManyShards {
+                k,
+                n,
+                units,
+                what: "samples per pixel",
+            }
+            .into());
         }
         let (w, h) = (loaded.scene.camera.width, loaded.scene.camera.height);
         // A merge reads every shard before it writes anything.
@@ -462,7 +353,7 @@ impl RenderJob {
         };
         std::fs::create_dir_all(&self.out)
             .map_err(|source| RenderError::CreateDir { path: self.out.clone(), source })?;
-        let pool = super::worker_pool(self.threads)?;
+        let pool = super::threads::worker_pool(self.threads)?;
         let threads = pool.current_num_threads();
         for line in scene::approximations(&loaded.summary, &settings) {
             ctx.note(&format!("approximation: {line}"));

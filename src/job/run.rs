@@ -6,8 +6,12 @@
 //! returns its typed outputs ([`JobRun`]). The caller watches a render or a
 //! slab simulation through [`Hooks`] (a progress bar).
 
+use super::bssrdf::{NoHooks, SliceHooks};
+use super::context::Context;
+use super::fields::JobError;
 use super::guard::{FileRoleError, OutputFolder};
-use super::{Context, Job, JobError, NoHooks, RenderHooks, SliceHooks};
+use super::render::RenderHooks;
+use super::spec::Job;
 use crate::fault::{Fault, Interrupted};
 use crate::io::{OutputFolderError, WriteError};
 
@@ -34,21 +38,21 @@ impl<'a> Hooks<'a> {
 
 /// What a job produced: the run of its stage (files written, figures), boxed (the runs differ in size).
 pub enum JobRun {
-    Optics(Box<super::OpticsRun>),
-    Bssrdf(Box<super::BssrdfRun>),
-    BssrdfCompare(Box<super::BssrdfCompareRun>),
-    Fit(Box<super::FitRun>),
-    ColourCalibrate(Box<super::ColourCalibrateRun>),
-    ColourApply(Box<super::ColourApplyRun>),
-    RawClipped(Box<super::RawClippedRun>),
-    Calibrate(Box<super::CalibrateRun>),
-    Pose(Box<super::PoseRun>),
-    EnvScale(Box<super::EnvScaleRun>),
-    Render(Box<super::RenderRun>),
-    Compare(Box<super::CompareRun>),
-    SurfaceFit(Box<super::SurfaceFitRun>),
-    EnvMerge(Box<super::EnvMergeRun>),
-    EnvOrient(Box<super::EnvOrientRun>),
+    Optics(Box<super::optics::OpticsRun>),
+    Bssrdf(Box<super::bssrdf::BssrdfRun>),
+    BssrdfCompare(Box<super::bssrdf::BssrdfCompareRun>),
+    Fit(Box<super::fit::FitRun>),
+    ColourCalibrate(Box<super::colour::ColourCalibrateRun>),
+    ColourApply(Box<super::colour::ColourApplyRun>),
+    RawClipped(Box<super::raw::RawClippedRun>),
+    Calibrate(Box<super::camera::CalibrateRun>),
+    Pose(Box<super::camera::PoseRun>),
+    EnvScale(Box<super::env_scale::EnvScaleRun>),
+    Render(Box<super::render::RenderRun>),
+    Compare(Box<super::compare::CompareRun>),
+    SurfaceFit(Box<super::surface_fit::SurfaceFitRun>),
+    EnvMerge(Box<super::env_merge::EnvMergeRun>),
+    EnvOrient(Box<super::env_orient::EnvOrientRun>),
 }
 
 impl JobRun {
@@ -108,40 +112,40 @@ pub enum JobRunError {
     #[error(transparent)]
     Mark(#[from] WriteError),
     #[error(transparent)]
-    Optics(#[from] super::OpticsJobError),
+    Optics(#[from] super::optics::OpticsJobError),
     /// A slab simulation or a comparison of slices (an interrupted one is [`JobRunError::Interrupted`]).
     #[error(transparent)]
-    Bssrdf(super::BssrdfJobError),
+    Bssrdf(super::bssrdf::BssrdfJobError),
     /// A fit (an interrupted one is [`JobRunError::Interrupted`]).
     #[error(transparent)]
-    Fit(super::FitJobError),
+    Fit(super::fit::FitJobError),
     #[error(transparent)]
-    Colour(#[from] super::ColourJobError),
+    Colour(#[from] super::colour::ColourJobError),
     #[error(transparent)]
-    RawClipped(#[from] super::RawClippedError),
+    RawClipped(#[from] super::raw::RawClippedError),
     #[error(transparent)]
-    Camera(#[from] super::CameraJobError),
+    Camera(#[from] super::camera::CameraJobError),
     /// (Boxed, as is a render's: the largest errors.)
     #[error(transparent)]
-    EnvScale(Box<super::EnvScaleJobError>),
+    EnvScale(Box<super::env_scale::EnvScaleJobError>),
     #[error(transparent)]
-    Render(Box<super::RenderError>),
+    Render(Box<super::render::RenderError>),
     #[error(transparent)]
     Compare(#[from] crate::compare::CompareError),
     #[error(transparent)]
-    SurfaceFit(#[from] super::SurfaceFitError),
+    SurfaceFit(#[from] super::surface_fit::SurfaceFitError),
     #[error(transparent)]
-    EnvMerge(#[from] super::EnvMergeError),
+    EnvMerge(#[from] super::env_merge::EnvMergeError),
     #[error(transparent)]
-    EnvOrient(#[from] super::EnvOrientError),
+    EnvOrient(#[from] super::env_orient::EnvOrientError),
     /// Ctrl-C or SIGTERM stopped the stage.
     #[error(transparent)]
     Interrupted(#[from] Interrupted),
 }
 
-impl From<super::BssrdfJobError> for JobRunError {
+impl From<super::bssrdf::BssrdfJobError> for JobRunError {
     /// An interrupted simulation as the [`Interrupted`] it is.
-    fn from(e: super::BssrdfJobError) -> Self {
+    fn from(e: super::bssrdf::BssrdfJobError) -> Self {
         match e.into_parts() {
             Ok(e) => JobRunError::Bssrdf(e),
             Err(i) => JobRunError::Interrupted(i),
@@ -149,9 +153,9 @@ impl From<super::BssrdfJobError> for JobRunError {
     }
 }
 
-impl From<super::FitJobError> for JobRunError {
+impl From<super::fit::FitJobError> for JobRunError {
     /// An interrupted fit as the [`Interrupted`] it is.
-    fn from(e: super::FitJobError) -> Self {
+    fn from(e: super::fit::FitJobError) -> Self {
         match e.into_parts() {
             Ok(e) => JobRunError::Fit(e),
             Err(i) => JobRunError::Interrupted(i),
@@ -159,14 +163,14 @@ impl From<super::FitJobError> for JobRunError {
     }
 }
 
-impl From<super::EnvScaleJobError> for JobRunError {
-    fn from(e: super::EnvScaleJobError) -> Self {
+impl From<super::env_scale::EnvScaleJobError> for JobRunError {
+    fn from(e: super::env_scale::EnvScaleJobError) -> Self {
         JobRunError::EnvScale(Box::new(e))
     }
 }
 
-impl From<super::RenderError> for JobRunError {
-    fn from(e: super::RenderError) -> Self {
+impl From<super::render::RenderError> for JobRunError {
+    fn from(e: super::render::RenderError) -> Self {
         JobRunError::Render(Box::new(e))
     }
 }

@@ -17,7 +17,8 @@
 
 mod section;
 
-use super::{bad, by_name_opt, s, Context, JobError, Line};
+use super::context::Context;
+use super::fields::{bad, by_name_opt, s, JobError, Line};
 use crate::surface::model::RoughnessModel;
 use crate::surface::{
     fit_surface, read_height_map, write_fit_outputs, FitOptions, FitReport, LengthUnit, ReadOptions, SurfaceError,

@@ -5,7 +5,7 @@
 //! holds the same words its command line does.
 //!
 //! Defined here: [`ImageSize`], [`MeasuredSlice`], [`SampleCorner`],
-//! [`SampleSizeMm`]. Elsewhere, with their quantity:
+//! [`SampleSizeMm`], [`ClipLevel`]. Elsewhere, with their quantity:
 //! [`lucent_colour::WavelengthGrid`], [`crate::bssrdf::Configuration`],
 //! [`crate::bssrdf::Configurations`], [`lucent_calib::board::BoardSize`],
 //! [`crate::fit::FreeSpec`] and [`crate::fit::SearchBounds`].
@@ -319,3 +319,86 @@ impl std::fmt::Display for ChartCorners {
 }
 
 serde_as_text!(ChartCorners);
+
+/// `--clip-level`: a pixel with a channel at or above this level (in the
+/// image as stored) is clipped, or no check. A job file spells it as the
+/// command line does: a positive number, or "none".
+///
+/// ```
+/// use lucent::job::ClipLevel;
+/// assert_eq!("none".parse::<ClipLevel>().unwrap().level(), None);
+/// assert_eq!("0.95".parse::<ClipLevel>().unwrap().level(), Some(0.95));
+/// assert!("-1".parse::<ClipLevel>().is_err());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ClipLevel {
+    /// No check.
+    None,
+    /// The level, > 0.
+    At(f64),
+}
+
+/// A `--clip-level` that is neither a positive number nor "none".
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("--clip-level {0:?}: expected a positive number or \"none\"")]
+pub struct BadClipLevel(pub String);
+
+impl ClipLevel {
+    /// The level, `None` for no check.
+    pub fn level(self) -> Option<f64> {
+        match self {
+            ClipLevel::None => None,
+            ClipLevel::At(v) => Some(v),
+        }
+    }
+}
+
+impl Default for ClipLevel {
+    /// [`DEFAULT_CLIP_LEVEL`](crate::job::DEFAULT_CLIP_LEVEL).
+    fn default() -> Self {
+        ClipLevel::At(0.99)
+    }
+}
+
+impl std::str::FromStr for ClipLevel {
+    type Err = BadClipLevel;
+    fn from_str(text: &str) -> Result<Self, BadClipLevel> {
+        if text.trim().eq_ignore_ascii_case("none") {
+            return Ok(ClipLevel::None);
+        }
+        match text.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Ok(ClipLevel::At(v)),
+            _ => Err(BadClipLevel(text.to_string())),
+        }
+    }
+}
+
+serde_as_text!(ClipLevel);
+
+impl std::fmt::Display for ClipLevel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ClipLevel::None => f.write_str("none"),
+            ClipLevel::At(v) => write!(f, "{v}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clip_levels() {
+        assert_eq!("none".parse::<ClipLevel>().unwrap(), ClipLevel::None);
+        assert_eq!("0.95".parse::<ClipLevel>().unwrap(), ClipLevel::At(0.95));
+        assert!("-1".parse::<ClipLevel>().is_err());
+        assert!("x".parse::<ClipLevel>().is_err());
+        // A job file spells it as the command line does.
+        assert_eq!(
+            serde_json::to_string(&ClipLevel::default()).unwrap(),
+            format!("\"{}\"", crate::job::DEFAULT_CLIP_LEVEL)
+        );
+        assert!(serde_json::from_str::<ClipLevel>("\"0\"").is_err());
+    }
+}

@@ -5,9 +5,11 @@
 //! recipe's uncertain inputs, and per configuration the directions, the
 //! estimator and the run options — all checked before any work.
 
-use super::{BssrdfJobError as E, EstimatorChoice};
+use super::error::BssrdfJobError as E;
 use crate::bssrdf::{self, OpticalUsed};
-use crate::job::{BssrdfJob, Context};
+use crate::job::context::Context;
+use crate::job::spec::BssrdfJob;
+use crate::job::spec::EstimatorChoice;
 use crate::optics::recipe::{Overrides, Recipe};
 use crate::optics::{bulk, PhaseModel};
 use lucent_render::phase::{Phase, PhaseTable};

@@ -3,10 +3,12 @@
 //! (`slice-I.acc` per configuration, shard.json); the merge reads them back
 //! and adds them in shard order.
 
-use super::{BssrdfJobError as E, BssrdfRun, PlannedRun};
+use super::error::BssrdfJobError as E;
+use super::outcome::BssrdfRun;
+use super::plan::PlannedRun;
 use crate::fault::Interrupted;
 use crate::interrupt::Interrupt;
-use crate::job::BssrdfJob;
+use crate::job::spec::BssrdfJob;
 use lucent_render::slab;
 use std::path::Path;
 
@@ -20,16 +22,16 @@ fn shard_acc(i: usize) -> String {
 }
 
 /// A shard's tallies of one configuration as written by [`write_slice_shard`].
-fn read_slice_shard(path: &Path, npix: usize) -> Result<crate::job::shard::Arrays, E> {
-    let arrays = crate::job::shard::read_accumulator(path)?;
+fn read_slice_shard(path: &Path, npix: usize) -> Result<crate::job::shard::format::Arrays, E> {
+    let arrays = crate::job::shard::format::read_accumulator(path)?;
     for name in ["sum_b", "sq_b", "raw"] {
-        crate::job::shard::array(&arrays, name, npix, path)?;
+        crate::job::shard::format::array(&arrays, name, npix, path)?;
     }
-    crate::job::shard::array(&arrays, "scalars", SHARD_SCALARS.len(), path)?;
+    crate::job::shard::format::array(&arrays, "scalars", SHARD_SCALARS.len(), path)?;
     Ok(arrays)
 }
 
-fn write_slice_shard(path: &Path, meta: &crate::job::shard::AccMeta, t: &slab::SliceSums) -> Result<(), E> {
+fn write_slice_shard(path: &Path, meta: &crate::job::shard::format::AccMeta, t: &slab::SliceSums) -> Result<(), E> {
     let scalars = [
         t.path_sum,
         t.path_sq,
@@ -40,7 +42,7 @@ fn write_slice_shard(path: &Path, meta: &crate::job::shard::AccMeta, t: &slab::S
         t.paths as f64,
         t.wall_s,
     ];
-    crate::job::shard::write_shard_accumulator(
+    crate::job::shard::format::write_shard_accumulator(
         path,
         meta,
         &[("sum_b", &t.sum_b), ("sq_b", &t.sq_b), ("raw", &t.raw), ("scalars", &scalars)],
@@ -49,7 +51,7 @@ fn write_slice_shard(path: &Path, meta: &crate::job::shard::AccMeta, t: &slab::S
 }
 
 /// `empty` with the tallies of a shard's arrays (read by [`read_slice_shard`]).
-pub(super) fn slice_sums_of(empty: &slab::SliceSums, arrays: &crate::job::shard::Arrays) -> slab::SliceSums {
+pub(super) fn slice_sums_of(empty: &slab::SliceSums, arrays: &crate::job::shard::format::Arrays) -> slab::SliceSums {
     let get = |name: &str| arrays.iter().find(|(n, _)| n == name).map(|(_, v)| v.clone()).unwrap_or_default();
     let sc = get("scalars");
     let at = |k: usize| sc.get(k).copied().unwrap_or(0.0);
@@ -73,16 +75,16 @@ pub(super) fn slice_sums_of(empty: &slab::SliceSums, arrays: &crate::job::shard:
 /// `configs`, slices of `out_pixels` per side), each shard checked to hold
 /// its range of the `total_batches`.
 pub(super) fn read_merged_tallies(
-    shards: &[crate::job::shard::Shard],
+    shards: &[crate::job::shard::format::Shard],
     configs: usize,
     out_pixels: usize,
     total_batches: u64,
-) -> Result<Vec<Vec<crate::job::shard::Arrays>>, E> {
+) -> Result<Vec<Vec<crate::job::shard::format::Arrays>>, E> {
     shards
         .iter()
         .map(|s| {
             let k = s.file.shard;
-            let expected = crate::job::shard::range(total_batches, k, s.file.identity.shards);
+            let expected = crate::job::shard::format::range(total_batches, k, s.file.identity.shards);
             if s.file.range != [expected.start, expected.end] {
                 return Err(E::Refused(format!(
                     "{}: shard {k} holds batches {:?}, the run's shard {k} is {expected:?}",
@@ -107,10 +109,11 @@ impl BssrdfJob {
         (k, n): (u32, u32),
         total_batches: u64,
     ) -> Result<BssrdfRun, E> {
-        let range = crate::job::shard::range(total_batches, k, n);
+        let range = crate::job::shard::format::range(total_batches, k, n);
         let paths = self.paths.unwrap_or(0);
-        let identity = crate::job::Job::Bssrdf(self.clone()).shard_identity(self.seed, format!("{paths} paths"), n)?;
-        crate::job::shard::check_shard_out(&self.out, &identity, k)?;
+        let identity =
+            crate::job::spec::Job::Bssrdf(self.clone()).shard_identity(self.seed, format!("{paths} paths"), n)?;
+        crate::job::shard::format::check_shard_out(&self.out, &identity, k)?;
         // A second Ctrl-C or SIGTERM ends the process: the staging folder goes with it.
         let _remove_on_abort = crate::interrupt::remove_on_abort(&crate::io::StagedDir::staging_path(&self.out));
         let stage = crate::io::StagedDir::new(&self.out)?;
@@ -125,12 +128,12 @@ impl BssrdfJob {
                 );
             }
             wall_s += t.wall_s;
-            let meta = crate::job::shard::AccMeta::new(&identity, k, &range, &Default::default());
+            let meta = crate::job::shard::format::AccMeta::new(&identity, k, &range, &Default::default());
             write_slice_shard(&stage.path().join(shard_acc(i)), &meta, &t)?;
             accumulators.push(shard_acc(i));
         }
         drop(interrupt);
-        let file = crate::job::shard::ShardFile {
+        let file = crate::job::shard::format::ShardFile {
             identity,
             shard: k,
             range: [range.start, range.end],
@@ -138,10 +141,12 @@ impl BssrdfJob {
             counters: Default::default(),
             wall_s,
         };
-        crate::io::write_json(&stage.path().join(crate::job::shard::SHARD_JSON), &file)?;
+        crate::io::write_json(&stage.path().join(crate::job::shard::format::SHARD_JSON), &file)?;
         // Another shard may have finished into the same folder meanwhile.
-        crate::job::shard::check_shard_out(&self.out, &file.identity, k)?;
-        stage.commit(|n| n == crate::job::shard::SHARD_JSON || (n.starts_with("slice-") && n.ends_with(".acc")))?;
+        crate::job::shard::format::check_shard_out(&self.out, &file.identity, k)?;
+        stage.commit(|n| {
+            n == crate::job::shard::format::SHARD_JSON || (n.starts_with("slice-") && n.ends_with(".acc"))
+        })?;
         let line = format!(
             "shard {k}/{n}: path batches {}..{} of {total_batches} in {wall_s:.1} s → {}",
             range.start,

@@ -14,9 +14,10 @@
 //! the unsharded run (the same values, summarised by the same code in the
 //! same order).
 
-use super::{Context, OpticsJobError as E};
+use super::error::OpticsJobError as E;
 use crate::fault::Interrupted;
-use crate::job::OpticsJob;
+use crate::job::context::Context;
+use crate::job::spec::OpticsJob;
 use crate::optics::recipe::Recipe;
 use crate::optics::uncertainty::{self, Draws, Uncertainty};
 use std::path::{Path, PathBuf};
@@ -91,24 +92,24 @@ fn merged_draws(
     recipe: &Recipe,
     wavelengths: usize,
     design: &[Vec<f64>],
-    shards: &[crate::job::shard::Shard],
+    shards: &[crate::job::shard::format::Shard],
 ) -> Result<Draws, E> {
     let n = design.len();
     let dims = recipe.uncertain.len();
     let mut all = Draws::empty(0, wavelengths);
     for s in shards {
         let k = s.file.shard;
-        let expected = crate::job::shard::range(n as u64, k, s.file.identity.shards);
+        let expected = crate::job::shard::format::range(n as u64, k, s.file.identity.shards);
         if s.file.range != [expected.start, expected.end] {
             return Err(E::ShardRange { dir: s.dir.clone(), k, held: s.file.range, expected });
         }
         let range = expected.start as usize..expected.end as usize;
         let path = s.dir.join(uncertainty_acc(&recipe.name));
-        let arrays = crate::job::shard::read_accumulator(&path)?;
+        let arrays = crate::job::shard::format::read_accumulator(&path)?;
         let rows = design[range.clone()].concat();
-        let got = crate::job::shard::array(&arrays, "draws", rows.len(), &path)?;
+        let got = crate::job::shard::format::array(&arrays, "draws", rows.len(), &path)?;
         if let Some(i) = got.iter().zip(&rows).position(|(a, b)| a.to_bits() != b.to_bits()) {
-            return Err(crate::job::shard::ShardError::Corrupt {
+            return Err(crate::job::shard::format::ShardError::Corrupt {
                 path,
                 why: format!(
                     "draw {} has input values {:?}, the run's Latin-hypercube design has {:?}",
@@ -121,7 +122,7 @@ fn merged_draws(
         }
         let mut values: [Vec<f64>; 4] = Default::default();
         for (v, name) in values.iter_mut().zip(Draws::PROPERTIES) {
-            *v = crate::job::shard::array(&arrays, name, range.len() * wavelengths, &path)?.to_vec();
+            *v = crate::job::shard::format::array(&arrays, name, range.len() * wavelengths, &path)?.to_vec();
         }
         all.append(&Draws { range, wavelengths, values }).map_err(|why| E::Draws { path, why })?;
     }
@@ -142,17 +143,25 @@ impl OpticsJob {
     /// Writes the uncertainty study whose shards these are (`lucent
     /// merge`): their draws put together in draw order and summarised, bit
     /// for bit what the unsharded study writes.
-    pub fn merge_uncertainty(&self, ctx: &Context, shards: &[crate::job::shard::Shard]) -> Result<UncertaintyRun, E> {
+    pub fn merge_uncertainty(
+        &self,
+        ctx: &Context,
+        shards: &[crate::job::shard::format::Shard],
+    ) -> Result<UncertaintyRun, E> {
         self.study(ctx, Some(shards))
     }
 
-    fn study(&self, ctx: &Context, merged_from: Option<&[crate::job::shard::Shard]>) -> Result<UncertaintyRun, E> {
+    fn study(
+        &self,
+        ctx: &Context,
+        merged_from: Option<&[crate::job::shard::format::Shard]>,
+    ) -> Result<UncertaintyRun, E> {
         let n = self.uncertainty.ok_or(E::NoStudy)?;
         let seed = self.uncertainty_seed;
         let grid = self.checked_grid(false)?;
         let recipes = self.load_recipes(ctx)?;
-        let out = self.out.clone().unwrap_or_else(|| PathBuf::from(crate::job::DEFAULT_OPTICS_OUT));
-        if let Some((k, shards)) = self.shard.map(crate::job::shard::ShardSpec::pair) {
+        let out = self.out.clone().unwrap_or_else(|| PathBuf::from(crate::job::spec::DEFAULT_OPTICS_OUT));
+        if let Some((k, shards)) = self.shard.map(crate::job::shard::format::ShardSpec::pair) {
             let line = self.study_shard(&recipes, &grid, n, (k, shards), &out)?;
             return Ok(UncertaintyRun { out, results: Vec::new(), shard: Some(line) });
         }
@@ -228,13 +237,18 @@ impl OpticsJob {
         let seed = self.uncertainty_seed;
         let start = std::time::Instant::now();
         if u64::from(shards) > n as u64 {
-            return Err(
-                crate::job::shard::ShardError::TooManyShards { k, n: shards, units: n as u64, what: "draws" }.into()
-            );
+            return Err(crate::job::shard::format::ShardError::TooManyShards {
+                k,
+                n: shards,
+                units: n as u64,
+                what: "draws",
+            }
+            .into());
         }
-        let identity = crate::job::Job::Optics(self.clone()).shard_identity(seed, format!("{n} draws"), shards)?;
-        crate::job::shard::check_shard_out(out, &identity, k)?;
-        let range = crate::job::shard::range(n as u64, k, shards);
+        let identity =
+            crate::job::spec::Job::Optics(self.clone()).shard_identity(seed, format!("{n} draws"), shards)?;
+        crate::job::shard::format::check_shard_out(out, &identity, k)?;
+        let range = crate::job::shard::format::range(n as u64, k, shards);
         let r = range.start as usize..range.end as usize;
         let mut parts = Vec::new();
         for recipe in recipes {
@@ -245,16 +259,16 @@ impl OpticsJob {
         let mut accumulators = Vec::new();
         let counters: std::collections::BTreeMap<String, u64> =
             [("draws".to_string(), range.end - range.start)].into_iter().collect();
-        let meta = crate::job::shard::AccMeta::new(&identity, k, &range, &counters);
+        let meta = crate::job::shard::format::AccMeta::new(&identity, k, &range, &counters);
         for (sample, rows, draws) in &parts {
             let name = uncertainty_acc(sample);
             let values = std::iter::once(rows.as_slice()).chain(draws.values.iter().map(Vec::as_slice));
             let arrays: Vec<(&str, &[f64])> = uncertainty_arrays().into_iter().zip(values).collect();
-            crate::job::shard::write_shard_accumulator(&out.join(&name), &meta, &arrays)?;
+            crate::job::shard::format::write_shard_accumulator(&out.join(&name), &meta, &arrays)?;
             accumulators.push(name);
         }
         let wall_s = start.elapsed().as_secs_f64();
-        let file = crate::job::shard::ShardFile {
+        let file = crate::job::shard::format::ShardFile {
             identity,
             shard: k,
             range: [range.start, range.end],
@@ -263,15 +277,15 @@ impl OpticsJob {
             wall_s,
         };
         // Another shard may have finished into the same folder meanwhile.
-        crate::job::shard::check_shard_out(out, &file.identity, k)?;
-        crate::io::write_json(&out.join(crate::job::shard::SHARD_JSON), &file)?;
+        crate::job::shard::format::check_shard_out(out, &file.identity, k)?;
+        crate::io::write_json(&out.join(crate::job::shard::format::SHARD_JSON), &file)?;
         Ok(format!(
             "shard {k}/{shards}: draws {}..{} of {n} in {wall_s:.1} s → {}/{{{}, {}}}",
             range.start,
             range.end,
             out.display(),
             file.accumulators.join(", "),
-            crate::job::shard::SHARD_JSON
+            crate::job::shard::format::SHARD_JSON
         ))
     }
 }

@@ -5,9 +5,10 @@
 //! ([`RenderJob::band_of`]); the band ([`scene::band::render_band`]) is
 //! each region's mean with its standard deviation from the inputs.
 
-use super::{RenderError, RenderJob};
+use super::error::{BandError, RenderError};
 use crate::fault::Interrupted;
-use crate::job::Context;
+use crate::job::context::Context;
+use crate::job::spec::RenderJob;
 use crate::scene;
 use lucent_render::tracer::{self, Image, Settings};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -19,12 +20,6 @@ pub struct Uncertain {
     /// leaves out (relative), or `None`: rendered at ±1 σ.
     pub path_derivatives: Vec<Option<(usize, f64)>>,
 }
-
-/// Why the band of a render was not computed: a [`RenderError`] (the scene
-/// at ±1 σ), or the renders at ±1 σ stopped by Ctrl-C or SIGTERM
-/// ([`Interrupted`], kept as itself so that the run is classed as
-/// interrupted).
-pub type BandError = Box<dyn std::error::Error + Send + Sync>;
 
 /// The largest relative change of the phase functions and indices between
 /// an input's ±1 σ that its path derivative may leave out (a weight

@@ -4,7 +4,7 @@
 //! [`errors_report`], [`spp_by_region`]) and, with `--uncertainty`, the
 //! band's uncertainty.json, band.exr and band.png ([`write_band`]).
 
-use super::RenderError;
+use super::error::RenderError;
 use crate::imageio::{self, RgbImage};
 use crate::scene::{self, RenderReport, SceneSummary};
 use lucent_render::tracer::{self, Image, Settings, Stats};

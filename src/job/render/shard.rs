@@ -3,9 +3,11 @@
 //! ([`SHARD_ACC`], shard.json); a merge adds the N shards' sums in shard
 //! order into the image the unsharded run renders ([`merged`]).
 
-use super::{RenderError, RenderJob, RenderRun, Rendered};
+use super::error::RenderError;
+use super::outcome::{RenderRun, Rendered};
 use crate::fault::Interrupted;
 use crate::interrupt::Interrupt;
+use crate::job::spec::RenderJob;
 use crate::scene;
 use lucent_render::tracer::{self, Condition, Image, NotSplittable, Settings, Stats};
 use std::path::Path;
@@ -39,7 +41,7 @@ pub(super) fn check_shardable(settings: &Settings) -> Result<(), RenderError> {
 
 /// The merged sums of a render's shards (added in shard order) and their counters.
 pub(super) fn merged(
-    shards: &[crate::job::shard::Shard],
+    shards: &[crate::job::shard::format::Shard],
     settings: &Settings,
     w: usize,
     h: usize,
@@ -49,13 +51,13 @@ pub(super) fn merged(
     let mut stats = Stats::default();
     for s in shards {
         let k = s.file.shard;
-        let expected = crate::job::shard::range(u64::from(settings.spp()), k, s.file.identity.shards);
+        let expected = crate::job::shard::format::range(u64::from(settings.spp()), k, s.file.identity.shards);
         if s.file.range != [expected.start, expected.end] {
             return Err(RenderError::ShardRange { dir: s.dir.clone(), k, held: s.file.range, expected });
         }
         let path = s.dir.join(SHARD_ACC);
-        let arrays = crate::job::shard::read_accumulator(&path)?;
-        let get = |name: &str, len: usize| crate::job::shard::array(&arrays, name, len, &path);
+        let arrays = crate::job::shard::format::read_accumulator(&path)?;
+        let get = |name: &str, len: usize| crate::job::shard::format::array(&arrays, name, len, &path);
         let (sum, sq, even) = (get("sum", 3 * n)?, get("sum_sq", 3 * n)?, get("sum_even", 3 * n)?);
         let (samples, object, board) = (get("samples", n)?, get("object_samples", n)?, get("board_samples", n)?);
         let count = (expected.end - expected.start) as f64;
@@ -90,7 +92,7 @@ fn write_shard(
     out: &Path,
     acc: &tracer::Accumulator,
     stats: &Stats,
-    identity: crate::job::shard::Identity,
+    identity: crate::job::shard::format::Identity,
     k: u32,
     range: std::ops::Range<u64>,
 ) -> Result<(), RenderError> {
@@ -109,9 +111,9 @@ fn write_shard(
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
     .collect();
-    crate::job::shard::write_shard_accumulator(
+    crate::job::shard::format::write_shard_accumulator(
         &out.join(SHARD_ACC),
-        &crate::job::shard::AccMeta::new(&identity, k, &range, &counters),
+        &crate::job::shard::format::AccMeta::new(&identity, k, &range, &counters),
         &[
             ("sum", &sum),
             ("sum_sq", &sq),
@@ -121,7 +123,7 @@ fn write_shard(
             ("board_samples", &board),
         ],
     )?;
-    let file = crate::job::shard::ShardFile {
+    let file = crate::job::shard::format::ShardFile {
         identity,
         shard: k,
         range: [range.start, range.end],
@@ -129,7 +131,7 @@ fn write_shard(
         counters,
         wall_s: stats.wall_s,
     };
-    crate::io::write_json(&out.join(crate::job::shard::SHARD_JSON), &file)?;
+    crate::io::write_json(&out.join(crate::job::shard::format::SHARD_JSON), &file)?;
     Ok(())
 }
 
@@ -145,10 +147,10 @@ impl RenderJob {
         pool: &rayon::ThreadPool,
         (k, n): (u32, u32),
     ) -> Result<RenderRun, RenderError> {
-        let range = crate::job::shard::range(u64::from(settings.spp()), k, n);
-        let job = crate::job::Job::Render(self.clone());
+        let range = crate::job::shard::format::range(u64::from(settings.spp()), k, n);
+        let job = crate::job::spec::Job::Render(self.clone());
         let identity = job.shard_identity(settings.seed, format!("{} spp", settings.spp()), n)?;
-        crate::job::shard::check_shard_out(&self.out, &identity, k)?;
+        crate::job::shard::format::check_shard_out(&self.out, &identity, k)?;
         let interrupt = Interrupt::install();
         let (acc, stats) = pool.install(|| {
             tracer::render_samples(
@@ -169,7 +171,7 @@ impl RenderJob {
         }
         drop(interrupt);
         // Another shard may have finished into the same folder meanwhile.
-        crate::job::shard::check_shard_out(&self.out, &identity, k)?;
+        crate::job::shard::format::check_shard_out(&self.out, &identity, k)?;
         write_shard(&self.out, &acc, &stats, identity, k, range.clone())?;
         Ok(RenderRun {
             out: self.out.clone(),

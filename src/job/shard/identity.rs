@@ -5,7 +5,7 @@
 //! [`Identity`] its `shard.json` holds).
 
 use super::format::{Identity, ShardError};
-use crate::job::Job;
+use crate::job::spec::Job;
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 

@@ -7,8 +7,11 @@
 //! [`merge`].
 
 use super::format::{self as shard, Shard, ShardError};
+use crate::job::bssrdf::{BssrdfJobError, BssrdfRun};
+use crate::job::context::Context;
 use crate::job::optics::{OpticsJobError, UncertaintyRun};
-use crate::job::{BssrdfJob, BssrdfJobError, BssrdfRun, Context, Job, OpticsJob, RenderError, RenderHooks, RenderRun};
+use crate::job::render::{RenderError, RenderHooks, RenderRun};
+use crate::job::spec::{BssrdfJob, Job, OpticsJob, RenderJob};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
@@ -26,7 +29,7 @@ pub enum MergeError {
     #[error("{}: the input files of its `lucent {command}` job changed since the shards were made; rerun the shards", json.display())]
     InputsChanged { json: PathBuf, command: String },
     #[error("{}: {source}", json.display())]
-    Invalid { json: PathBuf, source: crate::job::JobError },
+    Invalid { json: PathBuf, source: crate::job::fields::JobError },
     #[error("{}: `lucent {command}` is not a job with shards", dir.display())]
     NotSharded { dir: PathBuf, command: String },
     #[error(transparent)]
@@ -90,7 +93,7 @@ pub fn load_for_merge(dirs: &[PathBuf], out: &Path) -> Result<(Job, Vec<Shard>),
         return Err(MergeError::InputsChanged { json, command: id.command.clone() });
     }
     let job = match id.job.clone() {
-        Job::Render(r) => Job::Render(crate::job::RenderJob { out, quiet: true, shard: None, ..r }),
+        Job::Render(r) => Job::Render(RenderJob { out, quiet: true, shard: None, ..r }),
         Job::Bssrdf(b) => Job::Bssrdf(BssrdfJob { out, quiet: true, shard: None, ..b }),
         Job::Optics(o) if o.uncertainty.is_some() => Job::Optics(OpticsJob { out: Some(out), shard: None, ..o }),
         other => {

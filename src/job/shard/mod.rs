@@ -40,6 +40,7 @@
 pub mod format;
 pub mod identity;
 pub mod merge;
+pub mod split;
 
 pub use format::*;
 pub use identity::{recipe_inputs, scene_inputs};
