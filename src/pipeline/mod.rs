@@ -1483,6 +1483,8 @@ mod tests {
         assert!(k(Stage::Optics) < k(Stage::Surface) && k(Stage::Surface) < k(Stage::Bssrdf));
         assert_eq!(Stage::Bssrdf.depends_on(), &[Stage::Surface]);
         assert!(Stage::Report.depends_on().contains(&Stage::Surface));
+        // The report reads every stage before it, in their order (its key's upstream).
+        assert_eq!(Stage::Report.depends_on(), &Stage::ALL[..Stage::ALL.len() - 1]);
         assert_eq!(Stage::from_name("surface").unwrap(), Stage::Surface);
     }
 

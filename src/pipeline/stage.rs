@@ -38,6 +38,12 @@ impl Stage {
         Stage::Report,
     ];
 
+    /// Every stage before the report (which reads them all).
+    const BEFORE_REPORT: &'static [Stage] = match Self::ALL.split_last() {
+        Some((_, before)) => before,
+        None => &[],
+    };
+
     /// The stage's name (also its folder).
     pub fn name(self) -> &'static str {
         match self {
@@ -71,19 +77,7 @@ impl Stage {
             Stage::EnvScale => &[Stage::Pose, Stage::Develop],
             Stage::Render => &[Stage::EnvScale, Stage::Pose, Stage::Fit],
             Stage::Compare => &[Stage::Render, Stage::Develop],
-            Stage::Report => &[
-                Stage::Optics,
-                Stage::Surface,
-                Stage::Bssrdf,
-                Stage::Fit,
-                Stage::Calibrate,
-                Stage::Colour,
-                Stage::Develop,
-                Stage::Pose,
-                Stage::EnvScale,
-                Stage::Render,
-                Stage::Compare,
-            ],
+            Stage::Report => Self::BEFORE_REPORT,
         }
     }
 }
