@@ -134,14 +134,40 @@ fn path_declarations(code: &str) -> Vec<(String, String)> {
             }
         }
         let Some(rest) = rest.trim_start().strip_prefix("mod") else { continue };
-        if !rest.starts_with(char::is_whitespace) {
+        if let Some((name, after)) = module_name(rest)
+            && after.starts_with(';')
+        {
+            out.push((file.to_string(), name.to_string()));
+        }
+    }
+    out
+}
+
+/// After the keyword `mod`: the module's name and the text after it
+/// (trimmed), when whitespace and a name follow.
+fn module_name(after_mod: &str) -> Option<(&str, &str)> {
+    if !after_mod.starts_with(char::is_whitespace) {
+        return None;
+    }
+    let rest = after_mod.trim_start();
+    let end = rest.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(rest.len());
+    (end > 0).then(|| (&rest[..end], rest[end..].trim_start()))
+}
+
+/// Each `mod NAME` in `code` (the word `mod`, not the end of another
+/// word): the name and the text after it (trimmed), a declaration from a
+/// file of its own when that starts with `;`, an inline module when `{`.
+fn mod_items(code: &str) -> Vec<(&str, &str)> {
+    let bytes = code.as_bytes();
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(i) = code[from..].find("mod") {
+        let at = from + i;
+        from = at + "mod".len();
+        if at > 0 && (bytes[at - 1].is_ascii_alphanumeric() || bytes[at - 1] == b'_') {
             continue;
         }
-        let rest = rest.trim_start();
-        let end = rest.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(rest.len());
-        if end > 0 && rest[end..].trim_start().starts_with(';') {
-            out.push((file.to_string(), rest[..end].to_string()));
-        }
+        out.extend(module_name(&code[from..]));
     }
     out
 }
@@ -150,27 +176,11 @@ fn path_declarations(code: &str) -> Vec<(String, String)> {
 /// `pub mod x;`, `pub(crate) mod x;`, with or without a `#[path]`): those
 /// its code may name by their bare names.
 fn children(module: &str, code: &str, known: &BTreeMap<String, String>) -> BTreeSet<String> {
-    let mut out = BTreeSet::new();
-    let bytes = code.as_bytes();
-    let mut from = 0;
-    while let Some(i) = code[from..].find("mod") {
-        let at = from + i;
-        from = at + "mod".len();
-        if at > 0 && (bytes[at - 1].is_ascii_alphanumeric() || bytes[at - 1] == b'_') {
-            continue;
-        }
-        let rest = &code[from..];
-        if !rest.starts_with(char::is_whitespace) {
-            continue;
-        }
-        let rest = rest.trim_start();
-        let end = rest.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(rest.len());
-        let name = &rest[..end];
-        if end > 0 && rest[end..].trim_start().starts_with(';') && known.contains_key(&child_of(module, name)) {
-            out.insert(name.to_string());
-        }
-    }
-    out
+    mod_items(code)
+        .into_iter()
+        .filter(|(name, after)| after.starts_with(';') && known.contains_key(&child_of(module, name)))
+        .map(|(name, _)| name.to_string())
+        .collect()
 }
 
 /// A source file without its comments and its test modules
@@ -274,30 +284,14 @@ fn block_end(code: &str, open: usize) -> Option<usize> {
 /// `super::` is the file's module, and the file's children are not in
 /// scope by their bare names.
 fn inline_modules(code: &str) -> Vec<std::ops::Range<usize>> {
-    let bytes = code.as_bytes();
-    let mut out = Vec::new();
-    let mut from = 0;
-    while let Some(i) = code[from..].find("mod") {
-        let at = from + i;
-        from = at + "mod".len();
-        if at > 0 && (bytes[at - 1].is_ascii_alphanumeric() || bytes[at - 1] == b'_') {
-            continue;
-        }
-        let rest = &code[from..];
-        if !rest.starts_with(char::is_whitespace) {
-            continue;
-        }
-        let name = rest.trim_start();
-        let end = name.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(name.len());
-        let after = name[end..].trim_start();
-        if end > 0 && after.starts_with('{') {
+    mod_items(code)
+        .into_iter()
+        .filter(|(_, after)| after.starts_with('{'))
+        .filter_map(|(_, after)| {
             let open = code.len() - after.len();
-            if let Some(close) = block_end(code, open) {
-                out.push(open..close);
-            }
-        }
-    }
-    out
+            block_end(code, open).map(|close| open..close)
+        })
+        .collect()
 }
 
 /// Whether a string literal after `code` holds a path to code: `code`
