@@ -6,7 +6,7 @@
 use super::{bssrdf, render};
 use crate::job::run::{Hooks, JobRunError};
 use crate::job::{Context, Job, JobError};
-use crate::pipeline::report::ReportJob;
+use crate::pipeline::report::{ReportFiles, ReportJob};
 
 /// Runs a job in this process as its command runs it, for `lucent job run`
 /// and the stages of `lucent run`: [`Job::run_with`] with the terminal's
@@ -158,10 +158,15 @@ pub fn read_job(path: &std::path::Path) -> Result<JobFile, JobFileError> {
 /// Runs a report job as `lucent report` does: the report written, its
 /// files printed.
 pub fn run_report(job: &ReportJob) -> anyhow::Result<()> {
-    let files = job.run()?;
+    print_report(&job.run()?);
+    Ok(())
+}
+
+/// The lines that name a written report (`lucent run`, `lucent report`,
+/// `lucent job run`).
+pub fn print_report(files: &ReportFiles) {
     println!("report: {}", files.html.display());
     println!("metrics: {}", files.metrics.display());
-    Ok(())
 }
 
 /// Runs `lucent job …`.

@@ -21,24 +21,21 @@ pub struct ReportArgs {
     pub out: Option<PathBuf>,
 }
 
-/// The job of `lucent report`, the project read for its default folders.
-pub fn job(a: &ReportArgs) -> Result<(ReportJob, Project)> {
+/// The job of `lucent report`: its folders from the flags, else as
+/// `lucent run` chooses them (the project read for its defaults).
+pub fn job(a: &ReportArgs) -> Result<ReportJob> {
     let project = Project::load(&a.project)?;
-    let run = a.run.clone().or(project.out.clone()).unwrap_or_else(|| PathBuf::from("lucent-out").join(&project.name));
+    let run = project.run_folder(a.run.as_deref());
     let out = a.out.clone().unwrap_or_else(|| run.join(crate::pipeline::Stage::Report.name()));
-    let job = ReportJob { project: a.project.clone(), run, out, stages: Default::default() };
-    job.validate()?;
-    Ok((job, project))
+    Ok(ReportJob { project: a.project.clone(), run, out, stages: Default::default() })
 }
 
 /// Runs `lucent report`.
 pub fn run(a: ReportArgs) -> Result<()> {
-    let (job, project) = job(&a)?;
+    let job = job(&a)?;
+    job.validate()?;
     if !job.run.is_dir() {
         anyhow::bail!("--run {}: no such folder (run `lucent run {}` first)", job.run.display(), a.project.display());
     }
-    let files = job.run_on(&project)?;
-    println!("report: {}", files.html.display());
-    println!("metrics: {}", files.metrics.display());
-    Ok(())
+    super::job_run::run_report(&job)
 }

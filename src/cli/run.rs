@@ -270,7 +270,7 @@ pub fn run(a: RunArgs) -> Result<()> {
     let project = Project::load(&a.project)?;
     let force: Vec<Stage> = a.force.iter().flat_map(|f| f.stages()).collect();
     let until: Option<Stage> = a.until.map(|u| u.0);
-    let out = a.out.clone().or(project.out.clone()).unwrap_or_else(|| PathBuf::from("lucent-out").join(&project.name));
+    let out = project.run_folder(a.out.as_deref());
     // Stages write paths into files they hand to later stages (scene files
     // resolve paths relative to themselves), so the folder must be absolute.
     let out =
@@ -360,10 +360,9 @@ pub fn run(a: RunArgs) -> Result<()> {
     match result {
         Ok(_) => {
             println!("done in {:.1} s", total.elapsed().as_secs_f64());
-            let index = out.join("report/index.html");
-            if index.is_file() {
-                println!("report: {}", index.display());
-                println!("metrics: {}", out.join("report/metrics.json").display());
+            let report = crate::pipeline::report::ReportFiles::in_dir(&out.join(Stage::Report.name()));
+            if report.html.is_file() {
+                super::job_run::print_report(&report);
             }
             Ok(())
         }

@@ -577,6 +577,15 @@ fn job_problems(file: &ProjectFile) -> Vec<(String, String)> {
 }
 
 impl Project {
+    /// The run's output folder: `given` (`--out`, `--run`), else the file's
+    /// `[project] out`, else lucent-out/NAME.
+    pub fn run_folder(&self, given: Option<&Path>) -> PathBuf {
+        given
+            .map(Path::to_path_buf)
+            .or_else(|| self.out.clone())
+            .unwrap_or_else(|| PathBuf::from("lucent-out").join(&self.name))
+    }
+
     /// Reads and validates a project file.
     pub fn load(path: &Path) -> Result<Project, ProjectError> {
         let text =

@@ -200,9 +200,9 @@ impl ReportJob {
         Ok(())
     }
 
-    /// Reads the project and writes the report ([`ReportJob::run_on`]).
+    /// Reads the project and writes the report ([`ReportJob::run_on`],
+    /// which checks the job first).
     pub fn run(&self) -> Result<ReportFiles, ReportJobError> {
-        self.validate()?;
         let project = Project::load(&self.project)?;
         self.run_on(&project)
     }
